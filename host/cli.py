@@ -1,0 +1,83 @@
+"""The ``gaitlog`` command line.
+
+One module per subcommand lives in ``host/commands/``; each defines
+
+- ``HELP: str`` -- the one-line help shown by ``gaitlog --help``;
+- ``configure(parser: argparse.ArgumentParser) -> None`` -- adds its arguments;
+- ``run(args: argparse.Namespace) -> int`` -- does the work and returns the exit code.
+
+Subcommand modules import only the standard library at module level (heavy libraries are imported inside
+``run``) so that ``gaitlog --help`` and the start-up of every command stay fast.
+
+Exit codes: 0 success, 1 data / I/O / protocol / device error (message on stderr, no partial output),
+2 usage error (argparse), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+import host.commands
+
+#: Order of subcommands in ``gaitlog --help``; modules found but not listed here come after, sorted.
+_ORDER = (
+    "demo", "record", "serve", "dump", "decode", "info", "calibrate", "estimate", "calibrate_k",
+    "evaluate", "compare", "kinematics",
+)
+
+
+def _command_modules() -> list[str]:
+    found = {m.name for m in pkgutil.iter_modules(host.commands.__path__) if not m.name.startswith("_")}
+    return [n for n in _ORDER if n in found] + sorted(found.difference(_ORDER))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the ``gaitlog`` argument parser with every subcommand registered."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        dist_version = version("gaitlog")
+    except PackageNotFoundError:  # running from a source tree
+        dist_version = "unknown"
+    parser = argparse.ArgumentParser(
+        prog="gaitlog",
+        description="Emulate, dump, decode, calibrate and analyse the PIC16F877 + ADXL202 gait logger.",
+    )
+    parser.add_argument("--version", action="version", version=f"gaitlog {dist_version}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in _command_modules():
+        module = importlib.import_module(f"host.commands.{name}")
+        cmd = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.HELP)
+        module.configure(cmd)
+        cmd.set_defaults(_run=module.run)
+    return parser
+
+
+def _known_errors() -> tuple[type[BaseException], ...]:
+    from firmware_sim.errors import DeviceError
+    from host.errors import HostError
+    from protocol.errors import ProtocolError
+
+    return (ProtocolError, DeviceError, HostError, OSError)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``gaitlog`` with ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except KeyboardInterrupt:
+        print("gaitlog: interrupted", file=sys.stderr)
+        return 130
+    except _known_errors() as err:
+        print(f"gaitlog {args.command}: error: {err}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
