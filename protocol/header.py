@@ -1,0 +1,489 @@
+"""Device header (256 bytes) and calibration slot (64 bytes): ``PROTOCOL.md`` sections 2 and 2.1.
+
+The construct declarations :data:`HEADER_STRUCT` and :data:`CALIBRATION_STRUCT` are the byte layouts; the
+dataclasses :class:`DeviceHeader` and :class:`Calibration` are the validated values with the decoder's rules
+(stored samples, oldest slot, sample numbers and times).
+
+Examples
+--------
+>>> h = DeviceHeader(device_id=7, samples_written=3, write_index=3, start_time_s=1_000_000_000)
+>>> raw = h.to_bytes()
+>>> len(raw), raw[:8].hex(), raw[-2:].hex()
+(256, '474c4f4701010001', 'e9bf')
+>>> back = DeviceHeader.from_bytes(raw)
+>>> back.device_id, back.n_stored, back.first_slot, back.sample_rate_hz, back.start_time.isoformat()
+(7, 3, 0, 50.0, '2001-09-09T01:46:40+00:00')
+>>> DeviceHeader.from_bytes(b"GLOX" + raw[4:], source="x.glimg")
+Traceback (most recent call last):
+...
+protocol.errors.ProtocolError: x.glimg, offset 0 (0x0): magic: expected b'GLOG', found b'GLOX' (not a gaitlog device header)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import enum
+from dataclasses import dataclass, field
+
+import construct as cs
+import numpy as np
+
+from protocol.crc import crc16_xmodem
+from protocol.errors import ProtocolError
+
+__all__ = [
+    "HEADER_SIZE",
+    "CALIBRATION_SIZE",
+    "CAPACITY_SAMPLES",
+    "MEMORY_BYTES",
+    "MAGIC",
+    "HEADER_VERSION",
+    "PROTOCOL_VERSION",
+    "PACKING_P32",
+    "MAX_CAPACITY_SAMPLES",
+    "SAMPLES_WRITTEN_MAX",
+    "HeaderFlag",
+    "CalFormat",
+    "HEADER_STRUCT",
+    "HEADER_BODY_STRUCT",
+    "CALIBRATION_STRUCT",
+    "HEADER_OFFSETS",
+    "CALIBRATION_OFFSETS",
+    "Calibration",
+    "DeviceHeader",
+]
+
+HEADER_SIZE = 256
+CALIBRATION_SIZE = 64
+CAPACITY_SAMPLES = 65536
+MEMORY_BYTES = 4 * CAPACITY_SAMPLES  # 262,144
+MAGIC = b"GLOG"
+HEADER_VERSION = 1
+PROTOCOL_VERSION = 1
+PACKING_P32 = 1
+MAX_CAPACITY_SAMPLES = 1 << 20
+SAMPLES_WRITTEN_MAX = 0xFFFFFFFF  # the counter saturates here
+_Q16 = 1 << 16
+_Q30 = 1 << 30
+
+
+class HeaderFlag(enum.IntFlag):
+    """Bits of the header ``flags`` byte (offset 19)."""
+
+    OVERWRITE = 0x01  #: ring mode; clear = stop when full
+    WRAPPED = 0x02  #: the write index has wrapped: the oldest sample is at ``write_index``
+    LOGGING = 0x04  #: a logging run is in progress
+    CAL_VALID = 0x08  #: the calibration slot holds an affine calibration (``cal_format`` 1)
+    FULL_STOPPED = 0x10  #: logging stopped because the memory was full (stop-when-full mode)
+
+
+class CalFormat(enum.IntEnum):
+    """``cal_format`` byte of the calibration slot."""
+
+    NONE = 0
+    AFFINE = 1
+
+
+#: Calibration slot, 64 bytes (section 2.1).
+CALIBRATION_STRUCT = cs.Struct(
+    "cal_format" / cs.Int8ul,
+    "reserved0" / cs.Padding(3),
+    "offset_q16" / cs.Array(3, cs.Int32sl),
+    "matrix_q30" / cs.Array(9, cs.Int32sl),
+    "reserved1" / cs.Padding(12),
+)
+
+#: Header bytes 0-253, the part the CRC covers (section 2).
+HEADER_BODY_STRUCT = cs.Struct(
+    "magic" / cs.Bytes(4),
+    "header_version" / cs.Int8ul,
+    "protocol_version" / cs.Int8ul,
+    "firmware_version" / cs.Int16ul,
+    "device_id" / cs.Int32ul,
+    "sample_rate_mhz" / cs.Int32ul,
+    "adc_bits" / cs.Int8ul,
+    "axes" / cs.Int8ul,
+    "packing" / cs.Int8ul,
+    "flags" / cs.Int8ul,
+    "start_time_s" / cs.Int32ul,
+    "capacity_samples" / cs.Int32ul,
+    "write_index" / cs.Int32ul,
+    "samples_written" / cs.Int32ul,
+    "adc_vref_mv" / cs.Int32ul,
+    "run_start_sample" / cs.Int32ul,
+    "reserved0" / cs.Padding(20),
+    "calibration" / cs.Bytes(CALIBRATION_SIZE),
+    "reserved1" / cs.Padding(126),
+)
+
+#: The whole 256-byte header: body plus big-endian CRC-16/XMODEM over bytes 0-253.
+HEADER_STRUCT = cs.Struct(
+    "body" / cs.RawCopy(HEADER_BODY_STRUCT),
+    "header_crc" / cs.Checksum(cs.Int16ub, lambda data: crc16_xmodem(data), cs.this.body.data),
+)
+
+
+def _offsets(struct: cs.Struct) -> dict[str, tuple[int, int]]:
+    """Byte offset and size of every named field of a fixed-size struct."""
+    out: dict[str, tuple[int, int]] = {}
+    pos = 0
+    for sc in struct.subcons:
+        size = sc.sizeof()
+        if sc.name is not None:
+            out[sc.name] = (pos, size)
+        pos += size
+    return out
+
+
+#: field name -> (offset, size) in the 256-byte header (``header_crc`` included).
+HEADER_OFFSETS: dict[str, tuple[int, int]] = {**_offsets(HEADER_BODY_STRUCT), "header_crc": (254, 2)}
+#: field name -> (offset, size) in the 64-byte calibration slot.
+CALIBRATION_OFFSETS: dict[str, tuple[int, int]] = _offsets(CALIBRATION_STRUCT)
+
+assert HEADER_BODY_STRUCT.sizeof() == HEADER_SIZE - 2 and CALIBRATION_STRUCT.sizeof() == CALIBRATION_SIZE
+
+
+def _err(what: str, fieldname: str, source: str | None, base: int = 0, table: dict | None = None) -> ProtocolError:
+    off = (table or HEADER_OFFSETS)[fieldname][0] + base
+    return ProtocolError(f"{fieldname}: {what}", offset=off, source=source)
+
+
+@dataclass(eq=False)
+class Calibration:
+    """Affine accelerometer calibration ``a_g = M · (codes − offset)`` (section 2.1).
+
+    Parameters
+    ----------
+    offset_counts
+        ``(3,)`` offset in ADC counts (stored in Q15.16: resolution 2⁻¹⁶ count, range ±32768).
+    matrix_g_per_count
+        ``(3, 3)`` matrix ``M`` in g per count, row-major (stored in Q1.30: resolution 2⁻³⁰ g/count, range ±2).
+    valid
+        ``True`` for a stored affine calibration (``cal_format`` 1); ``False`` for the nominal map, which is
+        stored as ``cal_format`` 0 with zero fields.
+
+    Examples
+    --------
+    >>> cal = Calibration(np.array([512.0, 500.25, 530.5]), np.diag([1 / 256, 1 / 250, 1 / 260]), True)
+    >>> raw = cal.to_bytes()
+    >>> raw[:16].hex()
+    '01000000000000020040f40100801202'
+    >>> cal.apply(np.array([[768, 500, 530]])).round(6).tolist()
+    [[1.0, -0.001, -0.001923]]
+    >>> Calibration.from_bytes(raw).offset_counts.tolist()
+    [512.0, 500.25, 530.5]
+    """
+
+    offset_counts: np.ndarray
+    matrix_g_per_count: np.ndarray
+    valid: bool = True
+
+    def __post_init__(self) -> None:
+        self.offset_counts = np.asarray(self.offset_counts, dtype=np.float64).reshape(3)
+        self.matrix_g_per_count = np.asarray(self.matrix_g_per_count, dtype=np.float64).reshape(3, 3)
+        self.valid = bool(self.valid)
+
+    @classmethod
+    def nominal(cls, adc_bits: int = 10) -> "Calibration":
+        """The nominal map: offset ``2^(adc_bits−1)`` counts, ``M = diag(4 g / 2^adc_bits)`` (±2 g span).
+
+        >>> float(Calibration.nominal(10).matrix_g_per_count[0, 0]), Calibration.nominal(10).valid
+        (0.00390625, False)
+        """
+        if not 1 <= int(adc_bits) <= 10:
+            raise ProtocolError(f"adc_bits: {adc_bits} outside 1..10")
+        span = float(1 << int(adc_bits))
+        return cls(np.full(3, span / 2), np.eye(3) * (4.0 / span), valid=False)
+
+    def apply(self, codes: np.ndarray) -> np.ndarray:
+        """Acceleration in g, ``(n, 3)``, from codes in counts, ``(n, 3)``."""
+        c = np.asarray(codes, dtype=np.float64)
+        return (c - self.offset_counts) @ self.matrix_g_per_count.T
+
+    def quantised(self) -> "Calibration":
+        """The calibration exactly as it is stored (offset to 2⁻¹⁶ count, matrix to 2⁻³⁰ g/count)."""
+        return Calibration.from_bytes(self.to_bytes()) if self.valid else self
+
+    def to_bytes(self) -> bytes:
+        """The 64-byte slot. ``valid=False`` gives ``cal_format`` 0 and zero fields.
+
+        Raises
+        ------
+        ProtocolError
+            A non-finite value, an offset outside ±32768 counts or a matrix element outside ±2 g/count.
+        """
+        if not self.valid:
+            return CALIBRATION_STRUCT.build(dict(cal_format=0, offset_q16=[0] * 3, matrix_q30=[0] * 9))
+        off = self.offset_counts
+        mat = self.matrix_g_per_count
+        if not (np.all(np.isfinite(off)) and np.all(np.isfinite(mat))):
+            raise _err("non-finite value", "offset_q16" if not np.all(np.isfinite(off)) else "matrix_q30",
+                       None, table=CALIBRATION_OFFSETS)
+        off_q = np.rint(off * _Q16)
+        mat_q = np.rint(mat.reshape(9) * _Q30)
+        lim = float(1 << 31)
+        if np.any(off_q < -lim) or np.any(off_q >= lim):
+            raise _err(f"offset {off.tolist()} counts outside the Q15.16 range ±32768", "offset_q16", None,
+                       table=CALIBRATION_OFFSETS)
+        if np.any(mat_q < -lim) or np.any(mat_q >= lim):
+            raise _err("matrix element outside the Q1.30 range ±2 g/count", "matrix_q30", None,
+                       table=CALIBRATION_OFFSETS)
+        return CALIBRATION_STRUCT.build(
+            dict(cal_format=int(CalFormat.AFFINE), offset_q16=[int(v) for v in off_q],
+                 matrix_q30=[int(v) for v in mat_q])
+        )
+
+    @classmethod
+    def from_bytes(cls, data: bytes, adc_bits: int = 10, *, source: str | None = None,
+                   base_offset: int = 0) -> "Calibration":
+        """Parse a 64-byte slot; ``cal_format`` 0 gives :meth:`nominal` for ``adc_bits``.
+
+        Raises
+        ------
+        ProtocolError
+            Wrong length, or a ``cal_format`` other than 0 or 1 (offset ``base_offset + 0``).
+        """
+        if len(data) != CALIBRATION_SIZE:
+            raise ProtocolError(f"calibration slot: expected {CALIBRATION_SIZE} bytes, found {len(data)}",
+                                offset=base_offset, source=source)
+        c = CALIBRATION_STRUCT.parse(data)
+        if c.cal_format == CalFormat.NONE:
+            return cls.nominal(adc_bits)
+        if c.cal_format != CalFormat.AFFINE:
+            raise _err(f"unknown calibration format {c.cal_format} (known: 0 none, 1 affine)", "cal_format",
+                       source, base_offset, CALIBRATION_OFFSETS)
+        return cls(np.array(c.offset_q16, dtype=np.float64) / _Q16,
+                   np.array(c.matrix_q30, dtype=np.float64).reshape(3, 3) / _Q30, valid=True)
+
+
+_U_LIMITS = {1: 0xFF, 2: 0xFFFF, 4: 0xFFFFFFFF}
+_INT_FIELDS = (
+    "header_version", "protocol_version", "firmware_version", "device_id", "sample_rate_mhz", "adc_bits",
+    "axes", "packing", "flags", "start_time_s", "capacity_samples", "write_index", "samples_written",
+    "adc_vref_mv", "run_start_sample",
+)
+
+
+@dataclass(eq=False)
+class DeviceHeader:
+    """The 256-byte device header (section 2), validated.
+
+    Field names and meanings are those of the table in ``PROTOCOL.md`` section 2; ``magic`` and
+    ``header_crc`` are implicit. ``calibration`` ``None`` means the nominal map for ``adc_bits``.
+    The ``CAL_VALID`` flag bit is written from ``calibration.valid``.
+    """
+
+    header_version: int = HEADER_VERSION
+    protocol_version: int = PROTOCOL_VERSION
+    firmware_version: int = 0x0100
+    device_id: int = 1
+    sample_rate_mhz: int = 50_000
+    adc_bits: int = 10
+    axes: int = 3
+    packing: int = PACKING_P32
+    flags: int = 0
+    start_time_s: int = 0
+    capacity_samples: int = CAPACITY_SAMPLES
+    write_index: int = 0
+    samples_written: int = 0
+    adc_vref_mv: int = 5000
+    run_start_sample: int = 0
+    calibration: Calibration | None = None
+
+    def __post_init__(self) -> None:
+        if self.calibration is None:
+            self.calibration = Calibration.nominal(self.adc_bits if 1 <= self.adc_bits <= 10 else 10)
+        flags = int(self.flags) & ~int(HeaderFlag.CAL_VALID)
+        self.flags = flags | (int(HeaderFlag.CAL_VALID) if self.calibration.valid else 0)
+
+    # ------------------------------------------------------------------ derived quantities (section 2)
+    @property
+    def overwrite(self) -> bool:
+        """Ring mode (``OVERWRITE`` flag); ``False`` = stop when full."""
+        return bool(self.flags & HeaderFlag.OVERWRITE)
+
+    @property
+    def wrapped(self) -> bool:
+        """``WRAPPED`` flag: the oldest stored sample is at ``write_index``."""
+        return bool(self.flags & HeaderFlag.WRAPPED)
+
+    @property
+    def logging(self) -> bool:
+        """``LOGGING`` flag."""
+        return bool(self.flags & HeaderFlag.LOGGING)
+
+    @property
+    def full_stopped(self) -> bool:
+        """``FULL_STOPPED`` flag."""
+        return bool(self.flags & HeaderFlag.FULL_STOPPED)
+
+    @property
+    def n_stored(self) -> int:
+        """Stored samples ``min(samples_written, capacity_samples)``."""
+        return min(self.samples_written, self.capacity_samples)
+
+    @property
+    def first_slot(self) -> int:
+        """Slot of the oldest stored sample: ``write_index`` if wrapped, else 0."""
+        return self.write_index if self.wrapped else 0
+
+    @property
+    def first_sample_number(self) -> int:
+        """Absolute sample number (0 = first sample after ERASE) of the oldest stored sample."""
+        return self.samples_written - self.n_stored
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Sample rate in Hz (``sample_rate_mhz / 1000``)."""
+        return self.sample_rate_mhz / 1000.0
+
+    @property
+    def start_time(self) -> _dt.datetime:
+        """``start_time_s`` as an aware UTC datetime (time of sample number ``run_start_sample``)."""
+        return _dt.datetime.fromtimestamp(self.start_time_s, tz=_dt.timezone.utc)
+
+    @property
+    def memory_bytes(self) -> int:
+        """Size of the sample memory in bytes (4 per slot)."""
+        return 4 * self.capacity_samples
+
+    @property
+    def used_bytes(self) -> int:
+        """Meaningful bytes of the memory from address 0: ``4 · n_stored`` (the whole memory when wrapped)."""
+        return 4 * self.n_stored
+
+    def stored_slots(self) -> np.ndarray:
+        """Slots of the stored samples, oldest first: ``(first_slot + i) mod capacity``, ``int64``."""
+        return (self.first_slot + np.arange(self.n_stored, dtype=np.int64)) % self.capacity_samples
+
+    def sample_numbers(self) -> np.ndarray:
+        """Absolute sample numbers of the stored samples, oldest first, ``int64``."""
+        return self.first_sample_number + np.arange(self.n_stored, dtype=np.int64)
+
+    def sample_time_s(self, sample_numbers: np.ndarray | int) -> np.ndarray:
+        """Unix time in s of absolute sample numbers: ``start_time_s + (k − run_start_sample) / rate``.
+
+        Exact for samples of the current run (``k ≥ run_start_sample``); for older runs it is an
+        extrapolation (the device does not store earlier start times; their first samples carry the
+        SESSION_START flag).
+        """
+        k = np.asarray(sample_numbers, dtype=np.float64)
+        return self.start_time_s + (k - self.run_start_sample) / self.sample_rate_hz
+
+    # ------------------------------------------------------------------ validation and bytes
+    def validate(self, source: str | None = None) -> None:
+        """Check every field against section 2; raise :class:`ProtocolError` naming the field and offset."""
+        for name in _INT_FIELDS:
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
+                raise _err(f"must be an integer, got {value!r}", name, source)
+            if not 0 <= int(value) <= _U_LIMITS[HEADER_OFFSETS[name][1]]:
+                raise _err(f"{value} does not fit in {HEADER_OFFSETS[name][1]} unsigned byte(s)", name, source)
+        if self.header_version != HEADER_VERSION:
+            raise _err(f"unknown header version {self.header_version} (this decoder knows {HEADER_VERSION})",
+                       "header_version", source)
+        if self.protocol_version != PROTOCOL_VERSION:
+            raise _err(f"unknown protocol version {self.protocol_version} (this decoder knows "
+                       f"{PROTOCOL_VERSION})", "protocol_version", source)
+        if self.sample_rate_mhz == 0:
+            raise _err("sample rate 0", "sample_rate_mhz", source)
+        if not 1 <= self.adc_bits <= 10:
+            raise _err(f"{self.adc_bits} outside 1..10", "adc_bits", source)
+        if self.axes != 3:
+            raise _err(f"{self.axes} axes (expected 3)", "axes", source)
+        if self.packing != PACKING_P32:
+            raise _err(f"unknown packing {self.packing} (expected 1 = P32)", "packing", source)
+        cap = self.capacity_samples
+        if not 1 <= cap <= MAX_CAPACITY_SAMPLES:
+            raise _err(f"{cap} outside 1..{MAX_CAPACITY_SAMPLES}", "capacity_samples", source)
+        if self.write_index >= cap:
+            raise _err(f"{self.write_index} not below capacity {cap}", "write_index", source)
+        sw = self.samples_written
+        if self.wrapped:
+            if sw < cap:
+                raise _err(f"WRAPPED set but only {sw} samples written (capacity {cap})", "samples_written",
+                           source)
+            if sw != SAMPLES_WRITTEN_MAX and self.write_index != sw % cap:
+                raise _err(f"{sw} samples written but write_index {self.write_index} "
+                           f"(expected {sw % cap})", "samples_written", source)
+        else:
+            if sw > cap:
+                raise _err(f"{sw} samples written exceed capacity {cap} without WRAPPED", "samples_written",
+                           source)
+            if self.write_index != sw % cap:
+                raise _err(f"{sw} samples written but write_index {self.write_index} (expected {sw % cap})",
+                           "samples_written", source)
+        if self.run_start_sample > sw:
+            raise _err(f"{self.run_start_sample} beyond samples_written {sw}", "run_start_sample", source)
+        if not isinstance(self.calibration, Calibration):
+            raise _err("must be a Calibration", "calibration", source)
+
+    def to_bytes(self) -> bytes:
+        """The 256-byte header with its CRC (``CAL_VALID`` written from ``calibration.valid``).
+
+        Raises
+        ------
+        ProtocolError
+            A field violating section 2 (named, with its offset).
+        """
+        self.__post_init__()
+        self.validate()
+        assert self.calibration is not None
+        values = {name: int(getattr(self, name)) for name in _INT_FIELDS}
+        body = dict(magic=MAGIC, calibration=self.calibration.to_bytes(), **values)
+        return HEADER_STRUCT.build(dict(body=dict(value=body)))
+
+    @classmethod
+    def from_bytes(cls, data: bytes | bytearray | memoryview, source: str | None = None) -> "DeviceHeader":
+        """Parse and validate a 256-byte header.
+
+        Parameters
+        ----------
+        data
+            At least 256 bytes; only the first 256 are read.
+        source
+            Name of the file or port, for error messages.
+
+        Raises
+        ------
+        ProtocolError
+            Short input, wrong magic, bad CRC, unknown versions, or a field violating section 2; the error
+            names the field and its byte offset in the header.
+        """
+        data = bytes(data[:HEADER_SIZE])
+        if len(data) < HEADER_SIZE:
+            raise ProtocolError(f"device header truncated: {len(data)} of {HEADER_SIZE} bytes",
+                                offset=len(data), source=source)
+        if data[:4] != MAGIC:
+            raise _err(f"expected {MAGIC!r}, found {data[:4]!r} (not a gaitlog device header)", "magic", source)
+        try:
+            parsed = HEADER_STRUCT.parse(data)
+        except cs.ChecksumError:
+            stored = int.from_bytes(data[254:256], "big")
+            raise _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{crc16_xmodem(data[:254]):04x} "
+                       "over bytes 0-253", "header_crc", source) from None
+        body = parsed.body.value
+        values = {name: int(body[name]) for name in _INT_FIELDS}
+        # versions first: a newer layout may not be parseable further
+        header = cls.__new__(cls)
+        for name, value in values.items():
+            setattr(header, name, value)
+        header.calibration = Calibration.nominal(10)
+        if header.header_version != HEADER_VERSION or header.protocol_version != PROTOCOL_VERSION:
+            header.validate(source)
+        if not 1 <= header.adc_bits <= 10:
+            raise _err(f"{header.adc_bits} outside 1..10", "adc_bits", source)
+        cal_off = HEADER_OFFSETS["calibration"][0]
+        cal = Calibration.from_bytes(body.calibration, header.adc_bits, source=source, base_offset=cal_off)
+        if bool(header.flags & HeaderFlag.CAL_VALID) != cal.valid:
+            raise ProtocolError(
+                f"calibration: CAL_VALID flag is {bool(header.flags & HeaderFlag.CAL_VALID)} but cal_format "
+                f"is {int(cal.valid)}", offset=cal_off, source=source)
+        header.calibration = cal
+        header.validate(source)
+        return header
+
+    def replace(self, **changes: object) -> "DeviceHeader":
+        """A copy with some fields changed (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
