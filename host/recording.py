@@ -1,0 +1,367 @@
+"""A decoded recording of the logger: raw counts, validity, flags, sample numbers, gaps and header.
+
+A :class:`Recording` is what :mod:`host.decode` returns for a memory image, a raw XMODEM dump or a wire
+capture, and what every later stage (calibration, orientation, gait events, estimators) takes as input.
+
+Rows and gaps
+-------------
+Row ``i`` is stored sample ``i`` in ring order (0 = oldest). A row whose bytes were not received intact has
+``valid[i] = False``; its codes and flags are 0 and carry no information (``acc_g`` gives NaN there), and the
+row belongs to one of the :class:`Gap` entries in ``gaps``. A decoder never invents a sample: every valid row
+is bit-exact as stored by the device.
+
+Sample numbers count samples since the last ERASE (``PROTOCOL.md`` section 2: the oldest stored sample is
+number ``samples_written - n``); the time of sample number ``k`` is ``start_time_s + k / sampling_rate_hz``
+(Unix time, UTC) and ``k / sampling_rate_hz`` seconds after the start of the log.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple, Protocol
+
+import numpy as np
+
+from host.errors import HostError
+from protocol.atomic_write import atomic_write, atomic_write_text
+
+#: Version of the NPZ layout written by :meth:`Recording.save_npz`.
+NPZ_FORMAT_VERSION = 1
+
+#: CSV columns written by :meth:`Recording.to_csv`, in order.
+CSV_COLUMNS = (
+    "sample_number", "time_s", "x_counts", "y_counts", "z_counts", "x_g", "y_g", "z_g", "flags", "valid",
+)
+
+
+class Gap(NamedTuple):
+    """A run of consecutive missing samples (both ends inclusive), with the reason they are missing."""
+
+    first_sample_number: int
+    last_sample_number: int
+    reason: str
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples in the gap."""
+        return self.last_sample_number - self.first_sample_number + 1
+
+
+class CountsToG(Protocol):
+    """Anything that converts ``(n, 3)`` ADC counts to ``(n, 3)`` acceleration in g."""
+
+    def apply(self, counts: np.ndarray) -> np.ndarray:  # pragma: no cover - protocol
+        ...
+
+
+def gaps_from_mask(valid: np.ndarray, sample_numbers: np.ndarray, reasons: np.ndarray | None = None,
+                   reason_names: Sequence[str] = ("missing",)) -> list[Gap]:
+    """Group the invalid rows into runs of equal reason.
+
+    Parameters
+    ----------
+    valid
+        ``(n,)`` bool.
+    sample_numbers
+        ``(n,)`` int64, consecutive.
+    reasons
+        ``(n,)`` small int index into ``reason_names`` for every invalid row (ignored where valid);
+        ``None`` means reason 0 everywhere.
+    reason_names
+        Text of each reason code.
+
+    Examples
+    --------
+    >>> v = np.array([1, 0, 0, 1, 0, 0], bool)
+    >>> r = np.array([0, 0, 0, 0, 0, 1])
+    >>> gaps_from_mask(v, np.arange(10, 16), r, ["lost", "cut"])
+    [Gap(first_sample_number=11, last_sample_number=12, reason='lost'), \
+Gap(first_sample_number=14, last_sample_number=14, reason='lost'), \
+Gap(first_sample_number=15, last_sample_number=15, reason='cut')]
+    """
+    valid = np.asarray(valid, dtype=bool)
+    n = valid.size
+    if n == 0 or valid.all():
+        return []
+    key = np.zeros(n, dtype=np.int64) if reasons is None else np.asarray(reasons, dtype=np.int64).copy()
+    key[valid] = -1
+    change = np.flatnonzero(np.diff(key)) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [n])) - 1
+    gaps = []
+    for s, e in zip(starts.tolist(), ends.tolist()):
+        if key[s] >= 0:
+            gaps.append(Gap(int(sample_numbers[s]), int(sample_numbers[e]), str(reason_names[key[s]])))
+    return gaps
+
+
+@dataclass(eq=False)
+class Recording:
+    """Samples of one logger memory, in ring order, with validity and gaps.
+
+    Attributes
+    ----------
+    codes
+        ``(n, 3)`` uint16 raw ADC codes (counts) x, y, z; 0 where not ``valid``.
+    valid
+        ``(n,)`` bool, True where the sample was received bit-exact.
+    flags
+        ``(n,)`` uint8 sample flags (bit 0 SESSION_START, bit 1 MARK; ``PROTOCOL.md`` section 1).
+    sample_numbers
+        ``(n,)`` int64 absolute sample numbers (consecutive).
+    sampling_rate_hz
+        Sample rate from the header, Hz.
+    start_time_s
+        Unix time (UTC, s) of sample number 0 (the header's ``start_time_s``).
+    header
+        The device header the samples were decoded with (``protocol.header.DeviceHeader``), or None.
+    gaps
+        Every run of missing samples, with its reason.
+    adc_bits
+        ADC resolution (for the nominal counts-to-g map).
+    source
+        Where the samples came from (file name, port), if known.
+    notes
+        Human-readable remarks of the decoder (recovered shifts, conversion used, ...).
+    """
+
+    codes: np.ndarray
+    valid: np.ndarray
+    flags: np.ndarray
+    sample_numbers: np.ndarray
+    sampling_rate_hz: float
+    start_time_s: float = 0.0
+    header: Any = None
+    gaps: list[Gap] = field(default_factory=list)
+    adc_bits: int = 10
+    source: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16).reshape(-1, 3)
+        n = self.codes.shape[0]
+        self.valid = np.asarray(self.valid, dtype=bool).reshape(-1)
+        self.flags = np.asarray(self.flags, dtype=np.uint8).reshape(-1)
+        self.sample_numbers = np.asarray(self.sample_numbers, dtype=np.int64).reshape(-1)
+        for name in ("valid", "flags", "sample_numbers"):
+            if getattr(self, name).shape[0] != n:
+                raise HostError(f"Recording.{name} has {getattr(self, name).shape[0]} rows, codes has {n}")
+        if not (np.isfinite(self.sampling_rate_hz) and self.sampling_rate_hz > 0):
+            raise HostError(f"Recording.sampling_rate_hz must be > 0, got {self.sampling_rate_hz!r}")
+        self.gaps = [Gap(int(a), int(b), str(r)) for a, b, r in self.gaps]
+
+    # ----------------------------------------------------------------------------------------- construction
+    @classmethod
+    def from_arrays(cls, codes: np.ndarray, *, valid: np.ndarray | None = None, flags: np.ndarray | None = None,
+                    first_sample_number: int = 0, sampling_rate_hz: float = 50.0, start_time_s: float = 0.0,
+                    header: Any = None, adc_bits: int = 10, reason: str = "missing",
+                    source: str | None = None) -> "Recording":
+        """Build a recording from arrays; gaps are derived from ``valid`` and invalid rows are zeroed.
+
+        Examples
+        --------
+        >>> r = Recording.from_arrays(np.full((4, 3), 512), valid=np.array([1, 0, 0, 1], bool),
+        ...                           first_sample_number=100)
+        >>> r.gaps
+        [Gap(first_sample_number=101, last_sample_number=102, reason='missing')]
+        >>> r.acc_g()[:2]
+        array([[ 0.,  0.,  0.],
+               [nan, nan, nan]])
+        """
+        codes = np.array(codes, dtype=np.uint16).reshape(-1, 3)
+        n = codes.shape[0]
+        valid_a = np.ones(n, bool) if valid is None else np.array(valid, dtype=bool)
+        flags_a = np.zeros(n, np.uint8) if flags is None else np.array(flags, dtype=np.uint8)
+        codes[~valid_a] = 0
+        flags_a[~valid_a] = 0
+        sn = first_sample_number + np.arange(n, dtype=np.int64)
+        return cls(codes=codes, valid=valid_a, flags=flags_a, sample_numbers=sn,
+                   sampling_rate_hz=float(sampling_rate_hz), start_time_s=float(start_time_s), header=header,
+                   gaps=gaps_from_mask(valid_a, sn, None, [reason]), adc_bits=int(adc_bits), source=source)
+
+    # ------------------------------------------------------------------------------------------- properties
+    @property
+    def n_samples(self) -> int:
+        """Number of rows (stored samples, valid or not)."""
+        return int(self.codes.shape[0])
+
+    @property
+    def n_valid(self) -> int:
+        """Number of valid rows."""
+        return int(np.count_nonzero(self.valid))
+
+    @property
+    def n_missing(self) -> int:
+        """Number of rows reported missing."""
+        return self.n_samples - self.n_valid
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """``(n,)`` seconds since the start of the log (sample number 0)."""
+        return self.sample_numbers / self.sampling_rate_hz
+
+    @property
+    def duration_s(self) -> float:
+        """Time span covered by the rows, ``n / sampling_rate_hz``, in seconds."""
+        return self.n_samples / self.sampling_rate_hz
+
+    def gap_times_s(self, gap: Gap) -> tuple[float, float]:
+        """Start and end time (s since the start of the log) of ``gap``: from its first sample to the
+        sample after its last."""
+        return gap.first_sample_number / self.sampling_rate_hz, (gap.last_sample_number + 1) / self.sampling_rate_hz
+
+    # --------------------------------------------------------------------------------------------- physics
+    def default_calibration(self) -> tuple[CountsToG, str]:
+        """Counts-to-g map of the header's calibration slot, or the nominal map when the slot is empty.
+
+        Returns the map and a note saying which one it is (``PROTOCOL.md`` section 2.1).
+        """
+        from protocol.header import Calibration
+
+        cal = getattr(self.header, "calibration", None)
+        if cal is not None and bool(getattr(cal, "valid", False)):
+            return cal, "g from the header's calibration slot"
+        return (Calibration.nominal(self.adc_bits),
+                f"g from the nominal map (no calibration in the header): 0 g at code {2 ** (self.adc_bits - 1)}, "
+                f"{4.0 / 2 ** self.adc_bits:.6g} g per count")
+
+    def acc_g(self, calibration: CountsToG | None = None) -> np.ndarray:
+        """Acceleration in g, ``(n, 3)`` float64, NaN at invalid rows.
+
+        Parameters
+        ----------
+        calibration
+            Object with ``apply(counts) -> g`` (``protocol.header.Calibration``, ``host.calibration.
+            AccCalibration``); default: the header's calibration slot, else the nominal ±2 g map.
+        """
+        cal = self.default_calibration()[0] if calibration is None else calibration
+        g = np.asarray(cal.apply(self.codes.astype(np.float64)), dtype=np.float64).reshape(-1, 3).copy()
+        g[~self.valid] = np.nan
+        return g
+
+    # -------------------------------------------------------------------------------------------- metadata
+    def metadata(self) -> dict[str, Any]:
+        """JSON-ready description (everything except the sample arrays)."""
+        header_info = None
+        if self.header is not None:
+            header_info = {
+                "device_id": int(self.header.device_id),
+                "firmware_version": int(self.header.firmware_version),
+                "protocol_version": int(self.header.protocol_version),
+                "samples_written": int(self.header.samples_written),
+                "write_index": int(self.header.write_index),
+                "capacity_samples": int(self.header.capacity_samples),
+                "wrapped": bool(self.header.wrapped),
+                "overwrite": bool(self.header.overwrite),
+                "calibration_valid": bool(self.header.calibration.valid),
+            }
+        return {
+            "format_version": NPZ_FORMAT_VERSION,
+            "source": self.source,
+            "sampling_rate_hz": self.sampling_rate_hz,
+            "start_time_s": self.start_time_s,
+            "adc_bits": self.adc_bits,
+            "n_samples": self.n_samples,
+            "n_valid": self.n_valid,
+            "first_sample_number": int(self.sample_numbers[0]) if self.n_samples else None,
+            "gaps": [
+                {"first_sample_number": g.first_sample_number, "last_sample_number": g.last_sample_number,
+                 "n_samples": g.n_samples, "start_s": self.gap_times_s(g)[0], "end_s": self.gap_times_s(g)[1],
+                 "reason": g.reason}
+                for g in self.gaps
+            ],
+            "header": header_info,
+            "notes": list(self.notes),
+        }
+
+    # ---------------------------------------------------------------------------------------------- saving
+    def save_npz(self, path: str | os.PathLike[str]) -> None:
+        """Write the recording to ``path`` (NPZ; metadata as a JSON string inside), atomically.
+
+        Arrays: ``codes``, ``valid``, ``flags``, ``sample_numbers``, ``header_bytes`` (the 256-byte device
+        header, empty when none), ``metadata_json``.
+        """
+        header_bytes = np.zeros(0, np.uint8)
+        if self.header is not None:
+            header_bytes = np.frombuffer(self.header.to_bytes(), dtype=np.uint8)
+        meta = json.dumps(self.metadata(), sort_keys=True)
+        buf = io.BytesIO()
+        np.savez_compressed(buf, codes=self.codes, valid=self.valid, flags=self.flags,
+                            sample_numbers=self.sample_numbers, header_bytes=header_bytes,
+                            metadata_json=np.array(meta))
+        with atomic_write(path, "wb") as handle:
+            handle.write(buf.getvalue())
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> "Recording":
+        """Read a recording written by :meth:`save_npz`; :class:`HostError` naming the file if it is not one."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                arrays = {k: npz[k] for k in npz.files}
+        except (OSError, ValueError, EOFError) as err:
+            raise HostError(f"{path}: not a gaitlog recording NPZ ({err})") from err
+        missing = {"codes", "valid", "flags", "sample_numbers", "header_bytes", "metadata_json"} - arrays.keys()
+        if missing:
+            raise HostError(f"{path}: not a gaitlog recording NPZ (missing arrays {sorted(missing)})")
+        meta = json.loads(str(arrays["metadata_json"]))
+        if meta.get("format_version") != NPZ_FORMAT_VERSION:
+            raise HostError(f"{path}: recording format version {meta.get('format_version')!r} is not supported "
+                            f"(this gaitlog reads version {NPZ_FORMAT_VERSION})")
+        header = None
+        if arrays["header_bytes"].size:
+            from protocol.header import DeviceHeader
+
+            header = DeviceHeader.from_bytes(arrays["header_bytes"].tobytes(), source=str(path))
+        gaps = [Gap(g["first_sample_number"], g["last_sample_number"], g["reason"]) for g in meta["gaps"]]
+        return cls(codes=arrays["codes"], valid=arrays["valid"], flags=arrays["flags"],
+                   sample_numbers=arrays["sample_numbers"], sampling_rate_hz=float(meta["sampling_rate_hz"]),
+                   start_time_s=float(meta["start_time_s"]), header=header, gaps=gaps,
+                   adc_bits=int(meta["adc_bits"]), source=meta.get("source"), notes=list(meta.get("notes", [])))
+
+    def to_csv(self, path: str | os.PathLike[str], calibration: CountsToG | None = None) -> None:
+        """Write one row per stored sample (columns :data:`CSV_COLUMNS`), atomically.
+
+        Missing rows keep their sample number and time, have ``valid`` 0 and empty counts, g and flags.
+        """
+        g = self.acc_g(calibration)
+        n = self.n_samples
+        cols = [self.sample_numbers.astype(str), np.char.mod("%.4f", self.time_s)]
+        cols += [self.codes[:, k].astype(str) for k in range(3)]
+        cols += [np.char.mod("%.6f", g[:, k]) for k in range(3)]
+        cols += [self.flags.astype(str), self.valid.astype(np.uint8).astype(str)]
+        table = np.stack(cols, axis=1) if n else np.zeros((0, len(CSV_COLUMNS)), dtype="<U1")
+        if n and not self.valid.all():
+            table[~self.valid, 2:9] = ""
+        lines = [",".join(CSV_COLUMNS)]
+        lines += [",".join(row) for row in table.tolist()]
+        atomic_write_text(path, "\n".join(lines) + "\n")
+
+    @staticmethod
+    def read_csv(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+        """Read a CSV written by :meth:`to_csv` back into columns (missing values as NaN)."""
+        text = Path(path).read_text(encoding="utf-8").splitlines()
+        if not text or text[0].split(",") != list(CSV_COLUMNS):
+            raise HostError(f"{path}: line 1: expected header {','.join(CSV_COLUMNS)}")
+        rows = [ln.split(",") for ln in text[1:]]
+        arr = np.array([[float(v) if v != "" else np.nan for v in row] for row in rows], dtype=np.float64)
+        arr = arr.reshape(-1, len(CSV_COLUMNS))
+        return {name: arr[:, k] for k, name in enumerate(CSV_COLUMNS)}
+
+    def summary(self) -> str:
+        """A few lines describing the recording (samples, gaps, duration)."""
+        lines = [f"{self.n_samples} samples ({self.n_valid} valid, {self.n_missing} missing) at "
+                 f"{self.sampling_rate_hz:g} Hz, {self.duration_s:.2f} s"]
+        if self.n_samples:
+            lines.append(f"sample numbers {int(self.sample_numbers[0])}..{int(self.sample_numbers[-1])}")
+        lines.append(f"{len(self.gaps)} gap(s)")
+        for gp in self.gaps:
+            t0, t1 = self.gap_times_s(gp)
+            lines.append(f"  samples {gp.first_sample_number}..{gp.last_sample_number} "
+                         f"({t0:.2f}-{t1:.2f} s): {gp.reason}")
+        return "\n".join(lines)
