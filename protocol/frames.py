@@ -41,6 +41,7 @@ __all__ = [
     "StartMode",
     "StrictEnum",
     "FRAME_STRUCT",
+    "FRAME_HEAD_STRUCT",
     "PAYLOAD_STRUCTS",
     "Frame",
     "FrameError",
@@ -162,6 +163,11 @@ FRAME_STRUCT = cs.Struct(
     "body" / cs.RawCopy(FRAME_BODY_STRUCT),
     "crc" / cs.Checksum(cs.Int16ub, lambda data: crc16_xmodem(data), cs.this.body.data),
 )
+
+#: The fixed 6-byte head of a frame (compiled: it is on the hot path of every DUMP).
+FRAME_HEAD_STRUCT = cs.Struct(
+    "sync" / cs.Const(SYNC), "type" / cs.Int8ul, "seq" / cs.Int8ul, "length" / cs.Int16ul
+).compile()
 
 _EMPTY = cs.Struct()
 
@@ -314,7 +320,10 @@ def encode_frame(type: int, seq: int, payload: bytes = b"") -> bytes:  # noqa: A
         raise ProtocolError(f"frame seq {seq} outside 0..255")
     if len(payload) > MAX_PAYLOAD:
         raise ProtocolError(f"frame payload of {len(payload)} bytes exceeds the maximum {MAX_PAYLOAD}")
-    return FRAME_STRUCT.build(dict(body=dict(value=dict(type=int(type), seq=int(seq), payload=bytes(payload)))))
+    # same bytes as FRAME_STRUCT.build(...) (checked by the tests) at a tenth of the cost
+    head = FRAME_HEAD_STRUCT.build(dict(type=int(type), seq=int(seq), length=len(payload)))
+    crc = crc16_xmodem(payload, crc16_xmodem(head[2:]))
+    return b"".join((head, payload, crc.to_bytes(2, "big")))
 
 
 def _frame_type(t: int, offset: int | None, source: str | None) -> FrameType:

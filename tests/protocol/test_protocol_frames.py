@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol.frames import (
+    FRAME_STRUCT,
     MAX_PAYLOAD,
     ErrorCode,
     Frame,
@@ -38,6 +39,9 @@ def _ref_frame(t: int, seq: int, payload: bytes) -> bytes:
 def test_encode_matches_reference_and_parses(t: int, seq: int, payload: bytes) -> None:
     wire = encode_frame(t, seq, payload)
     assert wire == _ref_frame(t, seq, payload)
+    assert wire == FRAME_STRUCT.build(dict(body=dict(value=dict(type=t, seq=seq, payload=payload))))
+    parsed = FRAME_STRUCT.parse(wire)
+    assert (parsed.body.value.type, parsed.body.value.seq, parsed.body.value.payload) == (t, seq, payload)
     frames, errors = parse_stream(wire)
     assert frames == [Frame(t, seq, payload, 0)] and errors == []
 
