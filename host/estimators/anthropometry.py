@@ -1,0 +1,55 @@
+"""Leg and foot length from body height when they were not measured.
+
+Segment lengths as fractions of body height H from Winter, *Biomechanics and Motor Control of Human
+Movement* (4th ed., 2009, Fig. 4.1, after Drillis & Contini 1966):
+
+* leg length (greater trochanter to floor, the pendulum length of M1-M3): ``0.530 H``;
+* foot length (heel to toe): ``0.152 H``.
+
+Alvarez et al. define the M3 double-support constant as the foot length "from the first metatarsal head to
+the calcaneal tuberosity", shorter than heel-to-toe; we keep Winter's heel-to-toe ratio when only the
+height is known and say so, since that is the published population rule.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+from host.errors import HostError
+
+LEG_LENGTH_PER_HEIGHT = 0.530
+FOOT_LENGTH_PER_HEIGHT = 0.152
+#: Height used when nothing is known (adult population mean, both sexes, ~1.70 m).
+DEFAULT_HEIGHT_M = 1.70
+
+
+def anatomical_lengths(
+    *, leg_length_m: float | None = None, foot_length_m: float | None = None, height_m: float | None = None
+) -> tuple[float, float]:
+    """Return ``(leg_length_m, foot_length_m)``, estimating what is missing from the height.
+
+    Raises
+    ------
+    HostError
+        A given length is not a plausible adult/child value (leg 0.3-1.3 m, foot 0.1-0.4 m, height 0.8-2.5 m).
+
+    Examples
+    --------
+    >>> anatomical_lengths(height_m=1.80)
+    (0.954, 0.2736)
+    >>> anatomical_lengths(leg_length_m=0.9, foot_length_m=0.26)
+    (0.9, 0.26)
+    """
+    if height_m is not None and not (0.8 <= height_m <= 2.5):
+        raise HostError(f"height {height_m!r} m is outside 0.8-2.5 m (give it in metres)")
+    if leg_length_m is not None and not (0.3 <= leg_length_m <= 1.3):
+        raise HostError(f"leg length {leg_length_m!r} m is outside 0.3-1.3 m (give it in metres)")
+    if foot_length_m is not None and not (0.1 <= foot_length_m <= 0.4):
+        raise HostError(f"foot length {foot_length_m!r} m is outside 0.1-0.4 m (give it in metres)")
+    if (leg_length_m is None or foot_length_m is None) and height_m is None:
+        warnings.warn(f"no height given: anatomical lengths estimated for a {DEFAULT_HEIGHT_M} m adult",
+                      stacklevel=2)
+        height_m = DEFAULT_HEIGHT_M
+    leg = leg_length_m if leg_length_m is not None else round(LEG_LENGTH_PER_HEIGHT * height_m, 6)
+    foot = foot_length_m if foot_length_m is not None else round(FOOT_LENGTH_PER_HEIGHT * height_m, 6)
+    return float(leg), float(foot)

@@ -1,0 +1,86 @@
+"""M3: two-phase pendulum, no calibration (Alvarez et al. 2006, Fig. 3-4).
+
+.. math:: S = 2\\sqrt{2 l h_1 - h_1^2} + S_2
+
+``h1`` is the vertical excursion (max - min) of the M2-corrected CoM position between toe-off and
+heel-strike (single support, the inverted pendulum over the stance leg), ``S2`` the foot length (the
+double-support displacement, taken constant). Steps without a toe-off or heel-strike, or with an impossible
+``h1 > 2 l``, are NaN (counted in ``n_impossible_`` / ``n_no_events_``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Self
+
+import numpy as np
+
+from host.estimators.pendulum import _check, pendulum_length_m
+from host.gait.integration import step_samples, vertical_positions
+
+
+class TwoPhasePendulumM3:
+    """M3 step length: single-support pendulum + foot length (no K).
+
+    Examples
+    --------
+    Single support from 0.1 s to 0.4 s of a 0.5 s step; the CoM rises and falls by 2 cm as the pendulum of
+    a 0.9 m leg whose chord is 2 sqrt(2 l h1 - h1^2).
+
+    >>> fs, T, A, l, foot = 200.0, 0.5, 0.02, 0.9, 0.26
+    >>> t = np.arange(int(T * fs) + 1) / fs
+    >>> a = A * (2 * np.pi / T) ** 2 * np.cos(2 * np.pi * t / T)
+    >>> to, hs = 20, 80                       # samples; z(to) = z(hs) = -A cos(0.8 pi)
+    >>> m3 = TwoPhasePendulumM3().estimate(a, step_start=[0], step_end=[100], step_toe_off=[to],
+    ...     step_heel_strike=[hs], sampling_rate_hz=fs, leg_length_m=l, foot_length_m=foot)
+    >>> h1 = A - (-A * np.cos(2 * np.pi * 0.1 / T))
+    >>> round(float(m3.step_length_m_[0]), 3), round(float(2 * np.sqrt(2 * l * h1 - h1 ** 2) + foot), 3)
+    (0.691, 0.691)
+    """
+
+    def __init__(self) -> None:
+        pass
+
+    def estimate(
+        self,
+        acc_v_m_s2: np.ndarray,
+        *,
+        step_start: np.ndarray,
+        step_end: np.ndarray,
+        step_toe_off: np.ndarray,
+        step_heel_strike: np.ndarray,
+        sampling_rate_hz: float,
+        leg_length_m: float,
+        foot_length_m: float,
+        valid: np.ndarray | None = None,
+    ) -> Self:
+        """Estimate each step ``[step_start_k, step_end_k]`` with single support ``[toe_off_k, heel_strike_k]``.
+
+        ``-1`` in ``step_toe_off`` / ``step_heel_strike`` means "not detected" (the step is NaN).
+        Sets ``single_support_excursion_m_``, ``step_length_m_``, ``n_impossible_``, ``n_no_events_``.
+        """
+        acc = np.asarray(acc_v_m_s2, np.float64)
+        start = np.asarray(step_start, np.int64)
+        end = np.asarray(step_end, np.int64)
+        to = np.asarray(step_toe_off, np.int64)
+        hs = np.asarray(step_heel_strike, np.int64)
+        _check(acc, start, end, leg_length_m)
+        if not (np.isfinite(foot_length_m) and foot_length_m >= 0):
+            raise ValueError(f"foot_length_m must be non-negative, got {foot_length_m!r}")
+        if to.shape != start.shape or hs.shape != start.shape:
+            raise ValueError("step_toe_off and step_heel_strike need one entry per step")
+        ok = np.isfinite(acc) if valid is None else (np.asarray(valid, bool) & np.isfinite(acc))
+        ss = step_samples(start, end, ok, sampling_rate_hz)
+        p2 = vertical_positions(acc, ss)[1]
+        has = (to >= start) & (hs <= end) & (to >= 0) & (hs >= 0) & (hs > to)
+        s_to, s_hs = to[ss.step], hs[ss.step]
+        inside = (ss.index >= s_to) & (ss.index <= s_hs) & has[ss.step]
+        h1 = ss.reduce_max(np.where(inside, p2, np.nan)) - ss.reduce_min(np.where(inside, p2, np.nan))
+        self.single_support_excursion_m_ = h1
+        s1, self.n_impossible_ = pendulum_length_m(h1, leg_length_m)
+        self.n_no_events_ = int(np.count_nonzero(~has))
+        self.step_length_m_ = s1 + foot_length_m
+        if self.n_impossible_:
+            warnings.warn(f"M3: {self.n_impossible_} step(s) with an impossible single-support excursion "
+                          f"(h1 > 2 l) set to NaN", stacklevel=2)
+        return self

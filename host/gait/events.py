@@ -1,0 +1,202 @@
+"""Foot-flat, heel-strike and toe-off from lower-back vertical acceleration.
+
+Notes
+-----
+1. *Foot-flat* (FF): the peaks of the first harmonic of the vertical acceleration (Gaussian low-pass,
+   -3 dB at 3 Hz, the band Alvarez et al. use for M4). The CoM is lowest during double support, where the
+   first harmonic of its vertical acceleration is highest and its vertical velocity is zero: the instant
+   Alvarez et al. reset the integrals at ("foot-flat, where the vertical velocity of the body is null").
+   Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by
+   ``min_prominence_m_s2`` (a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to trough).
+2. *Heel-strike* (HS): the steepest rise of the vertical acceleration (low-passed at 10 Hz) within
+   ``hs_search_s`` before the foot-flat: the loading impact that starts double support (the trunk is
+   decelerated downwards as the leading leg takes the weight; Zijlstra & Hof, Gait Posture 18, 2003,
+   place initial contact on the same rising edge).
+3. *Toe-off* (TO): the first local minimum of the vertical acceleration (10 Hz) within ``to_search_s``
+   after the foot-flat: the unloading as the trailing foot leaves and single support begins.
+4. Steps: consecutive foot-flats closer than ``max_step_s`` form a step (window ``[FF_k, FF_k+1]``,
+   containing the toe-off after ``FF_k`` and the heel-strike before ``FF_k+1``). A longer interval, or a
+   run of missing samples longer than ``max_gap_s``, ends a walking bout.
+
+All indices are sample indices of the input. Samples marked invalid are never used (the filters are
+normalised convolutions over measured samples only).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Self
+
+import numpy as np
+
+from host.gait.masked_filter import masked_gaussian_lowpass
+
+
+class GaitEventDetector:
+    """Detect foot-flat, heel-strike and toe-off in vertical trunk acceleration.
+
+    Parameters
+    ----------
+    ff_cutoff_hz
+        -3 dB frequency of the first-harmonic low-pass for foot-flat (3 Hz).
+    detail_cutoff_hz
+        -3 dB frequency of the low-pass used for heel-strike and toe-off (10 Hz).
+    min_step_s, max_step_s
+        Shortest step (0.25 s) and longest step inside a walking bout (1.5 s).
+    min_prominence_m_s2
+        Smallest peak prominence of the first harmonic accepted as a step (0.5 m/s^2).
+    hs_search_s, to_search_s
+        Search windows before / after each foot-flat for heel-strike (0.2 s) and toe-off (0.3 s).
+    max_gap_s
+        Longest run of missing samples a step may contain (0.1 s); longer gaps split bouts.
+
+    Attributes
+    ----------
+    foot_flat_, heel_strike_, toe_off_
+        ``(m,)`` int sample indices, one per detected foot-flat (``-1`` where HS/TO was not found).
+    step_start_, step_end_
+        ``(k,)`` foot-flat indices delimiting each step.
+    step_heel_strike_, step_toe_off_
+        ``(k,)`` the HS before ``step_end_`` and the TO after ``step_start_`` of each step (``-1`` if none).
+    bout_
+        ``(m,)`` bout number of each foot-flat.
+    """
+
+    def __init__(
+        self,
+        *,
+        ff_cutoff_hz: float = 3.0,
+        detail_cutoff_hz: float = 10.0,
+        min_step_s: float = 0.25,
+        max_step_s: float = 1.5,
+        min_prominence_m_s2: float = 0.5,
+        hs_search_s: float = 0.2,
+        to_search_s: float = 0.3,
+        max_gap_s: float = 0.1,
+    ) -> None:
+        self.ff_cutoff_hz = ff_cutoff_hz
+        self.detail_cutoff_hz = detail_cutoff_hz
+        self.min_step_s = min_step_s
+        self.max_step_s = max_step_s
+        self.min_prominence_m_s2 = min_prominence_m_s2
+        self.hs_search_s = hs_search_s
+        self.to_search_s = to_search_s
+        self.max_gap_s = max_gap_s
+
+    def detect(self, acc_v_m_s2: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None) -> Self:
+        """Detect the events in ``acc_v_m_s2`` (``(n,)``, up positive, gravity removed)."""
+        from scipy.signal import find_peaks
+
+        fs = float(sampling_rate_hz)
+        if not (np.isfinite(fs) and fs > 0):
+            raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
+        a = np.asarray(acc_v_m_s2, dtype=np.float64)
+        if a.ndim != 1:
+            raise ValueError(f"acc_v_m_s2 must be one-dimensional, got shape {a.shape}")
+        ok = np.isfinite(a) if valid is None else (np.asarray(valid, bool) & np.isfinite(a))
+        n = a.size
+        self.first_harmonic_m_s2_ = lp = masked_gaussian_lowpass(a, ok, cutoff_hz=self.ff_cutoff_hz,
+                                                                 sampling_rate_hz=fs)
+        det = masked_gaussian_lowpass(a, ok, cutoff_hz=self.detail_cutoff_hz, sampling_rate_hz=fs)
+        empty = np.zeros(0, dtype=np.int64)
+        if n < 3 or not np.any(np.isfinite(lp)):
+            self._set(empty, empty, empty, empty, empty)
+            return self
+        # 1. foot-flat = first-harmonic peaks (NaN stretches cannot hold a peak)
+        floor = np.nanmin(lp) - 1.0
+        ff, _ = find_peaks(np.where(np.isfinite(lp), lp, floor), distance=max(1, int(round(self.min_step_s * fs))),
+                           prominence=self.min_prominence_m_s2)
+        ff = ff[ok[ff]] if ff.size else ff
+        ff = ff.astype(np.int64)
+        # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
+        hs = self._search(np.gradient(det), ff, -int(round(self.hs_search_s * fs)), 0, mode="argmax")
+        to = self._first_local_min(det, ff, int(round(self.to_search_s * fs)))
+        # 4. bouts and steps
+        gap_run = _gap_lengths(ok)
+        max_gap = int(round(self.max_gap_s * fs))
+        if ff.size:
+            interval_ok = np.diff(ff) <= self.max_step_s * fs
+            # longest run of missing samples between consecutive foot-flats
+            worst = _between_max(gap_run, ff)
+            link = interval_ok & (worst <= max_gap)
+            bout = np.concatenate([[0], np.cumsum(~link)])
+        else:
+            link = np.zeros(0, bool)
+            bout = empty
+        self._set(ff, hs, to, bout, link)
+        return self
+
+    # -- helpers -------------------------------------------------------------------------------------
+    def _set(self, ff: np.ndarray, hs: np.ndarray, to: np.ndarray, bout: np.ndarray, link: np.ndarray) -> None:
+        self.foot_flat_ = ff
+        self.heel_strike_ = hs
+        self.toe_off_ = to
+        self.bout_ = bout
+        k = np.flatnonzero(link)
+        self.step_start_ = ff[k]
+        self.step_end_ = ff[k + 1]
+        self.step_toe_off_ = to[k]
+        self.step_heel_strike_ = hs[k + 1]
+        # toe-off after the heel-strike it should follow is impossible: drop it
+        bad = (self.step_toe_off_ >= 0) & (self.step_heel_strike_ >= 0) & (self.step_toe_off_ >= self.step_heel_strike_)
+        self.step_toe_off_ = np.where(bad, -1, self.step_toe_off_)
+        self.step_bout_ = bout[k] if k.size else np.zeros(0, np.int64)
+
+    @staticmethod
+    def _search(x: np.ndarray, centre: np.ndarray, lo: int, hi: int, *, mode: str) -> np.ndarray:
+        """Index of the max of ``x`` in ``[c+lo, c+hi]`` for every centre (NaN ignored, -1 if none)."""
+        if centre.size == 0:
+            return np.zeros(0, np.int64)
+        offs = np.arange(lo, hi + 1)
+        idx = centre[:, None] + offs[None, :]
+        inside = (idx >= 0) & (idx < x.size)
+        vals = np.where(inside, x[np.clip(idx, 0, x.size - 1)], np.nan)
+        vals = np.where(np.isfinite(vals), vals, -np.inf)
+        j = np.argmax(vals, axis=1)
+        found = np.isfinite(vals[np.arange(centre.size), j])
+        return np.where(found, idx[np.arange(centre.size), j], -1).astype(np.int64)
+
+    @staticmethod
+    def _first_local_min(x: np.ndarray, centre: np.ndarray, span: int) -> np.ndarray:
+        """First local minimum of ``x`` in ``(c, c+span]`` for every centre (-1 if none)."""
+        if centre.size == 0:
+            return np.zeros(0, np.int64)
+        offs = np.arange(0, span + 2)
+        idx = centre[:, None] + offs[None, :]
+        inside = idx < x.size
+        vals = np.where(inside, x[np.clip(idx, 0, x.size - 1)], np.nan)
+        mid = vals[:, 1:-1]
+        is_min = (mid < vals[:, :-2]) & (mid <= vals[:, 2:])
+        has = is_min.any(axis=1)
+        j = np.argmax(is_min, axis=1) + 1
+        return np.where(has, idx[np.arange(centre.size), j], -1).astype(np.int64)
+
+
+def _gap_lengths(ok: np.ndarray) -> np.ndarray:
+    """For every sample, the length of the run of missing samples it belongs to (0 where measured)."""
+    miss = ~ok
+    if not miss.any():
+        return np.zeros(ok.size, np.int64)
+    d = np.diff(np.concatenate([[0], miss.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    run = np.zeros(ok.size, np.int64)
+    lengths = ends - starts
+    # paint each run with its length using a difference array
+    paint = np.zeros(ok.size + 1, np.int64)
+    np.add.at(paint, starts, lengths)
+    np.add.at(paint, ends, -lengths)
+    run = np.cumsum(paint)[:-1]
+    return run
+
+
+def _between_max(x: np.ndarray, marks: np.ndarray) -> np.ndarray:
+    """``max(x[m_k:m_k+1])`` between consecutive strictly increasing ``marks`` (``np.maximum.reduceat``)."""
+    if marks.size < 2:
+        return np.zeros(0, x.dtype)
+    return np.maximum.reduceat(x[: marks[-1]], marks[:-1])
+
+
+def warn_if_no_steps(detector: GaitEventDetector) -> None:
+    """Warn when a detection found no complete step."""
+    if detector.step_start_.size == 0:
+        warnings.warn("no walking steps detected (no two foot-flats within max_step_s)", stacklevel=3)

@@ -1,0 +1,328 @@
+"""Calibrated acceleration -> per-step table with the five estimators (the float reference chain).
+
+Steps of the chain (:class:`StepPipeline`):
+
+1. Tilt correction: vertical (and AP) dynamic acceleration from the gravity direction
+   (:func:`host.gait.axes.body_axes`).
+2. Events: foot-flat, heel-strike, toe-off (:class:`host.gait.events.GaitEventDetector`).
+3. One row per foot-flat: the step that ends there. Its window is the previous foot-flat of the same
+   walking bout to this one; the first foot-flat of a bout (gait initiation, or after a gap longer than
+   ``max_gap_s``) ends a step that has no window: it is counted but its length is NaN.
+4. M1-M5 on every window (``host.estimators``), raw (K = 1, or the cadence ``1/T`` for M5) and calibrated
+   with a :class:`~host.estimators.calibration.KCalibration` when one is given. Without one, M1 and M2 use
+   K = 1 (the bare pendulum model), M4 and M5 are NaN (they have no physical scale without K).
+
+Distance (:meth:`StepTable.distance_m`): the sum of the step lengths; a step whose length is NaN (no window,
+a long gap, an impossible excursion) counts with the median length of the measured steps of its bout, and
+the number of such steps is reported (``n_filled``). Samples marked invalid are never used by any filter or
+integral (nothing is interpolated across a gap).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Self
+
+import numpy as np
+
+from host.estimators import ESTIMATORS
+from host.estimators.cadence import CadenceM5
+from host.estimators.pendulum import PendulumDriftM2, PendulumM1
+from host.estimators.two_phase import TwoPhasePendulumM3
+from host.estimators.weinberg import WeinbergM4
+from host.gait.axes import BodyAxes, body_axes
+from host.gait.events import GaitEventDetector
+
+if TYPE_CHECKING:  # pragma: no cover
+    from host.estimators.calibration import KCalibration
+
+
+@dataclass(eq=False)
+class StepTable:
+    """One row per detected step (ending at a foot-flat). Indices are samples of the input, ``-1`` = none.
+
+    Attributes
+    ----------
+    sampling_rate_hz, t0_s
+        Sample rate and time of sample 0.
+    foot_flat, heel_strike, toe_off, start, bout
+        ``(m,)`` int: the foot-flat ending the step, the heel-strike before it, the toe-off after the
+        previous foot-flat, the window start (previous foot-flat, -1 if none), the walking-bout number.
+    duration_s, n_missing
+        Window duration (NaN if none) and missing samples inside it.
+    vertical_excursion_m
+        ``{"M1": h, "M2": h, "M3": h1}`` per step.
+    acc_range_m_s2
+        M4's 3 Hz vertical acceleration range per step.
+    raw_m
+        Per estimator, the length with K = 1 (M5: the cadence ``1/T`` in Hz).
+    length_m
+        Per estimator, the calibrated length (see module notes), m.
+    """
+
+    sampling_rate_hz: float
+    t0_s: float
+    foot_flat: np.ndarray
+    heel_strike: np.ndarray
+    toe_off: np.ndarray
+    start: np.ndarray
+    bout: np.ndarray
+    duration_s: np.ndarray
+    n_missing: np.ndarray
+    vertical_excursion_m: dict[str, np.ndarray] = field(default_factory=dict)
+    acc_range_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    raw_m: dict[str, np.ndarray] = field(default_factory=dict)
+    length_m: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps (rows)."""
+        return int(self.foot_flat.size)
+
+    def time_s(self, index: np.ndarray) -> np.ndarray:
+        """Times of sample indices (NaN where ``-1``)."""
+        index = np.asarray(index)
+        return np.where(index >= 0, self.t0_s + index / self.sampling_rate_hz, np.nan)
+
+    def select(self, mask: np.ndarray) -> StepTable:
+        """The rows where ``mask`` is true."""
+        mask = np.asarray(mask, bool)
+        return StepTable(
+            self.sampling_rate_hz, self.t0_s, self.foot_flat[mask], self.heel_strike[mask], self.toe_off[mask],
+            self.start[mask], self.bout[mask], self.duration_s[mask], self.n_missing[mask],
+            {k: v[mask] for k, v in self.vertical_excursion_m.items()}, self.acc_range_m_s2[mask],
+            {k: v[mask] for k, v in self.raw_m.items()}, {k: v[mask] for k, v in self.length_m.items()},
+        )
+
+    def event_time_s(self) -> np.ndarray:
+        """Time of each step for sectioning: its heel-strike, or its foot-flat when no heel-strike was found."""
+        idx = np.where(self.heel_strike >= 0, self.heel_strike, self.foot_flat)
+        return self.time_s(idx)
+
+    def filled(self, values: np.ndarray) -> tuple[np.ndarray, int]:
+        """``values`` with NaN replaced by the median of the finite values of the same bout (see notes).
+
+        Returns the filled array and the number of replaced entries. A bout without any finite value uses
+        the median over all bouts; with no finite value at all the result stays NaN.
+        """
+        v = np.asarray(values, np.float64).copy()
+        bad = ~np.isfinite(v)
+        if not bad.any():
+            return v, 0
+        overall = np.nanmedian(v) if np.any(~bad) else np.nan
+        for b in np.unique(self.bout[bad]):  # loop over bouts (few), not samples
+            sel = self.bout == b
+            good = v[sel & ~bad]
+            v[sel & bad] = np.median(good) if good.size else overall
+        return v, int(np.count_nonzero(bad))
+
+    def distance_m(self, estimator: str, *, raw: bool = False) -> tuple[float, int]:
+        """Distance walked by ``estimator`` (sum over steps, NaN steps filled) and the number filled.
+
+        For ``raw=True`` and M5 the sum is of the cadences ``1/T`` (what M5's calibration needs).
+        """
+        src = self.raw_m if raw else self.length_m
+        if estimator not in src:
+            raise KeyError(f"unknown estimator {estimator!r}; expected one of {sorted(src)}")
+        if self.n_steps == 0:
+            return 0.0, 0
+        v, n = self.filled(src[estimator])
+        return float(np.sum(v)), n
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The table as named columns (times in s, lengths in m) for CSV export."""
+        cols: dict[str, np.ndarray] = {
+            "step": np.arange(self.n_steps),
+            "bout": self.bout,
+            "start_s": self.time_s(self.start),
+            "toe_off_s": self.time_s(self.toe_off),
+            "heel_strike_s": self.time_s(self.heel_strike),
+            "foot_flat_s": self.time_s(self.foot_flat),
+            "duration_s": self.duration_s,
+            "n_missing": self.n_missing,
+            "h_m1_m": self.vertical_excursion_m.get("M1", np.full(self.n_steps, np.nan)),
+            "h_m2_m": self.vertical_excursion_m.get("M2", np.full(self.n_steps, np.nan)),
+            "h1_m3_m": self.vertical_excursion_m.get("M3", np.full(self.n_steps, np.nan)),
+            "acc_range_m4_m_s2": self.acc_range_m_s2,
+        }
+        for name in ESTIMATORS:
+            cols[f"length_{name.lower()}_m"] = self.length_m.get(name, np.full(self.n_steps, np.nan))
+        return cols
+
+    def to_csv_text(self) -> str:
+        """CSV text of :meth:`columns` (``%.6g``; empty cells for NaN)."""
+        cols = self.columns()
+        names = list(cols)
+        lines = [",".join(names)]
+        arrays = [np.asarray(cols[n]) for n in names]
+        for i in range(self.n_steps):  # formatting only
+            cells = []
+            for a in arrays:
+                x = a[i]
+                if np.issubdtype(a.dtype, np.integer):
+                    cells.append(str(int(x)))
+                else:
+                    cells.append("" if not np.isfinite(x) else f"{float(x):.6g}")
+            lines.append(",".join(cells))
+        return "\n".join(lines) + "\n"
+
+    def to_csv(self, path: str | Path) -> None:
+        """Write :meth:`to_csv_text` atomically."""
+        from protocol.atomic_write import atomic_write_text
+
+        atomic_write_text(path, self.to_csv_text())
+
+
+class StepPipeline:
+    """The float step chain: acceleration in g -> :class:`StepTable`.
+
+    Parameters
+    ----------
+    leg_length_m, foot_length_m
+        Anatomical inputs of M1-M3 (see :func:`host.estimators.anthropometry.anatomical_lengths`).
+    calibration
+        Per-subject constants (K of M1/M2/M4, K1/K2 of M5), or None.
+    detector
+        Event detector (default parameters when None).
+    gravity_window_s
+        Window of the moving-mean gravity estimate.
+
+    Attributes
+    ----------
+    axes_, events_, steps_
+        :class:`~host.gait.axes.BodyAxes`, the fitted :class:`~host.gait.events.GaitEventDetector`,
+        the :class:`StepTable`.
+
+    Examples
+    --------
+    >>> fs = 50.0; t = np.arange(int(20 * fs)) / fs
+    >>> z = 0.02 * np.cos(2 * np.pi * 2.0 * t)                  # CoM, 2 steps/s, h = 4 cm, lowest at t = 0.25 + k/2
+    >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / 9.80665
+    >>> p = StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=fs)
+    >>> p.steps_.n_steps in (38, 39, 40)
+    True
+    >>> round(float(np.nanmedian(p.steps_.vertical_excursion_m["M2"])), 2)
+    0.04
+    """
+
+    def __init__(
+        self,
+        *,
+        leg_length_m: float,
+        foot_length_m: float,
+        calibration: KCalibration | None = None,
+        detector: GaitEventDetector | None = None,
+        gravity_window_s: float = 4.0,
+    ) -> None:
+        self.leg_length_m = leg_length_m
+        self.foot_length_m = foot_length_m
+        self.calibration = calibration
+        self.detector = detector
+        self.gravity_window_s = gravity_window_s
+
+    def run(
+        self, acc_g: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None, t0_s: float = 0.0
+    ) -> Self:
+        """Run the chain on calibrated specific force ``acc_g`` (``(n, 3)`` g, NaN/``valid`` for gaps)."""
+        acc = np.asarray(acc_g, np.float64)
+        if acc.ndim != 2 or acc.shape[1] != 3:
+            raise ValueError(f"acc_g must have shape (n, 3), got {acc.shape}")
+        fs = float(sampling_rate_hz)
+        if not (np.isfinite(fs) and fs > 0):
+            raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
+        if valid is not None and np.shape(valid) != (acc.shape[0],):
+            raise ValueError(f"valid must have shape ({acc.shape[0]},), got {np.shape(valid)}")
+        self.axes_: BodyAxes = body_axes(acc, sampling_rate_hz=fs, valid=valid,
+                                         gravity_window_s=self.gravity_window_s)
+        ok = self.axes_.valid
+        av = self.axes_.acc_v_m_s2
+        det = (self.detector if self.detector is not None else GaitEventDetector())
+        det = GaitEventDetector(**{k: getattr(det, k) for k in vars(det) if not k.endswith("_")})
+        self.events_ = det.detect(av, sampling_rate_hz=fs, valid=ok)
+        self.steps_ = self._table(av, ok, fs, t0_s)
+        return self
+
+    def _table(self, av: np.ndarray, ok: np.ndarray, fs: float, t0_s: float) -> StepTable:
+        ev = self.events_
+        ff = ev.foot_flat_
+        m = ff.size
+        start = np.full(m, -1, np.int64)
+        toe = np.full(m, -1, np.int64)
+        if m > 1:
+            linked = ev.bout_[1:] == ev.bout_[:-1]
+            start[1:] = np.where(linked, ff[:-1], -1)
+            toe[1:] = np.where(linked, ev.toe_off_[:-1], -1)
+        has = start >= 0
+        # a toe-off must fall between the window start and the heel-strike
+        hs = ev.heel_strike_
+        toe = np.where((toe > start) & ((hs < 0) | (toe < hs)), toe, -1)
+        w = np.flatnonzero(has)
+        s_w, e_w = start[w], ff[w]
+        leg, foot = self.leg_length_m, self.foot_length_m
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            m1 = PendulumM1().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs,
+                                       leg_length_m=leg, valid=ok)
+            m2 = PendulumDriftM2().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs,
+                                            leg_length_m=leg, valid=ok)
+            m3 = TwoPhasePendulumM3().estimate(av, step_start=s_w, step_end=e_w, step_toe_off=toe[w],
+                                               step_heel_strike=np.where(hs[w] > s_w, hs[w], -1),
+                                               sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot,
+                                               valid=ok)
+            m4 = WeinbergM4().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs, valid=ok,
+                                       lowpassed=ev.first_harmonic_m_s2_)
+        impossible = sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
+        if impossible:
+            warnings.warn(f"{impossible} step length(s) set to NaN for an impossible vertical excursion "
+                          f"(h > 2 l with l = {leg} m)", stacklevel=3)
+        for c in caught:
+            if "impossible" not in str(c.message):
+                warnings.warn(c.message, stacklevel=3)
+
+        def spread(x: np.ndarray) -> np.ndarray:
+            out = np.full(m, np.nan)
+            out[w] = x
+            return out
+
+        n_missing = np.zeros(m, np.int64)
+        duration = np.full(m, np.nan)
+        if w.size:
+            duration[w] = (e_w - s_w) / fs
+            # missing samples inside each window: prefix sums of the invalid mask
+            cm = np.concatenate([[0], np.cumsum(~ok)])
+            n_missing[w] = cm[e_w + 1] - cm[s_w]
+        raw = {
+            "M1": spread(m1.step_length_m_),
+            "M2": spread(m2.step_length_m_),
+            "M3": spread(m3.step_length_m_),
+            "M4": spread(m4.step_length_m_),
+            "M5": np.where(duration > 0, 1.0 / duration, np.nan),
+        }
+        table = StepTable(
+            fs, float(t0_s), ff, hs.copy(), toe, start, ev.bout_.copy(), duration, n_missing,
+            {"M1": spread(m1.vertical_excursion_m_), "M2": spread(m2.vertical_excursion_m_),
+             "M3": spread(m3.single_support_excursion_m_)},
+            spread(m4.acc_range_m_s2_), raw, {},
+        )
+        table.length_m = apply_calibration(table, self.calibration)
+        return table
+
+
+def apply_calibration(table: StepTable, calibration: KCalibration | None) -> dict[str, np.ndarray]:
+    """Calibrated lengths of every estimator from the raw ones (see :class:`StepPipeline` notes)."""
+    raw = table.raw_m
+    nan = np.full(table.n_steps, np.nan)
+    if calibration is None:
+        return {"M1": raw["M1"].copy(), "M2": raw["M2"].copy(), "M3": raw["M3"].copy(), "M4": nan.copy(),
+                "M5": nan.copy()}
+    m5 = CadenceM5(k1_m_s=calibration.k1_m5_m_s, k2_m=calibration.k2_m5_m).estimate(
+        step_duration_s=table.duration_s).step_length_m_
+    return {
+        "M1": calibration.k_m1 * raw["M1"],
+        "M2": calibration.k_m2 * raw["M2"],
+        "M3": raw["M3"].copy(),
+        "M4": calibration.k_m4 * raw["M4"],
+        "M5": m5,
+    }

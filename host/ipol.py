@@ -1,0 +1,208 @@
+"""Reader of the IPOL lower-back gait recordings (Voisard et al., IPOL 2023).
+
+Layout of a folder: ``GaitData/<subject>-<trial>_lb.txt`` (tab-separated, a first line
+``Acquisition frequency: 100 Hz``, then a header ``PacketCounter Acc_X Acc_Y Acc_Z Gyr_X ...``; acceleration
+in m/s^2, gravity included, +g on the axis pointing up) and ``GaitData/<subject>-<trial>.json``
+(``TrialBoundaries``, ``UTurnBoundaries``, ``LeftFootEvents`` / ``RightFootEvents`` as [toe-off,
+heel-strike] pairs, ``Height`` in cm, sometimes missing).
+
+Every sample index in the JSON counts *packets*, not file rows, and the files have lost packets. This
+reader puts each file on the regular ``PacketCounter`` grid: index ``i`` of the returned arrays is packet
+``first_counter + i``; a lost packet is a row of NaN with ``valid[i] = False``. Nothing is interpolated.
+A duplicated packet keeps its first copy (a warning is issued when the copies differ).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from host.errors import HostError
+
+#: Standard gravity, m/s^2 per g (same constant as ``firmware_sim.world.base``).
+STANDARD_GRAVITY_M_S2 = 9.80665
+
+_NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$")
+
+
+@dataclass(frozen=True, eq=False)
+class IpolTrial:
+    """One IPOL trial on its regular packet grid.
+
+    Attributes
+    ----------
+    subject, trial
+        Identifiers from the file name ``<subject>-<trial>``.
+    acc_g
+        ``(n, 3)`` specific force in g (file's ``Acc_X..Z`` divided by 9.80665), NaN at lost packets.
+    valid
+        ``(n,)`` bool, False at lost packets.
+    sampling_rate_hz
+        From the first line of the file (100 Hz).
+    first_counter
+        ``PacketCounter`` of grid index 0; JSON indices are used as grid indices unchanged.
+    meta
+        The JSON document as read.
+    """
+
+    subject: int
+    trial: int
+    acc_g: np.ndarray
+    valid: np.ndarray
+    sampling_rate_hz: float
+    first_counter: int
+    meta: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    @property
+    def name(self) -> str:
+        """``"<subject>-<trial>"``."""
+        return f"{self.subject}-{self.trial}"
+
+    @property
+    def trial_bounds(self) -> tuple[int, int]:
+        """``TrialBoundaries`` (first and last sample index of the walk, packets)."""
+        b = self.meta["TrialBoundaries"]
+        return int(b[0]), int(b[1])
+
+    @property
+    def uturn_bounds(self) -> tuple[int, int] | None:
+        """``UTurnBoundaries`` or None when absent."""
+        b = self.meta.get("UTurnBoundaries")
+        return (int(b[0]), int(b[1])) if b else None
+
+    @property
+    def height_m(self) -> float | None:
+        """Body height in metres, None when the JSON has none."""
+        h = self.meta.get("Height")
+        try:
+            h = float(h)
+        except (TypeError, ValueError):
+            return None
+        return h / 100.0 if np.isfinite(h) and h > 0 else None
+
+    def foot_events(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reference toe-off and heel-strike indices of both feet, sorted, shape ``(m,)`` each."""
+        pairs = list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))
+        arr = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+        return np.sort(arr[:, 0]), np.sort(arr[:, 1])
+
+    def reference_steps(self) -> int:
+        """Number of reference heel strikes inside ``TrialBoundaries`` (inclusive): one per step."""
+        lo, hi = self.trial_bounds
+        _, hs = self.foot_events()
+        return int(np.count_nonzero((hs >= lo) & (hs <= hi)))
+
+
+def read_lb_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Read one ``*_lb.txt`` file onto its regular packet grid.
+
+    Returns
+    -------
+    acc_g, valid, sampling_rate_hz, first_counter
+        See :class:`IpolTrial`.
+
+    Raises
+    ------
+    HostError
+        Unreadable header, missing columns, non-numeric rows, or a counter that goes backwards.
+    """
+    path = Path(path)
+    try:
+        with open(path, encoding="utf-8", errors="strict") as fh:
+            first = fh.readline()
+            header = fh.readline().rstrip("\r\n").split("\t")
+    except (OSError, UnicodeDecodeError) as err:
+        raise HostError(f"{path}: cannot read IPOL file: {err}") from err
+    m = re.search(r"([0-9.]+)\s*Hz", first)
+    if not m:
+        raise HostError(f"{path}: line 1: expected 'Acquisition frequency: <rate> Hz', found {first.strip()!r}")
+    rate = float(m.group(1))
+    try:
+        cols = [header.index(c) for c in ("PacketCounter", "Acc_X", "Acc_Y", "Acc_Z")]
+    except ValueError as err:
+        raise HostError(f"{path}: line 2: missing column ({err}); found {header}") from err
+    try:
+        data = np.loadtxt(path, skiprows=2, usecols=cols, ndmin=2, delimiter="\t")
+    except ValueError as err:
+        raise HostError(f"{path}: bad numeric row: {err}") from err
+    if data.shape[0] < 2:
+        raise HostError(f"{path}: fewer than 2 samples")
+    counter = data[:, 0]
+    if not np.all(np.isfinite(counter)) or np.any(counter != np.round(counter)):
+        raise HostError(f"{path}: PacketCounter is not an integer everywhere")
+    counter = counter.astype(np.int64)
+    d = np.diff(counter)
+    back = np.flatnonzero(d < 0)
+    if back.size:
+        raise HostError(f"{path}: line {back[0] + 4}: PacketCounter goes backwards ({counter[back[0]]} -> "
+                        f"{counter[back[0] + 1]}); wrap-around is not supported")
+    dup = np.flatnonzero(d == 0)
+    if dup.size:
+        differ = np.any(data[dup, 1:] != data[dup + 1, 1:])
+        if differ:
+            warnings.warn(f"{path}: {dup.size} duplicated packet(s) with different values; keeping the first",
+                          stacklevel=2)
+        keep = np.ones(counter.size, bool)
+        keep[dup + 1] = False
+        counter, data = counter[keep], data[keep]
+    first_counter = int(counter[0])
+    n = int(counter[-1] - first_counter + 1)
+    acc = np.full((n, 3), np.nan)
+    valid = np.zeros(n, bool)
+    idx = counter - first_counter
+    acc[idx] = data[:, 1:4] / STANDARD_GRAVITY_M_S2
+    valid[idx] = True
+    return acc, valid, rate, first_counter
+
+
+def read_trial(lb_path: str | Path) -> IpolTrial:
+    """Read ``<s>-<t>_lb.txt`` and its ``<s>-<t>.json``.
+
+    Raises
+    ------
+    HostError
+        Bad file name, missing or invalid JSON, or a bad data file.
+    """
+    lb_path = Path(lb_path)
+    m = _NAME.match(lb_path.name)
+    if not m:
+        raise HostError(f"{lb_path}: expected a file name '<subject>-<trial>_lb.txt'")
+    json_path = lb_path.with_name(f"{m.group(1)}-{m.group(2)}.json")
+    try:
+        meta = json.loads(json_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise HostError(f"{json_path}: cannot read trial JSON: {err}") from err
+    if "TrialBoundaries" not in meta or len(meta["TrialBoundaries"]) != 2:
+        raise HostError(f"{json_path}: missing 'TrialBoundaries' [start, end]")
+    acc, valid, rate, first = read_lb_file(lb_path)
+    return IpolTrial(int(m.group(1)), int(m.group(2)), acc, valid, rate, first, meta, lb_path)
+
+
+def list_trials(folder: str | Path) -> list[Path]:
+    """All ``*_lb.txt`` files of an IPOL folder (``folder`` or ``folder/GaitData``), by subject then trial.
+
+    Raises
+    ------
+    HostError
+        When the folder holds no such file.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise HostError(f"{folder}: not a directory")
+    base = folder / "GaitData" if (folder / "GaitData").is_dir() else folder
+    files = [p for p in base.iterdir() if _NAME.match(p.name)]
+    if not files:
+        raise HostError(f"{base}: no '<subject>-<trial>_lb.txt' files (IPOL layout expected)")
+
+    def key(p: Path) -> tuple[int, int]:
+        mm = _NAME.match(p.name)
+        assert mm is not None
+        return int(mm.group(1)), int(mm.group(2))
+
+    return sorted(files, key=key)
