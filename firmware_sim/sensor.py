@@ -1,0 +1,267 @@
+"""Two ADXL202E biaxial accelerometers assembled into the logger's three axes.
+
+Assembly (the paper says only "two ADXL202, 3 axes"; this is the layout assumed here):
+
+- **Part A** lies flat on the main board: its X and Y channels give the device's ``x`` and ``y`` axes.
+- **Part B** stands on a small daughter board at right angles to the main board: its X channel gives the
+  device's ``z`` axis; its Y channel is nominally parallel to ``x`` (redundant) and is **not wired** to the
+  ADC (the logger stores three axes), so it is not modelled.
+
+Each axis reads ``v = V0 + S (1 + e) [b + LPF(clip(u . a, ±range) + n)]`` volts, where ``a`` is the true
+specific force in g (device axes), ``u`` the axis's actual sensitive direction (a row of ``axes``: the
+misalignment matrix), ``clip`` the ±2 g full scale of the sensing element, ``n`` white noise of density
+``noise_density_g_rthz``, ``LPF`` the single-pole filter formed by the part's internal 32 kΩ and the external
+filter capacitor (``f_-3dB = 5 µF / C``), ``b`` the 0 g offset in g, ``e`` the sensitivity error, ``S`` the
+nominal sensitivity and ``V0 = supply_v / 2`` the 0 g level (the analog outputs XFILT/YFILT are
+ratiometric). The output is the analog voltage at XFILT/YFILT (buffered); the ADC front end of
+:mod:`firmware_sim.adc` turns it into codes.
+
+Tolerances used by :meth:`SensorModel.draw` (uniform draws; ``*`` = an assumption, not a datasheet limit;
+HARDWARE.md lists the ADXL202E tolerance table as unverified):
+
+=========================  =====================  ==============================================================
+parameter                  default draw           basis
+=========================  =====================  ==============================================================
+0 g offset ``b``           ±0.10 g  *             typical parts; the datasheet's worst-case 0 g duty-cycle span
+                                                  is far wider (±2 g at 25-75 % duty)
+sensitivity error ``e``    ±5 %  *                datasheet limits 10-15 %/g around 12.5 %/g (±20 %)
+package alignment          ±1° per part           ADXL202E "alignment error ±1°"
+X-to-Y non-orthogonality   ±0.01°                 ADXL202E "X-to-Y alignment error ±0.01°" (same die)
+part B mounting            ±2°  *                 a hand-soldered daughter board
+filter bandwidth           ±15 %                  internal filter resistor 32 kΩ ±15 %
+noise density              200 µg/√Hz (fixed)     ADXL202E typical
+full scale                 ±2 g (fixed)           ADXL202 measurement range
+sensitivity at 5 V         312 mV/g  *            ratiometric; HARDWARE.md marks 312 mV/g unverified
+=========================  =====================  ==============================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+from scipy.spatial.transform import Rotation
+
+from firmware_sim.errors import DeviceError
+
+__all__ = ["SensorModel", "AXIS_PARTS", "filter_cutoff_hz"]
+
+#: Which part and channel gives each device axis.
+AXIS_PARTS = ("A.X", "A.Y", "B.X")
+
+#: ADXL202 filter constant: f_-3dB = 5 µF / C.
+FILTER_CONSTANT_F_HZ = 5e-6
+
+
+def filter_cutoff_hz(capacitance_f: np.ndarray | float) -> np.ndarray:
+    """-3 dB frequency of the ADXL202 output filter, ``5 µF / C`` (C in farads).
+
+    >>> round(filter_cutoff_hz(0.25e-6).item(), 9)
+    20.0
+    """
+    c = np.asarray(capacitance_f, dtype=np.float64)
+    if np.any(c <= 0):
+        raise DeviceError(f"filter capacitance must be > 0 F, got {c}")
+    return FILTER_CONSTANT_F_HZ / c
+
+
+@dataclass(frozen=True, eq=False)
+class SensorModel:
+    """Parameters of the three-axis ADXL202E assembly, all explicit.
+
+    Parameters
+    ----------
+    offset_g
+        ``(3,)`` 0 g offset of each axis, in g.
+    sensitivity_error
+        ``(3,)`` relative sensitivity error (0.02 = 2 % high).
+    axes
+        ``(3, 3)`` misalignment matrix: row ``i`` is the unit sensitive direction of axis ``i`` in device
+        axes (identity = perfectly orthogonal and aligned).
+    filter_capacitance_f
+        ``(3,)`` filter capacitor of each axis in farads (Cx, Cy of part A; Cx of part B); the bandwidth
+        is ``5 µF / C`` times ``bandwidth_factor``.
+    bandwidth_factor
+        ``(3,)`` spread of the internal 32 kΩ filter resistor, as a factor on the bandwidth (1 = nominal).
+    noise_density_g_rthz
+        White-noise density referred to the input, g/√Hz (ADXL202E: 200 µg/√Hz).
+    range_g
+        Full scale of the sensing element; the element output clips at ±``range_g``.
+    supply_v
+        Supply voltage; the 0 g output is ``supply_v / 2`` (ratiometric).
+    sensitivity_v_per_g
+        Nominal sensitivity at the analog output, V/g.
+    internal_rate_hz
+        Rate of the fine time grid the analog behaviour (filter, noise) is simulated on.
+    seed
+        Seed of the noise generator (each call of :meth:`respond` without ``rng`` continues one stream).
+
+    Examples
+    --------
+    >>> s = SensorModel.ideal(noise_density_g_rthz=0.0)
+    >>> v = s.respond(np.tile([0.0, 0.0, 1.0], (1000, 1)), 500.0)
+    >>> np.round(v[-1], 6).tolist()
+    [2.5, 2.5, 2.812]
+    """
+
+    offset_g: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sensitivity_error: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))
+    filter_capacitance_f: np.ndarray = field(default_factory=lambda: np.full(3, 0.25e-6))
+    bandwidth_factor: np.ndarray = field(default_factory=lambda: np.ones(3))
+    noise_density_g_rthz: float = 200e-6
+    range_g: float = 2.0
+    supply_v: float = 5.0
+    sensitivity_v_per_g: float = 0.312
+    internal_rate_hz: float = 500.0
+    seed: int = 0
+    _rng: np.random.Generator = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        for name, shape in (("offset_g", (3,)), ("sensitivity_error", (3,)), ("axes", (3, 3)),
+                            ("filter_capacitance_f", (3,)), ("bandwidth_factor", (3,))):
+            arr = np.array(getattr(self, name), dtype=np.float64)
+            if arr.shape == () and shape == (3,):
+                arr = np.full(3, float(arr))
+            if arr.shape != shape or not np.isfinite(arr).all():
+                raise DeviceError(f"SensorModel.{name} must be a finite array of shape {shape}, got {arr!r}")
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        if np.any(self.filter_capacitance_f <= 0) or np.any(self.bandwidth_factor <= 0):
+            raise DeviceError("filter capacitances and bandwidth factors must be > 0")
+        if not np.allclose(np.linalg.norm(self.axes, axis=1), 1.0, atol=1e-9):
+            raise DeviceError("SensorModel.axes rows must be unit vectors (sensitive directions)")
+        if self.noise_density_g_rthz < 0 or self.range_g <= 0 or self.internal_rate_hz <= 0:
+            raise DeviceError("noise density must be >= 0, range and internal rate > 0")
+        if np.any(self.cutoff_hz >= self.internal_rate_hz / 2):
+            raise DeviceError(
+                f"filter cut-off {self.cutoff_hz.max():.1f} Hz is not below the Nyquist frequency of the "
+                f"internal rate {self.internal_rate_hz} Hz: raise internal_rate_hz or the capacitance"
+            )
+        object.__setattr__(self, "_rng", np.random.default_rng(self.seed))
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def ideal(cls, **overrides: object) -> SensorModel:
+        """A perfect assembly (no offset, gain error or misalignment; noise and filter still there)."""
+        return cls(**overrides)  # type: ignore[arg-type]
+
+    @classmethod
+    def draw(
+        cls,
+        *,
+        seed: int = 0,
+        offset_tol_g: float = 0.10,
+        sensitivity_tol: float = 0.05,
+        package_alignment_tol_deg: float = 1.0,
+        xy_orthogonality_tol_deg: float = 0.01,
+        mounting_tol_deg: float = 2.0,
+        bandwidth_tol: float = 0.15,
+        **overrides: object,
+    ) -> SensorModel:
+        """A seeded assembly with every error drawn uniformly within the tolerances (module docstring).
+
+        Examples
+        --------
+        >>> s = SensorModel.draw(seed=3)
+        >>> bool(np.all(np.abs(s.offset_g) <= 0.1)), bool(np.all(np.abs(s.sensitivity_error) <= 0.05))
+        (True, True)
+        >>> ang = np.degrees(np.arccos(np.clip(np.abs(np.diag(s.axes)), 0, 1)))
+        >>> bool(np.all(ang < 4.0)), bool(np.all(ang > 0.0))
+        (True, True)
+        """
+        rng = np.random.default_rng(seed)
+        offset = rng.uniform(-offset_tol_g, offset_tol_g, 3)
+        sens = rng.uniform(-sensitivity_tol, sensitivity_tol, 3)
+        rot_a = Rotation.from_rotvec(np.radians(rng.uniform(-package_alignment_tol_deg, package_alignment_tol_deg, 3)))
+        skew = Rotation.from_rotvec([0.0, 0.0, np.radians(rng.uniform(-xy_orthogonality_tol_deg, xy_orthogonality_tol_deg))])
+        mount_deg = rng.uniform(-mounting_tol_deg, mounting_tol_deg, 3) + rng.uniform(
+            -package_alignment_tol_deg, package_alignment_tol_deg, 3
+        )
+        rot_b = Rotation.from_rotvec(np.radians(mount_deg))
+        axes = np.vstack([
+            rot_a.apply([1.0, 0.0, 0.0]),
+            (rot_a * skew).apply([0.0, 1.0, 0.0]),
+            rot_b.apply([0.0, 0.0, 1.0]),
+        ])
+        bw = 1.0 + rng.uniform(-bandwidth_tol, bandwidth_tol, 3)
+        params: dict[str, object] = dict(
+            offset_g=offset, sensitivity_error=sens, axes=axes, bandwidth_factor=bw, seed=seed + 1
+        )
+        params.update(overrides)
+        return cls(**params)  # type: ignore[arg-type]
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def cutoff_hz(self) -> np.ndarray:
+        """``(3,)`` -3 dB frequency of each axis, Hz."""
+        return filter_cutoff_hz(self.filter_capacitance_f) * self.bandwidth_factor
+
+    @property
+    def zero_g_v(self) -> float:
+        """Nominal 0 g output voltage, ``supply_v / 2``."""
+        return self.supply_v / 2.0
+
+    @property
+    def gain_v_per_g(self) -> np.ndarray:
+        """``(3,)`` actual sensitivity of each axis, V/g."""
+        return self.sensitivity_v_per_g * (1.0 + self.sensitivity_error)
+
+    def static_v(self, acc_g: np.ndarray) -> np.ndarray:
+        """Noise-free settled output ``(n, 3)`` in V for a constant input ``acc_g`` ``(n, 3)`` (DC gain 1)."""
+        r = np.clip(np.atleast_2d(acc_g) @ self.axes.T, -self.range_g, self.range_g)
+        return self.zero_g_v + self.gain_v_per_g * (self.offset_g + r)
+
+    # ------------------------------------------------------------------ action
+    def respond(self, acc_g: np.ndarray, rate_hz: float, *, rng: np.random.Generator | None = None,
+                zi_settled: bool = True) -> np.ndarray:
+        """Analog output voltages ``(n, 3)`` for a true specific force ``acc_g`` ``(n, 3)`` sampled at ``rate_hz``.
+
+        Parameters
+        ----------
+        acc_g
+            True specific force along the device's nominal axes, g, on a regular grid.
+        rate_hz
+            Rate of ``acc_g``; should be well above the filter cut-off (``internal_rate_hz`` is the
+            design value; the filter is discretised by the bilinear transform with pre-warping, exact at
+            the cut-off frequency).
+        rng
+            Noise generator; default the model's own seeded stream.
+        zi_settled
+            Start the filter settled on the first input sample (a device powered on long before logging);
+            False starts it at 0 g.
+        """
+        a = np.asarray(acc_g, dtype=np.float64)
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise DeviceError(f"acc_g must have shape (n, 3), got {a.shape}")
+        if np.any(self.cutoff_hz >= rate_hz / 2):
+            raise DeviceError(f"input rate {rate_hz} Hz too low for a {self.cutoff_hz.max():.1f} Hz filter")
+        gen = self._rng if rng is None else rng
+        r = np.clip(a @ self.axes.T, -self.range_g, self.range_g)  # element output, g along each axis
+        if self.noise_density_g_rthz > 0 and a.shape[0]:
+            sigma = self.noise_density_g_rthz * np.sqrt(rate_hz / 2.0)  # white over 0 .. rate/2
+            r = r + gen.standard_normal(a.shape, dtype=np.float64) * sigma
+        out = np.empty_like(r)
+        for j in range(3):  # one first-order IIR per axis (the RC filter is genuinely recursive)
+            b, den = signal.butter(1, self.cutoff_hz[j], btype="low", fs=rate_hz)
+            zi = signal.lfilter_zi(b, den) * (r[0, j] if (zi_settled and r.shape[0]) else 0.0)
+            out[:, j], _ = signal.lfilter(b, den, r[:, j], zi=zi)
+        return self.zero_g_v + self.gain_v_per_g * (self.offset_g + out)
+
+    def truth(self) -> dict[str, object]:
+        """Every parameter as plain arrays and numbers (for ground truth and reports)."""
+        return {
+            "axis_parts": AXIS_PARTS,
+            "offset_g": self.offset_g.copy(),
+            "sensitivity_error": self.sensitivity_error.copy(),
+            "axes": self.axes.copy(),
+            "cutoff_hz": self.cutoff_hz.copy(),
+            "filter_capacitance_f": self.filter_capacitance_f.copy(),
+            "noise_density_g_rthz": self.noise_density_g_rthz,
+            "range_g": self.range_g,
+            "supply_v": self.supply_v,
+            "sensitivity_v_per_g": self.sensitivity_v_per_g,
+            "gain_v_per_g": self.gain_v_per_g.copy(),
+            "seed": self.seed,
+        }
