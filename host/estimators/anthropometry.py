@@ -4,11 +4,14 @@ Segment lengths as fractions of body height H from Winter, *Biomechanics and Mot
 Movement* (4th ed., 2009, Fig. 4.1, after Drillis & Contini 1966):
 
 * leg length (greater trochanter to floor, the pendulum length of M1-M3): ``0.530 H``;
-* foot length (heel to toe): ``0.152 H``.
+* foot length heel to toe: ``0.152 H``.
 
-Alvarez et al. define the M3 double-support constant as the foot length "from the first metatarsal head to
-the calcaneal tuberosity", shorter than heel-to-toe; we keep Winter's heel-to-toe ratio when only the
-height is known and say so, since that is the published population rule.
+Alvarez et al. define M3's double-support constant S2 as the foot length "from the first metatarsal head
+to the calcaneal tuberosity" (heel to ball of the foot), not heel to toe. That *ball-of-foot length* is
+0.73 of the heel-to-toe length in the US Army anthropometric survey (ANSUR, Gordon et al. 1989: means
+197/270 mm in men, 179/244 mm in women), so the ``foot_length_m`` used by M3 is estimated as
+``0.73 * 0.152 H = 0.111 H``. A measured ``foot_length_m`` must be measured the paper's way (heel to first
+metatarsal head).
 """
 
 from __future__ import annotations
@@ -18,7 +21,10 @@ import warnings
 from host.errors import HostError
 
 LEG_LENGTH_PER_HEIGHT = 0.530
-FOOT_LENGTH_PER_HEIGHT = 0.152
+HEEL_TOE_LENGTH_PER_HEIGHT = 0.152
+BALL_OF_FOOT_PER_FOOT_LENGTH = 0.73
+#: Heel (calcaneal tuberosity) to first metatarsal head, per height: the paper's "foot length".
+FOOT_LENGTH_PER_HEIGHT = round(BALL_OF_FOOT_PER_FOOT_LENGTH * HEEL_TOE_LENGTH_PER_HEIGHT, 4)
 #: Height used when nothing is known (adult population mean, both sexes, ~1.70 m).
 DEFAULT_HEIGHT_M = 1.70
 
@@ -28,6 +34,8 @@ def anatomical_lengths(
 ) -> tuple[float, float]:
     """Return ``(leg_length_m, foot_length_m)``, estimating what is missing from the height.
 
+    ``foot_length_m`` is heel to first metatarsal head (the paper's definition, see module notes).
+
     Raises
     ------
     HostError
@@ -36,7 +44,7 @@ def anatomical_lengths(
     Examples
     --------
     >>> anatomical_lengths(height_m=1.80)
-    (0.954, 0.2736)
+    (0.954, 0.19980000000000001)
     >>> anatomical_lengths(leg_length_m=0.9, foot_length_m=0.26)
     (0.9, 0.26)
     """
@@ -44,7 +52,7 @@ def anatomical_lengths(
         raise HostError(f"height {height_m!r} m is outside 0.8-2.5 m (give it in metres)")
     if leg_length_m is not None and not (0.3 <= leg_length_m <= 1.3):
         raise HostError(f"leg length {leg_length_m!r} m is outside 0.3-1.3 m (give it in metres)")
-    if foot_length_m is not None and not (0.1 <= foot_length_m <= 0.4):
+    if foot_length_m is not None and not (0.08 <= foot_length_m <= 0.4):
         raise HostError(f"foot length {foot_length_m!r} m is outside 0.1-0.4 m (give it in metres)")
     if (leg_length_m is None or foot_length_m is None) and height_m is None:
         warnings.warn(f"no height given: anatomical lengths estimated for a {DEFAULT_HEIGHT_M} m adult",
