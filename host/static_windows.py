@@ -18,8 +18,10 @@ Method (numbered steps are referred to in the code):
    SD anywhere between ~0 and ``q / 2`` depending on where the level falls within a code, so a bare
    ``1.3 x floor`` would reject good holds of a 10-bit logger.
 4. A window is quiet when every axis is below its threshold; consecutive quiet windows merge into one
-   candidate segment ``[k0, k1 + w)`` (so every candidate holds for at least ``hold_s``). ``trim_s`` is cut
-   from both ends before the mean is taken.
+   candidate segment ``[k0, k1 + w)``. A few slowly moving samples at the ends barely raise a 3 s SD, so the
+   ends are then cut back to where the 0.2 s running mean stays within ``4 sigma / sqrt(m) + q / 2`` of the
+   segment median (``m`` samples in 0.2 s); a segment left shorter than 0.9 ``hold_s`` is rejected. ``trim_s``
+   is cut from both ends before the mean is taken.
 5. Candidates are rejected, with the reason kept in ``rejected_``, when an axis is exactly constant (SD = 0:
    a stuck or sleeping sensor, or a saturated axis), when the orientation drifts by more than
    ``min_angle_deg / 2`` between the first and the last ``hold_s`` of the segment, when ``|mean| >=
@@ -147,6 +149,10 @@ class StaticWindowDetector:
         self.min_angle_deg = min_angle_deg
         self.trim_s = trim_s
 
+    @staticmethod
+    def _refine(x: np.ndarray, a: int, b: int, m: int, tol: np.ndarray) -> tuple[int, int]:
+        return _edge_refine(x, a, b, m, tol)
+
     def detect(self, acc: np.ndarray, *, sampling_rate_hz: float, zero: np.ndarray | None = None,
                unit_per_g: float | np.ndarray | None = 1.0) -> Self:
         """Find the static holds of ``acc``.
@@ -212,13 +218,22 @@ class StaticWindowDetector:
         quiet = ok & (sd <= thr).all(axis=1)  # step 4
         trim = int(round(self.trim_s * sampling_rate_hz))
         candidates = []
+        m = max(1, int(round(0.2 * sampling_rate_hz)))
+        edge_tol = 4.0 * np.sqrt(floor**2 + self.code_step_**2 / 12) / np.sqrt(m) + self.code_step_ / 2
         for k0, k1 in _runs(quiet):
-            a, b = k0, k1 + w
+            a, b = self._refine(x, k0, k1 + w, m, edge_tol)
+            if b - a < 0.9 * w:
+                seg = x[a:b] if b - a >= 2 else x[k0:k1 + w]
+                win = StaticWindow(a, b, seg.mean(axis=0), seg.std(axis=0, ddof=1))
+                self.rejected_.append((win, f"only {(b - a) / sampling_rate_hz:.2f} s still after removing the "
+                                            "moving ends"))
+                continue
             if b - a - 2 * trim >= 2:
                 a, b = a + trim, b - trim
             seg = x[a:b]
             first, last = x[k0:k0 + w].mean(axis=0), x[k1:k1 + w].mean(axis=0)
-            candidates.append((StaticWindow(a, b, seg.mean(axis=0), seg.std(axis=0, ddof=1)), first, last))
+            sd_seg = np.where(np.ptp(seg, axis=0) == 0, 0.0, seg.std(axis=0, ddof=1))  # exact 0 when constant
+            candidates.append((StaticWindow(a, b, seg.mean(axis=0), sd_seg), first, last))
         if not candidates:
             return self
         means = np.array([c[0].mean for c in candidates])
@@ -265,6 +280,21 @@ class StaticWindowDetector:
         self.windows_ = sorted((a[0] for a in accepted), key=lambda s: s.start)
         self.rejected_.sort(key=lambda r: r[0].start)
         return self
+
+
+def _edge_refine(x: np.ndarray, a: int, b: int, m: int, tol: np.ndarray) -> tuple[int, int]:
+    """Step 4b: cut the ends of ``x[a:b]`` whose ``m``-sample running mean leaves the segment median by ``tol``."""
+    seg = x[a:b]
+    if len(seg) < m + 2:
+        return a, b
+    med = np.median(seg, axis=0)
+    c = np.cumsum(np.vstack([np.zeros((1, 3)), seg - med]), axis=0)
+    run = (c[m:] - c[:-m]) / m  # run[i] = mean of seg[i:i + m]
+    on = (np.abs(run) <= tol).all(axis=1)
+    if not on.any():
+        return a, a
+    first, last = int(np.argmax(on)), len(on) - 1 - int(np.argmax(on[::-1]))
+    return a + first, a + last + m
 
 
 def find_static_windows(acc: np.ndarray, sampling_rate_hz: float, *, hold_s: float = 3.0,
