@@ -1,0 +1,258 @@
+"""Decode a memory image, a raw XMODEM dump or a raw wire capture into a :class:`~host.recording.Recording`.
+
+Three inputs (``protocol.image.detect_format`` tells them apart):
+
+``image``
+    A ``.glimg`` memory-image file (``PROTOCOL.md`` section 6), as written by the emulator and by
+    ``gaitlog dump``. Each 1024-byte block is used only when its CRC-32 matches (shifted blocks are recovered
+    by ``protocol.image.parse_image``); blocks marked missing or never found are reported as gaps.
+``raw``
+    The file an XMODEM receiver (``rx``) writes after XDUMP (section 5): the 256-byte header, then the memory
+    from address 0, padded with 0x1A. XMODEM checked every block on the way; a short file is truncated and
+    the samples beyond its end are reported missing.
+``capture``
+    The device-to-host bytes of a DUMP/READ session (sections 3-4): HEADER and DATA frames. A memory byte is
+    known only when an intact DATA frame (CRC-16 good) carried it; everything else is reported missing.
+
+Then, for all three, the ring order is restored (oldest sample first, ``PROTOCOL.md`` section 2's derived
+quantities) and the P32 words are unpacked with numpy. A sample is valid only if all four of its bytes were
+received intact: the decoder never invents a sample.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from host.errors import HostError
+from host.recording import Recording, gaps_from_mask
+from protocol.errors import ProtocolError
+
+#: Reason texts of the gaps, indexed by the reason codes used below.
+REASONS = (
+    "block marked missing in the image (never received by the dump)",       # 0
+    "block damaged in the image (CRC-32 mismatch, not found at a shifted offset)",  # 1
+    "beyond the end of the truncated input",                                 # 2
+    "not received intact (no DATA frame with a good CRC covered it)",       # 3
+    "code outside the ADC range of the header's adc_bits",                  # 4
+)
+_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE = range(5)
+
+_TYPE_HEADER = 0x86
+_TYPE_DATA = 0x87
+
+
+def decode_file(path: str | os.PathLike[str]) -> Recording:
+    """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file.
+
+    Raises
+    ------
+    ProtocolError
+        The bytes are none of the three formats, or the header is invalid (message: file, offset, reason).
+    OSError
+        The file cannot be read.
+    """
+    path = Path(path)
+    data = path.read_bytes()
+    return decode_bytes(data, source=str(path))
+
+
+def decode_bytes(data: bytes, source: str | None = None) -> Recording:
+    """Decode an image, a raw dump or a wire capture held in memory.
+
+    Parameters
+    ----------
+    data
+        The file's bytes.
+    source
+        Name used in messages and stored in ``Recording.source``.
+
+    Returns
+    -------
+    Recording
+        Stored samples in ring order (oldest first), exact or reported missing.
+    """
+    from protocol.image import detect_format
+
+    data = bytes(data)
+    if not data:
+        raise ProtocolError("empty input: expected a memory image, a raw dump or a wire capture", offset=0,
+                            source=source)
+    try:
+        fmt = detect_format(data)
+        if fmt == "image":
+            return _decode_image(data, source)
+        if fmt == "raw":
+            return _decode_raw(data, source)
+        if fmt == "capture":
+            return _decode_capture(data, source)
+        raise ProtocolError(f"unknown input format {fmt!r}", offset=0)  # pragma: no cover
+    except ProtocolError as err:
+        if err.source is None and source is not None:
+            raise err.at(source=source) from err
+        raise
+
+
+# ------------------------------------------------------------------------------------------------ formats
+def _decode_image(data: bytes, source: str | None) -> Recording:
+    from protocol.image import parse_image
+
+    contents = parse_image(data, source=source)
+    header = contents.header
+    memory = np.asarray(contents.memory, dtype=np.uint8)
+    block_size = int(contents.block_size)
+    block_ok = np.asarray(contents.block_ok, dtype=bool)
+    # Reason per block: marked missing in the table, or damaged/not found (anything else not ok).
+    marked = getattr(contents, "block_missing", None)
+    if marked is None:
+        marked = getattr(contents, "block_marked_missing", None)
+    block_reason = np.full(block_ok.size, _R_DAMAGED, dtype=np.int8)
+    if marked is not None:
+        block_reason[np.asarray(marked, dtype=bool)] = _R_MISSING
+    truncated = getattr(contents, "block_truncated", None)
+    if truncated is not None:
+        block_reason[np.asarray(truncated, dtype=bool)] = _R_TRUNCATED
+    byte_ok = np.repeat(block_ok, block_size)[: memory.size]
+    byte_reason = np.repeat(block_reason, block_size)[: memory.size]
+    notes = list(getattr(contents, "notes", []))
+    return _assemble(header, memory, byte_ok, byte_reason, source, "image", notes)
+
+
+def _decode_raw(data: bytes, source: str | None) -> Recording:
+    from protocol.header import HEADER_SIZE, DeviceHeader
+
+    if len(data) < HEADER_SIZE:
+        raise ProtocolError(f"truncated raw dump: {len(data)} bytes, the header alone is {HEADER_SIZE}",
+                            offset=len(data), source=source)
+    header = DeviceHeader.from_bytes(data[:HEADER_SIZE], source=source)
+    memory = np.frombuffer(data, dtype=np.uint8, offset=HEADER_SIZE)
+    cap_bytes = int(header.capacity_samples) * 4
+    memory = memory[:cap_bytes]
+    byte_ok = np.ones(memory.size, dtype=bool)
+    byte_reason = np.zeros(memory.size, dtype=np.int8)
+    notes = ["raw XMODEM dump: blocks were checked by XMODEM's CRC-16 in transit; the file has no checks"]
+    return _assemble(header, memory, byte_ok, byte_reason, source, "raw", notes)
+
+
+def _decode_capture(data: bytes, source: str | None) -> Recording:
+    from protocol.frames import parse_stream
+    from protocol.header import HEADER_SIZE, DeviceHeader
+
+    frames, errors = parse_stream(data, source=source)
+    headers: list[tuple[int, bytes]] = []
+    data_frames = []
+    for fr in frames:
+        if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
+            headers.append((fr.offset, bytes(fr.payload)))
+        elif fr.type == _TYPE_DATA and len(fr.payload) >= 4:
+            data_frames.append(fr)
+    if not headers:
+        raise ProtocolError(
+            f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
+            f"{len(errors)} framing errors: cannot place the samples", offset=0, source=source)
+    notes = []
+    distinct = {h for _, h in headers}
+    header_offset, header_bytes = headers[-1]
+    if len(distinct) > 1:
+        notes.append(f"{len(distinct)} different HEADER frames in the capture; used the last (offset "
+                     f"{header_offset})")
+        warnings.warn(f"{source or 'capture'}: {len(distinct)} different HEADER frames; using the last one",
+                      stacklevel=3)
+    try:
+        header = DeviceHeader.from_bytes(header_bytes, source=source)
+    except ProtocolError as err:
+        raise err.at(offset=header_offset + 6) from err
+    cap_bytes = int(header.capacity_samples) * 4
+    memory = np.zeros(cap_bytes, dtype=np.uint8)
+    covered = np.zeros(cap_bytes, dtype=bool)
+    outside = 0
+    for fr in data_frames:
+        address = int.from_bytes(fr.payload[:4], "little")
+        chunk = np.frombuffer(fr.payload, dtype=np.uint8, offset=4)
+        end = address + chunk.size
+        if end > cap_bytes:
+            outside += 1
+            continue
+        memory[address:end] = chunk
+        covered[address:end] = True
+    if outside:
+        notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte memory were ignored")
+    if errors:
+        notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
+    byte_reason = np.full(cap_bytes, _R_NOT_RECEIVED, dtype=np.int8)
+    return _assemble(header, memory, covered, byte_reason, source, "capture", notes)
+
+
+# ------------------------------------------------------------------------------------------------ common
+def _assemble(header, memory: np.ndarray, byte_ok: np.ndarray, byte_reason: np.ndarray, source: str | None,
+              kind: str, notes: list[str]) -> Recording:
+    """Restore ring order and unpack: ``PROTOCOL.md`` section 2 (derived quantities) and section 1."""
+    from protocol.packing import unpack_words
+
+    capacity = int(header.capacity_samples)
+    n = int(header.n_stored)
+    first = int(header.first_slot)
+    n_words_avail = min(memory.size // 4, capacity)
+    # Per-slot validity: all four bytes intact and present.
+    slot_ok = np.zeros(capacity, dtype=bool)
+    slot_reason = np.full(capacity, _R_TRUNCATED, dtype=np.int8)
+    if n_words_avail:
+        ok4 = byte_ok[: n_words_avail * 4].reshape(-1, 4)
+        slot_ok[:n_words_avail] = ok4.all(axis=1)
+        r4 = byte_reason[: n_words_avail * 4].reshape(-1, 4)
+        # reason of a bad slot: the reason of its first bad byte
+        bad_byte = np.argmin(ok4, axis=1)
+        slot_reason[:n_words_avail] = r4[np.arange(n_words_avail), bad_byte]
+    words_all = np.zeros(capacity, dtype="<u4")
+    if n_words_avail:
+        words_all[:n_words_avail] = memory[: n_words_avail * 4].view("<u4")
+    # Ring order: slot (first + i) mod capacity for i = 0 .. n-1 (contiguous pieces, no fancy index).
+    head = min(n, capacity - first)
+    order = [slice(first, first + head)]
+    if n > head:
+        order.append(slice(0, n - head))
+    words = np.concatenate([words_all[s] for s in order]) if n else np.zeros(0, "<u4")
+    valid = np.concatenate([slot_ok[s] for s in order]) if n else np.zeros(0, bool)
+    reason = np.concatenate([slot_reason[s] for s in order]) if n else np.zeros(0, np.int8)
+    codes, flags = unpack_words(words)
+    codes = np.array(codes, dtype=np.uint16)
+    flags = np.array(flags, dtype=np.uint8)
+    adc_bits = int(header.adc_bits)
+    if adc_bits < 10 and n:
+        out_of_range = (codes > (1 << adc_bits) - 1).any(axis=1) & valid
+        if out_of_range.any():
+            reason[out_of_range] = _R_RANGE
+            valid &= ~out_of_range
+            notes.append(f"{int(out_of_range.sum())} sample(s) with codes above the {adc_bits}-bit ADC range "
+                         "reported missing")
+    codes[~valid] = 0
+    flags[~valid] = 0
+    first_sn = int(header.first_sample_number)
+    sample_numbers = first_sn + np.arange(n, dtype=np.int64)
+    gaps = gaps_from_mask(valid, sample_numbers, reason, REASONS)
+    rec = Recording(codes=codes, valid=valid, flags=flags, sample_numbers=sample_numbers,
+                    sampling_rate_hz=float(header.sample_rate_hz), start_time_s=float(header.sample_time_s(0)),
+                    header=header, gaps=gaps, adc_bits=adc_bits, source=source,
+                    notes=[f"decoded from a {kind}"] + notes)
+    rec.notes.append(rec.default_calibration()[1])
+    return rec
+
+
+def save_outputs(recording: Recording, prefix: str | os.PathLike[str], calibration=None) -> tuple[Path, Path]:
+    """Write ``PREFIX.npz`` and ``PREFIX.csv`` (atomically each; the CSV only after the NPZ succeeded)."""
+    prefix = Path(prefix)
+    if prefix.suffix in (".csv", ".npz"):
+        prefix = prefix.with_suffix("")
+    if prefix.parent and not prefix.parent.exists():
+        raise HostError(f"output directory {prefix.parent} does not exist")
+    npz, csv = prefix.with_name(prefix.name + ".npz"), prefix.with_name(prefix.name + ".csv")
+    recording.save_npz(npz)
+    try:
+        recording.to_csv(csv, calibration)
+    except BaseException:
+        npz.unlink(missing_ok=True)
+        raise
+    return npz, csv
