@@ -163,8 +163,6 @@ def _record_with_logger(replay, *, rate_hz: float, bits: int, seed: int) -> tupl
     result = logger.record(replay)
     codes = np.asarray(result.codes, np.float64)
     times = np.asarray(result.sample_times_s, np.float64)
-    if bits < 10:  # codes are right-justified in 10-bit fields
-        pass
     return codes, times
 
 

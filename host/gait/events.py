@@ -111,8 +111,10 @@ class GaitEventDetector:
             self._set(empty, empty, empty, empty, empty)
             return self
         # 1. foot-flat = first-harmonic peaks (NaN stretches cannot hold a peak)
-        floor = np.nanmin(lp) - 1.0
-        sig = np.where(np.isfinite(lp), lp, floor)
+        # the peak search needs a continuous curve: across stretches where the filter has too little
+        # measured data the curve is drawn straight (for the search only), and no peak may lie there
+        fin = np.isfinite(lp)
+        sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
         ff, _ = find_peaks(sig, distance=max(1, int(round(self.min_step_s * fs))),
                            prominence=self.min_prominence_m_s2)
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
@@ -122,7 +124,7 @@ class GaitEventDetector:
         if d.size >= 3:
             min_dist = max(self.min_step_s * fs, self.min_step_fraction * float(np.median(d)))
             ff, _ = find_peaks(sig, distance=max(1, int(round(min_dist))), prominence=self.min_prominence_m_s2)
-        ff = ff[ok[ff]] if ff.size else ff
+        ff = ff[ok[ff] & fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
         hs = self._search(np.gradient(det), ff, -int(round(self.hs_search_s * fs)), 0, mode="argmax")

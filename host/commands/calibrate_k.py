@@ -1,0 +1,70 @@
+"""``gaitlog calibrate-k``: fit K (M1, M2, M4) and the M5 line from walking over a known distance."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "fit the per-subject constants K and the M5 line from recordings with a known distance"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._gait_input import add_anatomy_options
+
+    parser.add_argument("inputs", nargs="+", metavar="INPUT",
+                        help="decoded recording(s) (.npz) or CSV; several inputs = several speeds")
+    how = parser.add_mutually_exclusive_group(required=True)
+    how.add_argument("--distance", type=float, nargs="+", metavar="M",
+                     help="distance walked in each input, m (one value for all inputs, or one per input)")
+    how.add_argument("--lap-marks", type=float, metavar="M",
+                     help="distance between consecutive MARK flags, m: every lap between marks is one section")
+    parser.add_argument("--out", required=True, metavar="K.json", help="write the calibration here (JSON)")
+    parser.add_argument("--subject", default="", help="label stored in the file")
+    add_anatomy_options(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    import warnings
+
+    import numpy as np
+
+    from host.commands._gait_input import load_input
+    from host.errors import HostError
+    from host.estimators.anthropometry import anatomical_lengths
+    from host.estimators.calibration import calibrate
+    from host.gait.pipeline import StepPipeline
+
+    if args.distance is not None and len(args.distance) not in (1, len(args.inputs)):
+        raise HostError(f"--distance: give one value or one per input ({len(args.inputs)}), "
+                        f"got {len(args.distance)}")
+    if args.lap_marks is not None and not args.lap_marks > 0:
+        raise HostError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        leg, foot = anatomical_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length,
+                                       height_m=args.height)
+        sections = []
+        for i, path in enumerate(args.inputs):
+            data = load_input(path, rate_hz=args.rate, calibration=args.calibration)
+            steps = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
+                data.acc_g, sampling_rate_hz=data.sampling_rate_hz, valid=data.valid).steps_
+            if args.distance is not None:
+                dist = args.distance[0] if len(args.distance) == 1 else args.distance[i]
+                sections.append((steps, float(dist)))
+                continue
+            marks = data.mark_index
+            if marks.size < 2:
+                raise HostError(f"{path}: --lap-marks needs at least two MARK flags, found {marks.size}")
+            t = np.where(steps.heel_strike >= 0, steps.heel_strike, steps.foot_flat)
+            for a, b in zip(marks[:-1], marks[1:]):
+                sel = (t > a) & (t <= b)
+                if sel.any():
+                    sections.append((steps.select(sel), float(args.lap_marks)))
+        cal = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
+    cal.save(args.out)
+    print(f"{len(sections)} section(s), {cal.n_steps} steps, {cal.distance_m:g} m ({cal.mode})")
+    print(f"K  M1 {cal.k_m1:.4f}  M2 {cal.k_m2:.4f}  M4 {cal.k_m4:.4f} m/(m/s^2)^0.25")
+    print(f"M5 S = {cal.k1_m5_m_s:.4f} / T + {cal.k2_m5_m:.4f} m" + ("  (walk-ratio fallback)" if cal.m5_fallback else ""))
+    for c in caught:
+        print(f"warning: {c.message}")
+    print(f"written: {args.out}")
+    return 0
