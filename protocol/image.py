@@ -1,0 +1,372 @@
+"""The memory-image file ``.glimg`` (``PROTOCOL.md`` section 6), with recovery of damaged files.
+
+The file holds the device header and the whole sample memory, checked block by block with CRC-32, so that a
+decoder returns the intact part of a damaged file: blocks are used only when their CRC-32 matches, blocks
+displaced by dropped or inserted bytes are found again within ±64 bytes of the running shift, and blocks
+never found or beyond a truncated end are reported missing — never invented.
+
+Examples
+--------
+>>> from protocol.header import DeviceHeader
+>>> h = DeviceHeader(capacity_samples=512, samples_written=300, write_index=300)
+>>> memory = bytes(range(256)) * 8
+>>> img = build_image(h, memory, missing_blocks=[1])
+>>> len(img), img[:16].hex(" ")
+(2334, '47 4c 49 4d 01 00 00 04 00 08 00 00 02 00 00 00')
+>>> c = parse_image(img)
+>>> c.block_ok.tolist(), c.block_missing.tolist(), bytes(c.memory[:1024]) == memory[:1024]
+([True, False], [False, True], True)
+>>> damaged = img[:1000] + img[1001:]  # one byte dropped inside block 0
+>>> parse_image(damaged).block_ok.tolist()
+[False, False]
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Literal
+
+import construct as cs
+import numpy as np
+
+from protocol.atomic_write import atomic_write_bytes
+from protocol.crc import crc32
+from protocol.errors import ProtocolError
+from protocol.frames import FrameParser, Frame
+from protocol.header import HEADER_SIZE, MAGIC as HEADER_MAGIC, MAX_CAPACITY_SAMPLES, DeviceHeader
+
+__all__ = [
+    "IMAGE_MAGIC",
+    "IMAGE_VERSION",
+    "DEFAULT_BLOCK_SIZE",
+    "SHIFT_SEARCH_BYTES",
+    "BLOCK_PRESENT",
+    "BLOCK_MISSING",
+    "IMAGE_PREFIX_STRUCT",
+    "IMAGE_OFFSETS",
+    "ImageContents",
+    "build_image",
+    "parse_image",
+    "write_image",
+    "read_image",
+    "detect_format",
+]
+
+IMAGE_MAGIC = b"GLIM"
+IMAGE_VERSION = 1
+DEFAULT_BLOCK_SIZE = 1024
+#: Dropped or inserted bytes are searched for within this many bytes of the running shift.
+SHIFT_SEARCH_BYTES = 64
+BLOCK_PRESENT = 0
+BLOCK_MISSING = 1
+_MAX_MEMORY_BYTES = 4 * MAX_CAPACITY_SAMPLES
+_CAPTURE_PROBE_BYTES = 65536
+
+#: The fixed 16-byte start of the file.
+IMAGE_PREFIX_STRUCT = cs.Struct(
+    "magic" / cs.Bytes(4),
+    "image_version" / cs.Int8ul,
+    "reserved" / cs.Padding(1),
+    "block_size" / cs.Int16ul,
+    "memory_bytes" / cs.Int32ul,
+    "n_blocks" / cs.Int32ul,
+)
+#: field -> offset of the prefix fields.
+IMAGE_OFFSETS = {"magic": 0, "image_version": 4, "block_size": 6, "memory_bytes": 8, "n_blocks": 12,
+                 "block_crc32": 16}
+
+
+@dataclass(eq=False)
+class ImageContents:
+    """What :func:`parse_image` recovered.
+
+    Attributes
+    ----------
+    header
+        The validated device header.
+    memory
+        ``(memory_bytes,)`` ``uint8`` sample memory; bytes of blocks that are not ok are 0xFF and meaningless.
+    block_ok
+        ``(n_blocks,)`` bool: the block's bytes are exact (CRC-32 verified). ``False`` => its samples are missing.
+    block_size
+        Bytes per block (the last block may be shorter).
+    notes
+        One line per problem found (damaged, shifted, missing, truncated blocks; table damage).
+    block_missing
+        ``(n_blocks,)`` bool: marked missing in the file (never received by the dump).
+    block_truncated
+        ``(n_blocks,)`` bool: beyond the end of a truncated file.
+    block_shift
+        ``(n_blocks,)`` int: shift in bytes (found − nominal offset) of each ok block; 0 elsewhere.
+    table_ok
+        The block table's CRC-32 matched.
+    """
+
+    header: DeviceHeader
+    memory: np.ndarray
+    block_ok: np.ndarray
+    block_size: int
+    notes: list[str] = field(default_factory=list)
+    block_missing: np.ndarray | None = None
+    block_truncated: np.ndarray | None = None
+    block_shift: np.ndarray | None = None
+    table_ok: bool = True
+
+    @property
+    def n_blocks(self) -> int:
+        """Number of blocks."""
+        return int(self.block_ok.size)
+
+    def byte_ok(self) -> np.ndarray:
+        """``(memory_bytes,)`` bool: the byte belongs to an ok block."""
+        return np.repeat(self.block_ok, self.block_size)[: self.memory.size]
+
+
+def _check_block_size(block_size: int, memory_bytes: int, source: str | None = None) -> None:
+    if not (64 <= block_size <= 65532 and block_size % 4 == 0):
+        raise ProtocolError(f"block_size {block_size} (expected a multiple of 4 in 64..65532, normally 1024)",
+                            offset=IMAGE_OFFSETS["block_size"], source=source)
+    if not (4 <= memory_bytes <= _MAX_MEMORY_BYTES and memory_bytes % 4 == 0):
+        raise ProtocolError(f"memory_bytes {memory_bytes} (expected a multiple of 4 in 4..{_MAX_MEMORY_BYTES})",
+                            offset=IMAGE_OFFSETS["memory_bytes"], source=source)
+
+
+def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memoryview | np.ndarray,
+                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE) -> bytes:
+    """Bytes of a ``.glimg`` file.
+
+    Parameters
+    ----------
+    header
+        The device header (a :class:`DeviceHeader` or its 256 bytes, validated).
+    memory
+        The whole sample memory: ``4 · capacity_samples`` bytes.
+    missing_blocks
+        Indices of blocks never received; their bytes are stored as 0xFF, their state as 1 and their
+        ``block_crc32`` as the complement of the CRC-32 of those bytes, so that they can never verify.
+    block_size
+        Bytes per block.
+
+    Raises
+    ------
+    ProtocolError
+        Invalid header, memory of the wrong size, bad block size or block index.
+    """
+    hdr = header if isinstance(header, DeviceHeader) else DeviceHeader.from_bytes(bytes(header))
+    hbytes = hdr.to_bytes()
+    mem = bytearray(np.asarray(memory, dtype=np.uint8).tobytes() if isinstance(memory, np.ndarray) else memory)
+    if len(mem) != hdr.memory_bytes:
+        raise ProtocolError(f"memory of {len(mem)} bytes, but the header's capacity of {hdr.capacity_samples} "
+                            f"samples needs {hdr.memory_bytes}")
+    _check_block_size(int(block_size), len(mem))
+    n = -(-len(mem) // block_size)
+    states = np.zeros(n, dtype=np.uint8)
+    for b in missing_blocks:
+        if not 0 <= int(b) < n:
+            raise ProtocolError(f"missing block {b} outside 0..{n - 1}")
+        states[int(b)] = BLOCK_MISSING
+        mem[int(b) * block_size : (int(b) + 1) * block_size] = b"\xff" * len(
+            mem[int(b) * block_size : (int(b) + 1) * block_size])
+    view = memoryview(mem)
+    crcs = np.array([crc32(view[i * block_size : (i + 1) * block_size]) for i in range(n)], dtype="<u4")
+    crcs[states == BLOCK_MISSING] ^= np.uint32(0xFFFFFFFF)
+    prefix = IMAGE_PREFIX_STRUCT.build(dict(magic=IMAGE_MAGIC, image_version=IMAGE_VERSION,
+                                            block_size=block_size, memory_bytes=len(mem), n_blocks=n))
+    table = prefix + crcs.tobytes() + states.tobytes()
+    return b"".join((table, crc32(table).to_bytes(4, "little"), hbytes, bytes(mem)))
+
+
+def write_image(path: str | os.PathLike[str], header: bytes | DeviceHeader, memory: bytes | np.ndarray,
+                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE) -> None:
+    """Write a ``.glimg`` file atomically (complete or not at all)."""
+    atomic_write_bytes(path, build_image(header, memory, missing_blocks, block_size))
+
+
+def read_image(path: str | os.PathLike[str]) -> ImageContents:
+    """Read and parse a ``.glimg`` file; errors name the file."""
+    with open(path, "rb") as f:
+        data = f.read()
+    return parse_image(data, source=str(path))
+
+
+def _ranges(indices: np.ndarray) -> str:
+    """'3, 7-9' for [3, 7, 8, 9]."""
+    idx = [int(i) for i in indices]
+    parts, k = [], 0
+    while k < len(idx):
+        j = k
+        while j + 1 < len(idx) and idx[j + 1] == idx[j] + 1:
+            j += 1
+        parts.append(f"{idx[k]}" if j == k else f"{idx[k]}-{idx[j]}")
+        k = j + 1
+    return ", ".join(parts)
+
+
+def _find_header(data: bytes, nominal: int, source: str | None) -> tuple[DeviceHeader, int]:
+    """The device header at ``nominal`` or, failing that, the nearest valid one within the search window."""
+    try:
+        return DeviceHeader.from_bytes(data[nominal : nominal + HEADER_SIZE], source=source), 0
+    except ProtocolError as exc:
+        first_error = exc.at(offset=nominal)
+    for d in sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x)):
+        o = nominal + d
+        if d == 0 or o < 0 or data[o : o + 4] != HEADER_MAGIC:
+            continue
+        try:
+            return DeviceHeader.from_bytes(data[o : o + HEADER_SIZE], source=source), d
+        except ProtocolError:
+            continue
+    raise first_error
+
+
+def parse_image(data: bytes | bytearray | memoryview, source: str | None = None) -> ImageContents:
+    """Parse a ``.glimg`` file, recovering what is intact.
+
+    Parameters
+    ----------
+    data
+        The file's bytes.
+    source
+        File name for messages.
+
+    Returns
+    -------
+    ImageContents
+        Header, memory and per-block status; every byte of an ok block is exact.
+
+    Raises
+    ------
+    ProtocolError
+        Not an image (magic), unknown ``image_version``, inconsistent sizes, a file too short to hold its
+        table, or no valid device header near its place. The message names the offset.
+    """
+    data = bytes(data)
+    if len(data) < 16:
+        raise ProtocolError(f"memory image truncated: {len(data)} bytes, the fixed prefix alone is 16",
+                            offset=len(data), source=source)
+    p = IMAGE_PREFIX_STRUCT.parse(data[:16])
+    if p.magic != IMAGE_MAGIC:
+        raise ProtocolError(f"magic: expected {IMAGE_MAGIC!r}, found {p.magic!r} (not a gaitlog memory image)",
+                            offset=0, source=source)
+    if p.image_version != IMAGE_VERSION:
+        raise ProtocolError(f"image_version: unknown version {p.image_version} (this decoder knows "
+                            f"{IMAGE_VERSION})", offset=4, source=source)
+    bs, mem_bytes, n = int(p.block_size), int(p.memory_bytes), int(p.n_blocks)
+    _check_block_size(bs, mem_bytes, source)
+    if n != -(-mem_bytes // bs):
+        raise ProtocolError(f"n_blocks: {n}, but {mem_bytes} bytes in blocks of {bs} make {-(-mem_bytes // bs)}",
+                            offset=IMAGE_OFFSETS["n_blocks"], source=source)
+    table_end = 16 + 5 * n
+    if len(data) < table_end + 4:
+        raise ProtocolError(f"memory image truncated inside its block table ({len(data)} of {table_end + 4} "
+                            "bytes)", offset=len(data), source=source)
+    notes: list[str] = []
+    crcs = np.frombuffer(data, dtype="<u4", count=n, offset=16)
+    states = np.frombuffer(data, dtype=np.uint8, count=n, offset=16 + 4 * n)
+    table_ok = crc32(data[:table_end]) == int.from_bytes(data[table_end : table_end + 4], "little")
+    if not table_ok:
+        notes.append(f"block table CRC-32 mismatch (offset {table_end}): block states ignored, each block "
+                     "accepted only if its bytes match its CRC-32")
+    header_at = table_end + 4
+    header, hshift = _find_header(data, header_at, source)
+    if hshift:
+        notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
+    if header.memory_bytes != mem_bytes:
+        raise ProtocolError(f"memory_bytes: {mem_bytes}, but the device header's capacity of "
+                            f"{header.capacity_samples} samples needs {header.memory_bytes}",
+                            offset=IMAGE_OFFSETS["memory_bytes"], source=source)
+
+    mem0 = header_at + HEADER_SIZE
+    memory = bytearray(b"\xff" * mem_bytes)
+    ok = np.zeros(n, dtype=bool)
+    marked = np.zeros(n, dtype=bool)
+    truncated = np.zeros(n, dtype=bool)
+    damaged = np.zeros(n, dtype=bool)
+    unknown_state = np.zeros(n, dtype=bool)
+    shifts = np.zeros(n, dtype=np.int64)
+    view = memoryview(data)
+    total = len(data)
+    shift = hshift
+    window = sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x))
+    for i in range(n):
+        start = i * bs
+        size = min(bs, mem_bytes - start)
+        want = int(crcs[i])
+        if table_ok and states[i] != BLOCK_PRESENT:
+            (marked if states[i] == BLOCK_MISSING else unknown_state)[i] = True
+            continue
+        o = mem0 + start + shift
+        if o >= 0 and o + size <= total and crc32(view[o : o + size]) == want:
+            found = shift
+        else:
+            found = None
+            for d in window:
+                od = o + d
+                if d and od >= 0 and od + size <= total and crc32(view[od : od + size]) == want:
+                    found = shift + d
+                    break
+        if found is None:
+            if o + size > total:
+                truncated[i] = True
+            else:
+                damaged[i] = True
+            continue
+        shift = found
+        o = mem0 + start + shift
+        memory[start : start + size] = view[o : o + size]
+        ok[i] = True
+        shifts[i] = shift
+    view.release()
+
+    if marked.any():
+        notes.append(f"blocks {_ranges(np.flatnonzero(marked))} marked missing (never received)")
+    if damaged.any():
+        notes.append(f"blocks {_ranges(np.flatnonzero(damaged))} damaged (CRC-32 mismatch, not found within "
+                     f"±{SHIFT_SEARCH_BYTES} bytes)")
+    if truncated.any():
+        notes.append(f"blocks {_ranges(np.flatnonzero(truncated))} missing: file truncated at {total} bytes "
+                     f"(complete file: {mem0 + mem_bytes})")
+    if unknown_state.any():
+        notes.append(f"blocks {_ranges(np.flatnonzero(unknown_state))} have an unknown state byte; not used")
+    moved = np.flatnonzero(ok & (np.diff(np.concatenate(([hshift], shifts))) != 0))
+    for i in moved:
+        notes.append(f"block {i} found shifted by {int(shifts[i]):+d} bytes (bytes dropped or inserted before it)")
+    if total > mem0 + shift + mem_bytes and ok.all():
+        notes.append(f"{total - (mem0 + shift + mem_bytes)} trailing bytes after the memory ignored")
+    if notes and not ok.all():
+        warnings.warn(f"{source or 'memory image'}: {int((~ok).sum())} of {n} blocks not usable: "
+                      + "; ".join(notes), stacklevel=2)
+    return ImageContents(header=header, memory=np.frombuffer(memory, dtype=np.uint8).copy(), block_ok=ok,
+                         block_size=bs, notes=notes, block_missing=marked, block_truncated=truncated,
+                         block_shift=shifts, table_ok=table_ok)
+
+
+def detect_format(data: bytes | bytearray | memoryview) -> Literal["image", "raw", "capture"]:
+    """Which of the three inputs a byte string is.
+
+    ``"image"``: starts with ``GLIM`` (section 6); ``"raw"``: starts with the device header magic ``GLOG``
+    (an XDUMP raw dump, section 5); ``"capture"``: an intact frame (section 3) within the first 64 KiB.
+
+    Raises
+    ------
+    ProtocolError
+        None of the three.
+
+    >>> detect_format(b"GLIM..."), detect_format(b"GLOG..."), detect_format(b"\\x00" + bytes.fromhex("a55a0207000068f8"))
+    ('image', 'raw', 'capture')
+    """
+    head = bytes(data[:4])
+    if head == IMAGE_MAGIC:
+        return "image"
+    if head == HEADER_MAGIC:
+        return "raw"
+    parser = FrameParser()
+    items = parser.feed(bytes(data[:_CAPTURE_PROBE_BYTES])) + parser.flush()
+    if any(isinstance(x, Frame) for x in items):
+        return "capture"
+    raise ProtocolError(f"not a memory image (magic {IMAGE_MAGIC!r}), a raw dump (magic {HEADER_MAGIC!r}) or a "
+                        f"wire capture (no intact A5 5A frame in the first {min(len(data), _CAPTURE_PROBE_BYTES)} "
+                        f"bytes); found {head!r} at the start", offset=0)

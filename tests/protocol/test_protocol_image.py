@@ -1,0 +1,226 @@
+"""Memory-image file (PROTOCOL.md section 6): layout, round trip, recovery of damaged files."""
+
+from __future__ import annotations
+
+import random
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from protocol.errors import ProtocolError
+from protocol.frames import encode_frame
+from protocol.header import DeviceHeader, HeaderFlag
+from protocol.image import build_image, detect_format, parse_image, read_image, write_image
+
+pytestmark = pytest.mark.filterwarnings("ignore:.*blocks not usable:UserWarning")
+
+
+def _header(cap: int = 65536, sw: int | None = None) -> DeviceHeader:
+    sw = cap if sw is None else sw
+    flags = int(HeaderFlag.WRAPPED | HeaderFlag.OVERWRITE) if sw > cap else 0
+    return DeviceHeader(capacity_samples=cap, samples_written=sw, write_index=sw % cap, flags=flags)
+
+
+def _ref_image(header: bytes, memory: bytes, missing: set[int], bs: int) -> bytes:
+    """The file written field by field from the section-6 table (zlib directly, struct.pack)."""
+    n = -(-len(memory) // bs)
+    mem = bytearray(memory)
+    for b in missing:
+        mem[b * bs : (b + 1) * bs] = b"\xff" * len(mem[b * bs : (b + 1) * bs])
+    crcs = []
+    for i in range(n):
+        c = zlib.crc32(bytes(mem[i * bs : (i + 1) * bs]))
+        crcs.append(c ^ 0xFFFFFFFF if i in missing else c)
+    table = struct.pack("<4sBxHII", b"GLIM", 1, bs, len(mem), n) + struct.pack(f"<{n}I", *crcs)
+    table += bytes(1 if i in missing else 0 for i in range(n))
+    return table + struct.pack("<I", zlib.crc32(table)) + header + bytes(mem)
+
+
+def test_full_image_matches_reference_layout(tmp_path) -> None:
+    rng = np.random.default_rng(0)
+    memory = rng.integers(0, 256, 262144, dtype=np.uint8).tobytes()
+    h = _header()
+    img = build_image(h.to_bytes(), memory, missing_blocks=[5, 255])
+    assert img == _ref_image(h.to_bytes(), memory, {5, 255}, 1024)
+    assert len(img) == 16 + 5 * 256 + 4 + 256 + 262144
+    c = parse_image(img)
+    assert c.table_ok and c.block_ok.sum() == 254 and c.block_missing[[5, 255]].all()
+    ok_bytes = c.byte_ok()
+    assert np.array_equal(c.memory[ok_bytes], np.frombuffer(memory, np.uint8)[ok_bytes])
+    assert any("5, 255" in n for n in c.notes)
+    write_image(tmp_path / "a.glimg", h, memory)
+    assert read_image(tmp_path / "a.glimg").block_ok.all()
+
+
+@st.composite
+def images(draw: st.DrawFn) -> tuple[DeviceHeader, bytes, set[int], int]:
+    cap = draw(st.integers(16, 3000))
+    sw = draw(st.integers(0, 3 * cap))
+    bs = draw(st.sampled_from([64, 128, 256, 1024, 1028]))
+    mem = draw(st.binary(min_size=4 * cap, max_size=4 * cap))
+    n = -(-4 * cap // bs)
+    missing = draw(st.sets(st.integers(0, n - 1), max_size=n))
+    return _header(cap, sw), mem, missing, bs
+
+
+@given(images())
+@settings(max_examples=60, deadline=None)
+def test_image_round_trip_property(img_case: tuple[DeviceHeader, bytes, set[int], int]) -> None:
+    h, mem, missing, bs = img_case
+    img = build_image(h, mem, missing, bs)
+    assert img == _ref_image(h.to_bytes(), mem, missing, bs)
+    c = parse_image(img)
+    assert c.header.to_bytes() == h.to_bytes() and c.block_size == bs
+    assert set(np.flatnonzero(~c.block_ok)) == missing == set(np.flatnonzero(c.block_missing))
+    ok = c.byte_ok()
+    assert np.array_equal(c.memory[ok], np.frombuffer(mem, np.uint8)[ok])
+
+
+def _damage(img: bytes, lo: int, rng: random.Random, n_events: int, max_insert: int = 5
+            ) -> tuple[bytes, list[int], int | None]:
+    """Flip/drop/insert at random positions >= lo; maybe truncate. Returns damaged bytes, positions in the
+    original file, and the truncation point in the original file."""
+    data = bytearray(img)
+    points = sorted(rng.sample(range(lo, len(img)), n_events), reverse=True)
+    for p in points:
+        kind = rng.choice(["flip", "drop", "insert"])
+        if kind == "flip":
+            data[p] ^= 1 << rng.randrange(8)
+        elif kind == "drop":
+            del data[p]
+        else:
+            data[p:p] = rng.randbytes(rng.randint(1, max_insert))
+    cut = None
+    if rng.random() < 0.3:
+        cut = rng.randrange(lo, len(img))
+        del data[cut:]
+    return bytes(data), points, cut
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_damaged_memory_yields_only_exact_blocks(seed: int) -> None:
+    rng = random.Random(seed)
+    npr = np.random.default_rng(seed)
+    cap = 8192
+    memory = npr.integers(0, 256, 4 * cap, dtype=np.uint8).tobytes()
+    img = build_image(_header(cap), memory)
+    mem0 = len(img) - 4 * cap
+    damaged, points, cut = _damage(img, mem0, rng, rng.randint(1, 10))
+    c = parse_image(damaged)
+    truth = np.frombuffer(memory, np.uint8)
+    ok = c.byte_ok()
+    assert np.array_equal(c.memory[ok], truth[ok])  # nothing invented
+    touched = {(p - mem0) // 1024 for p in points}
+    for i in range(c.n_blocks):
+        end_in_file = mem0 + (i + 1) * 1024
+        beyond_cut = cut is not None and end_in_file + 5 * len(points) > cut
+        if i not in touched and not beyond_cut:
+            assert c.block_ok[i], f"intact block {i} not recovered; notes {c.notes}"
+    if cut is not None and not c.block_ok[-1]:
+        assert c.block_truncated[-1] or not c.block_ok[-1]
+    assert (~c.block_ok).sum() <= len(touched) + (c.n_blocks if cut is not None else 0)
+
+
+def test_shifted_blocks_are_recovered_and_reported() -> None:
+    cap = 2048
+    memory = np.random.default_rng(1).integers(0, 256, 4 * cap, dtype=np.uint8).tobytes()
+    img = bytearray(build_image(_header(cap), memory))
+    mem0 = len(img) - 4 * cap
+    del img[mem0 + 1024 + 10]  # one byte dropped in block 1
+    img[mem0 + 3 * 1024 + 5 : mem0 + 3 * 1024 + 5] = b"XYZ"  # three bytes inserted into block 3 (orig. offset)
+    c = parse_image(bytes(img))
+    assert c.block_ok.tolist() == [True, False, True, False, True, True, True, True]
+    assert c.block_shift.tolist() == [0, 0, -1, 0, 2, 2, 2, 2]
+    assert any("block 2 found shifted by -1" in n for n in c.notes)
+    assert any("block 4 found shifted by +2" in n for n in c.notes)
+
+
+def test_truncated_image_reports_missing_tail() -> None:
+    cap = 4096
+    memory = bytes(range(256)) * (4 * cap // 256)
+    img = build_image(_header(cap), memory)
+    mem0 = len(img) - 4 * cap
+    c = parse_image(img[: mem0 + 5000])
+    assert c.block_ok.tolist() == [True] * 4 + [False] * 12
+    assert c.block_truncated.tolist() == [False] * 4 + [True] * 12
+    assert any("truncated" in n for n in c.notes)
+
+
+def test_table_damage_falls_back_to_block_crcs() -> None:
+    cap = 4096
+    memory = bytes(range(256)) * 64
+    img = bytearray(build_image(_header(cap), memory, missing_blocks=[2]))
+    img[16 + 4 * 16 + 2] = 0  # block 2's state byte: "missing" -> "present", table CRC now wrong
+    img[16 + 4 * 5] ^= 0x01  # block 5's CRC-32 entry
+    c = parse_image(bytes(img))
+    assert not c.table_ok
+    assert c.block_ok.tolist() == [True, True, False, True, True, False] + [True] * 10  # no 0xFF invented
+    ok = c.byte_ok()
+    assert np.array_equal(c.memory[ok], np.frombuffer(memory, np.uint8)[ok])
+
+
+def test_header_shifted_by_table_damage_is_found() -> None:
+    cap = 1024
+    memory = bytes(4 * cap)
+    img = bytearray(build_image(_header(cap), memory))
+    del img[30]  # inside the CRC table
+    c = parse_image(bytes(img))
+    assert any("header found shifted by -1" in n for n in c.notes)
+    assert c.header.capacity_samples == cap
+
+
+def _img() -> bytes:
+    return build_image(_header(256), bytes(1024))
+
+
+@pytest.mark.parametrize(
+    ("mutate", "offset", "match"),
+    [
+        (lambda b: b"GLIN" + b[4:], 0, "not a gaitlog memory image"),
+        (lambda b: b[:4] + b"\x02" + b[5:], 4, "unknown version 2"),
+        (lambda b: b[:6] + struct.pack("<H", 10) + b[8:], 6, "block_size 10"),
+        (lambda b: b[:8] + struct.pack("<I", 2**30) + b[12:], 8, "memory_bytes"),
+        (lambda b: b[:12] + struct.pack("<I", 2**31) + b[16:], 12, "n_blocks"),
+        (lambda b: b[:10], 10, "truncated"),
+        (lambda b: b[:18], 18, "truncated inside its block table"),
+        (lambda b: b[:25] + b"\x00" * 256 + b[281:], 25, "magic"),
+        (lambda b: b[:25 + 100] + b"\x01" + b[25 + 101 :], 25 + 254, "header_crc"),
+    ],
+)
+def test_image_rejections(mutate, offset: int, match: str) -> None:
+    with pytest.raises(ProtocolError, match=match) as info:
+        parse_image(mutate(_img()), source="f.glimg")
+    assert info.value.offset == offset and "f.glimg" in str(info.value)
+
+
+def test_image_header_capacity_mismatch() -> None:
+    with pytest.raises(ProtocolError, match="needs 4096"):
+        build_image(_header(1024), bytes(1000))
+    img = bytearray(_img())
+    hdr = _header(512).to_bytes()
+    img[16 + 5 + 4 : 16 + 5 + 4 + 256] = hdr
+    with pytest.raises(ProtocolError, match="memory_bytes") as info:
+        parse_image(bytes(img))
+    assert info.value.offset == 8
+
+
+def test_absurd_sizes_do_not_allocate() -> None:
+    # n_blocks consistent with a huge memory_bytes is refused before any allocation
+    bad = struct.pack("<4sBxHII", b"GLIM", 1, 64, 2**32 - 4, 2**32 // 64)
+    with pytest.raises(ProtocolError, match="memory_bytes"):
+        parse_image(bad)
+
+
+def test_detect_format() -> None:
+    img = _img()
+    assert detect_format(img) == "image"
+    assert detect_format(_header(256).to_bytes() + bytes(1024)) == "raw"
+    assert detect_format(b"\x00" * 100 + encode_frame(0x87, 0, bytes(8))) == "capture"
+    with pytest.raises(ProtocolError, match="not a memory image"):
+        detect_format(b"hello world")
+    with pytest.raises(ProtocolError):
+        detect_format(b"")
