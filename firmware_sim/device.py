@@ -1,0 +1,294 @@
+"""The whole logger: sensor -> ADC -> firmware -> ring buffer over the EEPROMs, persisted as a memory image.
+
+:class:`Logger` wires the parts of ``firmware_sim`` together the way the board does. :meth:`Logger.record`
+runs one logging session on a motion (START, the sample timer over the motion's duration, STOP) fully
+vectorised: the motion is rendered on the sensor's fine grid, the sensor model filters it and adds noise,
+the ADC samples it at the timer instants, and the firmware packs and stores the block of samples with
+whole-array page writes. The UART side is :attr:`Logger.firmware` (sans-I/O; see
+:mod:`firmware_sim.transport` to put it on a pty or a TCP port).
+
+The EEPROM contents persist as a memory-image file (``PROTOCOL.md`` section 6, :mod:`protocol.image`)
+between runs, as the real EEPROMs keep their data with the power off: ``Logger(image_path=p)`` restores
+``p`` if it exists and every :meth:`record` saves it back (atomically); :meth:`Logger.from_image` restores
+any image.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from firmware_sim.adc import Adc
+from firmware_sim.eeprom import DataEeprom, EepromBank
+from firmware_sim.errors import DeviceError
+from firmware_sim.firmware import FIRMWARE_VERSION, Firmware
+from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
+from firmware_sim.sensor import SensorModel
+from firmware_sim.world.base import Motion, MotionSource
+from firmware_sim.world.resampling import resample_g
+from protocol.atomic_write import atomic_write_bytes
+from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
+from protocol.packing import unpack_words
+
+__all__ = ["Logger", "RecordResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class RecordResult:
+    """What one :meth:`Logger.record` stored, with the truth beside it.
+
+    Attributes
+    ----------
+    codes
+        ``(n, 3)`` ``uint16`` ADC codes as stored (read back from the EEPROM), oldest first.
+    flags
+        ``(n,)`` ``uint8`` P32 flags (``FLAG_SESSION_START``, ``FLAG_MARK``).
+    sample_times_s
+        ``(n,)`` time of each stored sample on the motion's clock, s.
+    sample_numbers
+        ``(n,)`` absolute sample numbers (0 = first sample after ERASE).
+    n_taken
+        Samples the timer took during the motion (``n_taken - n`` were not stored: memory full, or
+        overwritten within this same run).
+    truth
+        The motion's truth plus ``sensor`` (its parameters), ``adc`` (its settings), ``motion_rate_hz``.
+    """
+
+    codes: np.ndarray
+    flags: np.ndarray
+    sample_times_s: np.ndarray
+    sample_numbers: np.ndarray
+    n_taken: int
+    truth: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of stored samples."""
+        return int(self.codes.shape[0])
+
+
+class Logger:
+    """The emulated gait logger.
+
+    Parameters
+    ----------
+    sensor
+        Sensor model; default :meth:`SensorModel.draw` seeded with ``device_id`` (one physical unit).
+    adc
+        ADC settings; default ``Adc(rate_hz=sample_rate_hz)``.
+    sample_rate_hz
+        Sample-timer rate when ``adc`` is not given.
+    device_id
+        Serial number written to the header.
+    overwrite
+        Default START mode of :meth:`record`: overwrite the oldest samples when full (True) or stop.
+    image_path
+        Memory-image file: restored at construction if it exists, saved after every :meth:`record`.
+
+    Examples
+    --------
+    >>> from firmware_sim.world.poses import CalibrationPoses
+    >>> logger = Logger(device_id=3)
+    >>> res = logger.record(CalibrationPoses(n_poses=4, hold_s=3.0, move_s=1.0))
+    >>> res.n_samples, logger.header.samples_written, int(res.flags[0])
+    (750, 750, 1)
+    """
+
+    def __init__(
+        self,
+        *,
+        sensor: SensorModel | None = None,
+        adc: Adc | None = None,
+        sample_rate_hz: float = 50.0,
+        device_id: int = 1,
+        overwrite: bool = False,
+        image_path: str | Path | None = None,
+    ) -> None:
+        if adc is not None and sample_rate_hz != 50.0 and abs(adc.rate_hz - sample_rate_hz) > 1e-9:
+            raise DeviceError(f"sample_rate_hz {sample_rate_hz} disagrees with adc.rate_hz {adc.rate_hz}")
+        self.sensor = sensor if sensor is not None else SensorModel.draw(seed=int(device_id))
+        self.adc = adc if adc is not None else Adc(rate_hz=sample_rate_hz)
+        self.overwrite = overwrite
+        self.image_path = Path(image_path) if image_path is not None else None
+        header = DeviceHeader(
+            firmware_version=FIRMWARE_VERSION,
+            device_id=int(device_id),
+            sample_rate_mhz=int(round(self.adc.rate_hz * 1000)),
+            adc_bits=int(self.adc.bits),
+            capacity_samples=CAPACITY_SAMPLES,
+            adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
+        )
+        self.bank = EepromBank()
+        self.data_eeprom = DataEeprom()
+        self.ring = RingBuffer(self.bank, self.data_eeprom, header)
+        self.firmware = Firmware(self.ring)
+        if self.image_path is not None and self.image_path.exists():
+            self._restore(self.image_path)
+        else:
+            self.ring.commit()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def header(self) -> DeviceHeader:
+        """The current device header (RAM state; equal to the data EEPROM when not logging)."""
+        return self.ring.header
+
+    @property
+    def memory(self) -> bytes:
+        """The whole sample memory (262,144 bytes), as the EEPROMs hold it."""
+        return self.bank.contents().tobytes()
+
+    def erase(self) -> None:
+        """ERASE: forget every stored sample (the calibration slot is kept)."""
+        self.ring.erase()
+
+    # ------------------------------------------------------------------ persistence
+    def save_image(self, path: str | Path | None = None) -> Path:
+        """Write the memory image (``.glimg``) atomically to ``path`` (default ``image_path``)."""
+        from protocol.image import build_image
+
+        target = Path(path) if path is not None else self.image_path
+        if target is None:
+            raise DeviceError("no image path: pass one to save_image() or Logger(image_path=...)")
+        atomic_write_bytes(target, build_image(self.header.to_bytes(), self.memory))
+        return target
+
+    @classmethod
+    def from_image(cls, path: str | Path, **kwargs: Any) -> Logger:
+        """A logger whose EEPROMs hold the contents of the memory image ``path``.
+
+        The device id, rate and ADC bits come from the image's header; ``kwargs`` go to :class:`Logger`
+        (``sensor``, ``adc``, ``overwrite``, ``image_path``). Blocks the image marks missing read 0xFF
+        (a warning says how many).
+        """
+        p = Path(path)
+        header, memory, notes = _read_image(p)
+        kwargs.setdefault("device_id", header.device_id)
+        if "adc" not in kwargs:
+            kwargs["adc"] = Adc(rate_hz=header.sample_rate_hz, bits=header.adc_bits)
+        logger = cls(**kwargs)
+        logger._load(header, memory, source=str(p))
+        for note in notes:
+            warnings.warn(f"{p}: {note}", stacklevel=2)
+        return logger
+
+    def _restore(self, path: Path) -> None:
+        header, memory, notes = _read_image(path)
+        self._load(header, memory, source=str(path))
+        for note in notes:
+            warnings.warn(f"{path}: {note}", stacklevel=3)
+
+    def _load(self, header: DeviceHeader, memory: np.ndarray, *, source: str) -> None:
+        if header.capacity_samples != self.header.capacity_samples or memory.size != self.bank.size_bytes:
+            raise DeviceError(
+                f"{source}: image holds {header.capacity_samples} samples / {memory.size} bytes; this device "
+                f"{self.header.capacity_samples} / {self.bank.size_bytes}"
+            )
+        header.flags &= ~int(HeaderFlag.LOGGING)  # power was off: no run is in progress
+        self.bank.load(memory)
+        self.ring = RingBuffer(self.bank, self.data_eeprom, header)
+        self.ring.commit()
+        self.firmware = Firmware(self.ring)
+
+    # ------------------------------------------------------------------ recording
+    def record(
+        self,
+        motion: Motion | MotionSource,
+        *,
+        start_time_s: int = 0,
+        overwrite: bool | None = None,
+    ) -> RecordResult:
+        """Run one logging session over ``motion``: START, sample, STOP.
+
+        Parameters
+        ----------
+        motion
+            A :class:`Motion`, or a :class:`MotionSource` (rendered at the sensor's internal rate). A
+            motion at another rate is resampled to the internal rate first (anti-aliased).
+        start_time_s
+            Unix time of the first sample, written to the header by START.
+        overwrite
+            START mode; default the logger's ``overwrite``.
+
+        Raises
+        ------
+        DeviceError
+            Already logging, or the memory is full in stop-when-full mode (ERASE first).
+        """
+        if not isinstance(motion, Motion):
+            if not isinstance(motion, MotionSource):
+                raise DeviceError(f"record() needs a Motion or a MotionSource, got {type(motion).__name__}")
+            motion = motion.render(self.sensor.internal_rate_hz)
+        acc, rate = motion.acc_g, motion.rate_hz
+        if abs(rate - self.sensor.internal_rate_hz) > 1e-9 * rate:
+            acc, rate = resample_g(acc, rate, self.sensor.internal_rate_hz)
+        volts = self.sensor.respond(acc, rate)
+        t_last = motion.t0_s + (acc.shape[0] - 1) / rate
+        times = self.adc.sample_times_s(motion.t0_s, t_last)
+        codes = self.adc.sample(volts, rate, motion.t0_s, times)
+        marks = np.zeros(times.size, dtype=bool)
+        if motion.marker_times_s.size:
+            k = np.searchsorted(times, motion.marker_times_s, side="left")
+            marks[k[k < times.size]] = True
+        mode = self.overwrite if overwrite is None else overwrite
+        try:
+            self.firmware.start_logging(start_time_s=int(start_time_s), overwrite=bool(mode))
+        except MemoryFullError as err:
+            raise DeviceError(f"cannot record: {err}") from err
+        first_number = self.header.samples_written
+        n_stored = self.firmware.log_samples(codes, marks)
+        self.firmware.stop_logging()
+        cap = self.header.capacity_samples
+        keep = min(n_stored, cap)
+        numbers = first_number + np.arange(n_stored - keep, n_stored, dtype=np.int64)
+        slots = numbers % cap
+        mem = np.frombuffer(self.bank.read(0, self.bank.size_bytes), dtype="<u4")
+        stored_codes, stored_flags = unpack_words(mem[slots])
+        truth = dict(motion.truth)
+        truth.update(sensor=self.sensor.truth(), adc=_adc_truth(self.adc), motion_rate_hz=rate)
+        if self.image_path is not None:
+            self.save_image()
+        return RecordResult(
+            codes=stored_codes,
+            flags=stored_flags,
+            sample_times_s=times[n_stored - keep:n_stored],
+            sample_numbers=numbers,
+            n_taken=int(times.size),
+            truth=truth,
+        )
+
+
+def _adc_truth(adc: Adc) -> dict[str, Any]:
+    return {
+        "bits": adc.bits, "rate_hz": adc.rate_hz, "actual_rate_hz": adc.actual_rate_hz,
+        "vref_low_v": adc.vref_low_v, "vref_high_v": adc.vref_high_v, "gain": adc.gain, "ref_v": adc.ref_v,
+        "timer_error_ppm": adc.timer_error_ppm,
+    }
+
+
+def _read_image(path: Path) -> tuple[DeviceHeader, np.ndarray, list[str]]:
+    from protocol.errors import ProtocolError
+    from protocol.image import parse_image
+
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise DeviceError(f"{path}: cannot read memory image: {err.strerror or err}") from err
+    try:
+        contents = parse_image(data, source=str(path))
+    except ProtocolError as err:
+        raise DeviceError(f"{err}") from err
+    memory = np.array(contents.memory, dtype=np.uint8, copy=True)
+    notes = list(contents.notes)
+    bad = np.flatnonzero(~np.asarray(contents.block_ok, dtype=bool))
+    if bad.size:
+        bs = contents.block_size
+        for b in bad:
+            memory[b * bs:(b + 1) * bs] = 0xFF
+        notes.append(f"{bad.size} memory block(s) missing in the image; they read 0xFF on the device")
+    return contents.header, memory, notes

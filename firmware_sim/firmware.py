@@ -1,0 +1,313 @@
+"""The logger's firmware, sans-I/O: logging control, the sample path and the UART command handler.
+
+Everything here is what the PIC16F877 program does, with the I/O cut off: bytes from the UART come in
+through :meth:`Firmware.receive` (with the time they arrived), and the bytes the device sends come back as
+its return value; the transport (:mod:`firmware_sim.transport`) owns the port and the clock. The sample
+timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time.
+
+UART receiver (``PROTOCOL.md`` section 3)
+    Hunts for ``A5 5A``; a length above 4100 is a framing error (skip the sync pair, hunt again, nothing
+    allocated); a frame whose bytes stop arriving for longer than the inter-byte timeout (100 ms) is
+    dropped. A CRC mismatch is answered ``NAK(BAD_CRC)`` when the header was intact — its type is a
+    command and its length is that command's payload size (so the device knows it read the whole frame) —
+    and is otherwise ignored; either way the hunt resumes after the sync pair. The ASCII line ``XDUMP``
+    + CR, typed between frames, arms the XMODEM transfer of section 5 without an ACK.
+
+Checks, in this order: payload length (``BAD_LENGTH``), field values (``BAD_ARGUMENT``), logging
+(``BUSY`` for READ, DUMP, XDUMP, ERASE, SET_CALIBRATION and also START — a START while logging would
+silently restart the run), address range (``BAD_ADDRESS``), full memory (``MEMORY_FULL``).
+
+Responses echo the command's ``seq``; in a DUMP stream the DATA frames count 0, 1, 2, ... (mod 256) and
+DUMP_END echoes the command's ``seq``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from firmware_sim.errors import DeviceError
+from firmware_sim.ring_buffer import RingBuffer
+from protocol.crc import crc16_xmodem
+from protocol.frames import (
+    COMMAND_TYPES,
+    FRAME_OVERHEAD,
+    MAX_PAYLOAD,
+    PAYLOAD_STRUCTS,
+    SYNC,
+    DeviceState,
+    ErrorCode,
+    Frame,
+    FrameType,
+    PayloadError,
+    build_payload,
+    encode_frame,
+    parse_payload,
+)
+from protocol.header import PACKING_P32
+from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
+from protocol.xmodem import XmodemSender, raw_dump_bytes
+
+__all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP"]
+
+#: Firmware version 1.0 (major·256 + minor).
+FIRMWARE_VERSION = 0x0100
+#: Partial frames are dropped after this much silence.
+INTER_BYTE_TIMEOUT_S = 0.1
+#: The terminal command that arms XDUMP.
+ASCII_XDUMP = b"XDUMP\r"
+
+_BUSY_WHEN_LOGGING = frozenset(
+    {FrameType.READ, FrameType.DUMP, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION, FrameType.START}
+)
+_PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPES}
+
+
+class Firmware:
+    """The device program over a :class:`RingBuffer`.
+
+    Parameters
+    ----------
+    ring
+        Storage (sample memory and header).
+    inter_byte_timeout_s
+        Silence after which a partial command frame is dropped.
+
+    Examples
+    --------
+    >>> from firmware_sim.eeprom import DataEeprom, EepromBank
+    >>> from protocol.header import DeviceHeader
+    >>> fw = Firmware(RingBuffer(EepromBank(), DataEeprom(), DeviceHeader(device_id=7)))
+    >>> fw.receive(encode_frame(FrameType.GET_STATUS, 5), now_s=0.0).hex(" ")
+    'a5 5a 82 05 0a 00 00 00 00 00 00 00 00 00 00 00 fc 30'
+    >>> fw.receive(encode_frame(0x55, 6), now_s=0.0).hex(" ")   # unknown command
+    'a5 5a 91 06 02 00 55 02 7a e1'
+    """
+
+    def __init__(self, ring: RingBuffer, *, inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S) -> None:
+        self.ring = ring
+        self.inter_byte_timeout_s = inter_byte_timeout_s
+        self._rx = bytearray()  # unprocessed received bytes (a partial frame, or a partial ASCII line)
+        self._line = b""  # recent bytes received between frames (ASCII command detection)
+        self._last_rx_s = -np.inf
+        self._xmodem: XmodemSender | None = None
+        self._run_first = False  # the next logged sample is the first of a run (SESSION_START)
+        self.stats = {"frames": 0, "bad_crc": 0, "framing_errors": 0, "timeouts": 0, "naks": 0}
+
+    # ------------------------------------------------------------------ logging
+    @property
+    def state(self) -> DeviceState:
+        """IDLE, LOGGING or FULL_STOPPED (STATUS ``state``)."""
+        if self.ring.logging:
+            return DeviceState.LOGGING
+        if self.ring.header.full_stopped:
+            return DeviceState.FULL_STOPPED
+        return DeviceState.IDLE
+
+    @property
+    def in_transfer(self) -> bool:
+        """An XMODEM transfer is armed or running."""
+        return self._xmodem is not None
+
+    def start_logging(self, *, start_time_s: int, overwrite: bool) -> None:
+        """START: begin a run (raises :class:`DeviceError` / ``MemoryFullError`` as the ring does)."""
+        self.ring.start(start_time_s=start_time_s, overwrite=overwrite)
+        self._run_first = True
+
+    def stop_logging(self) -> None:
+        """STOP: end the run, flush the page buffer, commit the header."""
+        self.ring.stop()
+
+    def log_samples(self, codes: np.ndarray, marks: np.ndarray | None = None) -> int:
+        """Timer ISR for a block of samples: flag, pack and store them; return how many were stored.
+
+        Parameters
+        ----------
+        codes
+            ``(n, 3)`` ADC codes (counts).
+        marks
+            ``(n,)`` bool: the marker button fired since the previous sample (sets MARK).
+        """
+        if not self.ring.logging:
+            return 0
+        c = np.asarray(codes)
+        flags = np.zeros(c.shape[0], dtype=np.uint8)
+        if marks is not None:
+            flags[np.asarray(marks, dtype=bool)] |= FLAG_MARK
+        if self._run_first and c.shape[0]:
+            flags[0] |= FLAG_SESSION_START
+            self._run_first = False
+        return self.ring.append(pack_words(c, flags))
+
+    # ------------------------------------------------------------------ UART
+    def reset_link(self) -> None:
+        """Forget a partial frame and abort an XMODEM transfer (the host went away)."""
+        self._rx.clear()
+        self._line = b""
+        self._xmodem = None
+
+    def poll(self, now_s: float) -> bytes:
+        """Apply time-outs at ``now_s``: drop a stale partial frame; XMODEM start/ACK time-outs."""
+        if self._rx and now_s - self._last_rx_s > self.inter_byte_timeout_s:
+            self._drop_partial()
+        if self._xmodem is not None:
+            out = self._xmodem.poll(now_s)
+            if self._xmodem.finished:
+                self._xmodem = None
+            return out
+        return b""
+
+    def _drop_partial(self) -> None:
+        if self._rx.find(SYNC) >= 0:
+            self.stats["timeouts"] += 1
+        self._rx.clear()
+
+    def receive(self, data: bytes, now_s: float) -> bytes:
+        """Bytes from the host arriving at ``now_s`` (seconds, any monotonic clock); return the reply bytes."""
+        if self._rx and now_s - self._last_rx_s > self.inter_byte_timeout_s:
+            self._drop_partial()
+        self._last_rx_s = now_s
+        data = bytes(data)
+        if self._xmodem is not None:
+            return self._to_xmodem(data, now_s)
+        self._rx += data
+        out: list[bytes] = []
+        pos = 0
+        buf = self._rx
+        n = len(buf)
+        while pos < n:
+            i = buf.find(SYNC, pos)
+            hunted = bytes(buf[pos:n if i < 0 else i])
+            if hunted:
+                combined = self._line + hunted
+                k = combined.find(ASCII_XDUMP)
+                if k >= 0:  # the ASCII command: what follows it is for the XMODEM sender
+                    rest = bytes(buf[pos + k + len(ASCII_XDUMP) - len(self._line):])
+                    self._rx.clear()
+                    self._line = b""
+                    self._arm_xmodem(now_s)
+                    return b"".join(out) + (self._to_xmodem(rest, now_s) if rest else b"")
+                self._line = combined[-(len(ASCII_XDUMP) - 1):]
+            if i < 0:
+                pos = n - 1 if buf[n - 1] == SYNC[0] else n
+                break
+            pos = i
+            if n - i < 6:
+                break
+            ftype, seq = buf[i + 2], buf[i + 3]
+            length = buf[i + 4] | (buf[i + 5] << 8)
+            if length > MAX_PAYLOAD:
+                self.stats["framing_errors"] += 1
+                pos = i + 2
+                continue
+            end = i + FRAME_OVERHEAD + length
+            if end > n:
+                break
+            stored = (buf[end - 2] << 8) | buf[end - 1]
+            if crc16_xmodem(bytes(buf[i + 2:end - 2])) != stored:
+                self.stats["bad_crc"] += 1
+                if ftype in COMMAND_TYPES and length == _PAYLOAD_SIZE[ftype]:
+                    out.append(self._nak(ftype, seq, ErrorCode.BAD_CRC))
+                pos = i + 2
+                continue
+            self.stats["frames"] += 1
+            self._line = b""
+            pos = end
+            out.append(self._command(Frame(ftype, seq, bytes(buf[i + 6:end - 2])), now_s))
+            if self._xmodem is not None:  # XDUMP acknowledged: the rest is for the XMODEM sender
+                rest = bytes(buf[pos:])
+                self._rx.clear()
+                if rest:
+                    out.append(self._to_xmodem(rest, now_s))
+                return b"".join(out)
+        del self._rx[:pos]
+        return b"".join(out)
+
+    # ------------------------------------------------------------------ XMODEM
+    def _arm_xmodem(self, now_s: float) -> None:
+        h = self.ring.header
+        payload = raw_dump_bytes(h.to_bytes(), self.ring.read_bytes(0, h.used_bytes))
+        self._xmodem = XmodemSender(payload)
+        self._xmodem.poll(now_s)  # starts the 60 s wait for 'C'
+
+    def _to_xmodem(self, data: bytes, now_s: float) -> bytes:
+        assert self._xmodem is not None
+        out = self._xmodem.receive(data)
+        if not self._xmodem.finished:
+            self._xmodem.poll(now_s)
+        else:
+            self._xmodem = None
+        return out
+
+    # ------------------------------------------------------------------ commands
+    def _nak(self, command: int, seq: int, error: ErrorCode) -> bytes:
+        self.stats["naks"] += 1
+        return encode_frame(FrameType.NAK, seq, bytes((command & 0xFF, int(error))))
+
+    def _ack(self, command: int, seq: int) -> bytes:
+        return encode_frame(FrameType.ACK, seq, bytes((command,)))
+
+    def _command(self, frame: Frame, now_s: float) -> bytes:
+        t, seq = frame.type, frame.seq
+        if t not in COMMAND_TYPES:
+            return self._nak(t, seq, ErrorCode.UNKNOWN_COMMAND)
+        ftype = FrameType(t)
+        try:
+            fields = parse_payload(frame)
+        except PayloadError as err:
+            return self._nak(t, seq, err.error_code)
+        if ftype in _BUSY_WHEN_LOGGING and self.ring.logging:
+            return self._nak(t, seq, ErrorCode.BUSY)
+        h = self.ring.header
+        if ftype == FrameType.IDENTIFY:
+            return encode_frame(FrameType.INFO, seq, build_payload(
+                FrameType.INFO, device_id=h.device_id, firmware_version=h.firmware_version,
+                protocol_version=h.protocol_version, adc_bits=h.adc_bits, sample_rate_mhz=h.sample_rate_mhz,
+                capacity_samples=h.capacity_samples, packing=PACKING_P32, memory_bytes=h.memory_bytes,
+            ))
+        if ftype == FrameType.GET_STATUS:
+            return encode_frame(FrameType.STATUS, seq, build_payload(
+                FrameType.STATUS, state=self.state, flags=h.flags, samples_written=h.samples_written,
+                write_index=h.write_index,
+            ))
+        if ftype == FrameType.START:
+            try:
+                self.start_logging(start_time_s=int(fields["start_time_s"]), overwrite=bool(int(fields["mode"])))
+            except DeviceError:
+                return self._nak(t, seq, ErrorCode.MEMORY_FULL)
+            return self._ack(t, seq)
+        if ftype == FrameType.STOP:
+            self.stop_logging()
+            return self._ack(t, seq)
+        if ftype == FrameType.ERASE:
+            self.ring.erase()
+            return self._ack(t, seq)
+        if ftype == FrameType.READ_HEADER:
+            return encode_frame(FrameType.HEADER, seq, h.to_bytes())
+        if ftype == FrameType.READ:
+            address, length = int(fields["address"]), int(fields["length"])
+            if address + length > h.memory_bytes:
+                return self._nak(t, seq, ErrorCode.BAD_ADDRESS)
+            return encode_frame(FrameType.DATA, seq, address.to_bytes(4, "little") + self.ring.read_bytes(address, length))
+        if ftype == FrameType.DUMP:
+            return self._dump(seq, int(fields["address"]), int(fields["length"]), int(fields["chunk"]))
+        if ftype == FrameType.XDUMP:
+            self._arm_xmodem(now_s)
+            return self._ack(t, seq)
+        if ftype == FrameType.SET_CALIBRATION:
+            self.ring.set_calibration(fields["calibration"])
+            return self._ack(t, seq)
+        raise AssertionError(f"unhandled command {ftype!r}")  # pragma: no cover - table is complete
+
+    def _dump(self, seq: int, address: int, length: int, chunk: int) -> bytes:
+        """DUMP: DATA frames of ``chunk`` bytes back to back, then DUMP_END (section 4)."""
+        h = self.ring.header
+        if address + length > h.memory_bytes:
+            return self._nak(FrameType.DUMP, seq, ErrorCode.BAD_ADDRESS)
+        data = self.ring.read_bytes(address, length)
+        frames = []
+        for k, off in enumerate(range(0, length, chunk)):
+            a = address + off
+            frames.append(encode_frame(FrameType.DATA, k & 0xFF, a.to_bytes(4, "little") + data[off:off + chunk]))
+        end = build_payload(FrameType.DUMP_END, address=address, length=length, frames=len(frames) & 0xFFFF)
+        frames.append(encode_frame(FrameType.DUMP_END, seq, end))
+        return b"".join(frames)

@@ -1,0 +1,390 @@
+"""Put the emulated logger on a serial line: a pseudo-terminal or a TCP port, in a background thread.
+
+The device speaks only when spoken to: bytes from the host go to :meth:`Firmware.receive` with the
+arrival time (``time.monotonic``), its replies are queued and sent. Nothing is printed; the server gives
+its address (:attr:`PtyServer.path`, :attr:`TcpServer.url`) for the caller to show.
+
+Wire time (opt-in): device -> host bytes are released at the real byte time of the UART
+(:class:`firmware_sim.uart.UartTiming`, 10 bits per 8N1 byte at the baud the PIC's crystal and SPBRG really
+give), scheduled against the monotonic clock (the ``k``-th byte of a burst is released when
+``t_burst + k · byte_time`` has passed; the thread wakes every ``tick_s`` and writes what is due), so the
+pacing does not drift over a long transfer the way sleeping per byte would. Host -> device bytes are taken
+as they come (the host's UART paces them).
+
+Fault injection (:class:`FaultInjector`, device -> host only): corrupt each byte with probability
+``corrupt_rate`` at seeded random positions (XOR with a random non-zero value), and cut the link once after
+``cut_after_bytes`` bytes: the rest of the pending output is dropped and the device stays silent until the
+host sends again (pty) or the connection is closed (TCP; a new connection works). The firmware forgets a
+partial frame or XMODEM transfer at the cut, as it would after a line break.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+import socket
+import threading
+import time
+import tty
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from firmware_sim.errors import DeviceError
+from firmware_sim.uart import UartTiming
+
+if TYPE_CHECKING:  # pragma: no cover
+    from firmware_sim.device import Logger
+
+__all__ = ["FaultInjector", "PtyServer", "TcpServer", "serve_pty", "serve_tcp"]
+
+#: Wake-up period of the server thread when bytes are due or waiting, s.
+TICK_S = 0.002
+#: Wake-up period when idle (firmware time-outs), s.
+IDLE_TICK_S = 0.02
+
+
+class FaultInjector:
+    """Damage on the device -> host direction.
+
+    Parameters
+    ----------
+    corrupt_rate
+        Probability that a byte is corrupted (e.g. 0.001 = one in a thousand).
+    seed
+        Seed of the positions and values.
+    cut_after_bytes
+        Cut the link once, after this many device -> host bytes (``None``: never).
+
+    Examples
+    --------
+    >>> f = FaultInjector(corrupt_rate=0.01, seed=1)
+    >>> out, cut = f.apply(bytes(10_000))
+    >>> len(out), cut, len(f.corrupted_offsets) == sum(b != 0 for b in out)
+    (10000, False, True)
+    >>> g = FaultInjector(cut_after_bytes=5)
+    >>> g.apply(b"abcdefgh"), g.apply(b"ij")
+    ((b'abcde', True), (b'ij', False))
+    """
+
+    def __init__(self, *, corrupt_rate: float = 0.0, seed: int = 0, cut_after_bytes: int | None = None) -> None:
+        if not 0.0 <= corrupt_rate < 1.0:
+            raise DeviceError(f"corrupt_rate must be in [0, 1), got {corrupt_rate}")
+        if cut_after_bytes is not None and cut_after_bytes < 0:
+            raise DeviceError(f"cut_after_bytes must be >= 0, got {cut_after_bytes}")
+        self.corrupt_rate = corrupt_rate
+        self.seed = seed
+        self.cut_after_bytes = cut_after_bytes
+        self._rng = np.random.default_rng(seed)
+        self.bytes_seen = 0
+        self.corrupted_offsets: list[int] = []
+        self.cut_done = False
+
+    def apply(self, data: bytes) -> tuple[bytes, bool]:
+        """Return ``(bytes to deliver, cut now)`` for ``data`` about to leave the device."""
+        cut = False
+        if self.cut_after_bytes is not None and not self.cut_done:
+            room = self.cut_after_bytes - self.bytes_seen
+            if room < len(data):
+                data, cut = data[:max(room, 0)], True
+                self.cut_done = True
+        if self.corrupt_rate > 0 and data:
+            hit = np.flatnonzero(self._rng.random(len(data)) < self.corrupt_rate)
+            if hit.size:
+                arr = np.frombuffer(data, dtype=np.uint8).copy()
+                arr[hit] ^= self._rng.integers(1, 256, hit.size, dtype=np.uint8)
+                data = arr.tobytes()
+                self.corrupted_offsets.extend((self.bytes_seen + hit).tolist())
+        self.bytes_seen += len(data)
+        return data, cut
+
+
+class _Outbox:
+    """Device -> host byte queue with optional wire-time release."""
+
+    def __init__(self, byte_time_s: float | None) -> None:
+        self.byte_time_s = byte_time_s
+        self.buf = bytearray()
+        self.t_next = 0.0  # completion time of the next byte (wire time)
+
+    def put(self, data: bytes, now: float) -> None:
+        if not data:
+            return
+        if not self.buf and self.byte_time_s is not None and self.t_next < now:
+            self.t_next = now + self.byte_time_s  # the line was idle: this byte starts now
+        self.buf += data
+
+    def due(self, now: float) -> int:
+        """Bytes that may be written at ``now``."""
+        if not self.buf:
+            return 0
+        if self.byte_time_s is None:
+            return len(self.buf)
+        if now < self.t_next:
+            return 0
+        return min(len(self.buf), int((now - self.t_next) / self.byte_time_s) + 1)
+
+    def sent(self, k: int) -> None:
+        del self.buf[:k]
+        if self.byte_time_s is not None:
+            self.t_next += k * self.byte_time_s
+
+    def wait_s(self, now: float) -> float:
+        """Time until the next byte is due (0 if due now); idle tick if nothing is queued."""
+        if not self.buf:
+            return IDLE_TICK_S
+        if self.byte_time_s is None:
+            return 0.0
+        return max(0.0, min(self.t_next - now, IDLE_TICK_S))
+
+    def clear(self) -> None:
+        self.buf.clear()
+
+
+class _Server:
+    """Common thread loop: read from an fd, feed the firmware, write paced replies."""
+
+    def __init__(self, logger: Logger, *, baud: int, wire_time: bool, faults: FaultInjector | None,
+                 fosc_hz: float, save_on_stop: bool) -> None:
+        self.logger = logger
+        self.uart = UartTiming(baud=baud, fosc_hz=fosc_hz)
+        self.wire_time = wire_time
+        self.faults = faults
+        self.save_on_stop = save_on_stop
+        self._out = _Outbox(self.uart.byte_time_s if wire_time else None)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._muted = False
+        self.error: BaseException | None = None
+        self.bytes_in = 0
+        self.bytes_out = 0
+
+    # -- lifecycle
+    def start(self) -> _Server:
+        """Start the background thread (idempotent)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run_guarded, name=type(self).__name__, daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the thread, close the line, save the logger's image if it has a path."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        self._close()
+        if self.save_on_stop and self.logger.image_path is not None:
+            self.logger.save_image()
+
+    def __enter__(self) -> _Server:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _run_guarded(self) -> None:
+        try:
+            self._run()
+        except BaseException as err:  # noqa: BLE001 - reported through .error, the thread must not die silently
+            self.error = err
+
+    # -- per-byte-stream handling shared by the transports
+    def _on_input(self, data: bytes, now: float) -> None:
+        self.bytes_in += len(data)
+        self._muted = False
+        self._out.put(self.logger.firmware.receive(data, now), now)
+
+    def _on_tick(self, now: float) -> None:
+        self._out.put(self.logger.firmware.poll(now), now)
+
+    def _take_due(self, now: float) -> tuple[bytes, bool]:
+        """Bytes to write now (after fault injection) and whether the link is cut."""
+        k = self._out.due(now)
+        if k == 0:
+            return b"", False
+        if self._muted:
+            self._out.clear()
+            return b"", False
+        chunk = bytes(self._out.buf[:k])
+        self._out.sent(k)
+        if self.faults is None:
+            return chunk, False
+        chunk, cut = self.faults.apply(chunk)
+        if cut:
+            self._out.clear()
+            self._muted = True
+            self.logger.firmware.reset_link()
+        return chunk, cut
+
+    def _run(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def _close(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+
+def _write_all(fd: int, data: bytes, stop: threading.Event, writer: Callable[[bytes], int]) -> None:
+    """Write every byte, waiting while the peer's buffer is full."""
+    view = memoryview(data)
+    while view and not stop.is_set():
+        try:
+            n = writer(view)
+        except (BlockingIOError, InterruptedError):
+            select.select([], [fd], [], 0.05)
+            continue
+        view = view[n:]
+
+
+class PtyServer(_Server):
+    """The logger on a pseudo-terminal; the host opens :attr:`path` like a serial port.
+
+    Both ends are put in raw mode (no echo, no CR/LF translation, no flow control); the server keeps
+    its own handle on the terminal side so the pty survives the host closing and reopening it.
+    """
+
+    def __init__(self, logger: Logger, *, baud: int = 115200, wire_time: bool = False,
+                 faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
+                 save_on_stop: bool = True) -> None:
+        super().__init__(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
+                         save_on_stop=save_on_stop)
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._master)
+        tty.setraw(self._slave)
+        os.set_blocking(self._master, False)
+        self.path = os.ttyname(self._slave)
+
+    def _run(self) -> None:
+        fd = self._master
+        while not self._stop.is_set():
+            now = time.monotonic()
+            wait = self._out.wait_s(now)
+            try:
+                readable, _, _ = select.select([fd], [], [], wait if wait > 0 else 0)
+            except (OSError, ValueError):
+                return
+            now = time.monotonic()
+            if readable:
+                try:
+                    data = os.read(fd, 65536)
+                except BlockingIOError:
+                    data = b""
+                except OSError as err:
+                    if err.errno == errno.EIO:  # no terminal side open: wait for one
+                        time.sleep(IDLE_TICK_S)
+                        continue
+                    raise
+                if data:
+                    self._on_input(data, now)
+            self._on_tick(now)
+            chunk, _ = self._take_due(time.monotonic())
+            if chunk:
+                _write_all(fd, chunk, self._stop, lambda v: os.write(fd, v))
+                self.bytes_out += len(chunk)
+
+    def _close(self) -> None:
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._master = self._slave = -1
+
+
+class TcpServer(_Server):
+    """The logger on a TCP port (``socket://host:port`` for pyserial); one client at a time.
+
+    A new connection resets the firmware's receiver (partial frame, XMODEM transfer).
+    """
+
+    def __init__(self, logger: Logger, *, host: str = "127.0.0.1", port: int = 0, baud: int = 115200,
+                 wire_time: bool = False, faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
+                 save_on_stop: bool = True) -> None:
+        super().__init__(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
+                         save_on_stop=save_on_stop)
+        self._listener = socket.create_server((host, port))
+        self._listener.setblocking(False)
+        self.host, self.port = self._listener.getsockname()[:2]
+        self.url = f"socket://{self.host}:{self.port}"
+        self._client: socket.socket | None = None
+
+    def _drop_client(self) -> None:
+        if self._client is not None:
+            try:
+                self._client.close()
+            except OSError:
+                pass
+        self._client = None
+        self._out.clear()
+        self.logger.firmware.reset_link()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            now = time.monotonic()
+            wait = self._out.wait_s(now)
+            socks = [self._listener] + ([self._client] if self._client is not None else [])
+            try:
+                readable, _, _ = select.select(socks, [], [], wait if wait > 0 else 0)
+            except (OSError, ValueError):
+                return
+            now = time.monotonic()
+            if self._listener in readable:
+                try:
+                    conn, _ = self._listener.accept()
+                except BlockingIOError:
+                    conn = None
+                if conn is not None:
+                    self._drop_client()
+                    conn.setblocking(False)
+                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    self._client = conn
+                    self._muted = False
+            client = self._client
+            if client is not None and client in readable:
+                try:
+                    data = client.recv(65536)
+                except (BlockingIOError, InterruptedError):
+                    data = None
+                except OSError:
+                    data = b""
+                if data == b"":
+                    self._drop_client()
+                    continue
+                if data:
+                    self._on_input(data, now)
+            self._on_tick(now)
+            chunk, cut = self._take_due(time.monotonic())
+            if self._client is not None and chunk:
+                c = self._client
+                try:
+                    _write_all(c.fileno(), chunk, self._stop, c.send)
+                    self.bytes_out += len(chunk)
+                except OSError:
+                    self._drop_client()
+                    continue
+            if cut:
+                self._drop_client()
+
+    def _close(self) -> None:
+        self._drop_client()
+        try:
+            self._listener.close()
+        except OSError:
+            pass
+
+
+def serve_pty(logger: Logger, *, baud: int = 115200, wire_time: bool = False, faults: FaultInjector | None = None,
+              fosc_hz: float = 18_432_000.0, save_on_stop: bool = True) -> PtyServer:
+    """A started :class:`PtyServer` for ``logger`` (use as a context manager, or call ``.stop()``)."""
+    return PtyServer(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
+                     save_on_stop=save_on_stop).start()  # type: ignore[return-value]
+
+
+def serve_tcp(logger: Logger, *, host: str = "127.0.0.1", port: int = 0, baud: int = 115200,
+              wire_time: bool = False, faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
+              save_on_stop: bool = True) -> TcpServer:
+    """A started :class:`TcpServer` for ``logger`` (``.url`` is ``socket://127.0.0.1:PORT``)."""
+    return TcpServer(logger, host=host, port=port, baud=baud, wire_time=wire_time, faults=faults,
+                     fosc_hz=fosc_hz, save_on_stop=save_on_stop).start()  # type: ignore[return-value]
