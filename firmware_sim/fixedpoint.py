@@ -566,16 +566,17 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     if ctx is not None:
         ctx.cost("div32by16s" if signed else "div32by16u", x.size)
     zero = y == 0
-    safe = np.where(zero, 1, y)
-    q = np.abs(x) // np.abs(safe)
-    q = np.where((x < 0) != (safe < 0), -q, q)
-    r = x - q * safe
-    q = np.where(zero, np.where(x >= 0, hi, lo), q)
-    r = np.where(zero, np.clip(x, yl, yh), r)
     nz = int(np.count_nonzero(zero))
-    if ctx is not None and nz:
-        ctx.div_by_zero += nz
-        ctx.saturated[op] += nz
+    safe = np.where(zero, 1, y) if nz else y
+    q = np.abs(x) // np.abs(safe)            # magnitudes: truncation towards zero
+    np.negative(q, out=q, where=(x ^ safe) < 0)
+    r = x - q * safe
+    if nz:
+        q = np.where(zero, np.where(x >= 0, hi, lo), q)
+        r = np.where(zero, np.clip(x, yl, yh), r)
+        if ctx is not None:
+            ctx.div_by_zero += nz
+            ctx.saturated[op] += nz
     return _overflow(q, bits, sgn, "saturate", ctx, op), r
 
 
