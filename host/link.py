@@ -1,0 +1,370 @@
+"""The host end of the serial line: every command of ``PROTOCOL.md`` over pyserial, with timeouts and retries.
+
+:class:`LoggerLink` works on anything pyserial opens: a real port (``/dev/ttyUSB0``, ``COM3``), a pty path
+printed by ``gaitlog serve --pty``, ``socket://127.0.0.1:PORT`` from ``gaitlog serve --tcp``, and the
+in-process emulator ``emu://...`` (:mod:`host.transports.protocol_emu`).
+
+Each command is one frame (``PROTOCOL.md`` section 3); the link numbers it with ``seq``, waits up to
+``timeout_s`` for the answer with the same ``seq``, and sends it again (new ``seq``) when the answer does not
+come, comes damaged, or is ``NAK(BAD_CRC)``, at most ``retries`` more times. A NAK with any other error is
+final and raised as :class:`~host.errors.HostError` naming the command and the error. The bulk memory dump
+with re-reads and resume is :class:`host.dump.MemoryDump` (``LoggerLink.dump``).
+"""
+
+from __future__ import annotations
+
+import struct
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import IO, Any
+
+from host.errors import HostError
+
+#: Frame types of PROTOCOL.md section 3.1 (the same values as ``protocol.frames.FrameType``).
+IDENTIFY, STATUS, START, STOP, ERASE, READ_HEADER, READ, DUMP, XDUMP, SET_CALIBRATION = range(1, 11)
+T_INFO, T_STATUS, T_HEADER, T_DATA, T_DUMP_END, T_ACK, T_NAK = 0x81, 0x82, 0x86, 0x87, 0x88, 0x90, 0x91
+_NAMES = {IDENTIFY: "IDENTIFY", STATUS: "STATUS", START: "START", STOP: "STOP", ERASE: "ERASE",
+          READ_HEADER: "READ_HEADER", READ: "READ", DUMP: "DUMP", XDUMP: "XDUMP",
+          SET_CALIBRATION: "SET_CALIBRATION"}
+_ERRORS = {1: "BAD_CRC", 2: "UNKNOWN_COMMAND", 3: "BAD_LENGTH", 4: "BAD_ADDRESS", 5: "BUSY", 6: "BAD_ARGUMENT",
+           7: "MEMORY_FULL"}
+_ERROR_HINTS = {5: "the device is logging: stop it first", 7: "the memory is full: erase it first"}
+#: Protocol major version this host speaks.
+PROTOCOL_VERSION = 1
+#: Largest READ length and DUMP chunk (PROTOCOL.md section 3.1).
+MAX_READ = 4096
+
+_INFO = struct.Struct("<IHBBIIBI")
+_STATUS = struct.Struct("<BBII")
+_DUMP_END = struct.Struct("<IIH")
+
+
+def _build(name: str, **fields: Any) -> bytes:
+    """Command payload via ``protocol.frames.build_payload`` (ProtocolError -> HostError)."""
+    from protocol.errors import ProtocolError
+    from protocol.frames import FrameType, build_payload
+
+    try:
+        return build_payload(FrameType[name], **fields)
+    except ProtocolError as err:
+        raise HostError(f"cannot build {name} command: {err}") from err
+
+
+@dataclass
+class LinkStats:
+    """Counters of one link (for the dump metadata)."""
+
+    bytes_received: int = 0
+    frames_ok: int = 0
+    frame_errors: int = 0
+    command_retries: int = 0
+    timeouts: int = 0
+    naks: dict[str, int] = field(default_factory=dict)
+
+
+def open_serial(port: str, *, baud: int = 115200, poll_s: float = 0.02):
+    """Open ``port`` (path, ``socket://``, ``emu://``, ...) with pyserial, 8N1, no flow control.
+
+    Raises
+    ------
+    HostError
+        The port does not exist or cannot be opened (message names it and says what to check).
+    """
+    import serial
+
+    from host.transports import register
+
+    register()
+    try:
+        return serial.serial_for_url(port, baudrate=baud, bytesize=8, parity="N", stopbits=1, timeout=poll_s,
+                                     write_timeout=10.0, xonxoff=False, rtscts=False, dsrdtr=False)
+    except (serial.SerialException, ValueError, OSError) as err:
+        raise HostError(f"cannot open port {port!r}: {err}. Check the device path or URL (a pty path printed "
+                        "by `gaitlog serve --pty`, socket://HOST:PORT, emu://IMAGE)") from err
+
+
+class LoggerLink:
+    """A connection to a logger.
+
+    Parameters
+    ----------
+    port
+        Device path, pty path, ``socket://HOST:PORT`` or ``emu://...`` URL.
+    baud
+        Baud rate (8N1).
+    timeout_s
+        How long to wait for an answer to a command, and for the next byte of a DUMP stream.
+    retries
+        How many times a command is sent again after a timeout or a damaged answer.
+    capture
+        Binary file object that receives every byte read from the device (a wire capture that
+        ``gaitlog decode`` reads), or None.
+    serial_port
+        An already open pyserial object to use instead of opening ``port``.
+
+    Examples
+    --------
+    >>> LoggerLink("/nonexistent/ttyX")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    host.errors.HostError: cannot open port '/nonexistent/ttyX': ...
+    """
+
+    def __init__(self, port: str, *, baud: int = 115200, timeout_s: float = 1.0, retries: int = 3,
+                 capture: IO[bytes] | None = None, serial_port: Any = None) -> None:
+        from protocol.frames import FrameParser
+
+        self.port = port
+        self.baud = baud
+        self.timeout_s = timeout_s
+        self.retries = retries
+        self.capture = capture
+        self.stats = LinkStats()
+        self._ser = serial_port if serial_port is not None else open_serial(port, baud=baud)
+        self._parser_cls = FrameParser
+        self._parser = FrameParser()
+        self._pending: deque = deque()
+        self._seq = 0
+
+    # --------------------------------------------------------------------------------------- lifecycle
+    def close(self) -> None:
+        """Close the port."""
+        if self._ser is not None:
+            self._ser.close()
+            self._ser = None
+
+    def __enter__(self) -> "LoggerLink":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def serial(self) -> Any:
+        """The underlying pyserial object."""
+        return self._ser
+
+    # ------------------------------------------------------------------------------------------ receive
+    def _read_some(self) -> bytes:
+        ser = self._ser
+        try:
+            waiting = ser.in_waiting
+            data = ser.read(waiting if waiting else 1)
+        except Exception as err:  # serial.SerialException, OSError: the port went away
+            raise HostError(f"{self.port}: read failed: {err}") from err
+        if data:
+            self.stats.bytes_received += len(data)
+            if self.capture is not None:
+                self.capture.write(data)
+        return data
+
+    def flush_input(self) -> None:
+        """Forget everything received so far (stale answers, the tail of an abandoned stream)."""
+        try:
+            self._ser.reset_input_buffer()
+        except Exception:  # some transports cannot; reading on is enough  # pragma: no cover
+            pass
+        self._parser = self._parser_cls()
+        self._pending.clear()
+
+    def next_frame(self, timeout_s: float, *, idle: bool = False):
+        """Return the next intact frame, or None when ``timeout_s`` passes (since the call, or with
+        ``idle=True`` since the last byte received). Damaged frames are counted and skipped."""
+        deadline = time.monotonic() + timeout_s
+        while not self._pending:
+            if time.monotonic() > deadline:
+                if self._parser.buffered:
+                    # inter-byte timeout inside a frame (a damaged length field, say): discard that frame and
+                    # look for frames in the bytes after its sync
+                    self._take(self._parser.flush())
+                    if self._pending:
+                        break
+                self.stats.timeouts += 1
+                return None
+            data = self._read_some()
+            if not data:
+                continue
+            if idle:
+                deadline = time.monotonic() + timeout_s
+            self._take(self._parser.feed(data))
+        return self._pending.popleft()
+
+    def _take(self, items: list) -> None:
+        from protocol.frames import FrameError
+
+        for item in items:
+            if isinstance(item, FrameError):
+                if item.reason != "garbage":
+                    self.stats.frame_errors += 1
+            else:
+                self.stats.frames_ok += 1
+                self._pending.append(item)
+
+    # ------------------------------------------------------------------------------------------- send
+    def _next_seq(self) -> int:
+        self._seq = (self._seq + 1) & 0xFF
+        return self._seq
+
+    def send(self, ftype: int, payload: bytes = b"") -> int:
+        """Send one command frame (after discarding stale input); return its ``seq``."""
+        from protocol.frames import encode_frame
+
+        self.flush_input()
+        seq = self._next_seq()
+        try:
+            self._ser.write(encode_frame(ftype, seq, payload))
+            self._ser.flush()
+        except Exception as err:
+            raise HostError(f"{self.port}: write failed: {err}") from err
+        return seq
+
+    def _raise_nak(self, ftype: int, payload: bytes) -> None:
+        code = payload[1] if len(payload) >= 2 else -1
+        name = _ERRORS.get(code, f"error 0x{code:02x}")
+        self.stats.naks[name] = self.stats.naks.get(name, 0) + 1
+        hint = _ERROR_HINTS.get(code)
+        raise HostError(f"{self.port}: device refused {_NAMES.get(ftype, hex(ftype))}: NAK {name}"
+                        + (f" ({hint})" if hint else ""))
+
+    def transact(self, ftype: int, payload: bytes, expect: int, *, expect_len: int | None = None):
+        """Send a command and return the answer frame of type ``expect`` (retrying as described above)."""
+        name = _NAMES.get(ftype, hex(ftype))
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self.stats.command_retries += 1
+            seq = self.send(ftype, payload)
+            while (frame := self.next_frame(self.timeout_s)) is not None:
+                if frame.seq != seq:
+                    continue
+                if frame.type == T_NAK:
+                    if len(frame.payload) >= 2 and frame.payload[1] == 1:  # BAD_CRC: our frame was damaged
+                        break
+                    self._raise_nak(ftype, frame.payload)
+                if frame.type == expect and (expect_len is None or len(frame.payload) == expect_len):
+                    return frame
+        raise HostError(f"{self.port}: no valid answer to {name} after {self.retries + 1} attempt(s) of "
+                        f"{self.timeout_s:g} s: check the port, the baud rate ({self.baud}) and that the device "
+                        "is on")
+
+    # ----------------------------------------------------------------------------------------- commands
+    def identify(self) -> dict[str, int]:
+        """IDENTIFY -> INFO fields (``device_id``, ``firmware_version``, ``protocol_version``, ``adc_bits``,
+        ``sample_rate_mhz``, ``capacity_samples``, ``packing``, ``memory_bytes``); refuses an unknown
+        protocol version."""
+        fr = self.transact(IDENTIFY, b"", T_INFO, expect_len=_INFO.size)
+        info = self._fields(fr)
+        if info["protocol_version"] != PROTOCOL_VERSION:
+            raise HostError(f"{self.port}: device speaks protocol version {info['protocol_version']}, this host "
+                            f"knows version {PROTOCOL_VERSION}: update gaitlog")
+        return info
+
+    def status(self) -> dict[str, int]:
+        """STATUS -> ``state`` (0 idle, 1 logging, 2 full-stopped), ``flags``, ``samples_written``,
+        ``write_index``."""
+        fr = self.transact(STATUS, b"", T_STATUS, expect_len=_STATUS.size)
+        return self._fields(fr)
+
+    def _fields(self, frame) -> dict[str, int]:
+        """Payload fields of an answer (``protocol.frames.parse_payload``), as plain ints."""
+        from protocol.errors import ProtocolError
+        from protocol.frames import parse_payload
+
+        try:
+            fields = parse_payload(frame, source=self.port)
+        except ProtocolError as err:
+            raise HostError(f"{self.port}: malformed {frame.frame_type!s} answer: {err}") from err
+        return {k: int(v) for k, v in fields.items() if not k.startswith("_")}
+
+    def _ack(self, ftype: int, payload: bytes = b"") -> None:
+        self.transact(ftype, payload, T_ACK)
+
+    def start(self, start_time_s: int | None = None, *, overwrite: bool = False) -> None:
+        """START logging at Unix time ``start_time_s`` (default: now), ring mode if ``overwrite``."""
+        t = int(time.time()) if start_time_s is None else int(start_time_s)
+        self._ack(START, _build("START", start_time_s=t, mode=1 if overwrite else 0))
+
+    def stop(self) -> None:
+        """STOP logging."""
+        self._ack(STOP)
+
+    def erase(self) -> None:
+        """ERASE the sample memory (sends the ``b"ERASE"`` guard)."""
+        self._ack(ERASE, _build("ERASE"))
+
+    def set_calibration(self, slot: bytes) -> None:
+        """SET_CALIBRATION with a 64-byte calibration slot (``protocol.header.Calibration.to_bytes()``)."""
+        if len(slot) != 64:
+            raise HostError(f"calibration slot must be 64 bytes, got {len(slot)}")
+        self._ack(SET_CALIBRATION, bytes(slot))
+
+    def read_header(self):
+        """READ_HEADER -> ``(header_bytes, DeviceHeader)`` (the header validated)."""
+        from protocol.errors import ProtocolError
+        from protocol.header import HEADER_SIZE, DeviceHeader
+
+        fr = self.transact(READ_HEADER, b"", T_HEADER, expect_len=HEADER_SIZE)
+        raw = bytes(fr.payload)
+        try:
+            return raw, DeviceHeader.from_bytes(raw, source=f"{self.port} HEADER frame")
+        except ProtocolError as err:
+            raise HostError(f"{self.port}: the device's header is invalid: {err}") from err
+
+    def read(self, address: int, length: int) -> bytes:
+        """READ ``length`` (1 ... 4096) bytes of sample memory at byte ``address``."""
+        if not 1 <= length <= MAX_READ:
+            raise HostError(f"READ length must be 1..{MAX_READ}, got {length}")
+        payload = _build("READ", address=address, length=length)
+        fr = self.transact(READ, payload, T_DATA, expect_len=4 + length)
+        got = int.from_bytes(fr.payload[:4], "little")
+        if got != address:  # pragma: no cover - a device bug, not line noise (CRC was good)
+            raise HostError(f"{self.port}: READ at {address} answered with address {got}")
+        return bytes(fr.payload[4:])
+
+    def dump_stream(self, address: int, length: int, chunk: int,
+                    on_data: Callable[[int, bytes], None]) -> bool:
+        """DUMP ``length`` bytes at ``address`` in DATA frames of ``chunk`` bytes; call ``on_data(address,
+        data)`` for every intact DATA frame whose address and size fit the request.
+
+        Returns True when DUMP_END arrived, False when the stream stopped (no byte for ``timeout_s``) or
+        ``on_data`` returned True (the caller has everything it needs). Raises on a NAK.
+        """
+        from protocol.frames import encode_frame
+
+        command = _build("DUMP", address=address, length=length, chunk=chunk)
+        seq = self.send(DUMP, command)
+        end = address + length
+        # a damaged DUMP command gets NAK(BAD_CRC); resend it once per retry
+        attempts = 0
+        while True:
+            frame = self.next_frame(self.timeout_s, idle=True)
+            if frame is None:
+                return False
+            if frame.type == T_NAK and frame.seq == seq:
+                if len(frame.payload) >= 2 and frame.payload[1] == 1 and attempts < self.retries:
+                    attempts += 1
+                    self.stats.command_retries += 1
+                    seq = self._next_seq()
+                    self._ser.write(encode_frame(DUMP, seq, command))
+                    continue
+                self._raise_nak(DUMP, frame.payload)
+            if frame.type == T_DATA and len(frame.payload) > 4:
+                a = int.from_bytes(frame.payload[:4], "little")
+                n = len(frame.payload) - 4
+                if address <= a and a + n <= end and (a - address) % chunk == 0 and n == min(chunk, end - a):
+                    if on_data(a, frame.payload[4:]):
+                        return False
+            elif frame.type == T_DUMP_END and len(frame.payload) == _DUMP_END.size:
+                a, n, _frames = _DUMP_END.unpack(frame.payload)
+                if a == address and n == length:
+                    return True
+
+    def dump(self, out_path, *, progress: bool | Callable[[int], None] = True, resume: bool = False,
+             retries: int = 8, chunk_bytes: int = MAX_READ):
+        """Dump the stored memory to the image ``out_path`` (+ ``.json`` metadata): see
+        :class:`host.dump.MemoryDump`. Returns the finished ``MemoryDump``."""
+        from host.dump import MemoryDump
+
+        return MemoryDump(retries=retries, chunk_bytes=chunk_bytes).run(self, out_path, resume=resume,
+                                                                        progress=progress)
