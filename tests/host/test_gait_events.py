@@ -1,0 +1,156 @@
+"""Event detection and the float pipeline on synthetic trunk acceleration with known events."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from host.gait.axes import body_axes
+from host.gait.events import GaitEventDetector
+from host.gait.masked_filter import gaussian_sigma_s, masked_gaussian_lowpass
+from host.gait.pipeline import StepPipeline
+
+G = 9.80665
+
+
+def synthetic_walk(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 30, amp_m: float = 0.02,
+                   stand_s: float = 2.0, seed: int = 0):
+    """Vertical acceleration: sinusoidal CoM (lowest at foot-flat) + a loading pulse whose steepest rise is
+    at heel strike (80 ms before foot-flat) + an unloading dip at toe-off (100 ms after foot-flat)."""
+    rng = np.random.default_rng(seed)
+    walk_s = n_steps * step_s
+    t = np.arange(int((2 * stand_s + walk_s) * fs)) / fs
+    tw = t - stand_s
+    inside = (tw >= 0) & (tw <= walk_s)
+    w = 2 * np.pi / step_s
+    a = np.where(inside, amp_m * w * w * np.cos(w * tw), 0.0)  # z = -A cos(w t): lowest at t = k * step
+    ff_t = stand_s + step_s * np.arange(0, n_steps + 1)
+    hs_t = ff_t - 0.08
+    to_t = ff_t + 0.10
+    sig = 0.02
+    for th in hs_t:   # Gaussian pulse centred at hs + sigma: steepest rise at hs
+        a += 3.0 * np.exp(-0.5 * ((t - th - sig) / sig) ** 2)
+    for tt in to_t:
+        a -= 3.0 * np.exp(-0.5 * ((t - tt) / 0.03) ** 2)
+    a += rng.normal(0, 0.05, t.size)
+    return t, a, ff_t, hs_t, to_t
+
+
+def test_masked_lowpass_cutoff_is_minus_3db() -> None:
+    fs = 200.0
+    t = np.arange(4000) / fs
+    for f in (1.0, 3.0):
+        x = np.sin(2 * np.pi * 3.0 * t)
+        y = masked_gaussian_lowpass(x, None, cutoff_hz=f, sampling_rate_hz=fs)
+        gain = np.std(y[500:-500]) / np.std(x[500:-500])
+        expected = np.exp(-0.5 * (2 * np.pi * 3.0 * gaussian_sigma_s(f)) ** 2)
+        assert gain == pytest.approx(expected, rel=2e-3)
+    assert gaussian_sigma_s(3.0) == pytest.approx(np.sqrt(np.log(2)) / (2 * np.pi * 3.0))
+
+
+def test_masked_lowpass_ignores_missing_samples() -> None:
+    x = np.full(200, 2.0)
+    valid = np.ones(200, bool)
+    valid[50:52] = False
+    x[50:52] = 1e6  # garbage where missing must not leak
+    y = masked_gaussian_lowpass(x, valid, cutoff_hz=3.0, sampling_rate_hz=50.0)
+    assert np.allclose(y, 2.0)
+    valid[100:160] = False  # a long gap: NaN inside, no invented values
+    y = masked_gaussian_lowpass(x, valid, cutoff_hz=3.0, sampling_rate_hz=50.0)
+    assert np.isnan(y[130])
+
+
+def test_foot_flat_is_the_lowest_point_of_a_sinusoidal_com() -> None:
+    fs, step_s = 50.0, 0.55
+    t = np.arange(int(20 * fs)) / fs
+    w = 2 * np.pi / step_s
+    a = 0.02 * w * w * np.cos(w * t)             # z = -A cos(w t): lowest (zero velocity) at k * step_s
+    det = GaitEventDetector().detect(a, sampling_rate_hz=fs)
+    ff = det.foot_flat_ / fs
+    k = np.round(ff / step_s)
+    assert ff.size >= 34
+    assert np.max(np.abs(ff - k * step_s)) <= 0.5 / fs + 1e-9
+
+
+def test_heel_strike_and_toe_off_on_synthetic_signal() -> None:
+    fs = 50.0
+    t, a, ff_t, hs_t, to_t = synthetic_walk(fs=fs)
+    det = GaitEventDetector().detect(a, sampling_rate_hz=fs)
+    assert det.foot_flat_.size == ff_t.size
+    hs = det.heel_strike_ / fs
+    assert np.median(np.abs(hs - hs_t)) <= 1.0 / fs + 1e-9
+    to = det.toe_off_ / fs
+    assert np.median(np.abs(to - to_t)) <= 2.0 / fs + 1e-9
+    # all consecutive foot-flats form steps of one bout
+    assert det.step_start_.size == ff_t.size - 1
+    assert np.all(det.bout_ == 0)
+
+
+def test_events_standing_still_gives_no_step() -> None:
+    rng = np.random.default_rng(1)
+    det = GaitEventDetector().detect(rng.normal(0, 0.02, 1000), sampling_rate_hz=50.0)
+    assert det.foot_flat_.size == 0 and det.step_start_.size == 0
+
+
+def test_long_gap_splits_bouts_and_short_gaps_do_not() -> None:
+    fs = 50.0
+    t, a, ff_t, *_ = synthetic_walk(fs=fs, seed=3)
+    valid = np.ones(t.size, bool)
+    rng = np.random.default_rng(3)
+    valid[rng.choice(t.size, 40, replace=False)] = False      # isolated lost samples
+    mid = int((ff_t[14] + 0.27) * fs)
+    valid[mid:mid + 10] = False                                  # 0.2 s gap > max_gap_s
+    a = np.where(valid, a, np.nan)
+    det = GaitEventDetector().detect(a, sampling_rate_hz=fs, valid=valid)
+    assert np.unique(det.bout_).size == 2
+    assert det.step_start_.size == det.foot_flat_.size - 2
+
+
+def test_detect_rejects_bad_input() -> None:
+    with pytest.raises(ValueError, match="one-dimensional"):
+        GaitEventDetector().detect(np.zeros((10, 3)), sampling_rate_hz=50.0)
+    with pytest.raises(ValueError, match="sampling_rate_hz"):
+        GaitEventDetector().detect(np.zeros(10), sampling_rate_hz=0.0)
+
+
+def test_body_axes_recovers_vertical_of_tilted_device() -> None:
+    from scipy.spatial.transform import Rotation
+
+    fs = 50.0
+    t, a, *_ = synthetic_walk(fs=fs)
+    world = np.zeros((t.size, 3))
+    world[:, 2] = 1.0 + a / G                                   # specific force, z up
+    world[:, 0] = 0.1 * np.sin(2 * np.pi * t / 0.55)            # AP at step frequency
+    rot = Rotation.from_euler("xyz", [35, -10, 5], degrees=True)  # mounting tilt
+    dev = rot.inv().apply(world)
+    ax = body_axes(dev, sampling_rate_hz=fs)
+    core = slice(200, t.size - 200)
+    assert np.allclose(ax.acc_v_m_s2[core], a[core] - np.mean(a[core]), atol=0.12)
+    assert abs(np.corrcoef(ax.acc_ap_m_s2[core], world[core, 0])[0, 1]) > 0.95
+
+
+def test_pipeline_on_synthetic_walk_counts_steps_and_length() -> None:
+    fs = 50.0
+    t, a, ff_t, *_ = synthetic_walk(fs=fs, amp_m=0.02)
+    acc = np.zeros((t.size, 3))
+    acc[:, 2] = 1.0 + a / G
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pipe = StepPipeline(leg_length_m=0.9, foot_length_m=0.2).run(acc, sampling_rate_hz=fs)
+    st = pipe.steps_
+    assert st.n_steps == ff_t.size
+    assert np.isnan(st.length_m["M2"][0])  # first step of the bout: no window
+    d, filled = st.distance_m("M2")
+    assert filled == 1
+    assert np.isnan(st.length_m["M4"]).all() and np.isnan(st.length_m["M5"]).all()  # no K given
+    assert st.to_csv_text().count("\n") == st.n_steps + 1
+
+
+def test_pipeline_rejects_bad_shapes() -> None:
+    p = StepPipeline(leg_length_m=0.9, foot_length_m=0.2)
+    with pytest.raises(ValueError, match=r"\(n, 3\)"):
+        p.run(np.zeros((10, 2)), sampling_rate_hz=50.0)
+    with pytest.raises(ValueError, match="valid"):
+        p.run(np.zeros((10, 3)), sampling_rate_hz=50.0, valid=np.ones(9, bool))
