@@ -164,7 +164,7 @@ class StaticWindowDetector:
         sampling_rate_hz
             Sampling rate, Hz.
         zero, unit_per_g
-            Nominal map to g used only for the ``max_norm_g`` test and the orientation angles:
+            Scalars or ``(3,)``. Nominal map to g used only for the ``max_norm_g`` test and the orientation angles:
             ``g ~ (acc - zero) / unit_per_g``. ``zero`` defaults to 0; ``unit_per_g=None`` estimates both from
             the candidate segments (centre of the per-axis extremes, median radius), which needs holds on
             both sides of every axis.
@@ -240,7 +240,7 @@ class StaticWindowDetector:
         if zero is None:
             zero_v = np.zeros(3)
         else:
-            zero_v = np.asarray(zero, dtype=np.float64).reshape(3)
+            zero_v = np.broadcast_to(np.asarray(zero, dtype=np.float64), (3,)).copy()
         if unit_per_g is None:  # crude sphere through the candidates
             zero_v = 0.5 * (means.max(axis=0) + means.min(axis=0))
             radius = float(np.median(np.linalg.norm(means - zero_v, axis=1)))
