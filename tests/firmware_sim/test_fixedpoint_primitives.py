@@ -15,6 +15,7 @@ from firmware_sim.fixedpoint import (
     add,
     cumsum,
     div,
+    div_round,
     iroot4,
     isqrt,
     mul,
@@ -304,3 +305,21 @@ def test_context_cycles() -> None:
     assert ctx.cycles_per_sample(10) == ctx.total_cycles / 10
     with pytest.raises(KeyError):
         ctx.cost("fft")
+
+
+def test_div_round_matches_apytypes_and_fractions() -> None:
+    from fractions import Fraction
+
+    rng = np.random.default_rng(RNG_SEED + 8)
+    n = np.concatenate([rng.integers(-(1 << 31), 1 << 31, 20_000), np.arange(-20, 21)])
+    d = np.concatenate([rng.integers(-(1 << 15), 1 << 15, 20_000), np.full(41, 4)])
+    d = np.where(d == 0, 7, d)
+    ctx = ArithmeticContext()
+    ours = div_round(n, d, ctx=ctx)
+    quot = A(n, int_bits=32, frac_bits=0) / A(d, int_bits=16, frac_bits=0)
+    ref = from_apy(quot.cast(int_bits=34, frac_bits=0, quantization=QM.RND_INF, overflow=OM.WRAP))
+    np.testing.assert_array_equal(ours, np.clip(ref, -(1 << 31), (1 << 31) - 1))
+    for a, b, q in zip(n[-41:].tolist(), d[-41:].tolist(), ours[-41:].tolist()):
+        f = Fraction(a, b)
+        assert q == (int(abs(f) + Fraction(1, 2)) * (1 if f >= 0 else -1))
+    assert ctx.total_saturated == 0
