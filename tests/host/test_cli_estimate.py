@@ -1,0 +1,116 @@
+"""gaitlog estimate / calibrate-k / evaluate: outputs, exit codes, no partial output on bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from host.cli import main
+
+G = 9.80665
+
+
+def walk_acc_g(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 40, amp_m: float = 0.02, seed: int = 0):
+    """Tilted device on a sinusoidal CoM with loading pulses (see test_gait_events.synthetic_walk)."""
+    rng = np.random.default_rng(seed)
+    stand = 2.0
+    t = np.arange(int((2 * stand + n_steps * step_s) * fs)) / fs
+    tw = t - stand
+    inside = (tw >= 0) & (tw <= n_steps * step_s)
+    w = 2 * np.pi / step_s
+    a = np.where(inside, amp_m * w * w * np.cos(w * tw), 0.0)
+    for k in range(n_steps + 1):
+        a += 3.0 * np.exp(-0.5 * ((tw - k * step_s + 0.06) / 0.02) ** 2)
+    a += rng.normal(0, 0.05, t.size)
+    up = 1.0 + a / G
+    tilt = np.radians(30.0)
+    acc = np.c_[up * np.sin(tilt), np.zeros_like(up), up * np.cos(tilt)]
+    marks = np.zeros(t.size, np.uint8)
+    return acc, marks
+
+
+def write_csv(path, acc, header=True):
+    lines = (["x_g,y_g,z_g"] if header else []) + [f"{x:.6f},{y:.6f},{z:.6f}" for x, y, z in acc]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_npz(path, acc, fs=50.0, valid=None, flags=None):
+    from host.recording import Recording
+
+    codes = np.clip(np.floor(512 + acc * 256), 0, 1023)
+    rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=fs)
+    rec.save_npz(path)
+
+
+def test_estimate_csv_writes_table_and_summary(tmp_path, capsys) -> None:
+    acc, _ = walk_acc_g()
+    inp = tmp_path / "walk.csv"
+    write_csv(inp, acc)
+    out = tmp_path / "steps.csv"
+    assert main(["estimate", str(inp), "--rate", "50", "--height", "1.75", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "41 steps" in text and "M3" in text
+    rows = out.read_text().splitlines()
+    assert rows[0].startswith("step,bout,start_s,toe_off_s,heel_strike_s,foot_flat_s,duration_s")
+    assert len(rows) == 42
+    assert "length_m5_m" in rows[0]
+
+
+def test_estimate_npz_with_gaps_and_k_file(tmp_path, capsys) -> None:
+    acc, _ = walk_acc_g(n_steps=30)
+    valid = np.ones(acc.shape[0], bool)
+    valid[np.random.default_rng(2).choice(acc.shape[0], 30, replace=False)] = False
+    rec = tmp_path / "rec.npz"
+    write_npz(rec, acc, valid=valid)
+    k = tmp_path / "k.json"
+    assert main(["calibrate-k", str(rec), "--distance", "18", "--height", "1.75", "--out", str(k)]) == 0
+    out1 = capsys.readouterr().out
+    assert "walk-ratio fallback" in out1
+    d = json.loads(k.read_text())
+    assert d["mode"] == "single-speed" and d["m5_fallback"] is True
+    assert main(["estimate", str(rec), "--k-file", str(k)]) == 0
+    out2 = capsys.readouterr().out
+    line = [ln for ln in out2.splitlines() if ln.startswith("M2")][0]
+    assert float(line.split()[1]) == pytest.approx(18.0, rel=1e-6)    # fitted on this recording
+
+
+def test_calibrate_k_with_lap_marks(tmp_path, capsys) -> None:
+    acc, _ = walk_acc_g(n_steps=40)
+    flags = np.zeros(acc.shape[0], np.uint8)
+    flags[[150, 600, 1050]] = 2                                      # MARK at three laps
+    rec = tmp_path / "laps.npz"
+    write_npz(rec, acc, flags=flags)
+    k = tmp_path / "k.json"
+    assert main(["calibrate-k", str(rec), "--lap-marks", "5", "--height", "1.7", "--out", str(k)]) == 0
+    assert json.loads(k.read_text())["n_sections"] == 2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["estimate", "{d}/missing.csv", "--rate", "50"], "no such file"),
+    (["estimate", "{d}/walk.csv"], "--rate"),
+    (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "175"], "metres"),
+    (["estimate", "{d}/bad.csv", "--rate", "50"], "not a number"),
+    (["estimate", "{d}/walk.csv", "--rate", "50", "--k-file", "{d}/bad.json"], "format_version"),
+    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "2", "--out", "{d}/o.json"], "one value"),
+    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--lap-marks", "20", "--out", "{d}/o.json"], "MARK"),
+    (["evaluate", "ipol", "{d}", "--out", "{d}/o.csv"], "IPOL layout"),
+])
+def test_bad_input_exit_1_and_no_output(tmp_path, capsys, argv, message) -> None:
+    acc, _ = walk_acc_g(n_steps=10)
+    write_csv(tmp_path / "walk.csv", acc)
+    (tmp_path / "bad.csv").write_text("x_g,y_g,z_g\n0,0,1\n0,zz,1\n")
+    (tmp_path / "bad.json").write_text(json.dumps({"cal_type": "gaitlog.KCalibration", "format_version": "0.1"}))
+    before = set(p.name for p in tmp_path.iterdir())
+    code = main([a.format(d=tmp_path) for a in argv])
+    err = capsys.readouterr().err
+    assert code == 1 and message in err
+    assert set(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_cli_help_lists_gait_commands(capsys) -> None:
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "estimate" in out and "calibrate-k" in out and "evaluate" in out

@@ -1,0 +1,94 @@
+"""K calibration: single-speed, multi-speed, the M5 fallback, JSON round trip and bad input."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from host.errors import HostError
+from host.estimators.calibration import KCalibration, calibrate
+from host.gait.pipeline import StepTable, apply_calibration
+
+
+def table(raw_len: float, step_s: float, n: int, *, nan_first: bool = True) -> StepTable:
+    """A step table with constant raw lengths and durations (first step without window, as in a bout)."""
+    dur = np.full(n, step_s)
+    raw = np.full(n, raw_len)
+    if nan_first:
+        dur[0] = np.nan
+        raw[0] = np.nan
+    ff = np.arange(n) * 25 + 100
+    z = np.zeros(n, np.int64)
+    return StepTable(50.0, 0.0, ff, ff - 3, ff - 20, ff - 25, z, dur, z,
+                     {"M1": raw, "M2": raw, "M3": raw}, raw * 4,
+                     {"M1": raw, "M2": raw * 0.8, "M3": raw, "M4": raw * 2, "M5": 1.0 / dur}, {})
+
+
+def test_single_speed_k_reproduces_distance_and_m5_falls_back() -> None:
+    t = table(0.5, 0.55, 30)
+    with pytest.warns(UserWarning, match="walk-ratio fallback"):
+        cal = calibrate([(t, 18.0)], leg_length_m=0.9, foot_length_m=0.2)
+    assert cal.mode == "single-speed" and cal.m5_fallback and cal.k2_m5_m == 0.0
+    assert cal.k_m1 == pytest.approx(18.0 / (30 * 0.5))
+    assert cal.k_m2 == pytest.approx(18.0 / (30 * 0.4))
+    t.length_m = apply_calibration(t, cal)
+    for name in ("M1", "M2", "M4", "M5"):
+        assert t.distance_m(name)[0] == pytest.approx(18.0)   # fitted on it: exact
+
+
+def test_multi_speed_fits_the_m5_line() -> None:
+    k1, k2 = 0.3, 0.15            # S = K1 / T + K2
+    sections = []
+    for step_s in (0.45, 0.55, 0.65):
+        n = 40
+        s = k1 / step_s + k2
+        sections.append((table(0.5, step_s, n, nan_first=False), n * s))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")   # no fallback warning allowed
+        cal = calibrate(sections, leg_length_m=0.9, foot_length_m=0.2)
+    assert cal.mode == "multi-speed" and not cal.m5_fallback
+    assert cal.k1_m5_m_s == pytest.approx(k1, rel=1e-9) and cal.k2_m5_m == pytest.approx(k2, abs=1e-9)
+
+
+def test_two_sections_at_the_same_speed_still_fall_back() -> None:
+    sections = [(table(0.5, 0.55, 20), 11.0), (table(0.5, 0.552, 20), 11.0)]
+    with pytest.warns(UserWarning, match="do not span speeds"):
+        cal = calibrate(sections, leg_length_m=0.9, foot_length_m=0.2)
+    assert cal.m5_fallback and np.isfinite(cal.k1_m5_m_s)
+
+
+def test_calibration_errors() -> None:
+    with pytest.raises(HostError, match="at least one"):
+        calibrate([], leg_length_m=0.9, foot_length_m=0.2)
+    with pytest.raises(HostError, match="distance must be positive"):
+        calibrate([(table(0.5, 0.5, 5), -3.0)], leg_length_m=0.9, foot_length_m=0.2)
+    empty = table(0.5, 0.5, 5).select(np.zeros(5, bool))
+    with pytest.raises(HostError, match="no step"):
+        calibrate([(empty, 10.0)], leg_length_m=0.9, foot_length_m=0.2)
+    allnan = table(np.nan, 0.5, 5)
+    with pytest.raises(HostError, match="no measurable"):
+        calibrate([(allnan, 10.0)], leg_length_m=0.9, foot_length_m=0.2)
+
+
+def test_json_round_trip_and_version_check(tmp_path) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2, subject="s1")
+    p = tmp_path / "k.json"
+    cal.save(p)
+    back = KCalibration.load(p)
+    assert back == cal
+    d = json.loads(p.read_text())
+    assert d["format_version"] == "1.0" and d["cal_type"] == "gaitlog.KCalibration"
+    d["format_version"] = "9.9"
+    p.write_text(json.dumps(d))
+    with pytest.raises(HostError, match="format_version"):
+        KCalibration.load(p)
+    p.write_text("{not json")
+    with pytest.raises(HostError, match="not JSON"):
+        KCalibration.load(p)
+    with pytest.raises(HostError, match="cannot read"):
+        KCalibration.load(tmp_path / "missing.json")
