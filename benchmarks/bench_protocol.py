@@ -1,0 +1,149 @@
+"""Speed of the protocol decoders, each against a baseline measured in the same run.
+
+Run: ``python benchmarks/bench_protocol.py``. Prints, per measurement, the best-of-N time, its target, the
+baseline time and the speed-up; exits 1 if a target is missed.
+
+- unpack 65,536 P32 words: ``protocol.packing.unpack_words`` (numpy) vs construct ``Array(Int32ul)`` plus
+  per-record bit masks in Python (the construct-per-record approach the notes measured).
+- parse a DUMP stream of 128 DATA frames of 2048 data bytes: ``protocol.frames.parse_stream`` +
+  ``parse_payload`` vs ``FRAME_STRUCT.parse`` (construct with ``Checksum``) frame by frame.
+- decode a full memory image (65,536 samples): ``parse_image`` + ring order + ``unpack_words`` vs a
+  construct struct of the whole file with ``Array(Int32ul)`` memory and per-record masks.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import construct as cs  # noqa: E402
+import numpy as np  # noqa: E402
+
+from protocol.crc import crc32  # noqa: E402
+from protocol.frames import FRAME_STRUCT, FrameType, build_payload, encode_frame, parse_payload, parse_stream  # noqa: E402
+from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag  # noqa: E402
+from protocol.image import build_image, parse_image  # noqa: E402
+from protocol.packing import pack_words, unpack_words, words_to_bytes  # noqa: E402
+
+
+def best_of(fn: Callable[[], object], repeat: int) -> float:
+    """Best wall time in seconds over ``repeat`` runs (after one warm-up)."""
+    fn()
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main() -> int:
+    rng = np.random.default_rng(0)
+    n = CAPACITY_SAMPLES
+    codes = rng.integers(0, 1024, (n, 3))
+    flags = rng.integers(0, 4, n)
+    memory = words_to_bytes(pack_words(codes, flags))
+
+    # -- 1. unpack 65,536 words
+    words_array = cs.Array(n, cs.Int32ul)
+
+    def baseline_unpack() -> list:
+        return [(w & 1023, (w >> 10) & 1023, (w >> 20) & 1023, w >> 30) for w in words_array.parse(memory)]
+
+    def ours_unpack() -> tuple:
+        return unpack_words(memory)
+
+    c, f = ours_unpack()
+    assert np.array_equal(c, codes) and np.array_equal(f, flags)
+    assert baseline_unpack()[5] == (*codes[5].tolist(), int(flags[5]))
+
+    # -- 2. DUMP stream: 128 DATA frames of 2048 bytes
+    chunk = 2048
+    stream = b"".join(
+        encode_frame(FrameType.DATA, i % 256, build_payload(FrameType.DATA, address=i * chunk,
+                                                            data=memory[i * chunk : (i + 1) * chunk]))
+        for i in range(len(memory) // chunk)
+    )
+    frame_len = chunk + 4 + 8
+
+    def baseline_frames() -> bytes:
+        out = bytearray(len(memory))
+        for k in range(0, len(stream), frame_len):
+            fr = FRAME_STRUCT.parse(stream[k : k + frame_len])
+            payload = fr.body.value.payload
+            addr = int.from_bytes(payload[:4], "little")
+            out[addr : addr + len(payload) - 4] = payload[4:]
+        return bytes(out)
+
+    def ours_frames() -> bytes:
+        frames, errors = parse_stream(stream)
+        out = bytearray(len(memory))
+        for fr in frames:
+            p = parse_payload(fr)
+            out[p["address"] : p["address"] + len(p["data"])] = p["data"]
+        return bytes(out)
+
+    assert ours_frames() == memory == baseline_frames()
+
+    # -- 3. full memory image, wrapped ring buffer
+    sw = 3 * n + 12345
+    header = DeviceHeader(capacity_samples=n, samples_written=sw, write_index=sw % n,
+                          flags=int(HeaderFlag.WRAPPED | HeaderFlag.OVERWRITE))
+    image = build_image(header, memory)
+    nb = n * 4 // 1024
+    image_struct = cs.Struct(
+        "magic" / cs.Const(b"GLIM"), "image_version" / cs.Int8ul, cs.Padding(1), "block_size" / cs.Int16ul,
+        "memory_bytes" / cs.Int32ul, "n_blocks" / cs.Int32ul,
+        "block_crc32" / cs.Array(cs.this.n_blocks, cs.Int32ul), "block_state" / cs.Array(cs.this.n_blocks, cs.Int8ul),
+        "table_crc32" / cs.Int32ul, "header" / cs.Bytes(256), "memory" / cs.RawCopy(cs.Array(n, cs.Int32ul)),
+    )
+
+    def baseline_image() -> list:
+        img = image_struct.parse(image)
+        raw = img.memory.data
+        ok = [crc32(raw[i * 1024 : (i + 1) * 1024]) == img.block_crc32[i] for i in range(nb)]
+        h = DeviceHeader.from_bytes(img.header)
+        words = img.memory.value
+        first = h.first_slot
+        ordered = [words[(first + i) % n] for i in range(h.n_stored)]
+        return [((w & 1023, (w >> 10) & 1023, (w >> 20) & 1023), w >> 30, ok[((first + i) % n) // 256])
+                for i, w in enumerate(ordered)]
+
+    def ours_image() -> tuple:
+        contents = parse_image(image)
+        h = contents.header
+        slots = h.stored_slots()
+        words = contents.memory.view("<u4")
+        c, f = unpack_words(words[slots])
+        valid = contents.block_ok[slots // (contents.block_size // 4)]
+        return c, f, valid
+
+    c, f, valid = ours_image()
+    first = sw % n
+    assert np.array_equal(c[0], codes[first]) and valid.all()
+    assert baseline_image()[0][0] == tuple(codes[first].tolist())
+
+    rows = [
+        ("unpack 65,536 P32 words", best_of(ours_unpack, 50), 2e-3,
+         best_of(baseline_unpack, 3), "construct Array(Int32ul) + per-record masks"),
+        ("parse 128 DATA frames of 2048 B", best_of(ours_frames, 20), 5e-3,
+         best_of(baseline_frames, 5), "construct FRAME_STRUCT (Checksum) per frame"),
+        ("decode full .glimg (65,536 samples, wrapped)", best_of(ours_image, 20), 10e-3,
+         best_of(baseline_image, 3), "construct struct of the file + per-record masks"),
+    ]
+    failed = False
+    print(f"{'measurement':46s} {'ours':>10s} {'target':>10s} {'baseline':>11s} {'speed-up':>9s}  baseline")
+    for name, ours, target, base, what in rows:
+        ok = ours <= target
+        failed |= not ok
+        print(f"{name:46s} {ours * 1e3:8.3f}ms {target * 1e3:8.1f}ms {base * 1e3:9.2f}ms {base / ours:8.0f}x  {what}"
+              + ("" if ok else "  TARGET MISSED"))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
