@@ -1,0 +1,120 @@
+"""The Logger: record path, flags, wrapped memory, memory-image persistence."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware_sim.adc import Adc
+from firmware_sim.device import Logger
+from firmware_sim.errors import DeviceError
+from firmware_sim.sensor import SensorModel
+from firmware_sim.world.base import Motion
+from firmware_sim.world.poses import CalibrationPoses
+from protocol.header import DeviceHeader
+
+
+def _still(acc: list[float], seconds: float, rate: float = 500.0, **kw: object) -> Motion:
+    n = int(seconds * rate)
+    return Motion(acc_g=np.tile(acc, (n, 1)), rate_hz=rate, **kw)  # type: ignore[arg-type]
+
+
+def test_record_stores_the_expected_codes_flags_and_numbers() -> None:
+    lg = Logger(sensor=SensorModel.ideal(noise_density_g_rthz=0.0))
+    res = lg.record(_still([0.0, 1.0, -0.5], 10.0, marker_times_s=[2.0, 2.01, 7.3]), start_time_s=1_600_000_000)
+    expected = [math.floor((2.5 + 4 * 0.312 * a) / 5 * 1024) for a in (0.0, 1.0, -0.5)]
+    assert res.n_samples == 500 and res.n_taken == 500
+    assert (res.codes == expected).all()
+    assert res.flags[0] == 1  # SESSION_START
+    assert np.flatnonzero(res.flags & 2).tolist() == [100, 101, 365]  # MARK at or after each press
+    np.testing.assert_allclose(res.sample_times_s[:3], [0.0, 0.02, 0.04])
+    assert res.sample_numbers.tolist() == list(range(500))
+    h = lg.header
+    assert (h.samples_written, h.write_index, h.start_time_s, h.logging) == (500, 500, 1_600_000_000, False)
+    assert res.truth["sensor"]["noise_density_g_rthz"] == 0.0 and res.truth["adc"]["bits"] == 10
+
+
+def test_second_run_appends_and_overwrite_wraps_in_order() -> None:
+    lg = Logger(sensor=SensorModel.ideal(), overwrite=True)
+    r1 = lg.record(CalibrationPoses(n_poses=24, hold_s=40.0, move_s=2.0, seed=1), start_time_s=100)
+    r2 = lg.record(_still([0.0, 0.0, 1.0], 600.0), start_time_s=5000)
+    h = lg.header
+    assert h.wrapped and h.samples_written == r1.n_taken + r2.n_taken
+    assert h.run_start_sample == r1.n_taken and h.start_time_s == 5000
+    # ring order: the tail of run 1, then run 2 (its first sample carries SESSION_START)
+    mem = np.frombuffer(lg.memory, dtype="<u4")
+    ordered = mem[h.stored_slots()]
+    n2 = r2.n_samples
+    codes2 = np.c_[ordered[-n2:] & 1023, (ordered[-n2:] >> 10) & 1023, (ordered[-n2:] >> 20) & 1023]
+    np.testing.assert_array_equal(codes2, r2.codes)
+    assert ordered[-n2] >> 30 == 1
+    keep1 = 65536 - n2
+    codes1 = np.c_[ordered[:keep1] & 1023, (ordered[:keep1] >> 10) & 1023, (ordered[:keep1] >> 20) & 1023]
+    np.testing.assert_array_equal(codes1, r1.codes[-keep1:])
+
+
+def test_stop_when_full_refuses_a_new_record() -> None:
+    lg = Logger(sensor=SensorModel.ideal(), overwrite=False)
+    res = lg.record(CalibrationPoses(n_poses=24, hold_s=52.0, move_s=3.0))
+    assert res.n_samples == 65536 < res.n_taken and lg.header.full_stopped
+    with pytest.raises(DeviceError, match="ERASE"):
+        lg.record(_still([0, 0, 1], 1.0))
+    lg.erase()
+    assert lg.record(_still([0, 0, 1], 1.0)).n_samples == 50
+
+
+def test_motion_at_another_rate_is_resampled() -> None:
+    lg = Logger(sensor=SensorModel.ideal(noise_density_g_rthz=0.0))
+    res = lg.record(_still([0.0, 0.0, 1.0], 4.0, rate=100.0))
+    assert res.truth["motion_rate_hz"] == 500.0 and res.n_samples == 200
+    assert (res.codes[:, 2] == 767).all()
+
+
+def test_image_round_trip_and_persistence(tmp_path: Path) -> None:
+    path = tmp_path / "dev.glimg"
+    lg = Logger(device_id=77, image_path=path, overwrite=True)
+    lg.record(CalibrationPoses(n_poses=24, hold_s=30.0, move_s=2.0), start_time_s=123)
+    lg.record(CalibrationPoses(n_poses=24, hold_s=30.0, move_s=2.0, seed=9), start_time_s=456)
+    assert path.exists() and lg.header.wrapped
+    back = Logger.from_image(path)
+    assert back.memory == lg.memory
+    assert back.header.to_bytes() == lg.header.to_bytes()
+    # the same file used as a device's memory between runs: the next record continues after the last
+    again = Logger(image_path=path, device_id=77, overwrite=True)
+    n_before = again.header.samples_written
+    again.record(_still([0, 0, 1], 2.0), start_time_s=789)
+    assert again.header.samples_written == n_before + 100
+    assert Logger.from_image(path).header.samples_written == n_before + 100
+    assert not list(tmp_path.glob(".*tmp"))  # atomic writes leave no temporary files
+
+
+def test_bad_image_is_a_clear_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.glimg"
+    bad.write_bytes(b"GLIX" + bytes(100))
+    with pytest.raises(DeviceError, match="bad.glimg"):
+        Logger.from_image(bad)
+    with pytest.raises(DeviceError, match="cannot read"):
+        Logger.from_image(tmp_path / "missing.glimg")
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_samples=st.integers(0, 65536), wrapped=st.booleans(),
+       start=st.integers(0, 2**32 - 1))
+def test_image_save_load_property(tmp_path_factory: pytest.TempPathFactory, seed: int, n_samples: int,
+                                  wrapped: bool, start: int) -> None:
+    """Encoder (save_image) / decoder (from_image): arbitrary memory and header come back bit-identical."""
+    rng = np.random.default_rng(seed)
+    lg = Logger(device_id=seed % 1000)
+    written = n_samples + (65536 + int(rng.integers(0, 65536)) if wrapped else 0)
+    header = DeviceHeader(device_id=seed % 1000, samples_written=written, write_index=written % 65536,
+                          flags=(0x03 if wrapped else 0), start_time_s=start)
+    lg._load(header, rng.integers(0, 256, 262144, dtype=np.uint8), source="test")
+    path = tmp_path_factory.mktemp("img") / "x.glimg"
+    lg.save_image(path)
+    back = Logger.from_image(path)
+    assert back.memory == lg.memory and back.header.to_bytes() == lg.header.to_bytes()
