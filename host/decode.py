@@ -115,10 +115,15 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     truncated = getattr(contents, "block_truncated", None)
     if truncated is not None:
         block_reason[np.asarray(truncated, dtype=bool)] = _R_TRUNCATED
-    byte_ok = np.repeat(block_ok, block_size)[: memory.size]
-    byte_reason = np.repeat(block_reason, block_size)[: memory.size]
     notes = list(getattr(contents, "notes", []))
-    return _assemble(header, memory, byte_ok, byte_reason, source, "image", notes)
+    if block_size % 4 == 0:
+        per = block_size // 4
+        slot_ok = np.repeat(block_ok, per)[: memory.size // 4]
+        slot_reason = np.repeat(block_reason, per)[: memory.size // 4] if not block_ok.all() else None
+    else:  # pragma: no cover - blocks not made of whole samples (the spec uses 1024)
+        slot_ok, slot_reason = _slots_from_bytes(np.repeat(block_ok, block_size)[: memory.size],
+                                                 np.repeat(block_reason, block_size)[: memory.size])
+    return _assemble(header, memory, slot_ok, slot_reason, source, "image", notes)
 
 
 def _decode_raw(data: bytes, source: str | None) -> Recording:
@@ -131,10 +136,9 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     memory = np.frombuffer(data, dtype=np.uint8, offset=HEADER_SIZE)
     cap_bytes = int(header.capacity_samples) * 4
     memory = memory[:cap_bytes]
-    byte_ok = np.ones(memory.size, dtype=bool)
-    byte_reason = np.zeros(memory.size, dtype=np.int8)
+    slot_ok = np.ones(memory.size // 4, dtype=bool)
     notes = ["raw XMODEM dump: blocks were checked by XMODEM's CRC-16 in transit; the file has no checks"]
-    return _assemble(header, memory, byte_ok, byte_reason, source, "raw", notes)
+    return _assemble(header, memory, slot_ok, None, source, "raw", notes)
 
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
@@ -182,44 +186,61 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
         notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte memory were ignored")
     if errors:
         notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
-    byte_reason = np.full(cap_bytes, _R_NOT_RECEIVED, dtype=np.int8)
-    return _assemble(header, memory, covered, byte_reason, source, "capture", notes)
+    slot_ok = covered.reshape(-1, 4).all(axis=1)
+    slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
+    return _assemble(header, memory, slot_ok, slot_reason, source, "capture", notes)
 
 
 # ------------------------------------------------------------------------------------------------ common
-def _assemble(header, memory: np.ndarray, byte_ok: np.ndarray, byte_reason: np.ndarray, source: str | None,
-              kind: str, notes: list[str]) -> Recording:
-    """Restore ring order and unpack: ``PROTOCOL.md`` section 2 (derived quantities) and section 1."""
+def _slots_from_bytes(byte_ok: np.ndarray, byte_reason: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-slot validity (all four bytes ok) and reason (that of the first bad byte)."""
+    n = byte_ok.size // 4
+    ok4 = byte_ok[: 4 * n].reshape(n, 4)
+    r4 = byte_reason[: 4 * n].reshape(n, 4)
+    return ok4.all(axis=1), r4[np.arange(n), np.argmin(ok4, axis=1)]
+
+
+def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.ndarray | None,
+              source: str | None, kind: str, notes: list[str]) -> Recording:
+    """Restore ring order and unpack: ``PROTOCOL.md`` section 2 (derived quantities) and section 1.
+
+    ``slot_ok[k]``: all four bytes of slot ``k`` were received intact; ``slot_reason[k]``: index into
+    :data:`REASONS` of a bad slot (None: reason 0 everywhere). Slots beyond ``memory`` are truncated.
+    """
     from protocol.packing import unpack_words
 
     capacity = int(header.capacity_samples)
     n = int(header.n_stored)
     first = int(header.first_slot)
-    n_words_avail = min(memory.size // 4, capacity)
-    # Per-slot validity: all four bytes intact and present.
-    slot_ok = np.zeros(capacity, dtype=bool)
-    slot_reason = np.full(capacity, _R_TRUNCATED, dtype=np.int8)
-    if n_words_avail:
-        ok4 = byte_ok[: n_words_avail * 4].reshape(-1, 4)
-        slot_ok[:n_words_avail] = ok4.all(axis=1)
-        r4 = byte_reason[: n_words_avail * 4].reshape(-1, 4)
-        # reason of a bad slot: the reason of its first bad byte
-        bad_byte = np.argmin(ok4, axis=1)
-        slot_reason[:n_words_avail] = r4[np.arange(n_words_avail), bad_byte]
-    words_all = np.zeros(capacity, dtype="<u4")
-    if n_words_avail:
-        words_all[:n_words_avail] = memory[: n_words_avail * 4].view("<u4")
+    n_avail = min(memory.size // 4, capacity, slot_ok.size)
+    if n_avail == capacity:
+        words_all = memory[: 4 * capacity].view("<u4")
+        ok_all = slot_ok[:capacity]
+        reason_all = slot_reason[:capacity] if slot_reason is not None else None
+    else:
+        words_all = np.zeros(capacity, dtype="<u4")
+        words_all[:n_avail] = memory[: 4 * n_avail].view("<u4")
+        ok_all = np.zeros(capacity, dtype=bool)
+        ok_all[:n_avail] = slot_ok[:n_avail]
+        reason_all = np.full(capacity, _R_TRUNCATED, dtype=np.int8)
+        if slot_reason is not None:
+            reason_all[:n_avail] = slot_reason[:n_avail]
+        else:
+            reason_all[:n_avail] = 0
     # Ring order: slot (first + i) mod capacity for i = 0 .. n-1 (contiguous pieces, no fancy index).
     head = min(n, capacity - first)
     order = [slice(first, first + head)]
     if n > head:
         order.append(slice(0, n - head))
     words = np.concatenate([words_all[s] for s in order]) if n else np.zeros(0, "<u4")
-    valid = np.concatenate([slot_ok[s] for s in order]) if n else np.zeros(0, bool)
-    reason = np.concatenate([slot_reason[s] for s in order]) if n else np.zeros(0, np.int8)
+    valid = np.concatenate([ok_all[s] for s in order]) if n else np.zeros(0, bool)
+    if reason_all is None:
+        reason = np.zeros(n, dtype=np.int8)
+    else:
+        reason = np.concatenate([reason_all[s] for s in order]) if n else np.zeros(0, np.int8)
     codes, flags = unpack_words(words)
-    codes = np.array(codes, dtype=np.uint16)
-    flags = np.array(flags, dtype=np.uint8)
+    codes = np.asarray(codes, dtype=np.uint16)
+    flags = np.asarray(flags, dtype=np.uint8)
     adc_bits = int(header.adc_bits)
     if adc_bits < 10 and n:
         out_of_range = (codes > (1 << adc_bits) - 1).any(axis=1) & valid
@@ -228,8 +249,11 @@ def _assemble(header, memory: np.ndarray, byte_ok: np.ndarray, byte_reason: np.n
             valid &= ~out_of_range
             notes.append(f"{int(out_of_range.sum())} sample(s) with codes above the {adc_bits}-bit ADC range "
                          "reported missing")
-    codes[~valid] = 0
-    flags[~valid] = 0
+    if not valid.all():
+        codes = codes.copy()
+        flags = flags.copy()
+        codes[~valid] = 0
+        flags[~valid] = 0
     first_sn = int(header.first_sample_number)
     sample_numbers = first_sn + np.arange(n, dtype=np.int64)
     gaps = gaps_from_mask(valid, sample_numbers, reason, REASONS)

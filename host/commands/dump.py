@@ -1,0 +1,63 @@
+"""``gaitlog dump``: dump a logger's memory over a serial line to a memory image plus JSON metadata."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+HELP = "dump a logger's memory (port, pty path, socket:// or emu:// URL) to a memory image + metadata"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--port", required=True,
+                        help="serial device, pty path (from `gaitlog serve --pty`), socket://HOST:PORT or emu://IMAGE")
+    parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg); "
+                        "metadata goes to IMAGE.json, the partial state of an interrupted dump to IMAGE.part")
+    parser.add_argument("--baud", type=int, default=115200, help="baud rate, 8N1 (default 115200)")
+    parser.add_argument("--resume", action="store_true", help="continue an interrupted dump from IMAGE.part")
+    parser.add_argument("--retries", type=int, default=8,
+                        help="re-read passes over damaged or missing ranges (default 8)")
+    parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
+                        help="answer / inter-byte timeout in seconds (default 1.0)")
+    parser.add_argument("--capture", metavar="FILE", help="also save every byte received (a wire capture that "
+                        "`gaitlog decode` reads)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+
+
+def run(args: argparse.Namespace) -> int:
+    import io
+    from pathlib import Path
+
+    from host.errors import HostError
+    from host.link import LoggerLink
+    from protocol.atomic_write import atomic_write_bytes
+
+    if args.retries < 0:
+        raise HostError(f"--retries must be >= 0, got {args.retries}")
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise HostError(f"output directory {out.parent} does not exist")
+    capture = io.BytesIO() if args.capture else None
+    with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, retries=3, capture=capture) as link:
+        try:
+            result = link.dump(out, progress=not args.quiet, resume=args.resume, retries=args.retries)
+        except HostError as err:
+            state = Path(str(out) + ".part")
+            hint = f"; partial state saved in {state}: run again with --resume" if state.exists() else ""
+            raise HostError(f"dump interrupted: {err}{hint}") from err
+        finally:
+            if capture is not None and capture.tell():
+                atomic_write_bytes(args.capture, capture.getvalue())
+    meta = result.metadata_
+    if not args.quiet:
+        print(f"{out}: {meta['n_valid']} of {meta['n_samples']} samples, {meta['stored_bytes']} bytes in "
+              f"{meta['duration_s']:.2f} s ({meta['bytes_received']} bytes received, "
+              f"{meta['frames_damaged']} damaged frames, {meta['passes']} pass(es)"
+              + (", resumed" if meta["resumed"] else "") + ")")
+        print(f"metadata: {result.metadata_path_}")
+    if not result.complete_:
+        print(f"gaitlog dump: error: {sum(n for _, n in result.missing_ranges_)} bytes still missing after "
+              f"{args.retries} re-read passes ({len(meta['missing_samples'])} sample range(s)); the image marks "
+              f"them missing; run again with --resume to retry them", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,72 @@
+"""``gaitlog info``: header and status of a memory image (or dump/capture file) or of a live device."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "show the header and status of a memory image or of a live device (--port)"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("image", nargs="?", metavar="IMAGE",
+                        help="memory image (.glimg), raw dump or wire capture")
+    parser.add_argument("--port", help="ask a live device instead: serial device, pty path, socket:// or emu://")
+    parser.add_argument("--baud", type=int, default=115200, help="baud rate with --port (default 115200)")
+    parser.add_argument("--timeout", type=float, default=1.0, metavar="S", help="answer timeout with --port")
+
+
+def header_lines(header) -> list[str]:
+    """Readable lines describing a ``protocol.header.DeviceHeader``."""
+    fw = int(header.firmware_version)
+    flags = [name for name, on in (("OVERWRITE", header.overwrite), ("WRAPPED", header.wrapped),
+                                   ("LOGGING", header.logging), ("CAL_VALID", header.calibration.valid),
+                                   ("FULL_STOPPED", bool(header.flags & 0x10))) if on]
+    cal = header.calibration
+    return [
+        f"device id        {header.device_id}",
+        f"firmware         {fw >> 8}.{fw & 0xFF}   protocol v{header.protocol_version}   header v{header.header_version}",
+        f"sample rate      {header.sample_rate_hz:g} Hz, {header.adc_bits}-bit ADC, {header.axes} axes, packing P32",
+        f"start time       {header.start_time.isoformat()} ({header.start_time_s})",
+        f"capacity         {header.capacity_samples} samples",
+        f"samples written  {header.samples_written} (stored {header.n_stored}, oldest is sample "
+        f"{header.first_sample_number} in slot {header.first_slot})",
+        f"write index      {header.write_index}",
+        f"flags            {' '.join(flags) or '-'}",
+        "calibration      " + ("affine: offset " + ", ".join(f"{v:.3f}" for v in cal.offset_counts) + " counts"
+                               if cal.valid else "none (nominal map: ±2 g over the ADC span)"),
+    ]
+
+
+def run(args: argparse.Namespace) -> int:
+    from host.errors import HostError
+
+    if (args.image is None) == (args.port is None):
+        raise HostError("give either IMAGE or --port PORT")
+    if args.port:
+        from host.link import LoggerLink
+
+        with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
+            info = link.identify()
+            status = link.status()
+            _, header = link.read_header()
+        states = {0: "idle", 1: "logging", 2: "full-stopped"}
+        print(f"port             {args.port} at {args.baud} baud")
+        print(f"state            {states.get(status['state'], status['state'])}, "
+              f"{status['samples_written']} samples written, write index {status['write_index']}")
+        print(f"memory           {info['memory_bytes']} bytes")
+        print("\n".join(header_lines(header)))
+        return 0
+    from host.decode import decode_file
+
+    rec = decode_file(args.image)
+    print(f"file             {args.image}")
+    print("\n".join(header_lines(rec.header)))
+    print(f"decoded          {rec.n_valid} of {rec.n_samples} stored samples valid, {len(rec.gaps)} gap(s), "
+          f"{rec.duration_s:.2f} s")
+    for gap in rec.gaps[:20]:
+        print(f"  gap: samples {gap.first_sample_number}..{gap.last_sample_number}: {gap.reason}")
+    if len(rec.gaps) > 20:
+        print(f"  ... {len(rec.gaps) - 20} more gap(s)")
+    for note in rec.notes:
+        print(f"note: {note}")
+    return 0

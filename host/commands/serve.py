@@ -1,0 +1,42 @@
+"""``gaitlog serve``: serve a memory image as a live device on a pseudo-terminal or a TCP port."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "serve a memory image as a live logger on a pty (prints its path) or a TCP port, until Ctrl-C"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("image", metavar="IMAGE", help="memory image (.glimg) the device starts from")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
+    where.add_argument("--tcp", type=int, metavar="PORT", help="serve on 127.0.0.1:PORT (0: any free port)")
+    parser.add_argument("--baud", type=int, default=115200, help="baud rate of the device's UART (default 115200)")
+    parser.add_argument("--wire-time", action="store_true",
+                        help="pace the device's bytes at the baud rate (10 bits per byte, 8N1), as a real line")
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+    import time
+
+    from firmware_sim.device import Logger
+    from firmware_sim.transport import serve_pty, serve_tcp
+
+    logger = Logger.from_image(args.image)
+    if args.tcp is not None:
+        server = serve_tcp(logger, port=args.tcp, baud=args.baud, wire_time=args.wire_time)
+    else:
+        server = serve_pty(logger, baud=args.baud, wire_time=args.wire_time)
+    with server:
+        where = server.url if args.tcp is not None else server.path
+        print(where, flush=True)
+        print(f"serving {args.image} at {args.baud} baud{' (wire time)' if args.wire_time else ''}; "
+              "Ctrl-C to stop", file=sys.stderr, flush=True)
+        try:
+            while True:
+                time.sleep(0.5)
+        except KeyboardInterrupt:
+            pass
+    return 0
