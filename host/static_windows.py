@@ -20,7 +20,7 @@ Method (numbered steps are referred to in the code):
 4. A window is quiet when every axis is below its threshold; consecutive quiet windows merge into one
    candidate segment ``[k0, k1 + w)``. A few slowly moving samples at the ends barely raise a 3 s SD, so the
    ends are then cut back to where the 0.2 s running mean stays within ``4 sigma / sqrt(m) + q / 2`` of the
-   segment median (``m`` samples in 0.2 s); a segment left shorter than 0.9 ``hold_s`` is rejected. ``trim_s``
+   mean of the segment's middle half (``m`` samples in 0.2 s); a segment left shorter than 0.9 ``hold_s`` is rejected. ``trim_s``
    is cut from both ends before the mean is taken.
 5. Candidates are rejected, with the reason kept in ``rejected_``, when an axis is exactly constant (SD = 0:
    a stuck or sleeping sensor, or a saturated axis), when the orientation drifts by more than
@@ -74,23 +74,47 @@ class StaticWindow:
         return self.stop - self.start
 
 
-def _moving_sd(x: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Moving SD of every column over windows ``x[k:k + w]`` and whether each window is NaN-free.
+def _prefix_sums(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Prefix sums of a centred copy of ``x`` (NaN rows as 0), of its squares and of the NaN rows.
 
-    Returns ``(sd (n - w + 1, 3), finite (n - w + 1,))``; ``sd`` is 0 where the window is not finite.
+    Returns ``(s1 (n+1, 3), s2 (n+1, 3), bad (n+1,), centre (3,), finite (n,))``; the sum of ``x[a:b] - centre``
+    is ``s1[b] - s1[a]``.
     """
     finite = np.isfinite(x).all(axis=1)
-    centre = np.nanmedian(x, axis=0) if finite.any() else np.zeros(x.shape[1])
+    centre = x[int(np.argmax(finite))].copy() if finite.any() else np.zeros(x.shape[1])
     xc = np.where(finite[:, None], x - centre, 0.0)  # centring keeps the sums of squares small
     zero = np.zeros((1, x.shape[1]))
     s1 = np.concatenate([zero, np.cumsum(xc, axis=0)])
     s2 = np.concatenate([zero, np.cumsum(xc * xc, axis=0)])
     bad = np.concatenate([[0], np.cumsum(~finite)])
+    return s1, s2, bad, centre, finite
+
+
+def _moving_sd(x: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Moving SD of every column over windows ``x[k:k + w]`` and whether each window is NaN-free.
+
+    Returns ``(sd (n - w + 1, 3), finite (n - w + 1,))``; ``sd`` is 0 where the window is not finite.
+    """
+    s1, s2, bad, _, _ = _prefix_sums(x)
+    return _moving_sd_from(s1, s2, bad, w)
+
+
+def _moving_sd_from(s1: np.ndarray, s2: np.ndarray, bad: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
     m1 = (s1[w:] - s1[:-w]) / w
     var = (s2[w:] - s2[:-w]) / w - m1 * m1
     var = np.maximum(var, 0.0) * (w / max(w - 1, 1))
     ok = (bad[w:] - bad[:-w]) == 0
     return np.where(ok[:, None], np.sqrt(var), 0.0), ok
+
+
+def _segment_stats(s1: np.ndarray, s2: np.ndarray, changes: np.ndarray, centre: np.ndarray, a: np.ndarray,
+                   b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Means and SDs (ddof 1; exactly 0 for a constant axis) of the segments ``x[a[i]:b[i]]``, ``(len(a), 3)``."""
+    n = np.maximum(b - a, 1)[:, None].astype(np.float64)
+    m1 = (s1[b] - s1[a]) / n
+    var = np.maximum((s2[b] - s2[a]) / n - m1 * m1, 0.0) * n / np.maximum(n - 1, 1)
+    moved = (changes[np.maximum(b - 1, a)] - changes[a]) > 0
+    return m1 + centre, np.where(moved, np.sqrt(var), 0.0)
 
 
 def _code_step(col: np.ndarray, max_values: int = 20000) -> float:
@@ -149,10 +173,6 @@ class StaticWindowDetector:
         self.min_angle_deg = min_angle_deg
         self.trim_s = trim_s
 
-    @staticmethod
-    def _refine(x: np.ndarray, a: int, b: int, m: int, tol: np.ndarray) -> tuple[int, int]:
-        return _edge_refine(x, a, b, m, tol)
-
     def detect(self, acc: np.ndarray, *, sampling_rate_hz: float, zero: np.ndarray | None = None,
                unit_per_g: float | np.ndarray | None = 1.0) -> Self:
         """Find the static holds of ``acc``.
@@ -205,7 +225,8 @@ class StaticWindowDetector:
         self.code_step_ = np.array([_code_step(x[:, j]) for j in range(3)])
         if x.shape[0] < w:
             return self
-        sd, ok = _moving_sd(x, w)  # step 1
+        s1, s2, bad, centre, _ = _prefix_sums(x)
+        sd, ok = _moving_sd_from(s1, s2, bad, w)  # step 1
         if not ok.any():
             return self
         floor = np.empty(3)
@@ -216,55 +237,60 @@ class StaticWindowDetector:
         thr = self.sd_factor * np.sqrt(floor**2 + (self.code_step_ / 2) ** 2)  # step 3
         self.noise_floor_, self.threshold_ = floor, thr
         quiet = ok & (sd <= thr).all(axis=1)  # step 4
-        trim = int(round(self.trim_s * sampling_rate_hz))
-        candidates = []
+        runs = np.array(_runs(quiet), dtype=np.int64).reshape(-1, 2)
+        if not len(runs):
+            return self
+        k0, k1 = runs[:, 0], runs[:, 1]
         m = max(1, int(round(0.2 * sampling_rate_hz)))
         edge_tol = 4.0 * np.sqrt(floor**2 + self.code_step_**2 / 12) / np.sqrt(m) + self.code_step_ / 2
-        for k0, k1 in _runs(quiet):
-            a, b = self._refine(x, k0, k1 + w, m, edge_tol)
-            if b - a < 0.9 * w:
-                seg = x[a:b] if b - a >= 2 else x[k0:k1 + w]
-                win = StaticWindow(a, b, seg.mean(axis=0), seg.std(axis=0, ddof=1))
-                self.rejected_.append((win, f"only {(b - a) / sampling_rate_hz:.2f} s still after removing the "
-                                            "moving ends"))
-                continue
-            if b - a - 2 * trim >= 2:
-                a, b = a + trim, b - trim
-            seg = x[a:b]
-            first, last = x[k0:k0 + w].mean(axis=0), x[k1:k1 + w].mean(axis=0)
-            sd_seg = np.where(np.ptp(seg, axis=0) == 0, 0.0, seg.std(axis=0, ddof=1))  # exact 0 when constant
-            candidates.append((StaticWindow(a, b, seg.mean(axis=0), sd_seg), first, last))
-        if not candidates:
-            return self
-        means = np.array([c[0].mean for c in candidates])
+        a, b = _edge_refine(s1, k0, k1 + w, m, edge_tol)
+        changes = np.concatenate([np.zeros((1, 3), np.int64),
+                                  np.cumsum(np.diff(np.nan_to_num(x), axis=0) != 0, axis=0)])
+        short = (b - a) < 0.9 * w
+        trim = int(round(self.trim_s * sampling_rate_hz))
+        can_trim = (b - a - 2 * trim) >= 2
+        a = np.where(can_trim & ~short, a + trim, a)
+        b = np.where(can_trim & ~short, b - trim, b)
+        sa, sb = np.where(b - a >= 2, a, k0), np.where(b - a >= 2, b, k1 + w)
+        means, sds = _segment_stats(s1, s2, changes, centre, sa, sb)
+        first = (s1[k0 + w] - s1[k0]) / w + centre
+        last = (s1[k1 + w] - s1[k1]) / w + centre
+        wins = [StaticWindow(int(a[i]), int(b[i]), means[i], sds[i]) for i in range(len(a))]
         if zero is None:
             zero_v = np.zeros(3)
         else:
             zero_v = np.broadcast_to(np.asarray(zero, dtype=np.float64), (3,)).copy()
         if unit_per_g is None:  # crude sphere through the candidates
-            zero_v = 0.5 * (means.max(axis=0) + means.min(axis=0))
-            radius = float(np.median(np.linalg.norm(means - zero_v, axis=1)))
+            cm = means[~short] if (~short).any() else means
+            zero_v = 0.5 * (cm.max(axis=0) + cm.min(axis=0))
+            radius = float(np.median(np.linalg.norm(cm - zero_v, axis=1)))
             per_g = np.full(3, radius if radius > 0 else 1.0)
         else:
             per_g = np.broadcast_to(np.asarray(unit_per_g, dtype=np.float64), (3,)).copy()
         self.zero_, self.unit_per_g_ = zero_v, per_g
+        nominal = (means - zero_v) / per_g
+        norms = np.linalg.norm(nominal, axis=1)
+        f0, f1 = first - zero_v, last - zero_v
+        cosd = np.einsum("ij,ij->i", f0, f1) / np.maximum(np.linalg.norm(f0, axis=1) * np.linalg.norm(f1, axis=1),
+                                                          1e-300)
+        drift = np.degrees(np.arccos(np.clip(cosd, -1.0, 1.0)))
         kept = []
-        for win, first, last in candidates:  # step 5
-            nominal = (win.mean - zero_v) / per_g
-            norm = float(np.linalg.norm(nominal))
+        for i, win in enumerate(wins):  # step 5
             const = np.flatnonzero(win.sd == 0)
-            drift = _angle_deg(first - zero_v, last - zero_v) if norm > 0 else 0.0
-            if const.size:
+            if short[i]:
+                self.rejected_.append((win, f"only {win.n_samples / sampling_rate_hz:.2f} s still after removing "
+                                            "the moving ends"))
+            elif const.size:
                 names = ", ".join("xyz"[j] for j in const)
                 self.rejected_.append((win, f"constant (SD = 0) on axis {names}: stuck, sleeping or saturated"))
-            elif norm >= self.max_norm_g:
-                self.rejected_.append((win, f"|mean| = {norm:.2f} g is not below {self.max_norm_g} g"))
-            elif norm == 0:
+            elif norms[i] >= self.max_norm_g:
+                self.rejected_.append((win, f"|mean| = {norms[i]:.2f} g is not below {self.max_norm_g} g"))
+            elif norms[i] == 0:
                 self.rejected_.append((win, "|mean| = 0: no direction"))
-            elif drift > self.min_angle_deg / 2:
-                self.rejected_.append((win, f"orientation drifts by {drift:.1f} deg during the hold"))
+            elif drift[i] > self.min_angle_deg / 2:
+                self.rejected_.append((win, f"orientation drifts by {drift[i]:.1f} deg during the hold"))
             else:
-                kept.append((win, nominal / norm))
+                kept.append((win, nominal[i] / norms[i]))
         order = sorted(range(len(kept)), key=lambda i: -kept[i][0].n_samples)
         accepted: list[tuple[StaticWindow, np.ndarray]] = []
         cos_limit = np.cos(np.radians(self.min_angle_deg))
@@ -282,19 +308,32 @@ class StaticWindowDetector:
         return self
 
 
-def _edge_refine(x: np.ndarray, a: int, b: int, m: int, tol: np.ndarray) -> tuple[int, int]:
-    """Step 4b: cut the ends of ``x[a:b]`` whose ``m``-sample running mean leaves the segment median by ``tol``."""
-    seg = x[a:b]
-    if len(seg) < m + 2:
-        return a, b
-    med = np.median(seg, axis=0)
-    c = np.cumsum(np.vstack([np.zeros((1, 3)), seg - med]), axis=0)
-    run = (c[m:] - c[:-m]) / m  # run[i] = mean of seg[i:i + m]
-    on = (np.abs(run) <= tol).all(axis=1)
-    if not on.any():
-        return a, a
-    first, last = int(np.argmax(on)), len(on) - 1 - int(np.argmax(on[::-1]))
-    return a + first, a + last + m
+def _edge_refine(s1: np.ndarray, a: np.ndarray, b: np.ndarray, m: int,
+                 tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Step 4 (ends): cut each segment ``[a, b)`` back to where its ``m``-sample running mean stays within
+    ``tol`` (``(3,)``) of the mean of the segment's middle half. All segments at once, from the prefix sums
+    ``s1`` of :func:`_prefix_sums`; returns the new ``(a, b)`` (``a == b`` where nothing is still)."""
+    length = b - a
+    q = length // 4
+    ref = (s1[b - q] - s1[a + q]) / np.maximum(length - 2 * q, 1)[:, None]
+    n_pos = np.maximum(length - m + 1, 0)  # running-mean positions a .. b - m
+    offsets = np.concatenate([[0], np.cumsum(n_pos)[:-1]])
+    total = int(n_pos.sum())
+    seg = np.repeat(np.arange(len(a)), n_pos)
+    idx = np.arange(total) - np.repeat(offsets, n_pos) + np.repeat(a, n_pos)
+    run = (s1[idx + m] - s1[idx]) / m
+    on = (np.abs(run - ref[seg]) <= tol).all(axis=1)
+    big = np.iinfo(np.int64).max
+    has = n_pos > 0
+    first = np.full(len(a), big)
+    last = np.full(len(a), -1)
+    if total:
+        first[has] = np.minimum.reduceat(np.where(on, idx, big), offsets[has])
+        last[has] = np.maximum.reduceat(np.where(on, idx, -1), offsets[has])
+    found = last >= 0
+    new_a = np.where(found, first, a)
+    new_b = np.where(found, last + m, a)
+    return new_a, new_b
 
 
 def find_static_windows(acc: np.ndarray, sampling_rate_hz: float, *, hold_s: float = 3.0,
