@@ -1,0 +1,358 @@
+"""Step-by-step plan of one walking excursion: gait events and the knots of the body's trajectory.
+
+Every step ``i`` runs from the heel strike ``HS_i`` of one foot to the heel strike ``HS_{i+1}`` of the
+other and contains, in order::
+
+    HS_i ─ FF_i (foot-flat of the leading foot) ─ TO_i (toe-off of the trailing foot: end of double
+    support) ─ single stance (centre of mass over the stance leg, highest at PEAK_i) ─ HS_{i+1}
+
+with the centre of mass lowest inside double support but generally *not* at foot-flat.
+Vertically the centre of mass follows an inverted-pendulum arc of radius
+``l_eff = pendulum_ratio · leg_length · (v / v_pref) ** pendulum_speed_exponent`` in single stance
+(Alvarez Fig. 3, S1/h1) and a concave-up transfer in double support (S2/h2); forward it moves fastest in
+double support and slowest at mid-stance (speed fluctuation ``ap_speed_fluctuation``). The knots carry
+value, velocity and acceleration, and :func:`firmware_sim.world.hermite.quintic_hermite` joins them C2,
+so the rendered acceleration is the exact second derivative of the truth positions.
+
+Speeds and step lengths: the excursion's speed times a gait-initiation ramp (first metres), a slow-down
+around the turn and a slow-down before the stop; step length from the walk ratio at that speed, with
+step-to-step variability and left/right asymmetry; the last steps are rescaled so the walker stops with
+the centre of mass exactly at the end of the path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import PPoly
+
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from firmware_sim.world.corridor import CorridorPath
+from firmware_sim.world.gait_protocol import WalkingProtocol
+from firmware_sim.world.hermite import quintic_hermite
+from firmware_sim.world.subject import Subject
+
+#: Time from setting off (weight shift) to the first heel strike, s.
+INITIATION_TIME_S = 0.8
+
+
+@dataclass(frozen=True, eq=False)
+class ExcursionPlan:
+    """One excursion, planned (times in s on the recording clock, lengths in m).
+
+    Attributes
+    ----------
+    t_start_s, t_stop_s
+        Set off (centre of mass starts moving) and standstill.
+    path
+        The centre-of-mass path; ``s`` channel values are arc lengths along it.
+    s, z, phase, envelope, pitch_mean
+        C2 channels: path progress (m), centre-of-mass height (m), gait phase (rad; advances pi per step,
+        0 mod 2 pi at a left heel strike), amplitude envelope of the periodic trunk motions (0 standing,
+        1 walking), mean trunk pitch (rad, forward lean positive).
+    heel_strike_s, foot_flat_s, side
+        Every foot contact (``n_steps + 1``: the last is the closing contact beside the other foot) and
+        its foot (``"L"``/``"R"``).
+    toe_off_s, com_peak_s
+        Per step (``n_steps``): toe-off of the trailing foot, centre-of-mass high point (knot).
+    step_phase
+        Per step: ``"initiation"``, ``"steady"``, ``"turn"`` or ``"termination"``.
+    leg_arc_radius_m
+        Per step: the radius of the single-stance arc used.
+    transient_t_s, transient_vertical_m_s2, transient_ap_m_s2
+        Heel-strike transients: peak time and peak accelerations.
+    speed_m_s
+        The excursion's nominal speed.
+    """
+
+    label: str
+    speed_m_s: float
+    t_start_s: float
+    t_stop_s: float
+    path: CorridorPath
+    s: PPoly
+    z: PPoly
+    phase: PPoly
+    envelope: PPoly
+    pitch_mean: PPoly
+    heel_strike_s: np.ndarray
+    foot_flat_s: np.ndarray
+    side: np.ndarray
+    toe_off_s: np.ndarray
+    com_peak_s: np.ndarray
+    step_phase: np.ndarray
+    leg_arc_radius_m: np.ndarray
+    transient_t_s: np.ndarray
+    transient_vertical_m_s2: np.ndarray
+    transient_ap_m_s2: np.ndarray
+    amplitude_scale: float
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps (heel strike to next heel strike)."""
+        return int(self.toe_off_s.size)
+
+
+def _smooth_bump(x: np.ndarray | float) -> np.ndarray:
+    """cos² window: 1 at 0, 0 for ``|x| >= 1``, C1."""
+    x = np.clip(np.abs(np.asarray(x, dtype=np.float64)), 0.0, 1.0)
+    return np.cos(0.5 * np.pi * x) ** 2
+
+
+def _arc(l_eff: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Drop below the apex, slope dz/ds (magnitude) and curvature d²z/ds² at horizontal distance ``d``.
+
+    Circle of radius ``l_eff`` through the apex: ``drop = l - sqrt(l² - d²)``.
+    """
+    root = np.sqrt(l_eff**2 - d**2)
+    return l_eff - root, d / root, -(l_eff**2) / root**3
+
+
+def plan_excursion(
+    subject: Subject,
+    protocol: WalkingProtocol,
+    label: str,
+    *,
+    t_start_s: float,
+    rng: np.random.Generator,
+    first_side: str = "R",
+) -> ExcursionPlan:
+    """Plan one out-and-back excursion at the speed labelled ``label``.
+
+    Parameters
+    ----------
+    subject, protocol
+        Who walks and how.
+    label
+        Speed label (``preferred``, ``fast``, ``slow``, ``medium``).
+    t_start_s
+        When the walker sets off (recording clock).
+    rng
+        Seeded generator for step-to-step variability.
+    first_side
+        Foot of the first heel strike.
+    """
+    path = CorridorPath(corridor_length_m=protocol.corridor_length_m, turn_radius_m=protocol.turn_radius_m)
+    v_exc = subject.speed_m_s(label)
+    v_pref = subject.preferred_speed_m_s
+    length = path.length_m
+
+    def speed_factor(d: float) -> float:
+        ramp = 1.0 - 0.6 * np.exp(-max(d, 0.0) / (protocol.initiation_distance_m / 4.6))
+        turn = 1.0 - (1.0 - protocol.turn_speed_factor) * float(
+            _smooth_bump((d - path.s_apex_m) / protocol.turn_slowdown_m))
+        end = 0.6 + 0.4 * float(np.clip((length - d) / protocol.termination_distance_m, 0.0, 1.0))
+        return float(ramp * turn * end)
+
+    # ---- 1. Step lengths and durations -------------------------------------------------------------
+    v0 = v_exc * speed_factor(0.0)
+    s_first = 0.5 * v0 * INITIATION_TIME_S * 0.9  # CoM travel from setting off to the first heel strike
+    sides = [first_side]
+    lengths: list[float] = []
+    durations: list[float] = []
+    d = s_first
+    term_start = length - protocol.termination_distance_m
+    while d < term_start:
+        v = v_exc * speed_factor(d + 0.35)
+        s_nom = float(subject.step_length_m(v))
+        sign = 1.0 if sides[-1] == "L" else -1.0
+        step = s_nom * (1.0 + 0.5 * sign * subject.asymmetry + rng.normal(0.0, subject.step_length_cv))
+        lengths.append(step)
+        durations.append(s_nom / v * (1.0 + rng.normal(0.0, subject.step_time_cv)))
+        sides.append("R" if sides[-1] == "L" else "L")
+        d += step
+    # Termination: an integer number of steps plus the closing half step end exactly at the path end.
+    remaining = length - d
+    v_end = v_exc * speed_factor(length - 0.5)
+    s_end_nom = float(subject.step_length_m(v_end))
+    n_end = max(1, int(round(remaining / s_end_nom - 0.5)))
+    s_end = remaining / (n_end + 0.5)
+    for k in range(n_end):
+        v = v_exc * speed_factor(d + 0.35)
+        lengths.append(s_end)
+        durations.append(float(subject.step_length_m(v)) / v * (1.0 + rng.normal(0.0, subject.step_time_cv)))
+        sides.append("R" if sides[-1] == "L" else "L")
+        d += s_end
+    closing = length - d  # CoM travel of the closing half step (≈ s_end / 2)
+    lengths_a = np.asarray(lengths)
+    durations_a = np.asarray(durations)
+    n_reg = lengths_a.size  # regular steps; the closing one is added below
+    hs = t_start_s + INITIATION_TIME_S + np.concatenate(([0.0], np.cumsum(durations_a)))
+    s_hs = s_first + np.concatenate(([0.0], np.cumsum(lengths_a)))
+    vbar = lengths_a / durations_a
+
+    # ---- 2. Events within each regular step ----------------------------------------------------------
+    ds_frac = np.clip(subject.double_support_fraction * (vbar / v_pref) ** -0.6, 0.08, 0.40)
+    ds_frac *= np.clip(1.0 + rng.normal(0.0, 0.05, n_reg), 0.8, 1.2)
+    t_ds = ds_frac * durations_a
+    to = hs[:-1] + t_ds
+    ff = hs[:-1] + np.clip(subject.foot_flat_fraction * (1.0 + rng.normal(0.0, 0.06, n_reg)), 0.1, 0.95) * t_ds
+    tau_min = np.clip(subject.com_min_fraction + rng.normal(0.0, 0.08, n_reg), 0.1, 0.9) * ds_frac
+    tau_to = ds_frac
+    tau_peak = tau_to + np.clip(subject.peak_fraction + rng.normal(0.0, 0.03, n_reg), 0.25, 0.75) * (1 - tau_to)
+    eps = np.full(n_reg, subject.ap_speed_fluctuation) * (vbar / v_exc) ** 0.5
+
+    def g_frac(tau: np.ndarray) -> np.ndarray:  # fraction of the step length covered at phase tau
+        return tau + eps / (2 * np.pi) * (np.sin(2 * np.pi * (tau - tau_min)) + np.sin(2 * np.pi * tau_min))
+
+    def v_at(tau: np.ndarray) -> np.ndarray:
+        return vbar * (1.0 + eps * np.cos(2 * np.pi * (tau - tau_min)))
+
+    def a_at(tau: np.ndarray) -> np.ndarray:
+        return -vbar * eps * (2 * np.pi / durations_a) * np.sin(2 * np.pi * (tau - tau_min))
+
+    # Vertical: single-stance arc (apex at PEAK), double-support valley (bottom at MIN).
+    l_eff = subject.leg_length_m * subject.pendulum_ratio * (vbar / v_pref) ** subject.pendulum_speed_exponent
+    z_stand = subject.com_height_m
+    z_target = z_stand - subject.peak_drop_m * (vbar / v_pref) - np.abs(rng.normal(0.0, 0.001, n_reg))
+    d_a = lengths_a * (g_frac(tau_peak) - g_frac(tau_to))  # TO -> PEAK
+    d_b = lengths_a * (1.0 - g_frac(tau_peak))  # PEAK -> next HS
+    # Both ends of the arc sit at the height of its mean half-chord (the arc is a circle about the stance
+    # foot; the apex's timing within single stance is what ``peak_fraction`` moves).
+    drop_a, slope_a, _ = _arc(l_eff, 0.5 * (d_a + d_b))
+    drop_b, slope_b = drop_a, slope_a
+    # Near the contacts the determinants of gait (stance-knee flexion at loading, heel rocker, push-off)
+    # round the arc off: the centre of mass arrives and leaves with a fraction of the compass-gait slope.
+    # At toe-off the rise has barely started (the loading response of the new stance leg continues into
+    # single stance): 60 % of the heel-strike slope.
+    slope_b = slope_b * subject.contact_slope_factor
+    slope_a = 0.6 * slope_b
+    v_to, a_to = v_at(tau_to), a_at(tau_to)
+    v_pk, a_pk = v_at(tau_peak), a_at(tau_peak)
+    v_hs_end, a_hs_end = v_at(np.ones(n_reg)), a_at(np.ones(n_reg))
+    v_hs_start, a_hs_start = v_at(np.zeros(n_reg)), a_at(np.zeros(n_reg))
+    # Heel strike i (i >= 1) ends step i-1's arc; heel strike 0 is reached from the initiation.
+    z_hs = np.empty(n_reg + 1)
+    slope_hs = np.empty(n_reg + 1)
+    slope_hs[1:] = -slope_b
+    z_hs[0], slope_hs[0] = z_target[0] - drop_b[0], -slope_b[0]
+    v_hs = np.empty(n_reg + 1)  # CoM forward speed at each regular heel strike (mean of both sides)
+    a_hs = np.empty(n_reg + 1)
+    v_hs[0], a_hs[0] = v_hs_start[0], a_hs_start[0]
+    v_hs[1:-1] = 0.5 * (v_hs_end[:-1] + v_hs_start[1:])
+    a_hs[1:-1] = 0.5 * (a_hs_end[:-1] + a_hs_start[1:])
+    v_hs[-1], a_hs[-1] = v_hs_end[-1], a_hs_end[-1]
+    # Heights chained step by step: across double support the centre of mass moves by the integral of its
+    # (linearly changing) vertical velocity, and each arc's toe-off and heel-strike ends sit at the same
+    # height; a 20 %-per-step pull keeps the apex near its target (no drift over hundreds of steps).
+    z_to = np.empty(n_reg)
+    for i in range(n_reg):
+        valley = 0.5 * t_ds[i] * (slope_a[i] * v_to[i] + slope_hs[i] * v_hs[i])
+        z_free = z_hs[i] + valley
+        z_to[i] = z_free + 0.2 * (z_target[i] - drop_a[i] - z_free)
+        z_hs[i + 1] = z_to[i]
+    z_peak = z_to + drop_a
+    # Double-support valley: no knot at its bottom; the curvature needed to turn the fall at heel strike
+    # into the rise at toe-off is shared between the two ends, more at heel strike when the subject's
+    # centre of mass bottoms out early (com_min_fraction small).
+    turn_rate = (-slope_hs[:-1] * v_hs[:-1] + slope_a * v_to) / t_ds
+    ddz_hs_own = 1.5 * turn_rate * (1.0 - tau_min / ds_frac)
+    ddz_to = 1.5 * turn_rate * (tau_min / ds_frac)
+    curv_term_hs = np.empty(n_reg + 1)
+    curv_term_hs[:-1] = ddz_hs_own
+    curv_term_hs[-1] = ddz_hs_own[-1]
+
+    # ---- 3. Knots -------------------------------------------------------------------------------------
+    t_knots = [np.array([t_start_s])]
+    s_k = [np.array([[0.0, 0.0, 0.0]])]
+    z_k = [np.array([[z_stand, 0.0, 0.0]])]
+    t_peak = hs[:-1] + tau_peak * durations_a
+    t_st = np.stack([hs[:-1], to, t_peak], axis=1).ravel()
+    s_st = np.stack([
+        np.stack([s_hs[:-1], v_hs[:-1], a_hs[:-1]], axis=1),
+        np.stack([s_hs[:-1] + lengths_a * g_frac(tau_to), v_to, a_to], axis=1),
+        np.stack([s_hs[:-1] + lengths_a * g_frac(tau_peak), v_pk, a_pk], axis=1),
+    ], axis=1).reshape(-1, 3)
+    z_st = np.stack([
+        np.stack([z_hs[:-1], slope_hs[:-1] * v_hs[:-1], curv_term_hs[:-1]], axis=1),
+        np.stack([z_to, slope_a * v_to, ddz_to], axis=1),
+        np.stack([z_peak, np.zeros(n_reg), -(v_pk**2) / l_eff], axis=1),
+    ], axis=1).reshape(-1, 3)
+    t_knots.append(t_st)
+    s_k.append(s_st)
+    z_k.append(z_st)
+    # Closing step: the last regular heel strike, the double support, then the trailing foot closes
+    # beside the leading one while the centre of mass comes to rest over both feet at the path end.
+    i_last = n_reg - 1
+    t_hs_n = hs[-1]
+    frac_ds = ds_frac[i_last]
+    t_to_n = t_hs_n + frac_ds * durations_a[i_last]
+    s_hs_n = s_hs[-1]
+    v_n = v_hs[-1]
+    s_to_n = s_hs_n + v_n * (t_to_n - t_hs_n) * 0.95
+    v_to_n = 0.85 * v_n
+    if s_to_n >= length - 0.05:
+        raise ValueError("termination plan failed: the closing step is too short")  # pragma: no cover
+    t_stop = t_to_n + 2.1 * (length - s_to_n) / v_to_n
+    t_knots.append(np.array([t_hs_n, t_to_n, t_stop]))
+    s_k.append(np.array([[s_hs_n, v_n, a_hs[-1]], [s_to_n, v_to_n, -0.5 * v_n / (t_stop - t_to_n)],
+                         [length, 0.0, 0.0]]))
+    z_to_n = z_hs[-1] + 0.5 * drop_b[-1]
+    z_k.append(np.array([[z_hs[-1], slope_hs[-1] * v_n, curv_term_hs[-1]],
+                         [z_to_n, 0.3 * slope_b[-1] * v_to_n, 0.0], [z_stand, 0.0, 0.0]]))
+    t_all = np.concatenate(t_knots)
+    s_pp = quintic_hermite(t_all, *np.concatenate(s_k).T)
+    z_pp = quintic_hermite(t_all, *np.concatenate(z_k).T)
+    hs_close = t_to_n + 0.7 * (t_stop - t_to_n)
+    heel_strikes = np.concatenate((hs, [hs_close]))
+    toe_offs = np.concatenate((to, [t_to_n]))
+    foot_flats = np.concatenate((ff, [t_hs_n + subject.foot_flat_fraction * (t_to_n - t_hs_n),
+                                      hs_close + 0.06]))
+    com_peak = np.concatenate((t_peak, [np.nan]))
+    sides.append("R" if sides[-1] == "L" else "L")
+    side = np.asarray(sides)
+    n_steps = heel_strikes.size - 1
+
+    # ---- 4. Gait phase, envelope, posture -------------------------------------------------------------
+    phase0 = 0.0 if side[0] == "L" else np.pi
+    step_t = np.diff(heel_strikes)
+    rate = np.pi / np.concatenate(([step_t[0]], 0.5 * (step_t[:-1] + step_t[1:]), [step_t[-1]]))
+    ph_t = np.concatenate(([t_start_s], heel_strikes, [t_stop]))
+    ph_y = np.concatenate(([phase0 - 0.5 * np.pi], phase0 + np.pi * np.arange(heel_strikes.size),
+                           [phase0 + np.pi * (heel_strikes.size - 1) + 0.5 * np.pi]))
+    ph_dy = np.concatenate(([0.0], rate, [0.0]))
+    phase_pp = quintic_hermite(ph_t, ph_y, ph_dy, np.zeros(ph_t.size))
+    env_t = np.array([t_start_s, heel_strikes[min(2, n_steps)], heel_strikes[-2], t_stop])
+    if np.any(np.diff(env_t) <= 0):
+        raise ValueError(f"excursion {label!r} is too short to plan ({n_steps} steps)")
+    envelope_pp = quintic_hermite(env_t, np.array([0.0, 1.0, 1.0, 0.0]), np.zeros(4), np.zeros(4))
+    walk_lean = np.deg2rad(subject.trunk_lean_deg) * (v_exc / v_pref) ** 0.5
+    stand_lean = np.deg2rad(subject.stand_lean_deg)
+    pitch_pp = quintic_hermite(env_t, np.array([stand_lean, walk_lean, walk_lean, stand_lean]), np.zeros(4),
+                               np.zeros(4))
+
+    # ---- 5. Labels and heel-strike transients ---------------------------------------------------------
+    s_at_hs = s_pp(heel_strikes)
+    mid = 0.5 * (s_at_hs[:-1] + s_at_hs[1:])
+    step_phase = np.full(n_steps, "steady", dtype=object)
+    step_phase[s_at_hs[:-1] < protocol.initiation_distance_m] = "initiation"
+    step_phase[np.abs(mid - path.s_apex_m) < 0.5 * path.turn_length_m + 0.5] = "turn"
+    step_phase[n_steps - n_end - 1:] = "termination"
+    v_contact = np.concatenate((vbar, [vbar[-1], vbar[-1] * 0.5]))
+    scale = np.clip(v_contact, 0.2, None) / v_pref
+    jitter = np.exp(rng.normal(0.0, 0.2, heel_strikes.size))
+    g = STANDARD_GRAVITY_M_S2
+    return ExcursionPlan(
+        label=label,
+        speed_m_s=v_exc,
+        t_start_s=t_start_s,
+        t_stop_s=float(t_stop),
+        path=path,
+        s=s_pp,
+        z=z_pp,
+        phase=phase_pp,
+        envelope=envelope_pp,
+        pitch_mean=pitch_pp,
+        heel_strike_s=heel_strikes,
+        foot_flat_s=foot_flats,
+        side=side,
+        toe_off_s=toe_offs,
+        com_peak_s=com_peak,
+        step_phase=step_phase.astype(str),
+        leg_arc_radius_m=np.concatenate((l_eff, [l_eff[-1]])),
+        transient_t_s=heel_strikes + 0.008,
+        transient_vertical_m_s2=subject.heel_strike_acc_g * g * scale * jitter,
+        transient_ap_m_s2=-subject.heel_strike_ap_acc_g * g * scale * jitter,
+        amplitude_scale=float((v_exc / v_pref) ** 0.5),
+    )

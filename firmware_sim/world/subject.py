@@ -1,0 +1,283 @@
+"""Simulated walkers: anthropometry, gait habits and how the logger sits on their back.
+
+A :class:`Subject` holds everything that makes one person's lower-back acceleration differ from another's
+at the same speed. The anthropometric ratios are Winter's (*Biomechanics and Motor Control of Human
+Movement*, 4th ed., 2009, Fig. 4.1): greater-trochanter height (the pendulum length ``l`` of Alvarez
+eq. 1) 0.530·H, foot length 0.152·H. Step length and cadence follow the walk ratio (step length / cadence,
+nearly constant over ordinary speeds, Sekiya & Nagasaki 1998; equivalently Grieve's step length ∝ v^0.5):
+``S = sqrt(60 · WR · v)``, WR ≈ 0.00375·H m per step/min (≈ 0.0066 for H = 1.77 m).
+
+The fields that break the estimators' assumptions (so that a per-subject K is genuinely needed):
+
+- ``pendulum_ratio``: the single-stance centre-of-mass arc has radius ``pendulum_ratio · leg_length_m``
+  rather than the leg length (stance-knee flexion, foot rocker and pelvic obliquity flatten it — the
+  determinants of gait), and that ratio changes with speed as ``(v / v_pref) ** pendulum_speed_exponent``;
+- ``double_support_fraction`` and ``com_min_fraction``: how long double support lasts and where in it the
+  centre of mass bottoms out (not at foot-flat, where M1 resets its integrals);
+- ``sensor_offset_m``: the sensor sits on the skin over L3, behind and above the centre of mass, so trunk
+  pitch and roll move it vertically and tangential/centripetal accelerations add to the centre of mass's;
+- ``mounting_rotation_deg``: the corset holds the device tilted.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Winter's anthropometric ratios (fraction of body height).
+LEG_LENGTH_PER_HEIGHT = 0.530
+FOOT_LENGTH_PER_HEIGHT = 0.152
+#: Walk ratio per metre of height, m per (steps/min) per m (Sekiya & Nagasaki 1998: WR ≈ 0.0064 in men).
+WALK_RATIO_PER_HEIGHT = 0.00375
+
+
+@dataclass(frozen=True)
+class Subject:
+    """One simulated walker (all lengths in metres, angles in degrees, times in seconds).
+
+    Attributes
+    ----------
+    subject_id
+        Free label, carried into the truth.
+    height_m, leg_length_m, foot_length_m
+        Body height, leg length (greater trochanter to floor: the pendulum length ``l``) and foot length
+        (heel to first metatarsal head, Alvarez's ``S2``).
+    preferred_speed_m_s
+        Self-selected walking speed.
+    fast_speed_factor, slow_speed_factor
+        "Fast" and "slow" excursions walk at these multiples of the preferred speed.
+    walk_ratio_m_spm
+        Step length / cadence in m per (steps/min); sets the speed -> step length, cadence relation.
+    step_length_cv, step_time_cv
+        Step-to-step coefficients of variation of length and duration (independent draws).
+    asymmetry
+        Relative left/right step-length difference (left steps longer by ``+asymmetry / 2``).
+    pendulum_ratio, pendulum_speed_exponent
+        Radius of the single-stance centre-of-mass arc over leg length at preferred speed, and its speed
+        exponent (radius ∝ ``(v / v_pref) ** exponent``).
+    contact_slope_factor
+        Vertical centre-of-mass slope at heel strike and toe-off as a fraction of the compass-gait arc's
+        (the determinants of gait round the arc off near the contacts).
+    double_support_fraction
+        Double-support time per step as a fraction of the step time, at preferred speed (it shrinks with
+        speed as ``(v / v_pref) ** -0.6``).
+    foot_flat_fraction
+        Foot-flat of the leading foot, as a fraction of the double support after heel strike.
+    com_min_fraction
+        Where in double support the centre of mass is lowest (fraction of the double support).
+    peak_fraction
+        Where in single stance the centre of mass is highest (fraction of single stance).
+    peak_drop_m
+        How much lower than in quiet standing the centre of mass peaks while walking, at preferred speed.
+    ap_speed_fluctuation
+        Relative forward-speed fluctuation within a step (fastest in double support, slowest at mid-stance).
+    ml_sway_m
+        Medio-lateral centre-of-mass sway amplitude at stride frequency, at preferred speed.
+    trunk_lean_deg, stand_lean_deg
+        Mean forward trunk pitch while walking (at preferred speed) and standing.
+    pitch_amp_deg, roll_amp_deg, yaw_amp_deg
+        Trunk pitch oscillation (step frequency), pelvic obliquity / trunk roll and pelvic rotation (stride
+        frequency) amplitudes.
+    pitch_phase_rad, roll_phase_rad, yaw_phase_rad, sway_phase_rad
+        Phases of those oscillations relative to the gait phase (0 at a left heel strike).
+    sensor_offset_m
+        Sensor position relative to the centre of mass in trunk axes (forward, left, up).
+    mounting_rotation_deg
+        Rotation vector (degrees) of the device relative to its nominal mounting on the trunk (see
+        :mod:`firmware_sim.world.walking` for the nominal device axes).
+    heel_strike_acc_g, heel_strike_ap_acc_g, heel_strike_width_s
+        Heel-strike transient at the sensor: vertical peak, antero-posterior (braking) peak, in g at
+        preferred speed (∝ speed), and the Gaussian width.
+    sit_drop_m
+        How far the centre of mass drops when sitting down.
+    """
+
+    subject_id: str = "S00"
+    height_m: float = 1.77
+    leg_length_m: float = LEG_LENGTH_PER_HEIGHT * 1.77
+    foot_length_m: float = FOOT_LENGTH_PER_HEIGHT * 1.77
+    preferred_speed_m_s: float = 1.35
+    fast_speed_factor: float = 1.32
+    slow_speed_factor: float = 0.70
+    walk_ratio_m_spm: float = WALK_RATIO_PER_HEIGHT * 1.77
+    step_length_cv: float = 0.025
+    step_time_cv: float = 0.02
+    asymmetry: float = 0.01
+    pendulum_ratio: float = 1.5
+    pendulum_speed_exponent: float = 0.0
+    contact_slope_factor: float = 0.55
+    double_support_fraction: float = 0.22
+    foot_flat_fraction: float = 0.65
+    com_min_fraction: float = 0.55
+    peak_fraction: float = 0.5
+    peak_drop_m: float = 0.01
+    ap_speed_fluctuation: float = 0.09
+    ml_sway_m: float = 0.022
+    trunk_lean_deg: float = 4.0
+    stand_lean_deg: float = 2.0
+    pitch_amp_deg: float = 1.5
+    roll_amp_deg: float = 3.0
+    yaw_amp_deg: float = 4.0
+    pitch_phase_rad: float = 0.8
+    roll_phase_rad: float = 0.3
+    yaw_phase_rad: float = -1.2
+    sway_phase_rad: float = -1.6
+    sensor_offset_m: tuple[float, float, float] = (-0.11, 0.0, 0.03)
+    mounting_rotation_deg: tuple[float, float, float] = (0.0, 6.0, 2.0)
+    heel_strike_acc_g: float = 0.35
+    heel_strike_ap_acc_g: float = 0.25
+    heel_strike_width_s: float = 0.012
+    sit_drop_m: float = 0.40
+
+    def __post_init__(self) -> None:
+        checks = {
+            "height_m": (1.0, 2.5),
+            "leg_length_m": (0.4, 1.3),
+            "foot_length_m": (0.12, 0.40),
+            "preferred_speed_m_s": (0.4, 2.2),
+            "pendulum_ratio": (0.8, 4.0),
+            "double_support_fraction": (0.05, 0.45),
+            "foot_flat_fraction": (0.1, 0.95),
+            "com_min_fraction": (0.05, 0.95),
+            "peak_fraction": (0.2, 0.8),
+        }
+        for name, (lo, hi) in checks.items():
+            value = getattr(self, name)
+            if not (lo <= value <= hi):
+                raise ValueError(f"Subject.{name} = {value!r} is outside the plausible range [{lo}, {hi}]")
+        if not self.slow_speed_factor < 1.0 < self.fast_speed_factor:
+            raise ValueError("Subject needs slow_speed_factor < 1 < fast_speed_factor")
+
+    @property
+    def com_height_m(self) -> float:
+        """Height of the centre of mass in quiet standing (0.56·H, near S2; Winter)."""
+        return 0.56 * self.height_m
+
+    def speed_m_s(self, label: str) -> float:
+        """Walking speed for an excursion label: ``preferred``, ``fast``, ``slow`` or ``medium``.
+
+        ``medium`` lies halfway between preferred and fast (Alvarez II-C).
+
+        Examples
+        --------
+        >>> s = Subject(preferred_speed_m_s=1.4, fast_speed_factor=1.3)
+        >>> round(s.speed_m_s("medium"), 3)
+        1.61
+        """
+        factors = {
+            "preferred": 1.0,
+            "fast": self.fast_speed_factor,
+            "slow": self.slow_speed_factor,
+            "medium": 0.5 * (1.0 + self.fast_speed_factor),
+        }
+        if label not in factors:
+            raise ValueError(f"unknown speed label {label!r}; expected one of {sorted(factors)}")
+        return self.preferred_speed_m_s * factors[label]
+
+    def step_length_m(self, speed_m_s: float | np.ndarray) -> float | np.ndarray:
+        """Nominal step length at a speed from the walk ratio: ``S = sqrt(60 · WR · v)``.
+
+        Examples
+        --------
+        >>> round(float(Subject().step_length_m(1.35)), 3)
+        0.733
+        """
+        return np.sqrt(60.0 * self.walk_ratio_m_spm * np.asarray(speed_m_s, dtype=np.float64))
+
+    @classmethod
+    def from_height(cls, height_m: float, **overrides: object) -> Subject:
+        """A subject of the given height with Winter's proportions and population-mean habits.
+
+        Examples
+        --------
+        >>> s = Subject.from_height(1.80)
+        >>> round(s.leg_length_m, 3), round(s.foot_length_m, 3)
+        (0.954, 0.274)
+        """
+        base = dict(
+            height_m=height_m,
+            leg_length_m=LEG_LENGTH_PER_HEIGHT * height_m,
+            foot_length_m=FOOT_LENGTH_PER_HEIGHT * height_m,
+            walk_ratio_m_spm=WALK_RATIO_PER_HEIGHT * height_m,
+        )
+        base.update(overrides)
+        return cls(**base)  # type: ignore[arg-type]
+
+    @classmethod
+    def random(cls, rng: np.random.Generator, *, subject_id: str = "S00") -> Subject:
+        """Draw one adult from the population model (heights 1.60–1.92 m, cf. Alvarez: 1.68–1.86 m).
+
+        Every habit listed in the class docstring is drawn independently around its default, so no two
+        subjects share a step-length calibration constant.
+        """
+        height = float(np.clip(rng.normal(1.76, 0.07), 1.60, 1.92))
+
+        def around(mean: float, sd: float, lo: float, hi: float) -> float:
+            return float(np.clip(rng.normal(mean, sd), lo, hi))
+
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        angle = rng.uniform(3.0, 15.0)
+        return cls.from_height(
+            height,
+            subject_id=subject_id,
+            leg_length_m=height * around(LEG_LENGTH_PER_HEIGHT, 0.012, 0.49, 0.57),
+            foot_length_m=height * around(FOOT_LENGTH_PER_HEIGHT, 0.005, 0.138, 0.166),
+            preferred_speed_m_s=around(1.35, 0.10, 1.10, 1.60) * np.sqrt(height / 1.76),
+            fast_speed_factor=around(1.32, 0.06, 1.18, 1.45),
+            slow_speed_factor=around(0.70, 0.05, 0.58, 0.82),
+            walk_ratio_m_spm=height * around(WALK_RATIO_PER_HEIGHT, 0.00025, 0.0031, 0.0044),
+            step_length_cv=around(0.025, 0.006, 0.012, 0.045),
+            step_time_cv=around(0.020, 0.005, 0.010, 0.035),
+            asymmetry=around(0.0, 0.015, -0.04, 0.04),
+            pendulum_ratio=around(1.5, 0.15, 1.15, 1.95),
+            pendulum_speed_exponent=around(0.0, 0.35, -0.7, 0.7),
+            contact_slope_factor=around(0.55, 0.06, 0.4, 0.7),
+            double_support_fraction=around(0.22, 0.025, 0.15, 0.30),
+            foot_flat_fraction=around(0.65, 0.08, 0.45, 0.85),
+            com_min_fraction=around(0.55, 0.12, 0.25, 0.85),
+            peak_fraction=around(0.5, 0.05, 0.38, 0.62),
+            peak_drop_m=around(0.01, 0.004, 0.0, 0.025),
+            ap_speed_fluctuation=around(0.09, 0.02, 0.04, 0.15),
+            ml_sway_m=around(0.022, 0.005, 0.010, 0.035),
+            trunk_lean_deg=around(4.0, 2.0, -1.0, 10.0),
+            stand_lean_deg=around(2.0, 1.5, -2.0, 6.0),
+            pitch_amp_deg=around(1.5, 0.5, 0.5, 3.0),
+            roll_amp_deg=around(3.0, 1.0, 1.0, 6.0),
+            yaw_amp_deg=around(4.0, 1.5, 1.5, 8.0),
+            pitch_phase_rad=float(rng.uniform(0.0, 2.0 * np.pi)),
+            roll_phase_rad=float(rng.uniform(-0.5, 0.8)),
+            yaw_phase_rad=float(rng.uniform(-1.8, -0.6)),
+            sway_phase_rad=float(rng.uniform(-2.0, -1.2)),
+            sensor_offset_m=(around(-0.11, 0.02, -0.16, -0.07), around(0.0, 0.01, -0.02, 0.02),
+                             around(0.03, 0.03, -0.05, 0.10)),
+            mounting_rotation_deg=tuple(float(a) for a in axis * angle),
+            heel_strike_acc_g=around(0.35, 0.1, 0.15, 0.6),
+            heel_strike_ap_acc_g=around(0.25, 0.08, 0.1, 0.45),
+            heel_strike_width_s=around(0.012, 0.002, 0.008, 0.018),
+        )
+
+    def as_dict(self) -> dict:
+        """Plain-Python dictionary of the parameters (for truth and CSV metadata)."""
+        return dataclasses.asdict(self)
+
+
+def random_subjects(n: int, *, seed: int = 0) -> list[Subject]:
+    """``n`` subjects drawn from the population model with a seeded generator.
+
+    The same ``(n, seed)`` always gives the same subjects; subject ``i`` does not depend on ``n``.
+
+    Examples
+    --------
+    >>> a = random_subjects(3, seed=7)
+    >>> [s.subject_id for s in a]
+    ['S00', 'S01', 'S02']
+    >>> random_subjects(2, seed=7)[1] == a[1]
+    True
+    """
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    seeds = np.random.SeedSequence(seed).spawn(n)
+    return [Subject.random(np.random.default_rng(s), subject_id=f"S{i:02d}") for i, s in enumerate(seeds)]
