@@ -6,8 +6,8 @@ For every trial of an IPOL folder (:mod:`host.ipol`):
    sampled by the emulated device at ``rate_hz`` (50 Hz) with a ``bits``-bit ADC (10) and converted back to
    g with the nominal calibration of the header (:meth:`protocol.header.Calibration.nominal`). Replay
    interpolates the physical input over lost packets to keep it continuous; every logger sample whose
-   instant falls on such an interpolated stretch (between the last and the next *received* packet) is
-   marked missing here, so no estimate rests on an invented sample.
+   instant falls on such an interpolated stretch (on a lost packet, or between two packets one of which was
+   lost) is marked missing here, so no estimate rests on an invented sample.
 2. *Steps*: :class:`host.gait.pipeline.StepPipeline` on the whole recording; the trial's steps are those
    whose heel-strike (or foot-flat) lies within ``TrialBoundaries`` shifted by ``+0.25 s`` at the start
    (the trial starts at the first toe-off; no heel strike can follow it sooner than a swing, > 0.25 s) and
@@ -137,10 +137,11 @@ def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, 
     acc = Calibration.nominal(bits).apply(codes)
     # a sample is missing when its instant lies between the last and the next received packet around a
     # filled (interpolated) stretch of the physical input
-    grid_t = np.arange(filled.size) / src_rate
-    j = np.clip(np.searchsorted(grid_t, times_s - replay.t0_s, side="right") - 1, 0, filled.size - 1)
+    x = (times_s - replay.t0_s) * src_rate                 # position on the packet grid
+    j = np.clip(np.floor(x + 1e-6).astype(np.int64), 0, filled.size - 1)
+    on_packet = np.abs(x - np.round(x)) < 1e-6
     j1 = np.clip(j + 1, 0, filled.size - 1)
-    valid = ~(filled[j] | filled[j1])
+    valid = ~(filled[j] | (filled[j1] & ~on_packet))
     acc[~valid] = np.nan
     rate = rate_hz if not emulated else float(1.0 / np.median(np.diff(times_s)))
     return ReplayedTrial(int(m.group(1)), int(m.group(2)), acc, valid, float(rate), float(times_s[0]), meta,

@@ -55,6 +55,10 @@ class GaitEventDetector:
         more prominent kept. Within a bout step durations vary by a few per cent (stride-time CV 2-4 % in
         healthy adults, Hausdorff, J. NeuroEng. Rehab. 2005); a "step" 40 % shorter than the typical one
         is a second bump of the same step (turns, stops), not a step.
+    min_weight
+        Normalised convolution: fraction of the Gaussian kernel's weight that must fall on measured
+        samples for the filtered value to exist (0.25; the 3 Hz kernel spans ~±0.17 s, so a filtered value
+        still rests on several measured samples of the same step phase).
 
     Attributes
     ----------
@@ -80,6 +84,7 @@ class GaitEventDetector:
         to_search_s: float = 0.3,
         max_gap_s: float = 0.1,
         min_step_fraction: float = 0.6,
+        min_weight: float = 0.25,
     ) -> None:
         self.ff_cutoff_hz = ff_cutoff_hz
         self.detail_cutoff_hz = detail_cutoff_hz
@@ -90,6 +95,7 @@ class GaitEventDetector:
         self.to_search_s = to_search_s
         self.max_gap_s = max_gap_s
         self.min_step_fraction = min_step_fraction
+        self.min_weight = min_weight
 
     def detect(self, acc_v_m_s2: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None) -> Self:
         """Detect the events in ``acc_v_m_s2`` (``(n,)``, up positive, gravity removed)."""
@@ -103,9 +109,10 @@ class GaitEventDetector:
             raise ValueError(f"acc_v_m_s2 must be one-dimensional, got shape {a.shape}")
         ok = np.isfinite(a) if valid is None else (np.asarray(valid, bool) & np.isfinite(a))
         n = a.size
-        self.first_harmonic_m_s2_ = lp = masked_gaussian_lowpass(a, ok, cutoff_hz=self.ff_cutoff_hz,
-                                                                 sampling_rate_hz=fs)
-        det = masked_gaussian_lowpass(a, ok, cutoff_hz=self.detail_cutoff_hz, sampling_rate_hz=fs)
+        self.first_harmonic_m_s2_ = lp = masked_gaussian_lowpass(
+            a, ok, cutoff_hz=self.ff_cutoff_hz, sampling_rate_hz=fs, min_weight=self.min_weight)
+        det = masked_gaussian_lowpass(a, ok, cutoff_hz=self.detail_cutoff_hz, sampling_rate_hz=fs,
+                                      min_weight=self.min_weight)
         empty = np.zeros(0, dtype=np.int64)
         if n < 3 or not np.any(np.isfinite(lp)):
             self._set(empty, empty, empty, empty, empty)
@@ -124,7 +131,7 @@ class GaitEventDetector:
         if d.size >= 3:
             min_dist = max(self.min_step_s * fs, self.min_step_fraction * float(np.median(d)))
             ff, _ = find_peaks(sig, distance=max(1, int(round(min_dist))), prominence=self.min_prominence_m_s2)
-        ff = ff[ok[ff] & fin[ff]] if ff.size else ff
+        ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
         hs = self._search(np.gradient(det), ff, -int(round(self.hs_search_s * fs)), 0, mode="argmax")

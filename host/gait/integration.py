@@ -46,30 +46,34 @@ class StepSamples:
     tau_s: np.ndarray
     duration_s: np.ndarray
     n_missing: np.ndarray
+    n_measured: np.ndarray
 
     def reduce_max(self, x: np.ndarray) -> np.ndarray:
-        """Per-window maximum of a per-sample array (NaN ignored; NaN for an all-NaN window)."""
-        return _reduce(np.fmax, x, self.first)
+        """Per-window maximum of a per-sample array (NaN ignored; NaN for windows with < 2 samples)."""
+        return self._reduce(np.fmax, x)
 
     def reduce_min(self, x: np.ndarray) -> np.ndarray:
-        """Per-window minimum of a per-sample array (NaN ignored)."""
-        return _reduce(np.fmin, x, self.first)
+        """Per-window minimum of a per-sample array (NaN ignored; NaN for windows with < 2 samples)."""
+        return self._reduce(np.fmin, x)
 
-
-def _reduce(ufunc: np.ufunc, x: np.ndarray, first: np.ndarray) -> np.ndarray:
-    if first.size == 0:
-        return np.zeros(0)
-    return ufunc.reduceat(x, first)
+    def _reduce(self, ufunc: np.ufunc, x: np.ndarray) -> np.ndarray:
+        if self.first.size == 0:
+            return np.zeros(0)
+        xp = np.append(np.asarray(x, np.float64), np.nan)   # pad: empty trailing windows index the pad
+        out = ufunc.reduceat(xp, self.first)
+        out[self.n_measured < 2] = np.nan
+        return out
 
 
 def step_samples(start: np.ndarray, end: np.ndarray, valid: np.ndarray, sampling_rate_hz: float) -> StepSamples:
     """Lay the measured samples of the windows ``[start_k, end_k]`` end to end.
 
-    ``start_k`` and ``end_k`` must be measured samples with ``end_k > start_k``.
+    Windows must satisfy ``end_k > start_k``. A window with fewer than two measured samples gives NaN in
+    every per-window result (``n_measured`` says which).
 
     >>> ss = step_samples(np.array([0, 4]), np.array([4, 6]), np.array([1, 1, 0, 1, 1, 1, 1], bool), 10.0)
-    >>> ss.index.tolist(), ss.step.tolist(), ss.n_missing.tolist()
-    ([0, 1, 3, 4, 4, 5, 6], [0, 0, 0, 0, 1, 1, 1], [1, 0])
+    >>> ss.index.tolist(), ss.step.tolist(), ss.n_missing.tolist(), ss.first.tolist()
+    ([0, 1, 3, 4, 4, 5, 6], [0, 0, 0, 0, 1, 1, 1], [1, 0], [0, 4])
     """
     start = np.asarray(start, np.int64)
     end = np.asarray(end, np.int64)
@@ -78,19 +82,24 @@ def step_samples(start: np.ndarray, end: np.ndarray, valid: np.ndarray, sampling
     if start.size and np.any(end <= start):
         raise ValueError("every step window must end after it starts (end > start)")
     valid = np.asarray(valid, bool)
+    k = start.size
     lengths = end - start + 1
-    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if start.size else np.zeros(0, np.int64)
-    total = int(lengths.sum()) if start.size else 0
-    step = np.repeat(np.arange(start.size), lengths)
+    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if k else np.zeros(0, np.int64)
+    total = int(lengths.sum()) if k else 0
+    step = np.repeat(np.arange(k), lengths)
     index = np.repeat(start, lengths) + (np.arange(total) - np.repeat(offsets, lengths))
     keep = valid[index]
-    n_missing = np.bincount(step[~keep], minlength=start.size).astype(np.int64)
+    n_missing = np.bincount(step[~keep], minlength=k).astype(np.int64)
     index, step = index[keep], step[keep]
-    first = np.flatnonzero(np.r_[True, step[1:] != step[:-1]]) if step.size else np.zeros(0, np.int64)
-    tau_s = (index - np.repeat(index[first], np.diff(np.r_[first, index.size]))) / sampling_rate_hz
-    last = np.r_[first[1:] - 1, index.size - 1] if first.size else first
-    duration_s = tau_s[last] if first.size else np.zeros(0)
-    return StepSamples(index, step, first, tau_s, duration_s, n_missing)
+    n_measured = np.bincount(step, minlength=k).astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(n_measured)[:-1]]).astype(np.int64) if k else np.zeros(0, np.int64)
+    tau_s = (index - index[first[step]]) / sampling_rate_hz if index.size else np.zeros(0)
+    duration_s = np.full(k, np.nan)
+    has = n_measured >= 2
+    if has.any():
+        last = first[has] + n_measured[has] - 1
+        duration_s[has] = tau_s[last]
+    return StepSamples(index, step, first, tau_s, duration_s, n_missing, n_measured)
 
 
 def _segment_cumtrapz(y: np.ndarray, ss: StepSamples) -> np.ndarray:
@@ -99,10 +108,10 @@ def _segment_cumtrapz(y: np.ndarray, ss: StepSamples) -> np.ndarray:
         return y.copy()
     dt = np.diff(ss.tau_s, prepend=0.0)
     inc = 0.5 * (y + np.r_[y[0], y[:-1]]) * dt
-    inc[ss.first] = 0.0
+    starts = ss.first[ss.n_measured > 0]
+    inc[starts] = 0.0
     cs = np.cumsum(inc)
-    seg_lengths = np.diff(np.r_[ss.first, y.size])
-    return cs - np.repeat(cs[ss.first], seg_lengths)
+    return cs - cs[ss.first[ss.step]]
 
 
 def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndarray, np.ndarray]:
@@ -122,17 +131,17 @@ def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndar
     (0.04, 0.04)
     """
     a = np.asarray(acc_v_m_s2, np.float64)[ss.index]
-    seg_len = np.diff(np.r_[ss.first, a.size]) if ss.first.size else np.zeros(0, np.int64)
     v = _segment_cumtrapz(a, ss)                      # v(t0) = 0: the reset at foot-flat
     p1 = _segment_cumtrapz(v, ss)                     # M1
     if a.size == 0:
         return p1, p1.copy()
-    last = np.r_[ss.first[1:] - 1, a.size - 1]
-    T = np.repeat(ss.duration_s, seg_len)
+    has = ss.n_measured > 0
+    last = np.zeros(ss.first.size, np.int64)
+    last[has] = ss.first[has] + ss.n_measured[has] - 1
+    T = ss.duration_s[ss.step]
     with np.errstate(invalid="ignore", divide="ignore"):
-        c1 = np.repeat(-v[last] / ss.duration_s, seg_len)          # eq (2): v(t1) = 0, c1 = -mean(a)
-        p_c1 = p1 + 0.5 * c1 * ss.tau_s ** 2                        # exact trapezoid of c1 * tau
-        end_p = np.repeat(p_c1[last], seg_len)
-        c2 = -end_p / T                                              # eq (3): p(t1) = p(t0) = 0
+        c1 = -v[last][ss.step] / T                                   # eq (2): v(t1) = 0, c1 = -mean(a)
+        p_c1 = p1 + 0.5 * c1 * ss.tau_s ** 2                         # exact trapezoid of c1 * tau
+        c2 = -p_c1[last][ss.step] / T                                # eq (3): p(t1) = p(t0) = 0
     p2 = p_c1 + c2 * ss.tau_s
     return p1, p2

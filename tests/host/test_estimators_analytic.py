@@ -147,3 +147,17 @@ def test_anthropometry_rules_and_errors() -> None:
     assert any("no height" in str(x.message) for x in w)
     with pytest.raises(HostError, match="metres"):
         anatomical_lengths(height_m=175.0)
+
+
+def test_window_without_measured_samples_is_nan_and_others_stay_aligned() -> None:
+    fs, l, amp = 100.0, 0.9, 0.02
+    t, a, ff = com_sinusoid(fs, 0.5, 4, amp)
+    valid = np.ones(t.size, bool)
+    valid[ff[1] + 1:ff[2]] = False            # everything between two foot-flats lost
+    start = np.array([ff[0], ff[1] + 5, ff[2], ff[3]])
+    end = np.array([ff[1], ff[2] - 5, ff[3], ff[4]])
+    m2 = PendulumDriftM2().estimate(a, step_start=start, step_end=end, sampling_rate_hz=fs,
+                                    leg_length_m=l, valid=valid)
+    h = m2.vertical_excursion_m_
+    assert np.isnan(h[1])
+    assert np.allclose(h[[0, 2, 3]], 2 * amp, atol=1e-3)
