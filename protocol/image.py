@@ -8,7 +8,7 @@ never found or beyond a truncated end are reported missing — never invented.
 Examples
 --------
 >>> from protocol.header import DeviceHeader
->>> h = DeviceHeader(capacity_samples=512, samples_written=300, write_index=300)
+>>> h = DeviceHeader(capacity_samples=512, samples_written=200, write_index=200)
 >>> memory = bytes(range(256)) * 8
 >>> img = build_image(h, memory, missing_blocks=[1])
 >>> len(img), img[:16].hex(" ")
@@ -16,9 +16,14 @@ Examples
 >>> c = parse_image(img)
 >>> c.block_ok.tolist(), c.block_missing.tolist(), bytes(c.memory[:1024]) == memory[:1024]
 ([True, False], [False, True], True)
->>> damaged = img[:1000] + img[1001:]  # one byte dropped inside block 0
->>> parse_image(damaged).block_ok.tolist()
+>>> damaged = img[:1000] + img[1001:]  # one byte dropped inside block 0, which holds the 200 samples
+>>> import warnings
+>>> with warnings.catch_warnings(record=True) as caught:
+...     warnings.simplefilter("always")
+...     parse_image(damaged).block_ok.tolist()
 [False, False]
+>>> print(str(caught[0].message)[:98])
+memory image: 1 of the 1 blocks holding stored samples are not usable (block 0); block 1 marked mi
 """
 
 from __future__ import annotations
@@ -192,6 +197,11 @@ def read_image(path: str | os.PathLike[str]) -> ImageContents:
     return parse_image(data, source=str(path))
 
 
+def _blocks(indices: np.ndarray) -> str:
+    """'block 3' or 'blocks 3, 7-9'."""
+    return ("block " if len(indices) == 1 else "blocks ") + _ranges(indices)
+
+
 def _ranges(indices: np.ndarray) -> str:
     """'3, 7-9' for [3, 7, 8, 9]."""
     idx = [int(i) for i in indices]
@@ -322,23 +332,28 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     view.release()
 
     if marked.any():
-        notes.append(f"blocks {_ranges(np.flatnonzero(marked))} marked missing (never received)")
+        notes.append(f"{_blocks(np.flatnonzero(marked))} marked missing (never received)")
     if damaged.any():
-        notes.append(f"blocks {_ranges(np.flatnonzero(damaged))} damaged (CRC-32 mismatch, not found within "
+        notes.append(f"{_blocks(np.flatnonzero(damaged))} damaged (CRC-32 mismatch, not found within "
                      f"±{SHIFT_SEARCH_BYTES} bytes)")
     if truncated.any():
-        notes.append(f"blocks {_ranges(np.flatnonzero(truncated))} missing: file truncated at {total} bytes "
+        notes.append(f"{_blocks(np.flatnonzero(truncated))} missing: file truncated at {total} bytes "
                      f"(complete file: {mem0 + mem_bytes})")
     if unknown_state.any():
-        notes.append(f"blocks {_ranges(np.flatnonzero(unknown_state))} have an unknown state byte; not used")
+        notes.append(f"{_blocks(np.flatnonzero(unknown_state))} have an unknown state byte; not used")
     moved = np.flatnonzero(ok & (np.diff(np.concatenate(([hshift], shifts))) != 0))
     for i in moved:
         notes.append(f"block {i} found shifted by {int(shifts[i]):+d} bytes (bytes dropped or inserted before it)")
     if total > mem0 + shift + mem_bytes and ok.all():
         notes.append(f"{total - (mem0 + shift + mem_bytes)} trailing bytes after the memory ignored")
-    if notes and not ok.all():
-        warnings.warn(f"{source or 'memory image'}: {int((~ok).sum())} of {n} blocks not usable: "
-                      + "; ".join(notes), stacklevel=2)
+    # blocks holding stored samples (the whole memory when wrapped; else bytes 0 .. 4·n_stored)
+    needed = np.zeros(n, dtype=bool)
+    needed[: -(-header.used_bytes // bs)] = True
+    lost = ~ok & needed
+    if lost.any():
+        warnings.warn(f"{source or 'memory image'}: {int(lost.sum())} of the {int(needed.sum())} blocks holding "
+                      f"stored samples are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
+                      stacklevel=2)
     return ImageContents(header=header, memory=np.frombuffer(memory, dtype=np.uint8).copy(), block_ok=ok,
                          block_size=bs, notes=notes, block_missing=marked, block_truncated=truncated,
                          block_shift=shifts, table_ok=table_ok)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+import warnings
 import struct
 import zlib
 
@@ -16,7 +17,7 @@ from protocol.frames import encode_frame
 from protocol.header import DeviceHeader, HeaderFlag
 from protocol.image import build_image, detect_format, parse_image, read_image, write_image
 
-pytestmark = pytest.mark.filterwarnings("ignore:.*blocks not usable:UserWarning")
+pytestmark = pytest.mark.filterwarnings("ignore:.*are not usable:UserWarning")
 
 
 def _header(cap: int = 65536, sw: int | None = None) -> DeviceHeader:
@@ -224,3 +225,15 @@ def test_detect_format() -> None:
         detect_format(b"hello world")
     with pytest.raises(ProtocolError):
         detect_format(b"")
+
+
+def test_warning_only_when_stored_samples_are_lost() -> None:
+    cap = 4096  # 16 blocks; 500 samples use block 0 and part of block 1
+    img = build_image(_header(cap, 500), bytes(4 * cap), missing_blocks=[5, 9])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        c = parse_image(img)
+    assert c.block_missing[[5, 9]].all()
+    img = build_image(_header(cap, 500), bytes(4 * cap), missing_blocks=[1])
+    with pytest.warns(UserWarning, match=r"1 of the 2 blocks holding stored samples are not usable \(block 1\)"):
+        parse_image(img, source="x.glimg")
