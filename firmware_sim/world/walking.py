@@ -92,46 +92,47 @@ class _Segment:
     plan: ExcursionPlan | None = None
 
 
-def _rotate(axis: str, angle: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate the rows of ``v`` (n, 3) about a coordinate axis by ``angle`` (n,) radians."""
-    k = _AXIS[axis]
-    i, j = (k + 1) % 3, (k + 2) % 3
-    c, s = np.cos(angle), np.sin(angle)
-    out = np.empty_like(v)
-    out[:, k] = v[:, k]
-    out[:, i] = c * v[:, i] - s * v[:, j]
-    out[:, j] = s * v[:, i] + c * v[:, j]
-    return out
-
-
-def _cross_axis(axis: str, w: np.ndarray) -> np.ndarray:
-    """``e_axis × w`` for the rows of ``w``."""
-    k = _AXIS[axis]
-    i, j = (k + 1) % 3, (k + 2) % 3
-    out = np.zeros_like(w)
-    out[:, i] = -w[:, j]
-    out[:, j] = w[:, i]
-    return out
-
-
 class _Elementary:
-    """An elementary rotation ``E = exp(a(t) [e]x)`` with its time derivatives applied to vectors."""
+    """An elementary rotation ``E = exp(a(t) [e]x)`` about a coordinate axis, applied to row vectors.
+
+    ``E' v = a' e × (E v)`` and ``E'' v = a'' e × (E v) + a'² e × (e × (E v))``.
+    """
 
     def __init__(self, axis: str, a: np.ndarray, ad: np.ndarray, add: np.ndarray) -> None:
-        self.axis, self.a, self.ad, self.add = axis, a, ad, add
+        self.k = _AXIS[axis]
+        self.i, self.j = (self.k + 1) % 3, (self.k + 2) % 3
+        self.c, self.s = np.cos(a), np.sin(a)
+        self.ad, self.add = ad[:, None], add[:, None]
+
+    def _rot(self, v: np.ndarray, sign: float = 1.0) -> np.ndarray:
+        i, j, k = self.i, self.j, self.k
+        s = sign * self.s
+        out = np.empty_like(v)
+        out[:, k] = v[:, k]
+        out[:, i] = self.c * v[:, i] - s * v[:, j]
+        out[:, j] = s * v[:, i] + self.c * v[:, j]
+        return out
+
+    def _cross(self, w: np.ndarray) -> np.ndarray:
+        out = np.zeros_like(w)
+        out[:, self.i] = -w[:, self.j]
+        out[:, self.j] = w[:, self.i]
+        return out
 
     def d0(self, v: np.ndarray) -> np.ndarray:
-        return _rotate(self.axis, self.a, v)
+        return self._rot(v)
 
-    def d1(self, v: np.ndarray) -> np.ndarray:
-        return self.ad[:, None] * _cross_axis(self.axis, _rotate(self.axis, self.a, v))
+    def d01(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ev = self._rot(v)
+        return ev, self.ad * self._cross(ev)
 
-    def d2(self, v: np.ndarray) -> np.ndarray:
-        kv = _cross_axis(self.axis, _rotate(self.axis, self.a, v))
-        return self.add[:, None] * kv + (self.ad**2)[:, None] * _cross_axis(self.axis, kv)
+    def d012(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ev = self._rot(v)
+        kv = self._cross(ev)
+        return ev, self.ad * kv, self.add * kv + self.ad**2 * self._cross(kv)
 
     def inverse(self, v: np.ndarray) -> np.ndarray:
-        return _rotate(self.axis, -self.a, v)
+        return self._rot(v, -1.0)
 
 
 def _first_crossing(pp: PPoly, level: float) -> float:
@@ -296,12 +297,17 @@ class Walking:
                       _Elementary("x", rl, rld, rldd))
         r = np.broadcast_to(np.asarray(sub.sensor_offset_m, dtype=np.float64), (t.size, 3))
         # R = Rz Ry Rx; product rule for R r, R' r, R'' r applied factor by factor to the vector.
-        c0, c1, c2 = ex.d0(r), ex.d1(r), ex.d2(r)
-        b0c0, b1c0, b0c1 = ey.d0(c0), ey.d1(c0), ey.d0(c1)
-        rot_r = ez.d0(b0c0)
-        rot1_r = ez.d1(b0c0) + ez.d0(b1c0 + b0c1)
-        rot2_r = (ez.d2(b0c0) + ez.d0(ey.d2(c0) + ey.d0(c2) + 2.0 * ey.d1(c1))
-                  + 2.0 * ez.d1(b1c0 + b0c1))
+        # (ABC)'' r = A''X0 + 2A'X1 + AX2 with X0 = BCr, X1 = (BC)'r, X2 = (BC)''r.
+        c0, c1, c2 = ex.d012(r)
+        b0c0, b1c0, b2c0 = ey.d012(c0)
+        b0c1, b1c1 = ey.d01(c1)
+        x1 = b1c0 + b0c1
+        x2 = b2c0 + 2.0 * b1c1 + ey.d0(c2)
+        a0x0, a1x0, a2x0 = ez.d012(b0c0)
+        a0x1, a1x1 = ez.d01(x1)
+        rot_r = a0x0
+        rot1_r = a1x0 + a0x1
+        rot2_r = a2x0 + 2.0 * a1x1 + ez.d0(x2)
         sen_p = com_p + rot_r
         sen_v = com_v + rot1_r
         sen_a = com_a + rot2_r
