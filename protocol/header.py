@@ -136,6 +136,10 @@ def _offsets(struct: cs.Struct) -> dict[str, tuple[int, int]]:
     return out
 
 
+# compiled twins of the declarations above, for the hot paths (same bytes; checked by the tests)
+_HEADER_BODY_FAST = HEADER_BODY_STRUCT.compile()
+_CALIBRATION_FAST = CALIBRATION_STRUCT.compile()
+
 #: field name -> (offset, size) in the 256-byte header (``header_crc`` included).
 HEADER_OFFSETS: dict[str, tuple[int, int]] = {**_offsets(HEADER_BODY_STRUCT), "header_crc": (254, 2)}
 #: field name -> (offset, size) in the 64-byte calibration slot.
@@ -214,7 +218,7 @@ class Calibration:
             A non-finite value, an offset outside ±32768 counts or a matrix element outside ±2 g/count.
         """
         if not self.valid:
-            return CALIBRATION_STRUCT.build(dict(cal_format=0, offset_q16=[0] * 3, matrix_q30=[0] * 9))
+            return bytes(CALIBRATION_SIZE)
         off = self.offset_counts
         mat = self.matrix_g_per_count
         if not (np.all(np.isfinite(off)) and np.all(np.isfinite(mat))):
@@ -229,7 +233,7 @@ class Calibration:
         if np.any(mat_q < -lim) or np.any(mat_q >= lim):
             raise _err("matrix element outside the Q1.30 range ±2 g/count", "matrix_q30", None,
                        table=CALIBRATION_OFFSETS)
-        return CALIBRATION_STRUCT.build(
+        return _CALIBRATION_FAST.build(
             dict(cal_format=int(CalFormat.AFFINE), offset_q16=[int(v) for v in off_q],
                  matrix_q30=[int(v) for v in mat_q])
         )
@@ -247,7 +251,7 @@ class Calibration:
         if len(data) != CALIBRATION_SIZE:
             raise ProtocolError(f"calibration slot: expected {CALIBRATION_SIZE} bytes, found {len(data)}",
                                 offset=base_offset, source=source)
-        c = CALIBRATION_STRUCT.parse(data)
+        c = _CALIBRATION_FAST.parse(data)
         if c.cal_format == CalFormat.NONE:
             return cls.nominal(adc_bits)
         if c.cal_format != CalFormat.AFFINE:
@@ -433,8 +437,8 @@ class DeviceHeader:
         self.validate()
         assert self.calibration is not None
         values = {name: int(getattr(self, name)) for name in _INT_FIELDS}
-        body = dict(magic=MAGIC, calibration=self.calibration.to_bytes(), **values)
-        return HEADER_STRUCT.build(dict(body=dict(value=body)))
+        body = _HEADER_BODY_FAST.build(dict(magic=MAGIC, calibration=self.calibration.to_bytes(), **values))
+        return body + crc16_xmodem(body).to_bytes(2, "big")  # = HEADER_STRUCT.build(...)
 
     @classmethod
     def from_bytes(cls, data: bytes | bytearray | memoryview, source: str | None = None) -> "DeviceHeader":
@@ -459,13 +463,11 @@ class DeviceHeader:
                                 offset=len(data), source=source)
         if data[:4] != MAGIC:
             raise _err(f"expected {MAGIC!r}, found {data[:4]!r} (not a gaitlog device header)", "magic", source)
-        try:
-            parsed = HEADER_STRUCT.parse(data)
-        except cs.ChecksumError:
-            stored = int.from_bytes(data[254:256], "big")
-            raise _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{crc16_xmodem(data[:254]):04x} "
-                       "over bytes 0-253", "header_crc", source) from None
-        body = parsed.body.value
+        stored, computed = int.from_bytes(data[254:256], "big"), crc16_xmodem(data[:254])
+        if stored != computed:  # the Checksum field of HEADER_STRUCT
+            raise _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{computed:04x} over bytes 0-253",
+                       "header_crc", source)
+        body = _HEADER_BODY_FAST.parse(data)
         values = {name: int(body[name]) for name in _INT_FIELDS}
         # versions first: a newer layout may not be parseable further
         header = cls.__new__(cls)
