@@ -44,6 +44,11 @@ __all__ = ["FaultInjector", "PtyServer", "TcpServer", "serve_pty", "serve_tcp"]
 TICK_S = 0.002
 #: Wake-up period when idle (firmware time-outs), s.
 IDLE_TICK_S = 0.02
+#: Default delay between the end of a command and the first reply byte, s. A real line never answers
+#: instantly: a host writing to a serial port flushes its input right after the write returns (lrzsz rx
+#: does, after each 'C' and ACK) long before the byte has even left; on a pty a reply faster than that
+#: would be flushed away.
+TURNAROUND_S = 0.002
 
 
 class FaultInjector:
@@ -102,28 +107,26 @@ class FaultInjector:
 
 
 class _Outbox:
-    """Device -> host byte queue with optional wire-time release."""
+    """Device -> host byte queue: released after the turnaround, then at the wire rate (or at once)."""
 
     def __init__(self, byte_time_s: float | None) -> None:
         self.byte_time_s = byte_time_s
         self.buf = bytearray()
-        self.t_next = 0.0  # completion time of the next byte (wire time)
+        self.t_next = 0.0  # release time of the next byte (wire time: its completion time)
 
-    def put(self, data: bytes, now: float) -> None:
+    def put(self, data: bytes, now: float, *, not_before: float = 0.0) -> None:
         if not data:
             return
-        if not self.buf and self.byte_time_s is not None and self.t_next < now:
-            self.t_next = now + self.byte_time_s  # the line was idle: this byte starts now
+        if not self.buf and self.t_next < max(now, not_before):  # the line was idle
+            self.t_next = max(now, not_before) + (self.byte_time_s or 0.0)
         self.buf += data
 
     def due(self, now: float) -> int:
         """Bytes that may be written at ``now``."""
-        if not self.buf:
+        if not self.buf or now < self.t_next:
             return 0
         if self.byte_time_s is None:
             return len(self.buf)
-        if now < self.t_next:
-            return 0
         return min(len(self.buf), int((now - self.t_next) / self.byte_time_s) + 1)
 
     def sent(self, k: int) -> None:
@@ -132,11 +135,9 @@ class _Outbox:
             self.t_next += k * self.byte_time_s
 
     def wait_s(self, now: float) -> float:
-        """Time until the next byte is due (0 if due now); idle tick if nothing is queued."""
+        """Time until the next byte is due (0 if due now); the idle tick if nothing is queued."""
         if not self.buf:
             return IDLE_TICK_S
-        if self.byte_time_s is None:
-            return 0.0
         return max(0.0, min(self.t_next - now, IDLE_TICK_S))
 
     def clear(self) -> None:
@@ -147,8 +148,9 @@ class _Server:
     """Common thread loop: read from an fd, feed the firmware, write paced replies."""
 
     def __init__(self, logger: Logger, *, baud: int, wire_time: bool, faults: FaultInjector | None,
-                 fosc_hz: float, save_on_stop: bool) -> None:
+                 fosc_hz: float, save_on_stop: bool, turnaround_s: float = TURNAROUND_S) -> None:
         self.logger = logger
+        self.turnaround_s = turnaround_s
         self.uart = UartTiming(baud=baud, fosc_hz=fosc_hz)
         self.wire_time = wire_time
         self.faults = faults
@@ -195,7 +197,10 @@ class _Server:
     def _on_input(self, data: bytes, now: float) -> None:
         self.bytes_in += len(data)
         self._muted = False
-        self._out.put(self.logger.firmware.receive(data, now), now)
+        # the reply cannot start before the command has crossed the line (wire time) and the
+        # turnaround (device reaction + host adapter latency) has passed
+        inbound = len(data) * self.uart.byte_time_s if self.wire_time else 0.0
+        self._out.put(self.logger.firmware.receive(data, now), now, not_before=now + inbound + self.turnaround_s)
 
     def _on_tick(self, now: float) -> None:
         self._out.put(self.logger.firmware.poll(now), now)
@@ -247,9 +252,9 @@ class PtyServer(_Server):
 
     def __init__(self, logger: Logger, *, baud: int = 115200, wire_time: bool = False,
                  faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
-                 save_on_stop: bool = True) -> None:
+                 save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S) -> None:
         super().__init__(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
-                         save_on_stop=save_on_stop)
+                         save_on_stop=save_on_stop, turnaround_s=turnaround_s)
         self._master, self._slave = os.openpty()
         tty.setraw(self._master)
         tty.setraw(self._slave)
@@ -301,9 +306,9 @@ class TcpServer(_Server):
 
     def __init__(self, logger: Logger, *, host: str = "127.0.0.1", port: int = 0, baud: int = 115200,
                  wire_time: bool = False, faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
-                 save_on_stop: bool = True) -> None:
+                 save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S) -> None:
         super().__init__(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
-                         save_on_stop=save_on_stop)
+                         save_on_stop=save_on_stop, turnaround_s=turnaround_s)
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
         self.host, self.port = self._listener.getsockname()[:2]
@@ -376,15 +381,16 @@ class TcpServer(_Server):
 
 
 def serve_pty(logger: Logger, *, baud: int = 115200, wire_time: bool = False, faults: FaultInjector | None = None,
-              fosc_hz: float = 18_432_000.0, save_on_stop: bool = True) -> PtyServer:
+              fosc_hz: float = 18_432_000.0, save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S
+              ) -> PtyServer:
     """A started :class:`PtyServer` for ``logger`` (use as a context manager, or call ``.stop()``)."""
     return PtyServer(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
-                     save_on_stop=save_on_stop).start()  # type: ignore[return-value]
+                     save_on_stop=save_on_stop, turnaround_s=turnaround_s).start()  # type: ignore[return-value]
 
 
 def serve_tcp(logger: Logger, *, host: str = "127.0.0.1", port: int = 0, baud: int = 115200,
               wire_time: bool = False, faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
-              save_on_stop: bool = True) -> TcpServer:
+              save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S) -> TcpServer:
     """A started :class:`TcpServer` for ``logger`` (``.url`` is ``socket://127.0.0.1:PORT``)."""
     return TcpServer(logger, host=host, port=port, baud=baud, wire_time=wire_time, faults=faults,
-                     fosc_hz=fosc_hz, save_on_stop=save_on_stop).start()  # type: ignore[return-value]
+                     fosc_hz=fosc_hz, save_on_stop=save_on_stop, turnaround_s=turnaround_s).start()  # type: ignore[return-value]
