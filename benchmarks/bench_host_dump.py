@@ -52,13 +52,12 @@ def full_image(seed: int = 0) -> tuple[bytes, np.ndarray]:
 
 
 def construct_baseline(memory: bytes) -> np.ndarray:
-    """Per-record construct parse of the P32 words (the slow way the notes measured)."""
+    """Per-record construct parse of the P32 words (``Array(Int32ul)``, one record at a time), then the
+    fields split with numpy: the fastest per-record construct variant of the notes (24.8 ms there)."""
     import construct as cs
 
-    rec = cs.BitsSwapped(cs.BitStruct("x" / cs.BitsInteger(10), "y" / cs.BitsInteger(10),
-                                      "z" / cs.BitsInteger(10), "flags" / cs.BitsInteger(2)))
-    parsed = cs.Array(len(memory) // 4, rec).parse(memory)
-    return np.array([(r.x, r.y, r.z) for r in parsed], dtype=np.uint16)
+    words = np.array(cs.Array(len(memory) // 4, cs.Int32ul).parse(memory), dtype=np.uint32)
+    return np.c_[words & 0x3FF, (words >> 10) & 0x3FF, (words >> 20) & 0x3FF].astype(np.uint16)
 
 
 def best_of(fn, repeat: int) -> float:
@@ -77,8 +76,7 @@ def bench_decode() -> bool:
     t = best_of(lambda: decode_bytes(image), 20)
     mem_off = len(image) - 4 * CAP
     memory = image[mem_off:]
-    t_base = best_of(lambda: construct_baseline(memory), 1)
-    # the baseline sees the same words (slot order), check it agrees with the memory's codes
+    t_base = best_of(lambda: construct_baseline(memory), 3)
     ok = t <= DECODE_TARGET_S
     print(f"decode full image (65,536 samples, {len(image)} B): {t * 1e3:.2f} ms  target <= "
           f"{DECODE_TARGET_S * 1e3:.0f} ms  [{'ok' if ok else 'MISSED'}]; construct per-record parse "
@@ -113,7 +111,7 @@ def bench_wire_time_dump() -> bool:
     t = meta["duration_s"]
     ratio = t / FLOOR_S
     ok = ratio <= DUMP_TARGET_RATIO and exact
-    print(f"wire-time dump of a full memory at 115200 8N1: {t:.2f} s (IDENTIFY to image written; process wall "
+    print(f"wire-time dump of a full memory at 115200 8N1: {t:.2f} s (IDENTIFY to image file written; process wall "
           f"time {wall:.2f} s incl. Python start-up), floor {FLOOR_S:.2f} s (30-bit packing) -> {ratio:.3f}x  "
           f"target <= {DUMP_TARGET_RATIO}x  [{'ok' if ok else 'MISSED'}]; vs the 4-byte-word floor "
           f"{262144 * 10 / 115200:.2f} s: {t / (262144 * 10 / 115200):.3f}x; "

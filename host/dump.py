@@ -101,8 +101,12 @@ class MemoryDump:
         from protocol.errors import ProtocolError
         from protocol.image import parse_image
 
+        import warnings
+
         try:
-            contents = parse_image(state_path.read_bytes(), source=str(state_path))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the missing blocks of a partial state are expected
+                contents = parse_image(state_path.read_bytes(), source=str(state_path))
         except (OSError, ProtocolError) as err:
             raise HostError(f"cannot resume from {state_path}: {err}; delete it to dump from the start") from err
         if contents.header.to_bytes() != header_bytes:
@@ -276,7 +280,7 @@ class MemoryDump:
             "stored_bytes": stored_end,
             "started_utc": started_utc.isoformat(),
             "finished_utc": finished_utc.isoformat(),
-            "duration_s": round(time.monotonic() - t_start, 3),
+            "duration_s": None,  # set after the image is written
             "resumed": resumed,
             "bytes_from_partial_state": resumed_bytes if resumed else 0,
             "bytes_received": stats.bytes_received,
@@ -296,6 +300,7 @@ class MemoryDump:
             "n_valid": recording.n_valid,
         }
         atomic_write_bytes(out, image)
+        self.metadata_["duration_s"] = round(time.monotonic() - t_start, 3)
         try:
             atomic_write_text(self.metadata_path_, json.dumps(self.metadata_, indent=2, default=_json_default)
                               + "\n")

@@ -17,6 +17,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="sample rate of a replayed recording without time column")
     parser.add_argument("--columns", nargs=3, metavar=("X", "Y", "Z"),
                         help="acceleration columns of a replayed CSV (names or 0-based indices)")
+    parser.add_argument("--time-column", metavar="COL",
+                        help="column of sample times in seconds of a replayed CSV (name or 0-based index)")
     parser.add_argument("--poses", type=int, default=24, metavar="N", help="number of calibration poses (24)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor's errors and noise, and of the poses")
     parser.add_argument("--sample-rate", type=float, default=50.0, metavar="HZ",
@@ -50,7 +52,11 @@ def build_motion(args: argparse.Namespace):
         if args.columns:
             columns = [int(c) if c.lstrip("-").isdigit() else c for c in args.columns]
         units = {"m/s2": "m/s^2"}.get(args.units, args.units)
-        return Replay.from_file(args.motion[1], units=units, rate_hz=args.rate, columns=columns)
+        time_column = args.time_column
+        if time_column is not None and time_column.isdigit():
+            time_column = int(time_column)
+        return Replay.from_file(args.motion[1], units=units, rate_hz=args.rate, columns=columns,
+                                time_column=time_column)
     raise HostError(f"--motion: unknown kind {kind!r} (expected 'poses' or 'replay FILE')")
 
 
