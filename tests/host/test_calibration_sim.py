@@ -374,3 +374,18 @@ def test_property_apply_inverts_inverse(cal, acc):
     # the readings follow the sensor model r = b + k (S a') with a' a rotation-free image of a (eq (1)-(4))
     s = axes_matrix(np.radians(cal.angles_deg))
     np.testing.assert_allclose((raw - cal.offset) / cal.scale_per_g, a @ s.T, atol=1e-9 * (1 + np.abs(raw).max()))
+
+
+def test_calibrator_refuses_out_of_range_and_infinite_samples_naming_the_sample():
+    from host.calibration import AccCalibrator
+
+    codes = np.full((500, 3), 512.0)
+    codes[321, 2] = 1024.0
+    with pytest.raises(CalibrationError, match=r"sample 321: axis z = 1024 is outside the valid range \[0, 1023\]"):
+        AccCalibrator().calibrate(codes, sampling_rate_hz=50.0, input_unit="counts", valid_range=(0, 1023))
+    acc = np.zeros((500, 3))
+    acc[42, 0] = np.inf
+    with pytest.raises(CalibrationError, match="sample 42: axis x is infinite"):
+        AccCalibrator().calibrate(acc, sampling_rate_hz=50.0, input_unit="g")
+    with pytest.raises(CalibrationError, match="input_unit must be one of"):
+        AccCalibrator().calibrate(acc, sampling_rate_hz=50.0, input_unit="m/s2")
