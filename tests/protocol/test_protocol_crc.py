@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol.crc import crc16_xmodem, crc32
@@ -26,6 +26,7 @@ def test_crc_check_values() -> None:
     assert crc16_xmodem(b"") == 0 and crc32(b"") == 0
 
 
+@settings(deadline=None)
 @given(st.binary(max_size=300), st.binary(max_size=50))
 def test_crc16_matches_bitwise_and_chains(a: bytes, b: bytes) -> None:
     assert crc16_xmodem(a + b) == _crc16_bitwise(a + b)

@@ -35,7 +35,7 @@ def _ref_frame(t: int, seq: int, payload: bytes) -> bytes:
 
 
 @given(st.integers(0, 255), st.integers(0, 255), st.binary(max_size=MAX_PAYLOAD))
-@settings(max_examples=50)
+@settings(deadline=None, max_examples=50)
 def test_encode_matches_reference_and_parses(t: int, seq: int, payload: bytes) -> None:
     wire = encode_frame(t, seq, payload)
     assert wire == _ref_frame(t, seq, payload)
@@ -166,6 +166,7 @@ FIELD_STRATEGIES = {
 }
 
 
+@settings(deadline=None)
 @given(st.sampled_from(list(FIELD_STRATEGIES)).flatmap(lambda t: st.tuples(st.just(t), FIELD_STRATEGIES[t])),
        u8)
 def test_payload_round_trip_property(tf: tuple[FrameType, dict], seq: int) -> None:
@@ -196,7 +197,7 @@ def _check_coverage(items: list, total: int) -> None:
 
 @given(st.lists(st.tuples(st.binary(max_size=40), st.integers(0, 2**32 - 1)), min_size=1, max_size=12),
        st.integers(1, 64))
-@settings(max_examples=150)
+@settings(deadline=None, max_examples=150)
 def test_frames_survive_garbage_between_them(parts: list[tuple[bytes, int]], chunk: int) -> None:
     rng = random.Random(parts[0][1])
     originals = _random_frames(rng, len(parts), 64)

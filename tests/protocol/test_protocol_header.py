@@ -7,7 +7,7 @@ import struct
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol.errors import ProtocolError
@@ -154,6 +154,7 @@ def test_nominal_map(bits: int) -> None:
 finite = st.floats(allow_nan=False, allow_infinity=False)
 
 
+@settings(deadline=None)
 @given(
     st.lists(st.floats(-32000, 32000), min_size=3, max_size=3),
     st.lists(st.floats(-1.99, 1.99), min_size=9, max_size=9),
@@ -206,6 +207,7 @@ def headers(draw: st.DrawFn) -> dict:
     return d
 
 
+@settings(deadline=None)
 @given(headers())
 def test_header_round_trip_property(d: dict) -> None:
     cal = d.pop("cal", None)

@@ -6,7 +6,7 @@ import struct
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -33,6 +33,7 @@ codes_st = st.integers(0, 200).flatmap(
 )
 
 
+@settings(deadline=None)
 @given(codes_st)
 def test_pack_matches_reference_and_round_trips(cf: tuple[np.ndarray, np.ndarray]) -> None:
     codes, flags = cf
@@ -45,6 +46,7 @@ def test_pack_matches_reference_and_round_trips(cf: tuple[np.ndarray, np.ndarray
     np.testing.assert_array_equal(bytes_to_words(data), pack_words(codes, flags))
 
 
+@settings(deadline=None)
 @given(st.binary(max_size=400).map(lambda b: b[: len(b) // 4 * 4]))
 def test_unpack_then_pack_is_identity_on_any_word(data: bytes) -> None:
     codes, flags = unpack_words(data)

@@ -100,12 +100,14 @@ def test_block_layout_matches_reference() -> None:
     assert parse_block(blk) == (0xFF, body)
 
 
+@settings(deadline=None)
 @given(st.integers(0, 1000), st.binary(max_size=1024))
 def test_block_round_trip(n: int, data: bytes) -> None:
     blk, back = parse_block(build_block(n, data))
     assert blk == n % 256 and back == data + bytes([PAD]) * (1024 - len(data))
 
 
+@settings(deadline=None)
 @given(st.binary(min_size=1, max_size=1024), st.integers(0, 1028), st.integers(0, 7))
 def test_block_bit_flip_is_detected(data: bytes, pos: int, bit: int) -> None:
     b = bytearray(build_block(1, data))
