@@ -42,9 +42,9 @@ with the analytic Jacobian (``v = G^{-1} u``, ``n = |a|``):
 .. math:: \partial\rho/\partial b_j = -v_j/(n k_j), \quad \partial\rho/\partial k_j = -v_j u_j/(n k_j),
           \quad \partial\rho/\partial\theta_{ij} = -v_i v_j \cos\theta_{ij} / n \qquad (6)
 
-The start is an algebraic ellipsoid fit (quadric ``x^T A x + 2 c^T x = 1``; centre ``-A^{-1} c``,
-``M^T M = A / (1 + c^T A^{-1} c)``; ``k_j = sqrt((A'^{-1})_{jj})``, ``G = K^{-1} A'^{-1} K^{-1}``; axis-aligned
-quadric for the orthogonal model).
+The start is an algebraic ellipsoid fit (quadric ``x^T A x + 2 d^T x = 1``; centre ``c = -A^{-1} d``,
+``M^T M = A' = A / (1 + c^T A c)``; then ``k_j = sqrt((A'^{-1})_{jj})`` and ``G = K^{-1} A'^{-1} K^{-1}``, since
+``M^T M = K^{-1} G^{-1} K^{-1}``; axis-aligned quadric for the orthogonal model).
 
 Precision through the 10-bit logger
 -----------------------------------

@@ -90,16 +90,9 @@ def _prefix_sums(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return s1, s2, bad, centre, finite
 
 
-def _moving_sd(x: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Moving SD of every column over windows ``x[k:k + w]`` and whether each window is NaN-free.
-
-    Returns ``(sd (n - w + 1, 3), finite (n - w + 1,))``; ``sd`` is 0 where the window is not finite.
-    """
-    s1, s2, bad, _, _ = _prefix_sums(x)
-    return _moving_sd_from(s1, s2, bad, w)
-
-
 def _moving_sd_from(s1: np.ndarray, s2: np.ndarray, bad: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Step 1: moving SD (ddof 1) of every column over windows ``x[k:k + w]`` from the prefix sums, and whether
+    each window is NaN-free: ``(sd (n - w + 1, 3), ok (n - w + 1,))``; ``sd`` is 0 where not ``ok``."""
     m1 = (s1[w:] - s1[:-w]) / w
     var = (s2[w:] - s2[:-w]) / w - m1 * m1
     var = np.maximum(var, 0.0) * (w / max(w - 1, 1))

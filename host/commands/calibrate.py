@@ -69,11 +69,7 @@ def _read_csv(path: Path, args: argparse.Namespace) -> tuple[Any, float, str]:
 
     from host.errors import HostError
 
-    try:
-        handle = path.open(newline="", encoding="utf-8")
-    except OSError:
-        raise
-    with handle:
+    with path.open(newline="", encoding="utf-8") as handle:
         sample = handle.read(4096)
         handle.seek(0)
         try:
