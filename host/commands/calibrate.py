@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import math
 import sys
 from pathlib import Path
@@ -26,7 +27,8 @@ STANDARD_GRAVITY_M_S2 = 9.80665
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog calibrate``."""
     parser.add_argument("input", type=Path, metavar="INPUT",
-                        help="decoded recording (.npz from `gaitlog decode`) or CSV of 3-axis samples")
+                        help="decoded recording (.npz from `gaitlog decode`), memory image (.glimg) or CSV of "
+                             "3-axis samples")
     parser.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="calibration file to write")
     parser.add_argument("--model", choices=("9-param", "6-param"), default="9-param",
                         help="9-param: offsets, scales and 3 axis angles (default); 6-param: orthogonal axes")
@@ -69,18 +71,20 @@ def _read_csv(path: Path, args: argparse.Namespace) -> tuple[Any, float, str]:
 
     from host.errors import HostError
 
-    with path.open(newline="", encoding="utf-8") as handle:
-        sample = handle.read(4096)
-        handle.seek(0)
-        try:
-            dialect = csv.Sniffer().sniff(sample, delimiters=",;\t ")
-        except csv.Error:
-            dialect = csv.excel
-        reader = csv.reader(handle, dialect)
-        try:
-            rows = [(i + 1, r) for i, r in enumerate(reader) if i >= args.skip_rows and any(c.strip() for c in r)]
-        except (csv.Error, UnicodeDecodeError) as err:
-            raise HostError(f"{path}: cannot read as CSV ({err})") from err
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise HostError(f"{path}: not a CSV text file (byte {err.start} is not UTF-8); give a decoded "
+                        "recording (.npz), a memory image (.glimg) or a CSV") from err
+    try:
+        dialect: Any = csv.Sniffer().sniff(text[:4096], delimiters=",;\t ")
+    except csv.Error:
+        dialect = csv.excel
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""), dialect)
+        rows = [(i + 1, r) for i, r in enumerate(reader) if i >= args.skip_rows and any(c.strip() for c in r)]
+    except csv.Error as err:
+        raise HostError(f"{path}: cannot read as CSV ({err})") from err
     if not rows:
         raise HostError(f"{path}: no data lines (after skipping {args.skip_rows})")
     header: list[str] | None = None
@@ -188,13 +192,18 @@ def run(args: argparse.Namespace) -> int:
     per_g: Any = args.counts_per_g
     valid_range = None
     with path.open("rb") as fh:
-        is_npz = fh.read(4) == b"PK\x03\x04"
-    if is_npz:
-        from host.recording import Recording
-
+        magic = fh.read(4)
+    if magic in (b"PK\x03\x04", b"GLIM"):
         if args.units not in (None, "counts"):
             raise HostError(f"{path}: a decoded recording holds ADC counts; --units {args.units} does not apply")
-        rec = Recording.load(path)
+        if magic == b"GLIM":  # a memory image straight from `gaitlog record` / `gaitlog dump`
+            from host.decode import decode_file
+
+            rec = decode_file(path)
+        else:
+            from host.recording import Recording
+
+            rec = Recording.load(path)
         acc = rec.codes.astype(np.float64)
         acc[~np.asarray(rec.valid, dtype=bool)] = np.nan
         rate, unit = float(rec.sampling_rate_hz), "counts"

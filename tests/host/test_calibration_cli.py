@@ -141,3 +141,10 @@ def test_help_lists_the_options(capsys):
     text = capsys.readouterr().out
     for opt in ("--out", "--model", "--units", "--rate", "--columns", "--skip-rows", "--hold", "--min-angle"):
         assert opt in text
+
+
+def test_binary_file_is_not_taken_for_a_csv(tmp_path, capsys):
+    path = tmp_path / "b.csv"
+    path.write_bytes(b"\xff\xfe\x00\x01binary")
+    code, _, err = run_cli(capsys, str(path), "--out", str(tmp_path / "c.json"))
+    assert code == 1 and "not a CSV text file (byte 0 is not UTF-8)" in err

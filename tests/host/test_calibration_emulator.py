@@ -149,3 +149,16 @@ def test_noiseless_sensor_holds_look_stuck_and_are_refused():
         run.calibrate(res.codes.astype(float), sampling_rate_hz=50.0, input_unit="counts", zero=512.0,
                       unit_per_g=256.0)
     assert all("constant (SD = 0)" in reason for _, reason in run.detector_.rejected_)
+
+
+def test_cli_takes_the_memory_image_directly(recorded, tmp_path, capsys):
+    from host.cli import main
+
+    logger, res = recorded
+    image = logger.save_image(tmp_path / "poses.glimg")
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(image), "--out", str(out)]) == 0
+    assert "static poses: 24 used" in capsys.readouterr().out
+    cal = AccCalibration.load(out)
+    t = truth_in_counts(res.truth)
+    assert (np.abs(cal.offset - t["offset"]) / t["scale"] < 1e-3).all()
