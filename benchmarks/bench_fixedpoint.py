@@ -143,8 +143,8 @@ def chain_benchmark() -> bool:
     codes = _walking_codes(N)
     cal = nominal_calibration_q(adc_bits=10)
     chain = FixedStepChain(leg_length_m=0.9, foot_length_m=0.26)
-    chain.run(codes, sampling_rate_hz=50.0, calibration=cal)      # warm-up
-    t = best(lambda: chain.run(codes, sampling_rate_hz=50.0, calibration=cal), repeat=3)
+    chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal)      # warm-up (imports scipy.signal)
+    t = best(lambda: chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal), repeat=3)
     ok = t <= CHAIN_TARGET_S
     print(f"fixed-point chain (codes -> M1-M5) on {N} samples: {t:.3f} s (target <= {CHAIN_TARGET_S} s), "
           f"{chain.steps_.n_steps} steps, {chain.cycles_per_sample_:.0f} est. PIC cycles/sample "

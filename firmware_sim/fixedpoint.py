@@ -309,8 +309,10 @@ def _limits_of(fmt: QFormat | int, signed: bool) -> tuple[int, int, int, bool]:
 def _overflow(x: np.ndarray, bits: int, signed: bool, mode: Overflow, ctx: ArithmeticContext | None,
               op: str) -> np.ndarray:
     lo, hi = word_limits(bits, signed)
+    if mode in ("saturate", "wrap") and (x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)):
+        return x                     # nothing to do (the common case: two fast reductions)
     if mode == "saturate":
-        out = np.clip(x, lo, hi)
+        out = np.minimum(np.maximum(x, lo), hi)
         if ctx is not None:
             n = int(np.count_nonzero((x < lo) | (x > hi)))
             if n:
@@ -339,6 +341,9 @@ def _as_int(x: np.ndarray | int) -> np.ndarray:
 def saturate(x: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True,
              ctx: ArithmeticContext | None = None, op: str = "saturate") -> np.ndarray:
     """Clip raw integers to the range of ``fmt`` (a :class:`QFormat` or a word width in bits).
+
+    Like every primitive here, it may return its (int64) input itself when nothing changes: do not modify
+    a result in place if its input must stay intact.
 
     >>> saturate(np.array([-200, 100, 200]), 8).tolist()
     [-128, 100, 127]
@@ -569,7 +574,10 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     zero = y == 0
     nz = int(np.count_nonzero(zero))
     safe = np.where(zero, 1, y) if nz else y
-    q = np.abs(x) // np.abs(safe)            # magnitudes: truncation towards zero
+    # magnitudes: truncation towards zero. The float64 quotient of |n| < 2**31 by |d| < 2**16 is never
+    # rounded up to the next integer (the gap 1/|d| >= 2**-16 exceeds the rounding error q * 2**-53), so
+    # its floor is the exact integer quotient (and much faster than numpy's integer division).
+    q = np.floor(np.abs(x) / np.abs(safe)).astype(np.int64)
     np.negative(q, out=q, where=(x ^ safe) < 0)
     r = x - q * safe
     if nz:
@@ -606,7 +614,7 @@ def div_round(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32,
     nz = int(np.count_nonzero(zero))
     safe = np.where(zero, 1, y) if nz else y
     ay = np.abs(safe)
-    res = (np.abs(x) + (ay >> 1)) // ay
+    res = np.floor((np.abs(x) + (ay >> 1)) / ay).astype(np.int64)   # exact, as in div()
     np.negative(res, out=res, where=(x ^ safe) < 0)
     if nz:
         res = np.where(zero, np.where(x >= 0, hi, lo), res)
@@ -622,14 +630,21 @@ def div_round(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32,
 _U32_MAX = (1 << 32) - 1
 
 
-def isqrt(x: np.ndarray | int, *, ctx: ArithmeticContext | None = None) -> np.ndarray:
+def isqrt(x: np.ndarray | int, *, rounding: Literal["floor", "nearest"] = "floor",
+          ctx: ArithmeticContext | None = None) -> np.ndarray:
     """``floor(sqrt(x))`` of unsigned 32-bit integers, exactly (as the shift-subtract algorithm gives).
+
+    ``rounding="nearest"`` rounds to the nearest integer instead: ``r + 1`` when the remainder
+    ``x - r**2`` exceeds ``r`` (``x >= (r + 1/2)**2`` exactly; the restoring algorithm leaves the remainder
+    in its register, so this costs one 16-bit compare).
 
     Vectorised: the float64 square root of an integer below ``2**32`` is within one of the truth, and one
     integer correction step each way makes it exact (checked against :func:`math.isqrt`).
 
     >>> isqrt(np.array([0, 1, 3, 4, 15, 16, 2**32 - 1])).tolist()
     [0, 1, 1, 2, 3, 4, 65535]
+    >>> isqrt(np.array([2, 3, 6, 7, 2**32 - 1]), rounding="nearest").tolist()
+    [1, 2, 2, 3, 65536]
     """
     a = _as_int(x)
     if np.any((a < 0) | (a > _U32_MAX)):
@@ -639,6 +654,12 @@ def isqrt(x: np.ndarray | int, *, ctx: ArithmeticContext | None = None) -> np.nd
     r = np.floor(np.sqrt(a.astype(np.float64))).astype(np.int64)
     r = np.where(r * r > a, r - 1, r)
     r = np.where((r + 1) * (r + 1) <= a, r + 1, r)
+    if rounding == "nearest":
+        if ctx is not None:
+            ctx.cost("compare16", a.size)
+        return np.where(a - r * r > r, r + 1, r)
+    if rounding != "floor":
+        raise ValueError(f"rounding must be 'floor' or 'nearest', got {rounding!r}")
     return r
 
 

@@ -252,6 +252,17 @@ def test_isqrt_exhaustive_on_square_boundaries() -> None:
     np.testing.assert_array_equal(isqrt(x), [math.isqrt(v) for v in x.tolist()])
 
 
+def test_isqrt_nearest_against_exact_rationals() -> None:
+    rng = np.random.default_rng(RNG_SEED + 9)
+    k = np.arange(0, 65536, dtype=np.int64)
+    x = np.concatenate([k * k + k, k * k + k + 1, rng.integers(0, 1 << 32, 50_000)])   # (k+1/2)^2 = k^2+k+1/4
+    x = x[x < (1 << 32)]
+    r = isqrt(x, rounding="nearest")
+    # nearest: |r - sqrt(x)| <= 1/2  <=>  (2r - 1)^2 <= 4x <= (2r + 1)^2 (no exact ties for integers)
+    assert np.all((2 * r - 1) ** 2 <= 4 * x) and np.all(4 * x <= (2 * r + 1) ** 2)
+    assert isqrt(np.array([12]), rounding="nearest").tolist() == [round(math.sqrt(12))]
+
+
 def test_isqrt_random_and_bad_input() -> None:
     rng = np.random.default_rng(RNG_SEED + 7)
     x = rng.integers(0, 1 << 32, 100_000)

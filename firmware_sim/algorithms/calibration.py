@@ -1,0 +1,122 @@
+"""Calibration of 10-bit ADC codes in fixed point: ``a_g = M · (codes − offset)`` (PROTOCOL.md 2.1).
+
+The header's calibration slot stores the offset in Q15.16 counts and the matrix in Q1.30 g per count
+(32-bit words). The PIC keeps less, in 16-bit words:
+
+* offset in :data:`~firmware_sim.algorithms.formats.OFFSET_Q` (Q10.5 counts, rounded half up);
+* the nine matrix entries as Q0.15 mantissas with one shared exponent (block floating point): entry
+  ``M_ij ≈ m_ij · 2**-(15 + e)``, ``e`` the largest shift that keeps the largest ``|M_ij|`` below 1 in
+  Q0.15. For the nominal ±2 g over 10 bits (1/256 g per count) ``e = 7``: 22 fraction bits, a relative
+  resolution of 2⁻¹⁴ on the diagonal.
+
+Per sample and axis: one 16-bit subtraction (Q10.5), three 16×16→32 multiplies, a saturating 32-bit sum
+and a rounding shift to :data:`~firmware_sim.algorithms.formats.ACC_Q` (Q2.13 g).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from firmware_sim.algorithms.formats import ACC_Q, CENTRED_Q, OFFSET_Q
+from firmware_sim.fixedpoint import ArithmeticContext, QFormat, add, mul, requantize, shift_left, shift_right, sub
+
+SLOT_OFFSET_Q = QFormat(15, 16, word_bits=32)
+SLOT_MATRIX_Q = QFormat(1, 30, word_bits=32)
+MANTISSA_Q = QFormat(0, 15)
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationQ:
+    """The calibration as the PIC keeps it.
+
+    Attributes
+    ----------
+    offset_raw
+        ``(3,)`` offsets, raw :data:`OFFSET_Q`.
+    mantissa_raw
+        ``(3, 3)`` matrix mantissas, raw Q0.15.
+    matrix_frac_bits
+        Fraction bits of the matrix entries (``15 + e``).
+    """
+
+    offset_raw: np.ndarray
+    mantissa_raw: np.ndarray
+    matrix_frac_bits: int
+
+    @classmethod
+    def from_slot(cls, offset_q16: np.ndarray, matrix_q30: np.ndarray) -> CalibrationQ:
+        """From the header slot's integers (``offset_q16`` (3,), ``matrix_q30`` (3, 3) or (9,))."""
+        off = np.asarray(offset_q16, np.int64).reshape(3)
+        m = np.asarray(matrix_q30, np.int64).reshape(3, 3)
+        offset_raw = requantize(off, SLOT_OFFSET_Q, OFFSET_Q)
+        big = int(np.max(np.abs(m)))
+        if big == 0:
+            raise ValueError("calibration matrix is all zeros")
+        # drop just enough of the 30 fraction bits that the largest entry (rounded) fits a Q0.15 mantissa
+        drop = 0
+        while drop < 30 and (big + ((1 << drop) >> 1)) >> drop > MANTISSA_Q.max_raw:
+            drop += 1
+        frac = SLOT_MATRIX_Q.frac_bits - drop
+        mant = requantize(m, SLOT_MATRIX_Q, QFormat(15 - frac, frac))
+        return cls(offset_raw, mant, frac)
+
+    @classmethod
+    def from_float(cls, offset_counts: np.ndarray, matrix_g_per_count: np.ndarray) -> CalibrationQ:
+        """From float parameters, through the slot's Q15.16 / Q1.30 words (as the device receives them)."""
+        off = SLOT_OFFSET_Q.from_float(np.asarray(offset_counts, np.float64).reshape(3))
+        m = SLOT_MATRIX_Q.from_float(np.asarray(matrix_g_per_count, np.float64).reshape(3, 3))
+        return cls.from_slot(off, m)
+
+    @property
+    def offset_counts(self) -> np.ndarray:
+        """The offsets the PIC uses, counts (float)."""
+        return OFFSET_Q.to_float(self.offset_raw)
+
+    @property
+    def matrix_g_per_count(self) -> np.ndarray:
+        """The matrix the PIC uses, g per count (float)."""
+        return self.mantissa_raw.astype(np.float64) * 2.0 ** -self.matrix_frac_bits
+
+    def apply(self, codes: np.ndarray, *, ctx: ArithmeticContext | None = None) -> np.ndarray:
+        """Calibrated specific force, raw :data:`ACC_Q` (``(n, 3)`` int64) of ``(n, 3)`` ADC codes.
+
+        Vectorised over samples; each sample is what the per-sample firmware computes (integer sums).
+
+        Examples
+        --------
+        >>> cal = nominal_calibration_q(adc_bits=10)
+        >>> a = cal.apply(np.array([[512, 512, 768]]))
+        >>> ACC_Q.to_float(a).tolist()
+        [[0.0, 0.0, 1.0]]
+        """
+        c = np.asarray(codes)
+        if c.ndim != 2 or c.shape[1] != 3:
+            raise ValueError(f"codes must have shape (n, 3), got {c.shape}")
+        if c.size and (c.min() < 0 or c.max() > 1023):
+            raise ValueError("ADC codes must be 0 .. 1023 (10-bit fields)")
+        code_q = shift_left(c.astype(np.int64), CENTRED_Q.frac_bits, CENTRED_Q, ctx=ctx)
+        centred = sub(code_q, self.offset_raw[None, :], CENTRED_Q, ctx=ctx, op="calibration.centre")
+        acc32 = np.zeros((c.shape[0], 3), np.int64)
+        sum_q = QFormat(31, 0, word_bits=32)
+        for i in range(3):          # rows of M: three products and a saturating 32-bit sum each
+            for j in range(3):
+                p = mul(centred[:, j], self.mantissa_raw[i, j], ctx=ctx)
+                acc32[:, i] = add(acc32[:, i], p, sum_q, ctx=ctx, op="calibration.sum")
+        shift = CENTRED_Q.frac_bits + self.matrix_frac_bits - ACC_Q.frac_bits
+        out = shift_right(acc32, shift, ctx=ctx)
+        return requantize(out, ACC_Q, ACC_Q, ctx=ctx)
+
+
+def nominal_calibration_q(*, adc_bits: int = 10) -> CalibrationQ:
+    """The nominal map of PROTOCOL.md 2.1 (``cal_format = 0``): offset ``2**(bits-1)`` and
+    ``M = diag(4 g / 2**bits)``, for codes right-justified in 10-bit fields.
+
+    >>> cal = nominal_calibration_q()
+    >>> cal.offset_counts.tolist(), cal.matrix_frac_bits
+    ([512.0, 512.0, 512.0], 22)
+    """
+    if not 1 <= adc_bits <= 10:
+        raise ValueError(f"adc_bits must be 1 .. 10, got {adc_bits}")
+    return CalibrationQ.from_float(np.full(3, 2.0 ** (adc_bits - 1)), np.eye(3) * 4.0 / 2.0 ** adc_bits)

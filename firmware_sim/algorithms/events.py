@@ -1,0 +1,238 @@
+"""Foot-flat, heel-strike and toe-off on the integer signals (mirrors ``host.gait.events``).
+
+The definitions are the float chain's (``host.gait.events.GaitEventDetector``, notes 1-4), with the same
+parameters; only the numbers differ: the signals are raw :data:`~firmware_sim.algorithms.formats.LOWPASS_OUT_Q`
+integers (g, not m/s^2) from :mod:`~firmware_sim.algorithms.lowpass`, the prominence threshold is the
+integer ``round(min_prominence_m_s2 / g0 · 2^16)``, the heel-strike gradient is the integer central
+difference ``x[i+1] − x[i−1]`` (twice ``numpy.gradient``, same ordering), and the second-pass distance
+``min_step_fraction · median`` is computed in integers (half up). Peak search, windows and bouts use only
+comparisons and integer indices, so they are exact. Across stretches where the 3 Hz filter is undefined
+the search curve is drawn straight by integer interpolation (truncating divide), as the float chain draws
+it with ``numpy.interp``.
+
+On the device
+-------------
+The peak search with ``scipy.signal.find_peaks`` (distance, prominence) and the median of the step
+durations look at a whole recording: here the chain is run over a recording (as the firmware could after
+logging, reading the samples back from the EEPROM). An on-line state machine (hysteresis peak detector)
+would need the state listed in :func:`~firmware_sim.algorithms.formats.state_variables`, but it would define
+the events differently from the float chain, so it is not what the comparison uses.
+"""
+
+from __future__ import annotations
+
+from typing import Self
+
+import numpy as np
+
+from firmware_sim.algorithms.formats import LOWPASS_OUT_Q, STANDARD_GRAVITY_M_S2
+from firmware_sim.algorithms.lowpass import masked_gaussian_lowpass_q
+from firmware_sim.fixedpoint import ArithmeticContext
+
+
+class FixedGaitEventDetector:
+    """Detect foot-flat, heel-strike and toe-off in raw Q2.13 vertical acceleration (filters give Q2.16).
+
+    Parameters
+    ----------
+    ff_cutoff_hz, detail_cutoff_hz, min_step_s, max_step_s, min_prominence_m_s2, hs_search_s, to_search_s,
+    max_gap_s, min_step_fraction
+        As ``host.gait.events.GaitEventDetector`` (same defaults).
+
+    Attributes
+    ----------
+    foot_flat_, heel_strike_, toe_off_, bout_, step_start_, step_end_, step_heel_strike_, step_toe_off_
+        As the float detector.
+    first_harmonic_q_, detail_q_
+        Raw LOWPASS_OUT_Q 3 Hz and 10 Hz signals; ``first_harmonic_defined_``, ``detail_defined_`` their masks.
+    """
+
+    def __init__(
+        self,
+        *,
+        ff_cutoff_hz: float = 3.0,
+        detail_cutoff_hz: float = 10.0,
+        min_step_s: float = 0.25,
+        max_step_s: float = 1.5,
+        min_prominence_m_s2: float = 0.5,
+        hs_search_s: float = 0.2,
+        to_search_s: float = 0.3,
+        max_gap_s: float = 0.1,
+        min_step_fraction: float = 0.6,
+    ) -> None:
+        self.ff_cutoff_hz = ff_cutoff_hz
+        self.detail_cutoff_hz = detail_cutoff_hz
+        self.min_step_s = min_step_s
+        self.max_step_s = max_step_s
+        self.min_prominence_m_s2 = min_prominence_m_s2
+        self.hs_search_s = hs_search_s
+        self.to_search_s = to_search_s
+        self.max_gap_s = max_gap_s
+        self.min_step_fraction = min_step_fraction
+
+    def detect(self, acc_v_q: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None,
+               ctx: ArithmeticContext | None = None) -> Self:
+        """Detect the events in raw ACC_Q vertical acceleration ``acc_v_q`` (``(n,)``, up positive)."""
+        from scipy.signal import find_peaks
+
+        fs = float(sampling_rate_hz)
+        if not (np.isfinite(fs) and fs > 0):
+            raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
+        a = np.asarray(acc_v_q, np.int64)
+        if a.ndim != 1:
+            raise ValueError(f"acc_v_q must be one-dimensional, got shape {a.shape}")
+        n = a.size
+        ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
+        lp, fin = masked_gaussian_lowpass_q(a, ok, cutoff_hz=self.ff_cutoff_hz, sampling_rate_hz=fs, ctx=ctx)
+        det, det_ok = masked_gaussian_lowpass_q(a, ok, cutoff_hz=self.detail_cutoff_hz, sampling_rate_hz=fs,
+                                                ctx=ctx)
+        self.first_harmonic_q_, self.first_harmonic_defined_ = lp, fin
+        self.detail_q_, self.detail_defined_ = det, det_ok
+        empty = np.zeros(0, np.int64)
+        if n < 3 or not fin.any():
+            self._set(empty, empty, empty, empty, empty)
+            return self
+        # 1. foot-flat: peaks of the 3 Hz signal (integer thresholds)
+        prominence = int(np.floor(self.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2 * 2 ** LOWPASS_OUT_Q.frac_bits + 0.5))
+        sig = lp if fin.all() else _integer_interp(lp, fin)
+        dist0 = max(1, int(round(self.min_step_s * fs)))
+        ff, _ = find_peaks(sig, distance=dist0, prominence=prominence)
+        d = np.diff(ff)
+        d = d[d <= self.max_step_s * fs]
+        if d.size >= 3:
+            # min_step_fraction * median, half up, in integers: median2 = 2 * median
+            ds = np.sort(d)
+            m = ds.size
+            median2 = int(ds[m // 2]) * 2 if m % 2 else int(ds[m // 2 - 1]) + int(ds[m // 2])
+            frac_num = int(round(self.min_step_fraction * 1000))          # a 3-digit constant
+            dist2 = (frac_num * median2 + 1000) // 2000                      # round half up
+            min_dist = max(dist0, dist2)
+            ff, _ = find_peaks(sig, distance=max(1, min_dist), prominence=prominence)
+            if ctx is not None:
+                ctx.cost("mul16x16u", 1)
+                ctx.cost("div32by16u", 1)
+        ff = ff[ok[ff] & fin[ff]] if ff.size else ff
+        ff = ff.astype(np.int64)
+        if ctx is not None:
+            ctx.cost("compare16", 4 * n)        # peak search: neighbours, distance, prominence
+        # 2./3. heel-strike and toe-off
+        grad, grad_ok = _integer_gradient(det, det_ok)
+        hs = _search_argmax(grad, grad_ok, ff, -int(round(self.hs_search_s * fs)), 0)
+        to = _first_local_min(det, det_ok, ff, int(round(self.to_search_s * fs)))
+        if ctx is not None:
+            ctx.cost("add16", n)
+            ctx.cost("compare16", 3 * n)
+        # 4. bouts and steps
+        gap_run = _gap_lengths(ok)
+        max_gap = int(round(self.max_gap_s * fs))
+        if ff.size:
+            interval_ok = np.diff(ff) <= self.max_step_s * fs
+            worst = _between_max(gap_run, ff)
+            link = interval_ok & (worst <= max_gap)
+            bout = np.concatenate([[0], np.cumsum(~link)])
+        else:
+            link = np.zeros(0, bool)
+            bout = empty
+        self._set(ff, hs, to, bout, link)
+        return self
+
+    def _set(self, ff: np.ndarray, hs: np.ndarray, to: np.ndarray, bout: np.ndarray, link: np.ndarray) -> None:
+        self.foot_flat_ = ff
+        self.heel_strike_ = hs
+        self.toe_off_ = to
+        self.bout_ = bout
+        k = np.flatnonzero(link)
+        self.step_start_ = ff[k]
+        self.step_end_ = ff[k + 1]
+        self.step_toe_off_ = to[k]
+        self.step_heel_strike_ = hs[k + 1]
+        bad = (self.step_toe_off_ >= 0) & (self.step_heel_strike_ >= 0) & (self.step_toe_off_ >= self.step_heel_strike_)
+        self.step_toe_off_ = np.where(bad, -1, self.step_toe_off_)
+        self.step_bout_ = bout[k] if k.size else np.zeros(0, np.int64)
+
+
+def _integer_interp(x: np.ndarray, defined: np.ndarray) -> np.ndarray:
+    """Straight integer lines across undefined stretches (ends held), truncating divide.
+
+    >>> _integer_interp(np.array([0, 0, 0, 9, 0]), np.array([0, 1, 0, 1, 0], bool)).tolist()
+    [0, 0, 4, 9, 9]
+    """
+    idx = np.flatnonzero(defined)
+    n = x.size
+    i = np.arange(n)
+    right = np.searchsorted(idx, i)                 # first defined index >= i
+    r = idx[np.clip(right, 0, idx.size - 1)]
+    lft = idx[np.clip(right - 1, 0, idx.size - 1)]
+    x0, x1 = x[lft], x[r]
+    span = r - lft
+    num = (x1 - x0) * (i - lft)
+    step = np.where(span > 0, np.abs(num) // np.where(span > 0, span, 1) * np.sign(num), 0)
+    out = np.where(right == 0, x[idx[0]], np.where(right >= idx.size, x[idx[-1]], x0 + step))
+    return np.where(defined, x, out)
+
+
+def _integer_gradient(x: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``2 * numpy.gradient(x)`` in integers: central ``x[i+1] - x[i-1]``, one-sided ``2 (x[1] - x[0])``."""
+    n = x.size
+    g = np.zeros(n, np.int64)
+    g_ok = np.zeros(n, bool)
+    if n >= 2:
+        g[1:-1] = x[2:] - x[:-2]
+        g_ok[1:-1] = ok[2:] & ok[:-2]
+        g[0], g[-1] = 2 * (x[1] - x[0]), 2 * (x[-1] - x[-2])
+        g_ok[0], g_ok[-1] = ok[0] & ok[1], ok[-1] & ok[-2]
+    return g, g_ok
+
+
+def _search_argmax(x: np.ndarray, ok: np.ndarray, centre: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """Index of the first maximum of ``x`` over defined samples in ``[c+lo, c+hi]`` (-1 if none)."""
+    if centre.size == 0:
+        return np.zeros(0, np.int64)
+    offs = np.arange(lo, hi + 1)
+    idx = centre[:, None] + offs[None, :]
+    inside = (idx >= 0) & (idx < x.size)
+    ci = np.clip(idx, 0, x.size - 1)
+    usable = inside & ok[ci]
+    floor = np.iinfo(np.int64).min
+    vals = np.where(usable, x[ci], floor)
+    j = np.argmax(vals, axis=1)
+    rows = np.arange(centre.size)
+    return np.where(usable[rows, j], idx[rows, j], -1).astype(np.int64)
+
+
+def _first_local_min(x: np.ndarray, ok: np.ndarray, centre: np.ndarray, span: int) -> np.ndarray:
+    """First local minimum (``x[j] < x[j-1]`` and ``x[j] <= x[j+1]``, all defined) in ``(c, c+span]``."""
+    if centre.size == 0:
+        return np.zeros(0, np.int64)
+    offs = np.arange(0, span + 2)
+    idx = centre[:, None] + offs[None, :]
+    inside = idx < x.size
+    ci = np.clip(idx, 0, x.size - 1)
+    usable = inside & ok[ci]
+    vals = x[ci]
+    mid, left, right = vals[:, 1:-1], vals[:, :-2], vals[:, 2:]
+    both = usable[:, 1:-1] & usable[:, :-2] & usable[:, 2:]
+    is_min = both & (mid < left) & (mid <= right)
+    has = is_min.any(axis=1)
+    j = np.argmax(is_min, axis=1) + 1
+    return np.where(has, idx[np.arange(centre.size), j], -1).astype(np.int64)
+
+
+def _gap_lengths(ok: np.ndarray) -> np.ndarray:
+    """For every sample, the length of the run of missing samples it belongs to (0 where measured)."""
+    miss = ~ok
+    if not miss.any():
+        return np.zeros(ok.size, np.int64)
+    d = np.diff(np.concatenate([[0], miss.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    paint = np.zeros(ok.size + 1, np.int64)
+    np.add.at(paint, starts, ends - starts)
+    np.add.at(paint, ends, -(ends - starts))
+    return np.cumsum(paint)[:-1]
+
+
+def _between_max(x: np.ndarray, marks: np.ndarray) -> np.ndarray:
+    """``max(x[m_k:m_k+1])`` between consecutive strictly increasing ``marks``."""
+    if marks.size < 2:
+        return np.zeros(0, x.dtype)
+    return np.maximum.reduceat(x[: marks[-1]], marks[:-1])
