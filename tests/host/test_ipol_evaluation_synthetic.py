@@ -1,0 +1,85 @@
+"""The IPOL evaluation path on a synthetic folder (runs without the real recordings).
+
+Two trials of one subject walking 20 m at the same pace, written in the IPOL layout (100 Hz, m/s^2, lost
+packets, JSON in packet indices, no height): K fitted on trial 1 must give ratio ~1 on trial 2, steps
+counted against the JSON heel strikes, lost packets never used.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from host.cli import main
+from host.ipol_evaluation import evaluate_folder, replay_trial
+
+G = 9.80665
+
+
+def write_ipol_trial(folder, subject, trial, *, n_steps=34, step_s=0.55, seed=0, lose=0.03):
+    rng = np.random.default_rng(seed)
+    fs = 100.0
+    stand = 3.0
+    t = np.arange(int((2 * stand + n_steps * step_s) * fs)) / fs
+    tw = t - stand
+    inside = (tw >= 0) & (tw <= n_steps * step_s)
+    w = 2 * np.pi / step_s
+    a = np.where(inside, 0.02 * w * w * np.cos(w * tw), 0.0)
+    for k in range(n_steps + 1):
+        a += 3.0 * np.exp(-0.5 * ((tw - k * step_s + 0.06) / 0.02) ** 2)
+    a += rng.normal(0, 0.05, t.size)
+    up = G + a
+    tilt = np.radians(25.0)
+    acc = np.c_[up * np.cos(tilt), rng.normal(0, 0.02, t.size), up * np.sin(tilt)]
+    keep = rng.random(t.size) > lose
+    keep[:5] = keep[-5:] = True
+    rows = [f"{i}.0\t{x:.6f}\t{y:.6f}\t{z:.6f}\t0\t0\t0" for i, (x, y, z) in enumerate(acc) if keep[i]]
+    text = "Acquisition frequency: 100 Hz\nPacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\n"
+    (folder / f"{subject}-{trial}_lb.txt").write_text(text + "\n".join(rows) + "\n")
+    hs = np.round((stand + step_s * np.arange(1, n_steps + 1) - 0.06) * fs).astype(int)
+    to = hs - int(0.4 * fs)
+    start, end = int(to[0]), int(hs[-1])
+    meta = {"Subject": subject, "Trial": trial, "TrialBoundaries": [start, end],
+            "UTurnBoundaries": [int(hs[n_steps // 2] + 5), int(hs[n_steps // 2] + 6)],
+            "LeftFootEvents": [[int(a_), int(b)] for a_, b in zip(to[0::2], hs[0::2])],
+            "RightFootEvents": [[int(a_), int(b)] for a_, b in zip(to[1::2], hs[1::2])]}
+    (folder / f"{subject}-{trial}.json").write_text(json.dumps(meta))
+    return keep
+
+
+def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
+    keep = write_ipol_trial(tmp_path, 1, 1, seed=1)
+    write_ipol_trial(tmp_path, 1, 2, seed=2)
+    rt = replay_trial(tmp_path / "1-1_lb.txt")
+    # a logger sample at packet 2k is missing exactly when packet 2k was lost
+    lost_even = ~keep[0::2][: rt.valid.size]
+    assert np.array_equal(~rt.valid[: lost_even.size], lost_even)
+    assert np.isnan(rt.acc_g[~rt.valid]).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = evaluate_folder(tmp_path)
+    assert res.n_trials == 1 and len(res.rows) == 5
+    by = {r["estimator"]: r for r in res.rows}
+    for name in ("M1", "M2", "M4", "M5"):
+        assert by[name]["ratio"] == pytest.approx(1.0, abs=0.03)
+    assert by["M2"]["reference_steps"] == 34
+    assert abs(by["M2"]["steps"] - 34) <= 1
+
+
+def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
+    write_ipol_trial(tmp_path, 2, 1, seed=3)
+    write_ipol_trial(tmp_path, 2, 2, seed=4)
+    out = tmp_path / "out" / "eval.csv"
+    out.parent.mkdir()
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "10", "--rate", "50"]) == 0
+    text = capsys.readouterr().out
+    assert "M3" in text and "median" in text
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"]
+    assert out.with_suffix(".png").stat().st_size > 1000
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "12"]) == 1
