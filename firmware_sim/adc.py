@@ -100,14 +100,18 @@ class Adc:
         codes = np.floor((v - self.vref_low_v) / self.lsb_v)
         return np.clip(codes, 0, self.n_codes - 1).astype(np.uint16)
 
-    def sample(self, sensor_v: np.ndarray, rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
-        """Sample-and-hold of a fine-grid signal ``sensor_v`` ``(n, 3)`` (rate ``rate_hz``, first sample at
-        ``t0_s``) at ``times_s``, then :meth:`convert`. Returns ``(len(times_s), 3)`` ``uint16`` codes."""
+    def hold(self, sensor_v: np.ndarray, rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
+        """Sample-and-hold: the fine-grid signal ``sensor_v`` ``(n, 3)`` (rate ``rate_hz``, first sample at
+        ``t0_s``) linearly interpolated at ``times_s``; returns ``(len(times_s), 3)`` volts."""
+        v = np.asarray(sensor_v, dtype=np.float64)
         x = (np.asarray(times_s, dtype=np.float64) - t0_s) * rate_hz
-        i = np.clip(np.floor(x).astype(np.int64), 0, max(sensor_v.shape[0] - 2, 0))
-        frac = np.clip(x - i, 0.0, 1.0)[:, None]
-        if sensor_v.shape[0] < 2:
-            held = np.repeat(sensor_v[:1], len(x), axis=0)
-        else:
-            held = sensor_v[i] * (1.0 - frac) + sensor_v[i + 1] * frac
-        return self.convert(held)
+        if v.shape[0] < 2:
+            return np.repeat(v[:1], len(x), axis=0)
+        i = np.clip(np.floor(x).astype(np.int64), 0, v.shape[0] - 2)
+        frac = np.clip(x - i, 0.0, 1.0)
+        vt = v.T  # axis-major: contiguous rows when v is the transposed output of the sensor model
+        return (vt[:, i] * (1.0 - frac) + vt[:, i + 1] * frac).T
+
+    def sample(self, sensor_v: np.ndarray, rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
+        """:meth:`hold` then :meth:`convert`: ``(len(times_s), 3)`` ``uint16`` codes."""
+        return self.convert(self.hold(sensor_v, rate_hz, t0_s, times_s))

@@ -2,8 +2,8 @@
 
 :class:`Logger` wires the parts of ``firmware_sim`` together the way the board does. :meth:`Logger.record`
 runs one logging session on a motion (START, the sample timer over the motion's duration, STOP) fully
-vectorised: the motion is rendered on the sensor's fine grid, the sensor model filters it and adds noise,
-the ADC samples it at the timer instants, and the firmware packs and stores the block of samples with
+vectorised: the motion is rendered on the sensor's fine grid, the sensor model filters it, the ADC
+samples it at the timer instants where the sensor noise is added (drawn exactly there), and the firmware packs and stores the block of samples with
 whole-array page writes. The UART side is :attr:`Logger.firmware` (sans-I/O; see
 :mod:`firmware_sim.transport` to put it on a pty or a TCP port).
 
@@ -227,10 +227,13 @@ class Logger:
         acc, rate = motion.acc_g, motion.rate_hz
         if abs(rate - self.sensor.internal_rate_hz) > 1e-9 * rate:
             acc, rate = resample_g(acc, rate, self.sensor.internal_rate_hz)
-        volts = self.sensor.respond(acc, rate)
+        volts = self.sensor.respond(acc, rate, noise=False)
         t_last = motion.t0_s + (acc.shape[0] - 1) / rate
         times = self.adc.sample_times_s(motion.t0_s, t_last)
-        codes = self.adc.sample(volts, rate, motion.t0_s, times)
+        held = self.adc.hold(volts, rate, motion.t0_s, times)
+        # the sensor noise (an Ornstein-Uhlenbeck process after the RC filter) drawn at the sample instants
+        held += self.sensor.noise_g(times) * self.sensor.gain_v_per_g
+        codes = self.adc.convert(held)
         marks = np.zeros(times.size, dtype=bool)
         if motion.marker_times_s.size:
             k = np.searchsorted(times, motion.marker_times_s, side="left")

@@ -47,6 +47,13 @@ from firmware_sim.errors import DeviceError
 
 __all__ = ["SensorModel", "AXIS_PARTS", "filter_cutoff_hz"]
 
+
+def _ou_regular(drive: np.ndarray, a: float, x0: float) -> np.ndarray:
+    """``x_0 = x0``, ``x_k = a x_(k-1) + drive[k]`` for k >= 1 (one IIR pass)."""
+    d = drive.copy()
+    d[0] = x0
+    return signal.lfilter([1.0], [1.0, -a], d)
+
 #: Which part and channel gives each device axis.
 AXIS_PARTS = ("A.X", "A.Y", "B.X")
 
@@ -214,8 +221,50 @@ class SensorModel:
         return self.zero_g_v + self.gain_v_per_g * (self.offset_g + r)
 
     # ------------------------------------------------------------------ action
+    @property
+    def noise_rms_g(self) -> np.ndarray:
+        """``(3,)`` rms of the output noise in g: white noise of density ``d`` through a one-pole RC,
+        ``d · sqrt(π/2 · f_-3dB)`` (1.1 mg at 200 µg/√Hz and 20 Hz)."""
+        return self.noise_density_g_rthz * np.sqrt(np.pi / 2.0 * self.cutoff_hz)
+
+    def noise_g(self, times_s: np.ndarray, *, rng: np.random.Generator | None = None) -> np.ndarray:
+        """The output noise in g, ``(n, 3)``, observed at the increasing instants ``times_s``.
+
+        White noise through the RC filter is an Ornstein-Uhlenbeck process; it is drawn exactly at the
+        instants where it is observed: ``x_k = a_k x_(k-1) + σ sqrt(1 - a_k²) ξ_k`` with
+        ``a_k = exp(-(t_k - t_(k-1)) / τ)``, ``τ = 1 / (2π f_-3dB)``, ``σ`` = :attr:`noise_rms_g` and
+        ``x_0`` drawn from the stationary law. No discretisation error, and one random number per sample
+        actually observed.
+        """
+        t = np.asarray(times_s, dtype=np.float64)
+        gen = self._rng if rng is None else rng
+        n = t.size
+        out = np.zeros((n, 3))
+        if n == 0 or self.noise_density_g_rthz == 0:
+            return out
+        xi = gen.standard_normal((3, n))
+        dt = np.diff(t)
+        regular = n < 2 or np.allclose(dt, dt[0], rtol=1e-9, atol=0.0)
+        for j in range(3):
+            tau = 1.0 / (2.0 * np.pi * self.cutoff_hz[j])
+            sigma = self.noise_rms_g[j]
+            if regular:  # constant coefficient: one IIR pass (the process is genuinely recursive)
+                a = np.exp(-(dt[0] if n > 1 else 1.0) / tau)
+                drive = sigma * np.sqrt(1.0 - a * a) * xi[j]
+                out[:, j] = _ou_regular(drive, a, sigma * xi[j, 0])
+            else:
+                a_k = np.exp(-dt / tau)
+                x = np.empty(n)
+                x[0] = sigma * xi[j, 0]
+                drive = sigma * np.sqrt(1.0 - a_k * a_k) * xi[j, 1:]
+                for k in range(1, n):  # irregular instants: per-sample recursion
+                    x[k] = a_k[k - 1] * x[k - 1] + drive[k - 1]
+                out[:, j] = x
+        return out
+
+    # ------------------------------------------------------------------ action
     def respond(self, acc_g: np.ndarray, rate_hz: float, *, rng: np.random.Generator | None = None,
-                zi_settled: bool = True) -> np.ndarray:
+                noise: bool = True, zi_settled: bool = True) -> np.ndarray:
         """Analog output voltages ``(n, 3)`` for a true specific force ``acc_g`` ``(n, 3)`` sampled at ``rate_hz``.
 
         Parameters
@@ -224,10 +273,15 @@ class SensorModel:
             True specific force along the device's nominal axes, g, on a regular grid.
         rate_hz
             Rate of ``acc_g``; should be well above the filter cut-off (``internal_rate_hz`` is the
-            design value; the filter is discretised by the bilinear transform with pre-warping, exact at
-            the cut-off frequency).
+            design value). The signal path's RC filter is discretised by the bilinear transform with
+            pre-warping (exact at the cut-off frequency, within 3 % of the analog RC up to twice the
+            cut-off when the rate is ten times it).
         rng
             Noise generator; default the model's own seeded stream.
+        noise
+            Add the output noise (:meth:`noise_g`, exact at the grid instants). :meth:`Logger.record
+            <firmware_sim.device.Logger.record>` passes False and adds the noise at the ADC's sample
+            instants instead (the filter is linear, so the two are the same process).
         zi_settled
             Start the filter settled on the first input sample (a device powered on long before logging);
             False starts it at 0 g.
@@ -237,23 +291,28 @@ class SensorModel:
             raise DeviceError(f"acc_g must have shape (n, 3), got {a.shape}")
         if np.any(self.cutoff_hz >= rate_hz / 2):
             raise DeviceError(f"input rate {rate_hz} Hz too low for a {self.cutoff_hz.max():.1f} Hz filter")
-        gen = self._rng if rng is None else rng
-        # work axis-major (3, n): each axis is one contiguous row for the projection, noise and filter
-        r = self.axes @ np.ascontiguousarray(a.T)  # element input, g along each sensitive axis
-        np.clip(r, -self.range_g, self.range_g, out=r)
-        if self.noise_density_g_rthz > 0 and a.shape[0]:
-            sigma = self.noise_density_g_rthz * np.sqrt(rate_hz / 2.0)  # white over 0 .. rate/2
-            noise = gen.standard_normal(r.shape, dtype=np.float32)  # float32 draws: 2x faster, ample
-            noise *= np.float32(sigma)
-            r += noise
-        out = np.empty_like(r)
-        for j in range(3):  # one first-order IIR per axis (the RC filter is genuinely recursive)
-            b, den = signal.butter(1, self.cutoff_hz[j], btype="low", fs=rate_hz)
-            zi = signal.lfilter_zi(b, den) * (r[j, 0] if (zi_settled and r.shape[1]) else 0.0)
-            out[j], _ = signal.lfilter(b, den, r[j], zi=zi)
-        out += self.offset_g[:, None]
+        # work axis-major (3, n): each axis is one contiguous row for the projection and the filter
+        if np.array_equal(self.axes, np.eye(3)):
+            r = np.ascontiguousarray(a.T)  # element input, g along each sensitive axis
+        else:
+            r = self.axes @ a.T
+        if r.size and (r.max() > self.range_g or r.min() < -self.range_g):
+            np.clip(r, -self.range_g, self.range_g, out=r)
+        # one first-order IIR per axis (the RC filter is genuinely recursive)
+        designs = [signal.butter(1, fc, btype="low", fs=rate_hz) for fc in self.cutoff_hz]
+        if all(np.array_equal(designs[0][0], d[0]) and np.array_equal(designs[0][1], d[1]) for d in designs):
+            b, den = designs[0]
+            zi = signal.lfilter_zi(b, den)[None, :] * (r[:, :1] if (zi_settled and r.shape[1]) else 0.0)
+            out, _ = signal.lfilter(b, den, r, axis=1, zi=zi)
+        else:
+            out = np.empty_like(r)
+            for j, (b, den) in enumerate(designs):
+                zi = signal.lfilter_zi(b, den) * (r[j, 0] if (zi_settled and r.shape[1]) else 0.0)
+                out[j], _ = signal.lfilter(b, den, r[j], zi=zi)
+        if noise and a.shape[0]:
+            out += self.noise_g(np.arange(a.shape[0]) / rate_hz, rng=rng).T
         out *= self.gain_v_per_g[:, None]
-        out += self.zero_g_v
+        out += (self.zero_g_v + self.gain_v_per_g * self.offset_g)[:, None]
         return out.T
 
     def truth(self) -> dict[str, object]:

@@ -135,10 +135,16 @@ class _Outbox:
             self.t_next += k * self.byte_time_s
 
     def wait_s(self, now: float) -> float:
-        """Time until the next byte is due (0 if due now); the idle tick if nothing is queued."""
+        """How long the thread may sleep: 0 if bytes are due; in wire time at least one tick (the due
+        bytes are then written in one go, ~23 at 115200 baud); the idle tick if nothing is queued."""
         if not self.buf:
             return IDLE_TICK_S
-        return max(0.0, min(self.t_next - now, IDLE_TICK_S))
+        ahead = self.t_next - now
+        if ahead <= 0:
+            return 0.0
+        if self.byte_time_s is None:
+            return min(ahead, IDLE_TICK_S)
+        return min(max(ahead, TICK_S), IDLE_TICK_S)
 
     def clear(self) -> None:
         self.buf.clear()

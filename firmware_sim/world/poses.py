@@ -158,24 +158,29 @@ class CalibrationPoses:
         up_dev = rots.inv().apply(_UP).reshape(n, 3)
         duration_s = float(holds[-1, 1])
         n_samples = int(np.floor(duration_s * rate_hz + 1e-9))
-        t = np.arange(n_samples) / rate_hz
-        period = self.hold_s + self.move_s
-        seg = np.minimum((t // period).astype(np.int64), n - 1)
-        u = (t - seg * period - self.hold_s) / self.move_s  # <= 0 during the hold, in (0, 1) while moving
-        moving = (u > 0.0) & (seg < n - 1)
-        acc = up_dev[seg].copy()
-        if n > 1 and moving.any():
-            # body-frame rotation vector from pose i to pose i + 1: R(s) = R_i exp(s r), f(s) = exp(-s r) f_i
+        # sample index where each hold and each move begins (first sample at or after the time)
+        hold_first = np.minimum(np.ceil(holds[:, 0] * rate_hz - 1e-9).astype(np.int64), n_samples)
+        move_first = np.minimum(np.ceil(moves[:, 0] * rate_hz - 1e-9).astype(np.int64), n_samples)
+        counts = np.diff(np.r_[hold_first, n_samples])
+        acc = np.repeat(up_dev, counts, axis=0)  # every sample at its pose's vector ...
+        moving = np.zeros(n_samples, dtype=bool)
+        if n > 1:
+            # ... then the moves (a few percent of the samples), one vectorised block per move:
+            # body-frame rotation vector r from pose i to i + 1, R(s) = R_i exp(s r), f(s) = exp(-s r) f_i
             rel = (rots[:-1].inv() * rots[1:]).as_rotvec().reshape(n - 1, 3)
-            idx = seg[moving]
-            s = minimum_jerk(u[moving])
-            r = rel[idx]
-            theta = np.linalg.norm(r, axis=1)
-            k = r / np.where(theta > 0, theta, 1.0)[:, None]
-            phi = -s * theta
-            v = up_dev[idx]
-            cos, sin = np.cos(phi)[:, None], np.sin(phi)[:, None]
-            acc[moving] = v * cos + np.cross(k, v) * sin + k * (np.sum(k * v, axis=1)[:, None]) * (1.0 - cos)
+            for i in range(n - 1):
+                a, b = move_first[i], hold_first[i + 1]
+                if b <= a:
+                    continue
+                moving[a:b] = True
+                u = (np.arange(a, b) / rate_hz - moves[i, 0]) / self.move_s
+                s = minimum_jerk(u)
+                theta = float(np.linalg.norm(rel[i]))
+                k = rel[i] / theta if theta > 0 else np.zeros(3)
+                v = up_dev[i]
+                phi = -s * theta
+                cos, sin = np.cos(phi)[:, None], np.sin(phi)[:, None]
+                acc[a:b] = v * cos + np.cross(k, v) * sin + k * (k @ v) * (1.0 - cos)
         markers = holds[1:, 0] if self.markers else np.zeros(0)
         truth = {
             "source": "calibration_poses",
