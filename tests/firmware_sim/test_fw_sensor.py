@@ -81,3 +81,21 @@ def test_bad_parameters_are_refused() -> None:
         SensorModel(filter_capacitance_f=0.01e-6)  # 500 Hz filter on a 500 Hz grid
     with pytest.raises(DeviceError, match="shape"):
         SensorModel().respond(np.zeros((10, 2)), 500.0)
+
+
+def test_noise_at_the_sample_instants_is_the_rc_filtered_process() -> None:
+    """White noise of density d through a one-pole RC: rms d sqrt(pi fc / 2), correlation exp(-dt / tau)."""
+    sensor = SensorModel.ideal(seed=4)
+    fc = 20.0
+    sigma = 200e-6 * np.sqrt(np.pi / 2 * fc)
+    t = np.arange(200_000) / 50.0
+    x = sensor.noise_g(t)
+    np.testing.assert_allclose(x.std(axis=0), sigma, rtol=0.02)
+    lag1 = [np.corrcoef(x[:-1, j], x[1:, j])[0, 1] for j in range(3)]
+    np.testing.assert_allclose(lag1, np.exp(-2 * np.pi * fc / 50.0), atol=0.01)
+    # irregular instants (per-sample recursion): same law; very close instants are strongly correlated
+    ti = np.sort(np.random.default_rng(1).uniform(0.0, 2000.0, 40_000))
+    xi = sensor.noise_g(ti)
+    np.testing.assert_allclose(xi.std(axis=0), sigma, rtol=0.03)
+    close = np.flatnonzero(np.diff(ti) < 0.1 / (2 * np.pi * fc))
+    assert np.corrcoef(xi[close, 0], xi[close + 1, 0])[0, 1] > 0.8
