@@ -76,9 +76,12 @@ def xdump_with_rx(port: str, workdir: Path, name: str = "rx.bin") -> Path:
             assert data, "no ACK to XDUMP"
             frames = [f for f in parser.feed(data) if hasattr(f, "payload")]
         assert frames[0].type == 0x90 and frames[0].seq == 77
-        with open(port, "r+b", buffering=0) as tty:
-            done = subprocess.run(["rx", "-c", "-b", "-q", "-t", "10", name], stdin=tty, stdout=tty, stderr=subprocess.PIPE,
-                                  cwd=workdir, timeout=120)
+    fd = os.open(port, os.O_RDWR | os.O_NOCTTY)
+    try:
+        done = subprocess.run(["rx", "-X", "-c", "-b", "-q", name], stdin=fd, stdout=fd, stderr=subprocess.PIPE,
+                              cwd=workdir, timeout=120)
+    finally:
+        os.close(fd)
     assert done.returncode == 0, done.stderr.decode(errors="replace")
     return workdir / name
 
@@ -170,3 +173,16 @@ def test_record_command_and_demo(tmp_path, capsys):
     assert "[summary]" in out and "0 gap(s)" in out
     for name in ("recorded.glimg", "dumped.glimg", "dumped.glimg.json", "decoded.csv", "decoded.npz"):
         assert (tmp_path / name).exists(), name
+
+
+def test_round_trip_over_tcp(tmp_path):
+    from firmware_sim.transport import serve_tcp
+
+    image, codes, flags, numbers = recorded(tmp_path, 3000, seed=8)
+    with serve_tcp(Logger.from_image(image), save_on_stop=False) as server:
+        assert server.url.startswith("socket://127.0.0.1:")
+        assert main(["dump", "--port", server.url, "--out", str(tmp_path / "t.glimg"), "--quiet"]) == 0
+    assert main(["decode", str(tmp_path / "t.glimg"), "--out", str(tmp_path / "t"), "--quiet"]) == 0
+    rec = Recording.load(tmp_path / "t.npz")
+    np.testing.assert_array_equal(rec.codes, codes)
+    np.testing.assert_array_equal(rec.sample_numbers, numbers)
