@@ -35,7 +35,9 @@ __all__ = ["HALL_SENSOR_TO_LINK", "TwoLinkJoint", "TwoLinkRates"]
 HALL_SENSOR_TO_LINK = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
-def _min_jerk(t: np.ndarray, start_s: float, duration_s: float, amp: float, osc_amp: float, osc_hz: float):
+def _min_jerk(
+    t: np.ndarray, start_s: float, duration_s: float, amp: float, osc_amp: float, osc_hz: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rest, then a minimum-jerk ramp to ``amp`` with an oscillation ``osc_amp·sin²``-windowed; q, q̇, q̈."""
     tau = np.clip((t - start_s) / duration_s, 0.0, 1.0)
     inside = (t > start_s) & (t < start_s + duration_s)
