@@ -86,7 +86,8 @@ def test_record_replay_csv(tmp_path, capsys):
     g = rec.acc_g()
     # about 1 g all along, turning from +z towards +y (sensor errors of a few per cent allowed)
     assert rec.n_samples == pytest.approx(3000, abs=60)
-    np.testing.assert_allclose(np.linalg.norm(g, axis=1), 1.0, atol=0.15)
+    # nominal map on an uncalibrated sensor (offsets up to 0.1 g, gains up to 5 %) plus noise
+    np.testing.assert_allclose(np.linalg.norm(g, axis=1), 1.0, atol=0.25)
     assert g[:100, 2].mean() > 0.85 and g[750:820, 1].mean() > 0.85  # sin(0.1 t) peaks at t = 15.7 s
     assert main(["record", "--motion", "replay", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "n.glimg")]) == 1
     assert "nope.csv" in capsys.readouterr().err and not (tmp_path / "n.glimg").exists()
