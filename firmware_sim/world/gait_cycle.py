@@ -6,13 +6,16 @@ other and contains, in order::
     HS_i ─ FF_i (foot-flat of the leading foot) ─ TO_i (toe-off of the trailing foot: end of double
     support) ─ single stance (centre of mass over the stance leg, highest at PEAK_i) ─ HS_{i+1}
 
-with the centre of mass lowest inside double support but generally *not* at foot-flat.
-Vertically the centre of mass follows an inverted-pendulum arc of radius
-``l_eff = pendulum_ratio · leg_length · (v / v_pref) ** pendulum_speed_exponent`` in single stance
-(Alvarez Fig. 3, S1/h1) and a concave-up transfer in double support (S2/h2); forward it moves fastest in
-double support and slowest at mid-stance (speed fluctuation ``ap_speed_fluctuation``). The knots carry
-value, velocity and acceleration, and :func:`firmware_sim.world.hermite.quintic_hermite` joins them C2,
-so the rendered acceleration is the exact second derivative of the truth positions.
+with the centre of mass lowest around the end of double support (``com_min_fraction``), generally *not* at
+foot-flat where M1 resets its integrals. Vertically the centre of mass oscillates once per step as a
+phase-warped cosine (broad crest in single stance, sharp trough in double support) whose peak-to-valley
+depth is the sum of Alvarez Fig. 3's two pendulums: ``h1`` = the drop of an arc of radius
+``l_eff = pendulum_ratio · leg_length · (v / v_pref) ** pendulum_speed_exponent`` over the mean half-chord
+of single stance, and ``h2 = d_ds² / (8 · double_support_radius_m)`` over the double-support travel.
+Forward it moves fastest in double support and slowest at mid-stance (``ap_speed_fluctuation``). Every
+channel is C2 with exact derivatives (:func:`firmware_sim.world.hermite.quintic_hermite` knots, and
+:class:`CosineProfile` / :class:`WarpedPhase` composed analytically), so the rendered acceleration is the
+exact second derivative of the truth positions.
 
 Speeds and step lengths: the excursion's speed times a gait-initiation ramp (first metres), a slow-down
 around the turn and a slow-down before the stop; step length from the walk ratio at that speed, with
@@ -48,7 +51,7 @@ class ExcursionPlan:
     path
         The centre-of-mass path; ``s`` channel values are arc lengths along it.
     s, z, phase, envelope, pitch_mean
-        C2 channels: path progress (m), centre-of-mass height (m), gait phase (rad; advances pi per step,
+        C2 channels (PPoly, or :class:`CosineProfile` for ``z``): path progress (m), centre-of-mass height (m), gait phase (rad; advances pi per step,
         0 mod 2 pi at a left heel strike), amplitude envelope of the periodic trunk motions (0 standing,
         1 walking), mean trunk pitch (rad, forward lean positive).
     heel_strike_s, foot_flat_s, side
@@ -72,7 +75,7 @@ class ExcursionPlan:
     t_stop_s: float
     path: CorridorPath
     s: PPoly
-    z: PPoly
+    z: CosineProfile
     phase: PPoly
     envelope: PPoly
     pitch_mean: PPoly
@@ -107,6 +110,84 @@ def _arc(l_eff: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     """
     root = np.sqrt(l_eff**2 - d**2)
     return l_eff - root, d / root, -(l_eff**2) / root**3
+
+
+class CosineProfile:
+    """``z(t) = level(t) - depth(t) · (1 - cos(phase(t))) / 2`` with exact derivatives (PPoly-like call).
+
+    ``phase`` is 0 mod 2 pi at the peaks and pi mod 2 pi at the valleys; ``level`` is the peak height and
+    ``depth`` the peak-to-valley excursion, both C2 and slowly varying.
+    """
+
+    def __init__(self, level: PPoly, depth: PPoly, phase: PPoly) -> None:
+        self.level, self.depth, self.phase = level, depth, phase
+
+    def __call__(self, t: np.ndarray, nu: int = 0) -> np.ndarray:
+        t = np.asarray(t, dtype=np.float64)
+        ph, ph1, ph2 = self.phase(t), self.phase(t, 1), self.phase(t, 2)
+        c = 0.5 * (1.0 - np.cos(ph))
+        if nu == 0:
+            return self.level(t) - self.depth(t) * c
+        c1 = 0.5 * np.sin(ph) * ph1
+        if nu == 1:
+            return self.level(t, 1) - self.depth(t, 1) * c - self.depth(t) * c1
+        if nu == 2:
+            c2 = 0.5 * (np.cos(ph) * ph1**2 + np.sin(ph) * ph2)
+            return (self.level(t, 2) - self.depth(t, 2) * c - 2.0 * self.depth(t, 1) * c1
+                    - self.depth(t) * c2)
+        raise ValueError(f"derivative order {nu} not available (0, 1, 2)")
+
+
+class WarpedPhase:
+    """Vertical phase ``psi = B - w·sin(B)``, ``B = 2·(gait_phase - gait_phase_0) - theta + pi`` (PPoly-like call).
+
+    ``B`` advances 2 pi per step with the gait phase; ``theta`` (C2, per-step knots) places the valley
+    (``psi = pi``) at its fraction of the step; the warp ``w`` makes the phase linger near the peak and hurry
+    through the valley (a broad single-stance crest, a sharp double-support trough).
+    """
+
+    def __init__(self, gait_phase: PPoly, theta: PPoly, phase0: float, warp: float) -> None:
+        self.gait_phase, self.theta, self.phase0, self.warp = gait_phase, theta, phase0, warp
+
+    def __call__(self, t: np.ndarray, nu: int = 0) -> np.ndarray:
+        t = np.asarray(t, dtype=np.float64)
+        b = 2.0 * (self.gait_phase(t) - self.phase0) - self.theta(t) + np.pi
+        w = self.warp
+        if nu == 0:
+            return b - w * np.sin(b)
+        b1 = 2.0 * self.gait_phase(t, 1) - self.theta(t, 1)
+        if nu == 1:
+            return b1 * (1.0 - w * np.cos(b))
+        if nu == 2:
+            b2 = 2.0 * self.gait_phase(t, 2) - self.theta(t, 2)
+            return b2 * (1.0 - w * np.cos(b)) + w * b1**2 * np.sin(b)
+        raise ValueError(f"derivative order {nu} not available (0, 1, 2)")
+
+
+def _vertical_profile(t_start: float, t_stop: float, gait_phase: PPoly, phase0: float, hs: np.ndarray,
+                      tau_min: np.ndarray, t_peak: np.ndarray, z_stand: float, z_target: np.ndarray,
+                      drop: np.ndarray, valley_extra: np.ndarray, warp: float) -> CosineProfile:
+    """Centre-of-mass height with one valley per heel strike (``tau_min``: its fraction of the step after
+    heel strike ``hs[j]``) and the peaks in between (level ``z_target`` near ``t_peak``).
+
+    The peak-to-valley depth of valley ``j`` is the single-stance arc drop of the preceding step
+    (``drop[j-1]``; ``drop[0]`` for the first) plus the double-support term ``valley_extra[j]`` (the second
+    pendulum of Alvarez Fig. 3).
+    """
+    knots = np.concatenate(([t_start], hs, [t_stop]))
+    th = 2.0 * np.pi * np.concatenate((tau_min[:1], tau_min, tau_min[-1:]))
+    theta = quintic_hermite(knots, th, np.zeros(knots.size), np.zeros(knots.size))
+    phase = WarpedPhase(gait_phase, theta, phase0, warp)
+    lev_t = np.concatenate(([t_start], t_peak, [t_stop]))
+    lev_y = np.concatenate(([z_stand], z_target, [z_stand]))
+    level = quintic_hermite(lev_t, lev_y, np.zeros(lev_t.size), np.zeros(lev_t.size))
+    depth_v = np.concatenate((drop[:1], drop)) + valley_extra
+    t_valley = hs + tau_min * np.concatenate((np.diff(hs), np.diff(hs)[-1:]))
+    t_valley[-1] = min(t_valley[-1], 0.5 * (hs[-1] + t_stop))
+    dep_t = np.concatenate(([t_start], t_valley, [t_stop]))
+    depth = quintic_hermite(dep_t, np.concatenate(([0.0], depth_v, [0.0])), np.zeros(dep_t.size),
+                            np.zeros(dep_t.size))
+    return CosineProfile(level, depth, phase)
 
 
 def plan_excursion(
@@ -188,7 +269,7 @@ def plan_excursion(
     t_ds = ds_frac * durations_a
     to = hs[:-1] + t_ds
     ff = hs[:-1] + np.clip(subject.foot_flat_fraction * (1.0 + rng.normal(0.0, 0.06, n_reg)), 0.1, 0.95) * t_ds
-    tau_min = np.clip(subject.com_min_fraction + rng.normal(0.0, 0.08, n_reg), 0.1, 0.9) * ds_frac
+    tau_min = np.clip(subject.com_min_fraction + rng.normal(0.0, 0.08, n_reg), 0.2, 1.6) * ds_frac
     tau_to = ds_frac
     tau_peak = tau_to + np.clip(subject.peak_fraction + rng.normal(0.0, 0.03, n_reg), 0.25, 0.75) * (1 - tau_to)
     eps = np.full(n_reg, subject.ap_speed_fluctuation) * (vbar / v_exc) ** 0.5
@@ -202,61 +283,32 @@ def plan_excursion(
     def a_at(tau: np.ndarray) -> np.ndarray:
         return -vbar * eps * (2 * np.pi / durations_a) * np.sin(2 * np.pi * (tau - tau_min))
 
-    # Vertical: single-stance arc (apex at PEAK), double-support valley (bottom at MIN).
+    # Vertical (section 3 builds it): the centre of mass peaks at PEAK_i in single stance and bottoms out
+    # at MIN_i, ``com_min_fraction`` of the double support after heel strike (> 1: in early single stance,
+    # the stance-knee flexion of the loading response); between them it follows a phase-warped cosine.
+    # The pendulums of Alvarez Fig. 3 set the depth: h1 = the drop of an arc of radius l_eff over the mean
+    # half-chord of single stance, h2 = the sag of a concave-up arc of radius double_support_radius_m over
+    # the double-support travel.
     l_eff = subject.leg_length_m * subject.pendulum_ratio * (vbar / v_pref) ** subject.pendulum_speed_exponent
     z_stand = subject.com_height_m
     z_target = z_stand - subject.peak_drop_m * (vbar / v_pref) - np.abs(rng.normal(0.0, 0.001, n_reg))
     d_a = lengths_a * (g_frac(tau_peak) - g_frac(tau_to))  # TO -> PEAK
     d_b = lengths_a * (1.0 - g_frac(tau_peak))  # PEAK -> next HS
-    # Both ends of the arc sit at the height of its mean half-chord (the arc is a circle about the stance
-    # foot; the apex's timing within single stance is what ``peak_fraction`` moves).
-    drop_a, slope_a, _ = _arc(l_eff, 0.5 * (d_a + d_b))
-    drop_b, slope_b = drop_a, slope_a
-    # Near the contacts the determinants of gait (stance-knee flexion at loading, heel rocker, push-off)
-    # round the arc off: the centre of mass arrives and leaves with a fraction of the compass-gait slope.
-    # At toe-off the rise has barely started (the loading response of the new stance leg continues into
-    # single stance): 60 % of the heel-strike slope.
-    slope_b = slope_b * subject.contact_slope_factor
-    slope_a = 0.6 * slope_b
+    drop, _, _ = _arc(l_eff, 0.5 * (d_a + d_b))
     v_to, a_to = v_at(tau_to), a_at(tau_to)
     v_pk, a_pk = v_at(tau_peak), a_at(tau_peak)
     v_hs_end, a_hs_end = v_at(np.ones(n_reg)), a_at(np.ones(n_reg))
     v_hs_start, a_hs_start = v_at(np.zeros(n_reg)), a_at(np.zeros(n_reg))
-    # Heel strike i (i >= 1) ends step i-1's arc; heel strike 0 is reached from the initiation.
-    z_hs = np.empty(n_reg + 1)
-    slope_hs = np.empty(n_reg + 1)
-    slope_hs[1:] = -slope_b
-    z_hs[0], slope_hs[0] = z_target[0] - drop_b[0], -slope_b[0]
     v_hs = np.empty(n_reg + 1)  # CoM forward speed at each regular heel strike (mean of both sides)
     a_hs = np.empty(n_reg + 1)
     v_hs[0], a_hs[0] = v_hs_start[0], a_hs_start[0]
     v_hs[1:-1] = 0.5 * (v_hs_end[:-1] + v_hs_start[1:])
     a_hs[1:-1] = 0.5 * (a_hs_end[:-1] + a_hs_start[1:])
     v_hs[-1], a_hs[-1] = v_hs_end[-1], a_hs_end[-1]
-    # Heights chained step by step: across double support the centre of mass moves by the integral of its
-    # (linearly changing) vertical velocity, and each arc's toe-off and heel-strike ends sit at the same
-    # height; a 20 %-per-step pull keeps the apex near its target (no drift over hundreds of steps).
-    z_to = np.empty(n_reg)
-    for i in range(n_reg):
-        valley = 0.5 * t_ds[i] * (slope_a[i] * v_to[i] + slope_hs[i] * v_hs[i])
-        z_free = z_hs[i] + valley
-        z_to[i] = z_free + 0.2 * (z_target[i] - drop_a[i] - z_free)
-        z_hs[i + 1] = z_to[i]
-    z_peak = z_to + drop_a
-    # Double-support valley: no knot at its bottom; the curvature needed to turn the fall at heel strike
-    # into the rise at toe-off is shared between the two ends, more at heel strike when the subject's
-    # centre of mass bottoms out early (com_min_fraction small).
-    turn_rate = (-slope_hs[:-1] * v_hs[:-1] + slope_a * v_to) / t_ds
-    ddz_hs_own = 1.5 * turn_rate * (1.0 - tau_min / ds_frac)
-    ddz_to = 1.5 * turn_rate * (tau_min / ds_frac)
-    curv_term_hs = np.empty(n_reg + 1)
-    curv_term_hs[:-1] = ddz_hs_own
-    curv_term_hs[-1] = ddz_hs_own[-1]
 
     # ---- 3. Knots -------------------------------------------------------------------------------------
     t_knots = [np.array([t_start_s])]
     s_k = [np.array([[0.0, 0.0, 0.0]])]
-    z_k = [np.array([[z_stand, 0.0, 0.0]])]
     t_peak = hs[:-1] + tau_peak * durations_a
     t_st = np.stack([hs[:-1], to, t_peak], axis=1).ravel()
     s_st = np.stack([
@@ -264,14 +316,8 @@ def plan_excursion(
         np.stack([s_hs[:-1] + lengths_a * g_frac(tau_to), v_to, a_to], axis=1),
         np.stack([s_hs[:-1] + lengths_a * g_frac(tau_peak), v_pk, a_pk], axis=1),
     ], axis=1).reshape(-1, 3)
-    z_st = np.stack([
-        np.stack([z_hs[:-1], slope_hs[:-1] * v_hs[:-1], curv_term_hs[:-1]], axis=1),
-        np.stack([z_to, slope_a * v_to, ddz_to], axis=1),
-        np.stack([z_peak, np.zeros(n_reg), -(v_pk**2) / l_eff], axis=1),
-    ], axis=1).reshape(-1, 3)
     t_knots.append(t_st)
     s_k.append(s_st)
-    z_k.append(z_st)
     # Closing step: the last regular heel strike, the double support, then the trailing foot closes
     # beside the leading one while the centre of mass comes to rest over both feet at the path end.
     i_last = n_reg - 1
@@ -288,12 +334,8 @@ def plan_excursion(
     t_knots.append(np.array([t_hs_n, t_to_n, t_stop]))
     s_k.append(np.array([[s_hs_n, v_n, a_hs[-1]], [s_to_n, v_to_n, -0.5 * v_n / (t_stop - t_to_n)],
                          [length, 0.0, 0.0]]))
-    z_to_n = z_hs[-1] + 0.5 * drop_b[-1]
-    z_k.append(np.array([[z_hs[-1], slope_hs[-1] * v_n, curv_term_hs[-1]],
-                         [z_to_n, 0.3 * slope_b[-1] * v_to_n, 0.0], [z_stand, 0.0, 0.0]]))
     t_all = np.concatenate(t_knots)
     s_pp = quintic_hermite(t_all, *np.concatenate(s_k).T)
-    z_pp = quintic_hermite(t_all, *np.concatenate(z_k).T)
     hs_close = t_to_n + 0.7 * (t_stop - t_to_n)
     heel_strikes = np.concatenate((hs, [hs_close]))
     toe_offs = np.concatenate((to, [t_to_n]))
@@ -313,6 +355,11 @@ def plan_excursion(
                            [phase0 + np.pi * (heel_strikes.size - 1) + 0.5 * np.pi]))
     ph_dy = np.concatenate(([0.0], rate, [0.0]))
     phase_pp = quintic_hermite(ph_t, ph_y, ph_dy, np.zeros(ph_t.size))
+    d_ds = lengths_a * g_frac(tau_to)  # CoM travel in double support
+    extra = d_ds**2 / (8.0 * subject.double_support_radius_m)
+    z_pp = _vertical_profile(t_start_s, t_stop, phase_pp, phase0, hs, np.concatenate((tau_min, tau_min[-1:])),
+                             t_peak, z_stand, z_target, drop, np.concatenate((extra, extra[-1:])),
+                             subject.vertical_warp)
     env_t = np.array([t_start_s, heel_strikes[min(2, n_steps)], heel_strikes[-2], t_stop])
     if np.any(np.diff(env_t) <= 0):
         raise ValueError(f"excursion {label!r} is too short to plan ({n_steps} steps)")

@@ -12,8 +12,8 @@ The fields that break the estimators' assumptions (so that a per-subject K is ge
 - ``pendulum_ratio``: the single-stance centre-of-mass arc has radius ``pendulum_ratio · leg_length_m``
   rather than the leg length (stance-knee flexion, foot rocker and pelvic obliquity flatten it — the
   determinants of gait), and that ratio changes with speed as ``(v / v_pref) ** pendulum_speed_exponent``;
-- ``double_support_fraction`` and ``com_min_fraction``: how long double support lasts and where in it the
-  centre of mass bottoms out (not at foot-flat, where M1 resets its integrals);
+- ``double_support_fraction`` and ``com_min_fraction``: how long double support lasts and when the centre
+  of mass bottoms out (around the trailing toe-off, not at foot-flat, where M1 resets its integrals);
 - ``sensor_offset_m``: the sensor sits on the skin over L3, behind and above the centre of mass, so trunk
   pitch and roll move it vertically and tangential/centripetal accelerations add to the centre of mass's;
 - ``mounting_rotation_deg``: the corset holds the device tilted.
@@ -57,18 +57,22 @@ class Subject:
     pendulum_ratio, pendulum_speed_exponent
         Radius of the single-stance centre-of-mass arc over leg length at preferred speed, and its speed
         exponent (radius ∝ ``(v / v_pref) ** exponent``).
-    contact_slope_factor
-        Vertical centre-of-mass slope at heel strike and toe-off as a fraction of the compass-gait arc's
-        (the determinants of gait round the arc off near the contacts).
     double_support_fraction
         Double-support time per step as a fraction of the step time, at preferred speed (it shrinks with
         speed as ``(v / v_pref) ** -0.6``).
     foot_flat_fraction
         Foot-flat of the leading foot, as a fraction of the double support after heel strike.
     com_min_fraction
-        Where in double support the centre of mass is lowest (fraction of the double support).
+        When the centre of mass is lowest, in units of the double-support time after heel strike (1 = at
+        the trailing foot's toe-off; above 1 in early single stance, during the loading response).
     peak_fraction
         Where in single stance the centre of mass is highest (fraction of single stance).
+    vertical_warp
+        Phase warp of the vertical centre-of-mass oscillation (0: a cosine; > 0: a broad crest in single
+        stance and a sharp trough in double support, i.e. a sharp positive acceleration peak).
+    double_support_radius_m
+        Radius of the concave-up centre-of-mass arc over the double-support travel (Alvarez Fig. 3's
+        second pendulum): adds ``d_ds² / (8 r)`` to the step's vertical excursion.
     peak_drop_m
         How much lower than in quiet standing the centre of mass peaks while walking, at preferred speed.
     ap_speed_fluctuation
@@ -105,13 +109,14 @@ class Subject:
     step_length_cv: float = 0.025
     step_time_cv: float = 0.02
     asymmetry: float = 0.01
-    pendulum_ratio: float = 1.5
+    pendulum_ratio: float = 1.8
     pendulum_speed_exponent: float = 0.0
-    contact_slope_factor: float = 0.55
     double_support_fraction: float = 0.22
     foot_flat_fraction: float = 0.65
-    com_min_fraction: float = 0.55
+    com_min_fraction: float = 0.85
     peak_fraction: float = 0.5
+    vertical_warp: float = 0.2
+    double_support_radius_m: float = 0.5
     peak_drop_m: float = 0.01
     ap_speed_fluctuation: float = 0.09
     ml_sway_m: float = 0.022
@@ -140,7 +145,7 @@ class Subject:
             "pendulum_ratio": (0.8, 4.0),
             "double_support_fraction": (0.05, 0.45),
             "foot_flat_fraction": (0.1, 0.95),
-            "com_min_fraction": (0.05, 0.95),
+            "com_min_fraction": (0.2, 1.6),
             "peak_fraction": (0.2, 0.8),
         }
         for name, (lo, hi) in checks.items():
@@ -232,13 +237,14 @@ class Subject:
             step_length_cv=around(0.025, 0.006, 0.012, 0.045),
             step_time_cv=around(0.020, 0.005, 0.010, 0.035),
             asymmetry=around(0.0, 0.015, -0.04, 0.04),
-            pendulum_ratio=around(1.5, 0.15, 1.15, 1.95),
+            pendulum_ratio=around(1.8, 0.18, 1.4, 2.3),
             pendulum_speed_exponent=around(0.0, 0.35, -0.7, 0.7),
-            contact_slope_factor=around(0.55, 0.06, 0.4, 0.7),
             double_support_fraction=around(0.22, 0.025, 0.15, 0.30),
             foot_flat_fraction=around(0.65, 0.08, 0.45, 0.85),
-            com_min_fraction=around(0.55, 0.12, 0.25, 0.85),
+            com_min_fraction=around(0.85, 0.15, 0.5, 1.25),
             peak_fraction=around(0.5, 0.05, 0.38, 0.62),
+            vertical_warp=around(0.2, 0.08, 0.0, 0.4),
+            double_support_radius_m=around(0.5, 0.12, 0.25, 0.9),
             peak_drop_m=around(0.01, 0.004, 0.0, 0.025),
             ap_speed_fluctuation=around(0.09, 0.02, 0.04, 0.15),
             ml_sway_m=around(0.022, 0.005, 0.010, 0.035),

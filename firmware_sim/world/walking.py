@@ -387,7 +387,7 @@ class Walking:
             frac = np.linspace(0.0, 1.0, n_grid)
             win_ff = ff[:-1, None] + (ff[1:] - ff[:-1])[:, None] * frac
             win_ss = to[:, None] + (hs[1:] - to)[:, None] * frac
-            win_ds = hs[:-1, None] + (to - hs[:-1])[:, None] * frac
+            win_ds = hs[:-1, None] + (0.5 * (to + hs[1:]) - hs[:-1])[:, None] * frac  # HS to mid single stance
             grid = np.concatenate([win_ff.ravel(), win_ss.ravel(), win_ds.ravel()])
             order = np.argsort(grid, kind="stable")
             kin_sorted = self._evaluate([seg], grid[order], ("sensor_position_m", "com_position_m"))

@@ -51,7 +51,9 @@ def test_double_integration_of_rendered_acceleration_reproduces_truth(fine: Moti
         np.testing.assert_allclose(p, tr["sensor_position_m"][i0:i1], atol=2e-5)
         np.testing.assert_allclose(v, tr["sensor_velocity_m_s"][i0:i1], atol=2e-4)
         # The truth excursion (max - min of the sensor's height between foot-flats) is what integration sees.
-        assert np.ptp(p[:, 2]) == pytest.approx(steps["sensor_excursion_m"][i], abs=1e-4)
+        # (the samples start/end up to one period inside the foot-flat instants: allow that much travel)
+        edge = np.abs(tr["sensor_velocity_m_s"][[i0, i1 - 1], 2]).max() / fine.rate_hz
+        assert np.ptp(p[:, 2]) == pytest.approx(steps["sensor_excursion_m"][i], abs=2e-5 + edge)
 
 
 def test_rotation_is_orthonormal_and_gravity_consistent(fine: Motion) -> None:
@@ -119,11 +121,12 @@ def test_gait_events_are_ordered_and_alternate(fine: Motion) -> None:
     assert np.all(st["heel_strike_s"] < st["foot_flat_s"])
     assert np.all(st["foot_flat_s"] < st["toe_off_s"])
     assert np.all(st["toe_off_s"] < st["next_heel_strike_s"])
-    assert np.all(st["heel_strike_s"] <= st["com_min_s"]) and np.all(st["com_min_s"] <= st["toe_off_s"])
+    assert np.all(st["heel_strike_s"] <= st["com_min_s"]) and np.all(st["com_min_s"] < st["next_heel_strike_s"])
     np.testing.assert_array_equal(st["next_heel_strike_s"][:-1], st["heel_strike_s"][1:])
     assert np.all(st["side"][1:] != st["side"][:-1])
-    # Double support 8-40 % of the step; the CoM is lowest there, not at foot-flat.
+    # Double support 8-45 % of the step; the CoM is lowest around its end, not at foot-flat.
     ds = (st["toe_off_s"] - st["heel_strike_s"]) / (st["next_heel_strike_s"] - st["heel_strike_s"])
+    ds = ds[st["phase"] != "termination"]
     assert 0.08 <= ds.min() and ds.max() <= 0.45
     assert np.median(np.abs(st["com_min_s"] - st["foot_flat_s"])) > 0.003
 
