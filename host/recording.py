@@ -330,16 +330,13 @@ class Recording:
         Missing rows keep their sample number and time, have ``valid`` 0 and empty counts, g and flags.
         """
         g = self.acc_g(calibration)
-        n = self.n_samples
-        cols = [self.sample_numbers.astype(str), np.char.mod("%.4f", self.time_s)]
-        cols += [self.codes[:, k].astype(str) for k in range(3)]
-        cols += [np.char.mod("%.6f", g[:, k]) for k in range(3)]
-        cols += [self.flags.astype(str), self.valid.astype(np.uint8).astype(str)]
-        table = np.stack(cols, axis=1) if n else np.zeros((0, len(CSV_COLUMNS)), dtype="<U1")
-        if n and not self.valid.all():
-            table[~self.valid, 2:9] = ""
+        good = "%d,%.4f,%d,%d,%d,%.6f,%.6f,%.6f,%d,1"
+        bad = "%d,%.4f,,,,,,,,0"
+        rows = zip(self.sample_numbers.tolist(), self.time_s.tolist(), self.codes[:, 0].tolist(),
+                   self.codes[:, 1].tolist(), self.codes[:, 2].tolist(), g[:, 0].tolist(), g[:, 1].tolist(),
+                   g[:, 2].tolist(), self.flags.tolist(), self.valid.tolist())
         lines = [",".join(CSV_COLUMNS)]
-        lines += [",".join(row) for row in table.tolist()]
+        lines += [good % r[:9] if r[9] else bad % r[:2] for r in rows]
         atomic_write_text(path, "\n".join(lines) + "\n")
 
     @staticmethod
@@ -348,9 +345,14 @@ class Recording:
         text = Path(path).read_text(encoding="utf-8").splitlines()
         if not text or text[0].split(",") != list(CSV_COLUMNS):
             raise HostError(f"{path}: line 1: expected header {','.join(CSV_COLUMNS)}")
-        rows = [ln.split(",") for ln in text[1:]]
-        arr = np.array([[float(v) if v != "" else np.nan for v in row] for row in rows], dtype=np.float64)
-        arr = arr.reshape(-1, len(CSV_COLUMNS))
+        if len(text) > 1:
+            cells = np.array([ln.split(",") for ln in text[1:]])
+            if cells.ndim != 2 or cells.shape[1] != len(CSV_COLUMNS):
+                raise HostError(f"{path}: expected {len(CSV_COLUMNS)} columns on every line")
+            cells[cells == ""] = "nan"
+            arr = cells.astype(np.float64)
+        else:
+            arr = np.zeros((0, len(CSV_COLUMNS)))
         return {name: arr[:, k] for k, name in enumerate(CSV_COLUMNS)}
 
     def summary(self) -> str:
