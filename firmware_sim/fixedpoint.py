@@ -309,7 +309,7 @@ def _limits_of(fmt: QFormat | int, signed: bool) -> tuple[int, int, int, bool]:
 def _overflow(x: np.ndarray, bits: int, signed: bool, mode: Overflow, ctx: ArithmeticContext | None,
               op: str) -> np.ndarray:
     lo, hi = word_limits(bits, signed)
-    if mode in ("saturate", "wrap") and (x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)):
+    if mode in ("saturate", "wrap") and _within(x, lo, hi):
         return x                     # nothing to do (the common case: two fast reductions)
     if mode == "saturate":
         out = np.minimum(np.maximum(x, lo), hi)
@@ -329,6 +329,11 @@ def _overflow(x: np.ndarray, bits: int, signed: bool, mode: Overflow, ctx: Arith
                 ctx.wrapped[op] += n
         return out
     raise ValueError(f"overflow must be 'saturate' or 'wrap', got {mode!r}")
+
+
+def _within(x: np.ndarray, lo: int, hi: int) -> bool:
+    """All of ``x`` inside ``[lo, hi]`` (two reductions)."""
+    return x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)
 
 
 def _as_int(x: np.ndarray | int) -> np.ndarray:
@@ -509,7 +514,7 @@ def mul(a: np.ndarray | int, b: np.ndarray | int, *, signed: bool = True,
     """
     x, y = _as_int(a), _as_int(b)
     lo, hi = word_limits(16, signed)
-    if np.any((x < lo) | (x > hi)) or np.any((y < lo) | (y > hi)):
+    if not (_within(x, lo, hi) and _within(y, lo, hi)):
         raise ValueError(f"mul operands must be {'signed' if signed else 'unsigned'} 16-bit ({lo}..{hi})")
     if ctx is not None:
         ctx.cost("mul16x16s" if signed else "mul16x16u", np.broadcast(x, y).size)
@@ -565,9 +570,10 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     x, y = _as_int(n), _as_int(d)
     xl, xh = word_limits(32, signed)
     yl, yh = word_limits(16, signed)
-    if np.any((x < xl) | (x > xh)) or np.any((y < yl) | (y > yh)):
+    if not (_within(x, xl, xh) and _within(y, yl, yh)):
         raise ValueError(f"div takes a {'signed' if signed else 'unsigned'} 32-bit dividend and 16-bit divisor")
-    x, y = np.broadcast_arrays(x, y)
+    if x.shape != y.shape:
+        x, y = np.broadcast_arrays(x, y)
     lo, hi, bits, sgn = _limits_of(out, signed)
     if ctx is not None:
         ctx.cost("div32by16s" if signed else "div32by16u", x.size)
@@ -603,9 +609,10 @@ def div_round(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32,
     x, y = _as_int(n), _as_int(d)
     xl, xh = word_limits(32, signed)
     yl, yh = word_limits(16, signed)
-    if np.any((x < xl) | (x > xh)) or np.any((y < yl) | (y > yh)):
+    if not (_within(x, xl, xh) and _within(y, yl, yh)):
         raise ValueError(f"div takes a {'signed' if signed else 'unsigned'} 32-bit dividend and 16-bit divisor")
-    x, y = np.broadcast_arrays(x, y)
+    if x.shape != y.shape:
+        x, y = np.broadcast_arrays(x, y)
     lo, hi, bits, sgn = _limits_of(out, signed)
     if ctx is not None:
         ctx.cost("div32by16s" if signed else "div32by16u", x.size)

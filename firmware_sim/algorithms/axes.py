@@ -96,22 +96,27 @@ def vertical_acceleration_q(
         ctx.cost("load_eeprom_sample", 2 * n)  # the two samples are read back from the EEPROM ring
         ctx.cost("mul16x16s", 2 * 9 * n)       # ... and re-calibrated (2 x 9 multiplies)
     has = count > 0
-    safe_count = np.where(has, count, 1)
+    # only samples whose window holds a measured sample are computed (the others have no gravity)
+    h = np.flatnonzero(has) if not has.all() else slice(None)
+    g = np.zeros((n, 3), np.int64)
     # 2. mean = gravity, rounded
-    g = div_round(sums, safe_count[:, None], ACC_Q, ctx=ctx, op="axes.gravity_mean")
-    # 3. |g| = isqrt(sum g_j^2)  (unsigned Q5.26 -> Q2.13)
-    sq = mul(g, g, ctx=ctx)
+    g[h] = div_round(sums[h], count[h][:, None], ACC_Q, ctx=ctx, op="axes.gravity_mean")
+    # 3. |g| = isqrt(sum g_j^2)  (unsigned Q5.26 -> Q2.13, rounded to nearest)
+    sq = mul(g[h], g[h], ctx=ctx)
     norm2 = add(add(sq[:, 0], sq[:, 1], 32, signed=False, ctx=ctx), sq[:, 2], 32, signed=False, ctx=ctx,
                 op="axes.norm2")
     gn = saturate(isqrt(norm2, rounding="nearest", ctx=ctx), ACC_Q, ctx=ctx, op="axes.gravity_norm")
-    min_norm = ACC_Q.from_float(0.2)
-    ok &= has & (gn > min_norm)
-    # 4. (f.g - |g|^2) / |g|: the numerator is exact, only the divisor |g| carries the square root's
-    #    rounding (a relative 2^-14 of a_v); f.g/|g| - |g| would add that rounding twice as a bias
-    p = mul(a, g, ctx=ctx)
+    keep = ok[h] & (gn > ACC_Q.from_float(0.2))
+    ok[:] = False
+    ok[h] = keep
+    # 4. (f.g - |g|^2) / |g| at the measured samples: the numerator is exact, only the divisor |g|
+    #    carries the square root's rounding (a relative 2^-14 of a_v); f.g/|g| - |g| would add it twice
+    i = np.flatnonzero(ok) if not ok.all() else slice(None)
+    p = mul(a[i], g[i], ctx=ctx)
     dot = add(add(p[:, 0], p[:, 1], ACC2_Q, ctx=ctx, op="axes.dot"), p[:, 2], ACC2_Q, ctx=ctx, op="axes.dot")
-    dyn = sub(dot, np.minimum(norm2, ACC2_Q.max_raw), ACC2_Q, ctx=ctx, op="axes.dynamic")
-    safe_gn = np.where(ok, gn, 1)
-    av = div_round(dyn, safe_gn, ACC_Q, ctx=ctx, op="axes.vertical")
-    av = np.where(ok, av, 0)
+    full2, fullgn = np.zeros(n, np.int64), np.zeros(n, np.int64)
+    full2[h], fullgn[h] = norm2, gn
+    dyn = sub(dot, np.minimum(full2[i], ACC2_Q.max_raw), ACC2_Q, ctx=ctx, op="axes.dynamic")
+    av = np.zeros(n, np.int64)
+    av[i] = div_round(dyn, fullgn[i], ACC_Q, ctx=ctx, op="axes.vertical")
     return av, g, ok

@@ -157,8 +157,8 @@ class FixedStepChain:
             raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
         ctx = ArithmeticContext()
         cal = adc_calibration if adc_calibration is not None else nominal_calibration_q(adc_bits=10)
-        codes_ok = np.where(ok[:, None], c, 0)  # lost samples carry no code; they are masked below
-        self.acc_q_ = cal.apply(codes_ok, ctx=ctx)
+        self.acc_q_ = np.zeros((n, 3), np.int64)       # lost samples carry no code and are never used
+        self.acc_q_[ok] = cal.apply(c[ok], ctx=ctx)
         av, _, ok2 = vertical_acceleration_q(self.acc_q_, sampling_rate_hz=fs, valid=ok,
                                              gravity_window_s=self.gravity_window_s, ctx=ctx)
         self.acc_v_q_, self.valid_ = av, ok2

@@ -83,9 +83,10 @@ def masked_gaussian_lowpass_q(
         ctx.cost("add32", 2 * wq.size * n)
     threshold = int(np.ceil(min_weight * int(wq.sum())))
     defined = den >= max(1, threshold)
-    safe = np.where(defined, den, 1)
+    i = np.flatnonzero(defined) if not defined.all() else slice(None)   # only defined outputs are computed
     extra = LOWPASS_OUT_Q.frac_bits - ACC_Q.frac_bits
-    q1, r1 = div(num, safe, 32, ctx=ctx, op="lowpass")                       # integer part, Q2.13
-    q2 = div_round(shift_left(r1, extra, 32, ctx=ctx), safe, 32, ctx=ctx, op="lowpass")  # 3 more bits
-    y = add(shift_left(q1, extra, LOWPASS_OUT_Q, ctx=ctx), q2, LOWPASS_OUT_Q, ctx=ctx, op="lowpass")
-    return np.where(defined, y, 0), defined
+    q1, r1 = div(num[i], den[i], 32, ctx=ctx, op="lowpass")                            # Q2.13 part
+    q2 = div_round(shift_left(r1, extra, 32, ctx=ctx), den[i], 32, ctx=ctx, op="lowpass")  # 3 more bits
+    y = np.zeros(n, np.int64)
+    y[i] = add(shift_left(q1, extra, LOWPASS_OUT_Q, ctx=ctx), q2, LOWPASS_OUT_Q, ctx=ctx, op="lowpass")
+    return y, defined
