@@ -236,3 +236,22 @@ def test_absurd_length_fields_do_not_allocate(tmp_path):
     wire = b"".join(b"\xa5\x5a\x87\x00\xff\xff" + bytes(10) for _ in range(100))
     with pytest.raises(ProtocolError, match="junk.cap"):
         decode_bytes(wire, source="junk.cap")
+
+
+@settings(max_examples=25, deadline=None)
+@given(n_written=st.integers(1, 2 * CAP), seed=st.integers(0, 2**31), chunk=st.integers(4, 4096),
+       drop_frames=st.sets(st.integers(0, 400), max_size=5))
+def test_capture_decode_property(n_written, seed, chunk, drop_frames):
+    header, memory, codes, flags, sn = make_memory(n_written, seed=seed)
+    end = 4 * CAP if n_written > CAP else 4 * n_written
+    frames = [encode_frame(T_HEADER, 1, header.to_bytes())]
+    lost = np.zeros(CAP, bool)
+    for k, a in enumerate(range(0, end, chunk)):
+        stop = min(a + chunk, end)
+        if k in drop_frames:
+            lost[a // 4: -(-stop // 4)] = True
+            continue
+        frames.append(encode_frame(T_DATA, k & 0xFF, a.to_bytes(4, "little") + memory[a:stop]))
+    rec = decode_bytes(b"".join(frames))
+    assert_exact_or_missing(rec, codes, flags, sn)
+    np.testing.assert_array_equal(~rec.valid, lost[sn % CAP])

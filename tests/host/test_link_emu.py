@@ -158,3 +158,22 @@ def test_dead_line_fails_fast_with_clear_message(small_image, tmp_path):
         with pytest.raises(HostError, match="no valid answer to IDENTIFY"):
             link.dump(tmp_path / "d.glimg", progress=False)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_start_stop_erase_and_busy(small_image, tmp_path):
+    path, _ = small_image
+    with LoggerLink(f"emu://{path}", timeout_s=0.5) as link:
+        link.erase()
+        assert link.status()["samples_written"] == 0
+        link.start(1_700_000_000, overwrite=True)
+        assert link.status()["state"] == 1
+        with pytest.raises(HostError, match="BUSY"):
+            link.read(0, 4)
+        with pytest.raises(HostError, match="logging"):
+            link.dump(tmp_path / "busy.glimg", progress=False)
+        link.stop()
+        st = link.status()
+        assert st["state"] == 0
+        _, header = link.read_header()
+        assert header.overwrite and header.start_time_s == 1_700_000_000
+    assert list(tmp_path.iterdir()) == []
