@@ -17,7 +17,8 @@ Contents
   singular case (gravity along body axis 2) handled explicitly.
 - :func:`integrate_dcm` -- strapdown integration of eq (9): incremental rotation (Rodrigues, exact for a
   constant rate), explicit trapezoid (Heun, Morris' "simple trapezoidal integration"), forward Euler; the
-  per-step matrices are computed vectorised and chained with a blocked prefix product.
+  per-step increments are computed vectorised and chained with a blocked prefix product (unit quaternions
+  for the incremental rotations, 3x3 matrices for the others).
 - :func:`orthonormalize_jordan` -- eq (18) with a divergence guard and an SVD fallback.
 - :func:`skew`, :func:`rotation_increments`, :func:`cumulative_matmul`, :func:`orthogonality_error`,
   :func:`geodesic_distance_rad` -- the building blocks, also used by :mod:`host.joints`.
@@ -276,6 +277,115 @@ def _chain_soa(initial: np.ndarray, steps_soa: np.ndarray, block: int = 16) -> n
     return out
 
 
+def _qmul_soa(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Hamilton products of component-first quaternions ``(4, ...)`` (scalar first), broadcasting."""
+    a0, a1, a2, a3 = a
+    b0, b1, b2, b3 = b
+    if out is None:
+        out = np.empty((4,) + np.broadcast_shapes(a0.shape, b0.shape))
+    out[0] = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
+    out[1] = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
+    out[2] = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
+    out[3] = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
+    return out
+
+
+def _scan_quat(s: np.ndarray, block: int = 16) -> np.ndarray:
+    """Inclusive prefix products of component-first ``(4, m)`` quaternions (blocked scan, as :func:`_scan_soa`)."""
+    m = s.shape[1]
+    if m <= 2 * block:
+        out = np.empty_like(s)
+        if m:
+            out[:, 0] = s[:, 0]
+        for k in range(1, m):
+            out[:, k] = _qmul_soa(out[:, k - 1], s[:, k])
+        return out
+    nb = -(-m // block)
+    pad = nb * block - m
+    if pad:
+        unit = np.zeros((4, pad))
+        unit[0] = 1.0
+        s = np.concatenate([s, unit], axis=1)
+    blk = np.ascontiguousarray(s.reshape(4, nb, block).transpose(0, 2, 1))  # (4, block, nb)
+    inner = np.empty_like(blk)
+    inner[:, 0] = blk[:, 0]
+    for i in range(1, block):
+        _qmul_soa(inner[:, i - 1], blk[:, i], out=inner[:, i])
+    totals = _scan_quat(np.ascontiguousarray(inner[:, -1]), block)
+    out = np.empty_like(inner)
+    out[:, :, 0] = inner[:, :, 0]
+    _qmul_soa(totals[:, None, :-1], inner[:, :, 1:], out=out[:, :, 1:])
+    return out.transpose(0, 2, 1).reshape(4, nb * block)[:, :m]
+
+
+def _rotvec_to_quat_soa(phi: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(cos(θ/2), sin(θ/2)·φ/θ)`` of ``(m, 3)`` rotation vectors, as ``(4, m)``."""
+    x, y, z = np.ascontiguousarray(phi.T)
+    theta = np.sqrt(x * x + y * y + z * z)
+    small = theta < 1e-4
+    half = 0.5 * theta
+    scale = np.where(small, 0.5 - theta * theta / 48.0, np.sin(half) / np.where(small, 1.0, theta))
+    q = np.empty((4, phi.shape[0]))
+    q[0] = np.cos(half)
+    q[1], q[2], q[3] = scale * x, scale * y, scale * z
+    return q
+
+
+def _quat_to_dcm_into(q: np.ndarray, out: np.ndarray) -> None:
+    """Write the rotation matrices of component-first unit quaternions ``(4, m)`` into ``out`` ``(m, 3, 3)``."""
+    a, b, c, d = q
+    aa, bb, cc, dd = a * a, b * b, c * c, d * d
+    ab, ac, ad, bc, bd, cd = a * b, a * c, a * d, b * c, b * d, c * d
+    out[:, 0, 0] = aa + bb - cc - dd
+    out[:, 0, 1] = 2.0 * (bc - ad)
+    out[:, 0, 2] = 2.0 * (bd + ac)
+    out[:, 1, 0] = 2.0 * (bc + ad)
+    out[:, 1, 1] = aa - bb + cc - dd
+    out[:, 1, 2] = 2.0 * (cd - ab)
+    out[:, 2, 0] = 2.0 * (bd - ac)
+    out[:, 2, 1] = 2.0 * (cd + ab)
+    out[:, 2, 2] = aa - bb - cc + dd
+
+
+def _dcm_to_quat(m: np.ndarray) -> np.ndarray:
+    """Unit quaternion (scalar first) of one rotation matrix (Shepperd's method)."""
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    cands = (tr, m[0, 0], m[1, 1], m[2, 2])
+    k = int(np.argmax(cands))
+    if k == 0:
+        s = 2.0 * np.sqrt(1.0 + tr)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    elif k == 1:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif k == 2:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+    q = np.array(q)
+    return q / np.linalg.norm(q)
+
+
+def _rodrigues_chain(lam0: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """``λ0 · expm([φ1×]) ⋯ expm([φk×])`` for every k, composed as unit quaternions (fewer operations than
+    3x3 products, same rotations) and returned as ``(m + 1, 3, 3)`` matrices."""
+    m = phi.shape[0]
+    out = np.empty((m + 1, 3, 3))
+    out[0] = lam0
+    if m == 0:
+        return out
+    q = _rotvec_to_quat_soa(phi)
+    proper = orthogonality_error(lam0) < 1e-12 and np.linalg.det(lam0) > 0
+    if proper:
+        q[:, 0] = _qmul_soa(_dcm_to_quat(lam0), q[:, 0])
+    _quat_to_dcm_into(_scan_quat(q), out[1:])
+    if not proper:  # a start matrix that is not a rotation is carried along as given
+        out[1:] = lam0 @ out[1:]
+    return out
+
+
 def cumulative_matmul(initial: np.ndarray, steps: np.ndarray, *, block: int = 16) -> np.ndarray:
     """Prefix products ``P[0] = initial``, ``P[k] = P[k−1] @ steps[k−1]``.
 
@@ -333,7 +443,8 @@ def integrate_dcm(
         ``(3, 3)`` orientation at the first sample (default identity).
     method
         ``"rodrigues"`` (incremental rotation): step ``k`` applies ``expm([φk×])`` with the trapezoidal
-        angle ``φk = (ωk + ωk+1)·Δt/2``; exact for a constant rate and always orthonormal.
+        angle ``φk = (ωk + ωk+1)·Δt/2``; exact for a constant rate and orthonormal to round-off (the
+        increments are composed as unit quaternions and converted to matrices once).
         ``"heun"``: explicit trapezoid (predictor-corrector) on the matrix ODE,
         ``λk+1 = λk (I + Δt/2 ([ωk×] + [ωk+1×]) + Δt²/2 [ωk×][ωk+1×])``; second order, drifts from
         orthogonality. ``"euler"``: ``λk+1 = λk (I + Δt[ωk×])``, first order, for comparison.
@@ -365,6 +476,8 @@ def integrate_dcm(
         phi = 0.5 * dt * (w[:-1] + w[1:])
         if coning_correction:
             phi = phi + dt * dt / 12.0 * np.cross(w[:-1], w[1:])
+        if not jordan_each_step:
+            return _rodrigues_chain(lam0, phi)
         steps = _rodrigues_soa(phi)
     elif method == "heun":
         k0, k1 = np.moveaxis(skew(w[:-1]), 0, -1), np.moveaxis(skew(w[1:]), 0, -1)
