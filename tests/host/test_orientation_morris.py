@@ -287,3 +287,15 @@ def test_skew_matches_cross_product() -> None:
     rng = np.random.default_rng(0)
     a, b = rng.normal(size=(2, 10, 3))
     np.testing.assert_allclose((skew(a) @ b[..., None])[..., 0], np.cross(a, b), atol=1e-15)
+
+
+def test_start_matrix_branches_of_the_quaternion_chain() -> None:
+    """Every Shepperd branch for a rotation start, and a non-rotation start carried along as given."""
+    t = np.arange(11) / 10.0
+    w = np.tile(W123, (t.size, 1))
+    inc = Rotation.from_rotvec(t[:, None] * W123).as_matrix()
+    for angles in ([0, 0, 0], [179, 0, 0], [0, 179, 0], [0, 0, 179], [10, 20, 30]):
+        rot0 = Rotation.from_euler("XYZ", angles, degrees=True).as_matrix()
+        np.testing.assert_allclose(integrate_dcm(w, 10.0, rot0), rot0 @ inc, atol=1e-14)
+    scaled = 2.0 * np.eye(3) + 1e-3
+    np.testing.assert_allclose(integrate_dcm(w, 10.0, scaled), scaled @ inc, atol=1e-13)
