@@ -190,6 +190,7 @@ class FixedStepChain:
         k1 = cal.k_m1 if cal is not None else 1.0
         k2 = cal.k_m2 if cal is not None else 1.0
         ss = step_samples_q(s_w, e_w, ok)
+        ctx.cost("load_eeprom_sample", ss.index.size)   # M2's second pass reads a_v back from the EEPROM
         common = dict(step_start=s_w, step_end=e_w, valid=ok, ctx=ctx,
                       positions=(ss, vertical_positions_q(av, ss, ctx=ctx)))  # integrated once for M1-M3
         m1 = PendulumM1Q(k=1.0).estimate(av, sampling_rate_hz=fs, leg_length_m=leg, **common)

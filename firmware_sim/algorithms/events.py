@@ -36,7 +36,7 @@ class FixedGaitEventDetector:
     Parameters
     ----------
     ff_cutoff_hz, detail_cutoff_hz, min_step_s, max_step_s, min_prominence_m_s2, hs_search_s, to_search_s,
-    max_gap_s, min_step_fraction
+    max_gap_s, min_step_fraction, min_weight
         As ``host.gait.events.GaitEventDetector`` (same defaults).
 
     Attributes
@@ -59,6 +59,7 @@ class FixedGaitEventDetector:
         to_search_s: float = 0.3,
         max_gap_s: float = 0.1,
         min_step_fraction: float = 0.6,
+        min_weight: float = 0.25,
     ) -> None:
         self.ff_cutoff_hz = ff_cutoff_hz
         self.detail_cutoff_hz = detail_cutoff_hz
@@ -69,6 +70,7 @@ class FixedGaitEventDetector:
         self.to_search_s = to_search_s
         self.max_gap_s = max_gap_s
         self.min_step_fraction = min_step_fraction
+        self.min_weight = min_weight
 
     def detect(self, acc_v_q: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None,
                ctx: ArithmeticContext | None = None) -> Self:
@@ -83,9 +85,10 @@ class FixedGaitEventDetector:
             raise ValueError(f"acc_v_q must be one-dimensional, got shape {a.shape}")
         n = a.size
         ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
-        lp, fin = masked_gaussian_lowpass_q(a, ok, cutoff_hz=self.ff_cutoff_hz, sampling_rate_hz=fs, ctx=ctx)
+        lp, fin = masked_gaussian_lowpass_q(a, ok, cutoff_hz=self.ff_cutoff_hz, sampling_rate_hz=fs,
+                                            min_weight=self.min_weight, ctx=ctx)
         det, det_ok = masked_gaussian_lowpass_q(a, ok, cutoff_hz=self.detail_cutoff_hz, sampling_rate_hz=fs,
-                                                ctx=ctx)
+                                                min_weight=self.min_weight, ctx=ctx)
         self.first_harmonic_q_, self.first_harmonic_defined_ = lp, fin
         self.detail_q_, self.detail_defined_ = det, det_ok
         empty = np.zeros(0, np.int64)
@@ -111,7 +114,7 @@ class FixedGaitEventDetector:
             if ctx is not None:
                 ctx.cost("mul16x16u", 1)
                 ctx.cost("div32by16u", 1)
-        ff = ff[ok[ff] & fin[ff]] if ff.size else ff
+        ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         if ctx is not None:
             ctx.cost("compare16", 4 * n)        # peak search: neighbours, distance, prominence

@@ -38,12 +38,17 @@ class StepSamplesQ:
 
     Attributes
     ----------
-    index, step, first
-        Sample index, window number, position of each window's first sample.
+    index, step
+        Sample index and window number of each measured sample.
+    first
+        ``(k,)`` position of each window's first sample (for an empty window: where it would start).
+    n_measured
+        ``(k,)`` measured samples per window; every per-window result of a window with fewer than two
+        is undefined (the float chain's NaN).
     tau
         ``(m,)`` sample periods since the window's first measured sample.
     duration
-        ``(k,)`` sample periods from first to last measured sample of each window.
+        ``(k,)`` sample periods from first to last measured sample (0 where undefined).
     n_missing
         ``(k,)`` missing samples inside each window.
     """
@@ -51,27 +56,39 @@ class StepSamplesQ:
     index: np.ndarray
     step: np.ndarray
     first: np.ndarray
+    n_measured: np.ndarray
     tau: np.ndarray
     duration: np.ndarray
     n_missing: np.ndarray
 
     @property
+    def defined(self) -> np.ndarray:
+        """Windows with at least two measured samples."""
+        return self.n_measured >= 2
+
+    @property
     def last(self) -> np.ndarray:
-        """Position of each window's last sample."""
-        return np.r_[self.first[1:] - 1, self.index.size - 1] if self.first.size else self.first
+        """Position of each window's last sample (of its first for an empty window, clipped)."""
+        return np.clip(self.first + np.maximum(self.n_measured, 1) - 1, 0, max(self.index.size - 1, 0))
 
     def reduce_max(self, x: np.ndarray) -> np.ndarray:
-        """Per-window maximum."""
-        return np.maximum.reduceat(x, self.first) if self.first.size else np.zeros(0, x.dtype)
+        """Per-window maximum (0 where the window is undefined)."""
+        return self._reduce(np.maximum, x)
 
     def reduce_min(self, x: np.ndarray) -> np.ndarray:
-        """Per-window minimum."""
-        return np.minimum.reduceat(x, self.first) if self.first.size else np.zeros(0, x.dtype)
+        """Per-window minimum (0 where the window is undefined)."""
+        return self._reduce(np.minimum, x)
+
+    def _reduce(self, ufunc: np.ufunc, x: np.ndarray) -> np.ndarray:
+        if self.first.size == 0:
+            return np.zeros(0, np.int64)
+        xp = np.append(np.asarray(x, np.int64), 0)       # pad: empty trailing windows index the pad
+        out = ufunc.reduceat(xp, self.first)
+        return np.where(self.defined, out, 0)
 
 
 def step_samples_q(start: np.ndarray, end: np.ndarray, valid: np.ndarray) -> StepSamplesQ:
-    """Lay the measured samples of windows ``[start_k, end_k]`` end to end (windows with no measured sample
-    are an error: the chain only forms windows between measured foot-flats).
+    """Lay the measured samples of windows ``[start_k, end_k]`` end to end (``end_k > start_k``).
 
     >>> ss = step_samples_q(np.array([0, 4]), np.array([4, 6]), np.array([1, 1, 0, 1, 1, 1, 1], bool))
     >>> ss.index.tolist(), ss.tau.tolist(), ss.duration.tolist(), ss.n_missing.tolist()
@@ -84,21 +101,22 @@ def step_samples_q(start: np.ndarray, end: np.ndarray, valid: np.ndarray) -> Ste
     if start.size and np.any(end <= start):
         raise ValueError("every step window must end after it starts (end > start)")
     valid = np.asarray(valid, bool)
+    k = start.size
     lengths = end - start + 1
-    total = int(lengths.sum()) if start.size else 0
-    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if start.size else np.zeros(0, np.int64)
-    step = np.repeat(np.arange(start.size), lengths)
+    total = int(lengths.sum()) if k else 0
+    offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if k else np.zeros(0, np.int64)
+    step = np.repeat(np.arange(k), lengths)
     index = np.repeat(start, lengths) + (np.arange(total) - np.repeat(offsets, lengths))
     keep = valid[index]
-    n_missing = np.bincount(step[~keep], minlength=start.size).astype(np.int64)
+    n_missing = np.bincount(step[~keep], minlength=k).astype(np.int64)
     index, step = index[keep], step[keep]
-    if start.size and not np.all(np.bincount(step, minlength=start.size) > 0):
-        raise ValueError("a step window has no measured sample")
-    first = np.flatnonzero(np.r_[True, step[1:] != step[:-1]]) if step.size else np.zeros(0, np.int64)
-    seg = np.diff(np.r_[first, index.size]) if first.size else np.zeros(0, np.int64)
-    tau = index - np.repeat(index[first], seg) if first.size else np.zeros(0, np.int64)
-    last = np.r_[first[1:] - 1, index.size - 1] if first.size else first
-    return StepSamplesQ(index, step, first, tau, tau[last] if first.size else np.zeros(0, np.int64), n_missing)
+    n_measured = np.bincount(step, minlength=k).astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(n_measured)[:-1]]).astype(np.int64) if k else np.zeros(0, np.int64)
+    tau = index - index[first[step]] if index.size else np.zeros(0, np.int64)
+    duration = np.zeros(k, np.int64)
+    has = n_measured >= 2
+    duration[has] = tau[first[has] + n_measured[has] - 1]
+    return StepSamplesQ(index, step, first, n_measured, tau, duration, n_missing)
 
 
 def _segment_trapezoid(y: np.ndarray, ss: StepSamplesQ, ctx: ArithmeticContext | None, op: str) -> np.ndarray:
@@ -107,11 +125,10 @@ def _segment_trapezoid(y: np.ndarray, ss: StepSamplesQ, ctx: ArithmeticContext |
         return y.copy()
     dn = np.diff(ss.tau, prepend=0)
     inc = (y + np.r_[y[0], y[:-1]]) * dn
-    inc[ss.first] = 0
+    inc[ss.first[ss.n_measured > 0]] = 0
     inc = saturate(inc, VELOCITY_Q, ctx=ctx, op=op + ".increment")
     cs = np.cumsum(inc)
-    seg = np.diff(np.r_[ss.first, y.size])
-    out = cs - np.repeat(cs[ss.first], seg)
+    out = cs - cs[ss.first[ss.step]]
     if ctx is not None:
         ctx.cost("add32", 2 * y.size)
         ctx.cost("sat32", y.size)
@@ -119,7 +136,7 @@ def _segment_trapezoid(y: np.ndarray, ss: StepSamplesQ, ctx: ArithmeticContext |
     bad = np.flatnonzero((out < lo) | (out > hi))
     if bad.size:  # only windows that overflow are re-run with a clipping accumulator (the firmware's loop)
         for k in np.unique(ss.step[bad]):
-            a, b = ss.first[k], ss.first[k] + seg[k]
+            a, b = ss.first[k], ss.first[k] + ss.n_measured[k]
             out[a:b] = cumsum(inc[a:b], VELOCITY_Q, ctx=ctx, op=op)
     return out
 
@@ -176,19 +193,18 @@ def vertical_positions_q(acc_v_q: np.ndarray, ss: StepSamplesQ, *,
     p1 = _segment_trapezoid(v, ss, ctx, "integration.p1")
     if a.size == 0:
         return VerticalPositionsQ(p1, p1.copy())
-    seg = np.diff(np.r_[ss.first, a.size])
     last = ss.last
-    dur = np.maximum(ss.duration, 1)
+    dur = np.maximum(ss.duration, 1)       # undefined windows (< 2 samples) give no result anyway
     # eq (2): c1 = -mean(a) = -V_end / (2 T), with M2_EXTRA_BITS more fraction bits
     scale = 1 << (M2_EXTRA_BITS - 1)
     c1 = div_round(saturate(-v[last] * scale, 32, ctx=ctx, op="integration.c1"), dur, 32, ctx=ctx,
                    op="integration.c1")
-    a2 = saturate((a << M2_EXTRA_BITS) + np.repeat(c1, seg), 32, ctx=ctx, op="integration.a2")
+    a2 = saturate((a << M2_EXTRA_BITS) + c1[ss.step], 32, ctx=ctx, op="integration.a2")
     v2 = _segment_trapezoid(a2, ss, ctx, "integration.v2")
     p_c1 = _segment_trapezoid(v2, ss, ctx, "integration.p2")
     # eq (3): c2 per sample period so that the position returns to its start, subtracted as a ramp
     c2 = div_round(p_c1[last], dur, 32, ctx=ctx, op="integration.c2")
-    p2 = saturate(p_c1 - np.repeat(c2, seg) * ss.tau, POSITION_Q, ctx=ctx, op="integration.ramp")
+    p2 = saturate(p_c1 - c2[ss.step] * ss.tau, POSITION_Q, ctx=ctx, op="integration.ramp")
     if ctx is not None:
         ctx.cost("add32", a.size)
     return VerticalPositionsQ(p1, p2)

@@ -102,9 +102,10 @@ class _PendulumBaseQ:
         ``positions`` may pass the windows' samples and integer positions if already integrated (the
         firmware integrates once for M1-M3).
 
-        Sets ``excursion_q_`` (UQ0.16 m), ``step_length_q_`` (UQ2.14 m, 0 where impossible),
-        ``impossible_`` (bool), ``n_impossible_``, and the float views ``vertical_excursion_m_`` and
-        ``step_length_m_`` (NaN where impossible).
+        Sets ``excursion_q_`` (UQ0.16 m), ``step_length_q_`` (UQ2.14 m, 0 where impossible or undefined),
+        ``defined_`` (windows with two measured samples or more), ``impossible_`` (bool), ``n_impossible_``,
+        and the float views ``vertical_excursion_m_`` and ``step_length_m_`` (NaN where not defined or
+        impossible).
         """
         a = np.asarray(acc_v_q, np.int64)
         start = np.asarray(step_start, np.int64)
@@ -118,13 +119,16 @@ class _PendulumBaseQ:
             vp = vertical_positions_q(a, ss, ctx=ctx)
         pos = getattr(vp, self._which)
         span = ss.reduce_max(pos) - ss.reduce_min(pos)
+        self.defined_ = ss.defined                       # windows with >= 2 measured samples
         self.excursion_q_ = excursion_q(span, position_unit_m(sampling_rate_hz, m2=self._which == "p2"), ctx=ctx)
         leg_q = int(LENGTH_Q.from_float(leg_length_m))
-        s, self.impossible_ = pendulum_length_q(self.excursion_q_, leg_q, ctx=ctx)
+        s, impossible = pendulum_length_q(self.excursion_q_, leg_q, ctx=ctx)
+        self.impossible_ = impossible & self.defined_
         self.n_impossible_ = int(np.count_nonzero(self.impossible_))
-        self.step_length_q_ = np.where(self.impossible_, 0, scale_by_k(s, self.k, ctx=ctx))
-        self.vertical_excursion_m_ = EXCURSION_Q.to_float(self.excursion_q_)
-        self.step_length_m_ = np.where(self.impossible_, np.nan, STEP_Q.to_float(self.step_length_q_))
+        good = self.defined_ & ~self.impossible_
+        self.step_length_q_ = np.where(good, scale_by_k(s, self.k, ctx=ctx), 0)
+        self.vertical_excursion_m_ = np.where(self.defined_, EXCURSION_Q.to_float(self.excursion_q_), np.nan)
+        self.step_length_m_ = np.where(good, STEP_Q.to_float(self.step_length_q_), np.nan)
         return self
 
 

@@ -67,9 +67,7 @@ class TwoPhasePendulumM3Q:
         big = np.iinfo(np.int64).max
         hi = ss.reduce_max(np.where(inside, p2, -big)) if ss.first.size else np.zeros(0, np.int64)
         lo = ss.reduce_min(np.where(inside, p2, big)) if ss.first.size else np.zeros(0, np.int64)
-        any_inside = np.zeros(start.size, bool)
-        if ss.first.size:
-            any_inside = np.logical_or.reduceat(inside, ss.first)
+        any_inside = (np.bincount(ss.step[inside], minlength=start.size) > 0) & ss.defined
         span = np.where(any_inside, hi - lo, 0)
         self.excursion_q_ = excursion_q(span, position_unit_m(sampling_rate_hz, m2=True), ctx=ctx)
         s1, impossible = pendulum_length_q(self.excursion_q_, int(LENGTH_Q.from_float(leg_length_m)), ctx=ctx)

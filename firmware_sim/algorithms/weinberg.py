@@ -51,12 +51,12 @@ class WeinbergM4Q:
         """Estimate each step from the raw Q2.16 3 Hz signal (``defined`` marks where it exists).
 
         Sets ``range_q_`` (Q2.16 g, the full-precision range), ``root_q_``, ``step_length_q_`` (UQ2.14 m), and float views
-        ``acc_range_m_s2_``, ``step_length_m_`` (NaN where the window has no defined sample).
+        ``acc_range_m_s2_``, ``step_length_m_`` (NaN where the window has fewer than two defined samples).
         """
         lp = np.asarray(lowpassed_q, np.int64)
         start = np.asarray(step_start, np.int64)
         end = np.asarray(step_end, np.int64)
-        ss = step_samples_q(start, end, np.asarray(defined, bool)) if start.size else step_samples_q(start, end, defined)
+        ss = step_samples_q(start, end, np.asarray(defined, bool))
         x = lp[ss.index]
         self.range_q_ = ss.reduce_max(x) - ss.reduce_min(x)
         if ctx is not None:
@@ -66,6 +66,9 @@ class WeinbergM4Q:
         kq = int(K_Q.from_float(self.k * G0_ROOT4, ctx=ctx))
         self.step_length_q_ = mul_q(self.root_q_, kq, ROOT4_Q.frac_bits + K_Q.frac_bits - STEP_Q.frac_bits, STEP_Q,
                                     signed=False, ctx=ctx, op="m4.k")
-        self.acc_range_m_s2_ = LOWPASS_OUT_Q.to_float(self.range_q_) * STANDARD_GRAVITY_M_S2
-        self.step_length_m_ = STEP_Q.to_float(self.step_length_q_)
+        self.defined_ = ss.defined
+        self.step_length_q_ = np.where(self.defined_, self.step_length_q_, 0)
+        self.acc_range_m_s2_ = np.where(self.defined_, LOWPASS_OUT_Q.to_float(self.range_q_) * STANDARD_GRAVITY_M_S2,
+                                        np.nan)
+        self.step_length_m_ = np.where(self.defined_, STEP_Q.to_float(self.step_length_q_), np.nan)
         return self
