@@ -92,6 +92,8 @@ class Eeprom24LC1025:
         if not 0 <= address < DEVICE_BYTES or length < 0:
             raise DeviceError(f"24LC1025 read at 0x{address:05x} length {length} out of range")
         block = address // BLOCK_BYTES * BLOCK_BYTES
+        if address + length <= block + BLOCK_BYTES:
+            return self.memory[address:address + length].tobytes()
         pos = block + (address - block + np.arange(length)) % BLOCK_BYTES
         return self.memory[pos].tobytes()
 
