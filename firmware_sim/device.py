@@ -89,6 +89,9 @@ class Logger:
         Default START mode of :meth:`record`: overwrite the oldest samples when full (True) or stop.
     image_path
         Memory-image file: restored at construction if it exists, saved after every :meth:`record`.
+    live_acc_g
+        The world of a *served* device: when a host STARTs logging over the UART, :meth:`advance` takes
+        samples in real time of a device lying still with this specific force (default: ``+z`` up).
 
     Examples
     --------
@@ -108,6 +111,7 @@ class Logger:
         device_id: int = 1,
         overwrite: bool = False,
         image_path: str | Path | None = None,
+        live_acc_g: tuple[float, float, float] = (0.0, 0.0, 1.0),
     ) -> None:
         if adc is not None and sample_rate_hz != 50.0 and abs(adc.rate_hz - sample_rate_hz) > 1e-9:
             raise DeviceError(f"sample_rate_hz {sample_rate_hz} disagrees with adc.rate_hz {adc.rate_hz}")
@@ -115,6 +119,9 @@ class Logger:
         self.adc = adc if adc is not None else Adc(rate_hz=sample_rate_hz)
         self.overwrite = overwrite
         self.image_path = Path(image_path) if image_path is not None else None
+        self.live_acc_g = np.asarray(live_acc_g, dtype=np.float64).reshape(1, 3)
+        self._live_t0: float | None = None  # clock time of a START received over the UART
+        self._live_taken = 0
         header = DeviceHeader(
             firmware_version=FIRMWARE_VERSION,
             device_id=int(device_id),
@@ -142,6 +149,27 @@ class Logger:
     def memory(self) -> bytes:
         """The whole sample memory (262,144 bytes), as the EEPROMs hold it."""
         return self.bank.contents().tobytes()
+
+    def advance(self, now_s: float) -> int:
+        """Real-time sampling of a served device: take the samples the 50 Hz timer has fired since the
+        last call (the transport calls this on every tick); returns how many were stored.
+
+        Runs only while a run started over the UART is in progress; the device lies still at
+        ``live_acc_g`` (sensor errors and noise included, the noise drawn at the sample instants).
+        """
+        if not self.ring.logging:
+            self._live_t0 = None
+            return 0
+        if self._live_t0 is None:
+            self._live_t0, self._live_taken = now_s, 0
+        due = int(np.floor((now_s - self._live_t0) * self.adc.actual_rate_hz)) + 1 - self._live_taken
+        if due <= 0:
+            return 0
+        times = self._live_t0 + (self._live_taken + np.arange(due)) / self.adc.actual_rate_hz
+        self._live_taken += due
+        volts = np.repeat(self.sensor.static_v(self.live_acc_g), due, axis=0)
+        volts += self.sensor.noise_g(times) * self.sensor.gain_v_per_g
+        return self.firmware.log_samples(self.adc.convert(volts))
 
     def erase(self) -> None:
         """ERASE: forget every stored sample (the calibration slot is kept)."""

@@ -209,6 +209,7 @@ class _Server:
         self._out.put(self.logger.firmware.receive(data, now), now, not_before=now + inbound + self.turnaround_s)
 
     def _on_tick(self, now: float) -> None:
+        self.logger.advance(now)  # a run started over the UART samples in real time
         self._out.put(self.logger.firmware.poll(now), now)
 
     def _take_due(self, now: float) -> tuple[bytes, bool]:

@@ -139,3 +139,23 @@ def test_xdump_full_memory_received_by_lrzsz_rx(full_logger: Logger, tmp_path: P
     assert got[:256] == header
     assert got[256:256 + 262144] == full_logger.memory
     assert set(got[256 + 262144:]) <= {0x1A}
+
+
+def test_served_device_logs_in_real_time_after_start(tmp_path: Path) -> None:
+    lg = Logger(sensor=SensorModel.ideal(), image_path=tmp_path / "live.glimg")
+    with serve_tcp(lg) as srv:
+        with serial.serial_for_url(srv.url, timeout=0.5) as port:
+            port.write(frame(0x03, 1, struct.pack("<IB", 1_700_000_000, 0)))
+            assert read_exact(port, 9) == frame(0x90, 1, b"\x03")
+            time.sleep(0.5)
+            port.write(frame(0x04, 2))
+            assert read_exact(port, 9) == frame(0x90, 2, b"\x04")
+            port.write(frame(0x02, 3))
+            status = read_exact(port, 18)
+    written = struct.unpack_from("<I", status, 8)[0]
+    assert 20 <= written <= 40  # ~0.5 s at 50 Hz
+    # the stopped server saved the image; the device lay still with +z up: z reads +1 g (code 767)
+    back = Logger.from_image(tmp_path / "live.glimg")
+    assert back.header.samples_written == written and back.header.start_time_s == 1_700_000_000
+    words = np.frombuffer(back.memory[:4 * written], dtype="<u4")
+    assert words[0] >> 30 == 1 and np.all(np.abs(((words >> 20) & 1023).astype(int) - 767) <= 2)
