@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from firmware_sim.errors import DeviceError
-from firmware_sim.ring_buffer import RingBuffer
+from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from protocol.crc import crc16_xmodem
 from protocol.frames import (
     COMMAND_TYPES,
@@ -272,7 +272,7 @@ class Firmware:
         if ftype == FrameType.START:
             try:
                 self.start_logging(start_time_s=int(fields["start_time_s"]), overwrite=bool(int(fields["mode"])))
-            except DeviceError:
+            except MemoryFullError:
                 return self._nak(t, seq, ErrorCode.MEMORY_FULL)
             return self._ack(t, seq)
         if ftype == FrameType.STOP:

@@ -7,14 +7,15 @@ Assembly (the paper says only "two ADXL202, 3 axes"; this is the layout assumed 
   device's ``z`` axis; its Y channel is nominally parallel to ``x`` (redundant) and is **not wired** to the
   ADC (the logger stores three axes), so it is not modelled.
 
-Each axis reads ``v = V0 + S (1 + e) [b + LPF(clip(u . a, ±range) + n)]`` volts, where ``a`` is the true
+Each axis reads ``v = V0 + S (1 + e) [b + LPF(clip(u . a, ±range)) + LPF(n)]`` volts, where ``a`` is the true
 specific force in g (device axes), ``u`` the axis's actual sensitive direction (a row of ``axes``: the
 misalignment matrix), ``clip`` the ±2 g full scale of the sensing element, ``n`` white noise of density
 ``noise_density_g_rthz``, ``LPF`` the single-pole filter formed by the part's internal 32 kΩ and the external
 filter capacitor (``f_-3dB = 5 µF / C``), ``b`` the 0 g offset in g, ``e`` the sensitivity error, ``S`` the
 nominal sensitivity and ``V0 = supply_v / 2`` the 0 g level (the analog outputs XFILT/YFILT are
 ratiometric). The output is the analog voltage at XFILT/YFILT (buffered); the ADC front end of
-:mod:`firmware_sim.adc` turns it into codes.
+:mod:`firmware_sim.adc` turns it into codes. ``LPF(n)``, white noise through the RC, is an
+Ornstein-Uhlenbeck process, drawn exactly at the instants where it is observed (:meth:`SensorModel.noise_g`).
 
 Tolerances used by :meth:`SensorModel.draw` (uniform draws; ``*`` = an assumption, not a datasheet limit;
 HARDWARE.md lists the ADXL202E tolerance table as unverified):
