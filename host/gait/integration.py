@@ -15,7 +15,7 @@ Three vertical positions are produced per sample:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,6 +47,9 @@ class StepSamples:
     duration_s: np.ndarray
     n_missing: np.ndarray
     n_measured: np.ndarray
+    #: positions already computed for an acceleration array (keyed by the array object; see
+    #: :func:`vertical_positions`), so that M1, M2 and M3 on the same windows integrate once
+    _positions: dict = field(default_factory=dict, repr=False, compare=False)
 
     def reduce_max(self, x: np.ndarray) -> np.ndarray:
         """Per-window maximum of a per-sample array (NaN ignored; NaN for windows with < 2 samples)."""
@@ -130,6 +133,9 @@ def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndar
     >>> round(float(p2.max() - p2.min()), 4), round(float(p1.max() - p1.min()), 3)
     (0.04, 0.04)
     """
+    cached = ss._positions.get(id(acc_v_m_s2))
+    if cached is not None and cached[0] is acc_v_m_s2:
+        return cached[1], cached[2]
     a = np.asarray(acc_v_m_s2, np.float64)[ss.index]
     v = _segment_cumtrapz(a, ss)                      # v(t0) = 0: the reset at foot-flat
     p1 = _segment_cumtrapz(v, ss)                     # M1
@@ -144,4 +150,5 @@ def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndar
         p_c1 = p1 + 0.5 * c1 * ss.tau_s ** 2                         # exact trapezoid of c1 * tau
         c2 = -p_c1[last][ss.step] / T                                # eq (3): p(t1) = p(t0) = 0
     p2 = p_c1 + c2 * ss.tau_s
+    ss._positions[id(acc_v_m_s2)] = (acc_v_m_s2, p1, p2)   # the reference keeps the id unique
     return p1, p2
