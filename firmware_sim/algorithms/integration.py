@@ -80,10 +80,10 @@ class StepSamplesQ:
         return self._reduce(np.minimum, x)
 
     def _reduce(self, ufunc: np.ufunc, x: np.ndarray) -> np.ndarray:
-        if self.first.size == 0:
-            return np.zeros(0, np.int64)
-        xp = np.append(np.asarray(x, np.int64), 0)       # pad: empty trailing windows index the pad
-        out = ufunc.reduceat(xp, self.first)
+        out = np.zeros(self.first.size, np.int64)
+        nonempty = self.n_measured > 0
+        if nonempty.any():   # consecutive starts of the non-empty windows delimit exactly their samples
+            out[nonempty] = ufunc.reduceat(np.asarray(x, np.int64), self.first[nonempty])
         return np.where(self.defined, out, 0)
 
 

@@ -308,3 +308,14 @@ def test_chain_rejects_bad_input() -> None:
         ch.run(np.zeros((10, 3), int), sampling_rate_hz=0.0)
     with pytest.raises(ValueError, match="valid must have shape"):
         ch.run(np.zeros((10, 3), int), sampling_rate_hz=FS, valid=np.ones(3, bool))
+
+
+def test_window_reductions_respect_window_ends() -> None:
+    valid = np.ones(12, bool)
+    valid[5:8] = False                                   # the middle window has no measured sample
+    ss = step_samples_q(np.array([0, 5, 8]), np.array([4, 7, 11]), valid)
+    x = np.arange(12) * 10 - 100
+    assert ss.n_measured.tolist() == [5, 0, 4]
+    assert ss.reduce_max(x[ss.index]).tolist() == [-60, 0, 10]
+    assert ss.reduce_min(x[ss.index]).tolist() == [-100, 0, -20]
+    assert ss.defined.tolist() == [True, False, True]
