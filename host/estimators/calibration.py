@@ -44,7 +44,8 @@ class KCalibration:
     k1_m5_m_s, k2_m5_m
         M5 line ``S = K1 / T + K2`` (K1 in m*s... m per Hz of cadence, K2 in m).
     mode
-        ``"single-speed"`` (one section) or ``"multi-speed"``.
+        ``"multi-speed"`` when the sections' mean cadences span at least ``min_cadence_spread`` (5 %),
+        else ``"single-speed"`` (one section, or several at one pace).
     m5_fallback
         True when M5 used the walk-ratio fallback (K2 = 0).
     leg_length_m, foot_length_m
@@ -189,7 +190,7 @@ def calibrate(
         k1, k2 = float(k1), float(k2)
     return KCalibration(
         k_m1=ks["M1"], k_m2=ks["M2"], k_m4=ks["M4"], k1_m5_m_s=float(k1), k2_m5_m=float(k2),
-        mode="single-speed" if len(sections) == 1 else "multi-speed", m5_fallback=bool(fallback),
+        mode="single-speed" if fallback else "multi-speed", m5_fallback=bool(fallback),
         leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m), n_sections=len(sections),
         n_steps=int(n_steps), distance_m=float(total), subject=subject, notes=notes,
     )

@@ -57,7 +57,7 @@ def test_two_sections_at_the_same_speed_still_fall_back() -> None:
     sections = [(table(0.5, 0.55, 20), 11.0), (table(0.5, 0.552, 20), 11.0)]
     with pytest.warns(UserWarning, match="do not span speeds"):
         cal = calibrate(sections, leg_length_m=0.9, foot_length_m=0.2)
-    assert cal.m5_fallback and np.isfinite(cal.k1_m5_m_s)
+    assert cal.m5_fallback and np.isfinite(cal.k1_m5_m_s) and cal.mode == "single-speed"
 
 
 def test_calibration_errors() -> None:
