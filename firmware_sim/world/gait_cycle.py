@@ -63,8 +63,10 @@ class ExcursionPlan:
         Per step: ``"initiation"``, ``"steady"``, ``"turn"`` or ``"termination"``.
     leg_arc_radius_m
         Per step: the radius of the single-stance arc used.
-    transient_t_s, transient_vertical_m_s2, transient_ap_m_s2
-        Heel-strike transients: peak time and peak accelerations.
+    transient_t_s, transient_vertical_m_s2, transient_ap_m_s2, transient_sigma_s
+        Contact transients, sorted by time: peak time, peak accelerations (vertical, forward) and Gaussian
+        width. Heel strikes: an upward impact and a braking peak; toe-offs of the trailing foot: the end of
+        push-off, a short drop of the vertical and forward accelerations.
     speed_m_s
         The excursion's nominal speed.
     """
@@ -89,6 +91,7 @@ class ExcursionPlan:
     transient_t_s: np.ndarray
     transient_vertical_m_s2: np.ndarray
     transient_ap_m_s2: np.ndarray
+    transient_sigma_s: np.ndarray
     amplitude_scale: float
 
     @property
@@ -326,10 +329,8 @@ def plan_excursion(
     t_to_n = t_hs_n + frac_ds * durations_a[i_last]
     s_hs_n = s_hs[-1]
     v_n = v_hs[-1]
-    s_to_n = s_hs_n + v_n * (t_to_n - t_hs_n) * 0.95
-    v_to_n = 0.85 * v_n
-    if s_to_n >= length - 0.05:
-        raise ValueError("termination plan failed: the closing step is too short")  # pragma: no cover
+    s_to_n = s_hs_n + min(v_n * (t_to_n - t_hs_n) * 0.95, 0.5 * (length - s_hs_n))
+    v_to_n = min(0.85 * v_n, 2.0 * (length - s_to_n) / (t_to_n - t_hs_n))
     t_stop = t_to_n + 2.1 * (length - s_to_n) / v_to_n
     t_knots.append(np.array([t_hs_n, t_to_n, t_stop]))
     s_k.append(np.array([[s_hs_n, v_n, a_hs[-1]], [s_to_n, v_to_n, -0.5 * v_n / (t_stop - t_to_n)],
@@ -380,6 +381,14 @@ def plan_excursion(
     scale = np.clip(v_contact, 0.2, None) / v_pref
     jitter = np.exp(rng.normal(0.0, 0.2, heel_strikes.size))
     g = STANDARD_GRAVITY_M_S2
+    to_scale = scale[:-1] * np.exp(rng.normal(0.0, 0.2, n_steps))
+    tr_t = np.concatenate((heel_strikes + 0.008, toe_offs))
+    tr_v = np.concatenate((subject.heel_strike_acc_g * g * scale * jitter, -subject.toe_off_acc_g * g * to_scale))
+    tr_ap = np.concatenate((-subject.heel_strike_ap_acc_g * g * scale * jitter,
+                            -subject.toe_off_ap_acc_g * g * to_scale))
+    tr_sig = np.concatenate((np.full(heel_strikes.size, subject.heel_strike_width_s),
+                             np.full(n_steps, subject.toe_off_width_s)))
+    order = np.argsort(tr_t, kind="stable")
     return ExcursionPlan(
         label=label,
         speed_m_s=v_exc,
@@ -398,8 +407,9 @@ def plan_excursion(
         com_peak_s=com_peak,
         step_phase=step_phase.astype(str),
         leg_arc_radius_m=np.concatenate((l_eff, [l_eff[-1]])),
-        transient_t_s=heel_strikes + 0.008,
-        transient_vertical_m_s2=subject.heel_strike_acc_g * g * scale * jitter,
-        transient_ap_m_s2=-subject.heel_strike_ap_acc_g * g * scale * jitter,
+        transient_t_s=tr_t[order],
+        transient_vertical_m_s2=tr_v[order],
+        transient_ap_m_s2=tr_ap[order],
+        transient_sigma_s=tr_sig[order],
         amplitude_scale=float((v_exc / v_pref) ** 0.5),
     )

@@ -94,6 +94,9 @@ class Subject:
     heel_strike_acc_g, heel_strike_ap_acc_g, heel_strike_width_s
         Heel-strike transient at the sensor: vertical peak, antero-posterior (braking) peak, in g at
         preferred speed (∝ speed), and the Gaussian width.
+    toe_off_acc_g, toe_off_ap_acc_g, toe_off_width_s
+        End-of-push-off transient at the trailing foot's toe-off: drop of the vertical and forward
+        accelerations (g, at preferred speed, ∝ speed) and Gaussian width.
     sit_drop_m
         How far the centre of mass drops when sitting down.
     """
@@ -134,6 +137,9 @@ class Subject:
     heel_strike_acc_g: float = 0.35
     heel_strike_ap_acc_g: float = 0.25
     heel_strike_width_s: float = 0.012
+    toe_off_acc_g: float = 0.15
+    toe_off_ap_acc_g: float = 0.10
+    toe_off_width_s: float = 0.015
     sit_drop_m: float = 0.40
 
     def __post_init__(self) -> None:
@@ -263,6 +269,9 @@ class Subject:
             heel_strike_acc_g=around(0.35, 0.1, 0.15, 0.6),
             heel_strike_ap_acc_g=around(0.25, 0.08, 0.1, 0.45),
             heel_strike_width_s=around(0.012, 0.002, 0.008, 0.018),
+            toe_off_acc_g=around(0.15, 0.05, 0.05, 0.3),
+            toe_off_ap_acc_g=around(0.10, 0.04, 0.03, 0.2),
+            toe_off_width_s=around(0.015, 0.003, 0.01, 0.022),
         )
 
     def as_dict(self) -> dict:

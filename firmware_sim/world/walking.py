@@ -22,8 +22,9 @@ What is modelled (richer than any estimator's assumptions)
   rotation (yaw) at stride frequency, medio-lateral sway at stride frequency; the sensor's lever arm from
   the centre of mass adds tangential and centripetal accelerations, and its height differs from the
   centre of mass's;
-- heel-strike transients: short Gaussian-shaped vertical and braking impulses (their position
-  perturbation is a sub-millimetre bump, so they change no velocity and no truth length);
+- contact transients: at heel strike a short upward impact and braking peak, at the trailing foot's
+  toe-off a short drop of vertical and forward acceleration (end of push-off); each is the second
+  derivative of a sub-millimetre Gaussian position bump, so it changes no velocity and no truth length;
 - rests standing or sitting (sit-down and stand-up transitions) between excursions.
 
 Every position channel is a C2 quintic spline and all accelerations are its exact derivatives, so the
@@ -89,6 +90,7 @@ class _Segment:
     transient_t_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     transient_vertical_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))
     transient_ap_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    transient_sigma_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     plan: ExcursionPlan | None = None
 
 
@@ -200,6 +202,7 @@ class Walking:
                 z=plan.z, phase=plan.phase, envelope=plan.envelope, pitch_mean=plan.pitch_mean,
                 amplitude_scale=plan.amplitude_scale, transient_t_s=plan.transient_t_s,
                 transient_vertical_m_s2=plan.transient_vertical_m_s2, transient_ap_m_s2=plan.transient_ap_m_s2,
+                transient_sigma_s=plan.transient_sigma_s,
                 plan=plan))
             t = plan.t_stop_s
             side = "L" if plan.side[-1] == "R" else "R"
@@ -245,13 +248,13 @@ class Walking:
         sub = self.subject
         s, sd, sdd = evaluate(seg.s, t)
         z, zd, zdd = evaluate(seg.z, t)
-        # Heel-strike transients: position bumps -P·σ²·exp(-u²/2), whose second derivative peaks at +P.
-        sigma = sub.heel_strike_width_s
+        # Contact transients: position bumps -P·σ²·exp(-u²/2), whose second derivative peaks at +P (zero net
+        # velocity change: the transient moves the body by a fraction of a millimetre and back).
         if seg.transient_t_s.size:
-            lo = np.searchsorted(t, seg.transient_t_s - 6 * sigma)
-            hi = np.searchsorted(t, seg.transient_t_s + 6 * sigma)
-            for tc, pv, pa, i0, i1 in zip(seg.transient_t_s, seg.transient_vertical_m_s2, seg.transient_ap_m_s2,
-                                          lo, hi):
+            lo = np.searchsorted(t, seg.transient_t_s - 6 * seg.transient_sigma_s)
+            hi = np.searchsorted(t, seg.transient_t_s + 6 * seg.transient_sigma_s)
+            for tc, pv, pa, sigma, i0, i1 in zip(seg.transient_t_s, seg.transient_vertical_m_s2,
+                                                 seg.transient_ap_m_s2, seg.transient_sigma_s, lo, hi):
                 if i1 <= i0:
                     continue
                 u = (t[i0:i1] - tc) / sigma

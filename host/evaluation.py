@@ -1,0 +1,578 @@
+"""The paper's evaluation on simulated subjects (Alvarez et al. 2006, sections II-C and IV, Figs 5-6).
+
+Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
+
+1. *Device calibration*: the emulated logger (:class:`firmware_sim.device.Logger`, its own seeded sensor
+   errors: offsets, sensitivities, misalignment) records a static-pose session
+   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.calibration.AccCalibrator`
+   ("a calibration procedure takes into account offset and scale factors and the orthogonality of the
+   axes", II-B). ``calibrate_device=False`` uses the header's nominal map instead.
+2. *Walking*: the same logger (after ERASE) records the protocol of
+   :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); the stored codes are
+   converted to g with the fitted calibration. The lap button's MARK flags give the lap times.
+3. *Steps*: :class:`host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
+   M5's cadence), with the subject's own leg and foot length ("the anatomical data of each individual").
+4. *Sections*: consecutive lap marks 20 m apart (default marks 10, 30, ..., 190 m of each excursion:
+   the first 10 m of gait initiation are discarded, as in the paper). The section holding the 180° turn is
+   left out by default (the paper's subjects "were allowed to turn freely between both 100 m segments";
+   the estimators model straight walking); ``include_turn=True`` keeps it.
+5. *K calibration* (:func:`host.estimators.calibration.calibrate`, one call per mode):
+   **single-speed** = the first 40 m (two sections) of the preferred-speed excursion, pooled as one 40 m
+   section (M5 then falls back to the walk-ratio line, with the calibrator's warning recorded);
+   **multi-speed** = the first 40 m of every excursion, one 40 m section per speed. Calibration steps are
+   whole steps whose window midpoint falls between the marks (as counting steps between stopwatch laps).
+6. *Evaluation*: every remaining 20 m section, estimated distance / real distance per estimator and mode.
+   The first two sections of **every** excursion are excluded in **both** modes (they are calibration data
+   in multi-speed), so single- and multi-speed are compared on the same sections; the preferred
+   excursion's first 40 m are thus never evaluated (the paper does not say whether it excluded them; we
+   exclude calibration data). M3 has no K: its rows are the same in both modes. A step's length is spread
+   uniformly over its window (previous foot-flat to its foot-flat) and a section takes the overlapping
+   fraction (``edge="fraction"``; ``edge="whole"`` counts whole steps by window midpoint, which adds the
+   ±half-step quantisation of counting steps between laps).
+7. *Events* (:func:`score_events`): detected heel-strikes / toe-offs / foot-flats against the world's
+   truth: F1 within ±40 ms and the median absolute timing error of the matched events.
+
+Rows, summaries (median, quartiles, extremes per estimator and mode), the CSV (atomic), the printed table
+and the paper-pattern checks (:func:`paper_pattern`) are below; the box-plot figure is
+:mod:`host.evaluation_plots`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import warnings
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Self
+
+import numpy as np
+
+from host.errors import HostError
+
+ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")
+MODES = ("single-speed", "multi-speed")
+ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
+               "estimated_m", "real_m", "ratio", "steps")
+SUMMARY_COLUMNS = ("mode", "estimator", "n", "median", "q1", "q3", "min", "max", "iqr")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Recording simulated subjects
+
+
+@dataclass(frozen=True, eq=False)
+class SimulatedRecording:
+    """What the logger stored for one simulated subject, in calibrated g, with the world's truth.
+
+    Attributes
+    ----------
+    subject
+        The :class:`firmware_sim.world.subject.Subject`.
+    seed
+        Seed of the walk and of the device.
+    acc_g, valid
+        ``(n, 3)`` calibrated specific force (g) and the validity mask.
+    sampling_rate_hz, t0_s
+        Logger rate and time of sample 0 on the walk's clock.
+    mark_times_s
+        Times of the samples carrying the MARK flag (lap button).
+    truth
+        The walk's truth (``steps``, ``laps``, ``excursions``, ...; see :mod:`firmware_sim.world.walking`).
+    device_calibrated
+        True when the codes were converted with a pose-session calibration (else the nominal map).
+    """
+
+    subject: Any
+    seed: int
+    acc_g: np.ndarray
+    valid: np.ndarray
+    sampling_rate_hz: float
+    t0_s: float
+    mark_times_s: np.ndarray
+    truth: dict
+    device_calibrated: bool
+
+
+def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: float = 50.0, bits: int = 10,
+                   calibrate_device: bool = True) -> SimulatedRecording:
+    """Walk ``subject`` through the protocol with the emulated logger (module notes, steps 1-2).
+
+    Parameters
+    ----------
+    subject
+        A :class:`firmware_sim.world.subject.Subject`.
+    seed
+        Seeds the walk's variability, the pose session and the device's sensor errors.
+    protocol
+        A :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    rate_hz, bits
+        Logger sample rate and ADC resolution.
+    calibrate_device
+        Fit the device calibration on a pose session first (default) or use the nominal map.
+    """
+    from firmware_sim.adc import Adc
+    from firmware_sim.device import Logger
+    from firmware_sim.world.poses import CalibrationPoses
+    from firmware_sim.world.walking import Walking
+    from protocol.header import Calibration
+    from protocol.packing import FLAG_MARK
+
+    logger = Logger(adc=Adc(bits=bits, rate_hz=rate_hz), sample_rate_hz=rate_hz, device_id=1 + seed % 60000)
+    if calibrate_device:
+        from host.calibration import AccCalibrator
+
+        poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
+        full = float(2**bits)
+        apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=rate_hz,
+                                          input_unit="counts", zero=full / 2, unit_per_g=full / 4,
+                                          valid_range=(0.0, full - 1)).calibration_.apply
+        logger.erase()
+    else:
+        apply = Calibration.nominal(bits).apply
+    res = logger.record(Walking(subject=subject, protocol=protocol, seed=seed))
+    if res.n_taken != res.n_samples:
+        raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
+                        "samples (memory full): shorten the protocol's rests")
+    acc = np.asarray(apply(res.codes.astype(np.float64)), np.float64)
+    times = np.asarray(res.sample_times_s, np.float64)
+    marks = times[(np.asarray(res.flags) & FLAG_MARK) != 0]
+    rate = float(1.0 / np.median(np.diff(times)))
+    truth = {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests", "subject") if k in res.truth}
+    return SimulatedRecording(subject, int(seed), acc, np.isfinite(acc).all(axis=1), rate, float(times[0]),
+                              marks, truth, bool(calibrate_device))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Sections and distances
+
+
+@dataclass(frozen=True)
+class Section:
+    """One stretch between two lap marks (times on the recording clock, distances along the corridor)."""
+
+    excursion: int
+    speed_label: str
+    index: int
+    start_m: float
+    end_m: float
+    t_start_s: float
+    t_end_s: float
+    turn: bool
+
+    @property
+    def real_m(self) -> float:
+        """Real distance (corridor) of the section."""
+        return self.end_m - self.start_m
+
+
+def sections_from_marks(mark_times_s: np.ndarray, laps: dict, *, corridor_length_m: float = 100.0,
+                        section_m: float = 20.0, rate_hz: float = 50.0) -> list[Section]:
+    """Pair the MARK samples with the protocol's lap distances and cut ``section_m`` sections.
+
+    Each MARK must fall within one sample period after its lap (the firmware flags the first sample at or
+    after the button press). Raises :class:`HostError` when marks and laps disagree.
+    """
+    marks = np.asarray(mark_times_s, np.float64)
+    t_lap = np.asarray(laps["time_s"], np.float64)
+    if marks.size != t_lap.size:
+        raise HostError(f"{marks.size} MARK samples for {t_lap.size} lap marks of the protocol")
+    lag = marks - t_lap
+    if np.any(lag < -1e-9) or np.any(lag > 1.0 / rate_hz + 1e-9):
+        k = int(np.argmax((lag < -1e-9) | (lag > 1.0 / rate_hz + 1e-9)))
+        raise HostError(f"MARK {k} at {marks[k]:.3f} s does not follow lap {k} at {t_lap[k]:.3f} s")
+    out: list[Section] = []
+    exc = np.asarray(laps["excursion"])
+    dist = np.asarray(laps["distance_m"], np.float64)
+    labels = np.asarray(laps["speed_label"]).astype(str)
+    for k in np.unique(exc):
+        idx = np.flatnonzero(exc == k)
+        j = 0
+        for a, b in zip(idx[:-1], idx[1:]):
+            if abs(dist[b] - dist[a] - section_m) > 1e-6:
+                continue
+            out.append(Section(int(k), str(labels[a]), j, float(dist[a]), float(dist[b]), float(marks[a]),
+                               float(marks[b]), bool(dist[a] < corridor_length_m < dist[b])))
+            j += 1
+    return out
+
+
+def _windows(table: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end time of every step's window; windowless steps get the bout's median duration."""
+    end = table.time_s(table.foot_flat)
+    start = table.time_s(table.start)
+    dur = end - start
+    med = np.nanmedian(dur) if np.any(np.isfinite(dur)) else 0.5
+    start = np.where(np.isfinite(start), start, end - med)
+    return start, end
+
+
+def section_fractions(table: Any, t_start_s: float, t_end_s: float, *, edge: str = "fraction") -> np.ndarray:
+    """Weight of each step of ``table`` in a section: overlapping fraction of its window, or 0/1.
+
+    ``edge="fraction"``: the fraction of the step's window inside ``[t_start_s, t_end_s]``;
+    ``edge="whole"``: 1 when the window's midpoint is inside, else 0.
+    """
+    a, b = _windows(table)
+    if edge == "whole":
+        mid = 0.5 * (a + b)
+        return ((mid >= t_start_s) & (mid < t_end_s)).astype(np.float64)
+    if edge != "fraction":
+        raise ValueError(f"edge must be 'fraction' or 'whole', got {edge!r}")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (np.minimum(b, t_end_s) - np.maximum(a, t_start_s)) / (b - a)
+    return np.clip(np.nan_to_num(f), 0.0, 1.0)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Event scoring
+
+
+def match_events(truth_s: np.ndarray, detected_s: np.ndarray, tol_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-to-one matching of two sorted event-time lists: mutual nearest neighbours within ``tol_s``.
+
+    Returns the matched indices into ``truth_s`` and ``detected_s``.
+
+    Examples
+    --------
+    >>> match_events(np.array([1.0, 2.0, 3.0]), np.array([1.01, 2.5, 2.98, 3.02]), 0.04)
+    (array([0, 2]), array([0, 2]))
+    """
+    t = np.sort(np.asarray(truth_s, np.float64))
+    d = np.sort(np.asarray(detected_s, np.float64))
+    if t.size == 0 or d.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+
+    def nearest(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        j = np.clip(np.searchsorted(b, a), 1, b.size - 1) if b.size > 1 else np.zeros(a.size, np.int64)
+        if b.size == 1:
+            return j
+        return np.where(np.abs(b[j - 1] - a) <= np.abs(b[j] - a), j - 1, j)
+
+    jt = nearest(t, d)  # nearest detected for each truth
+    jd = nearest(d, t)  # nearest truth for each detected
+    i = np.arange(t.size)
+    ok = (jd[jt] == i) & (np.abs(d[jt] - t) <= tol_s)
+    return i[ok], jt[ok]
+
+
+@dataclass(frozen=True)
+class EventScore:
+    """Detection and timing of one event type against the truth."""
+
+    event: str
+    n_truth: int
+    n_detected: int
+    n_matched: int
+    median_abs_error_s: float
+    median_error_s: float
+
+    @property
+    def precision(self) -> float:
+        return self.n_matched / self.n_detected if self.n_detected else float("nan")
+
+    @property
+    def recall(self) -> float:
+        return self.n_matched / self.n_truth if self.n_truth else float("nan")
+
+    @property
+    def f1(self) -> float:
+        p, r = self.precision, self.recall
+        return 2 * p * r / (p + r) if p + r > 0 else 0.0
+
+
+def score_events(table: Any, truth_steps: dict, *, tol_s: float = 0.04,
+                 walking_intervals_s: Sequence[tuple[float, float]] | None = None) -> dict[str, EventScore]:
+    """F1 (within ``tol_s``) and median timing error of heel-strike, toe-off and foot-flat.
+
+    Truth contacts are every heel strike of the walk, including each excursion's closing contact; truth
+    toe-offs are the trailing foot's (end of double support), truth foot-flats the leading foot's.
+    Detected events outside ``walking_intervals_s`` (rests) count as false positives all the same.
+    """
+    st = truth_steps
+    exc = np.asarray(st["excursion"])
+    last = np.r_[exc[1:] != exc[:-1], True]
+    truth = {
+        "heel_strike": np.sort(np.r_[st["heel_strike_s"], np.asarray(st["next_heel_strike_s"])[last]]),
+        "toe_off": np.sort(np.asarray(st["toe_off_s"], np.float64)),
+        "foot_flat": np.sort(np.r_[st["foot_flat_s"], np.asarray(st["next_foot_flat_s"])[last]]),
+    }
+    detected = {
+        "heel_strike": table.time_s(table.heel_strike[table.heel_strike >= 0]),
+        "toe_off": table.time_s(np.unique(table.toe_off[table.toe_off >= 0])),
+        "foot_flat": table.time_s(table.foot_flat),
+    }
+    out = {}
+    for name in truth:
+        t, d = truth[name], np.sort(detected[name])
+        it, jd = match_events(t, d, tol_s)
+        err = d[jd] - t[it]
+        out[name] = EventScore(name, int(t.size), int(d.size), int(it.size),
+                               float(np.median(np.abs(err))) if err.size else float("nan"),
+                               float(np.median(err)) if err.size else float("nan"))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# One subject
+
+
+@dataclass(eq=False)
+class SubjectResult:
+    """Everything the evaluation keeps of one subject (small: rows and scores, no signals)."""
+
+    subject_id: str
+    rows: list[dict]
+    events: dict[str, EventScore]
+    calibrations: dict[str, Any]
+    warnings: list[str] = field(default_factory=list)
+    truth_ratio: list[float] = field(default_factory=list)
+
+
+def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, include_turn: bool = False,
+                       edge: str = "fraction", calibration_sections: int = 2,
+                       corridor_length_m: float = 100.0) -> SubjectResult:
+    """Steps, K calibration (both modes), section ratios and event scores of one recording."""
+    from host.estimators.calibration import calibrate
+    from host.gait.pipeline import StepPipeline, apply_calibration
+
+    sub = rec.subject
+    caught: list[str] = []
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        table = StepPipeline(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m).run(
+            rec.acc_g, sampling_rate_hz=rec.sampling_rate_hz, valid=rec.valid, t0_s=rec.t0_s).steps_
+        caught += [f"pipeline: {x.message}" for x in w]
+    sections = sections_from_marks(rec.mark_times_s, rec.truth["laps"], corridor_length_m=corridor_length_m,
+                                   section_m=section_m, rate_hz=rec.sampling_rate_hz)
+    straight = [s for s in sections if not s.turn]
+    by_exc: dict[int, list[Section]] = {}
+    for s in straight:
+        by_exc.setdefault(s.excursion, []).append(s)
+    calib_sets: dict[int, list[Section]] = {k: v[:calibration_sections] for k, v in by_exc.items()}
+    if not calib_sets:
+        raise HostError(f"subject {sub.subject_id}: no straight {section_m} m section between lap marks")
+    pref = [k for k, v in calib_sets.items() if v and v[0].speed_label == "preferred"]
+    single_exc = pref[0] if pref else min(calib_sets)
+
+    def pooled(secs: list[Section]) -> tuple[Any, float]:
+        mask = section_fractions(table, secs[0].t_start_s, secs[-1].t_end_s, edge="whole") > 0
+        return table.select(mask), float(sum(s.real_m for s in secs))
+
+    cals: dict[str, Any] = {}
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        kw = dict(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m, subject=sub.subject_id)
+        cals["single-speed"] = calibrate([pooled(calib_sets[single_exc])], **kw)
+        cals["multi-speed"] = calibrate([pooled(v) for _, v in sorted(calib_sets.items()) if v], **kw)
+        caught += [f"calibration: {x.message}" for x in w]
+    lengths = {mode: {k: table.filled(v)[0] for k, v in apply_calibration(table, cal).items()}
+               for mode, cal in cals.items()}
+    calib_ids = {(s.excursion, s.index) for v in calib_sets.values() for s in v}
+    rows: list[dict] = []
+    truth_ratio: list[float] = []
+    st = rec.truth["steps"]
+    for s in sections:
+        if (s.excursion, s.index) in calib_ids or (s.turn and not include_turn):
+            continue
+        f = section_fractions(table, s.t_start_s, s.t_end_s, edge=edge)
+        # truth check: the world's own step lengths cut the same way (should be ~1: path vs corridor)
+        t_a = np.asarray(st["heel_strike_s"])
+        t_b = np.asarray(st["next_heel_strike_s"])
+        ft = np.clip((np.minimum(t_b, s.t_end_s) - np.maximum(t_a, s.t_start_s)) / (t_b - t_a), 0, 1)
+        truth_ratio.append(float(np.sum(ft * st["length_m"]) / s.real_m))
+        for mode in MODES:
+            for est in ESTIMATORS:
+                d = float(np.sum(f * lengths[mode][est]))
+                rows.append({"subject": sub.subject_id, "excursion": s.excursion, "speed_label": s.speed_label,
+                             "section": s.index, "start_m": s.start_m, "end_m": s.end_m, "turn": s.turn,
+                             "mode": mode, "estimator": est, "estimated_m": d, "real_m": s.real_m,
+                             "ratio": d / s.real_m, "steps": float(np.sum(f))})
+    events = score_events(table, st)
+    return SubjectResult(sub.subject_id, rows, events, cals, caught, truth_ratio)
+
+
+def _subject_job(job: tuple) -> SubjectResult:
+    subject, seed, protocol, rate_hz, bits, calibrate_device, options = job
+    rec = record_subject(subject, seed=seed, protocol=protocol, rate_hz=rate_hz, bits=bits,
+                         calibrate_device=calibrate_device)
+    return evaluate_recording(rec, corridor_length_m=(protocol.corridor_length_m if protocol else 100.0),
+                              **options)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Population
+
+
+def summarise(rows: Iterable[dict]) -> list[dict]:
+    """Median, quartiles and extremes of the ratio per (mode, estimator) (NaN ratios are skipped)."""
+    groups: dict[tuple[str, str], list[float]] = {}
+    for r in rows:
+        groups.setdefault((r["mode"], r["estimator"]), []).append(float(r["ratio"]))
+    out = []
+    for mode in MODES:
+        for est in ESTIMATORS:
+            v = np.asarray(groups.get((mode, est), []), np.float64)
+            v = v[np.isfinite(v)]
+            if v.size == 0:
+                continue
+            q1, med, q3 = np.percentile(v, [25, 50, 75])
+            out.append({"mode": mode, "estimator": est, "n": int(v.size), "median": float(med), "q1": float(q1),
+                        "q3": float(q3), "min": float(v.min()), "max": float(v.max()), "iqr": float(q3 - q1)})
+    return out
+
+
+def paper_pattern(summary: Sequence[dict]) -> dict[str, tuple[bool, str]]:
+    """The qualitative findings of Alvarez et al. (IV-V), checked on a summary.
+
+    - ``m1_widest``: with single-speed calibration M1 has the largest spread (IQR and range) of M1, M2, M4;
+    - ``multi_narrower``: multi-speed calibration narrows M1, M2 and M4 (IQR and range of each);
+    - ``m3_comparable``: uncalibrated M3's median is within 5 % of 1, no farther from 1 than 0.03 plus the
+      worse of single-speed M2/M4, and its IQR is at most 1.5 times the larger of theirs.
+    """
+    s = {(r["mode"], r["estimator"]): r for r in summary}
+
+    def g(mode: str, est: str, key: str) -> float:
+        return float(s[(mode, est)][key])
+
+    def rng(mode: str, est: str) -> float:
+        return g(mode, est, "max") - g(mode, est, "min")
+
+    out: dict[str, tuple[bool, str]] = {}
+    ss = "single-speed"
+    iqr = {e: g(ss, e, "iqr") for e in ("M1", "M2", "M4")}
+    ranges = {e: rng(ss, e) for e in ("M1", "M2", "M4")}
+    out["m1_widest"] = (iqr["M1"] >= max(iqr["M2"], iqr["M4"]) and ranges["M1"] >= max(ranges["M2"], ranges["M4"]),
+                        f"single-speed IQR M1/M2/M4 = {iqr['M1']:.3f}/{iqr['M2']:.3f}/{iqr['M4']:.3f}, "
+                        f"range {ranges['M1']:.3f}/{ranges['M2']:.3f}/{ranges['M4']:.3f}")
+    narrower = {e: (g("multi-speed", e, "iqr") <= g(ss, e, "iqr") and rng("multi-speed", e) <= rng(ss, e))
+                for e in ("M1", "M2", "M4")}
+    out["multi_narrower"] = (all(narrower.values()), "IQR single->multi: " + ", ".join(
+        f"{e} {g(ss, e, 'iqr'):.3f}->{g('multi-speed', e, 'iqr'):.3f}" for e in ("M1", "M2", "M4")))
+    m3_med, m3_iqr = g(ss, "M3", "median"), g(ss, "M3", "iqr")
+    worst = max(abs(g(ss, "M2", "median") - 1), abs(g(ss, "M4", "median") - 1))
+    ok = abs(m3_med - 1) <= 0.05 and abs(m3_med - 1) <= worst + 0.03 and m3_iqr <= 1.5 * max(g(ss, "M2", "iqr"),
+                                                                                             g(ss, "M4", "iqr"))
+    out["m3_comparable"] = (ok, f"M3 median {m3_med:.3f} IQR {m3_iqr:.3f}; single-speed M2 median "
+                                f"{g(ss, 'M2', 'median'):.3f} IQR {g(ss, 'M2', 'iqr'):.3f}, M4 median "
+                                f"{g(ss, 'M4', 'median'):.3f} IQR {g(ss, 'M4', 'iqr'):.3f}")
+    return out
+
+
+def format_summary(summary: Sequence[dict], events: dict[str, EventScore] | None = None) -> str:
+    """A plain-text table of the summary (ratios in %), with the pooled event scores when given."""
+    lines = [f"{'mode':<13}{'est':<5}{'n':>5}{'median':>9}{'q1':>8}{'q3':>8}{'min':>8}{'max':>8}{'IQR':>7}"]
+    for r in summary:
+        lines.append(f"{r['mode']:<13}{r['estimator']:<5}{r['n']:>5}{100 * r['median']:>8.1f}%"
+                     f"{100 * r['q1']:>7.1f}%{100 * r['q3']:>7.1f}%{100 * r['min']:>7.1f}%{100 * r['max']:>7.1f}%"
+                     f"{100 * r['iqr']:>6.1f}%")
+    if events:
+        lines.append("")
+        lines.append(f"{'event':<12}{'truth':>7}{'found':>7}{'F1':>7}{'|err| med':>11}{'bias':>9}")
+        for e in events.values():
+            lines.append(f"{e.event:<12}{e.n_truth:>7}{e.n_detected:>7}{e.f1:>7.3f}"
+                         f"{1000 * e.median_abs_error_s:>9.1f}ms{1000 * e.median_error_s:>7.1f}ms")
+    return "\n".join(lines)
+
+
+def _csv_text(rows: Sequence[dict], columns: Sequence[str]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    return buf.getvalue()
+
+
+class SimulatedEvaluation:
+    """Run N simulated subjects through the protocol, the logger and the float chain; evaluate.
+
+    Parameters
+    ----------
+    n_subjects, seed
+        Subjects drawn by :func:`firmware_sim.world.subject.random_subjects` (``seed``); subject ``i`` walks
+        with seed ``seed * 1000 + i`` (independent of ``n_subjects`` and of ``workers``).
+    protocol
+        :class:`~firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    rate_hz, bits
+        Logger rate and ADC resolution.
+    workers
+        Processes (``concurrent.futures``); 1 runs in this process. Results do not depend on it.
+    section_m, include_turn, edge, calibration_sections
+        See :func:`evaluate_recording`.
+    calibrate_device
+        Fit the device calibration on a pose session first.
+
+    Attributes
+    ----------
+    results_
+        One :class:`SubjectResult` per subject.
+    rows_, summary_
+        All section rows, and :func:`summarise` of them.
+    events_
+        Event scores pooled over subjects.
+    """
+
+    def __init__(self, *, n_subjects: int = 4, seed: int = 0, protocol: Any = None, rate_hz: float = 50.0,
+                 bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
+                 edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True) -> None:
+        self.n_subjects = n_subjects
+        self.seed = seed
+        self.protocol = protocol
+        self.rate_hz = rate_hz
+        self.bits = bits
+        self.workers = workers
+        self.section_m = section_m
+        self.include_turn = include_turn
+        self.edge = edge
+        self.calibration_sections = calibration_sections
+        self.calibrate_device = calibrate_device
+
+    def run(self) -> Self:
+        """Simulate, record, estimate and evaluate every subject."""
+        from firmware_sim.world.subject import random_subjects
+
+        if self.n_subjects < 1:
+            raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
+        options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
+                       calibration_sections=self.calibration_sections)
+        jobs = [(s, self.seed * 1000 + i, self.protocol, self.rate_hz, self.bits, self.calibrate_device, options)
+                for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
+        if self.workers > 1 and len(jobs) > 1:
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
+                self.results_ = list(pool.map(_subject_job, jobs))
+        else:
+            self.results_ = [_subject_job(j) for j in jobs]
+        self.rows_ = [r for res in self.results_ for r in res.rows]
+        self.summary_ = summarise(self.rows_)
+        self.events_ = pool_event_scores([res.events for res in self.results_])
+        return self
+
+    def format_table(self) -> str:
+        """Printed table: summary and events."""
+        return format_summary(self.summary_, self.events_)
+
+    def write_csv(self, path: str | Path, *, summary_path: str | Path | None = None) -> None:
+        """Section rows (``ROW_COLUMNS``) to ``path`` and optionally the summary to ``summary_path``, atomically."""
+        from protocol.atomic_write import atomic_write_text
+
+        atomic_write_text(path, _csv_text(self.rows_, ROW_COLUMNS))
+        if summary_path is not None:
+            atomic_write_text(summary_path, _csv_text(self.summary_, SUMMARY_COLUMNS))
+
+
+def pool_event_scores(per_subject: Sequence[dict[str, EventScore]]) -> dict[str, EventScore]:
+    """Counts summed over subjects; timing errors: median of the subjects' medians."""
+    out = {}
+    for name in ("heel_strike", "toe_off", "foot_flat"):
+        xs = [p[name] for p in per_subject if name in p]
+        if not xs:
+            continue
+        out[name] = EventScore(name, sum(x.n_truth for x in xs), sum(x.n_detected for x in xs),
+                               sum(x.n_matched for x in xs),
+                               float(np.nanmedian([x.median_abs_error_s for x in xs])),
+                               float(np.nanmedian([x.median_error_s for x in xs])))
+    return out
