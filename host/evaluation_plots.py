@@ -1,0 +1,69 @@
+"""Box plots of the estimated/real distance ratio per estimator, in the manner of Alvarez et al. Figs 5-6.
+
+One panel per calibration mode: single-speed (M1-M4; M3 is never calibrated) and multi-speed (M1-M5, as
+Fig. 6 adds M5). Each box is the median and quartiles of the 20 m section ratios; the whiskers reach the
+extreme values (the paper plots "median, quartiles and extreme values"), so no point is drawn as an
+outlier. The dashed line is 100 %. matplotlib is imported lazily with the Agg backend; the PNG is written
+atomically (:func:`protocol.atomic_write.atomic_write_bytes`).
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+PANELS = (("single-speed", ("M1", "M2", "M3", "M4"), "Calibration at preferred speed"),
+          ("multi-speed", ("M1", "M2", "M3", "M4", "M5"), "Calibration at every speed"))
+
+
+def ratios_by_panel(rows: Iterable[dict]) -> dict[str, dict[str, np.ndarray]]:
+    """``{mode: {estimator: ratios}}`` from evaluation rows (``mode``, ``estimator``, ``ratio``)."""
+    out: dict[str, dict[str, list[float]]] = {}
+    for r in rows:
+        out.setdefault(str(r["mode"]), {}).setdefault(str(r["estimator"]), []).append(float(r["ratio"]))
+    return {m: {e: np.asarray(v, np.float64)[np.isfinite(v)] for e, v in d.items()} for m, d in out.items()}
+
+
+def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: int = 120) -> bytes:
+    """The figure as PNG bytes (raises ValueError when no panel has data)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    data = ratios_by_panel(rows)
+    panels = [(mode, [e for e in ests if data.get(mode, {}).get(e, np.zeros(0)).size], label)
+              for mode, ests, label in PANELS]
+    panels = [p for p in panels if p[1]]
+    if not panels:
+        raise ValueError("no section ratios to plot")
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.2), sharey=True, squeeze=False)
+    for ax, (mode, ests, label) in zip(axes[0], panels):
+        values = [100.0 * data[mode][e] for e in ests]
+        ax.boxplot(values, whis=(0, 100), widths=0.5, medianprops={"color": "k"})
+        ax.set_xticks(range(1, len(ests) + 1), [e + (" (no K)" if e == "M3" else "") for e in ests],
+                      fontsize=8)
+        ax.axhline(100.0, color="0.5", linestyle="--", linewidth=0.8)
+        n = min(v.size for v in values)
+        ax.set_title(f"{label}\n({mode}, {n} sections)", fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0][0].set_ylabel("estimated / real distance (%)")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None = None, dpi: int = 120) -> Path:
+    """Write the Figs 5-6 style box plots of ``rows`` (see :mod:`host.evaluation`) to ``path`` (PNG)."""
+    from protocol.atomic_write import atomic_write_bytes
+
+    png = render_boxplots_png(rows, title=title, dpi=dpi)
+    atomic_write_bytes(path, png)
+    return Path(path)
