@@ -13,6 +13,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
     where.add_argument("--tcp", type=int, metavar="PORT", help="serve on 127.0.0.1:PORT (0: any free port)")
     parser.add_argument("--baud", type=int, default=115200, help="baud rate of the device's UART (default 115200)")
+    parser.add_argument("--persist", action="store_true",
+                        help="save what the link changes (START/STOP logging, ERASE, SET_CALIBRATION) back to "
+                             "IMAGE on exit, as the EEPROM keeps it (default: IMAGE is left unchanged)")
     parser.add_argument("--wire-time", action="store_true",
                         help="pace the device's bytes at the baud rate (10 bits per byte, 8N1), as a real line")
 
@@ -24,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     from firmware_sim.device import Logger
     from firmware_sim.transport import serve_pty, serve_tcp
 
-    logger = Logger.from_image(args.image)
+    logger = Logger.from_image(args.image, image_path=args.image) if args.persist else Logger.from_image(args.image)
     if args.tcp is not None:
         server = serve_tcp(logger, port=args.tcp, baud=args.baud, wire_time=args.wire_time)
     else:
