@@ -21,6 +21,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import signal
     import sys
     import time
 
@@ -32,6 +33,11 @@ def run(args: argparse.Namespace) -> int:
         server = serve_tcp(logger, port=args.tcp, baud=args.baud, wire_time=args.wire_time)
     else:
         server = serve_pty(logger, baud=args.baud, wire_time=args.wire_time)
+    def _interrupt(signum, frame):  # SIGTERM (and SIGINT even when a shell started us in the background)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGINT, _interrupt)
     with server:
         where = server.url if args.tcp is not None else server.path
         print(where, flush=True)
