@@ -3,7 +3,8 @@
 The header's calibration slot stores the offset in Q15.16 counts and the matrix in Q1.30 g per count
 (32-bit words). The PIC keeps less, in 16-bit words:
 
-* offset in :data:`~firmware_sim.algorithms.formats.OFFSET_Q` (Q10.5 counts, rounded half up);
+* offset in :data:`~firmware_sim.algorithms.formats.OFFSET_Q` (Q10.5 counts, rounded half up; codes of
+  12 bits, for the ADC sweep, use Q12.3: :func:`~firmware_sim.algorithms.formats.centred_q`);
 * the nine matrix entries as Q0.15 mantissas with one shared exponent (block floating point): entry
   ``M_ij ≈ m_ij · 2**-(15 + e)``, ``e`` the largest shift that keeps the largest ``|M_ij|`` below 1 in
   Q0.15. For the nominal ±2 g over 10 bits (1/256 g per count) ``e = 7``: 22 fraction bits, a relative
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.algorithms.formats import ACC_Q, CENTRED_Q, OFFSET_Q
+from firmware_sim.algorithms.formats import ACC_Q, centred_q
 from firmware_sim.fixedpoint import ArithmeticContext, QFormat, add, mul, requantize, shift_left, shift_right, sub
 
 SLOT_OFFSET_Q = QFormat(15, 16, word_bits=32)
@@ -34,23 +35,26 @@ class CalibrationQ:
     Attributes
     ----------
     offset_raw
-        ``(3,)`` offsets, raw :data:`OFFSET_Q`.
+        ``(3,)`` offsets, raw ``centred_q(code_bits)`` (Q10.5 for 10-bit codes).
     mantissa_raw
         ``(3, 3)`` matrix mantissas, raw Q0.15.
     matrix_frac_bits
         Fraction bits of the matrix entries (``15 + e``).
+    code_bits
+        Width of the codes (10: the PIC's converter and PROTOCOL.md's fields; up to 12 for the sweep).
     """
 
     offset_raw: np.ndarray
     mantissa_raw: np.ndarray
     matrix_frac_bits: int
+    code_bits: int = 10
 
     @classmethod
-    def from_slot(cls, offset_q16: np.ndarray, matrix_q30: np.ndarray) -> CalibrationQ:
+    def from_slot(cls, offset_q16: np.ndarray, matrix_q30: np.ndarray, *, code_bits: int = 10) -> CalibrationQ:
         """From the header slot's integers (``offset_q16`` (3,), ``matrix_q30`` (3, 3) or (9,))."""
         off = np.asarray(offset_q16, np.int64).reshape(3)
         m = np.asarray(matrix_q30, np.int64).reshape(3, 3)
-        offset_raw = requantize(off, SLOT_OFFSET_Q, OFFSET_Q)
+        offset_raw = requantize(off, SLOT_OFFSET_Q, centred_q(code_bits))
         big = int(np.max(np.abs(m)))
         if big == 0:
             raise ValueError("calibration matrix is all zeros")
@@ -60,19 +64,25 @@ class CalibrationQ:
             drop += 1
         frac = SLOT_MATRIX_Q.frac_bits - drop
         mant = requantize(m, SLOT_MATRIX_Q, QFormat(15 - frac, frac))
-        return cls(offset_raw, mant, frac)
+        return cls(offset_raw, mant, frac, int(code_bits))
 
     @classmethod
-    def from_float(cls, offset_counts: np.ndarray, matrix_g_per_count: np.ndarray) -> CalibrationQ:
+    def from_float(cls, offset_counts: np.ndarray, matrix_g_per_count: np.ndarray, *,
+                   code_bits: int = 10) -> CalibrationQ:
         """From float parameters, through the slot's Q15.16 / Q1.30 words (as the device receives them)."""
         off = SLOT_OFFSET_Q.from_float(np.asarray(offset_counts, np.float64).reshape(3))
         m = SLOT_MATRIX_Q.from_float(np.asarray(matrix_g_per_count, np.float64).reshape(3, 3))
-        return cls.from_slot(off, m)
+        return cls.from_slot(off, m, code_bits=code_bits)
+
+    @classmethod
+    def from_protocol(cls, calibration: object, *, code_bits: int = 10) -> CalibrationQ:
+        """From a :class:`protocol.header.Calibration` (its ``offset_counts`` and ``matrix_g_per_count``)."""
+        return cls.from_float(calibration.offset_counts, calibration.matrix_g_per_count, code_bits=code_bits)
 
     @property
     def offset_counts(self) -> np.ndarray:
         """The offsets the PIC uses, counts (float)."""
-        return OFFSET_Q.to_float(self.offset_raw)
+        return centred_q(self.code_bits).to_float(self.offset_raw)
 
     @property
     def matrix_g_per_count(self) -> np.ndarray:
@@ -94,29 +104,34 @@ class CalibrationQ:
         c = np.asarray(codes)
         if c.ndim != 2 or c.shape[1] != 3:
             raise ValueError(f"codes must have shape (n, 3), got {c.shape}")
-        if c.size and (c.min() < 0 or c.max() > 1023):
-            raise ValueError("ADC codes must be 0 .. 1023 (10-bit fields)")
-        code_q = shift_left(c.astype(np.int64), CENTRED_Q.frac_bits, CENTRED_Q, ctx=ctx)
-        centred = sub(code_q, self.offset_raw[None, :], CENTRED_Q, ctx=ctx, op="calibration.centre")
+        top = (1 << max(10, self.code_bits)) - 1
+        if c.size and (c.min() < 0 or c.max() > top):
+            raise ValueError(f"ADC codes must be 0 .. {top} ({max(10, self.code_bits)}-bit fields)")
+        cq = centred_q(self.code_bits)
+        code_q = shift_left(c.astype(np.int64), cq.frac_bits, cq, ctx=ctx)
+        centred = sub(code_q, self.offset_raw[None, :], cq, ctx=ctx, op="calibration.centre")
         acc32 = np.zeros((c.shape[0], 3), np.int64)
         sum_q = QFormat(31, 0, word_bits=32)
         for i in range(3):          # rows of M: three products and a saturating 32-bit sum each
             for j in range(3):
                 p = mul(centred[:, j], self.mantissa_raw[i, j], ctx=ctx)
                 acc32[:, i] = add(acc32[:, i], p, sum_q, ctx=ctx, op="calibration.sum")
-        shift = CENTRED_Q.frac_bits + self.matrix_frac_bits - ACC_Q.frac_bits
+        shift = cq.frac_bits + self.matrix_frac_bits - ACC_Q.frac_bits
         out = shift_right(acc32, shift, ctx=ctx)
         return requantize(out, ACC_Q, ACC_Q, ctx=ctx)
 
 
 def nominal_calibration_q(*, adc_bits: int = 10) -> CalibrationQ:
     """The nominal map of PROTOCOL.md 2.1 (``cal_format = 0``): offset ``2**(bits-1)`` and
-    ``M = diag(4 g / 2**bits)``, for codes right-justified in 10-bit fields.
+    ``M = diag(4 g / 2**bits)``, for codes right-justified in 10-bit fields (up to 12 bits for the sweep).
 
     >>> cal = nominal_calibration_q()
     >>> cal.offset_counts.tolist(), cal.matrix_frac_bits
     ([512.0, 512.0, 512.0], 22)
+    >>> ACC_Q.to_float(nominal_calibration_q(adc_bits=12).apply(np.array([[2048, 3072, 4095]]))).tolist()
+    [[0.0, 1.0, 1.9990234375]]
     """
-    if not 1 <= adc_bits <= 10:
-        raise ValueError(f"adc_bits must be 1 .. 10, got {adc_bits}")
-    return CalibrationQ.from_float(np.full(3, 2.0 ** (adc_bits - 1)), np.eye(3) * 4.0 / 2.0 ** adc_bits)
+    if not 1 <= adc_bits <= 12:
+        raise ValueError(f"adc_bits must be 1 .. 12, got {adc_bits}")
+    return CalibrationQ.from_float(np.full(3, 2.0 ** (adc_bits - 1)), np.eye(3) * 4.0 / 2.0 ** adc_bits,
+                                   code_bits=adc_bits)

@@ -140,10 +140,12 @@ class FixedStepChain:
         valid: np.ndarray | None = None,
         t0_s: float = 0.0,
     ) -> Self:
-        """Run the chain on ``(n, 3)`` ADC codes (0..1023) sampled at ``sampling_rate_hz``.
+        """Run the chain on ``(n, 3)`` ADC codes (0..1023; up to 4095 with a 12-bit calibration) sampled at
+        ``sampling_rate_hz``.
 
-        ``adc_calibration`` is the device's calibration (the nominal 10-bit map when None); ``valid``
-        marks the samples that were received (lost samples are never used).
+        ``adc_calibration`` is the device's calibration (:class:`CalibrationQ`; the nominal 10-bit map
+        when None, ``nominal_calibration_q(adc_bits=...)`` for other widths); ``valid`` marks the samples
+        that were received (lost samples are never used).
         """
         c = np.asarray(codes)
         if c.ndim != 2 or c.shape[1] != 3:

@@ -15,10 +15,25 @@ from firmware_sim.fixedpoint import QFormat
 #: Standard gravity, m/s^2 per g (the firmware folds it into its constants).
 STANDARD_GRAVITY_M_S2 = 9.80665
 
-#: Offset of the calibration in ADC counts: Q10.5 (+-1024 counts, 1/32 count).
+#: Offset of the calibration in ADC counts: Q10.5 (+-1024 counts, 1/32 count) for the 10-bit ADC.
 OFFSET_Q = QFormat(10, 5)
-#: ADC code minus offset: Q10.5 in 16 bits.
+#: ADC code minus offset: Q10.5 in 16 bits (10-bit ADC; see :func:`centred_q` for other widths).
 CENTRED_Q = QFormat(10, 5)
+
+
+def centred_q(code_bits: int) -> QFormat:
+    """Format of offsets and centred codes for ``code_bits``-bit codes: ``Q{b}.{15-b}`` in 16 bits.
+
+    Codes of up to 10 bits live in the 10-bit fields of PROTOCOL.md (Q10.5); the 12-bit case is the
+    sweep's hypothetical external converter (Q12.3: the same 1/32 of a 10-bit count).
+
+    >>> str(centred_q(10)), str(centred_q(12))
+    ('Q10.5/16', 'Q12.3/16')
+    """
+    if not 1 <= code_bits <= 14:
+        raise ValueError(f"code width must be 1 .. 14 bits, got {code_bits}")
+    b = max(10, int(code_bits))
+    return QFormat(b, 15 - b)
 #: Calibrated specific force and every acceleration of the chain, g: Q2.13 (+-4 g, 0.122 mg).
 ACC_Q = QFormat(2, 13)
 #: Squares and dot products of accelerations, g^2: Q5.26 in 32 bits (unsigned for |g|^2).
