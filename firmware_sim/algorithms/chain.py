@@ -107,7 +107,8 @@ class FixedStepChain:
     Examples
     --------
     >>> fs = 50.0; t = np.arange(int(20 * fs)) / fs
-    >>> acc_g = np.zeros((t.size, 3)); acc_g[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / 9.80665
+    >>> acc_g = np.zeros((t.size, 3))
+    >>> acc_g[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / 9.80665
     >>> codes = np.clip(np.floor(acc_g * 256 + 512), 0, 1023).astype(int)
     >>> ch = FixedStepChain(leg_length_m=0.9, foot_length_m=0.26).run(codes, sampling_rate_hz=fs)
     >>> ch.steps_.n_steps in (38, 39, 40), ch.ctx_.report()

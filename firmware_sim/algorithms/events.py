@@ -96,7 +96,8 @@ class FixedGaitEventDetector:
             self._set(empty, empty, empty, empty, empty)
             return self
         # 1. foot-flat: peaks of the 3 Hz signal (integer thresholds)
-        prominence = int(np.floor(self.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2 * 2 ** LOWPASS_OUT_Q.frac_bits + 0.5))
+        lsb_per_g = 2 ** LOWPASS_OUT_Q.frac_bits
+        prominence = int(np.floor(self.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2 * lsb_per_g + 0.5))
         sig = lp if fin.all() else _integer_interp(lp, fin)
         dist0 = max(1, int(round(self.min_step_s * fs)))
         ff, _ = find_peaks(sig, distance=dist0, prominence=prominence)

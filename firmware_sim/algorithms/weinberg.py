@@ -50,7 +50,8 @@ class WeinbergM4Q:
     ) -> Self:
         """Estimate each step from the raw Q2.16 3 Hz signal (``defined`` marks where it exists).
 
-        Sets ``range_q_`` (Q2.16 g, the full-precision range), ``root_q_``, ``step_length_q_`` (UQ2.14 m), and float views
+        Sets ``range_q_`` (Q2.16 g, the full-precision range), ``root_q_``, ``step_length_q_`` (UQ2.14 m),
+        ``defined_``, and float views
         ``acc_range_m_s2_``, ``step_length_m_`` (NaN where the window has fewer than two defined samples).
         """
         lp = np.asarray(lowpassed_q, np.int64)
