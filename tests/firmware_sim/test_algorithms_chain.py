@@ -357,3 +357,72 @@ def test_chain_sweep_configurations_agree_with_float(bits: int, fs: float) -> No
         g = np.isfinite(x) & np.isfinite(y)
         d = np.abs(x[g] - y[g])
         assert np.median(d) <= 1e-3 and np.max(d / y[g]) <= 0.01, name
+
+
+def _round_div(n: int, d: int) -> int:
+    """Ties away from zero, Python ints."""
+    q = (abs(n) + d // 2) // d
+    return q if n >= 0 else -q
+
+
+def test_vectorised_axes_equal_the_per_sample_firmware_loop() -> None:
+    import math
+
+    rng = np.random.default_rng(21)
+    n, w = 400, 50
+    acc = ACC_Q.from_float(np.array([0.1, 0.2, 0.97]) + rng.normal(0, 0.3, (n, 3)))
+    valid = rng.random(n) > 0.1
+    av, g, ok = vertical_acceleration_q(acc, sampling_rate_hz=FS, valid=valid, gravity_window_s=w / FS)
+    # firmware: running sums updated by the entering and leaving samples, then per-sample integer maths
+    sums, count = [0, 0, 0], 0
+    lo_off, hi_off = w // 2, w - 1 - w // 2
+    ref_av = []
+    for i in range(n):                                    # window of sample i: [i - w//2, i + hi_off]
+        lo, hi = max(0, i - lo_off), min(n - 1, i + hi_off)
+        if i == 0:
+            for k in range(lo, hi + 1):
+                if valid[k]:
+                    sums = [s + int(acc[k, j]) for j, s in enumerate(sums)]
+                    count += 1
+        else:
+            enter, leave = i + hi_off, i - lo_off - 1
+            if enter < n and valid[enter]:
+                sums = [s + int(acc[enter, j]) for j, s in enumerate(sums)]
+                count += 1
+            if leave >= 0 and valid[leave]:
+                sums = [s - int(acc[leave, j]) for j, s in enumerate(sums)]
+                count -= 1
+        gi = [_round_div(s, count) for s in sums]
+        norm2 = sum(x * x for x in gi)
+        r = math.isqrt(norm2)
+        gn = r + 1 if norm2 - r * r > r else r
+        if not (valid[i] and gn > int(ACC_Q.from_float(0.2))):
+            ref_av.append(None)
+            continue
+        dot = sum(int(acc[i, j]) * gi[j] for j in range(3))
+        ref_av.append(_round_div(dot - norm2, gn))
+    assert ok.tolist() == [x is not None for x in ref_av]
+    assert [int(v) for v, k in zip(av, ok) if k] == [x for x in ref_av if x is not None]
+
+
+def test_vectorised_lowpass_equals_the_mac_loop() -> None:
+    from firmware_sim.algorithms.lowpass import gaussian_kernel_q
+
+    rng = np.random.default_rng(22)
+    n = 300
+    x = rng.integers(-9000, 9000, n)
+    valid = rng.random(n) > 0.15
+    y, defined = masked_gaussian_lowpass_q(x, valid, cutoff_hz=3.0, sampling_rate_hz=FS, min_weight=0.25)
+    wq = gaussian_kernel_q(3.0, FS).tolist()
+    r = (len(wq) - 1) // 2
+    thr = int(np.ceil(0.25 * sum(wq)))
+    for i in range(n):
+        num = den = 0
+        for k, wk in enumerate(wq):                       # one MAC per tap
+            j = i + k - r
+            if 0 <= j < n and valid[j]:
+                num += wk * int(x[j])
+                den += wk
+        assert bool(defined[i]) == (den >= thr)
+        if den >= thr:
+            assert int(y[i]) == _round_div(num * 8, den)   # Q2.13 -> Q2.16: three more bits
