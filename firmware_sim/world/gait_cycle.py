@@ -10,7 +10,7 @@ with the centre of mass lowest around the end of double support (``com_min_fract
 foot-flat where M1 resets its integrals. Vertically the centre of mass oscillates once per step as a
 phase-warped cosine (broad crest in single stance, sharp trough in double support) whose peak-to-valley
 depth is the sum of Alvarez Fig. 3's two pendulums: ``h1`` = the drop of an arc of radius
-``l_eff = pendulum_ratio · leg_length · (v / v_pref) ** pendulum_speed_exponent`` over the mean half-chord
+``l_eff = pendulum_ratio · leg_length · f(v / v_pref)`` (see :class:`Subject`) over the mean half-chord
 of single stance, and ``h2 = d_ds² / (8 · double_support_radius_m)`` over the double-support travel.
 Forward it moves fastest in double support and slowest at mid-stance (``ap_speed_fluctuation``). Every
 channel is C2 with exact derivatives (:func:`firmware_sim.world.hermite.quintic_hermite` knots, and
@@ -292,7 +292,9 @@ def plan_excursion(
     # The pendulums of Alvarez Fig. 3 set the depth: h1 = the drop of an arc of radius l_eff over the mean
     # half-chord of single stance, h2 = the sag of a concave-up arc of radius double_support_radius_m over
     # the double-support travel.
-    l_eff = subject.leg_length_m * subject.pendulum_ratio * (vbar / v_pref) ** subject.pendulum_speed_exponent
+    rel_v = vbar / v_pref
+    l_eff = (subject.leg_length_m * subject.pendulum_ratio * rel_v**subject.pendulum_speed_exponent
+             * (1.0 + subject.pendulum_speed_curvature * np.log(rel_v) ** 2))
     z_stand = subject.com_height_m
     z_target = z_stand - subject.peak_drop_m * (vbar / v_pref) - np.abs(rng.normal(0.0, 0.001, n_reg))
     d_a = lengths_a * (g_frac(tau_peak) - g_frac(tau_to))  # TO -> PEAK

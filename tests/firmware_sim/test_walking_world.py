@@ -143,8 +143,8 @@ def test_walking_speed_is_forward_and_continuous(fine: Motion) -> None:
     assert np.all(np.diff(fine.truth["laps"]["time_s"]) > 0)
     x_out = com[walk, 0][: np.argmax(com[walk, 0])]
     assert np.all(np.diff(x_out) > -1e-4)
-    # No jumps: acceleration bounded (ADXL202 range is +-2 g; fast walking may brush it, not preferred).
-    assert np.abs(fine.acc_g).max() < 2.0
+    # No jumps: acceleration bounded (heel strikes may brush the ADXL202's +-2 g, nothing beyond 2.5 g).
+    assert np.abs(fine.acc_g).max() < 2.5
 
 
 @pytest.mark.parametrize("subject", random_subjects(3, seed=1) + [Subject()], ids=lambda s: s.subject_id)
