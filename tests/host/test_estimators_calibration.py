@@ -7,6 +7,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from host.errors import HostError
 from host.estimators.calibration import KCalibration, calibrate
@@ -92,3 +94,27 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
         KCalibration.load(p)
     with pytest.raises(HostError, match="cannot read"):
         KCalibration.load(tmp_path / "missing.json")
+
+
+finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
+
+
+@given(k=st.tuples(finite, finite, finite, finite, finite),
+       n=st.integers(1, 10_000),
+       label=st.text(max_size=20))
+def test_kcalibration_json_round_trip_property(k, n, label) -> None:
+    cal = KCalibration(k_m1=k[0], k_m2=k[1], k_m4=k[2], k1_m5_m_s=k[3], k2_m5_m=k[4], mode="single-speed",
+                       m5_fallback=True, leg_length_m=0.9, foot_length_m=0.2, n_sections=1, n_steps=n,
+                       distance_m=20.0, subject=label, notes=["x"])
+    assert KCalibration.from_json(cal.to_json()) == cal
+
+
+def test_distance_fills_unmeasured_steps_with_the_bout_median() -> None:
+    t = table(0.5, 0.55, 6)                      # step 0 has no window (NaN)
+    t.bout = np.array([0, 0, 0, 1, 1, 1])
+    v = np.array([np.nan, 0.6, 0.8, np.nan, 0.4, 0.5])
+    t.length_m = {"M2": v}
+    d, n = t.distance_m("M2")
+    assert n == 2 and d == pytest.approx(0.6 + 0.8 + 0.7 + 0.45 + 0.4 + 0.5)
+    with pytest.raises(KeyError, match="unknown estimator"):
+        t.distance_m("M9")
