@@ -251,7 +251,7 @@ class Subject:
             subject_id=subject_id,
             leg_length_m=height * around(LEG_LENGTH_PER_HEIGHT, 0.012, 0.49, 0.57),
             foot_length_m=height * around(FOOT_LENGTH_PER_HEIGHT, 0.005, 0.138, 0.166),
-            preferred_speed_m_s=around(1.35, 0.10, 1.10, 1.60) * np.sqrt(height / 1.76),
+            preferred_speed_m_s=float(around(1.35, 0.10, 1.10, 1.60) * np.sqrt(height / 1.76)),
             fast_speed_factor=around(1.32, 0.06, 1.18, 1.45),
             slow_speed_factor=around(0.70, 0.05, 0.58, 0.82),
             walk_ratio_m_spm=height * around(WALK_RATIO_PER_HEIGHT, 0.00025, 0.0031, 0.0044),

@@ -190,7 +190,7 @@ def test_bad_population_size() -> None:
 # ---- issue 4 "done means" on simulated subjects (depends on host/gait as well) --------------------------
 
 DONE_REASON = ("issue 4 done-criteria on the simulated world; see /work/briefs/walking-to-gait.md for the "
-               "numbers (13:30 UTC: HS F1 0.70, TO F1 0.34, FF median error 19.5 ms / 41 ms steady)")
+               "numbers (6 subjects: HS F1 0.83, TO F1 0.48, FF median error 22.5 ms; M3 IQR 15 % vs M2 7 %)")
 
 
 @pytest.fixture(scope="module")
