@@ -20,7 +20,9 @@ For every trial of an IPOL folder (:mod:`host.ipol`):
    20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
 4. *Calibration*: per subject, K of M1/M2/M4 and the M5 line are fitted on the first trial (20 m, one speed:
    M5 uses its walk-ratio fallback, :func:`host.estimators.calibration.calibrate`); M3 is never calibrated.
-5. *Rows*: every other trial gives one row per estimator: ``subject, trial, estimator, arithmetic,
+5. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
+   no usable step; every skip is warned about and listed (``IpolResult.skipped``, printed by the command).
+6. *Rows*: every other trial gives one row per estimator: ``subject, trial, estimator, arithmetic,
    distance_m, ratio, steps, reference_steps`` (ratio = distance / 20 m; steps = detected steps in the
    trial; reference = heel strikes in the JSON within the trial boundaries).
 """
@@ -28,7 +30,7 @@ For every trial of an IPOL folder (:mod:`host.ipol`):
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -211,6 +213,7 @@ class IpolResult:
     calibrations: dict[int, KCalibration]
     emulated: bool
     n_trials: int
+    skipped: list[str] = field(default_factory=list)
 
 
 def evaluate_folder(
@@ -227,37 +230,47 @@ def evaluate_folder(
         by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
     rows: list[dict] = []
     cals: dict[int, KCalibration] = {}
+    skipped: list[str] = []
     emulated_all = True
     n_trials = 0
     for subject, paths in by_subject.items():
         if len(paths) < 2:
-            warnings.warn(f"subject {subject}: only one trial, nothing to evaluate after calibration",
-                          stacklevel=2)
+            skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
             continue
-        trials = []
+        trials: list[tuple[ReplayedTrial, tuple[StepTable, np.ndarray]]] = []
+        leg = foot = float("nan")
         for p in paths:
             if progress is not None:
                 progress(p.name)
-            trials.append(replay_trial(p, rate_hz=rate_hz, bits=bits))
-        emulated_all &= all(t.emulated for t in trials)
-        height = trials[0].height_m
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            leg, foot = anatomical_lengths(height_m=height)
-        tables = []
-        for rt in trials:
+            try:
+                rt = replay_trial(p, rate_hz=rate_hz, bits=bits)
+            except HostError as err:   # one unreadable trial must not sink the whole evaluation
+                skipped.append(f"{p.name}: {err}")
+                continue
+            if not trials:             # anatomy from the subject's first readable trial
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", UserWarning)
+                    leg, foot = anatomical_lengths(height_m=rt.height_m)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
                     rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s)
-            tables.append(trial_steps(rt, pipe.steps_, uturn=uturn))
-        sec0, counts0 = tables[0]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # the one-speed M5 fallback is expected here
-            cal = calibrate([(_counted(sec0, counts0), IPOL_DISTANCE_M)], leg_length_m=leg, foot_length_m=foot,
-                            subject=str(subject))
+            trials.append((rt, trial_steps(rt, pipe.steps_, uturn=uturn)))
+        if len(trials) < 2:
+            skipped.append(f"subject {subject}: fewer than two readable trials")
+            continue
+        emulated_all &= all(rt.emulated for rt, _ in trials)
+        rt0, (sec0, counts0) = trials[0]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # the one-speed M5 fallback is expected here
+                cal = calibrate([(_counted(sec0, counts0), IPOL_DISTANCE_M)], leg_length_m=leg,
+                                foot_length_m=foot, subject=str(subject))
+        except HostError as err:
+            skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
+            continue
         cals[subject] = cal
-        for rt, (sec, counts) in zip(trials[1:], tables[1:]):
+        for rt, (sec, counts) in trials[1:]:
             n_trials += 1
             sec.length_m = apply_calibration(sec, cal)
             for name in ESTIMATORS:
@@ -265,9 +278,11 @@ def evaluate_folder(
                 rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic="float",
                                  distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
                                  reference_steps=rt.reference_steps()))
+    for msg in skipped:
+        warnings.warn(f"IPOL evaluation: skipped {msg}", stacklevel=2)
     if not rows:
-        raise HostError(f"{folder}: no subject with two or more trials: nothing to evaluate")
-    return IpolResult(rows, cals, emulated_all, n_trials)
+        raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(skipped) + ")")
+    return IpolResult(rows, cals, emulated_all, n_trials, skipped)
 
 
 def summarise(rows: list[dict]) -> list[dict]:

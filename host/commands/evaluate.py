@@ -31,8 +31,13 @@ def run(args: argparse.Namespace) -> int:
     if not args.rate > 0:
         raise HostError(f"--rate must be positive, got {args.rate}")
     show = sys.stderr.isatty()
-    res = evaluate_folder(args.folder, rate_hz=args.rate, bits=args.bits, uturn=args.uturn,
-                          progress=(lambda name: print(f"  {name:<16}", file=sys.stderr, end="\r")) if show else None)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)   # skips are listed below
+        res = evaluate_folder(args.folder, rate_hz=args.rate, bits=args.bits, uturn=args.uturn,
+                              progress=(lambda name: print(f"  {name:<16}", file=sys.stderr, end="\r"))
+                              if show else None)
     lines = [",".join(CSV_COLUMNS)]
     for r in res.rows:
         lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['distance_m']:.4f},"
@@ -67,5 +72,7 @@ def run(args: argparse.Namespace) -> int:
             continue
         print(f"{s['estimator']:<10}{s['n']:>4}{s['median']:>8.3f}{s['q1']:>8.3f}{s['q3']:>8.3f}{s['iqr']:>7.3f}"
               f"{s['min']:>8.3f}{s['max']:>8.3f}{s['step_error_median_pct']:>13.2f}")
+    for msg in res.skipped:
+        print(f"skipped: {msg}")
     print(f"written: {args.out}, {fig_path}")
     return 0

@@ -83,3 +83,18 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"]
     assert out.with_suffix(".png").stat().st_size > 1000
     assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "12"]) == 1
+
+
+def test_unreadable_trial_and_single_trial_subject_are_skipped_and_listed(tmp_path, capsys) -> None:
+    write_ipol_trial(tmp_path, 3, 1, seed=5)
+    write_ipol_trial(tmp_path, 3, 2, seed=6)
+    write_ipol_trial(tmp_path, 3, 3, seed=7)
+    (tmp_path / "3-3.json").write_text("{}")            # no TrialBoundaries
+    write_ipol_trial(tmp_path, 4, 1, seed=8)            # a subject with one trial
+    out = tmp_path / "eval.csv"
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "skipped: 3-3_lb.txt" in text and "skipped: subject 4: only one trial" in text
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {(r["subject"], r["trial"]) for r in rows} == {("3", "2")}
