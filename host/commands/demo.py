@@ -1,8 +1,9 @@
 """``gaitlog demo``: the whole data path on defaults, as a sequence of stages.
 
 record (calibration poses with the emulated logger) -> serve (the image as a live device on a pty) ->
-dump (over the pty, as from a real logger) -> decode (CSV + NPZ) -> summary (samples, gaps, duration and the
-per-axis mean g of each pose against the truth).
+dump (over the pty, as from a real logger) -> decode (CSV + NPZ) -> calibrate (9-parameter fit on the dumped
+poses, CAL.json) -> summary (samples, gaps, duration and, per pose, the mean g against the truth and the
+error of |a| before and after calibration).
 
 Later issues extend the demo by appending :class:`Stage` objects to :data:`STAGES` (each stage reads and
 adds entries of the shared ``context`` dict and returns lines to print).
@@ -15,7 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-HELP = "run the whole path on defaults: record poses -> serve on a pty -> dump -> decode -> summary"
+HELP = "run the whole path on defaults: record poses -> serve on a pty -> dump -> decode -> calibrate -> summary"
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,29 @@ def _decode(ctx: dict[str, Any]) -> list[str]:
     return [f"-> {csv}, {npz}"]
 
 
+def _calibrate(ctx: dict[str, Any]) -> list[str]:
+    import numpy as np
+
+    from host.calibration import AccCalibrator
+
+    rec = ctx["recording"]
+    counts = rec.codes.astype(np.float64)
+    counts[~rec.valid] = np.nan
+    span = 2 ** int(rec.adc_bits)
+    fit = AccCalibrator(model="9-param").calibrate(
+        counts, sampling_rate_hz=rec.sampling_rate_hz, input_unit="counts", zero=span / 2,
+        unit_per_g=span / 4, valid_range=(0.0, float(span - 1)))
+    cal = fit.calibration_
+    path = ctx["dir"] / "calibration.json"
+    cal.save(path)
+    ctx["calibration"] = cal
+    return [f"{cal.n_poses} static poses found, 9-parameter fit: |a| - 1 g rms {cal.residual_rms_g * 1e3:.2f} mg, "
+            f"max {cal.residual_max_g * 1e3:.2f} mg -> {path}",
+            "offset (counts) " + " ".join(f"{v:.2f}" for v in cal.offset)
+            + "; scale (counts/g) " + " ".join(f"{v:.2f}" for v in cal.scale_per_g)
+            + "; axis angles (deg) " + " ".join(f"{v:+.3f}" for v in cal.angles_deg)]
+
+
 def _summary(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
@@ -84,15 +108,25 @@ def _summary(ctx: dict[str, Any]) -> list[str]:
              f"at {rec.sampling_rate_hz:g} Hz; bit-identical to what the device recorded: {exact}",
              rec.default_calibration()[1]]
     acc = rec.acc_g()
+    counts = rec.codes.astype(np.float64)
+    counts[~rec.valid] = np.nan
+    cal = ctx.get("calibration")
+    acc_cal = cal.apply(counts) if cal is not None else np.full_like(acc, np.nan)
     t = rec.time_s - rec.time_s[0] if rec.n_samples else rec.time_s
     holds = np.asarray(ctx["motion"].truth["hold_windows_s"])
     up = np.asarray(ctx["motion"].truth["specific_force_g"])
-    lines.append("pose   mean x_g  mean y_g  mean z_g   (truth x, y, z)")
+    lines.append("pose   mean x_g  mean y_g  mean z_g   (truth x, y, z)            |a|-1 g (mg): nominal  calibrated")
+    worst = [0.0, 0.0]
     for i, (t0, t1) in enumerate(holds):
         sel = (t >= t0 + 0.5) & (t < t1 - 0.5) & rec.valid
         m = acc[sel].mean(axis=0) if sel.any() else np.full(3, np.nan)
+        mc = acc_cal[sel].mean(axis=0) if sel.any() else np.full(3, np.nan)
+        err = [(np.linalg.norm(m) - 1.0) * 1e3, (np.linalg.norm(mc) - 1.0) * 1e3]
+        worst = [max(w, abs(e)) for w, e in zip(worst, err, strict=True)]
         lines.append(f"{i + 1:4d}  {m[0]:+8.3f}  {m[1]:+8.3f}  {m[2]:+8.3f}   "
-                     f"({up[i, 0]:+.3f}, {up[i, 1]:+.3f}, {up[i, 2]:+.3f})")
+                     f"({up[i, 0]:+.3f}, {up[i, 1]:+.3f}, {up[i, 2]:+.3f})   {err[0]:+8.1f}  {err[1]:+8.2f}")
+    lines.append(f"worst | |a| - 1 g | over the poses: {worst[0]:.1f} mg with the nominal map, "
+                 f"{worst[1]:.2f} mg calibrated (one LSB is {4000 / 2 ** rec.adc_bits:.1f} mg)")
     return lines
 
 
@@ -102,13 +136,14 @@ STAGES: list[Stage] = [
     Stage("serve", _serve),
     Stage("dump", _dump),
     Stage("decode", _decode),
+    Stage("calibrate", _calibrate),
     Stage("summary", _summary),
 ]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", help="keep the files in DIR (default: a temporary directory)")
-    parser.add_argument("--poses", type=int, default=12, help="number of calibration poses (default 12)")
+    parser.add_argument("--poses", type=int, default=24, help="number of calibration poses (default 24)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor and the poses (default 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -122,8 +157,9 @@ def run(args: argparse.Namespace) -> int:
     tmp = None
     if args.out:
         out = Path(args.out)
-        if not out.is_dir():
-            raise HostError(f"--out {out}: not a directory")
+        if out.exists() and not out.is_dir():
+            raise HostError(f"--out {out}: exists and is not a directory")
+        out.mkdir(parents=True, exist_ok=True)
     else:
         tmp = tempfile.TemporaryDirectory(prefix="gaitlog-demo-")
         out = Path(tmp.name)
