@@ -171,8 +171,20 @@ def test_record_command_and_demo(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "bit-identical to what the device recorded: True" in out
     assert "[summary]" in out and "0 gap(s)" in out
+    assert "[calibrate] skipped: 4 poses" in out
     for name in ("recorded.glimg", "dumped.glimg", "dumped.glimg.json", "decoded.csv", "decoded.npz"):
         assert (tmp_path / name).exists(), name
+
+
+def test_demo_calibrates_the_dumped_poses(tmp_path, capsys):
+    """The default demo fits the 9-parameter model on what it dumped: every pose reads 1 g within 2 mg."""
+    assert main(["demo", "--out", str(tmp_path / "new"), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert (tmp_path / "new" / "calibration.json").exists()
+    worst = out.split("worst | |a| - 1 g | over the poses: ")[1]
+    nominal_mg = float(worst.split(" mg with the nominal map")[0])
+    calibrated_mg = float(worst.split(", ")[1].split(" mg calibrated")[0])
+    assert calibrated_mg < 2.0 < nominal_mg
 
 
 def test_round_trip_over_tcp(tmp_path):

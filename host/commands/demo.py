@@ -81,6 +81,9 @@ def _calibrate(ctx: dict[str, Any]) -> list[str]:
     from host.calibration import AccCalibrator
 
     rec = ctx["recording"]
+    n_poses = len(ctx["motion"].truth["hold_windows_s"])
+    if n_poses < 9:
+        return [f"skipped: {n_poses} poses, the 9-parameter model needs at least 9 (use --poses 24)"]
     counts = rec.codes.astype(np.float64)
     counts[~rec.valid] = np.nan
     span = 2 ** int(rec.adc_bits)
