@@ -8,9 +8,11 @@ nearly constant over ordinary speeds, Sekiya & Nagasaki 1998; equivalently Griev
 ``S = sqrt(60 · WR · v)``, WR ≈ 0.00375·H m per step/min (≈ 0.0066 for H = 1.77 m), drifting per subject
 with speed (``walk_ratio_speed_exponent``).
 
-Amplitudes were checked against the IPOL lower-back recordings (straight walking, 100 Hz, 20 trials):
-vertical acceleration SD 0.19 g (0.14-0.35), 1st-99th percentile range 0.92 g; population-mean subjects
-here at preferred speed: SD 0.20-0.26 g, range 0.75-0.95 g (heel-strike transient 0.55 g).
+Shape and amplitudes were checked against the IPOL lower-back recordings (straight walking, 100 Hz):
+there the vertical acceleration rises sharply at heel strike, stays high through double support, drops at
+the trailing toe-off and sags below 1 g in single stance (SD 0.19 g, 0.14-0.35 over 20 trials; 1st-99th
+percentile range 0.92 g); the defaults reproduce that pattern (valley of the centre of mass early in double
+support with a sharp trough, impact 0.35 g, push-off drop at toe-off; SD 0.2-0.25 g).
 
 The fields that break the estimators' assumptions (so that a per-subject K is genuinely needed):
 
@@ -19,7 +21,7 @@ The fields that break the estimators' assumptions (so that a per-subject K is ge
   determinants of gait), and that ratio changes with speed (``pendulum_speed_exponent``,
   ``pendulum_speed_curvature``), so a K calibrated at one speed is biased at the others;
 - ``double_support_fraction`` and ``com_min_fraction``: how long double support lasts and when the centre
-  of mass bottoms out (around the trailing toe-off, not at foot-flat, where M1 resets its integrals);
+  of mass bottoms out (early in double support, not at foot-flat, where M1 resets its integrals);
 - ``sensor_offset_m``: the sensor sits on the skin over L3, behind and above the centre of mass, so trunk
   pitch and roll move it vertically and tangential/centripetal accelerations add to the centre of mass's;
 - ``mounting_rotation_deg``: the corset holds the device tilted.
@@ -129,9 +131,9 @@ class Subject:
     pendulum_speed_curvature: float = 0.6
     double_support_fraction: float = 0.22
     foot_flat_fraction: float = 0.65
-    com_min_fraction: float = 0.85
+    com_min_fraction: float = 0.45
     peak_fraction: float = 0.5
-    vertical_warp: float = 0.2
+    vertical_warp: float = 0.35
     double_support_radius_m: float = 0.5
     peak_drop_m: float = 0.01
     ap_speed_fluctuation: float = 0.09
@@ -147,7 +149,7 @@ class Subject:
     sway_phase_rad: float = -1.6
     sensor_offset_m: tuple[float, float, float] = (-0.11, 0.0, 0.03)
     mounting_rotation_deg: tuple[float, float, float] = (0.0, 6.0, 2.0)
-    heel_strike_acc_g: float = 0.55
+    heel_strike_acc_g: float = 0.35
     heel_strike_ap_acc_g: float = 0.25
     heel_strike_width_s: float = 0.012
     toe_off_acc_g: float = 0.15
@@ -264,9 +266,9 @@ class Subject:
             pendulum_speed_curvature=around(0.6, 0.3, 0.0, 1.5),
             double_support_fraction=around(0.22, 0.025, 0.15, 0.30),
             foot_flat_fraction=around(0.65, 0.08, 0.45, 0.85),
-            com_min_fraction=around(0.85, 0.15, 0.5, 1.25),
+            com_min_fraction=around(0.45, 0.12, 0.2, 0.8),
             peak_fraction=around(0.5, 0.05, 0.38, 0.62),
-            vertical_warp=around(0.2, 0.08, 0.0, 0.4),
+            vertical_warp=around(0.35, 0.07, 0.2, 0.5),
             double_support_radius_m=around(0.5, 0.12, 0.25, 0.9),
             peak_drop_m=around(0.01, 0.004, 0.0, 0.025),
             ap_speed_fluctuation=around(0.09, 0.02, 0.04, 0.15),
@@ -283,7 +285,7 @@ class Subject:
             sensor_offset_m=(around(-0.11, 0.02, -0.16, -0.07), around(0.0, 0.01, -0.02, 0.02),
                              around(0.03, 0.03, -0.05, 0.10)),
             mounting_rotation_deg=tuple(float(a) for a in axis * angle),
-            heel_strike_acc_g=around(0.55, 0.15, 0.25, 0.9),
+            heel_strike_acc_g=around(0.35, 0.1, 0.15, 0.6),
             heel_strike_ap_acc_g=around(0.25, 0.08, 0.1, 0.45),
             heel_strike_width_s=around(0.012, 0.002, 0.008, 0.018),
             toe_off_acc_g=around(0.15, 0.05, 0.05, 0.3),
