@@ -13,8 +13,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help="decoded recording(s) (.npz) or CSV; several inputs = several speeds")
     how = parser.add_mutually_exclusive_group(required=True)
-    how.add_argument("--distance", type=float, nargs="+", metavar="M",
-                     help="distance walked in each input, m (one value for all inputs, or one per input)")
+    how.add_argument("--distance", type=float, action="append", metavar="M",
+                     help="distance walked, m: once for all inputs, or repeated once per input in order")
     how.add_argument("--lap-marks", type=float, metavar="M",
                      help="distance between consecutive MARK flags, m: every lap between marks is one section")
     parser.add_argument("--out", required=True, metavar="K.json", help="write the calibration here (JSON)")

@@ -93,7 +93,7 @@ def test_calibrate_k_with_lap_marks(tmp_path, capsys) -> None:
     (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "175"], "metres"),
     (["estimate", "{d}/bad.csv", "--rate", "50"], "not a number"),
     (["estimate", "{d}/walk.csv", "--rate", "50", "--k-file", "{d}/bad.json"], "format_version"),
-    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "2", "--out", "{d}/o.json"], "one value"),
+    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "--distance", "2", "--out", "{d}/o.json"], "one value"),
     (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--lap-marks", "20", "--out", "{d}/o.json"], "MARK"),
     (["evaluate", "ipol", "{d}", "--out", "{d}/o.csv"], "IPOL layout"),
 ])
