@@ -14,10 +14,11 @@ acceleration reads negative). The device is then rotated by the subject's ``moun
 What is modelled (richer than any estimator's assumptions)
 -----------------------------------------------------------
 - centre-of-mass path with double support and single stance (:mod:`firmware_sim.world.gait_cycle`):
-  a single-stance arc flatter than the leg (stance-knee flexion, foot rocker), a double-support valley
-  whose bottom is not at foot-flat, forward speed fluctuating within the step, speed-dependent step length
-  and cadence (walk ratio), step-to-step variability and asymmetry, gait initiation, a slowed-down 180°
-  turn on a smooth path, termination at the line;
+  one vertical oscillation per step whose depth is Alvarez's two pendulums (an arc flatter than the leg
+  over single stance, a sag over double support), its low point early in double support and not at
+  foot-flat, forward speed fluctuating within the step, speed-dependent step length and cadence (walk
+  ratio), step-to-step variability and asymmetry, gait initiation, a slowed-down 180° turn on a smooth
+  path, termination at the line;
 - trunk/pelvis motion: forward lean, pitch oscillation at step frequency, obliquity (roll) and pelvic
   rotation (yaw) at stride frequency, medio-lateral sway at stride frequency; the sensor's lever arm from
   the centre of mass adds tangential and centripetal accelerations, and its height differs from the

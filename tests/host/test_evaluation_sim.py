@@ -190,7 +190,7 @@ def test_bad_population_size() -> None:
 # ---- issue 4 "done means" on simulated subjects (depends on host/gait as well) --------------------------
 
 DONE_REASON = ("issue 4 done-criteria on the simulated world; see /work/briefs/walking-to-gait.md for the "
-               "numbers (6 subjects: HS F1 0.83, TO F1 0.48, FF median error 22.5 ms; M3 IQR 15 % vs M2 7 %)")
+               "numbers (6 subjects: HS F1 0.96, TO F1 0.19 with TO ~100 ms late, FF 13.7 ms; M3 IQR 9.3 % vs M2 6.0 %)")
 
 
 @pytest.fixture(scope="module")
