@@ -114,3 +114,19 @@ def test_cli_help_lists_gait_commands(capsys) -> None:
         main(["--help"])
     out = capsys.readouterr().out
     assert "estimate" in out and "calibrate-k" in out and "evaluate" in out
+
+
+def test_calibrate_k_two_speeds_fits_the_m5_line(tmp_path, capsys) -> None:
+    slow, _ = walk_acc_g(step_s=0.62, n_steps=30, seed=4)
+    fast, _ = walk_acc_g(step_s=0.48, n_steps=30, seed=5)
+    write_npz(tmp_path / "slow.npz", slow)
+    write_npz(tmp_path / "fast.npz", fast)
+    k = tmp_path / "k.json"
+    # 31 steps each (30 + initiation); slow 0.60 m, fast 0.75 m per step: S = K1 / T + K2
+    assert main(["calibrate-k", str(tmp_path / "slow.npz"), str(tmp_path / "fast.npz"), "--distance", "18.6",
+                 "--distance", "23.25", "--height", "1.75", "--out", str(k)]) == 0
+    d = json.loads(k.read_text())
+    assert d["mode"] == "multi-speed" and d["m5_fallback"] is False
+    k1, k2 = d["k1_m5_m_s"], d["k2_m5_m"]
+    assert k1 / 0.62 + k2 == pytest.approx(0.60, abs=0.02)
+    assert k1 / 0.48 + k2 == pytest.approx(0.75, abs=0.02)
