@@ -564,6 +564,20 @@ class SimulatedEvaluation:
             atomic_write_text(summary_path, _csv_text(self.summary_, SUMMARY_COLUMNS))
 
 
+    def write_outputs(self, out_dir: str | Path, *, stem: str = "simulated", title: str | None = None) -> dict[str, Path]:
+        """Rows CSV, summary CSV and the Figs 5-6 box plot into ``out_dir`` (each written atomically)."""
+        from host.evaluation_plots import plot_boxplots
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"rows": out / f"{stem}_sections.csv", "summary": out / f"{stem}_summary.csv",
+                 "figure": out / f"{stem}_boxplots.png"}
+        self.write_csv(paths["rows"], summary_path=paths["summary"])
+        plot_boxplots(self.rows_, paths["figure"], title=title or (
+            f"{self.n_subjects} simulated subjects, {self.rate_hz:g} Hz, {self.bits} bit"))
+        return paths
+
+
 def pool_event_scores(per_subject: Sequence[dict[str, EventScore]]) -> dict[str, EventScore]:
     """Counts summed over subjects; timing errors: median of the subjects' medians."""
     out = {}

@@ -173,6 +173,8 @@ def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> No
     png = plot_boxplots(a.rows_, tmp_path / "fig.png", title="test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig.png", "rows.csv", "summary.csv"]
+    paths = a.write_outputs(tmp_path / "out")
+    assert all(p.stat().st_size > 0 for p in paths.values())
 
 
 def test_plot_refuses_empty() -> None:
