@@ -1,0 +1,259 @@
+"""``gaitlog compare``: fixed-point vs floating-point chain (vs truth on simulated subjects); ``--sweep``.
+
+* ``gaitlog compare REC.npz``: a decoded recording's codes through both chains; per-step table, per-20 m
+  segment table (between MARK flags, ``--lap-m`` apart; else every 20 m of M3's distance), the per-step
+  difference summary and the saturation report.
+* ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, float, fixed
+  vs the world's truth, :mod:`host.compare`), with the error split ADC / arithmetic.
+* ``gaitlog compare --sweep``: ADC 8/10/12 bits x 25/50/100 Hz over ``--subjects`` (4) simulated subjects
+  (:mod:`host.sweep`) and the answer about M5 and the 50 Hz step timing.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "compare the fixed-point (PIC) chain with the float chain (and truth): per step, per 20 m, --sweep"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._gait_input import add_anatomy_options
+
+    parser.add_argument("input", metavar="INPUT", nargs="?",
+                        help="decoded recording (.npz from 'gaitlog decode', or a memory image/capture)")
+    parser.add_argument("--simulate", type=int, metavar="N", help="compare on N simulated subjects instead")
+    parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
+    parser.add_argument("--subjects", type=int, default=4, help="subjects of the sweep (default 4)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated subjects (default 0)")
+    parser.add_argument("--bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
+    parser.add_argument("--sim-rate", type=float, default=50.0, metavar="HZ", help="sample rate of --simulate (50)")
+    parser.add_argument("--workers", type=int, default=2, help="processes for --simulate/--sweep (default 2)")
+    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
+                        "segments and split go beside it (_segments.csv, _split.csv / _m5.csv)")
+    parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
+    parser.add_argument("--lap-m", type=float, default=20.0, metavar="M", help="distance between MARK flags (20)")
+    add_anatomy_options(parser)
+
+
+def _beside(out: str, suffix: str) -> str:
+    from pathlib import Path
+
+    p = Path(out)
+    return str(p.with_name(p.stem + suffix + ".csv"))
+
+
+def run(args: argparse.Namespace) -> int:
+    from host.errors import HostError
+
+    modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
+    if sum(modes) != 1:
+        raise HostError("give exactly one of INPUT, --simulate N or --sweep")
+    if args.workers < 1:
+        raise HostError(f"--workers must be >= 1, got {args.workers}")
+    if args.sweep:
+        return _sweep(args)
+    if args.simulate is not None:
+        return _simulate(args)
+    return _recording(args)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    import time
+
+    from host.compare import rows_csv_text
+    from host.errors import HostError
+    from host.sweep import SUMMARY_COLUMNS, AdcRateSweep, format_m5, format_summary
+    from protocol.atomic_write import atomic_write_text
+
+    if args.subjects < 1:
+        raise HostError(f"--subjects must be >= 1, got {args.subjects}")
+    t = time.perf_counter()
+    sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers).run()
+    print(f"sweep: {args.subjects} simulated subjects x ADC 8/10/12 bits x 25/50/100 Hz in "
+          f"{time.perf_counter() - t:.1f} s")
+    print(format_summary(sw.summary_))
+    print()
+    print(format_m5(sw.m5_))
+    if args.out:
+        atomic_write_text(args.out, rows_csv_text(sw.summary_, SUMMARY_COLUMNS))
+        m5 = _beside(args.out, "_m5")
+        atomic_write_text(m5, rows_csv_text(sw.m5_["rows"]))
+        print(f"written: {args.out}, {m5}")
+    return 0
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from host.compare import columns_csv_text, format_step_diffs, rows_csv_text
+    from host.errors import HostError
+    from protocol.atomic_write import atomic_write_text
+
+    if args.simulate < 1:
+        raise HostError(f"--simulate must be >= 1, got {args.simulate}")
+    if not 1 <= args.bits <= 12:
+        raise HostError(f"--bits must be 1..12, got {args.bits}")
+    if not args.sim_rate > 0:
+        raise HostError(f"--sim-rate must be positive, got {args.sim_rate}")
+    results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, rate_hz=args.sim_rate,
+                                   workers=args.workers)
+    print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.sim_rate:g} Hz; "
+          "K fitted per chain (multi-speed for the per-step rows)")
+    all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
+    print(format_step_diffs(_pool_diffs(all_diffs)))
+    print()
+    print(format_segments(results))
+    sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
+    print("saturation/wrap in the fixed-point chain: " + ("; ".join(sat) if sat else "none"))
+    if args.out:
+        cols: dict[str, list] = {}
+        for r in results:
+            n = r.steps["step"].size
+            cols.setdefault("subject", []).append(np.full(n, int(r.subject_id.lstrip("S") or 0)))
+            for k, v in r.steps.items():
+                cols.setdefault(k, []).append(v)
+        atomic_write_text(args.out, columns_csv_text({k: np.concatenate(v) for k, v in cols.items()}))
+        seg, split = _beside(args.out, "_segments"), _beside(args.out, "_split")
+        atomic_write_text(seg, rows_csv_text([s for r in results for s in r.segments]))
+        atomic_write_text(split, rows_csv_text(all_diffs))
+        print(f"written: {args.out}, {seg}, {split}")
+    return 0
+
+
+def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, rate_hz: float = 50.0, workers: int = 1) -> list:
+    """One :class:`host.compare.WalkComparison` per simulated subject (parallel over subjects)."""
+    from firmware_sim.world.subject import random_subjects
+
+    jobs = [(s, seed * 1000 + i, bits, rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
+    if workers > 1 and len(jobs) > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            return list(pool.map(_one_subject, jobs))
+    return [_one_subject(j) for j in jobs]
+
+
+def _one_subject(job: tuple):
+    from host.compare import AnalogWalk, compare_walk
+
+    subject, seed, bits, rate = job
+    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, bits=bits)
+    wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
+    wc.matches = {}
+    return wc
+
+
+def _pool_diffs(rows: list[dict]) -> list[dict]:
+    """Per (pair, estimator) over subjects: median of medians, max of maxima, summed counts."""
+    import numpy as np
+
+    out = []
+    keys = []
+    for r in rows:
+        if (r["pair"], r["estimator"]) not in keys:
+            keys.append((r["pair"], r["estimator"]))
+    for pair, est in keys:
+        rs = [r for r in rows if r["pair"] == pair and r["estimator"] == est]
+        out.append(dict(pair=pair, estimator=est, n=sum(r["n"] for r in rs),
+                        median_abs_mm=float(np.nanmedian([r["median_abs_mm"] for r in rs])),
+                        p95_abs_mm=float(np.nanmax([r["p95_abs_mm"] for r in rs])),
+                        max_abs_mm=float(np.nanmax([r["max_abs_mm"] for r in rs])),
+                        bias_mm=float(np.nanmedian([r["bias_mm"] for r in rs])),
+                        max_rel=float(np.nanmax([r["max_rel"] for r in rs])),
+                        n_different_events=sum(r["n_different_events"] for r in rs)))
+    return out
+
+
+def format_segments(results: list) -> str:
+    """Per estimator and mode: section-ratio median/IQR of truth-free chains and the split in ratio."""
+    import numpy as np
+
+    lines = ["20 m sections: ratio estimated / real (median, IQR); ADC = float - ideal, arith = fixed - float "
+             "(max |difference in ratio|)",
+             f"{'mode':<13}{'est':<5}{'n':>4}{'ideal':>8}{'IQR':>7}{'float':>8}{'IQR':>7}{'fixed':>8}{'IQR':>7}"
+             f"{'ADC max':>9}{'arith max':>10}"]
+    segs = [s for r in results for s in r.segments]
+    for mode in ("single-speed", "multi-speed"):
+        for est in ("M1", "M2", "M3", "M4", "M5"):
+            sel = [s for s in segs if s["mode"] == mode and s["estimator"] == est]
+            if not sel:
+                continue
+            v = {k: np.array([s[f"ratio_{k}"] for s in sel], float) for k in ("ideal", "float", "fixed")}
+            q = {k: np.percentile(x, [25, 50, 75]) for k, x in v.items()}
+            lines.append(f"{mode:<13}{est:<5}{len(sel):>4}" + "".join(
+                f"{q[k][1]:>8.3f}{q[k][2] - q[k][0]:>7.3f}" for k in ("ideal", "float", "fixed"))
+                + f"{np.max(np.abs(v['float'] - v['ideal'])):>9.4f}{np.max(np.abs(v['fixed'] - v['float'])):>10.5f}")
+    return "\n".join(lines)
+
+
+def _recording(args: argparse.Namespace) -> int:
+    import warnings
+    from pathlib import Path
+
+    import numpy as np
+
+    from host.compare import columns_csv_text, compare_recording, format_step_diffs, rows_csv_text
+    from host.errors import HostError
+    from host.estimators.anthropometry import anatomical_lengths
+    from host.estimators import ESTIMATORS
+    from host.estimators.calibration import KCalibration
+    from protocol.atomic_write import atomic_write_text
+    from protocol.header import Calibration
+
+    p = Path(args.input)
+    if not p.is_file():
+        raise HostError(f"{p}: no such file")
+    if p.suffix.lower() == ".npz":
+        from host.recording import Recording
+
+        rec = Recording.load(p)
+    else:
+        from host.decode import decode_file
+
+        rec = decode_file(p)
+    cal, note = rec.default_calibration()
+    if args.calibration:
+        from host.calibration import AccCalibration
+
+        acc_cal = AccCalibration.load(args.calibration)
+        if getattr(acc_cal, "input_unit", "counts") != "counts":
+            raise HostError(f"{args.calibration}: calibration input unit is {acc_cal.input_unit!r}; "
+                            "the fixed-point chain needs one fitted on ADC counts")
+        cal, note = Calibration(acc_cal.offset, acc_cal.matrix, valid=True), f"g from {args.calibration}"
+    k = KCalibration.load(args.k_file) if args.k_file else None
+    leg_arg = args.leg_length if args.leg_length is not None or k is None or args.height else k.leg_length_m
+    foot_arg = args.foot_length if args.foot_length is not None or k is None or args.height else k.foot_length_m
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        leg, foot = anatomical_lengths(leg_length_m=leg_arg, foot_length_m=foot_arg, height_m=args.height)
+    marks = np.flatnonzero((np.asarray(rec.flags) & 2) != 0)
+    t = rec.time_s
+    res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
+                            foot_length_m=foot, adc_calibration=cal, code_bits=int(rec.adc_bits), valid=rec.valid,
+                            calibration=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=args.lap_m,
+                            t0_s=float(t[0]) if t.size else 0.0)
+    m = res.match
+    print(f"{p}: {rec.n_samples} samples at {rec.sampling_rate_hz:g} Hz ({rec.n_missing} missing); {note}")
+    print(f"leg length {leg:.3f} m, foot length {foot:.3f} m; K file: {args.k_file or 'none (M4/M5 n/a)'}")
+    print(f"steps: float {res.float_table.n_steps}, fixed {res.fixed_table.n_steps}; matched {m.n_matched}, "
+          f"with different events {int(np.count_nonzero(~m.same_events))}, only float {m.only_b.size}, "
+          f"only fixed {m.only_a.size}")
+    print(format_step_diffs(res.step_diffs))
+    print(f"segments: {res.segment_source}")
+    print(f"{'seg':>4}{'t0 s':>8}{'t1 s':>8}" + "".join(f"{e + ' float m':>12}{'fx-fl mm':>9}" for e in ESTIMATORS))
+    for i in sorted({r["section"] for r in res.segments}):
+        rs = {r["estimator"]: r for r in res.segments if r["section"] == i}
+        r0 = rs["M1"]
+        print(f"{i:>4}{r0['t_start_s']:>8.1f}{r0['t_end_s']:>8.1f}" + "".join(
+            f"{rs[e]['float_m']:>12.3f}{1e3 * rs[e]['diff_m']:>9.2f}" for e in ESTIMATORS))
+    print(f"saturation/wrap in the fixed-point chain: {res.saturation or 'none'}; "
+          f"estimated PIC cycles per sample {res.cycles_per_sample:.0f}")
+    for c in caught:
+        print(f"warning: {c.message}")
+    if args.out:
+        atomic_write_text(args.out, columns_csv_text(res.steps))
+        seg, split = _beside(args.out, "_segments"), _beside(args.out, "_split")
+        atomic_write_text(seg, rows_csv_text(res.segments))
+        atomic_write_text(split, rows_csv_text(res.step_diffs))
+        print(f"written: {args.out}, {seg}, {split}")
+    return 0
