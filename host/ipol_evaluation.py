@@ -71,6 +71,8 @@ class ReplayedTrial:
         The ``_lb.txt`` file.
     emulated
         True when the samples went through the emulated logger (``firmware_sim.device.Logger``).
+    codes, bits
+        The ``(n, 3)`` ADC codes as stored (0 where missing) and the ADC width (input of the fixed-point chain).
     """
 
     subject: int
@@ -83,6 +85,8 @@ class ReplayedTrial:
     source_rate_hz: float
     path: Path
     emulated: bool
+    codes: np.ndarray | None = None
+    bits: int = 10
 
     def seconds(self, packet_index: float) -> float:
         """JSON packet index -> seconds on the logger clock."""
@@ -146,8 +150,9 @@ def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, 
     valid = ~(filled[j] | (filled[j1] & ~on_packet))
     acc[~valid] = np.nan
     rate = rate_hz if not emulated else float(1.0 / np.median(np.diff(times_s)))
+    codes_int = np.where(valid[:, None], np.asarray(codes), 0).astype(np.int64)
     return ReplayedTrial(int(m.group(1)), int(m.group(2)), acc, valid, float(rate), float(times_s[0]), meta,
-                         src_rate, lb_path, emulated)
+                         src_rate, lb_path, emulated, codes_int, int(bits))
 
 
 def _record_ideal(replay, *, rate_hz: float, bits: int) -> tuple[np.ndarray, np.ndarray]:
@@ -214,30 +219,57 @@ class IpolResult:
     emulated: bool
     n_trials: int
     skipped: list[str] = field(default_factory=list)
+    calibrations_fixed: dict[int, KCalibration] = field(default_factory=dict)
+    saturation: list[str] = field(default_factory=list)
+
+
+def _fixed_table(rt: ReplayedTrial, leg: float, foot: float, cal: KCalibration | None,
+                 saturation: list[str]) -> StepTable:
+    """The fixed-point chain (``firmware_sim.algorithms``) on the trial's codes, nominal device calibration."""
+    from host.compare import fixed_step_table
+    from protocol.header import Calibration
+
+    if rt.codes is None:
+        raise HostError(f"{rt.path}: no ADC codes kept, cannot run the fixed-point chain")
+    table, chain = fixed_step_table(rt.codes, sampling_rate_hz=rt.sampling_rate_hz, leg_length_m=leg,
+                                    foot_length_m=foot, calibration=cal, adc_calibration=Calibration.nominal(rt.bits),
+                                    code_bits=rt.bits, valid=rt.valid, t0_s=rt.t0_s)
+    if chain.ctx_.report():
+        saturation.append(f"{rt.path.name}: {chain.ctx_.report()}")
+    return table
 
 
 def evaluate_folder(
     folder: str | Path, *, rate_hz: float = 50.0, bits: int = 10, uturn: str = "exclude",
-    progress=None,
+    progress=None, arithmetic: tuple[str, ...] = ("float",),
 ) -> IpolResult:
     """Run the whole evaluation on an IPOL folder (see the module notes). Library code: no printing.
 
-    ``progress`` (optional) is called with each trial name as it starts.
+    ``progress`` (optional) is called with each trial name as it starts. ``arithmetic``: ``"float"`` (the
+    host chain on the codes converted to g) and/or ``"fixed"`` (the firmware's fixed-point chain on the same
+    codes, :func:`host.compare.fixed_step_table`); each fits its own K on the calibration trial, and the
+    fixed rows' calibrated lengths are computed in fixed point. Saturation of the fixed chain is listed in
+    ``IpolResult.saturation`` (and warned about).
     """
+    for a in arithmetic:
+        if a not in ("float", "fixed"):
+            raise ValueError(f"arithmetic must be 'float' or 'fixed', got {a!r}")
     files = list_trials(folder)
     by_subject: dict[int, list[Path]] = {}
     for f in files:
         by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
     rows: list[dict] = []
     cals: dict[int, KCalibration] = {}
+    cals_fixed: dict[int, KCalibration] = {}
     skipped: list[str] = []
+    saturation: list[str] = []
     emulated_all = True
     n_trials = 0
     for subject, paths in by_subject.items():
         if len(paths) < 2:
             skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
             continue
-        trials: list[tuple[ReplayedTrial, tuple[StepTable, np.ndarray]]] = []
+        trials: list[tuple[ReplayedTrial, dict[str, tuple[StepTable, np.ndarray]]]] = []
         leg = foot = float("nan")
         for p in paths:
             if progress is not None:
@@ -251,42 +283,65 @@ def evaluate_folder(
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", UserWarning)
                     leg, foot = anatomical_lengths(height_m=rt.height_m)
+            secs: dict[str, tuple[StepTable, np.ndarray]] = {}
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
-                    rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s)
-            trials.append((rt, trial_steps(rt, pipe.steps_, uturn=uturn)))
+                if "float" in arithmetic:
+                    pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
+                        rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s)
+                    secs["float"] = trial_steps(rt, pipe.steps_, uturn=uturn)
+                if "fixed" in arithmetic:
+                    secs["fixed"] = trial_steps(rt, _fixed_table(rt, leg, foot, None, saturation), uturn=uturn)
+            trials.append((rt, secs))
         if len(trials) < 2:
             skipped.append(f"subject {subject}: fewer than two readable trials")
             continue
         emulated_all &= all(rt.emulated for rt, _ in trials)
-        rt0, (sec0, counts0) = trials[0]
+        rt0, secs0 = trials[0]
+        fitted: dict[str, KCalibration] = {}
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)  # the one-speed M5 fallback is expected here
-                cal = calibrate([(_counted(sec0, counts0), IPOL_DISTANCE_M)], leg_length_m=leg,
-                                foot_length_m=foot, subject=str(subject))
+                for a in arithmetic:
+                    sec0, counts0 = secs0[a]
+                    fitted[a] = calibrate([(_counted(sec0, counts0), IPOL_DISTANCE_M)], leg_length_m=leg,
+                                          foot_length_m=foot, subject=str(subject))
         except HostError as err:
             skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
             continue
-        cals[subject] = cal
-        for rt, (sec, counts) in trials[1:]:
+        if "float" in fitted:
+            cals[subject] = fitted["float"]
+        if "fixed" in fitted:
+            cals_fixed[subject] = fitted["fixed"]
+        for rt, secs in trials[1:]:
             n_trials += 1
-            sec.length_m = apply_calibration(sec, cal)
-            for name in ESTIMATORS:
-                d = section_distance(sec, counts, name)
-                rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic="float",
-                                 distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
-                                 reference_steps=rt.reference_steps()))
+            for a in arithmetic:
+                sec, counts = secs[a]
+                if a == "float":
+                    sec.length_m = apply_calibration(sec, fitted[a])
+                else:                  # calibrated lengths in fixed point: the chain again, with K
+                    sec, counts = trial_steps(rt, _fixed_table(rt, leg, foot, fitted[a], saturation), uturn=uturn)
+                for name in ESTIMATORS:
+                    d = section_distance(sec, counts, name)
+                    rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=a,
+                                     distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
+                                     reference_steps=rt.reference_steps()))
     for msg in skipped:
         warnings.warn(f"IPOL evaluation: skipped {msg}", stacklevel=2)
+    for msg in saturation:
+        warnings.warn(f"IPOL evaluation: fixed-point saturation in {msg}", stacklevel=2)
     if not rows:
         raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(skipped) + ")")
-    return IpolResult(rows, cals, emulated_all, n_trials, skipped)
+    return IpolResult(rows, cals, emulated_all, n_trials, skipped, cals_fixed, saturation)
 
 
-def summarise(rows: list[dict]) -> list[dict]:
-    """Per estimator: n, median, quartiles, IQR, min, max of the ratio; step-count median |error| %."""
+def summarise(rows: list[dict], *, arithmetic: str | None = None) -> list[dict]:
+    """Per estimator: n, median, quartiles, IQR, min, max of the ratio; step-count median |error| %.
+
+    ``arithmetic`` keeps only the rows of that arithmetic (default: every row).
+    """
+    if arithmetic is not None:
+        rows = [r for r in rows if r.get("arithmetic", "float") == arithmetic]
     out = []
     for name in ESTIMATORS:
         r = np.array([row["ratio"] for row in rows if row["estimator"] == name], float)

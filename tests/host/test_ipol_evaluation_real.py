@@ -32,8 +32,8 @@ def ipol_rows(shared_data, tmp_path_factory):
         return list(csv.DictReader(fh))
 
 
-def ratios(rows, name):
-    return np.array([float(r["ratio"]) for r in rows if r["estimator"] == name])
+def ratios(rows, name, arithmetic="float"):
+    return np.array([float(r["ratio"]) for r in rows if r["estimator"] == name and r["arithmetic"] == arithmetic])
 
 
 def iqr(x):
@@ -44,8 +44,8 @@ def iqr(x):
 def test_csv_layout(ipol_rows) -> None:
     assert list(ipol_rows[0]) == ["subject", "trial", "estimator", "arithmetic", "distance_m", "ratio", "steps",
                                   "reference_steps"]
-    assert {r["arithmetic"] for r in ipol_rows} == {"float"}
-    assert len(ipol_rows) == 5 * 43                      # 52 trials - 9 calibration trials, 5 estimators
+    assert {r["arithmetic"] for r in ipol_rows} == {"float", "fixed"}
+    assert len(ipol_rows) == 2 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 2 arithmetics
     for r in ipol_rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -75,6 +75,6 @@ def test_m3_uncalibrated_median(ipol_rows) -> None:
 
 
 def test_step_count_median_error(ipol_rows) -> None:
-    rows = [r for r in ipol_rows if r["estimator"] == "M2"]
+    rows = [r for r in ipol_rows if r["estimator"] == "M2" and r["arithmetic"] == "float"]
     err = [abs(int(r["steps"]) - int(r["reference_steps"])) / int(r["reference_steps"]) for r in rows]
     assert np.median(err) <= 0.03

@@ -80,7 +80,8 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     assert "M3" in text and "median" in text
     with open(out, newline="") as fh:
         rows = list(csv.DictReader(fh))
-    assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"]
+    assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"] * 2
+    assert [r["arithmetic"] for r in rows] == ["float"] * 5 + ["fixed"] * 5
     assert out.with_suffix(".png").stat().st_size > 1000
     assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "12"]) == 1
 
