@@ -8,8 +8,9 @@ Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
    ("a calibration procedure takes into account offset and scale factors and the orthogonality of the
    axes", II-B). ``calibrate_device=False`` uses the header's nominal map instead.
 2. *Walking*: the same logger (after ERASE) records the protocol of
-   :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); the stored codes are
-   converted to g with the fitted calibration. The lap button's MARK flags give the lap times.
+   :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); its memory image (header +
+   EEPROM, :func:`protocol.image.build_image`) is decoded as a dump would be (:func:`host.decode.decode_bytes`)
+   and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times.
 3. *Steps*: :class:`host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
    M5's cadence), with the subject's own leg and foot length ("the anatomical data of each individual").
 4. *Sections*: consecutive lap marks 20 m apart (default marks 10, 30, ..., 190 m of each excursion:
@@ -135,13 +136,24 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
     if res.n_taken != res.n_samples:
         raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
                         "samples (memory full): shorten the protocol's rests")
-    acc = np.asarray(apply(res.codes.astype(np.float64)), np.float64)
-    times = np.asarray(res.sample_times_s, np.float64)
-    marks = times[(np.asarray(res.flags) & FLAG_MARK) != 0]
+    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be.
+    from host.decode import decode_bytes
+    from protocol.image import build_image
+
+    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory), source=f"{subject.subject_id}.sim")
+    pos = np.searchsorted(np.asarray(res.sample_numbers), stored.sample_numbers)
+    if np.any(pos >= res.n_samples) or np.any(np.asarray(res.sample_numbers)[np.minimum(pos, res.n_samples - 1)]
+                                              != stored.sample_numbers):
+        raise HostError(f"subject {subject.subject_id}: decoded sample numbers do not match the recording")
+    times = np.asarray(res.sample_times_s, np.float64)[pos]
+    acc = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
+    valid = np.asarray(stored.valid, bool) & np.isfinite(acc).all(axis=1)
+    acc[~valid] = np.nan
+    marks = times[(np.asarray(stored.flags) & FLAG_MARK) != 0]
     rate = float(1.0 / np.median(np.diff(times)))
     truth = {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests", "subject") if k in res.truth}
-    return SimulatedRecording(subject, int(seed), acc, np.isfinite(acc).all(axis=1), rate, float(times[0]),
-                              marks, truth, bool(calibrate_device))
+    return SimulatedRecording(subject, int(seed), acc, valid, rate, float(times[0]), marks, truth,
+                              bool(calibrate_device))
 
 
 # ---------------------------------------------------------------------------------------------------------
