@@ -14,6 +14,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="STEPS.csv", help="write the per-step table here")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
+    parser.add_argument("--arithmetic", choices=["float", "fixed", "both"], default="float",
+                        help="float host chain (default), the PIC's fixed-point chain on the ADC codes (a decoded "
+                        ".npz input), or both (the fixed table goes to <out>_fixed.csv)")
     add_anatomy_options(parser)
 
 
@@ -41,22 +44,64 @@ def run(args: argparse.Namespace) -> int:
         pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=cal).run(
             data.acc_g, sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
     steps = pipe.steps_
+    tables = {"float": steps}
+    fixed_report = ""
+    if args.arithmetic != "float":
+        tables["fixed"], fixed_report = _fixed_steps(args, leg, foot, cal)
+        if args.arithmetic == "fixed":
+            tables.pop("float")
+            steps = tables["fixed"]
+    fixed_out = None
     if args.out:
+        from pathlib import Path
+
         steps.to_csv(args.out)
-    n_bouts = int(np.unique(steps.bout).size) if steps.n_steps else 0
+        if len(tables) == 2:
+            fixed_out = Path(args.out).with_name(Path(args.out).stem + "_fixed.csv")
+            tables["fixed"].to_csv(fixed_out)
     print(f"{args.input}: {data.acc_g.shape[0]} samples at {data.sampling_rate_hz:g} Hz "
           f"({int((~data.valid).sum())} missing); {data.note}")
     print(f"leg length {leg:.3f} m, foot length {foot:.3f} m; K file: {args.k_file or 'none'}")
-    print(f"{steps.n_steps} steps in {n_bouts} walking bout(s)")
-    print(f"{'estimator':<10}{'distance_m':>12}{'median_step_m':>15}{'steps_filled':>14}")
-    for name in ESTIMATORS:
-        d, filled = steps.distance_m(name)
-        med = float(np.nanmedian(steps.length_m[name])) if np.isfinite(steps.length_m[name]).any() else float("nan")
-        dtxt = f"{d:.2f}" if np.isfinite(d) else "n/a"
-        mtxt = f"{med:.3f}" if np.isfinite(med) else "n/a"
-        print(f"{name:<10}{dtxt:>12}{mtxt:>15}{filled:>14}")
+    for arith, steps in tables.items():
+        n_bouts = int(np.unique(steps.bout).size) if steps.n_steps else 0
+        print((f"arithmetic = {arith}: " if args.arithmetic != "float" else "")
+              + f"{steps.n_steps} steps in {n_bouts} walking bout(s)"
+              + (f"; fixed-point saturation/wrap: {fixed_report or 'none'}" if arith == "fixed" else ""))
+        print(f"{'estimator':<10}{'distance_m':>12}{'median_step_m':>15}{'steps_filled':>14}")
+        for name in ESTIMATORS:
+            d, filled = steps.distance_m(name)
+            med = (float(np.nanmedian(steps.length_m[name])) if np.isfinite(steps.length_m[name]).any()
+                   else float("nan"))
+            dtxt = f"{d:.2f}" if np.isfinite(d) else "n/a"
+            mtxt = f"{med:.3f}" if np.isfinite(med) else "n/a"
+            print(f"{name:<10}{dtxt:>12}{mtxt:>15}{filled:>14}")
     for c in caught:
         print(f"warning: {c.message}")
     if args.out:
-        print(f"per-step table: {args.out}")
+        print(f"per-step table: {args.out}" + (f" (float), {fixed_out} (fixed)" if fixed_out else ""))
     return 0
+
+
+def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
+    """The fixed-point chain on the codes of a decoded recording -> (StepTable, saturation report)."""
+    from pathlib import Path
+
+    from host.compare import fixed_step_table
+    from host.errors import HostError
+    from host.recording import Recording
+    from protocol.header import Calibration
+
+    if Path(args.input).suffix.lower() != ".npz":
+        raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a decoded recording "
+                        "(.npz from 'gaitlog decode'), not acceleration in g")
+    rec = Recording.load(args.input)
+    adc_cal = rec.default_calibration()[0]
+    if args.calibration:
+        from host.calibration import AccCalibration
+
+        acc_cal = AccCalibration.load(args.calibration)
+        adc_cal = Calibration(acc_cal.offset, acc_cal.matrix, valid=True)
+    table, chain = fixed_step_table(rec.codes, sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
+                                    foot_length_m=foot, calibration=cal, adc_calibration=adc_cal,
+                                    code_bits=int(rec.adc_bits), valid=rec.valid)
+    return table, chain.ctx_.report()
