@@ -1,0 +1,79 @@
+"""``gaitlog compare`` and ``gaitlog estimate --arithmetic`` on a decoded recording of a simulated walk."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from host.cli import main
+
+
+@pytest.fixture(scope="module")
+def npz(tmp_path_factory):
+    from firmware_sim.device import Logger
+    from firmware_sim.world.gait_protocol import WalkingProtocol
+    from firmware_sim.world.subject import Subject
+    from firmware_sim.world.walking import Walking
+    from host.decode import decode_file, save_outputs
+
+    d = tmp_path_factory.mktemp("cmp")
+    protocol = WalkingProtocol(corridor_length_m=50.0, speeds=("preferred",), lap_marks_m=(0.0, 10.0, 30.0, 50.0,
+                                                                                          70.0, 90.0, 100.0))
+    logger = Logger(device_id=3)
+    res = logger.record(Walking(subject=Subject(), protocol=protocol, seed=2))
+    logger.save_image(d / "walk.glimg")
+    path, _ = save_outputs(decode_file(d / "walk.glimg"), d / "walk")
+    return path, res
+
+
+def test_compare_recording_writes_tables(npz, tmp_path, capsys) -> None:
+    path, res = npz
+    out = tmp_path / "steps.csv"
+    assert main(["compare", str(path), "--out", str(out), "--height", "1.75"]) == 0
+    text = capsys.readouterr().out
+    assert "fixed-float" in text and "saturation/wrap in the fixed-point chain: none" in text
+    with open(out, newline="") as fh:
+        steps = list(csv.DictReader(fh))
+    # truth: the world's steps (one row per foot-flat; the closing contact ends the last step)
+    n_truth = len(res.truth["steps"]["length_m"])
+    assert abs(len(steps) - n_truth) <= 2
+    d = [abs(float(r["m2_fixed_m"]) - float(r["m2_float_m"])) for r in steps if r["m2_fixed_m"] and r["m2_float_m"]]
+    assert len(d) >= n_truth - 4 and np.median(d) <= 1e-3
+    with open(tmp_path / "steps_segments.csv", newline="") as fh:
+        seg = list(csv.DictReader(fh))
+    # MARK flags every lap: 6 intervals x 5 estimators
+    assert len(seg) == 6 * 5 and {r["estimator"] for r in seg} == {"M1", "M2", "M3", "M4", "M5"}
+    with open(tmp_path / "steps_split.csv", newline="") as fh:
+        assert [r["pair"] for r in csv.DictReader(fh)] == ["fixed-float"] * 5
+
+
+def test_estimate_arithmetic_both(npz, tmp_path, capsys) -> None:
+    path, _ = npz
+    out = tmp_path / "e.csv"
+    assert main(["estimate", str(path), "--arithmetic", "both", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "arithmetic = float" in text and "arithmetic = fixed" in text
+    with open(out, newline="") as fh:
+        a = list(csv.DictReader(fh))
+    with open(tmp_path / "e_fixed.csv", newline="") as fh:
+        b = list(csv.DictReader(fh))
+    assert len(a) == len(b) > 30
+    x = np.array([float(r["length_m2_m"] or "nan") for r in a])
+    y = np.array([float(r["length_m2_m"] or "nan") for r in b])
+    g = np.isfinite(x) & np.isfinite(y)
+    assert np.median(np.abs(x[g] - y[g])) <= 1e-3
+
+
+def test_bad_invocations(npz, tmp_path, capsys) -> None:
+    path, _ = npz
+    assert main(["compare"]) == 1
+    assert main(["compare", str(path), "--sweep"]) == 1
+    assert main(["compare", str(tmp_path / "missing.npz")]) == 1
+    assert main(["compare", "--simulate", "0"]) == 1
+    csv_in = tmp_path / "g.csv"
+    csv_in.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 100)
+    assert main(["estimate", str(csv_in), "--rate", "50", "--arithmetic", "fixed"]) == 1
+    err = capsys.readouterr().err
+    assert "needs ADC codes" in err and "exactly one of" in err
