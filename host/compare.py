@@ -603,11 +603,15 @@ class RecordingComparison:
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
                       adc_calibration: Any = None, code_bits: int = 10, valid: np.ndarray | None = None,
                       calibration: Any = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
-                      segment_m: float = 20.0, t0_s: float = 0.0) -> RecordingComparison:
+                      segment_m: float = 20.0, t0_s: float = 0.0,
+                      sections: list[Section] | None = None) -> RecordingComparison:
     """Fixed vs float chain on the same codes (no truth): matched steps, differences, segments.
 
     ``adc_calibration`` (``offset_counts``, ``matrix_g_per_count``; None = nominal) converts codes to g for
-    the float chain and, quantised, for the fixed chain; ``calibration`` is an optional K calibration.
+    the float chain and, quantised, for the fixed chain; ``calibration`` is an optional K calibration (the
+    same K for both: the difference is the arithmetic alone). Segments: ``sections`` when given (e.g. the
+    protocol's, :func:`host.evaluation.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
+    every ``segment_m`` of the float chain's M3 distance.
     """
     from protocol.header import Calibration
 
@@ -623,7 +627,10 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     m = match_steps(fx, fl)
     diffs = step_differences(fx, fl, m, pair="fixed-float")
     marks = np.asarray(mark_times_s if mark_times_s is not None else [], np.float64)
-    if marks.size >= 2:
+    known = sections is not None or marks.size >= 2
+    if sections is not None:
+        source = "the given sections"
+    elif marks.size >= 2:
         sections, source = segments_from_mark_times(marks, lap_m=lap_m), f"between MARK flags, {lap_m:g} m apart"
     else:
         sections = segments_by_distance(fl, segment_m=segment_m)
@@ -632,7 +639,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     seg_rows = []
     for i, s in enumerate(sections):
         for j, est in enumerate(ESTIMATORS):
-            real = s.real_m if marks.size >= 2 else math.nan
+            real = s.real_m if known else math.nan
             seg_rows.append(dict(section=s.index, t_start_s=s.t_start_s, t_end_s=s.t_end_s, estimator=est,
                                  real_m=real, float_m=float(d_fl[i, j]), fixed_m=float(d_fx[i, j]),
                                  ratio_float=float(d_fl[i, j]) / real, ratio_fixed=float(d_fx[i, j]) / real,
