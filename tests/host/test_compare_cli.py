@@ -77,3 +77,22 @@ def test_bad_invocations(npz, tmp_path, capsys) -> None:
     assert main(["estimate", str(csv_in), "--rate", "50", "--arithmetic", "fixed"]) == 1
     err = capsys.readouterr().err
     assert "needs ADC codes" in err and "exactly one of" in err
+
+
+def test_demo_walks_estimates_and_compares(tmp_path, capsys) -> None:
+    """The demo's walking stages: 20 m table and box plots (float), then fixed vs float on the same codes."""
+    assert main(["demo", "--out", str(tmp_path), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    for stage in ("[walk]", "[estimate]", "[fixed]"):
+        assert stage in out
+    assert (tmp_path / "walk_boxplots.png").stat().st_size > 1000
+    with open(tmp_path / "walk_sections.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {r["mode"] for r in rows} == {"single-speed", "multi-speed"}
+    # the world walked 20 m per section: multi-speed M2 within 10 % of it
+    m2 = [float(r["ratio"]) for r in rows if r["mode"] == "multi-speed" and r["estimator"] == "M2"]
+    assert len(m2) >= 20 and abs(np.median(m2) - 1.0) < 0.10
+    with open(tmp_path / "walk_fixed_vs_float.csv", newline="") as fh:
+        seg = list(csv.DictReader(fh))
+    assert max(abs(float(r["ratio_fixed"]) - float(r["ratio_float"])) for r in seg) < 0.005
+    assert "saturation/wrap: none" in out

@@ -1,0 +1,98 @@
+"""Benchmark: the 9-configuration ADC x rate sweep, and the peak memory and time of ``gaitlog demo``.
+
+Targets (issue 5): the sweep of 9 configurations (ADC 8/10/12 bits x 25/50/100 Hz) over a 4-subject
+simulated protocol in <= 60 s; peak memory of ``gaitlog demo`` <= 250 MB (and its time, <= 60 s).
+
+Baselines measured in the same run:
+
+* sweep: the naive way, one full emulated-logger pass per subject and configuration (render the walk,
+  ``Logger.record``, float and fixed chains) -- one such pass is timed and multiplied by the 36 passes the
+  sweep would need (the sweep itself renders each subject once and re-samples the analog output);
+* demo memory: a Python process that only imports what the demo imports (numpy, scipy, matplotlib and
+  the package), i.e. the floor the demo's data add to.
+
+Run: ``python benchmarks/bench_sweep.py`` (exit status 1 when a target is missed).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SWEEP_TARGET_S = 60.0
+DEMO_MEMORY_TARGET_MB = 250.0
+DEMO_TIME_TARGET_S = 60.0
+
+
+def child_peak_mb(code: str) -> tuple[float, float]:
+    """Peak RSS (MB) and wall time of ``code`` run in a fresh interpreter (measured by a wrapper process)."""
+    wrapper = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
+               f"r = subprocess.run([sys.executable, '-c', {code!r}], stdout=subprocess.DEVNULL); "
+               "dt = time.perf_counter() - t; "
+               "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0, dt, r.returncode)")
+    out = subprocess.run([sys.executable, "-c", wrapper], capture_output=True, text=True, cwd=ROOT, check=True)
+    peak, dt, rc = out.stdout.split()
+    if int(rc) != 0:
+        raise SystemExit(f"child failed ({rc}): {code}")
+    return float(peak), float(dt)
+
+
+def naive_pass_s() -> float:
+    """One subject, one configuration, the naive way (render + emulated logger + both chains)."""
+    import numpy as np
+
+    from firmware_sim.adc import Adc
+    from firmware_sim.device import Logger
+    from firmware_sim.world.subject import random_subjects
+    from firmware_sim.world.walking import Walking
+    from host.compare import fixed_step_table, float_step_table
+    from protocol.header import Calibration
+
+    s = random_subjects(1, seed=0)[0]
+    t = time.perf_counter()
+    res = Logger(adc=Adc(bits=10, rate_hz=50.0)).record(Walking(subject=s, seed=0))
+    codes = np.asarray(res.codes, np.int64)
+    kw = dict(sampling_rate_hz=50.0, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
+    float_step_table(Calibration.nominal(10).apply(codes), **kw)
+    float_step_table(Calibration.nominal(10).apply(codes + 0.5), **kw)     # the "ideal" pass
+    fixed_step_table(codes, **kw)
+    return time.perf_counter() - t
+
+
+def main() -> int:
+    sys.path.insert(0, str(ROOT))
+    from host.sweep import AdcRateSweep
+
+    ok = True
+    workers = min(2, os.cpu_count() or 1)
+    t = time.perf_counter()
+    sw = AdcRateSweep(n_subjects=4, seed=0, workers=workers).run()
+    sweep_s = time.perf_counter() - t
+    naive = naive_pass_s()
+    naive_total = naive * 4 * 9
+    print(f"sweep, 9 configurations x 4 subjects ({workers} workers): {sweep_s:.1f} s  (target <= {SWEEP_TARGET_S:.0f} s)"
+          f"  baseline naive {naive:.1f} s per pass x 36 = {naive_total:.0f} s  ratio {naive_total / sweep_s:.1f}x")
+    ok &= sweep_s <= SWEEP_TARGET_S
+    print("M5 and the 50 Hz step timing: " + sw.m5_["verdict"])
+
+    with tempfile.TemporaryDirectory() as tmp:
+        demo_code = ("import sys; sys.argv = ['gaitlog', 'demo', '--quiet', '--out', " + repr(tmp) + "]; "
+                     "from host.cli import main; raise SystemExit(main(sys.argv[1:]))")
+        base_code = "import numpy, scipy.signal, scipy.interpolate, matplotlib.pyplot, host.cli, host.compare"
+        base_mb, _ = child_peak_mb(base_code)
+        demo_mb, demo_s = child_peak_mb(demo_code)
+    print(f"gaitlog demo peak memory: {demo_mb:.0f} MB  (target <= {DEMO_MEMORY_TARGET_MB:.0f} MB)  "
+          f"baseline imports only {base_mb:.0f} MB  ratio {demo_mb / base_mb:.2f}x")
+    print(f"gaitlog demo wall time: {demo_s:.1f} s  (target <= {DEMO_TIME_TARGET_S:.0f} s)")
+    ok &= demo_mb <= DEMO_MEMORY_TARGET_MB and demo_s <= DEMO_TIME_TARGET_S
+    print("PASS" if ok else "FAIL: a target was missed")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
