@@ -469,7 +469,8 @@ class WalkComparison:
         What was compared.
     runs
         :class:`ChainRun` per arithmetic (``ideal``, ``float``, ``fixed``) and ``exact-timing`` (the float
-        chain on codes with each step's duration replaced by the truth's: M5 without timing error).
+        chain on codes with each step's duration replaced by the truth's, K refitted: M5 without timing
+        error).
     step_diffs
         :func:`step_differences` rows (multi-speed lengths) for the pairs ``fixed-float`` (arithmetic),
         ``float-ideal`` (ADC), ``ideal-truth`` and ``fixed-truth``.

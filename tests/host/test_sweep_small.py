@@ -54,23 +54,37 @@ def test_step_timing_error_falls_with_the_rate(sweep) -> None:
     assert rows[("multi-speed", 25.0)]["timing_rms_ms"] > rows[("multi-speed", 100.0)]["timing_rms_ms"]
     for r in rows.values():
         assert 0.0 <= r["timing_share"] <= 1.0
-        assert r["std_timing"] <= r["std"] + 1e-12 or r["timing_share"] > 0.5
+        # a sample period alone cannot exceed the measured duration error (detection adds to it)
+        assert r["sampling_rms_ms"] <= r["timing_rms_ms"] + 1.0
     assert sweep.m5_["verdict"] == ""              # no 50 Hz configuration, no verdict
 
 
-def test_m5_answer_with_50_hz() -> None:
-    from host.sweep import ConfigResult, m5_timing_answer
+def _m5_results(timing_sd: dict[float, float], model_sd: float = 0.03) -> list:
+    from host.sweep import ConfigResult
 
     rng = np.random.default_rng(0)
-    model = rng.normal(1.0, 0.03, 40)               # per-section model error, the same at every rate
-    results = []
-    for rate, timing in ((25.0, 0.004), (50.0, 0.002), (100.0, 0.001)):
-        tim = rng.normal(0.0, timing, 40)
+    model = rng.normal(1.0, model_sd, 400)               # per-section model error, the same at every rate
+    out = []
+    for rate, sd in timing_sd.items():
+        tim = rng.normal(0.0, sd, model.size)
         segs = [dict(mode="multi-speed", estimator="M5", ratio_float=m + t, ratio_exact_timing=m)
                 for m, t in zip(model, tim)]
-        results.append(ConfigResult("S00", 10, rate, [], segs, dict(rms_ms=1000 / rate / 6 ** 0.5), "", 0, 0, 0.0))
-    ans = m5_timing_answer(results)
+        out.append(ConfigResult("S00", 10, rate, [], segs, dict(rms_ms=1000 / rate / 6 ** 0.5), "", 0, 0, 0.0))
+    return out
+
+
+def test_m5_answer_no_when_the_model_dominates() -> None:
+    from host.sweep import m5_timing_answer
+
+    ans = m5_timing_answer(_m5_results({25.0: 0.004, 50.0: 0.002, 100.0: 0.001}))
     share = {r["rate_hz"]: r["timing_share"] for r in ans["rows"]}
-    assert share[25.0] > share[50.0] > share[100.0]
-    assert share[50.0] == pytest.approx(0.002 ** 2 / 0.03 ** 2, rel=0.6)
+    assert share[25.0] > share[50.0] > share[100.0] >= 0.0
+    assert share[50.0] == pytest.approx(0.002 ** 2 / (0.03 ** 2 + 0.002 ** 2), abs=0.01)
     assert ans["verdict"].startswith("no:")
+
+
+def test_m5_answer_yes_when_timing_dominates_and_a_faster_rate_helps() -> None:
+    from host.sweep import m5_timing_answer
+
+    ans = m5_timing_answer(_m5_results({25.0: 0.08, 50.0: 0.04, 100.0: 0.02}, model_sd=0.01))
+    assert ans["verdict"].startswith("yes:")
