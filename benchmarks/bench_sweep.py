@@ -75,7 +75,8 @@ def main() -> int:
     sweep_s = time.perf_counter() - t
     naive = naive_pass_s()
     naive_total = naive * 4 * 9
-    print(f"sweep, 9 configurations x 4 subjects ({workers} workers): {sweep_s:.1f} s  (target <= {SWEEP_TARGET_S:.0f} s)"
+    print(f"sweep, 9 configurations x 4 subjects ({workers} workers): {sweep_s:.1f} s  "
+          f"(target <= {SWEEP_TARGET_S:.0f} s)"
           f"  baseline naive {naive:.1f} s per pass x 36 = {naive_total:.0f} s  ratio {naive_total / sweep_s:.1f}x")
     ok &= sweep_s <= SWEEP_TARGET_S
     print("M5 and the 50 Hz step timing: " + sw.m5_["verdict"])

@@ -66,11 +66,13 @@ def run(args: argparse.Namespace) -> int:
         fig.savefig(fh, format="png", dpi=120, bbox_inches="tight")
     plt.close(fig)
     atomic_write_text(args.out, "\n".join(lines) + "\n")
-    print(f"{max(len(res.calibrations), len(res.calibrations_fixed))} subjects, {res.n_trials} evaluated trials, {args.rate:g} Hz, {args.bits} bits, "
+    n_subjects = max(len(res.calibrations), len(res.calibrations_fixed))
+    print(f"{n_subjects} subjects, {res.n_trials} evaluated trials, {args.rate:g} Hz, {args.bits} bits, "
           f"U-turn {args.uturn}d, {'emulated logger' if res.emulated else 'ideal sampling (no emulator)'}")
     for a in arith:
         print(f"arithmetic = {a}")
-        print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}{'steps|err|%':>13}")
+        print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}"
+              f"{'steps|err|%':>13}")
         for s in summarise(res.rows, arithmetic=a):
             if not s.get("n"):
                 print(f"{s['estimator']:<10}{0:>4}")
@@ -81,9 +83,10 @@ def run(args: argparse.Namespace) -> int:
         import numpy as np
 
         key = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in res.rows}
-        print("fixed - float ratio per trial: " + ", ".join(
-            f"{n} median |d| {np.median([abs(key[k[:3] + ('fixed',)] - v) for k, v in key.items() if k[2] == n and k[3] == 'float']):.5f}"
-            for n in names))
+        diff = {n: [abs(key[k[:3] + ("fixed",)] - v) for k, v in key.items() if k[2] == n and k[3] == "float"]
+                for n in names}
+        print("fixed - float ratio per trial: " + ", ".join(f"{n} median |d| {np.median(d):.5f}"
+                                                            for n, d in diff.items()))
     if "fixed" in arith:
         print("fixed-point saturation/wrap: " + ("; ".join(res.saturation) if res.saturation else "none"))
     for msg in res.skipped:
