@@ -6,8 +6,9 @@ other and contains, in order::
     HS_i ─ FF_i (foot-flat of the leading foot) ─ TO_i (toe-off of the trailing foot: end of double
     support) ─ single stance (centre of mass over the stance leg, highest at PEAK_i) ─ HS_{i+1}
 
-with the centre of mass lowest around the end of double support (``com_min_fraction``), generally *not* at
-foot-flat where M1 resets its integrals. Vertically the centre of mass oscillates once per step as a
+with the centre of mass lowest early in double support (``com_min_fraction``, ~40 ms after heel strike and
+~100 ms before the trailing toe-off, as in real lower-back recordings), generally *not* at the anatomical
+foot-flat. Vertically the centre of mass oscillates once per step as a
 phase-warped cosine (broad crest in single stance, sharp trough in double support) whose peak-to-valley
 depth is the sum of Alvarez Fig. 3's two pendulums: ``h1`` = the drop of an arc of radius
 ``l_eff = pendulum_ratio · leg_length · f(v / v_pref)`` (see :class:`Subject`) over the mean half-chord
@@ -65,8 +66,10 @@ class ExcursionPlan:
         Per step: the radius of the single-stance arc used.
     transient_t_s, transient_vertical_m_s2, transient_ap_m_s2, transient_sigma_s
         Contact transients, sorted by time: peak time, peak accelerations (vertical, forward) and Gaussian
-        width. Heel strikes: an upward impact and a braking peak; toe-offs of the trailing foot: the end of
-        push-off, a short drop of the vertical and forward accelerations.
+        width. Heel strikes: an upward impact and a braking peak (``heel_strike_delay_s`` after contact);
+        around each trailing toe-off: the end of push-off, a short drop of the vertical and forward
+        accelerations (``toe_off_lead_s`` before it), and the leading leg's loading-response peak
+        (``loading_response_delay_s`` after it).
     speed_m_s
         The excursion's nominal speed.
     """
@@ -142,34 +145,49 @@ class CosineProfile:
 
 
 class WarpedPhase:
-    """Vertical phase ``psi = B - w·sin(B)``, ``B = 2·(gait_phase - gait_phase_0) - theta + pi`` (PPoly-like call).
+    """Vertical phase ``psi = B - w·sin(B) + a·(cos(2B)/8 - cos(B)/2 - 5/8)``, ``B = 2·(gait_phase - phase_0) - theta + pi``.
 
     ``B`` advances 2 pi per step with the gait phase; ``theta`` (C2, per-step knots) places the valley
-    (``psi = pi``) at its fraction of the step; the warp ``w`` makes the phase linger near the peak and hurry
-    through the valley (a broad single-stance crest, a sharp double-support trough).
+    (``B = pi``, where ``psi = pi``) at its fraction of the step. The warp ``w`` makes the phase linger near
+    the peak and hurry through the valley (a broad single-stance crest, a sharp double-support trough). The
+    skew ``a`` (its rate term ``a·sin(B)·(1 - cos(B))/2`` acts around the valley only) makes the phase
+    hurry *into* the valley and linger after it, so the centre of mass bottoms out early in double support
+    while its upward acceleration lasts into early single stance (as in the IPOL lower-back recordings: low
+    point ~40 ms after heel strike, vertical acceleration above 1 g until ~80 ms after the trailing
+    toe-off). PPoly-like call.
     """
 
-    def __init__(self, gait_phase: PPoly, theta: PPoly, phase0: float, warp: float) -> None:
-        self.gait_phase, self.theta, self.phase0, self.warp = gait_phase, theta, phase0, warp
+    def __init__(self, gait_phase: PPoly, theta: PPoly, phase0: float, warp: float, skew: float = 0.0) -> None:
+        grid = np.linspace(0.0, 2.0 * np.pi, 721)
+        if np.min(self._rate(grid, warp, skew)) <= 0.05:
+            raise ValueError(f"vertical phase not monotonic for warp {warp} and skew {skew}")
+        self.gait_phase, self.theta, self.phase0, self.warp, self.skew = gait_phase, theta, phase0, warp, skew
+
+    @staticmethod
+    def _rate(b: np.ndarray, w: float, a: float) -> np.ndarray:
+        """``d psi / d B``."""
+        return 1.0 - w * np.cos(b) + a * (0.5 * np.sin(b) - 0.25 * np.sin(2.0 * b))
 
     def __call__(self, t: np.ndarray, nu: int = 0) -> np.ndarray:
         t = np.asarray(t, dtype=np.float64)
         b = 2.0 * (self.gait_phase(t) - self.phase0) - self.theta(t) + np.pi
-        w = self.warp
+        w, a = self.warp, self.skew
         if nu == 0:
-            return b - w * np.sin(b)
+            return b - w * np.sin(b) + a * (0.125 * np.cos(2.0 * b) - 0.5 * np.cos(b) - 0.625)
         b1 = 2.0 * self.gait_phase(t, 1) - self.theta(t, 1)
+        r = self._rate(b, w, a)
         if nu == 1:
-            return b1 * (1.0 - w * np.cos(b))
+            return b1 * r
         if nu == 2:
             b2 = 2.0 * self.gait_phase(t, 2) - self.theta(t, 2)
-            return b2 * (1.0 - w * np.cos(b)) + w * b1**2 * np.sin(b)
+            r1 = w * np.sin(b) + a * (0.5 * np.cos(b) - 0.5 * np.cos(2.0 * b))
+            return b2 * r + b1**2 * r1
         raise ValueError(f"derivative order {nu} not available (0, 1, 2)")
 
 
 def _vertical_profile(t_start: float, t_stop: float, gait_phase: PPoly, phase0: float, hs: np.ndarray,
                       tau_min: np.ndarray, t_peak: np.ndarray, z_stand: float, z_target: np.ndarray,
-                      drop: np.ndarray, valley_extra: np.ndarray, warp: float) -> CosineProfile:
+                      drop: np.ndarray, valley_extra: np.ndarray, warp: float, skew: float = 0.0) -> CosineProfile:
     """Centre-of-mass height with one valley per heel strike (``tau_min``: its fraction of the step after
     heel strike ``hs[j]``) and the peaks in between (level ``z_target`` near ``t_peak``).
 
@@ -180,7 +198,7 @@ def _vertical_profile(t_start: float, t_stop: float, gait_phase: PPoly, phase0: 
     knots = np.concatenate(([t_start], hs, [t_stop]))
     th = 2.0 * np.pi * np.concatenate((tau_min[:1], tau_min, tau_min[-1:]))
     theta = quintic_hermite(knots, th, np.zeros(knots.size), np.zeros(knots.size))
-    phase = WarpedPhase(gait_phase, theta, phase0, warp)
+    phase = WarpedPhase(gait_phase, theta, phase0, warp, skew)
     lev_t = np.concatenate(([t_start], t_peak, [t_stop]))
     lev_y = np.concatenate(([z_stand], z_target, [z_stand]))
     level = quintic_hermite(lev_t, lev_y, np.zeros(lev_t.size), np.zeros(lev_t.size))
@@ -272,7 +290,7 @@ def plan_excursion(
     t_ds = ds_frac * durations_a
     to = hs[:-1] + t_ds
     ff = hs[:-1] + np.clip(subject.foot_flat_fraction * (1.0 + rng.normal(0.0, 0.06, n_reg)), 0.1, 0.95) * t_ds
-    tau_min = np.clip(subject.com_min_fraction + rng.normal(0.0, 0.08, n_reg), 0.2, 1.6) * ds_frac
+    tau_min = np.clip(subject.com_min_fraction + rng.normal(0.0, 0.08, n_reg), -0.2, 1.6) * ds_frac
     tau_to = ds_frac
     tau_peak = tau_to + np.clip(subject.peak_fraction + rng.normal(0.0, 0.03, n_reg), 0.25, 0.75) * (1 - tau_to)
     eps = np.full(n_reg, subject.ap_speed_fluctuation) * (vbar / v_exc) ** 0.5
@@ -362,7 +380,7 @@ def plan_excursion(
     extra = d_ds**2 / (8.0 * subject.double_support_radius_m)
     z_pp = _vertical_profile(t_start_s, t_stop, phase_pp, phase0, hs, np.concatenate((tau_min, tau_min[-1:])),
                              t_peak, z_stand, z_target, drop, np.concatenate((extra, extra[-1:])),
-                             subject.vertical_warp)
+                             subject.vertical_warp, subject.vertical_skew)
     env_t = np.array([t_start_s, heel_strikes[min(2, n_steps)], heel_strikes[-2], t_stop])
     if np.any(np.diff(env_t) <= 0):
         raise ValueError(f"excursion {label!r} is too short to plan ({n_steps} steps)")
@@ -384,12 +402,16 @@ def plan_excursion(
     jitter = np.exp(rng.normal(0.0, 0.2, heel_strikes.size))
     g = STANDARD_GRAVITY_M_S2
     to_scale = scale[:-1] * np.exp(rng.normal(0.0, 0.2, n_steps))
-    tr_t = np.concatenate((heel_strikes + 0.008, toe_offs))
-    tr_v = np.concatenate((subject.heel_strike_acc_g * g * scale * jitter, -subject.toe_off_acc_g * g * to_scale))
+    lr_scale = scale[:-1] * np.exp(rng.normal(0.0, 0.2, n_steps))
+    tr_t = np.concatenate((heel_strikes + subject.heel_strike_delay_s, toe_offs - subject.toe_off_lead_s,
+                           toe_offs + subject.loading_response_delay_s))
+    tr_v = np.concatenate((subject.heel_strike_acc_g * g * scale * jitter, -subject.toe_off_acc_g * g * to_scale,
+                           subject.loading_response_acc_g * g * lr_scale))
     tr_ap = np.concatenate((-subject.heel_strike_ap_acc_g * g * scale * jitter,
-                            -subject.toe_off_ap_acc_g * g * to_scale))
+                            -subject.toe_off_ap_acc_g * g * to_scale, np.zeros(n_steps)))
     tr_sig = np.concatenate((np.full(heel_strikes.size, subject.heel_strike_width_s),
-                             np.full(n_steps, subject.toe_off_width_s)))
+                             np.full(n_steps, subject.toe_off_width_s),
+                             np.full(n_steps, subject.loading_response_width_s)))
     order = np.argsort(tr_t, kind="stable")
     return ExcursionPlan(
         label=label,

@@ -8,11 +8,25 @@ nearly constant over ordinary speeds, Sekiya & Nagasaki 1998; equivalently Griev
 ``S = sqrt(60 · WR · v)``, WR ≈ 0.00375·H m per step/min (≈ 0.0066 for H = 1.77 m), drifting per subject
 with speed (``walk_ratio_speed_exponent``).
 
-Shape and amplitudes were checked against the IPOL lower-back recordings (straight walking, 100 Hz):
-there the vertical acceleration rises sharply at heel strike, stays high through double support, drops at
-the trailing toe-off and sags below 1 g in single stance (SD 0.19 g, 0.14-0.35 over 20 trials; 1st-99th
-percentile range 0.92 g); the defaults reproduce that pattern (valley of the centre of mass early in double
-support with a sharp trough, impact 0.35 g, push-off drop at toe-off; SD 0.2-0.25 g).
+Contact timing and shape follow the IPOL lower-back recordings (Voisard et al. 2023: 9 subjects, 52 trials,
+1298 straight steps with foot-sensor heel-strike and toe-off, 100 Hz) and the gait literature:
+
+- double support 0.14 s median (IQR 0.11-0.16), 24 % of the step (IQR 21-27 %; per subject 18-29 %), i.e.
+  ~12 % of the gait cycle per side (Perry: 10-12 % at preferred speed, longer when slower; the world scales
+  it as ``(v / v_pref) ** -0.6``);
+- the centre of mass is lowest 40 ms after heel strike (IQR 20-60 ms; 0.27 of double support; peak of the
+  3 Hz low-passed vertical acceleration and minimum of its double integral agree) and 100 ms before the
+  trailing toe-off (IQR 80-110 ms);
+- vertical acceleration (ensemble over all steps): it rises from the single-stance level (-0.17 g) ~100 ms
+  *before* heel strike (the trailing leg's push-off), peaks at +0.35 g ~30 ms after heel strike (impact and
+  loading), dips to ~0 g ~30 ms before the trailing toe-off (the trailing foot unloads), peaks again at
+  +0.17 g ~30 ms after it (the leading leg's loading-response force peak) and falls back to -0.17 g by
+  ~120 ms after toe-off; SD 0.19 g per step.
+
+The defaults reproduce these (centre-of-mass valley at ``com_min_fraction`` of double support with a skewed
+trough, impact ``heel_strike_delay_s`` after heel strike, unloading dip ``toe_off_lead_s`` before toe-off,
+loading-response peak ``loading_response_delay_s`` after it). Anatomical foot-flat (forefoot down) comes
+from the literature (~8 % of the gait cycle: 0.65 of double support), after the centre of mass's low point.
 
 The fields that break the estimators' assumptions (so that a per-subject K is genuinely needed):
 
@@ -77,12 +91,18 @@ class Subject:
         Foot-flat of the leading foot, as a fraction of the double support after heel strike.
     com_min_fraction
         When the centre of mass is lowest, in units of the double-support time after heel strike (1 = at
-        the trailing foot's toe-off; above 1 in early single stance, during the loading response).
+        the trailing foot's toe-off). Real people: ~0.3 (the 3 Hz first harmonic peaks ~40 ms after heel
+        strike, ~100 ms before toe-off); the phase skew (``vertical_skew``) moves the measured low point a
+        little earlier than this nominal valley.
     peak_fraction
         Where in single stance the centre of mass is highest (fraction of single stance).
     vertical_warp
         Phase warp of the vertical centre-of-mass oscillation (0: a cosine; > 0: a broad crest in single
         stance and a sharp trough in double support, i.e. a sharp positive acceleration peak).
+    vertical_skew
+        Skew of the vertical phase around the valley (:class:`~firmware_sim.world.gait_cycle.WarpedPhase`):
+        the centre of mass decelerates its fall quickly and rises slowly, so the vertical acceleration stays
+        above 1 g into early single stance (~80 ms after toe-off in the IPOL recordings).
     double_support_radius_m
         Radius of the concave-up centre-of-mass arc over the double-support travel (Alvarez Fig. 3's
         second pendulum): adds ``d_ds² / (8 r)`` to the step's vertical excursion.
@@ -104,12 +124,17 @@ class Subject:
     mounting_rotation_deg
         Rotation vector (degrees) of the device relative to its nominal mounting on the trunk (see
         :mod:`firmware_sim.world.walking` for the nominal device axes).
-    heel_strike_acc_g, heel_strike_ap_acc_g, heel_strike_width_s
+    heel_strike_acc_g, heel_strike_ap_acc_g, heel_strike_width_s, heel_strike_delay_s
         Heel-strike transient at the sensor: vertical peak, antero-posterior (braking) peak, in g at
-        preferred speed (∝ speed), and the Gaussian width.
-    toe_off_acc_g, toe_off_ap_acc_g, toe_off_width_s
-        End-of-push-off transient at the trailing foot's toe-off: drop of the vertical and forward
-        accelerations (g, at preferred speed, ∝ speed) and Gaussian width.
+        preferred speed (∝ speed), the Gaussian width, and its delay after heel strike (the lower back
+        peaks ~30 ms after initial contact in the IPOL recordings).
+    toe_off_acc_g, toe_off_ap_acc_g, toe_off_width_s, toe_off_lead_s
+        Unloading of the trailing foot at the end of push-off: drop of the vertical and forward
+        accelerations (g, at preferred speed, ∝ speed), Gaussian width, and how long before the trailing
+        toe-off it peaks.
+    loading_response_acc_g, loading_response_delay_s, loading_response_width_s
+        The leading leg's loading-response force peak: vertical rise (g, at preferred speed, ∝ speed), its
+        delay after the trailing toe-off and its Gaussian width.
     sit_drop_m
         How far the centre of mass drops when sitting down.
     """
@@ -129,11 +154,12 @@ class Subject:
     pendulum_ratio: float = 1.8
     pendulum_speed_exponent: float = 0.0
     pendulum_speed_curvature: float = 0.6
-    double_support_fraction: float = 0.22
+    double_support_fraction: float = 0.24
     foot_flat_fraction: float = 0.65
-    com_min_fraction: float = 0.45
+    com_min_fraction: float = 0.40
     peak_fraction: float = 0.5
-    vertical_warp: float = 0.35
+    vertical_warp: float = 0.15
+    vertical_skew: float = 0.4
     double_support_radius_m: float = 0.5
     peak_drop_m: float = 0.01
     ap_speed_fluctuation: float = 0.09
@@ -151,10 +177,15 @@ class Subject:
     mounting_rotation_deg: tuple[float, float, float] = (0.0, 6.0, 2.0)
     heel_strike_acc_g: float = 0.35
     heel_strike_ap_acc_g: float = 0.25
-    heel_strike_width_s: float = 0.012
-    toe_off_acc_g: float = 0.15
+    heel_strike_width_s: float = 0.018
+    heel_strike_delay_s: float = 0.03
+    toe_off_acc_g: float = 0.25
     toe_off_ap_acc_g: float = 0.10
     toe_off_width_s: float = 0.015
+    toe_off_lead_s: float = 0.025
+    loading_response_acc_g: float = 0.20
+    loading_response_delay_s: float = 0.04
+    loading_response_width_s: float = 0.03
     sit_drop_m: float = 0.40
 
     def __post_init__(self) -> None:
@@ -166,7 +197,7 @@ class Subject:
             "pendulum_ratio": (0.8, 4.0),
             "double_support_fraction": (0.05, 0.45),
             "foot_flat_fraction": (0.1, 0.95),
-            "com_min_fraction": (0.2, 1.6),
+            "com_min_fraction": (-0.2, 1.6),
             "peak_fraction": (0.2, 0.8),
         }
         for name, (lo, hi) in checks.items():
@@ -264,11 +295,12 @@ class Subject:
             pendulum_ratio=around(1.8, 0.18, 1.4, 2.3),
             pendulum_speed_exponent=around(0.0, 0.2, -0.4, 0.4),
             pendulum_speed_curvature=around(0.6, 0.3, 0.0, 1.5),
-            double_support_fraction=around(0.22, 0.025, 0.15, 0.30),
+            double_support_fraction=around(0.24, 0.035, 0.17, 0.32),
             foot_flat_fraction=around(0.65, 0.08, 0.45, 0.85),
-            com_min_fraction=around(0.45, 0.12, 0.2, 0.8),
+            com_min_fraction=around(0.40, 0.10, 0.0, 0.7),
             peak_fraction=around(0.5, 0.05, 0.38, 0.62),
-            vertical_warp=around(0.35, 0.07, 0.2, 0.5),
+            vertical_warp=around(0.15, 0.06, 0.0, 0.3),
+            vertical_skew=around(0.4, 0.1, 0.15, 0.6),
             double_support_radius_m=around(0.5, 0.12, 0.25, 0.9),
             peak_drop_m=around(0.01, 0.004, 0.0, 0.025),
             ap_speed_fluctuation=around(0.09, 0.02, 0.04, 0.15),
@@ -287,10 +319,15 @@ class Subject:
             mounting_rotation_deg=tuple(float(a) for a in axis * angle),
             heel_strike_acc_g=around(0.35, 0.1, 0.15, 0.6),
             heel_strike_ap_acc_g=around(0.25, 0.08, 0.1, 0.45),
-            heel_strike_width_s=around(0.012, 0.002, 0.008, 0.018),
-            toe_off_acc_g=around(0.15, 0.05, 0.05, 0.3),
+            heel_strike_width_s=around(0.018, 0.003, 0.012, 0.025),
+            heel_strike_delay_s=around(0.03, 0.008, 0.015, 0.045),
+            toe_off_acc_g=around(0.25, 0.08, 0.08, 0.45),
             toe_off_ap_acc_g=around(0.10, 0.04, 0.03, 0.2),
             toe_off_width_s=around(0.015, 0.003, 0.01, 0.022),
+            toe_off_lead_s=around(0.025, 0.008, 0.010, 0.040),
+            loading_response_acc_g=around(0.20, 0.07, 0.05, 0.4),
+            loading_response_delay_s=around(0.04, 0.01, 0.02, 0.06),
+            loading_response_width_s=around(0.03, 0.005, 0.02, 0.04),
         )
 
     def as_dict(self) -> dict:

@@ -23,8 +23,9 @@ What is modelled (richer than any estimator's assumptions)
   rotation (yaw) at stride frequency, medio-lateral sway at stride frequency; the sensor's lever arm from
   the centre of mass adds tangential and centripetal accelerations, and its height differs from the
   centre of mass's;
-- contact transients: at heel strike a short upward impact and braking peak, at the trailing foot's
-  toe-off a short drop of vertical and forward acceleration (end of push-off); each is the second
+- contact transients: shortly after heel strike an upward impact and braking peak, just before the
+  trailing foot's toe-off a short drop of vertical and forward acceleration (end of push-off), just after
+  it the leading leg's loading-response peak (timings from real lower-back recordings); each is the second
   derivative of a sub-millimetre Gaussian position bump, so it changes no velocity and no truth length;
 - rests standing or sitting (sit-down and stand-up transitions) between excursions.
 
