@@ -352,8 +352,12 @@ class SubjectResult:
 
 def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, include_turn: bool = False,
                        edge: str = "fraction", calibration_sections: int = 2,
-                       corridor_length_m: float = 100.0) -> SubjectResult:
-    """Steps, K calibration (both modes), section ratios and event scores of one recording."""
+                       corridor_length_m: float = 100.0, detector: Any = None) -> SubjectResult:
+    """Steps, K calibration (both modes), section ratios and event scores of one recording.
+
+    ``detector``: a :class:`host.gait.events.GaitEventDetector` for the pipeline (default parameters when
+    None).
+    """
     from host.estimators.calibration import calibrate
     from host.gait.pipeline import StepPipeline, apply_calibration
 
@@ -361,7 +365,8 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     caught: list[str] = []
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        table = StepPipeline(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m).run(
+        table = StepPipeline(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
+                             detector=detector).run(
             rec.acc_g, sampling_rate_hz=rec.sampling_rate_hz, valid=rec.valid, t0_s=rec.t0_s).steps_
         caught += [f"pipeline: {x.message}" for x in w]
     sections = sections_from_marks(rec.mark_times_s, rec.truth["laps"], corridor_length_m=corridor_length_m,
@@ -523,6 +528,8 @@ class SimulatedEvaluation:
         See :func:`evaluate_recording`.
     calibrate_device
         Fit the device calibration on a pose session first.
+    detector
+        :class:`host.gait.events.GaitEventDetector` of the pipeline (None: default parameters).
 
     Attributes
     ----------
@@ -536,7 +543,8 @@ class SimulatedEvaluation:
 
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, protocol: Any = None, rate_hz: float = 50.0,
                  bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
-                 edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True) -> None:
+                 edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
+                 detector: Any = None) -> None:
         self.n_subjects = n_subjects
         self.seed = seed
         self.protocol = protocol
@@ -548,6 +556,7 @@ class SimulatedEvaluation:
         self.edge = edge
         self.calibration_sections = calibration_sections
         self.calibrate_device = calibrate_device
+        self.detector = detector
 
     def run(self) -> Self:
         """Simulate, record, estimate and evaluate every subject."""
@@ -556,7 +565,7 @@ class SimulatedEvaluation:
         if self.n_subjects < 1:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
-                       calibration_sections=self.calibration_sections)
+                       calibration_sections=self.calibration_sections, detector=self.detector)
         jobs = [(s, self.seed * 1000 + i, self.protocol, self.rate_hz, self.bits, self.calibrate_device, options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:

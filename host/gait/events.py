@@ -12,7 +12,10 @@ Notes
 2. *Heel-strike* (HS): the steepest rise of the vertical acceleration (low-passed at 10 Hz) within
    ``hs_search_s`` before the foot-flat: the loading impact that starts double support (the trunk is
    decelerated downwards as the leading leg takes the weight; Zijlstra & Hof, Gait Posture 18, 2003,
-   place initial contact on the same rising edge).
+   place initial contact on the same rising edge). With ``hs_slope_fraction`` set, the *latest* local
+   maximum of the slope in that window that reaches this fraction of the window's steepest: on real
+   lower-back recordings the trailing leg's push-off makes a second, earlier rise ~80 ms before contact
+   (IPOL data, 52 trials at 50 Hz: heel strikes within 40 ms F1 0.582 -> 0.648 with 0.5).
 3. *Toe-off* (TO): the first local minimum of the vertical acceleration (10 Hz) within ``to_search_s``
    after the foot-flat: the unloading as the trailing foot leaves and single support begins.
 4. Steps: consecutive foot-flats closer than ``max_step_s`` form a step (window ``[FF_k, FF_k+1]``,
@@ -55,6 +58,9 @@ class GaitEventDetector:
         more prominent kept. Within a bout step durations vary by a few per cent (stride-time CV 2-4 % in
         healthy adults, Hausdorff, J. NeuroEng. Rehab. 2005); a "step" 40 % shorter than the typical one
         is a second bump of the same step (turns, stops), not a step.
+    hs_slope_fraction
+        None (default): heel-strike at the steepest rise in the window. A fraction (e.g. 0.5): at the
+        latest local maximum of the slope reaching that fraction of the steepest (see note 2).
     min_weight
         Normalised convolution: fraction of the Gaussian kernel's weight that must fall on measured
         samples for the filtered value to exist (0.25; the 3 Hz kernel spans ~±0.17 s, so a filtered value
@@ -85,6 +91,7 @@ class GaitEventDetector:
         max_gap_s: float = 0.1,
         min_step_fraction: float = 0.6,
         min_weight: float = 0.25,
+        hs_slope_fraction: float | None = None,
     ) -> None:
         self.ff_cutoff_hz = ff_cutoff_hz
         self.detail_cutoff_hz = detail_cutoff_hz
@@ -96,6 +103,7 @@ class GaitEventDetector:
         self.max_gap_s = max_gap_s
         self.min_step_fraction = min_step_fraction
         self.min_weight = min_weight
+        self.hs_slope_fraction = hs_slope_fraction
 
     def detect(self, acc_v_m_s2: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None) -> Self:
         """Detect the events in ``acc_v_m_s2`` (``(n,)``, up positive, gravity removed)."""
@@ -134,7 +142,11 @@ class GaitEventDetector:
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
-        hs = self._search(np.gradient(det), ff, -int(round(self.hs_search_s * fs)), 0, mode="argmax")
+        lo_hs = -int(round(self.hs_search_s * fs))
+        if self.hs_slope_fraction is None:
+            hs = self._search(np.gradient(det), ff, lo_hs, 0, mode="argmax")
+        else:
+            hs = self._latest_strong_max(np.gradient(det), ff, lo_hs, 0, float(self.hs_slope_fraction))
         to = self._first_local_min(det, ff, int(round(self.to_search_s * fs)))
         # 4. bouts and steps
         gap_run = _gap_lengths(ok)
@@ -180,6 +192,27 @@ class GaitEventDetector:
         j = np.argmax(vals, axis=1)
         found = np.isfinite(vals[np.arange(centre.size), j])
         return np.where(found, idx[np.arange(centre.size), j], -1).astype(np.int64)
+
+    @staticmethod
+    def _latest_strong_max(x: np.ndarray, centre: np.ndarray, lo: int, hi: int, fraction: float) -> np.ndarray:
+        """Latest local maximum of ``x`` in ``[c+lo, c+hi]`` reaching ``fraction`` of the window's maximum.
+
+        Falls back to the window's maximum when no interior local maximum qualifies (-1 if all NaN).
+        """
+        best = GaitEventDetector._search(x, centre, lo, hi, mode="argmax")
+        if centre.size == 0:
+            return best
+        offs = np.arange(lo - 1, hi + 2)
+        idx = centre[:, None] + offs[None, :]
+        inside = (idx >= 0) & (idx < x.size)
+        vals = np.where(inside, x[np.clip(idx, 0, x.size - 1)], np.nan)
+        vals = np.where(np.isfinite(vals), vals, -np.inf)
+        mid = vals[:, 1:-1]
+        top = np.max(mid, axis=1, keepdims=True)
+        strong = (mid >= vals[:, :-2]) & (mid > vals[:, 2:]) & np.isfinite(mid) & (mid >= fraction * top)
+        has = strong.any(axis=1) & np.isfinite(top[:, 0])
+        j = strong.shape[1] - 1 - np.argmax(strong[:, ::-1], axis=1)
+        return np.where(has, idx[np.arange(centre.size), j + 1], best).astype(np.int64)
 
     @staticmethod
     def _first_local_min(x: np.ndarray, centre: np.ndarray, span: int) -> np.ndarray:

@@ -88,6 +88,23 @@ def test_heel_strike_and_toe_off_on_synthetic_signal() -> None:
     assert np.all(det.bout_ == 0)
 
 
+def test_latest_strong_slope_picks_the_impact_not_the_push_off() -> None:
+    """A push-off rise 90 ms before contact, steeper than the impact rise: the default rule takes the steepest
+    (push-off), ``hs_slope_fraction`` the latest rise at least that fraction as steep (the impact)."""
+    fs = 50.0
+    t, a, ff_t, hs_t, _ = synthetic_walk(fs=fs)
+    for th in hs_t:   # a steeper rise (push-off) 90 ms before the heel strike, back down before it
+        a += 4.5 * np.exp(-0.5 * ((t - th + 0.09 + 0.015) / 0.015) ** 2)
+    steepest = GaitEventDetector().detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    latest = GaitEventDetector(hs_slope_fraction=0.5).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    assert np.median(steepest - hs_t) < -0.06
+    assert np.median(np.abs(latest - hs_t)) <= 1.0 / fs + 1e-9
+    # without a second rise both rules agree
+    t, a, ff_t, hs_t, _ = synthetic_walk(fs=fs)
+    np.testing.assert_array_equal(GaitEventDetector(hs_slope_fraction=0.5).detect(a, sampling_rate_hz=fs).heel_strike_,
+                                  GaitEventDetector().detect(a, sampling_rate_hz=fs).heel_strike_)
+
+
 def test_events_standing_still_gives_no_step() -> None:
     rng = np.random.default_rng(1)
     det = GaitEventDetector().detect(rng.normal(0, 0.02, 1000), sampling_rate_hz=50.0)
