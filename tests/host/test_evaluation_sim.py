@@ -190,9 +190,24 @@ def test_bad_population_size() -> None:
 
 
 # ---- issue 4 "done means" on simulated subjects (depends on host/gait as well) --------------------------
+# Measured with the world's contact timing taken from the IPOL lower-back recordings (double support 24 % of
+# the step, centre of mass lowest ~40 ms after heel strike and ~100 ms before toe-off), default detector,
+# SimulatedEvaluation(seed=0): 3 subjects (this fixture) / 6 subjects.
 
-DONE_REASON = ("issue 4 done-criteria on the simulated world; see /work/briefs/walking-to-gait.md for the "
-               "numbers (6 subjects: HS F1 0.96, TO F1 0.19 with TO ~100 ms late, FF 13.7 ms; M3 IQR 9.3 % vs M2 6.0 %)")
+STEP_F1_REASON = (
+    "heel strikes within 40 ms: F1 0.81 (3 subjects) / 0.86 (6 subjects), per subject 0.69-1.00; the misses "
+    "are the trailing leg's push-off rise ~60-80 ms before contact taken for the impact (as on the real IPOL "
+    "trials at 50 Hz, F1 0.58); GaitEventDetector(hs_slope_fraction=0.5) gives 0.95 (real 0.65). Step count "
+    "itself is right (6548 detected for 6533)")
+FOOT_FLAT_REASON = (
+    "the detector's foot-flat is the centre of mass's low point (Alvarez's null vertical velocity, 7-9 ms from "
+    "it); the anatomical foot-flat (forefoot down, ~8 % of the gait cycle) comes ~30 ms later: median error "
+    "30-32 ms")
+PATTERN_REASON = (
+    "M1 widest: yes; multi-speed narrower: no for M4 (IQR 4.6 -> 5.1 %, 3 subjects; 4.9 -> 5.3 %, 6 subjects); "
+    "M3 comparable: no (IQR 9.4 % vs M2 5.1 %, 3 subjects; 11.5 % vs 5.8 %, 6 subjects): the world's "
+    "single-stance arc (radius 1.8 x leg) is flatter than the IPOL subjects' (M3 with the paper's inputs: 0.91 of "
+    "the step in the world, 1.02-1.05 on the real trials)")
 
 
 @pytest.fixture(scope="module")
@@ -202,16 +217,29 @@ def population():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=DONE_REASON)
-def test_done_steps_and_event_timing(population) -> None:
-    ev = population.events_
-    assert ev["heel_strike"].f1 >= 0.99
-    for name in ("heel_strike", "toe_off", "foot_flat"):
-        assert ev[name].median_abs_error_s <= 0.020, name
+@pytest.mark.xfail(strict=False, reason=STEP_F1_REASON)
+def test_done_steps_detected(population) -> None:
+    assert population.events_["heel_strike"].f1 >= 0.99
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=DONE_REASON)
+def test_done_event_timing(population) -> None:
+    """Heel strike, toe-off and foot-flat (as the centre of mass's low point) within 20 ms (median)."""
+    ev = population.events_
+    for name in ("heel_strike", "toe_off", "com_min"):
+        assert ev[name].median_abs_error_s <= 0.020, (name, ev[name])
+    assert ev["com_min"].f1 >= 0.95
+    assert ev["heel_strike"].n_detected == pytest.approx(ev["heel_strike"].n_truth, rel=0.01)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=False, reason=FOOT_FLAT_REASON)
+def test_done_anatomical_foot_flat_timing(population) -> None:
+    assert population.events_["foot_flat"].median_abs_error_s <= 0.020
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=False, reason=PATTERN_REASON)
 def test_done_paper_pattern(population) -> None:
     pat = paper_pattern(population.summary_)
     assert all(ok for ok, _ in pat.values()), pat
