@@ -1,16 +1,28 @@
-"""``gaitlog evaluate ipol DIR``: the paper's evaluation on IPOL lower-back recordings through the emulator."""
+"""``gaitlog evaluate ipol DIR`` and ``gaitlog evaluate sim``: the paper's evaluation of M1-M5.
+
+``ipol``: every trial of a folder in the IPOL lower-back layout replayed through the emulated logger, K fitted
+on each subject's first trial. ``sim``: simulated subjects walking Alvarez's protocol (100 m out and back at four
+speeds, 20 m lap marks) through the emulated logger, K calibrated single- and multi-speed, every 20 m section
+scored against the truth (Figs 5-6).
+"""
 
 from __future__ import annotations
 
 import argparse
 
-HELP = "evaluate M1-M5 on a folder of IPOL lower-back trials replayed through the emulated logger"
+HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", choices=["ipol"], help="dataset layout (ipol: Voisard et al. 2023)")
-    parser.add_argument("folder", metavar="DIR", help="folder holding GaitData/<s>-<t>_lb.txt and .json")
-    parser.add_argument("--out", required=True, metavar="CSV", help="one row per trial and estimator")
+    parser.add_argument("dataset", choices=["ipol", "sim"],
+                        help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
+    parser.add_argument("folder", metavar="DIR", nargs="?",
+                        help="ipol: folder holding GaitData/<s>-<t>_lb.txt and .json; sim: output folder")
+    parser.add_argument("--out", metavar="CSV",
+                        help="ipol: one row per trial and estimator (required); sim: output folder (or DIR)")
+    parser.add_argument("--subjects", type=int, default=4, help="sim: number of simulated subjects (4)")
+    parser.add_argument("--seed", type=int, default=0, help="sim: seed of the subjects and devices (0)")
+    parser.add_argument("--workers", type=int, default=1, help="sim: processes to use (1)")
     parser.add_argument("--figure", metavar="PNG", help="box plot (default: CSV name with .png)")
     parser.add_argument("--rate", type=float, default=50.0, metavar="HZ", help="logger sample rate (50)")
     parser.add_argument("--bits", type=int, default=10, help="ADC bits, 1-10 (10)")
@@ -20,11 +32,37 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="float host chain, the PIC's fixed-point chain on the same codes, or both (default)")
 
 
+def _run_sim(args: argparse.Namespace) -> int:
+    from host.errors import HostError
+    from host.evaluation import SimulatedEvaluation
+
+    out = args.out or args.folder
+    if out is None:
+        raise HostError("evaluate sim: give the output folder as DIR or --out DIR")
+    if args.subjects < 1 or args.workers < 1:
+        raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
+    if args.bits != 10 and not 1 <= args.bits <= 10:
+        raise HostError(f"--bits must be 1..10, got {args.bits}")
+    ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, rate_hz=args.rate, bits=args.bits,
+                             workers=args.workers).run()
+    paths = ev.write_outputs(out)
+    print(f"{args.subjects} simulated subjects (seed {args.seed}), {args.rate:g} Hz, {args.bits} bits, "
+          f"emulated logger calibrated on a pose session; 20 m sections, ratio estimated / real")
+    print(ev.format_table())
+    print("written: " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
     from host.errors import HostError
+
+    if args.dataset == "sim":
+        return _run_sim(args)
+    if args.folder is None or args.out is None:
+        raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
     from host.ipol_evaluation import CSV_COLUMNS, evaluate_folder, summarise
     from protocol.atomic_write import atomic_write, atomic_write_text
 
