@@ -541,6 +541,25 @@ def mul_q(a: np.ndarray | int, b: np.ndarray | int, shift: int, out: QFormat | i
     return _overflow(r, bits, sgn, overflow, ctx, op)
 
 
+def _div_operands(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int, signed: bool,
+                  ctx: ArithmeticContext | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, tuple]:
+    """Checked 32-bit dividend and 16-bit divisor of :func:`div` / :func:`div_round`, broadcast; the divisor with
+    zeros replaced by 1 (``safe``), the zero mask and count, the output limits; the divide's cycles counted."""
+    x, y = _as_int(n), _as_int(d)
+    xl, xh = word_limits(32, signed)
+    yl, yh = word_limits(16, signed)
+    if not (_within(x, xl, xh) and _within(y, yl, yh)):
+        raise ValueError(f"div takes a {'signed' if signed else 'unsigned'} 32-bit dividend and 16-bit divisor")
+    if x.shape != y.shape:
+        x, y = np.broadcast_arrays(x, y)
+    if ctx is not None:
+        ctx.cost("div32by16s" if signed else "div32by16u", x.size)
+    zero = y == 0
+    nz = int(np.count_nonzero(zero))
+    safe = np.where(zero, 1, y) if nz else y
+    return x, y, safe, zero, nz, _limits_of(out, signed)
+
+
 def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, signed: bool = True,
         ctx: ArithmeticContext | None = None, op: str = "div") -> tuple[np.ndarray, np.ndarray]:
     """32 / 16-bit division: quotient truncated towards zero, remainder with the dividend's sign.
@@ -567,19 +586,7 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     >>> q.tolist(), r.tolist()
     ([3, -3, -3, 3, 2147483647], [1, -1, 1, -1, 5])
     """
-    x, y = _as_int(n), _as_int(d)
-    xl, xh = word_limits(32, signed)
-    yl, yh = word_limits(16, signed)
-    if not (_within(x, xl, xh) and _within(y, yl, yh)):
-        raise ValueError(f"div takes a {'signed' if signed else 'unsigned'} 32-bit dividend and 16-bit divisor")
-    if x.shape != y.shape:
-        x, y = np.broadcast_arrays(x, y)
-    lo, hi, bits, sgn = _limits_of(out, signed)
-    if ctx is not None:
-        ctx.cost("div32by16s" if signed else "div32by16u", x.size)
-    zero = y == 0
-    nz = int(np.count_nonzero(zero))
-    safe = np.where(zero, 1, y) if nz else y
+    x, y, safe, zero, nz, (lo, hi, bits, sgn) = _div_operands(n, d, out, signed, ctx)
     # magnitudes: truncation towards zero. The float64 quotient of |n| < 2**31 by |d| < 2**16 is never
     # rounded up to the next integer (the gap 1/|d| >= 2**-16 exceeds the rounding error q * 2**-53), so
     # its floor is the exact integer quotient (and much faster than numpy's integer division).
@@ -588,7 +595,7 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     r = x - q * safe
     if nz:
         q = np.where(zero, np.where(x >= 0, hi, lo), q)
-        r = np.where(zero, np.clip(x, yl, yh), r)
+        r = np.where(zero, np.clip(x, *word_limits(16, signed)), r)
         if ctx is not None:
             ctx.div_by_zero += nz
             ctx.saturated[op] += nz
@@ -606,20 +613,9 @@ def div_round(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32,
     >>> div_round(np.array([7, -7, 5, -5, 4, 1]), np.array([2, 2, 2, 2, 3, 0])).tolist()
     [4, -4, 3, -3, 1, 2147483647]
     """
-    x, y = _as_int(n), _as_int(d)
-    xl, xh = word_limits(32, signed)
-    yl, yh = word_limits(16, signed)
-    if not (_within(x, xl, xh) and _within(y, yl, yh)):
-        raise ValueError(f"div takes a {'signed' if signed else 'unsigned'} 32-bit dividend and 16-bit divisor")
-    if x.shape != y.shape:
-        x, y = np.broadcast_arrays(x, y)
-    lo, hi, bits, sgn = _limits_of(out, signed)
+    x, y, safe, zero, nz, (lo, hi, bits, sgn) = _div_operands(n, d, out, signed, ctx)
     if ctx is not None:
-        ctx.cost("div32by16s" if signed else "div32by16u", x.size)
         ctx.cost("add32", x.size)
-    zero = y == 0
-    nz = int(np.count_nonzero(zero))
-    safe = np.where(zero, 1, y) if nz else y
     ay = np.abs(safe)
     res = np.floor((np.abs(x) + (ay >> 1)) / ay).astype(np.int64)   # exact, as in div()
     np.negative(res, out=res, where=(x ^ safe) < 0)
