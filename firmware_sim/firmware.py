@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.errors import DeviceError
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from protocol.crc import crc16_xmodem
 from protocol.frames import (

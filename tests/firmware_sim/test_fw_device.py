@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.adc import Adc
 from firmware_sim.device import Logger
 from firmware_sim.errors import DeviceError
 from firmware_sim.sensor import SensorModel
