@@ -191,23 +191,19 @@ def test_bad_population_size() -> None:
 
 # ---- issue 4 "done means" on simulated subjects (depends on host/gait as well) --------------------------
 # Measured with the world's contact timing taken from the IPOL lower-back recordings (double support 24 % of
-# the step, centre of mass lowest ~40 ms after heel strike and ~100 ms before toe-off), default detector,
+# the step, centre of mass lowest ~40 ms after heel strike and ~100 ms before toe-off),
+# single-stance arc from the same recordings (M3 with the paper's inputs ~1.0 of the step), default detector,
 # SimulatedEvaluation(seed=0): 3 subjects (this fixture) / 6 subjects.
 
 STEP_F1_REASON = (
-    "heel strikes within 40 ms: F1 0.81 (3 subjects) / 0.86 (6 subjects), per subject 0.69-1.00; the misses "
+    "heel strikes within 40 ms: F1 0.70 (3 subjects) / 0.81 (6 subjects), per subject 0.51-0.99; the misses "
     "are the trailing leg's push-off rise ~60-80 ms before contact taken for the impact (as on the real IPOL "
-    "trials at 50 Hz, F1 0.58); GaitEventDetector(hs_slope_fraction=0.5) gives 0.95 (real 0.65). Step count "
-    "itself is right (6548 detected for 6533)")
+    "trials at 50 Hz, F1 0.58); GaitEventDetector(hs_slope_fraction=0.5) gives 0.88 (real 0.65). Step count "
+    "itself is right (6552 detected for 6533)")
 FOOT_FLAT_REASON = (
-    "the detector's foot-flat is the centre of mass's low point (Alvarez's null vertical velocity, 7-9 ms from "
+    "the detector's foot-flat is the centre of mass's low point (Alvarez's null vertical velocity, 9 ms from "
     "it); the anatomical foot-flat (forefoot down, ~8 % of the gait cycle) comes ~30 ms later: median error "
-    "30-32 ms")
-PATTERN_REASON = (
-    "M1 widest: yes; multi-speed narrower: no for M4 (IQR 4.6 -> 5.1 %, 3 subjects; 4.9 -> 5.3 %, 6 subjects); "
-    "M3 comparable: no (IQR 9.4 % vs M2 5.1 %, 3 subjects; 11.5 % vs 5.8 %, 6 subjects): the world's "
-    "single-stance arc (radius 1.8 x leg) is flatter than the IPOL subjects' (M3 with the paper's inputs: 0.91 of "
-    "the step in the world, 1.02-1.05 on the real trials)")
+    "29-32 ms")
 
 
 @pytest.fixture(scope="module")
@@ -239,8 +235,14 @@ def test_done_anatomical_foot_flat_timing(population) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=PATTERN_REASON)
 def test_done_paper_pattern(population) -> None:
+    """M1 widest, multi-speed narrower, M3 (no K) comparable to calibrated M2/M4 (see ``paper_pattern``).
+
+    Measured (single-speed IQR M1/M2/M3/M4; multi-speed M4): 3 subjects 7.4/5.3/6.8/4.1 %, 4.3 %; 6 subjects
+    7.5/5.5/8.2/4.3 %, 4.3 %; 8 subjects 7.9/5.8/8.5/4.7 %, 4.9 %. M1 and M2 narrow with multi-speed K; M4 does
+    not narrow (within the 0.2 % tolerance for 3 and 6 subjects, just outside it for 8): one K for M4 cannot
+    follow every speed better than the preferred-speed K. M3's IQR is near the 1.5 x limit for 6-8 subjects.
+    """
     pat = paper_pattern(population.summary_)
     assert all(ok for ok, _ in pat.values()), pat
 
