@@ -276,7 +276,6 @@ def plan_excursion(
         durations.append(float(subject.step_length_m(v)) / v * (1.0 + rng.normal(0.0, subject.step_time_cv)))
         sides.append("R" if sides[-1] == "L" else "L")
         d += s_end
-    closing = length - d  # CoM travel of the closing half step (≈ s_end / 2)
     lengths_a = np.asarray(lengths)
     durations_a = np.asarray(durations)
     n_reg = lengths_a.size  # regular steps; the closing one is added below

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_sim.world.gait_protocol import WalkingProtocol
-from firmware_sim.world.subject import Subject, random_subjects
+from firmware_sim.world.subject import Subject
 from firmware_sim.world.walking import Walking
 from host.errors import HostError
 from host.evaluation import (
