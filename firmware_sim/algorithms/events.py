@@ -93,7 +93,9 @@ class FixedGaitEventDetector:
         self.detail_q_, self.detail_defined_ = det, det_ok
         empty = np.zeros(0, np.int64)
         if n < 3 or not fin.any():
-            self._set(empty, empty, empty, empty, empty)
+            for name, value in link_steps(empty, empty, empty, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
+                                          max_step_s=self.max_step_s).items():
+                setattr(self, name, value)
             return self
         # 1. foot-flat: peaks of the 3 Hz signal (integer thresholds)
         lsb_per_g = 2 ** LOWPASS_OUT_Q.frac_bits
@@ -127,32 +129,44 @@ class FixedGaitEventDetector:
             ctx.cost("add16", n)
             ctx.cost("compare16", 3 * n)
         # 4. bouts and steps
-        gap_run = _gap_lengths(ok)
-        max_gap = int(round(self.max_gap_s * fs))
-        if ff.size:
-            interval_ok = np.diff(ff) <= self.max_step_s * fs
-            worst = _between_max(gap_run, ff)
-            link = interval_ok & (worst <= max_gap)
-            bout = np.concatenate([[0], np.cumsum(~link)])
-        else:
-            link = np.zeros(0, bool)
-            bout = empty
-        self._set(ff, hs, to, bout, link)
+        for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
+                                      max_step_s=self.max_step_s).items():
+            setattr(self, name, value)
         return self
 
-    def _set(self, ff: np.ndarray, hs: np.ndarray, to: np.ndarray, bout: np.ndarray, link: np.ndarray) -> None:
-        self.foot_flat_ = ff
-        self.heel_strike_ = hs
-        self.toe_off_ = to
-        self.bout_ = bout
-        k = np.flatnonzero(link)
-        self.step_start_ = ff[k]
-        self.step_end_ = ff[k + 1]
-        self.step_toe_off_ = to[k]
-        self.step_heel_strike_ = hs[k + 1]
-        bad = (self.step_toe_off_ >= 0) & (self.step_heel_strike_ >= 0) & (self.step_toe_off_ >= self.step_heel_strike_)
-        self.step_toe_off_ = np.where(bad, -1, self.step_toe_off_)
-        self.step_bout_ = bout[k] if k.size else np.zeros(0, np.int64)
+
+def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray, *, sampling_rate_hz: float,
+               max_gap_s: float, max_step_s: float) -> dict[str, np.ndarray]:
+    """Walking bouts and steps from per-foot-flat event indices (index bookkeeping, no arithmetic).
+
+    Consecutive foot-flats ``ff`` form a step when they are at most ``max_step_s`` apart and no run of
+    missing samples (``~ok``) between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
+    and ``to`` are the heel-strike before and the toe-off after each foot-flat (``-1`` = none); a step's
+    toe-off that does not precede its heel-strike is impossible and becomes ``-1``. Shared by the firmware's
+    detector and the host's float detector (:class:`host.gait.events.GaitEventDetector`).
+
+    Returns
+    -------
+    dict
+        The detectors' result attributes: ``foot_flat_``, ``heel_strike_``, ``toe_off_``, ``bout_``,
+        ``step_start_``, ``step_end_``, ``step_toe_off_``, ``step_heel_strike_``, ``step_bout_``.
+    """
+    if ff.size:
+        interval_ok = np.diff(ff) <= max_step_s * sampling_rate_hz
+        # longest run of missing samples between consecutive foot-flats
+        worst = _between_max(_gap_lengths(ok), ff)
+        link = interval_ok & (worst <= int(round(max_gap_s * sampling_rate_hz)))
+        bout = np.concatenate([[0], np.cumsum(~link)])
+    else:
+        link = np.zeros(0, bool)
+        bout = np.zeros(0, np.int64)
+    k = np.flatnonzero(link)
+    step_toe_off = to[k]
+    step_heel_strike = hs[k + 1]
+    bad = (step_toe_off >= 0) & (step_heel_strike >= 0) & (step_toe_off >= step_heel_strike)
+    return {"foot_flat_": ff, "heel_strike_": hs, "toe_off_": to, "bout_": bout, "step_start_": ff[k],
+            "step_end_": ff[k + 1], "step_toe_off_": np.where(bad, -1, step_toe_off),
+            "step_heel_strike_": step_heel_strike, "step_bout_": bout[k] if k.size else np.zeros(0, np.int64)}
 
 
 def _integer_interp(x: np.ndarray, defined: np.ndarray) -> np.ndarray:

@@ -33,6 +33,8 @@ from typing import Self
 
 import numpy as np
 
+from firmware_sim.algorithms.events import link_steps
+
 from host.gait.masked_filter import masked_gaussian_lowpass
 
 
@@ -123,7 +125,9 @@ class GaitEventDetector:
                                       min_weight=self.min_weight)
         empty = np.zeros(0, dtype=np.int64)
         if n < 3 or not np.any(np.isfinite(lp)):
-            self._set(empty, empty, empty, empty, empty)
+            for name, value in link_steps(empty, empty, empty, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
+                                          max_step_s=self.max_step_s).items():
+                setattr(self, name, value)
             return self
         # 1. foot-flat = first-harmonic peaks (NaN stretches cannot hold a peak)
         # the peak search needs a continuous curve: across stretches where the filter has too little
@@ -148,36 +152,11 @@ class GaitEventDetector:
         else:
             hs = self._latest_strong_max(np.gradient(det), ff, lo_hs, 0, float(self.hs_slope_fraction))
         to = self._first_local_min(det, ff, int(round(self.to_search_s * fs)))
-        # 4. bouts and steps
-        gap_run = _gap_lengths(ok)
-        max_gap = int(round(self.max_gap_s * fs))
-        if ff.size:
-            interval_ok = np.diff(ff) <= self.max_step_s * fs
-            # longest run of missing samples between consecutive foot-flats
-            worst = _between_max(gap_run, ff)
-            link = interval_ok & (worst <= max_gap)
-            bout = np.concatenate([[0], np.cumsum(~link)])
-        else:
-            link = np.zeros(0, bool)
-            bout = empty
-        self._set(ff, hs, to, bout, link)
+        # 4. bouts and steps (index bookkeeping shared with the firmware's detector)
+        for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
+                                      max_step_s=self.max_step_s).items():
+            setattr(self, name, value)
         return self
-
-    # -- helpers -------------------------------------------------------------------------------------
-    def _set(self, ff: np.ndarray, hs: np.ndarray, to: np.ndarray, bout: np.ndarray, link: np.ndarray) -> None:
-        self.foot_flat_ = ff
-        self.heel_strike_ = hs
-        self.toe_off_ = to
-        self.bout_ = bout
-        k = np.flatnonzero(link)
-        self.step_start_ = ff[k]
-        self.step_end_ = ff[k + 1]
-        self.step_toe_off_ = to[k]
-        self.step_heel_strike_ = hs[k + 1]
-        # toe-off after the heel-strike it should follow is impossible: drop it
-        bad = (self.step_toe_off_ >= 0) & (self.step_heel_strike_ >= 0) & (self.step_toe_off_ >= self.step_heel_strike_)
-        self.step_toe_off_ = np.where(bad, -1, self.step_toe_off_)
-        self.step_bout_ = bout[k] if k.size else np.zeros(0, np.int64)
 
     @staticmethod
     def _search(x: np.ndarray, centre: np.ndarray, lo: int, hi: int, *, mode: str) -> np.ndarray:
@@ -228,30 +207,6 @@ class GaitEventDetector:
         has = is_min.any(axis=1)
         j = np.argmax(is_min, axis=1) + 1
         return np.where(has, idx[np.arange(centre.size), j], -1).astype(np.int64)
-
-
-def _gap_lengths(ok: np.ndarray) -> np.ndarray:
-    """For every sample, the length of the run of missing samples it belongs to (0 where measured)."""
-    miss = ~ok
-    if not miss.any():
-        return np.zeros(ok.size, np.int64)
-    d = np.diff(np.concatenate([[0], miss.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    run = np.zeros(ok.size, np.int64)
-    lengths = ends - starts
-    # paint each run with its length using a difference array
-    paint = np.zeros(ok.size + 1, np.int64)
-    np.add.at(paint, starts, lengths)
-    np.add.at(paint, ends, -lengths)
-    run = np.cumsum(paint)[:-1]
-    return run
-
-
-def _between_max(x: np.ndarray, marks: np.ndarray) -> np.ndarray:
-    """``max(x[m_k:m_k+1])`` between consecutive strictly increasing ``marks`` (``np.maximum.reduceat``)."""
-    if marks.size < 2:
-        return np.zeros(0, x.dtype)
-    return np.maximum.reduceat(x[: marks[-1]], marks[:-1])
 
 
 def warn_if_no_steps(detector: GaitEventDetector) -> None:
