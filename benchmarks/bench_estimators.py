@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _timing import best_of
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -56,16 +58,6 @@ def real_or_synthetic() -> tuple[np.ndarray, np.ndarray, str]:
     a = 0.02 * w * w * np.cos(w * t) + rng.normal(0, 0.1, N)
     acc = np.c_[0.5 * (1 + a / 9.80665), np.zeros(N), 0.866 * (1 + a / 9.80665)]
     return acc, np.ones(N, bool), "synthetic walk"
-
-
-def best_of(fn, repeat: int = 7) -> float:
-    fn()
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return min(ts)
 
 
 def loop_baseline(acc: np.ndarray, valid: np.ndarray, leg: float, foot: float) -> None:
@@ -123,8 +115,8 @@ def main() -> int:
     pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t_vec = best_of(lambda: pipe.run(acc, sampling_rate_hz=FS, valid=valid))
-        t_loop = best_of(lambda: loop_baseline(acc, valid, leg, foot), repeat=3)
+        t_vec = best_of(lambda: pipe.run(acc, sampling_rate_hz=FS, valid=valid), warmup=True)
+        t_loop = best_of(lambda: loop_baseline(acc, valid, leg, foot), repeat=3, warmup=True)
     n_steps = pipe.steps_.n_steps
     t_imp, t_help, t_py = cli_startup()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")

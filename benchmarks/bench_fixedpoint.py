@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
+
+from _timing import best_of
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -24,15 +24,6 @@ from firmware_sim.fixedpoint import QFormat, cumsum, div, isqrt, mul_q  # noqa: 
 N = 65_536
 PRIMITIVE_TARGET_S = 0.005
 CHAIN_TARGET_S = 0.2
-
-
-def best(fn: Callable[[], object], repeat: int = 7) -> float:
-    t = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        t.append(time.perf_counter() - t0)
-    return min(t)
 
 
 def main() -> int:
@@ -59,7 +50,7 @@ def main() -> int:
         return [min(32767, max(-32768, (x * y + 0x4000) >> 15)) for x, y in zip(al, bl)]
 
     assert ours_mul().tolist() == py_mul()
-    rows.append(("Q0.15 mul (half up, sat)", best(ours_mul), best(apy_mul), best(py_mul, 3)))
+    rows.append(("Q0.15 mul (half up, sat)", best_of(ours_mul), best_of(apy_mul), best_of(py_mul, 3)))
 
     # Q15.16 running sum in a 32-bit accumulator, saturating (no overflow here) and wrapping
     q1616 = QFormat(15, 16, word_bits=32)
@@ -81,12 +72,12 @@ def main() -> int:
         return out
 
     assert ours_cs().tolist() == py_cs()
-    rows.append(("Q15.16 cumsum (wrap)", best(ours_cs), best(apy_cs), best(py_cs, 3)))
+    rows.append(("Q15.16 cumsum (wrap)", best_of(ours_cs), best_of(apy_cs), best_of(py_cs, 3)))
 
     def ours_css() -> np.ndarray:
         return cumsum(steps, q1616, overflow="saturate")
 
-    rows.append(("Q15.16 cumsum (saturate)", best(ours_css), best(apy_cs), best(py_cs, 3)))
+    rows.append(("Q15.16 cumsum (saturate)", best_of(ours_css), best_of(apy_cs), best_of(py_cs, 3)))
 
     # 32/16 divide, truncation towards zero
     n = rng.integers(-(1 << 31), 1 << 31, N)
@@ -104,7 +95,7 @@ def main() -> int:
         return [abs(x) // abs(y) * (1 if (x < 0) == (y < 0) else -1) for x, y in zip(nl, dl)]
 
     assert ours_div().tolist() == py_div()
-    rows.append(("32/16 div (to zero)", best(ours_div), best(apy_div), best(py_div, 3)))
+    rows.append(("32/16 div (to zero)", best_of(ours_div), best_of(apy_div), best_of(py_div, 3)))
 
     # integer square root (no apytypes equivalent: math.isqrt loop is the reference)
     x = rng.integers(0, 1 << 32, N)
@@ -117,7 +108,7 @@ def main() -> int:
         return [math.isqrt(v) for v in xl]
 
     assert ours_sqrt().tolist() == py_sqrt()
-    rows.append(("isqrt 32-bit", best(ours_sqrt), float("nan"), best(py_sqrt, 3)))
+    rows.append(("isqrt 32-bit", best_of(ours_sqrt), float("nan"), best_of(py_sqrt, 3)))
 
     print(f"fixed-point primitives on {N} samples (best of 7; target <= {PRIMITIVE_TARGET_S * 1e3:.1f} ms each)")
     print(f"{'kernel':28s} {'ours ms':>9s} {'apytypes ms':>12s} {'x apy':>7s} {'py loop ms':>11s} {'x loop':>7s}")
@@ -144,7 +135,7 @@ def chain_benchmark() -> bool:
     cal = nominal_calibration_q(adc_bits=10)
     chain = FixedStepChain(leg_length_m=0.9, foot_length_m=0.26)
     chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal)      # warm-up (imports scipy.signal)
-    t = best(lambda: chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal), repeat=3)
+    t = best_of(lambda: chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal), repeat=3)
     ok = t <= CHAIN_TARGET_S
     print(f"fixed-point chain (codes -> M1-M5) on {N} samples: {t:.3f} s (target <= {CHAIN_TARGET_S} s), "
           f"{chain.steps_.n_steps} steps, {chain.cycles_per_sample_:.0f} est. PIC cycles/sample "
@@ -153,7 +144,7 @@ def chain_benchmark() -> bool:
         from host.gait.pipeline import StepPipeline
 
         acc = (codes.astype(np.float64) - 512.0) / 256.0
-        t_f = best(lambda: StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=50.0),
+        t_f = best_of(lambda: StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=50.0),
                    repeat=3)
         print(f"float chain (host.gait.pipeline) on the same samples: {t_f:.3f} s (ratio fixed/float "
               f"{t / t_f:.2f})")

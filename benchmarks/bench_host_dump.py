@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _timing import best_of
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -58,15 +60,6 @@ def construct_baseline(memory: bytes) -> np.ndarray:
 
     words = np.array(cs.Array(len(memory) // 4, cs.Int32ul).parse(memory), dtype=np.uint32)
     return np.c_[words & 0x3FF, (words >> 10) & 0x3FF, (words >> 20) & 0x3FF].astype(np.uint16)
-
-
-def best_of(fn, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def bench_decode() -> bool:

@@ -14,31 +14,19 @@ baseline time and the speed-up; exits 1 if a target is missed.
 from __future__ import annotations
 
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import construct as cs  # noqa: E402
 import numpy as np  # noqa: E402
+from _timing import best_of  # noqa: E402
 
 from protocol.crc import crc32  # noqa: E402
 from protocol.frames import FRAME_STRUCT, FrameType, build_payload, encode_frame, parse_payload, parse_stream  # noqa: E402
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag  # noqa: E402
 from protocol.image import build_image, parse_image  # noqa: E402
 from protocol.packing import pack_words, unpack_words, words_to_bytes  # noqa: E402
-
-
-def best_of(fn: Callable[[], object], repeat: int) -> float:
-    """Best wall time in seconds over ``repeat`` runs (after one warm-up)."""
-    fn()
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> int:
@@ -128,12 +116,12 @@ def main() -> int:
     assert baseline_image()[0][0] == tuple(codes[first].tolist())
 
     rows = [
-        ("unpack 65,536 P32 words", best_of(ours_unpack, 50), 2e-3,
-         best_of(baseline_unpack, 3), "construct Array(Int32ul) + per-record masks"),
-        ("parse 128 DATA frames of 2048 B", best_of(ours_frames, 20), 5e-3,
-         best_of(baseline_frames, 5), "construct FRAME_STRUCT (Checksum) per frame"),
-        ("decode full .glimg (65,536 samples, wrapped)", best_of(ours_image, 20), 10e-3,
-         best_of(baseline_image, 3), "construct struct of the file + per-record masks"),
+        ("unpack 65,536 P32 words", best_of(ours_unpack, 50, warmup=True), 2e-3,
+         best_of(baseline_unpack, 3, warmup=True), "construct Array(Int32ul) + per-record masks"),
+        ("parse 128 DATA frames of 2048 B", best_of(ours_frames, 20, warmup=True), 5e-3,
+         best_of(baseline_frames, 5, warmup=True), "construct FRAME_STRUCT (Checksum) per frame"),
+        ("decode full .glimg (65,536 samples, wrapped)", best_of(ours_image, 20, warmup=True), 10e-3,
+         best_of(baseline_image, 3, warmup=True), "construct struct of the file + per-record masks"),
     ]
     failed = False
     print(f"{'measurement':46s} {'ours':>10s} {'target':>10s} {'baseline':>11s} {'speed-up':>9s}  baseline")
