@@ -3,8 +3,8 @@
 The definitions are the float chain's (``host.gait.events.GaitEventDetector``, notes 1-4), with the same
 parameters; only the numbers differ: the signals are raw :data:`~firmware_sim.algorithms.formats.LOWPASS_OUT_Q`
 integers (g, not m/s^2) from :mod:`~firmware_sim.algorithms.lowpass`, the prominence threshold is the
-integer ``round(min_prominence_m_s2 / g0 · 2^16)``, the heel-strike gradient is the integer central
-difference ``x[i+1] − x[i−1]`` (twice ``numpy.gradient``, same ordering), and the second-pass distance
+integer ``round(min_prominence_m_s2 / g0 · 2^16)``, the heel-strike impact band is the integer difference
+of the 10 Hz and 5 Hz filter outputs, and the second-pass distance
 ``min_step_fraction · median`` is computed in integers (half up). Peak search, windows and bouts use only
 comparisons and integer indices, so they are exact. Across stretches where the 3 Hz filter is undefined
 the search curve is drawn straight by integer interpolation (truncating divide), as the float chain draws
@@ -35,8 +35,8 @@ class FixedGaitEventDetector:
 
     Parameters
     ----------
-    ff_cutoff_hz, detail_cutoff_hz, min_step_s, max_step_s, min_prominence_m_s2, hs_search_s, to_search_s,
-    max_gap_s, min_step_fraction, min_weight
+    ff_cutoff_hz, detail_cutoff_hz, min_step_s, max_step_s, min_prominence_m_s2, hs_search_s, hs_after_s,
+    to_search_s, max_gap_s, min_step_fraction, min_weight, impact_cutoff_hz, hs_delay_s
         As ``host.gait.events.GaitEventDetector`` (same defaults).
 
     Attributes
@@ -56,10 +56,13 @@ class FixedGaitEventDetector:
         max_step_s: float = 1.5,
         min_prominence_m_s2: float = 0.5,
         hs_search_s: float = 0.2,
+        hs_after_s: float = 0.06,
         to_search_s: float = 0.3,
         max_gap_s: float = 0.1,
         min_step_fraction: float = 0.6,
         min_weight: float = 0.25,
+        impact_cutoff_hz: float = 5.0,
+        hs_delay_s: float = 0.04,
     ) -> None:
         self.ff_cutoff_hz = ff_cutoff_hz
         self.detail_cutoff_hz = detail_cutoff_hz
@@ -67,10 +70,13 @@ class FixedGaitEventDetector:
         self.max_step_s = max_step_s
         self.min_prominence_m_s2 = min_prominence_m_s2
         self.hs_search_s = hs_search_s
+        self.hs_after_s = hs_after_s
         self.to_search_s = to_search_s
         self.max_gap_s = max_gap_s
         self.min_step_fraction = min_step_fraction
         self.min_weight = min_weight
+        self.impact_cutoff_hz = impact_cutoff_hz
+        self.hs_delay_s = hs_delay_s
 
     def detect(self, acc_v_q: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None,
                ctx: ArithmeticContext | None = None) -> Self:
@@ -121,9 +127,14 @@ class FixedGaitEventDetector:
         ff = ff.astype(np.int64)
         if ctx is not None:
             ctx.cost("compare16", 4 * n)        # peak search: neighbours, distance, prominence
-        # 2./3. heel-strike and toe-off
-        grad, grad_ok = _integer_gradient(det, det_ok)
-        hs = _search_argmax(grad, grad_ok, ff, -int(round(self.hs_search_s * fs)), 0)
+        # 2./3. heel-strike (impact peak of the 5-10 Hz band, minus the delay) and toe-off
+        low, low_ok = masked_gaussian_lowpass_q(a, ok, cutoff_hz=self.impact_cutoff_hz, sampling_rate_hz=fs,
+                                                min_weight=self.min_weight, ctx=ctx)
+        band = det - low
+        impact = _search_argmax(band, det_ok & low_ok, ff, -int(round(self.hs_search_s * fs)),
+                                int(round(self.hs_after_s * fs)))
+        hs = np.where(impact >= 0, impact - int(round(self.hs_delay_s * fs)), -1)
+        hs = np.where(hs >= 0, hs, -1).astype(np.int64)
         to = _first_local_min(det, det_ok, ff, int(round(self.to_search_s * fs)))
         if ctx is not None:
             ctx.cost("add16", n)
@@ -187,19 +198,6 @@ def _integer_interp(x: np.ndarray, defined: np.ndarray) -> np.ndarray:
     step = np.where(span > 0, np.abs(num) // np.where(span > 0, span, 1) * np.sign(num), 0)
     out = np.where(right == 0, x[idx[0]], np.where(right >= idx.size, x[idx[-1]], x0 + step))
     return np.where(defined, x, out)
-
-
-def _integer_gradient(x: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``2 * numpy.gradient(x)`` in integers: central ``x[i+1] - x[i-1]``, one-sided ``2 (x[1] - x[0])``."""
-    n = x.size
-    g = np.zeros(n, np.int64)
-    g_ok = np.zeros(n, bool)
-    if n >= 2:
-        g[1:-1] = x[2:] - x[:-2]
-        g_ok[1:-1] = ok[2:] & ok[:-2]
-        g[0], g[-1] = 2 * (x[1] - x[0]), 2 * (x[-1] - x[-2])
-        g_ok[0], g_ok[-1] = ok[0] & ok[1], ok[-1] & ok[-2]
-    return g, g_ok
 
 
 def _search_argmax(x: np.ndarray, ok: np.ndarray, centre: np.ndarray, lo: int, hi: int) -> np.ndarray:

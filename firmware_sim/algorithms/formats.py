@@ -88,12 +88,15 @@ U16 = QFormat(16, 0, signed=False)
 
 
 def state_variables(*, sampling_rate_hz: float = 50.0, gravity_window_s: float = 4.0,
-                    lowpass_radius: int = 9, detail_radius: int = 3, hs_search: int = 10) -> list[StateVariable]:
+                    lowpass_radius: int = 9, detail_radius: int = 3, hs_search: int = 10,
+                    hs_after: int = 3) -> list[StateVariable]:
     """The RAM state of the on-line chain for the given parameters (50 Hz defaults).
 
-    Window buffers of the centred filters hold *vertical accelerations* in RAM; the gravity window (200
-    samples at 50 Hz) does not fit and is not held: the codes entering and leaving it are read back from the
-    external EEPROM ring, where they are stored anyway (two 4-byte I2C reads per sample).
+    Window buffers of the centred filters hold *vertical accelerations* in RAM (the 5 Hz filter of the
+    heel-strike impact band reads its taps from the 3 Hz delay line: same centre, shorter kernel); the
+    gravity window (200 samples at 50 Hz) does not fit and is not held: the codes entering and leaving it
+    are read back from the external EEPROM ring, where they are stored anyway (two 4-byte I2C reads per
+    sample).
     """
     lp_taps = 2 * lowpass_radius + 1
     det_taps = 2 * detail_radius + 1
@@ -106,7 +109,9 @@ def state_variables(*, sampling_rate_hz: float = 50.0, gravity_window_s: float =
         StateVariable("3 Hz delay line (a_v)", ACC_Q, lp_taps, "low-pass", "centred Gaussian FIR"),
         StateVariable("3 Hz validity bits", U8, (lp_taps + 7) // 8, "low-pass", "one bit per tap"),
         StateVariable("10 Hz delay line (a_v)", ACC_Q, det_taps, "low-pass", "centred Gaussian FIR"),
-        StateVariable("10 Hz history for HS/TO", LOWPASS_OUT_Q, hs_search + 2, "events", "gradient search before FF"),
+        StateVariable("impact band history for HS", LOWPASS_OUT_Q, hs_search + hs_after + 1, "events",
+                      "10 Hz - 5 Hz, peak search around FF"),
+        StateVariable("10 Hz last two outputs for TO", LOWPASS_OUT_Q, 2, "events", "local-minimum test"),
         StateVariable("peak detector: candidate, trough, last FF", LOWPASS_OUT_Q, 3, "events", "values"),
         StateVariable("peak detector: indices", U16, 4, "events", "candidate, trough, last FF, last TO"),
         StateVariable("sample counter", QFormat(31, 0, word_bits=32), 1, "events", "time base"),
@@ -128,6 +133,6 @@ def ram_bytes(variables: list[StateVariable] | None = None) -> int:
     """Total RAM of the chain's state.
 
     >>> ram_bytes()
-    265
+    277
     """
     return int(sum(v.bytes for v in (variables if variables is not None else state_variables())))

@@ -16,9 +16,10 @@ G = 9.80665
 
 
 def synthetic_walk(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 30, amp_m: float = 0.02,
-                   stand_s: float = 2.0, seed: int = 0):
-    """Vertical acceleration: sinusoidal CoM (lowest at foot-flat) + a loading pulse whose steepest rise is
-    at heel strike (80 ms before foot-flat) + an unloading dip at toe-off (100 ms after foot-flat)."""
+                   stand_s: float = 2.0, seed: int = 0, impact_delay_s: float = 0.04):
+    """Vertical acceleration: sinusoidal CoM (lowest at foot-flat) + an impact pulse peaking
+    ``impact_delay_s`` after heel strike (heel strike 80 ms before foot-flat) + an unloading dip at toe-off
+    (100 ms after foot-flat)."""
     rng = np.random.default_rng(seed)
     walk_s = n_steps * step_s
     t = np.arange(int((2 * stand_s + walk_s) * fs)) / fs
@@ -29,9 +30,8 @@ def synthetic_walk(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 30, am
     ff_t = stand_s + step_s * np.arange(0, n_steps + 1)
     hs_t = ff_t - 0.08
     to_t = ff_t + 0.10
-    sig = 0.02
-    for th in hs_t:   # Gaussian pulse centred at hs + sigma: steepest rise at hs
-        a += 3.0 * np.exp(-0.5 * ((t - th - sig) / sig) ** 2)
+    for th in hs_t:   # impact: Gaussian pulse (sigma 15 ms) peaking impact_delay_s after contact
+        a += 3.0 * np.exp(-0.5 * ((t - th - impact_delay_s) / 0.015) ** 2)
     for tt in to_t:
         a -= 3.0 * np.exp(-0.5 * ((t - tt) / 0.03) ** 2)
     a += rng.normal(0, 0.05, t.size)
@@ -88,21 +88,28 @@ def test_heel_strike_and_toe_off_on_synthetic_signal() -> None:
     assert np.all(det.bout_ == 0)
 
 
-def test_latest_strong_slope_picks_the_impact_not_the_push_off() -> None:
-    """A push-off rise 90 ms before contact, steeper than the impact rise: the default rule takes the steepest
-    (push-off), ``hs_slope_fraction`` the latest rise at least that fraction as steep (the impact)."""
+def test_heel_strike_is_the_impact_not_the_steeper_push_off() -> None:
+    """A broad push-off peaking 40 ms before contact whose rise is steeper than the impact's: the steepest rise of the
+    10 Hz signal (the rule the impact band replaced) lands on the push-off, the impact band on the impact."""
     fs = 50.0
     t, a, ff_t, hs_t, _ = synthetic_walk(fs=fs)
-    for th in hs_t:   # a steeper rise (push-off) 90 ms before the heel strike, back down before it
-        a += 4.5 * np.exp(-0.5 * ((t - th + 0.09 + 0.015) / 0.015) ** 2)
-    steepest = GaitEventDetector().detect(a, sampling_rate_hz=fs).heel_strike_ / fs
-    latest = GaitEventDetector(hs_slope_fraction=0.5).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    for th in hs_t:
+        a += 10.0 * np.exp(-0.5 * ((t - th + 0.04) / 0.06) ** 2)
+    det = GaitEventDetector().detect(a, sampling_rate_hz=fs)
+    grad = np.gradient(masked_gaussian_lowpass(a, None, cutoff_hz=10.0, sampling_rate_hz=fs))
+    steepest = np.array([f - 10 + int(np.argmax(grad[f - 10:f + 1])) for f in det.foot_flat_]) / fs
     assert np.median(steepest - hs_t) < -0.06
-    assert np.median(np.abs(latest - hs_t)) <= 1.0 / fs + 1e-9
-    # without a second rise both rules agree
-    t, a, ff_t, hs_t, _ = synthetic_walk(fs=fs)
-    np.testing.assert_array_equal(GaitEventDetector(hs_slope_fraction=0.5).detect(a, sampling_rate_hz=fs).heel_strike_,
-                                  GaitEventDetector().detect(a, sampling_rate_hz=fs).heel_strike_)
+    assert np.median(np.abs(det.heel_strike_ / fs - hs_t)) <= 1.0 / fs + 1e-9
+
+
+@pytest.mark.parametrize("delay_s", [0.02, 0.06])
+def test_heel_strike_delay_is_a_parameter(delay_s: float) -> None:
+    fs = 50.0
+    t, a, ff_t, hs_t, _ = synthetic_walk(fs=fs, impact_delay_s=delay_s)
+    hs = GaitEventDetector(hs_delay_s=delay_s).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    assert np.median(np.abs(hs - hs_t)) <= 1.0 / fs + 1e-9
+    shifted = GaitEventDetector(hs_delay_s=delay_s + 0.04).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    assert np.median(hs - shifted) == pytest.approx(0.04, abs=1e-9)
 
 
 def test_events_standing_still_gives_no_step() -> None:
