@@ -46,6 +46,7 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb", **open_kwargs: 
     if mode not in ("wb", "w"):
         raise ValueError(f"atomic_write mode must be 'wb' or 'w', not {mode!r}")
     dest = Path(path)
+    require_folder(dest)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent or Path("."))
     try:
         with os.fdopen(fd, mode, **open_kwargs) as handle:  # type: ignore[call-overload]
@@ -57,6 +58,23 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb", **open_kwargs: 
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp_name)
         raise
+
+
+def require_folder(path: str | os.PathLike[str]) -> None:
+    """Raise ``FileNotFoundError`` naming the folder when the folder that would hold ``path`` does not exist.
+
+    Commands call it before long work so that a mistyped ``--out`` fails at once, not after the work.
+
+    >>> require_folder("/no/such/folder/out.csv")
+    Traceback (most recent call last):
+    ...
+    FileNotFoundError: cannot write /no/such/folder/out.csv: folder /no/such/folder does not exist
+    """
+    dest = Path(path)
+    folder = dest.parent if str(dest.parent) else Path(".")
+    if not folder.is_dir():
+        what = "is not a folder" if folder.exists() else "does not exist"
+        raise FileNotFoundError(f"cannot write {dest}: folder {folder} {what}")
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:

@@ -63,10 +63,12 @@ def _sweep(args: argparse.Namespace) -> int:
     from host.compare import rows_csv_text
     from host.errors import HostError
     from host.sweep import SUMMARY_COLUMNS, AdcRateSweep, format_m5, format_summary
-    from protocol.atomic_write import atomic_write_text
+    from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.subjects < 1:
         raise HostError(f"--subjects must be >= 1, got {args.subjects}")
+    if args.out:
+        require_folder(args.out)
     t = time.perf_counter()
     sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers).run()
     print(f"sweep: {args.subjects} simulated subjects x ADC 8/10/12 bits x 25/50/100 Hz in "
@@ -87,7 +89,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
     from host.compare import columns_csv_text, format_step_diffs, rows_csv_text
     from host.errors import HostError
-    from protocol.atomic_write import atomic_write_text
+    from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.simulate < 1:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
@@ -95,6 +97,8 @@ def _simulate(args: argparse.Namespace) -> int:
         raise HostError(f"--bits must be 1..12, got {args.bits}")
     if not args.sim_rate > 0:
         raise HostError(f"--sim-rate must be positive, got {args.sim_rate}")
+    if args.out:
+        require_folder(args.out)
     results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, rate_hz=args.sim_rate,
                                    workers=args.workers)
     print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.sim_rate:g} Hz; "

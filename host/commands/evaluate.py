@@ -64,12 +64,15 @@ def run(args: argparse.Namespace) -> int:
     if args.folder is None or args.out is None:
         raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
     from host.ipol_evaluation import CSV_COLUMNS, evaluate_folder, summarise
-    from protocol.atomic_write import atomic_write, atomic_write_text
+    from protocol.atomic_write import atomic_write, atomic_write_text, require_folder
 
     if not 1 <= args.bits <= 10:
         raise HostError(f"--bits must be 1..10, got {args.bits}")
     if not args.rate > 0:
         raise HostError(f"--rate must be positive, got {args.rate}")
+    fig_path = Path(args.figure) if args.figure else Path(args.out).with_suffix(".png")
+    require_folder(args.out)
+    require_folder(fig_path)
     show = sys.stderr.isatty()
     import warnings
 
@@ -84,7 +87,6 @@ def run(args: argparse.Namespace) -> int:
         lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['distance_m']:.4f},"
                      f"{r['ratio']:.5f},{r['steps']},{r['reference_steps']}")
     summary = summarise(res.rows, arithmetic=arith[0])
-    fig_path = Path(args.figure) if args.figure else Path(args.out).with_suffix(".png")
     # figure first (it can fail on a broken matplotlib); the CSV is written last, both atomically
     import matplotlib
 

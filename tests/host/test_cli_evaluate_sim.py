@@ -32,3 +32,12 @@ def test_evaluate_sim_needs_an_output_folder(capsys):
 def test_evaluate_ipol_needs_folder_and_out(tmp_path, capsys):
     assert main(["evaluate", "ipol", str(tmp_path)]) == 1
     assert "--out" in capsys.readouterr().err
+
+
+def test_evaluate_ipol_refuses_a_missing_output_folder_before_any_work(tmp_path, capsys):
+    """The data folder does not even exist: the output folder is checked first, nothing is written."""
+    out = tmp_path / "no-such-folder" / "eval.csv"
+    assert main(["evaluate", "ipol", str(tmp_path / "no-data"), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"folder {out.parent} does not exist" in err
+    assert list(tmp_path.iterdir()) == []
