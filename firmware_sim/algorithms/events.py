@@ -133,8 +133,8 @@ class FixedGaitEventDetector:
         band = det - low
         impact = _search_argmax(band, det_ok & low_ok, ff, -int(round(self.hs_search_s * fs)),
                                 int(round(self.hs_after_s * fs)))
-        hs = np.where(impact >= 0, impact - int(round(self.hs_delay_s * fs)), -1)
-        hs = np.where(hs >= 0, hs, -1).astype(np.int64)
+        hs = impact - int(round(self.hs_delay_s * fs))
+        hs = np.where((impact >= 0) & (hs >= 0), hs, -1).astype(np.int64)
         to = _first_local_min(det, det_ok, ff, int(round(self.to_search_s * fs)))
         if ctx is not None:
             ctx.cost("add16", n)

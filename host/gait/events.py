@@ -161,8 +161,8 @@ class GaitEventDetector:
                                              min_weight=self.min_weight)
         impact = self._search(band, ff, -int(round(self.hs_search_s * fs)), int(round(self.hs_after_s * fs)),
                               mode="argmax")
-        hs = np.where(impact >= 0, impact - int(round(self.hs_delay_s * fs)), -1)
-        hs = np.where(hs >= 0, hs, -1).astype(np.int64)
+        hs = impact - int(round(self.hs_delay_s * fs))
+        hs = np.where((impact >= 0) & (hs >= 0), hs, -1).astype(np.int64)
         to = self._first_local_min(det, ff, int(round(self.to_search_s * fs)))
         # 4. bouts and steps (index bookkeeping shared with the firmware's detector)
         for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
