@@ -20,6 +20,8 @@ from __future__ import annotations
 import io
 import json
 import os
+import zipfile
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -302,14 +304,27 @@ class Recording:
         """Read a recording written by :meth:`save_npz`; :class:`HostError` naming the file if it is not one."""
         path = Path(path)
         try:
+            with path.open("rb") as fh:
+                magic = fh.read(4)
+        except OSError as err:
+            raise HostError(f"{path}: cannot read recording: {err.strerror or err}") from err
+        if magic != b"PK\x03\x04":
+            raise HostError(f"{path}: not a gaitlog recording NPZ (an NPZ is a zip archive; this file starts with "
+                            f"{magic!r}, offset 0)")
+        try:
             with np.load(path, allow_pickle=False) as npz:
                 arrays = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError, EOFError) as err:
-            raise HostError(f"{path}: not a gaitlog recording NPZ ({err})") from err
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
+            raise HostError(f"{path}: damaged or truncated recording NPZ ({err})") from err
         missing = {"codes", "valid", "flags", "sample_numbers", "header_bytes", "metadata_json"} - arrays.keys()
         if missing:
             raise HostError(f"{path}: not a gaitlog recording NPZ (missing arrays {sorted(missing)})")
-        meta = json.loads(str(arrays["metadata_json"]))
+        try:
+            meta = json.loads(str(arrays["metadata_json"]))
+        except ValueError as err:
+            raise HostError(f"{path}: metadata_json is not JSON ({err})") from err
+        if not isinstance(meta, dict):
+            raise HostError(f"{path}: metadata_json must be a JSON object")
         if meta.get("format_version") != NPZ_FORMAT_VERSION:
             raise HostError(f"{path}: recording format version {meta.get('format_version')!r} is not supported "
                             f"(this gaitlog reads version {NPZ_FORMAT_VERSION})")
@@ -318,11 +333,16 @@ class Recording:
             from protocol.header import DeviceHeader
 
             header = DeviceHeader.from_bytes(arrays["header_bytes"].tobytes(), source=str(path))
-        gaps = [Gap(g["first_sample_number"], g["last_sample_number"], g["reason"]) for g in meta["gaps"]]
-        return cls(codes=arrays["codes"], valid=arrays["valid"], flags=arrays["flags"],
-                   sample_numbers=arrays["sample_numbers"], sampling_rate_hz=float(meta["sampling_rate_hz"]),
-                   start_time_s=float(meta["start_time_s"]), header=header, gaps=gaps,
-                   adc_bits=int(meta["adc_bits"]), source=meta.get("source"), notes=list(meta.get("notes", [])))
+        try:
+            gaps = [Gap(g["first_sample_number"], g["last_sample_number"], g["reason"]) for g in meta["gaps"]]
+            return cls(codes=arrays["codes"], valid=arrays["valid"], flags=arrays["flags"],
+                       sample_numbers=arrays["sample_numbers"], sampling_rate_hz=float(meta["sampling_rate_hz"]),
+                       start_time_s=float(meta["start_time_s"]), header=header, gaps=gaps,
+                       adc_bits=int(meta["adc_bits"]), source=meta.get("source"), notes=list(meta.get("notes", [])))
+        except KeyError as err:
+            raise HostError(f"{path}: metadata_json lacks the field {err.args[0]!r}") from err
+        except (TypeError, ValueError) as err:
+            raise HostError(f"{path}: bad metadata_json field ({err})") from err
 
     def to_csv(self, path: str | os.PathLike[str], calibration: CountsToG | None = None) -> None:
         """Write one row per stored sample (columns :data:`CSV_COLUMNS`), atomically.

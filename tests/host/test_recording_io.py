@@ -95,6 +95,39 @@ def test_load_rejects_other_files(tmp_path):
     np.savez(tmp_path / "y.npz", a=np.zeros(3))
     with pytest.raises(HostError, match="missing arrays"):
         Recording.load(tmp_path / "y.npz")
+    with pytest.raises(HostError, match="cannot read"):
+        Recording.load(tmp_path / "absent.npz")
+
+
+def _saved(tmp_path) -> tuple:
+    rec = Recording.from_arrays(np.full((200, 3), 512), sampling_rate_hz=50.0)
+    path = tmp_path / "r.npz"
+    rec.save_npz(path)
+    return path, path.read_bytes(), dict(np.load(path))
+
+
+@pytest.mark.parametrize("cut", [100, 1000, -30])
+def test_load_names_a_truncated_file(tmp_path, cut):
+    """A recording cut short (an interrupted copy) is refused with its name, never a traceback."""
+    path, data, _ = _saved(tmp_path)
+    path.write_bytes(data[:cut])
+    with pytest.raises(HostError, match=r"r\.npz: damaged or truncated"):
+        Recording.load(path)
+
+
+def test_load_names_bad_metadata(tmp_path):
+    path, _, arrays = _saved(tmp_path)
+    meta = arrays["metadata_json"]
+    np.savez(path, **{**arrays, "metadata_json": np.array("{not json")})
+    with pytest.raises(HostError, match="metadata_json is not JSON"):
+        Recording.load(path)
+    import json
+
+    m = json.loads(str(meta))
+    del m["sampling_rate_hz"]
+    np.savez(path, **{**arrays, "metadata_json": np.array(json.dumps(m))})
+    with pytest.raises(HostError, match="lacks the field 'sampling_rate_hz'"):
+        Recording.load(path)
 
 
 def test_gap_times():
