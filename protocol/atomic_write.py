@@ -71,7 +71,7 @@ def require_folder(path: str | os.PathLike[str]) -> None:
     FileNotFoundError: cannot write /no/such/folder/out.csv: folder /no/such/folder does not exist
     """
     dest = Path(path)
-    folder = dest.parent if str(dest.parent) else Path(".")
+    folder = dest.parent                                  # Path("x.csv").parent is Path(".")
     if not folder.is_dir():
         what = "is not a folder" if folder.exists() else "does not exist"
         raise FileNotFoundError(f"cannot write {dest}: folder {folder} {what}")
