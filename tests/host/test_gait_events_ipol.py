@@ -25,7 +25,7 @@ def matched(shared_data) -> dict[str, dict[str, float]]:
     from host.estimators.anthropometry import anatomical_lengths
     from host.evaluation import match_events
     from host.gait.pipeline import StepPipeline
-    from host.ipol import list_trials
+    from host.ipol import list_trials, read_trial
     from host.ipol_evaluation import replay_trial
 
     counts = {"heel_strike": [0, 0, 0], "toe_off": [0, 0, 0]}     # matched, reference, detected
@@ -37,10 +37,10 @@ def matched(shared_data) -> dict[str, dict[str, float]]:
             leg, foot = anatomical_lengths(height_m=rt.height_m)
             ev = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
                 rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s).events_
-        pairs = np.asarray(list(rt.meta.get("LeftFootEvents", [])) + list(rt.meta.get("RightFootEvents", [])))
-        lo, hi = rt.meta["TrialBoundaries"]
-        for name, column, found in (("heel_strike", 1, ev.heel_strike_), ("toe_off", 0, ev.toe_off_)):
-            ref = np.sort(pairs[:, column])
+        trial = read_trial(path)
+        lo, hi = trial.trial_bounds
+        toe_offs, heel_strikes = trial.foot_events()
+        for name, ref, found in (("heel_strike", heel_strikes, ev.heel_strike_), ("toe_off", toe_offs, ev.toe_off_)):
             ref_s = np.array([rt.seconds(i) for i in ref[(ref >= lo) & (ref <= hi)]])
             det_s = found[found >= 0] / rt.sampling_rate_hz + rt.t0_s
             det_s = np.sort(det_s[(det_s >= ref_s.min() - 0.3) & (det_s <= ref_s.max() + 0.3)])
