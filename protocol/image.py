@@ -122,8 +122,10 @@ class ImageContents:
     table_ok
         The block table's CRC-32 matched.
     step_memory
-        ``(20 · step_capacity,)`` ``uint8`` step memory (empty in an ``image_version`` 1 file); bytes of blocks
-        that are not ok are 0xFF and meaningless (:meth:`step_byte_ok`).
+        ``(20 · step_capacity,)`` ``uint8`` step memory; bytes of blocks that are not ok are 0xFF and
+        meaningless (:meth:`step_byte_ok`). An ``image_version`` 1 file holds no step memory: empty when its
+        header has none, all 0xFF and not ok when it has (a file written by a host older than the step
+        memory).
     image_version
         1 (sample memory only) or 2 (sample memory, then step memory).
     """
@@ -146,14 +148,19 @@ class ImageContents:
         return int(self.block_ok.size)
 
     def _region_ok(self) -> np.ndarray:
-        return np.repeat(self.block_ok, self.block_size)[: self.memory.size + self.step_memory.size]
+        """Per byte of the sample memory followed by the step memory: it belongs to an ok block (bytes not in
+        the file's memory region, the step memory of a version-1 file, are never ok)."""
+        size = self.memory.size + self.step_memory.size
+        ok = np.repeat(self.block_ok, self.block_size)[:size]
+        return ok if ok.size == size else np.concatenate([ok, np.zeros(size - ok.size, dtype=bool)])
 
     def byte_ok(self) -> np.ndarray:
         """``(4 · capacity_samples,)`` bool: the sample-memory byte belongs to an ok block."""
         return self._region_ok()[: self.memory.size]
 
     def step_byte_ok(self) -> np.ndarray:
-        """``(20 · step_capacity,)`` bool: the step-memory byte belongs to an ok block."""
+        """``(20 · step_capacity,)`` bool: the step-memory byte belongs to an ok block (never, in a
+        version-1 file: it holds no step memory)."""
         return self._region_ok()[self.memory.size:]
 
     def step_records(self) -> tuple[np.ndarray, np.ndarray]:
@@ -328,9 +335,15 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     Raises
     ------
     ProtocolError
-        Not an image (magic), unknown ``image_version``, an ``image_version`` that disagrees with the
-        header's step memory (1 needs ``step_capacity`` 0, 2 needs it > 0), inconsistent sizes, a file too
-        short to hold its table, or no valid device header near its place. The message names the offset.
+        Not an image (magic), unknown ``image_version``, version 2 with a header without step memory,
+        inconsistent sizes, a file too short to hold its table, or no valid device header near its place.
+        The message names the offset.
+
+    Notes
+    -----
+    A version-1 file whose header has step memory (written by a host older than the step memory) is read:
+    its step memory is not in the file, so :meth:`ImageContents.step_byte_ok` is all ``False`` and a
+    warning says how many stored step records that loses.
     """
     data = bytes(data)
     if len(data) < 16:
@@ -365,15 +378,17 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     header, hshift = _find_header(data, header_at, source)
     if hshift:
         notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
-    if image_version_for(header) != version:
-        raise ProtocolError(f"image_version: {version}, but the device header has step_capacity "
-                            f"{header.step_capacity} (an image with step memory is version {IMAGE_VERSION_STEPS}, "
-                            f"one without is version {IMAGE_VERSION})", offset=IMAGE_OFFSETS["image_version"],
-                            source=source)
-    if image_memory_bytes(header) != mem_bytes:
+    if version == IMAGE_VERSION_STEPS and header.step_capacity == 0:
+        raise ProtocolError(f"image_version: {version}, but the device header has no step memory (step_capacity "
+                            f"0; an image without step memory is version {IMAGE_VERSION})",
+                            offset=IMAGE_OFFSETS["image_version"], source=source)
+    # a version-1 file holds the sample memory only, also when its header has step memory (written by a host
+    # that predates the step memory): its step records are then not in the file
+    expected = image_memory_bytes(header) if version == IMAGE_VERSION_STEPS else header.memory_bytes
+    if expected != mem_bytes:
         steps = f" and {header.step_capacity} step records" if version == IMAGE_VERSION_STEPS else ""
         raise ProtocolError(f"memory_bytes: {mem_bytes}, but the device header's capacity of "
-                            f"{header.capacity_samples} samples{steps} needs {image_memory_bytes(header)}",
+                            f"{header.capacity_samples} samples{steps} needs {expected}",
                             offset=IMAGE_OFFSETS["memory_bytes"], source=source)
 
     mem0 = header_at + HEADER_SIZE
@@ -433,6 +448,10 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
         notes.append(f"block {i} found shifted by {int(shifts[i]):+d} bytes (bytes dropped or inserted before it)")
     if total > mem0 + shift + mem_bytes and ok.all():
         notes.append(f"{total - (mem0 + shift + mem_bytes)} trailing bytes after the memory ignored")
+    if version == IMAGE_VERSION and header.n_steps_stored:
+        notes.append(f"image version {IMAGE_VERSION} holds no step memory: the header's {header.n_steps_stored} "
+                     "stored step records are not in the file")
+        warnings.warn(f"{source or 'memory image'}: {notes[-1]}", stacklevel=2)
     # blocks holding stored samples (the whole memory when wrapped; else bytes 0 .. 4·n_stored), and
     # blocks holding stored step records (step memory bytes 0 .. 20·n_steps_stored, after the samples)
     for what, first, stop in (("samples", 0, header.used_bytes),
@@ -446,10 +465,11 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
                           f"stored {what} are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
                           stacklevel=2)
     region = np.frombuffer(memory, dtype=np.uint8)
+    steps = region[header.memory_bytes:] if version == IMAGE_VERSION_STEPS else \
+        np.full(header.step_memory_bytes, 0xFF, dtype=np.uint8)
     return ImageContents(header=header, memory=region[: header.memory_bytes].copy(), block_ok=ok,
                          block_size=bs, notes=notes, block_missing=marked, block_truncated=truncated,
-                         block_shift=shifts, table_ok=table_ok, step_memory=region[header.memory_bytes:].copy(),
-                         image_version=version)
+                         block_shift=shifts, table_ok=table_ok, step_memory=steps.copy(), image_version=version)
 
 
 def detect_format(data: bytes | bytearray | memoryview) -> Literal["image", "raw", "capture"]:

@@ -185,7 +185,7 @@ def _img() -> bytes:
     [
         (lambda b: b"GLIN" + b[4:], 0, "not a gaitlog memory image"),
         (lambda b: b[:4] + b"\x03" + b[5:], 4, "unknown version 3"),
-        (lambda b: b[:4] + b"\x02" + b[5:], 4, "image_version: 2, but the device header has step_capacity 0"),
+        (lambda b: b[:4] + b"\x02" + b[5:], 4, "image_version: 2, but the device header has no step memory"),
         (lambda b: b[:6] + struct.pack("<H", 10) + b[8:], 6, "block_size 10"),
         (lambda b: b[:8] + struct.pack("<I", 2**30) + b[12:], 8, "memory_bytes"),
         (lambda b: b[:12] + struct.pack("<I", 2**31) + b[16:], 12, "n_blocks"),
@@ -363,17 +363,33 @@ def test_v2_damage_across_the_boundary_is_recovered() -> None:
     assert np.array_equal(got["end_sample"][usable], rec["end_sample"][usable])
 
 
-def test_v1_image_with_a_step_header_and_v2_without_are_refused() -> None:
-    h = _step_header(256, 4, 1)
-    v2 = build_image(h, bytes(1024), step_memory=bytes(80))
-    as_v1 = v2[:4] + b"\x01" + v2[5:]
-    with pytest.raises(ProtocolError, match="image_version: 1, but the device header has step_capacity 4") as info:
-        parse_image(as_v1)
+def test_v2_image_without_step_memory_is_refused() -> None:
+    v1 = _img()  # header with step_capacity 0
+    with pytest.raises(ProtocolError, match="image_version: 2, but the device header has no step memory") as info:
+        parse_image(v1[:4] + b"\x02" + v1[5:])
     assert info.value.offset == 4
-    bad_size = bytearray(v2)
+    h = _step_header(256, 4, 1)
+    bad_size = bytearray(build_image(h, bytes(1024), step_memory=bytes(80)))
     struct.pack_into("<I", bad_size, 8, 1108)  # still 2 blocks of 1024
     with pytest.raises(ProtocolError, match=r"memory_bytes: 1108, .* 256 samples and 4 step records needs 1104"):
         parse_image(bytes(bad_size))
+
+
+def test_v1_image_of_a_device_with_step_memory_is_read_without_its_records() -> None:
+    # what a host older than the step memory writes: version 1, the sample memory only, the new header as is
+    h = _step_header(256, STEP_CAPACITY_RECORDS, 30, sw=100)
+    memory = bytes(range(256)) * 4
+    img = _ref_image(h.to_bytes(), memory, set(), 256)
+    with pytest.warns(UserWarning, match="image version 1 holds no step memory: the header's 30 stored step records"):
+        c = parse_image(img, source="old.glimg")
+    assert c.image_version == 1 and c.memory.tobytes() == memory and c.byte_ok().all()
+    assert c.step_memory.size == 65520 and not c.step_byte_ok().any() and (c.step_memory == 0xFF).all()
+    got, usable = c.step_records()
+    assert got.size == 30 and not usable.any()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no records stored: nothing lost, no warning
+        c = parse_image(_ref_image(_step_header(256, 4, 0).to_bytes(), memory, set(), 256))
+    assert c.step_memory.size == 80 and c.step_records()[0].size == 0
 
 
 def test_v1_images_are_still_read() -> None:
