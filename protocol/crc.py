@@ -1,4 +1,4 @@
-"""Checksums of the wire and file formats (``PROTOCOL.md``, conventions and sections 2.3, 3, 5, 6).
+"""Checksums of the wire and file formats (``PROTOCOL.md``, conventions and sections 2, 2.3, 3, 5, 6).
 
 CRC-16/XMODEM protects frames, XMODEM blocks, the device header and each per-step record; CRC-32 (zlib)
 protects each block of a memory-image file. Both are thin wrappers over the C implementations of the
