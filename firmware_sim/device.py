@@ -98,7 +98,8 @@ class Logger:
         The world of a *served* device: when a host STARTs logging over the UART, :meth:`advance` takes
         samples in real time of a device lying still with this specific force (default: ``+z`` up).
     step_config
-        Step configuration of the header (section 2.2); default off. A restored image brings its own.
+        Step configuration of the header (section 2.2); default off. A restored image brings its own. One
+        that cannot be stored raises :class:`~protocol.errors.ProtocolError` (naming the field).
 
     Examples
     --------

@@ -134,7 +134,7 @@ class StepStore:
 
     def load(self, data: bytes | np.ndarray) -> None:
         """Replace the ring's bytes (restoring a memory image); wear counters are kept."""
-        arr = np.frombuffer(bytes(data), dtype=np.uint8) if not isinstance(data, np.ndarray) else data.astype(np.uint8)
+        arr = data.astype(np.uint8) if isinstance(data, np.ndarray) else np.frombuffer(bytes(data), dtype=np.uint8)
         if arr.size != self.size_bytes:
             raise DeviceError(f"step memory image holds {arr.size} bytes, the step ring {self.size_bytes}")
         self.eeprom.memory[:arr.size] = arr

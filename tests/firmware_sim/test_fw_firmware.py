@@ -281,7 +281,8 @@ def test_set_step_config(logger: Logger) -> None:
     hdr = one(send(logger, frame(0x06, 2)))[2]
     assert hdr[128:160] == block and logger.data_eeprom.read(128, 32) == block
     assert logger.step_config.raw["k2_m5_q16"] == -13107
-    for seq, bad in enumerate((b"\x02" + block[1:], block[:1] + b"\x03" + block[2:], b"\x01\x00\x00\x00" + block[4:]), 3):
+    refused = (b"\x02" + block[1:], block[:1] + b"\x03" + block[2:], b"\x01\x00\x00\x00" + block[4:])
+    for seq, bad in enumerate(refused, 3):  # unknown format, reserved flag bit, format 1 with leg length 0
         assert one(send(logger, frame(0x0B, seq, bad))) == (NAK, seq, bytes([0x0B, BAD_ARGUMENT]))
     assert one(send(logger, frame(0x0B, 7, block[:31]))) == (NAK, 7, bytes([0x0B, BAD_LENGTH]))
     assert one(send(logger, frame(0x06, 8)))[2][128:160] == block  # the refused blocks changed nothing
