@@ -9,6 +9,9 @@ baseline time and the speed-up; exits 1 if a target is missed.
   ``parse_payload`` vs ``FRAME_STRUCT.parse`` (construct with ``Checksum``) frame by frame.
 - decode a full memory image (65,536 samples): ``parse_image`` + ring order + ``unpack_words`` vs a
   construct struct of the whole file with ``Array(Int32ul)`` memory and per-record masks.
+- pack and unpack a full step store (3,276 per-step records with their CRC-16):
+  ``protocol.steps.pack_step_records`` / ``unpack_step_records`` (numpy, row-wise CRC) vs
+  ``STEP_RECORD_STRUCT`` (construct with ``Checksum``) record by record.
 """
 
 from __future__ import annotations
@@ -27,6 +30,13 @@ from protocol.frames import FRAME_STRUCT, FrameType, build_payload, encode_frame
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag  # noqa: E402
 from protocol.image import build_image, parse_image  # noqa: E402
 from protocol.packing import pack_words, unpack_words, words_to_bytes  # noqa: E402
+from protocol.steps import (  # noqa: E402
+    STEP_CAPACITY_RECORDS,
+    STEP_RECORD_STRUCT,
+    empty_step_records,
+    pack_step_records,
+    unpack_step_records,
+)
 
 
 def main() -> int:
@@ -115,6 +125,24 @@ def main() -> int:
     assert np.array_equal(c[0], codes[first]) and valid.all()
     assert baseline_image()[0][0] == tuple(codes[first].tolist())
 
+    # -- 4. a full step store: 3,276 records
+    rec = empty_step_records(STEP_CAPACITY_RECORDS)
+    rec["end_sample"] = np.cumsum(rng.integers(20, 40, STEP_CAPACITY_RECORDS))
+    rec["length_m1_q14"] = rng.integers(0, 20000, STEP_CAPACITY_RECORDS)
+    names = [n for n in rec.dtype.names if n != "record_crc"]
+    store = pack_step_records(rec)
+
+    def baseline_steps() -> list:
+        raw = b"".join(STEP_RECORD_STRUCT.build(dict(body=dict(value={n: int(r[n]) for n in names}))) for r in rec)
+        return [STEP_RECORD_STRUCT.parse(raw[20 * i : 20 * i + 20]).body.value for i in range(len(rec))]
+
+    def ours_steps() -> tuple:
+        return unpack_step_records(pack_step_records(rec))
+
+    back, crc_ok = ours_steps()
+    assert crc_ok.all() and np.array_equal(back["end_sample"], rec["end_sample"])
+    assert baseline_steps()[7].end_sample == int(rec["end_sample"][7]) and len(store) == 65520
+
     rows = [
         ("unpack 65,536 P32 words", best_of(ours_unpack, 50, warmup=True), 2e-3,
          best_of(baseline_unpack, 3, warmup=True), "construct Array(Int32ul) + per-record masks"),
@@ -122,6 +150,8 @@ def main() -> int:
          best_of(baseline_frames, 5, warmup=True), "construct FRAME_STRUCT (Checksum) per frame"),
         ("decode full .glimg (65,536 samples, wrapped)", best_of(ours_image, 20, warmup=True), 10e-3,
          best_of(baseline_image, 3, warmup=True), "construct struct of the file + per-record masks"),
+        ("pack + unpack 3,276 step records", best_of(ours_steps, 20, warmup=True), 10e-3,
+         best_of(baseline_steps, 3, warmup=True), "construct STEP_RECORD_STRUCT (Checksum) per record"),
     ]
     failed = False
     print(f"{'measurement':46s} {'ours':>10s} {'target':>10s} {'baseline':>11s} {'speed-up':>9s}  baseline")

@@ -1,4 +1,5 @@
-"""The whole logger: sensor -> ADC -> firmware -> ring buffer over the EEPROMs, persisted as a memory image.
+"""The whole logger: sensor -> ADC -> firmware -> ring buffer and step store over the EEPROMs, persisted as a
+memory image.
 
 :class:`Logger` wires the parts of ``firmware_sim`` together the way the board does. :meth:`Logger.record`
 runs one logging session on a motion (START, the sample timer over the motion's duration, STOP) fully
@@ -10,7 +11,9 @@ whole-array page writes. The UART side is :attr:`Logger.firmware` (sans-I/O; see
 The EEPROM contents persist as a memory-image file (``PROTOCOL.md`` section 6, :mod:`protocol.image`)
 between runs, as the real EEPROMs keep their data with the power off: ``Logger(image_path=p)`` restores
 ``p`` if it exists and every :meth:`record` saves it back (atomically); :meth:`Logger.from_image` restores
-any image.
+any image. The emulated logger has the step memory of section 2.3 (a third 24LC1025, ``step_capacity``
+3276), so it writes ``image_version`` 2; an image of version 1 (no step memory) restores with an empty
+step memory.
 """
 
 from __future__ import annotations
@@ -24,16 +27,18 @@ from typing import Any
 import numpy as np
 
 from firmware_sim.adc import Adc
-from firmware_sim.eeprom import DataEeprom, EepromBank
+from firmware_sim.eeprom import DataEeprom, EepromBank, Eeprom24LC1025
 from firmware_sim.errors import DeviceError
 from firmware_sim.firmware import FIRMWARE_VERSION, Firmware
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from firmware_sim.sensor import SensorModel
+from firmware_sim.step_store import StepStore
 from firmware_sim.world.base import Motion, MotionSource
 from firmware_sim.world.resampling import resample_g
 from protocol.atomic_write import atomic_write_bytes
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
 from protocol.packing import unpack_words
+from protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
 
 __all__ = ["Logger", "RecordResult"]
 
@@ -92,6 +97,9 @@ class Logger:
     live_acc_g
         The world of a *served* device: when a host STARTs logging over the UART, :meth:`advance` takes
         samples in real time of a device lying still with this specific force (default: ``+z`` up).
+    step_config
+        Step configuration of the header (section 2.2); default off. A restored image brings its own. One
+        that cannot be stored raises :class:`~protocol.errors.ProtocolError` (naming the field).
 
     Examples
     --------
@@ -112,6 +120,7 @@ class Logger:
         overwrite: bool = False,
         image_path: str | Path | None = None,
         live_acc_g: tuple[float, float, float] = (0.0, 0.0, 1.0),
+        step_config: StepConfig | None = None,
     ) -> None:
         if adc is not None and sample_rate_hz != 50.0 and abs(adc.rate_hz - sample_rate_hz) > 1e-9:
             raise DeviceError(f"sample_rate_hz {sample_rate_hz} disagrees with adc.rate_hz {adc.rate_hz}")
@@ -129,11 +138,16 @@ class Logger:
             adc_bits=int(self.adc.bits),
             capacity_samples=CAPACITY_SAMPLES,
             adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
+            step_capacity=STEP_CAPACITY_RECORDS,
+            step_config=step_config,
         )
+        header.validate()  # a step configuration that cannot be stored fails here, not at the first commit
         self.bank = EepromBank()
+        self.step_eeprom = Eeprom24LC1025()
         self.data_eeprom = DataEeprom()
         self.ring = RingBuffer(self.bank, self.data_eeprom, header)
-        self.firmware = Firmware(self.ring)
+        self.steps = StepStore(self.step_eeprom, header)
+        self.firmware = Firmware(self.ring, steps=self.steps)
         if self.image_path is not None and self.image_path.exists():
             self._restore(self.image_path)
         else:
@@ -149,6 +163,22 @@ class Logger:
     def memory(self) -> bytes:
         """The whole sample memory (262,144 bytes), as the EEPROMs hold it."""
         return self.bank.contents().tobytes()
+
+    @property
+    def step_memory(self) -> bytes:
+        """The whole step memory (the ring of 3276 records, 65,520 bytes), as the step EEPROM holds it."""
+        return self.steps.contents()
+
+    @property
+    def step_config(self) -> StepConfig:
+        """The step configuration of the header (section 2.2)."""
+        assert self.header.step_config is not None
+        return self.header.step_config
+
+    @step_config.setter
+    def step_config(self, config: StepConfig) -> None:
+        """Set it as SET_STEP_CONFIG does (committed to the data EEPROM; :class:`DeviceError` while logging)."""
+        self.firmware.set_step_config(config)
 
     def advance(self, now_s: float) -> int:
         """Real-time sampling of a served device: take the samples the 50 Hz timer has fired since the
@@ -172,18 +202,19 @@ class Logger:
         return self.firmware.log_samples(self.adc.convert(volts))
 
     def erase(self) -> None:
-        """ERASE: forget every stored sample (the calibration slot is kept)."""
-        self.ring.erase()
+        """ERASE: forget every stored sample and per-step record (calibration and step configuration kept)."""
+        self.firmware.erase()
 
     # ------------------------------------------------------------------ persistence
     def save_image(self, path: str | Path | None = None) -> Path:
-        """Write the memory image (``.glimg``) atomically to ``path`` (default ``image_path``)."""
+        """Write the memory image (``.glimg``, version 2: sample and step memory) atomically to ``path``
+        (default ``image_path``)."""
         from protocol.image import build_image
 
         target = Path(path) if path is not None else self.image_path
         if target is None:
             raise DeviceError("no image path: pass one to save_image() or Logger(image_path=...)")
-        atomic_write_bytes(target, build_image(self.header.to_bytes(), self.memory))
+        atomic_write_bytes(target, build_image(self.header.to_bytes(), self.memory, step_memory=self.step_memory))
         return target
 
     @classmethod
@@ -192,36 +223,50 @@ class Logger:
 
         The device id, rate and ADC bits come from the image's header; ``kwargs`` go to :class:`Logger`
         (``sensor``, ``adc``, ``overwrite``, ``image_path``). Blocks the image marks missing read 0xFF
-        (a warning says how many).
+        (a warning says how many). An image without step memory (version 1) gives an empty step memory.
         """
         p = Path(path)
-        header, memory, notes = _read_image(p)
+        header, memory, step_memory, notes = _read_image(p)
         kwargs.setdefault("device_id", header.device_id)
         if "adc" not in kwargs:
             kwargs["adc"] = Adc(rate_hz=header.sample_rate_hz, bits=header.adc_bits)
         logger = cls(**kwargs)
-        logger._load(header, memory, source=str(p))
+        logger._load(header, memory, step_memory, source=str(p))
         for note in notes:
             warnings.warn(f"{p}: {note}", stacklevel=2)
         return logger
 
     def _restore(self, path: Path) -> None:
-        header, memory, notes = _read_image(path)
-        self._load(header, memory, source=str(path))
+        header, memory, step_memory, notes = _read_image(path)
+        self._load(header, memory, step_memory, source=str(path))
         for note in notes:
             warnings.warn(f"{path}: {note}", stacklevel=3)
 
-    def _load(self, header: DeviceHeader, memory: np.ndarray, *, source: str) -> None:
+    def _load(self, header: DeviceHeader, memory: np.ndarray, step_memory: np.ndarray | None = None, *,
+              source: str) -> None:
+        """Put an image's header and memories on this device. A header without step memory (an image of
+        version 1) gets this device's empty step ring (``steps_written`` 0, the EEPROM erased)."""
         if header.capacity_samples != self.header.capacity_samples or memory.size != self.bank.size_bytes:
             raise DeviceError(
                 f"{source}: image holds {header.capacity_samples} samples / {memory.size} bytes; this device "
                 f"{self.header.capacity_samples} / {self.bank.size_bytes}"
             )
+        if header.step_capacity == 0:
+            header.step_capacity = self.header.step_capacity  # steps_written is 0: an empty ring
+            step_memory = None
+        elif header.step_capacity != self.header.step_capacity:
+            raise DeviceError(f"{source}: image holds {header.step_capacity} step records; this device "
+                              f"{self.header.step_capacity}")
+        elif step_memory is None and header.steps_written:
+            raise DeviceError(f"{source}: the header has {header.n_steps_stored} stored step records but no step "
+                              "memory was given")
         header.flags &= ~int(HeaderFlag.LOGGING)  # power was off: no run is in progress
         self.bank.load(memory)
         self.ring = RingBuffer(self.bank, self.data_eeprom, header)
+        self.steps = StepStore(self.step_eeprom, header)
+        self.steps.load(np.full(self.steps.size_bytes, 0xFF, np.uint8) if step_memory is None else step_memory)
         self.ring.commit()
-        self.firmware = Firmware(self.ring)
+        self.firmware = Firmware(self.ring, steps=self.steps)
 
     # ------------------------------------------------------------------ recording
     def record(
@@ -302,7 +347,7 @@ def _adc_truth(adc: Adc) -> dict[str, Any]:
     }
 
 
-def _read_image(path: Path) -> tuple[DeviceHeader, np.ndarray, list[str]]:
+def _read_image(path: Path) -> tuple[DeviceHeader, np.ndarray, np.ndarray, list[str]]:
     from protocol.errors import ProtocolError
     from protocol.image import parse_image
 
@@ -315,11 +360,11 @@ def _read_image(path: Path) -> tuple[DeviceHeader, np.ndarray, list[str]]:
     except ProtocolError as err:
         raise DeviceError(f"{err}") from err
     memory = np.array(contents.memory, dtype=np.uint8, copy=True)
+    step_memory = np.array(contents.step_memory, dtype=np.uint8, copy=True)
     notes = list(contents.notes)
     bad = np.flatnonzero(~np.asarray(contents.block_ok, dtype=bool))
     if bad.size:
-        bs = contents.block_size
-        for b in bad:
-            memory[b * bs:(b + 1) * bs] = 0xFF
+        memory[~contents.byte_ok()] = 0xFF
+        step_memory[~contents.step_byte_ok()] = 0xFF
         notes.append(f"{bad.size} memory block(s) missing in the image; they read 0xFF on the device")
-    return contents.header, memory, notes
+    return contents.header, memory, step_memory, notes

@@ -3,7 +3,9 @@
 Everything here is what the PIC16F877 program does, with the I/O cut off: bytes from the UART come in
 through :meth:`Firmware.receive` (with the time they arrived), and the bytes the device sends come back as
 its return value; the transport (:mod:`firmware_sim.transport`) owns the port and the clock. The sample
-timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time.
+timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time; the on-line
+step algorithm hands its per-step records to :meth:`Firmware.log_steps` (section 2.3), which the
+:class:`~firmware_sim.step_store.StepStore` writes to the step memory.
 
 UART receiver (``PROTOCOL.md`` section 3)
     Hunts for ``A5 5A``; a length above 4100 is a framing error (skip the sync pair, hunt again, nothing
@@ -14,8 +16,9 @@ UART receiver (``PROTOCOL.md`` section 3)
     + CR, typed between frames, arms the XMODEM transfer of section 5 without an ACK.
 
 Checks, in this order: payload length (``BAD_LENGTH``), field values (``BAD_ARGUMENT``), logging
-(``BUSY`` for READ, DUMP, XDUMP, ERASE, SET_CALIBRATION and also START — a START while logging would
-silently restart the run), address range (``BAD_ADDRESS``), full memory (``MEMORY_FULL``).
+(``BUSY`` for READ, DUMP, XDUMP, ERASE, SET_CALIBRATION, SET_STEP_CONFIG and also START — a START while
+logging would silently restart the run), address range (``BAD_ADDRESS``: a READ/DUMP range lies entirely in
+the sample memory or entirely in the step memory at ``0x01000000 +``), full memory (``MEMORY_FULL``).
 
 Responses echo the command's ``seq``; in a DUMP stream the DATA frames count 0, 1, 2, ... (mod 256) and
 DUMP_END echoes the command's ``seq``.
@@ -25,7 +28,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from firmware_sim.eeprom import Eeprom24LC1025
+from firmware_sim.errors import DeviceError
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
+from firmware_sim.step_store import StepStore
 from protocol.crc import crc16_xmodem
 from protocol.frames import (
     COMMAND_TYPES,
@@ -44,6 +50,7 @@ from protocol.frames import (
 )
 from protocol.header import PACKING_P32
 from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
+from protocol.steps import StepConfig, memory_region
 from protocol.xmodem import XmodemSender, raw_dump_bytes
 
 __all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP"]
@@ -56,18 +63,22 @@ INTER_BYTE_TIMEOUT_S = 0.1
 ASCII_XDUMP = b"XDUMP\r"
 
 _BUSY_WHEN_LOGGING = frozenset(
-    {FrameType.READ, FrameType.DUMP, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION, FrameType.START}
+    {FrameType.READ, FrameType.DUMP, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION,
+     FrameType.SET_STEP_CONFIG, FrameType.START}
 )
 _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPES}
 
 
 class Firmware:
-    """The device program over a :class:`RingBuffer`.
+    """The device program over a :class:`RingBuffer` and a :class:`StepStore`.
 
     Parameters
     ----------
     ring
         Storage (sample memory and header).
+    steps
+        The step memory, sharing ``ring.header``; default a store over a fresh 24LC1025 with the header's
+        ``step_capacity`` (0: no step memory, as for a header that has none).
     inter_byte_timeout_s
         Silence after which a partial command frame is dropped.
 
@@ -82,8 +93,12 @@ class Firmware:
     'a5 5a 91 06 02 00 55 02 7a e1'
     """
 
-    def __init__(self, ring: RingBuffer, *, inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S) -> None:
+    def __init__(self, ring: RingBuffer, *, steps: StepStore | None = None,
+                 inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S) -> None:
+        if steps is not None and steps.header is not ring.header:
+            raise DeviceError("the step store and the ring buffer must share one header")
         self.ring = ring
+        self.steps = steps if steps is not None else StepStore(Eeprom24LC1025(), ring.header)
         self.inter_byte_timeout_s = inter_byte_timeout_s
         self._rx = bytearray()  # unprocessed received bytes (a partial frame, or a partial ASCII line)
         self._line = b""  # recent bytes received between frames (ASCII command detection)
@@ -136,6 +151,38 @@ class Firmware:
             flags[0] |= FLAG_SESSION_START
             self._run_first = False
         return self.ring.append(pack_words(c, flags))
+
+    def log_steps(self, records: bytes) -> int:
+        """Store per-step records from the on-line step algorithm (20 bytes each, section 2.3); return how
+        many were stored: none unless logging, none without step memory."""
+        if not self.ring.logging:
+            return 0
+        return self.steps.append(records)
+
+    # ------------------------------------------------------------------ settings
+    def set_step_config(self, config: StepConfig) -> None:
+        """SET_STEP_CONFIG: store the step configuration in the header and commit it (like SET_CALIBRATION).
+
+        Raises
+        ------
+        DeviceError
+            While logging.
+        ProtocolError
+            A configuration that cannot be stored (section 2.2).
+        """
+        if self.ring.logging:
+            raise DeviceError("SET_STEP_CONFIG while logging")
+        config.to_bytes()  # refuse before changing anything
+        self.ring.header.step_config = config
+        self.ring.commit()
+
+    def erase(self) -> None:
+        """ERASE: forget every sample and every per-step record (the calibration and step configuration
+        stay); raises :class:`DeviceError` while logging."""
+        if self.ring.logging:
+            raise DeviceError("ERASE while logging")
+        self.steps.erase()
+        self.ring.erase()  # commits the header, step counters included
 
     # ------------------------------------------------------------------ UART
     def reset_link(self) -> None:
@@ -224,7 +271,8 @@ class Firmware:
     # ------------------------------------------------------------------ XMODEM
     def _arm_xmodem(self, now_s: float) -> None:
         h = self.ring.header
-        payload = raw_dump_bytes(h.to_bytes(), self.ring.read_bytes(0, h.used_bytes))
+        payload = raw_dump_bytes(h.to_bytes(), self.ring.read_bytes(0, h.used_bytes),
+                                 self.steps.read_bytes(0, h.step_used_bytes))
         self._xmodem = XmodemSender(payload)
         self._xmodem.poll(now_s)  # starts the 60 s wait for 'C'
 
@@ -278,15 +326,16 @@ class Firmware:
             self.stop_logging()
             return self._ack(t, seq)
         if ftype == FrameType.ERASE:
-            self.ring.erase()
+            self.erase()
             return self._ack(t, seq)
         if ftype == FrameType.READ_HEADER:
             return encode_frame(FrameType.HEADER, seq, h.to_bytes())
         if ftype == FrameType.READ:
             address, length = int(fields["address"]), int(fields["length"])
-            if address + length > h.memory_bytes:
+            data = self._read(address, length)
+            if data is None:
                 return self._nak(t, seq, ErrorCode.BAD_ADDRESS)
-            return encode_frame(FrameType.DATA, seq, address.to_bytes(4, "little") + self.ring.read_bytes(address, length))
+            return encode_frame(FrameType.DATA, seq, address.to_bytes(4, "little") + data)
         if ftype == FrameType.DUMP:
             return self._dump(seq, int(fields["address"]), int(fields["length"]), int(fields["chunk"]))
         if ftype == FrameType.XDUMP:
@@ -295,14 +344,27 @@ class Firmware:
         if ftype == FrameType.SET_CALIBRATION:
             self.ring.set_calibration(fields["calibration"])
             return self._ack(t, seq)
+        if ftype == FrameType.SET_STEP_CONFIG:
+            self.set_step_config(fields["step_config"])
+            return self._ack(t, seq)
         raise AssertionError(f"unhandled command {ftype!r}")  # pragma: no cover - table is complete
+
+    def _read(self, address: int, length: int) -> bytes | None:
+        """Bytes of a READ/DUMP range: inside the sample memory or inside the step memory; ``None`` if the
+        range lies in neither (BAD_ADDRESS)."""
+        h = self.ring.header
+        where = memory_region(address, length, sample_memory_bytes=h.memory_bytes,
+                              step_memory_bytes=self.steps.size_bytes)
+        if where is None:
+            return None
+        region, offset = where
+        return self.ring.read_bytes(offset, length) if region == "samples" else self.steps.read_bytes(offset, length)
 
     def _dump(self, seq: int, address: int, length: int, chunk: int) -> bytes:
         """DUMP: DATA frames of ``chunk`` bytes back to back, then DUMP_END (section 4)."""
-        h = self.ring.header
-        if address + length > h.memory_bytes:
+        data = self._read(address, length)
+        if data is None:
             return self._nak(FrameType.DUMP, seq, ErrorCode.BAD_ADDRESS)
-        data = self.ring.read_bytes(address, length)
         frames = []
         for k, off in enumerate(range(0, length, chunk)):
             a = address + off

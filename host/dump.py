@@ -136,7 +136,14 @@ class MemoryDump:
     def _image_bytes(self, header_bytes: bytes, memory: bytearray, have: np.ndarray, stored_end: int) -> bytes:
         from protocol.image import build_image
 
-        return build_image(header_bytes, bytes(memory), missing_blocks=self._missing_blocks(have, stored_end),
+        missing = self._missing_blocks(have, stored_end)
+        # this dump reads the sample memory only; a step memory (PROTOCOL.md 2.3) is in the image as blocks
+        # never received
+        steps = int(self.header_.step_memory_bytes)
+        if steps:
+            end = -(-(len(memory) + steps) // BLOCK_SIZE)
+            missing = sorted(set(missing) | set(range(len(memory) // BLOCK_SIZE, end)))
+        return build_image(header_bytes, bytes(memory) + b"\xff" * steps, missing_blocks=missing,
                            block_size=BLOCK_SIZE)
 
     # -------------------------------------------------------------------------------------------- run

@@ -141,7 +141,8 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
     from host.decode import decode_bytes
     from protocol.image import build_image
 
-    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory), source=f"{subject.subject_id}.sim")
+    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
+                          source=f"{subject.subject_id}.sim")
     pos = np.searchsorted(np.asarray(res.sample_numbers), stored.sample_numbers)
     if np.any(pos >= res.n_samples) or np.any(np.asarray(res.sample_numbers)[np.minimum(pos, res.n_samples - 1)]
                                               != stored.sample_numbers):

@@ -1,7 +1,8 @@
-"""Checksums of the wire and file formats (``PROTOCOL.md``, conventions and sections 3, 5, 6).
+"""Checksums of the wire and file formats (``PROTOCOL.md``, conventions and sections 2, 2.3, 3, 5, 6).
 
-CRC-16/XMODEM protects frames, XMODEM blocks and the device header; CRC-32 (zlib) protects each block of a
-memory-image file. Both are thin wrappers over the C implementations of the standard library.
+CRC-16/XMODEM protects frames, XMODEM blocks, the device header and each per-step record; CRC-32 (zlib)
+protects each block of a memory-image file. Both are thin wrappers over the C implementations of the
+standard library; :func:`crc16_xmodem_rows` computes the CRC-16 of many short records at once with numpy.
 """
 
 from __future__ import annotations
@@ -9,7 +10,9 @@ from __future__ import annotations
 import binascii
 import zlib
 
-__all__ = ["crc16_xmodem", "crc32"]
+import numpy as np
+
+__all__ = ["crc16_xmodem", "crc16_xmodem_rows", "crc32"]
 
 
 def crc16_xmodem(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
@@ -35,6 +38,41 @@ def crc16_xmodem(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     True
     """
     return binascii.crc_hqx(data, crc)
+
+
+#: CRC-16/XMODEM of each single byte from a zero register: the table of the byte-wise algorithm.
+_CRC16_TABLE = np.array([binascii.crc_hqx(bytes((i,)), 0) for i in range(256)], dtype=np.uint16)
+
+
+def crc16_xmodem_rows(rows: np.ndarray) -> np.ndarray:
+    """CRC-16/XMODEM of every row of a ``(n, k)`` ``uint8`` array, vectorised over the rows.
+
+    The byte-wise table algorithm ``crc = (crc << 8) ^ T[(crc >> 8) ^ byte]`` run on all rows at once: k
+    numpy steps instead of n calls of :func:`crc16_xmodem` (same values; checked by the tests).
+
+    Parameters
+    ----------
+    rows
+        ``(n, k)`` bytes, one message per row.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` ``uint16`` CRCs.
+
+    Examples
+    --------
+    >>> rows = np.frombuffer(b"123456789" * 2, dtype=np.uint8).reshape(2, 9)
+    >>> [hex(c) for c in crc16_xmodem_rows(rows)]
+    ['0x31c3', '0x31c3']
+    """
+    r = np.asarray(rows, dtype=np.uint8)
+    if r.ndim != 2:
+        raise ValueError(f"rows must be a 2-D uint8 array, got shape {r.shape}")
+    crc = np.zeros(r.shape[0], dtype=np.uint16)
+    for j in range(r.shape[1]):
+        crc = (crc << 8) ^ _CRC16_TABLE[(crc >> 8) ^ r[:, j]]
+    return crc
 
 
 def crc32(data: bytes | bytearray | memoryview) -> int:

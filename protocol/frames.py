@@ -27,6 +27,7 @@ import construct as cs
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
 from protocol.header import CALIBRATION_SIZE, HEADER_SIZE, Calibration, DeviceHeader
+from protocol.steps import STEP_CONFIG_SIZE, StepConfig
 
 __all__ = [
     "SYNC",
@@ -64,7 +65,7 @@ ERASE_GUARD = b"ERASE"
 
 
 class FrameType(enum.IntEnum):
-    """Frame ``type`` codes (section 3.1). Commands are 0x01-0x0A, responses 0x81-0x91."""
+    """Frame ``type`` codes (section 3.1). Commands are 0x01-0x0B, responses 0x81-0x91."""
 
     IDENTIFY = 0x01
     GET_STATUS = 0x02
@@ -76,6 +77,7 @@ class FrameType(enum.IntEnum):
     DUMP = 0x08
     XDUMP = 0x09
     SET_CALIBRATION = 0x0A
+    SET_STEP_CONFIG = 0x0B
     INFO = 0x81
     STATUS = 0x82
     HEADER = 0x86
@@ -183,6 +185,7 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
     FrameType.DUMP: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "chunk" / cs.Int16ul),
     FrameType.XDUMP: _EMPTY,
     FrameType.SET_CALIBRATION: cs.Struct("calibration" / cs.Bytes(CALIBRATION_SIZE)),
+    FrameType.SET_STEP_CONFIG: cs.Struct("step_config" / cs.Bytes(STEP_CONFIG_SIZE)),
     FrameType.INFO: cs.Struct(
         "device_id" / cs.Int32ul,
         "firmware_version" / cs.Int16ul,
@@ -338,7 +341,8 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
     """Payload bytes of a frame type from its fields (names as in section 3.1).
 
     ``HEADER`` takes ``header`` (a :class:`DeviceHeader` or 256 bytes), ``SET_CALIBRATION`` takes
-    ``calibration`` (a :class:`Calibration` or 64 bytes), ``ERASE`` needs no field.
+    ``calibration`` (a :class:`Calibration` or 64 bytes), ``SET_STEP_CONFIG`` takes ``step_config`` (a
+    :class:`~protocol.steps.StepConfig` or 32 bytes), ``ERASE`` needs no field.
 
     Raises
     ------
@@ -361,6 +365,11 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
         values["header"] = values["header"].to_bytes()
     if ftype == FrameType.SET_CALIBRATION and isinstance(values.get("calibration"), Calibration):
         values["calibration"] = values["calibration"].to_bytes()
+    if ftype == FrameType.SET_STEP_CONFIG and isinstance(values.get("step_config"), StepConfig):
+        try:
+            values["step_config"] = values["step_config"].to_bytes()
+        except ProtocolError as exc:
+            raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=exc.offset) from None
     names = [sc.name for sc in struct.subcons if sc.name is not None and not isinstance(sc, cs.Const)]
     if ftype == FrameType.ERASE:
         names = []
@@ -398,7 +407,9 @@ def parse_payload(frame: Frame, source: str | None = None) -> dict[str, Any]:
     """Fields of a frame's payload as a plain dict (enums as :class:`enum.IntEnum` members).
 
     ``HEADER`` gives ``{"header": DeviceHeader}`` (validated), ``SET_CALIBRATION`` gives
-    ``{"calibration": Calibration}``, ``DATA`` gives ``{"address": int, "data": bytes}``.
+    ``{"calibration": Calibration}``, ``SET_STEP_CONFIG`` gives ``{"step_config": StepConfig}`` (an
+    unknown format, reserved flag bits or format 1 with leg length 0 are ``BAD_ARGUMENT``), ``DATA`` gives
+    ``{"address": int, "data": bytes}``.
 
     Raises
     ------
@@ -446,6 +457,12 @@ def parse_payload(frame: Frame, source: str | None = None) -> dict[str, Any]:
     if ftype == FrameType.SET_CALIBRATION:
         try:
             values["calibration"] = Calibration.from_bytes(values["calibration"], source=source)
+        except ProtocolError as exc:
+            raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=base + (exc.offset or 0),
+                               source=source) from None
+    if ftype == FrameType.SET_STEP_CONFIG:
+        try:
+            values["step_config"] = StepConfig.from_bytes(values["step_config"], source=source)
         except ProtocolError as exc:
             raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=base + (exc.offset or 0),
                                source=source) from None

@@ -2,7 +2,8 @@
 
 The construct declarations :data:`HEADER_STRUCT` and :data:`CALIBRATION_STRUCT` are the byte layouts; the
 dataclasses :class:`DeviceHeader` and :class:`Calibration` are the validated values with the decoder's rules
-(stored samples, oldest slot, sample numbers and times).
+(stored samples, oldest slot, sample numbers and times; the same for the per-step records of the step
+memory, section 2.3). The step configuration block at offset 128 is :class:`protocol.steps.StepConfig`.
 
 Examples
 --------
@@ -31,6 +32,13 @@ import numpy as np
 
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
+from protocol.steps import (
+    STEP_CAPACITY_RECORDS,
+    STEP_CONFIG_SIZE,
+    STEP_RECORD_SIZE,
+    STEPS_WRITTEN_MAX,
+    StepConfig,
+)
 
 __all__ = [
     "HEADER_SIZE",
@@ -49,6 +57,7 @@ __all__ = [
     "HEADER_BODY_STRUCT",
     "CALIBRATION_STRUCT",
     "HEADER_OFFSETS",
+    "HEADER_INT_FIELDS",
     "CALIBRATION_OFFSETS",
     "Calibration",
     "DeviceHeader",
@@ -112,9 +121,13 @@ HEADER_BODY_STRUCT = cs.Struct(
     "samples_written" / cs.Int32ul,
     "adc_vref_mv" / cs.Int32ul,
     "run_start_sample" / cs.Int32ul,
-    "reserved0" / cs.Padding(20),
+    "steps_written" / cs.Int32ul,
+    "step_write_index" / cs.Int16ul,
+    "step_capacity" / cs.Int16ul,
+    "reserved0" / cs.Padding(12),
     "calibration" / cs.Bytes(CALIBRATION_SIZE),
-    "reserved1" / cs.Padding(126),
+    "step_config" / cs.Bytes(STEP_CONFIG_SIZE),
+    "reserved1" / cs.Padding(94),
 )
 
 #: The whole 256-byte header: body plus big-endian CRC-16/XMODEM over bytes 0-253.
@@ -262,11 +275,9 @@ class Calibration:
 
 
 _U_LIMITS = {1: 0xFF, 2: 0xFFFF, 4: 0xFFFFFFFF}
-_INT_FIELDS = (
-    "header_version", "protocol_version", "firmware_version", "device_id", "sample_rate_mhz", "adc_bits",
-    "axes", "packing", "flags", "start_time_s", "capacity_samples", "write_index", "samples_written",
-    "adc_vref_mv", "run_start_sample",
-)
+#: The integer fields of the header, in layout order (read from the construct declaration).
+HEADER_INT_FIELDS: tuple[str, ...] = tuple(sc.name for sc in HEADER_BODY_STRUCT.subcons
+                                           if sc.name is not None and isinstance(sc.subcon, cs.FormatField))
 
 
 @dataclass(eq=False)
@@ -275,7 +286,17 @@ class DeviceHeader:
 
     Field names and meanings are those of the table in ``PROTOCOL.md`` section 2; ``magic`` and
     ``header_crc`` are implicit. ``calibration`` ``None`` means the nominal map for ``adc_bits``.
-    The ``CAL_VALID`` flag bit is written from ``calibration.valid``.
+    The ``CAL_VALID`` flag bit is written from ``calibration.valid``. ``step_config`` ``None`` means the
+    on-line step algorithm off (:meth:`StepConfig.off`); ``step_capacity`` 0 means no step memory (the
+    default, and the behaviour of headers written before the step memory existed).
+
+    Examples
+    --------
+    >>> h = DeviceHeader(step_capacity=3276, steps_written=3300, step_write_index=24)
+    >>> h.n_steps_stored, h.first_step_slot, h.first_step_number, h.step_used_bytes
+    (3276, 24, 24, 65520)
+    >>> h.step_slots()[[0, -1]].tolist()
+    [24, 23]
     """
 
     header_version: int = HEADER_VERSION
@@ -293,11 +314,17 @@ class DeviceHeader:
     samples_written: int = 0
     adc_vref_mv: int = 5000
     run_start_sample: int = 0
+    steps_written: int = 0
+    step_write_index: int = 0
+    step_capacity: int = 0
     calibration: Calibration | None = None
+    step_config: StepConfig | None = None
 
     def __post_init__(self) -> None:
         if self.calibration is None:
             self.calibration = Calibration.nominal(self.adc_bits if 1 <= self.adc_bits <= 10 else 10)
+        if self.step_config is None:
+            self.step_config = StepConfig.off()
         flags = int(self.flags) & ~int(HeaderFlag.CAL_VALID)
         self.flags = flags | (int(HeaderFlag.CAL_VALID) if self.calibration.valid else 0)
 
@@ -357,6 +384,43 @@ class DeviceHeader:
         """Meaningful bytes of the memory from address 0: ``4 · n_stored`` (the whole memory when wrapped)."""
         return 4 * self.n_stored
 
+    @property
+    def step_memory_bytes(self) -> int:
+        """Size of the step ring in bytes (20 per record; 0 without step memory)."""
+        return STEP_RECORD_SIZE * self.step_capacity
+
+    @property
+    def n_steps_stored(self) -> int:
+        """Stored per-step records ``min(steps_written, step_capacity)``."""
+        return min(self.steps_written, self.step_capacity)
+
+    @property
+    def steps_wrapped(self) -> bool:
+        """The step ring has wrapped (``steps_written`` ≥ ``step_capacity`` > 0): the oldest record is at
+        ``step_write_index``."""
+        return 0 < self.step_capacity <= self.steps_written
+
+    @property
+    def first_step_slot(self) -> int:
+        """Slot of the oldest stored record: ``step_write_index`` if the step ring wrapped, else 0."""
+        return self.step_write_index if self.steps_wrapped else 0
+
+    @property
+    def first_step_number(self) -> int:
+        """Absolute number (0 = first record after ERASE) of the oldest stored record."""
+        return self.steps_written - self.n_steps_stored
+
+    @property
+    def step_used_bytes(self) -> int:
+        """Meaningful bytes of the step memory from its address 0: ``20 · n_steps_stored``."""
+        return STEP_RECORD_SIZE * self.n_steps_stored
+
+    def step_slots(self) -> np.ndarray:
+        """Slots of the stored records, oldest first: ``(first_step_slot + i) mod step_capacity``, ``int64``."""
+        slots = np.arange(self.first_step_slot, self.first_step_slot + self.n_steps_stored, dtype=np.int64)
+        slots[slots >= self.step_capacity] -= self.step_capacity
+        return slots
+
     def stored_slots(self) -> np.ndarray:
         """Slots of the stored samples, oldest first: ``(first_slot + i) mod capacity``, ``int64``."""
         slots = np.arange(self.first_slot, self.first_slot + self.n_stored, dtype=np.int64)
@@ -380,7 +444,7 @@ class DeviceHeader:
     # ------------------------------------------------------------------ validation and bytes
     def validate(self, source: str | None = None) -> None:
         """Check every field against section 2; raise :class:`ProtocolError` naming the field and offset."""
-        for name in _INT_FIELDS:
+        for name in HEADER_INT_FIELDS:
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
                 raise _err(f"must be an integer, got {value!r}", name, source)
@@ -422,8 +486,35 @@ class DeviceHeader:
                            "samples_written", source)
         if self.run_start_sample > sw:
             raise _err(f"{self.run_start_sample} beyond samples_written {sw}", "run_start_sample", source)
+        self._validate_steps(source)
         if not isinstance(self.calibration, Calibration):
             raise _err("must be a Calibration", "calibration", source)
+        if not isinstance(self.step_config, StepConfig):
+            raise _err("must be a StepConfig", "step_config", source)
+        try:
+            self.step_config.raw  # noqa: B018 - quantises and range-checks every value
+        except ProtocolError as exc:
+            raise exc.at(offset=HEADER_OFFSETS["step_config"][0], source=source) from None
+
+    def _validate_steps(self, source: str | None) -> None:
+        """The step counters (section 2.3): like the sample counters, but the step ring always overwrites."""
+        cap, sw, wi = self.step_capacity, self.steps_written, self.step_write_index
+        if cap > STEP_CAPACITY_RECORDS:
+            raise _err(f"{cap} records do not fit the step ring (at most {STEP_CAPACITY_RECORDS} in a 64 KiB "
+                       "block)", "step_capacity", source)
+        if cap == 0:
+            if sw != 0:
+                raise _err(f"{sw} records written but step_capacity is 0 (no step memory)", "steps_written",
+                           source)
+            if wi != 0:
+                raise _err(f"{wi} but step_capacity is 0 (no step memory; expected 0)", "step_write_index",
+                           source)
+            return
+        if wi >= cap:
+            raise _err(f"{wi} not below step_capacity {cap}", "step_write_index", source)
+        if sw != STEPS_WRITTEN_MAX and wi != sw % cap:
+            raise _err(f"{sw} records written but step_write_index {wi} (expected {sw % cap})", "steps_written",
+                       source)
 
     def to_bytes(self) -> bytes:
         """The 256-byte header with its CRC (``CAL_VALID`` written from ``calibration.valid``).
@@ -435,9 +526,10 @@ class DeviceHeader:
         """
         self.__post_init__()
         self.validate()
-        assert self.calibration is not None
-        values = {name: int(getattr(self, name)) for name in _INT_FIELDS}
-        body = _HEADER_BODY_FAST.build(dict(magic=MAGIC, calibration=self.calibration.to_bytes(), **values))
+        assert self.calibration is not None and self.step_config is not None
+        values = {name: int(getattr(self, name)) for name in HEADER_INT_FIELDS}
+        body = _HEADER_BODY_FAST.build(dict(magic=MAGIC, calibration=self.calibration.to_bytes(),
+                                            step_config=self.step_config.to_bytes(), **values))
         return body + crc16_xmodem(body).to_bytes(2, "big")  # = HEADER_STRUCT.build(...)
 
     @classmethod
@@ -468,12 +560,13 @@ class DeviceHeader:
             raise _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{computed:04x} over bytes 0-253",
                        "header_crc", source)
         body = _HEADER_BODY_FAST.parse(data)
-        values = {name: int(body[name]) for name in _INT_FIELDS}
+        values = {name: int(body[name]) for name in HEADER_INT_FIELDS}
         # versions first: a newer layout may not be parseable further
         header = cls.__new__(cls)
         for name, value in values.items():
             setattr(header, name, value)
         header.calibration = Calibration.nominal(10)
+        header.step_config = StepConfig.off()
         if header.header_version != HEADER_VERSION or header.protocol_version != PROTOCOL_VERSION:
             header.validate(source)
         if not 1 <= header.adc_bits <= 10:
@@ -485,9 +578,15 @@ class DeviceHeader:
                 f"calibration: CAL_VALID flag is {bool(header.flags & HeaderFlag.CAL_VALID)} but cal_format "
                 f"is {int(cal.valid)}", offset=cal_off, source=source)
         header.calibration = cal
+        header.step_config = StepConfig.from_bytes(body.step_config, source=source,
+                                                   base_offset=HEADER_OFFSETS["step_config"][0])
         header.validate(source)
         return header
 
     def replace(self, **changes: object) -> "DeviceHeader":
         """A copy with some fields changed (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+
+
+# every integer field of the layout is a dataclass field (the layout is the one list of them)
+assert set(HEADER_INT_FIELDS) <= {f.name for f in dataclasses.fields(DeviceHeader)}

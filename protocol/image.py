@@ -1,9 +1,11 @@
 """The memory-image file ``.glimg`` (``PROTOCOL.md`` section 6), with recovery of damaged files.
 
-The file holds the device header and the whole sample memory, checked block by block with CRC-32, so that a
-decoder returns the intact part of a damaged file: blocks are used only when their CRC-32 matches, blocks
-displaced by dropped or inserted bytes are found again within ±64 bytes of the running shift, and blocks
-never found or beyond a truncated end are reported missing — never invented.
+The file holds the device header and the whole sample memory — followed by the whole step memory of
+section 2.3 in ``image_version`` 2 — checked block by block with CRC-32, so that a decoder returns the
+intact part of a damaged file: blocks are used only when their CRC-32 matches, blocks displaced by dropped
+or inserted bytes are found again within ±64 bytes of the running shift, and blocks never found or beyond
+a truncated end are reported missing — never invented. The blocks cover the memory region as one byte
+string, so a block may hold the end of the sample memory and the start of the step memory.
 
 Examples
 --------
@@ -42,10 +44,12 @@ from protocol.crc import crc32
 from protocol.errors import ProtocolError
 from protocol.frames import FrameParser, Frame
 from protocol.header import HEADER_SIZE, MAGIC as HEADER_MAGIC, MAX_CAPACITY_SAMPLES, DeviceHeader
+from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, unpack_step_records
 
 __all__ = [
     "IMAGE_MAGIC",
     "IMAGE_VERSION",
+    "IMAGE_VERSION_STEPS",
     "DEFAULT_BLOCK_SIZE",
     "SHIFT_SEARCH_BYTES",
     "BLOCK_PRESENT",
@@ -58,16 +62,23 @@ __all__ = [
     "write_image",
     "read_image",
     "detect_format",
+    "image_version_for",
+    "image_memory_bytes",
 ]
 
 IMAGE_MAGIC = b"GLIM"
+#: Image of a device without step memory (``step_capacity`` 0): the memory region is the sample memory.
 IMAGE_VERSION = 1
+#: Image of a device with step memory: the memory region is the sample memory, then the step memory.
+IMAGE_VERSION_STEPS = 2
 DEFAULT_BLOCK_SIZE = 1024
 #: Dropped or inserted bytes are searched for within this many bytes of the running shift.
 SHIFT_SEARCH_BYTES = 64
 BLOCK_PRESENT = 0
 BLOCK_MISSING = 1
-_MAX_MEMORY_BYTES = 4 * MAX_CAPACITY_SAMPLES
+#: Largest ``memory_bytes`` of each image version.
+_MAX_MEMORY_BYTES = {IMAGE_VERSION: 4 * MAX_CAPACITY_SAMPLES,
+                     IMAGE_VERSION_STEPS: 4 * MAX_CAPACITY_SAMPLES + STEP_MEMORY_BYTES}
 _CAPTURE_PROBE_BYTES = 65536
 
 #: The fixed 16-byte start of the file.
@@ -93,9 +104,11 @@ class ImageContents:
     header
         The validated device header.
     memory
-        ``(memory_bytes,)`` ``uint8`` sample memory; bytes of blocks that are not ok are 0xFF and meaningless.
+        ``(4 · capacity_samples,)`` ``uint8`` sample memory; bytes of blocks that are not ok are 0xFF and
+        meaningless (:meth:`byte_ok`).
     block_ok
-        ``(n_blocks,)`` bool: the block's bytes are exact (CRC-32 verified). ``False`` => its samples are missing.
+        ``(n_blocks,)`` bool: the block's bytes are exact (CRC-32 verified). ``False`` => its samples (and step
+        records) are missing. Blocks cover the sample memory followed by the step memory.
     block_size
         Bytes per block (the last block may be shorter).
     notes
@@ -108,6 +121,13 @@ class ImageContents:
         ``(n_blocks,)`` int: shift in bytes (found − nominal offset) of each ok block; 0 elsewhere.
     table_ok
         The block table's CRC-32 matched.
+    step_memory
+        ``(20 · step_capacity,)`` ``uint8`` step memory; bytes of blocks that are not ok are 0xFF and
+        meaningless (:meth:`step_byte_ok`). An ``image_version`` 1 file holds no step memory: empty when its
+        header has none, all 0xFF and not ok when it has (a file written by a host older than the step
+        memory).
+    image_version
+        1 (sample memory only) or 2 (sample memory, then step memory).
     """
 
     header: DeviceHeader
@@ -119,41 +139,94 @@ class ImageContents:
     block_truncated: np.ndarray | None = None
     block_shift: np.ndarray | None = None
     table_ok: bool = True
+    step_memory: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
+    image_version: int = IMAGE_VERSION
 
     @property
     def n_blocks(self) -> int:
         """Number of blocks."""
         return int(self.block_ok.size)
 
+    def _region_ok(self) -> np.ndarray:
+        """Per byte of the sample memory followed by the step memory: it belongs to an ok block (bytes not in
+        the file's memory region, the step memory of a version-1 file, are never ok)."""
+        size = self.memory.size + self.step_memory.size
+        ok = np.repeat(self.block_ok, self.block_size)[:size]
+        return ok if ok.size == size else np.concatenate([ok, np.zeros(size - ok.size, dtype=bool)])
+
     def byte_ok(self) -> np.ndarray:
-        """``(memory_bytes,)`` bool: the byte belongs to an ok block."""
-        return np.repeat(self.block_ok, self.block_size)[: self.memory.size]
+        """``(4 · capacity_samples,)`` bool: the sample-memory byte belongs to an ok block."""
+        return self._region_ok()[: self.memory.size]
+
+    def step_byte_ok(self) -> np.ndarray:
+        """``(20 · step_capacity,)`` bool: the step-memory byte belongs to an ok block (never, in a
+        version-1 file: it holds no step memory)."""
+        return self._region_ok()[self.memory.size:]
+
+    def step_records(self) -> tuple[np.ndarray, np.ndarray]:
+        """The stored per-step records in ring order (oldest first) and whether each is usable.
+
+        Returns
+        -------
+        records : numpy.ndarray
+            ``(n_steps_stored,)`` of :data:`protocol.steps.STEP_RECORD_DTYPE`; record ``i`` has the absolute
+            number ``header.first_step_number + i``.
+        ok : numpy.ndarray
+            ``(n_steps_stored,)`` bool: all 20 bytes come from ok blocks and the record's CRC matches.
+        """
+        slots = self.header.step_slots()
+        rows = self.step_memory.reshape(-1, STEP_RECORD_SIZE)[slots]
+        records, crc_ok = unpack_step_records(rows.reshape(-1))
+        bytes_ok = self.step_byte_ok().reshape(-1, STEP_RECORD_SIZE)[slots].all(axis=1)
+        return records, crc_ok & bytes_ok
 
 
-def _check_block_size(block_size: int, memory_bytes: int, source: str | None = None) -> None:
+def _check_block_size(block_size: int, memory_bytes: int, source: str | None = None,
+                      image_version: int = IMAGE_VERSION) -> None:
     if not (64 <= block_size <= 65532 and block_size % 4 == 0):
         raise ProtocolError(f"block_size {block_size} (expected a multiple of 4 in 64..65532, normally 1024)",
                             offset=IMAGE_OFFSETS["block_size"], source=source)
-    if not (4 <= memory_bytes <= _MAX_MEMORY_BYTES and memory_bytes % 4 == 0):
-        raise ProtocolError(f"memory_bytes {memory_bytes} (expected a multiple of 4 in 4..{_MAX_MEMORY_BYTES})",
+    top = _MAX_MEMORY_BYTES[image_version]
+    if not (4 <= memory_bytes <= top and memory_bytes % 4 == 0):
+        raise ProtocolError(f"memory_bytes {memory_bytes} (expected a multiple of 4 in 4..{top})",
                             offset=IMAGE_OFFSETS["memory_bytes"], source=source)
 
 
+def image_version_for(header: DeviceHeader) -> int:
+    """The ``image_version`` of a device: 2 when its header has step memory (``step_capacity`` > 0), else 1."""
+    return IMAGE_VERSION_STEPS if header.step_capacity > 0 else IMAGE_VERSION
+
+
+def image_memory_bytes(header: DeviceHeader) -> int:
+    """Bytes of the image's memory region: ``4 · capacity_samples + 20 · step_capacity``."""
+    return header.memory_bytes + header.step_memory_bytes
+
+
+def _as_bytes(data: bytes | bytearray | memoryview | np.ndarray) -> bytes:
+    return np.asarray(data, dtype=np.uint8).tobytes() if isinstance(data, np.ndarray) else bytes(data)
+
+
 def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memoryview | np.ndarray,
-                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE) -> bytes:
-    """Bytes of a ``.glimg`` file.
+                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE, *,
+                step_memory: bytes | bytearray | memoryview | np.ndarray | None = None) -> bytes:
+    """Bytes of a ``.glimg`` file (``image_version`` 2 when the header has step memory, else 1).
 
     Parameters
     ----------
     header
         The device header (a :class:`DeviceHeader` or its 256 bytes, validated).
     memory
-        The whole sample memory: ``4 · capacity_samples`` bytes.
+        The whole sample memory: ``4 · capacity_samples`` bytes. Without ``step_memory``, a header with step
+        memory needs the whole memory region here: the sample memory followed by the step memory
+        (``4 · capacity_samples + 20 · step_capacity`` bytes).
     missing_blocks
         Indices of blocks never received; their bytes are stored as 0xFF, their state as 1 and their
         ``block_crc32`` as the complement of the CRC-32 of those bytes, so that they can never verify.
     block_size
         Bytes per block.
+    step_memory
+        The whole step memory (``20 · step_capacity`` bytes of the header), when ``memory`` is the sample
+        memory alone.
 
     Raises
     ------
@@ -162,11 +235,22 @@ def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memory
     """
     hdr = header if isinstance(header, DeviceHeader) else DeviceHeader.from_bytes(bytes(header))
     hbytes = hdr.to_bytes()
-    mem = bytearray(np.asarray(memory, dtype=np.uint8).tobytes() if isinstance(memory, np.ndarray) else memory)
-    if len(mem) != hdr.memory_bytes:
+    mem = bytearray(_as_bytes(memory))
+    if step_memory is not None:
+        steps = _as_bytes(step_memory)
+        if len(mem) != hdr.memory_bytes or len(steps) != hdr.step_memory_bytes:
+            raise ProtocolError(f"sample memory of {len(mem)} bytes and step memory of {len(steps)} bytes, but the "
+                                f"header's capacities of {hdr.capacity_samples} samples and {hdr.step_capacity} "
+                                f"step records need {hdr.memory_bytes} and {hdr.step_memory_bytes}")
+        mem += steps
+    elif len(mem) != image_memory_bytes(hdr):
+        needs = (f"{hdr.memory_bytes}" if not hdr.step_capacity else
+                 f"{image_memory_bytes(hdr)} (with the {hdr.step_memory_bytes}-byte step memory of its "
+                 f"{hdr.step_capacity} step records; or pass step_memory)")
         raise ProtocolError(f"memory of {len(mem)} bytes, but the header's capacity of {hdr.capacity_samples} "
-                            f"samples needs {hdr.memory_bytes}")
-    _check_block_size(int(block_size), len(mem))
+                            f"samples needs {needs}")
+    version = image_version_for(hdr)
+    _check_block_size(int(block_size), len(mem), image_version=version)
     n = -(-len(mem) // block_size)
     states = np.zeros(n, dtype=np.uint8)
     for b in missing_blocks:
@@ -178,16 +262,17 @@ def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memory
     view = memoryview(mem)
     crcs = np.array([crc32(view[i * block_size : (i + 1) * block_size]) for i in range(n)], dtype="<u4")
     crcs[states == BLOCK_MISSING] ^= np.uint32(0xFFFFFFFF)
-    prefix = IMAGE_PREFIX_STRUCT.build(dict(magic=IMAGE_MAGIC, image_version=IMAGE_VERSION,
+    prefix = IMAGE_PREFIX_STRUCT.build(dict(magic=IMAGE_MAGIC, image_version=version,
                                             block_size=block_size, memory_bytes=len(mem), n_blocks=n))
     table = prefix + crcs.tobytes() + states.tobytes()
     return b"".join((table, crc32(table).to_bytes(4, "little"), hbytes, bytes(mem)))
 
 
 def write_image(path: str | os.PathLike[str], header: bytes | DeviceHeader, memory: bytes | np.ndarray,
-                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE) -> None:
-    """Write a ``.glimg`` file atomically (complete or not at all)."""
-    atomic_write_bytes(path, build_image(header, memory, missing_blocks, block_size))
+                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE, *,
+                step_memory: bytes | np.ndarray | None = None) -> None:
+    """Write a ``.glimg`` file atomically (complete or not at all); arguments as :func:`build_image`."""
+    atomic_write_bytes(path, build_image(header, memory, missing_blocks, block_size, step_memory=step_memory))
 
 
 def read_image(path: str | os.PathLike[str]) -> ImageContents:
@@ -245,13 +330,20 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     Returns
     -------
     ImageContents
-        Header, memory and per-block status; every byte of an ok block is exact.
+        Header, sample memory, step memory and per-block status; every byte of an ok block is exact.
 
     Raises
     ------
     ProtocolError
-        Not an image (magic), unknown ``image_version``, inconsistent sizes, a file too short to hold its
-        table, or no valid device header near its place. The message names the offset.
+        Not an image (magic), unknown ``image_version``, version 2 with a header without step memory,
+        inconsistent sizes, a file too short to hold its table, or no valid device header near its place.
+        The message names the offset.
+
+    Notes
+    -----
+    A version-1 file whose header has step memory (written by a host older than the step memory) is read:
+    its step memory is not in the file, so :meth:`ImageContents.step_byte_ok` is all ``False`` and a
+    warning says how many stored step records that loses.
     """
     data = bytes(data)
     if len(data) < 16:
@@ -261,11 +353,13 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     if p.magic != IMAGE_MAGIC:
         raise ProtocolError(f"magic: expected {IMAGE_MAGIC!r}, found {p.magic!r} (not a gaitlog memory image)",
                             offset=0, source=source)
-    if p.image_version != IMAGE_VERSION:
+    if p.image_version not in _MAX_MEMORY_BYTES:
         raise ProtocolError(f"image_version: unknown version {p.image_version} (this decoder knows "
-                            f"{IMAGE_VERSION})", offset=4, source=source)
+                            f"{', '.join(map(str, _MAX_MEMORY_BYTES))})", offset=IMAGE_OFFSETS["image_version"],
+                            source=source)
+    version = int(p.image_version)
     bs, mem_bytes, n = int(p.block_size), int(p.memory_bytes), int(p.n_blocks)
-    _check_block_size(bs, mem_bytes, source)
+    _check_block_size(bs, mem_bytes, source, version)
     if n != -(-mem_bytes // bs):
         raise ProtocolError(f"n_blocks: {n}, but {mem_bytes} bytes in blocks of {bs} make {-(-mem_bytes // bs)}",
                             offset=IMAGE_OFFSETS["n_blocks"], source=source)
@@ -284,9 +378,17 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     header, hshift = _find_header(data, header_at, source)
     if hshift:
         notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
-    if header.memory_bytes != mem_bytes:
+    if version == IMAGE_VERSION_STEPS and header.step_capacity == 0:
+        raise ProtocolError(f"image_version: {version}, but the device header has no step memory (step_capacity "
+                            f"0; an image without step memory is version {IMAGE_VERSION})",
+                            offset=IMAGE_OFFSETS["image_version"], source=source)
+    # a version-1 file holds the sample memory only, also when its header has step memory (written by a host
+    # that predates the step memory): its step records are then not in the file
+    expected = image_memory_bytes(header) if version == IMAGE_VERSION_STEPS else header.memory_bytes
+    if expected != mem_bytes:
+        steps = f" and {header.step_capacity} step records" if version == IMAGE_VERSION_STEPS else ""
         raise ProtocolError(f"memory_bytes: {mem_bytes}, but the device header's capacity of "
-                            f"{header.capacity_samples} samples needs {header.memory_bytes}",
+                            f"{header.capacity_samples} samples{steps} needs {expected}",
                             offset=IMAGE_OFFSETS["memory_bytes"], source=source)
 
     mem0 = header_at + HEADER_SIZE
@@ -346,17 +448,28 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
         notes.append(f"block {i} found shifted by {int(shifts[i]):+d} bytes (bytes dropped or inserted before it)")
     if total > mem0 + shift + mem_bytes and ok.all():
         notes.append(f"{total - (mem0 + shift + mem_bytes)} trailing bytes after the memory ignored")
-    # blocks holding stored samples (the whole memory when wrapped; else bytes 0 .. 4·n_stored)
-    needed = np.zeros(n, dtype=bool)
-    needed[: -(-header.used_bytes // bs)] = True
-    lost = ~ok & needed
-    if lost.any():
-        warnings.warn(f"{source or 'memory image'}: {int(lost.sum())} of the {int(needed.sum())} blocks holding "
-                      f"stored samples are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
-                      stacklevel=2)
-    return ImageContents(header=header, memory=np.frombuffer(memory, dtype=np.uint8).copy(), block_ok=ok,
+    if version == IMAGE_VERSION and header.n_steps_stored:
+        notes.append(f"image version {IMAGE_VERSION} holds no step memory: the header's {header.n_steps_stored} "
+                     "stored step records are not in the file")
+        warnings.warn(f"{source or 'memory image'}: {notes[-1]}", stacklevel=2)
+    # blocks holding stored samples (the whole memory when wrapped; else bytes 0 .. 4·n_stored), and
+    # blocks holding stored step records (step memory bytes 0 .. 20·n_steps_stored, after the samples)
+    for what, first, stop in (("samples", 0, header.used_bytes),
+                              ("step records", header.memory_bytes, header.memory_bytes + header.step_used_bytes)):
+        needed = np.zeros(n, dtype=bool)
+        if stop > first:
+            needed[first // bs: -(-stop // bs)] = True
+        lost = ~ok & needed
+        if lost.any():
+            warnings.warn(f"{source or 'memory image'}: {int(lost.sum())} of the {int(needed.sum())} blocks holding "
+                          f"stored {what} are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
+                          stacklevel=2)
+    region = np.frombuffer(memory, dtype=np.uint8)
+    steps = region[header.memory_bytes:] if version == IMAGE_VERSION_STEPS else \
+        np.full(header.step_memory_bytes, 0xFF, dtype=np.uint8)
+    return ImageContents(header=header, memory=region[: header.memory_bytes].copy(), block_ok=ok,
                          block_size=bs, notes=notes, block_missing=marked, block_truncated=truncated,
-                         block_shift=shifts, table_ok=table_ok)
+                         block_shift=shifts, table_ok=table_ok, step_memory=steps.copy(), image_version=version)
 
 
 def detect_format(data: bytes | bytearray | memoryview) -> Literal["image", "raw", "capture"]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
+from protocol.steps import STEP_RECORD_SIZE
 
 __all__ = [
     "SOH",
@@ -120,19 +121,35 @@ def parse_block(block: bytes, source: str | None = None) -> tuple[int, bytes]:
     return blk, data
 
 
-def raw_dump_bytes(header: bytes, memory_used: bytes) -> bytes:
-    """The file XDUMP transfers: 256-byte header, then the memory from address 0, padded with 0x1A to a
-    multiple of 1024 bytes.
+def raw_dump_bytes(header: bytes, memory_used: bytes, step_memory_used: bytes = b"") -> bytes:
+    """The file XDUMP transfers: 256-byte header, then the sample memory from address 0, then the step
+    memory from its address 0, padded with 0x1A to a multiple of 1024 bytes.
 
-    ``memory_used`` is the memory up to the end of the last stored sample (``DeviceHeader.used_bytes``; the
-    whole memory when wrapped).
+    Parameters
+    ----------
+    header
+        The 256-byte device header; it says how long the two memory parts are.
+    memory_used
+        The sample memory up to the end of the last stored sample (``DeviceHeader.used_bytes``; the whole
+        memory when wrapped).
+    step_memory_used
+        The step memory up to the end of the last stored record (``DeviceHeader.step_used_bytes``: ``20 · n``
+        for ``n`` stored records; empty without step memory).
 
-    >>> len(raw_dump_bytes(bytes(256), bytes(4 * 300)))
-    2048
+    Raises
+    ------
+    ProtocolError
+        A header that is not 256 bytes, or step bytes that are not whole 20-byte records.
+
+    >>> len(raw_dump_bytes(bytes(256), bytes(4 * 300))), len(raw_dump_bytes(bytes(256), bytes(4 * 187), bytes(20)))
+    (2048, 1024)
     """
     if len(header) != 256:
         raise ProtocolError(f"raw dump header of {len(header)} bytes (expected 256)")
-    body = bytes(header) + bytes(memory_used)
+    if len(step_memory_used) % STEP_RECORD_SIZE:
+        raise ProtocolError(f"raw dump step memory of {len(step_memory_used)} bytes is not whole "
+                            f"{STEP_RECORD_SIZE}-byte records")
+    body = b"".join((bytes(header), bytes(memory_used), bytes(step_memory_used)))
     return body + bytes([PAD]) * (-len(body) % BLOCK_1K)
 
 

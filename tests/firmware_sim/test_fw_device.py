@@ -15,6 +15,7 @@ from firmware_sim.errors import DeviceError
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.base import Motion
 from firmware_sim.world.poses import CalibrationPoses
+from protocol.errors import ProtocolError
 from protocol.header import DeviceHeader
 
 
@@ -117,3 +118,89 @@ def test_image_save_load_property(tmp_path_factory: pytest.TempPathFactory, seed
     lg.save_image(path)
     back = Logger.from_image(path)
     assert back.memory == lg.memory and back.header.to_bytes() == lg.header.to_bytes()
+
+
+# ------------------------------------------------------------------------- the step memory (section 2.3)
+def _steps(n: int) -> bytes:
+    from protocol.steps import empty_step_records, pack_step_records
+
+    rec = empty_step_records(n)
+    rec["end_sample"] = 27 * np.arange(n)
+    rec["length_m2_q14"] = 11000
+    return pack_step_records(rec)
+
+
+def test_logger_has_step_memory_and_config() -> None:
+    from protocol.steps import StepConfig
+
+    cfg = StepConfig(step_format=1, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1)
+    lg = Logger(step_config=cfg)
+    h = lg.header
+    assert (h.step_capacity, h.steps_written, h.step_write_index) == (3276, 0, 0)
+    assert lg.step_config == cfg and lg.data_eeprom.read(128, 32) == cfg.to_bytes()
+    assert len(lg.step_memory) == 65520 and set(lg.step_memory) == {0xFF}
+    lg.step_config = StepConfig.off()
+    assert lg.data_eeprom.read(128, 32) == bytes(32)
+    lg.step_config = cfg
+    lg.firmware.start_logging(start_time_s=0, overwrite=True)
+    with pytest.raises(DeviceError, match="SET_STEP_CONFIG while logging"):
+        lg.step_config = StepConfig.off()
+    assert lg.firmware.log_steps(_steps(4)) == 4
+    lg.firmware.stop_logging()
+    assert lg.step_memory[:80] == _steps(4)
+    lg.erase()  # forgets the records, keeps the configuration
+    assert lg.header.steps_written == 0 and lg.header.step_config == cfg
+    assert lg.data_eeprom.read(44, 4) == bytes(4) and lg.data_eeprom.read(128, 32) == cfg.to_bytes()
+    with pytest.raises(ProtocolError, match="leg_length_q15"):
+        Logger(step_config=StepConfig(step_format=1))
+
+
+def test_image_carries_the_step_memory(tmp_path: Path) -> None:
+    from protocol.image import parse_image
+    from protocol.steps import StepConfig
+
+    cfg = StepConfig(step_format=1, leg_length_m=0.875)
+    lg = Logger(device_id=5, sensor=SensorModel.ideal(), step_config=cfg)
+    lg.firmware.start_logging(start_time_s=1000, overwrite=True)
+    lg.firmware.log_samples(np.full((300, 3), 512))
+    lg.firmware.log_steps(_steps(3400))  # wraps the step ring
+    lg.firmware.stop_logging()
+    path = lg.save_image(tmp_path / "s.glimg")
+    raw = path.read_bytes()
+    assert raw[4] == 2 and int.from_bytes(raw[8:12], "little") == 262144 + 65520
+    c = parse_image(raw)
+    records, ok = c.step_records()
+    assert ok.all() and records["end_sample"].tolist() == (27 * np.arange(124, 3400)).tolist()
+    back = Logger.from_image(path)
+    assert back.step_memory == lg.step_memory and back.memory == lg.memory
+    assert back.header.to_bytes() == lg.header.to_bytes() and back.step_config == cfg.quantised()
+    # the restored device goes on where the image left off
+    back.firmware.start_logging(start_time_s=2000, overwrite=True)
+    assert back.firmware.log_steps(_steps(1)) == 1
+    back.firmware.stop_logging()
+    assert (back.header.steps_written, back.header.step_write_index) == (3401, 125)
+
+
+def test_version_1_image_restores_with_an_empty_step_memory(tmp_path: Path) -> None:
+    from protocol.image import build_image
+
+    old = DeviceHeader(device_id=9, samples_written=100, write_index=100)  # no step memory: image version 1
+    memory = np.random.default_rng(0).integers(0, 256, 262144, dtype=np.uint8)
+    path = tmp_path / "old.glimg"
+    path.write_bytes(build_image(old, memory))
+    assert path.read_bytes()[4] == 1
+    lg = Logger.from_image(path)
+    assert lg.memory == memory.tobytes() and lg.header.samples_written == 100
+    assert (lg.header.step_capacity, lg.header.steps_written) == (3276, 0) and set(lg.step_memory) == {0xFF}
+    lg.save_image(path)  # saved back as version 2
+    assert path.read_bytes()[4] == 2 and Logger.from_image(path).header.to_bytes() == lg.header.to_bytes()
+
+
+def test_image_with_other_step_capacity_is_refused(tmp_path: Path) -> None:
+    from protocol.image import build_image
+
+    h = DeviceHeader(step_capacity=100, steps_written=5, step_write_index=5)
+    path = tmp_path / "x.glimg"
+    path.write_bytes(build_image(h, bytes(262144), step_memory=bytes(2000)))
+    with pytest.raises(DeviceError, match="image holds 100 step records; this device 3276"):
+        Logger.from_image(path)

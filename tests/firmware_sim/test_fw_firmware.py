@@ -6,6 +6,7 @@ import binascii
 import io
 import struct
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -73,9 +74,10 @@ def test_start_stop_and_their_naks(logger: Logger) -> None:
     assert one(send(logger, frame(0x03, 3, struct.pack("<IB", 1_700_000_000, 0)))) == (ACK, 3, b"\x03")
     state = struct.unpack("<BBII", one(send(logger, frame(0x02, 4)))[2])[0]
     assert state == 1
-    # BUSY while logging: READ, DUMP, XDUMP, ERASE, SET_CALIBRATION, START
-    for cmd, payload in ((0x07, struct.pack("<IH", 0, 4)), (0x08, struct.pack("<IIH", 0, 4, 4)), (0x09, b""),
-                         (0x05, b"ERASE"), (0x0A, bytes(64)), (0x03, struct.pack("<IB", 0, 0))):
+    # BUSY while logging: READ (sample or step memory), DUMP, XDUMP, ERASE, SET_CALIBRATION, SET_STEP_CONFIG, START
+    for cmd, payload in ((0x07, struct.pack("<IH", 0, 4)), (0x07, struct.pack("<IH", 0x01000000, 20)),
+                         (0x08, struct.pack("<IIH", 0, 4, 4)), (0x09, b""), (0x05, b"ERASE"), (0x0A, bytes(64)),
+                         (0x0B, bytes(32)), (0x03, struct.pack("<IB", 0, 0))):
         assert one(send(logger, frame(cmd, 5, payload))) == (NAK, 5, bytes([cmd, BUSY]))
     # IDENTIFY, STATUS and READ_HEADER still answer while logging
     assert one(send(logger, frame(0x06, 6)))[0] == 0x86
@@ -234,3 +236,107 @@ def test_xdump_received_by_pypi_xmodem(logger: Logger, arm: str) -> None:
     assert len(got) % 1024 == 0 and set(got[256 + used:]) <= {0x1A}
     assert not logger.firmware.in_transfer
     assert one(send(logger, frame(0x02, 2)))[0] == 0x82  # back in command mode
+
+
+# --- the step memory (section 2.3): SET_STEP_CONFIG, READ/DUMP at 0x01000000, ERASE, XDUMP ------------------
+STEP_BASE = 0x01000000
+
+
+def _step_bytes(first: int, n: int) -> bytes:
+    """Records numbered first .. first+n-1, built with pack_step_records; the CRC checked here by crc_hqx."""
+    from protocol.steps import empty_step_records, pack_step_records
+
+    rec = empty_step_records(n)
+    k = np.arange(first, first + n)
+    rec["end_sample"] = 27 * k
+    rec["duration_samples"] = 27
+    rec["length_m1_q14"] = 11000 + k % 100
+    data = pack_step_records(rec)
+    assert all(struct.unpack_from(">H", data, 20 * i + 18)[0] == binascii.crc_hqx(data[20 * i:20 * i + 18], 0)
+               for i in range(n))
+    return data
+
+
+def _log_steps(lg: Logger, data: bytes) -> int:
+    lg.firmware.start_logging(start_time_s=0, overwrite=True)
+    n = lg.firmware.log_steps(data)
+    lg.firmware.stop_logging()
+    return n
+
+
+def test_log_steps_only_while_logging(logger: Logger) -> None:
+    assert logger.firmware.log_steps(_step_bytes(0, 3)) == 0 and logger.header.steps_written == 0
+    assert _log_steps(logger, _step_bytes(0, 3)) == 3
+    hdr = one(send(logger, frame(0x06, 1)))[2]
+    assert struct.unpack_from("<IHH", hdr, 44) == (3, 3, 3276)  # committed at STOP
+    assert logger.data_eeprom.read(44, 8) == hdr[44:52]
+    # STATUS and INFO are unchanged by the step memory
+    assert struct.unpack("<BBII", one(send(logger, frame(0x02, 2)))[2])[2:] == (550, 550)
+    assert struct.unpack("<IHBBIIBI", one(send(logger, frame(0x01, 3)))[2])[-1] == 262144
+
+
+def test_set_step_config(logger: Logger) -> None:
+    block = struct.pack("<BBHHHHHii12x", 1, 1, 29491, 6554, 36045, 32768, 16384, 19661, -13107)
+    assert one(send(logger, frame(0x0B, 1, block))) == (ACK, 1, b"\x0b")
+    hdr = one(send(logger, frame(0x06, 2)))[2]
+    assert hdr[128:160] == block and logger.data_eeprom.read(128, 32) == block
+    assert logger.step_config.raw["k2_m5_q16"] == -13107
+    refused = (b"\x02" + block[1:], block[:1] + b"\x03" + block[2:], b"\x01\x00\x00\x00" + block[4:])
+    for seq, bad in enumerate(refused, 3):  # unknown format, reserved flag bit, format 1 with leg length 0
+        assert one(send(logger, frame(0x0B, seq, bad))) == (NAK, seq, bytes([0x0B, BAD_ARGUMENT]))
+    assert one(send(logger, frame(0x0B, 7, block[:31]))) == (NAK, 7, bytes([0x0B, BAD_LENGTH]))
+    assert one(send(logger, frame(0x06, 8)))[2][128:160] == block  # the refused blocks changed nothing
+    # ERASE clears the step counters, not the configuration
+    _log_steps(logger, _step_bytes(0, 5))
+    assert one(send(logger, frame(0x05, 9, b"ERASE"))) == (ACK, 9, b"\x05")
+    hdr = one(send(logger, frame(0x06, 10)))[2]
+    assert struct.unpack_from("<IHH", hdr, 44) == (0, 0, 3276) and hdr[128:160] == block
+    assert logger.data_eeprom.read(0, 256) == hdr
+
+
+def test_read_and_dump_step_memory(logger: Logger) -> None:
+    data = _step_bytes(0, 10)
+    _log_steps(logger, data)
+    t, s, p = one(send(logger, frame(0x07, 1, struct.pack("<IH", STEP_BASE + 20, 60))))
+    assert (t, s) == (0x87, 1) and struct.unpack_from("<I", p)[0] == STEP_BASE + 20 and p[4:] == data[20:80]
+    step_memory = logger.step_memory
+    assert len(step_memory) == 65520 and step_memory[:200] == data
+    last = STEP_BASE + 65520 - 20
+    assert one(send(logger, frame(0x07, 2, struct.pack("<IH", last, 20))))[2][4:] == step_memory[-20:]
+    # ranges that are not inside one region: NAK BAD_ADDRESS
+    for seq, (address, length) in enumerate(((last, 21), (STEP_BASE - 4, 8), (262144, 16), (STEP_BASE + 65520, 1),
+                                             (0x02000000, 4)), 3):
+        assert one(send(logger, frame(0x07, seq, struct.pack("<IH", address, length)))) == (
+            NAK, seq, bytes([0x07, BAD_ADDRESS])), (address, length)
+    # DUMP of the whole step memory in chunks of whole records: addresses as requested
+    out = frames_of(send(logger, frame(0x08, 20, struct.pack("<IIH", STEP_BASE, 65520, 2040))))
+    assert len(out) == 33 + 1 and out[-1] == (0x88, 20, struct.pack("<IIH", STEP_BASE, 65520, 33))
+    assert [struct.unpack_from("<I", p)[0] for _, _, p in out[:-1]] == [STEP_BASE + 2040 * k for k in range(33)]
+    assert b"".join(p[4:] for _, _, p in out[:-1]) == step_memory
+    assert one(send(logger, frame(0x08, 21, struct.pack("<IIH", 262144 - 8, 16 + STEP_BASE, 4096)))) == (
+        NAK, 21, bytes([0x08, BAD_ADDRESS]))
+    assert one(send(logger, frame(0x08, 22, struct.pack("<IIH", STEP_BASE, 65521, 4096)))) == (
+        NAK, 22, bytes([0x08, BAD_ADDRESS]))
+
+
+def test_step_ring_wraps_through_the_firmware(logger: Logger) -> None:
+    data = _step_bytes(0, 3276 + 500)
+    assert _log_steps(logger, data[:20 * 3000]) == 3000
+    assert _log_steps(logger, data[20 * 3000:]) == 776
+    hdr = one(send(logger, frame(0x06, 1)))[2]
+    assert struct.unpack_from("<IHH", hdr, 44) == (3776, 500, 3276)
+    out = frames_of(send(logger, frame(0x08, 2, struct.pack("<IIH", STEP_BASE, 65520, 4080))))
+    mem = b"".join(p[4:] for _, _, p in out[:-1])
+    # ring order by hand: the oldest record (number 500) is in slot 500, the newest (3775) in slot 499
+    ordered = mem[20 * 500:] + mem[:20 * 500]
+    assert ordered == data[20 * 500:]
+
+
+def test_xdump_carries_the_stored_step_records(logger: Logger) -> None:
+    _log_steps(logger, _step_bytes(0, 40))
+    _, got = _xmodem_receive(logger, frame(0x09, 5))
+    header = one(send(logger, frame(0x06, 1)))[2]
+    used = 4 * 550
+    assert got[:256] == header and got[256:256 + used] == logger.memory[:used]
+    assert got[256 + used:256 + used + 800] == _step_bytes(0, 40)
+    assert len(got) % 1024 == 0 and set(got[256 + used + 800:]) <= {0x1A}

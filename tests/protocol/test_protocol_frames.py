@@ -27,6 +27,7 @@ from protocol.frames import (
     parse_stream,
 )
 from protocol.header import Calibration, DeviceHeader
+from protocol.steps import StepConfig
 
 
 def _ref_frame(t: int, seq: int, payload: bytes) -> bytes:
@@ -110,10 +111,39 @@ def test_header_and_calibration_payloads() -> None:
     assert info.value.error_code == ErrorCode.BAD_ARGUMENT and info.value.offset == 6
 
 
+def test_set_step_config_payload() -> None:
+    cfg = StepConfig(step_format=1, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1)
+    p = build_payload(FrameType.SET_STEP_CONFIG, step_config=cfg)
+    ref = struct.pack("<BBHHHHHii12x", 1, 1, 29491, 6554, 36045, 0, 0, 0, 0)
+    assert p == ref and build_payload(FrameType.SET_STEP_CONFIG, step_config=ref) == ref
+    assert encode_frame(FrameType.SET_STEP_CONFIG, 3, p) == _ref_frame(0x0B, 3, ref)
+    assert parse_payload(Frame(FrameType.SET_STEP_CONFIG, 0, p)) == {"step_config": cfg.quantised()}
+    with pytest.raises(PayloadError, match="leg_length_q15") as info:
+        build_payload(FrameType.SET_STEP_CONFIG, step_config=StepConfig(step_format=1))
+    assert info.value.error_code == ErrorCode.BAD_ARGUMENT and info.value.offset == 2
+    assert parse_payload(Frame(FrameType.ACK, 0, b"\x0b")) == {"command": FrameType.SET_STEP_CONFIG}
+
+
+@pytest.mark.parametrize(
+    ("payload", "code", "offset"),
+    [
+        (b"\x02" + bytes(31), ErrorCode.BAD_ARGUMENT, 106),  # unknown step_format
+        (b"\x01\x80\x00\x70" + bytes(28), ErrorCode.BAD_ARGUMENT, 107),  # reserved step_flags bit
+        (b"\x01\x01" + bytes(30), ErrorCode.BAD_ARGUMENT, 108),  # format 1 with leg length 0
+        (bytes(31), ErrorCode.BAD_LENGTH, 104),
+        (bytes(33), ErrorCode.BAD_LENGTH, 104),
+    ],
+)
+def test_set_step_config_rejections(payload: bytes, code: ErrorCode, offset: int) -> None:
+    with pytest.raises(PayloadError) as info:
+        parse_payload(Frame(FrameType.SET_STEP_CONFIG, 0, payload, offset=100))
+    assert info.value.error_code == code and info.value.offset == offset
+
+
 @pytest.mark.parametrize(
     ("frame", "code", "offset"),
     [
-        (Frame(0x0B, 0, b""), ErrorCode.UNKNOWN_COMMAND, 2),
+        (Frame(0x0C, 0, b""), ErrorCode.UNKNOWN_COMMAND, 2),
         (Frame(0x7F, 0, b"", offset=50), ErrorCode.UNKNOWN_COMMAND, 52),
         (Frame(FrameType.START, 0, struct.pack("<IB", 0, 2)), ErrorCode.BAD_ARGUMENT, 10),
         (Frame(FrameType.ERASE, 0, b"erase"), ErrorCode.BAD_ARGUMENT, 6),

@@ -19,18 +19,21 @@ from protocol.header import (
     DeviceHeader,
     HeaderFlag,
 )
+from protocol.steps import StepConfig
 
 
 def _ref_header(**f: int) -> bytes:
     """Header bytes written field by field from the section-2 table (independent of construct)."""
     cal = f.pop("cal", bytes(64))
+    step_cfg = f.pop("step_cfg", bytes(32))
     body = struct.pack(
         "<4sBBHIIBBBBIIIIII",
         b"GLOG", f["header_version"], f["protocol_version"], f["firmware_version"], f["device_id"],
         f["sample_rate_mhz"], f["adc_bits"], f["axes"], f["packing"], f["flags"], f["start_time_s"],
         f["capacity_samples"], f["write_index"], f["samples_written"], f["adc_vref_mv"], f["run_start_sample"],
     )
-    body += bytes(20) + cal + bytes(126)
+    body += struct.pack("<IHH", f.get("steps_written", 0), f.get("step_write_index", 0), f.get("step_capacity", 0))
+    body += bytes(12) + cal + step_cfg + bytes(94)
     assert len(body) == 254
     return body + struct.pack(">H", binascii.crc_hqx(body, 0))
 
@@ -196,10 +199,14 @@ def headers(draw: st.DrawFn) -> dict:
         wi = sw % cap
     flags = draw(st.integers(0, 255)) & ~0x0A | (0x02 if wrapped else 0)
     cal = draw(st.booleans())
+    step_cap = draw(st.sampled_from([0, 1, 7, 3276]) | st.integers(0, 3276))
+    step_sw = draw(st.sampled_from([0, 2**32 - 1]) | st.integers(0, 2**32 - 1)) if step_cap else 0
+    step_wi = (step_sw % step_cap if step_sw != 2**32 - 1 else draw(st.integers(0, step_cap - 1))) if step_cap else 0
     d = dict(header_version=1, protocol_version=1, firmware_version=draw(st.integers(0, 65535)),
              device_id=draw(u32), sample_rate_mhz=draw(st.integers(1, 2**32 - 1)), adc_bits=draw(st.integers(1, 10)),
              axes=3, packing=1, flags=flags, start_time_s=draw(u32), capacity_samples=cap, write_index=wi,
-             samples_written=sw, adc_vref_mv=draw(u32), run_start_sample=draw(st.integers(0, sw)))
+             samples_written=sw, adc_vref_mv=draw(u32), run_start_sample=draw(st.integers(0, sw)),
+             steps_written=step_sw, step_write_index=step_wi, step_capacity=step_cap)
     if cal:
         off = draw(st.lists(st.floats(-32000, 32000), min_size=3, max_size=3))
         mat = draw(st.lists(st.floats(-1.9, 1.9), min_size=9, max_size=9))
@@ -213,6 +220,12 @@ def test_header_round_trip_property(d: dict) -> None:
     cal = d.pop("cal", None)
     h = DeviceHeader(**d, calibration=cal)
     raw = h.to_bytes()
+    n_steps = min(d["steps_written"], d["step_capacity"])
+    assert h.n_steps_stored == n_steps and h.step_used_bytes == 20 * n_steps and len(h.step_slots()) == n_steps
+    if n_steps:
+        assert h.step_slots()[0] == (d["step_write_index"] if d["steps_written"] >= d["step_capacity"] else 0)
+        assert ((h.step_slots()[-1] + 1) % d["step_capacity"] == d["step_write_index"]
+                or d["steps_written"] == 2**32 - 1)
     ref_fields = dict(d)
     ref_fields["flags"] = d["flags"] | (0x08 if cal is not None else 0)
     assert raw == _ref_header(**ref_fields, cal=cal.to_bytes() if cal is not None else bytes(64))
@@ -220,3 +233,83 @@ def test_header_round_trip_property(d: dict) -> None:
     assert back.to_bytes() == raw
     assert back.n_stored == min(d["samples_written"], d["capacity_samples"])
     assert back.calibration.valid == (cal is not None)
+
+
+# ------------------------------------------------------------------------------------ step memory fields
+STEPS = dict(BASE, steps_written=3300, step_write_index=24, step_capacity=3276)
+CFG = StepConfig(step_format=1, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1, k_m2=1.0,
+                 k_m4=0.5, k1_m5_m_s=0.3, k2_m5_m=0.2)
+# the block of section 2.2 written with struct.pack, values rounded half up by hand
+CFG_REF = struct.pack("<BBHHHHHii12x", 1, 1, 29491, 6554, 36045, 32768, 16384, 19661, 13107)
+GOOD_STEPS = _ref_header(**STEPS, step_cfg=CFG_REF)
+
+
+def test_step_fields_match_reference_layout() -> None:
+    h = DeviceHeader(**STEPS, step_config=CFG)
+    assert h.to_bytes() == GOOD_STEPS
+    assert GOOD_STEPS[44:52] == bytes.fromhex("e40c0000 1800 cc0c") and GOOD_STEPS[128:160] == CFG_REF
+    back = DeviceHeader.from_bytes(GOOD_STEPS)
+    assert (back.steps_written, back.step_write_index, back.step_capacity) == (3300, 24, 3276)
+    assert back.step_config == CFG.quantised() and back.step_config.raw["leg_length_q15"] == 29491
+    # the derived rules of section 2.3
+    assert back.n_steps_stored == 3276 and back.steps_wrapped and back.first_step_slot == 24
+    assert back.first_step_number == 24 and back.step_used_bytes == 65520 == back.step_memory_bytes
+    slots = back.step_slots()
+    assert slots[0] == 24 and slots[3251] == 3275 and slots[3252] == 0 and slots[-1] == 23
+    # not wrapped: oldest record in slot 0
+    h2 = DeviceHeader(**{**STEPS, "steps_written": 100, "step_write_index": 100})
+    assert (h2.n_steps_stored, h2.first_step_slot, h2.first_step_number, h2.step_used_bytes) == (100, 0, 0, 2000)
+    assert not h2.steps_wrapped and h2.step_slots().tolist() == list(range(100))
+    # no step memory: everything 0, the bytes of an old header
+    old = DeviceHeader(**BASE)
+    assert (old.step_capacity, old.n_steps_stored, old.step_memory_bytes, old.step_slots().size) == (0, 0, 0, 0)
+    assert old.step_config == StepConfig.off() and old.to_bytes()[44:64] == bytes(20)
+
+
+def test_saturated_step_counter_allows_any_index() -> None:
+    h = DeviceHeader(**{**STEPS, "steps_written": 2**32 - 1, "step_write_index": 7})
+    back = DeviceHeader.from_bytes(h.to_bytes())
+    assert back.first_step_slot == 7 and back.n_steps_stored == 3276 and back.first_step_number == 2**32 - 1 - 3276
+
+
+@pytest.mark.parametrize(
+    ("data", "offset", "match"),
+    [
+        (_corrupt(GOOD_STEPS, 50, struct.pack("<H", 3277)), 50, "step_capacity: 3277 records do not fit"),
+        (_corrupt(GOOD_STEPS, 48, struct.pack("<H", 3276)), 48, "step_write_index: 3276 not below step_capacity"),
+        (_corrupt(GOOD_STEPS, 48, struct.pack("<H", 23)), 44, r"steps_written: 3300 records written but "
+                                                              r"step_write_index 23 \(expected 24\)"),
+        (_corrupt(GOOD_STEPS, 44, struct.pack("<I", 3299)), 44, "steps_written: 3299"),
+        (_corrupt(GOOD, 44, struct.pack("<I", 5)), 44, "steps_written: 5 records written but step_capacity is 0"),
+        (_corrupt(GOOD, 48, struct.pack("<H", 1)), 48, "step_write_index: 1 but step_capacity is 0"),
+        (_corrupt(GOOD_STEPS, 128, b"\x02"), 128, "step_format: unknown step format 2"),
+        (_corrupt(GOOD_STEPS, 129, b"\x03"), 129, "step_flags: reserved bits set in 0x03"),
+        (_corrupt(GOOD_STEPS, 130, b"\x00\x00"), 130, "leg_length_q15: step_format 1 needs a leg length"),
+    ],
+)
+def test_step_field_rejections_name_field_and_offset(data: bytes, offset: int, match: str) -> None:
+    with pytest.raises(ProtocolError, match=match) as info:
+        DeviceHeader.from_bytes(data, source="dev.bin")
+    assert info.value.offset == offset and info.value.source == "dev.bin"
+
+
+def test_step_reserved_bytes_are_ignored() -> None:
+    assert DeviceHeader.from_bytes(_corrupt(GOOD_STEPS, 52, b"\xff" * 12)).step_capacity == 3276
+    assert DeviceHeader.from_bytes(_corrupt(GOOD_STEPS, 148, b"\xff" * 12)).step_config == CFG.quantised()
+
+
+@pytest.mark.parametrize(
+    ("change", "offset", "match"),
+    [
+        (dict(step_capacity=70000), 50, "step_capacity"),
+        (dict(steps_written=-1), 44, "steps_written"),
+        (dict(step_write_index=3276), 48, "step_write_index"),
+        (dict(step_config=StepConfig(step_format=1, leg_length_m=2.5)), 130, "leg_length_q15"),
+        (dict(step_config=StepConfig(step_format=3)), 128, "step_format"),
+        (dict(step_config="off"), 128, "must be a StepConfig"),
+    ],
+)
+def test_to_bytes_rejects_bad_step_fields(change: dict, offset: int, match: str) -> None:
+    with pytest.raises(ProtocolError, match=match) as info:
+        DeviceHeader(**{**STEPS, **change}).to_bytes()
+    assert info.value.offset == offset

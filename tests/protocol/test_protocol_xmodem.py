@@ -85,6 +85,17 @@ def test_pypi_receiver_gets_exact_payload(body: bytes) -> None:
     assert sender.done and sender.failed is None and sender.retransmissions == 0
 
 
+def test_raw_dump_layout_with_step_memory() -> None:
+    header, samples, steps = bytes(range(256)), bytes(4 * 100), bytes(range(200)) * 3  # 30 records
+    payload = raw_dump_bytes(header, samples, steps)
+    body = header + samples + steps
+    assert len(payload) == 2048 and payload[: len(body)] == body
+    assert payload[len(body) :] == bytes([PAD]) * (2048 - len(body))
+    assert raw_dump_bytes(header, samples) == raw_dump_bytes(header, samples, b"")
+    with pytest.raises(ProtocolError, match="not whole 20-byte records"):
+        raw_dump_bytes(header, samples, bytes(30))
+
+
 def test_pypi_receiver_through_a_noisy_line() -> None:
     payload = raw_dump_bytes(bytes(256), random.Random(1).randbytes(60_000))
     got, sender = _pypi_receive(payload, corrupt_rate=2e-4, seed=3)

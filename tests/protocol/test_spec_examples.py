@@ -10,6 +10,7 @@ from __future__ import annotations
 import enum
 import json
 import re
+import warnings
 import zlib
 from pathlib import Path
 from typing import Any
@@ -38,6 +39,20 @@ from protocol.header import (
 )
 from protocol.image import IMAGE_OFFSETS, IMAGE_PREFIX_STRUCT, SHIFT_SEARCH_BYTES, build_image, parse_image
 from protocol.packing import pack_words, unpack_words, words_to_bytes
+from protocol.steps import (
+    STEP_CONFIG_OFFSETS,
+    STEP_CONFIG_STRUCT,
+    STEP_RECORD_BODY_STRUCT,
+    STEP_RECORD_DTYPE,
+    STEP_RECORD_OFFSETS,
+    STEP_RECORD_STRUCT,
+    StepConfig,
+    StepFlag,
+    empty_step_records,
+    pack_step_records,
+    parse_step_record,
+    unpack_step_records,
+)
 from protocol.xmodem import PAD, build_block, parse_block
 
 SPEC_PATH = Path(__file__).resolve().parents[2] / "protocol" / "PROTOCOL.md"
@@ -97,6 +112,8 @@ def _object(name: str) -> Any:
         return _calibration(ex["fields"])
     if ex["kind"] == "header":
         return _header(ex)
+    if ex["kind"] == "step-config":
+        return StepConfig(**ex["fields"])
     raise AssertionError(f"example {name} of kind {ex['kind']} cannot be referenced")
 
 
@@ -112,13 +129,22 @@ def _calibration(fields: dict) -> Calibration:
 
 def _header(ex: dict) -> DeviceHeader:
     cal = _resolve(ex["calibration"]) if "calibration" in ex else None
-    return DeviceHeader(**ex["fields"], calibration=cal)
+    step_config = _resolve(ex["step_config"]) if "step_config" in ex else None
+    return DeviceHeader(**ex["fields"], calibration=cal, step_config=step_config)
+
+
+def _records(fields: list[dict]) -> np.ndarray:
+    rec = empty_step_records(len(fields))
+    for i, f in enumerate(fields):
+        for key, value in f.items():
+            rec[key][i] = value
+    return rec
 
 
 def _same(expected: Any, actual: Any) -> bool:
     if isinstance(actual, enum.Enum):
         return expected == actual.name if isinstance(expected, str) else expected == int(actual)
-    if isinstance(actual, (DeviceHeader, Calibration)):
+    if isinstance(actual, (DeviceHeader, Calibration, StepConfig)):
         return _resolve(expected).to_bytes() == actual.to_bytes()
     if isinstance(actual, bytes):
         return bytes.fromhex(expected) == actual
@@ -127,7 +153,7 @@ def _same(expected: Any, actual: Any) -> bool:
 
 def test_examples_exist_for_everything() -> None:
     kinds = {ex["kind"] for ex in EXAMPLES.values()}
-    assert kinds == {"calibration", "header", "sample", "frame", "xmodem-block", "image"}
+    assert kinds == {"calibration", "header", "sample", "frame", "xmodem-block", "image", "step-config", "step-record"}
     frame_types = {ex["type"] for ex in EXAMPLES.values() if ex["kind"] == "frame"}
     assert frame_types == {t.name for t in FrameType}, "every frame type needs a worked example"
 
@@ -151,6 +177,24 @@ def test_worked_example(name: str) -> None:
         for key, value in fields.items():
             assert getattr(back, key) == value, key
         assert back.calibration.to_bytes() == _resolve(ex["calibration"]).to_bytes()
+        if "step_config" in ex:
+            assert back.step_config == _resolve(ex["step_config"])
+            assert data[128:160] == _resolve(ex["step_config"]).to_bytes()
+        else:  # a header without step memory: the formerly reserved bytes are 0
+            assert data[44:64] == bytes(20) and data[128:254] == bytes(126)
+    elif kind == "step-config":
+        assert len(data) == 32 and data[20:] == bytes(12)
+        assert StepConfig(**fields).to_bytes() == data
+        back = StepConfig.from_bytes(data)
+        for key, value in fields.items():
+            assert getattr(back, key) == value, key  # the example's values are exact in their Q formats
+    elif kind == "step-record":
+        assert len(data) == 20 and int.from_bytes(data[18:], "big") == _crc16(data[:18])
+        assert pack_step_records(_records([fields])) == data
+        records, crc_ok = unpack_step_records(data)
+        assert crc_ok.tolist() == [True]
+        assert {k: int(records[k][0]) for k in fields} == fields
+        assert parse_step_record(data) == fields  # the construct declaration agrees
     elif kind == "sample":
         codes, flags = np.array(fields["codes"]), np.array(fields["flags"])
         assert words_to_bytes(pack_words(codes, flags)) == data
@@ -179,19 +223,38 @@ def test_worked_example(name: str) -> None:
         assert int.from_bytes(data[-2:], "big") == _crc16(data[3:-2])
         assert parse_block(data) == (fields["blk"], payload + bytes([PAD]) * (1024 - len(payload)))
     elif kind == "image":
-        header = DeviceHeader(**fields["header"])
+        header = DeviceHeader(**{k: _resolve(v) for k, v in fields["header"].items()})
         bs = fields["block_size"]
         samples = words_to_bytes(pack_words(np.array(fields["samples"]["codes"]), np.array(fields["samples"]["flags"])))
         memory = samples + b"\xff" * (header.memory_bytes - len(samples))
-        assert build_image(header, memory, fields["missing_blocks"], bs) == data
-        n = -(-len(memory) // bs)
+        records = pack_step_records(_records(fields.get("step_records", [])))
+        steps = records + b"\xff" * (header.step_memory_bytes - len(records))
+        if header.step_capacity:
+            assert data[4] == 2 and build_image(header, memory, fields["missing_blocks"], bs, step_memory=steps) == data
+            assert build_image(header, memory + steps, fields["missing_blocks"], bs) == data
+        else:
+            assert data[4] == 1 and steps == b"" and build_image(header, memory, fields["missing_blocks"], bs) == data
+        region = memory + steps
+        n = -(-len(region) // bs)
+        assert int.from_bytes(data[8:12], "little") == len(region) and int.from_bytes(data[12:16], "little") == n
         table_end = 16 + 5 * n
         assert int.from_bytes(data[table_end : table_end + 4], "little") == zlib.crc32(data[:table_end])
-        contents = parse_image(data)  # the missing block holds no stored sample: no warning
+        stored = bytearray(region)  # the memory as stored: missing blocks erased
+        for b in fields["missing_blocks"]:
+            stored[b * bs : (b + 1) * bs] = b"\xff" * len(stored[b * bs : (b + 1) * bs])
+        assert data[table_end + 4 + 256 :] == bytes(stored)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # the missing block holds no stored sample or record: no warning
+            contents = parse_image(data)
         assert np.flatnonzero(~contents.block_ok).tolist() == fields["missing_blocks"]
         ok = contents.byte_ok()
         assert bytes(contents.memory[ok]) == bytes(np.frombuffer(memory, np.uint8)[ok])
         assert contents.header.to_bytes() == header.to_bytes()
+        step_ok = contents.step_byte_ok()
+        assert step_ok.size == len(steps)
+        assert bytes(contents.step_memory[step_ok]) == bytes(np.frombuffer(steps, np.uint8)[step_ok])
+        got, usable = contents.step_records()
+        assert usable.all() and pack_step_records(got) == records
     else:  # pragma: no cover
         raise AssertionError(f"unknown example kind {kind}")
 
@@ -256,6 +319,58 @@ def test_calibration_table_matches_struct() -> None:
         if name:
             assert CALIBRATION_OFFSETS[name] == (offset, size), name
     assert pos == 64
+
+
+_TYPE_FMT = {"u8": "<B", "i8": "<b", "u16": "<H", "i32": "<l", "u32": "<L", "u16 **BE**": ">H"}
+
+
+def _typed_rows(text: str) -> list[tuple[int, int, str, str]]:
+    """(offset, size, type, field) of the rows of the first table of ``text`` (reserved rows: field '')."""
+    table = text.split("\n\n|", 1)[1]
+    out = []
+    for line in ("|" + table).splitlines():
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if cells[0].isdigit():
+            name = re.search(r"`(\w+)`", cells[3])
+            out.append((int(cells[0]), int(cells[1]), cells[2], name.group(1) if name else ""))
+    return out
+
+
+def _check_typed_table(rows: list[tuple[int, int, str, str]], offsets: dict, subcons: dict, total: int) -> None:
+    pos = 0
+    for offset, size, typ, name in rows:
+        assert offset == pos, f"gap or overlap before offset {offset}"
+        pos = offset + size
+        if name:
+            assert offsets[name] == (offset, size), name
+            assert subcons[name].fmtstr == _TYPE_FMT[typ], name
+    assert pos == total
+    assert {n for *_, n in rows if n} == {n for n in offsets if not n.startswith("reserved")}
+
+
+def test_step_config_table_matches_struct() -> None:
+    rows = _typed_rows(_section(r"2\.2 Step configuration block"))
+    subcons = {sc.name: sc.subcon for sc in STEP_CONFIG_STRUCT.subcons if sc.name}
+    _check_typed_table(rows, STEP_CONFIG_OFFSETS, subcons, 32)
+
+
+def test_step_record_table_matches_struct_and_dtype() -> None:
+    rows = _typed_rows(_section(r"2\.3 Step memory"))
+    subcons = {sc.name: sc.subcon for sc in STEP_RECORD_BODY_STRUCT.subcons}
+    subcons["record_crc"] = STEP_RECORD_STRUCT.subcons[1].subcon.checksumfield  # the Checksum's Int16ub
+    _check_typed_table(rows, STEP_RECORD_OFFSETS, subcons, 20)
+    assert [name for *_, name in rows] == list(STEP_RECORD_DTYPE.names)
+    for offset, _, _, name in rows:
+        assert STEP_RECORD_DTYPE.fields[name][1] == offset, name
+
+
+def test_step_flag_table_matches_enum() -> None:
+    text = _section(r"2\.3 Step memory")
+    rows = re.findall(r"^\| (\d) \| 0x([0-9A-F]{2}) \| (\w+) \|", text, re.M)
+    assert {name: int(v, 16) for _, v, name in rows} == {f.name: f.value for f in StepFlag}
+    assert all(int(v, 16) == 1 << int(bit) for bit, v, _ in rows)
 
 
 def test_frame_table_matches_struct() -> None:
