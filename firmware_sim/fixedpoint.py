@@ -1,9 +1,20 @@
 """The PIC16F877's integer arithmetic: Q formats, words, multiply, divide, shifts, saturation, roots.
 
-Every fixed-point algorithm of the firmware (``firmware_sim.algorithms``) computes with these functions and
-nothing else, so the device's arithmetic is defined in one place. Values are held as numpy ``int64``
-(vectorised; a scalar is a 0-d array) and every result is brought back into the word it would occupy on the
-PIC (8, 16, 24 or 32 bits, two's complement or unsigned) by an explicit saturation or wrap.
+Every fixed-point computation of the firmware (``firmware_sim.algorithms``) uses these primitives and
+nothing else, so the device's arithmetic is defined in one place.
+
+Two faces, one definition
+-------------------------
+* **Scalar definitions** (``s_mul``, ``s_mul_q``, ``s_div``, ``s_div_round``, ``s_isqrt``, ``s_add``,
+  ``s_shift_right`` ...): one PIC routine each, on Python / ``int64`` integers. They are plain Python
+  functions registered with numba (``register_jitable``), so the on-line step algorithm's per-sample
+  kernel inlines them when it is compiled and the same text runs uncompiled in Python. Each takes a counter
+  array ``cnt`` (:func:`new_counters`) in which it adds its calls, cycles, saturations, wraps and divisions
+  by zero.
+* **Array API** (:func:`mul`, :func:`mul_q`, :func:`div`, :func:`div_round`, :func:`isqrt`, :func:`add` ...):
+  the same scalar definitions applied element by element by compiled loops, for numpy arrays (broadcast,
+  ``int64``), with the counts collected in an :class:`ArithmeticContext`. This is the face the bit-exact
+  tests (apytypes) and the benchmarks use.
 
 Conventions
 -----------
@@ -14,39 +25,58 @@ Conventions
   shifts arithmetically (``(r + 2**(s-1)) >> s``: ties go towards +inf, what ``ADDLW``/``RRF`` code does),
   ``"floor"`` is the bare arithmetic shift (two's complement truncation, towards -inf).
 * Overflow: ``"saturate"`` clips to the word's range, ``"wrap"`` keeps the low bits (two's complement).
-  Every saturation, wrap, and division by zero is counted in an :class:`ArithmeticContext` when one is
-  passed, so a chain can assert that nothing saturated unreported.
-* Division (:func:`div`) is the 32/16 signed divide of AN617 (sign-magnitude around the unsigned
+  Every saturation, wrap, and division by zero is counted, so a chain can assert that nothing saturated
+  unreported; a saturation also sets the *sticky* flag (``cnt[C_STICKY]``), which the step algorithm reads
+  and clears once per step (the firmware's status bit).
+* Division (:func:`s_div`) is the 32/16 signed divide of AN617 (sign-magnitude around the unsigned
   ``FXD3216U`` routine): the quotient is truncated towards zero and the remainder takes the dividend's sign
   (``n == q·d + r``, ``|r| < |d|``). Division by zero saturates the quotient (to the word's maximum for a
-  non-negative dividend, minimum otherwise), sets the remainder to the dividend clipped to the word, and is
-  counted.
-* Square root (:func:`isqrt`) is the exact floor of the square root of a 32-bit unsigned input, what the
-  bit-by-bit shift-subtract (restoring) algorithm returns; :func:`iroot4` is ``isqrt(isqrt(x))``, which is
-  exactly ``floor(x ** (1/4))`` because ``floor(sqrt(floor(y))) == floor(sqrt(y))`` for ``y >= 0``.
+  non-negative dividend, minimum otherwise), sets the remainder to the dividend clipped to 16 bits, and is
+  counted (as a division by zero and as a saturation).
+* Square root (:func:`s_isqrt`) is the exact floor of the square root of a 32-bit unsigned input, what the
+  bit-by-bit shift-subtract (restoring) algorithm returns; ``nearest`` adds one when the remainder exceeds
+  the root. :func:`iroot4` is ``isqrt(isqrt(x))``, exactly ``floor(x ** (1/4))`` because
+  ``floor(sqrt(floor(y))) == floor(sqrt(y))`` for ``y >= 0``.
 
 Cycle costs
 -----------
-:data:`CYCLES` holds worst-case instruction cycles of each primitive on the PIC16 (one cycle = 4 clocks =
-200 ns at 20 MHz). The multiply and divide figures are Microchip AN617's (``FXM1616S`` 269, ``FXM1616U``
-256, ``FXD3216U`` 703; HARDWARE.md); the others are counted from hand-written mid-range instruction
-sequences and are estimates (marked so in :data:`CYCLE_SOURCES`). An :class:`ArithmeticContext` adds
-``CYCLES[op] * n_elements`` for every call, so the cycles per sample of a chain can be compared with the
-100,000 cycles of one 20 ms sample period at 5 MIPS (:data:`CYCLES_PER_SAMPLE_50HZ`).
+:data:`CYCLES` holds worst-case instruction cycles of each primitive on the PIC16 (one cycle = 4 clocks).
+The multiply and divide figures are Microchip AN617's (``FXM1616S`` 269, ``FXM1616U`` 256, ``FXD3216U`` 703;
+HARDWARE.md); the I2C byte is computed from the bus clock; the others are counted from hand-written
+mid-range instruction sequences and are estimates (marked so in :data:`CYCLE_SOURCES`). Every scalar call
+adds ``CYCLES[op]`` to the counters, so a kernel's cycles per sample (mean and worst) can be compared with
+the cycles one sample period offers (:func:`cycles_per_sample_available`).
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+import firmware_sim.compiled  # noqa: F401  (numba's cache folder, before any cache=True below)
+from numba import njit
+from numba.extending import register_jitable
+
 __all__ = [
     "CYCLES",
     "CYCLE_SOURCES",
+    "OPS",
+    "CYCLE_TABLE",
+    "I2C_BYTE_CYCLES",
+    "DEFAULT_FOSC_HZ",
     "CYCLES_PER_SAMPLE_50HZ",
+    "cycles_per_sample_available",
+    "N_COUNTERS",
+    "C_SAT",
+    "C_WRAP",
+    "C_DIV0",
+    "C_STICKY",
+    "C_CYCLES",
+    "new_counters",
     "ArithmeticContext",
     "Overflow",
     "QFormat",
@@ -66,12 +96,44 @@ __all__ = [
     "sub",
     "word_limits",
     "wrap",
+    "s_add",
+    "s_cost",
+    "s_div",
+    "s_div_round",
+    "s_from_float",
+    "s_isqrt",
+    "s_mul",
+    "s_mul_q",
+    "s_overflow",
+    "s_requantize",
+    "s_shift_left",
+    "s_shift_right",
+    "s_sub",
+    "s_word_hi",
+    "s_word_lo",
 ]
 
 Rounding = Literal["half_up", "floor"]
 Overflow = Literal["saturate", "wrap"]
 
-#: Instruction cycles available per sample at 50 Hz and 5 MIPS (20 MHz clock / 4).
+#: The logger's crystal: 18.432 MHz, a baud-rate crystal (``firmware_sim.uart``); 4 clocks per cycle.
+DEFAULT_FOSC_HZ = 18_432_000.0
+#: I2C master at 400 kHz nominal: SSPADD = round(fosc / (4 · 400 kHz)) - 1 = 10, so one SCL period is 11
+#: instruction cycles (419 kHz) and a byte with its acknowledge (9 SCL periods) 99 cycles of a busy-waiting
+#: master (computed; PIC16F87X datasheet, MSSP baud rate ``fosc / (4 (SSPADD + 1))``).
+I2C_BYTE_CYCLES = 9 * 11
+
+
+def cycles_per_sample_available(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ) -> float:
+    """Instruction cycles in one sample period: ``fosc / 4 / fs``.
+
+    >>> cycles_per_sample_available(50.0), cycles_per_sample_available(50.0, 20e6)
+    (92160.0, 100000.0)
+    """
+    return fosc_hz / 4.0 / sampling_rate_hz
+
+
+#: Instruction cycles available per sample at 50 Hz and 5 MIPS (20 MHz clock / 4), the PIC's fastest.
 CYCLES_PER_SAMPLE_50HZ = 100_000
 
 #: Worst-case PIC16 instruction cycles per element of each primitive (see :data:`CYCLE_SOURCES`).
@@ -90,7 +152,9 @@ CYCLES: dict[str, int] = {
     "isqrt32": 560,    # restoring shift-subtract, 16 rounds of ~35 cycles on 32/16-bit words (estimate)
     "compare16": 8,
     "compare32": 16,
-    "load_eeprom_sample": 400,  # 4-byte I2C random read at 400 kHz: ~80 us = 400 cycles (estimate)
+    "i2c_byte": I2C_BYTE_CYCLES,   # one byte on the I2C bus to/from an external EEPROM (computed above)
+    "data_eeprom_byte": 8,  # read one byte of the PIC's data EEPROM: bank select, EEADR, RD, EEDATA (estimate)
+    "ram_copy8": 4,     # move one byte between RAM locations through W (MOVF/MOVWF; estimate)
 }
 
 #: Where each :data:`CYCLES` figure comes from.
@@ -98,11 +162,32 @@ CYCLE_SOURCES: dict[str, str] = {
     "mul16x16s": "Microchip AN617, FXM1616S worst case",
     "mul16x16u": "Microchip AN617, FXM1616U worst case",
     "div32by16u": "Microchip AN617, FXD3216U worst case",
+    "i2c_byte": "computed: 9 SCL periods of 11 cycles (SSPADD = 10 at 18.432 MHz, 419 kHz)",
     **{k: "estimate: counted from a hand-written PIC16 instruction sequence"
        for k in ("add16", "add32", "sat16", "sat32", "shift32_per_bit", "round32", "compare16", "compare32",
-                 "mul8x8u", "div32by16s", "isqrt32")},
-    "load_eeprom_sample": "estimate: 24LC1025 random read, 4 data bytes + 3 address bytes at 400 kHz",
+                 "mul8x8u", "div32by16s", "isqrt32", "data_eeprom_byte", "ram_copy8")},
 }
+
+#: The primitives in counter order (``cnt[i]`` counts calls of ``OPS[i]``).
+OPS: tuple[str, ...] = tuple(CYCLES)
+#: ``CYCLES`` as an array in :data:`OPS` order (compiled in as a constant).
+CYCLE_TABLE = np.array([CYCLES[k] for k in OPS], dtype=np.int64)
+
+OP_ADD16, OP_ADD32, OP_SAT16, OP_SAT32, OP_SHIFT, OP_ROUND, OP_MULS, OP_MULU, OP_MUL8, OP_DIVU, OP_DIVS, \
+    OP_ISQRT, OP_CMP16, OP_CMP32, OP_I2C, OP_DEE, OP_COPY = range(len(OPS))
+
+#: Counter slots after the per-primitive call counts.
+C_SAT = len(OPS)          # elements saturated
+C_WRAP = C_SAT + 1        # elements wrapped
+C_DIV0 = C_SAT + 2        # divisions by zero (also counted as saturations)
+C_STICKY = C_SAT + 3      # sticky saturation flag (1 after any saturation until cleared)
+C_CYCLES = C_SAT + 4      # cycles counted since the slot was last cleared
+N_COUNTERS = C_SAT + 5
+
+
+def new_counters() -> np.ndarray:
+    """A zeroed counter array for the scalar primitives."""
+    return np.zeros(N_COUNTERS, dtype=np.int64)
 
 
 def word_limits(bits: int, signed: bool = True) -> tuple[int, int]:
@@ -113,9 +198,265 @@ def word_limits(bits: int, signed: bool = True) -> tuple[int, int]:
     """
     if not 1 <= bits <= 62:
         raise ValueError(f"word width must be 1-62 bits, got {bits}")
-    if signed:
-        return -(1 << (bits - 1)), (1 << (bits - 1)) - 1
-    return 0, (1 << bits) - 1
+    return s_word_lo(bits, signed), s_word_hi(bits, signed)
+
+
+# ---------------------------------------------------------------------------------------------------
+# scalar definitions (numba inlines them; they also run as plain Python)
+
+
+@register_jitable
+def s_word_lo(bits, signed):
+    """Smallest integer of a word."""
+    return -(1 << (bits - 1)) if signed else 0
+
+
+@register_jitable
+def s_word_hi(bits, signed):
+    """Largest integer of a word."""
+    return (1 << (bits - 1)) - 1 if signed else (1 << bits) - 1
+
+
+@register_jitable
+def s_cost(cnt, op, n):
+    """Count ``n`` executions of primitive ``op`` (an index into :data:`OPS`)."""
+    cnt[op] += n
+    cnt[C_CYCLES] += CYCLE_TABLE[op] * n
+
+
+@register_jitable
+def s_overflow(x, bits, signed, wrap, cnt):
+    """``x`` brought into a ``bits``-bit word: clipped (counted, sticky flag) or wrapped (counted)."""
+    lo = s_word_lo(bits, signed)
+    hi = s_word_hi(bits, signed)
+    if lo <= x <= hi:
+        return x
+    if wrap:
+        y = x & ((1 << bits) - 1)
+        if signed and y > hi:
+            y -= 1 << bits
+        cnt[C_WRAP] += 1
+        return y
+    cnt[C_SAT] += 1
+    cnt[C_STICKY] = 1
+    return lo if x < lo else hi
+
+
+@register_jitable
+def s_shift_right(x, s, half_up, cnt):
+    """Drop ``s >= 0`` fraction bits: ``(x + 2**(s-1)) >> s`` (``half_up``) or ``x >> s``."""
+    if s == 0:
+        return x
+    s_cost(cnt, OP_SHIFT, s)
+    if half_up:
+        s_cost(cnt, OP_ROUND, 1)
+        return (x + (1 << (s - 1))) >> s
+    return x >> s
+
+
+@register_jitable
+def s_shift_left(x, s, bits, signed, wrap, cnt):
+    """``x * 2**s`` brought into a ``bits``-bit word."""
+    s_cost(cnt, OP_SHIFT, s)
+    return s_overflow(x << s, bits, signed, wrap, cnt)
+
+
+@register_jitable
+def s_requantize(x, d, bits, signed, half_up, wrap, cnt):
+    """Re-express ``x`` with ``d`` more fraction bits (``d < 0``: fewer, rounded), in a ``bits``-bit word."""
+    if d >= 0:
+        return s_shift_left(x, d, bits, signed, wrap, cnt)
+    return s_overflow(s_shift_right(x, -d, half_up, cnt), bits, signed, wrap, cnt)
+
+
+@register_jitable
+def s_add(a, b, bits, signed, wrap, cnt):
+    """``a + b`` in a ``bits``-bit word (operands in the same Q format)."""
+    s_cost(cnt, OP_ADD16 if bits <= 16 else OP_ADD32, 1)
+    if not wrap:
+        s_cost(cnt, OP_SAT16 if bits <= 16 else OP_SAT32, 1)
+    return s_overflow(a + b, bits, signed, wrap, cnt)
+
+
+@register_jitable
+def s_sub(a, b, bits, signed, wrap, cnt):
+    """``a - b`` in a ``bits``-bit word."""
+    return s_add(a, -b, bits, signed, wrap, cnt)
+
+
+@register_jitable
+def s_mul(a, b, signed, cnt):
+    """Exact 16 x 16 -> 32-bit product (AN617 ``FXM1616S``/``FXM1616U``); operands must fit 16 bits."""
+    lo = s_word_lo(16, signed)
+    hi = s_word_hi(16, signed)
+    if a < lo or a > hi or b < lo or b > hi:
+        raise ValueError("mul operands must be 16-bit words")
+    s_cost(cnt, OP_MULS if signed else OP_MULU, 1)
+    return a * b
+
+
+@register_jitable
+def s_mul_q(a, b, shift, bits, signed, half_up, wrap, cnt):
+    """Q multiply: the 32-bit product shifted right by ``shift`` (rounded), then into a ``bits``-bit word.
+
+    A negative ``shift`` moves the product left (more fraction bits in the result than in the product).
+    """
+    p = s_mul(a, b, signed, cnt)
+    r = s_shift_right(p, shift, half_up, cnt) if shift >= 0 else p << -shift
+    if not wrap:
+        s_cost(cnt, OP_SAT16 if bits <= 16 else OP_SAT32, 1)
+    return s_overflow(r, bits, signed, wrap, cnt)
+
+
+@register_jitable
+def s_div(n, d, bits, signed, cnt):
+    """32 / 16-bit division: quotient truncated towards zero (into a ``bits``-bit word), remainder with the
+    dividend's sign; ``d == 0`` saturates (counted)."""
+    if n < s_word_lo(32, signed) or n > s_word_hi(32, signed) or d < s_word_lo(16, signed) \
+            or d > s_word_hi(16, signed):
+        raise ValueError("div takes a 32-bit dividend and a 16-bit divisor")
+    s_cost(cnt, OP_DIVS if signed else OP_DIVU, 1)
+    if d == 0:
+        cnt[C_DIV0] += 1
+        cnt[C_SAT] += 1
+        cnt[C_STICKY] = 1
+        r = n
+        if r > s_word_hi(16, signed):
+            r = s_word_hi(16, signed)
+        if r < s_word_lo(16, signed):
+            r = s_word_lo(16, signed)
+        return (s_word_hi(bits, signed) if n >= 0 else s_word_lo(bits, signed)), r
+    q = abs(n) // abs(d)
+    if (n < 0) != (d < 0):
+        q = -q
+    return s_overflow(q, bits, signed, False, cnt), n - q * d
+
+
+@register_jitable
+def s_div_round(n, d, bits, signed, cnt):
+    """32 / 16-bit division rounded to nearest, ties away from zero: ``sign·((|n| + |d| // 2) // |d|)``."""
+    if n < s_word_lo(32, signed) or n > s_word_hi(32, signed) or d < s_word_lo(16, signed) \
+            or d > s_word_hi(16, signed):
+        raise ValueError("div takes a 32-bit dividend and a 16-bit divisor")
+    s_cost(cnt, OP_DIVS if signed else OP_DIVU, 1)
+    s_cost(cnt, OP_ADD32, 1)
+    if d == 0:
+        cnt[C_DIV0] += 1
+        cnt[C_SAT] += 1
+        cnt[C_STICKY] = 1
+        return s_word_hi(bits, signed) if n >= 0 else s_word_lo(bits, signed)
+    ad = abs(d)
+    q = (abs(n) + (ad >> 1)) // ad
+    if (n < 0) != (d < 0):
+        q = -q
+    return s_overflow(q, bits, signed, False, cnt)
+
+
+@register_jitable
+def s_isqrt(x, nearest, cnt):
+    """``floor(sqrt(x))`` of an unsigned 32-bit integer (``nearest``: rounded to the nearest integer)."""
+    if x < 0 or x > 4294967295:
+        raise ValueError("isqrt takes unsigned 32-bit integers (0 .. 2**32 - 1)")
+    s_cost(cnt, OP_ISQRT, 1)
+    r = int(math.sqrt(float(x)))       # within one of the truth below 2**32; corrected exactly
+    if r * r > x:
+        r -= 1
+    if (r + 1) * (r + 1) <= x:
+        r += 1
+    if nearest:
+        s_cost(cnt, OP_CMP16, 1)
+        if x - r * r > r:
+            r += 1
+    return r
+
+
+@register_jitable
+def s_from_float(v, frac, bits, signed, half_up, wrap, cnt):
+    """Quantise a real value to a raw integer with ``frac`` fraction bits (``floor(v·2**frac + 1/2)``)."""
+    y = v * 2.0 ** frac
+    y = math.floor(y + 0.5) if half_up else math.floor(y)
+    lim = 4611686018427387904.0       # 2**62: beyond any word, still exact in int64
+    if y > lim:
+        y = lim
+    if y < -lim:
+        y = -lim
+    return s_overflow(int(y), bits, signed, wrap, cnt)
+
+
+# ---------------------------------------------------------------------------------------------------
+# compiled element loops of the array API (each applies one scalar definition)
+
+
+@njit(cache=True)
+def _loop_overflow(x, bits, signed, wrap, out, cnt):  # pragma: no cover - compiled
+    for i in range(x.size):
+        out[i] = s_overflow(x[i], bits, signed, wrap, cnt)
+
+
+@njit(cache=True)
+def _loop_shift_right(x, s, half_up, out, cnt):  # pragma: no cover - compiled
+    for i in range(x.size):
+        out[i] = s_shift_right(x[i], s, half_up, cnt)
+
+
+@njit(cache=True)
+def _loop_requantize(x, d, bits, signed, half_up, wrap, out, cnt):  # pragma: no cover - compiled
+    for i in range(x.size):
+        out[i] = s_requantize(x[i], d, bits, signed, half_up, wrap, cnt)
+
+
+@njit(cache=True)
+def _loop_add(a, b, bits, signed, wrap, out, cnt):  # pragma: no cover - compiled
+    for i in range(a.size):
+        out[i] = s_add(a[i], b[i], bits, signed, wrap, cnt)
+
+
+@njit(cache=True)
+def _loop_cumsum(a, bits, signed, wrap, out, cnt):  # pragma: no cover - compiled
+    acc = 0
+    for i in range(a.size):
+        acc = s_add(acc, a[i], bits, signed, wrap, cnt)
+        out[i] = acc
+
+
+@njit(cache=True)
+def _loop_mul_q(a, b, shift, bits, signed, half_up, wrap, out, cnt):  # pragma: no cover - compiled
+    for i in range(a.size):
+        out[i] = s_mul_q(a[i], b[i], shift, bits, signed, half_up, wrap, cnt)
+
+
+@njit(cache=True)
+def _loop_mul(a, b, signed, out, cnt):  # pragma: no cover - compiled
+    for i in range(a.size):
+        out[i] = s_mul(a[i], b[i], signed, cnt)
+
+
+@njit(cache=True)
+def _loop_div(n, d, bits, signed, q, r, cnt):  # pragma: no cover - compiled
+    for i in range(n.size):
+        q[i], r[i] = s_div(n[i], d[i], bits, signed, cnt)
+
+
+@njit(cache=True)
+def _loop_div_round(n, d, bits, signed, out, cnt):  # pragma: no cover - compiled
+    for i in range(n.size):
+        out[i] = s_div_round(n[i], d[i], bits, signed, cnt)
+
+
+@njit(cache=True)
+def _loop_isqrt(x, nearest, out, cnt):  # pragma: no cover - compiled
+    for i in range(x.size):
+        out[i] = s_isqrt(x[i], nearest, cnt)
+
+
+@njit(cache=True)
+def _loop_from_float(v, frac, bits, signed, half_up, wrap, out, cnt):  # pragma: no cover - compiled
+    for i in range(v.size):
+        out[i] = s_from_float(v[i], frac, bits, signed, half_up, wrap, cnt)
+
+
+# ---------------------------------------------------------------------------------------------------
+# formats
 
 
 @dataclass(frozen=True)
@@ -209,14 +550,12 @@ class QFormat:
         ctx: ArithmeticContext | None = None,
     ) -> np.ndarray:
         """Quantise real values to raw integers (``half_up``: ``floor(x·2**n + 1/2)``; ``floor``), then
-        saturate or wrap. NaN is an error (a firmware never sees one)."""
-        v = np.asarray(x, dtype=np.float64) * 2.0 ** self.frac_bits
+        saturate or wrap (:func:`s_from_float`). NaN is an error (a firmware never sees one)."""
+        v = np.asarray(x, dtype=np.float64)
         if not np.all(np.isfinite(v)):
             raise ValueError(f"cannot quantise non-finite values to {self}")
-        v = np.floor(v + 0.5) if rounding == "half_up" else np.floor(v)
-        lim = float(2 ** 62)
-        raw = np.clip(v, -lim, lim).astype(np.int64)
-        return _overflow(raw, self.total_bits, self.signed, overflow, ctx, "from_float")
+        return _apply(_loop_from_float, ctx, "from_float", v, self.frac_bits, self.total_bits, self.signed,
+                      _half_up(rounding), _wraps(overflow))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -227,7 +566,8 @@ class QFormat:
 class ArithmeticContext:
     """Counts what the arithmetic did: saturations and wraps per operation, divisions by zero, cycles.
 
-    Pass one to every primitive of a chain (keyword ``ctx``); read it afterwards.
+    Pass one to every primitive of the array API (keyword ``ctx``); read it afterwards. A counter array of
+    the scalar primitives (:func:`new_counters`) is added with :meth:`absorb`.
 
     Attributes
     ----------
@@ -236,7 +576,7 @@ class ArithmeticContext:
     wrapped
         ``Counter`` of elements whose value wrapped around, keyed by operation name.
     div_by_zero
-        Number of divisions by zero (each also counted in ``saturated["div"]``).
+        Number of divisions by zero (each also counted in ``saturated``).
     cycles
         ``Counter`` of estimated PIC cycles per :data:`CYCLES` key.
     calls
@@ -264,6 +604,17 @@ class ArithmeticContext:
         self.calls[op] += int(n)
         self.cycles[op] += CYCLES[op] * int(n)
 
+    def absorb(self, cnt: np.ndarray, op: str) -> None:
+        """Add a counter array of the scalar primitives; its saturations and wraps are attributed to ``op``."""
+        for i, name in enumerate(OPS):
+            if cnt[i]:
+                self.cost(name, int(cnt[i]))
+        if cnt[C_SAT]:
+            self.saturated[op] += int(cnt[C_SAT])
+        if cnt[C_WRAP]:
+            self.wrapped[op] += int(cnt[C_WRAP])
+        self.div_by_zero += int(cnt[C_DIV0])
+
     @property
     def total_saturated(self) -> int:
         """Elements clipped by any operation."""
@@ -280,7 +631,7 @@ class ArithmeticContext:
         return int(sum(self.cycles.values()))
 
     def cycles_per_sample(self, n_samples: int) -> float:
-        """Mean estimated cycles per input sample (compare with :data:`CYCLES_PER_SAMPLE_50HZ`)."""
+        """Mean estimated cycles per input sample (compare with :func:`cycles_per_sample_available`)."""
         return self.total_cycles / max(1, int(n_samples))
 
     def report(self) -> str:
@@ -296,44 +647,15 @@ class ArithmeticContext:
 
 
 # ---------------------------------------------------------------------------------------------------
-# word handling
+# array API
 
 
-def _limits_of(fmt: QFormat | int, signed: bool) -> tuple[int, int, int, bool]:
+def _bits_of(fmt: QFormat | int, signed: bool) -> tuple[int, bool]:
     if isinstance(fmt, QFormat):
-        return (*word_limits(fmt.total_bits, fmt.signed), fmt.total_bits, fmt.signed)
-    lo, hi = word_limits(int(fmt), signed)
-    return lo, hi, int(fmt), signed
-
-
-def _overflow(x: np.ndarray, bits: int, signed: bool, mode: Overflow, ctx: ArithmeticContext | None,
-              op: str) -> np.ndarray:
-    lo, hi = word_limits(bits, signed)
-    if mode in ("saturate", "wrap") and _within(x, lo, hi):
-        return x                     # nothing to do (the common case: two fast reductions)
-    if mode == "saturate":
-        out = np.minimum(np.maximum(x, lo), hi)
-        if ctx is not None:
-            n = int(np.count_nonzero((x < lo) | (x > hi)))
-            if n:
-                ctx.saturated[op] += n
-        return out
-    if mode == "wrap":
-        mask = (1 << bits) - 1
-        out = x & mask
-        if signed:
-            out = np.where(out > hi, out - (1 << bits), out)
-        if ctx is not None:
-            n = int(np.count_nonzero(out != x))
-            if n:
-                ctx.wrapped[op] += n
-        return out
-    raise ValueError(f"overflow must be 'saturate' or 'wrap', got {mode!r}")
-
-
-def _within(x: np.ndarray, lo: int, hi: int) -> bool:
-    """All of ``x`` inside ``[lo, hi]`` (two reductions)."""
-    return x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)
+        return fmt.total_bits, fmt.signed
+    bits = int(fmt)
+    word_limits(bits, signed)          # validates the width
+    return bits, signed
 
 
 def _as_int(x: np.ndarray | int) -> np.ndarray:
@@ -343,18 +665,48 @@ def _as_int(x: np.ndarray | int) -> np.ndarray:
     return a.astype(np.int64, copy=False)
 
 
+def _half_up(rounding: str) -> bool:
+    if rounding not in ("half_up", "floor"):
+        raise ValueError(f"rounding must be 'half_up' or 'floor', got {rounding!r}")
+    return rounding == "half_up"
+
+
+def _wraps(overflow: str) -> bool:
+    if overflow not in ("saturate", "wrap"):
+        raise ValueError(f"overflow must be 'saturate' or 'wrap', got {overflow!r}")
+    return overflow == "wrap"
+
+
+def _within(x: np.ndarray, lo: int, hi: int) -> bool:
+    """All of ``x`` inside ``[lo, hi]`` (two reductions)."""
+    return x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)
+
+
+def _apply(loop, ctx: ArithmeticContext | None, op: str, *args):
+    """Run an element loop over the broadcast array arguments (the leading ndarrays of ``args``)."""
+    n_arr = 0
+    while n_arr < len(args) and isinstance(args[n_arr], np.ndarray):
+        n_arr += 1
+    arrays = np.broadcast_arrays(*args[:n_arr]) if n_arr > 1 else [args[0]]
+    shape = arrays[0].shape
+    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
+    out = np.empty(shape, np.int64)
+    cnt = new_counters()
+    loop(*flat, *args[n_arr:], out.reshape(-1), cnt)
+    if ctx is not None:
+        ctx.absorb(cnt, op)
+    return out
+
+
 def saturate(x: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True,
              ctx: ArithmeticContext | None = None, op: str = "saturate") -> np.ndarray:
     """Clip raw integers to the range of ``fmt`` (a :class:`QFormat` or a word width in bits).
 
-    Like every primitive here, it may return its (int64) input itself when nothing changes: do not modify
-    a result in place if its input must stay intact.
-
     >>> saturate(np.array([-200, 100, 200]), 8).tolist()
     [-128, 100, 127]
     """
-    _, _, bits, sgn = _limits_of(fmt, signed)
-    return _overflow(_as_int(x), bits, sgn, "saturate", ctx, op)
+    bits, sgn = _bits_of(fmt, signed)
+    return _apply(_loop_overflow, ctx, op, _as_int(x), bits, sgn, False)
 
 
 def wrap(x: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True,
@@ -364,8 +716,8 @@ def wrap(x: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True,
     >>> wrap(np.array([128, -129, 300]), 8).tolist(), wrap(np.array([-1, 256]), 8, signed=False).tolist()
     ([-128, 127, 44], [255, 0])
     """
-    _, _, bits, sgn = _limits_of(fmt, signed)
-    return _overflow(_as_int(x), bits, sgn, "wrap", ctx, op)
+    bits, sgn = _bits_of(fmt, signed)
+    return _apply(_loop_overflow, ctx, op, _as_int(x), bits, sgn, True)
 
 
 def shift_right(x: np.ndarray | int, s: int, *, rounding: Rounding = "half_up",
@@ -380,20 +732,9 @@ def shift_right(x: np.ndarray | int, s: int, *, rounding: Rounding = "half_up",
     >>> shift_right(np.array([3, -3]), 1, rounding="floor").tolist()
     [1, -2]
     """
-    a = _as_int(x)
     if s < 0:
         raise ValueError(f"shift must be >= 0, got {s}")
-    if ctx is not None:
-        ctx.cost("shift32_per_bit", a.size * s)
-        if rounding == "half_up" and s:
-            ctx.cost("round32", a.size)
-    if s == 0:
-        return a.copy()
-    if rounding == "half_up":
-        return (a + (1 << (s - 1))) >> s
-    if rounding == "floor":
-        return a >> s
-    raise ValueError(f"rounding must be 'half_up' or 'floor', got {rounding!r}")
+    return _apply(_loop_shift_right, ctx, "shift_right", _as_int(x), int(s), _half_up(rounding))
 
 
 def shift_left(x: np.ndarray | int, s: int, fmt: QFormat | int, *, signed: bool = True,
@@ -403,13 +744,10 @@ def shift_left(x: np.ndarray | int, s: int, fmt: QFormat | int, *, signed: bool 
     >>> shift_left(np.array([1, 20000]), 1, 16).tolist()
     [2, 32767]
     """
-    a = _as_int(x)
     if s < 0:
         raise ValueError(f"shift must be >= 0, got {s}")
-    _, _, bits, sgn = _limits_of(fmt, signed)
-    if ctx is not None:
-        ctx.cost("shift32_per_bit", a.size * s)
-    return _overflow(a << s, bits, sgn, overflow, ctx, "shift_left")
+    bits, sgn = _bits_of(fmt, signed)
+    return _apply(_loop_requantize, ctx, "shift_left", _as_int(x), int(s), bits, sgn, True, _wraps(overflow))
 
 
 def requantize(x: np.ndarray | int, src: QFormat, dst: QFormat, *, rounding: Rounding = "half_up",
@@ -419,12 +757,9 @@ def requantize(x: np.ndarray | int, src: QFormat, dst: QFormat, *, rounding: Rou
     >>> requantize(np.array([12345, -12345]), QFormat(15, 16, word_bits=32), QFormat(7, 8)).tolist()
     [48, -48]
     """
-    a = _as_int(x)
     d = dst.frac_bits - src.frac_bits
-    if d >= 0:
-        return shift_left(a, d, dst, overflow=overflow, ctx=ctx)
-    return _overflow(shift_right(a, -d, rounding=rounding, ctx=ctx), dst.total_bits, dst.signed, overflow,
-                     ctx, "requantize")
+    return _apply(_loop_requantize, ctx, "shift_left" if d >= 0 else "requantize", _as_int(x), d,
+                  dst.total_bits, dst.signed, _half_up(rounding), _wraps(overflow))
 
 
 def add(a: np.ndarray | int, b: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True,
@@ -436,13 +771,8 @@ def add(a: np.ndarray | int, b: np.ndarray | int, fmt: QFormat | int, *, signed:
     >>> add(np.array([30000]), np.array([30000]), 16, overflow="wrap").tolist()
     [-5536]
     """
-    x, y = _as_int(a), _as_int(b)
-    _, _, bits, sgn = _limits_of(fmt, signed)
-    if ctx is not None:
-        n = np.broadcast(x, y).size
-        ctx.cost("add16" if bits <= 16 else "add32", n)
-        ctx.cost("sat16" if bits <= 16 else "sat32", n) if overflow == "saturate" else None
-    return _overflow(x + y, bits, sgn, overflow, ctx, op)
+    bits, sgn = _bits_of(fmt, signed)
+    return _apply(_loop_add, ctx, op, _as_int(a), _as_int(b), bits, sgn, _wraps(overflow))
 
 
 def sub(a: np.ndarray | int, b: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True,
@@ -459,10 +789,6 @@ def cumsum(x: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True, over
            ctx: ArithmeticContext | None = None, op: str = "cumsum") -> np.ndarray:
     """Running sum of a 1-D array in an accumulator word, saturating at each step or wrapping.
 
-    Wrap is a ring homomorphism, so the wrapped running sum is the wrapped exact running sum (one
-    vectorised pass). A saturating accumulator is recursive: the exact running sum is used up to the first
-    sample that leaves the range, and a per-sample loop (the firmware's) continues from there.
-
     >>> cumsum(np.array([100, 100, -50, 100]), 8).tolist()
     [100, 127, 77, 127]
     >>> cumsum(np.array([100, 100, -50]), 8, overflow="wrap").tolist()
@@ -471,38 +797,8 @@ def cumsum(x: np.ndarray | int, fmt: QFormat | int, *, signed: bool = True, over
     a = _as_int(x)
     if a.ndim != 1:
         raise ValueError(f"cumsum takes a 1-D array, got shape {a.shape}")
-    lo, hi, bits, sgn = _limits_of(fmt, signed)
-    if ctx is not None:
-        ctx.cost("add16" if bits <= 16 else "add32", a.size)
-    exact = np.cumsum(a)
-    if overflow == "wrap":
-        return _overflow(exact, bits, sgn, "wrap", ctx, op)
-    if overflow != "saturate":
-        raise ValueError(f"overflow must be 'saturate' or 'wrap', got {overflow!r}")
-    if ctx is not None:
-        ctx.cost("sat16" if bits <= 16 else "sat32", a.size)
-    bad = np.flatnonzero((exact < lo) | (exact > hi))
-    if bad.size == 0:
-        return exact
-    out = exact.copy()
-    k0 = int(bad[0])
-    acc = int(exact[k0 - 1]) if k0 else 0
-    n_sat = 0
-    vals = a.tolist()
-    for k in range(k0, a.size):  # recursive: the clipped state feeds the next sample
-        acc += vals[k]
-        if acc > hi:
-            acc, n_sat = hi, n_sat + 1
-        elif acc < lo:
-            acc, n_sat = lo, n_sat + 1
-        out[k] = acc
-    if ctx is not None and n_sat:
-        ctx.saturated[op] += n_sat
-    return out
-
-
-# ---------------------------------------------------------------------------------------------------
-# multiply, divide
+    bits, sgn = _bits_of(fmt, signed)
+    return _apply(_loop_cumsum, ctx, op, a, bits, sgn, _wraps(overflow))
 
 
 def mul(a: np.ndarray | int, b: np.ndarray | int, *, signed: bool = True,
@@ -516,9 +812,7 @@ def mul(a: np.ndarray | int, b: np.ndarray | int, *, signed: bool = True,
     lo, hi = word_limits(16, signed)
     if not (_within(x, lo, hi) and _within(y, lo, hi)):
         raise ValueError(f"mul operands must be {'signed' if signed else 'unsigned'} 16-bit ({lo}..{hi})")
-    if ctx is not None:
-        ctx.cost("mul16x16s" if signed else "mul16x16u", np.broadcast(x, y).size)
-    return x * y
+    return _apply(_loop_mul, ctx, "mul", x, y, bool(signed))
 
 
 def mul_q(a: np.ndarray | int, b: np.ndarray | int, shift: int, out: QFormat | int, *,
@@ -527,37 +821,30 @@ def mul_q(a: np.ndarray | int, b: np.ndarray | int, shift: int, out: QFormat | i
     """Q multiply: the 32-bit product shifted right by ``shift`` with rounding, then saturated or wrapped.
 
     ``shift = frac(a) + frac(b) - frac(out)``; Q0.15 x Q0.15 -> Q0.15: ``shift = 15``. A negative
-    ``shift`` moves the product left (more fraction bits in ``out`` than in the product).
+    ``shift`` moves the product left (more fraction bits in ``out`` than in the product). The operands are
+    ``signed`` (or unsigned) 16-bit words; the result takes the signedness of ``out`` when it is a
+    :class:`QFormat`, of ``signed`` otherwise.
 
     >>> q15 = QFormat(0, 15)
     >>> mul_q(np.array([16384, -32768]), np.array([16384, -32768]), 15, q15).tolist()   # 0.25, +1 saturates
     [8192, 32767]
     """
-    p = mul(a, b, signed=signed, ctx=ctx)
-    r = shift_right(p, shift, rounding=rounding, ctx=ctx) if shift >= 0 else p << -shift
-    _, _, bits, sgn = _limits_of(out, signed)
-    if ctx is not None and overflow == "saturate":
-        ctx.cost("sat16" if bits <= 16 else "sat32", r.size)
-    return _overflow(r, bits, sgn, overflow, ctx, op)
+    x, y = _as_int(a), _as_int(b)
+    lo, hi = word_limits(16, signed)
+    if not (_within(x, lo, hi) and _within(y, lo, hi)):
+        raise ValueError(f"mul operands must be {'signed' if signed else 'unsigned'} 16-bit ({lo}..{hi})")
+    bits, sgn = _bits_of(out, signed)
+    if sgn != signed:      # the routine's word follows the operands; the result is then brought into `out`
+        r = _apply(_loop_mul_q, ctx, op, x, y, int(shift), 62, bool(signed), _half_up(rounding), False)
+        return _apply(_loop_overflow, ctx, op, r, bits, sgn, _wraps(overflow))
+    return _apply(_loop_mul_q, ctx, op, x, y, int(shift), bits, sgn, _half_up(rounding), _wraps(overflow))
 
 
-def _div_operands(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int, signed: bool,
-                  ctx: ArithmeticContext | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, tuple]:
-    """Checked 32-bit dividend and 16-bit divisor of :func:`div` / :func:`div_round`, broadcast; the divisor with
-    zeros replaced by 1 (``safe``), the zero mask and count, the output limits; the divide's cycles counted."""
-    x, y = _as_int(n), _as_int(d)
+def _div_check(n: np.ndarray, d: np.ndarray, signed: bool) -> None:
     xl, xh = word_limits(32, signed)
     yl, yh = word_limits(16, signed)
-    if not (_within(x, xl, xh) and _within(y, yl, yh)):
+    if not (_within(n, xl, xh) and _within(d, yl, yh)):
         raise ValueError(f"div takes a {'signed' if signed else 'unsigned'} 32-bit dividend and 16-bit divisor")
-    if x.shape != y.shape:
-        x, y = np.broadcast_arrays(x, y)
-    if ctx is not None:
-        ctx.cost("div32by16s" if signed else "div32by16u", x.size)
-    zero = y == 0
-    nz = int(np.count_nonzero(zero))
-    safe = np.where(zero, 1, y) if nz else y
-    return x, y, safe, zero, nz, _limits_of(out, signed)
 
 
 def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, signed: bool = True,
@@ -586,20 +873,18 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     >>> q.tolist(), r.tolist()
     ([3, -3, -3, 3, 2147483647], [1, -1, 1, -1, 5])
     """
-    x, y, safe, zero, nz, (lo, hi, bits, sgn) = _div_operands(n, d, out, signed, ctx)
-    # magnitudes: truncation towards zero. The float64 quotient of |n| < 2**31 by |d| < 2**16 is never
-    # rounded up to the next integer (the gap 1/|d| >= 2**-16 exceeds the rounding error q * 2**-53), so
-    # its floor is the exact integer quotient (and much faster than numpy's integer division).
-    q = np.floor(np.abs(x) / np.abs(safe)).astype(np.int64)
-    np.negative(q, out=q, where=(x ^ safe) < 0)
-    r = x - q * safe
-    if nz:
-        q = np.where(zero, np.where(x >= 0, hi, lo), q)
-        r = np.where(zero, np.clip(x, *word_limits(16, signed)), r)
-        if ctx is not None:
-            ctx.div_by_zero += nz
-            ctx.saturated[op] += nz
-    return _overflow(q, bits, sgn, "saturate", ctx, op), r
+    x, y = _as_int(n), _as_int(d)
+    _div_check(x, y, signed)
+    bits, sgn = _bits_of(out, signed)
+    xb, yb = np.broadcast_arrays(x, y)
+    q = np.empty(xb.shape, np.int64)
+    r = np.empty(xb.shape, np.int64)
+    cnt = new_counters()
+    _loop_div(np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1), bits, bool(signed),
+              q.reshape(-1), r.reshape(-1), cnt)
+    if ctx is not None:
+        ctx.absorb(cnt, op)
+    return q, r
 
 
 def div_round(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, signed: bool = True,
@@ -613,24 +898,10 @@ def div_round(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32,
     >>> div_round(np.array([7, -7, 5, -5, 4, 1]), np.array([2, 2, 2, 2, 3, 0])).tolist()
     [4, -4, 3, -3, 1, 2147483647]
     """
-    x, y, safe, zero, nz, (lo, hi, bits, sgn) = _div_operands(n, d, out, signed, ctx)
-    if ctx is not None:
-        ctx.cost("add32", x.size)
-    ay = np.abs(safe)
-    res = np.floor((np.abs(x) + (ay >> 1)) / ay).astype(np.int64)   # exact, as in div()
-    np.negative(res, out=res, where=(x ^ safe) < 0)
-    if nz:
-        res = np.where(zero, np.where(x >= 0, hi, lo), res)
-        if ctx is not None:
-            ctx.div_by_zero += nz
-            ctx.saturated[op] += nz
-    return _overflow(res, bits, sgn, "saturate", ctx, op)
-
-
-# ---------------------------------------------------------------------------------------------------
-# roots
-
-_U32_MAX = (1 << 32) - 1
+    x, y = _as_int(n), _as_int(d)
+    _div_check(x, y, signed)
+    bits, _ = _bits_of(out, signed)
+    return _apply(_loop_div_round, ctx, op, x, y, bits, bool(signed))
 
 
 def isqrt(x: np.ndarray | int, *, rounding: Literal["floor", "nearest"] = "floor",
@@ -641,29 +912,17 @@ def isqrt(x: np.ndarray | int, *, rounding: Literal["floor", "nearest"] = "floor
     ``x - r**2`` exceeds ``r`` (``x >= (r + 1/2)**2`` exactly; the restoring algorithm leaves the remainder
     in its register, so this costs one 16-bit compare).
 
-    Vectorised: the float64 square root of an integer below ``2**32`` is within one of the truth, and one
-    integer correction step each way makes it exact (checked against :func:`math.isqrt`).
-
     >>> isqrt(np.array([0, 1, 3, 4, 15, 16, 2**32 - 1])).tolist()
     [0, 1, 1, 2, 3, 4, 65535]
     >>> isqrt(np.array([2, 3, 6, 7, 2**32 - 1]), rounding="nearest").tolist()
     [1, 2, 2, 3, 65536]
     """
     a = _as_int(x)
-    if np.any((a < 0) | (a > _U32_MAX)):
+    if not _within(a, 0, (1 << 32) - 1):
         raise ValueError("isqrt takes unsigned 32-bit integers (0 .. 2**32 - 1)")
-    if ctx is not None:
-        ctx.cost("isqrt32", a.size)
-    r = np.floor(np.sqrt(a.astype(np.float64))).astype(np.int64)
-    r = np.where(r * r > a, r - 1, r)
-    r = np.where((r + 1) * (r + 1) <= a, r + 1, r)
-    if rounding == "nearest":
-        if ctx is not None:
-            ctx.cost("compare16", a.size)
-        return np.where(a - r * r > r, r + 1, r)
-    if rounding != "floor":
+    if rounding not in ("floor", "nearest"):
         raise ValueError(f"rounding must be 'floor' or 'nearest', got {rounding!r}")
-    return r
+    return _apply(_loop_isqrt, ctx, "isqrt", a, rounding == "nearest")
 
 
 def iroot4(x: np.ndarray | int, *, ctx: ArithmeticContext | None = None) -> np.ndarray:

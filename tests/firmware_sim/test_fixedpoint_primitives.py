@@ -334,3 +334,57 @@ def test_div_round_matches_apytypes_and_fractions() -> None:
         f = Fraction(a, b)
         assert q == (int(abs(f) + Fraction(1, 2)) * (1 if f >= 0 else -1))
     assert ctx.total_saturated == 0
+
+
+def to_apy_unsigned(raw: np.ndarray, q: QFormat) -> object:
+    """Unsigned Q format -> apytypes array (a signed array one integer bit wider holds it exactly)."""
+    return A(np.asarray(raw, np.int64), int_bits=q.int_bits + 1, frac_bits=q.frac_bits)
+
+
+UNSIGNED_MUL_CASES = [  # the unsigned products of the on-line algorithm (random operands overflow two)
+    (QFormat(2, 14, signed=False), QFormat(1, 15, signed=False), QFormat(2, 14, signed=False)),   # length x K
+    (QFormat(1, 15, signed=False), QFormat(0, 16, signed=False), QFormat(1, 31, signed=False, word_bits=32)),
+    (QFormat(0, 16, signed=False), QFormat(0, 16, signed=False), QFormat(2, 30, signed=False, word_bits=32)),
+    (QFormat(3, 13, signed=False), QFormat(1, 15, signed=False), QFormat(0, 16, signed=False)),   # overflows
+]
+
+
+@pytest.mark.parametrize("qa,qb,qo", UNSIGNED_MUL_CASES, ids=lambda q: str(q))
+@pytest.mark.parametrize("rounding", ["half_up", "floor"])
+def test_unsigned_mul_q_matches_apytypes(qa: QFormat, qb: QFormat, qo: QFormat, rounding: str) -> None:
+    rng = np.random.default_rng(RNG_SEED + 11)
+    a = np.concatenate([[0, 1, qa.max_raw - 1, qa.max_raw], rng.integers(0, qa.max_raw + 1, 20_000)])
+    b = np.concatenate([[qb.max_raw, 0, 1, qb.max_raw], rng.integers(0, qb.max_raw + 1, 20_000)])
+    shift = qa.frac_bits + qb.frac_bits - qo.frac_bits
+    ctx = ArithmeticContext()
+    ours = mul_q(a, b, shift, qo, rounding=rounding, signed=False, ctx=ctx)
+    prod = to_apy_unsigned(a, qa) * to_apy_unsigned(b, qb)
+    wide = prod.cast(int_bits=qa.int_bits + qb.int_bits + 3, frac_bits=qo.frac_bits, quantization=ROUND[rounding],
+                     overflow=OM.WRAP)
+    ref = from_apy(wide)
+    n_over = int(np.count_nonzero(ref > qo.max_raw))
+    np.testing.assert_array_equal(ours, np.minimum(ref, qo.max_raw))      # saturates at the top, never below 0
+    assert ctx.calls["mul16x16u"] == a.size and ctx.total_saturated == n_over
+    assert (n_over > 0) == (qa.max_value * qb.max_value > qo.max_value)
+
+
+@pytest.mark.parametrize("rounded", [False, True])
+def test_unsigned_div_matches_apytypes(rounded: bool) -> None:
+    rng = np.random.default_rng(RNG_SEED + 12)
+    n = np.concatenate([rng.integers(0, 1 << 32, 20_000), [(1 << 32) - 1, 0, 1, 7, 65535 * 65536]])
+    d = np.concatenate([rng.integers(1, 1 << 16, 20_000), [1, 7, 2, 2, 65535]])
+    ctx = ArithmeticContext()
+    quot = A(n, int_bits=33, frac_bits=0) / A(d, int_bits=17, frac_bits=0)
+    if rounded:
+        ours = div_round(n, d, signed=False, ctx=ctx)
+        mode = QM.RND_INF
+    else:
+        ours, rem = div(n, d, signed=False, ctx=ctx)
+        mode = QM.TRN_ZERO
+        np.testing.assert_array_equal(n, ours * d + rem)
+        assert np.all((rem >= 0) & (rem < d))
+    ref = from_apy(quot.cast(int_bits=34, frac_bits=0, quantization=mode, overflow=OM.WRAP))
+    np.testing.assert_array_equal(ours, np.minimum(ref, (1 << 32) - 1))
+    assert ctx.calls["div32by16u"] == n.size
+    with pytest.raises(ValueError, match="unsigned 32-bit dividend"):
+        div(np.array([-1]), np.array([3]), signed=False)
