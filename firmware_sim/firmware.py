@@ -3,9 +3,16 @@
 Everything here is what the PIC16F877 program does, with the I/O cut off: bytes from the UART come in
 through :meth:`Firmware.receive` (with the time they arrived), and the bytes the device sends come back as
 its return value; the transport (:mod:`firmware_sim.transport`) owns the port and the clock. The sample
-timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time; the on-line
-step algorithm hands its per-step records to :meth:`Firmware.log_steps` (section 2.3), which the
-:class:`~firmware_sim.step_store.StepStore` writes to the step memory.
+timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time.
+
+On-line step algorithm (PROTOCOL.md 2.2, 2.3)
+    When the header's step configuration is on (``step_format`` 1), START builds the firmware's step
+    algorithm (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`, fixed point) from the header —
+    sampling rate, ADC width, calibration slot, step configuration — and every sample the interrupt stores
+    is fed to it; each finished step's 20-byte record goes to :meth:`Firmware.log_steps`, which the
+    :class:`~firmware_sim.step_store.StepStore` writes to the step memory. STOP, or a full memory in
+    stop-when-full mode, ends the run: the pending foot-flat is finalised and its record stored before the
+    header is committed. With ``step_format`` 0 the device logs samples only.
 
 UART receiver (``PROTOCOL.md`` section 3)
     Hunts for ``A5 5A``; a length above 4100 is a framing error (skip the sync pair, hunt again, nothing
@@ -28,8 +35,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from firmware_sim.budget import logging_cycles_per_sample
 from firmware_sim.eeprom import Eeprom24LC1025
 from firmware_sim.errors import DeviceError
+from firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from firmware_sim.step_store import StepStore
 from protocol.crc import crc16_xmodem
@@ -50,7 +60,7 @@ from protocol.frames import (
 )
 from protocol.header import PACKING_P32
 from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
-from protocol.steps import StepConfig, memory_region
+from protocol.steps import StepConfig, memory_region, pack_step_records
 from protocol.xmodem import XmodemSender, raw_dump_bytes
 
 __all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP"]
@@ -94,7 +104,7 @@ class Firmware:
     """
 
     def __init__(self, ring: RingBuffer, *, steps: StepStore | None = None,
-                 inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S) -> None:
+                 inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S, fosc_hz: float = DEFAULT_FOSC_HZ) -> None:
         if steps is not None and steps.header is not ring.header:
             raise DeviceError("the step store and the ring buffer must share one header")
         self.ring = ring
@@ -105,6 +115,9 @@ class Firmware:
         self._last_rx_s = -np.inf
         self._xmodem: XmodemSender | None = None
         self._run_first = False  # the next logged sample is the first of a run (SESSION_START)
+        self.fosc_hz = float(fosc_hz)
+        #: The on-line step algorithm of the current (or last) run, None when the configuration is off.
+        self.step_algorithm: OnlineStepAlgorithm | None = None
         self.stats = {"frames": 0, "bad_crc": 0, "framing_errors": 0, "timeouts": 0, "naks": 0}
 
     # ------------------------------------------------------------------ logging
@@ -123,13 +136,32 @@ class Firmware:
         return self._xmodem is not None
 
     def start_logging(self, *, start_time_s: int, overwrite: bool) -> None:
-        """START: begin a run (raises :class:`DeviceError` / ``MemoryFullError`` as the ring does)."""
+        """START: begin a run (raises :class:`DeviceError` / ``MemoryFullError`` as the ring does); the step
+        algorithm starts afresh from the header's configuration."""
         self.ring.start(start_time_s=start_time_s, overwrite=overwrite)
         self._run_first = True
+        h = self.ring.header
+        self.step_algorithm = None
+        if h.step_config.enabled:
+            fs = h.sample_rate_hz
+            self.step_algorithm = OnlineStepAlgorithm(
+                sampling_rate_hz=fs, step_config=h.step_config, calibration=h.calibration, arithmetic="fixed",
+                code_bits=h.adc_bits,
+                cycles_available=cycles_per_sample_available(fs, self.fosc_hz) - logging_cycles_per_sample())
 
     def stop_logging(self) -> None:
-        """STOP: end the run, flush the page buffer, commit the header."""
+        """STOP: finalise the pending step, end the run, flush the page buffer, commit the header."""
+        self._end_steps()
         self.ring.stop()
+
+    def _end_steps(self) -> None:
+        """The run ends: the step algorithm's pending foot-flat becomes final and is stored."""
+        if self.step_algorithm is not None and self.ring.logging:
+            self._store_steps(self.step_algorithm.flush())
+
+    def _store_steps(self, steps: OnlineSteps) -> None:
+        if steps.n_steps:
+            self.log_steps(pack_step_records(steps.to_records(self.ring.header.run_start_sample)))
 
     def log_samples(self, codes: np.ndarray, marks: np.ndarray | None = None) -> int:
         """Timer ISR for a block of samples: flag, pack and store them; return how many were stored.
@@ -150,6 +182,14 @@ class Firmware:
         if self._run_first and c.shape[0]:
             flags[0] |= FLAG_SESSION_START
             self._run_first = False
+        alg = self.step_algorithm
+        if alg is None:
+            return self.ring.append(pack_words(c, flags))
+        h = self.ring.header
+        n = c.shape[0] if h.overwrite else min(c.shape[0], max(self.ring.capacity - h.samples_written, 0))
+        self._store_steps(alg.feed(c[:n]))       # the algorithm sees exactly the samples that are stored
+        if n < c.shape[0]:                       # stop-when-full: this block fills the memory, the run ends
+            self._end_steps()
         return self.ring.append(pack_words(c, flags))
 
     def log_steps(self, records: bytes) -> int:

@@ -97,7 +97,7 @@ class StepFlag(enum.IntFlag):
     M3_UNDEFINED = 0x08  #: no single-support phase (toe-off/heel-strike missing or out of order): M3 is 0
     IMPOSSIBLE = 0x10  #: a vertical excursion h > 2 l in M1, M2 or M3: that length is 0
     SATURATED = 0x20  #: a fixed-point operation saturated while this step was computed
-    UNCALIBRATED = 0x40  #: no K configured: M1/M2 with K = 1, M4 and M5 stored as 0
+    UNCALIBRATED = 0x40  #: no K configured: raw values (M1, M2, M4 with K = 1; M5 the cadence 1/T, Hz)
 
 
 class StepFormat(enum.IntEnum):

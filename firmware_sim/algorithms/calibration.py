@@ -10,8 +10,9 @@ The header's calibration slot stores the offset in Q15.16 counts and the matrix 
   Q0.15. For the nominal ±2 g over 10 bits (1/256 g per count) ``e = 7``: 22 fraction bits, a relative
   resolution of 2⁻¹⁴ on the diagonal.
 
-Per sample and axis: one 16-bit subtraction (Q10.5), three 16×16→32 multiplies, a saturating 32-bit sum
-and a rounding shift to :data:`~firmware_sim.algorithms.formats.ACC_Q` (Q2.13 g).
+The on-line algorithm applies it per sample (:mod:`firmware_sim.algorithms.kernel`, step 1): per axis one
+16-bit subtraction (Q10.5), three 16×16→32 multiplies, a saturating 32-bit sum and a rounding shift to
+:data:`~firmware_sim.algorithms.formats.ACC_Q` (Q2.13 g).
 """
 
 from __future__ import annotations
@@ -20,12 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.algorithms.formats import ACC_Q, centred_q
-from firmware_sim.fixedpoint import ArithmeticContext, QFormat, add, mul, requantize, shift_left, shift_right, sub
+from firmware_sim.algorithms.formats import MANTISSA_Q, centred_q
+from firmware_sim.fixedpoint import QFormat, requantize
 
 SLOT_OFFSET_Q = QFormat(15, 16, word_bits=32)
 SLOT_MATRIX_Q = QFormat(1, 30, word_bits=32)
-MANTISSA_Q = QFormat(0, 15)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,47 +89,16 @@ class CalibrationQ:
         """The matrix the PIC uses, g per count (float)."""
         return self.mantissa_raw.astype(np.float64) * 2.0 ** -self.matrix_frac_bits
 
-    def apply(self, codes: np.ndarray, *, ctx: ArithmeticContext | None = None) -> np.ndarray:
-        """Calibrated specific force, raw :data:`ACC_Q` (``(n, 3)`` int64) of ``(n, 3)`` ADC codes.
-
-        Vectorised over samples; each sample is what the per-sample firmware computes (integer sums).
-
-        Examples
-        --------
-        >>> cal = nominal_calibration_q(adc_bits=10)
-        >>> a = cal.apply(np.array([[512, 512, 768]]))
-        >>> ACC_Q.to_float(a).tolist()
-        [[0.0, 0.0, 1.0]]
-        """
-        c = np.asarray(codes)
-        if c.ndim != 2 or c.shape[1] != 3:
-            raise ValueError(f"codes must have shape (n, 3), got {c.shape}")
-        top = (1 << max(10, self.code_bits)) - 1
-        if c.size and (c.min() < 0 or c.max() > top):
-            raise ValueError(f"ADC codes must be 0 .. {top} ({max(10, self.code_bits)}-bit fields)")
-        cq = centred_q(self.code_bits)
-        code_q = shift_left(c.astype(np.int64), cq.frac_bits, cq, ctx=ctx)
-        centred = sub(code_q, self.offset_raw[None, :], cq, ctx=ctx, op="calibration.centre")
-        acc32 = np.zeros((c.shape[0], 3), np.int64)
-        sum_q = QFormat(31, 0, word_bits=32)
-        for i in range(3):          # rows of M: three products and a saturating 32-bit sum each
-            for j in range(3):
-                p = mul(centred[:, j], self.mantissa_raw[i, j], ctx=ctx)
-                acc32[:, i] = add(acc32[:, i], p, sum_q, ctx=ctx, op="calibration.sum")
-        shift = cq.frac_bits + self.matrix_frac_bits - ACC_Q.frac_bits
-        out = shift_right(acc32, shift, ctx=ctx)
-        return requantize(out, ACC_Q, ACC_Q, ctx=ctx)
-
 
 def nominal_calibration_q(*, adc_bits: int = 10) -> CalibrationQ:
     """The nominal map of PROTOCOL.md 2.1 (``cal_format = 0``): offset ``2**(bits-1)`` and
     ``M = diag(4 g / 2**bits)``, for codes right-justified in 10-bit fields (up to 12 bits for the sweep).
 
     >>> cal = nominal_calibration_q()
-    >>> cal.offset_counts.tolist(), cal.matrix_frac_bits
-    ([512.0, 512.0, 512.0], 22)
-    >>> ACC_Q.to_float(nominal_calibration_q(adc_bits=12).apply(np.array([[2048, 3072, 4095]]))).tolist()
-    [[0.0, 1.0, 1.9990234375]]
+    >>> cal.offset_counts.tolist(), cal.matrix_frac_bits, cal.mantissa_raw[0, 0]
+    ([512.0, 512.0, 512.0], 22, np.int64(16384))
+    >>> nominal_calibration_q(adc_bits=12).offset_raw.tolist()
+    [16384, 16384, 16384]
     """
     if not 1 <= adc_bits <= 12:
         raise ValueError(f"adc_bits must be 1 .. 12, got {adc_bits}")

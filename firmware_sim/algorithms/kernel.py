@@ -1,0 +1,576 @@
+"""The on-line step algorithm's per-sample program: causal, bounded state, one text for both arithmetics.
+
+This is what the logger runs for every sample it takes (the sampling interrupt stores the sample; the main
+loop runs :func:`process`), written as the firmware computes it: the state is the declared slots of
+:mod:`firmware_sim.algorithms.state`, every value has its Q format (:mod:`firmware_sim.algorithms.formats`),
+and the arithmetic is the vocabulary of :mod:`firmware_sim.algorithms.arithmetic`. Run with ``int64`` state it
+is the PIC's fixed point (bit-exact, counted); with ``float64`` state it is the same algorithm in floating
+point. numba compiles it once per arithmetic (``cache=True``); ``process.py_func`` runs the same text in
+Python.
+
+Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
+
+1. **Calibration** ``f = M (c - o)`` (PROTOCOL.md 2.1; mantissas and shared exponent in fixed point).
+2. **Gravity** ``g``: two cascaded exponential means of ``f`` (``g += (x - g) 2^-k``, ``k`` =
+   ``gravity_shift``; during the first ``2^k`` samples ``k`` grows from 0, so the estimate starts as the
+   running mean). Causal; the offline chain's centred 4 s window needs 2 s of future samples.
+3. **Vertical acceleration** ``a_v = (f·g - |g|^2) / |g|`` (tilt correction; 0 when ``|g|`` is below
+   ``min_gravity_g``).
+4. ``a_v`` enters a delay line of ``2 r3 + 1`` samples; the **centred Gaussian FIR** low-passes at 3 Hz
+   (``y3``), 10 Hz (``d10``) and 5 Hz are evaluated at the line's centre ``m = n - r3`` (the offline chain's
+   zero-phase filters, ``r3`` samples late); the impact band is ``d10 - d5``. a_v, y3, d10 and the band are
+   written to the scratch ring (the step EEPROM's second block).
+5. **Foot-flat** (peaks of ``y3``): a hysteresis detector confirms a peak when ``y3`` has risen by the
+   prominence since the last trough and fallen by it since the peak. A confirmed peak becomes the
+   *pending* foot-flat; a later confirmed peak closer than the minimum distance replaces it if higher and
+   is dropped otherwise. The pending foot-flat is final once no peak within the distance can still come:
+   ``m >= pending + distance`` and the peak being climbed (if any) lies beyond the distance or is lower —
+   a look-ahead bounded by ``max_step``. The distance is ``max(min_step, fraction · median)`` of the last
+   ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
+   foot-flat does not lengthen the distance that caused it.
+6. **Steps** (:func:`_finalise`, at each final foot-flat ``e``, with the previous one ``s``): read back from
+   the scratch ring: the heel-strike (impact = first maximum of the band in ``[e - hs_before, e + hs_after]``,
+   minus ``hs_delay``), the toe-off (first local minimum of ``d10`` in ``(s, s + to_span]``), M4's range of
+   ``y3`` in ``[s, e]``, and two passes over ``a_v[s..e]``: M1's double integral reset at ``s`` and its
+   extremes; then, with ``c1 = -mean(a)`` and ``c2`` known in closed form (``P2(T) = 16 P(T) + 2 c1 T^2``),
+   M2's corrected position ``p2`` and its extremes, and M3's single-support extremes (Alvarez eqs 1-3).
+   Lengths: M1, M2 ``K 2 sqrt(2 l h - h^2)``, M3 ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max -
+   a_min)^(1/4)``, M5 ``K1 / T + K2`` (eqs 1, 4; the seeds' corrections). One record per foot-flat: a step
+   whose previous foot-flat is more than ``max_step`` back (or none) starts a walking bout and has no
+   window (``NO_WINDOW``, lengths 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from firmware_sim.algorithms import arithmetic as ar
+from firmware_sim.algorithms.formats import (
+    F_ACC,
+    F_ACC2,
+    F_EXC,
+    F_FIR,
+    F_GRAV,
+    F_K,
+    F_KERNEL,
+    F_LEN,
+    F_LP,
+    F_M5,
+    F_POS,
+    F_POS2,
+    F_ROOT,
+    F_STEP,
+    F_TWO_LEN,
+    U16,
+    U32,
+    W16,
+    W32,
+    W33,
+    W_LP,
+)
+from firmware_sim.algorithms.parameters import minimum_distance
+from firmware_sim.algorithms.state import (
+    DIST,
+    DUR_POS,
+    F_LAST,
+    F_LOOK_MAX,
+    F_PEND,
+    F_RAW,
+    FLAGS,
+    G1,
+    G2,
+    LAST,
+    LINE_POS,
+    MN,
+    MX,
+    MXPOS,
+    N,
+    N_DUR,
+    PEND,
+    PEND_Y,
+    RAW,
+    RAW_Y,
+)
+from firmware_sim.fixedpoint import C_CYCLES, C_STICKY, OP_CMP16, OP_CMP32, OP_DEE, OP_I2C, s_cost
+from protocol.steps import StepFlag
+
+__all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_COLUMNS"]
+
+# ---------------------------------------------------------------------------------------------------------
+# configuration layout (filled by firmware_sim.algorithms.online.OnlineConfig)
+
+#: Integer configuration slots (the same in both arithmetics).
+CI = dict(R3=0, R10=1, R5=2, MIN_STEP=3, MAX_STEP=4, HS_BEFORE=5, HS_AFTER=6, HS_DELAY=7, TO_SPAN=8,
+          G_SHIFT=9, N_MED=10, FRACTION=11, CODE_FRAC=12, MANT_FRAC=13, EXC_SHIFT1=14, EXC_SHIFT2=15,
+          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20)
+N_CI = len(CI)
+(CI_R3, CI_R10, CI_R5, CI_MIN_STEP, CI_MAX_STEP, CI_HS_BEFORE, CI_HS_AFTER, CI_HS_DELAY, CI_TO_SPAN,
+ CI_G_SHIFT, CI_N_MED, CI_FRACTION, CI_CODE_FRAC, CI_MANT_FRAC, CI_EXC_SHIFT1, CI_EXC_SHIFT2, CI_UNIT_FRAC,
+ CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET) = range(N_CI)
+
+#: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
+CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, W3=22)
+(CV_DELTA, CV_G_MIN, CV_TWO_LEG, CV_FOOT, CV_K1, CV_K2, CV_K4, CV_K1FS, CV_K2M5, CV_UNIT) = range(10)
+CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
+
+#: Columns of the integer record output: end index, window duration, toe-off index, heel-strike index, flags.
+OUT_I = ("end", "duration", "toe_off", "heel_strike", "flags")
+#: Columns of the value record output: the five lengths, the excursions h (M1, M2) and h1 (M3), M4's range.
+OUT_V = ("length_m1", "length_m2", "length_m3", "length_m4", "length_m5", "h_m1", "h_m2", "h1_m3", "range_m4")
+O_END, O_DUR, O_TO, O_HS, O_FLAGS = range(5)
+O_L, O_H1, O_H2, O_H3, O_RANGE = 0, 5, 6, 7, 8
+#: Columns of the scratch rings (the step EEPROM's second block): a_v in one ring (2 bytes a sample, read
+#: by both integration passes), y3, d10 and the impact band in the other (3 bytes each).
+SCRATCH_COLUMNS = ("a_v", "y3", "d10", "band")
+S_AV, S_Y3, S_D10, S_BAND = range(4)
+SCRATCH_A_BYTES = 2
+SCRATCH_B_BYTES = 9
+#: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte.
+I2C_WRITE_OVERHEAD = 3
+I2C_READ_OVERHEAD = 4
+
+_NO_WINDOW = int(StepFlag.NO_WINDOW)
+_NO_TOE_OFF = int(StepFlag.NO_TOE_OFF)
+_NO_HEEL_STRIKE = int(StepFlag.NO_HEEL_STRIKE)
+_M3_UNDEFINED = int(StepFlag.M3_UNDEFINED)
+_IMPOSSIBLE = int(StepFlag.IMPOSSIBLE)
+_SATURATED = int(StepFlag.SATURATED)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# helpers
+
+
+@njit(cache=True)
+def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
+    """Centred symmetric FIR at ``centre`` of the delay line: ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16."""
+    acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W32, cnt)
+    for tap in range(1, r + 1):
+        pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W16, cnt)
+        acc = ar.add(acc, ar.mul(cfg_v[w0 + tap], F_KERNEL, pair, F_ACC, F_FIR, W32, cnt), W32, cnt)
+    return ar.requant(acc, F_FIR, F_LP, W_LP, cnt)
+
+
+@njit(cache=True)
+def _excursion(span, f_pos, shift, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
+    """A position range (``f_pos`` fraction bits, unit 4 g T_s^2) in metres, UQ0.16."""
+    s16 = ar.requant(span, f_pos, f_pos - shift, U16, cnt)
+    return ar.mul(s16, f_pos - shift, cfg_v[CV_UNIT], cfg_i[CI_UNIT_FRAC], F_EXC, U16, cnt)
+
+
+@njit(cache=True)
+def _pendulum(h, cfg_v, cnt):  # pragma: no cover - compiled
+    """``2 sqrt(2 l h - h^2)`` (UQ2.14 m) and whether the step is impossible (``h > 2 l``; Alvarez eq 1)."""
+    lh2 = ar.mul(cfg_v[CV_TWO_LEG], F_TWO_LEN, h, F_EXC, 30, U32, cnt)
+    hh = ar.mul(h, F_EXC, h, F_EXC, 30, U32, cnt)
+    x = ar.sub(lh2, hh, W33, cnt)
+    if x < 0:
+        return x * 0, True
+    half = ar.sqrt(x, 30, F_LEN, False, cnt)
+    return ar.requant(ar.scale2(half, 1, W32, cnt), F_LEN, F_STEP, U16, cnt), False
+
+
+@njit(cache=True)
+def _median_twice(durs, n):  # pragma: no cover - compiled
+    """Twice the median of the first ``n`` durations (an integer: the mean of the middle two when even)."""
+    d = np.sort(durs[:n].copy())
+    if n % 2:
+        return 2 * d[n // 2]
+    return d[n // 2 - 1] + d[n // 2]
+
+
+@njit(cache=True)
+def _read_cost(cnt, records, record_bytes):  # pragma: no cover - compiled
+    """One sequential I2C read of ``records`` scratch records of ``record_bytes``."""
+    s_cost(cnt, OP_I2C, record_bytes * records + I2C_READ_OVERHEAD)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# one step (at a final foot-flat): each part reads the scratch rings and keeps only its own accumulators
+
+
+@njit(cache=True)
+def _heel_strike(e, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
+    """Heel-strike before the foot-flat ``e``: the first maximum of the impact band in
+    ``[e - hs_before, e + hs_after]`` (filter outputs up to ``m``), minus ``hs_delay``; -1 if none."""
+    size = cfg_i[CI_SCRATCH]
+    lo = max(e - cfg_i[CI_HS_BEFORE], cfg_i[CI_R3])
+    hi = min(e + cfg_i[CI_HS_AFTER], m)
+    best = -1
+    peak = scr[lo % size, S_BAND]
+    for j in range(lo, hi + 1):
+        s_cost(cnt, OP_CMP32, 1)
+        if best < 0 or scr[j % size, S_BAND] > peak:
+            peak = scr[j % size, S_BAND]
+            best = j
+    _read_cost(cnt, hi - lo + 1, SCRATCH_B_BYTES)
+    if best < 0 or best - cfg_i[CI_HS_DELAY] < 0:
+        return -1
+    return best - cfg_i[CI_HS_DELAY]
+
+
+@njit(cache=True)
+def _toe_off(s, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
+    """Toe-off after the foot-flat ``s``: the first local minimum of ``d10`` in ``(s, s + to_span]``; -1."""
+    size = cfg_i[CI_SCRATCH]
+    _read_cost(cnt, cfg_i[CI_TO_SPAN] + 2, SCRATCH_B_BYTES)
+    for j in range(s + 1, min(s + cfg_i[CI_TO_SPAN], m - 1) + 1):
+        s_cost(cnt, OP_CMP32, 2)
+        if scr[j % size, S_D10] < scr[(j - 1) % size, S_D10] and scr[j % size, S_D10] <= scr[(j + 1) % size, S_D10]:
+            return j
+    return -1
+
+
+@njit(cache=True)
+def _range(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
+    """M4's ``a_max - a_min`` of the 3 Hz signal in ``[s, e]`` (Q2.16 g)."""
+    size = cfg_i[CI_SCRATCH]
+    _read_cost(cnt, e - s + 1, SCRATCH_B_BYTES)
+    y_max = scr[s % size, S_Y3]
+    y_min = y_max
+    for j in range(s + 1, e + 1):
+        s_cost(cnt, OP_CMP32, 2)
+        if scr[j % size, S_Y3] > y_max:
+            y_max = scr[j % size, S_Y3]
+        if scr[j % size, S_Y3] < y_min:
+            y_min = scr[j % size, S_Y3]
+    return ar.sub(y_max, y_min, W_LP, cnt)
+
+
+@njit(cache=True)
+def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
+    """M1 (eq 1): the double integral reset at ``s``, ``V = sum(a_k + a_k-1)``, ``P = sum(V_k + V_k-1)``.
+
+    Returns the position range, and M2's constants (eqs 2-3): ``c1 = -mean(a) = -V(T) / (2T)`` (Q.17) and
+    ``c2 = P2(T) / T`` per sample with ``P2(T) = 16 P(T) + 2 c1 T^2`` exactly (the corrected integral of
+    ``a + c1`` in closed form).
+    """
+    size = cfg_i[CI_SCRATCH]
+    _read_cost(cnt, e - s + 1, SCRATCH_A_BYTES)
+    vel = scr[0, S_AV] * 0
+    pos = vel
+    p_max = vel
+    p_min = vel
+    for j in range(s + 1, e + 1):
+        v_new = ar.add(vel, ar.add(scr[j % size, S_AV], scr[(j - 1) % size, S_AV], W32, cnt), W32, cnt)
+        pos = ar.add(pos, ar.add(v_new, vel, W32, cnt), W32, cnt)
+        vel = v_new
+        s_cost(cnt, OP_CMP32, 2)
+        if pos > p_max:
+            p_max = pos
+        if pos < p_min:
+            p_min = pos
+    c1 = ar.div(ar.neg(vel, W32, cnt), F_ACC, 2 * (e - s), 0, F_POS2, W32, cnt)
+    c2 = ar.div(ar.add(ar.requant(pos, F_POS, F_POS2, W32, cnt),
+                       ar.scale2(ar.mul_count(c1, (e - s) * (e - s), W32, cnt), 1, W32, cnt), W32, cnt),
+                F_POS2, e - s, 0, F_POS2, W32, cnt)
+    return ar.sub(p_max, p_min, W32, cnt), c1, c2
+
+
+@njit(cache=True)
+def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compiled
+    """M2's corrected position ``p2(tau) = P2(tau) - c2 tau`` by increments ``16 dP + 2 c1 (2 tau - 1) - c2``
+    (additions only); returns its range over the step and over the single support ``[to, hs3]`` (M3;
+    ``to < 0``: none)."""
+    size = cfg_i[CI_SCRATCH]
+    _read_cost(cnt, e - s + 1, SCRATCH_A_BYTES)
+    vel = c1 * 0
+    q = vel
+    q_max = vel
+    q_min = vel
+    s_max = vel
+    s_min = vel
+    ramp = ar.scale2(c1, 1, W32, cnt)
+    ramp_step = ar.scale2(c1, 2, W32, cnt)
+    seen = False
+    for j in range(s + 1, e + 1):
+        v_new = ar.add(vel, ar.add(scr[j % size, S_AV], scr[(j - 1) % size, S_AV], W32, cnt), W32, cnt)
+        dp = ar.requant(ar.add(v_new, vel, W32, cnt), F_POS, F_POS2, W32, cnt)
+        vel = v_new
+        q = ar.add(q, ar.add(ar.sub(dp, c2, W32, cnt), ramp, W32, cnt), W32, cnt)
+        ramp = ar.add(ramp, ramp_step, W32, cnt)
+        s_cost(cnt, OP_CMP32, 2)
+        if q > q_max:
+            q_max = q
+        if q < q_min:
+            q_min = q
+        if to >= 0 and to <= j <= hs3:
+            s_cost(cnt, OP_CMP32, 2)
+            if not seen or q > s_max:
+                s_max = q
+            if not seen or q < s_min:
+                s_min = q
+            seen = True
+    return ar.sub(q_max, q_min, W32, cnt), ar.sub(s_max, s_min, W32, cnt)
+
+
+@njit(cache=True)
+def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
+    """The step ending at the final foot-flat ``e`` (newest filter output ``m``): record ``k``.
+
+    The excursions and M4's range also go to the emulator's output (``out_v``, for analysis); the
+    firmware consumes them as it computes them and stores the lengths only.
+    """
+    zero = cfg_v[CV_DELTA] * 0
+    flags = 0
+    s = st_i[LAST] if st_i[FLAGS] & F_LAST else -1
+    hs = _heel_strike(e, m, cfg_i, scr, cnt)
+    if hs < 0:
+        flags |= _NO_HEEL_STRIKE
+    to = -1
+    l1 = zero
+    l2 = zero
+    l3 = zero
+    l4 = zero
+    l5 = zero
+    for c in range(4):
+        out_v[k, O_H1 + c] = zero
+    if s < 0 or e - s > cfg_i[CI_MAX_STEP]:
+        flags |= _NO_WINDOW
+        s = -1
+    else:
+        # events of the window (the offline chain's rules: toe-off between the start and the heel-strike)
+        to = _toe_off(s, m, cfg_i, scr, cnt)
+        if not (to > s and (hs < 0 or to < hs)):
+            to = -1
+            flags |= _NO_TOE_OFF
+        hs3 = hs if hs > s else -1
+        if not (to >= 0 and 0 <= hs3 <= e and hs3 > to):
+            flags |= _M3_UNDEFINED
+            hs3 = -1
+        s_cost(cnt, OP_DEE, 24)                  # K, leg, foot and the M5 constants from the data EEPROM
+        # M1 (eq 1)
+        span, c1, c2 = _pass1(s, e, cfg_i, scr, cnt)
+        out_v[k, O_H1] = _excursion(span, F_POS, cfg_i[CI_EXC_SHIFT1], cfg_i, cfg_v, cnt)
+        length, bad = _pendulum(out_v[k, O_H1], cfg_v, cnt)
+        if bad:
+            flags |= _IMPOSSIBLE
+        else:
+            l1 = ar.mul(length, F_STEP, cfg_v[CV_K1], F_K, F_STEP, U16, cnt)
+        # M2 (eqs 2-3) and M3 (single support + foot length)
+        span, span3 = _pass2(s, e, to if hs3 >= 0 else -1, hs3, c1, c2, cfg_i, scr, cnt)
+        out_v[k, O_H2] = _excursion(span, F_POS2, cfg_i[CI_EXC_SHIFT2], cfg_i, cfg_v, cnt)
+        length, bad = _pendulum(out_v[k, O_H2], cfg_v, cnt)
+        if bad:
+            flags |= _IMPOSSIBLE
+        else:
+            l2 = ar.mul(length, F_STEP, cfg_v[CV_K2], F_K, F_STEP, U16, cnt)
+        if hs3 >= 0:
+            out_v[k, O_H3] = _excursion(span3, F_POS2, cfg_i[CI_EXC_SHIFT2], cfg_i, cfg_v, cnt)
+            length, bad = _pendulum(out_v[k, O_H3], cfg_v, cnt)
+            if bad:
+                flags |= _IMPOSSIBLE
+            else:
+                l3 = ar.add(length, cfg_v[CV_FOOT], U16, cnt)
+        # M4 (eq 4): K (a_max - a_min)^(1/4), the range in g and K g0^(1/4) the constant
+        out_v[k, O_RANGE] = _range(s, e, cfg_i, scr, cnt)
+        l4 = ar.mul(ar.sqrt(ar.sqrt(ar.requant(out_v[k, O_RANGE], F_LP, F_ROOT, U16, cnt), F_ROOT, F_ROOT, False,
+                                    cnt), F_ROOT, F_ROOT, False, cnt), F_ROOT, cfg_v[CV_K4], F_K, F_STEP, U16, cnt)
+        # M5: K1 / T + K2 with K1 fs in m samples
+        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, e - s, 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32, cnt),
+                        F_M5, F_STEP, U16, cnt)
+    if cnt[C_STICKY]:
+        flags |= _SATURATED
+        cnt[C_STICKY] = 0
+    out_i[k, O_END] = e
+    out_i[k, O_DUR] = e - s if s >= 0 else 0
+    out_i[k, O_TO] = to
+    out_i[k, O_HS] = hs
+    out_i[k, O_FLAGS] = flags
+    out_v[k, O_L + 0] = l1
+    out_v[k, O_L + 1] = l2
+    out_v[k, O_L + 2] = l3
+    out_v[k, O_L + 3] = l4
+    out_v[k, O_L + 4] = l5
+    st_i[LAST] = e
+    st_i[FLAGS] |= F_LAST
+    return k + 1
+
+
+@njit(cache=True)
+def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
+    """A peak of ``y3`` at ``p`` confirmed by the hysteresis: the duration stream, then the foot-flat."""
+    # the step-duration stream: peaks min_step apart (the offline chain's first pass)
+    if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] < cfg_i[CI_MIN_STEP]:
+        if yp > st_v[RAW_Y]:
+            st_i[RAW] = p
+            st_v[RAW_Y] = yp
+    else:
+        if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] <= cfg_i[CI_MAX_STEP]:
+            durs[st_i[DUR_POS]] = p - st_i[RAW]
+            st_i[DUR_POS] = (st_i[DUR_POS] + 1) % cfg_i[CI_N_MED]
+            if st_i[N_DUR] < cfg_i[CI_N_MED]:
+                st_i[N_DUR] += 1
+            if st_i[N_DUR] >= 3:
+                st_i[DIST] = minimum_distance(_median_twice(durs, st_i[N_DUR]), cfg_i[CI_MIN_STEP],
+                                              cfg_i[CI_FRACTION])
+                s_cost(cnt, OP_CMP16, st_i[N_DUR] * st_i[N_DUR])      # insertion sort of the ring
+        st_i[RAW] = p
+        st_v[RAW_Y] = yp
+        st_i[FLAGS] |= F_RAW
+    # foot-flat candidates
+    if (st_i[FLAGS] & F_LAST) and p - st_i[LAST] < st_i[DIST]:
+        return k                                   # lower than a final foot-flat within the distance
+    if not (st_i[FLAGS] & F_PEND):
+        st_i[PEND] = p
+        st_v[PEND_Y] = yp
+        st_i[FLAGS] |= F_PEND
+    elif p - st_i[PEND] < st_i[DIST]:
+        if yp > st_v[PEND_Y]:
+            st_i[PEND] = p
+            st_v[PEND_Y] = yp
+    else:
+        k = _finalise(st_i[PEND], m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+        st_i[PEND] = p
+        st_v[PEND_Y] = yp
+    return k
+
+
+@njit(cache=True)
+def _calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt):  # pragma: no cover - compiled
+    """Row ``row`` of ``M (c - o)``: three products summed in 32 bits, rounded to Q2.13 g."""
+    acc = ar.mul(cfg_v[CV_M + 3 * row], mf, c0, cf, mf + cf, W32, cnt)
+    acc = ar.add(acc, ar.mul(cfg_v[CV_M + 3 * row + 1], mf, c1, cf, mf + cf, W32, cnt), W32, cnt)
+    acc = ar.add(acc, ar.mul(cfg_v[CV_M + 3 * row + 2], mf, c2, cf, mf + cf, W32, cnt), W32, cnt)
+    return ar.requant(acc, mf + cf, F_ACC, W16, cnt)
+
+
+@njit(cache=True)
+def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no cover - compiled
+    """Steps 1-4 for one sample: calibration, gravity, a_v, delay line, FIR outputs into the scratch rings.
+
+    Returns True when the filters have an output (the run is at least ``2 r3 + 1`` samples old).
+    """
+    r3 = cfg_i[CI_R3]
+    n = st_i[N]
+    # 1. calibration: f = M (codes - offset)
+    c0 = ar.sub(ar.requant(cx, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 0], W16, cnt)
+    c1 = ar.sub(ar.requant(cy, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 1], W16, cnt)
+    c2 = ar.sub(ar.requant(cz, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 2], W16, cnt)
+    fx = _calibrated(cfg_v, 0, c0, c1, c2, cfg_i[CI_MANT_FRAC], cfg_i[CI_CODE_FRAC], cnt)
+    fy = _calibrated(cfg_v, 1, c0, c1, c2, cfg_i[CI_MANT_FRAC], cfg_i[CI_CODE_FRAC], cnt)
+    fz = _calibrated(cfg_v, 2, c0, c1, c2, cfg_i[CI_MANT_FRAC], cfg_i[CI_CODE_FRAC], cnt)
+    s_cost(cnt, OP_DEE, 25)                      # offsets, mantissas, exponent from the data EEPROM
+    # 2. gravity: two exponential stages; the shift grows from 0 while the run is young (running mean)
+    warm = 0
+    while (2 << warm) <= n + 1 and warm < cfg_i[CI_G_SHIFT]:
+        warm += 1
+    for axis in range(3):
+        st_v[G1 + axis] = ar.add(st_v[G1 + axis], ar.scale2(ar.sub(ar.requant(
+            fx if axis == 0 else (fy if axis == 1 else fz), F_ACC, F_GRAV, W32, cnt), st_v[G1 + axis], W32, cnt),
+            -warm, W32, cnt), W32, cnt)
+        st_v[G2 + axis] = ar.add(st_v[G2 + axis], ar.scale2(ar.sub(st_v[G1 + axis], st_v[G2 + axis], W32, cnt),
+                                                            -warm, W32, cnt), W32, cnt)
+    # 3. vertical acceleration a_v = (f.g - |g|^2) / |g|: the numerator exact, |g| rounded to nearest
+    gx = ar.requant(st_v[G2 + 0], F_GRAV, F_ACC, W16, cnt)
+    gy = ar.requant(st_v[G2 + 1], F_GRAV, F_ACC, W16, cnt)
+    gz = ar.requant(st_v[G2 + 2], F_GRAV, F_ACC, W16, cnt)
+    norm2 = ar.add(ar.add(ar.mul(gx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
+                          ar.mul(gy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
+                   ar.mul(gz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt)
+    gn = ar.sqrt(norm2, F_ACC2, F_ACC, True, cnt)
+    s_cost(cnt, OP_CMP16, 1)
+    av = fx * 0
+    if gn > cfg_v[CV_G_MIN]:
+        av = ar.div(ar.sub(ar.add(ar.add(ar.mul(fx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
+                                         ar.mul(fy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
+                                  ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt), norm2, W32, cnt),
+                    F_ACC2, gn, F_ACC, F_ACC, W16, cnt)
+    # 4. delay line, scratch records, the centred FIR outputs at m = n - r3
+    line[st_i[LINE_POS]] = av
+    st_i[LINE_POS] = (st_i[LINE_POS] + 1) % (2 * r3 + 1)
+    scr[n % cfg_i[CI_SCRATCH], S_AV] = av
+    st_i[N] = n + 1
+    if n < 2 * r3:
+        return False
+    centre = (st_i[LINE_POS] - 1 - r3) % (2 * r3 + 1)
+    scr[(n - r3) % cfg_i[CI_SCRATCH], S_Y3] = _fir(line, centre, 2 * r3 + 1, cfg_v, CV_W3, r3, cnt)
+    scr[(n - r3) % cfg_i[CI_SCRATCH], S_D10] = _fir(line, centre, 2 * r3 + 1, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10],
+                                                    cnt)
+    scr[(n - r3) % cfg_i[CI_SCRATCH], S_BAND] = ar.sub(
+        scr[(n - r3) % cfg_i[CI_SCRATCH], S_D10],
+        _fir(line, centre, 2 * r3 + 1, cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt), W_LP, cnt)
+    s_cost(cnt, OP_DEE, 2 * (r3 + cfg_i[CI_R10] + cfg_i[CI_R5] + 3) + 3)      # FIR weights, prominence
+    s_cost(cnt, OP_I2C, SCRATCH_A_BYTES + SCRATCH_B_BYTES + 2 * I2C_WRITE_OVERHEAD)   # the scratch records
+    return True
+
+
+@njit(cache=True)
+def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
+    """Everything the firmware does for one sample; returns the number of records written so far."""
+    if not _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):
+        return k
+    # 5. foot-flat at the filter output m = n - r3: the pending foot-flat becomes final, then the hysteresis
+    m = st_i[N] - 1 - cfg_i[CI_R3]
+    y = scr[m % cfg_i[CI_SCRATCH], S_Y3]
+    s_cost(cnt, OP_CMP32, 4)
+    if (st_i[FLAGS] & F_PEND) and m >= st_i[PEND] + st_i[DIST]:
+        if not ((st_i[FLAGS] & F_LOOK_MAX) != 0 and st_i[MXPOS] < st_i[PEND] + st_i[DIST]
+                and st_v[MX] > st_v[PEND_Y] and m - st_i[PEND] <= cfg_i[CI_MAX_STEP]):
+            k = _finalise(st_i[PEND], m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+            st_i[FLAGS] &= ~F_PEND
+    if m == cfg_i[CI_R3]:                        # the run's first output
+        st_v[MN] = y
+    elif st_i[FLAGS] & F_LOOK_MAX:
+        if y > st_v[MX]:
+            st_v[MX] = y
+            st_i[MXPOS] = m
+        elif y < ar.sub(st_v[MX], cfg_v[CV_DELTA], W_LP, cnt):
+            k = _confirmed(st_i[MXPOS], st_v[MX], m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, cnt)
+            st_i[FLAGS] &= ~F_LOOK_MAX
+            st_v[MN] = y
+    elif y < st_v[MN]:
+        st_v[MN] = y
+    elif y > ar.add(st_v[MN], cfg_v[CV_DELTA], W_LP, cnt):
+        st_i[FLAGS] |= F_LOOK_MAX
+        st_v[MX] = y
+        st_i[MXPOS] = m
+    return k
+
+
+# ---------------------------------------------------------------------------------------------------------
+# entry points
+
+
+@njit(cache=True)
+def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt, cyc):  # pragma: no cover
+    """Run the algorithm over a block of ``(n, 3)`` codes (value dtype); return the records written.
+
+    ``cyc`` collects the cycles: ``[total, worst sample, samples, index of the worst sample, backlog, worst
+    backlog]``. The backlog is the work the main loop still owes when the next sample arrives, with
+    ``cfg_i[CI_BUDGET]`` cycles per sample period left to the algorithm (the sampling interrupt keeps
+    storing samples meanwhile; the algorithm reads them back).
+    """
+    for row in range(codes.shape[0]):
+        cnt[C_CYCLES] = 0
+        k = _sample(codes[row, 0], codes[row, 1], codes[row, 2], cfg_i, cfg_v, st_i, st_v, line, durs, scr,
+                    out_i, out_v, k, cnt)
+        if cnt[C_CYCLES] > cyc[1]:
+            cyc[1] = cnt[C_CYCLES]
+            cyc[3] = cyc[2]
+        cyc[0] += cnt[C_CYCLES]
+        cyc[2] += 1
+        cyc[4] = max(0, cyc[4] + cnt[C_CYCLES] - cfg_i[CI_BUDGET])
+        if cyc[4] > cyc[5]:
+            cyc[5] = cyc[4]
+    return k
+
+
+@njit(cache=True)
+def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
+    """End of a run (STOP): the pending foot-flat becomes final with the samples there are."""
+    if st_i[FLAGS] & F_PEND and st_i[N] > 2 * cfg_i[CI_R3]:
+        k = _finalise(st_i[PEND], st_i[N] - 1 - cfg_i[CI_R3], cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+        st_i[FLAGS] &= ~F_PEND
+    return k
+
+
+@njit(cache=True)
+def reset(cfg_i, st_i, st_v, line, durs):  # pragma: no cover - compiled
+    """START: a fresh state, the step-distance rule at its minimum."""
+    st_i[:] = 0
+    st_v[:] = 0
+    line[:] = 0
+    durs[:] = 0
+    st_i[DIST] = cfg_i[CI_MIN_STEP]

@@ -1,0 +1,225 @@
+"""The step algorithm's rules and constants, arithmetic-free, in one place.
+
+:class:`EventParameters` holds what defines the gait events and the steps: the same numbers are used by the
+firmware's on-line algorithm (:mod:`firmware_sim.algorithms.online`, float or fixed point) and by the
+host's offline chain (``host.gait``: the paper's PC processing). :class:`OnlineParameters` adds what only
+the on-line algorithm needs (its causal gravity estimate and its running median). :class:`SampleCounts`
+turns both into the integer sample counts a firmware works with at a given sampling rate, with the rounding
+rule written once (:func:`samples`).
+
+Why each default is what it is (the measured figures behind them are in ``host.gait.events``' notes):
+
+* ``ff_cutoff_hz`` 3 Hz: the first harmonic of trunk vertical acceleration (Alvarez's M4 band); foot-flat is
+  its peak, where the centre of mass is lowest and its vertical velocity null.
+* ``detail_cutoff_hz`` 10 Hz and ``impact_cutoff_hz`` 5 Hz: the heel-strike impact is the peak of the
+  5-10 Hz band, ``hs_delay_s`` (40 ms) after the contact; toe-off is the first minimum of the 10 Hz signal
+  after the foot-flat.
+* ``min_step_s`` 0.25 s (at most 240 steps/min), ``max_step_s`` 1.5 s (a longer interval ends a walking
+  bout), ``min_prominence_m_s2`` 0.5 m/s^2 (a 1 cm excursion of the centre of mass at 1.6 steps/s already
+  gives ~1.5 m/s^2 peak to trough), ``min_step_fraction`` 0.6 (a "step" 40 % shorter than the typical one
+  is a second bump of the same step: stride-time CV is 2-4 % in healthy adults, Hausdorff 2005).
+* On-line only: gravity is a causal two-stage exponential mean of time constant ``gravity_tau_s``,
+  replacing the offline chain's centred 4 s window (which needs 2 s of future samples). Rule: the smallest
+  power-of-two number of samples whose second-order attenuation ``(2 pi f tau)^-2`` at a slow step
+  (1.5 Hz) is below 1 %: tau > 1.06 s, so 64 samples = 1.28 s at 50 Hz (an update is then a shift by 6).
+  Shorter time constants let the step's own acceleration into the gravity estimate (0.32 s: M2 +3 % on the
+  IPOL trials against the offline chain), longer ones follow trunk tilt more slowly (2.56 s: within 0.2 %);
+  the rule, not those trials, sets it. The typical step duration is the median of the last
+  ``median_steps`` (7) peak intervals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import firmware_sim.compiled  # noqa: F401  (numba's cache folder)
+from numba.extending import register_jitable
+
+__all__ = ["EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance",
+           "gaussian_radius", "FRACTION_SCALE",
+           "STANDARD_GRAVITY_M_S2", "SIGMA_S_AT_1HZ"]
+
+#: Standard gravity, m/s^2 per g.
+STANDARD_GRAVITY_M_S2 = 9.80665
+#: Gaussian sigma (s) whose -3 dB cut-off is 1 Hz: ``|H(f)| = exp(-(2 pi f sigma)^2 / 2) = 1/sqrt(2)``.
+SIGMA_S_AT_1HZ = float(math.sqrt(math.log(2.0)) / (2.0 * math.pi))
+#: ``min_step_fraction`` is applied as the integer ``round(fraction · FRACTION_SCALE)`` (a 3-digit constant).
+FRACTION_SCALE = 1000
+
+
+def samples(duration_s: float, sampling_rate_hz: float) -> int:
+    """A duration as a whole number of samples, rounded half up (the one rounding rule of both chains).
+
+    >>> samples(0.25, 50.0), samples(0.03, 50.0), samples(0.01, 50.0)
+    (13, 2, 1)
+    """
+    return int(math.floor(duration_s * sampling_rate_hz + 0.5))
+
+
+@register_jitable
+def minimum_distance(typical_twice, min_step, fraction_scaled):
+    """Peaks closer than this many samples are one step: ``max(min_step, round_half_up(f · typical))``.
+
+    ``typical_twice`` is twice the typical step duration in samples (an integer: the median of an even
+    number of intervals is the mean of the middle two) and ``fraction_scaled`` the fraction out of
+    :data:`FRACTION_SCALE`, so the rule is exact integer arithmetic: the same in the on-line algorithm (both
+    arithmetics) and in the offline chain.
+
+    >>> minimum_distance(50, 13, 600), minimum_distance(57, 13, 600), minimum_distance(30, 13, 600)
+    (15, 17, 13)
+    """
+    d = (fraction_scaled * typical_twice + FRACTION_SCALE) // (2 * FRACTION_SCALE)
+    return d if d > min_step else min_step
+
+
+@dataclass(frozen=True)
+class EventParameters:
+    """Rules of the gait events and steps, shared by the on-line and the offline chain (see module notes).
+
+    Attributes
+    ----------
+    ff_cutoff_hz, detail_cutoff_hz, impact_cutoff_hz
+        -3 dB frequencies of the Gaussian low-passes: foot-flat (3 Hz), heel-strike/toe-off detail (10 Hz),
+        lower edge of the heel-strike impact band (5 Hz).
+    min_step_s, max_step_s
+        Shortest step (0.25 s) and longest step inside a walking bout (1.5 s).
+    min_prominence_m_s2
+        Smallest rise and fall of the 3 Hz signal around a foot-flat (0.5 m/s^2).
+    hs_search_s, hs_after_s, hs_delay_s
+        The impact is searched from ``hs_search_s`` before to ``hs_after_s`` after each foot-flat; the
+        heel-strike is ``hs_delay_s`` before the impact.
+    to_search_s
+        Toe-off: first local minimum of the 10 Hz signal within this long after the foot-flat.
+    min_step_fraction
+        Peaks closer than this fraction of the typical step duration are one step (the higher is kept).
+    """
+
+    ff_cutoff_hz: float = 3.0
+    detail_cutoff_hz: float = 10.0
+    impact_cutoff_hz: float = 5.0
+    min_step_s: float = 0.25
+    max_step_s: float = 1.5
+    min_prominence_m_s2: float = 0.5
+    hs_search_s: float = 0.2
+    hs_after_s: float = 0.06
+    hs_delay_s: float = 0.04
+    to_search_s: float = 0.3
+    min_step_fraction: float = 0.6
+
+    def __post_init__(self) -> None:
+        for name in ("ff_cutoff_hz", "detail_cutoff_hz", "impact_cutoff_hz", "min_step_s", "max_step_s",
+                     "min_prominence_m_s2", "min_step_fraction"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+        for name in ("hs_search_s", "hs_after_s", "hs_delay_s", "to_search_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+        if self.max_step_s <= self.min_step_s:
+            raise ValueError(f"max_step_s ({self.max_step_s}) must exceed min_step_s ({self.min_step_s})")
+        if not self.impact_cutoff_hz < self.detail_cutoff_hz:
+            raise ValueError("impact_cutoff_hz must be below detail_cutoff_hz (the impact band is between them)")
+
+    @property
+    def min_step_fraction_scaled(self) -> int:
+        """``min_step_fraction`` as an integer out of :data:`FRACTION_SCALE`."""
+        return int(round(self.min_step_fraction * FRACTION_SCALE))
+
+    def minimum_distance(self, typical_twice: int, min_step: int) -> int:
+        """The peak distance rule in samples (:func:`minimum_distance` with this ``min_step_fraction``).
+
+        >>> EventParameters().minimum_distance(2 * 25, 13), EventParameters().minimum_distance(57, 13)
+        (15, 17)
+        """
+        return minimum_distance(typical_twice, min_step, self.min_step_fraction_scaled)
+
+
+@dataclass(frozen=True)
+class OnlineParameters:
+    """What the on-line algorithm adds to the shared rules.
+
+    Attributes
+    ----------
+    gravity_tau_s
+        Time constant of each of the two exponential stages of the gravity estimate; rounded to a power of
+        two of samples (the update is a shift).
+    median_steps
+        Number of recent peak intervals whose median is the typical step duration (odd).
+    min_gravity_g
+        Below this gravity magnitude the vertical direction is not defined (free fall): ``a_v = 0``.
+    """
+
+    gravity_tau_s: float = 1.28
+    median_steps: int = 7
+    min_gravity_g: float = 0.2
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.gravity_tau_s) and self.gravity_tau_s > 0):
+            raise ValueError(f"gravity_tau_s must be positive, got {self.gravity_tau_s!r}")
+        if not (isinstance(self.median_steps, int) and 3 <= self.median_steps <= 15 and self.median_steps % 2):
+            raise ValueError(f"median_steps must be an odd integer in 3..15, got {self.median_steps!r}")
+        if not 0 < self.min_gravity_g < 1:
+            raise ValueError(f"min_gravity_g must be in (0, 1) g, got {self.min_gravity_g!r}")
+
+
+def gaussian_radius(cutoff_hz: float, sampling_rate_hz: float, *, truncate: float = 4.0) -> int:
+    """Half-width in samples of the Gaussian whose -3 dB frequency is ``cutoff_hz`` (scipy's
+    ``int(truncate · sigma + 0.5)``).
+
+    >>> gaussian_radius(3.0, 50.0), gaussian_radius(10.0, 50.0), gaussian_radius(5.0, 50.0)
+    (9, 3, 5)
+    """
+    sigma = SIGMA_S_AT_1HZ / cutoff_hz * sampling_rate_hz
+    return int(truncate * sigma + 0.5)
+
+
+@dataclass(frozen=True)
+class SampleCounts:
+    """The parameters as whole numbers of samples at one sampling rate (what the firmware stores).
+
+    Build with :meth:`at`.
+
+    Examples
+    --------
+    >>> c = SampleCounts.at(EventParameters(), OnlineParameters(), 50.0)
+    >>> c.r3, c.r10, c.r5, c.min_step, c.max_step, c.hs_before, c.hs_after, c.hs_delay, c.to_span, c.gravity_shift
+    (9, 3, 5, 13, 75, 10, 3, 2, 15, 6)
+    """
+
+    sampling_rate_hz: float
+    r3: int
+    r10: int
+    r5: int
+    min_step: int
+    max_step: int
+    hs_before: int
+    hs_after: int
+    hs_delay: int
+    to_span: int
+    gravity_shift: int
+    median_steps: int
+    fraction_scaled: int
+
+    @classmethod
+    def at(cls, events: EventParameters, online: OnlineParameters, sampling_rate_hz: float) -> SampleCounts:
+        """The counts at ``sampling_rate_hz``."""
+        fs = float(sampling_rate_hz)
+        if not (math.isfinite(fs) and fs > 0):
+            raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
+        return cls(
+            fs,
+            gaussian_radius(events.ff_cutoff_hz, fs),
+            gaussian_radius(events.detail_cutoff_hz, fs),
+            gaussian_radius(events.impact_cutoff_hz, fs),
+            max(1, samples(events.min_step_s, fs)),
+            samples(events.max_step_s, fs),
+            samples(events.hs_search_s, fs),
+            samples(events.hs_after_s, fs),
+            samples(events.hs_delay_s, fs),
+            samples(events.to_search_s, fs),
+            max(0, int(round(math.log2(max(online.gravity_tau_s * fs, 1.0))))),
+            online.median_steps,
+            events.min_step_fraction_scaled,
+        )

@@ -1,0 +1,210 @@
+"""The on-line step algorithm's RAM: every variable it keeps, declared once, with its PIC word.
+
+The compiled kernel (:mod:`firmware_sim.algorithms.kernel`) keeps its persistent state in nothing but the
+arrays laid out here: ``values`` (arithmetic values: ``int64`` raw fixed point or ``float64``), ``indices``
+(sample indices, counters, flags: integers in both arithmetics), the a_v delay line and the ring of recent
+step durations. The slot constants below are what the kernel indexes with. Its temporaries are the local
+variables of the kernel's functions: :data:`FRAMES` gives each one its PIC word (0 for what needs no RAM
+of its own: a constant, an alias of a state slot, an operand consumed by the next primitive, which lives in
+the maths routines' registers, or the emulator's own bookkeeping) and :data:`CALLS` the call graph, so the
+temporaries take the largest sum of frames along a call chain. The RAM the algorithm needs on the
+PIC16F877 is :func:`ram_bytes` of these declarations — the implemented state, not a table written beside
+it: ``tests/firmware_sim/test_online_state.py`` checks that every local and argument of every kernel
+function is declared here (and nothing else), that the call graph is the code's, and that a walk writes
+every persistent slot and nothing outside them.
+
+Widths are the PIC words: sample indices are 16-bit (they wrap on the PIC; every difference the algorithm
+takes is below 2^15 samples), filter outputs 24-bit (Q2.16), accumulators 32-bit. The firmware's own
+variables (page buffer, UART, header counters, maths registers ...) are declared in
+:mod:`firmware_sim.budget`, which adds them up against the 368 bytes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Variable", "VALUE_SLOTS", "INDEX_SLOTS", "N_VALUES", "N_INDICES", "FRAMES", "CALLS", "variables",
+           "persistent_bytes", "temporaries_bytes", "ram_bytes"]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One declared variable: name, number of words, bytes per word, where it lives, what it is for."""
+
+    name: str
+    count: int
+    word_bytes: int
+    kind: str          # "value", "index", "line", "ring"
+    note: str
+
+    @property
+    def bytes(self) -> int:
+        """RAM taken."""
+        return self.count * self.word_bytes
+
+
+# (slot name, count, word bytes, note); the order fixes the slot numbers
+_VALUES = (
+    ("G1", 3, 4, "gravity, first exponential stage, x y z (Q2.29)"),
+    ("G2", 3, 4, "gravity, second stage (Q2.29)"),
+    ("MX", 1, 3, "peak detector: highest 3 Hz value since the last trough (Q2.16)"),
+    ("MN", 1, 3, "peak detector: lowest 3 Hz value since the last peak (Q2.16)"),
+    ("PEND_Y", 1, 3, "3 Hz value of the pending foot-flat"),
+    ("RAW_Y", 1, 3, "3 Hz value of the last peak of the step-duration stream"),
+)
+_INDICES = (
+    ("N", 1, 2, "samples since the run started (low 16 bits)"),
+    ("LINE_POS", 1, 1, "write position in the a_v delay line"),
+    ("FLAGS", 1, 1, "bits: looking for a peak, pending valid, last foot-flat valid, raw peak valid"),
+    ("MXPOS", 1, 2, "index of MX"),
+    ("PEND", 1, 2, "index of the pending foot-flat"),
+    ("LAST", 1, 2, "index of the last final foot-flat"),
+    ("RAW", 1, 2, "index of the last peak of the step-duration stream"),
+    ("N_DUR", 1, 1, "step durations in the ring (saturates at its length)"),
+    ("DUR_POS", 1, 1, "write position in the duration ring"),
+    ("DIST", 1, 1, "current minimum foot-flat distance, samples"),
+)
+
+
+def _slots(spec: tuple) -> dict[str, int]:
+    out, pos = {}, 0
+    for name, count, _, _ in spec:
+        out[name] = pos
+        pos += count
+    return out
+
+
+#: Slot of each value variable in the ``values`` array.
+VALUE_SLOTS = _slots(_VALUES)
+#: Slot of each index variable in the ``indices`` array.
+INDEX_SLOTS = _slots(_INDICES)
+N_VALUES = sum(c for _, c, _, _ in _VALUES)
+N_INDICES = sum(c for _, c, _, _ in _INDICES)
+
+# the kernel's slot constants (module-level integers: compiled in as constants)
+G1, G2, MX, MN, PEND_Y, RAW_Y = (VALUE_SLOTS[n] for n, *_ in _VALUES)
+N, LINE_POS, FLAGS, MXPOS, PEND, LAST, RAW, N_DUR, DUR_POS, DIST = (INDEX_SLOTS[n] for n, *_ in _INDICES)
+
+#: Bits of ``FLAGS``.
+F_LOOK_MAX, F_PEND, F_LAST, F_RAW = 1, 2, 4, 8
+
+
+#: Arguments and locals of the kernel's functions: name -> (bytes on the PIC, why). Array arguments (the
+#: state, configuration and output arrays, the counters) are fixed RAM areas or the EEPROM and are left out.
+FRAMES: dict[str, dict[str, tuple[int, str]]] = {
+    "process": {"k": (0, "records written: the step store's write index, in the header copy"),
+                "row": (0, "the emulator's loop over a block; the firmware runs one sample per interrupt")},
+    "_sample": {"cx": (0, "in the page buffer"), "cy": (0, "in the page buffer"), "cz": (0, "in the page buffer"),
+                "k": (0, "the step store's write index"), "m": (2, "index of the newest filter output"),
+                "y": (3, "its 3 Hz value, Q2.16")},
+    "_front": {
+        "cx": (0, "in the page buffer"), "cy": (0, "in the page buffer"), "cz": (0, "in the page buffer"),
+        "r3": (0, "constant"), "n": (0, "alias of N"),
+        "c0": (2, "centred code x, Q10.5"), "c1": (2, "centred code y"), "c2": (2, "centred code z"),
+        "fx": (2, "specific force x, Q2.13"), "fy": (2, "specific force y"), "fz": (2, "specific force z"),
+        "warm": (1, "gravity shift while the run is young"), "axis": (1, "loop counter"),
+        "gx": (2, "gravity x rounded to Q2.13"), "gy": (2, "gravity y"), "gz": (2, "gravity z"),
+        "norm2": (4, "|g|^2, Q5.26"), "gn": (2, "|g|, Q2.13"), "av": (2, "a_v, Q2.13"),
+        "centre": (1, "delay-line position of the FIR centre"),
+    },
+    "_calibrated": {"row": (0, "unrolled: three copies"), "c0": (0, "alias"), "c1": (0, "alias"),
+                    "c2": (0, "alias"), "mf": (0, "constant"), "cf": (0, "constant"), "acc": (4, "row sum, 32-bit")},
+    "_fir": {"centre": (0, "alias"), "length": (0, "constant"), "w0": (0, "constant"), "r": (0, "constant"),
+             "acc": (4, "FIR sum, Q4.27"), "tap": (1, "loop counter"), "pair": (0, "operand of the next multiply")},
+    "_confirmed": {"p": (2, "index of the confirmed peak"), "yp": (3, "its 3 Hz value"), "m": (0, "alias"),
+                   "k": (0, "the step store's write index")},
+    "_median_twice": {"n": (0, "alias of N_DUR"), "d": (-1, "an insertion-sorted copy of the duration ring")},
+    "_finalise": {
+        "e": (2, "index of the final foot-flat"), "m": (0, "alias"), "k": (0, "the step store's write index"),
+        "zero": (0, "constant"), "flags": (1, "the record's flags"), "s": (2, "window start (previous foot-flat)"),
+        "hs": (2, "heel-strike index"), "to": (2, "toe-off index"), "hs3": (2, "M3's heel-strike"),
+        "l1": (2, "M1 length, UQ2.14 (the record's)"), "l2": (2, "M2"), "l3": (2, "M3"), "l4": (2, "M4"),
+        "l5": (2, "M5"), "c": (0, "the emulator's output loop"), "span": (4, "position range"),
+        "c1": (4, "M2 c1, Q.17"), "c2": (4, "M2 c2, Q.17 per sample"), "length": (2, "pendulum length, UQ2.14"),
+        "bad": (0, "bit of flags (IMPOSSIBLE)"), "span3": (4, "M3 position range"),
+    },
+    "_heel_strike": {"e": (0, "alias"), "m": (0, "alias"), "size": (0, "constant"), "lo": (2, "search start"),
+                     "hi": (2, "search end"), "best": (2, "impact index"), "peak": (3, "impact value, Q2.16"),
+                     "j": (2, "loop index")},
+    "_toe_off": {"s": (0, "alias"), "m": (0, "alias"), "size": (0, "constant"), "j": (2, "loop index")},
+    "_range": {"s": (0, "alias"), "e": (0, "alias"), "size": (0, "constant"), "y_max": (3, "3 Hz maximum"),
+               "y_min": (3, "3 Hz minimum"), "j": (2, "loop index")},
+    "_pass1": {"s": (0, "alias"), "e": (0, "alias"), "size": (0, "constant"), "vel": (4, "velocity accumulator"),
+               "pos": (4, "position accumulator"), "p_max": (4, "M1 maximum"), "p_min": (4, "M1 minimum"),
+               "j": (2, "loop index"), "v_new": (4, "next velocity"), "c1": (0, "returned in the caller's c1"),
+               "c2": (0, "returned in the caller's c2")},
+    "_pass2": {"s": (0, "alias"), "e": (0, "alias"), "to": (0, "alias"), "hs3": (0, "alias"), "c1": (0, "alias"),
+               "c2": (0, "alias"), "size": (0, "constant"), "vel": (4, "velocity accumulator"),
+               "q": (4, "M2 position p2"), "q_max": (4, "M2 maximum"), "q_min": (4, "M2 minimum"),
+               "s_max": (4, "M3 maximum"), "s_min": (4, "M3 minimum"), "ramp": (4, "2 c1 (2 tau - 1)"),
+               "ramp_step": (4, "4 c1"), "seen": (0, "bit of the caller's flags"), "j": (2, "loop index"),
+               "v_new": (4, "next velocity"), "dp": (0, "operand of the next addition")},
+    "_excursion": {"span": (0, "operand"), "f_pos": (0, "constant"), "shift": (0, "constant"),
+                   "s16": (0, "operand of the next multiply")},
+    "_pendulum": {"h": (0, "alias of the excursion"), "lh2": (4, "2 l h, UQ2.30"), "hh": (0, "operand"),
+                  "x": (4, "2 l h - h^2"), "half": (0, "operand")},
+    "_read_cost": {"records": (0, "the emulator's I2C accounting"), "record_bytes": (0, "constant")},
+    "flush": {"k": (0, "the step store's write index")},
+    "reset": {},
+}
+
+#: Which kernel function calls which (the frames of a call chain are live together).
+CALLS: dict[str, tuple[str, ...]] = {
+    "process": ("_sample",),
+    "_sample": ("_front", "_finalise", "_confirmed"),
+    "_front": ("_calibrated", "_fir"),
+    "_calibrated": (),
+    "_fir": (),
+    "_confirmed": ("_median_twice", "_finalise"),
+    "_median_twice": (),
+    "_finalise": ("_heel_strike", "_toe_off", "_pass1", "_excursion", "_pendulum", "_pass2", "_range"),
+    "_heel_strike": ("_read_cost",),
+    "_toe_off": ("_read_cost",),
+    "_range": ("_read_cost",),
+    "_pass1": ("_read_cost",),
+    "_pass2": ("_read_cost",),
+    "_excursion": (),
+    "_pendulum": (),
+    "_read_cost": (),
+    "flush": ("_finalise",),
+    "reset": (),
+}
+
+
+def _frame_bytes(name: str, median_steps: int) -> int:
+    return sum(median_steps if b < 0 else b for b, _ in FRAMES[name].values())
+
+
+def temporaries_bytes(*, median_steps: int, entry: str = "process") -> int:
+    """RAM of the temporaries: the largest sum of frames along a call chain from ``entry``.
+
+    >>> temporaries_bytes(median_steps=7)
+    87
+    """
+    below = max((temporaries_bytes(median_steps=median_steps, entry=c) for c in CALLS[entry]), default=0)
+    return _frame_bytes(entry, median_steps) + below
+
+
+def persistent_bytes(*, line_length: int, median_steps: int) -> int:
+    """RAM of the state kept between samples."""
+    return sum(v.bytes for v in variables(line_length=line_length, median_steps=median_steps))
+
+
+def variables(*, line_length: int, median_steps: int) -> list[Variable]:
+    """Every variable with its size, for a delay line of ``line_length`` a_v samples (``2 r3 + 1``) and a
+    ring of ``median_steps`` durations."""
+    out = [Variable(n, c, b, "value", note) for n, c, b, note in _VALUES]
+    out += [Variable(n, c, b, "index", note) for n, c, b, note in _INDICES]
+    out.append(Variable("LINE", line_length, 2, "line", "a_v delay line of the centred FIR filters (Q2.13)"))
+    out.append(Variable("DURATIONS", median_steps, 1, "ring", "recent peak intervals, samples"))
+    return out
+
+
+def ram_bytes(*, line_length: int, median_steps: int) -> int:
+    """RAM of the algorithm on the PIC: its persistent state plus its temporaries.
+
+    >>> ram_bytes(line_length=19, median_steps=7)
+    183
+    """
+    return (persistent_bytes(line_length=line_length, median_steps=median_steps)
+            + temporaries_bytes(median_steps=median_steps))
