@@ -42,9 +42,9 @@ from typing import Any
 import numpy as np
 
 from host.errors import HostError
-from host.estimators import ESTIMATORS
+from firmware_sim.algorithms.steps import ESTIMATORS
 from host.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
-from host.gait.pipeline import StepTable
+from firmware_sim.algorithms.steps import StepTable
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1

@@ -36,10 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import HostError
-from host.estimators import ESTIMATORS
+from firmware_sim.algorithms.steps import ESTIMATORS
 from host.estimators.anthropometry import anatomical_lengths
 from host.estimators.calibration import KCalibration, calibrate
-from host.gait.pipeline import StepPipeline, StepTable, apply_calibration
+from firmware_sim.algorithms.steps import StepTable
+from host.gait.pipeline import StepPipeline, apply_calibration
 from host.ipol import list_trials
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.

@@ -51,7 +51,7 @@ import numpy as np
 
 from host.compare import MODES
 from host.errors import HostError
-from host.estimators import ESTIMATORS
+from firmware_sim.algorithms.steps import ESTIMATORS
 
 BITS = (8, 10, 12)
 RATES_HZ = (25.0, 50.0, 100.0)

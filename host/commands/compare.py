@@ -199,7 +199,7 @@ def _recording(args: argparse.Namespace) -> int:
     from host.compare import columns_csv_text, compare_recording, format_step_diffs, rows_csv_text
     from host.errors import HostError
     from host.estimators.anthropometry import anatomical_lengths
-    from host.estimators import ESTIMATORS
+    from firmware_sim.algorithms.steps import ESTIMATORS
     from host.estimators.calibration import KCalibration
     from protocol.atomic_write import atomic_write_text
     from protocol.header import Calibration

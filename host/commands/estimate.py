@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from host.commands._gait_input import load_input
-    from host.estimators import ESTIMATORS
+    from firmware_sim.algorithms.steps import ESTIMATORS
     from host.estimators.anthropometry import anatomical_lengths
     from host.estimators.calibration import KCalibration
     from host.gait.pipeline import StepPipeline

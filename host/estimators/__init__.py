@@ -1,4 +1,6 @@
-"""Step-length estimators M1-M5 of Alvarez et al. (2006), floating point, and their K calibration.
+"""Step-length estimators M1-M5 of Alvarez et al. (2006) in the offline float chain, and their K calibration.
+
+The names (``ESTIMATORS``) and the per-step table are defined once in ``firmware_sim.algorithms.steps``.
 
 ========  =========================================  =====================================
 name      class                                      model
@@ -10,5 +12,3 @@ M4        :class:`~.weinberg.WeinbergM4`             ``K (a_max - a_min)^(1/4)``
 M5        :class:`~.cadence.CadenceM5`               ``K1 / T_step + K2``
 ========  =========================================  =====================================
 """
-
-ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")

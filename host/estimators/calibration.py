@@ -30,7 +30,7 @@ import numpy as np
 from host.errors import HostError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from host.gait.pipeline import StepTable
+    from firmware_sim.algorithms.steps import StepTable
 
 
 @dataclass(frozen=True)

@@ -37,43 +37,31 @@ from typing import Self
 
 import numpy as np
 
-from firmware_sim.algorithms.events import link_steps
+from scipy.signal import find_peaks
 
+from firmware_sim.algorithms.parameters import EventParameters, minimum_distance, samples
 from host.gait.masked_filter import masked_gaussian_lowpass
 
 
 class GaitEventDetector:
-    """Detect foot-flat, heel-strike and toe-off in vertical trunk acceleration.
+    """Detect foot-flat, heel-strike and toe-off in vertical trunk acceleration (the offline chain).
 
     Parameters
     ----------
-    ff_cutoff_hz
-        -3 dB frequency of the first-harmonic low-pass for foot-flat (3 Hz).
-    detail_cutoff_hz
-        -3 dB frequency of the low-pass used for heel-strike and toe-off (10 Hz).
-    min_step_s, max_step_s
-        Shortest step (0.25 s) and longest step inside a walking bout (1.5 s).
-    min_prominence_m_s2
-        Smallest peak prominence of the first harmonic accepted as a step (0.5 m/s^2).
-    hs_search_s, hs_after_s, to_search_s
-        Search windows around each foot-flat: for the impact from ``hs_search_s`` (0.2 s) before to
-        ``hs_after_s`` (0.06 s) after it; for toe-off up to ``to_search_s`` (0.3 s) after it.
-    impact_cutoff_hz
-        Lower edge of the impact band (5 Hz): the heel-strike signal is the ``detail_cutoff_hz`` low-pass
-        minus this one (note 2).
-    hs_delay_s
-        Heel-strike to impact peak (0.04 s, note 2).
+    parameters
+        The rules shared with the firmware's on-line algorithm
+        (:class:`firmware_sim.algorithms.parameters.EventParameters`: cut-offs, step limits, prominence,
+        search windows, heel-strike delay, the second pass's fraction of the median step).
     max_gap_s
         Longest run of missing samples a step may contain (0.1 s); longer gaps split bouts.
-    min_step_fraction
-        Second pass: peaks closer than this fraction of the median step duration (0.6) are merged, the
-        more prominent kept. Within a bout step durations vary by a few per cent (stride-time CV 2-4 % in
-        healthy adults, Hausdorff, J. NeuroEng. Rehab. 2005); a "step" 40 % shorter than the typical one
-        is a second bump of the same step (turns, stops), not a step.
     min_weight
         Normalised convolution: fraction of the Gaussian kernel's weight that must fall on measured
         samples for the filtered value to exist (0.25; the 3 Hz kernel spans ~±0.17 s, so a filtered value
         still rests on several measured samples of the same step phase).
+
+    Every duration becomes a whole number of samples by the one rounding rule of both chains
+    (:func:`firmware_sim.algorithms.parameters.samples`, half up), and the second pass's distance is the
+    shared integer rule (:func:`firmware_sim.algorithms.parameters.minimum_distance`).
 
     Attributes
     ----------
@@ -87,57 +75,35 @@ class GaitEventDetector:
         ``(m,)`` bout number of each foot-flat.
     """
 
-    def __init__(
-        self,
-        *,
-        ff_cutoff_hz: float = 3.0,
-        detail_cutoff_hz: float = 10.0,
-        min_step_s: float = 0.25,
-        max_step_s: float = 1.5,
-        min_prominence_m_s2: float = 0.5,
-        hs_search_s: float = 0.2,
-        hs_after_s: float = 0.06,
-        to_search_s: float = 0.3,
-        max_gap_s: float = 0.1,
-        min_step_fraction: float = 0.6,
-        min_weight: float = 0.25,
-        impact_cutoff_hz: float = 5.0,
-        hs_delay_s: float = 0.04,
-    ) -> None:
-        self.ff_cutoff_hz = ff_cutoff_hz
-        self.detail_cutoff_hz = detail_cutoff_hz
-        self.min_step_s = min_step_s
-        self.max_step_s = max_step_s
-        self.min_prominence_m_s2 = min_prominence_m_s2
-        self.hs_search_s = hs_search_s
-        self.hs_after_s = hs_after_s
-        self.to_search_s = to_search_s
+    def __init__(self, parameters: EventParameters | None = None, *, max_gap_s: float = 0.1,
+                 min_weight: float = 0.25) -> None:
+        self.parameters = parameters if parameters is not None else EventParameters()
         self.max_gap_s = max_gap_s
-        self.min_step_fraction = min_step_fraction
         self.min_weight = min_weight
-        self.impact_cutoff_hz = impact_cutoff_hz
-        self.hs_delay_s = hs_delay_s
+
+    def clone(self) -> GaitEventDetector:
+        """A detector with the same settings and no results."""
+        return GaitEventDetector(self.parameters, max_gap_s=self.max_gap_s, min_weight=self.min_weight)
 
     def detect(self, acc_v_m_s2: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None) -> Self:
         """Detect the events in ``acc_v_m_s2`` (``(n,)``, up positive, gravity removed)."""
-        from scipy.signal import find_peaks
-
         fs = float(sampling_rate_hz)
         if not (np.isfinite(fs) and fs > 0):
             raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         a = np.asarray(acc_v_m_s2, dtype=np.float64)
         if a.ndim != 1:
             raise ValueError(f"acc_v_m_s2 must be one-dimensional, got shape {a.shape}")
+        p = self.parameters
         ok = np.isfinite(a) if valid is None else (np.asarray(valid, bool) & np.isfinite(a))
         n = a.size
         self.first_harmonic_m_s2_ = lp = masked_gaussian_lowpass(
-            a, ok, cutoff_hz=self.ff_cutoff_hz, sampling_rate_hz=fs, min_weight=self.min_weight)
-        det = masked_gaussian_lowpass(a, ok, cutoff_hz=self.detail_cutoff_hz, sampling_rate_hz=fs,
+            a, ok, cutoff_hz=p.ff_cutoff_hz, sampling_rate_hz=fs, min_weight=self.min_weight)
+        det = masked_gaussian_lowpass(a, ok, cutoff_hz=p.detail_cutoff_hz, sampling_rate_hz=fs,
                                       min_weight=self.min_weight)
         empty = np.zeros(0, dtype=np.int64)
         if n < 3 or not np.any(np.isfinite(lp)):
             for name, value in link_steps(empty, empty, empty, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
-                                          max_step_s=self.max_step_s).items():
+                                          max_step_s=p.max_step_s).items():
                 setattr(self, name, value)
             return self
         # 1. foot-flat = first-harmonic peaks (NaN stretches cannot hold a peak)
@@ -145,28 +111,27 @@ class GaitEventDetector:
         # measured data the curve is drawn straight (for the search only), and no peak may lie there
         fin = np.isfinite(lp)
         sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
-        ff, _ = find_peaks(sig, distance=max(1, int(round(self.min_step_s * fs))),
-                           prominence=self.min_prominence_m_s2)
+        dist0 = max(1, samples(p.min_step_s, fs))
+        ff, _ = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2)
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
-        d = d[d <= self.max_step_s * fs]
+        d = d[d <= samples(p.max_step_s, fs)]
         if d.size >= 3:
-            min_dist = max(self.min_step_s * fs, self.min_step_fraction * float(np.median(d)))
-            ff, _ = find_peaks(sig, distance=max(1, int(round(min_dist))), prominence=self.min_prominence_m_s2)
+            dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
+            ff, _ = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2)
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
-        band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=self.impact_cutoff_hz, sampling_rate_hz=fs,
+        band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=p.impact_cutoff_hz, sampling_rate_hz=fs,
                                              min_weight=self.min_weight)
-        impact = self._search(band, ff, -int(round(self.hs_search_s * fs)), int(round(self.hs_after_s * fs)),
-                              mode="argmax")
-        hs = impact - int(round(self.hs_delay_s * fs))
+        impact = self._search(band, ff, -samples(p.hs_search_s, fs), samples(p.hs_after_s, fs), mode="argmax")
+        hs = impact - samples(p.hs_delay_s, fs)
         hs = np.where((impact >= 0) & (hs >= 0), hs, -1).astype(np.int64)
-        to = self._first_local_min(det, ff, int(round(self.to_search_s * fs)))
-        # 4. bouts and steps (index bookkeeping shared with the firmware's detector)
+        to = self._first_local_min(det, ff, samples(p.to_search_s, fs))
+        # 4. bouts and steps
         for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
-                                      max_step_s=self.max_step_s).items():
+                                      max_step_s=p.max_step_s).items():
             setattr(self, name, value)
         return self
 
@@ -204,3 +169,57 @@ def warn_if_no_steps(detector: GaitEventDetector) -> None:
     """Warn when a detection found no complete step."""
     if detector.step_start_.size == 0:
         warnings.warn("no walking steps detected (no two foot-flats within max_step_s)", stacklevel=3)
+
+
+def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray, *, sampling_rate_hz: float,
+               max_gap_s: float, max_step_s: float) -> dict[str, np.ndarray]:
+    """Walking bouts and steps from per-foot-flat event indices (index bookkeeping, no arithmetic).
+
+    Consecutive foot-flats ``ff`` form a step when they are at most ``max_step_s`` apart and no run of
+    missing samples (``~ok``) between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
+    and ``to`` are the heel-strike before and the toe-off after each foot-flat (``-1`` = none); a step's
+    toe-off that does not precede its heel-strike is impossible and becomes ``-1``. (The on-line
+    algorithm links its steps as it finds them, :mod:`firmware_sim.algorithms.kernel`.)
+
+    Returns
+    -------
+    dict
+        The detectors' result attributes: ``foot_flat_``, ``heel_strike_``, ``toe_off_``, ``bout_``,
+        ``step_start_``, ``step_end_``, ``step_toe_off_``, ``step_heel_strike_``, ``step_bout_``.
+    """
+    if ff.size:
+        interval_ok = np.diff(ff) <= max_step_s * sampling_rate_hz
+        # longest run of missing samples between consecutive foot-flats
+        worst = _between_max(_gap_lengths(ok), ff)
+        link = interval_ok & (worst <= int(round(max_gap_s * sampling_rate_hz)))
+        bout = np.concatenate([[0], np.cumsum(~link)])
+    else:
+        link = np.zeros(0, bool)
+        bout = np.zeros(0, np.int64)
+    k = np.flatnonzero(link)
+    step_toe_off = to[k]
+    step_heel_strike = hs[k + 1]
+    bad = (step_toe_off >= 0) & (step_heel_strike >= 0) & (step_toe_off >= step_heel_strike)
+    return {"foot_flat_": ff, "heel_strike_": hs, "toe_off_": to, "bout_": bout, "step_start_": ff[k],
+            "step_end_": ff[k + 1], "step_toe_off_": np.where(bad, -1, step_toe_off),
+            "step_heel_strike_": step_heel_strike, "step_bout_": bout[k] if k.size else np.zeros(0, np.int64)}
+
+
+def _gap_lengths(ok: np.ndarray) -> np.ndarray:
+    """For every sample, the length of the run of missing samples it belongs to (0 where measured)."""
+    miss = ~ok
+    if not miss.any():
+        return np.zeros(ok.size, np.int64)
+    d = np.diff(np.concatenate([[0], miss.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    paint = np.zeros(ok.size + 1, np.int64)
+    np.add.at(paint, starts, ends - starts)
+    np.add.at(paint, ends, -(ends - starts))
+    return np.cumsum(paint)[:-1]
+
+
+def _between_max(x: np.ndarray, marks: np.ndarray) -> np.ndarray:
+    """``max(x[m_k:m_k+1])`` between consecutive strictly increasing ``marks``."""
+    if marks.size < 2:
+        return np.zeros(0, x.dtype)
+    return np.maximum.reduceat(x[: marks[-1]], marks[:-1])

@@ -21,13 +21,11 @@ integral (nothing is interpolated across a gap).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Self
 
 import numpy as np
 
-from host.estimators import ESTIMATORS
+from firmware_sim.algorithms.steps import StepTable
 from host.estimators.cadence import CadenceM5
 from host.estimators.pendulum import PendulumDriftM2, PendulumM1
 from host.estimators.two_phase import TwoPhasePendulumM3
@@ -38,142 +36,6 @@ from host.gait.integration import step_samples
 
 if TYPE_CHECKING:  # pragma: no cover
     from host.estimators.calibration import KCalibration
-
-
-@dataclass(eq=False)
-class StepTable:
-    """One row per detected step (ending at a foot-flat). Indices are samples of the input, ``-1`` = none.
-
-    Attributes
-    ----------
-    sampling_rate_hz, t0_s
-        Sample rate and time of sample 0.
-    foot_flat, heel_strike, toe_off, start, bout
-        ``(m,)`` int: the foot-flat ending the step, the heel-strike before it, the toe-off after the
-        previous foot-flat, the window start (previous foot-flat, -1 if none), the walking-bout number.
-    duration_s, n_missing
-        Window duration (NaN if none) and missing samples inside it.
-    vertical_excursion_m
-        ``{"M1": h, "M2": h, "M3": h1}`` per step.
-    acc_range_m_s2
-        M4's 3 Hz vertical acceleration range per step.
-    raw_m
-        Per estimator, the length with K = 1 (M5: the cadence ``1/T`` in Hz).
-    length_m
-        Per estimator, the calibrated length (see module notes), m.
-    """
-
-    sampling_rate_hz: float
-    t0_s: float
-    foot_flat: np.ndarray
-    heel_strike: np.ndarray
-    toe_off: np.ndarray
-    start: np.ndarray
-    bout: np.ndarray
-    duration_s: np.ndarray
-    n_missing: np.ndarray
-    vertical_excursion_m: dict[str, np.ndarray] = field(default_factory=dict)
-    acc_range_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    raw_m: dict[str, np.ndarray] = field(default_factory=dict)
-    length_m: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def n_steps(self) -> int:
-        """Number of steps (rows)."""
-        return int(self.foot_flat.size)
-
-    def time_s(self, index: np.ndarray) -> np.ndarray:
-        """Times of sample indices (NaN where ``-1``)."""
-        index = np.asarray(index)
-        return np.where(index >= 0, self.t0_s + index / self.sampling_rate_hz, np.nan)
-
-    def select(self, mask: np.ndarray) -> StepTable:
-        """The rows where ``mask`` is true."""
-        mask = np.asarray(mask, bool)
-        return StepTable(
-            self.sampling_rate_hz, self.t0_s, self.foot_flat[mask], self.heel_strike[mask], self.toe_off[mask],
-            self.start[mask], self.bout[mask], self.duration_s[mask], self.n_missing[mask],
-            {k: v[mask] for k, v in self.vertical_excursion_m.items()}, self.acc_range_m_s2[mask],
-            {k: v[mask] for k, v in self.raw_m.items()}, {k: v[mask] for k, v in self.length_m.items()},
-        )
-
-    def event_time_s(self) -> np.ndarray:
-        """Time of each step for sectioning: its heel-strike, or its foot-flat when no heel-strike was found."""
-        idx = np.where(self.heel_strike >= 0, self.heel_strike, self.foot_flat)
-        return self.time_s(idx)
-
-    def filled(self, values: np.ndarray) -> tuple[np.ndarray, int]:
-        """``values`` with NaN replaced by the median of the finite values of the same bout (see notes).
-
-        Returns the filled array and the number of replaced entries. A bout without any finite value uses
-        the median over all bouts; with no finite value at all the result stays NaN.
-        """
-        v = np.asarray(values, np.float64).copy()
-        bad = ~np.isfinite(v)
-        if not bad.any():
-            return v, 0
-        overall = np.nanmedian(v) if np.any(~bad) else np.nan
-        for b in np.unique(self.bout[bad]):  # loop over bouts (few), not samples
-            sel = self.bout == b
-            good = v[sel & ~bad]
-            v[sel & bad] = np.median(good) if good.size else overall
-        return v, int(np.count_nonzero(bad))
-
-    def distance_m(self, estimator: str, *, raw: bool = False) -> tuple[float, int]:
-        """Distance walked by ``estimator`` (sum over steps, NaN steps filled) and the number filled.
-
-        For ``raw=True`` and M5 the sum is of the cadences ``1/T`` (what M5's calibration needs).
-        """
-        src = self.raw_m if raw else self.length_m
-        if estimator not in src:
-            raise KeyError(f"unknown estimator {estimator!r}; expected one of {sorted(src)}")
-        if self.n_steps == 0:
-            return 0.0, 0
-        v, n = self.filled(src[estimator])
-        return float(np.sum(v)), n
-
-    def columns(self) -> dict[str, np.ndarray]:
-        """The table as named columns (times in s, lengths in m) for CSV export."""
-        cols: dict[str, np.ndarray] = {
-            "step": np.arange(self.n_steps),
-            "bout": self.bout,
-            "start_s": self.time_s(self.start),
-            "toe_off_s": self.time_s(self.toe_off),
-            "heel_strike_s": self.time_s(self.heel_strike),
-            "foot_flat_s": self.time_s(self.foot_flat),
-            "duration_s": self.duration_s,
-            "n_missing": self.n_missing,
-            "h_m1_m": self.vertical_excursion_m.get("M1", np.full(self.n_steps, np.nan)),
-            "h_m2_m": self.vertical_excursion_m.get("M2", np.full(self.n_steps, np.nan)),
-            "h1_m3_m": self.vertical_excursion_m.get("M3", np.full(self.n_steps, np.nan)),
-            "acc_range_m4_m_s2": self.acc_range_m_s2,
-        }
-        for name in ESTIMATORS:
-            cols[f"length_{name.lower()}_m"] = self.length_m.get(name, np.full(self.n_steps, np.nan))
-        return cols
-
-    def to_csv_text(self) -> str:
-        """CSV text of :meth:`columns` (``%.6g``; empty cells for NaN)."""
-        cols = self.columns()
-        names = list(cols)
-        lines = [",".join(names)]
-        arrays = [np.asarray(cols[n]) for n in names]
-        for i in range(self.n_steps):  # formatting only
-            cells = []
-            for a in arrays:
-                x = a[i]
-                if np.issubdtype(a.dtype, np.integer):
-                    cells.append(str(int(x)))
-                else:
-                    cells.append("" if not np.isfinite(x) else f"{float(x):.6g}")
-            lines.append(",".join(cells))
-        return "\n".join(lines) + "\n"
-
-    def to_csv(self, path: str | Path) -> None:
-        """Write :meth:`to_csv_text` atomically."""
-        from protocol.atomic_write import atomic_write_text
-
-        atomic_write_text(path, self.to_csv_text())
 
 
 class StepPipeline:
@@ -239,8 +101,7 @@ class StepPipeline:
                                          gravity_window_s=self.gravity_window_s)
         ok = self.axes_.valid
         av = self.axes_.acc_v_m_s2
-        det = (self.detector if self.detector is not None else GaitEventDetector())
-        det = GaitEventDetector(**{k: getattr(det, k) for k in vars(det) if not k.endswith("_")})
+        det = (self.detector if self.detector is not None else GaitEventDetector()).clone()
         self.events_ = det.detect(av, sampling_rate_hz=fs, valid=ok)
         self.steps_ = self._table(av, ok, fs, t0_s)
         return self

@@ -15,7 +15,7 @@ from host.compare import (
     step_differences,
     truth_table,
 )
-from host.gait.pipeline import StepTable
+from firmware_sim.algorithms.steps import StepTable
 
 FS = 50.0
 

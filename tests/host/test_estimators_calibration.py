@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from host.errors import HostError
 from host.estimators.calibration import KCalibration, calibrate
-from host.gait.pipeline import StepTable, apply_calibration
+from firmware_sim.algorithms.steps import StepTable
+from host.gait.pipeline import apply_calibration
 
 
 def table(raw_len: float, step_s: float, n: int, *, nan_first: bool = True) -> StepTable:

@@ -28,7 +28,7 @@ from host.evaluation import (
     sections_from_marks,
     summarise,
 )
-from host.gait.pipeline import StepTable
+from firmware_sim.algorithms.steps import StepTable
 
 #: 60 m corridor: marks 10, 30 | 50-70 holds the turn | 70, 90, 110; first 40 m = calibration.
 SHORT = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=8.0,

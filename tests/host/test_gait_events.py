@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+from firmware_sim.algorithms.parameters import EventParameters
 from host.gait.axes import body_axes
 from host.gait.events import GaitEventDetector
 from host.gait.masked_filter import gaussian_sigma_s, masked_gaussian_lowpass
@@ -106,9 +107,9 @@ def test_heel_strike_is_the_impact_not_the_steeper_push_off() -> None:
 def test_heel_strike_delay_is_a_parameter(delay_s: float) -> None:
     fs = 50.0
     t, a, ff_t, hs_t, _ = synthetic_walk(fs=fs, impact_delay_s=delay_s)
-    hs = GaitEventDetector(hs_delay_s=delay_s).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    hs = GaitEventDetector(EventParameters(hs_delay_s=delay_s)).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
     assert np.median(np.abs(hs - hs_t)) <= 1.0 / fs + 1e-9
-    shifted = GaitEventDetector(hs_delay_s=delay_s + 0.04).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
+    shifted = GaitEventDetector(EventParameters(hs_delay_s=delay_s + 0.04)).detect(a, sampling_rate_hz=fs).heel_strike_ / fs
     assert np.median(hs - shifted) == pytest.approx(0.04, abs=1e-9)
 
 
