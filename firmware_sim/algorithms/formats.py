@@ -47,8 +47,9 @@ PENDULUM_ARG_Q = QFormat(2, 30, signed=False, word_bits=32)
 STEP_Q = QFormat(2, 14, signed=False)
 #: K of M1/M2 and M4's ``K g0^(1/4)``: unsigned Q1.15.
 K_Q = QFormat(1, 15, signed=False)
-#: M4's range and its fourth root: unsigned Q3.13.
-ROOT4_Q = QFormat(3, 13, signed=False)
+#: M4's square root and fourth root of the range (g^(1/2), g^(1/4)): unsigned Q1.15 (a walking trunk's 3 Hz
+#: range is below 2 g; a range of 4 g saturates the square root's 32-bit argument, counted).
+ROOT4_Q = QFormat(1, 15, signed=False)
 #: M5 constants ``K1 fs`` (m · samples) and ``K2`` (m): Q15.16 in 32 bits.
 M5_Q = QFormat(15, 16, word_bits=32)
 #: Calibration matrix mantissas, a shared exponent beside them (block floating point): Q0.15.

@@ -363,10 +363,11 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
                 flags |= _IMPOSSIBLE
             else:
                 l3 = ar.add(length, cfg_v[CV_FOOT], U16, cnt)
-        # M4 (eq 4): K (a_max - a_min)^(1/4), the range in g and K g0^(1/4) the constant
+        # M4 (eq 4): K (a_max - a_min)^(1/4), the range in g and K g0^(1/4) the constant; two square roots
+        # rounded to nearest, 15 fraction bits each (isqrt of the Q2.16 range shifted to 30 fraction bits)
         out_v[k, O_RANGE] = _range(s, e, cfg_i, scr, cnt)
-        l4 = ar.mul(ar.sqrt(ar.sqrt(ar.requant(out_v[k, O_RANGE], F_LP, F_ROOT, U16, cnt), F_ROOT, F_ROOT, False,
-                                    cnt), F_ROOT, F_ROOT, False, cnt), F_ROOT, cfg_v[CV_K4], F_K, F_STEP, U16, cnt)
+        l4 = ar.mul(ar.sqrt(ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt), F_ROOT, F_ROOT, True, cnt), F_ROOT,
+                    cfg_v[CV_K4], F_K, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples
         l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, e - s, 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32, cnt),
                         F_M5, F_STEP, U16, cnt)
