@@ -1,0 +1,54 @@
+"""``gaitlog budget``: does the logger with its on-line step algorithm fit a PIC16F877 (RAM and cycles)?"""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "RAM and cycles per sample of the logger with the on-line step algorithm, against the PIC16F877"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ", help="sampling rate (default 50)")
+    parser.add_argument("--crystal", type=float, default=18.432, metavar="MHZ",
+                        help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; at most 20)")
+    parser.add_argument("--seed", type=int, default=0, help="simulated walker whose walk is counted (default 0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from firmware_sim.adc import Adc
+    from firmware_sim.budget import cycle_budget, logging_cycles_per_sample, ram_budget
+    from firmware_sim.device import Logger
+    from firmware_sim.fixedpoint import cycles_per_sample_available
+    from firmware_sim.world.subject import random_subjects
+    from firmware_sim.world.walking import Walking
+    from host.errors import HostError
+    from protocol.steps import StepConfig
+
+    if not (1.0 <= args.rate <= 1000.0):
+        raise HostError(f"--rate {args.rate} Hz is outside 1 .. 1000 Hz")
+    if not (0.032 <= args.crystal <= 20.0):
+        raise HostError(f"--crystal {args.crystal} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
+    fosc = args.crystal * 1e6
+    available = cycles_per_sample_available(args.rate, fosc) - logging_cycles_per_sample()
+    if available <= 0:
+        raise HostError(f"at {args.rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")
+    ram = ram_budget(args.rate)
+    subject = random_subjects(1, seed=args.seed)[0]
+    logger = Logger(adc=Adc(rate_hz=args.rate), sample_rate_hz=args.rate,
+                    step_config=StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
+                                           foot_length_m=subject.foot_length_m))
+    logger.firmware.fosc_hz = fosc
+    res = logger.record(Walking(subject=subject, seed=args.seed))
+    alg = logger.firmware.step_algorithm
+    cycles = cycle_budget(alg.cycles, args.rate, fosc_hz=fosc)
+    print("\n".join(ram.lines()))
+    print()
+    print(f"counted on a simulated walker ({subject.subject_id}, {res.n_samples} samples, "
+          f"{logger.header.steps_written} step records; fixed point, the logger's own run):")
+    print("\n".join(cycles.lines()))
+    ctx = alg.arithmetic_context()
+    print("  by primitive (cycles per sample): " + ", ".join(
+        f"{k} {v / max(1, alg.cycles.samples):,.0f}" for k, v in sorted(ctx.cycles.items(), key=lambda kv: -kv[1])[:6]))
+    if alg.saturations:
+        print(f"  saturations: {ctx.report()}")
+    return 0 if (ram.fits and cycles.fits) else 1
