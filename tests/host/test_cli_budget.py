@@ -1,0 +1,32 @@
+"""``gaitlog budget``: the RAM and cycle budget of the logger with its on-line step algorithm."""
+
+from __future__ import annotations
+
+import pytest
+
+from host.cli import main
+
+
+def test_budget_at_50_hz_fits(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["budget"]) == 0
+    out = capsys.readouterr().out
+    assert "total                                         362  fits (+6 bytes)" in out
+    assert "cycles at 50 Hz, 18.432 MHz: 92,160 per sample" in out
+    mean = int(out.split("algorithm, mean")[1].split()[0].replace(",", ""))
+    assert 17_000 <= mean <= 22_000                       # 19,449 measured on the default walker
+
+
+def test_budget_at_100_hz_says_what_must_give(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["budget", "--rate", "100"]) == 1
+    out = capsys.readouterr().out
+    assert "398  DOES NOT FIT (-30 bytes)" in out and "what must give: 30 bytes" in out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["budget", "--rate", "0"], "--rate 0.0 Hz is outside"),
+    (["budget", "--crystal", "40"], "--crystal 40.0 MHz is outside"),
+])
+def test_budget_bad_input(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and err.count("\n") == 1
