@@ -5,8 +5,8 @@ loop runs :func:`process`), written as the firmware computes it: the state is th
 :mod:`firmware_sim.algorithms.state`, every value has its Q format (:mod:`firmware_sim.algorithms.formats`),
 and the arithmetic is the vocabulary of :mod:`firmware_sim.algorithms.arithmetic`. Run with ``int64`` state it
 is the PIC's fixed point (bit-exact, counted); with ``float64`` state it is the same algorithm in floating
-point. numba compiles it once per arithmetic (``cache=True``); ``process.py_func`` runs the same text in
-Python.
+point. numba compiles it once per arithmetic (``cache=True``); with ``NUMBA_DISABLE_JIT=1`` the same text
+runs in CPython (a test checks that both give the same records, bit for bit).
 
 Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
 
@@ -18,8 +18,9 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``min_gravity_g``).
 4. ``a_v`` enters a delay line of ``2 r3 + 1`` samples; the **centred Gaussian FIR** low-passes at 3 Hz
    (``y3``), 10 Hz (``d10``) and 5 Hz are evaluated at the line's centre ``m = n - r3`` (the offline chain's
-   zero-phase filters, ``r3`` samples late); the impact band is ``d10 - d5``. a_v, y3, d10 and the band are
-   written to the scratch ring (the step EEPROM's second block).
+   zero-phase filters, ``r3`` samples late); the impact band is ``d10 - d5``. a_v goes to one scratch ring,
+   y3, d10 and the band to another (the step EEPROM's second block; the emulator keeps their values in
+   ``scr``, its I2C bytes are counted).
 5. **Foot-flat** (peaks of ``y3``): a hysteresis detector confirms a peak when ``y3`` has risen by the
    prominence since the last trough and fallen by it since the peak. A confirmed peak becomes the
    *pending* foot-flat; a later confirmed peak closer than the minimum distance replaces it if higher and
@@ -29,13 +30,14 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
    foot-flat does not lengthen the distance that caused it.
 6. **Steps** (:func:`_finalise`, at each final foot-flat ``e``, with the previous one ``s``): read back from
-   the scratch ring: the heel-strike (impact = first maximum of the band in ``[e - hs_before, e + hs_after]``,
+   the scratch rings: the heel-strike (impact = first maximum of the band in ``[e - hs_before, e + hs_after]``,
    minus ``hs_delay``), the toe-off (first local minimum of ``d10`` in ``(s, s + to_span]``), M4's range of
    ``y3`` in ``[s, e]``, and two passes over ``a_v[s..e]``: M1's double integral reset at ``s`` and its
    extremes; then, with ``c1 = -mean(a)`` and ``c2`` known in closed form (``P2(T) = 16 P(T) + 2 c1 T^2``),
    M2's corrected position ``p2`` and its extremes, and M3's single-support extremes (Alvarez eqs 1-3).
-   Lengths: M1, M2 ``K 2 sqrt(2 l h - h^2)``, M3 ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max -
-   a_min)^(1/4)``, M5 ``K1 / T + K2`` (eqs 1, 4; the seeds' corrections). One record per foot-flat: a step
+   Lengths: M1, M2 ``K 2 sqrt(2 l h - h^2)`` (``h > 2 l``: ``IMPOSSIBLE``, length 0), M3
+   ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max - a_min)^(1/4)`` (two square roots rounded to nearest),
+   M5 ``K1 / T + K2`` (eqs 1, 4; the seeds' corrections). One record per foot-flat: a step
    whose previous foot-flat is more than ``max_step`` back (or none) starts a walking bout and has no
    window (``NO_WINDOW``, lengths 0).
 """
