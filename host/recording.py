@@ -484,18 +484,15 @@ class Recording:
         has_toe = has_window & (toe > 0) & ((fl & StepFlag.NO_TOE_OFF) == 0)
         has_heel = (heel != HEEL_STRIKE_NOT_FOUND) & ((fl & StepFlag.NO_HEEL_STRIKE) == 0)
 
-        def cell(ok: bool, value: float) -> str:
-            return repr(float(value)) if ok else ""
-
-        lines = [",".join(STEP_CSV_COLUMNS)]
-        for i in range(r.shape[0]):
-            names = "|".join(f.name for f in StepFlag if fl[i] & f)
-            row = [str(int(self.step_record_numbers[i])), str(int(end[i])), cell(True, end[i] / fs),
-                   cell(bool(has_window[i]), dur[i] / fs), cell(bool(has_toe[i]), (end[i] - dur[i] + toe[i]) / fs),
-                   cell(bool(has_heel[i]), (end[i] + heel[i]) / fs), names]
-            row += [cell(bool(v != 0), v) for v in lengths[i]]
-            row.append("raw" if fl[i] & StepFlag.UNCALIBRATED else "K")
-            lines.append(",".join(row))
+        names = {int(v): "|".join(f.name for f in StepFlag if v & f) for v in np.unique(fl).tolist()}
+        columns = [
+            self.step_record_numbers.astype(str).tolist(), end.astype(str).tolist(), _cells(end / fs),
+            _cells(dur / fs, has_window), _cells((end - dur + toe) / fs, has_toe), _cells((end + heel) / fs, has_heel),
+            [names[v] for v in fl.tolist()],
+            *(_cells(lengths[:, k], lengths[:, k] != 0) for k in range(lengths.shape[1])),
+            ["raw" if v & StepFlag.UNCALIBRATED else "K" for v in fl.tolist()],
+        ]
+        lines = [",".join(STEP_CSV_COLUMNS)] + [",".join(row) for row in zip(*columns)]
         atomic_write_text(path, "\n".join(lines) + "\n")
 
     @staticmethod
@@ -530,6 +527,14 @@ class Recording:
             for g in self.step_losses:
                 lines.append(f"  records {g.first_record_number}..{g.last_record_number}: {g.reason}")
         return "\n".join(lines)
+
+
+def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:
+    """CSV cells of float values: the shortest text that reads back the same float, empty where not defined."""
+    text = [repr(v) for v in np.asarray(values, np.float64).tolist()]
+    if defined is not None:
+        text = [t if ok else "" for t, ok in zip(text, np.asarray(defined, bool).tolist())]
+    return text
 
 
 def _load_step_records(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any], header: Any

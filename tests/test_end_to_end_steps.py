@@ -322,7 +322,8 @@ def test_record_default_is_on_and_warns_about_the_assumed_adult(tmp_path, capsys
     assert captured.err.count("\n") == 1 and "assumes a 1.70 m adult (leg 0.901 m, foot 0.189 m)" in captured.err
     h = read_image(tmp_path / "a.glimg").header
     q = h.step_config
-    assert q.enabled and not q.calibrated and abs(q.leg_length_m - 0.901) < 1e-4 and abs(q.foot_length_m - 0.1887) < 1e-4
+    assert q.enabled and not q.calibrated
+    assert abs(q.leg_length_m - 0.901) < 1e-4 and abs(q.foot_length_m - 0.1887) < 1e-4
     assert f"{h.steps_written} step records stored by the on-line algorithm" in captured.out and h.steps_written > 40
     # given a height, no warning; the lengths follow it
     assert main(["record", "--motion", "walk", "--height", "1.8", "--start-time", str(START_S), "--quiet", "--out",
