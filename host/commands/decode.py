@@ -38,7 +38,8 @@ def replay_error(recording, check) -> str:
         f"the step ending at sample {end_sample}"
     return (f"{recording.source}: the device's step records differ from the host's replay of its algorithm: "
             f"{check.n_compared - check.n_identical} of {check.n_compared} differ, the first is {which}: {what}. "
-            "The device and this host do not compute the same steps (firmware, header or record damage); "
+            "The device and this host do not compute the same steps (firmware, header or record damage, or the "
+            "step configuration changed after these steps were logged: the header keeps only the last one); "
             "nothing written (--no-verify writes them anyway)")
 
 

@@ -201,6 +201,10 @@ def run(args: argparse.Namespace) -> int:
     if appending:
         logger = Logger.from_image(out)
         if config is not None:
+            if logger.header.n_steps_stored and config.quantised() != logger.step_config:
+                warnings_.append(f"{out} holds {logger.header.n_steps_stored} step records logged with another step "
+                                 "configuration; the header keeps only the new one, so `gaitlog decode` will find "
+                                 "those records different from its replay (--no-verify)")
             logger.step_config = config  # as SET_STEP_CONFIG before START
     else:
         logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=args.sample_rate,
