@@ -17,19 +17,33 @@ Three inputs (``protocol.image.detect_format`` tells them apart):
 Then, for all three, the ring order is restored (oldest sample first, ``PROTOCOL.md`` section 2's derived
 quantities) and the P32 words are unpacked with numpy. A sample is valid only if all four of its bytes were
 received intact: the decoder never invents a sample.
+
+Per-step records (``PROTOCOL.md`` 2.3) come the same way: from the step memory of an image of version 2, the
+step part of a raw dump (after the sample part, ``20 · n`` bytes), and the DATA frames of a capture at the
+step addresses (``protocol.steps.STEP_ADDRESS_BASE`` +). The stored records are put in ring order
+(``DeviceHeader.step_slots``) and a record is used only when all 20 of its bytes were received intact and its
+CRC-16 matches; the others are dropped, never repaired, and reported as ``Recording.step_losses`` runs with
+the reason (:data:`STEP_REASONS`), in a note and in a warning. :func:`verify_step_records` checks the used
+records against the host's replay of the device's algorithm (:mod:`host.replay`).
 """
 
 from __future__ import annotations
 
 import os
 import warnings
+from collections import Counter
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from host.errors import HostError
-from host.recording import Recording, gaps_from_mask
+from host.recording import RecordGap, Recording, gaps_from_mask
 from protocol.errors import ProtocolError
+from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, unpack_step_records
+
+if TYPE_CHECKING:  # pragma: no cover
+    from host.replay import ReplayCheck
 
 #: Reason texts of the gaps, indexed by the reason codes used below.
 REASONS = (
@@ -40,6 +54,13 @@ REASONS = (
     "code outside the ADC range of the header's adc_bits",                  # 4
 )
 _R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE = range(5)
+#: Reason texts of the step-record losses (the first four as for samples).
+STEP_REASONS = REASONS[:4] + (
+    "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
+    "or damage)",                                                           # 4
+    "not in the file (an image of version 1 holds no step memory)",          # 5
+)
+_S_CRC, _S_NOT_IN_FILE = 4, 5
 
 _TYPE_HEADER = 0x86
 _TYPE_DATA = 0x87
@@ -116,6 +137,7 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     if truncated is not None:
         block_reason[np.asarray(truncated, dtype=bool)] = _R_TRUNCATED
     notes = list(getattr(contents, "notes", []))
+    steps = _image_steps(contents, block_reason, source, notes)
     if block_size % 4 == 0:
         per = block_size // 4
         slot_ok = np.repeat(block_ok, per)[: memory.size // 4]
@@ -123,7 +145,20 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     else:  # pragma: no cover - blocks not made of whole samples (the spec uses 1024)
         slot_ok, slot_reason = _slots_from_bytes(np.repeat(block_ok, block_size)[: memory.size],
                                                  np.repeat(block_reason, block_size)[: memory.size])
-    return _assemble(header, memory, slot_ok, slot_reason, source, "image", notes)
+    return _assemble(header, memory, slot_ok, slot_reason, source, "image", notes, steps)
+
+
+def _image_steps(contents, block_reason: np.ndarray, source: str | None, notes: list[str]):
+    """Step records of a parsed image: the step memory and which of its bytes come from ok blocks."""
+    header = contents.header
+    step_memory = np.asarray(contents.step_memory, dtype=np.uint8)
+    byte_ok = np.asarray(contents.step_byte_ok(), dtype=bool)
+    if int(contents.image_version) == 1:
+        reason = np.full(step_memory.size, _S_NOT_IN_FILE, dtype=np.int8)
+    else:
+        per_byte = np.repeat(block_reason, int(contents.block_size))
+        reason = per_byte[contents.memory.size: contents.memory.size + step_memory.size]
+    return _assemble_steps(header, step_memory, byte_ok, reason, source, notes)
 
 
 def _decode_raw(data: bytes, source: str | None) -> Recording:
@@ -138,7 +173,16 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     memory = memory[:cap_bytes]
     slot_ok = np.ones(memory.size // 4, dtype=bool)
     notes = ["raw XMODEM dump: blocks were checked by XMODEM's CRC-16 in transit; the file has no checks"]
-    return _assemble(header, memory, slot_ok, None, source, "raw", notes)
+    # the step part follows the used sample bytes: step memory bytes 0 .. 20·n_steps_stored (section 5)
+    step_memory = np.full(int(header.step_memory_bytes), 0xFF, dtype=np.uint8)
+    start = HEADER_SIZE + int(header.used_bytes)
+    got = np.frombuffer(data, dtype=np.uint8)[start: start + int(header.step_used_bytes)]
+    step_memory[: got.size] = got
+    byte_ok = np.zeros(step_memory.size, dtype=bool)
+    byte_ok[: got.size] = True
+    reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
+    steps = _assemble_steps(header, step_memory, byte_ok, reason, source, notes)
+    return _assemble(header, memory, slot_ok, None, source, "raw", notes, steps)
 
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
@@ -170,25 +214,33 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     except ProtocolError as err:
         raise err.at(offset=header_offset + 6) from err
     cap_bytes = int(header.capacity_samples) * 4
+    step_bytes = int(header.step_memory_bytes)
     memory = np.zeros(cap_bytes, dtype=np.uint8)
     covered = np.zeros(cap_bytes, dtype=bool)
+    step_memory = np.full(step_bytes, 0xFF, dtype=np.uint8)
+    step_covered = np.zeros(step_bytes, dtype=bool)
     outside = 0
     for fr in data_frames:
         address = int.from_bytes(fr.payload[:4], "little")
         chunk = np.frombuffer(fr.payload, dtype=np.uint8, offset=4)
-        end = address + chunk.size
-        if end > cap_bytes:
+        where = memory_region(address, chunk.size, sample_memory_bytes=cap_bytes, step_memory_bytes=step_bytes)
+        if where is None:
             outside += 1
             continue
-        memory[address:end] = chunk
-        covered[address:end] = True
+        region, offset = where
+        target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
+        target[offset: offset + chunk.size] = chunk
+        seen[offset: offset + chunk.size] = True
     if outside:
-        notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte memory were ignored")
+        notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte sample memory and the "
+                     f"{step_bytes}-byte step memory were ignored")
     if errors:
         notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
     slot_ok = covered.reshape(-1, 4).all(axis=1)
     slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
-    return _assemble(header, memory, slot_ok, slot_reason, source, "capture", notes)
+    steps = _assemble_steps(header, step_memory, step_covered, np.full(step_bytes, _R_NOT_RECEIVED, np.int8), source,
+                            notes)
+    return _assemble(header, memory, slot_ok, slot_reason, source, "capture", notes, steps)
 
 
 # ------------------------------------------------------------------------------------------------ common
@@ -200,8 +252,52 @@ def _slots_from_bytes(byte_ok: np.ndarray, byte_reason: np.ndarray) -> tuple[np.
     return ok4.all(axis=1), r4[np.arange(n), np.argmin(ok4, axis=1)]
 
 
+def _assemble_steps(header, step_memory: np.ndarray, byte_ok: np.ndarray, byte_reason: np.ndarray,
+                    source: str | None, notes: list[str]) -> tuple[np.ndarray, np.ndarray, list[RecordGap]]:
+    """The stored step records in ring order, keeping only those received intact with a matching CRC.
+
+    Parameters
+    ----------
+    step_memory
+        ``(20 · step_capacity,)`` uint8, the step memory from its address 0 (bytes not received: anything).
+    byte_ok
+        ``(20 · step_capacity,)`` bool: the byte was received intact.
+    byte_reason
+        ``(20 · step_capacity,)`` index into :data:`STEP_REASONS` of a byte that is not ok.
+
+    Returns
+    -------
+    records, numbers, losses
+        The usable records (:data:`~protocol.steps.STEP_RECORD_DTYPE`, ring order), their absolute record
+        numbers, and the runs of dropped records with their reason. A note (and a warning) counts the drops.
+    """
+    n = int(header.n_steps_stored)
+    if n == 0:
+        return np.zeros(0, STEP_RECORD_DTYPE), np.zeros(0, np.int64), []
+    slots = header.step_slots()
+    rows = np.asarray(step_memory, np.uint8).reshape(-1, STEP_RECORD_SIZE)[slots]
+    records, crc_ok = unpack_step_records(rows.reshape(-1))
+    ok_rows = np.asarray(byte_ok, bool).reshape(-1, STEP_RECORD_SIZE)[slots]
+    bytes_ok = ok_rows.all(axis=1)
+    reason = np.where(bytes_ok, _S_CRC, np.asarray(byte_reason).reshape(-1, STEP_RECORD_SIZE)[slots][
+        np.arange(n), np.argmin(ok_rows, axis=1)]).astype(np.int64)
+    usable = bytes_ok & crc_ok
+    numbers = int(header.first_step_number) + np.arange(n, dtype=np.int64)
+    losses = [RecordGap(g.first_sample_number, g.last_sample_number, g.reason)
+              for g in gaps_from_mask(usable, numbers, reason, STEP_REASONS)]
+    dropped = n - int(usable.sum())
+    if dropped:
+        why = Counter(STEP_REASONS[k] for k in reason[~usable].tolist())
+        text = (f"{dropped} of the {n} stored step records dropped (never repaired): "
+                + "; ".join(f"{c} {r}" for r, c in why.items()))
+        notes.append(text)
+        warnings.warn(f"{source or 'input'}: {text}", stacklevel=4)
+    return records[usable], numbers[usable], losses
+
+
 def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.ndarray | None,
-              source: str | None, kind: str, notes: list[str]) -> Recording:
+              source: str | None, kind: str, notes: list[str],
+              steps: tuple[np.ndarray, np.ndarray, list[RecordGap]] | None = None) -> Recording:
     """Restore ring order and unpack: ``PROTOCOL.md`` section 2 (derived quantities) and section 1.
 
     ``slot_ok[k]``: all four bytes of slot ``k`` were received intact; ``slot_reason[k]``: index into
@@ -257,26 +353,81 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
     first_sn = int(header.first_sample_number)
     sample_numbers = first_sn + np.arange(n, dtype=np.int64)
     gaps = gaps_from_mask(valid, sample_numbers, reason, REASONS)
+    step_records, step_numbers, step_losses = steps if steps is not None else (None, None, [])
     rec = Recording(codes=codes, valid=valid, flags=flags, sample_numbers=sample_numbers,
                     sampling_rate_hz=float(header.sample_rate_hz), start_time_s=float(header.sample_time_s(0)),
                     header=header, gaps=gaps, adc_bits=adc_bits, source=source,
-                    notes=[f"decoded from a {kind}"] + notes)
+                    notes=[f"decoded from a {kind}"] + notes, step_records=step_records,
+                    step_record_numbers=step_numbers, step_losses=step_losses)
     rec.notes.append(rec.default_calibration()[1])
     return rec
 
 
-def save_outputs(recording: Recording, prefix: str | os.PathLike[str], calibration=None) -> tuple[Path, Path]:
-    """Write ``PREFIX.npz`` and ``PREFIX.csv`` (atomically each; the CSV only after the NPZ succeeded)."""
+def verify_step_records(recording: Recording) -> "ReplayCheck | None":
+    """Check the recording's device step records against the host's replay of the device algorithm.
+
+    The records the decoder dropped are unknown, so the replayed records that fall where they were (between
+    the usable records around each loss, by ``end_sample``) are not compared (``ReplayCheck.n_replay_unknown``).
+
+    Returns
+    -------
+    host.replay.ReplayCheck or None
+        None when there is nothing to check: no header, or the header's step algorithm off and no records.
+    """
+    header = recording.header
+    if header is None or (not header.step_config.enabled and recording.n_step_records == 0):
+        return None
+    from host.replay import check_records
+
+    ends = recording.step_records["end_sample"].astype(np.int64)
+    numbers = recording.step_record_numbers
+    unknown = []
+    for loss in recording.step_losses:
+        k = int(np.searchsorted(numbers, loss.first_record_number))
+        lo = float(ends[k - 1]) if k > 0 else -np.inf
+        hi = float(ends[k]) if k < ends.size else np.inf
+        unknown.append((lo, hi))
+    return check_records(recording.codes, recording.valid, recording.flags, recording.sample_numbers, header,
+                         recording.step_records, unknown_end_samples=unknown)
+
+
+def output_paths(prefix: str | os.PathLike[str]) -> dict[str, Path]:
+    """``PREFIX.npz``, ``PREFIX.csv`` and ``PREFIX.steps.csv`` (a ``.csv``/``.npz`` suffix of ``prefix`` is dropped)."""
     prefix = Path(prefix)
     if prefix.suffix in (".csv", ".npz"):
         prefix = prefix.with_suffix("")
-    if prefix.parent and not prefix.parent.exists():
-        raise HostError(f"output directory {prefix.parent} does not exist")
-    npz, csv = prefix.with_name(prefix.name + ".npz"), prefix.with_name(prefix.name + ".csv")
-    recording.save_npz(npz)
+    return {"npz": prefix.with_name(prefix.name + ".npz"), "csv": prefix.with_name(prefix.name + ".csv"),
+            "steps_csv": prefix.with_name(prefix.name + ".steps.csv")}
+
+
+def save_decoded(recording: Recording, prefix: str | os.PathLike[str], calibration=None, *,
+                 steps_csv: bool = True) -> list[Path]:
+    """Write ``PREFIX.npz``, ``PREFIX.csv`` and, with ``steps_csv`` and step records, ``PREFIX.steps.csv``.
+
+    Each file is written atomically, and all or none: a failure removes the files this call wrote. Returns the
+    paths written.
+    """
+    paths = output_paths(prefix)
+    parent = paths["npz"].parent
+    if parent and not parent.exists():
+        raise HostError(f"output directory {parent} does not exist")
+    written: list[Path] = []
     try:
-        recording.to_csv(csv, calibration)
+        recording.save_npz(paths["npz"])
+        written.append(paths["npz"])
+        recording.to_csv(paths["csv"], calibration)
+        written.append(paths["csv"])
+        if steps_csv and recording.n_step_records:
+            recording.to_steps_csv(paths["steps_csv"])
+            written.append(paths["steps_csv"])
     except BaseException:
-        npz.unlink(missing_ok=True)
+        for path in written:
+            path.unlink(missing_ok=True)
         raise
+    return written
+
+
+def save_outputs(recording: Recording, prefix: str | os.PathLike[str], calibration=None) -> tuple[Path, Path]:
+    """Write ``PREFIX.npz`` and ``PREFIX.csv`` (atomically each; the CSV only after the NPZ succeeded)."""
+    npz, csv = save_decoded(recording, prefix, calibration, steps_csv=False)
     return npz, csv

@@ -3,13 +3,18 @@
 Steps (``PROTOCOL.md`` sections 3-4 and 6):
 
 1. IDENTIFY (refuses an unknown protocol version), STATUS (refuses a logging device), READ_HEADER.
-2. The stored range of memory addresses: ``[0, 4·n_stored)``, the whole memory when WRAPPED. The transfer
-   dumps memory addresses; ring order is the decoder's business.
+2. The stored ranges of memory addresses: the sample memory ``[0, 4·n_stored)`` (the whole memory when
+   WRAPPED), then the step memory's stored records ``[STEP_ADDRESS_BASE, STEP_ADDRESS_BASE + 20·n_steps)``
+   (``header.step_used_bytes``; none without step memory or records; section 2.3). The transfer dumps memory
+   addresses; ring order is the decoder's business. Both live in one buffer laid out as the image's memory
+   region (sample memory, then step memory), so progress, re-reads, the partial state and ``--resume`` treat
+   them alike; a range never crosses from one memory into the other on the wire.
 3. One DUMP of every range still missing, in DATA frames of ``chunk_bytes``; each frame is used only with a
    good CRC-16 and an address and size that fit the request.
 4. Up to ``retries`` re-read passes over what is still missing, with ever smaller pieces (READ for a single
    piece, DUMP with a smaller chunk for more), so a noisy line still gets every byte through.
-5. The image (``protocol.image.build_image``, blocks never received marked missing) and its JSON metadata
+5. The image (``protocol.image.build_image``: version 2 with the step memory when the header has one;
+   blocks never received marked missing) and its JSON metadata
    sidecar ``OUT.json`` are written atomically; the partial state ``OUT.part`` (itself an image with the
    missing blocks marked) is written atomically as blocks arrive and removed when the dump is complete.
    ``resume=True`` starts from that state after checking that the device still has the same header, so an
@@ -32,6 +37,7 @@ import numpy as np
 
 from host.errors import HostError
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from protocol.steps import STEP_ADDRESS_BASE
 
 #: Block size of the image and of the resume bookkeeping (``PROTOCOL.md`` section 6).
 BLOCK_SIZE = 1024
@@ -98,6 +104,7 @@ class MemoryDump:
 
     # ------------------------------------------------------------------------------------------ helpers
     def _load_state(self, state_path: Path, header_bytes: bytes, memory: bytearray, have: np.ndarray) -> int:
+        """Bytes of the image's memory region (sample then step memory) that the partial state holds."""
         from protocol.errors import ProtocolError
         from protocol.image import parse_image
 
@@ -114,36 +121,31 @@ class MemoryDump:
                 f"cannot resume from {state_path}: the device's header changed since that dump started "
                 f"(samples_written {contents.header.samples_written} then, {self.header_.samples_written} now); "
                 "delete it and dump again without --resume")
-        ok = np.repeat(np.asarray(contents.block_ok, bool), int(contents.block_size))[: len(memory)]
-        mem = np.asarray(contents.memory, np.uint8)[: len(memory)]
+        ok = np.concatenate([contents.byte_ok(), contents.step_byte_ok()])[: len(memory)]
+        mem = np.concatenate([np.asarray(contents.memory, np.uint8),
+                              np.asarray(contents.step_memory, np.uint8)])[: len(memory)]
         idx = np.flatnonzero(ok)
         buf = np.frombuffer(memory, dtype=np.uint8)
         buf[idx] = mem[idx]
         have[idx] = True
         return int(ok.sum())
 
-    def _missing_blocks(self, have: np.ndarray, stored_end: int) -> list[int]:
-        """Blocks with any stored byte not received, and blocks entirely beyond the stored range."""
+    @staticmethod
+    def _missing_blocks(have: np.ndarray, need: np.ndarray) -> list[int]:
+        """Blocks of the memory region with a stored byte not received, and blocks holding no stored byte
+        (never read: their bytes beyond the stored ranges were not asked for)."""
         n_blocks = -(-have.size // BLOCK_SIZE)
-        padded = np.ones(n_blocks * BLOCK_SIZE, bool)
-        padded[: have.size] = have
-        padded[stored_end: have.size] = True  # bytes beyond the stored range do not count ...
-        blocks_ok = padded.reshape(n_blocks, BLOCK_SIZE).all(axis=1)
-        first_unread = -(-stored_end // BLOCK_SIZE)
-        blocks_ok[first_unread:] = False  # ... but blocks wholly beyond it were never read
-        return np.flatnonzero(~blocks_ok).tolist()
+        pad = n_blocks * BLOCK_SIZE - have.size
+        lacking = np.concatenate([need & ~have, np.zeros(pad, bool)]).reshape(n_blocks, BLOCK_SIZE).any(axis=1)
+        stored = np.concatenate([need, np.zeros(pad, bool)]).reshape(n_blocks, BLOCK_SIZE).any(axis=1)
+        return np.flatnonzero(lacking | ~stored).tolist()
 
-    def _image_bytes(self, header_bytes: bytes, memory: bytearray, have: np.ndarray, stored_end: int) -> bytes:
+    def _image_bytes(self, header_bytes: bytes, memory: bytearray, have: np.ndarray, need: np.ndarray) -> bytes:
+        """The image of what was received: the memory region is the sample memory followed by the step memory
+        (``image_version`` 2 when the header has one)."""
         from protocol.image import build_image
 
-        missing = self._missing_blocks(have, stored_end)
-        # this dump reads the sample memory only; a step memory (PROTOCOL.md 2.3) is in the image as blocks
-        # never received
-        steps = int(self.header_.step_memory_bytes)
-        if steps:
-            end = -(-(len(memory) + steps) // BLOCK_SIZE)
-            missing = sorted(set(missing) | set(range(len(memory) // BLOCK_SIZE, end)))
-        return build_image(header_bytes, bytes(memory) + b"\xff" * steps, missing_blocks=missing,
+        return build_image(header_bytes, bytes(memory), missing_blocks=self._missing_blocks(have, need),
                            block_size=BLOCK_SIZE)
 
     # -------------------------------------------------------------------------------------------- run
@@ -173,18 +175,38 @@ class MemoryDump:
             raise HostError(f"{link.port}: the device is logging; stop it before dumping its memory")
         header_bytes, header = link.read_header()
         self.header_ = header
-        mem_size = int(header.capacity_samples) * 4
-        stored_end = mem_size if header.wrapped else 4 * int(header.n_stored)
-        memory = bytearray(b"\xff" * mem_size)
-        have = np.zeros(mem_size, dtype=bool)
+        # the image's memory region: sample memory [0, mem_size), then step memory [mem_size, region_size)
+        mem_size = int(header.memory_bytes)
+        region_size = mem_size + int(header.step_memory_bytes)
+        stored_end = int(header.used_bytes)
+        step_stored = int(header.step_used_bytes)
+        memory = bytearray(b"\xff" * region_size)
+        have = np.zeros(region_size, dtype=bool)
         resumed_bytes = 0
         resumed = False
         if resume and state_path.exists():
             resumed_bytes = self._load_state(state_path, header_bytes, memory, have)
             resumed = True
         have_view = np.frombuffer(memory, dtype=np.uint8)
-        need = np.zeros(mem_size, dtype=bool)
+        need = np.zeros(region_size, dtype=bool)
         need[:stored_end] = True
+        need[mem_size: mem_size + step_stored] = True
+        total_needed = stored_end + step_stored
+
+        def device_address(offset: int) -> int:
+            """Memory-region offset -> device address (PROTOCOL.md 3.1)."""
+            return offset if offset < mem_size else STEP_ADDRESS_BASE + offset - mem_size
+
+        def region_offset(address: int) -> int:
+            """Device address -> memory-region offset."""
+            return address if address < STEP_ADDRESS_BASE else mem_size + address - STEP_ADDRESS_BASE
+
+        def todo_ranges() -> list[tuple[int, int]]:
+            """Region ranges still missing, split where the sample memory ends (never one range on the wire)."""
+            out = []
+            for a, b in _ranges(need & ~have):
+                out += [(a, min(b, mem_size)), (mem_size, b)] if a < mem_size < b else [(a, b)]
+            return out
 
         bar = None
         update: Callable[[int], None] | None = None
@@ -193,8 +215,8 @@ class MemoryDump:
         elif progress:
             from tqdm import tqdm
 
-            already = int(np.count_nonzero(have[:stored_end]))
-            bar = tqdm(total=stored_end, initial=already, unit="B", unit_scale=True, file=sys.stderr,
+            already = int(np.count_nonzero(have & need))
+            bar = tqdm(total=total_needed, initial=already, unit="B", unit_scale=True, file=sys.stderr,
                        desc="dump", disable=not sys.stderr.isatty(), leave=False)
             update = bar.update
 
@@ -203,14 +225,15 @@ class MemoryDump:
         counters = {"frames_used": 0, "passes": 0, "reread_pieces": 0}
 
         def save_state() -> None:
-            atomic_write_bytes(state_path, self._image_bytes(header_bytes, memory, have, stored_end))
+            atomic_write_bytes(state_path, self._image_bytes(header_bytes, memory, have, need))
 
         def on_data(address: int, data: bytes) -> bool:
             nonlocal last_state, n_new
-            end = address + len(data)
-            fresh = int(np.count_nonzero(~have[address:end]))
-            have_view[address:end] = np.frombuffer(data, dtype=np.uint8)
-            have[address:end] = True
+            start = region_offset(address)
+            end = start + len(data)
+            fresh = int(np.count_nonzero(~have[start:end]))
+            have_view[start:end] = np.frombuffer(data, dtype=np.uint8)
+            have[start:end] = True
             counters["frames_used"] += 1
             if fresh:
                 n_new += fresh
@@ -223,7 +246,7 @@ class MemoryDump:
 
         try:
             for attempt in range(self.retries + 1):
-                todo = _ranges(need & ~have)
+                todo = todo_ranges()
                 if not todo:
                     break
                 counters["passes"] += 1
@@ -231,10 +254,11 @@ class MemoryDump:
                 piece = max(MIN_PIECE, self.chunk_bytes >> (2 * attempt))
                 for start, stop in todo:
                     length = stop - start
+                    address = device_address(start)
                     if attempt and length <= piece:
                         counters["reread_pieces"] += 1
                         try:
-                            on_data(start, link.read(start, length))
+                            on_data(address, link.read(address, length))
                         except HostError as err:
                             if "refused" in str(err):
                                 raise
@@ -243,7 +267,7 @@ class MemoryDump:
                         continue
                     if attempt:
                         counters["reread_pieces"] += -(-length // piece)
-                    link.dump_stream(start, length, piece, on_data)
+                    link.dump_stream(address, length, piece, on_data)
                 if not (need & ~have).any():
                     break
                 if n_new == new_before:
@@ -260,8 +284,8 @@ class MemoryDump:
 
         missing = need & ~have
         self.complete_ = not missing.any()
-        self.missing_ranges_ = [(a, b - a) for a, b in _ranges(missing)]
-        image = self._image_bytes(header_bytes, memory, have, stored_end)
+        self.missing_ranges_ = [(device_address(a), b - a) for a, b in todo_ranges()]
+        image = self._image_bytes(header_bytes, memory, have, need)
         finished_utc = _dt.datetime.now(_dt.timezone.utc)
         stats = link.stats
         from host.decode import decode_bytes
@@ -283,8 +307,11 @@ class MemoryDump:
                 "write_index": header.write_index, "capacity_samples": header.capacity_samples,
                 "wrapped": header.wrapped, "overwrite": header.overwrite,
                 "calibration_valid": bool(header.calibration.valid),
+                "steps_written": header.steps_written, "step_write_index": header.step_write_index,
+                "step_capacity": header.step_capacity, "step_algorithm_on": bool(header.step_config.enabled),
             },
             "stored_bytes": stored_end,
+            "step_stored_bytes": step_stored,
             "started_utc": started_utc.isoformat(),
             "finished_utc": finished_utc.isoformat(),
             "duration_s": None,  # set after the image is written
@@ -305,6 +332,12 @@ class MemoryDump:
             ],
             "n_samples": recording.n_samples,
             "n_valid": recording.n_valid,
+            "n_step_records_stored": int(header.n_steps_stored),
+            "n_step_records": recording.n_step_records,
+            "step_record_losses": [
+                {"first_record_number": g.first_record_number, "last_record_number": g.last_record_number,
+                 "reason": g.reason} for g in recording.step_losses
+            ],
         }
         atomic_write_bytes(out, image)
         self.metadata_["duration_s"] = round(time.monotonic() - t_start, 3)

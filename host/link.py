@@ -13,7 +13,6 @@ with re-reads and resume is :class:`host.dump.MemoryDump` (``LoggerLink.dump``).
 
 from __future__ import annotations
 
-import struct
 import time
 from collections import deque
 from collections.abc import Callable
@@ -21,31 +20,33 @@ from dataclasses import dataclass, field
 from typing import IO, Any
 
 from host.errors import HostError
+from protocol.errors import ProtocolError
+from protocol.frames import (MAX_DATA, PAYLOAD_STRUCTS, ErrorCode, FrameError, FrameParser, FrameType,
+                             build_payload, encode_frame, parse_payload)
+from protocol.header import HEADER_SIZE, PROTOCOL_VERSION, DeviceHeader
+from protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
-#: Frame types of PROTOCOL.md section 3.1 (the same values as ``protocol.frames.FrameType``).
-IDENTIFY, STATUS, START, STOP, ERASE, READ_HEADER, READ, DUMP, XDUMP, SET_CALIBRATION = range(1, 11)
-T_INFO, T_STATUS, T_HEADER, T_DATA, T_DUMP_END, T_ACK, T_NAK = 0x81, 0x82, 0x86, 0x87, 0x88, 0x90, 0x91
-_NAMES = {IDENTIFY: "IDENTIFY", STATUS: "STATUS", START: "START", STOP: "STOP", ERASE: "ERASE",
-          READ_HEADER: "READ_HEADER", READ: "READ", DUMP: "DUMP", XDUMP: "XDUMP",
-          SET_CALIBRATION: "SET_CALIBRATION"}
-_ERRORS = {1: "BAD_CRC", 2: "UNKNOWN_COMMAND", 3: "BAD_LENGTH", 4: "BAD_ADDRESS", 5: "BUSY", 6: "BAD_ARGUMENT",
-           7: "MEMORY_FULL"}
-_ERROR_HINTS = {5: "the device is logging: stop it first", 7: "the memory is full: erase it first"}
-#: Protocol major version this host speaks.
-PROTOCOL_VERSION = 1
+_ERROR_HINTS = {ErrorCode.BUSY: "the device is logging: stop it first",
+                ErrorCode.MEMORY_FULL: "the memory is full: erase it first",
+                ErrorCode.BAD_ADDRESS: "the range is outside the device's sample and step memories"}
 #: Largest READ length and DUMP chunk (PROTOCOL.md section 3.1).
-MAX_READ = 4096
+MAX_READ = MAX_DATA
 
-_INFO = struct.Struct("<IHBBIIBI")
-_STATUS = struct.Struct("<BBII")
-_DUMP_END = struct.Struct("<IIH")
+_INFO_SIZE = PAYLOAD_STRUCTS[FrameType.INFO].sizeof()
+_STATUS_SIZE = PAYLOAD_STRUCTS[FrameType.STATUS].sizeof()
+_DUMP_END_SIZE = PAYLOAD_STRUCTS[FrameType.DUMP_END].sizeof()
+
+
+def _name(ftype: int) -> str:
+    """``FrameType`` name of a code (hex for an unknown one)."""
+    try:
+        return FrameType(ftype).name
+    except ValueError:
+        return f"0x{ftype:02x}"
 
 
 def _build(name: str, **fields: Any) -> bytes:
     """Command payload via ``protocol.frames.build_payload`` (ProtocolError -> HostError)."""
-    from protocol.errors import ProtocolError
-    from protocol.frames import FrameType, build_payload
-
     try:
         return build_payload(FrameType[name], **fields)
     except ProtocolError as err:
@@ -114,8 +115,6 @@ class LoggerLink:
 
     def __init__(self, port: str, *, baud: int = 115200, timeout_s: float = 1.0, retries: int = 3,
                  capture: IO[bytes] | None = None, serial_port: Any = None) -> None:
-        from protocol.frames import FrameParser
-
         self.port = port
         self.baud = baud
         self.timeout_s = timeout_s
@@ -192,8 +191,6 @@ class LoggerLink:
         return self._pending.popleft()
 
     def _take(self, items: list) -> None:
-        from protocol.frames import FrameError
-
         for item in items:
             if isinstance(item, FrameError):
                 if item.reason != "garbage":
@@ -209,8 +206,6 @@ class LoggerLink:
 
     def send(self, ftype: int, payload: bytes = b"") -> int:
         """Send one command frame (after discarding stale input); return its ``seq``."""
-        from protocol.frames import encode_frame
-
         self.flush_input()
         seq = self._next_seq()
         try:
@@ -222,15 +217,17 @@ class LoggerLink:
 
     def _raise_nak(self, ftype: int, payload: bytes) -> None:
         code = payload[1] if len(payload) >= 2 else -1
-        name = _ERRORS.get(code, f"error 0x{code:02x}")
+        try:
+            name = ErrorCode(code).name
+        except ValueError:
+            name = f"error 0x{code & 0xFF:02x}"
         self.stats.naks[name] = self.stats.naks.get(name, 0) + 1
         hint = _ERROR_HINTS.get(code)
-        raise HostError(f"{self.port}: device refused {_NAMES.get(ftype, hex(ftype))}: NAK {name}"
-                        + (f" ({hint})" if hint else ""))
+        raise HostError(f"{self.port}: device refused {_name(ftype)}: NAK {name}" + (f" ({hint})" if hint else ""))
 
     def transact(self, ftype: int, payload: bytes, expect: int, *, expect_len: int | None = None):
         """Send a command and return the answer frame of type ``expect`` (retrying as described above)."""
-        name = _NAMES.get(ftype, hex(ftype))
+        name = _name(ftype)
         for attempt in range(self.retries + 1):
             if attempt:
                 self.stats.command_retries += 1
@@ -238,8 +235,8 @@ class LoggerLink:
             while (frame := self.next_frame(self.timeout_s)) is not None:
                 if frame.seq != seq:
                     continue
-                if frame.type == T_NAK:
-                    if len(frame.payload) >= 2 and frame.payload[1] == 1:  # BAD_CRC: our frame was damaged
+                if frame.type == FrameType.NAK:
+                    if len(frame.payload) >= 2 and frame.payload[1] == ErrorCode.BAD_CRC:  # our frame was damaged
                         break
                     self._raise_nak(ftype, frame.payload)
                 if frame.type == expect and (expect_len is None or len(frame.payload) == expect_len):
@@ -253,7 +250,7 @@ class LoggerLink:
         """IDENTIFY -> INFO fields (``device_id``, ``firmware_version``, ``protocol_version``, ``adc_bits``,
         ``sample_rate_mhz``, ``capacity_samples``, ``packing``, ``memory_bytes``); refuses an unknown
         protocol version."""
-        fr = self.transact(IDENTIFY, b"", T_INFO, expect_len=_INFO.size)
+        fr = self.transact(FrameType.IDENTIFY, b"", FrameType.INFO, expect_len=_INFO_SIZE)
         info = self._fields(fr)
         if info["protocol_version"] != PROTOCOL_VERSION:
             raise HostError(f"{self.port}: device speaks protocol version {info['protocol_version']}, this host "
@@ -263,14 +260,11 @@ class LoggerLink:
     def status(self) -> dict[str, int]:
         """STATUS -> ``state`` (0 idle, 1 logging, 2 full-stopped), ``flags``, ``samples_written``,
         ``write_index``."""
-        fr = self.transact(STATUS, b"", T_STATUS, expect_len=_STATUS.size)
+        fr = self.transact(FrameType.GET_STATUS, b"", FrameType.STATUS, expect_len=_STATUS_SIZE)
         return self._fields(fr)
 
     def _fields(self, frame) -> dict[str, int]:
         """Payload fields of an answer (``protocol.frames.parse_payload``), as plain ints."""
-        from protocol.errors import ProtocolError
-        from protocol.frames import parse_payload
-
         try:
             fields = parse_payload(frame, source=self.port)
         except ProtocolError as err:
@@ -278,33 +272,47 @@ class LoggerLink:
         return {k: int(v) for k, v in fields.items() if not k.startswith("_")}
 
     def _ack(self, ftype: int, payload: bytes = b"") -> None:
-        self.transact(ftype, payload, T_ACK)
+        self.transact(ftype, payload, FrameType.ACK)
 
     def start(self, start_time_s: int | None = None, *, overwrite: bool = False) -> None:
         """START logging at Unix time ``start_time_s`` (default: now), ring mode if ``overwrite``."""
         t = int(time.time()) if start_time_s is None else int(start_time_s)
-        self._ack(START, _build("START", start_time_s=t, mode=1 if overwrite else 0))
+        self._ack(FrameType.START, _build("START", start_time_s=t, mode=1 if overwrite else 0))
 
     def stop(self) -> None:
         """STOP logging."""
-        self._ack(STOP)
+        self._ack(FrameType.STOP)
 
     def erase(self) -> None:
-        """ERASE the sample memory (sends the ``b"ERASE"`` guard)."""
-        self._ack(ERASE, _build("ERASE"))
+        """ERASE the sample memory and the step memory (sends the ``b"ERASE"`` guard); the calibration and the
+        step configuration stay."""
+        self._ack(FrameType.ERASE, _build("ERASE"))
 
     def set_calibration(self, slot: bytes) -> None:
         """SET_CALIBRATION with a 64-byte calibration slot (``protocol.header.Calibration.to_bytes()``)."""
         if len(slot) != 64:
             raise HostError(f"calibration slot must be 64 bytes, got {len(slot)}")
-        self._ack(SET_CALIBRATION, bytes(slot))
+        self._ack(FrameType.SET_CALIBRATION, bytes(slot))
+
+    def set_step_config(self, config: StepConfig | bytes) -> None:
+        """SET_STEP_CONFIG: store the on-line step algorithm's configuration in the device header.
+
+        Parameters
+        ----------
+        config
+            A :class:`protocol.steps.StepConfig` (``StepConfig.off()`` turns the algorithm off) or its 32 bytes.
+
+        Raises
+        ------
+        HostError
+            A configuration that cannot be stored (the field is named) or that the device refuses (NAK
+            ``BAD_ARGUMENT``, ``BUSY`` while logging).
+        """
+        self._ack(FrameType.SET_STEP_CONFIG, _build("SET_STEP_CONFIG", step_config=config))
 
     def read_header(self):
         """READ_HEADER -> ``(header_bytes, DeviceHeader)`` (the header validated)."""
-        from protocol.errors import ProtocolError
-        from protocol.header import HEADER_SIZE, DeviceHeader
-
-        fr = self.transact(READ_HEADER, b"", T_HEADER, expect_len=HEADER_SIZE)
+        fr = self.transact(FrameType.READ_HEADER, b"", FrameType.HEADER, expect_len=HEADER_SIZE)
         raw = bytes(fr.payload)
         try:
             return raw, DeviceHeader.from_bytes(raw, source=f"{self.port} HEADER frame")
@@ -312,15 +320,23 @@ class LoggerLink:
             raise HostError(f"{self.port}: the device's header is invalid: {err}") from err
 
     def read(self, address: int, length: int) -> bytes:
-        """READ ``length`` (1 ... 4096) bytes of sample memory at byte ``address``."""
+        """READ ``length`` (1 ... 4096) bytes at the memory address ``address``: the sample memory from 0, the
+        step memory from ``protocol.steps.STEP_ADDRESS_BASE`` (:meth:`read_step_memory`)."""
         if not 1 <= length <= MAX_READ:
             raise HostError(f"READ length must be 1..{MAX_READ}, got {length}")
         payload = _build("READ", address=address, length=length)
-        fr = self.transact(READ, payload, T_DATA, expect_len=4 + length)
+        fr = self.transact(FrameType.READ, payload, FrameType.DATA, expect_len=4 + length)
         got = int.from_bytes(fr.payload[:4], "little")
         if got != address:  # pragma: no cover - a device bug, not line noise (CRC was good)
             raise HostError(f"{self.port}: READ at {address} answered with address {got}")
         return bytes(fr.payload[4:])
+
+    def read_step_memory(self, offset: int, length: int) -> bytes:
+        """READ ``length`` (1 ... 4096) bytes of the step memory from its byte ``offset`` (the record in slot
+        ``k`` is bytes ``20k ... 20k+19``; PROTOCOL.md 2.3), at address ``STEP_ADDRESS_BASE + offset``."""
+        if offset < 0:
+            raise HostError(f"step memory offset must be >= 0, got {offset}")
+        return self.read(STEP_ADDRESS_BASE + int(offset), length)
 
     def dump_stream(self, address: int, length: int, chunk: int,
                     on_data: Callable[[int, bytes], None]) -> bool:
@@ -330,10 +346,8 @@ class LoggerLink:
         Returns True when DUMP_END arrived, False when the stream stopped (no byte for ``timeout_s``) or
         ``on_data`` returned True (the caller has everything it needs). Raises on a NAK.
         """
-        from protocol.frames import encode_frame
-
         command = _build("DUMP", address=address, length=length, chunk=chunk)
-        seq = self.send(DUMP, command)
+        seq = self.send(FrameType.DUMP, command)
         end = address + length
         # a damaged DUMP command gets NAK(BAD_CRC); resend it once per retry
         attempts = 0
@@ -341,23 +355,23 @@ class LoggerLink:
             frame = self.next_frame(self.timeout_s, idle=True)
             if frame is None:
                 return False
-            if frame.type == T_NAK and frame.seq == seq:
-                if len(frame.payload) >= 2 and frame.payload[1] == 1 and attempts < self.retries:
+            if frame.type == FrameType.NAK and frame.seq == seq:
+                if len(frame.payload) >= 2 and frame.payload[1] == ErrorCode.BAD_CRC and attempts < self.retries:
                     attempts += 1
                     self.stats.command_retries += 1
                     seq = self._next_seq()
-                    self._ser.write(encode_frame(DUMP, seq, command))
+                    self._ser.write(encode_frame(FrameType.DUMP, seq, command))
                     continue
-                self._raise_nak(DUMP, frame.payload)
-            if frame.type == T_DATA and len(frame.payload) > 4:
+                self._raise_nak(FrameType.DUMP, frame.payload)
+            if frame.type == FrameType.DATA and len(frame.payload) > 4:
                 a = int.from_bytes(frame.payload[:4], "little")
                 n = len(frame.payload) - 4
                 if address <= a and a + n <= end and (a - address) % chunk == 0 and n == min(chunk, end - a):
                     if on_data(a, frame.payload[4:]):
                         return False
-            elif frame.type == T_DUMP_END and len(frame.payload) == _DUMP_END.size:
-                a, n, _frames = _DUMP_END.unpack(frame.payload)
-                if a == address and n == length:
+            elif frame.type == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
+                end_fields = self._fields(frame)
+                if end_fields["address"] == address and end_fields["length"] == length:
                     return True
 
     def dump(self, out_path, *, progress: bool | Callable[[int], None] = True, resume: bool = False,

@@ -13,6 +13,15 @@ is bit-exact as stored by the device.
 Sample numbers count samples since the last ERASE (``PROTOCOL.md`` section 2: the oldest stored sample is
 number ``samples_written - n``); the time of sample number ``k`` is ``start_time_s + k / sampling_rate_hz``
 (Unix time, UTC) and ``k / sampling_rate_hz`` seconds after the start of the log.
+
+Per-step records
+----------------
+A device with step memory (``PROTOCOL.md`` 2.3) also stores one 20-byte record per foot-flat that its
+on-line step algorithm found. ``step_records`` holds the records the decoder could use, in ring order (oldest
+first), exactly as the device stored them; ``step_record_numbers`` their absolute record numbers (0 = first
+record after ERASE). A stored record whose bytes were not received intact or whose CRC does not match is not
+in ``step_records``: it is counted in one of the ``step_losses`` runs, with the reason. A record's
+``end_sample`` is a sample number, so its time is on the same clock as the samples.
 """
 
 from __future__ import annotations
@@ -31,14 +40,38 @@ import numpy as np
 
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
+from protocol.steps import (HEEL_STRIKE_NOT_FOUND, STEP_LENGTH_FIELDS, STEP_RECORD_DTYPE, StepFlag, step_lengths_m,
+                            unpack_step_records)
 
-#: Version of the NPZ layout written by :meth:`Recording.save_npz`.
+#: Version of the NPZ layout written by :meth:`Recording.save_npz`. The step-record arrays were added to
+#: version 1 as optional arrays (a file without them is read as one saved before they existed), so files of
+#: either age load everywhere.
 NPZ_FORMAT_VERSION = 1
 
 #: CSV columns written by :meth:`Recording.to_csv`, in order.
 CSV_COLUMNS = (
     "sample_number", "time_s", "x_counts", "y_counts", "z_counts", "x_g", "y_g", "z_g", "flags", "valid",
 )
+
+#: CSV columns written by :meth:`Recording.to_steps_csv`, in order (one row per device step record).
+STEP_CSV_COLUMNS = (
+    "record_number", "end_sample", "time_s", "duration_s", "toe_off_s", "heel_strike_s", "flags",
+    *(f"length_m{k}_m" for k in range(1, len(STEP_LENGTH_FIELDS) + 1)), "lengths",
+)
+
+
+class RecordGap(NamedTuple):
+    """A run of consecutive stored step records (absolute record numbers, both ends inclusive) that the decoder
+    could not use, with the reason."""
+
+    first_record_number: int
+    last_record_number: int
+    reason: str
+
+    @property
+    def n_records(self) -> int:
+        """Number of records in the run."""
+        return self.last_record_number - self.first_record_number + 1
 
 
 class Gap(NamedTuple):
@@ -130,6 +163,13 @@ class Recording:
         Where the samples came from (file name, port), if known.
     notes
         Human-readable remarks of the decoder (recovered shifts, conversion used, ...).
+    step_records
+        ``(m,)`` :data:`protocol.steps.STEP_RECORD_DTYPE`: the device's per-step records that were received
+        intact with a matching CRC, in ring order (oldest first), byte for byte as stored.
+    step_record_numbers
+        ``(m,)`` int64 absolute record numbers of ``step_records`` (increasing; a jump is a loss).
+    step_losses
+        Every run of stored step records that could not be used, with its reason.
     """
 
     codes: np.ndarray
@@ -143,6 +183,9 @@ class Recording:
     adc_bits: int = 10
     source: str | None = None
     notes: list[str] = field(default_factory=list)
+    step_records: np.ndarray | None = None
+    step_record_numbers: np.ndarray | None = None
+    step_losses: list[RecordGap] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.codes = np.ascontiguousarray(self.codes, dtype=np.uint16).reshape(-1, 3)
@@ -156,6 +199,22 @@ class Recording:
         if not (np.isfinite(self.sampling_rate_hz) and self.sampling_rate_hz > 0):
             raise HostError(f"Recording.sampling_rate_hz must be > 0, got {self.sampling_rate_hz!r}")
         self.gaps = [Gap(int(a), int(b), str(r)) for a, b, r in self.gaps]
+        records = np.zeros(0, STEP_RECORD_DTYPE) if self.step_records is None else np.asarray(self.step_records)
+        if records.dtype.names != STEP_RECORD_DTYPE.names:
+            raise HostError(f"Recording.step_records must have the fields of STEP_RECORD_DTYPE, got {records.dtype}")
+        self.step_records = np.ascontiguousarray(records.reshape(-1).astype(STEP_RECORD_DTYPE, copy=False))
+        m = self.step_records.shape[0]
+        if self.step_record_numbers is None:
+            if m:
+                raise HostError("Recording.step_record_numbers is needed with step_records")
+            self.step_record_numbers = np.zeros(0, np.int64)
+        self.step_record_numbers = np.asarray(self.step_record_numbers, dtype=np.int64).reshape(-1)
+        if self.step_record_numbers.shape[0] != m:
+            raise HostError(f"Recording.step_record_numbers has {self.step_record_numbers.shape[0]} rows, "
+                            f"step_records has {m}")
+        if m > 1 and np.any(np.diff(self.step_record_numbers) <= 0):
+            raise HostError("Recording.step_record_numbers must increase (ring order)")
+        self.step_losses = [RecordGap(int(a), int(b), str(r)) for a, b, r in self.step_losses]
 
     # ----------------------------------------------------------------------------------------- construction
     @classmethod
@@ -212,6 +271,27 @@ class Recording:
         """Time span covered by the rows, ``n / sampling_rate_hz``, in seconds."""
         return self.n_samples / self.sampling_rate_hz
 
+    @property
+    def step_config(self) -> Any:
+        """The header's step configuration (``protocol.steps.StepConfig``), or None without a header."""
+        return getattr(self.header, "step_config", None)
+
+    @property
+    def n_step_records(self) -> int:
+        """Number of usable device step records."""
+        return int(self.step_records.shape[0])
+
+    @property
+    def n_steps_dropped(self) -> int:
+        """Number of stored step records that could not be used (the sum over ``step_losses``)."""
+        return sum(g.n_records for g in self.step_losses)
+
+    @property
+    def step_time_s(self) -> np.ndarray:
+        """``(m,)`` time of each record's foot-flat (``end_sample``), s since the start of the log (the clock of
+        :attr:`time_s`)."""
+        return self.step_records["end_sample"].astype(np.float64) / self.sampling_rate_hz
+
     def gap_times_s(self, gap: Gap) -> tuple[float, float]:
         """Start and end time (s since the start of the log) of ``gap``: from its first sample to the
         sample after its last."""
@@ -261,7 +341,13 @@ class Recording:
                 "wrapped": bool(self.header.wrapped),
                 "overwrite": bool(self.header.overwrite),
                 "calibration_valid": bool(self.header.calibration.valid),
+                "steps_written": int(getattr(self.header, "steps_written", 0)),
+                "step_write_index": int(getattr(self.header, "step_write_index", 0)),
+                "step_capacity": int(getattr(self.header, "step_capacity", 0)),
             }
+            if self.step_config is not None:
+                header_info["step_config"] = {k: (v if isinstance(v, bool) else float(v) if k != "step_format"
+                                                  else int(v)) for k, v in vars(self.step_config).items()}
         return {
             "format_version": NPZ_FORMAT_VERSION,
             "source": self.source,
@@ -279,6 +365,13 @@ class Recording:
             ],
             "header": header_info,
             "notes": list(self.notes),
+            "step_records": {
+                "n_decoded": self.n_step_records,
+                "n_dropped": self.n_steps_dropped,
+                "first_record_number": int(self.step_record_numbers[0]) if self.n_step_records else None,
+                "losses": [{"first_record_number": g.first_record_number, "last_record_number": g.last_record_number,
+                            "n_records": g.n_records, "reason": g.reason} for g in self.step_losses],
+            },
         }
 
     # ---------------------------------------------------------------------------------------------- saving
@@ -286,22 +379,29 @@ class Recording:
         """Write the recording to ``path`` (NPZ; metadata as a JSON string inside), atomically.
 
         Arrays: ``codes``, ``valid``, ``flags``, ``sample_numbers``, ``header_bytes`` (the 256-byte device
-        header, empty when none), ``metadata_json``.
+        header, empty when none), ``step_record_bytes`` (the usable step records, 20 bytes each as stored),
+        ``step_record_numbers``, ``metadata_json`` (with the step-record losses).
         """
         header_bytes = np.zeros(0, np.uint8)
         if self.header is not None:
             header_bytes = np.frombuffer(self.header.to_bytes(), dtype=np.uint8)
         meta = json.dumps(self.metadata(), sort_keys=True)
         buf = io.BytesIO()
+        step_bytes = np.frombuffer(self.step_records.tobytes(), dtype=np.uint8)
         np.savez_compressed(buf, codes=self.codes, valid=self.valid, flags=self.flags,
                             sample_numbers=self.sample_numbers, header_bytes=header_bytes,
+                            step_record_bytes=step_bytes, step_record_numbers=self.step_record_numbers,
                             metadata_json=np.array(meta))
         with atomic_write(path, "wb") as handle:
             handle.write(buf.getvalue())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "Recording":
-        """Read a recording written by :meth:`save_npz`; :class:`HostError` naming the file if it is not one."""
+        """Read a recording written by :meth:`save_npz`; :class:`HostError` naming the file if it is not one.
+
+        A file saved before the step records existed (no ``step_record_bytes``) loads with no step records;
+        when its header says the device had stored some, they are one loss "not in this NPZ".
+        """
         path = Path(path)
         try:
             with path.open("rb") as fh:
@@ -335,10 +435,12 @@ class Recording:
             header = DeviceHeader.from_bytes(arrays["header_bytes"].tobytes(), source=str(path))
         try:
             gaps = [Gap(g["first_sample_number"], g["last_sample_number"], g["reason"]) for g in meta["gaps"]]
+            records, numbers, losses = _load_step_records(path, arrays, meta, header)
             return cls(codes=arrays["codes"], valid=arrays["valid"], flags=arrays["flags"],
                        sample_numbers=arrays["sample_numbers"], sampling_rate_hz=float(meta["sampling_rate_hz"]),
                        start_time_s=float(meta["start_time_s"]), header=header, gaps=gaps,
-                       adc_bits=int(meta["adc_bits"]), source=meta.get("source"), notes=list(meta.get("notes", [])))
+                       adc_bits=int(meta["adc_bits"]), source=meta.get("source"), notes=list(meta.get("notes", [])),
+                       step_records=records, step_record_numbers=numbers, step_losses=losses)
         except KeyError as err:
             raise HostError(f"{path}: metadata_json lacks the field {err.args[0]!r}") from err
         except (TypeError, ValueError) as err:
@@ -357,6 +459,40 @@ class Recording:
                    g[:, 2].tolist(), self.flags.tolist(), self.valid.tolist())
         lines = [",".join(CSV_COLUMNS)]
         lines += [good % r[:9] if r[9] else bad % r[:2] for r in rows]
+        atomic_write_text(path, "\n".join(lines) + "\n")
+
+    def to_steps_csv(self, path: str | os.PathLike[str]) -> None:
+        """Write one row per usable device step record (columns :data:`STEP_CSV_COLUMNS`), atomically.
+
+        ``time_s``, ``toe_off_s`` and ``heel_strike_s`` are times on the clock of the sample CSV (s since sample
+        number 0): the foot-flat that ends the step, the toe-off and the heel strike. ``duration_s`` is foot-flat
+        to foot-flat. A field the record leaves undefined is empty: the duration and toe-off of a bout's first
+        step (``NO_WINDOW``), a toe-off or heel strike not found, a length of 0 ("not computed", the flags say
+        why). ``flags`` lists the flag names joined by ``|``. ``lengths`` is ``K`` when the device applied the
+        calibrated constants (lengths in m) and ``raw`` when it did not (``UNCALIBRATED``: M1, M2, M4 with
+        K = 1, M5 the cadence 1/T in Hz; PROTOCOL.md 2.2).
+        """
+        r = self.step_records
+        fs = self.sampling_rate_hz
+        end = r["end_sample"].astype(np.int64)
+        dur = r["duration_samples"].astype(np.int64)
+        toe = r["toe_off_samples"].astype(np.int64)
+        heel = r["heel_strike_samples"].astype(np.int64)
+        fl = r["flags"].astype(np.int64)
+        lengths = step_lengths_m(r)
+        has_window = (dur > 0) & ((fl & StepFlag.NO_WINDOW) == 0)
+        has_toe = has_window & (toe > 0) & ((fl & StepFlag.NO_TOE_OFF) == 0)
+        has_heel = (heel != HEEL_STRIKE_NOT_FOUND) & ((fl & StepFlag.NO_HEEL_STRIKE) == 0)
+
+        names = {int(v): "|".join(f.name for f in StepFlag if v & f) for v in np.unique(fl).tolist()}
+        columns = [
+            self.step_record_numbers.astype(str).tolist(), end.astype(str).tolist(), _cells(end / fs),
+            _cells(dur / fs, has_window), _cells((end - dur + toe) / fs, has_toe), _cells((end + heel) / fs, has_heel),
+            [names[v] for v in fl.tolist()],
+            *(_cells(lengths[:, k], lengths[:, k] != 0) for k in range(lengths.shape[1])),
+            ["raw" if v & StepFlag.UNCALIBRATED else "K" for v in fl.tolist()],
+        ]
+        lines = [",".join(STEP_CSV_COLUMNS)] + [",".join(row) for row in zip(*columns)]
         atomic_write_text(path, "\n".join(lines) + "\n")
 
     @staticmethod
@@ -386,4 +522,44 @@ class Recording:
             t0, t1 = self.gap_times_s(gp)
             lines.append(f"  samples {gp.first_sample_number}..{gp.last_sample_number} "
                          f"({t0:.2f}-{t1:.2f} s): {gp.reason}")
+        if int(getattr(self.header, "step_capacity", 0)) or self.n_step_records or self.step_losses:
+            lines.append(f"{self.n_step_records} step record(s) decoded, {self.n_steps_dropped} dropped")
+            for g in self.step_losses:
+                lines.append(f"  records {g.first_record_number}..{g.last_record_number}: {g.reason}")
         return "\n".join(lines)
+
+
+def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:
+    """CSV cells of float values: the shortest text that reads back the same float, empty where not defined."""
+    text = [repr(v) for v in np.asarray(values, np.float64).tolist()]
+    if defined is not None:
+        text = [t if ok else "" for t, ok in zip(text, np.asarray(defined, bool).tolist())]
+    return text
+
+
+def _load_step_records(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any], header: Any
+                       ) -> tuple[np.ndarray, np.ndarray, list[RecordGap]]:
+    """The step records of a loaded NPZ (none in a file saved before they existed)."""
+    if "step_record_bytes" not in arrays:
+        n_stored = int(getattr(header, "n_steps_stored", 0)) if header is not None else 0
+        losses = []
+        if n_stored:
+            first = int(header.first_step_number)
+            losses.append(RecordGap(first, first + n_stored - 1, "not in this NPZ (saved before gaitlog kept the "
+                                                                  "step records): decode the dump again"))
+        return np.zeros(0, STEP_RECORD_DTYPE), np.zeros(0, np.int64), losses
+    raw = arrays["step_record_bytes"]
+    numbers = arrays.get("step_record_numbers")
+    if raw.dtype != np.uint8 or numbers is None:
+        raise HostError(f"{path}: step_record_bytes must be uint8 with step_record_numbers beside it")
+    try:
+        records, crc_ok = unpack_step_records(raw.tobytes(), source=str(path))
+    except Exception as err:  # ProtocolError: not whole records
+        raise HostError(f"{path}: step_record_bytes: {err}") from err
+    if not crc_ok.all():
+        raise HostError(f"{path}: step record {int(np.flatnonzero(~crc_ok)[0])} of step_record_bytes fails its CRC "
+                        "(the NPZ is damaged): decode the dump again")
+    info = meta.get("step_records") or {}
+    losses = [RecordGap(g["first_record_number"], g["last_record_number"], g["reason"])
+              for g in info.get("losses", [])]
+    return records, numbers, losses

@@ -19,6 +19,7 @@ before the configuration was changed replays with the new one and is reported as
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,6 +63,9 @@ class ReplayCheck:
         Up to ``max_mismatches`` ``(end_sample, what)`` descriptions.
     n_unverifiable
         Device records outside every verifiable span (their run's start or samples are missing).
+    n_replay_unknown
+        Replayed records inside a verifiable span that were not compared because the device's records there
+        are unknown (stored, but dropped by the decoder: ``unknown_end_samples`` of :func:`check_records`).
     """
 
     replay: np.ndarray
@@ -71,6 +75,7 @@ class ReplayCheck:
     n_identical: int
     mismatches: list[tuple[int, str]] = field(default_factory=list)
     n_unverifiable: int = 0
+    n_replay_unknown: int = 0
 
     @property
     def identical(self) -> bool:
@@ -84,6 +89,8 @@ class ReplayCheck:
                     f"the replayable runs)")
         verdict = "identical" if self.identical else f"{self.n_compared - self.n_identical} DIFFERENT"
         extra = f", {self.n_unverifiable} not verifiable" if self.n_unverifiable else ""
+        if self.n_replay_unknown:
+            extra += f", {self.n_replay_unknown} replayed where the device's records were dropped"
         return (f"device step records vs host replay: {self.n_identical} of {self.n_compared} {verdict} "
                 f"byte for byte{extra}")
 
@@ -151,24 +158,31 @@ def _with_crc(records: np.ndarray) -> np.ndarray:
 
 
 def check_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, sample_numbers: np.ndarray,
-                  header: object, device_records: np.ndarray, *, max_mismatches: int = 10) -> ReplayCheck:
+                  header: object, device_records: np.ndarray, *, max_mismatches: int = 10,
+                  unknown_end_samples: Sequence[tuple[float, float]] = ()) -> ReplayCheck:
     """Replay (:func:`replay_records`) and compare with ``device_records`` (CRC-good records, any order).
 
     Within each run's verifiable span, records are matched by ``end_sample``; the 20 bytes must be equal.
     Records older than the oldest device record are not compared (the step ring may have overwritten them).
+    ``unknown_end_samples`` are open intervals ``(lo, hi)`` of ``end_sample`` where the device stored records
+    that could not be read (a decoder dropped them): replayed records inside are not compared.
     """
     dev = np.sort(np.asarray(device_records, STEP_RECORD_DTYPE), order="end_sample")
     replay, spans = replay_records(codes, valid, flags, sample_numbers, header)
     oldest = int(dev["end_sample"][0]) if dev.size else None
     mismatches: list[tuple[int, str]] = []
     runs: list[RunCheck] = []
-    n_cmp = n_same = 0
+    n_cmp = n_same = n_hidden = 0
     covered = np.zeros(dev.size, bool)
     for first, last, limit, complete, reason in spans:
         dsel = (dev["end_sample"] >= first) & (dev["end_sample"] <= limit)
         rsel = (replay["end_sample"] >= first) & (replay["end_sample"] <= limit)
         if oldest is not None:
             rsel &= replay["end_sample"] >= oldest
+        for lo, hi in unknown_end_samples:
+            hidden = rsel & (replay["end_sample"] > lo) & (replay["end_sample"] < hi)
+            n_hidden += int(np.count_nonzero(hidden))
+            rsel &= ~hidden
         covered |= dsel
         d, r = dev[dsel], replay[rsel]
         ends = np.union1d(d["end_sample"], r["end_sample"])
@@ -183,7 +197,8 @@ def check_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, sampl
         n_cmp += ends.size
         n_same += same
         runs.append(RunCheck(first, last, limit, complete, reason, int(ends.size), int(same)))
-    return ReplayCheck(replay, runs, int(dev.size), n_cmp, n_same, mismatches, int(np.count_nonzero(~covered)))
+    return ReplayCheck(replay, runs, int(dev.size), n_cmp, n_same, mismatches, int(np.count_nonzero(~covered)),
+                       n_hidden)
 
 
 def _difference(device: np.void | None, replay: np.void | None) -> str:

@@ -1,11 +1,12 @@
-"""``gaitlog decode``: memory image, raw XMODEM dump or wire capture -> samples as CSV and NPZ."""
+"""``gaitlog decode``: memory image, raw XMODEM dump or wire capture -> samples (and step records) as CSV and NPZ."""
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
 
-HELP = "decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported)"
+HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
+        "device's step records to PREFIX.steps.csv (checked against the host's replay)")
 
 
 def _have_calibration_module() -> bool:
@@ -17,16 +18,34 @@ def _have_calibration_module() -> bool:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", help="memory image (.glimg), raw dump (rx output) or wire capture")
-    parser.add_argument("--out", required=True, metavar="PREFIX", help="writes PREFIX.csv and PREFIX.npz")
+    parser.add_argument("--out", required=True, metavar="PREFIX",
+                        help="writes PREFIX.csv and PREFIX.npz, and PREFIX.steps.csv when the input holds step records")
     if _have_calibration_module():
         parser.add_argument("--calibration", metavar="CAL.json",
                             help="convert counts to g with this calibration (default: the header's "
                                  "calibration slot, else the nominal map)")
+    parser.add_argument("--no-verify", action="store_true",
+                        help="write the step records even when they differ from the host's replay of the device's "
+                             "algorithm (default: a difference is an error and nothing is written)")
     parser.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
+def replay_error(recording, check) -> str:
+    """The message of a step-record mismatch: the first differing record and field."""
+    end_sample, what = check.mismatches[0]
+    numbers = recording.step_record_numbers[recording.step_records["end_sample"] == end_sample]
+    which = f"record {int(numbers[0])} (foot-flat at sample {end_sample})" if numbers.size else \
+        f"the step ending at sample {end_sample}"
+    return (f"{recording.source}: the device's step records differ from the host's replay of its algorithm: "
+            f"{check.n_compared - check.n_identical} of {check.n_compared} differ, the first is {which}: {what}. "
+            "The device and this host do not compute the same steps (firmware, header or record damage, or the "
+            "step configuration changed after these steps were logged: the header keeps only the last one); "
+            "nothing written (--no-verify writes them anyway)")
+
+
 def run(args: argparse.Namespace) -> int:
-    from host.decode import decode_file, save_outputs
+    from host.decode import decode_file, output_paths, save_decoded, verify_step_records
+    from host.errors import HostError
 
     rec = decode_file(args.input)
     calibration = None
@@ -36,14 +55,20 @@ def run(args: argparse.Namespace) -> int:
 
         calibration = AccCalibration.load(args.calibration)
         if getattr(calibration, "input_unit", "counts") != "counts":
-            from host.errors import HostError
-
             raise HostError(f"{args.calibration}: this calibration takes {calibration.input_unit}; decoding "
                             "needs a calibration of ADC counts (input_unit 'counts')")
         note = f"g from the calibration {args.calibration}"
-    npz, csv = save_outputs(rec, args.out, calibration)
+    check = verify_step_records(rec)
+    differs = check is not None and check.n_compared > check.n_identical
+    if differs and not args.no_verify:
+        raise HostError(replay_error(rec, check))
+    written = save_decoded(rec, args.out, calibration)
     if not args.quiet:
         print(f"{args.input}: {rec.summary()}")
         print(note)
-        print(f"wrote {csv} and {npz}")
+        if check is not None:
+            print(check.summary() + (" (--no-verify: written anyway)" if differs else ""))
+        if rec.n_step_records == 0:
+            print(f"no step records in {args.input}: {output_paths(args.out)['steps_csv']} not written")
+        print("wrote " + ", ".join(str(p) for p in written))
     return 0

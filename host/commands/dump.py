@@ -1,11 +1,13 @@
-"""``gaitlog dump``: dump a logger's memory over a serial line to a memory image plus JSON metadata."""
+"""``gaitlog dump``: dump a logger's memory (samples, then the stored step records) over a serial line to a memory
+image plus JSON metadata."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-HELP = "dump a logger's memory (port, pty path, socket:// or emu:// URL) to a memory image + metadata"
+HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
+        "metadata")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -50,14 +52,18 @@ def run(args: argparse.Namespace) -> int:
                 atomic_write_bytes(args.capture, capture.getvalue())
     meta = result.metadata_
     if not args.quiet:
-        print(f"{out}: {meta['n_valid']} of {meta['n_samples']} samples, {meta['stored_bytes']} bytes in "
+        steps = (f", {meta['n_step_records']} of {meta['n_step_records_stored']} step records"
+                 if result.header_.step_capacity else "")
+        print(f"{out}: {meta['n_valid']} of {meta['n_samples']} samples{steps}, "
+              f"{meta['stored_bytes'] + meta['step_stored_bytes']} bytes in "
               f"{meta['duration_s']:.2f} s ({meta['bytes_received']} bytes received, "
               f"{meta['frames_damaged']} damaged frames, {meta['passes']} pass(es)"
               + (", resumed" if meta["resumed"] else "") + ")")
         print(f"metadata: {result.metadata_path_}")
     if not result.complete_:
         print(f"gaitlog dump: error: {sum(n for _, n in result.missing_ranges_)} bytes still missing after "
-              f"{args.retries} re-read passes ({len(meta['missing_samples'])} sample range(s)); the image marks "
+              f"{args.retries} re-read passes ({len(meta['missing_samples'])} sample range(s), "
+              f"{len(meta['step_record_losses'])} step-record range(s)); the image marks "
               f"them missing; run again with --resume to retry them", file=sys.stderr)
         return 1
     return 0

@@ -1,4 +1,5 @@
-"""``gaitlog info``: header and status of a memory image (or dump/capture file) or of a live device."""
+"""``gaitlog info``: header and status of a memory image (or dump/capture file) or of a live device, with the
+step configuration and counters, and for a file how many step records decode."""
 
 from __future__ import annotations
 
@@ -34,7 +35,29 @@ def header_lines(header) -> list[str]:
         f"flags            {' '.join(flags) or '-'}",
         "calibration      " + ("affine: offset " + ", ".join(f"{v:.3f}" for v in cal.offset_counts) + " counts"
                                if cal.valid else "none (nominal map: ±2 g over the ADC span)"),
+        *step_lines(header),
     ]
+
+
+def step_lines(header) -> list[str]:
+    """Readable lines describing the step memory counters and the step configuration (PROTOCOL.md 2.2, 2.3)."""
+    cfg = header.step_config
+    if not header.step_capacity:
+        memory = "none (a device without step memory)"
+    else:
+        memory = (f"{header.step_capacity} records; {header.steps_written} written (stored {header.n_steps_stored}, "
+                  f"oldest is record {header.first_step_number} in slot {header.first_step_slot}), write index "
+                  f"{header.step_write_index}")
+    if not cfg.enabled:
+        algorithm = "off (plain logging)"
+    else:
+        q = cfg.quantised()
+        algorithm = (f"on-line version {int(cfg.step_format)}, leg {q.leg_length_m:.4f} m, "
+                     f"foot {q.foot_length_m:.4f} m, ")
+        algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^0.25, "
+                      f"M5 S = {q.k1_m5_m_s:.4f}/T {q.k2_m5_m:+.4f} m" if cfg.calibrated else
+                      "raw (no K: M1, M2, M4 with K = 1, M5 the cadence in Hz)")
+    return [f"step memory      {memory}", f"step algorithm   {algorithm}"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,6 +90,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"  gap: samples {gap.first_sample_number}..{gap.last_sample_number}: {gap.reason}")
     if len(rec.gaps) > 20:
         print(f"  ... {len(rec.gaps) - 20} more gap(s)")
+    if rec.header.step_capacity or rec.n_step_records:
+        print(f"step records     {rec.n_step_records} of {rec.header.n_steps_stored} stored records decode "
+              f"({rec.n_steps_dropped} dropped)")
+        for loss in rec.step_losses[:20]:
+            print(f"  dropped: records {loss.first_record_number}..{loss.last_record_number}: {loss.reason}")
+        if len(rec.step_losses) > 20:
+            print(f"  ... {len(rec.step_losses) - 20} more run(s) of dropped records")
     for note in rec.notes:
         print(f"note: {note}")
     return 0

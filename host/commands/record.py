@@ -1,15 +1,27 @@
-"""``gaitlog record``: run the emulated logger on a motion source and write its memory image."""
+"""``gaitlog record``: run the emulated logger on a motion source and write its memory image.
+
+The logger runs its on-line step algorithm while logging (PROTOCOL.md 2.2, 2.3) unless ``--steps off``: the
+step configuration is written to the header before START, from ``--height`` / ``--leg-length`` /
+``--foot-length`` (:func:`host.estimators.anthropometry.anatomical_lengths`; a 1.70 m adult, with a warning,
+when none is given) and, with ``--k-file``, the calibrated constants of a ``gaitlog calibrate-k`` file (whose
+leg and foot lengths are the ones K was fitted with). Without K the device stores the raw values.
+"""
 
 from __future__ import annotations
 
 import argparse
 
-HELP = "record a motion (calibration poses or a replayed recording) with the emulated logger to a memory image"
+HELP = ("record a motion (calibration poses, a simulated walk or a replayed recording) with the emulated logger, "
+        "its on-line step algorithm on, to a memory image")
+
+#: One-way corridor length of ``--motion walk`` when not given, m (an out-and-back excursion of 40 m).
+WALK_CORRIDOR_M = 20.0
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
-                        help="'poses' (static calibration poses) or 'replay FILE' (CSV or IPOL recording)")
+                        help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
+                             "a corridor out and back at preferred speed) or 'replay FILE' (CSV or IPOL recording)")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg)")
     parser.add_argument("--units", choices=("g", "m/s2", "auto"), default="auto",
                         help="units of a replayed recording (default: auto-detect)")
@@ -29,6 +41,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="ring mode: when the memory is full, overwrite the oldest samples (default: stop)")
     parser.add_argument("--append", action="store_true",
                         help="start from the existing image at --out instead of an erased memory")
+    parser.add_argument("--corridor-length", type=float, default=WALK_CORRIDOR_M, metavar="M",
+                        help=f"one-way corridor length of --motion walk, m (default {WALK_CORRIDOR_M:g}: 2 x "
+                             f"{WALK_CORRIDOR_M:g} m walked)")
+    steps = parser.add_argument_group("on-line step algorithm (one 20-byte record per foot-flat in the step memory)")
+    steps.add_argument("--steps", choices=("on", "off"), default=None,
+                       help="run the on-line step algorithm while logging (default: on; with --append and no "
+                            "step option, the image's own setting)")
+    steps.add_argument("--height", type=float, metavar="M",
+                       help="body height of the wearer, m: leg = 0.530 H, foot = 0.111 H when not given "
+                            "(default: a 1.70 m adult, with a warning)")
+    steps.add_argument("--leg-length", type=float, metavar="M", help="leg length (greater trochanter to floor), m")
+    steps.add_argument("--foot-length", type=float, metavar="M",
+                       help="foot length heel to first metatarsal head (M3's S2), m")
+    steps.add_argument("--k-file", metavar="K.json",
+                       help="calibrated constants (from `gaitlog calibrate-k`): the device stores calibrated "
+                            "lengths; the leg and foot lengths come from this file")
     parser.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
@@ -57,10 +85,97 @@ def build_motion(args: argparse.Namespace):
             time_column = int(time_column)
         return Replay.from_file(args.motion[1], units=units, rate_hz=args.rate, columns=columns,
                                 time_column=time_column)
-    raise HostError(f"--motion: unknown kind {kind!r} (expected 'poses' or 'replay FILE')")
+    if kind == "walk":
+        if len(args.motion) != 1:
+            raise HostError("--motion walk takes no file")
+        if not 10.0 <= args.corridor_length <= 1000.0:
+            raise HostError(f"--corridor-length {args.corridor_length:g} m is outside 10-1000 m")
+        from firmware_sim.world.gait_protocol import WalkingProtocol
+        from firmware_sim.world.subject import Subject
+        from firmware_sim.world.walking import Walking
+        from host.estimators.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
+
+        height = DEFAULT_HEIGHT_M if args.height is None else args.height
+        anatomical_lengths(height_m=height)  # range check, named
+        corridor = float(args.corridor_length)
+        protocol = WalkingProtocol(corridor_length_m=corridor, speeds=("preferred",), initial_stand_s=3.0,
+                                   final_stand_s=2.0, lap_marks_m=(0.0, corridor, 2.0 * corridor))
+        return Walking(subject=Subject.from_height(height), protocol=protocol, seed=args.seed)
+    raise HostError(f"--motion: unknown kind {kind!r} (expected 'poses', 'walk' or 'replay FILE')")
+
+
+def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
+    """The step configuration the options ask for, and the warnings to print.
+
+    Returns
+    -------
+    config, warnings
+        A :class:`protocol.steps.StepConfig` (``StepConfig.off()`` with ``--steps off``), or None with
+        ``appending`` and no step option (the image keeps its own), and warning lines.
+
+    Raises
+    ------
+    HostError
+        A length out of its plausible range, an unreadable or foreign ``--k-file``, lengths that contradict
+        the ``--k-file``'s, or K values the step configuration cannot store (the field is named).
+    """
+    import warnings
+
+    from host.errors import HostError
+    from host.estimators.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
+    from protocol.errors import ProtocolError
+    from protocol.steps import StepConfig, StepFormat
+
+    given = {name: getattr(args, name) for name in ("height", "leg_length", "foot_length", "k_file")
+             if getattr(args, name) is not None}
+    if args.steps == "off":
+        return StepConfig.off(), []
+    if appending and args.steps is None and not given:
+        return None, []
+    notes: list[str] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        leg, foot = anatomical_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length,
+                                       height_m=args.height)
+    k = {}
+    if args.k_file is not None:
+        from host.estimators.calibration import KCalibration
+
+        cal = KCalibration.load(args.k_file)
+        fitted = StepConfig(step_format=StepFormat.V1, leg_length_m=cal.leg_length_m,
+                            foot_length_m=cal.foot_length_m)
+        try:
+            fitted_q = fitted.quantised()
+        except ProtocolError as err:
+            raise HostError(f"{args.k_file}: its lengths cannot be stored: {err}") from err
+        for name, asked, derived, value in (("leg", args.leg_length, leg, fitted_q.leg_length_m),
+                                            ("foot", args.foot_length, foot, fitted_q.foot_length_m)):
+            # compare what the options set (the length itself, or the height it is derived from)
+            if (asked is not None or args.height is not None) and abs(derived - value) > 2.0 ** -15:
+                raise HostError(f"{args.k_file}: K was fitted with a {name} length of {value:.4f} m, the options "
+                                f"give {derived:.4f} m: K holds only with the lengths it was fitted with (drop "
+                                "--height/--leg-length/--foot-length, or fit K again)")
+        leg, foot = cal.leg_length_m, cal.foot_length_m
+        k = dict(calibrated=True, k_m1=cal.k_m1, k_m2=cal.k_m2, k_m4=cal.k_m4, k1_m5_m_s=cal.k1_m5_m_s,
+                 k2_m5_m=cal.k2_m5_m)
+        caught = []
+    if not given:
+        notes.append(f"no --height, --leg-length or --foot-length: the on-line step algorithm assumes a "
+                     f"{DEFAULT_HEIGHT_M:.2f} m adult (leg {leg:.3f} m, foot {foot:.3f} m); give --height, or "
+                     "--steps off for plain logging")
+    else:
+        notes += [str(w.message) for w in caught]
+    config = StepConfig(step_format=StepFormat.V1, leg_length_m=leg, foot_length_m=foot, **k)
+    try:
+        config.to_bytes()
+    except ProtocolError as err:
+        where = f"{args.k_file}: " if args.k_file else ""
+        raise HostError(f"{where}the step configuration cannot be stored: {err}") from err
+    return config, notes
 
 
 def run(args: argparse.Namespace) -> int:
+    import sys
     import time
     from pathlib import Path
 
@@ -71,18 +186,45 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not out.parent.is_dir():
         raise HostError(f"output directory {out.parent} does not exist")
+    if args.steps == "off":
+        extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file")
+                 if getattr(args, n) is not None]
+        if extra:
+            print(f"gaitlog record: error: --steps off runs no step algorithm: {', '.join(extra)} would be ignored; "
+                  "drop them", file=sys.stderr)
+            return 2
+    appending = bool(args.append and out.exists())
+    config, warnings_ = step_config_from_args(args, appending=appending)
     source = build_motion(args)
     motion = source.render(args.sample_rate)
     start = int(time.time()) if args.start_time is None else args.start_time
-    if args.append and out.exists():
+    if appending:
         logger = Logger.from_image(out)
+        if config is not None:
+            if logger.header.n_steps_stored and config.quantised() != logger.step_config:
+                warnings_.append(f"{out} holds {logger.header.n_steps_stored} step records logged with another step "
+                                 "configuration; the header keeps only the new one, so `gaitlog decode` will find "
+                                 "those records different from its replay (--no-verify)")
+            logger.step_config = config  # as SET_STEP_CONFIG before START
     else:
         logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=args.sample_rate,
-                        overwrite=args.overwrite_oldest)
+                        overwrite=args.overwrite_oldest, step_config=config)
+    for line in warnings_:
+        print(f"gaitlog record: warning: {line}", file=sys.stderr)
+    steps_before = logger.header.steps_written
     result = logger.record(motion, start_time_s=start)
     logger.save_image(out)
     if not args.quiet:
         h = logger.header
         print(f"{out}: recorded {len(result.codes)} samples ({motion.duration_s:.1f} s of {args.motion[0]}); "
               f"memory holds {h.n_stored} of {h.capacity_samples}" + (", wrapped" if h.wrapped else ""))
+        cfg = h.step_config
+        if cfg.enabled:
+            q = cfg.quantised()
+            print(f"{h.steps_written - steps_before} step records stored by the on-line algorithm (leg "
+                  f"{q.leg_length_m:.3f} m, foot {q.foot_length_m:.3f} m, "
+                  + ("calibrated K" if cfg.calibrated else "raw: no K") + f"); step memory holds "
+                  f"{h.n_steps_stored} of {h.step_capacity}")
+        else:
+            print("on-line step algorithm off: no step records stored")
     return 0

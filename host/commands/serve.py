@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "serve a memory image as a live logger on a pty (prints its path) or a TCP port, until Ctrl-C"
+HELP = ("serve a memory image as a live logger (its header's step configuration included) on a pty (prints its path) "
+        "or a TCP port, until Ctrl-C")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -14,8 +15,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--tcp", type=int, metavar="PORT", help="serve on 127.0.0.1:PORT (0: any free port)")
     parser.add_argument("--baud", type=int, default=115200, help="baud rate of the device's UART (default 115200)")
     parser.add_argument("--persist", action="store_true",
-                        help="save what the link changes (START/STOP logging, ERASE, SET_CALIBRATION) back to "
-                             "IMAGE on exit, as the EEPROM keeps it (default: IMAGE is left unchanged)")
+                        help="save what the link changes (START/STOP logging, ERASE, SET_CALIBRATION, "
+                             "SET_STEP_CONFIG) back to IMAGE on exit, as the EEPROM keeps it (default: IMAGE is left "
+                             "unchanged)")
     parser.add_argument("--wire-time", action="store_true",
                         help="pace the device's bytes at the baud rate (10 bits per byte, 8N1), as a real line")
 
