@@ -2,9 +2,13 @@
 
 Run: ``python benchmarks/bench_fixedpoint.py``. Each primitive runs on 65,536 samples and is timed (best of
 7) beside apytypes (the bit-exact oracle of the tests) and a plain Python-int loop, measured in the same
-run; results are checked equal before timing. The chain (10-bit codes -> M1-M5,
-``firmware_sim.algorithms.FixedStepChain``) runs on 65,536 samples of simulated walking (target <= 0.2 s,
-issue 5). Exits 1 if a target is missed.
+run; results are checked equal before timing. The fixed-point chain (10-bit codes -> one M1-M5 record per
+step) is the firmware's on-line step algorithm in the PIC's arithmetic
+(``firmware_sim.algorithms.online.OnlineStepAlgorithm``, ``arithmetic="fixed"``), run on 65,536 samples of a
+synthetic tilted walk (target <= 0.2 s, issues 5 and 10; best of 7 after a warm-up that loads the compiled
+kernels), beside the same algorithm in float and the offline float chain (``host.gait.pipeline``) on the
+same samples. ``benchmarks/bench_online.py`` times it on a simulated walker's recording, with start-up and
+memory. Exits 1 if a target is missed.
 """
 
 from __future__ import annotations
@@ -125,31 +129,35 @@ def main() -> int:
 
 
 def chain_benchmark() -> bool:
-    """The fixed-point chain on 65,536 samples of simulated 10-bit walking; True if the target is met."""
-    try:
-        from firmware_sim.algorithms.chain import FixedStepChain, nominal_calibration_q
-    except ImportError:
-        print("fixed-point chain: not available (firmware_sim.algorithms.chain missing)")
-        return False
-    codes = _walking_codes(N)
-    cal = nominal_calibration_q(adc_bits=10)
-    chain = FixedStepChain(leg_length_m=0.9, foot_length_m=0.26)
-    chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal)      # warm-up (imports scipy.signal)
-    t = best_of(lambda: chain.run(codes, sampling_rate_hz=50.0, adc_calibration=cal), repeat=3)
-    ok = t <= CHAIN_TARGET_S
-    print(f"fixed-point chain (codes -> M1-M5) on {N} samples: {t:.3f} s (target <= {CHAIN_TARGET_S} s), "
-          f"{chain.steps_.n_steps} steps, {chain.cycles_per_sample_:.0f} est. PIC cycles/sample "
-          f"(budget 100000){'' if ok else '  MISSED'}")
-    try:
-        from host.gait.pipeline import StepPipeline
+    """The on-line algorithm in fixed point on 65,536 samples of simulated 10-bit walking; True if the target is met."""
+    from firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from firmware_sim.fixedpoint import cycles_per_sample_available
+    from protocol.steps import StepConfig
 
-        acc = (codes.astype(np.float64) - 512.0) / 256.0
+    codes = _walking_codes(N)
+    cfg = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.26)
+    algs = {a: OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic=a) for a in ("fixed", "float")}
+    t = {a: best_of(lambda a=a: alg.run(codes), warmup=True) for a, alg in algs.items()}
+    once = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic="fixed")
+    n_steps = once.run(codes).n_steps
+    cyc, period = once.cycles, cycles_per_sample_available(50.0)
+    ok = t["fixed"] <= CHAIN_TARGET_S
+    print(f"fixed-point chain = on-line step algorithm, fixed point (codes -> M1-M5 records) on {N} samples: "
+          f"{t['fixed']:.3f} s (target <= {CHAIN_TARGET_S} s), {n_steps} steps; PIC cycles per sample {cyc.mean:.0f} "
+          f"mean, {cyc.worst} worst, worst backlog {cyc.worst_backlog / period:.2f} sample periods of {period:.0f}"
+          f"{'' if ok else '  MISSED'}")
+    print(f"  same algorithm in float: {t['float']:.3f} s (fixed/float {t['fixed'] / t['float']:.2f})")
+    import warnings
+
+    from host.gait.pipeline import StepPipeline
+
+    acc = (codes.astype(np.float64) - 512.0) / 256.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         t_f = best_of(lambda: StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=50.0),
-                   repeat=3)
-        print(f"float chain (host.gait.pipeline) on the same samples: {t_f:.3f} s (ratio fixed/float "
-              f"{t / t_f:.2f})")
-    except ImportError:
-        pass
+                      warmup=True)
+    print(f"  baseline offline float chain (host.gait.pipeline) on the same samples: {t_f:.3f} s (ratio fixed/offline "
+          f"{t['fixed'] / t_f:.2f})")
     return ok
 
 

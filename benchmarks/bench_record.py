@@ -1,6 +1,6 @@
 """Benchmark: record a full 65,536-sample session, and (opt-in) a wire-time DUMP of a full memory.
 
-Run ``python benchmarks/bench_record.py`` (about 5 s) or ``python benchmarks/bench_record.py --wire-time``
+Run ``python benchmarks/bench_record.py`` (about 15 s) or ``python benchmarks/bench_record.py --wire-time``
 (adds ~23 s). Prints each measured number, its target and a ratio against a baseline measured in the same
 run; exits 1 if a target is missed.
 
@@ -9,7 +9,14 @@ run; exits 1 if a target is missed.
    writes). Target <= 0.26 s (>= 5,000x real time). Baseline: the same chain written per sample in plain
    Python (one sample = 10 fine-grid steps of orientation, projection, noise, RC filter; then ADC, P32
    packing, a byte store), timed on 2,000 samples and extrapolated to 65,536.
-2. Wire-time DUMP (``--wire-time``): the logger served on a pty at 115200 8N1 with wire-time pacing; a raw
+2. Record with the on-line step algorithm (issue 10): ``Logger(step_config=...).record`` of a simulated
+   walker (``benchmarks/_walker.py``: a random subject on the corridor protocol, rendered once at the
+   sensor's internal rate, untimed) lasting exactly one full memory, the algorithm fed every logged block in
+   fixed point and its records stored in the step memory. Target >= 2,000x real time (<= 0.655 s).
+   Baseline: the same recording with the algorithm off (``Logger()`` without a step configuration, the
+   ``--steps off`` equivalent). Best of 7 after one warm-up round (the compiled-kernel cache is loaded
+   there), the two interleaved so that both see the same load of the shared machine.
+3. Wire-time DUMP (``--wire-time``): the logger served on a pty at 115200 8N1 with wire-time pacing; a raw
    reader sends one DUMP frame for the whole 262,144-byte memory (4,096-byte chunks) and reads every
    byte of the answer. Target <= 1.08x the physical floor of 245,760 bytes (64K samples x 30 bits) x 10
    bits / 115200 = 21.33 s, command turnaround included. Baseline: pacing by sleeping one byte time per
@@ -42,6 +49,7 @@ FLOOR_BYTES = 245_760
 BAUD = 115200
 FLOOR_S = FLOOR_BYTES * 10 / BAUD
 DUMP_TARGET_RATIO = 1.08
+STEPS_TARGET_X = 2000.0
 
 
 def _source() -> CalibrationPoses:
@@ -60,6 +68,24 @@ def bench_record(repeats: int = 7) -> tuple[float, float, int]:
         times.append(time.perf_counter() - t0)
         n = res.n_samples
     return min(times), statistics.median(times), n
+
+
+def bench_record_steps(repeats: int = 7) -> dict[str, tuple[float, int, int]]:
+    """Best seconds, samples stored and step records of the walker's recording, algorithm off and on."""
+    from _walker import step_config, walker_motion
+
+    motion, subject = walker_motion(N_SAMPLES)
+    configs = {"off": None, "on": step_config(subject)}
+    out = {name: (float("inf"), 0, 0) for name in configs}
+    for rep in range(repeats + 1):                      # off and on interleaved: the same machine load
+        for name, cfg in configs.items():
+            logger = Logger(step_config=cfg)
+            t0 = time.perf_counter()
+            res = logger.record(motion)
+            t = time.perf_counter() - t0
+            if rep:                                     # the first round is a warm-up (compiled kernels loaded)
+                out[name] = (min(out[name][0], t), res.n_samples, logger.header.steps_written)
+    return out
 
 
 def baseline_record_per_sample(n: int = 2000) -> float:
@@ -145,6 +171,19 @@ def main(argv: list[str] | None = None) -> int:
     if n != N_SAMPLES or best > RECORD_TARGET_S:
         ok = False
         print("  MISSED: record target")
+
+    steps = bench_record_steps()
+    (t_off, n_off, _), (t_on, n_on, n_rec) = steps["off"], steps["on"]
+    x_on = SESSION_S / t_on
+    print(f"record {n_on} samples of a simulated walker with the on-line step algorithm (fixed point), "
+          f"{n_rec} step records:")
+    print(f"  time          {t_on:.3f} s best of 7 ({x_on:,.0f}x real time)   target >= {STEPS_TARGET_X:,.0f}x "
+          f"(<= {SESSION_S / STEPS_TARGET_X:.3f} s)")
+    print(f"  baseline      algorithm off (no step configuration): {t_off:.3f} s ({SESSION_S / t_off:,.0f}x real "
+          f"time); the algorithm adds {t_on - t_off:.3f} s ({(t_on - t_off) / n_on * 1e6:.2f} us/sample)")
+    if n_on != N_SAMPLES or n_off != N_SAMPLES or n_rec == 0 or x_on < STEPS_TARGET_X:
+        ok = False
+        print("  MISSED: record-with-steps target")
 
     if args.wire_time:
         elapsed, n_bytes, intact = bench_wire_dump()
