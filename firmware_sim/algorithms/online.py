@@ -81,6 +81,8 @@ __all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", 
 
 #: The two arithmetics of the algorithm.
 ARITHMETICS = ("fixed", "float")
+#: :meth:`OnlineStepAlgorithm.run` feeds a recording in blocks of this many samples (memory stays bounded).
+BLOCK_SAMPLES = 65536
 #: M4's constant is K g0^(1/4): the range is in g on the device, in m/s^2 in K's unit.
 G0_ROOT4 = STANDARD_GRAVITY_M_S2 ** 0.25
 
@@ -511,7 +513,10 @@ class OnlineStepAlgorithm:
 
     def run(self, codes: np.ndarray, *, run_starts: np.ndarray | None = None) -> OnlineSteps:
         """A whole recording: each run (from each index of ``run_starts``, default ``[0]``) starts with
-        :meth:`reset` and ends with :meth:`flush`, as on the logger. Indices count from the first sample."""
+        :meth:`reset` and ends with :meth:`flush`, as on the logger. Indices count from the first sample.
+
+        The samples are fed in blocks of :data:`BLOCK_SAMPLES` (the records do not depend on the blocks).
+        """
         c = np.asarray(codes)
         starts = np.unique(np.concatenate([[0], np.asarray(run_starts if run_starts is not None else [], np.int64)]))
         starts = starts[(starts >= 0) & (starts < max(c.shape[0], 1))]
@@ -519,7 +524,8 @@ class OnlineStepAlgorithm:
         parts = []
         for a, b in zip(bounds[:-1], bounds[1:]):
             self.reset()
-            parts.append(self.feed(c[a:b], offset=int(a)))
+            for k in range(int(a), int(b), BLOCK_SAMPLES):   # blocks: bounded memory for any length
+                parts.append(self.feed(c[k:min(k + BLOCK_SAMPLES, int(b))], offset=int(a)))
             parts.append(self.flush(offset=int(a)))
         if not parts:
             return OnlineSteps.empty(self.arithmetic, self.sampling_rate_hz, self.config.step_config.calibrated)
