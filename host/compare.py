@@ -695,12 +695,15 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     ideal_of = matches["adc"].b_of_a(of.n_steps)
     float_of = matches["algorithm"].a_of_b(of.n_steps)
     fixed_of = _take(matches["arithmetic"].a_of_b(t["online-float"].n_steps), float_of, fill=-1)
+    same_adc = np.zeros(of.n_steps, bool)
+    same_adc[matches["adc"].a] = matches["adc"].same_events
     same_alg = _same_of_b(matches["algorithm"], of.n_steps)
     same_ar = _take(_same_of_b(matches["arithmetic"], t["online-float"].n_steps), float_of, fill=False)
     steps: dict[str, np.ndarray] = {
         "step": np.arange(of.n_steps), "foot_flat_s": of.time_s(of.foot_flat), "duration_s": of.duration_s,
         "exact_duration_s": exact.duration_s, "ideal_step": ideal_of, "online_float_step": float_of,
-        "online_fixed_step": fixed_of, "truth_step": truth_idx, "same_events_algorithm": same_alg,
+        "online_fixed_step": fixed_of, "truth_step": truth_idx, "same_events_adc": same_adc,
+        "same_events_algorithm": same_alg,
         "same_events_arithmetic": same_ar,
         "truth_length_m": np.where(truth_idx >= 0, tl[np.maximum(truth_idx, 0)], np.nan)}
     for est in ESTIMATORS:

@@ -25,23 +25,28 @@ being calibrated; it is never refitted per chain.)
 Parallel runs (``workers``) give the same numbers as serial ones (everything is seeded per subject).
 
 Measured (``gaitlog compare --sweep``: 4 subjects, seed 0, the paper's protocol, 96 evaluated 20 m sections
-per configuration, 15-30 s on 2 cores; the walking world of this commit):
+per configuration, ~10 s on 2 cores; pinned by ``tests/host/test_compare_figures.py``):
 
-* ADC share, per step (median ``|float - ideal|``, multi-speed K, 50 Hz): M1 3.8 / 0.96 / 0.23 mm at
-  8 / 10 / 12 bits, M2 1.4 / 0.38 / 0.09 mm, M4 0.71 / 0.19 / 0.05 mm (a quarter per two bits); the pooled
-  section-ratio medians and IQRs move by at most 0.003.
-* Arithmetic share, per step (median ``|fixed - float|``): 0.03-0.25 mm in every configuration, at most
-  0.53 % of a step; 3-14 steps per configuration (of ~4,200) with different events, no saturation, no wrap.
-* M5 (float, 10 bits, pooled IQR at 25 / 50 / 100 Hz): multi-speed 0.0147 / 0.0146 / 0.0158, with exact step
-  durations 0.0128 at 50 Hz; single-speed 0.0251 / 0.0214 / 0.0241 vs 0.0230. The step timing adds 15 %
-  (multi-speed) and 18 % (single-speed) of M5's section-ratio variance at 50 Hz, and about as much at
-  25 and 100 Hz: the step durations are off by 22 ms rms at 50 Hz and still 21 ms at 100 Hz, while the
-  sample period alone explains 8 ms (4 ms). **M5's spread does not come from the 50 Hz step timing**:
-  faster sampling does not narrow it; the timing error that matters is the event detector's jitter
-  (15-19 % of the variance), and the rest (> 80 %) is the cadence-length line itself (how each walker's
-  step length departs from ``K1/T + K2`` within and across speeds). This is a statement about the simulated
-  walkers; on the IPOL trials M5's spread (IQR 0.155 with the single-speed fallback) is likewise the
-  model's, as the reference-event analysis of ``tests/host/test_ipol_evaluation_real.py`` notes.
+* ADC share, per step (median ``|offline - ideal|``, multi-speed K, 50 Hz): M1 2.9 / 0.71 / 0.18 mm at
+  8 / 10 / 12 bits, M2 1.05 / 0.28 / 0.07 mm, M4 0.54 / 0.14 / 0.03 mm (a quarter per two bits); the pooled
+  section-ratio medians and IQRs move by at most 0.005.
+* Algorithm share (median ``|online-float - offline|``): M1 10.4-12.6 mm, M2 9.4-9.7 mm, M4 3.9 mm in every
+  configuration (the same at every width: it is the two algorithms', not the converter's); per section up to
+  0.03 in ratio, and the on-line algorithm's multi-speed M2 IQR is narrower (0.024-0.030 vs 0.046-0.050).
+* Arithmetic share, per step (median ``|online-fixed - online-float|``): 0.015-0.11 mm in every
+  configuration, at most 0.32 % of a step except one 2 cm "step" at 25 Hz (h = 0.05 mm, three
+  resolution steps of the UQ0.16 excursion: 25 % of its M1, 5 mm); 5-26 steps per configuration (of ~4,300)
+  with different events; no saturation, no wrap.
+* M5 (offline chain, 10 bits, pooled IQR at 25 / 50 / 100 Hz): multi-speed 0.0147 / 0.0141 / 0.0151, with
+  exact step durations and the same K 0.0131 at 50 Hz; single-speed 0.0248 / 0.0214 / 0.0240 vs 0.0241.
+  The step timing adds 4 % (multi-speed) and nothing measurable (single-speed) of M5's section-ratio
+  variance at 50 Hz: the step durations are off by 20 ms rms at 50 Hz and still 18 ms at 100 Hz, while
+  the sample period alone explains 8 ms (4 ms). **M5's spread does not come from the 50 Hz step timing**:
+  faster sampling does not narrow it; what there is of a timing error is the event detector's jitter, and
+  the rest is the cadence-length line itself (how each walker's step length departs from ``K1/T + K2``
+  within and across speeds). This is a statement about the simulated walkers; on the IPOL trials M5's
+  spread (IQR 0.149 with the single-speed fallback) is likewise the model's, as the reference-event
+  analysis of ``tests/host/test_ipol_evaluation_real.py`` notes.
 """
 
 from __future__ import annotations

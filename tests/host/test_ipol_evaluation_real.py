@@ -182,6 +182,32 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     r = ratios(ipol.rows, name, "online-fixed", "own")
     assert r.size == 43
     assert np.median(r) == pytest.approx(measured, abs=0.005)
+    if name == "M4":
+        assert iqr(r) == pytest.approx(0.116, abs=0.005)
+
+
+# The README's table: median ratio, IQR (and min, max offline) with the offline chain's K
+README_TABLE = {
+    "offline": {"M1": (1.045, 0.078, 0.862, 1.147), "M2": (1.015, 0.063, 0.822, 1.118),
+                "M3": (1.022, 0.056, 0.883, 1.150), "M4": (0.998, 0.103, 0.839, 1.108),
+                "M5": (1.004, 0.149, 0.789, 1.268)},
+    "online-fixed": {"M1": (1.046, 0.081), "M2": (1.020, 0.071), "M3": (1.020, 0.075), "M4": (0.999, 0.099),
+                     "M5": (1.000, 0.175)},
+}
+
+
+@pytest.mark.parametrize("arithmetic", list(README_TABLE))
+@pytest.mark.parametrize("name", ESTIMATORS)
+def test_readme_table(ipol, arithmetic, name) -> None:
+    r = ratios(ipol.rows, name, arithmetic)
+    want = README_TABLE[arithmetic][name]
+    got = (np.median(r), iqr(r), r.min(), r.max())[:len(want)]
+    np.testing.assert_allclose(got, want, atol=0.0015)
+
+
+def test_online_m4_iqr_meets_the_target(ipol) -> None:
+    """With the offline chain's K, the on-line algorithm's M4 IQR is 0.099 (offline 0.103, an expected failure)."""
+    assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
 
 
 @pytest.mark.parametrize("name", ["M2", "M4", "M5"])
