@@ -3,9 +3,9 @@
 ``ipol``: every trial of a folder in the IPOL lower-back layout replayed through the emulated logger with its
 on-line step algorithm on; the device's records checked against the host's replay; the offline chain and the
 on-line algorithm in float and in fixed point, with one K per subject fitted on its first trial with the
-offline chain (and, labelled apart, the on-line algorithm with its own K). ``sim``: simulated subjects walking Alvarez's protocol (100 m out and back at four
-speeds, 20 m lap marks) through the emulated logger, K calibrated single- and multi-speed, every 20 m section
-scored against the truth (Figs 5-6).
+offline chain (and, labelled apart, the on-line algorithm with its own K). ``sim``: simulated subjects walking
+Alvarez's protocol (100 m out and back at four speeds, 20 m lap marks) through the emulated logger, K
+calibrated single- and multi-speed, every 20 m section scored against the truth (Figs 5-6).
 """
 
 from __future__ import annotations
@@ -124,9 +124,9 @@ def run(args: argparse.Namespace) -> int:
         print(format_done(done_figures(res)))
     else:
         chk = res.replay_checks
-        print(f"device step records = host replay, byte for byte: {sum(c['n_identical'] == c['n_compared'] for c in chk)}"
-              f" of {len(chk)} trials, {sum(c['n_identical'] for c in chk)} of {sum(c['n_compared'] for c in chk)} "
-              "records")
+        same = sum(c["n_identical"] == c["n_compared"] for c in chk)
+        print(f"device step records = host replay, byte for byte: {same} of {len(chk)} trials, "
+              f"{sum(c['n_identical'] for c in chk)} of {sum(c['n_compared'] for c in chk)} records")
     print("fixed-point saturation/wrap: " + ("; ".join(res.saturation) if res.saturation else "none"))
     for msg in res.skipped:
         print(f"skipped: {msg}")

@@ -297,7 +297,8 @@ def test_online_runs_restart_at_run_starts_and_after_missing_samples(walk) -> No
     valid[1195:1200] = False                  # a hole just before 1200: the runs are [0, 1195) and [1200, n)
     holed, _ = online_step_table(np.where(valid[:, None], codes, 0), valid=valid, **kw)
     np.testing.assert_array_equal(holed.foot_flat[holed.foot_flat >= 1200], ref.foot_flat[ref.foot_flat >= 1200])
-    np.testing.assert_array_equal(holed.foot_flat[holed.foot_flat < 1195 - lag], ref.foot_flat[ref.foot_flat < 1195 - lag])
+    early = 1195 - lag
+    np.testing.assert_array_equal(holed.foot_flat[holed.foot_flat < early], ref.foot_flat[ref.foot_flat < early])
     assert np.all((holed.foot_flat < 1195) | (holed.foot_flat >= 1200))
     assert whole.n_steps > 0 and not np.array_equal(whole.foot_flat, split.foot_flat)
 

@@ -163,7 +163,8 @@ def test_algorithm_share_in_distance(ipol, name) -> None:
     if name in ("M2", "M4"):
         assert med <= 0.01
     assert med == pytest.approx(ALGORITHM_SHARE[name], abs=0.002)
-    assert f"{name} {med:.4f}" in ipol.text.split("on-line float vs offline, distance ratio per trial")[1].split("\n")[0]
+    printed = ipol.text.split("on-line float vs offline, distance ratio per trial")[1].split("\n")[0]
+    assert f"{name} {med:.4f}" in printed
 
 
 @pytest.mark.parametrize("arithmetic", ["online-float", "online-fixed"])
