@@ -6,9 +6,9 @@ simulated protocol in <= 60 s; peak memory of ``gaitlog demo`` <= 250 MB (and it
 Baselines measured in the same run:
 
 * sweep: the naive way, one full emulated-logger pass per subject and configuration (render the walk,
-  ``Logger.record``, the float chain twice and the fixed-point chain, i.e. the on-line step algorithm in
-  fixed point) -- one such pass is timed and multiplied by the 36 passes the sweep would need (the sweep
-  itself renders each subject once and re-samples the analog output);
+  ``Logger.record``, the offline chain twice and the on-line algorithm in both arithmetics, its compiled
+  kernels loaded before the clock starts) -- one such pass is timed and multiplied by the 36 passes the
+  sweep would need (the sweep itself renders each subject once and re-samples the analog output);
 * demo memory: a Python process that only imports what the demo imports (numpy, scipy, matplotlib and
   the package), i.e. the floor the demo's data add to.
 
@@ -44,7 +44,7 @@ def child_peak_mb(code: str) -> tuple[float, float]:
 
 
 def naive_pass_s() -> float:
-    """One subject, one configuration, the naive way (render + emulated logger + both chains)."""
+    """One subject, one configuration, the naive way (render + emulated logger + every chain)."""
     import numpy as np
 
     from firmware_sim.adc import Adc
@@ -52,21 +52,23 @@ def naive_pass_s() -> float:
     from firmware_sim.device import Logger
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.compare import float_step_table
+    from host.compare import offline_step_table, online_step_table
     from protocol.header import Calibration
     from protocol.steps import StepConfig
 
     s = random_subjects(1, seed=0)[0]
     cfg = StepConfig(step_format=1, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
-    fixed = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic="fixed", code_bits=10)
-    fixed.run(np.full((1000, 3), 512, np.int64))                            # compiled kernels loaded, untimed
+    for arithmetic in ("float", "fixed"):                                   # compiled kernels loaded, untimed
+        OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic=arithmetic).run(
+            np.full((1000, 3), 512, np.int64))
     t = time.perf_counter()
     res = Logger(adc=Adc(bits=10, rate_hz=50.0)).record(Walking(subject=s, seed=0))
     codes = np.asarray(res.codes, np.int64)
     kw = dict(sampling_rate_hz=50.0, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
-    float_step_table(Calibration.nominal(10).apply(codes), **kw)
-    float_step_table(Calibration.nominal(10).apply(codes + 0.5), **kw)     # the "ideal" pass
-    fixed.run(codes)                                                        # the fixed-point chain
+    offline_step_table(Calibration.nominal(10).apply(codes), **kw)
+    offline_step_table(Calibration.nominal(10).apply(codes + 0.5), **kw)     # the "ideal" pass
+    for arithmetic in ("float", "fixed"):
+        online_step_table(codes, arithmetic=arithmetic, **kw)
     return time.perf_counter() - t
 
 

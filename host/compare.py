@@ -1,22 +1,40 @@
-"""Fixed point vs floating point vs truth: what the ADC and the PIC's arithmetic cost M1-M5 (issue 5).
+"""Offline vs on-line algorithm, float vs fixed point, vs truth: the error budget of M1-M5 (issues 5 and 10).
 
-The same per-step chain runs three times on one walk (:func:`compare_walk`):
+Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`compare_recording`):
 
-* **ideal**: the float chain (:class:`host.gait.pipeline.StepPipeline`) on the sensor's analog output at
-  the sample instants, before quantisation (noise, filter, sample-and-hold included; no ADC);
-* **float**: the float chain on the ADC codes (``bits`` bits), converted to g with the device calibration;
-* **fixed**: the firmware chain (:class:`firmware_sim.algorithms.chain.FixedStepChain`) on the same codes,
-  in the PIC's arithmetic, with the same calibration quantised as the PIC keeps it.
+* **ideal**: the offline float chain (:class:`host.gait.pipeline.StepPipeline`, the paper's PC processing)
+  on the sensor's analog output at the sample instants, before quantisation (noise, filter,
+  sample-and-hold included; no ADC). Simulated walks only;
+* **offline**: the same chain on the ADC codes (``bits`` bits), converted to g with the device calibration;
+* **online-float**: the firmware's on-line algorithm
+  (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`) on the same codes and the same device
+  calibration, in floating point;
+* **online-fixed**: the same algorithm in the PIC's fixed point: what the logger computes and stores.
 
-so that ``float - ideal`` is the ADC's share of the error and ``fixed - float`` the arithmetic's; ``ideal -
-truth`` is what is left (the estimators' models, the event detection, the sampling rate). Steps are matched
-by time (:func:`match_steps`: foot-flats within ``tol_s``, mutual nearest); a matched pair whose window
-start, heel-strike, toe-off or foot-flat differ by a sample or more is a step where the two chains
-*detected different events*: it is counted and reported, and left out of the per-step differences (an
-event one sample apart is a different step window, not an arithmetic error). Per-20 m segments follow the
-paper's evaluation (:mod:`host.evaluation`): lap marks, K fitted per arithmetic on its own calibration
-sections (single- and multi-speed), ratio estimated / real. Saturation and wrap counts of every fixed-point
-run are kept (``saturation``); nothing saturates unreported.
+**One K.** Per calibration mode (single- and multi-speed, :func:`calibration_sets`), K
+(:class:`host.estimators.calibration.KCalibration`) is fitted once, on the *offline* chain's table of the
+calibration sections (:func:`fit_k`), and that same K is used by every chain: ``apply_calibration`` for the
+offline and ideal chains, the step configuration (``StepConfig(calibrated=True, k_m1=..., ...)``, K applied
+in the algorithm's own arithmetic, as the header stores it) for the on-line algorithm. K is never refitted
+per chain: a K fitted on each chain's own lengths absorbs any error proportional to the length (a 2 %
+scale error of the fixed-point lengths becomes K' = K / 1.02 and vanishes from the distances, as
+``tests/host/test_compare_sim.py`` shows), and finding such errors is what the comparison is for.
+
+**Error split** (:data:`SHARES`), per step and per 20 m section::
+
+    adc        = offline      - ideal          (quantisation)
+    algorithm  = online-float - offline        (causal on-line algorithm vs the offline chain)
+    arithmetic = online-fixed - online-float   (the PIC's fixed point, same codes)
+
+which add up to ``online-fixed - ideal``; on simulated walks each chain is also compared with the world's
+truth (``<chain> - truth``). Steps are matched by time (:func:`match_steps`: foot-flats within ``tol_s``,
+mutual nearest); a matched pair whose window start, heel-strike, toe-off or foot-flat differ by a sample
+or more is a step where the two chains *detected different events*: it is counted and reported, and left
+out of the per-step differences (an event one sample apart is a different step window, not an arithmetic
+error); the section distances include every step. Per-20 m sections follow the paper's evaluation
+(:mod:`host.evaluation`): lap marks, the calibration sections left out, ratio estimated / real.
+Saturation and wrap counts of every fixed-point run are kept (``saturation``); nothing saturates
+unreported. :func:`bootstrap_budget` gives 95 % intervals over subjects for the summary figures.
 
 Simulated walks (:class:`AnalogWalk`): the world (:class:`firmware_sim.world.walking.Walking`) through the
 device's sensor model (:class:`firmware_sim.sensor.SensorModel`, the logger's default seeded unit) and the
@@ -24,90 +42,158 @@ front end and timer of :class:`firmware_sim.adc.Adc`, exactly as :meth:`firmware
 does (same codes at 10 bits: tested), but quantised here at any width (the PIC's converter stops at 10
 bits; 12 bits is the sweep's hypothetical external converter) and kept before quantisation. The device
 calibration is the sensor's own truth (offsets, gains, axes), unbiased for the floor quantiser (``+0.5``
-code): the comparison isolates the ADC and the arithmetic; the pose calibration's own error is evaluated in
-:mod:`host.evaluation`.
+code): the comparison isolates the ADC, the algorithm and the arithmetic; the pose calibration's own error
+is evaluated in :mod:`host.evaluation`.
 
-Recordings (:func:`compare_recording`): a decoded recording has no truth and no analog output: fixed vs
-float only, segments between MARK flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the
-float chain's M3 distance.
+Recordings (:func:`compare_recording`): a decoded recording has no truth and no analog output: offline,
+online-float and online-fixed with the given K (or none: K = 1, M4/M5 undefined), sections between MARK
+flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the offline chain's M3 distance. A
+recording that carries the device's own step records is checked against the host's replay of the on-line
+algorithm, bit for bit (:func:`check_device_records`).
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from firmware_sim.algorithms.steps import ESTIMATORS
 from host.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
-from firmware_sim.algorithms.steps import StepTable
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
-#: Arithmetic labels.
-ARITHMETICS = ("ideal", "float", "fixed")
+#: The chains, in the order of the error split.
+CHAINS = ("ideal", "offline", "online-float", "online-fixed")
+#: The error split: share -> (chain a, chain b); the share is ``a - b``.
+SHARES: dict[str, tuple[str, str]] = {"adc": ("offline", "ideal"), "algorithm": ("online-float", "offline"),
+                                      "arithmetic": ("online-fixed", "online-float")}
+#: Bootstrap resamples of :func:`bootstrap_budget` and the interval's level.
+BOOTSTRAP_RESAMPLES = 2000
+BOOTSTRAP_LEVEL = 0.95
 
-STEP_DIFF_COLUMNS = ("pair", "estimator", "n", "median_abs_mm", "p95_abs_mm", "max_abs_mm", "bias_mm",
+STEP_DIFF_COLUMNS = ("share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm", "max_abs_mm", "bias_mm",
                      "max_rel", "n_matched", "n_different_events", "n_only_a", "n_only_b")
+BUDGET_COLUMNS = ("kind", "share", "pair", "mode", "estimator", "statistic", "value", "ci_low", "ci_high",
+                  "n_subjects", "n")
+
+
+def column_key(chain: str) -> str:
+    """A chain's name as a column/key fragment (``online-fixed`` -> ``online_fixed``)."""
+    return chain.replace("-", "_")
+
+
+def pair_label(a: str, b: str) -> str:
+    """``"a - b"``: the label of a difference between two chains."""
+    return f"{a} - {b}"
 
 
 # ---------------------------------------------------------------------------------------------------------
-# The fixed-point chain as a host StepTable
+# The chains as host StepTables
 
 
-def fixed_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                     calibration: Any = None, adc_calibration: Any = None, code_bits: int = 10,
-                     valid: np.ndarray | None = None, t0_s: float = 0.0) -> tuple[StepTable, Any]:
-    """Run :class:`~firmware_sim.algorithms.chain.FixedStepChain` and return its table as a ``StepTable``.
+def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
+    """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
+
+    ``calibration`` is a :class:`~host.estimators.calibration.KCalibration` (K applied by the algorithm, in
+    its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
+    when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
+    """
+    from protocol.errors import ProtocolError
+    from protocol.steps import StepConfig
+
+    kw: dict[str, Any] = dict(step_format=1, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
+    if calibration is not None:
+        kw.update(calibrated=True, k_m1=float(calibration.k_m1), k_m2=float(calibration.k_m2),
+                  k_m4=float(calibration.k_m4), k1_m5_m_s=float(calibration.k1_m5_m_s),
+                  k2_m5_m=float(calibration.k2_m5_m))
+    cfg = StepConfig(**kw)
+    try:
+        cfg.raw
+    except ProtocolError as err:
+        raise HostError(f"the on-line algorithm's step configuration cannot hold these values: {err}") from err
+    return cfg
+
+
+def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
+                      calibration: Any = None, adc_calibration: Any = None, code_bits: int = 10,
+                      arithmetic: str = "fixed", valid: np.ndarray | None = None,
+                      run_starts: np.ndarray | None = None, t0_s: float = 0.0,
+                      algorithm: Callable[..., OnlineStepAlgorithm] = OnlineStepAlgorithm,
+                      ) -> tuple[StepTable, OnlineStepAlgorithm]:
+    """The on-line algorithm on ``codes`` as a ``StepTable`` (:meth:`StepTable.from_online`).
 
     Parameters
     ----------
     codes
         ``(n, 3)`` ADC codes (``code_bits`` bits).
     calibration
-        :class:`~host.estimators.calibration.KCalibration` or None (as the float chain).
+        :class:`~host.estimators.calibration.KCalibration` (the one K of the comparison) or None (raw).
     adc_calibration
-        The device calibration: an object with ``offset_counts`` and ``matrix_g_per_count`` (a
-        :class:`protocol.header.Calibration`), a :class:`~firmware_sim.algorithms.calibration.CalibrationQ`,
-        or None for the nominal map of ``code_bits``.
+        The device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
+    arithmetic
+        ``"fixed"`` (the logger's) or ``"float"``.
+    valid, run_starts
+        The algorithm starts afresh (START) at index 0, at every index of ``run_starts`` (a logging run's
+        SESSION_START sample) and after every missing sample (``valid`` false: the device had the sample,
+        the dump lost it; a causal algorithm cannot be fed a hole), and ends (STOP) before each.
+    algorithm
+        The class (or a factory with its signature) that is run; tests wrap it to inject errors.
 
     Returns
     -------
-    table, chain
-        The ``StepTable`` (same fields as the float chain's) and the fitted chain (``ctx_``: saturation,
-        wraps, cycles).
+    table, algorithm
+        The table (lengths with K when ``calibration`` is given, else the raw values in ``raw_m``) and the
+        algorithm after the run (``saturations``, ``cycles``, ``arithmetic_context()``).
     """
-    from firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
-    from firmware_sim.algorithms.chain import FixedStepChain
-
-    if adc_calibration is None:
-        cal_q = nominal_calibration_q(adc_bits=code_bits)
-    elif isinstance(adc_calibration, CalibrationQ):
-        cal_q = adc_calibration
-    else:
-        cal_q = CalibrationQ.from_float(adc_calibration.offset_counts, adc_calibration.matrix_g_per_count,
-                                        code_bits=code_bits)
     c = np.asarray(codes)
-    ok = np.ones(c.shape[0], bool) if valid is None else np.asarray(valid, bool)
-    c = np.where(ok[:, None], c, 0).astype(np.int64)          # lost samples carry no code
-    chain = FixedStepChain(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
-        c, sampling_rate_hz=sampling_rate_hz, adc_calibration=cal_q, valid=ok, t0_s=t0_s)
-    return StepTable(**chain.steps_.table_fields()), chain
+    n = c.shape[0]
+    ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
+    cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration)
+    alg = algorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg, calibration=adc_calibration,
+                    arithmetic=arithmetic, code_bits=code_bits)
+    # stretches of present samples, cut at every run start: [a, b) with b the next cut or missing sample
+    cut = np.zeros(n, bool)
+    rs = np.asarray(run_starts if run_starts is not None else [], np.int64)
+    cut[rs[(rs >= 0) & (rs < n)]] = True
+    if n:
+        cut[0] = True
+    starts = np.flatnonzero(ok & (cut | ~np.r_[False, ok[:-1]])) if n else np.zeros(0, np.int64)
+    bounds = np.flatnonzero(~ok | cut)
+    stops = np.append(bounds, n)[np.searchsorted(bounds, starts, side="right")]
+    parts = []
+    for a, b in zip(starts.tolist(), stops.tolist()):
+        alg.reset()
+        parts.append(alg.feed(c[a:b].astype(np.int64), offset=a))
+        parts.append(alg.flush(offset=a))
+    steps = (OnlineSteps.concatenate(parts) if parts else
+             OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, calibration is not None))
+    return StepTable.from_online(steps, t0_s=t0_s), alg
 
 
-def float_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                     calibration: Any = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
-    """The float chain's table (warnings about impossible excursions are silenced: they are counted as NaN)."""
+def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
+                       calibration: Any = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
+    """The offline float chain's table (warnings about impossible excursions are silenced: they are counted
+    as NaN)."""
     from host.gait.pipeline import StepPipeline
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
             acc_g, sampling_rate_hz=sampling_rate_hz, valid=valid, t0_s=t0_s).steps_
+
+
+def calibrated(table: StepTable, calibration: Any) -> StepTable:
+    """An offline table with ``calibration``'s K applied to its raw lengths (``apply_calibration``)."""
+    from host.gait.pipeline import apply_calibration
+
+    return replace(table, length_m=apply_calibration(table, calibration))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -143,6 +229,18 @@ class StepMatch:
         """Matched steps whose events differ, plus the steps only one chain found."""
         return int(np.count_nonzero(~self.same_events)) + int(self.only_a.size) + int(self.only_b.size)
 
+    def a_of_b(self, n_b: int) -> np.ndarray:
+        """For each of the ``n_b`` rows of table ``b``, its partner in ``a`` (``-1``: none)."""
+        out = np.full(n_b, -1, np.int64)
+        out[self.b] = self.a
+        return out
+
+    def b_of_a(self, n_a: int) -> np.ndarray:
+        """For each of the ``n_a`` rows of table ``a``, its partner in ``b`` (``-1``: none)."""
+        out = np.full(n_a, -1, np.int64)
+        out[self.a] = self.b
+        return out
+
 
 def match_steps(a: StepTable, b: StepTable, *, tol_s: float = MATCH_TOL_S) -> StepMatch:
     """Pair the steps of two tables by foot-flat time (mutual nearest within ``tol_s``) and compare events.
@@ -171,27 +269,34 @@ def match_steps(a: StepTable, b: StepTable, *, tol_s: float = MATCH_TOL_S) -> St
     return StepMatch(ia, ib, same, np.setdiff1d(np.arange(a.n_steps), ia), np.setdiff1d(np.arange(b.n_steps), ib))
 
 
-def step_differences(a: StepTable, b: StepTable, match: StepMatch, *, pair: str = "a-b",
+def step_deltas(a: StepTable, b: StepTable, match: StepMatch, estimator: str, *,
+                only_same_events: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(a - b, b)`` of ``length_m[estimator]`` on the matched steps where both are finite (with
+    ``only_same_events``, only the pairs whose events agree)."""
+    sel = match.same_events if only_same_events else np.ones(match.n_matched, bool)
+    x, y = a.length_m[estimator][match.a[sel]], b.length_m[estimator][match.b[sel]]
+    g = np.isfinite(x) & np.isfinite(y)
+    return x[g] - y[g], y[g]
+
+
+def step_differences(a: StepTable, b: StepTable, match: StepMatch, *, pair: str = "a - b", share: str = "",
                      only_same_events: bool = True) -> list[dict]:
     """Per estimator, the per-step difference ``a - b`` of ``length_m`` on the matched steps.
 
     Steps where either length is NaN are skipped; with ``only_same_events`` so are the pairs whose events
     differ (they are counted in ``n_different_events``). ``max_rel`` is ``max |a - b| / |b|``.
     """
-    sel = match.same_events if only_same_events else np.ones(match.n_matched, bool)
     out = []
     for est in ESTIMATORS:
-        x, y = a.length_m[est][match.a[sel]], b.length_m[est][match.b[sel]]
-        g = np.isfinite(x) & np.isfinite(y)
-        d = x[g] - y[g]
-        row = dict(pair=pair, estimator=est, n=int(d.size), n_matched=match.n_matched,
+        d, y = step_deltas(a, b, match, est, only_same_events=only_same_events)
+        row = dict(share=share, pair=pair, estimator=est, n=int(d.size), n_matched=match.n_matched,
                    n_different_events=match.n_different_events, n_only_a=int(match.only_a.size),
                    n_only_b=int(match.only_b.size))
         if d.size:
             ad = np.abs(d)
             row.update(median_abs_mm=1e3 * float(np.median(ad)), p95_abs_mm=1e3 * float(np.percentile(ad, 95)),
                        max_abs_mm=1e3 * float(ad.max()), bias_mm=1e3 * float(np.mean(d)),
-                       max_rel=float(np.max(ad / np.abs(y[g]))))
+                       max_rel=float(np.max(ad / np.abs(y))))
         else:
             row.update(median_abs_mm=math.nan, p95_abs_mm=math.nan, max_abs_mm=math.nan, bias_mm=math.nan,
                        max_rel=math.nan)
@@ -261,7 +366,10 @@ def calibration_sets(sections: list[Section], *, calibration_sections: int = 2) 
 
 def fit_k(table: StepTable, pools: list[list[Section]], *, leg_length_m: float, foot_length_m: float,
           subject: str = "") -> Any:
-    """K of one mode from the raw lengths of ``table`` (whole steps by window midpoint, as evaluation does)."""
+    """K of one mode from the raw lengths of ``table`` (whole steps by window midpoint, as evaluation does).
+
+    In a comparison ``table`` is the offline chain's: the one K every chain then uses (module notes).
+    """
     from host.estimators.calibration import calibrate
 
     data = []
@@ -390,14 +498,29 @@ class AnalogWalk:
 
 
 # ---------------------------------------------------------------------------------------------------------
-# One walk, three chains
+# One walk, four chains, one K
 
 
 @dataclass(eq=False)
 class ChainRun:
-    """One chain on one walk: the uncalibrated table, K per mode and the calibrated tables."""
+    """One chain on one walk.
 
-    arithmetic: str
+    Attributes
+    ----------
+    chain
+        One of :data:`CHAINS` (or ``exact-timing``).
+    table
+        The offline chains' table without K (raw lengths); for the on-line chains, which apply K themselves,
+        the multi-speed run.
+    calibrations
+        The K of each mode: the same objects for every chain of a comparison (fitted on ``offline``).
+    tables
+        The calibrated table of each mode.
+    saturation, saturated, wrapped, cycles_per_sample
+        Fixed point only: the arithmetic report of every run, the counts, the mean PIC cycles per sample.
+    """
+
+    chain: str
     table: StepTable
     calibrations: dict[str, Any]
     tables: dict[str, StepTable]
@@ -407,34 +530,22 @@ class ChainRun:
     cycles_per_sample: float = math.nan
 
 
-def _run_chain(arithmetic: str, sw: SampledWalk, bits: int, subject: Any, pools: dict[str, list]) -> ChainRun:
-    leg, foot = subject.leg_length_m, subject.foot_length_m
-    fs, t0 = sw.rate_hz, float(sw.times_s[0])
-    cal = sw.calibration(bits)
-    if arithmetic == "fixed":
-        codes = sw.codes(bits)
-        kw = dict(sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot, adc_calibration=cal,
-                  code_bits=bits, t0_s=t0)
-        table, chain = fixed_step_table(codes, **kw)
-        ctxs = [chain]
-        cals = {m: fit_k(table, pools[m], leg_length_m=leg, foot_length_m=foot, subject=subject.subject_id)
-                for m in MODES}
-        tables = {}
-        for m in MODES:
-            tables[m], ch = fixed_step_table(codes, calibration=cals[m], **kw)
-            ctxs.append(ch)
-        rep = "; ".join(f"{name}: {c.ctx_.report()}" for name, c in zip(("raw",) + MODES, ctxs) if c.ctx_.report())
-        return ChainRun("fixed", table, cals, tables, rep, sum(c.ctx_.total_saturated for c in ctxs),
-                        sum(c.ctx_.total_wrapped for c in ctxs), chain.cycles_per_sample_)
-    from host.gait.pipeline import apply_calibration
+def _offline_run(chain: str, table: StepTable, cals: dict[str, Any]) -> ChainRun:
+    return ChainRun(chain, table, cals, {m: calibrated(table, cals[m]) for m in MODES})
 
-    c = sw.codes(bits) if arithmetic == "float" else sw.ideal_codes(bits)
-    acc = cal.apply(c)
-    table = float_step_table(acc, sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
-    cals = {m: fit_k(table, pools[m], leg_length_m=leg, foot_length_m=foot, subject=subject.subject_id)
-            for m in MODES}
-    tables = {m: replace(table, length_m=apply_calibration(table, cals[m])) for m in MODES}
-    return ChainRun(arithmetic, table, cals, tables)
+
+def _online_run(arithmetic: str, codes: np.ndarray, cals: dict[str, Any], *, algorithm: Callable[..., Any],
+                **kw: Any) -> ChainRun:
+    tables, reports, sat, wrap, cyc = {}, [], 0, 0, math.nan
+    for m in MODES:
+        tables[m], alg = online_step_table(codes, calibration=cals[m], arithmetic=arithmetic, algorithm=algorithm,
+                                           **kw)
+        if arithmetic == "fixed":
+            rep = alg.arithmetic_context().report()
+            if rep:
+                reports.append(f"{m}: {rep}")
+            sat, wrap, cyc = sat + alg.saturations, wrap + alg.wraps, alg.cycles.mean
+    return ChainRun(f"online-{arithmetic}", tables["multi-speed"], cals, tables, "; ".join(reports), sat, wrap, cyc)
 
 
 def truth_table(table: StepTable, truth_steps: dict, *, tol_s: float = MATCH_TOL_S) -> tuple[StepTable, np.ndarray]:
@@ -468,29 +579,37 @@ class WalkComparison:
     subject_id, bits, rate_hz
         What was compared.
     runs
-        :class:`ChainRun` per arithmetic (``ideal``, ``float``, ``fixed``) and ``exact-timing`` (the float
-        chain on codes with each step's duration replaced by the truth's, K refitted: M5 without timing
-        error).
+        :class:`ChainRun` per chain (:data:`CHAINS`) and ``exact-timing`` (the offline chain on codes with
+        each step's duration replaced by the truth's, with the same K: M5 without timing error).
+    calibrations
+        The one K per mode (fitted on the offline chain), used by every chain.
     step_diffs
-        :func:`step_differences` rows (multi-speed lengths) for the pairs ``fixed-float`` (arithmetic),
-        ``float-ideal`` (ADC), ``ideal-truth`` and ``fixed-truth``.
+        :func:`step_differences` rows (multi-speed lengths) for the shares (:data:`SHARES`) and for each
+        chain against the truth (share ``truth``).
+    step_deltas
+        ``{(pair, estimator): per-step differences, m}`` behind ``step_diffs`` (same events only), for
+        :func:`bootstrap_budget`.
     segments
-        One row per evaluated 20 m section, mode and estimator: ``real_m`` and the distance and ratio of
-        each arithmetic, and the exact-timing M5.
+        One row per evaluated 20 m section, mode and estimator: ``real_m``, each chain's distance
+        (``<chain>_m``) and ratio (``ratio_<chain>``, chain names with ``_``), and the exact-timing M5.
     steps
-        Per-step rows (float chain on codes as the spine): times, matched indices, lengths of every
-        arithmetic and of the truth (multi-speed K).
+        Per-step rows (the offline chain as the spine): times, matched indices, lengths of every chain
+        and of the truth (multi-speed K).
     timing
-        Step-duration error against the truth (float chain on codes): median absolute and rms, s.
+        Step-duration error against the truth (offline chain on codes): median absolute and rms, ms.
     saturation
         The fixed-point runs' saturation/wrap report ("" = none).
+    matches
+        :class:`StepMatch` per share.
     """
 
     subject_id: str
     bits: int
     rate_hz: float
     runs: dict[str, ChainRun]
+    calibrations: dict[str, Any]
     step_diffs: list[dict]
+    step_deltas: dict[tuple[str, str], np.ndarray]
     segments: list[dict]
     steps: dict[str, np.ndarray]
     timing: dict[str, float]
@@ -498,27 +617,38 @@ class WalkComparison:
     matches: dict[str, StepMatch] = field(default_factory=dict)
 
 
-def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal: ChainRun | None = None,
-                 calibration_sections: int = 2, include_turn: bool = False) -> WalkComparison:
-    """Ideal, float and fixed chains on one sampled walk; steps matched; 20 m sections (module notes).
+def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: StepTable | None = None,
+                 calibration_sections: int = 2, include_turn: bool = False,
+                 fixed_algorithm: Callable[..., Any] = OnlineStepAlgorithm) -> WalkComparison:
+    """The four chains on one sampled walk with one K per mode; steps matched; 20 m sections (module notes).
 
-    ``ideal`` may be passed in to reuse one ideal run across ADC widths (it does not depend on ``bits``).
+    Parameters
+    ----------
+    ideal_table
+        The ideal chain's table without K, to reuse across ADC widths (it does not depend on ``bits``).
+    fixed_algorithm
+        What runs the online-fixed chain (default the firmware's algorithm; tests inject errors with it).
     """
-    sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], rate_hz=sw.rate_hz)
-    pools = calibration_sets(sections, calibration_sections=calibration_sections)
-    runs = {"ideal": ideal if ideal is not None else _run_chain("ideal", sw, bits, subject, pools),
-            "float": _run_chain("float", sw, bits, subject, pools),
-            "fixed": _run_chain("fixed", sw, bits, subject, pools)}
-    st = sw.truth["steps"]
-    fl = runs["float"].table
-    exact, truth_idx = truth_table(fl, st)
     leg, foot = subject.leg_length_m, subject.foot_length_m
-    from host.gait.pipeline import apply_calibration
-
-    ecals = {m: fit_k(exact, pools[m], leg_length_m=leg, foot_length_m=foot) for m in MODES}
-    runs["exact-timing"] = ChainRun("exact-timing", exact, ecals,
-                                    {m: replace(exact, length_m=apply_calibration(exact, ecals[m])) for m in MODES})
-    # the truth as a table (lengths of the matched world steps) for per-step differences
+    fs, t0 = sw.rate_hz, float(sw.times_s[0])
+    sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], rate_hz=fs)
+    pools = calibration_sets(sections, calibration_sections=calibration_sections)
+    cal = sw.calibration(bits)
+    codes = sw.codes(bits)
+    kw = dict(sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
+    offline = offline_step_table(cal.apply(codes), **kw)
+    # the one K per mode, fitted on the offline chain: every chain below uses these objects
+    cals = {m: fit_k(offline, pools[m], leg_length_m=leg, foot_length_m=foot, subject=subject.subject_id)
+            for m in MODES}
+    if ideal_table is None:
+        ideal_table = offline_step_table(cal.apply(sw.ideal_codes(bits)), **kw)
+    okw = dict(kw, adc_calibration=cal, code_bits=bits)
+    runs = {"ideal": _offline_run("ideal", ideal_table, cals), "offline": _offline_run("offline", offline, cals),
+            "online-float": _online_run("float", codes, cals, algorithm=OnlineStepAlgorithm, **okw),
+            "online-fixed": _online_run("fixed", codes, cals, algorithm=fixed_algorithm, **okw)}
+    st = sw.truth["steps"]
+    exact, truth_idx = truth_table(offline, st)
+    runs["exact-timing"] = _offline_run("exact-timing", exact, cals)
     tl = np.asarray(st["length_m"], np.float64)
 
     def truth_lengths(table: StepTable) -> StepTable:
@@ -527,17 +657,22 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal: ChainR
         return replace(table, length_m={e: v for e in ESTIMATORS})
 
     mm = "multi-speed"
-    t = {k: runs[k].tables[mm] for k in ARITHMETICS}
-    matches = {"fixed-float": match_steps(t["fixed"], t["float"]), "float-ideal": match_steps(t["float"], t["ideal"])}
-    diffs = step_differences(t["fixed"], t["float"], matches["fixed-float"], pair="fixed-float")
-    diffs += step_differences(t["float"], t["ideal"], matches["float-ideal"], pair="float-ideal")
-    for k in ("ideal", "fixed"):
+    t = {k: runs[k].tables[mm] for k in CHAINS}
+    matches = {s: match_steps(t[a], t[b]) for s, (a, b) in SHARES.items()}
+    diffs: list[dict] = []
+    deltas: dict[tuple[str, str], np.ndarray] = {}
+    pairs = [(s, a, b, t[b], matches[s]) for s, (a, b) in SHARES.items()]
+    for k in CHAINS:
         tt = truth_lengths(t[k])
-        self_match = match_steps(t[k], tt)         # identity pairing, events equal by construction
-        diffs += step_differences(t[k], tt, self_match, pair=f"{k}-truth")
+        pairs.append(("truth", k, "truth", tt, match_steps(t[k], tt)))   # identity pairing: same events
+    for s, a, b, tb, m in pairs:
+        label = pair_label(a, b)
+        diffs += step_differences(t[a], tb, m, pair=label, share=s)
+        for est in ESTIMATORS:
+            deltas[(label, est)] = step_deltas(t[a], tb, m, est)[0]
     # timing against the truth (steps with a window and a truth twin)
-    has = (truth_idx >= 0) & np.isfinite(fl.duration_s)
-    dt = fl.duration_s[has] - exact.duration_s[has]
+    has = (truth_idx >= 0) & np.isfinite(offline.duration_s)
+    dt = offline.duration_s[has] - exact.duration_s[has]
     timing = dict(n=int(dt.size), median_abs_ms=1e3 * float(np.median(np.abs(dt))) if dt.size else math.nan,
                   rms_ms=1e3 * float(np.sqrt(np.mean(dt ** 2))) if dt.size else math.nan)
     # 20 m sections
@@ -548,49 +683,206 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal: ChainR
     for i, s in enumerate(evaluated):
         for m in MODES:
             for j, est in enumerate(ESTIMATORS):
-                row = dict(subject=subject.subject_id, bits=bits, rate_hz=sw.rate_hz, excursion=s.excursion,
+                row = dict(subject=subject.subject_id, bits=bits, rate_hz=fs, excursion=s.excursion,
                            speed_label=s.speed_label, section=s.index, start_m=s.start_m, end_m=s.end_m,
                            mode=m, estimator=est, real_m=s.real_m)
                 for k in runs:
-                    key = k.replace("-", "_")
-                    row[f"{key}_m"] = float(dist[(k, m)][i, j])
-                    row[f"ratio_{key}"] = float(dist[(k, m)][i, j]) / s.real_m
+                    row[f"{column_key(k)}_m"] = float(dist[(k, m)][i, j])
+                    row[f"ratio_{column_key(k)}"] = float(dist[(k, m)][i, j]) / s.real_m
                 seg_rows.append(row)
-    # per-step rows (float on codes as spine)
-    mf, mi = matches["fixed-float"], matches["float-ideal"]
-    fixed_of = np.full(fl.n_steps, -1, np.int64)
-    fixed_of[mf.b] = mf.a
-    ideal_of = np.full(fl.n_steps, -1, np.int64)
-    ideal_of[mi.a] = mi.b
-    same = np.zeros(fl.n_steps, bool)
-    same[mf.b] = mf.same_events
+    # per-step rows (offline as the spine; online-fixed through its online-float partner)
+    of = t["offline"]
+    ideal_of = matches["adc"].b_of_a(of.n_steps)
+    float_of = matches["algorithm"].a_of_b(of.n_steps)
+    fixed_of = _take(matches["arithmetic"].a_of_b(t["online-float"].n_steps), float_of, fill=-1)
+    same_adc = np.zeros(of.n_steps, bool)
+    same_adc[matches["adc"].a] = matches["adc"].same_events
+    same_alg = _same_of_b(matches["algorithm"], of.n_steps)
+    same_ar = _take(_same_of_b(matches["arithmetic"], t["online-float"].n_steps), float_of, fill=False)
     steps: dict[str, np.ndarray] = {
-        "step": np.arange(fl.n_steps), "foot_flat_s": fl.time_s(fl.foot_flat), "duration_s": fl.duration_s,
-        "exact_duration_s": exact.duration_s, "fixed_step": fixed_of, "ideal_step": ideal_of,
-        "truth_step": truth_idx, "same_events_fixed": same,
+        "step": np.arange(of.n_steps), "foot_flat_s": of.time_s(of.foot_flat), "duration_s": of.duration_s,
+        "exact_duration_s": exact.duration_s, "ideal_step": ideal_of, "online_float_step": float_of,
+        "online_fixed_step": fixed_of, "truth_step": truth_idx, "same_events_adc": same_adc,
+        "same_events_algorithm": same_alg,
+        "same_events_arithmetic": same_ar,
         "truth_length_m": np.where(truth_idx >= 0, tl[np.maximum(truth_idx, 0)], np.nan)}
     for est in ESTIMATORS:
         e = est.lower()
-        steps[f"{e}_float_m"] = t["float"].length_m[est]
-        steps[f"{e}_fixed_m"] = np.where(fixed_of >= 0, t["fixed"].length_m[est][np.maximum(fixed_of, 0)], np.nan) \
-            if t["fixed"].n_steps else np.full(fl.n_steps, np.nan)
-        steps[f"{e}_ideal_m"] = np.where(ideal_of >= 0, t["ideal"].length_m[est][np.maximum(ideal_of, 0)], np.nan) \
-            if t["ideal"].n_steps else np.full(fl.n_steps, np.nan)
-    return WalkComparison(subject.subject_id, int(bits), float(sw.rate_hz), runs, diffs, seg_rows, steps, timing,
-                          runs["fixed"].saturation, matches)
+        steps[f"{e}_offline_m"] = of.length_m[est]
+        for k, idx in (("ideal", ideal_of), ("online-float", float_of), ("online-fixed", fixed_of)):
+            steps[f"{e}_{column_key(k)}_m"] = _take(t[k].length_m[est], idx)
+    return WalkComparison(subject.subject_id, int(bits), float(fs), runs, cals, diffs, deltas, seg_rows, steps,
+                          timing, runs["online-fixed"].saturation, matches)
+
+
+def _take(values: np.ndarray, idx: np.ndarray, *, fill: Any = math.nan) -> np.ndarray:
+    """``values[idx]`` with ``fill`` where ``idx < 0`` (or ``values`` is empty)."""
+    values = np.asarray(values)
+    if values.size == 0:
+        return np.full(idx.size, fill)
+    return np.where(idx >= 0, values[np.maximum(idx, 0)], fill)
+
+
+def _same_of_b(match: StepMatch, n_b: int) -> np.ndarray:
+    """For each of the ``n_b`` rows of table ``b``: matched with the same events."""
+    out = np.zeros(n_b, bool)
+    out[match.b] = match.same_events
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------------
-# Decoded recordings: fixed vs float
+# Bootstrap over subjects
+
+
+def resampled_medians(groups: list[np.ndarray], counts: np.ndarray, *, chunk: int = 250) -> np.ndarray:
+    """Median of the pooled values of ``groups`` when group ``g`` is taken ``counts[r, g]`` times, per row.
+
+    The median of the multiset (the mean of its two middle values when its size is even), as ``np.median``
+    of the repeated values, without repeating them; NaN for a row with no value.
+
+    Examples
+    --------
+    >>> groups = [np.array([1.0, 5.0]), np.array([2.0]), np.array([])]
+    >>> resampled_medians(groups, np.array([[1, 1, 0], [0, 3, 1], [2, 0, 0], [0, 0, 2]])).tolist()
+    [2.0, 2.0, 3.0, nan]
+    >>> float(np.median([1.0, 5.0, 2.0]))
+    2.0
+    """
+    counts = np.atleast_2d(np.asarray(counts, np.int64))
+    v = np.concatenate([np.asarray(g, np.float64).ravel() for g in groups]) if groups else np.zeros(0)
+    gid = np.repeat(np.arange(len(groups)), [np.asarray(g).size for g in groups])
+    out = np.full(counts.shape[0], np.nan)
+    if v.size == 0:
+        return out
+    order = np.argsort(v, kind="stable")
+    v, gid = v[order], gid[order]
+    for r0 in range(0, counts.shape[0], chunk):
+        cum = np.cumsum(counts[r0:r0 + chunk][:, gid], axis=1)
+        total = cum[:, -1]
+        lo = np.argmax(cum > ((total - 1) // 2)[:, None], axis=1)
+        hi = np.argmax(cum > (total // 2)[:, None], axis=1)
+        out[r0:r0 + chunk] = np.where(total > 0, 0.5 * (v[lo] + v[hi]), np.nan)
+    return out
+
+
+def subject_resamples(n_subjects: int, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> np.ndarray:
+    """``(n_resamples, n_subjects)`` how many times each subject is drawn (with replacement, seeded)."""
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, n_subjects, size=(n_resamples, n_subjects))
+    counts = np.zeros((n_resamples, n_subjects), np.int64)
+    np.add.at(counts, (np.repeat(np.arange(n_resamples), n_subjects), draws.ravel()), 1)
+    return counts
+
+
+def bootstrap_budget(comparisons: list[WalkComparison], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
+                     level: float = BOOTSTRAP_LEVEL) -> list[dict]:
+    """The error budget's summary figures with bootstrap intervals over subjects.
+
+    Subjects are resampled with replacement (``n_resamples`` times, ``seed``; the same draws for every
+    figure); in each resample a figure is recomputed on the pooled values of the drawn subjects (a subject
+    drawn twice counts twice), and the interval is the central ``level`` of those figures (percentile
+    bootstrap). The figures:
+
+    * ``kind="step"``: per pair (the shares, and each chain against the truth) and estimator, the median
+      of ``|a - b|`` over the matched steps with the same events, mm (multi-speed K);
+    * ``kind="section"``: per pair, mode and estimator, the median of ``ratio_a - ratio_b`` over the
+      evaluated 20 m sections (for ``<chain> - truth``: ``ratio - 1``).
+
+    With one subject the interval is the point itself (nothing to resample).
+    """
+    n_sub = len(comparisons)
+    if n_sub == 0:
+        return []
+    counts = subject_resamples(n_sub, n_resamples=n_resamples, seed=seed)
+    ones = np.ones((1, n_sub), np.int64)
+    q = 50.0 * (1.0 - level), 50.0 * (1.0 + level)
+
+    def row(kind: str, share: str, pair: str, mode: str, est: str, statistic: str, groups: list[np.ndarray]) -> dict:
+        value = float(resampled_medians(groups, ones)[0])
+        boot = resampled_medians(groups, counts)
+        lo, hi = (np.nanpercentile(boot, q) if np.any(np.isfinite(boot)) else (math.nan, math.nan))
+        return dict(kind=kind, share=share, pair=pair, mode=mode, estimator=est, statistic=statistic, value=value,
+                    ci_low=float(lo), ci_high=float(hi), n_subjects=n_sub, n=int(sum(g.size for g in groups)))
+
+    out = []
+    shares = {r["pair"]: r["share"] for r in comparisons[0].step_diffs}
+    for pair, share in shares.items():
+        for est in ESTIMATORS:
+            groups = [1e3 * np.abs(c.step_deltas.get((pair, est), np.zeros(0))) for c in comparisons]
+            out.append(row("step", share, pair, "multi-speed", est, "median |d| mm", groups))
+    section_pairs = [(s, a, b) for s, (a, b) in SHARES.items()] + [("truth", k, "truth") for k in CHAINS]
+    for mode in MODES:
+        for share, a, b in section_pairs:
+            for est in ESTIMATORS:
+                groups = []
+                for c in comparisons:
+                    seg = [s for s in c.segments if s["mode"] == mode and s["estimator"] == est]
+                    x = np.array([s[f"ratio_{column_key(a)}"] for s in seg], float)
+                    y = np.array([s[f"ratio_{column_key(b)}"] if b != "truth" else 1.0 for s in seg], float)
+                    d = x - y
+                    groups.append(d[np.isfinite(d)])
+                out.append(row("section", share, pair_label(a, b), mode, est, "median d ratio", groups))
+    return out
+
+
+def format_budget(rows: list[dict], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> str:
+    """Printed :func:`bootstrap_budget`: one line per pair (and mode), the five estimators across."""
+    if not rows:
+        return "error budget: no subject"
+    n_sub = rows[0]["n_subjects"]
+    lines = [f"error budget with {100 * BOOTSTRAP_LEVEL:.0f} % bootstrap intervals over {n_sub} subject(s) "
+             f"({n_resamples} resamples of the subjects, seed {seed}); one K per mode, fitted on the offline chain"]
+    keys: list[tuple[str, str, str]] = []
+    for r in rows:
+        k = (r["kind"], r["mode"], r["pair"])
+        if k not in keys:
+            keys.append(k)
+    by = {(r["kind"], r["mode"], r["pair"], r["estimator"]): r for r in rows}
+    head = None
+    for kind, mode, pair in keys:
+        h = (kind, mode)
+        if h != head:
+            head = h
+            what = ("per step: median |a - b|, mm (multi-speed K; matched steps with the same events)"
+                    if kind == "step" else f"per 20 m section, {mode} K: median (ratio a - ratio b)")
+            lines.append(what)
+            lines.append(f"{'share':<11}{'a - b':<29}" + "".join(f"{e:>27}" for e in ESTIMATORS))
+        cells = []
+        for e in ESTIMATORS:
+            r = by[(kind, mode, pair, e)]
+            fmt = "{:.3f}" if kind == "step" else "{:+.4f}"
+            cells.append(f"{fmt.format(r['value'])} [{fmt.format(r['ci_low'])}, {fmt.format(r['ci_high'])}]"
+                         if math.isfinite(r["value"]) else "n/a")
+        share = by[(kind, mode, pair, ESTIMATORS[0])]["share"]
+        lines.append(f"{share:<11}{pair:<29}" + "".join(f"{c:>27}" for c in cells))
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Decoded recordings: offline vs on-line float vs on-line fixed
 
 
 @dataclass(eq=False)
 class RecordingComparison:
-    """Fixed vs float on the codes of one recording (:func:`compare_recording`)."""
+    """The offline chain and the on-line algorithm in both arithmetics on one recording
+    (:func:`compare_recording`).
 
-    float_table: StepTable
-    fixed_table: StepTable
-    match: StepMatch
+    Attributes
+    ----------
+    tables
+        ``offline``, ``online-float`` and ``online-fixed`` tables (the same K, or none).
+    matches
+        :class:`StepMatch` of the shares ``algorithm`` and ``arithmetic``.
+    step_diffs, segments, steps
+        Per-step difference rows, per-section rows, per-step columns (offline as the spine).
+    saturation, saturated, wrapped, cycles_per_sample
+        The fixed-point run's report, counts and mean PIC cycles per sample.
+    segment_source
+        How the sections were cut.
+    """
+
+    tables: dict[str, StepTable]
+    matches: dict[str, StepMatch]
     step_diffs: list[dict]
     segments: list[dict]
     steps: dict[str, np.ndarray]
@@ -600,19 +892,46 @@ class RecordingComparison:
     cycles_per_sample: float
     segment_source: str
 
+    @property
+    def offline_table(self) -> StepTable:
+        """The offline float chain."""
+        return self.tables["offline"]
+
+    @property
+    def float_table(self) -> StepTable:
+        """The on-line algorithm in floating point."""
+        return self.tables["online-float"]
+
+    @property
+    def fixed_table(self) -> StepTable:
+        """The on-line algorithm in fixed point (the logger's)."""
+        return self.tables["online-fixed"]
+
+    @property
+    def match(self) -> StepMatch:
+        """The arithmetic share's match (online-fixed vs online-float)."""
+        return self.matches["arithmetic"]
+
 
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
                       adc_calibration: Any = None, code_bits: int = 10, valid: np.ndarray | None = None,
                       calibration: Any = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
-                      segment_m: float = 20.0, t0_s: float = 0.0,
-                      sections: list[Section] | None = None) -> RecordingComparison:
-    """Fixed vs float chain on the same codes (no truth): matched steps, differences, segments.
+                      segment_m: float = 20.0, t0_s: float = 0.0, sections: list[Section] | None = None,
+                      run_starts: np.ndarray | None = None,
+                      fixed_algorithm: Callable[..., Any] = OnlineStepAlgorithm) -> RecordingComparison:
+    """Offline chain, on-line float and on-line fixed on the same codes (no truth): matched steps,
+    differences, sections.
 
     ``adc_calibration`` (``offset_counts``, ``matrix_g_per_count``; None = nominal) converts codes to g for
-    the float chain and, quantised, for the fixed chain; ``calibration`` is an optional K calibration (the
-    same K for both: the difference is the arithmetic alone). Segments: ``sections`` when given (e.g. the
+    the offline chain and is the on-line algorithm's device calibration; ``calibration`` is the one K of
+    every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
+    (SESSION_START), where the on-line algorithm restarts. Sections: ``sections`` when given (e.g. the
     protocol's, :func:`host.evaluation.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
-    every ``segment_m`` of the float chain's M3 distance.
+    every ``segment_m`` of the offline chain's M3 distance.
+
+    Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and
+    ``arithmetic_m`` (the shares in distance) and, for ``host.commands.demo``, ``ratio_float`` /
+    ``ratio_fixed``: aliases of the on-line algorithm's float and fixed ratios.
     """
     from protocol.header import Calibration
 
@@ -623,10 +942,15 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     acc[~ok] = np.nan
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m,
               calibration=calibration, t0_s=t0_s)
-    fl = float_step_table(acc, valid=ok, **kw)
-    fx, chain = fixed_step_table(c, adc_calibration=cal, code_bits=code_bits, valid=ok, **kw)
-    m = match_steps(fx, fl)
-    diffs = step_differences(fx, fl, m, pair="fixed-float")
+    okw = dict(kw, adc_calibration=cal, code_bits=code_bits, valid=ok, run_starts=run_starts)
+    tables = {"offline": offline_step_table(acc, valid=ok, **kw)}
+    tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
+    tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", algorithm=fixed_algorithm, **okw)
+    shares = {s: SHARES[s] for s in ("algorithm", "arithmetic")}
+    matches = {s: match_steps(tables[a], tables[b]) for s, (a, b) in shares.items()}
+    diffs = []
+    for s, (a, b) in shares.items():
+        diffs += step_differences(tables[a], tables[b], matches[s], pair=pair_label(a, b), share=s)
     marks = np.asarray(mark_times_s if mark_times_s is not None else [], np.float64)
     known = sections is not None or marks.size >= 2
     if sections is not None:
@@ -634,31 +958,54 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     elif marks.size >= 2:
         sections, source = segments_from_mark_times(marks, lap_m=lap_m), f"between MARK flags, {lap_m:g} m apart"
     else:
-        sections = segments_by_distance(fl, segment_m=segment_m)
-        source = f"every {segment_m:g} m of the float chain's M3 distance (no lap marks; real length unknown)"
-    d_fl, d_fx = segment_distances(fl, sections), segment_distances(fx, sections)
+        sections = segments_by_distance(tables["offline"], segment_m=segment_m)
+        source = f"every {segment_m:g} m of the offline chain's M3 distance (no lap marks; real length unknown)"
+    dist = {k: segment_distances(t, sections) for k, t in tables.items()}
     seg_rows = []
     for i, s in enumerate(sections):
         for j, est in enumerate(ESTIMATORS):
             real = s.real_m if known else math.nan
-            seg_rows.append(dict(section=s.index, t_start_s=s.t_start_s, t_end_s=s.t_end_s, estimator=est,
-                                 real_m=real, float_m=float(d_fl[i, j]), fixed_m=float(d_fx[i, j]),
-                                 ratio_float=float(d_fl[i, j]) / real, ratio_fixed=float(d_fx[i, j]) / real,
-                                 diff_m=float(d_fx[i, j] - d_fl[i, j])))
-    fixed_of = np.full(fl.n_steps, -1, np.int64)
-    fixed_of[m.b] = m.a
-    same = np.zeros(fl.n_steps, bool)
-    same[m.b] = m.same_events
-    steps: dict[str, np.ndarray] = {"step": np.arange(fl.n_steps), "foot_flat_s": fl.time_s(fl.foot_flat),
-                                    "duration_s": fl.duration_s, "fixed_step": fixed_of, "same_events": same}
+            row: dict[str, Any] = dict(section=s.index, t_start_s=s.t_start_s, t_end_s=s.t_end_s, estimator=est,
+                                       real_m=real)
+            for k in tables:
+                row[f"{column_key(k)}_m"] = float(dist[k][i, j])
+            for k in tables:
+                row[f"ratio_{column_key(k)}"] = float(dist[k][i, j]) / real
+            for sh, (a, b) in shares.items():
+                row[f"{sh}_m"] = float(dist[a][i, j] - dist[b][i, j])
+            row["ratio_float"], row["ratio_fixed"] = row["ratio_online_float"], row["ratio_online_fixed"]
+            seg_rows.append(row)
+    of = tables["offline"]
+    float_of = matches["algorithm"].a_of_b(of.n_steps)
+    fixed_of = _take(matches["arithmetic"].a_of_b(tables["online-float"].n_steps), float_of, fill=-1)
+    steps: dict[str, np.ndarray] = {
+        "step": np.arange(of.n_steps), "foot_flat_s": of.time_s(of.foot_flat), "duration_s": of.duration_s,
+        "online_float_step": float_of, "online_fixed_step": fixed_of,
+        "same_events_algorithm": _same_of_b(matches["algorithm"], of.n_steps),
+        "same_events_arithmetic": _take(_same_of_b(matches["arithmetic"], tables["online-float"].n_steps),
+                                        float_of, fill=False)}
     for est in ESTIMATORS:
         e = est.lower()
-        steps[f"{e}_float_m"] = fl.length_m[est]
-        steps[f"{e}_fixed_m"] = (np.where(fixed_of >= 0, fx.length_m[est][np.maximum(fixed_of, 0)], np.nan)
-                                 if fx.n_steps else np.full(fl.n_steps, np.nan))
-    ctx = chain.ctx_
-    return RecordingComparison(fl, fx, m, diffs, seg_rows, steps, ctx.report(), ctx.total_saturated,
-                               ctx.total_wrapped, chain.cycles_per_sample_, source)
+        steps[f"{e}_offline_m"] = of.length_m[est]
+        steps[f"{e}_online_float_m"] = _take(tables["online-float"].length_m[est], float_of)
+        steps[f"{e}_online_fixed_m"] = _take(tables["online-fixed"].length_m[est], fixed_of)
+    return RecordingComparison(tables, matches, diffs, seg_rows, steps, alg.arithmetic_context().report(),
+                               alg.saturations, alg.wraps, alg.cycles.mean, source)
+
+
+def check_device_records(recording: Any) -> Any:
+    """The device's own step records of a decoded recording against the host's replay of the on-line
+    algorithm (:func:`host.replay.check_records`): a :class:`host.replay.ReplayCheck`, or None when the
+    recording carries no step records (``step_records`` absent or None) or no header."""
+    records = getattr(recording, "step_records", None)
+    header = getattr(recording, "header", None)
+    if records is None or header is None:
+        return None
+    from host.replay import check_records
+
+    return check_records(np.asarray(recording.codes, np.int64), np.asarray(recording.valid, bool),
+                         np.asarray(recording.flags), np.asarray(recording.sample_numbers, np.int64), header,
+                         np.asarray(records))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -704,11 +1051,11 @@ def rows_csv_text(rows: list[dict], columns: list[str] | tuple[str, ...] | None 
 
 
 def format_step_diffs(rows: list[dict]) -> str:
-    """Printed per-step difference table."""
-    lines = [f"{'pair':<13}{'est':<5}{'n':>6}{'med|d| mm':>11}{'p95 mm':>9}{'max mm':>9}{'bias mm':>9}"
-             f"{'max rel %':>10}{'diff.ev':>8}"]
+    """Printed per-step difference table (one line per pair and estimator)."""
+    lines = [f"{'share':<11}{'a - b':<29}{'est':<5}{'n':>6}{'med|d| mm':>11}{'p95 mm':>9}{'max mm':>9}"
+             f"{'bias mm':>9}{'max rel %':>10}{'diff.ev':>8}"]
     for r in rows:
-        lines.append(f"{r['pair']:<13}{r['estimator']:<5}{r['n']:>6}{r['median_abs_mm']:>11.3f}{r['p95_abs_mm']:>9.3f}"
-                     f"{r['max_abs_mm']:>9.2f}{r['bias_mm']:>+9.3f}{100 * r['max_rel']:>10.3f}"
-                     f"{r['n_different_events']:>8}")
+        lines.append(f"{r.get('share', ''):<11}{r['pair']:<29}{r['estimator']:<5}{r['n']:>6}"
+                     f"{r['median_abs_mm']:>11.3f}{r['p95_abs_mm']:>9.3f}{r['max_abs_mm']:>9.2f}{r['bias_mm']:>+9.3f}"
+                     f"{100 * r['max_rel']:>10.3f}{r['n_different_events']:>8}")
     return "\n".join(lines)

@@ -67,3 +67,43 @@ def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None =
     png = render_boxplots_png(rows, title=title, dpi=dpi)
     atomic_write_bytes(path, png)
     return Path(path)
+
+
+def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, title: str | None = None,
+                              dpi: int = 120) -> bytes:
+    """Box plots of per-trial ratios (``estimator``, ``arithmetic``, ``k_from``, ``ratio`` rows of
+    :mod:`host.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
+    chain's K only (the comparison). Raises ValueError when there is nothing to plot."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    ests = ("M1", "M2", "M3", "M4", "M5")
+    data = {(a, e): np.asarray([float(r["ratio"]) for r in rows if r["estimator"] == e and r["arithmetic"] == a
+                                and r.get("k_from", "offline") == "offline"], np.float64) for a in chains for e in ests}
+    data = {k: v[np.isfinite(v)] for k, v in data.items()}
+    if not any(v.size for v in data.values()):
+        raise ValueError("no ratios to plot")
+    fig, ax = plt.subplots(figsize=(7.5, 4.0))
+    width = 0.8 / len(chains)
+    for j, a in enumerate(chains):
+        pos = [i + 1 + (j - (len(chains) - 1) / 2) * width for i in range(len(ests))]
+        bp = ax.boxplot([100.0 * data[(a, e)] for e in ests], positions=pos, widths=0.9 * width, whis=(0, 100),
+                        patch_artist=True, manage_ticks=False, medianprops={"color": "k"})
+        for box in bp["boxes"]:
+            box.set_facecolor(f"C{j}")
+            box.set_alpha(0.5)
+        ax.plot([], [], color=f"C{j}", lw=6, alpha=0.5, label=a)
+    ax.set_xticks(range(1, len(ests) + 1), [e + (" (no K)" if e == "M3" else "") for e in ests], fontsize=8)
+    ax.axhline(100.0, color="0.5", linestyle="--", linewidth=0.8)
+    ax.set_ylabel("estimated / real distance (%)")
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()

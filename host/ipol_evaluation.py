@@ -3,43 +3,65 @@
 For every trial of an IPOL folder (:mod:`host.ipol`):
 
 1. *Replay*: the recording is the physical input of the logger (:class:`firmware_sim.world.replay.Replay`),
-   sampled by the emulated device at ``rate_hz`` (50 Hz) with a ``bits``-bit ADC (10) and converted back to
-   g with the nominal calibration of the header (:meth:`protocol.header.Calibration.nominal`). Replay
+   sampled by the emulated device (:class:`firmware_sim.device.Logger`) at ``rate_hz`` (50 Hz) with a
+   ``bits``-bit ADC (10), **with its on-line step algorithm on** (``StepConfig`` with the subject's leg and
+   foot length, uncalibrated: the records hold the raw lengths), as a logger worn without K would record.
+   The offline chain converts the codes back to g with the header's calibration (the nominal map). Replay
    interpolates the physical input over lost packets to keep it continuous; every logger sample whose
    instant falls on such an interpolated stretch (on a lost packet, or between two packets one of which was
-   lost) is marked missing here, so no estimate rests on an invented sample.
-2. *Steps*: :class:`host.gait.pipeline.StepPipeline` on the whole recording; the trial's steps are those
-   whose heel-strike (or foot-flat) lies within ``TrialBoundaries`` shifted by ``+0.25 s`` at the start
-   (the trial starts at the first toe-off; no heel strike can follow it sooner than a swing, > 0.25 s) and
-   by ``+0.2 s`` at the end (less than half a step: the detection latency of the last, weak heel strike).
-3. *U-turn* (``uturn="exclude"``, the default): the estimators assume straight walking and the paper's
+   lost) is marked missing for the offline chain, so no offline estimate rests on an invented sample. The
+   on-line algorithm sees every stored code, as on the device.
+2. *Device = host*: the logger's stored step records are compared with the host's replay of the algorithm
+   on the stored codes, flags and header (:func:`host.replay.check_records`), byte for byte; a trial
+   whose records differ is an error (:class:`HostError` naming the trial and the first record).
+3. *Steps*: the offline chain (:class:`host.gait.pipeline.StepPipeline`, the paper's PC processing) on
+   the whole recording, and the on-line algorithm (:class:`firmware_sim.algorithms.online.
+   OnlineStepAlgorithm`) on the same codes in floating point and in fixed point; a trial's steps are
+   those whose heel-strike (or foot-flat) lies within ``TrialBoundaries`` shifted by ``+0.25 s`` at the
+   start (the trial starts at the first toe-off; no heel strike can follow it sooner than a swing,
+   > 0.25 s) and by ``+0.2 s`` at the end (less than half a step: the detection latency of the last, weak
+   heel strike).
+4. *U-turn* (``uturn="exclude"``, the default): the estimators assume straight walking and the paper's
    sections were timed between lap marks on straight corridor, so steps whose heel-strike lies within
    ``UTurnBoundaries`` do not contribute to the distance (they still count as steps). The reference
    distance stays 20 m (10 m out + 10 m back). ``uturn="include"`` sums every step instead.
    Both the per-subject calibration and the evaluation use the same rule, so K absorbs the part of the
    20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
-4. *Calibration*: per subject, K of M1/M2/M4 and the M5 line are fitted on the first trial (20 m, one speed:
-   M5 uses its walk-ratio fallback, :func:`host.estimators.calibration.calibrate`); M3 is never calibrated.
-5. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
+5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
+   the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
+   :func:`host.estimators.calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
+   for the offline chain, the step configuration (``calibrated=True``) for the on-line algorithm, which
+   applies it in its own arithmetic. M3 is never calibrated. Separately, and labelled so (``k_from =
+   "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
+   its own uncalibrated records of the calibration trial -- a different K, not a comparison.
+6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is warned about and listed (``IpolResult.skipped``, printed by the command).
-6. *Rows*: every other trial gives one row per estimator: ``subject, trial, estimator, arithmetic,
-   distance_m, ratio, steps, reference_steps`` (ratio = distance / 20 m; steps = detected steps in the
-   trial; reference = heel strikes in the JSON within the trial boundaries).
+7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
+   ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
+   ``subject, trial, estimator, arithmetic, k_from, distance_m, ratio, steps, reference_steps`` (ratio =
+   distance / 20 m; steps = detected steps in the trial; reference = heel strikes in the JSON within the
+   trial boundaries). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
+   offline K) pair each on-line float step with its fixed-point and offline twins (:func:`host.compare.
+   match_steps`).
+
+:func:`done_figures` computes the issue's figures from the rows (device = host, the arithmetic and
+algorithm shares, the calibrated medians); :func:`format_done` prints them.
 """
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from firmware_sim.algorithms.steps import ESTIMATORS
 from host.estimators.anthropometry import anatomical_lengths
 from host.estimators.calibration import KCalibration, calibrate
-from firmware_sim.algorithms.steps import StepTable
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.ipol import list_trials
 
@@ -48,20 +70,30 @@ IPOL_DISTANCE_M = 20.0
 #: A heel strike counts for the trial when it is >= start + SECTION_START_DELAY_S and <= end + SECTION_END_TOLERANCE_S.
 SECTION_START_DELAY_S = 0.25
 SECTION_END_TOLERANCE_S = 0.2
+#: The chains evaluated: the offline float chain and the on-line algorithm in both arithmetics.
+ARITHMETICS = ("offline", "online-float", "online-fixed")
+#: Where a row's K comes from: ``offline`` (the comparison, one K for every arithmetic) or ``own`` (the
+#: on-line algorithm's own K, fitted on its own records: a different K, not a comparison).
+K_FROM = ("offline", "own")
 
-CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "distance_m", "ratio", "steps", "reference_steps")
+CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "distance_m", "ratio", "steps",
+               "reference_steps")
+STEP_COLUMNS = (("subject", "trial", "calibration_trial", "step", "foot_flat_s", "offline_step", "online_fixed_step",
+                 "same_events_algorithm", "same_events_arithmetic")
+                + tuple(f"{e.lower()}_{a.replace('-', '_')}_m" for e in ESTIMATORS for a in ARITHMETICS))
 
 
 @dataclass(frozen=True, eq=False)
 class ReplayedTrial:
-    """A trial as the logger stored it, converted to g.
+    """A trial as the logger stored it.
 
     Attributes
     ----------
     subject, trial
         Identifiers.
     acc_g, valid
-        ``(n, 3)`` g (NaN where missing) and the validity mask.
+        ``(n, 3)`` g with the header's calibration (NaN where missing) and the validity mask of the offline
+        chain (False on interpolated stretches of the physical input).
     sampling_rate_hz, t0_s
         Logger sample rate and the time of sample 0 on the recording's clock (packet index / 100 Hz).
     meta
@@ -70,10 +102,15 @@ class ReplayedTrial:
         Rate of the recording (converts JSON packet indices to seconds).
     path
         The ``_lb.txt`` file.
-    emulated
-        True when the samples went through the emulated logger (``firmware_sim.device.Logger``).
     codes, bits
-        The ``(n, 3)`` ADC codes as stored (0 where missing) and the ADC width (input of the fixed-point chain).
+        The ``(n, 3)`` ADC codes as stored (every sample: what the on-line algorithm saw) and the ADC width.
+    flags, sample_numbers, header
+        The stored sample flags, absolute sample numbers and the device header after the run (its step
+        configuration, calibration, rate).
+    device_records
+        The step records the logger stored (:data:`protocol.steps.STEP_RECORD_DTYPE`, CRC-good).
+    leg_length_m, foot_length_m
+        The anatomy the logger's step configuration was given.
     """
 
     subject: int
@@ -85,9 +122,19 @@ class ReplayedTrial:
     meta: dict
     source_rate_hz: float
     path: Path
-    emulated: bool
-    codes: np.ndarray | None = None
-    bits: int = 10
+    codes: np.ndarray
+    bits: int
+    flags: np.ndarray
+    sample_numbers: np.ndarray
+    header: Any
+    device_records: np.ndarray
+    leg_length_m: float
+    foot_length_m: float
+
+    @property
+    def emulated(self) -> bool:
+        """Always True: the samples went through the emulated logger."""
+        return True
 
     def seconds(self, packet_index: float) -> float:
         """JSON packet index -> seconds on the logger clock."""
@@ -95,31 +142,69 @@ class ReplayedTrial:
 
     @property
     def height_m(self) -> float | None:
-        h = self.meta.get("Height")
-        try:
-            h = float(h)
-        except (TypeError, ValueError):
-            return None
-        return h / 100.0 if np.isfinite(h) and 80 <= h <= 250 else None
+        return _height_m(self.meta)
 
     def reference_steps(self) -> int:
         lo, hi = self.meta["TrialBoundaries"]
         hs = [p[1] for p in list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))]
         return int(sum(lo <= h <= hi for h in hs))
 
+    def run_starts(self) -> np.ndarray:
+        """Rows where a logging run starts (SESSION_START)."""
+        from protocol.packing import FLAG_SESSION_START
 
-def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, seed: int = 0) -> ReplayedTrial:
-    """Replay one IPOL trial through the emulated logger (see the module notes).
+        return np.flatnonzero((np.asarray(self.flags) & FLAG_SESSION_START) != 0)
 
-    Uses ``firmware_sim.device.Logger`` when available; otherwise the same physical input is sampled by
-    the sensor-free path (anti-aliased resampling to ``rate_hz`` and an ideal ``bits``-bit ±2 g
-    quantiser), and ``emulated`` is False.
+    def check_records(self) -> Any:
+        """The device's records against the host's replay (:func:`host.replay.check_records`)."""
+        from host.replay import check_records
+
+        return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
+                             self.header, self.device_records)
+
+    def online_table(self, *, arithmetic: str, calibration: KCalibration | None = None) -> tuple[StepTable, Any]:
+        """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
+        anatomy and ``calibration``'s K (:func:`host.compare.online_step_table`)."""
+        from host.compare import online_step_table
+
+        return online_step_table(self.codes, sampling_rate_hz=self.header.sample_rate_hz,
+                                 leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
+                                 calibration=calibration, adc_calibration=self.header.calibration,
+                                 code_bits=self.bits, arithmetic=arithmetic, run_starts=self.run_starts(),
+                                 t0_s=self.t0_s)
+
+    def device_table(self) -> StepTable:
+        """The logger's own records as a table (raw lengths: it ran uncalibrated)."""
+        from firmware_sim.algorithms.online import OnlineSteps
+
+        steps = OnlineSteps.from_records(self.device_records, first_sample_number=int(self.sample_numbers[0]),
+                                         sampling_rate_hz=self.header.sample_rate_hz)
+        return StepTable.from_online(steps, t0_s=self.t0_s)
+
+
+def _height_m(meta: dict) -> float | None:
+    h = meta.get("Height")
+    try:
+        h = float(h)
+    except (TypeError, ValueError):
+        return None
+    return h / 100.0 if np.isfinite(h) and 80 <= h <= 250 else None
+
+
+def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, leg_length_m: float | None = None,
+                 foot_length_m: float | None = None) -> ReplayedTrial:
+    """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
+
+    ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
+    trial's height (:func:`host.estimators.anthropometry.anatomical_lengths`).
     """
     import re
 
+    from firmware_sim.adc import Adc
+    from firmware_sim.device import Logger
     from firmware_sim.errors import DeviceError
     from firmware_sim.world.replay import Replay
-    from protocol.header import Calibration
+    from protocol.steps import StepConfig
 
     lb_path = Path(lb_path)
     m = re.match(r"^(\d+)-(\d+)_lb\.txt$", lb_path.name)
@@ -132,16 +217,20 @@ def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, 
     meta = replay.truth.get("ipol_meta")
     if not isinstance(meta, dict) or "TrialBoundaries" not in meta:
         raise HostError(f"{lb_path}: no trial JSON with 'TrialBoundaries' beside it")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)      # no height: the default stature, as the paper's inputs
+        leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
+                                       height_m=_height_m(meta))
     src_rate = replay.rate_hz
     filled = np.asarray(replay.truth.get("filled", np.zeros(replay.acc_g.shape[0], bool)), bool)
-    emulated = False
-    try:
-        from firmware_sim.device import Logger  # noqa: F401  (the device helper's emulator)
-        codes, times_s = _record_with_logger(replay, rate_hz=rate_hz, bits=bits, seed=seed)
-        emulated = True
-    except ImportError:
-        codes, times_s = _record_ideal(replay, rate_hz=rate_hz, bits=bits)
-    acc = Calibration.nominal(bits).apply(codes)
+    logger = Logger(adc=Adc(bits=bits, rate_hz=rate_hz), sample_rate_hz=rate_hz,
+                    step_config=StepConfig(step_format=1, leg_length_m=leg, foot_length_m=foot))
+    result = logger.record(replay)
+    records, crc_ok = logger.steps.records_in_order()
+    codes = np.asarray(result.codes, np.int64)
+    times_s = np.asarray(result.sample_times_s, np.float64)
+    header = logger.header
+    acc = header.calibration.apply(codes.astype(np.float64))
     # a sample is missing when its instant lies between the last and the next received packet around a
     # filled (interpolated) stretch of the physical input
     x = (times_s - replay.t0_s) * src_rate                 # position on the packet grid
@@ -150,35 +239,11 @@ def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, 
     j1 = np.clip(j + 1, 0, filled.size - 1)
     valid = ~(filled[j] | (filled[j1] & ~on_packet))
     acc[~valid] = np.nan
-    rate = rate_hz if not emulated else float(1.0 / np.median(np.diff(times_s)))
-    codes_int = np.where(valid[:, None], np.asarray(codes), 0).astype(np.int64)
-    return ReplayedTrial(int(m.group(1)), int(m.group(2)), acc, valid, float(rate), float(times_s[0]), meta,
-                         src_rate, lb_path, emulated, codes_int, int(bits))
-
-
-def _record_ideal(replay, *, rate_hz: float, bits: int) -> tuple[np.ndarray, np.ndarray]:
-    """Sensor-free sampling: anti-aliased resampling and an ideal ±2 g quantiser (development fallback)."""
-    motion = replay.render(rate_hz)
-    span = 1 << bits
-    codes = np.clip(np.floor(span / 2 + motion.acc_g * span / 4.0), 0, span - 1)
-    return codes, motion.t_s
-
-
-def _record_with_logger(replay, *, rate_hz: float, bits: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Sample the physical input with the emulated logger (nominal ADC, default sensor)."""
-    from firmware_sim.device import Logger
-
-    logger = _make_logger(Logger, rate_hz=rate_hz, bits=bits, seed=seed)
-    result = logger.record(replay)
-    codes = np.asarray(result.codes, np.float64)
-    times = np.asarray(result.sample_times_s, np.float64)
-    return codes, times
-
-
-def _make_logger(Logger, *, rate_hz: float, bits: int, seed: int):  # noqa: N803
-    from firmware_sim.adc import Adc
-
-    return Logger(adc=Adc(bits=bits, rate_hz=rate_hz), sample_rate_hz=rate_hz)
+    rate = float(1.0 / np.median(np.diff(times_s)))
+    return ReplayedTrial(int(m.group(1)), int(m.group(2)), acc, valid, rate, float(times_s[0]), meta, src_rate,
+                         lb_path, codes, int(bits), np.asarray(result.flags), np.asarray(result.sample_numbers,
+                                                                                         np.int64),
+                         header, records[crc_ok], float(leg), float(foot))
 
 
 def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "exclude") -> tuple[StepTable, np.ndarray]:
@@ -211,138 +276,206 @@ def _counted(sec: StepTable, counts: np.ndarray) -> StepTable:
     return out.select(counts)
 
 
+
+
 @dataclass
 class IpolResult:
-    """Rows of the evaluation and the per-subject calibrations."""
+    """Rows of the evaluation, the per-subject calibrations and the device checks.
+
+    Attributes
+    ----------
+    rows
+        One per scored trial, estimator, arithmetic and K source (:data:`CSV_COLUMNS`).
+    calibrations
+        The one K per subject, fitted on the offline chain's calibration trial (every arithmetic uses it).
+    n_trials
+        Scored trials (the calibration trials excluded).
+    skipped
+        What was skipped and why.
+    calibrations_own
+        The on-line algorithm's own K per subject (fitted on the logger's own records of the calibration
+        trial): the device as it would be used, not a comparison.
+    saturation
+        Fixed-point saturation/wrap reports (none expected).
+    replay_checks
+        Per replayed trial: ``trial``, ``n_device``, ``n_compared``, ``n_identical`` (device records vs host
+        replay, byte for byte).
+    step_rows
+        Per on-line float step of every trial of a calibrated subject: its fixed-point and offline twins'
+        lengths with the offline K (:data:`STEP_COLUMNS`); empty unless all three arithmetics ran.
+    arithmetics
+        The arithmetics evaluated.
+    """
 
     rows: list[dict]
     calibrations: dict[int, KCalibration]
-    emulated: bool
     n_trials: int
     skipped: list[str] = field(default_factory=list)
-    calibrations_fixed: dict[int, KCalibration] = field(default_factory=dict)
+    calibrations_own: dict[int, KCalibration] = field(default_factory=dict)
     saturation: list[str] = field(default_factory=list)
+    replay_checks: list[dict] = field(default_factory=list)
+    step_rows: list[dict] = field(default_factory=list)
+    arithmetics: tuple[str, ...] = ARITHMETICS
+
+    @property
+    def emulated(self) -> bool:
+        """Always True: every trial went through the emulated logger."""
+        return True
 
 
-def _fixed_table(rt: ReplayedTrial, leg: float, foot: float, cal: KCalibration | None,
-                 saturation: list[str]) -> StepTable:
-    """The fixed-point chain (``firmware_sim.algorithms``) on the trial's codes, nominal device calibration."""
-    from host.compare import fixed_step_table
-    from protocol.header import Calibration
+def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KCalibration:
+    sec, counts = trial_steps(rt, table, uturn=uturn)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # the one-speed M5 fallback is expected here
+        return calibrate([(_counted(sec, counts), IPOL_DISTANCE_M)], leg_length_m=leg, foot_length_m=foot,
+                         subject=str(rt.subject))
 
-    if rt.codes is None:
-        raise HostError(f"{rt.path}: no ADC codes kept, cannot run the fixed-point chain")
-    table, chain = fixed_step_table(rt.codes, sampling_rate_hz=rt.sampling_rate_hz, leg_length_m=leg,
-                                    foot_length_m=foot, calibration=cal, adc_calibration=Calibration.nominal(rt.bits),
-                                    code_bits=rt.bits, valid=rt.valid, t0_s=rt.t0_s)
-    if chain.ctx_.report():
-        saturation.append(f"{rt.path.name}: {chain.ctx_.report()}")
-    return table
+
+def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_trial: bool) -> list[dict]:
+    """Each on-line float step with its online-fixed and offline twins (module notes, step 7)."""
+    from host.compare import match_steps
+
+    fl, fx, off = tables["online-float"], tables["online-fixed"], tables["offline"]
+    ar, alg = match_steps(fx, fl), match_steps(fl, off)
+    fixed_of, off_of = ar.a_of_b(fl.n_steps), alg.b_of_a(fl.n_steps)
+    same_ar = np.zeros(fl.n_steps, bool)
+    same_ar[ar.b] = ar.same_events
+    same_alg = np.zeros(fl.n_steps, bool)
+    same_alg[alg.a] = alg.same_events
+    t = fl.time_s(fl.foot_flat)
+    out = []
+    for i in range(fl.n_steps):
+        row: dict[str, Any] = dict(subject=rt.subject, trial=rt.trial, calibration_trial=int(calibration_trial),
+                                   step=i, foot_flat_s=float(t[i]), offline_step=int(off_of[i]),
+                                   online_fixed_step=int(fixed_of[i]), same_events_algorithm=int(same_alg[i]),
+                                   same_events_arithmetic=int(same_ar[i]))
+        for e in ESTIMATORS:
+            k = e.lower()
+            row[f"{k}_offline_m"] = float(off.length_m[e][off_of[i]]) if off_of[i] >= 0 else math.nan
+            row[f"{k}_online_float_m"] = float(fl.length_m[e][i])
+            row[f"{k}_online_fixed_m"] = float(fx.length_m[e][fixed_of[i]]) if fixed_of[i] >= 0 else math.nan
+        out.append(row)
+    return out
 
 
 def evaluate_folder(
     folder: str | Path, *, rate_hz: float = 50.0, bits: int = 10, uturn: str = "exclude",
-    progress=None, arithmetic: tuple[str, ...] = ("float",),
+    progress=None, arithmetic: tuple[str, ...] = ARITHMETICS,
 ) -> IpolResult:
     """Run the whole evaluation on an IPOL folder (see the module notes). Library code: no printing.
 
-    ``progress`` (optional) is called with each trial name as it starts. ``arithmetic``: ``"float"`` (the
-    host chain on the codes converted to g) and/or ``"fixed"`` (the firmware's fixed-point chain on the same
-    codes, :func:`host.compare.fixed_step_table`); each fits its own K on the calibration trial, and the
-    fixed rows' calibrated lengths are computed in fixed point. Saturation of the fixed chain is listed in
-    ``IpolResult.saturation`` (and warned about).
+    ``progress`` (optional) is called with each trial name as it starts. ``arithmetic``: any of
+    :data:`ARITHMETICS`; every one uses the offline chain's K of the subject's calibration trial. With
+    ``online-fixed``, the own-K rows are added (``k_from = "own"``).
+
+    Raises
+    ------
+    HostError
+        A trial whose device records differ from the host's replay (naming the first record), or nothing
+        to evaluate.
     """
     for a in arithmetic:
-        if a not in ("float", "fixed"):
-            raise ValueError(f"arithmetic must be 'float' or 'fixed', got {a!r}")
+        if a not in ARITHMETICS:
+            raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {a!r}")
+    if uturn not in ("exclude", "include"):
+        raise ValueError(f"uturn must be 'exclude' or 'include', got {uturn!r}")
     files = list_trials(folder)
     by_subject: dict[int, list[Path]] = {}
     for f in files:
         by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
-    rows: list[dict] = []
-    cals: dict[int, KCalibration] = {}
-    cals_fixed: dict[int, KCalibration] = {}
-    skipped: list[str] = []
-    saturation: list[str] = []
-    emulated_all = True
-    n_trials = 0
+    res = IpolResult([], {}, 0, arithmetics=tuple(arithmetic))
     for subject, paths in by_subject.items():
         if len(paths) < 2:
-            skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
+            res.skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
             continue
-        trials: list[tuple[ReplayedTrial, dict[str, tuple[StepTable, np.ndarray]]]] = []
-        leg = foot = float("nan")
+        trials: list[tuple[ReplayedTrial, StepTable]] = []
+        leg = foot = None
         for p in paths:
             if progress is not None:
                 progress(p.name)
-            try:
-                rt = replay_trial(p, rate_hz=rate_hz, bits=bits)
+            try:   # the anatomy of the subject's first readable trial configures every later one
+                rt = replay_trial(p, rate_hz=rate_hz, bits=bits, leg_length_m=leg, foot_length_m=foot)
             except HostError as err:   # one unreadable trial must not sink the whole evaluation
-                skipped.append(f"{p.name}: {err}")
+                res.skipped.append(f"{p.name}: {err}")
                 continue
-            if not trials:             # anatomy from the subject's first readable trial
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", UserWarning)
-                    leg, foot = anatomical_lengths(height_m=rt.height_m)
-            secs: dict[str, tuple[StepTable, np.ndarray]] = {}
+            leg, foot = rt.leg_length_m, rt.foot_length_m
+            check = rt.check_records()
+            res.replay_checks.append(dict(trial=p.name, n_device=check.n_device, n_compared=check.n_compared,
+                                          n_identical=check.n_identical))
+            if check.n_identical != check.n_compared:
+                end, what = check.mismatches[0]
+                raise HostError(f"{p}: {check.summary()}; the first differing record ends at sample {end}: {what}")
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                if "float" in arithmetic:
-                    pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
-                        rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s)
-                    secs["float"] = trial_steps(rt, pipe.steps_, uturn=uturn)
-                if "fixed" in arithmetic:
-                    secs["fixed"] = trial_steps(rt, _fixed_table(rt, leg, foot, None, saturation), uturn=uturn)
-            trials.append((rt, secs))
+                off = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
+                    rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s).steps_
+            trials.append((rt, off))
         if len(trials) < 2:
-            skipped.append(f"subject {subject}: fewer than two readable trials")
+            res.skipped.append(f"subject {subject}: fewer than two readable trials")
             continue
-        emulated_all &= all(rt.emulated for rt, _ in trials)
-        rt0, secs0 = trials[0]
-        fitted: dict[str, KCalibration] = {}
+        rt0, off0 = trials[0]
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)  # the one-speed M5 fallback is expected here
-                for a in arithmetic:
-                    sec0, counts0 = secs0[a]
-                    fitted[a] = calibrate([(_counted(sec0, counts0), IPOL_DISTANCE_M)], leg_length_m=leg,
-                                          foot_length_m=foot, subject=str(subject))
+            k = _calibrate_on(rt0, off0, uturn=uturn, leg=leg, foot=foot)
         except HostError as err:
-            skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
+            res.skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
             continue
-        if "float" in fitted:
-            cals[subject] = fitted["float"]
-        if "fixed" in fitted:
-            cals_fixed[subject] = fitted["fixed"]
-        for rt, secs in trials[1:]:
-            n_trials += 1
+        res.calibrations[subject] = k
+        own = None
+        if "online-fixed" in arithmetic:
+            try:
+                own = _calibrate_on(rt0, rt0.device_table(), uturn=uturn, leg=leg, foot=foot)
+                res.calibrations_own[subject] = own
+            except HostError as err:
+                res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
+        for i, (rt, off) in enumerate(trials):
+            tables: dict[str, StepTable] = {}
             for a in arithmetic:
-                sec, counts = secs[a]
-                if a == "float":
-                    sec.length_m = apply_calibration(sec, fitted[a])
-                else:                  # calibrated lengths in fixed point: the chain again, with K
-                    sec, counts = trial_steps(rt, _fixed_table(rt, leg, foot, fitted[a], saturation), uturn=uturn)
+                if a == "offline":
+                    tables[a] = off.select(np.ones(off.n_steps, bool))
+                    tables[a].length_m = apply_calibration(off, k)
+                else:
+                    tables[a] = _online(rt, a, k, res.saturation)
+            if set(tables) == set(ARITHMETICS):
+                res.step_rows += _step_rows(rt, tables, i == 0)
+            if i == 0:
+                continue
+            res.n_trials += 1
+            runs = [(a, "offline", tables[a]) for a in arithmetic]
+            if own is not None:
+                runs.append(("online-fixed", "own", _online(rt, "fixed", own, res.saturation)))
+            for a, k_from, table in runs:
+                sec, counts = trial_steps(rt, table, uturn=uturn)
                 for name in ESTIMATORS:
                     d = section_distance(sec, counts, name)
-                    rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=a,
-                                     distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
-                                     reference_steps=rt.reference_steps()))
-    for msg in skipped:
+                    res.rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=a,
+                                         k_from=k_from, distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
+                                         reference_steps=rt.reference_steps()))
+    for msg in res.skipped:
         warnings.warn(f"IPOL evaluation: skipped {msg}", stacklevel=2)
-    for msg in saturation:
+    for msg in res.saturation:
         warnings.warn(f"IPOL evaluation: fixed-point saturation in {msg}", stacklevel=2)
-    if not rows:
-        raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(skipped) + ")")
-    return IpolResult(rows, cals, emulated_all, n_trials, skipped, cals_fixed, saturation)
+    if not res.rows:
+        raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(res.skipped) + ")")
+    return res
 
 
-def summarise(rows: list[dict], *, arithmetic: str | None = None) -> list[dict]:
+def _online(rt: ReplayedTrial, arithmetic: str, k: KCalibration, saturation: list[str]) -> StepTable:
+    ar = arithmetic.removeprefix("online-")
+    table, alg = rt.online_table(arithmetic=ar, calibration=k)
+    if ar == "fixed" and alg.arithmetic_context().report():
+        saturation.append(f"{rt.path.name}: {alg.arithmetic_context().report()}")
+    return table
+
+
+def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | None = "offline") -> list[dict]:
     """Per estimator: n, median, quartiles, IQR, min, max of the ratio; step-count median |error| %.
 
-    ``arithmetic`` keeps only the rows of that arithmetic (default: every row).
+    ``arithmetic`` / ``k_from`` keep only the rows of that arithmetic / K source (None: every row).
     """
     if arithmetic is not None:
-        rows = [r for r in rows if r.get("arithmetic", "float") == arithmetic]
+        rows = [r for r in rows if r.get("arithmetic", "offline") == arithmetic]
+    if k_from is not None:
+        rows = [r for r in rows if r.get("k_from", "offline") == k_from]
     out = []
     for name in ESTIMATORS:
         r = np.array([row["ratio"] for row in rows if row["estimator"] == name], float)
@@ -357,3 +490,78 @@ def summarise(rows: list[dict], *, arithmetic: str | None = None) -> list[dict]:
                         iqr=float(q3 - q1), min=float(r.min()), max=float(r.max()),
                         step_error_median_pct=float(np.median(err)) if err.size else float("nan")))
     return out
+
+
+def done_figures(result: IpolResult) -> dict[str, Any]:
+    """The issue's figures from an evaluation with every arithmetic (see :func:`format_done`).
+
+    Returns
+    -------
+    dict
+        ``identity``: trials and records compared and identical (device vs host replay);
+        ``arithmetic_step``: per estimator, over the matched steps with the same events of every trial,
+        ``n``, ``median_abs_mm`` and ``max_abs_mm`` of online-fixed - online-float and ``max_rel`` (|d| /
+        the float length); ``different_events``: matched steps whose events differ, of ``matched``;
+        ``algorithm_ratio`` / ``arithmetic_ratio``: per estimator, the median and max over the scored trials of
+        |ratio online-float - ratio offline| and |ratio online-fixed - ratio online-float|; ``median_ratio``:
+        per arithmetic and estimator, the median ratio with the offline K; ``own``: the on-line fixed rows
+        with their own K, per estimator (median, IQR).
+    """
+    chk = result.replay_checks
+    out: dict[str, Any] = dict(identity=dict(
+        trials=len(chk), identical_trials=sum(c["n_identical"] == c["n_compared"] > 0 for c in chk),
+        records=sum(c["n_compared"] for c in chk), identical_records=sum(c["n_identical"] for c in chk)))
+    st = result.step_rows
+    same = np.array([r["same_events_arithmetic"] for r in st], bool)
+    matched = np.array([r["online_fixed_step"] >= 0 for r in st], bool)
+    out["matched"], out["different_events"] = int(matched.sum()), int((matched & ~same).sum())
+    out["arithmetic_step"] = {}
+    for e in ESTIMATORS:
+        k = e.lower()
+        x = np.array([r[f"{k}_online_fixed_m"] for r in st], float)
+        y = np.array([r[f"{k}_online_float_m"] for r in st], float)
+        g = same & np.isfinite(x) & np.isfinite(y)
+        d = np.abs(x[g] - y[g])
+        out["arithmetic_step"][e] = dict(n=int(d.size), median_abs_mm=1e3 * float(np.median(d)) if d.size else math.nan,
+                                         max_abs_mm=1e3 * float(d.max()) if d.size else math.nan,
+                                         max_rel=float(np.max(d / y[g])) if d.size else math.nan)
+    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in result.rows
+          if r["k_from"] == "offline"}
+    for key, (a, b) in (("algorithm_ratio", ("online-float", "offline")),
+                        ("arithmetic_ratio", ("online-fixed", "online-float"))):
+        out[key] = {}
+        for e in ESTIMATORS:
+            d = np.abs([by[t[:3] + (a,)] - by[t] for t in by if t[2] == e and t[3] == b and t[:3] + (a,) in by])
+            d = d[np.isfinite(d)]
+            out[key][e] = dict(n=int(d.size), median=float(np.median(d)) if d.size else math.nan,
+                               max=float(d.max()) if d.size else math.nan)
+    out["median_ratio"] = {a: {s["estimator"]: s.get("median", math.nan) for s in summarise(result.rows, arithmetic=a)}
+                           for a in result.arithmetics}
+    out["own"] = {s["estimator"]: dict(median=s.get("median", math.nan), iqr=s.get("iqr", math.nan))
+                  for s in summarise(result.rows, arithmetic="online-fixed", k_from="own")}
+    return out
+
+
+def format_done(fig: dict[str, Any]) -> str:
+    """Printed :func:`done_figures`."""
+    idn = fig["identity"]
+    lines = [f"device step records = host replay, byte for byte: {idn['identical_trials']} of {idn['trials']} "
+             f"trials, {idn['identical_records']} of {idn['records']} records"]
+    a = fig["arithmetic_step"]
+    lines.append(f"on-line fixed vs on-line float per step (offline K; {fig['matched']} matched steps, "
+                 f"{fig['different_events']} with different events left out): " + ", ".join(
+                     f"{e} median |d| {a[e]['median_abs_mm']:.3f} mm max {100 * a[e]['max_rel']:.2f} %"
+                     for e in ESTIMATORS))
+    for key, what in (("arithmetic_ratio", "on-line fixed vs on-line float"),
+                      ("algorithm_ratio", "on-line float vs offline")):
+        r = fig[key]
+        lines.append(f"{what}, distance ratio per trial, median (max) |d|: " + ", ".join(
+            f"{e} {r[e]['median']:.4f} ({r[e]['max']:.4f})" for e in ESTIMATORS))
+    mr = fig["median_ratio"]
+    lines.append("median ratio with the offline chain's K: " + "; ".join(
+        f"{a} " + " ".join(f"{e} {mr[a][e]:.3f}" for e in ESTIMATORS) for a in mr))
+    if fig["own"] and any(math.isfinite(v["median"]) for v in fig["own"].values()):
+        lines.append("as the device would be used -- on-line fixed with its OWN K (fitted on its own records of the "
+                     "calibration trial; a different K, not a comparison): " + ", ".join(
+                         f"{e} median {v['median']:.3f} IQR {v['iqr']:.3f}" for e, v in fig["own"].items()))
+    return "\n".join(lines)

@@ -3,42 +3,50 @@
 For every subject (:func:`firmware_sim.world.subject.random_subjects`) the walk and the sensor's analog
 response are computed once (:class:`host.compare.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
 that same analog output (same sensor, same noise seed), and each ADC width (8, 10, 12 bits) quantises the
-same samples. Every configuration then runs the comparison of :func:`host.compare.compare_walk`: ideal
-(no ADC), float and fixed chains, K fitted per chain (single- and multi-speed), 20 m section ratios and
-the per-step error split. Only the ADC width and the rate change between configurations: the subjects,
-walks, sensors, calibration procedure and sections are held fixed.
+same samples. Every configuration then runs the comparison of :func:`host.compare.compare_walk`: the
+ideal (no ADC) and offline float chains and the on-line algorithm in float and in fixed point, with **one
+K per configuration and mode** (single- and multi-speed), fitted on that configuration's offline chain and
+used by all four chains; 20 m section ratios and the per-step error split (ADC = offline - ideal,
+algorithm = online-float - offline, arithmetic = online-fixed - online-float). Only the ADC width and the
+rate change between configurations: the subjects, walks, sensors, calibration procedure and sections are
+held fixed. (K follows the configuration, as a real calibration walk would be recorded with the device
+being calibrated; it is never refitted per chain.)
 
 **M5 and the step timing** (Alvarez et al. left open whether M5's spread comes from timing steps at
 50 Hz). M5 is ``K1 / T + K2`` with ``T`` counted in samples, so timing enters M5 alone. The sweep measures
-(:func:`m5_timing_answer`), for the float chain on 10-bit codes:
+(:func:`m5_timing_answer`), for the offline chain on 10-bit codes:
 
 * the pooled M5 section-ratio IQR and standard deviation at 25, 50 and 100 Hz;
 * the same with every step's duration replaced by the world's exact one (``exact-timing``: no sampling and
-  no detection error on ``T``, everything else unchanged);
-* the timing part itself, the per-section difference ``ratio(sampled T) - ratio(exact T)`` with the same
-  K (the sampled chain's): its variance over the total is the share of M5's spread that the step timing
-  explains.
+  no detection error on ``T``, everything else unchanged, the same K: the sampled chain's);
+* the timing part itself: ``1 - var(exact T) / var(sampled T)`` of the section ratios is the share of M5's
+  spread that the step timing explains.
 
 Parallel runs (``workers``) give the same numbers as serial ones (everything is seeded per subject).
 
 Measured (``gaitlog compare --sweep``: 4 subjects, seed 0, the paper's protocol, 96 evaluated 20 m sections
-per configuration, 15-30 s on 2 cores; the walking world of this commit):
+per configuration, ~10 s on 2 cores; pinned by ``tests/host/test_compare_figures.py``):
 
-* ADC share, per step (median ``|float - ideal|``, multi-speed K, 50 Hz): M1 3.8 / 0.96 / 0.23 mm at
-  8 / 10 / 12 bits, M2 1.4 / 0.38 / 0.09 mm, M4 0.71 / 0.19 / 0.05 mm (a quarter per two bits); the pooled
-  section-ratio medians and IQRs move by at most 0.003.
-* Arithmetic share, per step (median ``|fixed - float|``): 0.03-0.25 mm in every configuration, at most
-  0.53 % of a step; 3-14 steps per configuration (of ~4,200) with different events, no saturation, no wrap.
-* M5 (float, 10 bits, pooled IQR at 25 / 50 / 100 Hz): multi-speed 0.0147 / 0.0146 / 0.0158, with exact step
-  durations 0.0128 at 50 Hz; single-speed 0.0251 / 0.0214 / 0.0241 vs 0.0230. The step timing adds 15 %
-  (multi-speed) and 18 % (single-speed) of M5's section-ratio variance at 50 Hz, and about as much at
-  25 and 100 Hz: the step durations are off by 22 ms rms at 50 Hz and still 21 ms at 100 Hz, while the
-  sample period alone explains 8 ms (4 ms). **M5's spread does not come from the 50 Hz step timing**:
-  faster sampling does not narrow it; the timing error that matters is the event detector's jitter
-  (15-19 % of the variance), and the rest (> 80 %) is the cadence-length line itself (how each walker's
-  step length departs from ``K1/T + K2`` within and across speeds). This is a statement about the simulated
-  walkers; on the IPOL trials M5's spread (IQR 0.155 with the single-speed fallback) is likewise the
-  model's, as the reference-event analysis of ``tests/host/test_ipol_evaluation_real.py`` notes.
+* ADC share, per step (median ``|offline - ideal|``, multi-speed K, 50 Hz): M1 2.9 / 0.71 / 0.18 mm at
+  8 / 10 / 12 bits, M2 1.05 / 0.28 / 0.07 mm, M4 0.54 / 0.14 / 0.03 mm (a quarter per two bits); the pooled
+  section-ratio medians and IQRs move by at most 0.005.
+* Algorithm share (median ``|online-float - offline|``): M1 10.4-12.6 mm, M2 9.4-9.7 mm, M4 3.9 mm in every
+  configuration (the same at every width: it is the two algorithms', not the converter's); per section up to
+  0.03 in ratio, and the on-line algorithm's multi-speed M2 IQR is narrower (0.024-0.030 vs 0.046-0.050).
+* Arithmetic share, per step (median ``|online-fixed - online-float|``): 0.015-0.11 mm in every
+  configuration, at most 0.32 % of a step except one 2 cm "step" at 25 Hz (h = 0.05 mm, three
+  resolution steps of the UQ0.16 excursion: 25 % of its M1, 5 mm); 5-26 steps per configuration (of ~4,300)
+  with different events; no saturation, no wrap.
+* M5 (offline chain, 10 bits, pooled IQR at 25 / 50 / 100 Hz): multi-speed 0.0147 / 0.0141 / 0.0151, with
+  exact step durations and the same K 0.0131 at 50 Hz; single-speed 0.0248 / 0.0214 / 0.0240 vs 0.0241.
+  The step timing adds 4 % (multi-speed) and nothing measurable (single-speed) of M5's section-ratio
+  variance at 50 Hz: the step durations are off by 20 ms rms at 50 Hz and still 18 ms at 100 Hz, while
+  the sample period alone explains 8 ms (4 ms). **M5's spread does not come from the 50 Hz step timing**:
+  faster sampling does not narrow it; what there is of a timing error is the event detector's jitter, and
+  the rest is the cadence-length line itself (how each walker's step length departs from ``K1/T + K2``
+  within and across speeds). This is a statement about the simulated walkers; on the IPOL trials M5's
+  spread (IQR 0.149 with the single-speed fallback) is likewise the model's, as the reference-event
+  analysis of ``tests/host/test_ipol_evaluation_real.py`` notes.
 """
 
 from __future__ import annotations
@@ -49,17 +57,21 @@ from typing import Any, Self
 
 import numpy as np
 
-from host.compare import MODES
-from host.errors import HostError
 from firmware_sim.algorithms.steps import ESTIMATORS
+from host.compare import CHAINS, MODES, SHARES, column_key, pair_label
+from host.errors import HostError
 
 BITS = (8, 10, 12)
 RATES_HZ = (25.0, 50.0, 100.0)
-KINDS = ("ideal", "float", "fixed", "exact_timing")
-SUMMARY_COLUMNS = ("bits", "rate_hz", "mode", "estimator", "n", "median_ideal", "iqr_ideal", "median_float",
-                   "iqr_float", "median_fixed", "iqr_fixed", "iqr_exact_timing", "adc_step_mm", "arith_step_mm",
-                   "arith_step_max_rel", "adc_ratio_abs_max", "arith_ratio_abs_max", "different_events_fixed",
-                   "different_events_adc", "saturated")
+#: Section-ratio columns summarised per configuration: the chains and the exact-timing offline chain.
+KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
+#: Short names of the shares in the summary's columns.
+SHARE_COLUMNS = {"adc": "adc", "algorithm": "algorithm", "arithmetic": "arith"}
+SUMMARY_COLUMNS = (("bits", "rate_hz", "mode", "estimator", "n")
+                   + tuple(f"{q}_{k}" for k in KINDS[:-1] for q in ("median", "iqr")) + ("iqr_exact_timing",)
+                   + tuple(f"{c}_step_mm" for c in SHARE_COLUMNS.values()) + ("arith_step_max_rel",)
+                   + tuple(f"{c}_ratio_abs_max" for c in SHARE_COLUMNS.values())
+                   + tuple(f"different_events_{c}" for c in SHARE_COLUMNS.values()) + ("saturated",))
 
 
 @dataclass(frozen=True)
@@ -88,9 +100,9 @@ def _subject_job(job: tuple) -> list[ConfigResult]:
         sw = walk.sample(rate)
         ideal = None
         for bits in bits_list:
-            wc = compare_walk(sw, subject, bits=bits, ideal=ideal, **options)
-            ideal = wc.runs["ideal"]
-            fx = wc.runs["fixed"]
+            wc = compare_walk(sw, subject, bits=bits, ideal_table=ideal, **options)
+            ideal = wc.runs["ideal"].table          # the analog input: the same at every width
+            fx = wc.runs["online-fixed"]
             out.append(ConfigResult(subject.subject_id, int(bits), float(rate), wc.step_diffs, wc.segments,
                                     wc.timing, wc.saturation, fx.saturated, fx.wrapped, fx.cycles_per_sample))
     return out
@@ -176,12 +188,16 @@ def _q(v: np.ndarray) -> tuple[float, float]:
 def summarise(results: list[ConfigResult]) -> list[dict]:
     """One row per (bits, rate, mode, estimator): pooled section ratios and the per-step error split.
 
-    ``adc_step_mm`` / ``arith_step_mm``: median over subjects of the per-step median |float - ideal| and
-    |fixed - float| (multi-speed lengths, steps with the same events); ``arith_step_max_rel``: the largest
-    per-step relative fixed - float difference; ``*_ratio_abs_max``: largest per-section |ratio difference|.
+    ``median_<chain>`` / ``iqr_<chain>``: the pooled 20 m section ratios of each chain (one K per
+    configuration and mode, from its offline chain). ``adc_step_mm`` / ``algorithm_step_mm`` /
+    ``arith_step_mm``: median over subjects of the per-step median |offline - ideal|, |online-float -
+    offline| and |online-fixed - online-float| (multi-speed lengths, steps with the same events);
+    ``arith_step_max_rel``: the largest per-step relative online-fixed - online-float difference;
+    ``*_ratio_abs_max``: largest per-section |ratio difference| of each share.
     """
     out = []
     configs = sorted({(r.bits, r.rate_hz) for r in results}, key=lambda c: (c[1], c[0]))
+    labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
     for bits, rate in configs:
         rs = [r for r in results if r.bits == bits and r.rate_hz == rate]
         for mode in MODES:
@@ -189,29 +205,29 @@ def summarise(results: list[ConfigResult]) -> list[dict]:
                 seg = [s for r in rs for s in r.segments if s["mode"] == mode and s["estimator"] == est]
                 ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in KINDS}
                 row: dict[str, Any] = dict(bits=bits, rate_hz=rate, mode=mode, estimator=est, n=len(seg))
-                for k in ("ideal", "float", "fixed"):
+                for k in KINDS[:-1]:
                     row[f"median_{k}"], row[f"iqr_{k}"] = _q(ratio[k])
                 row["iqr_exact_timing"] = _q(ratio["exact_timing"])[1]
-                d = {p: [x for r in rs for x in r.step_diffs if x["pair"] == p and x["estimator"] == est]
-                     for p in ("float-ideal", "fixed-float")}
-                row["adc_step_mm"] = float(np.nanmedian([x["median_abs_mm"] for x in d["float-ideal"]]))
-                row["arith_step_mm"] = float(np.nanmedian([x["median_abs_mm"] for x in d["fixed-float"]]))
-                row["arith_step_max_rel"] = float(np.nanmax([x["max_rel"] for x in d["fixed-float"]]))
-                row["adc_ratio_abs_max"] = float(np.nanmax(np.abs(ratio["float"] - ratio["ideal"])))
-                row["arith_ratio_abs_max"] = float(np.nanmax(np.abs(ratio["fixed"] - ratio["float"])))
-                row["different_events_fixed"] = int(sum(x["n_different_events"] for x in d["fixed-float"]))
-                row["different_events_adc"] = int(sum(x["n_different_events"] for x in d["float-ideal"]))
+                d = {s: [x for r in rs for x in r.step_diffs if x["pair"] == labels[s] and x["estimator"] == est]
+                     for s in SHARES}
+                for s, (a, b) in SHARES.items():
+                    c = SHARE_COLUMNS[s]
+                    row[f"{c}_step_mm"] = float(np.nanmedian([x["median_abs_mm"] for x in d[s]]))
+                    dr = ratio[column_key(a)] - ratio[column_key(b)]
+                    row[f"{c}_ratio_abs_max"] = float(np.nanmax(np.abs(dr))) if np.any(np.isfinite(dr)) else math.nan
+                    row[f"different_events_{c}"] = int(sum(x["n_different_events"] for x in d[s]))
+                row["arith_step_max_rel"] = float(np.nanmax([x["max_rel"] for x in d["arithmetic"]]))
                 row["saturated"] = int(sum(r.saturated + r.wrapped for r in rs))
                 out.append(row)
-    return out
+    return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
 
 
 def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
     """M5's section-ratio spread vs sample rate, with and without the step-timing error (module notes).
 
     Returns ``{"rows": [...], "verdict": str}``; one row per (mode, rate): ``iqr``, ``std`` of M5's pooled
-    section ratio (float chain on ``bits``-bit codes), ``iqr_exact`` / ``std_exact`` with the world's exact
-    step durations (K refitted on them), ``timing_share`` = ``1 - std_exact² / std²`` (the part of the
+    section ratio (offline chain on ``bits``-bit codes), ``iqr_exact`` / ``std_exact`` with the world's exact
+    step durations (the same K), ``timing_share`` = ``1 - std_exact² / std²`` (the part of the
     variance the step timing adds), the rms step-duration error ``timing_rms_ms`` against the truth and
     ``sampling_rms_ms``, the part of it a sample period alone explains (``1 / (rate √6)``: the difference of
     two independent uniform roundings).
@@ -225,7 +241,7 @@ def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
         for rate in rates:
             rs = [r for r in results if r.bits == bits and r.rate_hz == rate]
             seg = [s for r in rs for s in r.segments if s["mode"] == mode and s["estimator"] == "M5"]
-            a = np.array([s["ratio_float"] for s in seg], float)
+            a = np.array([s["ratio_offline"] for s in seg], float)
             e = np.array([s["ratio_exact_timing"] for s in seg], float)
             g = np.isfinite(a) & np.isfinite(e)
             a, e = a[g], e[g]
@@ -266,24 +282,26 @@ def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
 
 def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     """Printed table of one calibration mode: section ratios and the error split per configuration."""
-    lines = [f"{mode} calibration; ratio = estimated / real per 20 m section (median, IQR); per-step split: "
-             "ADC = float - ideal, arith = fixed - float (median |d|, mm)",
-             f"{'bits':>4}{'Hz':>5} {'est':<4}{'n':>4}{'ideal':>8}{'IQR':>7}{'float':>8}{'IQR':>7}{'fixed':>8}"
-             f"{'IQR':>7}{'ADC mm':>8}{'arith mm':>9}{'arith max%':>11}{'diff.ev':>8}{'sat':>5}"]
+    lines = [f"{mode} calibration, one K per configuration (fitted on its offline chain, used by every chain); "
+             "ratio = estimated / real per 20 m section (median, IQR); per-step split (median |d|, mm): "
+             "ADC = offline - ideal, alg = online-float - offline, arith = online-fixed - online-float",
+             f"{'bits':>4}{'Hz':>5} {'est':<4}{'n':>4}{'ideal':>8}{'IQR':>7}{'offline':>8}{'IQR':>7}{'on-fl':>8}"
+             f"{'IQR':>7}{'on-fx':>8}{'IQR':>7}{'ADC mm':>8}{'alg mm':>8}{'arith mm':>9}{'arith max%':>11}"
+             f"{'diff.ev':>8}{'sat':>5}"]
     for r in summary:
         if r["mode"] != mode:
             continue
-        lines.append(f"{r['bits']:>4}{r['rate_hz']:>5.0f} {r['estimator']:<4}{r['n']:>4}{r['median_ideal']:>8.3f}"
-                     f"{r['iqr_ideal']:>7.3f}{r['median_float']:>8.3f}{r['iqr_float']:>7.3f}{r['median_fixed']:>8.3f}"
-                     f"{r['iqr_fixed']:>7.3f}{r['adc_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
-                     f"{100 * r['arith_step_max_rel']:>11.3f}{r['different_events_fixed']:>8}{r['saturated']:>5}")
+        lines.append(f"{r['bits']:>4}{r['rate_hz']:>5.0f} {r['estimator']:<4}{r['n']:>4}"
+                     + "".join(f"{r['median_' + k]:>8.3f}{r['iqr_' + k]:>7.3f}" for k in KINDS[:-1])
+                     + f"{r['adc_step_mm']:>8.3f}{r['algorithm_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
+                     f"{100 * r['arith_step_max_rel']:>11.3f}{r['different_events_arith']:>8}{r['saturated']:>5}")
     return "\n".join(lines)
 
 
 def format_m5(m5: dict) -> str:
     """Printed M5-vs-rate table and the verdict."""
-    lines = ["M5 (float chain, 10-bit codes): pooled 20 m section ratios vs sample rate; exact T = the world's step "
-             "durations (K refitted)",
+    lines = ["M5 (offline chain, 10-bit codes): pooled 20 m section ratios vs sample rate; exact T = the world's "
+             "step durations (the same K)",
              f"{'mode':<13}{'Hz':>5}{'n':>5}{'IQR':>8}{'std':>8}{'IQR exact T':>13}{'std exact T':>13}"
              f"{'timing share':>14}{'T rms ms':>10}{'sampling ms':>13}"]
     for r in m5["rows"]:

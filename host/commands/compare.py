@@ -1,10 +1,14 @@
-"""``gaitlog compare``: fixed-point vs floating-point chain (vs truth on simulated subjects); ``--sweep``.
+"""``gaitlog compare``: the offline float chain vs the on-line algorithm in float and in fixed point (vs truth
+on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the offline chain, for every chain.
 
-* ``gaitlog compare REC.npz``: a decoded recording's codes through both chains; per-step table, per-20 m
-  segment table (between MARK flags, ``--lap-m`` apart; else every 20 m of M3's distance), the per-step
-  difference summary and the saturation report.
-* ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, float, fixed
-  vs the world's truth, :mod:`host.compare`), with the error split ADC / arithmetic.
+* ``gaitlog compare REC.npz``: a decoded recording's codes through the offline chain and the on-line
+  algorithm in both arithmetics (with ``--k-file``'s K, else K = 1); per-step table, per-20 m segment table
+  (between MARK flags, ``--lap-m`` apart; else every 20 m of M3's distance), the per-step difference
+  summary and the saturation report. A recording carrying the device's own step records is first checked
+  against the host's replay, bit for bit: a difference is an error (exit 1).
+* ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, offline,
+  online-float, online-fixed vs the world's truth, :mod:`host.compare`), the error split ADC / algorithm /
+  arithmetic and its 95 % bootstrap intervals over the subjects.
 * ``gaitlog compare --sweep``: ADC 8/10/12 bits x 25/50/100 Hz over ``--subjects`` (4) simulated subjects
   (:mod:`host.sweep`) and the answer about M5 and the 50 Hz step timing.
 """
@@ -13,7 +17,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "compare the fixed-point (PIC) chain with the float chain (and truth): per step, per 20 m, --sweep"
+HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -29,7 +33,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim-rate", type=float, default=50.0, metavar="HZ", help="sample rate of --simulate (50)")
     parser.add_argument("--workers", type=int, default=2, help="processes for --simulate/--sweep (default 2)")
     parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
-                        "segments and split go beside it (_segments.csv, _split.csv / _m5.csv)")
+                        "segments, split and budget go beside it (_segments.csv, _split.csv, _budget.csv / _m5.csv)")
+    parser.add_argument("--resamples", type=int, default=2000,
+                        help="bootstrap resamples of the subjects for --simulate's intervals (default 2000)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
     parser.add_argument("--lap-m", type=float, default=20.0, metavar="M", help="distance between MARK flags (20)")
     add_anatomy_options(parser)
@@ -87,7 +93,7 @@ def _sweep(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from host.compare import columns_csv_text, format_step_diffs, rows_csv_text
+    from host.compare import bootstrap_budget, columns_csv_text, format_budget, format_step_diffs, rows_csv_text
     from host.errors import HostError
     from protocol.atomic_write import atomic_write_text, require_folder
 
@@ -97,19 +103,26 @@ def _simulate(args: argparse.Namespace) -> int:
         raise HostError(f"--bits must be 1..12, got {args.bits}")
     if not args.sim_rate > 0:
         raise HostError(f"--sim-rate must be positive, got {args.sim_rate}")
+    if args.resamples < 1:
+        raise HostError(f"--resamples must be >= 1, got {args.resamples}")
     if args.out:
         require_folder(args.out)
     results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, rate_hz=args.sim_rate,
                                    workers=args.workers)
-    print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.sim_rate:g} Hz; "
-          "K fitted per chain (multi-speed for the per-step rows)")
+    print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.sim_rate:g} Hz; one K per mode, "
+          "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
     all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
     print(format_step_diffs(_pool_diffs(all_diffs)))
     print()
     print(format_segments(results))
+    print()
+    budget = bootstrap_budget(results, n_resamples=args.resamples, seed=args.seed)
+    print(format_budget(budget, n_resamples=args.resamples, seed=args.seed))
     sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
-    print("saturation/wrap in the fixed-point chain: " + ("; ".join(sat) if sat else "none"))
+    print("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
     if args.out:
+        from host.compare import BUDGET_COLUMNS
+
         cols: dict[str, list] = {}
         for r in results:
             n = r.steps["step"].size
@@ -117,10 +130,11 @@ def _simulate(args: argparse.Namespace) -> int:
             for k, v in r.steps.items():
                 cols.setdefault(k, []).append(v)
         atomic_write_text(args.out, columns_csv_text({k: np.concatenate(v) for k, v in cols.items()}))
-        seg, split = _beside(args.out, "_segments"), _beside(args.out, "_split")
+        seg, split, bud = _beside(args.out, "_segments"), _beside(args.out, "_split"), _beside(args.out, "_budget")
         atomic_write_text(seg, rows_csv_text([s for r in results for s in r.segments]))
         atomic_write_text(split, rows_csv_text(all_diffs))
-        print(f"written: {args.out}, {seg}, {split}")
+        atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
+        print(f"written: {args.out}, {seg}, {split}, {bud}")
     return 0
 
 
@@ -158,7 +172,7 @@ def _pool_diffs(rows: list[dict]) -> list[dict]:
             keys.append((r["pair"], r["estimator"]))
     for pair, est in keys:
         rs = [r for r in rows if r["pair"] == pair and r["estimator"] == est]
-        out.append(dict(pair=pair, estimator=est, n=sum(r["n"] for r in rs),
+        out.append(dict(share=rs[0].get("share", ""), pair=pair, estimator=est, n=sum(r["n"] for r in rs),
                         median_abs_mm=float(np.nanmedian([r["median_abs_mm"] for r in rs])),
                         p95_abs_mm=float(np.nanmax([r["p95_abs_mm"] for r in rs])),
                         max_abs_mm=float(np.nanmax([r["max_abs_mm"] for r in rs])),
@@ -169,24 +183,27 @@ def _pool_diffs(rows: list[dict]) -> list[dict]:
 
 
 def format_segments(results: list) -> str:
-    """Per estimator and mode: section-ratio median/IQR of truth-free chains and the split in ratio."""
+    """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
     import numpy as np
 
-    lines = ["20 m sections: ratio estimated / real (median, IQR); ADC = float - ideal, arith = fixed - float "
-             "(max |difference in ratio|)",
-             f"{'mode':<13}{'est':<5}{'n':>4}{'ideal':>8}{'IQR':>7}{'float':>8}{'IQR':>7}{'fixed':>8}{'IQR':>7}"
-             f"{'ADC max':>9}{'arith max':>10}"]
+    from host.compare import CHAINS, SHARES, column_key
+
+    lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
+             "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
+             f"{'mode':<13}{'est':<5}{'n':>4}" + "".join(f"{c:>13}{'IQR':>7}" for c in CHAINS)
+             + f"{'ADC max':>9}{'alg max':>9}{'arith max':>10}"]
     segs = [s for r in results for s in r.segments]
     for mode in ("single-speed", "multi-speed"):
         for est in ("M1", "M2", "M3", "M4", "M5"):
             sel = [s for s in segs if s["mode"] == mode and s["estimator"] == est]
             if not sel:
                 continue
-            v = {k: np.array([s[f"ratio_{k}"] for s in sel], float) for k in ("ideal", "float", "fixed")}
+            v = {k: np.array([s[f"ratio_{column_key(k)}"] for s in sel], float) for k in CHAINS}
             q = {k: np.percentile(x, [25, 50, 75]) for k, x in v.items()}
             lines.append(f"{mode:<13}{est:<5}{len(sel):>4}" + "".join(
-                f"{q[k][1]:>8.3f}{q[k][2] - q[k][0]:>7.3f}" for k in ("ideal", "float", "fixed"))
-                + f"{np.max(np.abs(v['float'] - v['ideal'])):>9.4f}{np.max(np.abs(v['fixed'] - v['float'])):>10.5f}")
+                f"{q[k][1]:>13.3f}{q[k][2] - q[k][0]:>7.3f}" for k in CHAINS)
+                + "".join(f"{np.max(np.abs(v[a] - v[b])):>{w}.{p}f}"
+                          for (a, b), w, p in zip(SHARES.values(), (9, 9, 10), (4, 4, 5))))
     return "\n".join(lines)
 
 
@@ -196,17 +213,26 @@ def _recording(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from host.compare import columns_csv_text, compare_recording, format_step_diffs, rows_csv_text
+    from firmware_sim.algorithms.steps import ESTIMATORS
+    from host.compare import (
+        check_device_records,
+        columns_csv_text,
+        compare_recording,
+        format_step_diffs,
+        rows_csv_text,
+    )
     from host.errors import HostError
     from host.estimators.anthropometry import anatomical_lengths
-    from firmware_sim.algorithms.steps import ESTIMATORS
     from host.estimators.calibration import KCalibration
-    from protocol.atomic_write import atomic_write_text
+    from protocol.atomic_write import atomic_write_text, require_folder
     from protocol.header import Calibration
+    from protocol.packing import FLAG_MARK, FLAG_SESSION_START
 
     p = Path(args.input)
     if not p.is_file():
         raise HostError(f"{p}: no such file")
+    if args.out:
+        require_folder(args.out)
     if p.suffix.lower() == ".npz":
         from host.recording import Recording
 
@@ -215,6 +241,11 @@ def _recording(args: argparse.Namespace) -> int:
         from host.decode import decode_file
 
         rec = decode_file(p)
+    # the device's own records first: a device that does not compute what the host replays is an error
+    check = check_device_records(rec)
+    if check is not None and check.n_compared and not check.identical:
+        end, what = check.mismatches[0]
+        raise HostError(f"{p}: {check.summary()}; the first differing record ends at sample {end}: {what}")
     cal, note = rec.default_calibration()
     if args.calibration:
         from host.calibration import AccCalibration
@@ -222,7 +253,7 @@ def _recording(args: argparse.Namespace) -> int:
         acc_cal = AccCalibration.load(args.calibration)
         if getattr(acc_cal, "input_unit", "counts") != "counts":
             raise HostError(f"{args.calibration}: calibration input unit is {acc_cal.input_unit!r}; "
-                            "the fixed-point chain needs one fitted on ADC counts")
+                            "the on-line algorithm needs one fitted on ADC counts")
         cal, note = Calibration(acc_cal.offset, acc_cal.matrix, valid=True), f"g from {args.calibration}"
     k = KCalibration.load(args.k_file) if args.k_file else None
     leg_arg = args.leg_length if args.leg_length is not None or k is None or args.height else k.leg_length_m
@@ -230,28 +261,34 @@ def _recording(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         leg, foot = anatomical_lengths(leg_length_m=leg_arg, foot_length_m=foot_arg, height_m=args.height)
-    marks = np.flatnonzero((np.asarray(rec.flags) & 2) != 0)
+    flags = np.asarray(rec.flags)
+    marks = np.flatnonzero((flags & FLAG_MARK) != 0)
+    starts = np.flatnonzero(((flags & FLAG_SESSION_START) != 0) & np.asarray(rec.valid, bool))
     t = rec.time_s
     res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                             foot_length_m=foot, adc_calibration=cal, code_bits=int(rec.adc_bits), valid=rec.valid,
                             calibration=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=args.lap_m,
-                            t0_s=float(t[0]) if t.size else 0.0)
-    m = res.match
+                            t0_s=float(t[0]) if t.size else 0.0, run_starts=starts)
     print(f"{p}: {rec.n_samples} samples at {rec.sampling_rate_hz:g} Hz ({rec.n_missing} missing); {note}")
-    print(f"leg length {leg:.3f} m, foot length {foot:.3f} m; K file: {args.k_file or 'none (M4/M5 n/a)'}")
-    print(f"steps: float {res.float_table.n_steps}, fixed {res.fixed_table.n_steps}; matched {m.n_matched}, "
-          f"with different events {int(np.count_nonzero(~m.same_events))}, only float {m.only_b.size}, "
-          f"only fixed {m.only_a.size}")
+    print(check.summary() if check is not None else "device step records: none in this recording")
+    print(f"leg length {leg:.3f} m, foot length {foot:.3f} m; K file: {args.k_file or 'none (K = 1, M4/M5 n/a)'}"
+          " (the same K for every chain)")
+    tb = res.tables
+    print("steps: " + ", ".join(f"{c} {tb[c].n_steps}" for c in tb) + "; " + "; ".join(
+        f"{s}: matched {m.n_matched}, different events {int(np.count_nonzero(~m.same_events))}, "
+        f"found by one chain only {m.only_a.size + m.only_b.size}" for s, m in res.matches.items()))
     print(format_step_diffs(res.step_diffs))
-    print(f"segments: {res.segment_source}")
-    print(f"{'seg':>4}{'t0 s':>8}{'t1 s':>8}" + "".join(f"{e + ' float m':>12}{'fx-fl mm':>9}" for e in ESTIMATORS))
+    print(f"segments: {res.segment_source}; alg = online-float - offline, arith = online-fixed - online-float")
+    print(f"{'seg':>4}{'t0 s':>8}{'t1 s':>8}" + "".join(f"{e + ' offline m':>13}{'alg mm':>9}{'arith mm':>9}"
+                                                      for e in ESTIMATORS))
     for i in sorted({r["section"] for r in res.segments}):
         rs = {r["estimator"]: r for r in res.segments if r["section"] == i}
         r0 = rs["M1"]
         print(f"{i:>4}{r0['t_start_s']:>8.1f}{r0['t_end_s']:>8.1f}" + "".join(
-            f"{rs[e]['float_m']:>12.3f}{1e3 * rs[e]['diff_m']:>9.2f}" for e in ESTIMATORS))
-    print(f"saturation/wrap in the fixed-point chain: {res.saturation or 'none'}; "
-          f"estimated PIC cycles per sample {res.cycles_per_sample:.0f}")
+            f"{rs[e]['offline_m']:>13.3f}{1e3 * rs[e]['algorithm_m']:>9.2f}{1e3 * rs[e]['arithmetic_m']:>9.2f}"
+            for e in ESTIMATORS))
+    print(f"saturation/wrap in the fixed-point run: {res.saturation or 'none'}; "
+          f"PIC cycles per sample {res.cycles_per_sample:.0f} (mean)")
     for c in caught:
         print(f"warning: {c.message}")
     if args.out:

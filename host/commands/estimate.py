@@ -15,8 +15,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
     parser.add_argument("--arithmetic", choices=["float", "fixed", "both"], default="float",
-                        help="float host chain (default), the PIC's fixed-point chain on the ADC codes (a decoded "
-                        ".npz input), or both (the fixed table goes to <out>_fixed.csv)")
+                        help="float: the offline host chain (default); fixed: the logger's on-line algorithm in "
+                        "the PIC's fixed point on the ADC codes (a decoded .npz input); both (the fixed table goes "
+                        "to <out>_fixed.csv); the same K for both")
     add_anatomy_options(parser)
 
 
@@ -66,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
         n_bouts = int(np.unique(steps.bout).size) if steps.n_steps else 0
         print((f"arithmetic = {arith}: " if args.arithmetic != "float" else "")
               + f"{steps.n_steps} steps in {n_bouts} walking bout(s)"
+              + (" (the on-line algorithm in fixed point)" if arith == "fixed" else "")
               + (f"; fixed-point saturation/wrap: {fixed_report or 'none'}" if arith == "fixed" else ""))
         print(f"{'estimator':<10}{'distance_m':>12}{'median_step_m':>15}{'steps_filled':>14}")
         for name in ESTIMATORS:
@@ -83,13 +85,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
-    """The fixed-point chain on the codes of a decoded recording -> (StepTable, saturation report)."""
+    """The on-line algorithm in fixed point (the logger's) on the codes of a decoded recording, with the same
+    K as the float chain -> (StepTable, saturation report)."""
     from pathlib import Path
 
-    from host.compare import fixed_step_table
+    import numpy as np
+
+    from host.compare import online_step_table
     from host.errors import HostError
     from host.recording import Recording
     from protocol.header import Calibration
+    from protocol.packing import FLAG_SESSION_START
 
     if Path(args.input).suffix.lower() != ".npz":
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a decoded recording "
@@ -100,8 +106,13 @@ def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
         from host.calibration import AccCalibration
 
         acc_cal = AccCalibration.load(args.calibration)
+        if getattr(acc_cal, "input_unit", "counts") != "counts":
+            raise HostError(f"{args.calibration}: calibration input unit is {acc_cal.input_unit!r}; "
+                            "the on-line algorithm needs one fitted on ADC counts")
         adc_cal = Calibration(acc_cal.offset, acc_cal.matrix, valid=True)
-    table, chain = fixed_step_table(rec.codes, sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
-                                    foot_length_m=foot, calibration=cal, adc_calibration=adc_cal,
-                                    code_bits=int(rec.adc_bits), valid=rec.valid)
-    return table, chain.ctx_.report()
+    valid = np.asarray(rec.valid, bool)
+    starts = np.flatnonzero(((np.asarray(rec.flags) & FLAG_SESSION_START) != 0) & valid)
+    table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
+                                   foot_length_m=foot, calibration=cal, adc_calibration=adc_cal,
+                                   code_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
+    return table, alg.arithmetic_context().report()

@@ -1,39 +1,70 @@
-"""The paper's evaluation on the real IPOL recordings replayed through the emulated logger (50 Hz, 10 bits).
+"""The paper's evaluation on the real IPOL recordings replayed through the emulated logger (50 Hz, 10 bits), with
+the logger's on-line step algorithm on; the offline chain and the on-line algorithm in float and in fixed point
+with ONE K per subject (fitted on trial 1 with the offline chain).
 
-Asserts the issue's Done-means thresholds from the CSV that ``gaitlog evaluate ipol`` writes, with the
-statistics computed here (not by the code under test). M4's interquartile range is at the threshold
-(0.098-0.105 as the sensor model and the heel-strike rule changed; 0.103 now) and marked as a non-strict
-expected failure; M5's (0.149 now) is an expected failure:
-with K fitted on one 20 m trial at one speed, even the *reference* step events give M5 an IQR of 0.109 on
-these trials (walk-ratio model; 0.119 for a constant step length), so no detector can reach 0.10.
+``gaitlog evaluate ipol`` runs once (module fixture, ~5 s); every figure is computed here from the CSVs it
+writes (not by the code under test) and pinned near what is measured. M4's and M5's interquartile ranges
+miss the issue's 0.10 with the offline chain (0.103 and 0.149: strict expected failures): with K fitted on
+one 20 m trial at one speed, even the *reference* step events give M5 an IQR of 0.109 on these trials
+(walk-ratio model; 0.119 for a constant step length), so no detector can reach 0.10.
+
+None of the on-line algorithm's constants was tuned on these trials (its gravity time constant comes from a
+ripple rule, ``firmware_sim/algorithms/parameters.py``); K is fitted per subject on trial 1 and scored on the
+others, never on the trial it scores.
 """
 
 from __future__ import annotations
 
 import csv
+import re
+import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from host.cli import main
 
-pytestmark = pytest.mark.slow  # ~15-35 s: 52 trials through the emulated logger
+pytestmark = pytest.mark.slow  # ~5 s: 52 trials through the emulated logger, once per module
+
+ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")
 
 
 @pytest.fixture(scope="module")
-def ipol_rows(shared_data, tmp_path_factory):
-    folder = shared_data / "ipol-lowerback-dev"
-    if not folder.is_dir():
+def folder(shared_data):
+    f = shared_data / "ipol-lowerback-dev"
+    if not f.is_dir():
         pytest.skip("ipol-lowerback-dev not present")
+    return f
+
+
+@pytest.fixture(scope="module")
+def ipol(folder, tmp_path_factory):
+    import contextlib
+    import io
+
     out = tmp_path_factory.mktemp("ipol") / "eval.csv"
-    assert main(["evaluate", "ipol", str(folder), "--out", str(out)]) == 0
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        assert main(["evaluate", "ipol", str(folder), "--out", str(out)]) == 0
     assert out.with_suffix(".png").stat().st_size > 1000
     with open(out, newline="") as fh:
-        return list(csv.DictReader(fh))
+        rows = list(csv.DictReader(fh))
+    with open(out.with_name("eval_steps.csv"), newline="") as fh:
+        steps = list(csv.DictReader(fh))
+    return SimpleNamespace(rows=rows, steps=steps, text=text.getvalue())
 
 
-def ratios(rows, name, arithmetic="float"):
-    return np.array([float(r["ratio"]) for r in rows if r["estimator"] == name and r["arithmetic"] == arithmetic])
+def ratios(rows, name, arithmetic="offline", k_from="offline"):
+    return np.array([float(r["ratio"]) for r in rows
+                     if r["estimator"] == name and r["arithmetic"] == arithmetic and r["k_from"] == k_from])
+
+
+def ratio_pairs(rows, name, a, b):
+    by = {(r["subject"], r["trial"], r["arithmetic"]): float(r["ratio"]) for r in rows
+          if r["estimator"] == name and r["k_from"] == "offline"}
+    keys = sorted({k[:2] for k in by})
+    return np.array([by[k + (a,)] for k in keys]), np.array([by[k + (b,)] for k in keys])
 
 
 def iqr(x):
@@ -41,40 +72,175 @@ def iqr(x):
     return q3 - q1
 
 
-def test_csv_layout(ipol_rows) -> None:
-    assert list(ipol_rows[0]) == ["subject", "trial", "estimator", "arithmetic", "distance_m", "ratio", "steps",
-                                  "reference_steps"]
-    assert {r["arithmetic"] for r in ipol_rows} == {"float", "fixed"}
-    assert len(ipol_rows) == 2 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 2 arithmetics
-    for r in ipol_rows:
+def test_csv_layout(ipol) -> None:
+    rows = ipol.rows
+    assert list(rows[0]) == ["subject", "trial", "estimator", "arithmetic", "k_from", "distance_m", "ratio", "steps",
+                             "reference_steps"]
+    kinds = {(r["arithmetic"], r["k_from"]) for r in rows}
+    assert kinds == {("offline", "offline"), ("online-float", "offline"), ("online-fixed", "offline"),
+                     ("online-fixed", "own")}
+    assert len(rows) == 4 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 4 kinds
+    for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
 
+def test_device_records_equal_the_host_replay(ipol) -> None:
+    """Issue 10 (a): every trial's stored step records are the host's replay byte for byte (1,950 records)."""
+    m = re.search(r"device step records = host replay, byte for byte: (\d+) of (\d+) trials, (\d+) of (\d+) records",
+                  ipol.text)
+    assert m, ipol.text
+    a, b, c, d = map(int, m.groups())
+    assert a == b == 52 and c == d and d >= 1900
+
+
+def test_device_records_are_the_algorithm_run_here(folder) -> None:
+    """The same, checked without host.replay on three trials: the algorithm built here from the header's
+    configuration, run over the stored codes, gives the stored records field by field."""
+    from firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from host.ipol import list_trials
+    from host.ipol_evaluation import replay_trial
+    from protocol.steps import STEP_RECORD_DTYPE
+
+    for path in list_trials(folder)[:3]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            rt = replay_trial(path)
+        h = rt.header
+        assert h.step_config.enabled and not h.step_config.calibrated
+        alg = OnlineStepAlgorithm(sampling_rate_hz=h.sample_rate_hz, step_config=h.step_config,
+                                  calibration=h.calibration, arithmetic="fixed", code_bits=h.adc_bits)
+        mine = alg.run(rt.codes).to_records(int(rt.sample_numbers[0]))
+        dev = rt.device_records
+        assert dev.size == mine.size > 20, path.name
+        for name in STEP_RECORD_DTYPE.names:
+            if name != "record_crc":
+                np.testing.assert_array_equal(dev[name], mine[name], err_msg=f"{path.name}: {name}")
+
+
+def test_arithmetic_share_per_step(ipol) -> None:
+    """Issue 10 (c): on-line fixed vs on-line float, same codes, same K, per step: median |d| <= 0.1 mm
+    (0.014-0.063 mm measured) and at most 1 % of a step (0.29 %); events differ on 6 of 1,949 steps."""
+    st = ipol.steps
+    same = np.array([r["same_events_arithmetic"] == "1" for r in st])
+    matched = np.array([int(r["online_fixed_step"]) >= 0 for r in st])
+    assert matched.sum() >= 0.99 * len(st) and len(st) > 1900
+    assert (matched & ~same).sum() <= 0.01 * matched.sum()
+    for e in ESTIMATORS:
+        k = e.lower()
+        x = np.array([float(r[f"{k}_online_fixed_m"] or "nan") for r in st])
+        y = np.array([float(r[f"{k}_online_float_m"] or "nan") for r in st])
+        g = same & np.isfinite(x) & np.isfinite(y)
+        assert g.sum() > 1500, e
+        d = np.abs(x[g] - y[g])
+        assert 1e3 * np.median(d) <= 0.1, e
+        assert np.max(d / y[g]) <= 0.01, e
+        assert np.max(d / y[g]) <= 0.004, e                 # measured 0.29 % at most (M1)
+
+
+def test_arithmetic_share_in_distance(ipol) -> None:
+    """Per trial, |ratio fixed - ratio float| median ~1e-4, at most 0.0035 (M1); the same steps counted."""
+    for e in ESTIMATORS:
+        a, b = ratio_pairs(ipol.rows, e, "online-fixed", "online-float")
+        assert a.size == 43
+        assert np.median(np.abs(a - b)) <= 3e-4, e
+        assert np.max(np.abs(a - b)) <= 0.005, e
+    steps = {(r["subject"], r["trial"], r["arithmetic"]): r["steps"] for r in ipol.rows if r["k_from"] == "offline"}
+    for (s, t, a), n in steps.items():
+        if a == "online-fixed":
+            assert n == steps[(s, t, "online-float")], (s, t)
+
+
+# measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
+ALGORITHM_SHARE = {"M1": 0.0093, "M2": 0.0087, "M3": 0.0070, "M4": 0.0042, "M5": 0.0036}
+
+
+@pytest.mark.parametrize("name", ESTIMATORS)
+def test_algorithm_share_in_distance(ipol, name) -> None:
+    """Issue 10 (c): on-line float vs offline float, one K: median |d ratio| <= 0.01 for M2 and M4; all five
+    pinned near what is measured (steps counted differently by one or two, in a few trials, make the max)."""
+    a, b = ratio_pairs(ipol.rows, name, "online-float", "offline")
+    med = float(np.median(np.abs(a - b)))
+    if name in ("M2", "M4"):
+        assert med <= 0.01
+    assert med == pytest.approx(ALGORITHM_SHARE[name], abs=0.002)
+    printed = ipol.text.split("on-line float vs offline, distance ratio per trial")[1].split("\n")[0]
+    assert f"{name} {med:.4f}" in printed
+
+
+@pytest.mark.parametrize("arithmetic", ["online-float", "online-fixed"])
+@pytest.mark.parametrize("name, measured", [("M2", 1.020), ("M4", 0.999)])
+def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
+    """Issue 10 (c): the on-line algorithm with the offline chain's K: M2 and M4 median ratio within 1 +- 0.03."""
+    med = np.median(ratios(ipol.rows, name, arithmetic))
+    assert abs(med - 1.0) <= 0.03
+    assert med == pytest.approx(measured, abs=0.005)
+
+
+@pytest.mark.parametrize("name, measured", [("M1", 1.028), ("M2", 1.017), ("M4", 0.999), ("M5", 1.006)])
+def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
+    """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1)."""
+    assert "a different K, not a comparison" in ipol.text
+    r = ratios(ipol.rows, name, "online-fixed", "own")
+    assert r.size == 43
+    assert np.median(r) == pytest.approx(measured, abs=0.005)
+    if name == "M4":
+        assert iqr(r) == pytest.approx(0.116, abs=0.005)
+
+
+# The README's table: median ratio, IQR (and min, max offline) with the offline chain's K
+README_TABLE = {
+    "offline": {"M1": (1.045, 0.078, 0.862, 1.147), "M2": (1.015, 0.063, 0.822, 1.118),
+                "M3": (1.022, 0.056, 0.883, 1.150), "M4": (0.998, 0.103, 0.839, 1.108),
+                "M5": (1.004, 0.149, 0.789, 1.268)},
+    "online-fixed": {"M1": (1.046, 0.081), "M2": (1.020, 0.071), "M3": (1.020, 0.075), "M4": (0.999, 0.099),
+                     "M5": (1.000, 0.175)},
+}
+
+
+@pytest.mark.parametrize("arithmetic", list(README_TABLE))
+@pytest.mark.parametrize("name", ESTIMATORS)
+def test_readme_table(ipol, arithmetic, name) -> None:
+    r = ratios(ipol.rows, name, arithmetic)
+    want = README_TABLE[arithmetic][name]
+    got = (np.median(r), iqr(r), r.min(), r.max())[:len(want)]
+    np.testing.assert_allclose(got, want, atol=0.0015)
+
+
+def test_online_m4_iqr_meets_the_target(ipol) -> None:
+    """With the offline chain's K, the on-line algorithm's M4 IQR is 0.099 (offline 0.103, an expected failure)."""
+    assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
+
+
 @pytest.mark.parametrize("name", ["M2", "M4", "M5"])
-def test_calibrated_median(ipol_rows, name) -> None:
-    assert abs(np.median(ratios(ipol_rows, name)) - 1.0) <= 0.03
+def test_calibrated_median(ipol, name) -> None:
+    assert abs(np.median(ratios(ipol.rows, name)) - 1.0) <= 0.03
 
 
-def test_m2_iqr(ipol_rows) -> None:
-    assert iqr(ratios(ipol_rows, "M2")) <= 0.10
+def test_m2_iqr(ipol) -> None:
+    assert iqr(ratios(ipol.rows, "M2")) <= 0.10
 
 
-@pytest.mark.xfail(reason="M4 IQR sits at 0.098-0.105 (0.103 now): S ~ range^(1/4) follows the "
-                          "trial-to-trial step-length changes of these subjects only weakly", strict=False)
-def test_m4_iqr(ipol_rows) -> None:
-    assert iqr(ratios(ipol_rows, "M4")) <= 0.10
+@pytest.mark.xfail(reason="offline M4 IQR 0.103 (0.098-0.105 as the sensor model and the heel-strike rule "
+                          "changed): S ~ range^(1/4) follows the trial-to-trial step-length changes of these "
+                          "subjects only weakly", strict=True)
+def test_m4_iqr(ipol) -> None:
+    assert iqr(ratios(ipol.rows, "M4")) <= 0.10
 
 
-@pytest.mark.xfail(reason="M5 calibrated on one speed: IQR >= 0.109 even with reference step events", strict=False)
-def test_m5_iqr(ipol_rows) -> None:
-    assert iqr(ratios(ipol_rows, "M5")) <= 0.10
+@pytest.mark.xfail(reason="M5 calibrated on one speed: IQR >= 0.109 even with reference step events", strict=True)
+def test_m5_iqr(ipol) -> None:
+    assert iqr(ratios(ipol.rows, "M5")) <= 0.10
 
 
-def test_m3_uncalibrated_median(ipol_rows) -> None:
-    assert abs(np.median(ratios(ipol_rows, "M3")) - 1.0) <= 0.10
+def test_m3_uncalibrated_median(ipol) -> None:
+    assert abs(np.median(ratios(ipol.rows, "M3")) - 1.0) <= 0.10
 
 
-def test_step_count_median_error(ipol_rows) -> None:
-    rows = [r for r in ipol_rows if r["estimator"] == "M2" and r["arithmetic"] == "float"]
+def test_step_count_median_error(ipol) -> None:
+    rows = [r for r in ipol.rows if r["estimator"] == "M2" and r["arithmetic"] == "offline"]
     err = [abs(int(r["steps"]) - int(r["reference_steps"])) / int(r["reference_steps"]) for r in rows]
     assert np.median(err) <= 0.03
+
+
+def test_nothing_saturates(ipol) -> None:
+    assert "fixed-point saturation/wrap: none" in ipol.text

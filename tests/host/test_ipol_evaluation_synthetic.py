@@ -62,12 +62,21 @@ def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = evaluate_folder(tmp_path)
-    assert res.n_trials == 1 and len(res.rows) == 5
-    by = {r["estimator"]: r for r in res.rows}
-    for name in ("M1", "M2", "M4", "M5"):
-        assert by[name]["ratio"] == pytest.approx(1.0, abs=0.03)
-    assert by["M2"]["reference_steps"] == 34
-    assert abs(by["M2"]["steps"] - 34) <= 1
+    # one scored trial: 5 estimators x 3 arithmetics with the offline K, + 5 on-line fixed rows with its own K
+    assert res.n_trials == 1 and len(res.rows) == 20
+    assert [(r["arithmetic"], r["k_from"]) for r in res.rows[::5]] == [
+        ("offline", "offline"), ("online-float", "offline"), ("online-fixed", "offline"), ("online-fixed", "own")]
+    for arith, k_from in (("offline", "offline"), ("online-fixed", "offline"), ("online-fixed", "own")):
+        by = {r["estimator"]: r for r in res.rows if r["arithmetic"] == arith and r["k_from"] == k_from}
+        for name in ("M1", "M2", "M4", "M5"):
+            assert by[name]["ratio"] == pytest.approx(1.0, abs=0.03), (arith, k_from, name)
+        assert by["M2"]["reference_steps"] == 34
+        assert abs(by["M2"]["steps"] - 34) <= 1
+    # the logger ran its on-line algorithm: its records are the host's replay, byte for byte
+    assert [c["trial"] for c in res.replay_checks] == ["1-1_lb.txt", "1-2_lb.txt"]
+    assert all(c["n_identical"] == c["n_compared"] == c["n_device"] > 30 for c in res.replay_checks)
+    # one K for every arithmetic: the offline chain's
+    assert set(res.calibrations) == set(res.calibrations_own) == {1}
 
 
 def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
@@ -80,9 +89,15 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     assert "M3" in text and "median" in text
     with open(out, newline="") as fh:
         rows = list(csv.DictReader(fh))
-    assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"] * 2
-    assert [r["arithmetic"] for r in rows] == ["float"] * 5 + ["fixed"] * 5
+    assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"] * 4
+    assert [r["arithmetic"] for r in rows] == ["offline"] * 5 + ["online-float"] * 5 + ["online-fixed"] * 10
+    assert [r["k_from"] for r in rows] == ["offline"] * 15 + ["own"] * 5
+    assert "device step records = host replay, byte for byte: 2 of 2 trials" in text
+    assert "a different K, not a comparison" in text
     assert out.with_suffix(".png").stat().st_size > 1000
+    with open(out.with_name("eval_steps.csv"), newline="") as fh:
+        steps = list(csv.DictReader(fh))
+    assert {r["trial"] for r in steps} == {"1", "2"} and len(steps) > 60
     assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "12"]) == 1
 
 
@@ -99,3 +114,31 @@ def test_unreadable_trial_and_single_trial_subject_are_skipped_and_listed(tmp_pa
     with open(out, newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert {(r["subject"], r["trial"]) for r in rows} == {("3", "2")}
+
+
+def test_device_records_that_differ_are_an_error(tmp_path, monkeypatch, capsys) -> None:
+    """A logger whose stored records differ from the host's replay (here one M2 length, CRC recomputed: a
+    firmware bug) stops the evaluation with an error naming the trial and the record; nothing is written."""
+    import host.ipol_evaluation as ie
+    from protocol.steps import STEP_RECORD_DTYPE, pack_step_records
+
+    write_ipol_trial(tmp_path, 5, 1, seed=9)
+    write_ipol_trial(tmp_path, 5, 2, seed=10)
+    real = ie.replay_trial
+
+    def tampered(path, **kw):
+        rt = real(path, **kw)
+        if path.name != "5-2_lb.txt":
+            return rt
+        rec = rt.device_records.copy()
+        rec["length_m2_q14"][4] += 1
+        rec = np.frombuffer(pack_step_records(rec), dtype=STEP_RECORD_DTYPE).copy()
+        object.__setattr__(rt, "device_records", rec)
+        return rt
+
+    monkeypatch.setattr(ie, "replay_trial", tampered)
+    out = tmp_path / "eval.csv"
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "5-2_lb.txt" in err and "1 DIFFERENT" in err and "length_m2_q14: device" in err
+    assert not out.exists() and not out.with_suffix(".png").exists()

@@ -27,7 +27,7 @@ def test_every_configuration_is_there(sweep) -> None:
     assert {(r.bits, r.rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
     assert len(sweep.summary_) == 6 * 2 * 5
     text = format_summary(sweep.summary_) + format_m5(sweep.m5_)
-    assert "multi-speed calibration" in text and "M5 (float chain, 10-bit codes)" in text
+    assert "multi-speed calibration" in text and "M5 (offline chain, 10-bit codes)" in text
 
 
 @pytest.mark.parametrize("rate", [25.0, 100.0])
@@ -49,12 +49,23 @@ def test_m1_adc_share_is_a_bias_of_where_one_g_falls(sweep, rate) -> None:
     assert max(e8, e10, e12) < 14.0
 
 
-def test_arithmetic_share_is_below_a_millimetre_everywhere(sweep) -> None:
+def test_arithmetic_share_is_a_tenth_of_a_millimetre_everywhere(sweep) -> None:
+    """The on-line algorithm in fixed vs float point, one K per configuration: 0.01-0.11 mm per step (median)
+    at every width and rate, at most 0.07 % of a step; nothing saturates."""
     for r in sweep.summary_:
-        assert r["arith_step_mm"] <= 1.0, r
+        assert r["arith_step_mm"] <= 0.15, r
+        assert r["arith_step_max_rel"] <= 0.002, r
         assert r["saturated"] == 0, r
-        if r["estimator"] != "M3":          # M3's single-support excursion can flip on near-ties at 25 Hz
-            assert r["arith_step_max_rel"] <= 0.01, r
+
+
+@pytest.mark.parametrize("rate", [25.0, 100.0])
+def test_algorithm_share_does_not_depend_on_the_adc(sweep, rate) -> None:
+    """online-float - offline is the algorithms' difference (causal gravity, on-line events), not the
+    converter's: the same within 10 % at 8, 10 and 12 bits, and tens of times the arithmetic's share."""
+    for est in ("M1", "M2", "M4"):
+        a = [row(sweep, b, rate, est)["algorithm_step_mm"] for b in (8, 10, 12)]
+        assert max(a) <= 1.1 * min(a), (est, a)
+        assert min(a) > 10 * max(row(sweep, b, rate, est)["arith_step_mm"] for b in (8, 10, 12)), est
 
 
 def test_step_timing_error_falls_with_the_rate(sweep) -> None:
@@ -77,7 +88,7 @@ def _m5_results(timing_sd: dict[float, float], model_sd: float = 0.03) -> list:
     out = []
     for rate, sd in timing_sd.items():
         tim = rng.normal(0.0, sd, model.size)
-        segs = [dict(mode="multi-speed", estimator="M5", ratio_float=m + t, ratio_exact_timing=m)
+        segs = [dict(mode="multi-speed", estimator="M5", ratio_offline=m + t, ratio_exact_timing=m)
                 for m, t in zip(model, tim)]
         out.append(ConfigResult("S00", 10, rate, [], segs, dict(rms_ms=1000 / rate / 6 ** 0.5), "", 0, 0, 0.0))
     return out
