@@ -1,25 +1,27 @@
-"""The firmware's step chain in the PIC16F877's fixed-point arithmetic (``firmware_sim.fixedpoint``).
+"""The firmware's step algorithm: on-line (causal, sample by sample, bounded state), one text, two arithmetics.
 
-It mirrors the float chain of ``host.gait`` / ``host.estimators`` class for class, with the same parameters
-and event definitions, so that fixed and float differ only by arithmetic. It starts from the 10-bit ADC
-codes and returns integers in documented Q formats (``formats``), converted to SI units only at the edge.
+The logger runs it while logging (``firmware_sim.firmware``) in the PIC's fixed point; the host runs the
+same definition to replay a dump bit for bit, or in floating point to see what the arithmetic costs. The
+rules it shares with the host's offline chain (``host.gait``: the paper's PC processing) are defined here,
+below the host, once.
 
 Modules
 -------
+parameters
+    The rules and constants (cut-offs, step limits, prominence, search windows, the rounding of durations
+    to samples, the minimum-distance rule), shared with the offline chain.
+arithmetic
+    The operations the algorithm uses; the type of the values selects float or the PIC's fixed point.
 formats
-    The Q formats of the chain and the RAM its state takes.
+    The Q formats of every value in fixed point.
+kernel
+    The per-sample program (compiled by numba, once per arithmetic).
+state
+    The RAM it keeps: the declared state slots and the kernel's declared temporaries.
+online
+    :class:`~.online.OnlineStepAlgorithm`: configure, feed samples, get one record per foot-flat.
 calibration
-    ``a = M (codes - offset)`` with the header's calibration quantised to 16-bit words.
-axes
-    Vertical acceleration from the moving-mean gravity (projection, integer square root and divide).
-lowpass
-    Centred Gaussian FIR low-pass with integer weights over the measured samples.
-events
-    Foot-flat, heel-strike and toe-off on the integer signals (:class:`FixedGaitEventDetector`).
-integration
-    Per-step double integration in saturating 32-bit accumulators (M1 resets, M2 drift correction).
-pendulum, two_phase, weinberg, cadence
-    M1-M5 in integer arithmetic.
-chain
-    ADC codes -> per-step table (:class:`FixedStepChain`).
+    The device calibration as the PIC keeps it (offsets, block-floating-point matrix).
+steps
+    The per-step table both chains fill (:class:`~.steps.StepTable`) and the estimator names.
 """

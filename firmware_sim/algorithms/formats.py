@@ -12,7 +12,8 @@ from firmware_sim.fixedpoint import QFormat
 
 __all__ = [
     "ACC_Q", "GRAVITY_Q", "ACC2_Q", "KERNEL_Q", "FIR_SUM_Q", "LOWPASS_Q", "VELOCITY_Q", "POSITION_Q",
-    "POSITION2_Q", "EXCURSION_Q", "LENGTH_Q", "TWO_LENGTH_Q", "PENDULUM_ARG_Q", "STEP_Q", "K_Q", "ROOT4_Q",
+    "POSITION2_Q", "EXCURSION_Q", "EXCURSION2_Q", "LENGTH_Q", "TWO_LENGTH_Q", "PENDULUM_ARG_Q", "PENDULUM_ARG2_Q",
+    "STEP_Q", "K_Q", "ROOT4_Q",
     "M5_Q", "MANTISSA_Q", "centred_q", "word",
 ]
 
@@ -34,15 +35,21 @@ VELOCITY_Q = QFormat(18, 13, word_bits=32)
 POSITION_Q = QFormat(18, 13, word_bits=32)
 #: M2's drift-corrected position and its constants c1, c2: 32-bit, 17 fraction bits (same unit).
 POSITION2_Q = QFormat(14, 17, word_bits=32)
-#: Vertical excursion h, m: unsigned Q0.16 (0 .. 1 m, 15 um).
+#: M1's vertical excursion h, m: unsigned Q0.16 (0 .. 1 m, 15 um): M1's integral is not drift-corrected and
+#: reaches 0.95 m on long steps of the IPOL trials.
 EXCURSION_Q = QFormat(0, 16, signed=False)
+#: M2's and M3's (drift-corrected) excursions, m: unsigned Q-2.18 in 16 bits (0 .. 0.25 m, 3.8 um; a walking
+#: trunk moves 2-10 cm, 9.5 cm at most on the IPOL trials; a larger h saturates, counted).
+EXCURSION2_Q = QFormat(-2, 18, signed=False)
 #: Leg and foot length, K of M1, M2, M4: unsigned Q1.15 (0 .. 2).
 LENGTH_Q = QFormat(1, 15, signed=False)
 #: Twice the leg length, and the foot length added to M3, m: unsigned Q2.14 (the UQ1.15 leg's bits read
 #: with one fraction bit fewer are twice the leg: no shift).
 TWO_LENGTH_Q = QFormat(2, 14, signed=False)
-#: ``2 l h - h^2``, m^2: unsigned Q2.30 in 32 bits.
+#: ``2 l h - h^2``, m^2: unsigned, ``14 + f_h`` fraction bits in 32 bits (2l in UQ2.14 times h): Q2.30 for
+#: M1 (h < 1 m), Q0.32 for M2 and M3 (below 0.65 m^2 for a 1.3 m leg and h <= 0.25 m).
 PENDULUM_ARG_Q = QFormat(2, 30, signed=False, word_bits=32)
+PENDULUM_ARG2_Q = QFormat(0, 32, signed=False, word_bits=32)
 #: Step length, m: unsigned Q2.14 (0 .. 4 m, 61 um): the record's five lengths.
 STEP_Q = QFormat(2, 14, signed=False)
 #: K of M1/M2 and M4's ``K g0^(1/4)``: unsigned Q1.15.
@@ -90,9 +97,9 @@ F_LP = LOWPASS_Q.frac_bits
 F_POS = POSITION_Q.frac_bits
 F_POS2 = POSITION2_Q.frac_bits
 F_EXC = EXCURSION_Q.frac_bits
+F_EXC2 = EXCURSION2_Q.frac_bits
 F_LEN = LENGTH_Q.frac_bits
 F_TWO_LEN = TWO_LENGTH_Q.frac_bits
-F_ARG = PENDULUM_ARG_Q.frac_bits
 F_STEP = STEP_Q.frac_bits
 F_K = K_Q.frac_bits
 F_ROOT = ROOT4_Q.frac_bits

@@ -46,17 +46,18 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from firmware_sim.algorithms import arithmetic as ar
 from firmware_sim.algorithms.formats import (
     F_ACC,
     F_ACC2,
     F_EXC,
+    F_EXC2,
     F_FIR,
     F_GRAV,
     F_K,
     F_KERNEL,
-    F_LEN,
     F_LP,
     F_M5,
     F_POS,
@@ -132,6 +133,9 @@ SCRATCH_B_BYTES = 9
 I2C_WRITE_OVERHEAD = 3
 I2C_READ_OVERHEAD = 4
 
+# the shared rule, compiled into the kernel (parameters.py itself stays free of numba)
+register_jitable(minimum_distance)
+
 _NO_WINDOW = int(StepFlag.NO_WINDOW)
 _NO_TOE_OFF = int(StepFlag.NO_TOE_OFF)
 _NO_HEEL_STRIKE = int(StepFlag.NO_HEEL_STRIKE)
@@ -155,22 +159,24 @@ def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compile
 
 
 @njit(cache=True)
-def _excursion(span, f_pos, shift, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
-    """A position range (``f_pos`` fraction bits, unit 4 g T_s^2) in metres, UQ0.16."""
+def _excursion(span, f_pos, shift, f_h, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
+    """A position range (``f_pos`` fraction bits, unit 4 g T_s^2) in metres with ``f_h`` fraction bits (16-bit)."""
     s16 = ar.requant(span, f_pos, f_pos - shift, U16, cnt)
-    return ar.mul(s16, f_pos - shift, cfg_v[CV_UNIT], cfg_i[CI_UNIT_FRAC], F_EXC, U16, cnt)
+    return ar.mul(s16, f_pos - shift, cfg_v[CV_UNIT], cfg_i[CI_UNIT_FRAC], f_h, U16, cnt)
 
 
 @njit(cache=True)
-def _pendulum(h, cfg_v, cnt):  # pragma: no cover - compiled
-    """``2 sqrt(2 l h - h^2)`` (UQ2.14 m) and whether the step is impossible (``h > 2 l``; Alvarez eq 1)."""
-    lh2 = ar.mul(cfg_v[CV_TWO_LEG], F_TWO_LEN, h, F_EXC, 30, U32, cnt)
-    hh = ar.mul(h, F_EXC, h, F_EXC, 30, U32, cnt)
+def _pendulum(h, f_h, cfg_v, cnt):  # pragma: no cover - compiled
+    """``2 sqrt(2 l h - h^2)`` (UQ2.14 m) of an excursion with ``f_h`` fraction bits, and whether the step is
+    impossible (``h > 2 l``; Alvarez eq 1). ``2 l`` is UQ2.14, so ``2 l h`` has ``14 + f_h`` fraction bits in 32
+    bits and its square root ``(14 + f_h) / 2``."""
+    lh2 = ar.mul(cfg_v[CV_TWO_LEG], F_TWO_LEN, h, f_h, F_TWO_LEN + f_h, U32, cnt)
+    hh = ar.mul(h, f_h, h, f_h, F_TWO_LEN + f_h, U32, cnt)
     x = ar.sub(lh2, hh, W33, cnt)
     if x < 0:
         return x * 0, True
-    half = ar.sqrt(x, 30, F_LEN, False, cnt)
-    return ar.requant(ar.scale2(half, 1, W32, cnt), F_LEN, F_STEP, U16, cnt), False
+    half = ar.sqrt(x, F_TWO_LEN + f_h, (F_TWO_LEN + f_h) // 2, False, cnt)
+    return ar.requant(ar.scale2(half, 1, W32, cnt), (F_TWO_LEN + f_h) // 2, F_STEP, U16, cnt), False
 
 
 @njit(cache=True)
@@ -344,23 +350,23 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
         s_cost(cnt, OP_DEE, 24)                  # K, leg, foot and the M5 constants from the data EEPROM
         # M1 (eq 1)
         span, c1, c2 = _pass1(s, e, cfg_i, scr, cnt)
-        out_v[k, O_H1] = _excursion(span, F_POS, cfg_i[CI_EXC_SHIFT1], cfg_i, cfg_v, cnt)
-        length, bad = _pendulum(out_v[k, O_H1], cfg_v, cnt)
+        out_v[k, O_H1] = _excursion(span, F_POS, cfg_i[CI_EXC_SHIFT1], F_EXC, cfg_i, cfg_v, cnt)
+        length, bad = _pendulum(out_v[k, O_H1], F_EXC, cfg_v, cnt)
         if bad:
             flags |= _IMPOSSIBLE
         else:
             l1 = ar.mul(length, F_STEP, cfg_v[CV_K1], F_K, F_STEP, U16, cnt)
         # M2 (eqs 2-3) and M3 (single support + foot length)
         span, span3 = _pass2(s, e, to if hs3 >= 0 else -1, hs3, c1, c2, cfg_i, scr, cnt)
-        out_v[k, O_H2] = _excursion(span, F_POS2, cfg_i[CI_EXC_SHIFT2], cfg_i, cfg_v, cnt)
-        length, bad = _pendulum(out_v[k, O_H2], cfg_v, cnt)
+        out_v[k, O_H2] = _excursion(span, F_POS2, cfg_i[CI_EXC_SHIFT2], F_EXC2, cfg_i, cfg_v, cnt)
+        length, bad = _pendulum(out_v[k, O_H2], F_EXC2, cfg_v, cnt)
         if bad:
             flags |= _IMPOSSIBLE
         else:
             l2 = ar.mul(length, F_STEP, cfg_v[CV_K2], F_K, F_STEP, U16, cnt)
         if hs3 >= 0:
-            out_v[k, O_H3] = _excursion(span3, F_POS2, cfg_i[CI_EXC_SHIFT2], cfg_i, cfg_v, cnt)
-            length, bad = _pendulum(out_v[k, O_H3], cfg_v, cnt)
+            out_v[k, O_H3] = _excursion(span3, F_POS2, cfg_i[CI_EXC_SHIFT2], F_EXC2, cfg_i, cfg_v, cnt)
+            length, bad = _pendulum(out_v[k, O_H3], F_EXC2, cfg_v, cnt)
             if bad:
                 flags |= _IMPOSSIBLE
             else:

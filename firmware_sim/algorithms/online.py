@@ -41,10 +41,14 @@ from firmware_sim.algorithms import kernel
 from firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
 from firmware_sim.algorithms.formats import (
     ACC_Q,
+    EXCURSION2_Q,
+    EXCURSION_Q,
     K_Q,
     LENGTH_Q,
     LOWPASS_Q,
     M5_Q,
+    POSITION2_Q,
+    POSITION_Q,
     STEP_Q,
     TWO_LENGTH_Q,
     centred_q,
@@ -77,7 +81,7 @@ from protocol.steps import (
     empty_step_records,
 )
 
-__all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", "CycleStats"]
+__all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", "CycleStats", "load_kernels"]
 
 #: The two arithmetics of the algorithm.
 ARITHMETICS = ("fixed", "float")
@@ -174,7 +178,10 @@ class OnlineConfig:
         # metres per position unit (4 g T_s^2), its fraction bits, and the pre-shifts that fit 1 m in 16 bits
         unit = STANDARD_GRAVITY_M_S2 / (4.0 * fs * fs)
         unit_frac = int(math.floor(math.log2(65535.0 / unit)))
-        shifts = [max(0, math.ceil(math.log2(2.0 ** f / unit / 65535.0))) for f in (13, 17)]
+        # pre-shifts of the position ranges (M1: 13 fraction bits, M2/M3: 17) that fit the largest h of their
+        # excursion formats (1 m, 0.25 m) in 16 bits
+        shifts = [max(0, math.ceil(math.log2(2.0 ** q.frac_bits * e.max_value / unit / 65535.0)))
+                  for q, e in ((POSITION_Q, EXCURSION_Q), (POSITION2_Q, EXCURSION2_Q))]
         cal = sc.calibrated
         k1, k2, k4 = (sc.k_m1, sc.k_m2, sc.k_m4) if cal else (1.0, 1.0, 1.0)
         k1_m5, k2_m5 = (sc.k1_m5_m_s, sc.k2_m5_m) if cal else (1.0, 0.0)
@@ -301,7 +308,9 @@ class OnlineSteps:
     def excursion_m(self) -> np.ndarray:
         """``(n, 3)`` vertical excursions h (M1), h (M2), h1 (M3) in metres."""
         x = self.extras[:, :3]
-        return x * 2.0 ** -16 if self.arithmetic == "fixed" else np.asarray(x, float)
+        if self.arithmetic != "fixed":
+            return np.asarray(x, float)
+        return np.column_stack([EXCURSION_Q.to_float(x[:, 0]), EXCURSION2_Q.to_float(x[:, 1:])])
 
     def range_g(self) -> np.ndarray:
         """``(n,)`` M4's range of the 3 Hz vertical acceleration, g."""
@@ -531,3 +540,11 @@ class OnlineStepAlgorithm:
             return OnlineSteps.empty(self.arithmetic, self.sampling_rate_hz, self.config.step_config.calibrated)
         return OnlineSteps.concatenate(parts)
 
+
+def load_kernels(arithmetics: tuple[str, ...] = ("fixed",)) -> None:
+    """Load the compiled kernels now (compiling them if the cache is cold: seconds, once), so that a device
+    served in real time answers START without that delay."""
+    cfg = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
+    for arithmetic in arithmetics:
+        OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic=arithmetic).run(
+            np.full((8, 3), 512, np.int64))

@@ -33,8 +33,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import firmware_sim.compiled  # noqa: F401  (numba's cache folder)
-from numba.extending import register_jitable
 
 __all__ = ["EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance",
            "gaussian_radius", "FRACTION_SCALE",
@@ -57,14 +55,14 @@ def samples(duration_s: float, sampling_rate_hz: float) -> int:
     return int(math.floor(duration_s * sampling_rate_hz + 0.5))
 
 
-@register_jitable
 def minimum_distance(typical_twice, min_step, fraction_scaled):
     """Peaks closer than this many samples are one step: ``max(min_step, round_half_up(f · typical))``.
 
     ``typical_twice`` is twice the typical step duration in samples (an integer: the median of an even
     number of intervals is the mean of the middle two) and ``fraction_scaled`` the fraction out of
     :data:`FRACTION_SCALE`, so the rule is exact integer arithmetic: the same in the on-line algorithm (both
-    arithmetics) and in the offline chain.
+    arithmetics; its kernel registers this function with numba) and in the offline chain (which does not
+    import numba).
 
     >>> minimum_distance(50, 13, 600), minimum_distance(57, 13, 600), minimum_distance(30, 13, 600)
     (15, 17, 13)
