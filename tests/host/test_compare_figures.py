@@ -63,7 +63,7 @@ def _per_step_mm(rows, est, a, b, same) -> np.ndarray:
 PER_STEP_MM = {
     ("offline", "ideal", "same_events_adc"): {"M1": 0.69, "M2": 0.27, "M4": 0.13},
     ("online_float", "offline", "same_events_algorithm"): {"M1": 10.7, "M2": 9.6, "M4": 3.8},
-    ("online_fixed", "online_float", "same_events_arithmetic"): {"M1": 0.054, "M2": 0.054, "M4": 0.064},
+    ("online_fixed", "online_float", "same_events_arithmetic"): {"M1": 0.054, "M2": 0.028, "M4": 0.020},
 }
 
 
@@ -112,7 +112,7 @@ def test_event_differences_between_the_arithmetics_are_rare(simulated) -> None:
 
 def test_bootstrap_intervals_are_written_and_printed(simulated) -> None:
     """95 % intervals over the 4 subjects (2000 resamples, seed 0): each contains its figure; the arithmetic
-    share's is narrow (M2 0.051-0.056 mm), the algorithm's wide (M2 7.9-11.1 mm)."""
+    share's is narrow (M2 0.026-0.030 mm), the algorithm's wide (M2 7.9-11.1 mm)."""
     rows = simulated.budget
     assert {r["kind"] for r in rows} == {"step", "section"} and all(r["n_subjects"] == "4" for r in rows)
     for r in rows:
@@ -120,8 +120,8 @@ def test_bootstrap_intervals_are_written_and_printed(simulated) -> None:
         assert lo - 1e-12 <= v <= hi + 1e-12, r
     by = {(r["kind"], r["share"], r["mode"], r["estimator"]): r for r in rows}
     ar = by[("step", "arithmetic", "multi-speed", "M2")]
-    assert float(ar["ci_low"]) == pytest.approx(0.051, abs=0.004) and float(ar["ci_high"]) == pytest.approx(
-        0.056, abs=0.004)
+    assert float(ar["ci_low"]) == pytest.approx(0.026, abs=0.003) and float(ar["ci_high"]) == pytest.approx(
+        0.030, abs=0.003)
     alg = by[("step", "algorithm", "multi-speed", "M2")]
     assert float(alg["ci_low"]) == pytest.approx(7.9, rel=0.1) and float(alg["ci_high"]) == pytest.approx(11.1,
                                                                                                           rel=0.1)
@@ -141,11 +141,19 @@ def test_sweep_adc_share_at_50_hz(sweep) -> None:
 
 
 def test_sweep_arithmetic_share_everywhere(sweep) -> None:
-    """The arithmetic share per step: 0.015-0.11 mm (median) in every configuration, nothing saturates."""
+    """The arithmetic share per step: 0.015-0.083 mm (median) in every configuration, nothing saturates; its
+    largest relative difference is below 0.5 % everywhere but at 25 Hz / 10 bits, where one 2 cm shuffle step's
+    M1 excursion (56 um) is four lsb of M1's UQ0.16 and differs by 25 % (M2: 2.8 %)."""
     assert len(sweep.summary) == 9 * 2 * 5
+    arith = np.array([float(r["arith_step_mm"]) for r in sweep.summary])
+    assert arith.min() == pytest.approx(0.015, abs=0.003) and arith.max() == pytest.approx(0.083, abs=0.01)
     for r in sweep.summary:
-        assert float(r["arith_step_mm"]) <= 0.12, r
         assert int(r["saturated"]) == 0, r
+        worst = float(r["arith_step_max_rel"])
+        if (r["bits"], float(r["rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
+            assert worst <= {"M1": 0.30, "M2": 0.035, "M4": 0.012}[r["estimator"]], r
+        else:
+            assert worst <= 0.005, r
 
 
 def test_sweep_m5_timing_answer(sweep) -> None:
