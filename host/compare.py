@@ -64,8 +64,10 @@ import numpy as np
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from host.decode import verify_step_records
 from host.errors import HostError
 from host.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
+from host.replay import ReplayCheck
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -897,20 +899,6 @@ class RecordingComparison:
         """The offline float chain."""
         return self.tables["offline"]
 
-    @property
-    def float_table(self) -> StepTable:
-        """The on-line algorithm in floating point."""
-        return self.tables["online-float"]
-
-    @property
-    def fixed_table(self) -> StepTable:
-        """The on-line algorithm in fixed point (the logger's)."""
-        return self.tables["online-fixed"]
-
-    @property
-    def match(self) -> StepMatch:
-        """The arithmetic share's match (online-fixed vs online-float)."""
-        return self.matches["arithmetic"]
 
 
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
@@ -930,8 +918,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     every ``segment_m`` of the offline chain's M3 distance.
 
     Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and
-    ``arithmetic_m`` (the shares in distance) and, for ``host.commands.demo``, ``ratio_float`` /
-    ``ratio_fixed``: aliases of the on-line algorithm's float and fixed ratios.
+    ``arithmetic_m`` (the shares in distance).
     """
     from protocol.header import Calibration
 
@@ -973,7 +960,6 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
                 row[f"ratio_{column_key(k)}"] = float(dist[k][i, j]) / real
             for sh, (a, b) in shares.items():
                 row[f"{sh}_m"] = float(dist[a][i, j] - dist[b][i, j])
-            row["ratio_float"], row["ratio_fixed"] = row["ratio_online_float"], row["ratio_online_fixed"]
             seg_rows.append(row)
     of = tables["offline"]
     float_of = matches["algorithm"].a_of_b(of.n_steps)
@@ -993,19 +979,11 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
                                alg.saturations, alg.wraps, alg.cycles.mean, source)
 
 
-def check_device_records(recording: Any) -> Any:
+def check_device_records(recording: Any) -> ReplayCheck | None:
     """The device's own step records of a decoded recording against the host's replay of the on-line
-    algorithm (:func:`host.replay.check_records`): a :class:`host.replay.ReplayCheck`, or None when the
-    recording carries no step records (``step_records`` absent or None) or no header."""
-    records = getattr(recording, "step_records", None)
-    header = getattr(recording, "header", None)
-    if records is None or header is None:
-        return None
-    from host.replay import check_records
-
-    return check_records(np.asarray(recording.codes, np.int64), np.asarray(recording.valid, bool),
-                         np.asarray(recording.flags), np.asarray(recording.sample_numbers, np.int64), header,
-                         np.asarray(records))
+    algorithm (:func:`host.decode.verify_step_records`): a :class:`host.replay.ReplayCheck`, or None when
+    there is nothing to check."""
+    return verify_step_records(recording)
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -33,17 +33,14 @@ import os
 import warnings
 from collections import Counter
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from host.errors import HostError
 from host.recording import RecordGap, Recording, gaps_from_mask
+from host.replay import ReplayCheck, check_records
 from protocol.errors import ProtocolError
 from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, unpack_step_records
-
-if TYPE_CHECKING:  # pragma: no cover
-    from host.replay import ReplayCheck
 
 #: Reason texts of the gaps, indexed by the reason codes used below.
 REASONS = (
@@ -363,7 +360,7 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
     return rec
 
 
-def verify_step_records(recording: Recording) -> "ReplayCheck | None":
+def verify_step_records(recording: Recording) -> ReplayCheck | None:
     """Check the recording's device step records against the host's replay of the device algorithm.
 
     The records the decoder dropped are unknown, so the replayed records that fall where they were (between
@@ -377,8 +374,6 @@ def verify_step_records(recording: Recording) -> "ReplayCheck | None":
     header = recording.header
     if header is None or (not header.step_config.enabled and recording.n_step_records == 0):
         return None
-    from host.replay import check_records
-
     ends = recording.step_records["end_sample"].astype(np.int64)
     numbers = recording.step_record_numbers
     unknown = []

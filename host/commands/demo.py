@@ -4,9 +4,11 @@ record (calibration poses with the emulated logger) -> serve (the image as a liv
 dump (over the pty, as from a real logger) -> decode (CSV + NPZ) -> calibrate (9-parameter fit on the dumped
 poses, CAL.json) -> summary (samples, gaps, duration and, per pose, the mean g against the truth and the
 error of |a| before and after calibration) -> walk (a simulated subject through the paper's protocol,
-recorded by the same emulated device, g from the pose calibration) -> estimate (the float chain, K per
-subject, every 20 m section's ratio, CSV and the Figs 5-6 box plots: :mod:`host.evaluation`) -> fixed (the
-PIC's fixed-point chain vs the float chain on the same codes: :mod:`host.compare`).
+recorded by the same emulated device with the pose calibration in its header and its on-line step algorithm
+running) -> estimate (the host's offline float chain, K per subject, every 20 m section's ratio, CSV and the
+Figs 5-6 box plots: :mod:`host.evaluation`) -> device (K sent to the device, the walk recorded again: the
+device's own per-step records, checked against the host's replay bit for bit, beside the offline chain)
+-> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`host.compare`).
 
 Later issues extend the demo by appending :class:`Stage` objects to :data:`STAGES` (each stage reads and
 adds entries of the shared ``context`` dict and returns lines to print).
@@ -20,7 +22,8 @@ from dataclasses import dataclass
 from typing import Any
 
 HELP = ("run the whole path on defaults: record poses -> serve on a pty -> dump -> decode -> calibrate -> summary "
-        "-> walk a simulated subject -> M1-M5 per 20 m and box plots -> fixed vs float")
+        "-> walk a simulated subject -> M1-M5 per 20 m and box plots -> the device's own step records -> the "
+        "error split")
 
 
 @dataclass(frozen=True)
@@ -137,36 +140,52 @@ def _summary(ctx: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _walk_logger(ctx: dict[str, Any], step_config: Any) -> Any:
+    """The demo's device (the sensor of the poses), its header holding the pose calibration and
+    ``step_config`` (as SET_CALIBRATION and SET_STEP_CONFIG would leave it)."""
+    from firmware_sim.device import Logger
+    from firmware_sim.sensor import SensorModel
+
+    logger = Logger(sensor=SensorModel.draw(seed=ctx["args"].seed), sample_rate_hz=50.0, step_config=step_config)
+    logger.ring.set_calibration(ctx["walk_calibration"])
+    return logger
+
+
 def _walk(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from firmware_sim.device import Logger
-    from firmware_sim.sensor import SensorModel
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
     from host.evaluation import SimulatedRecording
     from protocol.header import Calibration
     from protocol.packing import FLAG_MARK
+    from protocol.steps import StepConfig
 
     args = ctx["args"]
     subject = random_subjects(1, seed=args.seed)[0]
-    logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=50.0)   # the device calibrated above
-    res = logger.record(Walking(subject=subject, seed=args.seed), start_time_s=1_700_000_000)
     acc_cal = ctx.get("calibration")
     cal = (Calibration(acc_cal.offset, acc_cal.matrix, valid=True) if acc_cal is not None
            else Calibration.nominal(10))
+    ctx.update(walk_calibration=cal, subject=subject)
+    logger = _walk_logger(ctx, StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
+                                          foot_length_m=subject.foot_length_m))
+    res = logger.record(Walking(subject=subject, seed=args.seed), start_time_s=1_700_000_000)
+    image = ctx["dir"] / "walk.glimg"
+    logger.save_image(image)
     codes = np.asarray(res.codes, np.int64)
     times = np.asarray(res.sample_times_s, np.float64)
     marks = times[(np.asarray(res.flags) & FLAG_MARK) != 0]
     rec = SimulatedRecording(subject, int(args.seed), cal.apply(codes.astype(np.float64)),
                              np.ones(codes.shape[0], bool), 50.0, float(times[0]), marks,
                              {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests")}, acc_cal is not None)
-    ctx.update(walk_codes=codes, walk_recording=rec, walk_calibration=cal)
+    ctx.update(walk_codes=codes, walk_recording=rec, walk_times_s=times)
     st = res.truth["steps"]
     return [f"subject {subject.subject_id}: height {subject.height_m:.2f} m, leg {subject.leg_length_m:.3f} m, "
             f"foot {subject.foot_length_m:.3f} m; protocol 4 x 200 m (preferred, fast, slow, medium)",
             f"{res.n_samples} samples ({res.n_samples / 50 / 60:.1f} min at 50 Hz), {len(marks)} lap marks, "
-            f"{len(st['length_m'])} true steps; g from the {'pose calibration above' if acc_cal else 'nominal map'}"]
+            f"{len(st['length_m'])} true steps; g from the {'pose calibration above' if acc_cal else 'nominal map'}",
+            f"the logger ran its on-line step algorithm while recording (leg and foot set, no K yet): "
+            f"{logger.header.steps_written} step records in its step memory -> {image}"]
 
 
 def _estimate(ctx: dict[str, Any]) -> list[str]:
@@ -189,7 +208,52 @@ def _estimate(ctx: dict[str, Any]) -> list[str]:
                f"M5 S = {k.k1_m5_m_s:.3f}/T + {k.k2_m5_m:.3f} m"])
 
 
-def _fixed(ctx: dict[str, Any]) -> list[str]:
+def _device(ctx: dict[str, Any]) -> list[str]:
+    import numpy as np
+
+    from firmware_sim.algorithms.online import OnlineSteps
+    from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+    from firmware_sim.world.walking import Walking
+    from host.compare import match_steps, offline_step_table, segment_distances, step_differences
+    from host.decode import decode_file, verify_step_records
+    from host.evaluation import sections_from_marks
+    from protocol.steps import StepConfig
+
+    sub = ctx["subject"]
+    k = ctx["walk_result"].calibrations["multi-speed"]
+    cfg = StepConfig(step_format=1, calibrated=True, leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
+                     k_m1=k.k_m1, k_m2=k.k_m2, k_m4=k.k_m4, k1_m5_m_s=k.k1_m5_m_s, k2_m5_m=k.k2_m5_m)
+    logger = _walk_logger(ctx, cfg)                          # SET_STEP_CONFIG with the subject's K
+    logger.record(Walking(subject=sub, seed=ctx["args"].seed), start_time_s=1_700_000_000)
+    image = ctx["dir"] / "walk_k.glimg"
+    logger.save_image(image)
+    rec = decode_file(image)
+    check = verify_step_records(rec)
+    t0 = float(ctx["walk_times_s"][0])
+    device = StepTable.from_online(OnlineSteps.from_records(rec.step_records, first_sample_number=int(
+        rec.sample_numbers[0]), sampling_rate_hz=rec.sampling_rate_hz), t0_s=t0)
+    walk = ctx["walk_recording"]
+    offline = offline_step_table(walk.acc_g, sampling_rate_hz=walk.sampling_rate_hz, leg_length_m=sub.leg_length_m,
+                                 foot_length_m=sub.foot_length_m, calibration=k, t0_s=t0)
+    secs = [s for s in sections_from_marks(walk.mark_times_s, walk.truth["laps"]) if not s.turn]
+    real = np.array([s.real_m for s in secs])
+    d_dev, d_off = segment_distances(device, secs), segment_distances(offline, secs)
+    diffs = step_differences(device, offline, match_steps(device, offline), pair="device - offline")
+    lines = [f"multi-speed K sent to the device (SET_STEP_CONFIG), the walk recorded again -> {image}: "
+             f"{rec.n_step_records} step records decoded; {check.summary() if check else 'nothing to check'}",
+             "the device's own lengths (on-line algorithm, PIC fixed point) beside the host's offline float chain, "
+             "same K:",
+             f"{'est':<5}{'20 m sections':>14}{'device ratio':>14}{'offline ratio':>15}{'max |d ratio|':>15}"
+             f"{'per step med |d| mm':>21}"]
+    for j, est in enumerate(ESTIMATORS):
+        a, b = d_dev[:, j] / real, d_off[:, j] / real
+        med = next(r["median_abs_mm"] for r in diffs if r["estimator"] == est)
+        lines.append(f"{est:<5}{len(secs):>14}{np.nanmedian(a):>14.4f}{np.nanmedian(b):>15.4f}"
+                     f"{np.nanmax(np.abs(a - b)):>15.4f}{med:>21.2f}")
+    return lines
+
+
+def _split(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
     from host.compare import compare_recording, format_step_diffs, rows_csv_text
@@ -202,22 +266,25 @@ def _fixed(ctx: dict[str, Any]) -> list[str]:
     res = compare_recording(ctx["walk_codes"], sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=sub.leg_length_m,
                             foot_length_m=sub.foot_length_m, adc_calibration=ctx["walk_calibration"],
                             calibration=ctx["walk_result"].calibrations["multi-speed"], t0_s=rec.t0_s, sections=secs)
-    path = ctx["dir"] / "walk_fixed_vs_float.csv"
+    path = ctx["dir"] / "walk_split.csv"
     atomic_write_text(path, rows_csv_text(res.segments))
-    m = res.match
-    lines = [f"the PIC's fixed-point chain vs the float chain on the same 10-bit codes, same K -> {path}",
-             f"steps: float {res.float_table.n_steps}, fixed {res.fixed_table.n_steps}, matched {m.n_matched}; "
-             f"different events {int(np.count_nonzero(~m.same_events))} (+ {m.only_a.size + m.only_b.size} "
-             "found by one chain only)"]
+    tb = res.tables
+    lines = [f"the same codes, the same K: offline (host) vs on-line float vs on-line fixed (the device's) -> {path}",
+             "steps: " + ", ".join(f"{c} {tb[c].n_steps}" for c in tb) + "; " + "; ".join(
+                 f"{s}: different events {int(np.count_nonzero(~m.same_events))} (+ {m.only_a.size + m.only_b.size} "
+                 "found by one chain only)" for s, m in res.matches.items())]
     lines += format_step_diffs(res.step_diffs).splitlines()
-    lines.append(f"{'est':<5}{'20 m sections':>14}{'ratio float':>13}{'ratio fixed':>13}{'max |d ratio|':>15}")
+    lines.append(f"{'est':<5}{'20 m sections':>14}{'offline':>10}{'on-line float':>15}{'on-line fixed':>15}"
+                 f"{'max |alg|':>11}{'max |arith|':>13}")
     for est in ("M1", "M2", "M3", "M4", "M5"):
         r = [x for x in res.segments if x["estimator"] == est]
-        a = np.array([x["ratio_float"] for x in r])
-        b = np.array([x["ratio_fixed"] for x in r])
-        lines.append(f"{est:<5}{len(r):>14}{np.median(a):>13.4f}{np.median(b):>13.4f}{np.max(np.abs(b - a)):>15.5f}")
-    lines.append(f"saturation/wrap: {res.saturation or 'none'}; estimated PIC cycles per sample "
-                 f"{res.cycles_per_sample:.0f} of 100,000 at 50 Hz")
+        off = np.array([x["ratio_offline"] for x in r])
+        fl = np.array([x["ratio_online_float"] for x in r])
+        fx = np.array([x["ratio_online_fixed"] for x in r])
+        lines.append(f"{est:<5}{len(r):>14}{np.median(off):>10.4f}{np.median(fl):>15.4f}{np.median(fx):>15.4f}"
+                     f"{np.max(np.abs(fl - off)):>11.4f}{np.max(np.abs(fx - fl)):>13.5f}")
+    lines.append(f"saturation/wrap: {res.saturation or 'none'}; PIC cycles per sample {res.cycles_per_sample:,.0f} "
+                 "(gaitlog budget: against the 92,160 of a 50 Hz period)")
     return lines
 
 
@@ -231,7 +298,8 @@ STAGES: list[Stage] = [
     Stage("summary", _summary),
     Stage("walk", _walk),
     Stage("estimate", _estimate),
-    Stage("fixed", _fixed),
+    Stage("device", _device),
+    Stage("split", _split),
 ]
 
 

@@ -27,10 +27,13 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import time
 
+    from firmware_sim.algorithms.online import load_kernels
     from firmware_sim.device import Logger
     from firmware_sim.transport import serve_pty, serve_tcp
 
     logger = Logger.from_image(args.image, image_path=args.image) if args.persist else Logger.from_image(args.image)
+    if logger.header.step_config.enabled:
+        load_kernels()          # a START over the port must not wait for a compilation
     if args.tcp is not None:
         server = serve_tcp(logger, port=args.tcp, baud=args.baud, wire_time=args.wire_time)
     else:

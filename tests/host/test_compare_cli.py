@@ -39,8 +39,8 @@ def npz(tmp_path_factory):
 
 
 def _with_records(monkeypatch, records) -> None:
-    """Recordings loaded from now on carry these device step records (``Recording.step_records``: until the
-    decoder keeps them, the test attaches them)."""
+    """Recordings loaded from now on carry these device step records instead of their own (a device whose
+    firmware computed differently)."""
     from host.recording import Recording
 
     load = Recording.load.__func__
@@ -54,13 +54,14 @@ def _with_records(monkeypatch, records) -> None:
 
 
 def test_compare_recording_writes_tables(npz, tmp_path, capsys) -> None:
-    path, res, _ = npz
+    path, res, records = npz
     out = tmp_path / "steps.csv"
     assert main(["compare", str(path), "--out", str(out), "--height", "1.75"]) == 0
     text = capsys.readouterr().out
     assert "online-fixed - online-float" in text and "online-float - offline" in text
     assert "saturation/wrap in the fixed-point run: none" in text
-    assert "device step records: none in this recording" in text
+    # the decoded recording carries the device's own records: they are checked against the replay
+    assert f"device step records vs host replay: {records.size} of {records.size} identical byte for byte" in text
     with open(out, newline="") as fh:
         steps = list(csv.DictReader(fh))
     # truth: the world's steps (one row per foot-flat; the closing contact ends the last step)
@@ -81,10 +82,9 @@ def test_compare_recording_writes_tables(npz, tmp_path, capsys) -> None:
                                                            + ["online-fixed - online-float"] * 5)
 
 
-def test_compare_checks_the_device_records(npz, tmp_path, monkeypatch, capsys) -> None:
+def test_compare_checks_the_device_records(npz, tmp_path, capsys) -> None:
     """The recording's own step records equal the host's replay byte for byte, and the command says so."""
     path, _, records = npz
-    _with_records(monkeypatch, records)
     assert main(["compare", str(path), "--height", "1.75"]) == 0
     text = capsys.readouterr().out
     assert f"device step records vs host replay: {records.size} of {records.size} identical byte for byte" in text
@@ -174,10 +174,11 @@ def test_bad_invocations(npz, tmp_path, capsys) -> None:
 
 
 def test_demo_walks_estimates_and_compares(tmp_path, capsys) -> None:
-    """The demo's walking stages: 20 m table and box plots (float), then fixed vs float on the same codes."""
+    """The demo's walking stages: 20 m table and box plots (offline chain), the device's own step records
+    with the subject's K beside the offline chain (bit for bit against the replay), the error split."""
     assert main(["demo", "--out", str(tmp_path), "--quiet"]) == 0
     out = capsys.readouterr().out
-    for stage in ("[walk]", "[estimate]", "[fixed]"):
+    for stage in ("[walk]", "[estimate]", "[device]", "[split]"):
         assert stage in out
     assert (tmp_path / "walk_boxplots.png").stat().st_size > 1000
     with open(tmp_path / "walk_sections.csv", newline="") as fh:
@@ -186,10 +187,20 @@ def test_demo_walks_estimates_and_compares(tmp_path, capsys) -> None:
     # the world walked 20 m per section: multi-speed M2 within 10 % of it
     m2 = [float(r["ratio"]) for r in rows if r["mode"] == "multi-speed" and r["estimator"] == "M2"]
     assert len(m2) >= 20 and abs(np.median(m2) - 1.0) < 0.10
-    with open(tmp_path / "walk_fixed_vs_float.csv", newline="") as fh:
+    # the device's records: as many as the walk's foot-flats, identical to the host's replay
+    device = out.split("[device]")[1].split("[split]")[0]
+    n = int(device.split("->")[1].split(":")[1].split()[0])
+    assert n > 1000 and f"{n} of {n} identical byte for byte" in device
+    table = {ln.split()[0]: [float(x) for x in ln.split()[1:]] for ln in device.splitlines()
+             if ln.strip()[:2] in ("M1", "M2", "M3", "M4", "M5")}
+    for est, (n_sec, dev, off, worst, step_mm) in table.items():
+        assert n_sec >= 20 and abs(dev - off) < 0.02, est          # the same K: device ~ offline chain
+        assert abs(dev - 1.0) < 0.1, est
+    with open(tmp_path / "walk_split.csv", newline="") as fh:
         seg = list(csv.DictReader(fh))
     for est in ("M1", "M2", "M3", "M4", "M5"):
-        d = np.array([abs(float(r["ratio_fixed"]) - float(r["ratio_float"])) for r in seg if r["estimator"] == est])
-        assert np.median(d) <= 0.005, est
+        d = np.array([abs(float(r["ratio_online_fixed"]) - float(r["ratio_online_float"])) for r in seg
+                      if r["estimator"] == est])
+        assert np.median(d) <= 1e-4, est                             # the arithmetic alone: one K for both
         assert d.max() < 0.04, est      # a step whose events differ moves a section by less than one step / 20 m
     assert "saturation/wrap: none" in out
