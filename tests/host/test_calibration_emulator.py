@@ -31,9 +31,9 @@ import pytest
 
 from host.calibration import AccCalibration, AccCalibrator, parameter_bounds
 
-device = pytest.importorskip("firmware_sim.device", reason="firmware_sim/device.py (the Logger) not present")
-from firmware_sim.sensor import SensorModel  # noqa: E402
-from firmware_sim.world.poses import CalibrationPoses  # noqa: E402
+from firmware_sim import device
+from firmware_sim.sensor import SensorModel
+from firmware_sim.world.poses import CalibrationPoses
 
 
 def truth_in_counts(truth) -> dict[str, np.ndarray]:

@@ -27,6 +27,7 @@ from host.calibration import (
     parameter_bounds,
 )
 from host.errors import HostError
+from protocol import header
 
 OFFSET_G = np.array([0.050, -0.030, 0.020])
 SCALE = np.array([1.02, 0.98, 1.01])
@@ -326,7 +327,6 @@ def test_load_rejects_non_json(tmp_path):
 
 
 def test_to_header_calibration_matches_the_protocol_slot():
-    header = pytest.importorskip("protocol.header")
     cal = fitted(unit="counts")
     slot = cal.to_header_calibration()
     assert isinstance(slot, header.Calibration) and slot.valid

@@ -10,6 +10,7 @@ import pytest
 
 from firmware_sim.device import Logger
 from firmware_sim.world.base import Motion
+from host.calibration import AccCalibration
 from host.cli import main
 from host.recording import Recording
 
@@ -60,8 +61,6 @@ def test_cli_resume_after_cut(tmp_path, capsys):
 
 
 def test_decode_with_calibration_file(tmp_path):
-    pytest.importorskip("host.calibration")
-    from host.calibration import AccCalibration
 
     image, codes, *_ = _image(tmp_path, n=2000)
     cal = AccCalibration.from_parameters(offset=[500, 510, 520], scale_per_g=[250, 260, 270], input_unit="counts")

@@ -158,7 +158,6 @@ def test_summary_table_csv_and_pattern() -> None:
 
 def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> None:
     """Two subjects through the emulated Logger: same rows with 1 or 2 workers; atomic CSV and PNG."""
-    pytest.importorskip("firmware_sim.device")
     a = SimulatedEvaluation(n_subjects=2, seed=3, protocol=SHORT, workers=1).run()
     b = SimulatedEvaluation(n_subjects=2, seed=3, protocol=SHORT, workers=2).run()
     assert a.rows_ == b.rows_ and len(a.rows_) > 0
@@ -203,7 +202,6 @@ FOOT_FLAT_REASON = (
 
 @pytest.fixture(scope="module")
 def population():
-    pytest.importorskip("firmware_sim.device")
     return SimulatedEvaluation(n_subjects=3, seed=0, workers=2).run()
 
 
@@ -226,7 +224,7 @@ def test_done_event_timing(population) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=FOOT_FLAT_REASON)
+@pytest.mark.xfail(strict=True, reason=FOOT_FLAT_REASON)
 def test_done_anatomical_foot_flat_timing(population) -> None:
     assert population.events_["foot_flat"].median_abs_error_s <= 0.020
 
