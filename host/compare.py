@@ -990,26 +990,6 @@ def check_device_records(recording: Any) -> ReplayCheck | None:
 # Output helpers
 
 
-def columns_csv_text(cols: dict[str, np.ndarray]) -> str:
-    """CSV text of named equal-length columns (``%.6g``; empty cells for NaN)."""
-    names = list(cols)
-    arrays = [np.asarray(cols[n]) for n in names]
-    n = arrays[0].size if arrays else 0
-    lines = [",".join(names)]
-    for i in range(n):   # formatting only
-        cells = []
-        for a in arrays:
-            x = a[i]
-            if a.dtype == bool:
-                cells.append(str(int(x)))
-            elif np.issubdtype(a.dtype, np.integer):
-                cells.append(str(int(x)))
-            else:
-                cells.append("" if not np.isfinite(x) else f"{float(x):.6g}")
-        lines.append(",".join(cells))
-    return "\n".join(lines) + "\n"
-
-
 def rows_csv_text(rows: list[dict], columns: list[str] | tuple[str, ...] | None = None) -> str:
     """CSV text of dict rows (floats ``%.6g``, NaN as empty)."""
     if not rows:

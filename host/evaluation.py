@@ -51,9 +51,9 @@ from typing import Any, Self
 
 import numpy as np
 
+from firmware_sim.algorithms.steps import ESTIMATORS
 from host.errors import HostError
 
-ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")
 MODES = ("single-speed", "multi-speed")
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
                "estimated_m", "real_m", "ratio", "steps")

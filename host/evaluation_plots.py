@@ -15,8 +15,31 @@ from pathlib import Path
 
 import numpy as np
 
-PANELS = (("single-speed", ("M1", "M2", "M3", "M4"), "Calibration at preferred speed"),
-          ("multi-speed", ("M1", "M2", "M3", "M4", "M5"), "Calibration at every speed"))
+from firmware_sim.algorithms.steps import ESTIMATORS
+
+PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),
+          ("multi-speed", ESTIMATORS, "Calibration at every speed"))
+
+
+def _pyplot():
+    """matplotlib's pyplot on the Agg backend, imported when a figure is drawn (not at import)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png_bytes(plt, fig, dpi: int) -> bytes:
+    """``fig`` laid out, rendered to PNG bytes and closed."""
+    buf = io.BytesIO()
+    try:
+        fig.tight_layout()
+        fig.savefig(buf, format="png", dpi=dpi)
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
 
 
 def ratios_by_panel(rows: Iterable[dict]) -> dict[str, dict[str, np.ndarray]]:
@@ -29,11 +52,7 @@ def ratios_by_panel(rows: Iterable[dict]) -> dict[str, dict[str, np.ndarray]]:
 
 def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: int = 120) -> bytes:
     """The figure as PNG bytes (raises ValueError when no panel has data)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     data = ratios_by_panel(rows)
     panels = [(mode, [e for e in ests if data.get(mode, {}).get(e, np.zeros(0)).size], label)
               for mode, ests, label in PANELS]
@@ -53,11 +72,7 @@ def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: 
     axes[0][0].set_ylabel("estimated / real distance (%)")
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    return buf.getvalue()
+    return _png_bytes(plt, fig, dpi)
 
 
 def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None = None, dpi: int = 120) -> Path:
@@ -74,12 +89,8 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     """Box plots of per-trial ratios (``estimator``, ``arithmetic``, ``k_from``, ``ratio`` rows of
     :mod:`host.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
     chain's K only (the comparison). Raises ValueError when there is nothing to plot."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    ests = ("M1", "M2", "M3", "M4", "M5")
+    plt = _pyplot()
+    ests = ESTIMATORS
     data = {(a, e): np.asarray([float(r["ratio"]) for r in rows if r["estimator"] == e and r["arithmetic"] == a
                                 and r.get("k_from", "offline") == "offline"], np.float64) for a in chains for e in ests}
     data = {k: v[np.isfinite(v)] for k, v in data.items()}
@@ -102,8 +113,4 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     ax.legend(fontsize=8, loc="lower right")
     if title:
         ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    return buf.getvalue()
+    return _png_bytes(plt, fig, dpi)

@@ -22,7 +22,7 @@ from firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
 from protocol.atomic_write import atomic_write_text
 from protocol.steps import StepFlag
 
-__all__ = ["ESTIMATORS", "StepTable"]
+__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text"]
 
 #: The step-length estimators of Alvarez et al. (2006): M1 pendulum, M2 pendulum with drift correction,
 #: M3 two-phase pendulum + foot length (no K), M4 Weinberg, M5 cadence line.
@@ -142,21 +142,8 @@ class StepTable:
         return cols
 
     def to_csv_text(self) -> str:
-        """CSV text of :meth:`columns` (``%.6g``; empty cells for NaN)."""
-        cols = self.columns()
-        names = list(cols)
-        lines = [",".join(names)]
-        arrays = [np.asarray(cols[n]) for n in names]
-        for i in range(self.n_steps):  # formatting only
-            cells = []
-            for a in arrays:
-                x = a[i]
-                if np.issubdtype(a.dtype, np.integer):
-                    cells.append(str(int(x)))
-                else:
-                    cells.append("" if not np.isfinite(x) else f"{float(x):.6g}")
-            lines.append(",".join(cells))
-        return "\n".join(lines) + "\n"
+        """CSV text of :meth:`columns` (:func:`columns_csv_text`)."""
+        return columns_csv_text(self.columns())
 
     def to_csv(self, path: str | Path) -> None:
         """Write :meth:`to_csv_text` atomically."""
@@ -198,3 +185,22 @@ class StepTable:
         return cls(fs, float(t0_s), steps.end.copy(), steps.heel_strike.copy(), steps.toe_off.copy(), start,
                    bout.astype(np.int64), duration_s, np.zeros(n, np.int64),
                    {"M1": exc[:, 0], "M2": exc[:, 1], "M3": exc[:, 2]}, rng, raw_m, length_m)
+
+
+def columns_csv_text(cols: dict[str, np.ndarray]) -> str:
+    """CSV text of named equal-length columns: integers and booleans as integers, floats ``%.6g``, NaN as an
+    empty cell."""
+    names = list(cols)
+    arrays = [np.asarray(cols[n]) for n in names]
+    n = arrays[0].size if arrays else 0
+    lines = [",".join(names)]
+    for i in range(n):   # formatting only
+        cells = []
+        for a in arrays:
+            x = a[i]
+            if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
+                cells.append(str(int(x)))
+            else:
+                cells.append("" if not np.isfinite(x) else f"{float(x):.6g}")
+        lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"

@@ -93,7 +93,8 @@ def _sweep(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from host.compare import bootstrap_budget, columns_csv_text, format_budget, format_step_diffs, rows_csv_text
+    from firmware_sim.algorithms.steps import columns_csv_text
+    from host.compare import bootstrap_budget, format_budget, format_step_diffs, rows_csv_text
     from host.errors import HostError
     from protocol.atomic_write import atomic_write_text, require_folder
 
@@ -186,6 +187,7 @@ def format_segments(results: list) -> str:
     """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
     import numpy as np
 
+    from firmware_sim.algorithms.steps import ESTIMATORS
     from host.compare import CHAINS, SHARES, column_key
 
     lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
@@ -194,7 +196,7 @@ def format_segments(results: list) -> str:
              + f"{'ADC max':>9}{'alg max':>9}{'arith max':>10}"]
     segs = [s for r in results for s in r.segments]
     for mode in ("single-speed", "multi-speed"):
-        for est in ("M1", "M2", "M3", "M4", "M5"):
+        for est in ESTIMATORS:
             sel = [s for s in segs if s["mode"] == mode and s["estimator"] == est]
             if not sel:
                 continue
@@ -213,10 +215,9 @@ def _recording(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from firmware_sim.algorithms.steps import ESTIMATORS
+    from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
     from host.compare import (
         check_device_records,
-        columns_csv_text,
         compare_recording,
         format_step_diffs,
         rows_csv_text,

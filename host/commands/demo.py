@@ -256,6 +256,7 @@ def _device(ctx: dict[str, Any]) -> list[str]:
 def _split(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
+    from firmware_sim.algorithms.steps import ESTIMATORS
     from host.compare import compare_recording, format_step_diffs, rows_csv_text
     from host.evaluation import sections_from_marks
     from protocol.atomic_write import atomic_write_text
@@ -276,7 +277,7 @@ def _split(ctx: dict[str, Any]) -> list[str]:
     lines += format_step_diffs(res.step_diffs).splitlines()
     lines.append(f"{'est':<5}{'20 m sections':>14}{'offline':>10}{'on-line float':>15}{'on-line fixed':>15}"
                  f"{'max |alg|':>11}{'max |arith|':>13}")
-    for est in ("M1", "M2", "M3", "M4", "M5"):
+    for est in ESTIMATORS:
         r = [x for x in res.segments if x["estimator"] == est]
         off = np.array([x["ratio_offline"] for x in r])
         fl = np.array([x["ratio_online_float"] for x in r])
