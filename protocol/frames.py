@@ -209,6 +209,13 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
     FrameType.NAK: cs.Struct("command" / cs.Int8ul, "error" / StrictEnum(cs.Int8ul, ErrorCode)),
 }
 
+#: The settings commands' payloads as objects: type -> (field, class with ``to_bytes``/``from_bytes``);
+#: a payload the class refuses is answered with NAK BAD_ARGUMENT.
+SET_PAYLOADS: dict[FrameType, tuple[str, type]] = {
+    FrameType.SET_CALIBRATION: ("calibration", Calibration),
+    FrameType.SET_STEP_CONFIG: ("step_config", StepConfig),
+}
+
 #: Inclusive limits on payload fields beyond their integer width: (type, field) -> (min, max).
 FIELD_LIMITS: dict[tuple[FrameType, str], tuple[int, int]] = {
     (FrameType.READ, "length"): (1, MAX_DATA),
@@ -363,13 +370,13 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
     values = dict(fields)
     if ftype == FrameType.HEADER and isinstance(values.get("header"), DeviceHeader):
         values["header"] = values["header"].to_bytes()
-    if ftype == FrameType.SET_CALIBRATION and isinstance(values.get("calibration"), Calibration):
-        values["calibration"] = values["calibration"].to_bytes()
-    if ftype == FrameType.SET_STEP_CONFIG and isinstance(values.get("step_config"), StepConfig):
-        try:
-            values["step_config"] = values["step_config"].to_bytes()
-        except ProtocolError as exc:
-            raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=exc.offset) from None
+    if ftype in SET_PAYLOADS:
+        name, cls = SET_PAYLOADS[ftype]
+        if isinstance(values.get(name), cls):
+            try:
+                values[name] = values[name].to_bytes()
+            except ProtocolError as exc:
+                raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=exc.offset) from None
     names = [sc.name for sc in struct.subcons if sc.name is not None and not isinstance(sc, cs.Const)]
     if ftype == FrameType.ERASE:
         names = []
@@ -454,15 +461,10 @@ def parse_payload(frame: Frame, source: str | None = None) -> dict[str, Any]:
             values["header"] = DeviceHeader.from_bytes(values["header"], source=source)
         except ProtocolError as exc:
             raise exc.at(offset=base, source=source) from None
-    if ftype == FrameType.SET_CALIBRATION:
+    if ftype in SET_PAYLOADS:
+        name, cls = SET_PAYLOADS[ftype]
         try:
-            values["calibration"] = Calibration.from_bytes(values["calibration"], source=source)
-        except ProtocolError as exc:
-            raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=base + (exc.offset or 0),
-                               source=source) from None
-    if ftype == FrameType.SET_STEP_CONFIG:
-        try:
-            values["step_config"] = StepConfig.from_bytes(values["step_config"], source=source)
+            values[name] = cls.from_bytes(values[name], source=source)
         except ProtocolError as exc:
             raise PayloadError(exc.message, error_code=ErrorCode.BAD_ARGUMENT, offset=base + (exc.offset or 0),
                                source=source) from None

@@ -86,17 +86,21 @@ def run(args: argparse.Namespace) -> int:
     print("\n".join(header_lines(rec.header)))
     print(f"decoded          {rec.n_valid} of {rec.n_samples} stored samples valid, {len(rec.gaps)} gap(s), "
           f"{rec.duration_s:.2f} s")
-    for gap in rec.gaps[:20]:
-        print(f"  gap: samples {gap.first_sample_number}..{gap.last_sample_number}: {gap.reason}")
-    if len(rec.gaps) > 20:
-        print(f"  ... {len(rec.gaps) - 20} more gap(s)")
+    _print_listed([f"gap: samples {g.first_sample_number}..{g.last_sample_number}: {g.reason}" for g in rec.gaps],
+                  "gap(s)")
     if rec.header.step_capacity or rec.n_step_records:
         print(f"step records     {rec.n_step_records} of {rec.header.n_steps_stored} stored records decode "
               f"({rec.n_steps_dropped} dropped)")
-        for loss in rec.step_losses[:20]:
-            print(f"  dropped: records {loss.first_record_number}..{loss.last_record_number}: {loss.reason}")
-        if len(rec.step_losses) > 20:
-            print(f"  ... {len(rec.step_losses) - 20} more run(s) of dropped records")
+        _print_listed([f"dropped: records {loss.first_record_number}..{loss.last_record_number}: {loss.reason}"
+                       for loss in rec.step_losses], "run(s) of dropped records")
     for note in rec.notes:
         print(f"note: {note}")
     return 0
+
+
+def _print_listed(lines: list[str], what: str, most: int = 20) -> None:
+    """The first ``most`` lines, indented, then how many more ``what`` there are."""
+    for line in lines[:most]:
+        print(f"  {line}")
+    if len(lines) > most:
+        print(f"  ... {len(lines) - most} more {what}")
