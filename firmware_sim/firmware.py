@@ -185,10 +185,10 @@ class Firmware:
         alg = self.step_algorithm
         if alg is None:
             return self.ring.append(pack_words(c, flags))
-        h = self.ring.header
-        n = c.shape[0] if h.overwrite else min(c.shape[0], max(self.ring.capacity - h.samples_written, 0))
+        room = self.ring.room_samples
+        n = c.shape[0] if room is None else min(c.shape[0], room)
         self._store_steps(alg.feed(c[:n]))       # the algorithm sees exactly the samples that are stored
-        if n < c.shape[0]:                       # stop-when-full: this block fills the memory, the run ends
+        if room is not None and n == room:       # stop-when-full: this block fills the memory, the run ends
             self._end_steps()
         return self.ring.append(pack_words(c, flags))
 

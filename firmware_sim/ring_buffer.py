@@ -79,6 +79,14 @@ class RingBuffer:
         return self.header.logging
 
     @property
+    def room_samples(self) -> int | None:
+        """Samples the run can still store before stop-when-full ends it; None in overwrite mode (never
+        ends)."""
+        if self.header.overwrite:
+            return None
+        return max(self.capacity - self.header.samples_written, 0)
+
+    @property
     def full(self) -> bool:
         """The memory holds ``capacity`` samples (stop-when-full cannot start)."""
         return self.header.samples_written >= self.capacity
@@ -160,8 +168,9 @@ class RingBuffer:
         w = np.asarray(words, dtype=np.uint32).reshape(-1)
         h = self.header
         cap = self.capacity
-        if not h.overwrite:
-            w = w[: max(cap - h.samples_written, 0)]
+        room = self.room_samples
+        if room is not None:
+            w = w[:room]
         n = int(w.size)
         if n:
             self._store(w)

@@ -227,6 +227,35 @@ def test_noisy_line_capture_decodes_to_the_same_records(walk_image, tmp_path):
         assert Recording.load(tmp_path / f"{source[0]}.npz").step_records.tobytes() == records
 
 
+def _fill_in_blocks(block: int, path: Path) -> Logger:
+    """A stop-when-full run of a synthetic 1.75 Hz gait fed to the firmware in blocks until the 65,536-sample
+    memory is full (its last foot-flat is then still pending)."""
+    t = np.arange(66_000) / 50.0
+    a_v = 0.25 * np.sin(2 * np.pi * 1.75 * t) + 0.08 * np.sin(2 * np.pi * 3.5 * t + 1.0)
+    codes = np.round(np.column_stack([512 + 10 * np.sin(2 * np.pi * 0.9 * t), np.full(t.size, 512.0),
+                                      512 + 256 * (1 + a_v)])).astype(np.int64)
+    logger = Logger(device_id=9, step_config=CONFIG, overwrite=False)
+    logger.firmware.start_logging(start_time_s=START_S, overwrite=False)
+    for i in range(0, t.size, block):
+        logger.firmware.log_samples(codes[i:i + block])
+    assert logger.header.full_stopped and logger.header.samples_written == 65_536
+    logger.save_image(path)
+    return logger
+
+
+def test_memory_filled_by_a_whole_block_still_stores_the_last_step(tmp_path):
+    """Stop-when-full ends the run whether the last block fills the memory exactly or is cut: the pending
+    foot-flat is stored either way, and the records are the host's replay of the stored samples."""
+    exact = _fill_in_blocks(512, tmp_path / "exact.glimg")      # 65,536 = 128 x 512: no block is cut
+    cut = _fill_in_blocks(500, tmp_path / "cut.glimg")          # the 132nd block is cut at 36 samples
+    assert device_records(exact) == device_records(cut) and len(device_records(exact)) // 20 > 2000
+    last_end = struct.unpack_from("<I", device_records(exact), len(device_records(exact)) - 20)[0]
+    assert last_end > 65_536 - 50   # the pending foot-flat, finalised by the end of the run (< 1 s before)
+    for name in ("exact", "cut"):
+        check = verify_step_records(decode_file(tmp_path / f"{name}.glimg"))
+        assert check.identical and check.n_compared == len(device_records(exact)) // 20, (name, check.summary())
+
+
 # ------------------------------------------------------------------------------------------ resume
 def test_cli_resume_of_a_dump_cut_in_the_step_memory(walk_image, tmp_path, capsys):
     image, _, records = walk_image
