@@ -26,10 +26,12 @@ import numba
 
 __all__ = ["COMPILED_SOURCES", "source_hash", "cache_dir"]
 
-_ROOT = Path(__file__).resolve().parent
+_ROOT = Path(__file__).resolve().parents[1]
 
-#: Source files whose functions are compiled into the kernels (relative to ``firmware_sim/``).
-COMPILED_SOURCES: tuple[str, ...] = ("compiled.py", "fixedpoint.py", "algorithms")
+#: Source files whose functions or constants are compiled into the kernels (relative to the repository root;
+#: the step flags of ``protocol/steps.py`` are frozen into the kernel as constants).
+COMPILED_SOURCES: tuple[str, ...] = ("firmware_sim/compiled.py", "firmware_sim/fixedpoint.py",
+                                     "firmware_sim/algorithms", "protocol/steps.py")
 
 
 def source_hash() -> str:
