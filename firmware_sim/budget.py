@@ -33,7 +33,8 @@ from firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ, I2C_BYTE_CYCLES, cy
 from firmware_sim.ring_buffer import WORDS_PER_PAGE
 
 __all__ = ["PIC_RAM_BYTES", "FIRMWARE_RAM", "LOGGING_CYCLES", "RamItem", "RamBudget", "CycleBudget",
-           "ram_budget", "cycle_budget", "logging_cycles_per_sample"]
+           "ram_budget", "cycle_budget", "logging_cycles_per_sample",
+           "algorithm_cycles_per_sample"]
 
 #: General-purpose RAM of the PIC16F877 (DS30292: 368 x 8; the largest contiguous bank block is 96 bytes).
 PIC_RAM_BYTES = 368
@@ -84,6 +85,15 @@ def logging_cycles_per_sample() -> float:
     1313
     """
     return float(sum(c for c, _ in LOGGING_CYCLES.values()))
+
+
+def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ) -> float:
+    """Cycles per sample period left to the on-line step algorithm: the period minus the logging interrupt.
+
+    >>> round(algorithm_cycles_per_sample(50.0))
+    90847
+    """
+    return cycles_per_sample_available(sampling_rate_hz, fosc_hz) - logging_cycles_per_sample()
 
 
 @dataclass(frozen=True)
@@ -170,7 +180,7 @@ class CycleBudget:
     @property
     def backlog_samples(self) -> float:
         """The most the algorithm lagged behind the sampling interrupt, in sample periods."""
-        return self.worst_backlog / (self.available - self.logging)
+        return self.worst_backlog / algorithm_cycles_per_sample(self.sampling_rate_hz, self.fosc_hz)
 
     @property
     def fits(self) -> bool:
@@ -192,7 +202,7 @@ class CycleBudget:
 
 def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> CycleBudget:
     """Cycle budget from a run's :class:`~firmware_sim.algorithms.online.CycleStats` (run with
-    ``cycles_available = available - logging``, as :class:`firmware_sim.device.Logger` does)."""
+    ``cycles_available =`` :func:`algorithm_cycles_per_sample`, as the firmware does)."""
     return CycleBudget(float(sampling_rate_hz), float(fosc_hz), stats.mean, int(stats.worst), int(stats.worst_backlog),
                        logging_cycles_per_sample())
 

@@ -36,10 +36,10 @@ from __future__ import annotations
 import numpy as np
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
-from firmware_sim.budget import logging_cycles_per_sample
+from firmware_sim.budget import algorithm_cycles_per_sample
 from firmware_sim.eeprom import Eeprom24LC1025
 from firmware_sim.errors import DeviceError
-from firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
+from firmware_sim.fixedpoint import DEFAULT_FOSC_HZ
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from firmware_sim.step_store import StepStore
 from protocol.crc import crc16_xmodem
@@ -58,12 +58,12 @@ from protocol.frames import (
     encode_frame,
     parse_payload,
 )
-from protocol.header import PACKING_P32
+from protocol.header import PACKING_P32, DeviceHeader
 from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
 from protocol.steps import StepConfig, memory_region, pack_step_records
 from protocol.xmodem import XmodemSender, raw_dump_bytes
 
-__all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP"]
+__all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "step_algorithm_for"]
 
 #: Firmware version 1.0 (major·256 + minor).
 FIRMWARE_VERSION = 0x0100
@@ -77,6 +77,18 @@ _BUSY_WHEN_LOGGING = frozenset(
      FrameType.SET_STEP_CONFIG, FrameType.START}
 )
 _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPES}
+
+
+def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> OnlineStepAlgorithm | None:
+    """The on-line step algorithm as the firmware sets it up at START from its header (sampling rate, ADC
+    width, calibration slot, step configuration; fixed point), or None when the header turns it off. The
+    host's replay (:mod:`host.replay`) uses the same, so device and replay cannot be set up differently."""
+    if not header.step_config.enabled:
+        return None
+    fs = header.sample_rate_hz
+    return OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=header.step_config, calibration=header.calibration,
+                               arithmetic="fixed", code_bits=header.adc_bits,
+                               cycles_available=algorithm_cycles_per_sample(fs, fosc_hz))
 
 
 class Firmware:
@@ -140,14 +152,7 @@ class Firmware:
         algorithm starts afresh from the header's configuration."""
         self.ring.start(start_time_s=start_time_s, overwrite=overwrite)
         self._run_first = True
-        h = self.ring.header
-        self.step_algorithm = None
-        if h.step_config.enabled:
-            fs = h.sample_rate_hz
-            self.step_algorithm = OnlineStepAlgorithm(
-                sampling_rate_hz=fs, step_config=h.step_config, calibration=h.calibration, arithmetic="fixed",
-                code_bits=h.adc_bits,
-                cycles_available=cycles_per_sample_available(fs, self.fosc_hz) - logging_cycles_per_sample())
+        self.step_algorithm = step_algorithm_for(self.ring.header, fosc_hz=self.fosc_hz)
 
     def stop_logging(self) -> None:
         """STOP: finalise the pending step, end the run, flush the page buffer, commit the header."""

@@ -24,11 +24,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
+from firmware_sim.firmware import step_algorithm_for
 from protocol.packing import FLAG_SESSION_START
 from protocol.steps import STEP_RECORD_DTYPE, pack_step_records
 
-__all__ = ["RunCheck", "ReplayCheck", "replay_records", "check_records"]
+__all__ = ["RunCheck", "ReplayCheck", "run_starts", "replay_records", "check_records"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,16 @@ class ReplayCheck:
         """Every verifiable record is identical (and at least one was compared)."""
         return self.n_compared > 0 and self.n_identical == self.n_compared
 
+    @property
+    def differs(self) -> bool:
+        """At least one verifiable record differs (none compared: nothing differs)."""
+        return self.n_identical < self.n_compared
+
+    def error_message(self, source: object) -> str:
+        """One line for a check that :attr:`differs`: the summary and the first differing record."""
+        end, what = self.mismatches[0]
+        return f"{source}: {self.summary()}; the first differing record ends at sample {end}: {what}"
+
     def summary(self) -> str:
         """One line."""
         if self.n_compared == 0:
@@ -95,11 +105,16 @@ class ReplayCheck:
                 f"byte for byte{extra}")
 
 
+def run_starts(valid: np.ndarray, flags: np.ndarray) -> np.ndarray:
+    """Rows where a logging run starts: the present samples flagged SESSION_START (START)."""
+    return np.flatnonzero(np.asarray(valid, bool) & ((np.asarray(flags) & FLAG_SESSION_START) != 0))
+
+
 def _runs(valid: np.ndarray, flags: np.ndarray) -> list[tuple[int, int]]:
     """``[start, stop)`` row ranges of the logging runs: from each SESSION_START row to the next (the rows
     before the first one belong to a run whose start is not in the dump)."""
     n = valid.size
-    starts = np.flatnonzero(valid & ((flags & FLAG_SESSION_START) != 0))
+    starts = run_starts(valid, flags)
     if n == 0:
         return []
     bounds = list(starts)
@@ -135,8 +150,7 @@ def replay_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, samp
             continue
         missing = np.flatnonzero(~ok[a:b])
         stop = b if missing.size == 0 else a + int(missing[0])
-        alg = OnlineStepAlgorithm(sampling_rate_hz=header.sample_rate_hz, step_config=cfg,
-                                  calibration=header.calibration, arithmetic="fixed", code_bits=header.adc_bits)
+        alg = step_algorithm_for(header)
         steps = alg.feed(c[a:stop])
         # the run ended inside the dump: another run follows it, or it is the last and the device stopped
         complete = stop == b and (b < c.shape[0] or not header.logging)

@@ -16,9 +16,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from firmware_sim.adc import Adc
-    from firmware_sim.budget import cycle_budget, logging_cycles_per_sample, ram_budget
+    from firmware_sim.budget import algorithm_cycles_per_sample, cycle_budget, ram_budget
     from firmware_sim.device import Logger
-    from firmware_sim.fixedpoint import cycles_per_sample_available
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
     from host.errors import HostError
@@ -29,8 +28,7 @@ def run(args: argparse.Namespace) -> int:
     if not (0.032 <= args.crystal <= 20.0):
         raise HostError(f"--crystal {args.crystal} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
     fosc = args.crystal * 1e6
-    available = cycles_per_sample_available(args.rate, fosc) - logging_cycles_per_sample()
-    if available <= 0:
+    if algorithm_cycles_per_sample(args.rate, fosc) <= 0:
         raise HostError(f"at {args.rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")
     ram = ram_budget(args.rate)
     subject = random_subjects(1, seed=args.seed)[0]
