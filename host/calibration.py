@@ -312,10 +312,8 @@ class AccCalibration:
         if self.input_unit != "counts":
             raise CalibrationError("only a calibration of ADC counts can go in the device header, "
                                    f"this one takes {self.input_unit}")
-        try:
-            from protocol.header import Calibration
-        except ImportError as err:  # pragma: no cover - protocol/header.py is written by another helper
-            raise CalibrationError("protocol.header is not available in this installation") from err
+        from protocol.header import Calibration
+
         return Calibration(offset_counts=self.offset.copy(), matrix_g_per_count=self.matrix.copy(), valid=True)
 
     # ---------------------------------------------------------------------------------------------- build

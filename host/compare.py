@@ -49,7 +49,7 @@ Recordings (:func:`compare_recording`): a decoded recording has no truth and no 
 online-float and online-fixed with the given K (or none: K = 1, M4/M5 undefined), sections between MARK
 flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the offline chain's M3 distance. A
 recording that carries the device's own step records is checked against the host's replay of the on-line
-algorithm, bit for bit (:func:`check_device_records`).
+algorithm, bit for bit (:func:`host.decode.verify_step_records`).
 """
 
 from __future__ import annotations
@@ -64,10 +64,8 @@ import numpy as np
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from host.decode import verify_step_records
 from host.errors import HostError
 from host.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
-from host.replay import ReplayCheck
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -894,19 +892,13 @@ class RecordingComparison:
     cycles_per_sample: float
     segment_source: str
 
-    @property
-    def offline_table(self) -> StepTable:
-        """The offline float chain."""
-        return self.tables["offline"]
-
 
 
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
                       adc_calibration: Any = None, code_bits: int = 10, valid: np.ndarray | None = None,
                       calibration: Any = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
                       segment_m: float = 20.0, t0_s: float = 0.0, sections: list[Section] | None = None,
-                      run_starts: np.ndarray | None = None,
-                      fixed_algorithm: Callable[..., Any] = OnlineStepAlgorithm) -> RecordingComparison:
+                      run_starts: np.ndarray | None = None) -> RecordingComparison:
     """Offline chain, on-line float and on-line fixed on the same codes (no truth): matched steps,
     differences, sections.
 
@@ -932,7 +924,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     okw = dict(kw, adc_calibration=cal, code_bits=code_bits, valid=ok, run_starts=run_starts)
     tables = {"offline": offline_step_table(acc, valid=ok, **kw)}
     tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
-    tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", algorithm=fixed_algorithm, **okw)
+    tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", **okw)
     shares = {s: SHARES[s] for s in ("algorithm", "arithmetic")}
     matches = {s: match_steps(tables[a], tables[b]) for s, (a, b) in shares.items()}
     diffs = []
@@ -977,13 +969,6 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
         steps[f"{e}_online_fixed_m"] = _take(tables["online-fixed"].length_m[est], fixed_of)
     return RecordingComparison(tables, matches, diffs, seg_rows, steps, alg.arithmetic_context().report(),
                                alg.saturations, alg.wraps, alg.cycles.mean, source)
-
-
-def check_device_records(recording: Any) -> ReplayCheck | None:
-    """The device's own step records of a decoded recording against the host's replay of the on-line
-    algorithm (:func:`host.decode.verify_step_records`): a :class:`host.replay.ReplayCheck`, or None when
-    there is nothing to check."""
-    return verify_step_records(recording)
 
 
 # ---------------------------------------------------------------------------------------------------------

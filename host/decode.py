@@ -33,14 +33,17 @@ import os
 import warnings
 from collections import Counter
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from host.errors import HostError
 from host.recording import RecordGap, Recording, gaps_from_mask
-from host.replay import ReplayCheck, check_records
 from protocol.errors import ProtocolError
 from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, unpack_step_records
+
+if TYPE_CHECKING:
+    from host.replay import ReplayCheck
 
 #: Reason texts of the gaps, indexed by the reason codes used below.
 REASONS = (
@@ -371,6 +374,8 @@ def verify_step_records(recording: Recording) -> ReplayCheck | None:
     host.replay.ReplayCheck or None
         None when there is nothing to check: no header, or the header's step algorithm off and no records.
     """
+    from host.replay import check_records   # the compiled step algorithm: loaded only to verify (not to decode)
+
     header = recording.header
     if header is None or (not header.step_config.enabled and recording.n_step_records == 0):
         return None

@@ -131,11 +131,6 @@ class ReplayedTrial:
     leg_length_m: float
     foot_length_m: float
 
-    @property
-    def emulated(self) -> bool:
-        """Always True: the samples went through the emulated logger."""
-        return True
-
     def seconds(self, packet_index: float) -> float:
         """JSON packet index -> seconds on the logger clock."""
         return float(packet_index) / self.source_rate_hz
@@ -150,10 +145,10 @@ class ReplayedTrial:
         return int(sum(lo <= h <= hi for h in hs))
 
     def run_starts(self) -> np.ndarray:
-        """Rows where a logging run starts (SESSION_START)."""
-        from protocol.packing import FLAG_SESSION_START
+        """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
+        from host.replay import run_starts
 
-        return np.flatnonzero((np.asarray(self.flags) & FLAG_SESSION_START) != 0)
+        return run_starts(np.ones(self.codes.shape[0], bool), self.flags)
 
     def check_records(self) -> Any:
         """The device's records against the host's replay (:func:`host.replay.check_records`)."""
@@ -317,11 +312,6 @@ class IpolResult:
     step_rows: list[dict] = field(default_factory=list)
     arithmetics: tuple[str, ...] = ARITHMETICS
 
-    @property
-    def emulated(self) -> bool:
-        """Always True: every trial went through the emulated logger."""
-        return True
-
 
 def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KCalibration:
     sec, counts = trial_steps(rt, table, uturn=uturn)
@@ -402,9 +392,8 @@ def evaluate_folder(
             check = rt.check_records()
             res.replay_checks.append(dict(trial=p.name, n_device=check.n_device, n_compared=check.n_compared,
                                           n_identical=check.n_identical))
-            if check.n_identical != check.n_compared:
-                end, what = check.mismatches[0]
-                raise HostError(f"{p}: {check.summary()}; the first differing record ends at sample {end}: {what}")
+            if check.differs:
+                raise HostError(check.error_message(p))
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 off = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(

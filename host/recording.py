@@ -286,12 +286,6 @@ class Recording:
         """Number of stored step records that could not be used (the sum over ``step_losses``)."""
         return sum(g.n_records for g in self.step_losses)
 
-    @property
-    def step_time_s(self) -> np.ndarray:
-        """``(m,)`` time of each record's foot-flat (``end_sample``), s since the start of the log (the clock of
-        :attr:`time_s`)."""
-        return self.step_records["end_sample"].astype(np.float64) / self.sampling_rate_hz
-
     def gap_times_s(self, gap: Gap) -> tuple[float, float]:
         """Start and end time (s since the start of the log) of ``gap``: from its first sample to the
         sample after its last."""

@@ -216,18 +216,14 @@ def _recording(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from host.compare import (
-        check_device_records,
-        compare_recording,
-        format_step_diffs,
-        rows_csv_text,
-    )
+    from host.compare import compare_recording, format_step_diffs, rows_csv_text
+    from host.decode import verify_step_records
     from host.errors import HostError
     from host.estimators.anthropometry import anatomical_lengths
     from host.estimators.calibration import KCalibration
     from protocol.atomic_write import atomic_write_text, require_folder
-    from protocol.header import Calibration
-    from protocol.packing import FLAG_MARK, FLAG_SESSION_START
+    from host.replay import run_starts
+    from protocol.packing import FLAG_MARK
 
     p = Path(args.input)
     if not p.is_file():
@@ -243,19 +239,19 @@ def _recording(args: argparse.Namespace) -> int:
 
         rec = decode_file(p)
     # the device's own records first: a device that does not compute what the host replays is an error
-    check = check_device_records(rec)
-    if check is not None and check.n_compared and not check.identical:
-        end, what = check.mismatches[0]
-        raise HostError(f"{p}: {check.summary()}; the first differing record ends at sample {end}: {what}")
+    check = verify_step_records(rec)
+    if check is not None and check.differs:
+        raise HostError(check.error_message(p))
     cal, note = rec.default_calibration()
     if args.calibration:
         from host.calibration import AccCalibration
 
         acc_cal = AccCalibration.load(args.calibration)
-        if getattr(acc_cal, "input_unit", "counts") != "counts":
-            raise HostError(f"{args.calibration}: calibration input unit is {acc_cal.input_unit!r}; "
-                            "the on-line algorithm needs one fitted on ADC counts")
-        cal, note = Calibration(acc_cal.offset, acc_cal.matrix, valid=True), f"g from {args.calibration}"
+        try:
+            cal = acc_cal.to_header_calibration()
+        except HostError as err:
+            raise HostError(f"{args.calibration}: {err}") from None
+        note = f"g from {args.calibration}"
     k = KCalibration.load(args.k_file) if args.k_file else None
     leg_arg = args.leg_length if args.leg_length is not None or k is None or args.height else k.leg_length_m
     foot_arg = args.foot_length if args.foot_length is not None or k is None or args.height else k.foot_length_m
@@ -264,7 +260,7 @@ def _recording(args: argparse.Namespace) -> int:
         leg, foot = anatomical_lengths(leg_length_m=leg_arg, foot_length_m=foot_arg, height_m=args.height)
     flags = np.asarray(rec.flags)
     marks = np.flatnonzero((flags & FLAG_MARK) != 0)
-    starts = np.flatnonzero(((flags & FLAG_SESSION_START) != 0) & np.asarray(rec.valid, bool))
+    starts = run_starts(rec.valid, flags)
     t = rec.time_s
     res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                             foot_length_m=foot, adc_calibration=cal, code_bits=int(rec.adc_bits), valid=rec.valid,

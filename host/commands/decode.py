@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
                             "needs a calibration of ADC counts (input_unit 'counts')")
         note = f"g from the calibration {args.calibration}"
     check = verify_step_records(rec)
-    differs = check is not None and check.n_compared > check.n_identical
+    differs = check is not None and check.differs
     if differs and not args.no_verify:
         raise HostError(replay_error(rec, check))
     written = save_decoded(rec, args.out, calibration)

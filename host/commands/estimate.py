@@ -94,8 +94,7 @@ def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
     from host.compare import online_step_table
     from host.errors import HostError
     from host.recording import Recording
-    from protocol.header import Calibration
-    from protocol.packing import FLAG_SESSION_START
+    from host.replay import run_starts
 
     if Path(args.input).suffix.lower() != ".npz":
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a decoded recording "
@@ -106,12 +105,12 @@ def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
         from host.calibration import AccCalibration
 
         acc_cal = AccCalibration.load(args.calibration)
-        if getattr(acc_cal, "input_unit", "counts") != "counts":
-            raise HostError(f"{args.calibration}: calibration input unit is {acc_cal.input_unit!r}; "
-                            "the on-line algorithm needs one fitted on ADC counts")
-        adc_cal = Calibration(acc_cal.offset, acc_cal.matrix, valid=True)
+        try:
+            adc_cal = acc_cal.to_header_calibration()
+        except HostError as err:
+            raise HostError(f"{args.calibration}: {err}") from None
     valid = np.asarray(rec.valid, bool)
-    starts = np.flatnonzero(((np.asarray(rec.flags) & FLAG_SESSION_START) != 0) & valid)
+    starts = run_starts(valid, rec.flags)
     table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                                    foot_length_m=foot, calibration=cal, adc_calibration=adc_cal,
                                    code_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
