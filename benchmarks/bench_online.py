@@ -267,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
         # ---- 2. cold start
         bare = best_wall("pass", [], env)
         imp = best_wall(IMPORT_ONLY, [], env)
-        print(f"\n2. cold start: a fresh `python -c` (best of 3), compiled cache present (not a target)")
+        print("\n2. cold start: a fresh `python -c` (best of 3), compiled cache present (not a target)")
         for a in algs:
             whole = best_wall(COLD_PLAIN, [full_path, a, *leg_foot], env)
             parts = [run_child(COLD_SPLIT, [full_path, a, *leg_foot], env)[1] for _ in range(3)]

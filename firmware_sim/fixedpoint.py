@@ -68,7 +68,6 @@ __all__ = [
     "CYCLE_TABLE",
     "I2C_BYTE_CYCLES",
     "DEFAULT_FOSC_HZ",
-    "CYCLES_PER_SAMPLE_50HZ",
     "cycles_per_sample_available",
     "N_COUNTERS",
     "C_SAT",
@@ -132,9 +131,6 @@ def cycles_per_sample_available(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     """
     return fosc_hz / 4.0 / sampling_rate_hz
 
-
-#: Instruction cycles available per sample at 50 Hz and 5 MIPS (20 MHz clock / 4), the PIC's fastest.
-CYCLES_PER_SAMPLE_50HZ = 100_000
 
 #: Worst-case PIC16 instruction cycles per element of each primitive (see :data:`CYCLE_SOURCES`).
 CYCLES: dict[str, int] = {

@@ -31,12 +31,10 @@ from typing import Self
 
 import numpy as np
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.errors import HostError
 
 __all__ = ["AngularVelocityFromAccelerometers", "STANDARD_GRAVITY_M_S2", "gravity_from_pivot"]
-
-#: m/s² per g (same constant as ``firmware_sim.world.base``).
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 
 class AngularVelocityFromAccelerometers:

@@ -22,10 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.errors import HostError
-
-#: Standard gravity, m/s^2 per g (same constant as ``firmware_sim.world.base``).
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$")
 

@@ -22,6 +22,7 @@ from typing import Self
 
 import numpy as np
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.errors import HostError
 
 __all__ = [
@@ -31,9 +32,6 @@ __all__ = [
     "remove_cycle_drift",
     "remove_gravity",
 ]
-
-#: m/s² per g (same constant as ``firmware_sim.world.base``).
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 
 def remove_gravity(acc_g: np.ndarray, dcm: np.ndarray) -> np.ndarray:

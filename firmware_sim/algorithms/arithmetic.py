@@ -48,7 +48,7 @@ from firmware_sim.fixedpoint import (
     s_shift_right,
 )
 
-__all__ = ["is_fixed", "mul", "add", "sub", "neg", "requant", "scale2", "div", "sqrt", "mul_count"]
+__all__ = ["mul", "add", "sub", "neg", "requant", "scale2", "div", "sqrt", "mul_count"]
 
 
 def _fixed(x) -> bool:
@@ -147,11 +147,6 @@ def _mul_count_float(a, n, bits, cnt):
 # the vocabulary: Python dispatch + numba overloads (compile-time dispatch on the value type)
 
 
-def is_fixed(a) -> bool:
-    """True when ``a`` is a fixed-point value (an integer), False for a float."""
-    return _fixed(a)
-
-
 def mul(a, fa, b, fb, fo, bits, cnt):
     """``a · b`` in ``fo`` fraction bits and a ``bits`` word (rounded half up, saturated)."""
     return (_mul_fixed if _fixed(a) else _mul_float)(a, fa, b, fb, fo, bits, cnt)
@@ -246,9 +241,3 @@ def _ol_sqrt(a, fa, fo, nearest, cnt):
 def _ol_mul_count(a, n, bits, cnt):
     return _pick(a, _mul_count_fixed, _mul_count_float)
 
-
-@overload(is_fixed, jit_options={"cache": True})
-def _is_fixed_overload(a):
-    if isinstance(a, types.Float):
-        return lambda a: False
-    return lambda a: True

@@ -98,7 +98,6 @@ F_POS = POSITION_Q.frac_bits
 F_POS2 = POSITION2_Q.frac_bits
 F_EXC = EXCURSION_Q.frac_bits
 F_EXC2 = EXCURSION2_Q.frac_bits
-F_LEN = LENGTH_Q.frac_bits
 F_TWO_LEN = TWO_LENGTH_Q.frac_bits
 F_STEP = STEP_Q.frac_bits
 F_K = K_Q.frac_bits

@@ -33,13 +33,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 __all__ = ["EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance",
            "gaussian_radius", "FRACTION_SCALE",
            "STANDARD_GRAVITY_M_S2", "SIGMA_S_AT_1HZ"]
 
-#: Standard gravity, m/s^2 per g.
-STANDARD_GRAVITY_M_S2 = 9.80665
 #: Gaussian sigma (s) whose -3 dB cut-off is 1 Hz: ``|H(f)| = exp(-(2 pi f sigma)^2 / 2) = 1/sqrt(2)``.
 SIGMA_S_AT_1HZ = float(math.sqrt(math.log(2.0)) / (2.0 * math.pi))
 #: ``min_step_fraction`` is applied as the integer ``round(fraction · FRACTION_SCALE)`` (a 3-digit constant).
@@ -124,14 +123,6 @@ class EventParameters:
     def min_step_fraction_scaled(self) -> int:
         """``min_step_fraction`` as an integer out of :data:`FRACTION_SCALE`."""
         return int(round(self.min_step_fraction * FRACTION_SCALE))
-
-    def minimum_distance(self, typical_twice: int, min_step: int) -> int:
-        """The peak distance rule in samples (:func:`minimum_distance` with this ``min_step_fraction``).
-
-        >>> EventParameters().minimum_distance(2 * 25, 13), EventParameters().minimum_distance(57, 13)
-        (15, 17)
-        """
-        return minimum_distance(typical_twice, min_step, self.min_step_fraction_scaled)
 
 
 @dataclass(frozen=True)

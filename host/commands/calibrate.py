@@ -21,7 +21,6 @@ _KNOWN_COLUMNS: tuple[tuple[tuple[str, str, str], str | None], ...] = (
     (("accx", "accy", "accz"), None),
     (("x", "y", "z"), None),
 )
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -69,6 +68,7 @@ def _read_csv(path: Path, args: argparse.Namespace) -> tuple[Any, float, str]:
     """Samples ``(n, 3)`` float, rate in Hz and unit (``counts`` or ``g``) from a CSV file."""
     import numpy as np
 
+    from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
     from host.errors import HostError
 
     try:

@@ -23,10 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.gait.masked_filter import masked_moving_mean
-
-#: Standard gravity, m/s^2 per g.
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Gaussian sigma (s) whose -3 dB cut-off is 1 Hz: |H(f)| = exp(-(2 pi f sigma)^2 / 2) = 1/sqrt(2).
-SIGMA_S_AT_1HZ = float(np.sqrt(np.log(2.0)) / (2.0 * np.pi))
+from firmware_sim.algorithms.parameters import SIGMA_S_AT_1HZ
 
 
 def gaussian_sigma_s(cutoff_hz: float) -> float:
