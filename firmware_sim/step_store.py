@@ -29,7 +29,7 @@ from protocol.steps import (
     STEP_CAPACITY_RECORDS,
     STEP_RECORD_SIZE,
     STEPS_WRITTEN_MAX,
-    unpack_step_records,
+    stored_step_records,
 )
 
 __all__ = ["StepStore"]
@@ -154,5 +154,5 @@ class StepStore:
 
     def records_in_order(self) -> tuple[np.ndarray, np.ndarray]:
         """The stored records, oldest first (section 2.3's ring rules), and their CRC verdicts."""
-        rows = np.frombuffer(self.contents(), dtype=np.uint8).reshape(-1, STEP_RECORD_SIZE)
-        return unpack_step_records(rows[self.header.step_slots()].reshape(-1))
+        records, crc_ok, _ = stored_step_records(self.header, self.contents())
+        return records, crc_ok

@@ -40,7 +40,7 @@ import numpy as np
 from host.errors import HostError
 from host.recording import RecordGap, Recording, gaps_from_mask
 from protocol.errors import ProtocolError
-from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, unpack_step_records
+from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, stored_step_records
 
 if TYPE_CHECKING:
     from host.replay import ReplayCheck
@@ -274,9 +274,7 @@ def _assemble_steps(header, step_memory: np.ndarray, byte_ok: np.ndarray, byte_r
     n = int(header.n_steps_stored)
     if n == 0:
         return np.zeros(0, STEP_RECORD_DTYPE), np.zeros(0, np.int64), []
-    slots = header.step_slots()
-    rows = np.asarray(step_memory, np.uint8).reshape(-1, STEP_RECORD_SIZE)[slots]
-    records, crc_ok = unpack_step_records(rows.reshape(-1))
+    records, crc_ok, slots = stored_step_records(header, step_memory)
     ok_rows = np.asarray(byte_ok, bool).reshape(-1, STEP_RECORD_SIZE)[slots]
     bytes_ok = ok_rows.all(axis=1)
     reason = np.where(bytes_ok, _S_CRC, np.asarray(byte_reason).reshape(-1, STEP_RECORD_SIZE)[slots][

@@ -27,6 +27,7 @@ import construct as cs
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
 from protocol.header import CALIBRATION_SIZE, HEADER_SIZE, Calibration, DeviceHeader
+from protocol.layout import named_fields
 from protocol.steps import STEP_CONFIG_SIZE, StepConfig
 
 __all__ = [
@@ -223,20 +224,9 @@ FIELD_LIMITS: dict[tuple[FrameType, str], tuple[int, int]] = {
 }
 
 
-def _field_offsets(struct: cs.Struct) -> dict[str, int]:
-    out, pos = {}, 0
-    for sc in struct.subcons:
-        if sc.name is not None:
-            out[sc.name] = pos
-        try:
-            pos += sc.sizeof()
-        except cs.SizeofError:
-            break
-    return out
-
-
 #: (type, field) -> byte offset of the field in the payload.
-PAYLOAD_OFFSETS: dict[FrameType, dict[str, int]] = {t: _field_offsets(s) for t, s in PAYLOAD_STRUCTS.items()}
+PAYLOAD_OFFSETS: dict[FrameType, dict[str, int]] = {t: {name: off for name, off, _ in named_fields(s)}
+                                                  for t, s in PAYLOAD_STRUCTS.items()}
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ import numpy as np
 
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
+from protocol.layout import field_offsets
 from protocol.steps import (
     STEP_CAPACITY_RECORDS,
     STEP_CONFIG_SIZE,
@@ -137,26 +138,14 @@ HEADER_STRUCT = cs.Struct(
 )
 
 
-def _offsets(struct: cs.Struct) -> dict[str, tuple[int, int]]:
-    """Byte offset and size of every named field of a fixed-size struct."""
-    out: dict[str, tuple[int, int]] = {}
-    pos = 0
-    for sc in struct.subcons:
-        size = sc.sizeof()
-        if sc.name is not None:
-            out[sc.name] = (pos, size)
-        pos += size
-    return out
-
-
 # compiled twins of the declarations above, for the hot paths (same bytes; checked by the tests)
 _HEADER_BODY_FAST = HEADER_BODY_STRUCT.compile()
 _CALIBRATION_FAST = CALIBRATION_STRUCT.compile()
 
 #: field name -> (offset, size) in the 256-byte header (``header_crc`` included).
-HEADER_OFFSETS: dict[str, tuple[int, int]] = {**_offsets(HEADER_BODY_STRUCT), "header_crc": (254, 2)}
+HEADER_OFFSETS: dict[str, tuple[int, int]] = {**field_offsets(HEADER_BODY_STRUCT), "header_crc": (254, 2)}
 #: field name -> (offset, size) in the 64-byte calibration slot.
-CALIBRATION_OFFSETS: dict[str, tuple[int, int]] = _offsets(CALIBRATION_STRUCT)
+CALIBRATION_OFFSETS: dict[str, tuple[int, int]] = field_offsets(CALIBRATION_STRUCT)
 
 assert HEADER_BODY_STRUCT.sizeof() == HEADER_SIZE - 2 and CALIBRATION_STRUCT.sizeof() == CALIBRATION_SIZE
 
@@ -417,15 +406,11 @@ class DeviceHeader:
 
     def step_slots(self) -> np.ndarray:
         """Slots of the stored records, oldest first: ``(first_step_slot + i) mod step_capacity``, ``int64``."""
-        slots = np.arange(self.first_step_slot, self.first_step_slot + self.n_steps_stored, dtype=np.int64)
-        slots[slots >= self.step_capacity] -= self.step_capacity
-        return slots
+        return _ring_slots(self.first_step_slot, self.n_steps_stored, self.step_capacity)
 
     def stored_slots(self) -> np.ndarray:
         """Slots of the stored samples, oldest first: ``(first_slot + i) mod capacity``, ``int64``."""
-        slots = np.arange(self.first_slot, self.first_slot + self.n_stored, dtype=np.int64)
-        slots[slots >= self.capacity_samples] -= self.capacity_samples  # no modulo: 10x faster
-        return slots
+        return _ring_slots(self.first_slot, self.n_stored, self.capacity_samples)
 
     def sample_numbers(self) -> np.ndarray:
         """Absolute sample numbers of the stored samples, oldest first, ``int64``."""
@@ -590,3 +575,10 @@ class DeviceHeader:
 
 # every integer field of the layout is a dataclass field (the layout is the one list of them)
 assert set(HEADER_INT_FIELDS) <= {f.name for f in dataclasses.fields(DeviceHeader)}
+
+
+def _ring_slots(first: int, n: int, capacity: int) -> np.ndarray:
+    """Slots ``(first + i) mod capacity`` for ``i < n <= capacity``, ``int64`` (no modulo: 10x faster)."""
+    slots = np.arange(first, first + n, dtype=np.int64)
+    slots[slots >= capacity] -= capacity
+    return slots

@@ -44,7 +44,7 @@ from protocol.crc import crc32
 from protocol.errors import ProtocolError
 from protocol.frames import FrameParser, Frame
 from protocol.header import HEADER_SIZE, MAGIC as HEADER_MAGIC, MAX_CAPACITY_SAMPLES, DeviceHeader
-from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, unpack_step_records
+from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, stored_step_records
 
 __all__ = [
     "IMAGE_MAGIC",
@@ -174,9 +174,7 @@ class ImageContents:
         ok : numpy.ndarray
             ``(n_steps_stored,)`` bool: all 20 bytes come from ok blocks and the record's CRC matches.
         """
-        slots = self.header.step_slots()
-        rows = self.step_memory.reshape(-1, STEP_RECORD_SIZE)[slots]
-        records, crc_ok = unpack_step_records(rows.reshape(-1))
+        records, crc_ok, slots = stored_step_records(self.header, self.step_memory)
         bytes_ok = self.step_byte_ok().reshape(-1, STEP_RECORD_SIZE)[slots].all(axis=1)
         return records, crc_ok & bytes_ok
 

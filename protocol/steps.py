@@ -27,13 +27,14 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import construct as cs
 import numpy as np
 
 from protocol.crc import crc16_xmodem, crc16_xmodem_rows
 from protocol.errors import ProtocolError
+from protocol.layout import field_offsets, named_fields
 
 __all__ = [
     "STEP_RECORD_SIZE",
@@ -58,6 +59,7 @@ __all__ = [
     "empty_step_records",
     "pack_step_records",
     "unpack_step_records",
+    "stored_step_records",
     "build_step_record",
     "parse_step_record",
     "step_lengths_m",
@@ -148,26 +150,14 @@ STEP_CONFIG_STRUCT = cs.Struct(
 )
 
 
-def _named_fields(struct: cs.Struct) -> list[tuple[str, int, cs.Construct]]:
-    """(name, offset, subcon) of the named fields of a fixed-size struct."""
-    out, pos = [], 0
-    for sc in struct.subcons:
-        if sc.name is not None:
-            out.append((sc.name, pos, sc.subcon if isinstance(sc, cs.Renamed) else sc))
-        pos += sc.sizeof()
-    return out
-
-
 _CRC_FIELD = STEP_RECORD_STRUCT.subcons[1].subcon.checksumfield  # Int16ub
 #: field name -> (offset, size) in the 20-byte record (``record_crc`` included).
 STEP_RECORD_OFFSETS: dict[str, tuple[int, int]] = {
-    **{name: (off, sc.sizeof()) for name, off, sc in _named_fields(STEP_RECORD_BODY_STRUCT)},
+    **field_offsets(STEP_RECORD_BODY_STRUCT),
     "record_crc": (STEP_RECORD_BODY_STRUCT.sizeof(), _CRC_FIELD.sizeof()),
 }
 #: field name -> (offset, size) in the 32-byte step configuration block.
-STEP_CONFIG_OFFSETS: dict[str, tuple[int, int]] = {
-    name: (off, sc.sizeof()) for name, off, sc in _named_fields(STEP_CONFIG_STRUCT)
-}
+STEP_CONFIG_OFFSETS: dict[str, tuple[int, int]] = field_offsets(STEP_CONFIG_STRUCT)
 
 _NUMPY_CODE = {"B": "u1", "b": "i1", "H": "u2", "h": "i2", "L": "u4", "l": "i4", "I": "u4", "i": "i4"}
 
@@ -186,7 +176,7 @@ def _int_range(ff: cs.FormatField) -> tuple[int, int]:
 
 #: numpy twin of :data:`STEP_RECORD_STRUCT` (derived from it): bytes 0-17 little-endian, ``record_crc`` ``>u2``.
 STEP_RECORD_DTYPE = np.dtype(
-    [(name, _numpy_type(sc)) for name, _, sc in _named_fields(STEP_RECORD_BODY_STRUCT)]
+    [(name, _numpy_type(sc)) for name, _, sc in named_fields(STEP_RECORD_BODY_STRUCT)]
     + [("record_crc", _numpy_type(_CRC_FIELD))]
 )
 
@@ -267,6 +257,28 @@ def unpack_step_records(data: bytes | bytearray | memoryview | np.ndarray, *, so
     rows = raw.reshape(-1, STEP_RECORD_SIZE)
     crc_ok = crc16_xmodem_rows(rows[:, :_BODY_SIZE]) == records["record_crc"]
     return records, crc_ok
+
+
+def stored_step_records(header: Any, step_memory: np.ndarray | bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The stored records of a step memory in ring order (oldest first, section 2.3's ring rules).
+
+    Parameters
+    ----------
+    header
+        The :class:`protocol.header.DeviceHeader` whose step counters describe the ring.
+    step_memory
+        ``(20 · step_capacity,)`` bytes of the step memory from its address 0.
+
+    Returns
+    -------
+    records, crc_ok, slots
+        As :func:`unpack_step_records`, and each record's slot in the ring (``header.step_slots()``).
+    """
+    slots = header.step_slots()
+    rows = np.frombuffer(bytes(step_memory), np.uint8) if not isinstance(step_memory, np.ndarray) else \
+        np.asarray(step_memory, np.uint8)
+    records, crc_ok = unpack_step_records(rows.reshape(-1, STEP_RECORD_SIZE)[slots].reshape(-1))
+    return records, crc_ok, slots
 
 
 def build_step_record(**fields: int) -> bytes:
@@ -354,7 +366,7 @@ _CONFIG_VALUES: tuple[tuple[str, str], ...] = (
     ("k1_m5_m_s", "k1_m5_q16"),
     ("k2_m5_m", "k2_m5_q16"),
 )
-_CONFIG_SUBCONS = {name: sc for name, _, sc in _named_fields(STEP_CONFIG_STRUCT)}
+_CONFIG_SUBCONS = {name: sc for name, _, sc in named_fields(STEP_CONFIG_STRUCT)}
 _STEP_CONFIG_FAST = STEP_CONFIG_STRUCT.compile()
 
 
