@@ -110,9 +110,7 @@ def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: A
 
     kw: dict[str, Any] = dict(step_format=1, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
     if calibration is not None:
-        kw.update(calibrated=True, k_m1=float(calibration.k_m1), k_m2=float(calibration.k_m2),
-                  k_m4=float(calibration.k_m4), k1_m5_m_s=float(calibration.k1_m5_m_s),
-                  k2_m5_m=float(calibration.k2_m5_m))
+        kw.update(calibration.step_constants())
     cfg = StepConfig(**kw)
     try:
         cfg.raw

@@ -164,8 +164,7 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
     args = ctx["args"]
     subject = random_subjects(1, seed=args.seed)[0]
     acc_cal = ctx.get("calibration")
-    cal = (Calibration(acc_cal.offset, acc_cal.matrix, valid=True) if acc_cal is not None
-           else Calibration.nominal(10))
+    cal = acc_cal.to_header_calibration() if acc_cal is not None else Calibration.nominal(10)
     ctx.update(walk_calibration=cal, subject=subject)
     logger = _walk_logger(ctx, StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                           foot_length_m=subject.foot_length_m))
@@ -221,8 +220,8 @@ def _device(ctx: dict[str, Any]) -> list[str]:
 
     sub = ctx["subject"]
     k = ctx["walk_result"].calibrations["multi-speed"]
-    cfg = StepConfig(step_format=1, calibrated=True, leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
-                     k_m1=k.k_m1, k_m2=k.k_m2, k_m4=k.k_m4, k1_m5_m_s=k.k1_m5_m_s, k2_m5_m=k.k2_m5_m)
+    cfg = StepConfig(step_format=1, leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
+                     **k.step_constants())
     logger = _walk_logger(ctx, cfg)                          # SET_STEP_CONFIG with the subject's K
     logger.record(Walking(subject=sub, seed=ctx["args"].seed), start_time_s=1_700_000_000)
     image = ctx["dir"] / "walk_k.glimg"
@@ -257,6 +256,7 @@ def _split(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS
+    from firmware_sim.fixedpoint import cycles_per_sample_available
     from host.compare import compare_recording, format_step_diffs, rows_csv_text
     from host.evaluation import sections_from_marks
     from protocol.atomic_write import atomic_write_text
@@ -285,7 +285,8 @@ def _split(ctx: dict[str, Any]) -> list[str]:
         lines.append(f"{est:<5}{len(r):>14}{np.median(off):>10.4f}{np.median(fl):>15.4f}{np.median(fx):>15.4f}"
                      f"{np.max(np.abs(fl - off)):>11.4f}{np.max(np.abs(fx - fl)):>13.5f}")
     lines.append(f"saturation/wrap: {res.saturation or 'none'}; PIC cycles per sample {res.cycles_per_sample:,.0f} "
-                 "(gaitlog budget: against the 92,160 of a 50 Hz period)")
+                 f"(gaitlog budget: against the {cycles_per_sample_available(rec.sampling_rate_hz):,.0f} of a "
+                 f"{rec.sampling_rate_hz:g} Hz period)")
     return lines
 
 

@@ -156,8 +156,7 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
                                 f"give {derived:.4f} m: K holds only with the lengths it was fitted with (drop "
                                 "--height/--leg-length/--foot-length, or fit K again)")
         leg, foot = cal.leg_length_m, cal.foot_length_m
-        k = dict(calibrated=True, k_m1=cal.k_m1, k_m2=cal.k_m2, k_m4=cal.k_m4, k1_m5_m_s=cal.k1_m5_m_s,
-                 k2_m5_m=cal.k2_m5_m)
+        k = cal.step_constants()
         caught = []
     if not given:
         notes.append(f"no --height, --leg-length or --foot-length: the on-line step algorithm assumes a "

@@ -74,6 +74,12 @@ class KCalibration:
     subject: str = ""
     notes: list[str] = field(default_factory=list)
 
+    def step_constants(self) -> dict[str, object]:
+        """The K fields of the device's step configuration (:class:`protocol.steps.StepConfig`, PROTOCOL.md 2.2):
+        ``calibrated`` and the constants of M1, M2, M4 and M5 (the leg and foot lengths are the caller's)."""
+        return dict(calibrated=True, k_m1=float(self.k_m1), k_m2=float(self.k_m2), k_m4=float(self.k_m4),
+                    k1_m5_m_s=float(self.k1_m5_m_s), k2_m5_m=float(self.k2_m5_m))
+
     def to_json(self) -> str:
         """JSON text with ``cal_type`` and ``format_version``."""
         d = {"cal_type": self.CAL_TYPE, "format_version": self.FORMAT_VERSION, **asdict(self)}
