@@ -16,9 +16,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from firmware_sim.algorithms.steps import ESTIMATORS
 from host.cli import main
-
-ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")
 
 
 def _run(argv: list[str]) -> str:

@@ -148,14 +148,12 @@ def test_arithmetic_share_done_criteria(walk) -> None:
     assert wc.runs["online-fixed"].saturated == 0 and wc.runs["online-fixed"].wrapped == 0
 
 
-def test_the_split_adds_up_and_the_adc_and_algorithm_cost_more_than_the_arithmetic(walk) -> None:
+def test_every_chain_has_most_steps_and_the_adc_and_algorithm_cost_more_than_the_arithmetic(walk) -> None:
     steps = walk.wc.steps
     for est in ("m1", "m2", "m4"):
         i, o, f, x = (steps[f"{est}_{k}_m"] for k in ("ideal", "offline", "online_float", "online_fixed"))
         g = np.isfinite(i) & np.isfinite(o) & np.isfinite(f) & np.isfinite(x)
-        assert g.mean() > 0.9
-        # total = ADC + algorithm + arithmetic, step by step
-        np.testing.assert_allclose(x[g] - i[g], (o[g] - i[g]) + (f[g] - o[g]) + (x[g] - f[g]), atol=1e-12)
+        assert g.mean() > 0.9   # (the split x - i = (o - i) + (f - o) + (x - f) is an identity: not tested)
     d = {(r["share"], r["estimator"]): r for r in walk.wc.step_diffs}
     for est in ("M1", "M2", "M4"):
         assert d[("adc", est)]["median_abs_mm"] > d[("arithmetic", est)]["median_abs_mm"], est

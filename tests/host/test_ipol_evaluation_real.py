@@ -23,11 +23,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from firmware_sim.algorithms.steps import ESTIMATORS
 from host.cli import main
 
 pytestmark = pytest.mark.slow  # ~5 s: 52 trials through the emulated logger, once per module
-
-ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")
 
 
 @pytest.fixture(scope="module")

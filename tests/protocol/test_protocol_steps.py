@@ -6,7 +6,6 @@ from __future__ import annotations
 import binascii
 import math
 import struct
-import time
 
 import numpy as np
 import pytest
@@ -144,19 +143,15 @@ def test_crc_rows_equal_crc_hqx() -> None:
     assert crc16_xmodem_rows(np.zeros((0, 18), np.uint8)).shape == (0,)
 
 
-def test_full_store_is_fast() -> None:
-    """A full store (3,276 records) packs and unpacks in well under 10 ms (about 0.6 ms measured)."""
+def test_full_store_round_trips() -> None:
+    """A full store (3,276 records) fills the step memory and unpacks to itself (its speed: bench_protocol)."""
     rng = np.random.default_rng(1)
     rec = empty_step_records(STEP_CAPACITY_RECORDS)
     rec["end_sample"] = np.cumsum(rng.integers(40, 70, STEP_CAPACITY_RECORDS))
-    best = math.inf
-    for _ in range(5):
-        t0 = time.perf_counter()
-        raw = pack_step_records(rec)
-        back, ok = unpack_step_records(raw)
-        best = min(best, time.perf_counter() - t0)
+    raw = pack_step_records(rec)
+    back, ok = unpack_step_records(raw)
     assert len(raw) == STEP_MEMORY_BYTES and ok.all()
-    assert best < 10e-3, f"{best * 1e3:.2f} ms"
+    np.testing.assert_array_equal(back["end_sample"], rec["end_sample"])
 
 
 def test_memory_region() -> None:
