@@ -44,6 +44,7 @@ from firmware_sim.algorithms.formats import (
     EXCURSION2_Q,
     EXCURSION_Q,
     K_Q,
+    KERNEL_Q,
     LENGTH_Q,
     LOWPASS_Q,
     M5_Q,
@@ -102,8 +103,9 @@ def _gaussian_half(cutoff_hz: float, fs: float, radius: int) -> np.ndarray:
 
 def _kernel_q(half: np.ndarray) -> np.ndarray:
     """Q1.14 half kernel whose full kernel sums to exactly 2^14 (the rounding residue in the centre tap)."""
-    q = np.floor(half * 2 ** 14 + 0.5).astype(np.int64)
-    q[0] += 2 ** 14 - (q[0] + 2 * int(q[1:].sum()))
+    one = 1 << KERNEL_Q.frac_bits
+    q = np.asarray(KERNEL_Q.from_float(half), np.int64)
+    q[0] += one - (q[0] + 2 * int(q[1:].sum()))
     return q
 
 
@@ -210,7 +212,7 @@ class OnlineConfig:
                 TWO_LEG=raw["leg_length_q15"],                       # UQ1.15 l read as UQ2.14: 2 l
                 FOOT=int(requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, TWO_LENGTH_Q)),
                 K1=raw["k_m1_q15"], K2=raw["k_m2_q15"], K4=k4p,
-                K1FS=int(round(k1fs)) if float(k1fs).is_integer() else int(M5_Q.from_float(k1fs / 2 ** 16)),
+                K1FS=int(M5_Q.from_float(k1fs / 2 ** 16)),
                 K2M5=raw["k2_m5_q16"],
                 UNIT=int(math.floor(unit * 2 ** unit_frac + 0.5)),
             )
