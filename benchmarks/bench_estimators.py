@@ -35,8 +35,8 @@ FS = 50.0
 def real_or_synthetic() -> tuple[np.ndarray, np.ndarray, str]:
     data = Path(os.environ.get("GAITLOG_DATA_DIR", ROOT.parent / "shared" / "data")) / "ipol-lowerback-dev"
     if data.is_dir():
-        from host.ipol import list_trials
-        from host.ipol_evaluation import replay_trial
+        from host.files.ipol import list_trials
+        from host.studies.ipol_evaluation import replay_trial
 
         accs, valids, n = [], [], 0
         with warnings.catch_warnings():

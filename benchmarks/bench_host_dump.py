@@ -29,7 +29,7 @@ from _timing import best_of
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from host.decode import decode_bytes  # noqa: E402
+from host.files.decode import decode_bytes  # noqa: E402
 from protocol.header import DeviceHeader  # noqa: E402
 from protocol.image import build_image  # noqa: E402
 

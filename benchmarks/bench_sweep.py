@@ -54,7 +54,7 @@ def naive_pass_s() -> float:
     from firmware_sim.device import Logger
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.compare import offline_step_table, online_step_table
+    from host.studies.compare import offline_step_table, online_step_table
     from protocol.header import Calibration
     from protocol.steps import StepConfig
 
@@ -76,7 +76,7 @@ def naive_pass_s() -> float:
 
 def main() -> int:
     sys.path.insert(0, str(ROOT))
-    from host.sweep import AdcRateSweep
+    from host.studies.sweep import AdcRateSweep
 
     ok = True
     workers = min(2, os.cpu_count() or 1)
@@ -94,7 +94,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         demo_code = ("import sys; sys.argv = ['gaitlog', 'demo', '--quiet', '--out', " + repr(tmp) + "]; "
                      "from host.cli import main; raise SystemExit(main(sys.argv[1:]))")
-        base_code = ("import numpy, scipy.signal, scipy.interpolate, matplotlib.pyplot, host.cli, host.compare; "
+        base_code = ("import numpy, scipy.signal, scipy.interpolate, matplotlib.pyplot, host.cli, host.studies.compare; "
                      "from firmware_sim.algorithms.online import load_kernels; load_kernels(('fixed', 'float'))")
         base_mb, _ = child_peak_mb(base_code)
         demo_mb, demo_s = child_peak_mb(demo_code)

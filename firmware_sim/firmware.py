@@ -82,7 +82,7 @@ _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPE
 def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> OnlineStepAlgorithm | None:
     """The on-line step algorithm as the firmware sets it up at START from its header (sampling rate, ADC
     width, calibration slot, step configuration; fixed point), or None when the header turns it off. The
-    host's replay (:mod:`host.replay`) uses the same, so device and replay cannot be set up differently."""
+    host's replay (:mod:`host.files.replay`) uses the same, so device and replay cannot be set up differently."""
     if not header.step_config.enabled:
         return None
     fs = header.sample_rate_hz

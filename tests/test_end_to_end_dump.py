@@ -18,7 +18,7 @@ from firmware_sim.device import Logger
 from firmware_sim.transport import serve_pty
 from firmware_sim.world.base import Motion
 from host.cli import main
-from host.recording import Recording
+from host.files.recording import Recording
 
 CAP = 65536
 ROOT = Path(__file__).resolve().parents[1]

@@ -27,10 +27,10 @@ import pytest
 from firmware_sim.device import Logger
 from firmware_sim.transport import serve_pty
 from host.cli import main
-from host.decode import decode_file, verify_step_records
+from host.files.decode import decode_file, verify_step_records
 from host.errors import HostError
-from host.link import LoggerLink
-from host.recording import STEP_CSV_COLUMNS, Recording
+from host.link.logger_link import LoggerLink
+from host.files.recording import STEP_CSV_COLUMNS, Recording
 from protocol.image import read_image
 from protocol.steps import StepConfig
 
@@ -405,7 +405,7 @@ def test_record_with_a_k_file_stores_calibrated_lengths(tmp_path, capsys):
     (["--steps", "off", "--height", "1.8"], 2, "--steps off runs no step algorithm: --height would be ignored"),
 ])
 def test_record_bad_inputs(tmp_path, capsys, args, code, message):
-    from host.estimators.calibration import KCalibration
+    from host.gait.k_calibration import KCalibration
 
     base = dict(k_m1=1.05, k_m2=1.1, k_m4=0.45, k1_m5_m_s=0.35, k2_m5_m=0.1, mode="single-speed", m5_fallback=False,
                 leg_length_m=0.9275, foot_length_m=0.1943, n_sections=1, n_steps=50, distance_m=40.0)

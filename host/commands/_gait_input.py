@@ -4,7 +4,7 @@ Not a command (the leading underscore keeps it out of ``gaitlog --help``).
 
 Accepted inputs
 ---------------
-* ``.npz`` written by ``gaitlog decode`` (:meth:`host.recording.Recording.load`): counts converted with the
+* ``.npz`` written by ``gaitlog decode`` (:meth:`host.files.recording.Recording.load`): counts converted with the
   header's calibration slot (else the nominal map) or ``--calibration``; invalid samples stay missing;
   MARK flags give the lap marks.
 * ``.csv`` written by ``gaitlog decode`` (header ``sample_number,time_s,...,x_g,y_g,z_g,flags,valid``).
@@ -56,13 +56,13 @@ def load_input(path: str | Path, *, rate_hz: float | None = None, calibration: s
     if not p.is_file():
         raise HostError(f"{p}: no such file")
     if p.suffix.lower() == ".npz":
-        from host.recording import Recording
+        from host.files.recording import Recording
 
         rec = Recording.load(p)
         cal = None
         note = rec.default_calibration()[1]
         if calibration:
-            from host.calibration import AccCalibration
+            from host.accelerometer.calibration import AccCalibration
 
             cal = AccCalibration.load(calibration)
             note = f"g from {calibration}"
@@ -91,7 +91,7 @@ def _load_csv(p: Path, rate_hz: float | None) -> GaitInput:
     body = lines[1:] if has_header else lines
     if not body:
         raise HostError(f"{p}: no data rows")
-    from host.recording import CSV_COLUMNS
+    from host.files.recording import CSV_COLUMNS
 
     decoded = names == list(CSV_COLUMNS)
     if decoded:

@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
     """Detect the static holds, fit the model, print a summary and write the JSON atomically."""
     import numpy as np
 
-    from host.calibration import ANGLE_NAMES, AccCalibrator
+    from host.accelerometer.calibration import ANGLE_NAMES, AccCalibrator
     from host.errors import HostError
 
     path: Path = args.input
@@ -197,11 +197,11 @@ def run(args: argparse.Namespace) -> int:
         if args.units not in (None, "counts"):
             raise HostError(f"{path}: a decoded recording holds ADC counts; --units {args.units} does not apply")
         if magic == b"GLIM":  # a memory image straight from `gaitlog record` / `gaitlog dump`
-            from host.decode import decode_file
+            from host.files.decode import decode_file
 
             rec = decode_file(path)
         else:
-            from host.recording import Recording
+            from host.files.recording import Recording
 
             rec = Recording.load(path)
         acc = rec.codes.astype(np.float64)

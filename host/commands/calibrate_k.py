@@ -29,8 +29,8 @@ def run(args: argparse.Namespace) -> int:
 
     from host.commands._gait_input import load_input
     from host.errors import HostError
-    from host.estimators.anthropometry import anatomical_lengths
-    from host.estimators.calibration import calibrate
+    from host.gait.anthropometry import anatomical_lengths
+    from host.gait.k_calibration import calibrate
     from host.gait.pipeline import StepPipeline
 
     if args.distance is not None and len(args.distance) not in (1, len(args.inputs)):

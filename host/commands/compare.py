@@ -7,10 +7,10 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
   summary and the saturation report. A recording carrying the device's own step records is first checked
   against the host's replay, bit for bit: a difference is an error (exit 1).
 * ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, offline,
-  online-float, online-fixed vs the world's truth, :mod:`host.compare`), the error split ADC / algorithm /
+  online-float, online-fixed vs the world's truth, :mod:`host.studies.compare`), the error split ADC / algorithm /
   arithmetic and its 95 % bootstrap intervals over the subjects.
 * ``gaitlog compare --sweep``: ADC 8/10/12 bits x 25/50/100 Hz over ``--subjects`` (4) simulated subjects
-  (:mod:`host.sweep`) and the answer about M5 and the 50 Hz step timing.
+  (:mod:`host.studies.sweep`) and the answer about M5 and the 50 Hz step timing.
 """
 
 from __future__ import annotations
@@ -66,9 +66,9 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from host.compare import rows_csv_text
+    from host.studies.compare import rows_csv_text
     from host.errors import HostError
-    from host.sweep import SUMMARY_COLUMNS, AdcRateSweep, format_m5, format_summary
+    from host.studies.sweep import SUMMARY_COLUMNS, AdcRateSweep, format_m5, format_summary
     from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.subjects < 1:
@@ -94,7 +94,7 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import columns_csv_text
-    from host.compare import bootstrap_budget, format_budget, format_step_diffs, rows_csv_text
+    from host.studies.compare import bootstrap_budget, format_budget, format_step_diffs, rows_csv_text
     from host.errors import HostError
     from protocol.atomic_write import atomic_write_text, require_folder
 
@@ -122,7 +122,7 @@ def _simulate(args: argparse.Namespace) -> int:
     sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
     print("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
     if args.out:
-        from host.compare import BUDGET_COLUMNS
+        from host.studies.compare import BUDGET_COLUMNS
 
         cols: dict[str, list] = {}
         for r in results:
@@ -140,7 +140,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, rate_hz: float = 50.0, workers: int = 1) -> list:
-    """One :class:`host.compare.WalkComparison` per simulated subject (parallel over subjects)."""
+    """One :class:`host.studies.compare.WalkComparison` per simulated subject (parallel over subjects)."""
     from firmware_sim.world.subject import random_subjects
 
     jobs = [(s, seed * 1000 + i, bits, rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
@@ -153,7 +153,7 @@ def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, rate_hz: floa
 
 
 def _one_subject(job: tuple):
-    from host.compare import AnalogWalk, compare_walk
+    from host.studies.compare import AnalogWalk, compare_walk
 
     subject, seed, bits, rate = job
     wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, bits=bits)
@@ -188,7 +188,7 @@ def format_segments(results: list) -> str:
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS
-    from host.compare import CHAINS, SHARES, column_key
+    from host.studies.compare import CHAINS, SHARES, column_key
 
     lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
              "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
@@ -216,13 +216,13 @@ def _recording(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from host.compare import compare_recording, format_step_diffs, rows_csv_text
-    from host.decode import verify_step_records
+    from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
+    from host.files.decode import verify_step_records
     from host.errors import HostError
-    from host.estimators.anthropometry import anatomical_lengths
-    from host.estimators.calibration import KCalibration
+    from host.gait.anthropometry import anatomical_lengths
+    from host.gait.k_calibration import KCalibration
     from protocol.atomic_write import atomic_write_text, require_folder
-    from host.replay import run_starts
+    from host.files.replay import run_starts
     from protocol.packing import FLAG_MARK
 
     p = Path(args.input)
@@ -231,11 +231,11 @@ def _recording(args: argparse.Namespace) -> int:
     if args.out:
         require_folder(args.out)
     if p.suffix.lower() == ".npz":
-        from host.recording import Recording
+        from host.files.recording import Recording
 
         rec = Recording.load(p)
     else:
-        from host.decode import decode_file
+        from host.files.decode import decode_file
 
         rec = decode_file(p)
     # the device's own records first: a device that does not compute what the host replays is an error
@@ -244,7 +244,7 @@ def _recording(args: argparse.Namespace) -> int:
         raise HostError(check.error_message(p))
     cal, note = rec.default_calibration()
     if args.calibration:
-        from host.calibration import AccCalibration
+        from host.accelerometer.calibration import AccCalibration
 
         acc_cal = AccCalibration.load(args.calibration)
         try:

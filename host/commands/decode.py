@@ -11,7 +11,7 @@ HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFI
 
 def _have_calibration_module() -> bool:
     try:
-        return importlib.util.find_spec("host.calibration") is not None
+        return importlib.util.find_spec("host.accelerometer.calibration") is not None
     except ImportError:  # pragma: no cover
         return False
 
@@ -44,14 +44,14 @@ def replay_error(recording, check) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.decode import decode_file, output_paths, save_decoded, verify_step_records
+    from host.files.decode import decode_file, output_paths, save_decoded, verify_step_records
     from host.errors import HostError
 
     rec = decode_file(args.input)
     calibration = None
     note = rec.default_calibration()[1]
     if getattr(args, "calibration", None):
-        from host.calibration import AccCalibration
+        from host.accelerometer.calibration import AccCalibration
 
         calibration = AccCalibration.load(args.calibration)
         if getattr(calibration, "input_unit", "counts") != "counts":

@@ -6,9 +6,9 @@ poses, CAL.json) -> summary (samples, gaps, duration and, per pose, the mean g a
 error of |a| before and after calibration) -> walk (a simulated subject through the paper's protocol,
 recorded by the same emulated device with the pose calibration in its header and its on-line step algorithm
 running) -> estimate (the host's offline float chain, K per subject, every 20 m section's ratio, CSV and the
-Figs 5-6 box plots: :mod:`host.evaluation`) -> device (K sent to the device, the walk recorded again: the
+Figs 5-6 box plots: :mod:`host.studies.evaluation`) -> device (K sent to the device, the walk recorded again: the
 device's own per-step records, checked against the host's replay bit for bit, beside the offline chain)
--> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`host.compare`).
+-> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`host.studies.compare`).
 
 Later issues extend the demo by appending :class:`Stage` objects to :data:`STAGES` (each stage reads and
 adds entries of the shared ``context`` dict and returns lines to print).
@@ -62,7 +62,7 @@ def _serve(ctx: dict[str, Any]) -> list[str]:
 
 
 def _dump(ctx: dict[str, Any]) -> list[str]:
-    from host.link import LoggerLink
+    from host.link.logger_link import LoggerLink
 
     out = ctx["dir"] / "dumped.glimg"
     with LoggerLink(ctx["port"], baud=115200) as link:
@@ -74,7 +74,7 @@ def _dump(ctx: dict[str, Any]) -> list[str]:
 
 
 def _decode(ctx: dict[str, Any]) -> list[str]:
-    from host.decode import decode_file, save_outputs
+    from host.files.decode import decode_file, save_outputs
 
     rec = decode_file(ctx["dumped_image"])
     npz, csv = save_outputs(rec, ctx["dir"] / "decoded")
@@ -85,7 +85,7 @@ def _decode(ctx: dict[str, Any]) -> list[str]:
 def _calibrate(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from host.calibration import AccCalibrator
+    from host.accelerometer.calibration import AccCalibrator
 
     rec = ctx["recording"]
     n_poses = len(ctx["motion"].truth["hold_windows_s"])
@@ -156,7 +156,7 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
 
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.evaluation import SimulatedRecording
+    from host.studies.evaluation import SimulatedRecording
     from protocol.header import Calibration
     from protocol.packing import FLAG_MARK
     from protocol.steps import StepConfig
@@ -188,9 +188,9 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
 
 
 def _estimate(ctx: dict[str, Any]) -> list[str]:
-    from host.compare import rows_csv_text
-    from host.evaluation import evaluate_recording, format_summary, summarise
-    from host.evaluation_plots import plot_boxplots
+    from host.studies.compare import rows_csv_text
+    from host.studies.evaluation import evaluate_recording, format_summary, summarise
+    from host.studies.plots import plot_boxplots
     from protocol.atomic_write import atomic_write_text
 
     res = evaluate_recording(ctx["walk_recording"])
@@ -213,9 +213,9 @@ def _device(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.algorithms.online import OnlineSteps
     from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
     from firmware_sim.world.walking import Walking
-    from host.compare import match_steps, offline_step_table, segment_distances, step_differences
-    from host.decode import decode_file, verify_step_records
-    from host.evaluation import sections_from_marks
+    from host.studies.compare import match_steps, offline_step_table, segment_distances, step_differences
+    from host.files.decode import decode_file, verify_step_records
+    from host.studies.evaluation import sections_from_marks
     from protocol.steps import StepConfig
 
     sub = ctx["subject"]
@@ -257,8 +257,8 @@ def _split(ctx: dict[str, Any]) -> list[str]:
 
     from firmware_sim.algorithms.steps import ESTIMATORS
     from firmware_sim.fixedpoint import cycles_per_sample_available
-    from host.compare import compare_recording, format_step_diffs, rows_csv_text
-    from host.evaluation import sections_from_marks
+    from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
+    from host.studies.evaluation import sections_from_marks
     from protocol.atomic_write import atomic_write_text
 
     rec = ctx["walk_recording"]

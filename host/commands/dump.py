@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from host.errors import HostError
-    from host.link import LoggerLink
+    from host.link.logger_link import LoggerLink
     from protocol.atomic_write import atomic_write_bytes
 
     if args.retries < 0:

@@ -28,8 +28,8 @@ def run(args: argparse.Namespace) -> int:
 
     from host.commands._gait_input import load_input
     from firmware_sim.algorithms.steps import ESTIMATORS
-    from host.estimators.anthropometry import anatomical_lengths
-    from host.estimators.calibration import KCalibration
+    from host.gait.anthropometry import anatomical_lengths
+    from host.gait.k_calibration import KCalibration
     from host.gait.pipeline import StepPipeline
 
     data = load_input(args.input, rate_hz=args.rate, calibration=args.calibration)
@@ -91,10 +91,10 @@ def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
 
     import numpy as np
 
-    from host.compare import online_step_table
+    from host.studies.compare import online_step_table
     from host.errors import HostError
-    from host.recording import Recording
-    from host.replay import run_starts
+    from host.files.recording import Recording
+    from host.files.replay import run_starts
 
     if Path(args.input).suffix.lower() != ".npz":
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a decoded recording "
@@ -102,7 +102,7 @@ def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
     rec = Recording.load(args.input)
     adc_cal = rec.default_calibration()[0]
     if args.calibration:
-        from host.calibration import AccCalibration
+        from host.accelerometer.calibration import AccCalibration
 
         acc_cal = AccCalibration.load(args.calibration)
         try:

@@ -38,7 +38,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def _run_sim(args: argparse.Namespace) -> int:
     from host.errors import HostError
-    from host.evaluation import SimulatedEvaluation
+    from host.studies.evaluation import SimulatedEvaluation
 
     out = args.out or args.folder
     if out is None:
@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
-    from host.compare import rows_csv_text
-    from host.ipol_evaluation import ARITHMETICS, CSV_COLUMNS, STEP_COLUMNS, done_figures, evaluate_folder, \
+    from host.studies.compare import rows_csv_text
+    from host.studies.ipol_evaluation import ARITHMETICS, CSV_COLUMNS, STEP_COLUMNS, done_figures, evaluate_folder, \
         format_done, summarise
     from protocol.atomic_write import atomic_write_bytes, atomic_write_text, require_folder
 
@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['k_from']},"
                      f"{r['distance_m']:.4f},{r['ratio']:.5f},{r['steps']},{r['reference_steps']}")
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
-    from host.evaluation_plots import render_chain_boxplots_png
+    from host.studies.plots import render_chain_boxplots_png
 
     png = render_chain_boxplots_png(res.rows, arith, title=f"IPOL lower back, {args.rate:g} Hz, {args.bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     if (args.image is None) == (args.port is None):
         raise HostError("give either IMAGE or --port PORT")
     if args.port:
-        from host.link import LoggerLink
+        from host.link.logger_link import LoggerLink
 
         with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
             info = link.identify()
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"memory           {info['memory_bytes']} bytes")
         print("\n".join(header_lines(header)))
         return 0
-    from host.decode import decode_file
+    from host.files.decode import decode_file
 
     rec = decode_file(args.image)
     print(f"file             {args.image}")

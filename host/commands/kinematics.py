@@ -44,10 +44,10 @@ def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str
     import numpy as np
 
     from firmware_sim.world.rigid_body import RigidBodyShank
-    from host.accelerometer_pairs import AngularVelocityFromAccelerometers, gravity_from_pivot
+    from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers, gravity_from_pivot
     from host.errors import HostError
-    from host.orientation import geodesic_distance_rad, initial_dcm_from_gravity, integrate_dcm
-    from host.strapdown import CycleTranslation, remove_cycle_drift, remove_gravity
+    from host.kinematics.orientation import geodesic_distance_rad, initial_dcm_from_gravity, integrate_dcm
+    from host.kinematics.strapdown import CycleTranslation, remove_cycle_drift, remove_gravity
     from scipy.spatial.transform import Rotation
 
     if not (np.isfinite(rate_hz) and 20 <= rate_hz <= 100_000):
@@ -126,7 +126,7 @@ def run_hall(rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[s
     import numpy as np
 
     from firmware_sim.world.two_link import TwoLinkJoint
-    from host.joints import HallJointKinematics
+    from host.kinematics.joints import HallJointKinematics
 
     src = TwoLinkJoint(noise_rad_s=noise_rad_s, seed=seed)
     r = src.render_rates(rate_hz)
@@ -158,7 +158,7 @@ def run_hall(rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[s
 def run(args: argparse.Namespace) -> int:
     """Run both simulations and methods, write the figures, print the errors against the truth."""
     from host.errors import HostError
-    from host.kinematics_plots import (
+    from host.kinematics.plots import (
         plot_angular_velocity,
         plot_dcm,
         plot_joint_angles,
@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise HostError(f"--out {out}: exists and is not a folder")
-    from host.cfc_filter import cfc_coefficients
+    from host.kinematics.cfc_filter import cfc_coefficients
 
     cfc_coefficients(180, args.hall_rate)  # reject an invalid rate before any work
     morris = run_morris(args.rate, args.noise_mg, args.seed)

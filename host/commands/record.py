@@ -2,7 +2,7 @@
 
 The logger runs its on-line step algorithm while logging (PROTOCOL.md 2.2, 2.3) unless ``--steps off``: the
 step configuration is written to the header before START, from ``--height`` / ``--leg-length`` /
-``--foot-length`` (:func:`host.estimators.anthropometry.anatomical_lengths`; a 1.70 m adult, with a warning,
+``--foot-length`` (:func:`host.gait.anthropometry.anatomical_lengths`; a 1.70 m adult, with a warning,
 when none is given) and, with ``--k-file``, the calibrated constants of a ``gaitlog calibrate-k`` file (whose
 leg and foot lengths are the ones K was fitted with). Without K the device stores the raw values.
 """
@@ -93,7 +93,7 @@ def build_motion(args: argparse.Namespace):
         from firmware_sim.world.gait_protocol import WalkingProtocol
         from firmware_sim.world.subject import Subject
         from firmware_sim.world.walking import Walking
-        from host.estimators.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
+        from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
 
         height = DEFAULT_HEIGHT_M if args.height is None else args.height
         anatomical_lengths(height_m=height)  # range check, named
@@ -122,7 +122,7 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
     import warnings
 
     from host.errors import HostError
-    from host.estimators.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
+    from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
     from protocol.errors import ProtocolError
     from protocol.steps import StepConfig, StepFormat
 
@@ -139,7 +139,7 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
                                        height_m=args.height)
     k = {}
     if args.k_file is not None:
-        from host.estimators.calibration import KCalibration
+        from host.gait.k_calibration import KCalibration
 
         cal = KCalibration.load(args.k_file)
         fitted = StepConfig(step_format=StepFormat.V1, leg_length_m=cal.leg_length_m,

@@ -12,4 +12,10 @@ integration
     Per-step double integration on the measured samples with resets (Alvarez M1/M2, eqs 1-3).
 pipeline
     Calibrated acceleration -> per-step table with every estimator (:class:`StepPipeline`).
+estimators
+    The step-length estimators M1-M5 (one class each).
+k_calibration
+    K of M1/M2/M4 and the M5 line fitted to walks over known distances (:class:`KCalibration`).
+anthropometry
+    Leg and foot length from body height when they were not measured.
 """

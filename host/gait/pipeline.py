@@ -8,8 +8,8 @@ Steps of the chain (:class:`StepPipeline`):
 3. One row per foot-flat: the step that ends there. Its window is the previous foot-flat of the same
    walking bout to this one; the first foot-flat of a bout (gait initiation, or after a gap longer than
    ``max_gap_s``) ends a step that has no window: it is counted but its length is NaN.
-4. M1-M5 on every window (``host.estimators``), raw (K = 1, or the cadence ``1/T`` for M5) and calibrated
-   with a :class:`~host.estimators.calibration.KCalibration` when one is given. Without one, M1 and M2 use
+4. M1-M5 on every window (``host.gait.estimators``), raw (K = 1, or the cadence ``1/T`` for M5) and calibrated
+   with a :class:`~host.gait.k_calibration.KCalibration` when one is given. Without one, M1 and M2 use
    K = 1 (the bare pendulum model), M4 and M5 are NaN (they have no physical scale without K).
 
 Distance (:meth:`StepTable.distance_m`): the sum of the step lengths; a step whose length is NaN (no window,
@@ -26,16 +26,16 @@ from typing import TYPE_CHECKING, Self
 import numpy as np
 
 from firmware_sim.algorithms.steps import StepTable
-from host.estimators.cadence import CadenceM5
-from host.estimators.pendulum import PendulumDriftM2, PendulumM1
-from host.estimators.two_phase import TwoPhasePendulumM3
-from host.estimators.weinberg import WeinbergM4
+from host.gait.estimators.cadence import CadenceM5
+from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1
+from host.gait.estimators.two_phase import TwoPhasePendulumM3
+from host.gait.estimators.weinberg import WeinbergM4
 from host.gait.axes import BodyAxes, body_axes
 from host.gait.events import GaitEventDetector
 from host.gait.integration import step_samples
 
 if TYPE_CHECKING:  # pragma: no cover
-    from host.estimators.calibration import KCalibration
+    from host.gait.k_calibration import KCalibration
 
 
 class StepPipeline:
@@ -44,7 +44,7 @@ class StepPipeline:
     Parameters
     ----------
     leg_length_m, foot_length_m
-        Anatomical inputs of M1-M3 (see :func:`host.estimators.anthropometry.anatomical_lengths`).
+        Anatomical inputs of M1-M3 (see :func:`host.gait.anthropometry.anatomical_lengths`).
     calibration
         Per-subject constants (K of M1/M2/M4, K1/K2 of M5), or None.
     detector

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.world.poses import CalibrationPoses
-from host.calibration import AccCalibration
+from host.accelerometer.calibration import AccCalibration
 from host.cli import main
 
 RATE_HZ = 50.0

@@ -10,7 +10,7 @@ Truth is the emulator's own sensor and ADC parameters, mapped to counts by the f
 - scale (counts per g) ``= G S (1 + e_j) / span * 2^bits`` (255.6 nominal: one LSB = 3.9 mg),
 - angles ``theta_ij = asin(u_i . u_j)`` from the rows ``u_j`` of the sensor's misalignment matrix.
 
-The bound is eq (9) of ``host/calibration.py`` evaluated for the recorded poses: sensor noise
+The bound is eq (9) of ``host/accelerometer/calibration.py`` evaluated for the recorded poses: sensor noise
 ``sigma_s = density * sqrt(pi/2 * f_c)`` (first-order filter; 1.1 mg at 200 ug/sqrt(Hz), 20 Hz), times 1.08 for
 the filter's correlation of neighbouring 50 Hz samples (rho = exp(-2 pi f_c / 50 Hz) = 0.08,
 sqrt((1 + rho) / (1 - rho))); quantisation ``q^2/12`` with ``q`` one LSB; ``N`` the samples of the shortest hold;
@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from host.calibration import AccCalibration, AccCalibrator, parameter_bounds
+from host.accelerometer.calibration import AccCalibration, AccCalibrator, parameter_bounds
 
 from firmware_sim import device
 from firmware_sim.sensor import SensorModel
@@ -107,7 +107,7 @@ def test_ten_bit_pose_session_recovers_the_sensor_within_the_lsb_bound(recorded)
 
 def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsys):
     from host.cli import main
-    from host.recording import Recording
+    from host.files.recording import Recording
 
     logger, res = recorded
     rec = Recording.from_arrays(res.codes, flags=res.flags, sampling_rate_hz=logger.adc.rate_hz,
@@ -139,7 +139,7 @@ def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsy
 
 
 def test_noiseless_sensor_holds_look_stuck_and_are_refused():
-    from host.calibration import CalibrationError
+    from host.accelerometer.calibration import CalibrationError
 
     sensor = SensorModel.draw(seed=7, noise_density_g_rthz=0.0)
     logger = device.Logger(sensor=sensor, device_id=8)

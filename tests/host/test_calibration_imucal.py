@@ -1,4 +1,4 @@
-"""host.calibration on a real IMU session (imucal's Ferraris recording) against imucal's reference calibration.
+"""host.accelerometer.calibration on a real IMU session (imucal's Ferraris recording) against imucal's reference calibration.
 
 The session holds six static poses (+-x, +-y, +-z, sections ``x_p`` ... ``z_a``) and three rotations about the
 vertical (``*_rot``: gravity stays on one axis, so they add no new directions). Six directions determine the
@@ -15,7 +15,7 @@ import json
 import numpy as np
 import pytest
 
-from host.calibration import AccCalibrator, CalibrationError
+from host.accelerometer.calibration import AccCalibrator, CalibrationError
 
 RATE_HZ = 204.8
 STATIC = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")
@@ -74,7 +74,7 @@ def test_nine_parameter_model_is_refused_with_six_poses(session):
 
 
 def test_cli_on_the_real_session(session, tmp_path, capsys):
-    from host.calibration import AccCalibration
+    from host.accelerometer.calibration import AccCalibration
     from host.cli import main
 
     path, _, _, _ = session

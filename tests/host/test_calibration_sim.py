@@ -1,4 +1,4 @@
-"""host.calibration on a simulated sensor whose parameters are known (independent truth).
+"""host.accelerometer.calibration on a simulated sensor whose parameters are known (independent truth).
 
 The simulated sensor is built from its geometry, not from the code under test: three unit sensitive axes with
 pairwise angles ``90 deg - theta_ij``, turned by a random mounting rotation (scipy ``Rotation``), per-axis gain
@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from host.calibration import (
+from host.accelerometer.calibration import (
     AccCalibration,
     CalibrationError,
     axes_matrix,
@@ -91,7 +91,7 @@ def test_ellipsoid_fit_recovers_a_known_ellipsoid():
 
 
 def test_analytic_jacobian_matches_finite_differences():
-    from host.calibration import _jacobian, _residuals
+    from host.accelerometer.calibration import _jacobian, _residuals
 
     rng = np.random.default_rng(2)
     y = unit_vectors(rng, 15) * 1.1 + 0.05
@@ -377,7 +377,7 @@ def test_property_apply_inverts_inverse(cal, acc):
 
 
 def test_calibrator_refuses_out_of_range_and_infinite_samples_naming_the_sample():
-    from host.calibration import AccCalibrator
+    from host.accelerometer.calibration import AccCalibrator
 
     codes = np.full((500, 3), 512.0)
     codes[321, 2] = 1024.0

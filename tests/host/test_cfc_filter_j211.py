@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.signal import butter, freqz
 
-from host.cfc_filter import cfc_coefficients, cfc_filter, cfc_min_rate_hz
+from host.kinematics.cfc_filter import cfc_coefficients, cfc_filter, cfc_min_rate_hz
 from host.errors import HostError
 
 

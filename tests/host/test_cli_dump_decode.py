@@ -10,9 +10,9 @@ import pytest
 
 from firmware_sim.device import Logger
 from firmware_sim.world.base import Motion
-from host.calibration import AccCalibration
+from host.accelerometer.calibration import AccCalibration
 from host.cli import main
-from host.recording import Recording
+from host.files.recording import Recording
 
 CAP = 65536
 

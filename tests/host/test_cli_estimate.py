@@ -37,7 +37,7 @@ def write_csv(path, acc, header=True):
 
 
 def write_npz(path, acc, fs=50.0, valid=None, flags=None):
-    from host.recording import Recording
+    from host.files.recording import Recording
 
     codes = np.clip(np.floor(512 + acc * 256), 0, 1023)
     rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=fs)

@@ -20,7 +20,7 @@ def npz(tmp_path_factory):
     from firmware_sim.world.gait_protocol import WalkingProtocol
     from firmware_sim.world.subject import Subject
     from firmware_sim.world.walking import Walking
-    from host.decode import decode_file, save_outputs
+    from host.files.decode import decode_file, save_outputs
 
     from protocol.steps import StepConfig
 
@@ -41,7 +41,7 @@ def npz(tmp_path_factory):
 def _with_records(monkeypatch, records) -> None:
     """Recordings loaded from now on carry these device step records instead of their own (a device whose
     firmware computed differently)."""
-    from host.recording import Recording
+    from host.files.recording import Recording
 
     load = Recording.load.__func__
 
@@ -147,7 +147,7 @@ def test_estimate_fixed_is_the_device_algorithm(npz, tmp_path, capsys) -> None:
 
 def test_a_k_the_step_configuration_cannot_hold_is_an_error(npz, tmp_path, capsys) -> None:
     """K of M1 is stored as unsigned Q1.15 (below 2): a K file with 2.5 cannot be given to the on-line algorithm."""
-    from host.estimators.calibration import KCalibration
+    from host.gait.k_calibration import KCalibration
 
     path, _, _ = npz
     k = tmp_path / "k.json"

@@ -1,4 +1,4 @@
-"""host.compare on a simulated walk: the emulated logger, gravity and the world's truth are the references.
+"""host.studies.compare on a simulated walk: the emulated logger, gravity and the world's truth are the references.
 
 The comparison's rule is tested here with its reason: one K (fitted on the offline chain) for every chain.
 A 2 % scale error injected into the fixed-point chain alone shows up in full in the arithmetic share, and a
@@ -14,7 +14,7 @@ import pytest
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from host.compare import (
+from host.studies.compare import (
     AnalogWalk,
     bootstrap_budget,
     calibration_sets,
@@ -124,7 +124,7 @@ def test_one_k_fitted_on_the_offline_chain_is_used_by_every_chain(walk) -> None:
 
 
 def _sections(walk):
-    from host.evaluation import sections_from_marks
+    from host.studies.evaluation import sections_from_marks
 
     return sections_from_marks(walk.sw.mark_times_s, walk.sw.truth["laps"], rate_hz=FS)
 
@@ -302,7 +302,7 @@ def test_online_runs_restart_at_run_starts_and_after_missing_samples(walk) -> No
 
 
 def _config(s):
-    from host.compare import step_config_for
+    from host.studies.compare import step_config_for
 
     return step_config_for(leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
 

@@ -1,4 +1,4 @@
-"""host.decode: images, raw dumps and wire captures -> exact samples, every gap reported, bad input refused.
+"""host.files.decode: images, raw dumps and wire captures -> exact samples, every gap reported, bad input refused.
 
 Truth is built here by hand (P32 words packed with plain integer arithmetic, ring slots computed from the
 spec's rule), never from the decoder's own output.
@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.decode import decode_bytes, decode_file
-from host.transports.protocol_emu import LineFaults
+from host.files.decode import decode_bytes, decode_file
+from host.link.transports.protocol_emu import LineFaults
 from protocol.errors import ProtocolError
 from protocol.frames import encode_frame
 from protocol.header import DeviceHeader

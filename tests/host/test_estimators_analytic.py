@@ -7,11 +7,11 @@ import warnings
 import numpy as np
 import pytest
 
-from host.estimators.anthropometry import anatomical_lengths
-from host.estimators.cadence import CadenceM5
-from host.estimators.pendulum import PendulumDriftM2, PendulumM1, pendulum_length_m
-from host.estimators.two_phase import TwoPhasePendulumM3
-from host.estimators.weinberg import WeinbergM4
+from host.gait.anthropometry import anatomical_lengths
+from host.gait.estimators.cadence import CadenceM5
+from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1, pendulum_length_m
+from host.gait.estimators.two_phase import TwoPhasePendulumM3
+from host.gait.estimators.weinberg import WeinbergM4
 from host.errors import HostError
 
 

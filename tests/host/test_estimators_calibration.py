@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from host.errors import HostError
-from host.estimators.calibration import KCalibration, calibrate
+from host.gait.k_calibration import KCalibration, calibrate
 from firmware_sim.algorithms.steps import StepTable
 from host.gait.pipeline import apply_calibration
 

@@ -14,7 +14,7 @@ from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walking import Walking
 from host.errors import HostError
-from host.evaluation import (
+from host.studies.evaluation import (
     ESTIMATORS,
     MODES,
     ROW_COLUMNS,
@@ -167,7 +167,7 @@ def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> No
     got = list(csv.DictReader(io.StringIO(out.read_text())))
     assert len(got) == len(a.rows_) and tuple(got[0]) == ROW_COLUMNS
     assert float(got[0]["ratio"]) == pytest.approx(a.rows_[0]["ratio"], rel=1e-5)
-    from host.evaluation_plots import plot_boxplots
+    from host.studies.plots import plot_boxplots
 
     png = plot_boxplots(a.rows_, tmp_path / "fig.png", title="test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -177,7 +177,7 @@ def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> No
 
 
 def test_plot_refuses_empty() -> None:
-    from host.evaluation_plots import render_boxplots_png
+    from host.studies.plots import render_boxplots_png
 
     with pytest.raises(ValueError, match="no section"):
         render_boxplots_png([])

@@ -22,11 +22,11 @@ def matched(shared_data) -> dict[str, dict[str, float]]:
     folder = shared_data / "ipol-lowerback-dev"
     if not folder.is_dir():
         pytest.skip("ipol-lowerback-dev not present")
-    from host.estimators.anthropometry import anatomical_lengths
-    from host.evaluation import match_events
+    from host.gait.anthropometry import anatomical_lengths
+    from host.studies.evaluation import match_events
     from host.gait.pipeline import StepPipeline
-    from host.ipol import list_trials, read_trial
-    from host.ipol_evaluation import replay_trial
+    from host.files.ipol import list_trials, read_trial
+    from host.studies.ipol_evaluation import replay_trial
 
     counts = {"heel_strike": [0, 0, 0], "toe_off": [0, 0, 0]}     # matched, reference, detected
     errors: dict[str, list[float]] = {"heel_strike": [], "toe_off": []}

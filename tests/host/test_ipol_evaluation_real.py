@@ -93,11 +93,11 @@ def test_device_records_equal_the_host_replay(ipol) -> None:
 
 
 def test_device_records_are_the_algorithm_run_here(folder) -> None:
-    """The same, checked without host.replay on three trials: the algorithm built here from the header's
+    """The same, checked without host.files.replay on three trials: the algorithm built here from the header's
     configuration, run over the stored codes, gives the stored records field by field."""
     from firmware_sim.algorithms.online import OnlineStepAlgorithm
-    from host.ipol import list_trials
-    from host.ipol_evaluation import replay_trial
+    from host.files.ipol import list_trials
+    from host.studies.ipol_evaluation import replay_trial
     from protocol.steps import STEP_RECORD_DTYPE
 
     for path in list_trials(folder)[:3]:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from host.cli import main
-from host.ipol_evaluation import evaluate_folder, replay_trial
+from host.studies.ipol_evaluation import evaluate_folder, replay_trial
 
 G = 9.80665
 
@@ -119,7 +119,7 @@ def test_unreadable_trial_and_single_trial_subject_are_skipped_and_listed(tmp_pa
 def test_device_records_that_differ_are_an_error(tmp_path, monkeypatch, capsys) -> None:
     """A logger whose stored records differ from the host's replay (here one M2 length, CRC recomputed: a
     firmware bug) stops the evaluation with an error naming the trial and the record; nothing is written."""
-    import host.ipol_evaluation as ie
+    import host.studies.ipol_evaluation as ie
     from protocol.steps import STEP_RECORD_DTYPE, pack_step_records
 
     write_ipol_trial(tmp_path, 5, 1, seed=9)

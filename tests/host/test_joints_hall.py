@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
 from host.errors import HostError
-from host.joints import (
+from host.kinematics.joints import (
     HallJointKinematics,
     apply_right_leg_convention,
     joint_angles_yxz,

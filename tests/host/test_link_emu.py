@@ -1,4 +1,4 @@
-"""host.link over the in-process emu:// device: commands, dump round trip, noisy line, cut line + resume.
+"""host.link.logger_link over the in-process emu:// device: commands, dump round trip, noisy line, cut line + resume.
 
 Truth is the device's own RecordResult (what the firmware stored), never the host's output.
 """
@@ -13,9 +13,9 @@ import pytest
 
 from firmware_sim.device import Logger
 from firmware_sim.world.base import Motion
-from host.decode import decode_file
+from host.files.decode import decode_file
 from host.errors import HostError
-from host.link import LoggerLink
+from host.link.logger_link import LoggerLink
 
 CAP = 65536
 

@@ -1,4 +1,4 @@
-"""host.link's step commands over the in-process emu:// device: SET_STEP_CONFIG and READ of the step memory.
+"""host.link.logger_link's step commands over the in-process emu:// device: SET_STEP_CONFIG and READ of the step memory.
 
 Truth is the emulated device's own state (its header and step EEPROM), never the host's output.
 """
@@ -11,7 +11,7 @@ import pytest
 from firmware_sim.device import Logger
 from firmware_sim.world.base import Motion
 from host.errors import HostError
-from host.link import LoggerLink
+from host.link.logger_link import LoggerLink
 from protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 CONFIG = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)

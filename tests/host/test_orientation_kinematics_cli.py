@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from host.cli import main
-from host.kinematics_plots import plot_dcm, stick_figure_points
+from host.kinematics.plots import plot_dcm, stick_figure_points
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

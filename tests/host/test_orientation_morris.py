@@ -14,7 +14,7 @@ from scipy.linalg import expm, polar
 from scipy.spatial.transform import Rotation
 
 from host.errors import HostError
-from host.orientation import (
+from host.kinematics.orientation import (
     cumulative_matmul,
     geodesic_distance_rad,
     initial_dcm_from_gravity,

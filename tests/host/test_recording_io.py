@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host.errors import HostError
-from host.recording import CSV_COLUMNS, Gap, Recording
+from host.files.recording import CSV_COLUMNS, Gap, Recording
 from protocol.header import Calibration, DeviceHeader
 
 

@@ -1,4 +1,4 @@
-"""host.static_windows: rest detection against the pose session's own truth (hold windows of the motion)."""
+"""host.accelerometer.static_windows: rest detection against the pose session's own truth (hold windows of the motion)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.world.poses import CalibrationPoses
-from host.static_windows import StaticWindowDetector, StaticWindowError, find_static_windows
+from host.accelerometer.static_windows import StaticWindowDetector, StaticWindowError, find_static_windows
 
 RATE_HZ = 50.0
 

@@ -1,4 +1,4 @@
-"""host.decode + host.recording: the device's per-step records from images, raw dumps and wire captures.
+"""host.files.decode + host.files.recording: the device's per-step records from images, raw dumps and wire captures.
 
 Truth is built here by hand: record bytes packed with ``struct`` and ``binascii.crc_hqx`` (PROTOCOL.md 2.3's
 layout, not the project's packer), ring slots from the spec's rule, or the emulated device's own step memory.
@@ -19,8 +19,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.decode import STEP_REASONS, decode_bytes, verify_step_records
-from host.recording import STEP_CSV_COLUMNS, Recording
+from host.files.decode import STEP_REASONS, decode_bytes, verify_step_records
+from host.files.recording import STEP_CSV_COLUMNS, Recording
 from protocol.frames import encode_frame
 from protocol.header import DeviceHeader
 from protocol.image import build_image
@@ -228,7 +228,7 @@ def test_a_record_not_received_is_dropped_even_when_its_crc_happens_to_match():
     """All-zero bytes carry a matching CRC-16/XMODEM (0x0000): a decoder that trusted the CRC alone would invent
     an all-zero record wherever a buffer of zeros was never filled. Every input path hands the step bytes with
     their received mask to one assembler; drive it with such a buffer."""
-    from host.decode import _assemble_steps
+    from host.files.decode import _assemble_steps
 
     header, _, step_memory, truth = synthetic(6, seed=1)
     buffer = bytearray(step_memory)

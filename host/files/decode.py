@@ -1,4 +1,4 @@
-"""Decode a memory image, a raw XMODEM dump or a raw wire capture into a :class:`~host.recording.Recording`.
+"""Decode a memory image, a raw XMODEM dump or a raw wire capture into a :class:`~host.files.recording.Recording`.
 
 Three inputs (``protocol.image.detect_format`` tells them apart):
 
@@ -24,7 +24,7 @@ step addresses (``protocol.steps.STEP_ADDRESS_BASE`` +). The stored records are 
 (``DeviceHeader.step_slots``) and a record is used only when all 20 of its bytes were received intact and its
 CRC-16 matches; the others are dropped, never repaired, and reported as ``Recording.step_losses`` runs with
 the reason (:data:`STEP_REASONS`), in a note and in a warning. :func:`verify_step_records` checks the used
-records against the host's replay of the device's algorithm (:mod:`host.replay`).
+records against the host's replay of the device's algorithm (:mod:`host.files.replay`).
 """
 
 from __future__ import annotations
@@ -38,12 +38,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from host.errors import HostError
-from host.recording import RecordGap, Recording, gaps_from_mask
+from host.files.recording import RecordGap, Recording, gaps_from_mask
 from protocol.errors import ProtocolError
 from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, stored_step_records
 
 if TYPE_CHECKING:
-    from host.replay import ReplayCheck
+    from host.files.replay import ReplayCheck
 
 #: Reason texts of the gaps, indexed by the reason codes used below.
 REASONS = (
@@ -369,10 +369,10 @@ def verify_step_records(recording: Recording) -> ReplayCheck | None:
 
     Returns
     -------
-    host.replay.ReplayCheck or None
+    host.files.replay.ReplayCheck or None
         None when there is nothing to check: no header, or the header's step algorithm off and no records.
     """
-    from host.replay import check_records   # the compiled step algorithm: loaded only to verify (not to decode)
+    from host.files.replay import check_records   # the compiled step algorithm: loaded only to verify (not to decode)
 
     header = recording.header
     if header is None or (not header.step_config.enabled and recording.n_step_records == 0):

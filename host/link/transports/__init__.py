@@ -1,11 +1,11 @@
-"""pyserial URL handlers of gaitlog (``serial.protocol_handler_packages`` entry ``"host.transports"``).
+"""pyserial URL handlers of gaitlog (``serial.protocol_handler_packages`` entry ``"host.link.transports"``).
 
-:func:`register` makes ``serial.serial_for_url("emu://...")`` find :mod:`host.transports.protocol_emu`.
+:func:`register` makes ``serial.serial_for_url("emu://...")`` find :mod:`host.link.transports.protocol_emu`.
 """
 
 from __future__ import annotations
 
-PACKAGE = "host.transports"
+PACKAGE = "host.link.transports"
 
 
 def register() -> None:

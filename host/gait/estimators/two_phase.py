@@ -15,7 +15,7 @@ from typing import Self
 
 import numpy as np
 
-from host.estimators.pendulum import _check, pendulum_length_m
+from host.gait.estimators.pendulum import _check, pendulum_length_m
 from host.gait.integration import StepSamples, step_samples, vertical_positions
 
 

@@ -2,13 +2,13 @@
 
 :class:`LoggerLink` works on anything pyserial opens: a real port (``/dev/ttyUSB0``, ``COM3``), a pty path
 printed by ``gaitlog serve --pty``, ``socket://127.0.0.1:PORT`` from ``gaitlog serve --tcp``, and the
-in-process emulator ``emu://...`` (:mod:`host.transports.protocol_emu`).
+in-process emulator ``emu://...`` (:mod:`host.link.transports.protocol_emu`).
 
 Each command is one frame (``PROTOCOL.md`` section 3); the link numbers it with ``seq``, waits up to
 ``timeout_s`` for the answer with the same ``seq``, and sends it again (new ``seq``) when the answer does not
 come, comes damaged, or is ``NAK(BAD_CRC)``, at most ``retries`` more times. A NAK with any other error is
 final and raised as :class:`~host.errors.HostError` naming the command and the error. The bulk memory dump
-with re-reads and resume is :class:`host.dump.MemoryDump` (``LoggerLink.dump``).
+with re-reads and resume is :class:`host.link.memory_dump.MemoryDump` (``LoggerLink.dump``).
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def open_serial(port: str, *, baud: int = 115200, poll_s: float = 0.02):
     """
     import serial
 
-    from host.transports import register
+    from host.link.transports import register
 
     register()
     try:
@@ -377,8 +377,8 @@ class LoggerLink:
     def dump(self, out_path, *, progress: bool | Callable[[int], None] = True, resume: bool = False,
              retries: int = 8, chunk_bytes: int = MAX_READ):
         """Dump the stored memory to the image ``out_path`` (+ ``.json`` metadata): see
-        :class:`host.dump.MemoryDump`. Returns the finished ``MemoryDump``."""
-        from host.dump import MemoryDump
+        :class:`host.link.memory_dump.MemoryDump`. Returns the finished ``MemoryDump``."""
+        from host.link.memory_dump import MemoryDump
 
         return MemoryDump(retries=retries, chunk_bytes=chunk_bytes).run(self, out_path, resume=resume,
                                                                         progress=progress)

@@ -1,4 +1,4 @@
-"""Dump a logger's memory over a :class:`~host.link.LoggerLink`: stream, check, re-read, resume, write.
+"""Dump a logger's memory over a :class:`~host.link.logger_link.LoggerLink`: stream, check, re-read, resume, write.
 
 Steps (``PROTOCOL.md`` sections 3-4 and 6):
 
@@ -151,7 +151,7 @@ class MemoryDump:
     # -------------------------------------------------------------------------------------------- run
     def run(self, link, out_path: str | os.PathLike[str], *, resume: bool = False,
             progress: bool | Callable[[int], None] = True) -> "MemoryDump":
-        """Dump through ``link`` (a :class:`~host.link.LoggerLink`) to the image ``out_path``.
+        """Dump through ``link`` (a :class:`~host.link.logger_link.LoggerLink`) to the image ``out_path``.
 
         Raises
         ------
@@ -288,7 +288,7 @@ class MemoryDump:
         image = self._image_bytes(header_bytes, memory, have, need)
         finished_utc = _dt.datetime.now(_dt.timezone.utc)
         stats = link.stats
-        from host.decode import decode_bytes
+        from host.files.decode import decode_bytes
 
         recording = decode_bytes(image, source=str(out))
         self.metadata_ = {

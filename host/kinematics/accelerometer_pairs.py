@@ -140,7 +140,7 @@ def gravity_from_pivot(
     With the pivot fixed in space (foot-flat) the origin's translational acceleration is
     ``ω̇ × r + ω × (ω × r)`` (``r`` from pivot to origin, body axes), so the specific force minus that term is
     gravity's reaction, i.e. the up direction: feed the result to
-    :func:`host.orientation.initial_dcm_from_gravity`.
+    :func:`host.kinematics.orientation.initial_dcm_from_gravity`.
 
     Parameters
     ----------

@@ -94,7 +94,7 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from host.errors import HostError
-from host.static_windows import StaticWindow, StaticWindowDetector
+from host.accelerometer.static_windows import StaticWindow, StaticWindowDetector
 
 #: Number of parameters of each model.
 MODELS: dict[str, int] = {"9-param": 9, "6-param": 6}
@@ -720,7 +720,7 @@ class AccCalibrator:
     model
         ``"9-param"`` (default) or ``"6-param"``.
     hold_s, sd_factor, max_norm_g, min_angle_deg, trim_s
-        Rest detection, see :class:`host.static_windows.StaticWindowDetector`.
+        Rest detection, see :class:`host.accelerometer.static_windows.StaticWindowDetector`.
     min_direction_sv
         See :func:`fit_calibration`.
     """
@@ -760,7 +760,7 @@ class AccCalibrator:
         -------
         self
             With ``calibration_`` (:class:`AccCalibration`), ``windows_`` (the holds used, list of
-            :class:`~host.static_windows.StaticWindow`) and ``detector_`` (with its rejected holds).
+            :class:`~host.accelerometer.static_windows.StaticWindow`) and ``detector_`` (with its rejected holds).
         """
         if input_unit not in INPUT_UNITS:
             raise CalibrationError(f"input_unit must be one of {INPUT_UNITS}, got {input_unit!r}")

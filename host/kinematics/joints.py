@@ -2,7 +2,7 @@
 
 Frames follow Hall: a link matrix ``TA`` maps reference (laboratory) coordinates to link-A coordinates
 (its rows are the link's unit vectors in the reference frame, eq 1), so ``TA = λAᵀ`` for the project's
-body-to-space direction-cosine matrix ``λA`` (see :mod:`host.orientation`). The joint matrix is
+body-to-space direction-cosine matrix ``λA`` (see :mod:`host.kinematics.orientation`). The joint matrix is
 ``T = TB · TAᵀ`` (eq 2) and for a ``y − x′ − z″`` sequence (flexion ``φ`` about y, version ``θ`` about the
 floating x′, axial rotation ``ψ`` about z″) it has the form of eq (3). Angles (eq 4, with the corrected
 ``φ``; atan2 forms keep the quadrant):
@@ -39,7 +39,7 @@ from typing import Literal, Self
 import numpy as np
 
 from host.errors import HostError
-from host.orientation import integrate_dcm
+from host.kinematics.orientation import integrate_dcm
 
 __all__ = [
     "HallJointKinematics",
@@ -234,7 +234,7 @@ class HallJointKinematics:
         rb = remove_pretest_offset(rb, self.pretest_samples)
         # 2. SAE J211 filter
         if self.cfc is not None:
-            from host.cfc_filter import cfc_filter
+            from host.kinematics.cfc_filter import cfc_filter
 
             ra, rb = cfc_filter(ra, self.cfc, rate_hz), cfc_filter(rb, self.cfc, rate_hz)
         # 3. sensor -> link axes

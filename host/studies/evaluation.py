@@ -4,12 +4,12 @@ Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
 
 1. *Device calibration*: the emulated logger (:class:`firmware_sim.device.Logger`, its own seeded sensor
    errors: offsets, sensitivities, misalignment) records a static-pose session
-   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.calibration.AccCalibrator`
+   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.accelerometer.calibration.AccCalibrator`
    ("a calibration procedure takes into account offset and scale factors and the orthogonality of the
    axes", II-B). ``calibrate_device=False`` uses the header's nominal map instead.
 2. *Walking*: the same logger (after ERASE) records the protocol of
    :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); its memory image (header +
-   EEPROM, :func:`protocol.image.build_image`) is decoded as a dump would be (:func:`host.decode.decode_bytes`)
+   EEPROM, :func:`protocol.image.build_image`) is decoded as a dump would be (:func:`host.files.decode.decode_bytes`)
    and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times.
 3. *Steps*: :class:`host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
    M5's cadence), with the subject's own leg and foot length ("the anatomical data of each individual").
@@ -17,7 +17,7 @@ Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
    the first 10 m of gait initiation are discarded, as in the paper). The section holding the 180° turn is
    left out by default (the paper's subjects "were allowed to turn freely between both 100 m segments";
    the estimators model straight walking); ``include_turn=True`` keeps it.
-5. *K calibration* (:func:`host.estimators.calibration.calibrate`, one call per mode):
+5. *K calibration* (:func:`host.gait.k_calibration.calibrate`, one call per mode):
    **single-speed** = the first 40 m (two sections) of the preferred-speed excursion, pooled as one 40 m
    section (M5 then falls back to the walk-ratio line, with the calibrator's warning recorded);
    **multi-speed** = the first 40 m of every excursion, one 40 m section per speed. Calibration steps are
@@ -36,7 +36,7 @@ Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
 
 Rows, summaries (median, quartiles, extremes per estimator and mode), the CSV (atomic), the printed table
 and the paper-pattern checks (:func:`paper_pattern`) are below; the box-plot figure is
-:mod:`host.evaluation_plots`.
+:mod:`host.studies.plots`.
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
 
     logger = Logger(adc=Adc(bits=bits, rate_hz=rate_hz), sample_rate_hz=rate_hz, device_id=1 + seed % 60000)
     if calibrate_device:
-        from host.calibration import AccCalibrator
+        from host.accelerometer.calibration import AccCalibrator
 
         poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
         full = float(2**bits)
@@ -138,7 +138,7 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
         raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
                         "samples (memory full): shorten the protocol's rests")
     # What the host gets: the memory image (header + EEPROM), decoded as a dump would be.
-    from host.decode import decode_bytes
+    from host.files.decode import decode_bytes
     from protocol.image import build_image
 
     stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
@@ -359,7 +359,7 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     ``detector``: a :class:`host.gait.events.GaitEventDetector` for the pipeline (default parameters when
     None).
     """
-    from host.estimators.calibration import calibrate
+    from host.gait.k_calibration import calibrate
     from host.gait.pipeline import StepPipeline, apply_calibration
 
     sub = rec.subject
@@ -596,7 +596,7 @@ class SimulatedEvaluation:
 
     def write_outputs(self, out_dir: str | Path, *, stem: str = "simulated", title: str | None = None) -> dict[str, Path]:
         """Rows CSV, summary CSV and the Figs 5-6 box plot into ``out_dir`` (each written atomically)."""
-        from host.evaluation_plots import plot_boxplots
+        from host.studies.plots import plot_boxplots
 
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)

@@ -1,9 +1,9 @@
 """ADC width x sample rate sweep over simulated subjects, and the paper's open question about M5.
 
 For every subject (:func:`firmware_sim.world.subject.random_subjects`) the walk and the sensor's analog
-response are computed once (:class:`host.compare.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
+response are computed once (:class:`host.studies.compare.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
 that same analog output (same sensor, same noise seed), and each ADC width (8, 10, 12 bits) quantises the
-same samples. Every configuration then runs the comparison of :func:`host.compare.compare_walk`: the
+same samples. Every configuration then runs the comparison of :func:`host.studies.compare.compare_walk`: the
 ideal (no ADC) and offline float chains and the on-line algorithm in float and in fixed point, with **one
 K per configuration and mode** (single- and multi-speed), fitted on that configuration's offline chain and
 used by all four chains; 20 m section ratios and the per-step error split (ADC = offline - ideal,
@@ -58,7 +58,7 @@ from typing import Any, Self
 import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS
-from host.compare import CHAINS, MODES, SHARES, column_key, pair_label
+from host.studies.compare import CHAINS, MODES, SHARES, column_key, pair_label
 from host.errors import HostError
 
 BITS = (8, 10, 12)
@@ -91,7 +91,7 @@ class ConfigResult:
 
 
 def _subject_job(job: tuple) -> list[ConfigResult]:
-    from host.compare import AnalogWalk, compare_walk
+    from host.studies.compare import AnalogWalk, compare_walk
 
     subject, seed, protocol, bits_list, rates, options = job
     walk = AnalogWalk(subject=subject, seed=seed, protocol=protocol).run()
@@ -115,7 +115,7 @@ class AdcRateSweep:
     ----------
     n_subjects, seed
         Subjects of :func:`~firmware_sim.world.subject.random_subjects`; subject ``i`` walks with seed
-        ``seed * 1000 + i`` (as :class:`host.evaluation.SimulatedEvaluation`).
+        ``seed * 1000 + i`` (as :class:`host.studies.evaluation.SimulatedEvaluation`).
     bits, rates_hz
         ADC widths and sample rates.
     protocol
@@ -123,7 +123,7 @@ class AdcRateSweep:
     workers
         Processes; results do not depend on it.
     calibration_sections, include_turn
-        See :func:`host.compare.compare_walk`.
+        See :func:`host.studies.compare.compare_walk`.
 
     Attributes
     ----------

@@ -12,7 +12,7 @@ Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`c
 * **online-fixed**: the same algorithm in the PIC's fixed point: what the logger computes and stores.
 
 **One K.** Per calibration mode (single- and multi-speed, :func:`calibration_sets`), K
-(:class:`host.estimators.calibration.KCalibration`) is fitted once, on the *offline* chain's table of the
+(:class:`host.gait.k_calibration.KCalibration`) is fitted once, on the *offline* chain's table of the
 calibration sections (:func:`fit_k`), and that same K is used by every chain: ``apply_calibration`` for the
 offline and ideal chains, the step configuration (``StepConfig(calibrated=True, k_m1=..., ...)``, K applied
 in the algorithm's own arithmetic, as the header stores it) for the on-line algorithm. K is never refitted
@@ -32,7 +32,7 @@ mutual nearest); a matched pair whose window start, heel-strike, toe-off or foot
 or more is a step where the two chains *detected different events*: it is counted and reported, and left
 out of the per-step differences (an event one sample apart is a different step window, not an arithmetic
 error); the section distances include every step. Per-20 m sections follow the paper's evaluation
-(:mod:`host.evaluation`): lap marks, the calibration sections left out, ratio estimated / real.
+(:mod:`host.studies.evaluation`): lap marks, the calibration sections left out, ratio estimated / real.
 Saturation and wrap counts of every fixed-point run are kept (``saturation``); nothing saturates
 unreported. :func:`bootstrap_budget` gives 95 % intervals over subjects for the summary figures.
 
@@ -43,13 +43,13 @@ does (same codes at 10 bits: tested), but quantised here at any width (the PIC's
 bits; 12 bits is the sweep's hypothetical external converter) and kept before quantisation. The device
 calibration is the sensor's own truth (offsets, gains, axes), unbiased for the floor quantiser (``+0.5``
 code): the comparison isolates the ADC, the algorithm and the arithmetic; the pose calibration's own error
-is evaluated in :mod:`host.evaluation`.
+is evaluated in :mod:`host.studies.evaluation`.
 
 Recordings (:func:`compare_recording`): a decoded recording has no truth and no analog output: offline,
 online-float and online-fixed with the given K (or none: K = 1, M4/M5 undefined), sections between MARK
 flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the offline chain's M3 distance. A
 recording that carries the device's own step records is checked against the host's replay of the on-line
-algorithm, bit for bit (:func:`host.decode.verify_step_records`).
+algorithm, bit for bit (:func:`host.files.decode.verify_step_records`).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ import numpy as np
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from host.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
+from host.studies.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -101,7 +101,7 @@ def pair_label(a: str, b: str) -> str:
 def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
     """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
 
-    ``calibration`` is a :class:`~host.estimators.calibration.KCalibration` (K applied by the algorithm, in
+    ``calibration`` is a :class:`~host.gait.k_calibration.KCalibration` (K applied by the algorithm, in
     its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
     when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
     """
@@ -132,7 +132,7 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     codes
         ``(n, 3)`` ADC codes (``code_bits`` bits).
     calibration
-        :class:`~host.estimators.calibration.KCalibration` (the one K of the comparison) or None (raw).
+        :class:`~host.gait.k_calibration.KCalibration` (the one K of the comparison) or None (raw).
     adc_calibration
         The device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
     arithmetic
@@ -345,7 +345,7 @@ def segment_distances(table: StepTable, sections: list[Section]) -> np.ndarray:
 
 
 def calibration_sets(sections: list[Section], *, calibration_sections: int = 2) -> dict[str, list[list[Section]]]:
-    """Calibration data of both modes, as :func:`host.evaluation.evaluate_recording` chooses it.
+    """Calibration data of both modes, as :func:`host.studies.evaluation.evaluate_recording` chooses it.
 
     Single-speed: the first ``calibration_sections`` straight sections of the preferred excursion (else the
     first excursion), pooled; multi-speed: those of every excursion, one pool per excursion.
@@ -368,7 +368,7 @@ def fit_k(table: StepTable, pools: list[list[Section]], *, leg_length_m: float, 
 
     In a comparison ``table`` is the offline chain's: the one K every chain then uses (module notes).
     """
-    from host.estimators.calibration import calibrate
+    from host.gait.k_calibration import calibrate
 
     data = []
     for secs in pools:
@@ -437,7 +437,7 @@ class AnalogWalk:
         :class:`firmware_sim.world.subject.Subject`.
     seed
         Seed of the walk; the sensor is the unit ``SensorModel.draw(seed=sensor_seed)`` (default: the
-        logger's default for ``device_id = 1 + seed % 60000``, as :func:`host.evaluation.record_subject`).
+        logger's default for ``device_id = 1 + seed % 60000``, as :func:`host.studies.evaluation.record_subject`).
     protocol
         :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
 
@@ -904,7 +904,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     the offline chain and is the on-line algorithm's device calibration; ``calibration`` is the one K of
     every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
     (SESSION_START), where the on-line algorithm restarts. Sections: ``sections`` when given (e.g. the
-    protocol's, :func:`host.evaluation.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
+    protocol's, :func:`host.studies.evaluation.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
     every ``segment_m`` of the offline chain's M3 distance.
 
     Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and

@@ -1,6 +1,6 @@
 """The paper's evaluation on the IPOL lower-back recordings, replayed through the emulated logger.
 
-For every trial of an IPOL folder (:mod:`host.ipol`):
+For every trial of an IPOL folder (:mod:`host.files.ipol`):
 
 1. *Replay*: the recording is the physical input of the logger (:class:`firmware_sim.world.replay.Replay`),
    sampled by the emulated device (:class:`firmware_sim.device.Logger`) at ``rate_hz`` (50 Hz) with a
@@ -12,7 +12,7 @@ For every trial of an IPOL folder (:mod:`host.ipol`):
    lost) is marked missing for the offline chain, so no offline estimate rests on an invented sample. The
    on-line algorithm sees every stored code, as on the device.
 2. *Device = host*: the logger's stored step records are compared with the host's replay of the algorithm
-   on the stored codes, flags and header (:func:`host.replay.check_records`), byte for byte; a trial
+   on the stored codes, flags and header (:func:`host.files.replay.check_records`), byte for byte; a trial
    whose records differ is an error (:class:`HostError` naming the trial and the first record).
 3. *Steps*: the offline chain (:class:`host.gait.pipeline.StepPipeline`, the paper's PC processing) on
    the whole recording, and the on-line algorithm (:class:`firmware_sim.algorithms.online.
@@ -29,7 +29,7 @@ For every trial of an IPOL folder (:mod:`host.ipol`):
    20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
-   :func:`host.estimators.calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
+   :func:`host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
    for the offline chain, the step configuration (``calibrated=True``) for the on-line algorithm, which
    applies it in its own arithmetic. M3 is never calibrated. Separately, and labelled so (``k_from =
    "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
@@ -41,7 +41,7 @@ For every trial of an IPOL folder (:mod:`host.ipol`):
    ``subject, trial, estimator, arithmetic, k_from, distance_m, ratio, steps, reference_steps`` (ratio =
    distance / 20 m; steps = detected steps in the trial; reference = heel strikes in the JSON within the
    trial boundaries). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
-   offline K) pair each on-line float step with its fixed-point and offline twins (:func:`host.compare.
+   offline K) pair each on-line float step with its fixed-point and offline twins (:func:`host.studies.compare.
    match_steps`).
 
 :func:`done_figures` computes the issue's figures from the rows (device = host, the arithmetic and
@@ -60,10 +60,10 @@ import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from host.estimators.anthropometry import anatomical_lengths
-from host.estimators.calibration import KCalibration, calibrate
+from host.gait.anthropometry import anatomical_lengths
+from host.gait.k_calibration import KCalibration, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
-from host.ipol import list_trials
+from host.files.ipol import list_trials
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.
 IPOL_DISTANCE_M = 20.0
@@ -146,21 +146,21 @@ class ReplayedTrial:
 
     def run_starts(self) -> np.ndarray:
         """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
-        from host.replay import run_starts
+        from host.files.replay import run_starts
 
         return run_starts(np.ones(self.codes.shape[0], bool), self.flags)
 
     def check_records(self) -> Any:
-        """The device's records against the host's replay (:func:`host.replay.check_records`)."""
-        from host.replay import check_records
+        """The device's records against the host's replay (:func:`host.files.replay.check_records`)."""
+        from host.files.replay import check_records
 
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
     def online_table(self, *, arithmetic: str, calibration: KCalibration | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`host.compare.online_step_table`)."""
-        from host.compare import online_step_table
+        anatomy and ``calibration``'s K (:func:`host.studies.compare.online_step_table`)."""
+        from host.studies.compare import online_step_table
 
         return online_step_table(self.codes, sampling_rate_hz=self.header.sample_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
@@ -191,7 +191,7 @@ def replay_trial(lb_path: str | Path, *, rate_hz: float = 50.0, bits: int = 10, 
     """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
 
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
-    trial's height (:func:`host.estimators.anthropometry.anatomical_lengths`).
+    trial's height (:func:`host.gait.anthropometry.anatomical_lengths`).
     """
     import re
 
@@ -323,7 +323,7 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
 
 def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_trial: bool) -> list[dict]:
     """Each on-line float step with its online-fixed and offline twins (module notes, step 7)."""
-    from host.compare import match_steps
+    from host.studies.compare import match_steps
 
     fl, fx, off = tables["online-float"], tables["online-fixed"], tables["offline"]
     ar, alg = match_steps(fx, fl), match_steps(fl, off)

@@ -76,7 +76,7 @@ def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: 
 
 
 def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None = None, dpi: int = 120) -> Path:
-    """Write the Figs 5-6 style box plots of ``rows`` (see :mod:`host.evaluation`) to ``path`` (PNG)."""
+    """Write the Figs 5-6 style box plots of ``rows`` (see :mod:`host.studies.evaluation`) to ``path`` (PNG)."""
     from protocol.atomic_write import atomic_write_bytes
 
     png = render_boxplots_png(rows, title=title, dpi=dpi)
@@ -87,7 +87,7 @@ def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None =
 def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, title: str | None = None,
                               dpi: int = 120) -> bytes:
     """Box plots of per-trial ratios (``estimator``, ``arithmetic``, ``k_from``, ``ratio`` rows of
-    :mod:`host.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
+    :mod:`host.studies.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
     chain's K only (the comparison). Raises ValueError when there is nothing to plot."""
     plt = _pyplot()
     ests = ESTIMATORS

@@ -1,6 +1,6 @@
 """A decoded recording of the logger: raw counts, validity, flags, sample numbers, gaps and header.
 
-A :class:`Recording` is what :mod:`host.decode` returns for a memory image, a raw XMODEM dump or a wire
+A :class:`Recording` is what :mod:`host.files.decode` returns for a memory image, a raw XMODEM dump or a wire
 capture, and what every later stage (calibration, orientation, gait events, estimators) takes as input.
 
 Rows and gaps
@@ -312,7 +312,7 @@ class Recording:
         Parameters
         ----------
         calibration
-            Object with ``apply(counts) -> g`` (``protocol.header.Calibration``, ``host.calibration.
+            Object with ``apply(counts) -> g`` (``protocol.header.Calibration``, ``host.accelerometer.calibration.
             AccCalibration``); default: the header's calibration slot, else the nominal ±2 g map.
         """
         cal = self.default_calibration()[0] if calibration is None else calibration

@@ -1,0 +1,1 @@
+"""Files and decoding: memory images, dumps and captures into recordings, the IPOL reader, record verification."""

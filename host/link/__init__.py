@@ -1,0 +1,1 @@
+"""The serial side: the logger link over pyserial, the memory dump, and the pyserial URL transports."""
