@@ -22,7 +22,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-
 from _timing import best_of
 
 ROOT = Path(__file__).resolve().parents[1]

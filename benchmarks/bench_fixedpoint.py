@@ -18,7 +18,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
 from _timing import best_of
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))

@@ -23,7 +23,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from _timing import best_of
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -18,7 +18,11 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from host.kinematics.orientation import geodesic_distance_rad, integrate_dcm, rotation_increments
+from host.kinematics.orientation import (
+    geodesic_distance_rad,
+    integrate_dcm,
+    rotation_increments,
+)
 
 N_SAMPLES = 65_536
 RATE_HZ = 1_000.0

@@ -45,7 +45,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-
 from _timing import best_of
 from _walker import N_SAMPLES, RATE_HZ, step_config, walker_motion
 

@@ -26,7 +26,14 @@ import numpy as np  # noqa: E402
 from _timing import best_of  # noqa: E402
 
 from protocol.crc import crc32  # noqa: E402
-from protocol.frames import FRAME_STRUCT, FrameType, build_payload, encode_frame, parse_payload, parse_stream  # noqa: E402
+from protocol.frames import (  # noqa: E402
+    FRAME_STRUCT,
+    FrameType,
+    build_payload,
+    encode_frame,
+    parse_payload,
+    parse_stream,
+)
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag  # noqa: E402
 from protocol.image import build_image, parse_image  # noqa: E402
 from protocol.packing import pack_words, unpack_words, words_to_bytes  # noqa: E402

@@ -27,9 +27,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from firmware_sim.algorithms.parameters import EventParameters, OnlineParameters, SampleCounts
-from firmware_sim.algorithms.state import CALLS, persistent_bytes, temporaries_bytes, variables
-from firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ, I2C_BYTE_CYCLES, cycles_per_sample_available
+from firmware_sim.algorithms.parameters import (
+    EventParameters,
+    OnlineParameters,
+    SampleCounts,
+)
+from firmware_sim.algorithms.state import (
+    CALLS,
+    persistent_bytes,
+    temporaries_bytes,
+    variables,
+)
+from firmware_sim.fixedpoint import (
+    CYCLES,
+    DEFAULT_FOSC_HZ,
+    I2C_BYTE_CYCLES,
+    cycles_per_sample_available,
+)
 from firmware_sim.ring_buffer import WORDS_PER_PAGE
 
 __all__ = ["PIC_RAM_BYTES", "FIRMWARE_RAM", "LOGGING_CYCLES", "RamItem", "RamBudget", "CycleBudget",

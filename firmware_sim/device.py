@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from firmware_sim.adc import Adc
-from firmware_sim.eeprom import DataEeprom, EepromBank, Eeprom24LC1025
+from firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
 from firmware_sim.errors import DeviceError
 from firmware_sim.firmware import FIRMWARE_VERSION, Firmware
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer

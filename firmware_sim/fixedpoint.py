@@ -56,10 +56,10 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-
-import firmware_sim.compiled  # noqa: F401  (numba's cache folder, before any cache=True below)
 from numba import njit
 from numba.extending import register_jitable
+
+import firmware_sim.compiled  # noqa: F401  (numba's cache folder, before any cache=True below)
 
 __all__ = [
     "CYCLES",

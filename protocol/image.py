@@ -42,8 +42,9 @@ import numpy as np
 from protocol.atomic_write import atomic_write_bytes
 from protocol.crc import crc32
 from protocol.errors import ProtocolError
-from protocol.frames import FrameParser, Frame
-from protocol.header import HEADER_SIZE, MAGIC as HEADER_MAGIC, MAX_CAPACITY_SAMPLES, DeviceHeader
+from protocol.frames import Frame, FrameParser
+from protocol.header import HEADER_SIZE, MAX_CAPACITY_SAMPLES, DeviceHeader
+from protocol.header import MAGIC as HEADER_MAGIC
 from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, stored_step_records
 
 __all__ = [

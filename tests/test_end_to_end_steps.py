@@ -27,10 +27,10 @@ import pytest
 from firmware_sim.device import Logger
 from firmware_sim.transport import serve_pty
 from host.cli import main
-from host.files.decode import decode_file, verify_step_records
 from host.errors import HostError
-from host.link.logger_link import LoggerLink
+from host.files.decode import decode_file, verify_step_records
 from host.files.recording import STEP_CSV_COLUMNS, Recording
+from host.link.logger_link import LoggerLink
 from protocol.image import read_image
 from protocol.steps import StepConfig
 

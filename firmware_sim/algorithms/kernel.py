@@ -88,14 +88,22 @@ from firmware_sim.algorithms.state import (
     MN,
     MX,
     MXPOS,
-    N,
     N_DUR,
     PEND,
     PEND_Y,
     RAW,
     RAW_Y,
+    N,
 )
-from firmware_sim.fixedpoint import C_CYCLES, C_STICKY, OP_CMP16, OP_CMP32, OP_DEE, OP_I2C, s_cost
+from firmware_sim.fixedpoint import (
+    C_CYCLES,
+    C_STICKY,
+    OP_CMP16,
+    OP_CMP32,
+    OP_DEE,
+    OP_I2C,
+    s_cost,
+)
 from protocol.steps import StepFlag
 
 __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_COLUMNS"]

@@ -61,8 +61,8 @@ from firmware_sim.algorithms.parameters import (
     OnlineParameters,
     SampleCounts,
 )
-from firmware_sim.algorithms.state import N as _N_SLOT
 from firmware_sim.algorithms.state import N_INDICES, N_VALUES, ram_bytes, variables
+from firmware_sim.algorithms.state import N as _N_SLOT
 from firmware_sim.fixedpoint import (
     C_CYCLES,
     C_DIV0,

@@ -16,7 +16,6 @@ vertical (yaw does not change what an accelerometer reads, but it makes the orie
 
 from __future__ import annotations
 
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 

@@ -93,8 +93,8 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 
-from host.errors import HostError
 from host.accelerometer.static_windows import StaticWindow, StaticWindowDetector
+from host.errors import HostError
 
 #: Number of parameters of each model.
 MODELS: dict[str, int] = {"9-param": 9, "6-param": 6}

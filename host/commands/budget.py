@@ -16,7 +16,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from firmware_sim.adc import Adc
-    from firmware_sim.budget import algorithm_cycles_per_sample, cycle_budget, ram_budget
+    from firmware_sim.budget import (
+        algorithm_cycles_per_sample,
+        cycle_budget,
+        ram_budget,
+    )
     from firmware_sim.device import Logger
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking

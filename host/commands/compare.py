@@ -66,9 +66,14 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from host.studies.compare import rows_csv_text
     from host.errors import HostError
-    from host.studies.sweep import SUMMARY_COLUMNS, AdcRateSweep, format_m5, format_summary
+    from host.studies.compare import rows_csv_text
+    from host.studies.sweep import (
+        SUMMARY_COLUMNS,
+        AdcRateSweep,
+        format_m5,
+        format_summary,
+    )
     from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.subjects < 1:
@@ -94,8 +99,13 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import columns_csv_text
-    from host.studies.compare import bootstrap_budget, format_budget, format_step_diffs, rows_csv_text
     from host.errors import HostError
+    from host.studies.compare import (
+        bootstrap_budget,
+        format_budget,
+        format_step_diffs,
+        rows_csv_text,
+    )
     from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.simulate < 1:
@@ -216,13 +226,13 @@ def _recording(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from host.files.decode import verify_step_records
     from host.errors import HostError
+    from host.files.decode import verify_step_records
+    from host.files.replay import run_starts
     from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import KCalibration
+    from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
     from protocol.atomic_write import atomic_write_text, require_folder
-    from host.files.replay import run_starts
     from protocol.packing import FLAG_MARK
 
     p = Path(args.input)

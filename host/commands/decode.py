@@ -44,8 +44,13 @@ def replay_error(recording, check) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.files.decode import decode_file, output_paths, save_decoded, verify_step_records
     from host.errors import HostError
+    from host.files.decode import (
+        decode_file,
+        output_paths,
+        save_decoded,
+        verify_step_records,
+    )
 
     rec = decode_file(args.input)
     calibration = None

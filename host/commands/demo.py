@@ -213,8 +213,13 @@ def _device(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.algorithms.online import OnlineSteps
     from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
     from firmware_sim.world.walking import Walking
-    from host.studies.compare import match_steps, offline_step_table, segment_distances, step_differences
     from host.files.decode import decode_file, verify_step_records
+    from host.studies.compare import (
+        match_steps,
+        offline_step_table,
+        segment_distances,
+        step_differences,
+    )
     from host.studies.evaluation import sections_from_marks
     from protocol.steps import StepConfig
 

@@ -26,8 +26,8 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from host.commands._gait_input import load_input
     from firmware_sim.algorithms.steps import ESTIMATORS
+    from host.commands._gait_input import load_input
     from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import KCalibration
     from host.gait.pipeline import StepPipeline
@@ -91,10 +91,10 @@ def _fixed_steps(args: argparse.Namespace, leg: float, foot: float, cal):
 
     import numpy as np
 
-    from host.studies.compare import online_step_table
     from host.errors import HostError
     from host.files.recording import Recording
     from host.files.replay import run_starts
+    from host.studies.compare import online_step_table
 
     if Path(args.input).suffix.lower() != ".npz":
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a decoded recording "

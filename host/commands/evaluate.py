@@ -68,9 +68,20 @@ def run(args: argparse.Namespace) -> int:
     if args.folder is None or args.out is None:
         raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
     from host.studies.compare import rows_csv_text
-    from host.studies.ipol_evaluation import ARITHMETICS, CSV_COLUMNS, STEP_COLUMNS, done_figures, evaluate_folder, \
-        format_done, summarise
-    from protocol.atomic_write import atomic_write_bytes, atomic_write_text, require_folder
+    from host.studies.ipol_evaluation import (
+        ARITHMETICS,
+        CSV_COLUMNS,
+        STEP_COLUMNS,
+        done_figures,
+        evaluate_folder,
+        format_done,
+        summarise,
+    )
+    from protocol.atomic_write import (
+        atomic_write_bytes,
+        atomic_write_text,
+        require_folder,
+    )
 
     if not 1 <= args.bits <= 10:
         raise HostError(f"--bits must be 1..10, got {args.bits}")

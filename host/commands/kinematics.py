@@ -42,13 +42,24 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str, Any]:
     """Simulate one cycle, run Morris' method; returns estimates, heading-aligned truth and error numbers."""
     import numpy as np
+    from scipy.spatial.transform import Rotation
 
     from firmware_sim.world.rigid_body import RigidBodyShank
-    from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers, gravity_from_pivot
     from host.errors import HostError
-    from host.kinematics.orientation import geodesic_distance_rad, initial_dcm_from_gravity, integrate_dcm
-    from host.kinematics.strapdown import CycleTranslation, remove_cycle_drift, remove_gravity
-    from scipy.spatial.transform import Rotation
+    from host.kinematics.accelerometer_pairs import (
+        AngularVelocityFromAccelerometers,
+        gravity_from_pivot,
+    )
+    from host.kinematics.orientation import (
+        geodesic_distance_rad,
+        initial_dcm_from_gravity,
+        integrate_dcm,
+    )
+    from host.kinematics.strapdown import (
+        CycleTranslation,
+        remove_cycle_drift,
+        remove_gravity,
+    )
 
     if not (np.isfinite(rate_hz) and 20 <= rate_hz <= 100_000):
         raise HostError(f"--rate must be between 20 and 100000 Hz, got {rate_hz:g}")

@@ -40,7 +40,12 @@ import numpy as np
 from host.errors import HostError
 from host.files.recording import RecordGap, Recording, gaps_from_mask
 from protocol.errors import ProtocolError
-from protocol.steps import STEP_RECORD_DTYPE, STEP_RECORD_SIZE, memory_region, stored_step_records
+from protocol.steps import (
+    STEP_RECORD_DTYPE,
+    STEP_RECORD_SIZE,
+    memory_region,
+    stored_step_records,
+)
 
 if TYPE_CHECKING:
     from host.files.replay import ReplayCheck
@@ -372,7 +377,9 @@ def verify_step_records(recording: Recording) -> ReplayCheck | None:
     host.files.replay.ReplayCheck or None
         None when there is nothing to check: no header, or the header's step algorithm off and no records.
     """
-    from host.files.replay import check_records   # the compiled step algorithm: loaded only to verify (not to decode)
+    from host.files.replay import (
+        check_records,  # the compiled step algorithm: loaded only to verify (not to decode)
+    )
 
     header = recording.header
     if header is None or (not header.step_config.enabled and recording.n_step_records == 0):

@@ -40,8 +40,14 @@ import numpy as np
 
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
-from protocol.steps import (HEEL_STRIKE_NOT_FOUND, STEP_LENGTH_FIELDS, STEP_RECORD_DTYPE, StepFlag, step_lengths_m,
-                            unpack_step_records)
+from protocol.steps import (
+    HEEL_STRIKE_NOT_FOUND,
+    STEP_LENGTH_FIELDS,
+    STEP_RECORD_DTYPE,
+    StepFlag,
+    step_lengths_m,
+    unpack_step_records,
+)
 
 #: Version of the NPZ layout written by :meth:`Recording.save_npz`. The step-record arrays were added to
 #: version 1 as optional arrays (a file without them is read as one saved before they existed), so files of

@@ -36,10 +36,13 @@ import warnings
 from typing import Self
 
 import numpy as np
-
 from scipy.signal import find_peaks
 
-from firmware_sim.algorithms.parameters import EventParameters, minimum_distance, samples
+from firmware_sim.algorithms.parameters import (
+    EventParameters,
+    minimum_distance,
+    samples,
+)
 from host.gait.masked_filter import masked_gaussian_lowpass
 
 

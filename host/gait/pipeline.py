@@ -26,11 +26,11 @@ from typing import TYPE_CHECKING, Self
 import numpy as np
 
 from firmware_sim.algorithms.steps import StepTable
+from host.gait.axes import BodyAxes, body_axes
 from host.gait.estimators.cadence import CadenceM5
 from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1
 from host.gait.estimators.two_phase import TwoPhasePendulumM3
 from host.gait.estimators.weinberg import WeinbergM4
-from host.gait.axes import BodyAxes, body_axes
 from host.gait.events import GaitEventDetector
 from host.gait.integration import step_samples
 

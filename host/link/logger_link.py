@@ -21,8 +21,17 @@ from typing import IO, Any
 
 from host.errors import HostError
 from protocol.errors import ProtocolError
-from protocol.frames import (MAX_DATA, PAYLOAD_STRUCTS, ErrorCode, FrameError, FrameParser, FrameType,
-                             build_payload, encode_frame, parse_payload)
+from protocol.frames import (
+    MAX_DATA,
+    PAYLOAD_STRUCTS,
+    ErrorCode,
+    FrameError,
+    FrameParser,
+    FrameType,
+    build_payload,
+    encode_frame,
+    parse_payload,
+)
 from protocol.header import HEADER_SIZE, PROTOCOL_VERSION, DeviceHeader
 from protocol.steps import STEP_ADDRESS_BASE, StepConfig
 

@@ -105,10 +105,10 @@ class MemoryDump:
     # ------------------------------------------------------------------------------------------ helpers
     def _load_state(self, state_path: Path, header_bytes: bytes, memory: bytearray, have: np.ndarray) -> int:
         """Bytes of the image's memory region (sample then step memory) that the partial state holds."""
+        import warnings
+
         from protocol.errors import ProtocolError
         from protocol.image import parse_image
-
-        import warnings
 
         try:
             with warnings.catch_warnings():

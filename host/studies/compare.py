@@ -65,7 +65,13 @@ import numpy as np
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from host.studies.evaluation import MODES, Section, match_events, section_fractions, sections_from_marks
+from host.studies.evaluation import (
+    MODES,
+    Section,
+    match_events,
+    section_fractions,
+    sections_from_marks,
+)
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1

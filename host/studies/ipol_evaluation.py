@@ -60,10 +60,10 @@ import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
+from host.files.ipol import list_trials
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.k_calibration import KCalibration, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
-from host.files.ipol import list_trials
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.
 IPOL_DISTANCE_M = 20.0

@@ -58,8 +58,8 @@ from typing import Any, Self
 import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS
-from host.studies.compare import CHAINS, MODES, SHARES, column_key, pair_label
 from host.errors import HostError
+from host.studies.compare import CHAINS, MODES, SHARES, column_key, pair_label
 
 BITS = (8, 10, 12)
 RATES_HZ = (25.0, 50.0, 100.0)

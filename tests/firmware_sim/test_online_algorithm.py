@@ -14,7 +14,11 @@ import pytest
 
 from firmware_sim.algorithms import kernel
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
-from firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2, EventParameters, OnlineParameters
+from firmware_sim.algorithms.parameters import (
+    STANDARD_GRAVITY_M_S2,
+    EventParameters,
+    OnlineParameters,
+)
 from firmware_sim.algorithms.steps import StepTable
 from protocol.errors import ProtocolError
 from protocol.header import Calibration

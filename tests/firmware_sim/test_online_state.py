@@ -8,7 +8,12 @@ import pytest
 
 from firmware_sim.algorithms import kernel, state
 from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.budget import PIC_RAM_BYTES, cycle_budget, logging_cycles_per_sample, ram_budget
+from firmware_sim.budget import (
+    PIC_RAM_BYTES,
+    cycle_budget,
+    logging_cycles_per_sample,
+    ram_budget,
+)
 from firmware_sim.fixedpoint import cycles_per_sample_available
 from protocol.steps import StepConfig
 

@@ -6,8 +6,11 @@ import numpy as np
 import pytest
 
 from firmware_sim.world.rigid_body import RigidBodyShank
-from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers, gravity_from_pivot
 from host.errors import HostError
+from host.kinematics.accelerometer_pairs import (
+    AngularVelocityFromAccelerometers,
+    gravity_from_pivot,
+)
 from host.kinematics.orientation import initial_dcm_from_gravity
 
 GENTLE = dict(sagittal_deg=((1, 0.0, 20.0),), coronal_deg=((1, 0.0, 3.0),), axial_deg=((1, 0.0, 3.0),), n_cycles=1)

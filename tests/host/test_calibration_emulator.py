@@ -29,11 +29,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from host.accelerometer.calibration import AccCalibration, AccCalibrator, parameter_bounds
-
 from firmware_sim import device
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.poses import CalibrationPoses
+from host.accelerometer.calibration import (
+    AccCalibration,
+    AccCalibrator,
+    parameter_bounds,
+)
 
 
 def truth_in_counts(truth) -> dict[str, np.ndarray]:

@@ -21,7 +21,6 @@ def npz(tmp_path_factory):
     from firmware_sim.world.subject import Subject
     from firmware_sim.world.walking import Walking
     from host.files.decode import decode_file, save_outputs
-
     from protocol.steps import StepConfig
 
     d = tmp_path_factory.mktemp("cmp")

@@ -7,12 +7,12 @@ import warnings
 import numpy as np
 import pytest
 
+from host.errors import HostError
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.estimators.cadence import CadenceM5
 from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1, pendulum_length_m
 from host.gait.estimators.two_phase import TwoPhasePendulumM3
 from host.gait.estimators.weinberg import WeinbergM4
-from host.errors import HostError
 
 
 def com_sinusoid(fs: float, step_s: float, n: int, amp_m: float):

@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from firmware_sim.algorithms.steps import StepTable
 from host.errors import HostError
 from host.gait.k_calibration import KCalibration, calibrate
-from firmware_sim.algorithms.steps import StepTable
 from host.gait.pipeline import apply_calibration
 
 

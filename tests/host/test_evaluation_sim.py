@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from firmware_sim.algorithms.steps import StepTable
 from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walking import Walking
@@ -28,7 +29,6 @@ from host.studies.evaluation import (
     sections_from_marks,
     summarise,
 )
-from firmware_sim.algorithms.steps import StepTable
 
 #: 60 m corridor: marks 10, 30 | 50-70 holds the turn | 70, 90, 110; first 40 m = calibration.
 SHORT = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=8.0,

@@ -22,10 +22,10 @@ def matched(shared_data) -> dict[str, dict[str, float]]:
     folder = shared_data / "ipol-lowerback-dev"
     if not folder.is_dir():
         pytest.skip("ipol-lowerback-dev not present")
-    from host.gait.anthropometry import anatomical_lengths
-    from host.studies.evaluation import match_events
-    from host.gait.pipeline import StepPipeline
     from host.files.ipol import list_trials, read_trial
+    from host.gait.anthropometry import anatomical_lengths
+    from host.gait.pipeline import StepPipeline
+    from host.studies.evaluation import match_events
     from host.studies.ipol_evaluation import replay_trial
 
     counts = {"heel_strike": [0, 0, 0], "toe_off": [0, 0, 0]}     # matched, reference, detected

@@ -13,8 +13,8 @@ import pytest
 
 from firmware_sim.device import Logger
 from firmware_sim.world.base import Motion
-from host.files.decode import decode_file
 from host.errors import HostError
+from host.files.decode import decode_file
 from host.link.logger_link import LoggerLink
 
 CAP = 65536

@@ -8,7 +8,12 @@ from scipy.spatial.transform import Rotation
 
 from firmware_sim.world.rigid_body import RigidBodyShank
 from host.errors import HostError
-from host.kinematics.strapdown import CycleTranslation, cumulative_trapezoid_m, remove_cycle_drift, remove_gravity
+from host.kinematics.strapdown import (
+    CycleTranslation,
+    cumulative_trapezoid_m,
+    remove_cycle_drift,
+    remove_gravity,
+)
 
 
 def test_remove_gravity_against_scipy_rotation() -> None:

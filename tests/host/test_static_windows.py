@@ -6,7 +6,11 @@ import numpy as np
 import pytest
 
 from firmware_sim.world.poses import CalibrationPoses
-from host.accelerometer.static_windows import StaticWindowDetector, StaticWindowError, find_static_windows
+from host.accelerometer.static_windows import (
+    StaticWindowDetector,
+    StaticWindowError,
+    find_static_windows,
+)
 
 RATE_HZ = 50.0
 

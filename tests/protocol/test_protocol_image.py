@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import random
-import warnings
 import struct
+import warnings
 import zlib
 
 import numpy as np
@@ -15,7 +15,13 @@ from hypothesis import strategies as st
 from protocol.errors import ProtocolError
 from protocol.frames import encode_frame
 from protocol.header import DeviceHeader, HeaderFlag
-from protocol.image import build_image, detect_format, parse_image, read_image, write_image
+from protocol.image import (
+    build_image,
+    detect_format,
+    parse_image,
+    read_image,
+    write_image,
+)
 from protocol.steps import STEP_CAPACITY_RECORDS, empty_step_records, pack_step_records
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*are not usable:UserWarning")

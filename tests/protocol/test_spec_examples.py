@@ -37,7 +37,13 @@ from protocol.header import (
     DeviceHeader,
     HeaderFlag,
 )
-from protocol.image import IMAGE_OFFSETS, IMAGE_PREFIX_STRUCT, SHIFT_SEARCH_BYTES, build_image, parse_image
+from protocol.image import (
+    IMAGE_OFFSETS,
+    IMAGE_PREFIX_STRUCT,
+    SHIFT_SEARCH_BYTES,
+    build_image,
+    parse_image,
+)
 from protocol.packing import pack_words, unpack_words, words_to_bytes
 from protocol.steps import (
     STEP_CONFIG_OFFSETS,
