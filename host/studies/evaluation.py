@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Self
@@ -553,8 +553,8 @@ class SimulatedEvaluation:
         self.calibrate_device = calibrate_device
         self.detector = detector
 
-    def run(self) -> Self:
-        """Simulate, record, estimate and evaluate every subject."""
+    def run(self, progress: Callable[[], object] | None = None) -> Self:
+        """Simulate, record, estimate and evaluate every subject; ``progress()`` is called after each one."""
         from firmware_sim.world.subject import random_subjects
 
         if self.n_subjects < 1:
@@ -567,9 +567,9 @@ class SimulatedEvaluation:
             from concurrent.futures import ProcessPoolExecutor
 
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
-                self.results_ = list(pool.map(_subject_job, jobs))
+                self.results_ = [_ticked(r, progress) for r in pool.map(_subject_job, jobs)]
         else:
-            self.results_ = [_subject_job(j) for j in jobs]
+            self.results_ = [_ticked(_subject_job(j), progress) for j in jobs]
         self.rows_ = [r for res in self.results_ for r in res.rows]
         self.summary_ = summarise(self.rows_)
         self.events_ = pool_event_scores([res.events for res in self.results_])
@@ -614,3 +614,9 @@ def pool_event_scores(per_subject: Sequence[dict[str, EventScore]]) -> dict[str,
                                float(np.nanmedian([x.median_abs_error_s for x in xs])),
                                float(np.nanmedian([x.median_error_s for x in xs])))
     return out
+
+
+def _ticked(result: SubjectResult, progress: Callable[[], object] | None) -> SubjectResult:
+    if progress is not None:
+        progress()
+    return result
