@@ -54,9 +54,10 @@ def test_time_column_holes_become_missing_samples(tmp_path):
 
 def test_errors_name_the_file_and_what_to_give(tmp_path):
     path = tmp_path / "d.csv"
-    path.write_text("x,y,z\n" + "\n".join("0,0,3" for _ in range(10)) + "\n")
+    path.write_text("x,y,z\n" + "\n".join("0,0,1" for _ in range(10)) + "\n")
     with pytest.raises(HostError, match=r"d.csv: no time column .* give --rate"):
         read_acceleration(path)
+    path.write_text("x,y,z\n" + "\n".join("0,0,3" for _ in range(10)) + "\n")
     with pytest.raises(HostError, match=r"cannot tell the unit .* give --units"):
         read_acceleration(path, sampling_rate_hz=RATE_HZ)
     with pytest.raises(HostError, match="no such file"):
