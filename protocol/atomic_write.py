@@ -49,6 +49,7 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb", **open_kwargs: 
     require_folder(dest)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=dest.parent or Path("."))
     try:
+        os.chmod(tmp_name, _CREATE_MODE & ~_current_umask())  # mkstemp makes 0600; a plain open() honours umask
         with os.fdopen(fd, mode, **open_kwargs) as handle:  # type: ignore[call-overload]
             yield handle
             handle.flush()
@@ -58,6 +59,17 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb", **open_kwargs: 
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp_name)
         raise
+
+
+#: Permissions a new file gets from ``open()`` before the umask is applied.
+_CREATE_MODE = 0o666
+
+
+def _current_umask() -> int:
+    """The process umask (read by setting it and putting it back: the only portable way)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def require_folder(path: str | os.PathLike[str]) -> None:

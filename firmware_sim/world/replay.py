@@ -150,6 +150,32 @@ class Replay:
         truth.setdefault("source_rate_hz", self.rate_hz)
         return Motion(acc_g=acc, rate_hz=rate, t0_s=self.t0_s, truth=truth, marker_times_s=self.marker_times_s)
 
+    @property
+    def n_interpolated(self) -> int:
+        """Samples of :attr:`acc_g` interpolated over lost packets or gaps (not measured motion)."""
+        return int(self.truth.get("n_filled", 0))
+
+    @classmethod
+    def from_samples(cls, acc_g: np.ndarray, valid: np.ndarray, *, rate_hz: float, source: str = "recording",
+                     marker_times_s: np.ndarray | Sequence[float] = ()) -> Replay:
+        """A recording on a regular grid with missing samples (``valid`` False): the holes are interpolated
+        linearly, as the physical input was continuous, and reported (``truth["n_filled"]``,
+        :attr:`n_interpolated`, ``filled_ranges_s``).
+
+        >>> r = Replay.from_samples(np.ones((5, 3)), np.array([1, 0, 0, 1, 1], bool), rate_hz=10.0)
+        >>> r.n_interpolated, r.truth["filled_packets"].tolist()
+        (2, [[1, 2]])
+        """
+        ok = np.asarray(valid, bool) & np.all(np.isfinite(acc_g), axis=1)
+        idx = np.flatnonzero(ok)
+        if idx.size < 2:
+            raise DeviceError(f"{source}: fewer than 2 measured samples to replay")
+        grid, filled = regular_grid(idx, np.asarray(acc_g, np.float64)[idx])
+        truth = _fill_truth(filled, float(rate_hz))
+        truth.update(source=source, first_sample=int(idx[0]))
+        return cls(grid, rate_hz=float(rate_hz), t0_s=idx[0] / float(rate_hz), truth=truth,
+                   marker_times_s=marker_times_s)
+
     # -- file readers -------------------------------------------------------------------------------------
     @classmethod
     def from_file(

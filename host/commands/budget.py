@@ -8,10 +8,15 @@ HELP = "RAM and cycles per sample of the logger with the on-line step algorithm,
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ", help="sampling rate (default 50)")
+    from host.commands._options import add_verbosity_options
+
+    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
+                        help="the logger's sampling rate (default 50)")
     parser.add_argument("--crystal", type=float, default=18.432, metavar="MHZ",
                         help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; at most 20)")
     parser.add_argument("--seed", type=int, default=0, help="simulated walker whose walk is counted (default 0)")
+    parser.add_argument("--json", action="store_true", help="print the budget as one JSON document instead")
+    add_verbosity_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -24,33 +29,52 @@ def run(args: argparse.Namespace) -> int:
     from firmware_sim.device import Logger
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
+    from host.commands._options import verbosity
     from host.errors import HostError
     from protocol.steps import StepConfig
 
-    if not (1.0 <= args.rate <= 1000.0):
-        raise HostError(f"--rate {args.rate} Hz is outside 1 .. 1000 Hz")
+    if not (1.0 <= args.logger_rate <= 1000.0):
+        raise HostError(f"--logger-rate {args.logger_rate} Hz is outside 1 .. 1000 Hz")
     if not (0.032 <= args.crystal <= 20.0):
         raise HostError(f"--crystal {args.crystal} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
     fosc = args.crystal * 1e6
-    if algorithm_cycles_per_sample(args.rate, fosc) <= 0:
-        raise HostError(f"at {args.rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")
-    ram = ram_budget(args.rate)
+    if algorithm_cycles_per_sample(args.logger_rate, fosc) <= 0:
+        raise HostError(f"at {args.logger_rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")
+    ram = ram_budget(args.logger_rate)
     subject = random_subjects(1, seed=args.seed)[0]
-    logger = Logger(adc=Adc(rate_hz=args.rate), sample_rate_hz=args.rate,
+    logger = Logger(adc=Adc(rate_hz=args.logger_rate), sample_rate_hz=args.logger_rate,
                     step_config=StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                            foot_length_m=subject.foot_length_m))
     logger.firmware.fosc_hz = fosc
     res = logger.record(Walking(subject=subject, seed=args.seed))
     alg = logger.firmware.step_algorithm
-    cycles = cycle_budget(alg.cycles, args.rate, fosc_hz=fosc)
+    cycles = cycle_budget(alg.cycles, args.logger_rate, fosc_hz=fosc)
+    code = 0 if (ram.fits and cycles.fits) else 1
+    ctx = alg.arithmetic_context()
+    if args.json:
+        import json
+
+        doc = {"sampling_rate_hz": args.logger_rate, "fosc_hz": fosc, "fits": code == 0,
+               "ram": {"fits": ram.fits, "total_bytes": ram.total_bytes, "algorithm_bytes": ram.algorithm_bytes,
+                       "firmware_bytes": ram.firmware_bytes, "lines": ram.lines()},
+               "cycles": {"fits": cycles.fits, "available_per_sample": cycles.available,
+                          "mean_algorithm": cycles.mean_algorithm, "worst_algorithm": cycles.worst_algorithm,
+                          "worst_backlog_samples": cycles.backlog_samples, "mean_load": cycles.mean_load,
+                          "lines": cycles.lines()},
+               "walker": subject.subject_id, "n_samples": int(res.n_samples),
+               "step_records": int(logger.header.steps_written),
+               "saturations": ctx.report() if alg.saturations else None}
+        print(json.dumps(doc, indent=2))
+        return code
+    if verbosity(args) < 0:
+        return code
     print("\n".join(ram.lines()))
     print()
     print(f"counted on a simulated walker ({subject.subject_id}, {res.n_samples} samples, "
           f"{logger.header.steps_written} step records; fixed point, the logger's own run):")
     print("\n".join(cycles.lines()))
-    ctx = alg.arithmetic_context()
     print("  by primitive (cycles per sample): " + ", ".join(
         f"{k} {v / max(1, alg.cycles.samples):,.0f}" for k, v in sorted(ctx.cycles.items(), key=lambda kv: -kv[1])[:6]))
     if alg.saturations:
         print(f"  saturations: {ctx.report()}")
-    return 0 if (ram.fits and cycles.fits) else 1
+    return code

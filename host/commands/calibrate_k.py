@@ -8,10 +8,12 @@ HELP = "fit the per-subject constants K and the M5 line from recordings with a k
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._gait_input import add_anatomy_options
+    from host.commands._anatomy_options import add_anatomy_options
+    from host.commands._input_options import INPUT_HELP, add_input_options
+    from host.commands._options import add_verbosity_options
 
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
-                        help="decoded recording(s) (.npz) or CSV; several inputs = several speeds")
+                        help=f"recording(s): {INPUT_HELP}; several inputs = several speeds")
     how = parser.add_mutually_exclusive_group(required=True)
     how.add_argument("--distance", type=float, action="append", metavar="M",
                      help="distance walked, m: once for all inputs, or repeated once per input in order")
@@ -20,14 +22,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="K.json", help="write the calibration here (JSON)")
     parser.add_argument("--subject", default="", help="label stored in the file")
     add_anatomy_options(parser)
+    add_input_options(parser)
+    add_verbosity_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
+    import itertools
+    import sys
     import warnings
 
     import numpy as np
 
-    from host.commands._gait_input import load_input
+    from host.commands._input_options import read_input
+    from host.commands._options import verbosity
     from host.errors import HostError
     from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import calibrate
@@ -42,29 +49,34 @@ def run(args: argparse.Namespace) -> int:
         warnings.simplefilter("always")
         leg, foot = anatomical_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length,
                                        height_m=args.height)
-        sections = []
-        for i, path in enumerate(args.inputs):
-            data = load_input(path, rate_hz=args.rate, calibration=args.calibration)
-            steps = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
-                data.acc_g, sampling_rate_hz=data.sampling_rate_hz, valid=data.valid).steps_
-            if args.distance is not None:
-                dist = args.distance[0] if len(args.distance) == 1 else args.distance[i]
-                sections.append((steps, float(dist)))
-                continue
-            marks = data.mark_index
-            if marks.size < 2:
-                raise HostError(f"{path}: --lap-marks needs at least two MARK flags, found {marks.size}")
-            t = np.where(steps.heel_strike >= 0, steps.heel_strike, steps.foot_flat)
-            for a, b in zip(marks[:-1], marks[1:]):
-                sel = (t > a) & (t <= b)
-                if sel.any():
-                    sections.append((steps.select(sel), float(args.lap_marks)))
-        cal = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
+    notes = [str(c.message) for c in caught]
+    sections = []
+    for i, path in enumerate(args.inputs):
+        data = read_input(args, path)
+        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
+            data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
+        steps = pipe.steps_
+        notes += [f"{path}: {n}" for n in pipe.notes_]
+        if args.distance is not None:
+            dist = args.distance[0] if len(args.distance) == 1 else args.distance[i]
+            sections.append((steps, float(dist)))
+            continue
+        marks = data.mark_index
+        if marks.size < 2:
+            raise HostError(f"{path}: --lap-marks needs at least two MARK flags, found {marks.size}")
+        t = np.where(steps.heel_strike >= 0, steps.heel_strike, steps.foot_flat)
+        for a, b in itertools.pairwise(marks):
+            sel = (t > a) & (t <= b)
+            if sel.any():
+                sections.append((steps.select(sel), float(args.lap_marks)))
+    cal = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
     cal.save(args.out)
-    print(f"{len(sections)} section(s), {cal.n_steps} steps, {cal.distance_m:g} m ({cal.mode})")
-    print(f"K  M1 {cal.k_m1:.4f}  M2 {cal.k_m2:.4f}  M4 {cal.k_m4:.4f} m/(m/s^2)^0.25")
-    print(f"M5 S = {cal.k1_m5_m_s:.4f} / T + {cal.k2_m5_m:.4f} m" + ("  (walk-ratio fallback)" if cal.m5_fallback else ""))
-    for c in caught:
-        print(f"warning: {c.message}")
-    print(f"written: {args.out}")
+    if verbosity(args) >= 0:
+        print(f"{len(sections)} section(s), {cal.n_steps} steps, {cal.distance_m:g} m ({cal.mode})")
+        print(f"K  M1 {cal.k_m1:.4f}  M2 {cal.k_m2:.4f}  M4 {cal.k_m4:.4f} m/(m/s^2)^0.25")
+        print(f"M5 S = {cal.k1_m5_m_s:.4f} / T + {cal.k2_m5_m:.4f} m"
+              + ("  (walk-ratio fallback)" if cal.m5_fallback else ""))
+        for note in notes + list(cal.notes):
+            print(f"gaitlog calibrate-k: warning: {note}", file=sys.stderr)
+        print(f"written: {args.out}")
     return 0

@@ -21,16 +21,20 @@ HELP = "compare the offline chain with the on-line algorithm in float and fixed 
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._gait_input import add_anatomy_options
+    from host.commands._anatomy_options import add_anatomy_options
+    from host.commands._input_options import add_input_options
+    from host.commands._options import add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", nargs="?",
-                        help="decoded recording (.npz from 'gaitlog decode', or a memory image/capture)")
+                        help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
+                        "algorithm needs the ADC codes)")
     parser.add_argument("--simulate", type=int, metavar="N", help="compare on N simulated subjects instead")
     parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
     parser.add_argument("--subjects", type=int, default=4, help="subjects of the sweep (default 4)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated subjects (default 0)")
     parser.add_argument("--bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
-    parser.add_argument("--sim-rate", type=float, default=50.0, metavar="HZ", help="sample rate of --simulate (50)")
+    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
+                        help="the emulated logger's sample rate for --simulate (default 50)")
     parser.add_argument("--workers", type=int, default=2, help="processes for --simulate/--sweep (default 2)")
     parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
                         "segments, split and budget go beside it (_segments.csv, _split.csv, _budget.csv / _m5.csv)")
@@ -39,6 +43,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
     parser.add_argument("--lap-m", type=float, default=20.0, metavar="M", help="distance between MARK flags (20)")
     add_anatomy_options(parser)
+    add_input_options(parser)
+    add_verbosity_options(parser)
 
 
 def _beside(out: str, suffix: str) -> str:
@@ -49,6 +55,11 @@ def _beside(out: str, suffix: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    import contextlib
+    import io
+
+    from host.commands._input_options import given_input_flags
+    from host.commands._options import verbosity
     from host.errors import HostError
 
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
@@ -56,11 +67,18 @@ def run(args: argparse.Namespace) -> int:
         raise HostError("give exactly one of INPUT, --simulate N or --sweep")
     if args.workers < 1:
         raise HostError(f"--workers must be >= 1, got {args.workers}")
-    if args.sweep:
-        return _sweep(args)
-    if args.simulate is not None:
-        return _simulate(args)
-    return _recording(args)
+    if args.input is None:
+        extra = given_input_flags(args) + [f"--{n.replace('_', '-')}" for n in ("k_file", "leg_length", "foot_length",
+                                                                                 "height") if getattr(args, n)]
+        if extra:
+            raise HostError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
+    elif args.logger_rate != 50.0:
+        raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
+    mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
+    if verbosity(args) < 0:
+        with contextlib.redirect_stdout(io.StringIO()):
+            return mode(args)
+    return mode(args)
 
 
 def _sweep(args: argparse.Namespace) -> int:
@@ -112,15 +130,15 @@ def _simulate(args: argparse.Namespace) -> int:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
     if not 1 <= args.bits <= 12:
         raise HostError(f"--bits must be 1..12, got {args.bits}")
-    if not args.sim_rate > 0:
-        raise HostError(f"--sim-rate must be positive, got {args.sim_rate}")
+    if not args.logger_rate > 0:
+        raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     if args.resamples < 1:
         raise HostError(f"--resamples must be >= 1, got {args.resamples}")
     if args.out:
         require_folder(args.out)
-    results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, rate_hz=args.sim_rate,
+    results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, rate_hz=args.logger_rate,
                                    workers=args.workers)
-    print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.sim_rate:g} Hz; one K per mode, "
+    print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
           "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
     all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
     print(format_step_diffs(_pool_diffs(all_diffs)))
@@ -220,12 +238,14 @@ def format_segments(results: list) -> str:
 
 
 def _recording(args: argparse.Namespace) -> int:
+    import sys
     import warnings
     from pathlib import Path
 
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
+    from host.commands._input_options import read_input
     from host.errors import HostError
     from host.files.decode import verify_step_records
     from host.files.replay import run_starts
@@ -233,21 +253,15 @@ def _recording(args: argparse.Namespace) -> int:
     from host.gait.k_calibration import KCalibration
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
     from protocol.atomic_write import atomic_write_text, require_folder
-    from protocol.packing import FLAG_MARK
 
     p = Path(args.input)
-    if not p.is_file():
-        raise HostError(f"{p}: no such file")
     if args.out:
         require_folder(args.out)
-    if p.suffix.lower() == ".npz":
-        from host.files.recording import Recording
-
-        rec = Recording.load(p)
-    else:
-        from host.files.decode import decode_file
-
-        rec = decode_file(p)
+    data = read_input(args, p)
+    rec = data.recording
+    if rec is None:
+        raise HostError(f"{p}: compare runs the on-line algorithm on ADC codes: give a logger recording (memory "
+                        "image, raw dump, wire capture or decoded .npz), not acceleration in g")
     # the device's own records first: a device that does not compute what the host replays is an error
     check = verify_step_records(rec)
     if check is not None and check.differs:
@@ -269,7 +283,7 @@ def _recording(args: argparse.Namespace) -> int:
         warnings.simplefilter("always")
         leg, foot = anatomical_lengths(leg_length_m=leg_arg, foot_length_m=foot_arg, height_m=args.height)
     flags = np.asarray(rec.flags)
-    marks = np.flatnonzero((flags & FLAG_MARK) != 0)
+    marks = data.mark_index
     starts = run_starts(rec.valid, flags)
     t = rec.time_s
     res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
@@ -297,7 +311,7 @@ def _recording(args: argparse.Namespace) -> int:
     print(f"saturation/wrap in the fixed-point run: {res.saturation or 'none'}; "
           f"PIC cycles per sample {res.cycles_per_sample:.0f} (mean)")
     for c in caught:
-        print(f"warning: {c.message}")
+        print(f"gaitlog compare: warning: {c.message}", file=sys.stderr)
     if args.out:
         atomic_write_text(args.out, columns_csv_text(res.steps))
         seg, split = _beside(args.out, "_segments"), _beside(args.out, "_split")

@@ -16,6 +16,8 @@ HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects 
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._options import add_verbosity_options
+
     parser.add_argument("dataset", choices=["ipol", "sim"],
                         help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
     parser.add_argument("folder", metavar="DIR", nargs="?",
@@ -26,31 +28,45 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--subjects", type=int, default=4, help="sim: number of simulated subjects (4)")
     parser.add_argument("--seed", type=int, default=0, help="sim: seed of the subjects and devices (0)")
     parser.add_argument("--workers", type=int, default=1, help="sim: processes to use (1)")
-    parser.add_argument("--figure", metavar="PNG", help="box plot (default: CSV name with .png)")
-    parser.add_argument("--rate", type=float, default=50.0, metavar="HZ", help="logger sample rate (50)")
+    parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
+    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
+                        help="the emulated logger's sample rate (default 50)")
     parser.add_argument("--bits", type=int, default=10, help="ADC bits, 1-10 (10)")
-    parser.add_argument("--uturn", choices=["exclude", "include"], default="exclude",
-                        help="steps inside UTurnBoundaries: left out of the distance (default) or summed")
-    parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default="all",
+    parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
+                        help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed")
+    parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
+    add_verbosity_options(parser)
 
 
 def _run_sim(args: argparse.Namespace) -> int:
+    from host.commands._options import verbosity
+    from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.evaluation import SimulatedEvaluation
 
     out = args.out or args.folder
     if out is None:
         raise HostError("evaluate sim: give the output folder as DIR or --out DIR")
+    unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
+                                 ("--uturn", args.uturn)) if v is not None]
+    if unhonoured:
+        raise HostError(f"{', '.join(unhonoured)}: only for 'evaluate ipol' (evaluate sim scores the offline chain "
+                        "on 20 m sections without U-turns, and writes its figures into the output folder)")
     if args.subjects < 1 or args.workers < 1:
         raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
     if args.bits != 10 and not 1 <= args.bits <= 10:
         raise HostError(f"--bits must be 1..10, got {args.bits}")
-    ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, rate_hz=args.rate, bits=args.bits,
-                             workers=args.workers).run()
+    if not args.logger_rate > 0:
+        raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
+    with progress_bar(args, args.subjects, "subject") as tick:
+        ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, rate_hz=args.logger_rate, bits=args.bits,
+                                 workers=args.workers).run(progress=tick)
     paths = ev.write_outputs(out)
-    print(f"{args.subjects} simulated subjects (seed {args.seed}), {args.rate:g} Hz, {args.bits} bits, "
+    if verbosity(args) < 0:
+        return 0
+    print(f"{args.subjects} simulated subjects (seed {args.seed}), {args.logger_rate:g} Hz, {args.bits} bits, "
           f"emulated logger calibrated on a pose session; 20 m sections, ratio estimated / real")
     print(ev.format_table())
     print("written: " + ", ".join(str(p) for p in paths.values()))
@@ -58,7 +74,6 @@ def _run_sim(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
     from pathlib import Path
 
     from host.errors import HostError
@@ -85,22 +100,26 @@ def run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.bits <= 10:
         raise HostError(f"--bits must be 1..10, got {args.bits}")
-    if not args.rate > 0:
-        raise HostError(f"--rate must be positive, got {args.rate}")
+    if not args.logger_rate > 0:
+        raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
+    args.uturn = args.uturn or "exclude"
+    args.arithmetic = args.arithmetic or "all"
     out = Path(args.out)
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     steps_path = out.with_name(out.stem + "_steps.csv")
     require_folder(out)
     require_folder(fig_path)
-    show = sys.stderr.isatty()
     import warnings
 
-    with warnings.catch_warnings():
+    from host.commands._options import verbosity
+    from host.commands._progress import progress_bar
+    from host.files.ipol import list_trials
+
+    with warnings.catch_warnings(), progress_bar(args, len(list_trials(args.folder)), "trial") as tick:
         warnings.simplefilter("ignore", UserWarning)   # skips are listed below
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
-        res = evaluate_folder(args.folder, rate_hz=args.rate, bits=args.bits, uturn=args.uturn, arithmetic=arith,
-                              progress=(lambda name: print(f"  {name:<16}", file=sys.stderr, end="\r"))
-                              if show else None)
+        res = evaluate_folder(args.folder, rate_hz=args.logger_rate, bits=args.bits, uturn=args.uturn,
+                              arithmetic=arith, progress=tick)
     lines = [",".join(CSV_COLUMNS)]
     for r in res.rows:
         lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['k_from']},"
@@ -108,13 +127,15 @@ def run(args: argparse.Namespace) -> int:
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
     from host.studies.plots import render_chain_boxplots_png
 
-    png = render_chain_boxplots_png(res.rows, arith, title=f"IPOL lower back, {args.rate:g} Hz, {args.bits} bits, "
+    png = render_chain_boxplots_png(res.rows, arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")
     atomic_write_bytes(fig_path, png)
     atomic_write_text(out, "\n".join(lines) + "\n")
     if res.step_rows:
         atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
-    print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.rate:g} Hz, {args.bits} bits, "
+    if verbosity(args) < 0:
+        return 0
+    print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.bits} bits, "
           f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
           "trial 1 with the offline chain, for every arithmetic")
     tables = [(a, "offline", f"arithmetic = {a}") for a in arith]

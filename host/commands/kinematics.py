@@ -28,8 +28,12 @@ HELP = "Simulate the Morris shank platform and Hall's two links, run both kinema
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the PNG figures (created)")
-    parser.add_argument("--rate", type=float, default=100.0, metavar="HZ",
-                        help="Morris platform sampling rate (default 100 Hz, Morris' 10 ms)")
+    from host.commands._options import add_verbosity_options
+
+    parser.add_argument("--morris-rate", type=float, default=100.0, metavar="HZ",
+                        help="sampling rate of the simulated Morris platform (default 100 Hz, Morris' 10 ms); "
+                        "kinematics takes no recording: Morris needs six accelerometers at known places on the "
+                        "shank and Hall angular rates, which a tri-axial logger does not record")
     parser.add_argument("--noise-mg", type=float, default=0.0, metavar="MG",
                         help="white noise added to each platform accelerometer, mg (default 0)")
     parser.add_argument("--hall-rate", type=float, default=10_000.0, metavar="HZ",
@@ -37,6 +41,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gyro-noise", type=float, default=0.01, metavar="RAD_S",
                         help="angular-rate sensor noise, rad/s (default 0.01)")
     parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    add_verbosity_options(parser)
 
 
 def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str, Any]:
@@ -62,7 +67,7 @@ def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str
     )
 
     if not (np.isfinite(rate_hz) and 20 <= rate_hz <= 100_000):
-        raise HostError(f"--rate must be between 20 and 100000 Hz, got {rate_hz:g}")
+        raise HostError(f"--morris-rate must be between 20 and 100000 Hz, got {rate_hz:g}")
     src = RigidBodyShank(n_cycles=1)
     rec = src.render_platform(rate_hz)
     tr = rec.motion.truth
@@ -167,7 +172,19 @@ def run_hall(rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[s
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run both simulations and methods, write the figures, print the errors against the truth."""
+    """Run both simulations and methods, write the figures, print the errors against the truth (not with -q)."""
+    import contextlib
+    import io
+
+    from host.commands._options import verbosity
+
+    if verbosity(args) < 0:
+        with contextlib.redirect_stdout(io.StringIO()):
+            return _run(args)
+    return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from host.errors import HostError
     from host.kinematics.plots import (
         plot_angular_velocity,
@@ -183,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
     from host.kinematics.cfc_filter import cfc_coefficients
 
     cfc_coefficients(180, args.hall_rate)  # reject an invalid rate before any work
-    morris = run_morris(args.rate, args.noise_mg, args.seed)
+    morris = run_morris(args.morris_rate, args.noise_mg, args.seed)
     hall = run_hall(args.hall_rate, args.gyro_noise, args.seed)
     out.mkdir(parents=True, exist_ok=True)
     t = morris["t_s"]
@@ -199,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
     plot_joint_angles(hall["t_s"], hall["angles_rad"], out / "hall_joint_angles.png", truth_rad=hall["truth_rad"])
     me, he = morris["errors"], hall["errors"]
     fmt3 = lambda xs: "(" + ", ".join(f"{x:.3g}" for x in xs) + ")"  # noqa: E731
-    print(f"Morris shank, 6 accelerometers, {args.rate:g} Hz, one {t[-1]:.2f} s cycle, noise {args.noise_mg:g} mg:")
+    print(f"Morris shank, 6 accelerometers, {args.morris_rate:g} Hz, one {t[-1]:.2f} s cycle, noise {args.noise_mg:g} mg:")
     print(f"  angular velocity  max error {me['omega_rad_s']:.3g} rad/s (peak {me['omega_peak_rad_s']:.2f} rad/s)")
     print(f"  orientation       max error {me['orientation_deg']:.3g} deg (tilt {me['tilt_deg']:.3g} deg; "
           f"heading of the λ12 = 0 frame {me['heading_deg']:.2f} deg)")

@@ -19,22 +19,19 @@ WALK_CORRIDOR_M = 20.0
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._input_options import add_input_options
+    from host.commands._options import add_verbosity_options
+
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
                         help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
-                             "a corridor out and back at preferred speed) or 'replay FILE' (CSV or IPOL recording)")
+                             "a corridor out and back at preferred speed) or 'replay FILE' (a real recording: CSV, "
+                             "IPOL trial, or any input the gait commands read; lost samples are interpolated and "
+                             "counted)")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg)")
-    parser.add_argument("--units", choices=("g", "m/s2", "auto"), default="auto",
-                        help="units of a replayed recording (default: auto-detect)")
-    parser.add_argument("--rate", type=float, metavar="HZ",
-                        help="sample rate of a replayed recording without time column")
-    parser.add_argument("--columns", nargs=3, metavar=("X", "Y", "Z"),
-                        help="acceleration columns of a replayed CSV (names or 0-based indices)")
-    parser.add_argument("--time-column", metavar="COL",
-                        help="column of sample times in seconds of a replayed CSV (name or 0-based index)")
     parser.add_argument("--poses", type=int, default=24, metavar="N", help="number of calibration poses (24)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor's errors and noise, and of the poses")
-    parser.add_argument("--sample-rate", type=float, default=50.0, metavar="HZ",
-                        help="the logger's sample rate (default 50 Hz)")
+    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
+                        help="the emulated logger's sample rate (default 50 Hz)")
     parser.add_argument("--start-time", type=int, default=None, metavar="UNIX_S",
                         help="Unix time of the first sample (default: now)")
     parser.add_argument("--overwrite-oldest", action="store_true",
@@ -57,7 +54,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     steps.add_argument("--k-file", metavar="K.json",
                        help="calibrated constants (from `gaitlog calibrate-k`): the device stores calibrated "
                             "lengths; the leg and foot lengths come from this file")
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    add_input_options(parser)
+    add_verbosity_options(parser)
 
 
 def build_motion(args: argparse.Namespace):
@@ -75,16 +73,11 @@ def build_motion(args: argparse.Namespace):
         if len(args.motion) != 2:
             raise HostError("--motion replay needs exactly one FILE")
         from firmware_sim.world.replay import Replay
+        from host.commands._input_options import read_input
 
-        columns = None
-        if args.columns:
-            columns = [int(c) if c.lstrip("-").isdigit() else c for c in args.columns]
-        units = {"m/s2": "m/s^2"}.get(args.units, args.units)
-        time_column = args.time_column
-        if time_column is not None and time_column.isdigit():
-            time_column = int(time_column)
-        return Replay.from_file(args.motion[1], units=units, rate_hz=args.rate, columns=columns,
-                                time_column=time_column)
+        data = read_input(args, args.motion[1])
+        return Replay.from_samples(data.g(), data.valid, rate_hz=data.sampling_rate_hz, source=data.source,
+                                   marker_times_s=data.mark_index / data.sampling_rate_hz)
     if kind == "walk":
         if len(args.motion) != 1:
             raise HostError("--motion walk takes no file")
@@ -102,6 +95,16 @@ def build_motion(args: argparse.Namespace):
                                    final_stand_s=2.0, lap_marks_m=(0.0, corridor, 2.0 * corridor))
         return Walking(subject=Subject.from_height(height), protocol=protocol, seed=args.seed)
     raise HostError(f"--motion: unknown kind {kind!r} (expected 'poses', 'walk' or 'replay FILE')")
+
+
+def _refuse_input_flags(args: argparse.Namespace) -> None:
+    """Input flags describe a replayed file: an error with any other motion."""
+    from host.commands._input_options import given_input_flags
+    from host.errors import HostError
+
+    extra = given_input_flags(args)
+    if args.motion[0] != "replay" and extra:
+        raise HostError(f"{', '.join(extra)}: only for --motion replay FILE")
 
 
 def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
@@ -180,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
 
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
+    from host.commands._options import verbosity
     from host.errors import HostError
 
     out = Path(args.out)
@@ -194,8 +198,15 @@ def run(args: argparse.Namespace) -> int:
             return 2
     appending = bool(args.append and out.exists())
     config, warnings_ = step_config_from_args(args, appending=appending)
+    _refuse_input_flags(args)
     source = build_motion(args)
-    motion = source.render(args.sample_rate)
+    motion = source.render(args.logger_rate)
+    n_interpolated = getattr(source, "n_interpolated", 0)
+    if n_interpolated and verbosity(args) >= 0:
+        n = source.acc_g.shape[0]
+        print(f"gaitlog record: warning: {n_interpolated} of {n} samples of {args.motion[1]} "
+              f"({n_interpolated / n:.2%}) were missing (lost packets or gaps) and are interpolated in the "
+              "replayed motion: those stretches are not measured motion", file=sys.stderr)
     start = int(time.time()) if args.start_time is None else args.start_time
     if appending:
         logger = Logger.from_image(out)
@@ -206,14 +217,14 @@ def run(args: argparse.Namespace) -> int:
                                  "those records different from its replay (--no-verify)")
             logger.step_config = config  # as SET_STEP_CONFIG before START
     else:
-        logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=args.sample_rate,
+        logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=args.logger_rate,
                         overwrite=args.overwrite_oldest, step_config=config)
-    for line in warnings_:
+    for line in warnings_ if verbosity(args) >= 0 else ():
         print(f"gaitlog record: warning: {line}", file=sys.stderr)
     steps_before = logger.header.steps_written
     result = logger.record(motion, start_time_s=start)
     logger.save_image(out)
-    if not args.quiet:
+    if verbosity(args) >= 0:
         h = logger.header
         print(f"{out}: recorded {len(result.codes)} samples ({motion.duration_s:.1f} s of {args.motion[0]}); "
               f"memory holds {h.n_stored} of {h.capacity_samples}" + (", wrapped" if h.wrapped else ""))

@@ -8,7 +8,7 @@
   ``min_cadence_spread`` of each other, 5 %): the line cannot be identified, so K2 = 0 and K1 is fitted
   through the origin on the pooled data -- the *walk ratio* model (step length proportional to cadence,
   step length / cadence being nearly invariant across speeds in healthy adults: Sekiya & Nagasaki,
-  Gait Posture 7, 1998). A ``UserWarning`` says so and ``m5_fallback`` is True.
+  Gait Posture 7, 1998). ``notes`` says so and ``m5_fallback`` is True.
 * M3 has no constant.
 
 :class:`KCalibration` saves/loads itself as versioned JSON (``format_version`` "1.0"; other versions are
@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -188,7 +187,6 @@ def calibrate(
         k2 = 0.0
         msg = (f"M5: calibration data do not span speeds ({len(cad_points)} section(s), cadence spread "
                f"{spread:.1%} < {min_cadence_spread:.0%}); using the walk-ratio fallback S = K1 / T (K2 = 0)")
-        warnings.warn(msg, stacklevel=2)
         notes.append(msg)
     else:
         A = np.column_stack([c, np.ones_like(c)]) * np.sqrt(wts)[:, None]

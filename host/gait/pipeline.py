@@ -57,6 +57,9 @@ class StepPipeline:
     axes_, events_, steps_
         :class:`~host.gait.axes.BodyAxes`, the fitted :class:`~host.gait.events.GaitEventDetector`,
         the :class:`StepTable`.
+    notes_
+        What the caller should tell the user, returned instead of warned: no walking steps detected, step
+        lengths set to NaN for an impossible excursion (``n_impossible_`` of them, M1-M3 summed).
 
     Examples
     --------
@@ -102,7 +105,10 @@ class StepPipeline:
         ok = self.axes_.valid
         av = self.axes_.acc_v_m_s2
         det = (self.detector if self.detector is not None else GaitEventDetector()).clone()
-        self.events_ = det.detect(av, sampling_rate_hz=fs, valid=ok)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self.events_ = det.detect(av, sampling_rate_hz=fs, valid=ok)
+        self.notes_: list[str] = [str(c.message) for c in caught]
         self.steps_ = self._table(av, ok, fs, t0_s)
         return self
 
@@ -136,13 +142,11 @@ class StepPipeline:
                                                valid=ok, samples=ss)
             m4 = WeinbergM4().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs, valid=ok,
                                        lowpassed=ev.first_harmonic_m_s2_)
-        impossible = sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
-        if impossible:
-            warnings.warn(f"{impossible} step length(s) set to NaN for an impossible vertical excursion "
-                          f"(h > 2 l with l = {leg} m)", stacklevel=3)
-        for c in caught:
-            if "impossible" not in str(c.message):
-                warnings.warn(c.message, stacklevel=3)
+        del caught                     # the estimators' warnings are their n_impossible_ counts, summed here
+        self.n_impossible_ = sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
+        if self.n_impossible_:
+            self.notes_.append(f"{self.n_impossible_} step length(s) set to NaN for an impossible vertical "
+                               f"excursion (h > 2 l with l = {leg} m)")
 
         def spread(x: np.ndarray) -> np.ndarray:
             out = np.full(m, np.nan)

@@ -43,8 +43,7 @@ from __future__ import annotations
 
 import csv
 import io
-import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Self
@@ -363,13 +362,10 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     from host.gait.pipeline import StepPipeline, apply_calibration
 
     sub = rec.subject
-    caught: list[str] = []
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
-        table = StepPipeline(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
-                             detector=detector).run(
-            rec.acc_g, sampling_rate_hz=rec.sampling_rate_hz, valid=rec.valid, t0_s=rec.t0_s).steps_
-        caught += [f"pipeline: {x.message}" for x in w]
+    pipe = StepPipeline(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m, detector=detector).run(
+        rec.acc_g, sampling_rate_hz=rec.sampling_rate_hz, valid=rec.valid, t0_s=rec.t0_s)
+    table = pipe.steps_
+    caught = [f"pipeline: {n}" for n in pipe.notes_]
     sections = sections_from_marks(rec.mark_times_s, rec.truth["laps"], corridor_length_m=corridor_length_m,
                                    section_m=section_m, rate_hz=rec.sampling_rate_hz)
     straight = [s for s in sections if not s.turn]
@@ -387,12 +383,10 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
         return table.select(mask), float(sum(s.real_m for s in secs))
 
     cals: dict[str, Any] = {}
-    with warnings.catch_warnings(record=True) as w:
-        warnings.simplefilter("always")
-        kw = dict(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m, subject=sub.subject_id)
-        cals["single-speed"] = calibrate([pooled(calib_sets[single_exc])], **kw)
-        cals["multi-speed"] = calibrate([pooled(v) for _, v in sorted(calib_sets.items()) if v], **kw)
-        caught += [f"calibration: {x.message}" for x in w]
+    kw = dict(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m, subject=sub.subject_id)
+    cals["single-speed"] = calibrate([pooled(calib_sets[single_exc])], **kw)
+    cals["multi-speed"] = calibrate([pooled(v) for _, v in sorted(calib_sets.items()) if v], **kw)
+    caught += [f"calibration: {n}" for c in cals.values() for n in c.notes]
     lengths = {mode: {k: table.filled(v)[0] for k, v in apply_calibration(table, cal).items()}
                for mode, cal in cals.items()}
     calib_ids = {(s.excursion, s.index) for v in calib_sets.values() for s in v}
@@ -559,8 +553,8 @@ class SimulatedEvaluation:
         self.calibrate_device = calibrate_device
         self.detector = detector
 
-    def run(self) -> Self:
-        """Simulate, record, estimate and evaluate every subject."""
+    def run(self, progress: Callable[[], object] | None = None) -> Self:
+        """Simulate, record, estimate and evaluate every subject; ``progress()`` is called after each one."""
         from firmware_sim.world.subject import random_subjects
 
         if self.n_subjects < 1:
@@ -573,9 +567,9 @@ class SimulatedEvaluation:
             from concurrent.futures import ProcessPoolExecutor
 
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
-                self.results_ = list(pool.map(_subject_job, jobs))
+                self.results_ = [_ticked(r, progress) for r in pool.map(_subject_job, jobs)]
         else:
-            self.results_ = [_subject_job(j) for j in jobs]
+            self.results_ = [_ticked(_subject_job(j), progress) for j in jobs]
         self.rows_ = [r for res in self.results_ for r in res.rows]
         self.summary_ = summarise(self.rows_)
         self.events_ = pool_event_scores([res.events for res in self.results_])
@@ -620,3 +614,9 @@ def pool_event_scores(per_subject: Sequence[dict[str, EventScore]]) -> dict[str,
                                float(np.nanmedian([x.median_abs_error_s for x in xs])),
                                float(np.nanmedian([x.median_error_s for x in xs])))
     return out
+
+
+def _ticked(result: SubjectResult, progress: Callable[[], object] | None) -> SubjectResult:
+    if progress is not None:
+        progress()
+    return result

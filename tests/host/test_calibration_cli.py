@@ -86,13 +86,10 @@ def test_csv_counts_with_columns_by_index_and_skipped_preamble(tmp_path, capsys)
     ("mutate", "args", "message"),
     [
         (lambda lines: lines.__setitem__(40, "0.1,abc,0.9"), ["--units", "g", "--rate", "50"],
-         r"line 41, y_g: 'abc' is not a number"),
-        (lambda lines: lines.__setitem__(40, "0.1,,0.9"), ["--units", "g", "--rate", "50"],
-         r"line 41: y_g is empty"),
-        (lambda lines: lines.__setitem__(40, "0.1,nan,0.9"), ["--units", "g", "--rate", "50"],
-         r"line 41: y_g is 'nan', not a finite number"),
-        (lambda lines: None, ["--units", "g"], r"no time_s column to take the sampling rate from; give --rate"),
-        (lambda lines: lines.__setitem__(0, "a,b,c"), ["--rate", "50"], r"unit of the columns is not known"),
+         r"line 41, y_g: not a number: 'abc'"),
+        (lambda lines: None, ["--units", "g"], r"no time column \(time_s/time/t/t_s\) to take the rate from; give --rate"),
+        (lambda lines: lines.__setitem__(0, "a,b,c"), ["--rate", "50", "--units", "m/s2"],
+         r"median acceleration norm is 1, not what gravity gives in m/s2"),
         (lambda lines: None, ["--units", "g", "--rate", "50", "--columns", "x_g,y_g,w"], r"no column 'w'"),
         (lambda lines: None, ["--units", "g", "--rate", "50", "--columns", "0,1"], r"expected three columns"),
         (lambda lines: None, ["--units", "g", "--rate", "-5"], r"--rate must be a positive number"),
@@ -147,4 +144,27 @@ def test_binary_file_is_not_taken_for_a_csv(tmp_path, capsys):
     path = tmp_path / "b.csv"
     path.write_bytes(b"\xff\xfe\x00\x01binary")
     code, _, err = run_cli(capsys, str(path), "--out", str(tmp_path / "c.json"))
-    assert code == 1 and "not a CSV text file (byte 0 is not UTF-8)" in err
+    assert code == 1 and "not a logger file, a decoded .npz, an IPOL file or a CSV text" in err
+
+
+@pytest.mark.parametrize("cell", ["", "nan"])
+def test_empty_or_nan_cell_is_a_missing_sample(tmp_path, capsys, cell):
+    acc = session_g(n_poses=12)
+    lines = ["x_g,y_g,z_g"] + [",".join(f"{v:.6f}" for v in r) for r in acc]
+    lines[40] = f"0.1,{cell},0.9"
+    path = tmp_path / "s.csv"
+    path.write_text("\n".join(lines) + "\n")
+    code, text, err = run_cli(capsys, str(path), "--out", str(tmp_path / "c.json"), "--rate", "50")
+    assert code == 0, err
+    assert f"({len(acc) - 1} valid samples of {len(acc)}, 50 Hz, g)" in text
+
+
+def test_units_told_by_the_data_when_the_names_do_not(tmp_path, capsys):
+    acc = session_g(n_poses=12)
+    for scale, unit in ((1.0, "g"), (9.80665, "m/s2")):
+        path = write(tmp_path / f"s{scale}.csv", "a,b,c", acc * scale)
+        code, text, err = run_cli(capsys, str(path), "--out", str(tmp_path / "c.json"), "--rate", "50",
+                                  "--model", "6-param")
+        assert code == 0, err
+        assert "rms" in text and f"(CSV, {unit}" not in text   # the fit runs in g either way
+        assert ", 50 Hz, g)" in text

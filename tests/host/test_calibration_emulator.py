@@ -135,10 +135,10 @@ def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsy
 
     back = Calibration.from_bytes(slot.to_bytes())
     np.testing.assert_allclose(back.apply(res.codes[:100]), cal.apply(res.codes[:100]), atol=1e-6)
-    # --units g makes no sense for a recording of counts: exit 1, no file
+    # --units describes a CSV: a logger recording states its own (counts): exit 1, no file
     out2 = tmp_path / "cal2.json"
     assert main(["calibrate", str(npz), "--out", str(out2), "--units", "g"]) == 1
-    assert "holds ADC counts" in capsys.readouterr().err and not out2.exists()
+    assert "--units applies to a CSV input only" in capsys.readouterr().err and not out2.exists()
 
 
 def test_noiseless_sensor_holds_look_stuck_and_are_refused():

@@ -21,16 +21,25 @@ def test_budget_at_50_hz_fits(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_budget_at_100_hz_says_what_must_give(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["budget", "--rate", "100"]) == 1
+    assert main(["budget", "--logger-rate", "100"]) == 1
     out = capsys.readouterr().out
     assert "398  DOES NOT FIT (-30 bytes)" in out and "what must give: 30 bytes" in out
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["budget", "--rate", "0"], "--rate 0.0 Hz is outside"),
+    (["budget", "--logger-rate", "0"], "--logger-rate 0.0 Hz is outside"),
     (["budget", "--crystal", "40"], "--crystal 40.0 MHz is outside"),
 ])
 def test_budget_bad_input(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_budget_json_says_the_same_as_the_table(capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    assert main(["budget", "--logger-rate", "100", "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["fits"] is False and doc["ram"]["fits"] is False and doc["ram"]["total_bytes"] == 398
+    assert doc["sampling_rate_hz"] == 100.0 and doc["cycles"]["available_per_sample"] == pytest.approx(46_080)

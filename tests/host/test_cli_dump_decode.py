@@ -78,8 +78,9 @@ def test_record_replay_csv(tmp_path, capsys):
     lines = ["time,ax,ay,az"] + [f"{a:.3f},{b:.5f},{c:.5f},{d:.5f}" for a, (b, c, d) in zip(t, acc_ms2)]
     (tmp_path / "walk.csv").write_text("\n".join(lines) + "\n")
     assert main(["record", "--motion", "replay", str(tmp_path / "walk.csv"), "--units", "m/s2", "--columns",
-                 "ax", "ay", "az", "--time-column", "time", "--start-time", "0", "--out", str(tmp_path / "r.glimg")]) == 0
-    assert "recorded" in capsys.readouterr().out
+                 "ax,ay,az", "--start-time", "0", "--out", str(tmp_path / "r.glimg")]) == 0
+    out, err = capsys.readouterr()
+    assert "recorded" in out and "interpolated" not in err     # nothing was missing
     assert main(["decode", str(tmp_path / "r.glimg"), "--out", str(tmp_path / "r"), "--quiet"]) == 0
     rec = Recording.load(tmp_path / "r.npz")
     g = rec.acc_g()
@@ -90,3 +91,36 @@ def test_record_replay_csv(tmp_path, capsys):
     assert g[:100, 2].mean() > 0.85 and g[750:820, 1].mean() > 0.85  # sin(0.1 t) peaks at t = 15.7 s
     assert main(["record", "--motion", "replay", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "n.glimg")]) == 1
     assert "nope.csv" in capsys.readouterr().err and not (tmp_path / "n.glimg").exists()
+
+
+def test_record_replay_says_how_many_samples_were_interpolated(tmp_path, capsys):
+    from firmware_sim.world.replay import Replay
+    from host.files.inputs import read_acceleration
+
+    t = np.arange(0, 30, 0.01)
+    keep = np.ones(t.size, bool)
+    keep[500:530] = False                      # 30 rows lost: a hole in the time column
+    keep[1200:1210] = False                    # and 10 more
+    lines = ["time_s,x_g,y_g,z_g"] + [f"{a:.2f},0.0,{np.sin(0.1 * a):.5f},{np.cos(0.1 * a):.5f}"
+                                      for a in t[keep]]
+    path = tmp_path / "gappy.csv"
+    path.write_text("\n".join(lines) + "\n")
+    data = read_acceleration(path)
+    assert data.n_samples == t.size and data.n_missing == 40
+    replay = Replay.from_samples(data.acc_g, data.valid, rate_hz=data.sampling_rate_hz)
+    assert replay.n_interpolated == 40
+    assert replay.truth["filled_packets"].tolist() == [[500, 529], [1200, 1209]]
+    assert main(["record", "--motion", "replay", str(path), "--start-time", "0", "--out",
+                 str(tmp_path / "g.glimg")]) == 0
+    err = capsys.readouterr().err
+    assert f"40 of {t.size} samples" in err and "(1.33%)" in err and "interpolated" in err
+    # -q: nothing
+    assert main(["record", "--motion", "replay", str(path), "--start-time", "0", "-q", "--out",
+                 str(tmp_path / "h.glimg")]) == 0
+    assert capsys.readouterr() == ("", "")
+
+
+def test_record_refuses_input_flags_without_a_replay(tmp_path, capsys):
+    assert main(["record", "--motion", "walk", "--rate", "100", "--out", str(tmp_path / "w.glimg")]) == 1
+    assert "--rate: only for --motion replay FILE" in capsys.readouterr().err
+    assert not (tmp_path / "w.glimg").exists()

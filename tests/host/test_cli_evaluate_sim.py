@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import csv
 
+import pytest
+
 from host.cli import main
 
 
@@ -41,3 +43,10 @@ def test_evaluate_ipol_refuses_a_missing_output_folder_before_any_work(tmp_path,
     err = capsys.readouterr().err
     assert f"folder {out.parent} does not exist" in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("flag", [["--arithmetic", "offline"], ["--figure", "x.png"], ["--uturn", "include"]])
+def test_evaluate_sim_refuses_the_flags_it_cannot_honour(tmp_path, capsys, flag):
+    assert main(["evaluate", "sim", str(tmp_path / "o"), "--subjects", "1", *flag]) == 1
+    assert f"{flag[0]}: only for 'evaluate ipol'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -84,7 +84,7 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     write_ipol_trial(tmp_path, 2, 2, seed=4)
     out = tmp_path / "out" / "eval.csv"
     out.parent.mkdir()
-    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "10", "--rate", "50"]) == 0
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "10", "--logger-rate", "50"]) == 0
     text = capsys.readouterr().out
     assert "M3" in text and "median" in text
     with open(out, newline="") as fh:

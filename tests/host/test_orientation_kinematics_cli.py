@@ -17,7 +17,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def test_kinematics_command_writes_figures_and_small_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "figs"
-    assert main(["kinematics", "--out", str(out), "--rate", "200"]) == 0
+    assert main(["kinematics", "--out", str(out), "--morris-rate", "200"]) == 0
     text = capsys.readouterr().out
     names = sorted(p.name for p in out.iterdir())
     assert names == [

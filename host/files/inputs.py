@@ -1,0 +1,435 @@
+"""One reader for every acceleration input a user has: :func:`read_acceleration` -> :class:`AccelerationInput`.
+
+Accepted inputs (detected from the bytes, not trusted from the name)
+--------------------------------------------------------------------
+* **Logger files** -- a memory image (``GLIM``), a raw XMODEM dump (``GLOG``) or a wire capture
+  (:func:`host.files.decode.decode_file`), and the ``.npz`` of ``gaitlog decode``
+  (:meth:`host.files.recording.Recording.load`). Counts become g with ``calibration`` (``gaitlog calibrate``),
+  else the header's calibration slot, else the nominal map; missing samples stay missing; MARK flags are the
+  lap marks.
+* **IPOL lower-back layout** (:mod:`host.files.ipol`): a ``<s>-<t>_lb.txt`` file, its ``<s>-<t>.json``, or a
+  folder holding exactly one trial (directly or in ``GaitData/``). Lost packets are missing samples.
+* **CSV** (``,``, ``;`` or tab): any column order. The data start at the first line with at least three numbers
+  (after ``skip_rows`` lines; ``#`` lines are comments); the non-empty line just before it, with as many
+  fields, is the header. The three axes are ``columns`` (``"X,Y,Z"``: header names or 0-based indices) or
+  else found by header name (``x_g``, ``acc_x``, ``ax``, ``x`` ...), or the only three numeric columns of a
+  file without a header; anything else is an error asking for ``--columns``. Units come from the names
+  (``_g``, ``_counts``, ``_m_s2``), else ``units``, else the median norm (~1 -> g, ~9.8 -> m/s^2). The rate is
+  ``sampling_rate_hz``, else a ``time_s`` / ``time`` / ``t`` column in seconds (rows are put on that grid;
+  a hole is missing samples). An empty or non-finite cell is a missing sample. The decoded CSV of
+  ``gaitlog decode`` is read with its counts, g, flags (lap marks) and validity.
+
+Nothing is interpolated here: a missing sample is NaN in ``acc_g`` and False in ``valid``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from host.accelerometer.calibration import AccCalibration
+from host.errors import HostError
+from host.files.ipol import IpolTrial
+from host.files.recording import Recording
+from protocol.packing import FLAG_MARK
+
+__all__ = ["UNITS", "AccelerationInput", "parse_columns", "read_acceleration"]
+
+#: Units of acceleration columns a user can name (``--units``).
+UNITS = ("g", "m/s2", "counts")
+
+#: Axis-column name triples recognised in a header (lower case), in order of preference, with their unit
+#: (None: not told by the name).
+_AXIS_NAMES: tuple[tuple[tuple[str, str, str], str | None], ...] = (
+    (("x_g", "y_g", "z_g"), "g"),
+    (("acc_x_g", "acc_y_g", "acc_z_g"), "g"),
+    (("x_m_s2", "y_m_s2", "z_m_s2"), "m/s2"),
+    (("acc_x_m_s2", "acc_y_m_s2", "acc_z_m_s2"), "m/s2"),
+    (("x_counts", "y_counts", "z_counts"), "counts"),
+    (("acc_x", "acc_y", "acc_z"), None),
+    (("accx", "accy", "accz"), None),
+    (("ax", "ay", "az"), None),
+    (("x", "y", "z"), None),
+)
+#: Header names of a time column in seconds.
+_TIME_NAMES = ("time_s", "time", "t", "t_s")
+#: Median norm of gravity-including acceleration that tells the unit when nothing else does.
+_NORM_RANGE = {"g": (0.5, 1.5), "m/s2": (5.0, 15.0)}
+
+
+@dataclass(frozen=True, eq=False)
+class AccelerationInput:
+    """Tri-axial acceleration read from one input, on a regular grid.
+
+    Attributes
+    ----------
+    acc_g
+        ``(n, 3)`` float64 in g, NaN where missing; None for counts without a calibration (see :meth:`g`).
+    valid
+        ``(n,)`` bool, False where a sample is missing.
+    sampling_rate_hz
+        Rate of the grid, Hz.
+    mark_index
+        Sample indices of the lap marks (MARK flags), int64.
+    source
+        One line: the file, its format and how g was obtained.
+    counts
+        ``(n, 3)`` float64 ADC counts, NaN where missing, when the input holds counts; else None.
+    adc_bits
+        ADC width of a logger file, else None.
+    recording
+        The decoded logger file (codes, header, flags), else None.
+    ipol_trial
+        The IPOL trial (reference events, boundaries), else None.
+    """
+
+    acc_g: np.ndarray | None
+    valid: np.ndarray
+    sampling_rate_hz: float
+    mark_index: np.ndarray
+    source: str
+    counts: np.ndarray | None = None
+    adc_bits: int | None = None
+    recording: Recording | None = field(default=None, repr=False)
+    ipol_trial: IpolTrial | None = field(default=None, repr=False)
+
+    @property
+    def n_samples(self) -> int:
+        """Grid length."""
+        return int(self.valid.size)
+
+    @property
+    def n_missing(self) -> int:
+        """Samples missing from the grid."""
+        return int(np.count_nonzero(~self.valid))
+
+    def g(self) -> np.ndarray:
+        """:attr:`acc_g`, or a :class:`HostError` when the input is counts without a calibration."""
+        if self.acc_g is None:
+            raise HostError(f"{self.source}: acceleration in ADC counts and no calibration to turn it into g; "
+                            "give --calibration CAL.json (from 'gaitlog calibrate')")
+        return self.acc_g
+
+    def __repr__(self) -> str:
+        return (f"AccelerationInput({self.n_samples} samples at {self.sampling_rate_hz:g} Hz, {self.n_missing} "
+                f"missing, {self.mark_index.size} marks; {self.source})")
+
+
+def parse_columns(text: str | Sequence[str | int] | None) -> list[str | int] | None:
+    """``"X,Y,Z"`` (names or 0-based indices, comma-separated) -> three entries; None stays None."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.split(",")] if isinstance(text, str) else list(text)
+    if len(parts) != 3 or any(p == "" for p in parts):
+        raise HostError(f"--columns: expected three columns X,Y,Z (names or 0-based indices), got {text!r}")
+    return [int(p) if isinstance(p, int) or p.isdigit() else p for p in parts]
+
+
+def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None,
+                      columns: str | Sequence[str | int] | None = None, units: str | None = None,
+                      calibration: AccCalibration | str | Path | None = None, skip_rows: int = 0) -> AccelerationInput:
+    """Read ``path`` (see the module notes).
+
+    Parameters
+    ----------
+    path
+        Logger file, ``.npz``, IPOL file or folder, or CSV.
+    sampling_rate_hz
+        Rate of a CSV (overrides its time column); for other inputs it must agree with the file's own rate.
+    columns, units, skip_rows
+        CSV only (an error for other inputs).
+    calibration
+        Accelerometer calibration (object or JSON path) applied to readings in its input unit.
+
+    Raises
+    ------
+    HostError
+        A missing or unreadable file, an unknown format, an ambiguous or missing column, unit or rate, a flag
+        that does not apply to this input; the message names the file (and line) and the flag to give.
+    """
+    p = Path(path)
+    if sampling_rate_hz is not None and not (math.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+        raise HostError(f"--rate must be a positive number of Hz, got {sampling_rate_hz:g}")
+    if units is not None and units not in UNITS:
+        raise HostError(f"--units must be one of {', '.join(UNITS)}, got {units!r}")
+    if skip_rows < 0:
+        raise HostError(f"--skip-rows must be >= 0, got {skip_rows}")
+    cols = parse_columns(columns)
+    cal = AccCalibration.load(calibration) if isinstance(calibration, (str, Path)) else calibration
+    if p.is_dir() or p.suffix.lower() == ".json" or p.name.endswith("_lb.txt"):
+        _only_csv(p, cols, units, skip_rows)
+        return _from_ipol(p, sampling_rate_hz, cal)
+    if not p.is_file():
+        raise HostError(f"{p}: no such file")
+    try:
+        data = p.read_bytes()
+    except OSError as err:
+        raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
+    kind = _kind(data)
+    if kind == "text":
+        text = data.decode("utf-8-sig")
+        if text.lstrip().lower().startswith("acquisition frequency"):
+            _only_csv(p, cols, units, skip_rows)
+            return _from_ipol(p, sampling_rate_hz, cal)
+        return _from_csv(p, text, sampling_rate_hz, cols, units, cal, skip_rows)
+    _only_csv(p, cols, units, skip_rows)
+    if kind == "npz":
+        rec = Recording.load(p)
+    else:
+        from host.files.decode import decode_bytes
+
+        rec = decode_bytes(data, source=str(p))
+    return _from_recording(rec, p, sampling_rate_hz, cal)
+
+
+# ------------------------------------------------------------------------------------------------ formats
+def _kind(data: bytes) -> str:
+    """``npz``, ``logger`` (image, raw dump, capture) or ``text``."""
+    from protocol.errors import ProtocolError
+    from protocol.image import detect_format
+
+    if data[:4] == b"PK\x03\x04":
+        return "npz"
+    try:
+        detect_format(data)
+        return "logger"
+    except ProtocolError as err:
+        try:
+            data[:65536].decode("utf-8")
+        except UnicodeDecodeError as uerr:
+            if uerr.start < 65536 - 4:        # not a character cut at the probe's end
+                raise HostError(f"not a logger file, a decoded .npz, an IPOL file or a CSV text: {err}") from None
+        return "text"
+
+
+def _only_csv(p: Path, cols: object, units: str | None, skip_rows: int) -> None:
+    for flag, given in (("--columns", cols is not None), ("--units", units is not None), ("--skip-rows", skip_rows)):
+        if given:
+            raise HostError(f"{p}: {flag} applies to a CSV input only; this file says its own layout")
+
+
+def _check_rate(p: Path, file_rate: float, asked: float | None) -> None:
+    if asked is not None and abs(asked - file_rate) > 1e-9 * file_rate:
+        raise HostError(f"{p}: the file says {file_rate:g} Hz, --rate says {asked:g} Hz; drop --rate")
+
+
+def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
+    _check_rate(p, float(rec.sampling_rate_hz), rate)
+    counts = rec.codes.astype(np.float64)
+    counts[~rec.valid] = np.nan
+    if cal is None:
+        m, note = rec.default_calibration()
+    else:
+        if cal.input_unit != "counts":
+            raise HostError(f"{p}: the calibration takes {cal.input_unit}, this file holds ADC counts")
+        m, note = cal, "g from the given calibration"
+    acc = rec.acc_g(m)
+    valid = np.asarray(rec.valid, bool) & np.all(np.isfinite(acc), axis=1)
+    marks = np.flatnonzero((np.asarray(rec.flags) & FLAG_MARK) != 0)
+    return AccelerationInput(acc, valid, float(rec.sampling_rate_hz), marks,
+                             f"{p} (logger recording, {int(rec.adc_bits)}-bit; {note})", counts, int(rec.adc_bits),
+                             rec)
+
+
+def _from_ipol(p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
+    from host.files.ipol import list_trials, read_trial
+
+    lb = p
+    if p.is_dir():
+        trials = list_trials(p)
+        if len(trials) != 1:
+            raise HostError(f"{p}: holds {len(trials)} IPOL trials ({', '.join(t.name for t in trials[:4])}"
+                            f"{' ...' if len(trials) > 4 else ''}); give one trial's _lb.txt file")
+        lb = trials[0]
+    elif p.suffix.lower() == ".json":
+        lb = p.with_name(p.stem + "_lb.txt")
+    if not lb.is_file():
+        raise HostError(f"{lb}: no such file")
+    trial = read_trial(lb)
+    _check_rate(p, trial.sampling_rate_hz, rate)
+    acc = trial.acc_g
+    note = "m/s^2 / 9.80665"
+    if cal is not None:
+        if cal.input_unit != "g":
+            raise HostError(f"{p}: the calibration takes {cal.input_unit}, this file holds acceleration (g)")
+        acc, note = np.asarray(cal.apply(acc), np.float64), "g from the given calibration"
+    return AccelerationInput(acc, trial.valid.copy(), trial.sampling_rate_hz, np.zeros(0, np.int64),
+                             f"{lb} (IPOL lower back; {note})", ipol_trial=trial)
+
+
+def _split(line: str, delim: str) -> list[str]:
+    return [f.strip() for f in line.split(delim)]
+
+
+def _number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+def _from_csv(p: Path, text: str, rate: float | None, cols: list[str | int] | None, units: str | None,
+              cal: AccCalibration | None, skip_rows: int) -> AccelerationInput:
+    lines = text.splitlines()
+    start, delim, header, prev = None, ",", [], None
+    for i, line in enumerate(lines):
+        if i < skip_rows or not line.strip() or line.lstrip().startswith("#"):
+            continue
+        delim = next((d for d in ("\t", ";", ",") if d in line), ",")
+        fields = _split(line, delim)
+        if sum(_number(f) for f in fields) >= 3:
+            start = i
+            header = prev if prev is not None and len(prev) == len(fields) else []
+            break
+        prev = fields
+    if start is None:
+        raise HostError(f"{p}: no line with three numbers (after {skip_rows} skipped); is this a CSV of "
+                        "accelerations?")
+    names = [h.lower() for h in header]
+    numeric = [j for j, f in enumerate(_split(lines[start], delim)) if _number(f)]
+    axes = _axes(p, names, header, numeric, cols, units)
+    time_col = next((names.index(t) for t in _TIME_NAMES if t in names), None) if rate is None else None
+    want = sorted({c for triple, _ in axes for c in triple} | ({time_col} if time_col is not None else set())
+                  | ({names.index("flags")} if "flags" in names else set())
+                  | ({names.index("valid")} if "valid" in names else set()))
+    body = [ln for ln in lines[start:] if ln.strip() and not ln.lstrip().startswith("#")]
+    table = np.full((len(body), len(want)), np.nan)
+    pos = {c: k for k, c in enumerate(want)}
+    for r, ln in enumerate(body):             # text, one line at a time (np.loadtxt cannot take empty cells)
+        cells = ln.split(delim)
+        if len(cells) <= want[-1]:
+            raise HostError(f"{p}: line {start + r + 1}: {len(cells)} fields, column {want[-1]} is missing")
+        for c in want:
+            v = cells[c].strip()
+            if v:
+                try:
+                    table[r, pos[c]] = float(v)
+                except ValueError:
+                    name = header[c] if header else f"column {c}"
+                    raise HostError(f"{p}: line {start + r + 1}, {name}: not a number: {v!r}") from None
+    if table.shape[0] < 2:
+        raise HostError(f"{p}: fewer than 2 data lines")
+    parts = {unit: table[:, [pos[c] for c in triple]] for triple, unit in axes}
+    if "auto" in parts:
+        v = parts.pop("auto")
+        parts[_unit_from_norm(p, v)] = v
+    for unit in ("g", "m/s2"):
+        if unit in parts:
+            _check_norm(p, parts[unit], unit)
+    ok = np.all([np.all(np.isfinite(v), axis=1) for v in parts.values()], axis=0)
+    if "valid" in names:
+        ok &= table[:, pos[names.index("valid")]] == 1
+    flags = np.nan_to_num(table[:, pos[names.index("flags")]]).astype(np.int64) if "flags" in names else None
+    if rate is None:
+        if time_col is None:
+            raise HostError(f"{p}: no time column ({'/'.join(_TIME_NAMES)}) to take the rate from; give --rate HZ")
+        rate, grid = _time_grid(p, table[:, pos[time_col]], start)
+    else:
+        grid = np.arange(table.shape[0])
+    n = int(grid[-1]) + 1 if grid.size else 0
+    valid = np.zeros(n, bool)
+    valid[grid] = ok
+    marks = np.zeros(0, np.int64)
+    if flags is not None:
+        marks = grid[(flags & FLAG_MARK) != 0]
+
+    def on_grid(v: np.ndarray) -> np.ndarray:
+        out = np.full((n, 3), np.nan)
+        out[grid] = v
+        out[~valid] = np.nan
+        return out
+
+    g = on_grid(parts["g"]) if "g" in parts else None
+    counts = on_grid(parts["counts"]) if "counts" in parts else None
+    note = "g"
+    if "m/s2" in parts:
+        g, note = on_grid(parts["m/s2"]) / STANDARD_GRAVITY_M_S2, "m/s^2 / 9.80665"
+    if cal is not None:
+        raw = counts if cal.input_unit == "counts" else g
+        if raw is None:
+            raise HostError(f"{p}: the calibration takes {cal.input_unit}, this file has no such columns")
+        g, note = np.asarray(cal.apply(raw), np.float64), "g from the given calibration"
+    elif g is None:
+        note = "ADC counts"
+    if g is not None:
+        valid &= np.all(np.isfinite(g), axis=1)
+    unit_words = " and ".join(sorted(parts))
+    return AccelerationInput(g, valid, float(rate), marks, f"{p} (CSV, {unit_words}; {note})", counts)
+
+
+def _axes(p: Path, names: list[str], header: list[str], numeric: list[int], cols: list[str | int] | None,
+          units: str | None) -> list[tuple[list[int], str]]:
+    """The axis column triples to read, each with its unit (the decoded CSV has both counts and g)."""
+    if cols is not None:
+        idx = []
+        for c in cols:
+            if isinstance(c, int):
+                if not 0 <= c < max(len(names), numeric[-1] + 1):
+                    raise HostError(f"{p}: --columns: index {c} is outside the file's columns")
+                idx.append(c)
+            elif c.lower() in names:
+                idx.append(names.index(c.lower()))
+            else:
+                raise HostError(f"{p}: --columns: no column {c!r} (header: {', '.join(header) or 'none'})")
+        hint = next((u for t, u in _AXIS_NAMES if tuple(names[i] for i in idx if i < len(names)) == t), None)
+        return [(idx, _unit(p, hint, units))]
+    found = [([names.index(a) for a in t], u) for t, u in _AXIS_NAMES if all(a in names for a in t)]
+    if found:
+        named = [(i, u) for i, u in found if u is not None]
+        if units is not None or not named:
+            return [(found[0][0], _unit(p, found[0][1], units))]
+        return [(i, u) for i, u in named if u in ("g", "counts")][:2] or [named[0]]
+    if len(numeric) == 3:
+        return [(numeric, _unit(p, None, units))]
+    raise HostError(f"{p}: cannot tell which columns are x, y, z ({len(numeric)} numeric columns"
+                    f"{', header: ' + ', '.join(header) if header else ', no header'}); give --columns X,Y,Z")
+
+
+def _unit(p: Path, hint: str | None, units: str | None) -> str:
+    if units is not None and hint is not None and units != hint:
+        raise HostError(f"{p}: the column names say {hint}, --units says {units}")
+    return units or hint or "auto"
+
+
+def _median_norm(v: np.ndarray) -> float:
+    ok = np.all(np.isfinite(v), axis=1)
+    return float(np.median(np.linalg.norm(v[ok], axis=1))) if ok.any() else float("nan")
+
+
+def _unit_from_norm(p: Path, v: np.ndarray) -> str:
+    norm = _median_norm(v)
+    for unit, (lo, hi) in _NORM_RANGE.items():
+        if lo <= norm <= hi:
+            return unit
+    raise HostError(f"{p}: cannot tell the unit from a median acceleration norm of {norm:.3g} (~1 for g, ~9.8 "
+                    "for m/s^2); give --units g|m/s2|counts")
+
+
+def _check_norm(p: Path, v: np.ndarray, unit: str) -> None:
+    lo, hi = _NORM_RANGE[unit]
+    norm = _median_norm(v)
+    if not lo <= norm <= hi:
+        raise HostError(f"{p}: median acceleration norm is {norm:.3g}, not what gravity gives in {unit} "
+                        f"({lo:g}-{hi:g}); check --units and --columns")
+
+
+def _time_grid(p: Path, t: np.ndarray, start: int) -> tuple[float, np.ndarray]:
+    """Rate from the median step of the time column, and each row's grid index."""
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise HostError(f"{p}: line {start + bad[0] + 1}: the time column is empty; give --rate HZ instead")
+    dt = np.diff(t)
+    if dt.size == 0 or not np.all(dt > 0):
+        k = int(np.flatnonzero(dt <= 0)[0]) if dt.size else 0
+        raise HostError(f"{p}: line {start + k + 2}: time does not increase; give --rate HZ instead")
+    step = float(np.median(dt))
+    grid = np.round((t - t[0]) / step).astype(np.int64)
+    if np.any(np.diff(grid) <= 0):
+        raise HostError(f"{p}: the times are not on a regular grid (two rows within one step); give --rate HZ")
+    return 1.0 / step, grid
