@@ -3,31 +3,27 @@
 from __future__ import annotations
 
 import argparse
-import importlib.util
+
+from host.commands._options import add_verbosity_options, verbosity
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
-
-
-def _have_calibration_module() -> bool:
-    try:
-        return importlib.util.find_spec("host.accelerometer.calibration") is not None
-    except ImportError:  # pragma: no cover
-        return False
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", help="memory image (.glimg), raw dump (rx output) or wire capture")
     parser.add_argument("--out", required=True, metavar="PREFIX",
                         help="writes PREFIX.csv and PREFIX.npz, and PREFIX.steps.csv when the input holds step records")
-    if _have_calibration_module():
-        parser.add_argument("--calibration", metavar="CAL.json",
-                            help="convert counts to g with this calibration (default: the header's "
-                                 "calibration slot, else the nominal map)")
+    parser.add_argument("--calibration", metavar="CAL.json",
+                        help="convert counts to g with this calibration (default: the header's "
+                             "calibration slot, else the nominal map)")
     parser.add_argument("--no-verify", action="store_true",
                         help="write the step records even when they differ from the host's replay of the device's "
                              "algorithm (default: a difference is an error and nothing is written)")
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    add_verbosity_options(parser)
+
+#: Gaps and lost record runs listed one per line without ``-v``.
+_LISTED_WITHOUT_VERBOSE = 10
 
 
 def replay_error(recording, check) -> str:
@@ -55,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     rec = decode_file(args.input)
     calibration = None
     note = rec.default_calibration()[1]
-    if getattr(args, "calibration", None):
+    if args.calibration:
         from host.accelerometer.calibration import AccCalibration
 
         calibration = AccCalibration.load(args.calibration)
@@ -68,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
     if differs and not args.no_verify:
         raise HostError(replay_error(rec, check))
     written = save_decoded(rec, args.out, calibration)
-    if not args.quiet:
-        print(f"{args.input}: {rec.summary()}")
+    if verbosity(args) >= 0:
+        print(f"{args.input}: {rec.summary(None if verbosity(args) > 0 else _LISTED_WITHOUT_VERBOSE)}")
         print(note)
         if check is not None:
             print(check.summary() + (" (--no-verify: written anyway)" if differs else ""))

@@ -511,22 +511,35 @@ class Recording:
             arr = np.zeros((0, len(CSV_COLUMNS)))
         return {name: arr[:, k] for k, name in enumerate(CSV_COLUMNS)}
 
-    def summary(self) -> str:
-        """A few lines describing the recording (samples, gaps, duration)."""
+    def summary(self, max_listed: int | None = None) -> str:
+        """A few lines describing the recording (samples, gaps, duration).
+
+        ``max_listed`` caps the gaps and lost step-record runs listed one per line (``None``: all of them);
+        the rest are counted on one line.
+        """
         lines = [f"{self.n_samples} samples ({self.n_valid} valid, {self.n_missing} missing) at "
                  f"{self.sampling_rate_hz:g} Hz, {self.duration_s:.2f} s"]
         if self.n_samples:
             lines.append(f"sample numbers {int(self.sample_numbers[0])}..{int(self.sample_numbers[-1])}")
         lines.append(f"{len(self.gaps)} gap(s)")
-        for gp in self.gaps:
+        for gp in self.gaps[:max_listed]:
             t0, t1 = self.gap_times_s(gp)
             lines.append(f"  samples {gp.first_sample_number}..{gp.last_sample_number} "
                          f"({t0:.2f}-{t1:.2f} s): {gp.reason}")
+        lines.extend(_more_line(len(self.gaps), max_listed, "gap(s)"))
         if int(getattr(self.header, "step_capacity", 0)) or self.n_step_records or self.step_losses:
             lines.append(f"{self.n_step_records} step record(s) decoded, {self.n_steps_dropped} dropped")
-            for g in self.step_losses:
+            for g in self.step_losses[:max_listed]:
                 lines.append(f"  records {g.first_record_number}..{g.last_record_number}: {g.reason}")
+            lines.extend(_more_line(len(self.step_losses), max_listed, "run(s) of lost records"))
         return "\n".join(lines)
+
+
+def _more_line(n: int, max_listed: int | None, what: str) -> list[str]:
+    """``["  ... N more what"]`` when ``max_listed`` hid some of ``n`` items, else ``[]``."""
+    if max_listed is None or n <= max_listed:
+        return []
+    return [f"  ... {n - max_listed} more {what} (-v lists them all)"]
 
 
 def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:

@@ -134,3 +134,16 @@ def test_gap_times():
     rec = Recording.from_arrays(np.zeros((10, 3)), valid=np.arange(10) < 5, first_sample_number=100)
     assert rec.gaps == [Gap(105, 109, "missing")]
     assert rec.gap_times_s(rec.gaps[0]) == (105 / 50, 110 / 50)
+
+
+def test_summary_lists_at_most_max_listed_gaps_and_counts_the_rest():
+    valid = np.ones(60, bool)
+    valid[1::4] = False                     # 15 one-sample gaps
+    rec = Recording.from_arrays(np.zeros((60, 3)), valid=valid)
+    assert len(rec.gaps) == 15
+    short = rec.summary(10).splitlines()
+    assert sum(line.startswith("  samples ") for line in short) == 10
+    assert "  ... 5 more gap(s) (-v lists them all)" in short
+    full = rec.summary().splitlines()
+    assert sum(line.startswith("  samples ") for line in full) == 15
+    assert not any("more gap" in line for line in full)
