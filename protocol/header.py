@@ -12,7 +12,7 @@ Examples
 >>> len(raw), raw[:8].hex(), raw[-2:].hex()
 (256, '474c4f4701010001', 'e9bf')
 >>> back = DeviceHeader.from_bytes(raw)
->>> back.device_id, back.n_stored, back.first_slot, back.sample_rate_hz, back.start_time.isoformat()
+>>> back.device_id, back.n_stored, back.first_slot, back.sampling_rate_hz, back.start_time.isoformat()
 (7, 3, 0, 50.0, '2001-09-09T01:46:40+00:00')
 >>> DeviceHeader.from_bytes(b"GLOX" + raw[4:], source="x.glimg")
 Traceback (most recent call last):
@@ -52,6 +52,7 @@ __all__ = [
     "PACKING_P32",
     "MAX_CAPACITY_SAMPLES",
     "SAMPLES_WRITTEN_MAX",
+    "MILLIHZ_PER_HZ",
     "HeaderFlag",
     "CalFormat",
     "HEADER_STRUCT",
@@ -74,6 +75,8 @@ PROTOCOL_VERSION = 1
 PACKING_P32 = 1
 MAX_CAPACITY_SAMPLES = 1 << 20
 SAMPLES_WRITTEN_MAX = 0xFFFFFFFF  # the counter saturates here
+#: The header's and INFO's ``sampling_rate_millihz`` counts millihertz (50 Hz = 50000).
+MILLIHZ_PER_HZ = 1000
 _Q16 = 1 << 16
 _Q30 = 1 << 30
 
@@ -111,7 +114,7 @@ HEADER_BODY_STRUCT = cs.Struct(
     "protocol_version" / cs.Int8ul,
     "firmware_version" / cs.Int16ul,
     "device_id" / cs.Int32ul,
-    "sample_rate_mhz" / cs.Int32ul,
+    "sampling_rate_millihz" / cs.Int32ul,
     "adc_bits" / cs.Int8ul,
     "axes" / cs.Int8ul,
     "packing" / cs.Int8ul,
@@ -292,7 +295,7 @@ class DeviceHeader:
     protocol_version: int = PROTOCOL_VERSION
     firmware_version: int = 0x0100
     device_id: int = 1
-    sample_rate_mhz: int = 50_000
+    sampling_rate_millihz: int = 50_000
     adc_bits: int = 10
     axes: int = 3
     packing: int = PACKING_P32
@@ -354,9 +357,9 @@ class DeviceHeader:
         return self.samples_written - self.n_stored
 
     @property
-    def sample_rate_hz(self) -> float:
-        """Sample rate in Hz (``sample_rate_mhz / 1000``)."""
-        return self.sample_rate_mhz / 1000.0
+    def sampling_rate_hz(self) -> float:
+        """Sampling rate in Hz (``sampling_rate_millihz / MILLIHZ_PER_HZ``)."""
+        return self.sampling_rate_millihz / MILLIHZ_PER_HZ
 
     @property
     def start_time(self) -> _dt.datetime:
@@ -424,7 +427,7 @@ class DeviceHeader:
         SESSION_START flag).
         """
         k = np.asarray(sample_numbers, dtype=np.float64)
-        return self.start_time_s + (k - self.run_start_sample) / self.sample_rate_hz
+        return self.start_time_s + (k - self.run_start_sample) / self.sampling_rate_hz
 
     # ------------------------------------------------------------------ validation and bytes
     def validate(self, source: str | None = None) -> None:
@@ -441,8 +444,8 @@ class DeviceHeader:
         if self.protocol_version != PROTOCOL_VERSION:
             raise _err(f"unknown protocol version {self.protocol_version} (this decoder knows "
                        f"{PROTOCOL_VERSION})", "protocol_version", source)
-        if self.sample_rate_mhz == 0:
-            raise _err("sample rate 0", "sample_rate_mhz", source)
+        if self.sampling_rate_millihz == 0:
+            raise _err("sample rate 0", "sampling_rate_millihz", source)
         if not 1 <= self.adc_bits <= 10:
             raise _err(f"{self.adc_bits} outside 1..10", "adc_bits", source)
         if self.axes != 3:

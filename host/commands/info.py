@@ -26,7 +26,7 @@ def header_lines(header) -> list[str]:
     return [
         f"device id        {header.device_id}",
         f"firmware         {fw >> 8}.{fw & 0xFF}   protocol v{header.protocol_version}   header v{header.header_version}",
-        f"sample rate      {header.sample_rate_hz:g} Hz, {header.adc_bits}-bit ADC, {header.axes} axes, packing P32",
+        f"sample rate      {header.sampling_rate_hz:g} Hz, {header.adc_bits}-bit ADC, {header.axes} axes, packing P32",
         f"start time       {header.start_time.isoformat()} ({header.start_time_s})",
         f"capacity         {header.capacity_samples} samples",
         f"samples written  {header.samples_written} (stored {header.n_stored}, oldest is sample "

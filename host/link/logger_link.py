@@ -32,7 +32,7 @@ from protocol.frames import (
     encode_frame,
     parse_payload,
 )
-from protocol.header import HEADER_SIZE, PROTOCOL_VERSION, DeviceHeader
+from protocol.header import HEADER_SIZE, MILLIHZ_PER_HZ, PROTOCOL_VERSION, DeviceHeader
 from protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 _ERROR_HINTS = {ErrorCode.BUSY: "the device is logging: stop it first",
@@ -60,6 +60,24 @@ def _build(name: str, **fields: Any) -> bytes:
         return build_payload(FrameType[name], **fields)
     except ProtocolError as err:
         raise HostError(f"cannot build {name} command: {err}") from err
+
+
+def device_identity(info: dict[str, int]) -> dict[str, Any]:
+    """An IDENTIFY answer (:meth:`LoggerLink.identify`) in the host's words: ``sampling_rate_hz`` (float) for
+    the wire's ``sampling_rate_millihz``, ``firmware_version`` as ``"major.minor"``; the other fields as sent.
+
+    >>> device_identity({"device_id": 7, "firmware_version": 0x0102, "sampling_rate_millihz": 50_000})
+    {'device_id': 7, 'firmware_version': '1.2', 'sampling_rate_hz': 50.0}
+    """
+    out: dict[str, Any] = {}
+    for name, value in info.items():
+        if name == "sampling_rate_millihz":
+            out["sampling_rate_hz"] = value / MILLIHZ_PER_HZ
+        elif name == "firmware_version":
+            out[name] = f"{value >> 8}.{value & 0xFF}"
+        else:
+            out[name] = value
+    return out
 
 
 @dataclass
@@ -257,7 +275,7 @@ class LoggerLink:
     # ----------------------------------------------------------------------------------------- commands
     def identify(self) -> dict[str, int]:
         """IDENTIFY -> INFO fields (``device_id``, ``firmware_version``, ``protocol_version``, ``adc_bits``,
-        ``sample_rate_mhz``, ``capacity_samples``, ``packing``, ``memory_bytes``); refuses an unknown
+        ``sampling_rate_millihz``, ``capacity_samples``, ``packing``, ``memory_bytes``); refuses an unknown
         protocol version."""
         fr = self.transact(FrameType.IDENTIFY, b"", FrameType.INFO, expect_len=_INFO_SIZE)
         info = self._fields(fr)

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from host.errors import HostError
+from host.link.logger_link import device_identity
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
 from protocol.steps import STEP_ADDRESS_BASE
 
@@ -43,6 +44,9 @@ from protocol.steps import STEP_ADDRESS_BASE
 BLOCK_SIZE = 1024
 #: Smallest re-read piece.
 MIN_PIECE = 64
+#: Version of the JSON metadata beside a dump. 2: ``device`` in the host's words (``sampling_rate_hz`` in Hz,
+#: ``firmware_version`` "major.minor"; version 1 copied the INFO frame: ``sample_rate_mhz`` in millihertz).
+METADATA_FORMAT_VERSION = 2
 
 
 def state_path_for(out_path: str | os.PathLike[str]) -> Path:
@@ -293,16 +297,16 @@ class MemoryDump:
         recording = decode_bytes(image, source=str(out))
         self.metadata_ = {
             "format": "gaitlog dump metadata",
-            "format_version": 1,
+            "format_version": METADATA_FORMAT_VERSION,
             "image": out.name,
             "sha256": hashlib.sha256(image).hexdigest(),
             "port": link.port,
             "baud": link.baud,
-            "device": self.info_,
+            "device": device_identity(self.info_),
             "status": status,
             "header": {
                 "device_id": header.device_id, "firmware_version": header.firmware_version,
-                "protocol_version": header.protocol_version, "sample_rate_hz": header.sample_rate_hz,
+                "protocol_version": header.protocol_version, "sample_rate_hz": header.sampling_rate_hz,
                 "start_time_utc": header.start_time.isoformat(), "samples_written": header.samples_written,
                 "write_index": header.write_index, "capacity_samples": header.capacity_samples,
                 "wrapped": header.wrapped, "overwrite": header.overwrite,
