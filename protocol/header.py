@@ -53,6 +53,7 @@ __all__ = [
     "MAX_CAPACITY_SAMPLES",
     "SAMPLES_WRITTEN_MAX",
     "MILLIHZ_PER_HZ",
+    "firmware_version_text",
     "HeaderFlag",
     "CalFormat",
     "HEADER_STRUCT",
@@ -77,6 +78,17 @@ MAX_CAPACITY_SAMPLES = 1 << 20
 SAMPLES_WRITTEN_MAX = 0xFFFFFFFF  # the counter saturates here
 #: The header's and INFO's ``sampling_rate_millihz`` counts millihertz (50 Hz = 50000).
 MILLIHZ_PER_HZ = 1000
+
+
+def firmware_version_text(code: int) -> str:
+    """``firmware_version`` (major·256 + minor) as ``"major.minor"``.
+
+    >>> firmware_version_text(0x0102)
+    '1.2'
+    """
+    return f"{int(code) >> 8}.{int(code) & 0xFF}"
+
+
 _Q16 = 1 << 16
 _Q30 = 1 << 30
 

@@ -57,7 +57,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                        help="clear the slot: the logger uses the nominal map (±2 g over the ADC span)")
 
 
-_STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
+#: STATUS ``state`` in the user's words.
+STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -101,10 +102,12 @@ def _identity_lines(port: str, info: dict[str, int]) -> list[str]:
 
 def _status(link) -> dict[str, Any]:
     """STATUS plus what the header says about stored step records and the calibration slot."""
+    from protocol.frames import DeviceState
+
     status = link.status()
     _, header = link.read_header()
-    return {"device_id": header.device_id, "state": _STATE_WORDS.get(status["state"], str(status["state"])),
-            "logging": status["state"] == 1, "overwrite": header.overwrite,
+    return {"device_id": header.device_id, "state": STATE_WORDS.get(status["state"], str(status["state"])),
+            "logging": status["state"] == DeviceState.LOGGING, "overwrite": header.overwrite,
             "samples_written": status["samples_written"], "samples_stored": header.n_stored,
             "capacity_samples": header.capacity_samples, "write_index": status["write_index"],
             "start_time_utc": header.start_time.isoformat() if header.start_time_s else None,

@@ -32,7 +32,7 @@ from protocol.frames import (
     encode_frame,
     parse_payload,
 )
-from protocol.header import HEADER_SIZE, MILLIHZ_PER_HZ, PROTOCOL_VERSION, DeviceHeader
+from protocol.header import HEADER_SIZE, MILLIHZ_PER_HZ, PROTOCOL_VERSION, DeviceHeader, firmware_version_text
 from protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 _ERROR_HINTS = {ErrorCode.BUSY: "the device is logging: stop it first",
@@ -74,7 +74,7 @@ def device_identity(info: dict[str, int]) -> dict[str, Any]:
         if name == "sampling_rate_millihz":
             out["sampling_rate_hz"] = value / MILLIHZ_PER_HZ
         elif name == "firmware_version":
-            out[name] = f"{value >> 8}.{value & 0xFF}"
+            out[name] = firmware_version_text(value)
         else:
             out[name] = value
     return out
