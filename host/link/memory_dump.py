@@ -38,6 +38,7 @@ import numpy as np
 from host.errors import HostError
 from host.link.logger_link import device_identity
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from protocol.frames import MAX_DATA, DeviceState
 from protocol.steps import STEP_ADDRESS_BASE
 
 #: Block size of the image and of the resume bookkeeping (``PROTOCOL.md`` section 6).
@@ -79,7 +80,7 @@ class MemoryDump:
     Parameters
     ----------
     chunk_bytes
-        DATA frame size of the first pass (1 ... 4096; 4096 keeps the framing at 0.3 %).
+        DATA frame size of the first pass (1 ... ``MAX_DATA``; the largest keeps the framing at 0.3 %).
     retries
         Re-read passes over missing bytes after the first pass.
     state_interval_s
@@ -101,7 +102,7 @@ class MemoryDump:
         Files written (the state file exists only while the dump is incomplete).
     """
 
-    def __init__(self, *, chunk_bytes: int = 4096, retries: int = 8, state_interval_s: float = 1.0) -> None:
+    def __init__(self, *, chunk_bytes: int = MAX_DATA, retries: int = 8, state_interval_s: float = 1.0) -> None:
         self.chunk_bytes = chunk_bytes
         self.retries = retries
         self.state_interval_s = state_interval_s
@@ -175,7 +176,7 @@ class MemoryDump:
 
         self.info_ = link.identify()
         status = link.status()
-        if status["state"] == 1:
+        if status["state"] == DeviceState.LOGGING:
             raise HostError(f"{link.port}: the device is logging; stop it before dumping its memory")
         header_bytes, header = link.read_header()
         self.header_ = header
