@@ -35,7 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                                 "is a calibration set")
     _link_options(status)
     status.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    start = actions.add_parser("start", help="start logging (the memory must have room: erase it first)")
+    start = actions.add_parser("start", help="start logging (stops when the memory is full; --overwrite: ring mode)")
     _link_options(start)
     start.add_argument("--overwrite", action="store_true",
                        help="ring mode: overwrite the oldest samples when the memory is full (default: stop)")
