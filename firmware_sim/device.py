@@ -134,7 +134,7 @@ class Logger:
         header = DeviceHeader(
             firmware_version=FIRMWARE_VERSION,
             device_id=int(device_id),
-            sample_rate_mhz=int(round(self.adc.rate_hz * 1000)),
+            sampling_rate_millihz=int(round(self.adc.rate_hz * 1000)),
             adc_bits=int(self.adc.bits),
             capacity_samples=CAPACITY_SAMPLES,
             adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
@@ -229,7 +229,7 @@ class Logger:
         header, memory, step_memory, notes = _read_image(p)
         kwargs.setdefault("device_id", header.device_id)
         if "adc" not in kwargs:
-            kwargs["adc"] = Adc(rate_hz=header.sample_rate_hz, bits=header.adc_bits)
+            kwargs["adc"] = Adc(rate_hz=header.sampling_rate_hz, bits=header.adc_bits)
         logger = cls(**kwargs)
         logger._load(header, memory, step_memory, source=str(p))
         for note in notes:

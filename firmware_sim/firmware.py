@@ -85,7 +85,7 @@ def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ
     host's replay (:mod:`host.files.replay`) uses the same, so device and replay cannot be set up differently."""
     if not header.step_config.enabled:
         return None
-    fs = header.sample_rate_hz
+    fs = header.sampling_rate_hz
     return OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=header.step_config, calibration=header.calibration,
                                arithmetic="fixed", code_bits=header.adc_bits,
                                cycles_available=algorithm_cycles_per_sample(fs, fosc_hz))
@@ -353,7 +353,7 @@ class Firmware:
         if ftype == FrameType.IDENTIFY:
             return encode_frame(FrameType.INFO, seq, build_payload(
                 FrameType.INFO, device_id=h.device_id, firmware_version=h.firmware_version,
-                protocol_version=h.protocol_version, adc_bits=h.adc_bits, sample_rate_mhz=h.sample_rate_mhz,
+                protocol_version=h.protocol_version, adc_bits=h.adc_bits, sampling_rate_millihz=h.sampling_rate_millihz,
                 capacity_samples=h.capacity_samples, packing=PACKING_P32, memory_bytes=h.memory_bytes,
             ))
         if ftype == FrameType.GET_STATUS:

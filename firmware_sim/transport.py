@@ -26,7 +26,6 @@ import select
 import socket
 import threading
 import time
-import tty
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -262,6 +261,8 @@ class PtyServer(_Server):
                  save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S) -> None:
         super().__init__(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
                          save_on_stop=save_on_stop, turnaround_s=turnaround_s)
+        import tty  # POSIX only: imported where a pty is made, so --tcp works on Windows
+
         self._master, self._slave = os.openpty()
         tty.setraw(self._master)
         tty.setraw(self._slave)

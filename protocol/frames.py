@@ -192,7 +192,7 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
         "firmware_version" / cs.Int16ul,
         "protocol_version" / cs.Int8ul,
         "adc_bits" / cs.Int8ul,
-        "sample_rate_mhz" / cs.Int32ul,
+        "sampling_rate_millihz" / cs.Int32ul,
         "capacity_samples" / cs.Int32ul,
         "packing" / cs.Int8ul,
         "memory_bytes" / cs.Int32ul,

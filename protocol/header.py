@@ -12,7 +12,7 @@ Examples
 >>> len(raw), raw[:8].hex(), raw[-2:].hex()
 (256, '474c4f4701010001', 'e9bf')
 >>> back = DeviceHeader.from_bytes(raw)
->>> back.device_id, back.n_stored, back.first_slot, back.sample_rate_hz, back.start_time.isoformat()
+>>> back.device_id, back.n_stored, back.first_slot, back.sampling_rate_hz, back.start_time.isoformat()
 (7, 3, 0, 50.0, '2001-09-09T01:46:40+00:00')
 >>> DeviceHeader.from_bytes(b"GLOX" + raw[4:], source="x.glimg")
 Traceback (most recent call last):
@@ -52,6 +52,8 @@ __all__ = [
     "PACKING_P32",
     "MAX_CAPACITY_SAMPLES",
     "SAMPLES_WRITTEN_MAX",
+    "MILLIHZ_PER_HZ",
+    "firmware_version_text",
     "HeaderFlag",
     "CalFormat",
     "HEADER_STRUCT",
@@ -74,6 +76,19 @@ PROTOCOL_VERSION = 1
 PACKING_P32 = 1
 MAX_CAPACITY_SAMPLES = 1 << 20
 SAMPLES_WRITTEN_MAX = 0xFFFFFFFF  # the counter saturates here
+#: The header's and INFO's ``sampling_rate_millihz`` counts millihertz (50 Hz = 50000).
+MILLIHZ_PER_HZ = 1000
+
+
+def firmware_version_text(code: int) -> str:
+    """``firmware_version`` (major·256 + minor) as ``"major.minor"``.
+
+    >>> firmware_version_text(0x0102)
+    '1.2'
+    """
+    return f"{int(code) >> 8}.{int(code) & 0xFF}"
+
+
 _Q16 = 1 << 16
 _Q30 = 1 << 30
 
@@ -104,34 +119,36 @@ CALIBRATION_STRUCT = cs.Struct(
     "reserved1" / cs.Padding(12),
 )
 
-#: Header bytes 0-253, the part the CRC covers (section 2).
+#: Header bytes 0-253, the part the CRC covers (section 2). This is the one list of the header's fields: the
+#: integer fields (with the default of a new header) become :class:`DeviceHeader`'s fields.
 HEADER_BODY_STRUCT = cs.Struct(
-    "magic" / cs.Bytes(4),
-    "header_version" / cs.Int8ul,
-    "protocol_version" / cs.Int8ul,
-    "firmware_version" / cs.Int16ul,
-    "device_id" / cs.Int32ul,
-    "sample_rate_mhz" / cs.Int32ul,
-    "adc_bits" / cs.Int8ul,
-    "axes" / cs.Int8ul,
-    "packing" / cs.Int8ul,
-    "flags" / cs.Int8ul,
-    "start_time_s" / cs.Int32ul,
-    "capacity_samples" / cs.Int32ul,
-    "write_index" / cs.Int32ul,
-    "samples_written" / cs.Int32ul,
-    "adc_vref_mv" / cs.Int32ul,
-    "run_start_sample" / cs.Int32ul,
-    "steps_written" / cs.Int32ul,
-    "step_write_index" / cs.Int16ul,
-    "step_capacity" / cs.Int16ul,
+    "magic" / cs.Const(MAGIC),
+    "header_version" / cs.Default(cs.Int8ul, HEADER_VERSION),
+    "protocol_version" / cs.Default(cs.Int8ul, PROTOCOL_VERSION),
+    "firmware_version" / cs.Default(cs.Int16ul, 0x0100),
+    "device_id" / cs.Default(cs.Int32ul, 1),
+    "sampling_rate_millihz" / cs.Default(cs.Int32ul, 50 * MILLIHZ_PER_HZ),
+    "adc_bits" / cs.Default(cs.Int8ul, 10),
+    "axes" / cs.Default(cs.Int8ul, 3),
+    "packing" / cs.Default(cs.Int8ul, PACKING_P32),
+    "flags" / cs.Default(cs.Int8ul, 0),
+    "start_time_s" / cs.Default(cs.Int32ul, 0),
+    "capacity_samples" / cs.Default(cs.Int32ul, CAPACITY_SAMPLES),
+    "write_index" / cs.Default(cs.Int32ul, 0),
+    "samples_written" / cs.Default(cs.Int32ul, 0),
+    "adc_vref_mv" / cs.Default(cs.Int32ul, 5000),
+    "run_start_sample" / cs.Default(cs.Int32ul, 0),
+    "steps_written" / cs.Default(cs.Int32ul, 0),
+    "step_write_index" / cs.Default(cs.Int16ul, 0),
+    "step_capacity" / cs.Default(cs.Int16ul, 0),
     "reserved0" / cs.Padding(12),
     "calibration" / cs.Bytes(CALIBRATION_SIZE),
     "step_config" / cs.Bytes(STEP_CONFIG_SIZE),
     "reserved1" / cs.Padding(94),
 )
 
-#: The whole 256-byte header: body plus big-endian CRC-16/XMODEM over bytes 0-253.
+#: The whole 256-byte header: body plus big-endian CRC-16/XMODEM over bytes 0-253. Parsing it checks the
+#: magic (``Const``) and the CRC (``Checksum``).
 HEADER_STRUCT = cs.Struct(
     "body" / cs.RawCopy(HEADER_BODY_STRUCT),
     "header_crc" / cs.Checksum(cs.Int16ub, lambda data: crc16_xmodem(data), cs.this.body.data),
@@ -139,11 +156,12 @@ HEADER_STRUCT = cs.Struct(
 
 
 # compiled twins of the declarations above, for the hot paths (same bytes; checked by the tests)
-_HEADER_BODY_FAST = HEADER_BODY_STRUCT.compile()
+_HEADER_FAST = HEADER_STRUCT.compile()
 _CALIBRATION_FAST = CALIBRATION_STRUCT.compile()
 
 #: field name -> (offset, size) in the 256-byte header (``header_crc`` included).
-HEADER_OFFSETS: dict[str, tuple[int, int]] = {**field_offsets(HEADER_BODY_STRUCT), "header_crc": (254, 2)}
+HEADER_OFFSETS: dict[str, tuple[int, int]] = {**field_offsets(HEADER_BODY_STRUCT),
+                                              "header_crc": field_offsets(HEADER_STRUCT)["header_crc"]}
 #: field name -> (offset, size) in the 64-byte calibration slot.
 CALIBRATION_OFFSETS: dict[str, tuple[int, int]] = field_offsets(CALIBRATION_STRUCT)
 
@@ -264,17 +282,39 @@ class Calibration:
 
 
 _U_LIMITS = {1: 0xFF, 2: 0xFFFF, 4: 0xFFFFFFFF}
-#: The integer fields of the header, in layout order (read from the construct declaration).
-HEADER_INT_FIELDS: tuple[str, ...] = tuple(sc.name for sc in HEADER_BODY_STRUCT.subcons
-                                           if sc.name is not None and isinstance(sc.subcon, cs.FormatField))
+#: The integer fields of the header and the value of each in a new header, in layout order (read from the
+#: construct declaration).
+_HEADER_INT_DEFAULTS: dict[str, int] = {sc.name: sc.subcon.value for sc in HEADER_BODY_STRUCT.subcons
+                                        if isinstance(sc.subcon, cs.Default)}
+#: The integer fields of the header, in layout order.
+HEADER_INT_FIELDS: tuple[str, ...] = tuple(_HEADER_INT_DEFAULTS)
+
+#: The integer fields as a dataclass (the base of :class:`DeviceHeader`), generated from the declaration.
+_HeaderIntFields = dataclasses.make_dataclass(
+    "_HeaderIntFields", [(name, int, dataclasses.field(default=value)) for name, value in _HEADER_INT_DEFAULTS.items()],
+    eq=False)
+
+
+def _construct_error(exc: cs.ConstructError, data: bytes, source: str | None) -> ProtocolError:
+    """A construct parsing error of :data:`HEADER_STRUCT` as a one-line error naming the field and its offset."""
+    if isinstance(exc, cs.ChecksumError):
+        at, size = HEADER_OFFSETS["header_crc"]
+        stored, computed = int.from_bytes(data[at: at + size], "big"), crc16_xmodem(data[:at])
+        return _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{computed:04x} over bytes 0-{at - 1}",
+                    "header_crc", source)
+    if isinstance(exc, cs.ConstError):
+        at, size = HEADER_OFFSETS["magic"]
+        return _err(f"expected {MAGIC!r}, found {data[at: at + size]!r} (not a gaitlog device header)", "magic",
+                    source)
+    return ProtocolError(f"device header: {str(exc).strip().splitlines()[-1]}", source=source)  # pragma: no cover
 
 
 @dataclass(eq=False)
-class DeviceHeader:
+class DeviceHeader(_HeaderIntFields):
     """The 256-byte device header (section 2), validated.
 
-    Field names and meanings are those of the table in ``PROTOCOL.md`` section 2; ``magic`` and
-    ``header_crc`` are implicit. ``calibration`` ``None`` means the nominal map for ``adc_bits``.
+    Field names and meanings are those of the table in ``PROTOCOL.md`` section 2; the integer fields and
+    their defaults come from :data:`HEADER_BODY_STRUCT`; ``magic`` and ``header_crc`` are implicit. ``calibration`` ``None`` means the nominal map for ``adc_bits``.
     The ``CAL_VALID`` flag bit is written from ``calibration.valid``. ``step_config`` ``None`` means the
     on-line step algorithm off (:meth:`StepConfig.off`); ``step_capacity`` 0 means no step memory (the
     default, and the behaviour of headers written before the step memory existed).
@@ -288,24 +328,6 @@ class DeviceHeader:
     [24, 23]
     """
 
-    header_version: int = HEADER_VERSION
-    protocol_version: int = PROTOCOL_VERSION
-    firmware_version: int = 0x0100
-    device_id: int = 1
-    sample_rate_mhz: int = 50_000
-    adc_bits: int = 10
-    axes: int = 3
-    packing: int = PACKING_P32
-    flags: int = 0
-    start_time_s: int = 0
-    capacity_samples: int = CAPACITY_SAMPLES
-    write_index: int = 0
-    samples_written: int = 0
-    adc_vref_mv: int = 5000
-    run_start_sample: int = 0
-    steps_written: int = 0
-    step_write_index: int = 0
-    step_capacity: int = 0
     calibration: Calibration | None = None
     step_config: StepConfig | None = None
 
@@ -354,9 +376,9 @@ class DeviceHeader:
         return self.samples_written - self.n_stored
 
     @property
-    def sample_rate_hz(self) -> float:
-        """Sample rate in Hz (``sample_rate_mhz / 1000``)."""
-        return self.sample_rate_mhz / 1000.0
+    def sampling_rate_hz(self) -> float:
+        """Sampling rate in Hz (``sampling_rate_millihz / MILLIHZ_PER_HZ``)."""
+        return self.sampling_rate_millihz / MILLIHZ_PER_HZ
 
     @property
     def start_time(self) -> _dt.datetime:
@@ -424,7 +446,7 @@ class DeviceHeader:
         SESSION_START flag).
         """
         k = np.asarray(sample_numbers, dtype=np.float64)
-        return self.start_time_s + (k - self.run_start_sample) / self.sample_rate_hz
+        return self.start_time_s + (k - self.run_start_sample) / self.sampling_rate_hz
 
     # ------------------------------------------------------------------ validation and bytes
     def validate(self, source: str | None = None) -> None:
@@ -441,8 +463,8 @@ class DeviceHeader:
         if self.protocol_version != PROTOCOL_VERSION:
             raise _err(f"unknown protocol version {self.protocol_version} (this decoder knows "
                        f"{PROTOCOL_VERSION})", "protocol_version", source)
-        if self.sample_rate_mhz == 0:
-            raise _err("sample rate 0", "sample_rate_mhz", source)
+        if self.sampling_rate_millihz == 0:
+            raise _err("sample rate 0", "sampling_rate_millihz", source)
         if not 1 <= self.adc_bits <= 10:
             raise _err(f"{self.adc_bits} outside 1..10", "adc_bits", source)
         if self.axes != 3:
@@ -513,9 +535,8 @@ class DeviceHeader:
         self.validate()
         assert self.calibration is not None and self.step_config is not None
         values = {name: int(getattr(self, name)) for name in HEADER_INT_FIELDS}
-        body = _HEADER_BODY_FAST.build(dict(magic=MAGIC, calibration=self.calibration.to_bytes(),
-                                            step_config=self.step_config.to_bytes(), **values))
-        return body + crc16_xmodem(body).to_bytes(2, "big")  # = HEADER_STRUCT.build(...)
+        return _HEADER_FAST.build({"body": {"value": {"calibration": self.calibration.to_bytes(),
+                                                      "step_config": self.step_config.to_bytes(), **values}}})
 
     @classmethod
     def from_bytes(cls, data: bytes | bytearray | memoryview, source: str | None = None) -> "DeviceHeader":
@@ -538,13 +559,10 @@ class DeviceHeader:
         if len(data) < HEADER_SIZE:
             raise ProtocolError(f"device header truncated: {len(data)} of {HEADER_SIZE} bytes",
                                 offset=len(data), source=source)
-        if data[:4] != MAGIC:
-            raise _err(f"expected {MAGIC!r}, found {data[:4]!r} (not a gaitlog device header)", "magic", source)
-        stored, computed = int.from_bytes(data[254:256], "big"), crc16_xmodem(data[:254])
-        if stored != computed:  # the Checksum field of HEADER_STRUCT
-            raise _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{computed:04x} over bytes 0-253",
-                       "header_crc", source)
-        body = _HEADER_BODY_FAST.parse(data)
+        try:
+            body = _HEADER_FAST.parse(data).body.value  # checks the magic and the CRC
+        except cs.ConstructError as exc:
+            raise _construct_error(exc, data, source) from None
         values = {name: int(body[name]) for name in HEADER_INT_FIELDS}
         # versions first: a newer layout may not be parseable further
         header = cls.__new__(cls)
@@ -573,8 +591,6 @@ class DeviceHeader:
         return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
 
-# every integer field of the layout is a dataclass field (the layout is the one list of them)
-assert set(HEADER_INT_FIELDS) <= {f.name for f in dataclasses.fields(DeviceHeader)}
 
 
 def _ring_slots(first: int, n: int, capacity: int) -> np.ndarray:

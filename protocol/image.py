@@ -18,14 +18,16 @@ Examples
 >>> c = parse_image(img)
 >>> c.block_ok.tolist(), c.block_missing.tolist(), bytes(c.memory[:1024]) == memory[:1024]
 ([True, False], [False, True], True)
+>>> c.notes  # block 1 holds none of the 200 stored samples: the logger never wrote it
+['block 1 empty (never written by the logger, so not transferred)']
 >>> damaged = img[:1000] + img[1001:]  # one byte dropped inside block 0, which holds the 200 samples
 >>> import warnings
 >>> with warnings.catch_warnings(record=True) as caught:
 ...     warnings.simplefilter("always")
 ...     parse_image(damaged).block_ok.tolist()
 [False, False]
->>> print(str(caught[0].message)[:98])
-memory image: 1 of the 1 blocks holding stored samples are not usable (block 0); block 1 marked mi
+>>> print(str(caught[0].message)[:79])
+memory image: 1 of the 1 blocks holding stored samples are not usable (block 0)
 """
 
 from __future__ import annotations
@@ -115,7 +117,8 @@ class ImageContents:
     notes
         One line per problem found (damaged, shifted, missing, truncated blocks; table damage).
     block_missing
-        ``(n_blocks,)`` bool: marked missing in the file (never received by the dump).
+        ``(n_blocks,)`` bool: marked missing in the file: not received by the dump, or holding nothing stored
+        (never written by the logger, so never read; the notes call those empty).
     block_truncated
         ``(n_blocks,)`` bool: beyond the end of a truncated file.
     block_shift
@@ -345,6 +348,39 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     warning says how many stored step records that loses.
     """
     data = bytes(data)
+    version, bs, mem_bytes, n = _read_prefix(data, source)
+    crcs, states, table_ok, notes = _read_block_table(data, n)
+    header_at = 16 + 5 * n + 4
+    header, hshift = _find_header(data, header_at, source)
+    if hshift:
+        notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
+    _check_memory_size(header, version, mem_bytes, source)
+    mem0 = header_at + HEADER_SIZE
+    blocks = _recover_blocks(data, mem0, bs, mem_bytes, crcs, states if table_ok else None, hshift)
+    stored = _stored_blocks(header, n, bs)
+    notes += _block_notes(blocks, stored["samples"] | stored["step records"], hshift, mem0, mem_bytes, len(data))
+    if version == IMAGE_VERSION and header.n_steps_stored:
+        notes.append(f"image version {IMAGE_VERSION} holds no step memory: the header's {header.n_steps_stored} "
+                     "stored step records are not in the file")
+        warnings.warn(f"{source or 'memory image'}: {notes[-1]}", stacklevel=2)
+    for what, needed in stored.items():
+        lost = ~blocks.ok & needed
+        if lost.any():
+            warnings.warn(f"{source or 'memory image'}: {int(lost.sum())} of the {int(needed.sum())} blocks holding "
+                          f"stored {what} are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
+                          stacklevel=2)
+    region = np.frombuffer(blocks.memory, dtype=np.uint8)
+    steps = region[header.memory_bytes:] if version == IMAGE_VERSION_STEPS else \
+        np.full(header.step_memory_bytes, 0xFF, dtype=np.uint8)
+    return ImageContents(header=header, memory=region[: header.memory_bytes].copy(), block_ok=blocks.ok,
+                         block_size=bs, notes=notes, block_missing=blocks.marked, block_truncated=blocks.truncated,
+                         block_shift=blocks.shifts, table_ok=table_ok, step_memory=steps.copy(),
+                         image_version=version)
+
+
+def _read_prefix(data: bytes, source: str | None) -> tuple[int, int, int, int]:
+    """``(image_version, block_size, memory_bytes, n_blocks)`` of the fixed prefix, checked against each other
+    and against the file's length (it must hold the block table and its CRC)."""
     if len(data) < 16:
         raise ProtocolError(f"memory image truncated: {len(data)} bytes, the fixed prefix alone is 16",
                             offset=len(data), source=source)
@@ -366,17 +402,23 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     if len(data) < table_end + 4:
         raise ProtocolError(f"memory image truncated inside its block table ({len(data)} of {table_end + 4} "
                             "bytes)", offset=len(data), source=source)
-    notes: list[str] = []
+    return version, bs, mem_bytes, n
+
+
+def _read_block_table(data: bytes, n: int) -> tuple[np.ndarray, np.ndarray, bool, list[str]]:
+    """``(crcs, states, table_ok, notes)`` of the block table; a table whose CRC-32 fails is noted (its states
+    are then ignored)."""
+    table_end = 16 + 5 * n
     crcs = np.frombuffer(data, dtype="<u4", count=n, offset=16)
     states = np.frombuffer(data, dtype=np.uint8, count=n, offset=16 + 4 * n)
     table_ok = crc32(data[:table_end]) == int.from_bytes(data[table_end : table_end + 4], "little")
-    if not table_ok:
-        notes.append(f"block table CRC-32 mismatch (offset {table_end}): block states ignored, each block "
-                     "accepted only if its bytes match its CRC-32")
-    header_at = table_end + 4
-    header, hshift = _find_header(data, header_at, source)
-    if hshift:
-        notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
+    notes = [] if table_ok else [(f"block table CRC-32 mismatch (offset {table_end}): block states ignored, each "
+                                  "block accepted only if its bytes match its CRC-32")]
+    return crcs, states, table_ok, notes
+
+
+def _check_memory_size(header: DeviceHeader, version: int, mem_bytes: int, source: str | None) -> None:
+    """The prefix's ``memory_bytes`` against what the header's capacities need for this ``image_version``."""
     if version == IMAGE_VERSION_STEPS and header.step_capacity == 0:
         raise ProtocolError(f"image_version: {version}, but the device header has no step memory (step_capacity "
                             f"0; an image without step memory is version {IMAGE_VERSION})",
@@ -390,14 +432,28 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
                             f"{header.capacity_samples} samples{steps} needs {expected}",
                             offset=IMAGE_OFFSETS["memory_bytes"], source=source)
 
-    mem0 = header_at + HEADER_SIZE
+
+@dataclass
+class _Blocks:
+    """What :func:`_recover_blocks` found of each block (all arrays ``(n_blocks,)``)."""
+
+    memory: bytearray  #: the memory region; bytes of blocks not ok are 0xFF
+    ok: np.ndarray  #: bytes exact (CRC-32 verified)
+    marked: np.ndarray  #: marked missing in the table
+    truncated: np.ndarray  #: beyond the end of the file
+    damaged: np.ndarray  #: CRC-32 mismatch, not found within the shift window
+    unknown_state: np.ndarray  #: a state byte that is neither present nor missing
+    shifts: np.ndarray  #: shift in bytes of each ok block (0 elsewhere)
+    last_shift: int  #: shift of the last block found
+
+
+def _recover_blocks(data: bytes, mem0: int, bs: int, mem_bytes: int, crcs: np.ndarray,
+                    states: np.ndarray | None, hshift: int) -> _Blocks:
+    """Find each block by its CRC-32 at its place, or within ±:data:`SHIFT_SEARCH_BYTES` of it (bytes dropped
+    or inserted before it move every later block); ``states`` None (a damaged table) tries every block."""
+    n = len(crcs)
     memory = bytearray(b"\xff" * mem_bytes)
-    ok = np.zeros(n, dtype=bool)
-    marked = np.zeros(n, dtype=bool)
-    truncated = np.zeros(n, dtype=bool)
-    damaged = np.zeros(n, dtype=bool)
-    unknown_state = np.zeros(n, dtype=bool)
-    shifts = np.zeros(n, dtype=np.int64)
+    found_blocks = _Blocks(memory, *(np.zeros(n, dtype=bool) for _ in range(5)), np.zeros(n, dtype=np.int64), hshift)
     view = memoryview(data)
     total = len(data)
     shift = hshift
@@ -406,8 +462,8 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
         start = i * bs
         size = min(bs, mem_bytes - start)
         want = int(crcs[i])
-        if table_ok and states[i] != BLOCK_PRESENT:
-            (marked if states[i] == BLOCK_MISSING else unknown_state)[i] = True
+        if states is not None and states[i] != BLOCK_PRESENT:
+            (found_blocks.marked if states[i] == BLOCK_MISSING else found_blocks.unknown_state)[i] = True
             continue
         o = mem0 + start + shift
         if o >= 0 and o + size <= total and crc32(view[o : o + size]) == want:
@@ -420,55 +476,57 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
                     found = shift + d
                     break
         if found is None:
-            if o + size > total:
-                truncated[i] = True
-            else:
-                damaged[i] = True
+            (found_blocks.truncated if o + size > total else found_blocks.damaged)[i] = True
             continue
         shift = found
         o = mem0 + start + shift
         memory[start : start + size] = view[o : o + size]
-        ok[i] = True
-        shifts[i] = shift
+        found_blocks.ok[i] = True
+        found_blocks.shifts[i] = shift
     view.release()
+    found_blocks.last_shift = shift
+    return found_blocks
 
-    if marked.any():
-        notes.append(f"{_blocks(np.flatnonzero(marked))} marked missing (never received)")
-    if damaged.any():
-        notes.append(f"{_blocks(np.flatnonzero(damaged))} damaged (CRC-32 mismatch, not found within "
-                     f"±{SHIFT_SEARCH_BYTES} bytes)")
-    if truncated.any():
-        notes.append(f"{_blocks(np.flatnonzero(truncated))} missing: file truncated at {total} bytes "
-                     f"(complete file: {mem0 + mem_bytes})")
-    if unknown_state.any():
-        notes.append(f"{_blocks(np.flatnonzero(unknown_state))} have an unknown state byte; not used")
-    moved = np.flatnonzero(ok & (np.diff(np.concatenate(([hshift], shifts))) != 0))
-    for i in moved:
-        notes.append(f"block {i} found shifted by {int(shifts[i]):+d} bytes (bytes dropped or inserted before it)")
-    if total > mem0 + shift + mem_bytes and ok.all():
-        notes.append(f"{total - (mem0 + shift + mem_bytes)} trailing bytes after the memory ignored")
-    if version == IMAGE_VERSION and header.n_steps_stored:
-        notes.append(f"image version {IMAGE_VERSION} holds no step memory: the header's {header.n_steps_stored} "
-                     "stored step records are not in the file")
-        warnings.warn(f"{source or 'memory image'}: {notes[-1]}", stacklevel=2)
-    # blocks holding stored samples (the whole memory when wrapped; else bytes 0 .. 4·n_stored), and
-    # blocks holding stored step records (step memory bytes 0 .. 20·n_steps_stored, after the samples)
+
+def _stored_blocks(header: DeviceHeader, n: int, bs: int) -> dict[str, np.ndarray]:
+    """``{"samples": ..., "step records": ...}``: bool ``(n,)`` of the blocks holding stored samples (the whole
+    sample memory when wrapped; else bytes 0 .. 4·n_stored) and stored step records (step memory bytes
+    0 .. 20·n_steps_stored, after the samples)."""
+    out = {}
     for what, first, stop in (("samples", 0, header.used_bytes),
                               ("step records", header.memory_bytes, header.memory_bytes + header.step_used_bytes)):
         needed = np.zeros(n, dtype=bool)
         if stop > first:
             needed[first // bs: -(-stop // bs)] = True
-        lost = ~ok & needed
-        if lost.any():
-            warnings.warn(f"{source or 'memory image'}: {int(lost.sum())} of the {int(needed.sum())} blocks holding "
-                          f"stored {what} are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
-                          stacklevel=2)
-    region = np.frombuffer(memory, dtype=np.uint8)
-    steps = region[header.memory_bytes:] if version == IMAGE_VERSION_STEPS else \
-        np.full(header.step_memory_bytes, 0xFF, dtype=np.uint8)
-    return ImageContents(header=header, memory=region[: header.memory_bytes].copy(), block_ok=ok,
-                         block_size=bs, notes=notes, block_missing=marked, block_truncated=truncated,
-                         block_shift=shifts, table_ok=table_ok, step_memory=steps.copy(), image_version=version)
+        out[what] = needed
+    return out
+
+
+def _block_notes(blocks: _Blocks, stored: np.ndarray, hshift: int, mem0: int, mem_bytes: int,
+                 total: int) -> list[str]:
+    """One line per kind of block problem. A block marked missing that holds nothing stored was never written
+    by the logger (a dump does not read it): it is called empty, not lost."""
+    notes = []
+    if (blocks.marked & stored).any():
+        notes.append(f"{_blocks(np.flatnonzero(blocks.marked & stored))} marked missing (never received)")
+    if (blocks.marked & ~stored).any():
+        notes.append(f"{_blocks(np.flatnonzero(blocks.marked & ~stored))} empty (never written by the logger, "
+                     "so not transferred)")
+    if blocks.damaged.any():
+        notes.append(f"{_blocks(np.flatnonzero(blocks.damaged))} damaged (CRC-32 mismatch, not found within "
+                     f"±{SHIFT_SEARCH_BYTES} bytes)")
+    if blocks.truncated.any():
+        notes.append(f"{_blocks(np.flatnonzero(blocks.truncated))} missing: file truncated at {total} bytes "
+                     f"(complete file: {mem0 + mem_bytes})")
+    if blocks.unknown_state.any():
+        notes.append(f"{_blocks(np.flatnonzero(blocks.unknown_state))} have an unknown state byte; not used")
+    moved = np.flatnonzero(blocks.ok & (np.diff(np.concatenate(([hshift], blocks.shifts))) != 0))
+    for i in moved:
+        notes.append(f"block {i} found shifted by {int(blocks.shifts[i]):+d} bytes (bytes dropped or inserted "
+                     "before it)")
+    if total > mem0 + blocks.last_shift + mem_bytes and blocks.ok.all():
+        notes.append(f"{total - (mem0 + blocks.last_shift + mem_bytes)} trailing bytes after the memory ignored")
+    return notes
 
 
 def detect_format(data: bytes | bytearray | memoryview) -> Literal["image", "raw", "capture"]:

@@ -1,4 +1,4 @@
-"""Options shared by every ``gaitlog`` command (not a command: the underscore keeps it out of ``--help``)."""
+"""Flags shared by the ``gaitlog`` subcommands: ``-q/--quiet`` and ``-v/--verbose``."""
 
 from __future__ import annotations
 
@@ -6,14 +6,12 @@ import argparse
 
 
 def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
-    """``-q/--quiet`` and ``-v/--verbose`` (repeatable); read them with :func:`verbosity`."""
+    """Add ``-q/--quiet`` and ``-v/--verbose`` (repeatable) to ``parser``; they exclude each other."""
     group = parser.add_mutually_exclusive_group()
-    group.add_argument("-q", "--quiet", action="store_const", const=-1, dest="verbosity",
-                       help="print only errors (no summary, no progress bar)")
-    group.add_argument("-v", "--verbose", action="count", dest="verbosity",
-                       help="print more (repeat for more detail)")
+    group.add_argument("-q", "--quiet", action="store_true", help="print only errors (no progress, no summary)")
+    group.add_argument("-v", "--verbose", action="count", default=0, help="say more (repeat for more detail)")
 
 
 def verbosity(args: argparse.Namespace) -> int:
-    """-1 with ``-q``, 0 by default, 1 or more with ``-v`` (``-vv`` = 2)."""
-    return int(getattr(args, "verbosity", None) or 0)
+    """-1 with ``--quiet``, else the number of ``--verbose`` flags (0 by default)."""
+    return -1 if getattr(args, "quiet", False) else int(getattr(args, "verbose", 0) or 0)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from host.commands._options import add_verbosity_options, verbosity
+
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
 
@@ -23,7 +25,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="answer / inter-byte timeout in seconds (default 1.0)")
     parser.add_argument("--capture", metavar="FILE", help="also save every byte received (a wire capture that "
                         "`gaitlog decode` reads)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar, no summary")
+    add_verbosity_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     from host.errors import HostError
     from host.link.logger_link import LoggerLink
+    from host.link.memory_dump import state_path_for
     from protocol.atomic_write import atomic_write_bytes
 
     if args.retries < 0:
@@ -42,16 +45,16 @@ def run(args: argparse.Namespace) -> int:
     capture = io.BytesIO() if args.capture else None
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, retries=3, capture=capture) as link:
         try:
-            result = link.dump(out, progress=not args.quiet, resume=args.resume, retries=args.retries)
+            result = link.dump(out, progress=verbosity(args) >= 0, resume=args.resume, retries=args.retries)
         except HostError as err:
-            state = Path(str(out) + ".part")
+            state = state_path_for(out)
             hint = f"; partial state saved in {state}: run again with --resume" if state.exists() else ""
             raise HostError(f"dump interrupted: {err}{hint}") from err
         finally:
             if capture is not None and capture.tell():
                 atomic_write_bytes(args.capture, capture.getvalue())
     meta = result.metadata_
-    if not args.quiet:
+    if verbosity(args) >= 0:
         steps = (f", {meta['n_step_records']} of {meta['n_step_records_stored']} step records"
                  if result.header_.step_capacity else "")
         print(f"{out}: {meta['n_valid']} of {meta['n_samples']} samples{steps}, "
@@ -60,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
               f"{meta['frames_damaged']} damaged frames, {meta['passes']} pass(es)"
               + (", resumed" if meta["resumed"] else "") + ")")
         print(f"metadata: {result.metadata_path_}")
+    if verbosity(args) > 0:
+        naks = ", ".join(f"{name} {n}" for name, n in sorted(link.stats.naks.items())) or "none"
+        print(f"link: {meta['frames_ok']} frames ok, {meta['data_frames_used']} DATA frames used, "
+              f"{meta['reread_pieces']} re-read piece(s), {meta['command_retries']} command retries, "
+              f"{link.stats.timeouts} timeout(s), NAKs: {naks}")
     if not result.complete_:
         print(f"gaitlog dump: error: {sum(n for _, n in result.missing_ranges_)} bytes still missing after "
               f"{args.retries} re-read passes ({len(meta['missing_samples'])} sample range(s), "

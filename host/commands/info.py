@@ -4,6 +4,10 @@ step configuration and counters, and for a file how many step records decode."""
 from __future__ import annotations
 
 import argparse
+import json
+from typing import Any
+
+from host.commands._options import add_verbosity_options, verbosity
 
 HELP = "show the header and status of a memory image or of a live device (--port)"
 
@@ -14,19 +18,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--port", help="ask a live device instead: serial device, pty path, socket:// or emu://")
     parser.add_argument("--baud", type=int, default=115200, help="baud rate with --port (default 115200)")
     parser.add_argument("--timeout", type=float, default=1.0, metavar="S", help="answer timeout with --port")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    add_verbosity_options(parser)
 
 
 def header_lines(header) -> list[str]:
     """Readable lines describing a ``protocol.header.DeviceHeader``."""
-    fw = int(header.firmware_version)
+    from protocol.header import firmware_version_text
+
     flags = [name for name, on in (("OVERWRITE", header.overwrite), ("WRAPPED", header.wrapped),
                                    ("LOGGING", header.logging), ("CAL_VALID", header.calibration.valid),
-                                   ("FULL_STOPPED", bool(header.flags & 0x10))) if on]
+                                   ("FULL_STOPPED", header.full_stopped)) if on]
     cal = header.calibration
     return [
         f"device id        {header.device_id}",
-        f"firmware         {fw >> 8}.{fw & 0xFF}   protocol v{header.protocol_version}   header v{header.header_version}",
-        f"sample rate      {header.sample_rate_hz:g} Hz, {header.adc_bits}-bit ADC, {header.axes} axes, packing P32",
+        f"firmware         {firmware_version_text(header.firmware_version)}   protocol v{header.protocol_version}   header v{header.header_version}",
+        f"sampling rate    {header.sampling_rate_hz:g} Hz, {header.adc_bits}-bit ADC, {header.axes} axes, packing P32",
         f"start time       {header.start_time.isoformat()} ({header.start_time_s})",
         f"capacity         {header.capacity_samples} samples",
         f"samples written  {header.samples_written} (stored {header.n_stored}, oldest is sample "
@@ -60,47 +67,91 @@ def step_lines(header) -> list[str]:
     return [f"step memory      {memory}", f"step algorithm   {algorithm}"]
 
 
+def header_dict(header) -> dict[str, Any]:
+    """A ``protocol.header.DeviceHeader`` as JSON-ready values in the host's words (units in the keys)."""
+    from protocol.header import firmware_version_text
+
+    cfg = header.step_config
+    return {
+        "device_id": header.device_id, "firmware_version": firmware_version_text(header.firmware_version),
+        "protocol_version": header.protocol_version, "header_version": header.header_version,
+        "sampling_rate_hz": header.sampling_rate_hz, "adc_bits": header.adc_bits, "axes": header.axes,
+        "start_time_utc": header.start_time.isoformat(), "start_time_s": header.start_time_s,
+        "capacity_samples": header.capacity_samples, "samples_written": header.samples_written,
+        "samples_stored": header.n_stored, "first_sample_number": header.first_sample_number,
+        "first_slot": header.first_slot, "write_index": header.write_index,
+        "overwrite": header.overwrite, "wrapped": header.wrapped, "logging": header.logging,
+        "full_stopped": header.full_stopped, "calibration_set": bool(header.calibration.valid),
+        "calibration_offset_counts": header.calibration.offset_counts.tolist() if header.calibration.valid else None,
+        "step_capacity": header.step_capacity, "steps_written": header.steps_written,
+        "step_records_stored": header.n_steps_stored, "step_write_index": header.step_write_index,
+        "step_algorithm_on": bool(cfg.enabled), "step_algorithm_calibrated": bool(cfg.enabled and cfg.calibrated),
+    }
+
+
 def run(args: argparse.Namespace) -> int:
     from host.errors import HostError
 
     if (args.image is None) == (args.port is None):
         raise HostError("give either IMAGE or --port PORT")
-    if args.port:
-        from host.link.logger_link import LoggerLink
-
-        with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
-            info = link.identify()
-            status = link.status()
-            _, header = link.read_header()
-        states = {0: "idle", 1: "logging", 2: "full-stopped"}
-        print(f"port             {args.port} at {args.baud} baud")
-        print(f"state            {states.get(status['state'], status['state'])}, "
-              f"{status['samples_written']} samples written, write index {status['write_index']}")
-        print(f"memory           {info['memory_bytes']} bytes")
-        print("\n".join(header_lines(header)))
-        return 0
-    from host.files.decode import decode_file
-
-    rec = decode_file(args.image)
-    print(f"file             {args.image}")
-    print("\n".join(header_lines(rec.header)))
-    print(f"decoded          {rec.n_valid} of {rec.n_samples} stored samples valid, {len(rec.gaps)} gap(s), "
-          f"{rec.duration_s:.2f} s")
-    _print_listed([f"gap: samples {g.first_sample_number}..{g.last_sample_number}: {g.reason}" for g in rec.gaps],
-                  "gap(s)")
-    if rec.header.step_capacity or rec.n_step_records:
-        print(f"step records     {rec.n_step_records} of {rec.header.n_steps_stored} stored records decode "
-              f"({rec.n_steps_dropped} dropped)")
-        _print_listed([f"dropped: records {loss.first_record_number}..{loss.last_record_number}: {loss.reason}"
-                       for loss in rec.step_losses], "run(s) of dropped records")
-    for note in rec.notes:
-        print(f"note: {note}")
+    report = _device_report(args) if args.port else _file_report(args)
+    if args.json:
+        print(json.dumps(report[0], indent=2))
+    elif verbosity(args) >= 0:
+        print("\n".join(report[1]))
     return 0
 
 
-def _print_listed(lines: list[str], what: str, most: int = 20) -> None:
-    """The first ``most`` lines, indented, then how many more ``what`` there are."""
-    for line in lines[:most]:
-        print(f"  {line}")
-    if len(lines) > most:
-        print(f"  ... {len(lines) - most} more {what}")
+def _device_report(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]:
+    from host.commands.device import STATE_WORDS
+    from host.link.logger_link import LoggerLink, device_identity
+
+    with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
+        info = link.identify()
+        status = link.status()
+        _, header = link.read_header()
+    state = STATE_WORDS.get(status["state"], str(status["state"]))
+    data = {"port": args.port, "baud": args.baud, "state": state, "device": device_identity(info),
+            "header": header_dict(header)}
+    lines = [f"port             {args.port} at {args.baud} baud",
+             (f"state            {state}, {status['samples_written']} samples written, write index "
+              f"{status['write_index']}"),
+             f"memory           {info['memory_bytes']} bytes",
+             *header_lines(header)]
+    return data, lines
+
+
+def _file_report(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]:
+    from host.files.decode import decode_file
+
+    rec = decode_file(args.image)
+    most = None if verbosity(args) > 0 else 20
+    gaps = [{"first_sample_number": g.first_sample_number, "last_sample_number": g.last_sample_number,
+             "reason": g.reason} for g in rec.gaps]
+    losses = [{"first_record_number": g.first_record_number, "last_record_number": g.last_record_number,
+               "reason": g.reason} for g in rec.step_losses]
+    data = {"file": str(args.image), "header": header_dict(rec.header),
+            "samples": {"n_stored": rec.n_samples, "n_valid": rec.n_valid, "duration_s": rec.duration_s,
+                        "gaps": gaps},
+            "step_records": {"n_stored": rec.header.n_steps_stored, "n_decoded": rec.n_step_records,
+                             "n_dropped": rec.n_steps_dropped, "dropped": losses},
+            "notes": list(rec.notes)}
+    lines = [f"file             {args.image}", *header_lines(rec.header),
+             (f"decoded          {rec.n_valid} of {rec.n_samples} stored samples valid, {len(rec.gaps)} gap(s), "
+              f"{rec.duration_s:.2f} s")]
+    lines += _listed([f"gap: samples {g['first_sample_number']}..{g['last_sample_number']}: {g['reason']}"
+                      for g in gaps], "gap(s)", most)
+    if rec.header.step_capacity or rec.n_step_records:
+        lines.append(f"step records     {rec.n_step_records} of {rec.header.n_steps_stored} stored records decode "
+                     f"({rec.n_steps_dropped} dropped)")
+        lines += _listed([f"dropped: records {g['first_record_number']}..{g['last_record_number']}: {g['reason']}"
+                          for g in losses], "run(s) of dropped records", most)
+    lines += [f"note: {note}" for note in rec.notes]
+    return data, lines
+
+
+def _listed(lines: list[str], what: str, most: int | None) -> list[str]:
+    """The first ``most`` lines (all with None), indented, then how many more ``what`` there are."""
+    shown = lines if most is None else lines[:most]
+    more = [f"  ... {len(lines) - len(shown)} more {what} (-v lists them all)"] if len(lines) > len(shown) else []
+    return [f"  {line}" for line in shown] + more

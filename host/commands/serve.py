@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from host.commands._options import add_verbosity_options, verbosity
+
 HELP = ("serve a memory image as a live logger (its header's step configuration included) on a pty (prints its path) "
         "or a TCP port, until Ctrl-C")
 
@@ -20,6 +22,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "unchanged)")
     parser.add_argument("--wire-time", action="store_true",
                         help="pace the device's bytes at the baud rate (10 bits per byte, 8N1), as a real line")
+    add_verbosity_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -46,8 +49,15 @@ def run(args: argparse.Namespace) -> int:
     with server:
         where = server.url if args.tcp is not None else server.path
         print(where, flush=True)
-        print(f"serving {args.image} at {args.baud} baud{' (wire time)' if args.wire_time else ''}; "
-              "Ctrl-C to stop", file=sys.stderr, flush=True)
+        if verbosity(args) >= 0:
+            print(f"serving {args.image} at {args.baud} baud{' (wire time)' if args.wire_time else ''}; "
+                  "Ctrl-C to stop", file=sys.stderr, flush=True)
+        if verbosity(args) > 0:
+            h = logger.header
+            print(f"logger {h.device_id}: {h.n_stored} samples and {h.n_steps_stored} step records stored, "
+                  f"{h.sampling_rate_hz:g} Hz, on-line step algorithm {'on' if h.step_config.enabled else 'off'}"
+                  + ("; changes are saved to the image on exit" if args.persist else ""), file=sys.stderr,
+                  flush=True)
         try:
             while True:
                 time.sleep(0.5)

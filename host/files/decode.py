@@ -358,7 +358,7 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
     gaps = gaps_from_mask(valid, sample_numbers, reason, REASONS)
     step_records, step_numbers, step_losses = steps if steps is not None else (None, None, [])
     rec = Recording(codes=codes, valid=valid, flags=flags, sample_numbers=sample_numbers,
-                    sampling_rate_hz=float(header.sample_rate_hz), start_time_s=float(header.sample_time_s(0)),
+                    sampling_rate_hz=float(header.sampling_rate_hz), start_time_s=float(header.sample_time_s(0)),
                     header=header, gaps=gaps, adc_bits=adc_bits, source=source,
                     notes=[f"decoded from a {kind}"] + notes, step_records=step_records,
                     step_record_numbers=step_numbers, step_losses=step_losses)

@@ -23,27 +23,42 @@ from host.errors import HostError
 from protocol.errors import ProtocolError
 from protocol.frames import (
     MAX_DATA,
+    PAYLOAD_OFFSETS,
     PAYLOAD_STRUCTS,
     ErrorCode,
+    Frame,
     FrameError,
     FrameParser,
     FrameType,
+    StartMode,
     build_payload,
     encode_frame,
     parse_payload,
 )
-from protocol.header import HEADER_SIZE, PROTOCOL_VERSION, DeviceHeader
+from protocol.header import (
+    CALIBRATION_SIZE,
+    HEADER_SIZE,
+    MILLIHZ_PER_HZ,
+    PROTOCOL_VERSION,
+    DeviceHeader,
+    firmware_version_text,
+)
 from protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 _ERROR_HINTS = {ErrorCode.BUSY: "the device is logging: stop it first",
                 ErrorCode.MEMORY_FULL: "the memory is full: erase it first",
                 ErrorCode.BAD_ADDRESS: "the range is outside the device's sample and step memories"}
-#: Largest READ length and DUMP chunk (PROTOCOL.md section 3.1).
-MAX_READ = MAX_DATA
-
 _INFO_SIZE = PAYLOAD_STRUCTS[FrameType.INFO].sizeof()
 _STATUS_SIZE = PAYLOAD_STRUCTS[FrameType.STATUS].sizeof()
 _DUMP_END_SIZE = PAYLOAD_STRUCTS[FrameType.DUMP_END].sizeof()
+#: Where the data start in a DATA payload (after its address), and where a NAK carries its error code.
+_DATA_OFFSET = PAYLOAD_OFFSETS[FrameType.DATA]["data"]
+_NAK_ERROR_OFFSET = PAYLOAD_OFFSETS[FrameType.NAK]["error"]
+
+
+def _nak_error(frame: Frame) -> int | None:
+    """The error code of a NAK frame (None when its payload is too short to hold one)."""
+    return frame.payload[_NAK_ERROR_OFFSET] if len(frame.payload) > _NAK_ERROR_OFFSET else None
 
 
 def _name(ftype: int) -> str:
@@ -60,6 +75,24 @@ def _build(name: str, **fields: Any) -> bytes:
         return build_payload(FrameType[name], **fields)
     except ProtocolError as err:
         raise HostError(f"cannot build {name} command: {err}") from err
+
+
+def device_identity(info: dict[str, int]) -> dict[str, Any]:
+    """An IDENTIFY answer (:meth:`LoggerLink.identify`) in the host's words: ``sampling_rate_hz`` (float) for
+    the wire's ``sampling_rate_millihz``, ``firmware_version`` as ``"major.minor"``; the other fields as sent.
+
+    >>> device_identity({"device_id": 7, "firmware_version": 0x0102, "sampling_rate_millihz": 50_000})
+    {'device_id': 7, 'firmware_version': '1.2', 'sampling_rate_hz': 50.0}
+    """
+    out: dict[str, Any] = {}
+    for name, value in info.items():
+        if name == "sampling_rate_millihz":
+            out["sampling_rate_hz"] = value / MILLIHZ_PER_HZ
+        elif name == "firmware_version":
+            out[name] = firmware_version_text(value)
+        else:
+            out[name] = value
+    return out
 
 
 @dataclass
@@ -224,12 +257,12 @@ class LoggerLink:
             raise HostError(f"{self.port}: write failed: {err}") from err
         return seq
 
-    def _raise_nak(self, ftype: int, payload: bytes) -> None:
-        code = payload[1] if len(payload) >= 2 else -1
+    def _raise_nak(self, ftype: int, frame: Frame) -> None:
+        code = _nak_error(frame)
         try:
             name = ErrorCode(code).name
         except ValueError:
-            name = f"error 0x{code & 0xFF:02x}"
+            name = "without an error code" if code is None else f"error 0x{code:02x}"
         self.stats.naks[name] = self.stats.naks.get(name, 0) + 1
         hint = _ERROR_HINTS.get(code)
         raise HostError(f"{self.port}: device refused {_name(ftype)}: NAK {name}" + (f" ({hint})" if hint else ""))
@@ -245,9 +278,9 @@ class LoggerLink:
                 if frame.seq != seq:
                     continue
                 if frame.type == FrameType.NAK:
-                    if len(frame.payload) >= 2 and frame.payload[1] == ErrorCode.BAD_CRC:  # our frame was damaged
+                    if _nak_error(frame) == ErrorCode.BAD_CRC:  # our frame was damaged
                         break
-                    self._raise_nak(ftype, frame.payload)
+                    self._raise_nak(ftype, frame)
                 if frame.type == expect and (expect_len is None or len(frame.payload) == expect_len):
                     return frame
         raise HostError(f"{self.port}: no valid answer to {name} after {self.retries + 1} attempt(s) of "
@@ -257,7 +290,7 @@ class LoggerLink:
     # ----------------------------------------------------------------------------------------- commands
     def identify(self) -> dict[str, int]:
         """IDENTIFY -> INFO fields (``device_id``, ``firmware_version``, ``protocol_version``, ``adc_bits``,
-        ``sample_rate_mhz``, ``capacity_samples``, ``packing``, ``memory_bytes``); refuses an unknown
+        ``sampling_rate_millihz``, ``capacity_samples``, ``packing``, ``memory_bytes``); refuses an unknown
         protocol version."""
         fr = self.transact(FrameType.IDENTIFY, b"", FrameType.INFO, expect_len=_INFO_SIZE)
         info = self._fields(fr)
@@ -267,7 +300,7 @@ class LoggerLink:
         return info
 
     def status(self) -> dict[str, int]:
-        """STATUS -> ``state`` (0 idle, 1 logging, 2 full-stopped), ``flags``, ``samples_written``,
+        """STATUS -> ``state`` (a :class:`protocol.frames.DeviceState` code), ``flags``, ``samples_written``,
         ``write_index``."""
         fr = self.transact(FrameType.GET_STATUS, b"", FrameType.STATUS, expect_len=_STATUS_SIZE)
         return self._fields(fr)
@@ -286,7 +319,8 @@ class LoggerLink:
     def start(self, start_time_s: int | None = None, *, overwrite: bool = False) -> None:
         """START logging at Unix time ``start_time_s`` (default: now), ring mode if ``overwrite``."""
         t = int(time.time()) if start_time_s is None else int(start_time_s)
-        self._ack(FrameType.START, _build("START", start_time_s=t, mode=1 if overwrite else 0))
+        mode = StartMode.OVERWRITE if overwrite else StartMode.STOP_WHEN_FULL
+        self._ack(FrameType.START, _build("START", start_time_s=t, mode=mode))
 
     def stop(self) -> None:
         """STOP logging."""
@@ -298,9 +332,10 @@ class LoggerLink:
         self._ack(FrameType.ERASE, _build("ERASE"))
 
     def set_calibration(self, slot: bytes) -> None:
-        """SET_CALIBRATION with a 64-byte calibration slot (``protocol.header.Calibration.to_bytes()``)."""
-        if len(slot) != 64:
-            raise HostError(f"calibration slot must be 64 bytes, got {len(slot)}")
+        """SET_CALIBRATION with a calibration slot of ``CALIBRATION_SIZE`` bytes
+        (``protocol.header.Calibration.to_bytes()``)."""
+        if len(slot) != CALIBRATION_SIZE:
+            raise HostError(f"calibration slot must be {CALIBRATION_SIZE} bytes, got {len(slot)}")
         self._ack(FrameType.SET_CALIBRATION, bytes(slot))
 
     def set_step_config(self, config: StepConfig | bytes) -> None:
@@ -329,19 +364,19 @@ class LoggerLink:
             raise HostError(f"{self.port}: the device's header is invalid: {err}") from err
 
     def read(self, address: int, length: int) -> bytes:
-        """READ ``length`` (1 ... 4096) bytes at the memory address ``address``: the sample memory from 0, the
+        """READ ``length`` (1 ... ``MAX_DATA``) bytes at the memory address ``address``: the sample memory from 0, the
         step memory from ``protocol.steps.STEP_ADDRESS_BASE`` (:meth:`read_step_memory`)."""
-        if not 1 <= length <= MAX_READ:
-            raise HostError(f"READ length must be 1..{MAX_READ}, got {length}")
+        if not 1 <= length <= MAX_DATA:
+            raise HostError(f"READ length must be 1..{MAX_DATA}, got {length}")
         payload = _build("READ", address=address, length=length)
-        fr = self.transact(FrameType.READ, payload, FrameType.DATA, expect_len=4 + length)
-        got = int.from_bytes(fr.payload[:4], "little")
-        if got != address:  # pragma: no cover - a device bug, not line noise (CRC was good)
-            raise HostError(f"{self.port}: READ at {address} answered with address {got}")
-        return bytes(fr.payload[4:])
+        fr = self.transact(FrameType.READ, payload, FrameType.DATA, expect_len=_DATA_OFFSET + length)
+        data = parse_payload(fr, source=self.port)
+        if data["address"] != address:  # pragma: no cover - a device bug, not line noise (CRC was good)
+            raise HostError(f"{self.port}: READ at {address} answered with address {data['address']}")
+        return data["data"]
 
     def read_step_memory(self, offset: int, length: int) -> bytes:
-        """READ ``length`` (1 ... 4096) bytes of the step memory from its byte ``offset`` (the record in slot
+        """READ ``length`` (1 ... ``MAX_DATA``) bytes of the step memory from its byte ``offset`` (the record in slot
         ``k`` is bytes ``20k ... 20k+19``; PROTOCOL.md 2.3), at address ``STEP_ADDRESS_BASE + offset``."""
         if offset < 0:
             raise HostError(f"step memory offset must be >= 0, got {offset}")
@@ -365,26 +400,26 @@ class LoggerLink:
             if frame is None:
                 return False
             if frame.type == FrameType.NAK and frame.seq == seq:
-                if len(frame.payload) >= 2 and frame.payload[1] == ErrorCode.BAD_CRC and attempts < self.retries:
+                if _nak_error(frame) == ErrorCode.BAD_CRC and attempts < self.retries:
                     attempts += 1
                     self.stats.command_retries += 1
                     seq = self._next_seq()
                     self._ser.write(encode_frame(FrameType.DUMP, seq, command))
                     continue
-                self._raise_nak(FrameType.DUMP, frame.payload)
-            if frame.type == FrameType.DATA and len(frame.payload) > 4:
-                a = int.from_bytes(frame.payload[:4], "little")
-                n = len(frame.payload) - 4
-                if address <= a and a + n <= end and (a - address) % chunk == 0 and n == min(chunk, end - a):
-                    if on_data(a, frame.payload[4:]):
-                        return False
+                self._raise_nak(FrameType.DUMP, frame)
+            if frame.type == FrameType.DATA and len(frame.payload) > _DATA_OFFSET:
+                data = parse_payload(frame, source=self.port)
+                a, n = data["address"], len(data["data"])
+                fits = address <= a and a + n <= end and (a - address) % chunk == 0 and n == min(chunk, end - a)
+                if fits and on_data(a, data["data"]):
+                    return False
             elif frame.type == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
                 end_fields = self._fields(frame)
                 if end_fields["address"] == address and end_fields["length"] == length:
                     return True
 
     def dump(self, out_path, *, progress: bool | Callable[[int], None] = True, resume: bool = False,
-             retries: int = 8, chunk_bytes: int = MAX_READ):
+             retries: int = 8, chunk_bytes: int = MAX_DATA):
         """Dump the stored memory to the image ``out_path`` (+ ``.json`` metadata): see
         :class:`host.link.memory_dump.MemoryDump`. Returns the finished ``MemoryDump``."""
         from host.link.memory_dump import MemoryDump

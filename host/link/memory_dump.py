@@ -23,6 +23,7 @@ Steps (``PROTOCOL.md`` sections 3-4 and 6):
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import hashlib
 import json
@@ -36,13 +37,18 @@ from typing import Any
 import numpy as np
 
 from host.errors import HostError
+from host.link.logger_link import device_identity
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from protocol.frames import MAX_DATA, DeviceState
 from protocol.steps import STEP_ADDRESS_BASE
 
 #: Block size of the image and of the resume bookkeeping (``PROTOCOL.md`` section 6).
 BLOCK_SIZE = 1024
 #: Smallest re-read piece.
 MIN_PIECE = 64
+#: Version of the JSON metadata beside a dump. 2: ``device`` in the host's words (``sampling_rate_hz`` in Hz,
+#: ``firmware_version`` "major.minor"; version 1 copied the INFO frame: ``sample_rate_mhz`` in millihertz).
+METADATA_FORMAT_VERSION = 2
 
 
 def state_path_for(out_path: str | os.PathLike[str]) -> Path:
@@ -75,7 +81,7 @@ class MemoryDump:
     Parameters
     ----------
     chunk_bytes
-        DATA frame size of the first pass (1 ... 4096; 4096 keeps the framing at 0.3 %).
+        DATA frame size of the first pass (1 ... ``MAX_DATA``; the largest keeps the framing at 0.3 %).
     retries
         Re-read passes over missing bytes after the first pass.
     state_interval_s
@@ -97,7 +103,7 @@ class MemoryDump:
         Files written (the state file exists only while the dump is incomplete).
     """
 
-    def __init__(self, *, chunk_bytes: int = 4096, retries: int = 8, state_interval_s: float = 1.0) -> None:
+    def __init__(self, *, chunk_bytes: int = MAX_DATA, retries: int = 8, state_interval_s: float = 1.0) -> None:
         self.chunk_bytes = chunk_bytes
         self.retries = retries
         self.state_interval_s = state_interval_s
@@ -140,17 +146,9 @@ class MemoryDump:
         stored = np.concatenate([need, np.zeros(pad, bool)]).reshape(n_blocks, BLOCK_SIZE).any(axis=1)
         return np.flatnonzero(lacking | ~stored).tolist()
 
-    def _image_bytes(self, header_bytes: bytes, memory: bytearray, have: np.ndarray, need: np.ndarray) -> bytes:
-        """The image of what was received: the memory region is the sample memory followed by the step memory
-        (``image_version`` 2 when the header has one)."""
-        from protocol.image import build_image
-
-        return build_image(header_bytes, bytes(memory), missing_blocks=self._missing_blocks(have, need),
-                           block_size=BLOCK_SIZE)
-
     # -------------------------------------------------------------------------------------------- run
     def run(self, link, out_path: str | os.PathLike[str], *, resume: bool = False,
-            progress: bool | Callable[[int], None] = True) -> "MemoryDump":
+            progress: bool | Callable[[int], None] = True) -> MemoryDump:
         """Dump through ``link`` (a :class:`~host.link.logger_link.LoggerLink`) to the image ``out_path``.
 
         Raises
@@ -162,103 +160,53 @@ class MemoryDump:
         out = Path(out_path)
         if not out.parent.is_dir():
             raise HostError(f"output directory {out.parent} does not exist")
-        state_path = state_path_for(out)
         self.image_path_ = out
         self.metadata_path_ = metadata_path_for(out)
-        self.state_path_ = state_path
+        self.state_path_ = state_path_for(out)
         t_start = time.monotonic()
         started_utc = _dt.datetime.now(_dt.timezone.utc)
-
+        # step 1: who is there, is it idle, its header
         self.info_ = link.identify()
         status = link.status()
-        if status["state"] == 1:
+        if status["state"] == DeviceState.LOGGING:
             raise HostError(f"{link.port}: the device is logging; stop it before dumping its memory")
-        header_bytes, header = link.read_header()
-        self.header_ = header
-        # the image's memory region: sample memory [0, mem_size), then step memory [mem_size, region_size)
-        mem_size = int(header.memory_bytes)
-        region_size = mem_size + int(header.step_memory_bytes)
-        stored_end = int(header.used_bytes)
-        step_stored = int(header.step_used_bytes)
-        memory = bytearray(b"\xff" * region_size)
-        have = np.zeros(region_size, dtype=bool)
-        resumed_bytes = 0
-        resumed = False
-        if resume and state_path.exists():
-            resumed_bytes = self._load_state(state_path, header_bytes, memory, have)
-            resumed = True
-        have_view = np.frombuffer(memory, dtype=np.uint8)
-        need = np.zeros(region_size, dtype=bool)
-        need[:stored_end] = True
-        need[mem_size: mem_size + step_stored] = True
-        total_needed = stored_end + step_stored
+        header_bytes, self.header_ = link.read_header()
+        # step 2: the stored ranges, and what a partial state already holds
+        transfer = _Transfer(self.header_, header_bytes, self.state_path_, self.state_interval_s)
+        resumed_bytes = transfer.resume(self) if resume and self.state_path_.exists() else None
+        # steps 3-4: the first pass and the re-read passes
+        with _progress_bar(progress, transfer) as update:
+            transfer.update = update
+            self._fetch(link, transfer)
+        # step 5: image, metadata, state
+        self.complete_ = not transfer.missing().any()
+        self.missing_ranges_ = [(transfer.device_address(a), b - a) for a, b in transfer.todo_ranges()]
+        image = transfer.image_bytes()
+        from host.files.decode import decode_bytes
 
-        def device_address(offset: int) -> int:
-            """Memory-region offset -> device address (PROTOCOL.md 3.1)."""
-            return offset if offset < mem_size else STEP_ADDRESS_BASE + offset - mem_size
+        self.recording_ = decode_bytes(image, source=str(out))
+        self.metadata_ = self._metadata(link, status, transfer, image, started_utc, resumed_bytes)
+        self._write(image, transfer, t_start)
+        return self
 
-        def region_offset(address: int) -> int:
-            """Device address -> memory-region offset."""
-            return address if address < STEP_ADDRESS_BASE else mem_size + address - STEP_ADDRESS_BASE
-
-        def todo_ranges() -> list[tuple[int, int]]:
-            """Region ranges still missing, split where the sample memory ends (never one range on the wire)."""
-            out = []
-            for a, b in _ranges(need & ~have):
-                out += [(a, min(b, mem_size)), (mem_size, b)] if a < mem_size < b else [(a, b)]
-            return out
-
-        bar = None
-        update: Callable[[int], None] | None = None
-        if callable(progress):
-            update = progress
-        elif progress:
-            from tqdm import tqdm
-
-            already = int(np.count_nonzero(have & need))
-            bar = tqdm(total=total_needed, initial=already, unit="B", unit_scale=True, file=sys.stderr,
-                       desc="dump", disable=not sys.stderr.isatty(), leave=False)
-            update = bar.update
-
-        last_state = time.monotonic()
-        n_new = 0
-        counters = {"frames_used": 0, "passes": 0, "reread_pieces": 0}
-
-        def save_state() -> None:
-            atomic_write_bytes(state_path, self._image_bytes(header_bytes, memory, have, need))
-
-        def on_data(address: int, data: bytes) -> bool:
-            nonlocal last_state, n_new
-            start = region_offset(address)
-            end = start + len(data)
-            fresh = int(np.count_nonzero(~have[start:end]))
-            have_view[start:end] = np.frombuffer(data, dtype=np.uint8)
-            have[start:end] = True
-            counters["frames_used"] += 1
-            if fresh:
-                n_new += fresh
-                if update is not None:
-                    update(fresh)
-                if time.monotonic() - last_state >= self.state_interval_s:
-                    save_state()
-                    last_state = time.monotonic()
-            return False
-
+    def _fetch(self, link, transfer: _Transfer) -> None:
+        """One DUMP of everything missing, then up to ``retries`` re-read passes with ever smaller pieces (READ
+        for a single piece, DUMP with a smaller chunk for more); the partial state is saved on any error."""
         try:
             for attempt in range(self.retries + 1):
-                todo = todo_ranges()
+                todo = transfer.todo_ranges()
                 if not todo:
                     break
-                counters["passes"] += 1
-                new_before = n_new
+                transfer.counters["passes"] += 1
+                new_before = transfer.n_new
                 piece = max(MIN_PIECE, self.chunk_bytes >> (2 * attempt))
                 for start, stop in todo:
                     length = stop - start
-                    address = device_address(start)
+                    address = transfer.device_address(start)
                     if attempt and length <= piece:
-                        counters["reread_pieces"] += 1
+                        transfer.counters["reread_pieces"] += 1
                         try:
-                            on_data(address, link.read(address, length))
+                            transfer.on_data(address, link.read(address, length))
                         except HostError as err:
                             if "refused" in str(err):
                                 raise
@@ -266,43 +214,34 @@ class MemoryDump:
                             link.identify()
                         continue
                     if attempt:
-                        counters["reread_pieces"] += -(-length // piece)
-                    link.dump_stream(address, length, piece, on_data)
-                if not (need & ~have).any():
+                        transfer.counters["reread_pieces"] += -(-length // piece)
+                    link.dump_stream(address, length, piece, transfer.on_data)
+                if not transfer.missing().any():
                     break
-                if n_new == new_before:
+                if transfer.n_new == new_before:
                     # a whole pass brought nothing: a dead line raises HostError here
                     link.identify()
         except BaseException:
-            if n_new or resumed:
-                save_state()
-            if bar is not None:
-                bar.close()
+            if transfer.n_new or transfer.resumed:
+                transfer.save_state()
             raise
-        if bar is not None:
-            bar.close()
 
-        missing = need & ~have
-        self.complete_ = not missing.any()
-        self.missing_ranges_ = [(device_address(a), b - a) for a, b in todo_ranges()]
-        image = self._image_bytes(header_bytes, memory, have, need)
-        finished_utc = _dt.datetime.now(_dt.timezone.utc)
-        stats = link.stats
-        from host.files.decode import decode_bytes
-
-        recording = decode_bytes(image, source=str(out))
-        self.metadata_ = {
+    def _metadata(self, link, status: dict[str, int], transfer: _Transfer, image: bytes,
+                  started_utc: _dt.datetime, resumed_bytes: int | None) -> dict[str, Any]:
+        """The JSON metadata written beside the image (``duration_s`` is set when the image is written)."""
+        header, stats, recording = self.header_, link.stats, self.recording_
+        return {
             "format": "gaitlog dump metadata",
-            "format_version": 1,
-            "image": out.name,
+            "format_version": METADATA_FORMAT_VERSION,
+            "image": self.image_path_.name,
             "sha256": hashlib.sha256(image).hexdigest(),
             "port": link.port,
             "baud": link.baud,
-            "device": self.info_,
+            "device": device_identity(self.info_),
             "status": status,
             "header": {
                 "device_id": header.device_id, "firmware_version": header.firmware_version,
-                "protocol_version": header.protocol_version, "sample_rate_hz": header.sample_rate_hz,
+                "protocol_version": header.protocol_version, "sampling_rate_hz": header.sampling_rate_hz,
                 "start_time_utc": header.start_time.isoformat(), "samples_written": header.samples_written,
                 "write_index": header.write_index, "capacity_samples": header.capacity_samples,
                 "wrapped": header.wrapped, "overwrite": header.overwrite,
@@ -310,19 +249,19 @@ class MemoryDump:
                 "steps_written": header.steps_written, "step_write_index": header.step_write_index,
                 "step_capacity": header.step_capacity, "step_algorithm_on": bool(header.step_config.enabled),
             },
-            "stored_bytes": stored_end,
-            "step_stored_bytes": step_stored,
+            "stored_bytes": transfer.stored_end,
+            "step_stored_bytes": transfer.step_stored,
             "started_utc": started_utc.isoformat(),
-            "finished_utc": finished_utc.isoformat(),
+            "finished_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(),
             "duration_s": None,  # set after the image is written
-            "resumed": resumed,
-            "bytes_from_partial_state": resumed_bytes if resumed else 0,
+            "resumed": resumed_bytes is not None,
+            "bytes_from_partial_state": resumed_bytes or 0,
             "bytes_received": stats.bytes_received,
             "frames_ok": stats.frames_ok,
             "frames_damaged": stats.frame_errors,
-            "data_frames_used": counters["frames_used"],
-            "passes": counters["passes"],
-            "reread_pieces": counters["reread_pieces"],
+            "data_frames_used": transfer.counters["frames_used"],
+            "passes": transfer.counters["passes"],
+            "reread_pieces": transfer.counters["reread_pieces"],
             "command_retries": stats.command_retries,
             "complete": self.complete_,
             "missing_ranges": [{"address": a, "length": n} for a, n in self.missing_ranges_],
@@ -339,20 +278,119 @@ class MemoryDump:
                  "reason": g.reason} for g in recording.step_losses
             ],
         }
-        atomic_write_bytes(out, image)
+
+    def _write(self, image: bytes, transfer: _Transfer, t_start: float) -> None:
+        """Image, then metadata (the image is removed if the metadata cannot be written), then the partial
+        state: removed when complete, else saved for ``--resume``."""
+        atomic_write_bytes(self.image_path_, image)
         self.metadata_["duration_s"] = round(time.monotonic() - t_start, 3)
         try:
             atomic_write_text(self.metadata_path_, json.dumps(self.metadata_, indent=2, default=_json_default)
                               + "\n")
         except BaseException:
-            out.unlink(missing_ok=True)
+            self.image_path_.unlink(missing_ok=True)
             raise
         if self.complete_:
-            state_path.unlink(missing_ok=True)
+            self.state_path_.unlink(missing_ok=True)
         else:
-            save_state()
-        self.recording_ = recording
-        return self
+            transfer.save_state()
+
+
+class _Transfer:
+    """The memory region being filled (sample memory ``[0, mem_size)``, then step memory), what is needed and
+    what has arrived, and the bookkeeping of one dump."""
+
+    def __init__(self, header, header_bytes: bytes, state_path: Path, state_interval_s: float) -> None:
+        self.header_bytes = header_bytes
+        self.state_path = state_path
+        self.state_interval_s = state_interval_s
+        self.mem_size = int(header.memory_bytes)
+        region_size = self.mem_size + int(header.step_memory_bytes)
+        self.stored_end = int(header.used_bytes)
+        self.step_stored = int(header.step_used_bytes)
+        self.memory = bytearray(b"\xff" * region_size)
+        self.have = np.zeros(region_size, dtype=bool)
+        self.need = np.zeros(region_size, dtype=bool)
+        self.need[: self.stored_end] = True
+        self.need[self.mem_size: self.mem_size + self.step_stored] = True
+        self.total_needed = self.stored_end + self.step_stored
+        self.resumed = False
+        self.n_new = 0
+        self.counters = {"frames_used": 0, "passes": 0, "reread_pieces": 0}
+        self.update: Callable[[int], None] | None = None
+        self._last_state = time.monotonic()
+
+    def resume(self, dump: MemoryDump) -> int:
+        """Fill in what the partial state holds; return how many bytes that was."""
+        self.resumed = True
+        return dump._load_state(self.state_path, self.header_bytes, self.memory, self.have)
+
+    def device_address(self, offset: int) -> int:
+        """Memory-region offset -> device address (PROTOCOL.md 3.1)."""
+        return offset if offset < self.mem_size else STEP_ADDRESS_BASE + offset - self.mem_size
+
+    def region_offset(self, address: int) -> int:
+        """Device address -> memory-region offset."""
+        return address if address < STEP_ADDRESS_BASE else self.mem_size + address - STEP_ADDRESS_BASE
+
+    def missing(self) -> np.ndarray:
+        """Bool mask of the needed bytes not yet received."""
+        return self.need & ~self.have
+
+    def todo_ranges(self) -> list[tuple[int, int]]:
+        """Region ranges still missing, split where the sample memory ends (never one range on the wire)."""
+        out = []
+        for a, b in _ranges(self.missing()):
+            out += [(a, min(b, self.mem_size)), (self.mem_size, b)] if a < self.mem_size < b else [(a, b)]
+        return out
+
+    def image_bytes(self) -> bytes:
+        """The image of what was received (``image_version`` 2 when the header has a step memory)."""
+        from protocol.image import build_image
+
+        return build_image(self.header_bytes, bytes(self.memory),
+                           missing_blocks=MemoryDump._missing_blocks(self.have, self.need), block_size=BLOCK_SIZE)
+
+    def save_state(self) -> None:
+        atomic_write_bytes(self.state_path, self.image_bytes())
+
+    def on_data(self, address: int, data: bytes) -> bool:
+        """Store an intact DATA frame's bytes; save the partial state now and then. Never asks to stop."""
+        start = self.region_offset(address)
+        end = start + len(data)
+        fresh = int(np.count_nonzero(~self.have[start:end]))
+        np.frombuffer(self.memory, dtype=np.uint8)[start:end] = np.frombuffer(data, dtype=np.uint8)
+        self.have[start:end] = True
+        self.counters["frames_used"] += 1
+        if fresh:
+            self.n_new += fresh
+            if self.update is not None:
+                self.update(fresh)
+            if time.monotonic() - self._last_state >= self.state_interval_s:
+                self.save_state()
+                self._last_state = time.monotonic()
+        return False
+
+
+@contextlib.contextmanager
+def _progress_bar(progress: bool | Callable[[int], None], transfer: _Transfer):
+    """Yield the progress callback: ``progress`` itself when callable, a tqdm bar on a terminal's stderr when
+    True (closed on exit), None when False."""
+    if callable(progress):
+        yield progress
+        return
+    if not progress:
+        yield None
+        return
+    from tqdm import tqdm
+
+    already = int(np.count_nonzero(transfer.have & transfer.need))
+    bar = tqdm(total=transfer.total_needed, initial=already, unit="B", unit_scale=True, file=sys.stderr,
+               desc="dump", disable=not sys.stderr.isatty(), leave=False)
+    try:
+        yield bar.update
+    finally:
+        bar.close()
 
 
 def _json_default(obj: Any) -> Any:

@@ -162,7 +162,7 @@ class ReplayedTrial:
         anatomy and ``calibration``'s K (:func:`host.studies.compare.online_step_table`)."""
         from host.studies.compare import online_step_table
 
-        return online_step_table(self.codes, sampling_rate_hz=self.header.sample_rate_hz,
+        return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
                                  code_bits=self.bits, arithmetic=arithmetic, run_starts=self.run_starts(),
@@ -173,7 +173,7 @@ class ReplayedTrial:
         from firmware_sim.algorithms.online import OnlineSteps
 
         steps = OnlineSteps.from_records(self.device_records, first_sample_number=int(self.sample_numbers[0]),
-                                         sampling_rate_hz=self.header.sample_rate_hz)
+                                         sampling_rate_hz=self.header.sampling_rate_hz)
         return StepTable.from_online(steps, t0_s=self.t0_s)
 
 

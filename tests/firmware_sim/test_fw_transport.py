@@ -8,6 +8,7 @@ import shutil
 import socket
 import struct
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -159,3 +160,15 @@ def test_served_device_logs_in_real_time_after_start(tmp_path: Path) -> None:
     assert back.header.samples_written == written and back.header.start_time_s == 1_700_000_000
     words = np.frombuffer(back.memory[:4 * written], dtype="<u4")
     assert words[0] >> 30 == 1 and np.all(np.abs(((words >> 20) & 1023).astype(int) - 767) <= 2)
+
+
+def test_tcp_serving_needs_no_tty_module() -> None:
+    """``tty`` is POSIX-only: importing the transport and serving on TCP must work without it (Windows)."""
+    code = ("import sys; sys.modules['tty'] = None\n"
+            "from firmware_sim.device import Logger\n"
+            "from firmware_sim.transport import serve_tcp\n"
+            "with serve_tcp(Logger(), port=0) as server: print(server.url)\n")
+    done = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("socket://127.0.0.1:")

@@ -29,7 +29,7 @@ def _ref_header(**f: int) -> bytes:
     body = struct.pack(
         "<4sBBHIIBBBBIIIIII",
         b"GLOG", f["header_version"], f["protocol_version"], f["firmware_version"], f["device_id"],
-        f["sample_rate_mhz"], f["adc_bits"], f["axes"], f["packing"], f["flags"], f["start_time_s"],
+        f["sampling_rate_millihz"], f["adc_bits"], f["axes"], f["packing"], f["flags"], f["start_time_s"],
         f["capacity_samples"], f["write_index"], f["samples_written"], f["adc_vref_mv"], f["run_start_sample"],
     )
     body += struct.pack("<IHH", f.get("steps_written", 0), f.get("step_write_index", 0), f.get("step_capacity", 0))
@@ -38,7 +38,7 @@ def _ref_header(**f: int) -> bytes:
     return body + struct.pack(">H", binascii.crc_hqx(body, 0))
 
 
-BASE = dict(header_version=1, protocol_version=1, firmware_version=0x0102, device_id=42, sample_rate_mhz=50000,
+BASE = dict(header_version=1, protocol_version=1, firmware_version=0x0102, device_id=42, sampling_rate_millihz=50000,
             adc_bits=10, axes=3, packing=1, flags=0, start_time_s=1_700_000_000, capacity_samples=65536,
             write_index=100, samples_written=100, adc_vref_mv=5000, run_start_sample=40)
 
@@ -54,7 +54,7 @@ def test_header_matches_reference_layout() -> None:
     for k, v in BASE.items():
         assert getattr(back, k) == v
     assert back.n_stored == 100 and back.first_slot == 0 and back.first_sample_number == 0
-    assert back.sample_rate_hz == 50.0 and not back.wrapped and not back.logging and not back.overwrite
+    assert back.sampling_rate_hz == 50.0 and not back.wrapped and not back.logging and not back.overwrite
     assert back.start_time.year == 2023 and back.start_time.utcoffset().total_seconds() == 0
     assert not back.calibration.valid
     np.testing.assert_array_equal(back.calibration.offset_counts, [512, 512, 512])
@@ -203,7 +203,7 @@ def headers(draw: st.DrawFn) -> dict:
     step_sw = draw(st.sampled_from([0, 2**32 - 1]) | st.integers(0, 2**32 - 1)) if step_cap else 0
     step_wi = (step_sw % step_cap if step_sw != 2**32 - 1 else draw(st.integers(0, step_cap - 1))) if step_cap else 0
     d = dict(header_version=1, protocol_version=1, firmware_version=draw(st.integers(0, 65535)),
-             device_id=draw(u32), sample_rate_mhz=draw(st.integers(1, 2**32 - 1)), adc_bits=draw(st.integers(1, 10)),
+             device_id=draw(u32), sampling_rate_millihz=draw(st.integers(1, 2**32 - 1)), adc_bits=draw(st.integers(1, 10)),
              axes=3, packing=1, flags=flags, start_time_s=draw(u32), capacity_samples=cap, write_index=wi,
              samples_written=sw, adc_vref_mv=draw(u32), run_start_sample=draw(st.integers(0, sw)),
              steps_written=step_sw, step_write_index=step_wi, step_capacity=step_cap)

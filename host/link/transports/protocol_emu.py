@@ -12,8 +12,12 @@ URL grammar::
       drop=P           probability that a device->host byte is lost
       insert=P         probability that a random byte is inserted before a device->host byte
       cut_after=N      the line goes dead after N device->host bytes (a pulled cable); later bytes are lost
+      persist=1        save what the link changed back to the image when the port closes, as the EEPROMs
+                       keep it (needs an image; like `gaitlog serve --persist`); default 0: the image is
+                       left unchanged
 
-Examples: ``emu:///tmp/mem.glimg``, ``emu://?image=/tmp/mem.glimg&corrupt=0.001&seed=3``.
+Examples: ``emu:///tmp/mem.glimg``, ``emu://?image=/tmp/mem.glimg&corrupt=0.001&seed=3``,
+``emu:///tmp/mem.glimg?persist=1``.
 
 The device is ``firmware_sim.device.Logger``; its firmware is sans-I/O (``receive(data, now_s) -> bytes``),
 so a :meth:`Serial.write` runs the command handler at once and queues its answer for :meth:`Serial.read`.
@@ -30,7 +34,7 @@ import urllib.parse
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-_FORM = ('expected "emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N]"')
+_FORM = ('expected "emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1]"')
 _FLOAT_OPTIONS = ("corrupt", "drop", "insert")
 _INT_OPTIONS = ("seed", "cut_after")
 
@@ -101,7 +105,7 @@ class LineFaults:
 
 def parse_url(url: str) -> dict:
     """Options of an ``emu://`` URL as a dict (``image``, ``seed``, ``corrupt``, ``drop``, ``insert``,
-    ``cut_after``); :class:`SerialException` quoting the expected form on anything else.
+    ``cut_after``, ``persist``); :class:`SerialException` quoting the expected form on anything else.
 
     Examples
     --------
@@ -111,12 +115,13 @@ def parse_url(url: str) -> dict:
     Traceback (most recent call last):
     ...
     serial.serialutil.SerialException: emu://?colour=red: unknown option 'colour'; expected \
-"emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N]"
+"emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1]"
     """
     parts = urllib.parse.urlsplit(url)
     if parts.scheme.lower() != "emu":
         raise SerialException(f"{url}: not an emu:// URL; {_FORM}")
-    opts: dict = {"image": None, "seed": 0, "corrupt": 0.0, "drop": 0.0, "insert": 0.0, "cut_after": None}
+    opts: dict = {"image": None, "seed": 0, "corrupt": 0.0, "drop": 0.0, "insert": 0.0, "cut_after": None,
+                  "persist": False}
     path = urllib.parse.unquote(parts.netloc + parts.path)
     if path:
         opts["image"] = path
@@ -129,6 +134,10 @@ def parse_url(url: str) -> dict:
                 opts[key] = float(value)
                 if not 0.0 <= opts[key] <= 1.0:
                     raise ValueError(f"probability {value} outside 0..1")
+            elif key == "persist":
+                if value not in ("0", "1"):
+                    raise ValueError(f"{value!r} is not 0 or 1")
+                opts["persist"] = value == "1"
             elif key in _INT_OPTIONS:
                 opts[key] = int(value)
                 if opts[key] < 0:
@@ -137,6 +146,8 @@ def parse_url(url: str) -> dict:
                 raise SerialException(f"{url}: unknown option {key!r}; {_FORM}")
         except ValueError as err:
             raise SerialException(f"{url}: bad value for {key}: {err}; {_FORM}") from err
+    if opts["persist"] and not opts["image"]:
+        raise SerialException(f"{url}: persist=1 needs an image to save to; {_FORM}")
     return opts
 
 
@@ -161,7 +172,8 @@ class Serial(SerialBase):
             from firmware_sim.device import Logger
 
             if opts["image"]:
-                self._device = Logger.from_image(opts["image"])
+                self._device = Logger.from_image(opts["image"],
+                                                 image_path=opts["image"] if opts["persist"] else None)
             else:
                 self._device = Logger()
         except (OSError, ValueError) as err:
@@ -177,8 +189,10 @@ class Serial(SerialBase):
         self.is_open = True
 
     def close(self) -> None:
+        device, self._device = self._device, None
+        if self.is_open and device is not None and device.image_path is not None:  # persist=1
+            device.save_image()
         self.is_open = False
-        self._device = None
         super().close()
 
     @property
