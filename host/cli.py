@@ -10,13 +10,14 @@ Subcommand modules import only the standard library at module level (heavy libra
 ``run``) so that ``gaitlog --help`` and the start-up of every command stay fast.
 
 Exit codes: 0 success, 1 data / I/O / protocol / device error (message on stderr, no partial output),
-2 usage error (argparse), 130 interrupted.
+2 usage error (argparse), 130 interrupted, 141 stdout closed by its reader (``| head``).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 from collections.abc import Sequence
@@ -69,13 +70,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gaitlog`` with ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    name = " ".join(str(part) for part in (args.command, getattr(args, "action", None)) if part)
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("gaitlog: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (`gaitlog estimate --json | head`): not an error of ours; silence the
+        # interpreter's own flush of the dead pipe at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except _known_errors() as err:
-        print(f"gaitlog {args.command}: error: {err}", file=sys.stderr)
+        print(f"gaitlog {name}: error: {err}", file=sys.stderr)
         return 1
 
 

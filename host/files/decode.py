@@ -150,7 +150,7 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     else:  # pragma: no cover - blocks not made of whole samples (the spec uses 1024)
         slot_ok, slot_reason = _slots_from_bytes(np.repeat(block_ok, block_size)[: memory.size],
                                                  np.repeat(block_reason, block_size)[: memory.size])
-    return _assemble(header, memory, slot_ok, slot_reason, source, "image", notes, steps)
+    return _assemble(header, memory, slot_ok, slot_reason, source, "memory image", notes, steps)
 
 
 def _image_steps(contents, block_reason: np.ndarray, source: str | None, notes: list[str]):
@@ -187,7 +187,7 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     byte_ok[: got.size] = True
     reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
     steps = _assemble_steps(header, step_memory, byte_ok, reason, source, notes)
-    return _assemble(header, memory, slot_ok, None, source, "raw", notes, steps)
+    return _assemble(header, memory, slot_ok, None, source, "raw XMODEM dump", notes, steps)
 
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
@@ -245,7 +245,7 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
     steps = _assemble_steps(header, step_memory, step_covered, np.full(step_bytes, _R_NOT_RECEIVED, np.int8), source,
                             notes)
-    return _assemble(header, memory, slot_ok, slot_reason, source, "capture", notes, steps)
+    return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
 
 
 # ------------------------------------------------------------------------------------------------ common
