@@ -22,8 +22,6 @@ from typing import Any
 
 from host.errors import HostError
 
-_MARK = 2
-
 
 @dataclass
 class GaitInput:
@@ -42,7 +40,8 @@ def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--foot-length", type=float, metavar="M",
                         help="foot length heel to first metatarsal head (M3's S2), m")
     parser.add_argument("--height", type=float, metavar="M",
-                        help="body height, m: leg = 0.530 H, foot = 0.111 H when not given (Winter; ANSUR)")
+                        help="body height, m: leg and foot length are estimated from it when not given "
+                             "(Winter; ANSUR; host.gait.anthropometry)")
     parser.add_argument("--rate", type=float, metavar="HZ", help="sample rate of a plain CSV input, Hz")
     parser.add_argument("--calibration", metavar="CAL.json",
                         help="accelerometer calibration (gaitlog calibrate) for an .npz input")
@@ -51,6 +50,8 @@ def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
 def load_input(path: str | Path, *, rate_hz: float | None = None, calibration: str | None = None) -> GaitInput:
     """Read ``path`` (see module notes). Raises :class:`HostError` naming the problem and the place."""
     import numpy as np
+
+    from protocol.packing import FLAG_MARK
 
     p = Path(path)
     if not p.is_file():
@@ -67,7 +68,7 @@ def load_input(path: str | Path, *, rate_hz: float | None = None, calibration: s
             cal = AccCalibration.load(calibration)
             note = f"g from {calibration}"
         acc = rec.acc_g(cal)
-        marks = np.flatnonzero((rec.flags & _MARK) != 0)
+        marks = np.flatnonzero((rec.flags & FLAG_MARK) != 0)
         valid = rec.valid & np.all(np.isfinite(acc), axis=1)
         return GaitInput(acc, valid, float(rec.sampling_rate_hz), marks, note)
     if p.suffix.lower() in (".csv", ".txt"):
@@ -77,6 +78,8 @@ def load_input(path: str | Path, *, rate_hz: float | None = None, calibration: s
 
 def _load_csv(p: Path, rate_hz: float | None) -> GaitInput:
     import numpy as np
+
+    from protocol.packing import FLAG_MARK
 
     try:
         lines = p.read_text(encoding="utf-8").splitlines()
@@ -132,7 +135,7 @@ def _load_csv(p: Path, rate_hz: float | None) -> GaitInput:
             if dt.size == 0 or not np.all(dt > 0):
                 raise HostError(f"{p}: time_s column is not increasing; pass --rate")
             rate_hz = float(1.0 / np.median(dt))
-        marks = np.flatnonzero((flags & _MARK) != 0)
+        marks = np.flatnonzero((flags & FLAG_MARK) != 0)
     else:
         if rate_hz is None:
             raise HostError(f"{p}: a plain CSV needs --rate HZ (its sample rate)")
