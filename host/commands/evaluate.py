@@ -45,8 +45,9 @@ def _run_sim(args: argparse.Namespace) -> int:
         raise HostError("evaluate sim: give the output folder as DIR or --out DIR")
     if args.subjects < 1 or args.workers < 1:
         raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
-    if args.bits != 10 and not 1 <= args.bits <= 10:
-        raise HostError(f"--bits must be 1..10, got {args.bits}")
+    from protocol.adc_bits import check_adc_bits
+
+    check_adc_bits(args.bits, what="--bits", error=HostError)
     ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, rate_hz=args.rate, bits=args.bits,
                              workers=args.workers).run()
     paths = ev.write_outputs(out)
@@ -77,14 +78,14 @@ def run(args: argparse.Namespace) -> int:
         format_done,
         summarise,
     )
+    from protocol.adc_bits import check_adc_bits
     from protocol.atomic_write import (
         atomic_write_bytes,
         atomic_write_text,
         require_folder,
     )
 
-    if not 1 <= args.bits <= 10:
-        raise HostError(f"--bits must be 1..10, got {args.bits}")
+    check_adc_bits(args.bits, what="--bits", error=HostError)
     if not args.rate > 0:
         raise HostError(f"--rate must be positive, got {args.rate}")
     out = Path(args.out)
