@@ -8,7 +8,8 @@
   ``min_cadence_spread`` of each other, 5 %): the line cannot be identified, so K2 = 0 and K1 is fitted
   through the origin on the pooled data -- the *walk ratio* model (step length proportional to cadence,
   step length / cadence being nearly invariant across speeds in healthy adults: Sekiya & Nagasaki,
-  Gait Posture 7, 1998). A ``UserWarning`` says so and ``m5_fallback`` is True.
+  Gait Posture 7, 1998). ``m5_fallback`` is True and ``notes`` says so (a ``UserWarning`` too, unless
+  ``warn=False``).
 * M3 has no constant.
 
 :class:`KCalibration` saves/loads itself as versioned JSON (``format_version`` "1.0"; other versions are
@@ -28,6 +29,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from host.errors import HostError
+from host.gait.sections import Section, pool_steps
 
 if TYPE_CHECKING:  # pragma: no cover
     from firmware_sim.algorithms.steps import StepTable
@@ -133,6 +135,7 @@ def calibrate(
     foot_length_m: float,
     subject: str = "",
     min_cadence_spread: float = 0.05,
+    warn: bool = True,
 ) -> KCalibration:
     """Fit K (M1, M2, M4) and the M5 line from step tables of sections with known distance.
 
@@ -145,6 +148,9 @@ def calibrate(
         The anatomical inputs those tables were computed with (stored in the result).
     min_cadence_spread
         Relative spread of the sections' mean cadences below which the M5 line is not identifiable.
+    warn
+        Also issue the M5 fallback's note as a ``UserWarning`` (False where the fallback is expected, e.g.
+        single-speed calibration).
 
     Raises
     ------
@@ -188,7 +194,8 @@ def calibrate(
         k2 = 0.0
         msg = (f"M5: calibration data do not span speeds ({len(cad_points)} section(s), cadence spread "
                f"{spread:.1%} < {min_cadence_spread:.0%}); using the walk-ratio fallback S = K1 / T (K2 = 0)")
-        warnings.warn(msg, stacklevel=2)
+        if warn:
+            warnings.warn(msg, stacklevel=2)
         notes.append(msg)
     else:
         A = np.column_stack([c, np.ones_like(c)]) * np.sqrt(wts)[:, None]
@@ -200,3 +207,14 @@ def calibrate(
         leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m), n_sections=len(sections),
         n_steps=int(n_steps), distance_m=float(total), subject=subject, notes=notes,
     )
+
+
+def calibrate_on_sections(table: StepTable, pools: Sequence[Sequence[Section]], *, leg_length_m: float,
+                          foot_length_m: float, subject: str = "", warn: bool = True) -> KCalibration:
+    """:func:`calibrate` on the steps of ``table`` pooled per run of lap sections (:func:`~host.gait.sections.pool_steps`).
+
+    ``pools``: one list of consecutive sections per calibration point, e.g. a mode of
+    :func:`host.gait.sections.calibration_sets`; ``table`` is a step table without K (raw lengths).
+    """
+    return calibrate([pool_steps(table, secs) for secs in pools], leg_length_m=leg_length_m,
+                     foot_length_m=foot_length_m, subject=subject, warn=warn)
