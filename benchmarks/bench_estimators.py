@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -55,7 +57,7 @@ def real_or_synthetic() -> tuple[np.ndarray, np.ndarray, str]:
     t = np.arange(N) / FS
     w = 2 * np.pi / 0.55
     a = 0.02 * w * w * np.cos(w * t) + rng.normal(0, 0.1, N)
-    acc = np.c_[0.5 * (1 + a / 9.80665), np.zeros(N), 0.866 * (1 + a / 9.80665)]
+    acc = np.c_[0.5 * (1 + a / STANDARD_GRAVITY_M_S2), np.zeros(N), 0.866 * (1 + a / STANDARD_GRAVITY_M_S2)]
     return acc, np.ones(N, bool), "synthetic walk"
 
 

@@ -23,6 +23,7 @@ from _timing import best_of
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from firmware_sim.fixedpoint import QFormat, cumsum, div, isqrt, mul_q  # noqa: E402
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 N = 65_536
 PRIMITIVE_TARGET_S = 0.005
@@ -167,7 +168,7 @@ def _walking_codes(n: int) -> np.ndarray:
     t = np.arange(n) / fs
     f = 1.8 * (1 + 0.05 * np.sin(2 * np.pi * t / 60.0))
     phase = 2 * np.pi * np.cumsum(f) / fs
-    a_v_g = 0.0125 * (2 * np.pi * f) ** 2 * np.cos(phase) / 9.80665
+    a_v_g = 0.0125 * (2 * np.pi * f) ** 2 * np.cos(phase) / STANDARD_GRAVITY_M_S2
     a_ap_g = 0.15 * np.sin(phase + 0.5)
     up = np.array([0.2, 0.1, 0.9747])
     fwd = np.cross([0.0, 1.0, 0.0], up)

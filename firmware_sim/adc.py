@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_sim.errors import DeviceError
+from protocol.adc_bits import check_adc_bits
 
 __all__ = ["Adc"]
 
@@ -64,8 +65,7 @@ class Adc:
     timer_error_ppm: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.bits, (int, np.integer)) and 1 <= self.bits <= 10):
-            raise DeviceError(f"ADC bits must be an integer in 1..10 (10-bit storage fields), got {self.bits!r}")
+        check_adc_bits(self.bits, what="ADC bits (10-bit storage fields)", error=DeviceError)
         if not (self.rate_hz > 0 and np.isfinite(self.rate_hz)):
             raise DeviceError(f"ADC rate_hz must be > 0, got {self.rate_hz!r}")
         if not self.vref_high_v > self.vref_low_v:

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import construct as cs
 import numpy as np
 
+from protocol.adc_bits import MAX_STORED_ADC_BITS, adc_bits_problem, check_adc_bits
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
 from protocol.layout import field_offsets
@@ -215,8 +216,7 @@ class Calibration:
         >>> float(Calibration.nominal(10).matrix_g_per_count[0, 0]), Calibration.nominal(10).valid
         (0.00390625, False)
         """
-        if not 1 <= int(adc_bits) <= 10:
-            raise ProtocolError(f"adc_bits: {adc_bits} outside 1..10")
+        check_adc_bits(adc_bits)
         span = float(1 << int(adc_bits))
         return cls(np.full(3, span / 2), np.eye(3) * (4.0 / span), valid=False)
 
@@ -333,7 +333,7 @@ class DeviceHeader(_HeaderIntFields):
 
     def __post_init__(self) -> None:
         if self.calibration is None:
-            self.calibration = Calibration.nominal(self.adc_bits if 1 <= self.adc_bits <= 10 else 10)
+            self.calibration = Calibration.nominal(self.adc_bits if adc_bits_problem(self.adc_bits) is None else MAX_STORED_ADC_BITS)
         if self.step_config is None:
             self.step_config = StepConfig.off()
         flags = int(self.flags) & ~int(HeaderFlag.CAL_VALID)
@@ -465,8 +465,8 @@ class DeviceHeader(_HeaderIntFields):
                        f"{PROTOCOL_VERSION})", "protocol_version", source)
         if self.sampling_rate_millihz == 0:
             raise _err("sample rate 0", "sampling_rate_millihz", source)
-        if not 1 <= self.adc_bits <= 10:
-            raise _err(f"{self.adc_bits} outside 1..10", "adc_bits", source)
+        if (problem := adc_bits_problem(self.adc_bits)) is not None:
+            raise _err(problem, "adc_bits", source)
         if self.axes != 3:
             raise _err(f"{self.axes} axes (expected 3)", "axes", source)
         if self.packing != PACKING_P32:
@@ -572,8 +572,8 @@ class DeviceHeader(_HeaderIntFields):
         header.step_config = StepConfig.off()
         if header.header_version != HEADER_VERSION or header.protocol_version != PROTOCOL_VERSION:
             header.validate(source)
-        if not 1 <= header.adc_bits <= 10:
-            raise _err(f"{header.adc_bits} outside 1..10", "adc_bits", source)
+        if (problem := adc_bits_problem(header.adc_bits)) is not None:
+            raise _err(problem, "adc_bits", source)
         cal_off = HEADER_OFFSETS["calibration"][0]
         cal = Calibration.from_bytes(body.calibration, header.adc_bits, source=source, base_offset=cal_off)
         if bool(header.flags & HeaderFlag.CAL_VALID) != cal.valid:

@@ -23,6 +23,7 @@ import numpy as np
 
 from firmware_sim.algorithms.formats import MANTISSA_Q, centred_q
 from firmware_sim.fixedpoint import QFormat, requantize
+from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 SLOT_OFFSET_Q = QFormat(15, 16, word_bits=32)
 SLOT_MATRIX_Q = QFormat(1, 30, word_bits=32)
@@ -100,7 +101,6 @@ def nominal_calibration_q(*, adc_bits: int = 10) -> CalibrationQ:
     >>> nominal_calibration_q(adc_bits=12).offset_raw.tolist()
     [16384, 16384, 16384]
     """
-    if not 1 <= adc_bits <= 12:
-        raise ValueError(f"adc_bits must be 1 .. 12, got {adc_bits}")
+    check_adc_bits(adc_bits, max_bits=MAX_SIMULATED_ADC_BITS, error=ValueError)
     return CalibrationQ.from_float(np.full(3, 2.0 ** (adc_bits - 1)), np.eye(3) * 4.0 / 2.0 ** adc_bits,
                                    code_bits=adc_bits)

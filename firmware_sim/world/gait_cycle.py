@@ -26,6 +26,7 @@ the centre of mass exactly at the end of the path.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -222,6 +223,9 @@ def plan_excursion(
 ) -> ExcursionPlan:
     """Plan one out-and-back excursion at the speed labelled ``label``.
 
+    The steps below draw from ``rng`` in this order (the plan of a seed depends on it): step lengths and
+    durations (1), the events of each step (2), the pendulum depth (3), the heel-strike transients (6b).
+
     Parameters
     ----------
     subject, protocol
@@ -238,6 +242,72 @@ def plan_excursion(
     path = CorridorPath(corridor_length_m=protocol.corridor_length_m, turn_radius_m=protocol.turn_radius_m)
     v_exc = subject.speed_m_s(label)
     v_pref = subject.preferred_speed_m_s
+    steps = _plan_steps(subject, protocol, path, v_exc, t_start_s=t_start_s, rng=rng, first_side=first_side)
+    cycle = _plan_step_cycle(subject, steps, v_pref=v_pref, v_exc=v_exc, rng=rng)
+    pendulum = _plan_pendulum(subject, steps, cycle, v_pref=v_pref, rng=rng)
+    track = _plan_forward_track(subject, steps, cycle, t_start_s=t_start_s, length_m=path.length_m)
+    phase_pp, phase0 = _gait_phase(t_start_s, track.t_stop_s, track.heel_strike_s, track.side)
+    z_pp = _vertical_profile(t_start_s, track.t_stop_s, phase_pp, phase0, steps.heel_strike_s,
+                             np.concatenate((cycle.tau_min, cycle.tau_min[-1:])), track.com_peak_s[:-1],
+                             subject.com_height_m, pendulum.z_target_m, pendulum.drop_m,
+                             np.concatenate((pendulum.extra_m, pendulum.extra_m[-1:])),
+                             subject.vertical_warp, subject.vertical_skew)
+    envelope_pp, pitch_pp = _envelope_and_lean(subject, label, t_start_s, track, v_exc=v_exc, v_pref=v_pref)
+    step_phase = _step_phase_labels(protocol, path, track, n_end=steps.n_end)
+    tr_t, tr_v, tr_ap, tr_sig = _heel_strike_transients(subject, cycle.vbar, track, v_pref=v_pref, rng=rng)
+    return ExcursionPlan(
+        label=label,
+        speed_m_s=v_exc,
+        t_start_s=t_start_s,
+        t_stop_s=float(track.t_stop_s),
+        path=path,
+        s=track.s,
+        z=z_pp,
+        phase=phase_pp,
+        envelope=envelope_pp,
+        pitch_mean=pitch_pp,
+        heel_strike_s=track.heel_strike_s,
+        foot_flat_s=track.foot_flat_s,
+        side=track.side,
+        toe_off_s=track.toe_off_s,
+        com_peak_s=track.com_peak_s,
+        step_phase=step_phase.astype(str),
+        leg_arc_radius_m=np.concatenate((pendulum.l_eff_m, [pendulum.l_eff_m[-1]])),
+        transient_t_s=tr_t,
+        transient_vertical_m_s2=tr_v,
+        transient_ap_m_s2=tr_ap,
+        transient_sigma_s=tr_sig,
+        amplitude_scale=float((v_exc / v_pref) ** 0.5),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Steps:
+    """Step 1 of :func:`plan_excursion`: the regular steps (the closing half step is added by step 4)."""
+
+    lengths_m: np.ndarray
+    durations_s: np.ndarray
+    #: Foot of each regular heel strike (one more than the steps).
+    sides: tuple[str, ...]
+    #: Steps of the termination (the last ``n_end`` regular steps).
+    n_end: int
+    #: Regular heel strikes, s (recording clock), and the CoM's path distance at each, m.
+    heel_strike_s: np.ndarray
+    s_heel_strike_m: np.ndarray
+
+    @property
+    def n_regular(self) -> int:
+        """Number of regular steps."""
+        return self.lengths_m.size
+
+    @property
+    def vbar(self) -> np.ndarray:
+        """Mean forward speed of each regular step, m/s."""
+        return self.lengths_m / self.durations_s
+
+
+def _speed_factor(protocol: WalkingProtocol, path: CorridorPath) -> Callable[[float], float]:
+    """Speed at path distance ``d`` relative to the excursion's: the ramp-up, the turn's slow-down, the stop."""
     length = path.length_m
 
     def speed_factor(d: float) -> float:
@@ -247,7 +317,14 @@ def plan_excursion(
         end = 0.6 + 0.4 * float(np.clip((length - d) / protocol.termination_distance_m, 0.0, 1.0))
         return float(ramp * turn * end)
 
-    # ---- 1. Step lengths and durations -------------------------------------------------------------
+    return speed_factor
+
+
+def _plan_steps(subject: Subject, protocol: WalkingProtocol, path: CorridorPath, v_exc: float, *,
+                t_start_s: float, rng: np.random.Generator, first_side: str) -> _Steps:
+    """Step 1: step lengths and durations from setting off to the path end (draws from ``rng``)."""
+    speed_factor = _speed_factor(protocol, path)
+    length = path.length_m
     v0 = v_exc * speed_factor(0.0)
     s_first = 0.5 * v0 * INITIATION_TIME_S * 0.9  # CoM travel from setting off to the first heel strike
     sides = [first_side]
@@ -270,7 +347,7 @@ def plan_excursion(
     s_end_nom = float(subject.step_length_m(v_end))
     n_end = max(1, int(round(remaining / s_end_nom - 0.5)))
     s_end = remaining / (n_end + 0.5)
-    for k in range(n_end):
+    for _ in range(n_end):
         v = v_exc * speed_factor(d + 0.35)
         lengths.append(s_end)
         durations.append(float(subject.step_length_m(v)) / v * (1.0 + rng.normal(0.0, subject.step_time_cv)))
@@ -278,12 +355,52 @@ def plan_excursion(
         d += s_end
     lengths_a = np.asarray(lengths)
     durations_a = np.asarray(durations)
-    n_reg = lengths_a.size  # regular steps; the closing one is added below
     hs = t_start_s + INITIATION_TIME_S + np.concatenate(([0.0], np.cumsum(durations_a)))
     s_hs = s_first + np.concatenate(([0.0], np.cumsum(lengths_a)))
-    vbar = lengths_a / durations_a
+    return _Steps(lengths_a, durations_a, tuple(sides), n_end, hs, s_hs)
 
-    # ---- 2. Events within each regular step ----------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class _StepCycle:
+    """Step 2 of :func:`plan_excursion`: the events within each regular step and the forward motion in it.
+
+    Phases ``tau`` run from 0 at a heel strike to 1 at the next; toe-off at ``tau_to``, the CoM's lowest
+    point at ``tau_min``, its highest at ``tau_peak``.
+    """
+
+    steps: _Steps
+    ds_frac: np.ndarray
+    toe_off_s: np.ndarray
+    foot_flat_s: np.ndarray
+    tau_min: np.ndarray
+    tau_to: np.ndarray
+    tau_peak: np.ndarray
+    #: Relative fluctuation of the forward speed within the step.
+    eps: np.ndarray
+
+    @property
+    def vbar(self) -> np.ndarray:
+        """Mean forward speed of each regular step, m/s."""
+        return self.steps.vbar
+
+    def g_frac(self, tau: np.ndarray) -> np.ndarray:
+        """Fraction of the step length covered at phase ``tau``."""
+        eps, tau_min = self.eps, self.tau_min
+        return tau + eps / (2 * np.pi) * (np.sin(2 * np.pi * (tau - tau_min)) + np.sin(2 * np.pi * tau_min))
+
+    def v_at(self, tau: np.ndarray) -> np.ndarray:
+        """Forward speed at phase ``tau``, m/s."""
+        return self.vbar * (1.0 + self.eps * np.cos(2 * np.pi * (tau - self.tau_min)))
+
+    def a_at(self, tau: np.ndarray) -> np.ndarray:
+        """Forward acceleration at phase ``tau``, m/s^2."""
+        return -self.vbar * self.eps * (2 * np.pi / self.steps.durations_s) * np.sin(2 * np.pi * (tau - self.tau_min))
+
+
+def _plan_step_cycle(subject: Subject, steps: _Steps, *, v_pref: float, v_exc: float,
+                     rng: np.random.Generator) -> _StepCycle:
+    """Step 2: toe-off, foot-flat and the CoM's low and high points of each regular step (draws from ``rng``)."""
+    n_reg, vbar, durations_a, hs = steps.n_regular, steps.vbar, steps.durations_s, steps.heel_strike_s
     ds_frac = np.clip(subject.double_support_fraction * (vbar / v_pref) ** -0.6, 0.08, 0.40)
     ds_frac *= np.clip(1.0 + rng.normal(0.0, 0.05, n_reg), 0.8, 1.2)
     t_ds = ds_frac * durations_a
@@ -293,58 +410,106 @@ def plan_excursion(
     tau_to = ds_frac
     tau_peak = tau_to + np.clip(subject.peak_fraction + rng.normal(0.0, 0.03, n_reg), 0.25, 0.75) * (1 - tau_to)
     eps = np.full(n_reg, subject.ap_speed_fluctuation) * (vbar / v_exc) ** 0.5
+    return _StepCycle(steps, ds_frac, to, ff, tau_min, tau_to, tau_peak, eps)
 
-    def g_frac(tau: np.ndarray) -> np.ndarray:  # fraction of the step length covered at phase tau
-        return tau + eps / (2 * np.pi) * (np.sin(2 * np.pi * (tau - tau_min)) + np.sin(2 * np.pi * tau_min))
 
-    def v_at(tau: np.ndarray) -> np.ndarray:
-        return vbar * (1.0 + eps * np.cos(2 * np.pi * (tau - tau_min)))
+@dataclass(frozen=True, eq=False)
+class _Pendulum:
+    """Step 3 of :func:`plan_excursion`: the depth of the CoM's vertical motion in each regular step."""
 
-    def a_at(tau: np.ndarray) -> np.ndarray:
-        return -vbar * eps * (2 * np.pi / durations_a) * np.sin(2 * np.pi * (tau - tau_min))
+    #: Effective pendulum (leg arc) radius, m.
+    l_eff_m: np.ndarray
+    #: CoM height at the single-stance peak, m.
+    z_target_m: np.ndarray
+    #: Drop of the single-stance arc over its mean half-chord, m.
+    drop_m: np.ndarray
+    #: Sag of the double-support arc, m.
+    extra_m: np.ndarray
 
-    # Vertical (section 3 builds it): the centre of mass peaks at PEAK_i in single stance and bottoms out
-    # at MIN_i, ``com_min_fraction`` of the double support after heel strike (> 1: in early single stance,
-    # the stance-knee flexion of the loading response); between them it follows a phase-warped cosine.
-    # The pendulums of Alvarez Fig. 3 set the depth: h1 = the drop of an arc of radius l_eff over the mean
-    # half-chord of single stance, h2 = the sag of a concave-up arc of radius double_support_radius_m over
-    # the double-support travel.
+
+def _plan_pendulum(subject: Subject, steps: _Steps, cycle: _StepCycle, *, v_pref: float,
+                   rng: np.random.Generator) -> _Pendulum:
+    """Step 3: the CoM's vertical excursion (draws from ``rng``).
+
+    The centre of mass peaks at PEAK_i in single stance and bottoms out at MIN_i, ``com_min_fraction`` of the
+    double support after heel strike (> 1: in early single stance, the stance-knee flexion of the loading
+    response); between them it follows a phase-warped cosine (:func:`_vertical_profile`). The pendulums of
+    Alvarez Fig. 3 set the depth: h1 = the drop of an arc of radius l_eff over the mean half-chord of single
+    stance, h2 = the sag of a concave-up arc of radius double_support_radius_m over the double-support travel.
+    """
+    vbar, lengths_a, n_reg = steps.vbar, steps.lengths_m, steps.n_regular
     rel_v = vbar / v_pref
     l_eff = (subject.leg_length_m * subject.pendulum_ratio * rel_v**subject.pendulum_speed_exponent
              * (1.0 + subject.pendulum_speed_curvature * np.log(rel_v) ** 2))
     z_stand = subject.com_height_m
     z_target = z_stand - subject.peak_drop_m * (vbar / v_pref) - np.abs(rng.normal(0.0, 0.001, n_reg))
-    d_a = lengths_a * (g_frac(tau_peak) - g_frac(tau_to))  # TO -> PEAK
-    d_b = lengths_a * (1.0 - g_frac(tau_peak))  # PEAK -> next HS
+    d_a = lengths_a * (cycle.g_frac(cycle.tau_peak) - cycle.g_frac(cycle.tau_to))  # TO -> PEAK
+    d_b = lengths_a * (1.0 - cycle.g_frac(cycle.tau_peak))  # PEAK -> next HS
     drop, _, _ = _arc(l_eff, 0.5 * (d_a + d_b))
-    v_to, a_to = v_at(tau_to), a_at(tau_to)
-    v_pk, a_pk = v_at(tau_peak), a_at(tau_peak)
-    v_hs_end, a_hs_end = v_at(np.ones(n_reg)), a_at(np.ones(n_reg))
-    v_hs_start, a_hs_start = v_at(np.zeros(n_reg)), a_at(np.zeros(n_reg))
-    v_hs = np.empty(n_reg + 1)  # CoM forward speed at each regular heel strike (mean of both sides)
+    d_ds = lengths_a * cycle.g_frac(cycle.tau_to)  # CoM travel in double support
+    extra = d_ds**2 / (8.0 * subject.double_support_radius_m)
+    return _Pendulum(l_eff, z_target, drop, extra)
+
+
+@dataclass(frozen=True, eq=False)
+class _Track:
+    """Step 4 of :func:`plan_excursion`: the CoM's forward path and the events of every step, closing step
+    included (times in s on the recording clock)."""
+
+    #: Forward path distance of the CoM, m (piecewise quintic of time).
+    s: PPoly
+    heel_strike_s: np.ndarray
+    toe_off_s: np.ndarray
+    foot_flat_s: np.ndarray
+    #: CoM peak of each step (NaN for the closing step).
+    com_peak_s: np.ndarray
+    side: np.ndarray
+    t_stop_s: float
+
+    @property
+    def n_steps(self) -> int:
+        """Steps of the excursion, closing step included."""
+        return self.heel_strike_s.size - 1
+
+
+def _heel_strike_kinematics(cycle: _StepCycle) -> tuple[np.ndarray, np.ndarray]:
+    """CoM forward speed and acceleration at each regular heel strike (mean of the steps on both sides)."""
+    n_reg = cycle.steps.n_regular
+    v_hs_end, a_hs_end = cycle.v_at(np.ones(n_reg)), cycle.a_at(np.ones(n_reg))
+    v_hs_start, a_hs_start = cycle.v_at(np.zeros(n_reg)), cycle.a_at(np.zeros(n_reg))
+    v_hs = np.empty(n_reg + 1)
     a_hs = np.empty(n_reg + 1)
     v_hs[0], a_hs[0] = v_hs_start[0], a_hs_start[0]
     v_hs[1:-1] = 0.5 * (v_hs_end[:-1] + v_hs_start[1:])
     a_hs[1:-1] = 0.5 * (a_hs_end[:-1] + a_hs_start[1:])
     v_hs[-1], a_hs[-1] = v_hs_end[-1], a_hs_end[-1]
+    return v_hs, a_hs
 
-    # ---- 3. Knots -------------------------------------------------------------------------------------
+
+def _plan_forward_track(subject: Subject, steps: _Steps, cycle: _StepCycle, *, t_start_s: float,
+                        length_m: float) -> _Track:
+    """Step 4: knots of the forward path at every heel strike, toe-off and CoM peak, and the closing step."""
+    hs, s_hs, lengths_a, durations_a = steps.heel_strike_s, steps.s_heel_strike_m, steps.lengths_m, steps.durations_s
+    v_hs, a_hs = _heel_strike_kinematics(cycle)
+    v_to, a_to = cycle.v_at(cycle.tau_to), cycle.a_at(cycle.tau_to)
+    v_pk, a_pk = cycle.v_at(cycle.tau_peak), cycle.a_at(cycle.tau_peak)
     t_knots = [np.array([t_start_s])]
     s_k = [np.array([[0.0, 0.0, 0.0]])]
-    t_peak = hs[:-1] + tau_peak * durations_a
-    t_st = np.stack([hs[:-1], to, t_peak], axis=1).ravel()
+    t_peak = hs[:-1] + cycle.tau_peak * durations_a
+    t_st = np.stack([hs[:-1], cycle.toe_off_s, t_peak], axis=1).ravel()
     s_st = np.stack([
         np.stack([s_hs[:-1], v_hs[:-1], a_hs[:-1]], axis=1),
-        np.stack([s_hs[:-1] + lengths_a * g_frac(tau_to), v_to, a_to], axis=1),
-        np.stack([s_hs[:-1] + lengths_a * g_frac(tau_peak), v_pk, a_pk], axis=1),
+        np.stack([s_hs[:-1] + lengths_a * cycle.g_frac(cycle.tau_to), v_to, a_to], axis=1),
+        np.stack([s_hs[:-1] + lengths_a * cycle.g_frac(cycle.tau_peak), v_pk, a_pk], axis=1),
     ], axis=1).reshape(-1, 3)
     t_knots.append(t_st)
     s_k.append(s_st)
     # Closing step: the last regular heel strike, the double support, then the trailing foot closes
     # beside the leading one while the centre of mass comes to rest over both feet at the path end.
-    i_last = n_reg - 1
+    length = length_m
+    i_last = steps.n_regular - 1
     t_hs_n = hs[-1]
-    frac_ds = ds_frac[i_last]
+    frac_ds = cycle.ds_frac[i_last]
     t_to_n = t_hs_n + frac_ds * durations_a[i_last]
     s_hs_n = s_hs[-1]
     v_n = v_hs[-1]
@@ -358,28 +523,30 @@ def plan_excursion(
     s_pp = quintic_hermite(t_all, *np.concatenate(s_k).T)
     hs_close = t_to_n + 0.7 * (t_stop - t_to_n)
     heel_strikes = np.concatenate((hs, [hs_close]))
-    toe_offs = np.concatenate((to, [t_to_n]))
-    foot_flats = np.concatenate((ff, [t_hs_n + subject.foot_flat_fraction * (t_to_n - t_hs_n),
-                                      hs_close + 0.06]))
+    toe_offs = np.concatenate((cycle.toe_off_s, [t_to_n]))
+    foot_flats = np.concatenate((cycle.foot_flat_s, [t_hs_n + subject.foot_flat_fraction * (t_to_n - t_hs_n),
+                                                     hs_close + 0.06]))
     com_peak = np.concatenate((t_peak, [np.nan]))
-    sides.append("R" if sides[-1] == "L" else "L")
-    side = np.asarray(sides)
-    n_steps = heel_strikes.size - 1
+    sides = steps.sides + ("R" if steps.sides[-1] == "L" else "L",)
+    return _Track(s_pp, heel_strikes, toe_offs, foot_flats, com_peak, np.asarray(sides), t_stop)
 
-    # ---- 4. Gait phase, envelope, posture -------------------------------------------------------------
+
+def _gait_phase(t_start_s: float, t_stop_s: float, heel_strikes: np.ndarray, side: np.ndarray) -> tuple[PPoly, float]:
+    """Step 5a: the gait phase (rad; advances by pi per step, 0 mod 2 pi at a left heel strike) and its start."""
     phase0 = 0.0 if side[0] == "L" else np.pi
     step_t = np.diff(heel_strikes)
     rate = np.pi / np.concatenate(([step_t[0]], 0.5 * (step_t[:-1] + step_t[1:]), [step_t[-1]]))
-    ph_t = np.concatenate(([t_start_s], heel_strikes, [t_stop]))
+    ph_t = np.concatenate(([t_start_s], heel_strikes, [t_stop_s]))
     ph_y = np.concatenate(([phase0 - 0.5 * np.pi], phase0 + np.pi * np.arange(heel_strikes.size),
                            [phase0 + np.pi * (heel_strikes.size - 1) + 0.5 * np.pi]))
     ph_dy = np.concatenate(([0.0], rate, [0.0]))
-    phase_pp = quintic_hermite(ph_t, ph_y, ph_dy, np.zeros(ph_t.size))
-    d_ds = lengths_a * g_frac(tau_to)  # CoM travel in double support
-    extra = d_ds**2 / (8.0 * subject.double_support_radius_m)
-    z_pp = _vertical_profile(t_start_s, t_stop, phase_pp, phase0, hs, np.concatenate((tau_min, tau_min[-1:])),
-                             t_peak, z_stand, z_target, drop, np.concatenate((extra, extra[-1:])),
-                             subject.vertical_warp, subject.vertical_skew)
+    return quintic_hermite(ph_t, ph_y, ph_dy, np.zeros(ph_t.size)), phase0
+
+
+def _envelope_and_lean(subject: Subject, label: str, t_start_s: float, track: _Track, *, v_exc: float,
+                       v_pref: float) -> tuple[PPoly, PPoly]:
+    """Step 5b: the gait envelope (0 standing, 1 walking) and the trunk's mean pitch, rad."""
+    heel_strikes, n_steps, t_stop = track.heel_strike_s, track.n_steps, track.t_stop_s
     env_t = np.array([t_start_s, heel_strikes[min(2, n_steps)], heel_strikes[-2], t_stop])
     if np.any(np.diff(env_t) <= 0):
         raise ValueError(f"excursion {label!r} is too short to plan ({n_steps} steps)")
@@ -388,14 +555,26 @@ def plan_excursion(
     stand_lean = np.deg2rad(subject.stand_lean_deg)
     pitch_pp = quintic_hermite(env_t, np.array([stand_lean, walk_lean, walk_lean, stand_lean]), np.zeros(4),
                                np.zeros(4))
+    return envelope_pp, pitch_pp
 
-    # ---- 5. Labels and heel-strike transients ---------------------------------------------------------
-    s_at_hs = s_pp(heel_strikes)
+
+def _step_phase_labels(protocol: WalkingProtocol, path: CorridorPath, track: _Track, *, n_end: int) -> np.ndarray:
+    """Step 6a: ``initiation`` / ``steady`` / ``turn`` / ``termination`` for each step."""
+    n_steps = track.n_steps
+    s_at_hs = track.s(track.heel_strike_s)
     mid = 0.5 * (s_at_hs[:-1] + s_at_hs[1:])
     step_phase = np.full(n_steps, "steady", dtype=object)
     step_phase[s_at_hs[:-1] < protocol.initiation_distance_m] = "initiation"
     step_phase[np.abs(mid - path.s_apex_m) < 0.5 * path.turn_length_m + 0.5] = "turn"
     step_phase[n_steps - n_end - 1:] = "termination"
+    return step_phase
+
+
+def _heel_strike_transients(subject: Subject, vbar: np.ndarray, track: _Track, *, v_pref: float,
+                            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Step 6b: the impact, push-off and loading-response pulses (draws from ``rng``), in time order:
+    times (s), vertical and antero-posterior amplitudes (m/s^2) and widths (s)."""
+    heel_strikes, toe_offs, n_steps = track.heel_strike_s, track.toe_off_s, track.n_steps
     v_contact = np.concatenate((vbar, [vbar[-1], vbar[-1] * 0.5]))
     scale = np.clip(v_contact, 0.2, None) / v_pref
     jitter = np.exp(rng.normal(0.0, 0.2, heel_strikes.size))
@@ -412,27 +591,4 @@ def plan_excursion(
                              np.full(n_steps, subject.toe_off_width_s),
                              np.full(n_steps, subject.loading_response_width_s)))
     order = np.argsort(tr_t, kind="stable")
-    return ExcursionPlan(
-        label=label,
-        speed_m_s=v_exc,
-        t_start_s=t_start_s,
-        t_stop_s=float(t_stop),
-        path=path,
-        s=s_pp,
-        z=z_pp,
-        phase=phase_pp,
-        envelope=envelope_pp,
-        pitch_mean=pitch_pp,
-        heel_strike_s=heel_strikes,
-        foot_flat_s=foot_flats,
-        side=side,
-        toe_off_s=toe_offs,
-        com_peak_s=com_peak,
-        step_phase=step_phase.astype(str),
-        leg_arc_radius_m=np.concatenate((l_eff, [l_eff[-1]])),
-        transient_t_s=tr_t[order],
-        transient_vertical_m_s2=tr_v[order],
-        transient_ap_m_s2=tr_ap[order],
-        transient_sigma_s=tr_sig[order],
-        amplitude_scale=float((v_exc / v_pref) ** 0.5),
-    )
+    return tr_t[order], tr_v[order], tr_ap[order], tr_sig[order]

@@ -49,12 +49,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Winter's anthropometric ratios (fraction of body height).
+#: Winter's anthropometric ratios (fraction of body height); the one home of these numbers
+#: (:mod:`host.gait.anthropometry` imports them).
 LEG_LENGTH_PER_HEIGHT = 0.530
 HEEL_TOE_LENGTH_PER_HEIGHT = 0.152
-#: Heel (calcaneal tuberosity) to first metatarsal head per height: Alvarez's foot length ``S2`` (0.73 of the
-#: heel-to-toe length, ANSUR means 197/270 mm in men, 179/244 mm in women).
-FOOT_LENGTH_PER_HEIGHT = round(0.73 * HEEL_TOE_LENGTH_PER_HEIGHT, 4)
+#: Ball-of-foot length (heel to first metatarsal head) per heel-to-toe length (ANSUR means 197/270 mm in men,
+#: 179/244 mm in women).
+BALL_OF_FOOT_PER_FOOT_LENGTH = 0.73
+#: Heel (calcaneal tuberosity) to first metatarsal head per height: Alvarez's foot length ``S2``.
+FOOT_LENGTH_PER_HEIGHT = round(BALL_OF_FOOT_PER_FOOT_LENGTH * HEEL_TOE_LENGTH_PER_HEIGHT, 4)
 #: Walk ratio per metre of height, m per (steps/min) per m (Sekiya & Nagasaki 1998: WR ≈ 0.0064 in men).
 WALK_RATIO_PER_HEIGHT = 0.00375
 

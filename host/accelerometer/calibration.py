@@ -84,17 +84,15 @@ References
 
 from __future__ import annotations
 
-import json
 import math
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, ClassVar, Self
 
 import numpy as np
 
 from host.accelerometer.static_windows import StaticWindow, StaticWindowDetector
 from host.errors import HostError
+from host.files.versioned_json import VersionedJson
 
 #: Number of parameters of each model.
 MODELS: dict[str, int] = {"9-param": 9, "6-param": 6}
@@ -189,7 +187,7 @@ def _vector(value: Any, n: int, what: str) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class AccCalibration:
+class AccCalibration(VersionedJson):
     """A fitted accelerometer calibration: ``calibrated_g = matrix @ (raw - offset)``, eq (4).
 
     Attributes
@@ -222,8 +220,11 @@ class AccCalibration:
         ``sqrt(n_poses)``: 0.577 for perfectly spread poses, 0 when a direction is never observed.
     """
 
-    CAL_FORMAT_VERSION: ClassVar[str] = "1.0"
-    CAL_TYPE: ClassVar[str] = "gaitlog.AccCalibration"
+    SCHEMA: ClassVar[str] = "gaitlog.AccCalibration"
+    FORMAT_VERSION: ClassVar[str] = "1.0"
+    KIND: ClassVar[str] = "accelerometer calibration"
+    ERROR: ClassVar[type[HostError]] = CalibrationError
+    REDO: ClassVar[str] = "re-run 'gaitlog calibrate'"
 
     model: str
     input_unit: str
@@ -330,15 +331,13 @@ class AccCalibration:
                    residual_rms_g=float("nan"), residual_max_g=float("nan"), n_poses=0)
 
     # ---------------------------------------------------------------------------------------------- files
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (format version :attr:`CAL_FORMAT_VERSION`)."""
+    def fields_to_dict(self) -> dict[str, Any]:
+        """The fields, JSON-ready (NaN as null); :meth:`to_dict` adds the type and version tags."""
 
         def num(v: float | None) -> float | None:
             return None if v is None or not math.isfinite(v) else float(v)
 
         return {
-            "cal_type": self.CAL_TYPE,
-            "format_version": self.CAL_FORMAT_VERSION,
             "map": "calibrated_g = matrix @ (raw - offset)",
             "model": self.model,
             "input_unit": self.input_unit,
@@ -354,31 +353,12 @@ class AccCalibration:
             "min_direction_sv": num(self.min_direction_sv),
         }
 
-    def to_json(self) -> str:
-        """The calibration as JSON text."""
-        return json.dumps(self.to_dict(), indent=2) + "\n"
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the JSON file atomically (whole file or nothing)."""
-        from protocol.atomic_write import atomic_write_text
-
-        atomic_write_text(path, self.to_json())
-
     @classmethod
-    def from_dict(cls, data: Any, *, source: str = "calibration") -> "AccCalibration":
-        """Rebuild from :meth:`to_dict`'s output; errors name ``source`` and the offending key."""
+    def fields_from_dict(cls, data: dict[str, Any], *, source: str) -> Self:
+        """Rebuild from the file's keys (:meth:`from_dict` checked the tags); errors name ``source`` and the key."""
 
         def fail(msg: str) -> CalibrationError:
             return CalibrationError(f"{source}: {msg}")
-
-        if not isinstance(data, dict):
-            raise fail(f"expected a JSON object, found {type(data).__name__}")
-        if data.get("cal_type") != cls.CAL_TYPE:
-            raise fail(f"key 'cal_type': expected {cls.CAL_TYPE!r}, found {data.get('cal_type')!r}")
-        version = data.get("format_version")
-        if version != cls.CAL_FORMAT_VERSION:
-            raise fail(f"key 'format_version': this gaitlog reads version {cls.CAL_FORMAT_VERSION!r}, "
-                       f"the file has {version!r}")
 
         def get(key: str, kind: str, shape: tuple[int, ...] | None = None, optional: bool = False) -> Any:
             if key not in data:
@@ -430,19 +410,6 @@ class AccCalibration:
             return cls(**fields)
         except CalibrationError as err:
             raise fail(str(err)) from err
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> "AccCalibration":
-        """Read a file written by :meth:`save`; reject other types and versions with the file and key named."""
-        p = Path(path)
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as err:
-            raise CalibrationError(f"{p}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})") \
-                from err
-        except UnicodeDecodeError as err:
-            raise CalibrationError(f"{p}: not a UTF-8 text file") from err
-        return cls.from_dict(data, source=str(p))
 
 
 # --------------------------------------------------------------------------------------------------------------

@@ -202,11 +202,7 @@ class StaticWindowDetector:
         >>> np.round(det.windows_[2].mean, 2) + 0.0
         array([ 0., -1.,  0.])
         """
-        x = np.asarray(acc, dtype=np.float64)
-        if x.ndim != 2 or x.shape[1] != 3:
-            raise StaticWindowError(f"acceleration must have shape (n, 3), got {x.shape}")
-        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
-            raise StaticWindowError(f"sampling rate must be a positive number of Hz, got {sampling_rate_hz!r}")
+        x = self._checked_input(acc, sampling_rate_hz)
         w = int(round(self.hold_s * sampling_rate_hz))
         if w < 2:
             raise StaticWindowError(f"hold of {self.hold_s} s at {sampling_rate_hz} Hz is under 2 samples")
@@ -222,17 +218,42 @@ class StaticWindowDetector:
         sd, ok = _moving_sd_from(s1, s2, bad, w)  # step 1
         if not ok.any():
             return self
+        self.noise_floor_, self.threshold_ = self._noise_threshold(sd, ok)  # steps 2-3
+        quiet = ok & (sd <= self.threshold_).all(axis=1)  # step 4
+        runs = np.array(_runs(quiet), dtype=np.int64).reshape(-1, 2)
+        if not len(runs):
+            return self
+        cand = self._candidates(x, s1, s2, centre, runs, sampling_rate_hz)
+        self.zero_, self.unit_per_g_ = self._nominal_map(cand, zero, unit_per_g)
+        kept = self._screen(cand, sampling_rate_hz)  # step 5
+        self.windows_ = self._without_near_duplicates(kept)
+        self.rejected_.sort(key=lambda r: r[0].start)
+        return self
+
+    @staticmethod
+    def _checked_input(acc: np.ndarray, sampling_rate_hz: float) -> np.ndarray:
+        """``acc`` as a float ``(n, 3)`` array; :class:`StaticWindowError` on a wrong shape or rate."""
+        x = np.asarray(acc, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise StaticWindowError(f"acceleration must have shape (n, 3), got {x.shape}")
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+            raise StaticWindowError(f"sampling rate must be a positive number of Hz, got {sampling_rate_hz!r}")
+        return x
+
+    def _noise_threshold(self, sd: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Steps 2-3: the noise floor per axis and the quiet threshold (input unit)."""
         floor = np.empty(3)
         for j in range(3):  # step 2
             s = sd[ok, j]
             s = s[s > 0]
             floor[j] = np.percentile(s, self.floor_percentile) if s.size else 0.0
         thr = self.sd_factor * np.sqrt(floor**2 + (self.code_step_ / 2) ** 2)  # step 3
-        self.noise_floor_, self.threshold_ = floor, thr
-        quiet = ok & (sd <= thr).all(axis=1)  # step 4
-        runs = np.array(_runs(quiet), dtype=np.int64).reshape(-1, 2)
-        if not len(runs):
-            return self
+        return floor, thr
+
+    def _candidates(self, x: np.ndarray, s1: np.ndarray, s2: np.ndarray, centre: np.ndarray, runs: np.ndarray,
+                    sampling_rate_hz: float) -> _Candidates:
+        """Step 4: the quiet runs as candidate holds, ends refined and trimmed, with their statistics."""
+        w, floor = self.window_samples_, self.noise_floor_
         k0, k1 = runs[:, 0], runs[:, 1]
         m = max(1, int(round(0.2 * sampling_rate_hz)))
         edge_tol = 4.0 * np.sqrt(floor**2 + self.code_step_**2 / 12) / np.sqrt(m) + self.code_step_ / 2
@@ -249,6 +270,13 @@ class StaticWindowDetector:
         first = (s1[k0 + w] - s1[k0]) / w + centre
         last = (s1[k1 + w] - s1[k1]) / w + centre
         wins = [StaticWindow(int(a[i]), int(b[i]), means[i], sds[i]) for i in range(len(a))]
+        return _Candidates(wins, means, short, first, last)
+
+    @staticmethod
+    def _nominal_map(cand: _Candidates, zero: np.ndarray | None,
+                     unit_per_g: float | np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """``(zero, unit_per_g)``, ``(3,)`` each: as given, or a crude sphere through the candidates."""
+        means, short = cand.means, cand.short
         if zero is None:
             zero_v = np.zeros(3)
         else:
@@ -260,17 +288,21 @@ class StaticWindowDetector:
             per_g = np.full(3, radius if radius > 0 else 1.0)
         else:
             per_g = np.broadcast_to(np.asarray(unit_per_g, dtype=np.float64), (3,)).copy()
-        self.zero_, self.unit_per_g_ = zero_v, per_g
-        nominal = (means - zero_v) / per_g
+        return zero_v, per_g
+
+    def _screen(self, cand: _Candidates, sampling_rate_hz: float) -> list[tuple[StaticWindow, np.ndarray]]:
+        """Step 5, one hold at a time: reject (into ``rejected_``) or keep with its unit direction."""
+        zero_v, per_g = self.zero_, self.unit_per_g_
+        nominal = (cand.means - zero_v) / per_g
         norms = np.linalg.norm(nominal, axis=1)
-        f0, f1 = first - zero_v, last - zero_v
+        f0, f1 = cand.first - zero_v, cand.last - zero_v
         cosd = np.einsum("ij,ij->i", f0, f1) / np.maximum(np.linalg.norm(f0, axis=1) * np.linalg.norm(f1, axis=1),
                                                           1e-300)
         drift = np.degrees(np.arccos(np.clip(cosd, -1.0, 1.0)))
         kept = []
-        for i, win in enumerate(wins):  # step 5
+        for i, win in enumerate(cand.windows):
             const = np.flatnonzero(win.sd == 0)
-            if short[i]:
+            if cand.short[i]:
                 self.rejected_.append((win, f"only {win.n_samples / sampling_rate_hz:.2f} s still after removing "
                                             "the moving ends"))
             elif const.size:
@@ -284,6 +316,11 @@ class StaticWindowDetector:
                 self.rejected_.append((win, f"orientation drifts by {drift[i]:.1f} deg during the hold"))
             else:
                 kept.append((win, nominal[i] / norms[i]))
+        return kept
+
+    def _without_near_duplicates(self, kept: list[tuple[StaticWindow, np.ndarray]]) -> list[StaticWindow]:
+        """Step 5, across holds: longest first, a hold within ``min_angle_deg`` of an accepted one is rejected;
+        the accepted holds in time order."""
         order = sorted(range(len(kept)), key=lambda i: -kept[i][0].n_samples)
         accepted: list[tuple[StaticWindow, np.ndarray]] = []
         cos_limit = np.cos(np.radians(self.min_angle_deg))
@@ -296,9 +333,19 @@ class StaticWindowDetector:
                 ang = _angle_deg(u, dup[1])
                 self.rejected_.append((win, f"near-duplicate orientation: {ang:.1f} deg from the hold at "
                                             f"samples {dup[0].start}-{dup[0].stop}"))
-        self.windows_ = sorted((a[0] for a in accepted), key=lambda s: s.start)
-        self.rejected_.sort(key=lambda r: r[0].start)
-        return self
+        return sorted((a[0] for a in accepted), key=lambda s: s.start)
+
+
+@dataclass(frozen=True, eq=False)
+class _Candidates:
+    """Candidate holds of step 4 (``short``: left under 0.9 ``hold_s`` by the end refinement), with the mean of
+    their first and last ``hold_s`` (the drift test of step 5), ``(n, 3)`` input unit."""
+
+    windows: list[StaticWindow]
+    means: np.ndarray
+    short: np.ndarray
+    first: np.ndarray
+    last: np.ndarray
 
 
 def _edge_refine(s1: np.ndarray, a: np.ndarray, b: np.ndarray, m: int,

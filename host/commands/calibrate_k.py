@@ -27,11 +27,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import itertools
     import sys
     import warnings
-
-    import numpy as np
 
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
@@ -39,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import calibrate
     from host.gait.pipeline import StepPipeline
+    from host.gait.sections import pool_steps, sections_from_marks
 
     if args.distance is not None and len(args.distance) not in (1, len(args.inputs)):
         raise HostError(f"--distance: give one value or one per input ({len(args.inputs)}), "
@@ -64,11 +62,9 @@ def run(args: argparse.Namespace) -> int:
         marks = data.mark_index
         if marks.size < 2:
             raise HostError(f"{path}: --lap-marks needs at least two MARK flags, found {marks.size}")
-        t = np.where(steps.heel_strike >= 0, steps.heel_strike, steps.foot_flat)
-        for a, b in itertools.pairwise(marks):
-            sel = (t > a) & (t <= b)
-            if sel.any():
-                sections.append((steps.select(sel), float(args.lap_marks)))
+        laps = sections_from_marks(steps.time_s(marks), lap_m=float(args.lap_marks),
+                                   sampling_rate_hz=data.sampling_rate_hz)
+        sections += [pool for pool in (pool_steps(steps, [lap]) for lap in laps) if pool[0].n_steps]
     cal = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
     cal.save(args.out)
     if verbosity(args) >= 0:

@@ -124,12 +124,12 @@ def _simulate(args: argparse.Namespace) -> int:
         format_step_diffs,
         rows_csv_text,
     )
+    from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
     from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.simulate < 1:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
-    if not 1 <= args.bits <= 12:
-        raise HostError(f"--bits must be 1..12, got {args.bits}")
+    check_adc_bits(args.bits, max_bits=MAX_SIMULATED_ADC_BITS, what="--bits", error=HostError)
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     if args.resamples < 1:

@@ -214,13 +214,13 @@ def _device(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
     from firmware_sim.world.walking import Walking
     from host.files.decode import decode_file, verify_step_records
+    from host.gait.sections import sections_from_marks
     from host.studies.compare import (
         match_steps,
         offline_step_table,
         segment_distances,
         step_differences,
     )
-    from host.studies.evaluation import sections_from_marks
     from protocol.steps import StepConfig
 
     sub = ctx["subject"]
@@ -262,8 +262,8 @@ def _split(ctx: dict[str, Any]) -> list[str]:
 
     from firmware_sim.algorithms.steps import ESTIMATORS
     from firmware_sim.fixedpoint import cycles_per_sample_available
+    from host.gait.sections import sections_from_marks
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from host.studies.evaluation import sections_from_marks
     from protocol.atomic_write import atomic_write_text
 
     rec = ctx["walk_recording"]

@@ -45,6 +45,7 @@ def _run_sim(args: argparse.Namespace) -> int:
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.evaluation import SimulatedEvaluation
+    from protocol.adc_bits import check_adc_bits
 
     out = args.out or args.folder
     if out is None:
@@ -56,8 +57,7 @@ def _run_sim(args: argparse.Namespace) -> int:
                         "on 20 m sections without U-turns, and writes its figures into the output folder)")
     if args.subjects < 1 or args.workers < 1:
         raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
-    if args.bits != 10 and not 1 <= args.bits <= 10:
-        raise HostError(f"--bits must be 1..10, got {args.bits}")
+    check_adc_bits(args.bits, what="--bits", error=HostError)
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     with progress_bar(args, args.subjects, "subject") as tick:
@@ -92,14 +92,14 @@ def run(args: argparse.Namespace) -> int:
         format_done,
         summarise,
     )
+    from protocol.adc_bits import check_adc_bits
     from protocol.atomic_write import (
         atomic_write_bytes,
         atomic_write_text,
         require_folder,
     )
 
-    if not 1 <= args.bits <= 10:
-        raise HostError(f"--bits must be 1..10, got {args.bits}")
+    check_adc_bits(args.bits, what="--bits", error=HostError)
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     args.uturn = args.uturn or "exclude"

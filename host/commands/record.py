@@ -46,8 +46,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                        help="run the on-line step algorithm while logging (default: on; with --append and no "
                             "step option, the image's own setting)")
     steps.add_argument("--height", type=float, metavar="M",
-                       help="body height of the wearer, m: leg = 0.530 H, foot = 0.111 H when not given "
-                            "(default: a 1.70 m adult, with a warning)")
+                       help="body height of the wearer, m: leg and foot length are estimated from it when not given "
+                            "(Winter; ANSUR; host.gait.anthropometry; default: a 1.70 m adult, with a warning)")
     steps.add_argument("--leg-length", type=float, metavar="M", help="leg length (greater trochanter to floor), m")
     steps.add_argument("--foot-length", type=float, metavar="M",
                        help="foot length heel to first metatarsal head (M3's S2), m")

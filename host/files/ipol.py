@@ -37,7 +37,7 @@ class IpolTrial:
     subject, trial
         Identifiers from the file name ``<subject>-<trial>``.
     acc_g
-        ``(n, 3)`` specific force in g (file's ``Acc_X..Z`` divided by 9.80665), NaN at lost packets.
+        ``(n, 3)`` specific force in g (file's ``Acc_X..Z`` divided by :data:`~firmware_sim.world.base.STANDARD_GRAVITY_M_S2`), NaN at lost packets.
     valid
         ``(n,)`` bool, False at lost packets.
     sampling_rate_hz

@@ -18,13 +18,17 @@ from __future__ import annotations
 
 import warnings
 
+from firmware_sim.world.subject import (
+    BALL_OF_FOOT_PER_FOOT_LENGTH,
+    FOOT_LENGTH_PER_HEIGHT,
+    HEEL_TOE_LENGTH_PER_HEIGHT,
+    LEG_LENGTH_PER_HEIGHT,
+)
 from host.errors import HostError
 
-LEG_LENGTH_PER_HEIGHT = 0.530
-HEEL_TOE_LENGTH_PER_HEIGHT = 0.152
-BALL_OF_FOOT_PER_FOOT_LENGTH = 0.73
-#: Heel (calcaneal tuberosity) to first metatarsal head, per height: the paper's "foot length".
-FOOT_LENGTH_PER_HEIGHT = round(BALL_OF_FOOT_PER_FOOT_LENGTH * HEEL_TOE_LENGTH_PER_HEIGHT, 4)
+__all__ = ["BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT", "HEEL_TOE_LENGTH_PER_HEIGHT",
+           "LEG_LENGTH_PER_HEIGHT", "anatomical_lengths"]
+
 #: Height used when nothing is known (adult population mean, both sexes, ~1.70 m).
 DEFAULT_HEIGHT_M = 1.70
 

@@ -75,7 +75,7 @@ def body_axes(
     >>> up = np.array([0.6, 0.0, 0.8])          # device tilted, gravity along (0.6, 0, 0.8)
     >>> acc = up[None, :] * (1.0 + 0.2 * np.sin(2 * np.pi * 2 * t))[:, None]
     >>> ax = body_axes(acc, sampling_rate_hz=fs)
-    >>> bool(np.allclose(ax.acc_v_m_s2[100:400], 0.2 * 9.80665 * np.sin(2 * np.pi * 2 * t[100:400]), atol=0.02))
+    >>> bool(np.allclose(ax.acc_v_m_s2[100:400], 0.2 * STANDARD_GRAVITY_M_S2 * np.sin(2 * np.pi * 2 * t[100:400]), atol=0.02))
     True
     """
     acc = np.asarray(acc_g, dtype=np.float64)

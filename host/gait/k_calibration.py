@@ -8,32 +8,32 @@
   ``min_cadence_spread`` of each other, 5 %): the line cannot be identified, so K2 = 0 and K1 is fitted
   through the origin on the pooled data -- the *walk ratio* model (step length proportional to cadence,
   step length / cadence being nearly invariant across speeds in healthy adults: Sekiya & Nagasaki,
-  Gait Posture 7, 1998). ``notes`` says so and ``m5_fallback`` is True.
+  Gait Posture 7, 1998). ``m5_fallback`` is True and ``notes`` says so.
 * M3 has no constant.
 
-:class:`KCalibration` saves/loads itself as versioned JSON (``format_version`` "1.0"; other versions are
-refused) through :func:`protocol.atomic_write.atomic_write_text`.
+:class:`KCalibration` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
+``format_version`` "1.0").
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from host.errors import HostError
+from host.files.versioned_json import VersionedJson
+from host.gait.sections import Section, pool_steps
 
 if TYPE_CHECKING:  # pragma: no cover
     from firmware_sim.algorithms.steps import StepTable
 
 
 @dataclass(frozen=True)
-class KCalibration:
+class KCalibration(VersionedJson):
     """Calibrated constants of one subject.
 
     Attributes
@@ -55,8 +55,10 @@ class KCalibration:
         Free text label.
     """
 
+    SCHEMA: ClassVar[str] = "gaitlog.KCalibration"
     FORMAT_VERSION: ClassVar[str] = "1.0"
-    CAL_TYPE: ClassVar[str] = "gaitlog.KCalibration"
+    KIND: ClassVar[str] = "K calibration"
+    REDO: ClassVar[str] = "re-run 'gaitlog calibrate-k'"
 
     k_m1: float
     k_m2: float
@@ -79,50 +81,21 @@ class KCalibration:
         return dict(calibrated=True, k_m1=float(self.k_m1), k_m2=float(self.k_m2), k_m4=float(self.k_m4),
                     k1_m5_m_s=float(self.k1_m5_m_s), k2_m5_m=float(self.k2_m5_m))
 
-    def to_json(self) -> str:
-        """JSON text with ``cal_type`` and ``format_version``."""
-        d = {"cal_type": self.CAL_TYPE, "format_version": self.FORMAT_VERSION, **asdict(self)}
-        return json.dumps(d, indent=2, allow_nan=True) + "\n"
+    def fields_to_dict(self) -> dict[str, object]:
+        """The fields, as stored in the JSON file (NaN for a K that could not be fitted)."""
+        return asdict(self)
 
     @classmethod
-    def from_json(cls, text: str, *, source: str | None = None) -> KCalibration:
-        """Parse :meth:`to_json` text; raise :class:`HostError` on another type/version or bad fields."""
-        where = source or "<K calibration>"
+    def fields_from_dict(cls, data: dict[str, object], *, source: str) -> KCalibration:
+        """Rebuild from the file's keys; :class:`HostError` naming ``source`` on a missing, extra or bad field."""
         try:
-            d = json.loads(text)
-        except ValueError as err:
-            raise HostError(f"{where}: not JSON: {err}") from err
-        if not isinstance(d, dict) or d.get("cal_type") != cls.CAL_TYPE:
-            raise HostError(f"{where}: not a gaitlog K calibration (cal_type {d.get('cal_type') if isinstance(d, dict) else None!r}, "
-                            f"expected {cls.CAL_TYPE!r})")
-        if d.get("format_version") != cls.FORMAT_VERSION:
-            raise HostError(f"{where}: format_version {d.get('format_version')!r} is not supported "
-                            f"(expected {cls.FORMAT_VERSION!r}); re-run 'gaitlog calibrate-k'")
-        d.pop("cal_type")
-        d.pop("format_version")
-        try:
-            cal = cls(**d)
+            cal = cls(**data)  # type: ignore[arg-type]
         except TypeError as err:
-            raise HostError(f"{where}: bad fields: {err}") from err
+            raise HostError(f"{source}: bad fields: {err}") from err
         for name in ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m"):
-            if not isinstance(getattr(cal, name), (int, float)):
-                raise HostError(f"{where}: field {name!r} must be a number")
+            if isinstance(getattr(cal, name), bool) or not isinstance(getattr(cal, name), (int, float)):
+                raise HostError(f"{source}: key {name!r} must be a number")
         return cal
-
-    def save(self, path: str | Path) -> None:
-        """Write the JSON atomically."""
-        from protocol.atomic_write import atomic_write_text
-
-        atomic_write_text(path, self.to_json())
-
-    @classmethod
-    def load(cls, path: str | Path) -> KCalibration:
-        """Read a file written by :meth:`save`."""
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as err:
-            raise HostError(f"{path}: cannot read K calibration: {err}") from err
-        return cls.from_json(text, source=str(path))
 
 
 def calibrate(
@@ -198,3 +171,14 @@ def calibrate(
         leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m), n_sections=len(sections),
         n_steps=int(n_steps), distance_m=float(total), subject=subject, notes=notes,
     )
+
+
+def calibrate_on_sections(table: StepTable, pools: Sequence[Sequence[Section]], *, leg_length_m: float,
+                          foot_length_m: float, subject: str = "") -> KCalibration:
+    """:func:`calibrate` on the steps of ``table`` pooled per run of lap sections (:func:`~host.gait.sections.pool_steps`).
+
+    ``pools``: one list of consecutive sections per calibration point, e.g. a mode of
+    :func:`host.gait.sections.calibration_sets`; ``table`` is a step table without K (raw lengths).
+    """
+    return calibrate([pool_steps(table, secs) for secs in pools], leg_length_m=leg_length_m,
+                     foot_length_m=foot_length_m, subject=subject)

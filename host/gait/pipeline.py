@@ -63,9 +63,10 @@ class StepPipeline:
 
     Examples
     --------
+    >>> from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
     >>> fs = 50.0; t = np.arange(int(20 * fs)) / fs
     >>> z = 0.02 * np.cos(2 * np.pi * 2.0 * t)                  # CoM, 2 steps/s, h = 4 cm, lowest at t = 0.25 + k/2
-    >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / 9.80665
+    >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2
     >>> p = StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=fs)
     >>> p.steps_.n_steps in (38, 39, 40)
     True

@@ -11,9 +11,9 @@ Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`c
   calibration, in floating point;
 * **online-fixed**: the same algorithm in the PIC's fixed point: what the logger computes and stores.
 
-**One K.** Per calibration mode (single- and multi-speed, :func:`calibration_sets`), K
+**One K.** Per calibration mode (single- and multi-speed, :func:`host.gait.sections.calibration_sets`), K
 (:class:`host.gait.k_calibration.KCalibration`) is fitted once, on the *offline* chain's table of the
-calibration sections (:func:`fit_k`), and that same K is used by every chain: ``apply_calibration`` for the
+calibration sections (:func:`host.gait.k_calibration.calibrate_on_sections`), and that same K is used by every chain: ``apply_calibration`` for the
 offline and ideal chains, the step configuration (``StepConfig(calibrated=True, k_m1=..., ...)``, K applied
 in the algorithm's own arithmetic, as the header stores it) for the on-line algorithm. K is never refitted
 per chain: a K fitted on each chain's own lengths absorbs any error proportional to the length (a 2 %
@@ -65,13 +65,14 @@ import numpy as np
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from host.studies.evaluation import (
-    MODES,
+from host.gait.k_calibration import calibrate_on_sections
+from host.gait.sections import (
     Section,
-    match_events,
+    calibration_sets,
     section_fractions,
     sections_from_marks,
 )
+from host.studies.evaluation import MODES, match_events
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -312,13 +313,6 @@ def step_differences(a: StepTable, b: StepTable, match: StepMatch, *, pair: str 
 # Segments and K
 
 
-def segments_from_mark_times(mark_times_s: np.ndarray, *, lap_m: float = 20.0) -> list[Section]:
-    """Sections between consecutive MARK samples of a recording, each ``lap_m`` long."""
-    t = np.sort(np.asarray(mark_times_s, np.float64))
-    return [Section(0, "", i, i * lap_m, (i + 1) * lap_m, float(a), float(b), False)
-            for i, (a, b) in enumerate(zip(t[:-1], t[1:]))]
-
-
 def segments_by_distance(table: StepTable, *, estimator: str = "M3", segment_m: float = 20.0) -> list[Section]:
     """Consecutive stretches of ``segment_m`` of ``estimator``'s distance (no lap marks; real length unknown).
 
@@ -348,41 +342,6 @@ def segment_distances(table: StepTable, sections: list[Section]) -> np.ndarray:
         out[i] = f @ np.nan_to_num(filled, nan=0.0) if np.any(f > 0) else 0.0
         out[i, ~np.any(np.isfinite(filled), axis=0)] = np.nan
     return out
-
-
-def calibration_sets(sections: list[Section], *, calibration_sections: int = 2) -> dict[str, list[list[Section]]]:
-    """Calibration data of both modes, as :func:`host.studies.evaluation.evaluate_recording` chooses it.
-
-    Single-speed: the first ``calibration_sections`` straight sections of the preferred excursion (else the
-    first excursion), pooled; multi-speed: those of every excursion, one pool per excursion.
-    """
-    by_exc: dict[int, list[Section]] = {}
-    for s in sections:
-        if not s.turn:
-            by_exc.setdefault(s.excursion, []).append(s)
-    sets = {k: v[:calibration_sections] for k, v in sorted(by_exc.items()) if v}
-    if not sets:
-        raise HostError("no straight section between lap marks to calibrate K on")
-    pref = [k for k, v in sets.items() if v[0].speed_label == "preferred"]
-    single = pref[0] if pref else min(sets)
-    return {"single-speed": [sets[single]], "multi-speed": list(sets.values())}
-
-
-def fit_k(table: StepTable, pools: list[list[Section]], *, leg_length_m: float, foot_length_m: float,
-          subject: str = "") -> Any:
-    """K of one mode from the raw lengths of ``table`` (whole steps by window midpoint, as evaluation does).
-
-    In a comparison ``table`` is the offline chain's: the one K every chain then uses (module notes).
-    """
-    from host.gait.k_calibration import calibrate
-
-    data = []
-    for secs in pools:
-        mask = section_fractions(table, secs[0].t_start_s, secs[-1].t_end_s, edge="whole") > 0
-        data.append((table.select(mask), float(sum(s.real_m for s in secs))))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)   # the single-speed M5 fallback is expected
-        return calibrate(data, leg_length_m=leg_length_m, foot_length_m=foot_length_m, subject=subject)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -635,15 +594,15 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     """
     leg, foot = subject.leg_length_m, subject.foot_length_m
     fs, t0 = sw.rate_hz, float(sw.times_s[0])
-    sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], rate_hz=fs)
+    sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], sampling_rate_hz=fs)
     pools = calibration_sets(sections, calibration_sections=calibration_sections)
     cal = sw.calibration(bits)
     codes = sw.codes(bits)
     kw = dict(sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
     offline = offline_step_table(cal.apply(codes), **kw)
     # the one K per mode, fitted on the offline chain: every chain below uses these objects
-    cals = {m: fit_k(offline, pools[m], leg_length_m=leg, foot_length_m=foot, subject=subject.subject_id)
-            for m in MODES}
+    cals = {m: calibrate_on_sections(offline, pools[m], leg_length_m=leg, foot_length_m=foot,
+                                     subject=subject.subject_id) for m in MODES}
     if ideal_table is None:
         ideal_table = offline_step_table(cal.apply(sw.ideal_codes(bits)), **kw)
     okw = dict(kw, adc_calibration=cal, code_bits=bits)
@@ -910,7 +869,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     the offline chain and is the on-line algorithm's device calibration; ``calibration`` is the one K of
     every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
     (SESSION_START), where the on-line algorithm restarts. Sections: ``sections`` when given (e.g. the
-    protocol's, :func:`host.studies.evaluation.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
+    walking plan's, :func:`host.gait.sections.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
     every ``segment_m`` of the offline chain's M3 distance.
 
     Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and
@@ -939,7 +898,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     if sections is not None:
         source = "the given sections"
     elif marks.size >= 2:
-        sections, source = segments_from_mark_times(marks, lap_m=lap_m), f"between MARK flags, {lap_m:g} m apart"
+        sections, source = sections_from_marks(marks, lap_m=lap_m), f"between MARK flags, {lap_m:g} m apart"
     else:
         sections = segments_by_distance(tables["offline"], segment_m=segment_m)
         source = f"every {segment_m:g} m of the offline chain's M3 distance (no lap marks; real length unknown)"

@@ -17,7 +17,7 @@ Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
    the first 10 m of gait initiation are discarded, as in the paper). The section holding the 180° turn is
    left out by default (the paper's subjects "were allowed to turn freely between both 100 m segments";
    the estimators model straight walking); ``include_turn=True`` keeps it.
-5. *K calibration* (:func:`host.gait.k_calibration.calibrate`, one call per mode):
+5. *K calibration* (:func:`host.gait.sections.calibration_sets`, :func:`host.gait.k_calibration.calibrate_on_sections`):
    **single-speed** = the first 40 m (two sections) of the preferred-speed excursion, pooled as one 40 m
    section (M5 then falls back to the walk-ratio line, with the calibrator's warning recorded);
    **multi-speed** = the first 40 m of every excursion, one 40 m section per speed. Calibration steps are
@@ -52,6 +52,7 @@ import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS
 from host.errors import HostError
+from host.gait.sections import calibration_sets, section_fractions, sections_from_marks
 
 MODES = ("single-speed", "multi-speed")
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
@@ -161,81 +162,7 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
 # Sections and distances
 
 
-@dataclass(frozen=True)
-class Section:
-    """One stretch between two lap marks (times on the recording clock, distances along the corridor)."""
-
-    excursion: int
-    speed_label: str
-    index: int
-    start_m: float
-    end_m: float
-    t_start_s: float
-    t_end_s: float
-    turn: bool
-
-    @property
-    def real_m(self) -> float:
-        """Real distance (corridor) of the section."""
-        return self.end_m - self.start_m
-
-
-def sections_from_marks(mark_times_s: np.ndarray, laps: dict, *, corridor_length_m: float = 100.0,
-                        section_m: float = 20.0, rate_hz: float = 50.0) -> list[Section]:
-    """Pair the MARK samples with the protocol's lap distances and cut ``section_m`` sections.
-
-    Each MARK must fall within one sample period after its lap (the firmware flags the first sample at or
-    after the button press). Raises :class:`HostError` when marks and laps disagree.
-    """
-    marks = np.asarray(mark_times_s, np.float64)
-    t_lap = np.asarray(laps["time_s"], np.float64)
-    if marks.size != t_lap.size:
-        raise HostError(f"{marks.size} MARK samples for {t_lap.size} lap marks of the protocol")
-    lag = marks - t_lap
-    if np.any(lag < -1e-9) or np.any(lag > 1.0 / rate_hz + 1e-9):
-        k = int(np.argmax((lag < -1e-9) | (lag > 1.0 / rate_hz + 1e-9)))
-        raise HostError(f"MARK {k} at {marks[k]:.3f} s does not follow lap {k} at {t_lap[k]:.3f} s")
-    out: list[Section] = []
-    exc = np.asarray(laps["excursion"])
-    dist = np.asarray(laps["distance_m"], np.float64)
-    labels = np.asarray(laps["speed_label"]).astype(str)
-    for k in np.unique(exc):
-        idx = np.flatnonzero(exc == k)
-        j = 0
-        for a, b in zip(idx[:-1], idx[1:]):
-            if abs(dist[b] - dist[a] - section_m) > 1e-6:
-                continue
-            out.append(Section(int(k), str(labels[a]), j, float(dist[a]), float(dist[b]), float(marks[a]),
-                               float(marks[b]), bool(dist[a] < corridor_length_m < dist[b])))
-            j += 1
-    return out
-
-
-def _windows(table: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end time of every step's window; windowless steps get the bout's median duration."""
-    end = table.time_s(table.foot_flat)
-    start = table.time_s(table.start)
-    dur = end - start
-    med = np.nanmedian(dur) if np.any(np.isfinite(dur)) else 0.5
-    start = np.where(np.isfinite(start), start, end - med)
-    return start, end
-
-
-def section_fractions(table: Any, t_start_s: float, t_end_s: float, *, edge: str = "fraction") -> np.ndarray:
-    """Weight of each step of ``table`` in a section: overlapping fraction of its window, or 0/1.
-
-    ``edge="fraction"``: the fraction of the step's window inside ``[t_start_s, t_end_s]``;
-    ``edge="whole"``: 1 when the window's midpoint is inside, else 0.
-    """
-    a, b = _windows(table)
-    if edge == "whole":
-        mid = 0.5 * (a + b)
-        return ((mid >= t_start_s) & (mid < t_end_s)).astype(np.float64)
-    if edge != "fraction":
-        raise ValueError(f"edge must be 'fraction' or 'whole', got {edge!r}")
-    with np.errstate(invalid="ignore", divide="ignore"):
-        f = (np.minimum(b, t_end_s) - np.maximum(a, t_start_s)) / (b - a)
-    return np.clip(np.nan_to_num(f), 0.0, 1.0)
+# (lap sections and step weights: host.gait.sections)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -358,7 +285,7 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     ``detector``: a :class:`host.gait.events.GaitEventDetector` for the pipeline (default parameters when
     None).
     """
-    from host.gait.k_calibration import calibrate
+    from host.gait.k_calibration import calibrate_on_sections
     from host.gait.pipeline import StepPipeline, apply_calibration
 
     sub = rec.subject
@@ -367,29 +294,18 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     table = pipe.steps_
     caught = [f"pipeline: {n}" for n in pipe.notes_]
     sections = sections_from_marks(rec.mark_times_s, rec.truth["laps"], corridor_length_m=corridor_length_m,
-                                   section_m=section_m, rate_hz=rec.sampling_rate_hz)
-    straight = [s for s in sections if not s.turn]
-    by_exc: dict[int, list[Section]] = {}
-    for s in straight:
-        by_exc.setdefault(s.excursion, []).append(s)
-    calib_sets: dict[int, list[Section]] = {k: v[:calibration_sections] for k, v in by_exc.items()}
-    if not calib_sets:
-        raise HostError(f"subject {sub.subject_id}: no straight {section_m} m section between lap marks")
-    pref = [k for k, v in calib_sets.items() if v and v[0].speed_label == "preferred"]
-    single_exc = pref[0] if pref else min(calib_sets)
-
-    def pooled(secs: list[Section]) -> tuple[Any, float]:
-        mask = section_fractions(table, secs[0].t_start_s, secs[-1].t_end_s, edge="whole") > 0
-        return table.select(mask), float(sum(s.real_m for s in secs))
-
-    cals: dict[str, Any] = {}
-    kw = dict(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m, subject=sub.subject_id)
-    cals["single-speed"] = calibrate([pooled(calib_sets[single_exc])], **kw)
-    cals["multi-speed"] = calibrate([pooled(v) for _, v in sorted(calib_sets.items()) if v], **kw)
-    caught += [f"calibration: {n}" for c in cals.values() for n in c.notes]
+                                   section_m=section_m, sampling_rate_hz=rec.sampling_rate_hz)
+    try:
+        pools = calibration_sets(sections, calibration_sections=calibration_sections)
+    except HostError as err:
+        raise HostError(f"subject {sub.subject_id}: {section_m} m sections: {err}") from None
+    cals = {mode: calibrate_on_sections(table, pools[mode], leg_length_m=sub.leg_length_m,
+                                        foot_length_m=sub.foot_length_m, subject=sub.subject_id)
+            for mode in MODES}
+    caught += [f"calibration: {note}" for cal in cals.values() for note in cal.notes]
     lengths = {mode: {k: table.filled(v)[0] for k, v in apply_calibration(table, cal).items()}
                for mode, cal in cals.items()}
-    calib_ids = {(s.excursion, s.index) for v in calib_sets.values() for s in v}
+    calib_ids = {(s.excursion, s.index) for pool in pools["multi-speed"] for s in pool}
     rows: list[dict] = []
     truth_ratio: list[float] = []
     st = rec.truth["steps"]

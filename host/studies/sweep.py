@@ -60,6 +60,7 @@ import numpy as np
 from firmware_sim.algorithms.steps import ESTIMATORS
 from host.errors import HostError
 from host.studies.compare import CHAINS, MODES, SHARES, column_key, pair_label
+from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 BITS = (8, 10, 12)
 RATES_HZ = (25.0, 50.0, 100.0)
@@ -154,8 +155,7 @@ class AdcRateSweep:
         if self.n_subjects < 1:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         for b in self.bits:
-            if not 1 <= int(b) <= 12:
-                raise HostError(f"ADC bits must be 1..12, got {b}")
+            check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         options = dict(calibration_sections=self.calibration_sections, include_turn=self.include_turn)
         jobs = [(s, self.seed * 1000 + i, self.protocol, tuple(int(b) for b in self.bits),
                  tuple(float(r) for r in self.rates_hz), options)

@@ -11,7 +11,7 @@ from scipy import signal
 from firmware_sim.device import Logger
 from firmware_sim.errors import DeviceError
 from firmware_sim.sensor import SensorModel
-from firmware_sim.world.base import MotionSource
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, MotionSource
 from firmware_sim.world.replay import Replay
 
 
@@ -30,7 +30,7 @@ def test_ipol_file_on_the_packet_grid_with_filled_gaps(shared_data: Path) -> Non
     first = counter[0]
     assert src.acc_g.shape == (counter[-1] - first + 1, 3)
     # every received packet is at its counter position, converted to g
-    np.testing.assert_allclose(src.acc_g[counter - first], raw[:, 1:4] / 9.80665, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(src.acc_g[counter - first], raw[:, 1:4] / STANDARD_GRAVITY_M_S2, rtol=0, atol=1e-12)
     # every lost packet is reported, and filled between its neighbours (continuous input)
     lost = np.setdiff1d(np.arange(first, counter[-1] + 1), counter) - first
     assert src.truth["n_filled"] == lost.size > 0
@@ -77,7 +77,7 @@ def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
     keep[500:507] = False  # 7 lost rows
     path = tmp_path / "rec.csv"
     rows = "\n".join(f"{tt:.5f},{a:.9f},{b:.9f},{c:.9f},42" for tt, (a, b, c) in
-                     zip(t[keep], acc_g[keep] * 9.80665))
+                     zip(t[keep], acc_g[keep] * STANDARD_GRAVITY_M_S2))
     path.write_text("# exported by a test\ntime_s,ax,ay,az,temp\n" + rows + "\n")
     src = Replay.from_file(path, columns=["ax", "ay", "az"], time_column="time_s")
     assert src.truth["units"] == "m/s^2" and src.rate_hz == pytest.approx(fs)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.rigid_body import RigidBodyShank
 from host.errors import HostError
 from host.kinematics.accelerometer_pairs import (
@@ -34,7 +35,7 @@ def test_pair_difference_equation_5_holds_on_simulator_readings() -> None:
         n = rec.axes[a]
         assert np.array_equal(n, rec.axes[b])
         t = rec.positions_m[a] - rec.positions_m[b]
-        pred = (np.cross(al, t) + np.cross(w, np.cross(w, t))) @ n / 9.80665
+        pred = (np.cross(al, t) + np.cross(w, np.cross(w, t))) @ n / STANDARD_GRAVITY_M_S2
         np.testing.assert_allclose(rec.readings_g[:, a] - rec.readings_g[:, b], pred, atol=1e-14)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.poses import CalibrationPoses
 from host.accelerometer.calibration import AccCalibration
 from host.cli import main
@@ -52,7 +53,7 @@ def test_csv_in_g_with_header_time_column_and_units_from_names(tmp_path, capsys)
 
 
 def test_csv_in_m_s2_without_header(tmp_path, capsys):
-    acc = session_g(seed=1) * 9.80665
+    acc = session_g(seed=1) * STANDARD_GRAVITY_M_S2
     csv_path = write(tmp_path / "s.csv", None, acc)
     out = tmp_path / "cal.json"
     code, text, err = run_cli(capsys, str(csv_path), "--out", str(out), "--units", "m/s2", "--rate", "50")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.device import Logger
-from firmware_sim.world.base import Motion
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
 from host.accelerometer.calibration import AccCalibration
 from host.cli import main
 from host.files.recording import Recording
@@ -74,7 +74,7 @@ def test_decode_with_calibration_file(tmp_path):
 
 def test_record_replay_csv(tmp_path, capsys):
     t = np.arange(0, 60, 0.01)
-    acc_ms2 = np.c_[np.zeros_like(t), 9.80665 * np.sin(0.1 * t), 9.80665 * np.cos(0.1 * t)]
+    acc_ms2 = np.c_[np.zeros_like(t), STANDARD_GRAVITY_M_S2 * np.sin(0.1 * t), STANDARD_GRAVITY_M_S2 * np.cos(0.1 * t)]
     lines = ["time,ax,ay,az"] + [f"{a:.3f},{b:.5f},{c:.5f},{d:.5f}" for a, (b, c, d) in zip(t, acc_ms2)]
     (tmp_path / "walk.csv").write_text("\n".join(lines) + "\n")
     assert main(["record", "--motion", "replay", str(tmp_path / "walk.csv"), "--units", "m/s2", "--columns",

@@ -7,9 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.cli import main
 
-G = 9.80665
+G = STANDARD_GRAVITY_M_S2
 
 
 def walk_acc_g(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 40, amp_m: float = 0.02, seed: int = 0):

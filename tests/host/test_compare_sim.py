@@ -14,13 +14,13 @@ import pytest
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from host.gait.k_calibration import calibrate_on_sections
+from host.gait.sections import calibration_sets, sections_from_marks
 from host.studies.compare import (
     AnalogWalk,
     bootstrap_budget,
-    calibration_sets,
     compare_recording,
     compare_walk,
-    fit_k,
     match_steps,
     online_step_table,
     resampled_medians,
@@ -106,8 +106,8 @@ def test_one_k_fitted_on_the_offline_chain_is_used_by_every_chain(walk) -> None:
         for chain in ("ideal", "offline", "online-float", "online-fixed", "exact-timing"):
             assert wc.runs[chain].calibrations[mode] is wc.calibrations[mode]
     pools = calibration_sets([x for x in _sections(walk)])
-    k = fit_k(wc.runs["offline"].table, pools["multi-speed"], leg_length_m=s.leg_length_m,
-              foot_length_m=s.foot_length_m)
+    k = calibrate_on_sections(wc.runs["offline"].table, pools["multi-speed"], leg_length_m=s.leg_length_m,
+                              foot_length_m=s.foot_length_m)
     assert k.k_m2 == wc.calibrations["multi-speed"].k_m2 and k.k1_m5_m_s == wc.calibrations["multi-speed"].k1_m5_m_s
     raw, _ = online_step_table(walk.sw.codes(10), sampling_rate_hz=FS, leg_length_m=s.leg_length_m,
                                foot_length_m=s.foot_length_m, adc_calibration=walk.sw.calibration(10),
@@ -124,9 +124,7 @@ def test_one_k_fitted_on_the_offline_chain_is_used_by_every_chain(walk) -> None:
 
 
 def _sections(walk):
-    from host.studies.evaluation import sections_from_marks
-
-    return sections_from_marks(walk.sw.mark_times_s, walk.sw.truth["laps"], rate_hz=FS)
+    return sections_from_marks(walk.sw.mark_times_s, walk.sw.truth["laps"], sampling_rate_hz=FS)
 
 
 def test_arithmetic_share_done_criteria(walk) -> None:
@@ -225,7 +223,8 @@ def test_a_k_refitted_per_arithmetic_would_hide_the_scale_error(walk) -> None:
     dist = {}
     for name, ar, alg in (("float", "float", OnlineStepAlgorithm), ("scaled", "fixed", ScaledFixed)):
         raw, _ = online_step_table(codes, arithmetic=ar, algorithm=alg, **kw)
-        own_k = fit_k(raw, pools["multi-speed"], leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
+        own_k = calibrate_on_sections(raw, pools["multi-speed"], leg_length_m=s.leg_length_m,
+                                      foot_length_m=s.foot_length_m)
         table, _ = online_step_table(codes, arithmetic=ar, algorithm=alg, calibration=own_k, **kw)
         dist[name] = segment_distances(table, evaluated)
     real = np.array([x.real_m for x in evaluated])[:, None]

@@ -87,10 +87,19 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     assert d["format_version"] == "1.0" and d["cal_type"] == "gaitlog.KCalibration"
     d["format_version"] = "9.9"
     p.write_text(json.dumps(d))
-    with pytest.raises(HostError, match="format_version"):
+    with pytest.raises(HostError, match=r"format_version.*'9\.9' \(written by a newer gaitlog"):
+        KCalibration.load(p)
+    d["format_version"] = "0.9"
+    p.write_text(json.dumps(d))
+    with pytest.raises(HostError, match=r"'0\.9' \(re-run 'gaitlog calibrate-k'\)"):
+        KCalibration.load(p)
+    d["format_version"] = "1.0"
+    d["k_m1"] = "one"
+    p.write_text(json.dumps(d))
+    with pytest.raises(HostError, match="key 'k_m1' must be a number"):
         KCalibration.load(p)
     p.write_text("{not json")
-    with pytest.raises(HostError, match="not JSON"):
+    with pytest.raises(HostError, match="not valid JSON"):
         KCalibration.load(p)
     with pytest.raises(HostError, match="cannot read"):
         KCalibration.load(tmp_path / "missing.json")

@@ -15,6 +15,7 @@ from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walking import Walking
 from host.errors import HostError
+from host.gait.sections import section_fractions, sections_from_marks
 from host.studies.evaluation import (
     ESTIMATORS,
     MODES,
@@ -25,8 +26,6 @@ from host.studies.evaluation import (
     format_summary,
     match_events,
     paper_pattern,
-    section_fractions,
-    sections_from_marks,
     summarise,
 )
 

@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from firmware_sim.algorithms.parameters import EventParameters
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.gait.axes import body_axes
 from host.gait.events import GaitEventDetector
 from host.gait.masked_filter import gaussian_sigma_s, masked_gaussian_lowpass
 from host.gait.pipeline import StepPipeline
 
-G = 9.80665
+G = STANDARD_GRAVITY_M_S2
 
 
 def synthetic_walk(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 30, amp_m: float = 0.02,

@@ -14,10 +14,11 @@ import warnings
 import numpy as np
 import pytest
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.cli import main
 from host.studies.ipol_evaluation import evaluate_folder, replay_trial
 
-G = 9.80665
+G = STANDARD_GRAVITY_M_S2
 
 
 def write_ipol_trial(folder, subject, trial, *, n_steps=34, step_s=0.55, seed=0, lose=0.03):

@@ -16,7 +16,7 @@ HEADER = "PacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\n"
 def write_trial(folder, name="3-2", counters=(5, 6, 8, 9, 9, 12), meta=None):
     rows = []
     for c in counters:
-        rows.append(f"{float(c)}\t{9.80665 + c}\t{c * 0.1}\t0.5\t0\t0\t0\n")
+        rows.append(f"{float(c)}\t{STANDARD_GRAVITY_M_S2 + c}\t{c * 0.1}\t0.5\t0\t0\t0\n")
     (folder / f"{name}_lb.txt").write_text("Acquisition frequency: 100 Hz\n" + HEADER + "".join(rows))
     meta = meta or {"TrialBoundaries": [1, 6], "UTurnBoundaries": [3, 4], "Height": 170,
                     "LeftFootEvents": [[1, 3], [5, 9]], "RightFootEvents": [[2, 6]]}
@@ -31,7 +31,7 @@ def test_grid_marks_lost_packets_and_keeps_first_duplicate(tmp_path) -> None:
     assert acc.shape == (8, 3)                       # packets 5..12
     assert valid.tolist() == [True, True, False, True, True, False, False, True]
     assert np.isnan(acc[~valid]).all()               # nothing interpolated
-    assert acc[4, 0] * STANDARD_GRAVITY_M_S2 == pytest.approx(9.80665 + 9)
+    assert acc[4, 0] * STANDARD_GRAVITY_M_S2 == pytest.approx(STANDARD_GRAVITY_M_S2 + 9)
     assert acc[7, 1] * STANDARD_GRAVITY_M_S2 == pytest.approx(1.2)
 
 

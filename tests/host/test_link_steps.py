@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.device import Logger
-from firmware_sim.world.base import Motion
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
 from host.errors import HostError
 from host.link.logger_link import LoggerLink
 from protocol.steps import STEP_ADDRESS_BASE, StepConfig
@@ -21,7 +21,7 @@ CONFIG = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
 def image(tmp_path):
     """A device whose step memory holds some records (a 2 Hz bounce, tilted: the algorithm finds steps)."""
     t = np.arange(3000) / 50.0
-    a_v = 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / 9.80665
+    a_v = 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2
     acc = (1.0 + a_v)[:, None] * np.array([0.3, -0.2, 0.93])[None, :]
     logger = Logger(step_config=CONFIG)
     logger.record(Motion(acc_g=acc, rate_hz=50.0), start_time_s=1_700_000_000)

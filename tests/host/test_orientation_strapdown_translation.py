@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.rigid_body import RigidBodyShank
 from host.errors import HostError
 from host.kinematics.strapdown import (
@@ -20,7 +21,7 @@ def test_remove_gravity_against_scipy_rotation() -> None:
     rot = Rotation.random(50, random_state=1)
     rng = np.random.default_rng(1)
     a_space = rng.normal(size=(50, 3))  # m/s²
-    f_body = rot.inv().apply(a_space / 9.80665 + [0, 0, 1])  # what the accelerometer reads, g
+    f_body = rot.inv().apply(a_space / STANDARD_GRAVITY_M_S2 + [0, 0, 1])  # what the accelerometer reads, g
     np.testing.assert_allclose(remove_gravity(f_body, rot.as_matrix()), a_space, atol=1e-13)
     with pytest.raises(HostError, match="need acc_g"):
         remove_gravity(f_body, rot.as_matrix()[:10])
