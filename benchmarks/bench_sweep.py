@@ -64,7 +64,7 @@ def naive_pass_s() -> float:
         OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic=arithmetic).run(
             np.full((1000, 3), 512, np.int64))
     t = time.perf_counter()
-    res = Logger(adc=Adc(bits=10, rate_hz=50.0)).record(Walking(subject=s, seed=0))
+    res = Logger(adc=Adc(adc_bits=10, sampling_rate_hz=50.0)).record(Walking(subject=s, seed=0))
     codes = np.asarray(res.codes, np.int64)
     kw = dict(sampling_rate_hz=50.0, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
     offline_step_table(Calibration.nominal(10).apply(codes), **kw)

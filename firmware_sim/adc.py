@@ -11,7 +11,7 @@ Quantiser: ideal, ``code = floor((v − VREF-) / (VREF+ − VREF-) · 2^bits)`` 
 (input beyond the references gives the end codes; the amplifier output is also limited to the reference
 span, as a rail-to-rail op-amp on the same supply would be).
 
-Timer: the sample clock runs at ``rate_hz · (1 + timer_error_ppm·1e-6)``; sample ``k`` is taken at
+Timer: the sample clock runs at ``sampling_rate_hz · (1 + timer_error_ppm·1e-6)``; sample ``k`` is taken at
 ``t_first + k / rate_actual``. Sample-and-hold: the fine-grid analog signal is linearly interpolated at the
 sample instants (it is band-limited by the sensor filter, well below the fine-grid rate).
 """
@@ -25,7 +25,10 @@ import numpy as np
 from firmware_sim.errors import DeviceError
 from protocol.adc_bits import check_adc_bits
 
-__all__ = ["Adc"]
+#: The logger's sample-timer rate unless told otherwise (Alvarez et al. 2006: 50 Hz), Hz.
+DEFAULT_SAMPLING_RATE_HZ = 50.0
+
+__all__ = ["DEFAULT_SAMPLING_RATE_HZ", "Adc"]
 
 
 @dataclass(frozen=True)
@@ -34,9 +37,9 @@ class Adc:
 
     Parameters
     ----------
-    bits
+    adc_bits
         Resolution, 1 … 10 (codes are stored right-justified in 10-bit fields).
-    rate_hz
+    sampling_rate_hz
         Nominal sample rate of the timer, Hz.
     vref_low_v, vref_high_v
         Converter reference span (VREF-, VREF+), V.
@@ -56,8 +59,8 @@ class Adc:
     [[0, 1023, 1023]]
     """
 
-    bits: int = 10
-    rate_hz: float = 50.0
+    adc_bits: int = 10
+    sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ
     vref_low_v: float = 0.0
     vref_high_v: float = 5.0
     gain: float = 4.0
@@ -65,9 +68,9 @@ class Adc:
     timer_error_ppm: float = 0.0
 
     def __post_init__(self) -> None:
-        check_adc_bits(self.bits, what="ADC bits (10-bit storage fields)", error=DeviceError)
-        if not (self.rate_hz > 0 and np.isfinite(self.rate_hz)):
-            raise DeviceError(f"ADC rate_hz must be > 0, got {self.rate_hz!r}")
+        check_adc_bits(self.adc_bits, what="ADC bits (10-bit storage fields)", error=DeviceError)
+        if not (self.sampling_rate_hz > 0 and np.isfinite(self.sampling_rate_hz)):
+            raise DeviceError(f"ADC sampling_rate_hz must be > 0, got {self.sampling_rate_hz!r}")
         if not self.vref_high_v > self.vref_low_v:
             raise DeviceError(f"VREF+ ({self.vref_high_v} V) must be above VREF- ({self.vref_low_v} V)")
         if not (self.gain > 0 and abs(self.timer_error_ppm) < 1e5):
@@ -76,12 +79,12 @@ class Adc:
     @property
     def n_codes(self) -> int:
         """Number of codes, ``2^bits``."""
-        return 1 << int(self.bits)
+        return 1 << int(self.adc_bits)
 
     @property
     def actual_rate_hz(self) -> float:
-        """Rate of the real sample timer, ``rate_hz · (1 + ppm·1e-6)``."""
-        return self.rate_hz * (1.0 + self.timer_error_ppm * 1e-6)
+        """Rate of the real sample timer, ``sampling_rate_hz · (1 + ppm·1e-6)``."""
+        return self.sampling_rate_hz * (1.0 + self.timer_error_ppm * 1e-6)
 
     @property
     def lsb_v(self) -> float:
@@ -100,11 +103,11 @@ class Adc:
         codes = np.floor((v - self.vref_low_v) / self.lsb_v)
         return np.clip(codes, 0, self.n_codes - 1).astype(np.uint16)
 
-    def hold(self, sensor_v: np.ndarray, rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
-        """Sample-and-hold: the fine-grid signal ``sensor_v`` ``(n, 3)`` (rate ``rate_hz``, first sample at
+    def hold(self, sensor_v: np.ndarray, sampling_rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
+        """Sample-and-hold: the fine-grid signal ``sensor_v`` ``(n, 3)`` (rate ``sampling_rate_hz``, first sample at
         ``t0_s``) linearly interpolated at ``times_s``; returns ``(len(times_s), 3)`` volts."""
         v = np.asarray(sensor_v, dtype=np.float64)
-        x = (np.asarray(times_s, dtype=np.float64) - t0_s) * rate_hz
+        x = (np.asarray(times_s, dtype=np.float64) - t0_s) * sampling_rate_hz
         if v.shape[0] < 2:
             return np.repeat(v[:1], len(x), axis=0)
         vt = v.T  # axis-major: contiguous rows when v is the transposed output of the sensor model
@@ -119,6 +122,6 @@ class Adc:
         frac = np.clip(x - i, 0.0, 1.0)
         return (vt[:, i] * (1.0 - frac) + vt[:, i + 1] * frac).T
 
-    def sample(self, sensor_v: np.ndarray, rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
+    def sample(self, sensor_v: np.ndarray, sampling_rate_hz: float, t0_s: float, times_s: np.ndarray) -> np.ndarray:
         """:meth:`hold` then :meth:`convert`: ``(len(times_s), 3)`` ``uint16`` codes."""
-        return self.convert(self.hold(sensor_v, rate_hz, t0_s, times_s))
+        return self.convert(self.hold(sensor_v, sampling_rate_hz, t0_s, times_s))

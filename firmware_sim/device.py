@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.adc import Adc
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
 from firmware_sim.errors import DeviceError
 from firmware_sim.firmware import FIRMWARE_VERSION, Firmware
@@ -85,9 +85,10 @@ class Logger:
     sensor
         Sensor model; default :meth:`SensorModel.draw` seeded with ``device_id`` (one physical unit).
     adc
-        ADC settings; default ``Adc(rate_hz=sample_rate_hz)``.
-    sample_rate_hz
-        Sample-timer rate when ``adc`` is not given.
+        ADC settings; default ``Adc(sampling_rate_hz=sampling_rate_hz)``.
+    sampling_rate_hz
+        Sample-timer rate when ``adc`` is not given (None: :data:`firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`);
+        with ``adc``, None or the ADC's own rate.
     device_id
         Serial number written to the header.
     overwrite
@@ -115,17 +116,19 @@ class Logger:
         *,
         sensor: SensorModel | None = None,
         adc: Adc | None = None,
-        sample_rate_hz: float = 50.0,
+        sampling_rate_hz: float | None = None,
         device_id: int = 1,
         overwrite: bool = False,
         image_path: str | Path | None = None,
         live_acc_g: tuple[float, float, float] = (0.0, 0.0, 1.0),
         step_config: StepConfig | None = None,
     ) -> None:
-        if adc is not None and sample_rate_hz != 50.0 and abs(adc.rate_hz - sample_rate_hz) > 1e-9:
-            raise DeviceError(f"sample_rate_hz {sample_rate_hz} disagrees with adc.rate_hz {adc.rate_hz}")
+        if adc is not None and sampling_rate_hz is not None and abs(adc.sampling_rate_hz - sampling_rate_hz) > 1e-9:
+            raise DeviceError(f"sampling_rate_hz {sampling_rate_hz} disagrees with adc.sampling_rate_hz {adc.sampling_rate_hz}")
+        if adc is None:
+            adc = Adc(sampling_rate_hz=DEFAULT_SAMPLING_RATE_HZ if sampling_rate_hz is None else sampling_rate_hz)
         self.sensor = sensor if sensor is not None else SensorModel.draw(seed=int(device_id))
-        self.adc = adc if adc is not None else Adc(rate_hz=sample_rate_hz)
+        self.adc = adc
         self.overwrite = overwrite
         self.image_path = Path(image_path) if image_path is not None else None
         self.live_acc_g = np.asarray(live_acc_g, dtype=np.float64).reshape(1, 3)
@@ -134,8 +137,8 @@ class Logger:
         header = DeviceHeader(
             firmware_version=FIRMWARE_VERSION,
             device_id=int(device_id),
-            sampling_rate_millihz=int(round(self.adc.rate_hz * 1000)),
-            adc_bits=int(self.adc.bits),
+            sampling_rate_millihz=int(round(self.adc.sampling_rate_hz * 1000)),
+            adc_bits=int(self.adc.adc_bits),
             capacity_samples=CAPACITY_SAMPLES,
             adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
             step_capacity=STEP_CAPACITY_RECORDS,
@@ -229,7 +232,7 @@ class Logger:
         header, memory, step_memory, notes = _read_image(p)
         kwargs.setdefault("device_id", header.device_id)
         if "adc" not in kwargs:
-            kwargs["adc"] = Adc(rate_hz=header.sampling_rate_hz, bits=header.adc_bits)
+            kwargs["adc"] = Adc(sampling_rate_hz=header.sampling_rate_hz, adc_bits=header.adc_bits)
         logger = cls(**kwargs)
         logger._load(header, memory, step_memory, source=str(p))
         for note in notes:
@@ -297,7 +300,7 @@ class Logger:
             if not isinstance(motion, MotionSource):
                 raise DeviceError(f"record() needs a Motion or a MotionSource, got {type(motion).__name__}")
             motion = motion.render(self.sensor.internal_rate_hz)
-        acc, rate = motion.acc_g, motion.rate_hz
+        acc, rate = motion.acc_g, motion.sampling_rate_hz
         if abs(rate - self.sensor.internal_rate_hz) > 1e-9 * rate:
             acc, rate = resample_g(acc, rate, self.sensor.internal_rate_hz)
         volts = self.sensor.respond(acc, rate, noise=False)
@@ -341,7 +344,7 @@ class Logger:
 
 def _adc_truth(adc: Adc) -> dict[str, Any]:
     return {
-        "bits": adc.bits, "rate_hz": adc.rate_hz, "actual_rate_hz": adc.actual_rate_hz,
+        "bits": adc.adc_bits, "rate_hz": adc.sampling_rate_hz, "actual_rate_hz": adc.actual_rate_hz,
         "vref_low_v": adc.vref_low_v, "vref_high_v": adc.vref_high_v, "gain": adc.gain, "ref_v": adc.ref_v,
         "timer_error_ppm": adc.timer_error_ppm,
     }

@@ -87,7 +87,7 @@ def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ
         return None
     fs = header.sampling_rate_hz
     return OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=header.step_config, calibration=header.calibration,
-                               arithmetic="fixed", code_bits=header.adc_bits,
+                               arithmetic="fixed", adc_bits=header.adc_bits,
                                cycles_available=algorithm_cycles_per_sample(fs, fosc_hz))
 
 

@@ -264,15 +264,15 @@ class SensorModel:
         return out
 
     # ------------------------------------------------------------------ action
-    def respond(self, acc_g: np.ndarray, rate_hz: float, *, rng: np.random.Generator | None = None,
+    def respond(self, acc_g: np.ndarray, sampling_rate_hz: float, *, rng: np.random.Generator | None = None,
                 noise: bool = True, zi_settled: bool = True) -> np.ndarray:
-        """Analog output voltages ``(n, 3)`` for a true specific force ``acc_g`` ``(n, 3)`` sampled at ``rate_hz``.
+        """Analog output voltages ``(n, 3)`` for a true specific force ``acc_g`` ``(n, 3)`` sampled at ``sampling_rate_hz``.
 
         Parameters
         ----------
         acc_g
             True specific force along the device's nominal axes, g, on a regular grid.
-        rate_hz
+        sampling_rate_hz
             Rate of ``acc_g``; should be well above the filter cut-off (``internal_rate_hz`` is the
             design value). The signal path's RC filter is discretised by the bilinear transform with
             pre-warping (exact at the cut-off frequency, within 3 % of the analog RC up to twice the
@@ -290,8 +290,8 @@ class SensorModel:
         a = np.asarray(acc_g, dtype=np.float64)
         if a.ndim != 2 or a.shape[1] != 3:
             raise DeviceError(f"acc_g must have shape (n, 3), got {a.shape}")
-        if np.any(self.cutoff_hz >= rate_hz / 2):
-            raise DeviceError(f"input rate {rate_hz} Hz too low for a {self.cutoff_hz.max():.1f} Hz filter")
+        if np.any(self.cutoff_hz >= sampling_rate_hz / 2):
+            raise DeviceError(f"input rate {sampling_rate_hz} Hz too low for a {self.cutoff_hz.max():.1f} Hz filter")
         # work axis-major (3, n): each axis is one contiguous row for the projection and the filter
         if np.array_equal(self.axes, np.eye(3)):
             r = np.ascontiguousarray(a.T)  # element input, g along each sensitive axis
@@ -300,7 +300,7 @@ class SensorModel:
         if r.size and (r.max() > self.range_g or r.min() < -self.range_g):
             np.clip(r, -self.range_g, self.range_g, out=r)
         # one first-order IIR per axis (the RC filter is genuinely recursive)
-        designs = [signal.butter(1, fc, btype="low", fs=rate_hz) for fc in self.cutoff_hz]
+        designs = [signal.butter(1, fc, btype="low", fs=sampling_rate_hz) for fc in self.cutoff_hz]
         if all(np.array_equal(designs[0][0], d[0]) and np.array_equal(designs[0][1], d[1]) for d in designs):
             b, den = designs[0]
             zi = signal.lfilter_zi(b, den)[None, :] * (r[:, :1] if (zi_settled and r.shape[1]) else 0.0)
@@ -311,7 +311,7 @@ class SensorModel:
                 zi = signal.lfilter_zi(b, den) * (r[j, 0] if (zi_settled and r.shape[1]) else 0.0)
                 out[j], _ = signal.lfilter(b, den, r[j], zi=zi)
         if noise and a.shape[0]:
-            out += self.noise_g(np.arange(a.shape[0]) / rate_hz, rng=rng).T
+            out += self.noise_g(np.arange(a.shape[0]) / sampling_rate_hz, rng=rng).T
         out *= self.gain_v_per_g[:, None]
         out += (self.zero_g_v + self.gain_v_per_g * self.offset_g)[:, None]
         return out.T

@@ -30,7 +30,7 @@ def motion(n: int, seed: int = 0) -> Motion:
     ph = rng.uniform(0, 2 * np.pi, 3)
     acc = np.c_[np.sin(0.05 * t + ph[0]), 0.6 * np.sin(0.031 * t + ph[1]), np.cos(0.05 * t + ph[0])]
     acc += 0.3 * np.sin(2 * np.pi * 1.3 * t[:, None] + ph)
-    return Motion(acc_g=acc, rate_hz=50.0, marker_times_s=np.array([1.0, 7.5]))
+    return Motion(acc_g=acc, sampling_rate_hz=50.0, marker_times_s=np.array([1.0, 7.5]))
 
 
 def recorded(tmp: Path, n: int, *, overwrite: bool = False, seed: int = 0):

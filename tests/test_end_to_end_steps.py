@@ -187,7 +187,7 @@ def test_wrapped_sample_memory_with_records_dumps_both(tmp_path, capsys):
     n = 65536 + 700
     t = np.arange(n) / 50.0
     acc = np.c_[0.1 * np.sin(0.05 * t), 0.1 * np.cos(0.031 * t), 1.0 + 0.02 * np.sin(0.7 * t)]
-    logger.record(Motion(acc_g=acc, rate_hz=50.0), start_time_s=START_S + 3600)
+    logger.record(Motion(acc_g=acc, sampling_rate_hz=50.0), start_time_s=START_S + 3600)
     assert logger.header.wrapped and logger.header.steps_written > 40
     records = device_records(logger)
     logger.save_image(tmp_path / "wrapped.glimg")

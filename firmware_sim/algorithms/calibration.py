@@ -36,26 +36,26 @@ class CalibrationQ:
     Attributes
     ----------
     offset_raw
-        ``(3,)`` offsets, raw ``centred_q(code_bits)`` (Q10.5 for 10-bit codes).
+        ``(3,)`` offsets, raw ``centred_q(adc_bits)`` (Q10.5 for 10-bit codes).
     mantissa_raw
         ``(3, 3)`` matrix mantissas, raw Q0.15.
     matrix_frac_bits
         Fraction bits of the matrix entries (``15 + e``).
-    code_bits
+    adc_bits
         Width of the codes (10: the PIC's converter and PROTOCOL.md's fields; up to 12 for the sweep).
     """
 
     offset_raw: np.ndarray
     mantissa_raw: np.ndarray
     matrix_frac_bits: int
-    code_bits: int = 10
+    adc_bits: int = 10
 
     @classmethod
-    def from_slot(cls, offset_q16: np.ndarray, matrix_q30: np.ndarray, *, code_bits: int = 10) -> CalibrationQ:
+    def from_slot(cls, offset_q16: np.ndarray, matrix_q30: np.ndarray, *, adc_bits: int = 10) -> CalibrationQ:
         """From the header slot's integers (``offset_q16`` (3,), ``matrix_q30`` (3, 3) or (9,))."""
         off = np.asarray(offset_q16, np.int64).reshape(3)
         m = np.asarray(matrix_q30, np.int64).reshape(3, 3)
-        offset_raw = requantize(off, SLOT_OFFSET_Q, centred_q(code_bits))
+        offset_raw = requantize(off, SLOT_OFFSET_Q, centred_q(adc_bits))
         big = int(np.max(np.abs(m)))
         if big == 0:
             raise ValueError("calibration matrix is all zeros")
@@ -65,25 +65,25 @@ class CalibrationQ:
             drop += 1
         frac = SLOT_MATRIX_Q.frac_bits - drop
         mant = requantize(m, SLOT_MATRIX_Q, QFormat(15 - frac, frac))
-        return cls(offset_raw, mant, frac, int(code_bits))
+        return cls(offset_raw, mant, frac, int(adc_bits))
 
     @classmethod
     def from_float(cls, offset_counts: np.ndarray, matrix_g_per_count: np.ndarray, *,
-                   code_bits: int = 10) -> CalibrationQ:
+                   adc_bits: int = 10) -> CalibrationQ:
         """From float parameters, through the slot's Q15.16 / Q1.30 words (as the device receives them)."""
         off = SLOT_OFFSET_Q.from_float(np.asarray(offset_counts, np.float64).reshape(3))
         m = SLOT_MATRIX_Q.from_float(np.asarray(matrix_g_per_count, np.float64).reshape(3, 3))
-        return cls.from_slot(off, m, code_bits=code_bits)
+        return cls.from_slot(off, m, adc_bits=adc_bits)
 
     @classmethod
-    def from_protocol(cls, calibration: object, *, code_bits: int = 10) -> CalibrationQ:
+    def from_protocol(cls, calibration: object, *, adc_bits: int = 10) -> CalibrationQ:
         """From a :class:`protocol.header.Calibration` (its ``offset_counts`` and ``matrix_g_per_count``)."""
-        return cls.from_float(calibration.offset_counts, calibration.matrix_g_per_count, code_bits=code_bits)
+        return cls.from_float(calibration.offset_counts, calibration.matrix_g_per_count, adc_bits=adc_bits)
 
     @property
     def offset_counts(self) -> np.ndarray:
         """The offsets the PIC uses, counts (float)."""
-        return centred_q(self.code_bits).to_float(self.offset_raw)
+        return centred_q(self.adc_bits).to_float(self.offset_raw)
 
     @property
     def matrix_g_per_count(self) -> np.ndarray:
@@ -103,4 +103,4 @@ def nominal_calibration_q(*, adc_bits: int = 10) -> CalibrationQ:
     """
     check_adc_bits(adc_bits, max_bits=MAX_SIMULATED_ADC_BITS, error=ValueError)
     return CalibrationQ.from_float(np.full(3, 2.0 ** (adc_bits - 1)), np.eye(3) * 4.0 / 2.0 ** adc_bits,
-                                   code_bits=adc_bits)
+                                   adc_bits=adc_bits)

@@ -63,8 +63,8 @@ M5_Q = QFormat(15, 16, word_bits=32)
 MANTISSA_Q = QFormat(0, 15)
 
 
-def centred_q(code_bits: int) -> QFormat:
-    """Format of calibration offsets and centred codes for ``code_bits``-bit codes: ``Q{b}.{15-b}``.
+def centred_q(adc_bits: int) -> QFormat:
+    """Format of calibration offsets and centred codes for ``adc_bits``-bit codes: ``Q{b}.{15-b}``.
 
     Codes of up to 10 bits live in the 10-bit fields of PROTOCOL.md (Q10.5); the 12-bit case is the sweep's
     hypothetical external converter (Q12.3: the same 1/32 of a 10-bit count).
@@ -72,9 +72,9 @@ def centred_q(code_bits: int) -> QFormat:
     >>> str(centred_q(10)), str(centred_q(12))
     ('Q10.5/16', 'Q12.3/16')
     """
-    if not 1 <= code_bits <= 14:
-        raise ValueError(f"code width must be 1 .. 14 bits, got {code_bits}")
-    b = max(10, int(code_bits))
+    if not 1 <= adc_bits <= 14:
+        raise ValueError(f"code width must be 1 .. 14 bits, got {adc_bits}")
+    b = max(10, int(adc_bits))
     return QFormat(b, 15 - b)
 
 

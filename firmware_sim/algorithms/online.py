@@ -134,7 +134,7 @@ class OnlineConfig:
     arithmetic: str
     counts: SampleCounts
     step_config: StepConfig
-    code_bits: int
+    adc_bits: int
     cfg_i: np.ndarray
     cfg_v: np.ndarray
 
@@ -145,7 +145,7 @@ class OnlineConfig:
 
     @classmethod
     def build(cls, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
-              arithmetic: str = "fixed", code_bits: int = 10, events: EventParameters | None = None,
+              arithmetic: str = "fixed", adc_bits: int = 10, events: EventParameters | None = None,
               online: OnlineParameters | None = None, cycles_available: float | None = None) -> OnlineConfig:
         """The configuration of the algorithm.
 
@@ -153,10 +153,10 @@ class OnlineConfig:
         ----------
         calibration
             The device calibration (``offset_counts``, ``matrix_g_per_count``: a
-            :class:`protocol.header.Calibration`) or None for the nominal map of ``code_bits`` (±2 g).
+            :class:`protocol.header.Calibration`) or None for the nominal map of ``adc_bits`` (±2 g).
         step_config
             Leg, foot, K constants (:class:`protocol.steps.StepConfig`); used as stored (quantised).
-        code_bits
+        adc_bits
             Width of the ADC codes (10 on the device; 8-12 for the sweep's hypothetical converters).
         cycles_available
             PIC cycles per sample period left to the algorithm (for the backlog figure only; default: the
@@ -171,8 +171,8 @@ class OnlineConfig:
         sc = step_config.quantised()
         if not sc.leg_length_m > 0:
             raise ValueError("the step configuration needs a leg length > 0")
-        cal_q = (CalibrationQ.from_protocol(calibration, code_bits=code_bits) if calibration is not None
-                 else nominal_calibration_q(adc_bits=code_bits))
+        cal_q = (CalibrationQ.from_protocol(calibration, adc_bits=adc_bits) if calibration is not None
+                 else nominal_calibration_q(adc_bits=adc_bits))
         halves = [_gaussian_half(ev.ff_cutoff_hz, fs, c.r3), _gaussian_half(ev.detail_cutoff_hz, fs, c.r10),
                   _gaussian_half(ev.impact_cutoff_hz, fs, c.r5)]
         w10 = kernel.CV_W3 + c.r3 + 1
@@ -192,7 +192,7 @@ class OnlineConfig:
         for name, value in dict(R3=c.r3, R10=c.r10, R5=c.r5, MIN_STEP=c.min_step, MAX_STEP=c.max_step,
                                 HS_BEFORE=c.hs_before, HS_AFTER=c.hs_after, HS_DELAY=c.hs_delay, TO_SPAN=c.to_span,
                                 G_SHIFT=c.gravity_shift, N_MED=c.median_steps, FRACTION=c.fraction_scaled,
-                                CODE_FRAC=centred_q(code_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
+                                CODE_FRAC=centred_q(adc_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
                                 SCRATCH=_scratch_size(c), W10=w10, W5=w5,
                                 BUDGET=int(cycles_available if cycles_available is not None
@@ -227,8 +227,8 @@ class OnlineConfig:
                 K1FS=k1_m5 * fs, K2M5=k2_m5, UNIT=unit,
             )
             slot = calibration.quantised() if calibration is not None else None
-            off = slot.offset_counts if slot is not None else np.full(3, 2.0 ** (code_bits - 1))
-            mat = slot.matrix_g_per_count if slot is not None else np.eye(3) * 4.0 / 2 ** code_bits
+            off = slot.offset_counts if slot is not None else np.full(3, 2.0 ** (adc_bits - 1))
+            mat = slot.matrix_g_per_count if slot is not None else np.eye(3) * 4.0 / 2 ** adc_bits
             cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = off
             cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(mat, np.float64).reshape(9)
             weights = halves
@@ -241,7 +241,7 @@ class OnlineConfig:
             for name in ("TWO_LEG", "FOOT", "K1", "K2", "K4"):
                 if not 0 <= cfg_v[kernel.CV[name]] <= 0xFFFF:
                     raise ValueError(f"step configuration: {name} does not fit its 16-bit word")
-        return cls(arithmetic, c, sc, int(code_bits), cfg_i, cfg_v)
+        return cls(arithmetic, c, sc, int(adc_bits), cfg_i, cfg_v)
 
 
 @dataclass(eq=False)
@@ -398,7 +398,7 @@ class OnlineStepAlgorithm:
         Device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
     arithmetic
         ``"fixed"`` (the PIC's, as the logger computes it) or ``"float"``.
-    code_bits, events, online, cycles_available
+    adc_bits, events, online, cycles_available
         See :meth:`OnlineConfig.build`.
 
     Attributes
@@ -410,10 +410,10 @@ class OnlineStepAlgorithm:
     """
 
     def __init__(self, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
-                 arithmetic: str = "fixed", code_bits: int = 10, events: EventParameters | None = None,
+                 arithmetic: str = "fixed", adc_bits: int = 10, events: EventParameters | None = None,
                  online: OnlineParameters | None = None, cycles_available: float | None = None) -> None:
         self.config = OnlineConfig.build(sampling_rate_hz=sampling_rate_hz, step_config=step_config,
-                                         calibration=calibration, arithmetic=arithmetic, code_bits=code_bits,
+                                         calibration=calibration, arithmetic=arithmetic, adc_bits=adc_bits,
                                          events=events, online=online, cycles_available=cycles_available)
         c = self.config.counts
         dt = self.config.value_dtype
@@ -506,7 +506,7 @@ class OnlineStepAlgorithm:
         c = np.asarray(codes)
         if c.ndim != 2 or c.shape[1] != 3:
             raise ValueError(f"codes must have shape (n, 3), got {c.shape}")
-        top = (1 << max(10, self.config.code_bits)) - 1
+        top = (1 << max(10, self.config.adc_bits)) - 1
         if c.size and (c.min() < 0 or c.max() > top):
             raise ValueError(f"ADC codes must be 0 .. {top}")
         out_i, out_v = self._outputs(c.shape[0])

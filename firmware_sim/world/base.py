@@ -27,7 +27,7 @@ class Motion:
     ----------
     acc_g
         ``(n, 3)`` float64 specific force in g along the nominal device axes, gravity included.
-    rate_hz
+    sampling_rate_hz
         Sampling rate of ``acc_g`` in Hz.
     t0_s
         Time of the first sample in seconds (the source's own clock; 0 unless a source says otherwise).
@@ -40,7 +40,7 @@ class Motion:
     """
 
     acc_g: np.ndarray
-    rate_hz: float
+    sampling_rate_hz: float
     t0_s: float = 0.0
     truth: Mapping[str, Any] = field(default_factory=dict)
     marker_times_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -51,8 +51,8 @@ class Motion:
             raise ValueError(f"Motion.acc_g must have shape (n, 3), got {acc.shape}")
         if not np.isfinite(acc).all():
             raise ValueError("Motion.acc_g contains NaN or infinite values")
-        if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ValueError(f"Motion.rate_hz must be a positive number, got {self.rate_hz!r}")
+        if not (np.isfinite(self.sampling_rate_hz) and self.sampling_rate_hz > 0):
+            raise ValueError(f"Motion.sampling_rate_hz must be a positive number, got {self.sampling_rate_hz!r}")
         object.__setattr__(self, "acc_g", acc)
         object.__setattr__(self, "marker_times_s", np.asarray(self.marker_times_s, dtype=np.float64))
 
@@ -63,13 +63,13 @@ class Motion:
 
     @property
     def duration_s(self) -> float:
-        """Duration covered by the samples, ``n / rate_hz``, in seconds."""
-        return self.n_samples / self.rate_hz
+        """Duration covered by the samples, ``n / sampling_rate_hz``, in seconds."""
+        return self.n_samples / self.sampling_rate_hz
 
     @property
     def t_s(self) -> np.ndarray:
         """Sample times in seconds, shape ``(n,)``."""
-        return self.t0_s + np.arange(self.n_samples) / self.rate_hz
+        return self.t0_s + np.arange(self.n_samples) / self.sampling_rate_hz
 
 
 @runtime_checkable
@@ -80,6 +80,6 @@ class MotionSource(Protocol):
     motion) and do the work in :meth:`render`.
     """
 
-    def render(self, rate_hz: float) -> Motion:
-        """Return the motion sampled at ``rate_hz`` (the sensor model's internal rate)."""
+    def render(self, sampling_rate_hz: float) -> Motion:
+        """Return the motion sampled at ``sampling_rate_hz`` (the sensor model's internal rate)."""
         ...

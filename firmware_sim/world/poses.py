@@ -137,8 +137,8 @@ class CalibrationPoses:
         moves = np.c_[holds[:-1, 1], holds[1:, 0]]
         return holds, moves
 
-    def render(self, rate_hz: float) -> Motion:
-        """Sample the pose sequence at ``rate_hz``.
+    def render(self, sampling_rate_hz: float) -> Motion:
+        """Sample the pose sequence at ``sampling_rate_hz``.
 
         Returns
         -------
@@ -148,17 +148,17 @@ class CalibrationPoses:
             reads: the unit "up" vector), ``gravity_g`` (its negative: gravity in device axes),
             ``hold_windows_s``, ``move_windows_s`` and ``moving`` (per-sample bool).
         """
-        if not (rate_hz > 0 and np.isfinite(rate_hz)):
-            raise DeviceError(f"rate_hz must be positive, got {rate_hz!r}")
+        if not (sampling_rate_hz > 0 and np.isfinite(sampling_rate_hz)):
+            raise DeviceError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         rots = self.pose_rotations()
         holds, moves = self.windows_s()
         n = len(rots)
         up_dev = rots.inv().apply(_UP).reshape(n, 3)
         duration_s = float(holds[-1, 1])
-        n_samples = int(np.floor(duration_s * rate_hz + 1e-9))
+        n_samples = int(np.floor(duration_s * sampling_rate_hz + 1e-9))
         # sample index where each hold and each move begins (first sample at or after the time)
-        hold_first = np.minimum(np.ceil(holds[:, 0] * rate_hz - 1e-9).astype(np.int64), n_samples)
-        move_first = np.minimum(np.ceil(moves[:, 0] * rate_hz - 1e-9).astype(np.int64), n_samples)
+        hold_first = np.minimum(np.ceil(holds[:, 0] * sampling_rate_hz - 1e-9).astype(np.int64), n_samples)
+        move_first = np.minimum(np.ceil(moves[:, 0] * sampling_rate_hz - 1e-9).astype(np.int64), n_samples)
         counts = np.diff(np.r_[hold_first, n_samples])
         acc = np.repeat(up_dev, counts, axis=0)  # every sample at its pose's vector ...
         moving = np.zeros(n_samples, dtype=bool)
@@ -171,7 +171,7 @@ class CalibrationPoses:
                 if b <= a:
                     continue
                 moving[a:b] = True
-                u = (np.arange(a, b) / rate_hz - moves[i, 0]) / self.move_s
+                u = (np.arange(a, b) / sampling_rate_hz - moves[i, 0]) / self.move_s
                 s = minimum_jerk(u)
                 theta = float(np.linalg.norm(rel[i]))
                 k = rel[i] / theta if theta > 0 else np.zeros(3)
@@ -190,4 +190,4 @@ class CalibrationPoses:
             "moving": moving,
             "seed": self.seed,
         }
-        return Motion(acc_g=acc, rate_hz=float(rate_hz), t0_s=0.0, truth=truth, marker_times_s=markers)
+        return Motion(acc_g=acc, sampling_rate_hz=float(sampling_rate_hz), t0_s=0.0, truth=truth, marker_times_s=markers)

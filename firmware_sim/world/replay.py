@@ -16,7 +16,7 @@ Two file formats are read by :meth:`Replay.from_file`:
 - **CSV**: comma-separated (or ``;``/tab), optional header lines; three acceleration columns chosen by
   ``columns`` (names or 0-based indices; default: the first three numeric columns of the first data row,
   or columns named like ``x``/``acc_x``), and either a time column in seconds (``time_column``) or a rate
-  (``rate_hz``). With a time column the rows are put on a regular grid at the median step; gaps longer
+  (``sampling_rate_hz``). With a time column the rows are put on a regular grid at the median step; gaps longer
   than 1.5 steps are interpolated and reported like lost packets.
 
 Units: ``"g"``, ``"m/s^2"`` or ``"auto"`` (mean norm near 1 -> g, near 9.8 -> m/s^2; anything else is an
@@ -108,7 +108,7 @@ class Replay:
     ----------
     acc_g
         ``(n, 3)`` specific force in g on a regular grid, gravity included, device axes.
-    rate_hz
+    sampling_rate_hz
         Rate of ``acc_g`` in Hz.
     t0_s
         Time of the first sample, seconds.
@@ -121,8 +121,8 @@ class Replay:
     --------
     >>> t = np.arange(1000) / 100.0
     >>> acc = np.c_[0.1 * np.sin(2 * np.pi * t), np.zeros_like(t), np.ones_like(t)]
-    >>> m = Replay(acc, rate_hz=100.0).render(500.0)
-    >>> m.n_samples, m.rate_hz
+    >>> m = Replay(acc, sampling_rate_hz=100.0).render(500.0)
+    >>> m.n_samples, m.sampling_rate_hz
     (5000, 500.0)
     """
 
@@ -130,25 +130,25 @@ class Replay:
         self,
         acc_g: np.ndarray,
         *,
-        rate_hz: float,
+        sampling_rate_hz: float,
         t0_s: float = 0.0,
         truth: Mapping[str, Any] | None = None,
         marker_times_s: np.ndarray | Sequence[float] = (),
     ) -> None:
         self.acc_g = np.asarray(acc_g, dtype=np.float64)
-        self.rate_hz = float(rate_hz)
+        self.sampling_rate_hz = float(sampling_rate_hz)
         self.t0_s = float(t0_s)
         self.truth = dict(truth or {})
         self.marker_times_s = np.asarray(marker_times_s, dtype=np.float64)
 
-    def render(self, rate_hz: float) -> Motion:
-        """The recording resampled to ``rate_hz`` (anti-aliased; the exact achieved rate is in the Motion)."""
+    def render(self, sampling_rate_hz: float) -> Motion:
+        """The recording resampled to ``sampling_rate_hz`` (anti-aliased; the exact achieved rate is in the Motion)."""
         if self.acc_g.ndim != 2 or self.acc_g.shape[1] != 3 or self.acc_g.shape[0] < 2:
             raise DeviceError(f"replay needs an (n >= 2, 3) acceleration array, got {self.acc_g.shape}")
-        acc, rate = resample_g(self.acc_g, self.rate_hz, rate_hz)
+        acc, rate = resample_g(self.acc_g, self.sampling_rate_hz, sampling_rate_hz)
         truth = dict(self.truth)
-        truth.setdefault("source_rate_hz", self.rate_hz)
-        return Motion(acc_g=acc, rate_hz=rate, t0_s=self.t0_s, truth=truth, marker_times_s=self.marker_times_s)
+        truth.setdefault("source_rate_hz", self.sampling_rate_hz)
+        return Motion(acc_g=acc, sampling_rate_hz=rate, t0_s=self.t0_s, truth=truth, marker_times_s=self.marker_times_s)
 
     @property
     def n_interpolated(self) -> int:
@@ -156,13 +156,13 @@ class Replay:
         return int(self.truth.get("n_filled", 0))
 
     @classmethod
-    def from_samples(cls, acc_g: np.ndarray, valid: np.ndarray, *, rate_hz: float, source: str = "recording",
+    def from_samples(cls, acc_g: np.ndarray, valid: np.ndarray, *, sampling_rate_hz: float, source: str = "recording",
                      marker_times_s: np.ndarray | Sequence[float] = ()) -> Replay:
         """A recording on a regular grid with missing samples (``valid`` False): the holes are interpolated
         linearly, as the physical input was continuous, and reported (``truth["n_filled"]``,
         :attr:`n_interpolated`, ``filled_ranges_s``).
 
-        >>> r = Replay.from_samples(np.ones((5, 3)), np.array([1, 0, 0, 1, 1], bool), rate_hz=10.0)
+        >>> r = Replay.from_samples(np.ones((5, 3)), np.array([1, 0, 0, 1, 1], bool), sampling_rate_hz=10.0)
         >>> r.n_interpolated, r.truth["filled_packets"].tolist()
         (2, [[1, 2]])
         """
@@ -171,9 +171,9 @@ class Replay:
         if idx.size < 2:
             raise DeviceError(f"{source}: fewer than 2 measured samples to replay")
         grid, filled = regular_grid(idx, np.asarray(acc_g, np.float64)[idx])
-        truth = _fill_truth(filled, float(rate_hz))
+        truth = _fill_truth(filled, float(sampling_rate_hz))
         truth.update(source=source, first_sample=int(idx[0]))
-        return cls(grid, rate_hz=float(rate_hz), t0_s=idx[0] / float(rate_hz), truth=truth,
+        return cls(grid, sampling_rate_hz=float(sampling_rate_hz), t0_s=idx[0] / float(sampling_rate_hz), truth=truth,
                    marker_times_s=marker_times_s)
 
     # -- file readers -------------------------------------------------------------------------------------
@@ -183,7 +183,7 @@ class Replay:
         path: str | Path,
         *,
         units: str = "auto",
-        rate_hz: float | None = None,
+        sampling_rate_hz: float | None = None,
         columns: Sequence[str | int] | None = None,
         time_column: str | int | None = None,
         delimiter: str | None = None,
@@ -196,7 +196,7 @@ class Replay:
             The recording.
         units
             ``"g"``, ``"m/s^2"`` or ``"auto"``.
-        rate_hz
+        sampling_rate_hz
             Sample rate of a CSV without time column (overrides the IPOL first line if given).
         columns
             Three acceleration columns (header names or 0-based indices), x, y, z in device axes.
@@ -218,14 +218,14 @@ class Replay:
             raise DeviceError(f"{p}: cannot read recording: {err.strerror or err}") from err
         first = text.split("\n", 1)[0]
         if _IPOL_FIRST.match(first):
-            return cls._from_ipol(p, text, units=units, rate_hz=rate_hz, columns=columns)
+            return cls._from_ipol(p, text, units=units, sampling_rate_hz=sampling_rate_hz, columns=columns)
         return cls._from_csv(
-            p, text, units=units, rate_hz=rate_hz, columns=columns, time_column=time_column, delimiter=delimiter
+            p, text, units=units, sampling_rate_hz=sampling_rate_hz, columns=columns, time_column=time_column, delimiter=delimiter
         )
 
     @classmethod
     def _from_ipol(
-        cls, p: Path, text: str, *, units: str, rate_hz: float | None, columns: Sequence[str | int] | None
+        cls, p: Path, text: str, *, units: str, sampling_rate_hz: float | None, columns: Sequence[str | int] | None
     ) -> Replay:
         lines = text.splitlines()
         file_rate = float(_IPOL_FIRST.match(lines[0]).group(1))  # type: ignore[union-attr]
@@ -255,7 +255,7 @@ class Replay:
         grid, acc_raw = grid[keep], data[keep][:, idx]
         acc, used = to_g(acc_raw, units, source=str(p))
         acc_grid, filled = regular_grid(grid, acc)
-        rate = float(rate_hz) if rate_hz is not None else file_rate
+        rate = float(sampling_rate_hz) if sampling_rate_hz is not None else file_rate
         truth = _fill_truth(filled, rate)
         truth.update(
             source=str(p), format="ipol", units=used, first_packet_counter=int(grid[0]),
@@ -267,7 +267,7 @@ class Replay:
                 truth["ipol_meta"] = json.loads(meta.read_text())
             except (OSError, ValueError) as err:
                 warnings.warn(f"{meta}: metadata not read ({err})", stacklevel=3)
-        return cls(acc_grid, rate_hz=rate, truth=truth)
+        return cls(acc_grid, sampling_rate_hz=rate, truth=truth)
 
     @classmethod
     def _from_csv(
@@ -276,7 +276,7 @@ class Replay:
         text: str,
         *,
         units: str,
-        rate_hz: float | None,
+        sampling_rate_hz: float | None,
         columns: Sequence[str | int] | None,
         time_column: str | int | None,
         delimiter: str | None,
@@ -329,24 +329,24 @@ class Replay:
                 k = int(np.flatnonzero(dt <= 0)[0])
                 raise DeviceError(f"{p}: line {start + k + 2}: time does not increase ({t[k]} -> {t[k + 1]})")
             step = float(np.median(dt))
-            rate = float(rate_hz) if rate_hz is not None else 1.0 / step
+            rate = float(sampling_rate_hz) if sampling_rate_hz is not None else 1.0 / step
             pos = np.round((t - t[0]) * rate).astype(np.int64)
             keep = np.r_[True, np.diff(pos) > 0]
             acc_grid, filled = regular_grid(pos[keep], acc[keep])
             truth.update(_fill_truth(filled, rate))
-            return cls(acc_grid, rate_hz=rate, t0_s=float(t[0]), truth=truth)
-        if rate_hz is None:
-            raise DeviceError(f"{p}: no time column given: pass rate_hz (the sample rate of the file)")
-        truth.update(_fill_truth(np.zeros(acc.shape[0], dtype=bool), float(rate_hz)))
-        return cls(acc, rate_hz=float(rate_hz), truth=truth)
+            return cls(acc_grid, sampling_rate_hz=rate, t0_s=float(t[0]), truth=truth)
+        if sampling_rate_hz is None:
+            raise DeviceError(f"{p}: no time column given: pass sampling_rate_hz (the sample rate of the file)")
+        truth.update(_fill_truth(np.zeros(acc.shape[0], dtype=bool), float(sampling_rate_hz)))
+        return cls(acc, sampling_rate_hz=float(sampling_rate_hz), truth=truth)
 
 
-def _fill_truth(filled: np.ndarray, rate_hz: float) -> dict[str, Any]:
+def _fill_truth(filled: np.ndarray, sampling_rate_hz: float) -> dict[str, Any]:
     r = _ranges(filled)
     return {
         "filled": filled,
         "filled_packets": r,
-        "filled_ranges_s": r / rate_hz + np.array([0.0, 1.0 / rate_hz]) * (r.size > 0),
+        "filled_ranges_s": r / sampling_rate_hz + np.array([0.0, 1.0 / sampling_rate_hz]) * (r.size > 0),
         "n_filled": int(filled.sum()),
     }
 

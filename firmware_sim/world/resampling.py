@@ -52,7 +52,7 @@ def resample_g(acc_g: np.ndarray, rate_in_hz: float, rate_out_hz: float) -> tupl
     -------
     resampled : numpy.ndarray
         ``(m, k)`` float64, ``m = ceil(n * up / down)``; sample 0 is at the same time as input sample 0.
-    rate_hz : float
+    sampling_rate_hz : float
         The exact output rate ``rate_in_hz * up / down``.
 
     Notes
@@ -72,10 +72,10 @@ def resample_g(acc_g: np.ndarray, rate_in_hz: float, rate_out_hz: float) -> tupl
     if x.ndim != 2:
         raise DeviceError(f"resample_g expects an (n, k) array, got shape {x.shape}")
     up, down = rate_ratio(rate_in_hz, rate_out_hz)
-    rate_hz = rate_in_hz * up / down
+    sampling_rate_hz = rate_in_hz * up / down
     if up == down:
         return x.copy(), float(rate_in_hz)
     if x.shape[0] < 2:
         raise DeviceError(f"need at least 2 samples to resample, got {x.shape[0]}")
     y = signal.resample_poly(x, up, down, axis=0, padtype="line")
-    return np.ascontiguousarray(y), float(rate_hz)
+    return np.ascontiguousarray(y), float(sampling_rate_hz)

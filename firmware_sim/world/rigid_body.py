@@ -25,8 +25,8 @@ index   sensitive axis        position (body, m)
 5       e2                    arm · e1  (senses ω̇3)
 ======  ====================  =========================
 
-``render(rate_hz)`` returns the :class:`Motion` of the origin triad (the logger's single triaxial point);
-``render_platform(rate_hz)`` the readings of every platform accelerometer with the same truth.
+``render(sampling_rate_hz)`` returns the :class:`Motion` of the origin triad (the logger's single triaxial point);
+``render_platform(sampling_rate_hz)`` the readings of every platform accelerometer with the same truth.
 """
 
 from __future__ import annotations
@@ -282,22 +282,22 @@ class RigidBodyShank:
         up_body = kin["dcm"][:, 2, :]  # Rᵀ e3
         return (a0_body[:, None, :] + rel) / STANDARD_GRAVITY_M_S2 + up_body[:, None, :]
 
-    def render(self, rate_hz: float) -> Motion:
+    def render(self, sampling_rate_hz: float) -> Motion:
         """The origin triad's specific force (g, body axes) with the full truth."""
-        n = int(round(self.n_cycles * self.cycle_s * rate_hz)) + 1
-        t = np.arange(n) / rate_hz
+        n = int(round(self.n_cycles * self.cycle_s * sampling_rate_hz)) + 1
+        t = np.arange(n) / sampling_rate_hz
         kin = self.kinematics(t)
         acc = self._specific_force_g(kin, np.zeros((1, 3)))[:, 0, :]
-        return Motion(acc_g=acc, rate_hz=rate_hz, truth=self._truth(kin))
+        return Motion(acc_g=acc, sampling_rate_hz=sampling_rate_hz, truth=self._truth(kin))
 
-    def render_platform(self, rate_hz: float) -> PlatformRecording:
+    def render_platform(self, sampling_rate_hz: float) -> PlatformRecording:
         """Readings (g) of every platform accelerometer, plus geometry and the origin :class:`Motion`."""
         pos, axes = self.platform_geometry()
-        motion = self.render(rate_hz)
+        motion = self.render(sampling_rate_hz)
         kin = {k: motion.truth[k] for k in ("dcm", "omega_rad_s", "alpha_rad_s2", "acceleration_m_s2")}
         f = self._specific_force_g(kin, pos)
         readings = np.einsum("npj,pj->np", f, axes)
         truth = dict(motion.truth)
         truth.update(platform_positions_m=pos, platform_axes=axes)
-        motion = Motion(acc_g=motion.acc_g, rate_hz=rate_hz, truth=truth)
+        motion = Motion(acc_g=motion.acc_g, sampling_rate_hz=sampling_rate_hz, truth=truth)
         return PlatformRecording(readings_g=readings, positions_m=pos, axes=axes, motion=motion)

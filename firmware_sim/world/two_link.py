@@ -12,7 +12,7 @@ oscillation, so rates and truth are analytic. Each sensor reads the link's body 
 :data:`HALL_SENSOR_TO_LINK`), plus a constant offset and white
 noise (seeded).
 
-``render_rates(rate_hz)`` gives the sensor rates and truth; ``render(rate_hz)`` wraps them into a
+``render_rates(sampling_rate_hz)`` gives the sensor rates and truth; ``render(sampling_rate_hz)`` wraps them into a
 :class:`Motion` whose ``acc_g`` is the specific force of a point of link A at the joint centre (pure rotation:
 the up direction in link-A axes), with everything else in ``truth``.
 """
@@ -67,7 +67,7 @@ class TwoLinkRates:
     ----------
     rate_a_rad_s, rate_b_rad_s
         ``(n, 3)`` measured rates in sensor axes (offset and noise included), rad/s.
-    rate_hz
+    sampling_rate_hz
         Sampling rate, Hz.
     pretest_samples
         Number of leading samples at rest.
@@ -79,7 +79,7 @@ class TwoLinkRates:
 
     rate_a_rad_s: np.ndarray
     rate_b_rad_s: np.ndarray
-    rate_hz: float
+    sampling_rate_hz: float
     pretest_samples: int
     truth: dict[str, Any] = field(default_factory=dict)
 
@@ -138,10 +138,10 @@ class TwoLinkJoint:
         self.noise_rad_s = noise_rad_s
         self.seed = seed
 
-    def render_rates(self, rate_hz: float) -> TwoLinkRates:
-        """Sensor rates and truth sampled at ``rate_hz``."""
-        n = int(round(self.duration_s * rate_hz)) + 1
-        t = np.arange(n) / rate_hz
+    def render_rates(self, sampling_rate_hz: float) -> TwoLinkRates:
+        """Sensor rates and truth sampled at ``sampling_rate_hz``."""
+        n = int(round(self.duration_s * sampling_rate_hz)) + 1
+        t = np.arange(n) / sampling_rate_hz
         amps = np.radians([*self.link_a_final_deg, *self.joint_final_deg])
         osc = np.radians([0.0, 0.0, *self.joint_oscillation_deg])
         cols = [_min_jerk(t, self.pretest_s, self.move_s, a, o, self.oscillation_hz) for a, o in zip(amps, osc)]
@@ -170,15 +170,15 @@ class TwoLinkJoint:
             "offset_a_rad_s": np.asarray(self.offset_a_rad_s, dtype=np.float64),
             "offset_b_rad_s": np.asarray(self.offset_b_rad_s, dtype=np.float64),
         }
-        pretest = int(np.floor(self.pretest_s * rate_hz)) + 1 if self.pretest_s > 0 else 0
-        return TwoLinkRates(meas_a, meas_b, float(rate_hz), min(pretest, n), truth)
+        pretest = int(np.floor(self.pretest_s * sampling_rate_hz)) + 1 if self.pretest_s > 0 else 0
+        return TwoLinkRates(meas_a, meas_b, float(sampling_rate_hz), min(pretest, n), truth)
 
-    def render(self, rate_hz: float) -> Motion:
+    def render(self, sampling_rate_hz: float) -> Motion:
         """:class:`Motion` of a point of link A at the joint centre; sensor rates and truth in ``truth``."""
-        rates = self.render_rates(rate_hz)
+        rates = self.render_rates(sampling_rate_hz)
         truth = dict(rates.truth)
         truth.update(
             rate_a_rad_s=rates.rate_a_rad_s, rate_b_rad_s=rates.rate_b_rad_s, pretest_samples=rates.pretest_samples
         )
         up_in_a = rates.truth["ta"][:, :, 2]  # TA · e3: the up direction in link-A axes
-        return Motion(acc_g=up_in_a, rate_hz=rate_hz, truth=truth)
+        return Motion(acc_g=up_in_a, sampling_rate_hz=sampling_rate_hz, truth=truth)

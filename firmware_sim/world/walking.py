@@ -348,14 +348,14 @@ class Walking:
         return out
 
     # ---- rendering and truth ------------------------------------------------------------------------
-    def render(self, rate_hz: float) -> Motion:
-        """Render the whole protocol at ``rate_hz`` (e.g. the sensor model's internal 500–1000 Hz)."""
-        if not (np.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
+    def render(self, sampling_rate_hz: float) -> Motion:
+        """Render the whole protocol at ``sampling_rate_hz`` (e.g. the sensor model's internal 500–1000 Hz)."""
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+            raise ValueError(f"sampling_rate_hz must be a positive number, got {sampling_rate_hz!r}")
         segments = self._segments()
         duration = segments[-1].t_b
-        n = int(np.floor(duration * rate_hz)) + 1
-        t = np.arange(n) / rate_hz
+        n = int(np.floor(duration * sampling_rate_hz)) + 1
+        t = np.arange(n) / sampling_rate_hz
         keys = ("acc_g",)
         if self.include_trajectory:
             keys = ("acc_g", "sensor_position_m", "sensor_velocity_m_s", "com_position_m", "world_from_device")
@@ -363,7 +363,7 @@ class Walking:
         truth = self._truth(segments)
         if self.include_trajectory:
             truth["trajectory"] = {"t_s": t, **{k: kin[k] for k in keys if k != "acc_g"}}
-        return Motion(acc_g=kin["acc_g"], rate_hz=float(rate_hz), t0_s=0.0, truth=truth,
+        return Motion(acc_g=kin["acc_g"], sampling_rate_hz=float(sampling_rate_hz), t0_s=0.0, truth=truth,
                       marker_times_s=truth["laps"]["time_s"].copy())
 
     def _truth(self, segments: list[_Segment]) -> dict:

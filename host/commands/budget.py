@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         raise HostError(f"at {args.logger_rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")
     ram = ram_budget(args.logger_rate)
     subject = random_subjects(1, seed=args.seed)[0]
-    logger = Logger(adc=Adc(rate_hz=args.logger_rate), sample_rate_hz=args.logger_rate,
+    logger = Logger(adc=Adc(sampling_rate_hz=args.logger_rate), sampling_rate_hz=args.logger_rate,
                     step_config=StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                            foot_length_m=subject.foot_length_m))
     logger.firmware.fosc_hz = fosc

@@ -136,7 +136,7 @@ def _simulate(args: argparse.Namespace) -> int:
         raise HostError(f"--resamples must be >= 1, got {args.resamples}")
     if args.out:
         require_folder(args.out)
-    results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, rate_hz=args.logger_rate,
+    results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, sampling_rate_hz=args.logger_rate,
                                    workers=args.workers)
     print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
           "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
@@ -167,11 +167,11 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, rate_hz: float = 50.0, workers: int = 1) -> list:
+def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, sampling_rate_hz: float = 50.0, workers: int = 1) -> list:
     """One :class:`host.studies.compare.WalkComparison` per simulated subject (parallel over subjects)."""
     from firmware_sim.world.subject import random_subjects
 
-    jobs = [(s, seed * 1000 + i, bits, rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
+    jobs = [(s, seed * 1000 + i, bits, sampling_rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
     if workers > 1 and len(jobs) > 1:
         from concurrent.futures import ProcessPoolExecutor
 
@@ -287,7 +287,7 @@ def _recording(args: argparse.Namespace) -> int:
     starts = run_starts(rec.valid, flags)
     t = rec.time_s
     res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
-                            foot_length_m=foot, adc_calibration=cal, code_bits=int(rec.adc_bits), valid=rec.valid,
+                            foot_length_m=foot, adc_calibration=cal, adc_bits=int(rec.adc_bits), valid=rec.valid,
                             calibration=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=args.lap_m,
                             t0_s=float(t[0]) if t.size else 0.0, run_starts=starts)
     print(f"{p}: {rec.n_samples} samples at {rec.sampling_rate_hz:g} Hz ({rec.n_missing} missing); {note}")

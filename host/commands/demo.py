@@ -42,7 +42,7 @@ def _record(ctx: dict[str, Any]) -> list[str]:
     args = ctx["args"]
     source = CalibrationPoses(n_poses=args.poses, hold_s=5.0, move_s=2.0, seed=args.seed)
     motion = source.render(50.0)
-    logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=50.0)
+    logger = Logger(sensor=SensorModel.draw(seed=args.seed), sampling_rate_hz=50.0)
     result = logger.record(motion, start_time_s=1_700_000_000)
     image = ctx["dir"] / "recorded.glimg"
     logger.save_image(image)
@@ -146,7 +146,7 @@ def _walk_logger(ctx: dict[str, Any], step_config: Any) -> Any:
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
 
-    logger = Logger(sensor=SensorModel.draw(seed=ctx["args"].seed), sample_rate_hz=50.0, step_config=step_config)
+    logger = Logger(sensor=SensorModel.draw(seed=ctx["args"].seed), sampling_rate_hz=50.0, step_config=step_config)
     logger.ring.set_calibration(ctx["walk_calibration"])
     return logger
 

@@ -147,5 +147,5 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, cal):
     starts = run_starts(valid, rec.flags)
     table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                                    foot_length_m=foot, calibration=cal, adc_calibration=adc_cal,
-                                   code_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
+                                   adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
     return table, alg.arithmetic_context().report()

@@ -61,7 +61,7 @@ def _run_sim(args: argparse.Namespace) -> int:
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     with progress_bar(args, args.subjects, "subject") as tick:
-        ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, rate_hz=args.logger_rate, bits=args.bits,
+        ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, bits=args.bits,
                                  workers=args.workers).run(progress=tick)
     paths = ev.write_outputs(out)
     if verbosity(args) < 0:
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(), progress_bar(args, len(list_trials(args.folder)), "trial") as tick:
         warnings.simplefilter("ignore", UserWarning)   # skips are listed below
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
-        res = evaluate_folder(args.folder, rate_hz=args.logger_rate, bits=args.bits, uturn=args.uturn,
+        res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, bits=args.bits, uturn=args.uturn,
                               arithmetic=arith, progress=tick)
     lines = [",".join(CSV_COLUMNS)]
     for r in res.rows:

@@ -44,7 +44,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_verbosity_options(parser)
 
 
-def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str, Any]:
+def run_morris(sampling_rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str, Any]:
     """Simulate one cycle, run Morris' method; returns estimates, heading-aligned truth and error numbers."""
     import numpy as np
     from scipy.spatial.transform import Rotation
@@ -66,30 +66,30 @@ def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str
         remove_gravity,
     )
 
-    if not (np.isfinite(rate_hz) and 20 <= rate_hz <= 100_000):
-        raise HostError(f"--morris-rate must be between 20 and 100000 Hz, got {rate_hz:g}")
+    if not (np.isfinite(sampling_rate_hz) and 20 <= sampling_rate_hz <= 100_000):
+        raise HostError(f"--morris-rate must be between 20 and 100000 Hz, got {sampling_rate_hz:g}")
     src = RigidBodyShank(n_cycles=1)
-    rec = src.render_platform(rate_hz)
+    rec = src.render_platform(sampling_rate_hz)
     tr = rec.motion.truth
     readings = rec.readings_g + np.random.default_rng(seed).normal(0.0, noise_mg * 1e-3, rec.readings_g.shape)
     solver = AngularVelocityFromAccelerometers(positions_m=rec.positions_m, axes=rec.axes)
     # 1. ω: the constant C of eq (6) from the cycle: the orientation returns to its start (Newton on the
     #    rotation vector of λ(0)ᵀλ(T), finite-difference Jacobian), then the Fig 4b drift filter
     def closure(c: np.ndarray) -> tuple[np.ndarray, Any]:
-        e = solver.estimate(readings, rate_hz=rate_hz, omega0_rad_s=c)
-        lam = integrate_dcm(e.omega_rad_s_, rate_hz)
+        e = solver.estimate(readings, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=c)
+        lam = integrate_dcm(e.omega_rad_s_, sampling_rate_hz)
         return Rotation.from_matrix(lam[-1]).as_rotvec(), e
 
     omega0 = np.zeros(3)
     weights = np.full(readings.shape[0], 1.0 / (readings.shape[0] - 1))
     weights[[0, -1]] *= 0.5
     for _ in range(3):  # start: mean rate zero over the cycle (exact for planar motion)
-        omega0 = omega0 - weights @ solver.estimate(readings, rate_hz=rate_hz, omega0_rad_s=omega0).omega_rad_s_
+        omega0 = omega0 - weights @ solver.estimate(readings, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=omega0).omega_rad_s_
     for _ in range(3):
         f0, est = closure(omega0)
         jac = np.stack([(closure(omega0 + 1e-4 * np.eye(3)[j])[0] - f0) / 1e-4 for j in range(3)], axis=1)
         omega0 = omega0 - np.linalg.solve(jac, f0)
-    est = solver.estimate(readings, rate_hz=rate_hz, omega0_rad_s=omega0)
+    est = solver.estimate(readings, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=omega0)
     omega_raw = est.omega_rad_s_
     omega = remove_cycle_drift(omega_raw)
     # 2. initial direction cosines at foot-flat (eq 11, eqs 12-16)
@@ -97,11 +97,11 @@ def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str
     up0 = gravity_from_pivot(est.origin_specific_force_g_[0], omega[0], est.alpha_rad_s2_[0], r_o)
     lam0 = initial_dcm_from_gravity(up0)
     # 3. strapdown direction cosines
-    dcm = integrate_dcm(omega, rate_hz, lam0)
+    dcm = integrate_dcm(omega, sampling_rate_hz, lam0)
     # 4. translation of the origin
     acc = remove_gravity(est.origin_specific_force_g_, dcm)
     v0 = lam0 @ np.cross(omega[0], r_o)
-    trans = CycleTranslation(closed_axes=(2,), initial_velocity_m_s=v0).integrate(acc, rate_hz=rate_hz)
+    trans = CycleTranslation(closed_axes=(2,), initial_velocity_m_s=v0).integrate(acc, sampling_rate_hz=sampling_rate_hz)
     # truth in the estimated space frame (rotation about the vertical fixed at t = 0)
     heading = lam0 @ tr["dcm"][0].T
     true_dcm = heading @ tr["dcm"]
@@ -137,7 +137,7 @@ def run_morris(rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str
     }
 
 
-def run_hall(rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[str, Any]:
+def run_hall(sampling_rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[str, Any]:
     """Simulate the two links, run Hall's method (CFC 180) and the literal incremental-sum variant."""
     import numpy as np
 
@@ -145,16 +145,16 @@ def run_hall(rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[s
     from host.kinematics.joints import HallJointKinematics
 
     src = TwoLinkJoint(noise_rad_s=noise_rad_s, seed=seed)
-    r = src.render_rates(rate_hz)
+    r = src.render_rates(sampling_rate_hz)
     kw = dict(
         sensor_to_link_a=r.truth["sensor_to_link_a"],
         sensor_to_link_b=r.truth["sensor_to_link_b"],
         pretest_samples=r.pretest_samples,
         cfc=180,
     )
-    hall = HallJointKinematics(**kw).compute(r.rate_a_rad_s, r.rate_b_rad_s, rate_hz=rate_hz)
+    hall = HallJointKinematics(**kw).compute(r.rate_a_rad_s, r.rate_b_rad_s, sampling_rate_hz=sampling_rate_hz)
     literal = HallJointKinematics(**kw, angle_mode="incremental_sum").compute(
-        r.rate_a_rad_s, r.rate_b_rad_s, rate_hz=rate_hz
+        r.rate_a_rad_s, r.rate_b_rad_s, sampling_rate_hz=sampling_rate_hz
     )
     truth = r.truth["joint_angles_rad"]
     return {

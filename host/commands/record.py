@@ -76,7 +76,7 @@ def build_motion(args: argparse.Namespace):
         from host.commands._input_options import read_input
 
         data = read_input(args, args.motion[1])
-        return Replay.from_samples(data.g(), data.valid, rate_hz=data.sampling_rate_hz, source=data.source,
+        return Replay.from_samples(data.g(), data.valid, sampling_rate_hz=data.sampling_rate_hz, source=data.source,
                                    marker_times_s=data.mark_index / data.sampling_rate_hz)
     if kind == "walk":
         if len(args.motion) != 1:
@@ -217,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
                                  "those records different from its replay (--no-verify)")
             logger.step_config = config  # as SET_STEP_CONFIG before START
     else:
-        logger = Logger(sensor=SensorModel.draw(seed=args.seed), sample_rate_hz=args.logger_rate,
+        logger = Logger(sensor=SensorModel.draw(seed=args.seed), sampling_rate_hz=args.logger_rate,
                         overwrite=args.overwrite_oldest, step_config=config)
     for line in warnings_ if verbosity(args) >= 0 else ():
         print(f"gaitlog record: warning: {line}", file=sys.stderr)

@@ -84,8 +84,8 @@ class AngularVelocityFromAccelerometers:
         q -= np.einsum("ij,ij->i", n, r)[:, None, None] * np.eye(3)
         return h, pinv, q, np.array(free, dtype=int)
 
-    def estimate(self, readings_g: np.ndarray, *, rate_hz: float, omega0_rad_s: np.ndarray | None = None) -> Self:
-        """Integrate the platform readings ``(n, m)`` (g) sampled at ``rate_hz`` from ``omega0_rad_s``."""
+    def estimate(self, readings_g: np.ndarray, *, sampling_rate_hz: float, omega0_rad_s: np.ndarray | None = None) -> Self:
+        """Integrate the platform readings ``(n, m)`` (g) sampled at ``sampling_rate_hz`` from ``omega0_rad_s``."""
         h, pinv, q, free = self._design()
         m_meas = np.asarray(readings_g, dtype=np.float64)
         if m_meas.ndim != 2 or m_meas.shape[1] != h.shape[0]:
@@ -93,8 +93,8 @@ class AngularVelocityFromAccelerometers:
         bad = ~np.isfinite(m_meas).all(axis=1)
         if bad.any():
             raise HostError(f"readings_g has non-finite values at sample {int(np.argmax(bad))}")
-        if not (np.isfinite(rate_hz) and rate_hz > 0):
-            raise HostError(f"rate_hz must be positive, got {rate_hz!r}")
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+            raise HostError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         g0 = STANDARD_GRAVITY_M_S2
         m_si = m_meas * g0
         p_alpha = pinv[3:]  # rows giving the free angular-acceleration components
@@ -105,7 +105,7 @@ class AngularVelocityFromAccelerometers:
             raise HostError(f"omega0_rad_s must have 3 components, got shape {w.shape}")
         w[np.setdiff1d(np.arange(3), free)] = 0.0
         n_s = m_si.shape[0]
-        dt = 1.0 / rate_hz
+        dt = 1.0 / sampling_rate_hz
         omega = np.zeros((n_s, 3))
         alpha = np.zeros((n_s, 3))
 

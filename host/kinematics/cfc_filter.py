@@ -37,20 +37,20 @@ def cfc_min_rate_hz(cfc: float) -> float:
     return 2.0 * CFC_DESIGN_FACTOR * float(cfc)
 
 
-def cfc_coefficients(cfc: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+def cfc_coefficients(cfc: float, sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
     """Numerator ``b`` and denominator ``a`` (scipy convention) of one pass of the J211 filter.
 
     Parameters
     ----------
     cfc
         Channel frequency class (60, 180, 600, 1000, ... ; any positive number), Hz.
-    rate_hz
+    sampling_rate_hz
         Sampling rate in Hz; must exceed :func:`cfc_min_rate_hz`.
 
     Raises
     ------
     HostError
-        When the class or the rate is not positive/finite, or ``rate_hz <= 2 · 2.0775 · cfc``.
+        When the class or the rate is not positive/finite, or ``sampling_rate_hz <= 2 · 2.0775 · cfc``.
 
     Examples
     --------
@@ -60,16 +60,16 @@ def cfc_coefficients(cfc: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray
     """
     if not (np.isfinite(cfc) and cfc > 0):
         raise HostError(f"CFC filter: the channel class must be a positive number of Hz, got {cfc!r}")
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise HostError(f"CFC filter: the sampling rate must be a positive number of Hz, got {rate_hz!r}")
-    if rate_hz <= cfc_min_rate_hz(cfc):
+    if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+        raise HostError(f"CFC filter: the sampling rate must be a positive number of Hz, got {sampling_rate_hz!r}")
+    if sampling_rate_hz <= cfc_min_rate_hz(cfc):
         raise HostError(
-            f"CFC {cfc:g} filter is invalid at {rate_hz:g} Hz: SAE J211 designs it at 2.0775 x CFC = "
+            f"CFC {cfc:g} filter is invalid at {sampling_rate_hz:g} Hz: SAE J211 designs it at 2.0775 x CFC = "
             f"{CFC_DESIGN_FACTOR * cfc:g} Hz, which must be below Nyquist, so the sampling rate must exceed "
             f"{cfc_min_rate_hz(cfc):g} Hz; sample faster or choose a lower channel class"
         )
     wd = 2.0 * np.pi * CFC_DESIGN_FACTOR * cfc
-    wa = np.tan(wd / rate_hz / 2.0)
+    wa = np.tan(wd / sampling_rate_hz / 2.0)
     den = 1.0 + np.sqrt(2.0) * wa + wa * wa
     a0 = wa * wa / den
     b1 = -2.0 * (wa * wa - 1.0) / den
@@ -77,7 +77,7 @@ def cfc_coefficients(cfc: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray
     return np.array([a0, 2.0 * a0, a0]), np.array([1.0, -b1, -b2])
 
 
-def cfc_filter(x: np.ndarray, cfc: float, rate_hz: float, *, axis: int = 0) -> np.ndarray:
+def cfc_filter(x: np.ndarray, cfc: float, sampling_rate_hz: float, *, axis: int = 0) -> np.ndarray:
     """Filter ``x`` with the SAE J211 CFC filter, forwards then backwards (zero phase).
 
     Parameters
@@ -86,7 +86,7 @@ def cfc_filter(x: np.ndarray, cfc: float, rate_hz: float, *, axis: int = 0) -> n
         Data of any shape; filtered along ``axis``. Any unit (returned in the same unit).
     cfc
         Channel frequency class in Hz (Hall et al. use 180).
-    rate_hz
+    sampling_rate_hz
         Sampling rate in Hz.
     axis
         Time axis.
@@ -106,7 +106,7 @@ def cfc_filter(x: np.ndarray, cfc: float, rate_hz: float, *, axis: int = 0) -> n
     """
     from scipy.signal import filtfilt
 
-    b, a = cfc_coefficients(cfc, rate_hz)
+    b, a = cfc_coefficients(cfc, sampling_rate_hz)
     data = np.asarray(x, dtype=np.float64)
     if not np.isfinite(data).all():
         raise HostError("CFC filter: the data contain NaN or infinite values; fill or cut gaps first")

@@ -213,8 +213,8 @@ class HallJointKinematics:
         self.angle_mode = angle_mode
         self.gimbal_tol_deg = gimbal_tol_deg
 
-    def compute(self, rate_a_rad_s: np.ndarray, rate_b_rad_s: np.ndarray, *, rate_hz: float) -> Self:
-        """Process sensor rates (rad/s, sensor axes, ``(n, 3)`` each) sampled at ``rate_hz``."""
+    def compute(self, rate_a_rad_s: np.ndarray, rate_b_rad_s: np.ndarray, *, sampling_rate_hz: float) -> Self:
+        """Process sensor rates (rad/s, sensor axes, ``(n, 3)`` each) sampled at ``sampling_rate_hz``."""
         if self.side not in ("left", "right"):
             raise HostError(f"side must be 'left' or 'right', not {self.side!r}")
         if self.angle_mode not in ("absolute", "incremental_sum"):
@@ -236,13 +236,13 @@ class HallJointKinematics:
         if self.cfc is not None:
             from host.kinematics.cfc_filter import cfc_filter
 
-            ra, rb = cfc_filter(ra, self.cfc, rate_hz), cfc_filter(rb, self.cfc, rate_hz)
+            ra, rb = cfc_filter(ra, self.cfc, sampling_rate_hz), cfc_filter(rb, self.cfc, sampling_rate_hz)
         # 3. sensor -> link axes
         self.rate_a_link_rad_s_ = ra @ sa.T
         self.rate_b_link_rad_s_ = rb @ sb.T
         # 4. trapezoidal incremental rotations, chained (λ = Tᵀ is body -> reference)
-        lam_a = integrate_dcm(self.rate_a_link_rad_s_, rate_hz, ta0.T)
-        lam_b = integrate_dcm(self.rate_b_link_rad_s_, rate_hz, tb0.T)
+        lam_a = integrate_dcm(self.rate_a_link_rad_s_, sampling_rate_hz, ta0.T)
+        lam_b = integrate_dcm(self.rate_b_link_rad_s_, sampling_rate_hz, tb0.T)
         self.ta_ = np.swapaxes(lam_a, 1, 2)
         self.tb_ = np.swapaxes(lam_b, 1, 2)
         # 5. joint matrix and angles

@@ -424,7 +424,7 @@ def cumulative_matmul(initial: np.ndarray, steps: np.ndarray, *, block: int = 16
 
 def integrate_dcm(
     omega_rad_s: np.ndarray,
-    rate_hz: float,
+    sampling_rate_hz: float,
     dcm0: np.ndarray | None = None,
     *,
     method: Literal["rodrigues", "heun", "euler"] = "rodrigues",
@@ -437,7 +437,7 @@ def integrate_dcm(
     ----------
     omega_rad_s
         ``(n, 3)`` body angular velocity in rad/s at the sample times.
-    rate_hz
+    sampling_rate_hz
         Sampling rate in Hz.
     dcm0
         ``(3, 3)`` orientation at the first sample (default identity).
@@ -464,14 +464,14 @@ def integrate_dcm(
         raise HostError(f"integrate_dcm: omega_rad_s must have shape (n, 3), got {w.shape}")
     if not np.isfinite(w).all():
         raise HostError(f"integrate_dcm: omega_rad_s has non-finite values at row {int(np.argwhere(~np.isfinite(w))[0, 0])}")
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise HostError(f"integrate_dcm: rate_hz must be positive, got {rate_hz!r}")
+    if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+        raise HostError(f"integrate_dcm: sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
     lam0 = np.eye(3) if dcm0 is None else np.asarray(dcm0, dtype=np.float64)
     if lam0.shape != (3, 3):
         raise HostError(f"integrate_dcm: dcm0 must be 3x3, got {lam0.shape}")
     if w.shape[0] == 0:
         return np.zeros((0, 3, 3))
-    dt = 1.0 / rate_hz
+    dt = 1.0 / sampling_rate_hz
     if method == "rodrigues":
         phi = 0.5 * dt * (w[:-1] + w[1:])
         if coning_correction:

@@ -60,7 +60,7 @@ def remove_gravity(acc_g: np.ndarray, dcm: np.ndarray) -> np.ndarray:
     return out * STANDARD_GRAVITY_M_S2
 
 
-def cumulative_trapezoid_m(x: np.ndarray, rate_hz: float, initial: np.ndarray | float = 0.0) -> np.ndarray:
+def cumulative_trapezoid_m(x: np.ndarray, sampling_rate_hz: float, initial: np.ndarray | float = 0.0) -> np.ndarray:
     """Cumulative trapezoidal integral along axis 0, starting at ``initial`` (same length as ``x``).
 
     Units: the integral of ``x`` over seconds (e.g. m/s² -> m/s).
@@ -69,7 +69,7 @@ def cumulative_trapezoid_m(x: np.ndarray, rate_hz: float, initial: np.ndarray | 
     out = np.empty_like(x)
     out[0] = initial
     if x.shape[0] > 1:
-        out[1:] = np.cumsum(0.5 / rate_hz * (x[1:] + x[:-1]), axis=0) + out[0]
+        out[1:] = np.cumsum(0.5 / sampling_rate_hz * (x[1:] + x[:-1]), axis=0) + out[0]
     return out
 
 
@@ -131,7 +131,7 @@ class CycleTranslation:
         self.initial_velocity_m_s = initial_velocity_m_s
         self.remove_drift = remove_drift
 
-    def integrate(self, acc_m_s2: np.ndarray, *, rate_hz: float) -> Self:
+    def integrate(self, acc_m_s2: np.ndarray, *, sampling_rate_hz: float) -> Self:
         """Integrate one cycle of space-axis translational acceleration ``(n, 3)`` (m/s²)."""
         a = np.asarray(acc_m_s2, dtype=np.float64)
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 2:
@@ -141,17 +141,17 @@ class CycleTranslation:
         v0 = np.asarray(self.initial_velocity_m_s, dtype=np.float64)
         if self.remove_drift:
             a = a - (a[-1] - a[0]) * np.linspace(0.0, 1.0, a.shape[0])[:, None]  # acceleration start = end
-        v = cumulative_trapezoid_m(a, rate_hz, v0)
+        v = cumulative_trapezoid_m(a, sampling_rate_hz, v0)
         if self.remove_drift:
             v = remove_cycle_drift(v)  # velocity start = end
-        p = cumulative_trapezoid_m(v, rate_hz, 0.0)
+        p = cumulative_trapezoid_m(v, sampling_rate_hz, 0.0)
         if self.remove_drift and self.closed_axes:
             ax = list(self.closed_axes)
             disp = np.broadcast_to(np.asarray(self.cycle_displacement_m, dtype=np.float64), (3,))[ax]
             # the ramp on position is a constant velocity offset: apply it to velocity too
             drift = p[-1, ax] - p[0, ax] - disp
             p[:, ax] = remove_cycle_drift(p[:, ax], end_minus_start=disp)
-            v[:, ax] -= drift * rate_hz / (a.shape[0] - 1)
+            v[:, ax] -= drift * sampling_rate_hz / (a.shape[0] - 1)
         self.acceleration_m_s2_ = a
         self.velocity_m_s_ = v
         self.position_m_ = p

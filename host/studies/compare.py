@@ -127,7 +127,7 @@ def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: A
 
 
 def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      calibration: Any = None, adc_calibration: Any = None, code_bits: int = 10,
+                      calibration: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
                       arithmetic: str = "fixed", valid: np.ndarray | None = None,
                       run_starts: np.ndarray | None = None, t0_s: float = 0.0,
                       algorithm: Callable[..., OnlineStepAlgorithm] = OnlineStepAlgorithm,
@@ -137,7 +137,7 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     Parameters
     ----------
     codes
-        ``(n, 3)`` ADC codes (``code_bits`` bits).
+        ``(n, 3)`` ADC codes (``adc_bits`` bits).
     calibration
         :class:`~host.gait.k_calibration.KCalibration` (the one K of the comparison) or None (raw).
     adc_calibration
@@ -162,7 +162,7 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
     cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration)
     alg = algorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg, calibration=adc_calibration,
-                    arithmetic=arithmetic, code_bits=code_bits)
+                    arithmetic=arithmetic, adc_bits=adc_bits)
     # stretches of present samples, cut at every run start: [a, b) with b the next cut or missing sample
     cut = np.zeros(n, bool)
     rs = np.asarray(run_starts if run_starts is not None else [], np.int64)
@@ -357,7 +357,7 @@ class SampledWalk:
     code_10
         ``(n, 3)`` continuous converter input in 10-bit code units (``floor`` of it is the 10-bit code),
         clipped to the converter's span.
-    times_s, mark_times_s, rate_hz
+    times_s, mark_times_s, sampling_rate_hz
         Sample instants, MARK sample times, sample rate.
     offset_code_10, axes_gain
         The sensor's truth in code units: ``code_10 = offset + gain_matrix @ a_g`` (within the rails).
@@ -368,7 +368,7 @@ class SampledWalk:
     code_10: np.ndarray
     times_s: np.ndarray
     mark_times_s: np.ndarray
-    rate_hz: float
+    sampling_rate_hz: float
     offset_code_10: np.ndarray
     gain_matrix_code_10: np.ndarray
     truth: dict
@@ -428,7 +428,7 @@ class AnalogWalk:
         self.sensor_ = SensorModel.draw(seed=int(sseed))
         motion = Walking(subject=self.subject, protocol=self.protocol, seed=self.seed).render(
             self.sensor_.internal_rate_hz)
-        self.rate_hz_ = float(motion.rate_hz)
+        self.rate_hz_ = float(motion.sampling_rate_hz)
         self.t0_s_ = float(motion.t0_s)
         self.t_last_s_ = self.t0_s_ + (motion.acc_g.shape[0] - 1) / self.rate_hz_
         self.marker_times_s_ = np.asarray(motion.marker_times_s, np.float64)
@@ -436,12 +436,12 @@ class AnalogWalk:
         self.truth_ = {k: motion.truth[k] for k in ("steps", "laps", "excursions", "rests") if k in motion.truth}
         return self
 
-    def sample(self, rate_hz: float) -> SampledWalk:
-        """The analog output at the sample instants of a ``rate_hz`` timer, noise included (as
+    def sample(self, sampling_rate_hz: float) -> SampledWalk:
+        """The analog output at the sample instants of a ``sampling_rate_hz`` timer, noise included (as
         :meth:`firmware_sim.device.Logger.record`: same instants, same hold, same noise stream)."""
         from firmware_sim.adc import Adc
 
-        adc = Adc(bits=10, rate_hz=rate_hz)
+        adc = Adc(adc_bits=10, sampling_rate_hz=sampling_rate_hz)
         sen = self.sensor_
         times = adc.sample_times_s(self.t0_s_, self.t_last_s_)
         held = adc.hold(self.volts_, self.rate_hz_, self.t0_s_, times)
@@ -457,7 +457,7 @@ class AnalogWalk:
         if self.marker_times_s_.size:
             k = np.searchsorted(times, self.marker_times_s_, side="left")
             marks[k[k < times.size]] = True
-        return SampledWalk(x, times, times[marks], float(rate_hz), offset, gain, self.truth_)
+        return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -539,7 +539,7 @@ class WalkComparison:
 
     Attributes
     ----------
-    subject_id, bits, rate_hz
+    subject_id, bits, sampling_rate_hz
         What was compared.
     runs
         :class:`ChainRun` per chain (:data:`CHAINS`) and ``exact-timing`` (the offline chain on codes with
@@ -568,7 +568,7 @@ class WalkComparison:
 
     subject_id: str
     bits: int
-    rate_hz: float
+    sampling_rate_hz: float
     runs: dict[str, ChainRun]
     calibrations: dict[str, Any]
     step_diffs: list[dict]
@@ -593,7 +593,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
         What runs the online-fixed chain (default the firmware's algorithm; tests inject errors with it).
     """
     leg, foot = subject.leg_length_m, subject.foot_length_m
-    fs, t0 = sw.rate_hz, float(sw.times_s[0])
+    fs, t0 = sw.sampling_rate_hz, float(sw.times_s[0])
     sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], sampling_rate_hz=fs)
     pools = calibration_sets(sections, calibration_sections=calibration_sections)
     cal = sw.calibration(bits)
@@ -605,7 +605,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
                                      subject=subject.subject_id) for m in MODES}
     if ideal_table is None:
         ideal_table = offline_step_table(cal.apply(sw.ideal_codes(bits)), **kw)
-    okw = dict(kw, adc_calibration=cal, code_bits=bits)
+    okw = dict(kw, adc_calibration=cal, adc_bits=bits)
     runs = {"ideal": _offline_run("ideal", ideal_table, cals), "offline": _offline_run("offline", offline, cals),
             "online-float": _online_run("float", codes, cals, algorithm=OnlineStepAlgorithm, **okw),
             "online-fixed": _online_run("fixed", codes, cals, algorithm=fixed_algorithm, **okw)}
@@ -646,7 +646,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     for i, s in enumerate(evaluated):
         for m in MODES:
             for j, est in enumerate(ESTIMATORS):
-                row = dict(subject=subject.subject_id, bits=bits, rate_hz=fs, excursion=s.excursion,
+                row = dict(subject=subject.subject_id, bits=bits, sampling_rate_hz=fs, excursion=s.excursion,
                            speed_label=s.speed_label, section=s.index, start_m=s.start_m, end_m=s.end_m,
                            mode=m, estimator=est, real_m=s.real_m)
                 for k in runs:
@@ -858,7 +858,7 @@ class RecordingComparison:
 
 
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      adc_calibration: Any = None, code_bits: int = 10, valid: np.ndarray | None = None,
+                      adc_calibration: Any = None, adc_bits: int = 10, valid: np.ndarray | None = None,
                       calibration: Any = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
                       segment_m: float = 20.0, t0_s: float = 0.0, sections: list[Section] | None = None,
                       run_starts: np.ndarray | None = None) -> RecordingComparison:
@@ -879,12 +879,12 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
 
     c = np.asarray(codes)
     ok = np.ones(c.shape[0], bool) if valid is None else np.asarray(valid, bool)
-    cal = adc_calibration if adc_calibration is not None else Calibration.nominal(code_bits)
+    cal = adc_calibration if adc_calibration is not None else Calibration.nominal(adc_bits)
     acc = np.asarray(cal.apply(c.astype(np.float64)), np.float64)
     acc[~ok] = np.nan
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m,
               calibration=calibration, t0_s=t0_s)
-    okw = dict(kw, adc_calibration=cal, code_bits=code_bits, valid=ok, run_starts=run_starts)
+    okw = dict(kw, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
     tables = {"offline": offline_step_table(acc, valid=ok, **kw)}
     tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
     tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", **okw)

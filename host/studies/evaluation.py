@@ -97,7 +97,7 @@ class SimulatedRecording:
     device_calibrated: bool
 
 
-def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: float = 50.0, bits: int = 10,
+def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_rate_hz: float = 50.0, bits: int = 10,
                    calibrate_device: bool = True) -> SimulatedRecording:
     """Walk ``subject`` through the protocol with the emulated logger (module notes, steps 1-2).
 
@@ -109,7 +109,7 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
         Seeds the walk's variability, the pose session and the device's sensor errors.
     protocol
         A :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
-    rate_hz, bits
+    sampling_rate_hz, bits
         Logger sample rate and ADC resolution.
     calibrate_device
         Fit the device calibration on a pose session first (default) or use the nominal map.
@@ -121,13 +121,13 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, rate_hz: fl
     from protocol.header import Calibration
     from protocol.packing import FLAG_MARK
 
-    logger = Logger(adc=Adc(bits=bits, rate_hz=rate_hz), sample_rate_hz=rate_hz, device_id=1 + seed % 60000)
+    logger = Logger(adc=Adc(adc_bits=bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
     if calibrate_device:
         from host.accelerometer.calibration import AccCalibrator
 
         poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
         full = float(2**bits)
-        apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=rate_hz,
+        apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=sampling_rate_hz,
                                           input_unit="counts", zero=full / 2, unit_per_g=full / 4,
                                           valid_range=(0.0, full - 1)).calibration_.apply
         logger.erase()
@@ -330,8 +330,8 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
 
 
 def _subject_job(job: tuple) -> SubjectResult:
-    subject, seed, protocol, rate_hz, bits, calibrate_device, options = job
-    rec = record_subject(subject, seed=seed, protocol=protocol, rate_hz=rate_hz, bits=bits,
+    subject, seed, protocol, sampling_rate_hz, bits, calibrate_device, options = job
+    rec = record_subject(subject, seed=seed, protocol=protocol, sampling_rate_hz=sampling_rate_hz, bits=bits,
                          calibrate_device=calibrate_device)
     return evaluate_recording(rec, corridor_length_m=(protocol.corridor_length_m if protocol else 100.0),
                               **options)
@@ -431,7 +431,7 @@ class SimulatedEvaluation:
         with seed ``seed * 1000 + i`` (independent of ``n_subjects`` and of ``workers``).
     protocol
         :class:`~firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
-    rate_hz, bits
+    sampling_rate_hz, bits
         Logger rate and ADC resolution.
     workers
         Processes (``concurrent.futures``); 1 runs in this process. Results do not depend on it.
@@ -452,14 +452,14 @@ class SimulatedEvaluation:
         Event scores pooled over subjects.
     """
 
-    def __init__(self, *, n_subjects: int = 4, seed: int = 0, protocol: Any = None, rate_hz: float = 50.0,
+    def __init__(self, *, n_subjects: int = 4, seed: int = 0, protocol: Any = None, sampling_rate_hz: float = 50.0,
                  bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
                  detector: Any = None) -> None:
         self.n_subjects = n_subjects
         self.seed = seed
         self.protocol = protocol
-        self.rate_hz = rate_hz
+        self.sampling_rate_hz = sampling_rate_hz
         self.bits = bits
         self.workers = workers
         self.section_m = section_m
@@ -477,7 +477,7 @@ class SimulatedEvaluation:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
                        calibration_sections=self.calibration_sections, detector=self.detector)
-        jobs = [(s, self.seed * 1000 + i, self.protocol, self.rate_hz, self.bits, self.calibrate_device, options)
+        jobs = [(s, self.seed * 1000 + i, self.protocol, self.sampling_rate_hz, self.bits, self.calibrate_device, options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
             from concurrent.futures import ProcessPoolExecutor
@@ -514,7 +514,7 @@ class SimulatedEvaluation:
                  "figure": out / f"{stem}_boxplots.png"}
         self.write_csv(paths["rows"], summary_path=paths["summary"])
         plot_boxplots(self.rows_, paths["figure"], title=title or (
-            f"{self.n_subjects} simulated subjects, {self.rate_hz:g} Hz, {self.bits} bit"))
+            f"{self.n_subjects} simulated subjects, {self.sampling_rate_hz:g} Hz, {self.bits} bit"))
         return paths
 
 

@@ -68,7 +68,7 @@ RATES_HZ = (25.0, 50.0, 100.0)
 KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Short names of the shares in the summary's columns.
 SHARE_COLUMNS = {"adc": "adc", "algorithm": "algorithm", "arithmetic": "arith"}
-SUMMARY_COLUMNS = (("bits", "rate_hz", "mode", "estimator", "n")
+SUMMARY_COLUMNS = (("bits", "sampling_rate_hz", "mode", "estimator", "n")
                    + tuple(f"{q}_{k}" for k in KINDS[:-1] for q in ("median", "iqr")) + ("iqr_exact_timing",)
                    + tuple(f"{c}_step_mm" for c in SHARE_COLUMNS.values()) + ("arith_step_max_rel",)
                    + tuple(f"{c}_ratio_abs_max" for c in SHARE_COLUMNS.values())
@@ -81,7 +81,7 @@ class ConfigResult:
 
     subject_id: str
     bits: int
-    rate_hz: float
+    sampling_rate_hz: float
     step_diffs: list[dict]
     segments: list[dict]
     timing: dict
@@ -196,15 +196,15 @@ def summarise(results: list[ConfigResult]) -> list[dict]:
     ``*_ratio_abs_max``: largest per-section |ratio difference| of each share.
     """
     out = []
-    configs = sorted({(r.bits, r.rate_hz) for r in results}, key=lambda c: (c[1], c[0]))
+    configs = sorted({(r.bits, r.sampling_rate_hz) for r in results}, key=lambda c: (c[1], c[0]))
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
     for bits, rate in configs:
-        rs = [r for r in results if r.bits == bits and r.rate_hz == rate]
+        rs = [r for r in results if r.bits == bits and r.sampling_rate_hz == rate]
         for mode in MODES:
             for est in ESTIMATORS:
                 seg = [s for r in rs for s in r.segments if s["mode"] == mode and s["estimator"] == est]
                 ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in KINDS}
-                row: dict[str, Any] = dict(bits=bits, rate_hz=rate, mode=mode, estimator=est, n=len(seg))
+                row: dict[str, Any] = dict(bits=bits, sampling_rate_hz=rate, mode=mode, estimator=est, n=len(seg))
                 for k in KINDS[:-1]:
                     row[f"median_{k}"], row[f"iqr_{k}"] = _q(ratio[k])
                 row["iqr_exact_timing"] = _q(ratio["exact_timing"])[1]
@@ -236,10 +236,10 @@ def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
     50 Hz to be large *and* the spread to shrink at 100 Hz.
     """
     rows = []
-    rates = sorted({r.rate_hz for r in results if r.bits == bits})
+    rates = sorted({r.sampling_rate_hz for r in results if r.bits == bits})
     for mode in MODES:
         for rate in rates:
-            rs = [r for r in results if r.bits == bits and r.rate_hz == rate]
+            rs = [r for r in results if r.bits == bits and r.sampling_rate_hz == rate]
             seg = [s for r in rs for s in r.segments if s["mode"] == mode and s["estimator"] == "M5"]
             a = np.array([s["ratio_offline"] for s in seg], float)
             e = np.array([s["ratio_exact_timing"] for s in seg], float)
@@ -248,13 +248,13 @@ def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
             if a.size < 2:
                 continue
             va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
-            rows.append(dict(mode=mode, rate_hz=rate, n=int(a.size), iqr=_q(a)[1], std=math.sqrt(va),
+            rows.append(dict(mode=mode, sampling_rate_hz=rate, n=int(a.size), iqr=_q(a)[1], std=math.sqrt(va),
                              iqr_exact=_q(e)[1], std_exact=math.sqrt(ve),
                              timing_share=float(np.clip(1.0 - ve / va, 0.0, 1.0)) if va > 0 else math.nan,
                              timing_rms_ms=float(np.sqrt(np.mean([r.timing["rms_ms"] ** 2 for r in rs]))),
                              sampling_rms_ms=1e3 / rate / math.sqrt(6.0)))
     verdict = ""
-    by = {(r["mode"], r["rate_hz"]): r for r in rows}
+    by = {(r["mode"], r["sampling_rate_hz"]): r for r in rows}
     if any(k[1] == 50.0 for k in by):
         parts, answers = [], []
         for mode in MODES:
@@ -291,7 +291,7 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     for r in summary:
         if r["mode"] != mode:
             continue
-        lines.append(f"{r['bits']:>4}{r['rate_hz']:>5.0f} {r['estimator']:<4}{r['n']:>4}"
+        lines.append(f"{r['bits']:>4}{r['sampling_rate_hz']:>5.0f} {r['estimator']:<4}{r['n']:>4}"
                      + "".join(f"{r['median_' + k]:>8.3f}{r['iqr_' + k]:>7.3f}" for k in KINDS[:-1])
                      + f"{r['adc_step_mm']:>8.3f}{r['algorithm_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
                      f"{100 * r['arith_step_max_rel']:>11.3f}{r['different_events_arith']:>8}{r['saturated']:>5}")
@@ -305,7 +305,7 @@ def format_m5(m5: dict) -> str:
              f"{'mode':<13}{'Hz':>5}{'n':>5}{'IQR':>8}{'std':>8}{'IQR exact T':>13}{'std exact T':>13}"
              f"{'timing share':>14}{'T rms ms':>10}{'sampling ms':>13}"]
     for r in m5["rows"]:
-        lines.append(f"{r['mode']:<13}{r['rate_hz']:>5.0f}{r['n']:>5}{r['iqr']:>8.4f}{r['std']:>8.4f}"
+        lines.append(f"{r['mode']:<13}{r['sampling_rate_hz']:>5.0f}{r['n']:>5}{r['iqr']:>8.4f}{r['std']:>8.4f}"
                      f"{r['iqr_exact']:>13.4f}{r['std_exact']:>13.4f}{100 * r['timing_share']:>13.1f}%"
                      f"{r['timing_rms_ms']:>10.1f}{r['sampling_rms_ms']:>13.1f}")
     if m5.get("verdict"):

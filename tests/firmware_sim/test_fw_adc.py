@@ -30,20 +30,20 @@ def test_clipping_to_the_code_range_and_configurable_bits() -> None:
     assert direct.convert(np.array([-1.0, 0.0, 4.99, 5.0, 7.0])).tolist() == [0, 0, 1021, 1023, 1023]
     adc = Adc()  # gain 4 around 2.5 V: +-0.625 V of sensor output spans the converter
     assert adc.convert(np.array([2.5 - 0.7, 2.5 - 0.625, 2.5 + 0.6249, 2.5 + 0.7])).tolist() == [0, 0, 1023, 1023]
-    adc8 = Adc(bits=8)
+    adc8 = Adc(adc_bits=8)
     assert adc8.convert(np.array([2.5, 5.0])).tolist() == [128, 255]
     narrow = Adc(gain=1.0, vref_low_v=2.5 - 0.624, vref_high_v=2.5 + 0.624)  # VREF+- around the 0 g level
     assert narrow.convert(np.array([2.5, 2.5 + 0.3125])).tolist() == [512, 768]
     with pytest.raises(DeviceError):
-        Adc(bits=12)
+        Adc(adc_bits=12)
     with pytest.raises(DeviceError):
         Adc(vref_low_v=3.0, vref_high_v=1.0)
 
 
 def test_timer_instants_and_ppm_error() -> None:
-    t = Adc(rate_hz=50.0).sample_times_s(0.0, 10.0)
+    t = Adc(sampling_rate_hz=50.0).sample_times_s(0.0, 10.0)
     assert t.size == 501 and t[1] == pytest.approx(0.02)
-    fast = Adc(rate_hz=50.0, timer_error_ppm=100.0)
+    fast = Adc(sampling_rate_hz=50.0, timer_error_ppm=100.0)
     tf = fast.sample_times_s(0.0, 1000.0)
     assert tf[-1] == pytest.approx((tf.size - 1) / (50.0 * 1.0001))
     assert tf.size == 50006  # 100 ppm fast: 5 extra samples in 1000 s

@@ -21,7 +21,7 @@ from protocol.header import DeviceHeader
 
 def _still(acc: list[float], seconds: float, rate: float = 500.0, **kw: object) -> Motion:
     n = int(seconds * rate)
-    return Motion(acc_g=np.tile(acc, (n, 1)), rate_hz=rate, **kw)  # type: ignore[arg-type]
+    return Motion(acc_g=np.tile(acc, (n, 1)), sampling_rate_hz=rate, **kw)  # type: ignore[arg-type]
 
 
 def test_record_stores_the_expected_codes_flags_and_numbers() -> None:

@@ -26,7 +26,7 @@ def test_ipol_file_on_the_packet_grid_with_filled_gaps(shared_data: Path) -> Non
     counter = raw[:, 0].astype(int)
     src = Replay.from_file(path)  # units auto-detected
     assert isinstance(src, MotionSource)
-    assert src.truth["units"] == "m/s^2" and src.rate_hz == 100.0
+    assert src.truth["units"] == "m/s^2" and src.sampling_rate_hz == 100.0
     first = counter[0]
     assert src.acc_g.shape == (counter[-1] - first + 1, 3)
     # every received packet is at its counter position, converted to g
@@ -48,7 +48,7 @@ def test_ipol_file_on_the_packet_grid_with_filled_gaps(shared_data: Path) -> Non
 def test_ipol_resampled_signal_matches_the_original_in_band(shared_data: Path) -> None:
     src = Replay.from_file(shared_data / "ipol-lowerback-dev" / "GaitData" / "2-1_lb.txt")
     m = src.render(500.0)
-    assert m.rate_hz == 500.0 and m.n_samples == 5 * src.acc_g.shape[0]
+    assert m.sampling_rate_hz == 500.0 and m.n_samples == 5 * src.acc_g.shape[0]
     # the resampled signal at the original instants, both seen through the same 20 Hz low-pass
     x = _lowpass(src.acc_g, 20.0, 100.0)
     y = _lowpass(m.acc_g[::5], 20.0, 100.0)
@@ -80,7 +80,7 @@ def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
                      zip(t[keep], acc_g[keep] * STANDARD_GRAVITY_M_S2))
     path.write_text("# exported by a test\ntime_s,ax,ay,az,temp\n" + rows + "\n")
     src = Replay.from_file(path, columns=["ax", "ay", "az"], time_column="time_s")
-    assert src.truth["units"] == "m/s^2" and src.rate_hz == pytest.approx(fs)
+    assert src.truth["units"] == "m/s^2" and src.sampling_rate_hz == pytest.approx(fs)
     assert src.acc_g.shape == (2000, 3) and src.truth["n_filled"] == 7
     np.testing.assert_array_equal(src.truth["filled_packets"], [[500, 506]])
     np.testing.assert_allclose(src.acc_g[keep], acc_g[keep], atol=1e-8)
@@ -91,7 +91,7 @@ def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
     core = (tt > 0.5) & (tt < 9.5) & ((tt < 2.4) | (tt > 2.6))
     np.testing.assert_allclose(m.acc_g[core], truth[core], atol=2e-3)
     # the same file with explicit units and a rate instead of the time column
-    src_g = Replay.from_file(path, columns=[1, 2, 3], units="m/s^2", rate_hz=fs)
+    src_g = Replay.from_file(path, columns=[1, 2, 3], units="m/s^2", sampling_rate_hz=fs)
     assert src_g.acc_g.shape == (1993, 3)
 
 
@@ -101,7 +101,7 @@ def test_downsampling_is_anti_aliased(tmp_path: Path) -> None:
     x = 0.3 * np.sin(2 * np.pi * 5.0 * t) + 0.2 * np.sin(2 * np.pi * 290.0 * t)  # 290 Hz would alias to 90 Hz
     path = tmp_path / "fast.csv"
     path.write_text("\n".join(f"{v:.9f},0,1" for v in x) + "\n")
-    m = Replay.from_file(path, rate_hz=fs, units="g").render(200.0)
+    m = Replay.from_file(path, sampling_rate_hz=fs, units="g").render(200.0)
     f, p = signal.welch(m.acc_g[:, 0], fs=200.0, nperseg=1024)
     assert p[np.argmin(np.abs(f - 5.0))] > 1e4 * p[np.argmin(np.abs(f - 90.0))]
     tt = np.arange(m.n_samples) / 200.0
@@ -112,7 +112,7 @@ def test_downsampling_is_anti_aliased(tmp_path: Path) -> None:
 
 
 def test_gaitpy_demo_csv_in_g(shared_data: Path) -> None:
-    src = Replay.from_file(shared_data / "gaitpy_demo" / "demo_data.csv", rate_hz=50.0)
+    src = Replay.from_file(shared_data / "gaitpy_demo" / "demo_data.csv", sampling_rate_hz=50.0)
     assert src.truth["units"] == "g" and src.acc_g.shape[0] > 8000
     assert 0.9 < np.linalg.norm(src.acc_g, axis=1).mean() < 1.1
 
@@ -123,13 +123,13 @@ def test_replay_errors_name_the_problem(tmp_path: Path) -> None:
     with pytest.raises(DeviceError, match="rate_hz"):
         Replay.from_file(p, units="g")
     with pytest.raises(DeviceError, match="units"):
-        Replay.from_file(p, rate_hz=10.0)  # mean norm ~5.7: neither g nor m/s^2
+        Replay.from_file(p, sampling_rate_hz=10.0)  # mean norm ~5.7: neither g nor m/s^2
     with pytest.raises(DeviceError, match="no column named 'q'"):
-        Replay.from_file(p, rate_hz=10.0, units="g", columns=["a", "b", "q"])
+        Replay.from_file(p, sampling_rate_hz=10.0, units="g", columns=["a", "b", "q"])
     q = tmp_path / "empty.csv"
     q.write_text("just,a,header\n")
     with pytest.raises(DeviceError, match="no data row"):
-        Replay.from_file(q, rate_hz=10.0)
+        Replay.from_file(q, sampling_rate_hz=10.0)
     with pytest.raises(DeviceError, match="cannot read"):
         Replay.from_file(tmp_path / "missing.csv")
     r = tmp_path / "t.csv"

@@ -28,16 +28,16 @@ def test_noise_density_matches_200_ug_per_root_hz() -> None:
     np.testing.assert_allclose(ratio, 1.0, atol=0.05)
 
 
-@pytest.mark.parametrize("cap_f, rate_hz", [(0.25e-6, 500.0), (0.1e-6, 1000.0), (0.47e-6, 500.0)])
-def test_minus_3_db_point_is_5uF_over_C(cap_f: float, rate_hz: float) -> None:
+@pytest.mark.parametrize("cap_f, sampling_rate_hz", [(0.25e-6, 500.0), (0.1e-6, 1000.0), (0.47e-6, 500.0)])
+def test_minus_3_db_point_is_5uF_over_C(cap_f: float, sampling_rate_hz: float) -> None:
     fc = 5e-6 / cap_f
-    sensor = SensorModel.ideal(noise_density_g_rthz=0.0, filter_capacitance_f=cap_f, internal_rate_hz=rate_hz)
-    t = np.arange(int(20 * rate_hz)) / rate_hz
+    sensor = SensorModel.ideal(noise_density_g_rthz=0.0, filter_capacitance_f=cap_f, internal_rate_hz=sampling_rate_hz)
+    t = np.arange(int(20 * sampling_rate_hz)) / sampling_rate_hz
     # exact at the cut-off (pre-warped bilinear filter); within 3 % of the analog RC up to 2 fc
     # (bilinear frequency warping; fc is at most a tenth of the internal rate here)
     for f, gain, tol in ((fc, 1 / np.sqrt(2), 0.005), (2 * fc, 1 / np.sqrt(5), 0.03), (fc / 10, 1 / np.sqrt(1.01), 0.005)):
         x = 0.5 * np.sin(2 * np.pi * f * t)
-        out = _g(sensor, sensor.respond(np.c_[x, x, x], rate_hz))
+        out = _g(sensor, sensor.respond(np.c_[x, x, x], sampling_rate_hz))
         tail = slice(len(t) // 2, None)  # steady state
         amp = np.sqrt(2) * out[tail].std(axis=0)
         np.testing.assert_allclose(amp / 0.5, gain, rtol=tol)

@@ -207,7 +207,7 @@ def test_rates_and_widths_of_the_sweep() -> None:
         span = 1 << bits
         codes = np.clip(np.floor((np.column_stack([np.zeros_like(t), np.zeros_like(t), 1 + a_v])) * span / 4
                                  + span / 2), 0, span - 1).astype(np.int64)
-        h = {ar: np.median(OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=config(), code_bits=bits,
+        h = {ar: np.median(OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=config(), adc_bits=bits,
                                                arithmetic=ar).run(codes).excursion_m()[3:-3, 1])
              for ar in ("fixed", "float")}
         # the arithmetic costs at most 0.1 mm of h; sampling a 2 Hz step at 25 Hz costs ~5 % (trapezoids)

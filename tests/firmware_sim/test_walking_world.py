@@ -43,8 +43,8 @@ def test_double_integration_of_rendered_acceleration_reproduces_truth(fine: Moti
     acc_w[:, 2] -= STANDARD_GRAVITY_M_S2
     rng = np.random.default_rng(0)
     for i in rng.choice(np.flatnonzero(steps["phase"] == "steady"), size=12, replace=False):
-        i0 = int(np.ceil(steps["foot_flat_s"][i] * fine.rate_hz))
-        i1 = int(np.floor(steps["next_foot_flat_s"][i] * fine.rate_hz)) + 1
+        i0 = int(np.ceil(steps["foot_flat_s"][i] * fine.sampling_rate_hz))
+        i1 = int(np.floor(steps["next_foot_flat_s"][i] * fine.sampling_rate_hz)) + 1
         a = acc_w[i0:i1]
         v = tr["sensor_velocity_m_s"][i0] + cumulative_trapezoid(a, t[i0:i1], axis=0, initial=0.0)
         p = tr["sensor_position_m"][i0] + cumulative_trapezoid(v, t[i0:i1], axis=0, initial=0.0)
@@ -52,7 +52,7 @@ def test_double_integration_of_rendered_acceleration_reproduces_truth(fine: Moti
         np.testing.assert_allclose(v, tr["sensor_velocity_m_s"][i0:i1], atol=2e-4)
         # The truth excursion (max - min of the sensor's height between foot-flats) is what integration sees.
         # (the samples start/end up to one period inside the foot-flat instants: allow that much travel)
-        edge = np.abs(tr["sensor_velocity_m_s"][[i0, i1 - 1], 2]).max() / fine.rate_hz
+        edge = np.abs(tr["sensor_velocity_m_s"][[i0, i1 - 1], 2]).max() / fine.sampling_rate_hz
         assert np.ptp(p[:, 2]) == pytest.approx(steps["sensor_excursion_m"][i], abs=2e-5 + edge)
 
 
@@ -84,7 +84,7 @@ def test_at_rest_the_norm_is_one_g_and_x_points_up(fine: Motion, sitting: Motion
 def test_sitting_rest_tilts_the_trunk(sitting: Motion) -> None:
     rest = sitting.truth["rests"]
     assert list(rest["posture"]) == ["sitting"]
-    mid = int(0.5 * (rest["t_start_s"][0] + rest["t_stop_s"][0]) * sitting.rate_hz)
+    mid = int(0.5 * (rest["t_start_s"][0] + rest["t_stop_s"][0]) * sitting.sampling_rate_hz)
     stand = sitting.acc_g[0]
     seated = sitting.acc_g[mid]
     angle = np.degrees(np.arccos(np.clip(stand @ seated, -1, 1)))

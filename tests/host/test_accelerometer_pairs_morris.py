@@ -17,11 +17,11 @@ from host.kinematics.orientation import initial_dcm_from_gravity
 GENTLE = dict(sagittal_deg=((1, 0.0, 20.0),), coronal_deg=((1, 0.0, 3.0),), axial_deg=((1, 0.0, 3.0),), n_cycles=1)
 
 
-def _estimate(src: RigidBodyShank, rate_hz: float, **kw: object):
-    rec = src.render_platform(rate_hz)
+def _estimate(src: RigidBodyShank, sampling_rate_hz: float, **kw: object):
+    rec = src.render_platform(sampling_rate_hz)
     tr = rec.motion.truth
     algo = AngularVelocityFromAccelerometers(positions_m=rec.positions_m, axes=rec.axes, **kw).estimate(
-        rec.readings_g, rate_hz=rate_hz, omega0_rad_s=tr["omega_rad_s"][0]
+        rec.readings_g, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=tr["omega_rad_s"][0]
     )
     return algo, rec, tr
 
@@ -80,14 +80,14 @@ def test_rank_deficient_platform_and_bad_readings_are_rejected() -> None:
     src = RigidBodyShank(n_accelerometers=5)
     pos, axes = src.platform_geometry()
     with pytest.raises(HostError, match="does not determine"):
-        AngularVelocityFromAccelerometers(positions_m=pos, axes=axes).estimate(np.zeros((10, 5)), rate_hz=100)
+        AngularVelocityFromAccelerometers(positions_m=pos, axes=axes).estimate(np.zeros((10, 5)), sampling_rate_hz=100)
     algo = AngularVelocityFromAccelerometers(positions_m=pos, axes=axes, fixed_zero_axes=(2,))
     with pytest.raises(HostError, match=r"shape \(n, 5\)"):
-        algo.estimate(np.zeros((10, 6)), rate_hz=100)
+        algo.estimate(np.zeros((10, 6)), sampling_rate_hz=100)
     bad = np.zeros((10, 5))
     bad[7, 0] = np.inf
     with pytest.raises(HostError, match="sample 7"):
-        algo.estimate(bad, rate_hz=100)
+        algo.estimate(bad, sampling_rate_hz=100)
 
 
 def test_initial_dcm_at_foot_flat_from_the_pivot_constraint() -> None:

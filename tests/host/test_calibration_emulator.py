@@ -78,8 +78,8 @@ def recorded():
 
 def test_ten_bit_pose_session_recovers_the_sensor_within_the_lsb_bound(recorded):
     logger, res = recorded
-    assert logger.adc.bits == 10
-    run = AccCalibrator().calibrate(res.codes.astype(float), sampling_rate_hz=logger.adc.rate_hz,
+    assert logger.adc.adc_bits == 10
+    run = AccCalibrator().calibrate(res.codes.astype(float), sampling_rate_hz=logger.adc.sampling_rate_hz,
                                     input_unit="counts", zero=512.0, unit_per_g=256.0, valid_range=(0, 1023))
     cal = run.calibration_
     assert cal.n_poses == 24
@@ -113,12 +113,12 @@ def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsy
     from host.files.recording import Recording
 
     logger, res = recorded
-    rec = Recording.from_arrays(res.codes, flags=res.flags, sampling_rate_hz=logger.adc.rate_hz,
-                                header=logger.header, adc_bits=logger.adc.bits)
+    rec = Recording.from_arrays(res.codes, flags=res.flags, sampling_rate_hz=logger.adc.sampling_rate_hz,
+                                header=logger.header, adc_bits=logger.adc.adc_bits)
     valid = rec.valid.copy()
     valid[1000:1010] = False  # a gap inside the recording: those samples are skipped, not refused
-    rec = Recording.from_arrays(res.codes, valid=valid, flags=res.flags, sampling_rate_hz=logger.adc.rate_hz,
-                                header=logger.header, adc_bits=logger.adc.bits)
+    rec = Recording.from_arrays(res.codes, valid=valid, flags=res.flags, sampling_rate_hz=logger.adc.sampling_rate_hz,
+                                header=logger.header, adc_bits=logger.adc.adc_bits)
     npz = tmp_path / "poses.npz"
     rec.save_npz(npz)
     out = tmp_path / "cal.json"

@@ -25,7 +25,7 @@ def image(tmp_path):
     """A logger (id 7) that recorded 500 samples, saved as an image."""
     rng = np.random.default_rng(1)
     logger = Logger(device_id=7)
-    logger.record(Motion(acc_g=0.1 * rng.standard_normal((N_SAMPLES, 3)) + [0, 0, 1], rate_hz=50.0),
+    logger.record(Motion(acc_g=0.1 * rng.standard_normal((N_SAMPLES, 3)) + [0, 0, 1], sampling_rate_hz=50.0),
                   start_time_s=START_S)
     path = tmp_path / "dev.glimg"
     logger.save_image(path)
@@ -100,7 +100,7 @@ def test_erase_not_confirmed_changes_nothing(image, capsys, monkeypatch, answer)
     before = image.read_bytes()
     monkeypatch.setattr("sys.stdin", _Terminal(answer))
     code, _, err = _device(capsys, "erase", "--port", f"emu://{image}?persist=1")
-    assert code == 1 and err.strip() == "gaitlog device: error: erase not confirmed: nothing erased"
+    assert code == 1 and err.strip() == "gaitlog device erase: error: erase not confirmed: nothing erased"
     assert image.read_bytes() == before
 
 
@@ -134,7 +134,7 @@ def test_set_calibration_stores_the_fixed_point_slot(image, tmp_path, capsys):
 
 @pytest.mark.parametrize("content, message", [
     ("{not json", "not valid JSON"),
-    (None, "cannot read the calibration file"),
+    (None, "cannot read accelerometer calibration"),
     ("g", "only a calibration of ADC counts"),
     ("far", "does not fit the logger's calibration slot"),
 ])

@@ -22,7 +22,7 @@ def _image(tmp_path, n=CAP + 777, seed=3):
     t = np.arange(n) / 50.0
     acc = np.c_[np.sin(0.03 * t), np.cos(0.03 * t), 0.5 + 0.2 * np.sin(0.4 * t)] + 0.05 * rng.standard_normal((n, 3))
     logger = Logger(overwrite=True)
-    result = logger.record(Motion(acc_g=acc, rate_hz=50.0), start_time_s=1_700_000_000)
+    result = logger.record(Motion(acc_g=acc, sampling_rate_hz=50.0), start_time_s=1_700_000_000)
     path = tmp_path / "rec.glimg"
     logger.save_image(path)
     return path, np.asarray(result.codes), np.asarray(result.flags), np.asarray(result.sample_numbers)
@@ -107,7 +107,7 @@ def test_record_replay_says_how_many_samples_were_interpolated(tmp_path, capsys)
     path.write_text("\n".join(lines) + "\n")
     data = read_acceleration(path)
     assert data.n_samples == t.size and data.n_missing == 40
-    replay = Replay.from_samples(data.acc_g, data.valid, rate_hz=data.sampling_rate_hz)
+    replay = Replay.from_samples(data.acc_g, data.valid, sampling_rate_hz=data.sampling_rate_hz)
     assert replay.n_interpolated == 40
     assert replay.truth["filled_packets"].tolist() == [[500, 529], [1200, 1209]]
     assert main(["record", "--motion", "replay", str(path), "--start-time", "0", "--out",

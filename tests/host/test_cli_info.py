@@ -24,7 +24,7 @@ N_SAMPLES = 700
 @pytest.fixture
 def image(tmp_path):
     logger = Logger(device_id=5)
-    logger.record(Motion(acc_g=np.tile([0.0, 0.0, 1.0], (N_SAMPLES, 1)), rate_hz=50.0), start_time_s=1_700_000_000)
+    logger.record(Motion(acc_g=np.tile([0.0, 0.0, 1.0], (N_SAMPLES, 1)), sampling_rate_hz=50.0), start_time_s=1_700_000_000)
     path = tmp_path / "rec.glimg"
     logger.save_image(path)
     return path
@@ -77,7 +77,7 @@ def test_info_json_of_a_device(image, capsys):
 
 def test_info_quiet_prints_nothing_and_verbose_lists_every_gap(tmp_path, capsys):
     logger = Logger()
-    logger.record(Motion(acc_g=np.tile([0.0, 0.0, 1.0], (12_800, 1)), rate_hz=50.0))  # 50 blocks of 256 samples
+    logger.record(Motion(acc_g=np.tile([0.0, 0.0, 1.0], (12_800, 1)), sampling_rate_hz=50.0))  # 50 blocks of 256 samples
     contents = parse_image(logger.save_image(tmp_path / "full.glimg").read_bytes())
     holey = tmp_path / "holey.glimg"
     region = np.concatenate([contents.memory, contents.step_memory]).tobytes()

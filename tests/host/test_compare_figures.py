@@ -129,7 +129,7 @@ def test_bootstrap_intervals_are_written_and_printed(simulated) -> None:
 
 
 def _summary(sweep, bits, rate, est, mode="multi-speed"):
-    return next(r for r in sweep.summary if int(r["bits"]) == bits and float(r["rate_hz"]) == rate
+    return next(r for r in sweep.summary if int(r["bits"]) == bits and float(r["sampling_rate_hz"]) == rate
                 and r["estimator"] == est and r["mode"] == mode)
 
 
@@ -149,7 +149,7 @@ def test_sweep_arithmetic_share_everywhere(sweep) -> None:
     for r in sweep.summary:
         assert int(r["saturated"]) == 0, r
         worst = float(r["arith_step_max_rel"])
-        if (r["bits"], float(r["rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
+        if (r["bits"], float(r["sampling_rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
             assert worst <= {"M1": 0.30, "M2": 0.035, "M4": 0.012}[r["estimator"]], r
         else:
             assert worst <= 0.005, r
@@ -158,7 +158,7 @@ def test_sweep_arithmetic_share_everywhere(sweep) -> None:
 def test_sweep_m5_timing_answer(sweep) -> None:
     """M5 (offline chain, 10 bits, multi-speed K): IQR 0.0147 / 0.0141 / 0.0151 at 25 / 50 / 100 Hz, 0.0131 with
     the world's step durations and the same K: the 50 Hz step timing is not where M5's spread comes from."""
-    m5 = {(r["mode"], float(r["rate_hz"])): r for r in sweep.m5}
+    m5 = {(r["mode"], float(r["sampling_rate_hz"])): r for r in sweep.m5}
     for rate, measured in ((25.0, 0.0147), (50.0, 0.0141), (100.0, 0.0151)):
         assert float(m5[("multi-speed", rate)]["iqr"]) == pytest.approx(measured, abs=0.0005)
     assert float(m5[("multi-speed", 50.0)]["iqr_exact"]) == pytest.approx(0.0131, abs=0.0005)

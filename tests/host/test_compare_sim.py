@@ -74,7 +74,7 @@ def test_codes_are_what_the_emulated_logger_stores(walk, bits) -> None:
     from firmware_sim.world.walking import Walking
     from protocol.packing import FLAG_MARK
 
-    logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(bits=bits, rate_hz=FS))
+    logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=bits, sampling_rate_hz=FS))
     res = logger.record(Walking(subject=walk.subject, protocol=walk.protocol, seed=7))
     np.testing.assert_array_equal(walk.sw.codes(bits), np.asarray(res.codes, np.int64))
     np.testing.assert_allclose(walk.sw.times_s, res.sample_times_s, atol=1e-12)

@@ -35,9 +35,9 @@ SHORT = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), re
                         lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0, 120.0))
 
 
-def ideal_logger(motion, *, rate_hz: float = 50.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def ideal_logger(motion, *, sampling_rate_hz: float = 50.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stand-in for the device: nominal +-2 g, 10-bit quantisation, 50 Hz (no sensor filter, no errors)."""
-    step = int(round(motion.rate_hz / rate_hz))
+    step = int(round(motion.sampling_rate_hz / sampling_rate_hz))
     acc = motion.acc_g[::step]
     times = motion.t_s[::step]
     codes = np.clip(np.floor(512.0 + acc * 256.0), 0, 1023)

@@ -107,7 +107,7 @@ def test_device_records_are_the_algorithm_run_here(folder) -> None:
         h = rt.header
         assert h.step_config.enabled and not h.step_config.calibrated
         alg = OnlineStepAlgorithm(sampling_rate_hz=h.sampling_rate_hz, step_config=h.step_config,
-                                  calibration=h.calibration, arithmetic="fixed", code_bits=h.adc_bits)
+                                  calibration=h.calibration, arithmetic="fixed", adc_bits=h.adc_bits)
         mine = alg.run(rt.codes).to_records(int(rt.sample_numbers[0]))
         dev = rt.device_records
         assert dev.size == mine.size > 20, path.name

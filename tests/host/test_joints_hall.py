@@ -78,14 +78,14 @@ def test_pretest_offset_removal() -> None:
         remove_pretest_offset(x, 101)
 
 
-def _run(src: TwoLinkJoint, rate_hz: float = 10_000, **kw: object) -> tuple[HallJointKinematics, dict]:
-    r = src.render_rates(rate_hz)
+def _run(src: TwoLinkJoint, sampling_rate_hz: float = 10_000, **kw: object) -> tuple[HallJointKinematics, dict]:
+    r = src.render_rates(sampling_rate_hz)
     algo = HallJointKinematics(
         sensor_to_link_a=r.truth["sensor_to_link_a"],
         sensor_to_link_b=r.truth["sensor_to_link_b"],
         pretest_samples=r.pretest_samples,
         **kw,
-    ).compute(r.rate_a_rad_s, r.rate_b_rad_s, rate_hz=rate_hz)
+    ).compute(r.rate_a_rad_s, r.rate_b_rad_s, sampling_rate_hz=sampling_rate_hz)
     return algo, r.truth
 
 
@@ -108,7 +108,7 @@ def test_pipeline_with_noise_cfc180_and_right_leg() -> None:
     r = src.render_rates(10_000)
     raw = HallJointKinematics(
         sensor_to_link_a=HALL_SENSOR_TO_LINK, sensor_to_link_b=HALL_SENSOR_TO_LINK, side="right"
-    ).compute(r.rate_a_rad_s, r.rate_b_rad_s, rate_hz=10_000)
+    ).compute(r.rate_a_rad_s, r.rate_b_rad_s, sampling_rate_hz=10_000)
     assert np.degrees(np.abs(raw.angles_rad_ - want)).max() > 0.1
 
 
@@ -126,15 +126,15 @@ def test_literal_summation_of_incremental_euler_angles_is_path_dependent() -> No
     for k in range(1, n):  # ω_k = 2·inc_{k-1} − ω_{k-1} makes (ω_{k-1}+ω_k)/2 = inc_{k-1}
         rate_b[k] = 2 * inc[k - 1] - rate_b[k - 1]
     zeros = np.zeros((n, 3))
-    absolute = HallJointKinematics().compute(zeros, rate_b, rate_hz=n - 1)
-    literal = HallJointKinematics(angle_mode="incremental_sum").compute(zeros, rate_b, rate_hz=n - 1)
+    absolute = HallJointKinematics().compute(zeros, rate_b, sampling_rate_hz=n - 1)
+    literal = HallJointKinematics(angle_mode="incremental_sum").compute(zeros, rate_b, sampling_rate_hz=n - 1)
     np.testing.assert_allclose(np.degrees(absolute.angles_rad_[-1]), [40.0, -20.0, 15.0], atol=1e-9)
     np.testing.assert_allclose(np.degrees(literal.angles_rad_[-1]), [41.4, -14.7, 21.9], atol=0.06)
     # planar motion: the two agree
     planar = np.zeros((n, 3))
     planar[:, 1] = 0.7
-    a = HallJointKinematics().compute(zeros, planar, rate_hz=100).angles_rad_
-    b = HallJointKinematics(angle_mode="incremental_sum").compute(zeros, planar, rate_hz=100).angles_rad_
+    a = HallJointKinematics().compute(zeros, planar, sampling_rate_hz=100).angles_rad_
+    b = HallJointKinematics(angle_mode="incremental_sum").compute(zeros, planar, sampling_rate_hz=100).angles_rad_
     np.testing.assert_allclose(np.unwrap(a[:, 0]), b[:, 0], atol=1e-9)
 
 
@@ -143,22 +143,22 @@ def test_gimbal_lock_warns_in_pipeline() -> None:
     rate = np.zeros((n, 3))
     rate[:, 0] = np.pi / 2 / ((n - 1) / 100)  # version reaches 90 deg
     with pytest.warns(UserWarning, match="gimbal lock"):
-        algo = HallJointKinematics().compute(np.zeros((n, 3)), rate, rate_hz=100)
+        algo = HallJointKinematics().compute(np.zeros((n, 3)), rate, sampling_rate_hz=100)
     assert algo.gimbal_lock_[-1] and not algo.gimbal_lock_[0]
 
 
 def test_bad_inputs_raise_clear_errors() -> None:
     z = np.zeros((10, 3))
     with pytest.raises(HostError, match="different lengths"):
-        HallJointKinematics().compute(z, np.zeros((11, 3)), rate_hz=100)
+        HallJointKinematics().compute(z, np.zeros((11, 3)), sampling_rate_hz=100)
     with pytest.raises(HostError, match="det -1"):
-        HallJointKinematics(sensor_to_link_a=[[0, 1, 0], [0, 0, 1], [-1, 0, 0]]).compute(z, z, rate_hz=100)
+        HallJointKinematics(sensor_to_link_a=[[0, 1, 0], [0, 0, 1], [-1, 0, 0]]).compute(z, z, sampling_rate_hz=100)
     bad = z.copy()
     bad[4, 1] = np.nan
     with pytest.raises(HostError, match="sample 4"):
-        HallJointKinematics().compute(bad, z, rate_hz=100)
+        HallJointKinematics().compute(bad, z, sampling_rate_hz=100)
     with pytest.raises(HostError, match="CFC 180 filter is invalid at 500 Hz"):
-        HallJointKinematics(cfc=180).compute(np.zeros((100, 3)), np.zeros((100, 3)), rate_hz=500)
+        HallJointKinematics(cfc=180).compute(np.zeros((100, 3)), np.zeros((100, 3)), sampling_rate_hz=500)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        HallJointKinematics().compute(z, z, rate_hz=100)
+        HallJointKinematics().compute(z, z, sampling_rate_hz=100)

@@ -24,7 +24,7 @@ def image(tmp_path):
     a_v = 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2
     acc = (1.0 + a_v)[:, None] * np.array([0.3, -0.2, 0.93])[None, :]
     logger = Logger(step_config=CONFIG)
-    logger.record(Motion(acc_g=acc, rate_hz=50.0), start_time_s=1_700_000_000)
+    logger.record(Motion(acc_g=acc, sampling_rate_hz=50.0), start_time_s=1_700_000_000)
     assert logger.header.steps_written > 20
     path = tmp_path / "s.glimg"
     logger.save_image(path)

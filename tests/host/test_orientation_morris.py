@@ -115,10 +115,10 @@ def test_cumulative_matmul_equals_sequential_product() -> None:
         np.testing.assert_allclose(cumulative_matmul(init, steps), np.array(ref), rtol=1e-9, atol=1e-9)
 
 
-@pytest.mark.parametrize(("rate_hz", "expected_rad"), [(50, 3.5e-3), (100, 8.7e-4), (10_000, 8.7e-8)])
-def test_heun_constant_rate_error_matches_notes(rate_hz: int, expected_rad: float) -> None:
-    w = np.tile(W123, (rate_hz + 1, 1))
-    lam = integrate_dcm(w, rate_hz, method="heun")
+@pytest.mark.parametrize(("sampling_rate_hz", "expected_rad"), [(50, 3.5e-3), (100, 8.7e-4), (10_000, 8.7e-8)])
+def test_heun_constant_rate_error_matches_notes(sampling_rate_hz: int, expected_rad: float) -> None:
+    w = np.tile(W123, (sampling_rate_hz + 1, 1))
+    lam = integrate_dcm(w, sampling_rate_hz, method="heun")
     truth = expm(_skew_ref(W123) * 1.0)
     err = _geodesic_ref(truth, lam[-1])
     assert err == pytest.approx(expected_rad, rel=0.02)
@@ -126,8 +126,8 @@ def test_heun_constant_rate_error_matches_notes(rate_hz: int, expected_rad: floa
 
 def test_heun_error_quarters_per_halving_of_step() -> None:
     errs = []
-    for rate_hz in (50, 100, 200, 400):
-        lam = integrate_dcm(np.tile(W123, (rate_hz + 1, 1)), rate_hz, method="heun")
+    for sampling_rate_hz in (50, 100, 200, 400):
+        lam = integrate_dcm(np.tile(W123, (sampling_rate_hz + 1, 1)), sampling_rate_hz, method="heun")
         errs.append(_geodesic_ref(expm(_skew_ref(W123)), lam[-1]))
     ratios = np.array(errs[:-1]) / np.array(errs[1:])
     np.testing.assert_allclose(ratios, 4.0, rtol=0.01)
@@ -139,11 +139,11 @@ def test_forward_euler_error_and_orthogonality_match_notes() -> None:
     assert orthogonality_error(lam[-1]) == pytest.approx(0.46, rel=0.02)
 
 
-@pytest.mark.parametrize("rate_hz", [7, 50, 1000])
-def test_rodrigues_is_exact_for_constant_rate(rate_hz: int) -> None:
+@pytest.mark.parametrize("sampling_rate_hz", [7, 50, 1000])
+def test_rodrigues_is_exact_for_constant_rate(sampling_rate_hz: int) -> None:
     rot0 = Rotation.from_euler("ZYX", [30, -20, 10], degrees=True).as_matrix()
-    t = np.arange(3 * rate_hz + 1) / rate_hz
-    lam = integrate_dcm(np.tile(W123, (t.size, 1)), rate_hz, rot0)
+    t = np.arange(3 * sampling_rate_hz + 1) / sampling_rate_hz
+    lam = integrate_dcm(np.tile(W123, (t.size, 1)), sampling_rate_hz, rot0)
     truth = rot0 @ Rotation.from_rotvec(t[:, None] * W123).as_matrix()  # λ0 · expm([ωt×])
     np.testing.assert_allclose(lam, truth, atol=1e-13)
     assert orthogonality_error(lam).max() < 1e-12  # round-off only, over 3 s
@@ -172,15 +172,15 @@ def _coning(t: np.ndarray, a: float, f: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_coning_motion_against_analytic_truth() -> None:
-    rate_hz, a, f = 1000, np.radians(5.0), 2.0
-    t = np.arange(2 * rate_hz + 1) / rate_hz
+    sampling_rate_hz, a, f = 1000, np.radians(5.0), 2.0
+    t = np.arange(2 * sampling_rate_hz + 1) / sampling_rate_hz
     truth, w = _coning(t, a, f)
     # the closed-form rates agree with finite differences of the truth (independent check of the truth)
-    fd = (np.swapaxes(truth[1:-1], 1, 2) @ (truth[2:] - truth[:-2])) * rate_hz / 2
+    fd = (np.swapaxes(truth[1:-1], 1, 2) @ (truth[2:] - truth[:-2])) * sampling_rate_hz / 2
     np.testing.assert_allclose(fd[:, 2, 1], w[1:-1, 0], atol=1e-3)
     errs = {}
     for method, coning in (("heun", False), ("rodrigues", False), ("rodrigues", True)):
-        lam = integrate_dcm(w, rate_hz, truth[0], method=method, coning_correction=coning)
+        lam = integrate_dcm(w, sampling_rate_hz, truth[0], method=method, coning_correction=coning)
         errs[(method, coning)] = geodesic_distance_rad(truth, orthonormalize_jordan(lam)).max()
     assert errs[("rodrigues", False)] < 1e-5
     assert errs[("heun", False)] < 1e-5
@@ -195,12 +195,12 @@ def test_coning_motion_against_analytic_truth() -> None:
 
 
 def test_planar_flexion_matches_closed_form() -> None:
-    rate_hz = 200
-    t = np.arange(2 * rate_hz + 1) / rate_hz
+    sampling_rate_hz = 200
+    t = np.arange(2 * sampling_rate_hz + 1) / sampling_rate_hz
     theta = 0.6 * np.sin(2 * np.pi * 1.0 * t)  # flexion about body axis 2, rad
     w = np.zeros((t.size, 3))
     w[:, 1] = 0.6 * 2 * np.pi * np.cos(2 * np.pi * t)
-    lam = integrate_dcm(w, rate_hz)
+    lam = integrate_dcm(w, sampling_rate_hz)
     truth = Rotation.from_euler("y", theta[:, None]).as_matrix()
     # planar: rotations commute, the trapezoid on the rate is the only error (O(dt^2))
     err = np.abs(np.unwrap(np.arctan2(lam[:, 0, 2], lam[:, 0, 0])) - theta).max()
@@ -225,10 +225,10 @@ def test_integrate_dcm_property_piecewise_constant_rates(seed: int) -> None:
     rng = np.random.default_rng(seed)
     n = int(rng.integers(2, 200))
     w = rng.normal(scale=3.0, size=(n, 3))
-    rate_hz = 100.0
+    sampling_rate_hz = 100.0
     lam0 = Rotation.random(random_state=int(rng.integers(1 << 31))).as_matrix()
-    lam = integrate_dcm(w, rate_hz, lam0)
-    incs = Rotation.from_rotvec(0.5 * (w[:-1] + w[1:]) / rate_hz)
+    lam = integrate_dcm(w, sampling_rate_hz, lam0)
+    incs = Rotation.from_rotvec(0.5 * (w[:-1] + w[1:]) / sampling_rate_hz)
     r = Rotation.from_matrix(lam0)
     ref = [r.as_matrix()]
     for inc in incs:

@@ -36,9 +36,9 @@ def test_bias_gives_bt2_over_2_and_cycle_drift_removal_cancels_it() -> None:
     a_true = amp * w**2 * np.cos(w * t)[:, None]
     p_true = amp * (1 - np.cos(w * t))[:, None]
     biased = a_true + 0.1
-    raw = CycleTranslation(remove_drift=False).integrate(biased, rate_hz=rate)
+    raw = CycleTranslation(remove_drift=False).integrate(biased, sampling_rate_hz=rate)
     np.testing.assert_allclose(raw.position_m_[-1] - p_true[-1], 0.05, rtol=1e-3)  # b T² / 2
-    fixed = CycleTranslation().integrate(biased, rate_hz=rate)
+    fixed = CycleTranslation().integrate(biased, sampling_rate_hz=rate)
     assert np.abs(fixed.position_m_ - p_true).max() < 1e-5
     assert np.abs(fixed.velocity_m_s_ - amp * w * np.sin(w * t)[:, None]).max() < 1e-4
 
@@ -50,12 +50,12 @@ def test_cycle_translation_of_the_simulated_shank() -> None:
     acc = remove_gravity(m.acc_g, tr["dcm"])
     np.testing.assert_allclose(acc, tr["acceleration_m_s2"], atol=1e-12)
     disp = tr["position_m"][-1] - tr["position_m"][0]
-    out = CycleTranslation(cycle_displacement_m=disp).integrate(acc + [0.1, -0.05, 0.2], rate_hz=1000)
+    out = CycleTranslation(cycle_displacement_m=disp).integrate(acc + [0.1, -0.05, 0.2], sampling_rate_hz=1000)
     assert np.abs(out.position_m_ - (tr["position_m"] - tr["position_m"][0])).max() < 1e-5
     assert np.abs(out.velocity_m_s_ - tr["velocity_m_s"]).max() < 1e-4
     # open walking axis: the initial velocity is then needed and used
     open_fwd = CycleTranslation(closed_axes=(1, 2), initial_velocity_m_s=tr["velocity_m_s"][0]).integrate(
-        acc, rate_hz=1000
+        acc, sampling_rate_hz=1000
     )
     assert np.abs(open_fwd.position_m_[:, 0] - (tr["position_m"][:, 0] - tr["position_m"][0, 0])).max() < 1e-4
 
@@ -67,4 +67,4 @@ def test_helpers() -> None:
     with pytest.raises(HostError, match="at least 2 samples"):
         remove_cycle_drift(np.zeros(1))
     with pytest.raises(HostError, match="non-finite acceleration at sample 3"):
-        CycleTranslation().integrate(np.r_[np.zeros((3, 3)), [[np.nan, 0, 0]]], rate_hz=10)
+        CycleTranslation().integrate(np.r_[np.zeros((3, 3)), [[np.nan, 0, 0]]], sampling_rate_hz=10)

@@ -19,12 +19,12 @@ def sweep() -> AdcRateSweep:
 
 
 def row(sweep, bits, rate, est, mode="multi-speed"):
-    return next(r for r in sweep.summary_ if r["bits"] == bits and r["rate_hz"] == rate and r["estimator"] == est
+    return next(r for r in sweep.summary_ if r["bits"] == bits and r["sampling_rate_hz"] == rate and r["estimator"] == est
                 and r["mode"] == mode)
 
 
 def test_every_configuration_is_there(sweep) -> None:
-    assert {(r.bits, r.rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
+    assert {(r.bits, r.sampling_rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
     assert len(sweep.summary_) == 6 * 2 * 5
     text = format_summary(sweep.summary_) + format_m5(sweep.m5_)
     assert "multi-speed calibration" in text and "M5 (offline chain, 10-bit codes)" in text
@@ -69,7 +69,7 @@ def test_algorithm_share_does_not_depend_on_the_adc(sweep, rate) -> None:
 
 
 def test_step_timing_error_falls_with_the_rate(sweep) -> None:
-    rows = {(r["mode"], r["rate_hz"]): r for r in sweep.m5_["rows"]}
+    rows = {(r["mode"], r["sampling_rate_hz"]): r for r in sweep.m5_["rows"]}
     assert set(rows) == {(m, f) for m in ("single-speed", "multi-speed") for f in (25.0, 100.0)}
     # duration error against the world's truth: the sample period dominates at 25 Hz (40 ms)
     assert rows[("multi-speed", 25.0)]["timing_rms_ms"] > rows[("multi-speed", 100.0)]["timing_rms_ms"]
@@ -98,7 +98,7 @@ def test_m5_answer_no_when_the_model_dominates() -> None:
     from host.studies.sweep import m5_timing_answer
 
     ans = m5_timing_answer(_m5_results({25.0: 0.004, 50.0: 0.002, 100.0: 0.001}))
-    share = {r["rate_hz"]: r["timing_share"] for r in ans["rows"]}
+    share = {r["sampling_rate_hz"]: r["timing_share"] for r in ans["rows"]}
     assert share[25.0] > share[50.0] > share[100.0] >= 0.0
     assert share[50.0] == pytest.approx(0.002 ** 2 / (0.03 ** 2 + 0.002 ** 2), abs=0.01)
     assert ans["verdict"].startswith("no:")
