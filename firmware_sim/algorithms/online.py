@@ -289,6 +289,11 @@ class OnlineSteps:
     def __len__(self) -> int:
         return self.n_steps
 
+    def __repr__(self) -> str:
+        lengths = "calibrated" if self.calibrated else "raw"
+        return (f"OnlineSteps({self.n_steps} records, {self.arithmetic} arithmetic at {self.sampling_rate_hz:g} Hz, "
+                f"{lengths} lengths)")
+
     def shifted(self, offset: int) -> OnlineSteps:
         """The same records with every index moved by ``offset`` samples (``-1`` stays ``-1``)."""
         mv = lambda x: np.where(x >= 0, x + offset, -1)  # noqa: E731

@@ -71,6 +71,11 @@ class StepTable:
         """Number of steps (rows)."""
         return int(self.foot_flat.size)
 
+    def __repr__(self) -> str:
+        bouts = int(np.unique(self.bout[self.bout >= 0]).size) if self.n_steps else 0
+        return (f"StepTable({self.n_steps} steps in {bouts} bout(s) at {self.sampling_rate_hz:g} Hz, "
+                f"estimators {','.join(self.raw_m) or 'none'})")
+
     def time_s(self, index: np.ndarray) -> np.ndarray:
         """Times of sample indices (NaN where ``-1``)."""
         index = np.asarray(index)

@@ -287,6 +287,11 @@ class Recording:
         """Number of usable device step records."""
         return int(self.step_records.shape[0])
 
+    def __repr__(self) -> str:
+        return (f"Recording({self.n_samples} samples ({self.n_missing} missing, {len(self.gaps)} gap(s)) at "
+                f"{self.sampling_rate_hz:g} Hz, {self.adc_bits}-bit, {self.n_step_records} step record(s); "
+                f"{self.source})")
+
     @property
     def n_steps_dropped(self) -> int:
         """Number of stored step records that could not be used (the sum over ``step_losses``)."""

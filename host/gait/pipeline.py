@@ -89,6 +89,12 @@ class StepPipeline:
         self.detector = detector
         self.gravity_window_s = gravity_window_s
 
+    def __repr__(self) -> str:
+        k = "with K" if self.calibration is not None else "raw (no K)"
+        done = f", fitted: {self.steps_.n_steps} steps" if hasattr(self, "steps_") else ""
+        return (f"StepPipeline(leg {self.leg_length_m:.3f} m, foot {self.foot_length_m:.3f} m, {k}, "
+                f"gravity window {self.gravity_window_s:g} s{done})")
+
     def run(
         self, acc_g: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None, t0_s: float = 0.0
     ) -> Self:
