@@ -167,13 +167,13 @@ def test_record_command_and_demo(tmp_path, capsys):
     assert main(["record", "--motion", "replay", "--out", str(tmp_path / "q.glimg")]) == 1
     assert not (tmp_path / "q.glimg").exists()
     capsys.readouterr()
-    assert main(["demo", "--out", str(tmp_path), "--poses", "4", "--quiet"]) == 0
+    assert main(["demo", "--out", str(tmp_path / "demo"), "--poses", "4", "--quiet"]) == 0  # tmp_path is not empty
     out = capsys.readouterr().out
     assert "bit-identical to what the device recorded: True" in out
     assert "[summary]" in out and "0 gap(s)" in out
     assert "[calibrate] skipped: 4 poses" in out
     for name in ("recorded.glimg", "dumped.glimg", "dumped.glimg.json", "decoded.csv", "decoded.npz"):
-        assert (tmp_path / name).exists(), name
+        assert (tmp_path / "demo" / name).exists(), name
 
 
 def test_demo_calibrates_the_dumped_poses(tmp_path, capsys):

@@ -22,7 +22,7 @@ from firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
 from protocol.atomic_write import atomic_write_text
 from protocol.steps import StepFlag
 
-__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text"]
+__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "float_csv_cells"]
 
 #: The step-length estimators of Alvarez et al. (2006): M1 pendulum, M2 pendulum with drift correction,
 #: M3 two-phase pendulum + foot length (no K), M4 Weinberg, M5 cadence line.
@@ -194,18 +194,34 @@ class StepTable:
 
 def columns_csv_text(cols: dict[str, np.ndarray]) -> str:
     """CSV text of named equal-length columns: integers and booleans as integers, floats ``%.6g``, NaN as an
-    empty cell."""
-    names = list(cols)
-    arrays = [np.asarray(cols[n]) for n in names]
-    n = arrays[0].size if arrays else 0
-    lines = [",".join(names)]
-    for i in range(n):   # formatting only
-        cells = []
-        for a in arrays:
-            x = a[i]
-            if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
-                cells.append(str(int(x)))
-            else:
-                cells.append("" if not np.isfinite(x) else f"{float(x):.6g}")
-        lines.append(",".join(cells))
-    return "\n".join(lines) + "\n"
+    empty cell.
+
+    Formatted column by column (:func:`float_csv_cells`), then joined row by row (:func:`csv_text`): no
+    per-cell numpy indexing (0.1 s per 3,000-step table and 3.5 s per 110,000 before).
+
+    >>> columns_csv_text({"n": np.array([1, 2]), "x_m": np.array([0.5, np.nan]), "ok": np.array([True, False])})
+    'n,x_m,ok\\n1,0.5,1\\n2,,0\\n'
+    """
+    cells = []
+    for values in cols.values():
+        a = np.asarray(values)
+        if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
+            cells.append(list(map(str, (a.astype(np.int64) if a.dtype == bool else a).tolist())))
+        else:
+            cells.append(float_csv_cells(a))
+    return csv_text(list(cols), cells)
+
+
+def float_csv_cells(values: np.ndarray | list[float]) -> list[str]:
+    """The CSV cells of real values: ``%.6g``, an empty cell for NaN and infinities (the one rule of every
+    CSV table the package writes)."""
+    a = np.asarray(values, dtype=np.float64)
+    cells = list(map("{:.6g}".format, a.tolist()))
+    for i in np.flatnonzero(~np.isfinite(a)).tolist():
+        cells[i] = ""
+    return cells
+
+
+def csv_text(names: list[str], cells: list[list[str]]) -> str:
+    """CSV text of a header and columns of formatted cells (all the same length)."""
+    return "\n".join([",".join(names), *map(",".join, zip(*cells))]) + "\n"

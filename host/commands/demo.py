@@ -8,7 +8,13 @@ recorded by the same emulated device with the pose calibration in its header and
 running) -> estimate (the host's offline float chain, K per subject, every 20 m section's ratio, CSV and the
 Figs 5-6 box plots: :mod:`host.studies.evaluation`) -> device (K sent to the device, the walk recorded again: the
 device's own per-step records, checked against the host's replay bit for bit, beside the offline chain)
--> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`host.studies.compare`).
+-> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`host.studies.compare`)
+-> plot (the device's walk decoded, K saved, a 30 s overview drawn: :mod:`host.studies.overview`) -> next (what
+to open, and commands to try on the files written).
+
+The files stay in ``./gaitlog-demo/`` (or ``--out DIR``). The folder is marked as the demo's by
+:data:`MARKER` (written before anything else, with the list of files at the end), so a second run replaces
+its own files; a non-empty folder without the marker is refused unless ``--force``.
 
 Later issues extend the demo by appending :class:`Stage` objects to :data:`STAGES` (each stage reads and
 adds entries of the shared ``context`` dict and returns lines to print).
@@ -23,7 +29,12 @@ from typing import Any
 
 HELP = ("run the whole path on defaults: record poses -> serve on a pty -> dump -> decode -> calibrate -> summary "
         "-> walk a simulated subject -> M1-M5 per 20 m and box plots -> the device's own step records -> the "
-        "error split")
+        "error split -> an overview plot; the files stay in ./gaitlog-demo/")
+
+#: Default output folder (relative to the working directory).
+DEFAULT_OUT = "gaitlog-demo"
+#: The file that marks a folder as a demo's output (JSON: what wrote it and the files it holds).
+MARKER = "gaitlog-demo.json"
 
 
 @dataclass(frozen=True)
@@ -201,10 +212,13 @@ def _estimate(ctx: dict[str, Any]) -> list[str]:
     plot_boxplots(res.rows, fig_path, title=f"simulated subject {res.subject_id}, 50 Hz, 10 bits (float chain)")
     ctx["walk_result"] = res
     k = res.calibrations["multi-speed"]
+    k_path = ctx["dir"] / "k.json"
+    k.save(k_path)
+    ctx["k_path"] = k_path
     return ([f"float chain, K per mode from the first 40 m; 20 m sections: ratio estimated / real -> {rows_path}, "
              f"{fig_path}"] + format_summary(summary, res.events).splitlines()
             + [f"multi-speed K: M1 {k.k_m1:.3f}, M2 {k.k_m2:.3f}, M4 {k.k_m4:.3f} m/(m/s2)^1/4, "
-               f"M5 S = {k.k1_m5_m_s:.3f}/T + {k.k2_m5_m:.3f} m"])
+               f"M5 S = {k.k1_m5_m_s:.3f}/T + {k.k2_m5_m:.3f} m -> {k_path}"])
 
 
 def _device(ctx: dict[str, Any]) -> list[str]:
@@ -232,6 +246,7 @@ def _device(ctx: dict[str, Any]) -> list[str]:
     image = ctx["dir"] / "walk_k.glimg"
     logger.save_image(image)
     rec = decode_file(image)
+    ctx["walk_k_image"] = image
     check = verify_step_records(rec)
     t0 = float(ctx["walk_times_s"][0])
     device = StepTable.from_online(OnlineSteps.from_records(rec.step_records, first_sample_number=int(
@@ -295,6 +310,47 @@ def _split(ctx: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _plot(ctx: dict[str, Any]) -> list[str]:
+    from host.files.decode import decode_file, save_decoded
+    from host.studies.overview import recording_overview
+    from host.studies.plots import render_overview_png
+    from protocol.atomic_write import atomic_write_bytes
+
+    rec = decode_file(ctx["walk_k_image"])
+    written = save_decoded(rec, ctx["dir"] / "walk_k")
+    sub = ctx["subject"]
+    start_s = 60.0
+    overview = recording_overview(rec, leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
+                                  calibration=ctx["walk_result"].calibrations["multi-speed"], start_s=start_s,
+                                  duration_s=30.0)
+    png = ctx["dir"] / "walk_k.png"
+    atomic_write_bytes(png, render_overview_png(overview))
+    ctx.update(walk_k_npz=written[0], overview_png=png, overview_start_s=start_s)
+    return [f"the device's walk decoded -> {', '.join(str(p) for p in written)}",
+            f"acceleration, gaps, lap marks, events and step lengths of {start_s:g}-{start_s + 30:g} s -> {png}"]
+
+
+def _next(ctx: dict[str, Any]) -> list[str]:
+    d = ctx["dir"]
+    sub = ctx["subject"]
+    npz, k = ctx["walk_k_npz"], ctx["k_path"]
+    start = ctx["overview_start_s"]
+    lines = [f"everything is in {d}/; open first:",
+             f"  {ctx['overview_png']}   the walk as the device recorded it: acceleration, events, step lengths",
+             f"  {d / 'walk_boxplots.png'}   estimated / real distance per estimator (Alvarez et al. Figs 5-6)",
+             f"  {d / 'walk_sections.csv'}, {d / 'walk_split.csv'}   the per-section tables behind them",
+             "then try:"]
+    commands = [f"gaitlog info {ctx['walk_k_image']}",
+                f"gaitlog estimate {npz} --k-file {k} --out {d / 'steps.csv'} --arithmetic both",
+                f"gaitlog plot {npz} --k-file {k} --start {start + 30:g} --duration 20 --out {d / 'next.png'}",
+                *([f"gaitlog calibrate {d / 'decoded.npz'} --out {d / 'calibration_again.json'}"]
+                  if ctx.get("calibration") is not None else []),
+                (f"gaitlog compare {npz} --leg-length {sub.leg_length_m:.3f} --foot-length {sub.foot_length_m:.3f} "
+                 f"--k-file {k} --out {d / 'compare.csv'}")]
+    ctx["next_commands"] = commands
+    return lines + [f"  {c}" for c in commands]
+
+
 #: The demo, in order. Later issues append stages here.
 STAGES: list[Stage] = [
     Stage("record", _record),
@@ -307,31 +363,44 @@ STAGES: list[Stage] = [
     Stage("estimate", _estimate),
     Stage("device", _device),
     Stage("split", _split),
+    Stage("plot", _plot),
+    Stage("next", _next),
 ]
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", metavar="DIR", help="keep the files in DIR (default: a temporary directory)")
+    parser.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
+                        help=f"keep the files in DIR (default ./{DEFAULT_OUT}; a previous demo's files there are "
+                        "replaced)")
+    parser.add_argument("--force", action="store_true",
+                        help="write into --out even if it holds other files (files of the same names are replaced)")
     parser.add_argument("--poses", type=int, default=24, help="number of calibration poses (default 24)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor and the poses (default 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
-    import tempfile
+    import json
     from pathlib import Path
 
     from host.errors import HostError
+    from protocol.atomic_write import atomic_write_text
 
-    tmp = None
-    if args.out:
-        out = Path(args.out)
-        if out.exists() and not out.is_dir():
-            raise HostError(f"--out {out}: exists and is not a directory")
-        out.mkdir(parents=True, exist_ok=True)
-    else:
-        tmp = tempfile.TemporaryDirectory(prefix="gaitlog-demo-")
-        out = Path(tmp.name)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise HostError(f"--out {out}: exists and is not a directory")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file() and not args.force:
+        raise HostError(f"--out {out}: not empty and not a previous 'gaitlog demo' output (no {MARKER}); give "
+                        "another --out, or --force to write into it anyway")
+    out.mkdir(parents=True, exist_ok=True)
+    marker = out / MARKER
+
+    def mark(files: list[str], complete: bool) -> None:
+        atomic_write_text(marker, json.dumps({"written_by": "gaitlog demo", "complete": complete,
+                                              "files": files}, indent=1) + "\n")
+
+    foreign = set() if marker.is_file() else {p.name for p in out.iterdir()}  # a --force'd folder's own files
+    mark([], False)
     ctx: dict[str, Any] = {"args": args, "dir": out, "cleanup": []}
     try:
         for stage in STAGES:
@@ -342,6 +411,5 @@ def run(args: argparse.Namespace) -> int:
     finally:
         for fn in reversed(ctx["cleanup"]):
             fn()
-        if tmp is not None:
-            tmp.cleanup()
+    mark(sorted(p.name for p in out.iterdir() if p.name != MARKER and p.name not in foreign), True)
     return 0

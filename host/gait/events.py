@@ -36,7 +36,6 @@ import warnings
 from typing import Self
 
 import numpy as np
-from scipy.signal import find_peaks
 
 from firmware_sim.algorithms.parameters import (
     EventParameters,
@@ -44,6 +43,7 @@ from firmware_sim.algorithms.parameters import (
     samples,
 )
 from host.gait.masked_filter import masked_gaussian_lowpass
+from host.gait.peaks import find_peaks
 
 
 class GaitEventDetector:
@@ -115,14 +115,14 @@ class GaitEventDetector:
         fin = np.isfinite(lp)
         sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
         dist0 = max(1, samples(p.min_step_s, fs))
-        ff, _ = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2)
+        ff = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2)
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
         d = d[d <= samples(p.max_step_s, fs)]
         if d.size >= 3:
             dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
-            ff, _ = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2)
+            ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2)
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)

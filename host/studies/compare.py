@@ -63,7 +63,12 @@ from typing import Any
 import numpy as np
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
-from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from firmware_sim.algorithms.steps import (
+    ESTIMATORS,
+    StepTable,
+    csv_text,
+    float_csv_cells,
+)
 from host.errors import HostError
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.sections import (
@@ -939,21 +944,28 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
 
 
 def rows_csv_text(rows: list[dict], columns: list[str] | tuple[str, ...] | None = None) -> str:
-    """CSV text of dict rows (floats ``%.6g``, NaN as empty)."""
+    """CSV text of dict rows (floats ``%.6g``, NaN as empty, anything else ``str``; a missing key is empty).
+
+    Column by column: the float cells of a column are formatted together
+    (:func:`firmware_sim.algorithms.steps.float_csv_cells`), the rest by ``str``.
+    """
     if not rows:
         return ""
-    cols = list(columns) if columns is not None else list(rows[0])
-    lines = [",".join(cols)]
-    for r in rows:
-        cells = []
-        for c in cols:
-            v = r.get(c, "")
-            if isinstance(v, float):
-                cells.append("" if not math.isfinite(v) else f"{v:.6g}")
-            else:
-                cells.append(str(v))
-        lines.append(",".join(cells))
-    return "\n".join(lines) + "\n"
+    names = list(columns) if columns is not None else list(rows[0])
+    if not names:
+        return "\n" * (len(rows) + 1)  # an empty header and one empty line per row
+    cells = []
+    for name in names:
+        values = [r.get(name, "") for r in rows]
+        at = [i for i, v in enumerate(values) if isinstance(v, float)]
+        if len(at) == len(values):
+            cells.append(float_csv_cells(values))
+            continue
+        column = list(map(str, values))
+        for i, text in zip(at, float_csv_cells([values[i] for i in at]), strict=True):
+            column[i] = text
+        cells.append(column)
+    return csv_text(names, cells)
 
 
 def format_step_diffs(rows: list[dict]) -> str:

@@ -114,3 +114,56 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     if title:
         ax.set_title(title, fontsize=9)
     return _png_bytes(plt, fig, dpi)
+
+
+#: Colour and marker of each event of the overview (:data:`host.studies.overview.EVENTS`).
+_EVENT_STYLE = {"foot-flat": ("C3", "v"), "heel-strike": ("C0", "^"), "toe-off": ("C2", "o"),
+                "device step": ("k", "|")}
+
+
+def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi: int = 100) -> bytes:
+    """The overview of a recording's window (:class:`host.studies.overview.RecordingOverview`) as PNG bytes of
+    exactly ``size_px`` (width, height) pixels: the acceleration (x, y, z in g) with the gaps shaded, the lap
+    marks as vertical lines and the events as markers on the top panel; each step's length per estimator
+    (offline chain filled markers, the device's records open markers) on the bottom panel."""
+    plt = _pyplot()
+    width, height = size_px
+    fig, (ax, ax_len) = plt.subplots(2, 1, figsize=(width / dpi, height / dpi), sharex=True,
+                                     gridspec_kw={"height_ratios": [2, 1]})
+    t, acc = overview.time_s, overview.acc_g
+    for k, axis in enumerate("xyz"):
+        ax.plot(t, acc[:, k], lw=0.6, color=f"C{k + 4}", label=f"{axis} (g)")
+    for a, b in overview.gaps_s:
+        for axes in (ax, ax_len):
+            axes.axvspan(a, b, color="0.6", alpha=0.35, lw=0)
+    for m in overview.marks_s:
+        for axes in (ax, ax_len):
+            axes.axvline(m, color="m", lw=0.8, ls="--")
+    top = np.nanmax(acc) if np.isfinite(acc).any() else 1.0
+    for j, (name, times) in enumerate(overview.events_s.items()):
+        color, marker = _EVENT_STYLE[name]
+        if times.size:
+            ax.plot(times, np.full(times.size, top + 0.15 * (j + 1)), ls="none", marker=marker, color=color, ms=4,
+                    label=name)
+    if overview.gaps_s:
+        ax.plot([], [], color="0.6", alpha=0.35, lw=6, label="missing")
+    if overview.marks_s.size:
+        ax.plot([], [], color="m", lw=0.8, ls="--", label="lap mark")
+    ax.set_ylabel("acceleration (g)")
+    ax.legend(fontsize=7, loc="upper right", ncol=4)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{overview.source}: {overview.window_s[0]:g}-{overview.window_s[1]:g} s", fontsize=9)
+    for label, (times, lengths) in overview.lengths_m.items():
+        if not times.size:
+            continue
+        device = label.endswith("device")
+        color = f"C{ESTIMATORS.index(label.split()[0])}"
+        ax_len.plot(times, lengths, ls="none", marker="o", ms=3, color=color, label=label,
+                    markerfacecolor="none" if device else color)
+    ax_len.set_ylabel("step length (m)")
+    ax_len.set_xlabel("time since the first sample (s)")
+    if any(times.size for times, _ in overview.lengths_m.values()):
+        ax_len.legend(fontsize=7, loc="upper right", ncol=5)
+    ax_len.grid(alpha=0.3)
+    ax_len.set_xlim(*overview.window_s)
+    return _png_bytes(plt, fig, dpi)

@@ -6,12 +6,20 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.ndimage import gaussian_filter1d
 
 from firmware_sim.algorithms.parameters import EventParameters
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.gait.axes import body_axes
 from host.gait.events import GaitEventDetector
-from host.gait.masked_filter import gaussian_sigma_s, masked_gaussian_lowpass
+from host.gait.masked_filter import (
+    gaussian_sigma_s,
+    gaussian_smooth,
+    masked_gaussian_lowpass,
+)
 from host.gait.pipeline import StepPipeline
 
 G = STANDARD_GRAVITY_M_S2
@@ -50,6 +58,15 @@ def test_masked_lowpass_cutoff_is_minus_3db() -> None:
         expected = np.exp(-0.5 * (2 * np.pi * 3.0 * gaussian_sigma_s(f)) ** 2)
         assert gain == pytest.approx(expected, rel=2e-3)
     assert gaussian_sigma_s(3.0) == pytest.approx(np.sqrt(np.log(2)) / (2 * np.pi * 3.0))
+
+
+@settings(max_examples=300, deadline=None)
+@given(x=arrays(np.float64, st.integers(1, 400), elements=st.floats(-1e6, 1e6, allow_nan=False)),
+       sigma=st.floats(0.05, 40.0))
+def test_gaussian_smooth_is_scipy_gaussian_filter1d_to_the_bit(x, sigma) -> None:
+    """The numpy Gaussian (the estimate path imports no scipy) against scipy as the oracle, bit for bit."""
+    expected = gaussian_filter1d(x, sigma, mode="constant", truncate=4.0)
+    np.testing.assert_array_equal(gaussian_smooth(x, sigma), expected)
 
 
 def test_masked_lowpass_ignores_missing_samples() -> None:

@@ -1,0 +1,73 @@
+"""``gaitlog plot``: a recording's acceleration, gaps, lap marks, gait events and per-step lengths as a PNG."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
+        "length per estimator to a PNG")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("input", metavar="RECORDING",
+                        help="decoded recording (.npz from 'gaitlog decode') or a memory image / dump it decodes")
+    parser.add_argument("--out", metavar="PNG", help="the figure (default: RECORDING with .png)")
+    parser.add_argument("--start", type=float, default=0.0, metavar="S",
+                        help="start of the window, s since the first sample (default 0)")
+    parser.add_argument("--duration", type=float, metavar="S", help="length of the window, s (default: to the end)")
+    parser.add_argument("--estimators", default="M1,M2,M3,M4,M5", metavar="LIST",
+                        help="step-length estimators to draw, comma-separated (default M1,M2,M3,M4,M5; M4/M5 "
+                        "need --k-file or a device that had K)")
+    parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k'")
+    parser.add_argument("--size", default="1400x700", metavar="WxH", help="figure size in pixels (default 1400x700)")
+    parser.add_argument("--leg-length", type=float, metavar="M",
+                        help="leg length, m (default: the recording's step configuration, else from --height)")
+    parser.add_argument("--foot-length", type=float, metavar="M",
+                        help="foot length, m (default: the recording's step configuration, else from --height)")
+    parser.add_argument("--height", type=float, metavar="M", help="body height, m (leg and foot from it)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import re
+    from pathlib import Path
+
+    from host.errors import HostError
+    from host.files.decode import decode_file
+    from host.files.recording import Recording
+    from host.gait.anthropometry import anatomical_lengths
+    from host.gait.k_calibration import KCalibration
+    from host.studies.overview import recording_overview
+    from host.studies.plots import render_overview_png
+    from protocol.atomic_write import atomic_write_bytes
+
+    src = Path(args.input)
+    out = Path(args.out) if args.out else src.with_suffix(".png")
+    size = re.fullmatch(r"(\d+)x(\d+)", args.size)
+    if not size or not (100 <= int(size[1]) <= 10000 and 100 <= int(size[2]) <= 10000):
+        raise HostError(f"--size {args.size}: give WIDTHxHEIGHT in pixels, 100 to 10000 each (e.g. 1400x700)")
+    if not out.parent.is_dir():
+        raise HostError(f"--out {out}: the directory {out.parent} does not exist")
+    if out.resolve() == src.resolve():
+        raise HostError(f"--out {out}: is the input; give another file")
+    if not src.is_file():
+        raise HostError(f"{src}: no such file")
+    rec = Recording.load(src) if src.suffix.lower() == ".npz" else decode_file(src)
+    cal = KCalibration.load(args.k_file) if args.k_file else None
+    leg, foot = args.leg_length, args.foot_length
+    cfg = rec.step_config
+    if args.height is None and cfg is not None and getattr(cfg, "enabled", False):
+        leg = cfg.leg_length_m if leg is None else leg
+        foot = cfg.foot_length_m if foot is None else foot
+    if cal is not None and args.height is None:
+        leg = cal.leg_length_m if leg is None else leg
+        foot = cal.foot_length_m if foot is None else foot
+    leg, foot = anatomical_lengths(leg_length_m=leg, foot_length_m=foot, height_m=args.height)
+    estimators = [e.strip().upper() for e in args.estimators.split(",") if e.strip()]
+    overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, calibration=cal, start_s=args.start,
+                                  duration_s=args.duration, estimators=estimators)
+    atomic_write_bytes(out, render_overview_png(overview, size_px=(int(size[1]), int(size[2]))))
+    ev = ", ".join(f"{v.size} {k}" for k, v in overview.events_s.items() if v.size or k != "device step")
+    print(f"{out}: {overview.window_s[0]:g}-{overview.window_s[1]:g} s of {src} ({overview.time_s.size} samples, "
+          f"{len(overview.gaps_s)} gap(s), {overview.marks_s.size} lap mark(s)); {ev}; leg {leg:.3f} m, "
+          f"foot {foot:.3f} m")
+    return 0

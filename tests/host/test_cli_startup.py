@@ -1,0 +1,58 @@
+"""What the command line imports: ``gaitlog --help`` and ``gaitlog estimate`` stay light (no timing here:
+``benchmarks/bench_estimate.py`` measures; these tests keep the heavy imports from coming back)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from host.files.recording import Recording
+
+ROOT = Path(__file__).resolve().parents[2]
+
+PROBE = """
+import contextlib, io, json, sys
+from host.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(sys.argv[1:])
+print(json.dumps({"code": code, "modules": sorted(sys.modules)}))
+"""
+
+
+def modules_after(args: list[str]) -> tuple[int, set[str]]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, env=env, cwd=ROOT,
+                         check=False)
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    return result["code"], set(result["modules"])
+
+
+def test_help_imports_no_numeric_library() -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    probe = "import sys\nfrom host.cli import build_parser\nbuild_parser()\nprint(' '.join(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=ROOT,
+                         check=True)
+    loaded = set(out.stdout.split())
+    assert "host.commands.estimate" in loaded  # the probe did build the parser
+    assert not loaded & {"numpy", "scipy", "numba", "matplotlib", "importlib.metadata"}
+
+
+def test_estimate_imports_no_scipy(tmp_path) -> None:
+    rng = np.random.default_rng(0)
+    n = 3000
+    t = np.arange(n) / 50.0
+    codes = np.clip(512 + rng.normal(0, 3, (n, 3)), 0, 1023).astype(np.uint16)
+    codes[:, 2] = np.clip(512 + 100 + 60 * np.sin(2 * np.pi * 1.8 * t), 0, 1023).astype(np.uint16)
+    path = tmp_path / "rec.npz"
+    Recording.from_arrays(codes, sampling_rate_hz=50.0, adc_bits=10).save_npz(path)
+    code, loaded = modules_after(["estimate", str(path), "--arithmetic", "both", "--out", str(tmp_path / "s.csv")])
+    assert code == 0
+    assert "firmware_sim.algorithms.online" in loaded  # the fixed-point chain did run
+    # (numba itself loads scipy.linalg for its BLAS bindings: not ours to avoid)
+    assert not any(m.startswith(("scipy.signal", "scipy.ndimage", "matplotlib", "firmware_sim.sensor")) for m in loaded)
