@@ -167,7 +167,7 @@ def test_record_command_and_demo(tmp_path, capsys):
     assert main(["record", "--motion", "replay", "--out", str(tmp_path / "q.glimg")]) == 1
     assert not (tmp_path / "q.glimg").exists()
     capsys.readouterr()
-    assert main(["demo", "--out", str(tmp_path / "demo"), "--poses", "4", "--quiet"]) == 0  # tmp_path is not empty
+    assert main(["demo", "--out", str(tmp_path / "demo"), "--poses", "4"]) == 0  # tmp_path is not empty
     out = capsys.readouterr().out
     assert "bit-identical to what the device recorded: True" in out
     assert "[summary]" in out and "0 gap(s)" in out
@@ -178,7 +178,7 @@ def test_record_command_and_demo(tmp_path, capsys):
 
 def test_demo_calibrates_the_dumped_poses(tmp_path, capsys):
     """The default demo fits the 9-parameter model on what it dumped: every pose reads 1 g within 2 mg."""
-    assert main(["demo", "--out", str(tmp_path / "new"), "--quiet"]) == 0
+    assert main(["demo", "--out", str(tmp_path / "new")]) == 0
     out = capsys.readouterr().out
     assert (tmp_path / "new" / "calibration.json").exists()
     worst = out.split("worst | |a| - 1 g | over the poses: ")[1]

@@ -348,7 +348,7 @@ def test_a_device_without_step_memory_dumps_fine(tmp_path):
 def test_record_default_is_on_and_warns_about_the_assumed_adult(tmp_path, capsys):
     assert main(["record", "--motion", "walk", "--start-time", str(START_S), "--out", str(tmp_path / "a.glimg")]) == 0
     captured = capsys.readouterr()
-    assert captured.err.count("\n") == 1 and "assumes a 1.70 m adult (leg 0.901 m, foot 0.189 m)" in captured.err
+    assert captured.err.count("\n") == 1 and "a 1.70 m adult (leg 0.901 m, foot 0.189 m)" in captured.err
     h = read_image(tmp_path / "a.glimg").header
     q = h.step_config
     assert q.enabled and not q.calibrated

@@ -1,9 +1,18 @@
-"""``--leg-length``, ``--foot-length`` and ``--height`` of the gait commands (not a command: the underscore keeps it
-out of ``--help``)."""
+"""``--leg-length``, ``--foot-length`` and ``--height`` of the gait commands, and the lengths they choose (not a
+command: the underscore keeps it out of ``--help``)."""
 
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from host.files.inputs import AccelerationInput
+    from host.gait.anthropometry import AnatomyChoice
+    from host.gait.k_calibration import KCalibration
+
+#: The attribute names of the anatomy flags.
+ANATOMY_FLAGS = ("leg_length", "foot_length", "height")
 
 
 def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
@@ -12,4 +21,29 @@ def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--foot-length", type=float, metavar="M",
                         help="foot length heel to first metatarsal head (M3's S2), m")
     parser.add_argument("--height", type=float, metavar="M",
-                        help="body height, m: leg = 0.530 H, foot = 0.111 H when not given (Winter; ANSUR)")
+                        help="body height, m: leg = 0.530 H, foot = 0.111 H when not given (Winter; ANSUR); "
+                             "default: the K file's lengths, else an IPOL trial's height, else a 1.70 m adult")
+
+
+def given_anatomy_flags(args: argparse.Namespace) -> list[str]:
+    """The anatomy flags given on the command line, spelled as flags."""
+    return [f"--{n.replace('_', '-')}" for n in ANATOMY_FLAGS if getattr(args, n, None) is not None]
+
+
+def lengths_from_args(args: argparse.Namespace, *, k: KCalibration | None = None, k_source: str | None = None,
+                      data: AccelerationInput | None = None) -> AnatomyChoice:
+    """Leg and foot length by :func:`host.gait.anthropometry.choose_lengths` from the flags, the K file ``k``
+    and the height of an IPOL trial read into ``data``."""
+    from host.gait.anthropometry import choose_lengths
+
+    trial = data.ipol_trial if data is not None else None
+    return choose_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length, height_m=args.height,
+                          k_lengths_m=(k.leg_length_m, k.foot_length_m) if k is not None else None,
+                          k_source=k_source or getattr(args, "k_file", None) or "the K file",
+                          trial_height_m=trial.height_m if trial is not None else None,
+                          trial_source=_trial_json(trial) if trial is not None else "")
+
+
+def _trial_json(trial) -> str:
+    """Where an IPOL trial's height came from: its JSON file (or its name)."""
+    return str(trial.path.with_name(f"{trial.name}.json")) if trial.path is not None else f"IPOL trial {trial.name}"

@@ -1,8 +1,14 @@
-"""Flags shared by the ``gaitlog`` subcommands: ``-q/--quiet`` and ``-v/--verbose``."""
+"""Flags shared by the ``gaitlog`` subcommands: ``-q/--quiet`` and ``-v/--verbose``.
+
+One meaning everywhere: ``-q`` drops the summary lines, warnings and progress (errors are still printed, and
+output the user asked for by a flag -- ``--json``, a table on stdout -- is still written); ``-v`` adds detail.
+Commands print their summary through :func:`printer` rather than redirecting stdout.
+"""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 
 def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
@@ -15,3 +21,12 @@ def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
 def verbosity(args: argparse.Namespace) -> int:
     """-1 with ``--quiet``, else the number of ``--verbose`` flags (0 by default)."""
     return -1 if getattr(args, "quiet", False) else int(getattr(args, "verbose", 0) or 0)
+
+
+def printer(args: argparse.Namespace, level: int = 0) -> Callable[..., None]:
+    """``print`` when :func:`verbosity` is at least ``level`` (0: the summary, 1: ``-v`` detail), else a no-op."""
+    return print if verbosity(args) >= level else _silent
+
+
+def _silent(*_args: object, **_kwargs: object) -> None:
+    """The :func:`printer` of a suppressed level."""

@@ -51,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     cycles = cycle_budget(alg.cycles, args.logger_rate, fosc_hz=fosc)
     code = 0 if (ram.fits and cycles.fits) else 1
     ctx = alg.arithmetic_context()
+    by_primitive = {k: v / max(1, alg.cycles.samples) for k, v in sorted(ctx.cycles.items(), key=lambda kv: -kv[1])}
     if args.json:
         import json
 
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
                "cycles": {"fits": cycles.fits, "available_per_sample": cycles.available,
                           "mean_algorithm": cycles.mean_algorithm, "worst_algorithm": cycles.worst_algorithm,
                           "worst_backlog_samples": cycles.backlog_samples, "mean_load": cycles.mean_load,
-                          "lines": cycles.lines()},
+                          "lines": cycles.lines(), "per_sample_by_primitive": by_primitive},
                "walker": subject.subject_id, "n_samples": int(res.n_samples),
                "step_records": int(logger.header.steps_written),
                "saturations": ctx.report() if alg.saturations else None}
@@ -73,8 +74,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"counted on a simulated walker ({subject.subject_id}, {res.n_samples} samples, "
           f"{logger.header.steps_written} step records; fixed point, the logger's own run):")
     print("\n".join(cycles.lines()))
-    print("  by primitive (cycles per sample): " + ", ".join(
-        f"{k} {v / max(1, alg.cycles.samples):,.0f}" for k, v in sorted(ctx.cycles.items(), key=lambda kv: -kv[1])[:6]))
+    print("  by primitive (cycles per sample): " + ", ".join(f"{k} {v:,.0f}" for k, v in list(by_primitive.items())[:6]))
     if alg.saturations:
         print(f"  saturations: {ctx.report()}")
     return code

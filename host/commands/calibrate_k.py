@@ -28,12 +28,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import sys
-    import warnings
 
+    from host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
     from host.errors import HostError
-    from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import calibrate
     from host.gait.pipeline import StepPipeline
     from host.gait.sections import pool_steps, sections_from_marks
@@ -43,14 +42,16 @@ def run(args: argparse.Namespace) -> int:
                         f"got {len(args.distance)}")
     if args.lap_marks is not None and not args.lap_marks > 0:
         raise HostError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        leg, foot = anatomical_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length,
-                                       height_m=args.height)
-    notes = [str(c.message) for c in caught]
+    inputs = [read_input(args, path) for path in args.inputs]
+    heights = {d.ipol_trial.height_m for d in inputs if d.ipol_trial is not None and d.ipol_trial.height_m}
+    if len(heights) > 1 and not given_anatomy_flags(args):
+        raise HostError(f"the inputs are IPOL trials of subjects of different heights ("
+                        f"{', '.join(f'{h:.2f}' for h in sorted(heights))} m) and K is per subject; give --height")
+    lengths = lengths_from_args(args, data=next((d for d in inputs if d.ipol_trial is not None), None))
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
+    notes = [lengths.note] if lengths.assumed else []
     sections = []
-    for i, path in enumerate(args.inputs):
-        data = read_input(args, path)
+    for i, (path, data) in enumerate(zip(args.inputs, inputs)):
         pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
             data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
         steps = pipe.steps_
@@ -68,7 +69,9 @@ def run(args: argparse.Namespace) -> int:
     cal = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
     cal.save(args.out)
     if verbosity(args) >= 0:
-        print(f"{len(sections)} section(s), {cal.n_steps} steps, {cal.distance_m:g} m ({cal.mode})")
+        print(f"{len(sections)} section(s), {cal.n_steps} steps, {cal.distance_m:g} m ({cal.mode}); leg length "
+              f"{leg:.3f} m, foot length {foot:.3f} m" + (f" ({lengths.note})" if lengths.note and not lengths.assumed
+                                                          else ""))
         print(f"K  M1 {cal.k_m1:.4f}  M2 {cal.k_m2:.4f}  M4 {cal.k_m4:.4f} m/(m/s^2)^0.25")
         print(f"M5 S = {cal.k1_m5_m_s:.4f} / T + {cal.k2_m5_m:.4f} m"
               + ("  (walk-ratio fallback)" if cal.m5_fallback else ""))

@@ -16,6 +16,7 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 
@@ -55,11 +56,7 @@ def _beside(out: str, suffix: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    import contextlib
-    import io
-
     from host.commands._input_options import given_input_flags
-    from host.commands._options import verbosity
     from host.errors import HostError
 
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
@@ -75,15 +72,14 @@ def run(args: argparse.Namespace) -> int:
     elif args.logger_rate != 50.0:
         raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
     mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
-    if verbosity(args) < 0:
-        with contextlib.redirect_stdout(io.StringIO()):
-            return mode(args)
     return mode(args)
 
 
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
+    from host.commands._options import printer
+    from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import rows_csv_text
     from host.studies.sweep import (
@@ -96,20 +92,24 @@ def _sweep(args: argparse.Namespace) -> int:
 
     if args.subjects < 1:
         raise HostError(f"--subjects must be >= 1, got {args.subjects}")
+    say, detail = printer(args), printer(args, 1)
     if args.out:
         require_folder(args.out)
     t = time.perf_counter()
-    sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers).run()
-    print(f"sweep: {args.subjects} simulated subjects x ADC 8/10/12 bits x 25/50/100 Hz in "
-          f"{time.perf_counter() - t:.1f} s")
-    print(format_summary(sw.summary_))
-    print()
-    print(format_m5(sw.m5_))
+    with progress_bar(args, args.subjects, "subject") as tick:
+        sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers).run(progress=tick)
+    say(f"sweep: {args.subjects} simulated subjects x ADC 8/10/12 bits x 25/50/100 Hz in "
+        f"{time.perf_counter() - t:.1f} s")
+    say(format_summary(sw.summary_))
+    say()
+    detail(format_summary(sw.summary_, mode="single-speed"))
+    detail()
+    say(format_m5(sw.m5_))
     if args.out:
         atomic_write_text(args.out, rows_csv_text(sw.summary_, SUMMARY_COLUMNS))
         m5 = _beside(args.out, "_m5")
         atomic_write_text(m5, rows_csv_text(sw.m5_["rows"]))
-        print(f"written: {args.out}, {m5}")
+        say(f"written: {args.out}, {m5}")
     return 0
 
 
@@ -117,6 +117,8 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import columns_csv_text
+    from host.commands._options import printer
+    from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import (
         bootstrap_budget,
@@ -134,21 +136,26 @@ def _simulate(args: argparse.Namespace) -> int:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     if args.resamples < 1:
         raise HostError(f"--resamples must be >= 1, got {args.resamples}")
+    say, detail = printer(args), printer(args, 1)
     if args.out:
         require_folder(args.out)
-    results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits, sampling_rate_hz=args.logger_rate,
-                                   workers=args.workers)
-    print(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
-          "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
+    with progress_bar(args, args.simulate, "subject") as tick:
+        results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits,
+                                       sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick)
+    say(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
+        "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
+    for r in results:
+        detail(f"  {r.subject_id}: {r.steps['step'].size} steps (offline chain), step durations off by "
+               f"{r.timing['rms_ms']:.1f} ms rms; saturation/wrap: {r.saturation or 'none'}")
     all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
-    print(format_step_diffs(_pool_diffs(all_diffs)))
-    print()
-    print(format_segments(results))
-    print()
+    say(format_step_diffs(_pool_diffs(all_diffs)))
+    say()
+    say(format_segments(results))
+    say()
     budget = bootstrap_budget(results, n_resamples=args.resamples, seed=args.seed)
-    print(format_budget(budget, n_resamples=args.resamples, seed=args.seed))
+    say(format_budget(budget, n_resamples=args.resamples, seed=args.seed))
     sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
-    print("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
+    say("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
     if args.out:
         from host.studies.compare import BUDGET_COLUMNS
 
@@ -163,12 +170,14 @@ def _simulate(args: argparse.Namespace) -> int:
         atomic_write_text(seg, rows_csv_text([s for r in results for s in r.segments]))
         atomic_write_text(split, rows_csv_text(all_diffs))
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
-        print(f"written: {args.out}, {seg}, {split}, {bud}")
+        say(f"written: {args.out}, {seg}, {split}, {bud}")
     return 0
 
 
-def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, sampling_rate_hz: float = 50.0, workers: int = 1) -> list:
-    """One :class:`host.studies.compare.WalkComparison` per simulated subject (parallel over subjects)."""
+def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, sampling_rate_hz: float = 50.0, workers: int = 1,
+                         progress: Callable[[], object] | None = None) -> list:
+    """One :class:`host.studies.compare.WalkComparison` per simulated subject (parallel over subjects);
+    ``progress()`` is called after each subject."""
     from firmware_sim.world.subject import random_subjects
 
     jobs = [(s, seed * 1000 + i, bits, sampling_rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
@@ -176,8 +185,14 @@ def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, sampling_rate
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            return list(pool.map(_one_subject, jobs))
-    return [_one_subject(j) for j in jobs]
+            return [_ticked(r, progress) for r in pool.map(_one_subject, jobs)]
+    return [_ticked(_one_subject(j), progress) for j in jobs]
+
+
+def _ticked(result: object, progress: Callable[[], object] | None) -> object:
+    if progress is not None:
+        progress()
+    return result
 
 
 def _one_subject(job: tuple):
@@ -239,21 +254,22 @@ def format_segments(results: list) -> str:
 
 def _recording(args: argparse.Namespace) -> int:
     import sys
-    import warnings
     from pathlib import Path
 
     import numpy as np
 
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
+    from host.commands._anatomy_options import lengths_from_args
     from host.commands._input_options import read_input
+    from host.commands._options import printer, verbosity
     from host.errors import HostError
     from host.files.decode import verify_step_records
     from host.files.replay import run_starts
-    from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import KCalibration
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
     from protocol.atomic_write import atomic_write_text, require_folder
 
+    say = printer(args)
     p = Path(args.input)
     if args.out:
         require_folder(args.out)
@@ -277,11 +293,8 @@ def _recording(args: argparse.Namespace) -> int:
             raise HostError(f"{args.calibration}: {err}") from None
         note = f"g from {args.calibration}"
     k = KCalibration.load(args.k_file) if args.k_file else None
-    leg_arg = args.leg_length if args.leg_length is not None or k is None or args.height else k.leg_length_m
-    foot_arg = args.foot_length if args.foot_length is not None or k is None or args.height else k.foot_length_m
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        leg, foot = anatomical_lengths(leg_length_m=leg_arg, foot_length_m=foot_arg, height_m=args.height)
+    lengths = lengths_from_args(args, k=k, data=data)
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
     flags = np.asarray(rec.flags)
     marks = data.mark_index
     starts = run_starts(rec.valid, flags)
@@ -290,32 +303,35 @@ def _recording(args: argparse.Namespace) -> int:
                             foot_length_m=foot, adc_calibration=cal, adc_bits=int(rec.adc_bits), valid=rec.valid,
                             calibration=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=args.lap_m,
                             t0_s=float(t[0]) if t.size else 0.0, run_starts=starts)
-    print(f"{p}: {rec.n_samples} samples at {rec.sampling_rate_hz:g} Hz ({rec.n_missing} missing); {note}")
-    print(check.summary() if check is not None else "device step records: none in this recording")
-    print(f"leg length {leg:.3f} m, foot length {foot:.3f} m; K file: {args.k_file or 'none (K = 1, M4/M5 n/a)'}"
+    say(f"{p}: {rec.n_samples} samples at {rec.sampling_rate_hz:g} Hz ({rec.n_missing} missing); {note}")
+    say(check.summary() if check is not None else "device step records: none in this recording")
+    printer(args, 1)(f"{starts.size} run(s) of contiguous samples (the on-line algorithm restarts after each gap), "
+                     f"{marks.size} MARK flag(s)")
+    say(f"leg length {leg:.3f} m, foot length {foot:.3f} m"
+        + (f" ({lengths.note})" if lengths.note and not lengths.assumed else "") + "; K file: {args.k_file or 'none (K = 1, M4/M5 n/a)'}"
           " (the same K for every chain)")
     tb = res.tables
-    print("steps: " + ", ".join(f"{c} {tb[c].n_steps}" for c in tb) + "; " + "; ".join(
+    say("steps: " + ", ".join(f"{c} {tb[c].n_steps}" for c in tb) + "; " + "; ".join(
         f"{s}: matched {m.n_matched}, different events {int(np.count_nonzero(~m.same_events))}, "
         f"found by one chain only {m.only_a.size + m.only_b.size}" for s, m in res.matches.items()))
-    print(format_step_diffs(res.step_diffs))
-    print(f"segments: {res.segment_source}; alg = online-float - offline, arith = online-fixed - online-float")
-    print(f"{'seg':>4}{'t0 s':>8}{'t1 s':>8}" + "".join(f"{e + ' offline m':>13}{'alg mm':>9}{'arith mm':>9}"
-                                                      for e in ESTIMATORS))
+    say(format_step_diffs(res.step_diffs))
+    say(f"segments: {res.segment_source}; alg = online-float - offline, arith = online-fixed - online-float")
+    say(f"{'seg':>4}{'t0 s':>8}{'t1 s':>8}" + "".join(f"{e + ' offline m':>13}{'alg mm':>9}{'arith mm':>9}"
+                                                    for e in ESTIMATORS))
     for i in sorted({r["section"] for r in res.segments}):
         rs = {r["estimator"]: r for r in res.segments if r["section"] == i}
         r0 = rs["M1"]
-        print(f"{i:>4}{r0['t_start_s']:>8.1f}{r0['t_end_s']:>8.1f}" + "".join(
+        say(f"{i:>4}{r0['t_start_s']:>8.1f}{r0['t_end_s']:>8.1f}" + "".join(
             f"{rs[e]['offline_m']:>13.3f}{1e3 * rs[e]['algorithm_m']:>9.2f}{1e3 * rs[e]['arithmetic_m']:>9.2f}"
             for e in ESTIMATORS))
-    print(f"saturation/wrap in the fixed-point run: {res.saturation or 'none'}; "
-          f"PIC cycles per sample {res.cycles_per_sample:.0f} (mean)")
-    for c in caught:
-        print(f"gaitlog compare: warning: {c.message}", file=sys.stderr)
+    say(f"saturation/wrap in the fixed-point run: {res.saturation or 'none'}; "
+        f"PIC cycles per sample {res.cycles_per_sample:.0f} (mean)")
+    if lengths.assumed and verbosity(args) >= 0:
+        print(f"gaitlog compare: warning: {lengths.note}", file=sys.stderr)
     if args.out:
         atomic_write_text(args.out, columns_csv_text(res.steps))
         seg, split = _beside(args.out, "_segments"), _beside(args.out, "_split")
         atomic_write_text(seg, rows_csv_text(res.segments))
         atomic_write_text(split, rows_csv_text(res.step_diffs))
-        print(f"written: {args.out}, {seg}, {split}")
+        say(f"written: {args.out}, {seg}, {split}")
     return 0

@@ -73,11 +73,12 @@ def _serve(ctx: dict[str, Any]) -> list[str]:
 
 
 def _dump(ctx: dict[str, Any]) -> list[str]:
+    from host.commands._options import verbosity
     from host.link.logger_link import LoggerLink
 
     out = ctx["dir"] / "dumped.glimg"
     with LoggerLink(ctx["port"], baud=115200) as link:
-        result = link.dump(out, progress=not ctx["args"].quiet)
+        result = link.dump(out, progress=verbosity(ctx["args"]) >= 0)
     meta = result.metadata_
     ctx["dumped_image"] = out
     return [f"{meta['stored_bytes']} bytes in {meta['duration_s']:.2f} s, {meta['frames_damaged']} damaged "
@@ -376,16 +377,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="write into --out even if it holds other files (files of the same names are replaced)")
     parser.add_argument("--poses", type=int, default=24, help="number of calibration poses (default 24)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor and the poses (default 0)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    from host.commands._options import add_verbosity_options
+
+    add_verbosity_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
+    from host.commands._options import printer
     from host.errors import HostError
     from protocol.atomic_write import atomic_write_text
 
+    say, detail = printer(args), printer(args, 1)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise HostError(f"--out {out}: exists and is not a directory")
@@ -405,9 +410,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         for stage in STAGES:
             lines = stage.run(ctx)
-            print(f"[{stage.name}] " + (lines[0] if lines else ""), flush=True)
+            say(f"[{stage.name}] " + (lines[0] if lines else ""), flush=True)
             for line in lines[1:]:
-                print(f"    {line}", flush=True)
+                say(f"    {line}", flush=True)
+        for path in sorted(out.iterdir()) if args.out else ():
+            detail(f"kept: {path}")
     finally:
         for fn in reversed(ctx["cleanup"]):
             fn()

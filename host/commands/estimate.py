@@ -30,14 +30,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
     import sys
-    import warnings
     from pathlib import Path
 
     from firmware_sim.algorithms.steps import ESTIMATORS
+    from host.commands._anatomy_options import lengths_from_args
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
     from host.errors import HostError
-    from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import KCalibration
     from protocol.atomic_write import require_folder
 
@@ -48,15 +47,9 @@ def run(args: argparse.Namespace) -> int:
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a logger file or a "
                         "decoded recording (.npz from 'gaitlog decode'), not acceleration in g")
     cal = KCalibration.load(args.k_file) if args.k_file else None
-    leg_arg, foot_arg = args.leg_length, args.foot_length
-    if cal is not None and leg_arg is None and args.height is None:
-        leg_arg = cal.leg_length_m
-    if cal is not None and foot_arg is None and args.height is None:
-        foot_arg = cal.foot_length_m
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        leg, foot = anatomical_lengths(leg_length_m=leg_arg, foot_length_m=foot_arg, height_m=args.height)
-    notes = [str(c.message) for c in caught]
+    lengths = lengths_from_args(args, k=cal, data=data)
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
+    notes = [lengths.note] if lengths.assumed else []
     tables = {}
     fixed_report = ""
     if args.arithmetic in ("float", "both"):
@@ -81,14 +74,16 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         doc = {"input": str(args.input), "source": data.source, "n_samples": data.n_samples,
                "n_missing": data.n_missing, "sampling_rate_hz": data.sampling_rate_hz, "leg_length_m": leg,
-               "foot_length_m": foot, "k_file": args.k_file, "arithmetic": summary,
+               "foot_length_m": foot, "lengths_from": lengths.note, "k_file": args.k_file, "arithmetic": summary,
                "fixed_point_saturation": fixed_report if "fixed" in tables else None,
                "per_step_tables": {a: str(p) for a, p in outs.items()}, "notes": notes}
         print(json.dumps(doc, indent=2, allow_nan=False))
     elif verbosity(args) >= 0:
         print(f"{args.input}: {data.n_samples} samples at {data.sampling_rate_hz:g} Hz "
               f"({data.n_missing} missing); {data.source}")
-        print(f"leg length {leg:.3f} m, foot length {foot:.3f} m; K file: {args.k_file or 'none'}")
+        print(f"leg length {leg:.3f} m, foot length {foot:.3f} m"
+              + (f" ({lengths.note})" if lengths.note and not lengths.assumed else "")
+              + f"; K file: {args.k_file or 'none'}")
         for arith, s in summary.items():
             print((f"arithmetic = {arith}: " if args.arithmetic != "float" else "")
                   + f"{s['n_steps']} steps in {s['n_bouts']} walking bout(s)"

@@ -22,6 +22,10 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+#: The figures written to ``--out``.
+FIGURES = ("morris_angular_velocity.png", "morris_dcm.png", "morris_translation.png", "morris_stick_figure.png",
+           "hall_joint_angles.png")
+
 HELP = "Simulate the Morris shank platform and Hall's two links, run both kinematics, write figures."
 
 
@@ -172,19 +176,9 @@ def run_hall(sampling_rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) 
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run both simulations and methods, write the figures, print the errors against the truth (not with -q)."""
-    import contextlib
-    import io
-
-    from host.commands._options import verbosity
-
-    if verbosity(args) < 0:
-        with contextlib.redirect_stdout(io.StringIO()):
-            return _run(args)
-    return _run(args)
-
-
-def _run(args: argparse.Namespace) -> int:
+    """Run both simulations and methods, write the figures, print the errors against the truth (not with -q;
+    each figure's path with -v)."""
+    from host.commands._options import printer
     from host.errors import HostError
     from host.kinematics.plots import (
         plot_angular_velocity,
@@ -214,20 +208,22 @@ def _run(args: argparse.Namespace) -> int:
                       out / "morris_stick_figure.png",
                       truth=(morris["dcm_true"], morris["truth_translation"][2] + p0))
     plot_joint_angles(hall["t_s"], hall["angles_rad"], out / "hall_joint_angles.png", truth_rad=hall["truth_rad"])
+    say, detail = printer(args), printer(args, 1)
     me, he = morris["errors"], hall["errors"]
     fmt3 = lambda xs: "(" + ", ".join(f"{x:.3g}" for x in xs) + ")"  # noqa: E731
-    print(f"Morris shank, 6 accelerometers, {args.morris_rate:g} Hz, one {t[-1]:.2f} s cycle, noise {args.noise_mg:g} mg:")
-    print(f"  angular velocity  max error {me['omega_rad_s']:.3g} rad/s (peak {me['omega_peak_rad_s']:.2f} rad/s)")
-    print(f"  orientation       max error {me['orientation_deg']:.3g} deg (tilt {me['tilt_deg']:.3g} deg; "
-          f"heading of the λ12 = 0 frame {me['heading_deg']:.2f} deg)")
-    print(f"  velocity          max error {me['velocity_m_s']:.3g} m/s")
-    print(f"  position          max error {fmt3(me['position_m'])} m (fwd, side, vertical); "
-          f"stride {me['stride_est_m']:.4f} m vs {me['stride_true_m']:.4f} m")
-    print(f"Hall two links, {args.hall_rate:g} Hz, CFC 180, gyro noise {args.gyro_noise:g} rad/s:")
-    print(f"  joint angles      max error {fmt3(he['angles_deg'])} deg (phi, theta, psi)")
-    print(f"  final angles      {fmt3(he['final_deg'])} deg, truth {fmt3(he['final_true_deg'])} deg")
-    print(f"  literal sum of incremental Euler angles ends at {fmt3(he['literal_final_deg'])} deg")
-    print(f"  gimbal lock at {he['gimbal_lock_samples']} samples")
-    print(f"figures written to {out}/: morris_angular_velocity.png morris_dcm.png morris_translation.png "
-          "morris_stick_figure.png hall_joint_angles.png")
+    say(f"Morris shank, 6 accelerometers, {args.morris_rate:g} Hz, one {t[-1]:.2f} s cycle, noise {args.noise_mg:g} mg:")
+    say(f"  angular velocity  max error {me['omega_rad_s']:.3g} rad/s (peak {me['omega_peak_rad_s']:.2f} rad/s)")
+    say(f"  orientation       max error {me['orientation_deg']:.3g} deg (tilt {me['tilt_deg']:.3g} deg; "
+        f"heading of the λ12 = 0 frame {me['heading_deg']:.2f} deg)")
+    say(f"  velocity          max error {me['velocity_m_s']:.3g} m/s")
+    say(f"  position          max error {fmt3(me['position_m'])} m (fwd, side, vertical); "
+        f"stride {me['stride_est_m']:.4f} m vs {me['stride_true_m']:.4f} m")
+    say(f"Hall two links, {args.hall_rate:g} Hz, CFC 180, gyro noise {args.gyro_noise:g} rad/s:")
+    say(f"  joint angles      max error {fmt3(he['angles_deg'])} deg (phi, theta, psi)")
+    say(f"  final angles      {fmt3(he['final_deg'])} deg, truth {fmt3(he['final_true_deg'])} deg")
+    say(f"  literal sum of incremental Euler angles ends at {fmt3(he['literal_final_deg'])} deg")
+    say(f"  gimbal lock at {he['gimbal_lock_samples']} samples")
+    say(f"figures written to {out}/: {' '.join(FIGURES)}")
+    for name in FIGURES:
+        detail(f"  {out / name}")
     return 0

@@ -2,14 +2,18 @@
 
 The logger runs its on-line step algorithm while logging (PROTOCOL.md 2.2, 2.3) unless ``--steps off``: the
 step configuration is written to the header before START, from ``--height`` / ``--leg-length`` /
-``--foot-length`` (:func:`host.gait.anthropometry.anatomical_lengths`; a 1.70 m adult, with a warning,
-when none is given) and, with ``--k-file``, the calibrated constants of a ``gaitlog calibrate-k`` file (whose
+``--foot-length`` (:func:`host.gait.anthropometry.choose_lengths`: else a replayed IPOL trial's height, else a
+1.70 m adult, with a warning) and, with ``--k-file``, the calibrated constants of a ``gaitlog calibrate-k`` file (whose
 leg and foot lengths are the ones K was fitted with). Without K the device stores the raw values.
 """
 
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from host.files.inputs import AccelerationInput
 
 HELP = ("record a motion (calibration poses, a simulated walk or a replayed recording) with the emulated logger, "
         "its on-line step algorithm on, to a memory image")
@@ -58,8 +62,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_verbosity_options(parser)
 
 
-def build_motion(args: argparse.Namespace):
-    """The motion source named by ``--motion`` (with ``--units``/``--rate``/``--columns``)."""
+def read_replayed(args: argparse.Namespace) -> AccelerationInput | None:
+    """The file of ``--motion replay FILE`` (with the input flags), else None."""
+    from host.commands._input_options import read_input
+    from host.errors import HostError
+
+    if args.motion[0] != "replay":
+        return None
+    if len(args.motion) != 2:
+        raise HostError("--motion replay needs exactly one FILE")
+    return read_input(args, args.motion[1])
+
+
+def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None):
+    """The motion source named by ``--motion``; ``data``: the replayed file (:func:`read_replayed`), read here
+    when not given."""
     from host.errors import HostError
 
     kind = args.motion[0]
@@ -73,9 +90,8 @@ def build_motion(args: argparse.Namespace):
         if len(args.motion) != 2:
             raise HostError("--motion replay needs exactly one FILE")
         from firmware_sim.world.replay import Replay
-        from host.commands._input_options import read_input
 
-        data = read_input(args, args.motion[1])
+        data = data if data is not None else read_replayed(args)
         return Replay.from_samples(data.g(), data.valid, sampling_rate_hz=data.sampling_rate_hz, source=data.source,
                                    marker_times_s=data.mark_index / data.sampling_rate_hz)
     if kind == "walk":
@@ -107,8 +123,10 @@ def _refuse_input_flags(args: argparse.Namespace) -> None:
         raise HostError(f"{', '.join(extra)}: only for --motion replay FILE")
 
 
-def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
-    """The step configuration the options ask for, and the warnings to print.
+def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, data: AccelerationInput | None = None):
+    """The step configuration the options ask for, and the warnings to print; the leg and foot lengths by
+    :func:`host.commands._anatomy_options.lengths_from_args` (``data``: the replayed input, whose IPOL height
+    counts when no option gives one).
 
     Returns
     -------
@@ -122,10 +140,8 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
         A length out of its plausible range, an unreadable or foreign ``--k-file``, lengths that contradict
         the ``--k-file``'s, or K values the step configuration cannot store (the field is named).
     """
-    import warnings
-
+    from host.commands._anatomy_options import lengths_from_args
     from host.errors import HostError
-    from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
     from protocol.errors import ProtocolError
     from protocol.steps import StepConfig, StepFormat
 
@@ -135,38 +151,30 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False):
         return StepConfig.off(), []
     if appending and args.steps is None and not given:
         return None, []
-    notes: list[str] = []
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        leg, foot = anatomical_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length,
-                                       height_m=args.height)
-    k = {}
+    cal = None
     if args.k_file is not None:
         from host.gait.k_calibration import KCalibration
 
         cal = KCalibration.load(args.k_file)
+    lengths = lengths_from_args(args, k=cal, data=data)
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
+    k = {}
+    if cal is not None:
         fitted = StepConfig(step_format=StepFormat.V1, leg_length_m=cal.leg_length_m,
                             foot_length_m=cal.foot_length_m)
         try:
             fitted_q = fitted.quantised()
         except ProtocolError as err:
             raise HostError(f"{args.k_file}: its lengths cannot be stored: {err}") from err
-        for name, asked, derived, value in (("leg", args.leg_length, leg, fitted_q.leg_length_m),
-                                            ("foot", args.foot_length, foot, fitted_q.foot_length_m)):
-            # compare what the options set (the length itself, or the height it is derived from)
-            if (asked is not None or args.height is not None) and abs(derived - value) > 2.0 ** -15:
+        for name, chosen, value in (("leg", leg, fitted_q.leg_length_m), ("foot", foot, fitted_q.foot_length_m)):
+            # a length the options set (the length itself, or the height it is derived from) must be K's
+            if chosen != getattr(cal, f"{name}_length_m") and abs(chosen - value) > 2.0 ** -15:
                 raise HostError(f"{args.k_file}: K was fitted with a {name} length of {value:.4f} m, the options "
-                                f"give {derived:.4f} m: K holds only with the lengths it was fitted with (drop "
+                                f"give {chosen:.4f} m: K holds only with the lengths it was fitted with (drop "
                                 "--height/--leg-length/--foot-length, or fit K again)")
         leg, foot = cal.leg_length_m, cal.foot_length_m
         k = cal.step_constants()
-        caught = []
-    if not given:
-        notes.append(f"no --height, --leg-length or --foot-length: the on-line step algorithm assumes a "
-                     f"{DEFAULT_HEIGHT_M:.2f} m adult (leg {leg:.3f} m, foot {foot:.3f} m); give --height, or "
-                     "--steps off for plain logging")
-    else:
-        notes += [str(w.message) for w in caught]
+    notes = [f"the on-line step algorithm: {lengths.note}; or --steps off for plain logging"] if lengths.assumed else []
     config = StepConfig(step_format=StepFormat.V1, leg_length_m=leg, foot_length_m=foot, **k)
     try:
         config.to_bytes()
@@ -197,9 +205,10 @@ def run(args: argparse.Namespace) -> int:
                   "drop them", file=sys.stderr)
             return 2
     appending = bool(args.append and out.exists())
-    config, warnings_ = step_config_from_args(args, appending=appending)
     _refuse_input_flags(args)
-    source = build_motion(args)
+    data = read_replayed(args)
+    config, warnings_ = step_config_from_args(args, appending=appending, data=data)
+    source = build_motion(args, data)
     motion = source.render(args.logger_rate)
     n_interpolated = getattr(source, "n_interpolated", 0)
     if n_interpolated and verbosity(args) >= 0:

@@ -17,6 +17,7 @@ metatarsal head).
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 from firmware_sim.world.subject import (
     BALL_OF_FOOT_PER_FOOT_LENGTH,
@@ -27,7 +28,7 @@ from firmware_sim.world.subject import (
 from host.errors import HostError
 
 __all__ = ["BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT", "HEEL_TOE_LENGTH_PER_HEIGHT",
-           "LEG_LENGTH_PER_HEIGHT", "anatomical_lengths"]
+           "LEG_LENGTH_PER_HEIGHT", "AnatomyChoice", "anatomical_lengths", "choose_lengths"]
 
 #: Height used when nothing is known (adult population mean, both sexes, ~1.70 m).
 DEFAULT_HEIGHT_M = 1.70
@@ -65,3 +66,66 @@ def anatomical_lengths(
     leg = leg_length_m if leg_length_m is not None else round(LEG_LENGTH_PER_HEIGHT * height_m, 6)
     foot = foot_length_m if foot_length_m is not None else round(FOOT_LENGTH_PER_HEIGHT * height_m, 6)
     return float(leg), float(foot)
+
+
+class AnatomyChoice(NamedTuple):
+    """Leg and foot length chosen by :func:`choose_lengths`, and where they came from."""
+
+    leg_length_m: float
+    foot_length_m: float
+    #: One line saying where the lengths came from ("" when both were given).
+    note: str
+    #: True when nothing about the wearer was known and a :data:`DEFAULT_HEIGHT_M` adult was assumed.
+    assumed: bool
+
+
+def choose_lengths(*, leg_length_m: float | None = None, foot_length_m: float | None = None,
+                   height_m: float | None = None, k_lengths_m: tuple[float, float] | None = None,
+                   k_source: str = "the K file", trial_height_m: float | None = None,
+                   trial_source: str = "the trial") -> AnatomyChoice:
+    """The one rule for the leg and foot length of a gait command.
+
+    Each length is, in order: given (``leg_length_m`` / ``foot_length_m``); from the given ``height_m``;
+    the K file's (``k_lengths_m``: K holds only with the lengths it was fitted with); from the height of the
+    recorded subject (``trial_height_m``, e.g. an IPOL trial's JSON); from a :data:`DEFAULT_HEIGHT_M` adult
+    (``assumed`` is then True and the note says so).
+
+    Raises
+    ------
+    HostError
+        A length or height outside its plausible range (:func:`anatomical_lengths`).
+
+    Examples
+    --------
+    >>> choose_lengths(height_m=1.80)[:2]
+    (0.954, 0.1998)
+    >>> print(choose_lengths(trial_height_m=1.80, trial_source="2-1.json").note)
+    leg and foot length from the recorded subject's height, 1.80 m (2-1.json)
+    >>> choose_lengths(foot_length_m=0.2).assumed
+    True
+    """
+    anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
+                       height_m=height_m if height_m is not None else DEFAULT_HEIGHT_M)     # range checks
+    if height_m is not None or (leg_length_m is not None and foot_length_m is not None):
+        leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
+                                       height_m=height_m if height_m is not None else DEFAULT_HEIGHT_M)
+        return AnatomyChoice(leg, foot, "", False)
+    if k_lengths_m is not None:
+        leg = leg_length_m if leg_length_m is not None else float(k_lengths_m[0])
+        foot = foot_length_m if foot_length_m is not None else float(k_lengths_m[1])
+        return AnatomyChoice(leg, foot, f"leg and foot length from {k_source} (the lengths K was fitted with)"
+                             if leg_length_m is None and foot_length_m is None else
+                             f"{'leg' if leg_length_m is None else 'foot'} length from {k_source}", False)
+    if trial_height_m is not None:
+        leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m, height_m=trial_height_m)
+        return AnatomyChoice(leg, foot, f"{_what(leg_length_m, foot_length_m)} from the recorded subject's height, "
+                             f"{trial_height_m:.2f} m ({trial_source})", False)
+    leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m, height_m=DEFAULT_HEIGHT_M)
+    return AnatomyChoice(leg, foot, f"no height known: {_what(leg_length_m, foot_length_m)} estimated"
+                         f" for a {DEFAULT_HEIGHT_M:.2f} m adult (leg {leg:.3f} m, foot {foot:.3f} m); "
+                         "give --height (or --leg-length and --foot-length)", True)
+
+
+def _what(leg_length_m: float | None, foot_length_m: float | None) -> str:
+    return ("leg and foot length" if leg_length_m is None and foot_length_m is None
+            else "leg length" if leg_length_m is None else "foot length")

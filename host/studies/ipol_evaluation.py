@@ -60,7 +60,7 @@ import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
-from host.files.ipol import list_trials
+from host.files.ipol import list_trials, read_trial
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.k_calibration import KCalibration, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
@@ -193,8 +193,6 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
     trial's height (:func:`host.gait.anthropometry.anatomical_lengths`).
     """
-    import re
-
     from firmware_sim.adc import Adc
     from firmware_sim.device import Logger
     from firmware_sim.errors import DeviceError
@@ -202,16 +200,13 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
     from protocol.steps import StepConfig
 
     lb_path = Path(lb_path)
-    m = re.match(r"^(\d+)-(\d+)_lb\.txt$", lb_path.name)
-    if not m:
-        raise HostError(f"{lb_path}: expected a file name '<subject>-<trial>_lb.txt'")
+    trial = read_trial(lb_path)         # the host's reader: the packet grid, lost packets missing, the JSON
     try:
-        replay = Replay.from_file(lb_path, units="m/s^2")
+        replay = Replay.from_samples(trial.acc_g, trial.valid, sampling_rate_hz=trial.sampling_rate_hz,
+                                     source=str(lb_path))
     except DeviceError as err:
         raise HostError(str(err)) from err
-    meta = replay.truth.get("ipol_meta")
-    if not isinstance(meta, dict) or "TrialBoundaries" not in meta:
-        raise HostError(f"{lb_path}: no trial JSON with 'TrialBoundaries' beside it")
+    meta = trial.meta
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)      # no height: the default stature, as the paper's inputs
         leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
@@ -235,7 +230,7 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
     valid = ~(filled[j] | (filled[j1] & ~on_packet))
     acc[~valid] = np.nan
     rate = float(1.0 / np.median(np.diff(times_s)))
-    return ReplayedTrial(int(m.group(1)), int(m.group(2)), acc, valid, rate, float(times_s[0]), meta, src_rate,
+    return ReplayedTrial(trial.subject, trial.trial, acc, valid, rate, float(times_s[0]), meta, src_rate,
                          lb_path, codes, int(bits), np.asarray(result.flags), np.asarray(result.sample_numbers,
                                                                                          np.int64),
                          header, records[crc_ok], float(leg), float(foot))

@@ -52,6 +52,7 @@ per configuration, ~10 s on 2 cores; pinned by ``tests/host/test_compare_figures
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Self
 
@@ -148,8 +149,9 @@ class AdcRateSweep:
         self.calibration_sections = calibration_sections
         self.include_turn = include_turn
 
-    def run(self) -> Self:
-        """Simulate every subject once and run every configuration on it."""
+    def run(self, progress: Callable[[], object] | None = None) -> Self:
+        """Simulate every subject once and run every configuration on it; ``progress()`` is called after each
+        subject (all its configurations)."""
         from firmware_sim.world.subject import random_subjects
 
         if self.n_subjects < 1:
@@ -164,9 +166,9 @@ class AdcRateSweep:
             from concurrent.futures import ProcessPoolExecutor
 
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
-                per_subject = list(pool.map(_subject_job, jobs))
+                per_subject = [_ticked(rs, progress) for rs in pool.map(_subject_job, jobs)]
         else:
-            per_subject = [_subject_job(j) for j in jobs]
+            per_subject = [_ticked(_subject_job(j), progress) for j in jobs]
         self.results_ = [r for rs in per_subject for r in rs]
         self.summary_ = summarise(self.results_)
         self.m5_ = m5_timing_answer(self.results_)
@@ -175,6 +177,12 @@ class AdcRateSweep:
     def format_table(self) -> str:
         """Printed summary: the multi-speed rows, the error split and the M5 answer."""
         return format_summary(self.summary_) + "\n\n" + format_m5(self.m5_)
+
+
+def _ticked(results: list[ConfigResult], progress: Callable[[], object] | None) -> list[ConfigResult]:
+    if progress is not None:
+        progress()
+    return results
 
 
 def _q(v: np.ndarray) -> tuple[float, float]:

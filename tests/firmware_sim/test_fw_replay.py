@@ -1,107 +1,49 @@
-"""Replay of recordings: IPOL packet grid and filled gaps, CSV options, units, anti-aliased resampling."""
+"""Replay of recorded samples (:meth:`Replay.from_samples`): holes interpolated and reported, anti-aliased
+resampling. Files are read by the host (tests/host/test_replay_files.py)."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import signal
 
-from firmware_sim.device import Logger
 from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, MotionSource
 from firmware_sim.world.replay import Replay
 
 
-def _lowpass(x: np.ndarray, fc: float, fs: float) -> np.ndarray:
-    b, a = signal.butter(4, fc, fs=fs)
-    return signal.filtfilt(b, a, x, axis=0)
+def test_missing_samples_are_filled_between_their_neighbours_and_reported() -> None:
+    fs = 100.0
+    t = np.arange(1000) / fs
+    acc = np.c_[0.3 * np.sin(2 * np.pi * 1.1 * t), 0.1 * t, 1.0 + 0 * t]
+    valid = np.ones(t.size, bool)
+    valid[[0, 1]] = False                    # leading holes: the replay starts at the first measured sample
+    valid[200:205] = False
+    valid[700] = False
+    acc[~valid] = np.nan
+    src = Replay.from_samples(acc, valid, sampling_rate_hz=fs, source="test")
+    assert src.t0_s == pytest.approx(0.02) and src.acc_g.shape == (998, 3)
+    assert src.n_interpolated == 6 and src.truth["source"] == "test"
+    np.testing.assert_array_equal(src.truth["filled_packets"], [[198, 202], [698, 698]])
+    np.testing.assert_allclose(src.truth["filled_ranges_s"], [[1.98, 2.03], [6.98, 6.99]])
+    np.testing.assert_array_equal(src.acc_g[~src.truth["filled"]], acc[valid])
+    # linear between the neighbours: the y axis is a straight line, so it is filled exactly
+    np.testing.assert_allclose(src.acc_g[:, 1], 0.1 * t[2:], atol=1e-12)
+    lo, hi = acc[199, 0], acc[205, 0]
+    np.testing.assert_allclose(src.acc_g[198:203, 0], lo + (hi - lo) * np.arange(1, 6) / 6, atol=1e-12)
 
 
-def test_ipol_file_on_the_packet_grid_with_filled_gaps(shared_data: Path) -> None:
-    path = shared_data / "ipol-lowerback-dev" / "GaitData" / "1-1_lb.txt"
-    raw = np.loadtxt(path, skiprows=2)
-    counter = raw[:, 0].astype(int)
-    src = Replay.from_file(path)  # units auto-detected
-    assert isinstance(src, MotionSource)
-    assert src.truth["units"] == "m/s^2" and src.sampling_rate_hz == 100.0
-    first = counter[0]
-    assert src.acc_g.shape == (counter[-1] - first + 1, 3)
-    # every received packet is at its counter position, converted to g
-    np.testing.assert_allclose(src.acc_g[counter - first], raw[:, 1:4] / STANDARD_GRAVITY_M_S2, rtol=0, atol=1e-12)
-    # every lost packet is reported, and filled between its neighbours (continuous input)
-    lost = np.setdiff1d(np.arange(first, counter[-1] + 1), counter) - first
-    assert src.truth["n_filled"] == lost.size > 0
-    np.testing.assert_array_equal(np.flatnonzero(src.truth["filled"]), lost)
-    ranges = src.truth["filled_packets"]
-    assert sum(b - a + 1 for a, b in ranges) == lost.size
-    np.testing.assert_allclose(src.truth["filled_ranges_s"][:, 0], ranges[:, 0] / 100.0)
-    for a, b in ranges:
-        lo, hi = src.acc_g[a - 1], src.acc_g[b + 1]
-        assert np.all(src.acc_g[a:b + 1] >= np.minimum(lo, hi) - 1e-12)
-        assert np.all(src.acc_g[a:b + 1] <= np.maximum(lo, hi) + 1e-12)
-    assert "TrialBoundaries" in src.truth["ipol_meta"]
+def test_fewer_than_two_measured_samples_is_an_error() -> None:
+    with pytest.raises(DeviceError, match="x.csv: fewer than 2 measured samples"):
+        Replay.from_samples(np.ones((4, 3)), np.array([0, 1, 0, 0], bool), sampling_rate_hz=10.0, source="x.csv")
+    with pytest.raises(DeviceError, match=r"\(n >= 2, 3\) acceleration array"):
+        Replay(np.ones((4, 2)), sampling_rate_hz=10.0).render(50.0)
 
 
-def test_ipol_resampled_signal_matches_the_original_in_band(shared_data: Path) -> None:
-    src = Replay.from_file(shared_data / "ipol-lowerback-dev" / "GaitData" / "2-1_lb.txt")
-    m = src.render(500.0)
-    assert m.sampling_rate_hz == 500.0 and m.n_samples == 5 * src.acc_g.shape[0]
-    # the resampled signal at the original instants, both seen through the same 20 Hz low-pass
-    x = _lowpass(src.acc_g, 20.0, 100.0)
-    y = _lowpass(m.acc_g[::5], 20.0, 100.0)
-    core = slice(100, -100)
-    err = np.sqrt(np.mean((y[core] - x[core]) ** 2, axis=0))
-    assert np.all(err < 0.01 * x[core].std(axis=0) + 1e-4)
-    # and through the whole logger: the 50 Hz codes, back in g, are the recording seen through the
-    # sensor's analog 20 Hz RC filter (simulated independently with lsim), within the quantisation
-    lg = Logger(sensor=SensorModel.ideal(noise_density_g_rthz=0.0))
-    res = lg.record(src)
-    acc = (res.codes + 0.5 - 512.0) / (4 * 0.312 * 1024 / 5)
-    t = np.arange(src.acc_g.shape[0]) / 100.0
-    tau = 1.0 / (2 * np.pi * 20.0)
-    rc = signal.StateSpace([[-1.0 / tau]], [[1.0 / tau]], [[1.0]], [[0.0]])  # dx/dt = (u - x) / tau, y = x
-    ref = np.column_stack([signal.lsim(rc, src.acc_g[:, j], t, X0=[src.acc_g[0, j]])[1]
-                           for j in range(3)])[::2][: acc.shape[0]]
-    err = np.sqrt(np.mean((acc[25:-25] - ref[25:-25]) ** 2))
-    assert err < 0.004  # one code is 0.0039 g
-
-
-def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
-    fs = 200.0
-    t = np.arange(2000) / fs
-    acc_g = np.c_[0.2 * np.sin(2 * np.pi * 1.5 * t), 0.1 * np.cos(2 * np.pi * 0.7 * t), 1.0 + 0 * t]
-    keep = np.ones(t.size, bool)
-    keep[500:507] = False  # 7 lost rows
-    path = tmp_path / "rec.csv"
-    rows = "\n".join(f"{tt:.5f},{a:.9f},{b:.9f},{c:.9f},42" for tt, (a, b, c) in
-                     zip(t[keep], acc_g[keep] * STANDARD_GRAVITY_M_S2))
-    path.write_text("# exported by a test\ntime_s,ax,ay,az,temp\n" + rows + "\n")
-    src = Replay.from_file(path, columns=["ax", "ay", "az"], time_column="time_s")
-    assert src.truth["units"] == "m/s^2" and src.sampling_rate_hz == pytest.approx(fs)
-    assert src.acc_g.shape == (2000, 3) and src.truth["n_filled"] == 7
-    np.testing.assert_array_equal(src.truth["filled_packets"], [[500, 506]])
-    np.testing.assert_allclose(src.acc_g[keep], acc_g[keep], atol=1e-8)
-    # resampled to 500 Hz: the analytic signal in band
-    m = src.render(500.0)
-    tt = np.arange(m.n_samples) / 500.0
-    truth = np.c_[0.2 * np.sin(2 * np.pi * 1.5 * tt), 0.1 * np.cos(2 * np.pi * 0.7 * tt), 1.0 + 0 * tt]
-    core = (tt > 0.5) & (tt < 9.5) & ((tt < 2.4) | (tt > 2.6))
-    np.testing.assert_allclose(m.acc_g[core], truth[core], atol=2e-3)
-    # the same file with explicit units and a rate instead of the time column
-    src_g = Replay.from_file(path, columns=[1, 2, 3], units="m/s^2", sampling_rate_hz=fs)
-    assert src_g.acc_g.shape == (1993, 3)
-
-
-def test_downsampling_is_anti_aliased(tmp_path: Path) -> None:
+def test_downsampling_is_anti_aliased() -> None:
     fs = 1000.0
     t = np.arange(20_000) / fs
     x = 0.3 * np.sin(2 * np.pi * 5.0 * t) + 0.2 * np.sin(2 * np.pi * 290.0 * t)  # 290 Hz would alias to 90 Hz
-    path = tmp_path / "fast.csv"
-    path.write_text("\n".join(f"{v:.9f},0,1" for v in x) + "\n")
-    m = Replay.from_file(path, sampling_rate_hz=fs, units="g").render(200.0)
+    m = Replay(np.c_[x, 0 * x, 1 + 0 * x], sampling_rate_hz=fs).render(200.0)
     f, p = signal.welch(m.acc_g[:, 0], fs=200.0, nperseg=1024)
     assert p[np.argmin(np.abs(f - 5.0))] > 1e4 * p[np.argmin(np.abs(f - 90.0))]
     tt = np.arange(m.n_samples) / 200.0
@@ -109,30 +51,3 @@ def test_downsampling_is_anti_aliased(tmp_path: Path) -> None:
     # naive indexing would have kept the 290 Hz tone (aliased onto 90 Hz)
     naive = x[::5]
     assert np.abs(naive - 0.3 * np.sin(2 * np.pi * 5.0 * t[::5])).max() > 0.1
-
-
-def test_gaitpy_demo_csv_in_g(shared_data: Path) -> None:
-    src = Replay.from_file(shared_data / "gaitpy_demo" / "demo_data.csv", sampling_rate_hz=50.0)
-    assert src.truth["units"] == "g" and src.acc_g.shape[0] > 8000
-    assert 0.9 < np.linalg.norm(src.acc_g, axis=1).mean() < 1.1
-
-
-def test_replay_errors_name_the_problem(tmp_path: Path) -> None:
-    p = tmp_path / "x.csv"
-    p.write_text("a,b,c\n1,1,1\n2,2,2\n")
-    with pytest.raises(DeviceError, match="rate_hz"):
-        Replay.from_file(p, units="g")
-    with pytest.raises(DeviceError, match="units"):
-        Replay.from_file(p, sampling_rate_hz=10.0)  # mean norm ~5.7: neither g nor m/s^2
-    with pytest.raises(DeviceError, match="no column named 'q'"):
-        Replay.from_file(p, sampling_rate_hz=10.0, units="g", columns=["a", "b", "q"])
-    q = tmp_path / "empty.csv"
-    q.write_text("just,a,header\n")
-    with pytest.raises(DeviceError, match="no data row"):
-        Replay.from_file(q, sampling_rate_hz=10.0)
-    with pytest.raises(DeviceError, match="cannot read"):
-        Replay.from_file(tmp_path / "missing.csv")
-    r = tmp_path / "t.csv"
-    r.write_text("t,x,y,z\n0,0,0,1\n0.01,0,0,1\n0.01,0,0,1\n")
-    with pytest.raises(DeviceError, match="line 4: time does not increase"):
-        Replay.from_file(r, time_column="t")

@@ -175,7 +175,7 @@ def test_bad_invocations(npz, tmp_path, capsys) -> None:
 def test_demo_walks_estimates_and_compares(tmp_path, capsys) -> None:
     """The demo's walking stages: 20 m table and box plots (offline chain), the device's own step records
     with the subject's K beside the offline chain (bit for bit against the replay), the error split."""
-    assert main(["demo", "--out", str(tmp_path), "--quiet"]) == 0
+    assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     for stage in ("[walk]", "[estimate]", "[device]", "[split]"):
         assert stage in out
@@ -203,3 +203,19 @@ def test_demo_walks_estimates_and_compares(tmp_path, capsys) -> None:
         assert np.median(d) <= 1e-4, est                             # the arithmetic alone: one K for both
         assert d.max() < 0.04, est      # a step whose events differ moves a section by less than one step / 20 m
     assert "saturation/wrap: none" in out
+
+
+def test_compare_quiet_and_verbose(npz, tmp_path, capsys) -> None:
+    """-q prints nothing and still writes what --out asks for; -v adds detail lines to the default output."""
+    path, _, _ = npz
+    out = tmp_path / "q.csv"
+    assert main(["compare", str(path), "--out", str(out), "--height", "1.75", "-q"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err == ""
+    assert out.stat().st_size > 0 and (tmp_path / "q_segments.csv").exists()
+    assert main(["compare", str(path), "--height", "1.75"]) == 0
+    default = capsys.readouterr().out
+    assert main(["compare", str(path), "--height", "1.75", "-v"]) == 0
+    verbose = capsys.readouterr().out
+    assert "run(s) of contiguous samples" in verbose and "run(s) of contiguous samples" not in default
+    assert set(default.splitlines()) <= set(verbose.splitlines())

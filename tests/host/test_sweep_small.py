@@ -15,7 +15,11 @@ def sweep() -> AdcRateSweep:
     protocol = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
                                rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
                                                                          120.0))
-    return AdcRateSweep(n_subjects=1, seed=2, bits=(8, 10, 12), rates_hz=(25.0, 100.0), protocol=protocol).run()
+    ticks = []
+    sw = AdcRateSweep(n_subjects=1, seed=2, bits=(8, 10, 12), rates_hz=(25.0, 100.0), protocol=protocol).run(
+        progress=lambda: ticks.append(len(ticks)))
+    sw.ticks = ticks
+    return sw
 
 
 def row(sweep, bits, rate, est, mode="multi-speed"):
@@ -24,6 +28,7 @@ def row(sweep, bits, rate, est, mode="multi-speed"):
 
 
 def test_every_configuration_is_there(sweep) -> None:
+    assert sweep.ticks == [0]                   # progress: once per subject (all its configurations)
     assert {(r.bits, r.sampling_rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
     assert len(sweep.summary_) == 6 * 2 * 5
     text = format_summary(sweep.summary_) + format_m5(sweep.m5_)

@@ -1,0 +1,109 @@
+"""What every ``gaitlog`` command shares: -q/-v, the one anatomy rule (flags, K file, an IPOL trial's height, a
+1.70 m adult), progress callbacks of the long runs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+
+from host.cli import build_parser, main
+from host.errors import HostError
+from host.gait.anthropometry import choose_lengths
+
+
+def _leaf_commands() -> list[tuple[str, argparse.ArgumentParser]]:
+    """Every runnable command (``device status`` etc. for commands with actions), from the parser itself."""
+    def walk(name: str, parser: argparse.ArgumentParser):
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            return [(name, parser)]
+        return [leaf for n, p in subs[0].choices.items() for leaf in walk(f"{name} {n}".strip(), p)]
+
+    return walk("", build_parser())
+
+
+def test_every_command_has_quiet_and_verbose() -> None:
+    leaves = _leaf_commands()
+    assert len(leaves) >= 14                        # the parser was really walked
+    for name, parser in leaves:
+        by_flag = {o: a for a in parser._actions for o in a.option_strings}
+        assert {"-q", "--quiet", "-v", "--verbose"} <= by_flag.keys(), name
+        quiet, verbose = by_flag["-q"], by_flag["-v"]
+        assert by_flag["--quiet"] is quiet and by_flag["--verbose"] is verbose, name
+        # the meaning host.commands._options.verbosity reads: quiet a flag, verbose a count
+        assert (quiet.dest, quiet.const, quiet.default) == ("quiet", True, False), name
+        assert isinstance(verbose, argparse._CountAction) and (verbose.dest, verbose.default) == ("verbose", 0), name
+
+
+# ----------------------------------------------------------------------------------------------- anatomy
+# Winter's leg = 0.530 H; the paper's foot (heel to first metatarsal head) = 0.73 x Winter's 0.152 H
+LEG_PER_H, FOOT_PER_H = 0.530, 0.73 * 0.152
+
+
+def test_lengths_come_from_the_flags_first() -> None:
+    c = choose_lengths(leg_length_m=0.9, foot_length_m=0.2, k_lengths_m=(0.8, 0.18), trial_height_m=1.6)
+    assert (c.leg_length_m, c.foot_length_m, c.note, c.assumed) == (0.9, 0.2, "", False)
+    c = choose_lengths(height_m=1.80, k_lengths_m=(0.8, 0.18), trial_height_m=1.6)
+    assert c.leg_length_m == pytest.approx(LEG_PER_H * 1.80, abs=1e-6)
+    assert c.foot_length_m == pytest.approx(FOOT_PER_H * 1.80, abs=1e-4) and not c.assumed
+
+
+def test_then_the_k_file_then_the_trial_height_then_an_assumed_adult() -> None:
+    c = choose_lengths(k_lengths_m=(0.8, 0.18), k_source="k.json", trial_height_m=1.6)
+    assert (c.leg_length_m, c.foot_length_m, c.assumed) == (0.8, 0.18, False) and "k.json" in c.note
+    c = choose_lengths(foot_length_m=0.2, k_lengths_m=(0.8, 0.18))
+    assert (c.leg_length_m, c.foot_length_m) == (0.8, 0.2) and c.note.startswith("leg length from")
+    c = choose_lengths(trial_height_m=1.6, trial_source="7-1.json")
+    assert c.leg_length_m == pytest.approx(LEG_PER_H * 1.6, abs=1e-6) and not c.assumed
+    assert "1.60 m" in c.note and "7-1.json" in c.note
+    c = choose_lengths()
+    assert c.assumed and c.leg_length_m == pytest.approx(LEG_PER_H * 1.70, abs=1e-6) and "1.70 m adult" in c.note
+    with pytest.raises(HostError, match="height 175.0 m is outside"):
+        choose_lengths(height_m=175.0)
+    with pytest.raises(HostError, match="leg length 9.0 m"):
+        choose_lengths(leg_length_m=9.0, k_lengths_m=(0.8, 0.18))
+
+
+def test_estimate_takes_the_height_of_an_ipol_trial_and_says_so(shared_data, capsys) -> None:
+    lb = shared_data / "ipol-lowerback-dev" / "GaitData" / "2-1_lb.txt"
+    height_m = json.loads(lb.with_name("2-1.json").read_text())["Height"] / 100.0       # the JSON is in cm
+    assert main(["estimate", str(lb), "--json"]) == 0
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert doc["leg_length_m"] == pytest.approx(LEG_PER_H * height_m, abs=1e-6)
+    assert doc["foot_length_m"] == pytest.approx(FOOT_PER_H * height_m, abs=1e-4)
+    assert f"{height_m:.2f} m" in doc["lengths_from"] and "2-1.json" in doc["lengths_from"]
+    assert "1.70 m adult" not in captured.err
+    # a flag wins over the trial's height
+    assert main(["estimate", str(lb), "--json", "--height", "1.90"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["leg_length_m"] == pytest.approx(LEG_PER_H * 1.90, abs=1e-6) and doc["lengths_from"] == ""
+
+
+def test_calibrate_k_refuses_trials_of_subjects_of_different_heights(shared_data, tmp_path) -> None:
+    folder = shared_data / "ipol-lowerback-dev" / "GaitData"
+    heights = {p.stem: json.loads(p.read_text()).get("Height") for p in sorted(folder.glob("*-1.json"))}
+    other = next(n for n, h in heights.items() if h is not None and h != heights["1-1"])
+    inputs = [str(folder / f"{n}_lb.txt") for n in ("1-1", other)]
+    out = tmp_path / "k.json"
+    with pytest.raises(HostError, match="different heights"):
+        main_raise(["calibrate-k", *inputs, "--distance", "20", "--out", str(out)])
+    assert not out.exists()
+
+
+def main_raise(argv: list[str]) -> None:
+    """Run a command's ``run`` directly, so its HostError reaches the test (main turns it into exit 1)."""
+    args = build_parser().parse_args(argv)
+    args._run(args)
+
+
+# ---------------------------------------------------------------------------------------------- progress
+def test_compare_simulate_ticks_once_per_subject(monkeypatch) -> None:
+    from host.commands import compare
+
+    monkeypatch.setattr(compare, "_one_subject", lambda job: job[1])     # the subject's seed, no simulation
+    ticks = []
+    assert compare.simulate_comparisons(3, seed=1, progress=lambda: ticks.append(1)) == [1000, 1001, 1002]
+    assert len(ticks) == 3
