@@ -22,7 +22,8 @@ def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
                         help="foot length heel to first metatarsal head (M3's S2), m")
     parser.add_argument("--height", type=float, metavar="M",
                         help="body height, m: leg = 0.530 H, foot = 0.111 H when not given (Winter; ANSUR); "
-                             "default: the K file's lengths, else an IPOL trial's height, else a 1.70 m adult")
+                             "default: the K file's lengths, else an IPOL trial's height, else those of the logger's step "
+                             "configuration, else a 1.70 m adult")
 
 
 def given_anatomy_flags(args: argparse.Namespace) -> list[str]:
@@ -32,16 +33,20 @@ def given_anatomy_flags(args: argparse.Namespace) -> list[str]:
 
 def lengths_from_args(args: argparse.Namespace, *, k: KCalibration | None = None, k_source: str | None = None,
                       data: AccelerationInput | None = None) -> AnatomyChoice:
-    """Leg and foot length by :func:`host.gait.anthropometry.choose_lengths` from the flags, the K file ``k``
-    and the height of an IPOL trial read into ``data``."""
+    """Leg and foot length by :func:`host.gait.anthropometry.choose_lengths` from the flags, the K file ``k``,
+    the height of an IPOL trial read into ``data`` and the step configuration of a logger recording in ``data``."""
     from host.gait.anthropometry import choose_lengths
 
     trial = data.ipol_trial if data is not None else None
+    config = data.recording.step_config if data is not None and data.recording is not None else None
+    logger = (config.leg_length_m, config.foot_length_m) if config is not None and config.step_format else None
     return choose_lengths(leg_length_m=args.leg_length, foot_length_m=args.foot_length, height_m=args.height,
                           k_lengths_m=(k.leg_length_m, k.foot_length_m) if k is not None else None,
                           k_source=k_source or getattr(args, "k_file", None) or "the K file",
                           trial_height_m=trial.height_m if trial is not None else None,
-                          trial_source=_trial_json(trial) if trial is not None else "")
+                          trial_source=_trial_json(trial) if trial is not None else "",
+                          logger_lengths_m=logger,
+                          logger_source=f"{data.recording.source}'s step configuration" if logger else "")
 
 
 def _trial_json(trial) -> str:

@@ -47,7 +47,13 @@ def run(args: argparse.Namespace) -> int:
     if len(heights) > 1 and not given_anatomy_flags(args):
         raise HostError(f"the inputs are IPOL trials of subjects of different heights ("
                         f"{', '.join(f'{h:.2f}' for h in sorted(heights))} m) and K is per subject; give --height")
-    lengths = lengths_from_args(args, data=next((d for d in inputs if d.ipol_trial is not None), None))
+    configs = {(c.leg_length_m, c.foot_length_m) for c in (d.recording.step_config for d in inputs
+                                                           if d.recording is not None) if c is not None and c.step_format}
+    if len(configs) > 1 and not given_anatomy_flags(args):
+        raise HostError("the inputs are logger recordings with different leg/foot lengths in their step "
+                        "configurations and K is per subject; give --height (or --leg-length and --foot-length)")
+    described = [d for d in inputs if d.ipol_trial is not None] + [d for d in inputs if d.recording is not None]
+    lengths = lengths_from_args(args, data=described[0] if described else None)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     notes = [lengths.note] if lengths.assumed else []
     sections = []

@@ -82,13 +82,15 @@ class AnatomyChoice(NamedTuple):
 def choose_lengths(*, leg_length_m: float | None = None, foot_length_m: float | None = None,
                    height_m: float | None = None, k_lengths_m: tuple[float, float] | None = None,
                    k_source: str = "the K file", trial_height_m: float | None = None,
-                   trial_source: str = "the trial") -> AnatomyChoice:
+                   trial_source: str = "the trial", logger_lengths_m: tuple[float, float] | None = None,
+                   logger_source: str = "the logger's step configuration") -> AnatomyChoice:
     """The one rule for the leg and foot length of a gait command.
 
     Each length is, in order: given (``leg_length_m`` / ``foot_length_m``); from the given ``height_m``;
     the K file's (``k_lengths_m``: K holds only with the lengths it was fitted with); from the height of the
-    recorded subject (``trial_height_m``, e.g. an IPOL trial's JSON); from a :data:`DEFAULT_HEIGHT_M` adult
-    (``assumed`` is then True and the note says so).
+    recorded subject (``trial_height_m``, e.g. an IPOL trial's JSON); the lengths the logger ran its on-line
+    algorithm with (``logger_lengths_m``, the step configuration in a recording's header); from a
+    :data:`DEFAULT_HEIGHT_M` adult (``assumed`` is then True and the note says so).
 
     Raises
     ------
@@ -101,6 +103,8 @@ def choose_lengths(*, leg_length_m: float | None = None, foot_length_m: float | 
     (0.954, 0.1998)
     >>> print(choose_lengths(trial_height_m=1.80, trial_source="2-1.json").note)
     leg and foot length from the recorded subject's height, 1.80 m (2-1.json)
+    >>> print(choose_lengths(logger_lengths_m=(0.927, 0.194), logger_source="walk.npz's step configuration").note)
+    leg and foot length from walk.npz's step configuration (the lengths the logger's on-line algorithm used)
     >>> choose_lengths(foot_length_m=0.2).assumed
     True
     """
@@ -120,6 +124,11 @@ def choose_lengths(*, leg_length_m: float | None = None, foot_length_m: float | 
         leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m, height_m=trial_height_m)
         return AnatomyChoice(leg, foot, f"{_what(leg_length_m, foot_length_m)} from the recorded subject's height, "
                              f"{trial_height_m:.2f} m ({trial_source})", False)
+    if logger_lengths_m is not None:
+        leg = leg_length_m if leg_length_m is not None else float(logger_lengths_m[0])
+        foot = foot_length_m if foot_length_m is not None else float(logger_lengths_m[1])
+        return AnatomyChoice(leg, foot, f"{_what(leg_length_m, foot_length_m)} from {logger_source} (the lengths "
+                             "the logger's on-line algorithm used)", False)
     leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m, height_m=DEFAULT_HEIGHT_M)
     return AnatomyChoice(leg, foot, f"no height known: {_what(leg_length_m, foot_length_m)} estimated"
                          f" for a {DEFAULT_HEIGHT_M:.2f} m adult (leg {leg:.3f} m, foot {foot:.3f} m); "

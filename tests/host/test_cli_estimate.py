@@ -131,3 +131,22 @@ def test_calibrate_k_two_speeds_fits_the_m5_line(tmp_path, capsys) -> None:
     k1, k2 = d["k1_m5_m_s"], d["k2_m5_m"]
     assert k1 / 0.62 + k2 == pytest.approx(0.60, abs=0.02)
     assert k1 / 0.48 + k2 == pytest.approx(0.75, abs=0.02)
+
+
+def test_lengths_default_to_the_logger_step_configuration(tmp_path, capsys) -> None:
+    """A decoded recording of a logger that ran its on-line algorithm for a 1.80 m wearer: estimate and
+    calibrate-k use those lengths (0.530 H, 0.111 H), not a 1.70 m adult, and say where they came from."""
+    acc, _ = walk_acc_g()
+    write_csv(tmp_path / "walk.csv", acc)
+    assert main(["record", "--motion", "replay", str(tmp_path / "walk.csv"), "--rate", "50", "--height", "1.80",
+                 "--out", str(tmp_path / "w.glimg"), "-q"]) == 0
+    assert main(["decode", str(tmp_path / "w.glimg"), "--out", str(tmp_path / "w"), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(tmp_path / "w.npz"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["leg_length_m"] == pytest.approx(0.954, abs=1e-4)       # UQ1.15 in the header: within 3e-5
+    assert doc["foot_length_m"] == pytest.approx(0.1998, abs=1e-4)
+    assert main(["calibrate-k", str(tmp_path / "w.npz"), "--distance", "22", "--out", str(tmp_path / "k.json")]) == 0
+    captured = capsys.readouterr()
+    assert "step configuration" in captured.out and "1.70 m adult" not in captured.err
+    assert json.loads((tmp_path / "k.json").read_text())["leg_length_m"] == pytest.approx(0.954, abs=1e-4)
