@@ -1,6 +1,6 @@
 """Every command of the README runs as written, in order, in an empty folder with ``../shared`` beside it.
 
-The ``sh`` blocks of README.md are run by one bash shell (so ``&`` jobs and ``kill %1`` work) in a scratch
+The ``sh`` blocks of README.md (and each ``python`` block, as a script) are run by one bash shell (so ``&`` jobs and ``kill %1`` work) in a scratch
 folder whose parent holds a ``shared`` link to the real recordings, as a fresh clone beside ``../shared``
 would be. Not run here: the first block (install and the test command itself: CI runs them) and the
 benchmark block (minutes of timing; run by hand). A command that needs ``../shared/data`` is left out, with
@@ -24,12 +24,17 @@ README = ROOT / "README.md"
 
 
 def readme_commands() -> list[str]:
-    """The command lines of the README's ``sh`` blocks, but the first (install, tests) and the benchmarks."""
+    """The command lines of the README's ``sh`` blocks, but the first (install, tests) and the benchmarks, and
+    each ``python`` block as one ``python - <<EOF`` command, in the README's order."""
     text = README.read_text(encoding="utf-8")
-    blocks = re.findall(r"```sh\n(.*?)```", text, flags=re.S)
+    blocks = re.findall(r"```(sh|python)\n(.*?)```", text, flags=re.S)
+    first_sh = next(i for i, (kind, _) in enumerate(blocks) if kind == "sh")
     lines = []
-    for block in blocks[1:]:
-        if "benchmarks/bench_" in block:
+    for i, (kind, block) in enumerate(blocks):
+        if i == first_sh or "benchmarks/bench_" in block:
+            continue
+        if kind == "python":
+            lines.append(f"python - <<'README_PYTHON'\n{block}README_PYTHON")
             continue
         lines += [ln for ln in block.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     return lines
@@ -44,6 +49,7 @@ def test_the_readme_has_commands() -> None:
     lines = readme_commands()
     assert len(lines) >= 20
     assert any(ln.startswith("gaitlog record") for ln in lines) and any("kill %1" in ln for ln in lines)
+    assert any(ln.startswith("python - <<") for ln in lines)
 
 
 def test_every_readme_command_runs_as_written(tmp_path: Path) -> None:
@@ -56,8 +62,8 @@ def test_every_readme_command_runs_as_written(tmp_path: Path) -> None:
         (tmp_path / "shared").symlink_to(DATA_DIR.parent, target_is_directory=True)
     script, expected = ["set +e"], {}
     for i, line in enumerate(readme_commands()):
-        if "../shared" in line and not have_data:
-            continue
+        if not have_data and ("../shared" in line or line.startswith("python - <<")):
+            continue    # the recordings are absent (the Python example reads what the real-data walkthrough made)
         expected[i] = expected_exit(line)
         script.append(line)
         script.append(f'echo "__rc {i} $?"')

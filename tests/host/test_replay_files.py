@@ -108,3 +108,28 @@ def test_gaitpy_demo_csv_in_g(shared_data: Path) -> None:
     src = Replay.from_samples(data.g(), data.valid, sampling_rate_hz=data.sampling_rate_hz)
     assert src.acc_g.shape[0] > 8000
     assert 0.9 < np.linalg.norm(src.acc_g, axis=1).mean() < 1.1
+
+
+def test_readme_walkthrough_figures(shared_data: Path, tmp_path: Path, capsys) -> None:
+    """The README's real-data walkthrough: subject 1's trial 1 gives K, trial 2 (20 m) is measured, offline and
+    from the logger's fixed-point records; and trial 1's lost packets are counted."""
+    import json
+
+    from host.cli import main
+
+    trials = shared_data / "ipol-lowerback-dev" / "GaitData"
+    for t in ("1-1", "1-2"):
+        assert main(["record", "--motion", "replay", str(trials / f"{t}_lb.txt"), "--out", str(tmp_path / f"{t}.glimg")]) == 0
+        assert main(["decode", str(tmp_path / f"{t}.glimg"), "--out", str(tmp_path / t), "-q"]) == 0
+    assert "124 of 3037 samples" in capsys.readouterr().err
+    assert main(["calibrate-k", str(tmp_path / "1-1.npz"), "--distance", "20", "--out", str(tmp_path / "k.json")]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(tmp_path / "1-2.npz"), "--k-file", str(tmp_path / "k.json"), "--arithmetic", "both",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert (doc["leg_length_m"], doc["foot_length_m"]) == pytest.approx((0.927, 0.194), abs=6e-4)   # 1.75 m, JSON
+    readme = {"float": {"M1": 20.51, "M2": 19.55, "M3": 21.06, "M4": 18.93, "M5": 18.56},
+              "fixed": {"M1": 20.60, "M2": 19.36, "M3": 20.91, "M4": 18.87, "M5": 18.57}}
+    got = {a: {m: doc["arithmetic"][a]["estimators"][m]["distance_m"] for m in readme[a]} for a in readme}
+    for a in readme:
+        assert got[a] == pytest.approx(readme[a], abs=0.006), a
