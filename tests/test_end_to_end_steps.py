@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.device import Logger
-from firmware_sim.transport import serve_pty
+from firmware_sim.pty_server import serve_pty
 from host.cli import main
 from host.errors import HostError
 from host.files.decode import decode_file, verify_step_records

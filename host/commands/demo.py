@@ -52,7 +52,7 @@ def _record(ctx: dict[str, Any]) -> list[str]:
 
 def _serve(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.device import Logger
-    from firmware_sim.transport import serve_pty
+    from firmware_sim.pty_server import serve_pty
 
     server = serve_pty(Logger.from_image(ctx["recorded_image"]), baud=115200)
     server.start()
