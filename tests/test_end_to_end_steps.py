@@ -28,8 +28,9 @@ from firmware_sim.device import Logger
 from firmware_sim.pty_server import serve_pty
 from host.cli import main
 from host.errors import HostError
-from host.files.decode import decode_file, verify_step_records
+from host.files.decode import decode_file
 from host.files.recording import STEP_CSV_COLUMNS, Recording
+from host.files.replay import verify_step_records
 from host.link.logger_link import LoggerLink
 from protocol.image import read_image
 from protocol.steps import StepConfig

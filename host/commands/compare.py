@@ -247,8 +247,7 @@ def _recording(args: argparse.Namespace) -> int:
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
     from host.commands._input_options import read_input
     from host.errors import HostError
-    from host.files.decode import verify_step_records
-    from host.files.replay import run_starts
+    from host.files.replay import run_starts, verify_step_records
     from host.gait.anthropometry import anatomical_lengths
     from host.gait.k_calibration import KCalibration
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text

@@ -213,7 +213,8 @@ def _device(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.algorithms.online import OnlineSteps
     from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
     from firmware_sim.world.walking import Walking
-    from host.files.decode import decode_file, verify_step_records
+    from host.files.decode import decode_file
+    from host.files.replay import verify_step_records
     from host.gait.sections import sections_from_marks
     from host.studies.compare import (
         match_steps,

@@ -49,7 +49,7 @@ Recordings (:func:`compare_recording`): a decoded recording has no truth and no 
 online-float and online-fixed with the given K (or none: K = 1, M4/M5 undefined), sections between MARK
 flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the offline chain's M3 distance. A
 recording that carries the device's own step records is checked against the host's replay of the on-line
-algorithm, bit for bit (:func:`host.files.decode.verify_step_records`).
+algorithm, bit for bit (:func:`host.files.replay.verify_step_records`).
 """
 
 from __future__ import annotations
@@ -62,9 +62,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from firmware_sim.algorithms.online import OnlineStepAlgorithm
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from host.errors import HostError
+from host.files.replay import online_step_table
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.sections import (
     Section,
@@ -103,83 +103,6 @@ def pair_label(a: str, b: str) -> str:
 
 # ---------------------------------------------------------------------------------------------------------
 # The chains as host StepTables
-
-
-def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
-    """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
-
-    ``calibration`` is a :class:`~host.gait.k_calibration.KCalibration` (K applied by the algorithm, in
-    its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
-    when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
-    """
-    from protocol.errors import ProtocolError
-    from protocol.steps import StepConfig
-
-    kw: dict[str, Any] = dict(step_format=1, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
-    if calibration is not None:
-        kw.update(calibration.step_constants())
-    cfg = StepConfig(**kw)
-    try:
-        cfg.raw
-    except ProtocolError as err:
-        raise HostError(f"the on-line algorithm's step configuration cannot hold these values: {err}") from err
-    return cfg
-
-
-def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      calibration: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
-                      arithmetic: str = "fixed", valid: np.ndarray | None = None,
-                      run_starts: np.ndarray | None = None, t0_s: float = 0.0,
-                      algorithm: Callable[..., OnlineStepAlgorithm] = OnlineStepAlgorithm,
-                      ) -> tuple[StepTable, OnlineStepAlgorithm]:
-    """The on-line algorithm on ``codes`` as a ``StepTable`` (:meth:`StepTable.from_online`).
-
-    Parameters
-    ----------
-    codes
-        ``(n, 3)`` ADC codes (``adc_bits`` bits).
-    calibration
-        :class:`~host.gait.k_calibration.KCalibration` (the one K of the comparison) or None (raw).
-    adc_calibration
-        The device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
-    arithmetic
-        ``"fixed"`` (the logger's) or ``"float"``.
-    valid, run_starts
-        The algorithm starts afresh (START) at index 0, at every index of ``run_starts`` (a logging run's
-        SESSION_START sample) and after every missing sample (``valid`` false: the device had the sample,
-        the dump lost it; a causal algorithm cannot be fed a hole), and ends (STOP) before each.
-    algorithm
-        The class (or a factory with its signature) that is run; tests wrap it to inject errors.
-
-    Returns
-    -------
-    table, algorithm
-        The table (lengths with K when ``calibration`` is given, else the raw values in ``raw_m``) and the
-        algorithm after the run (``saturations``, ``cycles``, ``arithmetic_context()``).
-    """
-    c = np.asarray(codes)
-    n = c.shape[0]
-    ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
-    cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration)
-    alg = algorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg, calibration=adc_calibration,
-                    arithmetic=arithmetic, adc_bits=adc_bits)
-    # stretches of present samples, cut at every run start: [a, b) with b the next cut or missing sample
-    cut = np.zeros(n, bool)
-    rs = np.asarray(run_starts if run_starts is not None else [], np.int64)
-    cut[rs[(rs >= 0) & (rs < n)]] = True
-    if n:
-        cut[0] = True
-    starts = np.flatnonzero(ok & (cut | ~np.r_[False, ok[:-1]])) if n else np.zeros(0, np.int64)
-    bounds = np.flatnonzero(~ok | cut)
-    stops = np.append(bounds, n)[np.searchsorted(bounds, starts, side="right")]
-    parts = []
-    for a, b in zip(starts.tolist(), stops.tolist()):
-        alg.reset()
-        parts.append(alg.feed(c[a:b].astype(np.int64), offset=a))
-        parts.append(alg.flush(offset=a))
-    steps = (OnlineSteps.concatenate(parts) if parts else
-             OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, calibration is not None))
-    return StepTable.from_online(steps, t0_s=t0_s), alg
 
 
 def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,

@@ -61,6 +61,7 @@ import numpy as np
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
 from host.files.ipol import list_trials
+from host.files.replay import check_records, online_step_table, run_starts
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.k_calibration import KCalibration, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
@@ -146,22 +147,16 @@ class ReplayedTrial:
 
     def run_starts(self) -> np.ndarray:
         """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
-        from host.files.replay import run_starts
-
         return run_starts(np.ones(self.codes.shape[0], bool), self.flags)
 
     def check_records(self) -> Any:
         """The device's records against the host's replay (:func:`host.files.replay.check_records`)."""
-        from host.files.replay import check_records
-
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
     def online_table(self, *, arithmetic: str, calibration: KCalibration | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`host.studies.compare.online_step_table`)."""
-        from host.studies.compare import online_step_table
-
+        anatomy and ``calibration``'s K (:func:`host.files.replay.online_step_table`)."""
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
