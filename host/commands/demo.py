@@ -85,7 +85,7 @@ def _decode(ctx: dict[str, Any]) -> list[str]:
 def _calibrate(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from host.accelerometer.calibration import AccCalibrator
+    from host.accelerometer.fit import AccCalibrator
 
     rec = ctx["recording"]
     n_poses = len(ctx["motion"].truth["hold_windows_s"])

@@ -4,7 +4,7 @@ Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
 
 1. *Device calibration*: the emulated logger (:class:`firmware_sim.device.Logger`, its own seeded sensor
    errors: offsets, sensitivities, misalignment) records a static-pose session
-   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.accelerometer.calibration.AccCalibrator`
+   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.accelerometer.fit.AccCalibrator`
    ("a calibration procedure takes into account offset and scale factors and the orthogonality of the
    axes", II-B). ``calibrate_device=False`` uses the header's nominal map instead.
 2. *Walking*: the same logger (after ERASE) records the protocol of
@@ -123,7 +123,7 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_ra
 
     logger = Logger(adc=Adc(adc_bits=bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
     if calibrate_device:
-        from host.accelerometer.calibration import AccCalibrator
+        from host.accelerometer.fit import AccCalibrator
 
         poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
         full = float(2**bits)
