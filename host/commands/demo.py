@@ -63,10 +63,11 @@ def _serve(ctx: dict[str, Any]) -> list[str]:
 
 def _dump(ctx: dict[str, Any]) -> list[str]:
     from host.link.logger_link import LoggerLink
+    from host.link.memory_dump import dump_memory
 
     out = ctx["dir"] / "dumped.glimg"
     with LoggerLink(ctx["port"], baud=115200) as link:
-        result = link.dump(out, progress=not ctx["args"].quiet)
+        result = dump_memory(link, out, progress=not ctx["args"].quiet)
     meta = result.metadata_
     ctx["dumped_image"] = out
     return [f"{meta['stored_bytes']} bytes in {meta['duration_s']:.2f} s, {meta['frames_damaged']} damaged "
