@@ -181,7 +181,8 @@ def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, sampling_rate
 
 
 def _one_subject(job: tuple):
-    from host.studies.compare import AnalogWalk, compare_walk
+    from host.studies.compare import compare_walk
+    from host.studies.simulation import AnalogWalk
 
     subject, seed, bits, rate = job
     wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, bits=bits)

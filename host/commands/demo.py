@@ -157,7 +157,7 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
 
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.studies.evaluation import SimulatedRecording
+    from host.studies.simulation import SimulatedRecording
     from protocol.header import Calibration
     from protocol.packing import FLAG_MARK
     from protocol.steps import StepConfig

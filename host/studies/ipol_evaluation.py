@@ -51,6 +51,7 @@ algorithm shares, the calibrated medians); :func:`format_done` prints them.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,13 +59,20 @@ from typing import Any
 
 import numpy as np
 
+from firmware_sim.adc import Adc
+from firmware_sim.algorithms.online import OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from firmware_sim.device import Logger
+from firmware_sim.errors import DeviceError
+from firmware_sim.world.replay import Replay
 from host.errors import HostError
 from host.files.ipol import list_trials
 from host.files.replay import check_records, online_step_table, run_starts
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.k_calibration import KCalibration, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
+from host.studies.compare import match_steps
+from protocol.steps import StepConfig
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.
 IPOL_DISTANCE_M = 20.0
@@ -165,8 +173,6 @@ class ReplayedTrial:
 
     def device_table(self) -> StepTable:
         """The logger's own records as a table (raw lengths: it ran uncalibrated)."""
-        from firmware_sim.algorithms.online import OnlineSteps
-
         steps = OnlineSteps.from_records(self.device_records, first_sample_number=int(self.sample_numbers[0]),
                                          sampling_rate_hz=self.header.sampling_rate_hz)
         return StepTable.from_online(steps, t0_s=self.t0_s)
@@ -188,14 +194,6 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
     trial's height (:func:`host.gait.anthropometry.anatomical_lengths`).
     """
-    import re
-
-    from firmware_sim.adc import Adc
-    from firmware_sim.device import Logger
-    from firmware_sim.errors import DeviceError
-    from firmware_sim.world.replay import Replay
-    from protocol.steps import StepConfig
-
     lb_path = Path(lb_path)
     m = re.match(r"^(\d+)-(\d+)_lb\.txt$", lb_path.name)
     if not m:
@@ -317,8 +315,6 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
 
 def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_trial: bool) -> list[dict]:
     """Each on-line float step with its online-fixed and offline twins (module notes, step 7)."""
-    from host.studies.compare import match_steps
-
     fl, fx, off = tables["online-float"], tables["online-fixed"], tables["offline"]
     ar, alg = match_steps(fx, fl), match_steps(fl, off)
     fixed_of, off_of = ar.a_of_b(fl.n_steps), alg.b_of_a(fl.n_steps)

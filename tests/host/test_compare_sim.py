@@ -18,7 +18,6 @@ from host.files.replay import online_step_table
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.sections import calibration_sets, sections_from_marks
 from host.studies.compare import (
-    AnalogWalk,
     bootstrap_budget,
     compare_recording,
     compare_walk,
@@ -29,6 +28,7 @@ from host.studies.compare import (
     subject_resamples,
     truth_table,
 )
+from host.studies.simulation import AnalogWalk
 
 FS = 50.0
 #: The scale error injected into the fixed-point chain.
