@@ -31,12 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from firmware_sim.device import Logger  # noqa: E402
 from firmware_sim.sensor import SensorModel  # noqa: E402
 from firmware_sim.world.poses import CalibrationPoses  # noqa: E402
-from host.accelerometer.calibration import (  # noqa: E402
-    AccCalibration,
-    AccCalibrator,
-    _residuals,
-    fit_calibration,
-)
+from host.accelerometer.calibration import AccCalibration  # noqa: E402
+from host.accelerometer.fit import AccCalibrator, _residuals, fit_calibration  # noqa: E402
 from host.accelerometer.static_windows import StaticWindowDetector  # noqa: E402
 
 TARGET_MS = 50.0

@@ -54,7 +54,8 @@ def naive_pass_s() -> float:
     from firmware_sim.device import Logger
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.studies.compare import offline_step_table, online_step_table
+    from host.files.replay import online_step_table
+    from host.studies.compare import offline_step_table
     from protocol.header import Calibration
     from protocol.steps import StepConfig
 

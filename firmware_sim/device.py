@@ -36,7 +36,9 @@ from firmware_sim.step_store import StepStore
 from firmware_sim.world.base import Motion, MotionSource
 from firmware_sim.world.resampling import resample_g
 from protocol.atomic_write import atomic_write_bytes
+from protocol.errors import ProtocolError
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
+from protocol.image import build_image, parse_image
 from protocol.packing import unpack_words
 from protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
 
@@ -212,8 +214,6 @@ class Logger:
     def save_image(self, path: str | Path | None = None) -> Path:
         """Write the memory image (``.glimg``, version 2: sample and step memory) atomically to ``path``
         (default ``image_path``)."""
-        from protocol.image import build_image
-
         target = Path(path) if path is not None else self.image_path
         if target is None:
             raise DeviceError("no image path: pass one to save_image() or Logger(image_path=...)")
@@ -351,9 +351,6 @@ def _adc_truth(adc: Adc) -> dict[str, Any]:
 
 
 def _read_image(path: Path) -> tuple[DeviceHeader, np.ndarray, np.ndarray, list[str]]:
-    from protocol.errors import ProtocolError
-    from protocol.image import parse_image
-
     try:
         data = path.read_bytes()
     except OSError as err:

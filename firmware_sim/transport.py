@@ -1,8 +1,10 @@
-"""Put the emulated logger on a serial line: a pseudo-terminal or a TCP port, in a background thread.
+"""Put the emulated logger on a serial line, in a background thread: the TCP port and what every line shares.
+
+The pseudo-terminal is :mod:`firmware_sim.pty_server` (POSIX only: it needs ``tty``, which Windows lacks).
 
 The device speaks only when spoken to: bytes from the host go to :meth:`Firmware.receive` with the
 arrival time (``time.monotonic``), its replies are queued and sent. Nothing is printed; the server gives
-its address (:attr:`PtyServer.path`, :attr:`TcpServer.url`) for the caller to show.
+its address (:attr:`TcpServer.url`, :attr:`firmware_sim.pty_server.PtyServer.path`) for the caller to show.
 
 Wire time (opt-in): device -> host bytes are released at the real byte time of the UART
 (:class:`firmware_sim.uart.UartTiming`, 10 bits per 8N1 byte at the baud the PIC's crystal and SPBRG really
@@ -20,8 +22,6 @@ partial frame or XMODEM transfer at the cut, as it would after a line break.
 
 from __future__ import annotations
 
-import errno
-import os
 import select
 import socket
 import threading
@@ -37,7 +37,7 @@ from firmware_sim.uart import UartTiming
 if TYPE_CHECKING:  # pragma: no cover
     from firmware_sim.device import Logger
 
-__all__ = ["FaultInjector", "PtyServer", "TcpServer", "serve_pty", "serve_tcp"]
+__all__ = ["FaultInjector", "TcpServer", "serve_tcp"]
 
 #: Wake-up period of the server thread when bytes are due or waiting, s.
 TICK_S = 0.002
@@ -149,7 +149,7 @@ class _Outbox:
         self.buf.clear()
 
 
-class _Server:
+class LineServer:
     """Common thread loop: read from an fd, feed the firmware, write paced replies."""
 
     def __init__(self, logger: Logger, *, baud: int, wire_time: bool, faults: FaultInjector | None,
@@ -169,7 +169,7 @@ class _Server:
         self.bytes_out = 0
 
     # -- lifecycle
-    def start(self) -> _Server:
+    def start(self) -> LineServer:
         """Start the background thread (idempotent)."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._run_guarded, name=type(self).__name__, daemon=True)
@@ -186,7 +186,7 @@ class _Server:
         if self.save_on_stop and self.logger.image_path is not None:
             self.logger.save_image()
 
-    def __enter__(self) -> _Server:
+    def __enter__(self) -> LineServer:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
@@ -237,7 +237,7 @@ class _Server:
         raise NotImplementedError
 
 
-def _write_all(fd: int, data: bytes, stop: threading.Event, writer: Callable[[bytes], int]) -> None:
+def write_all(fd: int, data: bytes, stop: threading.Event, writer: Callable[[bytes], int]) -> None:
     """Write every byte, waiting while the peer's buffer is full."""
     view = memoryview(data)
     while view and not stop.is_set():
@@ -249,64 +249,7 @@ def _write_all(fd: int, data: bytes, stop: threading.Event, writer: Callable[[by
         view = view[n:]
 
 
-class PtyServer(_Server):
-    """The logger on a pseudo-terminal; the host opens :attr:`path` like a serial port.
-
-    Both ends are put in raw mode (no echo, no CR/LF translation, no flow control); the server keeps
-    its own handle on the terminal side so the pty survives the host closing and reopening it.
-    """
-
-    def __init__(self, logger: Logger, *, baud: int = 115200, wire_time: bool = False,
-                 faults: FaultInjector | None = None, fosc_hz: float = 18_432_000.0,
-                 save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S) -> None:
-        super().__init__(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
-                         save_on_stop=save_on_stop, turnaround_s=turnaround_s)
-        import tty  # POSIX only: imported where a pty is made, so --tcp works on Windows
-
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._master)
-        tty.setraw(self._slave)
-        os.set_blocking(self._master, False)
-        self.path = os.ttyname(self._slave)
-
-    def _run(self) -> None:
-        fd = self._master
-        while not self._stop.is_set():
-            now = time.monotonic()
-            wait = self._out.wait_s(now)
-            try:
-                readable, _, _ = select.select([fd], [], [], wait if wait > 0 else 0)
-            except (OSError, ValueError):
-                return
-            now = time.monotonic()
-            if readable:
-                try:
-                    data = os.read(fd, 65536)
-                except BlockingIOError:
-                    data = b""
-                except OSError as err:
-                    if err.errno == errno.EIO:  # no terminal side open: wait for one
-                        time.sleep(IDLE_TICK_S)
-                        continue
-                    raise
-                if data:
-                    self._on_input(data, now)
-            self._on_tick(now)
-            chunk, _ = self._take_due(time.monotonic())
-            if chunk:
-                _write_all(fd, chunk, self._stop, lambda v: os.write(fd, v))
-                self.bytes_out += len(chunk)
-
-    def _close(self) -> None:
-        for fd in (self._master, self._slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-        self._master = self._slave = -1
-
-
-class TcpServer(_Server):
+class TcpServer(LineServer):
     """The logger on a TCP port (``socket://host:port`` for pyserial); one client at a time.
 
     A new connection resets the firmware's receiver (partial frame, XMODEM transfer).
@@ -372,7 +315,7 @@ class TcpServer(_Server):
             if self._client is not None and chunk:
                 c = self._client
                 try:
-                    _write_all(c.fileno(), chunk, self._stop, c.send)
+                    write_all(c.fileno(), chunk, self._stop, c.send)
                     self.bytes_out += len(chunk)
                 except OSError:
                     self._drop_client()
@@ -386,14 +329,6 @@ class TcpServer(_Server):
             self._listener.close()
         except OSError:
             pass
-
-
-def serve_pty(logger: Logger, *, baud: int = 115200, wire_time: bool = False, faults: FaultInjector | None = None,
-              fosc_hz: float = 18_432_000.0, save_on_stop: bool = True, turnaround_s: float = TURNAROUND_S
-              ) -> PtyServer:
-    """A started :class:`PtyServer` for ``logger`` (use as a context manager, or call ``.stop()``)."""
-    return PtyServer(logger, baud=baud, wire_time=wire_time, faults=faults, fosc_hz=fosc_hz,
-                     save_on_stop=save_on_stop, turnaround_s=turnaround_s).start()  # type: ignore[return-value]
 
 
 def serve_tcp(logger: Logger, *, host: str = "127.0.0.1", port: int = 0, baud: int = 115200,

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.device import Logger
-from firmware_sim.transport import serve_pty
+from firmware_sim.pty_server import serve_pty
 from firmware_sim.world.base import Motion
 from host.cli import main
 from host.files.recording import Recording

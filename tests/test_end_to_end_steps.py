@@ -25,12 +25,14 @@ import numpy as np
 import pytest
 
 from firmware_sim.device import Logger
-from firmware_sim.transport import serve_pty
+from firmware_sim.pty_server import serve_pty
 from host.cli import main
 from host.errors import HostError
-from host.files.decode import decode_file, verify_step_records
+from host.files.decode import decode_file
 from host.files.recording import STEP_CSV_COLUMNS, Recording
+from host.files.replay import verify_step_records
 from host.link.logger_link import LoggerLink
+from host.link.memory_dump import dump_memory
 from protocol.image import read_image
 from protocol.steps import StepConfig
 
@@ -286,20 +288,20 @@ def test_resume_keeps_the_step_bytes_already_received(walk_image, tmp_path):
     image, _, records = walk_image
     assert 1024 < len(records) <= 1280
     with LoggerLink(f"emu://{image}", timeout_s=0.5) as link:
-        link.dump(tmp_path / "full.glimg", progress=False, chunk_bytes=256)
+        dump_memory(link, tmp_path / "full.glimg", progress=False, chunk_bytes=256)
     total = json.loads((tmp_path / "full.glimg.json").read_text())["bytes_received"]
     out = tmp_path / "d.glimg"
     last_frame = 12 + len(records) - 1024
     with LoggerLink(f"emu://{image}?cut_after={total - 18 - last_frame // 2}", timeout_s=0.1, retries=0) as link:
         with pytest.raises(HostError, match="no valid answer"):
-            link.dump(out, progress=False, chunk_bytes=256, retries=1)
+            dump_memory(link, out, progress=False, chunk_bytes=256, retries=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         part = read_image(tmp_path / "d.glimg.part")
     have = part.step_byte_ok()[: len(records)]
     assert have[:1024].all() and not have[1024:].any()
     with LoggerLink(f"emu://{image}", timeout_s=0.5) as link:
-        done = link.dump(out, progress=False, resume=True, chunk_bytes=256)
+        done = dump_memory(link, out, progress=False, resume=True, chunk_bytes=256)
     meta = done.metadata_
     assert done.complete_ and meta["bytes_from_partial_state"] >= done.header_.used_bytes + 1024
     assert meta["data_frames_used"] == 1  # the 156 step bytes still missing, nothing else

@@ -41,7 +41,8 @@ def _fmt(v: Any, spec: str = "+10.4f") -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Detect the static holds, fit the model, print a summary and write the JSON atomically."""
-    from host.accelerometer.calibration import ANGLE_NAMES, AccCalibrator
+    from host.accelerometer.calibration import ANGLE_NAMES
+    from host.accelerometer.fit import AccCalibrator
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
     from host.errors import HostError

@@ -196,7 +196,8 @@ def _ticked(result: object, progress: Callable[[], object] | None) -> object:
 
 
 def _one_subject(job: tuple):
-    from host.studies.compare import AnalogWalk, compare_walk
+    from host.studies.compare import compare_walk
+    from host.studies.simulation import AnalogWalk
 
     subject, seed, bits, rate = job
     wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, bits=bits)
@@ -263,8 +264,7 @@ def _recording(args: argparse.Namespace) -> int:
     from host.commands._input_options import read_input
     from host.commands._options import printer, verbosity
     from host.errors import HostError
-    from host.files.decode import verify_step_records
-    from host.files.replay import run_starts
+    from host.files.replay import run_starts, verify_step_records
     from host.gait.k_calibration import KCalibration
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
     from protocol.atomic_write import atomic_write_text, require_folder

@@ -41,12 +41,8 @@ def replay_error(recording, check) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from host.errors import HostError
-    from host.files.decode import (
-        decode_file,
-        output_paths,
-        save_decoded,
-        verify_step_records,
-    )
+    from host.files.decode import decode_file, output_paths, save_decoded
+    from host.files.replay import verify_step_records
 
     rec = decode_file(args.input)
     calibration = None

@@ -63,7 +63,7 @@ def _record(ctx: dict[str, Any]) -> list[str]:
 
 def _serve(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.device import Logger
-    from firmware_sim.transport import serve_pty
+    from firmware_sim.pty_server import serve_pty
 
     server = serve_pty(Logger.from_image(ctx["recorded_image"]), baud=115200)
     server.start()
@@ -75,10 +75,11 @@ def _serve(ctx: dict[str, Any]) -> list[str]:
 def _dump(ctx: dict[str, Any]) -> list[str]:
     from host.commands._options import verbosity
     from host.link.logger_link import LoggerLink
+    from host.link.memory_dump import dump_memory
 
     out = ctx["dir"] / "dumped.glimg"
     with LoggerLink(ctx["port"], baud=115200) as link:
-        result = link.dump(out, progress=verbosity(ctx["args"]) >= 0)
+        result = dump_memory(link, out, progress=verbosity(ctx["args"]) >= 0)
     meta = result.metadata_
     ctx["dumped_image"] = out
     return [f"{meta['stored_bytes']} bytes in {meta['duration_s']:.2f} s, {meta['frames_damaged']} damaged "
@@ -97,7 +98,7 @@ def _decode(ctx: dict[str, Any]) -> list[str]:
 def _calibrate(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from host.accelerometer.calibration import AccCalibrator
+    from host.accelerometer.fit import AccCalibrator
 
     rec = ctx["recording"]
     n_poses = len(ctx["motion"].truth["hold_windows_s"])
@@ -168,7 +169,7 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
 
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.studies.evaluation import SimulatedRecording
+    from host.studies.simulation import SimulatedRecording
     from protocol.header import Calibration
     from protocol.packing import FLAG_MARK
     from protocol.steps import StepConfig
@@ -228,7 +229,8 @@ def _device(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.algorithms.online import OnlineSteps
     from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
     from firmware_sim.world.walking import Walking
-    from host.files.decode import decode_file, verify_step_records
+    from host.files.decode import decode_file
+    from host.files.replay import verify_step_records
     from host.gait.sections import sections_from_marks
     from host.studies.compare import (
         match_steps,

@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     from host.errors import HostError
     from host.link.logger_link import LoggerLink
-    from host.link.memory_dump import state_path_for
+    from host.link.memory_dump import dump_memory, state_path_for
     from protocol.atomic_write import atomic_write_bytes
 
     if args.retries < 0:
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     capture = io.BytesIO() if args.capture else None
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, retries=3, capture=capture) as link:
         try:
-            result = link.dump(out, progress=verbosity(args) >= 0, resume=args.resume, retries=args.retries)
+            result = dump_memory(link, out, progress=verbosity(args) >= 0, resume=args.resume, retries=args.retries)
         except HostError as err:
             state = state_path_for(out)
             hint = f"; partial state saved in {state}: run again with --resume" if state.exists() else ""

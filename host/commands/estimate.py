@@ -126,8 +126,7 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, cal):
     import numpy as np
 
     from host.errors import HostError
-    from host.files.replay import run_starts
-    from host.studies.compare import online_step_table
+    from host.files.replay import online_step_table, run_starts
 
     rec = data.recording
     adc_cal = rec.default_calibration()[0]

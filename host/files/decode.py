@@ -23,8 +23,8 @@ step part of a raw dump (after the sample part, ``20 · n`` bytes), and the DATA
 step addresses (``protocol.steps.STEP_ADDRESS_BASE`` +). The stored records are put in ring order
 (``DeviceHeader.step_slots``) and a record is used only when all 20 of its bytes were received intact and its
 CRC-16 matches; the others are dropped, never repaired, and reported as ``Recording.step_losses`` runs with
-the reason (:data:`STEP_REASONS`), in a note and in a warning. :func:`verify_step_records` checks the used
-records against the host's replay of the device's algorithm (:mod:`host.files.replay`).
+the reason (:data:`STEP_REASONS`), in a note and in a warning. :func:`host.files.replay.verify_step_records`
+checks the used records against the host's replay of the device's algorithm.
 """
 
 from __future__ import annotations
@@ -33,22 +33,22 @@ import os
 import warnings
 from collections import Counter
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from host.errors import HostError
 from host.files.recording import RecordGap, Recording, gaps_from_mask
 from protocol.errors import ProtocolError
+from protocol.frames import parse_stream
+from protocol.header import HEADER_SIZE, DeviceHeader
+from protocol.image import detect_format, parse_image
+from protocol.packing import unpack_words
 from protocol.steps import (
     STEP_RECORD_DTYPE,
     STEP_RECORD_SIZE,
     memory_region,
     stored_step_records,
 )
-
-if TYPE_CHECKING:
-    from host.files.replay import ReplayCheck
 
 #: Reason texts of the gaps, indexed by the reason codes used below.
 REASONS = (
@@ -101,8 +101,6 @@ def decode_bytes(data: bytes, source: str | None = None) -> Recording:
     Recording
         Stored samples in ring order (oldest first), exact or reported missing.
     """
-    from protocol.image import detect_format
-
     data = bytes(data)
     if not data:
         raise ProtocolError("empty input: expected a memory image, a raw dump or a wire capture", offset=0,
@@ -124,8 +122,6 @@ def decode_bytes(data: bytes, source: str | None = None) -> Recording:
 
 # ------------------------------------------------------------------------------------------------ formats
 def _decode_image(data: bytes, source: str | None) -> Recording:
-    from protocol.image import parse_image
-
     contents = parse_image(data, source=source)
     header = contents.header
     memory = np.asarray(contents.memory, dtype=np.uint8)
@@ -167,8 +163,6 @@ def _image_steps(contents, block_reason: np.ndarray, source: str | None, notes: 
 
 
 def _decode_raw(data: bytes, source: str | None) -> Recording:
-    from protocol.header import HEADER_SIZE, DeviceHeader
-
     if len(data) < HEADER_SIZE:
         raise ProtocolError(f"truncated raw dump: {len(data)} bytes, the header alone is {HEADER_SIZE}",
                             offset=len(data), source=source)
@@ -191,9 +185,6 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
 
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
-    from protocol.frames import parse_stream
-    from protocol.header import HEADER_SIZE, DeviceHeader
-
     frames, errors = parse_stream(data, source=source)
     headers: list[tuple[int, bytes]] = []
     data_frames = []
@@ -306,8 +297,6 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
     ``slot_ok[k]``: all four bytes of slot ``k`` were received intact; ``slot_reason[k]``: index into
     :data:`REASONS` of a bad slot (None: reason 0 everywhere). Slots beyond ``memory`` are truncated.
     """
-    from protocol.packing import unpack_words
-
     capacity = int(header.capacity_samples)
     n = int(header.n_stored)
     first = int(header.first_slot)
@@ -364,36 +353,6 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
                     step_record_numbers=step_numbers, step_losses=step_losses)
     rec.notes.append(rec.default_calibration()[1])
     return rec
-
-
-def verify_step_records(recording: Recording) -> ReplayCheck | None:
-    """Check the recording's device step records against the host's replay of the device algorithm.
-
-    The records the decoder dropped are unknown, so the replayed records that fall where they were (between
-    the usable records around each loss, by ``end_sample``) are not compared (``ReplayCheck.n_replay_unknown``).
-
-    Returns
-    -------
-    host.files.replay.ReplayCheck or None
-        None when there is nothing to check: no header, or the header's step algorithm off and no records.
-    """
-    from host.files.replay import (
-        check_records,  # the compiled step algorithm: loaded only to verify (not to decode)
-    )
-
-    header = recording.header
-    if header is None or (not header.step_config.enabled and recording.n_step_records == 0):
-        return None
-    ends = recording.step_records["end_sample"].astype(np.int64)
-    numbers = recording.step_record_numbers
-    unknown = []
-    for loss in recording.step_losses:
-        k = int(np.searchsorted(numbers, loss.first_record_number))
-        lo = float(ends[k - 1]) if k > 0 else -np.inf
-        hi = float(ends[k]) if k < ends.size else np.inf
-        unknown.append((lo, hi))
-    return check_records(recording.codes, recording.valid, recording.flags, recording.sample_numbers, header,
-                         recording.step_records, unknown_end_samples=unknown)
 
 
 def output_paths(prefix: str | os.PathLike[str]) -> dict[str, Path]:

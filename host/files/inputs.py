@@ -34,8 +34,11 @@ import numpy as np
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.accelerometer.calibration import AccCalibration
 from host.errors import HostError
-from host.files.ipol import IpolTrial
+from host.files.decode import decode_bytes
+from host.files.ipol import IpolTrial, list_trials, read_trial
 from host.files.recording import Recording
+from protocol.errors import ProtocolError
+from protocol.image import detect_format
 from protocol.packing import FLAG_MARK
 
 __all__ = ["UNITS", "AccelerationInput", "parse_columns", "read_acceleration"]
@@ -181,8 +184,6 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
     if kind == "npz":
         rec = Recording.load(p)
     else:
-        from host.files.decode import decode_bytes
-
         rec = decode_bytes(data, source=str(p))
     return _from_recording(rec, p, sampling_rate_hz, cal)
 
@@ -190,9 +191,6 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
 # ------------------------------------------------------------------------------------------------ formats
 def _kind(data: bytes) -> str:
     """``npz``, ``logger`` (image, raw dump, capture) or ``text``."""
-    from protocol.errors import ProtocolError
-    from protocol.image import detect_format
-
     if data[:4] == b"PK\x03\x04":
         return "npz"
     try:
@@ -237,8 +235,6 @@ def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibra
 
 
 def _from_ipol(p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
-    from host.files.ipol import list_trials, read_trial
-
     lb = p
     if p.is_dir():
         trials = list_trials(p)

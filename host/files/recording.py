@@ -40,6 +40,7 @@ import numpy as np
 
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
+from protocol.header import Calibration, DeviceHeader
 from protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
@@ -308,8 +309,6 @@ class Recording:
 
         Returns the map and a note saying which one it is (``PROTOCOL.md`` section 2.1).
         """
-        from protocol.header import Calibration
-
         cal = getattr(self.header, "calibration", None)
         if cal is not None and bool(getattr(cal, "valid", False)):
             return cal, "g from the header's calibration slot"
@@ -435,8 +434,6 @@ class Recording:
                             f"(this gaitlog reads version {NPZ_FORMAT_VERSION})")
         header = None
         if arrays["header_bytes"].size:
-            from protocol.header import DeviceHeader
-
             header = DeviceHeader.from_bytes(arrays["header_bytes"].tobytes(), source=str(path))
         try:
             gaps = [Gap(g["first_sample_number"], g["last_sample_number"], g["reason"]) for g in meta["gaps"]]

@@ -19,16 +19,23 @@ before the configuration was changed replays with the new one and is reported as
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from firmware_sim.algorithms.steps import StepTable
 from firmware_sim.firmware import step_algorithm_for
+from host.errors import HostError
+from host.files.recording import Recording
+from protocol.errors import ProtocolError
 from protocol.packing import FLAG_SESSION_START
-from protocol.steps import STEP_RECORD_DTYPE, pack_step_records
+from protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
 
-__all__ = ["RunCheck", "ReplayCheck", "run_starts", "replay_records", "check_records"]
+__all__ = ["RunCheck", "ReplayCheck", "run_starts", "replay_records", "check_records", "verify_step_records",
+           "step_config_for", "online_step_table"]
 
 
 @dataclass(frozen=True)
@@ -222,3 +229,107 @@ def _difference(device: np.void | None, replay: np.void | None) -> str:
         return "a device record the host's replay does not find"
     fields = [n for n in STEP_RECORD_DTYPE.names if device[n] != replay[n]]
     return "; ".join(f"{n}: device {int(device[n])}, replay {int(replay[n])}" for n in fields)
+
+
+def verify_step_records(recording: Recording) -> ReplayCheck | None:
+    """Check the recording's device step records against the host's replay of the device algorithm.
+
+    The records the decoder dropped are unknown, so the replayed records that fall where they were (between
+    the usable records around each loss, by ``end_sample``) are not compared (``ReplayCheck.n_replay_unknown``).
+
+    Returns
+    -------
+    ReplayCheck or None
+        None when there is nothing to check: no header, or the header's step algorithm off and no records.
+    """
+    header = recording.header
+    if header is None or (not header.step_config.enabled and recording.n_step_records == 0):
+        return None
+    ends = recording.step_records["end_sample"].astype(np.int64)
+    numbers = recording.step_record_numbers
+    unknown = []
+    for loss in recording.step_losses:
+        k = int(np.searchsorted(numbers, loss.first_record_number))
+        lo = float(ends[k - 1]) if k > 0 else -np.inf
+        hi = float(ends[k]) if k < ends.size else np.inf
+        unknown.append((lo, hi))
+    return check_records(recording.codes, recording.valid, recording.flags, recording.sample_numbers, header,
+                         recording.step_records, unknown_end_samples=unknown)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The on-line algorithm on a recording's codes, as a host StepTable
+
+
+def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
+    """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
+
+    ``calibration`` is a :class:`~host.gait.k_calibration.KCalibration` (K applied by the algorithm, in
+    its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
+    when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
+    """
+    kw: dict[str, Any] = dict(step_format=1, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
+    if calibration is not None:
+        kw.update(calibration.step_constants())
+    cfg = StepConfig(**kw)
+    try:
+        cfg.raw
+    except ProtocolError as err:
+        raise HostError(f"the on-line algorithm's step configuration cannot hold these values: {err}") from err
+    return cfg
+
+
+def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
+                      calibration: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
+                      arithmetic: str = "fixed", valid: np.ndarray | None = None,
+                      run_starts: np.ndarray | None = None, t0_s: float = 0.0,
+                      algorithm: Callable[..., OnlineStepAlgorithm] = OnlineStepAlgorithm,
+                      ) -> tuple[StepTable, OnlineStepAlgorithm]:
+    """The on-line algorithm on ``codes`` as a ``StepTable`` (:meth:`StepTable.from_online`).
+
+    Parameters
+    ----------
+    codes
+        ``(n, 3)`` ADC codes (``adc_bits`` bits).
+    calibration
+        :class:`~host.gait.k_calibration.KCalibration` (the one K of the comparison) or None (raw).
+    adc_calibration
+        The device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
+    arithmetic
+        ``"fixed"`` (the logger's) or ``"float"``.
+    valid, run_starts
+        The algorithm starts afresh (START) at index 0, at every index of ``run_starts`` (a logging run's
+        SESSION_START sample) and after every missing sample (``valid`` false: the device had the sample,
+        the dump lost it; a causal algorithm cannot be fed a hole), and ends (STOP) before each.
+    algorithm
+        The class (or a factory with its signature) that is run; tests wrap it to inject errors.
+
+    Returns
+    -------
+    table, algorithm
+        The table (lengths with K when ``calibration`` is given, else the raw values in ``raw_m``) and the
+        algorithm after the run (``saturations``, ``cycles``, ``arithmetic_context()``).
+    """
+    c = np.asarray(codes)
+    n = c.shape[0]
+    ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
+    cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration)
+    alg = algorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg, calibration=adc_calibration,
+                    arithmetic=arithmetic, adc_bits=adc_bits)
+    # stretches of present samples, cut at every run start: [a, b) with b the next cut or missing sample
+    cut = np.zeros(n, bool)
+    rs = np.asarray(run_starts if run_starts is not None else [], np.int64)
+    cut[rs[(rs >= 0) & (rs < n)]] = True
+    if n:
+        cut[0] = True
+    starts = np.flatnonzero(ok & (cut | ~np.r_[False, ok[:-1]])) if n else np.zeros(0, np.int64)
+    bounds = np.flatnonzero(~ok | cut)
+    stops = np.append(bounds, n)[np.searchsorted(bounds, starts, side="right")]
+    parts = []
+    for a, b in zip(starts.tolist(), stops.tolist()):
+        alg.reset()
+        parts.append(alg.feed(c[a:b].astype(np.int64), offset=a))
+        parts.append(alg.flush(offset=a))
+    steps = (OnlineSteps.concatenate(parts) if parts else
+             OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, calibration is not None))
+    return StepTable.from_online(steps, t0_s=t0_s), alg

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Self
 
 from host.errors import HostError
+from protocol.atomic_write import atomic_write_text
 
 __all__ = ["VersionedJson"]
 
@@ -90,8 +91,6 @@ class VersionedJson:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the JSON file atomically (whole file or nothing)."""
-        from protocol.atomic_write import atomic_write_text
-
         atomic_write_text(path, self.to_json())
 
     @classmethod

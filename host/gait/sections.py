@@ -24,7 +24,10 @@ from host.errors import HostError
 if TYPE_CHECKING:  # pragma: no cover
     from firmware_sim.algorithms.steps import StepTable
 
-__all__ = ["Section", "calibration_sets", "pool_steps", "section_fractions", "sections_from_marks"]
+__all__ = ["MODES", "Section", "calibration_sets", "pool_steps", "section_fractions", "sections_from_marks"]
+
+#: The two K-calibration modes: the keys of :func:`calibration_sets` (one speed, or every speed).
+MODES = ("single-speed", "multi-speed")
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ The design is only meaningful when the design frequency ``2.0775 · CFC`` is bel
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import filtfilt
 
 from host.errors import HostError
 
@@ -104,8 +105,6 @@ def cfc_filter(x: np.ndarray, cfc: float, sampling_rate_hz: float, *, axis: int 
         Invalid class or rate (see :func:`cfc_coefficients`), non-finite data, or too few samples for the
         edge padding (``<= 9``).
     """
-    from scipy.signal import filtfilt
-
     b, a = cfc_coefficients(cfc, sampling_rate_hz)
     data = np.asarray(x, dtype=np.float64)
     if not np.isfinite(data).all():

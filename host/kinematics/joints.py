@@ -39,6 +39,7 @@ from typing import Literal, Self
 import numpy as np
 
 from host.errors import HostError
+from host.kinematics.cfc_filter import cfc_filter
 from host.kinematics.orientation import integrate_dcm
 
 __all__ = [
@@ -234,8 +235,6 @@ class HallJointKinematics:
         rb = remove_pretest_offset(rb, self.pretest_samples)
         # 2. SAE J211 filter
         if self.cfc is not None:
-            from host.kinematics.cfc_filter import cfc_filter
-
             ra, rb = cfc_filter(ra, self.cfc, sampling_rate_hz), cfc_filter(rb, self.cfc, sampling_rate_hz)
         # 3. sensor -> link axes
         self.rate_a_link_rad_s_ = ra @ sa.T

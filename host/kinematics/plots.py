@@ -10,17 +10,18 @@
   drawn at the lowest heel excursion, as in Morris' simulation);
 - :func:`plot_joint_angles` -- Hall: joint angles against the truth.
 
-matplotlib is imported lazily with the Agg backend; every figure goes through
-:func:`protocol.atomic_write.atomic_write_bytes`.
+Figures are :class:`matplotlib.figure.Figure` objects rendered straight to PNG (no pyplot, no global backend:
+importing this module changes nothing for a program that uses matplotlib itself); every figure goes through
+:func:`protocol.atomic_write.atomic_write_bytes`. Only ``gaitlog kinematics`` imports this module.
 """
 
 from __future__ import annotations
 
 import io
 import os
-from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from protocol.atomic_write import atomic_write_bytes
 
@@ -36,22 +37,9 @@ __all__ = [
 _AXIS_NAMES = ("forwards-backwards", "sideways", "vertical")
 
 
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: str | os.PathLike[str]) -> None:
-    plt = _pyplot()
+def _save(fig: Figure, path: str | os.PathLike[str]) -> None:
     buf = io.BytesIO()
-    try:
-        fig.savefig(buf, format="png", dpi=110)
-    finally:
-        plt.close(fig)
+    fig.savefig(buf, format="png", dpi=110)
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -64,8 +52,8 @@ def plot_angular_velocity(
     truth_rad_s: np.ndarray | None = None,
 ) -> None:
     """Fig 4a/b: coronal (body axis 1) and sagittal (body axis 2) angular velocity, before/after filtering."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
+    fig = Figure(figsize=(8, 5.5))
+    axes = fig.subplots(2, 1, sharex=True)
     for ax, data, title in ((axes[0], omega_raw_rad_s, "(a) as integrated"), (axes[1], omega_filtered_rad_s, "(b) cycle drift removed")):
         ax.plot(t_s, data[:, 0], label="coronal (about axis 1)")
         ax.plot(t_s, data[:, 1], label="sagittal (about axis 2)")
@@ -85,8 +73,8 @@ def plot_dcm(
     t_s: np.ndarray, dcm: np.ndarray, path: str | os.PathLike[str], *, truth: np.ndarray | None = None
 ) -> None:
     """Fig 5: the direction-cosine matrix ``λpq`` over one cycle, one panel per element."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(3, 3, sharex=True, sharey=True, figsize=(8, 6.5))
+    fig = Figure(figsize=(8, 6.5))
+    axes = fig.subplots(3, 3, sharex=True, sharey=True)
     for p in range(3):
         for q in range(3):
             ax = axes[p, q]
@@ -113,8 +101,8 @@ def plot_translation(
     truth: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> None:
     """Fig 6: translational acceleration, velocity and position of the mid-shank origin (space axes)."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(3, 3, sharex=True, figsize=(10, 6.5))
+    fig = Figure(figsize=(10, 6.5))
+    axes = fig.subplots(3, 3, sharex=True)
     cols = ((acc_m_s2, "acceleration (m/s²)"), (vel_m_s, "velocity (m/s)"), (pos_m, "position (m)"))
     for c, (data, label) in enumerate(cols):
         for r in range(3):
@@ -194,11 +182,11 @@ def plot_stick_figure(
     truth: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
     """Fig 7: multiple exposure of shank and foot over the cycle, one exposure per ``1/frame_rate_hz`` s."""
-    plt = _pyplot()
     t = np.asarray(t_s, dtype=np.float64)
     frames = np.searchsorted(t, np.arange(t[0], t[-1] + 1e-9, 1.0 / frame_rate_hz))
     frames = frames[frames < t.size]
-    fig, ax = plt.subplots(figsize=(9, 4))
+    fig = Figure(figsize=(9, 4))
+    ax = fig.subplots()
     sets = [(dcm, origin_m, "C0", 1.2, "estimated")]
     if truth is not None:
         sets.append((truth[0], truth[1], "0.6", 0.8, "truth"))
@@ -222,8 +210,8 @@ def plot_joint_angles(
     t_s: np.ndarray, angles_rad: np.ndarray, path: str | os.PathLike[str], *, truth_rad: np.ndarray | None = None
 ) -> None:
     """Hall: flexion φ, version θ and axial rotation ψ (degrees) against time, with the truth dotted."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 6))
+    fig = Figure(figsize=(7, 6))
+    axes = fig.subplots(3, 1, sharex=True)
     names = ("flexion φ (about y)", "version θ (about x′)", "axial rotation ψ (about z″)")
     for i, ax in enumerate(axes):
         ax.plot(np.asarray(t_s) * 1e3, np.degrees(angles_rad[:, i]), label="angular-rate sensors")

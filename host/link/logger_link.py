@@ -8,7 +8,7 @@ Each command is one frame (``PROTOCOL.md`` section 3); the link numbers it with 
 ``timeout_s`` for the answer with the same ``seq``, and sends it again (new ``seq``) when the answer does not
 come, comes damaged, or is ``NAK(BAD_CRC)``, at most ``retries`` more times. A NAK with any other error is
 final and raised as :class:`~host.errors.HostError` naming the command and the error. The bulk memory dump
-with re-reads and resume is :class:`host.link.memory_dump.MemoryDump` (``LoggerLink.dump``).
+with re-reads and resume is :class:`host.link.memory_dump.MemoryDump` (:func:`host.link.memory_dump.dump_memory`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import IO, Any
 
+import serial
+
 from host.errors import HostError
+from host.link.transports import register
 from protocol.errors import ProtocolError
 from protocol.frames import (
     MAX_DATA,
@@ -115,10 +118,6 @@ def open_serial(port: str, *, baud: int = 115200, poll_s: float = 0.02):
     HostError
         The port does not exist or cannot be opened (message names it and says what to check).
     """
-    import serial
-
-    from host.link.transports import register
-
     register()
     try:
         return serial.serial_for_url(port, baudrate=baud, bytesize=8, parity="N", stopbits=1, timeout=poll_s,
@@ -417,12 +416,3 @@ class LoggerLink:
                 end_fields = self._fields(frame)
                 if end_fields["address"] == address and end_fields["length"] == length:
                     return True
-
-    def dump(self, out_path, *, progress: bool | Callable[[int], None] = True, resume: bool = False,
-             retries: int = 8, chunk_bytes: int = MAX_DATA):
-        """Dump the stored memory to the image ``out_path`` (+ ``.json`` metadata): see
-        :class:`host.link.memory_dump.MemoryDump`. Returns the finished ``MemoryDump``."""
-        from host.link.memory_dump import MemoryDump
-
-        return MemoryDump(retries=retries, chunk_bytes=chunk_bytes).run(self, out_path, resume=resume,
-                                                                        progress=progress)

@@ -30,16 +30,21 @@ import json
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from host.errors import HostError
-from host.link.logger_link import device_identity
+from host.files.decode import decode_bytes
+from host.link.logger_link import LoggerLink, device_identity
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from protocol.errors import ProtocolError
 from protocol.frames import MAX_DATA, DeviceState
+from protocol.image import build_image, parse_image
 from protocol.steps import STEP_ADDRESS_BASE
 
 #: Block size of the image and of the resume bookkeeping (``PROTOCOL.md`` section 6).
@@ -111,11 +116,6 @@ class MemoryDump:
     # ------------------------------------------------------------------------------------------ helpers
     def _load_state(self, state_path: Path, header_bytes: bytes, memory: bytearray, have: np.ndarray) -> int:
         """Bytes of the image's memory region (sample then step memory) that the partial state holds."""
-        import warnings
-
-        from protocol.errors import ProtocolError
-        from protocol.image import parse_image
-
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the missing blocks of a partial state are expected
@@ -182,8 +182,6 @@ class MemoryDump:
         self.complete_ = not transfer.missing().any()
         self.missing_ranges_ = [(transfer.device_address(a), b - a) for a, b in transfer.todo_ranges()]
         image = transfer.image_bytes()
-        from host.files.decode import decode_bytes
-
         self.recording_ = decode_bytes(image, source=str(out))
         self.metadata_ = self._metadata(link, status, transfer, image, started_utc, resumed_bytes)
         self._write(image, transfer, t_start)
@@ -296,6 +294,14 @@ class MemoryDump:
             transfer.save_state()
 
 
+def dump_memory(link: LoggerLink, out_path: str | os.PathLike[str], *,
+                progress: bool | Callable[[int], None] = True, resume: bool = False, retries: int = 8,
+                chunk_bytes: int = MAX_DATA) -> MemoryDump:
+    """Dump the stored memory of the logger on ``link`` to the image ``out_path`` (+ ``.json`` metadata):
+    :meth:`MemoryDump.run` with ``retries`` and ``chunk_bytes``. Returns the finished :class:`MemoryDump`."""
+    return MemoryDump(retries=retries, chunk_bytes=chunk_bytes).run(link, out_path, resume=resume, progress=progress)
+
+
 class _Transfer:
     """The memory region being filled (sample memory ``[0, mem_size)``, then step memory), what is needed and
     what has arrived, and the bookkeeping of one dump."""
@@ -346,8 +352,6 @@ class _Transfer:
 
     def image_bytes(self) -> bytes:
         """The image of what was received (``image_version`` 2 when the header has a step memory)."""
-        from protocol.image import build_image
-
         return build_image(self.header_bytes, bytes(self.memory),
                            missing_blocks=MemoryDump._missing_blocks(self.have, self.need), block_size=BLOCK_SIZE)
 
@@ -382,8 +386,6 @@ def _progress_bar(progress: bool | Callable[[int], None], transfer: _Transfer):
     if not progress:
         yield None
         return
-    from tqdm import tqdm
-
     already = int(np.count_nonzero(transfer.have & transfer.need))
     bar = tqdm(total=transfer.total_needed, initial=already, unit="B", unit_scale=True, file=sys.stderr,
                desc="dump", disable=not sys.stderr.isatty(), leave=False)

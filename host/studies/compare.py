@@ -36,7 +36,7 @@ error); the section distances include every step. Per-20 m sections follow the p
 Saturation and wrap counts of every fixed-point run are kept (``saturation``); nothing saturates
 unreported. :func:`bootstrap_budget` gives 95 % intervals over subjects for the summary figures.
 
-Simulated walks (:class:`AnalogWalk`): the world (:class:`firmware_sim.world.walking.Walking`) through the
+Simulated walks (:class:`host.studies.simulation.AnalogWalk`): the world (:class:`firmware_sim.world.walking.Walking`) through the
 device's sensor model (:class:`firmware_sim.sensor.SensorModel`, the logger's default seeded unit) and the
 front end and timer of :class:`firmware_sim.adc.Adc`, exactly as :meth:`firmware_sim.device.Logger.record`
 does (same codes at 10 bits: tested), but quantised here at any width (the PIC's converter stops at 10
@@ -49,7 +49,7 @@ Recordings (:func:`compare_recording`): a decoded recording has no truth and no 
 online-float and online-fixed with the given K (or none: K = 1, M4/M5 undefined), sections between MARK
 flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the offline chain's M3 distance. A
 recording that carries the device's own step records is checked against the host's replay of the on-line
-algorithm, bit for bit (:func:`host.files.decode.verify_step_records`).
+algorithm, bit for bit (:func:`host.files.replay.verify_step_records`).
 """
 
 from __future__ import annotations
@@ -70,14 +70,17 @@ from firmware_sim.algorithms.steps import (
     float_csv_cells,
 )
 from host.errors import HostError
+from host.files.replay import online_step_table
 from host.gait.k_calibration import calibrate_on_sections
+from host.gait.pipeline import StepPipeline, apply_calibration
 from host.gait.sections import (
+    MODES,
     Section,
     calibration_sets,
     section_fractions,
     sections_from_marks,
 )
-from host.studies.evaluation import MODES, match_events
+from protocol.header import Calibration
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -110,89 +113,10 @@ def pair_label(a: str, b: str) -> str:
 # The chains as host StepTables
 
 
-def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
-    """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
-
-    ``calibration`` is a :class:`~host.gait.k_calibration.KCalibration` (K applied by the algorithm, in
-    its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
-    when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
-    """
-    from protocol.errors import ProtocolError
-    from protocol.steps import StepConfig
-
-    kw: dict[str, Any] = dict(step_format=1, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
-    if calibration is not None:
-        kw.update(calibration.step_constants())
-    cfg = StepConfig(**kw)
-    try:
-        cfg.raw
-    except ProtocolError as err:
-        raise HostError(f"the on-line algorithm's step configuration cannot hold these values: {err}") from err
-    return cfg
-
-
-def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      calibration: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
-                      arithmetic: str = "fixed", valid: np.ndarray | None = None,
-                      run_starts: np.ndarray | None = None, t0_s: float = 0.0,
-                      algorithm: Callable[..., OnlineStepAlgorithm] = OnlineStepAlgorithm,
-                      ) -> tuple[StepTable, OnlineStepAlgorithm]:
-    """The on-line algorithm on ``codes`` as a ``StepTable`` (:meth:`StepTable.from_online`).
-
-    Parameters
-    ----------
-    codes
-        ``(n, 3)`` ADC codes (``adc_bits`` bits).
-    calibration
-        :class:`~host.gait.k_calibration.KCalibration` (the one K of the comparison) or None (raw).
-    adc_calibration
-        The device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
-    arithmetic
-        ``"fixed"`` (the logger's) or ``"float"``.
-    valid, run_starts
-        The algorithm starts afresh (START) at index 0, at every index of ``run_starts`` (a logging run's
-        SESSION_START sample) and after every missing sample (``valid`` false: the device had the sample,
-        the dump lost it; a causal algorithm cannot be fed a hole), and ends (STOP) before each.
-    algorithm
-        The class (or a factory with its signature) that is run; tests wrap it to inject errors.
-
-    Returns
-    -------
-    table, algorithm
-        The table (lengths with K when ``calibration`` is given, else the raw values in ``raw_m``) and the
-        algorithm after the run (``saturations``, ``cycles``, ``arithmetic_context()``).
-    """
-    c = np.asarray(codes)
-    n = c.shape[0]
-    ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
-    cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration)
-    alg = algorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg, calibration=adc_calibration,
-                    arithmetic=arithmetic, adc_bits=adc_bits)
-    # stretches of present samples, cut at every run start: [a, b) with b the next cut or missing sample
-    cut = np.zeros(n, bool)
-    rs = np.asarray(run_starts if run_starts is not None else [], np.int64)
-    cut[rs[(rs >= 0) & (rs < n)]] = True
-    if n:
-        cut[0] = True
-    starts = np.flatnonzero(ok & (cut | ~np.r_[False, ok[:-1]])) if n else np.zeros(0, np.int64)
-    bounds = np.flatnonzero(~ok | cut)
-    stops = np.append(bounds, n)[np.searchsorted(bounds, starts, side="right")]
-    parts = []
-    for a, b in zip(starts.tolist(), stops.tolist()):
-        alg.reset()
-        parts.append(alg.feed(c[a:b].astype(np.int64), offset=a))
-        parts.append(alg.flush(offset=a))
-    steps = (OnlineSteps.concatenate(parts) if parts else
-             OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, calibration is not None))
-    return StepTable.from_online(steps, t0_s=t0_s), alg
-
-
 def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
                        calibration: Any = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
     """The offline float chain's table (warnings about impossible excursions are silenced: they are counted
     as NaN)."""
-    from host.gait.pipeline import StepPipeline
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
@@ -201,13 +125,39 @@ def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length
 
 def calibrated(table: StepTable, calibration: Any) -> StepTable:
     """An offline table with ``calibration``'s K applied to its raw lengths (``apply_calibration``)."""
-    from host.gait.pipeline import apply_calibration
-
     return replace(table, length_m=apply_calibration(table, calibration))
 
 
 # ---------------------------------------------------------------------------------------------------------
 # Matching steps
+
+
+def match_events(truth_s: np.ndarray, detected_s: np.ndarray, tol_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-to-one matching of two sorted event-time lists: mutual nearest neighbours within ``tol_s``.
+
+    Returns the matched indices into ``truth_s`` and ``detected_s``.
+
+    Examples
+    --------
+    >>> match_events(np.array([1.0, 2.0, 3.0]), np.array([1.01, 2.5, 2.98, 3.02]), 0.04)
+    (array([0, 2]), array([0, 2]))
+    """
+    t = np.sort(np.asarray(truth_s, np.float64))
+    d = np.sort(np.asarray(detected_s, np.float64))
+    if t.size == 0 or d.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+
+    def nearest(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        j = np.clip(np.searchsorted(b, a), 1, b.size - 1) if b.size > 1 else np.zeros(a.size, np.int64)
+        if b.size == 1:
+            return j
+        return np.where(np.abs(b[j - 1] - a) <= np.abs(b[j] - a), j - 1, j)
+
+    jt = nearest(t, d)  # nearest detected for each truth
+    jd = nearest(d, t)  # nearest truth for each detected
+    i = np.arange(t.size)
+    ok = (jd[jt] == i) & (np.abs(d[jt] - t) <= tol_s)
+    return i[ok], jt[ok]
 
 
 @dataclass(frozen=True)
@@ -392,77 +342,8 @@ class SampledWalk:
 
         A :class:`protocol.header.Calibration` (``a = M (c - o)``), ``o = offset - 1/2`` code.
         """
-        from protocol.header import Calibration
-
         s = 2.0 ** (bits - 10)
         return Calibration(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
-
-
-class AnalogWalk:
-    """A subject walking the protocol, seen by the logger's sensor on its fine analog grid.
-
-    Parameters
-    ----------
-    subject
-        :class:`firmware_sim.world.subject.Subject`.
-    seed
-        Seed of the walk; the sensor is the unit ``SensorModel.draw(seed=sensor_seed)`` (default: the
-        logger's default for ``device_id = 1 + seed % 60000``, as :func:`host.studies.evaluation.record_subject`).
-    protocol
-        :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
-
-    Attributes
-    ----------
-    volts_, rate_hz_, truth_, sensor_
-        Sensor output (``(n, 3)`` V, noise-free: the noise is drawn at the sample instants), its rate, the
-        walk's truth and the sensor.
-    """
-
-    def __init__(self, *, subject: Any, seed: int = 0, protocol: Any = None, sensor_seed: int | None = None) -> None:
-        self.subject = subject
-        self.seed = seed
-        self.protocol = protocol
-        self.sensor_seed = sensor_seed
-
-    def run(self) -> AnalogWalk:
-        """Render the walk and the sensor's response (the expensive part, done once per subject)."""
-        from firmware_sim.sensor import SensorModel
-        from firmware_sim.world.walking import Walking
-
-        sseed = self.sensor_seed if self.sensor_seed is not None else 1 + self.seed % 60000
-        self.sensor_ = SensorModel.draw(seed=int(sseed))
-        motion = Walking(subject=self.subject, protocol=self.protocol, seed=self.seed).render(
-            self.sensor_.internal_rate_hz)
-        self.rate_hz_ = float(motion.sampling_rate_hz)
-        self.t0_s_ = float(motion.t0_s)
-        self.t_last_s_ = self.t0_s_ + (motion.acc_g.shape[0] - 1) / self.rate_hz_
-        self.marker_times_s_ = np.asarray(motion.marker_times_s, np.float64)
-        self.volts_ = self.sensor_.respond(motion.acc_g, self.rate_hz_, noise=False)
-        self.truth_ = {k: motion.truth[k] for k in ("steps", "laps", "excursions", "rests") if k in motion.truth}
-        return self
-
-    def sample(self, sampling_rate_hz: float) -> SampledWalk:
-        """The analog output at the sample instants of a ``sampling_rate_hz`` timer, noise included (as
-        :meth:`firmware_sim.device.Logger.record`: same instants, same hold, same noise stream)."""
-        from firmware_sim.adc import Adc
-
-        adc = Adc(adc_bits=10, sampling_rate_hz=sampling_rate_hz)
-        sen = self.sensor_
-        times = adc.sample_times_s(self.t0_s_, self.t_last_s_)
-        held = adc.hold(self.volts_, self.rate_hz_, self.t0_s_, times)
-        held = held + sen.noise_g(times, rng=np.random.default_rng(sen.seed)) * sen.gain_v_per_g
-        # the converter input in 10-bit code units (Adc.convert without the floor), clipped to the span
-        lsb = adc.lsb_v
-        v = adc.ref_v + adc.gain * (held - adc.ref_v)
-        x = np.clip((v - adc.vref_low_v) / lsb, 0.0, float(adc.n_codes) - 1e-9)
-        offset = (adc.ref_v + adc.gain * (sen.zero_g_v + sen.gain_v_per_g * sen.offset_g - adc.ref_v)
-                  - adc.vref_low_v) / lsb
-        gain = (adc.gain * sen.gain_v_per_g / lsb)[:, None] * sen.axes
-        marks = np.zeros(times.size, bool)
-        if self.marker_times_s_.size:
-            k = np.searchsorted(times, self.marker_times_s_, side="left")
-            marks[k[k < times.size]] = True
-        return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -880,8 +761,6 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and
     ``arithmetic_m`` (the shares in distance).
     """
-    from protocol.header import Calibration
-
     c = np.asarray(codes)
     ok = np.ones(c.shape[0], bool) if valid is None else np.asarray(valid, bool)
     cal = adc_calibration if adc_calibration is not None else Calibration.nominal(adc_bits)

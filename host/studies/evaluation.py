@@ -1,10 +1,10 @@
 """The paper's evaluation on simulated subjects (Alvarez et al. 2006, sections II-C and IV, Figs 5-6).
 
-Chain, per subject (:func:`record_subject`, :func:`evaluate_recording`):
+Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evaluate_recording`):
 
 1. *Device calibration*: the emulated logger (:class:`firmware_sim.device.Logger`, its own seeded sensor
    errors: offsets, sensitivities, misalignment) records a static-pose session
-   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.accelerometer.calibration.AccCalibrator`
+   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.accelerometer.fit.AccCalibrator`
    ("a calibration procedure takes into account offset and scale factors and the orthogonality of the
    axes", II-B). ``calibrate_device=False`` uses the header's nominal map instead.
 2. *Walking*: the same logger (after ERASE) records the protocol of
@@ -44,6 +44,7 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Self
@@ -51,111 +52,24 @@ from typing import Any, Self
 import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS
+from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
-from host.gait.sections import calibration_sets, section_fractions, sections_from_marks
+from host.gait.k_calibration import calibrate_on_sections
+from host.gait.pipeline import StepPipeline, apply_calibration
+from host.gait.sections import (
+    MODES,
+    calibration_sets,
+    section_fractions,
+    sections_from_marks,
+)
+from host.studies.compare import match_events
+from host.studies.plots import plot_boxplots
+from host.studies.simulation import SimulatedRecording, record_subject
+from protocol.atomic_write import atomic_write_text
 
-MODES = ("single-speed", "multi-speed")
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
                "estimated_m", "real_m", "ratio", "steps")
 SUMMARY_COLUMNS = ("mode", "estimator", "n", "median", "q1", "q3", "min", "max", "iqr")
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Recording simulated subjects
-
-
-@dataclass(frozen=True, eq=False)
-class SimulatedRecording:
-    """What the logger stored for one simulated subject, in calibrated g, with the world's truth.
-
-    Attributes
-    ----------
-    subject
-        The :class:`firmware_sim.world.subject.Subject`.
-    seed
-        Seed of the walk and of the device.
-    acc_g, valid
-        ``(n, 3)`` calibrated specific force (g) and the validity mask.
-    sampling_rate_hz, t0_s
-        Logger rate and time of sample 0 on the walk's clock.
-    mark_times_s
-        Times of the samples carrying the MARK flag (lap button).
-    truth
-        The walk's truth (``steps``, ``laps``, ``excursions``, ...; see :mod:`firmware_sim.world.walking`).
-    device_calibrated
-        True when the codes were converted with a pose-session calibration (else the nominal map).
-    """
-
-    subject: Any
-    seed: int
-    acc_g: np.ndarray
-    valid: np.ndarray
-    sampling_rate_hz: float
-    t0_s: float
-    mark_times_s: np.ndarray
-    truth: dict
-    device_calibrated: bool
-
-
-def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_rate_hz: float = 50.0, bits: int = 10,
-                   calibrate_device: bool = True) -> SimulatedRecording:
-    """Walk ``subject`` through the protocol with the emulated logger (module notes, steps 1-2).
-
-    Parameters
-    ----------
-    subject
-        A :class:`firmware_sim.world.subject.Subject`.
-    seed
-        Seeds the walk's variability, the pose session and the device's sensor errors.
-    protocol
-        A :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
-    sampling_rate_hz, bits
-        Logger sample rate and ADC resolution.
-    calibrate_device
-        Fit the device calibration on a pose session first (default) or use the nominal map.
-    """
-    from firmware_sim.adc import Adc
-    from firmware_sim.device import Logger
-    from firmware_sim.world.poses import CalibrationPoses
-    from firmware_sim.world.walking import Walking
-    from protocol.header import Calibration
-    from protocol.packing import FLAG_MARK
-
-    logger = Logger(adc=Adc(adc_bits=bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
-    if calibrate_device:
-        from host.accelerometer.calibration import AccCalibrator
-
-        poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
-        full = float(2**bits)
-        apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=sampling_rate_hz,
-                                          input_unit="counts", zero=full / 2, unit_per_g=full / 4,
-                                          valid_range=(0.0, full - 1)).calibration_.apply
-        logger.erase()
-    else:
-        apply = Calibration.nominal(bits).apply
-    res = logger.record(Walking(subject=subject, protocol=protocol, seed=seed))
-    if res.n_taken != res.n_samples:
-        raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
-                        "samples (memory full): shorten the protocol's rests")
-    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be.
-    from host.files.decode import decode_bytes
-    from protocol.image import build_image
-
-    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
-                          source=f"{subject.subject_id}.sim")
-    pos = np.searchsorted(np.asarray(res.sample_numbers), stored.sample_numbers)
-    if np.any(pos >= res.n_samples) or np.any(np.asarray(res.sample_numbers)[np.minimum(pos, res.n_samples - 1)]
-                                              != stored.sample_numbers):
-        raise HostError(f"subject {subject.subject_id}: decoded sample numbers do not match the recording")
-    times = np.asarray(res.sample_times_s, np.float64)[pos]
-    acc = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
-    valid = np.asarray(stored.valid, bool) & np.isfinite(acc).all(axis=1)
-    acc[~valid] = np.nan
-    marks = times[(np.asarray(stored.flags) & FLAG_MARK) != 0]
-    rate = float(1.0 / np.median(np.diff(times)))
-    truth = {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests", "subject") if k in res.truth}
-    return SimulatedRecording(subject, int(seed), acc, valid, rate, float(times[0]), marks, truth,
-                              bool(calibrate_device))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -167,34 +81,6 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_ra
 
 # ---------------------------------------------------------------------------------------------------------
 # Event scoring
-
-
-def match_events(truth_s: np.ndarray, detected_s: np.ndarray, tol_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """One-to-one matching of two sorted event-time lists: mutual nearest neighbours within ``tol_s``.
-
-    Returns the matched indices into ``truth_s`` and ``detected_s``.
-
-    Examples
-    --------
-    >>> match_events(np.array([1.0, 2.0, 3.0]), np.array([1.01, 2.5, 2.98, 3.02]), 0.04)
-    (array([0, 2]), array([0, 2]))
-    """
-    t = np.sort(np.asarray(truth_s, np.float64))
-    d = np.sort(np.asarray(detected_s, np.float64))
-    if t.size == 0 or d.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-
-    def nearest(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        j = np.clip(np.searchsorted(b, a), 1, b.size - 1) if b.size > 1 else np.zeros(a.size, np.int64)
-        if b.size == 1:
-            return j
-        return np.where(np.abs(b[j - 1] - a) <= np.abs(b[j] - a), j - 1, j)
-
-    jt = nearest(t, d)  # nearest detected for each truth
-    jd = nearest(d, t)  # nearest truth for each detected
-    i = np.arange(t.size)
-    ok = (jd[jt] == i) & (np.abs(d[jt] - t) <= tol_s)
-    return i[ok], jt[ok]
 
 
 @dataclass(frozen=True)
@@ -285,9 +171,6 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     ``detector``: a :class:`host.gait.events.GaitEventDetector` for the pipeline (default parameters when
     None).
     """
-    from host.gait.k_calibration import calibrate_on_sections
-    from host.gait.pipeline import StepPipeline, apply_calibration
-
     sub = rec.subject
     pipe = StepPipeline(leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m, detector=detector).run(
         rec.acc_g, sampling_rate_hz=rec.sampling_rate_hz, valid=rec.valid, t0_s=rec.t0_s)
@@ -471,8 +354,6 @@ class SimulatedEvaluation:
 
     def run(self, progress: Callable[[], object] | None = None) -> Self:
         """Simulate, record, estimate and evaluate every subject; ``progress()`` is called after each one."""
-        from firmware_sim.world.subject import random_subjects
-
         if self.n_subjects < 1:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
@@ -480,8 +361,6 @@ class SimulatedEvaluation:
         jobs = [(s, self.seed * 1000 + i, self.protocol, self.sampling_rate_hz, self.bits, self.calibrate_device, options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
-            from concurrent.futures import ProcessPoolExecutor
-
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
                 self.results_ = [_ticked(r, progress) for r in pool.map(_subject_job, jobs)]
         else:
@@ -497,8 +376,6 @@ class SimulatedEvaluation:
 
     def write_csv(self, path: str | Path, *, summary_path: str | Path | None = None) -> None:
         """Section rows (``ROW_COLUMNS``) to ``path`` and optionally the summary to ``summary_path``, atomically."""
-        from protocol.atomic_write import atomic_write_text
-
         atomic_write_text(path, _csv_text(self.rows_, ROW_COLUMNS))
         if summary_path is not None:
             atomic_write_text(summary_path, _csv_text(self.summary_, SUMMARY_COLUMNS))
@@ -506,8 +383,6 @@ class SimulatedEvaluation:
 
     def write_outputs(self, out_dir: str | Path, *, stem: str = "simulated", title: str | None = None) -> dict[str, Path]:
         """Rows CSV, summary CSV and the Figs 5-6 box plot into ``out_dir`` (each written atomically)."""
-        from host.studies.plots import plot_boxplots
-
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"rows": out / f"{stem}_sections.csv", "summary": out / f"{stem}_summary.csv",

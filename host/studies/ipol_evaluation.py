@@ -51,6 +51,7 @@ algorithm shares, the calibrated medians); :func:`format_done` prints them.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,12 +59,20 @@ from typing import Any
 
 import numpy as np
 
+from firmware_sim.adc import Adc
+from firmware_sim.algorithms.online import OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from firmware_sim.device import Logger
+from firmware_sim.errors import DeviceError
+from firmware_sim.world.replay import Replay
 from host.errors import HostError
 from host.files.ipol import list_trials, read_trial
+from host.files.replay import check_records, online_step_table, run_starts
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.k_calibration import KCalibration, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
+from host.studies.compare import match_steps
+from protocol.steps import StepConfig
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.
 IPOL_DISTANCE_M = 20.0
@@ -146,22 +155,16 @@ class ReplayedTrial:
 
     def run_starts(self) -> np.ndarray:
         """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
-        from host.files.replay import run_starts
-
         return run_starts(np.ones(self.codes.shape[0], bool), self.flags)
 
     def check_records(self) -> Any:
         """The device's records against the host's replay (:func:`host.files.replay.check_records`)."""
-        from host.files.replay import check_records
-
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
     def online_table(self, *, arithmetic: str, calibration: KCalibration | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`host.studies.compare.online_step_table`)."""
-        from host.studies.compare import online_step_table
-
+        anatomy and ``calibration``'s K (:func:`host.files.replay.online_step_table`)."""
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
@@ -170,8 +173,6 @@ class ReplayedTrial:
 
     def device_table(self) -> StepTable:
         """The logger's own records as a table (raw lengths: it ran uncalibrated)."""
-        from firmware_sim.algorithms.online import OnlineSteps
-
         steps = OnlineSteps.from_records(self.device_records, first_sample_number=int(self.sample_numbers[0]),
                                          sampling_rate_hz=self.header.sampling_rate_hz)
         return StepTable.from_online(steps, t0_s=self.t0_s)
@@ -193,12 +194,6 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
     trial's height (:func:`host.gait.anthropometry.anatomical_lengths`).
     """
-    from firmware_sim.adc import Adc
-    from firmware_sim.device import Logger
-    from firmware_sim.errors import DeviceError
-    from firmware_sim.world.replay import Replay
-    from protocol.steps import StepConfig
-
     lb_path = Path(lb_path)
     trial = read_trial(lb_path)         # the host's reader: the packet grid, lost packets missing, the JSON
     try:
@@ -317,8 +312,6 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
 
 def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_trial: bool) -> list[dict]:
     """Each on-line float step with its online-fixed and offline twins (module notes, step 7)."""
-    from host.studies.compare import match_steps
-
     fl, fx, off = tables["online-float"], tables["online-fixed"], tables["offline"]
     ar, alg = match_steps(fx, fl), match_steps(fl, off)
     fixed_of, off_of = ar.a_of_b(fl.n_steps), alg.b_of_a(fl.n_steps)

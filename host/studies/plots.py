@@ -3,8 +3,9 @@
 One panel per calibration mode: single-speed (M1-M4; M3 is never calibrated) and multi-speed (M1-M5, as
 Fig. 6 adds M5). Each box is the median and quartiles of the 20 m section ratios; the whiskers reach the
 extreme values (the paper plots "median, quartiles and extreme values"), so no point is drawn as an
-outlier. The dashed line is 100 %. matplotlib is imported lazily with the Agg backend; the PNG is written
-atomically (:func:`protocol.atomic_write.atomic_write_bytes`).
+outlier. The dashed line is 100 %. Figures are :class:`matplotlib.figure.Figure` objects
+rendered straight to PNG (no pyplot, no global backend); the PNG is written atomically
+(:func:`protocol.atomic_write.atomic_write_bytes`). Only the commands that draw import this module.
 """
 
 from __future__ import annotations
@@ -14,31 +15,20 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from firmware_sim.algorithms.steps import ESTIMATORS
+from protocol.atomic_write import atomic_write_bytes
 
 PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),
           ("multi-speed", ESTIMATORS, "Calibration at every speed"))
 
 
-def _pyplot():
-    """matplotlib's pyplot on the Agg backend, imported when a figure is drawn (not at import)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _png_bytes(plt, fig, dpi: int) -> bytes:
-    """``fig`` laid out, rendered to PNG bytes and closed."""
+def _png_bytes(fig: Figure, dpi: int) -> bytes:
+    """``fig`` laid out and rendered to PNG bytes."""
     buf = io.BytesIO()
-    try:
-        fig.tight_layout()
-        fig.savefig(buf, format="png", dpi=dpi)
-    finally:
-        plt.close(fig)
+    fig.tight_layout()
+    fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
 
 
@@ -52,14 +42,14 @@ def ratios_by_panel(rows: Iterable[dict]) -> dict[str, dict[str, np.ndarray]]:
 
 def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: int = 120) -> bytes:
     """The figure as PNG bytes (raises ValueError when no panel has data)."""
-    plt = _pyplot()
     data = ratios_by_panel(rows)
     panels = [(mode, [e for e in ests if data.get(mode, {}).get(e, np.zeros(0)).size], label)
               for mode, ests, label in PANELS]
     panels = [p for p in panels if p[1]]
     if not panels:
         raise ValueError("no section ratios to plot")
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.2), sharey=True, squeeze=False)
+    fig = Figure(figsize=(4.2 * len(panels), 4.2))
+    axes = fig.subplots(1, len(panels), sharey=True, squeeze=False)
     for ax, (mode, ests, label) in zip(axes[0], panels):
         values = [100.0 * data[mode][e] for e in ests]
         ax.boxplot(values, whis=(0, 100), widths=0.5, medianprops={"color": "k"})
@@ -72,13 +62,11 @@ def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: 
     axes[0][0].set_ylabel("estimated / real distance (%)")
     if title:
         fig.suptitle(title, fontsize=10)
-    return _png_bytes(plt, fig, dpi)
+    return _png_bytes(fig, dpi)
 
 
 def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None = None, dpi: int = 120) -> Path:
     """Write the Figs 5-6 style box plots of ``rows`` (see :mod:`host.studies.evaluation`) to ``path`` (PNG)."""
-    from protocol.atomic_write import atomic_write_bytes
-
     png = render_boxplots_png(rows, title=title, dpi=dpi)
     atomic_write_bytes(path, png)
     return Path(path)
@@ -89,14 +77,14 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     """Box plots of per-trial ratios (``estimator``, ``arithmetic``, ``k_from``, ``ratio`` rows of
     :mod:`host.studies.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
     chain's K only (the comparison). Raises ValueError when there is nothing to plot."""
-    plt = _pyplot()
     ests = ESTIMATORS
     data = {(a, e): np.asarray([float(r["ratio"]) for r in rows if r["estimator"] == e and r["arithmetic"] == a
                                 and r.get("k_from", "offline") == "offline"], np.float64) for a in chains for e in ests}
     data = {k: v[np.isfinite(v)] for k, v in data.items()}
     if not any(v.size for v in data.values()):
         raise ValueError("no ratios to plot")
-    fig, ax = plt.subplots(figsize=(7.5, 4.0))
+    fig = Figure(figsize=(7.5, 4.0))
+    ax = fig.subplots()
     width = 0.8 / len(chains)
     for j, a in enumerate(chains):
         pos = [i + 1 + (j - (len(chains) - 1) / 2) * width for i in range(len(ests))]
@@ -113,7 +101,7 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     ax.legend(fontsize=8, loc="lower right")
     if title:
         ax.set_title(title, fontsize=9)
-    return _png_bytes(plt, fig, dpi)
+    return _png_bytes(fig, dpi)
 
 
 #: Colour and marker of each event of the overview (:data:`host.studies.overview.EVENTS`).
@@ -126,10 +114,9 @@ def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi
     exactly ``size_px`` (width, height) pixels: the acceleration (x, y, z in g) with the gaps shaded, the lap
     marks as vertical lines and the events as markers on the top panel; each step's length per estimator
     (offline chain filled markers, the device's records open markers) on the bottom panel."""
-    plt = _pyplot()
     width, height = size_px
-    fig, (ax, ax_len) = plt.subplots(2, 1, figsize=(width / dpi, height / dpi), sharex=True,
-                                     gridspec_kw={"height_ratios": [2, 1]})
+    fig = Figure(figsize=(width / dpi, height / dpi))
+    ax, ax_len = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     t, acc = overview.time_s, overview.acc_g
     for k, axis in enumerate("xyz"):
         ax.plot(t, acc[:, k], lw=0.6, color=f"C{k + 4}", label=f"{axis} (g)")
@@ -166,4 +153,4 @@ def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi
         ax_len.legend(fontsize=7, loc="upper right", ncol=5)
     ax_len.grid(alpha=0.3)
     ax_len.set_xlim(*overview.window_s)
-    return _png_bytes(plt, fig, dpi)
+    return _png_bytes(fig, dpi)

@@ -1,7 +1,7 @@
 """ADC width x sample rate sweep over simulated subjects, and the paper's open question about M5.
 
 For every subject (:func:`firmware_sim.world.subject.random_subjects`) the walk and the sensor's analog
-response are computed once (:class:`host.studies.compare.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
+response are computed once (:class:`host.studies.simulation.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
 that same analog output (same sensor, same noise seed), and each ADC width (8, 10, 12 bits) quantises the
 same samples. Every configuration then runs the comparison of :func:`host.studies.compare.compare_walk`: the
 ideal (no ADC) and offline float chains and the on-line algorithm in float and in fixed point, with **one
@@ -53,14 +53,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Self
 
 import numpy as np
 
 from firmware_sim.algorithms.steps import ESTIMATORS
+from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
-from host.studies.compare import CHAINS, MODES, SHARES, column_key, pair_label
+from host.gait.sections import MODES
+from host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_label
+from host.studies.simulation import AnalogWalk
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 BITS = (8, 10, 12)
@@ -93,8 +97,6 @@ class ConfigResult:
 
 
 def _subject_job(job: tuple) -> list[ConfigResult]:
-    from host.studies.compare import AnalogWalk, compare_walk
-
     subject, seed, protocol, bits_list, rates, options = job
     walk = AnalogWalk(subject=subject, seed=seed, protocol=protocol).run()
     out = []
@@ -152,8 +154,6 @@ class AdcRateSweep:
     def run(self, progress: Callable[[], object] | None = None) -> Self:
         """Simulate every subject once and run every configuration on it; ``progress()`` is called after each
         subject (all its configurations)."""
-        from firmware_sim.world.subject import random_subjects
-
         if self.n_subjects < 1:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         for b in self.bits:
@@ -163,8 +163,6 @@ class AdcRateSweep:
                  tuple(float(r) for r in self.rates_hz), options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
-            from concurrent.futures import ProcessPoolExecutor
-
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
                 per_subject = [_ticked(rs, progress) for rs in pool.map(_subject_job, jobs)]
         else:

@@ -17,8 +17,9 @@ import pytest
 import serial
 
 from firmware_sim.device import Logger
+from firmware_sim.pty_server import serve_pty
 from firmware_sim.sensor import SensorModel
-from firmware_sim.transport import FaultInjector, serve_pty, serve_tcp
+from firmware_sim.transport import FaultInjector, serve_tcp
 from firmware_sim.world.poses import CalibrationPoses
 
 

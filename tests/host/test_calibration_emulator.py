@@ -32,11 +32,8 @@ import pytest
 from firmware_sim import device
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.poses import CalibrationPoses
-from host.accelerometer.calibration import (
-    AccCalibration,
-    AccCalibrator,
-    parameter_bounds,
-)
+from host.accelerometer.calibration import AccCalibration
+from host.accelerometer.fit import AccCalibrator, parameter_bounds
 
 
 def truth_in_counts(truth) -> dict[str, np.ndarray]:

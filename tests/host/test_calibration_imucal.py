@@ -15,7 +15,8 @@ import json
 import numpy as np
 import pytest
 
-from host.accelerometer.calibration import AccCalibrator, CalibrationError
+from host.accelerometer.calibration import CalibrationError
+from host.accelerometer.fit import AccCalibrator
 
 RATE_HZ = 204.8
 STATIC = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")

@@ -20,10 +20,12 @@ from host.accelerometer.calibration import (
     CalibrationError,
     axes_matrix,
     calibration_matrix,
+    gram_from_angles,
+)
+from host.accelerometer.fit import (
     direction_coverage,
     ellipsoid_fit,
     fit_calibration,
-    gram_from_angles,
     parameter_bounds,
 )
 from host.errors import HostError
@@ -91,7 +93,7 @@ def test_ellipsoid_fit_recovers_a_known_ellipsoid():
 
 
 def test_analytic_jacobian_matches_finite_differences():
-    from host.accelerometer.calibration import _jacobian, _residuals
+    from host.accelerometer.fit import _jacobian, _residuals
 
     rng = np.random.default_rng(2)
     y = unit_vectors(rng, 15) * 1.1 + 0.05
@@ -377,7 +379,7 @@ def test_property_apply_inverts_inverse(cal, acc):
 
 
 def test_calibrator_refuses_out_of_range_and_infinite_samples_naming_the_sample():
-    from host.accelerometer.calibration import AccCalibrator
+    from host.accelerometer.fit import AccCalibrator
 
     codes = np.full((500, 3), 512.0)
     codes[321, 2] = 1024.0

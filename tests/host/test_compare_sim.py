@@ -14,21 +14,21 @@ import pytest
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from host.files.replay import online_step_table
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.sections import calibration_sets, sections_from_marks
 from host.studies.compare import (
-    AnalogWalk,
     bootstrap_budget,
     compare_recording,
     compare_walk,
     match_steps,
-    online_step_table,
     resampled_medians,
     segment_distances,
     step_differences,
     subject_resamples,
     truth_table,
 )
+from host.studies.simulation import AnalogWalk
 
 FS = 50.0
 #: The scale error injected into the fixed-point chain.
@@ -301,7 +301,7 @@ def test_online_runs_restart_at_run_starts_and_after_missing_samples(walk) -> No
 
 
 def _config(s):
-    from host.studies.compare import step_config_for
+    from host.files.replay import step_config_for
 
     return step_config_for(leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
 

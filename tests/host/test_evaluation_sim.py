@@ -15,19 +15,18 @@ from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walking import Walking
 from host.errors import HostError
-from host.gait.sections import section_fractions, sections_from_marks
+from host.gait.sections import MODES, section_fractions, sections_from_marks
+from host.studies.compare import match_events
 from host.studies.evaluation import (
     ESTIMATORS,
-    MODES,
     ROW_COLUMNS,
     SimulatedEvaluation,
-    SimulatedRecording,
     evaluate_recording,
     format_summary,
-    match_events,
     paper_pattern,
     summarise,
 )
+from host.studies.simulation import SimulatedRecording
 
 #: 60 m corridor: marks 10, 30 | 50-70 holds the turn | 70, 90, 110; first 40 m = calibration.
 SHORT = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=8.0,

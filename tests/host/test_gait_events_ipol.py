@@ -25,7 +25,7 @@ def matched(shared_data) -> dict[str, dict[str, float]]:
     from host.files.ipol import list_trials, read_trial
     from host.gait.anthropometry import anatomical_lengths
     from host.gait.pipeline import StepPipeline
-    from host.studies.evaluation import match_events
+    from host.studies.compare import match_events
     from host.studies.ipol_evaluation import replay_trial
 
     counts = {"heel_strike": [0, 0, 0], "toe_off": [0, 0, 0]}     # matched, reference, detected

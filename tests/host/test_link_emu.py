@@ -16,6 +16,7 @@ from firmware_sim.world.base import Motion
 from host.errors import HostError
 from host.files.decode import decode_file
 from host.link.logger_link import LoggerLink
+from host.link.memory_dump import dump_memory
 
 CAP = 65536
 
@@ -80,7 +81,7 @@ def test_dump_round_trip_bit_identical(which, small_image, wrapped_image, tmp_pa
     path, result = small_image if which == "small" else wrapped_image
     out = tmp_path / "dumped.glimg"
     with LoggerLink(f"emu://{path}", timeout_s=0.5) as link:
-        dump = link.dump(out, progress=False)
+        dump = dump_memory(link, out, progress=False)
     assert dump.complete_
     rec = decode_file(out)
     codes, flags = truth_of(result)
@@ -102,7 +103,7 @@ def test_dump_through_noisy_line_is_exact(wrapped_image, tmp_path):
     path, result = wrapped_image
     out = tmp_path / "noisy.glimg"
     with LoggerLink(f"emu://{path}?corrupt=0.001&seed=4", timeout_s=0.2) as link:
-        dump = link.dump(out, progress=False, retries=12)
+        dump = dump_memory(link, out, progress=False, retries=12)
         n_corrupted = link.serial.faults.n_corrupted
     assert n_corrupted > 200  # the line really was noisy (one byte in a thousand of > 262 kB)
     assert dump.complete_, dump.missing_ranges_
@@ -120,10 +121,10 @@ def test_cut_dump_completes_with_resume(wrapped_image, tmp_path):
     state = tmp_path / "cut.glimg.part"
     with LoggerLink(f"emu://{path}?cut_after=120000", timeout_s=0.1, retries=1) as link:
         with pytest.raises(HostError):
-            link.dump(out, progress=False)
+            dump_memory(link, out, progress=False)
     assert state.exists() and not out.exists() and not (tmp_path / "cut.glimg.json").exists()
     with LoggerLink(f"emu://{path}", timeout_s=0.5) as link:
-        dump = link.dump(out, progress=False, resume=True)
+        dump = dump_memory(link, out, progress=False, resume=True)
         received = link.stats.bytes_received
     assert dump.complete_ and dump.metadata_["resumed"]
     # only what was missing travelled the second time
@@ -141,10 +142,10 @@ def test_resume_refuses_a_changed_device(small_image, wrapped_image, tmp_path):
     out = tmp_path / "x.glimg"
     with LoggerLink(f"emu://{wrapped_image[0]}?cut_after=50000", timeout_s=0.1, retries=0) as link:
         with pytest.raises(HostError):
-            link.dump(out, progress=False)
+            dump_memory(link, out, progress=False)
     with LoggerLink(f"emu://{small_image[0]}", timeout_s=0.5) as link:
         with pytest.raises(HostError, match="header changed"):
-            link.dump(out, progress=False, resume=True)
+            dump_memory(link, out, progress=False, resume=True)
     assert not out.exists()
 
 
@@ -158,7 +159,7 @@ def test_missing_port_and_bad_url():
 def test_dead_line_fails_fast_with_clear_message(small_image, tmp_path):
     with LoggerLink(f"emu://{small_image[0]}?cut_after=0", timeout_s=0.05, retries=1) as link:
         with pytest.raises(HostError, match="no valid answer to IDENTIFY"):
-            link.dump(tmp_path / "d.glimg", progress=False)
+            dump_memory(link, tmp_path / "d.glimg", progress=False)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -172,7 +173,7 @@ def test_start_stop_erase_and_busy(small_image, tmp_path):
         with pytest.raises(HostError, match="BUSY"):
             link.read(0, 4)
         with pytest.raises(HostError, match="logging"):
-            link.dump(tmp_path / "busy.glimg", progress=False)
+            dump_memory(link, tmp_path / "busy.glimg", progress=False)
         link.stop()
         st = link.status()
         assert st["state"] == 0

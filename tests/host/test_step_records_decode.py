@@ -19,8 +19,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.files.decode import STEP_REASONS, decode_bytes, verify_step_records
+from host.files.decode import STEP_REASONS, decode_bytes
 from host.files.recording import STEP_CSV_COLUMNS, Recording
+from host.files.replay import verify_step_records
 from protocol.frames import encode_frame
 from protocol.header import DeviceHeader
 from protocol.image import build_image

@@ -5,12 +5,12 @@
 
 from __future__ import annotations
 
+import serial
+
 PACKAGE = "host.link.transports"
 
 
 def register() -> None:
     """Add this package to pyserial's URL-handler search path (idempotent)."""
-    import serial
-
     if PACKAGE not in serial.protocol_handler_packages:
         serial.protocol_handler_packages.append(PACKAGE)

@@ -34,6 +34,8 @@ import urllib.parse
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
+from firmware_sim.device import Logger
+
 _FORM = ('expected "emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1]"')
 _FLOAT_OPTIONS = ("corrupt", "drop", "insert")
 _INT_OPTIONS = ("seed", "cut_after")
@@ -169,8 +171,6 @@ class Serial(SerialBase):
             raise SerialException("Port must be configured before it can be used.")
         opts = parse_url(self.portstr)
         try:
-            from firmware_sim.device import Logger
-
             if opts["image"]:
                 self._device = Logger.from_image(opts["image"],
                                                  image_path=opts["image"] if opts["persist"] else None)

@@ -1,0 +1,178 @@
+"""The simulated walks the studies run on: the emulated world, sensor, ADC and logger at work.
+
+- :func:`record_subject` -> :class:`SimulatedRecording`: a subject walks the paper's protocol with the emulated
+  logger (after a pose session that calibrates it), and its memory image is decoded as a dump would be (steps
+  1-2 of :mod:`host.studies.evaluation`).
+- :class:`AnalogWalk`: the same walk seen by the sensor on its fine analog grid, sampled at any rate into a
+  :class:`host.studies.compare.SampledWalk` (the ADC/rate/arithmetic comparison of :mod:`host.studies.compare`
+  and the sweep).
+
+The world model and the sensor (``scipy.signal``, ``scipy.interpolate``) are imported here, at module level,
+so that the studies on recordings (``gaitlog compare`` on a file) and the commands on files never load them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from firmware_sim.adc import Adc
+from firmware_sim.device import Logger
+from firmware_sim.sensor import SensorModel
+from firmware_sim.world.poses import CalibrationPoses
+from firmware_sim.world.walking import Walking
+from host.accelerometer.fit import AccCalibrator
+from host.errors import HostError
+from host.files.decode import decode_bytes
+from host.studies.compare import SampledWalk
+from protocol.header import Calibration
+from protocol.image import build_image
+from protocol.packing import FLAG_MARK
+
+__all__ = ["AnalogWalk", "SimulatedRecording", "record_subject"]
+
+
+@dataclass(frozen=True, eq=False)
+class SimulatedRecording:
+    """What the logger stored for one simulated subject, in calibrated g, with the world's truth.
+
+    Attributes
+    ----------
+    subject
+        The :class:`firmware_sim.world.subject.Subject`.
+    seed
+        Seed of the walk and of the device.
+    acc_g, valid
+        ``(n, 3)`` calibrated specific force (g) and the validity mask.
+    sampling_rate_hz, t0_s
+        Logger rate and time of sample 0 on the walk's clock.
+    mark_times_s
+        Times of the samples carrying the MARK flag (lap button).
+    truth
+        The walk's truth (``steps``, ``laps``, ``excursions``, ...; see :mod:`firmware_sim.world.walking`).
+    device_calibrated
+        True when the codes were converted with a pose-session calibration (else the nominal map).
+    """
+
+    subject: Any
+    seed: int
+    acc_g: np.ndarray
+    valid: np.ndarray
+    sampling_rate_hz: float
+    t0_s: float
+    mark_times_s: np.ndarray
+    truth: dict
+    device_calibrated: bool
+
+
+def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_rate_hz: float = 50.0, bits: int = 10,
+                   calibrate_device: bool = True) -> SimulatedRecording:
+    """Walk ``subject`` through the protocol with the emulated logger (:mod:`host.studies.evaluation`, steps 1-2).
+
+    Parameters
+    ----------
+    subject
+        A :class:`firmware_sim.world.subject.Subject`.
+    seed
+        Seeds the walk's variability, the pose session and the device's sensor errors.
+    protocol
+        A :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    sampling_rate_hz, bits
+        Logger sample rate and ADC resolution.
+    calibrate_device
+        Fit the device calibration on a pose session first (default) or use the nominal map.
+    """
+    logger = Logger(adc=Adc(adc_bits=bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
+    if calibrate_device:
+        poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
+        full = float(2**bits)
+        apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=sampling_rate_hz,
+                                          input_unit="counts", zero=full / 2, unit_per_g=full / 4,
+                                          valid_range=(0.0, full - 1)).calibration_.apply
+        logger.erase()
+    else:
+        apply = Calibration.nominal(bits).apply
+    res = logger.record(Walking(subject=subject, protocol=protocol, seed=seed))
+    if res.n_taken != res.n_samples:
+        raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
+                        "samples (memory full): shorten the protocol's rests")
+    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be.
+    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
+                          source=f"{subject.subject_id}.sim")
+    pos = np.searchsorted(np.asarray(res.sample_numbers), stored.sample_numbers)
+    if np.any(pos >= res.n_samples) or np.any(np.asarray(res.sample_numbers)[np.minimum(pos, res.n_samples - 1)]
+                                              != stored.sample_numbers):
+        raise HostError(f"subject {subject.subject_id}: decoded sample numbers do not match the recording")
+    times = np.asarray(res.sample_times_s, np.float64)[pos]
+    acc = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
+    valid = np.asarray(stored.valid, bool) & np.isfinite(acc).all(axis=1)
+    acc[~valid] = np.nan
+    marks = times[(np.asarray(stored.flags) & FLAG_MARK) != 0]
+    rate = float(1.0 / np.median(np.diff(times)))
+    truth = {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests", "subject") if k in res.truth}
+    return SimulatedRecording(subject, int(seed), acc, valid, rate, float(times[0]), marks, truth,
+                              bool(calibrate_device))
+
+
+class AnalogWalk:
+    """A subject walking the protocol, seen by the logger's sensor on its fine analog grid.
+
+    Parameters
+    ----------
+    subject
+        :class:`firmware_sim.world.subject.Subject`.
+    seed
+        Seed of the walk; the sensor is the unit ``SensorModel.draw(seed=sensor_seed)`` (default: the
+        logger's default for ``device_id = 1 + seed % 60000``, as :func:`record_subject`).
+    protocol
+        :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+
+    Attributes
+    ----------
+    volts_, rate_hz_, truth_, sensor_
+        Sensor output (``(n, 3)`` V, noise-free: the noise is drawn at the sample instants), its rate, the
+        walk's truth and the sensor.
+    """
+
+    def __init__(self, *, subject: Any, seed: int = 0, protocol: Any = None, sensor_seed: int | None = None) -> None:
+        self.subject = subject
+        self.seed = seed
+        self.protocol = protocol
+        self.sensor_seed = sensor_seed
+
+    def run(self) -> AnalogWalk:
+        """Render the walk and the sensor's response (the expensive part, done once per subject)."""
+        sseed = self.sensor_seed if self.sensor_seed is not None else 1 + self.seed % 60000
+        self.sensor_ = SensorModel.draw(seed=int(sseed))
+        motion = Walking(subject=self.subject, protocol=self.protocol, seed=self.seed).render(
+            self.sensor_.internal_rate_hz)
+        self.rate_hz_ = float(motion.sampling_rate_hz)
+        self.t0_s_ = float(motion.t0_s)
+        self.t_last_s_ = self.t0_s_ + (motion.acc_g.shape[0] - 1) / self.rate_hz_
+        self.marker_times_s_ = np.asarray(motion.marker_times_s, np.float64)
+        self.volts_ = self.sensor_.respond(motion.acc_g, self.rate_hz_, noise=False)
+        self.truth_ = {k: motion.truth[k] for k in ("steps", "laps", "excursions", "rests") if k in motion.truth}
+        return self
+
+    def sample(self, sampling_rate_hz: float) -> SampledWalk:
+        """The analog output at the sample instants of a ``sampling_rate_hz`` timer, noise included (as
+        :meth:`firmware_sim.device.Logger.record`: same instants, same hold, same noise stream)."""
+        adc = Adc(adc_bits=10, sampling_rate_hz=sampling_rate_hz)
+        sen = self.sensor_
+        times = adc.sample_times_s(self.t0_s_, self.t_last_s_)
+        held = adc.hold(self.volts_, self.rate_hz_, self.t0_s_, times)
+        held = held + sen.noise_g(times, rng=np.random.default_rng(sen.seed)) * sen.gain_v_per_g
+        # the converter input in 10-bit code units (Adc.convert without the floor), clipped to the span
+        lsb = adc.lsb_v
+        v = adc.ref_v + adc.gain * (held - adc.ref_v)
+        x = np.clip((v - adc.vref_low_v) / lsb, 0.0, float(adc.n_codes) - 1e-9)
+        offset = (adc.ref_v + adc.gain * (sen.zero_g_v + sen.gain_v_per_g * sen.offset_g - adc.ref_v)
+                  - adc.vref_low_v) / lsb
+        gain = (adc.gain * sen.gain_v_per_g / lsb)[:, None] * sen.axes
+        marks = np.zeros(times.size, bool)
+        if self.marker_times_s_.size:
+            k = np.searchsorted(times, self.marker_times_s_, side="left")
+            marks[k[k < times.size]] = True
+        return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_)

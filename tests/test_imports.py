@@ -1,0 +1,111 @@
+"""How the packages import each other: the layering protocol <- firmware_sim <- host (and inside host, the
+rooms below the studies below the commands), no import cycle, and no import hidden inside a library function
+(ARCHITECTURE.md; issue 11). Static: the sources are parsed, nothing is imported."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("protocol", "firmware_sim", "host")
+#: Layer of each package or host room: a module may import only from its own layer or a lower one.
+LAYERS = {"protocol": 0, "firmware_sim": 1, "host": 2, "host.errors": 2, "host.link": 3, "host.files": 3,
+          "host.accelerometer": 3, "host.gait": 3, "host.kinematics": 3, "host.studies": 4, "host.commands": 5,
+          "host.cli": 6, "host.__main__": 7}
+#: Modules whose functions may import (the command line's lazy imports keep ``gaitlog --help`` fast).
+LAZY_ALLOWED = ("host.commands.", "host.cli", "host.__main__")
+
+
+def _modules() -> dict[str, ast.Module]:
+    out = {}
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+            out[name] = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    return out
+
+
+MODULES = _modules()
+
+
+def _is_type_checking(node: ast.AST) -> bool:
+    return isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+
+
+def _imported(node: ast.Import | ast.ImportFrom, module: str) -> list[str]:
+    """Project modules named by an import statement (``from a import b`` counts ``a.b`` when that is a module)."""
+    if isinstance(node, ast.Import):
+        names = [a.name for a in node.names]
+    else:
+        assert node.level == 0, f"{module}:{node.lineno}: relative import (the project imports absolutely)"
+        base = node.module or ""
+        names = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
+    return [n for n in names if n.split(".")[0] in PACKAGES]
+
+
+def _module_level_imports(tree: ast.Module) -> list[ast.Import | ast.ImportFrom]:
+    """Imports executed when the module is imported (not those under ``if TYPE_CHECKING:``, not in functions)."""
+    found = []
+
+    def walk(node: ast.AST) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)) or _is_type_checking(child):
+                continue
+            if isinstance(child, (ast.Import, ast.ImportFrom)):
+                found.append(child)
+            walk(child)
+
+    walk(tree)
+    return found
+
+
+def _layer(module: str) -> int:
+    parts = module.split(".")
+    for k in range(len(parts), 0, -1):
+        if ".".join(parts[:k]) in LAYERS:
+            return LAYERS[".".join(parts[:k])]
+    raise AssertionError(f"{module}: no layer declared in LAYERS")
+
+
+def test_no_import_inside_a_library_function() -> None:
+    hidden = []
+    for name, tree in MODULES.items():
+        if name.startswith(LAZY_ALLOWED):
+            continue
+        for func in ast.walk(tree):
+            if isinstance(func, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                hidden += [f"{name}:{n.lineno}: {ast.unparse(n)}" for n in ast.walk(func)
+                           if isinstance(n, (ast.Import, ast.ImportFrom))]
+    assert not hidden, "imports inside library functions:\n" + "\n".join(sorted(set(hidden)))
+
+
+
+def test_imports_go_only_downwards() -> None:
+    upward = []
+    for name, tree in MODULES.items():
+        for node in _module_level_imports(tree):
+            upward += [f"{name} imports {t}" for t in _imported(node, name) if _layer(t) > _layer(name)]
+    assert not upward, "\n".join(upward)
+
+
+def test_no_import_cycle() -> None:
+    graph = {name: {t for node in _module_level_imports(tree) for t in _imported(node, name) if t != name}
+             for name, tree in MODULES.items()}
+    state: dict[str, int] = {}
+    cycles: list[list[str]] = []
+
+    def visit(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for nxt in sorted(graph[node] & MODULES.keys()):
+            if state.get(nxt) == 1:  # on the current path: a cycle
+                cycles.append(path[path.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    assert not cycles, "\n".join(" -> ".join(c) for c in cycles)
