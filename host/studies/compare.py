@@ -62,14 +62,13 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from firmware_sim.algorithms.online import OnlineStepAlgorithm
 from firmware_sim.algorithms.steps import (
     ESTIMATORS,
     StepTable,
     csv_text,
     float_csv_cells,
 )
-from host.errors import HostError
 from host.files.replay import online_step_table
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.pipeline import StepPipeline, apply_calibration

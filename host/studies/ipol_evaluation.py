@@ -51,7 +51,6 @@ algorithm shares, the calibrated medians); :func:`format_done` prints them.
 from __future__ import annotations
 
 import math
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
