@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 
+from host.commands._anatomy_options import add_anatomy_options
+from host.commands._options import add_verbosity_options
+
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
 
@@ -20,21 +23,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "need --k-file or a device that had K)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k'")
     parser.add_argument("--size", default="1400x700", metavar="WxH", help="figure size in pixels (default 1400x700)")
-    parser.add_argument("--leg-length", type=float, metavar="M",
-                        help="leg length, m (default: the recording's step configuration, else from --height)")
-    parser.add_argument("--foot-length", type=float, metavar="M",
-                        help="foot length, m (default: the recording's step configuration, else from --height)")
-    parser.add_argument("--height", type=float, metavar="M", help="body height, m (leg and foot from it)")
+    add_anatomy_options(parser)
+    add_verbosity_options(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     import re
     from pathlib import Path
 
+    from host.commands._anatomy_options import lengths_from_args
+    from host.commands._options import printer
     from host.errors import HostError
-    from host.files.decode import decode_file
-    from host.files.recording import Recording
-    from host.gait.anthropometry import anatomical_lengths
+    from host.files.inputs import read_acceleration
     from host.gait.k_calibration import KCalibration
     from host.studies.overview import recording_overview
     from host.studies.plots import render_overview_png
@@ -51,23 +51,20 @@ def run(args: argparse.Namespace) -> int:
         raise HostError(f"--out {out}: is the input; give another file")
     if not src.is_file():
         raise HostError(f"{src}: no such file")
-    rec = Recording.load(src) if src.suffix.lower() == ".npz" else decode_file(src)
+    data = read_acceleration(src)
+    if data.recording is None:
+        raise HostError(f"{src}: plot draws a logger recording (memory image, raw dump, wire capture or decoded "
+                        f".npz); this is {data.source}: record it first (gaitlog record --motion replay)")
+    rec = data.recording
     cal = KCalibration.load(args.k_file) if args.k_file else None
-    leg, foot = args.leg_length, args.foot_length
-    cfg = rec.step_config
-    if args.height is None and cfg is not None and getattr(cfg, "enabled", False):
-        leg = cfg.leg_length_m if leg is None else leg
-        foot = cfg.foot_length_m if foot is None else foot
-    if cal is not None and args.height is None:
-        leg = cal.leg_length_m if leg is None else leg
-        foot = cal.foot_length_m if foot is None else foot
-    leg, foot = anatomical_lengths(leg_length_m=leg, foot_length_m=foot, height_m=args.height)
+    lengths = lengths_from_args(args, k=cal, data=data)
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
     estimators = [e.strip().upper() for e in args.estimators.split(",") if e.strip()]
     overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, calibration=cal, start_s=args.start,
                                   duration_s=args.duration, estimators=estimators)
     atomic_write_bytes(out, render_overview_png(overview, size_px=(int(size[1]), int(size[2]))))
     ev = ", ".join(f"{v.size} {k}" for k, v in overview.events_s.items() if v.size or k != "device step")
-    print(f"{out}: {overview.window_s[0]:g}-{overview.window_s[1]:g} s of {src} ({overview.time_s.size} samples, "
+    printer(args)(f"{out}: {overview.window_s[0]:g}-{overview.window_s[1]:g} s of {src} ({overview.time_s.size} samples, "
           f"{len(overview.gaps_s)} gap(s), {overview.marks_s.size} lap mark(s)); {ev}; leg {leg:.3f} m, "
-          f"foot {foot:.3f} m")
+          f"foot {foot:.3f} m" + (f" ({lengths.note})" if lengths.note else ""))
     return 0

@@ -12,7 +12,7 @@ from host.commands import demo
 
 def test_demo_keeps_its_files_and_its_next_commands_run(tmp_path, monkeypatch, capsys) -> None:
     monkeypatch.chdir(tmp_path)
-    assert main(["demo", "--quiet", "--poses", "4"]) == 0
+    assert main(["demo", "--poses", "4"]) == 0
     out = capsys.readouterr().out
     folder = tmp_path / demo.DEFAULT_OUT
     marker = json.loads((folder / demo.MARKER).read_text())
