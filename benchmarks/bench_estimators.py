@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 N = 65_536
-FS = 50.0
+SAMPLING_RATE_HZ = 50.0
 
 
 def real_or_synthetic() -> tuple[np.ndarray, np.ndarray, str]:
@@ -54,7 +54,7 @@ def real_or_synthetic() -> tuple[np.ndarray, np.ndarray, str]:
         valid = np.concatenate(valids * reps)[:N]
         return acc, valid, "IPOL lower back replayed at 50 Hz / 10 bits"
     rng = np.random.default_rng(0)
-    t = np.arange(N) / FS
+    t = np.arange(N) / SAMPLING_RATE_HZ
     w = 2 * np.pi / 0.55
     a = 0.02 * w * w * np.cos(w * t) + rng.normal(0, 0.1, N)
     acc = np.c_[0.5 * (1 + a / STANDARD_GRAVITY_M_S2), np.zeros(N), 0.866 * (1 + a / STANDARD_GRAVITY_M_S2)]
@@ -68,14 +68,14 @@ def loop_baseline(acc: np.ndarray, valid: np.ndarray, leg: float, foot: float) -
     from host.gait.axes import body_axes
     from host.gait.events import GaitEventDetector
 
-    ax = body_axes(acc, sampling_rate_hz=FS, valid=valid)
-    ev = GaitEventDetector().detect(ax.acc_v_m_s2, sampling_rate_hz=FS, valid=ax.valid)
+    ax = body_axes(acc, sampling_rate_hz=SAMPLING_RATE_HZ, valid=valid)
+    ev = GaitEventDetector().detect(ax.acc_v_m_s2, sampling_rate_hz=SAMPLING_RATE_HZ, valid=ax.valid)
     av, lp = ax.acc_v_m_s2, ev.first_harmonic_m_s2_
     out = []
     for s, e, to, hs in zip(ev.step_start_, ev.step_end_, ev.step_toe_off_, ev.step_heel_strike_):
         idx = np.arange(s, e + 1)
         idx = idx[ax.valid[idx]]
-        t = idx / FS - s / FS
+        t = idx / SAMPLING_RATE_HZ - s / SAMPLING_RATE_HZ
         a = av[idx]
         v = cumulative_trapezoid(a, t, initial=0)
         p1 = cumulative_trapezoid(v, t, initial=0)
@@ -87,7 +87,7 @@ def loop_baseline(acc: np.ndarray, valid: np.ndarray, leg: float, foot: float) -
         h3 = np.ptp(p2[ss]) if ss.sum() > 1 else np.nan
         r = np.nanmax(lp[s:e + 1]) - np.nanmin(lp[s:e + 1])
         out.append((2 * np.sqrt(2 * leg * h1 - h1 ** 2), 2 * np.sqrt(2 * leg * h2 - h2 ** 2),
-                    2 * np.sqrt(2 * leg * h3 - h3 ** 2) + foot, r ** 0.25, FS / (e - s)))
+                    2 * np.sqrt(2 * leg * h3 - h3 ** 2) + foot, r ** 0.25, SAMPLING_RATE_HZ / (e - s)))
 
 
 def cli_startup() -> tuple[float, float]:
@@ -116,7 +116,7 @@ def main() -> int:
     pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        t_vec = best_of(lambda: pipe.run(acc, sampling_rate_hz=FS, valid=valid), warmup=True)
+        t_vec = best_of(lambda: pipe.run(acc, sampling_rate_hz=SAMPLING_RATE_HZ, valid=valid), warmup=True)
         t_loop = best_of(lambda: loop_baseline(acc, valid, leg, foot), repeat=3, warmup=True)
     n_steps = pipe.steps_.n_steps
     t_imp, t_help, t_py = cli_startup()

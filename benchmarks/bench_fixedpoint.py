@@ -164,10 +164,10 @@ def chain_benchmark() -> bool:
 def _walking_codes(n: int) -> np.ndarray:
     """10-bit codes of a tilted sensor on a CoM moving vertically at 1.8 steps/s with 2.5 cm excursion."""
     rng = np.random.default_rng(7)
-    fs = 50.0
-    t = np.arange(n) / fs
+    sampling_rate_hz = 50.0
+    t = np.arange(n) / sampling_rate_hz
     f = 1.8 * (1 + 0.05 * np.sin(2 * np.pi * t / 60.0))
-    phase = 2 * np.pi * np.cumsum(f) / fs
+    phase = 2 * np.pi * np.cumsum(f) / sampling_rate_hz
     a_v_g = 0.0125 * (2 * np.pi * f) ** 2 * np.cos(phase) / STANDARD_GRAVITY_M_S2
     a_ap_g = 0.15 * np.sin(phase + 0.5)
     up = np.array([0.2, 0.1, 0.9747])

@@ -85,10 +85,10 @@ def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ
     host's replay (:mod:`host.files.replay`) uses the same, so device and replay cannot be set up differently."""
     if not header.step_config.enabled:
         return None
-    fs = header.sampling_rate_hz
-    return OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=header.step_config, calibration=header.calibration,
+    sampling_rate_hz = header.sampling_rate_hz
+    return OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=header.step_config, calibration=header.calibration,
                                arithmetic="fixed", adc_bits=header.adc_bits,
-                               cycles_available=algorithm_cycles_per_sample(fs, fosc_hz))
+                               cycles_available=algorithm_cycles_per_sample(sampling_rate_hz, fosc_hz))
 
 
 class Firmware:

@@ -21,11 +21,11 @@ Examples
 --------
 A sinusoidal centre of mass (h = 4 cm, 2 steps/s) on the z axis, 10-bit codes, leg 0.9 m:
 
->>> fs = 50.0; t = np.arange(int(20 * fs)) / fs
+>>> sampling_rate_hz = 50.0; t = np.arange(int(20 * sampling_rate_hz)) / sampling_rate_hz
 >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1 - 0.02 * (4 * np.pi) ** 2 * np.cos(4 * np.pi * t) / 9.80665
 >>> codes = np.clip(np.floor(acc * 256 + 512), 0, 1023).astype(np.int64)
 >>> cfg = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
->>> steps = OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=cfg).run(codes)
+>>> steps = OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg).run(codes)
 >>> steps.n_steps in (37, 38, 39), round(float(np.median(steps.excursion_m()[1:, 1])), 3)
 (True, 0.04)
 """
@@ -92,9 +92,9 @@ BLOCK_SAMPLES = 65536
 G0_ROOT4 = STANDARD_GRAVITY_M_S2 ** 0.25
 
 
-def _gaussian_half(cutoff_hz: float, fs: float, radius: int) -> np.ndarray:
+def _gaussian_half(cutoff_hz: float, sampling_rate_hz: float, radius: int) -> np.ndarray:
     """The normalised Gaussian (-3 dB at ``cutoff_hz``) of ``radius``, centre first (half kernel)."""
-    sigma = SIGMA_S_AT_1HZ / cutoff_hz * fs
+    sigma = SIGMA_S_AT_1HZ / cutoff_hz * sampling_rate_hz
     x = np.arange(-radius, radius + 1, dtype=np.float64)
     phi = np.exp(-0.5 * (x / sigma) ** 2)
     phi /= phi.sum()
@@ -167,18 +167,18 @@ class OnlineConfig:
         ev = events if events is not None else EventParameters()
         on = online if online is not None else OnlineParameters()
         c = SampleCounts.at(ev, on, sampling_rate_hz)
-        fs = c.sampling_rate_hz
+        sampling_rate_hz = c.sampling_rate_hz
         sc = step_config.quantised()
         if not sc.leg_length_m > 0:
             raise ValueError("the step configuration needs a leg length > 0")
         cal_q = (CalibrationQ.from_protocol(calibration, adc_bits=adc_bits) if calibration is not None
                  else nominal_calibration_q(adc_bits=adc_bits))
-        halves = [_gaussian_half(ev.ff_cutoff_hz, fs, c.r3), _gaussian_half(ev.detail_cutoff_hz, fs, c.r10),
-                  _gaussian_half(ev.impact_cutoff_hz, fs, c.r5)]
+        halves = [_gaussian_half(ev.ff_cutoff_hz, sampling_rate_hz, c.r3), _gaussian_half(ev.detail_cutoff_hz, sampling_rate_hz, c.r10),
+                  _gaussian_half(ev.impact_cutoff_hz, sampling_rate_hz, c.r5)]
         w10 = kernel.CV_W3 + c.r3 + 1
         w5 = w10 + c.r10 + 1
         # metres per position unit (4 g T_s^2), its fraction bits, and the pre-shifts that fit 1 m in 16 bits
-        unit = STANDARD_GRAVITY_M_S2 / (4.0 * fs * fs)
+        unit = STANDARD_GRAVITY_M_S2 / (4.0 * sampling_rate_hz * sampling_rate_hz)
         unit_frac = int(math.floor(math.log2(65535.0 / unit)))
         # pre-shifts of the position ranges (M1: 13 fraction bits, M2/M3: 17) that fit the largest h of their
         # excursion formats (1 m, 0.25 m) in 16 bits
@@ -196,7 +196,7 @@ class OnlineConfig:
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
                                 SCRATCH=_scratch_size(c), W10=w10, W5=w5,
                                 BUDGET=int(cycles_available if cycles_available is not None
-                                           else cycles_per_sample_available(fs))).items():
+                                           else cycles_per_sample_available(sampling_rate_hz))).items():
             cfg_i[ci[name]] = value
         n_v = w5 + c.r5 + 1
         if arithmetic == "fixed":
@@ -205,7 +205,7 @@ class OnlineConfig:
                                           k1_m5_q16=1 << 16, k2_m5_q16=0)
             # K' = K g0^(1/4): one UQ1.15 multiply at START
             k4p = int(mul_q(np.int64(raw["k_m4_q15"]), K_Q.from_float(G0_ROOT4), K_Q.frac_bits, K_Q, signed=False))
-            k1fs = raw["k1_m5_q16"] * fs
+            k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
                 DELTA=int(LOWPASS_Q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 G_MIN=int(ACC_Q.from_float(on.min_gravity_g)),
@@ -224,7 +224,7 @@ class OnlineConfig:
             values = dict(
                 DELTA=ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2, G_MIN=on.min_gravity_g,
                 TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * G0_ROOT4,
-                K1FS=k1_m5 * fs, K2M5=k2_m5, UNIT=unit,
+                K1FS=k1_m5 * sampling_rate_hz, K2M5=k2_m5, UNIT=unit,
             )
             slot = calibration.quantised() if calibration is not None else None
             off = slot.offset_counts if slot is not None else np.full(3, 2.0 ** (adc_bits - 1))

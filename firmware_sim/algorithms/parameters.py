@@ -194,21 +194,21 @@ class SampleCounts:
     @classmethod
     def at(cls, events: EventParameters, online: OnlineParameters, sampling_rate_hz: float) -> SampleCounts:
         """The counts at ``sampling_rate_hz``."""
-        fs = float(sampling_rate_hz)
-        if not (math.isfinite(fs) and fs > 0):
+        sampling_rate_hz = float(sampling_rate_hz)
+        if not (math.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
             raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         return cls(
-            fs,
-            gaussian_radius(events.ff_cutoff_hz, fs),
-            gaussian_radius(events.detail_cutoff_hz, fs),
-            gaussian_radius(events.impact_cutoff_hz, fs),
-            max(1, samples(events.min_step_s, fs)),
-            samples(events.max_step_s, fs),
-            samples(events.hs_search_s, fs),
-            samples(events.hs_after_s, fs),
-            samples(events.hs_delay_s, fs),
-            samples(events.to_search_s, fs),
-            max(0, int(round(math.log2(max(online.gravity_tau_s * fs, 1.0))))),
+            sampling_rate_hz,
+            gaussian_radius(events.ff_cutoff_hz, sampling_rate_hz),
+            gaussian_radius(events.detail_cutoff_hz, sampling_rate_hz),
+            gaussian_radius(events.impact_cutoff_hz, sampling_rate_hz),
+            max(1, samples(events.min_step_s, sampling_rate_hz)),
+            samples(events.max_step_s, sampling_rate_hz),
+            samples(events.hs_search_s, sampling_rate_hz),
+            samples(events.hs_after_s, sampling_rate_hz),
+            samples(events.hs_delay_s, sampling_rate_hz),
+            samples(events.to_search_s, sampling_rate_hz),
+            max(0, int(round(math.log2(max(online.gravity_tau_s * sampling_rate_hz, 1.0))))),
             online.median_steps,
             events.min_step_fraction_scaled,
         )

@@ -164,20 +164,20 @@ class StepTable:
         is M1-M3 with M4/M5 NaN (the offline chain's rule without calibration). With K, ``length_m`` holds
         the device's lengths and ``raw_m`` the cadence for M5 only (re-run uncalibrated for raw lengths).
         """
-        fs = float(steps.sampling_rate_hz)
+        sampling_rate_hz = float(steps.sampling_rate_hz)
         n = steps.n_steps
         window = steps.duration > 0
         start = np.where(window, steps.end - steps.duration, -1)
         bout = np.cumsum(~window) - 1 if n else np.zeros(0, np.int64)
         bout = np.maximum(bout, 0)
-        duration_s = np.where(window, steps.duration / fs, np.nan)
+        duration_s = np.where(window, steps.duration / sampling_rate_hz, np.nan)
         lengths = steps.length_m()
         values = np.where(lengths > 0, lengths, np.nan)
         exc = steps.excursion_m()
         exc = np.where(window[:, None] & (exc > 0), exc, np.nan)
         exc[:, 2] = np.where(steps.has_flag(StepFlag.M3_UNDEFINED), np.nan, exc[:, 2])
         rng = np.where(window, steps.range_g() * STANDARD_GRAVITY_M_S2, np.nan)
-        cadence = np.where(window, fs / np.maximum(steps.duration, 1), np.nan)
+        cadence = np.where(window, sampling_rate_hz / np.maximum(steps.duration, 1), np.nan)
         named = {name: values[:, i] for i, name in enumerate(ESTIMATORS)}
         if steps.calibrated:
             length_m = named
@@ -187,7 +187,7 @@ class StepTable:
             raw_m = named
             length_m = {name: (named[name].copy() if name in ("M1", "M2", "M3") else np.full(n, np.nan))
                         for name in ESTIMATORS}
-        return cls(fs, float(t0_s), steps.end.copy(), steps.heel_strike.copy(), steps.toe_off.copy(), start,
+        return cls(sampling_rate_hz, float(t0_s), steps.end.copy(), steps.heel_strike.copy(), steps.toe_off.copy(), start,
                    bout.astype(np.int64), duration_s, np.zeros(n, np.int64),
                    {"M1": exc[:, 0], "M2": exc[:, 1], "M3": exc[:, 2]}, rng, raw_m, length_m)
 

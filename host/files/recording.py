@@ -475,7 +475,7 @@ class Recording:
         K = 1, M5 the cadence 1/T in Hz; PROTOCOL.md 2.2).
         """
         r = self.step_records
-        fs = self.sampling_rate_hz
+        sampling_rate_hz = self.sampling_rate_hz
         end = r["end_sample"].astype(np.int64)
         dur = r["duration_samples"].astype(np.int64)
         toe = r["toe_off_samples"].astype(np.int64)
@@ -488,8 +488,8 @@ class Recording:
 
         names = {int(v): "|".join(f.name for f in StepFlag if v & f) for v in np.unique(fl).tolist()}
         columns = [
-            self.step_record_numbers.astype(str).tolist(), end.astype(str).tolist(), _cells(end / fs),
-            _cells(dur / fs, has_window), _cells((end - dur + toe) / fs, has_toe), _cells((end + heel) / fs, has_heel),
+            self.step_record_numbers.astype(str).tolist(), end.astype(str).tolist(), _cells(end / sampling_rate_hz),
+            _cells(dur / sampling_rate_hz, has_window), _cells((end - dur + toe) / sampling_rate_hz, has_toe), _cells((end + heel) / sampling_rate_hz, has_heel),
             [names[v] for v in fl.tolist()],
             *(_cells(lengths[:, k], lengths[:, k] != 0) for k in range(lengths.shape[1])),
             ["raw" if v & StepFlag.UNCALIBRATED else "K" for v in fl.tolist()],

@@ -71,10 +71,10 @@ def body_axes(
 
     Examples
     --------
-    >>> fs = 50.0; t = np.arange(500) / fs
+    >>> sampling_rate_hz = 50.0; t = np.arange(500) / sampling_rate_hz
     >>> up = np.array([0.6, 0.0, 0.8])          # device tilted, gravity along (0.6, 0, 0.8)
     >>> acc = up[None, :] * (1.0 + 0.2 * np.sin(2 * np.pi * 2 * t))[:, None]
-    >>> ax = body_axes(acc, sampling_rate_hz=fs)
+    >>> ax = body_axes(acc, sampling_rate_hz=sampling_rate_hz)
     >>> bool(np.allclose(ax.acc_v_m_s2[100:400], 0.2 * STANDARD_GRAVITY_M_S2 * np.sin(2 * np.pi * 2 * t[100:400]), atol=0.02))
     True
     """
@@ -109,13 +109,13 @@ def body_axes(
     return BodyAxes(acc_v, acc_ap, grav.T, ok)
 
 
-def _orient_ap(acc_ap: np.ndarray, acc_v: np.ndarray, fs: float) -> np.ndarray:
+def _orient_ap(acc_ap: np.ndarray, acc_v: np.ndarray, sampling_rate_hz: float) -> np.ndarray:
     """Flip the AP sign so that AP leads vertical by ~0.1 s (forward walking).
 
     In forward walking the AP acceleration is positive while the vertical acceleration rises to its peak
     at the CoM's lowest point: their correlation with AP taken 0.1 s earlier is positive.
     """
-    lag = max(1, int(round(0.1 * fs)))
+    lag = max(1, int(round(0.1 * sampling_rate_hz)))
     vv, aa = acc_v[lag:], acc_ap[:-lag]
     good = np.isfinite(vv) & np.isfinite(aa)
     if np.count_nonzero(good) > 10 and float(np.sum(vv[good] * aa[good])) < 0:

@@ -90,8 +90,8 @@ class GaitEventDetector:
 
     def detect(self, acc_v_m_s2: np.ndarray, *, sampling_rate_hz: float, valid: np.ndarray | None = None) -> Self:
         """Detect the events in ``acc_v_m_s2`` (``(n,)``, up positive, gravity removed)."""
-        fs = float(sampling_rate_hz)
-        if not (np.isfinite(fs) and fs > 0):
+        sampling_rate_hz = float(sampling_rate_hz)
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
             raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         a = np.asarray(acc_v_m_s2, dtype=np.float64)
         if a.ndim != 1:
@@ -100,12 +100,12 @@ class GaitEventDetector:
         ok = np.isfinite(a) if valid is None else (np.asarray(valid, bool) & np.isfinite(a))
         n = a.size
         self.first_harmonic_m_s2_ = lp = masked_gaussian_lowpass(
-            a, ok, cutoff_hz=p.ff_cutoff_hz, sampling_rate_hz=fs, min_weight=self.min_weight)
-        det = masked_gaussian_lowpass(a, ok, cutoff_hz=p.detail_cutoff_hz, sampling_rate_hz=fs,
+            a, ok, cutoff_hz=p.ff_cutoff_hz, sampling_rate_hz=sampling_rate_hz, min_weight=self.min_weight)
+        det = masked_gaussian_lowpass(a, ok, cutoff_hz=p.detail_cutoff_hz, sampling_rate_hz=sampling_rate_hz,
                                       min_weight=self.min_weight)
         empty = np.zeros(0, dtype=np.int64)
         if n < 3 or not np.any(np.isfinite(lp)):
-            for name, value in link_steps(empty, empty, empty, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
+            for name, value in link_steps(empty, empty, empty, ok, sampling_rate_hz=sampling_rate_hz, max_gap_s=self.max_gap_s,
                                           max_step_s=p.max_step_s).items():
                 setattr(self, name, value)
             return self
@@ -114,26 +114,26 @@ class GaitEventDetector:
         # measured data the curve is drawn straight (for the search only), and no peak may lie there
         fin = np.isfinite(lp)
         sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
-        dist0 = max(1, samples(p.min_step_s, fs))
+        dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
         ff = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2)
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
-        d = d[d <= samples(p.max_step_s, fs)]
+        d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
         if d.size >= 3:
             dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
             ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2)
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
-        band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=p.impact_cutoff_hz, sampling_rate_hz=fs,
+        band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=p.impact_cutoff_hz, sampling_rate_hz=sampling_rate_hz,
                                              min_weight=self.min_weight)
-        impact = self._search(band, ff, -samples(p.hs_search_s, fs), samples(p.hs_after_s, fs), mode="argmax")
-        hs = impact - samples(p.hs_delay_s, fs)
+        impact = self._search(band, ff, -samples(p.hs_search_s, sampling_rate_hz), samples(p.hs_after_s, sampling_rate_hz), mode="argmax")
+        hs = impact - samples(p.hs_delay_s, sampling_rate_hz)
         hs = np.where((impact >= 0) & (hs >= 0), hs, -1).astype(np.int64)
-        to = self._first_local_min(det, ff, samples(p.to_search_s, fs))
+        to = self._first_local_min(det, ff, samples(p.to_search_s, sampling_rate_hz))
         # 4. bouts and steps
-        for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=fs, max_gap_s=self.max_gap_s,
+        for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=sampling_rate_hz, max_gap_s=self.max_gap_s,
                                       max_step_s=p.max_step_s).items():
             setattr(self, name, value)
         return self

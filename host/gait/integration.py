@@ -125,10 +125,10 @@ def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndar
     A CoM moving as ``z = -A cos(2 pi t / T)`` (lowest at the window ends, zero velocity there):
     both positions span ``2 A``.
 
-    >>> fs, T, A = 200.0, 0.5, 0.02
-    >>> t = np.arange(int(T * fs) + 1) / fs
+    >>> sampling_rate_hz, T, A = 200.0, 0.5, 0.02
+    >>> t = np.arange(int(T * sampling_rate_hz) + 1) / sampling_rate_hz
     >>> a = A * (2 * np.pi / T) ** 2 * np.cos(2 * np.pi * t / T)
-    >>> ss = step_samples(np.array([0]), np.array([t.size - 1]), np.ones(t.size, bool), fs)
+    >>> ss = step_samples(np.array([0]), np.array([t.size - 1]), np.ones(t.size, bool), sampling_rate_hz)
     >>> p1, p2 = vertical_positions(a, ss)
     >>> round(float(p2.max() - p2.min()), 4), round(float(p1.max() - p1.min()), 3)
     (0.04, 0.04)

@@ -64,10 +64,10 @@ class StepPipeline:
     Examples
     --------
     >>> from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-    >>> fs = 50.0; t = np.arange(int(20 * fs)) / fs
+    >>> sampling_rate_hz = 50.0; t = np.arange(int(20 * sampling_rate_hz)) / sampling_rate_hz
     >>> z = 0.02 * np.cos(2 * np.pi * 2.0 * t)                  # CoM, 2 steps/s, h = 4 cm, lowest at t = 0.25 + k/2
     >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2
-    >>> p = StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=fs)
+    >>> p = StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=sampling_rate_hz)
     >>> p.steps_.n_steps in (38, 39, 40)
     True
     >>> round(float(np.nanmedian(p.steps_.vertical_excursion_m["M2"])), 2)
@@ -102,24 +102,24 @@ class StepPipeline:
         acc = np.asarray(acc_g, np.float64)
         if acc.ndim != 2 or acc.shape[1] != 3:
             raise ValueError(f"acc_g must have shape (n, 3), got {acc.shape}")
-        fs = float(sampling_rate_hz)
-        if not (np.isfinite(fs) and fs > 0):
+        sampling_rate_hz = float(sampling_rate_hz)
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
             raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         if valid is not None and np.shape(valid) != (acc.shape[0],):
             raise ValueError(f"valid must have shape ({acc.shape[0]},), got {np.shape(valid)}")
-        self.axes_: BodyAxes = body_axes(acc, sampling_rate_hz=fs, valid=valid,
+        self.axes_: BodyAxes = body_axes(acc, sampling_rate_hz=sampling_rate_hz, valid=valid,
                                          gravity_window_s=self.gravity_window_s)
         ok = self.axes_.valid
         av = self.axes_.acc_v_m_s2
         det = (self.detector if self.detector is not None else GaitEventDetector()).clone()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            self.events_ = det.detect(av, sampling_rate_hz=fs, valid=ok)
+            self.events_ = det.detect(av, sampling_rate_hz=sampling_rate_hz, valid=ok)
         self.notes_: list[str] = [str(c.message) for c in caught]
-        self.steps_ = self._table(av, ok, fs, t0_s)
+        self.steps_ = self._table(av, ok, sampling_rate_hz, t0_s)
         return self
 
-    def _table(self, av: np.ndarray, ok: np.ndarray, fs: float, t0_s: float) -> StepTable:
+    def _table(self, av: np.ndarray, ok: np.ndarray, sampling_rate_hz: float, t0_s: float) -> StepTable:
         ev = self.events_
         ff = ev.foot_flat_
         m = ff.size
@@ -136,18 +136,18 @@ class StepPipeline:
         w = np.flatnonzero(has)
         s_w, e_w = start[w], ff[w]
         leg, foot = self.leg_length_m, self.foot_length_m
-        ss = step_samples(s_w, e_w, ok & np.isfinite(av), fs)     # shared by M1-M3
+        ss = step_samples(s_w, e_w, ok & np.isfinite(av), sampling_rate_hz)     # shared by M1-M3
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            m1 = PendulumM1().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs,
+            m1 = PendulumM1().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=sampling_rate_hz,
                                        leg_length_m=leg, valid=ok, samples=ss)
-            m2 = PendulumDriftM2().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs,
+            m2 = PendulumDriftM2().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=sampling_rate_hz,
                                             leg_length_m=leg, valid=ok, samples=ss)
             m3 = TwoPhasePendulumM3().estimate(av, step_start=s_w, step_end=e_w, step_toe_off=toe[w],
                                                step_heel_strike=np.where(hs[w] > s_w, hs[w], -1),
-                                               sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot,
+                                               sampling_rate_hz=sampling_rate_hz, leg_length_m=leg, foot_length_m=foot,
                                                valid=ok, samples=ss)
-            m4 = WeinbergM4().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=fs, valid=ok,
+            m4 = WeinbergM4().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=sampling_rate_hz, valid=ok,
                                        lowpassed=ev.first_harmonic_m_s2_)
         del caught                     # the estimators' warnings are their n_impossible_ counts, summed here
         self.n_impossible_ = sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
@@ -163,7 +163,7 @@ class StepPipeline:
         n_missing = np.zeros(m, np.int64)
         duration = np.full(m, np.nan)
         if w.size:
-            duration[w] = (e_w - s_w) / fs
+            duration[w] = (e_w - s_w) / sampling_rate_hz
             n_missing[w] = ss.n_missing
         raw = {
             "M1": spread(m1.step_length_m_),
@@ -173,7 +173,7 @@ class StepPipeline:
             "M5": np.where(duration > 0, 1.0 / duration, np.nan),
         }
         table = StepTable(
-            fs, float(t0_s), ff, hs.copy(), toe, start, ev.bout_.copy(), duration, n_missing,
+            sampling_rate_hz, float(t0_s), ff, hs.copy(), toe, start, ev.bout_.copy(), duration, n_missing,
             {"M1": spread(m1.vertical_excursion_m_), "M2": spread(m2.vertical_excursion_m_),
              "M3": spread(m3.single_support_excursion_m_)},
             spread(m4.acc_range_m_s2_), raw, {},

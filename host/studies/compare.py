@@ -478,12 +478,12 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
         What runs the online-fixed chain (default the firmware's algorithm; tests inject errors with it).
     """
     leg, foot = subject.leg_length_m, subject.foot_length_m
-    fs, t0 = sw.sampling_rate_hz, float(sw.times_s[0])
-    sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], sampling_rate_hz=fs)
+    sampling_rate_hz, t0 = sw.sampling_rate_hz, float(sw.times_s[0])
+    sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], sampling_rate_hz=sampling_rate_hz)
     pools = calibration_sets(sections, calibration_sections=calibration_sections)
     cal = sw.calibration(bits)
     codes = sw.codes(bits)
-    kw = dict(sampling_rate_hz=fs, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
+    kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
     offline = offline_step_table(cal.apply(codes), **kw)
     # the one K per mode, fitted on the offline chain: every chain below uses these objects
     cals = {m: calibrate_on_sections(offline, pools[m], leg_length_m=leg, foot_length_m=foot,
@@ -531,7 +531,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     for i, s in enumerate(evaluated):
         for m in MODES:
             for j, est in enumerate(ESTIMATORS):
-                row = dict(subject=subject.subject_id, bits=bits, sampling_rate_hz=fs, excursion=s.excursion,
+                row = dict(subject=subject.subject_id, bits=bits, sampling_rate_hz=sampling_rate_hz, excursion=s.excursion,
                            speed_label=s.speed_label, section=s.index, start_m=s.start_m, end_m=s.end_m,
                            mode=m, estimator=est, real_m=s.real_m)
                 for k in runs:
@@ -559,7 +559,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
         steps[f"{e}_offline_m"] = of.length_m[est]
         for k, idx in (("ideal", ideal_of), ("online-float", float_of), ("online-fixed", fixed_of)):
             steps[f"{e}_{column_key(k)}_m"] = _take(t[k].length_m[est], idx)
-    return WalkComparison(subject.subject_id, int(bits), float(fs), runs, cals, diffs, deltas, seg_rows, steps,
+    return WalkComparison(subject.subject_id, int(bits), float(sampling_rate_hz), runs, cals, diffs, deltas, seg_rows, steps,
                           timing, runs["online-fixed"].saturation, matches)
 
 

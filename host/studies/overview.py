@@ -86,42 +86,42 @@ def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: fl
     if unknown or not estimators:
         raise HostError(f"--estimators: unknown {', '.join(unknown) or '(none given)'}; choose from "
                         f"{','.join(ESTIMATORS)}")
-    fs = float(rec.sampling_rate_hz)
+    sampling_rate_hz = float(rec.sampling_rate_hz)
     n = rec.n_samples
     if n == 0:
         raise HostError(f"{source}: the recording holds no samples")
-    total_s = n / fs
+    total_s = n / sampling_rate_hz
     if not (np.isfinite(start_s) and 0 <= start_s < total_s):
         raise HostError(f"--start {start_s:g} s: outside the recording (0 to {total_s:g} s)")
     if duration_s is not None and not (np.isfinite(duration_s) and duration_s > 0):
         raise HostError(f"--duration {duration_s:g} s: must be positive")
     end_s = total_s if duration_s is None else min(total_s, start_s + duration_s)
-    i0, i1 = int(np.ceil(start_s * fs - 1e-9)), int(np.ceil(end_s * fs - 1e-9))
+    i0, i1 = int(np.ceil(start_s * sampling_rate_hz - 1e-9)), int(np.ceil(end_s * sampling_rate_hz - 1e-9))
     acc = rec.acc_g()
     valid = np.asarray(rec.valid, bool)
     pipe = StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
-        acc, sampling_rate_hz=fs, valid=valid)
+        acc, sampling_rate_hz=sampling_rate_hz, valid=valid)
     offline = pipe.steps_
     tables = {"": offline}
     if rec.n_step_records:
         online = OnlineSteps.from_records(rec.step_records, first_sample_number=int(rec.sample_numbers[0]),
-                                          sampling_rate_hz=fs)
+                                          sampling_rate_hz=sampling_rate_hz)
         tables[" device"] = StepTable.from_online(online)
 
     def inside(index: np.ndarray) -> np.ndarray:
         index = np.asarray(index, np.int64)
         return index[(index >= i0) & (index < i1)]
 
-    events = {"foot-flat": inside(offline.foot_flat) / fs, "heel-strike": inside(offline.heel_strike) / fs,
-              "toe-off": inside(offline.toe_off) / fs,
-              "device step": inside(tables[" device"].foot_flat) / fs if " device" in tables else np.zeros(0)}
+    events = {"foot-flat": inside(offline.foot_flat) / sampling_rate_hz, "heel-strike": inside(offline.heel_strike) / sampling_rate_hz,
+              "toe-off": inside(offline.toe_off) / sampling_rate_hz,
+              "device step": inside(tables[" device"].foot_flat) / sampling_rate_hz if " device" in tables else np.zeros(0)}
     lengths = {}
     for suffix, table in tables.items():
         for name in estimators:
             sel = (table.foot_flat >= i0) & (table.foot_flat < i1) & np.isfinite(table.length_m[name])
-            lengths[name + suffix] = (table.foot_flat[sel] / fs, table.length_m[name][sel])
+            lengths[name + suffix] = (table.foot_flat[sel] / sampling_rate_hz, table.length_m[name][sel])
     miss = np.flatnonzero(np.diff(np.r_[0, (~valid[i0:i1]).astype(np.int8), 0]))
-    gaps = [((i0 + a) / fs, (i0 + b) / fs) for a, b in zip(miss[::2], miss[1::2], strict=True)]
+    gaps = [((i0 + a) / sampling_rate_hz, (i0 + b) / sampling_rate_hz) for a, b in zip(miss[::2], miss[1::2], strict=True)]
     marks = np.flatnonzero(np.asarray(rec.flags[i0:i1]) & FLAG_MARK)
-    return RecordingOverview(source, (start_s, end_s), np.arange(i0, i1) / fs, acc[i0:i1], gaps,
-                             (i0 + marks) / fs, events, lengths)
+    return RecordingOverview(source, (start_s, end_s), np.arange(i0, i1) / sampling_rate_hz, acc[i0:i1], gaps,
+                             (i0 + marks) / sampling_rate_hz, events, lengths)

@@ -12,15 +12,15 @@ from firmware_sim.world.replay import Replay
 
 
 def test_missing_samples_are_filled_between_their_neighbours_and_reported() -> None:
-    fs = 100.0
-    t = np.arange(1000) / fs
+    sampling_rate_hz = 100.0
+    t = np.arange(1000) / sampling_rate_hz
     acc = np.c_[0.3 * np.sin(2 * np.pi * 1.1 * t), 0.1 * t, 1.0 + 0 * t]
     valid = np.ones(t.size, bool)
     valid[[0, 1]] = False                    # leading holes: the replay starts at the first measured sample
     valid[200:205] = False
     valid[700] = False
     acc[~valid] = np.nan
-    src = Replay.from_samples(acc, valid, sampling_rate_hz=fs, source="test")
+    src = Replay.from_samples(acc, valid, sampling_rate_hz=sampling_rate_hz, source="test")
     assert src.t0_s == pytest.approx(0.02) and src.acc_g.shape == (998, 3)
     assert src.n_interpolated == 6 and src.truth["source"] == "test"
     np.testing.assert_array_equal(src.truth["filled_packets"], [[198, 202], [698, 698]])
@@ -40,10 +40,10 @@ def test_fewer_than_two_measured_samples_is_an_error() -> None:
 
 
 def test_downsampling_is_anti_aliased() -> None:
-    fs = 1000.0
-    t = np.arange(20_000) / fs
+    sampling_rate_hz = 1000.0
+    t = np.arange(20_000) / sampling_rate_hz
     x = 0.3 * np.sin(2 * np.pi * 5.0 * t) + 0.2 * np.sin(2 * np.pi * 290.0 * t)  # 290 Hz would alias to 90 Hz
-    m = Replay(np.c_[x, 0 * x, 1 + 0 * x], sampling_rate_hz=fs).render(200.0)
+    m = Replay(np.c_[x, 0 * x, 1 + 0 * x], sampling_rate_hz=sampling_rate_hz).render(200.0)
     f, p = signal.welch(m.acc_g[:, 0], fs=200.0, nperseg=1024)
     assert p[np.argmin(np.abs(f - 5.0))] > 1e4 * p[np.argmin(np.abs(f - 90.0))]
     tt = np.arange(m.n_samples) / 200.0

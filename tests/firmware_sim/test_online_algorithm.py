@@ -24,15 +24,15 @@ from protocol.errors import ProtocolError
 from protocol.header import Calibration
 from protocol.steps import StepConfig, StepFlag
 
-FS = 50.0
+SAMPLING_RATE_HZ = 50.0
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def sinusoid_codes(*, seconds: float = 30.0, step_hz: float = 2.0, amplitude_m: float = 0.02, fs: float = FS,
+def sinusoid_codes(*, seconds: float = 30.0, step_hz: float = 2.0, amplitude_m: float = 0.02, sampling_rate_hz: float = SAMPLING_RATE_HZ,
                    tilt: tuple[float, float, float] = (0.0, 0.0, 1.0), noise_g: float = 0.0, seed: int = 0
                    ) -> np.ndarray:
     """10-bit codes of a centre of mass moving as ``z = -A cos(2 pi f t)`` (lowest at t = 0), tilted device."""
-    t = np.arange(int(seconds * fs)) / fs
+    t = np.arange(int(seconds * sampling_rate_hz)) / sampling_rate_hz
     a_v = amplitude_m * (2 * np.pi * step_hz) ** 2 * np.cos(2 * np.pi * step_hz * t) / STANDARD_GRAVITY_M_S2
     up = np.asarray(tilt, float) / np.linalg.norm(tilt)
     acc = (1.0 + a_v)[:, None] * up[None, :]
@@ -47,7 +47,7 @@ def config(leg: float = 0.9, foot: float = 0.2, **k) -> StepConfig:
 @pytest.mark.parametrize("arithmetic", ["fixed", "float"])
 def test_sinusoid_excursion_and_pendulum_length(arithmetic: str) -> None:
     # h = 2 A = 4 cm for M2 (drift corrected); the pendulum length 2 sqrt(2 l h - h^2) with l = 0.9 m
-    steps = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic=arithmetic).run(
+    steps = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic=arithmetic).run(
         sinusoid_codes(tilt=(0.3, -0.2, 0.93)))
     inner = slice(3, -3)
     h2 = steps.excursion_m()[inner, 1]
@@ -66,8 +66,8 @@ def test_sinusoid_excursion_and_pendulum_length(arithmetic: str) -> None:
 
 def test_k_is_applied_and_m5_line() -> None:
     codes = sinusoid_codes()
-    raw = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config()).run(codes)
-    cal = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(calibrated=True, k_m1=0.8, k_m2=1.25,
+    raw = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config()).run(codes)
+    cal = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(calibrated=True, k_m1=0.8, k_m2=1.25,
                                                                       k_m4=0.5, k1_m5_m_s=0.3, k2_m5_m=0.1)).run(codes)
     r, c = raw.length_m()[1:], cal.length_m()[1:]
     np.testing.assert_allclose(c[:, 0], 0.8 * r[:, 0], atol=2e-4)
@@ -81,9 +81,9 @@ def test_k_is_applied_and_m5_line() -> None:
 @pytest.mark.parametrize("arithmetic", ["fixed", "float"])
 def test_feeding_in_blocks_gives_the_same_records(arithmetic: str, simulated_walk: tuple) -> None:
     codes, _ = simulated_walk
-    whole = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic=arithmetic)
+    whole = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic=arithmetic)
     a = whole.run(codes)
-    alg = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic=arithmetic)
+    alg = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic=arithmetic)
     rng = np.random.default_rng(5)
     parts, pos = [], 0
     while pos < codes.shape[0]:
@@ -100,8 +100,8 @@ def test_feeding_in_blocks_gives_the_same_records(arithmetic: str, simulated_wal
 
 def test_fixed_and_float_agree_on_a_walk(simulated_walk: tuple) -> None:
     codes, _ = simulated_walk
-    fx = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic="fixed").run(codes)
-    fl = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic="float").run(codes)
+    fx = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic="fixed").run(codes)
+    fl = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic="float").run(codes)
     common, ia, ib = np.intersect1d(fx.end, fl.end, return_indices=True)
     assert common.size >= 0.995 * max(fx.n_steps, fl.n_steps)
     same = ((fx.duration[ia] == fl.duration[ib]) & (fx.toe_off[ia] == fl.toe_off[ib])
@@ -113,7 +113,7 @@ def test_fixed_and_float_agree_on_a_walk(simulated_walk: tuple) -> None:
     d = np.abs(a - b)[defined]
     assert np.median(d) <= 1e-4                                          # 0.1 mm
     assert np.max(d / b[defined]) <= 0.01
-    ctx = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config())
+    ctx = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config())
     ctx.run(codes)
     assert ctx.arithmetic_context().report() == ""                      # nothing saturated on walking
 
@@ -139,7 +139,7 @@ def test_compiled_kernel_equals_its_python_text_bit_for_bit(tmp_path: Path) -> N
     py = json.loads(subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
                                    check=True, timeout=600).stdout)
     for ar in ("fixed", "float"):
-        alg = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic=ar)
+        alg = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic=ar)
         s = alg.run(codes)
         assert s.end.tolist() == py[ar]["end"] and s.heel_strike.tolist() == py[ar]["hs"]
         assert s.toe_off.tolist() == py[ar]["to"] and s.flags.tolist() == py[ar]["flags"]
@@ -153,9 +153,9 @@ def test_compiled_kernel_equals_its_python_text_bit_for_bit(tmp_path: Path) -> N
 def test_scratch_ring_is_long_enough_for_the_slowest_steps() -> None:
     # 1.4 s steps (near max_step): a much longer scratch ring changes nothing
     codes = sinusoid_codes(seconds=60.0, step_hz=1 / 1.4, amplitude_m=0.03)
-    alg = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config())
+    alg = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config())
     a = alg.run(codes)
-    big = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config())
+    big = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config())
     size = int(big.config.cfg_i[kernel.CI_SCRATCH])
     big.config.cfg_i[kernel.CI_SCRATCH] = 8 * size
     big._scr = np.zeros((8 * size, 4), np.int64)
@@ -167,7 +167,7 @@ def test_scratch_ring_is_long_enough_for_the_slowest_steps() -> None:
 
 def test_impossible_excursion_is_flagged_not_hidden() -> None:
     # a 12 cm excursion with a 5 cm "leg": h > 2 l, the pendulum has no solution
-    steps = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(leg=0.05, foot=0.1)).run(
+    steps = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(leg=0.05, foot=0.1)).run(
         sinusoid_codes(amplitude_m=0.06, step_hz=1.2))
     inner = slice(2, -2)
     assert steps.has_flag(StepFlag.IMPOSSIBLE)[inner].all()
@@ -181,7 +181,7 @@ def test_saturation_is_counted_and_flagged() -> None:
     t = np.arange(1500)
     z = np.where((t // 12) % 2 == 0, 1023, 0)
     codes = np.column_stack([np.full(t.size, 512), np.full(t.size, 512), z]).astype(np.int64)
-    alg = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config())
+    alg = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config())
     steps = alg.run(codes)
     assert alg.saturations > 0
     assert "saturated" in alg.arithmetic_context().report()
@@ -193,26 +193,26 @@ def test_calibration_matrix_is_used() -> None:
     codes = sinusoid_codes(tilt=(0.0, 0.0, 1.0))
     hot = np.clip(np.floor((codes - 512) * 1.02 + 512), 0, 1023).astype(np.int64)
     cal = Calibration(np.full(3, 512.0), np.diag([1 / 256, 1 / 256, 1 / (256 * 1.02)]), True)
-    good = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config()).run(codes).excursion_m()[3:-3, 1]
-    fixed = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), calibration=cal).run(hot)
-    raw = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config()).run(hot).excursion_m()[3:-3, 1]
+    good = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config()).run(codes).excursion_m()[3:-3, 1]
+    fixed = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), calibration=cal).run(hot)
+    raw = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config()).run(hot).excursion_m()[3:-3, 1]
     assert abs(np.median(fixed.excursion_m()[3:-3, 1]) / np.median(good) - 1) < 0.002
     assert abs(np.median(raw) / np.median(good) - 1.02) < 0.003
 
 
 def test_rates_and_widths_of_the_sweep() -> None:
-    for fs, bits in ((25.0, 10), (100.0, 10), (50.0, 8), (50.0, 12)):
-        t = np.arange(int(30 * fs)) / fs
+    for sampling_rate_hz, bits in ((25.0, 10), (100.0, 10), (50.0, 8), (50.0, 12)):
+        t = np.arange(int(30 * sampling_rate_hz)) / sampling_rate_hz
         a_v = 0.02 * (4 * np.pi) ** 2 * np.cos(4 * np.pi * t) / STANDARD_GRAVITY_M_S2
         span = 1 << bits
         codes = np.clip(np.floor((np.column_stack([np.zeros_like(t), np.zeros_like(t), 1 + a_v])) * span / 4
                                  + span / 2), 0, span - 1).astype(np.int64)
-        h = {ar: np.median(OnlineStepAlgorithm(sampling_rate_hz=fs, step_config=config(), adc_bits=bits,
+        h = {ar: np.median(OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=config(), adc_bits=bits,
                                                arithmetic=ar).run(codes).excursion_m()[3:-3, 1])
              for ar in ("fixed", "float")}
         # the arithmetic costs at most 0.1 mm of h; sampling a 2 Hz step at 25 Hz costs ~5 % (trapezoids)
-        assert abs(h["fixed"] - h["float"]) < 1e-4, (fs, bits, h)
-        assert abs(h["float"] - 0.04) < (0.0025 if fs < 50 else 0.001), (fs, bits, h)
+        assert abs(h["fixed"] - h["float"]) < 1e-4, (sampling_rate_hz, bits, h)
+        assert abs(h["float"] - 0.04) < (0.0025 if sampling_rate_hz < 50 else 0.001), (sampling_rate_hz, bits, h)
 
 
 def test_parameters_are_validated() -> None:
@@ -221,8 +221,8 @@ def test_parameters_are_validated() -> None:
     with pytest.raises(ValueError, match="median_steps"):
         OnlineParameters(median_steps=4)
     with pytest.raises(ValueError, match="arithmetic"):
-        OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config(), arithmetic="double")
+        OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), arithmetic="double")
     with pytest.raises(ProtocolError, match="leg length"):
-        OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=StepConfig(step_format=1))
+        OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=StepConfig(step_format=1))
     with pytest.raises(ValueError, match="ADC codes"):
-        OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=config()).feed(np.full((3, 3), 1024))
+        OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config()).feed(np.full((3, 3), 1024))

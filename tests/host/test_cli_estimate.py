@@ -13,11 +13,11 @@ from host.cli import main
 G = STANDARD_GRAVITY_M_S2
 
 
-def walk_acc_g(fs: float = 50.0, step_s: float = 0.55, n_steps: int = 40, amp_m: float = 0.02, seed: int = 0):
+def walk_acc_g(sampling_rate_hz: float = 50.0, step_s: float = 0.55, n_steps: int = 40, amp_m: float = 0.02, seed: int = 0):
     """Tilted device on a sinusoidal CoM with loading pulses (see test_gait_events.synthetic_walk)."""
     rng = np.random.default_rng(seed)
     stand = 2.0
-    t = np.arange(int((2 * stand + n_steps * step_s) * fs)) / fs
+    t = np.arange(int((2 * stand + n_steps * step_s) * sampling_rate_hz)) / sampling_rate_hz
     tw = t - stand
     inside = (tw >= 0) & (tw <= n_steps * step_s)
     w = 2 * np.pi / step_s
@@ -37,11 +37,11 @@ def write_csv(path, acc, header=True):
     path.write_text("\n".join(lines) + "\n")
 
 
-def write_npz(path, acc, fs=50.0, valid=None, flags=None):
+def write_npz(path, acc, sampling_rate_hz=50.0, valid=None, flags=None):
     from host.files.recording import Recording
 
     codes = np.clip(np.floor(512 + acc * 256), 0, 1023)
-    rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=fs)
+    rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=sampling_rate_hz)
     rec.save_npz(path)
 
 

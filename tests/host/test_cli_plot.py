@@ -43,21 +43,21 @@ def test_plot_writes_a_png_of_the_stated_size(walk_npz, tmp_path, capsys) -> Non
 
 def test_overview_holds_the_chains_events_and_the_device_records(walk_npz) -> None:
     rec = Recording.load(walk_npz)
-    fs = rec.sampling_rate_hz
+    sampling_rate_hz = rec.sampling_rate_hz
     cfg = rec.step_config
     ov = recording_overview(rec, leg_length_m=cfg.leg_length_m, foot_length_m=cfg.foot_length_m, start_s=5.0,
                             duration_s=20.0, estimators=["M1", "M3"])
-    assert ov.window_s == (5.0, 25.0) and ov.time_s[0] == 5.0 and ov.time_s.size == 20 * fs
+    assert ov.window_s == (5.0, 25.0) and ov.time_s[0] == 5.0 and ov.time_s.size == 20 * sampling_rate_hz
     # the offline chain run independently here, on the whole recording; its events inside [5, 25) s
     steps = StepPipeline(leg_length_m=cfg.leg_length_m, foot_length_m=cfg.foot_length_m).run(
-        rec.acc_g(), sampling_rate_hz=fs, valid=rec.valid).steps_
+        rec.acc_g(), sampling_rate_hz=sampling_rate_hz, valid=rec.valid).steps_
     for name, idx in (("foot-flat", steps.foot_flat), ("heel-strike", steps.heel_strike),
                       ("toe-off", steps.toe_off)):
-        t = idx[idx >= 0] / fs
+        t = idx[idx >= 0] / sampling_rate_hz
         np.testing.assert_array_equal(ov.events_s[name], t[(t >= 5.0) & (t < 25.0)])
     assert 25 <= ov.events_s["foot-flat"].size <= 50  # ~1.8 steps/s
     # the device's records, read straight from the file
-    ends = (rec.step_records["end_sample"].astype(np.int64) - rec.sample_numbers[0]) / fs
+    ends = (rec.step_records["end_sample"].astype(np.int64) - rec.sample_numbers[0]) / sampling_rate_hz
     np.testing.assert_array_equal(ov.events_s["device step"], ends[(ends >= 5.0) & (ends < 25.0)])
     assert set(ov.lengths_m) == {"M1", "M3", "M1 device", "M3 device"}
     t1, m1 = ov.lengths_m["M1"]
@@ -66,15 +66,15 @@ def test_overview_holds_the_chains_events_and_the_device_records(walk_npz) -> No
 
 
 def test_overview_gaps_and_marks() -> None:
-    n, fs = 3000, 50.0
+    n, sampling_rate_hz = 3000, 50.0
     codes = np.full((n, 3), 512, np.int64)
-    codes[:, 2] = 768 + (40 * np.sin(2 * np.pi * 1.8 * np.arange(n) / fs)).astype(np.int64)
+    codes[:, 2] = 768 + (40 * np.sin(2 * np.pi * 1.8 * np.arange(n) / sampling_rate_hz)).astype(np.int64)
     valid = np.ones(n, bool)
     valid[1000:1010] = False
     valid[2990:] = False
     flags = np.zeros(n, np.uint8)
     flags[[500, 1500]] = FLAG_MARK
-    rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=fs)
+    rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=sampling_rate_hz)
     ov = recording_overview(rec, leg_length_m=0.9, foot_length_m=0.2, start_s=10.0)
     assert ov.gaps_s == [(20.0, 20.2), (59.8, 60.0)]
     np.testing.assert_array_equal(ov.marks_s, [10.0, 30.0])

@@ -30,7 +30,7 @@ from host.studies.compare import (
 )
 from host.studies.simulation import AnalogWalk
 
-FS = 50.0
+SAMPLING_RATE_HZ = 50.0
 #: The scale error injected into the fixed-point chain.
 SCALE = 1.02
 
@@ -61,7 +61,7 @@ def walk() -> SimpleNamespace:
                                rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
                                                                          120.0))
     aw = AnalogWalk(subject=subject, seed=7, protocol=protocol).run()
-    sw = aw.sample(FS)
+    sw = aw.sample(SAMPLING_RATE_HZ)
     return SimpleNamespace(subject=subject, protocol=protocol, aw=aw, sw=sw, wc=compare_walk(sw, subject, bits=10),
                            scaled=compare_walk(sw, subject, bits=10, fixed_algorithm=ScaledFixed))
 
@@ -74,7 +74,7 @@ def test_codes_are_what_the_emulated_logger_stores(walk, bits) -> None:
     from firmware_sim.world.walking import Walking
     from protocol.packing import FLAG_MARK
 
-    logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=bits, sampling_rate_hz=FS))
+    logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=bits, sampling_rate_hz=SAMPLING_RATE_HZ))
     res = logger.record(Walking(subject=walk.subject, protocol=walk.protocol, seed=7))
     np.testing.assert_array_equal(walk.sw.codes(bits), np.asarray(res.codes, np.int64))
     np.testing.assert_allclose(walk.sw.times_s, res.sample_times_s, atol=1e-12)
@@ -109,7 +109,7 @@ def test_one_k_fitted_on_the_offline_chain_is_used_by_every_chain(walk) -> None:
     k = calibrate_on_sections(wc.runs["offline"].table, pools["multi-speed"], leg_length_m=s.leg_length_m,
                               foot_length_m=s.foot_length_m)
     assert k.k_m2 == wc.calibrations["multi-speed"].k_m2 and k.k1_m5_m_s == wc.calibrations["multi-speed"].k1_m5_m_s
-    raw, _ = online_step_table(walk.sw.codes(10), sampling_rate_hz=FS, leg_length_m=s.leg_length_m,
+    raw, _ = online_step_table(walk.sw.codes(10), sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=s.leg_length_m,
                                foot_length_m=s.foot_length_m, adc_calibration=walk.sw.calibration(10),
                                arithmetic="float", t0_s=float(walk.sw.times_s[0]))
     cal = wc.runs["online-float"].tables["multi-speed"]
@@ -124,7 +124,7 @@ def test_one_k_fitted_on_the_offline_chain_is_used_by_every_chain(walk) -> None:
 
 
 def _sections(walk):
-    return sections_from_marks(walk.sw.mark_times_s, walk.sw.truth["laps"], sampling_rate_hz=FS)
+    return sections_from_marks(walk.sw.mark_times_s, walk.sw.truth["laps"], sampling_rate_hz=SAMPLING_RATE_HZ)
 
 
 def test_arithmetic_share_done_criteria(walk) -> None:
@@ -217,7 +217,7 @@ def test_a_k_refitted_per_arithmetic_would_hide_the_scale_error(walk) -> None:
     pools = calibration_sets(sections)
     calib = {(x.excursion, x.index) for pool in pools["multi-speed"] for x in pool}
     evaluated = [x for x in sections if (x.excursion, x.index) not in calib and not x.turn]
-    kw = dict(sampling_rate_hz=FS, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m,
+    kw = dict(sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m,
               adc_calibration=sw.calibration(10), t0_s=float(sw.times_s[0]))
     codes = sw.codes(10)
     dist = {}
@@ -242,8 +242,8 @@ def test_a_k_refitted_per_arithmetic_would_hide_the_scale_error(walk) -> None:
 def _table(ff, st, hs=None) -> StepTable:
     n = len(ff)
     hs = np.full(n, -1) if hs is None else np.asarray(hs)
-    return StepTable(FS, 0.0, np.asarray(ff), hs, np.full(n, -1), np.asarray(st), np.zeros(n, np.int64),
-                     (np.asarray(ff) - np.asarray(st)) / FS, np.zeros(n, np.int64), {}, np.zeros(n),
+    return StepTable(SAMPLING_RATE_HZ, 0.0, np.asarray(ff), hs, np.full(n, -1), np.asarray(st), np.zeros(n, np.int64),
+                     (np.asarray(ff) - np.asarray(st)) / SAMPLING_RATE_HZ, np.zeros(n, np.int64), {}, np.zeros(n),
                      {}, {e: np.asarray(ff, float) / 100 for e in ESTIMATORS})
 
 
@@ -267,13 +267,13 @@ def test_saturation_is_reported_on_a_recording() -> None:
     reported."""
     from protocol.header import Calibration
 
-    t = np.arange(int(30 * FS)) / FS
+    t = np.arange(int(30 * SAMPLING_RATE_HZ)) / SAMPLING_RATE_HZ
     codes = np.full((t.size, 3), 512, np.int64)
     codes[:, 0] = np.clip(512 + 256 + np.round(250 * np.sign(np.sin(2 * np.pi * 1.8 * t))), 0, 1023)
     hot = Calibration(np.full(3, 512.0), np.eye(3) * 4 / 256, valid=True)
-    res = compare_recording(codes, sampling_rate_hz=FS, leg_length_m=0.9, foot_length_m=0.26, adc_calibration=hot)
+    res = compare_recording(codes, sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=0.9, foot_length_m=0.26, adc_calibration=hot)
     assert res.saturated > 0 and "saturated" in res.saturation
-    ok = compare_recording(codes, sampling_rate_hz=FS, leg_length_m=0.9, foot_length_m=0.26)
+    ok = compare_recording(codes, sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=0.9, foot_length_m=0.26)
     assert ok.saturation == "" and ok.saturated == 0
 
 
@@ -282,10 +282,10 @@ def test_online_runs_restart_at_run_starts_and_after_missing_samples(walk) -> No
     starts a new run (START), as does a SESSION_START row; without either it is one run."""
     s = walk.subject
     codes = walk.sw.codes(10)[:3000]
-    kw = dict(sampling_rate_hz=FS, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m,
+    kw = dict(sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m,
               adc_calibration=walk.sw.calibration(10))
     whole, _ = online_step_table(codes, **kw)
-    alg = OnlineStepAlgorithm(sampling_rate_hz=FS, step_config=_config(s), calibration=walk.sw.calibration(10))
+    alg = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=_config(s), calibration=walk.sw.calibration(10))
     lag = alg.config.counts.max_step + alg.config.counts.r3 + 2     # the longest a foot-flat waits to be final
     ref = StepTable.from_online(alg.run(codes, run_starts=np.array([1200])))
     split, _ = online_step_table(codes, run_starts=np.array([1200]), **kw)

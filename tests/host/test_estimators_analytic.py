@@ -15,54 +15,54 @@ from host.gait.estimators.two_phase import TwoPhasePendulumM3
 from host.gait.estimators.weinberg import WeinbergM4
 
 
-def com_sinusoid(fs: float, step_s: float, n: int, amp_m: float):
+def com_sinusoid(sampling_rate_hz: float, step_s: float, n: int, amp_m: float):
     """z = -A cos(2 pi t / T): lowest with zero velocity at every foot-flat k*T; excursion 2A per step."""
-    t = np.arange(int(round(n * step_s * fs)) + 1) / fs
+    t = np.arange(int(round(n * step_s * sampling_rate_hz)) + 1) / sampling_rate_hz
     w = 2 * np.pi / step_s
     a = amp_m * w * w * np.cos(w * t)
-    ff = np.round(np.arange(n + 1) * step_s * fs).astype(int)
+    ff = np.round(np.arange(n + 1) * step_s * sampling_rate_hz).astype(int)
     return t, a, ff
 
 
 @pytest.mark.parametrize("amp_m", [0.01, 0.025])
 def test_m1_m2_recover_known_excursion(amp_m: float) -> None:
-    fs, l = 200.0, 0.92
-    t, a, ff = com_sinusoid(fs, 0.5, 10, amp_m)
+    sampling_rate_hz, l = 200.0, 0.92
+    t, a, ff = com_sinusoid(sampling_rate_hz, 0.5, 10, amp_m)
     h = 2 * amp_m
     truth = 2 * np.sqrt(2 * l * h - h * h)
     for cls in (PendulumM1, PendulumDriftM2):
-        est = cls(k=1.0).estimate(a, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=fs, leg_length_m=l)
+        est = cls(k=1.0).estimate(a, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=sampling_rate_hz, leg_length_m=l)
         assert np.allclose(est.vertical_excursion_m_, h, atol=2e-4)
         assert np.allclose(est.step_length_m_, truth, rtol=3e-3)
-    k = PendulumM1(k=1.3).estimate(a, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=fs, leg_length_m=l)
+    k = PendulumM1(k=1.3).estimate(a, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=sampling_rate_hz, leg_length_m=l)
     assert np.allclose(k.step_length_m_, 1.3 * truth, rtol=3e-3)
 
 
 def test_m2_drift_correction_removes_offset_and_velocity_error() -> None:
     """An accelerometer offset of 0.3 m/s^2 ruins M1 (h grows by b T^2 / 2) but not M2 (c1 = -mean(a))."""
-    fs, l, amp = 200.0, 0.9, 0.02
-    t, a, ff = com_sinusoid(fs, 0.55, 8, amp)
+    sampling_rate_hz, l, amp = 200.0, 0.9, 0.02
+    t, a, ff = com_sinusoid(sampling_rate_hz, 0.55, 8, amp)
     biased = a + 0.3
-    m1 = PendulumM1().estimate(biased, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=fs, leg_length_m=l)
-    m2 = PendulumDriftM2().estimate(biased, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=fs,
+    m1 = PendulumM1().estimate(biased, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=sampling_rate_hz, leg_length_m=l)
+    m2 = PendulumDriftM2().estimate(biased, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=sampling_rate_hz,
                                     leg_length_m=l)
     assert np.allclose(m2.vertical_excursion_m_, 2 * amp, atol=3e-4)
     assert np.all(np.abs(m1.vertical_excursion_m_ - 2 * amp) > 0.01)
 
 
 def test_integrals_skip_missing_samples_without_inventing_them() -> None:
-    fs, l, amp = 100.0, 0.9, 0.02
-    t, a, ff = com_sinusoid(fs, 0.5, 6, amp)
+    sampling_rate_hz, l, amp = 100.0, 0.9, 0.02
+    t, a, ff = com_sinusoid(sampling_rate_hz, 0.5, 6, amp)
     valid = np.ones(t.size, bool)
     valid[np.random.default_rng(0).choice(np.arange(1, t.size - 1), 15, replace=False)] = False
     valid[ff] = True
     a_missing = np.where(valid, a, 1e9)  # values at missing samples must never be read
-    m2 = PendulumDriftM2().estimate(a_missing, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=fs,
+    m2 = PendulumDriftM2().estimate(a_missing, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=sampling_rate_hz,
                                     leg_length_m=l, valid=valid)
     assert np.allclose(m2.vertical_excursion_m_, 2 * amp, atol=1.5e-3)
 
 
-def two_phase_step(fs: float, l: float, theta0: float, t_ds: float, t_ss: float):
+def two_phase_step(sampling_rate_hz: float, l: float, theta0: float, t_ds: float, t_ss: float):
     """One step: double support as a parabola (concave up), single support as an exact inverted pendulum
     z = l cos(theta), theta swept linearly from -theta0 to +theta0; C1-continuous, zero vertical velocity
     at both foot-flats, symmetric (z at both ends equal)."""
@@ -70,21 +70,21 @@ def two_phase_step(fs: float, l: float, theta0: float, t_ds: float, t_ss: float)
     v_to = l * np.sin(theta0) * om           # rising speed at toe-off
     k = v_to / (2 * t_ds)
     T = 2 * t_ds + t_ss
-    t = np.arange(int(round(T * fs)) + 1) / fs
+    t = np.arange(int(round(T * sampling_rate_hz)) + 1) / sampling_rate_hz
     a = np.empty_like(t)
     ds1, ss = t < t_ds, (t >= t_ds) & (t <= t_ds + t_ss)
     a[ds1] = 2 * k
     a[~ds1 & ~ss] = 2 * k
     theta = -theta0 + om * (t[ss] - t_ds)
     a[ss] = -l * np.cos(theta) * om * om
-    return t, a, int(round(t_ds * fs)), int(round((t_ds + t_ss) * fs))
+    return t, a, int(round(t_ds * sampling_rate_hz)), int(round((t_ds + t_ss) * sampling_rate_hz))
 
 
 def test_m3_equals_pendulum_chord_plus_foot() -> None:
-    fs, l, theta0, foot = 1000.0, 0.9, np.radians(17.0), 0.19
-    t, a, to, hs = two_phase_step(fs, l, theta0, t_ds=0.06, t_ss=0.42)
+    sampling_rate_hz, l, theta0, foot = 1000.0, 0.9, np.radians(17.0), 0.19
+    t, a, to, hs = two_phase_step(sampling_rate_hz, l, theta0, t_ds=0.06, t_ss=0.42)
     m3 = TwoPhasePendulumM3().estimate(a, step_start=[0], step_end=[t.size - 1], step_toe_off=[to],
-                                       step_heel_strike=[hs], sampling_rate_hz=fs, leg_length_m=l,
+                                       step_heel_strike=[hs], sampling_rate_hz=sampling_rate_hz, leg_length_m=l,
                                        foot_length_m=foot)
     chord = 2 * l * np.sin(theta0)            # geometry, independent of eq (1)
     # 1 % on h1: trapezoidal quadrature of the acceleration steps at toe-off and heel-strike
@@ -93,10 +93,10 @@ def test_m3_equals_pendulum_chord_plus_foot() -> None:
 
 
 def test_m3_missing_events_give_nan() -> None:
-    fs, l = 1000.0, 0.9
-    t, a, to, hs = two_phase_step(fs, l, 0.3, 0.06, 0.42)
+    sampling_rate_hz, l = 1000.0, 0.9
+    t, a, to, hs = two_phase_step(sampling_rate_hz, l, 0.3, 0.06, 0.42)
     m3 = TwoPhasePendulumM3().estimate(a, step_start=[0], step_end=[t.size - 1], step_toe_off=[-1],
-                                       step_heel_strike=[hs], sampling_rate_hz=fs, leg_length_m=l,
+                                       step_heel_strike=[hs], sampling_rate_hz=sampling_rate_hz, leg_length_m=l,
                                        foot_length_m=0.2)
     assert np.isnan(m3.step_length_m_[0]) and m3.n_no_events_ == 1
 
@@ -104,20 +104,20 @@ def test_m3_missing_events_give_nan() -> None:
 def test_impossible_excursion_is_nan_counted_and_warned() -> None:
     s, bad = pendulum_length_m(np.array([0.05, 2.0, -0.01, np.nan]), 0.9)
     assert np.isfinite(s[0]) and np.isnan(s[1:]).all() and bad == 2
-    fs = 100.0
-    t, a, ff = com_sinusoid(fs, 0.5, 2, 1.0)  # 2 m excursion > 2 l
+    sampling_rate_hz = 100.0
+    t, a, ff = com_sinusoid(sampling_rate_hz, 0.5, 2, 1.0)  # 2 m excursion > 2 l
     with pytest.warns(UserWarning, match="impossible"):
-        m1 = PendulumM1().estimate(a, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=fs, leg_length_m=0.9)
+        m1 = PendulumM1().estimate(a, step_start=ff[:-1], step_end=ff[1:], sampling_rate_hz=sampling_rate_hz, leg_length_m=0.9)
     assert np.isnan(m1.step_length_m_).all() and m1.n_impossible_ == 2
 
 
 def test_m4_weinberg_fourth_root_of_lowpassed_range() -> None:
-    fs, f, amp = 100.0, 0.5, 1.5
-    t = np.arange(int(8 * fs)) / fs
+    sampling_rate_hz, f, amp = 100.0, 0.5, 1.5
+    t = np.arange(int(8 * sampling_rate_hz)) / sampling_rate_hz
     a = amp * np.sin(2 * np.pi * f * t)
     sigma = np.sqrt(np.log(2)) / (2 * np.pi * 3.0)
     gain = np.exp(-0.5 * (2 * np.pi * f * sigma) ** 2)   # Gaussian low-pass response at f
-    m4 = WeinbergM4(k=0.45).estimate(a, step_start=[200], step_end=[400], sampling_rate_hz=fs)
+    m4 = WeinbergM4(k=0.45).estimate(a, step_start=[200], step_end=[400], sampling_rate_hz=sampling_rate_hz)
     assert m4.acc_range_m_s2_[0] == pytest.approx(2 * amp * gain, rel=2e-3)
     assert m4.step_length_m_[0] == pytest.approx(0.45 * (2 * amp * gain) ** 0.25, rel=1e-3)
 
@@ -150,13 +150,13 @@ def test_anthropometry_rules_and_errors() -> None:
 
 
 def test_window_without_measured_samples_is_nan_and_others_stay_aligned() -> None:
-    fs, l, amp = 100.0, 0.9, 0.02
-    t, a, ff = com_sinusoid(fs, 0.5, 4, amp)
+    sampling_rate_hz, l, amp = 100.0, 0.9, 0.02
+    t, a, ff = com_sinusoid(sampling_rate_hz, 0.5, 4, amp)
     valid = np.ones(t.size, bool)
     valid[ff[1] + 1:ff[2]] = False            # everything between two foot-flats lost
     start = np.array([ff[0], ff[1] + 5, ff[2], ff[3]])
     end = np.array([ff[1], ff[2] - 5, ff[3], ff[4]])
-    m2 = PendulumDriftM2().estimate(a, step_start=start, step_end=end, sampling_rate_hz=fs,
+    m2 = PendulumDriftM2().estimate(a, step_start=start, step_end=end, sampling_rate_hz=sampling_rate_hz,
                                     leg_length_m=l, valid=valid)
     h = m2.vertical_excursion_m_
     assert np.isnan(h[1])

@@ -73,12 +73,12 @@ def test_match_events_recovers_shifted_copies(gaps, shift, seed) -> None:
 
 
 def _table(starts: np.ndarray, ends: np.ndarray, lengths: np.ndarray) -> StepTable:
-    fs = 100.0
-    ff = np.round(ends * fs).astype(np.int64)
-    start = np.where(np.isfinite(starts), np.round(np.nan_to_num(starts) * fs), -1).astype(np.int64)
+    sampling_rate_hz = 100.0
+    ff = np.round(ends * sampling_rate_hz).astype(np.int64)
+    start = np.where(np.isfinite(starts), np.round(np.nan_to_num(starts) * sampling_rate_hz), -1).astype(np.int64)
     n = ff.size
     raw = {e: lengths.copy() for e in ESTIMATORS}
-    return StepTable(fs, 0.0, ff, ff - 5, np.full(n, -1), start, np.zeros(n, np.int64), (ff - start) / fs,
+    return StepTable(sampling_rate_hz, 0.0, ff, ff - 5, np.full(n, -1), start, np.zeros(n, np.int64), (ff - start) / sampling_rate_hz,
                      np.zeros(n, np.int64), {}, np.zeros(n), raw, dict(raw))
 
 

@@ -23,9 +23,9 @@ G = STANDARD_GRAVITY_M_S2
 
 def write_ipol_trial(folder, subject, trial, *, n_steps=34, step_s=0.55, seed=0, lose=0.03):
     rng = np.random.default_rng(seed)
-    fs = 100.0
+    sampling_rate_hz = 100.0
     stand = 3.0
-    t = np.arange(int((2 * stand + n_steps * step_s) * fs)) / fs
+    t = np.arange(int((2 * stand + n_steps * step_s) * sampling_rate_hz)) / sampling_rate_hz
     tw = t - stand
     inside = (tw >= 0) & (tw <= n_steps * step_s)
     w = 2 * np.pi / step_s
@@ -41,8 +41,8 @@ def write_ipol_trial(folder, subject, trial, *, n_steps=34, step_s=0.55, seed=0,
     rows = [f"{i}.0\t{x:.6f}\t{y:.6f}\t{z:.6f}\t0\t0\t0" for i, (x, y, z) in enumerate(acc) if keep[i]]
     text = "Acquisition frequency: 100 Hz\nPacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\n"
     (folder / f"{subject}-{trial}_lb.txt").write_text(text + "\n".join(rows) + "\n")
-    hs = np.round((stand + step_s * np.arange(1, n_steps + 1) - 0.06) * fs).astype(int)
-    to = hs - int(0.4 * fs)
+    hs = np.round((stand + step_s * np.arange(1, n_steps + 1) - 0.06) * sampling_rate_hz).astype(int)
+    to = hs - int(0.4 * sampling_rate_hz)
     start, end = int(to[0]), int(hs[-1])
     meta = {"Subject": subject, "Trial": trial, "TrialBoundaries": [start, end],
             "UTurnBoundaries": [int(hs[n_steps // 2] + 5), int(hs[n_steps // 2] + 6)],

@@ -17,8 +17,8 @@ from firmware_sim.world.replay import Replay
 from host.files.inputs import read_acceleration
 
 
-def _lowpass(x: np.ndarray, fc: float, fs: float) -> np.ndarray:
-    b, a = signal.butter(4, fc, fs=fs)
+def _lowpass(x: np.ndarray, fc: float, sampling_rate_hz: float) -> np.ndarray:
+    b, a = signal.butter(4, fc, fs=sampling_rate_hz)
     return signal.filtfilt(b, a, x, axis=0)
 
 
@@ -77,8 +77,8 @@ def test_ipol_resampled_signal_matches_the_original_in_band(shared_data: Path) -
 
 
 def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
-    fs = 200.0
-    t = np.arange(2000) / fs
+    sampling_rate_hz = 200.0
+    t = np.arange(2000) / sampling_rate_hz
     acc_g = np.c_[0.2 * np.sin(2 * np.pi * 1.5 * t), 0.1 * np.cos(2 * np.pi * 0.7 * t), 1.0 + 0 * t]
     keep = np.ones(t.size, bool)
     keep[500:507] = False  # 7 lost rows
@@ -87,7 +87,7 @@ def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
                      zip(t[keep], acc_g[keep] * STANDARD_GRAVITY_M_S2))
     path.write_text("# exported by a test\ntime_s,ax,ay,az,temp\n" + rows + "\n")
     src = replay(path)                      # ax/ay/az by name, m/s^2 from the norm, the rate from time_s
-    assert src.sampling_rate_hz == pytest.approx(fs)
+    assert src.sampling_rate_hz == pytest.approx(sampling_rate_hz)
     assert src.acc_g.shape == (2000, 3) and src.truth["n_filled"] == 7
     np.testing.assert_array_equal(src.truth["filled_packets"], [[500, 506]])
     np.testing.assert_allclose(src.acc_g[keep], acc_g[keep], atol=1e-8)
@@ -98,7 +98,7 @@ def test_csv_with_time_column_gap_and_units(tmp_path: Path) -> None:
     core = (tt > 0.5) & (tt < 9.5) & ((tt < 2.4) | (tt > 2.6))
     np.testing.assert_allclose(m.acc_g[core], truth[core], atol=2e-3)
     # the same file with explicit units and a rate instead of the time column
-    src_g = replay(path, columns="1,2,3", units="m/s2", sampling_rate_hz=fs)
+    src_g = replay(path, columns="1,2,3", units="m/s2", sampling_rate_hz=sampling_rate_hz)
     assert src_g.acc_g.shape == (1993, 3)
 
 

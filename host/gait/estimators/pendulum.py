@@ -94,10 +94,10 @@ class PendulumM1(_PendulumBase):
     --------
     CoM ``z = -A cos(2 pi t / T)`` over one step, A = 2 cm, l = 0.9 m: ``h = 4 cm``.
 
-    >>> fs, T, A, l = 200.0, 0.5, 0.02, 0.9
-    >>> t = np.arange(int(T * fs) + 1) / fs
+    >>> sampling_rate_hz, T, A, l = 200.0, 0.5, 0.02, 0.9
+    >>> t = np.arange(int(T * sampling_rate_hz) + 1) / sampling_rate_hz
     >>> a = A * (2 * np.pi / T) ** 2 * np.cos(2 * np.pi * t / T)
-    >>> m1 = PendulumM1().estimate(a, step_start=[0], step_end=[t.size - 1], sampling_rate_hz=fs, leg_length_m=l)
+    >>> m1 = PendulumM1().estimate(a, step_start=[0], step_end=[t.size - 1], sampling_rate_hz=sampling_rate_hz, leg_length_m=l)
     >>> round(float(m1.step_length_m_[0]), 2), round(float(2 * np.sqrt(2 * l * 0.04 - 0.04 ** 2)), 2)
     (0.53, 0.53)
     """

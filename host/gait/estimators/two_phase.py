@@ -27,12 +27,12 @@ class TwoPhasePendulumM3:
     Single support from 0.1 s to 0.4 s of a 0.5 s step; the CoM rises and falls by 2 cm as the pendulum of
     a 0.9 m leg whose chord is 2 sqrt(2 l h1 - h1^2).
 
-    >>> fs, T, A, l, foot = 200.0, 0.5, 0.02, 0.9, 0.26
-    >>> t = np.arange(int(T * fs) + 1) / fs
+    >>> sampling_rate_hz, T, A, l, foot = 200.0, 0.5, 0.02, 0.9, 0.26
+    >>> t = np.arange(int(T * sampling_rate_hz) + 1) / sampling_rate_hz
     >>> a = A * (2 * np.pi / T) ** 2 * np.cos(2 * np.pi * t / T)
     >>> to, hs = 20, 80                       # samples; z(to) = z(hs) = -A cos(0.8 pi)
     >>> m3 = TwoPhasePendulumM3().estimate(a, step_start=[0], step_end=[100], step_toe_off=[to],
-    ...     step_heel_strike=[hs], sampling_rate_hz=fs, leg_length_m=l, foot_length_m=foot)
+    ...     step_heel_strike=[hs], sampling_rate_hz=sampling_rate_hz, leg_length_m=l, foot_length_m=foot)
     >>> h1 = A - (-A * np.cos(2 * np.pi * 0.1 / T))
     >>> round(float(m3.step_length_m_[0]), 3), round(float(2 * np.sqrt(2 * l * h1 - h1 ** 2) + foot), 3)
     (0.691, 0.691)

@@ -30,9 +30,9 @@ class WeinbergM4:
 
     Examples
     --------
-    >>> fs = 50.0; t = np.arange(101) / fs
+    >>> sampling_rate_hz = 50.0; t = np.arange(101) / sampling_rate_hz
     >>> a = 2.0 * np.cos(2 * np.pi * 2 * t)                       # range 4 m/s^2
-    >>> m4 = WeinbergM4(k=0.5).estimate(a, step_start=[25], step_end=[75], sampling_rate_hz=fs)
+    >>> m4 = WeinbergM4(k=0.5).estimate(a, step_start=[25], step_end=[75], sampling_rate_hz=sampling_rate_hz)
     >>> round(float(m4.acc_range_m_s2_[0]), 2) < 4.0               # the 3 Hz low-pass attenuates 2 Hz a little
     True
     """
