@@ -33,7 +33,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
     parser.add_argument("--subjects", type=int, default=4, help="subjects of the sweep (default 4)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated subjects (default 0)")
-    parser.add_argument("--bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
+    parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
     parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
                         help="the emulated logger's sample rate for --simulate (default 50)")
     parser.add_argument("--workers", type=int, default=2, help="processes for --simulate/--sweep (default 2)")
@@ -131,7 +131,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
     if args.simulate < 1:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
-    check_adc_bits(args.bits, max_bits=MAX_SIMULATED_ADC_BITS, what="--bits", error=HostError)
+    check_adc_bits(args.adc_bits, max_bits=MAX_SIMULATED_ADC_BITS, what="--adc-bits", error=HostError)
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     if args.resamples < 1:
@@ -140,9 +140,9 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.out:
         require_folder(args.out)
     with progress_bar(args, args.simulate, "subject") as tick:
-        results = simulate_comparisons(args.simulate, seed=args.seed, bits=args.bits,
+        results = simulate_comparisons(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
                                        sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick)
-    say(f"{len(results)} simulated subject(s), {args.bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
+    say(f"{len(results)} simulated subject(s), {args.adc_bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
         "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
     for r in results:
         detail(f"  {r.subject_id}: {r.steps['step'].size} steps (offline chain), step durations off by "
@@ -174,13 +174,13 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def simulate_comparisons(n: int, *, seed: int = 0, bits: int = 10, sampling_rate_hz: float = 50.0, workers: int = 1,
+def simulate_comparisons(n: int, *, seed: int = 0, adc_bits: int = 10, sampling_rate_hz: float = 50.0, workers: int = 1,
                          progress: Callable[[], object] | None = None) -> list:
     """One :class:`host.studies.compare.WalkComparison` per simulated subject (parallel over subjects);
     ``progress()`` is called after each subject."""
     from firmware_sim.world.subject import random_subjects
 
-    jobs = [(s, seed * 1000 + i, bits, sampling_rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
+    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
     if workers > 1 and len(jobs) > 1:
         from concurrent.futures import ProcessPoolExecutor
 
@@ -199,8 +199,8 @@ def _one_subject(job: tuple):
     from host.studies.compare import compare_walk
     from host.studies.simulation import AnalogWalk
 
-    subject, seed, bits, rate = job
-    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, bits=bits)
+    subject, seed, adc_bits, rate = job
+    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, adc_bits=adc_bits)
     wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
     wc.matches = {}
     return wc

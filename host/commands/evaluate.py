@@ -31,7 +31,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
                         help="the emulated logger's sample rate (default 50)")
-    parser.add_argument("--bits", type=int, default=10, help="ADC bits, 1-10 (10)")
+    parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
                         help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed")
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
@@ -57,16 +57,16 @@ def _run_sim(args: argparse.Namespace) -> int:
                         "on 20 m sections without U-turns, and writes its figures into the output folder)")
     if args.subjects < 1 or args.workers < 1:
         raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
-    check_adc_bits(args.bits, what="--bits", error=HostError)
+    check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     with progress_bar(args, args.subjects, "subject") as tick:
-        ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, bits=args.bits,
+        ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
                                  workers=args.workers).run(progress=tick)
     paths = ev.write_outputs(out)
     if verbosity(args) < 0:
         return 0
-    print(f"{args.subjects} simulated subjects (seed {args.seed}), {args.logger_rate:g} Hz, {args.bits} bits, "
+    print(f"{args.subjects} simulated subjects (seed {args.seed}), {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"emulated logger calibrated on a pose session; 20 m sections, ratio estimated / real")
     print(ev.format_table())
     print("written: " + ", ".join(str(p) for p in paths.values()))
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         require_folder,
     )
 
-    check_adc_bits(args.bits, what="--bits", error=HostError)
+    check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     if not args.logger_rate > 0:
         raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
     args.uturn = args.uturn or "exclude"
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(), progress_bar(args, len(list_trials(args.folder)), "trial") as tick:
         warnings.simplefilter("ignore", UserWarning)   # skips are listed below
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
-        res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, bits=args.bits, uturn=args.uturn,
+        res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits, uturn=args.uturn,
                               arithmetic=arith, progress=tick)
     lines = [",".join(CSV_COLUMNS)]
     for r in res.rows:
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
     from host.studies.plots import render_chain_boxplots_png
 
-    png = render_chain_boxplots_png(res.rows, arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.bits} bits, "
+    png = render_chain_boxplots_png(res.rows, arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")
     atomic_write_bytes(fig_path, png)
     atomic_write_text(out, "\n".join(lines) + "\n")
@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
     if verbosity(args) < 0:
         return 0
-    print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.bits} bits, "
+    print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
           "trial 1 with the offline chain, for every arithmetic")
     tables = [(a, "offline", f"arithmetic = {a}") for a in arith]

@@ -5,7 +5,7 @@ Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`c
 * **ideal**: the offline float chain (:class:`host.gait.pipeline.StepPipeline`, the paper's PC processing)
   on the sensor's analog output at the sample instants, before quantisation (noise, filter,
   sample-and-hold included; no ADC). Simulated walks only;
-* **offline**: the same chain on the ADC codes (``bits`` bits), converted to g with the device calibration;
+* **offline**: the same chain on the ADC codes (``adc_bits`` bits), converted to g with the device calibration;
 * **online-float**: the firmware's on-line algorithm
   (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`) on the same codes and the same device
   calibration, in floating point;
@@ -327,21 +327,21 @@ class SampledWalk:
     gain_matrix_code_10: np.ndarray
     truth: dict
 
-    def codes(self, bits: int) -> np.ndarray:
-        """``(n, 3)`` int64 codes of an ideal ``bits``-bit converter (``floor``, clipped, as ``Adc.convert``)."""
-        x = np.floor(self.code_10 * 2.0 ** (bits - 10))
-        return np.clip(x, 0, (1 << bits) - 1).astype(np.int64)
+    def codes(self, adc_bits: int) -> np.ndarray:
+        """``(n, 3)`` int64 codes of an ideal ``adc_bits``-bit converter (``floor``, clipped, as ``Adc.convert``)."""
+        x = np.floor(self.code_10 * 2.0 ** (adc_bits - 10))
+        return np.clip(x, 0, (1 << adc_bits) - 1).astype(np.int64)
 
-    def ideal_codes(self, bits: int) -> np.ndarray:
-        """The analog input in ``bits``-bit code units, shifted by the floor's mean half code (unbiased)."""
-        return self.code_10 * 2.0 ** (bits - 10) - 0.5
+    def ideal_codes(self, adc_bits: int) -> np.ndarray:
+        """The analog input in ``adc_bits``-bit code units, shifted by the floor's mean half code (unbiased)."""
+        return self.code_10 * 2.0 ** (adc_bits - 10) - 0.5
 
-    def calibration(self, bits: int) -> Any:
-        """The device calibration for ``bits``-bit codes: the sensor's truth, unbiased for ``floor``.
+    def calibration(self, adc_bits: int) -> Any:
+        """The device calibration for ``adc_bits``-bit codes: the sensor's truth, unbiased for ``floor``.
 
         A :class:`protocol.header.Calibration` (``a = M (c - o)``), ``o = offset - 1/2`` code.
         """
-        s = 2.0 ** (bits - 10)
+        s = 2.0 ** (adc_bits - 10)
         return Calibration(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
 
 
@@ -424,7 +424,7 @@ class WalkComparison:
 
     Attributes
     ----------
-    subject_id, bits, sampling_rate_hz
+    subject_id, adc_bits, sampling_rate_hz
         What was compared.
     runs
         :class:`ChainRun` per chain (:data:`CHAINS`) and ``exact-timing`` (the offline chain on codes with
@@ -452,7 +452,7 @@ class WalkComparison:
     """
 
     subject_id: str
-    bits: int
+    adc_bits: int
     sampling_rate_hz: float
     runs: dict[str, ChainRun]
     calibrations: dict[str, Any]
@@ -465,7 +465,7 @@ class WalkComparison:
     matches: dict[str, StepMatch] = field(default_factory=dict)
 
 
-def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: StepTable | None = None,
+def compare_walk(sw: SampledWalk, subject: Any, *, adc_bits: int = 10, ideal_table: StepTable | None = None,
                  calibration_sections: int = 2, include_turn: bool = False,
                  fixed_algorithm: Callable[..., Any] = OnlineStepAlgorithm) -> WalkComparison:
     """The four chains on one sampled walk with one K per mode; steps matched; 20 m sections (module notes).
@@ -473,7 +473,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     Parameters
     ----------
     ideal_table
-        The ideal chain's table without K, to reuse across ADC widths (it does not depend on ``bits``).
+        The ideal chain's table without K, to reuse across ADC widths (it does not depend on ``adc_bits``).
     fixed_algorithm
         What runs the online-fixed chain (default the firmware's algorithm; tests inject errors with it).
     """
@@ -481,16 +481,16 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     sampling_rate_hz, t0 = sw.sampling_rate_hz, float(sw.times_s[0])
     sections = sections_from_marks(sw.mark_times_s, sw.truth["laps"], sampling_rate_hz=sampling_rate_hz)
     pools = calibration_sets(sections, calibration_sections=calibration_sections)
-    cal = sw.calibration(bits)
-    codes = sw.codes(bits)
+    cal = sw.calibration(adc_bits)
+    codes = sw.codes(adc_bits)
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
     offline = offline_step_table(cal.apply(codes), **kw)
     # the one K per mode, fitted on the offline chain: every chain below uses these objects
     cals = {m: calibrate_on_sections(offline, pools[m], leg_length_m=leg, foot_length_m=foot,
                                      subject=subject.subject_id) for m in MODES}
     if ideal_table is None:
-        ideal_table = offline_step_table(cal.apply(sw.ideal_codes(bits)), **kw)
-    okw = dict(kw, adc_calibration=cal, adc_bits=bits)
+        ideal_table = offline_step_table(cal.apply(sw.ideal_codes(adc_bits)), **kw)
+    okw = dict(kw, adc_calibration=cal, adc_bits=adc_bits)
     runs = {"ideal": _offline_run("ideal", ideal_table, cals), "offline": _offline_run("offline", offline, cals),
             "online-float": _online_run("float", codes, cals, algorithm=OnlineStepAlgorithm, **okw),
             "online-fixed": _online_run("fixed", codes, cals, algorithm=fixed_algorithm, **okw)}
@@ -531,7 +531,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
     for i, s in enumerate(evaluated):
         for m in MODES:
             for j, est in enumerate(ESTIMATORS):
-                row = dict(subject=subject.subject_id, bits=bits, sampling_rate_hz=sampling_rate_hz, excursion=s.excursion,
+                row = dict(subject=subject.subject_id, adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz, excursion=s.excursion,
                            speed_label=s.speed_label, section=s.index, start_m=s.start_m, end_m=s.end_m,
                            mode=m, estimator=est, real_m=s.real_m)
                 for k in runs:
@@ -559,7 +559,7 @@ def compare_walk(sw: SampledWalk, subject: Any, *, bits: int = 10, ideal_table: 
         steps[f"{e}_offline_m"] = of.length_m[est]
         for k, idx in (("ideal", ideal_of), ("online-float", float_of), ("online-fixed", fixed_of)):
             steps[f"{e}_{column_key(k)}_m"] = _take(t[k].length_m[est], idx)
-    return WalkComparison(subject.subject_id, int(bits), float(sampling_rate_hz), runs, cals, diffs, deltas, seg_rows, steps,
+    return WalkComparison(subject.subject_id, int(adc_bits), float(sampling_rate_hz), runs, cals, diffs, deltas, seg_rows, steps,
                           timing, runs["online-fixed"].saturation, matches)
 
 

@@ -213,8 +213,8 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
 
 
 def _subject_job(job: tuple) -> SubjectResult:
-    subject, seed, protocol, sampling_rate_hz, bits, calibrate_device, options = job
-    rec = record_subject(subject, seed=seed, protocol=protocol, sampling_rate_hz=sampling_rate_hz, bits=bits,
+    subject, seed, protocol, sampling_rate_hz, adc_bits, calibrate_device, options = job
+    rec = record_subject(subject, seed=seed, protocol=protocol, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits,
                          calibrate_device=calibrate_device)
     return evaluate_recording(rec, corridor_length_m=(protocol.corridor_length_m if protocol else 100.0),
                               **options)
@@ -314,7 +314,7 @@ class SimulatedEvaluation:
         with seed ``seed * 1000 + i`` (independent of ``n_subjects`` and of ``workers``).
     protocol
         :class:`~firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
-    sampling_rate_hz, bits
+    sampling_rate_hz, adc_bits
         Logger rate and ADC resolution.
     workers
         Processes (``concurrent.futures``); 1 runs in this process. Results do not depend on it.
@@ -336,14 +336,14 @@ class SimulatedEvaluation:
     """
 
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, protocol: Any = None, sampling_rate_hz: float = 50.0,
-                 bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
+                 adc_bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
                  detector: Any = None) -> None:
         self.n_subjects = n_subjects
         self.seed = seed
         self.protocol = protocol
         self.sampling_rate_hz = sampling_rate_hz
-        self.bits = bits
+        self.adc_bits = adc_bits
         self.workers = workers
         self.section_m = section_m
         self.include_turn = include_turn
@@ -358,7 +358,7 @@ class SimulatedEvaluation:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
                        calibration_sections=self.calibration_sections, detector=self.detector)
-        jobs = [(s, self.seed * 1000 + i, self.protocol, self.sampling_rate_hz, self.bits, self.calibrate_device, options)
+        jobs = [(s, self.seed * 1000 + i, self.protocol, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
@@ -389,7 +389,7 @@ class SimulatedEvaluation:
                  "figure": out / f"{stem}_boxplots.png"}
         self.write_csv(paths["rows"], summary_path=paths["summary"])
         plot_boxplots(self.rows_, paths["figure"], title=title or (
-            f"{self.n_subjects} simulated subjects, {self.sampling_rate_hz:g} Hz, {self.bits} bit"))
+            f"{self.n_subjects} simulated subjects, {self.sampling_rate_hz:g} Hz, {self.adc_bits} bit"))
         return paths
 
 

@@ -4,7 +4,7 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
 
 1. *Replay*: the recording is the physical input of the logger (:class:`firmware_sim.world.replay.Replay`),
    sampled by the emulated device (:class:`firmware_sim.device.Logger`) at ``sampling_rate_hz`` (50 Hz) with a
-   ``bits``-bit ADC (10), **with its on-line step algorithm on** (``StepConfig`` with the subject's leg and
+   ``adc_bits``-bit ADC (10), **with its on-line step algorithm on** (``StepConfig`` with the subject's leg and
    foot length, uncalibrated: the records hold the raw lengths), as a logger worn without K would record.
    The offline chain converts the codes back to g with the header's calibration (the nominal map). Replay
    interpolates the physical input over lost packets to keep it continuous; every logger sample whose
@@ -110,7 +110,7 @@ class ReplayedTrial:
         Rate of the recording (converts JSON packet indices to seconds).
     path
         The ``_lb.txt`` file.
-    codes, bits
+    codes, adc_bits
         The ``(n, 3)`` ADC codes as stored (every sample: what the on-line algorithm saw) and the ADC width.
     flags, sample_numbers, header
         The stored sample flags, absolute sample numbers and the device header after the run (its step
@@ -131,7 +131,7 @@ class ReplayedTrial:
     source_rate_hz: float
     path: Path
     codes: np.ndarray
-    bits: int
+    adc_bits: int
     flags: np.ndarray
     sample_numbers: np.ndarray
     header: Any
@@ -167,7 +167,7 @@ class ReplayedTrial:
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
-                                 adc_bits=self.bits, arithmetic=arithmetic, run_starts=self.run_starts(),
+                                 adc_bits=self.adc_bits, arithmetic=arithmetic, run_starts=self.run_starts(),
                                  t0_s=self.t0_s)
 
     def device_table(self) -> StepTable:
@@ -186,7 +186,7 @@ def _height_m(meta: dict) -> float | None:
     return h / 100.0 if np.isfinite(h) and 80 <= h <= 250 else None
 
 
-def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: int = 10, leg_length_m: float | None = None,
+def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, adc_bits: int = 10, leg_length_m: float | None = None,
                  foot_length_m: float | None = None) -> ReplayedTrial:
     """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
 
@@ -207,7 +207,7 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
                                        height_m=_height_m(meta))
     src_rate = replay.sampling_rate_hz
     filled = np.asarray(replay.truth.get("filled", np.zeros(replay.acc_g.shape[0], bool)), bool)
-    logger = Logger(adc=Adc(adc_bits=bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz,
+    logger = Logger(adc=Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz,
                     step_config=StepConfig(step_format=1, leg_length_m=leg, foot_length_m=foot))
     result = logger.record(replay)
     records, crc_ok = logger.steps.records_in_order()
@@ -225,7 +225,7 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, bits: i
     acc[~valid] = np.nan
     rate = float(1.0 / np.median(np.diff(times_s)))
     return ReplayedTrial(trial.subject, trial.trial, acc, valid, rate, float(times_s[0]), meta, src_rate,
-                         lb_path, codes, int(bits), np.asarray(result.flags), np.asarray(result.sample_numbers,
+                         lb_path, codes, int(adc_bits), np.asarray(result.flags), np.asarray(result.sample_numbers,
                                                                                          np.int64),
                          header, records[crc_ok], float(leg), float(foot))
 
@@ -335,7 +335,7 @@ def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_tria
 
 
 def evaluate_folder(
-    folder: str | Path, *, sampling_rate_hz: float = 50.0, bits: int = 10, uturn: str = "exclude",
+    folder: str | Path, *, sampling_rate_hz: float = 50.0, adc_bits: int = 10, uturn: str = "exclude",
     progress=None, arithmetic: tuple[str, ...] = ARITHMETICS,
 ) -> IpolResult:
     """Run the whole evaluation on an IPOL folder (see the module notes). Library code: no printing.
@@ -370,7 +370,7 @@ def evaluate_folder(
             if progress is not None:
                 progress(p.name)
             try:   # the anatomy of the subject's first readable trial configures every later one
-                rt = replay_trial(p, sampling_rate_hz=sampling_rate_hz, bits=bits, leg_length_m=leg, foot_length_m=foot)
+                rt = replay_trial(p, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, leg_length_m=leg, foot_length_m=foot)
             except HostError as err:   # one unreadable trial must not sink the whole evaluation
                 res.skipped.append(f"{p.name}: {err}")
                 continue

@@ -67,13 +67,13 @@ from host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_
 from host.studies.simulation import AnalogWalk
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
-BITS = (8, 10, 12)
+ADC_BITS = (8, 10, 12)
 RATES_HZ = (25.0, 50.0, 100.0)
 #: Section-ratio columns summarised per configuration: the chains and the exact-timing offline chain.
 KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Short names of the shares in the summary's columns.
 SHARE_COLUMNS = {"adc": "adc", "algorithm": "algorithm", "arithmetic": "arith"}
-SUMMARY_COLUMNS = (("bits", "sampling_rate_hz", "mode", "estimator", "n")
+SUMMARY_COLUMNS = (("adc_bits", "sampling_rate_hz", "mode", "estimator", "n")
                    + tuple(f"{q}_{k}" for k in KINDS[:-1] for q in ("median", "iqr")) + ("iqr_exact_timing",)
                    + tuple(f"{c}_step_mm" for c in SHARE_COLUMNS.values()) + ("arith_step_max_rel",)
                    + tuple(f"{c}_ratio_abs_max" for c in SHARE_COLUMNS.values())
@@ -85,7 +85,7 @@ class ConfigResult:
     """What one (subject, bits, rate) run keeps: small rows, no signals."""
 
     subject_id: str
-    bits: int
+    adc_bits: int
     sampling_rate_hz: float
     step_diffs: list[dict]
     segments: list[dict]
@@ -97,17 +97,17 @@ class ConfigResult:
 
 
 def _subject_job(job: tuple) -> list[ConfigResult]:
-    subject, seed, protocol, bits_list, rates, options = job
+    subject, seed, protocol, adc_bits_list, rates, options = job
     walk = AnalogWalk(subject=subject, seed=seed, protocol=protocol).run()
     out = []
     for rate in rates:
         sw = walk.sample(rate)
         ideal = None
-        for bits in bits_list:
-            wc = compare_walk(sw, subject, bits=bits, ideal_table=ideal, **options)
+        for adc_bits in adc_bits_list:
+            wc = compare_walk(sw, subject, adc_bits=adc_bits, ideal_table=ideal, **options)
             ideal = wc.runs["ideal"].table          # the analog input: the same at every width
             fx = wc.runs["online-fixed"]
-            out.append(ConfigResult(subject.subject_id, int(bits), float(rate), wc.step_diffs, wc.segments,
+            out.append(ConfigResult(subject.subject_id, int(adc_bits), float(rate), wc.step_diffs, wc.segments,
                                     wc.timing, wc.saturation, fx.saturated, fx.wrapped, fx.cycles_per_sample))
     return out
 
@@ -120,7 +120,7 @@ class AdcRateSweep:
     n_subjects, seed
         Subjects of :func:`~firmware_sim.world.subject.random_subjects`; subject ``i`` walks with seed
         ``seed * 1000 + i`` (as :class:`host.studies.evaluation.SimulatedEvaluation`).
-    bits, rates_hz
+    adc_bits, rates_hz
         ADC widths and sample rates.
     protocol
         :class:`~firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
@@ -139,12 +139,12 @@ class AdcRateSweep:
         :func:`m5_timing_answer`.
     """
 
-    def __init__(self, *, n_subjects: int = 4, seed: int = 0, bits: tuple[int, ...] = BITS,
+    def __init__(self, *, n_subjects: int = 4, seed: int = 0, adc_bits: tuple[int, ...] = ADC_BITS,
                  rates_hz: tuple[float, ...] = RATES_HZ, protocol: Any = None, workers: int = 1,
                  calibration_sections: int = 2, include_turn: bool = False) -> None:
         self.n_subjects = n_subjects
         self.seed = seed
-        self.bits = bits
+        self.adc_bits = adc_bits
         self.rates_hz = rates_hz
         self.protocol = protocol
         self.workers = workers
@@ -156,10 +156,10 @@ class AdcRateSweep:
         subject (all its configurations)."""
         if self.n_subjects < 1:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
-        for b in self.bits:
+        for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         options = dict(calibration_sections=self.calibration_sections, include_turn=self.include_turn)
-        jobs = [(s, self.seed * 1000 + i, self.protocol, tuple(int(b) for b in self.bits),
+        jobs = [(s, self.seed * 1000 + i, self.protocol, tuple(int(b) for b in self.adc_bits),
                  tuple(float(r) for r in self.rates_hz), options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
@@ -202,15 +202,15 @@ def summarise(results: list[ConfigResult]) -> list[dict]:
     ``*_ratio_abs_max``: largest per-section |ratio difference| of each share.
     """
     out = []
-    configs = sorted({(r.bits, r.sampling_rate_hz) for r in results}, key=lambda c: (c[1], c[0]))
+    configs = sorted({(r.adc_bits, r.sampling_rate_hz) for r in results}, key=lambda c: (c[1], c[0]))
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
-    for bits, rate in configs:
-        rs = [r for r in results if r.bits == bits and r.sampling_rate_hz == rate]
+    for adc_bits, rate in configs:
+        rs = [r for r in results if r.adc_bits == adc_bits and r.sampling_rate_hz == rate]
         for mode in MODES:
             for est in ESTIMATORS:
                 seg = [s for r in rs for s in r.segments if s["mode"] == mode and s["estimator"] == est]
                 ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in KINDS}
-                row: dict[str, Any] = dict(bits=bits, sampling_rate_hz=rate, mode=mode, estimator=est, n=len(seg))
+                row: dict[str, Any] = dict(adc_bits=adc_bits, sampling_rate_hz=rate, mode=mode, estimator=est, n=len(seg))
                 for k in KINDS[:-1]:
                     row[f"median_{k}"], row[f"iqr_{k}"] = _q(ratio[k])
                 row["iqr_exact_timing"] = _q(ratio["exact_timing"])[1]
@@ -228,11 +228,11 @@ def summarise(results: list[ConfigResult]) -> list[dict]:
     return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
 
 
-def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
+def m5_timing_answer(results: list[ConfigResult], *, adc_bits: int = 10) -> dict:
     """M5's section-ratio spread vs sample rate, with and without the step-timing error (module notes).
 
     Returns ``{"rows": [...], "verdict": str}``; one row per (mode, rate): ``iqr``, ``std`` of M5's pooled
-    section ratio (offline chain on ``bits``-bit codes), ``iqr_exact`` / ``std_exact`` with the world's exact
+    section ratio (offline chain on ``adc_bits``-bit codes), ``iqr_exact`` / ``std_exact`` with the world's exact
     step durations (the same K), ``timing_share`` = ``1 - std_exact² / std²`` (the part of the
     variance the step timing adds), the rms step-duration error ``timing_rms_ms`` against the truth and
     ``sampling_rms_ms``, the part of it a sample period alone explains (``1 / (rate √6)``: the difference of
@@ -242,10 +242,10 @@ def m5_timing_answer(results: list[ConfigResult], *, bits: int = 10) -> dict:
     50 Hz to be large *and* the spread to shrink at 100 Hz.
     """
     rows = []
-    rates = sorted({r.sampling_rate_hz for r in results if r.bits == bits})
+    rates = sorted({r.sampling_rate_hz for r in results if r.adc_bits == adc_bits})
     for mode in MODES:
         for rate in rates:
-            rs = [r for r in results if r.bits == bits and r.sampling_rate_hz == rate]
+            rs = [r for r in results if r.adc_bits == adc_bits and r.sampling_rate_hz == rate]
             seg = [s for r in rs for s in r.segments if s["mode"] == mode and s["estimator"] == "M5"]
             a = np.array([s["ratio_offline"] for s in seg], float)
             e = np.array([s["ratio_exact_timing"] for s in seg], float)
@@ -297,7 +297,7 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     for r in summary:
         if r["mode"] != mode:
             continue
-        lines.append(f"{r['bits']:>4}{r['sampling_rate_hz']:>5.0f} {r['estimator']:<4}{r['n']:>4}"
+        lines.append(f"{r['adc_bits']:>4}{r['sampling_rate_hz']:>5.0f} {r['estimator']:<4}{r['n']:>4}"
                      + "".join(f"{r['median_' + k]:>8.3f}{r['iqr_' + k]:>7.3f}" for k in KINDS[:-1])
                      + f"{r['adc_step_mm']:>8.3f}{r['algorithm_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
                      f"{100 * r['arith_step_max_rel']:>11.3f}{r['different_events_arith']:>8}{r['saturated']:>5}")

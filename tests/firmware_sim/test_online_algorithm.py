@@ -201,18 +201,18 @@ def test_calibration_matrix_is_used() -> None:
 
 
 def test_rates_and_widths_of_the_sweep() -> None:
-    for sampling_rate_hz, bits in ((25.0, 10), (100.0, 10), (50.0, 8), (50.0, 12)):
+    for sampling_rate_hz, adc_bits in ((25.0, 10), (100.0, 10), (50.0, 8), (50.0, 12)):
         t = np.arange(int(30 * sampling_rate_hz)) / sampling_rate_hz
         a_v = 0.02 * (4 * np.pi) ** 2 * np.cos(4 * np.pi * t) / STANDARD_GRAVITY_M_S2
-        span = 1 << bits
+        span = 1 << adc_bits
         codes = np.clip(np.floor((np.column_stack([np.zeros_like(t), np.zeros_like(t), 1 + a_v])) * span / 4
                                  + span / 2), 0, span - 1).astype(np.int64)
-        h = {ar: np.median(OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=config(), adc_bits=bits,
+        h = {ar: np.median(OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=config(), adc_bits=adc_bits,
                                                arithmetic=ar).run(codes).excursion_m()[3:-3, 1])
              for ar in ("fixed", "float")}
         # the arithmetic costs at most 0.1 mm of h; sampling a 2 Hz step at 25 Hz costs ~5 % (trapezoids)
-        assert abs(h["fixed"] - h["float"]) < 1e-4, (sampling_rate_hz, bits, h)
-        assert abs(h["float"] - 0.04) < (0.0025 if sampling_rate_hz < 50 else 0.001), (sampling_rate_hz, bits, h)
+        assert abs(h["fixed"] - h["float"]) < 1e-4, (sampling_rate_hz, adc_bits, h)
+        assert abs(h["float"] - 0.04) < (0.0025 if sampling_rate_hz < 50 else 0.001), (sampling_rate_hz, adc_bits, h)
 
 
 def test_parameters_are_validated() -> None:

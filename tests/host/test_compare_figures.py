@@ -128,15 +128,15 @@ def test_bootstrap_intervals_are_written_and_printed(simulated) -> None:
     assert "saturation/wrap in the fixed-point runs: none" in simulated.text
 
 
-def _summary(sweep, bits, rate, est, mode="multi-speed"):
-    return next(r for r in sweep.summary if int(r["bits"]) == bits and float(r["sampling_rate_hz"]) == rate
+def _summary(sweep, adc_bits, rate, est, mode="multi-speed"):
+    return next(r for r in sweep.summary if int(r["adc_bits"]) == adc_bits and float(r["sampling_rate_hz"]) == rate
                 and r["estimator"] == est and r["mode"] == mode)
 
 
 def test_sweep_adc_share_at_50_hz(sweep) -> None:
     """ADC share per step at 8 / 10 / 12 bits, 50 Hz: M1 2.9 / 0.71 / 0.18 mm (a quarter per two bits)."""
-    for bits, measured in ((8, 2.92), (10, 0.71), (12, 0.18)):
-        assert float(_summary(sweep, bits, 50.0, "M1")["adc_step_mm"]) == pytest.approx(measured, rel=0.1)
+    for adc_bits, measured in ((8, 2.92), (10, 0.71), (12, 0.18)):
+        assert float(_summary(sweep, adc_bits, 50.0, "M1")["adc_step_mm"]) == pytest.approx(measured, rel=0.1)
 
 
 def test_sweep_arithmetic_share_everywhere(sweep) -> None:
@@ -149,7 +149,7 @@ def test_sweep_arithmetic_share_everywhere(sweep) -> None:
     for r in sweep.summary:
         assert int(r["saturated"]) == 0, r
         worst = float(r["arith_step_max_rel"])
-        if (r["bits"], float(r["sampling_rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
+        if (r["adc_bits"], float(r["sampling_rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
             assert worst <= {"M1": 0.30, "M2": 0.035, "M4": 0.012}[r["estimator"]], r
         else:
             assert worst <= 0.005, r

@@ -62,28 +62,28 @@ def walk() -> SimpleNamespace:
                                                                          120.0))
     aw = AnalogWalk(subject=subject, seed=7, protocol=protocol).run()
     sw = aw.sample(SAMPLING_RATE_HZ)
-    return SimpleNamespace(subject=subject, protocol=protocol, aw=aw, sw=sw, wc=compare_walk(sw, subject, bits=10),
-                           scaled=compare_walk(sw, subject, bits=10, fixed_algorithm=ScaledFixed))
+    return SimpleNamespace(subject=subject, protocol=protocol, aw=aw, sw=sw, wc=compare_walk(sw, subject, adc_bits=10),
+                           scaled=compare_walk(sw, subject, adc_bits=10, fixed_algorithm=ScaledFixed))
 
 
-@pytest.mark.parametrize("bits", [8, 10])
-def test_codes_are_what_the_emulated_logger_stores(walk, bits) -> None:
+@pytest.mark.parametrize("adc_bits", [8, 10])
+def test_codes_are_what_the_emulated_logger_stores(walk, adc_bits) -> None:
     from firmware_sim.adc import Adc
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
     from firmware_sim.world.walking import Walking
     from protocol.packing import FLAG_MARK
 
-    logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=bits, sampling_rate_hz=SAMPLING_RATE_HZ))
+    logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=adc_bits, sampling_rate_hz=SAMPLING_RATE_HZ))
     res = logger.record(Walking(subject=walk.subject, protocol=walk.protocol, seed=7))
-    np.testing.assert_array_equal(walk.sw.codes(bits), np.asarray(res.codes, np.int64))
+    np.testing.assert_array_equal(walk.sw.codes(adc_bits), np.asarray(res.codes, np.int64))
     np.testing.assert_allclose(walk.sw.times_s, res.sample_times_s, atol=1e-12)
     marks = np.asarray(res.sample_times_s)[(np.asarray(res.flags) & FLAG_MARK) != 0]
     np.testing.assert_allclose(walk.sw.mark_times_s, marks, atol=1e-12)
 
 
-@pytest.mark.parametrize("bits", [8, 10, 12])
-def test_calibration_gives_one_g_at_rest(walk, bits) -> None:
+@pytest.mark.parametrize("adc_bits", [8, 10, 12])
+def test_calibration_gives_one_g_at_rest(walk, adc_bits) -> None:
     """The device calibration (sensor truth) on codes and on the analog samples: |a| = 1 g while standing."""
     rests = walk.sw.truth["rests"]
     t = walk.sw.times_s
@@ -91,9 +91,9 @@ def test_calibration_gives_one_g_at_rest(walk, bits) -> None:
     for a, b in zip(rests["t_start_s"], rests["t_stop_s"]):
         sel |= (t > a + 1.0) & (t < b - 1.0)
     assert sel.sum() > 100
-    cal = walk.sw.calibration(bits)
-    lsb_g = 4.0 / 2**bits
-    for c, tol in ((walk.sw.codes(bits), 3e-3 + lsb_g / 2), (walk.sw.ideal_codes(bits), 3e-3)):
+    cal = walk.sw.calibration(adc_bits)
+    lsb_g = 4.0 / 2**adc_bits
+    for c, tol in ((walk.sw.codes(adc_bits), 3e-3 + lsb_g / 2), (walk.sw.ideal_codes(adc_bits), 3e-3)):
         norm = np.linalg.norm(cal.apply(c[sel]), axis=1)
         assert abs(np.median(norm) - 1.0) < tol
 

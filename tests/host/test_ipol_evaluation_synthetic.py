@@ -85,7 +85,7 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     write_ipol_trial(tmp_path, 2, 2, seed=4)
     out = tmp_path / "out" / "eval.csv"
     out.parent.mkdir()
-    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "10", "--logger-rate", "50"]) == 0
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--adc-bits", "10", "--logger-rate", "50"]) == 0
     text = capsys.readouterr().out
     assert "M3" in text and "median" in text
     with open(out, newline="") as fh:
@@ -99,7 +99,7 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     with open(out.with_name("eval_steps.csv"), newline="") as fh:
         steps = list(csv.DictReader(fh))
     assert {r["trial"] for r in steps} == {"1", "2"} and len(steps) > 60
-    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--bits", "12"]) == 1
+    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--adc-bits", "12"]) == 1
 
 
 def test_unreadable_trial_and_single_trial_subject_are_skipped_and_listed(tmp_path, capsys) -> None:

@@ -16,20 +16,20 @@ def sweep() -> AdcRateSweep:
                                rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
                                                                          120.0))
     ticks = []
-    sw = AdcRateSweep(n_subjects=1, seed=2, bits=(8, 10, 12), rates_hz=(25.0, 100.0), protocol=protocol).run(
+    sw = AdcRateSweep(n_subjects=1, seed=2, adc_bits=(8, 10, 12), rates_hz=(25.0, 100.0), protocol=protocol).run(
         progress=lambda: ticks.append(len(ticks)))
     sw.ticks = ticks
     return sw
 
 
-def row(sweep, bits, rate, est, mode="multi-speed"):
-    return next(r for r in sweep.summary_ if r["bits"] == bits and r["sampling_rate_hz"] == rate and r["estimator"] == est
+def row(sweep, adc_bits, rate, est, mode="multi-speed"):
+    return next(r for r in sweep.summary_ if r["adc_bits"] == adc_bits and r["sampling_rate_hz"] == rate and r["estimator"] == est
                 and r["mode"] == mode)
 
 
 def test_every_configuration_is_there(sweep) -> None:
     assert sweep.ticks == [0]                   # progress: once per subject (all its configurations)
-    assert {(r.bits, r.sampling_rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
+    assert {(r.adc_bits, r.sampling_rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
     assert len(sweep.summary_) == 6 * 2 * 5
     text = format_summary(sweep.summary_) + format_m5(sweep.m5_)
     assert "multi-speed calibration" in text and "M5 (offline chain, 10-bit codes)" in text
