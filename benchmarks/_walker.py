@@ -18,8 +18,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from firmware_sim.device import Logger  # noqa: E402
 from firmware_sim.world.base import Motion  # noqa: E402
-from firmware_sim.world.gait_protocol import SPEED_LABELS, WalkingProtocol  # noqa: E402
 from firmware_sim.world.subject import Subject, random_subjects  # noqa: E402
+from firmware_sim.world.walk_plan import SPEED_LABELS, WalkPlan  # noqa: E402
 from firmware_sim.world.walking import Walking  # noqa: E402
 from protocol.steps import StepConfig  # noqa: E402
 
@@ -33,7 +33,7 @@ def walker_motion(n_samples: int = N_SAMPLES, seed: int = 0) -> tuple[Motion, Su
     subject = random_subjects(1, seed=seed)[0]
     logger = Logger()
     fine_hz = logger.sensor.internal_rate_hz
-    walking = Walking(subject=subject, protocol=WalkingProtocol(speeds=SPEED_LABELS * 2), seed=seed)
+    walking = Walking(subject=subject, walk_plan=WalkPlan(speeds=SPEED_LABELS * 2), seed=seed)
     motion = walking.render(fine_hz)
     # the ADC takes t0 + k / actual_rate up to the last fine-grid instant: keep just enough fine samples
     k = int(np.ceil((n_samples - 1) / logger.adc.actual_rate_hz * fine_hz - 1e-9)) + 1

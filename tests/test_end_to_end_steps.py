@@ -42,13 +42,13 @@ CONFIG = StepConfig(step_format=1, leg_length_m=0.9275, foot_length_m=0.1943)
 
 
 def walking(corridor_m: float = 20.0, seed: int = 1, height_m: float = 1.75):
-    from firmware_sim.world.gait_protocol import WalkingProtocol
     from firmware_sim.world.subject import Subject
+    from firmware_sim.world.walk_plan import WalkPlan
     from firmware_sim.world.walking import Walking
 
-    protocol = WalkingProtocol(corridor_length_m=corridor_m, speeds=("preferred",), initial_stand_s=3.0,
+    walk_plan = WalkPlan(corridor_length_m=corridor_m, speeds=("preferred",), initial_stand_s=3.0,
                                final_stand_s=2.0, lap_marks_m=(0.0, corridor_m, 2 * corridor_m))
-    return Walking(subject=Subject.from_height(height_m), protocol=protocol, seed=seed)
+    return Walking(subject=Subject.from_height(height_m), walk_plan=walk_plan, seed=seed)
 
 
 def device_records(logger: Logger) -> bytes:

@@ -34,9 +34,9 @@ from scipy.interpolate import PPoly
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.corridor import CorridorPath
-from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.hermite import quintic_hermite
 from firmware_sim.world.subject import Subject
+from firmware_sim.world.walk_plan import WalkPlan
 
 #: Time from setting off (weight shift) to the first heel strike, s.
 INITIATION_TIME_S = 0.8
@@ -214,7 +214,7 @@ def _vertical_profile(t_start: float, t_stop: float, gait_phase: PPoly, phase0: 
 
 def plan_excursion(
     subject: Subject,
-    protocol: WalkingProtocol,
+    walk_plan: WalkPlan,
     label: str,
     *,
     t_start_s: float,
@@ -228,7 +228,7 @@ def plan_excursion(
 
     Parameters
     ----------
-    subject, protocol
+    subject, walk_plan
         Who walks and how.
     label
         Speed label (``preferred``, ``fast``, ``slow``, ``medium``).
@@ -239,10 +239,10 @@ def plan_excursion(
     first_side
         Foot of the first heel strike.
     """
-    path = CorridorPath(corridor_length_m=protocol.corridor_length_m, turn_radius_m=protocol.turn_radius_m)
+    path = CorridorPath(corridor_length_m=walk_plan.corridor_length_m, turn_radius_m=walk_plan.turn_radius_m)
     v_exc = subject.speed_m_s(label)
     v_pref = subject.preferred_speed_m_s
-    steps = _plan_steps(subject, protocol, path, v_exc, t_start_s=t_start_s, rng=rng, first_side=first_side)
+    steps = _plan_steps(subject, walk_plan, path, v_exc, t_start_s=t_start_s, rng=rng, first_side=first_side)
     cycle = _plan_step_cycle(subject, steps, v_pref=v_pref, v_exc=v_exc, rng=rng)
     pendulum = _plan_pendulum(subject, steps, cycle, v_pref=v_pref, rng=rng)
     track = _plan_forward_track(subject, steps, cycle, t_start_s=t_start_s, length_m=path.length_m)
@@ -253,7 +253,7 @@ def plan_excursion(
                              np.concatenate((pendulum.extra_m, pendulum.extra_m[-1:])),
                              subject.vertical_warp, subject.vertical_skew)
     envelope_pp, pitch_pp = _envelope_and_lean(subject, label, t_start_s, track, v_exc=v_exc, v_pref=v_pref)
-    step_phase = _step_phase_labels(protocol, path, track, n_end=steps.n_end)
+    step_phase = _step_phase_labels(walk_plan, path, track, n_end=steps.n_end)
     tr_t, tr_v, tr_ap, tr_sig = _heel_strike_transients(subject, cycle.vbar, track, v_pref=v_pref, rng=rng)
     return ExcursionPlan(
         label=label,
@@ -306,24 +306,24 @@ class _Steps:
         return self.lengths_m / self.durations_s
 
 
-def _speed_factor(protocol: WalkingProtocol, path: CorridorPath) -> Callable[[float], float]:
+def _speed_factor(walk_plan: WalkPlan, path: CorridorPath) -> Callable[[float], float]:
     """Speed at path distance ``d`` relative to the excursion's: the ramp-up, the turn's slow-down, the stop."""
     length = path.length_m
 
     def speed_factor(d: float) -> float:
-        ramp = 1.0 - 0.6 * np.exp(-max(d, 0.0) / (protocol.initiation_distance_m / 4.6))
-        turn = 1.0 - (1.0 - protocol.turn_speed_factor) * float(
-            _smooth_bump((d - path.s_apex_m) / protocol.turn_slowdown_m))
-        end = 0.6 + 0.4 * float(np.clip((length - d) / protocol.termination_distance_m, 0.0, 1.0))
+        ramp = 1.0 - 0.6 * np.exp(-max(d, 0.0) / (walk_plan.initiation_distance_m / 4.6))
+        turn = 1.0 - (1.0 - walk_plan.turn_speed_factor) * float(
+            _smooth_bump((d - path.s_apex_m) / walk_plan.turn_slowdown_m))
+        end = 0.6 + 0.4 * float(np.clip((length - d) / walk_plan.termination_distance_m, 0.0, 1.0))
         return float(ramp * turn * end)
 
     return speed_factor
 
 
-def _plan_steps(subject: Subject, protocol: WalkingProtocol, path: CorridorPath, v_exc: float, *,
+def _plan_steps(subject: Subject, walk_plan: WalkPlan, path: CorridorPath, v_exc: float, *,
                 t_start_s: float, rng: np.random.Generator, first_side: str) -> _Steps:
     """Step 1: step lengths and durations from setting off to the path end (draws from ``rng``)."""
-    speed_factor = _speed_factor(protocol, path)
+    speed_factor = _speed_factor(walk_plan, path)
     length = path.length_m
     v0 = v_exc * speed_factor(0.0)
     s_first = 0.5 * v0 * INITIATION_TIME_S * 0.9  # CoM travel from setting off to the first heel strike
@@ -331,7 +331,7 @@ def _plan_steps(subject: Subject, protocol: WalkingProtocol, path: CorridorPath,
     lengths: list[float] = []
     durations: list[float] = []
     d = s_first
-    term_start = length - protocol.termination_distance_m
+    term_start = length - walk_plan.termination_distance_m
     while d < term_start:
         v = v_exc * speed_factor(d + 0.35)
         s_nom = float(subject.step_length_m(v))
@@ -558,13 +558,13 @@ def _envelope_and_lean(subject: Subject, label: str, t_start_s: float, track: _T
     return envelope_pp, pitch_pp
 
 
-def _step_phase_labels(protocol: WalkingProtocol, path: CorridorPath, track: _Track, *, n_end: int) -> np.ndarray:
+def _step_phase_labels(walk_plan: WalkPlan, path: CorridorPath, track: _Track, *, n_end: int) -> np.ndarray:
     """Step 6a: ``initiation`` / ``steady`` / ``turn`` / ``termination`` for each step."""
     n_steps = track.n_steps
     s_at_hs = track.s(track.heel_strike_s)
     mid = 0.5 * (s_at_hs[:-1] + s_at_hs[1:])
     step_phase = np.full(n_steps, "steady", dtype=object)
-    step_phase[s_at_hs[:-1] < protocol.initiation_distance_m] = "initiation"
+    step_phase[s_at_hs[:-1] < walk_plan.initiation_distance_m] = "initiation"
     step_phase[np.abs(mid - path.s_apex_m) < 0.5 * path.turn_length_m + 0.5] = "turn"
     step_phase[n_steps - n_end - 1:] = "termination"
     return step_phase

@@ -1,7 +1,7 @@
 """Walking with ground truth: the corridor protocol of Alvarez et al. (2006) seen by a lower-back logger.
 
 :class:`Walking` is a :class:`~firmware_sim.world.base.MotionSource`. A :class:`Subject` walks the
-:class:`WalkingProtocol` (100 m out and back at preferred, fast, slow and medium speed, turns, rests,
+:class:`WalkPlan` (100 m out and back at preferred, fast, slow and medium speed, turns, rests,
 lap marks); the logger, strapped over L3, reads the specific force of its own point of the trunk.
 
 Device axes (nominal mounting; the project convention of :mod:`firmware_sim.world.base` applies)
@@ -64,9 +64,9 @@ from scipy.spatial.transform import Rotation
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
 from firmware_sim.world.corridor import CorridorPath
 from firmware_sim.world.gait_cycle import ExcursionPlan, plan_excursion
-from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.hermite import constant_ppoly, evaluate, quintic_hermite
 from firmware_sim.world.subject import Subject
+from firmware_sim.world.walk_plan import WalkPlan
 
 #: Nominal device axes in trunk axes (rows: device x, y, z; columns: trunk forward, left, up).
 DEVICE_FROM_TRUNK = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
@@ -161,7 +161,7 @@ class Walking:
     ----------
     subject
         The walker (default: the population-mean :class:`Subject`).
-    protocol
+    walk_plan
         The protocol (default: Alvarez's four excursions).
     seed
         Seed of the step-to-step variability (same seed, same walk).
@@ -170,7 +170,7 @@ class Walking:
 
     Examples
     --------
-    >>> w = Walking(protocol=WalkingProtocol(speeds=("preferred",), initial_stand_s=2, final_stand_s=1))
+    >>> w = Walking(walk_plan=WalkPlan(speeds=("preferred",), initial_stand_s=2, final_stand_s=1))
     >>> m = w.render(100.0)
     >>> float(m.truth["excursions"]["corridor_distance_m"][0])
     200.0
@@ -178,27 +178,27 @@ class Walking:
     True
     """
 
-    def __init__(self, *, subject: Subject | None = None, protocol: WalkingProtocol | None = None,
+    def __init__(self, *, subject: Subject | None = None, walk_plan: WalkPlan | None = None,
                  seed: int = 0, include_trajectory: bool = False) -> None:
         self.subject = subject if subject is not None else Subject()
-        self.protocol = protocol if protocol is not None else WalkingProtocol()
+        self.walk_plan = walk_plan if walk_plan is not None else WalkPlan()
         self.seed = seed
         self.include_trajectory = include_trajectory
 
     # ---- planning ---------------------------------------------------------------------------------
     def _segments(self) -> list[_Segment]:
-        sub, pro = self.subject, self.protocol
+        sub, walk_plan = self.subject, self.walk_plan
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, 4]))
         z_stand = sub.com_height_m
         lean = np.deg2rad(sub.stand_lean_deg)
         segments: list[_Segment] = []
         t = 0.0
         side = "R"
-        path = CorridorPath(corridor_length_m=pro.corridor_length_m, turn_radius_m=pro.turn_radius_m)
-        segments.append(self._standing(t, t + pro.initial_stand_s, path, 0.0, z_stand, lean, "stand"))
-        t += pro.initial_stand_s
-        for k, label in enumerate(pro.speeds):
-            plan = plan_excursion(sub, pro, label, t_start_s=t, rng=rng, first_side=side)
+        path = CorridorPath(corridor_length_m=walk_plan.corridor_length_m, turn_radius_m=walk_plan.turn_radius_m)
+        segments.append(self._standing(t, t + walk_plan.initial_stand_s, path, 0.0, z_stand, lean, "stand"))
+        t += walk_plan.initial_stand_s
+        for k, label in enumerate(walk_plan.speeds):
+            plan = plan_excursion(sub, walk_plan, label, t_start_s=t, rng=rng, first_side=side)
             segments.append(_Segment(
                 kind=f"excursion:{label}", t_a=plan.t_start_s, t_b=plan.t_stop_s, path=plan.path, s=plan.s,
                 z=plan.z, phase=plan.phase, envelope=plan.envelope, pitch_mean=plan.pitch_mean,
@@ -209,18 +209,18 @@ class Walking:
             t = plan.t_stop_s
             side = "L" if plan.side[-1] == "R" else "R"
             s_end = plan.path.length_m
-            if k + 1 < len(pro.speeds):
-                posture = pro.rest_posture(k)
+            if k + 1 < len(walk_plan.speeds):
+                posture = walk_plan.rest_posture(k)
                 if posture == "standing":
-                    segments.append(self._standing(t, t + pro.rest_s, plan.path, s_end, z_stand, lean,
+                    segments.append(self._standing(t, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean,
                                                    "rest:standing"))
                 else:
-                    segments.append(self._sitting(t, t + pro.rest_s, plan.path, s_end, z_stand, lean))
-                t += pro.rest_s
+                    segments.append(self._sitting(t, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean))
+                t += walk_plan.rest_s
             else:
-                segments.append(self._standing(t, t + pro.final_stand_s, plan.path, s_end, z_stand, lean,
+                segments.append(self._standing(t, t + walk_plan.final_stand_s, plan.path, s_end, z_stand, lean,
                                                "stand"))
-                t += pro.final_stand_s
+                t += walk_plan.final_stand_s
         return segments
 
     @staticmethod
@@ -232,7 +232,7 @@ class Walking:
 
     def _sitting(self, t_a: float, t_b: float, path: CorridorPath, s: float, z: float,
                  lean: float) -> _Segment:
-        tr = self.protocol.sit_transition_s
+        tr = self.walk_plan.sit_transition_s
         knots = np.array([t_a, t_a + tr, t_b - tr, t_b])
         zero = np.zeros(4)
 
@@ -367,7 +367,7 @@ class Walking:
                       marker_times_s=truth["laps"]["time_s"].copy())
 
     def _truth(self, segments: list[_Segment]) -> dict:
-        pro = self.protocol
+        walk_plan = self.walk_plan
         steps: dict[str, list] = {}
         laps: dict[str, list] = {k: [] for k in ("excursion", "speed_label", "distance_m", "cumulative_distance_m",
                                                  "time_s", "path_m")}
@@ -426,7 +426,7 @@ class Walking:
             for key, val in cols.items():
                 steps.setdefault(key, []).append(np.asarray(val))
             # Lap marks: when the centre of mass crosses each corridor distance.
-            for d in pro.lap_marks_m:
+            for d in walk_plan.lap_marks_m:
                 s_mark = float(plan.path.s_at_corridor_distance(d))
                 if s_mark <= 0.0:
                     t_mark = plan.t_start_s
@@ -437,14 +437,14 @@ class Walking:
                 laps["excursion"].append(k_exc)
                 laps["speed_label"].append(plan.label)
                 laps["distance_m"].append(float(d))
-                laps["cumulative_distance_m"].append(k_exc * pro.excursion_distance_m + float(d))
+                laps["cumulative_distance_m"].append(k_exc * walk_plan.excursion_distance_m + float(d))
                 laps["time_s"].append(t_mark)
                 laps["path_m"].append(s_mark)
             excs["speed_label"].append(plan.label)
             excs["speed_m_s"].append(plan.speed_m_s)
             excs["t_start_s"].append(plan.t_start_s)
             excs["t_stop_s"].append(plan.t_stop_s)
-            excs["corridor_distance_m"].append(pro.excursion_distance_m)
+            excs["corridor_distance_m"].append(walk_plan.excursion_distance_m)
             excs["path_length_m"].append(plan.path.length_m)
             excs["n_steps"].append(n)
             excs["initiation_travel_m"].append(float(s_hs[0]))
@@ -461,7 +461,7 @@ class Walking:
             "subject": self.subject.as_dict(),
             "device_axes": dict(DEVICE_AXES),
             "mounting_matrix": self.mounting_matrix,
-            "total_distance_m": pro.excursion_distance_m * len(pro.speeds),
+            "total_distance_m": walk_plan.excursion_distance_m * len(walk_plan.speeds),
             "total_path_m": float(np.sum(excs["path_length_m"])),
             "seed": self.seed,
         }

@@ -99,17 +99,17 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
             raise HostError("--motion walk takes no file")
         if not 10.0 <= args.corridor_length <= 1000.0:
             raise HostError(f"--corridor-length {args.corridor_length:g} m is outside 10-1000 m")
-        from firmware_sim.world.gait_protocol import WalkingProtocol
         from firmware_sim.world.subject import Subject
+        from firmware_sim.world.walk_plan import WalkPlan
         from firmware_sim.world.walking import Walking
         from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
 
         height = DEFAULT_HEIGHT_M if args.height is None else args.height
         anatomical_lengths(height_m=height)  # range check, named
         corridor = float(args.corridor_length)
-        protocol = WalkingProtocol(corridor_length_m=corridor, speeds=("preferred",), initial_stand_s=3.0,
+        walk_plan = WalkPlan(corridor_length_m=corridor, speeds=("preferred",), initial_stand_s=3.0,
                                    final_stand_s=2.0, lap_marks_m=(0.0, corridor, 2.0 * corridor))
-        return Walking(subject=Subject.from_height(height), protocol=protocol, seed=args.seed)
+        return Walking(subject=Subject.from_height(height), walk_plan=walk_plan, seed=args.seed)
     raise HostError(f"--motion: unknown kind {kind!r} (expected 'poses', 'walk' or 'replay FILE')")
 
 

@@ -213,10 +213,10 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
 
 
 def _subject_job(job: tuple) -> SubjectResult:
-    subject, seed, protocol, sampling_rate_hz, adc_bits, calibrate_device, options = job
-    rec = record_subject(subject, seed=seed, protocol=protocol, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits,
+    subject, seed, walk_plan, sampling_rate_hz, adc_bits, calibrate_device, options = job
+    rec = record_subject(subject, seed=seed, walk_plan=walk_plan, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits,
                          calibrate_device=calibrate_device)
-    return evaluate_recording(rec, corridor_length_m=(protocol.corridor_length_m if protocol else 100.0),
+    return evaluate_recording(rec, corridor_length_m=(walk_plan.corridor_length_m if walk_plan else 100.0),
                               **options)
 
 
@@ -312,8 +312,8 @@ class SimulatedEvaluation:
     n_subjects, seed
         Subjects drawn by :func:`firmware_sim.world.subject.random_subjects` (``seed``); subject ``i`` walks
         with seed ``seed * 1000 + i`` (independent of ``n_subjects`` and of ``workers``).
-    protocol
-        :class:`~firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    walk_plan
+        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
     sampling_rate_hz, adc_bits
         Logger rate and ADC resolution.
     workers
@@ -335,13 +335,13 @@ class SimulatedEvaluation:
         Event scores pooled over subjects.
     """
 
-    def __init__(self, *, n_subjects: int = 4, seed: int = 0, protocol: Any = None, sampling_rate_hz: float = 50.0,
+    def __init__(self, *, n_subjects: int = 4, seed: int = 0, walk_plan: Any = None, sampling_rate_hz: float = 50.0,
                  adc_bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
                  detector: Any = None) -> None:
         self.n_subjects = n_subjects
         self.seed = seed
-        self.protocol = protocol
+        self.walk_plan = walk_plan
         self.sampling_rate_hz = sampling_rate_hz
         self.adc_bits = adc_bits
         self.workers = workers
@@ -358,7 +358,7 @@ class SimulatedEvaluation:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
                        calibration_sections=self.calibration_sections, detector=self.detector)
-        jobs = [(s, self.seed * 1000 + i, self.protocol, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
+        jobs = [(s, self.seed * 1000 + i, self.walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:

@@ -67,7 +67,7 @@ class SimulatedRecording:
     device_calibrated: bool
 
 
-def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_rate_hz: float = 50.0, bits: int = 10,
+def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = 50.0, bits: int = 10,
                    calibrate_device: bool = True) -> SimulatedRecording:
     """Walk ``subject`` through the protocol with the emulated logger (:mod:`host.studies.evaluation`, steps 1-2).
 
@@ -77,8 +77,8 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_ra
         A :class:`firmware_sim.world.subject.Subject`.
     seed
         Seeds the walk's variability, the pose session and the device's sensor errors.
-    protocol
-        A :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    walk_plan
+        A :class:`firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
     sampling_rate_hz, bits
         Logger sample rate and ADC resolution.
     calibrate_device
@@ -94,7 +94,7 @@ def record_subject(subject: Any, *, seed: int, protocol: Any = None, sampling_ra
         logger.erase()
     else:
         apply = Calibration.nominal(bits).apply
-    res = logger.record(Walking(subject=subject, protocol=protocol, seed=seed))
+    res = logger.record(Walking(subject=subject, walk_plan=walk_plan, seed=seed))
     if res.n_taken != res.n_samples:
         raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
                         "samples (memory full): shorten the protocol's rests")
@@ -126,8 +126,8 @@ class AnalogWalk:
     seed
         Seed of the walk; the sensor is the unit ``SensorModel.draw(seed=sensor_seed)`` (default: the
         logger's default for ``device_id = 1 + seed % 60000``, as :func:`record_subject`).
-    protocol
-        :class:`firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    walk_plan
+        :class:`firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
 
     Attributes
     ----------
@@ -136,17 +136,17 @@ class AnalogWalk:
         walk's truth and the sensor.
     """
 
-    def __init__(self, *, subject: Any, seed: int = 0, protocol: Any = None, sensor_seed: int | None = None) -> None:
+    def __init__(self, *, subject: Any, seed: int = 0, walk_plan: Any = None, sensor_seed: int | None = None) -> None:
         self.subject = subject
         self.seed = seed
-        self.protocol = protocol
+        self.walk_plan = walk_plan
         self.sensor_seed = sensor_seed
 
     def run(self) -> AnalogWalk:
         """Render the walk and the sensor's response (the expensive part, done once per subject)."""
         sseed = self.sensor_seed if self.sensor_seed is not None else 1 + self.seed % 60000
         self.sensor_ = SensorModel.draw(seed=int(sseed))
-        motion = Walking(subject=self.subject, protocol=self.protocol, seed=self.seed).render(
+        motion = Walking(subject=self.subject, walk_plan=self.walk_plan, seed=self.seed).render(
             self.sensor_.internal_rate_hz)
         self.rate_hz_ = float(motion.sampling_rate_hz)
         self.t0_s_ = float(motion.t0_s)

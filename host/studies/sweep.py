@@ -97,8 +97,8 @@ class ConfigResult:
 
 
 def _subject_job(job: tuple) -> list[ConfigResult]:
-    subject, seed, protocol, adc_bits_list, rates, options = job
-    walk = AnalogWalk(subject=subject, seed=seed, protocol=protocol).run()
+    subject, seed, walk_plan, adc_bits_list, rates, options = job
+    walk = AnalogWalk(subject=subject, seed=seed, walk_plan=walk_plan).run()
     out = []
     for rate in rates:
         sw = walk.sample(rate)
@@ -122,8 +122,8 @@ class AdcRateSweep:
         ``seed * 1000 + i`` (as :class:`host.studies.evaluation.SimulatedEvaluation`).
     adc_bits, rates_hz
         ADC widths and sample rates.
-    protocol
-        :class:`~firmware_sim.world.gait_protocol.WalkingProtocol` (default: the paper's).
+    walk_plan
+        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
     workers
         Processes; results do not depend on it.
     calibration_sections, include_turn
@@ -140,13 +140,13 @@ class AdcRateSweep:
     """
 
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, adc_bits: tuple[int, ...] = ADC_BITS,
-                 rates_hz: tuple[float, ...] = RATES_HZ, protocol: Any = None, workers: int = 1,
+                 rates_hz: tuple[float, ...] = RATES_HZ, walk_plan: Any = None, workers: int = 1,
                  calibration_sections: int = 2, include_turn: bool = False) -> None:
         self.n_subjects = n_subjects
         self.seed = seed
         self.adc_bits = adc_bits
         self.rates_hz = rates_hz
-        self.protocol = protocol
+        self.walk_plan = walk_plan
         self.workers = workers
         self.calibration_sections = calibration_sections
         self.include_turn = include_turn
@@ -159,7 +159,7 @@ class AdcRateSweep:
         for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         options = dict(calibration_sections=self.calibration_sections, include_turn=self.include_turn)
-        jobs = [(s, self.seed * 1000 + i, self.protocol, tuple(int(b) for b in self.adc_bits),
+        jobs = [(s, self.seed * 1000 + i, self.walk_plan, tuple(int(b) for b in self.adc_bits),
                  tuple(float(r) for r in self.rates_hz), options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:

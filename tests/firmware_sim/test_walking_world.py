@@ -9,12 +9,12 @@ from scipy.spatial.transform import Rotation
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion, MotionSource
 from firmware_sim.world.corridor import CorridorPath
-from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.subject import Subject, random_subjects
+from firmware_sim.world.walk_plan import WalkPlan
 from firmware_sim.world.walking import Walking
 
-ONE_EXCURSION = WalkingProtocol(speeds=("preferred",), initial_stand_s=3.0, final_stand_s=2.0)
-TWO_EXCURSIONS = WalkingProtocol(speeds=("fast", "slow"), initial_stand_s=3.0, final_stand_s=2.0, rest_s=12.0,
+ONE_EXCURSION = WalkPlan(speeds=("preferred",), initial_stand_s=3.0, final_stand_s=2.0)
+TWO_EXCURSIONS = WalkPlan(speeds=("fast", "slow"), initial_stand_s=3.0, final_stand_s=2.0, rest_s=12.0,
                                  rest_postures=("sitting",))
 
 
@@ -22,12 +22,12 @@ TWO_EXCURSIONS = WalkingProtocol(speeds=("fast", "slow"), initial_stand_s=3.0, f
 def fine() -> Motion:
     """One preferred-speed excursion of a random subject at 1 kHz with the world trajectory."""
     subject = random_subjects(3, seed=11)[2]
-    return Walking(subject=subject, protocol=ONE_EXCURSION, seed=5, include_trajectory=True).render(1000.0)
+    return Walking(subject=subject, walk_plan=ONE_EXCURSION, seed=5, include_trajectory=True).render(1000.0)
 
 
 @pytest.fixture(scope="module")
 def sitting() -> Motion:
-    return Walking(protocol=TWO_EXCURSIONS, seed=2, include_trajectory=True).render(200.0)
+    return Walking(walk_plan=TWO_EXCURSIONS, seed=2, include_trajectory=True).render(200.0)
 
 
 def test_is_a_motion_source() -> None:
@@ -160,12 +160,12 @@ def test_contact_timing_matches_real_lower_back_recordings() -> None:
     low-passed vertical acceleration, or minimum of its double integral) 40 ms after heel strike (IQR
     20-60 ms, 0.27 of double support) and 100 ms before the trailing toe-off (IQR 80-110 ms).
     """
-    pro = WalkingProtocol(corridor_length_m=30.0, speeds=("slow", "preferred", "fast"), rest_s=6.0,
+    walk_plan = WalkPlan(corridor_length_m=30.0, speeds=("slow", "preferred", "fast"), rest_s=6.0,
                           rest_postures=("standing",), initial_stand_s=1.0, final_stand_s=1.0,
                           lap_marks_m=(0.0, 10.0, 30.0, 50.0, 60.0))
     ds_med: dict[str, list[float]] = {"slow": [], "preferred": [], "fast": []}
     for i, subject in enumerate(random_subjects(6, seed=2)):
-        st = Walking(subject=subject, protocol=pro, seed=i).render(50.0).truth["steps"]
+        st = Walking(subject=subject, walk_plan=walk_plan, seed=i).render(50.0).truth["steps"]
         for label in ds_med:
             sel = (st["speed_label"] == label) & (st["phase"] == "steady")
             ds = st["toe_off_s"][sel] - st["heel_strike_s"][sel]
@@ -191,10 +191,10 @@ def test_cadence_and_step_length_within_literature_ranges(subject: Subject) -> N
     Ranges: cadence 75-150 steps/min across slow-fast walking, step length 0.5-0.95 m; both rise with speed
     (Grieve 1968; Bohannon 1997: comfortable 1.3-1.5 m/s in men 20-49 y; Sekiya & Nagasaki 1998 walk ratio).
     """
-    pro = WalkingProtocol(corridor_length_m=30.0, speeds=("slow", "preferred", "fast"), rest_s=6.0,
+    walk_plan = WalkPlan(corridor_length_m=30.0, speeds=("slow", "preferred", "fast"), rest_s=6.0,
                           rest_postures=("standing",), initial_stand_s=1.0, final_stand_s=1.0,
                           lap_marks_m=(0.0, 10.0, 30.0, 50.0, 60.0))
-    m = Walking(subject=subject, protocol=pro, seed=3).render(50.0)
+    m = Walking(subject=subject, walk_plan=walk_plan, seed=3).render(50.0)
     st = m.truth["steps"]
     cad, length = [], []
     for label in ("slow", "preferred", "fast"):
@@ -216,12 +216,12 @@ def test_cadence_and_step_length_within_literature_ranges(subject: Subject) -> N
 
 def test_pendulum_constant_differs_between_subjects_and_speeds() -> None:
     """K = S / (2 sqrt(2 l h)) of the sensor's excursion is per subject and changes with speed."""
-    pro = WalkingProtocol(corridor_length_m=20.0, speeds=("preferred", "fast"), rest_s=6.0,
+    walk_plan = WalkPlan(corridor_length_m=20.0, speeds=("preferred", "fast"), rest_s=6.0,
                           rest_postures=("standing",), initial_stand_s=1.0, final_stand_s=1.0,
                           lap_marks_m=(0.0, 40.0))
     ks = []
     for s in random_subjects(6, seed=4):
-        st = Walking(subject=s, protocol=pro, seed=1).render(20.0).truth["steps"]
+        st = Walking(subject=s, walk_plan=walk_plan, seed=1).render(20.0).truth["steps"]
         per_speed = []
         for label in ("preferred", "fast"):
             sel = (st["speed_label"] == label) & (st["phase"] == "steady")
@@ -235,23 +235,23 @@ def test_pendulum_constant_differs_between_subjects_and_speeds() -> None:
 
 
 def test_seeded_and_reproducible() -> None:
-    pro = WalkingProtocol(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=1.0,
+    walk_plan = WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=1.0,
                           final_stand_s=1.0, lap_marks_m=(0.0, 20.0))
-    a = Walking(protocol=pro, seed=9).render(100.0)
-    b = Walking(protocol=pro, seed=9).render(100.0)
-    c = Walking(protocol=pro, seed=10).render(100.0)
+    a = Walking(walk_plan=walk_plan, seed=9).render(100.0)
+    b = Walking(walk_plan=walk_plan, seed=9).render(100.0)
+    c = Walking(walk_plan=walk_plan, seed=10).render(100.0)
     np.testing.assert_array_equal(a.acc_g, b.acc_g)
     assert a.acc_g.shape != c.acc_g.shape or not np.array_equal(a.acc_g, c.acc_g)
     assert random_subjects(4, seed=3) == random_subjects(4, seed=3)
 
 
 def test_mounting_rotation_is_applied() -> None:
-    pro = WalkingProtocol(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=1.0,
+    walk_plan = WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=1.0,
                           final_stand_s=1.0, lap_marks_m=(0.0, 20.0))
     level = Subject(mounting_rotation_deg=(0.0, 0.0, 0.0), stand_lean_deg=0.0)
     tilted = Subject(mounting_rotation_deg=(0.0, 10.0, 0.0), stand_lean_deg=0.0)
-    a0 = Walking(subject=level, protocol=pro).render(50.0).acc_g[0]
-    a1 = Walking(subject=tilted, protocol=pro).render(50.0).acc_g[0]
+    a0 = Walking(subject=level, walk_plan=walk_plan).render(50.0).acc_g[0]
+    a1 = Walking(subject=tilted, walk_plan=walk_plan).render(50.0).acc_g[0]
     np.testing.assert_allclose(a0, [1.0, 0.0, 0.0], atol=1e-12)
     expected = Rotation.from_rotvec([0.0, np.deg2rad(10.0), 0.0]).as_matrix().T @ a0
     np.testing.assert_allclose(a1, expected, atol=1e-12)
@@ -274,6 +274,6 @@ def test_bad_parameters_are_rejected() -> None:
     with pytest.raises(ValueError, match="leg_length_m"):
         Subject(leg_length_m=2.0)
     with pytest.raises(ValueError, match="speed label"):
-        WalkingProtocol(speeds=("brisk",))
+        WalkPlan(speeds=("brisk",))
     with pytest.raises(ValueError, match="rate_hz"):
         Walking().render(0.0)

@@ -17,19 +17,19 @@ from host.cli import main
 @pytest.fixture(scope="module")
 def npz(tmp_path_factory):
     from firmware_sim.device import Logger
-    from firmware_sim.world.gait_protocol import WalkingProtocol
     from firmware_sim.world.subject import Subject
+    from firmware_sim.world.walk_plan import WalkPlan
     from firmware_sim.world.walking import Walking
     from host.files.decode import decode_file, save_outputs
     from protocol.steps import StepConfig
 
     d = tmp_path_factory.mktemp("cmp")
-    protocol = WalkingProtocol(corridor_length_m=50.0, speeds=("preferred",), lap_marks_m=(0.0, 10.0, 30.0, 50.0,
+    walk_plan = WalkPlan(corridor_length_m=50.0, speeds=("preferred",), lap_marks_m=(0.0, 10.0, 30.0, 50.0,
                                                                                           70.0, 90.0, 100.0))
     subject = Subject()
     logger = Logger(device_id=3, step_config=StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                                         foot_length_m=subject.foot_length_m))
-    res = logger.record(Walking(subject=subject, protocol=protocol, seed=2))
+    res = logger.record(Walking(subject=subject, walk_plan=walk_plan, seed=2))
     logger.save_image(d / "walk.glimg")
     path, _ = save_outputs(decode_file(d / "walk.glimg"), d / "walk")
     records, ok = logger.steps.records_in_order()

@@ -53,16 +53,16 @@ class ScaledFixed(OnlineStepAlgorithm):
 @pytest.fixture(scope="module")
 def walk() -> SimpleNamespace:
     """A 60 m corridor out and back at two speeds (two straight evaluated sections per excursion)."""
-    from firmware_sim.world.gait_protocol import WalkingProtocol
     from firmware_sim.world.subject import random_subjects
+    from firmware_sim.world.walk_plan import WalkPlan
 
     subject = random_subjects(2, seed=5)[1]
-    protocol = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
+    walk_plan = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
                                rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
                                                                          120.0))
-    aw = AnalogWalk(subject=subject, seed=7, protocol=protocol).run()
+    aw = AnalogWalk(subject=subject, seed=7, walk_plan=walk_plan).run()
     sw = aw.sample(SAMPLING_RATE_HZ)
-    return SimpleNamespace(subject=subject, protocol=protocol, aw=aw, sw=sw, wc=compare_walk(sw, subject, adc_bits=10),
+    return SimpleNamespace(subject=subject, walk_plan=walk_plan, aw=aw, sw=sw, wc=compare_walk(sw, subject, adc_bits=10),
                            scaled=compare_walk(sw, subject, adc_bits=10, fixed_algorithm=ScaledFixed))
 
 
@@ -75,7 +75,7 @@ def test_codes_are_what_the_emulated_logger_stores(walk, adc_bits) -> None:
     from protocol.packing import FLAG_MARK
 
     logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=adc_bits, sampling_rate_hz=SAMPLING_RATE_HZ))
-    res = logger.record(Walking(subject=walk.subject, protocol=walk.protocol, seed=7))
+    res = logger.record(Walking(subject=walk.subject, walk_plan=walk.walk_plan, seed=7))
     np.testing.assert_array_equal(walk.sw.codes(adc_bits), np.asarray(res.codes, np.int64))
     np.testing.assert_allclose(walk.sw.times_s, res.sample_times_s, atol=1e-12)
     marks = np.asarray(res.sample_times_s)[(np.asarray(res.flags) & FLAG_MARK) != 0]

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_sim.algorithms.steps import StepTable
-from firmware_sim.world.gait_protocol import WalkingProtocol
 from firmware_sim.world.subject import Subject
+from firmware_sim.world.walk_plan import WalkPlan
 from firmware_sim.world.walking import Walking
 from host.errors import HostError
 from host.gait.sections import MODES, section_fractions, sections_from_marks
@@ -29,7 +29,7 @@ from host.studies.evaluation import (
 from host.studies.simulation import SimulatedRecording
 
 #: 60 m corridor: marks 10, 30 | 50-70 holds the turn | 70, 90, 110; first 40 m = calibration.
-SHORT = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=8.0,
+SHORT = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=8.0,
                         rest_postures=("standing",), initial_stand_s=6.0, final_stand_s=2.0,
                         lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0, 120.0))
 
@@ -48,7 +48,7 @@ def ideal_logger(motion, *, sampling_rate_hz: float = 50.0) -> tuple[np.ndarray,
 @pytest.fixture(scope="module")
 def short_recording() -> SimulatedRecording:
     subject = Subject()
-    m = Walking(subject=subject, protocol=SHORT, seed=4).render(500.0)
+    m = Walking(subject=subject, walk_plan=SHORT, seed=4).render(500.0)
     g, times, marks = ideal_logger(m)
     return SimulatedRecording(subject, 4, g, np.ones(len(g), bool), 50.0, float(times[0]), marks,
                               dict(m.truth), False)
@@ -156,8 +156,8 @@ def test_summary_table_csv_and_pattern() -> None:
 
 def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> None:
     """Two subjects through the emulated Logger: same rows with 1 or 2 workers; atomic CSV and PNG."""
-    a = SimulatedEvaluation(n_subjects=2, seed=3, protocol=SHORT, workers=1).run()
-    b = SimulatedEvaluation(n_subjects=2, seed=3, protocol=SHORT, workers=2).run()
+    a = SimulatedEvaluation(n_subjects=2, seed=3, walk_plan=SHORT, workers=1).run()
+    b = SimulatedEvaluation(n_subjects=2, seed=3, walk_plan=SHORT, workers=2).run()
     assert a.rows_ == b.rows_ and len(a.rows_) > 0
     assert a.events_["heel_strike"].n_truth > 0
     out = tmp_path / "rows.csv"

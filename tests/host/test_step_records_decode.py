@@ -317,14 +317,14 @@ def test_steps_csv_columns_and_values(tmp_path):
 def walk():
     """A simulated walk recorded by the emulated logger with its on-line step algorithm on."""
     from firmware_sim.device import Logger
-    from firmware_sim.world.gait_protocol import WalkingProtocol
     from firmware_sim.world.subject import Subject
+    from firmware_sim.world.walk_plan import WalkPlan
     from firmware_sim.world.walking import Walking
 
-    protocol = WalkingProtocol(corridor_length_m=20.0, speeds=("preferred",), initial_stand_s=3.0,
+    walk_plan = WalkPlan(corridor_length_m=20.0, speeds=("preferred",), initial_stand_s=3.0,
                                final_stand_s=2.0, lap_marks_m=(0.0, 20.0, 40.0))
     logger = Logger(device_id=5, step_config=StepConfig(step_format=1, leg_length_m=0.93, foot_length_m=0.194))
-    logger.record(Walking(subject=Subject.from_height(1.75), protocol=protocol, seed=1), start_time_s=1_700_000_000)
+    logger.record(Walking(subject=Subject.from_height(1.75), walk_plan=walk_plan, seed=1), start_time_s=1_700_000_000)
     h = logger.header
     stored = bytes(logger.step_memory)[: h.step_used_bytes]  # not wrapped: slot k = record k
     assert h.steps_written > 40 and not h.steps_wrapped

@@ -10,13 +10,13 @@ from host.studies.sweep import AdcRateSweep, format_m5, format_summary
 
 @pytest.fixture(scope="module")
 def sweep() -> AdcRateSweep:
-    from firmware_sim.world.gait_protocol import WalkingProtocol
+    from firmware_sim.world.walk_plan import WalkPlan
 
-    protocol = WalkingProtocol(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
+    walk_plan = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
                                rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
                                                                          120.0))
     ticks = []
-    sw = AdcRateSweep(n_subjects=1, seed=2, adc_bits=(8, 10, 12), rates_hz=(25.0, 100.0), protocol=protocol).run(
+    sw = AdcRateSweep(n_subjects=1, seed=2, adc_bits=(8, 10, 12), rates_hz=(25.0, 100.0), walk_plan=walk_plan).run(
         progress=lambda: ticks.append(len(ticks)))
     sw.ticks = ticks
     return sw

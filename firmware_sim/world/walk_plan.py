@@ -19,7 +19,7 @@ SPEED_LABELS = ("preferred", "fast", "slow", "medium")
 
 
 @dataclass(frozen=True)
-class WalkingProtocol:
+class WalkPlan:
     """Parameters of the corridor protocol (lengths in m, times in s).
 
     Attributes
@@ -69,7 +69,7 @@ class WalkingProtocol:
         if self.corridor_length_m < 10.0:
             raise ValueError(f"corridor_length_m must be >= 10 m, got {self.corridor_length_m}")
         if not self.speeds:
-            raise ValueError("WalkingProtocol.speeds is empty")
+            raise ValueError("WalkPlan.speeds is empty")
         for label in self.speeds:
             if label not in SPEED_LABELS:
                 raise ValueError(f"unknown speed label {label!r}; expected one of {SPEED_LABELS}")
