@@ -53,7 +53,7 @@ sys.path.insert(0, str(ROOT))
 
 from firmware_sim.algorithms.online import OnlineStepAlgorithm  # noqa: E402
 from firmware_sim.device import Logger  # noqa: E402
-from protocol.header import Calibration  # noqa: E402
+from protocol.header import CalibrationSlot  # noqa: E402
 from protocol.steps import STEP_RECORD_SIZE, pack_step_records  # noqa: E402
 
 FLOAT_TARGET_S = 0.1
@@ -125,8 +125,8 @@ reps, mode = int(sys.argv[5]), sys.argv[6]
 if mode == "offline":
     import warnings
     from host.gait.pipeline import StepPipeline
-    from protocol.header import Calibration
-    cal = Calibration.nominal(10)
+    from protocol.header import CalibrationSlot
+    cal = CalibrationSlot.nominal(10)
     run_offline = lambda acc: StepPipeline(leg_length_m=leg, foot_length_m=foot).run(acc, sampling_rate_hz=50.0)
     warnings.simplefilter("ignore")
     run_offline(cal.apply(codes[:3000]))                       # warm-up: imports done, nothing kept
@@ -222,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     # ---- 1. in-process replay, warm
     t_alg = {a: best_of(lambda a=a: algs[a].run(codes), warmup=True) for a in algs}
     n_steps = {a: algs[a].run(codes).n_steps for a in algs}
-    acc = Calibration.nominal(10).apply(codes.astype(np.float64)) if cal is None else cal.apply(codes.astype(float))
+    acc = CalibrationSlot.nominal(10).apply(codes.astype(np.float64)) if cal is None else cal.apply(codes.astype(float))
     from host.gait.pipeline import StepPipeline
 
     pipe = StepPipeline(leg_length_m=cfg.leg_length_m, foot_length_m=cfg.foot_length_m)

@@ -56,7 +56,7 @@ def naive_pass_s() -> float:
     from firmware_sim.world.walking import Walking
     from host.files.replay import online_step_table
     from host.studies.compare import offline_step_table
-    from protocol.header import Calibration
+    from protocol.header import CalibrationSlot
     from protocol.steps import StepConfig
 
     s = random_subjects(1, seed=0)[0]
@@ -68,8 +68,8 @@ def naive_pass_s() -> float:
     res = Logger(adc=Adc(adc_bits=10, sampling_rate_hz=50.0)).record(Walking(subject=s, seed=0))
     codes = np.asarray(res.codes, np.int64)
     kw = dict(sampling_rate_hz=50.0, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
-    offline_step_table(Calibration.nominal(10).apply(codes), **kw)
-    offline_step_table(Calibration.nominal(10).apply(codes + 0.5), **kw)     # the "ideal" pass
+    offline_step_table(CalibrationSlot.nominal(10).apply(codes), **kw)
+    offline_step_table(CalibrationSlot.nominal(10).apply(codes + 0.5), **kw)     # the "ideal" pass
     for arithmetic in ("float", "fixed"):
         online_step_table(codes, arithmetic=arithmetic, **kw)
     return time.perf_counter() - t

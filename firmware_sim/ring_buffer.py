@@ -19,7 +19,12 @@ import numpy as np
 
 from firmware_sim.eeprom import PAGE_BYTES, DataEeprom, EepromBank
 from firmware_sim.errors import DeviceError
-from protocol.header import SAMPLES_WRITTEN_MAX, Calibration, DeviceHeader, HeaderFlag
+from protocol.header import (
+    SAMPLES_WRITTEN_MAX,
+    CalibrationSlot,
+    DeviceHeader,
+    HeaderFlag,
+)
 from protocol.packing import words_to_bytes
 
 __all__ = ["RingBuffer", "MemoryFullError", "WORDS_PER_PAGE"]
@@ -149,7 +154,7 @@ class RingBuffer:
         self._pending_slot = 0
         self.commit()
 
-    def set_calibration(self, calibration: Calibration) -> None:
+    def set_calibration(self, calibration: CalibrationSlot) -> None:
         """Store calibration constants in the header slot and commit."""
         if self.logging:
             raise DeviceError("SET_CALIBRATION while logging")

@@ -26,7 +26,7 @@ import construct as cs
 
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
-from protocol.header import CALIBRATION_SIZE, HEADER_SIZE, Calibration, DeviceHeader
+from protocol.header import CALIBRATION_SIZE, HEADER_SIZE, CalibrationSlot, DeviceHeader
 from protocol.layout import named_fields
 from protocol.steps import STEP_CONFIG_SIZE, StepConfig
 
@@ -213,7 +213,7 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
 #: The settings commands' payloads as objects: type -> (field, class with ``to_bytes``/``from_bytes``);
 #: a payload the class refuses is answered with NAK BAD_ARGUMENT.
 SET_PAYLOADS: dict[FrameType, tuple[str, type]] = {
-    FrameType.SET_CALIBRATION: ("calibration", Calibration),
+    FrameType.SET_CALIBRATION: ("calibration", CalibrationSlot),
     FrameType.SET_STEP_CONFIG: ("step_config", StepConfig),
 }
 
@@ -338,7 +338,7 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
     """Payload bytes of a frame type from its fields (names as in section 3.1).
 
     ``HEADER`` takes ``header`` (a :class:`DeviceHeader` or 256 bytes), ``SET_CALIBRATION`` takes
-    ``calibration`` (a :class:`Calibration` or 64 bytes), ``SET_STEP_CONFIG`` takes ``step_config`` (a
+    ``calibration`` (a :class:`CalibrationSlot` or 64 bytes), ``SET_STEP_CONFIG`` takes ``step_config`` (a
     :class:`~protocol.steps.StepConfig` or 32 bytes), ``ERASE`` needs no field.
 
     Raises
@@ -404,7 +404,7 @@ def parse_payload(frame: Frame, source: str | None = None) -> dict[str, Any]:
     """Fields of a frame's payload as a plain dict (enums as :class:`enum.IntEnum` members).
 
     ``HEADER`` gives ``{"header": DeviceHeader}`` (validated), ``SET_CALIBRATION`` gives
-    ``{"calibration": Calibration}``, ``SET_STEP_CONFIG`` gives ``{"step_config": StepConfig}`` (an
+    ``{"calibration": CalibrationSlot}``, ``SET_STEP_CONFIG`` gives ``{"step_config": StepConfig}`` (an
     unknown format, reserved flag bits or format 1 with leg length 0 are ``BAD_ARGUMENT``), ``DATA`` gives
     ``{"address": int, "data": bytes}``.
 

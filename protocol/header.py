@@ -1,7 +1,7 @@
 """Device header (256 bytes) and calibration slot (64 bytes): ``PROTOCOL.md`` sections 2 and 2.1.
 
 The construct declarations :data:`HEADER_STRUCT` and :data:`CALIBRATION_STRUCT` are the byte layouts; the
-dataclasses :class:`DeviceHeader` and :class:`Calibration` are the validated values with the decoder's rules
+dataclasses :class:`DeviceHeader` and :class:`CalibrationSlot` are the validated values with the decoder's rules
 (stored samples, oldest slot, sample numbers and times; the same for the per-step records of the step
 memory, section 2.3). The step configuration block at offset 128 is :class:`protocol.steps.StepConfig`.
 
@@ -63,7 +63,7 @@ __all__ = [
     "HEADER_OFFSETS",
     "HEADER_INT_FIELDS",
     "CALIBRATION_OFFSETS",
-    "Calibration",
+    "CalibrationSlot",
     "DeviceHeader",
 ]
 
@@ -175,7 +175,7 @@ def _err(what: str, fieldname: str, source: str | None, base: int = 0, table: di
 
 
 @dataclass(eq=False)
-class Calibration:
+class CalibrationSlot:
     """Affine accelerometer calibration ``a_g = M · (codes − offset)`` (section 2.1).
 
     Parameters
@@ -190,13 +190,13 @@ class Calibration:
 
     Examples
     --------
-    >>> cal = Calibration(np.array([512.0, 500.25, 530.5]), np.diag([1 / 256, 1 / 250, 1 / 260]), True)
+    >>> cal = CalibrationSlot(np.array([512.0, 500.25, 530.5]), np.diag([1 / 256, 1 / 250, 1 / 260]), True)
     >>> raw = cal.to_bytes()
     >>> raw[:16].hex()
     '01000000000000020040f40100801202'
     >>> cal.apply(np.array([[768, 500, 530]])).round(6).tolist()
     [[1.0, -0.001, -0.001923]]
-    >>> Calibration.from_bytes(raw).offset_counts.tolist()
+    >>> CalibrationSlot.from_bytes(raw).offset_counts.tolist()
     [512.0, 500.25, 530.5]
     """
 
@@ -210,10 +210,10 @@ class Calibration:
         self.valid = bool(self.valid)
 
     @classmethod
-    def nominal(cls, adc_bits: int = 10) -> "Calibration":
+    def nominal(cls, adc_bits: int = 10) -> "CalibrationSlot":
         """The nominal map: offset ``2^(adc_bits−1)`` counts, ``M = diag(4 g / 2^adc_bits)`` (±2 g span).
 
-        >>> float(Calibration.nominal(10).matrix_g_per_count[0, 0]), Calibration.nominal(10).valid
+        >>> float(CalibrationSlot.nominal(10).matrix_g_per_count[0, 0]), CalibrationSlot.nominal(10).valid
         (0.00390625, False)
         """
         check_adc_bits(adc_bits)
@@ -225,9 +225,9 @@ class Calibration:
         c = np.asarray(codes, dtype=np.float64)
         return (c - self.offset_counts) @ self.matrix_g_per_count.T
 
-    def quantised(self) -> "Calibration":
+    def quantised(self) -> "CalibrationSlot":
         """The calibration exactly as it is stored (offset to 2⁻¹⁶ count, matrix to 2⁻³⁰ g/count)."""
-        return Calibration.from_bytes(self.to_bytes()) if self.valid else self
+        return CalibrationSlot.from_bytes(self.to_bytes()) if self.valid else self
 
     def to_bytes(self) -> bytes:
         """The 64-byte slot. ``valid=False`` gives ``cal_format`` 0 and zero fields.
@@ -260,7 +260,7 @@ class Calibration:
 
     @classmethod
     def from_bytes(cls, data: bytes, adc_bits: int = 10, *, source: str | None = None,
-                   base_offset: int = 0) -> "Calibration":
+                   base_offset: int = 0) -> "CalibrationSlot":
         """Parse a 64-byte slot; ``cal_format`` 0 gives :meth:`nominal` for ``adc_bits``.
 
         Raises
@@ -328,12 +328,12 @@ class DeviceHeader(_HeaderIntFields):
     [24, 23]
     """
 
-    calibration: Calibration | None = None
+    calibration: CalibrationSlot | None = None
     step_config: StepConfig | None = None
 
     def __post_init__(self) -> None:
         if self.calibration is None:
-            self.calibration = Calibration.nominal(self.adc_bits if adc_bits_problem(self.adc_bits) is None else MAX_STORED_ADC_BITS)
+            self.calibration = CalibrationSlot.nominal(self.adc_bits if adc_bits_problem(self.adc_bits) is None else MAX_STORED_ADC_BITS)
         if self.step_config is None:
             self.step_config = StepConfig.off()
         flags = int(self.flags) & ~int(HeaderFlag.CAL_VALID)
@@ -494,8 +494,8 @@ class DeviceHeader(_HeaderIntFields):
         if self.run_start_sample > sw:
             raise _err(f"{self.run_start_sample} beyond samples_written {sw}", "run_start_sample", source)
         self._validate_steps(source)
-        if not isinstance(self.calibration, Calibration):
-            raise _err("must be a Calibration", "calibration", source)
+        if not isinstance(self.calibration, CalibrationSlot):
+            raise _err("must be a CalibrationSlot", "calibration", source)
         if not isinstance(self.step_config, StepConfig):
             raise _err("must be a StepConfig", "step_config", source)
         try:
@@ -568,14 +568,14 @@ class DeviceHeader(_HeaderIntFields):
         header = cls.__new__(cls)
         for name, value in values.items():
             setattr(header, name, value)
-        header.calibration = Calibration.nominal(10)
+        header.calibration = CalibrationSlot.nominal(10)
         header.step_config = StepConfig.off()
         if header.header_version != HEADER_VERSION or header.protocol_version != PROTOCOL_VERSION:
             header.validate(source)
         if (problem := adc_bits_problem(header.adc_bits)) is not None:
             raise _err(problem, "adc_bits", source)
         cal_off = HEADER_OFFSETS["calibration"][0]
-        cal = Calibration.from_bytes(body.calibration, header.adc_bits, source=source, base_offset=cal_off)
+        cal = CalibrationSlot.from_bytes(body.calibration, header.adc_bits, source=source, base_offset=cal_off)
         if bool(header.flags & HeaderFlag.CAL_VALID) != cal.valid:
             raise ProtocolError(
                 f"calibration: CAL_VALID flag is {bool(header.flags & HeaderFlag.CAL_VALID)} but cal_format "

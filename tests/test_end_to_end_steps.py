@@ -407,12 +407,12 @@ def test_record_with_a_k_file_stores_calibrated_lengths(tmp_path, capsys):
     (["--steps", "off", "--height", "1.8"], 2, "--steps off runs no step algorithm: --height would be ignored"),
 ])
 def test_record_bad_inputs(tmp_path, capsys, args, code, message):
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
 
     base = dict(k_m1=1.05, k_m2=1.1, k_m4=0.45, k1_m5_m_s=0.35, k2_m5_m=0.1, mode="single-speed", m5_fallback=False,
                 leg_length_m=0.9275, foot_length_m=0.1943, n_sections=1, n_steps=50, distance_m=40.0)
-    KCalibration(**base).save(tmp_path / "k.json")
-    KCalibration(**{**base, "k_m1": 3.5}).save(tmp_path / "big.json")
+    KFit(**base).save(tmp_path / "k.json")
+    KFit(**{**base, "k_m1": 3.5}).save(tmp_path / "big.json")
     (tmp_path / "acc.json").write_text(json.dumps({"cal_type": "gaitlog.AccCalibration", "format_version": "1.0"}))
     before = _files(tmp_path)
     argv = ["record", "--motion", "walk", "--out", str(tmp_path / "x.glimg")] + [a.format(d=tmp_path) for a in args]

@@ -77,7 +77,7 @@ class CalibrationQ:
 
     @classmethod
     def from_protocol(cls, calibration: object, *, adc_bits: int = 10) -> CalibrationQ:
-        """From a :class:`protocol.header.Calibration` (its ``offset_counts`` and ``matrix_g_per_count``)."""
+        """From a :class:`protocol.header.CalibrationSlot` (its ``offset_counts`` and ``matrix_g_per_count``)."""
         return cls.from_float(calibration.offset_counts, calibration.matrix_g_per_count, adc_bits=adc_bits)
 
     @property

@@ -153,7 +153,7 @@ class OnlineConfig:
         ----------
         calibration
             The device calibration (``offset_counts``, ``matrix_g_per_count``: a
-            :class:`protocol.header.Calibration`) or None for the nominal map of ``adc_bits`` (±2 g).
+            :class:`protocol.header.CalibrationSlot`) or None for the nominal map of ``adc_bits`` (±2 g).
         step_config
             Leg, foot, K constants (:class:`protocol.steps.StepConfig`); used as stored (quantised).
         adc_bits
@@ -400,7 +400,7 @@ class OnlineStepAlgorithm:
     step_config
         Leg and foot length, K constants (:class:`protocol.steps.StepConfig`).
     calibration
-        Device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
+        Device calibration (a :class:`protocol.header.CalibrationSlot`) or None for the nominal map.
     arithmetic
         ``"fixed"`` (the PIC's, as the logger computes it) or ``"float"``.
     adc_bits, events, online, cycles_available

@@ -92,7 +92,7 @@ import numpy as np
 
 from host.errors import HostError
 from host.files.versioned_json import VersionedJson
-from protocol.header import Calibration
+from protocol.header import CalibrationSlot
 
 #: Number of parameters of each model.
 MODELS: dict[str, int] = {"9-param": 9, "6-param": 6}
@@ -304,15 +304,15 @@ class AccCalibration(VersionedJson):
             raise CalibrationError(f"accelerations must have shape (..., 3), got {arr.shape}")
         return arr @ np.linalg.inv(self.matrix).T + self.offset
 
-    def to_header_calibration(self) -> Calibration:
-        """The device header's calibration slot (``protocol.header.Calibration``, PROTOCOL.md 2.1).
+    def to_header_calibration(self) -> CalibrationSlot:
+        """The device header's calibration slot (``protocol.header.CalibrationSlot``, PROTOCOL.md 2.1).
 
         Only a calibration of ADC counts fits the slot (``a_g = M (codes - offset)``).
         """
         if self.input_unit != "counts":
             raise CalibrationError("only a calibration of ADC counts can go in the device header, "
                                    f"this one takes {self.input_unit}")
-        return Calibration(offset_counts=self.offset.copy(), matrix_g_per_count=self.matrix.copy(), valid=True)
+        return CalibrationSlot(offset_counts=self.offset.copy(), matrix_g_per_count=self.matrix.copy(), valid=True)
 
     # ---------------------------------------------------------------------------------------------- build
     @classmethod

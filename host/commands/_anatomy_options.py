@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from host.files.inputs import AccelerationInput
     from host.gait.anthropometry import AnatomyChoice
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
 
 #: The attribute names of the anatomy flags.
 ANATOMY_FLAGS = ("leg_length", "foot_length", "height")
@@ -31,7 +31,7 @@ def given_anatomy_flags(args: argparse.Namespace) -> list[str]:
     return [f"--{n.replace('_', '-')}" for n in ANATOMY_FLAGS if getattr(args, n, None) is not None]
 
 
-def lengths_from_args(args: argparse.Namespace, *, k: KCalibration | None = None, k_source: str | None = None,
+def lengths_from_args(args: argparse.Namespace, *, k: KFit | None = None, k_source: str | None = None,
                       data: AccelerationInput | None = None) -> AnatomyChoice:
     """Leg and foot length by :func:`host.gait.anthropometry.choose_lengths` from the flags, the K file ``k``,
     the height of an IPOL trial read into ``data`` and the step configuration of a logger recording in ``data``."""

@@ -72,16 +72,16 @@ def run(args: argparse.Namespace) -> int:
         laps = sections_from_marks(steps.time_s(marks), lap_m=float(args.lap_marks),
                                    sampling_rate_hz=data.sampling_rate_hz)
         sections += [pool for pool in (pool_steps(steps, [lap]) for lap in laps) if pool[0].n_steps]
-    cal = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
-    cal.save(args.out)
+    k = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
+    k.save(args.out)
     if verbosity(args) >= 0:
-        print(f"{len(sections)} section(s), {cal.n_steps} steps, {cal.distance_m:g} m ({cal.mode}); leg length "
+        print(f"{len(sections)} section(s), {k.n_steps} steps, {k.distance_m:g} m ({k.mode}); leg length "
               f"{leg:.3f} m, foot length {foot:.3f} m" + (f" ({lengths.note})" if lengths.note and not lengths.assumed
                                                           else ""))
-        print(f"K  M1 {cal.k_m1:.4f}  M2 {cal.k_m2:.4f}  M4 {cal.k_m4:.4f} m/(m/s^2)^0.25")
-        print(f"M5 S = {cal.k1_m5_m_s:.4f} / T + {cal.k2_m5_m:.4f} m"
-              + ("  (walk-ratio fallback)" if cal.m5_fallback else ""))
-        for note in notes + list(cal.notes):
+        print(f"K  M1 {k.k_m1:.4f}  M2 {k.k_m2:.4f}  M4 {k.k_m4:.4f} m/(m/s^2)^0.25")
+        print(f"M5 S = {k.k1_m5_m_s:.4f} / T + {k.k2_m5_m:.4f} m"
+              + ("  (walk-ratio fallback)" if k.m5_fallback else ""))
+        for note in notes + list(k.notes):
             print(f"gaitlog calibrate-k: warning: {note}", file=sys.stderr)
         print(f"written: {args.out}")
     return 0

@@ -265,7 +265,7 @@ def _recording(args: argparse.Namespace) -> int:
     from host.commands._options import printer, verbosity
     from host.errors import HostError
     from host.files.replay import run_starts, verify_step_records
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
     from protocol.atomic_write import atomic_write_text, require_folder
 
@@ -292,7 +292,7 @@ def _recording(args: argparse.Namespace) -> int:
         except HostError as err:
             raise HostError(f"{args.calibration}: {err}") from None
         note = f"g from {args.calibration}"
-    k = KCalibration.load(args.k_file) if args.k_file else None
+    k = KFit.load(args.k_file) if args.k_file else None
     lengths = lengths_from_args(args, k=k, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     flags = np.asarray(rec.flags)

@@ -170,14 +170,14 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
     from host.studies.simulation import SimulatedRecording
-    from protocol.header import Calibration
+    from protocol.header import CalibrationSlot
     from protocol.packing import FLAG_MARK
     from protocol.steps import StepConfig
 
     args = ctx["args"]
     subject = random_subjects(1, seed=args.seed)[0]
     acc_cal = ctx.get("calibration")
-    cal = acc_cal.to_header_calibration() if acc_cal is not None else Calibration.nominal(10)
+    cal = acc_cal.to_header_calibration() if acc_cal is not None else CalibrationSlot.nominal(10)
     ctx.update(walk_calibration=cal, subject=subject)
     logger = _walk_logger(ctx, StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                           foot_length_m=subject.foot_length_m))

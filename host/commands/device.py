@@ -216,9 +216,9 @@ def _calibration_slot(args: argparse.Namespace) -> bytes:
 
 def _set_calibration(args: argparse.Namespace, link, info: dict[str, int], slot: bytes) -> int:
     from host.errors import HostError
-    from protocol.header import Calibration
+    from protocol.header import CalibrationSlot
 
-    cal = Calibration.from_bytes(slot, info["adc_bits"])
+    cal = CalibrationSlot.from_bytes(slot, info["adc_bits"])
     link.set_calibration(slot)
     _, header = link.read_header()
     stored = header.calibration

@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
     from host.errors import HostError
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
     from protocol.atomic_write import require_folder
 
     if args.out:
@@ -46,8 +46,8 @@ def run(args: argparse.Namespace) -> int:
     if args.arithmetic != "float" and data.recording is None:
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a logger file or a "
                         "decoded recording (.npz from 'gaitlog decode'), not acceleration in g")
-    cal = KCalibration.load(args.k_file) if args.k_file else None
-    lengths = lengths_from_args(args, k=cal, data=data)
+    k = KFit.load(args.k_file) if args.k_file else None
+    lengths = lengths_from_args(args, k=k, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     notes = [lengths.note] if lengths.assumed else []
     tables = {}
@@ -55,12 +55,12 @@ def run(args: argparse.Namespace) -> int:
     if args.arithmetic in ("float", "both"):
         from host.gait.pipeline import StepPipeline
 
-        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=cal).run(
+        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=k).run(
             data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
         tables["float"] = pipe.steps_
         notes += pipe.notes_
     if args.arithmetic in ("fixed", "both"):
-        tables["fixed"], fixed_report = _fixed_steps(data, args.calibration, leg, foot, cal)
+        tables["fixed"], fixed_report = _fixed_steps(data, args.calibration, leg, foot, k)
     outs = {}
     if args.out:
         out = Path(args.out)
@@ -120,7 +120,7 @@ def _summary(tables: dict, estimators: tuple[str, ...]) -> dict[str, dict]:
     return out
 
 
-def _fixed_steps(data, calibration: str | None, leg: float, foot: float, cal):
+def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k):
     """The on-line algorithm in fixed point (the logger's) on the codes of a logger recording, with the same
     K as the float chain -> (StepTable, saturation report)."""
     import numpy as np
@@ -140,6 +140,6 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, cal):
     valid = np.asarray(rec.valid, bool)
     starts = run_starts(valid, rec.flags)
     table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
-                                   foot_length_m=foot, calibration=cal, adc_calibration=adc_cal,
+                                   foot_length_m=foot, calibration=k, adc_calibration=adc_cal,
                                    adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
     return table, alg.arithmetic_context().report()

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._options import printer
     from host.errors import HostError
     from host.files.inputs import read_acceleration
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
     from host.studies.overview import recording_overview
     from host.studies.plots import render_overview_png
     from protocol.atomic_write import atomic_write_bytes
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         raise HostError(f"{src}: plot draws a logger recording (memory image, raw dump, wire capture or decoded "
                         f".npz); this is {data.source}: record it first (gaitlog record --motion replay)")
     rec = data.recording
-    cal = KCalibration.load(args.k_file) if args.k_file else None
+    cal = KFit.load(args.k_file) if args.k_file else None
     lengths = lengths_from_args(args, k=cal, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     estimators = [e.strip().upper() for e in args.estimators.split(",") if e.strip()]

@@ -151,31 +151,31 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
         return StepConfig.off(), []
     if appending and args.steps is None and not given:
         return None, []
-    cal = None
+    k = None
     if args.k_file is not None:
-        from host.gait.k_calibration import KCalibration
+        from host.gait.k_calibration import KFit
 
-        cal = KCalibration.load(args.k_file)
-    lengths = lengths_from_args(args, k=cal, data=data)
+        k = KFit.load(args.k_file)
+    lengths = lengths_from_args(args, k_fields=k, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
-    k = {}
-    if cal is not None:
-        fitted = StepConfig(step_format=StepFormat.V1, leg_length_m=cal.leg_length_m,
-                            foot_length_m=cal.foot_length_m)
+    k_fields = {}
+    if k is not None:
+        fitted = StepConfig(step_format=StepFormat.V1, leg_length_m=k.leg_length_m,
+                            foot_length_m=k.foot_length_m)
         try:
             fitted_q = fitted.quantised()
         except ProtocolError as err:
             raise HostError(f"{args.k_file}: its lengths cannot be stored: {err}") from err
         for name, chosen, value in (("leg", leg, fitted_q.leg_length_m), ("foot", foot, fitted_q.foot_length_m)):
             # a length the options set (the length itself, or the height it is derived from) must be K's
-            if chosen != getattr(cal, f"{name}_length_m") and abs(chosen - value) > 2.0 ** -15:
+            if chosen != getattr(k, f"{name}_length_m") and abs(chosen - value) > 2.0 ** -15:
                 raise HostError(f"{args.k_file}: K was fitted with a {name} length of {value:.4f} m, the options "
                                 f"give {chosen:.4f} m: K holds only with the lengths it was fitted with (drop "
                                 "--height/--leg-length/--foot-length, or fit K again)")
-        leg, foot = cal.leg_length_m, cal.foot_length_m
-        k = cal.step_constants()
+        leg, foot = k.leg_length_m, k.foot_length_m
+        k_fields = k.step_constants()
     notes = [f"the on-line step algorithm: {lengths.note}; or --steps off for plain logging"] if lengths.assumed else []
-    config = StepConfig(step_format=StepFormat.V1, leg_length_m=leg, foot_length_m=foot, **k)
+    config = StepConfig(step_format=StepFormat.V1, leg_length_m=leg, foot_length_m=foot, **k_fields)
     try:
         config.to_bytes()
     except ProtocolError as err:

@@ -40,7 +40,7 @@ import numpy as np
 
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
-from protocol.header import Calibration, DeviceHeader
+from protocol.header import CalibrationSlot, DeviceHeader
 from protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
@@ -312,7 +312,7 @@ class Recording:
         cal = getattr(self.header, "calibration", None)
         if cal is not None and bool(getattr(cal, "valid", False)):
             return cal, "g from the header's calibration slot"
-        return (Calibration.nominal(self.adc_bits),
+        return (CalibrationSlot.nominal(self.adc_bits),
                 f"g from the nominal map (no calibration in the header): 0 g at code {2 ** (self.adc_bits - 1)}, "
                 f"{4.0 / 2 ** self.adc_bits:.6g} g per count")
 
@@ -322,7 +322,7 @@ class Recording:
         Parameters
         ----------
         calibration
-            Object with ``apply(counts) -> g`` (``protocol.header.Calibration``, ``host.accelerometer.calibration.
+            Object with ``apply(counts) -> g`` (``protocol.header.CalibrationSlot``, ``host.accelerometer.calibration.
             AccCalibration``); default: the header's calibration slot, else the nominal ±2 g map.
         """
         cal = self.default_calibration()[0] if calibration is None else calibration

@@ -264,7 +264,7 @@ def verify_step_records(recording: Recording) -> ReplayCheck | None:
 def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
     """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
 
-    ``calibration`` is a :class:`~host.gait.k_calibration.KCalibration` (K applied by the algorithm, in
+    ``calibration`` is a :class:`~host.gait.k_calibration.KFit` (K applied by the algorithm, in
     its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
     when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
     """
@@ -292,9 +292,9 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     codes
         ``(n, 3)`` ADC codes (``adc_bits`` bits).
     calibration
-        :class:`~host.gait.k_calibration.KCalibration` (the one K of the comparison) or None (raw).
+        :class:`~host.gait.k_calibration.KFit` (the one K of the comparison) or None (raw).
     adc_calibration
-        The device calibration (a :class:`protocol.header.Calibration`) or None for the nominal map.
+        The device calibration (a :class:`protocol.header.CalibrationSlot`) or None for the nominal map.
     arithmetic
         ``"fixed"`` (the logger's) or ``"float"``.
     valid, run_starts

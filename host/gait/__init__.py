@@ -15,7 +15,7 @@ pipeline
 estimators
     The step-length estimators M1-M5 (one class each).
 k_calibration
-    K of M1/M2/M4 and the M5 line fitted to walks over known distances (:class:`KCalibration`).
+    K of M1/M2/M4 and the M5 line fitted to walks over known distances (:class:`KFit`).
 anthropometry
     Leg and foot length from body height when they were not measured.
 """

@@ -11,7 +11,7 @@
   Gait Posture 7, 1998). ``m5_fallback`` is True and ``notes`` says so.
 * M3 has no constant.
 
-:class:`KCalibration` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
+:class:`KFit` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
 ``format_version`` "1.0").
 """
 
@@ -33,7 +33,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 @dataclass(frozen=True)
-class KCalibration(VersionedJson):
+class KFit(VersionedJson):
     """Calibrated constants of one subject.
 
     Attributes
@@ -86,7 +86,7 @@ class KCalibration(VersionedJson):
         return asdict(self)
 
     @classmethod
-    def fields_from_dict(cls, data: dict[str, object], *, source: str) -> KCalibration:
+    def fields_from_dict(cls, data: dict[str, object], *, source: str) -> KFit:
         """Rebuild from the file's keys; :class:`HostError` naming ``source`` on a missing, extra or bad field."""
         try:
             cal = cls(**data)  # type: ignore[arg-type]
@@ -105,7 +105,7 @@ def calibrate(
     foot_length_m: float,
     subject: str = "",
     min_cadence_spread: float = 0.05,
-) -> KCalibration:
+) -> KFit:
     """Fit K (M1, M2, M4) and the M5 line from step tables of sections with known distance.
 
     Parameters
@@ -165,7 +165,7 @@ def calibrate(
         A = np.column_stack([c, np.ones_like(c)]) * np.sqrt(wts)[:, None]
         k1, k2 = np.linalg.lstsq(A, s * np.sqrt(wts), rcond=None)[0]
         k1, k2 = float(k1), float(k2)
-    return KCalibration(
+    return KFit(
         k_m1=ks["M1"], k_m2=ks["M2"], k_m4=ks["M4"], k1_m5_m_s=float(k1), k2_m5_m=float(k2),
         mode="single-speed" if fallback else "multi-speed", m5_fallback=bool(fallback),
         leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m), n_sections=len(sections),
@@ -174,7 +174,7 @@ def calibrate(
 
 
 def calibrate_on_sections(table: StepTable, pools: Sequence[Sequence[Section]], *, leg_length_m: float,
-                          foot_length_m: float, subject: str = "") -> KCalibration:
+                          foot_length_m: float, subject: str = "") -> KFit:
     """:func:`calibrate` on the steps of ``table`` pooled per run of lap sections (:func:`~host.gait.sections.pool_steps`).
 
     ``pools``: one list of consecutive sections per calibration point, e.g. a mode of

@@ -9,7 +9,7 @@ Steps of the chain (:class:`StepPipeline`):
    walking bout to this one; the first foot-flat of a bout (gait initiation, or after a gap longer than
    ``max_gap_s``) ends a step that has no window: it is counted but its length is NaN.
 4. M1-M5 on every window (``host.gait.estimators``), raw (K = 1, or the cadence ``1/T`` for M5) and calibrated
-   with a :class:`~host.gait.k_calibration.KCalibration` when one is given. Without one, M1 and M2 use
+   with a :class:`~host.gait.k_calibration.KFit` when one is given. Without one, M1 and M2 use
    K = 1 (the bare pendulum model), M4 and M5 are NaN (they have no physical scale without K).
 
 Distance (:meth:`StepTable.distance_m`): the sum of the step lengths; a step whose length is NaN (no window,
@@ -35,7 +35,7 @@ from host.gait.events import GaitEventDetector
 from host.gait.integration import step_samples
 
 if TYPE_CHECKING:  # pragma: no cover
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
 
 
 class StepPipeline:
@@ -79,7 +79,7 @@ class StepPipeline:
         *,
         leg_length_m: float,
         foot_length_m: float,
-        calibration: KCalibration | None = None,
+        calibration: KFit | None = None,
         detector: GaitEventDetector | None = None,
         gravity_window_s: float = 4.0,
     ) -> None:
@@ -182,7 +182,7 @@ class StepPipeline:
         return table
 
 
-def apply_calibration(table: StepTable, calibration: KCalibration | None) -> dict[str, np.ndarray]:
+def apply_calibration(table: StepTable, calibration: KFit | None) -> dict[str, np.ndarray]:
     """Calibrated lengths of every estimator from the raw ones (see :class:`StepPipeline` notes)."""
     raw = table.raw_m
     nan = np.full(table.n_steps, np.nan)

@@ -332,7 +332,7 @@ class LoggerLink:
 
     def set_calibration(self, slot: bytes) -> None:
         """SET_CALIBRATION with a calibration slot of ``CALIBRATION_SIZE`` bytes
-        (``protocol.header.Calibration.to_bytes()``)."""
+        (``protocol.header.CalibrationSlot.to_bytes()``)."""
         if len(slot) != CALIBRATION_SIZE:
             raise HostError(f"calibration slot must be {CALIBRATION_SIZE} bytes, got {len(slot)}")
         self._ack(FrameType.SET_CALIBRATION, bytes(slot))

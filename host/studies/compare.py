@@ -12,7 +12,7 @@ Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`c
 * **online-fixed**: the same algorithm in the PIC's fixed point: what the logger computes and stores.
 
 **One K.** Per calibration mode (single- and multi-speed, :func:`host.gait.sections.calibration_sets`), K
-(:class:`host.gait.k_calibration.KCalibration`) is fitted once, on the *offline* chain's table of the
+(:class:`host.gait.k_calibration.KFit`) is fitted once, on the *offline* chain's table of the
 calibration sections (:func:`host.gait.k_calibration.calibrate_on_sections`), and that same K is used by every chain: ``apply_calibration`` for the
 offline and ideal chains, the step configuration (``StepConfig(calibrated=True, k_m1=..., ...)``, K applied
 in the algorithm's own arithmetic, as the header stores it) for the on-line algorithm. K is never refitted
@@ -79,7 +79,7 @@ from host.gait.sections import (
     section_fractions,
     sections_from_marks,
 )
-from protocol.header import Calibration
+from protocol.header import CalibrationSlot
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -339,10 +339,10 @@ class SampledWalk:
     def calibration(self, adc_bits: int) -> Any:
         """The device calibration for ``adc_bits``-bit codes: the sensor's truth, unbiased for ``floor``.
 
-        A :class:`protocol.header.Calibration` (``a = M (c - o)``), ``o = offset - 1/2`` code.
+        A :class:`protocol.header.CalibrationSlot` (``a = M (c - o)``), ``o = offset - 1/2`` code.
         """
         s = 2.0 ** (adc_bits - 10)
-        return Calibration(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
+        return CalibrationSlot(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -762,7 +762,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     """
     c = np.asarray(codes)
     ok = np.ones(c.shape[0], bool) if valid is None else np.asarray(valid, bool)
-    cal = adc_calibration if adc_calibration is not None else Calibration.nominal(adc_bits)
+    cal = adc_calibration if adc_calibration is not None else CalibrationSlot.nominal(adc_bits)
     acc = np.asarray(cal.apply(c.astype(np.float64)), np.float64)
     acc[~ok] = np.nan
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m,

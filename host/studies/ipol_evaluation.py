@@ -68,7 +68,7 @@ from host.errors import HostError
 from host.files.ipol import list_trials, read_trial
 from host.files.replay import check_records, online_step_table, run_starts
 from host.gait.anthropometry import anatomical_lengths
-from host.gait.k_calibration import KCalibration, calibrate
+from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
 from protocol.steps import StepConfig
@@ -161,7 +161,7 @@ class ReplayedTrial:
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
-    def online_table(self, *, arithmetic: str, calibration: KCalibration | None = None) -> tuple[StepTable, Any]:
+    def online_table(self, *, arithmetic: str, calibration: KFit | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
         anatomy and ``calibration``'s K (:func:`host.files.replay.online_step_table`)."""
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
@@ -292,17 +292,17 @@ class IpolResult:
     """
 
     rows: list[dict]
-    calibrations: dict[int, KCalibration]
+    calibrations: dict[int, KFit]
     n_trials: int
     skipped: list[str] = field(default_factory=list)
-    calibrations_own: dict[int, KCalibration] = field(default_factory=dict)
+    calibrations_own: dict[int, KFit] = field(default_factory=dict)
     saturation: list[str] = field(default_factory=list)
     replay_checks: list[dict] = field(default_factory=list)
     step_rows: list[dict] = field(default_factory=list)
     arithmetics: tuple[str, ...] = ARITHMETICS
 
 
-def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KCalibration:
+def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KFit:
     sec, counts = trial_steps(rt, table, uturn=uturn)
     # one trial at one speed: the M5 walk-ratio fallback is expected (its note stays in the result)
     return calibrate([(_counted(sec, counts), IPOL_DISTANCE_M)], leg_length_m=leg, foot_length_m=foot,
@@ -434,7 +434,7 @@ def evaluate_folder(
     return res
 
 
-def _online(rt: ReplayedTrial, arithmetic: str, k: KCalibration, saturation: list[str]) -> StepTable:
+def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str]) -> StepTable:
     ar = arithmetic.removeprefix("online-")
     table, alg = rt.online_table(arithmetic=ar, calibration=k)
     if ar == "fixed" and alg.arithmetic_context().report():

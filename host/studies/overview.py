@@ -22,7 +22,7 @@ from firmware_sim.algorithms.online import OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
 from host.files.recording import Recording
-from host.gait.k_calibration import KCalibration
+from host.gait.k_calibration import KFit
 from host.gait.pipeline import StepPipeline
 from protocol.packing import FLAG_MARK
 
@@ -71,7 +71,7 @@ class RecordingOverview:
 
 
 def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: float,
-                       calibration: KCalibration | None = None, start_s: float = 0.0,
+                       calibration: KFit | None = None, start_s: float = 0.0,
                        duration_s: float | None = None,
                        estimators: Sequence[str] = ESTIMATORS) -> RecordingOverview:
     """The overview data of ``rec`` between ``start_s`` and ``start_s + duration_s`` (default: to the end).

@@ -27,7 +27,7 @@ from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
 from host.files.decode import decode_bytes
 from host.studies.compare import SampledWalk
-from protocol.header import Calibration
+from protocol.header import CalibrationSlot
 from protocol.image import build_image
 from protocol.packing import FLAG_MARK
 
@@ -93,7 +93,7 @@ def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_r
                                           valid_range=(0.0, full - 1)).calibration_.apply
         logger.erase()
     else:
-        apply = Calibration.nominal(bits).apply
+        apply = CalibrationSlot.nominal(bits).apply
     res = logger.record(Walking(subject=subject, walk_plan=walk_plan, seed=seed))
     if res.n_taken != res.n_samples:
         raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "

@@ -21,7 +21,7 @@ from firmware_sim.algorithms.parameters import (
 )
 from firmware_sim.algorithms.steps import StepTable
 from protocol.errors import ProtocolError
-from protocol.header import Calibration
+from protocol.header import CalibrationSlot
 from protocol.steps import StepConfig, StepFlag
 
 SAMPLING_RATE_HZ = 50.0
@@ -192,7 +192,7 @@ def test_calibration_matrix_is_used() -> None:
     # a device whose z axis reads 2 % high: with its calibration the excursion comes back right
     codes = sinusoid_codes(tilt=(0.0, 0.0, 1.0))
     hot = np.clip(np.floor((codes - 512) * 1.02 + 512), 0, 1023).astype(np.int64)
-    cal = Calibration(np.full(3, 512.0), np.diag([1 / 256, 1 / 256, 1 / (256 * 1.02)]), True)
+    cal = CalibrationSlot(np.full(3, 512.0), np.diag([1 / 256, 1 / 256, 1 / (256 * 1.02)]), True)
     good = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config()).run(codes).excursion_m()[3:-3, 1]
     fixed = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config(), calibration=cal).run(hot)
     raw = OnlineStepAlgorithm(sampling_rate_hz=SAMPLING_RATE_HZ, step_config=config()).run(hot).excursion_m()[3:-3, 1]

@@ -128,9 +128,9 @@ def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsy
     assert (np.abs(cal.offset - t["offset"]) / t["scale"] < 1e-3).all()
     # the device header carries the constants (PROTOCOL.md 2.1) and gives the same g within Q-format rounding
     slot = cal.to_header_calibration()
-    from protocol.header import Calibration
+    from protocol.header import CalibrationSlot
 
-    back = Calibration.from_bytes(slot.to_bytes())
+    back = CalibrationSlot.from_bytes(slot.to_bytes())
     np.testing.assert_allclose(back.apply(res.codes[:100]), cal.apply(res.codes[:100]), atol=1e-6)
     # --units describes a CSV: a logger recording states its own (counts): exit 1, no file
     out2 = tmp_path / "cal2.json"

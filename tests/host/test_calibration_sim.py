@@ -331,11 +331,11 @@ def test_load_rejects_non_json(tmp_path):
 def test_to_header_calibration_matches_the_protocol_slot():
     cal = fitted(unit="counts")
     slot = cal.to_header_calibration()
-    assert isinstance(slot, header.Calibration) and slot.valid
+    assert isinstance(slot, header.CalibrationSlot) and slot.valid
     codes = np.array([[500, 520, 700], [300, 800, 512]])
     np.testing.assert_allclose(slot.apply(codes), cal.apply(codes), atol=1e-12)
     # through the 64-byte slot: Q15.16 offset and Q1.30 matrix
-    back = header.Calibration.from_bytes(slot.to_bytes())
+    back = header.CalibrationSlot.from_bytes(slot.to_bytes())
     np.testing.assert_allclose(back.apply(codes), cal.apply(codes), atol=1e-6)
     with pytest.raises(CalibrationError, match="only a calibration of ADC counts"):
         fitted(unit="g").to_header_calibration()

@@ -146,11 +146,11 @@ def test_estimate_fixed_is_the_device_algorithm(npz, tmp_path, capsys) -> None:
 
 def test_a_k_the_step_configuration_cannot_hold_is_an_error(npz, tmp_path, capsys) -> None:
     """K of M1 is stored as unsigned Q1.15 (below 2): a K file with 2.5 cannot be given to the on-line algorithm."""
-    from host.gait.k_calibration import KCalibration
+    from host.gait.k_calibration import KFit
 
     path, _, _ = npz
     k = tmp_path / "k.json"
-    KCalibration(k_m1=2.5, k_m2=1.0, k_m4=0.5, k1_m5_m_s=0.4, k2_m5_m=0.0, mode="single-speed", m5_fallback=True,
+    KFit(k_m1=2.5, k_m2=1.0, k_m4=0.5, k1_m5_m_s=0.4, k2_m5_m=0.0, mode="single-speed", m5_fallback=True,
                  leg_length_m=0.94, foot_length_m=0.2, n_sections=1, n_steps=30, distance_m=20.0).save(k)
     out = tmp_path / "steps.csv"
     assert main(["compare", str(path), "--k-file", str(k), "--out", str(out)]) == 1

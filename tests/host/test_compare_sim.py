@@ -265,12 +265,12 @@ def test_match_steps_counts_different_events() -> None:
 def test_saturation_is_reported_on_a_recording() -> None:
     """A calibration with 4x the gain drives the on-line algorithm's force past its format: counted and
     reported."""
-    from protocol.header import Calibration
+    from protocol.header import CalibrationSlot
 
     t = np.arange(int(30 * SAMPLING_RATE_HZ)) / SAMPLING_RATE_HZ
     codes = np.full((t.size, 3), 512, np.int64)
     codes[:, 0] = np.clip(512 + 256 + np.round(250 * np.sign(np.sin(2 * np.pi * 1.8 * t))), 0, 1023)
-    hot = Calibration(np.full(3, 512.0), np.eye(3) * 4 / 256, valid=True)
+    hot = CalibrationSlot(np.full(3, 512.0), np.eye(3) * 4 / 256, valid=True)
     res = compare_recording(codes, sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=0.9, foot_length_m=0.26, adc_calibration=hot)
     assert res.saturated > 0 and "saturated" in res.saturation
     ok = compare_recording(codes, sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=0.9, foot_length_m=0.26)

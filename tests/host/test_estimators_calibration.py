@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from firmware_sim.algorithms.steps import StepTable
 from host.errors import HostError
-from host.gait.k_calibration import KCalibration, calibrate
+from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import apply_calibration
 
 
@@ -81,28 +81,28 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
         cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2, subject="s1")
     p = tmp_path / "k.json"
     cal.save(p)
-    back = KCalibration.load(p)
+    back = KFit.load(p)
     assert back == cal
     d = json.loads(p.read_text())
     assert d["format_version"] == "1.0" and d["cal_type"] == "gaitlog.KCalibration"
     d["format_version"] = "9.9"
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match=r"format_version.*'9\.9' \(written by a newer gaitlog"):
-        KCalibration.load(p)
+        KFit.load(p)
     d["format_version"] = "0.9"
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match=r"'0\.9' \(re-run 'gaitlog calibrate-k'\)"):
-        KCalibration.load(p)
+        KFit.load(p)
     d["format_version"] = "1.0"
     d["k_m1"] = "one"
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match="key 'k_m1' must be a number"):
-        KCalibration.load(p)
+        KFit.load(p)
     p.write_text("{not json")
     with pytest.raises(HostError, match="not valid JSON"):
-        KCalibration.load(p)
+        KFit.load(p)
     with pytest.raises(HostError, match="cannot read"):
-        KCalibration.load(tmp_path / "missing.json")
+        KFit.load(tmp_path / "missing.json")
 
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
@@ -112,10 +112,10 @@ finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
        n=st.integers(1, 10_000),
        label=st.text(max_size=20))
 def test_kcalibration_json_round_trip_property(k, n, label) -> None:
-    cal = KCalibration(k_m1=k[0], k_m2=k[1], k_m4=k[2], k1_m5_m_s=k[3], k2_m5_m=k[4], mode="single-speed",
+    cal = KFit(k_m1=k[0], k_m2=k[1], k_m4=k[2], k1_m5_m_s=k[3], k2_m5_m=k[4], mode="single-speed",
                        m5_fallback=True, leg_length_m=0.9, foot_length_m=0.2, n_sections=1, n_steps=n,
                        distance_m=20.0, subject=label, notes=["x"])
-    assert KCalibration.from_json(cal.to_json()) == cal
+    assert KFit.from_json(cal.to_json()) == cal
 
 
 def test_distance_fills_unmeasured_steps_with_the_bout_median() -> None:

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from host.errors import HostError
 from host.files.recording import CSV_COLUMNS, Gap, Recording
-from protocol.header import Calibration, DeviceHeader
+from protocol.header import CalibrationSlot, DeviceHeader
 
 
 @st.composite
@@ -77,7 +77,7 @@ def test_csv_columns_and_values(tmp_path):
 
 
 def test_acc_g_uses_header_calibration_when_valid():
-    cal = Calibration(np.array([500.0, 510.0, 520.0]), np.diag([1 / 200, 1 / 250, 1 / 300]), True)
+    cal = CalibrationSlot(np.array([500.0, 510.0, 520.0]), np.diag([1 / 200, 1 / 250, 1 / 300]), True)
     header = DeviceHeader(samples_written=1, write_index=1, calibration=cal)
     rec = Recording.from_arrays(np.array([[700, 760, 820]]), header=header)
     np.testing.assert_allclose(rec.acc_g(), [[1.0, 1.0, 1.0]], atol=1e-6)

@@ -26,7 +26,7 @@ from protocol.frames import (
     parse_payload,
     parse_stream,
 )
-from protocol.header import Calibration, DeviceHeader
+from protocol.header import CalibrationSlot, DeviceHeader
 from protocol.steps import StepConfig
 
 
@@ -101,7 +101,7 @@ def test_header_and_calibration_payloads() -> None:
     with pytest.raises(Exception, match="CRC mismatch") as info:
         parse_payload(Frame(FrameType.HEADER, 0, bytes(bad), offset=100))
     assert info.value.offset == 100 + 6 + 254
-    cal = Calibration(np.array([510.0, 511.0, 512.5]), np.eye(3) / 256, True)
+    cal = CalibrationSlot(np.array([510.0, 511.0, 512.5]), np.eye(3) / 256, True)
     p = build_payload(FrameType.SET_CALIBRATION, calibration=cal)
     assert p == cal.to_bytes()
     back = parse_payload(Frame(FrameType.SET_CALIBRATION, 0, p))["calibration"]

@@ -15,7 +15,7 @@ from protocol.header import (
     CAPACITY_SAMPLES,
     HEADER_SIZE,
     MEMORY_BYTES,
-    Calibration,
+    CalibrationSlot,
     DeviceHeader,
     HeaderFlag,
 )
@@ -139,16 +139,16 @@ def test_to_bytes_rejects_bad_fields(change: dict, match: str) -> None:
 def test_calibration_slot_reference_layout() -> None:
     off = np.array([511.5, -3.25, 1000.0])
     mat = np.array([[0.004, 1e-5, 0.0], [0.0, -0.0039, 2e-6], [1.9, 0.0, 0.00391]])
-    raw = Calibration(off, mat, True).to_bytes()
+    raw = CalibrationSlot(off, mat, True).to_bytes()
     ref = struct.pack("<B3x3i9i12x", 1, *(int(round(v * 65536)) for v in off),
                       *(int(round(v * 2**30)) for v in mat.ravel()))
     assert raw == ref
-    assert Calibration(off, mat, False).to_bytes() == bytes(64)
+    assert CalibrationSlot(off, mat, False).to_bytes() == bytes(64)
 
 
 @pytest.mark.parametrize("bits", [1, 8, 10])
 def test_nominal_map(bits: int) -> None:
-    cal = Calibration.nominal(bits)
+    cal = CalibrationSlot.nominal(bits)
     full = 2**bits
     g = cal.apply(np.array([[0, full // 2, full - 1]]))
     assert g[0, 0] == -2.0 and g[0, 1] == 0.0 and g[0, 2] == pytest.approx(2.0 - 4.0 / full)
@@ -163,8 +163,8 @@ finite = st.floats(allow_nan=False, allow_infinity=False)
     st.lists(st.floats(-1.99, 1.99), min_size=9, max_size=9),
 )
 def test_calibration_q_round_trip_within_quantisation(off: list[float], mat: list[float]) -> None:
-    cal = Calibration(np.array(off), np.array(mat).reshape(3, 3), True)
-    back = Calibration.from_bytes(cal.to_bytes())
+    cal = CalibrationSlot(np.array(off), np.array(mat).reshape(3, 3), True)
+    back = CalibrationSlot.from_bytes(cal.to_bytes())
     assert back.valid
     assert np.all(np.abs(back.offset_counts - cal.offset_counts) <= 2**-17)
     assert np.all(np.abs(back.matrix_g_per_count - cal.matrix_g_per_count) <= 2**-31)
@@ -181,7 +181,7 @@ def test_calibration_q_round_trip_within_quantisation(off: list[float], mat: lis
 )
 def test_calibration_rejects_out_of_range(off: list, mat: np.ndarray, match: str) -> None:
     with pytest.raises(ProtocolError, match=match):
-        Calibration(np.array(off), mat, True).to_bytes()
+        CalibrationSlot(np.array(off), mat, True).to_bytes()
 
 
 u32 = st.integers(0, 2**32 - 1)
@@ -210,7 +210,7 @@ def headers(draw: st.DrawFn) -> dict:
     if cal:
         off = draw(st.lists(st.floats(-32000, 32000), min_size=3, max_size=3))
         mat = draw(st.lists(st.floats(-1.9, 1.9), min_size=9, max_size=9))
-        d["cal"] = Calibration(np.array(off), np.array(mat).reshape(3, 3), True)
+        d["cal"] = CalibrationSlot(np.array(off), np.array(mat).reshape(3, 3), True)
     return d
 
 

@@ -33,7 +33,7 @@ from protocol.frames import (
 from protocol.header import (
     CALIBRATION_OFFSETS,
     HEADER_OFFSETS,
-    Calibration,
+    CalibrationSlot,
     DeviceHeader,
     HeaderFlag,
 )
@@ -129,8 +129,8 @@ def _resolve(value: Any) -> Any:
     return value
 
 
-def _calibration(fields: dict) -> Calibration:
-    return Calibration(np.array(fields["offset_counts"]), np.array(fields["matrix_g_per_count"]), True)
+def _calibration(fields: dict) -> CalibrationSlot:
+    return CalibrationSlot(np.array(fields["offset_counts"]), np.array(fields["matrix_g_per_count"]), True)
 
 
 def _header(ex: dict) -> DeviceHeader:
@@ -150,7 +150,7 @@ def _records(fields: list[dict]) -> np.ndarray:
 def _same(expected: Any, actual: Any) -> bool:
     if isinstance(actual, enum.Enum):
         return expected == actual.name if isinstance(expected, str) else expected == int(actual)
-    if isinstance(actual, (DeviceHeader, Calibration, StepConfig)):
+    if isinstance(actual, (DeviceHeader, CalibrationSlot, StepConfig)):
         return _resolve(expected).to_bytes() == actual.to_bytes()
     if isinstance(actual, bytes):
         return bytes.fromhex(expected) == actual
@@ -171,7 +171,7 @@ def test_worked_example(name: str) -> None:
     if kind == "calibration":
         cal = _calibration(fields)
         assert cal.to_bytes() == data
-        back = Calibration.from_bytes(data)
+        back = CalibrationSlot.from_bytes(data)
         assert back.valid and data[0] == 1
         np.testing.assert_array_equal(back.offset_counts, fields["offset_counts"])
         np.testing.assert_array_equal(back.matrix_g_per_count, fields["matrix_g_per_count"])
