@@ -38,6 +38,7 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
 from protocol.header import CalibrationSlot, DeviceHeader
@@ -226,7 +227,7 @@ class Recording:
     # ----------------------------------------------------------------------------------------- construction
     @classmethod
     def from_arrays(cls, codes: np.ndarray, *, valid: np.ndarray | None = None, flags: np.ndarray | None = None,
-                    first_sample_number: int = 0, sampling_rate_hz: float = 50.0, start_time_s: float = 0.0,
+                    first_sample_number: int = 0, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, start_time_s: float = 0.0,
                     header: Any = None, adc_bits: int = 10, reason: str = "missing",
                     source: str | None = None) -> "Recording":
         """Build a recording from arrays; gaps are derived from ``valid`` and invalid rows are zeroed.

@@ -13,12 +13,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from itertools import pairwise
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from host.errors import HostError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -51,7 +52,7 @@ class Section:
 
 def sections_from_marks(mark_times_s: np.ndarray, laps: Mapping[str, Sequence] | None = None, *,
                         corridor_length_m: float = 100.0, section_m: float = 20.0, lap_m: float | None = None,
-                        sampling_rate_hz: float = 50.0) -> list[Section]:
+                        sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ) -> list[Section]:
     """Pair the MARK samples with lap distances and cut ``section_m`` sections.
 
     Parameters

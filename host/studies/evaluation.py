@@ -51,6 +51,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from firmware_sim.algorithms.steps import ESTIMATORS
 from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
@@ -335,7 +336,7 @@ class SimulatedEvaluation:
         Event scores pooled over subjects.
     """
 
-    def __init__(self, *, n_subjects: int = 4, seed: int = 0, walk_plan: Any = None, sampling_rate_hz: float = 50.0,
+    def __init__(self, *, n_subjects: int = 4, seed: int = 0, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ,
                  adc_bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
                  detector: Any = None) -> None:

@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.adc import Adc
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.algorithms.online import OnlineSteps
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from firmware_sim.device import Logger
@@ -186,7 +186,7 @@ def _height_m(meta: dict) -> float | None:
     return h / 100.0 if np.isfinite(h) and 80 <= h <= 250 else None
 
 
-def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = 50.0, adc_bits: int = 10, leg_length_m: float | None = None,
+def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, leg_length_m: float | None = None,
                  foot_length_m: float | None = None) -> ReplayedTrial:
     """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
 
@@ -335,7 +335,7 @@ def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_tria
 
 
 def evaluate_folder(
-    folder: str | Path, *, sampling_rate_hz: float = 50.0, adc_bits: int = 10, uturn: str = "exclude",
+    folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "exclude",
     progress=None, arithmetic: tuple[str, ...] = ARITHMETICS,
 ) -> IpolResult:
     """Run the whole evaluation on an IPOL folder (see the module notes). Library code: no printing.

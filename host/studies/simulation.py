@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.adc import Adc
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.device import Logger
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.poses import CalibrationPoses
@@ -67,7 +67,7 @@ class SimulatedRecording:
     device_calibrated: bool
 
 
-def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = 50.0, bits: int = 10,
+def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, bits: int = 10,
                    calibrate_device: bool = True) -> SimulatedRecording:
     """Walk ``subject`` through the protocol with the emulated logger (:mod:`host.studies.evaluation`, steps 1-2).
 
