@@ -156,7 +156,7 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
         from host.gait.k_calibration import KFit
 
         k = KFit.load(args.k_file)
-    lengths = lengths_from_args(args, k_fields=k, data=data)
+    lengths = lengths_from_args(args, k=k, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     k_fields = {}
     if k is not None:

@@ -67,7 +67,7 @@ class SimulatedRecording:
     device_calibrated: bool
 
 
-def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, bits: int = 10,
+def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10,
                    calibrate_device: bool = True) -> SimulatedRecording:
     """Walk ``subject`` through the protocol with the emulated logger (:mod:`host.studies.evaluation`, steps 1-2).
 
@@ -79,21 +79,21 @@ def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_r
         Seeds the walk's variability, the pose session and the device's sensor errors.
     walk_plan
         A :class:`firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
-    sampling_rate_hz, bits
+    sampling_rate_hz, adc_bits
         Logger sample rate and ADC resolution.
     calibrate_device
         Fit the device calibration on a pose session first (default) or use the nominal map.
     """
-    logger = Logger(adc=Adc(adc_bits=bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
+    logger = Logger(adc=Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
     if calibrate_device:
         poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
-        full = float(2**bits)
+        full = float(2**adc_bits)
         apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=sampling_rate_hz,
                                           input_unit="counts", zero=full / 2, unit_per_g=full / 4,
                                           valid_range=(0.0, full - 1)).calibration_.apply
         logger.erase()
     else:
-        apply = CalibrationSlot.nominal(bits).apply
+        apply = CalibrationSlot.nominal(adc_bits).apply
     res = logger.record(Walking(subject=subject, walk_plan=walk_plan, seed=seed))
     if res.n_taken != res.n_samples:
         raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
