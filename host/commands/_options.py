@@ -30,3 +30,26 @@ def printer(args: argparse.Namespace, level: int = 0) -> Callable[..., None]:
 
 def _silent(*_args: object, **_kwargs: object) -> None:
     """The :func:`printer` of a suppressed level."""
+
+
+def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "") -> None:
+    """``--logger-rate HZ``: the emulated logger's sampling rate (not the input's: that is ``--rate``); read it
+    with :func:`logger_rate_hz`. ``what`` completes the help (e.g. "for --simulate")."""
+    parser.add_argument("--logger-rate", type=float, metavar="HZ",
+                        help=f"the emulated logger's sampling rate{' ' + what if what else ''}, Hz "
+                             "(default: the logger's, 50 Hz as in Alvarez et al.)")
+
+
+def logger_rate_hz(args: argparse.Namespace) -> float:
+    """``--logger-rate``, else the logger's default (:data:`firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`); a
+    :class:`~host.errors.HostError` unless positive and finite."""
+    import math
+
+    from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+    from host.errors import HostError
+
+    if args.logger_rate is None:
+        return DEFAULT_SAMPLING_RATE_HZ
+    if not (math.isfinite(args.logger_rate) and args.logger_rate > 0):
+        raise HostError(f"--logger-rate must be a positive number of Hz, got {args.logger_rate:g}")
+    return float(args.logger_rate)

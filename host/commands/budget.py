@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from host.commands._options import add_logger_rate_option, logger_rate_hz
+
 HELP = "RAM and cycles per sample of the logger with the on-line step algorithm, against the PIC16F877"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from host.commands._options import add_verbosity_options
 
-    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
-                        help="the logger's sampling rate (default 50)")
+    add_logger_rate_option(parser)
     parser.add_argument("--crystal", type=float, default=18.432, metavar="MHZ",
                         help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; at most 20)")
     parser.add_argument("--seed", type=int, default=0, help="simulated walker whose walk is counted (default 0)")
@@ -33,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from host.errors import HostError
     from protocol.steps import StepConfig
 
+    args.logger_rate = logger_rate_hz(args)
     if not (1.0 <= args.logger_rate <= 1000.0):
         raise HostError(f"--logger-rate {args.logger_rate} Hz is outside 1 .. 1000 Hz")
     if not (0.032 <= args.crystal <= 20.0):

@@ -16,7 +16,8 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+
+from host.commands._options import add_logger_rate_option, logger_rate_hz
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 
@@ -34,8 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--subjects", type=int, default=4, help="subjects of the sweep (default 4)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated subjects (default 0)")
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
-    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
-                        help="the emulated logger's sample rate for --simulate (default 50)")
+    add_logger_rate_option(parser, "for --simulate")
     parser.add_argument("--workers", type=int, default=2, help="processes for --simulate/--sweep (default 2)")
     parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
                         "segments, split and budget go beside it (_segments.csv, _split.csv, _budget.csv / _m5.csv)")
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
                                                                                  "height") if getattr(args, n)]
         if extra:
             raise HostError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
-    elif args.logger_rate != 50.0:
+    elif args.logger_rate is not None:
         raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
     mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
     return mode(args)
@@ -126,14 +126,14 @@ def _simulate(args: argparse.Namespace) -> int:
         format_step_diffs,
         rows_csv_text,
     )
+    from host.studies.simulation import simulate_comparisons
     from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
     from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.simulate < 1:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
     check_adc_bits(args.adc_bits, max_bits=MAX_SIMULATED_ADC_BITS, what="--adc-bits", error=HostError)
-    if not args.logger_rate > 0:
-        raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
+    args.logger_rate = logger_rate_hz(args)
     if args.resamples < 1:
         raise HostError(f"--resamples must be >= 1, got {args.resamples}")
     say, detail = printer(args), printer(args, 1)
@@ -172,38 +172,6 @@ def _simulate(args: argparse.Namespace) -> int:
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
         say(f"written: {args.out}, {seg}, {split}, {bud}")
     return 0
-
-
-def simulate_comparisons(n: int, *, seed: int = 0, adc_bits: int = 10, sampling_rate_hz: float = 50.0, workers: int = 1,
-                         progress: Callable[[], object] | None = None) -> list:
-    """One :class:`host.studies.compare.WalkComparison` per simulated subject (parallel over subjects);
-    ``progress()`` is called after each subject."""
-    from firmware_sim.world.subject import random_subjects
-
-    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz) for i, s in enumerate(random_subjects(n, seed=seed))]
-    if workers > 1 and len(jobs) > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            return [_ticked(r, progress) for r in pool.map(_one_subject, jobs)]
-    return [_ticked(_one_subject(j), progress) for j in jobs]
-
-
-def _ticked(result: object, progress: Callable[[], object] | None) -> object:
-    if progress is not None:
-        progress()
-    return result
-
-
-def _one_subject(job: tuple):
-    from host.studies.compare import compare_walk
-    from host.studies.simulation import AnalogWalk
-
-    subject, seed, adc_bits, rate = job
-    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(rate), subject, adc_bits=adc_bits)
-    wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
-    wc.matches = {}
-    return wc
 
 
 def _pool_diffs(rows: list[dict]) -> list[dict]:

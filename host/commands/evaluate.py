@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 
+from host.commands._options import add_logger_rate_option, logger_rate_hz
+
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 
 
@@ -29,8 +31,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="sim: seed of the subjects and devices (0)")
     parser.add_argument("--workers", type=int, default=1, help="sim: processes to use (1)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
-    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
-                        help="the emulated logger's sample rate (default 50)")
+    add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
                         help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed")
@@ -58,8 +59,7 @@ def _run_sim(args: argparse.Namespace) -> int:
     if args.subjects < 1 or args.workers < 1:
         raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
     check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
-    if not args.logger_rate > 0:
-        raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
+    args.logger_rate = logger_rate_hz(args)
     with progress_bar(args, args.subjects, "subject") as tick:
         ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
                                  workers=args.workers).run(progress=tick)
@@ -100,8 +100,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
-    if not args.logger_rate > 0:
-        raise HostError(f"--logger-rate must be positive, got {args.logger_rate}")
+    args.logger_rate = logger_rate_hz(args)
     args.uturn = args.uturn or "exclude"
     args.arithmetic = args.arithmetic or "all"
     out = Path(args.out)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from host.commands._options import add_logger_rate_option, logger_rate_hz
+
 if TYPE_CHECKING:
     from host.files.inputs import AccelerationInput
 
@@ -34,8 +36,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg)")
     parser.add_argument("--poses", type=int, default=24, metavar="N", help="number of calibration poses (24)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor's errors and noise, and of the poses")
-    parser.add_argument("--logger-rate", type=float, default=50.0, metavar="HZ",
-                        help="the emulated logger's sample rate (default 50 Hz)")
+    add_logger_rate_option(parser)
     parser.add_argument("--start-time", type=int, default=None, metavar="UNIX_S",
                         help="Unix time of the first sample (default: now)")
     parser.add_argument("--overwrite-oldest", action="store_true",
@@ -194,6 +195,7 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._options import verbosity
     from host.errors import HostError
 
+    args.logger_rate = logger_rate_hz(args)
     out = Path(args.out)
     if not out.parent.is_dir():
         raise HostError(f"output directory {out.parent} does not exist")

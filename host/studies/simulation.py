@@ -13,8 +13,10 @@ so that the studies on recordings (``gaitlog compare`` on a file) and the comman
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -22,11 +24,12 @@ from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.device import Logger
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.poses import CalibrationPoses
+from firmware_sim.world.subject import random_subjects
 from firmware_sim.world.walking import Walking
 from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
 from host.files.decode import decode_bytes
-from host.studies.compare import SampledWalk
+from host.studies.compare import SampledWalk, WalkComparison, compare_walk
 from protocol.header import CalibrationSlot
 from protocol.image import build_image
 from protocol.packing import FLAG_MARK
@@ -176,3 +179,35 @@ class AnalogWalk:
             k = np.searchsorted(times, self.marker_times_s_, side="left")
             marks[k[k < times.size]] = True
         return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_)
+
+
+_T = TypeVar("_T")
+
+
+def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
+                         sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, workers: int = 1,
+                         progress: Callable[[], object] | None = None) -> list[WalkComparison]:
+    """One :class:`host.studies.compare.WalkComparison` per simulated subject (``gaitlog compare --simulate``),
+    in parallel over subjects; ``progress()`` is called after each subject."""
+    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz)
+            for i, s in enumerate(random_subjects(n_subjects, seed=seed))]
+    if workers > 1 and len(jobs) > 1:
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            return [ticked(r, progress) for r in pool.map(_compared_subject, jobs)]
+    return [ticked(_compared_subject(j), progress) for j in jobs]
+
+
+def ticked(result: _T, progress: Callable[[], object] | None) -> _T:
+    """``result``, after calling ``progress()`` (if any): one tick of a progress bar per finished job."""
+    if progress is not None:
+        progress()
+    return result
+
+
+def _compared_subject(job: tuple) -> WalkComparison:
+    subject, seed, adc_bits, sampling_rate_hz = job
+    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(sampling_rate_hz), subject,
+                      adc_bits=adc_bits)
+    wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
+    wc.matches = {}
+    return wc

@@ -64,7 +64,7 @@ from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
 from host.gait.sections import MODES
 from host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_label
-from host.studies.simulation import AnalogWalk
+from host.studies.simulation import AnalogWalk, ticked
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 ADC_BITS = (8, 10, 12)
@@ -164,9 +164,9 @@ class AdcRateSweep:
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
         if self.workers > 1 and len(jobs) > 1:
             with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
-                per_subject = [_ticked(rs, progress) for rs in pool.map(_subject_job, jobs)]
+                per_subject = [ticked(rs, progress) for rs in pool.map(_subject_job, jobs)]
         else:
-            per_subject = [_ticked(_subject_job(j), progress) for j in jobs]
+            per_subject = [ticked(_subject_job(j), progress) for j in jobs]
         self.results_ = [r for rs in per_subject for r in rs]
         self.summary_ = summarise(self.results_)
         self.m5_ = m5_timing_answer(self.results_)
@@ -176,11 +176,6 @@ class AdcRateSweep:
         """Printed summary: the multi-speed rows, the error split and the M5 answer."""
         return format_summary(self.summary_) + "\n\n" + format_m5(self.m5_)
 
-
-def _ticked(results: list[ConfigResult], progress: Callable[[], object] | None) -> list[ConfigResult]:
-    if progress is not None:
-        progress()
-    return results
 
 
 def _q(v: np.ndarray) -> tuple[float, float]:

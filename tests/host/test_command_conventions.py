@@ -101,9 +101,9 @@ def main_raise(argv: list[str]) -> None:
 
 # ---------------------------------------------------------------------------------------------- progress
 def test_compare_simulate_ticks_once_per_subject(monkeypatch) -> None:
-    from host.commands import compare
+    from host.studies import simulation
 
-    monkeypatch.setattr(compare, "_one_subject", lambda job: job[1])     # the subject's seed, no simulation
+    monkeypatch.setattr(simulation, "_compared_subject", lambda job: job[1])     # the subject's seed, no simulation
     ticks = []
-    assert compare.simulate_comparisons(3, seed=1, progress=lambda: ticks.append(1)) == [1000, 1001, 1002]
+    assert simulation.simulate_comparisons(3, seed=1, progress=lambda: ticks.append(1)) == [1000, 1001, 1002]
     assert len(ticks) == 3
