@@ -46,14 +46,15 @@ class Stage:
 
 
 def _record(ctx: dict[str, Any]) -> list[str]:
+    from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
     from firmware_sim.world.poses import CalibrationPoses
 
     args = ctx["args"]
     source = CalibrationPoses(n_poses=args.poses, hold_s=5.0, move_s=2.0, seed=args.seed)
-    motion = source.render(50.0)
-    logger = Logger(sensor=SensorModel.draw(seed=args.seed), sampling_rate_hz=50.0)
+    motion = source.render(DEFAULT_SAMPLING_RATE_HZ)
+    logger = Logger(sensor=SensorModel.draw(seed=args.seed))
     result = logger.record(motion, start_time_s=1_700_000_000)
     image = ctx["dir"] / "recorded.glimg"
     logger.save_image(image)
@@ -159,7 +160,7 @@ def _walk_logger(ctx: dict[str, Any], step_config: Any) -> Any:
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
 
-    logger = Logger(sensor=SensorModel.draw(seed=ctx["args"].seed), sampling_rate_hz=50.0, step_config=step_config)
+    logger = Logger(sensor=SensorModel.draw(seed=ctx["args"].seed), step_config=step_config)
     logger.ring.set_calibration(ctx["walk_calibration"])
     return logger
 
@@ -188,7 +189,7 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
     times = np.asarray(res.sample_times_s, np.float64)
     marks = times[(np.asarray(res.flags) & FLAG_MARK) != 0]
     rec = SimulatedRecording(subject, int(args.seed), cal.apply(codes.astype(np.float64)),
-                             np.ones(codes.shape[0], bool), 50.0, float(times[0]), marks,
+                             np.ones(codes.shape[0], bool), logger.adc.sampling_rate_hz, float(times[0]), marks,
                              {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests")}, acc_cal is not None)
     ctx.update(walk_codes=codes, walk_recording=rec, walk_times_s=times)
     st = res.truth["steps"]

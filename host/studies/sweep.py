@@ -59,6 +59,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from firmware_sim.algorithms.steps import ESTIMATORS
 from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
@@ -68,7 +69,7 @@ from host.studies.simulation import AnalogWalk, ticked
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 ADC_BITS = (8, 10, 12)
-RATES_HZ = (25.0, 50.0, 100.0)
+RATES_HZ = (DEFAULT_SAMPLING_RATE_HZ / 2, DEFAULT_SAMPLING_RATE_HZ, DEFAULT_SAMPLING_RATE_HZ * 2)
 #: Section-ratio columns summarised per configuration: the chains and the exact-timing offline chain.
 KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Short names of the shares in the summary's columns.
@@ -256,10 +257,10 @@ def m5_timing_answer(results: list[ConfigResult], *, adc_bits: int = 10) -> dict
                              sampling_rms_ms=1e3 / rate / math.sqrt(6.0)))
     verdict = ""
     by = {(r["mode"], r["sampling_rate_hz"]): r for r in rows}
-    if any(k[1] == 50.0 for k in by):
+    if any(k[1] == DEFAULT_SAMPLING_RATE_HZ for k in by):
         parts, answers = [], []
         for mode in MODES:
-            r50 = by.get((mode, 50.0))
+            r50 = by.get((mode, DEFAULT_SAMPLING_RATE_HZ))
             if r50 is None:
                 continue
             iqrs = "/".join(f"{by[(mode, f)]['iqr']:.4f}" for f in rates if (mode, f) in by)
