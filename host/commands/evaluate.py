@@ -108,14 +108,11 @@ def run(args: argparse.Namespace) -> int:
     steps_path = out.with_name(out.stem + "_steps.csv")
     require_folder(out)
     require_folder(fig_path)
-    import warnings
-
     from host.commands._options import verbosity
     from host.commands._progress import progress_bar
     from host.files.ipol import list_trials
 
-    with warnings.catch_warnings(), progress_bar(args, len(list_trials(args.folder)), "trial") as tick:
-        warnings.simplefilter("ignore", UserWarning)   # skips are listed below
+    with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: res, below
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
         res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits, uturn=args.uturn,
                               arithmetic=arith, progress=tick)

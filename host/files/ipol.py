@@ -76,13 +76,8 @@ class IpolTrial:
 
     @property
     def height_m(self) -> float | None:
-        """Body height in metres, None when the JSON has none."""
-        h = self.meta.get("Height")
-        try:
-            h = float(h)
-        except (TypeError, ValueError):
-            return None
-        return h / 100.0 if np.isfinite(h) and h > 0 else None
+        """Body height in metres, None when the JSON has none (:func:`height_m_of`)."""
+        return height_m_of(self.meta)
 
     def foot_events(self) -> tuple[np.ndarray, np.ndarray]:
         """Reference toe-off and heel-strike indices of both feet, sorted, shape ``(m,)`` each."""
@@ -204,3 +199,15 @@ def list_trials(folder: str | Path) -> list[Path]:
         return int(mm.group(1)), int(mm.group(2))
 
     return sorted(files, key=key)
+
+
+def height_m_of(meta: dict) -> float | None:
+    """The subject's height in metres from a trial JSON's ``Height`` (cm); None when absent, not a number or not
+    positive (a height outside the plausible range is left to :func:`host.gait.anthropometry.anatomical_lengths`
+    to refuse, naming it)."""
+    h = meta.get("Height")
+    try:
+        h = float(h)
+    except (TypeError, ValueError):
+        return None
+    return h / 100.0 if np.isfinite(h) and h > 0 else None

@@ -35,7 +35,7 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
    its own uncalibrated records of the calibration trial -- a different K, not a comparison.
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
-   no usable step; every skip is warned about and listed (``IpolResult.skipped``, printed by the command).
+   no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
    ``subject, trial, estimator, arithmetic, k_from, distance_m, ratio, steps, reference_steps`` (ratio =
@@ -65,9 +65,9 @@ from firmware_sim.device import Logger
 from firmware_sim.errors import DeviceError
 from firmware_sim.world.replay import Replay
 from host.errors import HostError
-from host.files.ipol import list_trials, read_trial
+from host.files.ipol import height_m_of, list_trials, read_trial
 from host.files.replay import check_records, online_step_table, run_starts
-from host.gait.anthropometry import anatomical_lengths
+from host.gait.anthropometry import choose_lengths
 from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
@@ -145,7 +145,7 @@ class ReplayedTrial:
 
     @property
     def height_m(self) -> float | None:
-        return _height_m(self.meta)
+        return height_m_of(self.meta)
 
     def reference_steps(self) -> int:
         lo, hi = self.meta["TrialBoundaries"]
@@ -177,21 +177,13 @@ class ReplayedTrial:
         return StepTable.from_online(steps, t0_s=self.t0_s)
 
 
-def _height_m(meta: dict) -> float | None:
-    h = meta.get("Height")
-    try:
-        h = float(h)
-    except (TypeError, ValueError):
-        return None
-    return h / 100.0 if np.isfinite(h) and 80 <= h <= 250 else None
-
 
 def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, leg_length_m: float | None = None,
                  foot_length_m: float | None = None) -> ReplayedTrial:
     """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
 
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
-    trial's height (:func:`host.gait.anthropometry.anatomical_lengths`).
+    trial's height (:func:`host.gait.anthropometry.choose_lengths`).
     """
     lb_path = Path(lb_path)
     trial = read_trial(lb_path)         # the host's reader: the packet grid, lost packets missing, the JSON
@@ -201,10 +193,12 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
     except DeviceError as err:
         raise HostError(str(err)) from err
     meta = trial.meta
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)      # no height: the default stature, as the paper's inputs
-        leg, foot = anatomical_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
-                                       height_m=_height_m(meta))
+    try:                                                  # no height: the default stature, as the paper's inputs
+        lengths = choose_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
+                                 trial_height_m=height_m_of(meta))
+    except HostError as err:
+        raise HostError(f"{lb_path.with_name(lb_path.name.replace('_lb.txt', '.json'))}: {err}") from None
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
     src_rate = replay.sampling_rate_hz
     filled = np.asarray(replay.truth.get("filled", np.zeros(replay.acc_g.shape[0], bool)), bool)
     logger = Logger(adc=Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz,
@@ -425,10 +419,6 @@ def evaluate_folder(
                     res.rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=a,
                                          k_from=k_from, distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
                                          reference_steps=rt.reference_steps()))
-    for msg in res.skipped:
-        warnings.warn(f"IPOL evaluation: skipped {msg}", stacklevel=2)
-    for msg in res.saturation:
-        warnings.warn(f"IPOL evaluation: fixed-point saturation in {msg}", stacklevel=2)
     if not res.rows:
         raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(res.skipped) + ")")
     return res
