@@ -52,7 +52,7 @@ def best_ms(fn: Callable[[], object]) -> tuple[float, object]:
 
 def truth_counts(truth: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     s, a = truth["sensor"], truth["adc"]
-    per_v = 2 ** a["bits"] / (a["vref_high_v"] - a["vref_low_v"])
+    per_v = 2 ** a["adc_bits"] / (a["vref_high_v"] - a["vref_low_v"])
     gain = np.asarray(s["gain_v_per_g"])
     offset = (a["ref_v"] + a["gain"] * (s["supply_v"] / 2 + gain * np.asarray(s["offset_g"]) - a["ref_v"])
               - a["vref_low_v"]) * per_v - 0.5

@@ -63,7 +63,7 @@ class RecordResult:
         Samples the timer took during the motion (``n_taken - n`` were not stored: memory full, or
         overwritten within this same run).
     truth
-        The motion's truth plus ``sensor`` (its parameters), ``adc`` (its settings), ``motion_rate_hz``.
+        The motion's truth plus ``sensor`` (its parameters), ``adc`` (its settings), ``motion_sampling_rate_hz``.
     """
 
     codes: np.ndarray
@@ -329,7 +329,7 @@ class Logger:
         mem = np.frombuffer(self.bank.read(0, self.bank.size_bytes), dtype="<u4")
         stored_codes, stored_flags = unpack_words(mem[slots])
         truth = dict(motion.truth)
-        truth.update(sensor=self.sensor.truth(), adc=_adc_truth(self.adc), motion_rate_hz=rate)
+        truth.update(sensor=self.sensor.truth(), adc=_adc_truth(self.adc), motion_sampling_rate_hz=rate)
         if self.image_path is not None:
             self.save_image()
         return RecordResult(
@@ -344,7 +344,7 @@ class Logger:
 
 def _adc_truth(adc: Adc) -> dict[str, Any]:
     return {
-        "bits": adc.adc_bits, "rate_hz": adc.sampling_rate_hz, "actual_rate_hz": adc.actual_rate_hz,
+        "adc_bits": adc.adc_bits, "sampling_rate_hz": adc.sampling_rate_hz, "actual_sampling_rate_hz": adc.actual_rate_hz,
         "vref_low_v": adc.vref_low_v, "vref_high_v": adc.vref_high_v, "gain": adc.gain, "ref_v": adc.ref_v,
         "timer_error_ppm": adc.timer_error_ppm,
     }

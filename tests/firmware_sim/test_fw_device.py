@@ -36,7 +36,7 @@ def test_record_stores_the_expected_codes_flags_and_numbers() -> None:
     assert res.sample_numbers.tolist() == list(range(500))
     h = lg.header
     assert (h.samples_written, h.write_index, h.start_time_s, h.logging) == (500, 500, 1_600_000_000, False)
-    assert res.truth["sensor"]["noise_density_g_rthz"] == 0.0 and res.truth["adc"]["bits"] == 10
+    assert res.truth["sensor"]["noise_density_g_rthz"] == 0.0 and res.truth["adc"]["adc_bits"] == 10
 
 
 def test_second_run_appends_and_overwrite_wraps_in_order() -> None:
@@ -71,7 +71,7 @@ def test_stop_when_full_refuses_a_new_record() -> None:
 def test_motion_at_another_rate_is_resampled() -> None:
     lg = Logger(sensor=SensorModel.ideal(noise_density_g_rthz=0.0))
     res = lg.record(_still([0.0, 0.0, 1.0], 4.0, rate=100.0))
-    assert res.truth["motion_rate_hz"] == 500.0 and res.n_samples == 200
+    assert res.truth["motion_sampling_rate_hz"] == 500.0 and res.n_samples == 200
     assert (res.codes[:, 2] == 767).all()
 
 

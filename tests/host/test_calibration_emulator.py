@@ -39,7 +39,7 @@ from host.accelerometer.fit import AccCalibrator, parameter_bounds
 def truth_in_counts(truth) -> dict[str, np.ndarray]:
     s, a = truth["sensor"], truth["adc"]
     span_v = a["vref_high_v"] - a["vref_low_v"]
-    codes_per_v = 2 ** a["bits"] / span_v
+    codes_per_v = 2 ** a["adc_bits"] / span_v
     gain = np.asarray(s["gain_v_per_g"])
     v0 = s["supply_v"] / 2
     offset = (a["ref_v"] + a["gain"] * (v0 + gain * np.asarray(s["offset_g"]) - a["ref_v"]) - a["vref_low_v"]) \
@@ -54,7 +54,7 @@ def truth_in_counts(truth) -> dict[str, np.ndarray]:
 def bound_for(truth, cal_windows, poses_up, scale) -> dict[str, np.ndarray]:
     s = truth["sensor"]
     sigma_s = s["noise_density_g_rthz"] * np.sqrt(np.pi / 2 * np.asarray(s["cutoff_hz"]))  # (3,) g
-    rho = np.exp(-2 * np.pi * np.asarray(s["cutoff_hz"]) / truth["adc"]["rate_hz"])
+    rho = np.exp(-2 * np.pi * np.asarray(s["cutoff_hz"]) / truth["adc"]["sampling_rate_hz"])
     q = 1.0 / scale  # g per count
     n = min(w.n_samples for w in cal_windows)
     sigma_p = float(np.max(np.sqrt((sigma_s**2 + q**2 / 12) / n) * np.sqrt((1 + rho) / (1 - rho))))
