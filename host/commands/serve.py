@@ -51,18 +51,19 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, _interrupt)
     signal.signal(signal.SIGINT, _interrupt)
     with server:
-        where = server.url if args.tcp is not None else server.path
-        print(where, flush=True)
-        if verbosity(args) >= 0:
-            print(f"serving {args.image} at {args.baud} baud{' (wire time)' if args.wire_time else ''}; "
-                  "Ctrl-C to stop", file=sys.stderr, flush=True)
-        if verbosity(args) > 0:
-            h = logger.header
-            print(f"logger {h.device_id}: {h.n_stored} samples and {h.n_steps_stored} step records stored, "
-                  f"{h.sampling_rate_hz:g} Hz, on-line step algorithm {'on' if h.step_config.enabled else 'off'}"
-                  + ("; changes are saved to the image on exit" if args.persist else ""), file=sys.stderr,
-                  flush=True)
+        # the banner first, the address last: whoever reads the address (a script, a test) and then stops the
+        # server with a signal has every line; and a signal at any point from here on is a normal stop
         try:
+            if verbosity(args) >= 0:
+                print(f"serving {args.image} at {args.baud} baud{' (wire time)' if args.wire_time else ''}; "
+                      "Ctrl-C to stop", file=sys.stderr, flush=True)
+            if verbosity(args) > 0:
+                h = logger.header
+                print(f"logger {h.device_id}: {h.n_stored} samples and {h.n_steps_stored} step records stored, "
+                      f"{h.sampling_rate_hz:g} Hz, on-line step algorithm {'on' if h.step_config.enabled else 'off'}"
+                      + ("; changes are saved to the image on exit" if args.persist else ""), file=sys.stderr,
+                      flush=True)
+            print(server.url if args.tcp is not None else server.path, flush=True)
             while True:
                 time.sleep(0.5)
         except KeyboardInterrupt:
