@@ -44,7 +44,6 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Self
@@ -65,7 +64,7 @@ from host.gait.sections import (
 )
 from host.studies.compare import match_events
 from host.studies.plots import plot_boxplots
-from host.studies.simulation import SimulatedRecording, record_subject
+from host.studies.simulation import SimulatedRecording, map_subjects, record_subject
 from protocol.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
@@ -361,11 +360,7 @@ class SimulatedEvaluation:
                        calibration_sections=self.calibration_sections, detector=self.detector)
         jobs = [(s, self.seed * 1000 + i, self.walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
-        if self.workers > 1 and len(jobs) > 1:
-            with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
-                self.results_ = [_ticked(r, progress) for r in pool.map(_subject_job, jobs)]
-        else:
-            self.results_ = [_ticked(_subject_job(j), progress) for j in jobs]
+        self.results_ = map_subjects(_subject_job, jobs, workers=self.workers, progress=progress)
         self.rows_ = [r for res in self.results_ for r in res.rows]
         self.summary_ = summarise(self.rows_)
         self.events_ = pool_event_scores([res.events for res in self.results_])
@@ -407,8 +402,3 @@ def pool_event_scores(per_subject: Sequence[dict[str, EventScore]]) -> dict[str,
                                float(np.nanmedian([x.median_error_s for x in xs])))
     return out
 
-
-def _ticked(result: SubjectResult, progress: Callable[[], object] | None) -> SubjectResult:
-    if progress is not None:
-        progress()
-    return result

@@ -191,14 +191,20 @@ def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
     in parallel over subjects; ``progress()`` is called after each subject."""
     jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz)
             for i, s in enumerate(random_subjects(n_subjects, seed=seed))]
+    return map_subjects(_compared_subject, jobs, workers=workers, progress=progress)
+
+
+def map_subjects(job: Callable[[Any], _T], jobs: list, *, workers: int = 1,
+                 progress: Callable[[], object] | None = None) -> list[_T]:
+    """``[job(j) for j in jobs]``, on up to ``workers`` processes when there are several jobs (``job`` and the
+    jobs must pickle), in order; ``progress()`` is called as each result arrives (one tick per subject)."""
     if workers > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            return [ticked(r, progress) for r in pool.map(_compared_subject, jobs)]
-    return [ticked(_compared_subject(j), progress) for j in jobs]
+            return [_ticked(r, progress) for r in pool.map(job, jobs)]
+    return [_ticked(job(j), progress) for j in jobs]
 
 
-def ticked(result: _T, progress: Callable[[], object] | None) -> _T:
-    """``result``, after calling ``progress()`` (if any): one tick of a progress bar per finished job."""
+def _ticked(result: _T, progress: Callable[[], object] | None) -> _T:
     if progress is not None:
         progress()
     return result

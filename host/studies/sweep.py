@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Self
 
@@ -65,7 +64,7 @@ from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
 from host.gait.sections import MODES
 from host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_label
-from host.studies.simulation import AnalogWalk, ticked
+from host.studies.simulation import AnalogWalk, map_subjects
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 ADC_BITS = (8, 10, 12)
@@ -163,11 +162,7 @@ class AdcRateSweep:
         jobs = [(s, self.seed * 1000 + i, self.walk_plan, tuple(int(b) for b in self.adc_bits),
                  tuple(float(r) for r in self.rates_hz), options)
                 for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
-        if self.workers > 1 and len(jobs) > 1:
-            with ProcessPoolExecutor(max_workers=min(self.workers, len(jobs))) as pool:
-                per_subject = [ticked(rs, progress) for rs in pool.map(_subject_job, jobs)]
-        else:
-            per_subject = [ticked(_subject_job(j), progress) for j in jobs]
+        per_subject = map_subjects(_subject_job, jobs, workers=self.workers, progress=progress)
         self.results_ = [r for rs in per_subject for r in rs]
         self.summary_ = summarise(self.results_)
         self.m5_ = m5_timing_answer(self.results_)
