@@ -125,7 +125,7 @@ def _frame(ftype: int, seq: int, payload: bytes = b"") -> bytes:
 def bench_wire_dump() -> tuple[float, int, bool]:
     import serial
 
-    from firmware_sim.transport import serve_pty
+    from firmware_sim.pty_server import serve_pty
 
     logger = Logger(device_id=1, overwrite=True)
     logger.record(_source())

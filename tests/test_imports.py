@@ -109,3 +109,21 @@ def test_no_import_cycle() -> None:
         if name not in state:
             visit(name, [name])
     assert not cycles, "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_benchmarks_import_what_exists() -> None:
+    """The benchmarks are not run by the suite: at least every project name they import must exist (a module
+    move once left ``bench_record.py --wire-time`` importing ``serve_pty`` from its old home)."""
+    import importlib.util
+
+    missing = []
+    for path in sorted((ROOT / "benchmarks").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not (isinstance(node, ast.ImportFrom) and node.level == 0 and node.module
+                    and node.module.split(".")[0] in ("protocol", "firmware_sim", "host")):
+                continue
+            module = importlib.import_module(node.module)
+            missing += [f"{path.name}:{node.lineno}: {node.module}.{a.name}" for a in node.names
+                        if not hasattr(module, a.name)
+                        and importlib.util.find_spec(f"{node.module}.{a.name}") is None]
+    assert not missing, "\n".join(missing)
