@@ -45,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
     from host.errors import HostError
-    from host.gait.k_calibration import KFit
     from host.gait.anthropometry import LENGTH_MODEL
+    from host.gait.k_calibration import KFit
     from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.out:

@@ -13,7 +13,8 @@
 
 *Calibrated range.* K is a ratio fitted on the steps of the calibration sections; it holds for steps like
 those. :class:`KFit` stores the range of every quantity the fit saw (``calibrated_range``, the smallest and
-largest value over the calibration steps with a window: step duration, the vertical excursions of M1 and M2,
+largest positive value over the calibration steps with a window -- NaN when none was recorded, e.g. the
+excursions in the logger's compact step records: step duration, the vertical excursions of M1 and M2,
 M4's acceleration range, and the calibrated lengths of M1, M2, M4 and M5), and :meth:`KFit.outside_range`
 says, per step of another walk and per estimator, when the step lies outside it (its K is then an
 extrapolation: another speed, another step length). The commands write it as a column and count it.
@@ -195,7 +196,7 @@ def _range_of(tables: Sequence[StepTable], k: dict[str, Any]) -> dict[str, list[
     out = {}
     for n, parts in pooled.items():
         v = np.concatenate(parts) if parts else np.zeros(0)
-        v = v[np.isfinite(v)]
+        v = v[np.isfinite(v) & (v > 0)]            # every quantity is positive; 0 = not recorded (a step record)
         out[n] = [float(v.min()), float(v.max())] if v.size else [math.nan, math.nan]
     return out
 
