@@ -27,6 +27,12 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    distance stays 20 m (10 m out + 10 m back). ``uturn="include"`` sums every step instead.
    Both the per-subject calibration and the evaluation use the same rule, so K absorbs the part of the
    20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
+   The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), and with the
+   height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted).
+4b. *Tuned constants* (:mod:`host.studies.tuning`): the offline chain is run per trial for every candidate
+   of the constants chosen from these recordings; for each subject the candidate is chosen on the other
+   subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
+   The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
    :func:`host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
@@ -38,9 +44,9 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
-   ``subject, trial, estimator, arithmetic, k_from, distance_m, ratio, steps, reference_steps`` (ratio =
-   distance / 20 m; steps = detected steps in the trial; reference = heel strikes in the JSON within the
-   trial boundaries). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
+   :data:`CSV_COLUMNS` (ratio = distance / 20 m; steps = detected steps in the trial; reference = heel strikes
+   in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
+   calibrated on, :meth:`host.gait.k_calibration.KFit.outside_range`, empty for M3). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
    offline K) pair each on-line float step with its fixed-point and offline twins (:func:`host.studies.compare.
    match_steps`).
 
