@@ -194,6 +194,7 @@ class LineServer:
             self._thread.join(timeout=5.0)
             self._thread = None
         self._close()
+        self.logger.firmware.paced = False  # the logger may be used directly again
         if self.save_on_stop and self.logger.image_path is not None:
             self.logger.save_image()
 

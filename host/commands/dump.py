@@ -35,12 +35,8 @@ def run(args: argparse.Namespace) -> int:
     import signal
     from pathlib import Path
 
-    from host.errors import HostError
-    from host.link.logger_link import LoggerLink
-    from host.link.memory_dump import dump_memory, state_path_for
-    from protocol.atomic_write import atomic_write_bytes
-
     from host.commands.device import check_timeout
+    from host.errors import HostError
 
     check_timeout(args.timeout)
     if args.retries < 0:
@@ -53,8 +49,21 @@ def run(args: argparse.Namespace) -> int:
     def _interrupt(signum, frame):  # SIGTERM, and SIGINT even when a shell started us in the background
         raise KeyboardInterrupt
 
-    signal.signal(signal.SIGTERM, _interrupt)
-    signal.signal(signal.SIGINT, _interrupt)
+    previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        return _dump(args, out, capture)
+    finally:
+        for sig, handler in previous.items():  # run in-process (tests, scripts): leave the caller's handlers
+            signal.signal(sig, handler)
+
+
+def _dump(args: argparse.Namespace, out, capture) -> int:
+
+    from host.errors import HostError
+    from host.link.logger_link import LoggerLink
+    from host.link.memory_dump import dump_memory, state_path_for
+    from protocol.atomic_write import atomic_write_bytes
+
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, capture=capture) as link:
         try:
             result = dump_memory(link, out, progress=verbosity(args) >= 0, resume=args.resume, retries=args.retries)

@@ -223,7 +223,7 @@ class LoggerLink:
             self._ser.close()
             self._ser = None
 
-    def __enter__(self) -> "LoggerLink":
+    def __enter__(self) -> LoggerLink:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -262,7 +262,7 @@ class LoggerLink:
         ``idle=True`` since the last byte received), or, with ``quiet_s``, when bytes came in this call and
         then none for ``quiet_s``. Damaged frames are counted and skipped."""
         deadline = time.monotonic() + timeout_s
-        got = False
+        got, last = False, 0.0
         while not self._pending:
             now = time.monotonic()
             if got and quiet_s is not None:
