@@ -292,8 +292,10 @@ def test_resume_keeps_the_step_bytes_already_received(walk_image, tmp_path):
     total = json.loads((tmp_path / "full.glimg.json").read_text())["bytes_received"]
     out = tmp_path / "d.glimg"
     last_frame = 12 + len(records) - 1024
-    with LoggerLink(f"emu://{image}?cut_after={total - 18 - last_frame // 2}", timeout_s=0.1, retries=0) as link:
-        with pytest.raises(HostError, match="no valid answer"):
+    # the stream ends: the last DATA frame, its DATA_CRC (16 bytes), DUMP_END (18 bytes)
+    with LoggerLink(f"emu://{image}?cut_after={total - 18 - 16 - last_frame // 2}", timeout_s=0.1,
+                    retries=0) as link:
+        with pytest.raises(HostError, match="no answer to IDENTIFY"):
             dump_memory(link, out, progress=False, chunk_bytes=256, retries=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
