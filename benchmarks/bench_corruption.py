@@ -34,13 +34,18 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.files.decode import decode_bytes  # noqa: E402
-from protocol.errors import ProtocolError  # noqa: E402
-from protocol.frames import FrameType, build_payload, encode_frame  # noqa: E402
-from protocol.header import DeviceHeader, HeaderFlag  # noqa: E402
-from protocol.image import FRAME_OVERHEAD_BYTES, PREAMBLE_BYTES, build_image, image_version_for  # noqa: E402
-from protocol.packing import pack_words  # noqa: E402
-from protocol.raw_dump import CHUNK_BYTES, raw_dump_bytes  # noqa: E402
+from host.files.decode import decode_bytes
+from protocol.errors import ProtocolError
+from protocol.frames import FrameType, build_payload, encode_frame
+from protocol.header import DeviceHeader, HeaderFlag
+from protocol.image import (
+    FRAME_OVERHEAD_BYTES,
+    PREAMBLE_BYTES,
+    build_image,
+    image_version_for,
+)
+from protocol.packing import pack_words
+from protocol.raw_dump import CHUNK_BYTES, raw_dump_bytes
 
 KINDS = ("image", "image-v1", "capture", "raw")
 DAMAGES = ("flip", "drop", "insert", "duplicate", "truncate", "header", "table")

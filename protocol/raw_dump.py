@@ -41,19 +41,19 @@ from protocol.steps import STEP_RECORD_SIZE
 from protocol.xmodem import BLOCK_1K, PAD
 
 __all__ = [
-    "TRAILER_MAGIC",
-    "TRAILER_VERSION",
     "CHUNK_BYTES",
-    "TRAILER_GAP_BYTES",
     "SHIFT_SEARCH_BYTES",
-    "TRAILER_PREFIX_STRUCT",
+    "TRAILER_GAP_BYTES",
+    "TRAILER_MAGIC",
     "TRAILER_OFFSETS",
+    "TRAILER_PREFIX_STRUCT",
+    "TRAILER_VERSION",
     "RawDump",
-    "chunk_crc32",
     "build_trailer",
-    "raw_dump_bytes",
-    "parse_raw_dump",
+    "chunk_crc32",
     "find_trailer",
+    "parse_raw_dump",
+    "raw_dump_bytes",
 ]
 
 TRAILER_MAGIC = b"GLCK"
