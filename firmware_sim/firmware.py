@@ -71,7 +71,8 @@ from protocol.frames import (
 from protocol.header import PACKING_P32, DeviceHeader
 from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
 from protocol.steps import StepConfig, memory_region, pack_step_records
-from protocol.xmodem import XmodemSender, raw_dump_bytes
+from protocol.raw_dump import raw_dump_bytes
+from protocol.xmodem import XmodemSender
 
 __all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "step_algorithm_for",
            "CRC32_CYCLES_PER_BYTE", "DUMP_CYCLES_PER_BYTE", "uart_cycles_per_byte"]

@@ -91,7 +91,7 @@ def test_pty_dump_and_decode_reproduce_the_device_records(walk_image, tmp_path, 
     out = capsys.readouterr().out
     n = len(records) // 20
     assert f"{n} of {n} step records" in out
-    assert read_image(tmp_path / "d.glimg").image_version == 2
+    assert read_image(tmp_path / "d.glimg").image_version == 3
     meta = json.loads((tmp_path / "d.glimg.json").read_text())
     assert meta["step_stored_bytes"] == len(records) and meta["complete"] and meta["n_step_records"] == n
     assert main(["decode", str(tmp_path / "d.glimg"), "--out", str(tmp_path / "dec")]) == 0
@@ -343,7 +343,7 @@ def test_a_device_without_step_memory_dumps_fine(tmp_path):
     res = logger.record(CalibrationPoses(n_poses=4, hold_s=3.0, move_s=1.0), start_time_s=START_S)
     with serve_pty(logger) as server:
         assert main(["dump", "--port", server.path, "--out", str(tmp_path / "old.glimg"), "--quiet"]) == 0
-    assert read_image(tmp_path / "old.glimg").image_version == 1
+    assert read_image(tmp_path / "old.glimg").image_version == 3  # every device: framed blocks
     rec = decode_file(tmp_path / "old.glimg")
     np.testing.assert_array_equal(rec.codes, res.codes)
     assert rec.n_step_records == 0 and rec.step_losses == [] and verify_step_records(rec) is None
