@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_logger_rate_option, logger_rate_hz
+from host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, number
 
 HELP = "RAM and cycles per sample of the logger with the on-line step algorithm, against the PIC16F877"
 
@@ -13,9 +13,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     from host.commands._options import add_verbosity_options
 
     add_logger_rate_option(parser)
-    parser.add_argument("--crystal", type=float, default=18.432, metavar="MHZ",
+    parser.add_argument("--crystal", type=number(minimum=0.032, maximum=20, unit="MHz"), default=18.432, metavar="MHZ",
                         help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; at most 20)")
-    parser.add_argument("--seed", type=int, default=0, help="simulated walker whose walk is counted (default 0)")
+    parser.add_argument("--seed", type=SEED, default=0, help="simulated walker whose walk is counted (default 0)")
     parser.add_argument("--json", action="store_true", help="print the budget as one JSON document instead")
     add_verbosity_options(parser)
 

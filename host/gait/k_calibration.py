@@ -95,6 +95,10 @@ class KFit(VersionedJson):
         for name in ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m"):
             if isinstance(getattr(cal, name), bool) or not isinstance(getattr(cal, name), (int, float)):
                 raise HostError(f"{source}: key {name!r} must be a number")
+        for name in ("leg_length_m", "foot_length_m"):
+            if not (math.isfinite(getattr(cal, name)) and getattr(cal, name) > 0):
+                raise HostError(f"{source}: key {name!r} must be a positive length in metres, got "
+                                f"{getattr(cal, name)!r}")
         return cal
 
 
