@@ -124,6 +124,12 @@ UNIX_TIME_S = whole(minimum=0, maximum=2**32 - 1)
 SAMPLING_RATE_HZ = number(above=0, maximum=100_000, unit="Hz")
 #: The emulated logger's sampling rate, Hz (the PIC16F877 budget's range: ``gaitlog budget``).
 LOGGER_RATE_HZ = number(minimum=1, maximum=1000, unit="Hz")
+#: A serial line's baud rate (``--baud``).
+BAUD = whole(minimum=50, maximum=4_000_000)
+#: An answer / inter-byte timeout (``--timeout``), s: finite (nan or inf would wait forever) and positive.
+TIMEOUT_S = number(above=0, maximum=3600, unit="s")
+#: A TCP port to listen on (0: any free port).
+TCP_PORT = whole(minimum=0, maximum=65535)
 #: A length of a body segment or a walked distance, m.
 POSITIVE_M = number(above=0, maximum=100_000, unit="m")
 

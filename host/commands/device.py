@@ -8,7 +8,7 @@ import json
 import sys
 from typing import Any
 
-from host.commands._options import add_verbosity_options, verbosity
+from host.commands._options import BAUD, TIMEOUT_S, UNIX_TIME_S, add_verbosity_options, verbosity
 
 HELP = "control a live logger (--port): identify, status, start, stop, erase, set-calibration"
 
@@ -19,8 +19,8 @@ _PORT_HELP = ("the logger: serial device (/dev/ttyUSB0, COM3), pty path from `ga
 def _link_options(parser: argparse.ArgumentParser) -> None:
     """The connection flags, as ``gaitlog info`` and ``gaitlog dump`` spell them."""
     parser.add_argument("--port", required=True, help=_PORT_HELP)
-    parser.add_argument("--baud", type=int, default=115200, help="baud rate, 8N1 (default 115200)")
-    parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    parser.add_argument("--baud", type=BAUD, default=115200, help="baud rate, 8N1 (default 115200)")
+    parser.add_argument("--timeout", type=TIMEOUT_S, default=1.0, metavar="S",
                         help="answer timeout in seconds (default 1.0)")
     add_verbosity_options(parser)
 
@@ -39,7 +39,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     _link_options(start)
     start.add_argument("--overwrite", action="store_true",
                        help="ring mode: overwrite the oldest samples when the memory is full (default: stop)")
-    start.add_argument("--start-time", type=int, metavar="UNIX_S",
+    start.add_argument("--start-time", type=UNIX_TIME_S, metavar="UNIX_S",
                        help="Unix time of the first sample (default: now, from this computer's clock)")
     stop = actions.add_parser("stop", help="stop logging")
     _link_options(stop)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from host.commands._options import add_verbosity_options, verbosity
+from host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, check_outputs, verbosity, whole
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
@@ -17,11 +17,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="serial device, pty path (from `gaitlog serve --pty`), socket://HOST:PORT or emu://IMAGE")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg); "
                         "metadata goes to IMAGE.json, the partial state of an interrupted dump to IMAGE.part")
-    parser.add_argument("--baud", type=int, default=115200, help="baud rate, 8N1 (default 115200)")
+    parser.add_argument("--baud", type=BAUD, default=115200, help="baud rate, 8N1 (default 115200)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted dump from IMAGE.part")
-    parser.add_argument("--retries", type=int, default=8,
+    parser.add_argument("--retries", type=whole(minimum=0, maximum=1000), default=8,
                         help="re-read passes over damaged or missing ranges (default 8)")
-    parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    parser.add_argument("--timeout", type=TIMEOUT_S, default=1.0, metavar="S",
                         help="answer / inter-byte timeout in seconds (default 1.0)")
     parser.add_argument("--capture", metavar="FILE", help="also save every byte received (a wire capture that "
                         "`gaitlog decode` reads)")
@@ -34,14 +34,15 @@ def run(args: argparse.Namespace) -> int:
 
     from host.errors import HostError
     from host.link.logger_link import LoggerLink
-    from host.link.memory_dump import dump_memory, state_path_for
+    from host.link.memory_dump import dump_memory, metadata_path_for, state_path_for
     from protocol.atomic_write import atomic_write_bytes
 
     if args.retries < 0:
         raise HostError(f"--retries must be >= 0, got {args.retries}")
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise HostError(f"output directory {out.parent} does not exist")
+    emu = args.port[len("emu://"):] if args.port.startswith("emu://") else None
+    check_outputs({"--out": out, "--out (.json)": metadata_path_for(out), "--capture": args.capture},
+                  {"--port emu:// image": emu})
     capture = io.BytesIO() if args.capture else None
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, retries=3, capture=capture) as link:
         try:

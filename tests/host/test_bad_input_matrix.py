@@ -215,7 +215,7 @@ def _cases() -> list[Case]:
     add("info", "IMAGE and --port", ["info", "{walk.glimg}", "--port", "emu://{walk.glimg}"], "--port")
 
     # serve (bad inputs only: a good one would serve forever)
-    for name in LOGGER_FILES:
+    for name in LOGGER_FILES + ("huge_header.npz", "damaged_zip.npz", "nested.json"):
         add("serve", f"input {name}", ["serve", f"{{{name}}}", "--tcp", "0"], name)
     for v in ("70000", "-1", "abc", "1.5", "65536", "99999999999"):
         add("serve", f"--tcp {v!r}", ["serve", "{walk.glimg}", "--tcp", v], "--tcp")
@@ -254,7 +254,6 @@ def _cases() -> list[Case]:
     options("dump", [*dump, "--out", "{folder}/d.glimg"], "--timeout", BAD_POSITIVE)
     options("dump", [*dump, "--out", "{folder}/d.glimg"], "--retries", ("-1", "abc", "1.5", "10000000000"))
     options("dump", [*dump, "--out", "{folder}/d.glimg"], "--baud", BAD_COUNT)
-    add("dump", "--resume without a partial state", [*dump, "--out", "{folder}/d.glimg", "--resume"], "d.glimg")
 
     # record
     rec_out = ["--out", "{folder}/r.glimg"]
@@ -349,7 +348,7 @@ def _cases() -> list[Case]:
     outputs("plot", ["plot", "{walk.npz}"], "--out", "walk.npz", ".png")
 
     # budget
-    options("budget", ["budget"], "--crystal", BAD_POSITIVE + ("1e9", "0.001"))
+    options("budget", ["budget"], "--crystal", BAD_POSITIVE + ("1e9", "0.001", "1,5", "0x10"))
     options("budget", ["budget"], "--logger-rate", BAD_POSITIVE)
     options("budget", ["budget"], "--seed", ("-1", "abc", "1.5", "99999999999999999999999"))
     add("budget", "unknown option", ["budget", "--crystals", "4"], "--crystals")
@@ -367,13 +366,18 @@ def _cases() -> list[Case]:
 
     # demo
     demo = ["demo", "--out", "{folder}/demo-out"]
-    options("demo", demo, "--poses", ("0", "-1", "3", "10000000000", "abc", "1.5"))
-    options("demo", demo, "--seed", ("-1", "abc", "99999999999999999999999"))
+    options("demo", demo, "--poses", ("0", "-1", "3", "10000000000", "abc", "1.5", "", "1e3", "nan"))
+    options("demo", demo, "--seed", ("-1", "abc", "99999999999999999999999", "", "1.5", "nan"))
+    add("demo", "--out is a file with --force", ["demo", "--force", "--out", "{walk.csv}"], "--out")
+    add("demo", "--out is a device", ["demo", "--out", "/dev/null"], "--out")
     add("demo", "--out is a file", ["demo", "--out", "{walk.csv}"], "--out")
     add("demo", "--out under a file", ["demo", "--out", "{underfile/out}"], "--out")
     add("demo", "--out a non-empty foreign folder", ["demo", "--out", "{folder}"], "--out")
     add("demo", "--out unwritable", ["demo", "--out", "/proc/gaitlog-demo"], "--out")
     add("demo", "unknown option", ["demo", "--fast"], "--fast")
+    add("demo", "extra argument", ["demo", "now"], "now")
+    add("demo", "--out under a missing folder under a file", ["demo", "--out", "{underfile/out}/deeper"], "--out")
+    add("demo", "-q and -v", ["demo", "-q", "-v", "--out", "{folder}/demo-out"], "-v")
     return cases
 
 
