@@ -380,7 +380,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "replaced)")
     parser.add_argument("--force", action="store_true",
                         help="write into --out even if it holds other files (files of the same names are replaced)")
-    parser.add_argument("--poses", type=whole(minimum=6, maximum=1000), default=24, help="number of calibration poses (default 24)")
+    parser.add_argument("--poses", type=whole(minimum=1, maximum=1000), default=24, help="number of calibration poses (default 24)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the sensor and the poses (default 0)")
     add_verbosity_options(parser)
 

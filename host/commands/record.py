@@ -34,7 +34,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "IPOL trial, or any input the gait commands read; lost samples are interpolated and "
                              "counted)")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg)")
-    parser.add_argument("--poses", type=whole(minimum=6, maximum=1000), default=24, metavar="N", help="number of calibration poses (24)")
+    parser.add_argument("--poses", type=whole(minimum=1, maximum=1000), default=24, metavar="N", help="number of calibration poses (24)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the sensor's errors and noise, and of the poses")
     add_logger_rate_option(parser)
     parser.add_argument("--start-time", type=UNIX_TIME_S, default=None, metavar="UNIX_S",

@@ -366,7 +366,7 @@ def _cases() -> list[Case]:
 
     # demo
     demo = ["demo", "--out", "{folder}/demo-out"]
-    options("demo", demo, "--poses", ("0", "-1", "3", "10000000000", "abc", "1.5", "", "1e3", "nan"))
+    options("demo", demo, "--poses", ("0", "-1", "10000000000", "abc", "1.5", "", "1e3", "nan"))
     options("demo", demo, "--seed", ("-1", "abc", "99999999999999999999999", "", "1.5", "nan"))
     add("demo", "--out is a file with --force", ["demo", "--force", "--out", "{walk.csv}"], "--out")
     add("demo", "--out is a device", ["demo", "--out", "/dev/null"], "--out")
