@@ -449,8 +449,8 @@ class Recording:
                        step_records=records, step_record_numbers=numbers, step_losses=losses)
         except KeyError as err:
             raise HostError(f"{path}: metadata_json lacks the field {err.args[0]!r}") from err
-        except (TypeError, ValueError) as err:
-            raise HostError(f"{path}: bad metadata_json field ({err})") from err
+        except (TypeError, ValueError, AttributeError, OverflowError) as err:
+            raise HostError(f"{path}: bad metadata_json field ({type(err).__name__}: {err})") from err
 
     def to_csv(self, path: str | os.PathLike[str], calibration: CountsToG | None = None) -> None:
         """Write one row per stored sample (columns :data:`CSV_COLUMNS`), atomically.
