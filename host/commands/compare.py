@@ -17,7 +17,13 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import POSITIVE_M, SEED, add_logger_rate_option, logger_rate_hz, whole
+from host.commands._options import (
+    POSITIVE_M,
+    SEED,
+    add_logger_rate_option,
+    logger_rate_hz,
+    whole,
+)
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 
@@ -78,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from host.commands._options import printer
+    from host.commands._options import check_outputs, printer
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import rows_csv_text
@@ -88,7 +94,6 @@ def _sweep(args: argparse.Namespace) -> int:
         format_m5,
         format_summary,
     )
-    from host.commands._options import check_outputs
     from protocol.atomic_write import atomic_write_text
 
     if args.subjects < 1:
@@ -118,7 +123,7 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import columns_csv_text
-    from host.commands._options import printer
+    from host.commands._options import check_outputs, printer
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import (
@@ -129,7 +134,6 @@ def _simulate(args: argparse.Namespace) -> int:
     )
     from host.studies.simulation import simulate_comparisons
     from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
-    from host.commands._options import check_outputs
     from protocol.atomic_write import atomic_write_text
 
     if args.simulate < 1:
@@ -232,12 +236,11 @@ def _recording(args: argparse.Namespace) -> int:
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
     from host.commands._anatomy_options import lengths_from_args
     from host.commands._input_options import read_input
-    from host.commands._options import printer, verbosity
+    from host.commands._options import check_outputs, printer, verbosity
     from host.errors import HostError
     from host.files.replay import run_starts, verify_step_records
     from host.gait.k_calibration import KFit
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from host.commands._options import check_outputs
     from protocol.atomic_write import atomic_write_text
 
     say = printer(args)

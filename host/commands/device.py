@@ -8,7 +8,13 @@ import json
 import sys
 from typing import Any
 
-from host.commands._options import BAUD, TIMEOUT_S, UNIX_TIME_S, add_verbosity_options, verbosity
+from host.commands._options import (
+    BAUD,
+    TIMEOUT_S,
+    UNIX_TIME_S,
+    add_verbosity_options,
+    verbosity,
+)
 
 HELP = "control a live logger (--port): identify, status, start, stop, erase, set-calibration"
 

@@ -6,7 +6,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, check_outputs, verbosity, whole
+from host.commands._options import (
+    BAUD,
+    TIMEOUT_S,
+    add_verbosity_options,
+    check_outputs,
+    verbosity,
+    whole,
+)
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")

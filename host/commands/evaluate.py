@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
+    from host.commands._options import check_outputs
     from host.studies.compare import rows_csv_text
     from host.studies.ipol_evaluation import (
         ARITHMETICS,
@@ -94,7 +95,6 @@ def run(args: argparse.Namespace) -> int:
         summarise,
     )
     from protocol.adc_bits import check_adc_bits
-    from host.commands._options import check_outputs
     from protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
     check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)

@@ -179,7 +179,6 @@ def run(args: argparse.Namespace) -> int:
     """Run both simulations and methods, write the figures, print the errors against the truth (not with -q;
     each figure's path with -v)."""
     from host.commands._options import check_output_folder, printer
-    from host.errors import HostError
     from host.kinematics.plots import (
         plot_angular_velocity,
         plot_dcm,

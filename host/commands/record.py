@@ -12,7 +12,15 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from host.commands._options import POSITIVE_M, SEED, UNIX_TIME_S, add_logger_rate_option, logger_rate_hz, number, whole
+from host.commands._options import (
+    POSITIVE_M,
+    SEED,
+    UNIX_TIME_S,
+    add_logger_rate_option,
+    logger_rate_hz,
+    number,
+    whole,
+)
 
 if TYPE_CHECKING:
     from host.files.inputs import AccelerationInput

@@ -36,7 +36,12 @@ from host.accelerometer.calibration import AccCalibration
 from host.errors import HostError
 from host.files.decode import decode_bytes
 from host.files.ipol import IpolTrial, list_trials, read_trial
-from host.files.limits import MAX_INPUT_SAMPLES, MAX_TEXT_BYTES, check_file_size, check_samples
+from host.files.limits import (
+    MAX_INPUT_SAMPLES,
+    MAX_TEXT_BYTES,
+    check_file_size,
+    check_samples,
+)
 from host.files.recording import Recording
 from protocol.errors import ProtocolError
 from protocol.image import detect_format

@@ -24,7 +24,12 @@ import numpy as np
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.errors import HostError
-from host.files.limits import MAX_JSON_BYTES, MAX_TEXT_BYTES, check_file_size, check_samples
+from host.files.limits import (
+    MAX_JSON_BYTES,
+    MAX_TEXT_BYTES,
+    check_file_size,
+    check_samples,
+)
 
 _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$")
 

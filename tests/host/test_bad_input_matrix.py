@@ -366,7 +366,7 @@ def _cases() -> list[Case]:
 
     # demo
     demo = ["demo", "--out", "{folder}/demo-out"]
-    options("demo", demo, "--poses", ("0", "-1", "10000000000", "abc", "1.5", "", "1e3", "nan"))
+    options("demo", demo, "--poses", ("0", "-1", "10000000000", "abc", "1.5", "", "1e3", "nan", "inf"))
     options("demo", demo, "--seed", ("-1", "abc", "99999999999999999999999", "", "1.5", "nan"))
     add("demo", "--out is a file with --force", ["demo", "--force", "--out", "{walk.csv}"], "--out")
     add("demo", "--out is a device", ["demo", "--out", "/dev/null"], "--out")
@@ -376,6 +376,7 @@ def _cases() -> list[Case]:
     add("demo", "--out unwritable", ["demo", "--out", "/proc/gaitlog-demo"], "--out")
     add("demo", "unknown option", ["demo", "--fast"], "--fast")
     add("demo", "extra argument", ["demo", "now"], "now")
+    add("demo", "--out without a value", ["demo", "--out"], "--out")
     add("demo", "--out under a missing folder under a file", ["demo", "--out", "{underfile/out}/deeper"], "--out")
     add("demo", "-q and -v", ["demo", "-q", "-v", "--out", "{folder}/demo-out"], "-v")
     return cases
@@ -490,10 +491,9 @@ def test_bad_input_is_one_clear_error_line(case, bad_input_folder):
 
 
 def _main() -> int:
+    import resource
     import tempfile
     import time
-
-    import resource
 
     resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))  # a hostile file raises MemoryError, not OOM
     folder = Path(tempfile.mkdtemp(prefix="gaitlog-bad-input-"))
