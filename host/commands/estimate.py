@@ -70,8 +70,15 @@ def run(args: argparse.Namespace) -> int:
         outs[first] = out
         if len(tables) == 2:
             outs["fixed"] = out.with_name(out.stem + "_fixed.csv")
-        for arith, path in outs.items():
-            tables[arith].to_csv(path)
+        written = []
+        try:                                  # both tables or neither (each file is itself atomic)
+            for arith, path in outs.items():
+                tables[arith].to_csv(path)
+                written.append(path)
+        except BaseException:
+            for path in written:
+                path.unlink(missing_ok=True)
+            raise
     summary = _summary(tables, ESTIMATORS)
     if args.json:
         doc = {"input": str(args.input), "source": data.source, "n_samples": data.n_samples,

@@ -1,6 +1,6 @@
 """Small hostile files that claim a lot: each is a one-line error naming the file, in bounded memory.
 
-Each file is read by ``gaitlog estimate`` in a child process whose peak resident memory (``ru_maxrss``) is
+Each file is read by ``gaitlog estimate`` in a child process whose peak resident memory (``VmHWM``) is
 measured; the bound is 500 MB (issue 13: a 68-byte CSV with a 2 x 10^5 s gap reached 5.4 GB, a 3 MB NPZ zip
 bomb 3.1 GB, a ``.npy`` header claiming terabytes raised MemoryError). The child also has a 2 GB address
 space limit, so a regression fails the test instead of the machine.
@@ -26,7 +26,9 @@ import resource, sys
 resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
 from host.cli import main
 code = main(sys.argv[1:])
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024, file=sys.stdout)
+# VmHWM, the peak of this process's own memory (ru_maxrss would keep the parent's peak across fork + exec)
+hwm_kb = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))
+print(hwm_kb // 1024, file=sys.stdout)
 sys.exit(code)
 """
 
