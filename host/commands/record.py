@@ -106,8 +106,6 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
     if kind == "walk":
         if len(args.motion) != 1:
             raise HostError("--motion walk takes no file")
-        if not 10.0 <= args.corridor_length <= 1000.0:
-            raise HostError(f"--corridor-length {args.corridor_length:g} m is outside 10-1000 m")
         from firmware_sim.world.subject import Subject
         from firmware_sim.world.walk_plan import WalkPlan
         from firmware_sim.world.walking import Walking
