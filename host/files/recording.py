@@ -578,6 +578,8 @@ def read_npz_arrays(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
                 if name not in names or name in arrays:
                     continue
                 where = f"{path}: array {name!r}"
+                if info.flag_bits & 0x1:
+                    raise HostError(f"{where}: encrypted in the zip (a gaitlog NPZ never is)")
                 if info.file_size > MAX_NPZ_ARRAY_BYTES + 4096:
                     raise HostError(f"{where}: {info.file_size} bytes uncompressed, more than a recording holds "
                                     f"({MAX_NPZ_ARRAY_BYTES}): not a gaitlog recording NPZ")
