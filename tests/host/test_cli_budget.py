@@ -27,11 +27,13 @@ def test_budget_at_100_hz_says_what_must_give(capsys: pytest.CaptureFixture[str]
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["budget", "--logger-rate", "0"], "--logger-rate must be a positive number of Hz, got 0"),
-    (["budget", "--crystal", "40"], "--crystal 40.0 MHz is outside"),
+    (["budget", "--logger-rate", "0"], "argument --logger-rate: must be a finite number >= 1 and <= 1000 Hz, got '0'"),
+    (["budget", "--crystal", "40"], "argument --crystal: must be a finite number >= 0.032 and <= 20 MHz, got '40'"),
 ])
 def test_budget_bad_input(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(argv) == 1
+    with pytest.raises(SystemExit) as usage:
+        main(argv)
+    assert usage.value.code == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and err.count("\n") == 1
 
