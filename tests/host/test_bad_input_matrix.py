@@ -91,12 +91,14 @@ def build_fixtures(folder: Path) -> dict[str, Path]:
         f[name] = p
 
     put("empty.bin", b"")
-    put("truncated.glimg", image[:1000])
+    put("truncated.glimg", image[:200])          # cut inside the preamble (its copy at the end is gone too)
     put("garbage.bin", rng.integers(0, 256, 5000, dtype=np.uint8).tobytes())
     put("garbage.txt", "hello world\nthis is not a recording\n")
     put("latin1.csv", "x;y;z\n\xe9\xe8\xff,1,2\n".encode("latin-1"))
     damaged = bytearray(image)
-    damaged[8:40] = bytes(32)                     # image header zeroed
+    damaged[8:40] = bytes(32)                     # image header zeroed, in both copies of the preamble
+    end_copy = image.rfind(image[16:48]) - 16     # the preamble's copy at the end of a version-3 image
+    damaged[end_copy + 8:end_copy + 40] = bytes(32)
     put("damaged_header.glimg", bytes(damaged))
     put("truncated.npz", npz[: len(npz) // 2])
     zipped = bytearray(npz)
