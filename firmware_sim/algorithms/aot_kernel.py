@@ -19,7 +19,8 @@ in the first process that needs the kernel (:func:`entry_points`). It is done in
 into place, under a lock file: a reader never sees a half-written module, and a second process waits for
 the first's build instead of compiling too. A failed build (no compiler) leaves ``aot-<hash>.failed`` (the
 error) and is not retried for that hash: numba's JIT is used instead. ``GAITLOG_NO_AOT=1`` (or numba's
-``NUMBA_DISABLE_JIT=1``) turns the module off.
+``NUMBA_DISABLE_JIT=1``) turns the module off. A build removes the cache folders of other versions of the
+sources unused for two weeks (:func:`firmware_sim.compiled.prune_cache`).
 
 Run ``python -m firmware_sim.algorithms.aot_kernel`` to build it now and print its path.
 """
@@ -38,7 +39,7 @@ from pathlib import Path
 from types import ModuleType
 
 from firmware_sim.algorithms import kernel
-from firmware_sim.compiled import cache_base, load_numba, source_hash, touch
+from firmware_sim.compiled import cache_base, load_numba, prune_cache, source_hash, touch
 
 __all__ = ["ARITHMETIC_TYPES", "ENTRY_POINTS", "MODULE_NAME", "EntryPoint", "aot_dir", "build", "enabled", "entry_points",
            "load"]
@@ -190,6 +191,7 @@ def _build_or_wait() -> ModuleType | None:
             os.write(fd, str(os.getpid()).encode())
             os.close(fd)
             build(final)
+            prune_cache(final)                       # long-unused builds of other versions of the sources
         except Exception as exc:  # noqa: BLE001 - any build failure: recorded, numba's JIT is used instead
             try:
                 failed.write_text(f"{type(exc).__name__}: {exc}\n")
