@@ -14,7 +14,10 @@ Two faces, one definition
 * **Array API** (:func:`mul`, :func:`mul_q`, :func:`div`, :func:`div_round`, :func:`isqrt`, :func:`add` ...):
   the same scalar definitions applied element by element by compiled loops, for numpy arrays (broadcast,
   ``int64``), with the counts collected in an :class:`ArithmeticContext`. This is the face the bit-exact
-  tests (apytypes) and the benchmarks use.
+  tests (apytypes) and the benchmarks use. Arrays of at most :data:`PYTHON_MAX_ELEMENTS` elements (the
+  algorithm's configuration: a few dozen constants) run the loops' Python text on Python integers instead,
+  which needs no numba (loading it costs ~0.4 s; :mod:`firmware_sim.compiled`); a test checks that both
+  give the same bits.
 
 Conventions
 -----------
@@ -56,10 +59,8 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numba import njit
-from numba.extending import register_jitable
 
-import firmware_sim.compiled  # noqa: F401  (numba's cache folder, before any cache=True below)
+from firmware_sim.compiled import njit, register_jitable
 
 __all__ = [
     "CYCLES",
@@ -70,6 +71,7 @@ __all__ = [
     "DEFAULT_FOSC_HZ",
     "cycles_per_sample_available",
     "N_COUNTERS",
+    "PYTHON_MAX_ELEMENTS",
     "C_SAT",
     "C_WRAP",
     "C_DIV0",
@@ -370,17 +372,21 @@ def s_isqrt(x, nearest, cnt):
 def s_from_float(v, frac, bits, signed, half_up, wrap, cnt):
     """Quantise a real value to a raw integer with ``frac`` fraction bits (``floor(v·2**frac + 1/2)``)."""
     y = v * 2.0 ** frac
-    y = math.floor(y + 0.5) if half_up else math.floor(y)
     lim = 4611686018427387904.0       # 2**62: beyond any word, still exact in int64
-    if y > lim:
-        y = lim
+    if y > lim:                       # clipped before the floor: compiled, the floor of a float beyond
+        y = lim                       # int64's range is undefined (1e300 came out as the minimum)
     if y < -lim:
         y = -lim
+    y = math.floor(y + 0.5) if half_up else math.floor(y)
     return s_overflow(int(y), bits, signed, wrap, cnt)
 
 
 # ---------------------------------------------------------------------------------------------------
 # compiled element loops of the array API (each applies one scalar definition)
+
+#: Inputs of at most this many elements run the loops' Python text (:func:`_run`): bit for bit the compiled
+#: loops' results on the primitives' domains, without loading numba for a handful of configuration constants.
+PYTHON_MAX_ELEMENTS = 256
 
 
 @njit(cache=True)
@@ -678,6 +684,14 @@ def _within(x: np.ndarray, lo: int, hi: int) -> bool:
     return x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)
 
 
+def _run(loop, inputs: list[np.ndarray], *rest) -> None:
+    """Call an element loop: compiled, or its Python text on Python numbers for small inputs (same bits)."""
+    if inputs[0].size <= PYTHON_MAX_ELEMENTS:
+        getattr(loop, "py_func", loop)(*[a.astype(object) for a in inputs], *rest)
+    else:
+        loop(*inputs, *rest)
+
+
 def _apply(loop, ctx: ArithmeticContext | None, op: str, *args):
     """Run an element loop over the broadcast array arguments (the leading ndarrays of ``args``)."""
     n_arr = 0
@@ -688,7 +702,7 @@ def _apply(loop, ctx: ArithmeticContext | None, op: str, *args):
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
     out = np.empty(shape, np.int64)
     cnt = new_counters()
-    loop(*flat, *args[n_arr:], out.reshape(-1), cnt)
+    _run(loop, flat, *args[n_arr:], out.reshape(-1), cnt)
     if ctx is not None:
         ctx.absorb(cnt, op)
     return out
@@ -876,8 +890,8 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     q = np.empty(xb.shape, np.int64)
     r = np.empty(xb.shape, np.int64)
     cnt = new_counters()
-    _loop_div(np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1), bits, bool(signed),
-              q.reshape(-1), r.reshape(-1), cnt)
+    _run(_loop_div, [np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1)], bits,
+         bool(signed), q.reshape(-1), r.reshape(-1), cnt)
     if ctx is not None:
         ctx.absorb(cnt, op)
     return q, r

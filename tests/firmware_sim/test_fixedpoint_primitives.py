@@ -1,14 +1,17 @@
-"""The PIC arithmetic of ``firmware_sim.fixedpoint``, bit-exact against apytypes (and Python integers)."""
+"""The PIC arithmetic of ``firmware_sim.fixedpoint``, bit-exact against apytypes (and Python integers), through
+the compiled element loops and through their Python text (small arrays)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from firmware_sim import fixedpoint
 from firmware_sim.fixedpoint import (
     ArithmeticContext,
     QFormat,
@@ -33,6 +36,16 @@ QM = apy.QuantizationMode
 OM = apy.OverflowMode
 
 RNG_SEED = 20061
+
+
+@pytest.fixture(autouse=True, scope="module", params=["compiled", "python"])
+def element_loops(request: pytest.FixtureRequest) -> Iterator[str]:
+    """Every test runs twice: through the compiled element loops, and through their Python text (the path of
+    arrays of at most ``PYTHON_MAX_ELEMENTS`` elements, which needs no numba)."""
+    saved = fixedpoint.PYTHON_MAX_ELEMENTS
+    fixedpoint.PYTHON_MAX_ELEMENTS = -1 if request.param == "compiled" else 1 << 40
+    yield request.param
+    fixedpoint.PYTHON_MAX_ELEMENTS = saved
 
 ROUND = {"half_up": QM.RND, "floor": QM.TRN}
 OVER = {"saturate": OM.SAT, "wrap": OM.WRAP}
