@@ -31,7 +31,8 @@ _ROOT = Path(__file__).resolve().parents[1]
 #: Source files whose functions or constants are compiled into the kernels (relative to the repository root;
 #: the step flags of ``protocol/steps.py`` are frozen into the kernel as constants).
 COMPILED_SOURCES: tuple[str, ...] = ("firmware_sim/compiled.py", "firmware_sim/fixedpoint.py",
-                                     "firmware_sim/algorithms", "protocol/steps.py")
+                                     "firmware_sim/algorithms", "protocol/steps.py",
+                                     "firmware_sim/pic/kernel_cycles.json")
 
 
 def source_hash() -> str:
