@@ -43,7 +43,7 @@ from firmware_sim.fixedpoint import (
 )
 
 __all__ = ["PIC_DIR", "CYCLE_TABLE_PATH", "KERNELS", "Kernel", "KernelRun", "missing_tools", "assemble",
-           "vectors", "run_kernel", "measure", "cycle_table", "gpsim_version", "write_cycle_table"]
+           "vectors", "run_kernel", "measure", "cycle_table", "gpsim_version", "program_words", "write_cycle_table"]
 
 #: The assembly sources.
 PIC_DIR = Path(__file__).resolve().parent
@@ -363,12 +363,13 @@ def run_kernel(kernel: str | Kernel, operands: list[tuple[int, ...]], cod: Path,
 
 
 def measure(n_random: int = DEFAULT_RANDOM, *, seed: int = 0, kernels: tuple[str, ...] | None = None,
-            workers: int = 2) -> dict[str, KernelRun]:
+            workers: int = 2) -> tuple[dict[str, KernelRun], int]:
     """Assemble, then run every kernel on its edge cases and ``n_random`` random vectors (gpsim processes
-    ``workers`` at a time)."""
+    ``workers`` at a time). Returns the runs and the kernels' program words."""
     names = tuple(kernels or KERNELS)
     with tempfile.TemporaryDirectory(prefix="gpsim-build-") as tmp:
         cod = assemble(Path(tmp))
+        words = program_words(Path(tmp))
         tasks = [(n, c) for n in names for c in
                  (lambda v: [v[i:i + CHUNK] for i in range(0, len(v), CHUNK)])(vectors(n, n_random, seed))]
         with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
@@ -379,7 +380,7 @@ def measure(n_random: int = DEFAULT_RANDOM, *, seed: int = 0, kernels: tuple[str
         outs = [o for (m, _), p in zip(tasks, parts) if m == n for o in p[0]]
         cyc = np.asarray([x for (m, _), p in zip(tasks, parts) if m == n for x in p[1]], np.int64)
         runs[n] = KernelRun(n, ops, outs, _expected(KERNELS[n], ops), cyc)
-    return runs
+    return runs, words
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -408,7 +409,18 @@ def _cycles_by_shift(run: KernelRun) -> dict[int, int]:
     return out
 
 
-def cycle_table(runs: dict[str, KernelRun], gpsim_version: str) -> dict:
+def program_words(build_dir: Path) -> int:
+    """Program memory words of the kernels (``kernels_end - kernels_begin`` in gpasm's listing of
+    ``harness.asm``; :func:`assemble` must have run in ``build_dir``)."""
+    text = (build_dir / "harness.lst").read_text(errors="replace")
+    addr = {m.group(1): int(m.group(2), 16)
+            for m in re.finditer(r"^(kernels_begin|kernels_end)\s+([0-9A-Fa-f]+)\s*$", text, re.M)}
+    if len(addr) != 2:
+        raise RuntimeError(f"gpasm listing {build_dir / 'harness.lst'} has no kernels_begin/kernels_end symbols")
+    return addr["kernels_end"] - addr["kernels_begin"]
+
+
+def cycle_table(runs: dict[str, KernelRun], version: str, kernel_words: int) -> dict:
     """The measured table (the content of ``kernel_cycles.json``) from bit-exact runs."""
     bad = {n: len(r.mismatches) for n, r in runs.items() if r.mismatches}
     if bad:
@@ -417,10 +429,11 @@ def cycle_table(runs: dict[str, KernelRun], gpsim_version: str) -> dict:
     if missing:
         raise RuntimeError(f"the cycle table needs the kernels {sorted(missing)}")
     kernels = {n: r.summary() for n, r in runs.items()}
-    cycles, sources = {}, {}
+    cycles, means, sources = {}, {}, {}
     for key, (kname, rule) in TABLE_RULES.items():
         s = kernels[kname]
-        how = f"gpsim {gpsim_version}, firmware_sim/pic kernel {kname}, {s['vectors']:,} vectors"
+        how = f"gpsim {version}, firmware_sim/pic kernel {kname}, {s['vectors']:,} vectors"
+        means[key] = s["cycles_mean"] - (CALL_RETURN_CYCLES if rule == "inline" else 0)
         if rule == "call":
             cycles[key] = s["cycles_max"]
             sources[key] = (f"measured: worst case including CALL/RETURN ({how}; min {s['cycles_min']}, "
@@ -430,14 +443,15 @@ def cycle_table(runs: dict[str, KernelRun], gpsim_version: str) -> dict:
             sources[key] = f"measured: worst case less CALL/RETURN, as written in line ({how})"
         elif rule == "per_bit":
             by = _cycles_by_shift(runs[kname])
-            cycles[key] = max(by[s_] - by[s_ - 1] for s_ in range(2, 32))
+            cycles[key] = means[key] = max(by[s_] - by[s_ - 1] for s_ in range(2, 32))
             sources[key] = f"measured: cycles per extra bit of shift, s = 1..31 ({how})"
         else:
             fl, rd = _cycles_by_shift(runs["shr32"]), _cycles_by_shift(runs[kname])
-            cycles[key] = max(rd[s_] - fl[s_] for s_ in range(1, 32))
+            cycles[key] = means[key] = max(rd[s_] - fl[s_] for s_ in range(1, 32))
             sources[key] = f"measured: half-up minus floor shift at the same s, worst over s = 1..31 ({how})"
-    return {"generated_by": "gaitlog budget --measure-kernels", "gpsim": gpsim_version, "device": "p16f877",
-            "cycles": cycles, "sources": sources, "kernels": kernels}
+    return {"generated_by": "gaitlog budget --measure-kernels", "gpsim": version, "device": "p16f877",
+            "cycles": cycles, "cycles_mean": {k: round(v, 1) for k, v in means.items()}, "sources": sources,
+            "kernel_program_words": int(kernel_words), "kernels": kernels}
 
 
 def gpsim_version() -> str:

@@ -75,10 +75,12 @@ at_iroot4:
         call    iroot4
         goto    at_iroot4
 
+kernels_begin:                  ; program words of the kernels: kernels_end - kernels_begin
         #include "mul.asm"
         #include "div.asm"
         #include "shift.asm"
         #include "sat.asm"
         #include "sqrt.asm"
+kernels_end:
 
         end
