@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from firmware_sim.fixedpoint import (
+    CITED_CYCLES,
+    CITED_SOURCES,
     C_DIV0,
     C_SAT,
     new_counters,
@@ -43,7 +45,7 @@ from firmware_sim.fixedpoint import (
 )
 
 __all__ = ["PIC_DIR", "CYCLE_TABLE_PATH", "KERNELS", "Kernel", "KernelRun", "missing_tools", "assemble",
-           "vectors", "run_kernel", "measure", "cycle_table", "gpsim_version", "program_words", "write_cycle_table"]
+           "vectors", "run_kernel", "measure", "cycle_table", "gpsim_version", "program_words", "write_cycle_table", "markdown_table"]
 
 #: The assembly sources.
 PIC_DIR = Path(__file__).resolve().parent
@@ -452,6 +454,40 @@ def cycle_table(runs: dict[str, KernelRun], version: str, kernel_words: int) -> 
     return {"generated_by": "gaitlog budget --measure-kernels", "gpsim": version, "device": "p16f877",
             "cycles": cycles, "cycles_mean": {k: round(v, 1) for k, v in means.items()}, "sources": sources,
             "kernel_program_words": int(kernel_words), "kernels": kernels}
+
+
+#: How ``fixedpoint`` charges each kernel's work: (primitive, multiplier) terms; ``s`` = per bit of shift.
+KERNEL_MODEL: dict[str, tuple[tuple[str, str], ...]] = {
+    "mul16u": (("mul16x16u", ""),), "mul16s": (("mul16x16s", ""),),
+    "div32u": (("div32by16u", ""),), "div32s": (("div32by16s", ""),),
+    "divr32u": (("div32by16u", ""), ("add32", "")), "divr32s": (("div32by16s", ""), ("add32", "")),
+    "shr32": (("shift32_per_bit", "s"),), "shr32r": (("round32", ""), ("shift32_per_bit", "s")),
+    "sat16": (("sat16", ""),), "isqrt32": (("isqrt32", ""),), "isqrt32n": (("isqrt32", ""), ("compare16", "")),
+    "iroot4": (("isqrt32", "2"),),
+}
+
+
+def _model(kernel: str, cycles: dict[str, int]) -> str:
+    terms = KERNEL_MODEL[kernel]
+    text = " + ".join(f"{m} x {cycles[k]}" if m == "2" else f"{cycles[k]} {m}".strip() for k, m in terms)
+    if all(m != "s" for _, m in terms) and (len(terms) > 1 or terms[0][1]):
+        total = sum(cycles[k] * (2 if m == "2" else 1) for k, m in terms)
+        text += f" = {total}"
+    return text
+
+
+def markdown_table(table: dict) -> str:
+    """The measured cycles beside the figures cited before (the table of ``docs/FIXED_POINT.md``)."""
+    now = {**CITED_CYCLES, **table["cycles"]}
+    rows = ["| kernel | what | vectors | gpsim cycles min / mean / max | `CYCLES` charges now | cited before |",
+            "|---|---|---|---|---|---|"]
+    for name, s in table["kernels"].items():
+        keys = sorted({k for k, _ in KERNEL_MODEL[name]})
+        cited = ", ".join(dict.fromkeys(CITED_SOURCES.get(k, "").split(":")[0].replace("Microchip ", "")
+                                        for k in keys if k in table["cycles"]))
+        rows.append(f"| `{name}` | {s['doc']} | {s['vectors']:,} | {s['cycles_min']} / {s['cycles_mean']:g} / "
+                    f"{s['cycles_max']} | {_model(name, now)} | {_model(name, CITED_CYCLES)} ({cited}) |")
+    return "\n".join(rows)
 
 
 def gpsim_version() -> str:

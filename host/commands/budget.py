@@ -172,6 +172,7 @@ def _measure_kernels(args: argparse.Namespace) -> int:
         CYCLE_TABLE_PATH,
         cycle_table,
         gpsim_version,
+        markdown_table,
         measure,
         missing_tools,
         write_cycle_table,
@@ -189,8 +190,10 @@ def _measure_kernels(args: argparse.Namespace) -> int:
               f"mean {s['cycles_mean']:g}, max {s['cycles_max']}  ({s['doc']})")
     if bad:
         raise HostError(f"kernels differ from fixedpoint.py (operands, gpsim, fixedpoint): {bad}; table not written")
-    write_cycle_table(cycle_table(runs, gpsim_version(), words))
-    print(f"kernels: {words} program words; wrote {CYCLE_TABLE_PATH}")
+    table = cycle_table(runs, gpsim_version(), words)
+    write_cycle_table(table)
+    print(f"kernels: {words} program words; wrote {CYCLE_TABLE_PATH}; the table of docs/FIXED_POINT.md:\n")
+    print(markdown_table(table))
     return 0
 
 

@@ -20,13 +20,15 @@ from firmware_sim.pic.gpsim_bench import (
     assemble,
     cycle_table,
     gpsim_version,
+    markdown_table,
     measure,
     missing_tools,
     run_kernel,
     vectors,
 )
 
-pytestmark = pytest.mark.skipif(missing_tools() is not None, reason=f"gpsim kernels: {missing_tools()}")
+needs_gpsim = pytest.mark.skipif(missing_tools() is not None, reason=f"gpsim kernels: {missing_tools()}")
+DOC = Path(__file__).resolve().parents[2] / "docs" / "FIXED_POINT.md"
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +41,7 @@ def runs(measured: tuple[dict, int]) -> dict:
     return measured[0]
 
 
+@needs_gpsim
 @pytest.mark.parametrize("name", list(KERNELS))
 def test_kernel_is_bit_exact_with_fixedpoint(runs: dict, name: str) -> None:
     run = runs[name]
@@ -56,12 +59,14 @@ def test_the_edge_cases_are_in_the_vectors() -> None:
     assert {(-32768, -32768), (32767, -32768)} <= set(vectors("mul16s", 0))
 
 
+@needs_gpsim
 def test_the_flags_are_exercised(runs: dict) -> None:
     """Saturations and divisions by zero happen in the vectors, and the PIC flags them as fixedpoint counts."""
     for name, flag in (("div32s", 2), ("div32s", 1), ("divr32u", 2), ("sat16", 1)):
         assert sum(1 for o in runs[name].outputs if o[-1] & flag) >= 5
 
 
+@needs_gpsim
 def test_a_wrong_kernel_is_caught(tmp_path: Path) -> None:
     """The floor shift's code checked against the half-up definition: the comparison must fail."""
     cod = assemble(tmp_path)
@@ -70,6 +75,7 @@ def test_a_wrong_kernel_is_caught(tmp_path: Path) -> None:
     assert len(run.mismatches) > 100
 
 
+@needs_gpsim
 def test_the_cycle_table_is_the_measured_one(runs: dict, measured: tuple[dict, int]) -> None:
     table = cycle_table(runs, gpsim_version(), measured[1])
     for key in ("cycles", "cycles_mean", "kernels", "kernel_program_words"):    # regenerate:
@@ -81,3 +87,8 @@ def test_the_cycle_table_is_the_measured_one(runs: dict, measured: tuple[dict, i
     for ops, c in zip(runs["shr32"].operands, runs["shr32"].cycles.tolist()):
         by_s[ops[1]] = c
     assert by_s[31] - by_s[1] == 30 * CYCLES["shift32_per_bit"]
+
+
+def test_the_doc_shows_the_measured_table_beside_the_cited_one() -> None:
+    """docs/FIXED_POINT.md carries the table ``gaitlog budget --measure-kernels`` prints (no gpsim needed)."""
+    assert markdown_table(MEASURED_CYCLES) in DOC.read_text(encoding="utf-8")
