@@ -94,6 +94,7 @@ def _walk(c, seed: int) -> dict:
 def _budget(c, seed: int) -> tuple[dict, list[str]]:
     """One configuration: the JSON document and the printed lines."""
     from firmware_sim.budget import (
+        PIC_PROGRAM_WORDS,
         adc_max_sampling_rate_hz,
         algorithm_cycles_per_sample,
         cycle_budget,
@@ -116,7 +117,7 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
              f"ADC: at most {adc_max_sampling_rate_hz(c.adc_channels, c.fosc_hz, c.source_impedance_ohm):,.0f} Hz "
              f"for {c.adc_channels} channels (acquisition + conversion, nothing else)", ""]
     lines += ram.lines() + [""]
-    doc = {"config": c.name, "source": c.source, "sampling_rate_hz": c.sampling_rate_hz, "fosc_hz": c.fosc_hz,
+    doc = {"config": c.name, "source": c.source, "heading": lines[:3], "sampling_rate_hz": c.sampling_rate_hz, "fosc_hz": c.fosc_hz,
            "adc_channels": c.adc_channels, "online_estimator": c.online_estimator,
            "adc_max_sampling_rate_hz": adc_max_sampling_rate_hz(c.adc_channels, c.fosc_hz, c.source_impedance_ohm),
            "ram": {"fits": ram.fits, "total_bytes": ram.total_bytes, "algorithm_bytes": ram.algorithm_bytes,
@@ -154,11 +155,13 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
         cyc["lines"] = lines[-2:]
     doc["cycles"] = cyc
     lines += [""] + program.lines() + [""] + storage.lines()
-    doc["program"] = {"fits": program.fits, "total_words": program.total_words,
-                      "items": [{"name": n, "words": w, "source": s} for n, w, s in program.items]}
-    doc["eeprom"] = {"fits": storage.fits, "write_bytes_per_s": storage.write_bytes_per_s,
-                     "capacity_bytes_per_s": storage.capacity_bytes_per_s, "page_cycle_s": storage.page_cycle_s,
-                     "recording_s": storage.recording_s}
+    doc["program"] = {"fits": program.fits, "total_words": program.total_words, "limit_words": PIC_PROGRAM_WORDS,
+                      "items": [{"name": n, "words": w, "source": s} for n, w, s in program.items],
+                      "lines": program.lines()}
+    doc["eeprom"] = {"fits": storage.fits, "bytes_per_sample": c.bytes_per_sample,
+                     "write_bytes_per_s": storage.write_bytes_per_s,
+                     "capacity_bytes_per_s": storage.capacity_bytes_per_s, "page_cycle_ms": 1e3 * storage.page_cycle_s,
+                     "recording_s": storage.recording_s, "lines": storage.lines()}
     doc["dump_s"] = storage.dump_s
     short = shortfalls(c, ram, cycles, program, storage)
     doc["does_not_fit"] = short
