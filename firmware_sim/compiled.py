@@ -50,7 +50,8 @@ _ROOT = Path(__file__).resolve().parents[1]
 #: the step flags of ``protocol/steps.py`` are frozen into the kernel as constants; ``aot_kernel.py`` holds the
 #: signatures the kernel is compiled ahead of time with).
 COMPILED_SOURCES: tuple[str, ...] = ("firmware_sim/compiled.py", "firmware_sim/fixedpoint.py",
-                                     "firmware_sim/algorithms", "protocol/steps.py")
+                                     "firmware_sim/algorithms", "protocol/steps.py",
+                                     "firmware_sim/pic/kernel_cycles.json")
 #: Cache folders (``numba-*``, ``aot-*``) of other source versions not used for this long are removed.
 PRUNE_AFTER_DAYS = 14.0
 

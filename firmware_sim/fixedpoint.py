@@ -44,18 +44,23 @@ Conventions
 Cycle costs
 -----------
 :data:`CYCLES` holds worst-case instruction cycles of each primitive on the PIC16 (one cycle = 4 clocks).
-The multiply and divide figures are Microchip AN617's (``FXM1616S`` 269, ``FXM1616U`` 256, ``FXD3216U`` 703;
-HARDWARE.md); the I2C byte is computed from the bus clock; the others are counted from hand-written
-mid-range instruction sequences and are estimates (marked so in :data:`CYCLE_SOURCES`). Every scalar call
-adds ``CYCLES[op]`` to the counters, so a kernel's cycles per sample (mean and worst) can be compared with
-the cycles one sample period offers (:func:`cycles_per_sample_available`).
+Where ``firmware_sim/pic`` has an assembly kernel (multiplies, divides, shifts, saturation, square root), the
+figure is measured: the kernel runs in gpsim's PIC16F877 model, bit-exact with this module on 10,000+
+vectors, and ``gaitlog budget --measure-kernels`` writes its worst case to ``pic/kernel_cycles.json``, which
+this module reads (:data:`MEASURED_CYCLES`). The other figures stay as cited (:data:`CITED_CYCLES`): the I2C
+byte computed from the bus clock, the rest counted from hand-written instruction sequences and marked
+*estimate* in :data:`CYCLE_SOURCES`. Every scalar call adds ``CYCLES[op]`` to the counters, so a kernel's
+cycles per sample (mean and worst) can be compared with the cycles one sample period offers
+(:func:`cycles_per_sample_available`).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -65,6 +70,9 @@ from firmware_sim.compiled import njit, register_jitable
 __all__ = [
     "CYCLES",
     "CYCLE_SOURCES",
+    "CITED_CYCLES",
+    "CITED_SOURCES",
+    "MEASURED_CYCLES",
     "OPS",
     "CYCLE_TABLE",
     "I2C_BYTE_CYCLES",
@@ -134,8 +142,8 @@ def cycles_per_sample_available(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     return fosc_hz / 4.0 / sampling_rate_hz
 
 
-#: Worst-case PIC16 instruction cycles per element of each primitive (see :data:`CYCLE_SOURCES`).
-CYCLES: dict[str, int] = {
+#: The figures cited before the primitives ran on a PIC simulator (application notes, hand counts).
+CITED_CYCLES: dict[str, int] = {
     "add16": 6,        # MOVF/ADDWF low, BTFSC C, INCF high, MOVF/ADDWF high
     "add32": 16,
     "sat16": 12,       # overflow test on the sign bits + load of the limit
@@ -155,8 +163,8 @@ CYCLES: dict[str, int] = {
     "ram_copy8": 4,     # move one byte between RAM locations through W (MOVF/MOVWF; estimate)
 }
 
-#: Where each :data:`CYCLES` figure comes from.
-CYCLE_SOURCES: dict[str, str] = {
+#: Where each :data:`CITED_CYCLES` figure comes from.
+CITED_SOURCES: dict[str, str] = {
     "mul16x16s": "Microchip AN617, FXM1616S worst case",
     "mul16x16u": "Microchip AN617, FXM1616U worst case",
     "div32by16u": "Microchip AN617, FXD3216U worst case",
@@ -165,6 +173,18 @@ CYCLE_SOURCES: dict[str, str] = {
        for k in ("add16", "add32", "sat16", "sat32", "shift32_per_bit", "round32", "compare16", "compare32",
                  "mul8x8u", "div32by16s", "isqrt32", "data_eeprom_byte", "ram_copy8")},
 }
+
+#: The cycle table measured in gpsim on the assembly kernels of ``firmware_sim/pic`` (written by
+#: ``gaitlog budget --measure-kernels``, :mod:`firmware_sim.pic.gpsim_bench`; ``kernels`` holds each
+#: kernel's min, mean and max cycles per call).
+MEASURED_CYCLES: dict = json.loads((Path(__file__).resolve().parent / "pic" / "kernel_cycles.json").read_text())
+
+#: Worst-case PIC16 instruction cycles per element of each primitive: measured in gpsim where a kernel
+#: exists, the cited figure otherwise (see :data:`CYCLE_SOURCES`).
+CYCLES: dict[str, int] = {**CITED_CYCLES, **{k: int(v) for k, v in MEASURED_CYCLES["cycles"].items()}}
+
+#: Where each :data:`CYCLES` figure comes from.
+CYCLE_SOURCES: dict[str, str] = {**CITED_SOURCES, **MEASURED_CYCLES["sources"]}
 
 #: The primitives in counter order (``cnt[i]`` counts calls of ``OPS[i]``).
 OPS: tuple[str, ...] = tuple(CYCLES)

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from firmware_sim import fixedpoint
 from firmware_sim.fixedpoint import (
+    CYCLES,
     ArithmeticContext,
     QFormat,
     add,
@@ -324,8 +325,8 @@ def test_context_cycles() -> None:
     ctx = ArithmeticContext()
     mul_q(np.arange(10), np.arange(10), 4, 16, ctx=ctx)
     div(np.arange(10), np.full(10, 3), ctx=ctx)
-    assert ctx.cycles["mul16x16s"] == 10 * 269
-    assert ctx.cycles["div32by16s"] == 10 * 760
+    assert ctx.cycles["mul16x16s"] == 10 * CYCLES["mul16x16s"]      # measured in gpsim (firmware_sim/pic)
+    assert ctx.cycles["div32by16s"] == 10 * CYCLES["div32by16s"]
     assert ctx.cycles_per_sample(10) == ctx.total_cycles / 10
     with pytest.raises(KeyError):
         ctx.cost("fft")
