@@ -356,6 +356,7 @@ class RingBuffer:
     def _flush(self) -> None:
         """Write the partial RAM page (a page write shorter than 128 bytes, within one page; STOP commits it
         with the header, so it has no journal entry)."""
+        self._in_flight = None
         if self._pending.size:
             addr = 4 * self._pending_slot
             data = words_to_bytes(self._pending)
