@@ -18,7 +18,7 @@ Examples
 --------
 >>> r = ram_budget(50.0)
 >>> r.total_bytes <= PIC_RAM_BYTES, r.algorithm_bytes, r.firmware_bytes
-(True, 183, 179)
+(True, 183, 180)
 >>> ram_budget(100.0).fits
 False
 """
@@ -77,6 +77,9 @@ FIRMWARE_RAM: tuple[RamItem, ...] = (
     RamItem("AN617 maths registers", 12, "estimate: AARG (4), BARG (2), REM (2), TEMP (2), loop count, sign"),
     RamItem("interrupt context", 4, "estimate: W, STATUS, PCLATH, FSR"),
     RamItem("I2C driver", 5, "estimate: state, 17-bit address (3), byte count"),
+    RamItem("commit journal slot", 1,
+            "implemented: the next journal entry (0-14) of firmware_sim.ring_buffer's page commits (PROTOCOL.md 2.4); "
+            "the commit number is samples_written's page count since START"),
     RamItem("step record CRC", 2, "estimate: CRC-16 register while the record is streamed to the step EEPROM"),
     RamItem("sample timer and marker", 2, "estimate: sample flag, marker-button debounce"),
 )
@@ -88,6 +91,11 @@ LOGGING_CYCLES: dict[str, tuple[float, str]] = {
     "pack and store": (60, "estimate: P32 word into the page buffer, counters"),
     "page write": ((4 * WORDS_PER_PAGE + 3) * I2C_BYTE_CYCLES / WORDS_PER_PAGE,
                    "one 128-byte page + control and address every 32 samples, busy-waiting I2C (computed)"),
+    "page commit": ((6 * 8 + 2 * 24 + 40) / WORDS_PER_PAGE,
+                    "estimate: after each page write, read the 6 bytes of its journal entry (8 each), write the "
+                    "changed ones (24 each: EEADR, EEDATA, the 55/AA sequence; measured 2.0 a page on a walk with "
+                    "the step algorithm on, the low bytes of commit and steps, 1 with it off), 40 of bookkeeping; "
+                    "the ~4 ms byte writes run in the background (PROTOCOL.md 2.4)"),
     "interrupt entry and exit": (20, "estimate: context save and restore"),
 }
 
@@ -96,7 +104,7 @@ def logging_cycles_per_sample() -> float:
     """Cycles the logging interrupt takes per sample (:data:`LOGGING_CYCLES`).
 
     >>> round(logging_cycles_per_sample())
-    1313
+    1318
     """
     return float(sum(c for c, _ in LOGGING_CYCLES.values()))
 
@@ -105,7 +113,7 @@ def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     """Cycles per sample period left to the on-line step algorithm: the period minus the logging interrupt.
 
     >>> round(algorithm_cycles_per_sample(50.0))
-    90847
+    90842
     """
     return cycles_per_sample_available(sampling_rate_hz, fosc_hz) - logging_cycles_per_sample()
 

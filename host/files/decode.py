@@ -256,8 +256,8 @@ def _recording_text(header_bytes: bytes) -> str:
         h = DeviceHeader.from_bytes(header_bytes)
     except ProtocolError:
         return "an invalid header"
-    return (f"recording {h.recording_number} of device {h.device_id}" if h.recording_number else
-            f"a recording of device {h.device_id} (header version {h.header_version}: not numbered)")
+    return (f"recording {h.recording_number} (nonce 0x{h.recording_nonce:08x}) of device {h.device_id}"
+            if h.header_version != 1 else f"an unnumbered recording of device {h.device_id} (header version 1)")
 
 
 def _frames_of_last_header(headers: list[tuple[int, bytes]], data_frames: list) -> tuple[list, int]:
