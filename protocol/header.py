@@ -10,7 +10,7 @@ Examples
 >>> h = DeviceHeader(device_id=7, samples_written=3, write_index=3, start_time_s=1_000_000_000)
 >>> raw = h.to_bytes()
 >>> len(raw), raw[:8].hex(), raw[-2:].hex()
-(256, '474c4f4701010001', 'e9bf')
+(256, '474c4f4702010001', '8f8f')
 >>> back = DeviceHeader.from_bytes(raw)
 >>> back.device_id, back.n_stored, back.first_slot, back.sampling_rate_hz, back.start_time.isoformat()
 (7, 3, 0, 50.0, '2001-09-09T01:46:40+00:00')

@@ -38,7 +38,6 @@ from firmware_sim.sensor import SensorModel
 from host.files.decode import REASONS, decode_bytes
 from protocol.header import PAGE_SAMPLES
 from protocol.image import build_image
-from protocol.packing import unpack_words
 
 _SENSOR = SensorModel.draw(seed=1)
 _TORN = REASONS.index("slot of the page in flight when a power loss cut a run (contents undefined)")

@@ -65,7 +65,7 @@ def _session(logger: Logger, length: int) -> bytes:
 
 
 def test_capture_spanning_two_recordings_uses_only_the_last(tmp_path):
-    (_, la, ra), (_, lb, rb) = _twins(tmp_path)
+    (_, la, _), (_, lb, rb) = _twins(tmp_path)
     capture = _session(la, 4 * 8300) + _session(lb, 4 * 4096)  # all of a, then the first 4096 samples of b
     with pytest.warns(UserWarning, match=r"spans 2 device headers: decoded recording 1 \(nonce 0x[0-9a-f]{8}\) of "
                                          r"device 9 .*33 DATA frame\(s\) under 1 other recording"):
