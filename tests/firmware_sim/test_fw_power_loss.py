@@ -20,10 +20,12 @@ from protocol.commit_journal import (
     JOURNAL_ENTRIES,
     empty_journal,
     last_commit,
+    torn_step_records,
     with_commit,
 )
 from protocol.header import PAGE_SAMPLES, DeviceHeader, HeaderFlag
 from protocol.image import build_image
+from protocol.steps import empty_step_records, pack_step_records
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -129,3 +131,31 @@ def test_power_cut_campaign():
     assert res.wrong_samples == 0 and res.misreported == 0
     assert res.max_lost_samples == PAGE_SAMPLES and res.max_torn_slots == PAGE_SAMPLES  # the bound is reached
     assert {"between samples", "in the page write", "in the journal write"} <= set(res.cut_kinds)
+
+
+def test_step_records_after_the_last_commit_are_dropped_from_a_wrapped_step_ring():
+    """A ring of 8 records holding records 6-13; the cut run stored records 14, 15 (committed with its first page:
+    journal steps 2), then 16, 17 and a torn 18 over the slots of records 8, 9, 10. Recovery counts 16 records,
+    and the 3 oldest slots hold records that are not the ones counted there: dropped with that reason."""
+    def rec(numbers):
+        r = empty_step_records(len(numbers))
+        r["end_sample"] = 2 * np.asarray(numbers)
+        return pack_step_records(r)
+
+    slots = {s: r for s, r in zip(range(8), [8, 9, 10, 11, 12, 13, 6, 7])}  # records 6-13 before the run
+    slots.update({6: 14, 7: 15, 0: 16, 1: 17})
+    steps = bytearray(b"".join(rec([slots[s]]) for s in range(8)))
+    steps[2 * 20 + 3] ^= 0xFF  # record 18 torn over record 10
+    h = DeviceHeader(capacity_samples=64, samples_written=10, write_index=10, run_start_sample=10,
+                     flags=int(HeaderFlag.LOGGING), step_capacity=8, steps_written=14, step_write_index=6,
+                     commit_journal=with_commit(empty_journal(), 1, steps=2))
+    r = h.recovered()
+    assert (r.samples_written, r.steps_written, r.step_write_index, r.power_lost) == (32, 16, 0, True)
+    assert torn_step_records(r, bytes(steps)) == 3
+    memory = bytes(4 * 64)
+    with pytest.warns(UserWarning, match="3 oldest stored step record"):
+        got = decode_bytes(build_image(h.to_bytes(), memory, step_memory=bytes(steps)))
+    assert got.step_record_numbers.tolist() == [11, 12, 13, 14, 15]
+    assert (got.step_records["end_sample"] == 2 * got.step_record_numbers).all()
+    assert [(g.first_record_number, g.last_record_number) for g in got.step_losses] == [(8, 10)]
+    assert got.step_losses[0].reason.startswith("overwritten by a record a power loss left uncommitted")
