@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
+from firmware_sim.device import Logger, PowerCut
 from host.errors import HostError
 from host.files.decode import decode_bytes, decode_file
 from host.link.logger_link import LoggerLink
@@ -79,3 +79,20 @@ def test_capture_spanning_two_recordings_uses_only_the_last(tmp_path):
         rec = decode_bytes(headerless)
     assert rec.valid[:100].all() and rec.valid.sum() == 100
     np.testing.assert_array_equal(rec.codes[:100], rb.codes[:100])
+
+
+def test_dump_of_a_device_cut_by_a_power_loss_reports_it(tmp_path):
+    """The dump's metadata says which recording a power loss cut and what survived (PROTOCOL.md 2.4)."""
+    logger = Logger(device_id=4)
+    motion = smooth_motion(3000, 3)
+    res = logger.record(motion, power_cut=PowerCut(at_sample=2000))
+    path = tmp_path / "cut.glimg"
+    logger.save_image(path)
+    out = tmp_path / "d.glimg"
+    with LoggerLink(f"emu://{path}", timeout_s=0.5) as link, pytest.warns(UserWarning, match="cut by a power loss"):
+        dump = dump_memory(link, out, progress=False)
+    loss = dump.metadata_["power_loss"]
+    assert dump.complete_ and loss["recording_number"] == 1 and loss["first_sample_number"] == 0
+    assert loss["last_committed_sample_number"] == 2000 // 32 * 32 - 1 and loss["torn_slots"] == 0
+    rec = decode_file(out)
+    np.testing.assert_array_equal(rec.codes, res.codes[: 2000 // 32 * 32])
