@@ -29,12 +29,20 @@ the sample memory or entirely in the step memory at ``0x01000000 +``), full memo
 
 Responses echo the command's ``seq``; in a DUMP stream the DATA frames count 0, 1, 2, ... (mod 256) and
 DUMP_END echoes the command's ``seq``.
+
+Streams (DUMP, DUMP_CHECKED; PROTOCOL.md section 4)
+    A stream is sent one frame at a time as the UART drains (:meth:`Firmware.transmit`; with ``paced``
+    False, the default for direct callers, :meth:`Firmware.receive` returns the whole stream at once). An
+    intact command frame received while a stream is being sent ends it after the frame in flight: no
+    DUMP_END; ABORT does only that (and cancels nothing else) and is answered ACK. DUMP_CHECKED follows
+    every DATA frame with a DATA_CRC frame: the CRC-32 of the frame's bytes, computed byte by byte as they
+    are read from the EEPROM (a 4-byte register; :data:`DUMP_CYCLES_PER_BYTE` says what that costs).
 """
 
 from __future__ import annotations
 
 import secrets
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -42,10 +50,10 @@ from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.budget import algorithm_cycles_per_sample
 from firmware_sim.eeprom import Eeprom24LC1025
 from firmware_sim.errors import DeviceError
-from firmware_sim.fixedpoint import DEFAULT_FOSC_HZ
+from firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from firmware_sim.step_store import StepStore
-from protocol.crc import crc16_xmodem
+from protocol.crc import crc16_xmodem, crc32
 from protocol.frames import (
     COMMAND_TYPES,
     FRAME_OVERHEAD,
@@ -64,9 +72,11 @@ from protocol.frames import (
 from protocol.header import PACKING_P32, DeviceHeader
 from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
 from protocol.steps import StepConfig, memory_region, pack_step_records
-from protocol.xmodem import XmodemSender, raw_dump_bytes
+from protocol.raw_dump import raw_dump_bytes
+from protocol.xmodem import XmodemSender
 
-__all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "step_algorithm_for"]
+__all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "step_algorithm_for",
+           "CRC32_CYCLES_PER_BYTE", "DUMP_CYCLES_PER_BYTE", "uart_cycles_per_byte"]
 
 #: Firmware version 1.0 (major·256 + minor).
 FIRMWARE_VERSION = 0x0100
@@ -75,8 +85,29 @@ INTER_BYTE_TIMEOUT_S = 0.1
 #: The terminal command that arms XDUMP.
 ASCII_XDUMP = b"XDUMP\r"
 
+#: PIC16 instruction cycles per byte of the reflected CRC-32 (zlib) with a 16-entry nibble table (64 RETLW
+#: bytes of program memory), two nibbles a byte: index = low nibble of the register (3), shift the 32-bit
+#: register right by 4 with SWAPF/ANDLW/IORWF (21), four table look-ups CALL/ADDWF PCL/RETLW with their XOR
+#: (4 x 8) and PCLATH set-up (2): 58 a nibble, plus the XOR of the data byte (2). Estimate from the instruction
+#: timings (DS30292); a table-free bitwise CRC-32 costs about 146 (8 x (RRF x4, BTFSS, 4 x MOVLW/XORWF, loop)).
+CRC32_CYCLES_PER_BYTE = 2 * (3 + 21 + 4 * 8 + 2) + 2
+#: What the firmware does per byte of a DUMP_CHECKED stream, in instruction cycles: read it from the EEPROM
+#: (I2C, :data:`firmware_sim.fixedpoint.CYCLES` ``i2c_byte``), update the frame's CRC-16 (nibble table, ~half the
+#: CRC-32's work: estimate), the CRC-32 (:data:`CRC32_CYCLES_PER_BYTE`) and load TXREG (estimate).
+DUMP_CYCLES_PER_BYTE = {"i2c_byte": CYCLES["i2c_byte"], "crc16": 60, "crc32": CRC32_CYCLES_PER_BYTE, "txreg": 6}
+
+
+def uart_cycles_per_byte(baud: float = 115200.0, fosc_hz: float = DEFAULT_FOSC_HZ) -> float:
+    """Instruction cycles the PIC has while the UART sends one 8N1 byte: ``fosc / 4 · 10 / baud``.
+
+    >>> round(uart_cycles_per_byte()), sum(DUMP_CYCLES_PER_BYTE.values())   # the CRC-32 costs no wire time
+    (400, 285)
+    """
+    return fosc_hz / 4.0 * 10.0 / baud
+
+
 _BUSY_WHEN_LOGGING = frozenset(
-    {FrameType.READ, FrameType.DUMP, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION,
+    {FrameType.READ, FrameType.DUMP, FrameType.DUMP_CHECKED, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION,
      FrameType.SET_STEP_CONFIG, FrameType.START}
 )
 _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPES}
@@ -139,7 +170,11 @@ class Firmware:
         self.nonce_source = nonce_source if nonce_source is not None else (lambda: secrets.randbits(32))
         #: The on-line step algorithm of the current (or last) run, None when the configuration is off.
         self.step_algorithm: OnlineStepAlgorithm | None = None
-        self.stats = {"frames": 0, "bad_crc": 0, "framing_errors": 0, "timeouts": 0, "naks": 0}
+        self.stats = {"frames": 0, "bad_crc": 0, "framing_errors": 0, "timeouts": 0, "naks": 0,
+                      "streams_aborted": 0, "crc32_bytes": 0}
+        #: True: a stream leaves through :meth:`transmit` as the line drains (the transports); False: whole.
+        self.paced = False
+        self._stream: Iterator[bytes] | None = None
 
     # ------------------------------------------------------------------ logging
     @property
@@ -240,10 +275,30 @@ class Firmware:
 
     # ------------------------------------------------------------------ UART
     def reset_link(self) -> None:
-        """Forget a partial frame and abort an XMODEM transfer (the host went away)."""
+        """Forget a partial frame, end a stream and abort an XMODEM transfer (the host went away)."""
         self._rx.clear()
         self._line = b""
         self._xmodem = None
+        self._stream = None
+
+    @property
+    def streaming(self) -> bool:
+        """A DUMP stream has frames left to send."""
+        return self._stream is not None
+
+    def transmit(self) -> bytes:
+        """The next frame of the stream being sent (``b""`` when none): the UART asks for it as it drains."""
+        if self._stream is None:
+            return b""
+        frame = next(self._stream, b"")
+        if not frame:
+            self._stream = None
+        return frame
+
+    def _end_stream(self) -> None:
+        if self._stream is not None:
+            self._stream = None
+            self.stats["streams_aborted"] += 1
 
     def poll(self, now_s: float) -> bytes:
         """Apply time-outs at ``now_s``: drop a stale partial frame; XMODEM start/ACK time-outs."""
@@ -262,7 +317,14 @@ class Firmware:
         self._rx.clear()
 
     def receive(self, data: bytes, now_s: float) -> bytes:
-        """Bytes from the host arriving at ``now_s`` (seconds, any monotonic clock); return the reply bytes."""
+        """Bytes from the host arriving at ``now_s`` (seconds, any monotonic clock); return the reply bytes
+        (with ``paced`` False also the whole of a stream a command started)."""
+        out = self._receive(data, now_s)
+        if not self.paced and self._stream is not None:
+            out += b"".join(iter(self.transmit, b""))
+        return out
+
+    def _receive(self, data: bytes, now_s: float) -> bytes:
         if self._rx and now_s - self._last_rx_s > self.inter_byte_timeout_s:
             self._drop_partial()
         self._last_rx_s = now_s
@@ -312,6 +374,7 @@ class Firmware:
             self.stats["frames"] += 1
             self._line = b""
             pos = end
+            self._end_stream()  # an intact frame from the host ends a stream after the frame in flight
             out.append(self._command(Frame(ftype, seq, bytes(buf[i + 6:end - 2])), now_s))
             if self._xmodem is not None:  # XDUMP acknowledged: the rest is for the XMODEM sender
                 rest = bytes(buf[pos:])
@@ -390,8 +453,11 @@ class Firmware:
             if data is None:
                 return self._nak(t, seq, ErrorCode.BAD_ADDRESS)
             return encode_frame(FrameType.DATA, seq, address.to_bytes(4, "little") + data)
-        if ftype == FrameType.DUMP:
-            return self._dump(seq, int(fields["address"]), int(fields["length"]), int(fields["chunk"]))
+        if ftype in (FrameType.DUMP, FrameType.DUMP_CHECKED):
+            return self._dump(seq, int(fields["address"]), int(fields["length"]), int(fields["chunk"]),
+                              checked=ftype == FrameType.DUMP_CHECKED)
+        if ftype == FrameType.ABORT:  # the stream it ends was ended on arrival
+            return self._ack(t, seq)
         if ftype == FrameType.XDUMP:
             self._arm_xmodem(now_s)
             return self._ack(t, seq)
@@ -414,15 +480,26 @@ class Firmware:
         region, offset = where
         return self.ring.read_bytes(offset, length) if region == "samples" else self.steps.read_bytes(offset, length)
 
-    def _dump(self, seq: int, address: int, length: int, chunk: int) -> bytes:
-        """DUMP: DATA frames of ``chunk`` bytes back to back, then DUMP_END (section 4)."""
-        data = self._read(address, length)
-        if data is None:
-            return self._nak(FrameType.DUMP, seq, ErrorCode.BAD_ADDRESS)
-        frames = []
+    def _dump(self, seq: int, address: int, length: int, chunk: int, *, checked: bool) -> bytes:
+        """DUMP / DUMP_CHECKED: start the stream of DATA frames of ``chunk`` bytes back to back (each followed
+        by its DATA_CRC when ``checked``), then DUMP_END (section 4); NAK BAD_ADDRESS at once."""
+        h = self.ring.header
+        if memory_region(address, length, sample_memory_bytes=h.memory_bytes,
+                         step_memory_bytes=self.steps.size_bytes) is None:
+            return self._nak(FrameType.DUMP_CHECKED if checked else FrameType.DUMP, seq, ErrorCode.BAD_ADDRESS)
+        self._stream = self._stream_frames(seq, address, length, chunk, checked)
+        return b""
+
+    def _stream_frames(self, seq: int, address: int, length: int, chunk: int, checked: bool) -> Iterator[bytes]:
+        n_frames = 0
         for k, off in enumerate(range(0, length, chunk)):
             a = address + off
-            frames.append(encode_frame(FrameType.DATA, k & 0xFF, a.to_bytes(4, "little") + data[off:off + chunk]))
-        end = build_payload(FrameType.DUMP_END, address=address, length=length, frames=len(frames) & 0xFFFF)
-        frames.append(encode_frame(FrameType.DUMP_END, seq, end))
-        return b"".join(frames)
+            data = self._read(a, min(chunk, length - off))
+            yield encode_frame(FrameType.DATA, k & 0xFF, a.to_bytes(4, "little") + data)
+            if checked:
+                self.stats["crc32_bytes"] += len(data)
+                yield encode_frame(FrameType.DATA_CRC, k & 0xFF, build_payload(FrameType.DATA_CRC, address=a,
+                                                                               crc32=crc32(data)))
+            n_frames += 1
+        end = build_payload(FrameType.DUMP_END, address=address, length=length, frames=n_frames & 0xFFFF)
+        yield encode_frame(FrameType.DUMP_END, seq, end)

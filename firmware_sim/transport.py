@@ -13,6 +13,10 @@ give), scheduled against the monotonic clock (the ``k``-th byte of a burst is re
 pacing does not drift over a long transfer the way sleeping per byte would. Host -> device bytes are taken
 as they come (the host's UART paces them).
 
+Streams: a DUMP's frames are pulled from the firmware (:meth:`Firmware.transmit`) as the outgoing queue
+drains below :data:`STREAM_AHEAD_BYTES` (wire time) or :data:`STREAM_AHEAD_FAST_BYTES`, so a command from
+the host ends a stream within that many bytes plus the frame in flight, as on the device's UART.
+
 Fault injection (:class:`FaultInjector`, device -> host only): corrupt each byte with probability
 ``corrupt_rate`` at seeded random positions (XOR with a random non-zero value), and cut the link once after
 ``cut_after_bytes`` bytes: the rest of the pending output is dropped and the device stays silent until the
@@ -48,6 +52,11 @@ IDLE_TICK_S = 0.02
 #: does, after each 'C' and ACK) long before the byte has even left; on a pty a reply faster than that
 #: would be flushed away.
 TURNAROUND_S = 0.002
+#: A stream is pulled from the firmware while fewer bytes than this are queued (wire time: 89 ms at 115200
+#: baud, far more than a tick, so the line never idles inside a stream) ...
+STREAM_AHEAD_BYTES = 1024
+#: ... and without wire time (the bytes leave as fast as the peer reads them).
+STREAM_AHEAD_FAST_BYTES = 65536
 
 
 class FaultInjector:
@@ -167,6 +176,8 @@ class LineServer:
         self.error: BaseException | None = None
         self.bytes_in = 0
         self.bytes_out = 0
+        self._ahead = STREAM_AHEAD_BYTES if wire_time else STREAM_AHEAD_FAST_BYTES
+        logger.firmware.paced = True
 
     # -- lifecycle
     def start(self) -> LineServer:
@@ -183,6 +194,7 @@ class LineServer:
             self._thread.join(timeout=5.0)
             self._thread = None
         self._close()
+        self.logger.firmware.paced = False  # the logger may be used directly again
         if self.save_on_stop and self.logger.image_path is not None:
             self.logger.save_image()
 
@@ -205,11 +217,20 @@ class LineServer:
         # the reply cannot start before the command has crossed the line (wire time) and the
         # turnaround (device reaction + host adapter latency) has passed
         inbound = len(data) * self.uart.byte_time_s if self.wire_time else 0.0
-        self._out.put(self.logger.firmware.receive(data, now), now, not_before=now + inbound + self.turnaround_s)
+        not_before = now + inbound + self.turnaround_s
+        self._out.put(self.logger.firmware.receive(data, now), now, not_before=not_before)
+        self._refill(now, not_before)
 
     def _on_tick(self, now: float) -> None:
         self.logger.advance(now)  # a run started over the UART samples in real time
         self._out.put(self.logger.firmware.poll(now), now)
+        self._refill(now)
+
+    def _refill(self, now: float, not_before: float = 0.0) -> None:
+        """Queue the next frames of a stream while fewer than ``_ahead`` bytes wait."""
+        fw = self.logger.firmware
+        while fw.streaming and len(self._out.buf) < self._ahead:
+            self._out.put(fw.transmit(), now, not_before=not_before)
 
     def _take_due(self, now: float) -> tuple[bytes, bool]:
         """Bytes to write now (after fault injection) and whether the link is cut."""

@@ -75,12 +75,16 @@ def crc16_xmodem_rows(rows: np.ndarray) -> np.ndarray:
     return crc
 
 
-def crc32(data: bytes | bytearray | memoryview) -> int:
+def crc32(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     """CRC-32 of zlib/PNG (reflected poly 0x04C11DB7, init and final XOR 0xFFFFFFFF), unsigned.
+
+    ``crc`` is the running value, to continue a CRC over several pieces (0 to start).
 
     Examples
     --------
     >>> hex(crc32(b"123456789"))
     '0xcbf43926'
+    >>> crc32(b"6789", crc32(b"12345")) == crc32(b"123456789")
+    True
     """
-    return zlib.crc32(data) & 0xFFFFFFFF
+    return zlib.crc32(data, crc) & 0xFFFFFFFF

@@ -66,7 +66,7 @@ ERASE_GUARD = b"ERASE"
 
 
 class FrameType(enum.IntEnum):
-    """Frame ``type`` codes (section 3.1). Commands are 0x01-0x0B, responses 0x81-0x91."""
+    """Frame ``type`` codes (section 3.1). Commands are 0x01-0x0D, responses 0x81-0x91."""
 
     IDENTIFY = 0x01
     GET_STATUS = 0x02
@@ -79,11 +79,14 @@ class FrameType(enum.IntEnum):
     XDUMP = 0x09
     SET_CALIBRATION = 0x0A
     SET_STEP_CONFIG = 0x0B
+    ABORT = 0x0C
+    DUMP_CHECKED = 0x0D
     INFO = 0x81
     STATUS = 0x82
     HEADER = 0x86
     DATA = 0x87
     DUMP_END = 0x88
+    DATA_CRC = 0x89
     ACK = 0x90
     NAK = 0x91
 
@@ -184,6 +187,8 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
     FrameType.READ_HEADER: _EMPTY,
     FrameType.READ: cs.Struct("address" / cs.Int32ul, "length" / cs.Int16ul),
     FrameType.DUMP: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "chunk" / cs.Int16ul),
+    FrameType.DUMP_CHECKED: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "chunk" / cs.Int16ul),
+    FrameType.ABORT: _EMPTY,
     FrameType.XDUMP: _EMPTY,
     FrameType.SET_CALIBRATION: cs.Struct("calibration" / cs.Bytes(CALIBRATION_SIZE)),
     FrameType.SET_STEP_CONFIG: cs.Struct("step_config" / cs.Bytes(STEP_CONFIG_SIZE)),
@@ -206,6 +211,7 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
     FrameType.HEADER: cs.Struct("header" / cs.Bytes(HEADER_SIZE)),
     FrameType.DATA: cs.Struct("address" / cs.Int32ul, "data" / cs.GreedyBytes),
     FrameType.DUMP_END: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "frames" / cs.Int16ul),
+    FrameType.DATA_CRC: cs.Struct("address" / cs.Int32ul, "crc32" / cs.Int32ul),
     FrameType.ACK: cs.Struct("command" / StrictEnum(cs.Int8ul, FrameType, COMMAND_TYPES)),
     FrameType.NAK: cs.Struct("command" / cs.Int8ul, "error" / StrictEnum(cs.Int8ul, ErrorCode)),
 }
@@ -221,6 +227,7 @@ SET_PAYLOADS: dict[FrameType, tuple[str, type]] = {
 FIELD_LIMITS: dict[tuple[FrameType, str], tuple[int, int]] = {
     (FrameType.READ, "length"): (1, MAX_DATA),
     (FrameType.DUMP, "chunk"): (1, MAX_DATA),
+    (FrameType.DUMP_CHECKED, "chunk"): (1, MAX_DATA),
 }
 
 

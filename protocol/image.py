@@ -1,11 +1,17 @@
 """The memory-image file ``.glimg`` (``PROTOCOL.md`` section 6), with recovery of damaged files.
 
-The file holds the device header and the whole sample memory — followed by the whole step memory of
-section 2.3 in ``image_version`` 2 — checked block by block with CRC-32, so that a decoder returns the
-intact part of a damaged file: blocks are used only when their CRC-32 matches, blocks displaced by dropped
-or inserted bytes are found again within ±64 bytes of the running shift, and blocks never found or beyond
-a truncated end are reported missing — never invented. The blocks cover the memory region as one byte
-string, so a block may hold the end of the sample memory and the start of the step memory.
+The file holds the device header and the whole memory region (the sample memory, then the step memory of
+section 2.3) checked block by block with CRC-32, so that a decoder returns the intact part of a damaged file
+and never a wrong byte. ``image_version`` 3, the version written, frames every block: a sync word, the block
+index, its state and a CRC-32 bound to the index and to this file's header, so that a block is found
+wherever dropped, inserted or duplicated bytes moved it, a neighbouring block can never pass for it, and the
+loss from one damaged region is the blocks that region touches. The prefix and device header are stored
+twice (start and end), each copy checked by its own CRC-32.
+
+Versions 1 and 2 (one CRC-32 table in front, not bound to block indices) are still read: a block is used
+only when its CRC-32 matches a table entry whose own table CRC-32 verified, found within ±64 bytes of the
+running shift or at the shift the file's length implies; with a damaged table no shifted block is searched
+for (a table entry could then belong to a neighbour), and the notes say so.
 
 Examples
 --------
@@ -14,7 +20,7 @@ Examples
 >>> memory = bytes(range(256)) * 8
 >>> img = build_image(h, memory, missing_blocks=[1])
 >>> len(img), img[:16].hex(" ")
-(2334, '47 4c 49 4d 01 00 00 04 00 08 00 00 02 00 00 00')
+(2632, '47 4c 49 4d 03 00 00 04 00 08 00 00 02 00 00 00')
 >>> c = parse_image(img)
 >>> c.block_ok.tolist(), c.block_missing.tolist(), bytes(c.memory[:1024]) == memory[:1024]
 ([True, False], [False, True], True)
@@ -47,26 +53,32 @@ from protocol.errors import ProtocolError
 from protocol.frames import Frame, FrameParser
 from protocol.header import HEADER_SIZE, MAX_CAPACITY_SAMPLES, DeviceHeader
 from protocol.header import MAGIC as HEADER_MAGIC
+from protocol.raw_dump import find_trailer
 from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, stored_step_records
 
 __all__ = [
-    "IMAGE_MAGIC",
-    "IMAGE_VERSION",
-    "IMAGE_VERSION_STEPS",
-    "DEFAULT_BLOCK_SIZE",
-    "SHIFT_SEARCH_BYTES",
-    "BLOCK_PRESENT",
     "BLOCK_MISSING",
-    "IMAGE_PREFIX_STRUCT",
+    "BLOCK_PRESENT",
+    "BLOCK_SYNC",
+    "DEFAULT_BLOCK_SIZE",
+    "FRAME_OVERHEAD_BYTES",
+    "IMAGE_MAGIC",
     "IMAGE_OFFSETS",
+    "IMAGE_PREFIX_STRUCT",
+    "IMAGE_VERSION",
+    "IMAGE_VERSION_FRAMED",
+    "IMAGE_VERSION_STEPS",
+    "PREAMBLE_BYTES",
+    "SHIFT_SEARCH_BYTES",
     "ImageContents",
     "build_image",
-    "parse_image",
-    "write_image",
-    "read_image",
     "detect_format",
-    "image_version_for",
+    "frame_crc32",
     "image_memory_bytes",
+    "image_version_for",
+    "parse_image",
+    "read_image",
+    "write_image",
 ]
 
 IMAGE_MAGIC = b"GLIM"
@@ -74,14 +86,24 @@ IMAGE_MAGIC = b"GLIM"
 IMAGE_VERSION = 1
 #: Image of a device with step memory: the memory region is the sample memory, then the step memory.
 IMAGE_VERSION_STEPS = 2
+#: Framed image (the version written): every block carries its index, state and a CRC-32 bound to both and to
+#: the file's header; the prefix and header are stored at the start and again at the end.
+IMAGE_VERSION_FRAMED = 3
 DEFAULT_BLOCK_SIZE = 1024
+#: Start of every block frame of version 3.
+BLOCK_SYNC = b"GLBK"
+#: Version 3: prefix (16) + device header (256) + ``preamble_crc32`` (4), at the start and at the end.
+PREAMBLE_BYTES = 16 + HEADER_SIZE + 4
+#: Version 3: sync (4) + block_index (4) + state (1) + reserved (3) before the data, block_crc32 (4) after.
+FRAME_OVERHEAD_BYTES = 16
 #: Dropped or inserted bytes are searched for within this many bytes of the running shift.
 SHIFT_SEARCH_BYTES = 64
 BLOCK_PRESENT = 0
 BLOCK_MISSING = 1
 #: Largest ``memory_bytes`` of each image version.
 _MAX_MEMORY_BYTES = {IMAGE_VERSION: 4 * MAX_CAPACITY_SAMPLES,
-                     IMAGE_VERSION_STEPS: 4 * MAX_CAPACITY_SAMPLES + STEP_MEMORY_BYTES}
+                     IMAGE_VERSION_STEPS: 4 * MAX_CAPACITY_SAMPLES + STEP_MEMORY_BYTES,
+                     IMAGE_VERSION_FRAMED: 4 * MAX_CAPACITY_SAMPLES + STEP_MEMORY_BYTES}
 _CAPTURE_PROBE_BYTES = 65536
 
 #: The fixed 16-byte start of the file.
@@ -93,9 +115,12 @@ IMAGE_PREFIX_STRUCT = cs.Struct(
     "memory_bytes" / cs.Int32ul,
     "n_blocks" / cs.Int32ul,
 )
-#: field -> offset of the prefix fields.
+#: field -> offset of the prefix fields (versions 1 and 2: the block table follows at 16).
 IMAGE_OFFSETS = {"magic": 0, "image_version": 4, "block_size": 6, "memory_bytes": 8, "n_blocks": 12,
                  "block_crc32": 16}
+#: field -> offset of the version-3 preamble fields after the prefix, and of the fields of a block frame.
+PREAMBLE_OFFSETS = {"device_header": 16, "preamble_crc32": 16 + HEADER_SIZE}
+FRAME_OFFSETS = {"sync": 0, "block_index": 4, "state": 8, "data": 12}
 
 
 @dataclass(eq=False)
@@ -131,7 +156,8 @@ class ImageContents:
         header has none, all 0xFF and not ok when it has (a file written by a host older than the step
         memory).
     image_version
-        1 (sample memory only) or 2 (sample memory, then step memory).
+        1 (sample memory only), 2 (sample memory, then step memory, one CRC table) or 3 (the memory region in
+        framed blocks, each checked by a CRC-32 bound to its index and to the header).
     """
 
     header: DeviceHeader
@@ -195,8 +221,24 @@ def _check_block_size(block_size: int, memory_bytes: int, source: str | None = N
 
 
 def image_version_for(header: DeviceHeader) -> int:
-    """The ``image_version`` of a device: 2 when its header has step memory (``step_capacity`` > 0), else 1."""
+    """The ``image_version`` of the unframed layout (1 or 2) a device's image had before version 3: 2 when its
+    header has step memory (``step_capacity`` > 0), else 1. :func:`build_image` writes version 3 unless asked
+    for one of these."""
     return IMAGE_VERSION_STEPS if header.step_capacity > 0 else IMAGE_VERSION
+
+
+def frame_crc32(preamble_crc32: int, block_index: int, state: int, data: bytes | memoryview) -> int:
+    """``block_crc32`` of a version-3 block frame: CRC-32 over the file's ``preamble_crc32`` (4 bytes LE), then
+    the frame's bytes 4 .. end of data (``block_index``, ``state``, reserved, data).
+
+    The first term binds the block to this file's prefix and header, the second to its index: a block of
+    another image, or the neighbouring block, can never verify in its place.
+
+    >>> frame_crc32(0, 0, 0, b"") == crc32(bytes(12)), frame_crc32(7, 1, 0, b"x") == frame_crc32(7, 2, 0, b"x")
+    (True, False)
+    """
+    crc = crc32(preamble_crc32.to_bytes(4, "little"))
+    return crc32(data, crc32(block_index.to_bytes(4, "little") + bytes((state, 0, 0, 0)), crc))
 
 
 def image_memory_bytes(header: DeviceHeader) -> int:
@@ -210,8 +252,9 @@ def _as_bytes(data: bytes | bytearray | memoryview | np.ndarray) -> bytes:
 
 def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memoryview | np.ndarray,
                 missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE, *,
-                step_memory: bytes | bytearray | memoryview | np.ndarray | None = None) -> bytes:
-    """Bytes of a ``.glimg`` file (``image_version`` 2 when the header has step memory, else 1).
+                step_memory: bytes | bytearray | memoryview | np.ndarray | None = None,
+                image_version: int | None = None) -> bytes:
+    """Bytes of a ``.glimg`` file (``image_version`` 3; an older version on request).
 
     Parameters
     ----------
@@ -222,18 +265,22 @@ def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memory
         memory needs the whole memory region here: the sample memory followed by the step memory
         (``4 · capacity_samples + 20 · step_capacity`` bytes).
     missing_blocks
-        Indices of blocks never received; their bytes are stored as 0xFF, their state as 1 and their
-        ``block_crc32`` as the complement of the CRC-32 of those bytes, so that they can never verify.
+        Indices of blocks never received; their bytes are stored as 0xFF and their state as 1 (in versions 1
+        and 2 their ``block_crc32`` is the complement of the CRC-32 of those bytes, so that they can never
+        verify; in version 3 the state is covered by the block's CRC-32).
     block_size
         Bytes per block.
     step_memory
         The whole step memory (``20 · step_capacity`` bytes of the header), when ``memory`` is the sample
         memory alone.
+    image_version
+        None (3, framed blocks), or the version a host older than version 3 wrote for this header
+        (:func:`image_version_for`: 1 or 2), for tests and for comparisons with old files.
 
     Raises
     ------
     ProtocolError
-        Invalid header, memory of the wrong size, bad block size or block index.
+        Invalid header, memory of the wrong size, bad block size or block index, an unknown version.
     """
     hdr = header if isinstance(header, DeviceHeader) else DeviceHeader.from_bytes(bytes(header))
     hbytes = hdr.to_bytes()
@@ -251,7 +298,10 @@ def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memory
                  f"{hdr.step_capacity} step records; or pass step_memory)")
         raise ProtocolError(f"memory of {len(mem)} bytes, but the header's capacity of {hdr.capacity_samples} "
                             f"samples needs {needs}")
-    version = image_version_for(hdr)
+    version = IMAGE_VERSION_FRAMED if image_version is None else int(image_version)
+    if version != IMAGE_VERSION_FRAMED and version != image_version_for(hdr):
+        raise ProtocolError(f"image_version {version}: this writer writes {IMAGE_VERSION_FRAMED}, or the old "
+                            f"{image_version_for(hdr)} for this header")
     _check_block_size(int(block_size), len(mem), image_version=version)
     n = -(-len(mem) // block_size)
     states = np.zeros(n, dtype=np.uint8)
@@ -262,10 +312,21 @@ def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memory
         mem[int(b) * block_size : (int(b) + 1) * block_size] = b"\xff" * len(
             mem[int(b) * block_size : (int(b) + 1) * block_size])
     view = memoryview(mem)
-    crcs = np.array([crc32(view[i * block_size : (i + 1) * block_size]) for i in range(n)], dtype="<u4")
-    crcs[states == BLOCK_MISSING] ^= np.uint32(0xFFFFFFFF)
     prefix = IMAGE_PREFIX_STRUCT.build(dict(magic=IMAGE_MAGIC, image_version=version,
                                             block_size=block_size, memory_bytes=len(mem), n_blocks=n))
+    if version == IMAGE_VERSION_FRAMED:
+        preamble = prefix + hbytes
+        key = crc32(preamble)
+        preamble += key.to_bytes(4, "little")
+        frames = []
+        for i in range(n):
+            data = view[i * block_size : (i + 1) * block_size]
+            state = int(states[i])
+            frames += [BLOCK_SYNC, i.to_bytes(4, "little"), bytes((state, 0, 0, 0)), data,
+                       frame_crc32(key, i, state, data).to_bytes(4, "little")]
+        return b"".join([preamble, *frames, preamble])
+    crcs = np.array([crc32(view[i * block_size : (i + 1) * block_size]) for i in range(n)], dtype="<u4")
+    crcs[states == BLOCK_MISSING] ^= np.uint32(0xFFFFFFFF)
     table = prefix + crcs.tobytes() + states.tobytes()
     return b"".join((table, crc32(table).to_bytes(4, "little"), hbytes, bytes(mem)))
 
@@ -338,8 +399,8 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     ------
     ProtocolError
         Not an image (magic), unknown ``image_version``, version 2 with a header without step memory,
-        inconsistent sizes, a file too short to hold its table, or no valid device header near its place.
-        The message names the offset.
+        inconsistent sizes, a file too short to hold its table, no valid device header near its place, or (version
+        3) neither copy of the preamble intact. The message names the offset.
 
     Notes
     -----
@@ -348,17 +409,36 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
     warning says how many stored step records that loses.
     """
     data = bytes(data)
-    version, bs, mem_bytes, n = _read_prefix(data, source)
-    crcs, states, table_ok, notes = _read_block_table(data, n)
-    header_at = 16 + 5 * n + 4
-    header, hshift = _find_header(data, header_at, source)
-    if hshift:
-        notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
-    _check_memory_size(header, version, mem_bytes, source)
-    mem0 = header_at + HEADER_SIZE
-    blocks = _recover_blocks(data, mem0, bs, mem_bytes, crcs, states if table_ok else None, hshift)
-    stored = _stored_blocks(header, n, bs)
-    notes += _block_notes(blocks, stored["samples"] | stored["step records"], hshift, mem0, mem_bytes, len(data))
+    preamble = _find_preamble(data, source)
+    if preamble is not None:
+        version, bs, header = IMAGE_VERSION_FRAMED, preamble.block_size, preamble.header
+        blocks, notes, table_ok = _recover_frames(data, preamble), [], True
+        if preamble.offset:
+            notes.append(f"image preamble (prefix and device header) at offset 0 damaged: used its copy at offset "
+                         f"{preamble.offset}")
+        damaged_text = "damaged (no block frame with this index and a matching CRC-32 anywhere in the file)"
+        mem0, mem_bytes, hshift = PREAMBLE_BYTES, preamble.memory_bytes, 0
+        total_nominal = 2 * PREAMBLE_BYTES + mem_bytes + FRAME_OVERHEAD_BYTES * preamble.n_blocks
+    else:
+        version, bs, mem_bytes, n = _read_prefix(data, source)
+        crcs, states, table_ok, notes = _read_block_table(data, n)
+        header_at = 16 + 5 * n + 4
+        header, hshift = _find_header(data, header_at, source)
+        if hshift:
+            notes.append(f"device header found shifted by {hshift:+d} bytes (bytes dropped or inserted before it)")
+        _check_memory_size(header, version, mem_bytes, source)
+        mem0 = header_at + HEADER_SIZE
+        blocks = _recover_blocks(data, mem0, bs, mem_bytes, crcs, states if table_ok else None, hshift)
+        if not table_ok:
+            notes.append(f"image version {version} has no block indices in its CRCs: with its table damaged, blocks "
+                         "are used only at their place (no shifted block is searched for, since a table entry "
+                         f"may then belong to a neighbour); image version {IMAGE_VERSION_FRAMED} can verify more")
+        damaged_text = (f"damaged (CRC-32 mismatch, not found within ±{SHIFT_SEARCH_BYTES} bytes or at the shift "
+                        "the file's length implies)" if table_ok else "damaged (CRC-32 mismatch at its place)")
+        total_nominal = mem0 + mem_bytes
+    stored = _stored_blocks(header, blocks.ok.size, bs)
+    notes += _block_notes(blocks, stored["samples"] | stored["step records"], hshift, mem0, mem_bytes, len(data),
+                          damaged_text, total_nominal)
     if version == IMAGE_VERSION and header.n_steps_stored:
         notes.append(f"image version {IMAGE_VERSION} holds no step memory: the header's {header.n_steps_stored} "
                      "stored step records are not in the file")
@@ -370,12 +450,132 @@ def parse_image(data: bytes | bytearray | memoryview, source: str | None = None)
                           f"stored {what} are not usable ({_blocks(np.flatnonzero(lost))}); " + "; ".join(notes),
                           stacklevel=2)
     region = np.frombuffer(blocks.memory, dtype=np.uint8)
-    steps = region[header.memory_bytes:] if version == IMAGE_VERSION_STEPS else \
+    steps = region[header.memory_bytes:] if version != IMAGE_VERSION else \
         np.full(header.step_memory_bytes, 0xFF, dtype=np.uint8)
     return ImageContents(header=header, memory=region[: header.memory_bytes].copy(), block_ok=blocks.ok,
                          block_size=bs, notes=notes, block_missing=blocks.marked, block_truncated=blocks.truncated,
                          block_shift=blocks.shifts, table_ok=table_ok, step_memory=steps.copy(),
                          image_version=version)
+
+
+@dataclass(frozen=True)
+class _Preamble:
+    """An intact version-3 preamble (prefix, device header, ``preamble_crc32``)."""
+
+    offset: int
+    block_size: int
+    memory_bytes: int
+    n_blocks: int
+    header: DeviceHeader
+    key: int  #: its ``preamble_crc32``, which every block's CRC-32 starts from
+
+
+def _find_preamble(data: bytes, source: str | None) -> _Preamble | None:
+    """The first intact version-3 preamble in the file (normally at 0; else its copy at the end), or None when
+    there is none (a file of version 1 or 2, or one whose both copies are damaged).
+
+    A preamble is intact when its CRC-32 matches; its fields are then what the writer wrote, so an
+    inconsistent one is an error, not a candidate to skip.
+    """
+    start = 0
+    while True:
+        o = data.find(IMAGE_MAGIC, start)
+        if o < 0 or o + PREAMBLE_BYTES > len(data):
+            return None
+        start = o + 1
+        end = o + PREAMBLE_BYTES - 4
+        if data[o + 4] != IMAGE_VERSION_FRAMED or crc32(data[o:end]) != int.from_bytes(data[end : end + 4], "little"):
+            continue
+        p = IMAGE_PREFIX_STRUCT.parse(data[o : o + 16])
+        bs, mem_bytes, n = int(p.block_size), int(p.memory_bytes), int(p.n_blocks)
+        try:
+            _check_block_size(bs, mem_bytes, source, IMAGE_VERSION_FRAMED)
+            if n != -(-mem_bytes // bs):
+                raise ProtocolError(f"n_blocks: {n}, but {mem_bytes} bytes in blocks of {bs} make "
+                                    f"{-(-mem_bytes // bs)}", offset=IMAGE_OFFSETS["n_blocks"], source=source)
+            header = DeviceHeader.from_bytes(data[o + 16 : end], source=source)
+        except ProtocolError as err:
+            raise err.at(offset=o) from err
+        if image_memory_bytes(header) != mem_bytes:
+            raise ProtocolError(f"memory_bytes: {mem_bytes}, but the device header's capacity of "
+                                f"{header.capacity_samples} samples and {header.step_capacity} step records needs "
+                                f"{image_memory_bytes(header)}", offset=o + IMAGE_OFFSETS["memory_bytes"],
+                                source=source)
+        return _Preamble(o, bs, mem_bytes, n, header, int.from_bytes(data[end : end + 4], "little"))
+
+
+def _recover_frames(data: bytes, pre: _Preamble) -> _Blocks:
+    """Find every block frame of a version-3 file wherever it is.
+
+    Candidates are the nominal frame places, every occurrence of :data:`BLOCK_SYNC`, and the places next to a
+    block already found (a frame whose sync word is damaged); a candidate is a block when its index is legal
+    and its CRC-32 (:func:`frame_crc32`) matches. Two different frames verifying for one index (never seen
+    without deliberate forgery) make that block unusable.
+    """
+    n, bs, mem_bytes, total = pre.n_blocks, pre.block_size, pre.memory_bytes, len(data)
+    frame = bs + FRAME_OVERHEAD_BYTES
+    sizes = np.minimum(bs, mem_bytes - bs * np.arange(n, dtype=np.int64))
+    nominal = PREAMBLE_BYTES + frame * np.arange(n, dtype=np.int64)
+    memory = bytearray(b"\xff" * mem_bytes)
+    blocks = _Blocks(memory, *(np.zeros(n, dtype=bool) for _ in range(5)), np.zeros(n, dtype=np.int64), 0)
+    found = np.full(n, -1, dtype=np.int64)
+    state = np.zeros(n, dtype=np.uint8)
+    conflict = np.zeros(n, dtype=bool)
+    view = memoryview(data)
+
+    def verify(c: int) -> int:
+        """Index of the block whose frame starts at ``c``, or -1."""
+        if c < 0 or c + 12 > total:
+            return -1
+        idx = int.from_bytes(data[c + 4 : c + 8], "little")
+        st = data[c + 8]
+        if idx >= n or st > BLOCK_MISSING or data[c + 9 : c + 12] != b"\0\0\0":
+            return -1
+        stop = c + 12 + int(sizes[idx])
+        if stop + 4 > total or frame_crc32(pre.key, idx, st, view[c + 12 : stop]) != \
+                int.from_bytes(data[stop : stop + 4], "little"):
+            return -1
+        if found[idx] < 0:
+            found[idx], state[idx] = c, st
+        elif state[idx] != st or data[c + 12 : stop] != data[found[idx] + 12 : found[idx] + 12 + sizes[idx]]:
+            conflict[idx] = True
+        return idx
+
+    arr = np.frombuffer(data, dtype=np.uint8)
+    sync = np.frombuffer(BLOCK_SYNC, dtype=np.uint8)
+    hits = np.ones(max(total - 3, 0), dtype=bool)
+    for k in range(4):
+        hits &= arr[k : k + hits.size] == sync[k]
+    candidates = np.union1d(np.flatnonzero(hits), nominal[nominal < total])
+    end = 0
+    for c in candidates.tolist():
+        if c >= end and (idx := verify(c)) >= 0:
+            end = c + int(sizes[idx]) + FRAME_OVERHEAD_BYTES
+    for order in (range(1, n), range(n - 2, -1, -1)):  # frames next to found ones: their sync may be damaged
+        for i in order:
+            j = i - 1 if order.step > 0 else i + 1
+            if found[i] < 0 and found[j] >= 0:
+                verify(int(found[j] + sizes[j] + FRAME_OVERHEAD_BYTES) if j < i else
+                       int(found[j] - sizes[i] - FRAME_OVERHEAD_BYTES))
+    usable = (found >= 0) & ~conflict
+    for i in np.flatnonzero(usable & (state == BLOCK_PRESENT)).tolist():
+        c, size = int(found[i]), int(sizes[i])
+        memory[i * bs : i * bs + size] = view[c + 12 : c + 12 + size]
+    view.release()
+    blocks.ok = usable & (state == BLOCK_PRESENT)
+    blocks.marked = usable & (state == BLOCK_MISSING)
+    blocks.shifts = np.where(blocks.ok, found - nominal, 0)
+    # where a lost block would have been: after the nearest block found before it, at that block's shift
+    placed = np.flatnonzero(found >= 0)
+    before = np.searchsorted(placed, np.arange(n)) - 1
+    shift_before = np.where(before >= 0, (found - nominal)[placed[np.maximum(before, 0)]] if placed.size else 0, 0)
+    beyond = nominal + shift_before + sizes + FRAME_OVERHEAD_BYTES > total
+    lost = (found < 0) | conflict
+    blocks.truncated = lost & beyond & ~conflict
+    blocks.damaged = lost & ~blocks.truncated
+    blocks.conflict = conflict
+    blocks.last_shift = int((found - nominal)[placed[-1]]) if placed.size else 0
+    return blocks
 
 
 def _read_prefix(data: bytes, source: str | None) -> tuple[int, int, int, int]:
@@ -393,6 +593,9 @@ def _read_prefix(data: bytes, source: str | None) -> tuple[int, int, int, int]:
                             f"{', '.join(map(str, _MAX_MEMORY_BYTES))})", offset=IMAGE_OFFSETS["image_version"],
                             source=source)
     version = int(p.image_version)
+    if version == IMAGE_VERSION_FRAMED:
+        raise ProtocolError(f"image_version {version}: neither copy of the preamble (prefix, device header and their "
+                            f"CRC-32; at offset 0 and at the end of the file) is intact", offset=0, source=source)
     bs, mem_bytes, n = int(p.block_size), int(p.memory_bytes), int(p.n_blocks)
     _check_block_size(bs, mem_bytes, source, version)
     if n != -(-mem_bytes // bs):
@@ -445,19 +648,28 @@ class _Blocks:
     unknown_state: np.ndarray  #: a state byte that is neither present nor missing
     shifts: np.ndarray  #: shift in bytes of each ok block (0 elsewhere)
     last_shift: int  #: shift of the last block found
+    conflict: np.ndarray | None = None  #: version 3: two different frames verified for this index
 
 
 def _recover_blocks(data: bytes, mem0: int, bs: int, mem_bytes: int, crcs: np.ndarray,
                     states: np.ndarray | None, hshift: int) -> _Blocks:
-    """Find each block by its CRC-32 at its place, or within ±:data:`SHIFT_SEARCH_BYTES` of it (bytes dropped
-    or inserted before it move every later block); ``states`` None (a damaged table) tries every block."""
+    """Versions 1 and 2: find each block by its CRC-32 at its place, or within ±:data:`SHIFT_SEARCH_BYTES` of
+    it, or at the shift the file's length implies (bytes dropped or inserted before it move every later block).
+
+    ``states`` None (a damaged table: its entries may be displaced, so entry ``i`` may hold the CRC-32 of a
+    neighbour) tries every block at its place only: a neighbour displaced onto it would take a shift of a
+    whole block, which the table's damage alone cannot cause.
+    """
     n = len(crcs)
     memory = bytearray(b"\xff" * mem_bytes)
     found_blocks = _Blocks(memory, *(np.zeros(n, dtype=bool) for _ in range(5)), np.zeros(n, dtype=np.int64), hshift)
     view = memoryview(data)
     total = len(data)
     shift = hshift
+    length_shift = total - (mem0 + mem_bytes)
     window = sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x))
+    if states is None:
+        window = []
     for i in range(n):
         start = i * bs
         size = min(bs, mem_bytes - start)
@@ -470,9 +682,10 @@ def _recover_blocks(data: bytes, mem0: int, bs: int, mem_bytes: int, crcs: np.nd
             found = shift
         else:
             found = None
-            for d in window:
+            tries = [d for d in window if d] + ([length_shift - shift] if window and length_shift != shift else [])
+            for d in tries:
                 od = o + d
-                if d and od >= 0 and od + size <= total and crc32(view[od : od + size]) == want:
+                if od >= 0 and od + size <= total and crc32(view[od : od + size]) == want:
                     found = shift + d
                     break
         if found is None:
@@ -503,7 +716,7 @@ def _stored_blocks(header: DeviceHeader, n: int, bs: int) -> dict[str, np.ndarra
 
 
 def _block_notes(blocks: _Blocks, stored: np.ndarray, hshift: int, mem0: int, mem_bytes: int,
-                 total: int) -> list[str]:
+                 total: int, damaged_text: str, total_nominal: int) -> list[str]:
     """One line per kind of block problem. A block marked missing that holds nothing stored was never written
     by the logger (a dump does not read it): it is called empty, not lost."""
     notes = []
@@ -512,20 +725,23 @@ def _block_notes(blocks: _Blocks, stored: np.ndarray, hshift: int, mem0: int, me
     if (blocks.marked & ~stored).any():
         notes.append(f"{_blocks(np.flatnonzero(blocks.marked & ~stored))} empty (never written by the logger, "
                      "so not transferred)")
-    if blocks.damaged.any():
-        notes.append(f"{_blocks(np.flatnonzero(blocks.damaged))} damaged (CRC-32 mismatch, not found within "
-                     f"±{SHIFT_SEARCH_BYTES} bytes)")
+    if blocks.conflict is not None and blocks.conflict.any():
+        notes.append(f"{_blocks(np.flatnonzero(blocks.conflict))}: two different frames verify for the same index; "
+                     "neither is used")
+    damaged = blocks.damaged & ~blocks.conflict if blocks.conflict is not None else blocks.damaged
+    if damaged.any():
+        notes.append(f"{_blocks(np.flatnonzero(damaged))} {damaged_text}")
     if blocks.truncated.any():
         notes.append(f"{_blocks(np.flatnonzero(blocks.truncated))} missing: file truncated at {total} bytes "
-                     f"(complete file: {mem0 + mem_bytes})")
+                     f"(complete file: {total_nominal})")
     if blocks.unknown_state.any():
         notes.append(f"{_blocks(np.flatnonzero(blocks.unknown_state))} have an unknown state byte; not used")
     moved = np.flatnonzero(blocks.ok & (np.diff(np.concatenate(([hshift], blocks.shifts))) != 0))
     for i in moved:
         notes.append(f"block {i} found shifted by {int(blocks.shifts[i]):+d} bytes (bytes dropped or inserted "
                      "before it)")
-    if total > mem0 + blocks.last_shift + mem_bytes and blocks.ok.all():
-        notes.append(f"{total - (mem0 + blocks.last_shift + mem_bytes)} trailing bytes after the memory ignored")
+    if total > total_nominal + blocks.last_shift and blocks.ok.all():
+        notes.append(f"{total - (total_nominal + blocks.last_shift)} trailing bytes after the memory ignored")
     return notes
 
 
@@ -533,7 +749,9 @@ def detect_format(data: bytes | bytearray | memoryview) -> Literal["image", "raw
     """Which of the three inputs a byte string is.
 
     ``"image"``: starts with ``GLIM`` (section 6); ``"raw"``: starts with the device header magic ``GLOG``
-    (an XDUMP raw dump, section 5); ``"capture"``: an intact frame (section 3) within the first 64 KiB.
+    (an XDUMP raw dump, section 5); ``"capture"``: an intact frame (section 3) within the first 64 KiB. A file
+    whose first bytes are damaged is still an image when it holds an intact version-3 preamble, and a raw
+    dump when it holds an intact check trailer.
 
     Raises
     ------
@@ -547,6 +765,17 @@ def detect_format(data: bytes | bytearray | memoryview) -> Literal["image", "raw
     if head == IMAGE_MAGIC:
         return "image"
     if head == HEADER_MAGIC:
+        return "raw"
+    data = bytes(data)
+    try:
+        if _find_preamble(data, None) is not None:
+            return "image"
+    except ProtocolError:
+        return "image"
+    try:
+        if find_trailer(data) is not None:
+            return "raw"
+    except ProtocolError:
         return "raw"
     parser = FrameParser()
     items = parser.feed(bytes(data[:_CAPTURE_PROBE_BYTES])) + parser.flush()

@@ -36,7 +36,6 @@ __all__ = [
     "ACK_TIMEOUT_S",
     "build_block",
     "parse_block",
-    "raw_dump_bytes",
     "XmodemSender",
 ]
 
@@ -119,38 +118,6 @@ def parse_block(block: bytes, source: str | None = None) -> tuple[int, bytes]:
         raise ProtocolError(f"XMODEM block {blk}: CRC mismatch (stored 0x{stored:04x}, computed "
                             f"0x{computed:04x})", offset=3 + size, source=source)
     return blk, data
-
-
-def raw_dump_bytes(header: bytes, memory_used: bytes, step_memory_used: bytes = b"") -> bytes:
-    """The file XDUMP transfers: 256-byte header, then the sample memory from address 0, then the step
-    memory from its address 0, padded with 0x1A to a multiple of 1024 bytes.
-
-    Parameters
-    ----------
-    header
-        The 256-byte device header; it says how long the two memory parts are.
-    memory_used
-        The sample memory up to the end of the last stored sample (``DeviceHeader.used_bytes``; the whole
-        memory when wrapped).
-    step_memory_used
-        The step memory up to the end of the last stored record (``DeviceHeader.step_used_bytes``: ``20 · n``
-        for ``n`` stored records; empty without step memory).
-
-    Raises
-    ------
-    ProtocolError
-        A header that is not 256 bytes, or step bytes that are not whole 20-byte records.
-
-    >>> len(raw_dump_bytes(bytes(256), bytes(4 * 300))), len(raw_dump_bytes(bytes(256), bytes(4 * 187), bytes(20)))
-    (2048, 1024)
-    """
-    if len(header) != 256:
-        raise ProtocolError(f"raw dump header of {len(header)} bytes (expected 256)")
-    if len(step_memory_used) % STEP_RECORD_SIZE:
-        raise ProtocolError(f"raw dump step memory of {len(step_memory_used)} bytes is not whole "
-                            f"{STEP_RECORD_SIZE}-byte records")
-    body = b"".join((bytes(header), bytes(memory_used), bytes(step_memory_used)))
-    return body + bytes([PAD]) * (-len(body) % BLOCK_1K)
 
 
 class XmodemSender:

@@ -91,7 +91,7 @@ def test_pty_dump_and_decode_reproduce_the_device_records(walk_image, tmp_path, 
     out = capsys.readouterr().out
     n = len(records) // 20
     assert f"{n} of {n} step records" in out
-    assert read_image(tmp_path / "d.glimg").image_version == 2
+    assert read_image(tmp_path / "d.glimg").image_version == 3
     meta = json.loads((tmp_path / "d.glimg.json").read_text())
     assert meta["step_stored_bytes"] == len(records) and meta["complete"] and meta["n_step_records"] == n
     assert main(["decode", str(tmp_path / "d.glimg"), "--out", str(tmp_path / "dec")]) == 0
@@ -292,8 +292,10 @@ def test_resume_keeps_the_step_bytes_already_received(walk_image, tmp_path):
     total = json.loads((tmp_path / "full.glimg.json").read_text())["bytes_received"]
     out = tmp_path / "d.glimg"
     last_frame = 12 + len(records) - 1024
-    with LoggerLink(f"emu://{image}?cut_after={total - 18 - last_frame // 2}", timeout_s=0.1, retries=0) as link:
-        with pytest.raises(HostError, match="no valid answer"):
+    # the stream ends: the last DATA frame, its DATA_CRC (16 bytes), DUMP_END (18 bytes)
+    with LoggerLink(f"emu://{image}?cut_after={total - 18 - 16 - last_frame // 2}", timeout_s=0.1,
+                    retries=0) as link:
+        with pytest.raises(HostError, match="no answer to IDENTIFY"):
             dump_memory(link, out, progress=False, chunk_bytes=256, retries=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -341,7 +343,7 @@ def test_a_device_without_step_memory_dumps_fine(tmp_path):
     res = logger.record(CalibrationPoses(n_poses=4, hold_s=3.0, move_s=1.0), start_time_s=START_S)
     with serve_pty(logger) as server:
         assert main(["dump", "--port", server.path, "--out", str(tmp_path / "old.glimg"), "--quiet"]) == 0
-    assert read_image(tmp_path / "old.glimg").image_version == 1
+    assert read_image(tmp_path / "old.glimg").image_version == 3  # every device: framed blocks
     rec = decode_file(tmp_path / "old.glimg")
     np.testing.assert_array_equal(rec.codes, res.codes)
     assert rec.n_step_records == 0 and rec.step_losses == [] and verify_step_records(rec) is None

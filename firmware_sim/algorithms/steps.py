@@ -96,6 +96,33 @@ class StepTable:
         idx = np.where(self.heel_strike >= 0, self.heel_strike, self.foot_flat)
         return self.time_s(idx)
 
+    def event_counts(self) -> dict[str, int]:
+        """How many steps had each event found, and how many M3 lengths are filled (per table, e.g. a trial).
+
+        Returns
+        -------
+        dict
+            ``steps`` (rows), ``windows`` (rows with a window: a measured step), ``heel_strike_found``,
+            ``toe_off_found`` (of the windows: toe-off is only searched inside a window), ``single_support``
+            (windows with both events in order, the toe-off before the heel-strike: M3 is measured) and
+            ``m3_filled`` (windows without it: :meth:`distance_m` counts them with the bout's median M3).
+
+        Examples
+        --------
+        >>> t = StepTable(50.0, 0.0, np.array([10, 40, 70]), np.array([8, 38, -1]), np.array([-1, 20, -1]),
+        ...               np.array([-1, 10, 40]), np.zeros(3, np.int64), np.array([np.nan, 0.6, 0.6]),
+        ...               np.zeros(3, np.int64), {"M3": np.array([np.nan, 0.03, np.nan])})
+        >>> t.event_counts()
+        {'steps': 3, 'windows': 2, 'heel_strike_found': 2, 'toe_off_found': 1, 'single_support': 1, 'm3_filled': 1}
+        """
+        window = self.start >= 0
+        h1 = self.vertical_excursion_m.get("M3", np.full(self.n_steps, np.nan))
+        measured = window & np.isfinite(h1)
+        return {"steps": self.n_steps, "windows": int(window.sum()),
+                "heel_strike_found": int(np.count_nonzero(self.heel_strike >= 0)),
+                "toe_off_found": int(np.count_nonzero(window & (self.toe_off >= 0))),
+                "single_support": int(measured.sum()), "m3_filled": int(np.count_nonzero(window & ~measured))}
+
     def filled(self, values: np.ndarray) -> tuple[np.ndarray, int]:
         """``values`` with NaN replaced by the median of the finite values of the same bout (see notes).
 

@@ -20,9 +20,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baud", type=int, default=115200, help="baud rate, 8N1 (default 115200)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted dump from IMAGE.part")
     parser.add_argument("--retries", type=int, default=8,
-                        help="re-read passes over damaged or missing ranges (default 8)")
+                        help="passes in a row that bring no new byte before the dump gives up on what is still "
+                        "missing (default 8; passes that make progress do not count)")
     parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
-                        help="answer / inter-byte timeout in seconds (default 1.0)")
+                        help="answer / inter-byte timeout in seconds (default 1.0); a command is resent until "
+                        "it is answered, for at most 30 s")
     parser.add_argument("--capture", metavar="FILE", help="also save every byte received (a wire capture that "
                         "`gaitlog decode` reads)")
     add_verbosity_options(parser)
@@ -30,26 +32,50 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import io
+    import signal
     from pathlib import Path
 
+    from host.commands.device import check_timeout
     from host.errors import HostError
-    from host.link.logger_link import LoggerLink
-    from host.link.memory_dump import dump_memory, state_path_for
-    from protocol.atomic_write import atomic_write_bytes
 
+    check_timeout(args.timeout)
     if args.retries < 0:
         raise HostError(f"--retries must be >= 0, got {args.retries}")
     out = Path(args.out)
     if not out.parent.is_dir():
         raise HostError(f"output directory {out.parent} does not exist")
     capture = io.BytesIO() if args.capture else None
-    with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, retries=3, capture=capture) as link:
+
+    def _interrupt(signum, frame):  # SIGTERM, and SIGINT even when a shell started us in the background
+        raise KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        return _dump(args, out, capture)
+    finally:
+        for sig, handler in previous.items():  # run in-process (tests, scripts): leave the caller's handlers
+            signal.signal(sig, handler)
+
+
+def _dump(args: argparse.Namespace, out, capture) -> int:
+
+    from host.errors import HostError
+    from host.link.logger_link import LoggerLink
+    from host.link.memory_dump import dump_memory, state_path_for
+    from protocol.atomic_write import atomic_write_bytes
+
+    with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, capture=capture) as link:
         try:
             result = dump_memory(link, out, progress=verbosity(args) >= 0, resume=args.resume, retries=args.retries)
         except HostError as err:
             state = state_path_for(out)
             hint = f"; partial state saved in {state}: run again with --resume" if state.exists() else ""
             raise HostError(f"dump interrupted: {err}{hint}") from err
+        except KeyboardInterrupt:
+            state = state_path_for(out)
+            if state.exists():
+                print(f"gaitlog dump: partial state saved in {state}: run again with --resume", file=sys.stderr)
+            raise
         finally:
             if capture is not None and capture.tell():
                 atomic_write_bytes(args.capture, capture.getvalue())

@@ -1,4 +1,12 @@
-"""``gaitlog estimate``: a recording (any input) -> per-step table CSV and the distance per estimator."""
+"""``gaitlog estimate``: a recording (any input) -> per-step table CSV and the distance per estimator.
+
+Beside the step table's own columns, the CSV says where the leg and foot length came from
+(``lengths_source``: :data:`host.gait.anthropometry.LENGTH_SOURCES`; ``assumed-height`` when nothing about the
+wearer was known, also warned on stderr) and, with a K file, which of the step's quantities lie outside the
+range K was calibrated on (``outside_k_range``: names from :data:`host.gait.k_calibration.RANGE_QUANTITIES`
+joined by ``+``, empty when inside; :meth:`host.gait.k_calibration.KFit.outside_range`); the summary counts
+those steps per estimator.
+"""
 
 from __future__ import annotations
 
@@ -37,8 +45,9 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._input_options import read_input
     from host.commands._options import verbosity
     from host.errors import HostError
+    from host.gait.anthropometry import LENGTH_MODEL
     from host.gait.k_calibration import KFit
-    from protocol.atomic_write import require_folder
+    from protocol.atomic_write import atomic_write_text, require_folder
 
     if args.out:
         require_folder(args.out)
@@ -69,31 +78,39 @@ def run(args: argparse.Namespace) -> int:
         if len(tables) == 2:
             outs["fixed"] = out.with_name(out.stem + "_fixed.csv")
         for arith, path in outs.items():
-            tables[arith].to_csv(path)
-    summary = _summary(tables, ESTIMATORS)
+            atomic_write_text(path, _csv_text(tables[arith], lengths.source, k))
+    summary = _summary(tables, ESTIMATORS, k)
     if args.json:
         doc = {"input": str(args.input), "source": data.source, "n_samples": data.n_samples,
                "n_missing": data.n_missing, "sampling_rate_hz": data.sampling_rate_hz, "leg_length_m": leg,
-               "foot_length_m": foot, "lengths_from": lengths.note, "k_file": args.k_file, "arithmetic": summary,
+               "foot_length_m": foot, "lengths_from": lengths.note, "lengths_source": lengths.source,
+               "height_known": not lengths.assumed, "length_model": LENGTH_MODEL, "k_file": args.k_file,
+               "k_calibrated_range": k.calibrated_range if k is not None else None, "arithmetic": summary,
                "fixed_point_saturation": fixed_report if "fixed" in tables else None,
                "per_step_tables": {a: str(p) for a, p in outs.items()}, "notes": notes}
         print(json.dumps(doc, indent=2, allow_nan=False))
     elif verbosity(args) >= 0:
         print(f"{args.input}: {data.n_samples} samples at {data.sampling_rate_hz:g} Hz "
               f"({data.n_missing} missing); {data.source}")
-        print(f"leg length {leg:.3f} m, foot length {foot:.3f} m"
+        print(f"leg length {leg:.3f} m, foot length {foot:.3f} m, from: {lengths.source}"
               + (f" ({lengths.note})" if lengths.note and not lengths.assumed else "")
               + f"; K file: {args.k_file or 'none'}")
+        if lengths.source in ("height", "subject-height", "assumed-height"):
+            print(f"length model: {LENGTH_MODEL}")
+        if k is not None:
+            print(f"K {k.describe_range()}")
         for arith, s in summary.items():
             print((f"arithmetic = {arith}: " if args.arithmetic != "float" else "")
                   + f"{s['n_steps']} steps in {s['n_bouts']} walking bout(s)"
                   + (" (the on-line algorithm in fixed point)" if arith == "fixed" else "")
                   + (f"; fixed-point saturation/wrap: {fixed_report or 'none'}" if arith == "fixed" else ""))
-            print(f"{'estimator':<10}{'distance_m':>12}{'median_step_m':>15}{'steps_filled':>14}")
+            print(f"{'estimator':<10}{'distance_m':>12}{'median_step_m':>15}{'steps_filled':>14}"
+                  + (f"{'outside_K_range':>16}" if k is not None else ""))
             for name, e in s["estimators"].items():
                 dtxt = "n/a" if e["distance_m"] is None else f"{e['distance_m']:.2f}"
                 mtxt = "n/a" if e["median_step_m"] is None else f"{e['median_step_m']:.3f}"
-                print(f"{name:<10}{dtxt:>12}{mtxt:>15}{e['steps_filled']:>14}")
+                out_k = "" if e["steps_outside_k_range"] is None else f"{e['steps_outside_k_range']:>16}"
+                print(f"{name:<10}{dtxt:>12}{mtxt:>15}{e['steps_filled']:>14}{out_k}")
         if outs:
             print("per-step table: " + ", ".join(f"{p} ({a})" if len(outs) > 1 else str(p) for a, p in outs.items()))
     if verbosity(args) >= 0:
@@ -102,20 +119,41 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _summary(tables: dict, estimators: tuple[str, ...]) -> dict[str, dict]:
-    """Per arithmetic: steps, bouts and per estimator distance / median step / filled steps (None for n/a)."""
+def _csv_text(table, lengths_source: str, k) -> str:
+    """The step table's CSV with ``lengths_source`` and ``outside_k_range`` (module notes)."""
+    from firmware_sim.algorithms.steps import csv_text
+    from host.gait.k_calibration import RANGE_QUANTITIES
+
+    head, *rows = table.to_csv_text().splitlines()
+    n = table.n_steps
+    if k is not None:
+        out = k.outside_range(table)
+        flags = ["+".join(q for q in RANGE_QUANTITIES if out[q][i]) for i in range(n)]
+    else:
+        flags = [""] * n
+    cells = [rows, [lengths_source] * n, flags]
+    return csv_text([head, "lengths_source", "outside_k_range"], cells)
+
+
+def _summary(tables: dict, estimators: tuple[str, ...], k=None) -> dict[str, dict]:
+    """Per arithmetic: steps, bouts and per estimator distance / median step / filled steps / steps outside
+    K's calibrated range (None for n/a)."""
     import numpy as np
 
     out: dict[str, dict] = {}
     for arith, steps in tables.items():
+        outside = k.outside_range(steps) if k is not None and k.calibrated_range is not None else None
         est = {}
         for name in estimators:
             d, filled = steps.distance_m(name)
             lengths = steps.length_m[name]
             med = float(np.nanmedian(lengths)) if np.isfinite(lengths).any() else float("nan")
             est[name] = {"distance_m": float(d) if np.isfinite(d) else None,
-                         "median_step_m": med if np.isfinite(med) else None, "steps_filled": int(filled)}
+                         "median_step_m": med if np.isfinite(med) else None, "steps_filled": int(filled),
+                         "steps_outside_k_range": int(outside[name].sum()) if outside is not None and name in outside
+                         else None}
         out[arith] = {"n_steps": int(steps.n_steps),
+                      "steps_outside_k_range": int(outside["any"].sum()) if outside is not None else None,
                       "n_bouts": int(np.unique(steps.bout).size) if steps.n_steps else 0, "estimators": est}
     return out
 

@@ -3,7 +3,11 @@
 ``ipol``: every trial of a folder in the IPOL lower-back layout replayed through the emulated logger with its
 on-line step algorithm on; the device's records checked against the host's replay; the offline chain and the
 on-line algorithm in float and in fixed point, with one K per subject fitted on its first trial with the
-offline chain (and, labelled apart, the on-line algorithm with its own K). ``sim``: simulated subjects walking
+offline chain (and, labelled apart, the on-line algorithm with its own K). It also prints the constants tuned on
+these recordings as chosen leave-one-subject-out (and which figures are therefore cross-validated), the events
+against the foot sensors, per trial the steps with each event found and filled, the offline chain with the
+other U-turn rule and with the height unknown (a 1.70 m adult assumed for everyone), and the steps outside K's
+calibrated range; the per-trial events go to ``<CSV>_events.csv``. ``sim``: simulated subjects walking
 Alvarez's protocol (100 m out and back at four speeds, 20 m lap marks) through the emulated logger, K
 calibrated single- and multi-speed, every 20 m section scored against the truth (Figs 5-6).
 """
@@ -34,7 +38,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
-                        help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed")
+                        help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed, in the "
+                        "main tables (the offline chain is reported with both)")
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
@@ -86,10 +91,14 @@ def run(args: argparse.Namespace) -> int:
     from host.studies.ipol_evaluation import (
         ARITHMETICS,
         CSV_COLUMNS,
+        EVENT_COLUMNS,
         STEP_COLUMNS,
         done_figures,
         evaluate_folder,
         format_done,
+        format_events,
+        format_tuning,
+        main_rows,
         summarise,
     )
     from protocol.adc_bits import check_adc_bits
@@ -106,11 +115,13 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     steps_path = out.with_name(out.stem + "_steps.csv")
+    events_path = out.with_name(out.stem + "_events.csv")
     require_folder(out)
     require_folder(fig_path)
     from host.commands._options import verbosity
     from host.commands._progress import progress_bar
     from host.files.ipol import list_trials
+    from host.gait.anthropometry import LENGTH_MODEL
 
     with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: res, below
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
@@ -118,36 +129,48 @@ def run(args: argparse.Namespace) -> int:
                               arithmetic=arith, progress=tick)
     lines = [",".join(CSV_COLUMNS)]
     for r in res.rows:
-        lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['k_from']},"
-                     f"{r['distance_m']:.4f},{r['ratio']:.5f},{r['steps']},{r['reference_steps']}")
+        outside = "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])
+        lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['k_from']},{r['uturn']},"
+                     f"{r['lengths_source']},{r['variant']},{r['distance_m']:.4f},{r['ratio']:.5f},{r['steps']},"
+                     f"{r['reference_steps']},{outside},{r['cross_validated']}")
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
     from host.studies.plots import render_chain_boxplots_png
 
-    png = render_chain_boxplots_png(res.rows, arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
+    png = render_chain_boxplots_png(main_rows(res.rows), arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")
     atomic_write_bytes(fig_path, png)
     atomic_write_text(out, "\n".join(lines) + "\n")
     if res.step_rows:
         atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
+    if res.trial_events:
+        atomic_write_text(events_path, rows_csv_text(res.trial_events, EVENT_COLUMNS))
     if verbosity(args) < 0:
         return 0
     print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
-          "trial 1 with the offline chain, for every arithmetic")
+          "trial 1 with the offline chain, for every arithmetic; lengths from each subject's height ("
+          + ", ".join(f"{n} trials {src}" for src, n in _count(r["lengths_source"] for r in main_rows(res.rows)
+                                                                 if r["estimator"] == "M1" and r["arithmetic"] == arith[0]
+                                                                 and r["k_from"] == "offline").items())
+          + f"): {LENGTH_MODEL}")
+    print(format_tuning(res))
     tables = [(a, "offline", f"arithmetic = {a}") for a in arith]
     if "online-fixed" in arith:
         tables.append(("online-fixed", "own", "on-line fixed with its OWN K (fitted on its own records of trial 1; "
                        "the device as it would be used -- a different K, not a comparison)"))
     for a, k_from, title in tables:
-        print(title)
-        print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}"
-              f"{'steps|err|%':>13}")
-        for s in summarise(res.rows, arithmetic=a, k_from=k_from):
-            if not s.get("n"):
-                print(f"{s['estimator']:<10}{0:>4}")
-                continue
-            print(f"{s['estimator']:<10}{s['n']:>4}{s['median']:>8.3f}{s['q1']:>8.3f}{s['q3']:>8.3f}{s['iqr']:>7.3f}"
-                  f"{s['min']:>8.3f}{s['max']:>8.3f}{s['step_error_median_pct']:>13.2f}")
+        _print_table(title, summarise(res.rows, arithmetic=a, k_from=k_from))
+    if "offline" in arith:
+        other = next(u for u in ("exclude", "include") if u != args.uturn)
+        _print_table(f"arithmetic = offline, U-turn {other}d (the other rule; K fitted with it)",
+                     summarise(res.rows, arithmetic="offline", variant=f"uturn-{other}"))
+        _print_table("arithmetic = offline, height UNKNOWN: a 1.70 m adult assumed for every subject (K fitted with "
+                     "those lengths; M3 has no K to absorb them)",
+                     summarise(res.rows, arithmetic="offline", variant="height-unknown"))
+    print("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of detected"
+          " - reference; outside K: steps outside the range K was calibrated on (duration, the estimator's input "
+          "or length), of the steps in the trials")
+    print(format_events(res))
     if set(arith) == set(ARITHMETICS):
         print(format_done(done_figures(res)))
     else:
@@ -158,6 +181,29 @@ def run(args: argparse.Namespace) -> int:
     print("fixed-point saturation/wrap: " + ("; ".join(res.saturation) if res.saturation else "none"))
     for msg in res.skipped:
         print(f"skipped: {msg}")
-    print(f"written: {out}" + (f", {steps_path}" if res.step_rows else "") + f", {fig_path}")
+    print(f"written: {out}" + (f", {steps_path}" if res.step_rows else "")
+          + (f", {events_path}" if res.trial_events else "") + f", {fig_path}")
     return 0
+
+
+def _count(values) -> dict:
+    out: dict = {}
+    for v in values:
+        out[v] = out.get(v, 0) + 1
+    return out
+
+
+def _print_table(title: str, summary: list[dict]) -> None:
+    """One summary table (:func:`host.studies.ipol_evaluation.summarise`)."""
+    print(title)
+    print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}"
+          f"{'steps|err|%':>13}{'|err|':>6}{'signed':>7}{'outside K':>14}")
+    for s in summary:
+        if not s.get("n"):
+            print(f"{s['estimator']:<10}{0:>4}")
+            continue
+        out_k = "-" if s["steps_outside_k_range"] is None else f"{s['steps_outside_k_range']}/{s['steps_total']}"
+        print(f"{s['estimator']:<10}{s['n']:>4}{s['median']:>8.3f}{s['q1']:>8.3f}{s['q3']:>8.3f}{s['iqr']:>7.3f}"
+              f"{s['min']:>8.3f}{s['max']:>8.3f}{s['step_error_median_pct']:>13.2f}"
+              f"{s['step_error_median_abs']:>6.1f}{s['step_error_median_signed']:>+7.1f}{out_k:>14}")
 

@@ -8,8 +8,11 @@ Three inputs (``protocol.image.detect_format`` tells them apart):
     by ``protocol.image.parse_image``); blocks marked missing or never found are reported as gaps.
 ``raw``
     The file an XMODEM receiver (``rx``) writes after XDUMP (section 5): the 256-byte header, then the memory
-    from address 0, padded with 0x1A. XMODEM checked every block on the way; a short file is truncated and
-    the samples beyond its end are reported missing.
+    from address 0, then the check trailer (``protocol.raw_dump``), padded with 0x1A. Each 256-byte chunk is
+    used only when its CRC-32 in the trailer matches (shifted chunks are found again); samples of damaged
+    chunks or beyond the end of a short file are reported missing. A raw dump without its trailer (older
+    firmware, or an end cut off) is decoded unverified, and says so: a warning, and the notes of the
+    recording's metadata (``verified: NO``).
 ``capture``
     The device-to-host bytes of a DUMP/READ session (sections 3-4): HEADER and DATA frames. A memory byte is
     known only when an intact DATA frame (CRC-16 good) carried it; everything else is reported missing.
@@ -44,6 +47,7 @@ from protocol.commit_journal import torn_step_records
 from protocol.header import HEADER_SIZE, PAGE_SAMPLES, DeviceHeader
 from protocol.image import detect_format, parse_image
 from protocol.packing import unpack_words
+from protocol.raw_dump import parse_raw_dump
 from protocol.steps import (
     STEP_RECORD_DTYPE,
     STEP_RECORD_SIZE,
@@ -58,18 +62,23 @@ REASONS = (
     "beyond the end of the truncated input",                                 # 2
     "not received intact (no DATA frame with a good CRC covered it)",       # 3
     "code outside the ADC range of the header's adc_bits",                  # 4
-    "slot of the page in flight when a power loss cut a run (contents undefined)",  # 5
-    "may have been overwritten by a run a power loss cut (header version 1: no journal)",  # 6
+    "chunk damaged in the raw dump (CRC-32 of its check trailer mismatch, not found at a shifted offset)",  # 5
+    "raw dump's check trailer damaged: nothing can be verified",            # 6
+    "slot of the page in flight when a power loss cut a run (contents undefined)",  # 7
+    "may have been overwritten by a run a power loss cut (header version 1: no journal)",  # 8
 )
-_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_TORN, _R_UNVERIFIABLE = range(7)
+_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL = \
+    range(9)
 #: Reason texts of the step-record losses (the first four as for samples).
 STEP_REASONS = REASONS[:4] + (
     "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
     "or damage)",                                                           # 4
     "not in the file (an image of version 1 holds no step memory)",          # 5
-    "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 6
+    REASONS[_R_CHUNK],                                                       # 6
+    REASONS[_R_UNVERIFIABLE],                                                # 7
+    "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 8
 )
-_S_CRC, _S_NOT_IN_FILE, _S_TORN = 4, 5, 6
+_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN = 4, 5, 6, 7, 8
 
 _TYPE_HEADER = 0x86
 _TYPE_DATA = 0x87
@@ -167,26 +176,41 @@ def _image_steps(contents, header, block_reason: np.ndarray, source: str | None,
 
 
 def _decode_raw(data: bytes, source: str | None) -> Recording:
-    if len(data) < HEADER_SIZE:
-        raise ProtocolError(f"truncated raw dump: {len(data)} bytes, the header alone is {HEADER_SIZE}",
-                            offset=len(data), source=source)
-    header = DeviceHeader.from_bytes(data[:HEADER_SIZE], source=source)
-    memory = np.frombuffer(data, dtype=np.uint8, offset=HEADER_SIZE)
+    dump = parse_raw_dump(data, source=source)
+    header, notes = dump.header, list(dump.notes)
+    used, step_used = int(header.used_bytes), int(header.step_used_bytes)
     cap_bytes = int(header.capacity_samples) * 4
-    memory = memory[:cap_bytes]
-    slot_ok = np.ones(memory.size // 4, dtype=bool)
-    notes = ["raw XMODEM dump: blocks were checked by XMODEM's CRC-16 in transit; the file has no checks"]
+    memory = np.full(cap_bytes, 0xFF, dtype=np.uint8)
+    memory[:used] = dump.body[HEADER_SIZE: HEADER_SIZE + used]
+    byte_ok = np.zeros(cap_bytes, dtype=bool)
+    byte_ok[:used] = dump.byte_ok[HEADER_SIZE: HEADER_SIZE + used]
+    byte_reason = np.full(cap_bytes, _R_TRUNCATED, dtype=np.int8)
+    byte_reason[:used] = np.where(dump.byte_truncated[HEADER_SIZE: HEADER_SIZE + used], _R_TRUNCATED,
+                                  _R_CHUNK if dump.verified else _R_UNVERIFIABLE)
+    slot_ok, slot_reason = _slots_from_bytes(byte_ok, byte_reason)
     # the step part follows the used sample bytes: step memory bytes 0 .. 20·n_steps_stored (section 5)
     step_memory = np.full(int(header.step_memory_bytes), 0xFF, dtype=np.uint8)
-    start = HEADER_SIZE + int(header.used_bytes)
-    got = np.frombuffer(data, dtype=np.uint8)[start: start + int(header.step_used_bytes)]
-    step_memory[: got.size] = got
-    byte_ok = np.zeros(step_memory.size, dtype=bool)
-    byte_ok[: got.size] = True
-    reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
+    step_memory[:step_used] = dump.body[HEADER_SIZE + used:]
+    step_ok = np.zeros(step_memory.size, dtype=bool)
+    step_ok[:step_used] = dump.byte_ok[HEADER_SIZE + used:]
+    step_reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
+    step_reason[:step_used] = np.where(dump.byte_truncated[HEADER_SIZE + used:], _R_TRUNCATED,
+                                       _S_CHUNK if dump.verified else _S_UNVERIFIABLE)
     header = _interrupted_run(header, step_memory, source, notes)
-    steps = _assemble_steps(header, step_memory, byte_ok, reason, source, notes)
-    return _assemble(header, memory, slot_ok, None, source, "raw XMODEM dump", notes, steps)
+    steps = _assemble_steps(header, step_memory, step_ok, step_reason, source, notes)
+    rec = _assemble(header, memory, slot_ok, slot_reason, source, "raw XMODEM dump", notes, steps)
+    if dump.verified:
+        rec.notes.insert(1, "verified: every sample marked valid is exact (checked by the raw dump's check trailer)")
+    elif not dump.byte_ok.any():
+        text = f"verified: NO: {notes[0]}"
+        rec.notes.insert(1, text)
+        warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
+    else:
+        text = (f"verified: NO: {int(rec.valid.sum())} samples and {rec.n_step_records} step records UNVERIFIED "
+                f"({notes[0]})")
+        rec.notes.insert(1, text)
+        warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
+    return rec
 
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
@@ -402,7 +426,7 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
         reason_all = np.zeros(capacity, np.int8) if reason_all is None else reason_all.copy()
         if header.logging:
             ok_all[:] = False
-            reason_all[:] = _R_UNVERIFIABLE
+            reason_all[:] = _R_NO_JOURNAL
         ok_all[torn] = False
         reason_all[torn] = _R_TORN
     # Ring order: slot (first + i) mod capacity for i = 0 .. n-1 (contiguous pieces, no fancy index).

@@ -11,8 +11,17 @@
   Gait Posture 7, 1998). ``m5_fallback`` is True and ``notes`` says so.
 * M3 has no constant.
 
+*Calibrated range.* K is a ratio fitted on the steps of the calibration sections; it holds for steps like
+those. :class:`KFit` stores the range of every quantity the fit saw (``calibrated_range``, the smallest and
+largest positive value over the calibration steps with a window -- NaN when none was recorded, e.g. the
+excursions in the logger's compact step records: step duration, the vertical excursions of M1 and M2,
+M4's acceleration range, and the calibrated lengths of M1, M2, M4 and M5), and :meth:`KFit.outside_range`
+says, per step of another walk and per estimator, when the step lies outside it (its K is then an
+extrapolation: another speed, another step length). The commands write it as a column and count it.
+
 :class:`KFit` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
-``format_version`` "1.0").
+``format_version`` "1.1"; a "1.0" file, written before the calibrated range was stored, is read with
+``calibrated_range`` None: nothing can then be said about the range).
 """
 
 from __future__ import annotations
@@ -20,7 +29,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
@@ -30,6 +39,25 @@ from host.gait.sections import Section, pool_steps
 
 if TYPE_CHECKING:  # pragma: no cover
     from firmware_sim.algorithms.steps import StepTable
+
+#: The quantities of :attr:`KFit.calibrated_range` (names of the per-step CSV columns).
+RANGE_QUANTITIES = ("duration_s", "h_m1_m", "h_m2_m", "acc_range_m4_m_s2", "length_m1_m", "length_m2_m",
+                    "length_m4_m", "length_m5_m")
+#: Per calibrated estimator, the quantities whose range its K holds for: the step duration (cadence: the
+#: speed), the estimator's own input and its length.
+RANGE_OF_ESTIMATOR = {"M1": ("duration_s", "h_m1_m", "length_m1_m"), "M2": ("duration_s", "h_m2_m", "length_m2_m"),
+                      "M4": ("duration_s", "acc_range_m4_m_s2", "length_m4_m"), "M5": ("duration_s", "length_m5_m")}
+
+
+def range_quantities(table: StepTable) -> dict[str, np.ndarray]:
+    """Per step of ``table``, the quantities of :data:`RANGE_QUANTITIES` (NaN where the step has none)."""
+    n = table.n_steps
+    nan = np.full(n, np.nan)
+    exc = table.vertical_excursion_m
+    return {"duration_s": np.asarray(table.duration_s, np.float64), "h_m1_m": exc.get("M1", nan),
+            "h_m2_m": exc.get("M2", nan),
+            "acc_range_m4_m_s2": table.acc_range_m_s2 if table.acc_range_m_s2.size == n else nan,
+            **{f"length_{e.lower()}_m": table.length_m.get(e, nan) for e in ("M1", "M2", "M4", "M5")}}
 
 
 @dataclass(frozen=True)
@@ -53,10 +81,15 @@ class KFit(VersionedJson):
         What the fit saw.
     subject
         Free text label.
+    calibrated_range
+        ``{quantity: [min, max]}`` over the calibration steps (:data:`RANGE_QUANTITIES`, module notes); None
+        when unknown (a format "1.0" file).
     """
 
     SCHEMA: ClassVar[str] = "gaitlog.KCalibration"
-    FORMAT_VERSION: ClassVar[str] = "1.0"
+    FORMAT_VERSION: ClassVar[str] = "1.1"
+    #: Older format versions this gaitlog still reads (:meth:`from_dict`).
+    OLD_VERSIONS: ClassVar[tuple[str, ...]] = ("1.0",)
     KIND: ClassVar[str] = "K calibration"
     REDO: ClassVar[str] = "re-run 'gaitlog calibrate-k'"
 
@@ -74,6 +107,7 @@ class KFit(VersionedJson):
     distance_m: float
     subject: str = ""
     notes: list[str] = field(default_factory=list)
+    calibrated_range: dict[str, list[float]] | None = None
 
     def step_constants(self) -> dict[str, object]:
         """The K fields of the device's step configuration (:class:`protocol.steps.StepConfig`, PROTOCOL.md 2.2):
@@ -95,7 +129,76 @@ class KFit(VersionedJson):
         for name in ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m"):
             if isinstance(getattr(cal, name), bool) or not isinstance(getattr(cal, name), (int, float)):
                 raise HostError(f"{source}: key {name!r} must be a number")
+        if cal.calibrated_range is not None:
+            rng = cal.calibrated_range
+            if not isinstance(rng, dict) or set(rng) != set(RANGE_QUANTITIES) or not all(
+                    isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                                for x in v) for v in rng.values()):
+                raise HostError(f"{source}: key 'calibrated_range' must map {', '.join(RANGE_QUANTITIES)} to "
+                                "[min, max]")
         return cal
+
+    @classmethod
+    def from_dict(cls, data: object, *, source: str | None = None) -> Self:
+        """:meth:`VersionedJson.from_dict`, also reading the format versions of :attr:`OLD_VERSIONS` ("1.0":
+        no calibrated range, ``calibrated_range`` None)."""
+        if isinstance(data, dict) and data.get("cal_type") == cls.SCHEMA and data.get("format_version") in cls.OLD_VERSIONS:
+            data = {**data, "format_version": cls.FORMAT_VERSION}
+            if "calibrated_range" in data:
+                raise HostError(f"{source or '<K calibration>'}: key 'calibrated_range' in a format 1.0 file")
+        return super().from_dict(data, source=source)
+
+    def outside_range(self, table: StepTable) -> dict[str, np.ndarray]:
+        """Per step of ``table``: which quantities lie outside :attr:`calibrated_range`.
+
+        Returns ``{quantity: bool array}`` for :data:`RANGE_QUANTITIES` and ``{estimator: bool array}`` for the
+        calibrated estimators (:data:`RANGE_OF_ESTIMATOR`: the step's duration, the estimator's input or its
+        length outside the range), plus ``"any"``. A NaN quantity is not flagged (the step has no window:
+        it is filled, not measured); everything is False when the range is unknown (a "1.0" file).
+        """
+        q = range_quantities(table)
+        out: dict[str, np.ndarray] = {}
+        for name, v in q.items():
+            if self.calibrated_range is None:
+                out[name] = np.zeros(table.n_steps, bool)
+                continue
+            lo, hi = self.calibrated_range[name]
+            with np.errstate(invalid="ignore"):
+                out[name] = np.isfinite(v) & ((v < lo) | (v > hi))
+        for e, names in RANGE_OF_ESTIMATOR.items():
+            out[e] = np.logical_or.reduce([out[n] for n in names])
+        out["any"] = np.logical_or.reduce([out[e] for e in RANGE_OF_ESTIMATOR])
+        return out
+
+    def describe_range(self) -> str:
+        """One line: the calibrated range (or that it is unknown)."""
+        if self.calibrated_range is None:
+            return "calibrated range unknown (a format 1.0 K file: re-run 'gaitlog calibrate-k' to store it)"
+        r = self.calibrated_range
+        return ("calibrated on steps of " + f"{r['duration_s'][0]:.2f}-{r['duration_s'][1]:.2f} s, "
+                + ", ".join(f"{e} {r[f'length_{e.lower()}_m'][0]:.2f}-{r[f'length_{e.lower()}_m'][1]:.2f} m"
+                            for e in RANGE_OF_ESTIMATOR))
+
+
+def _range_of(tables: Sequence[StepTable], k: dict[str, Any]) -> dict[str, list[float]]:
+    """The calibrated range (:data:`RANGE_QUANTITIES`) of the calibration steps with K applied."""
+    pooled: dict[str, list[np.ndarray]] = {n: [] for n in RANGE_QUANTITIES}
+    for t in tables:
+        q = range_quantities(t)
+        raw = t.raw_m
+        q["length_m1_m"] = k["M1"] * raw["M1"]
+        q["length_m2_m"] = k["M2"] * raw["M2"]
+        q["length_m4_m"] = k["M4"] * raw["M4"]
+        q["length_m5_m"] = k["k1"] * raw["M5"] + k["k2"]         # raw M5 = cadence 1/T
+        window = np.isfinite(np.asarray(t.duration_s, np.float64))
+        for n in RANGE_QUANTITIES:
+            pooled[n].append(np.asarray(q[n], np.float64)[window])
+    out = {}
+    for n, parts in pooled.items():
+        v = np.concatenate(parts) if parts else np.zeros(0)
+        v = v[np.isfinite(v) & (v > 0)]            # every quantity is positive; 0 = not recorded (a step record)
+        out[n] = [float(v.min()), float(v.max())] if v.size else [math.nan, math.nan]
+    return out
 
 
 def calibrate(
@@ -165,11 +268,12 @@ def calibrate(
         A = np.column_stack([c, np.ones_like(c)]) * np.sqrt(wts)[:, None]
         k1, k2 = np.linalg.lstsq(A, s * np.sqrt(wts), rcond=None)[0]
         k1, k2 = float(k1), float(k2)
+    rng = _range_of([t for t, _ in sections], dict(M1=ks["M1"], M2=ks["M2"], M4=ks["M4"], k1=float(k1), k2=float(k2)))
     return KFit(
         k_m1=ks["M1"], k_m2=ks["M2"], k_m4=ks["M4"], k1_m5_m_s=float(k1), k2_m5_m=float(k2),
         mode="single-speed" if fallback else "multi-speed", m5_fallback=bool(fallback),
         leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m), n_sections=len(sections),
-        n_steps=int(n_steps), distance_m=float(total), subject=subject, notes=notes,
+        n_steps=int(n_steps), distance_m=float(total), subject=subject, notes=notes, calibrated_range=rng,
     )
 
 

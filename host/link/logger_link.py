@@ -5,15 +5,25 @@ printed by ``gaitlog serve --pty``, ``socket://127.0.0.1:PORT`` from ``gaitlog s
 in-process emulator ``emu://...`` (:mod:`host.link.transports.protocol_emu`).
 
 Each command is one frame (``PROTOCOL.md`` section 3); the link numbers it with ``seq``, waits up to
-``timeout_s`` for the answer with the same ``seq``, and sends it again (new ``seq``) when the answer does not
-come, comes damaged, or is ``NAK(BAD_CRC)``, at most ``retries`` more times. A NAK with any other error is
-final and raised as :class:`~host.errors.HostError` naming the command and the error. The bulk memory dump
+``timeout_s`` for the answer with the same ``seq`` (less when an answer came damaged and the line then went
+quiet for ``quiet_s``), and sends it again (new ``seq``, after a short growing pause) when the answer does
+not come, comes damaged, or is ``NAK(BAD_CRC)``: as long as ``deadline_s`` has not passed since the first
+attempt (and at most ``retries`` more times when ``retries`` is given). Nothing at all received in
+:data:`NO_DEVICE_ATTEMPTS` attempts in a row ends it sooner. The error then says which it was: no byte at all
+(port, baud, power) or bytes but no intact answer (a noisy line or a wrong baud rate). A NAK with any other
+error is final and raised as :class:`~host.errors.HostError` naming the command and the error.
+
+:meth:`LoggerLink.dump_checked` runs DUMP_CHECKED (``PROTOCOL.md`` section 4): a DATA frame is used only when
+the DATA_CRC frame after it carries the CRC-32 of exactly the bytes received, so a damaged frame that passes
+its CRC-16 (about 1 in 65,536) is re-read instead of stored. :meth:`LoggerLink.abort` ends a stream. The bulk memory dump
 with re-reads and resume is :class:`host.link.memory_dump.MemoryDump` (:func:`host.link.memory_dump.dump_memory`).
 """
 
 from __future__ import annotations
 
+import math
 import time
+import zlib
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -57,6 +67,12 @@ _DUMP_END_SIZE = PAYLOAD_STRUCTS[FrameType.DUMP_END].sizeof()
 #: Where the data start in a DATA payload (after its address), and where a NAK carries its error code.
 _DATA_OFFSET = PAYLOAD_OFFSETS[FrameType.DATA]["data"]
 _NAK_ERROR_OFFSET = PAYLOAD_OFFSETS[FrameType.NAK]["error"]
+_DATA_CRC_SIZE = PAYLOAD_STRUCTS[FrameType.DATA_CRC].sizeof()
+#: Attempts in a row with no byte at all received after which a command gives up before its deadline.
+NO_DEVICE_ATTEMPTS = 6
+#: Pause before the k-th resend of a command: BACKOFF_S · 2^(k-1), at most BACKOFF_MAX_S.
+BACKOFF_S = 0.01
+BACKOFF_MAX_S = 0.5
 
 
 def _nak_error(frame: Frame) -> int | None:
@@ -107,6 +123,8 @@ class LinkStats:
     frame_errors: int = 0
     command_retries: int = 0
     timeouts: int = 0
+    crc32_mismatches: int = 0
+    streams_abandoned: int = 0
     naks: dict[str, int] = field(default_factory=dict)
 
 
@@ -127,6 +145,20 @@ def open_serial(port: str, *, baud: int = 115200, poll_s: float = 0.02):
                         "by `gaitlog serve --pty`, socket://HOST:PORT, emu://IMAGE)") from err
 
 
+@dataclass
+class StreamResult:
+    """How a :meth:`LoggerLink.dump_checked` stream went: DUMP_END seen, DATA frames verified, chunk positions
+    covered (up to the furthest frame received intact), frames in the request."""
+
+    ended: bool = False
+    frames_verified: int = 0
+    frames_seen: int = 0
+    frames_total: int = 0
+
+    def seen(self, a: int, address: int, chunk: int) -> None:
+        self.frames_seen = max(self.frames_seen, (a - address) // chunk + 1)
+
+
 class LoggerLink:
     """A connection to a logger.
 
@@ -137,9 +169,16 @@ class LoggerLink:
     baud
         Baud rate (8N1).
     timeout_s
-        How long to wait for an answer to a command, and for the next byte of a DUMP stream.
+        How long to wait for an answer to a command, and for the next byte of a DUMP stream: a finite
+        number of seconds > 0.
     retries
-        How many times a command is sent again after a timeout or a damaged answer.
+        At most this many resends of a command after a timeout or a damaged answer (None: as many as
+        ``deadline_s`` allows).
+    deadline_s
+        Time after which a command's resends stop (from its first attempt).
+    quiet_s
+        After bytes of a damaged answer, this much silence ends the wait for it (default
+        ``min(timeout_s, 0.2)``); in a stream, the silence after which it counts as ended.
     capture
         Binary file object that receives every byte read from the device (a wire capture that
         ``gaitlog decode`` reads), or None.
@@ -154,12 +193,21 @@ class LoggerLink:
     host.errors.HostError: cannot open port '/nonexistent/ttyX': ...
     """
 
-    def __init__(self, port: str, *, baud: int = 115200, timeout_s: float = 1.0, retries: int = 3,
-                 capture: IO[bytes] | None = None, serial_port: Any = None) -> None:
+    def __init__(self, port: str, *, baud: int = 115200, timeout_s: float = 1.0, retries: int | None = None,
+                 deadline_s: float = 30.0, quiet_s: float | None = None, capture: IO[bytes] | None = None,
+                 serial_port: Any = None) -> None:
+        for name, value in (("answer timeout", timeout_s), ("command deadline", deadline_s),
+                            ("quiet time", 1.0 if quiet_s is None else quiet_s)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= 86400):
+                raise HostError(f"{name} must be a finite number of seconds in (0, 86400], got {value}")
+        if retries is not None and retries < 0:
+            raise HostError(f"retries must be >= 0, got {retries}")
         self.port = port
         self.baud = baud
-        self.timeout_s = timeout_s
+        self.timeout_s = float(timeout_s)
         self.retries = retries
+        self.deadline_s = float(deadline_s)
+        self.quiet_s = min(self.timeout_s, 0.2) if quiet_s is None else float(quiet_s)
         self.capture = capture
         self.stats = LinkStats()
         self._ser = serial_port if serial_port is not None else open_serial(port, baud=baud)
@@ -175,7 +223,7 @@ class LoggerLink:
             self._ser.close()
             self._ser = None
 
-    def __enter__(self) -> "LoggerLink":
+    def __enter__(self) -> LoggerLink:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -209,12 +257,17 @@ class LoggerLink:
         self._parser = self._parser_cls()
         self._pending.clear()
 
-    def next_frame(self, timeout_s: float, *, idle: bool = False):
+    def next_frame(self, timeout_s: float, *, idle: bool = False, quiet_s: float | None = None):
         """Return the next intact frame, or None when ``timeout_s`` passes (since the call, or with
-        ``idle=True`` since the last byte received). Damaged frames are counted and skipped."""
+        ``idle=True`` since the last byte received), or, with ``quiet_s``, when bytes came in this call and
+        then none for ``quiet_s``. Damaged frames are counted and skipped."""
         deadline = time.monotonic() + timeout_s
+        got, last = False, 0.0
         while not self._pending:
-            if time.monotonic() > deadline:
+            now = time.monotonic()
+            if got and quiet_s is not None:
+                deadline = min(deadline, last + quiet_s)
+            if now > deadline:
                 if self._parser.buffered:
                     # inter-byte timeout inside a frame (a damaged length field, say): discard that frame and
                     # look for frames in the bytes after its sync
@@ -226,8 +279,9 @@ class LoggerLink:
             data = self._read_some()
             if not data:
                 continue
+            got, last = True, time.monotonic()
             if idle:
-                deadline = time.monotonic() + timeout_s
+                deadline = last + timeout_s
             self._take(self._parser.feed(data))
         return self._pending.popleft()
 
@@ -269,11 +323,17 @@ class LoggerLink:
     def transact(self, ftype: int, payload: bytes, expect: int, *, expect_len: int | None = None):
         """Send a command and return the answer frame of type ``expect`` (retrying as described above)."""
         name = _name(ftype)
-        for attempt in range(self.retries + 1):
+        t0 = time.monotonic()
+        bytes_before, damaged_before = self.stats.bytes_received, self.stats.frame_errors
+        attempt = silent = 0
+        while True:
             if attempt:
                 self.stats.command_retries += 1
+                time.sleep(min(BACKOFF_S * 2 ** (attempt - 1), BACKOFF_MAX_S))
+            attempt += 1
             seq = self.send(ftype, payload)
-            while (frame := self.next_frame(self.timeout_s)) is not None:
+            heard = self.stats.bytes_received
+            while (frame := self.next_frame(self.timeout_s, quiet_s=self.quiet_s)) is not None:
                 if frame.seq != seq:
                     continue
                 if frame.type == FrameType.NAK:
@@ -282,9 +342,19 @@ class LoggerLink:
                     self._raise_nak(ftype, frame)
                 if frame.type == expect and (expect_len is None or len(frame.payload) == expect_len):
                     return frame
-        raise HostError(f"{self.port}: no valid answer to {name} after {self.retries + 1} attempt(s) of "
-                        f"{self.timeout_s:g} s: check the port, the baud rate ({self.baud}) and that the device "
-                        "is on")
+            silent = silent + 1 if self.stats.bytes_received == heard else 0
+            if ((self.retries is not None and attempt > self.retries) or silent >= NO_DEVICE_ATTEMPTS
+                    or time.monotonic() - t0 >= self.deadline_s):
+                break
+        spent = time.monotonic() - t0
+        received = self.stats.bytes_received - bytes_before
+        if received == 0:
+            raise HostError(f"{self.port}: no answer to {name}: not one byte received in {attempt} attempt(s) over "
+                            f"{spent:.1f} s: check the port, the baud rate ({self.baud}) and that the device is on")
+        damaged = self.stats.frame_errors - damaged_before
+        raise HostError(f"{self.port}: no intact answer to {name} in {attempt} attempt(s) over {spent:.1f} s although "
+                        f"{received} bytes arrived ({damaged} damaged frame(s)): the line is too noisy or the baud "
+                        f"rate ({self.baud}) is wrong")
 
     # ----------------------------------------------------------------------------------------- commands
     def identify(self) -> dict[str, int]:
@@ -324,6 +394,18 @@ class LoggerLink:
     def stop(self) -> None:
         """STOP logging."""
         self._ack(FrameType.STOP)
+
+    def abort(self, *, wait: bool = True) -> None:
+        """ABORT: end a stream the device is sending (``PROTOCOL.md`` section 4). ``wait=False`` only sends
+        the frame (best effort, for a host on its way out: no error is raised)."""
+        if wait:
+            self._ack(FrameType.ABORT)
+            return
+        try:
+            self._ser.write(encode_frame(FrameType.ABORT, self._next_seq()))
+            self._ser.flush()
+        except Exception:  # noqa: BLE001 - the port may be gone; there is nothing left to tell the device
+            pass
 
     def erase(self) -> None:
         """ERASE the sample memory and the step memory (sends the ``b"ERASE"`` guard); the calibration and the
@@ -380,6 +462,87 @@ class LoggerLink:
         if offset < 0:
             raise HostError(f"step memory offset must be >= 0, got {offset}")
         return self.read(STEP_ADDRESS_BASE + int(offset), length)
+
+    def dump_checked(self, address: int, length: int, chunk: int, on_data: Callable[[int, bytes], bool | None],
+                     *, keep_going: Callable[[int, int], bool] | None = None) -> StreamResult:
+        """DUMP_CHECKED ``length`` bytes at ``address`` in DATA frames of ``chunk`` bytes; call ``on_data(address,
+        data)`` for every DATA frame whose address and size fit the request and whose bytes the DATA_CRC after
+        it verifies (CRC-32).
+
+        The stream ends at DUMP_END, when the line is quiet for ``quiet_s`` after the first byte (``timeout_s``
+        before it), when ``on_data`` returns True, or when ``keep_going(frames_verified, frames_seen)`` returns
+        False (checked after each frame; ``frames_seen`` counts the chunk positions up to the furthest frame
+        received intact, verified or not). The device keeps streaming until the next command (or
+        :meth:`abort`) ends it. Raises on a NAK other than BAD_CRC (a damaged command is sent again, within
+        the retries and deadline of a command).
+        """
+        command = _build("DUMP_CHECKED", address=address, length=length, chunk=chunk)
+        end = address + length
+        n_frames = -(-length // chunk)
+        t0 = time.monotonic()
+        attempt = 0
+        while True:
+            seq = self.send(FrameType.DUMP_CHECKED, command)
+            attempt += 1
+            result = StreamResult(frames_total=n_frames)
+            pending: tuple[int, bytes] | None = None
+            resend = False
+            while True:
+                frame = self.next_frame(self.timeout_s, idle=True, quiet_s=self.quiet_s)
+                if frame is None:
+                    break
+                ftype = frame.type
+                if ftype == FrameType.NAK and frame.seq == seq:
+                    if _nak_error(frame) == ErrorCode.BAD_CRC:
+                        resend = True
+                        break
+                    self._raise_nak(FrameType.DUMP_CHECKED, frame)
+                if ftype == FrameType.DATA and len(frame.payload) > _DATA_OFFSET:
+                    a = int.from_bytes(frame.payload[:_DATA_OFFSET], "little")
+                    data = frame.payload[_DATA_OFFSET:]
+                    n = len(data)
+                    fits = address <= a and a + n <= end and (a - address) % chunk == 0 and n == min(chunk, end - a)
+                    pending = (a, data) if fits else None
+                    if fits:
+                        result.seen(a, address, chunk)
+                        # this frame's own check is still to come: judge the frames before it
+                        if keep_going is not None and not keep_going(result.frames_verified, result.frames_seen - 1):
+                            self.stats.streams_abandoned += 1
+                            return result
+                    continue
+                if ftype == FrameType.DATA_CRC and len(frame.payload) == _DATA_CRC_SIZE:
+                    a = int.from_bytes(frame.payload[:4], "little")
+                    crc = int.from_bytes(frame.payload[4:8], "little")
+                    if address <= a < end and (a - address) % chunk == 0:
+                        result.seen(a, address, chunk)
+                    if pending is not None and pending[0] == a:
+                        if zlib.crc32(pending[1]) & 0xFFFFFFFF == crc:
+                            result.frames_verified += 1
+                            if on_data(a, pending[1]):
+                                return result
+                        else:
+                            self.stats.crc32_mismatches += 1
+                    pending = None
+                    if result.frames_seen == n_frames and (a - address) // chunk == n_frames - 1:
+                        result.ended = True  # the last frame's check: only DUMP_END is left to come
+                        return result
+                    if keep_going is not None and not keep_going(result.frames_verified, result.frames_seen):
+                        self.stats.streams_abandoned += 1
+                        return result
+                    continue
+                pending = None
+                if ftype == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
+                    end_fields = self._fields(frame)
+                    if end_fields["address"] == address and end_fields["length"] == length:
+                        result.ended = True
+                        result.frames_seen = n_frames
+                        return result
+            if not resend or time.monotonic() - t0 >= self.deadline_s or (
+                    self.retries is not None and attempt > self.retries):
+                if result.frames_seen:
+                    result.frames_seen = n_frames  # the stream ran to its end unseen (or never started)
+                return result
+            self.stats.command_retries += 1
 
     def dump_stream(self, address: int, length: int, chunk: int,
                     on_data: Callable[[int, bytes], None]) -> bool:

@@ -9,10 +9,15 @@ Steps (``PROTOCOL.md`` sections 3-4 and 6):
    addresses; ring order is the decoder's business. Both live in one buffer laid out as the image's memory
    region (sample memory, then step memory), so progress, re-reads, the partial state and ``--resume`` treat
    them alike; a range never crosses from one memory into the other on the wire.
-3. One DUMP of every range still missing, in DATA frames of ``chunk_bytes``; each frame is used only with a
-   good CRC-16 and an address and size that fit the request.
-4. Up to ``retries`` re-read passes over what is still missing, with ever smaller pieces (READ for a single
-   piece, DUMP with a smaller chunk for more), so a noisy line still gets every byte through.
+3. Passes of DUMP_CHECKED over every range still missing, in DATA frames of ``chunk_bytes`` at first; each
+   frame is used only with a good CRC-16, an address and size that fit the request and the device's CRC-32
+   of its bytes (the DATA_CRC frame after it), so every byte stored was verified end to end against the
+   memory. The chunk follows the line: from the share of frames that arrive verified the byte error rate is
+   estimated and the chunk that carries most data per byte on the wire is chosen (:func:`best_chunk`); a
+   stream whose frames mostly arrive damaged is abandoned early and the rest asked again with the smaller
+   chunk (the device ends the old stream on the new command).
+4. The passes go on while they bring new bytes; ``retries`` passes in a row that bring nothing end the dump
+   (a dead line raises at the IDENTIFY that follows such a pass).
 5. The image (``protocol.image.build_image``: version 2 with the step memory when the header has one;
    blocks never received marked missing) and its JSON metadata
    sidecar ``OUT.json`` are written atomically; the partial state ``OUT.part`` (itself an image with the
@@ -27,6 +32,7 @@ import contextlib
 import datetime as _dt
 import hashlib
 import json
+import math
 import os
 import sys
 import time
@@ -43,15 +49,48 @@ from host.files.decode import decode_bytes
 from host.link.logger_link import LoggerLink, device_identity
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
 from protocol.errors import ProtocolError
-from protocol.frames import MAX_DATA, DeviceState
+from protocol.frames import FRAME_OVERHEAD, MAX_DATA, PAYLOAD_STRUCTS, DeviceState, FrameType
 from protocol.header import PAGE_SAMPLES
 from protocol.image import build_image, parse_image
 from protocol.steps import STEP_ADDRESS_BASE
 
 #: Block size of the image and of the resume bookkeeping (``PROTOCOL.md`` section 6).
 BLOCK_SIZE = 1024
-#: Smallest re-read piece.
-MIN_PIECE = 64
+#: Smallest DATA chunk the dump asks for.
+MIN_CHUNK = 16
+#: Wire bytes of a DUMP_CHECKED chunk beyond its data: the DATA frame's framing and address, the DATA_CRC frame.
+CHECKED_OVERHEAD_BYTES = 2 * FRAME_OVERHEAD + 4 + PAYLOAD_STRUCTS[FrameType.DATA_CRC].sizeof()
+#: A stream is judged after this many chunk positions.
+JUDGE_AFTER_FRAMES = 8
+
+
+def best_chunk(byte_error_rate: float, max_chunk: int = MAX_DATA) -> int:
+    """The DATA chunk that carries most data per wire byte when each byte is damaged with probability ``p``:
+    maximises ``c / (c + o) · (1 - p)^(c + o)`` (``o`` = :data:`CHECKED_OVERHEAD_BYTES`), whose root is
+    ``c = (sqrt(o² + 4o/λ) - o) / 2`` with ``λ = -ln(1 - p)``; a multiple of 4 in ``MIN_CHUNK … max_chunk``.
+
+    >>> best_chunk(0.0), best_chunk(1e-3), best_chunk(1e-2), best_chunk(0.9)
+    (4096, 152, 40, 16)
+    """
+    p = float(byte_error_rate)
+    if not p > 1e-9:
+        return max_chunk
+    lam = -math.log1p(-min(p, 0.999))
+    o = CHECKED_OVERHEAD_BYTES
+    c = (math.sqrt(o * o + 4 * o / lam) - o) / 2
+    return int(max(MIN_CHUNK, min(max_chunk, c // 4 * 4)))
+
+
+def byte_error_rate(frames_verified: int, frames_seen: int, chunk: int) -> float:
+    """Byte error rate that makes ``frames_verified`` of ``frames_seen`` chunk positions of ``chunk`` bytes arrive
+    verified (none verified counts as half a frame: an upper estimate).
+
+    >>> round(byte_error_rate(8, 8, 4096), 6), round(byte_error_rate(0, 8, 4096), 5)
+    (0.0, 0.00067)
+    """
+    n = chunk + CHECKED_OVERHEAD_BYTES
+    share = max(frames_verified, 0.5) / max(frames_seen, 1)
+    return 1.0 - min(share, 1.0) ** (1.0 / n)
 #: Version of the JSON metadata beside a dump. 2: ``device`` in the host's words (``sampling_rate_hz`` in Hz,
 #: ``firmware_version`` "major.minor"; version 1 copied the INFO frame: ``sample_rate_mhz`` in millihertz).
 METADATA_FORMAT_VERSION = 2
@@ -202,38 +241,52 @@ class MemoryDump:
         return self
 
     def _fetch(self, link, transfer: _Transfer) -> None:
-        """One DUMP of everything missing, then up to ``retries`` re-read passes with ever smaller pieces (READ
-        for a single piece, DUMP with a smaller chunk for more); the partial state is saved on any error."""
+        """Passes of DUMP_CHECKED over everything missing with a chunk fitted to the line (steps 3-4 above),
+        until nothing is missing or ``retries`` passes in a row brought nothing; the partial state is saved
+        and the device's stream ended on any error or interrupt."""
+        chunk = self.chunk_bytes
+        p_hat: float | None = None
+        idle_passes = 0
+
+        def fitted(verified: int, seen: int, c: int) -> int:
+            rate = byte_error_rate(verified, seen, c)
+            return best_chunk(rate if p_hat is None else (p_hat + rate) / 2, self.chunk_bytes)
+
         try:
-            for attempt in range(self.retries + 1):
-                todo = transfer.todo_ranges()
-                if not todo:
-                    break
+            while transfer.missing().any():
                 transfer.counters["passes"] += 1
                 new_before = transfer.n_new
-                piece = max(MIN_PIECE, self.chunk_bytes >> (2 * attempt))
-                for start, stop in todo:
+                cursor = 0
+                while (todo := transfer.todo_ranges(after=cursor, merge_gap=max(1024, 4 * chunk))):
+                    start, stop = todo[0]
                     length = stop - start
                     address = transfer.device_address(start)
-                    if attempt and length <= piece:
+                    if transfer.counters["passes"] > 1 or start > 0:
                         transfer.counters["reread_pieces"] += 1
-                        try:
-                            transfer.on_data(address, link.read(address, length))
-                        except HostError as err:
-                            if "refused" in str(err):
-                                raise
-                            # no intact answer within the link's retries: is anybody there at all?
-                            link.identify()
-                        continue
-                    if attempt:
-                        transfer.counters["reread_pieces"] += -(-length // piece)
-                    link.dump_stream(address, length, piece, transfer.on_data)
-                if not transfer.missing().any():
-                    break
+                    c = min(chunk, length)
+
+                    def keep_going(verified: int, seen: int, c: int = c) -> bool:
+                        return seen < JUDGE_AFTER_FRAMES or c <= MIN_CHUNK or fitted(verified, seen, c) * 2 >= c
+
+                    result = link.dump_checked(address, length, c, transfer.on_data, keep_going=keep_going)
+                    cursor = stop if result.ended or not result.frames_seen else min(
+                        stop, start + result.frames_seen * c)
+                    if result.frames_seen >= 2 or (result.frames_seen and c == chunk):
+                        rate = byte_error_rate(result.frames_verified, result.frames_seen, c)
+                        p_hat = rate if p_hat is None else (p_hat + rate) / 2
+                        chunk = min(best_chunk(p_hat, self.chunk_bytes), 4 * chunk)
+                    if not result.frames_seen and not result.ended:
+                        break  # not a single frame: end the pass (the check below asks whether anybody is there)
+                    transfer.chunk_used = chunk
                 if transfer.n_new == new_before:
-                    # a whole pass brought nothing: a dead line raises HostError here
-                    link.identify()
+                    idle_passes += 1
+                    link.identify()  # a whole pass brought nothing: a dead line raises HostError here
+                    if idle_passes > self.retries:
+                        break
+                else:
+                    idle_passes = 0
         except BaseException:
+            link.abort(wait=False)  # the device must not stream on into the void
             if transfer.n_new or transfer.resumed:
                 transfer.save_state()
             raise
@@ -285,6 +338,9 @@ class MemoryDump:
             "passes": transfer.counters["passes"],
             "reread_pieces": transfer.counters["reread_pieces"],
             "command_retries": stats.command_retries,
+            "crc32_mismatches": stats.crc32_mismatches,
+            "streams_abandoned": stats.streams_abandoned,
+            "last_chunk_bytes": transfer.chunk_used,
             "complete": self.complete_,
             "missing_ranges": [{"address": a, "length": n} for a, n in self.missing_ranges_],
             "missing_samples": [
@@ -347,6 +403,7 @@ class _Transfer:
         self.resumed = False
         self.n_new = 0
         self.counters = {"frames_used": 0, "passes": 0, "reread_pieces": 0}
+        self.chunk_used = 0
         self.update: Callable[[int], None] | None = None
         self._last_state = time.monotonic()
 
@@ -367,12 +424,22 @@ class _Transfer:
         """Bool mask of the needed bytes not yet received."""
         return self.need & ~self.have
 
-    def todo_ranges(self) -> list[tuple[int, int]]:
-        """Region ranges still missing, split where the sample memory ends (never one range on the wire)."""
-        out = []
-        for a, b in _ranges(self.missing()):
-            out += [(a, min(b, self.mem_size)), (self.mem_size, b)] if a < self.mem_size < b else [(a, b)]
-        return out
+    def todo_ranges(self, *, after: int = 0, merge_gap: int = 0) -> list[tuple[int, int]]:
+        """Region ranges still missing from offset ``after`` on, split where the sample memory ends (never one
+        range on the wire); ranges less than ``merge_gap`` bytes apart are asked as one (a round trip costs
+        more than a few bytes the host already has)."""
+        missing = self.missing()
+        missing[:after] = False
+        out: list[tuple[int, int]] = []
+        for a, b in _ranges(missing):
+            if out and a - out[-1][1] < merge_gap and (out[-1][1] <= self.mem_size) == (b <= self.mem_size):
+                out[-1] = (out[-1][0], b)
+            else:
+                out.append((a, b))
+        split = []
+        for a, b in out:
+            split += [(a, self.mem_size), (self.mem_size, b)] if a < self.mem_size < b else [(a, b)]
+        return split
 
     def image_bytes(self) -> bytes:
         """The image of what was received (``image_version`` 2 when the header has a step memory)."""

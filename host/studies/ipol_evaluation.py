@@ -27,6 +27,12 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    distance stays 20 m (10 m out + 10 m back). ``uturn="include"`` sums every step instead.
    Both the per-subject calibration and the evaluation use the same rule, so K absorbs the part of the
    20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
+   The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), and with the
+   height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted).
+4b. *Tuned constants* (:mod:`host.studies.tuning`): the offline chain is run per trial for every candidate
+   of the constants chosen from these recordings; for each subject the candidate is chosen on the other
+   subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
+   The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
    :func:`host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
@@ -38,9 +44,9 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
-   ``subject, trial, estimator, arithmetic, k_from, distance_m, ratio, steps, reference_steps`` (ratio =
-   distance / 20 m; steps = detected steps in the trial; reference = heel strikes in the JSON within the
-   trial boundaries). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
+   :data:`CSV_COLUMNS` (ratio = distance / 20 m; steps = detected steps in the trial; reference = heel strikes
+   in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
+   calibrated on, :meth:`host.gait.k_calibration.KFit.outside_range`, empty for M3). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
    offline K) pair each on-line float step with its fixed-point and offline twins (:func:`host.studies.compare.
    match_steps`).
 
@@ -67,10 +73,22 @@ from firmware_sim.world.replay import Replay
 from host.errors import HostError
 from host.files.ipol import height_m_of, list_trials, read_trial
 from host.files.replay import check_records, online_step_table, run_starts
-from host.gait.anthropometry import choose_lengths
+from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
 from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
+from host.studies.tuning import (
+    CRITERION,
+    MATCH_TOLERANCE_S,
+    TIMING_TOLERANCE_S,
+    TUNED_PARAMETERS,
+    EventScore,
+    LosoChoice,
+    candidates,
+    choose_loso,
+    detector_for,
+    score_events,
+)
 from protocol.steps import StepConfig
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.
@@ -84,8 +102,15 @@ ARITHMETICS = ("offline", "online-float", "online-fixed")
 #: on-line algorithm's own K, fitted on its own records: a different K, not a comparison).
 K_FROM = ("offline", "own")
 
-CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "distance_m", "ratio", "steps",
-               "reference_steps")
+#: The two U-turn rules (module notes, step 4); both are reported.
+UTURN_RULES = ("exclude", "include")
+
+CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
+               "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
+#: Per trial and chain (offline, online-fixed): steps in the trial, steps with each event found, M3's filled
+#: steps (no toe-off or heel strike: the bout median), and the events against the foot sensors.
+EVENT_COLUMNS = ("subject", "trial", "calibration_trial", "chain", "steps", "heel_strike_found", "toe_off_found",
+                 "m3_filled", "hs_reference", "hs_detected", "hs_matched", "to_reference", "to_detected", "to_matched")
 STEP_COLUMNS = (("subject", "trial", "calibration_trial", "step", "foot_flat_s", "offline_step", "online_fixed_step",
                  "same_events_algorithm", "same_events_arithmetic")
                 + tuple(f"{e.lower()}_{a.replace('-', '_')}_m" for e in ESTIMATORS for a in ARITHMETICS))
@@ -146,6 +171,17 @@ class ReplayedTrial:
     @property
     def height_m(self) -> float | None:
         return height_m_of(self.meta)
+
+    def reference_event_times_s(self) -> tuple[np.ndarray, np.ndarray]:
+        """Foot-sensor toe-offs and heel strikes (both feet, sorted) inside ``TrialBoundaries``, s."""
+        lo, hi = self.meta["TrialBoundaries"]
+        pairs = list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))
+        arr = np.asarray(pairs, np.float64).reshape(-1, 2)
+        out = []
+        for col in (0, 1):
+            x = np.sort(arr[:, col])
+            out.append(x[(x >= lo) & (x <= hi)] / self.source_rate_hz)
+        return out[0], out[1]
 
     def reference_steps(self) -> int:
         lo, hi = self.meta["TrialBoundaries"]
@@ -235,7 +271,7 @@ def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "exclude") 
     if uturn == "exclude" and ub:
         ts = sec.event_time_s()
         counts = ~((ts >= rt.seconds(ub[0])) & (ts <= rt.seconds(ub[1])))
-    elif uturn not in ("exclude", "include"):
+    elif uturn not in UTURN_RULES:
         raise ValueError(f"uturn must be 'exclude' or 'include', got {uturn!r}")
     return sec, counts
 
@@ -283,6 +319,15 @@ class IpolResult:
         lengths with the offline K (:data:`STEP_COLUMNS`); empty unless all three arithmetics ran.
     arithmetics
         The arithmetics evaluated.
+    uturn
+        The U-turn rule of the main rows (``variant = "main"``); the offline chain is also scored with the
+        other (``variant = "uturn-<rule>"``).
+    candidates, event_scores, loso
+        The grid of the tuned constants (:func:`host.studies.tuning.candidates`, the defaults first), per
+        ``(subject, trial)`` and candidate the offline chain's (heel-strike, toe-off) scores against the
+        foot sensors, and the leave-one-subject-out choice per subject.
+    trial_events
+        :data:`EVENT_COLUMNS` rows (every trial of a calibrated subject, offline and on-line fixed).
     """
 
     rows: list[dict]
@@ -294,6 +339,11 @@ class IpolResult:
     replay_checks: list[dict] = field(default_factory=list)
     step_rows: list[dict] = field(default_factory=list)
     arithmetics: tuple[str, ...] = ARITHMETICS
+    uturn: str = "exclude"
+    candidates: list[dict[str, Any]] = field(default_factory=list)
+    event_scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]] = field(default_factory=dict)
+    loso: LosoChoice = field(default_factory=lambda: LosoChoice({}, {}))
+    trial_events: list[dict] = field(default_factory=list)
 
 
 def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KFit:
@@ -301,6 +351,43 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
     # one trial at one speed: the M5 walk-ratio fallback is expected (its note stays in the result)
     return calibrate([(_counted(sec, counts), IPOL_DISTANCE_M)], leg_length_m=leg, foot_length_m=foot,
                      subject=str(rt.subject))
+
+
+def _score_rows(rt: ReplayedTrial, table: StepTable, k: KFit, *, arithmetic: str, k_from: str, uturn: str,
+                lengths_source: str, variant: str, cross_validated: bool) -> list[dict]:
+    """The :data:`CSV_COLUMNS` rows of one scored trial and chain (one per estimator)."""
+    sec, counts = trial_steps(rt, table, uturn=uturn)
+    outside = k.outside_range(sec)
+    out = []
+    for name in ESTIMATORS:
+        d = section_distance(sec, counts, name)
+        out.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=arithmetic, k_from=k_from,
+                        uturn=uturn, lengths_source=lengths_source, variant=variant, distance_m=d,
+                        ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps, reference_steps=rt.reference_steps(),
+                        steps_outside_k_range=int(np.count_nonzero(outside[name] & counts)) if name in outside
+                        else None, cross_validated=int(cross_validated)))
+    return out
+
+
+def _event_row(rt: ReplayedTrial, table: StepTable, chain: str, calibration_trial: bool) -> dict:
+    """Per trial and chain: steps in the trial, how many had each event found, M3's filled steps, and the
+    events against the foot sensors (:data:`EVENT_COLUMNS`)."""
+    sec, _ = trial_steps(rt, table, uturn="include")
+    hs, to = score_trial_events(rt, table)
+    return dict(subject=rt.subject, trial=rt.trial, calibration_trial=int(calibration_trial), chain=chain,
+                steps=sec.n_steps, heel_strike_found=int(np.count_nonzero(sec.heel_strike >= 0)),
+                toe_off_found=int(np.count_nonzero(sec.toe_off >= 0)),
+                m3_filled=int(np.count_nonzero(~np.isfinite(sec.length_m["M3"]))),
+                hs_reference=hs.n_reference, hs_detected=hs.n_detected, hs_matched=hs.n_matched,
+                to_reference=to.n_reference, to_detected=to.n_detected, to_matched=to.n_matched)
+
+
+def score_trial_events(rt: ReplayedTrial, table: StepTable) -> tuple[EventScore, EventScore]:
+    """Heel strikes and toe-offs of a step table (:attr:`StepTable.heel_strike`, ``toe_off``; -1 = not found)
+    against the trial's foot-sensor events inside ``TrialBoundaries`` (:func:`host.studies.tuning.score_events`)."""
+    to_ref, hs_ref = rt.reference_event_times_s()
+    return (score_events(hs_ref, table.time_s(table.heel_strike[table.heel_strike >= 0])),
+            score_events(to_ref, table.time_s(table.toe_off[table.toe_off >= 0])))
 
 
 def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_trial: bool) -> list[dict]:
@@ -328,6 +415,14 @@ def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_tria
     return out
 
 
+def _offline(rt: ReplayedTrial, leg: float, foot: float, candidate: dict[str, Any]) -> StepTable:
+    """The offline chain on a replayed trial with one candidate's event detector (:mod:`host.studies.tuning`)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return StepPipeline(leg_length_m=leg, foot_length_m=foot, detector=detector_for(candidate)).run(
+            rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s).steps_
+
+
 def evaluate_folder(
     folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "exclude",
     progress=None, arithmetic: tuple[str, ...] = ARITHMETICS,
@@ -347,44 +442,69 @@ def evaluate_folder(
     for a in arithmetic:
         if a not in ARITHMETICS:
             raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {a!r}")
-    if uturn not in ("exclude", "include"):
+    if uturn not in UTURN_RULES:
         raise ValueError(f"uturn must be 'exclude' or 'include', got {uturn!r}")
+    other_uturn = next(u for u in UTURN_RULES if u != uturn)
     files = list_trials(folder)
     by_subject: dict[int, list[Path]] = {}
     for f in files:
         by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
-    res = IpolResult([], {}, 0, arithmetics=tuple(arithmetic))
+    cands = candidates()
+    res = IpolResult([], {}, 0, arithmetics=tuple(arithmetic), uturn=uturn, candidates=cands)
+    # 1. replay every trial; the offline chain per candidate of the tuned constants (cached per trial)
+    replayed: dict[int, list[tuple[ReplayedTrial, list[StepTable]]]] = {}
+    lengths: dict[int, tuple[float, float, str]] = {}
     for subject, paths in by_subject.items():
-        if len(paths) < 2:
-            res.skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
-            continue
-        trials: list[tuple[ReplayedTrial, StepTable]] = []
+        trials: list[tuple[ReplayedTrial, list[StepTable]]] = []
         leg = foot = None
         for p in paths:
             if progress is not None:
                 progress(p.name)
             try:   # the anatomy of the subject's first readable trial configures every later one
-                rt = replay_trial(p, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, leg_length_m=leg, foot_length_m=foot)
+                rt = replay_trial(p, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, leg_length_m=leg,
+                                  foot_length_m=foot)
             except HostError as err:   # one unreadable trial must not sink the whole evaluation
                 res.skipped.append(f"{p.name}: {err}")
                 continue
+            if leg is None:
+                lengths[subject] = (rt.leg_length_m, rt.foot_length_m, choose_lengths(
+                    trial_height_m=rt.height_m).source)
             leg, foot = rt.leg_length_m, rt.foot_length_m
             check = rt.check_records()
             res.replay_checks.append(dict(trial=p.name, n_device=check.n_device, n_compared=check.n_compared,
                                           n_identical=check.n_identical))
             if check.differs:
                 raise HostError(check.error_message(p))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                off = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
-                    rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s).steps_
-            trials.append((rt, off))
+            trials.append((rt, [_offline(rt, leg, foot, c) for c in cands]))
+        if trials:
+            replayed[subject] = trials
+    # 2. the tuned constants, leave-one-subject-out (heel strikes against the foot sensors)
+    for subject, trials in replayed.items():
+        for rt, tables in trials:
+            res.event_scores[(subject, rt.trial)] = [score_trial_events(rt, t) for t in tables]
+    if replayed:
+        res.loso = choose_loso({s: [[hs for hs, _ in res.event_scores[(s, rt.trial)]] for rt, _ in trials]
+                                for s, trials in replayed.items()})
+    # 3. per subject: K on the first trial with the constants chosen without it, the other trials scored
+    for subject in by_subject:
+        trials = replayed.get(subject, [])
+        if len(by_subject[subject]) < 2:
+            res.skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
+            continue
         if len(trials) < 2:
             res.skipped.append(f"subject {subject}: fewer than two readable trials")
             continue
-        rt0, off0 = trials[0]
+        c = res.loso.chosen[subject]
+        cv_online = c == 0                          # the on-line algorithm runs the defaults (candidate 0)
+        leg, foot, source = lengths[subject]
+        offs = [tables[c] for _, tables in trials]
+        rt0 = trials[0][0]
         try:
-            k = _calibrate_on(rt0, off0, uturn=uturn, leg=leg, foot=foot)
+            k = _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot)
+            k_other = _calibrate_on(rt0, offs[0], uturn=other_uturn, leg=leg, foot=foot)
+            a_leg, a_foot = anatomical_lengths(height_m=DEFAULT_HEIGHT_M)
+            assumed = [_offline(rt, a_leg, a_foot, cands[c]) for rt, _ in trials]
+            k_assumed = _calibrate_on(rt0, assumed[0], uturn=uturn, leg=a_leg, foot=a_foot)
         except HostError as err:
             res.skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
             continue
@@ -396,29 +516,37 @@ def evaluate_folder(
                 res.calibrations_own[subject] = own
             except HostError as err:
                 res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
-        for i, (rt, off) in enumerate(trials):
+        for i, (rt, _) in enumerate(trials):
             tables: dict[str, StepTable] = {}
             for a in arithmetic:
                 if a == "offline":
-                    tables[a] = off.select(np.ones(off.n_steps, bool))
-                    tables[a].length_m = apply_calibration(off, k)
+                    tables[a] = offs[i].select(np.ones(offs[i].n_steps, bool))
+                    tables[a].length_m = apply_calibration(offs[i], k)
                 else:
                     tables[a] = _online(rt, a, k, res.saturation)
             if set(tables) == set(ARITHMETICS):
                 res.step_rows += _step_rows(rt, tables, i == 0)
+            for a in ("offline", "online-fixed"):
+                if a in tables:
+                    res.trial_events.append(_event_row(rt, tables[a], a, i == 0))
             if i == 0:
                 continue
             res.n_trials += 1
-            runs = [(a, "offline", tables[a]) for a in arithmetic]
+            runs = [(a, "offline", tables[a], k, uturn, source, "main", a == "offline" or cv_online)
+                    for a in arithmetic]
             if own is not None:
-                runs.append(("online-fixed", "own", _online(rt, "fixed", own, res.saturation)))
-            for a, k_from, table in runs:
-                sec, counts = trial_steps(rt, table, uturn=uturn)
-                for name in ESTIMATORS:
-                    d = section_distance(sec, counts, name)
-                    res.rows.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=a,
-                                         k_from=k_from, distance_m=d, ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps,
-                                         reference_steps=rt.reference_steps()))
+                runs.append(("online-fixed", "own", _online(rt, "fixed", own, res.saturation), own, uturn, source,
+                             "main", cv_online))
+            if "offline" in arithmetic:
+                other = offs[i].select(np.ones(offs[i].n_steps, bool))
+                other.length_m = apply_calibration(offs[i], k_other)
+                runs.append(("offline", "offline", other, k_other, other_uturn, source, f"uturn-{other_uturn}", True))
+                unknown = assumed[i].select(np.ones(assumed[i].n_steps, bool))
+                unknown.length_m = apply_calibration(assumed[i], k_assumed)
+                runs.append(("offline", "offline", unknown, k_assumed, uturn, "assumed-height", "height-unknown", True))
+            for a, k_from, table, kk, u, src, variant, cv in runs:
+                res.rows += _score_rows(rt, table, kk, arithmetic=a, k_from=k_from, uturn=u, lengths_source=src,
+                                        variant=variant, cross_validated=cv)
     if not res.rows:
         raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(res.skipped) + ")")
     return res
@@ -432,20 +560,34 @@ def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str]) 
     return table
 
 
-def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | None = "offline") -> list[dict]:
-    """Per estimator: n, median, quartiles, IQR, min, max of the ratio; step-count median |error| %.
+def main_rows(rows: list[dict]) -> list[dict]:
+    """The rows of the main variant (the chosen U-turn rule, each subject's own lengths)."""
+    return [r for r in rows if r.get("variant", "main") == "main"]
 
-    ``arithmetic`` / ``k_from`` keep only the rows of that arithmetic / K source (None: every row).
+
+def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | None = "offline",
+              variant: str | None = "main") -> list[dict]:
+    """Per estimator: n, median, quartiles, IQR, min, max of the ratio; the step count's median |error| (%
+    and steps) and median signed error (steps, detected - reference); steps outside K's calibrated range (of
+    the steps in the trials).
+
+    ``arithmetic`` / ``k_from`` / ``variant`` keep only the rows of that arithmetic / K source / variant
+    (None: every row).
     """
     if arithmetic is not None:
         rows = [r for r in rows if r.get("arithmetic", "offline") == arithmetic]
     if k_from is not None:
         rows = [r for r in rows if r.get("k_from", "offline") == k_from]
+    if variant is not None:
+        rows = [r for r in rows if r.get("variant", "main") == variant]
     out = []
     for name in ESTIMATORS:
-        r = np.array([row["ratio"] for row in rows if row["estimator"] == name], float)
-        st = [(row["steps"], row["reference_steps"]) for row in rows if row["estimator"] == name]
+        mine = [row for row in rows if row["estimator"] == name]
+        r = np.array([row["ratio"] for row in mine], float)
+        st = [(row["steps"], row["reference_steps"]) for row in mine]
         err = np.array([abs(s - ref) / ref * 100 for s, ref in st if ref > 0], float)
+        signed = np.array([s - ref for s, ref in st if ref > 0], float)
+        outside = [row.get("steps_outside_k_range") for row in mine]
         r = r[np.isfinite(r)]
         if r.size == 0:
             out.append(dict(estimator=name, n=0))
@@ -453,8 +595,104 @@ def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | 
         q1, med, q3 = np.percentile(r, [25, 50, 75])
         out.append(dict(estimator=name, n=int(r.size), median=float(med), q1=float(q1), q3=float(q3),
                         iqr=float(q3 - q1), min=float(r.min()), max=float(r.max()),
-                        step_error_median_pct=float(np.median(err)) if err.size else float("nan")))
+                        step_error_median_pct=float(np.median(err)) if err.size else float("nan"),
+                        step_error_median_abs=float(np.median(np.abs(signed))) if signed.size else float("nan"),
+                        step_error_median_signed=float(np.median(signed)) if signed.size else float("nan"),
+                        steps_outside_k_range=None if any(o is None for o in outside) else int(sum(outside)),
+                        steps_total=int(sum(s for s, _ in st))))
     return out
+
+
+def event_figures(result: IpolResult) -> dict[str, dict[str, Any]]:
+    """Heel strikes and toe-offs against the foot sensors, pooled over every replayed trial.
+
+    Returns ``{label: {"hs": EventScore, "to": EventScore, "cross_validated": bool}}`` for: the offline
+    chain with each subject's constants chosen on the other subjects (cross-validated), the offline chain
+    with the shipped defaults (in-sample: the defaults were chosen on these trials), and the on-line
+    algorithm in fixed point (the shipped defaults; cross-validated only when every fold chose them).
+    """
+    out: dict[str, dict[str, Any]] = {}
+    loso = result.loso.chosen
+    keys = [k for k in result.event_scores if k[0] in loso]
+    if keys:
+        out["offline, constants chosen leave-one-subject-out"] = dict(
+            hs=EventScore.pooled([result.event_scores[k][loso[k[0]]][0] for k in keys]),
+            to=EventScore.pooled([result.event_scores[k][loso[k[0]]][1] for k in keys]), cross_validated=True)
+        out["offline, shipped defaults (in-sample)"] = dict(
+            hs=EventScore.pooled([result.event_scores[k][0][0] for k in keys]),
+            to=EventScore.pooled([result.event_scores[k][0][1] for k in keys]),
+            cross_validated=all(c == 0 for c in loso.values()))
+    fx = [r for r in result.trial_events if r["chain"] == "online-fixed"]
+    if fx:
+        out["on-line fixed, shipped defaults"] = dict(
+            hs=EventScore(sum(r["hs_reference"] for r in fx), sum(r["hs_detected"] for r in fx),
+                          sum(r["hs_matched"] for r in fx)),
+            to=EventScore(sum(r["to_reference"] for r in fx), sum(r["to_detected"] for r in fx),
+                          sum(r["to_matched"] for r in fx)),
+            cross_validated=all(c == 0 for c in loso.values()))
+    return out
+
+
+def format_tuning(result: IpolResult) -> str:
+    """The constants chosen from these recordings, per held-out subject, and what is cross-validated."""
+    loso = result.loso.chosen
+    if not loso or not result.candidates:
+        return ""
+    lines = [f"constants tuned on IPOL, chosen leave-one-subject-out ({len(result.candidates)} candidates; "
+             f"criterion: {CRITERION}):"]
+    for p in TUNED_PARAMETERS:
+        values = [result.candidates[c][p.name] for c in loso.values()]
+        counts = {v: values.count(v) for v in dict.fromkeys(values)}
+        lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}): "
+                     + ", ".join(f"{v!r} in {n} of {len(values)} folds" for v, n in counts.items()))
+    every_default = all(c == 0 for c in loso.values())
+    lines.append("cross-validated: every offline-chain figure (each subject scored with the constants chosen on "
+                 "the other subjects; K per subject from its first trial, scored on its other trials); the on-line "
+                 "chains run the shipped defaults: "
+                 + ("every fold chose them, so their figures are cross-validated too" if every_default else
+                    "some folds chose otherwise, so their rows of those subjects are NOT cross-validated "
+                    "(column cross_validated = 0)"))
+    return "\n".join(lines)
+
+
+def format_events(result: IpolResult) -> str:
+    """:func:`event_figures` and the per-trial event counts (:attr:`IpolResult.trial_events`) as text."""
+    figs = event_figures(result)
+    tol = f"{1e3 * MATCH_TOLERANCE_S:.0f} ms"
+    lines = [f"events against the foot sensors (F1 within {tol}; median |error| and median error, detected - "
+             f"reference, of the events within {1e3 * TIMING_TOLERANCE_S:.0f} ms):"]
+    for label, f in figs.items():
+        hs, to = f["hs"], f["to"]
+
+        def timing(e: EventScore) -> str:
+            return (f", median |error| {1e3 * e.median_abs_error_s:.0f} ms ({1e3 * e.median_error_s:+.0f} ms)"
+                    if e.errors_s.size else "")
+        lines.append(f"  {label}{' [cross-validated]' if f['cross_validated'] else ''}: heel strike F1 {hs.f1:.3f} "
+                     f"({hs.n_matched} of {hs.n_reference} reference, {hs.n_detected} detected){timing(hs)}; "
+                     f"toe-off F1 {to.f1:.3f} ({to.n_matched} of {to.n_reference}, {to.n_detected} detected)"
+                     f"{timing(to)}")
+    rows = result.trial_events
+    if rows:
+        by = {(r["subject"], r["trial"], r["chain"]): r for r in rows}
+        chains = [c for c in ("offline", "online-fixed") if any(k[2] == c for k in by)]
+        lines.append("steps per trial (between the trial boundaries) with a heel strike found, a toe-off found, and "
+                     "filled (M3 without both events: the bout median); * = calibration trial")
+        lines.append(f"{'trial':<8}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains))
+        for s, t in dict.fromkeys((k[0], k[1]) for k in by):
+            cells = []
+            for c in chains:
+                r = by.get((s, t, c))
+                cells.append(f"{r['steps']:>19}{r['heel_strike_found']:>5}{r['toe_off_found']:>4}{r['m3_filled']:>6}"
+                             if r else f"{'':>34}")
+            star = "*" if any(by[k]["calibration_trial"] for k in by if k[:2] == (s, t)) else ""
+            lines.append(f"{f'{s}-{t}{star}':<8}" + "".join(cells))
+        for c in chains:
+            mine = [r for r in rows if r["chain"] == c]
+            n = sum(r["steps"] for r in mine)
+            lines.append(f"  {c}, all trials: {n} steps, heel strike found on {sum(r['heel_strike_found'] for r in mine)}"
+                         f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
+                         f"{sum(r['m3_filled'] for r in mine)}")
+    return "\n".join(lines)
 
 
 def done_figures(result: IpolResult) -> dict[str, Any]:
@@ -490,7 +728,7 @@ def done_figures(result: IpolResult) -> dict[str, Any]:
         out["arithmetic_step"][e] = dict(n=int(d.size), median_abs_mm=1e3 * float(np.median(d)) if d.size else math.nan,
                                          max_abs_mm=1e3 * float(d.max()) if d.size else math.nan,
                                          max_rel=float(np.max(d / y[g])) if d.size else math.nan)
-    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in result.rows
+    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in main_rows(result.rows)
           if r["k_from"] == "offline"}
     for key, (a, b) in (("algorithm_ratio", ("online-float", "offline")),
                         ("arithmetic_ratio", ("online-fixed", "online-float"))):

@@ -167,7 +167,7 @@ def test_image_carries_the_step_memory(tmp_path: Path) -> None:
     lg.firmware.stop_logging()
     path = lg.save_image(tmp_path / "s.glimg")
     raw = path.read_bytes()
-    assert raw[4] == 2 and int.from_bytes(raw[8:12], "little") == 262144 + 65520
+    assert raw[4] == 3 and int.from_bytes(raw[8:12], "little") == 262144 + 65520
     c = parse_image(raw)
     records, ok = c.step_records()
     assert ok.all() and records["end_sample"].tolist() == (27 * np.arange(124, 3400)).tolist()
@@ -187,13 +187,13 @@ def test_version_1_image_restores_with_an_empty_step_memory(tmp_path: Path) -> N
     old = DeviceHeader(device_id=9, samples_written=100, write_index=100)  # no step memory: image version 1
     memory = np.random.default_rng(0).integers(0, 256, 262144, dtype=np.uint8)
     path = tmp_path / "old.glimg"
-    path.write_bytes(build_image(old, memory))
+    path.write_bytes(build_image(old, memory, image_version=1))
     assert path.read_bytes()[4] == 1
     lg = Logger.from_image(path)
     assert lg.memory == memory.tobytes() and lg.header.samples_written == 100
     assert (lg.header.step_capacity, lg.header.steps_written) == (3276, 0) and set(lg.step_memory) == {0xFF}
-    lg.save_image(path)  # saved back as version 2
-    assert path.read_bytes()[4] == 2 and Logger.from_image(path).header.to_bytes() == lg.header.to_bytes()
+    lg.save_image(path)  # saved back as version 3
+    assert path.read_bytes()[4] == 3 and Logger.from_image(path).header.to_bytes() == lg.header.to_bytes()
 
 
 def test_image_with_other_step_capacity_is_refused(tmp_path: Path) -> None:

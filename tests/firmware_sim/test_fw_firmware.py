@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from firmware_sim.device import Logger
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.poses import CalibrationPoses
+from protocol.raw_dump import parse_raw_dump
 
 # --- an independent, minimal implementation of the frame layout (section 3) --------------------------
 
@@ -57,6 +58,13 @@ def logger() -> Logger:
 def send(lg: Logger, data: bytes, now_s: float = 0.0) -> bytes:
     return lg.firmware.receive(data, now_s)
 
+
+
+def _trailer_checks(got: bytes, body_bytes: int) -> bool:
+    """After the body: the check trailer (section 5.1), which verifies every body byte, then padding."""
+    dump = parse_raw_dump(got)
+    return dump.verified and bool(dump.byte_ok.all()) and dump.body.size == body_bytes and \
+        got[body_bytes:body_bytes + 4] == b"GLCK"
 
 def test_identify_and_status(logger: Logger) -> None:
     t, s, p = one(send(logger, frame(0x01, 9)))
@@ -233,7 +241,7 @@ def test_xdump_received_by_pypi_xmodem(logger: Logger, arm: str) -> None:
     header = one(send(logger, frame(0x06, 1)))[2]
     used = 4 * 550
     assert got[:256] == header and got[256:256 + used] == logger.memory[:used]
-    assert len(got) % 1024 == 0 and set(got[256 + used:]) <= {0x1A}
+    assert len(got) % 1024 == 0 and _trailer_checks(got, 256 + used)
     assert not logger.firmware.in_transfer
     assert one(send(logger, frame(0x02, 2)))[0] == 0x82  # back in command mode
 
@@ -339,4 +347,4 @@ def test_xdump_carries_the_stored_step_records(logger: Logger) -> None:
     used = 4 * 550
     assert got[:256] == header and got[256:256 + used] == logger.memory[:used]
     assert got[256 + used:256 + used + 800] == _step_bytes(0, 40)
-    assert len(got) % 1024 == 0 and set(got[256 + used + 800:]) <= {0x1A}
+    assert len(got) % 1024 == 0 and _trailer_checks(got, 256 + used + 800)

@@ -21,6 +21,7 @@ from firmware_sim.pty_server import serve_pty
 from firmware_sim.sensor import SensorModel
 from firmware_sim.transport import FaultInjector, serve_tcp
 from firmware_sim.world.poses import CalibrationPoses
+from protocol.raw_dump import parse_raw_dump
 
 
 def frame(ftype: int, seq: int, payload: bytes = b"") -> bytes:
@@ -48,6 +49,13 @@ def full_logger() -> Logger:
     assert lg.header.wrapped
     return lg
 
+
+
+def _trailer_checks(got: bytes, body_bytes: int) -> bool:
+    """After the body: the check trailer (section 5.1), which verifies every body byte, then padding."""
+    dump = parse_raw_dump(got)
+    return dump.verified and bool(dump.byte_ok.all()) and dump.body.size == body_bytes and \
+        got[body_bytes:body_bytes + 4] == b"GLCK"
 
 def test_pty_answers_and_dumps_the_whole_memory(full_logger: Logger) -> None:
     with serve_pty(full_logger, save_on_stop=False) as srv:
@@ -140,7 +148,7 @@ def test_xdump_full_memory_received_by_lrzsz_rx(full_logger: Logger, tmp_path: P
     header = full_logger.header.to_bytes()
     assert got[:256] == header
     assert got[256:256 + 262144] == full_logger.memory
-    assert set(got[256 + 262144:]) <= {0x1A}
+    assert _trailer_checks(got, 256 + 262144)
 
 
 def test_served_device_logs_in_real_time_after_start(tmp_path: Path) -> None:

@@ -16,7 +16,16 @@ from host.link.transports.protocol_emu import LineFaults
 from protocol.errors import ProtocolError
 from protocol.frames import encode_frame
 from protocol.header import DeviceHeader
-from protocol.image import build_image
+from protocol.header import DeviceHeader as _Header
+from protocol.image import build_image as _build_current_image
+from protocol.image import image_version_for
+
+
+def build_image(header, memory, missing_blocks=(), block_size=1024, **kw) -> bytes:
+    """The image of version 1 or 2 (the layout these tests damage at known offsets; version 3 is damaged by
+    ``tests/protocol/test_corruption_campaign.py``)."""
+    h = header if isinstance(header, _Header) else _Header.from_bytes(bytes(header))
+    return _build_current_image(header, memory, missing_blocks, block_size, image_version=image_version_for(h), **kw)
 
 CAP = 65536
 T_HEADER, T_DATA, T_DUMP_END = 0x86, 0x87, 0x88

@@ -84,7 +84,8 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     back = KFit.load(p)
     assert back == cal
     d = json.loads(p.read_text())
-    assert d["format_version"] == "1.0" and d["cal_type"] == "gaitlog.KCalibration"
+    assert d["format_version"] == "1.1" and d["cal_type"] == "gaitlog.KCalibration"
+    assert d["calibrated_range"]["duration_s"] == [0.55, 0.55]
     d["format_version"] = "9.9"
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match=r"format_version.*'9\.9' \(written by a newer gaitlog"):
@@ -93,6 +94,12 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match=r"'0\.9' \(re-run 'gaitlog calibrate-k'\)"):
         KFit.load(p)
+    d["format_version"] = "1.1"
+    d["calibrated_range"] = {"duration_s": [0.5, 0.6]}
+    p.write_text(json.dumps(d))
+    with pytest.raises(HostError, match="key 'calibrated_range' must map"):
+        KFit.load(p)
+    del d["calibrated_range"]
     d["format_version"] = "1.0"
     d["k_m1"] = "one"
     p.write_text(json.dumps(d))
@@ -116,6 +123,47 @@ def test_kcalibration_json_round_trip_property(k, n, label) -> None:
                        m5_fallback=True, leg_length_m=0.9, foot_length_m=0.2, n_sections=1, n_steps=n,
                        distance_m=20.0, subject=label, notes=["x"])
     assert KFit.from_json(cal.to_json()) == cal
+
+
+def test_a_format_1_0_file_is_read_without_a_range(tmp_path) -> None:
+    """A K file written before the calibrated range was stored (format 1.0): read, range unknown, no step flagged."""
+    cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
+    d = cal.to_dict()
+    d["format_version"] = "1.0"
+    del d["calibrated_range"]
+    p = tmp_path / "old.json"
+    p.write_text(json.dumps(d))
+    old = KFit.load(p)
+    assert old.calibrated_range is None and old.k_m1 == cal.k_m1
+    assert "unknown" in old.describe_range()
+    assert not old.outside_range(table(0.9, 1.0, 10))["any"].any()
+    d["calibrated_range"] = cal.calibrated_range
+    p.write_text(json.dumps(d))
+    with pytest.raises(HostError, match="calibrated_range' in a format 1.0 file"):
+        KFit.load(p)
+
+
+def test_steps_outside_the_calibrated_range_are_flagged() -> None:
+    """K fitted on 0.55 s steps of raw length 0.5 m: a walk with 0.8 s steps and one with longer excursions are
+    outside the range for every estimator (duration) or for M1/M2/M4 only (their input and length); the
+    calibration walk itself is inside everywhere."""
+    cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
+    r = cal.calibrated_range
+    assert r["duration_s"] == [0.55, 0.55] and r["h_m2_m"] == [0.5, 0.5]
+    assert r["length_m2_m"][0] == pytest.approx(18.0 / 30 * 1.0)          # K2 * 0.4 m, K2 = 18 m / 30 steps
+    same = table(0.5, 0.55, 30)
+    same.length_m = apply_calibration(same, cal)
+    assert not cal.outside_range(same)["any"].any()
+    slow = table(0.5, 0.8, 10)
+    slow.length_m = apply_calibration(slow, cal)
+    out = cal.outside_range(slow)
+    assert out["duration_s"][1:].all() and not out["duration_s"][0]          # the windowless step: not measured
+    assert all(out[e][1:].all() for e in ("M1", "M2", "M4", "M5")) and out["length_m5_m"][1:].all()
+    longer = table(0.7, 0.55, 10)
+    longer.length_m = apply_calibration(longer, cal)
+    out = cal.outside_range(longer)
+    assert out["M1"][1:].all() and out["M2"][1:].all() and out["M4"][1:].all() and not out["M5"].any()
+    assert "0.55-0.55 s" in cal.describe_range()
 
 
 def test_distance_fills_unmeasured_steps_with_the_bout_median() -> None:

@@ -63,10 +63,15 @@ def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = evaluate_folder(tmp_path)
-    # one scored trial: 5 estimators x 3 arithmetics with the offline K, + 5 on-line fixed rows with its own K
-    assert res.n_trials == 1 and len(res.rows) == 20
-    assert [(r["arithmetic"], r["k_from"]) for r in res.rows[::5]] == [
-        ("offline", "offline"), ("online-float", "offline"), ("online-fixed", "offline"), ("online-fixed", "own")]
+    # one scored trial: 5 estimators x 3 arithmetics with the offline K, + 5 on-line fixed rows with its own K,
+    # + the offline chain with the U-turn summed and with the height unknown (here it is: no height in the JSON)
+    assert res.n_trials == 1 and len(res.rows) == 30
+    assert [(r["arithmetic"], r["k_from"], r["variant"]) for r in res.rows[::5]] == [
+        ("offline", "offline", "main"), ("online-float", "offline", "main"), ("online-fixed", "offline", "main"),
+        ("online-fixed", "own", "main"), ("offline", "offline", "uturn-include"),
+        ("offline", "offline", "height-unknown")]
+    assert {r["lengths_source"] for r in res.rows} == {"assumed-height"}
+    res.rows = [r for r in res.rows if r["variant"] == "main"]
     for arith, k_from in (("offline", "offline"), ("online-fixed", "offline"), ("online-fixed", "own")):
         by = {r["estimator"]: r for r in res.rows if r["arithmetic"] == arith and r["k_from"] == k_from}
         for name in ("M1", "M2", "M4", "M5"):
@@ -90,6 +95,8 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     assert "M3" in text and "median" in text
     with open(out, newline="") as fh:
         rows = list(csv.DictReader(fh))
+    assert "height UNKNOWN" in text and "chosen leave-one-subject-out" in text and "heel strike F1" in text
+    rows = [r for r in rows if r["variant"] == "main"]
     assert [r["estimator"] for r in rows] == ["M1", "M2", "M3", "M4", "M5"] * 4
     assert [r["arithmetic"] for r in rows] == ["offline"] * 5 + ["online-float"] * 5 + ["online-fixed"] * 10
     assert [r["k_from"] for r in rows] == ["offline"] * 15 + ["own"] * 5

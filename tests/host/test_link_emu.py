@@ -158,7 +158,7 @@ def test_missing_port_and_bad_url():
 
 def test_dead_line_fails_fast_with_clear_message(small_image, tmp_path):
     with LoggerLink(f"emu://{small_image[0]}?cut_after=0", timeout_s=0.05, retries=1) as link:
-        with pytest.raises(HostError, match="no valid answer to IDENTIFY"):
+        with pytest.raises(HostError, match="no answer to IDENTIFY: not one byte received"):
             dump_memory(link, tmp_path / "d.glimg", progress=False)
     assert list(tmp_path.iterdir()) == []
 

@@ -143,13 +143,16 @@ def test_set_step_config_rejections(payload: bytes, code: ErrorCode, offset: int
 @pytest.mark.parametrize(
     ("frame", "code", "offset"),
     [
-        (Frame(0x0C, 0, b""), ErrorCode.UNKNOWN_COMMAND, 2),
+        (Frame(0x0E, 0, b""), ErrorCode.UNKNOWN_COMMAND, 2),
         (Frame(0x7F, 0, b"", offset=50), ErrorCode.UNKNOWN_COMMAND, 52),
         (Frame(FrameType.START, 0, struct.pack("<IB", 0, 2)), ErrorCode.BAD_ARGUMENT, 10),
         (Frame(FrameType.ERASE, 0, b"erase"), ErrorCode.BAD_ARGUMENT, 6),
         (Frame(FrameType.READ, 0, struct.pack("<IH", 0, 0)), ErrorCode.BAD_ARGUMENT, 10),
         (Frame(FrameType.READ, 0, struct.pack("<IH", 0, 4097)), ErrorCode.BAD_ARGUMENT, 10),
         (Frame(FrameType.DUMP, 0, struct.pack("<IIH", 0, 10, 0)), ErrorCode.BAD_ARGUMENT, 14),
+        (Frame(FrameType.DUMP_CHECKED, 0, struct.pack("<IIH", 0, 10, 4097)), ErrorCode.BAD_ARGUMENT, 14),
+        (Frame(FrameType.ABORT, 0, b"\x00"), ErrorCode.BAD_LENGTH, 4),
+        (Frame(FrameType.DATA_CRC, 0, b"\x00" * 7), ErrorCode.BAD_LENGTH, 4),
         (Frame(FrameType.STATUS, 0, struct.pack("<BBII", 3, 0, 0, 0)), ErrorCode.BAD_ARGUMENT, 6),
         (Frame(FrameType.ACK, 0, b"\x81"), ErrorCode.BAD_ARGUMENT, 6),
         (Frame(FrameType.NAK, 0, b"\x01\x08"), ErrorCode.BAD_ARGUMENT, 7),
@@ -191,6 +194,8 @@ FIELD_STRATEGIES = {
                                                  samples_written=u32, write_index=u32)),
     FrameType.DATA: st.fixed_dictionaries(dict(address=u32, data=st.binary(max_size=4096))),
     FrameType.DUMP_END: st.fixed_dictionaries(dict(address=u32, length=u32, frames=u16)),
+    FrameType.DUMP_CHECKED: st.fixed_dictionaries(dict(address=u32, length=u32, chunk=st.integers(1, 4096))),
+    FrameType.DATA_CRC: st.fixed_dictionaries(dict(address=u32, crc32=u32)),
     FrameType.ACK: st.fixed_dictionaries(dict(command=st.sampled_from([t for t in FrameType if t < 0x80]))),
     FrameType.NAK: st.fixed_dictionaries(dict(command=u8, error=st.sampled_from(list(ErrorCode)))),
 }

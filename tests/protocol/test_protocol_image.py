@@ -1,4 +1,5 @@
-"""Memory-image file (PROTOCOL.md section 6): layout, round trip, recovery of damaged files."""
+"""Memory-image file (PROTOCOL.md section 6), versions 1 and 2 (the layout before version 3, still read):
+layout, round trip, recovery of damaged files. Version 3: ``test_protocol_image_framed.py``."""
 
 from __future__ import annotations
 
@@ -15,9 +16,10 @@ from hypothesis import strategies as st
 from protocol.errors import ProtocolError
 from protocol.frames import encode_frame
 from protocol.header import DeviceHeader, HeaderFlag
+from protocol.image import build_image as build_current_image
 from protocol.image import (
-    build_image,
     detect_format,
+    image_version_for,
     parse_image,
     read_image,
     write_image,
@@ -25,6 +27,12 @@ from protocol.image import (
 from protocol.steps import STEP_CAPACITY_RECORDS, empty_step_records, pack_step_records
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*are not usable:UserWarning")
+
+
+def build_image(header, memory, missing_blocks=(), block_size=1024, **kw) -> bytes:
+    """The image of version 1 or 2 that a host older than version 3 wrote for this header."""
+    h = header if isinstance(header, DeviceHeader) else DeviceHeader.from_bytes(bytes(header))
+    return build_current_image(header, memory, missing_blocks, block_size, image_version=image_version_for(h), **kw)
 
 
 def _header(cap: int = 65536, sw: int | None = None) -> DeviceHeader:
@@ -190,7 +198,7 @@ def _img() -> bytes:
     ("mutate", "offset", "match"),
     [
         (lambda b: b"GLIN" + b[4:], 0, "not a gaitlog memory image"),
-        (lambda b: b[:4] + b"\x03" + b[5:], 4, "unknown version 3"),
+        (lambda b: b[:4] + b"\x04" + b[5:], 4, "unknown version 4"),
         (lambda b: b[:4] + b"\x02" + b[5:], 4, "image_version: 2, but the device header has no step memory"),
         (lambda b: b[:6] + struct.pack("<H", 10) + b[8:], 6, "block_size 10"),
         (lambda b: b[:8] + struct.pack("<I", 2**30) + b[12:], 8, "memory_bytes"),

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 from xmodem import XMODEM
 
 from protocol.errors import ProtocolError
+from protocol.raw_dump import TRAILER_GAP_BYTES, build_trailer, raw_dump_bytes
 from protocol.xmodem import (
     ACK,
     CAN,
@@ -29,7 +30,6 @@ from protocol.xmodem import (
     XmodemSender,
     build_block,
     parse_block,
-    raw_dump_bytes,
 )
 
 logging.getLogger("xmodem").setLevel(logging.CRITICAL)
@@ -79,7 +79,9 @@ def _pypi_receive(payload: bytes, corrupt_rate: float = 0.0, seed: int = 0) -> t
 @settings(max_examples=30, deadline=None)
 def test_pypi_receiver_gets_exact_payload(body: bytes) -> None:
     payload = raw_dump_bytes(bytes(range(256)), body)
-    assert len(payload) % 1024 == 0 and payload[256 + len(body) :] == bytes([PAD]) * (len(payload) - 256 - len(body))
+    trailer = build_trailer(bytes(range(256)) + body)
+    tail = trailer + bytes([PAD]) * TRAILER_GAP_BYTES + trailer
+    assert len(payload) % 1024 == 0 and payload[256 + len(body) :].rstrip(bytes([PAD])) == tail.rstrip(bytes([PAD]))
     got, sender = _pypi_receive(payload)
     assert got == payload
     assert sender.done and sender.failed is None and sender.retransmissions == 0
@@ -89,8 +91,9 @@ def test_raw_dump_layout_with_step_memory() -> None:
     header, samples, steps = bytes(range(256)), bytes(4 * 100), bytes(range(200)) * 3  # 30 records
     payload = raw_dump_bytes(header, samples, steps)
     body = header + samples + steps
-    assert len(payload) == 2048 and payload[: len(body)] == body
-    assert payload[len(body) :] == bytes([PAD]) * (2048 - len(body))
+    tail = build_trailer(body) + bytes([PAD]) * TRAILER_GAP_BYTES + build_trailer(body)
+    assert len(payload) == 2048 and payload[: len(body)] == body  # body, trailer twice, padding
+    assert payload[len(body) :] == tail + bytes([PAD]) * (2048 - len(body) - len(tail))
     assert raw_dump_bytes(header, samples) == raw_dump_bytes(header, samples, b"")
     with pytest.raises(ProtocolError, match="not whole 20-byte records"):
         raw_dump_bytes(header, samples, bytes(30))

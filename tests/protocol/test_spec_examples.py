@@ -245,20 +245,39 @@ def test_worked_example(name: str) -> None:
         memory = samples + b"\xff" * (header.memory_bytes - len(samples))
         records = pack_step_records(_records(fields.get("step_records", [])))
         steps = records + b"\xff" * (header.step_memory_bytes - len(records))
+        version = data[4]
         if header.step_capacity:
-            assert data[4] == 2 and build_image(header, memory, fields["missing_blocks"], bs, step_memory=steps) == data
-            assert build_image(header, memory + steps, fields["missing_blocks"], bs) == data
+            assert version in (2, 3)
+            assert build_image(header, memory, fields["missing_blocks"], bs, step_memory=steps,
+                               image_version=version) == data
+            assert build_image(header, memory + steps, fields["missing_blocks"], bs, image_version=version) == data
         else:
-            assert data[4] == 1 and steps == b"" and build_image(header, memory, fields["missing_blocks"], bs) == data
+            assert version in (1, 3) and steps == b""
+            assert build_image(header, memory, fields["missing_blocks"], bs, image_version=version) == data
         region = memory + steps
         n = -(-len(region) // bs)
         assert int.from_bytes(data[8:12], "little") == len(region) and int.from_bytes(data[12:16], "little") == n
-        table_end = 16 + 5 * n
-        assert int.from_bytes(data[table_end : table_end + 4], "little") == zlib.crc32(data[:table_end])
         stored = bytearray(region)  # the memory as stored: missing blocks erased
         for b in fields["missing_blocks"]:
             stored[b * bs : (b + 1) * bs] = b"\xff" * len(stored[b * bs : (b + 1) * bs])
-        assert data[table_end + 4 + 256 :] == bytes(stored)
+        if version == 3:  # preamble, framed blocks, preamble again (section 6), checked with zlib directly
+            pre = data[:276]
+            assert pre[16:272] == header.to_bytes() and data[-276:] == pre
+            assert int.from_bytes(pre[272:276], "little") == zlib.crc32(pre[:272])
+            pos = 276
+            for i in range(n):
+                size = min(bs, len(region) - i * bs)
+                fr = data[pos : pos + 16 + size]
+                assert fr[:4] == b"GLBK" and int.from_bytes(fr[4:8], "little") == i and fr[9:12] == bytes(3)
+                assert fr[8] == (1 if i in fields["missing_blocks"] else 0)
+                assert fr[12 : 12 + size] == bytes(stored[i * bs : i * bs + size])
+                assert int.from_bytes(fr[12 + size :], "little") == zlib.crc32(pre[272:276] + fr[4 : 12 + size])
+                pos += 16 + size
+            assert pos + 276 == len(data)
+        else:
+            table_end = 16 + 5 * n
+            assert int.from_bytes(data[table_end : table_end + 4], "little") == zlib.crc32(data[:table_end])
+            assert data[table_end + 4 + 256 :] == bytes(stored)
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # the missing block holds no stored sample or record: no warning
             contents = parse_image(data)

@@ -12,6 +12,8 @@ URL grammar::
       drop=P           probability that a device->host byte is lost
       insert=P         probability that a random byte is inserted before a device->host byte
       cut_after=N      the line goes dead after N device->host bytes (a pulled cable); later bytes are lost
+      h2d_corrupt=P, h2d_drop=P, h2d_insert=P
+                       the same faults on the host->device direction (seeded with seed + 1)
       persist=1        save what the link changed back to the image when the port closes, as the EEPROMs
                        keep it (needs an image; like `gaitlog serve --persist`); default 0: the image is
                        left unchanged
@@ -22,7 +24,10 @@ Examples: ``emu:///tmp/mem.glimg``, ``emu://?image=/tmp/mem.glimg&corrupt=0.001&
 The device is ``firmware_sim.device.Logger``; its firmware is sans-I/O (``receive(data, now_s) -> bytes``),
 so a :meth:`Serial.write` runs the command handler at once and queues its answer for :meth:`Serial.read`.
 The baud rate is accepted and ignored (no wire-time pacing: use ``gaitlog serve --wire-time`` for that).
-Faults touch only the device->host direction and are reproducible for a given seed and call sequence.
+Faults touch the device->host direction (``corrupt``, ``drop``, ``insert``, ``cut_after``) and the
+host->device direction (``h2d_*``) and are reproducible for a given seed and call sequence. A DUMP stream
+is pulled from the firmware a few frames ahead of the reader (:meth:`firmware_sim.firmware.Firmware.transmit`),
+so a command sent in the middle of a stream ends it as it would on the line.
 Use this for tests; never ``loop://`` (a loopback is not a device).
 """
 
@@ -36,8 +41,11 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_
 
 from firmware_sim.device import Logger
 
-_FORM = ('expected "emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1]"')
-_FLOAT_OPTIONS = ("corrupt", "drop", "insert")
+_FORM = ('expected "emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1'
+         '&h2d_corrupt=P&h2d_drop=P&h2d_insert=P]"')
+_FLOAT_OPTIONS = ("corrupt", "drop", "insert", "h2d_corrupt", "h2d_drop", "h2d_insert")
+#: How far ahead of the reader a stream is pulled from the firmware (bytes).
+STREAM_AHEAD_BYTES = 8192
 _INT_OPTIONS = ("seed", "cut_after")
 
 
@@ -107,7 +115,7 @@ class LineFaults:
 
 def parse_url(url: str) -> dict:
     """Options of an ``emu://`` URL as a dict (``image``, ``seed``, ``corrupt``, ``drop``, ``insert``,
-    ``cut_after``, ``persist``); :class:`SerialException` quoting the expected form on anything else.
+    ``cut_after``, ``persist``, ``h2d_corrupt``, ``h2d_drop``, ``h2d_insert``); :class:`SerialException` quoting the expected form on anything else.
 
     Examples
     --------
@@ -123,7 +131,7 @@ def parse_url(url: str) -> dict:
     if parts.scheme.lower() != "emu":
         raise SerialException(f"{url}: not an emu:// URL; {_FORM}")
     opts: dict = {"image": None, "seed": 0, "corrupt": 0.0, "drop": 0.0, "insert": 0.0, "cut_after": None,
-                  "persist": False}
+                  "persist": False, "h2d_corrupt": 0.0, "h2d_drop": 0.0, "h2d_insert": 0.0}
     path = urllib.parse.unquote(parts.netloc + parts.path)
     if path:
         opts["image"] = path
@@ -160,6 +168,7 @@ class Serial(SerialBase):
         self._rx = bytearray()
         self._device = None
         self._faults: LineFaults | None = None
+        self._h2d_faults: LineFaults | None = None
         self._t0 = time.monotonic()
         super().__init__(*args, **kwargs)
 
@@ -184,6 +193,9 @@ class Serial(SerialBase):
             raise
         self._faults = LineFaults(corrupt=opts["corrupt"], drop=opts["drop"], insert=opts["insert"],
                                   cut_after=opts["cut_after"], seed=opts["seed"])
+        self._h2d_faults = LineFaults(corrupt=opts["h2d_corrupt"], drop=opts["h2d_drop"], insert=opts["h2d_insert"],
+                                      seed=opts["seed"] + 1)
+        self._device.firmware.paced = True
         self._t0 = time.monotonic()
         self._rx.clear()
         self.is_open = True
@@ -205,6 +217,11 @@ class Serial(SerialBase):
         """The fault injector of the device->host direction."""
         return self._faults
 
+    @property
+    def h2d_faults(self) -> LineFaults | None:
+        """The fault injector of the host->device direction."""
+        return self._h2d_faults
+
     def _reconfigure_port(self, *args, **kwargs) -> None:
         """Settings are accepted and ignored (no wire-time pacing in-process)."""
 
@@ -217,6 +234,8 @@ class Serial(SerialBase):
         out = firmware.receive(bytes(data), self._now_s()) if data else firmware.poll(self._now_s())
         if out:
             self._rx += self._faults.apply(bytes(out))
+        while firmware.streaming and len(self._rx) < STREAM_AHEAD_BYTES:
+            self._rx += self._faults.apply(firmware.transmit())
 
     @property
     def in_waiting(self) -> int:
@@ -249,7 +268,7 @@ class Serial(SerialBase):
         if not self.is_open:
             raise PortNotOpenError()
         data = to_bytes(data)
-        self._pump(data)
+        self._pump(self._h2d_faults.apply(bytes(data)) or b"")
         return len(data)
 
     def reset_input_buffer(self) -> None:

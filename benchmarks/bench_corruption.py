@@ -1,0 +1,269 @@
+"""Corruption campaign: decode damaged images, wire captures and raw dumps and count silently wrong samples.
+
+For each kind of file (``image``: the ``.glimg`` written now, version 3, with a random legal block size;
+``image-v1``: the old layout, still read; ``capture``: the DUMP frame stream; ``raw``: the XDUMP file) it
+builds the file of a random device memory (the truth), damages it (bit flips, dropped bytes, inserted bytes,
+a duplicated block, truncation, an overwritten header/table/trailer; one damaged region per file, or two or
+three in a fifth of the files), decodes it with :func:`host.files.decode.decode_bytes` and counts:
+
+- ``wrong``: samples marked valid whose codes or flags differ from the device's memory (must be 0);
+- ``unverif``: samples marked valid that the decoder said it could not verify (a raw dump whose check trailer
+  was cut off: reported, not silent; the wrong ones among them are ``wrong_unv``);
+- ``crash``: exceptions other than the documented :class:`protocol.errors.ProtocolError` (must be 0);
+- ``refused``: files refused with a ProtocolError (0 samples, one clear error);
+- ``lost``: stored samples reported missing, and ``excess``: files with one damaged region that lost a sample
+  outside the blocks the region touches (plus one block either side); ``max_lost``: the largest loss of one
+  region in such a file, in samples.
+
+Usage::
+
+    python benchmarks/bench_corruption.py              # 10,000 files of each kind (a few minutes)
+    python benchmarks/bench_corruption.py --files 300 --seed 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from host.files.decode import decode_bytes
+from protocol.errors import ProtocolError
+from protocol.frames import FrameType, build_payload, encode_frame
+from protocol.header import DeviceHeader, HeaderFlag
+from protocol.image import (
+    FRAME_OVERHEAD_BYTES,
+    PREAMBLE_BYTES,
+    build_image,
+    image_version_for,
+)
+from protocol.packing import pack_words
+from protocol.raw_dump import CHUNK_BYTES, raw_dump_bytes
+
+KINDS = ("image", "image-v1", "capture", "raw")
+DAMAGES = ("flip", "drop", "insert", "duplicate", "truncate", "header", "table")
+_CAPTURE_CHUNK = 2048
+
+
+@dataclass
+class Case:
+    """One damaged file and what its layout says about where the samples are."""
+
+    data: bytes
+    header: DeviceHeader
+    words: np.ndarray  #: the device's stored words in ring order (the truth)
+    unit_bytes: int  #: memory bytes per block/chunk/frame
+    unit_of: callable = field(repr=False)  #: file offset -> unit index (may be negative or past the end)
+    regions: list[tuple[int, int]] = field(default_factory=list)  #: damaged file ranges [lo, hi)
+    damages: list[str] = field(default_factory=list)
+
+
+def _device(rng: np.random.Generator) -> tuple[DeviceHeader, np.ndarray]:
+    """A random header and the whole sample memory as uint32 words (unused slots erased)."""
+    cap = int(rng.choice([256, 1000, 2048, 8300]))
+    mode = rng.integers(3)
+    written = [int(rng.integers(1, cap)), cap, cap + int(rng.integers(1, 3 * cap))][mode]
+    flags = int(HeaderFlag.OVERWRITE | HeaderFlag.WRAPPED) if written > cap else 0
+    header = DeviceHeader(capacity_samples=cap, samples_written=written, write_index=written % cap, flags=flags,
+                          device_id=int(rng.integers(1, 1000)), start_time_s=1_700_000_000)
+    codes = rng.integers(0, 1024, (cap, 3))
+    words = pack_words(codes, rng.integers(0, 4, cap)).astype("<u4")
+    if written < cap:
+        words[written:] = 0xFFFFFFFF
+    return header, words
+
+
+def _truth(header: DeviceHeader, words: np.ndarray) -> np.ndarray:
+    n, first, cap = header.n_stored, header.first_slot, header.capacity_samples
+    return words[(first + np.arange(n)) % cap]
+
+
+def _build(kind: str, header: DeviceHeader, words: np.ndarray, rng: np.random.Generator):
+    """(file bytes, unit_bytes, unit_of) for a kind."""
+    memory = words.tobytes()
+    if kind in ("image", "image-v1"):
+        version = 3 if kind == "image" else image_version_for(header)
+        bs = int(rng.choice([64, 68, 128, 256, 500, 1024, 2048, 4096, 65532])) if rng.random() < 0.7 else \
+            4 * int(rng.integers(16, 16384))
+        data = build_image(header, memory, block_size=bs, image_version=version)
+        if version == 3:
+            return data, bs, lambda f: (f - PREAMBLE_BYTES) // (bs + FRAME_OVERHEAD_BYTES)
+        mem0 = 16 + 5 * -(-len(memory) // bs) + 4 + 256
+        return data, bs, lambda f: (f - mem0) // bs
+    if kind == "raw":
+        data = raw_dump_bytes(header.to_bytes(), memory[: header.used_bytes])
+        return data, CHUNK_BYTES, lambda f: f // CHUNK_BYTES - 1  # chunk 0 is the header's first 256 bytes
+    stream = [encode_frame(FrameType.HEADER, 6, build_payload(FrameType.HEADER, header=header))]
+    first = len(stream[0])
+    for k, a in enumerate(range(0, len(memory), _CAPTURE_CHUNK)):
+        stream.append(encode_frame(FrameType.DATA, k % 256, build_payload(
+            FrameType.DATA, address=a, data=memory[a: a + _CAPTURE_CHUNK])))
+    return b"".join(stream), _CAPTURE_CHUNK, lambda f: (f - first) // (_CAPTURE_CHUNK + 12)
+
+
+def _damage(case: Case, rng: np.random.Generator, what: str) -> None:
+    d = bytearray(case.data)
+    n = len(d)
+    if what == "flip":
+        at = int(rng.integers(n))
+        for _ in range(int(rng.integers(1, 9))):
+            p = min(n - 1, at + int(rng.integers(0, 8)))
+            d[p] ^= 1 << int(rng.integers(8))
+        lo, hi = at, at + 8
+    elif what == "drop":
+        at, k = int(rng.integers(n)), int(rng.choice([1, 2, 3, 4, 17, 64, 65, 300, 2000]))
+        del d[at: at + k]
+        lo, hi = at, at + k
+    elif what == "insert":
+        at, k = int(rng.integers(n)), int(rng.choice([1, 2, 3, 4, 17, 64, 65, 300, 2000]))
+        d[at:at] = rng.integers(0, 256, k, dtype=np.uint8).tobytes()
+        lo, hi = at, at + 1
+    elif what == "duplicate":
+        k = int(rng.choice([case.unit_bytes, case.unit_bytes + FRAME_OVERHEAD_BYTES, 1024, 128]))
+        at = int(rng.integers(max(1, n - k)))
+        d[at + k: at + k] = d[at: at + k]
+        lo, hi = at + k, at + k + 1
+    elif what == "truncate":
+        at = int(rng.integers(n))
+        del d[at:]
+        lo, hi = at, n
+    elif what == "header":
+        at, k = int(rng.integers(0, 300)), int(rng.integers(1, 40))
+        d[at: at + k] = rng.integers(0, 256, k, dtype=np.uint8).tobytes()
+        lo, hi = at, at + k
+    else:  # "table": the block table of an old image, the end copy of the preamble, the raw dump's trailer
+        k = int(rng.integers(1, 40))
+        at = int(rng.integers(16, 300)) if rng.random() < 0.5 else int(rng.integers(max(0, n - 3000), n))
+        if rng.random() < 0.5:
+            d[at: at + k] = rng.integers(0, 256, k, dtype=np.uint8).tobytes()
+        elif rng.random() < 0.5:
+            k = 4
+            del d[at: at + k]
+        else:
+            k = 4
+            d[at:at] = bytes(4)
+        lo, hi = at, at + k
+    case.data = bytes(d)
+    case.regions.append((lo, hi))
+    case.damages.append(what)
+
+
+@dataclass
+class Totals:
+    files: int = 0
+    samples: int = 0
+    wrong: int = 0
+    unverified: int = 0
+    wrong_unverified: int = 0
+    crashes: int = 0
+    refused: int = 0
+    lost: int = 0
+    single: int = 0
+    excess: int = 0
+    max_lost: int = 0
+    crash_examples: list[str] = field(default_factory=list)
+    wrong_examples: list[str] = field(default_factory=list)
+
+
+def run_one(kind: str, rng: np.random.Generator, totals: Totals) -> None:
+    header, words = _device(rng)
+    data, unit_bytes, unit_of = _build(kind, header, words, rng)
+    case = Case(data, header, _truth(header, words), unit_bytes, unit_of)
+    n_damage = 1 if rng.random() < 0.8 else int(rng.integers(2, 4))
+    for _ in range(n_damage):
+        _damage(case, rng, str(rng.choice(DAMAGES)))
+    totals.files += 1
+    totals.samples += case.words.size
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            rec = decode_bytes(case.data, source="campaign")
+    except ProtocolError:
+        totals.refused += 1
+        totals.lost += case.words.size
+        return
+    except Exception as exc:  # noqa: BLE001 - the campaign counts what is not documented
+        totals.crashes += 1
+        totals.crash_examples.append(f"{kind} {case.damages}: {type(exc).__name__}: {exc}"[:300])
+        return
+    unverified = any("UNVERIFIED" in str(w.message) for w in caught)
+    truth = case.words
+    got = pack_words(rec.codes, rec.flags).astype("<u4")
+    valid = np.asarray(rec.valid, bool)
+    if got.size != truth.size:
+        totals.crashes += 1
+        totals.crash_examples.append(f"{kind} {case.damages}: {got.size} samples decoded, {truth.size} stored")
+        return
+    bad = valid & (got != truth)
+    if unverified:
+        totals.unverified += int(valid.sum())
+        totals.wrong_unverified += int(bad.sum())
+    elif bad.any():
+        totals.wrong += int(bad.sum())
+        totals.wrong_examples.append(f"{kind} {case.damages} {case.regions}: {int(bad.sum())} wrong")
+    lost = ~valid
+    totals.lost += int(lost.sum())
+    if len(case.regions) == 1:
+        totals.single += 1
+        lo, hi = case.regions[0]
+        slots = (header.first_slot + np.arange(truth.size)) % header.capacity_samples
+        unit = 4 * slots // unit_bytes
+        near = (unit >= unit_of(lo) - 1) & (unit <= unit_of(max(lo, hi - 1)) + 1)
+        if case.damages[0] == "truncate":
+            near = unit >= unit_of(lo) - 1
+        totals.max_lost = max(totals.max_lost, int(lost.sum()))
+        if (lost & ~near).any():
+            totals.excess += 1
+
+
+def campaign(n_files: int, seed: int, kinds: tuple[str, ...] = KINDS) -> dict[str, Totals]:
+    """Damage and decode ``n_files`` files of each kind (seeded); the totals per kind."""
+    out = {}
+    for i, kind in enumerate(kinds):
+        rng = np.random.default_rng([seed, i])
+        totals = Totals()
+        for _ in range(n_files):
+            run_one(kind, rng, totals)
+        out[kind] = totals
+    return out
+
+
+def table(results: dict[str, Totals], seconds: dict[str, float] | None = None) -> str:
+    cols = ("files", "samples", "wrong", "unverif", "wrong_unv", "crash", "refused", "lost", "single", "excess",
+            "max_lost", "s")
+    lines = ["kind      " + " ".join(f"{c:>10}" for c in cols)]
+    for kind, t in results.items():
+        vals = (t.files, t.samples, t.wrong, t.unverified, t.wrong_unverified, t.crashes, t.refused, t.lost,
+                t.single, t.excess, t.max_lost, f"{(seconds or {}).get(kind, 0.0):.1f}")
+        lines.append(f"{kind:<10}" + " ".join(f"{v:>10}" for v in vals))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--files", type=int, default=10_000, help="files of each kind (default 10000)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated subset of {','.join(KINDS)}")
+    args = parser.parse_args(argv)
+    results, seconds = {}, {}
+    for kind in args.kinds.split(","):
+        t0 = time.perf_counter()
+        results.update(campaign(args.files, args.seed + KINDS.index(kind), (kind,)))
+        seconds[kind] = time.perf_counter() - t0
+    print(table(results, seconds))
+    for t in results.values():
+        for line in (t.crash_examples + t.wrong_examples)[:5]:
+            print(line)
+    bad = sum(t.wrong + t.crashes for k, t in results.items() if k != "image-v1")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

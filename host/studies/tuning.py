@@ -1,0 +1,220 @@
+"""Constants chosen from recordings, chosen leave-one-subject-out (LOSO).
+
+Some rules of the event detector were chosen by looking at real recordings (the IPOL lower-back trials with
+foot-sensor events): which heel-strike rule, and how long before the impact the contact is. A figure scored
+on the same recordings the constant was chosen on is in-sample. This module declares every such constant
+once (:data:`TUNED_PARAMETERS`: its name, its candidate values, the default the code ships with and where it
+is used), the one selection criterion (:data:`CRITERION`) and the LOSO procedure (:func:`choose_loso`): for
+each subject, the value is chosen on the *other* subjects' trials, and that subject is scored with it.
+
+* ``heel_strike_rule``: ``"impact"`` (the maximum of the 5-10 Hz band of the vertical acceleration,
+  :mod:`host.gait.events` notes 2, the default) or ``"steepest-rise"`` (the largest sample-to-sample rise of
+  the 10 Hz vertical acceleration, Zijlstra & Hof 2003's initial contact; :class:`SteepestRiseDetector`).
+* ``hs_delay_s``: the heel strike this long before the impact (:class:`firmware_sim.algorithms.parameters.
+  EventParameters`; 0-80 ms, whole samples at 50 Hz; ignored by the steepest-rise rule).
+
+A parameter whose name is a field of :class:`~firmware_sim.algorithms.parameters.EventParameters` needs
+nothing else: add a :class:`TunedParameter` and it is searched (the grid is the product of the candidates).
+
+Criterion: heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot sensors, F1 pooled over the
+training subjects' trials (more matched, fewer missed and fewer extra); ties go to the smaller median
+|timing error|, then to the earlier candidate (the default comes first). Only the event detection is re-run
+per candidate (the offline chain on cached trials, milliseconds per trial), never the logger's replay.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from firmware_sim.algorithms.parameters import EventParameters, samples
+from host.gait.events import GaitEventDetector, link_steps
+from host.gait.masked_filter import masked_gaussian_lowpass
+from host.studies.compare import match_events
+
+__all__ = ["CRITERION", "MATCH_TOLERANCE_S", "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
+           "TunedParameter", "candidates", "choose_loso", "detector_for", "score_events"]
+
+#: An event matches a reference event within this (the F1 criterion of the event figures).
+MATCH_TOLERANCE_S = 0.04
+#: Timing errors are measured on events paired within this (every event found, not only the F1's matches).
+TIMING_TOLERANCE_S = 0.15
+
+
+@dataclass(frozen=True)
+class TunedParameter:
+    """A constant chosen from recordings: its candidates (the grid searched), the shipped default and where
+    it is used."""
+
+    name: str
+    candidates: tuple[Any, ...]
+    default: Any
+    used_in: str
+
+
+#: Every constant chosen from the IPOL recordings (module notes).
+TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
+    TunedParameter("heel_strike_rule", ("impact", "steepest-rise"), "impact",
+                   "host.gait.events (heel-strike = the impact in the 5-10 Hz band) and the on-line algorithm"),
+    TunedParameter("hs_delay_s", (0.04, 0.0, 0.02, 0.06, 0.08), EventParameters().hs_delay_s,
+                   "EventParameters.hs_delay_s (heel-strike before the impact), both chains"),
+)
+
+#: The selection criterion, in words (printed by ``gaitlog evaluate ipol``).
+CRITERION = (f"heel strikes within {1e3 * MATCH_TOLERANCE_S:.0f} ms of the foot sensors, F1 pooled over the "
+             "training subjects' trials (ties: smaller median |error|)")
+
+
+def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[dict[str, Any]]:
+    """The grid: every combination of candidate values, the defaults first (the steepest-rise rule only with
+    the default ``hs_delay_s``, which it ignores).
+
+    >>> len(candidates()), candidates()[0]
+    (6, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04})
+    """
+    default = {p.name: p.default for p in parameters}
+    grid = [dict(zip([p.name for p in parameters], combo))
+            for combo in itertools.product(*[p.candidates for p in parameters])]
+    grid = [c for c in grid if not (c.get("heel_strike_rule") == "steepest-rise"
+                                    and c.get("hs_delay_s", default.get("hs_delay_s")) != default.get("hs_delay_s"))]
+    return [default] + [c for c in grid if c != default]
+
+
+class SteepestRiseDetector(GaitEventDetector):
+    """:class:`GaitEventDetector` with the heel strike at the steepest rise of the 10 Hz vertical acceleration
+    within the heel-strike search window (the alternative rule, module notes); everything else unchanged."""
+
+    def clone(self) -> SteepestRiseDetector:
+        return SteepestRiseDetector(self.parameters, max_gap_s=self.max_gap_s, min_weight=self.min_weight)
+
+    def detect(self, acc_v_m_s2: np.ndarray, *args: Any, sampling_rate_hz: float, valid: np.ndarray | None = None,
+               **kwargs: Any) -> SteepestRiseDetector:
+        super().detect(acc_v_m_s2, *args, sampling_rate_hz=sampling_rate_hz, valid=valid, **kwargs)
+        p = self.parameters
+        a = np.asarray(acc_v_m_s2, np.float64)
+        ok = np.isfinite(a) if valid is None else (np.asarray(valid, bool) & np.isfinite(a))
+        ff = self.foot_flat_
+        if ff.size == 0:
+            return self
+        det = masked_gaussian_lowpass(a, ok, cutoff_hz=p.detail_cutoff_hz, sampling_rate_hz=sampling_rate_hz,
+                                      min_weight=self.min_weight)
+        rise = np.concatenate([[np.nan], np.diff(det)])
+        hs = self._search(rise, ff, -samples(p.hs_search_s, sampling_rate_hz),
+                          samples(p.hs_after_s, sampling_rate_hz), mode="argmax")
+        for name, value in link_steps(ff, hs, self.toe_off_, ok, sampling_rate_hz=sampling_rate_hz,
+                                      max_gap_s=self.max_gap_s, max_step_s=p.max_step_s).items():
+            setattr(self, name, value)
+        return self
+
+
+def detector_for(candidate: Mapping[str, Any]) -> GaitEventDetector:
+    """The offline event detector of one candidate (its EventParameters fields set, its heel-strike rule)."""
+    names = {f.name for f in fields(EventParameters)}
+    unknown = set(candidate) - names - {"heel_strike_rule"}
+    if unknown:
+        raise ValueError(f"tuned parameter(s) {sorted(unknown)} are neither EventParameters fields nor a rule")
+    params = EventParameters(**{k: v for k, v in candidate.items() if k in names})
+    rule = candidate.get("heel_strike_rule", "impact")
+    if rule == "impact":
+        return GaitEventDetector(params)
+    if rule == "steepest-rise":
+        return SteepestRiseDetector(params)
+    raise ValueError(f"heel_strike_rule must be 'impact' or 'steepest-rise', got {rule!r}")
+
+
+@dataclass(frozen=True)
+class EventScore:
+    """Detected events of one trial against the reference: counts and timing errors (detected - reference)."""
+
+    n_reference: int
+    n_detected: int
+    n_matched: int
+    errors_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @staticmethod
+    def pooled(scores: Sequence[EventScore]) -> EventScore:
+        """The scores of several trials as one."""
+        return EventScore(sum(s.n_reference for s in scores), sum(s.n_detected for s in scores),
+                          sum(s.n_matched for s in scores),
+                          np.concatenate([s.errors_s for s in scores]) if scores else np.zeros(0))
+
+    @property
+    def f1(self) -> float:
+        """``2 matched / (reference + detected)`` (NaN when both are empty)."""
+        total = self.n_reference + self.n_detected
+        return 2.0 * self.n_matched / total if total else float("nan")
+
+    @property
+    def median_abs_error_s(self) -> float:
+        return float(np.median(np.abs(self.errors_s))) if self.errors_s.size else float("nan")
+
+    @property
+    def median_error_s(self) -> float:
+        return float(np.median(self.errors_s)) if self.errors_s.size else float("nan")
+
+
+def score_events(reference_s: np.ndarray, detected_s: np.ndarray, *, margin_s: float = 0.3) -> EventScore:
+    """Score detected event times against reference times of one trial.
+
+    Only detected events from ``margin_s`` before the first to ``margin_s`` after the last reference event
+    count (the reference covers the trial, the recording is longer). Matched: one-to-one within
+    :data:`MATCH_TOLERANCE_S`; errors: of the pairs within :data:`TIMING_TOLERANCE_S`
+    (:func:`host.studies.compare.match_events`).
+
+    >>> s = score_events(np.array([1.0, 2.0, 3.0]), np.array([1.02, 2.1, 3.0, 9.0]))
+    >>> (s.n_reference, s.n_detected, s.n_matched, round(s.f1, 3), round(s.median_abs_error_s, 3))
+    (3, 3, 2, 0.667, 0.02)
+    """
+    ref = np.sort(np.asarray(reference_s, np.float64))
+    det = np.sort(np.asarray(detected_s, np.float64))
+    if ref.size == 0:
+        return EventScore(0, 0, 0)
+    det = det[(det >= ref[0] - margin_s) & (det <= ref[-1] + margin_s)]
+    it, _ = match_events(ref, det, MATCH_TOLERANCE_S)
+    iw, jw = match_events(ref, det, TIMING_TOLERANCE_S)
+    return EventScore(int(ref.size), int(det.size), int(it.size), det[jw] - ref[iw])
+
+
+@dataclass(frozen=True)
+class LosoChoice:
+    """The outcome of :func:`choose_loso`.
+
+    Attributes
+    ----------
+    chosen
+        Per held-out subject, the index of the candidate chosen on the other subjects.
+    training_f1
+        Per held-out subject, the criterion's F1 of the chosen candidate on the other subjects.
+    """
+
+    chosen: dict[int, int]
+    training_f1: dict[int, float]
+
+
+def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]]) -> LosoChoice:
+    """For each subject, the candidate that maximises :data:`CRITERION` on the other subjects' trials.
+
+    ``scores[subject][trial][candidate]``: the heel-strike :class:`EventScore` of every trial of every
+    subject for every candidate (same candidate order everywhere).
+
+    >>> good, bad = EventScore(10, 10, 9, np.zeros(9)), EventScore(10, 10, 5, np.zeros(5))
+    >>> choose_loso({1: [[good, bad]], 2: [[bad, good]], 3: [[bad, good]]}).chosen
+    {1: 1, 2: 0, 3: 0}
+    """
+    subjects = list(scores)
+    n_cand = len(next(iter(next(iter(scores.values())))))
+    chosen, f1s = {}, {}
+    for s in subjects:
+        best, key_best = 0, None
+        for c in range(n_cand):
+            pooled = EventScore.pooled([t[c] for o in subjects if o != s for t in scores[o]])
+            err = pooled.median_abs_error_s
+            key = (pooled.f1, -err if np.isfinite(err) else -np.inf)
+            if key_best is None or key > key_best:
+                best, key_best = c, key
+        chosen[s], f1s[s] = best, float(key_best[0]) if key_best is not None else float("nan")
+    return LosoChoice(chosen, f1s)

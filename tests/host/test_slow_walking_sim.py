@@ -1,0 +1,76 @@
+"""Slow, short-stepped walking (step <= 0.35 m, cadence <= 90 /min): steps counted and M3 per bout.
+
+We have no real recording of such walking: the walkers are simulated (``firmware_sim.world``), logged as the
+device would (10 bits, 50 Hz, nominal +-2 g) and run through both chains (the offline chain and the on-line
+algorithm in fixed point). The truth is the simulator's heel strikes and step lengths. Targets (issue 12):
+step count within 10 %, M3's per-bout mean step length within 1 +- 0.15 of the true mean.
+
+Measured (NOT met, strict xfail): the foot-flat prominence of 0.5 m/s^2 misses 16-31 % of such steps (seed-3 walkers) in
+both chains: the 3 Hz first harmonic of a 0.30-0.35 m step rises only 0.3-0.5 m/s^2 above its troughs.
+A prominence of 0.3 m/s^2 (chosen on other simulated walkers, seed 3) counts them within 1.6-3.4 % and gives
+M3 1.13-1.15, but on the IPOL trials it adds steps (on-line fixed median signed error +1, one trial +7):
+a fixed threshold cannot serve both; the rule must scale with the walk (not done yet).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from firmware_sim.algorithms.online import OnlineStepAlgorithm
+from firmware_sim.algorithms.steps import StepTable
+from firmware_sim.world.subject import Subject
+from firmware_sim.world.walk_plan import WalkPlan
+from firmware_sim.world.walking import Walking
+from host.gait.pipeline import StepPipeline
+from protocol.steps import StepConfig
+
+pytestmark = pytest.mark.slow
+
+#: 20 m out and back twice, standing between (two bouts of ~20 m each way).
+PLAN = WalkPlan(corridor_length_m=20.0, speeds=("preferred", "preferred"), rest_s=8.0, rest_postures=("standing",),
+                initial_stand_s=6.0, final_stand_s=3.0, lap_marks_m=(0.0, 40.0))
+#: (height m, speed m/s, step m, seed): cadences 70-90 /min.
+WALKERS = ((1.60, 0.42, 0.30, 11), (1.75, 0.50, 0.34, 12), (1.85, 0.45, 0.35, 13))
+
+
+def _walk(height_m: float, speed_m_s: float, step_m: float, seed: int):
+    subject = Subject.from_height(height_m, preferred_speed_m_s=speed_m_s,
+                                  walk_ratio_m_spm=step_m * step_m / (60.0 * speed_m_s), slow_speed_factor=0.9)
+    motion = Walking(subject=subject, walk_plan=PLAN, seed=seed).render(500.0)
+    codes = np.clip(np.floor(512.0 + motion.acc_g[::10] * 256.0), 0, 1023).astype(np.int64)
+    return subject, motion.truth["steps"], codes
+
+
+@pytest.mark.xfail(strict=True, reason="issue 12: 16-31 % of slow short steps missed (module notes)")
+@pytest.mark.parametrize("walker", WALKERS, ids=[f"{w[2]:.2f}m-{w[1]:.2f}m_s" for w in WALKERS])
+@pytest.mark.parametrize("chain", ["offline", "online-fixed"])
+def test_slow_short_steps_are_counted_and_measured(walker: tuple, chain: str) -> None:
+    subject, truth, codes = _walk(*walker)
+    true_hs = np.unique(np.round(np.concatenate([truth["heel_strike_s"], truth["next_heel_strike_s"]]), 4))
+    cadence = 60.0 / np.median(np.diff(truth["heel_strike_s"]))
+    assert np.median(truth["length_m"]) <= 0.36 and cadence <= 90.0, (np.median(truth["length_m"]), cadence)
+    if chain == "offline":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            table = StepPipeline(leg_length_m=subject.leg_length_m, foot_length_m=subject.foot_length_m).run(
+                (codes + 0.5 - 512.0) / 256.0, sampling_rate_hz=50.0).steps_
+    else:
+        cfg = StepConfig(step_format=1, leg_length_m=subject.leg_length_m, foot_length_m=subject.foot_length_m)
+        table = StepTable.from_online(OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg).run(codes))
+    count_error = (table.n_steps - true_hs.size) / true_hs.size
+    assert abs(count_error) <= 0.10, (table.n_steps, true_hs.size)
+    # M3 per bout: mean of the measured steps against the true mean step of that excursion
+    t_ff = table.time_s(table.foot_flat)
+    ratios = []
+    for k in np.unique(truth["excursion"]):
+        on = truth["excursion"] == k
+        lo, hi = truth["heel_strike_s"][on].min(), truth["next_heel_strike_s"][on].max()
+        m3 = table.length_m["M3"][(t_ff >= lo) & (t_ff <= hi + 0.5)]
+        ratios.append(np.nanmean(m3) / np.mean(truth["length_m"][on]))
+    assert abs(np.median(ratios) - 1.0) <= 0.15, ratios
+    counts = table.event_counts()
+    assert counts["heel_strike_found"] >= 0.95 * counts["steps"], counts
+    assert counts["m3_filled"] <= 0.10 * counts["windows"], counts

@@ -1,0 +1,105 @@
+"""The corruption campaign of ``benchmarks/bench_corruption.py``, small (seeds fixed), and the cases of issue 13.
+
+Truth is the device's memory the files were built from: a sample marked valid must equal it.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from host.files.decode import decode_bytes
+from protocol.header import DeviceHeader
+from protocol.image import build_image, image_version_for
+from protocol.packing import pack_words
+from protocol.raw_dump import raw_dump_bytes
+
+_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_corruption.py"
+_spec = importlib.util.spec_from_file_location("bench_corruption", _PATH)
+bench = importlib.util.module_from_spec(_spec)
+sys.modules.setdefault("bench_corruption", bench)
+_spec.loader.exec_module(bench)
+
+
+@pytest.mark.parametrize("kind", ["image", "capture", "raw"])
+def test_small_campaign_has_no_wrong_sample_and_no_crash(kind: str) -> None:
+    totals = bench.campaign(150, seed=13, kinds=(kind,))[kind]
+    assert totals.files == 150
+    assert totals.wrong == 0, totals.wrong_examples
+    assert totals.crashes == 0, totals.crash_examples
+    if kind == "image":
+        assert totals.excess == 0  # one damaged region loses only the blocks it touches
+
+
+def test_old_images_are_never_wrong_in_the_campaign() -> None:
+    totals = bench.campaign(100, seed=7, kinds=("image-v1",))["image-v1"]
+    assert totals.wrong == 0 and totals.crashes == 0
+
+
+def _memory(cap: int, seed: int = 1) -> bytes:
+    rng = np.random.default_rng(seed)
+    return pack_words(rng.integers(0, 1024, (cap, 3)), np.zeros(cap, int)).astype("<u4").tobytes()
+
+
+def _score(data: bytes, memory: bytes) -> tuple[int, int]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rec = decode_bytes(data)
+    got = pack_words(rec.codes, rec.flags).astype("<u4")
+    truth = np.frombuffer(memory, "<u4")
+    return int(rec.valid.sum()), int((rec.valid & (got != truth)).sum())
+
+
+@pytest.mark.parametrize("version", ["old", 3])
+def test_block_size_64_with_4_table_bytes_lost_or_gained_is_never_wrong(version) -> None:
+    cap = 8300
+    memory = _memory(cap)
+    h = DeviceHeader(capacity_samples=cap, samples_written=cap, write_index=0)
+    img = build_image(h, memory, block_size=64, image_version=image_version_for(h) if version == "old" else 3)
+    for damaged in (img[:100] + img[104:], img[:100] + bytes(4) + img[100:]):
+        valid, wrong = _score(damaged, memory)
+        assert wrong == 0
+        assert valid == (cap if version == 3 else valid)  # version 3: the preamble's copy, nothing lost
+
+
+@pytest.mark.parametrize(("version", "inserted"), [(1, 64), (1, 65), (3, 64), (3, 65), (3, 5000)])
+def test_inserted_bytes_lose_only_the_block_they_hit(version: int, inserted: int) -> None:
+    cap = 65536
+    memory = _memory(cap, 2)
+    h = DeviceHeader(capacity_samples=cap, samples_written=cap, write_index=0)
+    img = build_image(h, memory, image_version=version)
+    mem0, frame = (16 + 5 * 256 + 4 + 256, 1024) if version == 1 else (276, 1040)
+    at = mem0 + 10 * frame + 500
+    valid, wrong = _score(img[:at] + bytes(inserted) + img[at:], memory)
+    assert wrong == 0 and cap - valid == 256  # block 10 only (was 62,976 lost for 65 bytes)
+
+
+def test_raw_dump_bit_flip_and_dropped_byte_are_detected() -> None:
+    cap = 4096
+    memory = _memory(cap, 3)
+    h = DeviceHeader(capacity_samples=cap, samples_written=cap, write_index=0)
+    raw = bytearray(raw_dump_bytes(h.to_bytes(), memory))
+    assert _score(bytes(raw), memory) == (cap, 0)
+    raw[256 + 4 * 1000] ^= 0x04
+    valid, wrong = _score(bytes(raw), memory)
+    assert wrong == 0 and valid == cap - 64  # the 256-byte chunk holding sample 1000
+    dropped = bytes(raw[: 256 + 4 * 2000]) + bytes(raw[256 + 4 * 2000 + 1:])
+    valid, wrong = _score(dropped, memory)
+    assert wrong == 0 and valid == cap - 128
+
+
+def test_raw_dump_without_trailer_is_reported_unverified() -> None:
+    cap = 512
+    memory = _memory(cap, 4)
+    h = DeviceHeader(capacity_samples=cap, samples_written=cap, write_index=0)
+    body = h.to_bytes() + memory
+    legacy = body + b"\x1a" * (-len(body) % 1024)
+    with pytest.warns(UserWarning, match="UNVERIFIED"):
+        rec = decode_bytes(legacy)
+    assert rec.valid.all() and any("verified: NO" in n for n in rec.notes)
+    assert any("verified: NO" in n for n in rec.metadata()["notes"])
