@@ -193,6 +193,13 @@ def logging_cycles(config: LoggerConfig | None = None) -> dict[str, tuple[float,
         "page write": ((PAGE_BYTES + 3) * I2C_BYTE_CYCLES / samples_per_page,
                        f"one 128-byte page + control and address every {samples_per_page:g} samples, busy-waiting "
                        "I2C (computed)"),
+        "page commit": ((6 * 8 + 2 * 24 + 40 + 150) / samples_per_page,
+                        "estimate: after each page write, read the 6 bytes of its journal entry (8 each), write the "
+                        "changed ones (24 each: EEADR, EEDATA, the 55/AA sequence; measured 2.0 a page on a walk with "
+                        "the step algorithm on, the low bytes of commit and steps, 1 with it off), 40 of bookkeeping, "
+                        "and the entry's index (commit - 1) mod 15 from the page count by 16 shift-and-subtract steps "
+                        "(~150: no RAM byte kept for it); the ~4 ms byte writes run in the background "
+                        "(PROTOCOL.md 2.4)"),
         "interrupt entry and exit": (20.0, "estimate: context save and restore"),
     }
 
@@ -205,7 +212,7 @@ def logging_cycles_per_sample(config: LoggerConfig | None = None) -> float:
     """Cycles the logging interrupt takes per sample (:func:`logging_cycles`).
 
     >>> round(logging_cycles_per_sample())
-    1324
+    1333
     """
     return float(sum(c for c, _ in logging_cycles(config).values()))
 
@@ -215,7 +222,7 @@ def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     """Cycles per sample period left to the on-line step algorithm: the period minus the logging interrupt.
 
     >>> round(algorithm_cycles_per_sample(50.0))
-    90836
+    90827
     """
     if config is None:
         config = LoggerConfig("alvarez", float(sampling_rate_hz), 3, fosc_hz=float(fosc_hz))
