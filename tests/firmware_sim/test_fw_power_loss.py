@@ -1,6 +1,6 @@
 """Power loss during logging (PROTOCOL.md 2.4): the page-commit journal, the emulator's cut model, recovery at
 power-up and by the decoder, and a campaign of random cuts in both memory modes (the full 1,000-cut campaign
-is ``scripts/power_cut_campaign.py``)."""
+is ``benchmarks/power_cut_campaign.py``)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _campaign():
-    spec = importlib.util.spec_from_file_location("power_cut_campaign", ROOT / "scripts" / "power_cut_campaign.py")
+    spec = importlib.util.spec_from_file_location("power_cut_campaign", ROOT / "benchmarks" / "power_cut_campaign.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclass needs its module registered
     spec.loader.exec_module(module)

@@ -18,7 +18,7 @@ Checked for every trial, against the model's truth (which samples were taken, wh
 - every stored sample that is not valid is one of the torn slots of the page in flight (at most 32), reported
   with that reason.
 
-Run ``python scripts/power_cut_campaign.py`` (1,000 cuts, both modes; 32 s on an idle machine);
+Run ``python benchmarks/power_cut_campaign.py`` (1,000 cuts, both modes; 32 s on an idle machine);
 ``tests/firmware_sim/test_fw_power_loss.py`` runs a smaller campaign.
 """
 
