@@ -45,7 +45,8 @@ of the centre of mass's / sensor's height between foot-flat and the next foot-fl
 heel strike). ``laps``: ``excursion``, ``speed_label``, ``distance_m`` (corridor distance from the
 excursion's start line), ``cumulative_distance_m``, ``time_s``, ``path_m``. ``excursions``: per excursion
 ``speed_label``, ``speed_m_s``, ``t_start_s``, ``t_stop_s``, ``corridor_distance_m``, ``path_length_m``,
-``initiation_travel_m`` (set-off to first heel strike), ``termination_travel_m`` (last contact to stop).
+``initiation_travel_m`` (set-off to first heel strike), ``termination_travel_m`` (last contact to stop),
+``turn_start_s`` / ``turn_end_s`` (the centre of mass enters / leaves the curved part of the path).
 ``rests``: ``t_start_s``, ``t_stop_s``, ``posture``. ``subject`` (parameters), ``device_axes``,
 ``mounting_matrix`` (device-from-nominal), ``total_distance_m``, ``total_path_m``. With
 ``include_trajectory=True`` also ``trajectory``: ``t_s``, ``sensor_position_m``, ``sensor_velocity_m_s``,
@@ -373,7 +374,8 @@ class Walking:
                                                  "time_s", "path_m")}
         excs: dict[str, list] = {k: [] for k in ("speed_label", "speed_m_s", "t_start_s", "t_stop_s",
                                                  "corridor_distance_m", "path_length_m", "n_steps",
-                                                 "initiation_travel_m", "termination_travel_m")}
+                                                 "initiation_travel_m", "termination_travel_m",
+                                                 "turn_start_s", "turn_end_s")}
         rests: dict[str, list] = {"t_start_s": [], "t_stop_s": [], "posture": []}
         n_grid = 128
         k_exc = 0
@@ -449,6 +451,8 @@ class Walking:
             excs["n_steps"].append(n)
             excs["initiation_travel_m"].append(float(s_hs[0]))
             excs["termination_travel_m"].append(float(plan.path.length_m - s_hs[-1]))
+            excs["turn_start_s"].append(_first_crossing(plan.s, plan.path.turn_start_m))
+            excs["turn_end_s"].append(_first_crossing(plan.s, plan.path.turn_end_m))
             k_exc += 1
         steps_out = {k: np.concatenate(v) for k, v in steps.items()}
         for key in ("speed_label", "side", "phase"):

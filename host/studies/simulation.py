@@ -6,6 +6,9 @@
 - :class:`AnalogWalk`: the same walk seen by the sensor on its fine analog grid, sampled at any rate into a
   :class:`host.studies.compare.SampledWalk` (the ADC/rate/arithmetic comparison of :mod:`host.studies.compare`
   and the sweep).
+- :func:`ipol_trial` / :func:`export_ipol`: the IPOL lower-back trial (stand, walk 10 m, U-turn, walk back,
+  stop) walked by simulated subjects and written in the IPOL layout (``gaitlog simulate --ipol-out``), so that
+  the walker can be measured with the same tools as the real recordings.
 
 The world model and the sensor (``scipy.signal``, ``scipy.interpolate``) are imported here, at module level,
 so that the studies on recordings (``gaitlog compare`` on a file) and the commands on files never load them.
@@ -23,18 +26,24 @@ import numpy as np
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.device import Logger
 from firmware_sim.sensor import SensorModel
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.poses import CalibrationPoses
-from firmware_sim.world.subject import random_subjects
+from firmware_sim.world.subject import Subject, random_subjects
+from firmware_sim.world.walk_plan import WalkPlan
 from firmware_sim.world.walking import Walking
 from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
 from host.files.decode import decode_bytes
+from host.files.ipol import write_trial
 from host.studies.compare import SampledWalk, WalkComparison, compare_walk
 from protocol.header import CalibrationSlot
 from protocol.image import build_image
 from protocol.packing import FLAG_MARK
 
-__all__ = ["AnalogWalk", "SimulatedRecording", "record_subject"]
+__all__ = ["AnalogWalk", "SimulatedRecording", "export_ipol", "ipol_trial", "ipol_walk_plan", "record_subject"]
+
+#: Rate of the IPOL lower-back files (Xsens MTw packets).
+IPOL_SAMPLING_RATE_HZ = 100.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,3 +226,74 @@ def _compared_subject(job: tuple) -> WalkComparison:
     wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
     wc.matches = {}
     return wc
+
+
+def ipol_walk_plan() -> WalkPlan:
+    """The IPOL lower-back trial as a :class:`WalkPlan`: quiet standing (2 s: the tools take gravity from the
+    first second), 10 m out, the U-turn, 10 m back, stop, stand 1.5 s; one excursion at the preferred speed.
+    Everything else (gait initiation, turn, termination) is the world's default."""
+    return WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=2.0, final_stand_s=1.5,
+                    lap_marks_m=(0.0, 20.0))
+
+
+def ipol_trial(subject: Subject, *, seed: int) -> tuple[np.ndarray, dict]:
+    """One simulated IPOL trial: ``(acc_m_s2, meta)`` for :func:`host.files.ipol.write_trial`.
+
+    ``acc_m_s2`` is the world's specific force at the sensor, in the device axes (x up, y left, z backward, as
+    the Xsens of the IPOL recordings; the subject's mounting tilt included), sampled at 100 Hz without noise.
+    The JSON fields come from the world's truth, rounded to the nearest packet:
+    ``Left/RightFootEvents`` one [toe-off, heel-strike] pair per swing (the trailing foot of each step; the
+    first swing starts one swing time before the first heel strike), ``TrialBoundaries`` = [first toe-off,
+    last heel strike] (as in the IPOL files), ``UTurnBoundaries`` = when the centre of mass enters and leaves
+    the curved part of its path, ``Height`` in cm; ``Simulated`` holds the seed and the subject's parameters.
+    """
+    motion = Walking(subject=subject, walk_plan=ipol_walk_plan(), seed=seed).render(IPOL_SAMPLING_RATE_HZ)
+    st, exc = motion.truth["steps"], motion.truth["excursions"]
+
+    def packet(t_s: np.ndarray | float) -> np.ndarray:
+        return np.rint(np.asarray(t_s, dtype=np.float64) * IPOL_SAMPLING_RATE_HZ).astype(np.int64)
+
+    other = {"L": "R", "R": "L"}
+    swing_feet = [other[s] for s in st["side"]]                     # the trailing foot swings in each step
+    swing_to, swing_hs = list(st["toe_off_s"]), list(st["next_heel_strike_s"])
+    first_swing_s = float(st["next_heel_strike_s"][0] - st["toe_off_s"][0])
+    swing_feet.insert(0, str(st["side"][0]))
+    swing_to.insert(0, max(float(exc["t_start_s"][0]), float(st["heel_strike_s"][0]) - first_swing_s))
+    swing_hs.insert(0, float(st["heel_strike_s"][0]))
+    to_p, hs_p = packet(swing_to), packet(swing_hs)
+    events = {foot: [[int(a), int(b)] for a, b, f in zip(to_p, hs_p, swing_feet) if f == foot] for foot in "LR"}
+    meta = {
+        "Height": round(100.0 * subject.height_m, 1),
+        "TrialBoundaries": [int(to_p.min()), int(hs_p.max())],
+        "UTurnBoundaries": [int(packet(exc["turn_start_s"][0])), int(packet(exc["turn_end_s"][0]))],
+        "LeftFootEvents": events["L"],
+        "RightFootEvents": events["R"],
+        "Simulated": {"seed": int(seed), "subject": _jsonable(subject.as_dict())},
+    }
+    return motion.acc_g * STANDARD_GRAVITY_M_S2, meta
+
+
+def _jsonable(d: dict) -> dict:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+
+
+def _ipol_job(job: tuple) -> tuple[int, int, np.ndarray, dict]:
+    number, trial, subject, seed = job
+    acc, meta = ipol_trial(subject, seed=seed)
+    return number, trial, acc, meta
+
+
+def export_ipol(folder: Any, n_subjects: int, *, seed: int = 0, trials: int = 1, workers: int = 1,
+                progress: Callable[[], object] | None = None) -> list[str]:
+    """Write ``n_subjects`` simulated subjects x ``trials`` IPOL trials into ``folder`` (``<i>-<t>_lb.txt`` and
+    ``<i>-<t>.json``, subject ``i`` = 1-based index into ``random_subjects(n_subjects, seed=seed)``); returns the
+    trial names. Each trial of a subject is a different walk (its own seed)."""
+    if n_subjects < 1 or trials < 1:
+        raise HostError(f"need at least one subject and one trial, got {n_subjects} x {trials}")
+    jobs = [(i + 1, t + 1, sub, int(np.random.SeedSequence([seed, i, t]).generate_state(1)[0] % 2**31))
+            for i, sub in enumerate(random_subjects(n_subjects, seed=seed)) for t in range(trials)]
+    names = []
+    for number, trial, acc, meta in map_subjects(_ipol_job, jobs, workers=workers, progress=progress):
+        write_trial(folder, number, trial, acc, meta, sampling_rate_hz=IPOL_SAMPLING_RATE_HZ)
+        names.append(f"{number}-{trial}")
+    return names
