@@ -1,6 +1,7 @@
 """``gaitlog simulate``: simulated walkers written as recordings that other tools read.
 
-``gaitlog simulate --ipol-out DIR --subjects N``: N simulated subjects (``random_subjects(N, seed)``) each walk the
+``gaitlog simulate --ipol-out DIR --subjects N``: N simulated subjects (``random_subjects(N, seed, population)``;
+``--population people`` by default, the walker tuned to real lower-back walking) each walk the
 IPOL lower-back trial (stand, 10 m, U-turn, 10 m back, stop) ``--trials`` times; every walk is written to
 ``DIR/<subject>-<trial>_lb.txt`` (100 Hz, ``PacketCounter`` and ``Acc_X..Z`` in m/s^2, x up, y left, z
 backward) and ``DIR/<subject>-<trial>.json`` (trial and U-turn boundaries, foot events from the world's truth,
@@ -23,6 +24,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--subjects", type=int, default=20, help="simulated subjects (default 20)")
     parser.add_argument("--trials", type=int, default=1, help="trials (separate walks) per subject (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated subjects (default 0)")
+    parser.add_argument("--population", choices=("people", "v1"), default="people",
+                        help="people: trunk motion and gait timing tuned to real lower-back walking (default); "
+                             "v1: the population the other simulated studies use")
     parser.add_argument("--workers", type=int, default=1, help="processes to use (default 1)")
     parser.add_argument("--force", action="store_true", help="write into a folder that already holds trials")
     add_verbosity_options(parser)
@@ -48,8 +52,9 @@ def run(args: argparse.Namespace) -> int:
     if out.is_dir() and not args.force and any(out.glob("*_lb.txt")):
         raise HostError(f"--ipol-out {out}: already holds trials (give --force to overwrite them)")
     with progress_bar(args, args.subjects * args.trials, "trial") as tick:
-        names = export_ipol(out, args.subjects, seed=args.seed, trials=args.trials, workers=args.workers,
-                            progress=tick)
-    printer(args)(f"{len(names)} simulated trial(s) of {args.subjects} subject(s) (seed {args.seed}) written to "
-                  f"{out} in the IPOL layout (100 Hz, m/s^2; foot events and boundaries from the world's truth)")
+        names = export_ipol(out, args.subjects, seed=args.seed, trials=args.trials, population=args.population,
+                            workers=args.workers, progress=tick)
+    printer(args)(f"{len(names)} simulated trial(s) of {args.subjects} subject(s) ('{args.population}' population, "
+                  f"seed {args.seed}) written to {out} in the IPOL layout (100 Hz, m/s^2; foot events and "
+                  "boundaries from the world's truth)")
     return 0

@@ -29,7 +29,7 @@ from firmware_sim.sensor import SensorModel
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.poses import CalibrationPoses
 from firmware_sim.world.subject import Subject, random_subjects
-from firmware_sim.world.walk_plan import WalkPlan
+from firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from firmware_sim.world.walking import Walking
 from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
@@ -228,15 +228,16 @@ def _compared_subject(job: tuple) -> WalkComparison:
     return wc
 
 
-def ipol_walk_plan() -> WalkPlan:
+def ipol_walk_plan(population: str = "people") -> WalkPlan:
     """The IPOL lower-back trial as a :class:`WalkPlan`: quiet standing (2 s: the tools take gravity from the
     first second), 10 m out, the U-turn, 10 m back, stop, stand 1.5 s; one excursion at the preferred speed.
-    Everything else (gait initiation, turn, termination) is the world's default."""
+    Gait initiation, turn and termination: the population's (:data:`firmware_sim.world.walk_plan.POPULATION_PLANS`)."""
+    extra = POPULATION_PLANS[population]
     return WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=2.0, final_stand_s=1.5,
-                    lap_marks_m=(0.0, 20.0))
+                    lap_marks_m=(0.0, 20.0), **extra)
 
 
-def ipol_trial(subject: Subject, *, seed: int) -> tuple[np.ndarray, dict]:
+def ipol_trial(subject: Subject, *, seed: int, population: str = "people") -> tuple[np.ndarray, dict]:
     """One simulated IPOL trial: ``(acc_m_s2, meta)`` for :func:`host.files.ipol.write_trial`.
 
     ``acc_m_s2`` is the world's specific force at the sensor, in the device axes (x up, y left, z backward, as
@@ -247,7 +248,7 @@ def ipol_trial(subject: Subject, *, seed: int) -> tuple[np.ndarray, dict]:
     last heel strike] (as in the IPOL files), ``UTurnBoundaries`` = when the centre of mass enters and leaves
     the curved part of its path, ``Height`` in cm; ``Simulated`` holds the seed and the subject's parameters.
     """
-    motion = Walking(subject=subject, walk_plan=ipol_walk_plan(), seed=seed).render(IPOL_SAMPLING_RATE_HZ)
+    motion = Walking(subject=subject, walk_plan=ipol_walk_plan(population), seed=seed).render(IPOL_SAMPLING_RATE_HZ)
     st, exc = motion.truth["steps"], motion.truth["excursions"]
 
     def packet(t_s: np.ndarray | float) -> np.ndarray:
@@ -268,7 +269,7 @@ def ipol_trial(subject: Subject, *, seed: int) -> tuple[np.ndarray, dict]:
         "UTurnBoundaries": [int(packet(exc["turn_start_s"][0])), int(packet(exc["turn_end_s"][0]))],
         "LeftFootEvents": events["L"],
         "RightFootEvents": events["R"],
-        "Simulated": {"seed": int(seed), "subject": _jsonable(subject.as_dict())},
+        "Simulated": {"seed": int(seed), "population": population, "subject": _jsonable(subject.as_dict())},
     }
     return motion.acc_g * STANDARD_GRAVITY_M_S2, meta
 
@@ -278,20 +279,21 @@ def _jsonable(d: dict) -> dict:
 
 
 def _ipol_job(job: tuple) -> tuple[int, int, np.ndarray, dict]:
-    number, trial, subject, seed = job
-    acc, meta = ipol_trial(subject, seed=seed)
+    number, trial, subject, seed, population = job
+    acc, meta = ipol_trial(subject, seed=seed, population=population)
     return number, trial, acc, meta
 
 
-def export_ipol(folder: Any, n_subjects: int, *, seed: int = 0, trials: int = 1, workers: int = 1,
-                progress: Callable[[], object] | None = None) -> list[str]:
+def export_ipol(folder: Any, n_subjects: int, *, seed: int = 0, trials: int = 1, population: str = "people",
+                workers: int = 1, progress: Callable[[], object] | None = None) -> list[str]:
     """Write ``n_subjects`` simulated subjects x ``trials`` IPOL trials into ``folder`` (``<i>-<t>_lb.txt`` and
-    ``<i>-<t>.json``, subject ``i`` = 1-based index into ``random_subjects(n_subjects, seed=seed)``); returns the
-    trial names. Each trial of a subject is a different walk (its own seed)."""
+    ``<i>-<t>.json``, subject ``i`` = 1-based index into ``random_subjects(n_subjects, seed=seed,
+    population=population)``); returns the trial names. Each trial of a subject is a different walk (its own seed)."""
     if n_subjects < 1 or trials < 1:
         raise HostError(f"need at least one subject and one trial, got {n_subjects} x {trials}")
-    jobs = [(i + 1, t + 1, sub, int(np.random.SeedSequence([seed, i, t]).generate_state(1)[0] % 2**31))
-            for i, sub in enumerate(random_subjects(n_subjects, seed=seed)) for t in range(trials)]
+    subjects = random_subjects(n_subjects, seed=seed, population=population)
+    jobs = [(i + 1, t + 1, sub, int(np.random.SeedSequence([seed, i, t]).generate_state(1)[0] % 2**31), population)
+            for i, sub in enumerate(subjects) for t in range(trials)]
     names = []
     for number, trial, acc, meta in map_subjects(_ipol_job, jobs, workers=workers, progress=progress):
         write_trial(folder, number, trial, acc, meta, sampling_rate_hz=IPOL_SAMPLING_RATE_HZ)
