@@ -52,8 +52,6 @@ import numpy as np
 
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from firmware_sim.algorithms.steps import ESTIMATORS
-from firmware_sim.world.subject import random_subjects
-from firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from host.errors import HostError
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.pipeline import StepPipeline, apply_calibration
@@ -65,7 +63,7 @@ from host.gait.sections import (
 )
 from host.studies.compare import match_events
 from host.studies.plots import plot_boxplots
-from host.studies.simulation import SimulatedRecording, map_subjects, record_subject
+from host.studies.simulation import SimulatedRecording, map_subjects, record_subject, simulated_population
 from protocol.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
@@ -363,11 +361,10 @@ class SimulatedEvaluation:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
                        calibration_sections=self.calibration_sections, detector=self.detector)
-        walk_plan = self.walk_plan
-        if walk_plan is None and POPULATION_PLANS[self.population]:
-            walk_plan = WalkPlan(**POPULATION_PLANS[self.population])
+        subjects, walk_plan = simulated_population(self.n_subjects, seed=self.seed, population=self.population,
+                                                   walk_plan=self.walk_plan)
         jobs = [(s, self.seed * 1000 + i, walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
-                for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed, population=self.population))]
+                for i, s in enumerate(subjects)]
         self.results_ = map_subjects(_subject_job, jobs, workers=self.workers, progress=progress)
         self.rows_ = [r for res in self.results_ for r in res.rows]
         self.summary_ = summarise(self.rows_)

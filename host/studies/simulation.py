@@ -193,13 +193,24 @@ class AnalogWalk:
 _T = TypeVar("_T")
 
 
+def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "v1",
+                         walk_plan: WalkPlan | None = None) -> tuple[list[Subject], WalkPlan | None]:
+    """The subjects of a simulated study and the protocol they walk: ``random_subjects(n_subjects, seed,
+    population)`` and ``walk_plan``, else the paper's protocol with the population's walk habits
+    (:data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`; None for ``"v1"``: the default plan)."""
+    if walk_plan is None and POPULATION_PLANS[population]:
+        walk_plan = WalkPlan(**POPULATION_PLANS[population])
+    return random_subjects(n_subjects, seed=seed, population=population), walk_plan
+
+
 def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
                          sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, workers: int = 1,
-                         progress: Callable[[], object] | None = None) -> list[WalkComparison]:
+                         progress: Callable[[], object] | None = None,
+                         population: str = "v1") -> list[WalkComparison]:
     """One :class:`host.studies.compare.WalkComparison` per simulated subject (``gaitlog compare --simulate``),
     in parallel over subjects; ``progress()`` is called after each subject."""
-    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz)
-            for i, s in enumerate(random_subjects(n_subjects, seed=seed))]
+    subjects, plan = simulated_population(n_subjects, seed=seed, population=population)
+    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz, plan) for i, s in enumerate(subjects)]
     return map_subjects(_compared_subject, jobs, workers=workers, progress=progress)
 
 
@@ -220,8 +231,8 @@ def _ticked(result: _T, progress: Callable[[], object] | None) -> _T:
 
 
 def _compared_subject(job: tuple) -> WalkComparison:
-    subject, seed, adc_bits, sampling_rate_hz = job
-    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(sampling_rate_hz), subject,
+    subject, seed, adc_bits, sampling_rate_hz, walk_plan = job
+    wc = compare_walk(AnalogWalk(subject=subject, seed=seed, walk_plan=walk_plan).run().sample(sampling_rate_hz), subject,
                       adc_bits=adc_bits)
     wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
     wc.matches = {}
