@@ -50,3 +50,8 @@ def test_readme_figures_of_the_people_population() -> None:
     assert s[("single-speed", "M3")]["iqr"] == pytest.approx(0.110, abs=0.005)
     assert s[("single-speed", "M1")]["median"] == pytest.approx(0.972, abs=0.003)
     assert ev.events_["heel_strike"].f1 == pytest.approx(0.963, abs=0.005)
+
+
+def test_compare_refuses_a_population_for_a_recording(tmp_path, capsys) -> None:
+    assert main(["compare", str(tmp_path / "rec.npz"), "--population", "people"]) == 1
+    assert "--population: only with --simulate / --sweep" in capsys.readouterr().err
