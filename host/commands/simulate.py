@@ -35,14 +35,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from host.commands._options import printer
+    from host.commands._options import check_output_folder, printer
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.simulation import export_ipol
 
     out = Path(args.ipol_out)
-    if out.exists() and not out.is_dir():
-        raise HostError(f"--ipol-out {out}: exists and is not a folder")
+    check_output_folder("--ipol-out", out)
     if out.is_dir() and not args.force and any(out.glob("*_lb.txt")):
         raise HostError(f"--ipol-out {out}: already holds trials (give --force to overwrite them)")
     with progress_bar(args, args.subjects * args.trials, "trial") as tick:

@@ -366,6 +366,23 @@ def _cases() -> list[Case]:
     add("kinematics", "--out is a file", ["kinematics", "--out", "{walk.csv}"], "--out")
     add("kinematics", "--out under a file", ["kinematics", "--out", "{underfile/out}"], "--out")
 
+    # simulate
+    sim = ["simulate", "--subjects", "1", "--ipol-out", "{folder}/sim-out"]
+    options("simulate", sim, "--subjects", ("0", "-1", "10000000000", "abc", "1.5", "", "nan", "inf"))
+    options("simulate", sim, "--trials", ("0", "-1", "101", "abc", "1.5"))
+    options("simulate", sim, "--seed", ("-1", "abc", "", "nan"))
+    options("simulate", sim, "--workers", ("0", "-3", "abc"))
+    options("simulate", sim, "--population", ("martians", ""))
+    add("simulate", "--ipol-out is a file", ["simulate", "--subjects", "1", "--ipol-out", "{walk.csv}"], "--ipol-out")
+    add("simulate", "--ipol-out under a file", ["simulate", "--subjects", "1", "--ipol-out", "{underfile/out}"],
+        "--ipol-out")
+    add("simulate", "--ipol-out unwritable", ["simulate", "--subjects", "1", "--ipol-out", "/proc/gaitlog-sim"],
+        "--ipol-out")
+    add("simulate", "--ipol-out missing", ["simulate", "--subjects", "1"], "--ipol-out")
+    add("simulate", "unknown option", [*sim, "--fast"], "--fast")
+    add("simulate", "extra argument", [*sim, "now"], "now")
+    add("simulate", "-q and -v", [*sim, "-q", "-v"], "-v")
+
     # demo
     demo = ["demo", "--out", "{folder}/demo-out"]
     options("demo", demo, "--poses", ("0", "-1", "10000000000", "abc", "1.5", "", "1e3", "nan", "inf"))
