@@ -81,8 +81,9 @@ def test_cli_writes_the_folder_and_refuses_to_overwrite_it(tmp_path, capsys) -> 
     assert main(["simulate", "--ipol-out", str(out), "--subjects", "1", "--seed", "4"]) == 1
     assert "already holds trials" in capsys.readouterr().err
     assert (out / "1-1_lb.txt").read_bytes() == before
-    assert main(["simulate", "--ipol-out", str(out), "--subjects", "0"]) == 1
-    assert "--subjects must be in 1 .. 10000" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:
+        main(["simulate", "--ipol-out", str(out), "--subjects", "0"])
+    assert usage.value.code == 2 and "argument --subjects: must be a whole number 1..10000" in capsys.readouterr().err
     assert main(["simulate", "--ipol-out", str(out), "--subjects", "1", "--seed", "4", "--force", "-q"]) == 0
     assert capsys.readouterr().out == "" and (out / "1-1_lb.txt").read_bytes() != before
     assert json.loads((out / "1-1.json").read_text())["Simulated"]["seed"] >= 0
