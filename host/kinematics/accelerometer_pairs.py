@@ -68,6 +68,10 @@ class AngularVelocityFromAccelerometers:
     def _design(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         r = np.asarray(self.positions_m, dtype=np.float64)
         n = np.asarray(self.axes, dtype=np.float64)
+        key = (r.tobytes(), r.shape, n.tobytes(), n.shape, tuple(self.fixed_zero_axes))
+        cached = getattr(self, "_design_cache", None)
+        if cached is not None and cached[0] == key:  # the pseudo-inverse once per platform, not per call
+            return cached[1]
         if r.ndim != 2 or r.shape[1] != 3 or n.shape != r.shape:
             raise HostError(f"positions_m and axes must both have shape (m, 3), got {r.shape} and {n.shape}")
         n = n / np.linalg.norm(n, axis=1, keepdims=True)
@@ -82,7 +86,9 @@ class AngularVelocityFromAccelerometers:
         pinv = np.linalg.pinv(h)
         q = 0.5 * (n[:, :, None] * r[:, None, :] + r[:, :, None] * n[:, None, :])
         q -= np.einsum("ij,ij->i", n, r)[:, None, None] * np.eye(3)
-        return h, pinv, q, np.array(free, dtype=int)
+        design = (h, pinv, q, np.array(free, dtype=int))
+        self._design_cache = (key, design)
+        return design
 
     def estimate(self, readings_g: np.ndarray, *, sampling_rate_hz: float, omega0_rad_s: np.ndarray | None = None) -> Self:
         """Integrate the platform readings ``(n, m)`` (g) sampled at ``sampling_rate_hz`` from ``omega0_rad_s``."""

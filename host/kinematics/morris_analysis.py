@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from scipy.spatial.transform import Rotation
 
 from host.errors import HostError
 from host.kinematics.accelerometer_pairs import (
+    STANDARD_GRAVITY_M_S2,
     AngularVelocityFromAccelerometers,
     gravity_from_pivot,
 )
@@ -153,6 +153,27 @@ def cycles_from_foot_flat(intervals: list[tuple[int, int]], readings_g: np.ndarr
     return out
 
 
+def _final_rotvec(omega: np.ndarray, lengths: np.ndarray, dt: float) -> np.ndarray:
+    """Rotation vector of ``λ(T)`` from ``λ(0) = I`` for each trajectory ``(K, L, 3)`` of body rates, over its
+    first ``lengths[k]`` samples: the trapezoidal incremental rotations of :func:`integrate_dcm` chained as
+    unit quaternions, one numpy step per sample for the whole batch."""
+    phi = 0.5 * (omega[:, 1:] + omega[:, :-1]) * dt
+    phi[np.arange(phi.shape[1])[None, :] >= (lengths - 1)[:, None]] = 0.0  # past the cycle end: identity
+    theta = np.linalg.norm(phi, axis=2)
+    half = 0.5 * theta
+    scale = np.where(theta < 1e-8, 0.5, np.sin(half) / np.where(theta < 1e-8, 1.0, theta))
+    qw, qv = np.cos(half), phi * scale[:, :, None]
+    w, v = np.ones(omega.shape[0]), np.zeros((omega.shape[0], 3))
+    for k in range(phi.shape[1]):  # q ← q ⊗ q_k (body-frame increments)
+        bw, bv = qw[:, k], qv[:, k]
+        w, v = (w * bw - np.einsum("ni,ni->n", v, bv),
+                w[:, None] * bv + bw[:, None] * v + np.cross(v, bv))
+    nv = np.linalg.norm(v, axis=1)
+    ang = 2.0 * np.arctan2(nv, w)
+    ang = np.where(ang > np.pi, ang - 2 * np.pi, ang)
+    return v * np.where(nv > 1e-15, ang / np.where(nv > 1e-15, nv, 1.0), 2.0)[:, None]
+
+
 class MorrisAnalysis:
     """Morris' analysis of a platform of single-axis accelerometers, cycle by cycle (module notes).
 
@@ -192,35 +213,84 @@ class MorrisAnalysis:
     def _estimate(self, readings: np.ndarray, rate: float, omega0: np.ndarray) -> AngularVelocityFromAccelerometers:
         return self.solver.estimate(readings, sampling_rate_hz=rate, omega0_rad_s=omega0)
 
+    def closing_omega0(self, readings_g: np.ndarray, sampling_rate_hz: float, cycles: list[tuple[int, int]],
+                       *, iterations: int = 4) -> np.ndarray:
+        """The integration constant of eq (6) of each cycle: ``ω`` at its start such that the orientation
+        integrated over the cycle returns to its start (``(len(cycles), 3)``, rad/s, body axes).
+
+        Start: the mean rate over the cycle is zero (exact for planar motion); then Gauss-Newton on the
+        rotation vector of ``λ(0)ᵀλ(T)`` over the free rate components, its Jacobian by finite differences
+        once (chord method). All cycles and all perturbed trajectories are integrated together, one numpy
+        step per sample for the whole batch (the recursion is per sample, not per cycle).
+        """
+        _, pinv, q, free_arr = self.solver._design()
+        free = [int(k) for k in free_arr]
+        r = np.asarray(readings_g, dtype=np.float64) * STANDARD_GRAVITY_M_S2
+        p_alpha = pinv[3:]
+        g = np.zeros((3, 3, 3))
+        gj = np.einsum("ji,iab->jab", p_alpha, q)
+        g[free] = 0.5 * (gj + np.swapaxes(gj, 1, 2))
+        lengths = np.array([e - s + 1 for s, e in cycles])
+        n_max = int(lengths.max())
+        c = np.zeros((len(cycles), n_max, 3))
+        for b, (s, e) in enumerate(cycles):
+            c[b, : e - s + 1, free] = (r[s : e + 1] @ p_alpha.T).T
+            c[b, e - s + 1 :] = c[b, e - s]
+        dt = 1.0 / sampling_rate_hz
+        nb = len(cycles)
+
+        def rates(w0: np.ndarray, reps: int) -> np.ndarray:
+            cc = np.tile(c, (reps, 1, 1))
+            out = np.empty(cc.shape)
+            w = w0.copy()
+            a = cc[:, 0] - np.einsum("jab,na,nb->nj", g, w, w)
+            for k in range(n_max):
+                out[:, k] = w
+                if k + 1 == n_max:
+                    break
+                wp = w + dt * a
+                ap = cc[:, k + 1] - np.einsum("jab,na,nb->nj", g, wp, wp)
+                w = w + 0.5 * dt * (a + ap)
+                a = cc[:, k + 1] - np.einsum("jab,na,nb->nj", g, w, w)
+            return out
+
+        def closure(w0: np.ndarray, reps: int = 1) -> np.ndarray:
+            return _final_rotvec(rates(w0, reps), np.tile(lengths, reps), dt)
+
+        weights = (np.arange(n_max)[None, :] < lengths[:, None]).astype(float)
+        weights[:, 0] *= 0.5
+        weights[np.arange(nb), lengths - 1] *= 0.5
+        weights /= (lengths - 1)[:, None]
+        omega0 = np.zeros((nb, 3))
+        omega0 -= np.einsum("bk,bkj->bj", weights, rates(omega0, 1))
+        h = 1e-4
+        pert = np.concatenate([omega0] + [omega0 + h * np.eye(3)[j] for j in free])
+        f_all = closure(pert, 1 + len(free)).reshape(1 + len(free), nb, 3)
+        jac = np.stack([(f_all[1 + i] - f_all[0]) / h for i in range(len(free))], axis=2)  # (nb, 3, nfree)
+        jinv = np.linalg.pinv(jac)
+        f0 = f_all[0]
+        for _ in range(iterations):
+            step = np.einsum("bij,bj->bi", jinv, f0)
+            omega0[:, free] -= step
+            if np.abs(step).max() < 1e-10:
+                break
+            f0 = closure(omega0)
+        return omega0
+
     def analyse_cycle(self, readings_g: np.ndarray, sampling_rate_hz: float, start: int, stop: int,
-                      t_s: np.ndarray | None = None) -> MorrisCycle:
-        """Analyse samples ``start .. stop`` (inclusive), ``start`` in foot-flat (module notes, steps 1-4)."""
+                      t_s: np.ndarray | None = None, omega0_rad_s: np.ndarray | None = None) -> MorrisCycle:
+        """Analyse samples ``start .. stop`` (inclusive), ``start`` in foot-flat (module notes, steps 1-5);
+        ``omega0_rad_s`` from :meth:`closing_omega0` (computed here when not given)."""
         r_all = np.asarray(readings_g, dtype=np.float64)
         if not (0 <= start < stop < r_all.shape[0]) or stop - start < 10:
             raise HostError(f"cycle {start}..{stop} must lie inside the {r_all.shape[0]} samples and span at "
                             "least 10 samples")
         rate = sampling_rate_hz
         r = r_all[start : stop + 1]
-        n = r.shape[0]
         # 1. ω, the constant of eq (6) from the cycle closure
-        weights = np.full(n, 1.0 / (n - 1))
-        weights[[0, -1]] *= 0.5
-        omega0 = np.zeros(3)
-        for _ in range(2):  # start: mean rate zero over the cycle (exact for planar motion)
-            omega0 = omega0 - weights @ self._estimate(r, rate, omega0).omega_rad_s_
-        free = self.free
-
-        def closure(c: np.ndarray) -> np.ndarray:
-            lam = integrate_dcm(self._estimate(r, rate, c).omega_rad_s_, rate)
-            return Rotation.from_matrix(lam[-1]).as_rotvec()
-
-        for _ in range(3):
-            f0 = closure(omega0)
-            jac = np.stack([(closure(omega0 + 1e-4 * np.eye(3)[j]) - f0) / 1e-4 for j in free], axis=1)
-            step = np.linalg.lstsq(jac, f0, rcond=None)[0]
-            omega0[free] -= step
-            if np.abs(step).max() < 1e-9:
-                break
+        if omega0_rad_s is None:
+            omega0_rad_s = self.closing_omega0(r_all, rate, [(start, stop)])[0]
+        omega0 = np.asarray(omega0_rad_s, dtype=np.float64)
         est = self._estimate(r, rate, omega0)
         omega_raw = est.omega_rad_s_
         omega = remove_cycle_drift(omega_raw)
@@ -264,4 +334,5 @@ def analyse_morris_recording(recording: SensorRecording, platform: MorrisPlatfor
                             f"(the time span of {recording.source})")
         first = int(np.argmin(np.abs(t - a)))
         cycles = [(first, match_cycle_end(readings, first, int(np.argmin(np.abs(t - b)))))]
-    return [analysis.analyse_cycle(readings, rate, s, e, t) for s, e in cycles]
+    omega0 = analysis.closing_omega0(readings, rate, cycles)
+    return [analysis.analyse_cycle(readings, rate, s, e, t, w0) for (s, e), w0 in zip(cycles, omega0, strict=True)]
