@@ -103,11 +103,21 @@ def morris_outputs(cycles: list, recording: Any, platform: Any, azimuth: float, 
              **{f"velocity{k + 1}_m_s": v[:, k] for k in range(3)}, **{f"position{k + 1}_m": p[:, k] for k in range(3)}}
     c = cycles[0]
     r_o = platform.origin_from_pivot_m
+    # Fig 4a: the whole record integrated from its start with the cycle's mean-rate start (no filtering)
+    from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
+
+    readings = recording.columns(platform.sensors, "specific force")
+    solver = AngularVelocityFromAccelerometers(positions_m=platform.positions_m, axes=platform.axes,
+                                               fixed_zero_axes=platform.assume_zero_rate_axes)
+    whole = solver.estimate(readings, sampling_rate_hz=recording.sampling_rate_hz,
+                            omega0_rad_s=c.omega_raw_rad_s[0]).omega_rad_s_
+    whole = whole - whole[c.start] + c.omega_raw_rad_s[0]
     out: dict[str, Any] = {
         "morris_orientation.csv": columns_csv_text(orient),
         "morris_angular_velocity.csv": columns_csv_text(ang),
         "morris_translation.csv": columns_csv_text(trans),
-        "morris_angular_velocity.png": (plots.plot_angular_velocity, (c.t_s, c.omega_raw_rad_s, c.omega_rad_s), {}),
+        "morris_angular_velocity.png": (plots.plot_angular_velocity, (c.t_s, c.omega_raw_rad_s, c.omega_rad_s),
+                                        {"record": (recording.t_s, whole)}),
         "morris_dcm.png": (plots.plot_dcm, (c.t_s, c.dcm), {}),
         "morris_translation.png": (plots.plot_translation, (c.t_s, c.acceleration_m_s2, c.velocity_m_s, c.position_m),
                                    {}),
@@ -224,6 +234,10 @@ def _run_recording(args: argparse.Namespace) -> int:
             disp = c.position_m[-1] - c.position_m[0]
             say(f"  cycle {i + 1}: peak |ω| {float(abs(c.omega_rad_s).max()):.2f} rad/s, displacement "
                 f"{float(disp[0]):.3f} m forwards, {float(disp[1]):.3f} m sideways")
+            if abs(c.pivot_misfit_g) > 0.1:
+                say(f"  warning: cycle {i + 1} starts at {c.t_s[0]:.2f} s where the shank is not turning about a "
+                    f"fixed pivot (gravity from eq 11 is {1 + c.pivot_misfit_g:.2f} g, not 1 g): the initial direction "
+                    "cosines need a start in foot-flat")
         names = list(outputs)
     else:
         if args.cfc:

@@ -78,6 +78,8 @@ class MorrisCycle:
     velocity_m_s: np.ndarray
     position_m: np.ndarray
     omega0_rad_s: np.ndarray
+    #: ``‖gravity from the pivot constraint‖ − 1`` at the start, g: near 0 when the start is in foot-flat.
+    pivot_misfit_g: float = 0.0
 
 
 def gait_period_s(readings_g: np.ndarray, sampling_rate_hz: float, *, lo_s: float = 0.5, hi_s: float = 3.0) -> float:
@@ -312,7 +314,8 @@ class MorrisAnalysis:
             rz = np.array([[np.cos(h), np.sin(h), 0.0], [-np.sin(h), np.cos(h), 0.0], [0.0, 0.0, 1.0]])
             dcm, acc, vel, pos = rz @ dcm, acc @ rz.T, vel @ rz.T, pos @ rz.T
         t = (np.arange(start, stop + 1) / rate) if t_s is None else np.asarray(t_s)[start : stop + 1]
-        return MorrisCycle(start, stop, t, omega_raw, omega, est.alpha_rad_s2_, dcm, acc, vel, pos, omega0)
+        return MorrisCycle(start, stop, t, omega_raw, omega, est.alpha_rad_s2_, dcm, acc, vel, pos, omega0,
+                           float(np.linalg.norm(up0) - 1.0))
 
 
 def analyse_morris_recording(recording: SensorRecording, platform: MorrisPlatform, *,

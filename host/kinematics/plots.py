@@ -58,21 +58,32 @@ def plot_angular_velocity(
     path: str | os.PathLike[str],
     *,
     truth_rad_s: np.ndarray | None = None,
+    record: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
-    """Fig 4a/b: coronal (body axis 1) and sagittal (body axis 2) angular velocity, before/after filtering."""
+    """Fig 4a/b: coronal (body axis 1) and sagittal (body axis 2) angular velocity, before/after filtering.
+
+    With ``record = (t_s, ω)`` panel (a) shows the whole record (Morris: 2.56 s) as integrated before any
+    filtering, with cursors at the cycle's start and end; else the cycle before the drift filter.
+    """
     fig = Figure(figsize=(8, 5.5))
-    axes = fig.subplots(2, 1, sharex=True)
-    for ax, data, title in ((axes[0], omega_raw_rad_s, "(a) as integrated"), (axes[1], omega_filtered_rad_s, "(b) cycle drift removed")):
-        ax.plot(t_s, data[:, 0], label="coronal (about axis 1)")
-        ax.plot(t_s, data[:, 1], label="sagittal (about axis 2)")
-        if truth_rad_s is not None:
+    axes = fig.subplots(2, 1, sharex=record is None)
+    t_a, w_a = (t_s, omega_raw_rad_s) if record is None else record
+    title_a = "(a) as integrated" if record is None else "(a) the record as integrated, cursors at the cycle"
+    for ax, tt, data, title in ((axes[0], t_a, w_a, title_a), (axes[1], t_s, omega_filtered_rad_s,
+                                                               "(b) the cycle, drift removed")):
+        ax.plot(tt, data[:, 0], label="coronal (about axis 1)")
+        ax.plot(tt, data[:, 1], label="sagittal (about axis 2)")
+        if truth_rad_s is not None and tt is t_s:
             ax.plot(t_s, truth_rad_s[:, 0], "k:", lw=1, label="truth")
             ax.plot(t_s, truth_rad_s[:, 1], "k:", lw=1)
         ax.set_ylabel("rad/s")
         ax.set_title(f"Angular velocity {title}", fontsize=10)
         ax.grid(alpha=0.3)
+        ax.set_xlabel("time (s)")
+    if record is not None:
+        for x in (t_s[0], t_s[-1]):
+            axes[0].axvline(x, color="k", lw=0.8, ls="--")
     axes[0].legend(fontsize=8, loc="upper right")
-    axes[1].set_xlabel("time (s)")
     fig.tight_layout()
     _save(fig, path)
 

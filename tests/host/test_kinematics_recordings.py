@@ -248,3 +248,13 @@ def test_sensor_csv_round_trip_and_units(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.channels["a1"], 1.0)
     np.testing.assert_allclose(rec.channels["a2"], 0.5)
     assert rec.quantities == {"g1": "angular rate", "a1": "specific force", "a2": "specific force"}
+
+
+def test_a_cycle_not_starting_in_foot_flat_is_flagged(written: Path, tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["kinematics", "morris", str(written / "morris.csv"), "--platform", str(written / "morris_platform.json"),
+            "--no-animation"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert "warning" not in capsys.readouterr().out  # the cycle found starts in foot-flat
+    assert main([*args, "--out", str(tmp_path / "b"), "--cycle", "0.8", "1.9"]) == 0  # mid-swing
+    assert "not turning about a fixed pivot" in capsys.readouterr().out
