@@ -383,6 +383,12 @@ def _run_simulate(args: argparse.Namespace) -> int:
         f"{fmt3(np.degrees(true_angles[-1]))} deg")
     say(f"  literal sum of incremental Euler angles ends at {fmt3(np.degrees(literal.angles_rad_[-1]))} deg")
     say(f"  initial posture   {fmt3(np.degrees(joint_angles_yxz(result.joint_matrix_[0])[0]))} deg")
+    from firmware_sim.instrument_fit import InstrumentPlan, check_fit
+
+    for name, plan in (("Morris", InstrumentPlan(tuple(morris.platform.sensors), args.morris_rate)),
+                       ("Hall", InstrumentPlan((*hall.platform.link_a.rate_sensors, *hall.platform.link_b.rate_sensors),
+                                               args.hall_rate))):
+        say(f"on the PIC16F877 logger, {name}: {check_fit(plan).message(plan)}")
     say(f"figures and results written to {args.out}/: {' '.join(outputs)}")
     for name in outputs:
         detail(f"  {args.out / name}")
