@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import ast
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from firmware_sim.algorithms.parameters import (
@@ -512,3 +512,29 @@ def shortfalls(config: LoggerConfig, ram: RamBudget, cycles: CycleBudget, progra
                    f"{storage.capacity_bytes_per_s:,.0f} B/s "
                    f"({storage.write_bytes_per_s / storage.capacity_bytes_per_s:.1f}x)")
     return out
+
+
+def instrument_fit(config: LoggerConfig) -> tuple[list[str], float]:
+    """An instrument on the logger (its channels sampled and stored, no on-line estimator: Morris's platform,
+    Hall's rate sensors): what does not fit (:func:`shortfalls`, empty when it fits) and the fastest sampling
+    rate at which these channels fit, Hz (bisection on the same rules, to 0.1 Hz).
+
+    >>> instrument_fit(CONFIGURATIONS["morris-5"])[0]
+    []
+    >>> short, fastest = instrument_fit(CONFIGURATIONS["hall"])
+    >>> short[0][:40], round(fastest)
+    ('ADC: 6 channels take 233.5 us per sample', 2107)
+    """
+    def short(rate_hz: float) -> list[str]:
+        c = replace(config, sampling_rate_hz=rate_hz, online_estimator=False)
+        return shortfalls(c, ram_budget(rate_hz, online_estimator=False),
+                          cycle_budget(None, rate_hz, fosc_hz=c.fosc_hz, config=c), program_budget(False),
+                          storage_budget(c))
+
+    lo, hi = 1.0, float(config.sampling_rate_hz)
+    if not short(hi):
+        return [], hi
+    while hi - lo > 0.1:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if not short(mid) else (lo, mid)
+    return short(config.sampling_rate_hz), lo

@@ -90,3 +90,19 @@ def test_budget_bad_configuration(argv: list[str], message: str, capsys: pytest.
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_instruments_on_the_logger_morris_fits_hall_refused_with_the_closest_rate() -> None:
+    """The kinematics instruments checked by the budget's own rules (one home for the ADC, cycle and EEPROM
+    limits): Morris's platform fits at 100 Hz; Hall's six rate channels at 10 kHz do not, and the closest rate
+    is the largest at which every rule passes."""
+    from dataclasses import replace
+
+    from firmware_sim.budget import CONFIGURATIONS, instrument_fit
+
+    for name in ("morris-5", "morris-6"):
+        assert instrument_fit(CONFIGURATIONS[name]) == ([], 100.0)
+    short, fastest = instrument_fit(CONFIGURATIONS["hall"])
+    assert [s.split(":")[0] for s in short] == ["ADC", "cycles", "EEPROM"]
+    assert instrument_fit(replace(CONFIGURATIONS["hall"], sampling_rate_hz=fastest))[0] == []
+    assert instrument_fit(replace(CONFIGURATIONS["hall"], sampling_rate_hz=fastest + 1))[0] != []
