@@ -360,7 +360,14 @@ def _cases() -> list[Case]:
     kin = ["kinematics", "--out", "{folder}/kin"]
     options("kinematics", kin, "--morris-rate", BAD_POSITIVE)
     options("kinematics", kin, "--hall-rate", BAD_POSITIVE)
-    options("kinematics", kin, "--noise-mg", ("nan", "inf", "-5", "1e300", "abc"))
+    options("kinematics", kin, "--snr-db", ("nan", "-inf", "-5", "1e300", "abc"))
+    options("kinematics", kin, "--azimuth", ("nan", "400", "abc"))
+    options("kinematics", kin, "--elevation", ("nan", "91", "abc"))
+    add("kinematics", "morris without a recording", ["kinematics", "morris", "--out", "{folder}/kin"], "RECORDING")
+    add("kinematics", "morris recording missing", ["kinematics", "morris", "{missing.npz}", "--platform",
+                                                   "{walk.csv}", "--out", "{folder}/kin"], "missing.npz")
+    add("kinematics", "morris recording is not a sensor CSV", ["kinematics", "morris", "{walk.csv}", "--platform",
+                                                               "{cal.json}", "--out", "{folder}/kin"], "walk.csv")
     options("kinematics", kin, "--gyro-noise", ("nan", "inf", "-5", "1e300", "abc"))
     options("kinematics", kin, "--seed", ("-1", "abc"))
     add("kinematics", "--out is a file", ["kinematics", "--out", "{walk.csv}"], "--out")
