@@ -53,7 +53,7 @@ from protocol.errors import ProtocolError
 from protocol.frames import Frame, FrameParser
 from protocol.header import HEADER_SIZE, MAX_CAPACITY_SAMPLES, DeviceHeader
 from protocol.header import MAGIC as HEADER_MAGIC
-from protocol.raw_dump import find_trailer
+from protocol.raw_dump import SHIFT_SEARCH_BYTES, SHIFTS_NEAREST_FIRST, find_trailer
 from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, stored_step_records
 
 __all__ = [
@@ -96,8 +96,6 @@ BLOCK_SYNC = b"GLBK"
 PREAMBLE_BYTES = 16 + HEADER_SIZE + 4
 #: Version 3: sync (4) + block_index (4) + state (1) + reserved (3) before the data, block_crc32 (4) after.
 FRAME_OVERHEAD_BYTES = 16
-#: Dropped or inserted bytes are searched for within this many bytes of the running shift.
-SHIFT_SEARCH_BYTES = 64
 BLOCK_PRESENT = 0
 BLOCK_MISSING = 1
 #: Largest ``memory_bytes`` of each image version.
@@ -369,7 +367,7 @@ def _find_header(data: bytes, nominal: int, source: str | None) -> tuple[DeviceH
         return DeviceHeader.from_bytes(data[nominal : nominal + HEADER_SIZE], source=source), 0
     except ProtocolError as exc:
         first_error = exc.at(offset=nominal)
-    for d in sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x)):
+    for d in SHIFTS_NEAREST_FIRST:
         o = nominal + d
         if d == 0 or o < 0 or data[o : o + 4] != HEADER_MAGIC:
             continue
@@ -667,7 +665,7 @@ def _recover_blocks(data: bytes, mem0: int, bs: int, mem_bytes: int, crcs: np.nd
     total = len(data)
     shift = hshift
     length_shift = total - (mem0 + mem_bytes)
-    window = sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x))
+    window = SHIFTS_NEAREST_FIRST
     if states is None:
         window = []
     for i in range(n):

@@ -42,6 +42,7 @@ from protocol.xmodem import BLOCK_1K, PAD
 
 __all__ = [
     "CHUNK_BYTES",
+    "SHIFTS_NEAREST_FIRST",
     "SHIFT_SEARCH_BYTES",
     "TRAILER_GAP_BYTES",
     "TRAILER_MAGIC",
@@ -64,6 +65,8 @@ CHUNK_BYTES = 256
 TRAILER_GAP_BYTES = 64
 #: Dropped or inserted bytes are also searched for within this many bytes of the running shift.
 SHIFT_SEARCH_BYTES = 64
+#: The shifts tried, nearest first (the raw dump's chunks and the image's blocks of versions 1 and 2).
+SHIFTS_NEAREST_FIRST = tuple(sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x)))
 
 #: The fixed start of the trailer; the header copy, the chunk CRCs and ``trailer_crc32`` follow.
 TRAILER_PREFIX_STRUCT = cs.Struct(
@@ -226,7 +229,7 @@ def parse_raw_dump(data: bytes | bytearray | memoryview, source: str | None = No
     total = len(data)
     end_shift = trailer.offset - size
     shift = 0
-    window = sorted(range(-SHIFT_SEARCH_BYTES, SHIFT_SEARCH_BYTES + 1), key=lambda x: (abs(x), x))
+    window = SHIFTS_NEAREST_FIRST
     damaged, moved = [], []
     for j, want in enumerate(trailer.crcs.tolist()):
         start = j * CHUNK_BYTES
