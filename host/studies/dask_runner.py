@@ -1,0 +1,72 @@
+"""Run the tasks of a study on Dask (``dask.distributed``): a :class:`~distributed.LocalCluster` on this
+machine by default, or an existing cluster's scheduler (``tcp://HOST:PORT``).
+
+Only the command-line entry points that distribute work import this module (it imports Dask, which costs
+~0.5 s), so ``gaitlog --help`` and the other commands never load it.
+
+The client (this process) submits the tasks without a stored result, and writes each result into the
+:class:`~host.studies.task_store.TaskStore` as it arrives: the workers need no shared file system, and a run
+cut at any point keeps every finished task (the next run computes only the others). The workers must be
+able to import ``host`` (the same version): on a remote cluster, install gaitlog on every worker.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from distributed import Client, LocalCluster, as_completed
+
+from host.errors import HostError
+from host.studies.task_store import TaskStore
+
+__all__ = ["run_on_dask"]
+
+
+def run_on_dask(job: Callable[[Any], Any], tasks: Sequence[Any], store: TaskStore, *, scheduler: str | None = None,
+                workers: int = 2, processes: bool = True, progress: Callable[[], object] | None = None,
+                on_start: Callable[[str], object] | None = None) -> int:
+    """Run the pending ``tasks`` (``job(task)`` each) on Dask, storing each result as it arrives; returns how many
+    were computed.
+
+    Parameters
+    ----------
+    scheduler
+        Address of an existing scheduler (``tcp://HOST:PORT``); None starts a :class:`LocalCluster` of
+        ``workers`` single-threaded worker processes (threads with ``processes=False``) for this run.
+    progress
+        Called once per finished task.
+    on_start
+        Called with a description of where the tasks run (once connected).
+    """
+    todo = store.pending(tasks)
+    if not todo:
+        return 0
+    if scheduler is None:
+        if workers < 1:
+            raise HostError(f"--workers must be >= 1, got {workers}")
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        client = Client(cluster)
+    else:
+        cluster = None
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as err:
+            raise HostError(f"--scheduler {scheduler}: cannot connect: {err}") from None
+    try:
+        if on_start is not None:
+            n = len(client.scheduler_info().get("workers", {}))
+            on_start(f"{'LocalCluster' if cluster is not None else scheduler}, {n} worker(s)")
+        futures = {client.submit(job, task, key=f"task-{task.key}", pure=False): task for task in todo}
+        for future in as_completed(futures):
+            store.write(futures[future], future.result())
+            if progress is not None:
+                progress()
+            future.release()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return len(todo)
