@@ -6,7 +6,12 @@ Only the command-line entry points that distribute work import this module (it i
 
 The client (this process) submits the tasks without a stored result, and writes each result into the
 :class:`~host.studies.task_store.TaskStore` as it arrives: the workers need no shared file system, and a run
-cut at any point keeps every finished task (the next run computes only the others). The workers must be
+cut at any point keeps every finished task (the next run computes only the others).
+
+Tasks with a ``group`` attribute (e.g. :attr:`host.studies.sweep_grid.SweepTask.group`: the tasks of one simulated
+walk) share an expensive set-up that a worker keeps in memory; the groups are dealt round-robin to the workers
+as a preference (``allow_other_workers``: an idle worker still takes work), so each set-up is done about once
+instead of once per worker. Placement changes the time only, never a result. The workers must be
 able to import ``host`` (the same version): on a remote cluster, install gaitlog on every worker.
 """
 
@@ -59,7 +64,10 @@ def run_on_dask(job: Callable[[Any], Any], tasks: Sequence[Any], store: TaskStor
         if on_start is not None:
             n = len(client.scheduler_info().get("workers", {}))
             on_start(f"{'LocalCluster' if cluster is not None else scheduler}, {n} worker(s)")
-        futures = {client.submit(job, task, key=f"task-{task.key}", pure=False): task for task in todo}
+        placed = _placement(todo, list(client.scheduler_info().get("workers", {})))
+        futures = {client.submit(job, task, key=f"task-{task.key}", pure=False,
+                                 **({"workers": placed[i], "allow_other_workers": True} if i in placed else {})): task
+                   for i, task in enumerate(todo)}
         for future in as_completed(futures):
             store.write(futures[future], future.result())
             if progress is not None:
@@ -70,3 +78,19 @@ def run_on_dask(job: Callable[[Any], Any], tasks: Sequence[Any], store: TaskStor
         if cluster is not None:
             cluster.close()
     return len(todo)
+
+
+def _placement(tasks: Sequence[Any], workers: list[str]) -> dict[int, list[str]]:
+    """Preferred worker of each task index: the groups (module notes) dealt round-robin, in order."""
+    if len(workers) < 2:
+        return {}
+    groups: dict[Any, str] = {}
+    out = {}
+    for i, task in enumerate(tasks):
+        g = getattr(task, "group", None)
+        if g is None:
+            continue
+        if g not in groups:
+            groups[g] = workers[len(groups) % len(workers)]
+        out[i] = [groups[g]]
+    return out

@@ -106,6 +106,11 @@ class SweepTask:
     calibration_sections: int = 2
 
     @property
+    def group(self) -> tuple:
+        """The walk this task samples: tasks of one group share its rendering (:func:`analog_walk`)."""
+        return (self.seed, self.subject_index, self.n_subjects, self.protocol)
+
+    @property
     def key(self) -> str:
         """A file-name-safe name, unique for the task's fields (readable part + hash of all fields)."""
         text = json.dumps(asdict(self), sort_keys=True)
@@ -210,7 +215,7 @@ _WALKS_LOCK = threading.Lock()          # a threaded worker runs several tasks i
 
 def analog_walk(seed: int, subject_index: int, n_subjects: int, protocol: str) -> tuple[Any, AnalogWalk]:
     """The subject and its rendered walk (module notes: a per-process memo of :data:`WALK_MEMO_SIZE` walks)."""
-    key = (seed, subject_index, n_subjects, protocol)
+    key = (seed, subject_index, n_subjects, protocol)          # SweepTask.group
     with _WALKS_LOCK:
         walk = _WALKS.get(key)
         if walk is not None:
