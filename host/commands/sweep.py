@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import argparse
 
+#: Larger summary tables are only written (and printed with -v).
+MAX_PRINTED_ROWS = 60
+
 HELP = "parameter sweep (ADC bits x rate x noise x subjects x seeds) on Dask or in-process; resumable, CSV out"
 
 
@@ -117,11 +120,15 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_text(out / "tasks.csv", rows_csv_text([res["task"] for res in results]))
     atomic_write_text(out / "summary.csv", rows_csv_text(summary, SUMMARY_COLUMNS))
     atomic_write_text(out / "smallest_bits.csv", rows_csv_text(smallest))
-    say(format_summary(summary))
+    big = len(summary) > 2 * MAX_PRINTED_ROWS                    # both modes
+    (detail if big else say)(format_summary(summary))
     detail()
     detail(format_summary(summary, mode="single-speed"))
+    if big:
+        say(f"summary: {len(summary) // 2} configuration x estimator rows per calibration mode in {out}/summary.csv "
+            "(-v prints them)")
     say()
-    say(format_smallest_bits(smallest))
+    (detail if len(smallest) > MAX_PRINTED_ROWS else say)(format_smallest_bits(smallest))
     sat = sum(res["task"]["saturated"] + res["task"]["wrapped"] for res in results)
     say(f"fixed-point saturation/wrap over all tasks: {sat}")
     say(f"written: {out}/sections.csv ({len(sections)} rows), splits.csv, tasks.csv, summary.csv, smallest_bits.csv")
