@@ -1,7 +1,7 @@
 """Benchmark: ``gaitlog sweep`` on Dask, 1 vs 2 local workers, against a serial in-process run; and (``--thousand``)
 a 1,000-task sweep cut mid-run and resumed.
 
-Speed-up: the same 24-task grid (short protocol, 4 subjects, 8/10/12 bits x 25/50 Hz) run (a) serially in this
+Speed-up: the same 24-task grid (the paper's protocol, 4 subjects, 8/10/12 bits x 25/50 Hz) run (a) serially in this
 process (``--serial``: no Dask), (b) on a LocalCluster of 1 worker process, (c) of 2 worker processes, each into
 a fresh folder by ``python -m host.cli sweep`` in a child process (so every run pays its own imports; the Dask
 runs include starting their cluster). The three result folders must be byte-identical.
@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-GRID = ["--protocol", "short", "--subjects", "4", "--adc-bits", "8,10,12", "--logger-rate", "25,50"]
+GRID = ["--protocol", "paper", "--subjects", "4", "--adc-bits", "8,10,12", "--logger-rate", "25,50"]
 THOUSAND = ["--protocol", "short", "--subjects", "5", "--adc-bits", "5,6,7,8,9,10,11,12",
             "--logger-rate", "25,40,50,80,100", "--noise-density", "0,0.0001,0.0002,0.0004,0.0008"]
 ENV = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -52,7 +52,7 @@ def speedup(tmp: Path) -> bool:
     t2 = sweep(tmp / "w2", "--workers", "2", *GRID)
     same = files(tmp / "serial") == files(tmp / "w1") == files(tmp / "w2")
     n = len(list((tmp / "serial" / "tasks").glob("*.json")))
-    print(f"{n} tasks (short protocol, 4 subjects x 8/10/12 bits x 25/50 Hz); load average {os.getloadavg()[0]:.1f} "
+    print(f"{n} tasks (the paper's protocol, 4 subjects x 8/10/12 bits x 25/50 Hz); load average {os.getloadavg()[0]:.1f} "
           f"on {os.cpu_count()} CPUs")
     print(f"  serial in-process   {t_serial:7.1f} s")
     print(f"  Dask, 1 worker      {t1:7.1f} s   ({t_serial / t1:.2f}x serial)")
