@@ -46,7 +46,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     grid.add_argument("--protocol", choices=("paper", "short"), help="walking protocol (default paper; short: "
                       "4 x 40 m, for quick looks)")
     run = parser.add_argument_group("where it runs")
-    run.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler (else a local cluster)")
+    run.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler: its address or "
+                     "the scheduler file it wrote (dask scheduler --scheduler-file FILE); default: a local cluster")
     run.add_argument("--workers", type=int, default=2, help="worker processes of the local cluster (default 2)")
     run.add_argument("--serial", action="store_true", help="run in this process, without Dask")
     add_verbosity_options(parser)

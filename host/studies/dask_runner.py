@@ -1,5 +1,5 @@
 """Run the tasks of a study on Dask (``dask.distributed``): a :class:`~distributed.LocalCluster` on this
-machine by default, or an existing cluster's scheduler (``tcp://HOST:PORT``).
+machine by default, or an existing cluster's scheduler (``tcp://HOST:PORT`` or its scheduler file).
 
 Only the command-line entry points that distribute work import this module (it imports Dask, which costs
 ~0.5 s), so ``gaitlog --help`` and the other commands never load it.
@@ -44,7 +44,8 @@ def run_on_dask(job: Callable[[Any], Any], tasks: Sequence[Any], store: TaskStor
     Parameters
     ----------
     scheduler
-        Address of an existing scheduler (``tcp://HOST:PORT``); None starts a :class:`LocalCluster` of
+        Address of an existing scheduler (``tcp://HOST:PORT``), or the path of the scheduler file it writes
+        (``dask scheduler --scheduler-file FILE``: waited for up to 30 s); None starts a :class:`LocalCluster` of
         ``workers`` single-threaded worker processes (threads with ``processes=False``) for this run.
     progress
         Called once per finished task.
@@ -66,7 +67,8 @@ def run_on_dask(job: Callable[[Any], Any], tasks: Sequence[Any], store: TaskStor
     else:
         cluster = None
         try:
-            client = Client(scheduler, timeout="10s")
+            client = (Client(scheduler, timeout="10s") if "://" in scheduler
+                      else Client(scheduler_file=scheduler, timeout="30s"))
         except (OSError, TimeoutError) as err:
             raise HostError(f"--scheduler {scheduler}: cannot connect: {err}") from None
     try:
