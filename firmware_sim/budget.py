@@ -18,7 +18,7 @@ Examples
 --------
 >>> r = ram_budget(50.0)
 >>> r.total_bytes <= PIC_RAM_BYTES, r.algorithm_bytes, r.firmware_bytes
-(True, 183, 179)
+(True, 186, 179)
 >>> ram_budget(100.0).fits
 False
 """

@@ -55,9 +55,17 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (the problem, the option, where to read more), as
+    every other error of ``gaitlog``; exit 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the ``gaitlog`` argument parser with every subcommand registered."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="gaitlog",
         description="Emulate, dump, decode, calibrate and analyse the PIC16F877 + ADXL202 gait logger.",
     )

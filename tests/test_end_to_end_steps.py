@@ -403,8 +403,8 @@ def test_record_with_a_k_file_stores_calibrated_lengths(tmp_path, capsys):
     (["--k-file", "{d}/k.json", "--height", "1.9"], 1, "K was fitted with a leg length of 0.9275 m"),
     (["--height", "5"], 1, "height 5.0 m is outside 0.8-2.5 m"),
     (["--leg-length", "0.1"], 1, "leg length 0.1 m is outside"),
-    (["--corridor-length", "5"], 1, "--corridor-length 5 m is outside"),
-    (["--height", "tall"], 2, "invalid float value: 'tall'"),
+    (["--corridor-length", "5"], 2, "argument --corridor-length: must be a finite number >= 10 and <= 1000 m, got '5'"),
+    (["--height", "tall"], 2, "argument --height: must be a finite number > 0 and <= 100000 m, got 'tall'"),
     (["--steps", "maybe"], 2, "invalid choice: 'maybe'"),
     (["--steps", "off", "--height", "1.8"], 2, "--steps off runs no step algorithm: --height would be ignored"),
 ])

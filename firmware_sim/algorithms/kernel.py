@@ -22,7 +22,9 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    y3, d10 and the band to another (the step EEPROM's second block; the emulator keeps their values in
    ``scr``, its I2C bytes are counted).
 5. **Foot-flat** (peaks of ``y3``): a hysteresis detector confirms a peak when ``y3`` has risen by the
-   prominence since the last trough and fallen by it since the peak. A confirmed peak becomes the
+   prominence since the last trough and fallen by it since the peak; the prominence is the floor or, when
+   more, a fraction of the recent step amplitude ``AMP`` (an exponential mean of the confirmed peaks' rises
+   from the trough before them, :func:`_prominence`). A confirmed peak becomes the
    *pending* foot-flat; a later confirmed peak closer than the minimum distance replaces it if higher and
    is dropped otherwise. The pending foot-flat is final once no peak within the distance can still come:
    ``m >= pending + distance`` and the peak being climbed (if any) lies beyond the distance or is lower —
@@ -74,8 +76,10 @@ from firmware_sim.algorithms.formats import (
 )
 from firmware_sim.algorithms.parameters import minimum_distance
 from firmware_sim.algorithms.state import (
+    AMP,
     DIST,
     DUR_POS,
+    F_AMP,
     F_LAST,
     F_LOOK_MAX,
     F_PEND,
@@ -114,15 +118,17 @@ __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_C
 #: Integer configuration slots (the same in both arithmetics).
 CI = dict(R3=0, R10=1, R5=2, MIN_STEP=3, MAX_STEP=4, HS_BEFORE=5, HS_AFTER=6, HS_DELAY=7, TO_SPAN=8,
           G_SHIFT=9, N_MED=10, FRACTION=11, CODE_FRAC=12, MANT_FRAC=13, EXC_SHIFT1=14, EXC_SHIFT2=15,
-          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20)
+          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21)
 N_CI = len(CI)
 (CI_R3, CI_R10, CI_R5, CI_MIN_STEP, CI_MAX_STEP, CI_HS_BEFORE, CI_HS_AFTER, CI_HS_DELAY, CI_TO_SPAN,
  CI_G_SHIFT, CI_N_MED, CI_FRACTION, CI_CODE_FRAC, CI_MANT_FRAC, CI_EXC_SHIFT1, CI_EXC_SHIFT2, CI_UNIT_FRAC,
- CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET) = range(N_CI)
+ CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT) = range(N_CI)
 
 #: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
-CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, W3=22)
+CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, FRAC=22,
+          W3=23)
 (CV_DELTA, CV_G_MIN, CV_TWO_LEG, CV_FOOT, CV_K1, CV_K2, CV_K4, CV_K1FS, CV_K2M5, CV_UNIT) = range(10)
+CV_FRAC = CV["FRAC"]
 CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
 
 #: Columns of the integer record output: end index, window duration, toe-off index, heel-strike index, flags.
@@ -514,6 +520,19 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
 
 
 @njit(cache=True)
+def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
+    """The prominence in force: the floor, or ``fraction · AMP`` (the recent step amplitude) when that is
+    more (:class:`~firmware_sim.algorithms.parameters.EventParameters`' adaptive prominence)."""
+    if (st_i[FLAGS] & F_AMP) and cfg_v[CV_FRAC] > 0:
+        scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W16, cnt), F_ACC, F_LP, W_LP,
+                        cnt)
+        s_cost(cnt, OP_CMP32, 1)
+        if scaled > cfg_v[CV_DELTA]:
+            return scaled
+    return cfg_v[CV_DELTA]
+
+
+@njit(cache=True)
 def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
     """Everything the firmware does for one sample; returns the number of records written so far."""
     if not _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):
@@ -533,13 +552,21 @@ def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
         if y > st_v[MX]:
             st_v[MX] = y
             st_i[MXPOS] = m
-        elif y < ar.sub(st_v[MX], cfg_v[CV_DELTA], W_LP, cnt):
+        elif y < ar.sub(st_v[MX], _prominence(cfg_i, cfg_v, st_i, st_v, cnt), W_LP, cnt):
+            # the step amplitude: the confirmed peak's rise from the trough before it (exponential mean)
+            if st_i[FLAGS] & F_AMP:
+                st_v[AMP] = ar.add(st_v[AMP], ar.scale2(ar.sub(ar.sub(st_v[MX], st_v[MN], W_LP, cnt), st_v[AMP],
+                                                                W_LP, cnt), -cfg_i[CI_AMP_SHIFT], W_LP, cnt),
+                                   W_LP, cnt)
+            else:
+                st_v[AMP] = ar.sub(st_v[MX], st_v[MN], W_LP, cnt)
+                st_i[FLAGS] |= F_AMP
             k = _confirmed(st_i[MXPOS], st_v[MX], m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, cnt)
             st_i[FLAGS] &= ~F_LOOK_MAX
             st_v[MN] = y
     elif y < st_v[MN]:
         st_v[MN] = y
-    elif y > ar.add(st_v[MN], cfg_v[CV_DELTA], W_LP, cnt):
+    elif y > ar.add(st_v[MN], _prominence(cfg_i, cfg_v, st_i, st_v, cnt), W_LP, cnt):
         st_i[FLAGS] |= F_LOOK_MAX
         st_v[MX] = y
         st_i[MXPOS] = m

@@ -194,7 +194,7 @@ class OnlineConfig:
                                 G_SHIFT=c.gravity_shift, N_MED=c.median_steps, FRACTION=c.fraction_scaled,
                                 CODE_FRAC=centred_q(adc_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
-                                SCRATCH=_scratch_size(c), W10=w10, W5=w5,
+                                SCRATCH=_scratch_size(c), W10=w10, W5=w5, AMP_SHIFT=ev.amplitude_shift,
                                 BUDGET=int(cycles_available if cycles_available is not None
                                            else cycles_per_sample_available(sampling_rate_hz))).items():
             cfg_i[ci[name]] = value
@@ -208,6 +208,7 @@ class OnlineConfig:
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
                 DELTA=int(LOWPASS_Q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
+                FRAC=int(KERNEL_Q.from_float(ev.prominence_fraction)),
                 G_MIN=int(ACC_Q.from_float(on.min_gravity_g)),
                 TWO_LEG=raw["leg_length_q15"],                       # UQ1.15 l read as UQ2.14: 2 l
                 FOOT=int(requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, TWO_LENGTH_Q)),
@@ -222,7 +223,8 @@ class OnlineConfig:
         else:
             cfg_v = np.zeros(n_v, np.float64)
             values = dict(
-                DELTA=ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2, G_MIN=on.min_gravity_g,
+                DELTA=ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2, FRAC=ev.prominence_fraction,
+                G_MIN=on.min_gravity_g,
                 TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * G0_ROOT4,
                 K1FS=k1_m5 * sampling_rate_hz, K2M5=k2_m5, UNIT=unit,
             )

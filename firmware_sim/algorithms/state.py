@@ -51,11 +51,13 @@ _VALUES = (
     ("MN", 1, 3, "peak detector: lowest 3 Hz value since the last peak (Q2.16)"),
     ("PEND_Y", 1, 3, "3 Hz value of the pending foot-flat"),
     ("RAW_Y", 1, 3, "3 Hz value of the last peak of the step-duration stream"),
+    ("AMP", 1, 3, "recent step amplitude: exponential mean of the confirmed peaks' rises (Q2.16)"),
 )
 _INDICES = (
     ("N", 1, 2, "samples since the run started (low 16 bits)"),
     ("LINE_POS", 1, 1, "write position in the a_v delay line"),
-    ("FLAGS", 1, 1, "bits: looking for a peak, pending valid, last foot-flat valid, raw peak valid"),
+    ("FLAGS", 1, 1, "bits: looking for a peak, pending valid, last foot-flat valid, raw peak valid, "
+              "amplitude valid"),
     ("MXPOS", 1, 2, "index of MX"),
     ("PEND", 1, 2, "index of the pending foot-flat"),
     ("LAST", 1, 2, "index of the last final foot-flat"),
@@ -82,11 +84,11 @@ N_VALUES = sum(c for _, c, _, _ in _VALUES)
 N_INDICES = sum(c for _, c, _, _ in _INDICES)
 
 # the kernel's slot constants (module-level integers: compiled in as constants)
-G1, G2, MX, MN, PEND_Y, RAW_Y = (VALUE_SLOTS[n] for n, *_ in _VALUES)
+G1, G2, MX, MN, PEND_Y, RAW_Y, AMP = (VALUE_SLOTS[n] for n, *_ in _VALUES)
 N, LINE_POS, FLAGS, MXPOS, PEND, LAST, RAW, N_DUR, DUR_POS, DIST = (INDEX_SLOTS[n] for n, *_ in _INDICES)
 
 #: Bits of ``FLAGS``.
-F_LOOK_MAX, F_PEND, F_LAST, F_RAW = 1, 2, 4, 8
+F_LOOK_MAX, F_PEND, F_LAST, F_RAW, F_AMP = 1, 2, 4, 8, 16
 
 
 #: Arguments and locals of the kernel's functions: name -> (bytes on the PIC, why). Array arguments (the
@@ -97,6 +99,8 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
     "_sample": {"cx": (0, "in the page buffer"), "cy": (0, "in the page buffer"), "cz": (0, "in the page buffer"),
                 "k": (0, "the step store's write index"), "m": (2, "index of the newest filter output"),
                 "y": (3, "its 3 Hz value, Q2.16")},
+    "_prominence": {"scaled": (0, "fraction · AMP: the product in the maths registers, consumed by the caller's "
+                                  "comparison")},
     "_front": {
         "cx": (0, "in the page buffer"), "cy": (0, "in the page buffer"), "cz": (0, "in the page buffer"),
         "r3": (0, "constant"), "n": (0, "alias of N"),
@@ -151,7 +155,8 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
 #: Which kernel function calls which (the frames of a call chain are live together).
 CALLS: dict[str, tuple[str, ...]] = {
     "process": ("_sample",),
-    "_sample": ("_front", "_finalise", "_confirmed"),
+    "_sample": ("_front", "_finalise", "_confirmed", "_prominence"),
+    "_prominence": (),
     "_front": ("_calibrated", "_fir"),
     "_calibrated": (),
     "_fir": (),
@@ -204,7 +209,7 @@ def ram_bytes(*, line_length: int, median_steps: int) -> int:
     """RAM of the algorithm on the PIC: its persistent state plus its temporaries.
 
     >>> ram_bytes(line_length=19, median_steps=7)
-    183
+    186
     """
     return (persistent_bytes(line_length=line_length, median_steps=median_steps)
             + temporaries_bytes(median_steps=median_steps))

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from host.commands._options import POSITIVE_M
+
 if TYPE_CHECKING:
     from host.files.inputs import AccelerationInput
     from host.gait.anthropometry import AnatomyChoice
@@ -17,10 +19,10 @@ ANATOMY_FLAGS = ("leg_length", "foot_length", "height")
 
 def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
     """--leg-length / --foot-length / --height."""
-    parser.add_argument("--leg-length", type=float, metavar="M", help="leg length (greater trochanter to floor), m")
-    parser.add_argument("--foot-length", type=float, metavar="M",
+    parser.add_argument("--leg-length", type=POSITIVE_M, metavar="M", help="leg length (greater trochanter to floor), m")
+    parser.add_argument("--foot-length", type=POSITIVE_M, metavar="M",
                         help="foot length heel to first metatarsal head (M3's S2), m")
-    parser.add_argument("--height", type=float, metavar="M",
+    parser.add_argument("--height", type=POSITIVE_M, metavar="M",
                         help="body height, m: leg = 0.530 H, foot = 0.111 H when not given (Winter; ANSUR); "
                              "default: the K file's lengths, else an IPOL trial's height, else those of the logger's step "
                              "configuration, else a 1.70 m adult")

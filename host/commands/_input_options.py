@@ -11,6 +11,8 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from host.commands._options import SAMPLING_RATE_HZ, whole
+
 if TYPE_CHECKING:
     from host.files.inputs import AccelerationInput
 
@@ -22,7 +24,7 @@ INPUT_HELP = ("memory image, raw dump or wire capture, decoded .npz, IPOL trial 
 def add_input_options(parser: argparse.ArgumentParser) -> None:
     """``--rate``, ``--columns``, ``--units``, ``--skip-rows`` and ``--calibration``."""
     grp = parser.add_argument_group("input (CSV layout; logger, .npz and IPOL files state their own)")
-    grp.add_argument("--rate", type=float, metavar="HZ",
+    grp.add_argument("--rate", type=SAMPLING_RATE_HZ, metavar="HZ",
                      help="sampling rate of the input, Hz (default: the file's own, or a CSV's time_s column)")
     grp.add_argument("--columns", metavar="X,Y,Z",
                      help="the three acceleration columns of a CSV, comma-separated header names or 0-based "
@@ -30,7 +32,7 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
     grp.add_argument("--units", choices=("g", "m/s2", "counts"),
                      help="unit of the CSV columns (default: from the names x_g / x_counts / x_m_s2, else ~1 g "
                           "or ~9.8 m/s^2 from the data)")
-    grp.add_argument("--skip-rows", type=int, default=0, metavar="N",
+    grp.add_argument("--skip-rows", type=whole(minimum=0, maximum=10**9), default=0, metavar="N",
                      help="lines to skip at the top of a CSV before looking for the header and data (default 0)")
     grp.add_argument("--calibration", metavar="CAL.json",
                      help="accelerometer calibration (from 'gaitlog calibrate') applied to the readings")

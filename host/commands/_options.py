@@ -35,7 +35,7 @@ def _silent(*_args: object, **_kwargs: object) -> None:
 def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "") -> None:
     """``--logger-rate HZ``: the emulated logger's sampling rate (not the input's: that is ``--rate``); read it
     with :func:`logger_rate_hz`. ``what`` completes the help (e.g. "for --simulate")."""
-    parser.add_argument("--logger-rate", type=float, metavar="HZ",
+    parser.add_argument("--logger-rate", type=LOGGER_RATE_HZ, metavar="HZ",
                         help=f"the emulated logger's sampling rate{' ' + what if what else ''}, Hz "
                              "(default: the logger's, 50 Hz as in Alvarez et al.)")
 
@@ -53,3 +53,159 @@ def logger_rate_hz(args: argparse.Namespace) -> float:
     if not (math.isfinite(args.logger_rate) and args.logger_rate > 0):
         raise HostError(f"--logger-rate must be a positive number of Hz, got {args.logger_rate:g}")
     return float(args.logger_rate)
+
+
+# ------------------------------------------------------------------------------------------ number options
+def number(*, minimum: float | None = None, maximum: float | None = None, above: float | None = None,
+           unit: str = "") -> Callable[[str], float]:
+    """An argparse ``type`` for a finite number in a range: ``minimum <= x <= maximum`` and ``x > above``.
+
+    A bad value is a usage error naming the option (argparse prefixes ``argument --hold:``), e.g.
+    ``must be a finite number > 0 s, got 'nan'``.
+
+    >>> number(above=0, unit="s")("1.5")
+    1.5
+    >>> number(above=0, unit="s")("nan")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: must be a finite number > 0 s, got 'nan'
+    """
+    import math
+
+    bounds = " and ".join(b for b in (
+        f">= {minimum:g}" if minimum is not None else "", f"> {above:g}" if above is not None else "",
+        f"<= {maximum:g}" if maximum is not None else "") if b)
+    wanted = f"a finite number{' ' + bounds if bounds else ''}{' ' + unit if unit else ''}"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}") from None
+        if not (math.isfinite(value) and (minimum is None or value >= minimum)
+                and (maximum is None or value <= maximum) and (above is None or value > above)):
+            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def whole(*, minimum: int | None = None, maximum: int | None = None) -> Callable[[str], int]:
+    """An argparse ``type`` for a whole number in ``minimum..maximum`` (a usage error naming the option).
+
+    >>> whole(minimum=1)("0")
+    Traceback (most recent call last):
+    ...
+    argparse.ArgumentTypeError: must be a whole number >= 1, got '0'
+    """
+    bounds = (f"{minimum}..{maximum}" if minimum is not None and maximum is not None else
+              f">= {minimum}" if minimum is not None else f"<= {maximum}" if maximum is not None else "")
+    wanted = f"a whole number{' ' + bounds if bounds else ''}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}") from None
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}")
+        return value
+
+    parse.__name__ = "whole number"
+    return parse
+
+
+#: ``--seed``: what numpy's generators take.
+SEED = whole(minimum=0, maximum=2**63 - 1)
+#: A Unix time the logger's 32-bit header field holds (``--start-time``).
+UNIX_TIME_S = whole(minimum=0, maximum=2**32 - 1)
+#: A sampling rate of an input or of the emulated logger, Hz.
+SAMPLING_RATE_HZ = number(above=0, maximum=100_000, unit="Hz")
+#: The emulated logger's sampling rate, Hz (the PIC16F877 budget's range: ``gaitlog budget``).
+LOGGER_RATE_HZ = number(minimum=1, maximum=1000, unit="Hz")
+#: A serial line's baud rate (``--baud``).
+BAUD = whole(minimum=50, maximum=4_000_000)
+#: An answer / inter-byte timeout (``--timeout``), s: finite (nan or inf would wait forever) and positive.
+TIMEOUT_S = number(above=0, maximum=3600, unit="s")
+#: A TCP port to listen on (0: any free port).
+TCP_PORT = whole(minimum=0, maximum=65535)
+#: A length of a body segment or a walked distance, m.
+POSITIVE_M = number(above=0, maximum=100_000, unit="m")
+
+
+# ------------------------------------------------------------------------------------------ output paths
+def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
+    """Refuse, before any work, outputs that would overwrite an input or that cannot be written.
+
+    ``outputs`` and ``inputs`` map the option (``"--out"``) or the argument's name (``"INPUT"``) to a path (None:
+    not given). An output is refused when it is the same file as an input (:func:`os.path.samefile`, or the
+    same resolved path: a symlink or another spelling is caught), the same as another output, a folder, or in a
+    folder that does not exist. Raises :class:`~host.errors.HostError` naming the option and the files.
+    """
+    import os
+    from pathlib import Path
+
+    from host.errors import HostError
+
+    def same(a: Path, b: Path) -> bool:
+        try:
+            if a.exists() and b.exists():
+                return os.path.samefile(a, b)
+        except OSError:
+            pass
+        return a.resolve() == b.resolve()
+
+    seen: dict[str, Path] = {}
+    for option, value in outputs.items():
+        if value is None:
+            continue
+        out = Path(value)  # type: ignore[arg-type]
+        for name, source in inputs.items():
+            if source is not None and same(out, Path(source)):  # type: ignore[arg-type]
+                raise HostError(f"{option} {out}: is the input {name} {source}: it would be overwritten; choose "
+                                "another file")
+        for other, path in seen.items():
+            if same(out, path):
+                raise HostError(f"{option} {out}: is also {other}: choose two different files")
+        if out.is_dir():
+            raise HostError(f"{option} {out}: is a folder; give a file name")
+        folder = out.parent
+        if not folder.is_dir():
+            what = "is not a folder" if folder.exists() else "does not exist"
+            raise HostError(f"{option} {out}: the folder {folder} {what}")
+        _check_writable(option, out, folder)
+        seen[option] = out
+
+
+def check_output_folder(option: str, folder: object) -> None:
+    """Refuse, before any work, an output folder (created when missing) that cannot be made or written: an
+    existing file, a path under a file, a place where no file can be created. A :class:`HostError` naming
+    ``option``."""
+    from pathlib import Path
+
+    from host.errors import HostError
+
+    path = Path(folder)  # type: ignore[arg-type]
+    if path.exists() and not path.is_dir():
+        raise HostError(f"{option} {path}: exists and is not a folder")
+    existing = path
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise HostError(f"{option} {path}: {existing} is a file, not a folder")
+    _check_writable(option, path, existing)
+
+
+def _check_writable(option: str, out: object, folder: object) -> None:
+    """A :class:`HostError` unless a file can be created in ``folder`` (tried: permissions, read-only or
+    pseudo file systems, a full quota)."""
+    import tempfile
+
+    from host.errors import HostError
+
+    try:
+        with tempfile.TemporaryFile(dir=folder):  # type: ignore[call-overload]
+            pass
+    except OSError as err:
+        raise HostError(f"{option} {out}: cannot write in {folder}: {err.strerror or err}") from None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_logger_rate_option, logger_rate_hz
+from host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, number
 
 HELP = "RAM and cycles per sample of the logger with the on-line step algorithm, against the PIC16F877"
 
@@ -13,9 +13,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     from host.commands._options import add_verbosity_options
 
     add_logger_rate_option(parser)
-    parser.add_argument("--crystal", type=float, default=18.432, metavar="MHZ",
+    parser.add_argument("--crystal", type=number(minimum=0.032, maximum=20, unit="MHz"), default=18.432, metavar="MHZ",
                         help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; at most 20)")
-    parser.add_argument("--seed", type=int, default=0, help="simulated walker whose walk is counted (default 0)")
+    parser.add_argument("--seed", type=SEED, default=0, help="simulated walker whose walk is counted (default 0)")
     parser.add_argument("--json", action="store_true", help="print the budget as one JSON document instead")
     add_verbosity_options(parser)
 
@@ -35,10 +35,6 @@ def run(args: argparse.Namespace) -> int:
     from protocol.steps import StepConfig
 
     args.logger_rate = logger_rate_hz(args)
-    if not (1.0 <= args.logger_rate <= 1000.0):
-        raise HostError(f"--logger-rate {args.logger_rate} Hz is outside 1 .. 1000 Hz")
-    if not (0.032 <= args.crystal <= 20.0):
-        raise HostError(f"--crystal {args.crystal} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
     fosc = args.crystal * 1e6
     if algorithm_cycles_per_sample(args.logger_rate, fosc) <= 0:
         raise HostError(f"at {args.logger_rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")

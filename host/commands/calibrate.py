@@ -14,24 +14,24 @@ HELP = "Fit offsets, scales and axis angles to the static poses of a recording (
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog calibrate``."""
     from host.commands._input_options import INPUT_HELP, add_input_options
-    from host.commands._options import add_verbosity_options
+    from host.commands._options import add_verbosity_options, number
 
     parser.add_argument("input", type=Path, metavar="INPUT", help=f"static poses: {INPUT_HELP}")
     parser.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="calibration file to write")
     parser.add_argument("--model", choices=("9-param", "6-param"), default="9-param",
                         help="9-param: offsets, scales and 3 axis angles (default); 6-param: orthogonal axes")
     add_input_options(parser)
-    parser.add_argument("--zero-counts", type=float, metavar="C",
+    parser.add_argument("--zero-counts", type=number(), metavar="C",
                         help="nominal 0 g code of a CSV in counts, for rest detection (default: estimated from the "
                              "holds)")
-    parser.add_argument("--counts-per-g", type=float, metavar="K",
+    parser.add_argument("--counts-per-g", type=number(above=0), metavar="K",
                         help="nominal counts per g of a CSV in counts, for rest detection (default: estimated)")
     add_verbosity_options(parser)
     det = parser.add_argument_group("rest detection")
-    det.add_argument("--hold", type=float, default=3.0, metavar="S", help="minimum hold, seconds (default 3)")
-    det.add_argument("--sd-factor", type=float, default=1.3, metavar="F",
+    det.add_argument("--hold", type=number(above=0, maximum=3600, unit="s"), default=3.0, metavar="S", help="minimum hold, seconds (default 3)")
+    det.add_argument("--sd-factor", type=number(above=0, maximum=1000), default=1.3, metavar="F",
                      help="moving-SD threshold as a multiple of the noise floor (default 1.3)")
-    det.add_argument("--min-angle", type=float, default=10.0, metavar="DEG",
+    det.add_argument("--min-angle", type=number(minimum=0, maximum=180, unit="deg"), default=10.0, metavar="DEG",
                      help="holds closer than this to a longer hold are near-duplicates (default 10)")
 
 
@@ -44,12 +44,13 @@ def run(args: argparse.Namespace) -> int:
     from host.accelerometer.calibration import ANGLE_NAMES
     from host.accelerometer.fit import AccCalibrator
     from host.commands._input_options import read_input
-    from host.commands._options import verbosity
+    from host.commands._options import check_outputs, verbosity
     from host.errors import HostError
 
     path: Path = args.input
     if args.calibration:
         raise HostError("--calibration: calibrate fits a calibration; it does not take one")
+    check_outputs({"--out": args.out}, {"INPUT": path})
     data = read_input(args, path)
     zero: Any = args.zero_counts
     per_g: Any = args.counts_per_g

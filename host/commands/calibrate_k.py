@@ -10,14 +10,14 @@ HELP = "fit the per-subject constants K and the M5 line from recordings with a k
 def configure(parser: argparse.ArgumentParser) -> None:
     from host.commands._anatomy_options import add_anatomy_options
     from host.commands._input_options import INPUT_HELP, add_input_options
-    from host.commands._options import add_verbosity_options
+    from host.commands._options import POSITIVE_M, add_verbosity_options
 
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help=f"recording(s): {INPUT_HELP}; several inputs = several speeds")
     how = parser.add_mutually_exclusive_group(required=True)
-    how.add_argument("--distance", type=float, action="append", metavar="M",
+    how.add_argument("--distance", type=POSITIVE_M, action="append", metavar="M",
                      help="distance walked, m: once for all inputs, or repeated once per input in order")
-    how.add_argument("--lap-marks", type=float, metavar="M",
+    how.add_argument("--lap-marks", type=POSITIVE_M, metavar="M",
                      help="distance between consecutive MARK flags, m: every lap between marks is one section")
     parser.add_argument("--out", required=True, metavar="K.json", help="write the calibration here (JSON)")
     parser.add_argument("--subject", default="", help="label stored in the file")
@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
 
     from host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
     from host.commands._input_options import read_input
-    from host.commands._options import verbosity
+    from host.commands._options import check_outputs, verbosity
     from host.errors import HostError
     from host.gait.k_calibration import calibrate
     from host.gait.pipeline import StepPipeline
@@ -42,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
                         f"got {len(args.distance)}")
     if args.lap_marks is not None and not args.lap_marks > 0:
         raise HostError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
+    check_outputs({"--out": args.out}, {**{f"INPUT {i + 1}": path for i, path in enumerate(args.inputs)},
+                                        "--calibration": args.calibration})
     inputs = [read_input(args, path) for path in args.inputs]
     heights = {d.ipol_trial.height_m for d in inputs if d.ipol_trial is not None and d.ipol_trial.height_m}
     if len(heights) > 1 and not given_anatomy_flags(args):

@@ -17,7 +17,13 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_logger_rate_option, logger_rate_hz
+from host.commands._options import (
+    POSITIVE_M,
+    SEED,
+    add_logger_rate_option,
+    logger_rate_hz,
+    whole,
+)
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 
@@ -30,19 +36,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
                         "algorithm needs the ADC codes)")
-    parser.add_argument("--simulate", type=int, metavar="N", help="compare on N simulated subjects instead")
+    parser.add_argument("--simulate", type=whole(minimum=1, maximum=1000), metavar="N", help="compare on N simulated subjects instead")
     parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
-    parser.add_argument("--subjects", type=int, default=4, help="subjects of the sweep (default 4)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated subjects (default 0)")
+    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="subjects of the sweep (default 4)")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of the simulated subjects (default 0)")
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
     add_logger_rate_option(parser, "for --simulate")
-    parser.add_argument("--workers", type=int, default=2, help="processes for --simulate/--sweep (default 2)")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
     parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
                         "segments, split and budget go beside it (_segments.csv, _split.csv, _budget.csv / _m5.csv)")
-    parser.add_argument("--resamples", type=int, default=2000,
+    parser.add_argument("--resamples", type=whole(minimum=1, maximum=1_000_000), default=2000,
                         help="bootstrap resamples of the subjects for --simulate's intervals (default 2000)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
-    parser.add_argument("--lap-m", type=float, default=20.0, metavar="M", help="distance between MARK flags (20)")
+    parser.add_argument("--lap-m", type=POSITIVE_M, default=20.0, metavar="M", help="distance between MARK flags (20)")
     add_anatomy_options(parser)
     add_input_options(parser)
     add_verbosity_options(parser)
@@ -78,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from host.commands._options import printer
+    from host.commands._options import check_outputs, printer
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import rows_csv_text
@@ -88,13 +94,13 @@ def _sweep(args: argparse.Namespace) -> int:
         format_m5,
         format_summary,
     )
-    from protocol.atomic_write import atomic_write_text, require_folder
+    from protocol.atomic_write import atomic_write_text
 
     if args.subjects < 1:
         raise HostError(f"--subjects must be >= 1, got {args.subjects}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
-        require_folder(args.out)
+        check_outputs({"--out": args.out}, {})
     t = time.perf_counter()
     with progress_bar(args, args.subjects, "subject") as tick:
         sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers).run(progress=tick)
@@ -117,7 +123,7 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from firmware_sim.algorithms.steps import columns_csv_text
-    from host.commands._options import printer
+    from host.commands._options import check_outputs, printer
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import (
@@ -128,7 +134,7 @@ def _simulate(args: argparse.Namespace) -> int:
     )
     from host.studies.simulation import simulate_comparisons
     from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
-    from protocol.atomic_write import atomic_write_text, require_folder
+    from protocol.atomic_write import atomic_write_text
 
     if args.simulate < 1:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
@@ -138,7 +144,7 @@ def _simulate(args: argparse.Namespace) -> int:
         raise HostError(f"--resamples must be >= 1, got {args.resamples}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
-        require_folder(args.out)
+        check_outputs({"--out": args.out}, {})
     with progress_bar(args, args.simulate, "subject") as tick:
         results = simulate_comparisons(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
                                        sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick)
@@ -230,17 +236,19 @@ def _recording(args: argparse.Namespace) -> int:
     from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
     from host.commands._anatomy_options import lengths_from_args
     from host.commands._input_options import read_input
-    from host.commands._options import printer, verbosity
+    from host.commands._options import check_outputs, printer, verbosity
     from host.errors import HostError
     from host.files.replay import run_starts, verify_step_records
     from host.gait.k_calibration import KFit
     from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from protocol.atomic_write import atomic_write_text, require_folder
+    from protocol.atomic_write import atomic_write_text
 
     say = printer(args)
     p = Path(args.input)
     if args.out:
-        require_folder(args.out)
+        check_outputs({"--out": args.out, "--out (_segments)": _beside(args.out, "_segments"),
+                       "--out (_split)": _beside(args.out, "_split")},
+                      {"INPUT": p, "--k-file": args.k_file, "--calibration": args.calibration})
     data = read_input(args, p)
     rec = data.recording
     if rec is None:

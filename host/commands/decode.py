@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_verbosity_options, verbosity
+from host.commands._options import add_verbosity_options, check_outputs, verbosity
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
@@ -44,6 +44,9 @@ def run(args: argparse.Namespace) -> int:
     from host.files.decode import decode_file, output_paths, save_decoded
     from host.files.replay import verify_step_records
 
+    paths = output_paths(args.out)
+    check_outputs({f"--out ({p.name})": p for p in paths.values()},
+                  {"INPUT": args.input, "--calibration": args.calibration})
     rec = decode_file(args.input)
     calibration = None
     note = rec.default_calibration()[1]

@@ -373,15 +373,15 @@ STAGES: list[Stage] = [
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._options import SEED, add_verbosity_options, whole
+
     parser.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
                         help=f"keep the files in DIR (default ./{DEFAULT_OUT}; a previous demo's files there are "
                         "replaced)")
     parser.add_argument("--force", action="store_true",
                         help="write into --out even if it holds other files (files of the same names are replaced)")
-    parser.add_argument("--poses", type=int, default=24, help="number of calibration poses (default 24)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor and the poses (default 0)")
-    from host.commands._options import add_verbosity_options
-
+    parser.add_argument("--poses", type=whole(minimum=1, maximum=1000), default=24, help="number of calibration poses (default 24)")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of the sensor and the poses (default 0)")
     add_verbosity_options(parser)
 
 
@@ -389,14 +389,13 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from host.commands._options import printer
+    from host.commands._options import check_output_folder, printer
     from host.errors import HostError
     from protocol.atomic_write import atomic_write_text
 
     say, detail = printer(args), printer(args, 1)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise HostError(f"--out {out}: exists and is not a directory")
+    check_output_folder("--out", out)
     if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file() and not args.force:
         raise HostError(f"--out {out}: not empty and not a previous 'gaitlog demo' output (no {MARKER}); give "
                         "another --out, or --force to write into it anyway")

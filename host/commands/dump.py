@@ -6,7 +6,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from host.commands._options import add_verbosity_options, verbosity
+from host.commands._options import (
+    BAUD,
+    TIMEOUT_S,
+    add_verbosity_options,
+    check_outputs,
+    verbosity,
+    whole,
+)
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
@@ -17,12 +24,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="serial device, pty path (from `gaitlog serve --pty`), socket://HOST:PORT or emu://IMAGE")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg); "
                         "metadata goes to IMAGE.json, the partial state of an interrupted dump to IMAGE.part")
-    parser.add_argument("--baud", type=int, default=115200, help="baud rate, 8N1 (default 115200)")
+    parser.add_argument("--baud", type=BAUD, default=115200, help="baud rate, 8N1 (default 115200)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted dump from IMAGE.part")
-    parser.add_argument("--retries", type=int, default=8,
+    parser.add_argument("--retries", type=whole(minimum=0, maximum=1000), default=8,
                         help="passes in a row that bring no new byte before the dump gives up on what is still "
                         "missing (default 8; passes that make progress do not count)")
-    parser.add_argument("--timeout", type=float, default=1.0, metavar="S",
+    parser.add_argument("--timeout", type=TIMEOUT_S, default=1.0, metavar="S",
                         help="answer / inter-byte timeout in seconds (default 1.0); a command is resent until "
                         "it is answered, for at most 30 s")
     parser.add_argument("--capture", metavar="FILE", help="also save every byte received (a wire capture that "
@@ -35,15 +42,12 @@ def run(args: argparse.Namespace) -> int:
     import signal
     from pathlib import Path
 
-    from host.commands.device import check_timeout
-    from host.errors import HostError
+    from host.link.memory_dump import metadata_path_for
 
-    check_timeout(args.timeout)
-    if args.retries < 0:
-        raise HostError(f"--retries must be >= 0, got {args.retries}")
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise HostError(f"output directory {out.parent} does not exist")
+    emu = args.port[len("emu://"):] if args.port.startswith("emu://") else None
+    check_outputs({"--out": out, "--out (.json)": metadata_path_for(out), "--capture": args.capture},
+                  {"--port emu:// image": emu})
     capture = io.BytesIO() if args.capture else None
 
     def _interrupt(signum, frame):  # SIGTERM, and SIGINT even when a shell started us in the background

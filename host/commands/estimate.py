@@ -43,14 +43,17 @@ def run(args: argparse.Namespace) -> int:
     from firmware_sim.algorithms.steps import ESTIMATORS
     from host.commands._anatomy_options import lengths_from_args
     from host.commands._input_options import read_input
-    from host.commands._options import verbosity
+    from host.commands._options import check_outputs, verbosity
     from host.errors import HostError
     from host.gait.anthropometry import LENGTH_MODEL
     from host.gait.k_calibration import KFit
-    from protocol.atomic_write import atomic_write_text, require_folder
+    from protocol.atomic_write import atomic_write_text
 
     if args.out:
-        require_folder(args.out)
+        out = Path(args.out)
+        fixed = {"--out (_fixed)": out.with_name(out.stem + "_fixed.csv")} if args.arithmetic == "both" else {}
+        check_outputs({"--out": out, **fixed},
+                      {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration})
     data = read_input(args, args.input)
     if args.arithmetic != "float" and data.recording is None:
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a logger file or a "
@@ -77,8 +80,15 @@ def run(args: argparse.Namespace) -> int:
         outs[first] = out
         if len(tables) == 2:
             outs["fixed"] = out.with_name(out.stem + "_fixed.csv")
-        for arith, path in outs.items():
-            atomic_write_text(path, _csv_text(tables[arith], lengths.source, k))
+        written = []
+        try:                                  # both tables or neither (each file is itself atomic)
+            for arith, path in outs.items():
+                atomic_write_text(path, _csv_text(tables[arith], lengths.source, k))
+                written.append(path)
+        except BaseException:
+            for path in written:
+                path.unlink(missing_ok=True)
+            raise
     summary = _summary(tables, ESTIMATORS, k)
     if args.json:
         doc = {"input": str(args.input), "source": data.source, "n_samples": data.n_samples,

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_logger_rate_option, logger_rate_hz
+from host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, whole
 
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 
@@ -31,9 +31,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="CSV",
                         help="ipol: one row per trial, estimator and arithmetic (required; per-step pairs go to "
                         "<CSV>_steps.csv); sim: output folder (or DIR)")
-    parser.add_argument("--subjects", type=int, default=4, help="sim: number of simulated subjects (4)")
-    parser.add_argument("--seed", type=int, default=0, help="sim: seed of the subjects and devices (0)")
-    parser.add_argument("--workers", type=int, default=1, help="sim: processes to use (1)")
+    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="sim: number of simulated subjects (4)")
+    parser.add_argument("--seed", type=SEED, default=0, help="sim: seed of the subjects and devices (0)")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=1, help="sim: processes to use (1)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
@@ -47,7 +47,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_sim(args: argparse.Namespace) -> int:
-    from host.commands._options import verbosity
+    from host.commands._options import check_output_folder, verbosity
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.evaluation import SimulatedEvaluation
@@ -56,6 +56,7 @@ def _run_sim(args: argparse.Namespace) -> int:
     out = args.out or args.folder
     if out is None:
         raise HostError("evaluate sim: give the output folder as DIR or --out DIR")
+    check_output_folder("--out" if args.out else "DIR", out)
     unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
                                  ("--uturn", args.uturn)) if v is not None]
     if unhonoured:
@@ -87,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
+    from host.commands._options import check_outputs
     from host.studies.compare import rows_csv_text
     from host.studies.ipol_evaluation import (
         ARITHMETICS,
@@ -102,11 +104,7 @@ def run(args: argparse.Namespace) -> int:
         summarise,
     )
     from protocol.adc_bits import check_adc_bits
-    from protocol.atomic_write import (
-        atomic_write_bytes,
-        atomic_write_text,
-        require_folder,
-    )
+    from protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
     check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     args.logger_rate = logger_rate_hz(args)
@@ -116,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     steps_path = out.with_name(out.stem + "_steps.csv")
     events_path = out.with_name(out.stem + "_events.csv")
-    require_folder(out)
-    require_folder(fig_path)
+    check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
+                  {"DIR": args.folder})
     from host.commands._options import verbosity
     from host.commands._progress import progress_bar
     from host.files.ipol import list_trials

@@ -7,7 +7,7 @@ import argparse
 import json
 from typing import Any
 
-from host.commands._options import add_verbosity_options, verbosity
+from host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, verbosity
 
 HELP = "show the header and status of a memory image or of a live device (--port)"
 
@@ -16,8 +16,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("image", nargs="?", metavar="IMAGE",
                         help="memory image (.glimg), raw dump or wire capture")
     parser.add_argument("--port", help="ask a live device instead: serial device, pty path, socket:// or emu://")
-    parser.add_argument("--baud", type=int, default=115200, help="baud rate with --port (default 115200)")
-    parser.add_argument("--timeout", type=float, default=1.0, metavar="S", help="answer timeout with --port")
+    parser.add_argument("--baud", type=BAUD, default=115200, help="baud rate with --port (default 115200)")
+    parser.add_argument("--timeout", type=TIMEOUT_S, default=1.0, metavar="S", help="answer timeout with --port")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     add_verbosity_options(parser)
 

@@ -32,19 +32,19 @@ HELP = "Simulate the Morris shank platform and Hall's two links, run both kinema
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the PNG figures (created)")
-    from host.commands._options import add_verbosity_options
+    from host.commands._options import SEED, add_verbosity_options, number
 
-    parser.add_argument("--morris-rate", type=float, default=100.0, metavar="HZ",
+    parser.add_argument("--morris-rate", type=number(minimum=10, maximum=10_000, unit="Hz"), default=100.0, metavar="HZ",
                         help="sampling rate of the simulated Morris platform (default 100 Hz, Morris' 10 ms); "
                         "kinematics takes no recording: Morris needs six accelerometers at known places on the "
                         "shank and Hall angular rates, which a tri-axial logger does not record")
-    parser.add_argument("--noise-mg", type=float, default=0.0, metavar="MG",
+    parser.add_argument("--noise-mg", type=number(minimum=0, maximum=10_000, unit="mg"), default=0.0, metavar="MG",
                         help="white noise added to each platform accelerometer, mg (default 0)")
-    parser.add_argument("--hall-rate", type=float, default=10_000.0, metavar="HZ",
+    parser.add_argument("--hall-rate", type=number(minimum=100, maximum=100_000, unit="Hz"), default=10_000.0, metavar="HZ",
                         help="angular-rate sampling rate for Hall (default 10 kHz; CFC 180 needs > 747.9 Hz)")
-    parser.add_argument("--gyro-noise", type=float, default=0.01, metavar="RAD_S",
+    parser.add_argument("--gyro-noise", type=number(minimum=0, maximum=100, unit="rad/s"), default=0.01, metavar="RAD_S",
                         help="angular-rate sensor noise, rad/s (default 0.01)")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    parser.add_argument("--seed", type=SEED, default=0, help="noise seed (default 0)")
     add_verbosity_options(parser)
 
 
@@ -178,8 +178,7 @@ def run_hall(sampling_rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) 
 def run(args: argparse.Namespace) -> int:
     """Run both simulations and methods, write the figures, print the errors against the truth (not with -q;
     each figure's path with -v)."""
-    from host.commands._options import printer
-    from host.errors import HostError
+    from host.commands._options import check_output_folder, printer
     from host.kinematics.plots import (
         plot_angular_velocity,
         plot_dcm,
@@ -189,8 +188,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     out: Path = args.out
-    if out.exists() and not out.is_dir():
-        raise HostError(f"--out {out}: exists and is not a folder")
+    check_output_folder("--out", out)
     from host.kinematics.cfc_filter import cfc_coefficients
 
     cfc_coefficients(180, args.hall_rate)  # reject an invalid rate before any work

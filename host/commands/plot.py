@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from host.commands._anatomy_options import add_anatomy_options
-from host.commands._options import add_verbosity_options
+from host.commands._options import add_verbosity_options, number
 
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
@@ -15,9 +15,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", metavar="RECORDING",
                         help="decoded recording (.npz from 'gaitlog decode') or a memory image / dump it decodes")
     parser.add_argument("--out", metavar="PNG", help="the figure (default: RECORDING with .png)")
-    parser.add_argument("--start", type=float, default=0.0, metavar="S",
+    parser.add_argument("--start", type=number(minimum=0, unit="s"), default=0.0, metavar="S",
                         help="start of the window, s since the first sample (default 0)")
-    parser.add_argument("--duration", type=float, metavar="S", help="length of the window, s (default: to the end)")
+    parser.add_argument("--duration", type=number(above=0, unit="s"), metavar="S", help="length of the window, s (default: to the end)")
     parser.add_argument("--estimators", default="M1,M2,M3,M4,M5", metavar="LIST",
                         help="step-length estimators to draw, comma-separated (default M1,M2,M3,M4,M5; M4/M5 "
                         "need --k-file or a device that had K)")
@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from host.commands._anatomy_options import lengths_from_args
-    from host.commands._options import printer
+    from host.commands._options import check_outputs, printer
     from host.errors import HostError
     from host.files.inputs import read_acceleration
     from host.gait.k_calibration import KFit
@@ -45,10 +45,7 @@ def run(args: argparse.Namespace) -> int:
     size = re.fullmatch(r"(\d+)x(\d+)", args.size)
     if not size or not (100 <= int(size[1]) <= 10000 and 100 <= int(size[2]) <= 10000):
         raise HostError(f"--size {args.size}: give WIDTHxHEIGHT in pixels, 100 to 10000 each (e.g. 1400x700)")
-    if not out.parent.is_dir():
-        raise HostError(f"--out {out}: the directory {out.parent} does not exist")
-    if out.resolve() == src.resolve():
-        raise HostError(f"--out {out}: is the input; give another file")
+    check_outputs({"--out": out}, {"RECORDING": src, "--k-file": args.k_file})
     if not src.is_file():
         raise HostError(f"{src}: no such file")
     data = read_acceleration(src)

@@ -12,7 +12,15 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from host.commands._options import add_logger_rate_option, logger_rate_hz
+from host.commands._options import (
+    POSITIVE_M,
+    SEED,
+    UNIX_TIME_S,
+    add_logger_rate_option,
+    logger_rate_hz,
+    number,
+    whole,
+)
 
 if TYPE_CHECKING:
     from host.files.inputs import AccelerationInput
@@ -34,27 +42,27 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "IPOL trial, or any input the gait commands read; lost samples are interpolated and "
                              "counted)")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg)")
-    parser.add_argument("--poses", type=int, default=24, metavar="N", help="number of calibration poses (24)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor's errors and noise, and of the poses")
+    parser.add_argument("--poses", type=whole(minimum=1, maximum=1000), default=24, metavar="N", help="number of calibration poses (24)")
+    parser.add_argument("--seed", type=SEED, default=0, help="seed of the sensor's errors and noise, and of the poses")
     add_logger_rate_option(parser)
-    parser.add_argument("--start-time", type=int, default=None, metavar="UNIX_S",
+    parser.add_argument("--start-time", type=UNIX_TIME_S, default=None, metavar="UNIX_S",
                         help="Unix time of the first sample (default: now)")
     parser.add_argument("--overwrite-oldest", action="store_true",
                         help="ring mode: when the memory is full, overwrite the oldest samples (default: stop)")
     parser.add_argument("--append", action="store_true",
                         help="start from the existing image at --out instead of an erased memory")
-    parser.add_argument("--corridor-length", type=float, default=WALK_CORRIDOR_M, metavar="M",
+    parser.add_argument("--corridor-length", type=number(minimum=10, maximum=1000, unit="m"), default=WALK_CORRIDOR_M, metavar="M",
                         help=f"one-way corridor length of --motion walk, m (default {WALK_CORRIDOR_M:g}: 2 x "
                              f"{WALK_CORRIDOR_M:g} m walked)")
     steps = parser.add_argument_group("on-line step algorithm (one 20-byte record per foot-flat in the step memory)")
     steps.add_argument("--steps", choices=("on", "off"), default=None,
                        help="run the on-line step algorithm while logging (default: on; with --append and no "
                             "step option, the image's own setting)")
-    steps.add_argument("--height", type=float, metavar="M",
+    steps.add_argument("--height", type=POSITIVE_M, metavar="M",
                        help="body height of the wearer, m: leg and foot length are estimated from it when not given "
                             "(Winter; ANSUR; host.gait.anthropometry; default: a 1.70 m adult, with a warning)")
-    steps.add_argument("--leg-length", type=float, metavar="M", help="leg length (greater trochanter to floor), m")
-    steps.add_argument("--foot-length", type=float, metavar="M",
+    steps.add_argument("--leg-length", type=POSITIVE_M, metavar="M", help="leg length (greater trochanter to floor), m")
+    steps.add_argument("--foot-length", type=POSITIVE_M, metavar="M",
                        help="foot length heel to first metatarsal head (M3's S2), m")
     steps.add_argument("--k-file", metavar="K.json",
                        help="calibrated constants (from `gaitlog calibrate-k`): the device stores calibrated "
@@ -98,8 +106,6 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
     if kind == "walk":
         if len(args.motion) != 1:
             raise HostError("--motion walk takes no file")
-        if not 10.0 <= args.corridor_length <= 1000.0:
-            raise HostError(f"--corridor-length {args.corridor_length:g} m is outside 10-1000 m")
         from firmware_sim.world.subject import Subject
         from firmware_sim.world.walk_plan import WalkPlan
         from firmware_sim.world.walking import Walking
@@ -192,13 +198,13 @@ def run(args: argparse.Namespace) -> int:
 
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
-    from host.commands._options import verbosity
-    from host.errors import HostError
+    from host.commands._options import check_outputs, verbosity
 
     args.logger_rate = logger_rate_hz(args)
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise HostError(f"output directory {out.parent} does not exist")
+    replayed = args.motion[1] if args.motion[0] == "replay" and len(args.motion) == 2 else None
+    check_outputs({"--out": out}, {"--motion replay FILE": replayed, "--k-file": args.k_file,
+                                   "--calibration": args.calibration})
     if args.steps == "off":
         extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file")
                  if getattr(args, n) is not None]
@@ -220,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
               "replayed motion: those stretches are not measured motion", file=sys.stderr)
     start = int(time.time()) if args.start_time is None else args.start_time
     if appending:
-        logger = Logger.from_image(out)
+        logger = Logger.from_image(out, overwrite=args.overwrite_oldest)  # the mode is START's, as on the device
         if config is not None:
             if logger.header.n_steps_stored and config.quantised() != logger.step_config:
                 warnings_.append(f"{out} holds {logger.header.n_steps_stored} step records logged with another step "
@@ -232,8 +238,13 @@ def run(args: argparse.Namespace) -> int:
                         overwrite=args.overwrite_oldest, step_config=config)
     for line in warnings_ if verbosity(args) >= 0 else ():
         print(f"gaitlog record: warning: {line}", file=sys.stderr)
-    steps_before = logger.header.steps_written
+    steps_before, written_before = logger.header.steps_written, logger.header.samples_written
     result = logger.record(motion, start_time_s=start)
+    not_stored = len(result.codes) - (logger.header.samples_written - written_before)
+    if not_stored > 0 and verbosity(args) >= 0:
+        print(f"gaitlog record: warning: the memory filled up: the last {not_stored} of {len(result.codes)} samples "
+              "were not stored (logging stops when full; --overwrite-oldest keeps the newest instead)",
+              file=sys.stderr)
     logger.save_image(out)
     if verbosity(args) >= 0:
         h = logger.header

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_verbosity_options, verbosity
+from host.commands._options import BAUD, TCP_PORT, add_verbosity_options, verbosity
 
 HELP = ("serve a memory image as a live logger (its header's step configuration included) on a pty (prints its path) "
         "or a TCP port, until Ctrl-C")
@@ -14,8 +14,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("image", metavar="IMAGE", help="memory image (.glimg) the device starts from")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--pty", action="store_true", help="serve on a pseudo-terminal (default)")
-    where.add_argument("--tcp", type=int, metavar="PORT", help="serve on 127.0.0.1:PORT (0: any free port)")
-    parser.add_argument("--baud", type=int, default=115200, help="baud rate of the device's UART (default 115200)")
+    where.add_argument("--tcp", type=TCP_PORT, metavar="PORT", help="serve on 127.0.0.1:PORT (0: any free port)")
+    parser.add_argument("--baud", type=BAUD, default=115200, help="baud rate of the device's UART (default 115200)")
     parser.add_argument("--persist", action="store_true",
                         help="save what the link changes (START/STOP logging, ERASE, SET_CALIBRATION, "
                              "SET_STEP_CONFIG) back to IMAGE on exit, as the EEPROM keeps it (default: IMAGE is left "

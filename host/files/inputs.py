@@ -36,6 +36,12 @@ from host.accelerometer.calibration import AccCalibration
 from host.errors import HostError
 from host.files.decode import decode_bytes
 from host.files.ipol import IpolTrial, list_trials, read_trial
+from host.files.limits import (
+    MAX_INPUT_SAMPLES,
+    MAX_TEXT_BYTES,
+    check_file_size,
+    check_samples,
+)
 from host.files.recording import Recording
 from protocol.errors import ProtocolError
 from protocol.image import detect_format
@@ -169,13 +175,16 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         return _from_ipol(p, sampling_rate_hz, cal)
     if not p.is_file():
         raise HostError(f"{p}: no such file")
+    check_file_size(p, MAX_TEXT_BYTES, "an input file")
     try:
         data = p.read_bytes()
     except OSError as err:
         raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
-    kind = _kind(data)
+    if not data:
+        raise HostError(f"{p}: empty file")
+    kind = _kind(data, p)
     if kind == "text":
-        text = data.decode("utf-8-sig")
+        text = data.decode("utf-8-sig", errors="replace")
         if text.lstrip().lower().startswith("acquisition frequency"):
             _only_csv(p, cols, units, skip_rows)
             return _from_ipol(p, sampling_rate_hz, cal)
@@ -189,7 +198,7 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
 
 
 # ------------------------------------------------------------------------------------------------ formats
-def _kind(data: bytes) -> str:
+def _kind(data: bytes, p: Path) -> str:
     """``npz``, ``logger`` (image, raw dump, capture) or ``text``."""
     if data[:4] == b"PK\x03\x04":
         return "npz"
@@ -201,7 +210,8 @@ def _kind(data: bytes) -> str:
             data[:65536].decode("utf-8")
         except UnicodeDecodeError as uerr:
             if uerr.start < 65536 - 4:        # not a character cut at the probe's end
-                raise HostError(f"not a logger file, a decoded .npz, an IPOL file or a CSV text: {err}") from None
+                raise HostError(f"{p}: not a logger file, a decoded .npz, an IPOL file or a CSV text (not UTF-8 at "
+                                f"byte {uerr.start}; {err.message})") from None
         return "text"
 
 
@@ -328,6 +338,7 @@ def _from_csv(p: Path, text: str, rate: float | None, cols: list[str | int] | No
         rate, grid = _time_grid(p, table[:, pos[time_col]], start)
     else:
         grid = np.arange(table.shape[0])
+    check_samples(table.shape[0], p)
     n = int(grid[-1]) + 1 if grid.size else 0
     valid = np.zeros(n, bool)
     valid[grid] = ok
@@ -425,6 +436,11 @@ def _time_grid(p: Path, t: np.ndarray, start: int) -> tuple[float, np.ndarray]:
         k = int(np.flatnonzero(dt <= 0)[0]) if dt.size else 0
         raise HostError(f"{p}: line {start + k + 2}: time does not increase; give --rate HZ instead")
     step = float(np.median(dt))
+    span = (t[-1] - t[0]) / step
+    if not span < MAX_INPUT_SAMPLES:
+        k = int(np.argmax(dt))
+        check_samples(int(min(span, 2**62)) + 1, p, f"line {start + k + 2}: a time gap of {dt[k]:g} s at a "
+                      f"{1.0 / step:g} Hz grid")
     grid = np.round((t - t[0]) / step).astype(np.int64)
     if np.any(np.diff(grid) <= 0):
         raise HostError(f"{p}: the times are not on a regular grid (two rows within one step); give --rate HZ")

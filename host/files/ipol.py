@@ -24,6 +24,12 @@ import numpy as np
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from host.errors import HostError
+from host.files.limits import (
+    MAX_JSON_BYTES,
+    MAX_TEXT_BYTES,
+    check_file_size,
+    check_samples,
+)
 
 _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$")
 
@@ -106,6 +112,7 @@ def read_lb_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, float, int]:
         Unreadable header, missing columns, non-numeric rows, or a counter that goes backwards.
     """
     path = Path(path)
+    check_file_size(path, MAX_TEXT_BYTES, "an IPOL file")
     try:
         with open(path, encoding="utf-8", errors="strict") as fh:
             first = fh.readline()
@@ -146,6 +153,7 @@ def read_lb_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, float, int]:
         counter, data = counter[keep], data[keep]
     first_counter = int(counter[0])
     n = int(counter[-1] - first_counter + 1)
+    check_samples(n, path, f"PacketCounter {first_counter} .. {int(counter[-1])}")
     acc = np.full((n, 3), np.nan)
     valid = np.zeros(n, bool)
     idx = counter - first_counter
@@ -167,11 +175,13 @@ def read_trial(lb_path: str | Path) -> IpolTrial:
     if not m:
         raise HostError(f"{lb_path}: expected a file name '<subject>-<trial>_lb.txt'")
     json_path = lb_path.with_name(f"{m.group(1)}-{m.group(2)}.json")
+    check_file_size(json_path, MAX_JSON_BYTES, "a trial JSON")
     try:
         meta = json.loads(json_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        raise HostError(f"{json_path}: cannot read trial JSON: {err}") from err
-    if "TrialBoundaries" not in meta or len(meta["TrialBoundaries"]) != 2:
+    except (OSError, ValueError, RecursionError) as err:
+        raise HostError(f"{json_path}: cannot read trial JSON: {type(err).__name__}: {err}") from err
+    if not isinstance(meta, dict) or not isinstance(meta.get("TrialBoundaries"), list) \
+            or len(meta["TrialBoundaries"]) != 2:
         raise HostError(f"{json_path}: missing 'TrialBoundaries' [start, end]")
     acc, valid, rate, first = read_lb_file(lb_path)
     return IpolTrial(int(m.group(1)), int(m.group(2)), acc, valid, rate, first, meta, lb_path)

@@ -41,7 +41,7 @@ import numpy as np
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
-from protocol.header import CalibrationSlot, DeviceHeader
+from protocol.header import MAX_CAPACITY_SAMPLES, CalibrationSlot, DeviceHeader
 from protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
@@ -55,6 +55,13 @@ from protocol.steps import (
 #: version 1 as optional arrays (a file without them is read as one saved before they existed), so files of
 #: either age load everywhere.
 NPZ_FORMAT_VERSION = 1
+
+#: The arrays of the NPZ layout (others in a file are not read).
+_NPZ_ARRAYS = ("codes", "valid", "flags", "sample_numbers", "header_bytes", "step_record_bytes", "step_record_numbers",
+               "metadata_json")
+#: Largest NPZ member read, bytes: ``sample_numbers`` (int64) of a memory of MAX_CAPACITY_SAMPLES samples is the
+#: largest genuine one (8 MB); a zip bomb or a header claiming terabytes is refused before it is allocated.
+MAX_NPZ_ARRAY_BYTES = 8 * MAX_CAPACITY_SAMPLES + 4096
 
 #: CSV columns written by :meth:`Recording.to_csv`, in order.
 CSV_COLUMNS = (
@@ -416,17 +423,13 @@ class Recording:
         if magic != b"PK\x03\x04":
             raise HostError(f"{path}: not a gaitlog recording NPZ (an NPZ is a zip archive; this file starts with "
                             f"{magic!r}, offset 0)")
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                arrays = {k: npz[k] for k in npz.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:
-            raise HostError(f"{path}: damaged or truncated recording NPZ ({err})") from err
+        arrays = read_npz_arrays(path, _NPZ_ARRAYS)
         missing = {"codes", "valid", "flags", "sample_numbers", "header_bytes", "metadata_json"} - arrays.keys()
         if missing:
             raise HostError(f"{path}: not a gaitlog recording NPZ (missing arrays {sorted(missing)})")
         try:
             meta = json.loads(str(arrays["metadata_json"]))
-        except ValueError as err:
+        except (ValueError, RecursionError) as err:
             raise HostError(f"{path}: metadata_json is not JSON ({err})") from err
         if not isinstance(meta, dict):
             raise HostError(f"{path}: metadata_json must be a JSON object")
@@ -446,8 +449,8 @@ class Recording:
                        step_records=records, step_record_numbers=numbers, step_losses=losses)
         except KeyError as err:
             raise HostError(f"{path}: metadata_json lacks the field {err.args[0]!r}") from err
-        except (TypeError, ValueError) as err:
-            raise HostError(f"{path}: bad metadata_json field ({err})") from err
+        except (TypeError, ValueError, AttributeError, OverflowError) as err:
+            raise HostError(f"{path}: bad metadata_json field ({type(err).__name__}: {err})") from err
 
     def to_csv(self, path: str | os.PathLike[str], calibration: CountsToG | None = None) -> None:
         """Write one row per stored sample (columns :data:`CSV_COLUMNS`), atomically.
@@ -551,6 +554,58 @@ def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:
     if defined is not None:
         text = [t if ok else "" for t, ok in zip(text, np.asarray(defined, bool).tolist())]
     return text
+
+
+def read_npz_arrays(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """The arrays ``names`` of the NPZ ``path`` (others are not read), each checked before it is allocated.
+
+    Each member's ``.npy`` header is read first: object arrays (pickles) are refused, and so is any array of
+    more than :data:`MAX_NPZ_ARRAY_BYTES` bytes, by its declared shape and by the zip's declared size; the
+    data are then read up to the declared size only (a zip bomb never inflates past it).
+
+    Raises
+    ------
+    HostError
+        Not a zip archive, a damaged or truncated member, a pickled or oversized array; naming the file and
+        the member.
+    """
+    fmt = np.lib.format
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+                if name not in names or name in arrays:
+                    continue
+                where = f"{path}: array {name!r}"
+                if info.flag_bits & 0x1:
+                    raise HostError(f"{where}: encrypted in the zip (a gaitlog NPZ never is)")
+                if info.file_size > MAX_NPZ_ARRAY_BYTES + 4096:
+                    raise HostError(f"{where}: {info.file_size} bytes uncompressed, more than a recording holds "
+                                    f"({MAX_NPZ_ARRAY_BYTES}): not a gaitlog recording NPZ")
+                with zf.open(info) as fh:
+                    version = fmt.read_magic(fh)
+                    if version not in ((1, 0), (2, 0)):
+                        raise HostError(f"{where}: .npy format version {version} is not read")
+                    read_header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+                    shape, fortran, dtype = read_header(fh)
+                    if dtype.hasobject:
+                        raise HostError(f"{where}: holds Python objects (a pickle), which gaitlog never reads")
+                    count = int(np.prod(shape, dtype=object))
+                    nbytes = count * dtype.itemsize
+                    if nbytes > MAX_NPZ_ARRAY_BYTES:
+                        raise HostError(f"{where}: declares shape {shape} ({nbytes} bytes), more than a recording "
+                                        f"holds ({MAX_NPZ_ARRAY_BYTES} bytes)")
+                    data = fh.read(nbytes)
+                if len(data) != nbytes:
+                    raise HostError(f"{where}: truncated ({len(data)} of {nbytes} bytes)")
+                array = np.frombuffer(data, dtype=dtype, count=count)
+                arrays[name] = array.reshape(shape[::-1]).T if fortran else array.reshape(shape)
+    except HostError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as err:
+        raise HostError(f"{path}: damaged or truncated recording NPZ ({err})") from err
+    return {k: v.copy() for k, v in arrays.items()}
 
 
 def _load_step_records(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any], header: Any

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Self
 
 from host.errors import HostError
+from host.files.limits import MAX_JSON_BYTES, check_file_size
 from protocol.atomic_write import atomic_write_text
 
 __all__ = ["VersionedJson"]
@@ -110,22 +111,33 @@ class VersionedJson:
             raise cls.ERROR(f"{where}: key {VERSION_KEY!r}: this gaitlog reads version {cls.FORMAT_VERSION!r}, "
                             f"the file has {version!r} ({what})")
         fields = {k: v for k, v in data.items() if k not in (SCHEMA_KEY, VERSION_KEY)}
-        return cls.fields_from_dict(fields, source=where)
+        try:
+            return cls.fields_from_dict(fields, source=where)
+        except HostError:
+            raise
+        except (TypeError, ValueError, KeyError, IndexError, OverflowError, RecursionError) as err:
+            # a field of the right name but a shape or type the subclass did not foresee (ragged, nested)
+            raise cls.ERROR(f"{where}: not a valid gaitlog {cls.KIND}: {type(err).__name__}: {err}") from None
 
     @classmethod
     def from_json(cls, text: str, *, source: str | None = None) -> Self:
         """Parse :meth:`to_json` text."""
+        where = source or f"<{cls.KIND}>"
         try:
             data = json.loads(text)
         except json.JSONDecodeError as err:
-            raise cls.ERROR(f"{source or f'<{cls.KIND}>'}: not valid JSON (line {err.lineno}, column {err.colno}: "
-                            f"{err.msg})") from err
+            raise cls.ERROR(f"{where}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})") from err
+        except RecursionError:
+            raise cls.ERROR(f"{where}: not a gaitlog {cls.KIND}: JSON nested too deeply") from None
         return cls.from_dict(data, source=source)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Self:
         """Read a file written by :meth:`save`."""
         p = Path(path)
+        if p.is_dir():
+            raise cls.ERROR(f"{p}: is a folder, not a {cls.KIND} file")
+        check_file_size(p, MAX_JSON_BYTES, f"a {cls.KIND} file")
         try:
             text = p.read_text(encoding="utf-8")
         except UnicodeDecodeError as err:

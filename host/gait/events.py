@@ -7,8 +7,11 @@ Notes
    first harmonic of its vertical acceleration is highest and its vertical velocity is zero: the instant
    Alvarez et al. reset the integrals at ("foot-flat, where the vertical velocity of the body is null").
    Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by
-   ``min_prominence_m_s2`` (a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to trough);
-   a second pass raises the minimum distance to ``min_step_fraction`` of the median step duration.
+   ``min_prominence_m_s2`` (a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to trough),
+   or by ``prominence_fraction`` of the walk's recent step amplitude when that is more (the adaptive
+   prominence of :mod:`firmware_sim.algorithms.parameters`: the amplitude follows the accepted peaks in time
+   order, as the on-line algorithm's does); a second pass raises the minimum distance to
+   ``min_step_fraction`` of the median step duration.
 2. *Heel-strike* (HS): the impact. The loading impact of the leading leg reaches the lower back as a short
    upward peak (~20-40 ms wide) shortly after contact; the trailing leg's push-off makes a broader rise
    ~60-100 ms *before* contact, often the steeper of the two at 50 Hz. The impact is taken as the maximum of
@@ -39,6 +42,7 @@ import numpy as np
 
 from firmware_sim.algorithms.parameters import (
     EventParameters,
+    amplitude_update,
     minimum_distance,
     samples,
 )
@@ -115,14 +119,17 @@ class GaitEventDetector:
         fin = np.isfinite(lp)
         sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
         dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
-        ff = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2)
+        threshold = adaptive_prominence(sig, p)
+        ff = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2, with_prominences=True)
+        ff = ff[0][ff[1] >= threshold(ff[0])]
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
         d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
         if d.size >= 3:
             dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
-            ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2)
+            ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2, with_prominences=True)
+            ff = ff[0][ff[1] >= threshold(ff[0])]
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
@@ -166,6 +173,38 @@ class GaitEventDetector:
         has = is_min.any(axis=1)
         j = np.argmax(is_min, axis=1) + 1
         return np.where(has, idx[np.arange(centre.size), j], -1).astype(np.int64)
+
+
+def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
+    """The prominence each peak of ``sig`` must reach (module notes 1): ``max(floor, fraction · A)``.
+
+    ``A`` follows the peaks in time order as the on-line algorithm's hysteresis does: a peak (every local
+    maximum at least ``min_prominence_m_s2`` prominent, no distance rule) is accepted when its prominence
+    reaches the threshold in force, and then updates ``A`` with its rise from the lowest point since the
+    previous accepted peak (:func:`firmware_sim.algorithms.parameters.amplitude_update`). A loop over the
+    peaks, not the samples.
+
+    Returns
+    -------
+    callable
+        ``threshold(peaks)``: the threshold in force at each of ``peaks`` (local maxima of ``sig``).
+    """
+    floor, fraction = parameters.min_prominence_m_s2, parameters.prominence_fraction
+    if fraction <= 0:
+        return lambda peaks: np.full(np.shape(peaks), floor)
+    cand, prom = find_peaks(sig, prominence=floor, with_prominences=True)
+    thr = np.full(cand.size, floor)
+    amp, have, last = 0.0, False, 0
+    for i, (q, pq) in enumerate(zip(cand.tolist(), prom.tolist())):
+        thr[i] = max(floor, fraction * amp) if have else floor
+        if pq >= thr[i]:
+            amp = amplitude_update(amp, float(sig[q] - sig[last:q + 1].min()), not have, parameters.amplitude_shift)
+            have, last = True, q
+
+    def threshold(peaks: np.ndarray) -> np.ndarray:
+        j = np.searchsorted(cand, peaks)
+        return thr[np.clip(j, 0, max(cand.size - 1, 0))] if cand.size else np.full(np.shape(peaks), floor)
+    return threshold
 
 
 def warn_if_no_steps(detector: GaitEventDetector) -> None:

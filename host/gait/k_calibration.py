@@ -136,6 +136,10 @@ class KFit(VersionedJson):
                                                                 for x in v) for v in rng.values()):
                 raise HostError(f"{source}: key 'calibrated_range' must map {', '.join(RANGE_QUANTITIES)} to "
                                 "[min, max]")
+        for name in ("leg_length_m", "foot_length_m"):
+            if not (math.isfinite(getattr(cal, name)) and getattr(cal, name) > 0):
+                raise HostError(f"{source}: key {name!r} must be a positive length in metres, got "
+                                f"{getattr(cal, name)!r}")
         return cal
 
     @classmethod

@@ -29,7 +29,8 @@ import math
 import numpy as np
 
 
-def find_peaks(x: np.ndarray, *, distance: float | None = None, prominence: float | None = None) -> np.ndarray:
+def find_peaks(x: np.ndarray, *, distance: float | None = None, prominence: float | None = None,
+               with_prominences: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Indices of the peaks of ``x`` that are ``distance`` apart and at least ``prominence`` prominent.
 
     Parameters
@@ -40,12 +41,14 @@ def find_peaks(x: np.ndarray, *, distance: float | None = None, prominence: floa
         Minimum distance between kept peaks in samples (>= 1; rounded up), or None for no distance rule.
     prominence
         Minimum prominence in the unit of ``x``, or None for no prominence rule.
+    with_prominences
+        Also return the peaks' prominences (``scipy.signal.peak_prominences``).
 
     Returns
     -------
     numpy.ndarray
         ``(k,)`` increasing ``intp`` indices: ``scipy.signal.find_peaks(x, distance=distance,
-        prominence=prominence)[0]``.
+        prominence=prominence)[0]``; with ``with_prominences``, a tuple ``(indices, prominences)``.
 
     Raises
     ------
@@ -60,7 +63,7 @@ def find_peaks(x: np.ndarray, *, distance: float | None = None, prominence: floa
     if distance is not None and not distance >= 1:
         raise ValueError(f"distance must be >= 1 sample, got {distance!r}")
     if a.size == 0:
-        return np.zeros(0, dtype=np.intp)
+        return (np.zeros(0, dtype=np.intp), np.zeros(0)) if with_prominences else np.zeros(0, dtype=np.intp)
     run_start, run_end = _runs(a)
     v = a[run_start]
     higher_left = np.r_[True, v[1:] > v[:-1]]
@@ -74,11 +77,14 @@ def find_peaks(x: np.ndarray, *, distance: float | None = None, prominence: floa
         peaks, peak_run_index = peaks[keep], np.flatnonzero(peak_run)[keep]
     else:
         peak_run_index = np.flatnonzero(peak_run)
-    if prominence is not None and peaks.size:
+    prom = np.zeros(0)
+    if (prominence is not None or with_prominences) and peaks.size:
         prom = _prominences(a, peaks, np.searchsorted(np.flatnonzero(top), peak_run_index),
                             run_start[top], run_end[top])
-        peaks = peaks[prom >= prominence]
-    return peaks.astype(np.intp, copy=False)
+        if prominence is not None:
+            peaks, prom = peaks[prom >= prominence], prom[prom >= prominence]
+    peaks = peaks.astype(np.intp, copy=False)
+    return (peaks, prom) if with_prominences else peaks
 
 
 def _runs(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

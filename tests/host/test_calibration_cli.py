@@ -93,7 +93,6 @@ def test_csv_counts_with_columns_by_index_and_skipped_preamble(tmp_path, capsys)
          r"median acceleration norm is 1, not what gravity gives in m/s2"),
         (lambda lines: None, ["--units", "g", "--rate", "50", "--columns", "x_g,y_g,w"], r"no column 'w'"),
         (lambda lines: None, ["--units", "g", "--rate", "50", "--columns", "0,1"], r"expected three columns"),
-        (lambda lines: None, ["--units", "g", "--rate", "-5"], r"--rate must be a positive number"),
     ],
 )
 def test_csv_errors_name_the_place_exit_1_and_write_nothing(tmp_path, capsys, mutate, args, message):

@@ -48,7 +48,7 @@ def test_demo_refuses_a_folder_that_is_not_its_own(tmp_path, monkeypatch, capsys
     # a file in the way of the folder
     (tmp_path / "file").write_text("x")
     assert main(["demo", "--out", str(tmp_path / "file")]) == 1
-    assert "not a directory" in capsys.readouterr().err
+    assert "exists and is not a folder" in capsys.readouterr().err
 
 
 def test_demo_replaces_a_previous_demo_output(tmp_path, monkeypatch) -> None:

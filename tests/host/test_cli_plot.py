@@ -84,7 +84,6 @@ def test_overview_gaps_and_marks() -> None:
 
 @pytest.mark.parametrize(("extra", "message"), [
     (["--start", "1e6"], "outside the recording"),
-    (["--duration", "0"], "must be positive"),
     (["--estimators", "M1,M9"], "unknown M9"),
     (["--size", "big"], "--size"),
 ])

@@ -164,7 +164,9 @@ def test_bad_invocations(npz, tmp_path, capsys) -> None:
     assert main(["compare"]) == 1
     assert main(["compare", str(path), "--sweep"]) == 1
     assert main(["compare", str(tmp_path / "missing.npz")]) == 1
-    assert main(["compare", "--simulate", "0"]) == 1
+    with pytest.raises(SystemExit) as usage:                  # a bad number is a usage error (exit 2)
+        main(["compare", "--simulate", "0"])
+    assert usage.value.code == 2
     csv_in = tmp_path / "g.csv"
     csv_in.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 100)
     assert main(["estimate", str(csv_in), "--rate", "50", "--arithmetic", "fixed"]) == 1

@@ -124,8 +124,7 @@ def parse_url(url: str) -> dict:
     >>> parse_url("emu://?colour=red")
     Traceback (most recent call last):
     ...
-    serial.serialutil.SerialException: emu://?colour=red: unknown option 'colour'; expected \
-"emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1]"
+    serial.serialutil.SerialException: emu://?colour=red: unknown option 'colour'; expected "emu://[IMAGE_PATH]...
     """
     parts = urllib.parse.urlsplit(url)
     if parts.scheme.lower() != "emu":
