@@ -36,8 +36,9 @@ def run(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
+    from host.accelerometer.calibration import AccCalibration
     from host.commands._anatomy_options import lengths_from_args
-    from host.commands._options import printer
+    from host.commands._options import check_output_folder, printer
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.gait.k_calibration import KFit
@@ -46,21 +47,23 @@ def run(args: argparse.Namespace) -> int:
     from protocol.atomic_write import atomic_write_text
 
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise HostError(f"{out}: exists and is not a folder")
-    if out.resolve() == Path(args.folder).resolve():
-        raise HostError(f"{out}: give an output folder other than the input folder")
-    paths = batch_inputs(args.folder, args.pattern)
-    if not paths:
-        raise HostError(f"{args.folder}: no input file matches {args.pattern!r}")
-    if args.calibration and not Path(args.calibration).is_file():
-        raise HostError(f"{args.calibration}: no such file")
+    folder = Path(args.folder)
+    check_output_folder("--out", out)
+    if folder.is_dir() and out.resolve() == folder.resolve():
+        raise HostError(f"--out {out}: is the input FOLDER; give an output folder other than the input folder")
+    cal = AccCalibration.load(args.calibration) if args.calibration else None
     k = KFit.load(args.k_file) if args.k_file else None
+    try:
+        paths = batch_inputs(folder, args.pattern)
+    except (ValueError, NotImplementedError) as err:
+        raise HostError(f"--pattern {args.pattern!r}: {err}") from None
+    if not paths:
+        raise HostError(f"{folder}: no input file matches --pattern {args.pattern!r}")
     say = printer(args)
     settings = {"leg_length_m": args.leg_length, "foot_length_m": args.foot_length, "height_m": args.height}
     t = time.perf_counter()
     with progress_bar(args, len(paths), "recording") as tick:
-        results = run_batch(paths, out, calibration=args.calibration, k=k, k_file=args.k_file,
+        results = run_batch(paths, out, calibration=cal, calibration_file=args.calibration, k=k, k_file=args.k_file,
                             lengths=lambda data: lengths_from_args(args, k=k, data=data), settings=settings,
                             progress=tick)
     rows = [r.summary for r in results]

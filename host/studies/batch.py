@@ -98,16 +98,16 @@ def _estimate(path: Path, calibration: AccCalibration | None, k: Any,
     return row, steps.to_csv_text()
 
 
-def run_batch(paths: list[Path], out: str | Path, *, calibration: str | Path | None = None, k: Any = None,
-              k_file: str | Path | None = None, lengths: Callable[[AccelerationInput], AnatomyChoice],
+def run_batch(paths: list[Path], out: str | Path, *, calibration: AccCalibration | None = None,
+              calibration_file: str | Path | None = None, k: Any = None, k_file: str | Path | None = None, lengths: Callable[[AccelerationInput], AnatomyChoice],
               settings: dict | None = None, progress: Callable[[], object] | None = None) -> list[BatchResult]:
     """Estimate every path (module notes); returns one :class:`BatchResult` per path, in order.
 
     Parameters
     ----------
-    calibration
-        Accelerometer calibration JSON (``gaitlog calibrate``) applied to every recording (default: each
-        file's own).
+    calibration, calibration_file
+        Accelerometer calibration (``gaitlog calibrate``) applied to every recording (default: each file's own)
+        and the file it came from.
     k, k_file
         Per-subject constants (:class:`host.gait.k_calibration.KFit`) and the file they came from.
     lengths
@@ -117,8 +117,8 @@ def run_batch(paths: list[Path], out: str | Path, *, calibration: str | Path | N
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cal = AccCalibration.load(calibration) if calibration is not None else None
-    fixed = {"calibration_sha256": _sha256(Path(calibration)) if calibration else None,
+    cal = calibration
+    fixed = {"calibration_sha256": _sha256(Path(calibration_file)) if calibration_file else None,
              "k_file_sha256": _sha256(Path(k_file)) if k_file else None, "settings": settings or {}}
     results = []
     for path in paths:

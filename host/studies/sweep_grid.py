@@ -61,6 +61,8 @@ PROTOCOLS: dict[str, WalkPlan | None] = {
     "paper": None,
     "short": WalkPlan(corridor_length_m=40.0, rest_s=8.0, lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 80.0)),
 }
+#: Largest spec file read, bytes.
+MAX_SPEC_BYTES = 1 << 20
 #: Rendered walks kept per process (:func:`analog_walk`).
 WALK_MEMO_SIZE = 2
 #: Keys of a spec file and their meaning.
@@ -144,8 +146,8 @@ class SweepGrid:
         for n in self.noise_density_g_rthz:
             if not (math.isfinite(n) and 0.0 <= n <= 0.01):
                 raise HostError(f"sweep grid: noise density {n:g} g/√Hz outside 0-0.01")
-        if self.subjects < 1:
-            raise HostError(f"sweep grid: subjects must be >= 1, got {self.subjects}")
+        if not 1 <= self.subjects <= 1000:
+            raise HostError(f"sweep grid: subjects must be 1..1000, got {self.subjects}")
         unknown = [e for e in self.estimators if e not in ESTIMATORS]
         if unknown:
             raise HostError(f"sweep grid: unknown estimator(s) {', '.join(unknown)}; known: {', '.join(ESTIMATORS)}")
@@ -186,12 +188,16 @@ class SweepGrid:
         """A grid from a ``.json`` or ``.toml`` spec file."""
         p = Path(path)
         try:
+            if p.stat().st_size > MAX_SPEC_BYTES:
+                raise HostError(f"{p}: {p.stat().st_size} bytes is too large for a sweep spec")
             text = p.read_text(encoding="utf-8")
         except OSError as err:
             raise HostError(f"{p}: cannot read: {err.strerror or err}") from None
+        except UnicodeDecodeError:
+            raise HostError(f"{p}: not a text file (a JSON or TOML spec is UTF-8 text)") from None
         try:
             spec = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
-        except (tomllib.TOMLDecodeError, json.JSONDecodeError) as err:
+        except (tomllib.TOMLDecodeError, json.JSONDecodeError, RecursionError) as err:
             raise HostError(f"{p}: not a valid {'TOML' if p.suffix.lower() == '.toml' else 'JSON'} spec: {err}") from None
         if not isinstance(spec, dict):
             raise HostError(f"{p}: a spec is a mapping of {', '.join(SPEC_KEYS)}")

@@ -18,7 +18,13 @@ import pytest
 from host.cli import main
 from host.errors import HostError
 from host.studies.sweep import AdcRateSweep
-from host.studies.sweep_grid import PROTOCOLS, SENSOR_NOISE_G_RTHZ, SweepGrid, analog_walk, run_task
+from host.studies.sweep_grid import (
+    PROTOCOLS,
+    SENSOR_NOISE_G_RTHZ,
+    SweepGrid,
+    analog_walk,
+    run_task,
+)
 from host.studies.task_store import TaskStore, run_serial
 
 ROOT = Path(__file__).resolve().parents[2]
