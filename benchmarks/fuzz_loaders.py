@@ -40,7 +40,7 @@ from protocol.errors import ProtocolError
 from protocol.frames import FrameType, encode_frame, parse_payload, parse_stream
 from protocol.header import DeviceHeader, HeaderFlag
 from protocol.image import build_image, image_memory_bytes
-from protocol.xmodem import raw_dump_bytes
+from protocol.raw_dump import raw_dump_bytes
 
 #: The only exceptions a loader may raise on bad bytes.
 DOCUMENTED_ERRORS = (ProtocolError, HostError)

@@ -18,14 +18,17 @@ Examples
 --------
 >>> r = ram_budget(50.0)
 >>> r.total_bytes <= PIC_RAM_BYTES, r.algorithm_bytes, r.firmware_bytes
-(True, 186, 179)
+(True, 186, 182)
 >>> ram_budget(100.0).fits
 False
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import ast
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 from firmware_sim.algorithms.parameters import (
     EventParameters,
@@ -38,20 +41,112 @@ from firmware_sim.algorithms.state import (
     temporaries_bytes,
     variables,
 )
+from firmware_sim.eeprom import DEVICE_BYTES, PAGE_BYTES
 from firmware_sim.fixedpoint import (
     CYCLES,
     DEFAULT_FOSC_HZ,
     I2C_BYTE_CYCLES,
+    MEASURED_CYCLES,
     cycles_per_sample_available,
 )
 from firmware_sim.ring_buffer import WORDS_PER_PAGE
+from firmware_sim.uart import UartTiming
+from protocol.header import HEADER_SIZE, MEMORY_BYTES
 
-__all__ = ["PIC_RAM_BYTES", "FIRMWARE_RAM", "LOGGING_CYCLES", "RamItem", "RamBudget", "CycleBudget",
-           "ram_budget", "cycle_budget", "logging_cycles_per_sample",
-           "algorithm_cycles_per_sample"]
+__all__ = ["PIC_RAM_BYTES", "PIC_PROGRAM_WORDS", "FIRMWARE_RAM", "LOGGING_CYCLES", "CONFIGURATIONS", "LoggerConfig",
+           "RamItem", "RamBudget", "CycleBudget", "ProgramBudget", "StorageBudget", "ram_budget", "cycle_budget",
+           "program_budget", "storage_budget", "logging_cycles", "logging_cycles_per_sample",
+           "algorithm_cycles_per_sample", "adc_acquisition_s", "adc_tad_s", "adc_channel_cycles",
+           "adc_max_sampling_rate_hz", "typical_cycles_per_sample", "shortfalls"]
 
 #: General-purpose RAM of the PIC16F877 (DS30292: 368 x 8; the largest contiguous bank block is 96 bytes).
 PIC_RAM_BYTES = 368
+#: Program memory of the PIC16F877: 8K x 14-bit words (DS30292).
+PIC_PROGRAM_WORDS = 8192
+#: 24LC1025 page write time, maximum (DS21941: 5 ms max, 3 ms typical); the logger waits the maximum.
+EEPROM_PAGE_WRITE_S = 5e-3
+#: Serial dump rate: 115200 baud 8N1 with the 18.432 MHz crystal (firmware_sim.uart), XMODEM-1K blocks.
+DUMP_BAUD = 115200
+XMODEM_BLOCK_DATA, XMODEM_BLOCK_WIRE = 1024, 1029      # STX, block number, its complement, data, CRC-16
+#: ADC (DS30292 section 11): TAD >= 1.6 us from 2, 8 or 32 Tosc; 12 TAD per 10-bit conversion; acquisition
+#: TACQ = amplifier settling 2 us + temperature term 1.25 us + CHOLD (120 pF) x (RIC 1 kOhm + RSS 7 kOhm
+#: + source) x ln(2047) (eq. 11-1: 19.72 us with 10 kOhm, the datasheet's largest recommended source).
+ADC_TAD_MIN_S = 1.6e-6
+ADC_CONVERSION_TAD = 12
+
+
+def adc_acquisition_s(source_impedance_ohm: float) -> float:
+    """Acquisition time of one channel (DS30292 eq. 11-1).
+
+    >>> round(adc_acquisition_s(10e3) * 1e6, 2), round(adc_acquisition_s(32e3) * 1e6, 2)
+    (19.72, 39.85)
+    """
+    return 2e-6 + 1.25e-6 + 120e-12 * (1e3 + 7e3 + source_impedance_ohm) * math.log(2047)
+
+
+def adc_tad_s(fosc_hz: float) -> float:
+    """The shortest legal ADC clock period: 2, 8 or 32 Tosc, at least 1.6 us (RC above 32 Tosc's reach).
+
+    >>> round(adc_tad_s(18.432e6) * 1e6, 3), round(adc_tad_s(20e6) * 1e6, 3), round(adc_tad_s(4e6) * 1e6, 3)
+    (1.736, 1.6, 2.0)
+    """
+    for n in (2, 8, 32):
+        if n / fosc_hz >= ADC_TAD_MIN_S * (1 - 1e-9):
+            return n / fosc_hz
+    raise ValueError(f"no ADC clock of 2, 8 or 32 Tosc reaches 1.6 us at {fosc_hz / 1e6:g} MHz")
+
+
+def adc_channel_cycles(fosc_hz: float, source_impedance_ohm: float) -> float:
+    """Instruction cycles of one busy-waited channel: acquisition + 12 TAD conversion.
+
+    >>> round(adc_channel_cycles(18.432e6, 32e3), 1)
+    279.6
+    """
+    return (adc_acquisition_s(source_impedance_ohm) + ADC_CONVERSION_TAD * adc_tad_s(fosc_hz)) * fosc_hz / 4.0
+
+
+def adc_max_sampling_rate_hz(adc_channels: int, fosc_hz: float, source_impedance_ohm: float) -> float:
+    """The fastest sampling of ``adc_channels`` channels by the one converter, doing nothing else.
+
+    >>> round(adc_max_sampling_rate_hz(6, 20e6, 10e3))
+    4282
+    """
+    per = adc_acquisition_s(source_impedance_ohm) + ADC_CONVERSION_TAD * adc_tad_s(fosc_hz)
+    return 1.0 / (adc_channels * per)
+
+
+@dataclass(frozen=True)
+class LoggerConfig:
+    """A logger configuration to budget: sampling, channels, crystal, on-line estimator, and its source."""
+
+    name: str
+    sampling_rate_hz: float
+    adc_channels: int
+    fosc_hz: float = DEFAULT_FOSC_HZ
+    online_estimator: bool = True
+    source_impedance_ohm: float = 32e3
+    source: str = ""
+
+    @property
+    def bytes_per_sample(self) -> int:
+        """Stored bytes per sample: one 32-bit word per three 10-bit channels (the P32 packing)."""
+        return 4 * math.ceil(self.adc_channels / 3)
+
+
+#: The configurations of the seed papers.
+CONFIGURATIONS: dict[str, LoggerConfig] = {c.name: c for c in (
+    LoggerConfig("alvarez-50", 50.0, 3, source="Alvarez et al. 2006: PIC16F877, two ADXL202 (3 axes, 32 kOhm "
+                 "outputs), 50 Hz, 10-bit ADC, on-line step estimator"),
+    LoggerConfig("alvarez-100", 100.0, 3, source="the Alvarez logger at 100 Hz"),
+    LoggerConfig("morris-5", 100.0, 5, online_estimator=False, source_impedance_ohm=10e3,
+                 source="Morris 1973: five uniaxial accelerometers on a shank platform, sampled at 10 ms "
+                        "intervals; kinematics computed off line (source impedance assumed 10 kOhm)"),
+    LoggerConfig("morris-6", 100.0, 6, online_estimator=False, source_impedance_ohm=10e3,
+                 source="Morris 1973 with a sixth accelerometer (the platform's six motion parameters)"),
+    LoggerConfig("hall", 10_000.0, 6, fosc_hz=20e6, online_estimator=False, source_impedance_ohm=10e3,
+                 source="Hall et al. 1997: two triaxial angular rate sensors (head, thorax) sampled at 10 kHz; "
+                        "the PIC's fastest crystal, 20 MHz (source impedance assumed 10 kOhm)"),
+)}
 
 
 @dataclass(frozen=True)
@@ -74,40 +169,64 @@ FIRMWARE_RAM: tuple[RamItem, ...] = (
             "estimate: hunt state, length (2), count (2), type, seq, CRC-16 register (2); payloads of the "
             "commands a logging device accepts are empty, the others are answered BUSY unbuffered"),
     RamItem("UART transmitter", 4, "estimate: field pointer, count, CRC-16 register (2); answers built on the fly"),
-    RamItem("AN617 maths registers", 12, "estimate: AARG (4), BARG (2), REM (2), TEMP (2), loop count, sign"),
+    RamItem("maths registers", 15, "implemented: the arithmetic kernels' ACC (4), ARG (2), REM (3), TMP (3), COUNT, "
+            "SIGNS, FLAGS in common RAM 0x70-0x7E (firmware_sim/pic/registers.inc)"),
     RamItem("interrupt context", 4, "estimate: W, STATUS, PCLATH, FSR"),
     RamItem("I2C driver", 5, "estimate: state, 17-bit address (3), byte count"),
     RamItem("step record CRC", 2, "estimate: CRC-16 register while the record is streamed to the step EEPROM"),
     RamItem("sample timer and marker", 2, "estimate: sample flag, marker-button debounce"),
 )
 
-#: The logging interrupt's cycles per sample (besides the algorithm).
-LOGGING_CYCLES: dict[str, tuple[float, str]] = {
-    "ADC": (3 * 276, "3 conversions: 40 us acquisition (32 kOhm ADXL202 output) + 12 TAD of 1.74 us at 18.432 MHz "
-                     "(32 Tosc), busy-waiting (computed; HARDWARE.md)"),
-    "pack and store": (60, "estimate: P32 word into the page buffer, counters"),
-    "page write": ((4 * WORDS_PER_PAGE + 3) * I2C_BYTE_CYCLES / WORDS_PER_PAGE,
-                   "one 128-byte page + control and address every 32 samples, busy-waiting I2C (computed)"),
-    "interrupt entry and exit": (20, "estimate: context save and restore"),
-}
+def logging_cycles(config: LoggerConfig | None = None) -> dict[str, tuple[float, str]]:
+    """The logging interrupt's cycles per sample (besides the algorithm), with where each comes from."""
+    c = config or CONFIGURATIONS["alvarez-50"]
+    per = adc_channel_cycles(c.fosc_hz, c.source_impedance_ohm)
+    words = c.bytes_per_sample // 4
+    samples_per_page = PAGE_BYTES / c.bytes_per_sample
+    return {
+        "ADC": (c.adc_channels * per,
+                f"{c.adc_channels} conversions of {per:.0f} cycles: "
+                f"{adc_acquisition_s(c.source_impedance_ohm) * 1e6:.1f} us "
+                f"acquisition ({c.source_impedance_ohm / 1e3:g} kOhm source) + 12 TAD of "
+                f"{adc_tad_s(c.fosc_hz) * 1e6:.3f} us, busy-waiting (computed; DS30292 eq. 11-1)"),
+        "pack and store": (60.0 * words, f"estimate: {words} P32 word(s) into the page buffer, counters"),
+        "page write": ((PAGE_BYTES + 3) * I2C_BYTE_CYCLES / samples_per_page,
+                       f"one 128-byte page + control and address every {samples_per_page:g} samples, busy-waiting "
+                       "I2C (computed)"),
+        "page commit": ((6 * 8 + 2 * 24 + 40 + 150) / samples_per_page,
+                        "estimate: after each page write, read the 6 bytes of its journal entry (8 each), write the "
+                        "changed ones (24 each: EEADR, EEDATA, the 55/AA sequence; measured 2.0 a page on a walk with "
+                        "the step algorithm on, the low bytes of commit and steps, 1 with it off), 40 of bookkeeping, "
+                        "and the entry's index (commit - 1) mod 15 from the page count by 16 shift-and-subtract steps "
+                        "(~150: no RAM byte kept for it); the ~4 ms byte writes run in the background "
+                        "(PROTOCOL.md 2.4)"),
+        "interrupt entry and exit": (20.0, "estimate: context save and restore"),
+    }
 
 
-def logging_cycles_per_sample() -> float:
-    """Cycles the logging interrupt takes per sample (:data:`LOGGING_CYCLES`).
+#: The logging interrupt's cycles per sample of the Alvarez logger (:func:`logging_cycles`).
+LOGGING_CYCLES: dict[str, tuple[float, str]] = logging_cycles()
+
+
+def logging_cycles_per_sample(config: LoggerConfig | None = None) -> float:
+    """Cycles the logging interrupt takes per sample (:func:`logging_cycles`).
 
     >>> round(logging_cycles_per_sample())
-    1313
+    1333
     """
-    return float(sum(c for c, _ in LOGGING_CYCLES.values()))
+    return float(sum(c for c, _ in logging_cycles(config).values()))
 
 
-def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ) -> float:
+def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ,
+                                config: LoggerConfig | None = None) -> float:
     """Cycles per sample period left to the on-line step algorithm: the period minus the logging interrupt.
 
     >>> round(algorithm_cycles_per_sample(50.0))
-    90847
+    90827
     """
-    return cycles_per_sample_available(sampling_rate_hz, fosc_hz) - logging_cycles_per_sample()
+    if config is None:
+        config = LoggerConfig("alvarez", float(sampling_rate_hz), 3, fosc_hz=float(fosc_hz))
+    return cycles_per_sample_available(sampling_rate_hz, fosc_hz) - logging_cycles_per_sample(config)
 
 
 @dataclass(frozen=True)
@@ -152,8 +271,11 @@ class RamBudget:
 
 
 def ram_budget(sampling_rate_hz: float, *, events: EventParameters | None = None,
-               online: OnlineParameters | None = None) -> RamBudget:
-    """The RAM budget at ``sampling_rate_hz`` (the delay line grows with the rate)."""
+               online: OnlineParameters | None = None, online_estimator: bool = True) -> RamBudget:
+    """The RAM budget at ``sampling_rate_hz`` (the delay line grows with the rate); without the on-line
+    estimator only the firmware's own variables."""
+    if not online_estimator:
+        return RamBudget(float(sampling_rate_hz), (), FIRMWARE_RAM)
     c = SampleCounts.at(events or EventParameters(), online or OnlineParameters(), sampling_rate_hz)
     line, med = 2 * c.r3 + 1, c.median_steps
     persistent = [RamItem(f"algorithm: {v.name}", v.bytes, f"implemented: {v.note}")
@@ -214,11 +336,205 @@ class CycleBudget:
         ]
 
 
-def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> CycleBudget:
+def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOSC_HZ,
+                 config: LoggerConfig | None = None) -> CycleBudget:
     """Cycle budget from a run's :class:`~firmware_sim.algorithms.online.CycleStats` (run with
-    ``cycles_available =`` :func:`algorithm_cycles_per_sample`, as the firmware does)."""
+    ``cycles_available =`` :func:`algorithm_cycles_per_sample`, as the firmware does); ``stats = None``: no
+    on-line algorithm, the logging interrupt only."""
+    if stats is None:
+        return CycleBudget(float(sampling_rate_hz), float(fosc_hz), 0.0, 0, 0, logging_cycles_per_sample(config))
     return CycleBudget(float(sampling_rate_hz), float(fosc_hz), stats.mean, int(stats.worst), int(stats.worst_backlog),
-                       logging_cycles_per_sample())
+                       logging_cycles_per_sample(config))
+
+
+def typical_cycles_per_sample(calls: dict[str, int], n_samples: int) -> tuple[float, float]:
+    """Cycles per sample from the algorithm's operation counts (``ArithmeticContext.calls``) times each
+    primitive's cost: (with the worst-case costs of :data:`CYCLES` -- the chain's own counter must agree
+    --, with the measured kernels' mean costs where a kernel exists)."""
+    mean_cost = {**CYCLES, **MEASURED_CYCLES["cycles_mean"]}
+    n = max(1, int(n_samples))
+    return (sum(CYCLES[k] * v for k, v in calls.items()) / n, sum(mean_cost[k] * v for k, v in calls.items()) / n)
+
+
+#: Program memory of the firmware besides the measured kernels: (name, words, source); estimates.
+FIRMWARE_PROGRAM: tuple[tuple[str, int, str], ...] = (
+    ("UART command handler, frames, CRC-16", 450, "estimate: hunt/length/CRC state machine, 12 commands, "
+                                                   "table-driven CRC-16 in 256 words of RETLW counted apart"),
+    ("CRC-16 table", 256, "estimate: one RETLW table of the CRC's high byte"),
+    ("XMODEM-1K sender", 200, "estimate: block framing, ACK/NAK/CAN handling"),
+    ("I2C EEPROM driver", 150, "estimate: start/stop, byte out/in, page write, acknowledge polling"),
+    ("ADC, timer and sampling interrupt", 100, "estimate: context save, 3-6 conversions, P32 packing"),
+    ("header and configuration in the data EEPROM", 150, "estimate: read/write of 256 bytes, counters"),
+    ("start-up and main loop", 80, "estimate"),
+)
+#: Program words per primitive call site of the on-line algorithm: operand and result moves (2 words a byte,
+#: 4-8 bytes) plus the CALL; the control flow around them counted as half as much again (estimate).
+WORDS_PER_CALL_SITE = 18
+_KERNEL_SOURCE = Path(__file__).resolve().parent / "algorithms" / "kernel.py"
+
+
+def _primitive_call_sites() -> int:
+    """Arithmetic call sites of the on-line algorithm's kernel source: its ``ar.*`` operations
+    (``algorithms/arithmetic.py``) and scalar primitives (``s_*``, not the cycle bookkeeping ``s_cost``)."""
+    tree = ast.parse(_KERNEL_SOURCE.read_text(encoding="utf-8"))
+    calls = [n.func for n in ast.walk(tree) if isinstance(n, ast.Call)]
+    ops = sum(1 for f in calls if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "ar")
+    return ops + sum(1 for f in calls if isinstance(f, ast.Name) and f.id.startswith("s_") and f.id != "s_cost")
+
+
+@dataclass(frozen=True)
+class ProgramBudget:
+    """Program memory (14-bit words) against the PIC16F877's 8K."""
+
+    items: tuple[tuple[str, int, str], ...]
+
+    @property
+    def total_words(self) -> int:
+        """Everything."""
+        return sum(w for _, w, _ in self.items)
+
+    @property
+    def fits(self) -> bool:
+        """Within 8K words."""
+        return self.total_words <= PIC_PROGRAM_WORDS
+
+    def lines(self) -> list[str]:
+        """A printed table."""
+        out = [f"program memory (PIC16F877: {PIC_PROGRAM_WORDS} words)"]
+        out += [f"  {n:<44s} {w:5d}  {src}" for n, w, src in self.items]
+        verdict = "fits" if self.fits else "DOES NOT FIT"
+        spare = PIC_PROGRAM_WORDS - self.total_words
+        out.append(f"  {'total':<44s} {self.total_words:5d}  {verdict} ({spare:+d} words)")
+        return out
+
+
+def program_budget(online_estimator: bool = True) -> ProgramBudget:
+    """Program memory: the measured arithmetic kernels, the algorithm's call sites, the firmware (estimates)."""
+    items = [("arithmetic kernels (firmware_sim/pic)", int(MEASURED_CYCLES["kernel_program_words"]),
+              "measured: gpasm, kernels_end - kernels_begin")]
+    if online_estimator:
+        sites = _primitive_call_sites()
+        items.append(("on-line step algorithm", sites * WORDS_PER_CALL_SITE,
+                      f"estimate: {sites} primitive call sites in algorithms/kernel.py x {WORDS_PER_CALL_SITE} words"))
+    return ProgramBudget(tuple(items) + FIRMWARE_PROGRAM)
+
+
+@dataclass(frozen=True)
+class StorageBudget:
+    """Sample EEPROM write bandwidth and the serial dump."""
+
+    config: LoggerConfig
+
+    @property
+    def write_bytes_per_s(self) -> float:
+        """Sample bytes to store per second."""
+        return self.config.bytes_per_sample * self.config.sampling_rate_hz
+
+    @property
+    def page_cycle_s(self) -> float:
+        """One page: 131 bytes on the I2C bus (control, 2 address, 128 data) then the 5 ms write."""
+        return (PAGE_BYTES + 3) * I2C_BYTE_CYCLES * 4.0 / self.config.fosc_hz + EEPROM_PAGE_WRITE_S
+
+    @property
+    def capacity_bytes_per_s(self) -> float:
+        """The most the 24LC1025 accepts, page after page."""
+        return PAGE_BYTES / self.page_cycle_s
+
+    @property
+    def fits(self) -> bool:
+        """The pages are written faster than they fill."""
+        return self.write_bytes_per_s <= self.capacity_bytes_per_s
+
+    @property
+    def recording_s(self) -> float:
+        """How long the two 24LC1025 (256 KiB) last."""
+        return MEMORY_BYTES / self.write_bytes_per_s
+
+    @property
+    def dump_s(self) -> float | None:
+        """A full memory over XMODEM-1K at 115200 baud (None: the crystal cannot make that rate)."""
+        try:
+            t = UartTiming(baud=DUMP_BAUD, fosc_hz=self.config.fosc_hz).byte_time_s
+        except Exception:   # noqa: BLE001 - the DeviceError of an unreachable rate
+            return None
+        return math.ceil((HEADER_SIZE + MEMORY_BYTES) / XMODEM_BLOCK_DATA) * XMODEM_BLOCK_WIRE * t
+
+    def lines(self) -> list[str]:
+        """A printed summary."""
+        dump = f"{self.dump_s:.1f} s" if self.dump_s is not None else f"{DUMP_BAUD} baud not reachable"
+        return [
+            f"sample EEPROM (2 x 24LC1025, {2 * DEVICE_BYTES // 1024} KiB, {PAGE_BYTES}-byte pages)",
+            f"  writes                       {self.write_bytes_per_s:10,.0f} B/s  "
+            f"({self.config.bytes_per_sample} bytes "
+            f"a sample; one page every {PAGE_BYTES / self.write_bytes_per_s * 1e3:,.1f} ms)",
+            f"  page cycle                   {self.page_cycle_s * 1e3:10.2f} ms   (I2C transfer + 5 ms write, max)",
+            f"  capacity                     {self.capacity_bytes_per_s:10,.0f} B/s  "
+            f"({100 * self.write_bytes_per_s / self.capacity_bytes_per_s:.1f} % used; "
+            f"{'fits' if self.fits else 'DOES NOT FIT'})",
+            f"  memory full after            {self.recording_s:10,.1f} s",
+            f"  dump, XMODEM-1K {DUMP_BAUD} 8N1 {dump}",
+        ]
+
+
+def storage_budget(config: LoggerConfig) -> StorageBudget:
+    """EEPROM bandwidth and dump time of ``config``."""
+    return StorageBudget(config)
 
 
 assert "i2c_byte" in CYCLES
+
+
+def shortfalls(config: LoggerConfig, ram: RamBudget, cycles: CycleBudget, program: ProgramBudget,
+               storage: StorageBudget) -> list[str]:
+    """What does not fit, and by how much (one line each; empty when everything fits)."""
+    out = []
+    period_s = 1.0 / config.sampling_rate_hz
+    adc_s = config.adc_channels / adc_max_sampling_rate_hz(1, config.fosc_hz, config.source_impedance_ohm)
+    if adc_s > period_s:
+        out.append(f"ADC: {config.adc_channels} channels take {adc_s * 1e6:,.1f} us per sample (acquisition "
+                   f"{adc_acquisition_s(config.source_impedance_ohm) * 1e6:.1f} us + 12 TAD of "
+                   f"{adc_tad_s(config.fosc_hz) * 1e6:.2f} us each), the period is {period_s * 1e6:,.1f} us: at most "
+                   f"{adc_max_sampling_rate_hz(config.adc_channels, config.fosc_hz, config.source_impedance_ohm):,.0f}"
+                   f" Hz with nothing else to do ({adc_s / period_s:.1f}x too slow)")
+    if cycles.logging > cycles.available:
+        out.append(f"cycles: the logging interrupt alone needs {cycles.logging:,.0f} of {cycles.available:,.0f} per "
+                   f"sample ({cycles.logging / cycles.available:.1f}x)")
+    elif not cycles.fits:
+        out.append(f"cycles: mean load {100 * cycles.mean_load:.0f} %, backlog {cycles.backlog_samples:.1f} samples "
+                   f"(limit {WORDS_PER_PAGE})")
+    if not ram.fits:
+        out.append(f"RAM: {ram.total_bytes} of {PIC_RAM_BYTES} bytes ({ram.total_bytes - PIC_RAM_BYTES} over)")
+    if not program.fits:
+        out.append(f"program memory: {program.total_words} of {PIC_PROGRAM_WORDS} words "
+                   f"({program.total_words - PIC_PROGRAM_WORDS} over)")
+    if not storage.fits:
+        out.append(f"EEPROM: {storage.write_bytes_per_s:,.0f} B/s to write, the 24LC1025 takes "
+                   f"{storage.capacity_bytes_per_s:,.0f} B/s "
+                   f"({storage.write_bytes_per_s / storage.capacity_bytes_per_s:.1f}x)")
+    return out
+
+
+def instrument_fit(config: LoggerConfig) -> tuple[list[str], float]:
+    """An instrument on the logger (its channels sampled and stored, no on-line estimator: Morris's platform,
+    Hall's rate sensors): what does not fit (:func:`shortfalls`, empty when it fits) and the fastest sampling
+    rate at which these channels fit, Hz (bisection on the same rules, to 0.1 Hz).
+
+    >>> instrument_fit(CONFIGURATIONS["morris-5"])[0]
+    []
+    >>> short, fastest = instrument_fit(CONFIGURATIONS["hall"])
+    >>> short[0][:40], round(fastest)
+    ('ADC: 6 channels take 233.5 us per sample', 2107)
+    """
+    def short(rate_hz: float) -> list[str]:
+        c = replace(config, sampling_rate_hz=rate_hz, online_estimator=False)
+        return shortfalls(c, ram_budget(rate_hz, online_estimator=False),
+                          cycle_budget(None, rate_hz, fosc_hz=c.fosc_hz, config=c), program_budget(False),
+                          storage_budget(c))
+
+    lo, hi = 1.0, float(config.sampling_rate_hz)
+    if not short(hi):
+        return [], hi
+    while hi - lo > 0.1:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if not short(mid) else (lo, mid)
+    return short(config.sampling_rate_hz), lo

@@ -36,13 +36,35 @@ from firmware_sim.step_store import StepStore
 from firmware_sim.world.base import Motion, MotionSource
 from firmware_sim.world.resampling import resample_g
 from protocol.atomic_write import atomic_write_bytes
+from protocol.commit_journal import torn_step_records
 from protocol.errors import ProtocolError
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
 from protocol.image import build_image, parse_image
-from protocol.packing import unpack_words
+from protocol.packing import FLAG_MARK, FLAG_SESSION_START, unpack_words
 from protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
 
-__all__ = ["Logger", "RecordResult"]
+__all__ = ["Logger", "RecordResult", "PowerCut"]
+
+
+@dataclass(frozen=True)
+class PowerCut:
+    """Where a power loss falls in a :meth:`Logger.record` (section 2.4 of ``PROTOCOL.md``).
+
+    Attributes
+    ----------
+    at_sample
+        Samples the timer took before the power failed (0 … all of them; all of them and ``during_stop``: the
+        cut falls in STOP, after the run's last sample).
+    at_byte
+        None: between two samples. Otherwise inside the write in flight, if the last sample completed a page
+        (or, with ``during_stop``, the partial page STOP flushes): see :meth:`RingBuffer.power_cut`.
+    during_stop
+        The cut falls in STOP's page flush (before its header commit).
+    """
+
+    at_sample: int
+    at_byte: int | None = None
+    during_stop: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -263,13 +285,40 @@ class Logger:
         elif step_memory is None and header.steps_written:
             raise DeviceError(f"{source}: the header has {header.n_steps_stored} stored step records but no step "
                               "memory was given")
-        header.flags &= ~int(HeaderFlag.LOGGING)  # power was off: no run is in progress
         self.bank.load(memory)
-        self.ring = RingBuffer(self.bank, self.data_eeprom, header)
         self.steps = StepStore(self.step_eeprom, header)
         self.steps.load(np.full(self.steps.size_bytes, 0xFF, np.uint8) if step_memory is None else step_memory)
+        self._boot(header)
+
+    def _boot(self, header: DeviceHeader) -> None:
+        """Power-up: a header left with ``LOGGING`` set (the power failed during a run) is recovered from its
+        journal (``DeviceHeader.recovered``, with the step records written after the last commit counted as
+        torn); a version-1 header has no journal and its run's samples are dropped (LOGGING cleared). The
+        header is committed and the firmware starts afresh (RAM state lost)."""
+        if header.logging:
+            header = header.recovered()
+            if header.power_lost:
+                header.torn_step_records = torn_step_records(header, self.step_eeprom.memory)
+            header.flags &= ~int(HeaderFlag.LOGGING)
+        self.ring = RingBuffer(self.bank, self.data_eeprom, header)
+        self.steps = StepStore(self.step_eeprom, header)
         self.ring.commit()
-        self.firmware = Firmware(self.ring, steps=self.steps)
+        self.firmware = Firmware(self.ring, steps=self.steps, nonce_source=self.firmware.nonce_source)
+
+    def power_up(self) -> None:
+        """Power the device up from what its non-volatile memories hold (the data EEPROM's header, the sample
+        and step EEPROMs): the RAM is lost, an interrupted run is recovered to its last committed page.
+
+        Raises
+        ------
+        DeviceError
+            The data EEPROM does not hold a valid header (a power loss inside a header commit).
+        """
+        try:
+            header = DeviceHeader.from_bytes(self.data_eeprom.read(), source="data EEPROM")
+        except ProtocolError as err:
+            raise DeviceError(f"power-up: {err}") from err
+        self._boot(header)
 
     # ------------------------------------------------------------------ recording
     def record(
@@ -278,8 +327,14 @@ class Logger:
         *,
         start_time_s: int = 0,
         overwrite: bool | None = None,
+        power_cut: PowerCut | None = None,
     ) -> RecordResult:
         """Run one logging session over ``motion``: START, sample, STOP.
+
+        With ``power_cut`` the power fails during the run (:class:`PowerCut`): the samples before the cut
+        are logged, the write in flight is torn as the cut says, the RAM is lost and the device powers up again
+        (:meth:`power_up`). The result then holds the samples *taken* (``codes``, ``flags`` as packed,
+        ``sample_numbers``), not what survived: the decoder's business.
 
         Parameters
         ----------
@@ -320,6 +375,8 @@ class Logger:
         except MemoryFullError as err:
             raise DeviceError(f"cannot record: {err}") from err
         first_number = self.header.samples_written
+        if power_cut is not None:
+            return self._record_cut(power_cut, codes, marks, times, first_number, motion, rate)
         n_stored = self.firmware.log_samples(codes, marks)
         self.firmware.stop_logging()
         cap = self.header.capacity_samples
@@ -340,6 +397,34 @@ class Logger:
             n_taken=int(times.size),
             truth=truth,
         )
+
+
+    def _record_cut(self, cut: PowerCut, codes: np.ndarray, marks: np.ndarray, times: np.ndarray, first_number: int,
+                    motion: Motion, rate: float) -> RecordResult:
+        """The rest of :meth:`record` when the power fails at ``cut``."""
+        n = int(cut.at_sample)
+        if not 0 <= n <= codes.shape[0] or (cut.during_stop and n != codes.shape[0]):
+            raise DeviceError(f"power cut at sample {n}: the run takes {codes.shape[0]} samples"
+                              + (" (during_stop needs all of them)" if cut.during_stop else ""))
+        self.firmware.log_samples(codes[:n], marks[:n])
+        if cut.during_stop and self.ring.logging:
+            self.firmware._end_steps()
+            self.ring._flush()
+        if self.ring.logging:
+            self.ring.power_cut(cut.at_byte)
+            self.power_up()
+        else:  # the run had already ended (a full memory in stop-when-full mode): a cut changes nothing
+            self.firmware.stop_logging()
+        flags = np.zeros(n, dtype=np.uint8)
+        flags[marks[:n]] |= FLAG_MARK
+        if n:
+            flags[0] |= FLAG_SESSION_START
+        truth = dict(motion.truth)
+        truth.update(sensor=self.sensor.truth(), adc=_adc_truth(self.adc), motion_sampling_rate_hz=rate, power_cut=cut)
+        if self.image_path is not None:
+            self.save_image()
+        return RecordResult(codes=np.asarray(codes[:n], np.uint16), flags=flags, sample_times_s=times[:n],
+                            sample_numbers=first_number + np.arange(n, dtype=np.int64), n_taken=n, truth=truth)
 
 
 def _adc_truth(adc: Adc) -> dict[str, Any]:

@@ -173,6 +173,14 @@ class EepromBank:
             page, pos = page + k, pos + k
         return None
 
+    def fault_write(self, address: int, data: bytes) -> None:
+        """Set bytes as a fault leaves them (a page write cut by a power loss): no write cycle, no wear."""
+        if not 0 <= address <= address + len(data) <= self.size_bytes:
+            raise DeviceError(f"fault write of {len(data)} bytes at {address} outside 0..{self.size_bytes}")
+        for i, b in enumerate(bytes(data)):
+            dev, off = self._split(address + i)
+            dev.memory[off] = b
+
     def read(self, address: int, length: int) -> bytes:
         """Read ``length`` bytes from a bank address, re-addressing at every 64 KiB block boundary (the
         24LC1025's sequential read would roll over within the block); counts the address transactions."""

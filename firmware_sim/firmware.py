@@ -41,7 +41,8 @@ Streams (DUMP, DUMP_CHECKED; PROTOCOL.md section 4)
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import secrets
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -136,6 +137,10 @@ class Firmware:
         ``step_capacity`` (0: no step memory, as for a header that has none).
     inter_byte_timeout_s
         Silence after which a partial command frame is dropped.
+    nonce_source
+        Where START takes the run's ``recording_nonce`` (32 bits; section 2.4): the PIC gathers it from the
+        low bits of free-running timer 1 and of ADC conversions at START. Default: the host's CSPRNG, so two
+        emulated devices never agree; pass a seeded source for reproducible bytes.
 
     Examples
     --------
@@ -149,7 +154,8 @@ class Firmware:
     """
 
     def __init__(self, ring: RingBuffer, *, steps: StepStore | None = None,
-                 inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S, fosc_hz: float = DEFAULT_FOSC_HZ) -> None:
+                 inter_byte_timeout_s: float = INTER_BYTE_TIMEOUT_S, fosc_hz: float = DEFAULT_FOSC_HZ,
+                 nonce_source: Callable[[], int] | None = None) -> None:
         if steps is not None and steps.header is not ring.header:
             raise DeviceError("the step store and the ring buffer must share one header")
         self.ring = ring
@@ -161,6 +167,7 @@ class Firmware:
         self._xmodem: XmodemSender | None = None
         self._run_first = False  # the next logged sample is the first of a run (SESSION_START)
         self.fosc_hz = float(fosc_hz)
+        self.nonce_source = nonce_source if nonce_source is not None else (lambda: secrets.randbits(32))
         #: The on-line step algorithm of the current (or last) run, None when the configuration is off.
         self.step_algorithm: OnlineStepAlgorithm | None = None
         self.stats = {"frames": 0, "bad_crc": 0, "framing_errors": 0, "timeouts": 0, "naks": 0,
@@ -187,7 +194,7 @@ class Firmware:
     def start_logging(self, *, start_time_s: int, overwrite: bool) -> None:
         """START: begin a run (raises :class:`DeviceError` / ``MemoryFullError`` as the ring does); the step
         algorithm starts afresh from the header's configuration."""
-        self.ring.start(start_time_s=start_time_s, overwrite=overwrite)
+        self.ring.start(start_time_s=start_time_s, overwrite=overwrite, nonce=self.nonce_source())
         self._run_first = True
         self.step_algorithm = step_algorithm_for(self.ring.header, fosc_hz=self.fosc_hz)
 

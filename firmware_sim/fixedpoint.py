@@ -14,7 +14,10 @@ Two faces, one definition
 * **Array API** (:func:`mul`, :func:`mul_q`, :func:`div`, :func:`div_round`, :func:`isqrt`, :func:`add` ...):
   the same scalar definitions applied element by element by compiled loops, for numpy arrays (broadcast,
   ``int64``), with the counts collected in an :class:`ArithmeticContext`. This is the face the bit-exact
-  tests (apytypes) and the benchmarks use.
+  tests (apytypes) and the benchmarks use. Arrays of at most :data:`PYTHON_MAX_ELEMENTS` elements (the
+  algorithm's configuration: a few dozen constants) run the loops' Python text on Python integers instead,
+  which needs no numba (loading it costs ~0.4 s; :mod:`firmware_sim.compiled`); a test checks that both
+  give the same bits.
 
 Conventions
 -----------
@@ -41,35 +44,42 @@ Conventions
 Cycle costs
 -----------
 :data:`CYCLES` holds worst-case instruction cycles of each primitive on the PIC16 (one cycle = 4 clocks).
-The multiply and divide figures are Microchip AN617's (``FXM1616S`` 269, ``FXM1616U`` 256, ``FXD3216U`` 703;
-HARDWARE.md); the I2C byte is computed from the bus clock; the others are counted from hand-written
-mid-range instruction sequences and are estimates (marked so in :data:`CYCLE_SOURCES`). Every scalar call
-adds ``CYCLES[op]`` to the counters, so a kernel's cycles per sample (mean and worst) can be compared with
-the cycles one sample period offers (:func:`cycles_per_sample_available`).
+Where ``firmware_sim/pic`` has an assembly kernel (multiplies, divides, shifts, saturation, square root), the
+figure is measured: the kernel runs in gpsim's PIC16F877 model, bit-exact with this module on 10,000+
+vectors, and ``gaitlog budget --measure-kernels`` writes its worst case to ``pic/kernel_cycles.json``, which
+this module reads (:data:`MEASURED_CYCLES`). The other figures stay as cited (:data:`CITED_CYCLES`): the I2C
+byte computed from the bus clock, the rest counted from hand-written instruction sequences and marked
+*estimate* in :data:`CYCLE_SOURCES`. Every scalar call adds ``CYCLES[op]`` to the counters, so a kernel's
+cycles per sample (mean and worst) can be compared with the cycles one sample period offers
+(:func:`cycles_per_sample_available`).
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from numba import njit
-from numba.extending import register_jitable
 
-import firmware_sim.compiled  # noqa: F401  (numba's cache folder, before any cache=True below)
+from firmware_sim.compiled import njit, register_jitable
 
 __all__ = [
     "CYCLES",
     "CYCLE_SOURCES",
+    "CITED_CYCLES",
+    "CITED_SOURCES",
+    "MEASURED_CYCLES",
     "OPS",
     "CYCLE_TABLE",
     "I2C_BYTE_CYCLES",
     "DEFAULT_FOSC_HZ",
     "cycles_per_sample_available",
     "N_COUNTERS",
+    "PYTHON_MAX_ELEMENTS",
     "C_SAT",
     "C_WRAP",
     "C_DIV0",
@@ -132,8 +142,8 @@ def cycles_per_sample_available(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     return fosc_hz / 4.0 / sampling_rate_hz
 
 
-#: Worst-case PIC16 instruction cycles per element of each primitive (see :data:`CYCLE_SOURCES`).
-CYCLES: dict[str, int] = {
+#: The figures cited before the primitives ran on a PIC simulator (application notes, hand counts).
+CITED_CYCLES: dict[str, int] = {
     "add16": 6,        # MOVF/ADDWF low, BTFSC C, INCF high, MOVF/ADDWF high
     "add32": 16,
     "sat16": 12,       # overflow test on the sign bits + load of the limit
@@ -153,8 +163,8 @@ CYCLES: dict[str, int] = {
     "ram_copy8": 4,     # move one byte between RAM locations through W (MOVF/MOVWF; estimate)
 }
 
-#: Where each :data:`CYCLES` figure comes from.
-CYCLE_SOURCES: dict[str, str] = {
+#: Where each :data:`CITED_CYCLES` figure comes from.
+CITED_SOURCES: dict[str, str] = {
     "mul16x16s": "Microchip AN617, FXM1616S worst case",
     "mul16x16u": "Microchip AN617, FXM1616U worst case",
     "div32by16u": "Microchip AN617, FXD3216U worst case",
@@ -163,6 +173,18 @@ CYCLE_SOURCES: dict[str, str] = {
        for k in ("add16", "add32", "sat16", "sat32", "shift32_per_bit", "round32", "compare16", "compare32",
                  "mul8x8u", "div32by16s", "isqrt32", "data_eeprom_byte", "ram_copy8")},
 }
+
+#: The cycle table measured in gpsim on the assembly kernels of ``firmware_sim/pic`` (written by
+#: ``gaitlog budget --measure-kernels``, :mod:`firmware_sim.pic.gpsim_bench`; ``kernels`` holds each
+#: kernel's min, mean and max cycles per call).
+MEASURED_CYCLES: dict = json.loads((Path(__file__).resolve().parent / "pic" / "kernel_cycles.json").read_text())
+
+#: Worst-case PIC16 instruction cycles per element of each primitive: measured in gpsim where a kernel
+#: exists, the cited figure otherwise (see :data:`CYCLE_SOURCES`).
+CYCLES: dict[str, int] = {**CITED_CYCLES, **{k: int(v) for k, v in MEASURED_CYCLES["cycles"].items()}}
+
+#: Where each :data:`CYCLES` figure comes from.
+CYCLE_SOURCES: dict[str, str] = {**CITED_SOURCES, **MEASURED_CYCLES["sources"]}
 
 #: The primitives in counter order (``cnt[i]`` counts calls of ``OPS[i]``).
 OPS: tuple[str, ...] = tuple(CYCLES)
@@ -370,17 +392,21 @@ def s_isqrt(x, nearest, cnt):
 def s_from_float(v, frac, bits, signed, half_up, wrap, cnt):
     """Quantise a real value to a raw integer with ``frac`` fraction bits (``floor(v·2**frac + 1/2)``)."""
     y = v * 2.0 ** frac
-    y = math.floor(y + 0.5) if half_up else math.floor(y)
     lim = 4611686018427387904.0       # 2**62: beyond any word, still exact in int64
-    if y > lim:
-        y = lim
+    if y > lim:                       # clipped before the floor: compiled, the floor of a float beyond
+        y = lim                       # int64's range is undefined (1e300 came out as the minimum)
     if y < -lim:
         y = -lim
+    y = math.floor(y + 0.5) if half_up else math.floor(y)
     return s_overflow(int(y), bits, signed, wrap, cnt)
 
 
 # ---------------------------------------------------------------------------------------------------
 # compiled element loops of the array API (each applies one scalar definition)
+
+#: Inputs of at most this many elements run the loops' Python text (:func:`_run`): bit for bit the compiled
+#: loops' results on the primitives' domains, without loading numba for a handful of configuration constants.
+PYTHON_MAX_ELEMENTS = 256
 
 
 @njit(cache=True)
@@ -678,6 +704,14 @@ def _within(x: np.ndarray, lo: int, hi: int) -> bool:
     return x.size == 0 or (int(x.min()) >= lo and int(x.max()) <= hi)
 
 
+def _run(loop, inputs: list[np.ndarray], *rest) -> None:
+    """Call an element loop: compiled, or its Python text on Python numbers for small inputs (same bits)."""
+    if inputs[0].size <= PYTHON_MAX_ELEMENTS:
+        getattr(loop, "py_func", loop)(*[a.astype(object) for a in inputs], *rest)
+    else:
+        loop(*inputs, *rest)
+
+
 def _apply(loop, ctx: ArithmeticContext | None, op: str, *args):
     """Run an element loop over the broadcast array arguments (the leading ndarrays of ``args``)."""
     n_arr = 0
@@ -688,7 +722,7 @@ def _apply(loop, ctx: ArithmeticContext | None, op: str, *args):
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
     out = np.empty(shape, np.int64)
     cnt = new_counters()
-    loop(*flat, *args[n_arr:], out.reshape(-1), cnt)
+    _run(loop, flat, *args[n_arr:], out.reshape(-1), cnt)
     if ctx is not None:
         ctx.absorb(cnt, op)
     return out
@@ -876,8 +910,8 @@ def div(n: np.ndarray | int, d: np.ndarray | int, out: QFormat | int = 32, *, si
     q = np.empty(xb.shape, np.int64)
     r = np.empty(xb.shape, np.int64)
     cnt = new_counters()
-    _loop_div(np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1), bits, bool(signed),
-              q.reshape(-1), r.reshape(-1), cnt)
+    _run(_loop_div, [np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1)], bits,
+         bool(signed), q.reshape(-1), r.reshape(-1), cnt)
     if ctx is not None:
         ctx.absorb(cnt, op)
     return q, r

@@ -11,6 +11,13 @@ overwrite mode the write index wraps and the oldest samples are overwritten (``W
 
 A block of samples is stored with whole-array operations: the partial first page by one page write,
 every full page by one vectorised bank store (split only where the ring wraps), the rest kept in RAM.
+
+Commits and power loss (section 2.4): START increments ``recording_number``, draws ``recording_nonce`` and
+clears the page-commit journal; after every page write of the run (each one a *commit*) the journal entry of
+that commit is written to the data EEPROM (changed bytes only: the ``steps`` field first, then ``commit``
+from its high byte to its low byte). A power loss therefore loses at most the page in flight: at power-up
+:meth:`protocol.header.DeviceHeader.recovered` rebuilds the counters of the last committed page.
+:meth:`RingBuffer.power_cut` models the cut, including one inside the last page write or journal write.
 """
 
 from __future__ import annotations
@@ -19,6 +26,13 @@ import numpy as np
 
 from firmware_sim.eeprom import PAGE_BYTES, DataEeprom, EepromBank
 from firmware_sim.errors import DeviceError
+from protocol.commit_journal import (
+    ENTRY_BYTES,
+    JOURNAL_ENTRIES,
+    JOURNAL_OFFSET,
+    empty_journal,
+    with_commit,
+)
 from protocol.header import (
     SAMPLES_WRITTEN_MAX,
     CalibrationSlot,
@@ -71,6 +85,13 @@ class RingBuffer:
         self.header.flags &= ~int(HeaderFlag.LOGGING)
         self._pending = np.zeros(0, dtype=np.uint32)  # RAM page buffer
         self._pending_slot = header.write_index  # slot of _pending[0]
+        self._commits = 0  # page commits of the current run
+        self._run_steps0 = int(header.steps_written)  # steps_written at START
+        self._run_samples0 = int(header.samples_written)
+        self._torn0 = (int(header.torn_slots), int(header.torn_step_records))
+        #: The last page write of the last store: (address, bytes before it, bytes written, journal before it),
+        #: kept for :meth:`power_cut`; None when a sample came after it (nothing in flight).
+        self._in_flight: tuple[int, bytes, bytes, bytes] | None = None
 
     # ------------------------------------------------------------------ state
     @property
@@ -104,8 +125,9 @@ class RingBuffer:
         self.data_eeprom.write(0, self.header.to_bytes())
 
     # ------------------------------------------------------------------ commands
-    def start(self, *, start_time_s: int, overwrite: bool) -> None:
-        """Begin a run: set the mode, start time and the run's first sample number; commit the header.
+    def start(self, *, start_time_s: int, overwrite: bool, nonce: int = 0) -> None:
+        """Begin a run: set the mode, start time and the run's first sample number, the next
+        ``recording_number`` and the ``nonce`` (32 bits of entropy); clear the journal; commit the header.
 
         Raises
         ------
@@ -124,11 +146,29 @@ class RingBuffer:
         self._set_flag(HeaderFlag.OVERWRITE, overwrite)
         self._set_flag(HeaderFlag.FULL_STOPPED, False)
         self._set_flag(HeaderFlag.LOGGING, True)
+        self._set_flag(HeaderFlag.POWER_LOST, False)
         h.start_time_s = int(start_time_s)
         h.run_start_sample = int(h.samples_written)
+        h.recording_number = (int(h.recording_number) + 1) & 0xFFFFFFFF
+        h.recording_nonce = int(nonce) & 0xFFFFFFFF
+        h.commit_journal = empty_journal()
         self._pending = np.zeros(0, dtype=np.uint32)
         self._pending_slot = int(h.write_index)
+        self._commits = 0
+        self._run_steps0 = int(h.steps_written)
+        self._run_samples0 = int(h.samples_written)
+        self._torn0 = (int(h.torn_slots), int(h.torn_step_records))
+        self._in_flight = None
+        # the journal first (ignored while LOGGING is clear), then the header with LOGGING set
+        self.data_eeprom.write(JOURNAL_OFFSET, h.commit_journal)
         self.commit()
+
+    def _end_run(self) -> None:
+        """The run's samples and records overwrote the first of the torn slots and records."""
+        h = self.header
+        run_samples = int(h.samples_written) - self._run_samples0
+        h.torn_slots = max(0, self._torn0[0] - run_samples)
+        h.torn_step_records = max(0, self._torn0[1] - (int(h.steps_written) - self._run_steps0))
 
     def stop(self) -> None:
         """End the run: flush the RAM page buffer, clear ``LOGGING``, commit. No effect when idle."""
@@ -136,6 +176,7 @@ class RingBuffer:
             return
         self._flush()
         self._set_flag(HeaderFlag.LOGGING, False)
+        self._end_run()
         self.commit()
 
     def erase(self) -> None:
@@ -150,6 +191,7 @@ class RingBuffer:
         h.run_start_sample = 0
         h.start_time_s = 0
         h.flags = 0
+        h.torn_slots = h.torn_step_records = 0
         self._pending = np.zeros(0, dtype=np.uint32)
         self._pending_slot = 0
         self.commit()
@@ -187,17 +229,21 @@ class RingBuffer:
             self._flush()
             self._set_flag(HeaderFlag.LOGGING, False)
             self._set_flag(HeaderFlag.FULL_STOPPED, True)
+            self._end_run()
             self.commit()
         return n
 
     def _store(self, w: np.ndarray) -> None:
         cap = self.capacity
+        commits = 0
         if w.size > cap:  # only the last `capacity` words survive; keep the page phase of the slots
             drop = (w.size - cap) // cap * cap
             self._account_overwrites(drop)
+            commits += drop // WORDS_PER_PAGE
             w = w[drop:]
         buf = np.concatenate([self._pending, w])
         slot = self._pending_slot
+        last: tuple[int, bytes] | None = None  # the last page write: address, bytes before it
         while buf.size:
             page_end = (slot // WORDS_PER_PAGE + 1) * WORDS_PER_PAGE
             if slot % WORDS_PER_PAGE:  # a partial first page: one page write when it completes
@@ -205,16 +251,100 @@ class RingBuffer:
                 if buf.size < k:
                     break
                 addr = 4 * slot
+                last = (addr, self.bank.read(addr, 4 * k))
                 self.bank.page_write(addr, words_to_bytes(buf[:k]), now_s=self.bank.ready_s(addr))
+                commits += 1
             else:
                 k = min(buf.size // WORDS_PER_PAGE * WORDS_PER_PAGE, cap - slot)
                 if k == 0:
                     break
+                addr = 4 * (slot + k - WORDS_PER_PAGE)
+                last = (addr, self.bank.read(addr, PAGE_BYTES))
                 self.bank.write_full_pages(slot // WORDS_PER_PAGE, np.frombuffer(words_to_bytes(buf[:k]), np.uint8))
+                commits += k // WORDS_PER_PAGE
             buf = buf[k:]
             slot = (slot + k) % cap
         self._pending = buf.copy()
         self._pending_slot = slot
+        if commits:
+            journal_before = self._journal(commits)
+            assert last is not None
+            self._in_flight = None if self._pending.size else (
+                last[0], last[1], self.bank.read(last[0], len(last[1])), journal_before)
+        elif w.size:
+            self._in_flight = None  # a sample came after the last page write: nothing in flight
+
+    def _journal(self, commits: int) -> bytes:
+        """Write the journal entries of ``commits`` more page commits (section 2.4); return the journal as it
+        was before the last one. Only the last 15 entries can survive: the earlier ones are accounted (one
+        byte write each, the low byte of ``commit``), the rest written byte by byte as the firmware does."""
+        h = self.header
+        steps = int(h.steps_written) - self._run_steps0
+        first = self._commits + 1
+        self._commits += commits
+        exact_from = max(first, self._commits - JOURNAL_ENTRIES + 1)
+        skipped = exact_from - first
+        if skipped:
+            per_entry = np.bincount((np.arange(first, exact_from) - 1) % JOURNAL_ENTRIES, minlength=JOURNAL_ENTRIES)
+            d = self.data_eeprom
+            d.wear[JOURNAL_OFFSET + ENTRY_BYTES * np.arange(JOURNAL_ENTRIES)] += per_entry.astype(np.uint32)
+            d.write_time_s += skipped * d.byte_write_time_s
+        journal_before = h.commit_journal
+        for m in range(exact_from, self._commits + 1):
+            journal_before = h.commit_journal
+            h.commit_journal = with_commit(h.commit_journal, m, steps=steps)
+            k = (m - 1) % JOURNAL_ENTRIES
+            entry = h.commit_journal[ENTRY_BYTES * k: ENTRY_BYTES * (k + 1)]
+            self.data_eeprom.write(JOURNAL_OFFSET + ENTRY_BYTES * k, entry)
+        return journal_before
+
+    def power_cut(self, at_byte: int | None, *, garbage: int = 0x5A) -> int:
+        """The power fails now: what the EEPROMs hold afterwards (the RAM, page buffer included, is lost).
+
+        Parameters
+        ----------
+        at_byte
+            None: between two samples (nothing in flight). Otherwise the cut falls inside the last write, if
+            the last sample completed a page (else nothing was in flight and ``at_byte`` is ignored): bytes
+            ``0 … len(page) − 1`` count through the page write (the bytes before ``at_byte`` hold their new
+            values, the byte at ``at_byte`` is ``garbage``, the rest their old values: a torn page), the next
+            ones through the changed bytes of the journal entry, in the order the firmware writes them (torn
+            the same way); beyond them the commit was complete.
+        garbage
+            The value a torn byte is left with.
+
+        Returns
+        -------
+        int
+            Bytes of the interrupted write that reached the EEPROM (``at_byte``, or 0 when nothing was in flight).
+        """
+        if at_byte is None or self._in_flight is None or not self.logging:
+            return 0
+        addr, old, new, journal_before = self._in_flight
+        n_page = len(new)
+        journal_after = self.header.commit_journal
+        order = _journal_write_order(journal_before, journal_after)
+        if at_byte < n_page:
+            torn = bytearray(old)
+            torn[:at_byte] = new[:at_byte]
+            torn[at_byte] = garbage
+            self.bank.fault_write(addr, bytes(torn))
+            self.data_eeprom.memory[JOURNAL_OFFSET:JOURNAL_OFFSET + len(journal_before)] = np.frombuffer(
+                journal_before, np.uint8)
+        elif at_byte - n_page < len(order):
+            j = at_byte - n_page
+            torn = bytearray(journal_before)
+            for i in order[:j]:
+                torn[i] = journal_after[i]
+            torn[order[j]] = garbage
+            self.data_eeprom.memory[JOURNAL_OFFSET:JOURNAL_OFFSET + len(torn)] = np.frombuffer(bytes(torn), np.uint8)
+        return int(at_byte)
+
+    def in_flight_bytes(self) -> int:
+        """Bytes of the last write still in flight if the power failed now (page and journal entry; 0: none)."""
+        if self._in_flight is None or not self.logging:
+            return 0
+        return len(self._in_flight[2]) + len(_journal_write_order(self._in_flight[3], self.header.commit_journal))
 
     def _account_overwrites(self, n_words: int) -> None:
         """Whole-memory overwrites inside one huge block: account their page writes without doing them."""
@@ -224,10 +354,14 @@ class RingBuffer:
             d.write_time_s += passes * d.wear.size * d.page_write_time_s
 
     def _flush(self) -> None:
-        """Write the partial RAM page (a page write shorter than 128 bytes, within one page)."""
+        """Write the partial RAM page (a page write shorter than 128 bytes, within one page; STOP commits it
+        with the header, so it has no journal entry)."""
+        self._in_flight = None
         if self._pending.size:
             addr = 4 * self._pending_slot
-            self.bank.page_write(addr, words_to_bytes(self._pending), now_s=self.bank.ready_s(addr))
+            data = words_to_bytes(self._pending)
+            self._in_flight = (addr, self.bank.read(addr, len(data)), data, self.header.commit_journal)
+            self.bank.page_write(addr, data, now_s=self.bank.ready_s(addr))
             self._pending_slot = (self._pending_slot + self._pending.size) % self.capacity
             self._pending = np.zeros(0, dtype=np.uint32)
 
@@ -244,3 +378,15 @@ class RingBuffer:
         """The stored words, oldest first (the decoder's rule of section 2)."""
         mem = np.frombuffer(self.bank.read(0, self.bank.size_bytes), dtype="<u4").astype(np.uint32)
         return mem[self.header.stored_slots()]
+
+
+def _journal_write_order(before: bytes, after: bytes) -> list[int]:
+    """Journal bytes (offsets in the area) the firmware writes from ``before`` to ``after``, in its order: per
+    changed entry, ``steps`` (low, high byte), then ``commit`` from its high byte to its low byte."""
+    out = []
+    for k in range(JOURNAL_ENTRIES):
+        base = ENTRY_BYTES * k
+        for i in (4, 5, 3, 2, 1, 0):
+            if before[base + i] != after[base + i]:
+                out.append(base + i)
+    return out

@@ -20,6 +20,7 @@ import importlib
 import os
 import pkgutil
 import sys
+import warnings
 from collections.abc import Sequence
 
 import host.commands
@@ -27,7 +28,7 @@ import host.commands
 #: Order of subcommands in ``gaitlog --help``; modules found but not listed here come after, sorted.
 _ORDER = (
     "demo", "record", "serve", "device", "dump", "decode", "info", "calibrate", "estimate", "calibrate_k",
-    "evaluate", "compare", "sweep", "batch", "plot", "budget", "kinematics",
+    "evaluate", "compare", "simulate", "sweep", "batch", "plot", "budget", "kinematics",
 )
 
 
@@ -93,7 +94,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     name = " ".join(str(part) for part in (args.command, getattr(args, "action", None)) if part)
     try:
-        return int(args._run(args) or 0)
+        with warnings.catch_warnings():   # a library's warning is one line naming the command, like an error
+            warnings.showwarning = lambda message, *_args, **_kw: print(f"gaitlog {name}: warning: {message}",
+                                                                          file=sys.stderr)
+            return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("gaitlog: interrupted", file=sys.stderr)
         return 130

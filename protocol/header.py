@@ -10,7 +10,7 @@ Examples
 >>> h = DeviceHeader(device_id=7, samples_written=3, write_index=3, start_time_s=1_000_000_000)
 >>> raw = h.to_bytes()
 >>> len(raw), raw[:8].hex(), raw[-2:].hex()
-(256, '474c4f4701010001', 'e9bf')
+(256, '474c4f4702010001', '8f8f')
 >>> back = DeviceHeader.from_bytes(raw)
 >>> back.device_id, back.n_stored, back.first_slot, back.sampling_rate_hz, back.start_time.isoformat()
 (7, 3, 0, 50.0, '2001-09-09T01:46:40+00:00')
@@ -31,6 +31,14 @@ import construct as cs
 import numpy as np
 
 from protocol.adc_bits import MAX_STORED_ADC_BITS, adc_bits_problem, check_adc_bits
+from protocol.commit_journal import (
+    JOURNAL_BYTES,
+    JOURNAL_OFFSET,
+    STEPS_SATURATED,
+    committed_samples,
+    empty_journal,
+    last_commit,
+)
 from protocol.crc import crc16_xmodem
 from protocol.errors import ProtocolError
 from protocol.layout import field_offsets
@@ -50,6 +58,8 @@ __all__ = [
     "MAGIC",
     "HEADER_VERSION",
     "PROTOCOL_VERSION",
+    "KNOWN_HEADER_VERSIONS",
+    "PAGE_SAMPLES",
     "PACKING_P32",
     "MAX_CAPACITY_SAMPLES",
     "SAMPLES_WRITTEN_MAX",
@@ -72,7 +82,13 @@ CALIBRATION_SIZE = 64
 CAPACITY_SAMPLES = 65536
 MEMORY_BYTES = 4 * CAPACITY_SAMPLES  # 262,144
 MAGIC = b"GLOG"
-HEADER_VERSION = 1
+#: Header version 2: recording identity (52-63), the page-commit journal (160-253, section 2.4) and the
+#: header CRC over bytes 0-159. Version 1 headers (CRC over 0-253, no identity, no journal) are still read.
+HEADER_VERSION = 2
+#: Header versions a decoder reads.
+KNOWN_HEADER_VERSIONS = (1, 2)
+#: Samples per 128-byte sample EEPROM page (the unit of a commit, section 2.4).
+PAGE_SAMPLES = 32
 PROTOCOL_VERSION = 1
 PACKING_P32 = 1
 MAX_CAPACITY_SAMPLES = 1 << 20
@@ -102,6 +118,7 @@ class HeaderFlag(enum.IntFlag):
     LOGGING = 0x04  #: a logging run is in progress
     CAL_VALID = 0x08  #: the calibration slot holds an affine calibration (``cal_format`` 1)
     FULL_STOPPED = 0x10  #: logging stopped because the memory was full (stop-when-full mode)
+    POWER_LOST = 0x20  #: the current run (from ``run_start_sample``) ended by a power loss (section 2.4)
 
 
 class CalFormat(enum.IntEnum):
@@ -142,17 +159,29 @@ HEADER_BODY_STRUCT = cs.Struct(
     "steps_written" / cs.Default(cs.Int32ul, 0),
     "step_write_index" / cs.Default(cs.Int16ul, 0),
     "step_capacity" / cs.Default(cs.Int16ul, 0),
-    "reserved0" / cs.Padding(12),
+    "recording_number" / cs.Default(cs.Int32ul, 0),
+    "recording_nonce" / cs.Default(cs.Int32ul, 0),
+    "torn_slots" / cs.Default(cs.Int8ul, 0),
+    "torn_step_records" / cs.Default(cs.Int8ul, 0),
+    "reserved0" / cs.Padding(2),
     "calibration" / cs.Bytes(CALIBRATION_SIZE),
     "step_config" / cs.Bytes(STEP_CONFIG_SIZE),
-    "reserved1" / cs.Padding(94),
+    "commit_journal" / cs.Bytes(JOURNAL_BYTES),
 )
 
-#: The whole 256-byte header: body plus big-endian CRC-16/XMODEM over bytes 0-253. Parsing it checks the
-#: magic (``Const``) and the CRC (``Checksum``).
+
+
+def crc_span(body: bytes) -> bytes:
+    """The bytes the header CRC covers: 0-253 in header version 1, 0-159 in version 2 and later (the journal
+    area 160-253 changes while logging without a new CRC, section 2.4). The version is byte 4."""
+    return body if len(body) > 4 and body[4] == 1 else body[:JOURNAL_OFFSET]
+
+
+#: The whole 256-byte header: body plus big-endian CRC-16/XMODEM (over :func:`crc_span` of the body). Parsing
+#: it checks the magic (``Const``) and the CRC (``Checksum``).
 HEADER_STRUCT = cs.Struct(
     "body" / cs.RawCopy(HEADER_BODY_STRUCT),
-    "header_crc" / cs.Checksum(cs.Int16ub, lambda data: crc16_xmodem(data), cs.this.body.data),
+    "header_crc" / cs.Checksum(cs.Int16ub, lambda data: crc16_xmodem(crc_span(data)), cs.this.body.data),
 )
 
 
@@ -299,8 +328,9 @@ def _construct_error(exc: cs.ConstructError, data: bytes, source: str | None) ->
     """A construct parsing error of :data:`HEADER_STRUCT` as a one-line error naming the field and its offset."""
     if isinstance(exc, cs.ChecksumError):
         at, size = HEADER_OFFSETS["header_crc"]
-        stored, computed = int.from_bytes(data[at: at + size], "big"), crc16_xmodem(data[:at])
-        return _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{computed:04x} over bytes 0-{at - 1}",
+        span = crc_span(data[:at])
+        stored, computed = int.from_bytes(data[at: at + size], "big"), crc16_xmodem(span)
+        return _err(f"CRC mismatch: stored 0x{stored:04x}, computed 0x{computed:04x} over bytes 0-{len(span) - 1}",
                     "header_crc", source)
     if isinstance(exc, cs.ConstError):
         at, size = HEADER_OFFSETS["magic"]
@@ -330,6 +360,7 @@ class DeviceHeader(_HeaderIntFields):
 
     calibration: CalibrationSlot | None = None
     step_config: StepConfig | None = None
+    commit_journal: bytes = dataclasses.field(default_factory=empty_journal)
 
     def __post_init__(self) -> None:
         if self.calibration is None:
@@ -354,6 +385,55 @@ class DeviceHeader(_HeaderIntFields):
     def logging(self) -> bool:
         """``LOGGING`` flag."""
         return bool(self.flags & HeaderFlag.LOGGING)
+
+    @property
+    def power_lost(self) -> bool:
+        """``POWER_LOST`` flag (header version 2; the bit is reserved in version 1)."""
+        return self.header_version != 1 and bool(self.flags & HeaderFlag.POWER_LOST)
+
+    @property
+    def recording_id(self) -> tuple[int, int, int]:
+        """``(device_id, recording_number, recording_nonce)``: which recording this is (section 2.4); two
+        headers of different recordings never share it (both numbers are 0 in header version 1)."""
+        return int(self.device_id), int(self.recording_number), int(self.recording_nonce)
+
+    def torn_slot_numbers(self) -> np.ndarray:
+        """Slots a page write cut by a power loss left undefined that the header counts as stored (``torn_slots``
+        from ``write_index``, when the memory has wrapped), ``int64``."""
+        if not self.torn_slots or not self.wrapped:
+            return np.zeros(0, dtype=np.int64)
+        return (self.write_index + np.arange(self.torn_slots, dtype=np.int64)) % self.capacity_samples
+
+    def recovered(self) -> "DeviceHeader":
+        """The header after a power loss during a run (``LOGGING`` set, header version 2): the counters of the
+        run's last committed page from the journal (section 2.4), ``LOGGING`` cleared, ``POWER_LOST`` set,
+        ``torn_slots`` the slots of the page in flight that were stored samples, ``torn_step_records`` 0 (the
+        firmware sets it after looking at the step ring). What the firmware writes at power-up and what a
+        decoder applies to a header read with ``LOGGING`` set. A header without ``LOGGING``, or of version 1
+        (no journal), is returned unchanged.
+        """
+        if not self.logging or self.header_version == 1:
+            return self
+        m, steps = last_commit(self.commit_journal)
+        cap = int(self.capacity_samples)
+        n = committed_samples(m, first_slot=int(self.write_index), page_samples=PAGE_SAMPLES)
+        if not self.overwrite:
+            n = min(n, cap - int(self.samples_written))
+        sw = min(int(self.samples_written) + n, SAMPLES_WRITTEN_MAX)
+        wi = (int(self.write_index) + n) % cap
+        flags = int(self.flags) & ~int(HeaderFlag.LOGGING) | int(HeaderFlag.POWER_LOST)
+        if self.overwrite and sw >= cap:
+            flags |= int(HeaderFlag.WRAPPED)
+        if not self.overwrite and sw >= cap:
+            flags |= int(HeaderFlag.FULL_STOPPED)
+        torn = 0
+        if flags & HeaderFlag.WRAPPED and not flags & HeaderFlag.FULL_STOPPED:
+            torn = PAGE_SAMPLES - wi % PAGE_SAMPLES
+        out = self.replace(flags=flags, samples_written=sw, write_index=wi, torn_slots=torn, torn_step_records=0)
+        if self.step_capacity and steps != STEPS_SATURATED:
+            out.steps_written = min(int(self.steps_written) + steps, STEPS_WRITTEN_MAX)
+            out.step_write_index = (int(self.step_write_index) + steps) % int(self.step_capacity)
+        return out
 
     @property
     def full_stopped(self) -> bool:
@@ -457,9 +537,9 @@ class DeviceHeader(_HeaderIntFields):
                 raise _err(f"must be an integer, got {value!r}", name, source)
             if not 0 <= int(value) <= _U_LIMITS[HEADER_OFFSETS[name][1]]:
                 raise _err(f"{value} does not fit in {HEADER_OFFSETS[name][1]} unsigned byte(s)", name, source)
-        if self.header_version != HEADER_VERSION:
-            raise _err(f"unknown header version {self.header_version} (this decoder knows {HEADER_VERSION})",
-                       "header_version", source)
+        if self.header_version not in KNOWN_HEADER_VERSIONS:
+            raise _err(f"unknown header version {self.header_version} (this decoder knows "
+                       f"{', '.join(map(str, KNOWN_HEADER_VERSIONS))})", "header_version", source)
         if self.protocol_version != PROTOCOL_VERSION:
             raise _err(f"unknown protocol version {self.protocol_version} (this decoder knows "
                        f"{PROTOCOL_VERSION})", "protocol_version", source)
@@ -493,6 +573,12 @@ class DeviceHeader(_HeaderIntFields):
                            "samples_written", source)
         if self.run_start_sample > sw:
             raise _err(f"{self.run_start_sample} beyond samples_written {sw}", "run_start_sample", source)
+        if self.torn_slots > PAGE_SAMPLES - self.write_index % PAGE_SAMPLES:
+            raise _err(f"{self.torn_slots} slots from write_index {self.write_index} leave its "
+                       f"{PAGE_SAMPLES}-sample page", "torn_slots", source)
+        if self.header_version == 1 and (self.recording_number or self.recording_nonce or self.torn_slots
+                                         or self.torn_step_records):
+            raise _err("header version 1 has no recording identity and no torn slots", "header_version", source)
         self._validate_steps(source)
         if not isinstance(self.calibration, CalibrationSlot):
             raise _err("must be a CalibrationSlot", "calibration", source)
@@ -535,8 +621,12 @@ class DeviceHeader(_HeaderIntFields):
         self.validate()
         assert self.calibration is not None and self.step_config is not None
         values = {name: int(getattr(self, name)) for name in HEADER_INT_FIELDS}
+        journal = bytes(self.commit_journal) if self.header_version != 1 else bytes(JOURNAL_BYTES)
+        if len(journal) != JOURNAL_BYTES:
+            raise _err(f"{len(journal)} bytes (expected {JOURNAL_BYTES})", "commit_journal", None)
         return _HEADER_FAST.build({"body": {"value": {"calibration": self.calibration.to_bytes(),
-                                                      "step_config": self.step_config.to_bytes(), **values}}})
+                                                      "step_config": self.step_config.to_bytes(),
+                                                      "commit_journal": journal, **values}}})
 
     @classmethod
     def from_bytes(cls, data: bytes | bytearray | memoryview, source: str | None = None) -> "DeviceHeader":
@@ -570,7 +660,10 @@ class DeviceHeader(_HeaderIntFields):
             setattr(header, name, value)
         header.calibration = CalibrationSlot.nominal(10)
         header.step_config = StepConfig.off()
-        if header.header_version != HEADER_VERSION or header.protocol_version != PROTOCOL_VERSION:
+        header.commit_journal = bytes(body.commit_journal) if header.header_version != 1 else empty_journal()
+        if header.header_version == 1:  # bytes 52-63 were reserved: ignored, as section 7 says
+            header.recording_number = header.recording_nonce = header.torn_slots = header.torn_step_records = 0
+        if header.header_version not in KNOWN_HEADER_VERSIONS or header.protocol_version != PROTOCOL_VERSION:
             header.validate(source)
         if (problem := adc_bits_problem(header.adc_bits)) is not None:
             raise _err(problem, "adc_bits", source)

@@ -16,6 +16,8 @@ formats
     The Q formats of every value in fixed point.
 kernel
     The per-sample program (compiled by numba, once per arithmetic).
+aot_kernel
+    The same program compiled ahead of time: loaded without numba (fast start-up), JIT as the fallback.
 state
     The RAM it keeps: the declared state slots and the kernel's declared temporaries.
 online

@@ -33,9 +33,8 @@ from __future__ import annotations
 
 import math
 
-from numba import types
-from numba.extending import overload
-
+from firmware_sim.compiled import numba_types as types
+from firmware_sim.compiled import overload
 from firmware_sim.fixedpoint import (
     OP_MUL8,
     s_add,

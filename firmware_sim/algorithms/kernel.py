@@ -47,8 +47,6 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
-from numba.extending import register_jitable
 
 from firmware_sim.algorithms import arithmetic as ar
 from firmware_sim.algorithms.formats import (
@@ -99,6 +97,7 @@ from firmware_sim.algorithms.state import (
     RAW_Y,
     N,
 )
+from firmware_sim.compiled import njit, register_jitable
 from firmware_sim.fixedpoint import (
     C_CYCLES,
     C_STICKY,

@@ -37,7 +37,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from firmware_sim.algorithms import kernel
+from firmware_sim.algorithms import aot_kernel, kernel
 from firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
 from firmware_sim.algorithms.formats import (
     ACC_Q,
@@ -414,6 +414,8 @@ class OnlineStepAlgorithm:
         The :class:`OnlineConfig`.
     cycles
         :class:`CycleStats` of everything fed so far (fixed point; not meaningful in float).
+    compiled_by
+        ``"aot"`` (the kernel compiled ahead of time, :mod:`firmware_sim.algorithms.aot_kernel`) or ``"jit"``.
     """
 
     def __init__(self, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
@@ -431,6 +433,7 @@ class OnlineStepAlgorithm:
         self._scr = np.zeros((int(self.config.cfg_i[kernel.CI_SCRATCH]), len(kernel.SCRATCH_COLUMNS)), dt)
         self._cnt = new_counters()
         self._cyc = np.zeros(6, np.int64)
+        (self._process, self._flush, self._reset), self.compiled_by = aot_kernel.entry_points(self.arithmetic)
         self.reset()
 
     @property
@@ -489,7 +492,7 @@ class OnlineStepAlgorithm:
 
     def reset(self) -> None:
         """START: forget the previous run."""
-        kernel.reset(self.config.cfg_i, self._st_i, self._st_v, self._line, self._durs)
+        self._reset(self.config.cfg_i, self._st_i, self._st_v, self._line, self._durs)
         self._scr[:] = 0
 
     def _steps(self, out_i: np.ndarray, out_v: np.ndarray, k: int, offset: int) -> OnlineSteps:
@@ -517,16 +520,16 @@ class OnlineStepAlgorithm:
         if c.size and (c.min() < 0 or c.max() > top):
             raise ValueError(f"ADC codes must be 0 .. {top}")
         out_i, out_v = self._outputs(c.shape[0])
-        k = kernel.process(np.ascontiguousarray(c, dtype=self._st_v.dtype), self.config.cfg_i, self.config.cfg_v,
-                           self._st_i, self._st_v, self._line, self._durs, self._scr, out_i, out_v, 0, self._cnt,
-                           self._cyc)
+        k = self._process(np.ascontiguousarray(c, dtype=self._st_v.dtype), self.config.cfg_i, self.config.cfg_v,
+                          self._st_i, self._st_v, self._line, self._durs, self._scr, out_i, out_v, 0, self._cnt,
+                          self._cyc)
         return self._steps(out_i, out_v, k, offset)
 
     def flush(self, *, offset: int = 0) -> OnlineSteps:
         """STOP: the pending foot-flat becomes final; return its record (if any)."""
         out_i, out_v = self._outputs(0)
-        k = kernel.flush(self.config.cfg_i, self.config.cfg_v, self._st_i, self._st_v, self._scr, out_i, out_v, 0,
-                         self._cnt)
+        k = self._flush(self.config.cfg_i, self.config.cfg_v, self._st_i, self._st_v, self._scr, out_i, out_v, 0,
+                        self._cnt)
         return self._steps(out_i, out_v, k, offset)
 
     def run(self, codes: np.ndarray, *, run_starts: np.ndarray | None = None) -> OnlineSteps:
@@ -551,8 +554,8 @@ class OnlineStepAlgorithm:
 
 
 def load_kernels(arithmetics: tuple[str, ...] = ("fixed",)) -> None:
-    """Load the compiled kernels now (compiling them if the cache is cold: seconds, once), so that a device
-    served in real time answers START without that delay."""
+    """Load the compiled kernels now (building them if the cache is cold: seconds, once per version of the
+    sources), so that a device served in real time answers START without that delay."""
     cfg = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
     for arithmetic in arithmetics:
         OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic=arithmetic).run(

@@ -38,8 +38,6 @@ from firmware_sim.world.hermite import quintic_hermite
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walk_plan import WalkPlan
 
-#: Time from setting off (weight shift) to the first heel strike, s.
-INITIATION_TIME_S = 0.8
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +95,8 @@ class ExcursionPlan:
     transient_ap_m_s2: np.ndarray
     transient_sigma_s: np.ndarray
     amplitude_scale: float
+    #: Per-step gain of the lateral stride harmonics (``Subject.ml_step_variability``), None when constant.
+    ml_gain: PPoly | None = None
 
     @property
     def n_steps(self) -> int:
@@ -224,7 +224,8 @@ def plan_excursion(
     """Plan one out-and-back excursion at the speed labelled ``label``.
 
     The steps below draw from ``rng`` in this order (the plan of a seed depends on it): step lengths and
-    durations (1), the events of each step (2), the pendulum depth (3), the heel-strike transients (6b).
+    durations (1), the events of each step (2), the pendulum depth (3), the heel-strike transients (6b), the
+    lateral harmonics' step gains (7, only for subjects with lateral harmonics).
 
     Parameters
     ----------
@@ -278,6 +279,7 @@ def plan_excursion(
         transient_ap_m_s2=tr_ap,
         transient_sigma_s=tr_sig,
         amplitude_scale=float((v_exc / v_pref) ** 0.5),
+        ml_gain=_ml_gain(subject, t_start_s, track, rng),
     )
 
 
@@ -311,7 +313,7 @@ def _speed_factor(walk_plan: WalkPlan, path: CorridorPath) -> Callable[[float], 
     length = path.length_m
 
     def speed_factor(d: float) -> float:
-        ramp = 1.0 - 0.6 * np.exp(-max(d, 0.0) / (walk_plan.initiation_distance_m / 4.6))
+        ramp = 1.0 - walk_plan.initiation_speed_deficit * np.exp(-max(d, 0.0) / (walk_plan.initiation_distance_m / 4.6))
         turn = 1.0 - (1.0 - walk_plan.turn_speed_factor) * float(
             _smooth_bump((d - path.s_apex_m) / walk_plan.turn_slowdown_m))
         end = 0.6 + 0.4 * float(np.clip((length - d) / walk_plan.termination_distance_m, 0.0, 1.0))
@@ -326,7 +328,7 @@ def _plan_steps(subject: Subject, walk_plan: WalkPlan, path: CorridorPath, v_exc
     speed_factor = _speed_factor(walk_plan, path)
     length = path.length_m
     v0 = v_exc * speed_factor(0.0)
-    s_first = 0.5 * v0 * INITIATION_TIME_S * 0.9  # CoM travel from setting off to the first heel strike
+    s_first = 0.5 * v0 * walk_plan.initiation_time_s * 0.9  # CoM travel from setting off to the first heel strike
     sides = [first_side]
     lengths: list[float] = []
     durations: list[float] = []
@@ -355,7 +357,7 @@ def _plan_steps(subject: Subject, walk_plan: WalkPlan, path: CorridorPath, v_exc
         d += s_end
     lengths_a = np.asarray(lengths)
     durations_a = np.asarray(durations)
-    hs = t_start_s + INITIATION_TIME_S + np.concatenate(([0.0], np.cumsum(durations_a)))
+    hs = t_start_s + walk_plan.initiation_time_s + np.concatenate(([0.0], np.cumsum(durations_a)))
     s_hs = s_first + np.concatenate(([0.0], np.cumsum(lengths_a)))
     return _Steps(lengths_a, durations_a, tuple(sides), n_end, hs, s_hs)
 
@@ -446,6 +448,8 @@ def _plan_pendulum(subject: Subject, steps: _Steps, cycle: _StepCycle, *, v_pref
     d_a = lengths_a * (cycle.g_frac(cycle.tau_peak) - cycle.g_frac(cycle.tau_to))  # TO -> PEAK
     d_b = lengths_a * (1.0 - cycle.g_frac(cycle.tau_peak))  # PEAK -> next HS
     drop, _, _ = _arc(l_eff, 0.5 * (d_a + d_b))
+    left = np.array([side == "L" for side in steps.sides[:-1]])
+    drop = drop * (1.0 + np.where(left, 0.5, -0.5) * subject.vertical_asymmetry)
     d_ds = lengths_a * cycle.g_frac(cycle.tau_to)  # CoM travel in double support
     extra = d_ds**2 / (8.0 * subject.double_support_radius_m)
     return _Pendulum(l_eff, z_target, drop, extra)
@@ -547,7 +551,8 @@ def _envelope_and_lean(subject: Subject, label: str, t_start_s: float, track: _T
                        v_pref: float) -> tuple[PPoly, PPoly]:
     """Step 5b: the gait envelope (0 standing, 1 walking) and the trunk's mean pitch, rad."""
     heel_strikes, n_steps, t_stop = track.heel_strike_s, track.n_steps, track.t_stop_s
-    env_t = np.array([t_start_s, heel_strikes[min(2, n_steps)], heel_strikes[-2], t_stop])
+    env_t = np.array([t_start_s, heel_strikes[min(subject.envelope_full_at_step, n_steps)], heel_strikes[-2],
+                      t_stop])
     if np.any(np.diff(env_t) <= 0):
         raise ValueError(f"excursion {label!r} is too short to plan ({n_steps} steps)")
     envelope_pp = quintic_hermite(env_t, np.array([0.0, 1.0, 1.0, 0.0]), np.zeros(4), np.zeros(4))
@@ -570,6 +575,17 @@ def _step_phase_labels(walk_plan: WalkPlan, path: CorridorPath, track: _Track, *
     return step_phase
 
 
+def _ml_gain(subject: Subject, t_start_s: float, track: _Track, rng: np.random.Generator) -> PPoly | None:
+    """Step 7: the step-to-step gain of the lateral harmonics, ``exp(N(0, ml_step_variability))`` at each heel
+    strike, 1 at set-off and standstill (draws from ``rng`` only when the subject has lateral harmonics)."""
+    if not subject.ml_harmonics_m_s2 or subject.ml_step_variability <= 0.0:
+        return None
+    hs = track.heel_strike_s
+    knots = np.concatenate(([t_start_s], hs, [track.t_stop_s]))
+    gain = np.concatenate(([1.0], np.exp(rng.normal(0.0, subject.ml_step_variability, hs.size)), [1.0]))
+    return quintic_hermite(knots, gain, np.zeros(knots.size), np.zeros(knots.size))
+
+
 def _heel_strike_transients(subject: Subject, vbar: np.ndarray, track: _Track, *, v_pref: float,
                             rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Step 6b: the impact, push-off and loading-response pulses (draws from ``rng``), in time order:
@@ -590,5 +606,9 @@ def _heel_strike_transients(subject: Subject, vbar: np.ndarray, track: _Track, *
     tr_sig = np.concatenate((np.full(heel_strikes.size, subject.heel_strike_width_s),
                              np.full(n_steps, subject.toe_off_width_s),
                              np.full(n_steps, subject.loading_response_width_s)))
+    # left/right asymmetry of loading (the leading foot of each contact): left contacts stronger by +a/2
+    lead = np.concatenate((track.side, track.side[:-1], track.side[:-1]))
+    lr = 1.0 + np.where(lead == "L", 0.5, -0.5) * subject.vertical_asymmetry
+    tr_v, tr_ap = tr_v * lr, tr_ap * lr
     order = np.argsort(tr_t, kind="stable")
     return tr_t[order], tr_v[order], tr_ap[order], tr_sig[order]

@@ -4,10 +4,12 @@ A :class:`Subject` holds everything that makes one person's lower-back accelerat
 at the same speed. The anthropometric ratios are Winter's (*Biomechanics and Motor Control of Human
 Movement*, 4th ed., 2009, Fig. 4.1): greater-trochanter height (the pendulum length ``l`` of Alvarez
 eq. 1) 0.530·H, foot length heel to toe 0.152·H; M3's ``S2`` (heel to first metatarsal head, Alvarez's
-"foot length") is 0.73 of that (ANSUR, Gordon et al. 1989), 0.111·H. Step length and cadence follow the walk ratio (step length / cadence,
+"foot length") is 0.73 of that (ANSUR, Gordon et al. 1989), 0.111·H. In the ``"v1"`` population step length
+and cadence follow the walk ratio (step length / cadence,
 nearly constant over ordinary speeds, Sekiya & Nagasaki 1998; equivalently Grieve's step length ∝ v^0.5):
 ``S = sqrt(60 · WR · v)``, WR ≈ 0.00375·H m per step/min (≈ 0.0066 for H = 1.77 m), drifting per subject
-with speed (``walk_ratio_speed_exponent``).
+with speed (``walk_ratio_speed_exponent``); the ``"people"`` population (:func:`random_subjects`) draws a
+linear cadence-speed law instead, and the trunk motion of real lower-back walking (``_people_overrides``).
 
 Contact timing and shape follow the IPOL lower-back recordings (Voisard et al. 2023: 9 subjects, 52 trials,
 1298 straight steps with foot-sensor heel-strike and toe-off, 100 Hz) and the gait literature:
@@ -148,6 +150,42 @@ class Subject:
         delay after the trailing toe-off and its Gaussian width.
     sit_drop_m
         How far the centre of mass drops when sitting down.
+    cadence_law_spm
+        ``(c0, c1)``: when set, step length comes from a linear cadence-speed law instead of the walk ratio:
+        cadence = ``(c0 + c1 · v) · sqrt(1.72 m / height_m)`` steps/min, step length = ``60 · v / cadence``
+        (the linear form of Kirtley, Whittle & Jefferson 1985; the height factor is dynamic similarity at equal
+        Froude number, Alexander 1984). Step length is then linear in step *duration* (``60/c1 - c0/c1 · T``
+        for H = 1.72 m), which is neither M5's model (linear in step frequency) nor the pendulum's.
+    ml_harmonics_m_s2
+        Medio-lateral acceleration amplitudes (m/s^2, at preferred speed, ∝ ``sqrt(v / v_pref)``) of the
+        trunk's lateral motion at stride harmonics 2, 3, 4, ... (one per entry), on top of the
+        stride-frequency sway ``ml_sway_m``. Real lower-back ML acceleration is not a sway: its per-stride
+        spectrum is broad (harmonics 1-10 of similar size), the 3rd harmonic is strongest in half the IPOL
+        trials (median strongest harmonic 5, odd/even ratio 1.9, RMS 1.3 m/s^2): a lateral push toward the new
+        stance foot just after each heel strike, alternating in sign (the odd harmonics).
+    ml_even_phases_rad
+        Phases of the even ML harmonics (the part repeated every step: the trunk's own asymmetry) relative to
+        quadrature with the forward braking (0 or pi: uncorrelated with the antero-posterior acceleration),
+        cycled over the even harmonics.
+    ap_harmonics_m_s2
+        Antero-posterior acceleration amplitudes (m/s^2, at preferred speed, ∝ ``sqrt(v / v_pref)``) at stride
+        harmonics 4, 6, 8, ... (step harmonics 2, 3, 4, ...): the braking after each heel strike is sharper
+        than the speed fluctuation ``ap_speed_fluctuation`` (real AP spectra keep 0.4-0.8 m/s^2 up to the
+        8th stride harmonic).
+    ml_step_variability
+        Step-to-step variability of the lateral harmonics: their gain is ``exp(N(0, ml_step_variability))``
+        at each heel strike (smoothly interpolated), so the lateral acceleration is not strictly periodic.
+    envelope_full_at_step
+        The periodic trunk motions (sway, harmonics, pitch, roll, yaw) grow from nothing at set-off to full
+        amplitude at this heel strike (0: the first; real gait initiation shifts the weight laterally before
+        the first step, so the lateral motion is full from the first step, Jian et al. 1993).
+    harmonic_lag_s
+        The odd ML harmonics peak (toward the new stance foot) and the AP harmonics brake this long after each
+        heel strike.
+    vertical_asymmetry
+        Relative left/right difference of the centre of mass's vertical excursion and of the contact
+        transients (left steps deeper and left contacts stronger by ``+vertical_asymmetry / 2``): odd stride
+        harmonics in the vertical (and antero-posterior) acceleration.
     """
 
     subject_id: str = "S00"
@@ -198,6 +236,14 @@ class Subject:
     loading_response_delay_s: float = 0.04
     loading_response_width_s: float = 0.03
     sit_drop_m: float = 0.40
+    cadence_law_spm: tuple[float, float] | None = None
+    ml_harmonics_m_s2: tuple[float, ...] = ()
+    ml_even_phases_rad: tuple[float, ...] = (0.0,)
+    ap_harmonics_m_s2: tuple[float, ...] = ()
+    harmonic_lag_s: float = 0.05
+    ml_step_variability: float = 0.0
+    envelope_full_at_step: int = 2
+    vertical_asymmetry: float = 0.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -245,14 +291,20 @@ class Subject:
         return self.preferred_speed_m_s * factors[label]
 
     def step_length_m(self, speed_m_s: float | np.ndarray) -> float | np.ndarray:
-        """Nominal step length at a speed from the walk ratio: ``S = sqrt(60 · WR · v)``.
+        """Nominal step length at a speed: ``60 · v / cadence(v)`` with :attr:`cadence_law_spm` when set, else
+        from the walk ratio: ``S = sqrt(60 · WR · v)``.
 
         Examples
         --------
         >>> round(float(Subject().step_length_m(1.35)), 3)
         0.733
+        >>> round(float(Subject(height_m=1.72, cadence_law_spm=(72.0, 33.0)).step_length_m(1.1)), 3)
+        0.609
         """
         v = np.asarray(speed_m_s, dtype=np.float64)
+        if self.cadence_law_spm is not None:
+            c0, c1 = self.cadence_law_spm
+            return 60.0 * v / ((c0 + c1 * v) * np.sqrt(1.72 / self.height_m))
         ratio = self.walk_ratio_m_spm * (v / self.preferred_speed_m_s) ** self.walk_ratio_speed_exponent
         return np.sqrt(60.0 * ratio * v)
 
@@ -276,12 +328,19 @@ class Subject:
         return cls(**base)  # type: ignore[arg-type]
 
     @classmethod
-    def random(cls, rng: np.random.Generator, *, subject_id: str = "S00") -> Subject:
-        """Draw one adult from the population model (heights 1.60–1.92 m, cf. Alvarez: 1.68–1.86 m).
+    def random(cls, rng: np.random.Generator, *, subject_id: str = "S00", population: str = "v1") -> Subject:
+        """Draw one adult from a population.
 
-        Every habit listed in the class docstring is drawn independently around its default, so no two
-        subjects share a step-length calibration constant.
+        ``"v1"`` (default): heights 1.60–1.92 m (cf. Alvarez: 1.68–1.86 m); every habit listed in the class
+        docstring is drawn independently around its default, so no two subjects share a step-length
+        calibration constant; step length from the walk ratio.
+
+        ``"people"``: the same draws, then (further draws from ``rng``) the trunk motion and gait timing of real
+        lower-back walking, see :func:`_people_overrides`; walk it with
+        ``WalkPlan(**POPULATION_PLANS["people"])`` (:mod:`firmware_sim.world.walk_plan`).
         """
+        if population not in POPULATIONS:
+            raise ValueError(f"unknown population {population!r}; expected one of {POPULATIONS}")
         height = float(np.clip(rng.normal(1.76, 0.07), 1.60, 1.92))
 
         def around(mean: float, sd: float, lo: float, hi: float) -> float:
@@ -290,8 +349,7 @@ class Subject:
         axis = rng.normal(size=3)
         axis /= np.linalg.norm(axis)
         angle = rng.uniform(3.0, 15.0)
-        return cls.from_height(
-            height,
+        kw = dict(
             subject_id=subject_id,
             leg_length_m=height * around(LEG_LENGTH_PER_HEIGHT, 0.012, 0.49, 0.57),
             foot_length_m=height * around(FOOT_LENGTH_PER_HEIGHT, 0.0037, 0.101, 0.121),
@@ -340,14 +398,83 @@ class Subject:
             loading_response_delay_s=around(0.04, 0.01, 0.02, 0.06),
             loading_response_width_s=around(0.03, 0.005, 0.02, 0.04),
         )
+        if population == "people":
+            height, over = _people_overrides(rng, height, kw)
+            kw.update(over)
+        return cls.from_height(height, **kw)
+
+    @property
+    def preferred_stride_rate_rad_s(self) -> float:
+        """Angular frequency of the stride (rad/s) at the preferred speed: ``pi / step duration``."""
+        v = self.preferred_speed_m_s
+        return float(np.pi * v / self.step_length_m(v))
 
     def as_dict(self) -> dict:
         """Plain-Python dictionary of the parameters (for truth and CSV metadata)."""
         return dataclasses.asdict(self)
 
 
-def random_subjects(n: int, *, seed: int = 0) -> list[Subject]:
-    """``n`` subjects drawn from the population model with a seeded generator.
+#: Populations of :meth:`Subject.random` and :func:`random_subjects` (with their walk habits in
+#: :data:`firmware_sim.world.walk_plan.POPULATION_PLANS`).
+POPULATIONS = ("v1", "people")
+
+
+def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict) -> tuple[float, dict]:
+    """Height and habits of the ``"people"`` population (drawn from ``rng`` after the ``"v1"`` draws).
+
+    Sources, and what was tuned to the real IPOL lower-back trials (Voisard et al. 2023, 52 trials of 9
+    subjects, statistics of ``../shared/tools/walking_stats.py``; never to any estimator's results):
+
+    - height: mixed-sex adults, N(1.71 m, 0.09 m) (European adult means ~1.77 m men, ~1.64 m women,
+      NCD-RisC 2016); leg and foot keep their drawn fractions of height;
+    - preferred speed: N(1.20, 0.12) m/s x sqrt(H / 1.72 m) (dynamic similarity): below Bohannon 1997's
+      comfortable speeds (1.3-1.46 m/s, adults 20-79, on a walkway with a rolling start) and chosen so that
+      10 m trials from standstill average ~1.0 m/s as the IPOL trials do;
+    - cadence: linear in speed (Kirtley et al. 1985), ``(c0 + c1 v) sqrt(1.72/H)``, c0 ~ N(72, 5),
+      c1 ~ N(33, 4) steps/min per m/s (IPOL: 108 steps/min at ~1.1 m/s steady; ~115 at 1.35 m/s as in
+      the literature's preferred-speed cadences); step length = speed / cadence, so it is not the walk ratio
+      law (M5's model) and each subject has its own slope;
+    - step-time CV ~ N(0.022, 0.006) (Hausdorff et al. 1996: stride-time CV ~2 % in healthy adults);
+    - trunk harmonics tuned to IPOL (RMS ML 1.3 m/s^2 with the 3rd stride harmonic strongest in half the
+      trials; RMS AP 1.65 m/s^2; harmonic ratios V 4.2, AP 3.4, ML 1.9 (Moe-Nilssen & Helbostad 2004 report
+      the same order for healthy adults at L3): ML stride harmonics 2-5, a larger forward speed fluctuation
+      and a left/right vertical asymmetry, each drawn per subject.
+    """
+    def around(mean: float, sd: float, lo: float, hi: float) -> float:
+        return float(np.clip(rng.normal(mean, sd), lo, hi))
+
+    height = around(1.71, 0.09, 1.50, 1.95)
+    ml_scale = 1.1 * float(np.exp(rng.normal(0.0, 0.25)))
+    scale = height / height_v1
+    over = dict(
+        leg_length_m=kw["leg_length_m"] * scale,
+        foot_length_m=kw["foot_length_m"] * scale,
+        preferred_speed_m_s=around(1.20, 0.12, 0.9, 1.55) * float(np.sqrt(height / 1.72)),
+        cadence_law_spm=(around(72.0, 5.0, 58.0, 86.0), around(33.0, 4.0, 22.0, 44.0)),
+        step_time_cv=around(0.03, 0.008, 0.012, 0.05),
+        ap_speed_fluctuation=around(0.09, 0.025, 0.05, 0.16),
+        ml_sway_m=around(0.012, 0.003, 0.005, 0.02),
+        ml_harmonics_m_s2=tuple(a * ml_scale * float(np.exp(rng.normal(0.0, 0.3)))
+                                for a in (0.3, 0.62, 0.25, 0.8, 0.35, 0.7, 0.3, 0.5, 0.3)),
+        ml_step_variability=around(0.3, 0.08, 0.1, 0.5),
+        envelope_full_at_step=0,
+        # walking lean close to standing lean: the IPOL first seconds of walking show no large
+        # gravity leak into AP (trunk ~1 deg more forward when walking)
+        trunk_lean_deg=kw["stand_lean_deg"] + around(1.0, 1.0, -1.0, 3.0),
+        # heel-strike impact 0.8 x the v1 draw: the IPOL per-step vertical peak-to-peak (8.3 m/s^2 median)
+        heel_strike_acc_g=0.8 * kw["heel_strike_acc_g"],
+        # even lateral harmonics near quadrature with the forward ones (the IPOL principal axes lie within ~6 deg
+        # of the periodicity axes: AP and ML nearly uncorrelated)
+        ml_even_phases_rad=tuple(float(np.pi * rng.integers(2) + rng.normal(0.0, 0.3)) for _ in range(4)),
+        ap_harmonics_m_s2=tuple(a * float(np.exp(rng.normal(0.0, 0.3))) for a in (0.6, 0.8, 0.4)),
+        harmonic_lag_s=around(0.05, 0.02, 0.0, 0.1),
+        vertical_asymmetry=around(0.0, 0.35, -0.6, 0.6),
+    )
+    return height, over
+
+
+def random_subjects(n: int, *, seed: int = 0, population: str = "v1") -> list[Subject]:
+    """``n`` subjects drawn from ``population`` (:meth:`Subject.random`) with a seeded generator.
 
     The same ``(n, seed)`` always gives the same subjects; subject ``i`` does not depend on ``n``.
 
@@ -362,4 +489,5 @@ def random_subjects(n: int, *, seed: int = 0) -> list[Subject]:
     if n < 0:
         raise ValueError(f"n must be >= 0, got {n}")
     seeds = np.random.SeedSequence(seed).spawn(n)
-    return [Subject.random(np.random.default_rng(s), subject_id=f"S{i:02d}") for i, s in enumerate(seeds)]
+    return [Subject.random(np.random.default_rng(s), subject_id=f"S{i:02d}", population=population)
+            for i, s in enumerate(seeds)]

@@ -17,6 +17,18 @@ from dataclasses import dataclass
 
 SPEED_LABELS = ("preferred", "fast", "slow", "medium")
 
+#: Walk habits of each population of :func:`firmware_sim.world.subject.random_subjects` (WalkPlan fields).
+#: ``"people"``: tuned to the IPOL lower-back trials' U-turn duration (1.6 s median), step-time variability
+#: and the little forward acceleration left after the first toe-off: 1.2 s from set-off to the first heel
+#: strike, the centre of mass close to its speed by then and steady within ~2 m, i.e. 2-3 steps (Brenière &
+#: Do 1986: close to steady speed at the end of the first step; Jian et al. 1993), a tight turn (centre-of-mass
+#: path radius 0.3 m) slowing to ~0.45 of the speed from ~1.6 m before its apex.
+POPULATION_PLANS: dict[str, dict[str, float]] = {
+    "v1": {},
+    "people": dict(initiation_distance_m=2.0, initiation_speed_deficit=0.15, initiation_time_s=1.2,
+                   termination_distance_m=2.0, turn_radius_m=0.3, turn_speed_factor=0.45, turn_slowdown_m=1.6),
+}
+
 
 @dataclass(frozen=True)
 class WalkPlan:
@@ -36,9 +48,11 @@ class WalkPlan:
         Quiet standing before the first and after the last excursion.
     lap_marks_m
         Corridor distances (from the excursion's start line) at which the lap button is pressed.
-    initiation_distance_m
-        Gait initiation: speed rises as ``1 - 0.6·exp(-d / (initiation_distance_m / 4))`` over the first
-        metres, reaching 99 % of the excursion's speed at this distance.
+    initiation_distance_m, initiation_speed_deficit
+        Gait initiation: speed rises as ``1 - initiation_speed_deficit·exp(-d / (initiation_distance_m / 4.6))``
+        over the first metres, reaching 99 % of the excursion's speed at this distance.
+    initiation_time_s
+        From setting off (the centre of mass starts moving) to the first heel strike.
     termination_distance_m
         Over this last stretch the walker slows down before stopping at the line.
     turn_radius_m
@@ -59,6 +73,8 @@ class WalkPlan:
     lap_marks_m: tuple[float, ...] = (0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0, 130.0, 150.0, 170.0, 190.0,
                                       200.0)
     initiation_distance_m: float = 10.0
+    initiation_speed_deficit: float = 0.6
+    initiation_time_s: float = 0.8
     termination_distance_m: float = 3.0
     turn_radius_m: float = 0.5
     turn_speed_factor: float = 0.45

@@ -20,7 +20,9 @@ What is modelled (richer than any estimator's assumptions)
   ratio), step-to-step variability and asymmetry, gait initiation, a slowed-down 180° turn on a smooth
   path, termination at the line;
 - trunk/pelvis motion: forward lean, pitch oscillation at step frequency, obliquity (roll) and pelvic
-  rotation (yaw) at stride frequency, medio-lateral sway at stride frequency; the sensor's lever arm from
+  rotation (yaw) at stride frequency, medio-lateral sway at stride frequency (and, for subjects that have
+  them, such as the ``"people"`` population, lateral stride harmonics 2-10 with a step-to-step gain and forward
+  braking harmonics, :class:`~firmware_sim.world.subject.Subject`); the sensor's lever arm from
   the centre of mass adds tangential and centripetal accelerations, and its height differs from the
   centre of mass's;
 - contact transients: shortly after heel strike an upward impact and braking peak, just before the
@@ -45,7 +47,8 @@ of the centre of mass's / sensor's height between foot-flat and the next foot-fl
 heel strike). ``laps``: ``excursion``, ``speed_label``, ``distance_m`` (corridor distance from the
 excursion's start line), ``cumulative_distance_m``, ``time_s``, ``path_m``. ``excursions``: per excursion
 ``speed_label``, ``speed_m_s``, ``t_start_s``, ``t_stop_s``, ``corridor_distance_m``, ``path_length_m``,
-``initiation_travel_m`` (set-off to first heel strike), ``termination_travel_m`` (last contact to stop).
+``initiation_travel_m`` (set-off to first heel strike), ``termination_travel_m`` (last contact to stop),
+``turn_start_s`` / ``turn_end_s`` (the centre of mass enters / leaves the curved part of the path).
 ``rests``: ``t_start_s``, ``t_stop_s``, ``posture``. ``subject`` (parameters), ``device_axes``,
 ``mounting_matrix`` (device-from-nominal), ``total_distance_m``, ``total_path_m``. With
 ``include_trajectory=True`` also ``trajectory``: ``t_s``, ``sensor_position_m``, ``sensor_velocity_m_s``,
@@ -94,6 +97,7 @@ class _Segment:
     transient_ap_m_s2: np.ndarray = field(default_factory=lambda: np.zeros(0))
     transient_sigma_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     plan: ExcursionPlan | None = None
+    ml_gain: PPoly | None = None
 
 
 class _Elementary:
@@ -205,7 +209,7 @@ class Walking:
                 amplitude_scale=plan.amplitude_scale, transient_t_s=plan.transient_t_s,
                 transient_vertical_m_s2=plan.transient_vertical_m_s2, transient_ap_m_s2=plan.transient_ap_m_s2,
                 transient_sigma_s=plan.transient_sigma_s,
-                plan=plan))
+                plan=plan, ml_gain=plan.ml_gain))
             t = plan.t_stop_s
             side = "L" if plan.side[-1] == "R" else "R"
             s_end = plan.path.length_m
@@ -266,9 +270,11 @@ class Walking:
                     pd[i0:i1] += amp * sigma * u * b
                     pdd[i0:i1] += -amp * (u**2 - 1.0) * b
         ph, phd, phdd = evaluate(seg.phase, t)
-        env, envd, envdd = evaluate(seg.envelope, t)
+        env0, envd0, envdd0 = evaluate(seg.envelope, t)
 
-        def osc(amp: float, k: float, c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        def osc(amp: float, k: float, c: float, envelope: tuple | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            env, envd, envdd = envelope if envelope is not None else (env0, envd0, envdd0)
             arg = k * ph + c
             sn, cs = np.sin(arg), np.cos(arg)
             f = env * amp * sn
@@ -278,6 +284,29 @@ class Walking:
             return f, fd, fdd
 
         y, yd, ydd = osc(sub.ml_sway_m / seg.amplitude_scale, 1.0, sub.sway_phase_rad)
+        if sub.ml_harmonics_m_s2 or sub.ap_harmonics_m_s2:
+            # Stride harmonics given as accelerations at the preferred stride rate w. The odd lateral ones peak
+            # toward the new stance foot harmonic_lag_s after each heel strike (gait phase 0 = left), the
+            # forward ones brake then; y'' = A cos(k (phase - lag)) <=> y = A/(k w)^2 sin(k phase - k lag - pi/2).
+            w = sub.preferred_stride_rate_rad_s
+            lag = w * sub.harmonic_lag_s
+            ml_env = None
+            if seg.ml_gain is not None:
+                g, gd, gdd = evaluate(seg.ml_gain, t)
+                ml_env = (env0 * g, envd0 * g + env0 * gd, envdd0 * g + 2.0 * envd0 * gd + env0 * gdd)
+            for i, acc in enumerate(sub.ml_harmonics_m_s2):
+                k = i + 2
+                if k % 2:
+                    c = -k * lag - 0.5 * np.pi
+                else:   # even: relative to quadrature with the forward braking (uncorrelated with AP at offset 0)
+                    c = (-k * lag + (0.5 * np.pi if k == 2 else 0.0)
+                         + sub.ml_even_phases_rad[(k // 2 - 1) % len(sub.ml_even_phases_rad)])
+                yk, ykd, ykdd = osc(acc * seg.amplitude_scale / (k * w) ** 2, float(k), c, ml_env)
+                y, yd, ydd = y + yk, yd + ykd, ydd + ykdd
+            for i, acc in enumerate(sub.ap_harmonics_m_s2):
+                k = 2 * i + 4
+                sk, skd, skdd = osc(acc * seg.amplitude_scale / (k * w) ** 2, float(k), -k * lag + 0.5 * np.pi)
+                s, sd, sdd = s + sk, sd + skd, sdd + skdd
         psi = seg.path.heading_rad(s)
         kap = seg.path.curvature_per_m(s)
         kap_s = seg.path.curvature_slope_per_m2(s)
@@ -373,7 +402,8 @@ class Walking:
                                                  "time_s", "path_m")}
         excs: dict[str, list] = {k: [] for k in ("speed_label", "speed_m_s", "t_start_s", "t_stop_s",
                                                  "corridor_distance_m", "path_length_m", "n_steps",
-                                                 "initiation_travel_m", "termination_travel_m")}
+                                                 "initiation_travel_m", "termination_travel_m",
+                                                 "turn_start_s", "turn_end_s")}
         rests: dict[str, list] = {"t_start_s": [], "t_stop_s": [], "posture": []}
         n_grid = 128
         k_exc = 0
@@ -449,6 +479,8 @@ class Walking:
             excs["n_steps"].append(n)
             excs["initiation_travel_m"].append(float(s_hs[0]))
             excs["termination_travel_m"].append(float(plan.path.length_m - s_hs[-1]))
+            excs["turn_start_s"].append(_first_crossing(plan.s, plan.path.turn_start_m))
+            excs["turn_end_s"].append(_first_crossing(plan.s, plan.path.turn_end_m))
             k_exc += 1
         steps_out = {k: np.concatenate(v) for k, v in steps.items()}
         for key in ("speed_label", "side", "phase"):

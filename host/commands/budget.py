@@ -1,78 +1,231 @@
-"""``gaitlog budget``: does the logger with its on-line step algorithm fit a PIC16F877 (RAM and cycles)?"""
+"""``gaitlog budget``: does a logger configuration fit a PIC16F877 (ADC, cycles, RAM, program memory, EEPROM
+bandwidth, dump time)? ``--measure-kernels`` re-measures the arithmetic kernels' cycles in gpsim."""
 
 from __future__ import annotations
 
 import argparse
 
-from host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, number
+from host.commands._options import SEED, add_logger_rate_option, number, whole
 
-HELP = "RAM and cycles per sample of the logger with the on-line step algorithm, against the PIC16F877"
+HELP = ("RAM, cycles per sample, program memory, EEPROM bandwidth and dump time of a logger configuration "
+        "against the PIC16F877")
+CONFIG_NAMES = ("alvarez-50", "alvarez-100", "morris-5", "morris-6", "hall")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from host.commands._options import add_verbosity_options
 
+    parser.add_argument("--config", metavar="NAME",
+                        help="a configuration of the seed papers: " + ", ".join(CONFIG_NAMES) + " (default "
+                             "alvarez-50: the Alvarez logger; --logger-rate, --crystal, --channels and --estimator "
+                             "change it)")
+    parser.add_argument("--all", action="store_true", help="budget the five configurations, one after the other")
     add_logger_rate_option(parser)
-    parser.add_argument("--crystal", type=number(minimum=0.032, maximum=20, unit="MHz"), default=18.432, metavar="MHZ",
-                        help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; at most 20)")
+    parser.add_argument("--crystal", type=number(minimum=0.032, maximum=20, unit="MHz"), metavar="MHZ",
+                        help="PIC oscillator, MHz (default 18.432, the baud-rate crystal; hall: 20; at most 20)")
+    parser.add_argument("--channels", type=whole(minimum=1, maximum=8), metavar="N",
+                        help="ADC channels sampled, 1-8 (default: the configuration's)")
+    parser.add_argument("--estimator", choices=("on", "off"),
+                        help="the on-line step estimator (default: on for the Alvarez logger, off otherwise)")
     parser.add_argument("--seed", type=SEED, default=0, help="simulated walker whose walk is counted (default 0)")
     parser.add_argument("--json", action="store_true", help="print the budget as one JSON document instead")
+    parser.add_argument("--measure-kernels", action="store_true",
+                        help="run the PIC assembly kernels in gpsim (bit-exact check against fixedpoint.py, cycles "
+                             "per call) and rewrite firmware_sim/pic/kernel_cycles.json; needs gputils and gpsim")
     add_verbosity_options(parser)
 
 
-def run(args: argparse.Namespace) -> int:
+def _config(args: argparse.Namespace):
+    """The configuration the options ask for (a :class:`firmware_sim.budget.LoggerConfig`)."""
+    import dataclasses
+
+    from firmware_sim.budget import CONFIGURATIONS
+    from host.errors import HostError
+
+    name = args.config or "alvarez-50"
+    if name not in CONFIGURATIONS:
+        raise HostError(f"--config {name!r} is not one of {', '.join(CONFIGURATIONS)}")
+    c = CONFIGURATIONS[name]
+    changes = {}
+    if args.logger_rate is not None:
+        changes["sampling_rate_hz"] = float(args.logger_rate)
+    if args.crystal is not None:
+        changes["fosc_hz"] = args.crystal * 1e6
+    if args.channels is not None:
+        changes["adc_channels"] = args.channels
+    if args.estimator is not None:
+        changes["online_estimator"] = args.estimator == "on"
+    return dataclasses.replace(c, **changes) if changes else c
+
+
+def _check(c) -> None:
+    from host.errors import HostError
+
+    if not (1.0 <= c.sampling_rate_hz <= 100_000.0):
+        raise HostError(f"--logger-rate {c.sampling_rate_hz:g} Hz is outside 1 .. 100000 Hz")
+    if not (0.032e6 <= c.fosc_hz <= 20e6):
+        raise HostError(f"--crystal {c.fosc_hz / 1e6} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
+    if not (1 <= c.adc_channels <= 8):
+        raise HostError(f"--channels {c.adc_channels} is outside the PIC16F877's 1 .. 8 analog inputs")
+    if c.online_estimator and c.adc_channels != 3:
+        raise HostError(f"--estimator on reads the Alvarez logger's three axes; --channels is {c.adc_channels}")
+    if c.online_estimator and c.sampling_rate_hz > 1000.0:
+        raise HostError(f"--estimator on: the walk is simulated at 1 .. 1000 Hz, not {c.sampling_rate_hz:g} Hz")
+
+
+def _walk(c, seed: int) -> dict:
+    """The on-line algorithm on a simulated walker at ``c``'s rate and crystal: its counters."""
     from firmware_sim.adc import Adc
-    from firmware_sim.budget import (
-        algorithm_cycles_per_sample,
-        cycle_budget,
-        ram_budget,
-    )
     from firmware_sim.device import Logger
     from firmware_sim.world.subject import random_subjects
     from firmware_sim.world.walking import Walking
-    from host.commands._options import verbosity
-    from host.errors import HostError
     from protocol.steps import StepConfig
 
-    args.logger_rate = logger_rate_hz(args)
-    fosc = args.crystal * 1e6
-    if algorithm_cycles_per_sample(args.logger_rate, fosc) <= 0:
-        raise HostError(f"at {args.logger_rate:g} Hz and {args.crystal:g} MHz the logging interrupt alone takes every cycle")
-    ram = ram_budget(args.logger_rate)
-    subject = random_subjects(1, seed=args.seed)[0]
-    logger = Logger(adc=Adc(sampling_rate_hz=args.logger_rate), sampling_rate_hz=args.logger_rate,
+    subject = random_subjects(1, seed=seed)[0]
+    logger = Logger(adc=Adc(sampling_rate_hz=c.sampling_rate_hz), sampling_rate_hz=c.sampling_rate_hz,
                     step_config=StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                            foot_length_m=subject.foot_length_m))
-    logger.firmware.fosc_hz = fosc
-    res = logger.record(Walking(subject=subject, seed=args.seed))
+    logger.firmware.fosc_hz = c.fosc_hz
+    res = logger.record(Walking(subject=subject, seed=seed))
     alg = logger.firmware.step_algorithm
-    cycles = cycle_budget(alg.cycles, args.logger_rate, fosc_hz=fosc)
-    code = 0 if (ram.fits and cycles.fits) else 1
-    ctx = alg.arithmetic_context()
-    by_primitive = {k: v / max(1, alg.cycles.samples) for k, v in sorted(ctx.cycles.items(), key=lambda kv: -kv[1])}
-    if args.json:
-        import json
+    return {"alg": alg, "subject": subject.subject_id, "n_samples": int(res.n_samples),
+            "steps": int(logger.header.steps_written)}
 
-        doc = {"sampling_rate_hz": args.logger_rate, "fosc_hz": fosc, "fits": code == 0,
-               "ram": {"fits": ram.fits, "total_bytes": ram.total_bytes, "algorithm_bytes": ram.algorithm_bytes,
-                       "firmware_bytes": ram.firmware_bytes, "lines": ram.lines()},
-               "cycles": {"fits": cycles.fits, "available_per_sample": cycles.available,
-                          "mean_algorithm": cycles.mean_algorithm, "worst_algorithm": cycles.worst_algorithm,
-                          "worst_backlog_samples": cycles.backlog_samples, "mean_load": cycles.mean_load,
-                          "lines": cycles.lines(), "per_sample_by_primitive": by_primitive},
-               "walker": subject.subject_id, "n_samples": int(res.n_samples),
-               "step_records": int(logger.header.steps_written),
-               "saturations": ctx.report() if alg.saturations else None}
-        print(json.dumps(doc, indent=2))
+
+def _budget(c, seed: int) -> tuple[dict, list[str]]:
+    """One configuration: the JSON document and the printed lines."""
+    from firmware_sim.budget import (
+        PIC_PROGRAM_WORDS,
+        adc_max_sampling_rate_hz,
+        algorithm_cycles_per_sample,
+        cycle_budget,
+        program_budget,
+        ram_budget,
+        shortfalls,
+        storage_budget,
+        typical_cycles_per_sample,
+    )
+
+    ram = ram_budget(c.sampling_rate_hz, online_estimator=c.online_estimator)
+    program = program_budget(c.online_estimator)
+    storage = storage_budget(c)
+    walk = None
+    if c.online_estimator and algorithm_cycles_per_sample(c.sampling_rate_hz, c.fosc_hz, c) > 0:
+        walk = _walk(c, seed)
+    cycles = cycle_budget(walk["alg"].cycles if walk else None, c.sampling_rate_hz, fosc_hz=c.fosc_hz, config=c)
+    lines = [f"== {c.name}: {c.sampling_rate_hz:g} Hz, {c.adc_channels} ADC channels, {c.fosc_hz / 1e6:g} MHz, "
+             f"on-line estimator {'on' if c.online_estimator else 'off'}", f"   {c.source}" if c.source else "",
+             f"ADC: at most {adc_max_sampling_rate_hz(c.adc_channels, c.fosc_hz, c.source_impedance_ohm):,.0f} Hz "
+             f"for {c.adc_channels} channels (acquisition + conversion, nothing else)", ""]
+    lines += ram.lines() + [""]
+    doc = {"config": c.name, "source": c.source, "heading": lines[:3], "sampling_rate_hz": c.sampling_rate_hz, "fosc_hz": c.fosc_hz,
+           "adc_channels": c.adc_channels, "online_estimator": c.online_estimator,
+           "adc_max_sampling_rate_hz": adc_max_sampling_rate_hz(c.adc_channels, c.fosc_hz, c.source_impedance_ohm),
+           "ram": {"fits": ram.fits, "total_bytes": ram.total_bytes, "algorithm_bytes": ram.algorithm_bytes,
+                   "firmware_bytes": ram.firmware_bytes, "lines": ram.lines()}}
+    cyc = {"fits": cycles.fits and cycles.logging <= cycles.available, "available_per_sample": cycles.available,
+           "logging_per_sample": cycles.logging, "mean_algorithm": cycles.mean_algorithm,
+           "worst_algorithm": cycles.worst_algorithm, "worst_backlog_samples": cycles.backlog_samples
+           if walk else 0.0, "mean_load": cycles.mean_load}
+    if walk:
+        alg = walk["alg"]
+        ctx = alg.arithmetic_context()
+        n = alg.cycles.samples
+        from_counts, typical = typical_cycles_per_sample(dict(ctx.calls), n)
+        by_primitive = {k: v / max(1, n) for k, v in sorted(ctx.cycles.items(), key=lambda kv: -kv[1])}
+        lines += [f"counted on a simulated walker ({walk['subject']}, {walk['n_samples']} samples, {walk['steps']} "
+                  "step records; fixed point, the logger's own run):"] + cycles.lines()
+        lines.append(f"  algorithm, mean at the kernels' mean costs {typical:10,.0f}   (worst-case costs: "
+                     f"{from_counts:,.0f})")
+        lines.append("  by primitive (cycles per sample): "
+                     + ", ".join(f"{k} {v:,.0f}" for k, v in list(by_primitive.items())[:6]))
+        if alg.saturations:
+            lines.append(f"  saturations: {ctx.report()}")
+        cyc.update({"lines": cycles.lines(), "per_sample_by_primitive": by_primitive,
+                    "mean_from_operation_counts": from_counts, "mean_at_kernel_mean_costs": typical,
+                    "operation_counts": dict(ctx.calls)})
+        doc["ram"]["algorithm_bytes_of_the_run"] = alg.ram_bytes()
+        doc.update({"walker": walk["subject"], "n_samples": walk["n_samples"], "step_records": walk["steps"],
+                    "saturations": ctx.report() if alg.saturations else None})
+    else:
+        lines += [f"cycles at {c.sampling_rate_hz:g} Hz, {c.fosc_hz / 1e6:g} MHz: {cycles.available:,.0f} per sample",
+                  f"  logging interrupt            {cycles.logging:10,.0f}   "
+                  f"(load {100 * cycles.logging / cycles.available:.0f} %)"]
+        if c.online_estimator:
+            lines.append("  on-line algorithm: no cycles left after the logging interrupt")
+        cyc["lines"] = lines[-2:]
+    doc["cycles"] = cyc
+    lines += [""] + program.lines() + [""] + storage.lines()
+    doc["program"] = {"fits": program.fits, "total_words": program.total_words, "limit_words": PIC_PROGRAM_WORDS,
+                      "items": [{"name": n, "words": w, "source": s} for n, w, s in program.items],
+                      "lines": program.lines()}
+    doc["eeprom"] = {"fits": storage.fits, "bytes_per_sample": c.bytes_per_sample,
+                     "write_bytes_per_s": storage.write_bytes_per_s,
+                     "capacity_bytes_per_s": storage.capacity_bytes_per_s, "page_cycle_ms": 1e3 * storage.page_cycle_s,
+                     "recording_s": storage.recording_s, "lines": storage.lines()}
+    doc["dump_s"] = storage.dump_s
+    short = shortfalls(c, ram, cycles, program, storage)
+    doc["does_not_fit"] = short
+    doc["fits"] = not short
+    lines += [""] + (["does not fit:"] + [f"  - {s}" for s in short] if short else ["everything fits"])
+    return doc, lines
+
+
+def _measure_kernels(args: argparse.Namespace) -> int:
+    from firmware_sim.pic.gpsim_bench import (
+        CYCLE_TABLE_PATH,
+        cycle_table,
+        gpsim_version,
+        markdown_table,
+        measure,
+        missing_tools,
+        write_cycle_table,
+    )
+    from host.errors import HostError
+
+    reason = missing_tools()
+    if reason:
+        raise HostError(f"--measure-kernels: {reason}")
+    runs, words = measure()
+    bad = {n: r.mismatches[:3] for n, r in runs.items() if r.mismatches}
+    for r in runs.values():
+        s = r.summary()
+        print(f"{s['kernel']:<9s} {s['vectors']:6,d} vectors, {s['mismatches']} differ; cycles min {s['cycles_min']}, "
+              f"mean {s['cycles_mean']:g}, max {s['cycles_max']}  ({s['doc']})")
+    if bad:
+        raise HostError(f"kernels differ from fixedpoint.py (operands, gpsim, fixedpoint): {bad}; table not written")
+    table = cycle_table(runs, gpsim_version(), words)
+    write_cycle_table(table)
+    print(f"kernels: {words} program words; wrote {CYCLE_TABLE_PATH}; the table of docs/FIXED_POINT.md:\n")
+    print(markdown_table(table))
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from firmware_sim.budget import CONFIGURATIONS
+    from host.commands._options import logger_rate_hz, verbosity
+    from host.errors import HostError
+
+    if args.measure_kernels:
+        return _measure_kernels(args)
+    if args.logger_rate is not None:
+        args.logger_rate = logger_rate_hz(args)
+    if args.all:
+        if any(v is not None for v in (args.config, args.logger_rate, args.crystal, args.channels, args.estimator)):
+            raise HostError("--all budgets the five configurations as they are; it takes no --config, --logger-rate, "
+                            "--crystal, --channels or --estimator")
+        configs = list(CONFIGURATIONS.values())
+    else:
+        configs = [_config(args)]
+    for c in configs:
+        _check(c)
+    results = [_budget(c, args.seed) for c in configs]
+    code = 0 if all(d["fits"] for d, _ in results) else 1
+    if args.json:
+        print(json.dumps(results[0][0] if not args.all else [d for d, _ in results], indent=2))
         return code
-    if verbosity(args) < 0:
-        return code
-    print("\n".join(ram.lines()))
-    print()
-    print(f"counted on a simulated walker ({subject.subject_id}, {res.n_samples} samples, "
-          f"{logger.header.steps_written} step records; fixed point, the logger's own run):")
-    print("\n".join(cycles.lines()))
-    print("  by primitive (cycles per sample): " + ", ".join(f"{k} {v:,.0f}" for k, v in list(by_primitive.items())[:6]))
-    if alg.saturations:
-        print(f"  saturations: {ctx.report()}")
+    if verbosity(args) >= 0:
+        print("\n\n".join("\n".join(ln for ln in lines) for _, lines in results))
     return code

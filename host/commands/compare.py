@@ -40,6 +40,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
     parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="subjects of the sweep (default 4)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the simulated subjects (default 0)")
+    parser.add_argument("--population", choices=["v1", "people"], default="v1",
+                        help="simulated population of --simulate/--sweep: v1 (default) or people (tuned to real "
+                        "lower-back walking)")
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
     add_logger_rate_option(parser, "for --simulate")
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
@@ -77,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
             raise HostError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
     elif args.logger_rate is not None:
         raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
+    elif args.population != "v1":
+        raise HostError("--population: only with --simulate / --sweep (a recording is its own walker)")
     mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
     return mode(args)
 
@@ -103,8 +108,9 @@ def _sweep(args: argparse.Namespace) -> int:
         check_outputs({"--out": args.out}, {})
     t = time.perf_counter()
     with progress_bar(args, args.subjects, "subject") as tick:
-        sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers).run(progress=tick)
-    say(f"sweep: {args.subjects} simulated subjects x ADC 8/10/12 bits x 25/50/100 Hz in "
+        sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers,
+                          population=args.population).run(progress=tick)
+    say(f"sweep: {args.subjects} simulated subjects ('{args.population}') x ADC 8/10/12 bits x 25/50/100 Hz in "
         f"{time.perf_counter() - t:.1f} s")
     say(format_summary(sw.summary_))
     say()
@@ -147,8 +153,9 @@ def _simulate(args: argparse.Namespace) -> int:
         check_outputs({"--out": args.out}, {})
     with progress_bar(args, args.simulate, "subject") as tick:
         results = simulate_comparisons(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
-                                       sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick)
-    say(f"{len(results)} simulated subject(s), {args.adc_bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
+                                       sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick,
+                                       population=args.population)
+    say(f"{len(results)} simulated subject(s) ('{args.population}'), {args.adc_bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
         "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
     for r in results:
         detail(f"  {r.subject_id}: {r.steps['step'].size} steps (offline chain), step durations off by "

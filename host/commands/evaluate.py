@@ -34,6 +34,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="sim: number of simulated subjects (4)")
     parser.add_argument("--seed", type=SEED, default=0, help="sim: seed of the subjects and devices (0)")
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=1, help="sim: processes to use (1)")
+    parser.add_argument("--population", choices=["v1", "people"], default="v1",
+                        help="sim: simulated population: v1 (default) or people (tuned to real lower-back walking)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
@@ -68,11 +70,11 @@ def _run_sim(args: argparse.Namespace) -> int:
     args.logger_rate = logger_rate_hz(args)
     with progress_bar(args, args.subjects, "subject") as tick:
         ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
-                                 workers=args.workers).run(progress=tick)
+                                 workers=args.workers, population=args.population).run(progress=tick)
     paths = ev.write_outputs(out)
     if verbosity(args) < 0:
         return 0
-    print(f"{args.subjects} simulated subjects (seed {args.seed}), {args.logger_rate:g} Hz, {args.adc_bits} bits, "
+    print(f"{args.subjects} simulated subjects ('{args.population}' population, seed {args.seed}), {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"emulated logger calibrated on a pose session; 20 m sections, ratio estimated / real")
     print(ev.format_table())
     print("written: " + ", ".join(str(p) for p in paths.values()))

@@ -1,19 +1,23 @@
-"""``gaitlog kinematics``: simulate Morris' shank platform and Hall's two links, run both methods, draw figures.
+"""``gaitlog kinematics``: Morris (1973) and Hall (1997) on recordings, or on simulated instruments.
 
-Morris (1973), one gait cycle starting in foot-flat, simulated by :class:`RigidBodyShank` (six accelerometers):
+Forms::
 
-1. angular velocity from the accelerometer pairs (eqs 5-8); the integration constant (eq 6) is chosen so that
-   the orientation at the end of the cycle equals that at its start (Newton iteration), then the cycle
-   drift filter makes the start and end values of the angular velocity equal (Fig 4b);
-2. initial direction cosines at foot-flat from the pivot constraint (eq 11) and gravity (eqs 12-16);
-3. strapdown integration of the direction cosines (eqs 9-10);
-4. gravity removal, double integration, cycle drift removal (velocity start = end; the vertical position
-   returns to its start; the initial velocity follows from the fixed pivot, ``λ(ω × r)``; the walking
-   direction is not known in the ``λ12 = 0`` frame, so the horizontal positions are left open).
+    gaitlog kinematics morris REC.csv --platform P.json --out DIR [--cycle START END] [--azimuth DEG ...]
+    gaitlog kinematics hall REC.csv --platform P.json --out DIR [--cfc 180]
+    gaitlog kinematics simulate --write-recording DIR     # the instruments' recordings + platforms + truth
+    gaitlog kinematics [simulate] --out DIR               # simulate, analyse, report errors against the truth
 
-The estimated space frame has the heading fixed by ``λ12 = 0``; truths are rotated about the vertical into
-it before comparison. Hall (1997): :class:`TwoLinkJoint` at 10 kHz with sensor offsets and noise,
-:class:`HallJointKinematics` with pre-test offset removal and CFC 180.
+The recording format is :mod:`host.kinematics.sensor_csv`, the platform files
+:mod:`host.kinematics.platform_description`. Morris: every cycle from foot-flat to foot-flat
+(:mod:`host.kinematics.morris_analysis`), or the one given by ``--cycle``; outputs ``morris_orientation.csv``
+(direction cosines), ``morris_angular_velocity.csv``, ``morris_translation.csv`` (one row per sample, a
+``cycle`` column) and Figs 4-7 of the first (or selected) cycle, Fig 7 also as ``morris_animation.gif``.
+Hall: ``hall_joint_angles.csv``, ``hall_link_orientation.csv``, ``hall_angular_velocity.csv`` and the angle
+plot. Everything is computed before the first file is written (no partial output on an error).
+
+Simulate: Morris' platform as published (five accelerometers, ω3 assumed zero, 40 dB noise) and, for
+comparison, the same shank without axial rotation and a six-accelerometer platform; Hall's two links at
+10 kHz. The errors against the truth are printed.
 """
 
 from __future__ import annotations
@@ -22,206 +26,394 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-#: The figures written to ``--out``.
-FIGURES = ("morris_angular_velocity.png", "morris_dcm.png", "morris_translation.png", "morris_stick_figure.png",
-           "hall_joint_angles.png")
+HELP = "Morris' and Hall's kinematics on a recording (morris / hall) or on simulated instruments (simulate)."
 
-HELP = "Simulate the Morris shank platform and Hall's two links, run both kinematics, write figures."
+#: Files written by ``morris`` and ``hall`` into ``--out``.
+MORRIS_FILES = ("morris_orientation.csv", "morris_angular_velocity.csv", "morris_translation.csv",
+                "morris_angular_velocity.png", "morris_dcm.png", "morris_translation.png", "morris_stick_figure.png",
+                "morris_animation.gif")
+HALL_FILES = ("hall_joint_angles.csv", "hall_link_orientation.csv", "hall_angular_velocity.csv",
+              "hall_joint_angles.png")
+
+
+def _snr_db(text: str) -> float:
+    """``--snr-db``: a finite number of dB in 0..200, or ``inf`` (no noise)."""
+    from host.commands._options import number
+
+    return float("inf") if text.strip().lower() == "inf" else number(minimum=0, maximum=200, unit="dB")(text)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the PNG figures (created)")
     from host.commands._options import SEED, add_verbosity_options, number
 
-    parser.add_argument("--morris-rate", type=number(minimum=10, maximum=10_000, unit="Hz"), default=100.0, metavar="HZ",
-                        help="sampling rate of the simulated Morris platform (default 100 Hz, Morris' 10 ms); "
-                        "kinematics takes no recording: Morris needs six accelerometers at known places on the "
-                        "shank and Hall angular rates, which a tri-axial logger does not record")
-    parser.add_argument("--noise-mg", type=number(minimum=0, maximum=10_000, unit="mg"), default=0.0, metavar="MG",
-                        help="white noise added to each platform accelerometer, mg (default 0)")
+    parser.add_argument("method", nargs="?", choices=("simulate", "morris", "hall"), default="simulate",
+                        help="morris or hall: analyse RECORDING; simulate (default): simulated instruments")
+    parser.add_argument("recording", nargs="?", type=Path, metavar="RECORDING",
+                        help="recording CSV: time_s, then one column per sensor axis with its unit (morris, hall)")
+    parser.add_argument("--platform", type=Path, metavar="JSON",
+                        help="platform description: accelerometer positions/axes (morris) or rate-sensor links (hall)")
+    parser.add_argument("--out", type=Path, metavar="DIR", help="folder for the results and figures (created)")
+    parser.add_argument("--cycle", type=number(minimum=0, unit="s"), nargs=2, metavar=("START", "END"),
+                        help="morris: the cycle in the recording's seconds, START in foot-flat (Morris' cursors); "
+                        "default: every cycle from foot-flat to foot-flat, figures of the first")
+    parser.add_argument("--azimuth", type=number(minimum=-360, maximum=360, unit="deg"), default=0.0, metavar="DEG",
+                        help="Fig 7 view: azimuth (0: from the right side, 90: from behind; default 0)")
+    parser.add_argument("--elevation", type=number(minimum=-90, maximum=90, unit="deg"), default=0.0, metavar="DEG",
+                        help="Fig 7 view: elevation (0: level, 90: from above; default 0)")
+    parser.add_argument("--no-animation", action="store_true", help="morris: skip morris_animation.gif")
+    parser.add_argument("--cfc", type=number(minimum=0, maximum=10_000), default=180.0, metavar="CFC",
+                        help="hall: SAE J211 channel class of the zero-phase low-pass (default 180, Hall's; 0: none)")
+    parser.add_argument("--angle-mode", choices=("absolute", "incremental_sum"), default="absolute",
+                        help="hall: angles of the integrated matrices (default) or the literal sum of incremental "
+                        "Euler angles")
+    parser.add_argument("--write-recording", type=Path, metavar="DIR",
+                        help="simulate: write morris.csv, hall.csv, their *_platform.json and *_truth.csv to DIR")
+    parser.add_argument("--accelerometers", type=int, choices=(5, 6), default=5,
+                        help="simulate: Morris platform of 5 (as published, ω3 assumed zero) or 6 accelerometers")
+    parser.add_argument("--snr-db", type=_snr_db, default=40.0, metavar="DB",
+                        help="simulate: accelerometer signal-to-noise ratio (default 40 dB, Morris' 'better than "
+                        "40 db'; 'inf' for none)")
+    parser.add_argument("--morris-rate", type=number(minimum=20, maximum=10_000, unit="Hz"), default=100.0, metavar="HZ",
+                        help="simulate: Morris sampling rate (default 100 Hz, his 10 ms)")
     parser.add_argument("--hall-rate", type=number(minimum=100, maximum=100_000, unit="Hz"), default=10_000.0, metavar="HZ",
-                        help="angular-rate sampling rate for Hall (default 10 kHz; CFC 180 needs > 747.9 Hz)")
+                        help="simulate: angular-rate sampling rate for Hall (default 10 kHz; CFC 180 needs > 747.9 Hz)")
     parser.add_argument("--gyro-noise", type=number(minimum=0, maximum=100, unit="rad/s"), default=0.01, metavar="RAD_S",
-                        help="angular-rate sensor noise, rad/s (default 0.01)")
-    parser.add_argument("--seed", type=SEED, default=0, help="noise seed (default 0)")
+                        help="simulate: angular-rate sensor noise, rad/s (default 0.01)")
+    parser.add_argument("--seed", type=SEED, default=0, help="simulate: noise seed (default 0)")
     add_verbosity_options(parser)
 
 
-def run_morris(sampling_rate_hz: float, noise_mg: float = 0.0, seed: int = 0) -> dict[str, Any]:
-    """Simulate one cycle, run Morris' method; returns estimates, heading-aligned truth and error numbers."""
+# ---------------------------------------------------------------------------------------------- Morris
+def morris_outputs(cycles: list, recording: Any, platform: Any, azimuth: float, elevation: float,
+                   animation: bool) -> dict[str, Any]:
+    """``{file name: CSV text | (plot function, args, kwargs)}`` of a Morris analysis (nothing written yet)."""
     import numpy as np
-    from scipy.spatial.transform import Rotation
 
-    from firmware_sim.world.rigid_body import RigidBodyShank
+    from firmware_sim.algorithms.steps import columns_csv_text
+    from host.kinematics import plots
+
+    cyc = np.concatenate([np.full(c.t_s.size, i + 1) for i, c in enumerate(cycles)])
+    t = np.concatenate([c.t_s for c in cycles])
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([getattr(c, name) for c in cycles])
+
+    dcm = cat("dcm")
+    orient = {"cycle": cyc, "time_s": t, **{f"dcm{i + 1}{j + 1}": dcm[:, i, j] for i in range(3) for j in range(3)}}
+    w_raw, w, al = cat("omega_raw_rad_s"), cat("omega_rad_s"), cat("alpha_rad_s2")
+    ang = {"cycle": cyc, "time_s": t, **{f"omega{k + 1}_rad_s": w[:, k] for k in range(3)},
+           **{f"omega{k + 1}_before_drift_filter_rad_s": w_raw[:, k] for k in range(3)},
+           **{f"alpha{k + 1}_rad_s2": al[:, k] for k in range(3)}}
+    a, v, p = cat("acceleration_m_s2"), cat("velocity_m_s"), cat("position_m")
+    trans = {"cycle": cyc, "time_s": t, **{f"acceleration{k + 1}_m_s2": a[:, k] for k in range(3)},
+             **{f"velocity{k + 1}_m_s": v[:, k] for k in range(3)}, **{f"position{k + 1}_m": p[:, k] for k in range(3)}}
+    c = cycles[0]
+    r_o = platform.origin_from_pivot_m
+    # Fig 4a: the whole record integrated from its start with the cycle's mean-rate start (no filtering)
+    from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
+
+    readings = recording.columns(platform.sensors, "specific force")
+    solver = AngularVelocityFromAccelerometers(positions_m=platform.positions_m, axes=platform.axes,
+                                               fixed_zero_axes=platform.assume_zero_rate_axes)
+    whole = solver.estimate(readings, sampling_rate_hz=recording.sampling_rate_hz,
+                            omega0_rad_s=c.omega_raw_rad_s[0]).omega_rad_s_
+    whole = whole - whole[c.start] + c.omega_raw_rad_s[0]
+    out: dict[str, Any] = {
+        "morris_orientation.csv": columns_csv_text(orient),
+        "morris_angular_velocity.csv": columns_csv_text(ang),
+        "morris_translation.csv": columns_csv_text(trans),
+        "morris_angular_velocity.png": (plots.plot_angular_velocity, (c.t_s, c.omega_raw_rad_s, c.omega_rad_s),
+                                        {"record": (recording.t_s, whole)}),
+        "morris_dcm.png": (plots.plot_dcm, (c.t_s, c.dcm), {}),
+        "morris_translation.png": (plots.plot_translation, (c.t_s, c.acceleration_m_s2, c.velocity_m_s, c.position_m),
+                                   {}),
+        "morris_stick_figure.png": (plots.plot_body_model, (c.t_s, c.dcm, c.position_m + r_o, r_o),
+                                    {"azimuth_deg": azimuth, "elevation_deg": elevation}),
+    }
+    if animation:
+        out["morris_animation.gif"] = (plots.write_body_model_gif, (c.t_s, c.dcm, c.position_m + r_o, r_o),
+                                       {"azimuth_deg": azimuth, "elevation_deg": elevation})
+    return out
+
+
+def hall_outputs(hall: Any, recording: Any, sequence: str) -> dict[str, Any]:
+    """``{file name: CSV text | plot}`` of a Hall analysis."""
+    import numpy as np
+
+    from firmware_sim.algorithms.steps import columns_csv_text
+    from host.kinematics import plots
+
+    t = recording.t_s
+    names = ("flexion_deg", "version_deg", "axial_rotation_deg") if sequence == "yxz" else (
+        "tilt_deg", "rotation_deg", "flexion_deg")
+    deg = np.degrees(hall.angles_rad_)
+    angles = {"time_s": t, **{n: deg[:, k] for k, n in enumerate(names)},
+              "gimbal_lock": hall.gimbal_lock_.astype(bool)}
+    links = {"time_s": t, **{f"TA{i + 1}{j + 1}": hall.ta_[:, i, j] for i in range(3) for j in range(3)},
+             **{f"TB{i + 1}{j + 1}": hall.tb_[:, i, j] for i in range(3) for j in range(3)}}
+    rates = {"time_s": t, **{f"A_{x}_rad_s": hall.rate_a_link_rad_s_[:, k] for k, x in enumerate("xyz")},
+             **{f"B_{x}_rad_s": hall.rate_b_link_rad_s_[:, k] for k, x in enumerate("xyz")}}
+    return {
+        "hall_joint_angles.csv": columns_csv_text(angles),
+        "hall_link_orientation.csv": columns_csv_text(links),
+        "hall_angular_velocity.csv": columns_csv_text(rates),
+        "hall_joint_angles.png": (plots.plot_joint_angles, (t, hall.angles_rad_), {"sequence": sequence}),
+    }
+
+
+def write_outputs(out: Path, outputs: dict[str, Any]) -> None:
+    """Create ``out`` and write every output (texts atomically, figures through their atomic writers)."""
+    from protocol.atomic_write import atomic_write_text
+
+    out.mkdir(parents=True, exist_ok=True)
+    for name, item in outputs.items():
+        if isinstance(item, str):
+            atomic_write_text(out / name, item)
+        else:
+            fn, fargs, kwargs = item
+            fn(*fargs, out / name, **kwargs)
+
+
+def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> Any:
+    """Hall's method on a recording: pre-test posture, offsets, CFC, link matrices, joint angles."""
+    import numpy as np
+
     from host.errors import HostError
-    from host.kinematics.accelerometer_pairs import (
-        AngularVelocityFromAccelerometers,
-        gravity_from_pivot,
-    )
-    from host.kinematics.orientation import (
-        geodesic_distance_rad,
-        initial_dcm_from_gravity,
-        integrate_dcm,
-    )
-    from host.kinematics.strapdown import (
-        CycleTranslation,
-        remove_cycle_drift,
-        remove_gravity,
-    )
+    from host.kinematics.joints import JOINT_MATRICES, HallJointKinematics
+    from host.kinematics.orientation import initial_dcm_from_gravity
 
-    if not (np.isfinite(sampling_rate_hz) and 20 <= sampling_rate_hz <= 100_000):
-        raise HostError(f"--morris-rate must be between 20 and 100000 Hz, got {sampling_rate_hz:g}")
-    src = RigidBodyShank(n_cycles=1)
-    rec = src.render_platform(sampling_rate_hz)
-    tr = rec.motion.truth
-    readings = rec.readings_g + np.random.default_rng(seed).normal(0.0, noise_mg * 1e-3, rec.readings_g.shape)
-    solver = AngularVelocityFromAccelerometers(positions_m=rec.positions_m, axes=rec.axes)
-    # 1. ω: the constant C of eq (6) from the cycle: the orientation returns to its start (Newton on the
-    #    rotation vector of λ(0)ᵀλ(T), finite-difference Jacobian), then the Fig 4b drift filter
-    def closure(c: np.ndarray) -> tuple[np.ndarray, Any]:
-        e = solver.estimate(readings, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=c)
-        lam = integrate_dcm(e.omega_rad_s_, sampling_rate_hz)
-        return Rotation.from_matrix(lam[-1]).as_rotvec(), e
-
-    omega0 = np.zeros(3)
-    weights = np.full(readings.shape[0], 1.0 / (readings.shape[0] - 1))
-    weights[[0, -1]] *= 0.5
-    for _ in range(3):  # start: mean rate zero over the cycle (exact for planar motion)
-        omega0 = omega0 - weights @ solver.estimate(readings, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=omega0).omega_rad_s_
-    for _ in range(3):
-        f0, est = closure(omega0)
-        jac = np.stack([(closure(omega0 + 1e-4 * np.eye(3)[j])[0] - f0) / 1e-4 for j in range(3)], axis=1)
-        omega0 = omega0 - np.linalg.solve(jac, f0)
-    est = solver.estimate(readings, sampling_rate_hz=sampling_rate_hz, omega0_rad_s=omega0)
-    omega_raw = est.omega_rad_s_
-    omega = remove_cycle_drift(omega_raw)
-    # 2. initial direction cosines at foot-flat (eq 11, eqs 12-16)
-    r_o = tr["origin_offset_m"]
-    up0 = gravity_from_pivot(est.origin_specific_force_g_[0], omega[0], est.alpha_rad_s2_[0], r_o)
-    lam0 = initial_dcm_from_gravity(up0)
-    # 3. strapdown direction cosines
-    dcm = integrate_dcm(omega, sampling_rate_hz, lam0)
-    # 4. translation of the origin
-    acc = remove_gravity(est.origin_specific_force_g_, dcm)
-    v0 = lam0 @ np.cross(omega[0], r_o)
-    trans = CycleTranslation(closed_axes=(2,), initial_velocity_m_s=v0).integrate(acc, sampling_rate_hz=sampling_rate_hz)
-    # truth in the estimated space frame (rotation about the vertical fixed at t = 0)
-    heading = lam0 @ tr["dcm"][0].T
-    true_dcm = heading @ tr["dcm"]
-    true_acc = tr["acceleration_m_s2"] @ heading.T
-    true_vel = tr["velocity_m_s"] @ heading.T
-    true_pos = (tr["position_m"] - tr["position_m"][0]) @ heading.T
-    t = tr["t_s"]
-    tilt = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", dcm[:, 2], true_dcm[:, 2]), -1, 1)))
-    return {
-        "t_s": t,
-        "omega_raw_rad_s": omega_raw,
-        "omega_rad_s": omega,
-        "omega_true_rad_s": tr["omega_rad_s"],
-        "dcm": dcm,
-        "dcm_true": true_dcm,
-        "acc_m_s2": trans.acceleration_m_s2_,
-        "vel_m_s": trans.velocity_m_s_,
-        "pos_m": trans.position_m_,
-        "truth_translation": (true_acc, true_vel, true_pos),
-        "origin_from_ankle_m": r_o,
-        "pos0_true_m": tr["position_m"][0] @ heading.T,
-        "errors": {
-            "omega_rad_s": float(np.abs(omega - tr["omega_rad_s"]).max()),
-            "omega_peak_rad_s": float(np.abs(tr["omega_rad_s"]).max()),
-            "heading_deg": float(np.degrees(np.arctan2(heading[1, 0], heading[0, 0]))),
-            "orientation_deg": float(np.degrees(geodesic_distance_rad(dcm, true_dcm).max())),
-            "tilt_deg": float(tilt.max()),
-            "velocity_m_s": float(np.abs(trans.velocity_m_s_ - true_vel).max()),
-            "position_m": [float(x) for x in np.abs(trans.position_m_ - true_pos).max(axis=0)],
-            "stride_est_m": float(np.linalg.norm(trans.position_m_[-1] - trans.position_m_[0])),
-            "stride_true_m": float(np.linalg.norm(true_pos[-1] - true_pos[0])),
-        },
-    }
+    ra = recording.columns(platform.link_a.rate_sensors, "angular rate")
+    rb = recording.columns(platform.link_b.rate_sensors, "angular rate")
+    n_pre = int(np.floor(platform.pretest_s * recording.sampling_rate_hz)) + 1 if platform.pretest_s > 0 else 0
+    if n_pre >= ra.shape[0]:
+        raise HostError(f"{recording.source}: the pre-test window of {platform.pretest_s:g} s covers the whole "
+                        f"recording ({ra.shape[0]} samples)")
+    if platform.initial_joint_deg is not None:  # Hall: TA = I, TB = the initial A-B matrix
+        ta0, tb0 = np.eye(3), JOINT_MATRICES[platform.sequence](np.radians(platform.initial_joint_deg))
+    else:  # the pre-test posture from gravity in each link (heading λ12 = 0 for both)
+        up_a = recording.columns(platform.link_a.gravity_sensors, "specific force")[:n_pre].mean(axis=0)
+        up_b = recording.columns(platform.link_b.gravity_sensors, "specific force")[:n_pre].mean(axis=0)
+        ta0 = initial_dcm_from_gravity(up_a, on_singular="axis1").T
+        tb0 = initial_dcm_from_gravity(up_b, on_singular="axis1").T
+    return HallJointKinematics(
+        sensor_to_link_a=platform.link_a.sensor_to_link, sensor_to_link_b=platform.link_b.sensor_to_link,
+        initial_ta=ta0, initial_tb=tb0, pretest_samples=n_pre, cfc=cfc or None, side=platform.side,
+        angle_mode=angle_mode, sequence=platform.sequence,
+    ).compute(ra, rb, sampling_rate_hz=recording.sampling_rate_hz)
 
 
-def run_hall(sampling_rate_hz: float, noise_rad_s: float = 0.01, seed: int = 0) -> dict[str, Any]:
-    """Simulate the two links, run Hall's method (CFC 180) and the literal incremental-sum variant."""
+def _check_out(out: Path | None, what: str) -> Path:
+    from host.commands._options import check_output_folder
+    from host.errors import HostError
+
+    if out is None:
+        raise HostError(f"{what}: give --out DIR for the results")
+    check_output_folder("--out", out)
+    return out
+
+
+def _run_recording(args: argparse.Namespace) -> int:
+    import warnings
+
+    from host.commands._options import printer
+    from host.errors import HostError
+    from host.kinematics.morris_analysis import analyse_morris_recording
+    from host.kinematics.platform_description import HallPlatform, MorrisPlatform
+    from host.kinematics.sensor_csv import read_sensor_csv
+
+    if args.recording is None or args.platform is None:
+        raise HostError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
+    out = _check_out(args.out, f"kinematics {args.method}")
+    recording = read_sensor_csv(args.recording)
+    say = printer(args)
+    if args.method == "morris":
+        platform = MorrisPlatform.load(args.platform)
+        cycle = tuple(args.cycle) if args.cycle else None
+        cycles = analyse_morris_recording(recording, platform, cycle_s=cycle)
+        outputs = morris_outputs(cycles, recording, platform, args.azimuth, args.elevation, not args.no_animation)
+        write_outputs(out, outputs)
+        zero = f", rate about axis {'/'.join(str(a + 1) for a in platform.assume_zero_rate_axes)} assumed zero" \
+            if platform.assume_zero_rate_axes else ""
+        say(f"Morris: {len(platform.sensors)} accelerometers{zero}, {recording.sampling_rate_hz:g} Hz, "
+            f"{len(cycles)} cycle(s): " + ", ".join(f"{c.t_s[0]:.2f}-{c.t_s[-1]:.2f} s" for c in cycles))
+        for i, c in enumerate(cycles):
+            disp = c.position_m[-1] - c.position_m[0]
+            say(f"  cycle {i + 1}: peak |ω| {float(abs(c.omega_rad_s).max()):.2f} rad/s, displacement "
+                f"{float(disp[0]):.3f} m forwards, {float(disp[1]):.3f} m sideways")
+            if abs(c.pivot_misfit_g) > 0.1:
+                say(f"  warning: cycle {i + 1} starts at {c.t_s[0]:.2f} s where the shank is not turning about a "
+                    f"fixed pivot (gravity from eq 11 is {1 + c.pivot_misfit_g:.2f} g, not 1 g): the initial direction "
+                    "cosines need a start in foot-flat")
+        names = list(outputs)
+    else:
+        if args.cfc:
+            from host.kinematics.cfc_filter import cfc_coefficients
+
+            cfc_coefficients(args.cfc, recording.sampling_rate_hz)
+        platform = HallPlatform.load(args.platform)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            hall = analyse_hall(recording, platform, args.cfc, args.angle_mode)
+        outputs = hall_outputs(hall, recording, platform.sequence)
+        write_outputs(out, outputs)
+        import numpy as np
+
+        final = np.degrees(hall.angles_rad_[-1])
+        say(f"Hall: sequence {platform.sequence}, {platform.side} side, {recording.sampling_rate_hz:g} Hz, "
+            f"CFC {args.cfc:g}, {hall.angles_rad_.shape[0]} samples; final angles "
+            f"({', '.join(f'{x:.2f}' for x in final)}) deg")
+        for w in caught:
+            say(f"  warning: {w.message}")
+        names = list(outputs)
+    say(f"written to {out}/: {' '.join(names)}")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- simulate
+def morris_errors(cycle: Any, truth: dict[str, Any]) -> dict[str, float]:
+    """Errors of one analysed cycle against the simulation's truth, the heading aligned at the cycle start
+    (accelerometers cannot sense it)."""
     import numpy as np
 
-    from firmware_sim.world.two_link import TwoLinkJoint
-    from host.kinematics.joints import HallJointKinematics
+    from host.kinematics.orientation import geodesic_distance_rad
 
-    src = TwoLinkJoint(noise_rad_s=noise_rad_s, seed=seed)
-    r = src.render_rates(sampling_rate_hz)
-    kw = dict(
-        sensor_to_link_a=r.truth["sensor_to_link_a"],
-        sensor_to_link_b=r.truth["sensor_to_link_b"],
-        pretest_samples=r.pretest_samples,
-        cfc=180,
+    sel = slice(cycle.start, cycle.stop + 1)
+    true_dcm = truth["dcm"][sel]
+    heading = cycle.dcm[0] @ true_dcm[0].T
+    aligned = heading @ true_dcm
+    tilt = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", cycle.dcm[:, 2], true_dcm[:, 2]), -1, 1)))
+    w_err = np.abs(cycle.omega_rad_s - truth["omega_rad_s"][sel])
+    pos = truth["position_m"][sel] - truth["position_m"][sel][0]  # both frames walk along axis 1
+    return {"orientation_deg": float(np.degrees(geodesic_distance_rad(cycle.dcm, aligned).max())),
+            "position_m": float(np.abs(cycle.position_m - pos).max()),
+            "tilt_deg": float(tilt.max()), "omega_rad_s": float(w_err.max()),
+            "omega_axial_peak_rad_s": float(np.abs(truth["omega_rad_s"][sel, 2]).max())}
+
+
+def _truth_from_columns(sim: Any) -> dict[str, Any]:
+    import numpy as np
+
+    tr = sim.truth
+    dcm = np.stack([[tr[f"dcm{i + 1}{j + 1}"] for j in range(3)] for i in range(3)]).transpose(2, 0, 1)
+    return {"dcm": dcm, "omega_rad_s": np.stack([tr[f"omega{k + 1}_rad_s"] for k in range(3)], axis=1),
+            "position_m": np.stack([tr[f"position{k + 1}_m"] for k in range(3)], axis=1)}
+
+
+def _as_recording(sim: Any, rate: float) -> Any:
+    from host.kinematics.sensor_csv import SensorRecording, split_unit
+
+    ch, q = {}, {}
+    for name, v in sim.columns.items():
+        s, quantity, factor = split_unit(name)
+        ch[s], q[s] = v * factor, quantity
+    return SensorRecording(sim.t_s, ch, q, rate, "<simulated>")
+
+
+def _run_simulate(args: argparse.Namespace) -> int:
+    import math
+
+    import numpy as np
+
+    from host.commands._options import check_output_folder, printer
+    from host.errors import HostError
+    from host.kinematics.cfc_filter import cfc_coefficients
+    from host.kinematics.joints import joint_angles_yxz
+    from host.kinematics.morris_analysis import analyse_morris_recording
+    from host.kinematics.simulated_instruments import (
+        simulate_hall,
+        simulate_morris,
+        write_instrument,
     )
-    hall = HallJointKinematics(**kw).compute(r.rate_a_rad_s, r.rate_b_rad_s, sampling_rate_hz=sampling_rate_hz)
-    literal = HallJointKinematics(**kw, angle_mode="incremental_sum").compute(
-        r.rate_a_rad_s, r.rate_b_rad_s, sampling_rate_hz=sampling_rate_hz
-    )
-    truth = r.truth["joint_angles_rad"]
-    return {
-        "t_s": r.truth["t_s"],
-        "angles_rad": hall.angles_rad_,
-        "truth_rad": truth,
-        "errors": {
-            "angles_deg": [float(x) for x in np.degrees(np.abs(hall.angles_rad_ - truth).max(axis=0))],
-            "final_deg": [float(x) for x in np.degrees(hall.angles_rad_[-1])],
-            "final_true_deg": [float(x) for x in np.degrees(truth[-1])],
-            "literal_final_deg": [float(x) for x in np.degrees(literal.angles_rad_[-1])],
-            "gimbal_lock_samples": int(hall.gimbal_lock_.sum()),
-        },
-    }
+
+    if args.out is None and args.write_recording is None:
+        raise HostError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
+    if args.out is not None:
+        _check_out(args.out, "kinematics simulate")
+    if args.write_recording is not None:
+        check_output_folder("--write-recording", args.write_recording)
+    if args.cfc:
+        cfc_coefficients(args.cfc, args.hall_rate)  # reject an invalid rate before any work
+    snr = None if math.isinf(args.snr_db) else args.snr_db
+    kw = {"snr_db": snr, "sampling_rate_hz": args.morris_rate, "seed": args.seed}
+    morris = simulate_morris(n_accelerometers=args.accelerometers, **kw)
+    hall = simulate_hall(sampling_rate_hz=args.hall_rate, noise_rad_s=args.gyro_noise, seed=args.seed)
+    say, detail = printer(args), printer(args, 1)
+    if args.write_recording is not None:
+        paths = write_instrument(morris, args.write_recording, "morris") + write_instrument(
+            hall, args.write_recording, "hall")
+        say(f"recordings written to {args.write_recording}/: {' '.join(p.name for p in paths)}")
+    if args.out is None:
+        return 0
+    # Morris as published, and what its ω3 = 0 assumption costs
+    rec = _as_recording(morris, args.morris_rate)
+    cycles = analyse_morris_recording(rec, morris.platform)
+    variants = [("as simulated", cycles, _truth_from_columns(morris))]
+    for label, sim in (("no axial rotation", simulate_morris(n_accelerometers=args.accelerometers,
+                                                              axial_rotation=False, **kw)),
+                       ("6 accelerometers" if args.accelerometers == 5 else "5 accelerometers",
+                        simulate_morris(n_accelerometers=11 - args.accelerometers, **kw))):
+        variants.append((label, analyse_morris_recording(_as_recording(sim, args.morris_rate), sim.platform),
+                         _truth_from_columns(sim)))
+    hall_rec = _as_recording(hall, args.hall_rate)
+    result = analyse_hall(hall_rec, hall.platform, args.cfc, "absolute")
+    literal = analyse_hall(hall_rec, hall.platform, args.cfc, "incremental_sum")
+    identity = hall.platform.__class__(hall.platform.link_a, hall.platform.link_b, "yxz", "left",
+                                       hall.platform.pretest_s, np.zeros(3))
+    naive = analyse_hall(hall_rec, identity, args.cfc, "absolute")
+    tr = hall.truth
+    true_angles = np.stack([tr["phi_rad"], tr["theta_rad"], tr["psi_rad"]], axis=1)
+    outputs = morris_outputs(cycles, rec, morris.platform, args.azimuth, args.elevation, not args.no_animation)
+    outputs.update(hall_outputs(result, hall_rec, "yxz"))
+    outputs["hall_joint_angles.png"] = (outputs["hall_joint_angles.png"][0], outputs["hall_joint_angles.png"][1],
+                                        {"sequence": "yxz", "truth_rad": true_angles})
+    write_outputs(args.out, outputs)
+    noise = "no noise" if snr is None else f"{snr:g} dB SNR"
+    say(f"Morris shank, {args.accelerometers} accelerometers, {args.morris_rate:g} Hz, {noise}, "
+        f"{len(cycles)} cycle(s) found from foot-flat:")
+    for label, cs, truth in variants:
+        errs = [morris_errors(c, truth) for c in cs]
+        say(f"  {label:<18} orientation max error {max(e['orientation_deg'] for e in errs):.3g} deg "
+            f"(tilt {max(e['tilt_deg'] for e in errs):.3g} deg), ω max error "
+            f"{max(e['omega_rad_s'] for e in errs):.3g} rad/s (axial rate peak "
+            f"{max(e['omega_axial_peak_rad_s'] for e in errs):.2f} rad/s), position max error "
+            f"{max(e['position_m'] for e in errs):.3g} m")
+    err = np.degrees(np.abs(result.angles_rad_ - true_angles).max(axis=0))
+    err_naive = np.degrees(np.abs(naive.angles_rad_ - true_angles).max(axis=0))
+    fmt3 = lambda xs: "(" + ", ".join(f"{x:.3g}" for x in xs) + ")"  # noqa: E731
+    say(f"Hall two links, {args.hall_rate:g} Hz, CFC {args.cfc:g}, gyro noise {args.gyro_noise:g} rad/s:")
+    say(f"  joint angles      max error {fmt3(err)} deg (phi, theta, psi), initial A-B from the pre-test gravity")
+    say(f"  with identity     max error {fmt3(err_naive)} deg (initial A-B taken as identity)")
+    say(f"  final angles      {fmt3(np.degrees(result.angles_rad_[-1]))} deg, truth "
+        f"{fmt3(np.degrees(true_angles[-1]))} deg")
+    say(f"  literal sum of incremental Euler angles ends at {fmt3(np.degrees(literal.angles_rad_[-1]))} deg")
+    say(f"  initial posture   {fmt3(np.degrees(joint_angles_yxz(result.joint_matrix_[0])[0]))} deg")
+    from dataclasses import replace
+
+    from firmware_sim.budget import CONFIGURATIONS, instrument_fit
+
+    n_acc = len(morris.platform.sensors)
+    n_rate = len(hall.platform.link_a.rate_sensors) + len(hall.platform.link_b.rate_sensors)
+    for name, config in (("Morris", replace(CONFIGURATIONS["morris-6" if n_acc == 6 else "morris-5"],
+                                            sampling_rate_hz=args.morris_rate, adc_channels=n_acc)),
+                         ("Hall", replace(CONFIGURATIONS["hall"], sampling_rate_hz=args.hall_rate, adc_channels=n_rate))):
+        short, fastest = instrument_fit(config)
+        verdict = ("fits" if not short else "does not fit: " + "; ".join(short)
+                   + f"; the closest that fits: {config.adc_channels} channels at {int(fastest)} Hz")
+        say(f"on the PIC16F877 logger, {name} ({config.adc_channels} channels at {config.sampling_rate_hz:g} Hz, "
+            f"`gaitlog budget --config {config.name}`): {verdict}")
+    say(f"figures and results written to {args.out}/: {' '.join(outputs)}")
+    for name in outputs:
+        detail(f"  {args.out / name}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run both simulations and methods, write the figures, print the errors against the truth (not with -q;
-    each figure's path with -v)."""
-    from host.commands._options import check_output_folder, printer
-    from host.kinematics.plots import (
-        plot_angular_velocity,
-        plot_dcm,
-        plot_joint_angles,
-        plot_stick_figure,
-        plot_translation,
-    )
+    """Dispatch on the method (module notes)."""
+    if args.method == "simulate":
+        if args.recording is not None:
+            from host.errors import HostError
 
-    out: Path = args.out
-    check_output_folder("--out", out)
-    from host.kinematics.cfc_filter import cfc_coefficients
-
-    cfc_coefficients(180, args.hall_rate)  # reject an invalid rate before any work
-    morris = run_morris(args.morris_rate, args.noise_mg, args.seed)
-    hall = run_hall(args.hall_rate, args.gyro_noise, args.seed)
-    out.mkdir(parents=True, exist_ok=True)
-    t = morris["t_s"]
-    plot_angular_velocity(t, morris["omega_raw_rad_s"], morris["omega_rad_s"], out / "morris_angular_velocity.png",
-                          truth_rad_s=morris["omega_true_rad_s"])
-    plot_dcm(t, morris["dcm"], out / "morris_dcm.png", truth=morris["dcm_true"])
-    plot_translation(t, morris["acc_m_s2"], morris["vel_m_s"], morris["pos_m"], out / "morris_translation.png",
-                     truth=morris["truth_translation"])
-    p0 = morris["pos0_true_m"]
-    plot_stick_figure(t, morris["dcm"], morris["pos_m"] + p0, morris["origin_from_ankle_m"],
-                      out / "morris_stick_figure.png",
-                      truth=(morris["dcm_true"], morris["truth_translation"][2] + p0))
-    plot_joint_angles(hall["t_s"], hall["angles_rad"], out / "hall_joint_angles.png", truth_rad=hall["truth_rad"])
-    say, detail = printer(args), printer(args, 1)
-    me, he = morris["errors"], hall["errors"]
-    fmt3 = lambda xs: "(" + ", ".join(f"{x:.3g}" for x in xs) + ")"  # noqa: E731
-    say(f"Morris shank, 6 accelerometers, {args.morris_rate:g} Hz, one {t[-1]:.2f} s cycle, noise {args.noise_mg:g} mg:")
-    say(f"  angular velocity  max error {me['omega_rad_s']:.3g} rad/s (peak {me['omega_peak_rad_s']:.2f} rad/s)")
-    say(f"  orientation       max error {me['orientation_deg']:.3g} deg (tilt {me['tilt_deg']:.3g} deg; "
-        f"heading of the λ12 = 0 frame {me['heading_deg']:.2f} deg)")
-    say(f"  velocity          max error {me['velocity_m_s']:.3g} m/s")
-    say(f"  position          max error {fmt3(me['position_m'])} m (fwd, side, vertical); "
-        f"stride {me['stride_est_m']:.4f} m vs {me['stride_true_m']:.4f} m")
-    say(f"Hall two links, {args.hall_rate:g} Hz, CFC 180, gyro noise {args.gyro_noise:g} rad/s:")
-    say(f"  joint angles      max error {fmt3(he['angles_deg'])} deg (phi, theta, psi)")
-    say(f"  final angles      {fmt3(he['final_deg'])} deg, truth {fmt3(he['final_true_deg'])} deg")
-    say(f"  literal sum of incremental Euler angles ends at {fmt3(he['literal_final_deg'])} deg")
-    say(f"  gimbal lock at {he['gimbal_lock_samples']} samples")
-    say(f"figures written to {out}/: {' '.join(FIGURES)}")
-    for name in FIGURES:
-        detail(f"  {out / name}")
-    return 0
+            raise HostError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
+        return _run_simulate(args)
+    return _run_recording(args)

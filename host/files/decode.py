@@ -43,7 +43,8 @@ from host.errors import HostError
 from host.files.recording import RecordGap, Recording, gaps_from_mask
 from protocol.errors import ProtocolError
 from protocol.frames import parse_stream
-from protocol.header import HEADER_SIZE, DeviceHeader
+from protocol.commit_journal import torn_step_records
+from protocol.header import HEADER_SIZE, PAGE_SAMPLES, DeviceHeader
 from protocol.image import detect_format, parse_image
 from protocol.packing import unpack_words
 from protocol.raw_dump import parse_raw_dump
@@ -63,8 +64,11 @@ REASONS = (
     "code outside the ADC range of the header's adc_bits",                  # 4
     "chunk damaged in the raw dump (CRC-32 of its check trailer mismatch, not found at a shifted offset)",  # 5
     "raw dump's check trailer damaged: nothing can be verified",            # 6
+    "slot of the page in flight when a power loss cut a run (contents undefined)",  # 7
+    "may have been overwritten by a run a power loss cut (header version 1: no journal)",  # 8
 )
-_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE = range(7)
+_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL = \
+    range(9)
 #: Reason texts of the step-record losses (the first four as for samples).
 STEP_REASONS = REASONS[:4] + (
     "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
@@ -72,8 +76,9 @@ STEP_REASONS = REASONS[:4] + (
     "not in the file (an image of version 1 holds no step memory)",          # 5
     REASONS[_R_CHUNK],                                                       # 6
     REASONS[_R_UNVERIFIABLE],                                                # 7
+    "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 8
 )
-_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE = 4, 5, 6, 7
+_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN = 4, 5, 6, 7, 8
 
 _TYPE_HEADER = 0x86
 _TYPE_DATA = 0x87
@@ -146,7 +151,8 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     if truncated is not None:
         block_reason[np.asarray(truncated, dtype=bool)] = _R_TRUNCATED
     notes = list(getattr(contents, "notes", []))
-    steps = _image_steps(contents, block_reason, source, notes)
+    header = _interrupted_run(header, contents.step_memory, source, notes)
+    steps = _image_steps(contents, header, block_reason, source, notes)
     if block_size % 4 == 0:
         per = block_size // 4
         slot_ok = np.repeat(block_ok, per)[: memory.size // 4]
@@ -157,9 +163,8 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     return _assemble(header, memory, slot_ok, slot_reason, source, "memory image", notes, steps)
 
 
-def _image_steps(contents, block_reason: np.ndarray, source: str | None, notes: list[str]):
+def _image_steps(contents, header, block_reason: np.ndarray, source: str | None, notes: list[str]):
     """Step records of a parsed image: the step memory and which of its bytes come from ok blocks."""
-    header = contents.header
     step_memory = np.asarray(contents.step_memory, dtype=np.uint8)
     byte_ok = np.asarray(contents.step_byte_ok(), dtype=bool)
     if int(contents.image_version) == 1:
@@ -191,6 +196,7 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     step_reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
     step_reason[:step_used] = np.where(dump.byte_truncated[HEADER_SIZE + used:], _R_TRUNCATED,
                                        _S_CHUNK if dump.verified else _S_UNVERIFIABLE)
+    header = _interrupted_run(header, step_memory, source, notes)
     steps = _assemble_steps(header, step_memory, step_ok, step_reason, source, notes)
     rec = _assemble(header, memory, slot_ok, slot_reason, source, "raw XMODEM dump", notes, steps)
     if dump.verified:
@@ -221,17 +227,22 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
             f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
             f"{len(errors)} framing errors: cannot place the samples", offset=0, source=source)
     notes = []
-    distinct = {h for _, h in headers}
     header_offset, header_bytes = headers[-1]
-    if len(distinct) > 1:
-        notes.append(f"{len(distinct)} different HEADER frames in the capture; used the last (offset "
-                     f"{header_offset})")
-        warnings.warn(f"{source or 'capture'}: {len(distinct)} different HEADER frames; using the last one",
-                      stacklevel=3)
     try:
         header = DeviceHeader.from_bytes(header_bytes, source=source)
     except ProtocolError as err:
         raise err.at(offset=header_offset + 6) from err
+    data_frames, foreign = _frames_of_last_header(headers, data_frames)
+    if foreign:
+        others = {h for _, h in headers if h != header_bytes}
+        ids = sorted({_recording_text(h) for h in others} - {_recording_text(header_bytes)})
+        why = (f"{len(ids)} other recording(s) ({', '.join(ids)})" if ids else
+               f"{len(others)} other state(s) of this recording's header")
+        text = (f"the capture spans {len(others) + 1} device headers: decoded {_recording_text(header_bytes)} "
+                f"(HEADER frame at offset {header_offset}); {foreign} DATA frame(s) under {why}, or before any "
+                "HEADER frame, were not used")
+        notes.append(text)
+        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
     cap_bytes = int(header.capacity_samples) * 4
     step_bytes = int(header.step_memory_bytes)
     memory = np.zeros(cap_bytes, dtype=np.uint8)
@@ -257,9 +268,74 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
         notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
     slot_ok = covered.reshape(-1, 4).all(axis=1)
     slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
+    header = _interrupted_run(header, step_memory, source, notes)
     steps = _assemble_steps(header, step_memory, step_covered, np.full(step_bytes, _R_NOT_RECEIVED, np.int8), source,
                             notes)
     return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
+
+
+def _recording_text(header_bytes: bytes) -> str:
+    """``recording N of device D`` (section 2.4) of a HEADER frame's bytes, for messages."""
+    try:
+        h = DeviceHeader.from_bytes(header_bytes)
+    except ProtocolError:
+        return "an invalid header"
+    return (f"recording {h.recording_number} (nonce 0x{h.recording_nonce:08x}) of device {h.device_id}"
+            if h.header_version != 1 else f"an unnumbered recording of device {h.device_id} (header version 1)")
+
+
+def _frames_of_last_header(headers: list[tuple[int, bytes]], data_frames: list) -> tuple[list, int]:
+    """The DATA frames that follow a HEADER frame byte-identical to the last one (the memory it describes), and
+    how many others there were: frames under another header belong to another recording (or another state
+    of the memory), frames before the first HEADER frame to no known one (section 4)."""
+    last = headers[-1][1]
+    starts = np.array([off for off, _ in headers], dtype=np.int64)
+    same = np.array([h == last for _, h in headers], dtype=bool)
+    offsets = np.array([fr.offset for fr in data_frames], dtype=np.int64)
+    k = np.searchsorted(starts, offsets, side="right") - 1
+    keep = (k >= 0) & same[np.maximum(k, 0)]
+    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum())
+
+
+# ------------------------------------------------------------------------------------ interrupted runs
+def _interrupted_run(header, step_memory, source: str | None, notes: list[str]):
+    """The header to decode with, and what a power loss cost (``PROTOCOL.md`` section 2.4), said in a note
+    and a warning.
+
+    A header with ``LOGGING`` set was read while a run was in progress or after a power loss cut it (the data
+    EEPROM as it was left): version 2 is recovered from its page-commit journal, exactly as the device does
+    at power-up (``DeviceHeader.recovered``); version 1 has no journal, so the run's samples are lost and,
+    in OVERWRITE mode, every stored sample may have been overwritten by them (reported missing). A header
+    with ``POWER_LOST`` (a device that powered up after the cut) needs no recovery, only the report.
+    """
+    if header.logging and header.header_version == 1:
+        text = (f"the header (version 1) has LOGGING set: a run started at sample {header.run_start_sample} was "
+                "in progress or cut by a power loss, and version 1 has no commit journal: its samples are lost"
+                + (", and in OVERWRITE mode it may have overwritten any stored sample: all are reported missing"
+                   if header.overwrite else " (stop-when-full: the samples before it are intact)"))
+        notes.append(text)
+        warnings.warn(f"{source or 'input'}: {text}", stacklevel=4)
+        return header
+    if header.logging:
+        header = header.recovered()
+        header.torn_step_records = torn_step_records(header, np.asarray(step_memory, np.uint8))
+        notes.append("the header has LOGGING set (read during a run, or left so by a power loss): recovered "
+                     "from its page-commit journal as the device does at power-up")
+    if header.power_lost:
+        last = int(header.samples_written) - 1
+        text = (f"recording {header.recording_number} (device {header.device_id}) was cut by a power loss: its "
+                f"samples {header.run_start_sample} … {last} (to the last committed page) are recovered "
+                f"({int(header.samples_written) - int(header.run_start_sample)} samples); the samples it took "
+                f"after sample {last} (at most one {PAGE_SAMPLES}-sample page) were lost")
+        if header.torn_slot_numbers().size:
+            text += (f"; the {header.torn_slots} oldest stored samples were in the page in flight and are reported "
+                     "missing")
+        if header.torn_step_records:
+            text += (f"; the {header.torn_step_records} oldest stored step record(s) were overwritten by records "
+                     "after the last commit and are dropped")
+        notes.append(text)
+        warnings.warn(f"{source or 'input'}: {text}", stacklevel=4)
+    return header
 
 
 # ------------------------------------------------------------------------------------------------ common
@@ -299,6 +375,12 @@ def _assemble_steps(header, step_memory: np.ndarray, byte_ok: np.ndarray, byte_r
     reason = np.where(bytes_ok, _S_CRC, np.asarray(byte_reason).reshape(-1, STEP_RECORD_SIZE)[slots][
         np.arange(n), np.argmin(ok_rows, axis=1)]).astype(np.int64)
     usable = bytes_ok & crc_ok
+    lost_to_run = np.zeros(n, dtype=bool)
+    lost_to_run[: min(int(header.torn_step_records), n)] = True  # oldest first (section 2.4)
+    if header.logging:  # version 1, cut: records of the lost run overwrote counted ones (their end_sample tells)
+        lost_to_run |= records["end_sample"].astype(np.int64) >= int(header.run_start_sample)
+    reason[lost_to_run] = _S_TORN
+    usable &= ~lost_to_run
     numbers = int(header.first_step_number) + np.arange(n, dtype=np.int64)
     losses = [RecordGap(g.first_sample_number, g.last_sample_number, g.reason)
               for g in gaps_from_mask(usable, numbers, reason, STEP_REASONS)]
@@ -338,6 +420,15 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
             reason_all[:n_avail] = slot_reason[:n_avail]
         else:
             reason_all[:n_avail] = 0
+    torn = header.torn_slot_numbers()
+    if torn.size or (header.logging and header.overwrite):  # section 2.4: the page in flight / no journal
+        ok_all = ok_all.copy()
+        reason_all = np.zeros(capacity, np.int8) if reason_all is None else reason_all.copy()
+        if header.logging:
+            ok_all[:] = False
+            reason_all[:] = _R_NO_JOURNAL
+        ok_all[torn] = False
+        reason_all[torn] = _R_TORN
     # Ring order: slot (first + i) mod capacity for i = 0 .. n-1 (contiguous pieces, no fancy index).
     head = min(n, capacity - first)
     order = [slice(first, first + head)]

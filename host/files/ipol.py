@@ -10,6 +10,9 @@ Every sample index in the JSON counts *packets*, not file rows, and the files ha
 reader puts each file on the regular ``PacketCounter`` grid: index ``i`` of the returned arrays is packet
 ``first_counter + i``; a lost packet is a row of NaN with ``valid[i] = False``. Nothing is interpolated.
 A duplicated packet keeps its first copy (a warning is issued when the copies differ).
+
+:func:`write_trial` writes a trial in the same layout (the simulated walks of ``gaitlog simulate --ipol-out``),
+so that anything reading IPOL folders reads them unchanged.
 """
 
 from __future__ import annotations
@@ -30,8 +33,12 @@ from host.files.limits import (
     check_file_size,
     check_samples,
 )
+from protocol.atomic_write import atomic_write
 
 _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$")
+#: Columns written by :func:`write_trial` (the reader needs these four; the Xsens files add gyroscope and
+#: magnetometer columns).
+WRITTEN_COLUMNS = ("PacketCounter", "Acc_X", "Acc_Y", "Acc_Z")
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,3 +228,48 @@ def height_m_of(meta: dict) -> float | None:
     except (TypeError, ValueError):
         return None
     return h / 100.0 if np.isfinite(h) and h > 0 else None
+
+
+def write_trial(folder: str | Path, subject: int, trial: int, acc_m_s2: np.ndarray, meta: dict, *,
+                sampling_rate_hz: float = 100.0) -> tuple[Path, Path]:
+    """Write one trial as ``<folder>/<subject>-<trial>_lb.txt`` and ``<subject>-<trial>.json`` (IPOL layout).
+
+    Parameters
+    ----------
+    folder
+        Destination folder (created if missing).
+    subject, trial
+        Positive identifiers of the file names (and ``Subject``/``Trial``/``Filename`` in the JSON).
+    acc_m_s2
+        ``(n, 3)`` specific force in m/s^2 in the sensor's axes (``Acc_X..Z``), one row per packet; the
+        ``PacketCounter`` column counts from 0, so JSON sample indices are row indices.
+    meta
+        The rest of the JSON (``TrialBoundaries``, ``UTurnBoundaries``, ``LeftFootEvents``,
+        ``RightFootEvents`` as [toe-off, heel-strike] packet pairs, ``Height`` in cm, ...).
+    sampling_rate_hz
+        Stated on the first line (``Acquisition frequency: 100 Hz`` for the IPOL files).
+
+    Returns
+    -------
+    lb_path, json_path
+        The two files written (each atomically: a failed write leaves no partial file).
+    """
+    acc = np.asarray(acc_m_s2, dtype=np.float64)
+    if acc.ndim != 2 or acc.shape[1] != 3 or acc.shape[0] < 2 or not np.all(np.isfinite(acc)):
+        raise HostError(f"IPOL trial {subject}-{trial}: acceleration must be a finite (n >= 2, 3) array, "
+                        f"got shape {acc.shape}")
+    if subject < 1 or trial < 1:
+        raise HostError(f"IPOL trial {subject}-{trial}: subject and trial numbers must be >= 1")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    name = f"{subject}-{trial}"
+    lb_path, json_path = folder / f"{name}_lb.txt", folder / f"{name}.json"
+    doc = {"Subject": int(subject), "Trial": int(trial), "Filename": name, **meta}
+    rows = np.column_stack([np.arange(acc.shape[0], dtype=np.float64), acc])
+    with atomic_write(lb_path, "w", encoding="utf-8", newline="\n") as fh:
+        fh.write(f"Acquisition frequency: {sampling_rate_hz:g} Hz\n")
+        fh.write("\t".join(WRITTEN_COLUMNS) + "\n")
+        np.savetxt(fh, rows, fmt=["%.1f", "%.6f", "%.6f", "%.6f"], delimiter="\t")
+    with atomic_write(json_path, "w", encoding="utf-8") as fh:
+        json.dump(doc, fh)
+    return lb_path, json_path

@@ -43,9 +43,13 @@ from host.kinematics.cfc_filter import cfc_filter
 from host.kinematics.orientation import integrate_dcm
 
 __all__ = [
+    "JOINT_ANGLES",
+    "JOINT_MATRICES",
     "HallJointKinematics",
     "apply_right_leg_convention",
+    "joint_angles_xzy",
     "joint_angles_yxz",
+    "joint_matrix_xzy",
     "joint_matrix_yxz",
     "remove_pretest_offset",
 ]
@@ -111,6 +115,60 @@ def joint_angles_yxz(t: np.ndarray, *, gimbal_tol_rad: float = np.radians(1.0)) 
     psi = np.arctan2(t[..., 0, 1], t[..., 1, 1])  # asin((i_B·j_A)/cos θ), quadrant kept
     lock = (np.pi / 2 - np.abs(theta)) < gimbal_tol_rad
     return np.stack([phi, theta, psi], axis=-1), lock
+
+
+def joint_matrix_xzy(angles_rad: np.ndarray) -> np.ndarray:
+    """The joint matrix ``T`` (``{î_B} = T {î_A}``) of Hall's spine sequence ``x − z′ − y″``.
+
+    Parameters
+    ----------
+    angles_rad
+        ``(..., 3)`` ``(tilt about x, rotation about z′, flexion about y″)`` in rad.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., 3, 3)`` ``(Rx Rz Ry)ᵀ``; equals ``Rotation.from_euler("XZY", angles).as_matrix().T``.
+
+    Examples
+    --------
+    >>> T = joint_matrix_xzy(np.radians([15.0, -10.0, 30.0]))
+    >>> np.round(np.degrees(joint_angles_xzy(T)[0]), 12) + 0.0
+    array([ 15., -10.,  30.])
+    """
+    a = np.asarray(angles_rad, dtype=np.float64)
+    sa, ca = np.sin(a[..., 0]), np.cos(a[..., 0])
+    sb, cb = np.sin(a[..., 1]), np.cos(a[..., 1])
+    sc, cc = np.sin(a[..., 2]), np.cos(a[..., 2])
+    m = np.empty(a.shape[:-1] + (3, 3))  # M = Rx(a) Rz(b) Ry(c), body A -> body B axes in A
+    m[..., 0, 0], m[..., 0, 1], m[..., 0, 2] = cb * cc, -sb, cb * sc
+    m[..., 1, 0] = ca * sb * cc + sa * sc
+    m[..., 1, 1] = ca * cb
+    m[..., 1, 2] = ca * sb * sc - sa * cc
+    m[..., 2, 0] = sa * sb * cc - ca * sc
+    m[..., 2, 1] = sa * cb
+    m[..., 2, 2] = sa * sb * sc + ca * cc
+    return np.swapaxes(m, -1, -2)
+
+
+def joint_angles_xzy(t: np.ndarray, *, gimbal_tol_rad: float = np.radians(1.0)) -> tuple[np.ndarray, np.ndarray]:
+    """``x − z′ − y″`` angles (tilt, rotation, flexion) of joint matrices ``T = TB·TAᵀ`` (Hall's spine).
+
+    With ``M = Tᵀ = Rx(a) Rz(b) Ry(c)``: ``b = asin(−M01)``, ``a = atan2(M21, M11)``, ``c = atan2(M02, M00)``;
+    gimbal lock where ``|b| → 90°``. Returns ``(angles_rad (..., 3), gimbal_lock (...))``.
+    """
+    m = np.swapaxes(np.asarray(t, dtype=np.float64), -1, -2)
+    b = np.arctan2(-m[..., 0, 1], np.hypot(m[..., 0, 0], m[..., 0, 2]))
+    a = np.arctan2(m[..., 2, 1], m[..., 1, 1])
+    c = np.arctan2(m[..., 0, 2], m[..., 0, 0])
+    lock = (np.pi / 2 - np.abs(b)) < gimbal_tol_rad
+    return np.stack([a, b, c], axis=-1), lock
+
+
+#: Joint-angle functions by sequence: lower limb and neck ``y − x′ − z″``, spine ``x − z′ − y″``.
+JOINT_ANGLES = {"yxz": joint_angles_yxz, "xzy": joint_angles_xzy}
+#: Joint matrices by sequence.
+JOINT_MATRICES = {"yxz": joint_matrix_yxz, "xzy": joint_matrix_xzy}
 
 
 def remove_pretest_offset(rate: np.ndarray, n_pretest: int) -> np.ndarray:
@@ -181,6 +239,9 @@ class HallJointKinematics:
         taken literally: the sum of the angles of the per-step increments ``T_k T_{k−1}ᵀ``).
     gimbal_tol_deg
         Gimbal lock is flagged where ``90° − |θ|`` is below this.
+    sequence
+        ``"yxz"`` (lower limb, neck: y − x′ − z″, angles (φ, θ, ψ)) or ``"xzy"`` (spine: tilt about x,
+        rotation about z′, flexion about y″). The right-leg convention applies to ``"yxz"`` only.
 
     Attributes
     ----------
@@ -203,7 +264,9 @@ class HallJointKinematics:
         side: Literal["left", "right"] = "left",
         angle_mode: Literal["absolute", "incremental_sum"] = "absolute",
         gimbal_tol_deg: float = 1.0,
+        sequence: Literal["yxz", "xzy"] = "yxz",
     ) -> None:
+        self.sequence = sequence
         self.sensor_to_link_a = sensor_to_link_a
         self.sensor_to_link_b = sensor_to_link_b
         self.initial_ta = initial_ta
@@ -218,6 +281,8 @@ class HallJointKinematics:
         """Process sensor rates (rad/s, sensor axes, ``(n, 3)`` each) sampled at ``sampling_rate_hz``."""
         if self.side not in ("left", "right"):
             raise HostError(f"side must be 'left' or 'right', not {self.side!r}")
+        if self.sequence not in JOINT_ANGLES:
+            raise HostError(f"sequence must be one of {sorted(JOINT_ANGLES)}, not {self.sequence!r}")
         if self.angle_mode not in ("absolute", "incremental_sum"):
             raise HostError(f"angle_mode must be 'absolute' or 'incremental_sum', not {self.angle_mode!r}")
         ra = _as_rate("rate_a_rad_s", rate_a_rad_s)
@@ -247,10 +312,11 @@ class HallJointKinematics:
         # 5. joint matrix and angles
         self.joint_matrix_ = self.tb_ @ lam_a  # TB · TAᵀ
         tol = np.radians(self.gimbal_tol_deg)
-        angles, lock = joint_angles_yxz(self.joint_matrix_, gimbal_tol_rad=tol)
+        angles_of = JOINT_ANGLES[self.sequence]
+        angles, lock = angles_of(self.joint_matrix_, gimbal_tol_rad=tol)
         if self.angle_mode == "incremental_sum":
             inc = self.joint_matrix_[1:] @ np.swapaxes(self.joint_matrix_[:-1], 1, 2)
-            inc_angles, _ = joint_angles_yxz(inc, gimbal_tol_rad=tol)
+            inc_angles, _ = angles_of(inc, gimbal_tol_rad=tol)
             angles = np.concatenate([angles[:1], angles[:1] + np.cumsum(inc_angles, axis=0)])
         if lock.any():
             warnings.warn(
@@ -260,6 +326,7 @@ class HallJointKinematics:
                 stacklevel=2,
             )
         # 6. side convention
-        self.angles_rad_ = apply_right_leg_convention(angles) if self.side == "right" else angles
+        right = self.side == "right" and self.sequence == "yxz"
+        self.angles_rad_ = apply_right_leg_convention(angles) if right else angles
         self.gimbal_lock_ = lock
         return self

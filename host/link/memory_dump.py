@@ -50,6 +50,7 @@ from host.link.logger_link import LoggerLink, device_identity
 from protocol.atomic_write import atomic_write_bytes, atomic_write_text
 from protocol.errors import ProtocolError
 from protocol.frames import FRAME_OVERHEAD, MAX_DATA, PAYLOAD_STRUCTS, DeviceState, FrameType
+from protocol.header import PAGE_SAMPLES
 from protocol.image import build_image, parse_image
 from protocol.steps import STEP_ADDRESS_BASE
 
@@ -93,6 +94,14 @@ def byte_error_rate(frames_verified: int, frames_seen: int, chunk: int) -> float
 #: Version of the JSON metadata beside a dump. 2: ``device`` in the host's words (``sampling_rate_hz`` in Hz,
 #: ``firmware_version`` "major.minor"; version 1 copied the INFO frame: ``sample_rate_mhz`` in millihertz).
 METADATA_FORMAT_VERSION = 2
+
+
+def _recording_text(header) -> str:
+    """``recording N (nonce 0x…) of device D`` for messages (PROTOCOL.md 2.4)."""
+    device, number, nonce = header.recording_id
+    if header.header_version == 1:
+        return f"an unnumbered recording (header version 1) of device {device}"
+    return f"recording {number} (nonce 0x{nonce:08x}) of device {device}"
 
 
 def state_path_for(out_path: str | os.PathLike[str]) -> Path:
@@ -161,10 +170,15 @@ class MemoryDump:
                 contents = parse_image(state_path.read_bytes(), source=str(state_path))
         except (OSError, ProtocolError) as err:
             raise HostError(f"cannot resume from {state_path}: {err}; delete it to dump from the start") from err
-        if contents.header.to_bytes() != header_bytes:
+        then, now = contents.header, self.header_
+        if then.recording_id != now.recording_id:  # PROTOCOL.md 2.4: another recording, or another device
+            raise HostError(
+                f"cannot resume from {state_path}: it holds {_recording_text(then)}, the device now "
+                f"{_recording_text(now)}; delete it and dump again without --resume")
+        if then.to_bytes() != header_bytes:
             raise HostError(
                 f"cannot resume from {state_path}: the device's header changed since that dump started "
-                f"(samples_written {contents.header.samples_written} then, {self.header_.samples_written} now); "
+                f"(samples_written {then.samples_written} then, {now.samples_written} now); "
                 "delete it and dump again without --resume")
         ok = np.concatenate([contents.byte_ok(), contents.step_byte_ok()])[: len(memory)]
         mem = np.concatenate([np.asarray(contents.memory, np.uint8),
@@ -299,6 +313,16 @@ class MemoryDump:
                 "calibration_valid": bool(header.calibration.valid),
                 "steps_written": header.steps_written, "step_write_index": header.step_write_index,
                 "step_capacity": header.step_capacity, "step_algorithm_on": bool(header.step_config.enabled),
+                "header_version": header.header_version, "recording_number": header.recording_number,
+                "recording_nonce": header.recording_nonce,
+            },
+            "power_loss": None if not recording.header.power_lost else {
+                "recording_number": recording.header.recording_number,
+                "first_sample_number": recording.header.run_start_sample,
+                "last_committed_sample_number": recording.header.samples_written - 1,
+                "lost_after_at_most_samples": PAGE_SAMPLES,
+                "torn_slots": int(recording.header.torn_slot_numbers().size),
+                "torn_step_records": recording.header.torn_step_records,
             },
             "stored_bytes": transfer.stored_end,
             "step_stored_bytes": transfer.step_stored,

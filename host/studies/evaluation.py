@@ -52,7 +52,6 @@ import numpy as np
 
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from firmware_sim.algorithms.steps import ESTIMATORS
-from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
 from host.gait.k_calibration import calibrate_on_sections
 from host.gait.pipeline import StepPipeline, apply_calibration
@@ -64,7 +63,7 @@ from host.gait.sections import (
 )
 from host.studies.compare import match_events
 from host.studies.plots import plot_boxplots
-from host.studies.simulation import SimulatedRecording, map_subjects, record_subject
+from host.studies.simulation import SimulatedRecording, map_subjects, record_subject, simulated_population
 from protocol.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
@@ -313,7 +312,10 @@ class SimulatedEvaluation:
         Subjects drawn by :func:`firmware_sim.world.subject.random_subjects` (``seed``); subject ``i`` walks
         with seed ``seed * 1000 + i`` (independent of ``n_subjects`` and of ``workers``).
     walk_plan
-        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
+        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's gait
+        initiation and turn, :data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`).
+    population
+        ``"v1"`` (default) or ``"people"`` (the walker tuned to real lower-back walking).
     sampling_rate_hz, adc_bits
         Logger rate and ADC resolution.
     workers
@@ -338,8 +340,9 @@ class SimulatedEvaluation:
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ,
                  adc_bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
-                 detector: Any = None) -> None:
+                 detector: Any = None, population: str = "v1") -> None:
         self.n_subjects = n_subjects
+        self.population = population
         self.seed = seed
         self.walk_plan = walk_plan
         self.sampling_rate_hz = sampling_rate_hz
@@ -358,8 +361,10 @@ class SimulatedEvaluation:
             raise HostError(f"n_subjects must be >= 1, got {self.n_subjects}")
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
                        calibration_sections=self.calibration_sections, detector=self.detector)
-        jobs = [(s, self.seed * 1000 + i, self.walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
-                for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
+        subjects, walk_plan = simulated_population(self.n_subjects, seed=self.seed, population=self.population,
+                                                   walk_plan=self.walk_plan)
+        jobs = [(s, self.seed * 1000 + i, walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
+                for i, s in enumerate(subjects)]
         self.results_ = map_subjects(_subject_job, jobs, workers=self.workers, progress=progress)
         self.rows_ = [r for res in self.results_ for r in res.rows]
         self.summary_ = summarise(self.rows_)

@@ -10,7 +10,6 @@ rendered straight to PNG (no pyplot, no global backend); the PNG is written atom
 
 from __future__ import annotations
 
-import io
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -18,18 +17,11 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from firmware_sim.algorithms.steps import ESTIMATORS
+from host.files.png_figure import figure_png_bytes
 from protocol.atomic_write import atomic_write_bytes
 
 PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),
           ("multi-speed", ESTIMATORS, "Calibration at every speed"))
-
-
-def _png_bytes(fig: Figure, dpi: int) -> bytes:
-    """``fig`` laid out and rendered to PNG bytes."""
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
 
 
 def ratios_by_panel(rows: Iterable[dict]) -> dict[str, dict[str, np.ndarray]]:
@@ -62,7 +54,7 @@ def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: 
     axes[0][0].set_ylabel("estimated / real distance (%)")
     if title:
         fig.suptitle(title, fontsize=10)
-    return _png_bytes(fig, dpi)
+    return figure_png_bytes(fig, dpi=dpi)
 
 
 def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None = None, dpi: int = 120) -> Path:
@@ -101,7 +93,7 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     ax.legend(fontsize=8, loc="lower right")
     if title:
         ax.set_title(title, fontsize=9)
-    return _png_bytes(fig, dpi)
+    return figure_png_bytes(fig, dpi=dpi)
 
 
 #: Colour and marker of each event of the overview (:data:`host.studies.overview.EVENTS`).
@@ -153,4 +145,4 @@ def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi
         ax_len.legend(fontsize=7, loc="upper right", ncol=5)
     ax_len.grid(alpha=0.3)
     ax_len.set_xlim(*overview.window_s)
-    return _png_bytes(fig, dpi)
+    return figure_png_bytes(fig, dpi=dpi)

@@ -6,6 +6,9 @@
 - :class:`AnalogWalk`: the same walk seen by the sensor on its fine analog grid, sampled at any rate into a
   :class:`host.studies.compare.SampledWalk` (the ADC/rate/arithmetic comparison of :mod:`host.studies.compare`
   and the sweep).
+- :func:`ipol_trial` / :func:`export_ipol`: the IPOL lower-back trial (stand, walk 10 m, U-turn, walk back,
+  stop) walked by simulated subjects and written in the IPOL layout (``gaitlog simulate --ipol-out``), so that
+  the walker can be measured with the same tools as the real recordings.
 
 The world model and the sensor (``scipy.signal``, ``scipy.interpolate``) are imported here, at module level,
 so that the studies on recordings (``gaitlog compare`` on a file) and the commands on files never load them.
@@ -23,18 +26,24 @@ import numpy as np
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.device import Logger
 from firmware_sim.sensor import SensorModel
+from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.poses import CalibrationPoses
-from firmware_sim.world.subject import random_subjects
+from firmware_sim.world.subject import Subject, random_subjects
+from firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from firmware_sim.world.walking import Walking
 from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
 from host.files.decode import decode_bytes
+from host.files.ipol import write_trial
 from host.studies.compare import SampledWalk, WalkComparison, compare_walk
 from protocol.header import CalibrationSlot
 from protocol.image import build_image
 from protocol.packing import FLAG_MARK
 
-__all__ = ["AnalogWalk", "SimulatedRecording", "record_subject"]
+__all__ = ["AnalogWalk", "SimulatedRecording", "export_ipol", "ipol_trial", "ipol_walk_plan", "record_subject"]
+
+#: Rate of the IPOL lower-back files (Xsens MTw packets).
+IPOL_SAMPLING_RATE_HZ = 100.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,13 +198,24 @@ class AnalogWalk:
 _T = TypeVar("_T")
 
 
+def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "v1",
+                         walk_plan: WalkPlan | None = None) -> tuple[list[Subject], WalkPlan | None]:
+    """The subjects of a simulated study and the protocol they walk: ``random_subjects(n_subjects, seed,
+    population)`` and ``walk_plan``, else the paper's protocol with the population's walk habits
+    (:data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`; None for ``"v1"``: the default plan)."""
+    if walk_plan is None and POPULATION_PLANS[population]:
+        walk_plan = WalkPlan(**POPULATION_PLANS[population])
+    return random_subjects(n_subjects, seed=seed, population=population), walk_plan
+
+
 def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
                          sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, workers: int = 1,
-                         progress: Callable[[], object] | None = None) -> list[WalkComparison]:
+                         progress: Callable[[], object] | None = None,
+                         population: str = "v1") -> list[WalkComparison]:
     """One :class:`host.studies.compare.WalkComparison` per simulated subject (``gaitlog compare --simulate``),
     in parallel over subjects; ``progress()`` is called after each subject."""
-    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz)
-            for i, s in enumerate(random_subjects(n_subjects, seed=seed))]
+    subjects, plan = simulated_population(n_subjects, seed=seed, population=population)
+    jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz, plan) for i, s in enumerate(subjects)]
     return map_subjects(_compared_subject, jobs, workers=workers, progress=progress)
 
 
@@ -216,9 +236,82 @@ def _ticked(result: _T, progress: Callable[[], object] | None) -> _T:
 
 
 def _compared_subject(job: tuple) -> WalkComparison:
-    subject, seed, adc_bits, sampling_rate_hz = job
-    wc = compare_walk(AnalogWalk(subject=subject, seed=seed).run().sample(sampling_rate_hz), subject,
+    subject, seed, adc_bits, sampling_rate_hz, walk_plan = job
+    wc = compare_walk(AnalogWalk(subject=subject, seed=seed, walk_plan=walk_plan).run().sample(sampling_rate_hz), subject,
                       adc_bits=adc_bits)
     wc.runs = {}            # the tables are not needed any more (keeps the pickled result small)
     wc.matches = {}
     return wc
+
+
+def ipol_walk_plan(population: str = "people") -> WalkPlan:
+    """The IPOL lower-back trial as a :class:`WalkPlan`: quiet standing (2 s: the tools take gravity from the
+    first second), 10 m out, the U-turn, 10 m back, stop, stand 1.5 s; one excursion at the preferred speed.
+    Gait initiation, turn and termination: the population's (:data:`firmware_sim.world.walk_plan.POPULATION_PLANS`)."""
+    extra = POPULATION_PLANS[population]
+    return WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=2.0, final_stand_s=1.5,
+                    lap_marks_m=(0.0, 20.0), **extra)
+
+
+def ipol_trial(subject: Subject, *, seed: int, population: str = "people") -> tuple[np.ndarray, dict]:
+    """One simulated IPOL trial: ``(acc_m_s2, meta)`` for :func:`host.files.ipol.write_trial`.
+
+    ``acc_m_s2`` is the world's specific force at the sensor, in the device axes (x up, y left, z backward, as
+    the Xsens of the IPOL recordings; the subject's mounting tilt included), sampled at 100 Hz without noise.
+    The JSON fields come from the world's truth, rounded to the nearest packet:
+    ``Left/RightFootEvents`` one [toe-off, heel-strike] pair per swing (the trailing foot of each step; the
+    first swing starts one swing time before the first heel strike), ``TrialBoundaries`` = [first toe-off,
+    last heel strike] (as in the IPOL files), ``UTurnBoundaries`` = when the centre of mass enters and leaves
+    the curved part of its path, ``Height`` in cm; ``Simulated`` holds the seed and the subject's parameters.
+    """
+    motion = Walking(subject=subject, walk_plan=ipol_walk_plan(population), seed=seed).render(IPOL_SAMPLING_RATE_HZ)
+    st, exc = motion.truth["steps"], motion.truth["excursions"]
+
+    def packet(t_s: np.ndarray | float) -> np.ndarray:
+        return np.rint(np.asarray(t_s, dtype=np.float64) * IPOL_SAMPLING_RATE_HZ).astype(np.int64)
+
+    other = {"L": "R", "R": "L"}
+    swing_feet = [other[s] for s in st["side"]]                     # the trailing foot swings in each step
+    swing_to, swing_hs = list(st["toe_off_s"]), list(st["next_heel_strike_s"])
+    first_swing_s = float(st["next_heel_strike_s"][0] - st["toe_off_s"][0])
+    swing_feet.insert(0, str(st["side"][0]))
+    swing_to.insert(0, max(float(exc["t_start_s"][0]), float(st["heel_strike_s"][0]) - first_swing_s))
+    swing_hs.insert(0, float(st["heel_strike_s"][0]))
+    to_p, hs_p = packet(swing_to), packet(swing_hs)
+    events = {foot: [[int(a), int(b)] for a, b, f in zip(to_p, hs_p, swing_feet) if f == foot] for foot in "LR"}
+    meta = {
+        "Height": round(100.0 * subject.height_m, 1),
+        "TrialBoundaries": [int(to_p.min()), int(hs_p.max())],
+        "UTurnBoundaries": [int(packet(exc["turn_start_s"][0])), int(packet(exc["turn_end_s"][0]))],
+        "LeftFootEvents": events["L"],
+        "RightFootEvents": events["R"],
+        "Simulated": {"seed": int(seed), "population": population, "subject": _jsonable(subject.as_dict())},
+    }
+    return motion.acc_g * STANDARD_GRAVITY_M_S2, meta
+
+
+def _jsonable(d: dict) -> dict:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+
+
+def _ipol_job(job: tuple) -> tuple[int, int, np.ndarray, dict]:
+    number, trial, subject, seed, population = job
+    acc, meta = ipol_trial(subject, seed=seed, population=population)
+    return number, trial, acc, meta
+
+
+def export_ipol(folder: Any, n_subjects: int, *, seed: int = 0, trials: int = 1, population: str = "people",
+                workers: int = 1, progress: Callable[[], object] | None = None) -> list[str]:
+    """Write ``n_subjects`` simulated subjects x ``trials`` IPOL trials into ``folder`` (``<i>-<t>_lb.txt`` and
+    ``<i>-<t>.json``, subject ``i`` = 1-based index into ``random_subjects(n_subjects, seed=seed,
+    population=population)``); returns the trial names. Each trial of a subject is a different walk (its own seed)."""
+    if n_subjects < 1 or trials < 1:
+        raise HostError(f"need at least one subject and one trial, got {n_subjects} x {trials}")
+    subjects = random_subjects(n_subjects, seed=seed, population=population)
+    jobs = [(i + 1, t + 1, sub, int(np.random.SeedSequence([seed, i, t]).generate_state(1)[0] % 2**31), population)
+            for i, sub in enumerate(subjects) for t in range(trials)]
+    names = []
+    for number, trial, acc, meta in map_subjects(_ipol_job, jobs, workers=workers, progress=progress):
+        write_trial(folder, number, trial, acc, meta, sampling_rate_hz=IPOL_SAMPLING_RATE_HZ)
+        names.append(f"{number}-{trial}")
+    return names

@@ -60,7 +60,6 @@ import numpy as np
 
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from firmware_sim.world.subject import random_subjects
 from host.errors import HostError
 from host.gait.sections import MODES
 from host.studies.compare import (
@@ -71,7 +70,7 @@ from host.studies.compare import (
     compare_walk,
     pair_label,
 )
-from host.studies.simulation import AnalogWalk, map_subjects
+from host.studies.simulation import AnalogWalk, map_subjects, simulated_population
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 ADC_BITS = (8, 10, 12)
@@ -140,7 +139,9 @@ class AdcRateSweep:
     adc_bits, rates_hz
         ADC widths and sample rates.
     walk_plan
-        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
+        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's habits).
+    population
+        ``"v1"`` (default) or ``"people"`` (:func:`host.studies.simulation.simulated_population`).
     workers
         Processes; results do not depend on it.
     calibration_sections, include_turn
@@ -158,8 +159,9 @@ class AdcRateSweep:
 
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, adc_bits: tuple[int, ...] = ADC_BITS,
                  rates_hz: tuple[float, ...] = RATES_HZ, walk_plan: Any = None, workers: int = 1,
-                 calibration_sections: int = 2, include_turn: bool = False) -> None:
+                 calibration_sections: int = 2, include_turn: bool = False, population: str = "v1") -> None:
         self.n_subjects = n_subjects
+        self.population = population
         self.seed = seed
         self.adc_bits = adc_bits
         self.rates_hz = rates_hz
@@ -176,9 +178,11 @@ class AdcRateSweep:
         for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         options = dict(calibration_sections=self.calibration_sections, include_turn=self.include_turn)
-        jobs = [(s, self.seed * 1000 + i, self.walk_plan, tuple(int(b) for b in self.adc_bits),
+        subjects, walk_plan = simulated_population(self.n_subjects, seed=self.seed, population=self.population,
+                                                   walk_plan=self.walk_plan)
+        jobs = [(s, self.seed * 1000 + i, walk_plan, tuple(int(b) for b in self.adc_bits),
                  tuple(float(r) for r in self.rates_hz), options)
-                for i, s in enumerate(random_subjects(self.n_subjects, seed=self.seed))]
+                for i, s in enumerate(subjects)]
         per_subject = map_subjects(_subject_job, jobs, workers=self.workers, progress=progress)
         self.results_ = [r for rs in per_subject for r in rs]
         self.summary_ = summarise(self.results_)

@@ -114,7 +114,7 @@ def test_erase_guard(logger: Logger) -> None:
 def test_read_header_and_read(logger: Logger) -> None:
     t, s, p = one(send(logger, frame(0x06, 1)))
     assert t == 0x86 and len(p) == 256 and p[:4] == b"GLOG"
-    assert struct.unpack(">H", p[254:256])[0] == binascii.crc_hqx(p[:254], 0)
+    assert p[4] == 2 and struct.unpack(">H", p[254:256])[0] == binascii.crc_hqx(p[:160], 0)  # header v2: CRC 0-159
     assert struct.unpack_from("<II", p, 28) == (550, 550)  # write_index, samples_written
     mem = logger.memory
     t, s, p = one(send(logger, frame(0x07, 2, struct.pack("<IH", 100, 4096))))

@@ -61,13 +61,13 @@ def test_walk_writes_every_persistent_slot_and_nothing_else(simulated_walk: tupl
 
 def test_ram_fits_at_50_hz_and_says_what_must_give_at_100_hz() -> None:
     r50 = ram_budget(50.0)
-    assert r50.fits and r50.total_bytes == 365 and r50.algorithm_bytes == 186
+    assert r50.fits and r50.total_bytes == 368 and r50.algorithm_bytes == 186
     alg = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=StepConfig(step_format=1, leg_length_m=0.9,
                                                                             foot_length_m=0.2))
     assert alg.ram_bytes() == r50.algorithm_bytes
     r100 = ram_budget(100.0)
-    assert not r100.fits and r100.total_bytes == 401
-    assert any("what must give: 33 bytes" in line for line in r100.lines())
+    assert not r100.fits and r100.total_bytes == 404
+    assert any("what must give: 36 bytes" in line for line in r100.lines())
     assert ram_budget(25.0).total_bytes <= PIC_RAM_BYTES
 
 
@@ -79,7 +79,7 @@ def test_cycles_fit_at_50_hz(simulated_walk: tuple) -> None:
     alg.run(codes)
     cb = cycle_budget(alg.cycles, 50.0)
     assert cb.fits
-    assert 15_000 <= cb.mean_algorithm <= 22_000          # measured 18.4k (IPOL) - 18.6k (simulated walker)
+    assert 15_000 <= cb.mean_algorithm <= 24_000          # 21.6k on this walker (gpsim-measured kernel costs)
     assert cb.backlog_samples < 2.0
     assert cb.worst_algorithm > cb.available * 0.5         # the end of a step is the expensive sample
 

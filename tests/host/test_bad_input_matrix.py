@@ -91,12 +91,14 @@ def build_fixtures(folder: Path) -> dict[str, Path]:
         f[name] = p
 
     put("empty.bin", b"")
-    put("truncated.glimg", image[:1000])
+    put("truncated.glimg", image[:200])          # cut inside the preamble (its copy at the end is gone too)
     put("garbage.bin", rng.integers(0, 256, 5000, dtype=np.uint8).tobytes())
     put("garbage.txt", "hello world\nthis is not a recording\n")
     put("latin1.csv", "x;y;z\n\xe9\xe8\xff,1,2\n".encode("latin-1"))
     damaged = bytearray(image)
-    damaged[8:40] = bytes(32)                     # image header zeroed
+    damaged[8:40] = bytes(32)                     # image header zeroed, in both copies of the preamble
+    end_copy = image.rfind(image[16:48]) - 16     # the preamble's copy at the end of a version-3 image
+    damaged[end_copy + 8:end_copy + 40] = bytes(32)
     put("damaged_header.glimg", bytes(damaged))
     put("truncated.npz", npz[: len(npz) // 2])
     zipped = bytearray(npz)
@@ -358,11 +360,35 @@ def _cases() -> list[Case]:
     kin = ["kinematics", "--out", "{folder}/kin"]
     options("kinematics", kin, "--morris-rate", BAD_POSITIVE)
     options("kinematics", kin, "--hall-rate", BAD_POSITIVE)
-    options("kinematics", kin, "--noise-mg", ("nan", "inf", "-5", "1e300", "abc"))
+    options("kinematics", kin, "--snr-db", ("nan", "-inf", "-5", "1e300", "abc"))
+    options("kinematics", kin, "--azimuth", ("nan", "400", "abc"))
+    options("kinematics", kin, "--elevation", ("nan", "91", "abc"))
+    add("kinematics", "morris without a recording", ["kinematics", "morris", "--out", "{folder}/kin"], "RECORDING")
+    add("kinematics", "morris recording missing", ["kinematics", "morris", "{missing.npz}", "--platform",
+                                                   "{walk.csv}", "--out", "{folder}/kin"], "missing.npz")
+    add("kinematics", "morris recording is not a sensor CSV", ["kinematics", "morris", "{walk.csv}", "--platform",
+                                                               "{cal.json}", "--out", "{folder}/kin"], "walk.csv")
     options("kinematics", kin, "--gyro-noise", ("nan", "inf", "-5", "1e300", "abc"))
     options("kinematics", kin, "--seed", ("-1", "abc"))
     add("kinematics", "--out is a file", ["kinematics", "--out", "{walk.csv}"], "--out")
     add("kinematics", "--out under a file", ["kinematics", "--out", "{underfile/out}"], "--out")
+
+    # simulate
+    sim = ["simulate", "--subjects", "1", "--ipol-out", "{folder}/sim-out"]
+    options("simulate", sim, "--subjects", ("0", "-1", "10000000000", "abc", "1.5", "", "nan", "inf"))
+    options("simulate", sim, "--trials", ("0", "-1", "101", "abc", "1.5"))
+    options("simulate", sim, "--seed", ("-1", "abc", "", "nan"))
+    options("simulate", sim, "--workers", ("0", "-3", "abc"))
+    options("simulate", sim, "--population", ("martians", ""))
+    add("simulate", "--ipol-out is a file", ["simulate", "--subjects", "1", "--ipol-out", "{walk.csv}"], "--ipol-out")
+    add("simulate", "--ipol-out under a file", ["simulate", "--subjects", "1", "--ipol-out", "{underfile/out}"],
+        "--ipol-out")
+    add("simulate", "--ipol-out unwritable", ["simulate", "--subjects", "1", "--ipol-out", "/proc/gaitlog-sim"],
+        "--ipol-out")
+    add("simulate", "--ipol-out missing", ["simulate", "--subjects", "1"], "--ipol-out")
+    add("simulate", "unknown option", [*sim, "--fast"], "--fast")
+    add("simulate", "extra argument", [*sim, "now"], "now")
+    add("simulate", "-q and -v", [*sim, "-q", "-v"], "-v")
 
     # demo
     demo = ["demo", "--out", "{folder}/demo-out"]

@@ -224,7 +224,9 @@ def test_unknown_version_names_both_versions(tmp_path):
     hb[5] = 7  # protocol_version
     from protocol.crc import crc16_xmodem
 
-    hb[254:256] = crc16_xmodem(bytes(hb[:254])).to_bytes(2, "big")
+    from protocol.header import crc_span
+
+    hb[254:256] = crc16_xmodem(crc_span(bytes(hb[:254]))).to_bytes(2, "big")
     p = tmp_path / "v7.bin"
     p.write_bytes(bytes(hb) + memory[:400])
     with pytest.raises(ProtocolError, match="version 7") as info:

@@ -90,7 +90,8 @@ def image(tmp_path_factory):
 
 @pytest.mark.parametrize("argv", [["info", "{image}"], ["device", "status", "--port", "emu://{image}"],
                                   ["device", "identify", "--port", "emu://{image}"], ["budget"],
-                                  ["budget", "--logger-rate", "100"], ["estimate", "{ipol}"]])
+                                  ["budget", "--logger-rate", "100"], ["budget", "--config", "hall"],
+                                  ["budget", "--config", "morris-6"], ["estimate", "{ipol}"]])
 def test_json_holds_the_numbers_of_the_text(argv, image, shared_data) -> None:
     ipol = shared_data / "ipol-lowerback-dev" / "GaitData" / "2-1_lb.txt"
     argv = [a.format(image=image, ipol=ipol) for a in argv]

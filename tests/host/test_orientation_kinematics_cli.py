@@ -17,25 +17,26 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 def test_kinematics_command_writes_figures_and_small_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "figs"
-    assert main(["kinematics", "--out", str(out), "--morris-rate", "200"]) == 0
+    assert main(["kinematics", "--out", str(out), "--morris-rate", "200", "--accelerometers", "6", "--snr-db", "inf",
+                 "--no-animation"]) == 0
     text = capsys.readouterr().out
     names = sorted(p.name for p in out.iterdir())
-    assert names == [
-        "hall_joint_angles.png",
-        "morris_angular_velocity.png",
-        "morris_dcm.png",
-        "morris_stick_figure.png",
-        "morris_translation.png",
-    ]
-    for p in out.iterdir():
+    assert names == sorted([
+        "hall_joint_angles.png", "hall_joint_angles.csv", "hall_link_orientation.csv", "hall_angular_velocity.csv",
+        "morris_angular_velocity.png", "morris_dcm.png", "morris_stick_figure.png", "morris_translation.png",
+        "morris_orientation.csv", "morris_angular_velocity.csv", "morris_translation.csv",
+    ])
+    for p in out.glob("*.png"):
         assert p.read_bytes()[:8] == PNG_MAGIC
-    orient = float(re.search(r"orientation\s+max error ([0-9.e+-]+) deg", text).group(1))
-    assert orient < 0.05  # 200 Hz, noise-free: trapezoid error only
-    pos = re.search(r"position\s+max error \(([^)]*)\) m", text).group(1)
-    assert max(float(x) for x in pos.split(",")) < 1e-3
+    orient = float(re.search(r"as simulated\s+orientation max error ([0-9.e+-]+) deg", text).group(1))
+    assert orient < 0.05  # 200 Hz, noise-free, six accelerometers: trapezoid error only
+    pos = float(re.search(r"as simulated.*position max error ([0-9.e+-]+) m", text).group(1))
+    assert pos < 1e-3
     hall = re.search(r"joint angles\s+max error \(([^)]*)\) deg", text).group(1)
     assert max(float(x) for x in hall.split(",")) < 0.05
-    assert "literal sum of incremental Euler angles ends at (41.4, -14.6, 21.8) deg" in text
+    # the non-neutral pre-test posture: the literal sum of incremental Euler angles misses the truth
+    assert "literal sum of incremental Euler angles ends at (55.5, -12, 15.2) deg" in text
+    assert "final angles      (53.7, -16.9, 11.3) deg, truth (53.7, -16.9, 11.3) deg" in text
 
 
 def test_kinematics_command_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -80,6 +80,10 @@ def test_full_stop_when_full_memory_is_consistent() -> None:
     assert h2.n_stored == 64 and h2.first_slot == 0 and h2.used_bytes == 256
 
 
+def _crc(data: bytes) -> bytes:
+    return struct.pack(">H", binascii.crc_hqx(data, 0))
+
+
 def _corrupt(raw: bytes, offset: int, value: bytes) -> bytes:
     b = bytearray(raw)
     b[offset : offset + len(value)] = value
@@ -96,7 +100,7 @@ GOOD = _ref_header(**BASE)
         (b"GLOX" + GOOD[4:], 0, "magic"),
         (GOOD[:100], 100, "truncated"),
         (GOOD[:254] + b"\x00\x00", 254, "header_crc: CRC mismatch"),
-        (_corrupt(GOOD, 4, b"\x02"), 4, "unknown header version 2"),
+        (_corrupt(GOOD, 4, b"\x03")[:254] + _crc(_corrupt(GOOD, 4, b"\x03")[:160]), 4, "unknown header version 3"),
         (_corrupt(GOOD, 5, b"\x07"), 5, "unknown protocol version 7 .this decoder knows 1"),
         (_corrupt(GOOD, 12, bytes(4)), 12, "sample rate 0"),
         (_corrupt(GOOD, 16, b"\x0b"), 16, "adc_bits"),

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from protocol.commit_journal import ENTRY_BYTES, JOURNAL_BYTES, JOURNAL_ENTRIES, JOURNAL_OFFSET
 from protocol.frames import (
     FRAME_HEAD_STRUCT,
     MAX_DATA,
@@ -136,7 +137,10 @@ def _calibration(fields: dict) -> CalibrationSlot:
 def _header(ex: dict) -> DeviceHeader:
     cal = _resolve(ex["calibration"]) if "calibration" in ex else None
     step_config = _resolve(ex["step_config"]) if "step_config" in ex else None
-    return DeviceHeader(**ex["fields"], calibration=cal, step_config=step_config)
+    fields = dict(ex["fields"])
+    if "commit_journal" in fields:
+        fields["commit_journal"] = bytes.fromhex(fields["commit_journal"])
+    return DeviceHeader(**fields, calibration=cal, step_config=step_config)
 
 
 def _records(fields: list[dict]) -> np.ndarray:
@@ -177,17 +181,23 @@ def test_worked_example(name: str) -> None:
         np.testing.assert_array_equal(back.matrix_g_per_count, fields["matrix_g_per_count"])
     elif kind == "header":
         assert len(data) == 256 and data[:4] == b"GLOG"
-        assert int.from_bytes(data[254:], "big") == _crc16(data[:254])
+        crc_end = 254 if data[4] == 1 else 160  # version 2: the journal (160-253) is outside the CRC (2.4)
+        assert int.from_bytes(data[254:], "big") == _crc16(data[:crc_end])
         assert _header(ex).to_bytes() == data
         back = DeviceHeader.from_bytes(data)
         for key, value in fields.items():
-            assert getattr(back, key) == value, key
-        assert back.calibration.to_bytes() == _resolve(ex["calibration"]).to_bytes()
+            assert getattr(back, key) == (bytes.fromhex(value) if key == "commit_journal" else value), key
+        if "calibration" in ex:
+            assert back.calibration.to_bytes() == _resolve(ex["calibration"]).to_bytes()
         if "step_config" in ex:
             assert back.step_config == _resolve(ex["step_config"])
             assert data[128:160] == _resolve(ex["step_config"]).to_bytes()
-        else:  # a header without step memory: the formerly reserved bytes are 0
+        elif data[4] == 1:  # a header without step memory: the formerly reserved bytes are 0
             assert data[44:64] == bytes(20) and data[128:254] == bytes(126)
+        if "recovered" in ex:  # section 2.4: what the device and a decoder make of it after a power loss
+            rec = back.recovered()
+            for key, value in json.loads(ex["recovered"]).items():
+                assert getattr(rec, key) == value, key
     elif kind == "step-config":
         assert len(data) == 32 and data[20:] == bytes(12)
         assert StepConfig(**fields).to_bytes() == data
@@ -326,6 +336,12 @@ def test_header_table_matches_struct() -> None:
             assert HEADER_OFFSETS[name] == (offset, size), name
     assert pos == 256
     assert {n for _, _, n in rows if n} == set(HEADER_OFFSETS) - {"reserved0", "reserved1"}
+
+
+def test_commit_journal_table_matches_module() -> None:
+    text = _section(r"2\.4 Recording identity")
+    assert f"{JOURNAL_ENTRIES} entries of {ENTRY_BYTES} bytes" in text
+    assert HEADER_OFFSETS["commit_journal"] == (JOURNAL_OFFSET, JOURNAL_BYTES)
 
 
 def test_flag_table_matches_enum() -> None:

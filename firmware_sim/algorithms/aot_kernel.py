@@ -1,0 +1,261 @@
+"""The on-line step kernel compiled ahead of time: an extension module that runs without importing numba.
+
+numba's JIT, even with its disk cache warm, costs a process about 0.4 s before the first sample (importing
+numba, setting up its compiler, loading the cached code at the first call). The same kernel
+(:mod:`firmware_sim.algorithms.kernel`: ``process``, ``flush``, ``reset``), compiled once by ``numba.pycc`` into
+an ordinary extension module, loads in a millisecond with numpy alone. Its code is numba's, from the same
+text: the records, counters and state are the JIT's bit for bit (tested).
+
+Where: ``aot-<hash>/`` beside numba's cache folder (:mod:`firmware_sim.compiled`: the same hash of the
+compiled sources, this file included), so any edit of them, or another numba, builds a new module. Exports,
+one per entry point and arithmetic: ``process_fixed``, ``flush_fixed``, ``reset_fixed`` (int64 values: the
+PIC's fixed point) and ``process_float``, ``flush_float``, ``reset_float`` (float64), for the array layouts
+the driver (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`) passes: C-contiguous arrays, ``k``
+an int64.
+
+Building needs numba, setuptools and a C compiler with the Python headers; it takes about 10 s, less than
+numba's first JIT compilation of both arithmetics (about 16 s), and happens once per version of the sources,
+in the first process that needs the kernel (:func:`entry_points`). It is done in a temporary folder renamed
+into place, under a lock file: a reader never sees a half-written module, and a second process waits for
+the first's build instead of compiling too. A failed build (no compiler) leaves ``aot-<hash>.failed`` (the
+error) and is not retried for that hash: numba's JIT is used instead. ``GAITLOG_NO_AOT=1`` (or numba's
+``NUMBA_DISABLE_JIT=1``) turns the module off. A build removes the cache folders of other versions of the
+sources unused for two weeks (:func:`firmware_sim.compiled.prune_cache`).
+
+Run ``python -m firmware_sim.algorithms.aot_kernel`` to build it now and print its path.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import shutil
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from types import ModuleType
+
+from firmware_sim.algorithms import kernel
+from firmware_sim.compiled import cache_base, load_numba, prune_cache, source_hash, touch
+
+__all__ = ["ARITHMETIC_TYPES", "ENTRY_POINTS", "MODULE_NAME", "EntryPoint", "aot_dir", "build", "enabled", "entry_points",
+           "load"]
+
+#: Name of the extension module.
+MODULE_NAME = "gaitlog_online_kernel"
+#: numba's value type of each arithmetic (the driver's ``OnlineConfig.value_dtype``).
+ARITHMETIC_TYPES = {"fixed": "int64", "float": "float64"}
+#: The kernel's entry points; exported as ``<name>_<arithmetic>``.
+ENTRY_POINTS = ("process", "flush", "reset")
+#: A build lock older than this (or whose process is gone) is a crashed build's: taken over.
+STALE_LOCK_S = 600.0
+#: How long a process waits for another process's build before it uses numba's JIT.
+BUILD_WAIT_S = 180.0
+
+#: Per arithmetic: the kernel's (process, flush, reset) and who compiled them, chosen once per process.
+_ENTRY_POINTS: dict[str, tuple[tuple[EntryPoint, EntryPoint, EntryPoint], str]] = {}
+
+
+def _signatures(v: str) -> dict[str, str]:
+    """numba signatures of the entry points with value type ``v`` (see ``kernel.process`` etc.)."""
+    i1, i2, v1, v2 = "int64[::1]", "int64[:, ::1]", f"{v}[::1]", f"{v}[:, ::1]"
+    return {
+        # codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt, cyc
+        "process": f"int64({v2}, {i1}, {v1}, {i1}, {v1}, {v1}, {i1}, {v2}, {i2}, {v2}, int64, {i1}, {i1})",
+        # cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt
+        "flush": f"int64({i1}, {v1}, {i1}, {v1}, {v2}, {i2}, {v2}, int64, {i1})",
+        # cfg_i, st_i, st_v, line, durs
+        "reset": f"void({i1}, {i1}, {v1}, {v1}, {i1})",
+    }
+
+
+def enabled() -> bool:
+    """False when ``GAITLOG_NO_AOT=1`` or ``NUMBA_DISABLE_JIT=1`` (the Python text must run then)."""
+    return os.environ.get("GAITLOG_NO_AOT", "") in ("", "0") and os.environ.get("NUMBA_DISABLE_JIT", "") in ("", "0")
+
+
+def aot_dir() -> Path:
+    """The module's folder for this version of the compiled sources: ``<cache>/aot-<hash>``."""
+    return cache_base() / f"aot-{source_hash()}"
+
+
+def _module_file(folder: Path) -> Path | None:
+    found = sorted(folder.glob(MODULE_NAME + ".*so")) + sorted(folder.glob(MODULE_NAME + ".*pyd"))
+    return found[0] if found else None
+
+
+def load(folder: Path | None = None) -> ModuleType | None:
+    """The built module, imported by path (numba is not imported); None if not built or unloadable."""
+    folder = folder if folder is not None else aot_dir()
+    path = _module_file(folder)
+    if path is None:
+        return None
+    try:
+        spec = importlib.util.spec_from_file_location(MODULE_NAME, path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    except (ImportError, OSError):
+        return None
+    if not all(hasattr(module, f"{n}_{a}") for n in ENTRY_POINTS for a in ARITHMETIC_TYPES):
+        return None
+    touch(folder)
+    return module
+
+
+def build(folder: Path | None = None) -> Path:
+    """Compile the module into ``folder`` (default :func:`aot_dir`) unless it is there; return its path.
+
+    Raises whatever the compilation raises (no compiler, no Python headers, no setuptools).
+    """
+    final = folder if folder is not None else aot_dir()
+    existing = _module_file(final)
+    if existing is not None:
+        return existing
+    load_numba()                                     # the kernel's functions as numba dispatchers
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = final.with_name(f"{final.name}.build-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)           # a crashed build of a process with this id
+    tmp.mkdir()                                      # the user's umask, as the folder it becomes
+    try:
+        with warnings.catch_warnings():
+            # numba.pycc is "pending deprecation" (numba 0.57+; still shipped and working in 0.68): only that
+            # warning is silenced, the replacement (PIXIE) is not released yet
+            warnings.filterwarnings("ignore", message=".*pycc.*", category=PendingDeprecationWarning)
+            warnings.filterwarnings("ignore", message=".*pycc.*", category=DeprecationWarning)
+            pycc = importlib.import_module("numba.pycc")
+            cc = pycc.CC(MODULE_NAME, source_module=kernel)
+            cc.output_dir = str(tmp)
+            cc.verbose = False
+            for arithmetic, value_type in ARITHMETIC_TYPES.items():
+                for name, sig in _signatures(value_type).items():
+                    cc.export(f"{name}_{arithmetic}", sig)(getattr(kernel, name).py_func)
+            cc.compile()
+        try:
+            os.rename(tmp, final)                    # atomic; fails if another process got there first
+        except OSError:
+            if _module_file(final) is None:
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return _module_file(final)
+
+
+def _lock_is_stale(lock: Path) -> bool:
+    try:
+        age = time.time() - lock.stat().st_mtime
+        pid = int(lock.read_text().strip() or 0)
+    except (OSError, ValueError):
+        return True
+    if age > STALE_LOCK_S:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:
+        return False
+    return False
+
+
+def _build_or_wait() -> ModuleType | None:
+    """The module: loaded, else built by this process (under the lock) or by another one (waited for);
+    None if the build failed, now or before, or took too long."""
+    final = aot_dir()
+    module = load(final)
+    if module is not None:
+        return module
+    failed = final.with_name(final.name + ".failed")
+    lock = final.with_name(final.name + ".lock")
+    deadline = time.monotonic() + BUILD_WAIT_S
+    while not failed.exists():
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            if _lock_is_stale(lock):
+                lock.unlink(missing_ok=True)
+                continue
+            if time.monotonic() > deadline:
+                return None
+            time.sleep(0.2)
+            module = load(final)
+            if module is not None:
+                return module
+            continue
+        except OSError:
+            return None                              # no writable cache folder
+        try:
+            os.write(fd, str(os.getpid()).encode())
+            os.close(fd)
+            build(final)
+            prune_cache(final)                       # long-unused builds of other versions of the sources
+        except Exception as exc:  # noqa: BLE001 - any build failure: recorded, numba's JIT is used instead
+            try:
+                failed.write_text(f"{type(exc).__name__}: {exc}\n")
+            except OSError:
+                pass
+            return None
+        finally:
+            lock.unlink(missing_ok=True)
+        return load(final)
+    return None
+
+
+class EntryPoint:
+    """One of the kernel's functions for one arithmetic; pickled by name, so that a process receiving an
+    algorithm's object uses its own kernel (the module built ahead of time is loaded by path: it cannot be
+    imported by name)."""
+
+    def __init__(self, name: str, arithmetic: str, fn: Callable) -> None:
+        self.name, self.arithmetic, self.fn = name, arithmetic, fn
+
+    def __call__(self, *args: object) -> object:
+        return self.fn(*args)
+
+    def __reduce__(self) -> tuple:
+        return _entry_point, (self.name, self.arithmetic)
+
+    def __repr__(self) -> str:
+        return f"<kernel {self.name} ({self.arithmetic}): {self.fn!r}>"
+
+
+def _entry_point(name: str, arithmetic: str) -> EntryPoint:
+    return entry_points(arithmetic)[0][ENTRY_POINTS.index(name)]
+
+
+def entry_points(arithmetic: str) -> tuple[tuple[EntryPoint, EntryPoint, EntryPoint], str]:
+    """The kernel's ``process``, ``flush``, ``reset`` for ``arithmetic``, and ``"aot"`` or ``"jit"``.
+
+    From the module compiled ahead of time (built now if missing, see the module's docstring); numba's JIT
+    (:mod:`firmware_sim.algorithms.kernel`) when that is off or cannot be built. Chosen once per process.
+    """
+    found = _ENTRY_POINTS.get(arithmetic)
+    if found is None:
+        module = _build_or_wait() if enabled() else None
+        if module is not None:
+            fns, by = [getattr(module, f"{name}_{arithmetic}") for name in ENTRY_POINTS], "aot"
+        else:
+            fns, by = [getattr(kernel, name) for name in ENTRY_POINTS], "jit"
+        found = (tuple(EntryPoint(n, arithmetic, f) for n, f in zip(ENTRY_POINTS, fns)), by)
+        _ENTRY_POINTS[arithmetic] = found
+    return found
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m firmware_sim.algorithms.aot_kernel``: build the module now, print its path."""
+    if argv:
+        print(f"usage: python -m {__name__} (builds the module; no arguments)", file=sys.stderr)
+        return 2
+    try:
+        print(build())
+    except Exception as exc:  # noqa: BLE001 - reported, one line
+        print(f"error: building {MODULE_NAME} failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

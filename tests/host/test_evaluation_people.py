@@ -1,0 +1,57 @@
+"""``gaitlog evaluate sim --population people``: the paper's evaluation on the walker tuned to real people.
+
+Figures stated in the README (4 subjects, seed 0), measured by ``gaitlog evaluate sim DIR --subjects 4
+--population people``. They differ from the ``v1`` walkers' where the walker differs: M5's single-speed spread
+(step length not the walk-ratio law any more) and M3's (the people population's wider deviation from the
+pendulum model).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from firmware_sim.world.walk_plan import POPULATION_PLANS
+from host.cli import main
+from host.studies import evaluation
+from host.studies.evaluation import SimulatedEvaluation
+
+
+def test_the_people_population_walks_the_papers_protocol_with_its_own_habits(monkeypatch) -> None:
+    jobs: list = []
+    monkeypatch.setattr(evaluation, "map_subjects", lambda job, js, **kw: jobs.extend(js) or [])
+    monkeypatch.setattr(evaluation, "pool_event_scores", lambda ev: {})
+    SimulatedEvaluation(n_subjects=2, seed=1, population="people").run()
+    assert len(jobs) == 2
+    for subject, _seed, plan, *_ in jobs:
+        assert subject.cadence_law_spm is not None and subject.ml_harmonics_m_s2
+        assert plan.turn_radius_m == POPULATION_PLANS["people"]["turn_radius_m"]
+        assert plan.corridor_length_m == 100.0 and len(plan.speeds) == 4          # the paper's protocol
+    jobs.clear()
+    SimulatedEvaluation(n_subjects=1, seed=1).run()
+    assert jobs[0][2] is None and jobs[0][0].cadence_law_spm is None           # v1: the paper's default plan
+
+
+def test_unknown_population_is_refused(capsys) -> None:
+    with pytest.raises(SystemExit):
+        main(["evaluate", "sim", "out", "--population", "martians"])
+    assert "invalid choice" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_readme_figures_of_the_people_population() -> None:
+    ev = SimulatedEvaluation(n_subjects=4, seed=0, workers=2, population="people").run()
+    s = {(r["mode"], r["estimator"]): r for r in ev.summary_}
+    # M5: the median stays near 100 % but single-speed K spreads it (IQR 9.3 %, max 126 %; v1: 2.1 %)
+    assert s[("single-speed", "M5")]["iqr"] == pytest.approx(0.093, abs=0.005)
+    assert s[("single-speed", "M5")]["max"] == pytest.approx(1.262, abs=0.01)
+    assert s[("multi-speed", "M5")]["iqr"] == pytest.approx(0.028, abs=0.003)
+    # M3 (no K) 100.5 %, IQR 11.0 %; M1 single-speed 97.2 %
+    assert s[("single-speed", "M3")]["median"] == pytest.approx(1.005, abs=0.003)
+    assert s[("single-speed", "M3")]["iqr"] == pytest.approx(0.110, abs=0.005)
+    assert s[("single-speed", "M1")]["median"] == pytest.approx(0.972, abs=0.003)
+    assert ev.events_["heel_strike"].f1 == pytest.approx(0.963, abs=0.005)
+
+
+def test_compare_refuses_a_population_for_a_recording(tmp_path, capsys) -> None:
+    assert main(["compare", str(tmp_path / "rec.npz"), "--population", "people"]) == 1
+    assert "--population: only with --simulate / --sweep" in capsys.readouterr().err
