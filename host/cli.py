@@ -28,7 +28,7 @@ import host.commands
 #: Order of subcommands in ``gaitlog --help``; modules found but not listed here come after, sorted.
 _ORDER = (
     "demo", "record", "serve", "device", "dump", "decode", "info", "calibrate", "estimate", "calibrate_k",
-    "evaluate", "compare", "simulate", "plot", "budget", "kinematics",
+    "evaluate", "compare", "simulate", "sweep", "batch", "plot", "budget", "kinematics",
 )
 
 

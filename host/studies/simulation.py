@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, TypeVar
 
 import numpy as np
@@ -168,11 +168,16 @@ class AnalogWalk:
         self.truth_ = {k: motion.truth[k] for k in ("steps", "laps", "excursions", "rests") if k in motion.truth}
         return self
 
-    def sample(self, sampling_rate_hz: float) -> SampledWalk:
+    def sample(self, sampling_rate_hz: float, *, noise_density_g_rthz: float | None = None) -> SampledWalk:
         """The analog output at the sample instants of a ``sampling_rate_hz`` timer, noise included (as
-        :meth:`firmware_sim.device.Logger.record`: same instants, same hold, same noise stream)."""
+        :meth:`firmware_sim.device.Logger.record`: same instants, same hold, same noise stream).
+
+        ``noise_density_g_rthz`` replaces the sensor's white-noise density (default: the sensor's, 200 µg/√Hz);
+        the noise stream (its seed) is the same, only scaled, so a noise sweep compares like with like."""
         adc = Adc(adc_bits=10, sampling_rate_hz=sampling_rate_hz)
         sen = self.sensor_
+        if noise_density_g_rthz is not None:
+            sen = replace(sen, noise_density_g_rthz=float(noise_density_g_rthz))
         times = adc.sample_times_s(self.t0_s_, self.t_last_s_)
         held = adc.hold(self.volts_, self.rate_hz_, self.t0_s_, times)
         held = held + sen.noise_g(times, rng=np.random.default_rng(sen.seed)) * sen.gain_v_per_g

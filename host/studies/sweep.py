@@ -59,10 +59,17 @@ from typing import Any, Self
 import numpy as np
 
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-from firmware_sim.algorithms.steps import ESTIMATORS
+from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from host.errors import HostError
 from host.gait.sections import MODES
-from host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_label
+from host.studies.compare import (
+    CHAINS,
+    SHARES,
+    SampledWalk,
+    column_key,
+    compare_walk,
+    pair_label,
+)
 from host.studies.simulation import AnalogWalk, map_subjects, simulated_population
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
@@ -95,6 +102,19 @@ class ConfigResult:
     cycles_per_sample: float
 
 
+def run_config(sw: SampledWalk, subject: Any, adc_bits: int, *, ideal_table: StepTable | None = None,
+               **options: Any) -> tuple[ConfigResult, StepTable]:
+    """One configuration (one ADC width on one sampled walk): :func:`host.studies.compare.compare_walk` kept as
+    a :class:`ConfigResult`, and the ideal chain's table (the analog input: the same at every width, reusable
+    as ``ideal_table`` for the next width). The one home of the per-configuration work of this sweep and of
+    :mod:`host.studies.sweep_grid`."""
+    wc = compare_walk(sw, subject, adc_bits=adc_bits, ideal_table=ideal_table, **options)
+    fx = wc.runs["online-fixed"]
+    return (ConfigResult(subject.subject_id, int(adc_bits), float(sw.sampling_rate_hz), wc.step_diffs, wc.segments,
+                         wc.timing, wc.saturation, fx.saturated, fx.wrapped, fx.cycles_per_sample),
+            wc.runs["ideal"].table)
+
+
 def _subject_job(job: tuple) -> list[ConfigResult]:
     subject, seed, walk_plan, adc_bits_list, rates, options = job
     walk = AnalogWalk(subject=subject, seed=seed, walk_plan=walk_plan).run()
@@ -103,11 +123,8 @@ def _subject_job(job: tuple) -> list[ConfigResult]:
         sw = walk.sample(rate)
         ideal = None
         for adc_bits in adc_bits_list:
-            wc = compare_walk(sw, subject, adc_bits=adc_bits, ideal_table=ideal, **options)
-            ideal = wc.runs["ideal"].table          # the analog input: the same at every width
-            fx = wc.runs["online-fixed"]
-            out.append(ConfigResult(subject.subject_id, int(adc_bits), float(rate), wc.step_diffs, wc.segments,
-                                    wc.timing, wc.saturation, fx.saturated, fx.wrapped, fx.cycles_per_sample))
+            result, ideal = run_config(sw, subject, adc_bits, ideal_table=ideal, **options)
+            out.append(result)
     return out
 
 

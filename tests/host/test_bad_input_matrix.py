@@ -405,6 +405,47 @@ def _cases() -> list[Case]:
     add("demo", "--out without a value", ["demo", "--out"], "--out")
     add("demo", "--out under a missing folder under a file", ["demo", "--out", "{underfile/out}/deeper"], "--out")
     add("demo", "-q and -v", ["demo", "-q", "-v", "--out", "{folder}/demo-out"], "-v")
+
+    # sweep (a slip would run a 1-task sweep and leave its folder: the snapshot catches it)
+    sweep = ["sweep", "--out", "{folder}/sweep-out", "--serial", "--protocol", "short", "--subjects", "1",
+             "--adc-bits", "8", "--logger-rate", "50"]
+    options("sweep", sweep, "--adc-bits", ("0", "-1", "99", "abc", "", "8,,10", "8,1.5"))
+    options("sweep", sweep, "--logger-rate", BAD_POSITIVE + ("5",))
+    options("sweep", sweep, "--noise-density", ("nan", "inf", "-1e-4", "1", "abc"))
+    options("sweep", sweep, "--subjects", BAD_COUNT)
+    options("sweep", sweep, "--seeds", ("-1", "abc", "0,x"))
+    options("sweep", sweep, "--estimators", ("M9", "m1", "M1,"))
+    options("sweep", sweep, "--workers", ("0", "-1", "abc"))
+    for name in ("missing.json", "nested.json", "notjson.json", "garbage.bin", "adir", "cal.json", "latin1.csv"):
+        add("sweep", f"--spec {name}", [*sweep, "--spec", f"{{{name}}}"], name)
+    add("sweep", "--out is a file", [*sweep, "--out", "{walk.csv}"], "--out")
+    add("sweep", "--out under a file", [*sweep, "--out", "{underfile/out}"], "--out")
+    add("sweep", "--out unwritable", [*sweep, "--out", "/proc/gaitlog-sweep"], "--out")
+    add("sweep", "--serial and --scheduler", [*sweep, "--scheduler", "tcp://127.0.0.1:8786"], "--scheduler")
+    sweep_dask = [a for a in sweep if a != "--serial"]
+    for v in ("tcp://", "tcp://127.0.0.1:99999", "{garbage.bin}", "{nested.json}", "{nofolder/out}"):
+        add("sweep", f"--scheduler {v!r}", [*sweep_dask, "--scheduler", v], "--scheduler")
+    add("sweep", "without --out", ["sweep", "--serial"], "--out")
+
+    # batch (bad invocations; a bad recording inside the folder is reported by the batch, not refused)
+    batch = ["batch", "{emptydir}", "--out", "{folder}/batch-out"]
+    add("batch", "FOLDER missing", ["batch", "{folder}/no-such-folder", "--out", "{folder}/batch-out"], "no-such-folder")
+    add("batch", "FOLDER is a file", ["batch", "{walk.csv}", "--out", "{folder}/batch-out"], "walk.csv")
+    add("batch", "FOLDER without inputs", batch, "emptydir")
+    add("batch", "--pattern matching nothing", ["batch", "{folder}", "--out", "{folder}/batch-out", "--pattern",
+                                                "*.none"], "--pattern")
+    add("batch", "--pattern absolute", ["batch", "{folder}", "--out", "{folder}/batch-out", "--pattern", "/etc/*"],
+        "--pattern")
+    for name in CAL_FILES:
+        add("batch", f"--calibration {name}", [*batch, "--calibration", f"{{{name}}}"], name)
+    for name in K_FILES:
+        add("batch", f"--k-file {name}", [*batch, "--k-file", f"{{{name}}}"], name)
+    options("batch", batch, "--height", BAD_POSITIVE)
+    add("batch", "--out = FOLDER", ["batch", "{emptydir}", "--out", "{emptydir}"], "--out")
+    add("batch", "--out is a file", ["batch", "{emptydir}", "--out", "{walk.csv}"], "--out")
+    add("batch", "--out under a file", ["batch", "{emptydir}", "--out", "{underfile/out}"], "--out")
+    add("batch", "--out unwritable", ["batch", "{emptydir}", "--out", "/proc/gaitlog-batch"], "--out")
+    add("batch", "without --out", ["batch", "{emptydir}"], "--out")
     return cases
 
 

@@ -1,0 +1,89 @@
+"""``gaitlog batch``: decode, calibrate and estimate every recording in a folder (:mod:`host.studies.batch`).
+
+Per recording: ``OUT/NAME.steps.csv`` and ``OUT/NAME.json`` (its summary); for the batch: ``OUT/batch.csv`` (one
+row per recording, failures included with their error). A file that fails is listed and the batch goes on;
+the exit code is 1 when any recording failed. A re-run skips the recordings already finished with the same
+input and settings, and retries the failed ones.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "estimate every recording in a folder (per-recording outputs, summary table, failures listed; resumable)"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._anatomy_options import add_anatomy_options
+    from host.commands._options import add_verbosity_options
+
+    parser.add_argument("folder", metavar="FOLDER", help="folder of memory images, raw dumps, wire captures or "
+                        "decoded .npz files")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    parser.add_argument("--pattern", default="*", help="file-name pattern of the inputs (default: every file but "
+                        ".json/.csv/.txt/.md)")
+    parser.add_argument("--calibration", metavar="CAL.json",
+                        help="accelerometer calibration (from 'gaitlog calibrate') for every recording "
+                             "(default: each file's own)")
+    parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
+                        "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
+    add_anatomy_options(parser)
+    add_verbosity_options(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+    import time
+    from pathlib import Path
+
+    from host.accelerometer.calibration import AccCalibration
+    from host.commands._anatomy_options import lengths_from_args
+    from host.commands._options import check_output_folder, printer
+    from host.commands._progress import progress_bar
+    from host.errors import HostError
+    from host.gait.k_calibration import KFit
+    from host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
+    from host.studies.compare import rows_csv_text
+    from protocol.atomic_write import atomic_write_text
+
+    out = Path(args.out)
+    folder = Path(args.folder)
+    check_output_folder("--out", out)
+    if folder.is_dir() and out.resolve() == folder.resolve():
+        raise HostError(f"--out {out}: is the input FOLDER; give an output folder other than the input folder")
+    cal = AccCalibration.load(args.calibration) if args.calibration else None
+    k = KFit.load(args.k_file) if args.k_file else None
+    try:
+        paths = batch_inputs(folder, args.pattern)
+    except (ValueError, NotImplementedError) as err:
+        raise HostError(f"--pattern {args.pattern!r}: {err}") from None
+    if not paths:
+        raise HostError(f"{folder}: no input file matches --pattern {args.pattern!r}")
+    say = printer(args)
+    settings = {"leg_length_m": args.leg_length, "foot_length_m": args.foot_length, "height_m": args.height}
+    t = time.perf_counter()
+    with progress_bar(args, len(paths), "recording") as tick:
+        results = run_batch(paths, out, calibration=cal, calibration_file=args.calibration, k=k, k_file=args.k_file,
+                            lengths=lambda data: lengths_from_args(args, k=k, data=data), settings=settings,
+                            progress=tick)
+    rows = [r.summary for r in results]
+    atomic_write_text(out / "batch.csv", rows_csv_text([{k: ("" if v is None else v) for k, v in r.items()}
+                                                        for r in rows], SUMMARY_COLUMNS))
+    n = {s: sum(r.status == s for r in results) for s in ("done", "skipped", "failed")}
+    say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done']} computed, "
+        f"{n['skipped']} finished before (skipped), {n['failed']} failed")
+    say(f"{'recording':<28}{'status':<9}{'samples':>9}{'Hz':>6}{'steps':>7}{'M1 m':>9}{'M2 m':>9}{'M3 m':>9}")
+    for r in rows:
+        if r["status"] == "failed":
+            continue
+        dist = "".join(f"{r[k]:>9.2f}" if r[k] is not None else f"{'n/a':>9}"
+                       for k in ("distance_m1_m", "distance_m2_m", "distance_m3_m"))
+        say(f"{r['recording']:<28}{r['status']:<9}{r['n_samples']:>9}{r['sampling_rate_hz']:>6g}{r['n_steps']:>7}{dist}")
+    for r in results:
+        if r.status == "failed":
+            print(f"gaitlog batch: failed: {r.error if str(r.path) in r.error else f'{r.path}: {r.error}'}",
+                  file=sys.stderr)
+        elif r.summary.get("warnings") and r.status == "done" and say is print:
+            print(f"gaitlog batch: warning: {r.summary['warnings']}", file=sys.stderr)
+    say(f"written: {out}/batch.csv and per recording NAME.steps.csv, NAME.json")
+    return 1 if n["failed"] else 0

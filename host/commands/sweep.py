@@ -1,0 +1,188 @@
+"""``gaitlog sweep``: a grid over ADC bits x logger rate x sensor noise x simulated subjects x seeds
+(:mod:`host.studies.sweep_grid`), run as independent tasks on Dask (a local cluster by default, ``--scheduler``
+for an existing one) or in this process (``--serial``); resumable.
+
+Everything goes to the ``--out`` folder: ``tasks/`` (one JSON file per finished task: a re-run with the same
+``--out`` computes only the missing ones), ``spec.json`` (the grid), ``sections.csv`` (one row per configuration
+x subject x 20 m section x calibration mode x estimator), ``splits.csv`` (per-step error split per
+configuration x subject x estimator), ``tasks.csv`` (timing error, saturation), ``summary.csv`` and
+``smallest_bits.csv``. The results do not depend on where or in which order the tasks ran.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from host.commands._options import SEED, number, whole
+
+#: Larger summary tables are only written (and printed with -v).
+MAX_PRINTED_ROWS = 60
+
+HELP = "parameter sweep (ADC bits x rate x noise x subjects x seeds) on Dask or in-process; resumable, CSV out"
+
+
+def _list(item: Callable[[str], object]) -> Callable[[str], list]:
+    """An argparse ``type`` for a comma-separated, non-empty list of ``item`` values (a usage error naming the
+    option and the bad element)."""
+    def parse(text: str) -> list:
+        parts = [x.strip() for x in text.split(",")]
+        if not text.strip() or any(not x for x in parts):
+            raise argparse.ArgumentTypeError(f"must be a comma-separated list without empty items, got {text!r}")
+        out = []
+        for x in parts:
+            try:
+                out.append(item(x))
+            except (argparse.ArgumentTypeError, ValueError) as err:
+                raise argparse.ArgumentTypeError(f"{x!r}: {err}") from None
+        return out
+
+    parse.__name__ = "list"
+    return parse
+
+
+def _estimator(text: str) -> str:
+    if text not in ESTIMATOR_NAMES:
+        raise argparse.ArgumentTypeError(f"must be one of {', '.join(ESTIMATOR_NAMES)}")
+    return text
+
+
+#: The estimators' names (as :data:`firmware_sim.algorithms.steps.ESTIMATORS`; not imported: --help stays light).
+ESTIMATOR_NAMES = ("M1", "M2", "M3", "M4", "M5")
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from host.commands._options import add_verbosity_options
+
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="results folder (created; re-running with the same folder resumes)")
+    parser.add_argument("--spec", metavar="FILE", help="grid spec, .json or .toml (keys: adc_bits, sampling_rate_hz, "
+                        "noise_density_g_rthz, subjects, seeds, estimators, protocol); the options below override it")
+    grid = parser.add_argument_group("grid (default: 8,10,12 bits x 25,50,100 Hz, the sensor's noise, 4 subjects, seed 0)")
+    grid.add_argument("--adc-bits", type=_list(whole(minimum=1, maximum=12)), metavar="B,B", help="ADC widths, bits")
+    grid.add_argument("--logger-rate", type=_list(number(minimum=10, maximum=1000, unit="Hz")), metavar="HZ,HZ", help="logger sampling rates, Hz")
+    grid.add_argument("--noise-density", type=_list(number(minimum=0, maximum=0.01, unit="g/√Hz")), metavar="G,G",
+                      help="sensor white-noise densities, g/√Hz (the ADXL202E's: 200e-6)")
+    grid.add_argument("--subjects", type=whole(minimum=1, maximum=1000), metavar="N", help="simulated subjects per seed")
+    grid.add_argument("--seeds", type=_list(SEED), metavar="S,S", help="seeds of the subject draws")
+    grid.add_argument("--estimators", type=_list(_estimator), metavar="M1,M2", help="estimators kept (default all)")
+    grid.add_argument("--protocol", choices=("paper", "short"), help="walking protocol (default paper; short: "
+                      "4 x 40 m, for quick looks)")
+    run = parser.add_argument_group("where it runs")
+    run.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler: its address or "
+                     "the scheduler file it wrote (dask scheduler --scheduler-file FILE); default: a local cluster")
+    run.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="worker processes of the local cluster (default 2)")
+    run.add_argument("--serial", action="store_true", help="run in this process, without Dask")
+    add_verbosity_options(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    import time
+    from pathlib import Path
+
+    from host.commands._options import check_output_folder, printer
+    from host.commands._progress import progress_bar
+    from host.errors import HostError
+    from host.studies.compare import rows_csv_text
+    from host.studies.sweep_grid import (
+        SECTION_COLUMNS,
+        SPLIT_COLUMNS,
+        SUMMARY_COLUMNS,
+        SweepGrid,
+        format_smallest_bits,
+        format_summary,
+        run_task,
+        smallest_adc_bits,
+        summarise,
+    )
+    from host.studies.task_store import TaskStore, run_serial
+    from protocol.atomic_write import atomic_write_text
+
+    if args.serial and args.scheduler:
+        raise HostError("--serial and --scheduler exclude each other")
+    if args.scheduler:
+        _check_scheduler(args.scheduler)
+    spec = SweepGrid.load(args.spec).to_spec() if args.spec else {}
+    for key, value in (("adc_bits", args.adc_bits), ("sampling_rate_hz", args.logger_rate),
+                       ("noise_density_g_rthz", args.noise_density), ("subjects", args.subjects),
+                       ("seeds", args.seeds), ("estimators", args.estimators), ("protocol", args.protocol)):
+        if value is not None:
+            spec[key] = value
+    grid = SweepGrid.from_spec(spec, source="the grid options")
+    out = Path(args.out)
+    check_output_folder("--out", out)
+    out.mkdir(parents=True, exist_ok=True)
+    say, detail = printer(args), printer(args, 1)
+    tasks = grid.tasks()
+    store = TaskStore(out)
+    n_done = len(tasks) - len(store.pending(tasks))
+    atomic_write_text(out / "spec.json", json.dumps(grid.to_spec(), indent=2) + "\n")
+    say(f"sweep: {len(tasks)} tasks ({len(grid.seeds)} seed(s) x {grid.subjects} subject(s) x "
+        f"{len(grid.sampling_rate_hz)} rate(s) x {len(grid.noise_density_g_rthz)} noise level(s) x "
+        f"{len(grid.adc_bits)} ADC width(s)), {n_done} already in {store.tasks_folder}")
+    t = time.perf_counter()
+    with progress_bar(args, len(tasks) - n_done, "task") as tick:
+        if args.serial:
+            computed = run_serial(run_task, tasks, store, progress=tick)
+            where = "this process"
+        else:
+            from host.studies.dask_runner import run_on_dask
+
+            computed = run_on_dask(run_task, tasks, store, scheduler=args.scheduler, workers=args.workers,
+                                   progress=tick, on_start=lambda w: detail(f"running on {w}"))
+            where = args.scheduler or f"a local cluster of {args.workers} worker(s)"
+    say(f"computed {computed} task(s) on {where} in {time.perf_counter() - t:.1f} s")
+    results = store.collect(tasks)
+    sections = [r for res in results for r in res["sections"]]
+    splits = [r for res in results for r in res["splits"]]
+    summary = summarise(sections, splits)
+    smallest = smallest_adc_bits(summary)
+    atomic_write_text(out / "sections.csv", rows_csv_text(sections, SECTION_COLUMNS))
+    atomic_write_text(out / "splits.csv", rows_csv_text(splits, SPLIT_COLUMNS))
+    atomic_write_text(out / "tasks.csv", rows_csv_text([res["task"] for res in results]))
+    atomic_write_text(out / "summary.csv", rows_csv_text(summary, SUMMARY_COLUMNS))
+    atomic_write_text(out / "smallest_bits.csv", rows_csv_text(smallest))
+    big = len(summary) > 2 * MAX_PRINTED_ROWS                    # both modes
+    (detail if big else say)(format_summary(summary))
+    detail()
+    detail(format_summary(summary, mode="single-speed"))
+    if big:
+        say(f"summary: {len(summary) // 2} configuration x estimator rows per calibration mode in {out}/summary.csv "
+            "(-v prints them)")
+    say()
+    (detail if len(smallest) > MAX_PRINTED_ROWS else say)(format_smallest_bits(smallest))
+    sat = sum(res["task"]["saturated"] + res["task"]["wrapped"] for res in results)
+    say(f"fixed-point saturation/wrap over all tasks: {sat}")
+    say(f"written: {out}/sections.csv ({len(sections)} rows), splits.csv, tasks.csv, summary.csv, smallest_bits.csv")
+    return 0
+
+
+def _check_scheduler(scheduler: str) -> None:
+    """``--scheduler``: ``tcp://HOST:PORT`` (or another Dask protocol), or a scheduler file that is JSON with an
+    ``address`` once it exists (a scheduler may still be writing it: a missing file is waited for)."""
+    import json
+    from pathlib import Path
+
+    from host.errors import HostError
+
+    if "://" in scheduler:
+        proto, _, rest = scheduler.partition("://")
+        host, _, port = rest.rpartition(":")
+        if not proto or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise HostError(f"--scheduler {scheduler}: not an address PROTOCOL://HOST:PORT (e.g. tcp://10.0.0.5:8786)")
+        return
+    p = Path(scheduler)
+    if not p.exists():
+        if not p.parent.is_dir():
+            raise HostError(f"--scheduler {scheduler}: neither an address tcp://HOST:PORT nor a scheduler file "
+                            f"(the folder {p.parent} does not exist)")
+        return
+    try:
+        with open(p, "rb") as f:
+            doc = json.loads(f.read(1 << 20))
+    except (OSError, ValueError, RecursionError) as err:
+        raise HostError(f"--scheduler {scheduler}: not a scheduler file (JSON with the scheduler's address): "
+                        f"{getattr(err, 'strerror', None) or type(err).__name__}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("address"), str):
+        raise HostError(f"--scheduler {scheduler}: not a scheduler file (no \"address\")")
