@@ -195,7 +195,8 @@ class AdcRateSweep:
 
 
 
-def _q(v: np.ndarray) -> tuple[float, float]:
+def median_iqr(v: np.ndarray) -> tuple[float, float]:
+    """Median and interquartile range of the finite values of ``v`` (NaN, NaN when there are none)."""
     v = v[np.isfinite(v)]
     if v.size == 0:
         return math.nan, math.nan
@@ -224,8 +225,8 @@ def summarise(results: list[ConfigResult]) -> list[dict]:
                 ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in KINDS}
                 row: dict[str, Any] = dict(adc_bits=adc_bits, sampling_rate_hz=rate, mode=mode, estimator=est, n=len(seg))
                 for k in KINDS[:-1]:
-                    row[f"median_{k}"], row[f"iqr_{k}"] = _q(ratio[k])
-                row["iqr_exact_timing"] = _q(ratio["exact_timing"])[1]
+                    row[f"median_{k}"], row[f"iqr_{k}"] = median_iqr(ratio[k])
+                row["iqr_exact_timing"] = median_iqr(ratio["exact_timing"])[1]
                 d = {s: [x for r in rs for x in r.step_diffs if x["pair"] == labels[s] and x["estimator"] == est]
                      for s in SHARES}
                 for s, (a, b) in SHARES.items():
@@ -266,8 +267,8 @@ def m5_timing_answer(results: list[ConfigResult], *, adc_bits: int = 10) -> dict
             if a.size < 2:
                 continue
             va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
-            rows.append(dict(mode=mode, sampling_rate_hz=rate, n=int(a.size), iqr=_q(a)[1], std=math.sqrt(va),
-                             iqr_exact=_q(e)[1], std_exact=math.sqrt(ve),
+            rows.append(dict(mode=mode, sampling_rate_hz=rate, n=int(a.size), iqr=median_iqr(a)[1], std=math.sqrt(va),
+                             iqr_exact=median_iqr(e)[1], std_exact=math.sqrt(ve),
                              timing_share=float(np.clip(1.0 - ve / va, 0.0, 1.0)) if va > 0 else math.nan,
                              timing_rms_ms=float(np.sqrt(np.mean([r.timing["rms_ms"] ** 2 for r in rs]))),
                              sampling_rms_ms=1e3 / rate / math.sqrt(6.0)))

@@ -50,7 +50,7 @@ from host.errors import HostError
 from host.gait.sections import MODES
 from host.studies.compare import CHAINS, SHARES, column_key, pair_label
 from host.studies.simulation import AnalogWalk
-from host.studies.sweep import ADC_BITS, RATES_HZ, run_config
+from host.studies.sweep import ADC_BITS, RATES_HZ, median_iqr, run_config
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 #: The sensor's own white-noise density (ADXL202E typical), g/√Hz.
@@ -261,14 +261,6 @@ def run_task(task: SweepTask) -> dict:
     return {"sections": sections, "splits": splits, "task": scalars}
 
 
-def _q(v: np.ndarray) -> tuple[float, float]:
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return math.nan, math.nan
-    q1, med, q3 = np.percentile(v, [25, 50, 75])
-    return float(med), float(q3 - q1)
-
-
 def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
     """One row per (bits, rate, noise, mode, estimator), pooled over seeds and subjects.
 
@@ -296,8 +288,8 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
                                    n_sections=len(seg))
         ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in RATIO_KINDS}
         for k in RATIO_KINDS[:-1]:
-            row[f"median_{k}"], row[f"iqr_{k}"] = _q(ratio[k])
-        per_subject = [_q(np.array([s["ratio_offline"] for s in seg if (s["seed"], s["subject"]) == subj], float))[0]
+            row[f"median_{k}"], row[f"iqr_{k}"] = median_iqr(ratio[k])
+        per_subject = [median_iqr(np.array([s["ratio_offline"] for s in seg if (s["seed"], s["subject"]) == subj], float))[0]
                        for subj in sorted({(s["seed"], s["subject"]) for s in seg})]
         per_subject = [v for v in per_subject if math.isfinite(v)]
         row["subject_median_offline_lo"] = float(min(per_subject)) if per_subject else math.nan
