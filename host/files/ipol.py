@@ -35,6 +35,8 @@ from host.files.limits import (
 )
 from protocol.atomic_write import atomic_write
 
+#: Rate of the IPOL lower-back files (Xsens MTw packets), and of the trials :func:`write_trial` writes.
+IPOL_SAMPLING_RATE_HZ = 100.0
 _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$")
 #: Columns written by :func:`write_trial` (the reader needs these four; the Xsens files add gyroscope and
 #: magnetometer columns).
@@ -231,7 +233,7 @@ def height_m_of(meta: dict) -> float | None:
 
 
 def write_trial(folder: str | Path, subject: int, trial: int, acc_m_s2: np.ndarray, meta: dict, *,
-                sampling_rate_hz: float = 100.0) -> tuple[Path, Path]:
+                sampling_rate_hz: float = IPOL_SAMPLING_RATE_HZ) -> tuple[Path, Path]:
     """Write one trial as ``<folder>/<subject>-<trial>_lb.txt`` and ``<subject>-<trial>.json`` (IPOL layout).
 
     Parameters

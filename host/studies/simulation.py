@@ -34,16 +34,13 @@ from firmware_sim.world.walking import Walking
 from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
 from host.files.decode import decode_bytes
-from host.files.ipol import write_trial
+from host.files.ipol import IPOL_SAMPLING_RATE_HZ, write_trial
 from host.studies.compare import SampledWalk, WalkComparison, compare_walk
 from protocol.header import CalibrationSlot
 from protocol.image import build_image
 from protocol.packing import FLAG_MARK
 
 __all__ = ["AnalogWalk", "SimulatedRecording", "export_ipol", "ipol_trial", "ipol_walk_plan", "record_subject"]
-
-#: Rate of the IPOL lower-back files (Xsens MTw packets).
-IPOL_SAMPLING_RATE_HZ = 100.0
 
 
 @dataclass(frozen=True, eq=False)
