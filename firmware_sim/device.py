@@ -39,6 +39,7 @@ from protocol.atomic_write import atomic_write_bytes
 from protocol.commit_journal import torn_step_records
 from protocol.errors import ProtocolError
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
+from protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
 from protocol.image import build_image, parse_image
 from protocol.packing import FLAG_MARK, FLAG_SESSION_START, unpack_words
 from protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
@@ -172,7 +173,7 @@ class Logger:
         self.bank = EepromBank()
         self.step_eeprom = Eeprom24LC1025()
         self.data_eeprom = DataEeprom()
-        self.ring = RingBuffer(self.bank, self.data_eeprom, header)
+        self.ring = RingBuffer(self.bank, self.data_eeprom, header, slot_eeprom=self.step_eeprom)
         self.steps = StepStore(self.step_eeprom, header)
         self.firmware = Firmware(self.ring, steps=self.steps)
         if self.image_path is not None and self.image_path.exists():
@@ -300,7 +301,7 @@ class Logger:
             if header.power_lost:
                 header.torn_step_records = torn_step_records(header, self.step_eeprom.memory)
             header.flags &= ~int(HeaderFlag.LOGGING)
-        self.ring = RingBuffer(self.bank, self.data_eeprom, header)
+        self.ring = RingBuffer(self.bank, self.data_eeprom, header, slot_eeprom=self.step_eeprom)
         self.steps = StepStore(self.step_eeprom, header)
         self.ring.commit()
         self.firmware = Firmware(self.ring, steps=self.steps, nonce_source=self.firmware.nonce_source)
@@ -309,13 +310,18 @@ class Logger:
         """Power the device up from what its non-volatile memories hold (the data EEPROM's header, the sample
         and step EEPROMs): the RAM is lost, an interrupted run is recovered to its last committed page.
 
+        The header is the committed one (section 2.5): the data EEPROM's, or the newest header slot's when a
+        power loss cut a header commit after its slot was written (:func:`protocol.header_slots.committed_header`).
+
         Raises
         ------
         DeviceError
-            The data EEPROM does not hold a valid header (a power loss inside a header commit).
+            Neither the data EEPROM nor a header slot holds a valid header.
         """
+        slots = [self.step_eeprom.sequential_read(a, SLOT_BYTES) for a in SLOT_ADDRESSES]
+        committed = committed_header(self.data_eeprom.read(), slots)
         try:
-            header = DeviceHeader.from_bytes(self.data_eeprom.read(), source="data EEPROM")
+            header = DeviceHeader.from_bytes(committed.header, source="data EEPROM")
         except ProtocolError as err:
             raise DeviceError(f"power-up: {err}") from err
         self._boot(header)

@@ -18,13 +18,19 @@ that commit is written to the data EEPROM (changed bytes only: the ``steps`` fie
 from its high byte to its low byte). A power loss therefore loses at most the page in flight: at power-up
 :meth:`protocol.header.DeviceHeader.recovered` rebuilds the counters of the last committed page.
 :meth:`RingBuffer.power_cut` models the cut, including one inside the last page write or journal write.
+
+Header commits (section 2.5): with a slot EEPROM (the step 24LC1025) every commit first writes the new header
+bytes 0-159 and CRC to the older of the two header slots there (:mod:`protocol.header_slots`), then the
+changed bytes of the data EEPROM; a power loss inside it leaves either the old header or a slot from which
+power-up rolls the new one forward. :meth:`RingBuffer.power_cut_header` models a cut at any byte of the last
+commit (START's journal clear, the slot's page writes, the data EEPROM bytes).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.eeprom import PAGE_BYTES, DataEeprom, EepromBank
+from firmware_sim.eeprom import PAGE_BYTES, DataEeprom, Eeprom24LC1025, EepromBank
 from firmware_sim.errors import DeviceError
 from protocol.commit_journal import (
     ENTRY_BYTES,
@@ -34,10 +40,18 @@ from protocol.commit_journal import (
     with_commit,
 )
 from protocol.header import (
+    HEADER_SIZE,
     SAMPLES_WRITTEN_MAX,
     CalibrationSlot,
     DeviceHeader,
     HeaderFlag,
+)
+from protocol.header_slots import (
+    SLOT_ADDRESSES,
+    SLOT_BYTES,
+    newest_slot,
+    slot_bytes,
+    slot_for,
 )
 from protocol.packing import words_to_bytes
 
@@ -74,7 +88,8 @@ class RingBuffer:
     (40, 40, False, [0, 1, 2])
     """
 
-    def __init__(self, bank: EepromBank, data_eeprom: DataEeprom, header: DeviceHeader) -> None:
+    def __init__(self, bank: EepromBank, data_eeprom: DataEeprom, header: DeviceHeader, *,
+                 slot_eeprom: Eeprom24LC1025 | None = None) -> None:
         if bank.size_bytes != 4 * header.capacity_samples:
             raise DeviceError(
                 f"sample memory of {bank.size_bytes} bytes does not hold {header.capacity_samples} P32 samples"
@@ -92,6 +107,13 @@ class RingBuffer:
         #: The last page write of the last store: (address, bytes before it, bytes written, journal before it),
         #: kept for :meth:`power_cut`; None when a sample came after it (nothing in flight).
         self._in_flight: tuple[int, bytes, bytes, bytes] | None = None
+        self.slot_eeprom = slot_eeprom
+        newest = newest_slot(self._slots()) if slot_eeprom is not None else None
+        #: Sequence number of the last header commit through the slots (0: none yet).
+        self.slot_sequence = newest[1] if newest is not None else 0
+        #: The last header commit, for :meth:`power_cut_header`: (data EEPROM before, data EEPROM after, slot
+        #: address, slot before, slot after), or None.
+        self._commit_in_flight: tuple[bytes, bytes, int, bytes, bytes] | None = None
 
     # ------------------------------------------------------------------ state
     @property
@@ -120,9 +142,76 @@ class RingBuffer:
     def _set_flag(self, flag: HeaderFlag, on: bool) -> None:
         self.header.flags = (self.header.flags | int(flag)) if on else (self.header.flags & ~int(flag))
 
-    def commit(self) -> None:
-        """Write the header to the data EEPROM (changed bytes only)."""
-        self.data_eeprom.write(0, self.header.to_bytes())
+    def _slots(self) -> list[bytes]:
+        assert self.slot_eeprom is not None
+        return [self.slot_eeprom.sequential_read(a, SLOT_BYTES) for a in SLOT_ADDRESSES]
+
+    def commit(self, *, journal: bytes | None = None) -> None:
+        """Commit the header (section 2.5): the older header slot (two page writes, acknowledge-polled), then
+        the data EEPROM (changed bytes only). ``journal``: START's cleared journal, written to the data EEPROM
+        before the slot. Nothing is written when the data EEPROM and the newest slot already hold it."""
+        new = self.header.to_bytes()
+        before = self.data_eeprom.read()
+        if journal is not None:
+            self.data_eeprom.write(JOURNAL_OFFSET, journal)
+        if self.slot_eeprom is None:
+            self.data_eeprom.write(0, new)
+            self._commit_in_flight = None
+            return
+        newest = newest_slot(self._slots())
+        fixed = new[:JOURNAL_OFFSET] + new[HEADER_SIZE - 2:]
+        current = self.data_eeprom.read()
+        if newest is not None and newest[0] == fixed and current[:JOURNAL_OFFSET] + current[HEADER_SIZE - 2:] == fixed \
+                and journal is None:
+            return
+        self.slot_sequence = (self.slot_sequence + 1) & 0xFFFFFFFF
+        addr = SLOT_ADDRESSES[slot_for(self.slot_sequence)]
+        slot_before = self.slot_eeprom.sequential_read(addr, SLOT_BYTES)
+        slot_new = slot_bytes(new, sequence=self.slot_sequence)
+        for page in range(0, SLOT_BYTES, PAGE_BYTES):
+            self.slot_eeprom.page_write(addr + page, slot_new[page:page + PAGE_BYTES],
+                                        now_s=self.slot_eeprom.busy_until_s)
+        self.data_eeprom.write(0, new)
+        self._commit_in_flight = (before, self.data_eeprom.read(), addr, slot_before, slot_new)
+
+    def header_commit_bytes(self) -> int:
+        """Byte writes of the last header commit through the slots (START's journal clear, the slot, the changed
+        data EEPROM bytes), the range of :meth:`power_cut_header`'s ``at_byte``; 0: none to cut."""
+        return len(self._header_write_order()) if self._commit_in_flight is not None else 0
+
+    def _header_write_order(self) -> list[tuple[str, int]]:
+        """The last commit's byte writes in order: ``("d", offset)`` a data EEPROM byte, ``("s", i)`` slot byte
+        ``i``. The journal clear first (offsets 160-253), the slot, then bytes 0-159 and the CRC ascending."""
+        assert self._commit_in_flight is not None
+        before, after, _, _, _ = self._commit_in_flight
+        changed = [i for i in range(HEADER_SIZE) if before[i] != after[i]]
+        journal = [("d", i) for i in changed if JOURNAL_OFFSET <= i < HEADER_SIZE - 2]
+        rest = [("d", i) for i in changed if not JOURNAL_OFFSET <= i < HEADER_SIZE - 2]
+        return journal + [("s", i) for i in range(SLOT_BYTES)] + rest
+
+    def power_cut_header(self, at_byte: int) -> str:
+        """The power fails inside the last header commit, at its byte write ``at_byte`` (see
+        :meth:`header_commit_bytes`): the writes before it are done, the byte at ``at_byte`` is torn (left
+        differing from its new value), the later ones never happen. Returns where the cut fell: ``"journal"``,
+        ``"slot"``, ``"data EEPROM"`` or ``"after"`` (``at_byte`` past the end: the commit was complete).
+        The RAM state is not touched: power the device up afterwards."""
+        if self._commit_in_flight is None or self.slot_eeprom is None:
+            return "after"
+        before, after, addr, slot_before, slot_after = self._commit_in_flight
+        order = self._header_write_order()
+        if at_byte >= len(order):
+            return "after"
+        data = bytearray(before)
+        slot = bytearray(slot_before)
+        for k, (where, i) in enumerate(order[:at_byte + 1]):
+            target, new = (data, after) if where == "d" else (slot, slot_after)
+            target[i] = new[i] if k < at_byte else new[i] ^ 0xA5
+        self.data_eeprom.memory[:] = np.frombuffer(bytes(data), np.uint8)
+        self.slot_eeprom.memory[addr:addr + SLOT_BYTES] = np.frombuffer(bytes(slot), np.uint8)
+        where = order[at_byte][0]
+        if where == "s":
+            return "slot"
+        return "journal" if JOURNAL_OFFSET <= order[at_byte][1] < HEADER_SIZE - 2 else "data EEPROM"
 
     # ------------------------------------------------------------------ commands
     def start(self, *, start_time_s: int, overwrite: bool, nonce: int = 0) -> None:
@@ -160,8 +249,7 @@ class RingBuffer:
         self._torn0 = (int(h.torn_slots), int(h.torn_step_records))
         self._in_flight = None
         # the journal first (ignored while LOGGING is clear), then the header with LOGGING set
-        self.data_eeprom.write(JOURNAL_OFFSET, h.commit_journal)
-        self.commit()
+        self.commit(journal=h.commit_journal)
 
     def _end_run(self) -> None:
         """The run's samples and records overwrote the first of the torn slots and records."""
