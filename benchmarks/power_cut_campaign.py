@@ -3,14 +3,21 @@
 Each trial takes a fresh emulated logger, logs a few complete runs (random lengths; in OVERWRITE mode often
 enough to wrap the memory), then starts a run, logs a random number of samples in random blocks and cuts the
 power: between two samples, or inside the write in flight (a random byte of the page write, torn there, or of
-the journal entry that commits it). The device powers up (recovery from the journal) and, in some trials,
-logs one more complete run. Every sample's codes encode its absolute sample number and its run, so a sample
+the journal entry that commits it). In 30 % of the trials the cut falls instead inside a header commit
+(section 2.5): START's (its journal clear, its header slot, its data EEPROM bytes) or the one that ends the
+run (STOP's, or a full memory's); each of those parts is as likely. The device powers up (the committed
+header from the data EEPROM and the header slots, recovery from the journal) and, in some trials, logs one
+more complete run. Every sample's codes encode its absolute sample number and its run, so a sample
 shown under the wrong number, or another run's sample, cannot pass.
 
 Checked for every trial, against the model's truth (which samples were taken, which page writes completed):
 
 - the memory is decoded twice: from the image the device writes after power-up, and from the data EEPROM
-  as the cut left it (header with LOGGING set: the decoder recovers it); both give the same samples;
+  as the cut left it (header with LOGGING set: the decoder recovers it; after a header cut, the header
+  rolled forward from the slots as power-up does); both give the same samples;
+- a header commit is all or nothing: START either never happened (the header as before it) or began a run
+  that lost nothing; the commit ending a run either landed (every sample kept, no POWER_LOST) or the run is
+  recovered from its journal;
 - every valid decoded sample is exactly the one taken under that number (0 wrong samples, 0 of another run);
 - the cut run keeps exactly the samples of its completed page commits: the samples lost are at most one page
   (32), and the header says so exactly: POWER_LOST, the recording number, ``samples_written`` = the run's
@@ -18,7 +25,7 @@ Checked for every trial, against the model's truth (which samples were taken, wh
 - every stored sample that is not valid is one of the torn slots of the page in flight (at most 32), reported
   with that reason.
 
-Run ``python benchmarks/power_cut_campaign.py`` (1,000 cuts, both modes; 32 s on an idle machine);
+Run ``python benchmarks/power_cut_campaign.py`` (1,000 cuts, both modes; 44 s at load ~2);
 ``tests/firmware_sim/test_fw_power_loss.py`` runs a smaller campaign.
 """
 
@@ -36,7 +43,9 @@ import numpy as np
 from firmware_sim.device import Logger
 from firmware_sim.sensor import SensorModel
 from host.files.decode import REASONS, decode_bytes
+from protocol.commit_journal import JOURNAL_OFFSET
 from protocol.header import PAGE_SAMPLES
+from protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
 from protocol.image import build_image
 
 _SENSOR = SensorModel.draw(seed=1)
@@ -147,6 +156,11 @@ def trial(seed: int, overwrite: bool, res: CampaignResult) -> None:
         logger.erase()
         truth.clear()
     run += 1
+    header_cut = str(rng.choice(["START", "STOP", "none"], p=[0.15, 0.15, 0.7]))
+    if header_cut == "START":
+        _header_cut_at_start(logger, truth, run, overwrite, rng, res, f"seed {seed}")
+        res.trials += 1
+        return
     logger.firmware.start_logging(start_time_s=run, overwrite=overwrite)
     h0 = logger.header
     s0, w0, number = int(h0.samples_written), int(h0.write_index), int(h0.recording_number)
@@ -155,6 +169,11 @@ def trial(seed: int, overwrite: bool, res: CampaignResult) -> None:
     if rng.random() < 0.6:  # end on a page boundary: the last sample starts a page write, the cut may fall in it
         n += (-(w0 + n)) % PAGE_SAMPLES
     n_taken = _log(logger, truth, run, n, rng)
+    if header_cut == "STOP":
+        _header_cut_at_stop(logger, truth, (s0, w0, number, room, n_taken), rng, res,
+                            f"seed {seed} {'overwrite' if overwrite else 'stop-when-full'}")
+        res.trials += 1
+        return
     during_stop = bool(rng.random() < 0.1) and logger.ring.logging
     if during_stop:
         logger.firmware._end_steps()
@@ -215,6 +234,86 @@ def trial(seed: int, overwrite: bool, res: CampaignResult) -> None:
     res.trials += 1
 
 
+def _cut_header_commit(logger: Logger, rng: np.random.Generator) -> tuple[str, bool, bytes]:
+    """Cut the last header commit at a random byte write (or just after it): where it fell, whether the new
+    header is the committed one (its slot complete), and the header as the EEPROMs hold it (power-up's rule)."""
+    order = logger.ring._header_write_order()  # ("d", offset) data EEPROM bytes, ("s", i) slot bytes
+    assert order, "no header commit to cut"
+    # each part as often (the slot's 168 byte writes would otherwise drown the ~10 data EEPROM ones)
+    parts = [[k for k, (w, i) in enumerate(order) if w == "d" and i >= JOURNAL_OFFSET],
+             [k for k, (w, _) in enumerate(order) if w == "s"],
+             [k for k, (w, i) in enumerate(order) if w == "d" and i < JOURNAL_OFFSET], [len(order)]]
+    parts = [p for p in parts if p]
+    at = int(rng.choice(parts[int(rng.integers(0, len(parts)))]))
+    where = logger.ring.power_cut_header(at)
+    slots = [logger.step_eeprom.sequential_read(a, SLOT_BYTES) for a in SLOT_ADDRESSES]
+    raw_header = committed_header(logger.data_eeprom.read(), slots).header
+    return where, where in ("data EEPROM", "after"), raw_header
+
+
+def _header_cut_at_start(logger: Logger, truth: Truth, run: int, overwrite: bool, rng: np.random.Generator,
+                         res: CampaignResult, where: str) -> None:
+    """The power fails inside START's header commit (journal clear, slot, data EEPROM): either the run never
+    started (the header as before START) or it started and lost nothing (POWER_LOST, no sample)."""
+    before = logger.header.to_bytes()
+    s0 = int(logger.header.samples_written)
+    logger.firmware.start_logging(start_time_s=run, overwrite=overwrite)
+    number = int(logger.header.recording_number)
+    cut, landed, raw_header = _cut_header_commit(logger, rng)
+    kind = f"in START's header commit ({cut})"
+    res.cut_kinds[kind] += 1
+    where = f"{where} cut {kind}"
+    logger.power_up()
+    h = logger.header
+    now = h.to_bytes()
+    if landed:
+        ok = (h.samples_written == s0 and h.recording_number == number and h.power_lost and not h.logging)
+    else:
+        ok = now[:JOURNAL_OFFSET] + now[-2:] == before[:JOURNAL_OFFSET] + before[-2:]
+    if not ok:
+        res.misreported += 1
+        res.failures.append(f"{where}: header after power-up {h} (START {'landed' if landed else 'lost'})")
+    _check_both(logger, truth, raw_header, res, where)
+
+
+def _header_cut_at_stop(logger: Logger, truth: Truth, run_state: tuple[int, int, int, int | None, int],
+                        rng: np.random.Generator, res: CampaignResult, where: str) -> None:
+    """The power fails inside the header commit that ends the run (STOP's, or a full memory's in stop-when-full
+    mode): either it landed (every sample stored, no loss) or the run is recovered from its journal as
+    after a cut between samples (the partial page STOP flushed is lost)."""
+    s0, w0, number, room, n_taken = run_state
+    label = "STOP's" if logger.ring.logging else "the full memory's"
+    logger.firmware.stop_logging()
+    cut, landed, raw_header = _cut_header_commit(logger, rng)
+    kind = f"in {label} header commit ({cut})"
+    res.cut_kinds[kind] += 1
+    where = f"{where} cut {kind} after {n_taken} samples"
+    logger.power_up()
+    h = logger.header
+    c_true = n_taken if landed else _committed(n_taken, w0, room, False)
+    truth.codes[s0 + c_true:s0 + n_taken] = -1  # taken, never committed: must never be shown
+    lost = n_taken - c_true
+    res.max_lost_samples = max(res.max_lost_samples, lost)
+    if (h.samples_written != s0 + c_true or h.recording_number != number or h.power_lost == landed
+            or h.logging or lost > PAGE_SAMPLES):
+        res.misreported += 1
+        res.failures.append(f"{where}: samples_written {h.samples_written}, expected {s0 + c_true} "
+                            f"(lost {lost}); POWER_LOST {h.power_lost}, recording {h.recording_number}/{number}")
+    _check_both(logger, truth, raw_header, res, where)
+
+
+def _check_both(logger: Logger, truth: Truth, raw_header: bytes, res: CampaignResult, where: str) -> None:
+    """Decode the image written after power-up and the EEPROMs as the cut left them; both must agree."""
+    rec_after = _decode(logger.header.to_bytes(), logger)
+    _check(rec_after, truth, res, where + " (image after power-up)")
+    rec_raw = _decode(raw_header, logger)
+    _check(rec_raw, truth, res, where + " (EEPROMs as the cut left them)")
+    if not (np.array_equal(rec_raw.valid, rec_after.valid) and np.array_equal(rec_raw.codes, rec_after.codes)
+            and np.array_equal(rec_raw.sample_numbers, rec_after.sample_numbers)):
+        res.misreported += 1
+        res.failures.append(f"{where}: the two decodes differ")
+
+
 def run_campaign(n_cuts: int, seed: int = 0) -> CampaignResult:
     """``n_cuts`` trials, alternating stop-when-full and OVERWRITE mode."""
     res = CampaignResult()
@@ -233,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{res.trials} power cuts ({args.cuts // 2 + args.cuts % 2} stop-when-full, {args.cuts // 2} overwrite) "
           f"in {time.perf_counter() - t0:.1f} s")
     for kind, count in sorted(res.cut_kinds.items()):
-        print(f"  cut {kind:<36s} {count:5d}")
+        print(f"  cut {kind:<48s} {count:5d}")
     print(f"wrong samples (any run)              {res.wrong_samples}")
     print(f"most samples a cut run lost          {res.max_lost_samples} (bound: one page, {PAGE_SAMPLES})")
     print(f"most stored samples reported missing {res.max_torn_slots} (the torn slots of the page in flight)")

@@ -50,6 +50,7 @@ from protocol.header_slots import (
     SLOT_ADDRESSES,
     SLOT_BYTES,
     newest_slot,
+    next_sequence,
     slot_bytes,
     slot_for,
 )
@@ -163,8 +164,9 @@ class RingBuffer:
         current = self.data_eeprom.read()
         if newest is not None and newest[0] == fixed and current[:JOURNAL_OFFSET] + current[HEADER_SIZE - 2:] == fixed \
                 and journal is None:
+            self._commit_in_flight = None
             return
-        self.slot_sequence = (self.slot_sequence + 1) & 0xFFFFFFFF
+        self.slot_sequence = next_sequence(self.slot_sequence)
         addr = SLOT_ADDRESSES[slot_for(self.slot_sequence)]
         slot_before = self.slot_eeprom.sequential_read(addr, SLOT_BYTES)
         slot_new = slot_bytes(new, sequence=self.slot_sequence)
@@ -322,6 +324,7 @@ class RingBuffer:
         return n
 
     def _store(self, w: np.ndarray) -> None:
+        self._commit_in_flight = None  # a later write: the last header commit is complete
         cap = self.capacity
         commits = 0
         if w.size > cap:  # only the last `capacity` words survive; keep the page phase of the slots
@@ -445,6 +448,7 @@ class RingBuffer:
         """Write the partial RAM page (a page write shorter than 128 bytes, within one page; STOP commits it
         with the header, so it has no journal entry)."""
         self._in_flight = None
+        self._commit_in_flight = None
         if self._pending.size:
             addr = 4 * self._pending_slot
             data = words_to_bytes(self._pending)

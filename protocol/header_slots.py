@@ -23,7 +23,8 @@ offset size type         field
 
 Commit ``sequence`` = s goes to slot ``s mod 2``; the newest valid slot is the valid one with the larger
 sequence (serial-number arithmetic mod 2³²; one valid slot: that one; none: a device that never committed
-through the slots, whose data EEPROM is then used as it stands).
+through the slots, whose data EEPROM is then used as it stands). Sequence 0 is never written (a slot of
+zeros has a valid CRC): after 0xFFFFFFFE comes 1 (:func:`next_sequence`), which keeps the slots alternating.
 
 Examples
 --------
@@ -56,6 +57,7 @@ __all__ = [
     "CommittedHeader",
     "committed_header",
     "newest_slot",
+    "next_sequence",
     "parse_slot",
     "slot_bytes",
     "slot_for",
@@ -83,7 +85,17 @@ def parse_slot(data: bytes) -> tuple[bytes, int] | None:
     data = bytes(data[:SLOT_BYTES])
     if len(data) < SLOT_BYTES or crc16_xmodem(data[:166]) != int.from_bytes(data[166:168], "big"):
         return None
-    return data[:162], _SEQ.unpack_from(data, 162)[0]
+    sequence = _SEQ.unpack_from(data, 162)[0]
+    return None if sequence == 0 else (data[:162], sequence)
+
+
+def next_sequence(sequence: int) -> int:
+    """The sequence of the commit after ``sequence`` (0: none yet): 1, 2, …, 0xFFFFFFFE, then 1 again.
+
+    >>> next_sequence(0), next_sequence(41), next_sequence(0xFFFFFFFE)
+    (1, 42, 1)
+    """
+    return int(sequence) + 1 if 0 <= int(sequence) < 0xFFFFFFFE else 1
 
 
 def slot_for(sequence: int) -> int:

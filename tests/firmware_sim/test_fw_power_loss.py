@@ -124,13 +124,16 @@ def test_version_1_header_with_logging_reports_every_sample_of_a_ring_missing():
 
 def test_power_cut_campaign():
     """A smaller campaign (the README's script runs 1,000): 0 wrong samples, at most one page lost, every loss
-    reported exactly, and the cuts fall in every phase of a commit."""
+    reported exactly, and the cuts fall in every phase of a page commit and of a header commit."""
     campaign = _campaign()
     res = campaign.run_campaign(120, seed=3)
     assert res.failures == [] and res.ok
     assert res.wrong_samples == 0 and res.misreported == 0
     assert res.max_lost_samples == PAGE_SAMPLES and res.max_torn_slots == PAGE_SAMPLES  # the bound is reached
     assert {"between samples", "in the page write", "in the journal write"} <= set(res.cut_kinds)
+    # and inside header commits (PROTOCOL.md 2.5): the slot write, and the data EEPROM write after it
+    assert {"in START's header commit (slot)", "in START's header commit (data EEPROM)",
+            "in STOP's header commit (slot)", "in STOP's header commit (data EEPROM)"} <= set(res.cut_kinds)
 
 
 def test_step_records_after_the_last_commit_are_dropped_from_a_wrapped_step_ring():
