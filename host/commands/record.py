@@ -191,6 +191,47 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
     return config, notes
 
 
+#: Longest motion ``record`` renders, in samples of the sensor's internal grid (500 Hz: 2.3 h): the emulator renders
+#: a motion whole (resampled, filtered, held: about 100 bytes per internal sample at the peak), so this keeps it
+#: under 500 MB. A stop-when-full memory needs only the part before it fills (:func:`fit_to_memory`).
+MAX_RENDERED_SAMPLES = 1 << 22
+#: Logger samples rendered past the instant a stop-when-full memory fills (the resampler's edge lies beyond them).
+FULL_MARGIN_SAMPLES = 1024
+
+
+def fit_to_memory(motion, logger, *, overwrite: bool, name: str):
+    """The part of ``motion`` the logger can store, and the samples the whole motion gives the logger.
+
+    In stop-when-full mode the run ends when the memory fills, so only the motion up to then (and
+    :data:`FULL_MARGIN_SAMPLES` more) is rendered: a long replayed file costs the memory of what is stored, not
+    of the file. In OVERWRITE mode the whole motion is logged; one longer than :data:`MAX_RENDERED_SAMPLES` on the
+    sensor's grid is a :class:`HostError` naming ``name``.
+    """
+    import numpy as np
+
+    from firmware_sim.world.base import Motion
+    from host.errors import HostError
+
+    n = motion.acc_g.shape[0]
+    rate = float(motion.sampling_rate_hz)
+    t_last = motion.t0_s + (n - 1) / rate
+    n_total = int(logger.adc.sample_times_s(motion.t0_s, t_last).size)
+    room = None if overwrite else max(logger.header.capacity_samples - logger.header.samples_written, 0)
+    keep = n if room is None else min(n, int(np.ceil((room + FULL_MARGIN_SAMPLES) / logger.adc.actual_rate_hz
+                                                        * rate)) + 1)
+    fine = int(np.ceil(keep / rate * logger.sensor.internal_rate_hz))
+    if fine > MAX_RENDERED_SAMPLES:
+        limit_h = MAX_RENDERED_SAMPLES / logger.sensor.internal_rate_hz / 3600
+        raise HostError(f"{name}: {(n - 1) / rate / 3600:.1f} h of motion to log with --overwrite-oldest; the emulator "
+                        f"renders it whole and takes at most {limit_h:.1f} h (the memory keeps only the last "
+                        f"{logger.header.capacity_samples / logger.adc.actual_rate_hz / 60:.1f} min): cut the file")
+    if keep == n:
+        return motion, n_total
+    end_s = motion.t0_s + keep / rate
+    return Motion(acc_g=motion.acc_g[:keep], sampling_rate_hz=rate, t0_s=motion.t0_s, truth=motion.truth,
+                  marker_times_s=motion.marker_times_s[motion.marker_times_s < end_s]), n_total
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
     import time
@@ -239,16 +280,18 @@ def run(args: argparse.Namespace) -> int:
     for line in warnings_ if verbosity(args) >= 0 else ():
         print(f"gaitlog record: warning: {line}", file=sys.stderr)
     steps_before, written_before = logger.header.steps_written, logger.header.samples_written
-    result = logger.record(motion, start_time_s=start)
-    not_stored = len(result.codes) - (logger.header.samples_written - written_before)
+    logged, n_taken = fit_to_memory(motion, logger, overwrite=args.overwrite_oldest,
+                                    name=args.motion[1] if replayed else f"--motion {args.motion[0]}")
+    result = logger.record(logged, start_time_s=start)
+    not_stored = n_taken - (logger.header.samples_written - written_before)
     if not_stored > 0 and verbosity(args) >= 0:
-        print(f"gaitlog record: warning: the memory filled up: the last {not_stored} of {len(result.codes)} samples "
+        print(f"gaitlog record: warning: the memory filled up: the last {not_stored} of {n_taken} samples "
               "were not stored (logging stops when full; --overwrite-oldest keeps the newest instead)",
               file=sys.stderr)
     logger.save_image(out)
     if verbosity(args) >= 0:
         h = logger.header
-        print(f"{out}: recorded {len(result.codes)} samples ({motion.duration_s:.1f} s of {args.motion[0]}); "
+        print(f"{out}: recorded {n_taken} samples ({motion.duration_s:.1f} s of {args.motion[0]}); "
               f"memory holds {h.n_stored} of {h.capacity_samples}" + (", wrapped" if h.wrapped else ""))
         cfg = h.step_config
         if cfg.enabled:

@@ -20,12 +20,17 @@ Accepted inputs (detected from the bytes, not trusted from the name)
   ``gaitlog decode`` is read with its counts, g, flags (lap marks) and validity.
 
 Nothing is interpolated here: a missing sample is NaN in ``acc_g`` and False in ``valid``.
+
+A text file larger than :data:`STREAM_TEXT_BYTES` is parsed line by line from the file, never held whole: the
+memory is the parsed table (``rows`` x ``columns`` float64, the rows checked against
+:data:`~host.files.limits.MAX_INPUT_SAMPLES` as they come), not the text and its list of lines.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,7 +52,13 @@ from protocol.errors import ProtocolError
 from protocol.image import detect_format
 from protocol.packing import FLAG_MARK
 
-__all__ = ["UNITS", "AccelerationInput", "parse_columns", "read_acceleration"]
+__all__ = ["STREAM_TEXT_BYTES", "UNITS", "AccelerationInput", "parse_columns", "read_acceleration"]
+
+#: Text inputs larger than this are parsed line by line from the file (a logger file is far smaller: an image of
+#: a full memory is under 600 kB, a wire capture of a noisy dump a few MB).
+STREAM_TEXT_BYTES = 16 << 20
+#: Rows parsed into one block of the table before the next is allocated.
+_ROWS_PER_BLOCK = 1 << 16
 
 #: Units of acceleration columns a user can name (``--units``).
 UNITS = ("g", "m/s2", "counts")
@@ -176,6 +187,16 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
     if not p.is_file():
         raise HostError(f"{p}: no such file")
     check_file_size(p, MAX_TEXT_BYTES, "an input file")
+    large = _large_text(p)
+    if large is not None:
+        if large.lstrip().lower().startswith("acquisition frequency"):
+            _only_csv(p, cols, units, skip_rows)
+            return _from_ipol(p, sampling_rate_hz, cal)
+        try:
+            with p.open(encoding="utf-8-sig", errors="replace", newline=None) as fh:
+                return _from_csv(p, fh, sampling_rate_hz, cols, units, cal, skip_rows)
+        except OSError as err:
+            raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
     try:
         data = p.read_bytes()
     except OSError as err:
@@ -188,7 +209,7 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         if text.lstrip().lower().startswith("acquisition frequency"):
             _only_csv(p, cols, units, skip_rows)
             return _from_ipol(p, sampling_rate_hz, cal)
-        return _from_csv(p, text, sampling_rate_hz, cols, units, cal, skip_rows)
+        return _from_csv(p, text.splitlines(), sampling_rate_hz, cols, units, cal, skip_rows)
     _only_csv(p, cols, units, skip_rows)
     if kind == "npz":
         rec = Recording.load(p)
@@ -213,6 +234,31 @@ def _kind(data: bytes, p: Path) -> str:
                 raise HostError(f"{p}: not a logger file, a decoded .npz, an IPOL file or a CSV text (not UTF-8 at "
                                 f"byte {uerr.start}; {err.message})") from None
         return "text"
+
+
+def _large_text(p: Path) -> str | None:
+    """The first 64 KiB of ``p`` as text when ``p`` is a text file larger than :data:`STREAM_TEXT_BYTES` (to be
+    parsed line by line), else None (read whole: small, an ``.npz``, a logger file, or not text)."""
+    try:
+        if p.stat().st_size <= STREAM_TEXT_BYTES:
+            return None
+        with p.open("rb") as fh:
+            probe = fh.read(65536)
+    except OSError as err:
+        raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
+    if probe[:4] == b"PK\x03\x04":
+        return None
+    try:
+        detect_format(probe)
+        return None
+    except ProtocolError:
+        pass
+    try:
+        return probe.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        if err.start < len(probe) - 4:
+            return None                           # not text: the whole-file reader names the problem
+        return probe[:err.start].decode("utf-8-sig")
 
 
 def _only_csv(p: Path, cols: object, units: str | None, skip_rows: int) -> None:
@@ -280,17 +326,18 @@ def _number(cell: str) -> bool:
     return True
 
 
-def _from_csv(p: Path, text: str, rate: float | None, cols: list[str | int] | None, units: str | None,
+def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str | int] | None, units: str | None,
               cal: AccCalibration | None, skip_rows: int) -> AccelerationInput:
-    lines = text.splitlines()
-    start, delim, header, prev = None, ",", [], None
-    for i, line in enumerate(lines):
+    """A CSV from its ``lines`` (a list, or an open file read line by line: nothing but the table is kept)."""
+    it = iter(lines)
+    start, delim, header, prev, first = None, ",", [], None, ""
+    for i, line in enumerate(it):
         if i < skip_rows or not line.strip() or line.lstrip().startswith("#"):
             continue
         delim = next((d for d in ("\t", ";", ",") if d in line), ",")
         fields = _split(line, delim)
         if sum(_number(f) for f in fields) >= 3:
-            start = i
+            start, first = i, line
             header = prev if prev is not None and len(prev) == len(fields) else []
             break
         prev = fields
@@ -298,27 +345,14 @@ def _from_csv(p: Path, text: str, rate: float | None, cols: list[str | int] | No
         raise HostError(f"{p}: no line with three numbers (after {skip_rows} skipped); is this a CSV of "
                         "accelerations?")
     names = [h.lower() for h in header]
-    numeric = [j for j, f in enumerate(_split(lines[start], delim)) if _number(f)]
+    numeric = [j for j, f in enumerate(_split(first, delim)) if _number(f)]
     axes = _axes(p, names, header, numeric, cols, units)
     time_col = next((names.index(t) for t in _TIME_NAMES if t in names), None) if rate is None else None
     want = sorted({c for triple, _ in axes for c in triple} | ({time_col} if time_col is not None else set())
                   | ({names.index("flags")} if "flags" in names else set())
                   | ({names.index("valid")} if "valid" in names else set()))
-    body = [ln for ln in lines[start:] if ln.strip() and not ln.lstrip().startswith("#")]
-    table = np.full((len(body), len(want)), np.nan)
+    table = _parse_rows(p, itertools.chain([first], it), start, delim, want, header)
     pos = {c: k for k, c in enumerate(want)}
-    for r, ln in enumerate(body):             # text, one line at a time (np.loadtxt cannot take empty cells)
-        cells = ln.split(delim)
-        if len(cells) <= want[-1]:
-            raise HostError(f"{p}: line {start + r + 1}: {len(cells)} fields, column {want[-1]} is missing")
-        for c in want:
-            v = cells[c].strip()
-            if v:
-                try:
-                    table[r, pos[c]] = float(v)
-                except ValueError:
-                    name = header[c] if header else f"column {c}"
-                    raise HostError(f"{p}: line {start + r + 1}, {name}: not a number: {v!r}") from None
     if table.shape[0] < 2:
         raise HostError(f"{p}: fewer than 2 data lines")
     parts = {unit: table[:, [pos[c] for c in triple]] for triple, unit in axes}
@@ -368,6 +402,37 @@ def _from_csv(p: Path, text: str, rate: float | None, cols: list[str | int] | No
         valid &= np.all(np.isfinite(g), axis=1)
     unit_words = " and ".join(sorted(parts))
     return AccelerationInput(g, valid, float(rate), marks, f"{p} (CSV, {unit_words}; {note})", counts)
+
+
+def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: list[int],
+                header: list[str]) -> np.ndarray:
+    """The ``want`` columns of the data lines (line ``start`` on; blank and ``#`` lines skipped) as float64, NaN
+    for an empty cell; filled a block of rows at a time, the rows bounded by
+    :data:`~host.files.limits.MAX_INPUT_SAMPLES` before each block is allocated."""
+    blocks: list[np.ndarray] = []
+    block = np.full((_ROWS_PER_BLOCK, len(want)), np.nan)
+    k = 0
+    for line_no, ln in enumerate(lines, start + 1):   # text, one line at a time (np.loadtxt cannot take empty cells)
+        if not ln.strip() or ln.lstrip().startswith("#"):
+            continue
+        cells = ln.split(delim)
+        if len(cells) <= want[-1]:
+            raise HostError(f"{p}: line {line_no}: {len(cells)} fields, column {want[-1]} is missing")
+        for j, c in enumerate(want):
+            v = cells[c].strip()
+            if v:
+                try:
+                    block[k, j] = float(v)
+                except ValueError:
+                    name = header[c] if header else f"column {c}"
+                    raise HostError(f"{p}: line {line_no}, {name}: not a number: {v!r}") from None
+        k += 1
+        if k == _ROWS_PER_BLOCK:
+            blocks.append(block)
+            check_samples((len(blocks) + 1) * _ROWS_PER_BLOCK, p, f"line {line_no}")
+            block, k = np.full((_ROWS_PER_BLOCK, len(want)), np.nan), 0
+    blocks.append(block[:k])
+    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
 
 
 def _axes(p: Path, names: list[str], header: list[str], numeric: list[int], cols: list[str | int] | None,
