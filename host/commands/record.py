@@ -282,7 +282,7 @@ def run(args: argparse.Namespace) -> int:
     steps_before, written_before = logger.header.steps_written, logger.header.samples_written
     logged, n_taken = fit_to_memory(motion, logger, overwrite=args.overwrite_oldest,
                                     name=args.motion[1] if replayed else f"--motion {args.motion[0]}")
-    result = logger.record(logged, start_time_s=start)
+    logger.record(logged, start_time_s=start)
     not_stored = n_taken - (logger.header.samples_written - written_before)
     if not_stored > 0 and verbosity(args) >= 0:
         print(f"gaitlog record: warning: the memory filled up: the last {not_stored} of {n_taken} samples "

@@ -1,0 +1,150 @@
+"""Large inputs in bounded memory (issue 13, item 8): a large CSV is parsed line by line from the file, and
+``gaitlog record`` renders only the part of a long replay that a stop-when-full memory can take.
+
+Truth: the whole-file parser (the streamed one must give the same arrays), the limits the module states, and
+a recording of the file's first part rendered whole (the long file must store the same x codes: the x noise
+is drawn first, so it is the same realisation; y and z are other draws of the same noise).
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from firmware_sim.device import Logger
+from firmware_sim.world.base import Motion
+from host.commands.record import MAX_RENDERED_SAMPLES, fit_to_memory
+from host.errors import HostError
+from host.files import inputs, limits
+from host.files.decode import decode_file
+
+ROOT = Path(__file__).resolve().parents[2]
+PEAK_RSS_LIMIT_MB = 500
+
+_CSV = """# exported by hand
+time_s;acc_x_m_s2;acc_y_m_s2;acc_z_m_s2;flags
+
+0.00;0.1;0.2;9.8;1
+0.02;0.2;;9.7;0
+# a comment between rows
+0.04;0.3;0.1;9.9;2
+0.08;-0.1;0.0;9.81;0
+0.10;nan;0.0;9.81;0
+"""
+
+
+def _read_both(path: Path, monkeypatch, **kwargs):
+    whole = inputs.read_acceleration(path, **kwargs)
+    monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)  # every text file streamed
+    streamed = inputs.read_acceleration(path, **kwargs)
+    return whole, streamed
+
+
+@pytest.mark.parametrize("kwargs, n_missing", [({}, 3), ({"sampling_rate_hz": 50.0}, 2)])
+def test_streamed_csv_is_the_whole_file_parse(tmp_path, monkeypatch, kwargs, n_missing):
+    """Two rows with an empty or NaN cell, and (on the time grid) the hole at 0.06 s: missing either way."""
+    path = tmp_path / "odd.csv"
+    path.write_text(_CSV)
+    whole, streamed = _read_both(path, monkeypatch, **kwargs)
+    assert whole.sampling_rate_hz == streamed.sampling_rate_hz
+    assert np.array_equal(whole.g(), streamed.g(), equal_nan=True)
+    assert np.array_equal(whole.valid, streamed.valid) and np.array_equal(whole.mark_index, streamed.mark_index)
+    assert whole.n_missing == n_missing and whole.mark_index.tolist() == [2]  # flags 2: MARK
+
+
+def test_streamed_csv_errors_name_the_line(tmp_path, monkeypatch):
+    path = tmp_path / "bad.csv"
+    path.write_text("time_s,x_g,y_g,z_g\n0,0,0,1\n\n0.02,0,zero,1\n")
+    monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)
+    with pytest.raises(HostError, match=r"bad\.csv: line 4, y_g: not a number: 'zero'"):
+        inputs.read_acceleration(path)
+
+
+def test_streamed_rows_are_bounded_before_the_file_is_read_whole(tmp_path, monkeypatch):
+    """Rows are counted as they come: the error falls at the first block past the bound, not after the table
+    of the whole file was built."""
+    path = tmp_path / "many.csv"
+    path.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 5000)
+    monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)
+    monkeypatch.setattr(inputs, "_ROWS_PER_BLOCK", 256)
+    monkeypatch.setattr(limits, "MAX_INPUT_SAMPLES", 1000)
+    with pytest.raises(HostError, match=r"many\.csv: line 769: the input would hold 1024 samples, more than the 1000"):
+        inputs.read_acceleration(path, sampling_rate_hz=50.0)
+
+
+def test_fit_to_memory_keeps_what_a_stop_when_full_memory_takes():
+    logger = Logger()
+    cap = logger.header.capacity_samples
+    rate = logger.adc.sampling_rate_hz
+    n = 3 * cap
+    motion = Motion(acc_g=np.zeros((n, 3)) + [0, 0, 1], sampling_rate_hz=rate, marker_times_s=np.array([1.0, 2e3]))
+    kept, n_total = fit_to_memory(motion, logger, overwrite=False, name="long.csv")
+    assert n_total == logger.adc.sample_times_s(0.0, (n - 1) / rate).size
+    assert cap < kept.acc_g.shape[0] <= cap + 1100 and kept.marker_times_s.tolist() == [1.0]
+    same, _ = fit_to_memory(motion, logger, overwrite=True, name="long.csv")
+    assert same is motion  # OVERWRITE mode logs it all (within the bound)
+
+
+def test_overwrite_mode_refuses_a_motion_longer_than_the_render_bound():
+    logger = Logger()
+    rate = logger.adc.sampling_rate_hz
+    n = int(MAX_RENDERED_SAMPLES / logger.sensor.internal_rate_hz * rate * 1.05)
+    motion = Motion(acc_g=np.zeros((n, 3)), sampling_rate_hz=rate)
+    with pytest.raises(HostError, match=r"^long\.csv: 2\.4 h of motion to log with --overwrite-oldest; .* at most "
+                                        r"2\.3 h"):
+        fit_to_memory(motion, logger, overwrite=True, name="long.csv")
+    kept, _ = fit_to_memory(motion, logger, overwrite=False, name="long.csv")  # stop-when-full: the first part
+    assert kept.acc_g.shape[0] < n // 5
+
+
+_CHILD = """
+import sys
+from host.cli import main
+code = main(sys.argv[1:])
+hwm_kb = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))
+print(hwm_kb // 1024)
+sys.exit(code)
+"""
+
+
+def _record(argv: list[str]) -> tuple[int, str, int]:
+    proc = subprocess.run([sys.executable, "-c", _CHILD, *argv], capture_output=True, text=True, timeout=600, check=False,
+                          cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    lines = proc.stdout.strip().splitlines()
+    return proc.returncode, proc.stderr, int(lines[-1]) if lines and lines[-1].isdigit() else -1
+
+
+def test_record_replays_a_long_csv_in_bounded_memory(tmp_path):
+    """A 3 h CSV (20 MB, streamed): exit 0, the memory full, the warning counts every sample of the file, peak
+    RSS within the bound, and the stored x codes those of a recording of the file's first 25 minutes."""
+    rate, n = 50, 3 * 3600 * 50
+    rng = np.random.default_rng(4)
+    t = np.arange(n) / rate
+    acc = np.c_[0.3 * np.sin(2 * np.pi * 0.9 * t), 0.1 * rng.standard_normal(n), 1 + 0.2 * np.sin(2 * np.pi * 1.8 * t)]
+    long_csv, short_csv = tmp_path / "long.csv", tmp_path / "short.csv"
+    table = np.column_stack([t, acc])
+    with long_csv.open("w") as fh:
+        fh.write("time_s,x_g,y_g,z_g\n")
+        np.savetxt(fh, table, fmt="%.5f", delimiter=",")
+    assert long_csv.stat().st_size > inputs.STREAM_TEXT_BYTES
+    with short_csv.open("w") as fh:
+        fh.write("time_s,x_g,y_g,z_g\n")
+        np.savetxt(fh, table[:25 * 60 * rate], fmt="%.5f", delimiter=",")
+    base = ["record", "--steps", "off", "--start-time", "0", "--motion", "replay"]
+    code, err, peak_mb = _record([*base, str(long_csv), "--out", str(tmp_path / "long.glimg")])
+    assert code == 0, err
+    # every sample of the file counted (one fewer when the rate taken from the rounded times puts the last
+    # sample a hair after the timer's last instant)
+    m = re.search(r"the memory filled up: the last (\d+) of (\d+) samples were not stored", err)
+    assert m and int(m[2]) in (n - 1, n) and int(m[1]) == int(m[2]) - 65536, err
+    assert 0 < peak_mb <= PEAK_RSS_LIMIT_MB, peak_mb
+    code, err, _ = _record([*base, str(short_csv), "--out", str(tmp_path / "short.glimg"), "-q"])
+    assert code == 0, err
+    long_rec, short_rec = decode_file(tmp_path / "long.glimg"), decode_file(tmp_path / "short.glimg")
+    assert long_rec.n_samples == short_rec.n_samples == 65536
+    assert np.array_equal(np.asarray(long_rec.codes)[:, 0], np.asarray(short_rec.codes)[:, 0])
