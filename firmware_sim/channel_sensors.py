@@ -30,7 +30,7 @@ from scipy import signal
 from firmware_sim.adc import Adc
 from firmware_sim.errors import DeviceError
 
-__all__ = ["ChannelSensors", "ACCELEROMETER", "RATE_SENSOR", "SensorSpec"]
+__all__ = ["ACCELEROMETER", "RATE_SENSOR", "ChannelSensors", "SensorSpec"]
 
 
 @dataclass(frozen=True)
@@ -51,11 +51,13 @@ class SensorSpec:
 
 #: Morris' accelerometers as an ADXL202E-class part (the logger's own sensor, HARDWARE.md): 200 µg/√Hz, a
 #: ±4 g conditioned range (his shank peaks near 3 g), 50 Hz bandwidth (C = 0.1 µF) for 100 Hz sampling; the
-#: offset left after a static calibration ±10 mg and a drift of ±0.2 mg/s (*assumptions*: Morris calibrated
-#: his platform; an uncalibrated 0 g offset of 0.1 g would swamp any pair difference).
-ACCELEROMETER = SensorSpec(4.0, 200e-6, 50.0, 0.010, 0.2e-3,
+#: offset left after a static calibration ±0.5 mg and a drift of ±0.2 mg/s (*assumptions*). Morris' method
+#: needs that calibration: a pair difference over his 5 cm baseline turns an offset ``b`` into an angular
+#: acceleration ``√2·b·g / 0.05 m`` that integrates twice, so ±1 mg costs up to ~18° of orientation over a
+#: cycle and an uncalibrated ±10 mg ~120° (README, "Morris and Hall on the logger").
+ACCELEROMETER = SensorSpec(4.0, 200e-6, 50.0, 0.5e-3, 0.2e-3,
                            "ADXL202E-class: 200 ug/rtHz (datasheet), +-4 g conditioned, 50 Hz (C = 0.1 uF); "
-                           "residual offset +-10 mg and drift +-0.2 mg/s after calibration (assumed)")
+                           "residual offset +-0.5 mg and drift +-0.2 mg/s after calibration (assumed)")
 #: Hall's angular-rate sensors: ±30 rad/s (his neck test peaks near 24 rad/s), 1.5e-4 rad/s/√Hz (his 0.01 rad/s
 #: rms over a 5 kHz band), 400 Hz bandwidth for ~2 kHz sampling, offset ±0.05 rad/s (removed by the pre-test
 #: window) and drift ±0.02 rad/s per s (*assumptions* of a rate gyro of the period).

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 
@@ -37,9 +36,15 @@ from host.files.recording import Recording
 from host.kinematics.platform_description import HallPlatform, MorrisPlatform
 from host.kinematics.sensor_csv import split_unit
 from host.kinematics.simulated_instruments import simulate_hall, simulate_morris
-from protocol.channel_map import ANGULAR_RATE, MAX_CHANNELS, SPECIFIC_FORCE, Channel, ChannelMap
+from protocol.channel_map import (
+    ANGULAR_RATE,
+    MAX_CHANNELS,
+    SPECIFIC_FORCE,
+    Channel,
+    ChannelMap,
+)
 
-__all__ = ["INSTRUMENTS", "DEFAULT_RATE_HZ", "LoggedInstrument", "check_fits", "decoded_columns", "instrument_config",
+__all__ = ["DEFAULT_RATE_HZ", "INSTRUMENTS", "LoggedInstrument", "check_fits", "decoded_columns", "instrument_config",
            "record_instrument"]
 
 #: Instruments the logger records (``gaitlog record --motion``).
@@ -87,7 +92,8 @@ def check_fits(instrument: str, n_channels: int, sampling_rate_hz: float) -> Non
 class LoggedInstrument:
     """An instrument recorded by the emulated logger: the logger (its memory), the platform description, the
     truth at the logger's sample instants (columns as :mod:`host.kinematics.simulated_instruments` writes
-    them), the sensors' parameters and a comment."""
+    them), the sensors' parameters, the frames stored and taken (fewer stored: the memory filled up) and a
+    comment."""
 
     logger: Logger
     platform: MorrisPlatform | HallPlatform
@@ -95,6 +101,7 @@ class LoggedInstrument:
     truth: dict[str, np.ndarray]
     sensors: ChannelSensors
     n_frames: int
+    n_taken: int
     comment: str
 
 
@@ -141,7 +148,8 @@ def record_instrument(instrument: str, *, sampling_rate_hz: float | None = None,
     kind = "five accelerometers (rate about axis 3 assumed zero)" if n_channels == 5 else f"{n_channels} channels"
     comment = (f"{instrument} on the emulated PIC16F877 logger: {kind} at {rate:g} Hz, sensors seed {seed}"
                + ("" if noise else ", no sensor noise") + f"; {sim.comment}")
-    return LoggedInstrument(logger, platform, times[:n_frames] - sim.t_s[0], truth, sensors, n_frames, comment)
+    return LoggedInstrument(logger, platform, times[:n_frames] - sim.t_s[0], truth, sensors, n_frames, times.size,
+                            comment)
 
 
 def decoded_columns(recording: Recording) -> tuple[np.ndarray, dict[str, np.ndarray]]:
