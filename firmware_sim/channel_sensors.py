@@ -112,6 +112,12 @@ class ChannelSensors:
                    np.array([s.noise_density if noise else 0.0 for s in specs]),
                    np.array([s.bandwidth_hz for s in specs]), off, drift, seed=seed + 1)
 
+    def without_errors(self) -> ChannelSensors:
+        """The same parts (range, bandwidth) without noise, offset or drift: what is left is the ADC's
+        quantisation and the filter's lag."""
+        z = np.zeros(self.n_channels)
+        return ChannelSensors(self.range, z, self.bandwidth_hz, z, z, seed=self.seed)
+
     @property
     def noise_rms(self) -> np.ndarray:
         """``(N,)`` output noise rms: white noise through the one-pole filter, ``d · sqrt(π/2 · f_-3dB)``."""

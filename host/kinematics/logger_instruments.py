@@ -34,7 +34,7 @@ from firmware_sim.device import Logger
 from host.errors import HostError
 from host.files.recording import Recording
 from host.kinematics.platform_description import HallPlatform, MorrisPlatform
-from host.kinematics.sensor_csv import split_unit
+from host.kinematics.sensor_csv import SensorRecording, split_unit
 from host.kinematics.simulated_instruments import simulate_hall, simulate_morris
 from protocol.channel_map import (
     ANGULAR_RATE,
@@ -45,7 +45,7 @@ from protocol.channel_map import (
 )
 
 __all__ = ["DEFAULT_RATE_HZ", "INSTRUMENTS", "LoggedInstrument", "check_fits", "decoded_columns", "instrument_config",
-           "record_instrument"]
+           "record_instrument", "sensor_recording"]
 
 #: Instruments the logger records (``gaitlog record --motion``).
 INSTRUMENTS = ("morris", "hall")
@@ -107,11 +107,12 @@ class LoggedInstrument:
 
 def record_instrument(instrument: str, *, sampling_rate_hz: float | None = None, n_accelerometers: int = 5,
                       duration_s: float = 2.56, gravity_channels: bool = False, seed: int = 0, noise: bool = True,
-                      start_time_s: int = 0) -> LoggedInstrument:
+                      start_time_s: int = 0, sensors: ChannelSensors | None = None) -> LoggedInstrument:
     """Simulate ``instrument`` (``"morris"`` or ``"hall"``) and record it with the emulated logger.
 
     Refused (:func:`check_fits`) where the PIC16F877 cannot do it. ``noise=False``: sensors without noise
-    (the ADC still quantises), for the deterministic part of the error.
+    (the ADC still quantises). ``sensors``: these parts instead of parts drawn from the specs with ``seed``
+    (e.g. :meth:`ChannelSensors.ideal` for the error left without any sensor error).
     """
     if instrument not in INSTRUMENTS:
         raise HostError(f"unknown instrument {instrument!r} (expected {' or '.join(INSTRUMENTS)})")
@@ -138,7 +139,11 @@ def record_instrument(instrument: str, *, sampling_rate_hz: float | None = None,
     values = np.column_stack([sim.columns[units[n]] for n in names])
     quantity = SPECIFIC_FORCE if instrument == "morris" else ANGULAR_RATE
     cmap = ChannelMap(tuple(Channel(i, quantity, n, s.range) for i, (n, s) in enumerate(zip(names, specs))))
-    sensors = ChannelSensors.draw(specs, seed=seed, noise=noise)
+    if sensors is None:
+        sensors = ChannelSensors.draw(specs, seed=seed, noise=noise)
+    elif sensors.n_channels != len(names) or not np.allclose(sensors.range, [s.range for s in specs]):
+        raise HostError(f"{instrument}: sensors of ranges {sensors.range.tolist()} for {len(names)} channels of "
+                        f"ranges {[s.range for s in specs]}")
     logger = Logger(sampling_rate_hz=rate, channel_map=cmap, device_id=1)
     adc = sensors.adc(rate, int(logger.header.adc_bits))
     times, codes = sensors.sample(values, fine, float(sim.t_s[0]), adc)
@@ -182,3 +187,14 @@ def decoded_columns(recording: Recording) -> tuple[np.ndarray, dict[str, np.ndar
     t = np.arange(codes.shape[0]) / recording.sampling_rate_hz
     return t, {c.column: values[:, j] for j, c in enumerate(cmap.channels)}
 
+
+
+def sensor_recording(recording: Recording) -> SensorRecording:
+    """A decoded instrument dump as the kinematics' recording (what ``gaitlog decode`` writes as CSV and
+    :func:`host.kinematics.sensor_csv.read_sensor_csv` reads back), in memory."""
+    t, columns = decoded_columns(recording)
+    channels, quantities = {}, {}
+    for name, values in columns.items():
+        sensor, quantity, factor = split_unit(name)
+        channels[sensor], quantities[sensor] = values * factor, quantity
+    return SensorRecording(t, channels, quantities, recording.sampling_rate_hz, recording.source or "<dump>")
