@@ -217,3 +217,13 @@ def test_record_frames_stops_at_whole_frames_when_memory_is_full() -> None:
     assert logger.header.samples_written % 2 == 0
     small = replace(instrument_config("morris", 6, 100.0))
     assert small.bytes_per_sample == 8
+
+
+def test_gait_commands_refuse_an_instruments_dump(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    image = tmp_path / "m.glimg"
+    assert main(["record", "--motion", "morris", "--out", str(image), "-q"]) == 0
+    assert main(["estimate", str(image), "--out", str(tmp_path / "e")]) == 1
+    err = capsys.readouterr().err
+    assert "channel map" in err and "gaitlog kinematics" in err and "Traceback" not in err
+    with pytest.raises(HostError, match="not the logger's three accelerometer axes"):
+        decode_file(image).acc_g()
