@@ -36,6 +36,7 @@ from firmware_sim.step_store import StepStore
 from firmware_sim.world.base import Motion, MotionSource
 from firmware_sim.world.resampling import resample_g
 from protocol.atomic_write import atomic_write_bytes
+from protocol.channel_map import ChannelMap
 from protocol.commit_journal import torn_step_records
 from protocol.errors import ProtocolError
 from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
@@ -147,6 +148,7 @@ class Logger:
         image_path: str | Path | None = None,
         live_acc_g: tuple[float, float, float] = (0.0, 0.0, 1.0),
         step_config: StepConfig | None = None,
+        channel_map: ChannelMap | None = None,
     ) -> None:
         if adc is not None and sampling_rate_hz is not None and abs(adc.sampling_rate_hz - sampling_rate_hz) > 1e-9:
             raise DeviceError(f"sampling_rate_hz {sampling_rate_hz} disagrees with adc.sampling_rate_hz {adc.sampling_rate_hz}")
@@ -169,6 +171,8 @@ class Logger:
             step_capacity=STEP_CAPACITY_RECORDS,
             step_config=step_config,
         )
+        if channel_map is not None:  # an instrument's channels (PROTOCOL.md 2.6) instead of the three axes
+            header.axes, header.calibration = channel_map.n_channels, channel_map
         header.validate()  # a step configuration that cannot be stored fails here, not at the first commit
         self.bank = EepromBank()
         self.step_eeprom = Eeprom24LC1025()
@@ -404,6 +408,32 @@ class Logger:
             truth=truth,
         )
 
+
+    def record_frames(self, frame_codes: np.ndarray, *, start_time_s: int = 0) -> int:
+        """One logging session of an instrument (a header with a channel map, ``PROTOCOL.md`` 2.5): START,
+        the timer's frames, STOP; returns the frames stored (the run stops when the memory is full).
+
+        Parameters
+        ----------
+        frame_codes
+            ``(m, n_channels)`` codes of each tick, in the channel map's order (from
+            :meth:`firmware_sim.channel_sensors.ChannelSensors.sample`).
+        """
+        cmap = self.header.calibration
+        if not isinstance(cmap, ChannelMap):
+            raise DeviceError("record_frames() needs a logger with a channel map (Logger(channel_map=...))")
+        words = cmap.words(np.asarray(frame_codes))
+        room = self.header.capacity_samples - self.header.samples_written
+        words = words[: room - room % cmap.frame_words]  # whole frames only, as the firmware stores a tick
+        try:
+            self.firmware.start_logging(start_time_s=int(start_time_s), overwrite=False)
+        except MemoryFullError as err:
+            raise DeviceError(f"cannot record: {err}") from err
+        stored = self.firmware.log_samples(words)
+        self.firmware.stop_logging()
+        if self.image_path is not None:
+            self.save_image()
+        return stored // cmap.frame_words
 
     def _record_cut(self, cut: PowerCut, codes: np.ndarray, marks: np.ndarray, times: np.ndarray, first_number: int,
                     motion: Motion, rate: float) -> RecordResult:

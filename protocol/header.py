@@ -31,6 +31,7 @@ import construct as cs
 import numpy as np
 
 from protocol.adc_bits import MAX_STORED_ADC_BITS, adc_bits_problem, check_adc_bits
+from protocol.channel_map import CAL_FORMAT_CHANNEL_MAP, ChannelMap
 from protocol.commit_journal import (
     JOURNAL_BYTES,
     JOURNAL_OFFSET,
@@ -304,7 +305,7 @@ class CalibrationSlot:
         if c.cal_format == CalFormat.NONE:
             return cls.nominal(adc_bits)
         if c.cal_format != CalFormat.AFFINE:
-            raise _err(f"unknown calibration format {c.cal_format} (known: 0 none, 1 affine)", "cal_format",
+            raise _err(f"unknown calibration format {c.cal_format} (known: 0 none, 1 affine, 2 channel map)", "cal_format",
                        source, base_offset, CALIBRATION_OFFSETS)
         return cls(np.array(c.offset_q16, dtype=np.float64) / _Q16,
                    np.array(c.matrix_q30, dtype=np.float64).reshape(3, 3) / _Q30, valid=True)
@@ -358,7 +359,7 @@ class DeviceHeader(_HeaderIntFields):
     [24, 23]
     """
 
-    calibration: CalibrationSlot | None = None
+    calibration: CalibrationSlot | ChannelMap | None = None
     step_config: StepConfig | None = None
     commit_journal: bytes = dataclasses.field(default_factory=empty_journal)
 
@@ -547,8 +548,14 @@ class DeviceHeader(_HeaderIntFields):
             raise _err("sample rate 0", "sampling_rate_millihz", source)
         if (problem := adc_bits_problem(self.adc_bits)) is not None:
             raise _err(problem, "adc_bits", source)
-        if self.axes != 3:
-            raise _err(f"{self.axes} axes (expected 3)", "axes", source)
+        mapped = isinstance(self.calibration, ChannelMap)
+        channels = self.calibration.n_channels if mapped else 3
+        if self.axes != channels:
+            raise _err(f"{self.axes} axes (expected {channels}" + (": the channel map's channels)" if mapped else
+                       "; other counts need a channel map in the calibration slot, section 2.6)"), "axes", source)
+        if mapped and self.step_config is not None and self.step_config.enabled:
+            raise _err("a channel map (section 2.6) with the on-line step algorithm on: the algorithm reads the "
+                       "three-axis accelerometer", "step_config", source)
         if self.packing != PACKING_P32:
             raise _err(f"unknown packing {self.packing} (expected 1 = P32)", "packing", source)
         cap = self.capacity_samples
@@ -580,8 +587,8 @@ class DeviceHeader(_HeaderIntFields):
                                          or self.torn_step_records):
             raise _err("header version 1 has no recording identity and no torn slots", "header_version", source)
         self._validate_steps(source)
-        if not isinstance(self.calibration, CalibrationSlot):
-            raise _err("must be a CalibrationSlot", "calibration", source)
+        if not isinstance(self.calibration, (CalibrationSlot, ChannelMap)):
+            raise _err("must be a CalibrationSlot or a ChannelMap", "calibration", source)
         if not isinstance(self.step_config, StepConfig):
             raise _err("must be a StepConfig", "step_config", source)
         try:
@@ -668,7 +675,11 @@ class DeviceHeader(_HeaderIntFields):
         if (problem := adc_bits_problem(header.adc_bits)) is not None:
             raise _err(problem, "adc_bits", source)
         cal_off = HEADER_OFFSETS["calibration"][0]
-        cal = CalibrationSlot.from_bytes(body.calibration, header.adc_bits, source=source, base_offset=cal_off)
+        cal: CalibrationSlot | ChannelMap
+        if body.calibration[0] == CAL_FORMAT_CHANNEL_MAP:  # section 2.6: an instrument's channels
+            cal = ChannelMap.from_bytes(body.calibration, source=source, base_offset=cal_off)
+        else:
+            cal = CalibrationSlot.from_bytes(body.calibration, header.adc_bits, source=source, base_offset=cal_off)
         if bool(header.flags & HeaderFlag.CAL_VALID) != cal.valid:
             raise ProtocolError(
                 f"calibration: CAL_VALID flag is {bool(header.flags & HeaderFlag.CAL_VALID)} but cal_format "

@@ -32,12 +32,15 @@ def _silent(*_args: object, **_kwargs: object) -> None:
     """The :func:`printer` of a suppressed level."""
 
 
-def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "") -> None:
+def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "", *, maximum_hz: float | None = None,
+                           default: str = "the logger's, 50 Hz as in Alvarez et al.") -> None:
     """``--logger-rate HZ``: the emulated logger's sampling rate (not the input's: that is ``--rate``); read it
-    with :func:`logger_rate_hz`. ``what`` completes the help (e.g. "for --simulate")."""
-    parser.add_argument("--logger-rate", type=LOGGER_RATE_HZ, metavar="HZ",
+    with :func:`logger_rate_hz`. ``what`` completes the help (e.g. "for --simulate"); ``maximum_hz`` replaces
+    :data:`LOGGER_RATE_HZ`'s 1000 Hz (an instrument's channels, whose budget check gives the reason)."""
+    kind = LOGGER_RATE_HZ if maximum_hz is None else number(minimum=1, maximum=maximum_hz, unit="Hz")
+    parser.add_argument("--logger-rate", type=kind, metavar="HZ",
                         help=f"the emulated logger's sampling rate{' ' + what if what else ''}, Hz "
-                             "(default: the logger's, 50 Hz as in Alvarez et al.)")
+                             f"(default: {default})")
 
 
 def logger_rate_hz(args: argparse.Namespace) -> float:

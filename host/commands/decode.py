@@ -39,6 +39,30 @@ def replay_error(recording, check) -> str:
             "nothing written (--no-verify writes them anyway)")
 
 
+def _run_instrument(args: argparse.Namespace, rec, csv_path) -> int:
+    """An instrument's recording (a channel map in the header, PROTOCOL.md 2.6): PREFIX.csv in the recording
+    format of ``gaitlog kinematics`` (:mod:`host.kinematics.sensor_csv`), one column per channel."""
+    from host.errors import HostError
+    from host.kinematics.logger_instruments import decoded_columns
+    from host.kinematics.sensor_csv import write_sensor_csv
+
+    if args.calibration:
+        raise HostError(f"--calibration: {args.input} holds an instrument's channels (a channel map), each with its "
+                        "own full scale: no accelerometer calibration applies")
+    t, columns = decoded_columns(rec)
+    cmap = rec.header.calibration
+    comment = (f"decoded from {args.input}: device {rec.header.device_id}, {cmap.n_channels} channels "
+               f"({', '.join(f'AN{c.analog_input} {c.column} +-{c.full_scale:g}' for c in cmap.channels)}), "
+               f"{rec.sampling_rate_hz:g} Hz, {rec.adc_bits}-bit ADC")
+    write_sensor_csv(csv_path, t, columns, comment=comment)
+    if verbosity(args) >= 0:
+        print(f"{args.input}: {t.size} frames of {cmap.n_channels} channels at {rec.sampling_rate_hz:g} Hz "
+              f"({t.size / rec.sampling_rate_hz:.2f} s); the recording format of `gaitlog kinematics` (its platform "
+              "JSON is the one `gaitlog record` wrote beside the image)")
+        print(f"wrote {csv_path}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from host.errors import HostError
     from host.files.decode import decode_file, output_paths, save_decoded
@@ -47,7 +71,11 @@ def run(args: argparse.Namespace) -> int:
     paths = output_paths(args.out)
     check_outputs({f"--out ({p.name})": p for p in paths.values()},
                   {"INPUT": args.input, "--calibration": args.calibration})
+    from protocol.channel_map import ChannelMap
+
     rec = decode_file(args.input)
+    if isinstance(rec.header.calibration, ChannelMap):
+        return _run_instrument(args, rec, paths["csv"])
     calibration = None
     note = rec.default_calibration()[1]
     if args.calibration:

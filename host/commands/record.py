@@ -38,13 +38,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
                         help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
-                             "a corridor out and back at preferred speed) or 'replay FILE' (a real recording: CSV, "
+                             "a corridor out and back at preferred speed), 'replay FILE' (a real recording: CSV, "
                              "IPOL trial, or any input the gait commands read; lost samples are interpolated and "
-                             "counted)")
+                             "counted), or an instrument on the logger's analog inputs: 'morris' (Morris' shank "
+                             "platform, single-axis accelerometers) or 'hall' (Hall's two links, triaxial rate "
+                             "sensors); an instrument also writes IMAGE's _platform.json and _truth.csv")
     parser.add_argument("--out", required=True, metavar="IMAGE", help="memory image to write (.glimg)")
     parser.add_argument("--poses", type=whole(minimum=1, maximum=1000), default=24, metavar="N", help="number of calibration poses (24)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the sensor's errors and noise, and of the poses")
-    add_logger_rate_option(parser)
+    add_logger_rate_option(parser, maximum_hz=100_000, default="the logger's, 50 Hz as in Alvarez et al.; "
+                           "morris 100 Hz and hall 10 kHz, the papers' rates; above 1000 Hz only for an instrument")
     parser.add_argument("--start-time", type=UNIX_TIME_S, default=None, metavar="UNIX_S",
                         help="Unix time of the first sample (default: now)")
     parser.add_argument("--overwrite-oldest", action="store_true",
@@ -54,6 +57,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--corridor-length", type=number(minimum=10, maximum=1000, unit="m"), default=WALK_CORRIDOR_M, metavar="M",
                         help=f"one-way corridor length of --motion walk, m (default {WALK_CORRIDOR_M:g}: 2 x "
                              f"{WALK_CORRIDOR_M:g} m walked)")
+    inst = parser.add_argument_group("instruments (--motion morris / hall: PROTOCOL.md 2.6 channel map)")
+    inst.add_argument("--accelerometers", type=int, choices=(5, 6), default=5,
+                      help="morris: 5 accelerometers (as published, rate about the shank axis assumed zero) or 6")
+    inst.add_argument("--duration", type=number(minimum=1.0, maximum=3600.0, unit="s"), default=2.56, metavar="S",
+                      help="morris: seconds recorded (default 2.56, Morris' record)")
+    inst.add_argument("--gravity-channels", action="store_true",
+                      help="hall: also the links' triaxial gravity sensors Hall took the pre-test posture from "
+                           "(12 channels: more than the PIC16F877's 8 inputs, refused)")
+    inst.add_argument("--sensor-noise", choices=("on", "off"), default="on",
+                      help="the sensors' noise (default on; off: quantisation, offsets and drift only)")
     steps = parser.add_argument_group("on-line step algorithm (one 20-byte record per foot-flat in the step memory)")
     steps.add_argument("--steps", choices=("on", "off"), default=None,
                        help="run the on-line step algorithm while logging (default: on; with --append and no "
@@ -232,6 +245,61 @@ def fit_to_memory(motion, logger, *, overwrite: bool, name: str):
                   marker_times_s=motion.marker_times_s[motion.marker_times_s < end_s]), n_total
 
 
+def instrument_paths(out) -> dict[str, object]:
+    """The files ``record --motion morris|hall --out IMAGE`` writes: the image, ``<stem>_platform.json`` (the
+    platform description of ``gaitlog kinematics``) and ``<stem>_truth.csv`` (the simulation's truth at the
+    logger's sample instants)."""
+    from pathlib import Path
+
+    out = Path(out)
+    return {"--out": out, "--out (platform)": out.with_name(f"{out.stem}_platform.json"),
+            "--out (truth)": out.with_name(f"{out.stem}_truth.csv")}
+
+
+def run_instrument(args: argparse.Namespace) -> int:
+    """``record --motion morris|hall``: the instrument through sensor -> ADC -> memory, refused where the
+    PIC16F877 cannot record it (:func:`host.kinematics.logger_instruments.check_fits`)."""
+    import sys
+    import time
+
+    from host.commands._options import check_outputs, verbosity
+    from host.errors import HostError
+    from host.kinematics.logger_instruments import record_instrument
+    from host.kinematics.sensor_csv import write_sensor_csv
+
+    kind = args.motion[0]
+    if len(args.motion) != 1:
+        raise HostError(f"--motion {kind} takes no file")
+    extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file", "steps")
+             if getattr(args, n) is not None] + [o for o, on in (("--append", args.append),
+                                                                 ("--overwrite-oldest", args.overwrite_oldest)) if on]
+    if extra:
+        raise HostError(f"{', '.join(extra)}: not with --motion {kind} (an instrument's channels, no step algorithm, "
+                        "one run into an erased memory)")
+    _refuse_input_flags(args)
+    paths = instrument_paths(args.out)
+    check_outputs(paths, {})
+    start = int(time.time()) if args.start_time is None else args.start_time
+    li = record_instrument(kind, sampling_rate_hz=args.logger_rate, n_accelerometers=args.accelerometers,
+                           duration_s=args.duration, gravity_channels=args.gravity_channels, seed=args.seed,
+                           noise=args.sensor_noise == "on", start_time_s=start)
+    li.logger.save_image(paths["--out"])
+    li.platform.save(paths["--out (platform)"])
+    write_sensor_csv(paths["--out (truth)"], li.t_s, li.truth, comment=f"truth of {paths['--out']}: {li.comment}",
+                     check_units=False)
+    if verbosity(args) >= 0:
+        h = li.logger.header
+        cmap = h.calibration
+        print(f"{args.out}: {kind}, {cmap.n_channels} channels ({', '.join(c.name for c in cmap.channels)} on "
+              f"AN0-AN{cmap.n_channels - 1}) at {h.sampling_rate_hz:g} Hz: {li.n_frames} frames "
+              f"({li.n_frames / h.sampling_rate_hz:.2f} s, {h.n_stored} of {h.capacity_samples} words)")
+        if li.n_frames < li.n_taken:
+            print(f"gaitlog record: warning: the memory filled up: the last {li.n_taken - li.n_frames} of {li.n_taken} "
+                  "frames were not stored", file=sys.stderr)
+        print(f"wrote {' '.join(str(p) for p in paths.values())}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
     import time
@@ -240,8 +308,14 @@ def run(args: argparse.Namespace) -> int:
     from firmware_sim.device import Logger
     from firmware_sim.sensor import SensorModel
     from host.commands._options import check_outputs, verbosity
+    from host.errors import HostError
+    from host.kinematics.logger_instruments import INSTRUMENTS
 
+    if args.motion[0] in INSTRUMENTS:
+        return run_instrument(args)
     args.logger_rate = logger_rate_hz(args)
+    if args.logger_rate > 1000:
+        raise HostError(f"--logger-rate {args.logger_rate:g}: above 1000 Hz only for --motion morris or hall")
     out = Path(args.out)
     replayed = args.motion[1] if args.motion[0] == "replay" and len(args.motion) == 2 else None
     check_outputs({"--out": out}, {"--motion replay FILE": replayed, "--k-file": args.k_file,

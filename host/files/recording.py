@@ -41,6 +41,7 @@ import numpy as np
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from host.errors import HostError
 from protocol.atomic_write import atomic_write, atomic_write_text
+from protocol.channel_map import ChannelMap
 from protocol.header import MAX_CAPACITY_SAMPLES, CalibrationSlot, DeviceHeader
 from protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
@@ -324,6 +325,13 @@ class Recording:
                 f"g from the nominal map (no calibration in the header): 0 g at code {2 ** (self.adc_bits - 1)}, "
                 f"{4.0 / 2 ** self.adc_bits:.6g} g per count")
 
+    def _refuse_channel_map(self) -> None:
+        """An instrument's dump (a channel map in the header, ``PROTOCOL.md`` 2.6) has no three axes in g."""
+        if isinstance(getattr(self.header, "calibration", None), ChannelMap):
+            raise HostError(f"{self.source}: holds an instrument's channels (a channel map, PROTOCOL.md 2.6), not "
+                            "the logger's three accelerometer axes: `gaitlog decode` writes its recording CSV for "
+                            "`gaitlog kinematics`")
+
     def acc_g(self, calibration: CountsToG | None = None) -> np.ndarray:
         """Acceleration in g, ``(n, 3)`` float64, NaN at invalid rows.
 
@@ -333,6 +341,7 @@ class Recording:
             Object with ``apply(counts) -> g`` (``protocol.header.CalibrationSlot``, ``host.accelerometer.calibration.
             AccCalibration``); default: the header's calibration slot, else the nominal ±2 g map.
         """
+        self._refuse_channel_map()
         cal = self.default_calibration()[0] if calibration is None else calibration
         g = np.asarray(cal.apply(self.codes.astype(np.float64)), dtype=np.float64).reshape(-1, 3).copy()
         g[~self.valid] = np.nan

@@ -95,8 +95,10 @@ def simulate_morris(*, n_accelerometers: int = 5, axial_rotation: bool = True, s
 
 
 def simulate_hall(*, sampling_rate_hz: float = 10_000.0, noise_rad_s: float = 0.01, gravity_noise_g: float = 0.002,
-                  seed: int = 0) -> SimulatedInstrument:
-    """Hall's two links with angular-rate sensors and gravity channels, pre-test posture not neutral."""
+                  seed: int = 0, rate_offsets: bool = True) -> SimulatedInstrument:
+    """Hall's two links with angular-rate sensors and gravity channels, pre-test posture not neutral.
+    ``rate_offsets=False``: the rate channels without the world's sensor offsets (for a sensor model that
+    adds its own, :mod:`host.kinematics.logger_instruments`)."""
     src = TwoLinkJoint(noise_rad_s=0.0)
     r = src.render_rates(sampling_rate_hz)
     tr = r.truth
@@ -107,8 +109,9 @@ def simulate_hall(*, sampling_rate_hz: float = 10_000.0, noise_rad_s: float = 0.
     rng = np.random.default_rng(seed)
     n = w_a.shape[0]
     s = HALL_SENSOR_TO_LINK
-    rate_a = w_a @ s + src.offset_a_rad_s + rng.normal(0.0, noise_rad_s, (n, 3))
-    rate_b = w_b @ s + src.offset_b_rad_s + rng.normal(0.0, noise_rad_s, (n, 3))
+    on = 1.0 if rate_offsets else 0.0
+    rate_a = w_a @ s + on * np.asarray(src.offset_a_rad_s) + rng.normal(0.0, noise_rad_s, (n, 3))
+    rate_b = w_b @ s + on * np.asarray(src.offset_b_rad_s) + rng.normal(0.0, noise_rad_s, (n, 3))
     up_a = lam_a[:, 2, :] + rng.normal(0.0, gravity_noise_g, (n, 3))  # λᵀ e3: up in link axes
     up_b = lam_b[:, 2, :] + rng.normal(0.0, gravity_noise_g, (n, 3))
     cols: dict[str, np.ndarray] = {}

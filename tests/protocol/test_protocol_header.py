@@ -113,7 +113,8 @@ GOOD = _ref_header(**BASE)
         (_corrupt(GOOD, 32, struct.pack("<I", 70000)), 32, "exceed capacity"),
         (_corrupt(GOOD, 19, b"\x02"), 32, "WRAPPED set but only 100"),
         (_corrupt(GOOD, 40, struct.pack("<I", 101)), 40, "run_start_sample"),
-        (_corrupt(GOOD, 64, b"\x02"), 64, "unknown calibration format 2"),
+        (_corrupt(GOOD, 64, b"\x03"), 64, "unknown calibration format 3"),
+        (_corrupt(GOOD, 64, b"\x02"), 65, "channel map: 0 channels"),  # cal_format 2: section 2.6
         (_corrupt(GOOD, 64, b"\x01"), 64, "CAL_VALID"),
         (_corrupt(GOOD, 19, b"\x08"), 64, "CAL_VALID"),
     ],

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from protocol.channel_map import Channel, ChannelMap
 from protocol.commit_journal import ENTRY_BYTES, JOURNAL_BYTES, JOURNAL_ENTRIES, JOURNAL_OFFSET
 from protocol.frames import (
     FRAME_HEAD_STRUCT,
@@ -121,6 +122,8 @@ def _object(name: str) -> Any:
         return _header(ex)
     if ex["kind"] == "step-config":
         return StepConfig(**ex["fields"])
+    if ex["kind"] == "channel-map":
+        return _channel_map(ex["fields"])
     raise AssertionError(f"example {name} of kind {ex['kind']} cannot be referenced")
 
 
@@ -132,6 +135,10 @@ def _resolve(value: Any) -> Any:
 
 def _calibration(fields: dict) -> CalibrationSlot:
     return CalibrationSlot(np.array(fields["offset_counts"]), np.array(fields["matrix_g_per_count"]), True)
+
+
+def _channel_map(fields: dict) -> ChannelMap:
+    return ChannelMap(tuple(Channel(*c) for c in fields["channels"]))
 
 
 def _header(ex: dict) -> DeviceHeader:
@@ -154,7 +161,7 @@ def _records(fields: list[dict]) -> np.ndarray:
 def _same(expected: Any, actual: Any) -> bool:
     if isinstance(actual, enum.Enum):
         return expected == actual.name if isinstance(expected, str) else expected == int(actual)
-    if isinstance(actual, (DeviceHeader, CalibrationSlot, StepConfig)):
+    if isinstance(actual, (DeviceHeader, CalibrationSlot, StepConfig, ChannelMap)):
         return _resolve(expected).to_bytes() == actual.to_bytes()
     if isinstance(actual, bytes):
         return bytes.fromhex(expected) == actual
@@ -163,7 +170,8 @@ def _same(expected: Any, actual: Any) -> bool:
 
 def test_examples_exist_for_everything() -> None:
     kinds = {ex["kind"] for ex in EXAMPLES.values()}
-    assert kinds == {"calibration", "header", "sample", "frame", "xmodem-block", "image", "step-config", "step-record"}
+    assert kinds == {"calibration", "header", "sample", "frame", "xmodem-block", "image", "step-config", "step-record",
+                     "channel-map", "channel-frame"}
     frame_types = {ex["type"] for ex in EXAMPLES.values() if ex["kind"] == "frame"}
     assert frame_types == {t.name for t in FrameType}, "every frame type needs a worked example"
 
@@ -198,6 +206,23 @@ def test_worked_example(name: str) -> None:
             rec = back.recovered()
             for key, value in json.loads(ex["recovered"]).items():
                 assert getattr(rec, key) == value, key
+    elif kind == "channel-map":  # section 2.6, checked against the table by hand-indexed bytes
+        assert len(data) == 64 and data[0] == 2 and data[1] == len(fields["channels"]) and data[2:4] == bytes(2)
+        for i, (an, quantity, name, fs) in enumerate(fields["channels"]):
+            e = data[4 + 7 * i : 11 + 7 * i]
+            assert e[0] == an | quantity << 4 and e[1:5] == name.encode().ljust(4, b"\0")
+            assert int.from_bytes(e[5:7], "little") == round(fs * 1000)
+        assert data[4 + 7 * len(fields["channels"]) :] == bytes(60 - 7 * len(fields["channels"]))
+        assert _channel_map(fields).to_bytes() == data
+        assert ChannelMap.from_bytes(data).channels == _channel_map(fields).channels
+    elif kind == "channel-frame":
+        cmap = _resolve(fields["channel_map"])
+        codes = np.array(fields["codes"])
+        words = cmap.words(codes)
+        assert words_to_bytes(pack_words(words, np.zeros(len(words), dtype=np.uint8))) == data
+        c2, f2 = unpack_words(data)
+        assert (f2 == 0).all() and cmap.frames(c2).tolist() == fields["codes"]
+        np.testing.assert_array_equal(cmap.values(cmap.frames(c2), adc_bits=10), fields["values"])
     elif kind == "step-config":
         assert len(data) == 32 and data[20:] == bytes(12)
         assert StepConfig(**fields).to_bytes() == data
