@@ -36,8 +36,8 @@ from firmware_sim.fixedpoint import QFormat
 
 __all__ = ["MAX_VARIANTS", "KernelFormats", "compile_kernel", "entry_points"]
 
-#: Format sets whose compiled kernel a process keeps.
-MAX_VARIANTS = 8
+#: Format sets whose compiled kernel a process keeps (a sweep cycles through its sets once per walk: keep them all).
+MAX_VARIANTS = 32
 #: The kernel's entry points (as :data:`firmware_sim.algorithms.aot_kernel.ENTRY_POINTS`).
 _NAMES = ("process", "flush", "reset")
 #: Each field's shipped format and its short name in a label.
