@@ -104,7 +104,10 @@ class KernelFormats:
             if name in kw:
                 raise ValueError(f"Q formats {label!r}: {m.group(1)} given twice")
             kw[name] = int(m.group(2))
-        return cls(**kw)
+        try:
+            return cls(**kw)
+        except ValueError as err:
+            raise ValueError(f"Q formats {label!r}: {err}") from None
 
     def label(self) -> str:
         """``"shipped"``, else the fields that differ from it, e.g. ``acc10-lp12`` (:meth:`parse` reads it)."""
