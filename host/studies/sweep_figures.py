@@ -9,7 +9,8 @@ median):
 
 * ADC share, per-step median ``|offline - ideal|``, mm;
 * arithmetic share, per-step median ``|online-fixed - online-float|``, mm (what the Q formats cost);
-* the offline chain's section ratio estimated / real, %;
+* the offline chain's section ratio estimated / real, % (vs Q format: the on-line fixed-point chain's, pooled
+  median only);
 * vs rate only: what the step timing adds to M5's section-ratio spread
   (:func:`host.studies.sweep_grid.m5_rate_answer`), with its range over subjects.
 
@@ -87,12 +88,13 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
     for ax, (col, label, tol, k) in zip(axes, panels, strict=False):
         for j, est in enumerate(ests):
             pts = [r for x in xs for r in rows if r[dimension] == x and r["estimator"] == est]
-            if col == "subject_median_offline":
-                mid = [k * r["median_offline"] for r in pts]
+            if col == "subject_median_offline" and dimension == "q_formats":      # only the fixed chain changes
+                mid = [k * r["median_online_fixed"] for r in pts]
+                lo = hi = mid
             else:
-                mid = [k * r[col] for r in pts]
-            lo = [k * r[f"{col}_lo"] for r in pts]
-            hi = [k * r[f"{col}_hi"] for r in pts]
+                mid = [k * r["median_offline" if col == "subject_median_offline" else col] for r in pts]
+                lo = [k * r[f"{col}_lo"] for r in pts]
+                hi = [k * r[f"{col}_hi"] for r in pts]
             x = np.array([pos[r[dimension]] for r in pts], float) + (j - (len(ests) - 1) / 2) * width / len(ests)
             m, lo_, hi_ = (np.array(v, float) for v in (mid, lo, hi))
             err = np.vstack([np.clip(m - lo_, 0, None), np.clip(hi_ - m, 0, None)])
@@ -103,7 +105,8 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
             ax.set_yscale("log")
         else:
             ax.axhline(100.0, color="0.4", ls="--", lw=0.8)
-        ax.set_title(label, fontsize=8)
+        ax.set_title(label.replace("offline", "on-line fixed-point") if col == "subject_median_offline"
+                     and dimension == "q_formats" else label, fontsize=8)
     if with_m5:
         ax = axes[-1]
         for j, mode_ in enumerate(("single-speed", "multi-speed")):
@@ -130,6 +133,6 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
     axes[0].legend(fontsize=7)
     held_text = ", ".join(f"{k}={v:g}" if isinstance(v, float) and not math.isnan(v) else f"{k}={v}"
                           for k, v in held.items())
-    fig.suptitle(f"error vs {DIMENSIONS[dimension][0]} ({mode} K; median and range over subjects; {held_text})",
+    fig.suptitle(f"error vs {DIMENSIONS[dimension][0]} ({mode} K; median and range over subjects)\n{held_text}",
                  fontsize=8)
     return figure_png_bytes(fig, dpi=dpi)
