@@ -141,7 +141,7 @@ def test_m5_rate_answer_finds_where_the_timing_stops_mattering() -> None:
 
 def test_figures_one_per_swept_dimension() -> None:
     rows = [_summary_row(adc_bits=b, q_formats=q, estimator=e, adc_step_mm=2.0 ** (10 - b), adc_step_mm_lo=0.5,
-                         adc_step_mm_hi=3.0, arith_step_mm_lo=0.04, arith_step_mm_hi=0.06, median_offline=0.99,
+                         adc_step_mm_hi=3.0, arith_step_mm_lo=0.04, arith_step_mm_hi=0.06, median_offline=0.99, median_online_fixed=0.98,
                          subject_median_offline_lo=0.98, subject_median_offline_hi=1.0)
             for b in (8, 10) for q in ("shipped", "acc10") for e in ("M1", "M2")]
     assert set(SUMMARY_KEYS) >= {"adc_bits", "q_formats"}
