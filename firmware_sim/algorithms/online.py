@@ -37,19 +37,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from firmware_sim.algorithms import aot_kernel, kernel
+from firmware_sim.algorithms import aot_kernel, format_kernel, kernel
 from firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
+from firmware_sim.algorithms.format_kernel import KernelFormats
 from firmware_sim.algorithms.formats import (
-    ACC_Q,
     EXCURSION2_Q,
     EXCURSION_Q,
     K_Q,
     KERNEL_Q,
     LENGTH_Q,
-    LOWPASS_Q,
     M5_Q,
-    POSITION2_Q,
-    POSITION_Q,
     STEP_Q,
     TWO_LENGTH_Q,
     centred_q,
@@ -129,6 +126,8 @@ class OnlineConfig:
         The step configuration as stored (quantised).
     cfg_i, cfg_v
         Integer and value configuration (``kernel.CI``, ``kernel.CV``).
+    formats
+        The fixed-point kernel's Q formats (the shipped ones unless a sweep asks for others).
     """
 
     arithmetic: str
@@ -137,6 +136,7 @@ class OnlineConfig:
     adc_bits: int
     cfg_i: np.ndarray
     cfg_v: np.ndarray
+    formats: KernelFormats = KernelFormats()
 
     @property
     def value_dtype(self) -> type:
@@ -146,7 +146,8 @@ class OnlineConfig:
     @classmethod
     def build(cls, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
               arithmetic: str = "fixed", adc_bits: int = 10, events: EventParameters | None = None,
-              online: OnlineParameters | None = None, cycles_available: float | None = None) -> OnlineConfig:
+              online: OnlineParameters | None = None, cycles_available: float | None = None,
+              formats: KernelFormats | None = None) -> OnlineConfig:
         """The configuration of the algorithm.
 
         Parameters
@@ -161,7 +162,11 @@ class OnlineConfig:
         cycles_available
             PIC cycles per sample period left to the algorithm (for the backlog figure only; default: the
             whole period at the 18.432 MHz crystal, ``firmware_sim.budget`` subtracts the logging's share).
+        formats
+            The fixed-point Q formats (:class:`~firmware_sim.algorithms.format_kernel.KernelFormats`; default the
+            shipped ones); ignored in float.
         """
+        fq = formats if formats is not None else KernelFormats()
         if arithmetic not in ARITHMETICS:
             raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {arithmetic!r}")
         ev = events if events is not None else EventParameters()
@@ -183,7 +188,7 @@ class OnlineConfig:
         # pre-shifts of the position ranges (M1: 13 fraction bits, M2/M3: 17) that fit the largest h of their
         # excursion formats (1 m, 0.25 m) in 16 bits
         shifts = [max(0, math.ceil(math.log2(2.0 ** q.frac_bits * e.max_value / unit / 65535.0)))
-                  for q, e in ((POSITION_Q, EXCURSION_Q), (POSITION2_Q, EXCURSION2_Q))]
+                  for q, e in ((fq.position_q, EXCURSION_Q), (fq.position2_q, EXCURSION2_Q))]
         cal = sc.calibrated
         k1, k2, k4 = (sc.k_m1, sc.k_m2, sc.k_m4) if cal else (1.0, 1.0, 1.0)
         k1_m5, k2_m5 = (sc.k1_m5_m_s, sc.k2_m5_m) if cal else (1.0, 0.0)
@@ -207,9 +212,9 @@ class OnlineConfig:
             k4p = int(mul_q(np.int64(raw["k_m4_q15"]), K_Q.from_float(G0_ROOT4), K_Q.frac_bits, K_Q, signed=False))
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
-                DELTA=int(LOWPASS_Q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
+                DELTA=int(fq.lowpass_q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 FRAC=int(KERNEL_Q.from_float(ev.prominence_fraction)),
-                G_MIN=int(ACC_Q.from_float(on.min_gravity_g)),
+                G_MIN=int(fq.acc_q.from_float(on.min_gravity_g)),
                 TWO_LEG=raw["leg_length_q15"],                       # UQ1.15 l read as UQ2.14: 2 l
                 FOOT=int(requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, TWO_LENGTH_Q)),
                 K1=raw["k_m1_q15"], K2=raw["k_m2_q15"], K4=k4p,
@@ -243,7 +248,7 @@ class OnlineConfig:
             for name in ("TWO_LEG", "FOOT", "K1", "K2", "K4"):
                 if not 0 <= cfg_v[kernel.CV[name]] <= 0xFFFF:
                     raise ValueError(f"step configuration: {name} does not fit its 16-bit word")
-        return cls(arithmetic, c, sc, int(adc_bits), cfg_i, cfg_v)
+        return cls(arithmetic, c, sc, int(adc_bits), cfg_i, cfg_v, fq)
 
 
 @dataclass(eq=False)
@@ -274,6 +279,7 @@ class OnlineSteps:
     flags: np.ndarray
     lengths: np.ndarray
     extras: np.ndarray
+    formats: KernelFormats = KernelFormats()
 
     @classmethod
     def empty(cls, arithmetic: str, sampling_rate_hz: float, calibrated: bool) -> OnlineSteps:
@@ -324,7 +330,7 @@ class OnlineSteps:
     def range_g(self) -> np.ndarray:
         """``(n,)`` M4's range of the 3 Hz vertical acceleration, g."""
         x = self.extras[:, 3]
-        return LOWPASS_Q.to_float(x) if self.arithmetic == "fixed" else np.asarray(x, float)
+        return self.formats.lowpass_q.to_float(x) if self.arithmetic == "fixed" else np.asarray(x, float)
 
     def has_flag(self, flag: StepFlag) -> np.ndarray:
         """``(n,)`` bool: records with ``flag`` set."""
@@ -405,7 +411,7 @@ class OnlineStepAlgorithm:
         Device calibration (a :class:`protocol.header.CalibrationSlot`) or None for the nominal map.
     arithmetic
         ``"fixed"`` (the PIC's, as the logger computes it) or ``"float"``.
-    adc_bits, events, online, cycles_available
+    adc_bits, events, online, cycles_available, formats
         See :meth:`OnlineConfig.build`.
 
     Attributes
@@ -420,10 +426,12 @@ class OnlineStepAlgorithm:
 
     def __init__(self, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
                  arithmetic: str = "fixed", adc_bits: int = 10, events: EventParameters | None = None,
-                 online: OnlineParameters | None = None, cycles_available: float | None = None) -> None:
+                 online: OnlineParameters | None = None, cycles_available: float | None = None,
+                 formats: KernelFormats | None = None) -> None:
         self.config = OnlineConfig.build(sampling_rate_hz=sampling_rate_hz, step_config=step_config,
                                          calibration=calibration, arithmetic=arithmetic, adc_bits=adc_bits,
-                                         events=events, online=online, cycles_available=cycles_available)
+                                         events=events, online=online, cycles_available=cycles_available,
+                                         formats=formats)
         c = self.config.counts
         dt = self.config.value_dtype
         self._st_i = np.zeros(N_INDICES, np.int64)
@@ -433,7 +441,11 @@ class OnlineStepAlgorithm:
         self._scr = np.zeros((int(self.config.cfg_i[kernel.CI_SCRATCH]), len(kernel.SCRATCH_COLUMNS)), dt)
         self._cnt = new_counters()
         self._cyc = np.zeros(6, np.int64)
-        (self._process, self._flush, self._reset), self.compiled_by = aot_kernel.entry_points(self.arithmetic)
+        if self.arithmetic == "fixed" and not self.config.formats.shipped:
+            (self._process, self._flush, self._reset), self.compiled_by = (
+                format_kernel.entry_points(self.config.formats), "jit")
+        else:
+            (self._process, self._flush, self._reset), self.compiled_by = aot_kernel.entry_points(self.arithmetic)
         self.reset()
 
     @property
@@ -499,7 +511,7 @@ class OnlineStepAlgorithm:
         sc = self.config.step_config
         s = OnlineSteps(self.arithmetic, self.sampling_rate_hz, bool(sc.calibrated), out_i[:k, 0].copy(),
                         out_i[:k, 1].copy(), out_i[:k, 2].copy(), out_i[:k, 3].copy(), out_i[:k, 4].copy(),
-                        out_v[:k, :5].copy(), out_v[:k, 5:].copy())
+                        out_v[:k, :5].copy(), out_v[:k, 5:].copy(), self.config.formats)
         if not sc.calibrated:
             s.flags |= int(StepFlag.UNCALIBRATED)
         return s.shifted(offset) if offset else s

@@ -1,12 +1,14 @@
-"""``gaitlog sweep``: a grid over ADC bits x logger rate x sensor noise x simulated subjects x seeds
-(:mod:`host.studies.sweep_grid`), run as independent tasks on Dask (a local cluster by default, ``--scheduler``
+"""``gaitlog sweep``: a grid over ADC bits x logger rate x sensor noise x Q formats x mounting misalignment x
+simulated population x subjects x seeds (:mod:`host.studies.sweep_grid`), run as independent tasks on Dask (a local cluster by default, ``--scheduler``
 for an existing one) or in this process (``--serial``); resumable.
 
 Everything goes to the ``--out`` folder: ``tasks/`` (one JSON file per finished task: a re-run with the same
 ``--out`` computes only the missing ones), ``spec.json`` (the grid), ``sections.csv`` (one row per configuration
 x subject x 20 m section x calibration mode x estimator), ``splits.csv`` (per-step error split per
-configuration x subject x estimator), ``tasks.csv`` (timing error, saturation), ``summary.csv`` and
-``smallest_bits.csv``. The results do not depend on where or in which order the tasks ran.
+configuration x subject x estimator), ``tasks.csv`` (timing error, saturation), ``summary.csv``, the answers
+``smallest_bits.csv``, ``smallest_q_formats.csv`` and ``m5_rate.csv``, and ``figures/error_vs_<dimension>.png``
+for each swept dimension (:mod:`host.studies.sweep_figures`). The results do not depend on where or in which
+order the tasks ran.
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ from host.commands._options import SEED, number, whole
 #: Larger summary tables are only written (and printed with -v).
 MAX_PRINTED_ROWS = 60
 
-HELP = "parameter sweep (ADC bits x rate x noise x subjects x seeds) on Dask or in-process; resumable, CSV out"
+HELP = ("parameter sweep (ADC bits x rate x noise x Q formats x misalignment x population x subjects) on Dask or "
+        "in-process; resumable, CSV + figures")
 
 
 def _list(item: Callable[[str], object]) -> Callable[[str], list]:
@@ -47,6 +50,15 @@ def _estimator(text: str) -> str:
     return text
 
 
+def _q_formats(text: str) -> str:
+    from firmware_sim.algorithms.format_kernel import KernelFormats
+
+    try:
+        return KernelFormats.parse(text).label()
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 #: The estimators' names (as :data:`firmware_sim.algorithms.steps.ESTIMATORS`; not imported: --help stays light).
 ESTIMATOR_NAMES = ("M1", "M2", "M3", "M4", "M5")
 
@@ -57,12 +69,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="results folder (created; re-running with the same folder resumes)")
     parser.add_argument("--spec", metavar="FILE", help="grid spec, .json or .toml (keys: adc_bits, sampling_rate_hz, "
-                        "noise_density_g_rthz, subjects, seeds, estimators, protocol); the options below override it")
+                        "noise_density_g_rthz, q_formats, misalignment_deg, population, subjects, seeds, estimators, protocol); "
+                        "the options below override it")
     grid = parser.add_argument_group("grid (default: 8,10,12 bits x 25,50,100 Hz, the sensor's noise, 4 subjects, seed 0)")
     grid.add_argument("--adc-bits", type=_list(whole(minimum=1, maximum=12)), metavar="B,B", help="ADC widths, bits")
     grid.add_argument("--logger-rate", type=_list(number(minimum=10, maximum=1000, unit="Hz")), metavar="HZ,HZ", help="logger sampling rates, Hz")
     grid.add_argument("--noise-density", type=_list(number(minimum=0, maximum=0.01, unit="g/√Hz")), metavar="G,G",
                       help="sensor white-noise densities, g/√Hz (the ADXL202E's: 200e-6)")
+    grid.add_argument("--q-formats", type=_list(_q_formats), metavar="SET,SET",
+                      help="Q-format sets of the fixed-point chain: 'shipped' or fraction bits of the variables "
+                      "changed, e.g. shipped,acc10,acc8,lp12,grav20,m2pos13 (acc: a_v and its integrals, grav: "
+                      "gravity, lp: lowpass outputs, m2pos: M2's position); each non-shipped set is JIT-compiled "
+                      "once per worker (~10-25 s)")
+    grid.add_argument("--misalignment", type=_list(number(minimum=-45, maximum=45, unit="degrees")), metavar="DEG,DEG",
+                      help="extra mounting tilt of the logger (pitch), degrees (negative: --misalignment=-5,0,5)")
+    grid.add_argument("--population", type=_list(str), metavar="P,P",
+                      help="simulated populations (firmware_sim.world.walk_plan.POPULATION_PLANS: v1, people...)")
     grid.add_argument("--subjects", type=whole(minimum=1, maximum=1000), metavar="N", help="simulated subjects per seed")
     grid.add_argument("--seeds", type=_list(SEED), metavar="S,S", help="seeds of the subject draws")
     grid.add_argument("--estimators", type=_list(_estimator), metavar="M1,M2", help="estimators kept (default all)")
@@ -85,19 +107,24 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._progress import progress_bar
     from host.errors import HostError
     from host.studies.compare import rows_csv_text
+    from host.studies.sweep_figures import figure_dimensions, render_error_vs_png
     from host.studies.sweep_grid import (
         SECTION_COLUMNS,
         SPLIT_COLUMNS,
         SUMMARY_COLUMNS,
         SweepGrid,
+        format_m5_rate,
         format_smallest_bits,
+        format_smallest_q,
         format_summary,
+        m5_rate_answer,
         run_task,
         smallest_adc_bits,
+        smallest_q_formats,
         summarise,
     )
     from host.studies.task_store import TaskStore, run_serial
-    from protocol.atomic_write import atomic_write_text
+    from protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
     if args.serial and args.scheduler:
         raise HostError("--serial and --scheduler exclude each other")
@@ -105,7 +132,9 @@ def run(args: argparse.Namespace) -> int:
         _check_scheduler(args.scheduler)
     spec = SweepGrid.load(args.spec).to_spec() if args.spec else {}
     for key, value in (("adc_bits", args.adc_bits), ("sampling_rate_hz", args.logger_rate),
-                       ("noise_density_g_rthz", args.noise_density), ("subjects", args.subjects),
+                       ("noise_density_g_rthz", args.noise_density), ("q_formats", args.q_formats),
+                       ("misalignment_deg", args.misalignment), ("population", args.population),
+                       ("subjects", args.subjects),
                        ("seeds", args.seeds), ("estimators", args.estimators), ("protocol", args.protocol)):
         if value is not None:
             spec[key] = value
@@ -118,9 +147,11 @@ def run(args: argparse.Namespace) -> int:
     store = TaskStore(out)
     n_done = len(tasks) - len(store.pending(tasks))
     atomic_write_text(out / "spec.json", json.dumps(grid.to_spec(), indent=2) + "\n")
-    say(f"sweep: {len(tasks)} tasks ({len(grid.seeds)} seed(s) x {grid.subjects} subject(s) x "
+    say(f"sweep: {len(tasks)} tasks ({len(grid.seeds)} seed(s) x {len(grid.population)} population(s) x "
+        f"{len(grid.misalignment_deg)} misalignment(s) x {grid.subjects} subject(s) x "
         f"{len(grid.sampling_rate_hz)} rate(s) x {len(grid.noise_density_g_rthz)} noise level(s) x "
-        f"{len(grid.adc_bits)} ADC width(s)), {n_done} already in {store.tasks_folder}")
+        f"{len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC width(s)), {n_done} already in "
+        f"{store.tasks_folder}")
     t = time.perf_counter()
     with progress_bar(args, len(tasks) - n_done, "task") as tick:
         if args.serial:
@@ -138,11 +169,20 @@ def run(args: argparse.Namespace) -> int:
     splits = [r for res in results for r in res["splits"]]
     summary = summarise(sections, splits)
     smallest = smallest_adc_bits(summary)
+    smallest_q = smallest_q_formats(summary)
+    m5 = m5_rate_answer(sections)
     atomic_write_text(out / "sections.csv", rows_csv_text(sections, SECTION_COLUMNS))
     atomic_write_text(out / "splits.csv", rows_csv_text(splits, SPLIT_COLUMNS))
     atomic_write_text(out / "tasks.csv", rows_csv_text([res["task"] for res in results]))
     atomic_write_text(out / "summary.csv", rows_csv_text(summary, SUMMARY_COLUMNS))
     atomic_write_text(out / "smallest_bits.csv", rows_csv_text(smallest))
+    atomic_write_text(out / "smallest_q_formats.csv", rows_csv_text(smallest_q))
+    atomic_write_text(out / "m5_rate.csv", rows_csv_text(m5["rows"]))
+    figures = []
+    for dim in figure_dimensions(summary):
+        (out / "figures").mkdir(exist_ok=True)
+        figures.append(out / "figures" / f"error_vs_{dim}.png")
+        atomic_write_bytes(figures[-1], render_error_vs_png(summary, dim, m5=m5))
     big = len(summary) > 2 * MAX_PRINTED_ROWS                    # both modes
     (detail if big else say)(format_summary(summary))
     detail()
@@ -152,9 +192,14 @@ def run(args: argparse.Namespace) -> int:
             "(-v prints them)")
     say()
     (detail if len(smallest) > MAX_PRINTED_ROWS else say)(format_smallest_bits(smallest))
+    say()
+    (detail if len(smallest_q) > MAX_PRINTED_ROWS else say)(format_smallest_q(smallest_q))
+    say()
+    say(format_m5_rate(m5))
     sat = sum(res["task"]["saturated"] + res["task"]["wrapped"] for res in results)
     say(f"fixed-point saturation/wrap over all tasks: {sat}")
-    say(f"written: {out}/sections.csv ({len(sections)} rows), splits.csv, tasks.csv, summary.csv, smallest_bits.csv")
+    say(f"written: {out}/sections.csv ({len(sections)} rows), splits.csv, tasks.csv, summary.csv, smallest_bits.csv, "
+        f"smallest_q_formats.csv, m5_rate.csv" + (f", figures/ ({', '.join(p.name for p in figures)})" if figures else ""))
     return 0
 
 

@@ -1,9 +1,14 @@
 """A parameter grid over the simulated logger (``gaitlog sweep``): ADC bits x sampling rate x sensor noise x
-simulated subjects x seeds, as independent tasks, each deterministic from its seed.
+Q formats of the fixed-point chain x mounting misalignment x simulated population x subjects x seeds, as
+independent tasks, each deterministic from its seed.
 
-**Tasks.** One task is one subject of one seed (``random_subjects(n_subjects, seed=seed)[i]``, walking with
-seed ``seed * 1000 + i``, as :class:`host.studies.sweep.AdcRateSweep`) sampled at one rate with one noise
-density and quantised at one ADC width. Its work is :func:`host.studies.sweep.run_config` (the comparison of
+**Tasks.** One task is one subject of one seed and population (``random_subjects(n_subjects, seed=seed,
+population=population)[i]``, walking with seed ``seed * 1000 + i`` the protocol with the population's walk
+habits, as :class:`host.studies.sweep.AdcRateSweep`), its logger tilted by ``misalignment_deg`` more than the
+subject's own mounting (a pitch about the trunk's medio-lateral axis, composed with the subject's rotation),
+sampled at one rate with one noise density, quantised at one ADC width, and its fixed-point chain compiled
+with one set of Q formats (:class:`firmware_sim.algorithms.format_kernel.KernelFormats`, by label:
+``shipped``, ``acc10-lp12``...). Its work is :func:`host.studies.sweep.run_config` (the comparison of
 :func:`host.studies.compare.compare_walk`: ideal, offline, on-line float and on-line fixed-point chains, one K
 per calibration mode fitted on the offline chain): the same code as ``gaitlog compare --sweep``, so a grid of
 the same configurations gives the same numbers. A task depends on nothing but its own fields, so it gives the
@@ -20,9 +25,16 @@ evaluated 20 m section x calibration mode x estimator: the section ratio estimat
 ideal, algorithm = online-float - offline, arithmetic = online-fixed - online-float, mm), and ``task``, the
 per-task scalars (step-timing error, fixed-point saturation).
 
-**Q formats.** The fixed-point chain's formats (:mod:`firmware_sim.algorithms.formats`) are compile-time
-constants of the numba kernel, not parameters: the grid does not sweep them; the arithmetic share measures the
-firmware's own formats.
+**Q formats.** The fixed-point chain's formats are compile-time constants of the numba kernel; a set other
+than the shipped one is the same kernel text JIT-compiled with other fraction bits
+(:mod:`firmware_sim.algorithms.format_kernel`, ~10 s once per worker process and set), the shipped set runs the
+kernel built ahead of time. Only the on-line fixed-point chain depends on them: the arithmetic share (online-fixed
+- online-float) is the error they cause. :func:`smallest_q_formats` answers, per variable swept alone, the
+coarsest fraction bits keeping every estimator within 1 mm per step and 1 % per 20 m section of float.
+
+**M5 and the rate.** :func:`m5_rate_answer`: the part of M5's section-ratio spread that the sampled step timing
+adds (``sqrt(var(sampled T) - var(exact T))``, the same K) per rate, and the lowest rate from which it stays
+within 1 %.
 
 **Spec files.** :meth:`SweepGrid.from_spec` reads a JSON or TOML mapping with the keys of :data:`SPEC_KEYS`
 (lists or single values); anything else is an error naming the key.
@@ -30,26 +42,30 @@ firmware's own formats.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import inspect
 import json
 import math
 import threading
 import tomllib
 from collections import OrderedDict
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from firmware_sim.algorithms.format_kernel import KernelFormats
+from firmware_sim.algorithms.online import OnlineStepAlgorithm
 from firmware_sim.algorithms.steps import ESTIMATORS
 from firmware_sim.sensor import SensorModel
-from firmware_sim.world.subject import random_subjects
-from firmware_sim.world.walk_plan import WalkPlan
+from firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from host.errors import HostError
 from host.gait.sections import MODES
 from host.studies.compare import CHAINS, SHARES, column_key, pair_label
-from host.studies.simulation import AnalogWalk
+from host.studies.simulation import AnalogWalk, simulated_population
 from host.studies.sweep import ADC_BITS, RATES_HZ, median_iqr, run_config
 from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
@@ -61,6 +77,10 @@ PROTOCOLS: dict[str, WalkPlan | None] = {
     "paper": None,
     "short": WalkPlan(corridor_length_m=40.0, rest_s=8.0, lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 80.0)),
 }
+#: The simulated population when the grid names none (that of :func:`host.studies.simulation.simulated_population`).
+DEFAULT_POPULATION: str = inspect.signature(simulated_population).parameters["population"].default
+#: Largest extra mounting tilt, degrees.
+MAX_MISALIGNMENT_DEG = 45.0
 #: Largest spec file read, bytes.
 MAX_SPEC_BYTES = 1 << 20
 #: Rendered walks kept per process (:func:`analog_walk`).
@@ -70,6 +90,9 @@ SPEC_KEYS = {
     "adc_bits": "ADC widths, bits",
     "sampling_rate_hz": "logger sampling rates, Hz",
     "noise_density_g_rthz": "sensor white-noise densities, g/√Hz",
+    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12: acc, grav, lp, m2pos)",
+    "misalignment_deg": "extra mounting tilts of the logger (pitch), degrees",
+    "population": f"simulated populations ({', '.join(POPULATION_PLANS)})",
     "subjects": "simulated subjects per seed",
     "seeds": "seeds of the subject draws",
     "estimators": f"estimators kept in the rows ({', '.join(ESTIMATORS)})",
@@ -78,16 +101,20 @@ SPEC_KEYS = {
 #: Section-ratio columns of a ``sections`` row (the chains and the exact-timing offline chain).
 RATIO_KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Configuration columns, first in every row.
-CONFIG_COLUMNS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "protocol", "seed")
+CONFIG_COLUMNS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
+                  "population", "protocol", "seed")
+#: The configuration columns a summary row is grouped by (the others are pooled).
+SUMMARY_KEYS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
+                "population")
 SECTION_COLUMNS = CONFIG_COLUMNS + ("subject", "excursion", "speed_label", "section", "real_m", "mode", "estimator") \
     + tuple(f"ratio_{k}" for k in RATIO_KINDS)
 SPLIT_COLUMNS = CONFIG_COLUMNS + ("subject", "share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm",
                                   "max_abs_mm", "bias_mm", "max_rel", "n_different_events")
-SUMMARY_COLUMNS = (("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "mode", "estimator", "n_subjects",
-                    "n_sections")
+SUMMARY_COLUMNS = (SUMMARY_KEYS + ("mode", "estimator", "n_subjects", "n_sections")
                    + tuple(f"{q}_{k}" for k in RATIO_KINDS[:-1] for q in ("median", "iqr"))
                    + ("subject_median_offline_lo", "subject_median_offline_hi", "adc_ratio_abs_max",
-                      "adc_step_mm", "arith_step_mm"))
+                      "adc_step_mm", "arith_ratio_abs_max", "arith_step_mm", "arith_step_mm_lo", "arith_step_mm_hi",
+                      "adc_step_mm_lo", "adc_step_mm_hi"))
 #: The quantisation question's tolerances: per-step |offline - ideal| median and section-ratio difference.
 STEP_TOLERANCE_MM = 1.0
 RATIO_TOLERANCE = 0.01
@@ -106,11 +133,14 @@ class SweepTask:
     protocol: str
     estimators: tuple[str, ...]
     calibration_sections: int = 2
+    q_formats: str = "shipped"
+    misalignment_deg: float = 0.0
+    population: str = DEFAULT_POPULATION
 
     @property
     def group(self) -> tuple:
         """The walk this task samples: tasks of one group share its rendering (:func:`analog_walk`)."""
-        return (self.seed, self.subject_index, self.n_subjects, self.protocol)
+        return (self.seed, self.subject_index, self.n_subjects, self.protocol, self.population, self.misalignment_deg)
 
     @property
     def key(self) -> str:
@@ -118,7 +148,7 @@ class SweepTask:
         text = json.dumps(asdict(self), sort_keys=True)
         digest = hashlib.sha256(text.encode()).hexdigest()[:12]
         return (f"seed{self.seed}-s{self.subject_index}-{self.adc_bits}b-{self.sampling_rate_hz:g}Hz-"
-                f"n{self.noise_density_g_rthz:g}-{digest}")
+                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{digest}")
 
 
 @dataclass(frozen=True)
@@ -128,6 +158,9 @@ class SweepGrid:
     adc_bits: tuple[int, ...] = ADC_BITS
     sampling_rate_hz: tuple[float, ...] = RATES_HZ
     noise_density_g_rthz: tuple[float, ...] = (SENSOR_NOISE_G_RTHZ,)
+    q_formats: tuple[str, ...] = ("shipped",)
+    misalignment_deg: tuple[float, ...] = (0.0,)
+    population: tuple[str, ...] = (DEFAULT_POPULATION,)
     subjects: int = 4
     seeds: tuple[int, ...] = (0,)
     estimators: tuple[str, ...] = ESTIMATORS
@@ -137,9 +170,29 @@ class SweepGrid:
     def __post_init__(self) -> None:
         for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
-        for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "seeds", "estimators"):
+        for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
+                     "population", "seeds", "estimators"):
             if not getattr(self, name):
                 raise HostError(f"sweep grid: {name} is empty")
+        labels = []
+        for q in self.q_formats:
+            try:
+                labels.append(KernelFormats.parse(q).label())
+            except ValueError as err:
+                raise HostError(f"sweep grid: {err}") from None
+        object.__setattr__(self, "q_formats", tuple(labels))         # canonical labels
+        for m in self.misalignment_deg:
+            if not (math.isfinite(m) and abs(m) <= MAX_MISALIGNMENT_DEG):
+                raise HostError(f"sweep grid: misalignment {m:g} degrees outside ±{MAX_MISALIGNMENT_DEG:g}")
+        unknown_pop = [p for p in self.population if p not in POPULATION_PLANS]
+        if unknown_pop:
+            raise HostError(f"sweep grid: unknown population(s) {', '.join(unknown_pop)}; known: "
+                            f"{', '.join(POPULATION_PLANS)}")
+        for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
+                     "population", "seeds"):
+            values = getattr(self, name)
+            if len(set(values)) != len(values):
+                raise HostError(f"sweep grid: {name} lists a value twice")
         for r in self.sampling_rate_hz:
             if not (math.isfinite(r) and 10.0 <= r <= 1000.0):
                 raise HostError(f"sweep grid: sampling rate {r:g} Hz outside 10-1000 Hz")
@@ -161,13 +214,13 @@ class SweepGrid:
         if unknown:
             raise HostError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
         kinds = {"adc_bits": int, "sampling_rate_hz": float, "noise_density_g_rthz": float, "seeds": int,
-                 "estimators": str}
+                 "estimators": str, "q_formats": str, "misalignment_deg": float, "population": str}
         kw: dict[str, Any] = {}
         for key, value in spec.items():
             try:
                 if key in kinds:
                     values = value if isinstance(value, list) else [value]
-                    if kinds[key] is not str and any(isinstance(v, (bool, str)) for v in values):
+                    if any(isinstance(v, bool) or isinstance(v, str) != (kinds[key] is str) for v in values):
                         raise ValueError(key)
                     kw[key] = tuple(kinds[key](v) for v in values)
                 elif key == "subjects":
@@ -208,27 +261,50 @@ class SweepGrid:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items() if k in SPEC_KEYS}
 
     def tasks(self) -> list[SweepTask]:
-        """Every task, seed by seed, subject by subject (the walk's order), then rate, noise and width."""
+        """Every task, seed by seed, population, misalignment and subject (the walk's order), then rate, noise,
+        Q formats and width."""
         return [SweepTask(seed, i, self.subjects, b, float(r), float(n), self.protocol, tuple(self.estimators),
-                          self.calibration_sections)
-                for seed in self.seeds for i in range(self.subjects) for r in self.sampling_rate_hz
-                for n in self.noise_density_g_rthz for b in self.adc_bits]
+                          self.calibration_sections, q, float(m), pop)
+                for seed in self.seeds for pop in self.population for m in self.misalignment_deg
+                for i in range(self.subjects) for r in self.sampling_rate_hz
+                for n in self.noise_density_g_rthz for q in self.q_formats for b in self.adc_bits]
 
 
 _WALKS: OrderedDict[tuple, AnalogWalk] = OrderedDict()
 _WALKS_LOCK = threading.Lock()          # a threaded worker runs several tasks in one process
 
 
-def analog_walk(seed: int, subject_index: int, n_subjects: int, protocol: str) -> tuple[Any, AnalogWalk]:
+def walk_plan(protocol: str, population: str) -> WalkPlan | None:
+    """The protocol walked with the population's habits (:data:`POPULATION_PLANS`; None: the paper's, ``v1``)."""
+    plan, habits = PROTOCOLS[protocol], POPULATION_PLANS[population]
+    if plan is None:
+        return WalkPlan(**habits) if habits else None
+    return replace(plan, **habits)
+
+
+def misaligned(subject: Any, misalignment_deg: float) -> Any:
+    """``subject`` with the logger tilted ``misalignment_deg`` more (a pitch about the trunk's medio-lateral
+    axis, device ``y``, after the subject's own mounting rotation); the subject itself at 0."""
+    if misalignment_deg == 0.0:
+        return subject
+    r = Rotation.from_rotvec([0.0, misalignment_deg, 0.0], degrees=True) * Rotation.from_rotvec(
+        subject.mounting_rotation_deg, degrees=True)
+    return replace(subject, mounting_rotation_deg=tuple(float(a) for a in r.as_rotvec(degrees=True)))
+
+
+def analog_walk(seed: int, subject_index: int, n_subjects: int, protocol: str, population: str = DEFAULT_POPULATION,
+                misalignment_deg: float = 0.0) -> tuple[Any, AnalogWalk]:
     """The subject and its rendered walk (module notes: a per-process memo of :data:`WALK_MEMO_SIZE` walks)."""
-    key = (seed, subject_index, n_subjects, protocol)          # SweepTask.group
+    key = (seed, subject_index, n_subjects, protocol, population, misalignment_deg)          # SweepTask.group
     with _WALKS_LOCK:
         walk = _WALKS.get(key)
         if walk is not None:
             _WALKS.move_to_end(key)
             return walk.subject, walk
-    subject = random_subjects(n_subjects, seed=seed)[subject_index]
-    walk = AnalogWalk(subject=subject, seed=seed * 1000 + subject_index, walk_plan=PROTOCOLS[protocol]).run()
+    subjects, plan = simulated_population(n_subjects, seed=seed, population=population,
+                                          walk_plan=walk_plan(protocol, population))
+    subject = misaligned(subjects[subject_index], misalignment_deg)
+    walk = AnalogWalk(subject=subject, seed=seed * 1000 + subject_index, walk_plan=plan).run()
     with _WALKS_LOCK:
         _WALKS[key] = walk
         while len(_WALKS) > WALK_MEMO_SIZE:
@@ -245,11 +321,17 @@ def _plain(v: Any) -> Any:
 
 def run_task(task: SweepTask) -> dict:
     """The rows of one task (module notes): ``{"sections": [...], "splits": [...], "task": {...}}``."""
-    subject, walk = analog_walk(task.seed, task.subject_index, task.n_subjects, task.protocol)
+    subject, walk = analog_walk(task.seed, task.subject_index, task.n_subjects, task.protocol, task.population,
+                                task.misalignment_deg)
     sw = walk.sample(task.sampling_rate_hz, noise_density_g_rthz=task.noise_density_g_rthz)
-    result, _ = run_config(sw, subject, task.adc_bits, calibration_sections=task.calibration_sections)
+    formats = KernelFormats.parse(task.q_formats)
+    fixed = OnlineStepAlgorithm if formats.shipped else functools.partial(OnlineStepAlgorithm, formats=formats)
+    result, _ = run_config(sw, subject, task.adc_bits, calibration_sections=task.calibration_sections,
+                           fixed_algorithm=fixed)
     config = dict(adc_bits=task.adc_bits, sampling_rate_hz=task.sampling_rate_hz,
-                  noise_density_g_rthz=task.noise_density_g_rthz, protocol=task.protocol, seed=task.seed)
+                  noise_density_g_rthz=task.noise_density_g_rthz, q_formats=task.q_formats,
+                  misalignment_deg=task.misalignment_deg, population=task.population, protocol=task.protocol,
+                  seed=task.seed)
     keep = set(task.estimators)
     sections = [config | {k: _plain(s[k]) for k in SECTION_COLUMNS if k in s and k not in config}
                 for s in result.segments if s["estimator"] in keep]
@@ -261,95 +343,268 @@ def run_task(task: SweepTask) -> dict:
     return {"sections": sections, "splits": splits, "task": scalars}
 
 
+def _order(values: list) -> dict:
+    """Position of each distinct value in order of first appearance (the grid's order)."""
+    out: dict = {}
+    for v in values:
+        out.setdefault(v, len(out))
+    return out
+
+
+def reference(values: list | tuple, preferred: Any) -> Any:
+    """``preferred`` when it is among ``values``, else the first of them (what the other figures and answers hold
+    fixed while one dimension varies)."""
+    return preferred if preferred in values else values[0]
+
+
+def _range(v: list[float]) -> tuple[float, float, float]:
+    v = [x for x in v if math.isfinite(x)]
+    return (float(np.median(v)), float(min(v)), float(max(v))) if v else (math.nan, math.nan, math.nan)
+
+
 def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
-    """One row per (bits, rate, noise, mode, estimator), pooled over seeds and subjects.
+    """One row per configuration (:data:`SUMMARY_KEYS`), mode and estimator, pooled over seeds and subjects.
 
     ``median_<chain>`` / ``iqr_<chain>``: pooled 20 m section ratios; ``subject_median_offline_lo/hi``: the
     range over subjects of each subject's median offline ratio (the interval over subjects);
-    ``adc_ratio_abs_max``: the largest per-section |offline - ideal| ratio; ``adc_step_mm`` /
-    ``arith_step_mm``: median over subjects of the per-step median |offline - ideal| and |online-fixed -
-    online-float| (multi-speed lengths).
+    ``adc_ratio_abs_max`` / ``arith_ratio_abs_max``: the largest per-section |offline - ideal| and |online-fixed
+    - online-float| ratio; ``adc_step_mm`` / ``arith_step_mm``: median over subjects of the per-step median
+    |offline - ideal| and |online-fixed - online-float| (multi-speed lengths), ``*_lo`` / ``*_hi`` their range
+    over subjects.
     """
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
+    q_order = _order([s["q_formats"] for s in sections])
+    pop_order = _order([s["population"] for s in sections])
     groups: dict[tuple, list[dict]] = {}
     for s in sections:
-        groups.setdefault((s["adc_bits"], s["sampling_rate_hz"], s["noise_density_g_rthz"], s["mode"],
-                           s["estimator"]), []).append(s)
+        groups.setdefault(tuple(s[k] for k in SUMMARY_KEYS) + (s["mode"], s["estimator"]), []).append(s)
     split_groups: dict[tuple, list[dict]] = {}
     for d in splits:
-        split_groups.setdefault((d["adc_bits"], d["sampling_rate_hz"], d["noise_density_g_rthz"], d["pair"],
-                                 d["estimator"]), []).append(d)
+        split_groups.setdefault(tuple(d[k] for k in SUMMARY_KEYS) + (d["pair"], d["estimator"]), []).append(d)
     out = []
-    for key in sorted(groups, key=lambda k: (k[1], k[2], k[0], MODES.index(k[3]), ESTIMATORS.index(k[4]))):
-        bits, rate, noise, mode, est = key
+    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], q_order[k[3]], k[0],
+                                             MODES.index(k[6]), ESTIMATORS.index(k[7]))):
+        *config, mode, est = key
         seg = groups[key]
-        row: dict[str, Any] = dict(adc_bits=bits, sampling_rate_hz=rate, noise_density_g_rthz=noise, mode=mode,
-                                   estimator=est, n_subjects=len({(s["seed"], s["subject"]) for s in seg}),
-                                   n_sections=len(seg))
+        row: dict[str, Any] = dict(zip(SUMMARY_KEYS, config, strict=True))
+        row.update(mode=mode, estimator=est, n_subjects=len({(s["seed"], s["subject"]) for s in seg}),
+                   n_sections=len(seg))
         ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in RATIO_KINDS}
         for k in RATIO_KINDS[:-1]:
             row[f"median_{k}"], row[f"iqr_{k}"] = median_iqr(ratio[k])
         per_subject = [median_iqr(np.array([s["ratio_offline"] for s in seg if (s["seed"], s["subject"]) == subj], float))[0]
                        for subj in sorted({(s["seed"], s["subject"]) for s in seg})]
-        per_subject = [v for v in per_subject if math.isfinite(v)]
-        row["subject_median_offline_lo"] = float(min(per_subject)) if per_subject else math.nan
-        row["subject_median_offline_hi"] = float(max(per_subject)) if per_subject else math.nan
-        d = ratio["offline"] - ratio["ideal"]
-        row["adc_ratio_abs_max"] = float(np.nanmax(np.abs(d))) if np.isfinite(d).any() else math.nan
+        _, row["subject_median_offline_lo"], row["subject_median_offline_hi"] = _range(per_subject)
+        for share, a, b in (("adc", "offline", "ideal"), ("arith", "online_fixed", "online_float")):
+            d = ratio[a] - ratio[b]
+            row[f"{share}_ratio_abs_max"] = float(np.nanmax(np.abs(d))) if np.isfinite(d).any() else math.nan
         for share, col in (("adc", "adc_step_mm"), ("arithmetic", "arith_step_mm")):
-            v = [x["median_abs_mm"] for x in split_groups.get((bits, rate, noise, labels[share], est), [])]
-            v = [x for x in v if math.isfinite(x)]
-            row[col] = float(np.median(v)) if v else math.nan
+            v = [x["median_abs_mm"] for x in split_groups.get(tuple(config) + (labels[share], est), [])]
+            row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range(v)
         out.append(row)
     return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
 
 
+def _within(r: dict, share: str) -> bool:
+    """The share (``adc`` or ``arith``) within :data:`STEP_TOLERANCE_MM` per step and :data:`RATIO_TOLERANCE` per
+    section (NaN: not within)."""
+    return bool(r[f"{share}_step_mm"] <= STEP_TOLERANCE_MM and r[f"{share}_ratio_abs_max"] <= RATIO_TOLERANCE)
+
+
+def _smallest(rows: list[dict], size: str, share: str) -> Any:
+    """The smallest ``size`` from which on every larger one of ``rows`` is within the tolerances (None: none)."""
+    best = None
+    for r in sorted(rows, key=lambda r: r[size], reverse=True):
+        if not _within(r, share):
+            break
+        best = r[size]
+    return best
+
+
 def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
-    """Per (rate, noise, estimator): the smallest swept ADC width from which on every wider one the ADC share
-    stays within :data:`STEP_TOLERANCE_MM` per step (median) and :data:`RATIO_TOLERANCE` per 20 m section
-    (largest |offline - ideal| ratio); ``smallest_adc_bits`` is None when no swept width does."""
+    """Per (rate, noise, misalignment, population, estimator): the smallest swept ADC width from which on every
+    wider one the ADC share stays within :data:`STEP_TOLERANCE_MM` per step (median) and :data:`RATIO_TOLERANCE`
+    per 20 m section (largest |offline - ideal| ratio); ``smallest_adc_bits`` is None when no swept width does.
+    The ADC share does not involve the fixed-point chain: the rows of one Q-format set are used (the shipped one
+    when swept)."""
+    rows = [r for r in summary if r["mode"] == mode]
+    if not rows:
+        return []
+    q = reference([r["q_formats"] for r in rows], "shipped")
+    keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", "estimator")
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r["q_formats"] == q:
+            groups.setdefault(tuple(r[k] for k in keys), []).append(r)
+    return [dict(zip(keys, k, strict=True)) | dict(smallest_adc_bits=_smallest(g, "adc_bits", "adc"),
+                                                  swept_bits="/".join(str(r["adc_bits"]) for r in g))
+            for k, g in groups.items()]
+
+
+def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
+    """Per variable of :class:`KernelFormats` swept alone (the format sets that differ from the shipped one in that
+    variable only, with the shipped set as its widest), per configuration and estimator: the fewest fraction
+    bits from which on every wider swept one keeps the arithmetic share (online-fixed - online-float) within
+    :data:`STEP_TOLERANCE_MM` per step and :data:`RATIO_TOLERANCE` per 20 m section. ``smallest_frac_bits``
+    is None when no swept width does; the shipped width is then the one to keep (or widen)."""
+    rows = [r for r in summary if r["mode"] == mode]
+    shipped = KernelFormats()
+    by_field: dict[str, dict[str, int]] = {}
+    for label in _order([r["q_formats"] for r in rows]):
+        f = KernelFormats.parse(label)
+        differ = [n for n in KernelFormats.field_names() if getattr(f, n) != getattr(shipped, n)]
+        for n in differ if len(differ) == 1 else (KernelFormats.field_names() if not differ else ()):
+            by_field.setdefault(n, {})[label] = getattr(f, n)
+    keys = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", "estimator")
     out = []
-    keys = sorted({(r["sampling_rate_hz"], r["noise_density_g_rthz"], r["estimator"]) for r in summary
-                   if r["mode"] == mode}, key=lambda k: (k[0], k[1], ESTIMATORS.index(k[2])))
-    for rate, noise, est in keys:
-        rows = sorted((r for r in summary if r["mode"] == mode and r["estimator"] == est
-                       and r["sampling_rate_hz"] == rate and r["noise_density_g_rthz"] == noise),
-                      key=lambda r: r["adc_bits"])
-        ok = [r["adc_step_mm"] <= STEP_TOLERANCE_MM and r["adc_ratio_abs_max"] <= RATIO_TOLERANCE for r in rows]
-        best = None
-        for i in range(len(rows) - 1, -1, -1):
-            if not ok[i]:
-                break
-            best = rows[i]["adc_bits"]
-        out.append(dict(sampling_rate_hz=rate, noise_density_g_rthz=noise, estimator=est, smallest_adc_bits=best,
-                        swept_bits="/".join(str(r["adc_bits"]) for r in rows)))
+    for name, labels in by_field.items():
+        if len(labels) < 2:
+            continue
+        groups: dict[tuple, list[dict]] = {}
+        for r in rows:
+            if r["q_formats"] in labels:
+                groups.setdefault(tuple(r[k] for k in keys), []).append(r | {"frac_bits": labels[r["q_formats"]]})
+        for k, g in groups.items():
+            out.append(dict(zip(keys, k, strict=True)) | dict(
+                variable=name, shipped_frac_bits=getattr(shipped, name), smallest_frac_bits=_smallest(g, "frac_bits", "arith"),
+                swept_frac_bits="/".join(str(r["frac_bits"]) for r in sorted(g, key=lambda r: -r["frac_bits"]))))
     return out
+
+
+def m5_rate_answer(sections: list[dict]) -> dict:
+    """M5's section-ratio spread vs sample rate with the sampled and the world's exact step durations (the same K):
+    ``timing_part = sqrt(var(sampled) - var(exact))`` is what the step timing adds; it stops mattering at the
+    lowest swept rate from which on it stays within :data:`RATIO_TOLERANCE` in both calibration modes.
+
+    The offline chain at one ADC width (10 bits when swept), the Q formats, noise, misalignment and population
+    held at their reference (:func:`reference`). Returns ``{"rows": [...], "rate_hz": float | None, "verdict":
+    str}``; a row per (mode, rate) with ``n``, ``iqr``, ``std``, ``iqr_exact``, ``std_exact``, ``timing_part``
+    and ``timing_part_lo/hi``: its range over subjects (each subject's own sampled and exact spread).
+    """
+    m5 = [s for s in sections if s["estimator"] == "M5"]
+    if not m5:
+        return {"rows": [], "rate_hz": None, "verdict": ""}
+    ref = {k: reference(list(_order([s[k] for s in m5])), p) for k, p in
+           (("adc_bits", 10), ("q_formats", "shipped"), ("noise_density_g_rthz", SENSOR_NOISE_G_RTHZ),
+            ("misalignment_deg", 0.0), ("population", DEFAULT_POPULATION))}
+    m5 = [s for s in m5 if all(s[k] == v for k, v in ref.items())]
+    rates = sorted({s["sampling_rate_hz"] for s in m5})
+
+    def spread(seg: list[dict]) -> tuple[float, float, float, float, float, int]:
+        a = np.array([s["ratio_offline"] for s in seg], float)
+        e = np.array([s["ratio_exact_timing"] for s in seg], float)
+        g = np.isfinite(a) & np.isfinite(e)
+        a, e = a[g], e[g]
+        if a.size < 3:
+            return (math.nan,) * 5 + (int(a.size),)
+        va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
+        return (median_iqr(a)[1], math.sqrt(va), median_iqr(e)[1], math.sqrt(ve), math.sqrt(max(va - ve, 0.0)),
+                int(a.size))
+
+    rows = []
+    for mode in MODES:
+        for rate in rates:
+            seg = [s for s in m5 if s["mode"] == mode and s["sampling_rate_hz"] == rate]
+            if not seg:
+                continue
+            iqr, std, iqr_e, std_e, part, n = spread(seg)
+            subj = [spread([s for s in seg if (s["seed"], s["subject"]) == k])[4]
+                    for k in sorted({(s["seed"], s["subject"]) for s in seg})]
+            _, lo, hi = _range(subj)
+            rows.append(dict(mode=mode, sampling_rate_hz=rate, n=n, iqr=iqr, std=std, iqr_exact=iqr_e,
+                             std_exact=std_e, timing_part=part, timing_part_lo=lo, timing_part_hi=hi) | ref)
+    ok = {rate: all(r["timing_part"] <= RATIO_TOLERANCE for r in rows if r["sampling_rate_hz"] == rate)
+          for rate in rates}
+    rate_hz = None
+    for rate in reversed(rates):
+        if not ok[rate]:
+            break
+        rate_hz = rate
+    swept = "/".join(f"{r:g}" for r in rates)
+    if rate_hz is None:
+        verdict = (f"M5's step-timing error matters at every swept rate ({swept} Hz): it adds more than "
+                   f"{100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    elif rate_hz == rates[0]:
+        verdict = (f"M5's step-timing error does not matter from the lowest swept rate, {rate_hz:g} Hz, on (swept "
+                   f"{swept} Hz): it adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    else:
+        verdict = (f"M5's step-timing error stops mattering at {rate_hz:g} Hz (swept {swept} Hz): from there on it "
+                   f"adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    return {"rows": rows, "rate_hz": rate_hz, "verdict": verdict}
 
 
 def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     """Printed summary of one calibration mode."""
     lines = [f"{mode} calibration (one K per configuration, fitted on its offline chain); section ratio "
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
-             "mm: per-step median |offline - ideal| / |online-fixed - online-float|",
-             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'est':<4}{'subj':>5}{'n':>6}{'ideal':>8}{'offline':>8}{'IQR':>7}"
-             f"{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}{'ADC mm':>8}{'arith mm':>9}"]
+             "mm: per-step median |offline - ideal| / |online-fixed - online-float|; Q: fixed-point formats, "
+             "tilt: extra misalignment, deg",
+             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'est':<4}{'subj':>5}{'n':>6}"
+             f"{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}{'ADC mm':>8}"
+             f"{'arith mm':>9}{'arith max':>10}"]
     for r in summary:
         if r["mode"] != mode:
             continue
         lines.append(f"{r['adc_bits']:>4}{r['sampling_rate_hz']:>6g}{1e6 * r['noise_density_g_rthz']:>9.0f} "
+                     f"{r['q_formats']:<10}{r['misalignment_deg']:>5g} {r['population']:<7}"
                      f"{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
                      f"{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}{r['median_online_fixed']:>8.3f}"
                      f"{r['subject_median_offline_lo']:>7.3f}-{r['subject_median_offline_hi']:<6.3f}"
-                     f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}")
+                     f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
+                     f"{r['arith_ratio_abs_max']:>10.4f}")
     return "\n".join(lines)
 
 
+def _where(r: dict) -> str:
+    return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
+            f"{r['misalignment_deg']:g} deg, {r['population']}")
+
+
 def format_smallest_bits(rows: list[dict]) -> str:
-    """Printed answer: the smallest ADC width within the tolerances, per rate, noise and estimator."""
-    lines = [f"smallest swept ADC width keeping the ADC share within {STEP_TOLERANCE_MM:g} mm per step and "
-             f"{100 * RATIO_TOLERANCE:g} % per 20 m section (multi-speed K); Q formats are the firmware's, not swept"]
+    """Printed answer: the smallest ADC width within the tolerances, per configuration and estimator."""
+    lines = [f"smallest swept ADC width keeping the ADC share (offline - ideal) within {STEP_TOLERANCE_MM:g} mm per "
+             f"step and {100 * RATIO_TOLERANCE:g} % per 20 m section (multi-speed K)"]
     for r in rows:
         b = r["smallest_adc_bits"]
-        lines.append(f"  {r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, "
-                     f"{r['estimator']}: {b if b is not None else 'none'} bits (swept {r['swept_bits']})")
+        lines.append(f"  {_where(r)}, {r['estimator']}: {b if b is not None else 'none'} bits (swept {r['swept_bits']})")
+    return "\n".join(lines)
+
+
+def format_smallest_q(rows: list[dict]) -> str:
+    """Printed answer: per variable, the fewest fraction bits within the tolerances for every estimator."""
+    if not rows:
+        return ("Q formats: only one set per variable swept (--q-formats shipped,acc10,acc8,lp12... asks which "
+                "fraction bits keep each estimator within tolerance)")
+    lines = [f"fewest swept fraction bits keeping the arithmetic share (online-fixed - online-float) within "
+             f"{STEP_TOLERANCE_MM:g} mm per step and {100 * RATIO_TOLERANCE:g} % per 20 m section (multi-speed K), "
+             "each variable swept alone; all = what every estimator needs"]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["variable"], r["adc_bits"], r["sampling_rate_hz"], r["noise_density_g_rthz"],
+                           r["misalignment_deg"], r["population"]), []).append(r)
+    for (name, bits, *_), g in groups.items():
+        need = [r["smallest_frac_bits"] for r in g]
+        total = None if None in need else max(need)
+        each = ", ".join(f"{r['estimator']} {r['smallest_frac_bits'] if r['smallest_frac_bits'] is not None else 'none'}"
+                         for r in g)
+        lines.append(f"  {name} (shipped {g[0]['shipped_frac_bits']}), {bits} bits, {_where(g[0])}: all "
+                     f"{total if total is not None else 'none'} ({each}; swept {g[0]['swept_frac_bits']})")
+    return "\n".join(lines)
+
+
+def format_m5_rate(m5: dict) -> str:
+    """Printed M5-vs-rate table and the answer."""
+    if not m5["rows"]:
+        return "M5: not in the estimators kept"
+    r0 = m5["rows"][0]
+    lines = [f"M5 (offline chain, {r0['adc_bits']} bits): pooled 20 m section ratios vs rate, with the sampled and "
+             "the world's exact step durations (same K); timing = sqrt(var sampled - var exact), its range over "
+             "subjects",
+             f"{'mode':<13}{'Hz':>6}{'n':>5}{'IQR':>8}{'std':>8}{'IQR exact':>11}{'std exact':>11}{'timing':>8}"
+             f"{'subjects':>16}"]
+    for r in m5["rows"]:
+        lines.append(f"{r['mode']:<13}{r['sampling_rate_hz']:>6g}{r['n']:>5}{r['iqr']:>8.4f}{r['std']:>8.4f}"
+                     f"{r['iqr_exact']:>11.4f}{r['std_exact']:>11.4f}{r['timing_part']:>8.4f}"
+                     f"{r['timing_part_lo']:>8.4f}-{r['timing_part_hi']:<7.4f}")
+    lines.append(m5["verdict"])
     return "\n".join(lines)

@@ -1,5 +1,6 @@
 """gaitlog sweep: the grid's tasks, their identity across 1 process, a 2-worker Dask LocalCluster and a
-scheduler started separately on the loopback address, and resuming after a cut."""
+scheduler started separately on the loopback address (a Q-format set JIT-compiled in each worker included), and
+resuming after a cut."""
 
 from __future__ import annotations
 
@@ -28,15 +29,16 @@ from host.studies.sweep_grid import (
 from host.studies.task_store import TaskStore, run_serial
 
 ROOT = Path(__file__).resolve().parents[2]
-#: 8 tasks: one subject of the short protocol, 4 widths x 2 rates, two estimators kept.
-GRID_ARGS = ["--protocol", "short", "--subjects", "1", "--seeds", "0", "--adc-bits", "6,8,10,12",
-             "--logger-rate", "25,50", "--estimators", "M2,M5"]
-OUTPUTS = ("sections.csv", "splits.csv", "tasks.csv", "summary.csv", "smallest_bits.csv")
+#: 8 tasks: one subject of the short protocol, 2 widths x 2 rates x 2 Q-format sets, two estimators kept.
+GRID_ARGS = ["--protocol", "short", "--subjects", "1", "--seeds", "0", "--adc-bits", "8,10",
+             "--logger-rate", "25,50", "--q-formats", "shipped,acc10", "--estimators", "M2,M5"]
+OUTPUTS = ("sections.csv", "splits.csv", "tasks.csv", "summary.csv", "smallest_bits.csv", "smallest_q_formats.csv",
+           "m5_rate.csv")
 
 
 def _grid() -> SweepGrid:
-    return SweepGrid(adc_bits=(6, 8, 10, 12), sampling_rate_hz=(25.0, 50.0), subjects=1, seeds=(0,),
-                     estimators=("M2", "M5"), protocol="short")
+    return SweepGrid(adc_bits=(8, 10), sampling_rate_hz=(25.0, 50.0), q_formats=("shipped", "acc10"), subjects=1,
+                     seeds=(0,), estimators=("M2", "M5"), protocol="short")
 
 
 def _files(folder: Path) -> dict[str, bytes]:
@@ -53,8 +55,8 @@ def serial(tmp_path_factory) -> Path:
 
 def test_spec_file_and_options_make_the_same_grid(tmp_path) -> None:
     spec = tmp_path / "grid.toml"
-    spec.write_text('adc_bits = [6, 8, 10, 12]\nsampling_rate_hz = [25, 50]\nsubjects = 1\nseeds = 0\n'
-                    'estimators = ["M2", "M5"]\nprotocol = "short"\n')
+    spec.write_text('adc_bits = [8, 10]\nsampling_rate_hz = [25, 50]\nsubjects = 1\nseeds = 0\n'
+                    'q_formats = ["shipped", "acc10"]\nestimators = ["M2", "M5"]\nprotocol = "short"\n')
     assert SweepGrid.load(spec) == _grid()
     (tmp_path / "grid.json").write_text(json.dumps(_grid().to_spec()))
     assert SweepGrid.load(tmp_path / "grid.json") == _grid()
@@ -95,11 +97,17 @@ def test_noise_density_scales_the_sensor_noise() -> None:
 def test_serial_outputs(serial) -> None:
     lines = (serial / "sections.csv").read_text().splitlines()
     head = lines[0].split(",")
-    assert head[:5] == ["adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "protocol", "seed"]
+    assert head[:8] == ["adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
+                        "population", "protocol", "seed"]
     assert len(list((serial / "tasks").glob("*.json"))) == 8
     assert {ln.split(",")[head.index("estimator")] for ln in lines[1:]} == {"M2", "M5"}
     summary = (serial / "summary.csv").read_text().splitlines()
     assert len(summary) == 1 + 8 * 2 * 2                  # configurations x modes x estimators
+    q = (serial / "smallest_q_formats.csv").read_text().splitlines()
+    assert len(q) == 1 + 2 * 2 * 2 and all(",acc_frac_bits,13," in ln for ln in q[1:])   # widths x rates x estimators
+    assert len((serial / "m5_rate.csv").read_text().splitlines()) == 1 + 2 * 2            # modes x rates
+    for dim in ("adc_bits", "sampling_rate_hz", "q_formats"):
+        assert (serial / "figures" / f"error_vs_{dim}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_two_worker_local_cluster_gives_the_serial_results(serial, tmp_path) -> None:

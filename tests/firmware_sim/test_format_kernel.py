@@ -1,0 +1,91 @@
+"""The kernel compiled for other Q formats (:mod:`firmware_sim.algorithms.format_kernel`): the same text, the
+shipped formats bit for bit the kernel built ahead of time, coarser ones further from the float kernel."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from firmware_sim.algorithms import format_kernel
+from firmware_sim.algorithms import formats as fm
+from firmware_sim.algorithms.format_kernel import KernelFormats
+from firmware_sim.algorithms.online import OnlineStepAlgorithm
+from firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
+from protocol.steps import StepConfig
+
+RATE_HZ = 50.0
+LEG_M, H_M = 0.9, 0.04
+
+
+def noisy_sinusoid_codes(seconds: float = 40.0) -> np.ndarray:
+    """10-bit codes of a centre of mass moving as ``z = -h/2 cos(2 pi 2 t)`` (h = 4 cm), tilted, with 3 mg noise."""
+    t = np.arange(int(seconds * RATE_HZ)) / RATE_HZ
+    a_v = H_M / 2 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2
+    up = np.array([0.93, -0.2, 0.3]) / np.linalg.norm([0.93, -0.2, 0.3])
+    acc = (1.0 + a_v)[:, None] * up + np.random.default_rng(1).normal(0.0, 0.003, (t.size, 3))
+    return np.clip(np.floor(acc * 256 + 512), 0, 1023).astype(np.int64)
+
+
+def run(formats: KernelFormats | None, codes: np.ndarray, kernel_fns=None, arithmetic: str = "fixed"):
+    alg = OnlineStepAlgorithm(sampling_rate_hz=RATE_HZ, step_config=StepConfig(step_format=1, leg_length_m=LEG_M,
+                                                                               foot_length_m=0.2),
+                              formats=formats, arithmetic=arithmetic)
+    if kernel_fns is not None:
+        alg._process, alg._flush, alg._reset = kernel_fns
+        alg.reset()
+    return alg.run(codes), alg
+
+
+def test_default_formats_are_the_module_constants() -> None:
+    k = KernelFormats()
+    assert k.shipped and k.acc_q == fm.ACC_Q and k.lowpass_q == fm.LOWPASS_Q and k.position2_q == fm.POSITION2_Q
+    assert k.position_q == fm.POSITION_Q
+    assert k.constants() == dict(F_ACC=fm.F_ACC, F_POS=fm.F_POS, F_GRAV=fm.F_GRAV, F_LP=fm.F_LP, W_LP=fm.W_LP,
+                                 F_POS2=fm.F_POS2)
+    assert not KernelFormats(acc_frac_bits=10).shipped
+    with pytest.raises(ValueError, match="acc_frac_bits"):
+        KernelFormats(acc_frac_bits=fm.F_ACC + 1)          # only narrower: the range is kept
+    with pytest.raises(ValueError, match="lowpass_frac_bits"):
+        KernelFormats(lowpass_frac_bits=0)
+    with pytest.raises(ValueError, match="shipped"):
+        format_kernel.entry_points(KernelFormats())
+
+
+def test_shipped_formats_compiled_as_a_variant_are_the_aot_kernel_bit_for_bit() -> None:
+    codes = noisy_sinusoid_codes()
+    ref, a_ref = run(None, codes)
+    var, a_var = run(None, codes, format_kernel.compile_kernel(KernelFormats()))
+    for name in ("end", "duration", "toe_off", "heel_strike", "flags", "lengths", "extras"):
+        np.testing.assert_array_equal(getattr(var, name), getattr(ref, name), err_msg=name)
+    np.testing.assert_array_equal(a_var._cnt, a_ref._cnt)              # calls, cycles, saturations counted alike
+    assert ref.n_steps > 60
+
+
+def test_labels_name_the_formats_and_parse_back() -> None:
+    assert KernelFormats().label() == "shipped" and KernelFormats.parse("shipped") == KernelFormats()
+    k = KernelFormats.parse("lp12-acc10")
+    assert (k.acc_frac_bits, k.lowpass_frac_bits, k.gravity_frac_bits) == (10, 12, fm.F_GRAV)
+    assert k.label() == "acc10-lp12" and KernelFormats.parse(k.label()) == k
+    assert k.acc_q.total_bits == fm.ACC_Q.total_bits and k.acc_q.frac_bits == 10       # same word, coarser lsb
+    assert k.constants()["W_LP"] == fm.W_LP - 4                                        # still saturates at 4 g
+    for bad in ("acc", "acc10-acc9", "foo3", "acc14", ""):
+        with pytest.raises(ValueError):
+            KernelFormats.parse(bad)
+
+
+def test_coarser_formats_move_the_fixed_point_chain_away_from_float() -> None:
+    """The float kernel is the reference: the shipped formats stay within a few 0.1 mm of it, 4 fraction bits of
+    a_v and 8 of the lowpass do not (the sweep's question, answered on one synthetic walk)."""
+    codes = noisy_sinusoid_codes()
+    flt, _ = run(None, codes, arithmetic="float")
+    ref, _ = run(None, codes)
+    narrow = KernelFormats(acc_frac_bits=4, lowpass_frac_bits=8)
+    got, alg = run(narrow, codes)
+    assert alg.compiled_by == "jit" and alg.config.formats == narrow and got.formats == narrow
+    assert format_kernel.entry_points(narrow)[0] is alg._process          # compiled once per process
+    np.testing.assert_array_equal(ref.end, flt.end)
+    n = min(flt.n_steps, got.n_steps)
+    assert n > 60 and not np.array_equal(got.lengths[:n], ref.lengths[:n])
+    err = [np.median(np.abs(s.length_m()[3:n - 3, :4] - flt.length_m()[3:n - 3, :4]), axis=0) for s in (ref, got)]
+    assert np.all(err[0] < 5e-4), err[0]                                  # shipped: < 0.5 mm of float (M1-M4)
+    assert np.max(err[1]) > 10 * np.max(err[0]) and np.max(err[1]) > 1e-3, err
