@@ -395,12 +395,13 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
             l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, U16, cnt)
         else:
             l4 = ar.requant(cfg_v[CV_K4], F_K4, F_STEP, U16, cnt)
-        length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)                   # range^(1/4)
-        if M4_EXPONENT_EIGHTHS & 2:
-            l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
-        length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)                   # range^(1/8)
-        if M4_EXPONENT_EIGHTHS & 1:
-            l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
+        if M4_EXPONENT_EIGHTHS & 3:                                           # only the roots needed
+            length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)               # range^(1/4)
+            if M4_EXPONENT_EIGHTHS & 2:
+                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
+            if M4_EXPONENT_EIGHTHS & 1:
+                length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
+                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples
         l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, e - s, 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32, cnt),
                         F_M5, F_STEP, U16, cnt)
