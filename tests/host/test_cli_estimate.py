@@ -92,7 +92,7 @@ def test_estimate_warns_when_k_is_extrapolated(tmp_path, capsys) -> None:
     captured = capsys.readouterr()
     warning = [ln for ln in captured.err.splitlines() if "outside the range K was calibrated on" in ln]
     assert len(warning) == 1 and warning[0].startswith("gaitlog estimate: warning: ")
-    line = [ln for ln in captured.out.splitlines() if ln.startswith("M2")][0]
+    line = next(ln for ln in captured.out.splitlines() if ln.startswith("M2"))
     n_out = int(line.split()[-1])
     assert n_out > 20 and f"M2 {n_out} of " in warning[0]
 
