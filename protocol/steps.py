@@ -393,7 +393,7 @@ class StepConfig:
     k_m1, k_m2
         K of M1 and M2 (dimensionless), unsigned Q1.15 (0 ... 2).
     k_m4
-        K of M4, m/(m/s²)^(1/4), unsigned Q1.15 (0 ... 2).
+        K of M4, m/(m/s²)^p (p the on-line algorithm's M4 exponent, 1/2), unsigned Q1.15 (0 ... 2).
     k1_m5_m_s, k2_m5_m
         M5's ``S = K1/T + K2``: K1 in m·s and K2 in m, signed Q15.16 (±32768).
 

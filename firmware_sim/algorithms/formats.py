@@ -13,7 +13,7 @@ from firmware_sim.fixedpoint import QFormat
 __all__ = [
     "ACC_Q", "GRAVITY_Q", "ACC2_Q", "KERNEL_Q", "FIR_SUM_Q", "LOWPASS_Q", "VELOCITY_Q", "POSITION_Q",
     "POSITION2_Q", "EXCURSION_Q", "EXCURSION2_Q", "LENGTH_Q", "TWO_LENGTH_Q", "PENDULUM_ARG_Q", "PENDULUM_ARG2_Q",
-    "STEP_Q", "K_Q", "ROOT4_Q",
+    "STEP_Q", "K_Q", "K4_Q", "ROOT4_Q",
     "M5_Q", "MANTISSA_Q", "centred_q", "word",
 ]
 
@@ -52,10 +52,13 @@ PENDULUM_ARG_Q = QFormat(2, 30, signed=False, word_bits=32)
 PENDULUM_ARG2_Q = QFormat(0, 32, signed=False, word_bits=32)
 #: Step length, m: unsigned Q2.14 (0 .. 4 m, 61 um): the record's five lengths.
 STEP_Q = QFormat(2, 14, signed=False)
-#: K of M1/M2 and M4's ``K g0^(1/4)``: unsigned Q1.15.
+#: K of M1/M2 (and of M4, m / (m/s^2)^p, as the step configuration stores it): unsigned Q1.15.
 K_Q = QFormat(1, 15, signed=False)
-#: M4's square root and fourth root of the range (g^(1/2), g^(1/4)): unsigned Q1.15 (a walking trunk's 3 Hz
-#: range is below 2 g; a range of 4 g saturates the square root's 32-bit argument, counted).
+#: M4's device constant ``K g0^p`` (p = ``parameters.M4_EXPONENT``, 1/2: g0^(1/2) = 3.13 without K): unsigned
+#: Q2.14.
+K4_Q = QFormat(2, 14, signed=False)
+#: M4's square root, fourth and eighth roots of the range (g^(1/2), g^(1/4), g^(1/8)): unsigned Q1.15 (a
+#: walking trunk's 3 Hz range is below 2 g; a range of 4 g saturates the square root's 32-bit argument, counted).
 ROOT4_Q = QFormat(1, 15, signed=False)
 #: M5 constants ``K1 fs`` (m · samples) and ``K2`` (m): Q15.16 in 32 bits.
 M5_Q = QFormat(15, 16, word_bits=32)
@@ -101,6 +104,7 @@ F_EXC2 = EXCURSION2_Q.frac_bits
 F_TWO_LEN = TWO_LENGTH_Q.frac_bits
 F_STEP = STEP_Q.frac_bits
 F_K = K_Q.frac_bits
+F_K4 = K4_Q.frac_bits
 F_ROOT = ROOT4_Q.frac_bits
 F_M5 = M5_Q.frac_bits
 W16, W32 = 16, 32

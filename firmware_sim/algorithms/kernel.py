@@ -38,7 +38,8 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    extremes; then, with ``c1 = -mean(a)`` and ``c2`` known in closed form (``P2(T) = 16 P(T) + 2 c1 T^2``),
    M2's corrected position ``p2`` and its extremes, and M3's single-support extremes (Alvarez eqs 1-3).
    Lengths: M1, M2 ``K 2 sqrt(2 l h - h^2)`` (``h > 2 l``: ``IMPOSSIBLE``, length 0), M3
-   ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max - a_min)^(1/4)`` (two square roots rounded to nearest),
+   ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max - a_min)^p`` (p = ``parameters.M4_EXPONENT``, 1/2: square
+   roots rounded to nearest),
    M5 ``K1 / T + K2`` (eqs 1, 4; the seeds' corrections). One record per foot-flat: a step
    whose previous foot-flat is more than ``max_step`` back (or none) starts a walking bout and has no
    window (``NO_WINDOW``, lengths 0).
@@ -57,6 +58,7 @@ from firmware_sim.algorithms.formats import (
     F_FIR,
     F_GRAV,
     F_K,
+    F_K4,
     F_KERNEL,
     F_LP,
     F_M5,
@@ -72,7 +74,7 @@ from firmware_sim.algorithms.formats import (
     W33,
     W_LP,
 )
-from firmware_sim.algorithms.parameters import minimum_distance
+from firmware_sim.algorithms.parameters import M4_EXPONENT_EIGHTHS, minimum_distance
 from firmware_sim.algorithms.state import (
     AMP,
     DIST,
@@ -384,11 +386,22 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
                 flags |= _IMPOSSIBLE
             else:
                 l3 = ar.add(length, cfg_v[CV_FOOT], U16, cnt)
-        # M4 (eq 4): K (a_max - a_min)^(1/4), the range in g and K g0^(1/4) the constant; two square roots
-        # rounded to nearest, 15 fraction bits each (isqrt of the Q2.16 range shifted to 30 fraction bits)
+        # M4 (eq 4): K (a_max - a_min)^p, p = M4_EXPONENT_EIGHTHS / 8, the range in g and K g0^p the constant:
+        # the range's square root, fourth and eighth roots (rounded to nearest, 15 fraction bits each; the
+        # first from the Q2.16 range), the constant (UQ2.14) multiplied by those the exponent's bits select
         out_v[k, O_RANGE] = _range(s, e, cfg_i, scr, cnt)
-        l4 = ar.mul(ar.sqrt(ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt), F_ROOT, F_ROOT, True, cnt), F_ROOT,
-                    cfg_v[CV_K4], F_K, F_STEP, U16, cnt)
+        length = ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt)          # range^(1/2)
+        if M4_EXPONENT_EIGHTHS & 4:
+            l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, U16, cnt)
+        else:
+            l4 = ar.requant(cfg_v[CV_K4], F_K4, F_STEP, U16, cnt)
+        if M4_EXPONENT_EIGHTHS & 3:                                           # only the roots needed
+            length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)               # range^(1/4)
+            if M4_EXPONENT_EIGHTHS & 2:
+                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
+            if M4_EXPONENT_EIGHTHS & 1:
+                length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
+                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples
         l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, e - s, 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32, cnt),
                         F_M5, F_STEP, U16, cnt)

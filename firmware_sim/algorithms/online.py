@@ -14,7 +14,7 @@ calibrated), the rules (:class:`~firmware_sim.algorithms.parameters.EventParamet
 :class:`~firmware_sim.algorithms.parameters.OnlineParameters`) and the sampling rate. In fixed point every
 constant is quantised as the PIC keeps it; in float the configuration's values are used as they are stored
 in the header (the same numbers): the arithmetic is the only difference. Without a calibrated K, the
-lengths are the raw values a K calibration needs (K = 1; M4 in (m/s^2)^(1/4), M5 = 1/T in Hz: K1 = 1 m·s,
+lengths are the raw values a K calibration needs (K = 1; M4 in (m/s^2)^p, p = ``parameters.M4_EXPONENT``, M5 = 1/T in Hz: K1 = 1 m·s,
 K2 = 0), flagged ``UNCALIBRATED``.
 
 Examples
@@ -43,6 +43,7 @@ from firmware_sim.algorithms.format_kernel import KernelFormats
 from firmware_sim.algorithms.formats import (
     EXCURSION2_Q,
     EXCURSION_Q,
+    K4_Q,
     K_Q,
     KERNEL_Q,
     LENGTH_Q,
@@ -52,6 +53,7 @@ from firmware_sim.algorithms.formats import (
     centred_q,
 )
 from firmware_sim.algorithms.parameters import (
+    M4_EXPONENT,
     SIGMA_S_AT_1HZ,
     STANDARD_GRAVITY_M_S2,
     EventParameters,
@@ -85,8 +87,9 @@ __all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", 
 ARITHMETICS = ("fixed", "float")
 #: :meth:`OnlineStepAlgorithm.run` feeds a recording in blocks of this many samples (memory stays bounded).
 BLOCK_SAMPLES = 65536
-#: M4's constant is K g0^(1/4): the range is in g on the device, in m/s^2 in K's unit.
-G0_ROOT4 = STANDARD_GRAVITY_M_S2 ** 0.25
+#: M4's constant is K g0^p (p = :data:`~firmware_sim.algorithms.parameters.M4_EXPONENT`): the range is in g on
+#: the device, in m/s^2 in K's unit.
+G0_POWER_M4 = STANDARD_GRAVITY_M_S2 ** M4_EXPONENT
 
 
 def _gaussian_half(cutoff_hz: float, sampling_rate_hz: float, radius: int) -> np.ndarray:
@@ -208,8 +211,8 @@ class OnlineConfig:
             cfg_v = np.zeros(n_v, np.int64)
             raw = sc.raw if cal else dict(sc.raw, k_m1_q15=1 << 15, k_m2_q15=1 << 15, k_m4_q15=1 << 15,
                                           k1_m5_q16=1 << 16, k2_m5_q16=0)
-            # K' = K g0^(1/4): one UQ1.15 multiply at START
-            k4p = int(mul_q(np.int64(raw["k_m4_q15"]), K_Q.from_float(G0_ROOT4), K_Q.frac_bits, K_Q, signed=False))
+            # K' = K g0^p: one UQ1.15 multiply at START
+            k4p = int(mul_q(np.int64(raw["k_m4_q15"]), K4_Q.from_float(G0_POWER_M4), K_Q.frac_bits, K4_Q, signed=False))
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
                 DELTA=int(fq.lowpass_q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
@@ -230,7 +233,7 @@ class OnlineConfig:
             values = dict(
                 DELTA=ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2, FRAC=ev.prominence_fraction,
                 G_MIN=on.min_gravity_g,
-                TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * G0_ROOT4,
+                TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * G0_POWER_M4,
                 K1FS=k1_m5 * sampling_rate_hz, K2M5=k2_m5, UNIT=unit,
             )
             slot = calibration.quantised() if calibration is not None else None

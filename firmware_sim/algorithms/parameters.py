@@ -40,6 +40,16 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   IPOL trials against the offline chain), longer ones follow trunk tilt more slowly (2.56 s: within 0.2 %);
   the rule, not those trials, sets it. The typical step duration is the median of the last
   ``median_steps`` (7) peak intervals.
+* M4's exponent :data:`M4_EXPONENT` 1/2, not Weinberg's 1/4 (Alvarez eq 4; Weinberg, ADI AN-602, fitted on
+  his own device). With K fitted on one trial, a range^(1/4) follows a subject's later, longer or shorter
+  steps too little: IPOL subject 5 walks its first trial with 38 steps of 0.53 m and its others with 33 of
+  0.61 m (-13 %); the fourth root of the range of the 3 Hz vertical acceleration per step moves by -2 %, its
+  square root by -4 %. The exponent is a constant chosen from the IPOL recordings, chosen
+  leave-one-subject-out by :mod:`host.studies.tuning` (criterion: the IQR of the calibrated M4 distance
+  ratio, K from each training subject's first trial, scored on its other trials; candidates 1/4, 3/8, 1/2:
+  whole eighths, which the firmware computes with square roots, and at most 1/2 so that the uncalibrated
+  record's ``range^p``, in (m/s^2)^p, fits its 0-4 m UQ2.14 length up to a range of 16 m/s^2: 5/8 would
+  saturate it from 9.2 m/s^2, 0.94 g, which simulated walking reaches). Every fold chose 1/2.
 """
 
 from __future__ import annotations
@@ -49,12 +59,31 @@ from dataclasses import dataclass
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
-__all__ = ["ADAPTIVE_PROMINENCE", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
+__all__ = ["ADAPTIVE_PROMINENCE", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
            "gaussian_radius", "FRACTION_SCALE",
            "STANDARD_GRAVITY_M_S2", "SIGMA_S_AT_1HZ"]
 
 #: Gaussian sigma (s) whose -3 dB cut-off is 1 Hz: ``|H(f)| = exp(-(2 pi f sigma)^2 / 2) = 1/sqrt(2)``.
 SIGMA_S_AT_1HZ = float(math.sqrt(math.log(2.0)) / (2.0 * math.pi))
+
+
+def m4_exponent_eighths(exponent: float) -> int:
+    """M4's exponent as a whole number of eighths (1..7: what the firmware computes with square roots).
+
+    >>> m4_exponent_eighths(0.5), m4_exponent_eighths(0.375)
+    (4, 3)
+    """
+    e = float(exponent) * 8.0
+    if not (math.isfinite(e) and abs(e - round(e)) < 1e-9 and 1 <= round(e) <= 7):
+        raise ValueError(f"M4's exponent must be a whole number of eighths in 1/8..7/8, got {exponent!r}")
+    return round(e)
+
+
+#: M4's exponent: ``S = K (a_max - a_min)^M4_EXPONENT`` (module notes; Weinberg's is 1/4).
+M4_EXPONENT = 1 / 2
+#: The same in eighths (the firmware's square-root chain: range^(1/2), ^(1/4), ^(1/8) multiplied as its bits
+#: select).
+M4_EXPONENT_EIGHTHS = m4_exponent_eighths(M4_EXPONENT)
 #: ``min_step_fraction`` is applied as the integer ``round(fraction · FRACTION_SCALE)`` (a 3-digit constant).
 FRACTION_SCALE = 1000
 

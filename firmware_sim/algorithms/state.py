@@ -124,7 +124,7 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
         "hs": (2, "heel-strike index"), "to": (2, "toe-off index"), "hs3": (2, "M3's heel-strike"),
         "l1": (2, "M1 length, UQ2.14 (the record's)"), "l2": (2, "M2"), "l3": (2, "M3"), "l4": (2, "M4"),
         "l5": (2, "M5"), "c": (0, "the emulator's output loop"), "span": (4, "position range"),
-        "c1": (4, "M2 c1, Q.17"), "c2": (4, "M2 c2, Q.17 per sample"), "length": (2, "pendulum length, UQ2.14"),
+        "c1": (4, "M2 c1, Q.17"), "c2": (4, "M2 c2, Q.17 per sample"), "length": (2, "pendulum length, UQ2.14; then M4's roots of the range, UQ1.15"),
         "bad": (0, "bit of flags (IMPOSSIBLE)"), "span3": (4, "M3 position range"),
     },
     "_heel_strike": {"e": (0, "alias"), "m": (0, "alias"), "size": (0, "constant"), "lo": (2, "search start"),

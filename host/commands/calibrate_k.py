@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{len(sections)} section(s), {k.n_steps} steps, {k.distance_m:g} m ({k.mode}); leg length "
               f"{leg:.3f} m, foot length {foot:.3f} m, from: {lengths.source}" + (f" ({lengths.note})" if lengths.note and not lengths.assumed
                                                           else ""))
-        print(f"K  M1 {k.k_m1:.4f}  M2 {k.k_m2:.4f}  M4 {k.k_m4:.4f} m/(m/s^2)^0.25")
+        print(f"K  M1 {k.k_m1:.4f}  M2 {k.k_m2:.4f}  M4 {k.k_m4:.4f} m/(m/s^2)^{k.m4_exponent:g}")
         print(f"M5 S = {k.k1_m5_m_s:.4f} / T + {k.k2_m5_m:.4f} m"
               + ("  (walk-ratio fallback)" if k.m5_fallback else ""))
         print(f"K {k.describe_range()} (stored: 'gaitlog estimate' flags the steps outside it)")

@@ -220,7 +220,7 @@ def _estimate(ctx: dict[str, Any]) -> list[str]:
     ctx["k_path"] = k_path
     return ([f"float chain, K per mode from the first 40 m; 20 m sections: ratio estimated / real -> {rows_path}, "
              f"{fig_path}"] + format_summary(summary, res.events).splitlines()
-            + [f"multi-speed K: M1 {k.k_m1:.3f}, M2 {k.k_m2:.3f}, M4 {k.k_m4:.3f} m/(m/s2)^1/4, "
+            + [f"multi-speed K: M1 {k.k_m1:.3f}, M2 {k.k_m2:.3f}, M4 {k.k_m4:.3f} m/(m/s2)^{k.m4_exponent:g}, "
                f"M5 S = {k.k1_m5_m_s:.3f}/T + {k.k2_m5_m:.3f} m -> {k_path}"])
 
 

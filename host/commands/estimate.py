@@ -90,6 +90,12 @@ def run(args: argparse.Namespace) -> int:
                 path.unlink(missing_ok=True)
             raise
     summary = _summary(tables, ESTIMATORS, k)
+    for arith, s in summary.items():        # K extrapolated: said on stderr too, not only in the column
+        out_k = {e: v["steps_outside_k_range"] for e, v in s["estimators"].items() if v["steps_outside_k_range"]}
+        if out_k:
+            notes.append(f"{'fixed point: ' if arith == 'fixed' else ''}steps outside the range K was calibrated on "
+                         f"(K extrapolated; column outside_k_range): " + ", ".join(
+                             f"{e} {n} of {s['n_steps']}" for e, n in out_k.items()))
     if args.json:
         doc = {"input": str(args.input), "source": data.source, "n_samples": data.n_samples,
                "n_missing": data.n_missing, "sampling_rate_hz": data.sampling_rate_hz, "leg_length_m": leg,

@@ -61,7 +61,9 @@ def step_lines(header) -> list[str]:
         q = cfg.quantised()
         algorithm = (f"on-line version {int(cfg.step_format)}, leg {q.leg_length_m:.4f} m, "
                      f"foot {q.foot_length_m:.4f} m, ")
-        algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^0.25, "
+        from firmware_sim.algorithms.parameters import M4_EXPONENT
+
+        algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^{M4_EXPONENT:g}, "
                       f"M5 S = {q.k1_m5_m_s:.4f}/T {q.k2_m5_m:+.4f} m" if cfg.calibrated else
                       "raw (no K: M1, M2, M4 with K = 1, M5 the cadence in Hz)")
     return [f"step memory      {memory}", f"step algorithm   {algorithm}"]

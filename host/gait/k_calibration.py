@@ -20,8 +20,15 @@ says, per step of another walk and per estimator, when the step lies outside it 
 extrapolation: another speed, another step length). The commands write it as a column and count it.
 
 :class:`KFit` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
-``format_version`` "1.1"; a "1.0" file, written before the calibrated range was stored, is read with
-``calibrated_range`` None: nothing can then be said about the range).
+``format_version`` "1.2"; a "1.0" file, written before the calibrated range was stored, is read with
+``calibrated_range`` None: nothing can then be said about the range; "1.0" and "1.1" files, written before
+M4's exponent was stored, are read with ``m4_exponent`` 1/4, Weinberg's, which they were fitted with).
+
+*M4's exponent.* ``k_m4`` is in m / (m/s^2)^p: it holds for the exponent it was fitted with
+(``m4_exponent``). The offline chain applies it with that exponent (:func:`host.gait.pipeline.
+apply_calibration`, from the step's range); the logger computes the firmware's exponent only
+(:data:`firmware_sim.algorithms.parameters.M4_EXPONENT`), so :meth:`KFit.step_constants` refuses a K fitted
+with another.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
+from firmware_sim.algorithms.parameters import M4_EXPONENT
 from host.errors import HostError
 from host.files.versioned_json import VersionedJson
 from host.gait.sections import Section, pool_steps
@@ -67,7 +75,7 @@ class KFit(VersionedJson):
     Attributes
     ----------
     k_m1, k_m2, k_m4
-        K of M1, M2 (dimensionless) and M4 (m / (m/s^2)^(1/4)).
+        K of M1, M2 (dimensionless) and M4 (m / (m/s^2)^p, p = ``m4_exponent``).
     k1_m5_m_s, k2_m5_m
         M5 line ``S = K1 / T + K2`` (K1 in m*s... m per Hz of cadence, K2 in m).
     mode
@@ -84,12 +92,16 @@ class KFit(VersionedJson):
     calibrated_range
         ``{quantity: [min, max]}`` over the calibration steps (:data:`RANGE_QUANTITIES`, module notes); None
         when unknown (a format "1.0" file).
+    m4_exponent
+        M4's exponent ``p`` that ``k_m4`` was fitted with (module notes; 1/4 in a "1.0" or "1.1" file).
     """
 
     SCHEMA: ClassVar[str] = "gaitlog.KCalibration"
-    FORMAT_VERSION: ClassVar[str] = "1.1"
+    FORMAT_VERSION: ClassVar[str] = "1.2"
     #: Older format versions this gaitlog still reads (:meth:`from_dict`).
-    OLD_VERSIONS: ClassVar[tuple[str, ...]] = ("1.0",)
+    OLD_VERSIONS: ClassVar[tuple[str, ...]] = ("1.0", "1.1")
+    #: M4's exponent of the files written before it was stored (Weinberg's).
+    OLD_M4_EXPONENT: ClassVar[float] = 0.25
     KIND: ClassVar[str] = "K calibration"
     REDO: ClassVar[str] = "re-run 'gaitlog calibrate-k'"
 
@@ -108,10 +120,16 @@ class KFit(VersionedJson):
     subject: str = ""
     notes: list[str] = field(default_factory=list)
     calibrated_range: dict[str, list[float]] | None = None
+    m4_exponent: float = M4_EXPONENT
 
     def step_constants(self) -> dict[str, object]:
         """The K fields of the device's step configuration (:class:`protocol.steps.StepConfig`, PROTOCOL.md 2.2):
-        ``calibrated`` and the constants of M1, M2, M4 and M5 (the leg and foot lengths are the caller's)."""
+        ``calibrated`` and the constants of M1, M2, M4 and M5 (the leg and foot lengths are the caller's).
+
+        Raises :class:`HostError` when ``k_m4`` was fitted with another M4 exponent than the logger's."""
+        if not math.isclose(self.m4_exponent, M4_EXPONENT):
+            raise HostError(f"K calibration: M4's K was fitted with the exponent {self.m4_exponent:g}, the logger "
+                            f"computes {M4_EXPONENT:g}; {self.REDO}")
         return dict(calibrated=True, k_m1=float(self.k_m1), k_m2=float(self.k_m2), k_m4=float(self.k_m4),
                     k1_m5_m_s=float(self.k1_m5_m_s), k2_m5_m=float(self.k2_m5_m))
 
@@ -126,7 +144,7 @@ class KFit(VersionedJson):
             cal = cls(**data)  # type: ignore[arg-type]
         except TypeError as err:
             raise HostError(f"{source}: bad fields: {err}") from err
-        for name in ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m"):
+        for name in ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m", "m4_exponent"):
             if isinstance(getattr(cal, name), bool) or not isinstance(getattr(cal, name), (int, float)):
                 raise HostError(f"{source}: key {name!r} must be a number")
         if cal.calibrated_range is not None:
@@ -136,6 +154,8 @@ class KFit(VersionedJson):
                                                                 for x in v) for v in rng.values()):
                 raise HostError(f"{source}: key 'calibrated_range' must map {', '.join(RANGE_QUANTITIES)} to "
                                 "[min, max]")
+        if not (math.isfinite(cal.m4_exponent) and 0 < cal.m4_exponent <= 1):
+            raise HostError(f"{source}: key 'm4_exponent' must be in (0, 1], got {cal.m4_exponent!r}")
         for name in ("leg_length_m", "foot_length_m"):
             if not (math.isfinite(getattr(cal, name)) and getattr(cal, name) > 0):
                 raise HostError(f"{source}: key {name!r} must be a positive length in metres, got "
@@ -145,11 +165,14 @@ class KFit(VersionedJson):
     @classmethod
     def from_dict(cls, data: object, *, source: str | None = None) -> Self:
         """:meth:`VersionedJson.from_dict`, also reading the format versions of :attr:`OLD_VERSIONS` ("1.0":
-        no calibrated range, ``calibrated_range`` None)."""
+        no calibrated range, ``calibrated_range`` None; "1.0" and "1.1": ``m4_exponent`` 1/4)."""
         if isinstance(data, dict) and data.get("cal_type") == cls.SCHEMA and data.get("format_version") in cls.OLD_VERSIONS:
-            data = {**data, "format_version": cls.FORMAT_VERSION}
-            if "calibrated_range" in data:
+            old = data.get("format_version")
+            if "m4_exponent" in data:
+                raise HostError(f"{source or '<K calibration>'}: key 'm4_exponent' in a format {old} file")
+            if old == "1.0" and "calibrated_range" in data:
                 raise HostError(f"{source or '<K calibration>'}: key 'calibrated_range' in a format 1.0 file")
+            data = {**data, "format_version": cls.FORMAT_VERSION, "m4_exponent": cls.OLD_M4_EXPONENT}
         return super().from_dict(data, source=source)
 
     def outside_range(self, table: StepTable) -> dict[str, np.ndarray]:
@@ -212,6 +235,7 @@ def calibrate(
     foot_length_m: float,
     subject: str = "",
     min_cadence_spread: float = 0.05,
+    m4_exponent: float = M4_EXPONENT,
 ) -> KFit:
     """Fit K (M1, M2, M4) and the M5 line from step tables of sections with known distance.
 
@@ -224,6 +248,8 @@ def calibrate(
         The anatomical inputs those tables were computed with (stored in the result).
     min_cadence_spread
         Relative spread of the sections' mean cadences below which the M5 line is not identifiable.
+    m4_exponent
+        M4's exponent the tables' raw M4 lengths were computed with (stored in the result).
 
     Raises
     ------
@@ -278,6 +304,7 @@ def calibrate(
         mode="single-speed" if fallback else "multi-speed", m5_fallback=bool(fallback),
         leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m), n_sections=len(sections),
         n_steps=int(n_steps), distance_m=float(total), subject=subject, notes=notes, calibrated_range=rng,
+        m4_exponent=float(m4_exponent),
     )
 
 

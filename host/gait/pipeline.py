@@ -20,17 +20,19 @@ integral (nothing is interpolated across a gap).
 
 from __future__ import annotations
 
+import math
 import warnings
 from typing import TYPE_CHECKING, Self
 
 import numpy as np
 
+from firmware_sim.algorithms.parameters import M4_EXPONENT
 from firmware_sim.algorithms.steps import StepTable
 from host.gait.axes import BodyAxes, body_axes
 from host.gait.estimators.cadence import CadenceM5
 from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1
 from host.gait.estimators.two_phase import TwoPhasePendulumM3
-from host.gait.estimators.weinberg import WeinbergM4
+from host.gait.estimators.weinberg import WeinbergM4, weinberg_length_m
 from host.gait.events import GaitEventDetector
 from host.gait.integration import step_samples
 
@@ -191,10 +193,17 @@ def apply_calibration(table: StepTable, calibration: KFit | None) -> dict[str, n
                 "M5": nan.copy()}
     m5 = CadenceM5(k1_m_s=calibration.k1_m5_m_s, k2_m=calibration.k2_m5_m).estimate(
         step_duration_s=table.duration_s).step_length_m_
+    # M4: K with the exponent it was fitted with (the chain's raw lengths use M4_EXPONENT; an older K file's
+    # 1/4 is applied to the step's range)
+    if math.isclose(calibration.m4_exponent, M4_EXPONENT):
+        m4 = calibration.k_m4 * raw["M4"]
+    else:
+        rng = table.acc_range_m_s2 if table.acc_range_m_s2.size == table.n_steps else nan
+        m4 = weinberg_length_m(rng, k=calibration.k_m4, exponent=calibration.m4_exponent)
     return {
         "M1": calibration.k_m1 * raw["M1"],
         "M2": calibration.k_m2 * raw["M2"],
         "M3": raw["M3"].copy(),
-        "M4": calibration.k_m4 * raw["M4"],
+        "M4": m4,
         "M5": m5,
     }

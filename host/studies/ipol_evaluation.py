@@ -33,6 +33,9 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    of the constants chosen from these recordings; for each subject the candidate is chosen on the other
    subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
    The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
+   M4's exponent (a ``"k-transfer"`` constant) is chosen per held-out subject on the other subjects' calibrated
+   M4 ratios (K from their first trial, their event constants those of the fold), and that subject's offline
+   rows use it (K fitted with it); the on-line chains compute the shipped exponent, with K fitted with it.
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
    :func:`host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
@@ -66,6 +69,7 @@ import numpy as np
 
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.algorithms.online import OnlineSteps
+from firmware_sim.algorithms.parameters import M4_EXPONENT
 from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from firmware_sim.device import Logger
 from firmware_sim.errors import DeviceError
@@ -74,11 +78,13 @@ from host.errors import HostError
 from host.files.ipol import height_m_of, list_trials, read_trial
 from host.files.replay import check_records, online_step_table, run_starts
 from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
+from host.gait.estimators.weinberg import weinberg_length_m
 from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
 from host.studies.tuning import (
     CRITERION,
+    K_CRITERION,
     MATCH_TOLERANCE_S,
     TIMING_TOLERANCE_S,
     TUNED_PARAMETERS,
@@ -86,6 +92,7 @@ from host.studies.tuning import (
     LosoChoice,
     candidates,
     choose_loso,
+    choose_loso_spread,
     detector_for,
     score_events,
 )
@@ -328,6 +335,12 @@ class IpolResult:
         foot sensors, and the leave-one-subject-out choice per subject.
     trial_events
         :data:`EVENT_COLUMNS` rows (every trial of a calibrated subject, offline and on-line fixed).
+    m4_exponent, m4_training_iqr
+        Per held-out subject, M4's exponent chosen on the other subjects (:data:`host.studies.tuning.
+        K_CRITERION`) and its training IQR.
+    calibrations_online
+        The K the on-line chains use per subject: ``calibrations``' own unless the subject's fold chose another
+        M4 exponent than the logger's, then K refitted on the same trial with the logger's.
     """
 
     rows: list[dict]
@@ -344,13 +357,45 @@ class IpolResult:
     event_scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]] = field(default_factory=dict)
     loso: LosoChoice = field(default_factory=lambda: LosoChoice({}, {}))
     trial_events: list[dict] = field(default_factory=list)
+    m4_exponent: dict[int, float] = field(default_factory=dict)
+    m4_training_iqr: dict[int, float] = field(default_factory=dict)
+    calibrations_online: dict[int, KFit] = field(default_factory=dict)
 
 
-def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KFit:
-    sec, counts = trial_steps(rt, table, uturn=uturn)
+def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
+    """``table`` with its raw M4 lengths computed with ``exponent`` (``range^exponent``, from each step's
+    range); ``table`` itself when that is the chain's own exponent."""
+    if math.isclose(exponent, M4_EXPONENT):
+        return table
+    out = table.select(np.ones(table.n_steps, bool))
+    out.raw_m = {**table.raw_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=1.0, exponent=exponent)}
+    return out
+
+
+def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float,
+                  m4_exponent: float = M4_EXPONENT) -> KFit:
+    sec, counts = trial_steps(rt, with_m4_exponent(table, m4_exponent), uturn=uturn)
     # one trial at one speed: the M5 walk-ratio fallback is expected (its note stays in the result)
     return calibrate([(_counted(sec, counts), IPOL_DISTANCE_M)], leg_length_m=leg, foot_length_m=foot,
-                     subject=str(rt.subject))
+                     subject=str(rt.subject), m4_exponent=m4_exponent)
+
+
+def _m4_ratios(trials: list[tuple[ReplayedTrial, list[StepTable]]], candidate: int, exponent: float, *,
+               uturn: str, leg: float, foot: float) -> list[float]:
+    """M4's distance ratios of a subject's scored trials with K fitted on its first trial, the offline chain
+    of one event candidate and M4 computed with ``exponent`` (the ``"k-transfer"`` criterion's input)."""
+    offs = [tables[candidate] for _, tables in trials]
+    try:
+        k = _calibrate_on(trials[0][0], offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=exponent)
+    except HostError:
+        return []
+    out = []
+    for (rt, _), off in zip(trials[1:], offs[1:], strict=True):
+        table = off.select(np.ones(off.n_steps, bool))
+        table.length_m = apply_calibration(off, k)
+        sec, counts = trial_steps(rt, table, uturn=uturn)
+        out.append(section_distance(sec, counts, "M4") / IPOL_DISTANCE_M)
+    return out
 
 
 def _score_rows(rt: ReplayedTrial, table: StepTable, k: KFit, *, arithmetic: str, k_from: str, uturn: str,
@@ -485,6 +530,20 @@ def evaluate_folder(
     if replayed:
         res.loso = choose_loso({s: [[hs for hs, _ in res.event_scores[(s, rt.trial)]] for rt, _ in trials]
                                 for s, trials in replayed.items()})
+    # 2b. M4's exponent, leave-one-subject-out on the calibrated M4 ratios (the fold's event constants)
+    exponents = next(p.candidates for p in TUNED_PARAMETERS if p.name == "m4_exponent")
+    scorable = [s for s, trials in replayed.items() if len(trials) >= 2]
+    cache: dict[tuple[int, int, int], list[float]] = {}
+    for s in scorable:
+        c = res.loso.chosen[s]
+        for o in scorable:
+            for j, e in enumerate(exponents):
+                if o != s and (o, c, j) not in cache:
+                    cache[(o, c, j)] = _m4_ratios(replayed[o], c, e, uturn=uturn, leg=lengths[o][0],
+                                                  foot=lengths[o][1])
+        chosen, iqr = choose_loso_spread({o: [cache.get((o, c, j), []) for j in range(len(exponents))]
+                                          for o in scorable})
+        res.m4_exponent[s], res.m4_training_iqr[s] = float(exponents[chosen[s]]), iqr[s]
     # 3. per subject: K on the first trial with the constants chosen without it, the other trials scored
     for subject in by_subject:
         trials = replayed.get(subject, [])
@@ -495,20 +554,25 @@ def evaluate_folder(
             res.skipped.append(f"subject {subject}: fewer than two readable trials")
             continue
         c = res.loso.chosen[subject]
-        cv_online = c == 0                          # the on-line algorithm runs the defaults (candidate 0)
+        p4 = res.m4_exponent.get(subject, M4_EXPONENT)
+        # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
+        cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
         leg, foot, source = lengths[subject]
         offs = [tables[c] for _, tables in trials]
         rt0 = trials[0][0]
         try:
-            k = _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot)
-            k_other = _calibrate_on(rt0, offs[0], uturn=other_uturn, leg=leg, foot=foot)
+            k = _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=p4)
+            k_online = (k if math.isclose(p4, M4_EXPONENT)
+                        else _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot))
+            k_other = _calibrate_on(rt0, offs[0], uturn=other_uturn, leg=leg, foot=foot, m4_exponent=p4)
             a_leg, a_foot = anatomical_lengths(height_m=DEFAULT_HEIGHT_M)
             assumed = [_offline(rt, a_leg, a_foot, cands[c]) for rt, _ in trials]
-            k_assumed = _calibrate_on(rt0, assumed[0], uturn=uturn, leg=a_leg, foot=a_foot)
+            k_assumed = _calibrate_on(rt0, assumed[0], uturn=uturn, leg=a_leg, foot=a_foot, m4_exponent=p4)
         except HostError as err:
             res.skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
             continue
         res.calibrations[subject] = k
+        res.calibrations_online[subject] = k_online
         own = None
         if "online-fixed" in arithmetic:
             try:
@@ -523,7 +587,7 @@ def evaluate_folder(
                     tables[a] = offs[i].select(np.ones(offs[i].n_steps, bool))
                     tables[a].length_m = apply_calibration(offs[i], k)
                 else:
-                    tables[a] = _online(rt, a, k, res.saturation)
+                    tables[a] = _online(rt, a, k_online, res.saturation)
             if set(tables) == set(ARITHMETICS):
                 res.step_rows += _step_rows(rt, tables, i == 0)
             for a in ("offline", "online-fixed"):
@@ -532,8 +596,8 @@ def evaluate_folder(
             if i == 0:
                 continue
             res.n_trials += 1
-            runs = [(a, "offline", tables[a], k, uturn, source, "main", a == "offline" or cv_online)
-                    for a in arithmetic]
+            runs = [(a, "offline", tables[a], k if a == "offline" else k_online, uturn, source, "main",
+                     a == "offline" or cv_online) for a in arithmetic]
             if own is not None:
                 runs.append(("online-fixed", "own", _online(rt, "fixed", own, res.saturation), own, uturn, source,
                              "main", cv_online))
@@ -641,11 +705,19 @@ def format_tuning(result: IpolResult) -> str:
     lines = [f"constants tuned on IPOL, chosen leave-one-subject-out ({len(result.candidates)} candidates; "
              f"criterion: {CRITERION}):"]
     for p in TUNED_PARAMETERS:
+        if p.criterion == "k-transfer":
+            if p.name != "m4_exponent" or not result.m4_exponent:
+                continue
+            values = list(result.m4_exponent.values())
+            lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}; criterion: {K_CRITERION}): "
+                         + ", ".join(f"{v!r} in {values.count(v)} of {len(values)} folds" for v in dict.fromkeys(values)))
+            continue
         values = [result.candidates[c][p.name] for c in loso.values()]
         counts = {v: values.count(v) for v in dict.fromkeys(values)}
         lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}): "
                      + ", ".join(f"{v!r} in {n} of {len(values)} folds" for v, n in counts.items()))
-    every_default = all(c == 0 for c in loso.values())
+    every_default = (all(c == 0 for c in loso.values())
+                     and all(math.isclose(v, M4_EXPONENT) for v in result.m4_exponent.values()))
     lines.append("cross-validated: every offline-chain figure (each subject scored with the constants chosen on "
                  "the other subjects; K per subject from its first trial, scored on its other trials); the on-line "
                  "chains run the shipped defaults: "

@@ -12,11 +12,16 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   the 10 Hz vertical acceleration, Zijlstra & Hof 2003's initial contact; :class:`SteepestRiseDetector`).
 * ``hs_delay_s``: the heel strike this long before the impact (:class:`firmware_sim.algorithms.parameters.
   EventParameters`; 0-80 ms, whole samples at 50 Hz; ignored by the steepest-rise rule).
+* ``m4_exponent``: M4's ``S = K (a_max - a_min)^p`` (:data:`firmware_sim.algorithms.parameters.M4_EXPONENT`;
+  1/4 (Weinberg), 3/8, 1/2: why these, in that module's notes). Its criterion is the one K must meet
+  (:data:`K_CRITERION`, :func:`choose_loso_spread`): the IQR of the calibrated M4 distance ratio, K fitted on
+  each training subject's first trial and scored on its other trials, pooled; ties go to the earlier
+  candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
 
 A parameter whose name is a field of :class:`~firmware_sim.algorithms.parameters.EventParameters` needs
 nothing else: add a :class:`TunedParameter` and it is searched (the grid is the product of the candidates).
 
-Criterion: heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot sensors, F1 pooled over the
+Criterion of the event parameters (``criterion="events"``): heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot sensors, F1 pooled over the
 training subjects' trials (more matched, fewer missed and fewer extra); ties go to the smaller median
 |timing error|, then to the earlier candidate (the default comes first). Only the event detection is re-run
 per candidate (the offline chain on cached trials, milliseconds per trial), never the logger's replay.
@@ -25,19 +30,21 @@ per candidate (the offline chain on cached trials, milliseconds per trial), neve
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import EventParameters, samples
+from firmware_sim.algorithms.parameters import M4_EXPONENT, EventParameters, samples
 from host.gait.events import GaitEventDetector, link_steps
 from host.gait.masked_filter import masked_gaussian_lowpass
 from host.studies.compare import match_events
 
-__all__ = ["CRITERION", "MATCH_TOLERANCE_S", "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
-           "TunedParameter", "candidates", "choose_loso", "detector_for", "score_events"]
+__all__ = ["CRITERION", "K_CRITERION", "MATCH_TOLERANCE_S", "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
+           "TunedParameter", "candidates", "choose_loso", "choose_loso_spread", "detector_for", "k_parameters",
+           "score_events"]
 
 #: An event matches a reference event within this (the F1 criterion of the event figures).
 MATCH_TOLERANCE_S = 0.04
@@ -47,13 +54,14 @@ TIMING_TOLERANCE_S = 0.15
 
 @dataclass(frozen=True)
 class TunedParameter:
-    """A constant chosen from recordings: its candidates (the grid searched), the shipped default and where
-    it is used."""
+    """A constant chosen from recordings: its candidates (the grid searched), the shipped default, where it
+    is used and its criterion (``"events"``: :data:`CRITERION`; ``"k-transfer"``: :data:`K_CRITERION`)."""
 
     name: str
     candidates: tuple[Any, ...]
     default: Any
     used_in: str
+    criterion: str = "events"
 
 
 #: Every constant chosen from the IPOL recordings (module notes).
@@ -62,20 +70,38 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
                    "host.gait.events (heel-strike = the impact in the 5-10 Hz band) and the on-line algorithm"),
     TunedParameter("hs_delay_s", (0.04, 0.0, 0.02, 0.06, 0.08), EventParameters().hs_delay_s,
                    "EventParameters.hs_delay_s (heel-strike before the impact), both chains"),
+    TunedParameter("m4_exponent", (M4_EXPONENT, 0.25, 0.375), M4_EXPONENT,
+                   "firmware_sim.algorithms.parameters.M4_EXPONENT (M4 = K range^p), both chains",
+                   criterion="k-transfer"),
 )
 
 #: The selection criterion, in words (printed by ``gaitlog evaluate ipol``).
 CRITERION = (f"heel strikes within {1e3 * MATCH_TOLERANCE_S:.0f} ms of the foot sensors, F1 pooled over the "
              "training subjects' trials (ties: smaller median |error|)")
+#: The criterion of the ``"k-transfer"`` parameters.
+K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial scored on its other "
+               "trials, pooled over the training subjects (ties: the earlier candidate)")
+
+
+def k_parameters(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[TunedParameter]:
+    """The parameters chosen by :data:`K_CRITERION` (not part of the event grid, :func:`candidates`).
+
+    >>> [p.name for p in k_parameters()]
+    ['m4_exponent']
+    """
+    return [p for p in parameters if p.criterion == "k-transfer"]
 
 
 def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[dict[str, Any]]:
     """The grid: every combination of candidate values, the defaults first (the steepest-rise rule only with
     the default ``hs_delay_s``, which it ignores).
 
+    Only the ``"events"`` parameters span the grid (the ``"k-transfer"`` ones: :func:`choose_loso_spread`).
+
     >>> len(candidates()), candidates()[0]
     (6, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04})
     """
+    parameters = [p for p in parameters if p.criterion == "events"]
     default = {p.name: p.default for p in parameters}
     grid = [dict(zip([p.name for p in parameters], combo))
             for combo in itertools.product(*[p.candidates for p in parameters])]
@@ -218,3 +244,32 @@ def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]]) -> LosoCho
                 best, key_best = c, key
         chosen[s], f1s[s] = best, float(key_best[0]) if key_best is not None else float("nan")
     return LosoChoice(chosen, f1s)
+
+
+def choose_loso_spread(ratios: Mapping[int, Sequence[Sequence[float]]]) -> tuple[dict[int, int], dict[int, float]]:
+    """For each subject, the candidate whose pooled ratios of the *other* subjects have the smallest IQR
+    (:data:`K_CRITERION`).
+
+    ``ratios[subject][candidate]``: the distance ratios (estimated / real) of that subject's scored trials
+    with that candidate (same candidate order everywhere; NaN ratios are left out). Returns the chosen index
+    and the training IQR per held-out subject.
+
+    >>> tight, wide = [1.0, 1.01, 0.99, 1.0], [0.8, 1.2, 0.9, 1.1]
+    >>> choose_loso_spread({1: [wide, tight], 2: [wide, tight], 3: [tight, tight]})[0]
+    {1: 1, 2: 1, 3: 1}
+    """
+    subjects = list(ratios)
+    n_cand = len(next(iter(ratios.values())))
+    chosen, iqrs = {}, {}
+    for s in subjects:
+        best, best_iqr = 0, math.inf
+        for c in range(n_cand):
+            v = np.concatenate([np.asarray(ratios[o][c], np.float64) for o in subjects if o != s] or [np.zeros(0)])
+            v = v[np.isfinite(v)]
+            if v.size == 0:
+                continue
+            q1, q3 = np.percentile(v, [25, 75])
+            if q3 - q1 < best_iqr:
+                best, best_iqr = c, float(q3 - q1)
+        chosen[s], iqrs[s] = best, best_iqr
+    return chosen, iqrs

@@ -15,6 +15,7 @@ import pytest
 from firmware_sim.algorithms import kernel
 from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from firmware_sim.algorithms.parameters import (
+    M4_EXPONENT,
     STANDARD_GRAVITY_M_S2,
     EventParameters,
     OnlineParameters,
@@ -57,9 +58,10 @@ def test_sinusoid_excursion_and_pendulum_length(arithmetic: str) -> None:
     # steps are 0.5 s apart, the first has no window
     assert np.all(steps.duration[1:] == 25) and steps.duration[0] == 0
     assert steps.has_flag(StepFlag.NO_WINDOW)[0] and not steps.has_flag(StepFlag.NO_WINDOW)[1:].any()
-    # uncalibrated: M5 is the cadence, M4 the raw (g0 range)^(1/4)
+    # uncalibrated: M5 is the cadence, M4 the raw (g0 range)^p
     np.testing.assert_allclose(steps.length_m()[inner, 4], 2.0, atol=1e-3)
-    np.testing.assert_allclose(steps.length_m()[inner, 3], (steps.range_g()[inner] * STANDARD_GRAVITY_M_S2) ** 0.25,
+    np.testing.assert_allclose(steps.length_m()[inner, 3],
+                               (steps.range_g()[inner] * STANDARD_GRAVITY_M_S2) ** M4_EXPONENT,
                                rtol=1e-3)
     assert steps.has_flag(StepFlag.UNCALIBRATED).all()
 

@@ -77,6 +77,26 @@ def test_estimate_npz_with_gaps_and_k_file(tmp_path, capsys) -> None:
     assert float(line.split()[1]) == pytest.approx(18.0, rel=1e-6)    # fitted on this recording
 
 
+def test_estimate_warns_when_k_is_extrapolated(tmp_path, capsys) -> None:
+    """Issue 12 (4): K from one walk applied to a walk with slower, deeper steps: the steps outside K's
+    calibrated range are counted in the summary and said on stderr; on the calibration walk itself, nothing."""
+    cal, other = tmp_path / "cal.npz", tmp_path / "other.npz"
+    write_npz(cal, walk_acc_g(n_steps=30)[0], valid=None)
+    write_npz(other, walk_acc_g(n_steps=30, step_s=0.7, amp_m=0.035, seed=1)[0], valid=None)
+    k = tmp_path / "k.json"
+    assert main(["calibrate-k", str(cal), "--distance", "18", "--height", "1.75", "--out", str(k)]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(cal), "--k-file", str(k)]) == 0
+    assert "outside the range K" not in capsys.readouterr().err
+    assert main(["estimate", str(other), "--k-file", str(k)]) == 0
+    captured = capsys.readouterr()
+    warning = [ln for ln in captured.err.splitlines() if "outside the range K was calibrated on" in ln]
+    assert len(warning) == 1 and warning[0].startswith("gaitlog estimate: warning: ")
+    line = next(ln for ln in captured.out.splitlines() if ln.startswith("M2"))
+    n_out = int(line.split()[-1])
+    assert n_out > 20 and f"M2 {n_out} of " in warning[0]
+
+
 def test_calibrate_k_with_lap_marks(tmp_path, capsys) -> None:
     acc, _ = walk_acc_g(n_steps=40)
     flags = np.zeros(acc.shape[0], np.uint8)

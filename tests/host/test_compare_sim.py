@@ -273,6 +273,9 @@ def test_saturation_is_reported_on_a_recording() -> None:
     hot = CalibrationSlot(np.full(3, 512.0), np.eye(3) * 4 / 256, valid=True)
     res = compare_recording(codes, sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=0.9, foot_length_m=0.26, adc_calibration=hot)
     assert res.saturated > 0 and "saturated" in res.saturation
+    # with the nominal gain, a +-0.6 g square wave (a 3 Hz range below 16 m/s^2: uncalibrated M4's range^(1/2)
+    # fits its record) saturates nothing
+    codes[:, 0] = np.clip(512 + 256 + np.round(150 * np.sign(np.sin(2 * np.pi * 1.8 * t))), 0, 1023)
     ok = compare_recording(codes, sampling_rate_hz=SAMPLING_RATE_HZ, leg_length_m=0.9, foot_length_m=0.26)
     assert ok.saturation == "" and ok.saturated == 0
 

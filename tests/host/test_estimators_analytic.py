@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+from firmware_sim.algorithms.parameters import M4_EXPONENT
 from host.errors import HostError
 from host.gait.anthropometry import anatomical_lengths
 from host.gait.estimators.cadence import CadenceM5
@@ -111,15 +112,17 @@ def test_impossible_excursion_is_nan_counted_and_warned() -> None:
     assert np.isnan(m1.step_length_m_).all() and m1.n_impossible_ == 2
 
 
-def test_m4_weinberg_fourth_root_of_lowpassed_range() -> None:
+@pytest.mark.parametrize("exponent", [0.25, M4_EXPONENT])
+def test_m4_weinberg_power_of_lowpassed_range(exponent: float) -> None:
     sampling_rate_hz, f, amp = 100.0, 0.5, 1.5
     t = np.arange(int(8 * sampling_rate_hz)) / sampling_rate_hz
     a = amp * np.sin(2 * np.pi * f * t)
     sigma = np.sqrt(np.log(2)) / (2 * np.pi * 3.0)
     gain = np.exp(-0.5 * (2 * np.pi * f * sigma) ** 2)   # Gaussian low-pass response at f
-    m4 = WeinbergM4(k=0.45).estimate(a, step_start=[200], step_end=[400], sampling_rate_hz=sampling_rate_hz)
+    m4 = WeinbergM4(k=0.45, exponent=exponent).estimate(a, step_start=[200], step_end=[400],
+                                                        sampling_rate_hz=sampling_rate_hz)
     assert m4.acc_range_m_s2_[0] == pytest.approx(2 * amp * gain, rel=2e-3)
-    assert m4.step_length_m_[0] == pytest.approx(0.45 * (2 * amp * gain) ** 0.25, rel=1e-3)
+    assert m4.step_length_m_[0] == pytest.approx(0.45 * (2 * amp * gain) ** exponent, rel=1e-3)
 
 
 def test_m5_line() -> None:

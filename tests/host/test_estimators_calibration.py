@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from firmware_sim.algorithms.parameters import M4_EXPONENT
 from firmware_sim.algorithms.steps import StepTable
 from host.errors import HostError
 from host.gait.k_calibration import KFit, calibrate
@@ -84,7 +85,8 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     back = KFit.load(p)
     assert back == cal
     d = json.loads(p.read_text())
-    assert d["format_version"] == "1.1" and d["cal_type"] == "gaitlog.KCalibration"
+    assert d["format_version"] == "1.2" and d["cal_type"] == "gaitlog.KCalibration"
+    assert d["m4_exponent"] == M4_EXPONENT
     assert d["calibrated_range"]["duration_s"] == [0.55, 0.55]
     d["format_version"] = "9.9"
     p.write_text(json.dumps(d))
@@ -94,12 +96,12 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match=r"'0\.9' \(re-run 'gaitlog calibrate-k'\)"):
         KFit.load(p)
-    d["format_version"] = "1.1"
+    d["format_version"] = "1.2"
     d["calibrated_range"] = {"duration_s": [0.5, 0.6]}
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match="key 'calibrated_range' must map"):
         KFit.load(p)
-    del d["calibrated_range"]
+    del d["calibrated_range"], d["m4_exponent"]
     d["format_version"] = "1.0"
     d["k_m1"] = "one"
     p.write_text(json.dumps(d))
@@ -130,7 +132,7 @@ def test_a_format_1_0_file_is_read_without_a_range(tmp_path) -> None:
     cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
     d = cal.to_dict()
     d["format_version"] = "1.0"
-    del d["calibrated_range"]
+    del d["calibrated_range"], d["m4_exponent"]
     p = tmp_path / "old.json"
     p.write_text(json.dumps(d))
     old = KFit.load(p)
@@ -140,6 +142,29 @@ def test_a_format_1_0_file_is_read_without_a_range(tmp_path) -> None:
     d["calibrated_range"] = cal.calibrated_range
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match="calibrated_range' in a format 1.0 file"):
+        KFit.load(p)
+
+
+def test_a_format_1_1_file_keeps_weinbergs_exponent(tmp_path) -> None:
+    """A K file written before M4's exponent was stored (format 1.1) was fitted with range^(1/4): it is read
+    so, applied so on the host (from the step's range), and refused for the logger, which computes another."""
+    cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
+    d = cal.to_dict()
+    d["format_version"] = "1.1"
+    del d["m4_exponent"]
+    p = tmp_path / "old.json"
+    p.write_text(json.dumps(d))
+    old = KFit.load(p)
+    assert old.m4_exponent == 0.25 and old.k_m4 == cal.k_m4
+    t = table(0.5, 0.55, 30)
+    lengths = apply_calibration(t, old)
+    np.testing.assert_allclose(lengths["M4"][1:], cal.k_m4 * t.acc_range_m_s2[1:] ** 0.25)
+    with pytest.raises(HostError, match="exponent 0.25"):
+        old.step_constants()
+    assert cal.step_constants()["k_m4"] == cal.k_m4
+    d["m4_exponent"] = 0.5
+    p.write_text(json.dumps(d))
+    with pytest.raises(HostError, match="'m4_exponent' in a format 1.1 file"):
         KFit.load(p)
 
 

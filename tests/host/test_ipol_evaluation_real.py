@@ -3,15 +3,16 @@ the logger's on-line step algorithm on; the offline chain and the on-line algori
 with ONE K per subject (fitted on trial 1 with the offline chain).
 
 ``gaitlog evaluate ipol`` runs once (module fixture, ~5 s); every figure is computed here from the CSVs it
-writes (not by the code under test) and pinned near what is measured. M4's and M5's interquartile ranges
-miss the issue's 0.10 with the offline chain (0.103 and 0.149: strict expected failures): with K fitted on
-one 20 m trial at one speed, even the *reference* step events give M5 an IQR of 0.109 on these trials
-(walk-ratio model; 0.119 for a constant step length), so no detector can reach 0.10.
+writes (not by the code under test) and pinned near what is measured. M5's interquartile range misses
+issue 4's 0.10 with the offline chain (0.149: a strict expected failure): with K fitted on one 20 m trial at
+one speed, even the *reference* step events give M5 an IQR of 0.109 on these trials (walk-ratio model; 0.119
+for a constant step length), so no detector can reach 0.10. Issue 12's IQR <= 0.06 for calibrated M2 and M4
+is missed (0.063 and 0.073: strict expected failures).
 
-The constants chosen on these trials (the heel-strike rule and ``hs_delay_s``, :mod:`host.studies.tuning`) are
-chosen leave-one-subject-out by the command: every offline-chain figure is cross-validated (measured: the
-defaults in 8 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out), the on-line chains run the shipped
-defaults (cross-validated for the other 8 subjects). The on-line algorithm's gravity time constant comes from a
+The constants chosen on these trials (the heel-strike rule, ``hs_delay_s`` and M4's exponent,
+:mod:`host.studies.tuning`) are chosen leave-one-subject-out by the command: every offline-chain figure is
+cross-validated (measured: the defaults in 8 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out; M4's
+exponent 1/2 in 9 of 9), the on-line chains run the shipped defaults (cross-validated for the other 8 subjects). The on-line algorithm's gravity time constant comes from a
 ripple rule, ``firmware_sim/algorithms/parameters.py``; K is fitted per subject on trial 1 and scored on the
 others, never on the trial it scores.
 """
@@ -129,7 +130,7 @@ def test_device_records_are_the_algorithm_run_here(folder) -> None:
 def test_arithmetic_share_per_step(ipol) -> None:
     """Issue 10 (c): on-line fixed vs on-line float, same codes, same K, per step: median |d| <= 0.1 mm
     (0.014-0.063 mm measured) and at most 1 % of a step (0.29 %); events differ on 6 of 1,949 steps."""
-    measured_mm = {"M1": 0.063, "M2": 0.030, "M3": 0.026, "M4": 0.027, "M5": 0.014}
+    measured_mm = {"M1": 0.063, "M2": 0.030, "M3": 0.026, "M4": 0.038, "M5": 0.014}
     st = ipol.steps
     same = np.array([r["same_events_arithmetic"] == "1" for r in st])
     matched = np.array([int(r["online_fixed_step"]) >= 0 for r in st])
@@ -162,7 +163,7 @@ def test_arithmetic_share_in_distance(ipol) -> None:
 
 
 # measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
-ALGORITHM_SHARE = {"M1": 0.0093, "M2": 0.0091, "M3": 0.0081, "M4": 0.0042, "M5": 0.0040}
+ALGORITHM_SHARE = {"M1": 0.0093, "M2": 0.0091, "M3": 0.0081, "M4": 0.0083, "M5": 0.0040}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
@@ -187,7 +188,7 @@ def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     assert med == pytest.approx(measured, abs=0.005)
 
 
-@pytest.mark.parametrize("name, measured", [("M1", 1.028), ("M2", 1.017), ("M4", 0.999), ("M5", 1.006)])
+@pytest.mark.parametrize("name, measured", [("M1", 1.028), ("M2", 1.017), ("M4", 0.991), ("M5", 1.006)])
 def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1)."""
     assert "a different K, not a comparison" in ipol.text
@@ -195,15 +196,15 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     assert r.size == 43
     assert np.median(r) == pytest.approx(measured, abs=0.005)
     if name == "M4":
-        assert iqr(r) == pytest.approx(0.116, abs=0.005)
+        assert iqr(r) == pytest.approx(0.078, abs=0.005)
 
 
 # The README's table: median ratio, IQR (and min, max offline) with the offline chain's K
 README_TABLE = {
     "offline": {"M1": (1.045, 0.078, 0.862, 1.147), "M2": (1.015, 0.063, 0.822, 1.118),
-                "M3": (1.015, 0.056, 0.883, 1.150), "M4": (1.004, 0.103, 0.839, 1.108),
+                "M3": (1.015, 0.056, 0.883, 1.150), "M4": (1.006, 0.073, 0.862, 1.099),
                 "M5": (1.004, 0.149, 0.789, 1.268)},
-    "online-fixed": {"M1": (1.046, 0.081), "M2": (1.020, 0.071), "M3": (1.020, 0.075), "M4": (0.999, 0.099),
+    "online-fixed": {"M1": (1.046, 0.081), "M2": (1.020, 0.071), "M3": (1.020, 0.075), "M4": (1.001, 0.074),
                      "M5": (1.000, 0.175)},
 }
 
@@ -218,7 +219,7 @@ def test_readme_table(ipol, arithmetic, name) -> None:
 
 
 def test_online_m4_iqr_meets_the_target(ipol) -> None:
-    """With the offline chain's K, the on-line algorithm's M4 IQR is 0.099 (offline 0.103, an expected failure)."""
+    """With the offline chain's K, the on-line algorithm's M4 IQR is 0.074 (offline 0.073)."""
     assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
 
 
@@ -231,11 +232,22 @@ def test_m2_iqr(ipol) -> None:
     assert iqr(ratios(ipol.rows, "M2")) <= 0.10
 
 
-@pytest.mark.xfail(reason="offline M4 IQR 0.103 (0.098-0.105 as the sensor model and the heel-strike rule "
-                          "changed): S ~ range^(1/4) follows the trial-to-trial step-length changes of these "
-                          "subjects only weakly", strict=True)
 def test_m4_iqr(ipol) -> None:
+    """Issue 4's 0.10: met since M4 is K range^(1/2) (0.103 with Weinberg's range^(1/4))."""
     assert iqr(ratios(ipol.rows, "M4")) <= 0.10
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param("M2", marks=pytest.mark.xfail(reason="offline M2 IQR 0.063: K from one trial, subjects who walk "
+                                                      "their calibration trial with other steps", strict=True)),
+    pytest.param("M4", marks=pytest.mark.xfail(reason="offline M4 IQR 0.073 (LOSO exponent 1/2; 5/8 would give "
+                                                      "0.060 but saturates the uncalibrated record)", strict=True)),
+])
+def test_issue12_calibrated_iqr(ipol, name) -> None:
+    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met) and IQR <= 0.06 (missed)."""
+    r = ratios(ipol.rows, name)
+    assert abs(np.median(r) - 1.0) <= 0.02
+    assert iqr(r) <= 0.06
 
 
 @pytest.mark.xfail(reason="M5 calibrated on one speed: IQR >= 0.109 even with reference step events", strict=True)
@@ -261,14 +273,17 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
-    """Issue 12 (5): the heel-strike rule and hs_delay_s are chosen per held-out subject on the other eight; the
-    command says which figures are cross-validated. Measured: the impact rule in 9 of 9 folds, hs_delay_s 0.04 s
-    in 8 and 0.06 s in 1 (subject 1 held out: its on-line rows are marked not cross-validated)."""
+    """Issue 12 (5): the heel-strike rule, hs_delay_s and M4's exponent are chosen per held-out subject on the
+    other eight; the command says which figures are cross-validated. Measured: the impact rule in 9 of 9 folds,
+    hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out: its on-line rows are marked not
+    cross-validated), M4's exponent 1/2 in 9 of 9."""
     t = ipol.text
     assert "chosen leave-one-subject-out" in t and "criterion: heel strikes within 40 ms" in t
     assert "heel_strike_rule (default 'impact'" in t and "'impact' in 9 of 9 folds" in t
     line = t.split("hs_delay_s (default 0.04")[1].split("\n")[0]
     assert "0.04 in 8 of 9 folds" in line and "0.06 in 1 of 9 folds" in line
+    line = t.split("m4_exponent (default 0.5")[1].split("\n")[0]
+    assert "criterion: IQR of the calibrated distance ratio" in line and "0.5 in 9 of 9 folds" in line
     assert "cross-validated: every offline-chain figure" in t
     not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0"}
     assert not_cv == {("1", "online-float"), ("1", "online-fixed")}

@@ -1,10 +1,13 @@
 """M4: Weinberg's step length from the vertical acceleration range (Alvarez eq 4; Weinberg, ADI AN-602, 2002).
 
-.. math:: S = K \\sqrt[4]{a_{max} - a_{min}}
+.. math:: S = K (a_{max} - a_{min})^p
+
+with ``p`` :data:`firmware_sim.algorithms.parameters.M4_EXPONENT` (5/8; Weinberg's is 1/4: why, and how it
+was chosen leave-one-subject-out, in that module's notes and :mod:`host.studies.tuning`)
 
 per step, ``a`` the vertical acceleration low-passed at 3 Hz (its first harmonic; here a Gaussian
 low-pass with -3 dB at 3 Hz over the measured samples), max and min within the step (foot-flat to
-foot-flat). The range is taken in m/s^2, so K is in m / (m/s^2)^(1/4). The distance over n steps is the sum
+foot-flat). The range is taken in m/s^2, so K is in m / (m/s^2)^p. The distance over n steps is the sum
 (the printed ``K n ...`` is that sum for n equal steps).
 """
 
@@ -14,19 +17,22 @@ from typing import Self
 
 import numpy as np
 
+from firmware_sim.algorithms.parameters import M4_EXPONENT
 from host.gait.integration import step_samples
 from host.gait.masked_filter import masked_gaussian_lowpass
 
 
 class WeinbergM4:
-    """M4 step length ``K (a_max - a_min)^(1/4)``.
+    """M4 step length ``K (a_max - a_min)^p``.
 
     Parameters
     ----------
     k
-        Calibration constant, m / (m/s^2)^(1/4).
+        Calibration constant, m / (m/s^2)^p.
     cutoff_hz
         Low-pass -3 dB frequency (3 Hz).
+    exponent
+        ``p`` (the shipped :data:`~firmware_sim.algorithms.parameters.M4_EXPONENT` unless a study varies it).
 
     Examples
     --------
@@ -37,9 +43,10 @@ class WeinbergM4:
     True
     """
 
-    def __init__(self, *, k: float = 1.0, cutoff_hz: float = 3.0) -> None:
+    def __init__(self, *, k: float = 1.0, cutoff_hz: float = 3.0, exponent: float = M4_EXPONENT) -> None:
         self.k = k
         self.cutoff_hz = cutoff_hz
+        self.exponent = exponent
 
     def estimate(
         self,
@@ -68,5 +75,14 @@ class WeinbergM4:
         ss = step_samples(start, end, np.isfinite(lp), sampling_rate_hz)
         x = lp[ss.index]
         self.acc_range_m_s2_ = ss.reduce_max(x) - ss.reduce_min(x)
-        self.step_length_m_ = self.k * np.power(self.acc_range_m_s2_, 0.25)
+        self.step_length_m_ = weinberg_length_m(self.acc_range_m_s2_, k=self.k, exponent=self.exponent)
         return self
+
+
+def weinberg_length_m(acc_range_m_s2: np.ndarray, *, k: float, exponent: float = M4_EXPONENT) -> np.ndarray:
+    """``k (a_max - a_min)^exponent`` per step (NaN stays NaN).
+
+    >>> weinberg_length_m(np.array([4.0, np.nan]), k=0.3, exponent=0.5).tolist()
+    [0.6, nan]
+    """
+    return k * np.power(np.asarray(acc_range_m_s2, np.float64), exponent)
