@@ -11,8 +11,9 @@ Three inputs (``protocol.image.detect_format`` tells them apart):
     from address 0, then the check trailer (``protocol.raw_dump``), padded with 0x1A. Each 256-byte chunk is
     used only when its CRC-32 in the trailer matches (shifted chunks are found again); samples of damaged
     chunks or beyond the end of a short file are reported missing. A raw dump without its trailer (older
-    firmware, or an end cut off) is decoded unverified, and says so: a warning, and the notes of the
-    recording's metadata (``verified: NO``).
+    firmware, or an end cut off) cannot be verified: its samples are reported missing, and a warning and the
+    notes (``verified: NO``) say so; ``accept_unverified=True`` (``--accept-unverified``) keeps them as the
+    file holds them, marked valid but UNVERIFIED in the same words.
 ``capture``
     The device-to-host bytes of a DUMP/READ session (sections 3-4): HEADER and DATA frames. A memory byte is
     known only when an intact DATA frame (CRC-16 good) carried it; everything else is reported missing.
@@ -66,9 +67,12 @@ REASONS = (
     "raw dump's check trailer damaged: nothing can be verified",            # 6
     "slot of the page in flight when a power loss cut a run (contents undefined)",  # 7
     "may have been overwritten by a run a power loss cut (header version 1: no journal)",  # 8
+    "image of version 1 or 2 whose block table is damaged: its blocks cannot be verified",  # 9
+    ("raw dump without its check trailer (cut off, or older firmware): cannot be verified "
+     "(--accept-unverified keeps it, marked UNVERIFIED)"),                   # 10
 )
-_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL = \
-    range(9)
+(_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL,
+ _R_TABLE, _R_NO_TRAILER) = range(11)
 #: Reason texts of the step-record losses (the first four as for samples).
 STEP_REASONS = REASONS[:4] + (
     "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
@@ -77,15 +81,18 @@ STEP_REASONS = REASONS[:4] + (
     REASONS[_R_CHUNK],                                                       # 6
     REASONS[_R_UNVERIFIABLE],                                                # 7
     "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 8
+    REASONS[_R_NO_TRAILER],                                                  # 9
 )
-_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN = 4, 5, 6, 7, 8
+_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER = 4, 5, 6, 7, 8, 9
 
 _TYPE_HEADER = 0x86
 _TYPE_DATA = 0x87
 
 
-def decode_file(path: str | os.PathLike[str]) -> Recording:
+def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
     """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file.
+
+    ``accept_unverified``: as :func:`decode_bytes`.
 
     Raises
     ------
@@ -96,10 +103,10 @@ def decode_file(path: str | os.PathLike[str]) -> Recording:
     """
     path = Path(path)
     data = path.read_bytes()
-    return decode_bytes(data, source=str(path))
+    return decode_bytes(data, source=str(path), accept_unverified=accept_unverified)
 
 
-def decode_bytes(data: bytes, source: str | None = None) -> Recording:
+def decode_bytes(data: bytes, source: str | None = None, *, accept_unverified: bool = False) -> Recording:
     """Decode an image, a raw dump or a wire capture held in memory.
 
     Parameters
@@ -108,11 +115,16 @@ def decode_bytes(data: bytes, source: str | None = None) -> Recording:
         The file's bytes.
     source
         Name used in messages and stored in ``Recording.source``.
+    accept_unverified
+        Keep the samples of a raw dump without its check trailer (nothing can verify them) as the file holds
+        them, marked valid but UNVERIFIED (a warning and the notes); by default they are reported missing.
+        No other input is affected.
 
     Returns
     -------
     Recording
-        Stored samples in ring order (oldest first), exact or reported missing.
+        Stored samples in ring order (oldest first), exact or reported missing (with ``accept_unverified``,
+        a raw dump without trailer: as the file holds them, and said so).
     """
     data = bytes(data)
     if not data:
@@ -123,7 +135,7 @@ def decode_bytes(data: bytes, source: str | None = None) -> Recording:
         if fmt == "image":
             return _decode_image(data, source)
         if fmt == "raw":
-            return _decode_raw(data, source)
+            return _decode_raw(data, source, accept_unverified)
         if fmt == "capture":
             return _decode_capture(data, source)
         raise ProtocolError(f"unknown input format {fmt!r}", offset=0)  # pragma: no cover
@@ -150,6 +162,8 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     truncated = getattr(contents, "block_truncated", None)
     if truncated is not None:
         block_reason[np.asarray(truncated, dtype=bool)] = _R_TRUNCATED
+    if not contents.table_ok:  # versions 1 and 2: no entry of a damaged table can be tied to its block
+        block_reason[:] = _R_TABLE
     notes = list(getattr(contents, "notes", []))
     header = _interrupted_run(header, contents.step_memory, source, notes)
     steps = _image_steps(contents, header, block_reason, source, notes)
@@ -175,9 +189,12 @@ def _image_steps(contents, header, block_reason: np.ndarray, source: str | None,
     return _assemble_steps(header, step_memory, byte_ok, reason, source, notes)
 
 
-def _decode_raw(data: bytes, source: str | None) -> Recording:
+def _decode_raw(data: bytes, source: str | None, accept_unverified: bool = False) -> Recording:
     dump = parse_raw_dump(data, source=source)
     header, notes = dump.header, list(dump.notes)
+    refused = not dump.verified and not accept_unverified and bool(dump.byte_ok.any())
+    if refused:  # no trailer: nothing verifies these bytes, so they are missing unless the user accepts them
+        dump.byte_ok = np.zeros_like(dump.byte_ok)
     used, step_used = int(header.used_bytes), int(header.step_used_bytes)
     cap_bytes = int(header.capacity_samples) * 4
     memory = np.full(cap_bytes, 0xFF, dtype=np.uint8)
@@ -186,7 +203,7 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     byte_ok[:used] = dump.byte_ok[HEADER_SIZE: HEADER_SIZE + used]
     byte_reason = np.full(cap_bytes, _R_TRUNCATED, dtype=np.int8)
     byte_reason[:used] = np.where(dump.byte_truncated[HEADER_SIZE: HEADER_SIZE + used], _R_TRUNCATED,
-                                  _R_CHUNK if dump.verified else _R_UNVERIFIABLE)
+                                  _R_CHUNK if dump.verified else _R_NO_TRAILER if refused else _R_UNVERIFIABLE)
     slot_ok, slot_reason = _slots_from_bytes(byte_ok, byte_reason)
     # the step part follows the used sample bytes: step memory bytes 0 .. 20·n_steps_stored (section 5)
     step_memory = np.full(int(header.step_memory_bytes), 0xFF, dtype=np.uint8)
@@ -195,19 +212,26 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     step_ok[:step_used] = dump.byte_ok[HEADER_SIZE + used:]
     step_reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
     step_reason[:step_used] = np.where(dump.byte_truncated[HEADER_SIZE + used:], _R_TRUNCATED,
-                                       _S_CHUNK if dump.verified else _S_UNVERIFIABLE)
+                                       _S_CHUNK if dump.verified else _S_NO_TRAILER if refused else _S_UNVERIFIABLE)
     header = _interrupted_run(header, step_memory, source, notes)
     steps = _assemble_steps(header, step_memory, step_ok, step_reason, source, notes)
     rec = _assemble(header, memory, slot_ok, slot_reason, source, "raw XMODEM dump", notes, steps)
     if dump.verified:
         rec.notes.insert(1, "verified: every sample marked valid is exact (checked by the raw dump's check trailer)")
+    elif refused:
+        present = int((~dump.byte_truncated[HEADER_SIZE: HEADER_SIZE + used]).sum()) // 4
+        text = (f"verified: NO: raw dump without its check trailer (cut off, or older firmware): its {present} "
+                "samples present cannot be verified and are reported missing (--accept-unverified keeps them, "
+                "marked UNVERIFIED)")
+        rec.notes.insert(1, text)
+        warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
     elif not dump.byte_ok.any():
         text = f"verified: NO: {notes[0]}"
         rec.notes.insert(1, text)
         warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
     else:
-        text = (f"verified: NO: {int(rec.valid.sum())} samples and {rec.n_step_records} step records UNVERIFIED "
-                f"({notes[0]})")
+        text = (f"verified: NO: {int(rec.valid.sum())} samples and {rec.n_step_records} step records UNVERIFIED, "
+                f"kept as the file holds them (--accept-unverified): {notes[0]}")
         rec.notes.insert(1, text)
         warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
     return rec
