@@ -42,10 +42,18 @@ import numpy as np
 
 from host.errors import HostError
 from host.files.recording import RecordGap, Recording, gaps_from_mask
-from protocol.errors import ProtocolError
-from protocol.frames import parse_stream
 from protocol.commit_journal import torn_step_records
-from protocol.header import HEADER_SIZE, PAGE_SAMPLES, DeviceHeader
+from protocol.crc import crc32
+from protocol.errors import ProtocolError
+from protocol.frames import SYNC, FrameType, parse_stream
+from protocol.header import (
+    HEADER_SIZE,
+    MAGIC,
+    PAGE_SAMPLES,
+    DeviceHeader,
+    HeaderFlag,
+    crc_span,
+)
 from protocol.image import detect_format, parse_image
 from protocol.packing import unpack_words
 from protocol.raw_dump import parse_raw_dump
@@ -85,8 +93,10 @@ STEP_REASONS = REASONS[:4] + (
 )
 _S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER = 4, 5, 6, 7, 8, 9
 
-_TYPE_HEADER = 0x86
-_TYPE_DATA = 0x87
+_TYPE_HEADER = int(FrameType.HEADER)
+_TYPE_DATA = int(FrameType.DATA)
+_TYPE_DATA_CRC = int(FrameType.DATA_CRC)
+_FLAG_LOGGING = int(HeaderFlag.LOGGING)
 
 
 def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
@@ -239,32 +249,43 @@ def _decode_raw(data: bytes, source: str | None, accept_unverified: bool = False
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
     frames, errors = parse_stream(data, source=source)
-    headers: list[tuple[int, bytes]] = []
-    data_frames = []
-    for fr in frames:
-        if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
-            headers.append((fr.offset, bytes(fr.payload)))
-        elif fr.type == _TYPE_DATA and len(fr.payload) >= 4:
-            data_frames.append(fr)
-    if not headers:
+    boundaries = _header_boundaries(data, frames, errors)
+    known = [b for b in boundaries if b[1] is not None]
+    if not known:
+        damaged = len(boundaries)
         raise ProtocolError(
             f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
-            f"{len(errors)} framing errors: cannot place the samples", offset=0, source=source)
+            f"{len(errors)} framing errors"
+            + (f", and the {damaged} damaged one(s) do not verify (the header's own CRC-16 or the rules of section 2 "
+               "fail, or LOGGING is set and its journal is outside that CRC)" if damaged else "")
+            + ": cannot place the samples", offset=boundaries[0][0] if boundaries else 0, source=source)
     notes = []
-    header_offset, header_bytes = headers[-1]
+    header_offset, header_bytes, salvaged = known[-1]
     try:
         header = DeviceHeader.from_bytes(header_bytes, source=source)
     except ProtocolError as err:
         raise err.at(offset=header_offset + 6) from err
-    data_frames, foreign = _frames_of_last_header(headers, data_frames)
+    if salvaged:
+        text = (f"the HEADER frame at offset {header_offset} is damaged (its frame CRC-16 or framing failed); the "
+                "256-byte header it carries passed its own CRC-16 and every rule of section 2 (LOGGING clear: the "
+                "journal outside that CRC is not used) and places the samples")
+        notes.append(text)
+        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
+    data_frames, rejected = _checked_data_frames(frames)
+    if rejected:
+        notes.append(f"{rejected} DATA frame(s) of a DUMP_CHECKED stream not used: their DATA_CRC frame was damaged, "
+                     "or its CRC-32 differs from the bytes received (section 4)")
+    data_frames, foreign, unknown = _frames_of_header(boundaries, header_bytes, data_frames)
     if foreign:
-        others = {h for _, h in headers if h != header_bytes}
+        others = {h for _, h, _ in boundaries if h is not None and _header_key(h) != _header_key(header_bytes)}
         ids = sorted({_recording_text(h) for h in others} - {_recording_text(header_bytes)})
         why = (f"{len(ids)} other recording(s) ({', '.join(ids)})" if ids else
-               f"{len(others)} other state(s) of this recording's header")
-        text = (f"the capture spans {len(others) + 1} device headers: decoded {_recording_text(header_bytes)} "
-                f"(HEADER frame at offset {header_offset}); {foreign} DATA frame(s) under {why}, or before any "
-                "HEADER frame, were not used")
+               f"{len(others)} other state(s) of this recording's header" if others else "no known header")
+        text = (f"the capture spans {len(others) + unknown + 1} device headers: decoded "
+                f"{_recording_text(header_bytes)} (HEADER frame at offset {header_offset}); {foreign} DATA frame(s) "
+                f"under {why}"
+                + (f", or under {unknown} damaged HEADER frame(s) that do not verify" if unknown else "")
+                + ", or before any HEADER frame, were not used")
         notes.append(text)
         warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
     cap_bytes = int(header.capacity_samples) * 4
@@ -298,6 +319,71 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
 
 
+def _header_boundaries(data: bytes, frames: list, errors: list) -> list[tuple[int, bytes | None, bool]]:
+    """Where a device header starts in a capture, in stream order: ``(frame offset, header bytes, salvaged)``.
+
+    An intact HEADER frame gives its payload (``salvaged`` False). In the bytes of no intact frame, a damaged
+    HEADER frame is looked for: the magic ``GLOG`` (its payload) or a sync with type 0x86. Its 256 bytes are
+    used (``salvaged`` True) only when they pass the header's own CRC-16 and every rule of ``PROTOCOL.md``
+    section 2 and LOGGING is clear (version 2 keeps the journal, which a decoder would then need, outside
+    that CRC); otherwise the boundary is kept with bytes ``None``: the DATA frames after it belong to a header
+    nobody can read, and are not used under an earlier one.
+    """
+    found: dict[int, tuple[bytes | None, bool]] = {}
+    inside = np.zeros(len(data) + 1, dtype=np.int32)  # +1 at an intact frame's start, -1 past its end
+    for fr in frames:
+        inside[fr.offset] += 1
+        inside[min(len(data), fr.offset + 8 + len(fr.payload))] -= 1
+        if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
+            found[fr.offset] = (bytes(fr.payload), False)
+    in_frame = np.cumsum(inside)[:-1] > 0
+    candidates = {e.offset + 6 for e in errors
+                  if data[e.offset: e.offset + 2] == SYNC and data[e.offset + 2: e.offset + 3] == bytes([_TYPE_HEADER])}
+    at = data.find(MAGIC)
+    while at >= 0:
+        candidates.add(at)
+        at = data.find(MAGIC, at + 1)
+    for payload_at in sorted(candidates):
+        if not 0 <= payload_at < len(data) or in_frame[payload_at] or (payload_at - 6) in found:
+            continue
+        raw = data[payload_at: payload_at + HEADER_SIZE]
+        try:
+            h = DeviceHeader.from_bytes(raw)
+            ok = h.header_version == 1 or not h.logging
+        except ProtocolError:
+            ok = False
+        found[payload_at - 6] = (raw if ok else None, ok)
+    return [(off, raw, salvaged) for off, (raw, salvaged) in sorted(found.items())]
+
+
+def _header_key(header_bytes: bytes) -> bytes:
+    """The bytes that name a memory's state: the whole header, or with LOGGING clear (version 2) the part its
+    CRC covers (the journal is then meaningless, section 2.4)."""
+    if len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING:
+        return crc_span(header_bytes[:-2]) + header_bytes[-2:]
+    return header_bytes
+
+
+def _checked_data_frames(frames: list) -> tuple[list, int]:
+    """The DATA frames to use, and how many were rejected: in a capture holding DATA_CRC frames (a DUMP_CHECKED
+    stream, section 4) a DATA frame is used only when the next intact frame is a DATA_CRC with its address and
+    the CRC-32 of its data bytes; in one without (DUMP, READ) on its CRC-16 (as a host without DUMP_CHECKED)."""
+    checked = any(fr.type == _TYPE_DATA_CRC for fr in frames)
+    out, rejected = [], 0
+    for k, fr in enumerate(frames):
+        if fr.type != _TYPE_DATA or len(fr.payload) < 4:
+            continue
+        if checked:
+            nxt = frames[k + 1] if k + 1 < len(frames) else None
+            if (nxt is None or nxt.type != _TYPE_DATA_CRC or len(nxt.payload) != 8
+                    or nxt.payload[:4] != fr.payload[:4]
+                    or int.from_bytes(nxt.payload[4:], "little") != crc32(fr.payload[4:])):
+                rejected += 1
+                continue
+        out.append(fr)
+    return out, rejected
+
+
 def _recording_text(header_bytes: bytes) -> str:
     """``recording N of device D`` (section 2.4) of a HEADER frame's bytes, for messages."""
     try:
@@ -308,17 +394,20 @@ def _recording_text(header_bytes: bytes) -> str:
             if h.header_version != 1 else f"an unnumbered recording of device {h.device_id} (header version 1)")
 
 
-def _frames_of_last_header(headers: list[tuple[int, bytes]], data_frames: list) -> tuple[list, int]:
-    """The DATA frames that follow a HEADER frame byte-identical to the last one (the memory it describes), and
-    how many others there were: frames under another header belong to another recording (or another state
-    of the memory), frames before the first HEADER frame to no known one (section 4)."""
-    last = headers[-1][1]
-    starts = np.array([off for off, _ in headers], dtype=np.int64)
-    same = np.array([h == last for _, h in headers], dtype=bool)
+def _frames_of_header(boundaries: list[tuple[int, bytes | None, bool]], header_bytes: bytes,
+                      data_frames: list) -> tuple[list, int, int]:
+    """The DATA frames that follow a header of the same state as ``header_bytes`` (the memory it describes),
+    how many others there were, and how many damaged HEADER frames that do not verify there were: frames
+    under another header belong to another recording (or another state of the memory), frames under a
+    damaged one to a header nobody can read, frames before the first HEADER frame to no known one (section 4)."""
+    key = _header_key(header_bytes)
+    starts = np.array([off for off, _, _ in boundaries], dtype=np.int64)
+    same = np.array([h is not None and _header_key(h) == key for _, h, _ in boundaries], dtype=bool)
     offsets = np.array([fr.offset for fr in data_frames], dtype=np.int64)
     k = np.searchsorted(starts, offsets, side="right") - 1
     keep = (k >= 0) & same[np.maximum(k, 0)]
-    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum())
+    unknown = sum(h is None for _, h, _ in boundaries)
+    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum()), unknown
 
 
 # ------------------------------------------------------------------------------------ interrupted runs
