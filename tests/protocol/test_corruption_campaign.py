@@ -26,20 +26,42 @@ sys.modules.setdefault("bench_corruption", bench)
 _spec.loader.exec_module(bench)
 
 
-@pytest.mark.parametrize("kind", ["image", "capture", "raw"])
+@pytest.mark.parametrize("kind", bench.KINDS)
 def test_small_campaign_has_no_wrong_sample_and_no_crash(kind: str) -> None:
     totals = bench.campaign(150, seed=13, kinds=(kind,))[kind]
-    assert totals.files == 150
+    assert totals.files == 150 and totals.single > 100
     assert totals.wrong == 0, totals.wrong_examples
     assert totals.crashes == 0, totals.crash_examples
-    if kind == "image":
-        assert totals.excess == 0  # one damaged region loses only the blocks it touches
+    # one damaged region loses only the blocks it touches, unless it hit what places or verifies the others
+    assert totals.excess == 0, totals.excess_examples
+    assert totals.unverified == 0  # by default nothing unverified is marked valid
 
 
-def test_old_images_are_never_wrong_in_the_campaign() -> None:
-    totals = bench.campaign(150, seed=7, kinds=("image-v1",))["image-v1"]
-    assert totals.wrong == 0, totals.wrong_examples
-    assert totals.crashes == 0, totals.crash_examples
+def test_campaign_with_accept_unverified_labels_what_it_keeps() -> None:
+    totals = bench.campaign(150, seed=13, kinds=("raw",), accept_unverified=True)["raw"]
+    assert totals.wrong == 0 and totals.crashes == 0
+    assert totals.unverified > 0  # cut dumps kept, labelled UNVERIFIED (and counted apart from ``wrong``)
+
+
+def test_the_campaign_can_fail() -> None:
+    """A decoder that marks a missing sample valid is caught as wrong; one that refuses all as excess."""
+    real = bench.decode_bytes
+
+    def lenient(data, **kw):
+        rec = real(data, **kw)
+        rec.valid[:] = True
+        return rec
+
+    def refusing(data, **kw):
+        raise bench.ProtocolError("refused")
+
+    try:
+        bench.decode_bytes = lenient
+        assert bench.campaign(40, seed=1, kinds=("image",))["image"].wrong > 0
+        bench.decode_bytes = refusing
+        assert bench.campaign(40, seed=1, kinds=("image",))["image"].excess > 0
+    finally:
+        bench.decode_bytes = real
 
 
 def _memory(cap: int, seed: int = 1) -> bytes:
