@@ -43,7 +43,7 @@ import numpy as np
 from host.errors import HostError
 from host.files.recording import RecordGap, Recording, gaps_from_mask
 from protocol.commit_journal import torn_step_records
-from protocol.crc import crc32
+from protocol.crc import crc16_xmodem, crc32
 from protocol.errors import ProtocolError
 from protocol.frames import SYNC, FrameType, parse_stream
 from protocol.header import (
@@ -249,16 +249,15 @@ def _decode_raw(data: bytes, source: str | None, accept_unverified: bool = False
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
     frames, errors = parse_stream(data, source=source)
-    boundaries = _header_boundaries(data, frames, errors)
-    known = [b for b in boundaries if b[1] is not None]
+    known, unreadable = _header_boundaries(data, frames, errors)
     if not known:
-        damaged = len(boundaries)
+        damaged = unreadable.size
         raise ProtocolError(
             f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
             f"{len(errors)} framing errors"
             + (f", and the {damaged} damaged one(s) do not verify (the header's own CRC-16 or the rules of section 2 "
                "fail, or LOGGING is set and its journal is outside that CRC)" if damaged else "")
-            + ": cannot place the samples", offset=boundaries[0][0] if boundaries else 0, source=source)
+            + ": cannot place the samples", offset=int(unreadable[0]) if damaged else 0, source=source)
     notes = []
     header_offset, header_bytes, salvaged = known[-1]
     try:
@@ -275,9 +274,9 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     if rejected:
         notes.append(f"{rejected} DATA frame(s) of a DUMP_CHECKED stream not used: their DATA_CRC frame was damaged, "
                      "or its CRC-32 differs from the bytes received (section 4)")
-    data_frames, foreign, unknown = _frames_of_header(boundaries, header_bytes, data_frames)
+    data_frames, foreign, unknown = _frames_of_header(known, unreadable, header_bytes, data_frames)
     if foreign:
-        others = {h for _, h, _ in boundaries if h is not None and _header_key(h) != _header_key(header_bytes)}
+        others = {h for _, h, _ in known if _header_key(h) != _header_key(header_bytes)}
         ids = sorted({_recording_text(h) for h in others} - {_recording_text(header_bytes)})
         why = (f"{len(ids)} other recording(s) ({', '.join(ids)})" if ids else
                f"{len(others)} other state(s) of this recording's header" if others else "no known header")
@@ -319,41 +318,55 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
 
 
-def _header_boundaries(data: bytes, frames: list, errors: list) -> list[tuple[int, bytes | None, bool]]:
-    """Where a device header starts in a capture, in stream order: ``(frame offset, header bytes, salvaged)``.
+def _header_boundaries(data: bytes, frames: list, errors: list
+                       ) -> tuple[list[tuple[int, bytes, bool]], np.ndarray]:
+    """Where a device header starts in a capture: ``(frame offset, header bytes, salvaged)`` of the headers
+    that can be read, in stream order, and the frame offsets of those that cannot.
 
     An intact HEADER frame gives its payload (``salvaged`` False). In the bytes of no intact frame, a damaged
     HEADER frame is looked for: the magic ``GLOG`` (its payload) or a sync with type 0x86. Its 256 bytes are
     used (``salvaged`` True) only when they pass the header's own CRC-16 and every rule of ``PROTOCOL.md``
     section 2 and LOGGING is clear (version 2 keeps the journal, which a decoder would then need, outside
-    that CRC); otherwise the boundary is kept with bytes ``None``: the DATA frames after it belong to a header
-    nobody can read, and are not used under an earlier one.
+    that CRC); otherwise it is unreadable: the DATA frames after it belong to a header nobody can read, and
+    are not used under an earlier one. Vectorised, so that a hostile file full of ``GLOG`` costs little.
     """
-    found: dict[int, tuple[bytes | None, bool]] = {}
-    inside = np.zeros(len(data) + 1, dtype=np.int32)  # +1 at an intact frame's start, -1 past its end
+    n = len(data)
+    known: dict[int, tuple[bytes, bool]] = {}
     for fr in frames:
-        inside[fr.offset] += 1
-        inside[min(len(data), fr.offset + 8 + len(fr.payload))] -= 1
         if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
-            found[fr.offset] = (bytes(fr.payload), False)
-    in_frame = np.cumsum(inside)[:-1] > 0
-    candidates = {e.offset + 6 for e in errors
-                  if data[e.offset: e.offset + 2] == SYNC and data[e.offset + 2: e.offset + 3] == bytes([_TYPE_HEADER])}
-    at = data.find(MAGIC)
-    while at >= 0:
-        candidates.add(at)
-        at = data.find(MAGIC, at + 1)
-    for payload_at in sorted(candidates):
-        if not 0 <= payload_at < len(data) or in_frame[payload_at] or (payload_at - 6) in found:
-            continue
+            known[fr.offset] = (bytes(fr.payload), False)
+    b = np.frombuffer(data, dtype=np.uint8)
+    at = np.flatnonzero(np.all([b[k: n - 3 + k] == MAGIC[k] for k in range(4)], axis=0)) if n >= 4 else \
+        np.zeros(0, np.int64)
+    typed = [e.offset + 6 for e in errors
+             if data[e.offset: e.offset + 2] == SYNC and data[e.offset + 2: e.offset + 3] == bytes([_TYPE_HEADER])]
+    if typed:
+        at = np.sort(np.concatenate([at, np.asarray(typed, dtype=np.int64)]))
+        at = at[np.r_[True, at[1:] != at[:-1]]]
+    # not inside an intact frame (intact frames do not overlap: the parser consumed each)
+    starts = np.array([fr.offset for fr in frames], dtype=np.int64)
+    ends = starts + np.array([8 + len(fr.payload) for fr in frames], dtype=np.int64)
+    k = np.searchsorted(starts, at, side="right") - 1
+    at = at[(at < n) & ~((k >= 0) & (at < ends[np.maximum(k, 0)] if ends.size else False))]
+    # the fixed bytes of section 2 (versions 1-2, protocol 1, 3 axes, P32) before any CRC or parse
+    idx = np.flatnonzero(at + HEADER_SIZE <= n)
+    w = at[idx]
+    idx = idx[((b[w + 4] == 1) | (b[w + 4] == 2)) & (b[w + 5] == 1) & (b[w + 17] == 3) & (b[w + 18] == 1)]
+    readable = np.zeros(at.size, dtype=bool)
+    for i in idx.tolist():
+        payload_at = int(at[i])
         raw = data[payload_at: payload_at + HEADER_SIZE]
+        if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
+            continue
         try:
             h = DeviceHeader.from_bytes(raw)
-            ok = h.header_version == 1 or not h.logging
         except ProtocolError:
-            ok = False
-        found[payload_at - 6] = (raw if ok else None, ok)
-    return [(off, raw, salvaged) for off, (raw, salvaged) in sorted(found.items())]
+            continue
+        if h.header_version == 1 or not h.logging:
+            known[payload_at - 6] = (raw, True)
+            readable[i] = True
+    unreadable = at[~readable] - 6
+    return [(off, raw, salvaged) for off, (raw, salvaged) in sorted(known.items())], unreadable
 
 
 def _header_key(header_bytes: bytes) -> bytes:
@@ -394,20 +407,22 @@ def _recording_text(header_bytes: bytes) -> str:
             if h.header_version != 1 else f"an unnumbered recording of device {h.device_id} (header version 1)")
 
 
-def _frames_of_header(boundaries: list[tuple[int, bytes | None, bool]], header_bytes: bytes,
+def _frames_of_header(known: list[tuple[int, bytes, bool]], unreadable: np.ndarray, header_bytes: bytes,
                       data_frames: list) -> tuple[list, int, int]:
     """The DATA frames that follow a header of the same state as ``header_bytes`` (the memory it describes),
     how many others there were, and how many damaged HEADER frames that do not verify there were: frames
     under another header belong to another recording (or another state of the memory), frames under a
     damaged one to a header nobody can read, frames before the first HEADER frame to no known one (section 4)."""
     key = _header_key(header_bytes)
-    starts = np.array([off for off, _, _ in boundaries], dtype=np.int64)
-    same = np.array([h is not None and _header_key(h) == key for _, h, _ in boundaries], dtype=bool)
+    starts = np.concatenate([np.array([off for off, _, _ in known], dtype=np.int64), unreadable.astype(np.int64)])
+    same = np.concatenate([np.array([_header_key(h) == key for _, h, _ in known], dtype=bool),
+                           np.zeros(unreadable.size, dtype=bool)])
+    order = np.argsort(starts, kind="stable")
+    starts, same = starts[order], same[order]
     offsets = np.array([fr.offset for fr in data_frames], dtype=np.int64)
     k = np.searchsorted(starts, offsets, side="right") - 1
     keep = (k >= 0) & same[np.maximum(k, 0)]
-    unknown = sum(h is None for _, h, _ in boundaries)
-    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum()), unknown
+    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum()), int(unreadable.size)
 
 
 # ------------------------------------------------------------------------------------ interrupted runs
