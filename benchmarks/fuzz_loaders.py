@@ -272,13 +272,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--inputs", type=int, default=1_000_000, help="inputs in all (default 10^6)")
     parser.add_argument("--seconds", type=float, default=3600.0, help="stop after this long (default 3600)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--targets", default=",".join(WEIGHTS), help=f"comma-separated subset of {','.join(WEIGHTS)}")
     args = parser.parse_args(argv)
     rnd = random.Random(args.seed)
     corpus, loaders = seeds(), targets()
     counts: Counter[str] = Counter()
     crashes: Counter[tuple[str, str]] = Counter()
     examples: dict[tuple[str, str], bytes] = {}
-    names, weights = list(WEIGHTS), list(WEIGHTS.values())
+    names = [n for n in WEIGHTS if n in args.targets.split(",")]
+    weights = [WEIGHTS[n] for n in names]
     t0 = time.perf_counter()
     done = 0
     while done < args.inputs and time.perf_counter() - t0 < args.seconds:
