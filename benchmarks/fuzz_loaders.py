@@ -1,6 +1,6 @@
 """Fuzz the loaders of every file and wire format: mutated frames, device headers, memory images, raw dumps,
-recording NPZs and calibration / K JSON files. A loader may only refuse an input with the project's
-documented errors (:class:`protocol.errors.ProtocolError`, :class:`host.errors.HostError`); anything else
+wire captures, recording NPZs and calibration / K JSON files. A loader may only refuse an input with the
+project's documented errors (:class:`protocol.errors.ProtocolError`, :class:`host.errors.HostError`); anything else
 escaping is a crash, counted and shown (target, exception, the input's first bytes).
 
     PYTHONPATH=. python benchmarks/fuzz_loaders.py --inputs 1000000 --seconds 1800   # the long job
@@ -36,6 +36,7 @@ from host.errors import HostError
 from host.files.decode import decode_bytes
 from host.files.recording import Recording
 from host.gait.k_calibration import KFit
+from protocol.crc import crc32
 from protocol.errors import ProtocolError
 from protocol.frames import FrameType, encode_frame, parse_payload, parse_stream
 from protocol.header import DeviceHeader, HeaderFlag
@@ -61,16 +62,30 @@ def _recording_npz(header: DeviceHeader, memory: bytes) -> bytes:
         return (Path(d) / "r.npz").read_bytes()
 
 
+def _capture(header: DeviceHeader, memory: bytes, checked: bool) -> bytes:
+    """A wire capture: HEADER, then DATA frames of 256 bytes (each followed by its DATA_CRC when ``checked``)."""
+    out = [encode_frame(FrameType.HEADER, 1, header.to_bytes())]
+    for k, a in enumerate(range(0, header.used_bytes, 256)):
+        piece = memory[a: min(a + 256, header.used_bytes)]
+        out.append(encode_frame(FrameType.DATA, k % 256, a.to_bytes(4, "little") + piece))
+        if checked:
+            out.append(encode_frame(FrameType.DATA_CRC, k % 256, a.to_bytes(4, "little")
+                                    + crc32(piece).to_bytes(4, "little")))
+    return b"".join(out)
+
+
 def seeds() -> dict[str, list[bytes]]:
     """Valid inputs of each format (small, so that a million mutations take minutes)."""
     rng = np.random.default_rng(13)
-    out: dict[str, list[bytes]] = {"frames": [], "header": [], "image": [], "raw": [], "npz": [], "json": []}
+    out: dict[str, list[bytes]] = {"frames": [], "header": [], "image": [], "raw": [], "capture": [], "npz": [],
+                                   "json": []}
     for h in _headers():
         memory = rng.integers(0, 256, image_memory_bytes(h), dtype=np.uint8).tobytes()
         out["header"].append(h.to_bytes())
         out["image"] += [build_image(h.to_bytes(), memory, block_size=bs) for bs in (64, 256)]
         out["raw"].append(raw_dump_bytes(h.to_bytes(), memory[:h.n_stored * h.memory_bytes // h.capacity_samples]))
         out["npz"].append(_recording_npz(h, memory))
+        out["capture"].append(_capture(h, memory, checked=h.samples_written % 2 == 0))
     for seq, t in enumerate(FrameType):
         payload = rng.integers(0, 256, int(rng.integers(0, 40)), dtype=np.uint8).tobytes()
         out["frames"].append(encode_frame(int(t), seq % 256, payload))
@@ -221,6 +236,7 @@ def targets() -> dict[str, Callable[[bytes], object]]:
     """Name -> loader of one input."""
     return {"frames": _frames, "header": lambda d: DeviceHeader.from_bytes(d, source="fuzz"),
             "image": lambda d: decode_bytes(d, source="fuzz.glimg"), "raw": lambda d: decode_bytes(d, source="fuzz.raw"),
+            "capture": lambda d: decode_bytes(d, source="fuzz.cap"),
             "npz": _NpzTarget(), "json": _json}
 
 
@@ -248,7 +264,7 @@ def run_one(target: Callable[[bytes], object], data: bytes) -> BaseException | N
 
 
 #: Share of the inputs per target (the slow ones get fewer: a header parse takes ~0.6 ms, a frame ~20 us).
-WEIGHTS = {"frames": 0.35, "json": 0.2, "header": 0.1, "image": 0.12, "raw": 0.13, "npz": 0.1}
+WEIGHTS = {"frames": 0.3, "json": 0.18, "header": 0.1, "image": 0.11, "raw": 0.11, "capture": 0.1, "npz": 0.1}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -256,13 +272,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--inputs", type=int, default=1_000_000, help="inputs in all (default 10^6)")
     parser.add_argument("--seconds", type=float, default=3600.0, help="stop after this long (default 3600)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--targets", default=",".join(WEIGHTS), help=f"comma-separated subset of {','.join(WEIGHTS)}")
     args = parser.parse_args(argv)
     rnd = random.Random(args.seed)
     corpus, loaders = seeds(), targets()
     counts: Counter[str] = Counter()
     crashes: Counter[tuple[str, str]] = Counter()
     examples: dict[tuple[str, str], bytes] = {}
-    names, weights = list(WEIGHTS), list(WEIGHTS.values())
+    names = [n for n in WEIGHTS if n in args.targets.split(",")]
+    weights = [WEIGHTS[n] for n in names]
     t0 = time.perf_counter()
     done = 0
     while done < args.inputs and time.perf_counter() - t0 < args.seconds:

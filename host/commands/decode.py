@@ -20,6 +20,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-verify", action="store_true",
                         help="write the step records even when they differ from the host's replay of the device's "
                              "algorithm (default: a difference is an error and nothing is written)")
+    parser.add_argument("--accept-unverified", action="store_true",
+                        help="keep the samples of a raw dump without its check trailer (cut off, or older "
+                             "firmware) as the file holds them, marked UNVERIFIED in a warning and the notes "
+                             "(default: nothing verifies them, so they are reported missing)")
     add_verbosity_options(parser)
 
 #: Gaps and lost record runs listed one per line without ``-v``.
@@ -73,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                   {"INPUT": args.input, "--calibration": args.calibration})
     from protocol.channel_map import ChannelMap
 
-    rec = decode_file(args.input)
+    rec = decode_file(args.input, accept_unverified=args.accept_unverified)
     if isinstance(rec.header.calibration, ChannelMap):
         return _run_instrument(args, rec, paths["csv"])
     calibration = None

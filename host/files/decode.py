@@ -11,8 +11,9 @@ Three inputs (``protocol.image.detect_format`` tells them apart):
     from address 0, then the check trailer (``protocol.raw_dump``), padded with 0x1A. Each 256-byte chunk is
     used only when its CRC-32 in the trailer matches (shifted chunks are found again); samples of damaged
     chunks or beyond the end of a short file are reported missing. A raw dump without its trailer (older
-    firmware, or an end cut off) is decoded unverified, and says so: a warning, and the notes of the
-    recording's metadata (``verified: NO``).
+    firmware, or an end cut off) cannot be verified: its samples are reported missing, and a warning and the
+    notes (``verified: NO``) say so; ``accept_unverified=True`` (``--accept-unverified``) keeps them as the
+    file holds them, marked valid but UNVERIFIED in the same words.
 ``capture``
     The device-to-host bytes of a DUMP/READ session (sections 3-4): HEADER and DATA frames. A memory byte is
     known only when an intact DATA frame (CRC-16 good) carried it; everything else is reported missing.
@@ -41,10 +42,18 @@ import numpy as np
 
 from host.errors import HostError
 from host.files.recording import RecordGap, Recording, gaps_from_mask
-from protocol.errors import ProtocolError
-from protocol.frames import parse_stream
 from protocol.commit_journal import torn_step_records
-from protocol.header import HEADER_SIZE, PAGE_SAMPLES, DeviceHeader
+from protocol.crc import crc16_xmodem, crc32
+from protocol.errors import ProtocolError
+from protocol.frames import SYNC, FrameType, parse_stream
+from protocol.header import (
+    HEADER_SIZE,
+    MAGIC,
+    PAGE_SAMPLES,
+    DeviceHeader,
+    HeaderFlag,
+    crc_span,
+)
 from protocol.image import detect_format, parse_image
 from protocol.packing import unpack_words
 from protocol.raw_dump import parse_raw_dump
@@ -66,9 +75,12 @@ REASONS = (
     "raw dump's check trailer damaged: nothing can be verified",            # 6
     "slot of the page in flight when a power loss cut a run (contents undefined)",  # 7
     "may have been overwritten by a run a power loss cut (header version 1: no journal)",  # 8
+    "image of version 1 or 2 whose block table is damaged: its blocks cannot be verified",  # 9
+    ("raw dump without its check trailer (cut off, or older firmware): cannot be verified "
+     "(--accept-unverified keeps it, marked UNVERIFIED)"),                   # 10
 )
-_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL = \
-    range(9)
+(_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL,
+ _R_TABLE, _R_NO_TRAILER) = range(11)
 #: Reason texts of the step-record losses (the first four as for samples).
 STEP_REASONS = REASONS[:4] + (
     "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
@@ -77,15 +89,20 @@ STEP_REASONS = REASONS[:4] + (
     REASONS[_R_CHUNK],                                                       # 6
     REASONS[_R_UNVERIFIABLE],                                                # 7
     "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 8
+    REASONS[_R_NO_TRAILER],                                                  # 9
 )
-_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN = 4, 5, 6, 7, 8
+_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER = 4, 5, 6, 7, 8, 9
 
-_TYPE_HEADER = 0x86
-_TYPE_DATA = 0x87
+_TYPE_HEADER = int(FrameType.HEADER)
+_TYPE_DATA = int(FrameType.DATA)
+_TYPE_DATA_CRC = int(FrameType.DATA_CRC)
+_FLAG_LOGGING = int(HeaderFlag.LOGGING)
 
 
-def decode_file(path: str | os.PathLike[str]) -> Recording:
+def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
     """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file.
+
+    ``accept_unverified``: as :func:`decode_bytes`.
 
     Raises
     ------
@@ -96,10 +113,10 @@ def decode_file(path: str | os.PathLike[str]) -> Recording:
     """
     path = Path(path)
     data = path.read_bytes()
-    return decode_bytes(data, source=str(path))
+    return decode_bytes(data, source=str(path), accept_unverified=accept_unverified)
 
 
-def decode_bytes(data: bytes, source: str | None = None) -> Recording:
+def decode_bytes(data: bytes, source: str | None = None, *, accept_unverified: bool = False) -> Recording:
     """Decode an image, a raw dump or a wire capture held in memory.
 
     Parameters
@@ -108,11 +125,16 @@ def decode_bytes(data: bytes, source: str | None = None) -> Recording:
         The file's bytes.
     source
         Name used in messages and stored in ``Recording.source``.
+    accept_unverified
+        Keep the samples of a raw dump without its check trailer (nothing can verify them) as the file holds
+        them, marked valid but UNVERIFIED (a warning and the notes); by default they are reported missing.
+        No other input is affected.
 
     Returns
     -------
     Recording
-        Stored samples in ring order (oldest first), exact or reported missing.
+        Stored samples in ring order (oldest first), exact or reported missing (with ``accept_unverified``,
+        a raw dump without trailer: as the file holds them, and said so).
     """
     data = bytes(data)
     if not data:
@@ -123,7 +145,7 @@ def decode_bytes(data: bytes, source: str | None = None) -> Recording:
         if fmt == "image":
             return _decode_image(data, source)
         if fmt == "raw":
-            return _decode_raw(data, source)
+            return _decode_raw(data, source, accept_unverified)
         if fmt == "capture":
             return _decode_capture(data, source)
         raise ProtocolError(f"unknown input format {fmt!r}", offset=0)  # pragma: no cover
@@ -150,6 +172,8 @@ def _decode_image(data: bytes, source: str | None) -> Recording:
     truncated = getattr(contents, "block_truncated", None)
     if truncated is not None:
         block_reason[np.asarray(truncated, dtype=bool)] = _R_TRUNCATED
+    if not contents.table_ok:  # versions 1 and 2: no entry of a damaged table can be tied to its block
+        block_reason[:] = _R_TABLE
     notes = list(getattr(contents, "notes", []))
     header = _interrupted_run(header, contents.step_memory, source, notes)
     steps = _image_steps(contents, header, block_reason, source, notes)
@@ -175,9 +199,12 @@ def _image_steps(contents, header, block_reason: np.ndarray, source: str | None,
     return _assemble_steps(header, step_memory, byte_ok, reason, source, notes)
 
 
-def _decode_raw(data: bytes, source: str | None) -> Recording:
+def _decode_raw(data: bytes, source: str | None, accept_unverified: bool = False) -> Recording:
     dump = parse_raw_dump(data, source=source)
     header, notes = dump.header, list(dump.notes)
+    refused = not dump.verified and not accept_unverified and bool(dump.byte_ok.any())
+    if refused:  # no trailer: nothing verifies these bytes, so they are missing unless the user accepts them
+        dump.byte_ok = np.zeros_like(dump.byte_ok)
     used, step_used = int(header.used_bytes), int(header.step_used_bytes)
     cap_bytes = int(header.capacity_samples) * 4
     memory = np.full(cap_bytes, 0xFF, dtype=np.uint8)
@@ -186,7 +213,7 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     byte_ok[:used] = dump.byte_ok[HEADER_SIZE: HEADER_SIZE + used]
     byte_reason = np.full(cap_bytes, _R_TRUNCATED, dtype=np.int8)
     byte_reason[:used] = np.where(dump.byte_truncated[HEADER_SIZE: HEADER_SIZE + used], _R_TRUNCATED,
-                                  _R_CHUNK if dump.verified else _R_UNVERIFIABLE)
+                                  _R_CHUNK if dump.verified else _R_NO_TRAILER if refused else _R_UNVERIFIABLE)
     slot_ok, slot_reason = _slots_from_bytes(byte_ok, byte_reason)
     # the step part follows the used sample bytes: step memory bytes 0 .. 20·n_steps_stored (section 5)
     step_memory = np.full(int(header.step_memory_bytes), 0xFF, dtype=np.uint8)
@@ -195,19 +222,26 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
     step_ok[:step_used] = dump.byte_ok[HEADER_SIZE + used:]
     step_reason = np.full(step_memory.size, _R_TRUNCATED, dtype=np.int8)
     step_reason[:step_used] = np.where(dump.byte_truncated[HEADER_SIZE + used:], _R_TRUNCATED,
-                                       _S_CHUNK if dump.verified else _S_UNVERIFIABLE)
+                                       _S_CHUNK if dump.verified else _S_NO_TRAILER if refused else _S_UNVERIFIABLE)
     header = _interrupted_run(header, step_memory, source, notes)
     steps = _assemble_steps(header, step_memory, step_ok, step_reason, source, notes)
     rec = _assemble(header, memory, slot_ok, slot_reason, source, "raw XMODEM dump", notes, steps)
     if dump.verified:
         rec.notes.insert(1, "verified: every sample marked valid is exact (checked by the raw dump's check trailer)")
+    elif refused:
+        present = int((~dump.byte_truncated[HEADER_SIZE: HEADER_SIZE + used]).sum()) // 4
+        text = (f"verified: NO: raw dump without its check trailer (cut off, or older firmware): its {present} "
+                "samples present cannot be verified and are reported missing (--accept-unverified keeps them, "
+                "marked UNVERIFIED)")
+        rec.notes.insert(1, text)
+        warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
     elif not dump.byte_ok.any():
         text = f"verified: NO: {notes[0]}"
         rec.notes.insert(1, text)
         warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
     else:
-        text = (f"verified: NO: {int(rec.valid.sum())} samples and {rec.n_step_records} step records UNVERIFIED "
-                f"({notes[0]})")
+        text = (f"verified: NO: {int(rec.valid.sum())} samples and {rec.n_step_records} step records UNVERIFIED, "
+                f"kept as the file holds them (--accept-unverified): {notes[0]}")
         rec.notes.insert(1, text)
         warnings.warn(f"{source or 'raw dump'}: {text}", stacklevel=3)
     return rec
@@ -215,32 +249,42 @@ def _decode_raw(data: bytes, source: str | None) -> Recording:
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
     frames, errors = parse_stream(data, source=source)
-    headers: list[tuple[int, bytes]] = []
-    data_frames = []
-    for fr in frames:
-        if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
-            headers.append((fr.offset, bytes(fr.payload)))
-        elif fr.type == _TYPE_DATA and len(fr.payload) >= 4:
-            data_frames.append(fr)
-    if not headers:
+    known, unreadable = _header_boundaries(data, frames, errors)
+    if not known:
+        damaged = unreadable.size
         raise ProtocolError(
             f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
-            f"{len(errors)} framing errors: cannot place the samples", offset=0, source=source)
+            f"{len(errors)} framing errors"
+            + (f", and the {damaged} damaged one(s) do not verify (the header's own CRC-16 or the rules of section 2 "
+               "fail, or LOGGING is set and its journal is outside that CRC)" if damaged else "")
+            + ": cannot place the samples", offset=int(unreadable[0]) if damaged else 0, source=source)
     notes = []
-    header_offset, header_bytes = headers[-1]
+    header_offset, header_bytes, salvaged = known[-1]
     try:
         header = DeviceHeader.from_bytes(header_bytes, source=source)
     except ProtocolError as err:
         raise err.at(offset=header_offset + 6) from err
-    data_frames, foreign = _frames_of_last_header(headers, data_frames)
+    if salvaged:
+        text = (f"the HEADER frame at offset {header_offset} is damaged (its frame CRC-16 or framing failed); the "
+                "256-byte header it carries passed its own CRC-16 and every rule of section 2 (LOGGING clear: the "
+                "journal outside that CRC is not used) and places the samples")
+        notes.append(text)
+        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
+    data_frames, rejected = _checked_data_frames(frames)
+    if rejected:
+        notes.append(f"{rejected} DATA frame(s) of a DUMP_CHECKED stream not used: their DATA_CRC frame was damaged, "
+                     "or its CRC-32 differs from the bytes received (section 4)")
+    data_frames, foreign, unknown = _frames_of_header(known, unreadable, header_bytes, data_frames)
     if foreign:
-        others = {h for _, h in headers if h != header_bytes}
+        others = {h for _, h, _ in known if _header_key(h) != _header_key(header_bytes)}
         ids = sorted({_recording_text(h) for h in others} - {_recording_text(header_bytes)})
         why = (f"{len(ids)} other recording(s) ({', '.join(ids)})" if ids else
-               f"{len(others)} other state(s) of this recording's header")
-        text = (f"the capture spans {len(others) + 1} device headers: decoded {_recording_text(header_bytes)} "
-                f"(HEADER frame at offset {header_offset}); {foreign} DATA frame(s) under {why}, or before any "
-                "HEADER frame, were not used")
+               f"{len(others)} other state(s) of this recording's header" if others else "no known header")
+        text = (f"the capture spans {len(others) + unknown + 1} device headers: decoded "
+                f"{_recording_text(header_bytes)} (HEADER frame at offset {header_offset}); {foreign} DATA frame(s) "
+                f"under {why}"
+                + (f", or under {unknown} damaged HEADER frame(s) that do not verify" if unknown else "")
+                + ", or before any HEADER frame, were not used")
         notes.append(text)
         warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
     cap_bytes = int(header.capacity_samples) * 4
@@ -274,6 +318,87 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
 
 
+def _header_boundaries(data: bytes, frames: list, errors: list
+                       ) -> tuple[list[tuple[int, bytes, bool]], np.ndarray]:
+    """Where a device header starts in a capture: ``(frame offset, header bytes, salvaged)`` of the headers
+    that can be read, in stream order, and the frame offsets of those that cannot.
+
+    An intact HEADER frame gives its payload (``salvaged`` False). In the bytes of no intact frame, a damaged
+    HEADER frame is looked for: the magic ``GLOG`` (its payload) or a sync with type 0x86. Its 256 bytes are
+    used (``salvaged`` True) only when they pass the header's own CRC-16 and every rule of ``PROTOCOL.md``
+    section 2 and LOGGING is clear (version 2 keeps the journal, which a decoder would then need, outside
+    that CRC); otherwise it is unreadable: the DATA frames after it belong to a header nobody can read, and
+    are not used under an earlier one. Vectorised, so that a hostile file full of ``GLOG`` costs little.
+    """
+    n = len(data)
+    known: dict[int, tuple[bytes, bool]] = {}
+    for fr in frames:
+        if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
+            known[fr.offset] = (bytes(fr.payload), False)
+    b = np.frombuffer(data, dtype=np.uint8)
+    at = np.flatnonzero(np.all([b[k: n - 3 + k] == MAGIC[k] for k in range(4)], axis=0)) if n >= 4 else \
+        np.zeros(0, np.int64)
+    typed = [e.offset + 6 for e in errors
+             if data[e.offset: e.offset + 2] == SYNC and data[e.offset + 2: e.offset + 3] == bytes([_TYPE_HEADER])]
+    if typed:
+        at = np.sort(np.concatenate([at, np.asarray(typed, dtype=np.int64)]))
+        at = at[np.r_[True, at[1:] != at[:-1]]]
+    # not inside an intact frame (intact frames do not overlap: the parser consumed each)
+    starts = np.array([fr.offset for fr in frames], dtype=np.int64)
+    ends = starts + np.array([8 + len(fr.payload) for fr in frames], dtype=np.int64)
+    k = np.searchsorted(starts, at, side="right") - 1
+    at = at[(at < n) & ~((k >= 0) & (at < ends[np.maximum(k, 0)] if ends.size else False))]
+    # the fixed bytes of section 2 (versions 1-2, protocol 1, 1-8 axes: 3 or a channel map's, P32) before any CRC
+    # or parse
+    idx = np.flatnonzero(at + HEADER_SIZE <= n)
+    w = at[idx]
+    idx = idx[((b[w + 4] == 1) | (b[w + 4] == 2)) & (b[w + 5] == 1) & (b[w + 17] >= 1) & (b[w + 17] <= 8)
+              & (b[w + 18] == 1)]
+    readable = np.zeros(at.size, dtype=bool)
+    for i in idx.tolist():
+        payload_at = int(at[i])
+        raw = data[payload_at: payload_at + HEADER_SIZE]
+        if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
+            continue
+        try:
+            h = DeviceHeader.from_bytes(raw)
+        except ProtocolError:
+            continue
+        if h.header_version == 1 or not h.logging:
+            known[payload_at - 6] = (raw, True)
+            readable[i] = True
+    unreadable = at[~readable] - 6
+    return [(off, raw, salvaged) for off, (raw, salvaged) in sorted(known.items())], unreadable
+
+
+def _header_key(header_bytes: bytes) -> bytes:
+    """The bytes that name a memory's state: the whole header, or with LOGGING clear (version 2) the part its
+    CRC covers (the journal is then meaningless, section 2.4)."""
+    if len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING:
+        return crc_span(header_bytes[:-2]) + header_bytes[-2:]
+    return header_bytes
+
+
+def _checked_data_frames(frames: list) -> tuple[list, int]:
+    """The DATA frames to use, and how many were rejected: in a capture holding DATA_CRC frames (a DUMP_CHECKED
+    stream, section 4) a DATA frame is used only when the next intact frame is a DATA_CRC with its address and
+    the CRC-32 of its data bytes; in one without (DUMP, READ) on its CRC-16 (as a host without DUMP_CHECKED)."""
+    checked = any(fr.type == _TYPE_DATA_CRC for fr in frames)
+    out, rejected = [], 0
+    for k, fr in enumerate(frames):
+        if fr.type != _TYPE_DATA or len(fr.payload) < 4:
+            continue
+        if checked:
+            nxt = frames[k + 1] if k + 1 < len(frames) else None
+            if (nxt is None or nxt.type != _TYPE_DATA_CRC or len(nxt.payload) != 8
+                    or nxt.payload[:4] != fr.payload[:4]
+                    or int.from_bytes(nxt.payload[4:], "little") != crc32(fr.payload[4:])):
+                rejected += 1
+                continue
+        out.append(fr)
+    return out, rejected
+
+
 def _recording_text(header_bytes: bytes) -> str:
     """``recording N of device D`` (section 2.4) of a HEADER frame's bytes, for messages."""
     try:
@@ -284,17 +409,22 @@ def _recording_text(header_bytes: bytes) -> str:
             if h.header_version != 1 else f"an unnumbered recording of device {h.device_id} (header version 1)")
 
 
-def _frames_of_last_header(headers: list[tuple[int, bytes]], data_frames: list) -> tuple[list, int]:
-    """The DATA frames that follow a HEADER frame byte-identical to the last one (the memory it describes), and
-    how many others there were: frames under another header belong to another recording (or another state
-    of the memory), frames before the first HEADER frame to no known one (section 4)."""
-    last = headers[-1][1]
-    starts = np.array([off for off, _ in headers], dtype=np.int64)
-    same = np.array([h == last for _, h in headers], dtype=bool)
+def _frames_of_header(known: list[tuple[int, bytes, bool]], unreadable: np.ndarray, header_bytes: bytes,
+                      data_frames: list) -> tuple[list, int, int]:
+    """The DATA frames that follow a header of the same state as ``header_bytes`` (the memory it describes),
+    how many others there were, and how many damaged HEADER frames that do not verify there were: frames
+    under another header belong to another recording (or another state of the memory), frames under a
+    damaged one to a header nobody can read, frames before the first HEADER frame to no known one (section 4)."""
+    key = _header_key(header_bytes)
+    starts = np.concatenate([np.array([off for off, _, _ in known], dtype=np.int64), unreadable.astype(np.int64)])
+    same = np.concatenate([np.array([_header_key(h) == key for _, h, _ in known], dtype=bool),
+                           np.zeros(unreadable.size, dtype=bool)])
+    order = np.argsort(starts, kind="stable")
+    starts, same = starts[order], same[order]
     offsets = np.array([fr.offset for fr in data_frames], dtype=np.int64)
     k = np.searchsorted(starts, offsets, side="right") - 1
     keep = (k >= 0) & same[np.maximum(k, 0)]
-    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum())
+    return [fr for fr, ok in zip(data_frames, keep.tolist()) if ok], int((~keep).sum()), int(unreadable.size)
 
 
 # ------------------------------------------------------------------------------------ interrupted runs

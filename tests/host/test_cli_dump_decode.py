@@ -13,6 +13,8 @@ from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
 from host.accelerometer.calibration import AccCalibration
 from host.cli import main
 from host.files.recording import Recording
+from protocol.header import DeviceHeader
+from protocol.raw_dump import raw_dump_bytes
 
 CAP = 65536
 
@@ -58,6 +60,25 @@ def test_cli_resume_after_cut(tmp_path, capsys):
     rec = Recording.load(tmp_path / "r.npz")
     np.testing.assert_array_equal(rec.codes, codes)
     np.testing.assert_array_equal(rec.sample_numbers, numbers)  # none lost, none doubled
+
+
+def test_decode_of_a_raw_dump_cut_before_its_trailer(tmp_path, capsys):
+    rng = np.random.default_rng(5)
+    codes = rng.integers(0, 1024, (600, 3))
+    words = (codes[:, 0] | (codes[:, 1] << 10) | (codes[:, 2] << 20)).astype("<u4")
+    h = DeviceHeader(capacity_samples=1024, samples_written=600, write_index=600)
+    raw = tmp_path / "rx.bin"
+    raw.write_bytes(raw_dump_bytes(h.to_bytes(), words.tobytes())[: 256 + 4 * 500])  # cut before its trailer
+    assert main(["decode", str(raw), "--out", str(tmp_path / "d")]) == 0
+    out, err = capsys.readouterr()
+    assert "600 samples (0 valid, 600 missing)" in out and "its 500 samples present cannot be verified" in err
+    assert not Recording.load(tmp_path / "d.npz").valid.any()
+    assert main(["decode", str(raw), "--out", str(tmp_path / "a"), "--accept-unverified"]) == 0
+    out, err = capsys.readouterr()
+    assert "(500 valid, 100 missing)" in out and "500 samples and 0 step records UNVERIFIED" in err
+    rec = Recording.load(tmp_path / "a.npz")
+    np.testing.assert_array_equal(rec.codes[rec.valid], codes[:500])
+    assert any("UNVERIFIED" in n for n in rec.notes)
 
 
 def test_decode_with_calibration_file(tmp_path):

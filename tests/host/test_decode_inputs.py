@@ -133,11 +133,16 @@ def test_raw_dump_and_truncated_raw_dump():
     header, memory, codes, flags, sn = make_memory(5000, seed=5)
     used = memory[: 4 * 5000]
     raw = header.to_bytes() + used
-    raw += b"\x1a" * (-len(raw) % 1024)
-    rec = decode_bytes(raw, source="rx.bin")
+    raw += b"\x1a" * (-len(raw) % 1024)  # no check trailer (older firmware): nothing verifies these bytes
+    with pytest.warns(UserWarning, match="5000 samples present cannot be verified and are reported missing"):
+        refused = decode_bytes(raw, source="rx.bin")
+    assert not refused.valid.any() and "without its check trailer" in refused.gaps[0].reason
+    with pytest.warns(UserWarning, match="5000 samples and 0 step records UNVERIFIED"):
+        rec = decode_bytes(raw, source="rx.bin", accept_unverified=True)
     assert rec.valid.all()
     np.testing.assert_array_equal(rec.codes, codes)
-    cut = decode_bytes(raw[: 256 + 4 * 3000 + 2], source="rx.bin")
+    with pytest.warns(UserWarning, match="UNVERIFIED"):
+        cut = decode_bytes(raw[: 256 + 4 * 3000 + 2], source="rx.bin", accept_unverified=True)
     assert_exact_or_missing(cut, codes, flags, sn)
     assert cut.n_valid == 3000
     assert cut.gaps[0].first_sample_number == 3000 and cut.gaps[0].last_sample_number == 4999

@@ -138,14 +138,15 @@ def test_a_device_without_step_memory_has_no_records():
 @given(seed=st.integers(0, 2**31), n_damaged=st.integers(1, 12))
 def test_raw_dump_drops_exactly_the_damaged_records(seed, n_damaged):
     header, memory, step_memory, truth = synthetic(CAP + 100, seed=seed)
-    # a dump without the check trailer (older firmware): the records' own CRC-16 must catch the damage
+    # a dump without the check trailer (older firmware), accepted unverified: the records' own CRC-16 must catch
+    # the damage
     raw = bytearray(header.to_bytes() + memory[: 4 * N_SAMPLES] + step_memory)
     rng = np.random.default_rng(seed)
     slots = rng.choice(CAP, n_damaged, replace=False)
     for slot in slots:  # one changed byte per record: CRC-16 detects every such error
         raw[256 + 4 * N_SAMPLES + 20 * int(slot) + int(rng.integers(0, 20))] ^= int(rng.integers(1, 256))
     with pytest.warns(UserWarning, match=f"{n_damaged} of the {CAP} stored step records dropped"):
-        rec = decode_bytes(bytes(raw), source="rx.bin")
+        rec = decode_bytes(bytes(raw), source="rx.bin", accept_unverified=True)
     first = header.first_step_slot
     dropped = {header.first_step_number + (int(s) - first) % CAP for s in slots}
     assert_exact_or_dropped(rec, truth, dropped)
@@ -156,8 +157,12 @@ def test_truncated_raw_dump_drops_the_records_beyond_its_end():
     header, memory, step_memory, truth = synthetic(300, seed=4)
     raw = raw_dump_bytes(header.to_bytes(), memory[: 4 * N_SAMPLES], step_memory[: header.step_used_bytes])
     cut = 256 + 4 * N_SAMPLES + 20 * 123 + 7  # inside record 123
+    with pytest.warns(UserWarning, match="300 of the 300"):  # cut before its trailer: nothing verified
+        refused = decode_bytes(raw[:cut], source="rx.bin")
+    assert refused.n_step_records == 0 and not refused.valid.any()
+    assert "without its check trailer" in refused.step_losses[0].reason
     with pytest.warns(UserWarning, match="177 of the 300"):
-        rec = decode_bytes(raw[:cut], source="rx.bin")
+        rec = decode_bytes(raw[:cut], source="rx.bin", accept_unverified=True)
     assert_exact_or_dropped(rec, truth, set(range(123, 300)))
     assert [(g.first_record_number, g.last_record_number) for g in rec.step_losses] == [(123, 299)]
     assert "truncated" in rec.step_losses[0].reason

@@ -18,8 +18,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from host.files.decode import decode_bytes
 from protocol.channel_map import Channel, ChannelMap
 from protocol.commit_journal import ENTRY_BYTES, JOURNAL_BYTES, JOURNAL_ENTRIES, JOURNAL_OFFSET
+from protocol.errors import ProtocolError
 from protocol.frames import (
     FRAME_HEAD_STRUCT,
     MAX_DATA,
@@ -47,6 +49,7 @@ from protocol.image import (
     parse_image,
 )
 from protocol.packing import pack_words, unpack_words, words_to_bytes
+from protocol.raw_dump import raw_dump_bytes
 from protocol.steps import (
     STEP_CONFIG_OFFSETS,
     STEP_CONFIG_STRUCT,
@@ -171,7 +174,7 @@ def _same(expected: Any, actual: Any) -> bool:
 def test_examples_exist_for_everything() -> None:
     kinds = {ex["kind"] for ex in EXAMPLES.values()}
     assert kinds == {"calibration", "header", "sample", "frame", "xmodem-block", "image", "step-config", "step-record",
-                     "channel-map", "channel-frame"}
+                     "channel-map", "channel-frame", "raw-dump", "capture"}
     frame_types = {ex["type"] for ex in EXAMPLES.values() if ex["kind"] == "frame"}
     assert frame_types == {t.name for t in FrameType}, "every frame type needs a worked example"
 
@@ -315,8 +318,74 @@ def test_worked_example(name: str) -> None:
         assert bytes(contents.step_memory[step_ok]) == bytes(np.frombuffer(steps, np.uint8)[step_ok])
         got, usable = contents.step_records()
         assert usable.all() and pack_step_records(got) == records
+    elif kind == "raw-dump":
+        _check_raw_dump(data, fields)
+    elif kind == "capture":
+        _check_capture(data, fields)
     else:  # pragma: no cover
         raise AssertionError(f"unknown example kind {kind}")
+
+
+def _raw_dump_parts(fields: dict) -> tuple[DeviceHeader, bytes, np.ndarray, np.ndarray]:
+    codes, flags = np.array(fields["samples"]["codes"]), np.array(fields["samples"]["flags"])
+    return DeviceHeader(**fields["header"]), words_to_bytes(pack_words(codes, flags)), codes, flags
+
+
+def _decoded(data: bytes, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rec = decode_bytes(data, **kw)
+    return rec, " ".join(str(w.message) for w in caught)
+
+
+def _check_raw_dump(data: bytes, fields: dict) -> None:
+    """Section 5.1: the trailer checked with zlib here; the whole file verifies, the file cut before its
+    trailer is reported missing unless accepted unverified."""
+    header, samples, codes, flags = _raw_dump_parts(fields)
+    assert raw_dump_bytes(header.to_bytes(), samples) == data
+    body = 256 + len(samples)
+    assert data[:body] == header.to_bytes() + samples and len(data) % 1024 == 0
+    trailer, n = data[body:], -(-body // 256)
+    assert trailer[:4] == b"GLCK" and trailer[4] == 1 and int.from_bytes(trailer[6:8], "little") == 256
+    assert int.from_bytes(trailer[8:12], "little") == body and int.from_bytes(trailer[12:16], "little") == n
+    for k in range(n):
+        chunk = k.to_bytes(4, "little") + data[256 * k: min(256 * (k + 1), body)]
+        assert int.from_bytes(trailer[16 + 4 * k: 20 + 4 * k], "little") == zlib.crc32(chunk)
+    end = 16 + 4 * n + 256
+    assert trailer[16 + 4 * n: end] == header.to_bytes()
+    assert int.from_bytes(trailer[end: end + 4], "little") == zlib.crc32(trailer[:end])
+    size = end + 4
+    assert trailer[size: size + 64] == b"\x1a" * 64 and trailer[size + 64: 2 * size + 64] == trailer[:size]
+    assert set(trailer[2 * size + 64:]) == {0x1A}
+    rec, _ = _decoded(data)
+    assert rec.valid.all() and rec.codes.tolist() == codes.tolist() and rec.flags.tolist() == flags.tolist()
+    cut = data[: fields["cut"]]
+    rec, said = _decoded(cut)
+    assert not rec.valid.any() and "without its check trailer" in rec.gaps[0].reason and "verified: NO" in said
+    rec, said = _decoded(cut, accept_unverified=True)
+    assert rec.valid.all() and rec.codes.tolist() == codes.tolist() and "UNVERIFIED" in said
+
+
+def _check_capture(data: bytes, fields: dict) -> None:
+    """Section 4, decoding a capture: a HEADER frame that fails its CRC-16 but whose header verifies places
+    the samples; one damaged inside the header's CRC does not."""
+    header, samples, codes, _ = _raw_dump_parts(EXAMPLES[fields["example"]]["fields"])
+    clean = bytearray(encode_frame(FrameType.HEADER, 1, header.to_bytes())
+                      + encode_frame(FrameType.DATA, 0, build_payload(FrameType.DATA, address=0, data=samples)))
+    damaged = bytearray(clean)
+    damaged[fields["damaged_byte"]] ^= fields["xor"]
+    assert bytes(damaged) == data
+    assert int.from_bytes(data[262:264], "big") != _crc16(data[2:262])  # the frame fails its CRC-16
+    assert int.from_bytes(data[260:262], "big") == _crc16(data[6:166])  # its header passes its own
+    frames, errors = parse_stream(data)
+    assert [f.type for f in frames] == [FrameType.DATA] and errors[0].reason == "bad_crc"
+    rec, said = _decoded(data)
+    assert "HEADER frame at offset 0 is damaged" in said
+    assert rec.valid.all() and rec.codes.tolist() == codes.tolist()
+    inside = bytearray(clean)
+    inside[fields["damaged_inside"]] ^= fields["xor"]
+    with pytest.raises(ProtocolError, match="no intact HEADER frame"):
+        decode_bytes(bytes(inside))
 
 
 # ------------------------------------------------------------------------------------------------ tables

@@ -1,0 +1,117 @@
+"""Wire captures with a damaged HEADER frame, or DATA frames a DUMP_CHECKED stream's DATA_CRC does not confirm
+(PROTOCOL.md section 4, "Decoding a capture"): what can be verified is decoded, the rest reported missing,
+never a wrong sample. Truth is the emulated device's memory (its firmware's own stream is the capture)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from firmware_sim.device import Logger
+from host.files.decode import decode_bytes
+from protocol.crc import crc16_xmodem
+from protocol.errors import ProtocolError
+from protocol.frames import FrameType, build_payload, encode_frame, parse_stream
+from tests.host.test_link_emu import smooth_motion
+
+N = 3000
+HEADER_FRAME = 6 + 256 + 2
+
+
+def _logger(seed: int = 1, n: int = N) -> tuple[Logger, np.ndarray]:
+    logger = Logger(device_id=5)
+    result = logger.record(smooth_motion(n, seed), start_time_s=1_700_000_000)
+    return logger, np.asarray(result.codes)
+
+
+def _session(logger: Logger, length: int, command: FrameType = FrameType.DUMP, chunk: int = 1024) -> bytes:
+    """The device's bytes of READ_HEADER, then DUMP (or DUMP_CHECKED) of the first ``length`` bytes."""
+    fw = logger.firmware
+    out = fw.receive(encode_frame(FrameType.READ_HEADER, 1), now_s=0.0)
+    payload = build_payload(command, address=0, length=length, chunk=chunk)
+    return out + fw.receive(encode_frame(command, 2, payload), now_s=0.0)
+
+
+def _decode(data: bytes):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rec = decode_bytes(data, source="cap.bin")
+    return rec, " | ".join(str(w.message) for w in caught)
+
+
+@pytest.mark.parametrize(("where", "why"), [(4, "the frame's length field"), (200, "the journal (LOGGING clear)"),
+                                            (262, "the frame's CRC-16")])
+def test_a_damaged_header_frame_whose_header_verifies_is_used(where: int, why: str) -> None:
+    logger, codes = _logger()
+    capture = bytearray(_session(logger, 4 * N))
+    capture[where] ^= 0x5A  # outside the bytes the header's own CRC-16 covers (0-159 of the payload)
+    frames, _ = parse_stream(bytes(capture))
+    assert FrameType.HEADER not in [f.type for f in frames]  # the frame itself is damaged
+    rec, said = _decode(bytes(capture))
+    assert "HEADER frame at offset 0 is damaged" in said and "passed its own CRC-16" in said, why
+    assert rec.valid.all()
+    np.testing.assert_array_equal(rec.codes, codes)
+    assert rec.header.to_bytes()[:160] == logger.header.to_bytes()[:160]
+
+
+def test_a_damaged_header_frame_whose_header_does_not_verify_is_refused() -> None:
+    logger, _ = _logger()
+    capture = bytearray(_session(logger, 4 * N))
+    capture[6 + 30] ^= 0x01  # write_index: inside the header's CRC
+    with pytest.raises(ProtocolError, match="no intact HEADER frame .* the 1 damaged one\\(s\\) do not verify"):
+        decode_bytes(bytes(capture), source="cap.bin")
+
+
+def test_data_after_a_damaged_header_of_another_recording_is_not_used() -> None:
+    """Recording a, then recording b whose HEADER frame is damaged beyond verification: b's DATA frames are
+    not decoded as a's samples (before this rule: every frame of b overwrote a's samples at its address)."""
+    la, ca = _logger(1)
+    lb, _ = _logger(2)
+    a = _session(la, 4 * N)
+    b = bytearray(_session(lb, 4 * 2000))
+    b[6 + 60] ^= 0xFF  # inside b's header CRC: b cannot be read
+    rec, said = _decode(a + bytes(b))
+    assert rec.header.recording_nonce == la.header.recording_nonce
+    assert "under 1 damaged HEADER frame(s) that do not verify" in said
+    assert rec.valid.all()  # a's frames came first and are all there: b's did not overwrite them
+    np.testing.assert_array_equal(rec.codes, ca)
+    # the same with b's HEADER frame's sync and type lost too: its magic still marks it
+    b[0:3] = b"\x00\x00\x00"
+    rec, _ = _decode(a + bytes(b))
+    np.testing.assert_array_equal(rec.codes[rec.valid], ca[rec.valid])
+    assert rec.valid.all()
+
+
+def _forged(frame: bytes, at: int) -> bytes:
+    """``frame`` with the byte at ``at`` changed and its CRC-16 recomputed: a damage CRC-16 lets through."""
+    f = bytearray(frame)
+    f[at] ^= 0x10
+    f[-2:] = crc16_xmodem(bytes(f[2:-2])).to_bytes(2, "big")
+    return bytes(f)
+
+
+def test_checked_capture_uses_a_data_frame_only_with_its_data_crc() -> None:
+    logger, codes = _logger()
+    capture = _session(logger, 4 * N, FrameType.DUMP_CHECKED, chunk=1024)
+    rec = decode_bytes(capture, source="cap.bin")
+    assert rec.valid.all()
+    np.testing.assert_array_equal(rec.codes, codes)
+    first_data = HEADER_FRAME  # the stream's first DATA frame follows the HEADER frame (no ACK before it)
+    assert capture[first_data + 2] == FrameType.DATA, capture[HEADER_FRAME: HEADER_FRAME + 16].hex()
+    data_len = 6 + 4 + 1024 + 2
+    # a DATA frame damaged in a way its CRC-16 passes: the device's CRC-32 in DATA_CRC rejects it
+    forged = capture[:first_data] + _forged(capture[first_data: first_data + data_len], 6 + 4 + 100) + \
+        capture[first_data + data_len:]
+    rec, said = _decode(forged)
+    assert any("1 DATA frame(s) of a DUMP_CHECKED stream not used" in n for n in rec.notes), said
+    assert not rec.valid[:256].any() and rec.valid[256:].all()
+    np.testing.assert_array_equal(rec.codes[256:], codes[256:])
+    # its DATA_CRC frame damaged: the DATA frame cannot be verified end to end, so it is not used
+    crc_at = first_data + data_len
+    assert capture[crc_at + 2] == FrameType.DATA_CRC
+    broken = bytearray(capture)
+    broken[crc_at + 8] ^= 0x01
+    rec, _ = _decode(bytes(broken))
+    assert not rec.valid[:256].any() and rec.valid[256:].all()
