@@ -446,14 +446,14 @@ ML_PEAK_SHARES = (23 / 52, 3 / 52, 26 / 52)
 ML_PUSH_RATIO = ((0.6, 0.2, 0.35, 0.85), (0.7, 0.1, 0.5, 0.85), (1.6, 0.25, 1.3, 2.6))
 #: Step-led pattern: the 2nd stride harmonic (step frequency) over the 1st. The IPOL trials that peak at the step
 #: frequency keep an odd/even ratio above 1 (1.4): one even harmonic stands out, not all.
-ML_STEP_RATIO = 1.4
+ML_STEP_RATIO = 1.25
 #: Other patterns: the 2nd stride harmonic at most this fraction of the pattern's peak harmonic (the trunk's
 #: other step-periodic motions add to it at the sensor).
 ML_STEP_CAP = 0.35
 #: Median and between-subject log-SD of the ``"people"`` population's lateral acceleration amplitude (its RMS
 #: over the stride harmonics at preferred speed, m/s^2): the IPOL trials' RMS ML 1.28 m/s^2 [0.92, 1.71]
 #: (median [5, 95 %], step-to-step gain and transients included), the same whichever harmonic peaks.
-ML_RMS_M_S2 = 1.3
+ML_RMS_M_S2 = 1.38
 ML_RMS_LOG_SD = 0.12
 
 
@@ -479,7 +479,7 @@ def stride_lateral_acc_m_s2(subject: Subject) -> float:
     Examples
     --------
     >>> round(stride_lateral_acc_m_s2(Subject(ml_sway_m=0.01, roll_amp_deg=0.0, yaw_amp_deg=0.0)), 3)
-    0.348
+    0.335
     """
     w = subject.preferred_stride_rate_rad_s
     fwd, _, up = subject.sensor_offset_m
@@ -488,6 +488,28 @@ def stride_lateral_acc_m_s2(subject: Subject) -> float:
                       + fwd * np.deg2rad(subject.yaw_amp_deg) * np.exp(1j * subject.yaw_phase_rad) - up * roll)
               - STANDARD_GRAVITY_M_S2 * roll)
     return float(abs(phasor))
+
+
+def _sway_gain(subject: Subject, stride_acc_m_s2: float) -> float:
+    """Factor on ``subject``'s centre-of-mass sway and roll (its yaw kept) that makes its stride-frequency lateral
+    acceleration (:func:`stride_lateral_acc_m_s2`) ``stride_acc_m_s2``, or the nearest to it (>= 0).
+
+    Examples
+    --------
+    >>> s = Subject(ml_sway_m=0.01, roll_amp_deg=2.0, yaw_amp_deg=3.0)
+    >>> g = _sway_gain(s, 1.0)
+    >>> round(stride_lateral_acc_m_s2(dataclasses.replace(s, ml_sway_m=0.01 * g, roll_amp_deg=2.0 * g)), 6)
+    1.0
+    """
+    full = stride_lateral_acc_m_s2(subject)
+    yaw = stride_lateral_acc_m_s2(dataclasses.replace(subject, ml_sway_m=0.0, roll_amp_deg=0.0))
+    rest = stride_lateral_acc_m_s2(dataclasses.replace(subject, yaw_amp_deg=0.0))
+    if rest == 0.0:
+        return 1.0
+    cross = 0.5 * (full**2 - rest**2 - yaw**2)   # Re(conj(P) Y): |c P + Y|^2 = c^2 |P|^2 + 2 c cross + |Y|^2
+    disc = cross**2 - rest**2 * (yaw**2 - stride_acc_m_s2**2)
+    c = (-cross + np.sqrt(disc)) / rest**2 if disc >= 0.0 else -cross / rest**2
+    return float(max(c, 0.0))
 
 
 def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
@@ -535,7 +557,7 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
         preferred_speed_m_s=speed,
         cadence_law_spm=(around(72.0, 5.0, 58.0, 86.0), around(33.0, 4.0, 22.0, 44.0)),
         step_time_cv=around(0.03, 0.008, 0.012, 0.05),
-        ap_speed_fluctuation=around(0.09, 0.025, 0.05, 0.16),
+        ap_speed_fluctuation=around(0.105, 0.025, 0.05, 0.17),
         ml_sway_m=around(0.012, 0.003, 0.005, 0.02),
         ml_step_variability=around(0.3, 0.08, 0.1, 0.5),
         envelope_full_at_step=0,
@@ -546,14 +568,15 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
         heel_strike_acc_g=0.8 * kw["heel_strike_acc_g"],
         # even lateral harmonics near quadrature with the forward ones (the IPOL principal axes lie within ~6 deg
         # of the periodicity axes: AP and ML nearly uncorrelated)
-        ml_even_phases_rad=tuple(float(np.pi * rng.integers(2) + rng.normal(0.0, 0.15)) for _ in range(4)),
+        ml_even_phases_rad=tuple(float(np.pi * rng.integers(2) + rng.normal(0.0, 0.05)) for _ in range(4)),
         ap_harmonics_m_s2=tuple(a * vigour * float(np.exp(rng.normal(0.0, 0.3))) for a in (0.7, 0.9, 0.45)),
         harmonic_lag_s=around(0.05, 0.02, 0.0, 0.1),
         vertical_asymmetry=around(0.0, 0.35, -0.6, 0.6),
     )
     # The lateral total is the subject's own (ml_rms): a stronger push comes with less sway, not more lateral
     # motion (in the IPOL trials RMS ML is the same whichever harmonic peaks), so the sway's three sources
-    # (centre of mass, roll, yaw) are scaled together to the stride-harmonic amplitude h1 that leaves the total
+    # that grow with it (centre of mass, roll; not the pelvic yaw, which turns forward acceleration into
+    # lateral) are scaled together to the stride-harmonic amplitude h1 that leaves the total
     # at ml_rms; stride harmonics 2, 3, ..., 10 follow, even and odd (the push) interleaved.
     odd = [push * a for a in push_shape]
     step = ML_STEP_RATIO if pattern == 1 else 0.0
@@ -561,9 +584,8 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
     h1 = float(np.sqrt(max(2.0 * ml_rms**2 - rest, 0.1 * ml_rms**2) / (1.0 + sum(a * a for a in odd) + step**2)))
     # the step-frequency harmonic kept below the pattern's peak (half of it) unless it is the peak
     even_shape[0] = step * h1 if step else min(even_shape[0], ML_STEP_CAP * h1 * max(1.0, push))
-    gain = h1 / stride_lateral_acc_m_s2(Subject.from_height(height, **{**kw, **over}))
-    over.update(ml_sway_m=over["ml_sway_m"] * gain, roll_amp_deg=kw["roll_amp_deg"] * gain,
-                yaw_amp_deg=kw["yaw_amp_deg"] * gain)
+    gain = _sway_gain(Subject.from_height(height, **{**kw, **over}), h1)
+    over.update(ml_sway_m=over["ml_sway_m"] * gain, roll_amp_deg=kw["roll_amp_deg"] * gain)
     over["ml_harmonics_m_s2"] = tuple(even_shape[i // 2] if i % 2 == 0 else h1 * odd[i // 2]
                                       for i in range(len(even_shape) + len(push_shape)))
     return height, over
