@@ -449,7 +449,7 @@ ML_PUSH_RATIO = ((0.6, 0.2, 0.35, 0.85), (0.7, 0.1, 0.5, 0.85), (1.6, 0.25, 1.3,
 ML_STEP_RATIO = 1.25
 #: Other patterns: the 2nd stride harmonic at most this fraction of the pattern's peak harmonic (the trunk's
 #: other step-periodic motions add to it at the sensor).
-ML_STEP_CAP = 0.35
+ML_STEP_CAP = 0.25
 #: Median and between-subject log-SD of the ``"people"`` population's lateral acceleration amplitude (its RMS
 #: over the stride harmonics at preferred speed, m/s^2): the IPOL trials' RMS ML 1.28 m/s^2 [0.92, 1.71]
 #: (median [5, 95 %], step-to-step gain and transients included), the same whichever harmonic peaks.
@@ -556,8 +556,8 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
         foot_length_m=kw["foot_length_m"] * scale,
         preferred_speed_m_s=speed,
         cadence_law_spm=(around(72.0, 5.0, 58.0, 86.0), around(33.0, 4.0, 22.0, 44.0)),
-        step_time_cv=around(0.03, 0.008, 0.012, 0.05),
-        ap_speed_fluctuation=around(0.115, 0.025, 0.06, 0.18),
+        step_time_cv=around(0.036, 0.008, 0.015, 0.055),
+        ap_speed_fluctuation=around(0.105, 0.025, 0.05, 0.17),
         ml_sway_m=around(0.012, 0.003, 0.005, 0.02),
         ml_step_variability=around(0.3, 0.08, 0.1, 0.5),
         envelope_full_at_step=0,
@@ -571,7 +571,7 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
         ml_even_phases_rad=tuple(float(np.pi * rng.integers(2) + rng.normal(0.0, 0.05)) for _ in range(4)),
         ap_harmonics_m_s2=tuple(a * vigour * float(np.exp(rng.normal(0.0, 0.3))) for a in (0.7, 0.9, 0.45)),
         harmonic_lag_s=around(0.05, 0.02, 0.0, 0.1),
-        vertical_asymmetry=around(0.0, 0.35, -0.6, 0.6),
+        vertical_asymmetry=around(0.0, 0.4, -0.7, 0.7),
     )
     # The lateral total is the subject's own (ml_rms): a stronger push comes with less sway, not more lateral
     # motion (in the IPOL trials RMS ML is the same whichever harmonic peaks), so the sway's three sources
