@@ -38,21 +38,6 @@ from firmware_sim.world.hermite import quintic_hermite
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walk_plan import WalkPlan
 
-#: Share of a subject's left/right contact asymmetry (``Subject.vertical_asymmetry``) that its forward (braking,
-#: push-off) transients keep: the left/right difference of lower-back walking shows more in the vertical than in
-#: the antero-posterior acceleration (IPOL trials: even/odd harmonic ratio 4.2 vertical, 3.4 antero-posterior,
-#: with the antero-posterior steady part the smaller).
-AP_CONTACT_ASYMMETRY_SHARE = 0.4
-#: Share (of the log-SD) of the contact-to-contact variability of the heel-strike impact that its braking peak
-#: keeps: a random difference between the two contacts of a stride is an odd harmonic, and the IPOL forward
-#: acceleration is more regular from step to step (even/odd 3.4) than a fully varying braking peak allows.
-AP_CONTACT_VARIABILITY_SHARE = 0.5
-#: How much of a step's relative duration error its length shares: people hold their speed from step to step
-#: and let step length and step time vary together (Dingwell, John & Cusumano 2010, PLoS Comput Biol 6:
-#: e1000856: stride speed is corrected quickly, length and time drift along the constant-speed line). Independent
-#: errors would make every step's mean speed jump by several %, a forward acceleration at the odd stride
-#: harmonics (IPOL even/odd ratio 3.4 forward).
-STEP_LENGTH_FOLLOWS_TIME = 0.8
 
 
 @dataclass(frozen=True, eq=False)
@@ -355,7 +340,8 @@ def _plan_steps(subject: Subject, walk_plan: WalkPlan, path: CorridorPath, v_exc
         sign = 1.0 if sides[-1] == "L" else -1.0
         e_length = rng.normal(0.0, subject.step_length_cv)
         e_time = rng.normal(0.0, subject.step_time_cv)
-        step = s_nom * (1.0 + 0.5 * sign * subject.asymmetry + STEP_LENGTH_FOLLOWS_TIME * e_time + e_length)
+        step = s_nom * (1.0 + 0.5 * sign * subject.asymmetry + e_length
+                        + subject.step_length_follows_time * e_time)
         lengths.append(step)
         durations.append(s_nom / v * (1.0 + e_time))
         sides.append("R" if sides[-1] == "L" else "L")
@@ -618,7 +604,7 @@ def _heel_strike_transients(subject: Subject, vbar: np.ndarray, track: _Track, *
                            toe_offs + subject.loading_response_delay_s))
     tr_v = np.concatenate((subject.heel_strike_acc_g * g * scale * jitter, -subject.toe_off_acc_g * g * to_scale,
                            subject.loading_response_acc_g * g * lr_scale))
-    tr_ap = np.concatenate((-subject.heel_strike_ap_acc_g * g * scale * jitter**AP_CONTACT_VARIABILITY_SHARE,
+    tr_ap = np.concatenate((-subject.heel_strike_ap_acc_g * g * scale * jitter**subject.ap_contact_jitter_share,
                             -subject.toe_off_ap_acc_g * g * to_scale, np.zeros(n_steps)))
     tr_sig = np.concatenate((np.full(heel_strikes.size, subject.heel_strike_width_s),
                              np.full(n_steps, subject.toe_off_width_s),
@@ -626,6 +612,6 @@ def _heel_strike_transients(subject: Subject, vbar: np.ndarray, track: _Track, *
     # left/right asymmetry of loading (the leading foot of each contact): left contacts stronger by +a/2
     lead = np.concatenate((track.side, track.side[:-1], track.side[:-1]))
     side = np.where(lead == "L", 0.5, -0.5) * subject.vertical_asymmetry
-    tr_v, tr_ap = tr_v * (1.0 + side), tr_ap * (1.0 + AP_CONTACT_ASYMMETRY_SHARE * side)
+    tr_v, tr_ap = tr_v * (1.0 + side), tr_ap * (1.0 + subject.ap_contact_asymmetry_share * side)
     order = np.argsort(tr_t, kind="stable")
     return tr_t[order], tr_v[order], tr_ap[order], tr_sig[order]

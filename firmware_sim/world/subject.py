@@ -188,6 +188,14 @@ class Subject:
         Relative left/right difference of the centre of mass's vertical excursion and of the contact
         transients (left steps deeper and left contacts stronger by ``+vertical_asymmetry / 2``): odd stride
         harmonics in the vertical (and antero-posterior) acceleration.
+    step_length_follows_time
+        How much of a step's relative duration error its length shares (0: independent; 1: the step's mean
+        speed unchanged). People hold their speed from step to step and let step length and step time vary
+        together (Dingwell, John & Cusumano 2010, PLoS Comput Biol 6: e1000856); independent errors make every
+        step's mean speed jump by several %, a forward acceleration at the odd stride harmonics.
+    ap_contact_asymmetry_share, ap_contact_jitter_share
+        Shares of the contacts' left/right asymmetry (``vertical_asymmetry``) and of the heel-strike impact's
+        contact-to-contact variability (log-SD) that the forward transients keep (1: as the vertical).
     """
 
     subject_id: str = "S00"
@@ -246,6 +254,9 @@ class Subject:
     ml_step_variability: float = 0.0
     envelope_full_at_step: int = 2
     vertical_asymmetry: float = 0.0
+    step_length_follows_time: float = 0.0
+    ap_contact_asymmetry_share: float = 1.0
+    ap_contact_jitter_share: float = 1.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -572,6 +583,11 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
         ap_harmonics_m_s2=tuple(a * vigour * float(np.exp(rng.normal(0.0, 0.3))) for a in (0.7, 0.9, 0.45)),
         harmonic_lag_s=around(0.05, 0.02, 0.0, 0.1),
         vertical_asymmetry=around(0.0, 0.4, -0.7, 0.7),
+        # tuned to the IPOL forward even/odd ratio 3.4 (a fully varying or asymmetric braking peak and steps
+        # of independent length and time leave it near 2.5): see the fields' descriptions
+        step_length_follows_time=0.8,
+        ap_contact_asymmetry_share=0.4,
+        ap_contact_jitter_share=0.5,
     )
     # The lateral total is the subject's own (ml_rms): a stronger push comes with less sway, not more lateral
     # motion (in the IPOL trials RMS ML is the same whichever harmonic peaks), so the sway's three sources
