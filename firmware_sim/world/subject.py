@@ -452,8 +452,10 @@ ML_EVEN_HARMONICS_M_S2 = (0.3, 0.24, 0.33, 0.29, 0.29)
 #: share, step-led below the first two, push-led above.
 ML_PEAK_SHARES = (23 / 52, 3 / 52, 26 / 52)
 #: Per pattern: the 3rd stride harmonic over the 1st (h3/h1; median, log-SD, lowest, highest), drawn per subject.
-#: The spectrum (summed over a trial, stride-to-stride jitter widening the higher harmonics) peaks at the 3rd
-#: harmonic when h3/h1 exceeds ~1.1; the bounds keep each pattern clear of that threshold.
+#: The spectrum (summed over a trial, stride-to-stride jitter widening the higher harmonics) peaked at the
+#: stride frequency for every simulated sway-led subject (h3/h1 <= 0.85) and at the 3rd harmonic for most
+#: push-led ones (h3/h1 >= 1.3; 1 or 2 of 20 peak at the step frequency instead, as the IPOL trials' few do,
+#: seeds 0-7); the bounds keep each pattern clear of the threshold between.
 ML_PUSH_RATIO = ((0.6, 0.2, 0.35, 0.85), (0.7, 0.1, 0.5, 0.85), (1.6, 0.25, 1.3, 2.6))
 #: Step-led pattern: the 2nd stride harmonic (step frequency) over the 1st. The IPOL trials that peak at the step
 #: frequency keep an odd/even ratio above 1 (1.4): one even harmonic stands out, not all.
@@ -539,11 +541,14 @@ def _people_overrides(rng: np.random.Generator, height_v1: float, kw: dict,
       c1 ~ N(33, 4) steps/min per m/s (IPOL: 108 steps/min at ~1.1 m/s steady; ~115 at 1.35 m/s as in
       the literature's preferred-speed cadences); step length = speed / cadence, so it is not the walk ratio
       law (M5's model) and each subject has its own slope;
-    - step-time CV ~ N(0.022, 0.006) (Hausdorff et al. 1996: stride-time CV ~2 % in healthy adults);
+    - step-time CV ~ N(0.036, 0.008): above the ~2 % stride-time CV of healthy adults on long walks
+      (Hausdorff et al. 1996) as the IPOL 10 m trials' step-duration CV (0.038) is; step length follows
+      step time (:attr:`Subject.step_length_follows_time`, Dingwell et al. 2010);
     - trunk harmonics tuned to IPOL (RMS ML 1.3 m/s^2 with the 3rd stride harmonic strongest in half the
       trials; RMS AP 1.65 m/s^2; harmonic ratios V 4.2, AP 3.4, ML 1.9 (Moe-Nilssen & Helbostad 2004 report
-      the same order for healthy adults at L3): ML stride harmonics 2-5, a larger forward speed fluctuation
-      and a left/right vertical asymmetry, each drawn per subject.
+      the same order for healthy adults at L3): the lateral pattern and total (:data:`ML_PEAK_SHARES`,
+      :data:`ML_RMS_M_S2`), ML stride harmonics 2-10, a larger forward speed fluctuation and a left/right
+      vertical asymmetry, each drawn per subject.
     """
     def around(mean: float, sd: float, lo: float, hi: float) -> float:
         return float(np.clip(rng.normal(mean, sd), lo, hi))
