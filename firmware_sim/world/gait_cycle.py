@@ -34,7 +34,7 @@ from scipy.interpolate import PPoly
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.corridor import CorridorPath
-from firmware_sim.world.hermite import quintic_hermite
+from firmware_sim.world.hermite import evaluate, quintic_hermite
 from firmware_sim.world.subject import Subject
 from firmware_sim.world.walk_plan import WalkPlan
 
@@ -144,6 +144,18 @@ class CosineProfile:
                     - self.depth(t) * c2)
         raise ValueError(f"derivative order {nu} not available (0, 1, 2)")
 
+    def d012(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Value and first two derivatives at once (each channel evaluated once; as the three calls)."""
+        t = np.asarray(t, dtype=np.float64)
+        ph, ph1, ph2 = evaluate(self.phase, t)
+        l0, l1, l2 = evaluate(self.level, t)
+        d0, d1, d2 = evaluate(self.depth, t)
+        cs, sn = np.cos(ph), np.sin(ph)
+        c = 0.5 * (1.0 - cs)
+        c1 = 0.5 * sn * ph1
+        c2 = 0.5 * (cs * ph1**2 + sn * ph2)
+        return l0 - d0 * c, l1 - d1 * c - d0 * c1, l2 - d2 * c - 2.0 * d1 * c1 - d0 * c2
+
 
 class WarpedPhase:
     """Vertical phase ``psi = B - w·sin(B) + a·(cos(2B)/8 - cos(B)/2 - 5/8)``, ``B = 2·(gait_phase - phase_0) - theta + pi``.
@@ -184,6 +196,21 @@ class WarpedPhase:
             r1 = w * np.sin(b) + a * (0.5 * np.cos(b) - 0.5 * np.cos(2.0 * b))
             return b2 * r + b1**2 * r1
         raise ValueError(f"derivative order {nu} not available (0, 1, 2)")
+
+    def d012(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Value and first two derivatives at once (each channel evaluated once; as the three calls)."""
+        t = np.asarray(t, dtype=np.float64)
+        g0, g1, g2 = evaluate(self.gait_phase, t)
+        h0, h1, h2 = evaluate(self.theta, t)
+        b = 2.0 * (g0 - self.phase0) - h0 + np.pi
+        w, a = self.warp, self.skew
+        sb, cb, c2b = np.sin(b), np.cos(b), np.cos(2.0 * b)
+        psi = b - w * sb + a * (0.125 * c2b - 0.5 * cb - 0.625)
+        b1 = 2.0 * g1 - h1
+        r = self._rate(b, w, a)
+        b2 = 2.0 * g2 - h2
+        r1 = w * sb + a * (0.5 * cb - 0.5 * c2b)
+        return psi, b1 * r, b2 * r + b1**2 * r1
 
 
 def _vertical_profile(t_start: float, t_stop: float, gait_phase: PPoly, phase0: float, hs: np.ndarray,
@@ -338,9 +365,12 @@ def _plan_steps(subject: Subject, walk_plan: WalkPlan, path: CorridorPath, v_exc
         v = v_exc * speed_factor(d + 0.35)
         s_nom = float(subject.step_length_m(v))
         sign = 1.0 if sides[-1] == "L" else -1.0
-        step = s_nom * (1.0 + 0.5 * sign * subject.asymmetry + rng.normal(0.0, subject.step_length_cv))
+        e_length = rng.normal(0.0, subject.step_length_cv)
+        e_time = rng.normal(0.0, subject.step_time_cv)
+        step = s_nom * (1.0 + 0.5 * sign * subject.asymmetry + e_length
+                        + subject.step_length_follows_time * e_time)
         lengths.append(step)
-        durations.append(s_nom / v * (1.0 + rng.normal(0.0, subject.step_time_cv)))
+        durations.append(s_nom / v * (1.0 + e_time))
         sides.append("R" if sides[-1] == "L" else "L")
         d += step
     # Termination: an integer number of steps plus the closing half step end exactly at the path end.
@@ -601,14 +631,14 @@ def _heel_strike_transients(subject: Subject, vbar: np.ndarray, track: _Track, *
                            toe_offs + subject.loading_response_delay_s))
     tr_v = np.concatenate((subject.heel_strike_acc_g * g * scale * jitter, -subject.toe_off_acc_g * g * to_scale,
                            subject.loading_response_acc_g * g * lr_scale))
-    tr_ap = np.concatenate((-subject.heel_strike_ap_acc_g * g * scale * jitter,
+    tr_ap = np.concatenate((-subject.heel_strike_ap_acc_g * g * scale * jitter**subject.ap_contact_jitter_share,
                             -subject.toe_off_ap_acc_g * g * to_scale, np.zeros(n_steps)))
     tr_sig = np.concatenate((np.full(heel_strikes.size, subject.heel_strike_width_s),
                              np.full(n_steps, subject.toe_off_width_s),
                              np.full(n_steps, subject.loading_response_width_s)))
     # left/right asymmetry of loading (the leading foot of each contact): left contacts stronger by +a/2
     lead = np.concatenate((track.side, track.side[:-1], track.side[:-1]))
-    lr = 1.0 + np.where(lead == "L", 0.5, -0.5) * subject.vertical_asymmetry
-    tr_v, tr_ap = tr_v * lr, tr_ap * lr
+    side = np.where(lead == "L", 0.5, -0.5) * subject.vertical_asymmetry
+    tr_v, tr_ap = tr_v * (1.0 + side), tr_ap * (1.0 + subject.ap_contact_asymmetry_share * side)
     order = np.argsort(tr_t, kind="stable")
     return tr_t[order], tr_v[order], tr_ap[order], tr_sig[order]

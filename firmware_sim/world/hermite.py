@@ -81,4 +81,7 @@ def evaluate(pp: PPoly, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
     >>> [float(a[0]) for a in evaluate(pp, np.array([0.5]))]
     [0.5, 1.0, 0.0]
     """
+    d012 = getattr(pp, "d012", None)    # profiles that share work between the three (gait_cycle)
+    if d012 is not None:
+        return d012(t_s)
     return pp(t_s), pp(t_s, nu=1), pp(t_s, nu=2)

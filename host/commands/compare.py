@@ -40,9 +40,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
     parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="subjects of the sweep (default 4)")
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the simulated subjects (default 0)")
-    parser.add_argument("--population", choices=["v1", "people"], default="v1",
-                        help="simulated population of --simulate/--sweep: v1 (default) or people (tuned to real "
-                        "lower-back walking)")
+    parser.add_argument("--population", choices=["v1", "people"], default=None,
+                        help="simulated population of --simulate/--sweep: people (default; tuned to real "
+                        "lower-back walking) or v1")
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
     add_logger_rate_option(parser, "for --simulate")
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
@@ -80,8 +80,9 @@ def run(args: argparse.Namespace) -> int:
             raise HostError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
     elif args.logger_rate is not None:
         raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
-    elif args.population != "v1":
+    elif args.population is not None:
         raise HostError("--population: only with --simulate / --sweep (a recording is its own walker)")
+    args.population = args.population or "people"
     mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
     return mode(args)
 

@@ -34,8 +34,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="sim: number of simulated subjects (4)")
     parser.add_argument("--seed", type=SEED, default=0, help="sim: seed of the subjects and devices (0)")
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=1, help="sim: processes to use (1)")
-    parser.add_argument("--population", choices=["v1", "people"], default="v1",
-                        help="sim: simulated population: v1 (default) or people (tuned to real lower-back walking)")
+    parser.add_argument("--population", choices=["v1", "people"], default="people",
+                        help="sim: simulated population: people (default; tuned to real lower-back walking) or v1")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")

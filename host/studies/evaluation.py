@@ -315,7 +315,7 @@ class SimulatedEvaluation:
         :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's gait
         initiation and turn, :data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`).
     population
-        ``"v1"`` (default) or ``"people"`` (the walker tuned to real lower-back walking).
+        ``"people"`` (default: the walker tuned to real lower-back walking) or ``"v1"``.
     sampling_rate_hz, adc_bits
         Logger rate and ADC resolution.
     workers
@@ -340,7 +340,7 @@ class SimulatedEvaluation:
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ,
                  adc_bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
-                 detector: Any = None, population: str = "v1") -> None:
+                 detector: Any = None, population: str = "people") -> None:
         self.n_subjects = n_subjects
         self.population = population
         self.seed = seed

@@ -195,7 +195,7 @@ class AnalogWalk:
 _T = TypeVar("_T")
 
 
-def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "v1",
+def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "people",
                          walk_plan: WalkPlan | None = None) -> tuple[list[Subject], WalkPlan | None]:
     """The subjects of a simulated study and the protocol they walk: ``random_subjects(n_subjects, seed,
     population)`` and ``walk_plan``, else the paper's protocol with the population's walk habits
@@ -208,7 +208,7 @@ def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "v
 def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
                          sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, workers: int = 1,
                          progress: Callable[[], object] | None = None,
-                         population: str = "v1") -> list[WalkComparison]:
+                         population: str = "people") -> list[WalkComparison]:
     """One :class:`host.studies.compare.WalkComparison` per simulated subject (``gaitlog compare --simulate``),
     in parallel over subjects; ``progress()`` is called after each subject."""
     subjects, plan = simulated_population(n_subjects, seed=seed, population=population)

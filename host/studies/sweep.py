@@ -141,7 +141,7 @@ class AdcRateSweep:
     walk_plan
         :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's habits).
     population
-        ``"v1"`` (default) or ``"people"`` (:func:`host.studies.simulation.simulated_population`).
+        ``"people"`` (default) or ``"v1"`` (:func:`host.studies.simulation.simulated_population`).
     workers
         Processes; results do not depend on it.
     calibration_sections, include_turn
@@ -159,7 +159,7 @@ class AdcRateSweep:
 
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, adc_bits: tuple[int, ...] = ADC_BITS,
                  rates_hz: tuple[float, ...] = RATES_HZ, walk_plan: Any = None, workers: int = 1,
-                 calibration_sections: int = 2, include_turn: bool = False, population: str = "v1") -> None:
+                 calibration_sections: int = 2, include_turn: bool = False, population: str = "people") -> None:
         self.n_subjects = n_subjects
         self.population = population
         self.seed = seed

@@ -35,7 +35,7 @@ def _csv(path) -> list[dict]:
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
     out = tmp_path_factory.mktemp("sim") / "sim.csv"
-    text = _run(["compare", "--simulate", "4", "--workers", "2", "--out", str(out)])
+    text = _run(["compare", "--simulate", "4", "--population", "v1", "--workers", "2", "--out", str(out)])
     return SimpleNamespace(text=text, steps=_csv(out), segments=_csv(out.with_name("sim_segments.csv")),
                            budget=_csv(out.with_name("sim_budget.csv")))
 
@@ -43,7 +43,7 @@ def simulated(tmp_path_factory):
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep") / "sweep.csv"
-    text = _run(["compare", "--sweep", "--workers", "2", "--out", str(out)])
+    text = _run(["compare", "--sweep", "--population", "v1", "--workers", "2", "--out", str(out)])
     return SimpleNamespace(text=text, summary=_csv(out), m5=_csv(out.with_name("sweep_m5.csv")))
 
 
