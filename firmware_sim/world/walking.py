@@ -395,6 +395,35 @@ class Walking:
         return Motion(acc_g=kin["acc_g"], sampling_rate_hz=float(sampling_rate_hz), t0_s=0.0, truth=truth,
                       marker_times_s=truth["laps"]["time_s"].copy())
 
+    def logger_spans(self, segments: list[_Segment] | None = None) -> list[tuple[float, float]]:
+        """``(t_start_s, t_stop_s)`` of each logging run of the plan (:attr:`WalkPlan.logger_runs`): the whole
+        protocol, or each excursion with ``run_lead_s`` of standing before and ``run_tail_s`` after it."""
+        segs = self._segments() if segments is None else segments
+        if self.walk_plan.logger_runs == "continuous":
+            return [(segs[0].t_a, segs[-1].t_b)]
+        out = []
+        for i, seg in enumerate(segs):
+            if seg.plan is not None:
+                out.append((max(seg.t_a - self.walk_plan.run_lead_s, segs[i - 1].t_a if i else seg.t_a),
+                            min(seg.t_b + self.walk_plan.run_tail_s, segs[i + 1].t_b if i + 1 < len(segs) else seg.t_b)))
+        return out
+
+    def render_runs(self, sampling_rate_hz: float) -> list[Motion]:
+        """One :class:`Motion` per logging run (:meth:`logger_spans`), each on the walk's clock (``t0_s`` = the
+        run's START), with the lap marks inside it as marker times; the truth (whole protocol) is shared."""
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+            raise ValueError(f"sampling_rate_hz must be a positive number, got {sampling_rate_hz!r}")
+        segments = self._segments()
+        truth = self._truth(segments)
+        laps = truth["laps"]["time_s"]
+        out = []
+        for t_a, t_b in self.logger_spans(segments):
+            t = t_a + np.arange(int(np.floor((t_b - t_a) * sampling_rate_hz)) + 1) / sampling_rate_hz
+            acc = self._evaluate(segments, t, ("acc_g",))["acc_g"]
+            out.append(Motion(acc_g=acc, sampling_rate_hz=float(sampling_rate_hz), t0_s=float(t_a), truth=truth,
+                              marker_times_s=laps[(laps >= t_a) & (laps <= t[-1])].copy()))
+        return out
+
     def _truth(self, segments: list[_Segment]) -> dict:
         walk_plan = self.walk_plan
         steps: dict[str, list] = {}
