@@ -81,7 +81,8 @@ class WalkPlan:
         STOPped ``run_tail_s`` after each stop (one run per excursion; the rests are not logged).
     run_lead_s, run_tail_s
         Quiet standing logged before each set-off and after each stop (``"per-excursion"``; at most the
-        standing or rest time there is).
+        standing or rest time there is). The walker is on their feet at the start line for the last
+        ``run_lead_s`` of each rest (the logger is STARTed there, then the walker is told to go).
     """
 
     corridor_length_m: float = 100.0
@@ -133,7 +134,8 @@ class WalkPlan:
                 raise ValueError(f"rest posture must be 'sitting' or 'standing', got {p!r}")
         if len(self.speeds) > 1 and not self.rest_postures:
             raise ValueError("rest_postures is empty but the protocol has rests")
-        if self.rest_s < 2.0 * self.sit_transition_s + 1.0:
+        if self.rest_s - (self.run_lead_s if self.logger_runs == "per-excursion" else 0.0) < (
+                2.0 * self.sit_transition_s + 1.0):
             raise ValueError(f"rest_s = {self.rest_s} s is too short for two {self.sit_transition_s} s "
                              "posture transitions")
         marks = self.lap_marks_m

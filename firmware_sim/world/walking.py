@@ -215,11 +215,17 @@ class Walking:
             s_end = plan.path.length_m
             if k + 1 < len(walk_plan.speeds):
                 posture = walk_plan.rest_posture(k)
+                # logger STOPped during the rest: the walker is back on their feet at the start line, standing
+                # still, when it is STARTed again (run_lead_s before the set-off)
+                ready_s = walk_plan.run_lead_s if walk_plan.logger_runs == "per-excursion" else 0.0
+                t_ready = t + walk_plan.rest_s - ready_s
                 if posture == "standing":
-                    segments.append(self._standing(t, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean,
-                                                   "rest:standing"))
+                    segments.append(self._standing(t, t_ready, plan.path, s_end, z_stand, lean, "rest:standing"))
                 else:
-                    segments.append(self._sitting(t, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean))
+                    segments.append(self._sitting(t, t_ready, plan.path, s_end, z_stand, lean))
+                if ready_s > 0:
+                    segments.append(self._standing(t_ready, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean,
+                                                   "stand"))
                 t += walk_plan.rest_s
             else:
                 segments.append(self._standing(t, t + walk_plan.final_stand_s, plan.path, s_end, z_stand, lean,
