@@ -67,7 +67,6 @@ from host.studies.compare import (
     BOOTSTRAP_RESAMPLES,
     match_events,
     subject_resamples,
-    truth_table,
 )
 from host.studies.plots import plot_boxplots
 from host.studies.simulation import (
@@ -211,13 +210,15 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     rows: list[dict] = []
     truth_ratio: list[float] = []
     st = rec.truth["steps"]
-    exact_m5, m5 = _m5_exact_timing(table, st, cals)
-    for mode in MODES:
-        m5[mode]["section_detected"], m5[mode]["section_exact"] = [], []
+    exact_m5, twin, exact_dur = _m5_exact_timing(table, st, pools, leg_length_m=sub.leg_length_m,
+                                                 foot_length_m=sub.foot_length_m, subject=sub.subject_id)
+    m5: dict[str, Any] = {mode: {"section_detected": [], "section_exact": []} for mode in MODES}
+    evaluated = np.zeros(table.n_steps)         # each step's weight in the evaluated sections
     for s in sections:
         if (s.excursion, s.index) in calib_ids or (s.turn and not include_turn):
             continue
         f = section_fractions(table, s.t_start_s, s.t_end_s, edge=edge)
+        evaluated += f
         # truth check: the world's own step lengths cut the same way (should be ~1: path vs corridor)
         t_a = np.asarray(st["heel_strike_s"])
         t_b = np.asarray(st["next_heel_strike_s"])
@@ -233,38 +234,49 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
                              "mode": mode, "estimator": est, "estimated_m": d, "real_m": s.real_m,
                              "ratio": d / s.real_m, "steps": float(np.sum(f))})
     events = score_events(table, st)
+    step = (twin >= 0) & (evaluated >= 0.5)      # per step: the paired steps of the evaluated sections
+    true_len = np.asarray(st["length_m"], np.float64)[twin[step]]
+    m5["timing_error_s"] = table.duration_s[step] - exact_dur[step]
     for mode in MODES:
         for key in ("section_detected", "section_exact"):
             m5[mode][key] = np.asarray(m5[mode][key], np.float64)
+        m5[mode]["step_detected"] = lengths[mode]["M5"][step] / true_len - 1.0
+        m5[mode]["step_exact"] = exact_m5[mode][step] / true_len - 1.0
     return SubjectResult(sub.subject_id, rows, events, cals, caught, truth_ratio, m5)
 
 
-def _m5_exact_timing(table: Any, truth_steps: dict, cals: dict[str, Any]) -> tuple[dict[str, np.ndarray], dict]:
-    """M5 with each step's duration replaced by its generating heel-strike interval (the same K).
+def _m5_exact_timing(table: Any, truth_steps: dict, pools: dict[str, Any], *, leg_length_m: float,
+                     foot_length_m: float, subject: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """M5 with each detected step's duration replaced by its generating heel-strike interval.
 
-    A detected step (foot-flat to foot-flat) is paired with the world's step whose foot-flats it spans
-    (:func:`host.studies.compare.truth_table`); its exact duration is that step's ``next_heel_strike_s -
-    heel_strike_s`` (unpaired steps keep their detected duration). Returns the exact-timing M5 lengths per mode
-    (filled as the detected ones) and, per mode, the paired steps' relative errors against the world's step
-    length with the detected and the exact duration (``step_detected``, ``step_exact``), plus the detected
-    minus exact durations (``timing_error_s``).
+    A detected step (window: previous foot-flat to its foot-flat) is paired with the world's step whose
+    heel-strike interval holds the window's midpoint (robust to a foot-flat misplaced by up to half a step,
+    which pairing the foot-flats themselves is not: it keeps only the steps detected on time); its exact
+    duration is that step's ``next_heel_strike_s - heel_strike_s``; windowless steps keep their detected one.
+    The M5 line is fitted again on the exact durations, on the same sections: a logger timing every step
+    exactly would be calibrated with those times, and a line fitted on detected times carries their bias
+    (e.g. ``mean(1/T)`` of alternating long and short detected steps) into the exact variant. Returns the
+    exact-timing M5 lengths per mode (filled as the detected ones), and per detected step the index of its
+    world twin (-1: none) and its exact duration.
     """
-    _, idx = truth_table(table, truth_steps)
-    hs_interval = (np.asarray(truth_steps["next_heel_strike_s"], np.float64)
-                   - np.asarray(truth_steps["heel_strike_s"], np.float64))
+    hs = np.asarray(truth_steps["heel_strike_s"], np.float64)
+    nhs = np.asarray(truth_steps["next_heel_strike_s"], np.float64)
+    order = np.argsort(hs, kind="stable")
+    mid = 0.5 * (table.time_s(table.start) + table.time_s(table.foot_flat))
+    k = np.searchsorted(hs[order], mid, side="right") - 1
+    idx = np.where((k >= 0) & np.isfinite(mid), order[np.clip(k, 0, None)], -1)
+    idx[(idx >= 0) & ~(mid < nhs[np.clip(idx, 0, None)])] = -1
     paired = (idx >= 0) & np.isfinite(table.duration_s)
+    idx[~paired] = -1
     dur = table.duration_s.copy()
-    dur[paired] = hs_interval[idx[paired]]
+    dur[paired] = nhs[idx[paired]] - hs[idx[paired]]
     raw = dict(table.raw_m)
     raw["M5"] = np.where(dur > 0, 1.0 / dur, np.nan)
     exact = replace(table, duration_s=dur, raw_m=raw)
-    true_len = np.asarray(truth_steps["length_m"], np.float64)[idx[paired]]
-    lengths, out = {}, {"timing_error_s": table.duration_s[paired] - dur[paired]}
-    for mode, cal in cals.items():
-        det = table.filled(apply_calibration(table, cal)["M5"])[0]
-        lengths[mode] = table.filled(apply_calibration(exact, cal)["M5"])[0]
-        out[mode] = {"step_detected": det[paired] / true_len - 1.0, "step_exact": lengths[mode][paired] / true_len - 1.0}
-    return lengths, out
+    lengths = {mode: exact.filled(apply_calibration(exact, calibrate_on_sections(
+        exact, pools[mode], leg_length_m=leg_length_m, foot_length_m=foot_length_m, subject=subject))["M5"])[0]
+        for mode in MODES}
+    return lengths, idx, dur
 
 
 def _subject_job(job: tuple) -> SubjectResult:
@@ -503,9 +515,10 @@ def m5_timing_question(results: Sequence[SubjectResult], *, sampling_rate_hz: fl
 
     Per mode and level (``step``: each paired step's relative error against the world's step length;
     ``section``: the 20 m section ratios), M5 with the detected step durations against M5 with the generating
-    heel-strike intervals (:func:`_m5_exact_timing`, the same K): the IQR and standard deviation of each and
-    ``timing_share = 1 - var(exact) / var(detected)``, the part of M5's variance the step timing adds, each
-    with a bootstrap interval over subjects; and the detected durations' rms error against the heel-strike
+    heel-strike intervals (:func:`_m5_exact_timing`, its line fitted on them): the IQR and standard deviation
+    of each and ``timing_share = 1 - (IQR(exact) / IQR(detected))²``, the part of M5's spread the step timing
+    adds (robust: a variance ratio is dominated by the few steps whose events the detector misplaces by a
+    large fraction of a step), each with a bootstrap interval over subjects; and the detected durations' rms error against the heel-strike
     intervals, with the part the sample period alone explains (``1 / (rate √6)``, two uniform roundings).
     The answer, per level: "yes" when the share's interval lies above 0.5 in some mode, "partly" when a share
     is at least 0.25, else "no".
@@ -519,7 +532,8 @@ def m5_timing_question(results: Sequence[SubjectResult], *, sampling_rate_hz: fl
             return np.full(5, np.nan)
         vd, ve = np.var(d, ddof=1), np.var(e, ddof=1)
         (d1, d3), (e1, e3) = np.percentile(d, [25, 75]), np.percentile(e, [25, 75])
-        return np.array([d3 - d1, e3 - e1, np.sqrt(vd), np.sqrt(ve), 1.0 - ve / vd if vd > 0 else np.nan])
+        return np.array([d3 - d1, e3 - e1, np.sqrt(vd), np.sqrt(ve),
+                         1.0 - ((e3 - e1) / (d3 - d1)) ** 2 if d3 > d1 else np.nan])
 
     rows = []
     for mode in MODES:
@@ -680,7 +694,7 @@ class SimulatedEvaluation:
         self.summary_ = summarise(self.rows_)
         self.events_ = pool_event_scores([res.events for res in self.results_])
         self.bootstrap_, self.m5_ = [], {}
-        if self.n_resamples > 0:
+        if self.n_resamples > 0 and self.results_:
             self.bootstrap_ = bootstrap_summary(self.results_, n_resamples=self.n_resamples, seed=self.seed)
             self.m5_ = m5_timing_question(self.results_, sampling_rate_hz=self.sampling_rate_hz,
                                           n_resamples=self.n_resamples, seed=self.seed)
