@@ -562,7 +562,8 @@ def format_m5_question(m5: dict) -> str:
     if not m5.get("rows"):
         return "M5 and the step timing: no steps"
     t = m5["timing"]
-    lines = [(f"M5 and the step timing (same K; exact = the world's generating heel-strike intervals; "
+    lines = [(f"M5 and the step timing (exact = the world's generating heel-strike intervals, M5's line refitted on "
+              f"them; "
               f"{100 * BOOTSTRAP_LEVEL:.0f} % intervals over {m5['rows'][0]['n_subjects']} subjects): step = "
               "relative error of each step against its true length, section = 20 m ratio"),
              f"{'mode':<13}{'level':<8}{'n':>6}{'IQR detected T':>24}{'IQR exact T':>24}{'timing share':>24}"]
@@ -579,7 +580,8 @@ def format_m5_question(m5: dict) -> str:
     lines.append(f"detected step durations off the heel-strike intervals by {t['rms_ms']:.0f} ms rms "
                  f"({t['n_steps']} steps), of which the sample period alone explains {t['sampling_rms_ms']:.0f} ms")
     lines.append(f"M5 and the step timing: per step {text[m5['answer']['step']]}; per 20 m section "
-                 f"{text[m5['answer']['section']]} (what remains is the cadence-length line itself)")
+                 f"{text[m5['answer']['section']]}" + (" (what remains is the cadence-length line itself)"
+                                                       if m5["answer"]["section"] == "no" else ""))
     return "\n".join(lines)
 
 

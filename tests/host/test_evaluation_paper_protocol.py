@@ -7,13 +7,20 @@ intervals over subjects; M5 with the generating heel-strike intervals.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 
 from firmware_sim.device import Logger
 from firmware_sim.world.stopwatch import Stopwatch
 from firmware_sim.world.subject import random_subjects
-from firmware_sim.world.walk_plan import PAPER_HEIGHTS_M, PAPER_REST_S, POPULATION_PLANS, WalkPlan
+from firmware_sim.world.walk_plan import (
+    PAPER_HEIGHTS_M,
+    PAPER_REST_S,
+    POPULATION_PLANS,
+    WalkPlan,
+)
 from firmware_sim.world.walking import Walking
 from host.cli import main
 from host.errors import HostError
@@ -30,7 +37,11 @@ from host.studies.evaluation import (
     paper_claims,
     summarise,
 )
-from host.studies.simulation import at_paper_heights, record_subject, simulated_population
+from host.studies.simulation import (
+    at_paper_heights,
+    record_subject,
+    simulated_population,
+)
 
 RATE_HZ = 50.0
 
@@ -52,7 +63,7 @@ def test_the_papers_rests_fit_in_memory_only_with_the_logger_stopped() -> None:
     assert (kept[0][1] - kept[0][0]) * RATE_HZ > capacity
     logged = sum(b - a for a, b in runs)
     assert logged * RATE_HZ < 0.75 * capacity
-    gaps = [b[0] - a[1] for a, b in zip(runs, runs[1:], strict=False)]
+    gaps = [b[0] - a[1] for a, b in pairwise(runs)]
     assert min(gaps) > PAPER_REST_S - 10.0          # the rests (minus the standing lead and tail) are not logged
 
 
@@ -68,7 +79,7 @@ def test_paper_plan_and_heights() -> None:
         assert b.leg_length_m / b.height_m == pytest.approx(a.leg_length_m / a.height_m)
         assert b.preferred_speed_m_s ** 2 / b.height_m == pytest.approx(a.preferred_speed_m_s ** 2 / a.height_m)
     assert [s.height_m for s in at_paper_heights(subs[:3], seed=4)] == [s.height_m for s in scaled[:3]]
-    people, plan = simulated_population(2, seed=4, population="people", protocol="paper")
+    _, plan = simulated_population(2, seed=4, population="people", protocol="paper")
     assert plan.logger_runs == "per-excursion" and plan.turn_radius_m == POPULATION_PLANS["people"]["turn_radius_m"]
     with pytest.raises(HostError, match="protocol must be one of"):
         simulated_population(1, protocol="lab")
@@ -252,3 +263,33 @@ def test_stopwatch_laps_need_the_papers_protocol(tmp_path, capsys) -> None:
     with pytest.raises(HostError, match="stopwatch laps need"):
         SimulatedEvaluation(n_subjects=1, laps="stopwatch").run()
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_printed_figures_of_three_people_walkers_on_the_papers_protocol() -> None:
+    """``SimulatedEvaluation(n_subjects=3, seed=0, population="people", protocol="paper", laps="stopwatch")``
+    (the first 3 of the README's 20-subject run; ~30 s on 2 workers). Measured: single-speed M1 97.5 %, IQR 5.4 %,
+    max 112.2 %; multi-speed M5 100.0 %, IQR 4.2 %; M3 99.7 %, IQR 9.1 %."""
+    ev = SimulatedEvaluation(n_subjects=3, seed=0, workers=2, population="people", protocol="paper",
+                             laps="stopwatch", n_resamples=500).run()
+    s = {(r["mode"], r["estimator"]): r for r in ev.summary_}
+    assert s[("single-speed", "M1")]["median"] == pytest.approx(0.975, abs=0.003)
+    assert s[("single-speed", "M1")]["iqr"] == pytest.approx(0.054, abs=0.003)
+    assert s[("single-speed", "M1")]["max"] == pytest.approx(1.122, abs=0.005)
+    assert s[("single-speed", "M3")]["median"] == pytest.approx(0.997, abs=0.003)
+    assert s[("single-speed", "M3")]["iqr"] == pytest.approx(0.091, abs=0.004)
+    assert s[("multi-speed", "M5")]["median"] == pytest.approx(1.000, abs=0.003)
+    assert s[("multi-speed", "M5")]["iqr"] == pytest.approx(0.042, abs=0.003)
+    assert s[("multi-speed", "M2")]["median"] == pytest.approx(1.005, abs=0.003)
+    b = {(r["mode"], r["estimator"], r["statistic"]): r for r in ev.bootstrap_}
+    assert b[("single-speed", "M1", "median")]["ci_low"] == pytest.approx(0.958, abs=0.005)
+    assert b[("single-speed", "M1", "median")]["ci_high"] == pytest.approx(0.980, abs=0.005)
+    verdicts = {c: v for c, _, _, v in paper_claims(ev.bootstrap_)}
+    assert verdicts["multi-speed: M1-M4 medians 100-105 %"] == "agrees"
+    assert verdicts["single-speed: M1 worst case ~140 %"] == "disagrees"
+    assert verdicts["multi-speed: M5 has the lowest median (98 %)"] == "disagrees (not the lowest)"
+    assert len(ev.results_[0].rows) == 2 * 5 * 24      # 4 excursions x 6 straight sections after calibration
+    m5 = {(r["mode"], r["level"]): r for r in ev.m5_["rows"]}
+    assert m5[("multi-speed", "step")]["timing_share"] == pytest.approx(0.708, abs=0.02)
+    assert m5[("multi-speed", "section")]["iqr_exact"] == pytest.approx(0.037, abs=0.003)
+    assert ev.m5_["timing"]["rms_ms"] == pytest.approx(68.0, abs=2.0)
