@@ -10,7 +10,10 @@ Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evalu
 2. *Walking*: the same logger (after ERASE) records the protocol of
    :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); its memory image (header +
    EEPROM, :func:`protocol.image.build_image`) is decoded as a dump would be (:func:`host.files.decode.decode_bytes`)
-   and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times.
+   and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times,
+   or (``laps="stopwatch"``, with the paper's protocol: 5-minute rests, the logger STOPped during them, one
+   logging run per excursion) an observer's stopwatch sheet anchored at the set-off detected in each run
+   (:mod:`host.gait.stopwatch_laps`).
 3. *Steps*: :class:`host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
    M5's cadence), with the subject's own leg and foot length ("the anatomical data of each individual").
 4. *Sections*: consecutive lap marks 20 m apart (default marks 10, 30, ..., 190 m of each excursion:
@@ -36,7 +39,9 @@ Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evalu
 
 Rows, summaries (median, quartiles, extremes per estimator and mode), the CSV (atomic), the printed table
 and the paper-pattern checks (:func:`paper_pattern`) are below; the box-plot figure is
-:mod:`host.studies.plots`.
+:mod:`host.studies.plots`. With intervals: :func:`bootstrap_summary` (percentile bootstrap over subjects),
+the paper side by side (:func:`format_paper_table`, :func:`paper_claims`: what the paper's text states) and
+M5 against the generating heel-strike intervals (:func:`m5_timing_question`).
 """
 
 from __future__ import annotations
