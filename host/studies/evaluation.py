@@ -525,8 +525,8 @@ def m5_timing_question(results: Sequence[SubjectResult], *, sampling_rate_hz: fl
     adds (robust: a variance ratio is dominated by the few steps whose events the detector misplaces by a
     large fraction of a step), each with a bootstrap interval over subjects; and the detected durations' rms error against the heel-strike
     intervals, with the part the sample period alone explains (``1 / (rate √6)``, two uniform roundings).
-    The answer, per level: "yes" when the share's interval lies above 0.5 in some mode, "partly" when a share
-    is at least 0.25, else "no".
+    The answer, per level: "yes" when the share's interval lies above 0.5 in some mode, "partly" when it lies
+    above 0 with the share at least 0.25, else "no" (no share distinguishable from none, or a small one).
     """
     counts = subject_resamples(len(results), n_resamples=n_resamples, seed=seed)
 
@@ -558,7 +558,8 @@ def m5_timing_question(results: Sequence[SubjectResult], *, sampling_rate_hz: fl
     for level_name in ("step", "section"):
         sel = [r for r in rows if r["level"] == level_name]
         answer[level_name] = ("yes" if any(r["timing_share_low"] >= 0.5 for r in sel) else
-                              "partly" if any(r["timing_share"] >= 0.25 for r in sel) else "no")
+                              "partly" if any(r["timing_share_low"] > 0 and r["timing_share"] >= 0.25 for r in sel)
+                              else "no")
     return {"rows": rows, "timing": timing, "answer": answer}
 
 
