@@ -7,8 +7,13 @@ acceleration and are discarded by the paper, so the default lap marks sit at 10,
 corridor, plus a mark when the walker sets off (0 m) and when they stop (200 m): nine full 20 m sections
 per excursion, the fifth containing the turn.
 
-The paper's rests last five minutes; the default here is 60 s so that the whole protocol (≈ 16 min)
-fits in the logger's 64K samples (21.8 min at 50 Hz). Set ``rest_s=300`` for the paper's.
+The paper's rests last five minutes. Its logger holds 64K samples (21.8 min at 50 Hz), and four excursions
+(≈ 12-14 min of walking) plus three 5-minute rests (15 min) do not fit in it with the logger running, so the
+paper's logger cannot have been logging through the rests: :meth:`WalkPlan.paper` (``gaitlog evaluate sim``'s
+default) STOPs the logger at the end of each excursion and STARTs it again before the next
+(``logger_runs="per-excursion"``: four logging runs in one memory, each opened by a SESSION_START sample), the
+rests five minutes. The dataclass default (used by the comparisons and sweeps, which render the walk on the
+sensor's fine grid) keeps 60 s rests and one continuous run (≈ 16 min, which fits).
 """
 
 from __future__ import annotations
@@ -16,6 +21,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 SPEED_LABELS = ("preferred", "fast", "slow", "medium")
+
+#: Alvarez et al. II-C: "to walk freely or to rest on a chair between different excursions for a lapse of five
+#: minutes".
+PAPER_REST_S = 300.0
+#: Alvarez et al. II-A: "four adult men, ages 32 to 38. Height of subjects varied from 168 to 186 cm".
+PAPER_HEIGHTS_M = (1.68, 1.86)
+#: How the logger runs over the protocol: one run through the rests, or STOP/START around each excursion.
+LOGGER_RUNS = ("continuous", "per-excursion")
 
 #: Walk habits of each population of :func:`firmware_sim.world.subject.random_subjects` (WalkPlan fields).
 #: ``"people"``: tuned to the IPOL lower-back trials' U-turn duration (1.6 s median), step-time variability
@@ -62,6 +75,14 @@ class WalkPlan:
         Speed in the turn relative to the excursion's speed; the slow-down spans ±``turn_slowdown_m``.
     sit_transition_s
         Duration of a sit-down or a stand-up.
+    logger_runs
+        ``"continuous"``: the logger is started before the first excursion and stopped after the last (one
+        run, the rests included); ``"per-excursion"``: it is STARTed ``run_lead_s`` before each set-off and
+        STOPped ``run_tail_s`` after each stop (one run per excursion; the rests are not logged).
+    run_lead_s, run_tail_s
+        Quiet standing logged before each set-off and after each stop (``"per-excursion"``; at most the
+        standing or rest time there is). The walker is on their feet at the start line for the last
+        ``run_lead_s`` of each rest (the logger is STARTed there, then the walker is told to go).
     """
 
     corridor_length_m: float = 100.0
@@ -80,6 +101,25 @@ class WalkPlan:
     turn_speed_factor: float = 0.45
     turn_slowdown_m: float = 2.5
     sit_transition_s: float = 2.5
+    logger_runs: str = "continuous"
+    run_lead_s: float = 5.0
+    run_tail_s: float = 3.0
+
+    @classmethod
+    def paper(cls, **overrides: float | str | tuple) -> WalkPlan:
+        """The protocol as Alvarez et al. ran it: 5-minute rests (:data:`PAPER_REST_S`) with the logger
+        stopped (one logging run per excursion); ``overrides`` (e.g. a population's walk habits,
+        :data:`POPULATION_PLANS`) replace any field.
+
+        Examples
+        --------
+        >>> p = WalkPlan.paper(turn_radius_m=0.3)
+        >>> p.rest_s, p.logger_runs, p.speeds
+        (300.0, 'per-excursion', ('preferred', 'fast', 'slow', 'medium'))
+        """
+        kw: dict = {"rest_s": PAPER_REST_S, "logger_runs": "per-excursion"}
+        kw.update(overrides)
+        return cls(**kw)
 
     def __post_init__(self) -> None:
         if self.corridor_length_m < 10.0:
@@ -94,7 +134,8 @@ class WalkPlan:
                 raise ValueError(f"rest posture must be 'sitting' or 'standing', got {p!r}")
         if len(self.speeds) > 1 and not self.rest_postures:
             raise ValueError("rest_postures is empty but the protocol has rests")
-        if self.rest_s < 2.0 * self.sit_transition_s + 1.0:
+        if self.rest_s - (self.run_lead_s if self.logger_runs == "per-excursion" else 0.0) < (
+                2.0 * self.sit_transition_s + 1.0):
             raise ValueError(f"rest_s = {self.rest_s} s is too short for two {self.sit_transition_s} s "
                              "posture transitions")
         marks = self.lap_marks_m
@@ -103,6 +144,10 @@ class WalkPlan:
             raise ValueError(f"lap_marks_m must increase within [0, {total}] m, got {marks}")
         if self.turn_radius_m <= 0.05 or self.turn_radius_m > 0.2 * self.corridor_length_m:
             raise ValueError(f"turn_radius_m = {self.turn_radius_m} is implausible")
+        if self.logger_runs not in LOGGER_RUNS:
+            raise ValueError(f"logger_runs must be one of {LOGGER_RUNS}, got {self.logger_runs!r}")
+        if self.run_lead_s < 0 or self.run_tail_s < 0:
+            raise ValueError(f"run_lead_s and run_tail_s must be >= 0, got {self.run_lead_s}, {self.run_tail_s}")
         if not 0.2 <= self.turn_speed_factor <= 1.0:
             raise ValueError(f"turn_speed_factor must be in [0.2, 1], got {self.turn_speed_factor}")
 

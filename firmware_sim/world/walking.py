@@ -215,11 +215,17 @@ class Walking:
             s_end = plan.path.length_m
             if k + 1 < len(walk_plan.speeds):
                 posture = walk_plan.rest_posture(k)
+                # logger STOPped during the rest: the walker is back on their feet at the start line, standing
+                # still, when it is STARTed again (run_lead_s before the set-off)
+                ready_s = walk_plan.run_lead_s if walk_plan.logger_runs == "per-excursion" else 0.0
+                t_ready = t + walk_plan.rest_s - ready_s
                 if posture == "standing":
-                    segments.append(self._standing(t, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean,
-                                                   "rest:standing"))
+                    segments.append(self._standing(t, t_ready, plan.path, s_end, z_stand, lean, "rest:standing"))
                 else:
-                    segments.append(self._sitting(t, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean))
+                    segments.append(self._sitting(t, t_ready, plan.path, s_end, z_stand, lean))
+                if ready_s > 0:
+                    segments.append(self._standing(t_ready, t + walk_plan.rest_s, plan.path, s_end, z_stand, lean,
+                                                   "stand"))
                 t += walk_plan.rest_s
             else:
                 segments.append(self._standing(t, t + walk_plan.final_stand_s, plan.path, s_end, z_stand, lean,
@@ -394,6 +400,35 @@ class Walking:
             truth["trajectory"] = {"t_s": t, **{k: kin[k] for k in keys if k != "acc_g"}}
         return Motion(acc_g=kin["acc_g"], sampling_rate_hz=float(sampling_rate_hz), t0_s=0.0, truth=truth,
                       marker_times_s=truth["laps"]["time_s"].copy())
+
+    def logger_spans(self, segments: list[_Segment] | None = None) -> list[tuple[float, float]]:
+        """``(t_start_s, t_stop_s)`` of each logging run of the plan (:attr:`WalkPlan.logger_runs`): the whole
+        protocol, or each excursion with ``run_lead_s`` of standing before and ``run_tail_s`` after it."""
+        segs = self._segments() if segments is None else segments
+        if self.walk_plan.logger_runs == "continuous":
+            return [(segs[0].t_a, segs[-1].t_b)]
+        out = []
+        for i, seg in enumerate(segs):
+            if seg.plan is not None:
+                out.append((max(seg.t_a - self.walk_plan.run_lead_s, segs[i - 1].t_a if i else seg.t_a),
+                            min(seg.t_b + self.walk_plan.run_tail_s, segs[i + 1].t_b if i + 1 < len(segs) else seg.t_b)))
+        return out
+
+    def render_runs(self, sampling_rate_hz: float) -> list[Motion]:
+        """One :class:`Motion` per logging run (:meth:`logger_spans`), each on the walk's clock (``t0_s`` = the
+        run's START), with the lap marks inside it as marker times; the truth (whole protocol) is shared."""
+        if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+            raise ValueError(f"sampling_rate_hz must be a positive number, got {sampling_rate_hz!r}")
+        segments = self._segments()
+        truth = self._truth(segments)
+        laps = truth["laps"]["time_s"]
+        out = []
+        for t_a, t_b in self.logger_spans(segments):
+            t = t_a + np.arange(int(np.floor((t_b - t_a) * sampling_rate_hz)) + 1) / sampling_rate_hz
+            acc = self._evaluate(segments, t, ("acc_g",))["acc_g"]
+            out.append(Motion(acc_g=acc, sampling_rate_hz=float(sampling_rate_hz), t0_s=float(t_a), truth=truth,
+                              marker_times_s=laps[(laps >= t_a) & (laps <= t[-1])].copy()))
+        return out
 
     def _truth(self, segments: list[_Segment]) -> dict:
         walk_plan = self.walk_plan

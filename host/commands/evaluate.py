@@ -9,7 +9,10 @@ against the foot sensors, per trial the steps with each event found and filled, 
 other U-turn rule and with the height unknown (a 1.70 m adult assumed for everyone), and the steps outside K's
 calibrated range; the per-trial events go to ``<CSV>_events.csv``. ``sim``: simulated subjects walking
 Alvarez's protocol (100 m out and back at four speeds, 20 m lap marks) through the emulated logger, K
-calibrated single- and multi-speed, every 20 m section scored against the truth (Figs 5-6).
+calibrated single- and multi-speed, every 20 m section scored against the truth (Figs 5-6); by default the
+protocol as run (5-minute rests with the logger stopped, laps by an observer's stopwatch, subjects 1.68-1.86 m),
+with bootstrap intervals over subjects, the paper's stated figures side by side and M5 against the generating
+heel-strike intervals.
 """
 
 from __future__ import annotations
@@ -36,6 +39,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=1, help="sim: processes to use (1)")
     parser.add_argument("--population", choices=["v1", "people"], default="people",
                         help="sim: simulated population: people (default; tuned to real lower-back walking) or v1")
+    parser.add_argument("--protocol", choices=["paper", "compact"], default=None,
+                        help="sim: paper (default: Alvarez's protocol as run: 5-minute rests with the logger stopped, "
+                        "subjects 1.68-1.86 m) or compact (60 s rests logged, the population's heights)")
+    parser.add_argument("--laps", choices=["stopwatch", "mark"], default=None,
+                        help="sim: who times the 20 m laps: an observer's stopwatch (default, the paper's; needs "
+                        "--protocol paper) or the logger's MARK button (exact)")
+    parser.add_argument("--resamples", type=whole(minimum=0, maximum=1_000_000), default=2000,
+                        help="sim: bootstrap resamples of the subjects for the intervals (default 2000; 0: none)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
@@ -61,6 +72,11 @@ def _run_sim(args: argparse.Namespace) -> int:
     check_output_folder("--out" if args.out else "DIR", out)
     unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
                                  ("--uturn", args.uturn)) if v is not None]
+    args.protocol = args.protocol or "paper"
+    args.laps = args.laps or ("stopwatch" if args.protocol == "paper" else "mark")
+    if args.laps == "stopwatch" and args.protocol != "paper":
+        raise HostError("--laps stopwatch: only with --protocol paper (the host anchors the stopwatch at the "
+                        "set-off of each logging run; the compact protocol logs through its rests)")
     if unhonoured:
         raise HostError(f"{', '.join(unhonoured)}: only for 'evaluate ipol' (evaluate sim scores the offline chain "
                         "on 20 m sections without U-turns, and writes its figures into the output folder)")
@@ -70,12 +86,16 @@ def _run_sim(args: argparse.Namespace) -> int:
     args.logger_rate = logger_rate_hz(args)
     with progress_bar(args, args.subjects, "subject") as tick:
         ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
-                                 workers=args.workers, population=args.population).run(progress=tick)
+                                 workers=args.workers, population=args.population, protocol=args.protocol,
+                                 laps=args.laps, n_resamples=args.resamples).run(progress=tick)
     paths = ev.write_outputs(out)
     if verbosity(args) < 0:
         return 0
+    protocol = ("the paper's protocol (5-minute rests, logger stopped during them; heights 1.68-1.86 m)"
+                if args.protocol == "paper" else "the compact protocol (60 s rests logged)")
     print(f"{args.subjects} simulated subjects ('{args.population}' population, seed {args.seed}), {args.logger_rate:g} Hz, {args.adc_bits} bits, "
-          f"emulated logger calibrated on a pose session; 20 m sections, ratio estimated / real")
+          f"emulated logger calibrated on a pose session; {protocol}; 20 m laps by "
+          f"{'an observer with a stopwatch' if args.laps == 'stopwatch' else 'the MARK button'}; ratio estimated / real")
     print(ev.format_table())
     print("written: " + ", ".join(str(p) for p in paths.values()))
     return 0

@@ -10,7 +10,10 @@ Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evalu
 2. *Walking*: the same logger (after ERASE) records the protocol of
    :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); its memory image (header +
    EEPROM, :func:`protocol.image.build_image`) is decoded as a dump would be (:func:`host.files.decode.decode_bytes`)
-   and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times.
+   and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times,
+   or (``laps="stopwatch"``, with the paper's protocol: 5-minute rests, the logger STOPped during them, one
+   logging run per excursion) an observer's stopwatch sheet anchored at the set-off detected in each run
+   (:mod:`host.gait.stopwatch_laps`).
 3. *Steps*: :class:`host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
    M5's cadence), with the subject's own leg and foot length ("the anatomical data of each individual").
 4. *Sections*: consecutive lap marks 20 m apart (default marks 10, 30, ..., 190 m of each excursion:
@@ -36,7 +39,9 @@ Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evalu
 
 Rows, summaries (median, quartiles, extremes per estimator and mode), the CSV (atomic), the printed table
 and the paper-pattern checks (:func:`paper_pattern`) are below; the box-plot figure is
-:mod:`host.studies.plots`.
+:mod:`host.studies.plots`. With intervals: :func:`bootstrap_summary` (percentile bootstrap over subjects),
+the paper side by side (:func:`format_paper_table`, :func:`paper_claims`: what the paper's text states) and
+M5 against the generating heel-strike intervals (:func:`m5_timing_question`).
 """
 
 from __future__ import annotations
@@ -44,7 +49,7 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Self
 
@@ -61,14 +66,26 @@ from host.gait.sections import (
     section_fractions,
     sections_from_marks,
 )
-from host.studies.compare import match_events
+from host.gait.stopwatch_laps import lap_table, set_off_times
+from host.studies.compare import (
+    BOOTSTRAP_LEVEL,
+    BOOTSTRAP_RESAMPLES,
+    match_events,
+    subject_resamples,
+)
 from host.studies.plots import plot_boxplots
-from host.studies.simulation import SimulatedRecording, map_subjects, record_subject, simulated_population
+from host.studies.simulation import (
+    SimulatedRecording,
+    map_subjects,
+    record_subject,
+    simulated_population,
+)
 from protocol.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
                "estimated_m", "real_m", "ratio", "steps")
 SUMMARY_COLUMNS = ("mode", "estimator", "n", "median", "q1", "q3", "min", "max", "iqr")
+BOOT_COLUMNS = ("mode", "estimator", "statistic", "value", "ci_low", "ci_high", "n_subjects")
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -160,6 +177,7 @@ class SubjectResult:
     calibrations: dict[str, Any]
     warnings: list[str] = field(default_factory=list)
     truth_ratio: list[float] = field(default_factory=list)
+    m5: dict[str, Any] = field(default_factory=dict)
 
 
 def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, include_turn: bool = False,
@@ -175,7 +193,13 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
         rec.acc_g, sampling_rate_hz=rec.sampling_rate_hz, valid=rec.valid, t0_s=rec.t0_s)
     table = pipe.steps_
     caught = [f"pipeline: {n}" for n in pipe.notes_]
-    sections = sections_from_marks(rec.mark_times_s, rec.truth["laps"], corridor_length_m=corridor_length_m,
+    if rec.lap_sheet is not None:     # the observer's stopwatch, anchored at the set-off seen in each run
+        laps = lap_table(rec.lap_sheet, set_off_times(rec.acc_g, rec.valid, rec.run_rows,
+                                                      sampling_rate_hz=rec.sampling_rate_hz, t0_s=rec.t0_s))
+        marks = laps["time_s"]
+    else:                             # the MARK button
+        laps, marks = rec.truth["laps"], rec.mark_times_s
+    sections = sections_from_marks(marks, laps, corridor_length_m=corridor_length_m,
                                    section_m=section_m, sampling_rate_hz=rec.sampling_rate_hz)
     try:
         pools = calibration_sets(sections, calibration_sections=calibration_sections)
@@ -191,16 +215,23 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
     rows: list[dict] = []
     truth_ratio: list[float] = []
     st = rec.truth["steps"]
+    exact_m5, twin, exact_dur = _m5_exact_timing(table, st, pools, leg_length_m=sub.leg_length_m,
+                                                 foot_length_m=sub.foot_length_m, subject=sub.subject_id)
+    m5: dict[str, Any] = {mode: {"section_detected": [], "section_exact": []} for mode in MODES}
+    evaluated = np.zeros(table.n_steps)         # each step's weight in the evaluated sections
     for s in sections:
         if (s.excursion, s.index) in calib_ids or (s.turn and not include_turn):
             continue
         f = section_fractions(table, s.t_start_s, s.t_end_s, edge=edge)
+        evaluated += f
         # truth check: the world's own step lengths cut the same way (should be ~1: path vs corridor)
         t_a = np.asarray(st["heel_strike_s"])
         t_b = np.asarray(st["next_heel_strike_s"])
         ft = np.clip((np.minimum(t_b, s.t_end_s) - np.maximum(t_a, s.t_start_s)) / (t_b - t_a), 0, 1)
         truth_ratio.append(float(np.sum(ft * st["length_m"]) / s.real_m))
         for mode in MODES:
+            m5[mode]["section_detected"].append(float(np.sum(f * lengths[mode]["M5"])) / s.real_m)
+            m5[mode]["section_exact"].append(float(np.sum(f * exact_m5[mode])) / s.real_m)
             for est in ESTIMATORS:
                 d = float(np.sum(f * lengths[mode][est]))
                 rows.append({"subject": sub.subject_id, "excursion": s.excursion, "speed_label": s.speed_label,
@@ -208,13 +239,55 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
                              "mode": mode, "estimator": est, "estimated_m": d, "real_m": s.real_m,
                              "ratio": d / s.real_m, "steps": float(np.sum(f))})
     events = score_events(table, st)
-    return SubjectResult(sub.subject_id, rows, events, cals, caught, truth_ratio)
+    step = (twin >= 0) & (evaluated >= 0.5)      # per step: the paired steps of the evaluated sections
+    true_len = np.asarray(st["length_m"], np.float64)[twin[step]]
+    m5["timing_error_s"] = table.duration_s[step] - exact_dur[step]
+    for mode in MODES:
+        for key in ("section_detected", "section_exact"):
+            m5[mode][key] = np.asarray(m5[mode][key], np.float64)
+        m5[mode]["step_detected"] = lengths[mode]["M5"][step] / true_len - 1.0
+        m5[mode]["step_exact"] = exact_m5[mode][step] / true_len - 1.0
+    return SubjectResult(sub.subject_id, rows, events, cals, caught, truth_ratio, m5)
+
+
+def _m5_exact_timing(table: Any, truth_steps: dict, pools: dict[str, Any], *, leg_length_m: float,
+                     foot_length_m: float, subject: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """M5 with each detected step's duration replaced by its generating heel-strike interval.
+
+    A detected step (window: previous foot-flat to its foot-flat) is paired with the world's step whose
+    heel-strike interval holds the window's midpoint (robust to a foot-flat misplaced by up to half a step,
+    which pairing the foot-flats themselves is not: it keeps only the steps detected on time); its exact
+    duration is that step's ``next_heel_strike_s - heel_strike_s``; windowless steps keep their detected one.
+    The M5 line is fitted again on the exact durations, on the same sections: a logger timing every step
+    exactly would be calibrated with those times, and a line fitted on detected times carries their bias
+    (e.g. ``mean(1/T)`` of alternating long and short detected steps) into the exact variant. Returns the
+    exact-timing M5 lengths per mode (filled as the detected ones), and per detected step the index of its
+    world twin (-1: none) and its exact duration.
+    """
+    hs = np.asarray(truth_steps["heel_strike_s"], np.float64)
+    nhs = np.asarray(truth_steps["next_heel_strike_s"], np.float64)
+    order = np.argsort(hs, kind="stable")
+    mid = 0.5 * (table.time_s(table.start) + table.time_s(table.foot_flat))
+    k = np.searchsorted(hs[order], mid, side="right") - 1
+    idx = np.where((k >= 0) & np.isfinite(mid), order[np.clip(k, 0, None)], -1)
+    idx[(idx >= 0) & ~(mid < nhs[np.clip(idx, 0, None)])] = -1
+    paired = (idx >= 0) & np.isfinite(table.duration_s)
+    idx[~paired] = -1
+    dur = table.duration_s.copy()
+    dur[paired] = nhs[idx[paired]] - hs[idx[paired]]
+    raw = dict(table.raw_m)
+    raw["M5"] = np.where(dur > 0, 1.0 / dur, np.nan)
+    exact = replace(table, duration_s=dur, raw_m=raw)
+    lengths = {mode: exact.filled(apply_calibration(exact, calibrate_on_sections(
+        exact, pools[mode], leg_length_m=leg_length_m, foot_length_m=foot_length_m, subject=subject))["M5"])[0]
+        for mode in MODES}
+    return lengths, idx, dur
 
 
 def _subject_job(job: tuple) -> SubjectResult:
-    subject, seed, walk_plan, sampling_rate_hz, adc_bits, calibrate_device, options = job
+    subject, seed, walk_plan, sampling_rate_hz, adc_bits, calibrate_device, laps, options = job
     rec = record_subject(subject, seed=seed, walk_plan=walk_plan, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits,
-                         calibrate_device=calibrate_device)
+                         calibrate_device=calibrate_device, laps=laps)
     return evaluate_recording(rec, corridor_length_m=(walk_plan.corridor_length_m if walk_plan else 100.0),
                               **options)
 
@@ -278,6 +351,246 @@ def paper_pattern(summary: Sequence[dict]) -> dict[str, tuple[bool, str]]:
     return out
 
 
+# ---------------------------------------------------------------------------------------------------------
+# Intervals over subjects, the paper side by side, M5 and the step timing
+
+#: The figures of :func:`bootstrap_summary`, per (mode, estimator).
+BOOT_STATISTICS = ("median", "q1", "q3", "iqr", "min", "max")
+
+#: What Alvarez et al. (2006, IV) state in their text about Figs 5-6, ratio estimated / real per 20 m section.
+#: The box plots themselves are not in the OCR'd text (../shared/seeds), so their quartiles are unknown:
+#: "Methods M1 to M4 ... median values vary between 100% and 105%" (both calibrations); "the worst case error
+#: was obtained with method M1 using single speed calibration, and was almost a 40% higher than the real
+#: value"; "Method M5 has the lower median of all (98%)" (multi-speed, Fig 6).
+PAPER_MEDIAN_RANGE = (1.00, 1.05)
+PAPER_M1_SINGLE_MAX = 1.40
+PAPER_M5_MEDIAN = 0.98
+
+
+def _section_stats(v: np.ndarray) -> np.ndarray:
+    """``BOOT_STATISTICS`` of a set of ratios (NaN when empty)."""
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return np.full(len(BOOT_STATISTICS), np.nan)
+    q1, med, q3 = np.percentile(v, [25, 50, 75])
+    return np.array([med, q1, q3, q3 - q1, v.min(), v.max()])
+
+
+def _bootstrap(groups: Sequence[np.ndarray], statistic: Callable[..., np.ndarray], counts: np.ndarray,
+               level: float, *more: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``statistic`` of the subjects' pooled values, and its percentile-bootstrap interval over subjects.
+
+    ``groups`` (and each of ``more``, paired with it) hold one array per subject; ``counts`` (resamples x
+    subjects, :func:`host.studies.compare.subject_resamples`) how often each subject is drawn."""
+    lists = (groups, *more)
+
+    def pooled(weights: np.ndarray) -> np.ndarray:
+        picks = np.repeat(np.arange(len(groups)), weights)
+        return statistic(*(np.concatenate([np.asarray(g[i], np.float64) for i in picks]) if picks.size
+                           else np.zeros(0) for g in lists))
+
+    value = pooled(np.ones(len(groups), np.int64))
+    boot = np.array([pooled(c) for c in counts])
+    q = 50.0 * (1.0 - level), 50.0 * (1.0 + level)
+    with np.errstate(all="ignore"):
+        lo, hi = np.nanpercentile(boot, q, axis=0) if np.isfinite(boot).any() else (value * np.nan, value * np.nan)
+    return value, lo, hi
+
+
+def bootstrap_summary(results: Sequence[SubjectResult], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
+                      level: float = BOOTSTRAP_LEVEL) -> list[dict]:
+    """:func:`summarise`'s figures (``BOOT_STATISTICS``) per mode and estimator with percentile-bootstrap
+    intervals over subjects (subjects drawn with replacement, the same draws for every figure; a subject drawn
+    twice counts twice). One row per (mode, estimator, statistic): ``value``, ``ci_low``, ``ci_high``."""
+    counts = subject_resamples(len(results), n_resamples=n_resamples, seed=seed)
+    out = []
+    for mode in MODES:
+        for est in ESTIMATORS:
+            groups = [np.array([r["ratio"] for r in res.rows if r["mode"] == mode and r["estimator"] == est], float)
+                      for res in results]
+            if not any(g.size for g in groups):
+                continue
+            value, lo, hi = _bootstrap(groups, _section_stats, counts, level)
+            for k, name in enumerate(BOOT_STATISTICS):
+                out.append({"mode": mode, "estimator": est, "statistic": name, "value": float(value[k]),
+                            "ci_low": float(lo[k]), "ci_high": float(hi[k]), "n_subjects": len(results)})
+    return out
+
+
+def paper_claims(boot: Sequence[dict]) -> list[tuple[str, str, str, str]]:
+    """The paper's stated findings against the simulation: ``(claim, paper, simulation, verdict)`` rows.
+
+    A figure agrees when its 95 % interval reaches the paper's value (or range); an ordering ("M1 widest",
+    "multi-speed narrower") agrees when it holds for the point estimates, and the verdict says whether the
+    intervals separate."""
+    b = {(r["mode"], r["estimator"], r["statistic"]): r for r in boot}
+
+    def fig(mode: str, est: str, stat: str) -> str:
+        r = b[(mode, est, stat)]
+        return f"{100 * r['value']:.1f} [{100 * r['ci_low']:.1f}, {100 * r['ci_high']:.1f}]"
+
+    def reaches(mode: str, est: str, stat: str, lo: float, hi: float) -> bool:
+        r = b[(mode, est, stat)]
+        return r["ci_high"] >= lo and r["ci_low"] <= hi
+
+    ss, ms = "single-speed", "multi-speed"
+    rows = []
+    lo, hi = PAPER_MEDIAN_RANGE
+    for mode in MODES:
+        ests = [e for e in ("M1", "M2", "M3", "M4") if (mode, e, "median") in b]
+        ok = [e for e in ests if reaches(mode, e, "median", lo, hi)]
+        rows.append((f"{mode}: M1-M4 medians 100-105 %", "100-105", ", ".join(f"{e} {fig(mode, e, 'median')}"
+                                                                             for e in ests),
+                     "agrees" if len(ok) == len(ests) else f"disagrees ({', '.join(e for e in ests if e not in ok)} "
+                     "outside)"))
+    rows.append(("single-speed: M1 worst case ~140 %", "~140", "M1 max " + fig(ss, "M1", "max"),
+                 "agrees" if reaches(ss, "M1", "max", 1.35, 1.45) else "disagrees"))
+    widest = all(b[(ss, "M1", "iqr")]["value"] >= b[(ss, e, "iqr")]["value"] for e in ("M2", "M3", "M4"))
+    apart = all(b[(ss, "M1", "iqr")]["ci_low"] > b[(ss, e, "iqr")]["ci_high"] for e in ("M2", "M4"))
+    rows.append(("single-speed: M1 has the highest variance", "M1 widest", "IQR " + ", ".join(
+        f"{e} {fig(ss, e, 'iqr')}" for e in ("M1", "M2", "M3", "M4")),
+        ("agrees" + (" (intervals apart from M2, M4)" if apart else " (intervals overlap)")) if widest
+        else "disagrees"))
+    better = {e: (b[(ms, e, "iqr")]["value"] < b[(ss, e, "iqr")]["value"],
+                  abs(b[(ms, e, "median")]["value"] - 1) <= abs(b[(ss, e, "median")]["value"] - 1))
+              for e in ("M1", "M2", "M4")}
+    rows.append(("multi-speed K improves M1, M2, M4 (median and spread)", "all improve", "IQR " + ", ".join(
+        f"{e} {100 * b[(ss, e, 'iqr')]['value']:.1f}->{100 * b[(ms, e, 'iqr')]['value']:.1f}" for e in better)
+        + "; |median-1| " + ", ".join(f"{e} {100 * abs(b[(ss, e, 'median')]['value'] - 1):.1f}->"
+                                      f"{100 * abs(b[(ms, e, 'median')]['value'] - 1):.1f}" for e in better),
+        "agrees" if all(i and m for i, m in better.values()) else "disagrees (" + ", ".join(
+            f"{e}: {'IQR' if not i else ''}{' and ' if not i and not m else ''}{'median' if not m else ''} not better"
+            for e, (i, m) in better.items() if not (i and m)) + ")"))
+    lowest = all(b[(ms, "M5", "median")]["value"] <= b[(ms, e, "median")]["value"] for e in ESTIMATORS if e != "M5")
+    rows.append(("multi-speed: M5 has the lowest median (98 %)", "98, lowest", "M5 " + fig(ms, "M5", "median"),
+                 ("agrees" if lowest and reaches(ms, "M5", "median", PAPER_M5_MEDIAN, PAPER_M5_MEDIAN) else
+                  "disagrees (" + ("not the lowest" if not lowest else "98 % outside the interval") + ")")))
+    m5_wide = b[(ms, "M5", "iqr")]["value"] >= max(b[(ms, e, "iqr")]["value"] for e in ("M2", "M4"))
+    rows.append(("multi-speed: M5 has a high variance", "high", "IQR M5 " + fig(ms, "M5", "iqr") + ", M2 "
+                 + fig(ms, "M2", "iqr") + ", M4 " + fig(ms, "M4", "iqr"),
+                 "agrees" if m5_wide else "disagrees (M5 narrower than M2/M4)"))
+    m3, worst = b[(ss, "M3", "median")]["value"], max(abs(b[(ss, e, "median")]["value"] - 1) for e in ("M2", "M4"))
+    comparable = abs(m3 - 1) <= worst + 0.03 and b[(ss, "M3", "iqr")]["value"] <= 1.5 * max(
+        b[(ss, e, "iqr")]["value"] for e in ("M2", "M4"))
+    rows.append(("M3 without K comparable to single-speed M2, M4", "similar",
+                 f"M3 {fig(ss, 'M3', 'median')}, IQR {fig(ss, 'M3', 'iqr')}", "agrees" if comparable else "disagrees"))
+    return rows
+
+
+def format_paper_table(boot: Sequence[dict]) -> str:
+    """The side-by-side table: per mode and estimator the simulation's median, IQR and extremes with their
+    intervals over subjects, and what the paper states; then :func:`paper_claims`."""
+    if not boot:
+        return "paper side by side: no section"
+    n_sub = boot[0]["n_subjects"]
+    b = {(r["mode"], r["estimator"], r["statistic"]): r for r in boot}
+
+    def cell(mode: str, est: str, stat: str) -> str:
+        r = b[(mode, est, stat)]
+        return f"{100 * r['value']:5.1f} [{100 * r['ci_low']:5.1f},{100 * r['ci_high']:5.1f}]"
+
+    def paper(mode: str, est: str) -> tuple[str, str]:
+        med = "98" if (mode, est) == ("multi-speed", "M5") else "100-105" if est != "M5" else "n/s"
+        ext = "max ~140" if (mode, est) == ("single-speed", "M1") else "n/s"
+        return med, ext
+
+    lines = [(f"side by side with Alvarez et al. (2006) Figs 5-6: ratio estimated / real per 20 m section, % "
+              f"[{100 * BOOTSTRAP_LEVEL:.0f} % bootstrap interval over {n_sub} subjects]; paper: what its text "
+              "states (n/s: not stated; its box plots are not in the text)"),
+             (f"{'mode':<13}{'est':<4}{'median':>20}{'IQR':>20}{'min':>20}{'max':>20}  {'paper median':>13}"
+              f"{'paper extremes':>16}")]
+    for mode in MODES:
+        for est in ESTIMATORS:
+            if (mode, est, "median") not in b:
+                continue
+            med, ext = paper(mode, est)
+            lines.append(f"{mode:<13}{est:<4}" + "".join(f"{cell(mode, est, s):>20}" for s in
+                                                          ("median", "iqr", "min", "max")) + f"  {med:>13}{ext:>16}")
+    lines.append("")
+    lines.append("the paper's findings on the simulated population:")
+    for claim, pap, sim, verdict in paper_claims(boot):
+        lines.append(f"  {claim} (paper: {pap}): {sim} -> {verdict}")
+    return "\n".join(lines)
+
+
+def m5_timing_question(results: Sequence[SubjectResult], *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ,
+                       n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0, level: float = BOOTSTRAP_LEVEL) -> dict:
+    """Does M5's spread come from timing steps at ``sampling_rate_hz``? (Alvarez et al. V: "A possible reason
+    for this is the low temporal resolution in the measurement of the step duration".)
+
+    Per mode and level (``step``: each paired step's relative error against the world's step length;
+    ``section``: the 20 m section ratios), M5 with the detected step durations against M5 with the generating
+    heel-strike intervals (:func:`_m5_exact_timing`, its line fitted on them): the IQR and standard deviation
+    of each and ``timing_share = 1 - (IQR(exact) / IQR(detected))²``, the part of M5's spread the step timing
+    adds (robust: a variance ratio is dominated by the few steps whose events the detector misplaces by a
+    large fraction of a step), each with a bootstrap interval over subjects; and the detected durations' rms error against the heel-strike
+    intervals, with the part the sample period alone explains (``1 / (rate √6)``, two uniform roundings).
+    The answer, per level: "yes" when the share's interval lies above 0.5 in some mode, "partly" when it lies
+    above 0 with the share at least 0.25, else "no" (no share distinguishable from none, or a small one).
+    """
+    counts = subject_resamples(len(results), n_resamples=n_resamples, seed=seed)
+
+    def spread(det: np.ndarray, exa: np.ndarray) -> np.ndarray:
+        ok = np.isfinite(det) & np.isfinite(exa)
+        d, e = det[ok], exa[ok]
+        if d.size < 3:
+            return np.full(5, np.nan)
+        vd, ve = np.var(d, ddof=1), np.var(e, ddof=1)
+        (d1, d3), (e1, e3) = np.percentile(d, [25, 75]), np.percentile(e, [25, 75])
+        return np.array([d3 - d1, e3 - e1, np.sqrt(vd), np.sqrt(ve),
+                         1.0 - ((e3 - e1) / (d3 - d1)) ** 2 if d3 > d1 else np.nan])
+
+    rows = []
+    for mode in MODES:
+        for level_name in ("step", "section"):
+            det = [np.asarray(r.m5[mode][f"{level_name}_detected"], float) for r in results]
+            exa = [np.asarray(r.m5[mode][f"{level_name}_exact"], float) for r in results]
+            value, lo, hi = _bootstrap(det, spread, counts, level, exa)
+            row = {"mode": mode, "level": level_name, "n": int(sum(d.size for d in det)), "n_subjects": len(results)}
+            for k, name in enumerate(("iqr_detected", "iqr_exact", "sd_detected", "sd_exact", "timing_share")):
+                row[name], row[name + "_low"], row[name + "_high"] = float(value[k]), float(lo[k]), float(hi[k])
+            rows.append(row)
+    err = np.concatenate([np.asarray(r.m5["timing_error_s"], float) for r in results])
+    err = err[np.isfinite(err)]
+    timing = {"rms_ms": float(1e3 * np.sqrt(np.mean(err ** 2))) if err.size else float("nan"),
+              "sampling_rms_ms": float(1e3 / sampling_rate_hz / np.sqrt(6.0)), "n_steps": int(err.size)}
+    answer = {}
+    for level_name in ("step", "section"):
+        sel = [r for r in rows if r["level"] == level_name]
+        answer[level_name] = ("yes" if any(r["timing_share_low"] >= 0.5 for r in sel) else
+                              "partly" if any(r["timing_share_low"] > 0 and r["timing_share"] >= 0.25 for r in sel)
+                              else "no")
+    return {"rows": rows, "timing": timing, "answer": answer}
+
+
+def format_m5_question(m5: dict) -> str:
+    """Printed :func:`m5_timing_question`."""
+    if not m5.get("rows"):
+        return "M5 and the step timing: no steps"
+    t = m5["timing"]
+    lines = [(f"M5 and the step timing (exact = the world's generating heel-strike intervals, M5's line refitted on "
+              f"them; "
+              f"{100 * BOOTSTRAP_LEVEL:.0f} % intervals over {m5['rows'][0]['n_subjects']} subjects): step = "
+              "relative error of each step against its true length, section = 20 m ratio"),
+             f"{'mode':<13}{'level':<8}{'n':>6}{'IQR detected T':>24}{'IQR exact T':>24}{'timing share':>24}"]
+
+    def c(r: dict, k: str) -> str:
+        return f"{100 * r[k]:5.1f} [{100 * r[k + '_low']:5.1f},{100 * r[k + '_high']:5.1f}]"
+
+    for r in m5["rows"]:
+        lines.append(f"{r['mode']:<13}{r['level']:<8}{r['n']:>6}{c(r, 'iqr_detected'):>24}{c(r, 'iqr_exact'):>24}"
+                     f"{c(r, 'timing_share'):>24}")
+    text = {"yes": "yes, the step timing is the major part of M5's spread",
+            "partly": "partly, the step timing is a visible part of M5's spread",
+            "no": "no, M5's spread does not come from the step timing"}
+    lines.append(f"detected step durations off the heel-strike intervals by {t['rms_ms']:.0f} ms rms "
+                 f"({t['n_steps']} steps), of which the sample period alone explains {t['sampling_rms_ms']:.0f} ms")
+    lines.append(f"M5 and the step timing: per step {text[m5['answer']['step']]}; per 20 m section "
+                 f"{text[m5['answer']['section']]}" + (" (what remains is the cadence-length line itself)"
+                                                       if m5["answer"]["section"] == "no" else ""))
+    return "\n".join(lines)
+
+
 def format_summary(summary: Sequence[dict], events: dict[str, EventScore] | None = None) -> str:
     """A plain-text table of the summary (ratios in %), with the pooled event scores when given."""
     lines = [f"{'mode':<13}{'est':<5}{'n':>5}{'median':>9}{'q1':>8}{'q3':>8}{'min':>8}{'max':>8}{'IQR':>7}"]
@@ -316,6 +629,16 @@ class SimulatedEvaluation:
         initiation and turn, :data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`).
     population
         ``"people"`` (default: the walker tuned to real lower-back walking) or ``"v1"``.
+    protocol
+        ``"compact"`` (default: 60 s rests logged, the population's heights) or ``"paper"`` (Alvarez's
+        protocol as run: 5-minute rests with the logger stopped, subjects of the paper's heights;
+        :func:`host.studies.simulation.simulated_population`).
+    laps
+        ``"mark"`` (default: the logger's MARK button, exact) or ``"stopwatch"`` (the paper's observer,
+        :mod:`firmware_sim.world.stopwatch`, placed on the recording by :mod:`host.gait.stopwatch_laps`;
+        needs the ``"paper"`` protocol's one logging run per excursion).
+    n_resamples
+        Bootstrap resamples of the subjects for the intervals (0: no intervals, no M5 question).
     sampling_rate_hz, adc_bits
         Logger rate and ADC resolution.
     workers
@@ -335,13 +658,19 @@ class SimulatedEvaluation:
         All section rows, and :func:`summarise` of them.
     events_
         Event scores pooled over subjects.
+    bootstrap_, m5_
+        :func:`bootstrap_summary` and :func:`m5_timing_question` (empty when ``n_resamples`` is 0).
     """
 
     def __init__(self, *, n_subjects: int = 4, seed: int = 0, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ,
                  adc_bits: int = 10, workers: int = 1, section_m: float = 20.0, include_turn: bool = False,
                  edge: str = "fraction", calibration_sections: int = 2, calibrate_device: bool = True,
-                 detector: Any = None, population: str = "people") -> None:
+                 detector: Any = None, population: str = "people", protocol: str = "compact", laps: str = "mark",
+                 n_resamples: int = BOOTSTRAP_RESAMPLES) -> None:
         self.n_subjects = n_subjects
+        self.protocol = protocol
+        self.laps = laps
+        self.n_resamples = n_resamples
         self.population = population
         self.seed = seed
         self.walk_plan = walk_plan
@@ -362,18 +691,29 @@ class SimulatedEvaluation:
         options = dict(section_m=self.section_m, include_turn=self.include_turn, edge=self.edge,
                        calibration_sections=self.calibration_sections, detector=self.detector)
         subjects, walk_plan = simulated_population(self.n_subjects, seed=self.seed, population=self.population,
-                                                   walk_plan=self.walk_plan)
-        jobs = [(s, self.seed * 1000 + i, walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device, options)
-                for i, s in enumerate(subjects)]
+                                                   walk_plan=self.walk_plan, protocol=self.protocol)
+        if self.laps == "stopwatch" and (walk_plan is None or walk_plan.logger_runs != "per-excursion"):
+            raise HostError("stopwatch laps need the logger STARTed and STOPped around each excursion (the paper's "
+                            "protocol); use MARK laps with this walk plan")
+        jobs = [(s, self.seed * 1000 + i, walk_plan, self.sampling_rate_hz, self.adc_bits, self.calibrate_device,
+                 self.laps, options) for i, s in enumerate(subjects)]
         self.results_ = map_subjects(_subject_job, jobs, workers=self.workers, progress=progress)
         self.rows_ = [r for res in self.results_ for r in res.rows]
         self.summary_ = summarise(self.rows_)
         self.events_ = pool_event_scores([res.events for res in self.results_])
+        self.bootstrap_, self.m5_ = [], {}
+        if self.n_resamples > 0 and self.results_:
+            self.bootstrap_ = bootstrap_summary(self.results_, n_resamples=self.n_resamples, seed=self.seed)
+            self.m5_ = m5_timing_question(self.results_, sampling_rate_hz=self.sampling_rate_hz,
+                                          n_resamples=self.n_resamples, seed=self.seed)
         return self
 
     def format_table(self) -> str:
-        """Printed table: summary and events."""
-        return format_summary(self.summary_, self.events_)
+        """Printed table: summary and events, then (with intervals) the paper side by side and M5's question."""
+        text = format_summary(self.summary_, self.events_)
+        if self.bootstrap_:
+            text += "\n\n" + format_paper_table(self.bootstrap_) + "\n\n" + format_m5_question(self.m5_)
+        return text
 
     def write_csv(self, path: str | Path, *, summary_path: str | Path | None = None) -> None:
         """Section rows (``ROW_COLUMNS``) to ``path`` and optionally the summary to ``summary_path``, atomically."""
@@ -389,6 +729,9 @@ class SimulatedEvaluation:
         paths = {"rows": out / f"{stem}_sections.csv", "summary": out / f"{stem}_summary.csv",
                  "figure": out / f"{stem}_boxplots.png"}
         self.write_csv(paths["rows"], summary_path=paths["summary"])
+        if self.bootstrap_:
+            paths["intervals"] = out / f"{stem}_intervals.csv"
+            atomic_write_text(paths["intervals"], _csv_text(self.bootstrap_, BOOT_COLUMNS))
         plot_boxplots(self.rows_, paths["figure"], title=title or (
             f"{self.n_subjects} simulated subjects, {self.sampling_rate_hz:g} Hz, {self.adc_bits} bit"))
         return paths

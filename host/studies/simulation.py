@@ -19,33 +19,50 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
+from itertools import pairwise
 from typing import Any, TypeVar
 
 import numpy as np
 
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.device import Logger
+from firmware_sim.errors import DeviceError
 from firmware_sim.sensor import SensorModel
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from firmware_sim.world.poses import CalibrationPoses
+from firmware_sim.world.stopwatch import Stopwatch
 from firmware_sim.world.subject import Subject, random_subjects
-from firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
+from firmware_sim.world.walk_plan import PAPER_HEIGHTS_M, POPULATION_PLANS, WalkPlan
 from firmware_sim.world.walking import Walking
 from host.accelerometer.fit import AccCalibrator
 from host.errors import HostError
 from host.files.decode import decode_bytes
 from host.files.ipol import IPOL_SAMPLING_RATE_HZ, write_trial
+from host.files.replay import run_starts
 from host.studies.compare import SampledWalk, WalkComparison, compare_walk
 from protocol.header import CalibrationSlot
 from protocol.image import build_image
 from protocol.packing import FLAG_MARK
 
-__all__ = ["AnalogWalk", "SimulatedRecording", "export_ipol", "ipol_trial", "ipol_walk_plan", "record_subject"]
+__all__ = ["PROTOCOLS", "AnalogWalk", "SimulatedRecording", "at_paper_heights", "export_ipol", "ipol_trial", "ipol_walk_plan",
+           "record_subject", "simulated_population"]
+
+
+#: Missing samples the host puts between two logging runs on its own clock (it does not know how long the
+#: logger was stopped; the runs only have to stay apart so that no step or filter bridges them).
+RUN_GAP_S = 2.0
+#: Who times the 20 m laps: the observer's stopwatch (the paper's) or the logger's MARK button.
+LAP_TIMINGS = ("stopwatch", "mark")
 
 
 @dataclass(frozen=True, eq=False)
 class SimulatedRecording:
     """What the logger stored for one simulated subject, in calibrated g, with the world's truth.
+
+    Every time here is on the **host's clock**: the decoded logging runs one after the other, ``RUN_GAP_S``
+    of missing samples between them, sample 0 at ``t0_s`` = 0 (the host does not know how long the logger
+    was stopped between runs). The truth's times are converted to that clock (NaN where nothing was logged,
+    e.g. during a rest the logger was stopped for).
 
     Attributes
     ----------
@@ -56,13 +73,18 @@ class SimulatedRecording:
     acc_g, valid
         ``(n, 3)`` calibrated specific force (g) and the validity mask.
     sampling_rate_hz, t0_s
-        Logger rate and time of sample 0 on the walk's clock.
+        Logger rate and time of sample 0.
     mark_times_s
         Times of the samples carrying the MARK flag (lap button).
     truth
         The walk's truth (``steps``, ``laps``, ``excursions``, ...; see :mod:`firmware_sim.world.walking`).
     device_calibrated
         True when the codes were converted with a pose-session calibration (else the nominal map).
+    run_rows
+        ``[start, stop)`` rows of each logging run (from its SESSION_START sample).
+    lap_sheet
+        The observer's stopwatch sheet (:meth:`firmware_sim.world.stopwatch.Stopwatch.time_laps`; its
+        ``start_walk_s`` converted to the host clock as truth) when the laps were timed by stopwatch, else None.
     """
 
     subject: Any
@@ -74,25 +96,57 @@ class SimulatedRecording:
     mark_times_s: np.ndarray
     truth: dict
     device_calibrated: bool
+    run_rows: tuple[tuple[int, int], ...] = ()
+    lap_sheet: dict | None = None
+
+
+_TRUTH_TIMES = {"steps": ("heel_strike_s", "foot_flat_s", "toe_off_s", "next_heel_strike_s", "next_foot_flat_s",
+                          "com_min_s"),
+                "laps": ("time_s",), "excursions": ("t_start_s", "t_stop_s", "turn_start_s", "turn_end_s"),
+                "rests": ("t_start_s", "t_stop_s")}
+
+
+def _to_host(t_walk: np.ndarray, spans: list[tuple[float, float, float]]) -> np.ndarray:
+    """Walk-clock times to the host clock: ``spans`` = (first sample's walk time, last's, its host time)."""
+    t = np.asarray(t_walk, np.float64)
+    out = np.full(t.shape, np.nan)
+    for first, last, host in spans:
+        inside = (t >= first - 1e-9) & (t <= last + 1e-9)
+        out[inside] = host + t[inside] - first
+    return out
 
 
 def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10,
-                   calibrate_device: bool = True) -> SimulatedRecording:
+                   calibrate_device: bool = True, laps: str = "mark") -> SimulatedRecording:
     """Walk ``subject`` through the protocol with the emulated logger (:mod:`host.studies.evaluation`, steps 1-2).
+
+    The logger is STARTed and STOPped as the plan says (:attr:`~firmware_sim.world.walk_plan.WalkPlan.logger_runs`:
+    one run, or one per excursion with the rests unlogged), all runs into one memory (no ERASE between them);
+    the host reads the memory image as a dump and splits it into runs at the SESSION_START samples.
 
     Parameters
     ----------
     subject
         A :class:`firmware_sim.world.subject.Subject`.
     seed
-        Seeds the walk's variability, the pose session and the device's sensor errors.
+        Seeds the walk's variability, the pose session, the device's sensor errors and the observer.
     walk_plan
-        A :class:`firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
+        A :class:`firmware_sim.world.walk_plan.WalkPlan` (default: ``WalkPlan()``).
     sampling_rate_hz, adc_bits
         Logger sample rate and ADC resolution.
     calibrate_device
         Fit the device calibration on a pose session first (default) or use the nominal map.
+    laps
+        ``"mark"``: the MARK button is pressed at every lap (exactly); ``"stopwatch"``: an observer times them
+        (:class:`firmware_sim.world.stopwatch.Stopwatch`, no MARK on the device).
+
+    Raises
+    ------
+    HostError
+        The protocol does not fit in the logger's memory.
     """
+    if laps not in LAP_TIMINGS:
+        raise HostError(f"laps must be one of {LAP_TIMINGS}, got {laps!r}")
     logger = Logger(adc=Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
     if calibrate_device:
         poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
@@ -103,26 +157,69 @@ def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_r
         logger.erase()
     else:
         apply = CalibrationSlot.nominal(adc_bits).apply
-    res = logger.record(Walking(subject=subject, walk_plan=walk_plan, seed=seed))
-    if res.n_taken != res.n_samples:
-        raise HostError(f"subject {subject.subject_id}: the logger stored {res.n_samples} of {res.n_taken} "
-                        "samples (memory full): shorten the protocol's rests")
-    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be.
+    walking = Walking(subject=subject, walk_plan=walk_plan, seed=seed)
+    results = []
+    for motion in walking.render_runs(logger.sensor.internal_rate_hz):
+        if laps == "stopwatch":
+            motion = replace(motion, marker_times_s=np.zeros(0))
+        try:
+            results.append(logger.record(motion, start_time_s=1_700_000_000 + int(motion.t0_s)))
+        except DeviceError as err:
+            raise HostError(f"subject {subject.subject_id}: logging run {len(results) + 1}: {err}; the protocol "
+                            "does not fit in the logger's memory (stop the logger during the rests)") from None
+        if results[-1].n_taken != results[-1].n_samples:
+            raise HostError(f"subject {subject.subject_id}: the logger stored {results[-1].n_samples} of "
+                            f"{results[-1].n_taken} samples of run {len(results)} (memory full): the protocol does not "
+                            "fit in the logger's memory (stop the logger during the rests)")
+    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be, cut into runs.
     stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
                           source=f"{subject.subject_id}.sim")
-    pos = np.searchsorted(np.asarray(res.sample_numbers), stored.sample_numbers)
-    if np.any(pos >= res.n_samples) or np.any(np.asarray(res.sample_numbers)[np.minimum(pos, res.n_samples - 1)]
-                                              != stored.sample_numbers):
+    numbers = np.concatenate([np.asarray(r.sample_numbers) for r in results])
+    times = np.concatenate([np.asarray(r.sample_times_s, np.float64) for r in results])
+    pos = np.searchsorted(numbers, stored.sample_numbers)
+    if np.any(pos >= numbers.size) or np.any(numbers[np.minimum(pos, numbers.size - 1)] != stored.sample_numbers):
         raise HostError(f"subject {subject.subject_id}: decoded sample numbers do not match the recording")
-    times = np.asarray(res.sample_times_s, np.float64)[pos]
-    acc = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
-    valid = np.asarray(stored.valid, bool) & np.isfinite(acc).all(axis=1)
+    starts = run_starts(stored.valid, stored.flags)
+    if starts.size != len(results) or (starts.size and starts[0] != 0):
+        raise HostError(f"subject {subject.subject_id}: {starts.size} logging runs in the dump for {len(results)} "
+                        "STARTs")
+    rate = float(1.0 / np.median(np.diff(times[pos])))
+    gap = round(RUN_GAP_S * rate)
+    bounds = [int(x) for x in starts] + [int(stored.sample_numbers.size)]
+    acc_all = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
+    ok_all = np.asarray(stored.valid, bool) & np.isfinite(acc_all).all(axis=1)
+    flags_all = np.asarray(stored.flags)
+    acc_parts, ok_parts, mark_parts, rows, spans = [], [], [], [], []
+    row = 0
+    for a, b in pairwise(bounds):
+        if rows:
+            acc_parts.append(np.full((gap, 3), np.nan))
+            ok_parts.append(np.zeros(gap, bool))
+            row += gap
+        acc_parts.append(acc_all[a:b])
+        ok_parts.append(ok_all[a:b])
+        mark_parts.append(row + np.flatnonzero(flags_all[a:b] & FLAG_MARK))
+        rows.append((row, row + b - a))
+        spans.append((float(times[pos[a]]), float(times[pos[b - 1]]), row / rate))
+        row += b - a
+    acc = np.concatenate(acc_parts)
+    valid = np.concatenate(ok_parts)
     acc[~valid] = np.nan
-    marks = times[(np.asarray(stored.flags) & FLAG_MARK) != 0]
-    rate = float(1.0 / np.median(np.diff(times)))
-    truth = {k: res.truth[k] for k in ("steps", "laps", "excursions", "rests", "subject") if k in res.truth}
-    return SimulatedRecording(subject, int(seed), acc, valid, rate, float(times[0]), marks, truth,
-                              bool(calibrate_device))
+    marks = np.concatenate(mark_parts) / rate
+    res = results[-1]
+    truth = {k: dict(res.truth[k]) for k in _TRUTH_TIMES if k in res.truth}
+    for part, keys in _TRUTH_TIMES.items():
+        for key in keys:
+            if part in truth and key in truth[part]:
+                truth[part][key] = _to_host(truth[part][key], spans)
+    if "subject" in res.truth:
+        truth["subject"] = res.truth["subject"]
+    sheet = None
+    if laps == "stopwatch":
+        sheet = Stopwatch().time_laps(res.truth["laps"], res.truth["excursions"], seed=seed)
+        sheet["start_walk_s"] = _to_host(sheet["start_walk_s"], spans)
+    return SimulatedRecording(subject, int(seed), acc, valid, rate, 0.0, marks, truth, bool(calibrate_device),
+                              tuple(rows), sheet)
 
 
 class AnalogWalk:
@@ -196,13 +293,55 @@ _T = TypeVar("_T")
 
 
 def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "people",
-                         walk_plan: WalkPlan | None = None) -> tuple[list[Subject], WalkPlan | None]:
-    """The subjects of a simulated study and the protocol they walk: ``random_subjects(n_subjects, seed,
-    population)`` and ``walk_plan``, else the paper's protocol with the population's walk habits
-    (:data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`; None for ``"v1"``: the default plan)."""
+                         walk_plan: WalkPlan | None = None, protocol: str = "compact"
+                         ) -> tuple[list[Subject], WalkPlan | None]:
+    """The subjects of a simulated study and the protocol they walk.
+
+    ``protocol="compact"``: ``random_subjects(n_subjects, seed, population)`` walking ``walk_plan``, else
+    ``WalkPlan`` with the population's walk habits (:data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`;
+    None for ``"v1"``: the default plan: 60 s rests, the logger running throughout).
+    ``protocol="paper"``: the same draws brought to the paper's heights (:func:`at_paper_heights`) walking
+    ``walk_plan``, else :meth:`WalkPlan.paper` with the population's habits (5-minute rests, the logger
+    stopped during them)."""
+    if protocol not in PROTOCOLS:
+        raise HostError(f"protocol must be one of {PROTOCOLS}, got {protocol!r}")
+    subjects = random_subjects(n_subjects, seed=seed, population=population)
+    if protocol == "paper":
+        if walk_plan is None:
+            walk_plan = WalkPlan.paper(**POPULATION_PLANS[population])
+        return at_paper_heights(subjects, seed=seed), walk_plan
     if walk_plan is None and POPULATION_PLANS[population]:
         walk_plan = WalkPlan(**POPULATION_PLANS[population])
-    return random_subjects(n_subjects, seed=seed, population=population), walk_plan
+    return subjects, walk_plan
+
+
+#: ``"paper"``: Alvarez's protocol as run (5-minute rests, logger stopped, subjects 1.68-1.86 m);
+#: ``"compact"``: 60 s rests logged, the population's heights (the studies' walk before the paper's).
+PROTOCOLS = ("paper", "compact")
+
+
+def at_paper_heights(subjects: list[Subject], *, seed: int = 0) -> list[Subject]:
+    """The subjects rescaled to heights drawn uniformly over the paper's range (:data:`PAPER_HEIGHTS_M`,
+    1.68-1.86 m: the paper gives only the range of its four men), subject ``i``'s height independent of how
+    many there are. Lengths scale with height (leg, foot, walk ratio), the preferred speed with its square
+    root (dynamic similarity, as the populations draw it); every other habit is the subject's own.
+
+    Examples
+    --------
+    >>> s = at_paper_heights(random_subjects(3, seed=1))
+    >>> all(1.68 <= x.height_m <= 1.86 for x in s), round(s[0].leg_length_m / s[0].height_m, 3) == round(
+    ...     random_subjects(1, seed=1)[0].leg_length_m / random_subjects(1, seed=1)[0].height_m, 3)
+    (True, True)
+    """
+    lo, hi = PAPER_HEIGHTS_M
+    out = []
+    for i, sub in enumerate(subjects):
+        h = float(np.random.default_rng(np.random.SeedSequence([int(seed), i, 1968])).uniform(lo, hi))
+        f = h / sub.height_m
+        out.append(replace(sub, height_m=h, leg_length_m=sub.leg_length_m * f, foot_length_m=sub.foot_length_m * f,
+                           walk_ratio_m_spm=sub.walk_ratio_m_spm * f,
+                           preferred_speed_m_s=sub.preferred_speed_m_s * float(np.sqrt(f))))
+    return out
 
 
 def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
