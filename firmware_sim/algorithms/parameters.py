@@ -123,6 +123,7 @@ class EventParameters:
     min_step_fraction: float = 0.6
     prominence_fraction: float = 0.0
     amplitude_steps: int = 4
+    stop_prominence_m_s2: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("ff_cutoff_hz", "detail_cutoff_hz", "impact_cutoff_hz", "min_step_s", "max_step_s",

@@ -132,6 +132,13 @@ class GaitEventDetector:
             ff = ff[0][ff[1] >= threshold(ff[0])]
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
+        if p.stop_prominence_m_s2 > 0 and ff.size:
+            d = np.diff(ff)
+            d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
+            dist = (minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
+                    if d.size >= 3 else dist0)
+            ff = stop_steps(sig, ff, fin, dist=dist, max_step=samples(p.max_step_s, sampling_rate_hz),
+                            prominence=p.stop_prominence_m_s2)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
         band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=p.impact_cutoff_hz, sampling_rate_hz=sampling_rate_hz,
                                              min_weight=self.min_weight)
@@ -205,6 +212,29 @@ def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
         j = np.searchsorted(cand, peaks)
         return thr[np.clip(j, 0, max(cand.size - 1, 0))] if cand.size else np.full(np.shape(peaks), floor)
     return threshold
+
+
+def stop_steps(sig: np.ndarray, ff: np.ndarray, fin: np.ndarray, *, dist: int, max_step: int,
+               prominence: float) -> np.ndarray:
+    """The foot-flats ``ff`` with each walking bout's weak last step added (module notes 1, the stop rule).
+
+    After a foot-flat ``f`` (``ff`` holds full-prominence foot-flats only), the first peak ``q`` of ``sig``
+    at least ``prominence`` prominent with ``f + dist <= q <= f + max_step`` is the step that brings the
+    walker to a stop when the signal stays quiet after it: no foot-flat of ``ff`` within ``max_step`` after
+    ``q`` (so ``f`` ended a bout, and ``q`` ends it one step later). At most one such step per bout end; a
+    loop over the foot-flats, not the samples.
+    """
+    cand = find_peaks(sig, prominence=prominence)
+    cand = cand[fin[cand]] if cand.size else cand
+    if cand.size == 0:
+        return ff
+    extra = []
+    nxt = np.r_[ff[1:], np.iinfo(np.int64).max]
+    for f, g in zip(ff.tolist(), nxt.tolist()):
+        j = int(np.searchsorted(cand, f + dist))
+        if j < cand.size and cand[j] <= f + max_step and g - cand[j] > max_step:
+            extra.append(int(cand[j]))
+    return np.sort(np.r_[ff, np.asarray(extra, np.int64)]) if extra else ff
 
 
 def warn_if_no_steps(detector: GaitEventDetector) -> None:
