@@ -30,7 +30,11 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``m >= pending + distance`` and the peak being climbed (if any) lies beyond the distance or is lower —
    a look-ahead bounded by ``max_step``. The distance is ``max(min_step, fraction · median)`` of the last
    ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
-   foot-flat does not lengthen the distance that caused it.
+   foot-flat does not lengthen the distance that caused it. *Stop rule* (``stop_prominence``, 0: off): a
+   peak that fell by ``stop_prominence`` only (:func:`_weak_peak` while looking for a trough, or after a full
+   rise) ``DIST`` to ``max_step`` after a final full foot-flat, with nothing pending, becomes the pending
+   foot-flat marked weak (:func:`_stop_candidate`); it is final ``max_step`` after it, and dropped at a
+   full-prominence rise or foot-flat before (the walker did not stop). One weak step per bout end.
 6. **Steps** (:func:`_finalise`, at each final foot-flat ``e``, with the previous one ``s``): read back from
    the scratch rings: the heel-strike (impact = first maximum of the band in ``[e - hs_before, e + hs_after]``,
    minus ``hs_delay``), the toe-off (first local minimum of ``d10`` in ``(s, s + to_span]``), M4's range of

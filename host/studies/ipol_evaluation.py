@@ -78,6 +78,7 @@ from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
 from host.studies.tuning import (
+    COUNT_CRITERION,
     CRITERION,
     MATCH_TOLERANCE_S,
     TIMING_TOLERANCE_S,
@@ -326,6 +327,9 @@ class IpolResult:
         The grid of the tuned constants (:func:`host.studies.tuning.candidates`, the defaults first), per
         ``(subject, trial)`` and candidate the offline chain's (heel-strike, toe-off) scores against the
         foot sensors, and the leave-one-subject-out choice per subject.
+    count_errors
+        Per ``(subject, trial)`` and candidate, the offline chain's detected - reference steps in the trial
+        section (U-turn steps included): the step-counting constants' criterion.
     trial_events
         :data:`EVENT_COLUMNS` rows (every trial of a calibrated subject, offline and on-line fixed).
     """
@@ -344,6 +348,7 @@ class IpolResult:
     event_scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]] = field(default_factory=dict)
     loso: LosoChoice = field(default_factory=lambda: LosoChoice({}, {}))
     trial_events: list[dict] = field(default_factory=list)
+    count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
 
 
 def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float, foot: float) -> KFit:
@@ -482,9 +487,13 @@ def evaluate_folder(
     for subject, trials in replayed.items():
         for rt, tables in trials:
             res.event_scores[(subject, rt.trial)] = [score_trial_events(rt, t) for t in tables]
+            res.count_errors[(subject, rt.trial)] = [
+                trial_steps(rt, t, uturn="include")[0].n_steps - rt.reference_steps() for t in tables]
     if replayed:
         res.loso = choose_loso({s: [[hs for hs, _ in res.event_scores[(s, rt.trial)]] for rt, _ in trials]
-                                for s, trials in replayed.items()})
+                                for s, trials in replayed.items()},
+                               {s: [res.count_errors[(s, rt.trial)] for rt, _ in trials]
+                                for s, trials in replayed.items()}, cands)
     # 3. per subject: K on the first trial with the constants chosen without it, the other trials scored
     for subject in by_subject:
         trials = replayed.get(subject, [])
@@ -639,11 +648,11 @@ def format_tuning(result: IpolResult) -> str:
     if not loso or not result.candidates:
         return ""
     lines = [f"constants tuned on IPOL, chosen leave-one-subject-out ({len(result.candidates)} candidates; "
-             f"criterion: {CRITERION}):"]
+             f"criterion: {CRITERION}; step-counting constants: {COUNT_CRITERION}):"]
     for p in TUNED_PARAMETERS:
         values = [result.candidates[c][p.name] for c in loso.values()]
         counts = {v: values.count(v) for v in dict.fromkeys(values)}
-        lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}): "
+        lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}; by {p.criterion}): "
                      + ", ".join(f"{v!r} in {n} of {len(values)} folds" for v, n in counts.items()))
     every_default = all(c == 0 for c in loso.values())
     lines.append("cross-validated: every offline-chain figure (each subject scored with the constants chosen on "
