@@ -47,8 +47,8 @@ class Variable:
 _VALUES = (
     ("G1", 3, 4, "gravity, first exponential stage, x y z (Q2.29)"),
     ("G2", 3, 4, "gravity, second stage (Q2.29)"),
-    ("MX", 1, 3, "peak detector: highest 3 Hz value since the last trough (Q2.16); while looking for a "
-           "trough, the highest since it or the last weak peak (the stop rule)"),
+    ("MX", 1, 3, ("peak detector: highest 3 Hz value since the last trough (Q2.16); while looking for a "
+                  "trough, the highest since it or the last weak peak (the stop rule)")),
     ("MN", 1, 3, "peak detector: lowest 3 Hz value since the last peak (Q2.16)"),
     ("PEND_Y", 1, 3, "3 Hz value of the pending foot-flat"),
     ("RAW_Y", 1, 3, "3 Hz value of the last peak of the step-duration stream"),
