@@ -32,7 +32,7 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
    foot-flat does not lengthen the distance that caused it. *Stop rule* (``stop_prominence``, 0: off): a
    peak that fell by ``stop_prominence`` only (:func:`_weak_peak` while looking for a trough, or after a full
-   rise) ``DIST`` to ``2 DIST`` after a final full foot-flat, with nothing pending, becomes the pending
+   rise) ``DIST`` to ``3 DIST`` after a final full foot-flat, with nothing pending, becomes the pending
    foot-flat marked weak (:func:`_stop_candidate`); it is final ``max_step`` after it, and dropped at a
    full-prominence rise or foot-flat before (the walker did not stop). One weak step per bout end.
 6. **Steps** (:func:`_finalise`, at each final foot-flat ``e``, with the previous one ``s``): read back from
@@ -621,11 +621,11 @@ def _weak_peak(y, m, cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compi
 @njit(cache=True)
 def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
     """The weak peak at ``MXPOS`` is the pending foot-flat, marked weak, when it is the first one ``DIST`` to
-    ``min(2 DIST, MAX_STEP)`` after a final full foot-flat (one step later; nothing pending, the last step not
-    itself a weak one)."""
+    ``min(3 DIST, MAX_STEP)`` after a final full foot-flat (within about two typical steps; nothing pending,
+    the last step not itself a weak one)."""
     s_cost(cnt, OP_CMP16, 3)
     if ((st_i[FLAGS] & (F_LAST | F_LAST_WEAK | F_PEND)) == F_LAST
-            and st_i[DIST] <= st_i[MXPOS] - st_i[LAST] <= min(2 * st_i[DIST], cfg_i[CI_MAX_STEP])):
+            and st_i[DIST] <= st_i[MXPOS] - st_i[LAST] <= min(3 * st_i[DIST], cfg_i[CI_MAX_STEP])):
         st_i[PEND] = st_i[MXPOS]
         st_v[PEND_Y] = st_v[MX]
         st_i[FLAGS] |= F_PEND | F_PEND_WEAK

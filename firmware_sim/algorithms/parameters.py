@@ -34,8 +34,8 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   IQR better).
 * Stop rule (``stop_prominence_m_s2``, 0.2 m/s^2; 0: off): the step that brings the walker to a stop
   raises the 3 Hz signal less than a walking step, and the full prominence missed it in 25 of the 52 IPOL
-  trials. After a bout's last full foot-flat, the first peak one step later (the minimum distance ``DIST``
-  to twice it, ``DIST`` being 0.6 of the typical step) that stands out
+  trials. After a bout's last full foot-flat, the first peak within about two steps (the minimum distance
+  ``DIST`` to three times it, ``DIST`` being 0.6 of the typical step) that stands out
   by ``stop_prominence_m_s2`` is one more step when no full foot-flat follows within ``max_step``. Chosen
   leave-one-subject-out on the IPOL trials by the step count (``host.studies.tuning``; every fold chose
   0.2 of 0, 0.2, 0.3, 0.4): the stopping step is then missed in 15 trials offline (16 on-line).

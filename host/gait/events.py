@@ -30,8 +30,8 @@ Notes
    run of missing samples longer than ``max_gap_s``, ends a walking bout.
 5. *Stop rule*: the step that brings the walker to a stop raises the first harmonic less than a walking
    step. After each foot-flat, the first peak ``stop_prominence_m_s2`` prominent between the minimum
-   distance and twice it (one typical step) later is one more foot-flat when no foot-flat follows it within
-   ``max_step_s`` (:func:`stop_steps`; the on-line algorithm's weak pending foot-flat,
+   distance and three times it (about two typical steps) later is one more foot-flat when no foot-flat
+   follows it within ``max_step_s`` (:func:`stop_steps`; the on-line algorithm's weak pending foot-flat,
    :mod:`firmware_sim.algorithms.kernel` step 5).
 
 All indices are sample indices of the input. Samples marked invalid are never used (the filters are
@@ -221,9 +221,9 @@ def stop_steps(sig: np.ndarray, ff: np.ndarray, fin: np.ndarray, *, dist: int, m
     """The foot-flats ``ff`` with each walking bout's weak last step added (module notes 5, the stop rule).
 
     After a foot-flat ``f`` (``ff`` holds full-prominence foot-flats only), the first peak ``q`` of ``sig``
-    at least ``prominence`` prominent with ``f + dist <= q <= f + min(2 dist, max_step)`` (one step later:
-    ``dist`` is 0.6 of the typical step) is the step that brings the walker to a stop when no foot-flat of
-    ``ff`` follows within ``max_step`` after ``q`` (so ``f`` ended a bout, and ``q`` ends it one step later).
+    at least ``prominence`` prominent with ``f + dist <= q <= f + min(3 dist, max_step)`` (within about two
+    typical steps: ``dist`` is 0.6 of the typical step) is the step that brings the walker to a stop when no
+    foot-flat of ``ff`` follows within ``max_step`` after ``q`` (so ``f`` ended a bout, and ``q`` ends it).
     At most one such step per bout end.
     """
     cand = find_peaks(sig, prominence=prominence)
@@ -233,7 +233,7 @@ def stop_steps(sig: np.ndarray, ff: np.ndarray, fin: np.ndarray, *, dist: int, m
     j = np.searchsorted(cand, ff + dist)
     q = cand[np.minimum(j, cand.size - 1)]
     nxt = np.r_[ff[1:], np.iinfo(np.int64).max]
-    stop = (j < cand.size) & (q <= ff + min(max_step, 2 * dist)) & (nxt - q > max_step)
+    stop = (j < cand.size) & (q <= ff + min(max_step, 3 * dist)) & (nxt - q > max_step)
     return np.union1d(ff, q[stop]).astype(np.int64) if stop.any() else ff
 
 
