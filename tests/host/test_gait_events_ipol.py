@@ -3,8 +3,8 @@ and 10 bits through the emulated logger).
 
 The reference is independent of the code under test: the JSON's ``LeftFootEvents``/``RightFootEvents``
 come from sensors on the feet. Measured with the default detector (52 trials, 1,774 reference events each):
-heel strikes within 40 ms F1 0.754, median |error| 20 ms (the steepest-rise rule it replaced: F1 0.569,
-30 ms); toe-offs F1 0.577, median |error| 20 ms (-20 ms bias: one sample at 50 Hz).
+heel strikes within 40 ms F1 0.752 (0.754 before the stop rule), median |error| 20 ms (the steepest-rise rule:
+F1 0.569, 30 ms); toe-offs F1 0.577, median |error| 20 ms (-20 ms bias: one sample at 50 Hz).
 """
 
 from __future__ import annotations
