@@ -30,7 +30,11 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``m >= pending + distance`` and the peak being climbed (if any) lies beyond the distance or is lower —
    a look-ahead bounded by ``max_step``. The distance is ``max(min_step, fraction · median)`` of the last
    ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
-   foot-flat does not lengthen the distance that caused it.
+   foot-flat does not lengthen the distance that caused it. *Stop rule* (``stop_prominence``, 0: off): a
+   peak that fell by ``stop_prominence`` only (:func:`_weak_peak` while looking for a trough, or after a full
+   rise) ``DIST`` to ``3 DIST`` after a final full foot-flat, with nothing pending, becomes the pending
+   foot-flat marked weak (:func:`_stop_candidate`); it is final ``max_step`` after it, and dropped at a
+   full-prominence rise or foot-flat before (the walker did not stop). One weak step per bout end.
 6. **Steps** (:func:`_finalise`, at each final foot-flat ``e``, with the previous one ``s``): read back from
    the scratch rings: the heel-strike (impact = first maximum of the band in ``[e - hs_before, e + hs_after]``,
    minus ``hs_delay``), the toe-off (first local minimum of ``d10`` in ``(s, s + to_span]``), M4's range of
@@ -81,8 +85,10 @@ from firmware_sim.algorithms.state import (
     DUR_POS,
     F_AMP,
     F_LAST,
+    F_LAST_WEAK,
     F_LOOK_MAX,
     F_PEND,
+    F_PEND_WEAK,
     F_RAW,
     FLAGS,
     G1,
@@ -127,9 +133,10 @@ N_CI = len(CI)
 
 #: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
 CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, FRAC=22,
-          W3=23)
+          STOP=23, W3=24)
 (CV_DELTA, CV_G_MIN, CV_TWO_LEG, CV_FOOT, CV_K1, CV_K2, CV_K4, CV_K1FS, CV_K2M5, CV_UNIT) = range(10)
 CV_FRAC = CV["FRAC"]
+CV_STOP = CV["STOP"]
 CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
 
 #: Columns of the integer record output: end index, window duration, toe-off index, heel-strike index, flags.
@@ -420,6 +427,11 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     out_v[k, O_L + 4] = l5
     st_i[LAST] = e
     st_i[FLAGS] |= F_LAST
+    if st_i[FLAGS] & F_PEND_WEAK:                 # a bout's weak last step (the stop rule): none may follow it
+        st_i[FLAGS] |= F_LAST_WEAK
+    else:
+        st_i[FLAGS] &= ~F_LAST_WEAK
+    st_i[FLAGS] &= ~F_PEND_WEAK
     return k + 1
 
 
@@ -553,7 +565,8 @@ def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
     m = st_i[N] - 1 - cfg_i[CI_R3]
     y = scr[m % cfg_i[CI_SCRATCH], S_Y3]
     s_cost(cnt, OP_CMP32, 4)
-    if (st_i[FLAGS] & F_PEND) and m >= st_i[PEND] + st_i[DIST]:
+    if (st_i[FLAGS] & F_PEND) and m >= st_i[PEND] + (cfg_i[CI_MAX_STEP] if st_i[FLAGS] & F_PEND_WEAK
+                                                     else st_i[DIST]):
         if not ((st_i[FLAGS] & F_LOOK_MAX) != 0 and st_i[MXPOS] < st_i[PEND] + st_i[DIST]
                 and st_v[MX] > st_v[PEND_Y] and m - st_i[PEND] <= cfg_i[CI_MAX_STEP]):
             k = _finalise(st_i[PEND], m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
@@ -565,6 +578,8 @@ def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
             st_v[MX] = y
             st_i[MXPOS] = m
         elif y < ar.sub(st_v[MX], _prominence(cfg_i, cfg_v, st_i, st_v, cnt), W_LP, cnt):
+            if st_i[FLAGS] & F_PEND_WEAK:        # a full foot-flat follows the weak one: it was no stop step
+                st_i[FLAGS] &= ~(F_PEND | F_PEND_WEAK)
             # the step amplitude: the confirmed peak's rise from the trough before it (exponential mean)
             if st_i[FLAGS] & F_AMP:
                 st_v[AMP] = ar.add(st_v[AMP], ar.scale2(ar.sub(ar.sub(st_v[MX], st_v[MN], W_LP, cnt), st_v[AMP],
@@ -576,13 +591,57 @@ def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
             k = _confirmed(st_i[MXPOS], st_v[MX], m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, cnt)
             st_i[FLAGS] &= ~F_LOOK_MAX
             st_v[MN] = y
+            st_v[MX] = y                         # looking for a trough: MX follows the weak peaks (below)
+            st_i[MXPOS] = m
+        elif cfg_v[CV_STOP] > 0 and y < ar.sub(st_v[MX], cfg_v[CV_STOP], W_LP, cnt):
+            _stop_candidate(cfg_i, st_i, st_v, cnt)  # a peak that rose fully and fell only a little
     elif y < st_v[MN]:
         st_v[MN] = y
-    elif y > ar.add(st_v[MN], _prominence(cfg_i, cfg_v, st_i, st_v, cnt), W_LP, cnt):
-        st_i[FLAGS] |= F_LOOK_MAX
         st_v[MX] = y
         st_i[MXPOS] = m
+    elif y > ar.add(st_v[MN], _prominence(cfg_i, cfg_v, st_i, st_v, cnt), W_LP, cnt):
+        st_i[FLAGS] |= F_LOOK_MAX
+        if st_i[FLAGS] & F_PEND_WEAK:            # not quiet after a weak peak: it was no stop step
+            st_i[FLAGS] &= ~(F_PEND | F_PEND_WEAK)
+        st_v[MX] = y
+        st_i[MXPOS] = m
+    elif cfg_v[CV_STOP] > 0:
+        _weak_peak(y, m, cfg_i, cfg_v, st_i, st_v, cnt)
     return k
+
+
+@njit(cache=True)
+def _weak_peak(y, m, cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
+    """The stop rule, while looking for a trough: ``MX`` follows the highest ``y3`` since the trough ``MN``
+    (or since the last weak peak); a bump that rose and fell by ``stop_prominence`` is a weak peak. The
+    first weak peak ``DIST`` to ``MAX_STEP`` after a final full foot-flat becomes the pending foot-flat,
+    marked weak: final once ``MAX_STEP`` passes without a full-prominence rise (the walker stopped), dropped
+    at such a rise."""
+    s_cost(cnt, OP_CMP32, 1)
+    if y > st_v[MX]:
+        st_v[MX] = y
+        st_i[MXPOS] = m
+        return
+    s_cost(cnt, OP_DEE, 3)
+    s_cost(cnt, OP_CMP32, 2)
+    if (y < ar.sub(st_v[MX], cfg_v[CV_STOP], W_LP, cnt)
+            and st_v[MX] > ar.add(st_v[MN], cfg_v[CV_STOP], W_LP, cnt)):
+        _stop_candidate(cfg_i, st_i, st_v, cnt)
+        st_v[MX] = y
+        st_i[MXPOS] = m
+
+
+@njit(cache=True)
+def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
+    """The weak peak at ``MXPOS`` is the pending foot-flat, marked weak, when it is the first one ``DIST`` to
+    ``min(3 DIST, MAX_STEP)`` after a final full foot-flat (within about two typical steps; nothing pending,
+    the last step not itself a weak one)."""
+    s_cost(cnt, OP_CMP16, 3)
+    if ((st_i[FLAGS] & (F_LAST | F_LAST_WEAK | F_PEND)) == F_LAST
+            and st_i[DIST] <= st_i[MXPOS] - st_i[LAST] <= min(3 * st_i[DIST], cfg_i[CI_MAX_STEP])):
+        st_i[PEND] = st_i[MXPOS]
+        st_v[PEND_Y] = st_v[MX]
+        st_i[FLAGS] |= F_PEND | F_PEND_WEAK
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -47,7 +47,8 @@ class Variable:
 _VALUES = (
     ("G1", 3, 4, "gravity, first exponential stage, x y z (Q2.29)"),
     ("G2", 3, 4, "gravity, second stage (Q2.29)"),
-    ("MX", 1, 3, "peak detector: highest 3 Hz value since the last trough (Q2.16)"),
+    ("MX", 1, 3, ("peak detector: highest 3 Hz value since the last trough (Q2.16); while looking for a "
+                  "trough, the highest since it or the last weak peak (the stop rule)")),
     ("MN", 1, 3, "peak detector: lowest 3 Hz value since the last peak (Q2.16)"),
     ("PEND_Y", 1, 3, "3 Hz value of the pending foot-flat"),
     ("RAW_Y", 1, 3, "3 Hz value of the last peak of the step-duration stream"),
@@ -57,7 +58,7 @@ _INDICES = (
     ("N", 1, 2, "samples since the run started (low 16 bits)"),
     ("LINE_POS", 1, 1, "write position in the a_v delay line"),
     ("FLAGS", 1, 1, "bits: looking for a peak, pending valid, last foot-flat valid, raw peak valid, "
-              "amplitude valid"),
+              "amplitude valid, pending is a weak stop step, last is one"),
     ("MXPOS", 1, 2, "index of MX"),
     ("PEND", 1, 2, "index of the pending foot-flat"),
     ("LAST", 1, 2, "index of the last final foot-flat"),
@@ -88,7 +89,7 @@ G1, G2, MX, MN, PEND_Y, RAW_Y, AMP = (VALUE_SLOTS[n] for n, *_ in _VALUES)
 N, LINE_POS, FLAGS, MXPOS, PEND, LAST, RAW, N_DUR, DUR_POS, DIST = (INDEX_SLOTS[n] for n, *_ in _INDICES)
 
 #: Bits of ``FLAGS``.
-F_LOOK_MAX, F_PEND, F_LAST, F_RAW, F_AMP = 1, 2, 4, 8, 16
+F_LOOK_MAX, F_PEND, F_LAST, F_RAW, F_AMP, F_PEND_WEAK, F_LAST_WEAK = 1, 2, 4, 8, 16, 32, 64
 
 
 #: Arguments and locals of the kernel's functions: name -> (bytes on the PIC, why). Array arguments (the
@@ -99,6 +100,8 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
     "_sample": {"cx": (0, "in the page buffer"), "cy": (0, "in the page buffer"), "cz": (0, "in the page buffer"),
                 "k": (0, "the step store's write index"), "m": (2, "index of the newest filter output"),
                 "y": (3, "its 3 Hz value, Q2.16")},
+    "_weak_peak": {"y": (0, "alias of the caller's y"), "m": (0, "alias of the caller's m")},
+    "_stop_candidate": {},
     "_prominence": {"scaled": (0, "fraction · AMP: the product in the maths registers, consumed by the caller's "
                                   "comparison")},
     "_front": {
@@ -155,7 +158,9 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
 #: Which kernel function calls which (the frames of a call chain are live together).
 CALLS: dict[str, tuple[str, ...]] = {
     "process": ("_sample",),
-    "_sample": ("_front", "_finalise", "_confirmed", "_prominence"),
+    "_sample": ("_front", "_finalise", "_confirmed", "_prominence", "_weak_peak", "_stop_candidate"),
+    "_weak_peak": ("_stop_candidate",),
+    "_stop_candidate": (),
     "_prominence": (),
     "_front": ("_calibrated", "_fir"),
     "_calibrated": (),

@@ -30,6 +30,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "goes to <out>_fixed.csv); the same K for both")
     parser.add_argument("--json", action="store_true",
                         help="print the summary as one JSON document on stdout instead of the table")
+    parser.add_argument("--slow-walking", action="store_true",
+                        help="slow, short-stepped walking (steps <= 0.35 m, cadence <= 90 /min): foot-flats need "
+                        "0.2 of the recent step amplitude (at least 0.25 m/s^2) instead of 0.5 m/s^2, in both "
+                        "arithmetics (ADAPTIVE_PROMINENCE; not the default: it costs some accuracy on brisk walking)")
     add_anatomy_options(parser)
     add_input_options(parser)
     add_verbosity_options(parser)
@@ -64,15 +68,20 @@ def run(args: argparse.Namespace) -> int:
     notes = [lengths.note] if lengths.assumed else []
     tables = {}
     fixed_report = ""
+    from firmware_sim.algorithms.parameters import ADAPTIVE_PROMINENCE, EventParameters
+
+    events = EventParameters(**ADAPTIVE_PROMINENCE) if args.slow_walking else EventParameters()
     if args.arithmetic in ("float", "both"):
+        from host.gait.events import GaitEventDetector
         from host.gait.pipeline import StepPipeline
 
-        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=k).run(
+        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=k,
+                            detector=GaitEventDetector(events)).run(
             data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
         tables["float"] = pipe.steps_
         notes += pipe.notes_
     if args.arithmetic in ("fixed", "both"):
-        tables["fixed"], fixed_report = _fixed_steps(data, args.calibration, leg, foot, k)
+        tables["fixed"], fixed_report = _fixed_steps(data, args.calibration, leg, foot, k, events)
     outs = {}
     if args.out:
         out = Path(args.out)
@@ -174,10 +183,14 @@ def _summary(tables: dict, estimators: tuple[str, ...], k=None) -> dict[str, dic
     return out
 
 
-def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k):
+def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k, events):
     """The on-line algorithm in fixed point (the logger's) on the codes of a logger recording, with the same
-    K as the float chain -> (StepTable, saturation report)."""
+    K and event rules (``events``) as the float chain -> (StepTable, saturation report)."""
+    import functools
+
     import numpy as np
+
+    from firmware_sim.algorithms.online import OnlineStepAlgorithm
 
     from host.errors import HostError
     from host.files.replay import online_step_table, run_starts
@@ -195,5 +208,6 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k):
     starts = run_starts(valid, rec.flags)
     table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                                    foot_length_m=foot, calibration=k, adc_calibration=adc_cal,
-                                   adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
+                                   adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts,
+                                   algorithm=functools.partial(OnlineStepAlgorithm, events=events))
     return table, alg.arithmetic_context().report()

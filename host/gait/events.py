@@ -28,6 +28,11 @@ Notes
 4. Steps: consecutive foot-flats closer than ``max_step_s`` form a step (window ``[FF_k, FF_k+1]``,
    containing the toe-off after ``FF_k`` and the heel-strike before ``FF_k+1``). A longer interval, or a
    run of missing samples longer than ``max_gap_s``, ends a walking bout.
+5. *Stop rule*: the step that brings the walker to a stop raises the first harmonic less than a walking
+   step. After each foot-flat, the first peak ``stop_prominence_m_s2`` prominent between the minimum
+   distance and three times it (about two typical steps) later is one more foot-flat when no foot-flat
+   follows it within ``max_step_s`` (:func:`stop_steps`; the on-line algorithm's weak pending foot-flat,
+   :mod:`firmware_sim.algorithms.kernel` step 5).
 
 All indices are sample indices of the input. Samples marked invalid are never used (the filters are
 normalised convolutions over measured samples only).
@@ -126,12 +131,16 @@ class GaitEventDetector:
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
         d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
+        dist = dist0
         if d.size >= 3:
             dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
             ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2, with_prominences=True)
             ff = ff[0][ff[1] >= threshold(ff[0])]
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
+        if p.stop_prominence_m_s2 > 0 and ff.size:
+            ff = stop_steps(sig, ff, fin, dist=dist, max_step=samples(p.max_step_s, sampling_rate_hz),
+                            prominence=p.stop_prominence_m_s2)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
         band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=p.impact_cutoff_hz, sampling_rate_hz=sampling_rate_hz,
                                              min_weight=self.min_weight)
@@ -205,6 +214,27 @@ def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
         j = np.searchsorted(cand, peaks)
         return thr[np.clip(j, 0, max(cand.size - 1, 0))] if cand.size else np.full(np.shape(peaks), floor)
     return threshold
+
+
+def stop_steps(sig: np.ndarray, ff: np.ndarray, fin: np.ndarray, *, dist: int, max_step: int,
+               prominence: float) -> np.ndarray:
+    """The foot-flats ``ff`` with each walking bout's weak last step added (module notes 5, the stop rule).
+
+    After a foot-flat ``f`` (``ff`` holds full-prominence foot-flats only), the first peak ``q`` of ``sig``
+    at least ``prominence`` prominent with ``f + dist <= q <= f + min(3 dist, max_step)`` (within about two
+    typical steps: ``dist`` is 0.6 of the typical step) is the step that brings the walker to a stop when no
+    foot-flat of ``ff`` follows within ``max_step`` after ``q`` (so ``f`` ended a bout, and ``q`` ends it).
+    At most one such step per bout end.
+    """
+    cand = find_peaks(sig, prominence=prominence)
+    cand = cand[fin[cand]] if cand.size else cand
+    if cand.size == 0 or ff.size == 0:
+        return ff
+    j = np.searchsorted(cand, ff + dist)
+    q = cand[np.minimum(j, cand.size - 1)]
+    nxt = np.r_[ff[1:], np.iinfo(np.int64).max]
+    stop = (j < cand.size) & (q <= ff + min(max_step, 3 * dist)) & (nxt - q > max_step)
+    return np.union1d(ff, q[stop]).astype(np.int64) if stop.any() else ff
 
 
 def warn_if_no_steps(detector: GaitEventDetector) -> None:

@@ -83,6 +83,7 @@ from host.gait.k_calibration import KFit, calibrate
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
 from host.studies.tuning import (
+    COUNT_CRITERION,
     CRITERION,
     K_CRITERION,
     MATCH_TOLERANCE_S,
@@ -333,6 +334,9 @@ class IpolResult:
         The grid of the tuned constants (:func:`host.studies.tuning.candidates`, the defaults first), per
         ``(subject, trial)`` and candidate the offline chain's (heel-strike, toe-off) scores against the
         foot sensors, and the leave-one-subject-out choice per subject.
+    count_errors
+        Per ``(subject, trial)`` and candidate, the offline chain's detected - reference steps in the trial
+        section (U-turn steps included): the step-counting constants' criterion.
     trial_events
         :data:`EVENT_COLUMNS` rows (every trial of a calibrated subject, offline and on-line fixed).
     m4_exponent, m4_training_iqr
@@ -360,6 +364,7 @@ class IpolResult:
     m4_exponent: dict[int, float] = field(default_factory=dict)
     m4_training_iqr: dict[int, float] = field(default_factory=dict)
     calibrations_online: dict[int, KFit] = field(default_factory=dict)
+    count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
 
 
 def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
@@ -527,9 +532,13 @@ def evaluate_folder(
     for subject, trials in replayed.items():
         for rt, tables in trials:
             res.event_scores[(subject, rt.trial)] = [score_trial_events(rt, t) for t in tables]
+            res.count_errors[(subject, rt.trial)] = [
+                trial_steps(rt, t, uturn="include")[0].n_steps - rt.reference_steps() for t in tables]
     if replayed:
         res.loso = choose_loso({s: [[hs for hs, _ in res.event_scores[(s, rt.trial)]] for rt, _ in trials]
-                                for s, trials in replayed.items()})
+                                for s, trials in replayed.items()},
+                               {s: [res.count_errors[(s, rt.trial)] for rt, _ in trials]
+                                for s, trials in replayed.items()}, cands)
     # 2b. M4's exponent, leave-one-subject-out on the calibrated M4 ratios (the fold's event constants)
     exponents = next(p.candidates for p in TUNED_PARAMETERS if p.name == "m4_exponent")
     scorable = [s for s, trials in replayed.items() if len(trials) >= 2]
@@ -703,7 +712,7 @@ def format_tuning(result: IpolResult) -> str:
     if not loso or not result.candidates:
         return ""
     lines = [f"constants tuned on IPOL, chosen leave-one-subject-out ({len(result.candidates)} candidates; "
-             f"criterion: {CRITERION}):"]
+             f"criterion: {CRITERION}; step-counting constants: {COUNT_CRITERION}):"]
     for p in TUNED_PARAMETERS:
         if p.criterion == "k-transfer":
             if p.name != "m4_exponent" or not result.m4_exponent:
@@ -714,7 +723,7 @@ def format_tuning(result: IpolResult) -> str:
             continue
         values = [result.candidates[c][p.name] for c in loso.values()]
         counts = {v: values.count(v) for v in dict.fromkeys(values)}
-        lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}): "
+        lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}; by {p.criterion}): "
                      + ", ".join(f"{v!r} in {n} of {len(values)} folds" for v, n in counts.items()))
     every_default = (all(c == 0 for c in loso.values())
                      and all(math.isclose(v, M4_EXPONENT) for v in result.m4_exponent.values()))

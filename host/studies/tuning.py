@@ -17,14 +17,20 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   (:data:`K_CRITERION`, :func:`choose_loso_spread`): the IQR of the calibrated M4 distance ratio, K fitted on
   each training subject's first trial and scored on its other trials, pooled; ties go to the earlier
   candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
+* ``stop_prominence_m_s2``: the stop rule's prominence (a bout's weak last step, :mod:`host.gait.events`
+  notes 5; 0: off), chosen by the step count (:data:`COUNT_CRITERION`).
 
 A parameter whose name is a field of :class:`~firmware_sim.algorithms.parameters.EventParameters` needs
 nothing else: add a :class:`TunedParameter` and it is searched (the grid is the product of the candidates).
 
-Criterion of the event parameters (``criterion="events"``): heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot sensors, F1 pooled over the
-training subjects' trials (more matched, fewer missed and fewer extra); ties go to the smaller median
-|timing error|, then to the earlier candidate (the default comes first). Only the event detection is re-run
-per candidate (the offline chain on cached trials, milliseconds per trial), never the logger's replay.
+Criteria: for the heel-strike constants, heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot
+sensors, F1 pooled over the training subjects' trials (more matched, fewer missed and fewer extra); ties go
+to the smaller median |timing error|, then to the earlier candidate (the default comes first). For the
+step-counting constants (``criterion = "step count"``), chosen second with the heel-strike constants of the
+fold: the sum over the training trials of |detected - reference steps| (the trial section, U-turn steps
+included; ties: the earlier candidate). Only the event detection is re-run per candidate (the offline chain
+on cached trials, milliseconds per trial), never the logger's replay. M4's exponent (``criterion =
+"k-transfer"``) is chosen apart, by :data:`K_CRITERION` (:func:`choose_loso_spread`).
 """
 
 from __future__ import annotations
@@ -42,9 +48,9 @@ from host.gait.events import GaitEventDetector, link_steps
 from host.gait.masked_filter import masked_gaussian_lowpass
 from host.studies.compare import match_events
 
-__all__ = ["CRITERION", "K_CRITERION", "MATCH_TOLERANCE_S", "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
-           "TunedParameter", "candidates", "choose_loso", "choose_loso_spread", "detector_for", "k_parameters",
-           "score_events"]
+__all__ = ["COUNT_CRITERION", "CRITERION", "K_CRITERION", "MATCH_TOLERANCE_S", "TIMING_TOLERANCE_S", "TUNED_PARAMETERS",
+           "EventScore", "LosoChoice", "SteepestRiseDetector", "TunedParameter", "candidates", "choose_loso",
+           "choose_loso_spread", "detector_for", "k_parameters", "score_events"]
 
 #: An event matches a reference event within this (the F1 criterion of the event figures).
 MATCH_TOLERANCE_S = 0.04
@@ -55,13 +61,14 @@ TIMING_TOLERANCE_S = 0.15
 @dataclass(frozen=True)
 class TunedParameter:
     """A constant chosen from recordings: its candidates (the grid searched), the shipped default, where it
-    is used and its criterion (``"events"``: :data:`CRITERION`; ``"k-transfer"``: :data:`K_CRITERION`)."""
+    is used and its criterion (``"heel-strike F1"``: :data:`CRITERION`; ``"step count"``: :data:`COUNT_CRITERION`;
+    ``"k-transfer"``: :data:`K_CRITERION`)."""
 
     name: str
     candidates: tuple[Any, ...]
     default: Any
     used_in: str
-    criterion: str = "events"
+    criterion: str = "heel-strike F1"
 
 
 #: Every constant chosen from the IPOL recordings (module notes).
@@ -73,6 +80,9 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
     TunedParameter("m4_exponent", (M4_EXPONENT, 0.25, 0.375), M4_EXPONENT,
                    "firmware_sim.algorithms.parameters.M4_EXPONENT (M4 = K range^p), both chains",
                    criterion="k-transfer"),
+    TunedParameter("stop_prominence_m_s2", (0.0, 0.2, 0.3, 0.4), EventParameters().stop_prominence_m_s2,
+                   "EventParameters.stop_prominence_m_s2 (a bout's weak last step), both chains",
+                   criterion="step count"),
 )
 
 #: The selection criterion, in words (printed by ``gaitlog evaluate ipol``).
@@ -92,16 +102,21 @@ def k_parameters(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> lis
     return [p for p in parameters if p.criterion == "k-transfer"]
 
 
+#: The step-counting constants' criterion (``TunedParameter.criterion == "step count"``), in words.
+COUNT_CRITERION = ("sum over the training subjects' trials of |detected - reference steps| (U-turn steps "
+                   "included), with the fold's heel-strike constants")
+
+
 def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[dict[str, Any]]:
     """The grid: every combination of candidate values, the defaults first (the steepest-rise rule only with
     the default ``hs_delay_s``, which it ignores).
 
-    Only the ``"events"`` parameters span the grid (the ``"k-transfer"`` ones: :func:`choose_loso_spread`).
+    The ``"k-transfer"`` parameters are not part of the grid (:func:`choose_loso_spread`).
 
     >>> len(candidates()), candidates()[0]
-    (6, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04})
+    (24, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2})
     """
-    parameters = [p for p in parameters if p.criterion == "events"]
+    parameters = [p for p in parameters if p.criterion != "k-transfer"]
     default = {p.name: p.default for p in parameters}
     grid = [dict(zip([p.name for p in parameters], combo))
             for combo in itertools.product(*[p.candidates for p in parameters])]
@@ -221,28 +236,51 @@ class LosoChoice:
     training_f1: dict[int, float]
 
 
-def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]]) -> LosoChoice:
-    """For each subject, the candidate that maximises :data:`CRITERION` on the other subjects' trials.
+def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]],
+                count_errors: Mapping[int, Sequence[Sequence[int]]] | None = None,
+                grid: Sequence[Mapping[str, Any]] | None = None,
+                parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> LosoChoice:
+    """For each subject, the candidate chosen on the other subjects' trials (module notes).
 
     ``scores[subject][trial][candidate]``: the heel-strike :class:`EventScore` of every trial of every
-    subject for every candidate (same candidate order everywhere).
+    subject for every candidate (same candidate order everywhere). Without ``count_errors`` every candidate
+    competes on :data:`CRITERION`. With ``count_errors[subject][trial][candidate]`` (detected - reference
+    steps) and the ``grid`` of candidates (:func:`candidates`), two stages: the heel-strike constants by
+    :data:`CRITERION` among the candidates whose step-counting constants are the defaults, then the
+    step-counting constants by :data:`COUNT_CRITERION` among the candidates with those heel-strike constants.
 
     >>> good, bad = EventScore(10, 10, 9, np.zeros(9)), EventScore(10, 10, 5, np.zeros(5))
     >>> choose_loso({1: [[good, bad]], 2: [[bad, good]], 3: [[bad, good]]}).chosen
     {1: 1, 2: 0, 3: 0}
+    >>> p = [TunedParameter("a", (0, 1), 0, ""), TunedParameter("b", (0, 1), 0, "", criterion="step count")]
+    >>> g = candidates(p)
+    >>> e = {1: [[good, good, bad, bad]], 2: [[good, good, bad, bad]]}
+    >>> choose_loso(e, {1: [[2, 0, 0, 0]], 2: [[2, 1, 0, 0]]}, g, p).chosen
+    {1: 1, 2: 1}
     """
     subjects = list(scores)
     n_cand = len(next(iter(next(iter(scores.values())))))
+    count_names = [p.name for p in parameters if p.criterion == "step count"]
+    default = {p.name: p.default for p in parameters}
+    two_stage = count_errors is not None and grid is not None and count_names
+    first = [c for c in range(n_cand)
+             if not two_stage or all(grid[c][n] == default[n] for n in count_names)]
     chosen, f1s = {}, {}
     for s in subjects:
-        best, key_best = 0, None
-        for c in range(n_cand):
+        best, key_best = first[0], None
+        for c in first:
             pooled = EventScore.pooled([t[c] for o in subjects if o != s for t in scores[o]])
             err = pooled.median_abs_error_s
             key = (pooled.f1, -err if np.isfinite(err) else -np.inf)
             if key_best is None or key > key_best:
                 best, key_best = c, key
-        chosen[s], f1s[s] = best, float(key_best[0]) if key_best is not None else float("nan")
+        f1s[s] = float(key_best[0]) if key_best is not None else float("nan")
+        if two_stage:
+            same = [c for c in range(n_cand)
+                    if all(grid[c][n] == grid[best][n] for n in grid[best] if n not in count_names)]
+            cost = {c: sum(abs(int(t[c])) for o in subjects if o != s for t in count_errors[o]) for c in same}
+            best = min(same, key=lambda c: (cost[c], c))
+        chosen[s] = best
     return LosoChoice(chosen, f1s)
 
 

@@ -141,8 +141,8 @@ def test_sweep_adc_share_at_50_hz(sweep) -> None:
 
 def test_sweep_arithmetic_share_everywhere(sweep) -> None:
     """The arithmetic share per step: 0.015-0.083 mm (median) in every configuration, nothing saturates; its
-    largest relative difference is below 0.5 % everywhere but at 25 Hz / 10 bits, where one 2 cm shuffle step's
-    M1 excursion (56 um) is four lsb of M1's UQ0.16 and differs by 25 % (M2: 2.8 %)."""
+    largest relative difference is below 0.5 % everywhere but for M1 at 25 Hz / 8 bits: 2.2 % on one step (with
+    the stop rule; before it, one 2 cm shuffle step at 25 Hz / 10 bits differed by 25 %, now 0.27 %)."""
     assert len(sweep.summary) == 9 * 2 * 5
     arith = np.array([float(r["arith_step_mm"]) for r in sweep.summary])
     assert arith.min() == pytest.approx(0.015, abs=0.003) and arith.max() == pytest.approx(0.083, abs=0.01)
@@ -151,6 +151,8 @@ def test_sweep_arithmetic_share_everywhere(sweep) -> None:
         worst = float(r["arith_step_max_rel"])
         if (r["adc_bits"], float(r["sampling_rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
             assert worst <= {"M1": 0.30, "M2": 0.035, "M4": 0.022}[r["estimator"]], r
+        elif (r["adc_bits"], float(r["sampling_rate_hz"]), r["estimator"]) == ("8", 25.0, "M1"):
+            assert worst <= 0.03, r
         else:
             assert worst <= 0.005, r
 
