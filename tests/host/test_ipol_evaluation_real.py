@@ -7,12 +7,13 @@ writes (not by the code under test) and pinned near what is measured. M5's inter
 issue 4's 0.10 with the offline chain (0.149: a strict expected failure): with K fitted on one 20 m trial at
 one speed, even the *reference* step events give M5 an IQR of 0.109 on these trials (walk-ratio model; 0.119
 for a constant step length), so no detector can reach 0.10. Issue 12's IQR <= 0.06 for calibrated M2 and M4
-is missed (0.063 and 0.073: strict expected failures).
+is met by M2 (0.05995: at the edge) and missed by M4 (0.076: a strict expected failure).
 
 The constants chosen on these trials (the heel-strike rule, ``hs_delay_s``, the stop rule's ``stop_prominence_m_s2`` and M4's exponent,
 :mod:`host.studies.tuning`) are chosen leave-one-subject-out by the command: every offline-chain figure is
-cross-validated (measured: the defaults in 8 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out; M4's
-exponent 1/2 in 9 of 9), the on-line chains run the shipped defaults (cross-validated for the other 8 subjects). The on-line algorithm's gravity time constant comes from a
+cross-validated (measured: the defaults in 7 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out, M4's
+exponent 3/8 when subject 7 is held out, 1/2 in the other 8), the on-line chains run the shipped defaults
+(cross-validated for the other 7 subjects). The on-line algorithm's gravity time constant comes from a
 ripple rule, ``firmware_sim/algorithms/parameters.py``; K is fitted per subject on trial 1 and scored on the
 others, never on the trial it scores.
 """
@@ -129,8 +130,8 @@ def test_device_records_are_the_algorithm_run_here(folder) -> None:
 
 def test_arithmetic_share_per_step(ipol) -> None:
     """Issue 10 (c): on-line fixed vs on-line float, same codes, same K, per step: median |d| <= 0.1 mm
-    (0.014-0.063 mm measured) and at most 1 % of a step (0.29 %); events differ on 6 of 1,949 steps."""
-    measured_mm = {"M1": 0.063, "M2": 0.030, "M3": 0.026, "M4": 0.038, "M5": 0.014}
+    (0.015-0.063 mm measured) and at most 1 % of a step (0.29 %); events differ on 6 of 1,981 matched steps."""
+    measured_mm = {"M1": 0.063, "M2": 0.030, "M3": 0.026, "M4": 0.039, "M5": 0.015}
     st = ipol.steps
     same = np.array([r["same_events_arithmetic"] == "1" for r in st])
     matched = np.array([int(r["online_fixed_step"]) >= 0 for r in st])
@@ -163,7 +164,7 @@ def test_arithmetic_share_in_distance(ipol) -> None:
 
 
 # measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
-ALGORITHM_SHARE = {"M1": 0.0093, "M2": 0.0091, "M3": 0.0081, "M4": 0.0083, "M5": 0.0040}
+ALGORITHM_SHARE = {"M1": 0.0148, "M2": 0.0087, "M3": 0.0081, "M4": 0.0091, "M5": 0.0057}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
@@ -180,7 +181,7 @@ def test_algorithm_share_in_distance(ipol, name) -> None:
 
 
 @pytest.mark.parametrize("arithmetic", ["online-float", "online-fixed"])
-@pytest.mark.parametrize("name, measured", [("M2", 1.016), ("M4", 0.998)])
+@pytest.mark.parametrize("name, measured", [("M2", 1.016), ("M4", 0.996)])
 def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     """Issue 10 (c): the on-line algorithm with the offline chain's K: M2 and M4 median ratio within 1 +- 0.03."""
     med = np.median(ratios(ipol.rows, name, arithmetic))
@@ -188,7 +189,7 @@ def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     assert med == pytest.approx(measured, abs=0.005)
 
 
-@pytest.mark.parametrize("name, measured", [("M1", 1.028), ("M2", 1.017), ("M4", 0.991), ("M5", 1.006)])
+@pytest.mark.parametrize("name, measured", [("M1", 1.021), ("M2", 1.012), ("M4", 0.990), ("M5", 0.995)])
 def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1)."""
     assert "a different K, not a comparison" in ipol.text
@@ -196,16 +197,16 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     assert r.size == 43
     assert np.median(r) == pytest.approx(measured, abs=0.005)
     if name == "M4":
-        assert iqr(r) == pytest.approx(0.078, abs=0.005)
+        assert iqr(r) == pytest.approx(0.0715, abs=0.005)
 
 
 # The README's table: median ratio, IQR (and min, max offline) with the offline chain's K
 README_TABLE = {
-    "offline": {"M1": (1.045, 0.078, 0.862, 1.147), "M2": (1.015, 0.063, 0.822, 1.118),
-                "M3": (1.015, 0.056, 0.883, 1.150), "M4": (1.006, 0.073, 0.862, 1.099),
-                "M5": (1.004, 0.149, 0.789, 1.268)},
-    "online-fixed": {"M1": (1.046, 0.081), "M2": (1.020, 0.071), "M3": (1.020, 0.075), "M4": (1.001, 0.074),
-                     "M5": (1.000, 0.175)},
+    "offline": {"M1": (1.037, 0.088, 0.836, 1.167), "M2": (1.008, 0.060, 0.802, 1.131),
+                "M3": (1.023, 0.062, 0.895, 1.150), "M4": (0.992, 0.076, 0.843, 1.119),
+                "M5": (0.998, 0.152, 0.815, 1.233)},
+    "online-fixed": {"M1": (1.045, 0.088), "M2": (1.016, 0.064), "M3": (1.027, 0.073), "M4": (0.996, 0.072),
+                     "M5": (0.992, 0.168)},
 }
 
 
@@ -218,10 +219,9 @@ def test_readme_table(ipol, arithmetic, name) -> None:
     np.testing.assert_allclose(got, want, atol=0.0015)
 
 
-@pytest.mark.xfail(reason="on-line M4 IQR 0.110 with the stop rule (0.099 without: the stopping step now counted "
-                          "in 10 trials and in some calibration trials moves their ratios by ~0.03)", strict=True)
 def test_online_m4_iqr_meets_the_target(ipol) -> None:
-    """With the offline chain's K, the on-line algorithm's M4 IQR is 0.074 (offline 0.073)."""
+    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR is 0.072 (offline 0.076); it
+    was 0.110 with Weinberg's range^(1/4) and the stop rule."""
     assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
 
 
@@ -235,21 +235,38 @@ def test_m2_iqr(ipol) -> None:
 
 
 def test_m4_iqr(ipol) -> None:
-    """Issue 4's 0.10: met since M4 is K range^(1/2) (0.103 with Weinberg's range^(1/4))."""
+    """Issue 4's 0.10: met since M4 is K range^(1/2) (0.076; 0.104 with Weinberg's range^(1/4))."""
     assert iqr(ratios(ipol.rows, "M4")) <= 0.10
 
 
 @pytest.mark.parametrize("name", [
-    pytest.param("M2", marks=pytest.mark.xfail(reason="offline M2 IQR 0.063: K from one trial, subjects who walk "
-                                                      "their calibration trial with other steps", strict=True)),
-    pytest.param("M4", marks=pytest.mark.xfail(reason="offline M4 IQR 0.073 (LOSO exponent 1/2; 5/8 would give "
-                                                      "0.060 but saturates the uncalibrated record)", strict=True)),
+    "M2",
+    pytest.param("M4", marks=pytest.mark.xfail(reason="offline M4 IQR 0.076 (exponent chosen leave-one-subject-"
+                                                      "out: 1/2, 3/8 for subject 7): K from one trial, subjects "
+                                                      "who walk their calibration trial with other steps",
+                                               strict=True)),
 ])
 def test_issue12_calibrated_iqr(ipol, name) -> None:
-    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met) and IQR <= 0.06 (missed)."""
+    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 1.008, 0.992) and IQR <= 0.06 (M2 met at
+    the edge, 0.05995; M4 missed, 0.076)."""
     r = ratios(ipol.rows, name)
     assert abs(np.median(r) - 1.0) <= 0.02
     assert iqr(r) <= 0.06
+
+
+@pytest.mark.xfail(reason="best calibrated offline IQR 0.060 (M2; M1 0.088, M4 0.076, M5 0.152): K from one "
+                          "20 m trial", strict=True)
+def test_issue12_best_calibrated_iqr(ipol) -> None:
+    """Issue 12: the best calibrated estimator's IQR <= 0.05."""
+    assert min(iqr(ratios(ipol.rows, e)) for e in ("M1", "M2", "M4", "M5")) <= 0.05
+
+
+@pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
+def test_issue12_m3_without_k(ipol, arithmetic) -> None:
+    """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08 (measured offline 1.023, 0.062; on-line
+    fixed 1.027, 0.073)."""
+    r = ratios(ipol.rows, "M3", arithmetic)
+    assert abs(np.median(r) - 1.0) <= 0.05 and iqr(r) <= 0.08
 
 
 @pytest.mark.xfail(reason="M5 calibrated on one speed: IQR >= 0.109 even with reference step events", strict=True)
@@ -279,19 +296,20 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
     """Issue 12 (5): the heel-strike rule, hs_delay_s and M4's exponent are chosen per held-out subject on the
     other eight; the command says which figures are cross-validated. Measured: the impact rule in 9 of 9 folds,
-    hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out: its on-line rows are marked not
-    cross-validated), M4's exponent 1/2 in 9 of 9."""
+    hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out), M4's exponent 1/2 in 8 and 3/8 in 1 (subject 7
+    held out): the on-line rows of subjects 1 and 7 are marked not cross-validated."""
     t = ipol.text
     assert "chosen leave-one-subject-out" in t and "criterion: heel strikes within 40 ms" in t
     assert "heel_strike_rule (default 'impact'" in t and "'impact' in 9 of 9 folds" in t
     line = t.split("hs_delay_s (default 0.04")[1].split("\n")[0]
     assert "0.04 in 8 of 9 folds" in line and "0.06 in 1 of 9 folds" in line
     line = t.split("m4_exponent (default 0.5")[1].split("\n")[0]
-    assert "criterion: IQR of the calibrated distance ratio" in line and "0.5 in 9 of 9 folds" in line
+    assert "criterion: IQR of the calibrated distance ratio" in line
+    assert "0.5 in 8 of 9 folds" in line and "0.375 in 1 of 9 folds" in line
     assert "stop_prominence_m_s2 (default 0.2" in t and "by step count): 0.2 in 9 of 9 folds" in t
     assert "cross-validated: every offline-chain figure" in t
     not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0"}
-    assert not_cv == {("1", "online-float"), ("1", "online-fixed")}
+    assert not_cv == {(s, a) for s in ("1", "7") for a in ("online-float", "online-fixed")}
     assert all(r["cross_validated"] == "1" for r in ipol.rows if r["arithmetic"] == "offline")
 
 
@@ -304,10 +322,10 @@ def event_line(text, label):
 
 def test_event_timing_is_printed_by_the_command(ipol) -> None:
     """Issue 12 (5): HS and TO F1 within 40 ms and median |error| against the foot sensors, printed by evaluate
-    ipol: cross-validated offline HS F1 0.721 (in-sample with the shipped defaults 0.752), TO 0.576; on-line
+    ipol: cross-validated offline HS F1 0.721 (in-sample with the shipped defaults 0.752), TO 0.577; on-line
     fixed HS 0.732, TO 0.621; median |error| 20 ms (one sample at 50 Hz)."""
     hs, n, to, line = event_line(ipol.text, "offline, constants chosen leave-one-subject-out [cross-validated]: ")
-    assert n == 1774 and hs == pytest.approx(0.721, abs=0.01) and to == pytest.approx(0.576, abs=0.01)
+    assert n == 1774 and hs == pytest.approx(0.721, abs=0.01) and to == pytest.approx(0.577, abs=0.01)
     assert "median |error| 20 ms" in line
     hs_in, _, _, _ = event_line(ipol.text, "offline, shipped defaults (in-sample): ")
     assert hs_in == pytest.approx(0.752, abs=0.01) and hs_in >= hs          # in-sample is the optimistic one
