@@ -1,9 +1,10 @@
 """``gaitlog evaluate sim --population people``: the paper's evaluation on the walker tuned to real people.
 
 Figures stated in the README (4 subjects, seed 0), measured by ``gaitlog evaluate sim DIR --subjects 4
---population people``. They differ from the ``v1`` walkers' where the walker differs: M5's single-speed spread
-(step length not the walk-ratio law any more) and M3's (the people population's wider deviation from the
-pendulum model).
+--population people --protocol compact --laps mark``. They differ from the ``v1`` walkers' where the walker
+differs: M5's single-speed spread (step length not the walk-ratio law any more), M3's (the people population's
+wider deviation from the pendulum model) and M4's (narrower: range^(1/2) suits them better than the walk-ratio
+law of ``v1``).
 """
 
 from __future__ import annotations
