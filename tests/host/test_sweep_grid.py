@@ -20,11 +20,11 @@ from host.cli import main
 from host.errors import HostError
 from host.studies.sweep import AdcRateSweep
 from host.studies.sweep_grid import (
-    PROTOCOLS,
     SENSOR_NOISE_G_RTHZ,
     SweepGrid,
     analog_walk,
     run_task,
+    walk_plan,
 )
 from host.studies.task_store import TaskStore, run_serial
 
@@ -72,9 +72,10 @@ def test_a_task_is_the_compare_sweep_configuration() -> None:
     """One home for the work: the grid's task gives the section ratios of `compare --sweep`'s configuration."""
     task = next(t for t in _grid().tasks() if t.adc_bits == 10 and t.sampling_rate_hz == 50.0)
     rows = run_task(task)["sections"]
-    # the grid draws random_subjects' default population (v1); the sweep's own default is people
-    ref = AdcRateSweep(n_subjects=1, seed=0, adc_bits=(10,), rates_hz=(50.0,), walk_plan=PROTOCOLS["short"],
-                       population="v1").run()
+    # the grid's default population is simulated_population's (people), walking the protocol with its habits
+    assert task.population == "people"
+    ref = AdcRateSweep(n_subjects=1, seed=0, adc_bits=(10,), rates_hz=(50.0,),
+                       walk_plan=walk_plan("short", task.population), population=task.population).run()
     ref_rows = [s for s in ref.results_[0].segments if s["estimator"] in ("M2", "M5")]
     assert len(rows) == len(ref_rows) > 0
     for a, b in zip(rows, ref_rows, strict=True):
