@@ -217,14 +217,7 @@ def trial(seed: int, overwrite: bool, res: CampaignResult) -> None:
         res.misreported += 1
         res.failures.append(f"{where}: samples_written {h.samples_written}, expected {s0 + c_true} "
                             f"(lost {lost}); POWER_LOST {h.power_lost}, recording {h.recording_number}/{number}")
-    rec_after = _decode(h.to_bytes(), logger)
-    _check(rec_after, truth, res, where + " (image after power-up)")
-    rec_raw = _decode(raw_header, logger)
-    _check(rec_raw, truth, res, where + " (data EEPROM as the cut left it)")
-    if not (np.array_equal(rec_raw.valid, rec_after.valid) and np.array_equal(rec_raw.codes, rec_after.codes)
-            and np.array_equal(rec_raw.sample_numbers, rec_after.sample_numbers)):
-        res.misreported += 1
-        res.failures.append(f"{where}: the two decodes differ")
+    _check_both(logger, truth, raw_header, res, where)
     if rng.random() < 0.3 and not (not overwrite and logger.ring.full):  # one more run over the torn page
         run += 1
         logger.firmware.start_logging(start_time_s=run, overwrite=overwrite)

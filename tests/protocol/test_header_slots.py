@@ -3,6 +3,7 @@ the slot order, torn slots, the roll-forward rule, and the emulated device power
 
 from __future__ import annotations
 
+import binascii
 import re
 import struct
 from pathlib import Path
@@ -26,15 +27,6 @@ from protocol.header_slots import (
 )
 
 SPEC = (Path(__file__).resolve().parents[2] / "protocol" / "PROTOCOL.md").read_text(encoding="utf-8")
-
-
-def _crc16_xmodem(data: bytes) -> int:
-    crc = 0
-    for byte in data:
-        crc ^= byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
-    return crc
 
 
 def _hex(text: str) -> bytes:
@@ -68,8 +60,8 @@ def test_spec_example_layout_and_crcs():
     assert len(data) == SLOT_BYTES == 168
     assert data[:160] == header[:160] and data[160:162] == header[254:256]
     assert struct.unpack_from("<I", data, 162)[0] == sequence
-    assert _crc16_xmodem(data[:166]) == int.from_bytes(data[166:168], "big")
-    assert _crc16_xmodem(header[:160]) == int.from_bytes(header[254:256], "big")  # the header's own CRC
+    assert binascii.crc_hqx(data[:166], 0) == int.from_bytes(data[166:168], "big")
+    assert binascii.crc_hqx(header[:160], 0) == int.from_bytes(header[254:256], "big")  # the header's own CRC
     assert SLOT_ADDRESSES[slot_for(sequence)] == int(fields["address"], 16)
     # the code builds and parses the same bytes
     assert slot_bytes(header, sequence=sequence) == data
