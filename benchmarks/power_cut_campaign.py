@@ -227,9 +227,11 @@ def trial(seed: int, overwrite: bool, res: CampaignResult) -> None:
     res.trials += 1
 
 
-def _cut_header_commit(logger: Logger, rng: np.random.Generator) -> tuple[str, bool, bytes]:
-    """Cut the last header commit at a random byte write (or just after it): where it fell, whether the new
-    header is the committed one (its slot complete), and the header as the EEPROMs hold it (power-up's rule)."""
+def _cut_header_commit(logger: Logger, rng: np.random.Generator, res: CampaignResult,
+                       label: str) -> tuple[str, bool, bytes]:
+    """Cut the last header commit (``label``'s) at a random byte write (or just after it), count the cut's
+    kind and power up: the kind, whether the new header is the committed one (its slot complete), and the
+    header as the EEPROMs held it after the cut (power-up's rule)."""
     order = logger.ring._header_write_order()  # ("d", offset) data EEPROM bytes, ("s", i) slot bytes
     assert order, "no header commit to cut"
     # each part as often (the slot's 168 byte writes would otherwise drown the ~10 data EEPROM ones)
@@ -241,7 +243,10 @@ def _cut_header_commit(logger: Logger, rng: np.random.Generator) -> tuple[str, b
     where = logger.ring.power_cut_header(at)
     slots = [logger.step_eeprom.sequential_read(a, SLOT_BYTES) for a in SLOT_ADDRESSES]
     raw_header = committed_header(logger.data_eeprom.read(), slots).header
-    return where, where in ("data EEPROM", "after"), raw_header
+    kind = f"in {label} header commit ({where})"
+    res.cut_kinds[kind] += 1
+    logger.power_up()
+    return kind, where in ("data EEPROM", "after"), raw_header
 
 
 def _header_cut_at_start(logger: Logger, truth: Truth, run: int, overwrite: bool, rng: np.random.Generator,
@@ -252,11 +257,8 @@ def _header_cut_at_start(logger: Logger, truth: Truth, run: int, overwrite: bool
     s0 = int(logger.header.samples_written)
     logger.firmware.start_logging(start_time_s=run, overwrite=overwrite)
     number = int(logger.header.recording_number)
-    cut, landed, raw_header = _cut_header_commit(logger, rng)
-    kind = f"in START's header commit ({cut})"
-    res.cut_kinds[kind] += 1
+    kind, landed, raw_header = _cut_header_commit(logger, rng, res, "START's")
     where = f"{where} cut {kind}"
-    logger.power_up()
     h = logger.header
     now = h.to_bytes()
     if landed:
@@ -277,11 +279,8 @@ def _header_cut_at_stop(logger: Logger, truth: Truth, run_state: tuple[int, int,
     s0, w0, number, room, n_taken = run_state
     label = "STOP's" if logger.ring.logging else "the full memory's"
     logger.firmware.stop_logging()
-    cut, landed, raw_header = _cut_header_commit(logger, rng)
-    kind = f"in {label} header commit ({cut})"
-    res.cut_kinds[kind] += 1
+    kind, landed, raw_header = _cut_header_commit(logger, rng, res, label)
     where = f"{where} cut {kind} after {n_taken} samples"
-    logger.power_up()
     h = logger.header
     c_true = n_taken if landed else _committed(n_taken, w0, room, False)
     truth.codes[s0 + c_true:s0 + n_taken] = -1  # taken, never committed: must never be shown
