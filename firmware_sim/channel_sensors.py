@@ -29,6 +29,7 @@ from scipy import signal
 
 from firmware_sim.adc import Adc
 from firmware_sim.errors import DeviceError
+from firmware_sim.sensor import ou_noise
 
 __all__ = ["ACCELEROMETER", "RATE_SENSOR", "ChannelSensors", "SensorSpec"]
 
@@ -128,19 +129,9 @@ class ChannelSensors:
         return Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz, gain=1.0, ref_v=2.5)
 
     def noise(self, times_s: np.ndarray) -> np.ndarray:
-        """Filtered white noise ``(n, N)`` drawn exactly at the regular instants ``times_s``."""
-        t = np.asarray(times_s, dtype=np.float64)
-        out = np.zeros((t.size, self.n_channels))
-        if t.size == 0:
-            return out
-        dt = float(t[1] - t[0]) if t.size > 1 else 1.0
-        xi = self._rng.standard_normal((self.n_channels, t.size))
-        for j in range(self.n_channels):  # one recursive IIR pass per channel
-            a = np.exp(-dt * 2.0 * np.pi * self.bandwidth_hz[j])
-            drive = self.noise_rms[j] * np.sqrt(1.0 - a * a) * xi[j]
-            drive[0] = self.noise_rms[j] * xi[j, 0]
-            out[:, j] = signal.lfilter([1.0], [1.0, -a], drive)
-        return out
+        """Filtered white noise ``(n, N)`` drawn exactly at the instants ``times_s`` (:func:`firmware_sim.sensor.
+        ou_noise`)."""
+        return ou_noise(times_s, self.noise_rms, self.bandwidth_hz, self._rng)
 
     def sample(self, values: np.ndarray, sampling_rate_hz: float, t0_s: float, adc: Adc) -> tuple[np.ndarray, np.ndarray]:
         """Sensor -> conditioning -> sample-and-hold -> ADC.

@@ -46,7 +46,7 @@ from scipy.spatial.transform import Rotation
 
 from firmware_sim.errors import DeviceError
 
-__all__ = ["SensorModel", "AXIS_PARTS", "filter_cutoff_hz"]
+__all__ = ["SensorModel", "AXIS_PARTS", "filter_cutoff_hz", "ou_noise"]
 
 
 def _ou_regular(drive: np.ndarray, a: float, x0: float) -> np.ndarray:
@@ -54,6 +54,42 @@ def _ou_regular(drive: np.ndarray, a: float, x0: float) -> np.ndarray:
     d = drive.copy()
     d[0] = x0
     return signal.lfilter([1.0], [1.0, -a], d)
+
+
+def ou_noise(times_s: np.ndarray, noise_rms: np.ndarray, cutoff_hz: np.ndarray,
+             rng: np.random.Generator) -> np.ndarray:
+    """White noise through one-pole filters, ``(n, N)``, drawn exactly at the increasing instants ``times_s``.
+
+    An Ornstein-Uhlenbeck process per channel ``j``: ``x_k = a_k x_(k-1) + σ_j sqrt(1 - a_k²) ξ_k`` with
+    ``a_k = exp(-(t_k - t_(k-1)) / τ_j)``, ``τ_j = 1 / (2π cutoff_hz[j])``, ``σ_j = noise_rms[j]`` (the filtered
+    output's rms) and ``x_0`` drawn from the stationary law: no discretisation error, one random number per
+    channel and sample observed (``(N, n)`` standard normals drawn at once).
+    """
+    t = np.asarray(times_s, dtype=np.float64)
+    sigma = np.asarray(noise_rms, dtype=np.float64).reshape(-1)
+    cutoff = np.broadcast_to(np.asarray(cutoff_hz, dtype=np.float64), sigma.shape)
+    n = t.size
+    out = np.zeros((n, sigma.size))
+    if n == 0:
+        return out
+    xi = rng.standard_normal((sigma.size, n))
+    dt = np.diff(t)
+    regular = n < 2 or np.allclose(dt, dt[0], rtol=1e-9, atol=0.0)
+    for j in range(sigma.size):
+        tau = 1.0 / (2.0 * np.pi * cutoff[j])
+        if regular:  # constant coefficient: one IIR pass (the process is genuinely recursive)
+            a = np.exp(-(dt[0] if n > 1 else 1.0) / tau)
+            drive = sigma[j] * np.sqrt(1.0 - a * a) * xi[j]
+            out[:, j] = _ou_regular(drive, a, sigma[j] * xi[j, 0])
+        else:
+            a_k = np.exp(-dt / tau)
+            x = np.empty(n)
+            x[0] = sigma[j] * xi[j, 0]
+            drive = sigma[j] * np.sqrt(1.0 - a_k * a_k) * xi[j, 1:]
+            for k in range(1, n):  # irregular instants: per-sample recursion
+                x[k] = a_k[k - 1] * x[k - 1] + drive[k - 1]
+            out[:, j] = x
+    return out
 
 #: Which part and channel gives each device axis.
 AXIS_PARTS = ("A.X", "A.Y", "B.X")
@@ -238,30 +274,9 @@ class SensorModel:
         actually observed.
         """
         t = np.asarray(times_s, dtype=np.float64)
-        gen = self._rng if rng is None else rng
-        n = t.size
-        out = np.zeros((n, 3))
-        if n == 0 or self.noise_density_g_rthz == 0:
-            return out
-        xi = gen.standard_normal((3, n))
-        dt = np.diff(t)
-        regular = n < 2 or np.allclose(dt, dt[0], rtol=1e-9, atol=0.0)
-        for j in range(3):
-            tau = 1.0 / (2.0 * np.pi * self.cutoff_hz[j])
-            sigma = self.noise_rms_g[j]
-            if regular:  # constant coefficient: one IIR pass (the process is genuinely recursive)
-                a = np.exp(-(dt[0] if n > 1 else 1.0) / tau)
-                drive = sigma * np.sqrt(1.0 - a * a) * xi[j]
-                out[:, j] = _ou_regular(drive, a, sigma * xi[j, 0])
-            else:
-                a_k = np.exp(-dt / tau)
-                x = np.empty(n)
-                x[0] = sigma * xi[j, 0]
-                drive = sigma * np.sqrt(1.0 - a_k * a_k) * xi[j, 1:]
-                for k in range(1, n):  # irregular instants: per-sample recursion
-                    x[k] = a_k[k - 1] * x[k - 1] + drive[k - 1]
-                out[:, j] = x
-        return out
+        if t.size == 0 or self.noise_density_g_rthz == 0:
+            return np.zeros((t.size, 3))
+        return ou_noise(t, self.noise_rms_g, self.cutoff_hz, self._rng if rng is None else rng)
 
     # ------------------------------------------------------------------ action
     def respond(self, acc_g: np.ndarray, sampling_rate_hz: float, *, rng: np.random.Generator | None = None,
