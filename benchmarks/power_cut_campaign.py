@@ -232,7 +232,7 @@ def _cut_header_commit(logger: Logger, rng: np.random.Generator, res: CampaignRe
     """Cut the last header commit (``label``'s) at a random byte write (or just after it), count the cut's
     kind and power up: the kind, whether the new header is the committed one (its slot complete), and the
     header as the EEPROMs held it after the cut (power-up's rule)."""
-    order = logger.ring._header_write_order()  # ("d", offset) data EEPROM bytes, ("s", i) slot bytes
+    order = logger.ring.header_write_order()  # ("d", offset) data EEPROM bytes, ("s", i) slot bytes
     assert order, "no header commit to cut"
     # each part as often (the slot's 168 byte writes would otherwise drown the ~10 data EEPROM ones)
     parts = [[k for k, (w, i) in enumerate(order) if w == "d" and i >= JOURNAL_OFFSET],

@@ -176,15 +176,12 @@ class RingBuffer:
         self.data_eeprom.write(0, new)
         self._commit_in_flight = (before, self.data_eeprom.read(), addr, slot_before, slot_new)
 
-    def header_commit_bytes(self) -> int:
-        """Byte writes of the last header commit through the slots (START's journal clear, the slot, the changed
-        data EEPROM bytes), the range of :meth:`power_cut_header`'s ``at_byte``; 0: none to cut."""
-        return len(self._header_write_order()) if self._commit_in_flight is not None else 0
-
-    def _header_write_order(self) -> list[tuple[str, int]]:
-        """The last commit's byte writes in order: ``("d", offset)`` a data EEPROM byte, ``("s", i)`` slot byte
-        ``i``. The journal clear first (offsets 160-253), the slot, then bytes 0-159 and the CRC ascending."""
-        assert self._commit_in_flight is not None
+    def header_write_order(self) -> list[tuple[str, int]]:
+        """The last header commit's byte writes in order, the range of :meth:`power_cut_header`'s ``at_byte``:
+        ``("d", offset)`` a data EEPROM byte, ``("s", i)`` slot byte ``i``. The journal clear first (offsets
+        160-253), the slot, then bytes 0-159 and the CRC ascending; empty when there is no commit to cut."""
+        if self._commit_in_flight is None:
+            return []
         before, after, _, _, _ = self._commit_in_flight
         changed = [i for i in range(HEADER_SIZE) if before[i] != after[i]]
         journal = [("d", i) for i in changed if JOURNAL_OFFSET <= i < HEADER_SIZE - 2]
@@ -193,14 +190,14 @@ class RingBuffer:
 
     def power_cut_header(self, at_byte: int) -> str:
         """The power fails inside the last header commit, at its byte write ``at_byte`` (see
-        :meth:`header_commit_bytes`): the writes before it are done, the byte at ``at_byte`` is torn (left
+        :meth:`header_write_order`): the writes before it are done, the byte at ``at_byte`` is torn (left
         differing from its new value), the later ones never happen. Returns where the cut fell: ``"journal"``,
         ``"slot"``, ``"data EEPROM"`` or ``"after"`` (``at_byte`` past the end: the commit was complete).
         The RAM state is not touched: power the device up afterwards."""
         if self._commit_in_flight is None or self.slot_eeprom is None:
             return "after"
         before, after, addr, slot_before, slot_after = self._commit_in_flight
-        order = self._header_write_order()
+        order = self.header_write_order()
         if at_byte >= len(order):
             return "after"
         data = bytearray(before)

@@ -115,7 +115,7 @@ def _cut_start(at_part: str) -> tuple[Logger, bytes, int]:
     logger.firmware.stop_logging()
     before = logger.data_eeprom.read()
     logger.firmware.start_logging(start_time_s=200, overwrite=True)
-    order = logger.ring._header_write_order()
+    order = logger.ring.header_write_order()
     pick = {"slot": lambda w, i: w == "s", "data": lambda w, i: w == "d" and i < 160}[at_part]
     at = [k for k, (w, i) in enumerate(order) if pick(w, i)]
     at = at[len(at) // 2]
