@@ -107,8 +107,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except _known_errors() as err:
-        print(f"gaitlog {name}: error: {err}", file=sys.stderr)
+        print(f"gaitlog {name}: error: {_error_text(err)}", file=sys.stderr)
         return 1
+
+
+def _error_text(err: BaseException) -> str:
+    """The one-line text of a known error; an operating-system error naming its file reads ``FILE: reason``
+    (``nothing.glimg: no such file or directory``), not Python's ``[Errno 2] ...``."""
+    if isinstance(err, OSError) and err.filename is not None and err.strerror:
+        return f"{err.filename}: {err.strerror[0].lower()}{err.strerror[1:]}"
+    return str(err)
 
 
 if __name__ == "__main__":  # pragma: no cover
