@@ -2,7 +2,7 @@
 
 .. math:: S = K (a_{max} - a_{min})^p
 
-with ``p`` :data:`firmware_sim.algorithms.parameters.M4_EXPONENT` (5/8; Weinberg's is 1/4: why, and how it
+with ``p`` :data:`firmware_sim.algorithms.parameters.M4_EXPONENT` (1/2; Weinberg's is 1/4: why, and how it
 was chosen leave-one-subject-out, in that module's notes and :mod:`host.studies.tuning`)
 
 per step, ``a`` the vertical acceleration low-passed at 3 Hz (its first harmonic; here a Gaussian
