@@ -21,6 +21,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                      help="distance between consecutive MARK flags, m: every lap between marks is one section")
     parser.add_argument("--out", required=True, metavar="K.json", help="write the calibration here (JSON)")
     parser.add_argument("--subject", default="", help="label stored in the file")
+    parser.add_argument("--prior", choices=("none", "lower-back"), default="none",
+                        help="shrink K of M1, M2 and M4 toward a population K, the more the shorter the calibration "
+                             "walk: 'lower-back' = learned on the IPOL lower-back subjects (logger at L3-L5; "
+                             "'gaitlog evaluate ipol' scores it leave-one-subject-out); 'none' (default) = the "
+                             "paper's K, fitted on these walks alone")
     add_anatomy_options(parser)
     add_input_options(parser)
     add_verbosity_options(parser)
@@ -34,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from host.commands._options import check_outputs, verbosity
     from host.errors import HostError
     from host.gait.k_calibration import calibrate
+    from host.gait.k_prior import PRIORS
     from host.gait.pipeline import StepPipeline
     from host.gait.sections import pool_steps, sections_from_marks
 
@@ -75,12 +81,19 @@ def run(args: argparse.Namespace) -> int:
                                    sampling_rate_hz=data.sampling_rate_hz)
         sections += [pool for pool in (pool_steps(steps, [lap]) for lap in laps) if pool[0].n_steps]
     k = calibrate(sections, leg_length_m=leg, foot_length_m=foot, subject=args.subject)
+    if args.prior != "none":
+        k = PRIORS[args.prior].shrink(k)
     k.save(args.out)
     if verbosity(args) >= 0:
         print(f"{len(sections)} section(s), {k.n_steps} steps, {k.distance_m:g} m ({k.mode}); leg length "
               f"{leg:.3f} m, foot length {foot:.3f} m, from: {lengths.source}" + (f" ({lengths.note})" if lengths.note and not lengths.assumed
                                                           else ""))
         print(f"K  M1 {k.k_m1:.4f}  M2 {k.k_m2:.4f}  M4 {k.k_m4:.4f} m/(m/s^2)^{k.m4_exponent:g}")
+        if k.shrinkage is not None:
+            sh = k.shrinkage
+            print(f"   shrunk toward the population K ({sh['source']}): fitted " + ", ".join(
+                f"{e} {sh['fitted'][e]:.4f} (weight {sh['weight'][e]:.2f}), population {sh['population'][e]:.4f}"
+                for e in sh["fitted"]))
         print(f"M5 S = {k.k1_m5_m_s:.4f} / T + {k.k2_m5_m:.4f} m"
               + ("  (walk-ratio fallback)" if k.m5_fallback else ""))
         print(f"K {k.describe_range()} (stored: 'gaitlog estimate' flags the steps outside it)")

@@ -16,6 +16,8 @@ estimators
     The step-length estimators M1-M5 (one class each).
 k_calibration
     K of M1/M2/M4 and the M5 line fitted to walks over known distances (:class:`KFit`).
+k_prior
+    A population K that one short walk's K is shrunk toward (:class:`KPrior`, empirical Bayes).
 anthropometry
     Leg and foot length from body height when they were not measured.
 """

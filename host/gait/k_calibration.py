@@ -20,9 +20,14 @@ says, per step of another walk and per estimator, when the step lies outside it 
 extrapolation: another speed, another step length). The commands write it as a column and count it.
 
 :class:`KFit` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
-``format_version`` "1.2"; a "1.0" file, written before the calibrated range was stored, is read with
+``format_version`` "1.3"; a "1.0" file, written before the calibrated range was stored, is read with
 ``calibrated_range`` None: nothing can then be said about the range; "1.0" and "1.1" files, written before
-M4's exponent was stored, are read with ``m4_exponent`` 1/4, Weinberg's, which they were fitted with).
+M4's exponent was stored, are read with ``m4_exponent`` 1/4, Weinberg's, which they were fitted with;
+files before "1.3" have no ``shrinkage``: their K is the fitted one).
+
+*Shrinkage.* A K fitted on one short walk may be shrunk toward the K of a population
+(:meth:`host.gait.k_prior.KPrior.shrink`); ``shrinkage`` then records the fitted K, the population K and the
+weights, and K is the shrunk one.
 
 *M4's exponent.* ``k_m4`` is in m / (m/s^2)^p: it holds for the exponent it was fitted with
 (``m4_exponent``). The offline chain applies it with that exponent (:func:`host.gait.pipeline.
@@ -51,6 +56,8 @@ if TYPE_CHECKING:  # pragma: no cover
 #: The quantities of :attr:`KFit.calibrated_range` (names of the per-step CSV columns).
 RANGE_QUANTITIES = ("duration_s", "h_m1_m", "h_m2_m", "acc_range_m4_m_s2", "length_m1_m", "length_m2_m",
                     "length_m4_m", "length_m5_m")
+#: The keys of :attr:`KFit.shrinkage` (:meth:`host.gait.k_prior.KPrior.shrink`).
+SHRINKAGE_KEYS = ("source", "fitted", "population", "weight", "prior_distance_m")
 #: Per calibrated estimator, the quantities whose range its K holds for: the step duration (cadence: the
 #: speed), the estimator's own input and its length.
 RANGE_OF_ESTIMATOR = {"M1": ("duration_s", "h_m1_m", "length_m1_m"), "M2": ("duration_s", "h_m2_m", "length_m2_m"),
@@ -94,12 +101,16 @@ class KFit(VersionedJson):
         when unknown (a format "1.0" file).
     m4_exponent
         M4's exponent ``p`` that ``k_m4`` was fitted with (module notes; 1/4 in a "1.0" or "1.1" file).
+    shrinkage
+        None when K is the fitted one; else how K of M1, M2 and M4 was shrunk toward a population
+        (:meth:`host.gait.k_prior.KPrior.shrink`): ``source``, and per estimator the ``fitted`` K, the
+        ``population`` K, the fitted K's ``weight`` and the prior's ``prior_distance_m``.
     """
 
     SCHEMA: ClassVar[str] = "gaitlog.KCalibration"
-    FORMAT_VERSION: ClassVar[str] = "1.2"
+    FORMAT_VERSION: ClassVar[str] = "1.3"
     #: Older format versions this gaitlog still reads (:meth:`from_dict`).
-    OLD_VERSIONS: ClassVar[tuple[str, ...]] = ("1.0", "1.1")
+    OLD_VERSIONS: ClassVar[tuple[str, ...]] = ("1.0", "1.1", "1.2")
     #: M4's exponent of the files written before it was stored (Weinberg's).
     OLD_M4_EXPONENT: ClassVar[float] = 0.25
     KIND: ClassVar[str] = "K calibration"
@@ -121,6 +132,7 @@ class KFit(VersionedJson):
     notes: list[str] = field(default_factory=list)
     calibrated_range: dict[str, list[float]] | None = None
     m4_exponent: float = M4_EXPONENT
+    shrinkage: dict[str, Any] | None = None
 
     def step_constants(self) -> dict[str, object]:
         """The K fields of the device's step configuration (:class:`protocol.steps.StepConfig`, PROTOCOL.md 2.2):
@@ -154,6 +166,14 @@ class KFit(VersionedJson):
                                                                 for x in v) for v in rng.values()):
                 raise HostError(f"{source}: key 'calibrated_range' must map {', '.join(RANGE_QUANTITIES)} to "
                                 "[min, max]")
+        if cal.shrinkage is not None:
+            sh = cal.shrinkage
+            if not (isinstance(sh, dict) and set(sh) == set(SHRINKAGE_KEYS) and isinstance(sh["source"], str)
+                    and all(isinstance(sh[k], dict) and set(sh[k]) == {"M1", "M2", "M4"} and all(
+                        isinstance(x, (int, float)) and not isinstance(x, bool) for x in sh[k].values())
+                            for k in SHRINKAGE_KEYS if k != "source")):
+                raise HostError(f"{source}: key 'shrinkage' must map source to text and "
+                                f"{', '.join(k for k in SHRINKAGE_KEYS if k != 'source')} to {{M1, M2, M4: number}}")
         if not (math.isfinite(cal.m4_exponent) and 0 < cal.m4_exponent <= 1):
             raise HostError(f"{source}: key 'm4_exponent' must be in (0, 1], got {cal.m4_exponent!r}")
         for name in ("leg_length_m", "foot_length_m"):
@@ -165,13 +185,20 @@ class KFit(VersionedJson):
     @classmethod
     def from_dict(cls, data: object, *, source: str | None = None) -> Self:
         """:meth:`VersionedJson.from_dict`, also reading the format versions of :attr:`OLD_VERSIONS` ("1.0":
-        no calibrated range, ``calibrated_range`` None; "1.0" and "1.1": ``m4_exponent`` 1/4)."""
+        no calibrated range, ``calibrated_range`` None; "1.0" and "1.1": ``m4_exponent`` 1/4; all of them:
+        ``shrinkage`` None)."""
         if isinstance(data, dict) and data.get("cal_type") == cls.SCHEMA and data.get("format_version") in cls.OLD_VERSIONS:
             old = data.get("format_version")
+            where = source or "<K calibration>"
+            if "shrinkage" in data:
+                raise HostError(f"{where}: key 'shrinkage' in a format {old} file")
+            if old == "1.2":
+                data = {**data, "format_version": cls.FORMAT_VERSION}
+                return super().from_dict(data, source=source)
             if "m4_exponent" in data:
-                raise HostError(f"{source or '<K calibration>'}: key 'm4_exponent' in a format {old} file")
+                raise HostError(f"{where}: key 'm4_exponent' in a format {old} file")
             if old == "1.0" and "calibrated_range" in data:
-                raise HostError(f"{source or '<K calibration>'}: key 'calibrated_range' in a format 1.0 file")
+                raise HostError(f"{where}: key 'calibrated_range' in a format 1.0 file")
             data = {**data, "format_version": cls.FORMAT_VERSION, "m4_exponent": cls.OLD_M4_EXPONENT}
         return super().from_dict(data, source=source)
 

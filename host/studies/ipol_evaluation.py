@@ -43,6 +43,12 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    applies it in its own arithmetic. M3 is never calibrated. Separately, and labelled so (``k_from =
    "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
    its own uncalibrated records of the calibration trial -- a different K, not a comparison.
+5b. *K prior* (:mod:`host.gait.k_prior`): every K above is shrunk toward the median K of the *other* subjects
+   (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` = 20 m, ``d0`` per
+   estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
+   the variants (the other U-turn rule, the height unknown, the on-line chain's own K) toward the same
+   variant of the other subjects with the fold's ``d0``. The prior learned on every subject is printed
+   (:attr:`IpolResult.prior_all`; shipped as :data:`host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
@@ -61,6 +67,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -80,12 +87,19 @@ from host.files.replay import check_records, online_step_table, run_starts
 from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
 from host.gait.estimators.weinberg import weinberg_length_m
 from host.gait.k_calibration import KFit, calibrate
+from host.gait.k_prior import (
+    PRIOR_DISTANCE_CANDIDATES_M,
+    PRIOR_ESTIMATORS,
+    KPrior,
+    population_prior,
+)
 from host.gait.pipeline import StepPipeline, apply_calibration
 from host.studies.compare import match_steps
 from host.studies.tuning import (
     COUNT_CRITERION,
     CRITERION,
     K_CRITERION,
+    K_PRIOR_CRITERION,
     MATCH_TOLERANCE_S,
     TIMING_TOLERANCE_S,
     TUNED_PARAMETERS,
@@ -95,6 +109,7 @@ from host.studies.tuning import (
     choose_loso,
     choose_loso_spread,
     detector_for,
+    least_error,
     score_events,
 )
 from protocol.steps import StepConfig
@@ -345,6 +360,12 @@ class IpolResult:
     calibrations_online
         The K the on-line chains use per subject: ``calibrations``' own unless the subject's fold chose another
         M4 exponent than the logger's, then K refitted on the same trial with the logger's.
+    priors, prior_training_error
+        Per held-out subject, the K prior learned on the other subjects (:func:`choose_prior`; ``"main"``: with
+        the fold's M4 exponent, ``"online"``: with the logger's) and its training error per estimator.
+    prior_all
+        The prior learned on every subject with the shipped constants (what
+        :data:`host.gait.k_prior.LOWER_BACK_PRIOR` ships; never used to score).
     """
 
     rows: list[dict]
@@ -365,6 +386,9 @@ class IpolResult:
     m4_training_iqr: dict[int, float] = field(default_factory=dict)
     calibrations_online: dict[int, KFit] = field(default_factory=dict)
     count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
+    priors: dict[int, dict[str, KPrior]] = field(default_factory=dict)
+    prior_training_error: dict[int, dict[str, float]] = field(default_factory=dict)
+    prior_all: KPrior | None = None
 
 
 def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
@@ -385,22 +409,54 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
                      subject=str(rt.subject), m4_exponent=m4_exponent)
 
 
-def _m4_ratios(trials: list[tuple[ReplayedTrial, list[StepTable]]], candidate: int, exponent: float, *,
-               uturn: str, leg: float, foot: float) -> list[float]:
-    """M4's distance ratios of a subject's scored trials with K fitted on its first trial, the offline chain
-    of one event candidate and M4 computed with ``exponent`` (the ``"k-transfer"`` criterion's input)."""
+def _transfer(trials: list[tuple[ReplayedTrial, list[StepTable]]], candidate: int, exponent: float, *,
+              uturn: str, leg: float, foot: float) -> tuple[KFit, dict[str, list[float]]] | None:
+    """A subject's K fitted on its first trial (the offline chain of one event candidate, M4 computed with
+    ``exponent``) and the distance ratios of M1, M2 and M4 on its other trials with that K (the input of
+    the ``"k-transfer"`` criterion); None when the calibration fails."""
     offs = [tables[candidate] for _, tables in trials]
     try:
         k = _calibrate_on(trials[0][0], offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=exponent)
     except HostError:
-        return []
-    out = []
+        return None
+    out: dict[str, list[float]] = {e: [] for e in PRIOR_ESTIMATORS}
     for (rt, _), off in zip(trials[1:], offs[1:], strict=True):
         table = off.select(np.ones(off.n_steps, bool))
         table.length_m = apply_calibration(off, k)
         sec, counts = trial_steps(rt, table, uturn=uturn)
-        out.append(section_distance(sec, counts, "M4") / IPOL_DISTANCE_M)
-    return out
+        for e in PRIOR_ESTIMATORS:
+            out[e].append(section_distance(sec, counts, e) / IPOL_DISTANCE_M)
+    return k, out
+
+
+def _shrunk_ratios(fit: KFit, ratios: list[float], estimator: str, prior: KPrior) -> list[float]:
+    """``ratios`` (scored with ``fit``'s K) with ``estimator``'s K shrunk toward ``prior`` (distances are linear
+    in K: each ratio scales by shrunk K / fitted K)."""
+    attr = f"k_{estimator.lower()}"
+    scale = getattr(prior.shrink(fit), attr) / getattr(fit, attr)
+    return [r * scale for r in ratios]
+
+
+def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *, source: str) -> tuple[KPrior, dict[str, float]]:
+    """The K prior learned on ``transfers`` (subject: its first-trial K and its other trials' ratios with it).
+
+    The population K is the median over the subjects (:func:`host.gait.k_prior.population_prior`); ``d0`` per
+    estimator is the candidate (:data:`host.gait.k_prior.PRIOR_DISTANCE_CANDIDATES_M`) whose pooled ratios have
+    the smallest mean squared log ratio (:data:`host.studies.tuning.K_PRIOR_CRITERION`: the loss shrinkage
+    minimises, smoother than an IQR of a few dozen ratios), each subject's K shrunk toward the median of the
+    *others* (so that no subject is pulled toward itself). Returns the prior and that error per estimator.
+    """
+    subjects = list(transfers)
+    inner = {o: population_prior([transfers[q][0] for q in subjects if q != o]) for o in subjects}
+    zero = dict.fromkeys(PRIOR_ESTIMATORS, 0.0)
+    chosen, error = {}, {}
+    for e in PRIOR_ESTIMATORS:
+        pooled = [[r for o in subjects for r in _shrunk_ratios(transfers[o][0], transfers[o][1][e], e,
+                                                                inner[o].with_distances({**zero, e: d0}))]
+                  for d0 in PRIOR_DISTANCE_CANDIDATES_M]
+        j, error[e] = least_error(pooled)
+        chosen[e] = PRIOR_DISTANCE_CANDIDATES_M[j]
+    return population_prior([transfers[o][0] for o in subjects], distance_m=chosen, source=source), error
 
 
 def _score_rows(rt: ReplayedTrial, table: StepTable, k: KFit, *, arithmetic: str, k_from: str, uturn: str,
@@ -541,19 +597,42 @@ def evaluate_folder(
                                 for s, trials in replayed.items()}, cands)
     # 2b. M4's exponent, leave-one-subject-out on the calibrated M4 ratios (the fold's event constants)
     exponents = next(p.candidates for p in TUNED_PARAMETERS if p.name == "m4_exponent")
+    shipped_j = next(j for j, e in enumerate(exponents) if math.isclose(e, M4_EXPONENT))
     scorable = [s for s, trials in replayed.items() if len(trials) >= 2]
-    cache: dict[tuple[int, int, int], list[float]] = {}
+    cache: dict[tuple[int, int, int], tuple[KFit, dict[str, list[float]]] | None] = {}
+
+    def transfer(o: int, c: int, j: int) -> tuple[KFit, dict[str, list[float]]] | None:
+        if (o, c, j) not in cache:
+            cache[(o, c, j)] = _transfer(replayed[o], c, exponents[j], uturn=uturn, leg=lengths[o][0],
+                                         foot=lengths[o][1])
+        return cache[(o, c, j)]
+
+    p4_index: dict[int, int] = {}
     for s in scorable:
         c = res.loso.chosen[s]
-        for o in scorable:
-            for j, e in enumerate(exponents):
-                if o != s and (o, c, j) not in cache:
-                    cache[(o, c, j)] = _m4_ratios(replayed[o], c, e, uturn=uturn, leg=lengths[o][0],
-                                                  foot=lengths[o][1])
-        chosen, iqr = choose_loso_spread({o: [cache.get((o, c, j), []) for j in range(len(exponents))]
-                                          for o in scorable})
+        ratios = {o: [(t[1]["M4"] if (t := transfer(o, c, j)) else []) for j in range(len(exponents))]
+                  for o in scorable if o != s}
+        chosen, iqr = choose_loso_spread({**ratios, s: [[] for _ in exponents]})
+        p4_index[s] = chosen[s]
         res.m4_exponent[s], res.m4_training_iqr[s] = float(exponents[chosen[s]]), iqr[s]
+    # 2c. the K prior, leave-one-subject-out: the other subjects' first-trial K (the fold's constants) and d0
+    #     chosen on them (nested: each of them shrunk toward the median of the rest); the shipped prior is
+    #     the one learned on every subject with the shipped constants
+    for s in scorable:
+        c = res.loso.chosen[s]
+        for j, key in ((p4_index[s], "main"), (shipped_j, "online")):
+            train = {o: t for o in scorable if o != s and (t := transfer(o, c, j)) is not None}
+            if len(train) >= 2:
+                prior, error = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")
+                res.priors.setdefault(s, {})[key] = prior
+                if key == "main":
+                    res.prior_training_error[s] = error
+    every = {o: t for o in scorable if (t := transfer(o, 0, shipped_j)) is not None}
+    if len(every) >= 3:
+        res.prior_all = choose_prior(every, source=f"IPOL lower back, subjects {', '.join(map(str, every))}, "
+                                                   "first trial each")[0]
     # 3. per subject: K on the first trial with the constants chosen without it, the other trials scored
+    fits: dict[int, dict[str, Any]] = {}
     for subject in by_subject:
         trials = replayed.get(subject, [])
         if len(by_subject[subject]) < 2:
@@ -564,8 +643,6 @@ def evaluate_folder(
             continue
         c = res.loso.chosen[subject]
         p4 = res.m4_exponent.get(subject, M4_EXPONENT)
-        # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
-        cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
         leg, foot, source = lengths[subject]
         offs = [tables[c] for _, tables in trials]
         rt0 = trials[0][0]
@@ -580,15 +657,39 @@ def evaluate_folder(
         except HostError as err:
             res.skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
             continue
-        res.calibrations[subject] = k
-        res.calibrations_online[subject] = k_online
         own = None
         if "online-fixed" in arithmetic:
             try:
                 own = _calibrate_on(rt0, rt0.device_table(), uturn=uturn, leg=leg, foot=foot)
-                res.calibrations_own[subject] = own
             except HostError as err:
                 res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
+        fits[subject] = dict(k=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own, offs=offs,
+                             assumed=assumed, trials=trials, source=source, cv_online=c == 0 and math.isclose(p4, M4_EXPONENT))
+    # 3b. every K shrunk toward the other subjects' (2c; the variants toward the same variant of the others, each
+    #     fitted with its own fold's constants, with the d0 of the fold)
+    shrunk: dict[int, dict[str, KFit]] = {}
+    for subject, f in fits.items():
+        priors = res.priors.get(subject)
+        if not priors:
+            continue
+        new = shrunk[subject] = {"k": priors["main"].shrink(f["k"])}
+        new["k_online"] = new["k"] if f["k_online"] is f["k"] else priors["online"].shrink(f["k_online"])
+        for name in ("k_other", "k_assumed", "own"):
+            others = [g[name] for o, g in fits.items() if o != subject and g[name] is not None and f[name] is not None
+                      and math.isclose(g[name].m4_exponent, f[name].m4_exponent)]
+            if len(others) >= 2:
+                new[name] = population_prior(others, distance_m=priors["main"].distance_m, source=(
+                    f"the other subjects' {name.removeprefix('k_')} K (leave-one-out)")).shrink(f[name])
+    for subject, new in shrunk.items():
+        fits[subject].update(new)
+    # 3c. the rows
+    for subject, f in fits.items():
+        k, k_online, k_other, k_assumed, own = f["k"], f["k_online"], f["k_other"], f["k_assumed"], f["own"]
+        offs, assumed, trials, source, cv_online = f["offs"], f["assumed"], f["trials"], f["source"], f["cv_online"]
+        res.calibrations[subject] = k
+        res.calibrations_online[subject] = k_online
+        if own is not None:
+            res.calibrations_own[subject] = own
         for i, (rt, _) in enumerate(trials):
             tables: dict[str, StepTable] = {}
             for a in arithmetic:
@@ -721,6 +822,20 @@ def format_tuning(result: IpolResult) -> str:
             lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}; criterion: {K_CRITERION}): "
                          + ", ".join(f"{v!r} in {values.count(v)} of {len(values)} folds" for v in dict.fromkeys(values)))
             continue
+        if p.criterion == "k-prior":
+            if not result.priors:
+                continue
+            folds = [pr["main"] for pr in result.priors.values()]
+            lines.append(f"  {p.name} ({p.used_in}; criterion: {K_PRIOR_CRITERION}): " + "; ".join(
+                f"{e} " + ", ".join(f"{v:g} m in {n} of {len(folds)} folds" for v, n in sorted(Counter(
+                    f.distance_m[e] for f in folds).items())) for e in PRIOR_ESTIMATORS))
+            if result.prior_all is not None:
+                a = result.prior_all
+                lines.append("    learned on every subject (shipped as LOWER_BACK_PRIOR, never used to score): d0 "
+                             + ", ".join(f"{e} {a.distance_m[e]:g} m" for e in PRIOR_ESTIMATORS)
+                             + f"; population K: M1 {a.k_m1:.4f}, M2 {a.k_m2:.4f}, M4 {a.k_m4_per_leg:.4f} x leg "
+                             f"length (m/(m/s^2)^{a.m4_exponent:g} per m)")
+            continue
         values = [result.candidates[c][p.name] for c in loso.values()]
         counts = {v: values.count(v) for v in dict.fromkeys(values)}
         lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}; by {p.criterion}): "
@@ -728,7 +843,8 @@ def format_tuning(result: IpolResult) -> str:
     every_default = (all(c == 0 for c in loso.values())
                      and all(math.isclose(v, M4_EXPONENT) for v in result.m4_exponent.values()))
     lines.append("cross-validated: every offline-chain figure (each subject scored with the constants chosen on "
-                 "the other subjects; K per subject from its first trial, scored on its other trials); the on-line "
+                 "the other subjects; K per subject from its first trial, shrunk toward the other subjects' K, scored "
+                 "on its other trials); the on-line "
                  "chains run the shipped defaults: "
                  + ("every fold chose them, so their figures are cross-validated too" if every_default else
                     "some folds chose otherwise, so their rows of those subjects are NOT cross-validated "

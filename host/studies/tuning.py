@@ -17,6 +17,9 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   (:data:`K_CRITERION`, :func:`choose_loso_spread`): the IQR of the calibrated M4 distance ratio, K fitted on
   each training subject's first trial and scored on its other trials, pooled; ties go to the earlier
   candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
+* ``k_prior_distance_m``: the weight ``d0`` of the population prior K is shrunk toward, per estimator
+  (:mod:`host.gait.k_prior`), chosen with the population K of the training subjects by
+  :data:`K_PRIOR_CRITERION` (:func:`least_error`; ``host.studies.ipol_evaluation.choose_prior``).
 * ``stop_prominence_m_s2``: the stop rule's prominence (a bout's weak last step, :mod:`host.gait.events`
   notes 5; 0: off), chosen by the step count (:data:`COUNT_CRITERION`).
 
@@ -45,12 +48,14 @@ import numpy as np
 
 from firmware_sim.algorithms.parameters import M4_EXPONENT, EventParameters, samples
 from host.gait.events import GaitEventDetector, link_steps
+from host.gait.k_prior import LOWER_BACK_PRIOR, PRIOR_DISTANCE_CANDIDATES_M
 from host.gait.masked_filter import masked_gaussian_lowpass
 from host.studies.compare import match_events
 
-__all__ = ["COUNT_CRITERION", "CRITERION", "K_CRITERION", "MATCH_TOLERANCE_S", "TIMING_TOLERANCE_S", "TUNED_PARAMETERS",
-           "EventScore", "LosoChoice", "SteepestRiseDetector", "TunedParameter", "candidates", "choose_loso",
-           "choose_loso_spread", "detector_for", "k_parameters", "score_events"]
+__all__ = ["COUNT_CRITERION", "CRITERION", "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
+           "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
+           "TunedParameter", "candidates", "choose_loso", "choose_loso_spread", "detector_for", "k_parameters",
+           "least_error", "least_spread", "score_events"]
 
 #: An event matches a reference event within this (the F1 criterion of the event figures).
 MATCH_TOLERANCE_S = 0.04
@@ -80,6 +85,9 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
     TunedParameter("m4_exponent", (M4_EXPONENT, 0.25, 0.375), M4_EXPONENT,
                    "firmware_sim.algorithms.parameters.M4_EXPONENT (M4 = K range^p), both chains",
                    criterion="k-transfer"),
+    TunedParameter("k_prior_distance_m", PRIOR_DISTANCE_CANDIDATES_M, dict(LOWER_BACK_PRIOR.distance_m),
+                   "host.gait.k_prior.LOWER_BACK_PRIOR (K shrunk toward the other subjects' K), the host's K",
+                   criterion="k-prior"),
     TunedParameter("stop_prominence_m_s2", (0.0, 0.2, 0.3, 0.4), EventParameters().stop_prominence_m_s2,
                    "EventParameters.stop_prominence_m_s2 (a bout's weak last step), both chains",
                    criterion="step count"),
@@ -93,13 +101,20 @@ K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subje
                "trials, pooled over the training subjects (ties: the earlier candidate)")
 
 
+#: The criterion of the K prior's weight (:func:`least_error`; :mod:`host.gait.k_prior`).
+K_PRIOR_CRITERION = ("mean squared log distance ratio, K from each training subject's first trial shrunk toward the "
+                     "median K of the other training subjects, scored on its other trials, pooled (ties: the "
+                     "smaller prior weight)")
+
+
 def k_parameters(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[TunedParameter]:
-    """The parameters chosen by :data:`K_CRITERION` (not part of the event grid, :func:`candidates`).
+    """The parameters chosen on calibrated distance ratios (:data:`K_CRITERION`, :data:`K_PRIOR_CRITERION`; not
+    part of the event grid, :func:`candidates`).
 
     >>> [p.name for p in k_parameters()]
-    ['m4_exponent']
+    ['m4_exponent', 'k_prior_distance_m']
     """
-    return [p for p in parameters if p.criterion == "k-transfer"]
+    return [p for p in parameters if p.criterion in ("k-transfer", "k-prior")]
 
 
 #: The step-counting constants' criterion (``TunedParameter.criterion == "step count"``), in words.
@@ -111,12 +126,12 @@ def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[
     """The grid: every combination of candidate values, the defaults first (the steepest-rise rule only with
     the default ``hs_delay_s``, which it ignores).
 
-    The ``"k-transfer"`` parameters are not part of the grid (:func:`choose_loso_spread`).
+    The :func:`k_parameters` are not part of the grid (:func:`choose_loso_spread`, the K prior).
 
     >>> len(candidates()), candidates()[0]
     (24, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2})
     """
-    parameters = [p for p in parameters if p.criterion != "k-transfer"]
+    parameters = [p for p in parameters if p not in k_parameters(parameters)]
     default = {p.name: p.default for p in parameters}
     grid = [dict(zip([p.name for p in parameters], combo))
             for combo in itertools.product(*[p.candidates for p in parameters])]
@@ -284,9 +299,52 @@ def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]],
     return LosoChoice(chosen, f1s)
 
 
+def least_spread(ratios: Sequence[Sequence[float]]) -> tuple[int, float]:
+    """The candidate whose ratios have the smallest IQR, and that IQR (:data:`K_CRITERION`).
+
+    ``ratios[candidate]``: distance ratios (estimated / real; NaN ones are left out). Ties go to the earlier
+    candidate; a candidate without a ratio is never chosen (``(0, inf)`` when none has one).
+
+    >>> least_spread([[0.8, 1.2, 0.9, 1.1], [1.0, 1.01, 0.99, 1.0]])[0]
+    1
+    """
+    best, best_iqr = 0, math.inf
+    for c, r in enumerate(ratios):
+        v = np.asarray(r, np.float64)
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            continue
+        q1, q3 = np.percentile(v, [25, 75])
+        if q3 - q1 < best_iqr:
+            best, best_iqr = c, float(q3 - q1)
+    return best, best_iqr
+
+
+def least_error(ratios: Sequence[Sequence[float]]) -> tuple[int, float]:
+    """The candidate whose ratios have the smallest mean squared log ratio (:data:`K_PRIOR_CRITERION`), and it.
+
+    ``ratios[candidate]``: distance ratios (estimated / real; NaN ones are left out). ``log(ratio)`` weighs
+    over- and underestimation alike. Ties go to the earlier candidate; a candidate without a ratio is never
+    chosen (``(0, inf)`` when none has one).
+
+    >>> least_error([[0.9, 1.1], [1.0, 1.02]])
+    (1, 0.000196...)
+    """
+    best, best_err = 0, math.inf
+    for c, r in enumerate(ratios):
+        v = np.asarray(r, np.float64)
+        v = v[np.isfinite(v) & (v > 0)]
+        if v.size == 0:
+            continue
+        err = float(np.mean(np.log(v) ** 2))
+        if err < best_err:
+            best, best_err = c, err
+    return best, best_err
+
+
 def choose_loso_spread(ratios: Mapping[int, Sequence[Sequence[float]]]) -> tuple[dict[int, int], dict[int, float]]:
     """For each subject, the candidate whose pooled ratios of the *other* subjects have the smallest IQR
-    (:data:`K_CRITERION`).
+    (:data:`K_CRITERION`, :func:`least_spread`).
 
     ``ratios[subject][candidate]``: the distance ratios (estimated / real) of that subject's scored trials
     with that candidate (same candidate order everywhere; NaN ratios are left out). Returns the chosen index
@@ -300,14 +358,5 @@ def choose_loso_spread(ratios: Mapping[int, Sequence[Sequence[float]]]) -> tuple
     n_cand = len(next(iter(ratios.values())))
     chosen, iqrs = {}, {}
     for s in subjects:
-        best, best_iqr = 0, math.inf
-        for c in range(n_cand):
-            v = np.concatenate([np.asarray(ratios[o][c], np.float64) for o in subjects if o != s] or [np.zeros(0)])
-            v = v[np.isfinite(v)]
-            if v.size == 0:
-                continue
-            q1, q3 = np.percentile(v, [25, 75])
-            if q3 - q1 < best_iqr:
-                best, best_iqr = c, float(q3 - q1)
-        chosen[s], iqrs[s] = best, best_iqr
+        chosen[s], iqrs[s] = least_spread([[x for o in subjects if o != s for x in ratios[o][c]] for c in range(n_cand)])
     return chosen, iqrs

@@ -170,3 +170,30 @@ def test_lengths_default_to_the_logger_step_configuration(tmp_path, capsys) -> N
     captured = capsys.readouterr()
     assert "step configuration" in captured.out and "1.70 m adult" not in captured.err
     assert json.loads((tmp_path / "k.json").read_text())["leg_length_m"] == pytest.approx(0.954, abs=1e-4)
+
+
+def test_calibrate_k_with_the_lower_back_prior(tmp_path, capsys) -> None:
+    """--prior lower-back: the file's K is the fitted K shrunk toward the shipped population K with weights
+    d / (d + d0), the fitted K and weights are stored and printed; the default is the fitted K alone."""
+    from host.gait.k_calibration import KFit
+    from host.gait.k_prior import LOWER_BACK_PRIOR
+
+    acc, _ = walk_acc_g(n_steps=30)
+    rec = tmp_path / "rec.npz"
+    write_npz(rec, acc)
+    plain, shrunk = tmp_path / "k.json", tmp_path / "k_prior.json"
+    assert main(["calibrate-k", str(rec), "--distance", "18", "--height", "1.75", "--out", str(plain)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate-k", str(rec), "--distance", "18", "--height", "1.75", "--prior", "lower-back",
+                 "--out", str(shrunk)]) == 0
+    out = capsys.readouterr().out
+    a, b = KFit.load(plain), KFit.load(shrunk)
+    assert a.shrinkage is None and b.shrinkage["source"] == LOWER_BACK_PRIOR.source
+    for e in ("M1", "M2", "M4"):
+        d0 = LOWER_BACK_PRIOR.distance_m[e]
+        pop = LOWER_BACK_PRIOR.population_k(e, a.leg_length_m)
+        k = getattr(a, f"k_{e.lower()}")
+        assert getattr(b, f"k_{e.lower()}") == pytest.approx((18 * k + d0 * pop) / (18 + d0))
+    assert (b.k1_m5_m_s, b.k2_m5_m) == (a.k1_m5_m_s, a.k2_m5_m)
+    assert f"K  M1 {b.k_m1:.4f}" in out and "shrunk toward the population K (IPOL lower back" in out
+    assert f"M2 {a.k_m2:.4f} (weight {18 / (18 + LOWER_BACK_PRIOR.distance_m['M2']):.2f})" in out

@@ -85,7 +85,7 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     back = KFit.load(p)
     assert back == cal
     d = json.loads(p.read_text())
-    assert d["format_version"] == "1.2" and d["cal_type"] == "gaitlog.KCalibration"
+    assert d["format_version"] == "1.3" and d["cal_type"] == "gaitlog.KCalibration"
     assert d["m4_exponent"] == M4_EXPONENT
     assert d["calibrated_range"]["duration_s"] == [0.55, 0.55]
     d["format_version"] = "9.9"
@@ -96,12 +96,12 @@ def test_json_round_trip_and_version_check(tmp_path) -> None:
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match=r"'0\.9' \(re-run 'gaitlog calibrate-k'\)"):
         KFit.load(p)
-    d["format_version"] = "1.2"
+    d["format_version"] = "1.3"
     d["calibrated_range"] = {"duration_s": [0.5, 0.6]}
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match="key 'calibrated_range' must map"):
         KFit.load(p)
-    del d["calibrated_range"], d["m4_exponent"]
+    del d["calibrated_range"], d["m4_exponent"], d["shrinkage"]
     d["format_version"] = "1.0"
     d["k_m1"] = "one"
     p.write_text(json.dumps(d))
@@ -132,7 +132,7 @@ def test_a_format_1_0_file_is_read_without_a_range(tmp_path) -> None:
     cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
     d = cal.to_dict()
     d["format_version"] = "1.0"
-    del d["calibrated_range"], d["m4_exponent"]
+    del d["calibrated_range"], d["m4_exponent"], d["shrinkage"]
     p = tmp_path / "old.json"
     p.write_text(json.dumps(d))
     old = KFit.load(p)
@@ -151,7 +151,7 @@ def test_a_format_1_1_file_keeps_weinbergs_exponent(tmp_path) -> None:
     cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
     d = cal.to_dict()
     d["format_version"] = "1.1"
-    del d["m4_exponent"]
+    del d["m4_exponent"], d["shrinkage"]
     p = tmp_path / "old.json"
     p.write_text(json.dumps(d))
     old = KFit.load(p)
