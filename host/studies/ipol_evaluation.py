@@ -107,9 +107,9 @@ from host.studies.tuning import (
     LosoChoice,
     candidates,
     choose_loso,
-    choose_loso_spread,
     detector_for,
     least_error,
+    least_spread,
     score_events,
 )
 from protocol.steps import StepConfig
@@ -610,11 +610,10 @@ def evaluate_folder(
     p4_index: dict[int, int] = {}
     for s in scorable:
         c = res.loso.chosen[s]
-        ratios = {o: [(t[1]["M4"] if (t := transfer(o, c, j)) else []) for j in range(len(exponents))]
-                  for o in scorable if o != s}
-        chosen, iqr = choose_loso_spread({**ratios, s: [[] for _ in exponents]})
-        p4_index[s] = chosen[s]
-        res.m4_exponent[s], res.m4_training_iqr[s] = float(exponents[chosen[s]]), iqr[s]
+        p4_index[s], res.m4_training_iqr[s] = least_spread(
+            [[r for o in scorable if o != s and (t := transfer(o, c, j)) for r in t[1]["M4"]]
+             for j in range(len(exponents))])
+        res.m4_exponent[s] = float(exponents[p4_index[s]])
     # 2c. the K prior, leave-one-subject-out: the other subjects' first-trial K (the fold's constants) and d0
     #     chosen on them (nested: each of them shrunk toward the median of the rest); the shipped prior is
     #     the one learned on every subject with the shipped constants
@@ -663,8 +662,10 @@ def evaluate_folder(
                 own = _calibrate_on(rt0, rt0.device_table(), uturn=uturn, leg=leg, foot=foot)
             except HostError as err:
                 res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
+        # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
+        cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
         fits[subject] = dict(k=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own, offs=offs,
-                             assumed=assumed, trials=trials, source=source, cv_online=c == 0 and math.isclose(p4, M4_EXPONENT))
+                             assumed=assumed, trials=trials, source=source, cv_online=cv_online)
     # 3b. every K shrunk toward the other subjects' (2c; the variants toward the same variant of the others, each
     #     fitted with its own fold's constants, with the d0 of the fold)
     shrunk: dict[int, dict[str, KFit]] = {}

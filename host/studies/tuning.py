@@ -14,7 +14,7 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   EventParameters`; 0-80 ms, whole samples at 50 Hz; ignored by the steepest-rise rule).
 * ``m4_exponent``: M4's ``S = K (a_max - a_min)^p`` (:data:`firmware_sim.algorithms.parameters.M4_EXPONENT`;
   1/4 (Weinberg), 3/8, 1/2: why these, in that module's notes). Its criterion is the one K must meet
-  (:data:`K_CRITERION`, :func:`choose_loso_spread`): the IQR of the calibrated M4 distance ratio, K fitted on
+  (:data:`K_CRITERION`, :func:`least_spread` on the training subjects' ratios): the IQR of the calibrated M4 distance ratio, K fitted on
   each training subject's first trial and scored on its other trials, pooled; ties go to the earlier
   candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
 * ``k_prior_distance_m``: the weight ``d0`` of the population prior K is shrunk toward, per estimator
@@ -33,7 +33,7 @@ step-counting constants (``criterion = "step count"``), chosen second with the h
 fold: the sum over the training trials of |detected - reference steps| (the trial section, U-turn steps
 included; ties: the earlier candidate). Only the event detection is re-run per candidate (the offline chain
 on cached trials, milliseconds per trial), never the logger's replay. M4's exponent (``criterion =
-"k-transfer"``) is chosen apart, by :data:`K_CRITERION` (:func:`choose_loso_spread`).
+"k-transfer"``) is chosen apart, by :data:`K_CRITERION` (:func:`least_spread`).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ from host.studies.compare import match_events
 
 __all__ = ["COUNT_CRITERION", "CRITERION", "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
            "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
-           "TunedParameter", "candidates", "choose_loso", "choose_loso_spread", "detector_for", "k_parameters",
+           "TunedParameter", "candidates", "choose_loso", "detector_for", "k_parameters",
            "least_error", "least_spread", "score_events"]
 
 #: An event matches a reference event within this (the F1 criterion of the event figures).
@@ -126,7 +126,7 @@ def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[
     """The grid: every combination of candidate values, the defaults first (the steepest-rise rule only with
     the default ``hs_delay_s``, which it ignores).
 
-    The :func:`k_parameters` are not part of the grid (:func:`choose_loso_spread`, the K prior).
+    The :func:`k_parameters` are not part of the grid (:func:`least_spread`, :func:`least_error`).
 
     >>> len(candidates()), candidates()[0]
     (24, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2})
@@ -340,23 +340,3 @@ def least_error(ratios: Sequence[Sequence[float]]) -> tuple[int, float]:
         if err < best_err:
             best, best_err = c, err
     return best, best_err
-
-
-def choose_loso_spread(ratios: Mapping[int, Sequence[Sequence[float]]]) -> tuple[dict[int, int], dict[int, float]]:
-    """For each subject, the candidate whose pooled ratios of the *other* subjects have the smallest IQR
-    (:data:`K_CRITERION`, :func:`least_spread`).
-
-    ``ratios[subject][candidate]``: the distance ratios (estimated / real) of that subject's scored trials
-    with that candidate (same candidate order everywhere; NaN ratios are left out). Returns the chosen index
-    and the training IQR per held-out subject.
-
-    >>> tight, wide = [1.0, 1.01, 0.99, 1.0], [0.8, 1.2, 0.9, 1.1]
-    >>> choose_loso_spread({1: [wide, tight], 2: [wide, tight], 3: [tight, tight]})[0]
-    {1: 1, 2: 1, 3: 1}
-    """
-    subjects = list(ratios)
-    n_cand = len(next(iter(ratios.values())))
-    chosen, iqrs = {}, {}
-    for s in subjects:
-        chosen[s], iqrs[s] = least_spread([[x for o in subjects if o != s for x in ratios[o][c]] for c in range(n_cand)])
-    return chosen, iqrs
