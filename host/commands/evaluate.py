@@ -168,7 +168,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
-          "trial 1 with the offline chain, for every arithmetic; lengths from each subject's height ("
+          "trial 1 with the offline chain and shrunk toward the other subjects' K (the K prior), for every "
+          "arithmetic; lengths from each subject's height ("
           + ", ".join(f"{n} trials {src}" for src, n in _count(r["lengths_source"] for r in main_rows(res.rows)
                                                                  if r["estimator"] == "M1" and r["arithmetic"] == arith[0]
                                                                  and r["k_from"] == "offline").items())
@@ -187,6 +188,8 @@ def run(args: argparse.Namespace) -> int:
         _print_table("arithmetic = offline, height UNKNOWN: a 1.70 m adult assumed for every subject (K fitted with "
                      "those lengths; M3 has no K to absorb them)",
                      summarise(res.rows, arithmetic="offline", variant="height-unknown"))
+        _print_table("arithmetic = offline, NO K prior: K from trial 1 alone (the paper's K)",
+                     summarise(res.rows, arithmetic="offline", variant="no-prior"))
     print("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of detected"
           " - reference; outside K: steps outside the range K was calibrated on (duration, the estimator's input "
           "or length), of the steps in the trials")

@@ -27,8 +27,9 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    distance stays 20 m (10 m out + 10 m back). ``uturn="include"`` sums every step instead.
    Both the per-subject calibration and the evaluation use the same rule, so K absorbs the part of the
    20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
-   The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), and with the
-   height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted).
+   The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
+   height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
+   with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b).
 4b. *Tuned constants* (:mod:`host.studies.tuning`): the offline chain is run per trial for every candidate
    of the constants chosen from these recordings; for each subject the candidate is chosen on the other
    subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
@@ -437,7 +438,8 @@ def _shrunk_ratios(fit: KFit, ratios: list[float], estimator: str, prior: KPrior
     return [r * scale for r in ratios]
 
 
-def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *, source: str) -> tuple[KPrior, dict[str, float]]:
+def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *,
+                 source: str) -> tuple[KPrior, dict[str, float]]:
     """The K prior learned on ``transfers`` (subject: its first-trial K and its other trials' ratios with it).
 
     The population K is the median over the subjects (:func:`host.gait.k_prior.population_prior`); ``d0`` per
@@ -664,8 +666,8 @@ def evaluate_folder(
                 res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
         # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
         cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
-        fits[subject] = dict(k=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own, offs=offs,
-                             assumed=assumed, trials=trials, source=source, cv_online=cv_online)
+        fits[subject] = dict(k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own,
+                             offs=offs, assumed=assumed, trials=trials, source=source, cv_online=cv_online)
     # 3b. every K shrunk toward the other subjects' (2c; the variants toward the same variant of the others, each
     #     fitted with its own fold's constants, with the d0 of the fold)
     shrunk: dict[int, dict[str, KFit]] = {}
@@ -673,7 +675,7 @@ def evaluate_folder(
         priors = res.priors.get(subject)
         if not priors:
             continue
-        new = shrunk[subject] = {"k": priors["main"].shrink(f["k"])}
+        new = shrunk[subject] = {"k": priors["main"].shrink(f["k"]), "k_fitted": f["k"]}
         new["k_online"] = new["k"] if f["k_online"] is f["k"] else priors["online"].shrink(f["k_online"])
         for name in ("k_other", "k_assumed", "own"):
             others = [g[name] for o, g in fits.items() if o != subject and g[name] is not None and f[name] is not None
@@ -719,6 +721,9 @@ def evaluate_folder(
                 unknown = assumed[i].select(np.ones(assumed[i].n_steps, bool))
                 unknown.length_m = apply_calibration(assumed[i], k_assumed)
                 runs.append(("offline", "offline", unknown, k_assumed, uturn, "assumed-height", "height-unknown", True))
+                alone = offs[i].select(np.ones(offs[i].n_steps, bool))
+                alone.length_m = apply_calibration(offs[i], f["k_fitted"])
+                runs.append(("offline", "offline", alone, f["k_fitted"], uturn, source, "no-prior", True))
             for a, k_from, table, kk, u, src, variant, cv in runs:
                 res.rows += _score_rows(rt, table, kk, arithmetic=a, k_from=k_from, uturn=u, lengths_source=src,
                                         variant=variant, cross_validated=cv)

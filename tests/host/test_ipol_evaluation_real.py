@@ -92,8 +92,9 @@ def test_csv_layout(ipol) -> None:
                      ("online-fixed", "offline", "main", "exclude", "subject-height"),
                      ("online-fixed", "own", "main", "exclude", "subject-height"),
                      ("offline", "offline", "uturn-include", "include", "subject-height"),
-                     ("offline", "offline", "height-unknown", "exclude", "assumed-height")}
-    assert len(rows) == 6 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 6 kinds
+                     ("offline", "offline", "height-unknown", "exclude", "assumed-height"),
+                     ("offline", "offline", "no-prior", "exclude", "subject-height")}
+    assert len(rows) == 7 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 7 kinds
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -368,17 +369,20 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
 
 
 @pytest.mark.parametrize("variant, measured", [("uturn-include", {"M2": (1.005, 0.052), "M3": (1.086, 0.083)}),
-                                               ("height-unknown", {"M2": (1.001, 0.050), "M3": (1.018, 0.061)})])
+                                               ("height-unknown", {"M2": (1.001, 0.050), "M3": (1.018, 0.061)}),
+                                               ("no-prior", {"M1": (1.037, 0.088), "M2": (1.008, 0.060),
+                                                             "M4": (0.992, 0.076)})])
 def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
     """Issue 12 (3): the offline chain also with the U-turn steps summed (M3, without K, then reads the turn as
     straight walking: 1.086) and with the height unknown (a 1.70 m adult for everyone: these subjects are
     1.63-1.80 m, so M3 barely moves; K absorbs most of the lengths of M1/M2/M4, the population K toward which
-    it is shrunk the rest)."""
+    it is shrunk the rest), and with the first trial's K alone (no prior: what the prior buys)."""
     for e, (med, q) in measured.items():
         r = ratios(ipol.rows, e, variant=variant)
         assert r.size == 43
         assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
     assert "U-turn included (the other rule" in ipol.text and "height UNKNOWN: a 1.70 m adult assumed" in ipol.text
+    assert "NO K prior: K from trial 1 alone" in ipol.text
 
 
 def test_steps_outside_the_calibrated_range_are_counted(ipol) -> None:

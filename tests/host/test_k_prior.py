@@ -112,3 +112,31 @@ def test_the_shipped_prior_is_a_lower_back_population() -> None:
     assert all(math.isfinite(v) for v in (p.k_m1, p.k_m2, p.k_m4_per_leg)) and p.n_subjects == 9
     assert 1.0 < p.k_m2 < 1.6 and 0.2 < p.k_m4_per_leg < 0.5
     assert all(d > 0 for d in p.distance_m.values())
+
+
+def _transfers(first_k_error: list[float], later_ratio: list[float]) -> dict:
+    """Subjects with the same true K (1.3 for M2) whose first trial measured it with ``first_k_error``; their
+    other trials, scored with that K, come out at ``later_ratio``."""
+    out = {}
+    for s, (err, r) in enumerate(zip(first_k_error, later_ratio, strict=True)):
+        k = dataclasses.replace(fit(), k_m1=1.1 * (1 + err), k_m2=1.3 * (1 + err), k_m4=0.3 * (1 + err))
+        out[s] = (k, {e: [r, r] for e in PRIOR_ESTIMATORS})
+    return out
+
+
+def test_choose_prior_shrinks_fully_when_first_trials_are_noise_and_not_at_all_when_they_are_exact() -> None:
+    """Analytic cases of the nested choice (host.studies.ipol_evaluation.choose_prior)."""
+    from host.gait.k_prior import PRIOR_DISTANCE_CANDIDATES_M
+    from host.studies.ipol_evaluation import choose_prior
+
+    errors = [-0.06, -0.02, 0.0, 0.03, 0.07]
+    # everybody has the same K: the first trial's deviation is pure noise, carried into the later ratios
+    noise, _ = choose_prior(_transfers(errors, [1 + e for e in errors]), source="t")
+    # (a strong prior, not the largest d0: the median of the *others* errs against each subject's own error, so
+    # keeping a little of the first trial's K helps; measured 80 m: weight 0.18 at 18 m)
+    assert all(noise.distance_m[e] >= 40.0 for e in PRIOR_ESTIMATORS)
+    assert max(PRIOR_DISTANCE_CANDIDATES_M) > 40.0
+    # the first trial measured each subject's own K exactly: the later ratios are 1, the prior can only hurt
+    exact, _ = choose_prior(_transfers(errors, [1.0] * 5), source="t")
+    assert all(exact.distance_m[e] == 0.0 for e in PRIOR_ESTIMATORS)
+    assert exact.k_m2 == pytest.approx(1.3) and exact.n_subjects == 5       # the median of the subjects' K
