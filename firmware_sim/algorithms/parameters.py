@@ -311,5 +311,5 @@ class SampleCounts:
             max(0, int(round(math.log2(max(online.gravity_tau_s * sampling_rate_hz, 1.0))))),
             online.median_steps,
             events.min_step_fraction_scaled,
-            max(1, int(math.floor(2.0 * online.prior_step_s * sampling_rate_hz + 0.5))),
+            max(1, math.floor(2.0 * online.prior_step_s * sampling_rate_hz + 0.5)),
         )
