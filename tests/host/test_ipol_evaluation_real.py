@@ -292,6 +292,8 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
     assert np.median(err) <= 0.03
     assert np.median(np.abs(d)) <= 1 and np.median(d) == 0
     assert np.abs(d).max() <= 3
+    if arithmetic == "online-fixed":           # the README's on-line figures
+        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(41, abs=2)
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:

@@ -418,3 +418,8 @@ def test_an_image_of_algorithm_version_1_decodes_and_says_so(walk):
     assert "this host replays version 2, so they are not verified" in check.summary()
     current = decode_bytes(build_image(logger.header, logger.memory, step_memory=logger.step_memory))
     assert not any("algorithm version" in n for n in current.notes)
+    from host.commands.info import step_lines  # `gaitlog info` says it too
+
+    assert "on-line version 1, leg 0.9300 m, foot 0.1940 m, records by on-line algorithm version 1 (firmware 1.0)" \
+        in step_lines(rec.header)[1]
+    assert "records by" not in step_lines(current.header)[1]
