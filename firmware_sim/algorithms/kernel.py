@@ -38,8 +38,9 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    from down to up, so its vertical acceleration is upward; a peak at or below zero (the causal gravity
    estimate makes ``a_v``'s walking mean zero) is a ripple of the single support, where the body vaults
    over the stance leg and accelerates downward (the inverted pendulum of Alvarez et al.; Zijlstra & Hof,
-   Gait Posture 18, 2003). No constant: a sign test, identical in both arithmetics. *Stop rule*
-   (``stop_prominence``, 0: off): a peak that fell by ``stop_prominence`` only (:func:`_weak_peak` while looking for a trough, or after a full
+   Gait Posture 18, 2003). No constant: a sign test, identical in both arithmetics.
+   *Stop rule* (``stop_prominence``, 0: off): a
+   peak that fell by ``stop_prominence`` only (:func:`_weak_peak` while looking for a trough, or after a full
    rise) ``DIST`` to ``3 DIST`` after a final full foot-flat, with nothing pending, becomes the pending
    foot-flat marked weak (:func:`_stop_candidate`); it is final ``max_step`` after it, and dropped at a
    full-prominence rise or foot-flat before (the walker did not stop). One weak step per bout end.
