@@ -29,7 +29,7 @@ import numpy as np
 from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
 from firmware_sim.errors import DeviceError
-from firmware_sim.firmware import FIRMWARE_VERSION, Firmware
+from firmware_sim.firmware import FIRMWARE_VERSION, Firmware, as_run
 from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from firmware_sim.sensor import SensorModel
 from firmware_sim.step_store import StepStore
@@ -169,7 +169,7 @@ class Logger:
             capacity_samples=CAPACITY_SAMPLES,
             adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
             step_capacity=STEP_CAPACITY_RECORDS,
-            step_config=step_config,
+            step_config=as_run(step_config),
         )
         if channel_map is not None:  # an instrument's channels (PROTOCOL.md 2.6) instead of the three axes
             header.axes, header.calibration = channel_map.n_channels, channel_map

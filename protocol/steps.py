@@ -49,6 +49,8 @@ __all__ = [
     "STEP_LENGTH_FIELDS",
     "StepFlag",
     "StepFormat",
+    "ONLINE_ALGORITHM_VERSION",
+    "ALGORITHM_VERSIONS",
     "StepConfigFlag",
     "STEP_RECORD_BODY_STRUCT",
     "STEP_RECORD_STRUCT",
@@ -106,7 +108,24 @@ class StepFormat(enum.IntEnum):
     """``step_format`` byte of the step configuration block."""
 
     OFF = 0  #: the on-line step algorithm is off (plain logging)
-    V1 = 1  #: on-line algorithm version 1 (the firmware's fixed-point step chain)
+    V1 = 1  #: on-line algorithm version 1 (firmware 1.0; images only: firmware 1.1 stores 2)
+    V2 = 2  #: on-line algorithm version 2 (firmware 1.1: the version the firmware runs)
+
+
+#: The on-line algorithm version the firmware runs: SET_STEP_CONFIG with any on-line ``step_format`` turns
+#: it on, and the device stores this version in its header (PROTOCOL.md 2.2), so an image says which
+#: algorithm wrote its step records.
+ONLINE_ALGORITHM_VERSION = StepFormat.V2
+
+#: What each on-line algorithm version computed, one line each (a decoder says it for an image's records).
+ALGORITHM_VERSIONS = {
+    StepFormat.V1: ("on-line algorithm version 1 (firmware 1.0): minimum foot-flat distance min_step until three "
+                    "step intervals are known, every confirmed peak a foot-flat candidate; M4 = K range^p with "
+                    "p = 1/4 in earlier and 1/2 in later builds, which the image does not record"),
+    StepFormat.V2: ("on-line algorithm version 2 (firmware 1.1): minimum foot-flat distance from a prior typical "
+                    "step of 0.55 s until three step intervals are known, foot-flats only above zero; M4 = K "
+                    "range^(1/2)"),
+}
 
 
 class StepConfigFlag(enum.IntFlag):
@@ -385,7 +404,8 @@ class StepConfig:
     Parameters
     ----------
     step_format
-        0 (:attr:`StepFormat.OFF`): on-line step algorithm off; 1 (:attr:`StepFormat.V1`): on, version 1.
+        0 (:attr:`StepFormat.OFF`): on-line step algorithm off; 1 or 2: on (:data:`ALGORITHM_VERSIONS`; the
+        device runs :data:`ONLINE_ALGORITHM_VERSION` and stores it, whichever of them it was sent).
     calibrated
         The K constants are valid (``step_flags`` bit ``CALIBRATED``).
     leg_length_m, foot_length_m
@@ -448,7 +468,8 @@ class StepConfig:
         try:
             fmt = StepFormat(int(self.step_format))
         except (ValueError, TypeError):
-            raise _config_error(f"unknown step format {self.step_format!r} (known: 0 off, 1 on-line version 1)",
+            raise _config_error(f"unknown step format {self.step_format!r} (known: 0 off, 1 and 2 on-line "
+                                f"algorithm versions)",
                                 "step_format") from None
         out = {"step_format": int(fmt), "step_flags": int(StepConfigFlag.CALIBRATED) if self.calibrated else 0}
         for attr, fieldname in _CONFIG_VALUES:
@@ -466,8 +487,8 @@ class StepConfig:
                 raise _config_error(f"{attr} {x} outside the stored range {lo / scale:g} ... {hi / scale:.6g}",
                                     fieldname)
             out[fieldname] = q
-        if fmt == StepFormat.V1 and out["leg_length_q15"] == 0:
-            raise _config_error(f"step_format 1 needs a leg length > 0 (found {self.leg_length_m} m)",
+        if fmt != StepFormat.OFF and out["leg_length_q15"] == 0:
+            raise _config_error(f"step_format {int(fmt)} needs a leg length > 0 (found {self.leg_length_m} m)",
                                 "leg_length_q15")
         return out
 
@@ -477,8 +498,8 @@ class StepConfig:
         Raises
         ------
         ProtocolError
-            Unknown ``step_format``, a non-finite or out-of-range value, or format 1 with a leg length that
-            is 0 once stored; the error names the field and its offset in the block.
+            Unknown ``step_format``, a non-finite or out-of-range value, or an on-line format with a leg
+            length that is 0 once stored; the error names the field and its offset in the block.
         """
         return _STEP_CONFIG_FAST.build(self.raw)
 
@@ -490,21 +511,23 @@ class StepConfig:
         Raises
         ------
         ProtocolError
-            Wrong length, ``step_format`` > 1, reserved ``step_flags`` bits set, or format 1 with a leg length
-            of 0; offsets are ``base_offset`` plus the field's offset in the block.
+            Wrong length, ``step_format`` > 2, reserved ``step_flags`` bits set, or an on-line format with a
+            leg length of 0; offsets are ``base_offset`` plus the field's offset in the block.
         """
         if len(data) != STEP_CONFIG_SIZE:
             raise ProtocolError(f"step configuration block: expected {STEP_CONFIG_SIZE} bytes, found {len(data)}",
                                 offset=base_offset, source=source)
         c = _STEP_CONFIG_FAST.parse(bytes(data))
         if c.step_format not in {int(f) for f in StepFormat}:
-            raise _config_error(f"unknown step format {c.step_format} (known: 0 off, 1 on-line version 1)",
+            raise _config_error(f"unknown step format {c.step_format} (known: 0 off, 1 and 2 on-line algorithm "
+                                "versions)",
                                 "step_format", source, base_offset)
         if c.step_flags & ~int(StepConfigFlag.CALIBRATED):
             raise _config_error(f"reserved bits set in 0x{c.step_flags:02x} (only 0x01 CALIBRATED is defined)",
                                 "step_flags", source, base_offset)
-        if c.step_format == StepFormat.V1 and c.leg_length_q15 == 0:
-            raise _config_error("step_format 1 needs a leg length > 0 (found 0)", "leg_length_q15", source,
+        if c.step_format != StepFormat.OFF and c.leg_length_q15 == 0:
+            raise _config_error(f"step_format {c.step_format} needs a leg length > 0 (found 0)",
+                                "leg_length_q15", source,
                                 base_offset)
         values = {attr: c[name] / (1 << _fraction_bits(name)) for attr, name in _CONFIG_VALUES}
         return cls(step_format=StepFormat(c.step_format),

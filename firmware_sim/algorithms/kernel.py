@@ -30,7 +30,16 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``m >= pending + distance`` and the peak being climbed (if any) lies beyond the distance or is lower —
    a look-ahead bounded by ``max_step``. The distance is ``max(min_step, fraction · median)`` of the last
    ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
-   foot-flat does not lengthen the distance that caused it. *Stop rule* (``stop_prominence``, 0: off): a
+   foot-flat does not lengthen the distance that caused it; until three intervals are known (a run's first
+   steps) the median is the prior typical step ``prior_step`` (0.55 s,
+   :class:`~firmware_sim.algorithms.parameters.OnlineParameters`), where the offline chain has the whole
+   recording's. *Double support* (on-line algorithm version 2): only a peak with ``y3 > 0`` is a foot-flat
+   (:func:`_confirmed`): at foot-flat the centre of mass is at its lowest, its vertical velocity turning
+   from down to up, so its vertical acceleration is upward; a peak at or below zero (the causal gravity
+   estimate makes ``a_v``'s walking mean zero) is a ripple of the single support, where the body vaults
+   over the stance leg and accelerates downward (the inverted pendulum of Alvarez et al.; Zijlstra & Hof,
+   Gait Posture 18, 2003). No constant: a sign test, identical in both arithmetics.
+   *Stop rule* (``stop_prominence``, 0: off): a
    peak that fell by ``stop_prominence`` only (:func:`_weak_peak` while looking for a trough, or after a full
    rise) ``DIST`` to ``3 DIST`` after a final full foot-flat, with nothing pending, becomes the pending
    foot-flat marked weak (:func:`_stop_candidate`); it is final ``max_step`` after it, and dropped at a
@@ -125,11 +134,11 @@ __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_C
 #: Integer configuration slots (the same in both arithmetics).
 CI = dict(R3=0, R10=1, R5=2, MIN_STEP=3, MAX_STEP=4, HS_BEFORE=5, HS_AFTER=6, HS_DELAY=7, TO_SPAN=8,
           G_SHIFT=9, N_MED=10, FRACTION=11, CODE_FRAC=12, MANT_FRAC=13, EXC_SHIFT1=14, EXC_SHIFT2=15,
-          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21)
+          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21, PRIOR_TWICE=22)
 N_CI = len(CI)
 (CI_R3, CI_R10, CI_R5, CI_MIN_STEP, CI_MAX_STEP, CI_HS_BEFORE, CI_HS_AFTER, CI_HS_DELAY, CI_TO_SPAN,
  CI_G_SHIFT, CI_N_MED, CI_FRACTION, CI_CODE_FRAC, CI_MANT_FRAC, CI_EXC_SHIFT1, CI_EXC_SHIFT2, CI_UNIT_FRAC,
- CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT) = range(N_CI)
+ CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT, CI_PRIOR_TWICE) = range(N_CI)
 
 #: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
 CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, FRAC=22,
@@ -437,7 +446,14 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
 
 @njit(cache=True)
 def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
-    """A peak of ``y3`` at ``p`` confirmed by the hysteresis: the duration stream, then the foot-flat."""
+    """A peak of ``y3`` at ``p`` confirmed by the hysteresis: the duration stream, then the foot-flat.
+
+    Only a peak above zero is a foot-flat (module notes, step 5): one at or below zero is a ripple of the
+    single support and enters neither the duration stream nor the foot-flat candidates.
+    """
+    s_cost(cnt, OP_CMP32, 1)
+    if yp <= yp * 0:
+        return k                                   # the CoM not accelerated upwards: no double support
     # the step-duration stream: peaks min_step apart (the offline chain's first pass)
     if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] < cfg_i[CI_MIN_STEP]:
         if yp > st_v[RAW_Y]:
@@ -683,9 +699,9 @@ def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no co
 
 @njit(cache=True)
 def reset(cfg_i, st_i, st_v, line, durs):  # pragma: no cover - compiled
-    """START: a fresh state, the step-distance rule at its minimum."""
+    """START: a fresh state; the minimum distance from the prior typical step until the median is known."""
     st_i[:] = 0
     st_v[:] = 0
     line[:] = 0
     durs[:] = 0
-    st_i[DIST] = cfg_i[CI_MIN_STEP]
+    st_i[DIST] = minimum_distance(cfg_i[CI_PRIOR_TWICE], cfg_i[CI_MIN_STEP], cfg_i[CI_FRACTION])

@@ -203,6 +203,7 @@ class OnlineConfig:
                                 CODE_FRAC=centred_q(adc_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
                                 SCRATCH=_scratch_size(c), W10=w10, W5=w5, AMP_SHIFT=ev.amplitude_shift,
+                                PRIOR_TWICE=c.prior_step_twice,
                                 BUDGET=int(cycles_available if cycles_available is not None
                                            else cycles_per_sample_available(sampling_rate_hz))).items():
             cfg_i[ci[name]] = value

@@ -46,7 +46,8 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   Shorter time constants let the step's own acceleration into the gravity estimate (0.32 s: M2 +3 % on the
   IPOL trials against the offline chain), longer ones follow trunk tilt more slowly (2.56 s: within 0.2 %);
   the rule, not those trials, sets it. The typical step duration is the median of the last
-  ``median_steps`` (7) peak intervals.
+  ``median_steps`` (7) peak intervals; before three are known, the prior ``prior_step_s`` (0.55 s, a
+  literature cadence; the offline chain has the whole recording's median instead).
 * M4's exponent :data:`M4_EXPONENT` 1/2, not Weinberg's 1/4 (Alvarez eq 4; Weinberg, ADI AN-602, fitted on
   his own device). With K fitted on one trial, a range^(1/4) follows a subject's later, longer or shorter
   steps too little: IPOL subject 5 walks its first trial with 38 steps of 0.53 m and its others with 33 of
@@ -222,11 +223,20 @@ class OnlineParameters:
         Number of recent peak intervals whose median is the typical step duration (odd).
     min_gravity_g
         Below this gravity magnitude the vertical direction is not defined (free fall): ``a_v = 0``.
+    prior_step_s
+        The typical step duration assumed until ``3`` peak intervals are known (a run's first steps): the
+        minimum foot-flat distance is then ``min_step_fraction · prior_step_s`` (17 samples, 0.34 s, at
+        50 Hz), not ``min_step_s``.
+        0.55 s is a cadence of 109 steps/min, the middle of the laboratory normal-walking cadences of adults
+        (96-138 steps/min for women, 81-135 for men: Tudor-Locke & Rowe, Sports Med 42, 2012, 381-398; the
+        same review's pedestrians walk at 115 steps/min); a literature value, not chosen on IPOL. The offline
+        chain needs no prior: it has the whole recording's median.
     """
 
     gravity_tau_s: float = 1.28
     median_steps: int = 7
     min_gravity_g: float = 0.2
+    prior_step_s: float = 0.55
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.gravity_tau_s) and self.gravity_tau_s > 0):
@@ -235,6 +245,9 @@ class OnlineParameters:
             raise ValueError(f"median_steps must be an odd integer in 3..15, got {self.median_steps!r}")
         if not 0 < self.min_gravity_g < 1:
             raise ValueError(f"min_gravity_g must be in (0, 1) g, got {self.min_gravity_g!r}")
+        if not (isinstance(self.prior_step_s, (int, float)) and math.isfinite(self.prior_step_s)
+                and 0 < self.prior_step_s <= 2.0):
+            raise ValueError(f"prior_step_s must be in (0, 2] s, got {self.prior_step_s!r}")
 
 
 def gaussian_radius(cutoff_hz: float, sampling_rate_hz: float, *, truncate: float = 4.0) -> int:
@@ -259,6 +272,8 @@ class SampleCounts:
     >>> c = SampleCounts.at(EventParameters(), OnlineParameters(), 50.0)
     >>> c.r3, c.r10, c.r5, c.min_step, c.max_step, c.hs_before, c.hs_after, c.hs_delay, c.to_span, c.gravity_shift
     (9, 3, 5, 13, 75, 10, 3, 2, 15, 6)
+    >>> c.prior_step_twice, minimum_distance(c.prior_step_twice, c.min_step, c.fraction_scaled)
+    (55, 17)
     """
 
     sampling_rate_hz: float
@@ -274,6 +289,7 @@ class SampleCounts:
     gravity_shift: int
     median_steps: int
     fraction_scaled: int
+    prior_step_twice: int
 
     @classmethod
     def at(cls, events: EventParameters, online: OnlineParameters, sampling_rate_hz: float) -> SampleCounts:
@@ -295,4 +311,5 @@ class SampleCounts:
             max(0, int(round(math.log2(max(online.gravity_tau_s * sampling_rate_hz, 1.0))))),
             online.median_steps,
             events.min_step_fraction_scaled,
+            max(1, math.floor(2.0 * online.prior_step_s * sampling_rate_hz + 0.5)),
         )

@@ -61,6 +61,11 @@ def step_lines(header) -> list[str]:
         q = cfg.quantised()
         algorithm = (f"on-line version {int(cfg.step_format)}, leg {q.leg_length_m:.4f} m, "
                      f"foot {q.foot_length_m:.4f} m, ")
+        from protocol.steps import ALGORITHM_VERSIONS, ONLINE_ALGORITHM_VERSION
+
+        if int(cfg.step_format) != ONLINE_ALGORITHM_VERSION:   # an older firmware's records
+            algorithm += (f"records by {ALGORITHM_VERSIONS[cfg.step_format]} (this host replays version "
+                          f"{int(ONLINE_ALGORITHM_VERSION)}), ")
         from firmware_sim.algorithms.parameters import M4_EXPONENT
 
         algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^{M4_EXPONENT:g}, "

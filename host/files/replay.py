@@ -32,7 +32,14 @@ from host.errors import HostError
 from host.files.recording import Recording
 from protocol.errors import ProtocolError
 from protocol.packing import FLAG_SESSION_START
-from protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
+from protocol.steps import (
+    ALGORITHM_VERSIONS,
+    ONLINE_ALGORITHM_VERSION,
+    STEP_RECORD_DTYPE,
+    StepConfig,
+    StepFormat,
+    pack_step_records,
+)
 
 __all__ = ["RunCheck", "ReplayCheck", "run_starts", "replay_records", "check_records", "verify_step_records",
            "step_config_for", "online_step_table"]
@@ -73,6 +80,9 @@ class ReplayCheck:
     n_replay_unknown
         Replayed records inside a verifiable span that were not compared because the device's records there
         are unknown (stored, but dropped by the decoder: ``unknown_end_samples`` of :func:`check_records`).
+    algorithm_version
+        The header's ``step_format``: the on-line algorithm version that wrote the records. Only
+        :data:`protocol.steps.ONLINE_ALGORITHM_VERSION`'s are replayed; an older version's are not compared.
     """
 
     replay: np.ndarray
@@ -83,6 +93,7 @@ class ReplayCheck:
     mismatches: list[tuple[int, str]] = field(default_factory=list)
     n_unverifiable: int = 0
     n_replay_unknown: int = 0
+    algorithm_version: int = int(ONLINE_ALGORITHM_VERSION)
 
     @property
     def identical(self) -> bool:
@@ -101,6 +112,11 @@ class ReplayCheck:
 
     def summary(self) -> str:
         """One line."""
+        if self.algorithm_version not in (0, ONLINE_ALGORITHM_VERSION):
+            return (f"device step records: {self.n_device} stored by "
+                    f"{ALGORITHM_VERSIONS.get(StepFormat(self.algorithm_version), 'an unknown on-line algorithm')}; "
+                    f"this host replays version {int(ONLINE_ALGORITHM_VERSION)}, so they are not verified (their "
+                    f"lengths are version {self.algorithm_version}'s)")
         if self.n_compared == 0:
             return (f"device step records: none verifiable ({self.n_device} stored, {self.n_unverifiable} outside "
                     f"the replayable runs)")
@@ -185,10 +201,14 @@ def check_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, sampl
 
     Within each run's verifiable span, records are matched by ``end_sample``; the 20 bytes must be equal.
     Records older than the oldest device record are not compared (the step ring may have overwritten them).
+    Records of an older on-line algorithm version (the header's ``step_format``) are not compared at all.
     ``unknown_end_samples`` are open intervals ``(lo, hi)`` of ``end_sample`` where the device stored records
     that could not be read (a decoder dropped them): replayed records inside are not compared.
     """
     dev = np.sort(np.asarray(device_records, STEP_RECORD_DTYPE), order="end_sample")
+    version = int(header.step_config.step_format) if header.step_config is not None else 0
+    if version not in (0, ONLINE_ALGORITHM_VERSION):     # an older algorithm's records: not this host's replay
+        return ReplayCheck(np.zeros(0, STEP_RECORD_DTYPE), [], int(dev.size), 0, 0, [], int(dev.size), 0, version)
     replay, spans = replay_records(codes, valid, flags, sample_numbers, header)
     oldest = int(dev["end_sample"][0]) if dev.size else None
     mismatches: list[tuple[int, str]] = []
@@ -268,7 +288,7 @@ def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: A
     its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
     when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
     """
-    kw: dict[str, Any] = dict(step_format=1, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
+    kw: dict[str, Any] = dict(step_format=ONLINE_ALGORITHM_VERSION, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
     if calibration is not None:
         kw.update(calibration.step_constants())
     cfg = StepConfig(**kw)

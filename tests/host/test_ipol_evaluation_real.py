@@ -168,7 +168,7 @@ def test_arithmetic_share_in_distance(ipol) -> None:
 
 
 # measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
-ALGORITHM_SHARE = {"M1": 0.0148, "M2": 0.0087, "M3": 0.0081, "M4": 0.0091, "M5": 0.0057}
+ALGORITHM_SHARE = {"M1": 0.0108, "M2": 0.0090, "M3": 0.0081, "M4": 0.0078, "M5": 0.0029}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
@@ -181,11 +181,12 @@ def test_algorithm_share_in_distance(ipol, name) -> None:
         assert med <= 0.01
     assert med == pytest.approx(ALGORITHM_SHARE[name], abs=0.002)
     printed = ipol.text.split("on-line float vs offline, distance ratio per trial")[1].split("\n")[0]
-    assert f"{name} {med:.4f}" in printed
+    # the CSV's ratios are rounded (6 digits): a median on a rounding tie may print 1e-4 apart
+    assert float(printed.split(f"{name} ")[1].split()[0]) == pytest.approx(med, abs=0.00006)
 
 
 @pytest.mark.parametrize("arithmetic", ["online-float", "online-fixed"])
-@pytest.mark.parametrize("name, measured", [("M2", 1.005), ("M4", 0.992)])
+@pytest.mark.parametrize("name, measured", [("M2", 1.005), ("M4", 0.989)])
 def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     """Issue 10 (c): the on-line algorithm with the offline chain's K: M2 and M4 median ratio within 1 +- 0.03."""
     med = np.median(ratios(ipol.rows, name, arithmetic))
@@ -193,7 +194,7 @@ def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     assert med == pytest.approx(measured, abs=0.005)
 
 
-@pytest.mark.parametrize("name, measured", [("M1", 1.007), ("M2", 1.004), ("M4", 0.988), ("M5", 0.995)])
+@pytest.mark.parametrize("name, measured", [("M1", 1.002), ("M2", 1.004), ("M4", 0.988), ("M5", 0.992)])
 def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1, shrunk
     toward the other subjects' own K)."""
@@ -202,7 +203,7 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     assert r.size == 43
     assert np.median(r) == pytest.approx(measured, abs=0.005)
     if name == "M4":
-        assert iqr(r) == pytest.approx(0.0749, abs=0.005)
+        assert iqr(r) == pytest.approx(0.0697, abs=0.005)
 
 
 # The README's table: median ratio, IQR (and min, max offline) with the offline chain's K (shrunk toward the
@@ -211,8 +212,8 @@ README_TABLE = {
     "offline": {"M1": (1.012, 0.078, 0.888, 1.117), "M2": (1.001, 0.048, 0.830, 1.088),
                 "M3": (1.023, 0.062, 0.895, 1.150), "M4": (0.996, 0.060, 0.851, 1.087),
                 "M5": (0.998, 0.152, 0.815, 1.233)},
-    "online-fixed": {"M1": (1.015, 0.087), "M2": (1.005, 0.053), "M3": (1.027, 0.073), "M4": (0.992, 0.072),
-                     "M5": (0.992, 0.168)},
+    "online-fixed": {"M1": (1.015, 0.091), "M2": (1.005, 0.053), "M3": (1.027, 0.072), "M4": (0.989, 0.073),
+                     "M5": (0.978, 0.160)},
 }
 
 
@@ -226,7 +227,7 @@ def test_readme_table(ipol, arithmetic, name) -> None:
 
 
 def test_online_m4_iqr_meets_the_target(ipol) -> None:
-    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR is 0.072 (offline 0.060); it
+    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR is 0.073 (offline 0.060); it
     was 0.110 with Weinberg's range^(1/4) and the stop rule."""
     assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
 
@@ -270,7 +271,7 @@ def test_issue12_best_calibrated_iqr(ipol) -> None:
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_issue12_m3_without_k(ipol, arithmetic) -> None:
     """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08 (measured offline 1.023, 0.062; on-line
-    fixed 1.027, 0.073)."""
+    fixed 1.027, 0.072)."""
     r = ratios(ipol.rows, "M3", arithmetic)
     assert abs(np.median(r) - 1.0) <= 0.05 and iqr(r) <= 0.08
 
@@ -284,12 +285,12 @@ def test_m3_uncalibrated_median(ipol) -> None:
     assert abs(np.median(ratios(ipol.rows, "M3")) - 1.0) <= 0.10
 
 
-@pytest.mark.parametrize("arithmetic", [
-    "offline", pytest.param("online-fixed", marks=pytest.mark.xfail(
-        reason="on-line median signed error +1: U-turn pivot steps the foot sensors do not mark", strict=True))])
+@pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_step_count_median_error(ipol, arithmetic) -> None:
     """Issue 12's target: median |error| <= 1 step per 20 m trial, median signed error 0 (measured offline, cross-
-    validated: 1 and 0, errors -2..+2; on-line 1 and +1, -2..+3); 2.86 % in median."""
+    validated: 1 and 0, errors -2..+2; on-line algorithm version 2 (prior typical step, foot-flats above zero)
+    1 and 0, errors -2..+2, 22 of 43 trials at or below 0, sum of |errors| 41; version 1: +1, -2..+3, 44);
+    2.86 % in median."""
     rows = [r for r in ipol.rows if r["estimator"] == "M2" and r["arithmetic"] == arithmetic
             and r["k_from"] == "offline" and r["variant"] == "main"]
     d = np.array([int(r["steps"]) - int(r["reference_steps"]) for r in rows])
@@ -297,6 +298,8 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
     assert np.median(err) <= 0.03
     assert np.median(np.abs(d)) <= 1 and np.median(d) == 0
     assert np.abs(d).max() <= 3
+    if arithmetic == "online-fixed":           # the README's on-line figures
+        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(41, abs=2)
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:

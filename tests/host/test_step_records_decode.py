@@ -9,7 +9,9 @@ reported dropped, never repaired, and a used record is never a wrong one.
 from __future__ import annotations
 
 import binascii
+import copy
 import csv
+import dataclasses
 import json
 import struct
 import warnings
@@ -35,7 +37,12 @@ def build_image(header, memory, missing_blocks=(), block_size=1024, **kw) -> byt
     h = header if isinstance(header, _Header) else _Header.from_bytes(bytes(header))
     return _build_current_image(header, memory, missing_blocks, block_size, image_version=image_version_for(h), **kw)
 from protocol.raw_dump import raw_dump_bytes
-from protocol.steps import STEP_ADDRESS_BASE, StepConfig
+from protocol.steps import (
+    ONLINE_ALGORITHM_VERSION,
+    STEP_ADDRESS_BASE,
+    StepConfig,
+    StepFormat,
+)
 
 CAP = 3276                      # records in the step ring of this device
 N_SAMPLES = 400                 # a few samples beside the records (they do not matter here)
@@ -377,3 +384,42 @@ def test_dropped_records_are_not_compared_and_a_changed_one_is_found(walk):
     end_sample, what = check.mismatches[0]
     assert end_sample == int.from_bytes(stored[20 * 12: 20 * 12 + 4], "little")
     assert what.startswith("duration_samples: device")
+
+
+def test_the_device_stores_the_algorithm_version_it_runs(walk):
+    """PROTOCOL.md 2.2 (versions): configured with step_format 1, firmware 1.1 stores 2, the version it runs;
+    SET_STEP_CONFIG does the same; off stays off."""
+    from firmware_sim.device import Logger
+
+    logger, _ = walk
+    assert logger.header.step_config.step_format == StepFormat.V2 == ONLINE_ALGORITHM_VERSION
+    assert logger.header.firmware_version == 0x0101
+    other = Logger(device_id=6)
+    other.step_config = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
+    assert other.header.step_config.step_format == 2 and other.header.step_config.leg_length_m == 0.9
+    other.step_config = StepConfig()
+    assert other.header.step_config.step_format == 0
+
+
+def test_an_image_of_algorithm_version_1_decodes_and_says_so(walk):
+    """An image firmware 1.0 wrote (step_format 1) decodes with its records as stored; the host does not
+    replay version 1, so they are reported as version 1's, not verified (and not a mismatch)."""
+    logger, stored = walk
+    old = copy.deepcopy(logger.header)
+    old.step_config = dataclasses.replace(old.step_config, step_format=StepFormat.V1)
+    old.firmware_version = 0x0100
+    rec = decode_bytes(build_image(old, logger.memory, step_memory=logger.step_memory))
+    assert rec.header.step_config.step_format == 1 and rec.step_records.tobytes() == stored
+    assert any("written by on-line algorithm version 1 (firmware 1.0)" in n for n in rec.notes)
+    check = verify_step_records(rec)
+    assert check.algorithm_version == 1 and check.n_compared == 0 and not check.differs
+    assert check.n_device == len(stored) // 20
+    assert "on-line algorithm version 1 (firmware 1.0)" in check.summary()
+    assert "this host replays version 2, so they are not verified" in check.summary()
+    current = decode_bytes(build_image(logger.header, logger.memory, step_memory=logger.step_memory))
+    assert not any("algorithm version" in n for n in current.notes)
+    from host.commands.info import step_lines  # `gaitlog info` says it too
+
+    assert "on-line version 1, leg 0.9300 m, foot 0.1940 m, records by on-line algorithm version 1 (firmware 1.0)" \
+        in step_lines(rec.header)[1]
+    assert "records by" not in step_lines(current.header)[1]

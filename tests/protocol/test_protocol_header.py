@@ -287,7 +287,7 @@ def test_saturated_step_counter_allows_any_index() -> None:
         (_corrupt(GOOD_STEPS, 44, struct.pack("<I", 3299)), 44, "steps_written: 3299"),
         (_corrupt(GOOD, 44, struct.pack("<I", 5)), 44, "steps_written: 5 records written but step_capacity is 0"),
         (_corrupt(GOOD, 48, struct.pack("<H", 1)), 48, "step_write_index: 1 but step_capacity is 0"),
-        (_corrupt(GOOD_STEPS, 128, b"\x02"), 128, "step_format: unknown step format 2"),
+        (_corrupt(GOOD_STEPS, 128, b"\x03"), 128, "step_format: unknown step format 3"),
         (_corrupt(GOOD_STEPS, 129, b"\x03"), 129, "step_flags: reserved bits set in 0x03"),
         (_corrupt(GOOD_STEPS, 130, b"\x00\x00"), 130, "leg_length_q15: step_format 1 needs a leg length"),
     ],
