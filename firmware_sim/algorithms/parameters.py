@@ -18,20 +18,26 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   bout), ``min_prominence_m_s2`` 0.5 m/s^2 (a 1 cm excursion of the centre of mass at 1.6 steps/s already
   gives ~1.5 m/s^2 peak to trough), ``min_step_fraction`` 0.6 (a "step" 40 % shorter than the typical one
   is a second bump of the same step: stride-time CV is 2-4 % in healthy adults, Hausdorff 2005).
-* Adaptive prominence: the threshold is ``max(min_prominence_m_s2, prominence_fraction · A)``, ``A`` the
-  walk's recent step amplitude (rise of the 3 Hz signal from the trough before each accepted foot-flat, an
-  exponential mean over ``amplitude_steps`` (4) accepted peaks; the first accepted peak sets it). A fixed
-  threshold cannot serve both a slow short step (rise 0.3-0.8 m/s^2) and a brisk walk (2-6 m/s^2, whose
-  turns and stops leave 0.3-0.5 m/s^2 bumps). Chosen on simulated walkers (``firmware_sim.world``), never on
-  the IPOL trials: the fraction 0.2 on six random subjects (seed 3) at three speeds, 20 m out and back
-  (step count errors -1..+2 of 188; 0.15: +2..+3, 0.25: -3..0, 0.3: -7..-4); the floor 0.25 m/s^2 (0.15-0.2
-  add steps on those subjects, +2..+9; 0.15 also +4..+10 % on the slow walkers of
-  ``tests/host/test_slow_walking_sim.py``, 0.3 misses 2-4 % of theirs): :data:`ADAPTIVE_PROMINENCE`. It is
-  NOT the default yet (``prominence_fraction = 0``: the fixed 0.5 m/s^2): on the IPOL trials it keeps the
-  step count's median |error| 1 and median 0 but with more cancelling errors (sum of |errors| 46 -> 51
-  offline, 51 -> 58 on-line fixed; the stopping step missed in 31 of 52 trials instead of 21), heel-strike
-  F1 0.754 -> 0.753 (on-line 0.732 -> 0.729), on-line M4 IQR 0.099 -> 0.115 and M5 0.175 -> 0.205 (M1, M2
-  IQR better).
+* Prominence (the foot-flat threshold): ``min(max_prominence_m_s2, max(min_prominence_m_s2,
+  prominence_fraction · A))``, ``A`` the walk's recent step amplitude (rise of the 3 Hz signal from the
+  trough before each accepted foot-flat, an exponential mean over ``amplitude_steps`` (4) accepted peaks; the
+  first accepted peak sets it); before any peak is accepted (the run's start, standing) it is the cap
+  ``max_prominence_m_s2``: :func:`prominence_threshold`. Defaults: cap 0.5 m/s^2, floor 0.25 m/s^2,
+  fraction 0.2. History (issue 12): the threshold was a fixed 0.5 m/s^2 (:data:`FIXED_PROMINENCE`, still
+  expressible as floor = cap), which misses 17-25 % of slow short steps (the 3 Hz first harmonic of a
+  0.30-0.35 m step at 70-90 /min rises 0.3-0.8 m/s^2; ``tests/host/test_slow_walking_sim.py``). The
+  uncapped adaptive rule ``max(0.25, 0.2 A)`` (an opt-in, ``gaitlog estimate --slow-walking``) counted them
+  within -1.6..+3.2 %, but on brisk walking (``A`` 2-6 m/s^2) raised the threshold to 0.4-1.2 m/s^2, above
+  the 0.3-0.5 m/s^2 bumps of turns and stops: on the IPOL trials the stopping step was missed in 31 of 52
+  trials instead of 21 and the on-line M4 and M5 IQRs widened (0.099 -> 0.115, 0.175 -> 0.205). Capped at
+  the fixed value, the rule leaves every walker whose amplitude is at least ``cap / fraction`` (2.5 m/s^2)
+  exactly as the fixed threshold did and lowers it only for low-amplitude (slow, short-stepped) walking.
+  The fraction 0.2 and the floor 0.25 m/s^2 were chosen on simulated walkers (``firmware_sim.world``), never
+  on the IPOL trials: the fraction on six random subjects (seed 3) at three speeds, 20 m out and back (step
+  count errors -1..+2 of 188; 0.15: +2..+3, 0.25: -3..0, 0.3: -7..-4); the floor on those subjects (0.15-0.2
+  add steps, +2..+9; 0.15 also +4..+10 % on the slow walkers of ``tests/host/test_slow_walking_sim.py``,
+  0.3 misses 2-4 % of theirs). The cap is the fixed rule's value (Alvarez's detector as this project
+  built it first): not chosen on any data here.
 * Stop rule (``stop_prominence_m_s2``, 0.2 m/s^2; 0: off): the step that brings the walker to a stop
   raises the 3 Hz signal less than a walking step, and the full prominence missed it in 25 of the 52 IPOL
   trials. After a bout's last full foot-flat, the first peak within about two steps (the minimum distance
@@ -67,7 +73,7 @@ from dataclasses import dataclass
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
-__all__ = ["ADAPTIVE_PROMINENCE", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
+__all__ = ["FIXED_PROMINENCE", "prominence_threshold", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
            "gaussian_radius", "FRACTION_SCALE",
            "STANDARD_GRAVITY_M_S2", "SIGMA_S_AT_1HZ"]
 
@@ -132,8 +138,9 @@ class EventParameters:
         lower edge of the heel-strike impact band (5 Hz).
     min_step_s, max_step_s
         Shortest step (0.25 s) and longest step inside a walking bout (1.5 s).
-    min_prominence_m_s2
-        Smallest rise and fall of the 3 Hz signal around a foot-flat (0.5 m/s^2); the floor of the adaptive prominence.
+    min_prominence_m_s2, max_prominence_m_s2
+        The foot-flat prominence's floor (0.25 m/s^2) and cap (0.5 m/s^2; the threshold before a step
+        amplitude is known): a foot-flat's rise and fall of the 3 Hz signal (module notes).
     hs_search_s, hs_after_s, hs_delay_s
         The impact is searched from ``hs_search_s`` before to ``hs_after_s`` after each foot-flat; the
         heel-strike is ``hs_delay_s`` before the impact.
@@ -142,9 +149,9 @@ class EventParameters:
     min_step_fraction
         Peaks closer than this fraction of the typical step duration are one step (the higher is kept).
     prominence_fraction, amplitude_steps
-        Adaptive prominence (module notes): a foot-flat must stand out by ``prominence_fraction`` of the
-        recent step amplitude (an exponential mean over ``amplitude_steps`` peaks, a power of two), and by
-        ``min_prominence_m_s2`` at least. 0: the fixed threshold.
+        The prominence's share of the recent step amplitude (0.2; an exponential mean over
+        ``amplitude_steps`` peaks, a power of two), clamped to ``[min_prominence_m_s2,
+        max_prominence_m_s2]`` (:func:`prominence_threshold`; floor = cap: a fixed threshold).
     stop_prominence_m_s2
         The stop rule (module notes): a bout's weak last step stands out by this much (0: off).
     """
@@ -154,19 +161,20 @@ class EventParameters:
     impact_cutoff_hz: float = 5.0
     min_step_s: float = 0.25
     max_step_s: float = 1.5
-    min_prominence_m_s2: float = 0.5
+    min_prominence_m_s2: float = 0.25
+    max_prominence_m_s2: float = 0.5
     hs_search_s: float = 0.2
     hs_after_s: float = 0.06
     hs_delay_s: float = 0.04
     to_search_s: float = 0.3
     min_step_fraction: float = 0.6
-    prominence_fraction: float = 0.0
+    prominence_fraction: float = 0.25
     amplitude_steps: int = 4
     stop_prominence_m_s2: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("ff_cutoff_hz", "detail_cutoff_hz", "impact_cutoff_hz", "min_step_s", "max_step_s",
-                     "min_prominence_m_s2", "min_step_fraction"):
+                     "min_prominence_m_s2", "max_prominence_m_s2", "min_step_fraction"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive number, got {v!r}")
@@ -176,6 +184,9 @@ class EventParameters:
                 raise ValueError(f"{name} must be a non-negative number, got {v!r}")
         if not (isinstance(self.prominence_fraction, (int, float)) and 0 <= self.prominence_fraction < 1):
             raise ValueError(f"prominence_fraction must be in [0, 1), got {self.prominence_fraction!r}")
+        if self.max_prominence_m_s2 < self.min_prominence_m_s2:
+            raise ValueError(f"max_prominence_m_s2 ({self.max_prominence_m_s2}) must be at least "
+                             f"min_prominence_m_s2 ({self.min_prominence_m_s2})")
         a = self.amplitude_steps
         if not (isinstance(a, int) and 1 <= a <= 64 and a & (a - 1) == 0):
             raise ValueError(f"amplitude_steps must be a power of two in 1..64, got {a!r}")
@@ -205,8 +216,23 @@ def amplitude_update(amplitude, rise, first: bool, shift: int):
     return rise if first else amplitude + (rise - amplitude) / float(1 << shift)
 
 
-#: The adaptive prominence chosen on simulated walkers (module notes; not the default yet).
-ADAPTIVE_PROMINENCE = dict(min_prominence_m_s2=0.25, prominence_fraction=0.2)
+def prominence_threshold(amplitude, known: bool, floor, cap, fraction):
+    """The foot-flat prominence in force (module notes): ``min(cap, max(floor, fraction · amplitude))``
+    once a step amplitude is ``known``, the cap before (the offline chain's float form; the on-line
+    kernel's ``_prominence`` computes the same in its arithmetic).
+
+    >>> prominence_threshold(0.0, False, 0.25, 0.5, 0.2), prominence_threshold(1.0, True, 0.25, 0.5, 0.2)
+    (0.5, 0.25)
+    >>> prominence_threshold(2.0, True, 0.25, 0.5, 0.2), prominence_threshold(4.0, True, 0.25, 0.5, 0.2)
+    (0.4, 0.5)
+    """
+    if not known:
+        return cap
+    return min(cap, max(floor, fraction * amplitude))
+
+
+#: The fixed 0.5 m/s^2 prominence, the default before issue 12 (module notes): floor = cap.
+FIXED_PROMINENCE = dict(min_prominence_m_s2=0.5, max_prominence_m_s2=0.5)
 
 
 @dataclass(frozen=True)

@@ -31,9 +31,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true",
                         help="print the summary as one JSON document on stdout instead of the table")
     parser.add_argument("--slow-walking", action="store_true",
-                        help="slow, short-stepped walking (steps <= 0.35 m, cadence <= 90 /min): foot-flats need "
-                        "0.2 of the recent step amplitude (at least 0.25 m/s^2) instead of 0.5 m/s^2, in both "
-                        "arithmetics (ADAPTIVE_PROMINENCE; not the default: it costs some accuracy on brisk walking)")
+                        help="deprecated, changes nothing: slow, short-stepped walking is counted by default (the "
+                        "foot-flat prominence is 0.2 of the recent step amplitude, within 0.25-0.5 m/s^2, in both "
+                        "arithmetics)")
     add_anatomy_options(parser)
     add_input_options(parser)
     add_verbosity_options(parser)
@@ -68,9 +68,12 @@ def run(args: argparse.Namespace) -> int:
     notes = [lengths.note] if lengths.assumed else []
     tables = {}
     fixed_report = ""
-    from firmware_sim.algorithms.parameters import ADAPTIVE_PROMINENCE, EventParameters
+    from firmware_sim.algorithms.parameters import EventParameters
 
-    events = EventParameters(**ADAPTIVE_PROMINENCE) if args.slow_walking else EventParameters()
+    if args.slow_walking:
+        notes.append("--slow-walking is deprecated and changes nothing: the adaptive foot-flat prominence it "
+                     "selected is the default (capped at 0.5 m/s^2); the option will be removed")
+    events = EventParameters()
     if args.arithmetic in ("float", "both"):
         from host.gait.events import GaitEventDetector
         from host.gait.pipeline import StepPipeline
