@@ -7,11 +7,12 @@ Notes
    first harmonic of its vertical acceleration is highest and its vertical velocity is zero: the instant
    Alvarez et al. reset the integrals at ("foot-flat, where the vertical velocity of the body is null").
    Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by the prominence of
-   :mod:`firmware_sim.algorithms.parameters`: ``prominence_fraction`` (0.2) of the walk's recent step
-   amplitude, at least ``min_prominence_m_s2`` (0.25 m/s^2) and at most ``max_prominence_m_s2`` (0.5 m/s^2,
-   also the threshold before the first step; a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2
-   peak to trough, a slow 0.3 m step 0.3-0.8 m/s^2). The amplitude follows the accepted peaks in time
-   order, as the on-line algorithm's does; a second pass raises the minimum distance to
+   :mod:`firmware_sim.algorithms.parameters`: ``prominence_fraction`` of the walk's recent step amplitude,
+   at least ``min_prominence_m_s2`` and at most ``max_prominence_m_s2``, the cap also before the first step
+   (by default floor = cap = 0.5 m/s^2, a fixed threshold: a 1 cm CoM excursion at 1.6 steps/s already
+   gives ~1.5 m/s^2 peak to trough; ``SLOW_WALKING_PROMINENCE`` lowers the floor to 0.25 m/s^2 for slow
+   0.3 m steps, which rise 0.3-0.8 m/s^2). The amplitude follows the accepted peaks in time order, as the
+   on-line algorithm's does; a second pass raises the minimum distance to
    ``min_step_fraction`` of the median step duration.
 2. *Heel-strike* (HS): the impact. The loading impact of the leading leg reaches the lower back as a short
    upward peak (~20-40 ms wide) shortly after contact; the trailing leg's push-off makes a broader rise

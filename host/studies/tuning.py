@@ -19,10 +19,6 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
 * ``stop_prominence_m_s2``: the stop rule's prominence (a bout's weak last step, :mod:`host.gait.events`
   notes 5; 0: off), chosen by the step count (:data:`COUNT_CRITERION`).
-* ``prominence_fraction``: the foot-flat prominence's share of the recent step amplitude, between its floor
-  and cap (:mod:`firmware_sim.algorithms.parameters` notes), chosen by the step count. It matters only for
-  walkers whose step amplitude lies between floor and cap over the fraction (1-2.5 m/s^2; slow short steps
-  are at the floor, brisk walking at the cap).
 
 A parameter whose name is a field of :class:`~firmware_sim.algorithms.parameters.EventParameters` needs
 nothing else: add a :class:`TunedParameter` and it is searched (the grid is the product of the candidates).
@@ -87,9 +83,6 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
     TunedParameter("stop_prominence_m_s2", (0.0, 0.2, 0.3, 0.4), EventParameters().stop_prominence_m_s2,
                    "EventParameters.stop_prominence_m_s2 (a bout's weak last step), both chains",
                    criterion="step count"),
-    TunedParameter("prominence_fraction", (0.25, 0.2, 0.3), EventParameters().prominence_fraction,
-                   "EventParameters.prominence_fraction (foot-flat prominence: this share of the step amplitude, "
-                   "0.25-0.5 m/s^2), both chains", criterion="step count"),
 )
 
 #: The selection criterion, in words (printed by ``gaitlog evaluate ipol``).
@@ -121,7 +114,7 @@ def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[
     The ``"k-transfer"`` parameters are not part of the grid (:func:`choose_loso_spread`).
 
     >>> len(candidates()), candidates()[0]
-    (72, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2, 'prominence_fraction': 0.25})
+    (24, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2})
     """
     parameters = [p for p in parameters if p.criterion != "k-transfer"]
     default = {p.name: p.default for p in parameters}
