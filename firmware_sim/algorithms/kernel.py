@@ -22,9 +22,10 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    y3, d10 and the band to another (the step EEPROM's second block; the emulator keeps their values in
    ``scr``, its I2C bytes are counted).
 5. **Foot-flat** (peaks of ``y3``): a hysteresis detector confirms a peak when ``y3`` has risen by the
-   prominence since the last trough and fallen by it since the peak; the prominence is the floor or, when
-   more, a fraction of the recent step amplitude ``AMP`` (an exponential mean of the confirmed peaks' rises
-   from the trough before them, :func:`_prominence`). A confirmed peak becomes the
+   prominence since the last trough and fallen by it since the peak; the prominence is a fraction of the
+   recent step amplitude ``AMP`` (an exponential mean of the confirmed peaks' rises from the trough before
+   them) clamped to a floor and a cap, the cap before the first confirmed peak (:func:`_prominence`). A
+   confirmed peak becomes the
    *pending* foot-flat; a later confirmed peak closer than the minimum distance replaces it if higher and
    is dropped otherwise. The pending foot-flat is final once no peak within the distance can still come:
    ``m >= pending + distance`` and the peak being climbed (if any) lies beyond the distance or is lower —
@@ -142,10 +143,11 @@ N_CI = len(CI)
 
 #: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
 CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, FRAC=22,
-          STOP=23, W3=24)
+          STOP=23, CAP=24, W3=25)
 (CV_DELTA, CV_G_MIN, CV_TWO_LEG, CV_FOOT, CV_K1, CV_K2, CV_K4, CV_K1FS, CV_K2M5, CV_UNIT) = range(10)
 CV_FRAC = CV["FRAC"]
 CV_STOP = CV["STOP"]
+CV_CAP = CV["CAP"]
 CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
 
 #: Columns of the integer record output: end index, window duration, toe-off index, heel-strike index, flags.
@@ -561,14 +563,19 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
 
 @njit(cache=True)
 def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
-    """The prominence in force: the floor, or ``fraction · AMP`` (the recent step amplitude) when that is
-    more (:class:`~firmware_sim.algorithms.parameters.EventParameters`' adaptive prominence)."""
-    if (st_i[FLAGS] & F_AMP) and cfg_v[CV_FRAC] > 0:
-        scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W16, cnt), F_ACC, F_LP, W_LP,
-                        cnt)
-        s_cost(cnt, OP_CMP32, 1)
-        if scaled > cfg_v[CV_DELTA]:
-            return scaled
+    """The prominence in force: ``fraction · AMP`` (the recent step amplitude) clamped to the floor and the
+    cap, the cap while no amplitude is known
+    (:func:`~firmware_sim.algorithms.parameters.prominence_threshold`)."""
+    s_cost(cnt, OP_DEE, 3)                       # the cap
+    if not (st_i[FLAGS] & F_AMP):
+        return cfg_v[CV_CAP]
+    s_cost(cnt, OP_DEE, 2)                       # the fraction
+    scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W16, cnt), F_ACC, F_LP, W_LP, cnt)
+    s_cost(cnt, OP_CMP32, 2)
+    if scaled > cfg_v[CV_CAP]:
+        return cfg_v[CV_CAP]
+    if scaled > cfg_v[CV_DELTA]:
+        return scaled
     return cfg_v[CV_DELTA]
 
 

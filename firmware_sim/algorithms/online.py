@@ -217,6 +217,7 @@ class OnlineConfig:
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
                 DELTA=int(fq.lowpass_q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
+                CAP=int(fq.lowpass_q.from_float(ev.max_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 FRAC=int(KERNEL_Q.from_float(ev.prominence_fraction)),
                 STOP=int(fq.lowpass_q.from_float(ev.stop_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 G_MIN=int(fq.acc_q.from_float(on.min_gravity_g)),
@@ -234,6 +235,7 @@ class OnlineConfig:
             cfg_v = np.zeros(n_v, np.float64)
             values = dict(
                 DELTA=ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2, FRAC=ev.prominence_fraction,
+                CAP=ev.max_prominence_m_s2 / STANDARD_GRAVITY_M_S2,
                 STOP=ev.stop_prominence_m_s2 / STANDARD_GRAVITY_M_S2,
                 G_MIN=on.min_gravity_g,
                 TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * G0_POWER_M4,

@@ -32,8 +32,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="print the summary as one JSON document on stdout instead of the table")
     parser.add_argument("--slow-walking", action="store_true",
                         help="slow, short-stepped walking (steps <= 0.35 m, cadence <= 90 /min): foot-flats need "
-                        "0.2 of the recent step amplitude (at least 0.25 m/s^2) instead of 0.5 m/s^2, in both "
-                        "arithmetics (ADAPTIVE_PROMINENCE; not the default: it costs some accuracy on brisk walking)")
+                        "0.25 of the recent step amplitude, within 0.25-0.5 m/s^2, instead of 0.5 m/s^2, in both "
+                        "arithmetics (SLOW_WALKING_PROMINENCE; not the default: on the IPOL trials it moves "
+                        "some calibrated figures)")
     add_anatomy_options(parser)
     add_input_options(parser)
     add_verbosity_options(parser)
@@ -68,9 +69,9 @@ def run(args: argparse.Namespace) -> int:
     notes = [lengths.note] if lengths.assumed else []
     tables = {}
     fixed_report = ""
-    from firmware_sim.algorithms.parameters import ADAPTIVE_PROMINENCE, EventParameters
+    from firmware_sim.algorithms.parameters import SLOW_WALKING_PROMINENCE, EventParameters
 
-    events = EventParameters(**ADAPTIVE_PROMINENCE) if args.slow_walking else EventParameters()
+    events = EventParameters(**SLOW_WALKING_PROMINENCE) if args.slow_walking else EventParameters()
     if args.arithmetic in ("float", "both"):
         from host.gait.events import GaitEventDetector
         from host.gait.pipeline import StepPipeline

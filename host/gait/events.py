@@ -6,11 +6,13 @@ Notes
    -3 dB at 3 Hz, the band Alvarez et al. use for M4). The CoM is lowest during double support, where the
    first harmonic of its vertical acceleration is highest and its vertical velocity is zero: the instant
    Alvarez et al. reset the integrals at ("foot-flat, where the vertical velocity of the body is null").
-   Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by
-   ``min_prominence_m_s2`` (a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to trough),
-   or by ``prominence_fraction`` of the walk's recent step amplitude when that is more (the adaptive
-   prominence of :mod:`firmware_sim.algorithms.parameters`: the amplitude follows the accepted peaks in time
-   order, as the on-line algorithm's does); a second pass raises the minimum distance to
+   Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by the prominence of
+   :mod:`firmware_sim.algorithms.parameters`: ``prominence_fraction`` of the walk's recent step amplitude,
+   at least ``min_prominence_m_s2`` and at most ``max_prominence_m_s2``, the cap also before the first step
+   (by default floor = cap = 0.5 m/s^2, a fixed threshold: a 1 cm CoM excursion at 1.6 steps/s already
+   gives ~1.5 m/s^2 peak to trough; ``SLOW_WALKING_PROMINENCE`` lowers the floor to 0.25 m/s^2 for slow
+   0.3 m steps, which rise 0.3-0.8 m/s^2). The amplitude follows the accepted peaks in time order, as the
+   on-line algorithm's does; a second pass raises the minimum distance to
    ``min_step_fraction`` of the median step duration.
 2. *Heel-strike* (HS): the impact. The loading impact of the leading leg reaches the lower back as a short
    upward peak (~20-40 ms wide) shortly after contact; the trailing leg's push-off makes a broader rise
@@ -49,6 +51,7 @@ from firmware_sim.algorithms.parameters import (
     EventParameters,
     amplitude_update,
     minimum_distance,
+    prominence_threshold,
     samples,
 )
 from host.gait.masked_filter import masked_gaussian_lowpass
@@ -185,7 +188,9 @@ class GaitEventDetector:
 
 
 def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
-    """The prominence each peak of ``sig`` must reach (module notes 1): ``max(floor, fraction · A)``.
+    """The prominence each peak of ``sig`` must reach (module notes 1):
+    ``min(cap, max(floor, fraction · A))``, the cap before the first accepted peak
+    (:func:`firmware_sim.algorithms.parameters.prominence_threshold`).
 
     ``A`` follows the peaks in time order as the on-line algorithm's hysteresis does: a peak (every local
     maximum at least ``min_prominence_m_s2`` prominent, no distance rule) is accepted when its prominence
@@ -198,21 +203,22 @@ def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
     callable
         ``threshold(peaks)``: the threshold in force at each of ``peaks`` (local maxima of ``sig``).
     """
-    floor, fraction = parameters.min_prominence_m_s2, parameters.prominence_fraction
-    if fraction <= 0:
-        return lambda peaks: np.full(np.shape(peaks), floor)
+    floor, cap, fraction = (parameters.min_prominence_m_s2, parameters.max_prominence_m_s2,
+                            parameters.prominence_fraction)
+    if cap <= floor:                            # a fixed threshold
+        return lambda peaks: np.full(np.shape(peaks), cap)
     cand, prom = find_peaks(sig, prominence=floor, with_prominences=True)
-    thr = np.full(cand.size, floor)
+    thr = np.full(cand.size, cap)
     amp, have, last = 0.0, False, 0
     for i, (q, pq) in enumerate(zip(cand.tolist(), prom.tolist())):
-        thr[i] = max(floor, fraction * amp) if have else floor
+        thr[i] = prominence_threshold(amp, have, floor, cap, fraction)
         if pq >= thr[i]:
             amp = amplitude_update(amp, float(sig[q] - sig[last:q + 1].min()), not have, parameters.amplitude_shift)
             have, last = True, q
 
     def threshold(peaks: np.ndarray) -> np.ndarray:
         j = np.searchsorted(cand, peaks)
-        return thr[np.clip(j, 0, max(cand.size - 1, 0))] if cand.size else np.full(np.shape(peaks), floor)
+        return thr[np.clip(j, 0, max(cand.size - 1, 0))] if cand.size else np.full(np.shape(peaks), cap)
     return threshold
 
 
