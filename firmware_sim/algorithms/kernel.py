@@ -569,6 +569,10 @@ def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
     s_cost(cnt, OP_DEE, 3)                       # the cap
     if not (st_i[FLAGS] & F_AMP):
         return cfg_v[CV_CAP]
+    s_cost(cnt, OP_DEE, 2)                       # the floor
+    s_cost(cnt, OP_CMP32, 1)
+    if cfg_v[CV_CAP] <= cfg_v[CV_DELTA]:         # floor = cap (the default): a fixed threshold, no multiply
+        return cfg_v[CV_DELTA]
     s_cost(cnt, OP_DEE, 2)                       # the fraction
     scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W16, cnt), F_ACC, F_LP, W_LP, cnt)
     s_cost(cnt, OP_CMP32, 2)
