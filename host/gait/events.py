@@ -13,7 +13,11 @@ Notes
    gives ~1.5 m/s^2 peak to trough; ``SLOW_WALKING_PROMINENCE`` lowers the floor to 0.25 m/s^2 for slow
    0.3 m steps, which rise 0.3-0.8 m/s^2). The amplitude follows the accepted peaks in time order, as the
    on-line algorithm's does; a second pass raises the minimum distance to
-   ``min_step_fraction`` of the median step duration.
+   ``min_step_fraction`` of the median step duration. Only a peak above zero is a foot-flat, as in the
+   on-line algorithm (version 2, :mod:`firmware_sim.algorithms.kernel` step 5): in double support the centre
+   of mass is accelerated upward; a peak at or below zero is a ripple of the single support. (A peak above
+   zero is always higher than one at or below it, so dropping those after the distance rule drops what the
+   on-line algorithm never confirms; on the IPOL trials no offline foot-flat was at or below zero.)
 2. *Heel-strike* (HS): the impact. The loading impact of the leading leg reaches the lower back as a short
    upward peak (~20-40 ms wide) shortly after contact; the trailing leg's push-off makes a broader rise
    ~60-100 ms *before* contact, often the steeper of the two at 50 Hz. The impact is taken as the maximum of
@@ -130,6 +134,7 @@ class GaitEventDetector:
         threshold = adaptive_prominence(sig, p)
         ff = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2, with_prominences=True)
         ff = ff[0][ff[1] >= threshold(ff[0])]
+        ff = ff[sig[ff] > 0]
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
@@ -139,6 +144,7 @@ class GaitEventDetector:
             dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
             ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2, with_prominences=True)
             ff = ff[0][ff[1] >= threshold(ff[0])]
+            ff = ff[sig[ff] > 0]
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         if p.stop_prominence_m_s2 > 0 and ff.size:
