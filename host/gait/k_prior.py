@@ -96,7 +96,8 @@ class KPrior:
         """``fit`` with K of M1, M2 and M4 shrunk toward the population (module notes; M5 unchanged).
 
         The calibrated range's lengths are rescaled with the new K; ``shrinkage`` records the fitted K, the
-        population K, the weights and :attr:`source`. ``fit`` itself when every ``d0`` is 0.
+        population K, the weights and :attr:`source` (``notes`` are left alone: shrinking is no warning).
+        ``fit`` itself when every ``d0`` is 0.
 
         Raises
         ------
@@ -122,10 +123,8 @@ class KPrior:
             of = {f"length_{e.lower()}_m": e for e in PRIOR_ESTIMATORS}
             rng = {q: [v * new[of[q]] / fitted[of[q]] for v in lo_hi] if q in of else lo_hi
                    for q, lo_hi in rng.items()}
-        note = (f"K of {', '.join(PRIOR_ESTIMATORS)} shrunk toward the population K ({self.source}): weight of "
-                "the fitted K " + ", ".join(f"{e} {weights[e]:.2f}" for e in PRIOR_ESTIMATORS))
         return dataclasses.replace(
-            fit, k_m1=new["M1"], k_m2=new["M2"], k_m4=new["M4"], calibrated_range=rng, notes=[*fit.notes, note],
+            fit, k_m1=new["M1"], k_m2=new["M2"], k_m4=new["M4"], calibrated_range=rng,
             shrinkage=dict(source=self.source, fitted=fitted, population=population, weight=weights,
                            prior_distance_m={e: float(self.distance_m[e]) for e in PRIOR_ESTIMATORS}))
 
