@@ -35,7 +35,8 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
    The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
    M4's exponent (a ``"k-transfer"`` constant) is chosen per held-out subject on the other subjects' calibrated
-   M4 ratios (K from their first trial, their event constants those of the fold), and that subject's offline
+   M4 ratios (K from their first trial, shrunk as in step 5b with the prior chosen on them for that exponent,
+   their event constants those of the fold), and that subject's offline
    rows use it (K fitted with it); the on-line chains compute the shipped exponent, with K fitted with it.
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
@@ -438,6 +439,17 @@ def _shrunk_ratios(fit: KFit, ratios: list[float], estimator: str, prior: KPrior
     return [r * scale for r in ratios]
 
 
+def _shrunk_pool(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], estimator: str,
+                 distance_m: dict[str, float]) -> list[float]:
+    """The ratios of ``estimator`` of every subject of ``transfers``, its K shrunk toward the median K of the
+    *others* with the prior weights ``distance_m`` (:func:`choose_prior`'s pooled ratios)."""
+    out: list[float] = []
+    for o, (fit, ratios) in transfers.items():
+        prior = population_prior([transfers[q][0] for q in transfers if q != o], distance_m=distance_m)
+        out += _shrunk_ratios(fit, ratios[estimator], estimator, prior)
+    return out
+
+
 def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *,
                  source: str) -> tuple[KPrior, dict[str, float]]:
     """The K prior learned on ``transfers`` (subject: its first-trial K and its other trials' ratios with it).
@@ -449,13 +461,10 @@ def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *,
     *others* (so that no subject is pulled toward itself). Returns the prior and that error per estimator.
     """
     subjects = list(transfers)
-    inner = {o: population_prior([transfers[q][0] for q in subjects if q != o]) for o in subjects}
     zero = dict.fromkeys(PRIOR_ESTIMATORS, 0.0)
     chosen, error = {}, {}
     for e in PRIOR_ESTIMATORS:
-        pooled = [[r for o in subjects for r in _shrunk_ratios(transfers[o][0], transfers[o][1][e], e,
-                                                                inner[o].with_distances({**zero, e: d0}))]
-                  for d0 in PRIOR_DISTANCE_CANDIDATES_M]
+        pooled = [_shrunk_pool(transfers, e, {**zero, e: d0}) for d0 in PRIOR_DISTANCE_CANDIDATES_M]
         j, error[e] = least_error(pooled)
         chosen[e] = PRIOR_DISTANCE_CANDIDATES_M[j]
     return population_prior([transfers[o][0] for o in subjects], distance_m=chosen, source=source), error
@@ -597,7 +606,7 @@ def evaluate_folder(
                                 for s, trials in replayed.items()},
                                {s: [res.count_errors[(s, rt.trial)] for rt, _ in trials]
                                 for s, trials in replayed.items()}, cands)
-    # 2b. M4's exponent, leave-one-subject-out on the calibrated M4 ratios (the fold's event constants)
+    # 2b. M4's exponent and the K prior are chosen on the calibrated ratios of the other subjects (2c)
     exponents = next(p.candidates for p in TUNED_PARAMETERS if p.name == "m4_exponent")
     shipped_j = next(j for j, e in enumerate(exponents) if math.isclose(e, M4_EXPONENT))
     scorable = [s for s, trials in replayed.items() if len(trials) >= 2]
@@ -609,25 +618,28 @@ def evaluate_folder(
                                          foot=lengths[o][1])
         return cache[(o, c, j)]
 
-    p4_index: dict[int, int] = {}
+    # 2c. with the K prior, leave-one-subject-out: for each exponent, the other subjects' first-trial K (the
+    #     fold's event constants) and d0 chosen on them (choose_prior, nested); the exponent is then chosen on
+    #     their M4 ratios with K as it is used, shrunk (each toward the median of the others); the shipped
+    #     prior is the one learned on every subject with the shipped constants
     for s in scorable:
         c = res.loso.chosen[s]
-        p4_index[s], res.m4_training_iqr[s] = least_spread(
-            [[r for o in scorable if o != s and (t := transfer(o, c, j)) for r in t[1]["M4"]]
-             for j in range(len(exponents))])
-        res.m4_exponent[s] = float(exponents[p4_index[s]])
-    # 2c. the K prior, leave-one-subject-out: the other subjects' first-trial K (the fold's constants) and d0
-    #     chosen on them (nested: each of them shrunk toward the median of the rest); the shipped prior is
-    #     the one learned on every subject with the shipped constants
-    for s in scorable:
-        c = res.loso.chosen[s]
-        for j, key in ((p4_index[s], "main"), (shipped_j, "online")):
+        priors: dict[int, tuple[KPrior, dict[str, float]]] = {}
+        pooled = []
+        for j in range(len(exponents)):
             train = {o: t for o in scorable if o != s and (t := transfer(o, c, j)) is not None}
-            if len(train) >= 2:
-                prior, error = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")
-                res.priors.setdefault(s, {})[key] = prior
+            if len(train) < 2:          # no one to shrink toward: K as fitted
+                pooled.append([r for _, ratios in train.values() for r in ratios["M4"]])
+                continue
+            priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")
+            pooled.append(_shrunk_pool(train, "M4", priors[j][0].distance_m))
+        j, res.m4_training_iqr[s] = least_spread(pooled)
+        res.m4_exponent[s] = float(exponents[j])
+        for key, jj in (("main", j), ("online", shipped_j)):
+            if jj in priors:
+                res.priors.setdefault(s, {})[key] = priors[jj][0]
                 if key == "main":
-                    res.prior_training_error[s] = error
+                    res.prior_training_error[s] = priors[jj][1]
     every = {o: t for o in scorable if (t := transfer(o, 0, shipped_j)) is not None}
     if len(every) >= 3:
         res.prior_all = choose_prior(every, source=f"IPOL lower back, subjects {', '.join(map(str, every))}, "

@@ -14,9 +14,10 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   EventParameters`; 0-80 ms, whole samples at 50 Hz; ignored by the steepest-rise rule).
 * ``m4_exponent``: M4's ``S = K (a_max - a_min)^p`` (:data:`firmware_sim.algorithms.parameters.M4_EXPONENT`;
   1/4 (Weinberg), 3/8, 1/2: why these, in that module's notes). Its criterion is the one K must meet
-  (:data:`K_CRITERION`, :func:`least_spread` on the training subjects' ratios): the IQR of the calibrated M4 distance ratio, K fitted on
-  each training subject's first trial and scored on its other trials, pooled; ties go to the earlier
-  candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
+  (:data:`K_CRITERION`, :func:`least_spread` on the training subjects' ratios): the IQR of the calibrated M4
+  distance ratio, K fitted on each training subject's first trial, shrunk as the evaluation uses it (toward
+  the other training subjects' K, with the prior chosen on them for that exponent) and scored on its other
+  trials, pooled; ties go to the earlier candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
 * ``k_prior_distance_m``: the weight ``d0`` of the population prior K is shrunk toward, per estimator
   (:mod:`host.gait.k_prior`), chosen with the population K of the training subjects by
   :data:`K_PRIOR_CRITERION` (:func:`least_error`; ``host.studies.ipol_evaluation.choose_prior``).
@@ -97,8 +98,9 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
 CRITERION = (f"heel strikes within {1e3 * MATCH_TOLERANCE_S:.0f} ms of the foot sensors, F1 pooled over the "
              "training subjects' trials (ties: smaller median |error|)")
 #: The criterion of the ``"k-transfer"`` parameters.
-K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial scored on its other "
-               "trials, pooled over the training subjects (ties: the earlier candidate)")
+K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial (shrunk toward the "
+               "other training subjects' K, the prior chosen for the candidate) scored on its other trials, pooled "
+               "over the training subjects (ties: the earlier candidate)")
 
 
 #: The criterion of the K prior's weight (:func:`least_error`; :mod:`host.gait.k_prior`).
