@@ -128,10 +128,6 @@ class KPrior:
             shrinkage=dict(source=self.source, fitted=fitted, population=population, weight=weights,
                            prior_distance_m={e: float(self.distance_m[e]) for e in PRIOR_ESTIMATORS}))
 
-    def with_distances(self, distance_m: Mapping[str, float]) -> KPrior:
-        """The same population K with other ``d0``."""
-        return dataclasses.replace(self, distance_m=dict(distance_m))
-
 
 def population_prior(fits: Sequence[KFit], *, distance_m: Mapping[str, float] | None = None,
                      source: str = "") -> KPrior:

@@ -57,7 +57,7 @@ def test_a_longer_calibration_walk_weighs_more_and_no_prior_changes_nothing() ->
     assert prior.weight("M2", 10.0) < prior.weight("M2", 40.0) < 1.0
     assert short.k_m2 == pytest.approx(long.k_m2)                       # same fitted K, different evidence
     assert abs(prior.shrink(short).k_m2 - prior.k_m2) < abs(prior.shrink(long).k_m2 - prior.k_m2)
-    none = prior.with_distances(dict.fromkeys(PRIOR_ESTIMATORS, 0.0))
+    none = dataclasses.replace(prior, distance_m=dict.fromkeys(PRIOR_ESTIMATORS, 0.0))
     assert none.shrink(short) is short
 
 
