@@ -457,6 +457,15 @@ class StepConfig:
         return int(self.step_format) != StepFormat.OFF
 
     @property
+    def older_algorithm(self) -> str | None:
+        """What wrote the step records when an older on-line algorithm version than
+        :data:`ONLINE_ALGORITHM_VERSION` did (its :data:`ALGORITHM_VERSIONS` line); None when the algorithm
+        is off or the records are this version's."""
+        if not self.enabled or int(self.step_format) == ONLINE_ALGORITHM_VERSION:
+            return None
+        return ALGORITHM_VERSIONS[StepFormat(int(self.step_format))]
+
+    @property
     def raw(self) -> dict[str, int]:
         """The stored integers by field name (``step_format``, ``step_flags``, ``leg_length_q15``, ...).
 

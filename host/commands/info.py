@@ -61,10 +61,10 @@ def step_lines(header) -> list[str]:
         q = cfg.quantised()
         algorithm = (f"on-line version {int(cfg.step_format)}, leg {q.leg_length_m:.4f} m, "
                      f"foot {q.foot_length_m:.4f} m, ")
-        from protocol.steps import ALGORITHM_VERSIONS, ONLINE_ALGORITHM_VERSION
+        from protocol.steps import ONLINE_ALGORITHM_VERSION
 
-        if int(cfg.step_format) != ONLINE_ALGORITHM_VERSION:   # an older firmware's records
-            algorithm += (f"records by {ALGORITHM_VERSIONS[cfg.step_format]} (this host replays version "
+        if cfg.older_algorithm:                                 # an older firmware's records
+            algorithm += (f"records by {cfg.older_algorithm} (this host replays version "
                           f"{int(ONLINE_ALGORITHM_VERSION)}), ")
         from firmware_sim.algorithms.parameters import M4_EXPONENT
 

@@ -58,7 +58,6 @@ from protocol.image import detect_format, parse_image
 from protocol.packing import unpack_words
 from protocol.raw_dump import parse_raw_dump
 from protocol.steps import (
-    ALGORITHM_VERSIONS,
     ONLINE_ALGORITHM_VERSION,
     STEP_RECORD_DTYPE,
     STEP_RECORD_SIZE,
@@ -599,8 +598,8 @@ def _assemble(header, memory: np.ndarray, slot_ok: np.ndarray, slot_reason: np.n
                     step_record_numbers=step_numbers, step_losses=step_losses)
     rec.notes.append(rec.default_calibration()[1])
     cfg = getattr(header, "step_config", None)
-    if cfg is not None and cfg.enabled and int(cfg.step_format) != ONLINE_ALGORITHM_VERSION:
-        rec.notes.append(f"step records (their on-line lengths) written by {ALGORITHM_VERSIONS[cfg.step_format]}; "
+    if cfg is not None and cfg.older_algorithm:
+        rec.notes.append(f"step records (their on-line lengths) written by {cfg.older_algorithm}; "
                          f"this host's replay is version {int(ONLINE_ALGORITHM_VERSION)}")
     return rec
 

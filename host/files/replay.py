@@ -114,7 +114,7 @@ class ReplayCheck:
         """One line."""
         if self.algorithm_version not in (0, ONLINE_ALGORITHM_VERSION):
             return (f"device step records: {self.n_device} stored by "
-                    f"{ALGORITHM_VERSIONS.get(StepFormat(self.algorithm_version), 'an unknown on-line algorithm')}; "
+                    f"{ALGORITHM_VERSIONS[StepFormat(self.algorithm_version)]}; "
                     f"this host replays version {int(ONLINE_ALGORITHM_VERSION)}, so they are not verified (their "
                     f"lengths are version {self.algorithm_version}'s)")
         if self.n_compared == 0:
@@ -206,8 +206,8 @@ def check_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, sampl
     that could not be read (a decoder dropped them): replayed records inside are not compared.
     """
     dev = np.sort(np.asarray(device_records, STEP_RECORD_DTYPE), order="end_sample")
-    version = int(header.step_config.step_format) if header.step_config is not None else 0
-    if version not in (0, ONLINE_ALGORITHM_VERSION):     # an older algorithm's records: not this host's replay
+    if header.step_config is not None and header.step_config.older_algorithm:   # not this host's replay
+        version = int(header.step_config.step_format)
         return ReplayCheck(np.zeros(0, STEP_RECORD_DTYPE), [], int(dev.size), 0, 0, [], int(dev.size), 0, version)
     replay, spans = replay_records(codes, valid, flags, sample_numbers, header)
     oldest = int(dev["end_sample"][0]) if dev.size else None

@@ -132,9 +132,15 @@ class GaitEventDetector:
         sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
         dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
         threshold = adaptive_prominence(sig, p)
-        ff = find_peaks(sig, distance=dist0, prominence=p.min_prominence_m_s2, with_prominences=True)
-        ff = ff[0][ff[1] >= threshold(ff[0])]
-        ff = ff[sig[ff] > 0]
+
+        def foot_flats(distance: int) -> np.ndarray:
+            """The peaks ``distance`` apart, prominent by the threshold in force, above zero (notes 1)."""
+            peaks, prominences = find_peaks(sig, distance=distance, prominence=p.min_prominence_m_s2,
+                                            with_prominences=True)
+            peaks = peaks[prominences >= threshold(peaks)]
+            return peaks[sig[peaks] > 0]
+
+        ff = foot_flats(dist0)
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
         # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
         d = np.diff(ff)
@@ -142,9 +148,7 @@ class GaitEventDetector:
         dist = dist0
         if d.size >= 3:
             dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
-            ff = find_peaks(sig, distance=dist, prominence=p.min_prominence_m_s2, with_prominences=True)
-            ff = ff[0][ff[1] >= threshold(ff[0])]
-            ff = ff[sig[ff] > 0]
+            ff = foot_flats(dist)
         ff = ff[fin[ff]] if ff.size else ff
         ff = ff.astype(np.int64)
         if p.stop_prominence_m_s2 > 0 and ff.size:

@@ -362,9 +362,9 @@ class IpolResult:
     calibrations_online
         The K the on-line chains use per subject: ``calibrations``' own unless the subject's fold chose another
         M4 exponent than the logger's, then K refitted on the same trial with the logger's.
-    priors, prior_training_error
+    priors
         Per held-out subject, the K prior learned on the other subjects (:func:`choose_prior`; ``"main"``: with
-        the fold's M4 exponent, ``"online"``: with the logger's) and its training error per estimator.
+        the fold's M4 exponent, ``"online"``: with the logger's).
     prior_all
         The prior learned on every subject with the shipped constants (what
         :data:`host.gait.k_prior.LOWER_BACK_PRIOR` ships; never used to score).
@@ -389,7 +389,6 @@ class IpolResult:
     calibrations_online: dict[int, KFit] = field(default_factory=dict)
     count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     priors: dict[int, dict[str, KPrior]] = field(default_factory=dict)
-    prior_training_error: dict[int, dict[str, float]] = field(default_factory=dict)
     prior_all: KPrior | None = None
 
 
@@ -624,22 +623,20 @@ def evaluate_folder(
     #     prior is the one learned on every subject with the shipped constants
     for s in scorable:
         c = res.loso.chosen[s]
-        priors: dict[int, tuple[KPrior, dict[str, float]]] = {}
+        priors: dict[int, KPrior] = {}
         pooled = []
         for j in range(len(exponents)):
             train = {o: t for o in scorable if o != s and (t := transfer(o, c, j)) is not None}
             if len(train) < 2:          # no one to shrink toward: K as fitted
                 pooled.append([r for _, ratios in train.values() for r in ratios["M4"]])
                 continue
-            priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")
-            pooled.append(_shrunk_pool(train, "M4", priors[j][0].distance_m))
+            priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")[0]
+            pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
         j, res.m4_training_iqr[s] = least_spread(pooled)
         res.m4_exponent[s] = float(exponents[j])
         for key, jj in (("main", j), ("online", shipped_j)):
             if jj in priors:
-                res.priors.setdefault(s, {})[key] = priors[jj][0]
-                if key == "main":
-                    res.prior_training_error[s] = priors[jj][1]
+                res.priors.setdefault(s, {})[key] = priors[jj]
     every = {o: t for o in scorable if (t := transfer(o, 0, shipped_j)) is not None}
     if len(every) >= 3:
         res.prior_all = choose_prior(every, source=f"IPOL lower back, subjects {', '.join(map(str, every))}, "
