@@ -12,12 +12,15 @@ Notes
    (by default floor = cap = 0.5 m/s^2, a fixed threshold: a 1 cm CoM excursion at 1.6 steps/s already
    gives ~1.5 m/s^2 peak to trough; ``SLOW_WALKING_PROMINENCE`` lowers the floor to 0.25 m/s^2 for slow
    0.3 m steps, which rise 0.3-0.8 m/s^2). The amplitude follows the accepted peaks in time order, as the
-   on-line algorithm's does; a second pass raises the minimum distance to
-   ``min_step_fraction`` of the median step duration. Only a peak above zero is a foot-flat, as in the
-   on-line algorithm (version 2, :mod:`firmware_sim.algorithms.kernel` step 5): in double support the centre
-   of mass is accelerated upward; a peak at or below zero is a ripple of the single support. (A peak above
-   zero is always higher than one at or below it, so dropping those after the distance rule drops what the
-   on-line algorithm never confirms; on the IPOL trials no offline foot-flat was at or below zero.)
+   on-line algorithm's does. Only a peak above zero is a foot-flat, as in the on-line algorithm (version 2,
+   :mod:`firmware_sim.algorithms.kernel` step 5): in double support the centre of mass is accelerated
+   upward; a peak at or below zero is a ripple of the single support. The minimum distance is applied to
+   these candidates only (:func:`foot_flat_candidates`), the higher of two kept, as the on-line algorithm's
+   pending foot-flat competes only with confirmed peaks; a second pass raises it to ``min_step_fraction``
+   of the median step duration. (Until issue 12's last change the distance came first, over every local
+   maximum, as ``scipy.signal.find_peaks`` orders its rules: a weak bump 0.3 s before a step's foot-flat
+   could then suppress it. IPOL trial 8-2: a 0.30 m/s^2 bump at 4.76 s suppressed the 0.60 m/s^2 peak at
+   5.08 s that the on-line algorithm confirms.)
 2. *Heel-strike* (HS): the impact. The loading impact of the leading leg reaches the lower back as a short
    upward peak (~20-40 ms wide) shortly after contact; the trailing leg's push-off makes a broader rise
    ~60-100 ms *before* contact, often the steeper of the two at 50 Hz. The impact is taken as the maximum of
@@ -59,7 +62,7 @@ from firmware_sim.algorithms.parameters import (
     samples,
 )
 from host.gait.masked_filter import masked_gaussian_lowpass
-from host.gait.peaks import find_peaks
+from host.gait.peaks import find_peaks, keep_by_distance
 
 
 class GaitEventDetector:
@@ -131,14 +134,11 @@ class GaitEventDetector:
         fin = np.isfinite(lp)
         sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
         dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
-        threshold = adaptive_prominence(sig, p)
+        candidates = foot_flat_candidates(sig, p)
 
         def foot_flats(distance: int) -> np.ndarray:
-            """The peaks ``distance`` apart, prominent by the threshold in force, above zero (notes 1)."""
-            peaks, prominences = find_peaks(sig, distance=distance, prominence=p.min_prominence_m_s2,
-                                            with_prominences=True)
-            peaks = peaks[prominences >= threshold(peaks)]
-            return peaks[sig[peaks] > 0]
+            """The candidates ``distance`` apart, the higher kept (notes 1)."""
+            return candidates[keep_by_distance(candidates, sig[candidates], distance)]
 
         ff = foot_flats(dist0)
         # second pass: a step cannot be much shorter than the typical step of the recording (cadence
@@ -197,10 +197,12 @@ class GaitEventDetector:
         return np.where(has, idx[np.arange(centre.size), j], -1).astype(np.int64)
 
 
-def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
-    """The prominence each peak of ``sig`` must reach (module notes 1):
-    ``min(cap, max(floor, fraction · A))``, the cap before the first accepted peak
-    (:func:`firmware_sim.algorithms.parameters.prominence_threshold`).
+def foot_flat_candidates(sig: np.ndarray, parameters: EventParameters) -> np.ndarray:
+    """The peaks of ``sig`` (the first harmonic, m/s^2) that may be foot-flats (module notes 1): prominent by
+    the threshold in force, ``min(cap, max(floor, fraction · A))``, the cap before the first accepted peak
+    (:func:`firmware_sim.algorithms.parameters.prominence_threshold`), and above zero. The minimum distance
+    is applied to these candidates only, as the on-line algorithm lets only confirmed peaks compete: a
+    nearby local maximum too weak to be a foot-flat cannot suppress one that is.
 
     ``A`` follows the peaks in time order as the on-line algorithm's hysteresis does: a peak (every local
     maximum at least ``min_prominence_m_s2`` prominent, no distance rule) is accepted when its prominence
@@ -210,26 +212,24 @@ def adaptive_prominence(sig: np.ndarray, parameters: EventParameters):
 
     Returns
     -------
-    callable
-        ``threshold(peaks)``: the threshold in force at each of ``peaks`` (local maxima of ``sig``).
+    numpy.ndarray
+        Increasing sample indices.
     """
     floor, cap, fraction = (parameters.min_prominence_m_s2, parameters.max_prominence_m_s2,
                             parameters.prominence_fraction)
-    if cap <= floor:                            # a fixed threshold
-        return lambda peaks: np.full(np.shape(peaks), cap)
     cand, prom = find_peaks(sig, prominence=floor, with_prominences=True)
-    thr = np.full(cand.size, cap)
-    amp, have, last = 0.0, False, 0
-    for i, (q, pq) in enumerate(zip(cand.tolist(), prom.tolist())):
-        thr[i] = prominence_threshold(amp, have, floor, cap, fraction)
-        if pq >= thr[i]:
-            amp = amplitude_update(amp, float(sig[q] - sig[last:q + 1].min()), not have, parameters.amplitude_shift)
-            have, last = True, q
-
-    def threshold(peaks: np.ndarray) -> np.ndarray:
-        j = np.searchsorted(cand, peaks)
-        return thr[np.clip(j, 0, max(cand.size - 1, 0))] if cand.size else np.full(np.shape(peaks), cap)
-    return threshold
+    if cap <= floor:                            # a fixed threshold
+        accepted = prom >= cap
+    else:
+        accepted = np.zeros(cand.size, bool)
+        amp, have, last = 0.0, False, 0
+        for i, (q, pq) in enumerate(zip(cand.tolist(), prom.tolist())):
+            if pq >= prominence_threshold(amp, have, floor, cap, fraction):
+                accepted[i] = True
+                amp = amplitude_update(amp, float(sig[q] - sig[last:q + 1].min()), not have,
+                                       parameters.amplitude_shift)
+                have, last = True, q
+    return cand[accepted & (sig[cand] > 0)].astype(np.int64)
 
 
 def stop_steps(sig: np.ndarray, ff: np.ndarray, fin: np.ndarray, *, dist: int, max_step: int,

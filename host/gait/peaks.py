@@ -73,7 +73,7 @@ def find_peaks(x: np.ndarray, *, distance: float | None = None, prominence: floa
     peak_run[[0, -1]] = False  # the first and last samples are never peaks
     peaks = (run_start[peak_run] + run_end[peak_run]) // 2
     if distance is not None and peaks.size > 1:
-        keep = _keep_by_distance(peaks, a[peaks], math.ceil(distance))
+        keep = keep_by_distance(peaks, a[peaks], math.ceil(distance))
         peaks, peak_run_index = peaks[keep], np.flatnonzero(peak_run)[keep]
     else:
         peak_run_index = np.flatnonzero(peak_run)
@@ -93,9 +93,14 @@ def _runs(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.r_[0, change], np.r_[change - 1, a.size - 1]
 
 
-def _keep_by_distance(peaks: np.ndarray, height: np.ndarray, distance: int) -> np.ndarray:
+def keep_by_distance(peaks: np.ndarray, height: np.ndarray, distance: int) -> np.ndarray:
     """Mask of the peaks kept when, from the highest down, each kept peak removes its neighbours closer than
-    ``distance`` (greedy and sequential by nature; a loop over the peaks, not the samples)."""
+    ``distance`` (greedy and sequential by nature; a loop over the peaks, not the samples). Rule 2 of the
+    module notes; :mod:`host.gait.events` applies it alone to the peaks that passed its own prominence rule.
+
+    >>> keep_by_distance(np.array([3, 5, 9]), np.array([1.0, 2.0, 1.5]), 3).tolist()
+    [False, True, True]
+    """
     pos = peaks.tolist()
     keep = [True] * len(pos)
     for j in np.argsort(height)[::-1].tolist():  # the same argsort as scipy: ties fall the same way
