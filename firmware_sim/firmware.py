@@ -6,7 +6,7 @@ its return value; the transport (:mod:`firmware_sim.transport`) owns the port an
 timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time.
 
 On-line step algorithm (PROTOCOL.md 2.2, 2.3)
-    When the header's step configuration is on (``step_format`` 2, the version it runs), START builds the firmware's step
+    When the header's step configuration is on (``step_format`` 3, the version it runs), START builds the firmware's step
     algorithm (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`, fixed point) from the header —
     sampling rate, ADC width, calibration slot, step configuration — and every sample the interrupt stores
     is fed to it; each finished step's 20-byte record goes to :meth:`Firmware.log_steps`, which the
@@ -79,9 +79,9 @@ from protocol.xmodem import XmodemSender
 __all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "as_run", "step_algorithm_for",
            "CRC32_CYCLES_PER_BYTE", "DUMP_CYCLES_PER_BYTE", "uart_cycles_per_byte"]
 
-#: Firmware version 1.1 (major·256 + minor): on-line algorithm version 2 (``step_format`` 2; 1.0 ran and
-#: stored version 1).
-FIRMWARE_VERSION = 0x0101
+#: Firmware version 1.2 (major·256 + minor): on-line algorithm version 3 (``step_format`` 3; 1.1 ran and
+#: stored version 2, 1.0 version 1).
+FIRMWARE_VERSION = 0x0102
 #: Partial frames are dropped after this much silence.
 INTER_BYTE_TIMEOUT_S = 0.1
 #: The terminal command that arms XDUMP.
@@ -116,7 +116,7 @@ _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPE
 
 
 def as_run(config: StepConfig | None) -> StepConfig | None:
-    """The step configuration as the firmware stores it: an on-line ``step_format`` (1 or 2) becomes the version
+    """The step configuration as the firmware stores it: an on-line ``step_format`` (1, 2 or 3) becomes the version
     it runs (:data:`protocol.steps.ONLINE_ALGORITHM_VERSION`), so the header says what wrote the records."""
     if config is None or not config.enabled:
         return config
@@ -262,7 +262,7 @@ class Firmware:
     def set_step_config(self, config: StepConfig) -> None:
         """SET_STEP_CONFIG: store the step configuration in the header and commit it (like SET_CALIBRATION).
 
-        An on-line ``step_format`` (1 or 2) turns the algorithm on; the header stores the version this
+        An on-line ``step_format`` (1, 2 or 3) turns the algorithm on; the header stores the version this
         firmware runs (:data:`protocol.steps.ONLINE_ALGORITHM_VERSION`), so its records say what wrote them.
 
         Raises

@@ -108,14 +108,15 @@ class StepFormat(enum.IntEnum):
     """``step_format`` byte of the step configuration block."""
 
     OFF = 0  #: the on-line step algorithm is off (plain logging)
-    V1 = 1  #: on-line algorithm version 1 (firmware 1.0; images only: firmware 1.1 stores 2)
-    V2 = 2  #: on-line algorithm version 2 (firmware 1.1: the version the firmware runs)
+    V1 = 1  #: on-line algorithm version 1 (firmware 1.0; images only: later firmware stores its own version)
+    V2 = 2  #: on-line algorithm version 2 (firmware 1.1; images only: firmware 1.2 stores 3)
+    V3 = 3  #: on-line algorithm version 3 (firmware 1.2: the version the firmware runs)
 
 
 #: The on-line algorithm version the firmware runs: SET_STEP_CONFIG with any on-line ``step_format`` turns
 #: it on, and the device stores this version in its header (PROTOCOL.md 2.2), so an image says which
 #: algorithm wrote its step records.
-ONLINE_ALGORITHM_VERSION = StepFormat.V2
+ONLINE_ALGORITHM_VERSION = StepFormat.V3
 
 #: What each on-line algorithm version computed, one line each (a decoder says it for an image's records).
 ALGORITHM_VERSIONS = {
@@ -123,8 +124,10 @@ ALGORITHM_VERSIONS = {
                     "step intervals are known, every confirmed peak a foot-flat candidate; M4 = K range^p with "
                     "p = 1/4 in earlier and 1/2 in later builds, which the image does not record"),
     StepFormat.V2: ("on-line algorithm version 2 (firmware 1.1): minimum foot-flat distance from a prior typical "
-                    "step of 0.55 s until three step intervals are known, foot-flats only above zero; M4 = K "
-                    "range^(1/2)"),
+                    "step of 0.55 s until three step intervals are known, foot-flats only above zero, a fixed "
+                    "0.5 m/s^2 foot-flat prominence; M4 = K range^(1/2)"),
+    StepFormat.V3: ("on-line algorithm version 3 (firmware 1.2): as version 2, with the foot-flat prominence 0.25 "
+                    "of the recent step amplitude within 0.25-0.5 m/s^2 (slow, short-stepped walking)"),
 }
 
 
@@ -404,7 +407,7 @@ class StepConfig:
     Parameters
     ----------
     step_format
-        0 (:attr:`StepFormat.OFF`): on-line step algorithm off; 1 or 2: on (:data:`ALGORITHM_VERSIONS`; the
+        0 (:attr:`StepFormat.OFF`): on-line step algorithm off; 1, 2 or 3: on (:data:`ALGORITHM_VERSIONS`; the
         device runs :data:`ONLINE_ALGORITHM_VERSION` and stores it, whichever of them it was sent).
     calibrated
         The K constants are valid (``step_flags`` bit ``CALIBRATED``).
@@ -477,7 +480,7 @@ class StepConfig:
         try:
             fmt = StepFormat(int(self.step_format))
         except (ValueError, TypeError):
-            raise _config_error(f"unknown step format {self.step_format!r} (known: 0 off, 1 and 2 on-line "
+            raise _config_error(f"unknown step format {self.step_format!r} (known: 0 off, 1-3 on-line "
                                 f"algorithm versions)",
                                 "step_format") from None
         out = {"step_format": int(fmt), "step_flags": int(StepConfigFlag.CALIBRATED) if self.calibrated else 0}
@@ -520,7 +523,7 @@ class StepConfig:
         Raises
         ------
         ProtocolError
-            Wrong length, ``step_format`` > 2, reserved ``step_flags`` bits set, or an on-line format with a
+            Wrong length, ``step_format`` > 3, reserved ``step_flags`` bits set, or an on-line format with a
             leg length of 0; offsets are ``base_offset`` plus the field's offset in the block.
         """
         if len(data) != STEP_CONFIG_SIZE:
@@ -528,7 +531,7 @@ class StepConfig:
                                 offset=base_offset, source=source)
         c = _STEP_CONFIG_FAST.parse(bytes(data))
         if c.step_format not in {int(f) for f in StepFormat}:
-            raise _config_error(f"unknown step format {c.step_format} (known: 0 off, 1 and 2 on-line algorithm "
+            raise _config_error(f"unknown step format {c.step_format} (known: 0 off, 1-3 on-line algorithm "
                                 "versions)",
                                 "step_format", source, base_offset)
         if c.step_flags & ~int(StepConfigFlag.CALIBRATED):

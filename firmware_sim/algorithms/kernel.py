@@ -24,7 +24,8 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
 5. **Foot-flat** (peaks of ``y3``): a hysteresis detector confirms a peak when ``y3`` has risen by the
    prominence since the last trough and fallen by it since the peak; the prominence is a fraction of the
    recent step amplitude ``AMP`` (an exponential mean of the confirmed peaks' rises from the trough before
-   them) clamped to a floor and a cap, the cap before the first confirmed peak (:func:`_prominence`). A
+   them) clamped to a floor and a cap, the cap before the first confirmed peak (:func:`_prominence`; on-line
+   algorithm version 3: floor 0.25, cap 0.5 m/s^2, for slow, short steps; versions 1-2: floor = cap). A
    confirmed peak becomes the
    *pending* foot-flat; a later confirmed peak closer than the minimum distance replaces it if higher and
    is dropped otherwise. The pending foot-flat is final once no peak within the distance can still come:
@@ -571,7 +572,7 @@ def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
         return cfg_v[CV_CAP]
     s_cost(cnt, OP_DEE, 2)                       # the floor
     s_cost(cnt, OP_CMP32, 1)
-    if cfg_v[CV_CAP] <= cfg_v[CV_DELTA]:         # floor = cap (the default): a fixed threshold, no multiply
+    if cfg_v[CV_CAP] <= cfg_v[CV_DELTA]:         # floor = cap (versions 1-2): a fixed threshold, no multiply
         return cfg_v[CV_DELTA]
     s_cost(cnt, OP_DEE, 2)                       # the fraction
     scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W16, cnt), F_ACC, F_LP, W_LP, cnt)

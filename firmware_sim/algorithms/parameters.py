@@ -15,39 +15,42 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   5-10 Hz band, ``hs_delay_s`` (40 ms) after the contact; toe-off is the first minimum of the 10 Hz signal
   after the foot-flat.
 * ``min_step_s`` 0.25 s (at most 240 steps/min), ``max_step_s`` 1.5 s (a longer interval ends a walking
-  bout), ``min_prominence_m_s2`` 0.5 m/s^2 (a 1 cm excursion of the centre of mass at 1.6 steps/s already
-  gives ~1.5 m/s^2 peak to trough), ``min_step_fraction`` 0.6 (a "step" 40 % shorter than the typical one
+  bout), ``max_prominence_m_s2`` 0.5 m/s^2 (a 1 cm excursion of the centre of mass at 1.6 steps/s already
+  gives ~1.5 m/s^2 peak to trough; the floor below it: next item), ``min_step_fraction`` 0.6 (a "step" 40 % shorter than the typical one
   is a second bump of the same step: stride-time CV is 2-4 % in healthy adults, Hausdorff 2005).
 * Prominence (the foot-flat threshold): ``min(max_prominence_m_s2, max(min_prominence_m_s2,
   prominence_fraction · A))``, ``A`` the walk's recent step amplitude (rise of the 3 Hz signal from the
   trough before each accepted foot-flat, an exponential mean over ``amplitude_steps`` (4) accepted peaks; the
   first accepted peak sets it); before any peak is accepted (the run's start, standing) it is the cap:
-  :func:`prominence_threshold`. Default: floor = cap = 0.5 m/s^2, a fixed threshold, which misses 17-25 % of
-  slow short steps (the 3 Hz first harmonic of a 0.30-0.35 m step at 70-90 /min rises 0.3-0.8 m/s^2;
-  ``tests/host/test_slow_walking_sim.py``). :data:`SLOW_WALKING_PROMINENCE` (opt-in, ``gaitlog estimate
-  --slow-walking``) lowers the floor to 0.25 m/s^2 under the same cap: walkers whose amplitude is at least
-  ``cap / fraction`` (2 m/s^2) keep the fixed threshold, low-amplitude walkers get down to the floor.
-  History (issue 12): the opt-in was first uncapped, ``max(0.25, 0.2 A)``, and the floor, 0.25 m/s^2, also
-  its threshold before the first step; the fraction and floor were chosen on simulated walkers
-  (``firmware_sim.world``, six random subjects, seed 3, three speeds, 20 m out and back: fraction 0.2 gave
-  step count errors -1..+2 of 188, 0.15: +2..+3, 0.25: -3..0, 0.3: -7..-4; floor 0.15-0.2 added +2..+9, 0.3
-  missed 2-4 % of the slow walkers). On brisk walking (``A`` 2-6 m/s^2) the uncapped rule raised the
-  threshold to 0.4-1.2 m/s^2, above the 0.3-0.5 m/s^2 bumps of turns and stops (IPOL: the stopping step
-  missed in 31 of 52 trials instead of 21; on-line M4 and M5 IQRs 0.099 -> 0.115, 0.175 -> 0.205), hence the
-  cap. Its threshold before the first step is the cap, not the floor: with the floor the offline chain found
+  :func:`prominence_threshold`. Defaults: floor 0.25 m/s^2, cap 0.5 m/s^2, fraction 0.25 (on-line algorithm
+  version 3). Walkers whose amplitude is at least ``cap / fraction`` (2 m/s^2: brisk walking) keep the
+  fixed 0.5 m/s^2 of versions 1-2; slow, short steps (0.30-0.35 m at 70-90 /min, whose 3 Hz first harmonic
+  rises 0.3-0.8 m/s^2) get down to the floor: the fixed threshold missed 17-25 % of them, this rule
+  -3.1..+0.4 % (``tests/host/test_slow_walking_sim.py``, simulated walkers: there is no such recording).
+  History (issue 12): the rule was first uncapped, ``max(0.25, 0.2 A)``, and the floor also its threshold
+  before the first step; the fraction and floor were chosen on simulated walkers (``firmware_sim.world``,
+  six random subjects, seed 3, three speeds, 20 m out and back: fraction 0.2 gave step count errors -1..+2
+  of 188, 0.15: +2..+3, 0.25: -3..0, 0.3: -7..-4; floor 0.15-0.2 added +2..+9, 0.3 missed 2-4 % of the
+  slow walkers). On brisk walking (``A`` 2-6 m/s^2) the uncapped rule raised the threshold to 0.4-1.2
+  m/s^2, above the 0.3-0.5 m/s^2 bumps of turns and stops (IPOL: the stopping step missed in 31 of 52
+  trials instead of 21; on-line M4 and M5 IQRs 0.099 -> 0.115, 0.175 -> 0.205), hence the cap. Its
+  threshold before the first step is the cap, not the floor: with the floor the offline chain found
   foot-flats in the standing 4-5 s before walking in 7 of the 52 IPOL trials (subjects 4 and 9) and in the
   0.4 s weight shift before the first step in 16 more. The fraction 0.25 (of 0.2, 0.25, 0.3) is the best on
   the IPOL step count in both chains (sum of |errors| over the 52 trials, U-turns included, offline 43 / 41 /
   42, on-line float 58 / 52 / 53; fixed threshold 42 and 52): 0.2 let low-amplitude IPOL subject 3
   (``A`` ~1.5 m/s^2) count secondary bumps 0.41-0.50 m/s^2 prominent between steps; a leave-one-subject-out
-  choice by ``host.studies.tuning``'s step-count criterion gives 0.25 in 9 of 9 folds. It is a constant
-  chosen on the IPOL recordings; it does not act on the slow walkers (their amplitude puts them at the floor).
-  Not the default, measured on the IPOL trials (``gaitlog evaluate ipol``, against the fixed threshold): step
-  counts unchanged in median (offline |error| 1, signed 0; on-line +1), but calibrated offline M2 IQR 0.060
-  -> 0.064 (trial 8-2, whose real first step, foot-sensor heel strike at 5.25 s, is now found: its ratio
-  0.971 -> 0.954 crosses the lower quartile) and on-line float vs offline median |ratio difference| M2
-  0.0087 -> 0.0106, M4 0.0091 -> 0.0102 (issue 10's 0.01): the two chains' amplitudes follow different peak
-  sequences, so their thresholds between floor and cap differ more often than the fixed one.
+  choice by ``host.studies.tuning``'s step-count criterion gave 0.25 in 9 of 9 folds (measured then; it is
+  a constant chosen on the IPOL recordings, and it acts on subject 3 only: the slow walkers sit at the
+  floor, the other IPOL subjects at the cap). It was first opt-in (``gaitlog estimate --slow-walking``,
+  algorithm version 2): as a default it moved the on-line vs offline M2 median |ratio difference| on IPOL
+  from 0.0087 to 0.0106-0.0110, past issue 10's 0.01. The cause was in the offline chain: its minimum
+  distance ran over every local maximum before the prominence rule, so a weak bump could suppress a
+  foot-flat the on-line algorithm confirms (``host.gait.events`` notes 1; IPOL trial 8-2's first step).
+  With the distance among prominent peaks only, the rule as default costs nothing measurable on IPOL
+  against the fixed threshold (``gaitlog evaluate ipol``: offline M2 0.998 / IQR 0.048 and M4 IQR
+  0.058 unchanged, on-line vs offline M2 0.0097 either way, step counts' sum of |errors| 37 -> 36 offline,
+  41 -> 40 on-line).
 * Stop rule (``stop_prominence_m_s2``, 0.2 m/s^2; 0: off): the step that brings the walker to a stop
   raises the 3 Hz signal less than a walking step, and the full prominence missed it in 25 of the 52 IPOL
   trials. After a bout's last full foot-flat, the first peak within about two steps (the minimum distance
@@ -84,7 +87,7 @@ from dataclasses import dataclass
 
 from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
-__all__ = ["SLOW_WALKING_PROMINENCE", "prominence_threshold", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
+__all__ = ["prominence_threshold", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
            "gaussian_radius", "FRACTION_SCALE",
            "STANDARD_GRAVITY_M_S2", "SIGMA_S_AT_1HZ"]
 
@@ -150,8 +153,8 @@ class EventParameters:
     min_step_s, max_step_s
         Shortest step (0.25 s) and longest step inside a walking bout (1.5 s).
     min_prominence_m_s2, max_prominence_m_s2
-        The foot-flat prominence's floor and cap (0.5 m/s^2 both: a fixed threshold; the floor 0.25 m/s^2 in
-        :data:`SLOW_WALKING_PROMINENCE`; the cap is also the threshold before a step amplitude is known): a
+        The foot-flat prominence's floor and cap (0.25 and 0.5 m/s^2; floor = cap: a fixed threshold, as in
+        on-line algorithm versions 1-2; the cap is also the threshold before a step amplitude is known): a
         foot-flat's rise and fall of the 3 Hz signal (module notes).
     hs_search_s, hs_after_s, hs_delay_s
         The impact is searched from ``hs_search_s`` before to ``hs_after_s`` after each foot-flat; the
@@ -173,7 +176,7 @@ class EventParameters:
     impact_cutoff_hz: float = 5.0
     min_step_s: float = 0.25
     max_step_s: float = 1.5
-    min_prominence_m_s2: float = 0.5
+    min_prominence_m_s2: float = 0.25
     max_prominence_m_s2: float = 0.5
     hs_search_s: float = 0.2
     hs_after_s: float = 0.06
@@ -241,11 +244,6 @@ def prominence_threshold(amplitude, known: bool, floor, cap, fraction):
     if not known:
         return cap
     return min(cap, max(floor, fraction * amplitude))
-
-
-#: The adaptive prominence for slow, short-stepped walking (module notes; opt-in, not the default): the floor
-#: lowered to 0.25 m/s^2 under the default's 0.5 m/s^2 cap.
-SLOW_WALKING_PROMINENCE = dict(min_prominence_m_s2=0.25)
 
 
 @dataclass(frozen=True)

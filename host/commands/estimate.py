@@ -30,11 +30,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "goes to <out>_fixed.csv); the same K for both")
     parser.add_argument("--json", action="store_true",
                         help="print the summary as one JSON document on stdout instead of the table")
-    parser.add_argument("--slow-walking", action="store_true",
-                        help="slow, short-stepped walking (steps <= 0.35 m, cadence <= 90 /min): foot-flats need "
-                        "0.25 of the recent step amplitude, within 0.25-0.5 m/s^2, instead of 0.5 m/s^2, in both "
-                        "arithmetics (SLOW_WALKING_PROMINENCE; not the default: on the IPOL trials it moves "
-                        "some calibrated figures)")
     add_anatomy_options(parser)
     add_input_options(parser)
     add_verbosity_options(parser)
@@ -69,20 +64,15 @@ def run(args: argparse.Namespace) -> int:
     notes = [lengths.note] if lengths.assumed else []
     tables = {}
     fixed_report = ""
-    from firmware_sim.algorithms.parameters import SLOW_WALKING_PROMINENCE, EventParameters
-
-    events = EventParameters(**SLOW_WALKING_PROMINENCE) if args.slow_walking else EventParameters()
     if args.arithmetic in ("float", "both"):
-        from host.gait.events import GaitEventDetector
         from host.gait.pipeline import StepPipeline
 
-        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=k,
-                            detector=GaitEventDetector(events)).run(
+        pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=k).run(
             data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
         tables["float"] = pipe.steps_
         notes += pipe.notes_
     if args.arithmetic in ("fixed", "both"):
-        tables["fixed"], fixed_report = _fixed_steps(data, args.calibration, leg, foot, k, events)
+        tables["fixed"], fixed_report = _fixed_steps(data, args.calibration, leg, foot, k)
     outs = {}
     if args.out:
         out = Path(args.out)
@@ -184,14 +174,10 @@ def _summary(tables: dict, estimators: tuple[str, ...], k=None) -> dict[str, dic
     return out
 
 
-def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k, events):
+def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k):
     """The on-line algorithm in fixed point (the logger's) on the codes of a logger recording, with the same
-    K and event rules (``events``) as the float chain -> (StepTable, saturation report)."""
-    import functools
-
+    K as the float chain -> (StepTable, saturation report)."""
     import numpy as np
-
-    from firmware_sim.algorithms.online import OnlineStepAlgorithm
 
     from host.errors import HostError
     from host.files.replay import online_step_table, run_starts
@@ -209,6 +195,5 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k, even
     starts = run_starts(valid, rec.flags)
     table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                                    foot_length_m=foot, calibration=k, adc_calibration=adc_cal,
-                                   adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts,
-                                   algorithm=functools.partial(OnlineStepAlgorithm, events=events))
+                                   adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid, run_starts=starts)
     return table, alg.arithmetic_context().report()

@@ -9,9 +9,8 @@ Notes
    Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by the prominence of
    :mod:`firmware_sim.algorithms.parameters`: ``prominence_fraction`` of the walk's recent step amplitude,
    at least ``min_prominence_m_s2`` and at most ``max_prominence_m_s2``, the cap also before the first step
-   (by default floor = cap = 0.5 m/s^2, a fixed threshold: a 1 cm CoM excursion at 1.6 steps/s already
-   gives ~1.5 m/s^2 peak to trough; ``SLOW_WALKING_PROMINENCE`` lowers the floor to 0.25 m/s^2 for slow
-   0.3 m steps, which rise 0.3-0.8 m/s^2). The amplitude follows the accepted peaks in time order, as the
+   (by default 0.25 and 0.5 m/s^2: a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to
+   trough, so brisk walking stays at the cap; slow 0.3 m steps rise 0.3-0.8 m/s^2 and get the floor). The amplitude follows the accepted peaks in time order, as the
    on-line algorithm's does. Only a peak above zero is a foot-flat, as in the on-line algorithm (version 2,
    :mod:`firmware_sim.algorithms.kernel` step 5): in double support the centre of mass is accelerated
    upward; a peak at or below zero is a ripple of the single support. The minimum distance is applied to

@@ -133,7 +133,7 @@ def _steps(n: int) -> bytes:
 def test_logger_has_step_memory_and_config() -> None:
     from protocol.steps import StepConfig
 
-    cfg = StepConfig(step_format=2, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1)
+    cfg = StepConfig(step_format=3, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1)
     lg = Logger(step_config=cfg)
     h = lg.header
     assert (h.step_capacity, h.steps_written, h.step_write_index) == (3276, 0, 0)
@@ -159,7 +159,7 @@ def test_image_carries_the_step_memory(tmp_path: Path) -> None:
     from protocol.image import parse_image
     from protocol.steps import StepConfig
 
-    cfg = StepConfig(step_format=2, leg_length_m=0.875)
+    cfg = StepConfig(step_format=3, leg_length_m=0.875)
     lg = Logger(device_id=5, sensor=SensorModel.ideal(), step_config=cfg)
     lg.firmware.start_logging(start_time_s=1000, overwrite=True)
     lg.firmware.log_samples(np.full((300, 3), 512))

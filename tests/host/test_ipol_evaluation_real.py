@@ -167,7 +167,7 @@ def test_arithmetic_share_in_distance(ipol) -> None:
 
 
 # measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
-ALGORITHM_SHARE = {"M1": 0.0108, "M2": 0.0090, "M3": 0.0081, "M4": 0.0078, "M5": 0.0029}
+ALGORITHM_SHARE = {"M1": 0.0126, "M2": 0.0097, "M3": 0.0081, "M4": 0.0078, "M5": 0.0029}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
@@ -208,10 +208,10 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
 # The README's table: median ratio, IQR (and min, max offline) with the offline chain's K (shrunk toward the
 # other subjects' K)
 README_TABLE = {
-    "offline": {"M1": (1.012, 0.078, 0.888, 1.117), "M2": (1.001, 0.048, 0.830, 1.088),
-                "M3": (1.023, 0.062, 0.895, 1.150), "M4": (0.996, 0.058, 0.857, 1.087),
-                "M5": (0.998, 0.152, 0.815, 1.233)},
-    "online-fixed": {"M1": (1.015, 0.091), "M2": (1.005, 0.053), "M3": (1.027, 0.072), "M4": (0.989, 0.073),
+    "offline": {"M1": (1.012, 0.078, 0.888, 1.117), "M2": (0.998, 0.048, 0.830, 1.088),
+                "M3": (1.023, 0.061, 0.895, 1.150), "M4": (0.996, 0.058, 0.857, 1.087),
+                "M5": (0.998, 0.152, 0.815, 1.237)},
+    "online-fixed": {"M1": (1.015, 0.095), "M2": (1.005, 0.053), "M3": (1.027, 0.070), "M4": (0.989, 0.073),
                      "M5": (0.978, 0.160)},
 }
 
@@ -253,7 +253,7 @@ def test_m2_iqr(ipol) -> None:
 
 
 def test_m4_iqr(ipol) -> None:
-    """Issue 4's 0.10: met since M4 is K range^(1/2) (0.0585 with the K prior, 0.071 without; 0.104 with
+    """Issue 4's 0.10: met since M4 is K range^(1/2) (0.0585 with the K prior, 0.076 without; 0.104 with
     Weinberg's range^(1/4))."""
     assert iqr(ratios(ipol.rows, "M4")) <= 0.10
 
@@ -261,8 +261,8 @@ def test_m4_iqr(ipol) -> None:
 @pytest.mark.parametrize("name", [
     "M2", "M4"])
 def test_issue12_calibrated_iqr(ipol, name) -> None:
-    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 1.001, 0.996) and IQR <= 0.06 (met: M2
-    0.048, M4 0.0585), K per subject from its first trial shrunk toward the other subjects' (M4: 0.071 with the
+    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 0.998, 0.996) and IQR <= 0.06 (met: M2
+    0.048, M4 0.0585), K per subject from its first trial shrunk toward the other subjects' (M4: 0.076 with the
     first trial's K alone; 0.0604 with the prior but M4's exponent chosen on unshrunk K, 3/8 for subject 7)."""
     r = ratios(ipol.rows, name)
     assert abs(np.median(r) - 1.0) <= 0.02
@@ -271,14 +271,14 @@ def test_issue12_calibrated_iqr(ipol, name) -> None:
 
 def test_issue12_best_calibrated_iqr(ipol) -> None:
     """Issue 12: the best calibrated estimator's IQR <= 0.05: M2's 0.048 with K shrunk toward the other
-    subjects' K (0.060 with the first trial's K alone; M1 0.078, M4 0.0585, M5 0.152)."""
+    subjects' K (0.064 with the first trial's K alone; M1 0.078, M4 0.0585, M5 0.152)."""
     assert min(iqr(ratios(ipol.rows, e)) for e in ("M1", "M2", "M4", "M5")) <= 0.05
 
 
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_issue12_m3_without_k(ipol, arithmetic) -> None:
-    """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08 (measured offline 1.023, 0.062; on-line
-    fixed 1.027, 0.072)."""
+    """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08 (measured offline 1.023, 0.061; on-line
+    fixed 1.027, 0.070)."""
     r = ratios(ipol.rows, "M3", arithmetic)
     assert abs(np.median(r) - 1.0) <= 0.05 and iqr(r) <= 0.08
 
@@ -295,9 +295,9 @@ def test_m3_uncalibrated_median(ipol) -> None:
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_step_count_median_error(ipol, arithmetic) -> None:
     """Issue 12's target: median |error| <= 1 step per 20 m trial, median signed error 0 (measured offline, cross-
-    validated: 1 and 0, errors -2..+2; on-line algorithm version 2 (prior typical step, foot-flats above zero)
-    1 and 0, errors -2..+2, 22 of 43 trials at or below 0, sum of |errors| 41; version 1: +1, -2..+3, 44);
-    2.86 % in median."""
+    validated: 1 and 0, errors -1..+2, sum of |errors| 36; on-line algorithm version 3 1 and 0, errors -2..+2,
+    22 of 43 trials at or below 0, sum of |errors| 40 (version 2, a fixed foot-flat prominence: 41; version 1
+    without the prior typical step and the above-zero rule: +1, -2..+3, 44); 2.86 % in median."""
     rows = [r for r in ipol.rows if r["estimator"] == "M2" and r["arithmetic"] == arithmetic
             and r["k_from"] == "offline" and r["variant"] == "main"]
     d = np.array([int(r["steps"]) - int(r["reference_steps"]) for r in rows])
@@ -306,7 +306,9 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
     assert np.median(np.abs(d)) <= 1 and np.median(d) == 0
     assert np.abs(d).max() <= 3
     if arithmetic == "online-fixed":           # the README's on-line figures
-        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(41, abs=2)
+        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(40, abs=2)
+    else:
+        assert (d.min(), d.max()) == (-1, 2) and np.abs(d).sum() == pytest.approx(36, abs=2)
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
@@ -352,26 +354,26 @@ def event_line(text, label):
 
 def test_event_timing_is_printed_by_the_command(ipol) -> None:
     """Issue 12 (5): HS and TO F1 within 40 ms and median |error| against the foot sensors, printed by evaluate
-    ipol: cross-validated offline HS F1 0.721 (in-sample with the shipped defaults 0.752), TO 0.577; on-line
-    fixed HS 0.732, TO 0.621; median |error| 20 ms (one sample at 50 Hz)."""
+    ipol: cross-validated offline HS F1 0.722 (in-sample with the shipped defaults 0.753), TO 0.576; on-line
+    fixed HS 0.734, TO 0.623; median |error| 20 ms (one sample at 50 Hz)."""
     hs, n, to, line = event_line(ipol.text, "offline, constants chosen leave-one-subject-out [cross-validated]: ")
-    assert n == 1774 and hs == pytest.approx(0.721, abs=0.01) and to == pytest.approx(0.577, abs=0.01)
+    assert n == 1774 and hs == pytest.approx(0.722, abs=0.01) and to == pytest.approx(0.576, abs=0.01)
     assert "median |error| 20 ms" in line
     hs_in, _, _, _ = event_line(ipol.text, "offline, shipped defaults (in-sample): ")
-    assert hs_in == pytest.approx(0.752, abs=0.01) and hs_in >= hs          # in-sample is the optimistic one
+    assert hs_in == pytest.approx(0.753, abs=0.01) and hs_in >= hs          # in-sample is the optimistic one
     hs, _, to, _ = event_line(ipol.text, "on-line fixed, shipped defaults: ")
-    assert hs == pytest.approx(0.732, abs=0.01) and to == pytest.approx(0.621, abs=0.01)
+    assert hs == pytest.approx(0.734, abs=0.01) and to == pytest.approx(0.623, abs=0.01)
 
 
 def test_events_found_and_filled_per_trial(ipol) -> None:
     """Per trial, the steps with a heel strike found, a toe-off found and filled are printed and written
-    (<CSV>_events.csv), and agree; measured offline 1,792 steps, HS on all, TO on 1,747, M3 filled on 97."""
+    (<CSV>_events.csv), and agree; measured offline 1,793 steps, HS on all, TO on 1,749, M3 filled on 96."""
     ev = [r for r in ipol.events if r["chain"] == "offline"]
     assert len(ev) == 52 and len([r for r in ipol.events if r["chain"] == "online-fixed"]) == 52
     n = sum(int(r["steps"]) for r in ev)
     to = sum(int(r["toe_off_found"]) for r in ev)
     filled = sum(int(r["m3_filled"]) for r in ev)
-    assert n == pytest.approx(1792, abs=20) and to == pytest.approx(1747, abs=20) and filled == pytest.approx(97, abs=15)
+    assert n == pytest.approx(1793, abs=20) and to == pytest.approx(1749, abs=20) and filled == pytest.approx(96, abs=15)
     assert f"offline, all trials: {n} steps, heel strike found on" in ipol.text
     assert f"toe-off on {to}, M3 filled on {filled}" in ipol.text
     r = ev[1]
@@ -379,10 +381,10 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
                      rf"\s+{r['m3_filled']}\s", ipol.text, re.M)
 
 
-@pytest.mark.parametrize("variant, measured", [("uturn-include", {"M2": (0.996, 0.053), "M3": (1.086, 0.083)}),
-                                               ("height-unknown", {"M2": (0.996, 0.044), "M3": (1.018, 0.061)}),
-                                               ("no-prior", {"M1": (1.037, 0.088), "M2": (1.008, 0.060),
-                                                             "M4": (0.992, 0.071)})])
+@pytest.mark.parametrize("variant, measured", [("uturn-include", {"M2": (0.995, 0.053), "M3": (1.086, 0.083)}),
+                                               ("height-unknown", {"M2": (0.996, 0.045), "M3": (1.018, 0.061)}),
+                                               ("no-prior", {"M1": (1.037, 0.089), "M2": (1.008, 0.064),
+                                                             "M4": (0.992, 0.076)})])
 def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
     """Issue 12 (3): the offline chain also with the U-turn steps summed (M3, without K, then reads the turn as
     straight walking: 1.086) and with the height unknown (a 1.70 m adult for everyone: these subjects are
@@ -398,11 +400,11 @@ def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
 
 def test_steps_outside_the_calibrated_range_are_counted(ipol) -> None:
     """Issue 12 (4): K from one trial applied to the others: steps outside the range K was fitted on are counted
-    per trial (measured offline: M2 241 of 1,476 steps, M4 264); never for M3 (no K)."""
+    per trial (measured offline: M2 242 of 1,477 steps, M4 265); never for M3 (no K)."""
     rows = [r for r in ipol.rows if r["arithmetic"] == "offline" and r["variant"] == "main"]
     assert all(r["steps_outside_k_range"] == "" for r in rows if r["estimator"] == "M3")
     total = {e: sum(int(r["steps_outside_k_range"]) for r in rows if r["estimator"] == e) for e in ("M2", "M4")}
-    assert total["M2"] == pytest.approx(241, abs=25) and total["M4"] == pytest.approx(264, abs=30)
+    assert total["M2"] == pytest.approx(242, abs=25) and total["M4"] == pytest.approx(265, abs=30)
     assert re.search(rf"^M2 .*\s{total['M2']}/\d+$", ipol.text.split("arithmetic = offline")[1], re.M)
 
 

@@ -204,7 +204,7 @@ def test_config_rounds_half_up() -> None:
 @pytest.mark.parametrize(
     ("changes", "offset", "match"),
     [
-        (dict(step_format=3), 0, "step_format: unknown step format 3"),
+        (dict(step_format=4), 0, "step_format: unknown step format 4"),
         (dict(leg_length_m=2.0), 2, r"leg_length_q15: leg_length_m 2.0 outside the stored range 0 \.\.\. 1.99997"),
         (dict(leg_length_m=-0.001), 2, "leg_length_q15: leg_length_m -0.001 outside"),
         (dict(leg_length_m=1e-6), 2, "leg_length_q15: step_format 1 needs a leg length > 0"),
@@ -236,7 +236,7 @@ def test_config_extremes_are_stored() -> None:
 @pytest.mark.parametrize(
     ("data", "offset", "match"),
     [
-        (_ref_config(3, 0, 29491, 0, 0, 0, 0, 0, 0), 0, "step_format: unknown step format 3"),
+        (_ref_config(4, 0, 29491, 0, 0, 0, 0, 0, 0), 0, "step_format: unknown step format 4"),
         (_ref_config(255, 0, 0, 0, 0, 0, 0, 0, 0), 0, "unknown step format 255"),
         (_ref_config(1, 0x02, 29491, 0, 0, 0, 0, 0, 0), 1, r"step_flags: reserved bits set in 0x02"),
         (_ref_config(0, 0x81, 0, 0, 0, 0, 0, 0, 0), 1, "step_flags: reserved bits"),
