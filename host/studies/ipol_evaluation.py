@@ -135,7 +135,8 @@ CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn",
 #: Per trial and chain (offline, online-fixed): steps in the trial, steps with each event found, M3's filled
 #: steps (no toe-off or heel strike: the bout median), and the events against the foot sensors.
 EVENT_COLUMNS = ("subject", "trial", "calibration_trial", "chain", "steps", "heel_strike_found", "toe_off_found",
-                 "m3_filled", "hs_reference", "hs_detected", "hs_matched", "to_reference", "to_detected", "to_matched")
+                 "m3_filled", "hs_reference", "hs_detected", "hs_matched", "to_reference", "to_detected", "to_matched",
+                 "steps_outside", "hs_reference_outside")
 STEP_COLUMNS = (("subject", "trial", "calibration_trial", "step", "foot_flat_s", "offline_step", "online_fixed_step",
                  "same_events_algorithm", "same_events_arithmetic")
                 + tuple(f"{e.lower()}_{a.replace('-', '_')}_m" for e in ESTIMATORS for a in ARITHMETICS))
@@ -210,8 +211,15 @@ class ReplayedTrial:
 
     def reference_steps(self) -> int:
         lo, hi = self.meta["TrialBoundaries"]
-        hs = [p[1] for p in list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))]
-        return int(sum(lo <= h <= hi for h in hs))
+        return int(sum(lo <= h <= hi for h in self._reference_heel_strikes()))
+
+    def reference_steps_outside(self) -> int:
+        """Foot-sensor heel strikes of the recording outside ``TrialBoundaries`` (standing, shuffling and
+        turning before and after the trial: not scored)."""
+        return len(self._reference_heel_strikes()) - self.reference_steps()
+
+    def _reference_heel_strikes(self) -> list[float]:
+        return [p[1] for p in list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))]
 
     def run_starts(self) -> np.ndarray:
         """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
@@ -486,8 +494,9 @@ def _score_rows(rt: ReplayedTrial, table: StepTable, k: KFit, *, arithmetic: str
 
 
 def _event_row(rt: ReplayedTrial, table: StepTable, chain: str, calibration_trial: bool) -> dict:
-    """Per trial and chain: steps in the trial, how many had each event found, M3's filled steps, and the
-    events against the foot sensors (:data:`EVENT_COLUMNS`)."""
+    """Per trial and chain: steps in the trial, how many had each event found, M3's filled steps, the
+    events against the foot sensors, and the steps and foot-sensor heel strikes of the rest of the recording
+    (:data:`EVENT_COLUMNS`)."""
     sec, _ = trial_steps(rt, table, uturn="include")
     hs, to = score_trial_events(rt, table)
     return dict(subject=rt.subject, trial=rt.trial, calibration_trial=int(calibration_trial), chain=chain,
@@ -495,7 +504,8 @@ def _event_row(rt: ReplayedTrial, table: StepTable, chain: str, calibration_tria
                 toe_off_found=int(np.count_nonzero(sec.toe_off >= 0)),
                 m3_filled=int(np.count_nonzero(~np.isfinite(sec.length_m["M3"]))),
                 hs_reference=hs.n_reference, hs_detected=hs.n_detected, hs_matched=hs.n_matched,
-                to_reference=to.n_reference, to_detected=to.n_detected, to_matched=to.n_matched)
+                to_reference=to.n_reference, to_detected=to.n_detected, to_matched=to.n_matched,
+                steps_outside=table.n_steps - sec.n_steps, hs_reference_outside=rt.reference_steps_outside())
 
 
 def score_trial_events(rt: ReplayedTrial, table: StepTable) -> tuple[EventScore, EventScore]:
@@ -904,6 +914,11 @@ def format_events(result: IpolResult) -> str:
             lines.append(f"  {c}, all trials: {n} steps, heel strike found on {sum(r['heel_strike_found'] for r in mine)}"
                          f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
                          f"{sum(r['m3_filled'] for r in mine)}")
+        first = [r for r in rows if r["chain"] == chains[0]]
+        lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
+                     f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
+                     "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
+                                          for c in chains))
     return "\n".join(lines)
 
 
