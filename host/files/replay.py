@@ -208,7 +208,8 @@ def check_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, sampl
     dev = np.sort(np.asarray(device_records, STEP_RECORD_DTYPE), order="end_sample")
     if header.step_config is not None and header.step_config.older_algorithm:   # not this host's replay
         version = int(header.step_config.step_format)
-        return ReplayCheck(np.zeros(0, STEP_RECORD_DTYPE), [], int(dev.size), 0, 0, [], int(dev.size), 0, version)
+        return ReplayCheck(replay=np.zeros(0, STEP_RECORD_DTYPE), runs=[], n_device=int(dev.size), n_compared=0,
+                           n_identical=0, n_unverifiable=int(dev.size), algorithm_version=version)
     replay, spans = replay_records(codes, valid, flags, sample_numbers, header)
     oldest = int(dev["end_sample"][0]) if dev.size else None
     mismatches: list[tuple[int, str]] = []
@@ -238,8 +239,9 @@ def check_records(codes: np.ndarray, valid: np.ndarray, flags: np.ndarray, sampl
         n_cmp += ends.size
         n_same += same
         runs.append(RunCheck(first, last, limit, complete, reason, int(ends.size), int(same)))
-    return ReplayCheck(replay, runs, int(dev.size), n_cmp, n_same, mismatches, int(np.count_nonzero(~covered)),
-                       n_hidden)
+    return ReplayCheck(replay=replay, runs=runs, n_device=int(dev.size), n_compared=n_cmp, n_identical=n_same,
+                       mismatches=mismatches, n_unverifiable=int(np.count_nonzero(~covered)),
+                       n_replay_unknown=n_hidden)
 
 
 def _difference(device: np.void | None, replay: np.void | None) -> str:

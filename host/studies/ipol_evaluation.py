@@ -364,9 +364,9 @@ class IpolResult:
         section (U-turn steps included): the step-counting constants' criterion.
     trial_events
         :data:`EVENT_COLUMNS` rows (every trial of a calibrated subject, offline and on-line fixed).
-    m4_exponent, m4_training_iqr
+    m4_exponent
         Per held-out subject, M4's exponent chosen on the other subjects (:data:`host.studies.tuning.
-        K_CRITERION`) and its training IQR.
+        K_CRITERION`).
     calibrations_online
         The K the on-line chains use per subject: ``calibrations``' own unless the subject's fold chose another
         M4 exponent than the logger's, then K refitted on the same trial with the logger's.
@@ -393,7 +393,6 @@ class IpolResult:
     loso: LosoChoice = field(default_factory=lambda: LosoChoice({}, {}))
     trial_events: list[dict] = field(default_factory=list)
     m4_exponent: dict[int, float] = field(default_factory=dict)
-    m4_training_iqr: dict[int, float] = field(default_factory=dict)
     calibrations_online: dict[int, KFit] = field(default_factory=dict)
     count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     priors: dict[int, dict[str, KPrior]] = field(default_factory=dict)
@@ -642,7 +641,7 @@ def evaluate_folder(
                 continue
             priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")[0]
             pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
-        j, res.m4_training_iqr[s] = least_spread(pooled)
+        j, _ = least_spread(pooled)
         res.m4_exponent[s] = float(exponents[j])
         for key, jj in (("main", j), ("online", shipped_j)):
             if jj in priors:
