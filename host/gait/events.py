@@ -11,9 +11,10 @@ Notes
    at least ``min_prominence_m_s2`` and at most ``max_prominence_m_s2``, the cap also before the first step
    (by default 0.25 and 0.5 m/s^2: a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to
    trough, so brisk walking stays at the cap; slow 0.3 m steps rise 0.3-0.8 m/s^2 and get the floor). The
-   amplitude follows the accepted peaks in time order, as the on-line algorithm's does. Only a peak above zero is a foot-flat, as in the on-line algorithm (version 2,
-   :mod:`firmware_sim.algorithms.kernel` step 5): in double support the centre of mass is accelerated
-   upward; a peak at or below zero is a ripple of the single support. The minimum distance is applied to
+   amplitude follows the accepted peaks in time order, as the on-line algorithm's does. Only a peak above
+   zero is a foot-flat, as in the on-line algorithm (version 2, :mod:`firmware_sim.algorithms.kernel` step
+   5): in double support the centre of mass is accelerated upward; a peak at or below zero is a ripple of
+   the single support. The minimum distance is applied to
    these candidates only (:func:`foot_flat_candidates`), the higher of two kept, as the on-line algorithm's
    pending foot-flat competes only with confirmed peaks; a second pass raises it to ``min_step_fraction``
    of the median step duration. (Until issue 12's last change the distance came first, over every local
