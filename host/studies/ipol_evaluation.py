@@ -201,8 +201,7 @@ class ReplayedTrial:
     def reference_event_times_s(self) -> tuple[np.ndarray, np.ndarray]:
         """Foot-sensor toe-offs and heel strikes (both feet, sorted) inside ``TrialBoundaries``, s."""
         lo, hi = self.meta["TrialBoundaries"]
-        pairs = list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))
-        arr = np.asarray(pairs, np.float64).reshape(-1, 2)
+        arr = self._foot_events()
         out = []
         for col in (0, 1):
             x = np.sort(arr[:, col])
@@ -211,15 +210,18 @@ class ReplayedTrial:
 
     def reference_steps(self) -> int:
         lo, hi = self.meta["TrialBoundaries"]
-        return int(sum(lo <= h <= hi for h in self._reference_heel_strikes()))
+        hs = self._foot_events()[:, 1]
+        return int(np.count_nonzero((hs >= lo) & (hs <= hi)))
 
     def reference_steps_outside(self) -> int:
         """Foot-sensor heel strikes of the recording outside ``TrialBoundaries`` (standing, shuffling and
         turning before and after the trial: not scored)."""
-        return len(self._reference_heel_strikes()) - self.reference_steps()
+        return self._foot_events().shape[0] - self.reference_steps()
 
-    def _reference_heel_strikes(self) -> list[float]:
-        return [p[1] for p in list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))]
+    def _foot_events(self) -> np.ndarray:
+        """``(n, 2)`` foot-sensor (toe-off, heel strike) pairs of both feet, JSON packet indices."""
+        pairs = list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))
+        return np.asarray(pairs, np.float64).reshape(-1, 2)
 
     def run_starts(self) -> np.ndarray:
         """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
