@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
+
+#: The compiled kernels (numba's cache, the ahead-of-time module) of this checkout's test runs: no run leans on
+#: what another left in the user's cache folder. Set GAITLOG_CACHE_DIR to choose another place.
+os.environ.setdefault("GAITLOG_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "gaitlog"))
 
 #: Root of the real recordings; override with GAITLOG_DATA_DIR.
 DATA_DIR = Path(os.environ.get("GAITLOG_DATA_DIR", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
@@ -30,3 +36,54 @@ def simulated_walk() -> tuple:
     subject = random_subjects(1, seed=3)[0]
     res = Logger(device_id=4).record(Walking(subject=subject, seed=3))
     return res.codes.astype("int64"), subject
+
+
+class LrzszRx:
+    """lrzsz's ``rx``, the independent XMODEM-1K/CRC receiver the device's XDUMP is tested against.
+
+    Every caller goes through here: ``rx`` gets a bare file name and runs in the target's folder, because
+    current lrzsz (Debian 0.12.21-10+deb12u1 and later) refuses any absolute name with "Security Violation".
+    A failure names rx's stderr and the installed lrzsz, so a packaging change shows itself at once.
+    """
+
+    #: -X XMODEM, -c CRC-16 ('C' start), -b binary, -q quiet.
+    OPTIONS = ("-X", "-c", "-b", "-q")
+
+    def argv(self, target: Path) -> list[str]:
+        return ["rx", *self.OPTIONS, target.name]
+
+    def run(self, target: Path, fd: int, timeout_s: float = 120.0) -> subprocess.CompletedProcess:
+        """Receive into ``target`` over ``fd`` (a pty: rx's stdin and stdout); assert it succeeded."""
+        done = subprocess.run(self.argv(target), stdin=fd, stdout=fd, stderr=subprocess.PIPE, cwd=target.parent,
+                              timeout=timeout_s)
+        self.check(done.returncode, done.stderr)
+        return done
+
+    def popen(self, target: Path) -> subprocess.Popen:
+        """``rx`` receiving into ``target`` with pipes on stdin and stdout (the caller plays the sender)."""
+        return subprocess.Popen(self.argv(target), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, cwd=target.parent)
+
+    def check(self, returncode: int | None, stderr: bytes | None) -> None:
+        assert returncode == 0, (f"rx exited {returncode}: {(stderr or b'').decode(errors='replace').strip()!r} "
+                                 f"(installed: {self.version()})")
+
+    @staticmethod
+    def version() -> str:
+        """The installed lrzsz: the Debian package version where dpkg knows it, else ``rx --version``."""
+        for argv in (["dpkg-query", "-W", "-f", "lrzsz ${Version}", "lrzsz"], ["rx", "--version"]):
+            try:
+                out = subprocess.run(argv, capture_output=True, text=True, timeout=10)
+            except OSError:
+                continue
+            if out.returncode == 0 and out.stdout.strip():
+                return out.stdout.strip().splitlines()[0]
+        return "unknown version"
+
+
+@pytest.fixture(scope="session")
+def lrzsz_rx() -> LrzszRx:
+    """lrzsz's ``rx``; the test is skipped, with the reason, only where it is not installed."""
+    if shutil.which("rx") is None:
+        pytest.skip("lrzsz `rx` is not installed (apt-get install lrzsz)")
+    return LrzszRx()

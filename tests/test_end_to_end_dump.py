@@ -5,7 +5,6 @@ what the device stored (its RecordResult); the same full memory received by lrzs
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -62,7 +61,7 @@ def test_round_trip_over_pty_is_bit_identical(tmp_path, capsys, n, overwrite):
     assert "0 gap(s)" in capsys.readouterr().out
 
 
-def xdump_with_rx(port: str, workdir: Path, name: str = "rx.bin") -> Path:
+def xdump_with_rx(port: str, target: Path, rx) -> Path:
     """Arm XDUMP with a command frame, then let lrzsz `rx` receive the raw dump on the same pty."""
     import serial
 
@@ -78,21 +77,18 @@ def xdump_with_rx(port: str, workdir: Path, name: str = "rx.bin") -> Path:
         assert frames[0].type == 0x90 and frames[0].seq == 77
     fd = os.open(port, os.O_RDWR | os.O_NOCTTY)
     try:
-        done = subprocess.run(["rx", "-X", "-c", "-b", "-q", name], stdin=fd, stdout=fd, stderr=subprocess.PIPE,
-                              cwd=workdir, timeout=120)
+        rx.run(target, fd)
     finally:
         os.close(fd)
-    assert done.returncode == 0, done.stderr.decode(errors="replace")
-    return workdir / name
+    return target
 
 
-@pytest.mark.skipif(shutil.which("rx") is None, reason="lrzsz `rx` not installed (apt-get install lrzsz)")
-def test_full_memory_dump_and_rx_give_the_same_samples(tmp_path):
+def test_full_memory_dump_and_rx_give_the_same_samples(tmp_path, lrzsz_rx):
     image, codes, flags, numbers = recorded(tmp_path, CAP, seed=5)
     assert len(codes) == CAP and numbers[-1] == CAP - 1
     with serve_pty(Logger.from_image(image)) as server:
         assert main(["dump", "--port", server.path, "--out", str(tmp_path / "d.glimg"), "--quiet"]) == 0
-        rx_file = xdump_with_rx(server.path, tmp_path)
+        rx_file = xdump_with_rx(server.path, tmp_path / "rx.bin", lrzsz_rx)
     raw = rx_file.read_bytes()
     assert len(raw) % 1024 == 0 and raw[256 + 4 * CAP: 256 + 4 * CAP + 4] == b"GLCK"  # body, check trailer
     assert main(["decode", str(tmp_path / "d.glimg"), "--out", str(tmp_path / "a"), "--quiet"]) == 0

@@ -12,7 +12,6 @@ import binascii
 import csv
 import json
 import os
-import shutil
 import signal
 import struct
 import subprocess
@@ -204,13 +203,12 @@ def test_wrapped_sample_memory_with_records_dumps_both(tmp_path, capsys):
     assert rec.step_records["end_sample"][0] < rec.sample_numbers[0]  # ends at an overwritten sample
 
 
-@pytest.mark.skipif(shutil.which("rx") is None, reason="lrzsz `rx` not installed (apt-get install lrzsz)")
-def test_xdump_raw_dump_received_by_rx_carries_the_records(walk_image, tmp_path):
+def test_xdump_raw_dump_received_by_rx_carries_the_records(walk_image, tmp_path, lrzsz_rx):
     from test_end_to_end_dump import xdump_with_rx
 
     image, logger, records = walk_image
     with serve_pty(Logger.from_image(image)) as server:
-        rx_file = xdump_with_rx(server.path, tmp_path)
+        rx_file = xdump_with_rx(server.path, tmp_path / "rx.bin", lrzsz_rx)
     raw = rx_file.read_bytes()
     used = 4 * logger.header.samples_written
     assert raw[256 + used: 256 + used + len(records)] == records  # header, samples, records, 0x1A padding

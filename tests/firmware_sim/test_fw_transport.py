@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import binascii
 import os
-import shutil
 import socket
 import struct
 import subprocess
@@ -129,8 +128,7 @@ def test_tcp_cut_closes_the_connection(full_logger: Logger) -> None:
             assert read_exact(port, 18)[2:4] == b"\x82\x02"
 
 
-@pytest.mark.skipif(shutil.which("rx") is None, reason="lrzsz rx not installed (apt-get install lrzsz)")
-def test_xdump_full_memory_received_by_lrzsz_rx(full_logger: Logger, tmp_path: Path) -> None:
+def test_xdump_full_memory_received_by_lrzsz_rx(full_logger: Logger, tmp_path: Path, lrzsz_rx) -> None:
     out = tmp_path / "dump.bin"
     with serve_pty(full_logger, save_on_stop=False) as srv:
         with serial.Serial(srv.path, 115200, timeout=0.5) as port:
@@ -138,12 +136,9 @@ def test_xdump_full_memory_received_by_lrzsz_rx(full_logger: Logger, tmp_path: P
             assert read_exact(port, 9) == frame(0x90, 7, b"\x09")
         fd = os.open(srv.path, os.O_RDWR | os.O_NOCTTY)
         try:
-            # -X XMODEM, -c CRC-16 ('C' start), -b binary, -q quiet; the pty is rx's stdin and stdout
-            proc = subprocess.run(["rx", "-X", "-c", "-b", "-q", str(out)], stdin=fd, stdout=fd,
-                                  stderr=subprocess.PIPE, timeout=60, cwd=tmp_path)
+            lrzsz_rx.run(out, fd, timeout_s=60)  # the pty is rx's stdin and stdout
         finally:
             os.close(fd)
-    assert proc.returncode == 0, proc.stderr.decode(errors="replace")
     got = out.read_bytes()
     header = full_logger.header.to_bytes()
     assert got[:256] == header

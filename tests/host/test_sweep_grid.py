@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -123,21 +122,28 @@ def test_two_worker_local_cluster_gives_the_serial_results(serial, tmp_path) -> 
     assert _files(tmp_path) == {k: v for k, v in _files(serial).items() if k.startswith("tasks/")}
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def _scheduler_address(scheduler_file: Path, timeout_s: float = 60.0) -> str | None:
+    """The address a scheduler started with ``--port 0`` wrote to its scheduler file (no port has to be free)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            return json.loads(scheduler_file.read_text())["address"]
+        except (OSError, ValueError, KeyError):
+            time.sleep(0.2)
+    return None
 
 
 def test_a_scheduler_started_separately_gives_the_serial_results(serial, tmp_path) -> None:
     pytest.importorskip("distributed")
-    port = _free_port()
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    addr = f"tcp://127.0.0.1:{port}"
+    scheduler_file = tmp_path / "scheduler.json"
     procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                               "--port", str(port), "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)]
+                               "--port", "0", "--scheduler-file", str(scheduler_file), "--no-dashboard"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
+        addr = _scheduler_address(scheduler_file)
+        if addr is None:
+            pytest.skip("a dask scheduler on 127.0.0.1 wrote no address within 60 s")
         procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr, "--nthreads", "1",
                                        "--nworkers", "1", "--no-dashboard"], env=env, cwd=tmp_path,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))

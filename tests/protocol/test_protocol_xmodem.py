@@ -8,8 +8,6 @@ import logging
 import os
 import random
 import select
-import shutil
-import subprocess
 import time
 from pathlib import Path
 
@@ -182,12 +180,10 @@ def test_sender_timeouts() -> None:
     assert s.poll(5.0) == b"" and s.poll(10.5) == block and s.retransmissions == 1
 
 
-@pytest.mark.skipif(shutil.which("rx") is None, reason="lrzsz rx not installed")
-def test_lrzsz_rx_receives_exact_payload(tmp_path: Path) -> None:
+def test_lrzsz_rx_receives_exact_payload(tmp_path: Path, lrzsz_rx) -> None:
     payload = raw_dump_bytes(bytes(range(256)), random.Random(5).randbytes(20_000))
     out = tmp_path / "dump.bin"
-    proc = subprocess.Popen(["rx", "-X", "-c", "-b", "-q", str(out)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.DEVNULL, cwd=tmp_path)
+    proc = lrzsz_rx.popen(out)
     sender = XmodemSender(payload)
     deadline = time.monotonic() + 20
     assert proc.stdout is not None and proc.stdin is not None
@@ -207,6 +203,7 @@ def test_lrzsz_rx_receives_exact_payload(tmp_path: Path) -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
+    stderr = proc.stderr.read() if proc.stderr is not None else b""
+    lrzsz_rx.check(proc.returncode, stderr)
     assert sender.done, sender.failed
-    assert proc.returncode == 0
     assert out.read_bytes() == payload
