@@ -1,8 +1,8 @@
 """The simulated walker of the step benchmarks (imported as ``from _walker import walker_motion, ...``).
 
 One full memory of realistic input for the on-line step algorithm: a random subject
-(:func:`firmware_sim.world.subject.random_subjects`, seed 0) walking the corridor protocol twice over
-(:class:`firmware_sim.world.walking.Walking`: eight 200 m excursions at four speeds, sitting and standing
+(:func:`gaitlog.firmware_sim.world.subject.random_subjects`, seed 0) walking the corridor protocol twice over
+(:class:`gaitlog.firmware_sim.world.walking.Walking`: eight 200 m excursions at four speeds, sitting and standing
 rests, ~1545 s), rendered at the sensor's internal rate and cut so that the emulated logger takes exactly
 65,536 samples at 50 Hz (1310.72 s: 6 excursions and part of the 7th).
 """
@@ -16,12 +16,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from firmware_sim.device import Logger  # noqa: E402
-from firmware_sim.world.base import Motion  # noqa: E402
-from firmware_sim.world.subject import Subject, random_subjects  # noqa: E402
-from firmware_sim.world.walk_plan import SPEED_LABELS, WalkPlan  # noqa: E402
-from firmware_sim.world.walking import Walking  # noqa: E402
-from protocol.steps import StepConfig  # noqa: E402
+from gaitlog.firmware_sim.device import Logger  # noqa: E402
+from gaitlog.firmware_sim.world.base import Motion  # noqa: E402
+from gaitlog.firmware_sim.world.subject import Subject, random_subjects  # noqa: E402
+from gaitlog.firmware_sim.world.walk_plan import SPEED_LABELS, WalkPlan  # noqa: E402
+from gaitlog.firmware_sim.world.walking import Walking  # noqa: E402
+from gaitlog.protocol.steps import StepConfig  # noqa: E402
 
 #: One full sample memory.
 N_SAMPLES = 65_536

@@ -28,12 +28,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from firmware_sim.device import Logger  # noqa: E402
-from firmware_sim.sensor import SensorModel  # noqa: E402
-from firmware_sim.world.poses import CalibrationPoses  # noqa: E402
-from host.accelerometer.calibration import AccCalibration  # noqa: E402
-from host.accelerometer.fit import AccCalibrator, _residuals, fit_calibration  # noqa: E402
-from host.accelerometer.static_windows import StaticWindowDetector  # noqa: E402
+from gaitlog.firmware_sim.device import Logger  # noqa: E402
+from gaitlog.firmware_sim.sensor import SensorModel  # noqa: E402
+from gaitlog.firmware_sim.world.poses import CalibrationPoses  # noqa: E402
+from gaitlog.host.accelerometer.calibration import AccCalibration  # noqa: E402
+from gaitlog.host.accelerometer.fit import AccCalibrator, _residuals, fit_calibration  # noqa: E402
+from gaitlog.host.accelerometer.static_windows import StaticWindowDetector  # noqa: E402
 
 TARGET_MS = 50.0
 REPEATS = 30
@@ -68,7 +68,7 @@ def baseline_numerical_lm(means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """LM with a 2-point finite-difference Jacobian from the nominal start; returns (offset, M)."""
     from scipy.optimize import least_squares
 
-    from host.accelerometer.calibration import calibration_matrix
+    from gaitlog.host.accelerometer.calibration import calibration_matrix
 
     p0 = np.array([512.0, 512.0, 512.0, 256.0, 256.0, 256.0, 0.0, 0.0, 0.0])
     sol = least_squares(_residuals, p0, method="lm", args=(means, "9-param"), xtol=1e-14, ftol=1e-14,

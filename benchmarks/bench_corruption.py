@@ -4,13 +4,13 @@ For each kind of file (``image``: the ``.glimg`` written now, version 3, with a 
 ``image-v1``: the old layout, still read; ``capture``: the DUMP frame stream; ``raw``: the XDUMP file) it
 builds the file of a random device memory (the truth), damages it (bit flips, dropped bytes, inserted bytes,
 a duplicated block, truncation, an overwritten header/table/trailer; one damaged region per file, or two or
-three in a fifth of the files), decodes it with :func:`host.files.decode.decode_bytes` and counts:
+three in a fifth of the files), decodes it with :func:`gaitlog.host.files.decode.decode_bytes` and counts:
 
 - ``wrong``: samples marked valid whose codes or flags differ from the device's memory (must be 0);
 - ``unverif``: with ``--accept-unverified`` only, samples marked valid that the decoder labelled UNVERIFIED
   (a raw dump whose check trailer was cut off: said, not silent; the wrong ones among them are
   ``wrong_unv``); by default such a dump's samples are reported missing;
-- ``crash``: exceptions other than the documented :class:`protocol.errors.ProtocolError` (must be 0);
+- ``crash``: exceptions other than the documented :class:`gaitlog.protocol.errors.ProtocolError` (must be 0);
 - ``refused``: files refused with a ProtocolError (0 samples, one clear error);
 - ``lost``: stored samples reported missing;
 - for the files with one damaged region (``single``): ``vital``, those that lost more than the blocks the
@@ -40,18 +40,18 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from host.files.decode import decode_bytes
-from protocol.errors import ProtocolError
-from protocol.frames import FrameType, build_payload, encode_frame
-from protocol.header import HEADER_SIZE, DeviceHeader, HeaderFlag
-from protocol.image import (
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import FrameType, build_payload, encode_frame
+from gaitlog.protocol.header import HEADER_SIZE, DeviceHeader, HeaderFlag
+from gaitlog.protocol.image import (
     FRAME_OVERHEAD_BYTES,
     PREAMBLE_BYTES,
     build_image,
     image_version_for,
 )
-from protocol.packing import pack_words
-from protocol.raw_dump import CHUNK_BYTES, raw_dump_bytes
+from gaitlog.protocol.packing import pack_words
+from gaitlog.protocol.raw_dump import CHUNK_BYTES, raw_dump_bytes
 
 KINDS = ("image", "image-v1", "capture", "raw")
 DAMAGES = ("flip", "drop", "insert", "duplicate", "truncate", "header", "table")

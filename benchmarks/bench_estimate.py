@@ -38,8 +38,8 @@ from _walker import step_config, walker_motion
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from firmware_sim.device import Logger
-from host.files.decode import decode_file, save_decoded
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.host.files.decode import decode_file, save_decoded
 
 ESTIMATE_TARGET_S = 0.5
 HELP_TARGET_S = 0.1
@@ -113,13 +113,13 @@ def main(argv: list[str] | None = None) -> int:
         folder = Path(tmp)
         rec = make_input(folder)
         out = str(folder / "steps.csv")
-        estimate = [py, "-m", "host", "estimate", str(rec), "--out", out]
+        estimate = [py, "-m", "gaitlog", "estimate", str(rec), "--out", out]
         wall(estimate + ["--arithmetic", "both"], env)  # warm the file cache; build the kernel if not yet built
         wall(estimate + ["--arithmetic", "both"], dict(env, GAITLOG_NO_AOT="1"))  # ... and numba's JIT cache
         t = {
             "bare": lambda: wall([py, "-c", "pass"], env),
             "numpy": lambda: wall([py, "-c", "import numpy"], env),
-            "help": lambda: wall([py, "-m", "host", "--help"], env),
+            "help": lambda: wall([py, "-m", "gaitlog", "--help"], env),
             "float": lambda: wall(estimate + ["--arithmetic", "float"], env),
             "both": lambda: wall(estimate + ["--arithmetic", "both"], env),
             "jit": lambda: wall(estimate + ["--arithmetic", "both"], dict(env, GAITLOG_NO_AOT="1")),

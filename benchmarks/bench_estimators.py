@@ -1,7 +1,7 @@
 """Speed of the float step chain: events + M1-M5 on 65,536 samples, and the CLI start-up.
 
 Targets (issue 4): the whole chain (tilt correction, events, M1-M5) on 65,536 samples at 50 Hz <= 0.1 s;
-``python -c "import host.cli"`` and ``gaitlog --help`` <= 0.3 s. Baseline in the same run: the same
+``python -c "import gaitlog.host.cli"`` and ``gaitlog --help`` <= 0.3 s. Baseline in the same run: the same
 chain with a per-step Python loop for the integrals and the M4 range (``scipy.integrate.cumulative_trapezoid``
 per step, as a straightforward implementation would do).
 
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -36,8 +36,8 @@ SAMPLING_RATE_HZ = 50.0
 def real_or_synthetic() -> tuple[np.ndarray, np.ndarray, str]:
     data = Path(os.environ.get("GAITLOG_DATA_DIR", ROOT.parent / "shared" / "data")) / "ipol-lowerback-dev"
     if data.is_dir():
-        from host.files.ipol import list_trials
-        from host.studies.ipol_evaluation import replay_trial
+        from gaitlog.host.files.ipol import list_trials
+        from gaitlog.host.studies.ipol_evaluation import replay_trial
 
         accs, valids, n = [], [], 0
         with warnings.catch_warnings():
@@ -65,8 +65,8 @@ def loop_baseline(acc: np.ndarray, valid: np.ndarray, leg: float, foot: float) -
     """Same axes and events, then a per-step Python loop for M1-M4 (the naive way)."""
     from scipy.integrate import cumulative_trapezoid
 
-    from host.gait.axes import body_axes
-    from host.gait.events import GaitEventDetector
+    from gaitlog.host.gait.axes import body_axes
+    from gaitlog.host.gait.events import GaitEventDetector
 
     ax = body_axes(acc, sampling_rate_hz=SAMPLING_RATE_HZ, valid=valid)
     ev = GaitEventDetector().detect(ax.acc_v_m_s2, sampling_rate_hz=SAMPLING_RATE_HZ, valid=ax.valid)
@@ -102,14 +102,14 @@ def cli_startup() -> tuple[float, float]:
         return min(ts)
 
     base = run([sys.executable, "-c", "pass"])
-    imp = run([sys.executable, "-c", "import host.cli"])
-    gaitlog = [sys.executable, "-m", "host", "--help"]
+    imp = run([sys.executable, "-c", "import gaitlog.host.cli"])
+    gaitlog = [sys.executable, "-m", "gaitlog", "--help"]
     hlp = run(gaitlog)
     return imp - base, hlp - base, base
 
 
 def main() -> int:
-    from host.gait.pipeline import StepPipeline
+    from gaitlog.host.gait.pipeline import StepPipeline
 
     acc, valid, what = real_or_synthetic()
     leg, foot = 0.9, 0.19
@@ -124,7 +124,7 @@ def main() -> int:
     print(f"input: {N} samples, {what}; {n_steps} steps; load average {load:.1f} on {os.cpu_count()} CPUs")
     rows = [
         ("events + M1-M5 (vectorised)", t_vec, 0.1, t_loop),
-        ("import host.cli (minus bare python)", t_imp, 0.3, None),
+        ("import gaitlog.host.cli (minus bare python)", t_imp, 0.3, None),
         ("gaitlog --help (minus bare python)", t_help, 0.3, None),
     ]
     ok = True

@@ -1,12 +1,12 @@
-"""Speed of the PIC arithmetic (``firmware_sim.fixedpoint``) and of the fixed-point step chain.
+"""Speed of the PIC arithmetic (``gaitlog.firmware_sim.fixedpoint``) and of the fixed-point step chain.
 
 Run: ``python benchmarks/bench_fixedpoint.py``. Each primitive runs on 65,536 samples and is timed (best of
 7) beside apytypes (the bit-exact oracle of the tests) and a plain Python-int loop, measured in the same
 run; results are checked equal before timing. The fixed-point chain (10-bit codes -> one M1-M5 record per
 step) is the firmware's on-line step algorithm in the PIC's arithmetic
-(``firmware_sim.algorithms.online.OnlineStepAlgorithm``, ``arithmetic="fixed"``), run on 65,536 samples of a
+(``gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm``, ``arithmetic="fixed"``), run on 65,536 samples of a
 synthetic tilted walk (target <= 0.2 s, issues 5 and 10; best of 7 after a warm-up that loads the compiled
-kernels), beside the same algorithm in float and the offline float chain (``host.gait.pipeline``) on the
+kernels), beside the same algorithm in float and the offline float chain (``gaitlog.host.gait.pipeline``) on the
 same samples. ``benchmarks/bench_online.py`` times it on a simulated walker's recording, with start-up and
 memory. Exits 1 if a target is missed.
 """
@@ -22,8 +22,8 @@ from _timing import best_of
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from firmware_sim.fixedpoint import QFormat, cumsum, div, isqrt, mul_q  # noqa: E402
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.fixedpoint import QFormat, cumsum, div, isqrt, mul_q  # noqa: E402
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 N = 65_536
 PRIMITIVE_TARGET_S = 0.005
@@ -130,9 +130,9 @@ def main() -> int:
 
 def chain_benchmark() -> bool:
     """The on-line algorithm in fixed point on 65,536 samples of simulated 10-bit walking; True if the target is met."""
-    from firmware_sim.algorithms.online import OnlineStepAlgorithm
-    from firmware_sim.fixedpoint import cycles_per_sample_available
-    from protocol.steps import StepConfig
+    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
+    from gaitlog.protocol.steps import StepConfig
 
     codes = _walking_codes(N)
     cfg = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.26)
@@ -149,14 +149,14 @@ def chain_benchmark() -> bool:
     print(f"  same algorithm in float: {t['float']:.3f} s (fixed/float {t['fixed'] / t['float']:.2f})")
     import warnings
 
-    from host.gait.pipeline import StepPipeline
+    from gaitlog.host.gait.pipeline import StepPipeline
 
     acc = (codes.astype(np.float64) - 512.0) / 256.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         t_f = best_of(lambda: StepPipeline(leg_length_m=0.9, foot_length_m=0.26).run(acc, sampling_rate_hz=50.0),
                       warmup=True)
-    print(f"  baseline offline float chain (host.gait.pipeline) on the same samples: {t_f:.3f} s (ratio fixed/offline "
+    print(f"  baseline offline float chain (gaitlog.host.gait.pipeline) on the same samples: {t_f:.3f} s (ratio fixed/offline "
           f"{t['fixed'] / t_f:.2f})")
     return ok
 

@@ -1,6 +1,6 @@
 """Speed of the gpsim harness: every PIC16 assembly kernel on its edge cases + 10,000 random vectors (issue 15).
 
-Run: ``python benchmarks/bench_gpsim.py`` (needs gputils and gpsim). Times ``firmware_sim.pic.gpsim_bench.measure``
+Run: ``python benchmarks/bench_gpsim.py`` (needs gputils and gpsim). Times ``gaitlog.firmware_sim.pic.gpsim_bench.measure``
 -- assemble, 12 kernels x ~10,300 vectors in gpsim processes of 1,000 vectors, two at a time, every result
 compared with ``fixedpoint.py`` -- once (target <= 60 s wall on the 2-core machine), with its CPU time (this
 process and the gpsim children). Baseline in the same run: the Python definitions of ``fixedpoint.py``
@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from firmware_sim.pic.gpsim_bench import KERNELS, measure, missing_tools, vectors  # noqa: E402
+from gaitlog.firmware_sim.pic.gpsim_bench import KERNELS, measure, missing_tools, vectors  # noqa: E402
 
 TARGET_S = 60.0
 

@@ -28,9 +28,9 @@ from _timing import best_of
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from host.files.decode import decode_bytes  # noqa: E402
-from protocol.header import DeviceHeader  # noqa: E402
-from protocol.image import build_image  # noqa: E402
+from gaitlog.host.files.decode import decode_bytes  # noqa: E402
+from gaitlog.protocol.header import DeviceHeader  # noqa: E402
+from gaitlog.protocol.image import build_image  # noqa: E402
 
 CAP = 65536
 DECODE_TARGET_S = 0.010
@@ -82,13 +82,13 @@ def bench_wire_time_dump() -> bool:
         tmp = Path(tmp)
         image, codes = full_image(1)
         (tmp / "full.glimg").write_bytes(image)
-        server = subprocess.Popen([sys.executable, "-m", "host", "serve", str(tmp / "full.glimg"), "--pty",
+        server = subprocess.Popen([sys.executable, "-m", "gaitlog", "serve", str(tmp / "full.glimg"), "--pty",
                                    "--wire-time"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                                   env=env)
         try:
             port = server.stdout.readline().strip()
             t0 = time.perf_counter()
-            done = subprocess.run([sys.executable, "-m", "host", "dump", "--port", port, "--out",
+            done = subprocess.run([sys.executable, "-m", "gaitlog", "dump", "--port", port, "--out",
                                    str(tmp / "dumped.glimg"), "--quiet"], env=env, capture_output=True, text=True)
             wall = time.perf_counter() - t0
         finally:

@@ -29,17 +29,17 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from host.files.decode import decode_file
-from host.kinematics.logger_instruments import record_instrument, sensor_recording
-from host.kinematics.morris_analysis import MorrisAnalysis, analyse_morris_recording
-from host.kinematics.orientation import (
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.kinematics.logger_instruments import record_instrument, sensor_recording
+from gaitlog.host.kinematics.morris_analysis import MorrisAnalysis, analyse_morris_recording
+from gaitlog.host.kinematics.orientation import (
     geodesic_distance_rad,
     integrate_dcm,
     rotation_increments,
 )
-from host.kinematics.platform_description import MorrisPlatform
-from host.kinematics.sensor_csv import read_sensor_csv
-from host.kinematics.simulated_instruments import simulate_morris, write_instrument
+from gaitlog.host.kinematics.platform_description import MorrisPlatform
+from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
+from gaitlog.host.kinematics.simulated_instruments import simulate_morris, write_instrument
 
 N_SAMPLES = 65_536
 RATE_HZ = 1_000.0

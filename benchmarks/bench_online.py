@@ -10,7 +10,7 @@ timing, the host replay in fixed point is checked to give the device's step reco
 
 1. Replay (in-process, warm, best of 7): ``OnlineStepAlgorithm.run`` on the 65,536 samples. Targets
    <= 0.1 s in float, <= 0.2 s in fixed point. Baselines: the offline float chain
-   (``host.gait.pipeline.StepPipeline``) on the same codes in g, and the same per-sample kernel run by
+   (``gaitlog.host.gait.pipeline.StepPipeline``) on the same codes in g, and the same per-sample kernel run by
    CPython (``NUMBA_DISABLE_JIT=1`` in a subprocess, on a 4,096-sample walking slice, scaled per sample).
 2. Cold start (not a target): the wall time of a fresh ``python -c`` that imports the algorithm and runs it
    once on the 65,536 samples with the compiled-kernel cache present (normal use), the import alone, and the
@@ -51,10 +51,10 @@ from _walker import N_SAMPLES, RATE_HZ, step_config, walker_motion
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm  # noqa: E402
-from firmware_sim.device import Logger  # noqa: E402
-from protocol.header import CalibrationSlot  # noqa: E402
-from protocol.steps import STEP_RECORD_SIZE, pack_step_records  # noqa: E402
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm  # noqa: E402
+from gaitlog.firmware_sim.device import Logger  # noqa: E402
+from gaitlog.protocol.header import CalibrationSlot  # noqa: E402
+from gaitlog.protocol.steps import STEP_RECORD_SIZE, pack_step_records  # noqa: E402
 
 FLOAT_TARGET_S = 0.1
 FIXED_TARGET_S = 0.2
@@ -67,8 +67,8 @@ WALK_START = 500          # the first excursion starts after 10 s of standing
 
 _IMPORTS = ("import json, resource, sys, time\n"
             "import numpy as np\n")
-_SETUP = ("from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps\n"
-          "from protocol.steps import StepConfig\n"
+_SETUP = ("from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps\n"
+          "from gaitlog.protocol.steps import StepConfig\n"
           "path, arithmetic, leg, foot = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])\n"
           "cfg = StepConfig(step_format=1, leg_length_m=leg, foot_length_m=foot)\n"
           "new = lambda: OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=cfg, arithmetic=arithmetic)\n"
@@ -77,7 +77,7 @@ _SETUP = ("from firmware_sim.algorithms.online import OnlineStepAlgorithm, Onlin
 #: Cold start, plain: what a user's process does.
 COLD_PLAIN = _IMPORTS + _SETUP + "new().run(codes)\n"
 #: Import alone.
-IMPORT_ONLY = "import numpy\nimport firmware_sim.algorithms.online, protocol.steps\n"
+IMPORT_ONLY = "import numpy\nimport gaitlog.firmware_sim.algorithms.online, gaitlog.protocol.steps\n"
 #: Cold start, instrumented.
 COLD_SPLIT = """
 import time
@@ -87,8 +87,8 @@ import numpy as np
 t1 = time.perf_counter()
 import numba
 t2 = time.perf_counter()
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from protocol.steps import StepConfig
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.protocol.steps import StepConfig
 t3 = time.perf_counter()
 path, arithmetic, leg, foot = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
 codes = np.load(path)
@@ -124,8 +124,8 @@ after_project = kb()
 reps, mode = int(sys.argv[5]), sys.argv[6]
 if mode == "offline":
     import warnings
-    from host.gait.pipeline import StepPipeline
-    from protocol.header import CalibrationSlot
+    from gaitlog.host.gait.pipeline import StepPipeline
+    from gaitlog.protocol.header import CalibrationSlot
     cal = CalibrationSlot.nominal(10)
     run_offline = lambda acc: StepPipeline(leg_length_m=leg, foot_length_m=foot).run(acc, sampling_rate_hz=50.0)
     warnings.simplefilter("ignore")
@@ -223,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:
     t_alg = {a: best_of(lambda a=a: algs[a].run(codes), warmup=True) for a in algs}
     n_steps = {a: algs[a].run(codes).n_steps for a in algs}
     acc = CalibrationSlot.nominal(10).apply(codes.astype(np.float64)) if cal is None else cal.apply(codes.astype(float))
-    from host.gait.pipeline import StepPipeline
+    from gaitlog.host.gait.pipeline import StepPipeline
 
     pipe = StepPipeline(leg_length_m=cfg.leg_length_m, foot_length_m=cfg.foot_length_m)
     with warnings.catch_warnings():
@@ -276,7 +276,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{sp['numba'] + load_s:.2f} s (import {sp['numba']:.2f} s + cache load {load_s:.2f} s = first "
                   f"run {sp['first']:.2f} s - warm run {sp['warm']:.3f} s); numpy {sp['numpy']:.2f} s, project "
                   f"{sp['project']:.2f} s")
-        print(f"  import alone (numpy, the algorithm, protocol.steps): {imp:.2f} s wall; bare interpreter "
+        print(f"  import alone (numpy, the algorithm, gaitlog.protocol.steps): {imp:.2f} s wall; bare interpreter "
               f"{bare:.3f} s")
         if not args.no_compile:
             for a in algs:

@@ -3,15 +3,15 @@
 Run: ``python benchmarks/bench_protocol.py``. Prints, per measurement, the best-of-N time, its target, the
 baseline time and the speed-up; exits 1 if a target is missed.
 
-- unpack 65,536 P32 words: ``protocol.packing.unpack_words`` (numpy) vs construct ``Array(Int32ul)`` plus
+- unpack 65,536 P32 words: ``gaitlog.protocol.packing.unpack_words`` (numpy) vs construct ``Array(Int32ul)`` plus
   per-record bit masks in Python (the construct-per-record approach the notes measured).
-- parse a DUMP stream of 128 DATA frames of 2048 data bytes: ``protocol.frames.parse_stream`` +
+- parse a DUMP stream of 128 DATA frames of 2048 data bytes: ``gaitlog.protocol.frames.parse_stream`` +
   ``parse_payload`` vs ``FRAME_STRUCT.parse`` (construct with ``Checksum``) frame by frame.
 - decode a full memory image (65,536 samples): ``parse_image`` of the version-3 file (framed blocks, what a
   host writes) + ring order + ``unpack_words`` vs a construct struct of the same memory's version-1 file (the
   unframed layout, the one a fixed struct can declare) with ``Array(Int32ul)`` memory and per-record masks.
 - pack and unpack a full step store (3,276 per-step records with their CRC-16):
-  ``protocol.steps.pack_step_records`` / ``unpack_step_records`` (numpy, row-wise CRC) vs
+  ``gaitlog.protocol.steps.pack_step_records`` / ``unpack_step_records`` (numpy, row-wise CRC) vs
   ``STEP_RECORD_STRUCT`` (construct with ``Checksum``) record by record.
 """
 
@@ -26,8 +26,8 @@ import construct as cs  # noqa: E402
 import numpy as np  # noqa: E402
 from _timing import best_of  # noqa: E402
 
-from protocol.crc import crc32  # noqa: E402
-from protocol.frames import (  # noqa: E402
+from gaitlog.protocol.crc import crc32  # noqa: E402
+from gaitlog.protocol.frames import (  # noqa: E402
     FRAME_STRUCT,
     FrameType,
     build_payload,
@@ -35,10 +35,10 @@ from protocol.frames import (  # noqa: E402
     parse_payload,
     parse_stream,
 )
-from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag  # noqa: E402
-from protocol.image import build_image, image_version_for, parse_image  # noqa: E402
-from protocol.packing import pack_words, unpack_words, words_to_bytes  # noqa: E402
-from protocol.steps import (  # noqa: E402
+from gaitlog.protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag  # noqa: E402
+from gaitlog.protocol.image import build_image, image_version_for, parse_image  # noqa: E402
+from gaitlog.protocol.packing import pack_words, unpack_words, words_to_bytes  # noqa: E402
+from gaitlog.protocol.steps import (  # noqa: E402
     STEP_CAPACITY_RECORDS,
     STEP_RECORD_STRUCT,
     empty_step_records,

@@ -38,8 +38,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from firmware_sim.device import Logger  # noqa: E402
-from firmware_sim.world.poses import CalibrationPoses  # noqa: E402
+from gaitlog.firmware_sim.device import Logger  # noqa: E402
+from gaitlog.firmware_sim.world.poses import CalibrationPoses  # noqa: E402
 
 N_SAMPLES = 65536
 RATE_HZ = 50.0
@@ -125,7 +125,7 @@ def _frame(ftype: int, seq: int, payload: bytes = b"") -> bytes:
 def bench_wire_dump() -> tuple[float, int, bool]:
     import serial
 
-    from firmware_sim.pty_server import serve_pty
+    from gaitlog.firmware_sim.pty_server import serve_pty
 
     logger = Logger(device_id=1, overwrite=True)
     logger.record(_source())

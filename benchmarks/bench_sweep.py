@@ -49,15 +49,15 @@ def naive_pass_s() -> float:
     """One subject, one configuration, the naive way (render + emulated logger + every chain)."""
     import numpy as np
 
-    from firmware_sim.adc import Adc
-    from firmware_sim.algorithms.online import OnlineStepAlgorithm
-    from firmware_sim.device import Logger
-    from firmware_sim.world.subject import random_subjects
-    from firmware_sim.world.walking import Walking
-    from host.files.replay import online_step_table
-    from host.studies.compare import offline_step_table
-    from protocol.header import CalibrationSlot
-    from protocol.steps import StepConfig
+    from gaitlog.firmware_sim.adc import Adc
+    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.world.subject import random_subjects
+    from gaitlog.firmware_sim.world.walking import Walking
+    from gaitlog.host.files.replay import online_step_table
+    from gaitlog.host.studies.compare import offline_step_table
+    from gaitlog.protocol.header import CalibrationSlot
+    from gaitlog.protocol.steps import StepConfig
 
     s = random_subjects(1, seed=0)[0]
     cfg = StepConfig(step_format=1, leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
@@ -77,7 +77,7 @@ def naive_pass_s() -> float:
 
 def main() -> int:
     sys.path.insert(0, str(ROOT))
-    from host.studies.sweep import AdcRateSweep
+    from gaitlog.host.studies.sweep import AdcRateSweep
 
     ok = True
     workers = min(2, os.cpu_count() or 1)
@@ -94,9 +94,9 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         demo_code = ("import sys; sys.argv = ['gaitlog', 'demo', '--quiet', '--out', " + repr(tmp) + "]; "
-                     "from host.cli import main; raise SystemExit(main(sys.argv[1:]))")
-        base_code = ("import numpy, scipy.signal, scipy.interpolate, matplotlib.pyplot, host.cli, host.studies.compare; "
-                     "from firmware_sim.algorithms.online import load_kernels; load_kernels(('fixed', 'float'))")
+                     "from gaitlog.host.cli import main; raise SystemExit(main(sys.argv[1:]))")
+        base_code = ("import numpy, scipy.signal, scipy.interpolate, matplotlib.pyplot, gaitlog.host.cli, gaitlog.host.studies.compare; "
+                     "from gaitlog.firmware_sim.algorithms.online import load_kernels; load_kernels(('fixed', 'float'))")
         base_mb, _ = child_peak_mb(base_code)
         demo_mb, demo_s = child_peak_mb(demo_code)
     print(f"gaitlog demo peak memory: {demo_mb:.0f} MB  (target <= {DEMO_MEMORY_TARGET_MB:.0f} MB)  "

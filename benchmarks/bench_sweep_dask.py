@@ -3,7 +3,7 @@ a 1,000-task sweep cut mid-run and resumed.
 
 Speed-up: the same 24-task grid (the paper's protocol, 4 subjects, 8/10/12 bits x 25/50 Hz) run (a) serially in this
 process (``--serial``: no Dask), (b) on a LocalCluster of 1 worker process, (c) of 2 worker processes, each into
-a fresh folder by ``python -m host.cli sweep`` in a child process (so every run pays its own imports; the Dask
+a fresh folder by ``python -m gaitlog.host.cli sweep`` in a child process (so every run pays its own imports; the Dask
 runs include starting their cluster). The three result folders must be byte-identical.
 
 1,000 tasks (``--thousand``): 5 subjects x 5 rates (25-100 Hz) x 5 noise densities (0-800 ug/rtHz) x ADC 5-12
@@ -36,7 +36,7 @@ ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 
 def sweep(out: Path, *args: str) -> float:
     t = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "host.cli", "sweep", "--out", str(out), "-q", *args], env=ENV, check=True)
+    subprocess.run([sys.executable, "-m", "gaitlog.host.cli", "sweep", "--out", str(out), "-q", *args], env=ENV, check=True)
     return time.perf_counter() - t
 
 
@@ -65,7 +65,7 @@ def thousand(tmp: Path) -> bool:
     out = tmp / "thousand"
     tasks = out / "tasks"
     t = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "host.cli", "sweep", "--out", str(out), "-q", "--workers", "2",
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog.host.cli", "sweep", "--out", str(out), "-q", "--workers", "2",
                              *THOUSAND], env=ENV, start_new_session=True)
     while proc.poll() is None and (not tasks.is_dir() or len(list(tasks.glob("*.json"))) < 500):
         time.sleep(0.5)
@@ -76,7 +76,7 @@ def thousand(tmp: Path) -> bool:
     print(f"1,000-task sweep (5 subjects x 5 rates x 5 noise densities x 8 widths), 2 workers: cut after {t_cut:.0f} s "
           f"with {len(stored)} tasks stored")
     t = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "host.cli", "sweep", "--out", str(out), "--workers", "2", *THOUSAND],
+    r = subprocess.run([sys.executable, "-m", "gaitlog.host.cli", "sweep", "--out", str(out), "--workers", "2", *THOUSAND],
                        env=ENV, capture_output=True, text=True)
     t_resume = time.perf_counter() - t
     line = next((ln for ln in r.stdout.splitlines() if ln.startswith("computed")), r.stderr.strip()[-300:])

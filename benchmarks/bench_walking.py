@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-from firmware_sim.world.subject import Subject
-from firmware_sim.world.walking import Walking
+from gaitlog.firmware_sim.world.subject import Subject
+from gaitlog.firmware_sim.world.walking import Walking
 
 RATE_HZ = 500.0
 #: Target for the whole protocol (~16 min of motion, ~410k samples, truth included) on a 2-core CI box.

@@ -1,7 +1,7 @@
 """Benchmark: render a simulated study's walks, 20 subjects x the full protocol (issue 14: <= 30 s on 2 cores).
 
 Renders ``--subjects`` (20) subjects of the ``people`` population walking the paper's protocol with the
-population's habits (:func:`host.studies.simulation.simulated_population`: four speeds, 100 m back and forth)
+population's habits (:func:`gaitlog.host.studies.simulation.simulated_population`: four speeds, 100 m back and forth)
 at the sensor's internal rate (500 Hz, as the studies render them), truth included, on ``--workers`` (2)
 processes; also the CPU time of the renderings (summed), which the machine's other load does not inflate.
 Baseline in the same run: the same number of ``v1`` subjects (the older walker, without the lateral
@@ -22,9 +22,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.walking import Walking
-from host.studies.simulation import map_subjects, simulated_population
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.host.studies.simulation import map_subjects, simulated_population
 
 #: Issue 14: 20 subjects x the full protocol on the 2-core machine.
 TARGET_S = 30.0

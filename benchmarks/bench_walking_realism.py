@@ -6,7 +6,7 @@ Writes ``--subjects`` (20) simulated subjects' IPOL lower-back trials (``gaitlog
 same call, and prints for every statistic the simulated median next to the real median and 5-95 % band.
 
 A statistic passes when the simulated median lies inside the real 5-95 % band *and* within ±20 % of the real
-median (issue 14's criterion, :mod:`host.studies.realism`). The statistics the issue names are checked; the
+median (issue 14's criterion, :mod:`gaitlog.host.studies.realism`). The statistics the issue names are checked; the
 others (the sensor's standing noise and scale, counts and durations that follow from the checked ones) are
 printed for information. Exits non-zero when a checked statistic fails, 2 when ``../shared`` is absent.
 
@@ -28,8 +28,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from host.studies.realism import MEDIAN_TOLERANCE, STATISTICS, judge  # noqa: E402
-from host.studies.simulation import export_ipol  # noqa: E402
+from gaitlog.host.studies.realism import MEDIAN_TOLERANCE, STATISTICS, judge  # noqa: E402
+from gaitlog.host.studies.simulation import export_ipol  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
 STATS_TOOL = SHARED / "tools" / "walking_stats.py"

@@ -1,6 +1,6 @@
 """Fuzz the loaders of every file and wire format: mutated frames, device headers, memory images, raw dumps,
 wire captures, recording NPZs and calibration / K JSON files. A loader may only refuse an input with the
-project's documented errors (:class:`protocol.errors.ProtocolError`, :class:`host.errors.HostError`); anything else
+project's documented errors (:class:`gaitlog.protocol.errors.ProtocolError`, :class:`gaitlog.host.errors.HostError`); anything else
 escaping is a crash, counted and shown (target, exception, the input's first bytes).
 
     PYTHONPATH=. python benchmarks/fuzz_loaders.py --inputs 1000000 --seconds 1800   # the long job
@@ -31,17 +31,17 @@ from pathlib import Path
 
 import numpy as np
 
-from host.accelerometer.calibration import AccCalibration
-from host.errors import HostError
-from host.files.decode import decode_bytes
-from host.files.recording import Recording
-from host.gait.k_calibration import KFit
-from protocol.crc import crc32
-from protocol.errors import ProtocolError
-from protocol.frames import FrameType, encode_frame, parse_payload, parse_stream
-from protocol.header import DeviceHeader, HeaderFlag
-from protocol.image import build_image, image_memory_bytes
-from protocol.raw_dump import raw_dump_bytes
+from gaitlog.host.accelerometer.calibration import AccCalibration
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.host.files.recording import Recording
+from gaitlog.host.gait.k_calibration import KFit
+from gaitlog.protocol.crc import crc32
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import FrameType, encode_frame, parse_payload, parse_stream
+from gaitlog.protocol.header import DeviceHeader, HeaderFlag
+from gaitlog.protocol.image import build_image, image_memory_bytes
+from gaitlog.protocol.raw_dump import raw_dump_bytes
 
 #: The only exceptions a loader may raise on bad bytes.
 DOCUMENTED_ERRORS = (ProtocolError, HostError)

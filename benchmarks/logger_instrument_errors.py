@@ -6,7 +6,7 @@ simulation's truth: Morris' worst orientation error over each cycle found (headi
 start, as accelerometers cannot sense it), Hall's worst joint-angle error. The same seed is also recorded by
 the same parts without noise, offset or drift (``noise-free``: quantisation, filter lag and the method's own
 error) and the stated bound is ``noise-free + 3 σ + offset + drift`` from the sensor model
-(:mod:`host.kinematics.logger_error_budget`).
+(:mod:`gaitlog.host.kinematics.logger_error_budget`).
 
 Prints one line per configuration (median and worst error over the seeds, the noise-free error, the bound's
 parts); exits 1 if a run exceeds its bound.
@@ -23,16 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.channel_sensors import ACCELEROMETER, RATE_SENSOR
-from host.commands.kinematics import _truth_from_columns, analyse_hall, morris_errors
-from host.files.decode import decode_file
-from host.kinematics.logger_error_budget import hall_error_budget, morris_error_budget
-from host.kinematics.logger_instruments import (
+from gaitlog.firmware_sim.channel_sensors import ACCELEROMETER, RATE_SENSOR
+from gaitlog.host.commands.kinematics import _truth_from_columns, analyse_hall, morris_errors
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.kinematics.logger_error_budget import hall_error_budget, morris_error_budget
+from gaitlog.host.kinematics.logger_instruments import (
     LoggedInstrument,
     record_instrument,
     sensor_recording,
 )
-from host.kinematics.morris_analysis import analyse_morris_recording
+from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
 
 #: (label, instrument, keyword arguments of record_instrument)
 CONFIGURATIONS = (

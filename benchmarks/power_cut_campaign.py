@@ -40,13 +40,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_sim.device import Logger
-from firmware_sim.sensor import SensorModel
-from host.files.decode import REASONS, decode_bytes
-from protocol.commit_journal import JOURNAL_OFFSET
-from protocol.header import PAGE_SAMPLES
-from protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
-from protocol.image import build_image
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.host.files.decode import REASONS, decode_bytes
+from gaitlog.protocol.commit_journal import JOURNAL_OFFSET
+from gaitlog.protocol.header import PAGE_SAMPLES
+from gaitlog.protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
+from gaitlog.protocol.image import build_image
 
 _SENSOR = SensorModel.draw(seed=1)
 _TORN = REASONS.index("slot of the page in flight when a power loss cut a run (contents undefined)")

@@ -1,6 +1,6 @@
 """Soak test of the dump over a damaged line: many consecutive full-memory dumps, 0 wrong samples allowed.
 
-Each dump runs `host.link.memory_dump.dump_memory` through the in-process emulated line (``emu://``) with
+Each dump runs `gaitlog.host.link.memory_dump.dump_memory` through the in-process emulated line (``emu://``) with
 byte faults in **both** directions: every byte is corrupted, dropped, or preceded by an inserted random byte
 with probability ``--error-rate / 3`` each (so ``--error-rate`` is the total byte error rate of a direction),
 a fresh fault seed per dump. The device holds a full, wrapped memory (65,536 samples of random codes). A dump
@@ -26,11 +26,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from host.files.decode import decode_file  # noqa: E402
-from host.link.logger_link import LoggerLink  # noqa: E402
-from host.link.memory_dump import dump_memory  # noqa: E402
-from protocol.header import DeviceHeader  # noqa: E402
-from protocol.image import build_image  # noqa: E402
+from gaitlog.host.files.decode import decode_file  # noqa: E402
+from gaitlog.host.link.logger_link import LoggerLink  # noqa: E402
+from gaitlog.host.link.memory_dump import dump_memory  # noqa: E402
+from gaitlog.protocol.header import DeviceHeader  # noqa: E402
+from gaitlog.protocol.image import build_image  # noqa: E402
 
 CAP = 65536
 

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.errors import DeviceError
-from protocol.adc_bits import check_adc_bits
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.protocol.adc_bits import check_adc_bits
 
 #: The logger's sample-timer rate unless told otherwise (Alvarez et al. 2006: 50 Hz), Hz.
 DEFAULT_SAMPLING_RATE_HZ = 50.0

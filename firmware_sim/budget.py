@@ -1,14 +1,14 @@
 """Does it fit? The logger's RAM and cycles with the on-line step algorithm, against the PIC16F877.
 
 RAM (368 bytes of general-purpose registers): the algorithm's declared state and temporaries
-(:mod:`firmware_sim.algorithms.state`, checked against the kernel's code) plus the firmware's own variables
-while logging (:data:`FIRMWARE_RAM`): the sample page buffer (``firmware_sim.ring_buffer``: one 128-byte
+(:mod:`gaitlog.firmware_sim.algorithms.state`, checked against the kernel's code) plus the firmware's own variables
+while logging (:data:`FIRMWARE_RAM`): the sample page buffer (``gaitlog.firmware_sim.ring_buffer``: one 128-byte
 EEPROM page), the header counters that change while logging, the UART receiver and transmitter, the AN617
 maths registers, the interrupt context, the I2C driver and the step record's CRC. Items marked *estimate*
 are counted from how such firmware is written, not from code in this repository.
 
 Cycles per sample: the fixed-point kernel counts its primitives and I2C bytes on the real data path
-(:class:`firmware_sim.algorithms.online.CycleStats`: mean, worst sample, worst backlog); the logging
+(:class:`gaitlog.firmware_sim.algorithms.online.CycleStats`: mean, worst sample, worst backlog); the logging
 interrupt's own work per sample is :data:`LOGGING_CYCLES`. Available: ``fosc / 4 / fs`` (92,160 at
 50 Hz with the 18.432 MHz crystal). The algorithm runs in the main loop, after the interrupt: a sample
 that costs more than one period (the end of a long step: two passes over its samples read back from the
@@ -30,28 +30,28 @@ import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from firmware_sim.algorithms.parameters import (
+from gaitlog.firmware_sim.algorithms.parameters import (
     EventParameters,
     OnlineParameters,
     SampleCounts,
 )
-from firmware_sim.algorithms.state import (
+from gaitlog.firmware_sim.algorithms.state import (
     CALLS,
     persistent_bytes,
     temporaries_bytes,
     variables,
 )
-from firmware_sim.eeprom import DEVICE_BYTES, PAGE_BYTES
-from firmware_sim.fixedpoint import (
+from gaitlog.firmware_sim.eeprom import DEVICE_BYTES, PAGE_BYTES
+from gaitlog.firmware_sim.fixedpoint import (
     CYCLES,
     DEFAULT_FOSC_HZ,
     I2C_BYTE_CYCLES,
     MEASURED_CYCLES,
     cycles_per_sample_available,
 )
-from firmware_sim.ring_buffer import WORDS_PER_PAGE
-from firmware_sim.uart import UartTiming
-from protocol.header import HEADER_SIZE, MEMORY_BYTES
+from gaitlog.firmware_sim.ring_buffer import WORDS_PER_PAGE
+from gaitlog.firmware_sim.uart import UartTiming
+from gaitlog.protocol.header import HEADER_SIZE, MEMORY_BYTES
 
 __all__ = ["PIC_RAM_BYTES", "PIC_PROGRAM_WORDS", "FIRMWARE_RAM", "LOGGING_CYCLES", "CONFIGURATIONS", "LoggerConfig",
            "RamItem", "RamBudget", "CycleBudget", "ProgramBudget", "StorageBudget", "ram_budget", "cycle_budget",
@@ -65,7 +65,7 @@ PIC_RAM_BYTES = 368
 PIC_PROGRAM_WORDS = 8192
 #: 24LC1025 page write time, maximum (DS21941: 5 ms max, 3 ms typical); the logger waits the maximum.
 EEPROM_PAGE_WRITE_S = 5e-3
-#: Serial dump rate: 115200 baud 8N1 with the 18.432 MHz crystal (firmware_sim.uart), XMODEM-1K blocks.
+#: Serial dump rate: 115200 baud 8N1 with the 18.432 MHz crystal (gaitlog.firmware_sim.uart), XMODEM-1K blocks.
 DUMP_BAUD = 115200
 XMODEM_BLOCK_DATA, XMODEM_BLOCK_WIRE = 1024, 1029      # STX, block number, its complement, data, CRC-16
 #: ADC (DS30292 section 11): TAD >= 1.6 us from 2, 8 or 32 Tosc; 12 TAD per 10-bit conversion; acquisition
@@ -161,7 +161,7 @@ class RamItem:
 #: The firmware's own variables while logging.
 FIRMWARE_RAM: tuple[RamItem, ...] = (
     RamItem("sample page buffer", 4 * WORDS_PER_PAGE,
-            "implemented: firmware_sim.ring_buffer collects one 128-byte EEPROM page (32 P32 samples)"),
+            "implemented: gaitlog.firmware_sim.ring_buffer collects one 128-byte EEPROM page (32 P32 samples)"),
     RamItem("header counters", 4 + 2 + 1 + 4 + 2,
             "implemented: samples_written (u32), write_index (16 bits suffice for 65,536 slots), flags, "
             "steps_written (u32), step_write_index (u16); the rest of the header stays in the data EEPROM"),
@@ -338,7 +338,7 @@ class CycleBudget:
 
 def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOSC_HZ,
                  config: LoggerConfig | None = None) -> CycleBudget:
-    """Cycle budget from a run's :class:`~firmware_sim.algorithms.online.CycleStats` (run with
+    """Cycle budget from a run's :class:`~gaitlog.firmware_sim.algorithms.online.CycleStats` (run with
     ``cycles_available =`` :func:`algorithm_cycles_per_sample`, as the firmware does); ``stats = None``: no
     on-line algorithm, the logging interrupt only."""
     if stats is None:

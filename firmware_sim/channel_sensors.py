@@ -4,11 +4,11 @@ Each channel ``j`` reads ``x_j = LPF_j(clip(u_j, ±range_j)) + LPF_j(n_j) + b_j 
 rad/s), where ``u_j`` is the true value along its sensing axis, ``range_j`` the sensing element's full scale,
 ``LPF_j`` a single-pole low-pass at ``bandwidth_hz`` (the part's output filter: 5 µF / C on an ADXL202, the
 demodulator filter on a rate sensor), ``n_j`` white noise of density ``noise_density`` (unit/√Hz, drawn
-exactly at the sample instants: :meth:`SensorModel.noise_g <firmware_sim.sensor.SensorModel.noise_g>`'s
+exactly at the sample instants: :meth:`SensorModel.noise_g <gaitlog.firmware_sim.sensor.SensorModel.noise_g>`'s
 Ornstein-Uhlenbeck law), ``b_j`` the offset and ``d_j`` its drift (a temperature ramp) from the start of the
 recording. The conditioning amplifier maps ``±range_j`` onto the converter's span (``v = ref + span/2 ·
-x / range``, zero at mid-scale), so the channel map's full scale (``protocol.channel_map``) is the range, and
-:class:`firmware_sim.adc.Adc` (gain 1) quantises. The accelerometers and the rate sensors are the same model
+x / range``, zero at mid-scale), so the channel map's full scale (``gaitlog.protocol.channel_map``) is the range, and
+:class:`gaitlog.firmware_sim.adc.Adc` (gain 1) quantises. The accelerometers and the rate sensors are the same model
 with different parameters, as their datasheets describe them by the same four figures.
 
 Examples
@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from firmware_sim.adc import Adc
-from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import ou_noise
+from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sensor import ou_noise
 
 __all__ = ["ACCELEROMETER", "RATE_SENSOR", "ChannelSensors", "SensorSpec"]
 
@@ -129,7 +129,7 @@ class ChannelSensors:
         return Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz, gain=1.0, ref_v=2.5)
 
     def noise(self, times_s: np.ndarray) -> np.ndarray:
-        """Filtered white noise ``(n, N)`` drawn exactly at the instants ``times_s`` (:func:`firmware_sim.sensor.
+        """Filtered white noise ``(n, N)`` drawn exactly at the instants ``times_s`` (:func:`gaitlog.firmware_sim.sensor.
         ou_noise`)."""
         return ou_noise(times_s, self.noise_rms, self.bandwidth_hz, self._rng)
 

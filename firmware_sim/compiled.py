@@ -1,7 +1,7 @@
 """The firmware's compiled (numba) code: loaded only when it runs, cached by the sources it is compiled from.
 
-The PIC arithmetic (:mod:`firmware_sim.fixedpoint`) and the on-line step algorithm
-(:mod:`firmware_sim.algorithms`) are plain Python functions that numba compiles to machine code on first
+The PIC arithmetic (:mod:`gaitlog.firmware_sim.fixedpoint`) and the on-line step algorithm
+(:mod:`gaitlog.firmware_sim.algorithms`) are plain Python functions that numba compiles to machine code on first
 use. Importing numba and loading its cached code costs a process about 0.4 s, so nothing here imports numba
 until a compiled function is actually called:
 
@@ -13,7 +13,7 @@ until a compiled function is actually called:
   apply it then;
 * :data:`numba_types` is ``numba.types``, imported at its first attribute access (an overload's typing code).
 
-When ``firmware_sim.algorithms.aot_kernel`` has built the on-line kernel ahead of time, a process that only runs
+When ``gaitlog.firmware_sim.algorithms.aot_kernel`` has built the on-line kernel ahead of time, a process that only runs
 that kernel never imports numba.
 
 Cache: numba checks only the timestamp of the file that holds the *calling* function, not of the functions

@@ -6,9 +6,9 @@ runs one logging session on a motion (START, the sample timer over the motion's 
 vectorised: the motion is rendered on the sensor's fine grid, the sensor model filters it, the ADC
 samples it at the timer instants where the sensor noise is added (drawn exactly there), and the firmware packs and stores the block of samples with
 whole-array page writes. The UART side is :attr:`Logger.firmware` (sans-I/O; see
-:mod:`firmware_sim.transport` to put it on a pty or a TCP port).
+:mod:`gaitlog.firmware_sim.transport` to put it on a pty or a TCP port).
 
-The EEPROM contents persist as a memory-image file (``PROTOCOL.md`` section 6, :mod:`protocol.image`)
+The EEPROM contents persist as a memory-image file (``PROTOCOL.md`` section 6, :mod:`gaitlog.protocol.image`)
 between runs, as the real EEPROMs keep their data with the power off: ``Logger(image_path=p)`` restores
 ``p`` if it exists and every :meth:`record` saves it back (atomically); :meth:`Logger.from_image` restores
 any image. The emulated logger has the step memory of section 2.3 (a third 24LC1025, ``step_capacity``
@@ -26,24 +26,24 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
-from firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
-from firmware_sim.errors import DeviceError
-from firmware_sim.firmware import FIRMWARE_VERSION, Firmware, as_run
-from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
-from firmware_sim.sensor import SensorModel
-from firmware_sim.step_store import StepStore
-from firmware_sim.world.base import Motion, MotionSource
-from firmware_sim.world.resampling import resample_g
-from protocol.atomic_write import atomic_write_bytes
-from protocol.channel_map import ChannelMap
-from protocol.commit_journal import torn_step_records
-from protocol.errors import ProtocolError
-from protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
-from protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
-from protocol.image import build_image, parse_image
-from protocol.packing import FLAG_MARK, FLAG_SESSION_START, unpack_words
-from protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
+from gaitlog.firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.firmware import FIRMWARE_VERSION, Firmware, as_run
+from gaitlog.firmware_sim.ring_buffer import MemoryFullError, RingBuffer
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.step_store import StepStore
+from gaitlog.firmware_sim.world.base import Motion, MotionSource
+from gaitlog.firmware_sim.world.resampling import resample_g
+from gaitlog.protocol.atomic_write import atomic_write_bytes
+from gaitlog.protocol.channel_map import ChannelMap
+from gaitlog.protocol.commit_journal import torn_step_records
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
+from gaitlog.protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
+from gaitlog.protocol.image import build_image, parse_image
+from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, unpack_words
+from gaitlog.protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
 
 __all__ = ["Logger", "RecordResult", "PowerCut"]
 
@@ -113,7 +113,7 @@ class Logger:
     adc
         ADC settings; default ``Adc(sampling_rate_hz=sampling_rate_hz)``.
     sampling_rate_hz
-        Sample-timer rate when ``adc`` is not given (None: :data:`firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`);
+        Sample-timer rate when ``adc`` is not given (None: :data:`gaitlog.firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`);
         with ``adc``, None or the ADC's own rate.
     device_id
         Serial number written to the header.
@@ -126,11 +126,11 @@ class Logger:
         samples in real time of a device lying still with this specific force (default: ``+z`` up).
     step_config
         Step configuration of the header (section 2.2); default off. A restored image brings its own. One
-        that cannot be stored raises :class:`~protocol.errors.ProtocolError` (naming the field).
+        that cannot be stored raises :class:`~gaitlog.protocol.errors.ProtocolError` (naming the field).
 
     Examples
     --------
-    >>> from firmware_sim.world.poses import CalibrationPoses
+    >>> from gaitlog.firmware_sim.world.poses import CalibrationPoses
     >>> logger = Logger(device_id=3)
     >>> res = logger.record(CalibrationPoses(n_poses=4, hold_s=3.0, move_s=1.0))
     >>> res.n_samples, logger.header.samples_written, int(res.flags[0])
@@ -315,7 +315,7 @@ class Logger:
         and step EEPROMs): the RAM is lost, an interrupted run is recovered to its last committed page.
 
         The header is the committed one (section 2.5): the data EEPROM's, or the newest header slot's when a
-        power loss cut a header commit after its slot was written (:func:`protocol.header_slots.committed_header`).
+        power loss cut a header commit after its slot was written (:func:`gaitlog.protocol.header_slots.committed_header`).
 
         Raises
         ------
@@ -417,7 +417,7 @@ class Logger:
         ----------
         frame_codes
             ``(m, n_channels)`` codes of each tick, in the channel map's order (from
-            :meth:`firmware_sim.channel_sensors.ChannelSensors.sample`).
+            :meth:`gaitlog.firmware_sim.channel_sensors.ChannelSensors.sample`).
         """
         cmap = self.header.calibration
         if not isinstance(cmap, ChannelMap):

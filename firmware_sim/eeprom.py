@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.errors import DeviceError
 
 __all__ = ["Eeprom24LC1025", "EepromBank", "DataEeprom"]
 

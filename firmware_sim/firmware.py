@@ -2,15 +2,15 @@
 
 Everything here is what the PIC16F877 program does, with the I/O cut off: bytes from the UART come in
 through :meth:`Firmware.receive` (with the time they arrived), and the bytes the device sends come back as
-its return value; the transport (:mod:`firmware_sim.transport`) owns the port and the clock. The sample
+its return value; the transport (:mod:`gaitlog.firmware_sim.transport`) owns the port and the clock. The sample
 timer's interrupt handler is :meth:`Firmware.log_samples`, fed a block of ADC codes at a time.
 
 On-line step algorithm (PROTOCOL.md 2.2, 2.3)
     When the header's step configuration is on (``step_format`` 3, the version it runs), START builds the firmware's step
-    algorithm (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`, fixed point) from the header —
+    algorithm (:class:`gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`, fixed point) from the header —
     sampling rate, ADC width, calibration slot, step configuration — and every sample the interrupt stores
     is fed to it; each finished step's 20-byte record goes to :meth:`Firmware.log_steps`, which the
-    :class:`~firmware_sim.step_store.StepStore` writes to the step memory. STOP, or a full memory in
+    :class:`~gaitlog.firmware_sim.step_store.StepStore` writes to the step memory. STOP, or a full memory in
     stop-when-full mode, ends the run: the pending foot-flat is finalised and its record stored before the
     header is committed. With ``step_format`` 0 the device logs samples only.
 
@@ -47,15 +47,15 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
-from firmware_sim.budget import algorithm_cycles_per_sample
-from firmware_sim.eeprom import Eeprom24LC1025
-from firmware_sim.errors import DeviceError
-from firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
-from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
-from firmware_sim.step_store import StepStore
-from protocol.crc import crc16_xmodem, crc32
-from protocol.frames import (
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
+from gaitlog.firmware_sim.eeprom import Eeprom24LC1025
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
+from gaitlog.firmware_sim.ring_buffer import MemoryFullError, RingBuffer
+from gaitlog.firmware_sim.step_store import StepStore
+from gaitlog.protocol.crc import crc16_xmodem, crc32
+from gaitlog.protocol.frames import (
     COMMAND_TYPES,
     FRAME_OVERHEAD,
     MAX_PAYLOAD,
@@ -70,11 +70,11 @@ from protocol.frames import (
     encode_frame,
     parse_payload,
 )
-from protocol.header import PACKING_P32, DeviceHeader
-from protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
-from protocol.steps import ONLINE_ALGORITHM_VERSION, StepConfig, memory_region, pack_step_records
-from protocol.raw_dump import raw_dump_bytes
-from protocol.xmodem import XmodemSender
+from gaitlog.protocol.header import PACKING_P32, DeviceHeader
+from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words
+from gaitlog.protocol.steps import ONLINE_ALGORITHM_VERSION, StepConfig, memory_region, pack_step_records
+from gaitlog.protocol.raw_dump import raw_dump_bytes
+from gaitlog.protocol.xmodem import XmodemSender
 
 __all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "as_run", "step_algorithm_for",
            "CRC32_CYCLES_PER_BYTE", "DUMP_CYCLES_PER_BYTE", "uart_cycles_per_byte"]
@@ -94,7 +94,7 @@ ASCII_XDUMP = b"XDUMP\r"
 #: timings (DS30292); a table-free bitwise CRC-32 costs about 146 (8 x (RRF x4, BTFSS, 4 x MOVLW/XORWF, loop)).
 CRC32_CYCLES_PER_BYTE = 2 * (3 + 21 + 4 * 8 + 2) + 2
 #: What the firmware does per byte of a DUMP_CHECKED stream, in instruction cycles: read it from the EEPROM
-#: (I2C, :data:`firmware_sim.fixedpoint.CYCLES` ``i2c_byte``), update the frame's CRC-16 (nibble table, ~half the
+#: (I2C, :data:`gaitlog.firmware_sim.fixedpoint.CYCLES` ``i2c_byte``), update the frame's CRC-16 (nibble table, ~half the
 #: CRC-32's work: estimate), the CRC-32 (:data:`CRC32_CYCLES_PER_BYTE`) and load TXREG (estimate).
 DUMP_CYCLES_PER_BYTE = {"i2c_byte": CYCLES["i2c_byte"], "crc16": 60, "crc32": CRC32_CYCLES_PER_BYTE, "txreg": 6}
 
@@ -117,7 +117,7 @@ _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPE
 
 def as_run(config: StepConfig | None) -> StepConfig | None:
     """The step configuration as the firmware stores it: an on-line ``step_format`` (1, 2 or 3) becomes the version
-    it runs (:data:`protocol.steps.ONLINE_ALGORITHM_VERSION`), so the header says what wrote the records."""
+    it runs (:data:`gaitlog.protocol.steps.ONLINE_ALGORITHM_VERSION`), so the header says what wrote the records."""
     if config is None or not config.enabled:
         return config
     return dataclasses.replace(config, step_format=ONLINE_ALGORITHM_VERSION)
@@ -126,7 +126,7 @@ def as_run(config: StepConfig | None) -> StepConfig | None:
 def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> OnlineStepAlgorithm | None:
     """The on-line step algorithm as the firmware sets it up at START from its header (sampling rate, ADC
     width, calibration slot, step configuration; fixed point), or None when the header turns it off. The
-    host's replay (:mod:`host.files.replay`) uses the same, so device and replay cannot be set up differently."""
+    host's replay (:mod:`gaitlog.host.files.replay`) uses the same, so device and replay cannot be set up differently."""
     if not header.step_config.enabled:
         return None
     sampling_rate_hz = header.sampling_rate_hz
@@ -154,8 +154,8 @@ class Firmware:
 
     Examples
     --------
-    >>> from firmware_sim.eeprom import DataEeprom, EepromBank
-    >>> from protocol.header import DeviceHeader
+    >>> from gaitlog.firmware_sim.eeprom import DataEeprom, EepromBank
+    >>> from gaitlog.protocol.header import DeviceHeader
     >>> fw = Firmware(RingBuffer(EepromBank(), DataEeprom(), DeviceHeader(device_id=7)))
     >>> fw.receive(encode_frame(FrameType.GET_STATUS, 5), now_s=0.0).hex(" ")
     'a5 5a 82 05 0a 00 00 00 00 00 00 00 00 00 00 00 fc 30'
@@ -263,7 +263,7 @@ class Firmware:
         """SET_STEP_CONFIG: store the step configuration in the header and commit it (like SET_CALIBRATION).
 
         An on-line ``step_format`` (1, 2 or 3) turns the algorithm on; the header stores the version this
-        firmware runs (:data:`protocol.steps.ONLINE_ALGORITHM_VERSION`), so its records say what wrote them.
+        firmware runs (:data:`gaitlog.protocol.steps.ONLINE_ALGORITHM_VERSION`), so its records say what wrote them.
 
         Raises
         ------

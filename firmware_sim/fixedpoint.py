@@ -1,6 +1,6 @@
 """The PIC16F877's integer arithmetic: Q formats, words, multiply, divide, shifts, saturation, roots.
 
-Every fixed-point computation of the firmware (``firmware_sim.algorithms``) uses these primitives and
+Every fixed-point computation of the firmware (``gaitlog.firmware_sim.algorithms``) uses these primitives and
 nothing else, so the device's arithmetic is defined in one place.
 
 Two faces, one definition
@@ -16,7 +16,7 @@ Two faces, one definition
   ``int64``), with the counts collected in an :class:`ArithmeticContext`. This is the face the bit-exact
   tests (apytypes) and the benchmarks use. Arrays of at most :data:`PYTHON_MAX_ELEMENTS` elements (the
   algorithm's configuration: a few dozen constants) run the loops' Python text on Python integers instead,
-  which needs no numba (loading it costs ~0.4 s; :mod:`firmware_sim.compiled`); a test checks that both
+  which needs no numba (loading it costs ~0.4 s; :mod:`gaitlog.firmware_sim.compiled`); a test checks that both
   give the same bits.
 
 Conventions
@@ -65,7 +65,7 @@ from typing import Literal
 
 import numpy as np
 
-from firmware_sim.compiled import njit, register_jitable
+from gaitlog.firmware_sim.compiled import njit, register_jitable
 
 __all__ = [
     "CYCLES",
@@ -125,7 +125,7 @@ __all__ = [
 Rounding = Literal["half_up", "floor"]
 Overflow = Literal["saturate", "wrap"]
 
-#: The logger's crystal: 18.432 MHz, a baud-rate crystal (``firmware_sim.uart``); 4 clocks per cycle.
+#: The logger's crystal: 18.432 MHz, a baud-rate crystal (``gaitlog.firmware_sim.uart``); 4 clocks per cycle.
 DEFAULT_FOSC_HZ = 18_432_000.0
 #: I2C master at 400 kHz nominal: SSPADD = round(fosc / (4 · 400 kHz)) - 1 = 10, so one SCL period is 11
 #: instruction cycles (419 kHz) and a byte with its acknowledge (9 SCL periods) 99 cycles of a busy-waiting
@@ -175,7 +175,7 @@ CITED_SOURCES: dict[str, str] = {
 }
 
 #: The cycle table measured in gpsim on the assembly kernels of ``firmware_sim/pic`` (written by
-#: ``gaitlog budget --measure-kernels``, :mod:`firmware_sim.pic.gpsim_bench`; ``kernels`` holds each
+#: ``gaitlog budget --measure-kernels``, :mod:`gaitlog.firmware_sim.pic.gpsim_bench`; ``kernels`` holds each
 #: kernel's min, mean and max cycles per call).
 MEASURED_CYCLES: dict = json.loads((Path(__file__).resolve().parent / "pic" / "kernel_cycles.json").read_text())
 

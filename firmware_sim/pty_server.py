@@ -1,5 +1,5 @@
 """The emulated logger on a pseudo-terminal (POSIX only: ``tty`` and ``os.openpty`` do not exist on Windows,
-which is why this is not in :mod:`firmware_sim.transport`, whose TCP server works everywhere)."""
+which is why this is not in :mod:`gaitlog.firmware_sim.transport`, whose TCP server works everywhere)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import time
 import tty
 from typing import TYPE_CHECKING
 
-from firmware_sim.transport import (
+from gaitlog.firmware_sim.transport import (
     IDLE_TICK_S,
     TURNAROUND_S,
     FaultInjector,
@@ -19,7 +19,7 @@ from firmware_sim.transport import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from firmware_sim.device import Logger
+    from gaitlog.firmware_sim.device import Logger
 
 __all__ = ["PtyServer", "serve_pty"]
 

@@ -1,6 +1,6 @@
 """The 65,536-sample ring buffer of P32 words over the EEPROM bank, with its header.
 
-The logging state lives in the PIC's RAM as a :class:`protocol.header.DeviceHeader` (``PROTOCOL.md``
+The logging state lives in the PIC's RAM as a :class:`gaitlog.protocol.header.DeviceHeader` (``PROTOCOL.md``
 section 2) and is committed to the PIC's data EEPROM at START, STOP, ERASE, SET_CALIBRATION and when a
 stop-when-full log fills the memory (only changed bytes are written). Samples are collected in a RAM page
 buffer and written one 128-byte EEPROM page (32 samples) at a time; the first page of a run may start
@@ -16,11 +16,11 @@ Commits and power loss (section 2.4): START increments ``recording_number``, dra
 clears the page-commit journal; after every page write of the run (each one a *commit*) the journal entry of
 that commit is written to the data EEPROM (changed bytes only: the ``steps`` field first, then ``commit``
 from its high byte to its low byte). A power loss therefore loses at most the page in flight: at power-up
-:meth:`protocol.header.DeviceHeader.recovered` rebuilds the counters of the last committed page.
+:meth:`gaitlog.protocol.header.DeviceHeader.recovered` rebuilds the counters of the last committed page.
 :meth:`RingBuffer.power_cut` models the cut, including one inside the last page write or journal write.
 
 Header commits (section 2.5): with a slot EEPROM (the step 24LC1025) every commit first writes the new header
-bytes 0-159 and CRC to the older of the two header slots there (:mod:`protocol.header_slots`), then the
+bytes 0-159 and CRC to the older of the two header slots there (:mod:`gaitlog.protocol.header_slots`), then the
 changed bytes of the data EEPROM; a power loss inside it leaves either the old header or a slot from which
 power-up rolls the new one forward. :meth:`RingBuffer.power_cut_header` models a cut at any byte of the last
 commit (START's journal clear, the slot's page writes, the data EEPROM bytes).
@@ -30,23 +30,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.eeprom import PAGE_BYTES, DataEeprom, Eeprom24LC1025, EepromBank
-from firmware_sim.errors import DeviceError
-from protocol.commit_journal import (
+from gaitlog.firmware_sim.eeprom import PAGE_BYTES, DataEeprom, Eeprom24LC1025, EepromBank
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.protocol.commit_journal import (
     ENTRY_BYTES,
     JOURNAL_ENTRIES,
     JOURNAL_OFFSET,
     empty_journal,
     with_commit,
 )
-from protocol.header import (
+from gaitlog.protocol.header import (
     HEADER_SIZE,
     SAMPLES_WRITTEN_MAX,
     CalibrationSlot,
     DeviceHeader,
     HeaderFlag,
 )
-from protocol.header_slots import (
+from gaitlog.protocol.header_slots import (
     SLOT_ADDRESSES,
     SLOT_BYTES,
     newest_slot,
@@ -54,7 +54,7 @@ from protocol.header_slots import (
     slot_bytes,
     slot_for,
 )
-from protocol.packing import words_to_bytes
+from gaitlog.protocol.packing import words_to_bytes
 
 __all__ = ["RingBuffer", "MemoryFullError", "WORDS_PER_PAGE"]
 

@@ -14,7 +14,7 @@ misalignment matrix), ``clip`` the ±2 g full scale of the sensing element, ``n`
 filter capacitor (``f_-3dB = 5 µF / C``), ``b`` the 0 g offset in g, ``e`` the sensitivity error, ``S`` the
 nominal sensitivity and ``V0 = supply_v / 2`` the 0 g level (the analog outputs XFILT/YFILT are
 ratiometric). The output is the analog voltage at XFILT/YFILT (buffered); the ADC front end of
-:mod:`firmware_sim.adc` turns it into codes. ``LPF(n)``, white noise through the RC, is an
+:mod:`gaitlog.firmware_sim.adc` turns it into codes. ``LPF(n)``, white noise through the RC, is an
 Ornstein-Uhlenbeck process, drawn exactly at the instants where it is observed (:meth:`SensorModel.noise_g`).
 
 Tolerances used by :meth:`SensorModel.draw` (uniform draws; ``*`` = an assumption, not a datasheet limit;
@@ -44,7 +44,7 @@ import numpy as np
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.errors import DeviceError
 
 __all__ = ["SensorModel", "AXIS_PARTS", "filter_cutoff_hz", "ou_noise"]
 
@@ -296,7 +296,7 @@ class SensorModel:
             Noise generator; default the model's own seeded stream.
         noise
             Add the output noise (:meth:`noise_g`, exact at the grid instants). :meth:`Logger.record
-            <firmware_sim.device.Logger.record>` passes False and adds the noise at the ADC's sample
+            <gaitlog.firmware_sim.device.Logger.record>` passes False and adds the noise at the ADC's sample
             instants instead (the filter is linear, so the two are the same process).
         zi_settled
             Start the filter settled on the first input sample (a device powered on long before logging);

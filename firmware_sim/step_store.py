@@ -1,14 +1,14 @@
 """The step store: the ring of per-step records in the third 24LC1025 (``PROTOCOL.md`` section 2.3).
 
 While logging, the firmware's on-line step algorithm produces one 20-byte record per detected foot-flat
-(:func:`protocol.steps.pack_step_records` builds them); the step store writes each at slot
+(:func:`gaitlog.protocol.steps.pack_step_records` builds them); the step store writes each at slot
 ``step_write_index`` of a ring of ``step_capacity`` = 3276 records in the first 64 KiB block of the step
 EEPROM (record ``k`` at byte ``20·k``). The ring always overwrites its oldest record: there is no
 stop-when-full mode for steps. The second 64 KiB block of that EEPROM is the algorithm's private scratch
 ring; the step store never touches it.
 
 The counters ``steps_written`` and ``step_write_index`` live in the header in RAM, shared with the
-:class:`~firmware_sim.ring_buffer.RingBuffer`, which commits it to the data EEPROM (at START, STOP, ERASE,
+:class:`~gaitlog.firmware_sim.ring_buffer.RingBuffer`, which commits it to the data EEPROM (at START, STOP, ERASE,
 ...); ERASE clears them and keeps the step configuration.
 
 Records are written as they come, with real page writes: the bytes of a batch go to consecutive slots and
@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.eeprom import BLOCK_BYTES, PAGE_BYTES, Eeprom24LC1025
-from firmware_sim.errors import DeviceError
-from protocol.header import DeviceHeader
-from protocol.steps import (
+from gaitlog.firmware_sim.eeprom import BLOCK_BYTES, PAGE_BYTES, Eeprom24LC1025
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.protocol.header import DeviceHeader
+from gaitlog.protocol.steps import (
     STEP_CAPACITY_RECORDS,
     STEP_RECORD_SIZE,
     STEPS_WRITTEN_MAX,
@@ -51,7 +51,7 @@ class StepStore:
     Seven records are bytes 0-139: one page write of page 0 (records 0-5 and the first 8 bytes of record 6,
     which straddles the boundary), one of page 1.
 
-    >>> from protocol.steps import empty_step_records, pack_step_records
+    >>> from gaitlog.protocol.steps import empty_step_records, pack_step_records
     >>> store = StepStore(Eeprom24LC1025(), DeviceHeader(step_capacity=3276))
     >>> rec = empty_step_records(7)
     >>> rec["end_sample"] = np.arange(7) * 27
@@ -89,7 +89,7 @@ class StepStore:
         Parameters
         ----------
         records
-            ``20 · n`` bytes, as :func:`protocol.steps.pack_step_records` builds them (their CRCs are the
+            ``20 · n`` bytes, as :func:`gaitlog.protocol.steps.pack_step_records` builds them (their CRCs are the
             producer's; the store writes the bytes as they are).
 
         Raises

@@ -1,13 +1,13 @@
 """Put the emulated logger on a serial line, in a background thread: the TCP port and what every line shares.
 
-The pseudo-terminal is :mod:`firmware_sim.pty_server` (POSIX only: it needs ``tty``, which Windows lacks).
+The pseudo-terminal is :mod:`gaitlog.firmware_sim.pty_server` (POSIX only: it needs ``tty``, which Windows lacks).
 
 The device speaks only when spoken to: bytes from the host go to :meth:`Firmware.receive` with the
 arrival time (``time.monotonic``), its replies are queued and sent. Nothing is printed; the server gives
-its address (:attr:`TcpServer.url`, :attr:`firmware_sim.pty_server.PtyServer.path`) for the caller to show.
+its address (:attr:`TcpServer.url`, :attr:`gaitlog.firmware_sim.pty_server.PtyServer.path`) for the caller to show.
 
 Wire time (opt-in): device -> host bytes are released at the real byte time of the UART
-(:class:`firmware_sim.uart.UartTiming`, 10 bits per 8N1 byte at the baud the PIC's crystal and SPBRG really
+(:class:`gaitlog.firmware_sim.uart.UartTiming`, 10 bits per 8N1 byte at the baud the PIC's crystal and SPBRG really
 give), scheduled against the monotonic clock (the ``k``-th byte of a burst is released when
 ``t_burst + k · byte_time`` has passed; the thread wakes every ``tick_s`` and writes what is due), so the
 pacing does not drift over a long transfer the way sleeping per byte would. Host -> device bytes are taken
@@ -35,11 +35,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from firmware_sim.errors import DeviceError
-from firmware_sim.uart import UartTiming
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.uart import UartTiming
 
 if TYPE_CHECKING:  # pragma: no cover
-    from firmware_sim.device import Logger
+    from gaitlog.firmware_sim.device import Logger
 
 __all__ = ["FaultInjector", "TcpServer", "serve_tcp"]
 

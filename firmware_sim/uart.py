@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.errors import DeviceError
 
 __all__ = ["UartTiming", "BITS_PER_BYTE_8N1"]
 

@@ -5,9 +5,9 @@ This package may import ``protocol`` and ``firmware_sim``; nothing imports it.
 Subpackages
 -----------
 link
-    The serial side: :class:`~host.link.logger_link.LoggerLink` over pyserial, the memory dump, ``emu://``.
+    The serial side: :class:`~gaitlog.host.link.logger_link.LoggerLink` over pyserial, the memory dump, ``emu://``.
 files
-    Files and decoding: memory image / dump / capture -> :class:`~host.files.recording.Recording`, every
+    Files and decoding: memory image / dump / capture -> :class:`~gaitlog.host.files.recording.Recording`, every
     input format a command reads, the IPOL reader, and the bit-for-bit check of the device's step records.
 accelerometer
     Accelerometer calibration: static windows of a calibration session, the fit of offsets, scales and axes.
@@ -18,5 +18,5 @@ kinematics
 studies
     The paper's evaluation (simulated and IPOL), chain comparisons, ADC x rate sweeps, and their plots.
 commands
-    One module per ``gaitlog`` subcommand, on top of everything else (:mod:`host.cli` is the entry point).
+    One module per ``gaitlog`` subcommand, on top of everything else (:mod:`gaitlog.host.cli` is the entry point).
 """

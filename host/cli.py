@@ -23,7 +23,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-import host.commands
+import gaitlog.host.commands
 
 #: Order of subcommands in ``gaitlog --help``; modules found but not listed here come after, sorted.
 _ORDER = (
@@ -33,27 +33,8 @@ _ORDER = (
 
 
 def _command_modules() -> list[str]:
-    found = {m.name for m in pkgutil.iter_modules(host.commands.__path__) if not m.name.startswith("_")}
+    found = {m.name for m in pkgutil.iter_modules(gaitlog.host.commands.__path__) if not m.name.startswith("_")}
     return [n for n in _ORDER if n in found] + sorted(found.difference(_ORDER))
-
-
-class _VersionAction(argparse.Action):
-    """``--version``: the installed distribution's version, looked up only when asked (``importlib.metadata``
-    costs 40 ms, half of ``gaitlog --help``)."""
-
-    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kwargs) -> None:
-        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
-                         help="show the program's version number and exit", **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None) -> None:
-        from importlib.metadata import PackageNotFoundError, version
-
-        try:
-            dist_version = version("gaitlog")
-        except PackageNotFoundError:  # running from a source tree
-            dist_version = "unknown"
-        print(f"gaitlog {dist_version}")  # on stdout, as argparse's own "version" action
-        parser.exit()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -70,10 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="gaitlog",
         description="Emulate, dump, decode, calibrate and analyse the PIC16F877 + ADXL202 gait logger.",
     )
-    parser.add_argument("--version", action=_VersionAction)
+    parser.add_argument("--version", action="version", version=f"gaitlog {gaitlog.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _command_modules():
-        module = importlib.import_module(f"host.commands.{name}")
+        module = importlib.import_module(f"gaitlog.host.commands.{name}")
         cmd = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.HELP)
         module.configure(cmd)
         cmd.set_defaults(_run=module.run)
@@ -81,9 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _known_errors() -> tuple[type[BaseException], ...]:
-    from firmware_sim.errors import DeviceError
-    from host.errors import HostError
-    from protocol.errors import ProtocolError
+    from gaitlog.firmware_sim.errors import DeviceError
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.errors import ProtocolError
 
     return (ProtocolError, DeviceError, HostError, OSError)
 

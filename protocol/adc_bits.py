@@ -14,7 +14,7 @@ Examples
 
 from __future__ import annotations
 
-from protocol.errors import ProtocolError
+from gaitlog.protocol.errors import ProtocolError
 
 __all__ = ["MAX_SIMULATED_ADC_BITS", "MAX_STORED_ADC_BITS", "adc_bits_problem", "check_adc_bits"]
 

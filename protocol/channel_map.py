@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from protocol.errors import ProtocolError
+from gaitlog.protocol.errors import ProtocolError
 
 __all__ = [
     "CAL_FORMAT_CHANNEL_MAP",
@@ -52,7 +52,7 @@ _PREFIX = 4  # cal_format, n_channels, 2 reserved
 _SLOT_SIZE = 64
 #: Quantity codes of a channel.
 SPECIFIC_FORCE, ANGULAR_RATE = 1, 2
-#: quantity code -> (CSV unit suffix of ``host.kinematics.sensor_csv``, stored full-scale unit per count of
+#: quantity code -> (CSV unit suffix of ``gaitlog.host.kinematics.sensor_csv``, stored full-scale unit per count of
 #: ``full_scale_milli``: the full scale is stored in thousandths of the unit: mg, mrad/s).
 QUANTITY_UNITS: dict[int, str] = {SPECIFIC_FORCE: "g", ANGULAR_RATE: "rad_s"}
 

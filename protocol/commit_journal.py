@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from protocol.steps import STEP_RECORD_SIZE, unpack_step_records
+from gaitlog.protocol.steps import STEP_RECORD_SIZE, unpack_step_records
 
 __all__ = ["torn_step_records", "JOURNAL_OFFSET", "JOURNAL_BYTES", "JOURNAL_ENTRIES", "ENTRY_BYTES", "STEPS_SATURATED",
            "empty_journal", "with_commit", "last_commit", "committed_samples", "changed_bytes"]

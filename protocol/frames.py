@@ -24,11 +24,11 @@ from typing import Any
 
 import construct as cs
 
-from protocol.crc import crc16_xmodem
-from protocol.errors import ProtocolError
-from protocol.header import CALIBRATION_SIZE, HEADER_SIZE, CalibrationSlot, DeviceHeader
-from protocol.layout import named_fields
-from protocol.steps import STEP_CONFIG_SIZE, StepConfig
+from gaitlog.protocol.crc import crc16_xmodem
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import CALIBRATION_SIZE, HEADER_SIZE, CalibrationSlot, DeviceHeader
+from gaitlog.protocol.layout import named_fields
+from gaitlog.protocol.steps import STEP_CONFIG_SIZE, StepConfig
 
 __all__ = [
     "SYNC",
@@ -346,7 +346,7 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
 
     ``HEADER`` takes ``header`` (a :class:`DeviceHeader` or 256 bytes), ``SET_CALIBRATION`` takes
     ``calibration`` (a :class:`CalibrationSlot` or 64 bytes), ``SET_STEP_CONFIG`` takes ``step_config`` (a
-    :class:`~protocol.steps.StepConfig` or 32 bytes), ``ERASE`` needs no field.
+    :class:`~gaitlog.protocol.steps.StepConfig` or 32 bytes), ``ERASE`` needs no field.
 
     Raises
     ------
@@ -360,7 +360,7 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
     >>> build_payload(FrameType.READ, address=0x100, length=5000)
     Traceback (most recent call last):
     ...
-    protocol.frames.PayloadError: offset 4 (0x4): READ length 5000 outside 1..4096
+    gaitlog.protocol.frames.PayloadError: offset 4 (0x4): READ length 5000 outside 1..4096
     """
     ftype = _frame_type(type, None, None)
     struct = PAYLOAD_STRUCTS[ftype]
@@ -430,7 +430,7 @@ def parse_payload(frame: Frame, source: str | None = None) -> dict[str, Any]:
     >>> parse_payload(Frame(FrameType.NAK, 1, bytes([0x03, 0x09]), offset=100))
     Traceback (most recent call last):
     ...
-    protocol.frames.PayloadError: offset 107 (0x6b): NAK payload: unknown ErrorCode code 9
+    gaitlog.protocol.frames.PayloadError: offset 107 (0x6b): NAK payload: unknown ErrorCode code 9
     """
     base = frame.offset + 6
     ftype = _frame_type(frame.type, frame.offset + 2, source)

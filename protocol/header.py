@@ -3,7 +3,7 @@
 The construct declarations :data:`HEADER_STRUCT` and :data:`CALIBRATION_STRUCT` are the byte layouts; the
 dataclasses :class:`DeviceHeader` and :class:`CalibrationSlot` are the validated values with the decoder's rules
 (stored samples, oldest slot, sample numbers and times; the same for the per-step records of the step
-memory, section 2.3). The step configuration block at offset 128 is :class:`protocol.steps.StepConfig`.
+memory, section 2.3). The step configuration block at offset 128 is :class:`gaitlog.protocol.steps.StepConfig`.
 
 Examples
 --------
@@ -17,7 +17,7 @@ Examples
 >>> DeviceHeader.from_bytes(b"GLOX" + raw[4:], source="x.glimg")
 Traceback (most recent call last):
 ...
-protocol.errors.ProtocolError: x.glimg, offset 0 (0x0): magic: expected b'GLOG', found b'GLOX' (not a gaitlog device header)
+gaitlog.protocol.errors.ProtocolError: x.glimg, offset 0 (0x0): magic: expected b'GLOG', found b'GLOX' (not a gaitlog device header)
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ from dataclasses import dataclass
 import construct as cs
 import numpy as np
 
-from protocol.adc_bits import MAX_STORED_ADC_BITS, adc_bits_problem, check_adc_bits
-from protocol.channel_map import CAL_FORMAT_CHANNEL_MAP, ChannelMap
-from protocol.commit_journal import (
+from gaitlog.protocol.adc_bits import MAX_STORED_ADC_BITS, adc_bits_problem, check_adc_bits
+from gaitlog.protocol.channel_map import CAL_FORMAT_CHANNEL_MAP, ChannelMap
+from gaitlog.protocol.commit_journal import (
     JOURNAL_BYTES,
     JOURNAL_OFFSET,
     STEPS_SATURATED,
@@ -40,10 +40,10 @@ from protocol.commit_journal import (
     empty_journal,
     last_commit,
 )
-from protocol.crc import crc16_xmodem
-from protocol.errors import ProtocolError
-from protocol.layout import field_offsets
-from protocol.steps import (
+from gaitlog.protocol.crc import crc16_xmodem
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.layout import field_offsets
+from gaitlog.protocol.steps import (
     STEP_CAPACITY_RECORDS,
     STEP_CONFIG_SIZE,
     STEP_RECORD_SIZE,

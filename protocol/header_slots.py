@@ -47,8 +47,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-from protocol.commit_journal import JOURNAL_BYTES, JOURNAL_OFFSET
-from protocol.crc import crc16_xmodem
+from gaitlog.protocol.commit_journal import JOURNAL_BYTES, JOURNAL_OFFSET
+from gaitlog.protocol.crc import crc16_xmodem
 
 __all__ = [
     "SLOT_ADDRESSES",

@@ -18,7 +18,7 @@ notes say why.
 
 Examples
 --------
->>> from protocol.header import DeviceHeader
+>>> from gaitlog.protocol.header import DeviceHeader
 >>> h = DeviceHeader(capacity_samples=512, samples_written=200, write_index=200)
 >>> memory = bytes(range(256)) * 8
 >>> img = build_image(h, memory, missing_blocks=[1])
@@ -50,14 +50,14 @@ from typing import Literal
 import construct as cs
 import numpy as np
 
-from protocol.atomic_write import atomic_write_bytes
-from protocol.crc import crc32
-from protocol.errors import ProtocolError
-from protocol.frames import Frame, FrameParser
-from protocol.header import HEADER_SIZE, MAX_CAPACITY_SAMPLES, DeviceHeader
-from protocol.header import MAGIC as HEADER_MAGIC
-from protocol.raw_dump import SHIFT_SEARCH_BYTES, SHIFTS_NEAREST_FIRST, find_trailer
-from protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, stored_step_records
+from gaitlog.protocol.atomic_write import atomic_write_bytes
+from gaitlog.protocol.crc import crc32
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import Frame, FrameParser
+from gaitlog.protocol.header import HEADER_SIZE, MAX_CAPACITY_SAMPLES, DeviceHeader
+from gaitlog.protocol.header import MAGIC as HEADER_MAGIC
+from gaitlog.protocol.raw_dump import SHIFT_SEARCH_BYTES, SHIFTS_NEAREST_FIRST, find_trailer
+from gaitlog.protocol.steps import STEP_MEMORY_BYTES, STEP_RECORD_SIZE, stored_step_records
 
 __all__ = [
     "BLOCK_MISSING",
@@ -200,7 +200,7 @@ class ImageContents:
         Returns
         -------
         records : numpy.ndarray
-            ``(n_steps_stored,)`` of :data:`protocol.steps.STEP_RECORD_DTYPE`; record ``i`` has the absolute
+            ``(n_steps_stored,)`` of :data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`; record ``i`` has the absolute
             number ``header.first_step_number + i``.
         ok : numpy.ndarray
             ``(n_steps_stored,)`` bool: all 20 bytes come from ok blocks and the record's CRC matches.

@@ -1,6 +1,6 @@
 """Byte layout of the construct declarations: where each named field lies.
 
-The structs of :mod:`protocol.header`, :mod:`protocol.steps` and :mod:`protocol.frames` *are* the formats;
+The structs of :mod:`gaitlog.protocol.header`, :mod:`gaitlog.protocol.steps` and :mod:`gaitlog.protocol.frames` *are* the formats;
 the offsets the spec's tables print, error messages name and the numpy paths index are read from them here,
 never typed again.
 """

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from protocol.errors import ProtocolError
+from gaitlog.protocol.errors import ProtocolError
 
 __all__ = [
     "FLAG_SESSION_START",
@@ -73,7 +73,7 @@ def pack_words(codes: np.ndarray, flags: np.ndarray | None = None) -> np.ndarray
     >>> pack_words(np.array([[1024, 0, 0]]))
     Traceback (most recent call last):
     ...
-    protocol.errors.ProtocolError: sample 0 axis 0: code 1024 outside 0..1023
+    gaitlog.protocol.errors.ProtocolError: sample 0 axis 0: code 1024 outside 0..1023
     """
     c = np.asarray(codes)
     if c.ndim != 2 or c.shape[1] != 3:
@@ -164,7 +164,7 @@ def bytes_to_words(data: bytes | bytearray | memoryview) -> np.ndarray:
     >>> bytes_to_words(b"\\x01\\x00")
     Traceback (most recent call last):
     ...
-    protocol.errors.ProtocolError: sample bytes: length 2 is not a multiple of 4
+    gaitlog.protocol.errors.ProtocolError: sample bytes: length 2 is not a multiple of 4
     """
     n = len(data)
     if n % 4:

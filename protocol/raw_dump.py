@@ -13,7 +13,7 @@ trailer is lost (cut off, or written before the trailer existed) is read unverif
 
 Examples
 --------
->>> from protocol.header import DeviceHeader
+>>> from gaitlog.protocol.header import DeviceHeader
 >>> h = DeviceHeader(capacity_samples=512, samples_written=200, write_index=200)
 >>> raw = raw_dump_bytes(h.to_bytes(), bytes(range(200)) * 4)
 >>> len(raw), raw.find(TRAILER_MAGIC)
@@ -34,11 +34,11 @@ from dataclasses import dataclass, field
 import construct as cs
 import numpy as np
 
-from protocol.crc import crc32
-from protocol.errors import ProtocolError
-from protocol.header import HEADER_SIZE, DeviceHeader
-from protocol.steps import STEP_RECORD_SIZE
-from protocol.xmodem import BLOCK_1K, PAD
+from gaitlog.protocol.crc import crc32
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import HEADER_SIZE, DeviceHeader
+from gaitlog.protocol.steps import STEP_RECORD_SIZE
+from gaitlog.protocol.xmodem import BLOCK_1K, PAD
 
 __all__ = [
     "CHUNK_BYTES",

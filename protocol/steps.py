@@ -32,9 +32,9 @@ from typing import Any, Literal
 import construct as cs
 import numpy as np
 
-from protocol.crc import crc16_xmodem, crc16_xmodem_rows
-from protocol.errors import ProtocolError
-from protocol.layout import field_offsets, named_fields
+from gaitlog.protocol.crc import crc16_xmodem, crc16_xmodem_rows
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.layout import field_offsets, named_fields
 
 __all__ = [
     "STEP_RECORD_SIZE",
@@ -287,7 +287,7 @@ def stored_step_records(header: Any, step_memory: np.ndarray | bytes) -> tuple[n
     Parameters
     ----------
     header
-        The :class:`protocol.header.DeviceHeader` whose step counters describe the ring.
+        The :class:`gaitlog.protocol.header.DeviceHeader` whose step counters describe the ring.
     step_memory
         ``(20 · step_capacity,)`` bytes of the step memory from its address 0.
 
@@ -436,7 +436,7 @@ class StepConfig:
     >>> StepConfig(step_format=1).to_bytes()
     Traceback (most recent call last):
     ...
-    protocol.errors.ProtocolError: offset 2 (0x2): leg_length_q15: step_format 1 needs a leg length > 0 (found 0.0 m)
+    gaitlog.protocol.errors.ProtocolError: offset 2 (0x2): leg_length_q15: step_format 1 needs a leg length > 0 (found 0.0 m)
     """
 
     step_format: int = StepFormat.OFF

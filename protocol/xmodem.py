@@ -16,9 +16,9 @@ Examples
 
 from __future__ import annotations
 
-from protocol.crc import crc16_xmodem
-from protocol.errors import ProtocolError
-from protocol.steps import STEP_RECORD_SIZE
+from gaitlog.protocol.crc import crc16_xmodem
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.steps import STEP_RECORD_SIZE
 
 __all__ = [
     "SOH",
@@ -95,7 +95,7 @@ def parse_block(block: bytes, source: str | None = None) -> tuple[int, bytes]:
     >>> parse_block(build_block(3, b"abc")[:-1] + b"\\x00")
     Traceback (most recent call last):
     ...
-    protocol.errors.ProtocolError: offset 1027 (0x403): XMODEM block 3: CRC mismatch (stored 0xd700, computed 0xd7c2)
+    gaitlog.protocol.errors.ProtocolError: offset 1027 (0x403): XMODEM block 3: CRC mismatch (stored 0xd700, computed 0xd7c2)
     """
     if not block:
         raise ProtocolError("empty XMODEM block", offset=0, source=source)

@@ -29,9 +29,9 @@ def shared_data() -> Path:
 def simulated_walk() -> tuple:
     """``(codes, subject)``: a simulated subject walking the paper's protocol, as the emulated logger stored
     it (10-bit codes at 50 Hz; the logger's default sensor unit)."""
-    from firmware_sim.device import Logger
-    from firmware_sim.world.subject import random_subjects
-    from firmware_sim.world.walking import Walking
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.world.subject import random_subjects
+    from gaitlog.firmware_sim.world.walking import Walking
 
     subject = random_subjects(1, seed=3)[0]
     res = Logger(device_id=4).record(Walking(subject=subject, seed=3))

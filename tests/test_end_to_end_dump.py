@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.pty_server import serve_pty
-from firmware_sim.world.base import Motion
-from host.cli import main
-from host.files.recording import Recording
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.pty_server import serve_pty
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.cli import main
+from gaitlog.host.files.recording import Recording
 
 CAP = 65536
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,7 +65,7 @@ def xdump_with_rx(port: str, target: Path, rx) -> Path:
     """Arm XDUMP with a command frame, then let lrzsz `rx` receive the raw dump on the same pty."""
     import serial
 
-    from protocol.frames import FrameParser, encode_frame
+    from gaitlog.protocol.frames import FrameParser, encode_frame
 
     with serial.Serial(port, 115200, timeout=2.0) as ser:
         ser.write(encode_frame(0x09, 77))
@@ -145,7 +145,7 @@ def test_info_image_and_port(tmp_path, capsys):
 def test_serve_command_prints_a_pty_and_stops_on_ctrl_c(tmp_path):
     image, codes, *_ = recorded(tmp_path, 600)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "host", "serve", str(image), "--pty"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog", "serve", str(image), "--pty"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
     try:
         port = proc.stdout.readline().strip()
@@ -186,7 +186,7 @@ def test_demo_calibrates_the_dumped_poses(tmp_path, capsys):
 
 
 def test_round_trip_over_tcp(tmp_path):
-    from firmware_sim.transport import serve_tcp
+    from gaitlog.firmware_sim.transport import serve_tcp
 
     image, codes, flags, numbers = recorded(tmp_path, 3000, seed=8)
     with serve_tcp(Logger.from_image(image), save_on_stop=False) as server:

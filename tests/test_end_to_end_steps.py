@@ -23,17 +23,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.pty_server import serve_pty
-from host.cli import main
-from host.errors import HostError
-from host.files.decode import decode_file
-from host.files.recording import STEP_CSV_COLUMNS, Recording
-from host.files.replay import verify_step_records
-from host.link.logger_link import LoggerLink
-from host.link.memory_dump import dump_memory
-from protocol.image import read_image
-from protocol.steps import StepConfig
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.pty_server import serve_pty
+from gaitlog.host.cli import main
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.files.recording import STEP_CSV_COLUMNS, Recording
+from gaitlog.host.files.replay import verify_step_records
+from gaitlog.host.link.logger_link import LoggerLink
+from gaitlog.host.link.memory_dump import dump_memory
+from gaitlog.protocol.image import read_image
+from gaitlog.protocol.steps import StepConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 START_S = 1_700_000_000
@@ -41,9 +41,9 @@ CONFIG = StepConfig(step_format=3, leg_length_m=0.9275, foot_length_m=0.1943)
 
 
 def walking(corridor_m: float = 20.0, seed: int = 1, height_m: float = 1.75):
-    from firmware_sim.world.subject import Subject
-    from firmware_sim.world.walk_plan import WalkPlan
-    from firmware_sim.world.walking import Walking
+    from gaitlog.firmware_sim.world.subject import Subject
+    from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+    from gaitlog.firmware_sim.world.walking import Walking
 
     walk_plan = WalkPlan(corridor_length_m=corridor_m, speeds=("preferred",), initial_stand_s=3.0,
                                final_stand_s=2.0, lap_marks_m=(0.0, corridor_m, 2 * corridor_m))
@@ -122,7 +122,7 @@ def test_served_cli_logs_steps_when_a_host_starts_a_run(walk_image, tmp_path, ca
     (the device lies still: no foot-flat) and `gaitlog dump` fetches every stored record."""
     image, logger, records = walk_image
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "host", "serve", str(image), "--pty"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog", "serve", str(image), "--pty"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
     try:
         port = proc.stdout.readline().strip()
@@ -181,7 +181,7 @@ def test_wrapped_sample_memory_with_records_dumps_both(tmp_path, capsys):
     """The step ring outlasts the sample ring: a walk, then more than a full memory of other motion. The dump
     reads the whole sample memory and the step memory after it (two ranges on the wire, one per memory); the
     walk's records end at samples already overwritten, so the replay cannot verify them, which is no error."""
-    from firmware_sim.world.base import Motion
+    from gaitlog.firmware_sim.world.base import Motion
 
     logger = Logger(device_id=8, step_config=CONFIG, overwrite=True)
     logger.record(walking(), start_time_s=START_S)
@@ -329,10 +329,10 @@ def test_record_steps_off_stores_no_records_and_dumps_fine(tmp_path, capsys):
 
 def test_a_device_without_step_memory_dumps_fine(tmp_path):
     """An older logger (step_capacity 0): the dump reads the samples only and writes an image of version 1."""
-    from firmware_sim.eeprom import Eeprom24LC1025
-    from firmware_sim.firmware import Firmware
-    from firmware_sim.step_store import StepStore
-    from firmware_sim.world.poses import CalibrationPoses
+    from gaitlog.firmware_sim.eeprom import Eeprom24LC1025
+    from gaitlog.firmware_sim.firmware import Firmware
+    from gaitlog.firmware_sim.step_store import StepStore
+    from gaitlog.firmware_sim.world.poses import CalibrationPoses
 
     logger = Logger(device_id=6)
     logger.header.step_capacity = 0
@@ -407,7 +407,7 @@ def test_record_with_a_k_file_stores_calibrated_lengths(tmp_path, capsys):
     (["--steps", "off", "--height", "1.8"], 2, "--steps off runs no step algorithm: --height would be ignored"),
 ])
 def test_record_bad_inputs(tmp_path, capsys, args, code, message):
-    from host.gait.k_calibration import KFit
+    from gaitlog.host.gait.k_calibration import KFit
 
     base = dict(k_m1=1.05, k_m2=1.1, k_m4=0.45, k1_m5_m_s=0.35, k2_m5_m=0.1, mode="single-speed", m5_fallback=False,
                 leg_length_m=0.9275, foot_length_m=0.1943, n_sections=1, n_steps=50, distance_m=40.0)
@@ -433,7 +433,7 @@ def test_record_bad_inputs(tmp_path, capsys, args, code, message):
 # ------------------------------------------------------------------------------------------ decode / info
 def test_decode_refuses_records_that_differ_from_the_replay(walk_image, tmp_path, capsys):
     image, logger, records = walk_image
-    from protocol.image import build_image
+    from gaitlog.protocol.image import build_image
 
     body = bytearray(records[20 * 12: 20 * 12 + 18])
     body[4] += 1  # duration_samples, with a valid CRC: what a device computing something else would store

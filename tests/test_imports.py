@@ -8,13 +8,13 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("protocol", "firmware_sim", "host")
+PACKAGES = ("protocol", "firmware_sim", "host", "gaitlog")
 #: Layer of each package or host room: a module may import only from its own layer or a lower one.
 LAYERS = {"protocol": 0, "firmware_sim": 1, "host": 2, "host.errors": 2, "host.link": 3, "host.files": 3,
           "host.accelerometer": 3, "host.gait": 3, "host.kinematics": 3, "host.studies": 4, "host.commands": 5,
-          "host.cli": 6, "host.__main__": 7}
+          "host.cli": 6, "gaitlog.__main__": 7, "gaitlog": 0}
 #: Modules whose functions may import (the command line's lazy imports keep ``gaitlog --help`` fast).
-LAZY_ALLOWED = ("host.commands.", "host.cli", "host.__main__")
+LAZY_ALLOWED = ("host.commands.", "host.cli", "gaitlog.__main__")
 
 
 def _modules() -> dict[str, ast.Module]:
@@ -37,12 +37,17 @@ def _is_type_checking(node: ast.AST) -> bool:
 def _imported(node: ast.Import | ast.ImportFrom, module: str) -> list[str]:
     """Project modules named by an import statement (``from a import b`` counts ``a.b`` when that is a module)."""
     if isinstance(node, ast.Import):
-        names = [a.name for a in node.names]
+        names = [_in_repository(a.name) for a in node.names]
     else:
         assert node.level == 0, f"{module}:{node.lineno}: relative import (the project imports absolutely)"
-        base = node.module or ""
+        base = _in_repository(node.module or "")
         names = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
     return [n for n in names if n.split(".")[0] in PACKAGES]
+
+
+def _in_repository(name: str) -> str:
+    """A module's name as its folder in the repository (``gaitlog.host.cli`` is ``host/cli.py``)."""
+    return name.removeprefix("gaitlog.") if name.split(".")[:2][-1] in PACKAGES else name
 
 
 def _module_level_imports(tree: ast.Module) -> list[ast.Import | ast.ImportFrom]:
@@ -120,10 +125,35 @@ def test_benchmarks_import_what_exists() -> None:
     for path in sorted((ROOT / "benchmarks").glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if not (isinstance(node, ast.ImportFrom) and node.level == 0 and node.module
-                    and node.module.split(".")[0] in ("protocol", "firmware_sim", "host")):
+                    and node.module.split(".")[0] == "gaitlog"):
                 continue
             module = importlib.import_module(node.module)
             missing += [f"{path.name}:{node.lineno}: {node.module}.{a.name}" for a in node.names
                         if not hasattr(module, a.name)
                         and importlib.util.find_spec(f"{node.module}.{a.name}") is None]
     assert not missing, "\n".join(missing)
+
+
+def test_every_import_goes_through_the_gaitlog_namespace() -> None:
+    """``host``, ``protocol`` and ``firmware_sim`` install only as ``gaitlog.*``: a bare ``import host`` works in
+    a checkout and fails in an installed copy."""
+    bare = []
+    for path in sorted(ROOT.glob("*/**/*.py")):
+        if path.parts[len(ROOT.parts)] in (".ci", ".git", "build", "docs") or ".venv" in path.parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+            bare += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names
+                     if n.split(".")[0] in ("host", "protocol", "firmware_sim")]
+    assert not bare, "\n".join(bare)
+
+
+def test_pyproject_installs_every_package_under_gaitlog() -> None:
+    import tomllib
+
+    setuptools = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    folders = {"gaitlog"} | {".".join(("gaitlog", *p.parent.relative_to(ROOT).parts))
+                             for package in PACKAGES[:3] for p in (ROOT / package).rglob("__init__.py")}
+    assert set(setuptools["packages"]) == folders
+    assert setuptools["package-dir"] == {"gaitlog": "gaitlog", **{f"gaitlog.{p}": p for p in PACKAGES[:3]}}

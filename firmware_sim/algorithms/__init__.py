@@ -1,8 +1,8 @@
 """The firmware's step algorithm: on-line (causal, sample by sample, bounded state), one text, two arithmetics.
 
-The logger runs it while logging (``firmware_sim.firmware``) in the PIC's fixed point; the host runs the
+The logger runs it while logging (``gaitlog.firmware_sim.firmware``) in the PIC's fixed point; the host runs the
 same definition to replay a dump bit for bit, or in floating point to see what the arithmetic costs. The
-rules it shares with the host's offline chain (``host.gait``: the paper's PC processing) are defined here,
+rules it shares with the host's offline chain (``gaitlog.host.gait``: the paper's PC processing) are defined here,
 below the host, once.
 
 Modules

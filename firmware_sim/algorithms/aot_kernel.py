@@ -2,15 +2,15 @@
 
 numba's JIT, even with its disk cache warm, costs a process about 0.4 s before the first sample (importing
 numba, setting up its compiler, loading the cached code at the first call). The same kernel
-(:mod:`firmware_sim.algorithms.kernel`: ``process``, ``flush``, ``reset``), compiled once by ``numba.pycc`` into
+(:mod:`gaitlog.firmware_sim.algorithms.kernel`: ``process``, ``flush``, ``reset``), compiled once by ``numba.pycc`` into
 an ordinary extension module, loads in a millisecond with numpy alone. Its code is numba's, from the same
 text: the records, counters and state are the JIT's bit for bit (tested).
 
-Where: ``aot-<hash>/`` beside numba's cache folder (:mod:`firmware_sim.compiled`: the same hash of the
+Where: ``aot-<hash>/`` beside numba's cache folder (:mod:`gaitlog.firmware_sim.compiled`: the same hash of the
 compiled sources, this file included), so any edit of them, or another numba, builds a new module. Exports,
 one per entry point and arithmetic: ``process_fixed``, ``flush_fixed``, ``reset_fixed`` (int64 values: the
 PIC's fixed point) and ``process_float``, ``flush_float``, ``reset_float`` (float64), for the array layouts
-the driver (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`) passes: C-contiguous arrays, ``k``
+the driver (:class:`gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`) passes: C-contiguous arrays, ``k``
 an int64.
 
 Building needs numba, setuptools and a C compiler with the Python headers; it takes about 10 s, less than
@@ -20,9 +20,9 @@ into place, under a lock file: a reader never sees a half-written module, and a 
 the first's build instead of compiling too. A failed build (no compiler) leaves ``aot-<hash>.failed`` (the
 error) and is not retried for that hash: numba's JIT is used instead. ``GAITLOG_NO_AOT=1`` (or numba's
 ``NUMBA_DISABLE_JIT=1``) turns the module off. A build removes the cache folders of other versions of the
-sources unused for two weeks (:func:`firmware_sim.compiled.prune_cache`).
+sources unused for two weeks (:func:`gaitlog.firmware_sim.compiled.prune_cache`).
 
-Run ``python -m firmware_sim.algorithms.aot_kernel`` to build it now and print its path.
+Run ``python -m gaitlog.firmware_sim.algorithms.aot_kernel`` to build it now and print its path.
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
-from firmware_sim.algorithms import kernel
-from firmware_sim.compiled import cache_base, load_numba, prune_cache, source_hash, touch
+from gaitlog.firmware_sim.algorithms import kernel
+from gaitlog.firmware_sim.compiled import cache_base, load_numba, prune_cache, source_hash, touch
 
 __all__ = ["ARITHMETIC_TYPES", "ENTRY_POINTS", "MODULE_NAME", "EntryPoint", "aot_dir", "build", "enabled", "entry_points",
            "load"]
@@ -230,7 +230,7 @@ def entry_points(arithmetic: str) -> tuple[tuple[EntryPoint, EntryPoint, EntryPo
     """The kernel's ``process``, ``flush``, ``reset`` for ``arithmetic``, and ``"aot"`` or ``"jit"``.
 
     From the module compiled ahead of time (built now if missing, see the module's docstring); numba's JIT
-    (:mod:`firmware_sim.algorithms.kernel`) when that is off or cannot be built. Chosen once per process.
+    (:mod:`gaitlog.firmware_sim.algorithms.kernel`) when that is off or cannot be built. Chosen once per process.
     """
     found = _ENTRY_POINTS.get(arithmetic)
     if found is None:
@@ -245,7 +245,7 @@ def entry_points(arithmetic: str) -> tuple[tuple[EntryPoint, EntryPoint, EntryPo
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m firmware_sim.algorithms.aot_kernel``: build the module now, print its path."""
+    """``python -m gaitlog.firmware_sim.algorithms.aot_kernel``: build the module now, print its path."""
     if argv:
         print(f"usage: python -m {__name__} (builds the module; no arguments)", file=sys.stderr)
         return 2

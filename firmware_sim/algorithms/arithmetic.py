@@ -1,13 +1,13 @@
 """The two arithmetics of the on-line step algorithm: float, and the PIC16F877's fixed point.
 
-The algorithm (:mod:`firmware_sim.algorithms.online`) is written once, as the firmware computes it, with
+The algorithm (:mod:`gaitlog.firmware_sim.algorithms.online`) is written once, as the firmware computes it, with
 every value in a declared Q format. It calls only the operations below; **the type of the values selects
 the arithmetic**:
 
 * ``float`` (numpy ``float64`` state): real values; formats, word widths and rounding are ignored
   (``mul`` is ``a * b``, ``requant`` is the identity, ``div`` is ``a / b``, ``sqrt`` is ``math.sqrt``);
 * ``int`` (numpy ``int64`` state): raw integers of the declared Q formats, computed by the PIC primitives
-  of :mod:`firmware_sim.fixedpoint` (``s_mul_q``, ``s_div_round``, ``s_isqrt`` ...): rounded, saturated and
+  of :mod:`gaitlog.firmware_sim.fixedpoint` (``s_mul_q``, ``s_div_round``, ``s_isqrt`` ...): rounded, saturated and
   counted exactly as the PIC computes them.
 
 A value's format is given as its number of fraction bits (``f``), a word as its width in bits (negative:
@@ -21,7 +21,7 @@ type at compile time, so the kernel compiles to two machine-code versions, one p
 
 Examples
 --------
->>> from firmware_sim.fixedpoint import new_counters
+>>> from gaitlog.firmware_sim.fixedpoint import new_counters
 >>> cnt = new_counters()
 >>> mul(0.5, 13, 0.25, 15, 14, 16, cnt), mul(4096, 13, 8192, 15, 14, 16, cnt)   # 0.125 in Q.14: 2048
 (0.125, 2048)
@@ -33,9 +33,9 @@ from __future__ import annotations
 
 import math
 
-from firmware_sim.compiled import numba_types as types
-from firmware_sim.compiled import overload
-from firmware_sim.fixedpoint import (
+from gaitlog.firmware_sim.compiled import numba_types as types
+from gaitlog.firmware_sim.compiled import overload
+from gaitlog.firmware_sim.fixedpoint import (
     OP_MUL8,
     s_add,
     s_cost,

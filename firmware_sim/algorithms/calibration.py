@@ -3,16 +3,16 @@
 The header's calibration slot stores the offset in Q15.16 counts and the matrix in Q1.30 g per count
 (32-bit words). The PIC keeps less, in 16-bit words:
 
-* offset in :data:`~firmware_sim.algorithms.formats.OFFSET_Q` (Q10.5 counts, rounded half up; codes of
-  12 bits, for the ADC sweep, use Q12.3: :func:`~firmware_sim.algorithms.formats.centred_q`);
+* offset in :data:`~gaitlog.firmware_sim.algorithms.formats.OFFSET_Q` (Q10.5 counts, rounded half up; codes of
+  12 bits, for the ADC sweep, use Q12.3: :func:`~gaitlog.firmware_sim.algorithms.formats.centred_q`);
 * the nine matrix entries as Q0.15 mantissas with one shared exponent (block floating point): entry
   ``M_ij ≈ m_ij · 2**-(15 + e)``, ``e`` the largest shift that keeps the largest ``|M_ij|`` below 1 in
   Q0.15. For the nominal ±2 g over 10 bits (1/256 g per count) ``e = 7``: 22 fraction bits, a relative
   resolution of 2⁻¹⁴ on the diagonal.
 
-The on-line algorithm applies it per sample (:mod:`firmware_sim.algorithms.kernel`, step 1): per axis one
+The on-line algorithm applies it per sample (:mod:`gaitlog.firmware_sim.algorithms.kernel`, step 1): per axis one
 16-bit subtraction (Q10.5), three 16×16→32 multiplies, a saturating 32-bit sum and a rounding shift to
-:data:`~firmware_sim.algorithms.formats.ACC_Q` (Q2.13 g).
+:data:`~gaitlog.firmware_sim.algorithms.formats.ACC_Q` (Q2.13 g).
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.algorithms.formats import MANTISSA_Q, centred_q
-from firmware_sim.fixedpoint import QFormat, requantize
-from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
+from gaitlog.firmware_sim.algorithms.formats import MANTISSA_Q, centred_q
+from gaitlog.firmware_sim.fixedpoint import QFormat, requantize
+from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 SLOT_OFFSET_Q = QFormat(15, 16, word_bits=32)
 SLOT_MATRIX_Q = QFormat(1, 30, word_bits=32)
@@ -77,7 +77,7 @@ class CalibrationQ:
 
     @classmethod
     def from_protocol(cls, calibration: object, *, adc_bits: int = 10) -> CalibrationQ:
-        """From a :class:`protocol.header.CalibrationSlot` (its ``offset_counts`` and ``matrix_g_per_count``)."""
+        """From a :class:`gaitlog.protocol.header.CalibrationSlot` (its ``offset_counts`` and ``matrix_g_per_count``)."""
         return cls.from_float(calibration.offset_counts, calibration.matrix_g_per_count, adc_bits=adc_bits)
 
     @property

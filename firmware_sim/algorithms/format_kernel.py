@@ -1,7 +1,7 @@
 """The on-line kernel compiled for another set of Q formats (a sweep's question: how narrow may a variable be).
 
-The kernel (:mod:`firmware_sim.algorithms.kernel`) takes its formats' fraction bits as compile-time integers
-(``F_ACC``...; :mod:`firmware_sim.algorithms.formats`). For a :class:`KernelFormats` (fraction bits of the
+The kernel (:mod:`gaitlog.firmware_sim.algorithms.kernel`) takes its formats' fraction bits as compile-time integers
+(``F_ACC``...; :mod:`gaitlog.firmware_sim.algorithms.formats`). For a :class:`KernelFormats` (fraction bits of the
 chain's main state variables) other than the shipped one, :func:`entry_points` compiles the *same functions* (their code objects) with a
 copy of the kernel module's globals in which :meth:`KernelFormats.constants` replace the shipped integers:
 no second text of the algorithm, numba folds the new constants exactly as it folds the shipped ones.
@@ -9,7 +9,7 @@ no second text of the algorithm, numba folds the new constants exactly as it fol
 The variants are JIT-compiled by numba without its disk cache (the cache is keyed by the source file, which
 is the shipped kernel's: a variant must never be loaded as the shipped kernel or the reverse), about 8 s per
 format set, once per process (kept in memory, :data:`MAX_VARIANTS` of them). The shipped formats always run
-the kernel built ahead of time (:mod:`firmware_sim.algorithms.aot_kernel`). Only the fixed-point arithmetic
+the kernel built ahead of time (:mod:`gaitlog.firmware_sim.algorithms.aot_kernel`). Only the fixed-point arithmetic
 has formats; a float kernel is the shipped one.
 """
 
@@ -22,8 +22,8 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 
-from firmware_sim.algorithms import kernel
-from firmware_sim.algorithms.formats import (
+from gaitlog.firmware_sim.algorithms import kernel
+from gaitlog.firmware_sim.algorithms.formats import (
     ACC_Q,
     GRAVITY_Q,
     LOWPASS_Q,
@@ -31,14 +31,14 @@ from firmware_sim.algorithms.formats import (
     POSITION_Q,
     word,
 )
-from firmware_sim.compiled import load_numba
-from firmware_sim.fixedpoint import QFormat
+from gaitlog.firmware_sim.compiled import load_numba
+from gaitlog.firmware_sim.fixedpoint import QFormat
 
 __all__ = ["MAX_VARIANTS", "KernelFormats", "compile_kernel", "entry_points"]
 
 #: Format sets whose compiled kernel a process keeps (a sweep cycles through its sets once per walk: keep them all).
 MAX_VARIANTS = 32
-#: The kernel's entry points (as :data:`firmware_sim.algorithms.aot_kernel.ENTRY_POINTS`).
+#: The kernel's entry points (as :data:`gaitlog.firmware_sim.algorithms.aot_kernel.ENTRY_POINTS`).
 _NAMES = ("process", "flush", "reset")
 #: Each field's shipped format and its short name in a label.
 _SHIPPED = {"acc_frac_bits": ACC_Q, "gravity_frac_bits": GRAVITY_Q, "lowpass_frac_bits": LOWPASS_Q,
@@ -51,7 +51,7 @@ _SHORT = {"acc_frac_bits": "acc", "gravity_frac_bits": "grav", "lowpass_frac_bit
 class KernelFormats:
     """Fraction bits of the main state variables, the one set of formats a kernel is compiled with.
 
-    The default is the firmware's (:mod:`firmware_sim.algorithms.formats`). Another set gives a variable fewer
+    The default is the firmware's (:mod:`gaitlog.firmware_sim.algorithms.formats`). Another set gives a variable fewer
     fraction bits (a coarser lsb) in the same word, so its range is never smaller: the question a sweep asks is
     how coarse a variable may be; the word it then needs is its integer bits + these + sign. The kernel text is
     the same; :func:`compile_kernel` compiles it with :meth:`constants` in place of the shipped ``F_*`` (and

@@ -2,13 +2,13 @@
 
 Every number the algorithm keeps or computes has one of the formats below (``docs/FIXED_POINT.md`` gives
 each one's range and why human walking cannot overflow it). The kernel
-(:mod:`firmware_sim.algorithms.online`) uses their fraction bits (``F_*``) and words (``W_*``: width in bits,
+(:mod:`gaitlog.firmware_sim.algorithms.online`) uses their fraction bits (``F_*``) and words (``W_*``: width in bits,
 negative for unsigned) as compile-time integers; in the float arithmetic they are ignored.
 """
 
 from __future__ import annotations
 
-from firmware_sim.fixedpoint import QFormat
+from gaitlog.firmware_sim.fixedpoint import QFormat
 
 __all__ = [
     "ACC_Q", "GRAVITY_Q", "ACC2_Q", "KERNEL_Q", "FIR_SUM_Q", "LOWPASS_Q", "VELOCITY_Q", "POSITION_Q",

@@ -2,8 +2,8 @@
 
 This is what the logger runs for every sample it takes (the sampling interrupt stores the sample; the main
 loop runs :func:`process`), written as the firmware computes it: the state is the declared slots of
-:mod:`firmware_sim.algorithms.state`, every value has its Q format (:mod:`firmware_sim.algorithms.formats`),
-and the arithmetic is the vocabulary of :mod:`firmware_sim.algorithms.arithmetic`. Run with ``int64`` state it
+:mod:`gaitlog.firmware_sim.algorithms.state`, every value has its Q format (:mod:`gaitlog.firmware_sim.algorithms.formats`),
+and the arithmetic is the vocabulary of :mod:`gaitlog.firmware_sim.algorithms.arithmetic`. Run with ``int64`` state it
 is the PIC's fixed point (bit-exact, counted); with ``float64`` state it is the same algorithm in floating
 point. numba compiles it once per arithmetic (``cache=True``); with ``NUMBA_DISABLE_JIT=1`` the same text
 runs in CPython (a test checks that both give the same records, bit for bit).
@@ -34,7 +34,7 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    ``median_steps`` intervals between peaks ``min_step`` apart (the offline chain's first pass), so a missed
    foot-flat does not lengthen the distance that caused it; until three intervals are known (a run's first
    steps) the median is the prior typical step ``prior_step`` (0.55 s,
-   :class:`~firmware_sim.algorithms.parameters.OnlineParameters`), where the offline chain has the whole
+   :class:`~gaitlog.firmware_sim.algorithms.parameters.OnlineParameters`), where the offline chain has the whole
    recording's. *Double support* (on-line algorithm version 2): only a peak with ``y3 > 0`` is a foot-flat
    (:func:`_confirmed`): at foot-flat the centre of mass is at its lowest, its vertical velocity turning
    from down to up, so its vertical acceleration is upward; a peak at or below zero (the causal gravity
@@ -64,8 +64,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.algorithms import arithmetic as ar
-from firmware_sim.algorithms.formats import (
+from gaitlog.firmware_sim.algorithms import arithmetic as ar
+from gaitlog.firmware_sim.algorithms.formats import (
     F_ACC,
     F_ACC2,
     F_EXC,
@@ -89,8 +89,8 @@ from firmware_sim.algorithms.formats import (
     W33,
     W_LP,
 )
-from firmware_sim.algorithms.parameters import M4_EXPONENT_EIGHTHS, minimum_distance
-from firmware_sim.algorithms.state import (
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT_EIGHTHS, minimum_distance
+from gaitlog.firmware_sim.algorithms.state import (
     AMP,
     DIST,
     DUR_POS,
@@ -116,8 +116,8 @@ from firmware_sim.algorithms.state import (
     RAW_Y,
     N,
 )
-from firmware_sim.compiled import njit, register_jitable
-from firmware_sim.fixedpoint import (
+from gaitlog.firmware_sim.compiled import njit, register_jitable
+from gaitlog.firmware_sim.fixedpoint import (
     C_CYCLES,
     C_STICKY,
     OP_CMP16,
@@ -126,12 +126,12 @@ from firmware_sim.fixedpoint import (
     OP_I2C,
     s_cost,
 )
-from protocol.steps import StepFlag
+from gaitlog.protocol.steps import StepFlag
 
 __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_COLUMNS"]
 
 # ---------------------------------------------------------------------------------------------------------
-# configuration layout (filled by firmware_sim.algorithms.online.OnlineConfig)
+# configuration layout (filled by gaitlog.firmware_sim.algorithms.online.OnlineConfig)
 
 #: Integer configuration slots (the same in both arithmetics).
 CI = dict(R3=0, R10=1, R5=2, MIN_STEP=3, MAX_STEP=4, HS_BEFORE=5, HS_AFTER=6, HS_DELAY=7, TO_SPAN=8,
@@ -566,7 +566,7 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
 def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
     """The prominence in force: ``fraction · AMP`` (the recent step amplitude) clamped to the floor and the
     cap, the cap while no amplitude is known
-    (:func:`~firmware_sim.algorithms.parameters.prominence_threshold`)."""
+    (:func:`~gaitlog.firmware_sim.algorithms.parameters.prominence_threshold`)."""
     s_cost(cnt, OP_DEE, 3)                       # the cap
     if not (st_i[FLAGS] & F_AMP):
         return cfg_v[CV_CAP]

@@ -1,17 +1,17 @@
 """The on-line step algorithm as an object: configure, feed samples, get one record per foot-flat.
 
-:class:`OnlineStepAlgorithm` wraps the compiled per-sample kernel (:mod:`firmware_sim.algorithms.kernel`)
+:class:`OnlineStepAlgorithm` wraps the compiled per-sample kernel (:mod:`gaitlog.firmware_sim.algorithms.kernel`)
 with its configuration and state. The same object runs
 
-* inside the emulated logger (:class:`firmware_sim.device.Logger`): the sampling interrupt's samples are
+* inside the emulated logger (:class:`gaitlog.firmware_sim.device.Logger`): the sampling interrupt's samples are
   fed as they are logged (``arithmetic="fixed"``, the PIC's), and each record is stored in the step memory;
 * on the host, to replay a dump (the same codes, the same configuration from the header: the same records
   bit for bit) or to compare arithmetics (``arithmetic="float"``: the same algorithm in floating point).
 
 Configuration (:class:`OnlineConfig`): the device calibration (PROTOCOL.md 2.1), the step configuration
-(:class:`protocol.steps.StepConfig`: leg and foot length, K of M1, M2, M4, the M5 line, and whether K is
-calibrated), the rules (:class:`~firmware_sim.algorithms.parameters.EventParameters`,
-:class:`~firmware_sim.algorithms.parameters.OnlineParameters`) and the sampling rate. In fixed point every
+(:class:`gaitlog.protocol.steps.StepConfig`: leg and foot length, K of M1, M2, M4, the M5 line, and whether K is
+calibrated), the rules (:class:`~gaitlog.firmware_sim.algorithms.parameters.EventParameters`,
+:class:`~gaitlog.firmware_sim.algorithms.parameters.OnlineParameters`) and the sampling rate. In fixed point every
 constant is quantised as the PIC keeps it; in float the configuration's values are used as they are stored
 in the header (the same numbers): the arithmetic is the only difference. Without a calibrated K, the
 lengths are the raw values a K calibration needs (K = 1; M4 in (m/s^2)^p, p = ``parameters.M4_EXPONENT``, M5 = 1/T in Hz: K1 = 1 m·s,
@@ -37,10 +37,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from firmware_sim.algorithms import aot_kernel, format_kernel, kernel
-from firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
-from firmware_sim.algorithms.format_kernel import KernelFormats
-from firmware_sim.algorithms.formats import (
+from gaitlog.firmware_sim.algorithms import aot_kernel, format_kernel, kernel
+from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
+from gaitlog.firmware_sim.algorithms.formats import (
     EXCURSION2_Q,
     EXCURSION_Q,
     K4_Q,
@@ -52,7 +52,7 @@ from firmware_sim.algorithms.formats import (
     TWO_LENGTH_Q,
     centred_q,
 )
-from firmware_sim.algorithms.parameters import (
+from gaitlog.firmware_sim.algorithms.parameters import (
     M4_EXPONENT,
     SIGMA_S_AT_1HZ,
     STANDARD_GRAVITY_M_S2,
@@ -60,9 +60,9 @@ from firmware_sim.algorithms.parameters import (
     OnlineParameters,
     SampleCounts,
 )
-from firmware_sim.algorithms.state import N_INDICES, N_VALUES, ram_bytes, variables
-from firmware_sim.algorithms.state import N as _N_SLOT
-from firmware_sim.fixedpoint import (
+from gaitlog.firmware_sim.algorithms.state import N_INDICES, N_VALUES, ram_bytes, variables
+from gaitlog.firmware_sim.algorithms.state import N as _N_SLOT
+from gaitlog.firmware_sim.fixedpoint import (
     C_CYCLES,
     C_DIV0,
     C_SAT,
@@ -73,7 +73,7 @@ from firmware_sim.fixedpoint import (
     new_counters,
     requantize,
 )
-from protocol.steps import (
+from gaitlog.protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
     StepConfig,
@@ -87,7 +87,7 @@ __all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", 
 ARITHMETICS = ("fixed", "float")
 #: :meth:`OnlineStepAlgorithm.run` feeds a recording in blocks of this many samples (memory stays bounded).
 BLOCK_SAMPLES = 65536
-#: M4's constant is K g0^p (p = :data:`~firmware_sim.algorithms.parameters.M4_EXPONENT`): the range is in g on
+#: M4's constant is K g0^p (p = :data:`~gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`): the range is in g on
 #: the device, in m/s^2 in K's unit.
 G0_POWER_M4 = STANDARD_GRAVITY_M_S2 ** M4_EXPONENT
 
@@ -157,16 +157,16 @@ class OnlineConfig:
         ----------
         calibration
             The device calibration (``offset_counts``, ``matrix_g_per_count``: a
-            :class:`protocol.header.CalibrationSlot`) or None for the nominal map of ``adc_bits`` (±2 g).
+            :class:`gaitlog.protocol.header.CalibrationSlot`) or None for the nominal map of ``adc_bits`` (±2 g).
         step_config
-            Leg, foot, K constants (:class:`protocol.steps.StepConfig`); used as stored (quantised).
+            Leg, foot, K constants (:class:`gaitlog.protocol.steps.StepConfig`); used as stored (quantised).
         adc_bits
             Width of the ADC codes (10 on the device; 8-12 for the sweep's hypothetical converters).
         cycles_available
             PIC cycles per sample period left to the algorithm (for the backlog figure only; default: the
-            whole period at the 18.432 MHz crystal, ``firmware_sim.budget`` subtracts the logging's share).
+            whole period at the 18.432 MHz crystal, ``gaitlog.firmware_sim.budget`` subtracts the logging's share).
         formats
-            The fixed-point Q formats (:class:`~firmware_sim.algorithms.format_kernel.KernelFormats`; default the
+            The fixed-point Q formats (:class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`; default the
             shipped ones); ignored in float.
         """
         fq = formats if formats is not None else KernelFormats()
@@ -270,7 +270,7 @@ class OnlineSteps:
     ----------
     end, duration, toe_off, heel_strike, flags
         ``(n,)`` int64: the foot-flat ending the step, its window in samples (0 = no window), the toe-off
-        after the window start, the heel-strike before the end, the ``protocol.steps.StepFlag`` bits.
+        after the window start, the heel-strike before the end, the ``gaitlog.protocol.steps.StepFlag`` bits.
     lengths
         ``(n, 5)`` M1-M5.
     extras
@@ -345,7 +345,7 @@ class OnlineSteps:
         return (self.flags & int(flag)) != 0
 
     def to_records(self, first_sample_number: int) -> np.ndarray:
-        """The records as the device stores them (:data:`protocol.steps.STEP_RECORD_DTYPE`; CRC not yet set).
+        """The records as the device stores them (:data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`; CRC not yet set).
 
         ``first_sample_number`` is the absolute sample number (PROTOCOL.md section 2) of input index 0.
         Fixed point only: the device's lengths are the raw UQ2.14 integers.
@@ -367,7 +367,7 @@ class OnlineSteps:
 
     @classmethod
     def from_records(cls, records: np.ndarray, *, first_sample_number: int, sampling_rate_hz: float) -> OnlineSteps:
-        """Device records (:data:`protocol.steps.STEP_RECORD_DTYPE`) as fixed-point :class:`OnlineSteps`,
+        """Device records (:data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`) as fixed-point :class:`OnlineSteps`,
         indices counted from absolute sample ``first_sample_number`` (excursions and ranges are not stored:
         zero)."""
         r = np.asarray(records)
@@ -414,9 +414,9 @@ class OnlineStepAlgorithm:
     sampling_rate_hz
         The logger's sampling rate.
     step_config
-        Leg and foot length, K constants (:class:`protocol.steps.StepConfig`).
+        Leg and foot length, K constants (:class:`gaitlog.protocol.steps.StepConfig`).
     calibration
-        Device calibration (a :class:`protocol.header.CalibrationSlot`) or None for the nominal map.
+        Device calibration (a :class:`gaitlog.protocol.header.CalibrationSlot`) or None for the nominal map.
     arithmetic
         ``"fixed"`` (the PIC's, as the logger computes it) or ``"float"``.
     adc_bits, events, online, cycles_available, formats
@@ -429,7 +429,7 @@ class OnlineStepAlgorithm:
     cycles
         :class:`CycleStats` of everything fed so far (fixed point; not meaningful in float).
     compiled_by
-        ``"aot"`` (the kernel compiled ahead of time, :mod:`firmware_sim.algorithms.aot_kernel`) or ``"jit"``.
+        ``"aot"`` (the kernel compiled ahead of time, :mod:`gaitlog.firmware_sim.algorithms.aot_kernel`) or ``"jit"``.
     """
 
     def __init__(self, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
@@ -501,7 +501,7 @@ class OnlineStepAlgorithm:
         return int(self._cnt[C_DIV0])
 
     def ram_bytes(self) -> int:
-        """The algorithm's RAM on the PIC for this configuration (:func:`firmware_sim.algorithms.state.ram_bytes`)."""
+        """The algorithm's RAM on the PIC for this configuration (:func:`gaitlog.firmware_sim.algorithms.state.ram_bytes`)."""
         c = self.config.counts
         return ram_bytes(line_length=2 * c.r3 + 1, median_steps=c.median_steps)
 

@@ -1,13 +1,13 @@
 """The step algorithm's rules and constants, arithmetic-free, in one place.
 
 :class:`EventParameters` holds what defines the gait events and the steps: the same numbers are used by the
-firmware's on-line algorithm (:mod:`firmware_sim.algorithms.online`, float or fixed point) and by the
-host's offline chain (``host.gait``: the paper's PC processing). :class:`OnlineParameters` adds what only
+firmware's on-line algorithm (:mod:`gaitlog.firmware_sim.algorithms.online`, float or fixed point) and by the
+host's offline chain (``gaitlog.host.gait``: the paper's PC processing). :class:`OnlineParameters` adds what only
 the on-line algorithm needs (its causal gravity estimate and its running median). :class:`SampleCounts`
 turns both into the integer sample counts a firmware works with at a given sampling rate, with the rounding
 rule written once (:func:`samples`).
 
-Why each default is what it is (the measured figures behind them are in ``host.gait.events``' notes):
+Why each default is what it is (the measured figures behind them are in ``gaitlog.host.gait.events``' notes):
 
 * ``ff_cutoff_hz`` 3 Hz: the first harmonic of trunk vertical acceleration (Alvarez's M4 band); foot-flat is
   its peak, where the centre of mass is lowest and its vertical velocity null.
@@ -29,7 +29,7 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   rises 0.3-0.8 m/s^2) get down to the floor: the fixed threshold missed 17-25 % of them, this rule
   -3.1..+0.4 % (``tests/host/test_slow_walking_sim.py``, simulated walkers: there is no such recording).
   History (issue 12): the rule was first uncapped, ``max(0.25, 0.2 A)``, and the floor also its threshold
-  before the first step; the fraction and floor were chosen on simulated walkers (``firmware_sim.world``,
+  before the first step; the fraction and floor were chosen on simulated walkers (``gaitlog.firmware_sim.world``,
   six random subjects, seed 3, three speeds, 20 m out and back: fraction 0.2 gave step count errors -1..+2
   of 188, 0.15: +2..+3, 0.25: -3..0, 0.3: -7..-4; floor 0.15-0.2 added +2..+9, 0.3 missed 2-4 % of the
   slow walkers). On brisk walking (``A`` 2-6 m/s^2) the uncapped rule raised the threshold to 0.4-1.2
@@ -41,13 +41,13 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   the IPOL step count in both chains (sum of |errors| over the 52 trials, U-turns included, offline 43 / 41 /
   42, on-line float 58 / 52 / 53; fixed threshold 42 and 52): 0.2 let low-amplitude IPOL subject 3
   (``A`` ~1.5 m/s^2) count secondary bumps 0.41-0.50 m/s^2 prominent between steps; a leave-one-subject-out
-  choice by ``host.studies.tuning``'s step-count criterion gave 0.25 in 9 of 9 folds (measured then; it is
+  choice by ``gaitlog.host.studies.tuning``'s step-count criterion gave 0.25 in 9 of 9 folds (measured then; it is
   a constant chosen on the IPOL recordings; the slow walkers sit at the floor, most IPOL walking at the
   cap). It was first opt-in (``gaitlog estimate --slow-walking``,
   algorithm version 2): as a default it moved the on-line vs offline M2 median |ratio difference| on IPOL
   from 0.0087 to 0.0106-0.0110, past issue 10's 0.01. The cause was in the offline chain: its minimum
   distance ran over every local maximum before the prominence rule, so a weak bump could suppress a
-  foot-flat the on-line algorithm confirms (``host.gait.events`` notes 1; IPOL trial 8-2's first step).
+  foot-flat the on-line algorithm confirms (``gaitlog.host.gait.events`` notes 1; IPOL trial 8-2's first step).
   With the distance among prominent peaks only, the rule as default costs nothing measurable on IPOL
   against the fixed threshold (``gaitlog evaluate ipol``: in the scored sections only trial 3-4 moves, by
   one step; offline M2 0.998 / IQR 0.048 and M4 IQR 0.058 unchanged, on-line vs offline M2 0.0097 either
@@ -64,7 +64,7 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   trials. After a bout's last full foot-flat, the first peak within about two steps (the minimum distance
   ``DIST`` to three times it, ``DIST`` being 0.6 of the typical step) that stands out
   by ``stop_prominence_m_s2`` is one more step when no full foot-flat follows within ``max_step``. Chosen
-  leave-one-subject-out on the IPOL trials by the step count (``host.studies.tuning``; every fold chose
+  leave-one-subject-out on the IPOL trials by the step count (``gaitlog.host.studies.tuning``; every fold chose
   0.2 of 0, 0.2, 0.3, 0.4): the stopping step is then missed in 15 trials offline (16 on-line).
 * On-line only: gravity is a causal two-stage exponential mean of time constant ``gravity_tau_s``,
   replacing the offline chain's centred 4 s window (which needs 2 s of future samples). Rule: the smallest
@@ -80,7 +80,7 @@ Why each default is what it is (the measured figures behind them are in ``host.g
   steps too little: IPOL subject 5 walks its first trial with 38 steps of 0.53 m and its others with 33 of
   0.61 m (-13 %); the fourth root of the range of the 3 Hz vertical acceleration per step moves by -2 %, its
   square root by -4 %. The exponent is a constant chosen from the IPOL recordings, chosen
-  leave-one-subject-out by :mod:`host.studies.tuning` (criterion: the IQR of the calibrated M4 distance
+  leave-one-subject-out by :mod:`gaitlog.host.studies.tuning` (criterion: the IQR of the calibrated M4 distance
   ratio, K from each training subject's first trial, scored on its other trials; candidates 1/4, 3/8, 1/2:
   whole eighths, which the firmware computes with square roots, and at most 1/2 so that the uncalibrated
   record's ``range^p``, in (m/s^2)^p, fits its 0-4 m UQ2.14 length up to a range of 16 m/s^2: 5/8 would
@@ -93,7 +93,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 __all__ = ["prominence_threshold", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
            "gaussian_radius", "FRACTION_SCALE",

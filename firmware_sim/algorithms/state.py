@@ -1,6 +1,6 @@
 """The on-line step algorithm's RAM: every variable it keeps, declared once, with its PIC word.
 
-The compiled kernel (:mod:`firmware_sim.algorithms.kernel`) keeps its persistent state in nothing but the
+The compiled kernel (:mod:`gaitlog.firmware_sim.algorithms.kernel`) keeps its persistent state in nothing but the
 arrays laid out here: ``values`` (arithmetic values: ``int64`` raw fixed point or ``float64``), ``indices``
 (sample indices, counters, flags: integers in both arithmetics), the a_v delay line and the ring of recent
 step durations. The slot constants below are what the kernel indexes with. Its temporaries are the local
@@ -16,7 +16,7 @@ every persistent slot and nothing outside them.
 Widths are the PIC words: sample indices are 16-bit (they wrap on the PIC; every difference the algorithm
 takes is below 2^15 samples), filter outputs 24-bit (Q2.16), accumulators 32-bit. The firmware's own
 variables (page buffer, UART, header counters, maths registers ...) are declared in
-:mod:`firmware_sim.budget`, which adds them up against the 368 bytes.
+:mod:`gaitlog.firmware_sim.budget`, which adds them up against the 368 bytes.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 :class:`StepTable` has one row per foot-flat: the step that ends there (its window is the previous
 foot-flat of the same walking bout; the first foot-flat of a bout ends a step without a window, counted
-but without a length). It is filled by the host's offline chain (``host.gait.pipeline.StepPipeline``, the
+but without a length). It is filled by the host's offline chain (``gaitlog.host.gait.pipeline.StepPipeline``, the
 paper's PC processing) and by the on-line algorithm's records (:meth:`StepTable.from_online`, the
 firmware's, in either arithmetic), so every comparison, calibration and evaluation reads the same fields.
 
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
-from protocol.atomic_write import atomic_write_text
-from protocol.steps import StepFlag
+from gaitlog.firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
+from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.protocol.steps import StepFlag
 
 __all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "float_csv_cells"]
 
@@ -183,7 +183,7 @@ class StepTable:
 
     @classmethod
     def from_online(cls, steps, *, t0_s: float = 0.0) -> StepTable:
-        """The table of on-line records (:class:`firmware_sim.algorithms.online.OnlineSteps`, either arithmetic).
+        """The table of on-line records (:class:`gaitlog.firmware_sim.algorithms.online.OnlineSteps`, either arithmetic).
 
         One row per record. A length of 0 in a record means "no value" (no window, no single-support
         phase, an impossible excursion) and becomes NaN, as in the offline chain. Records computed without

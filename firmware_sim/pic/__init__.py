@@ -1,2 +1,2 @@
 """The PIC16F877's arithmetic kernels in PIC16 assembly (``*.asm``, ``CONVENTION.md``), run in gpsim and
-checked bit for bit against :mod:`firmware_sim.fixedpoint` (:mod:`firmware_sim.pic.gpsim_bench`)."""
+checked bit for bit against :mod:`gaitlog.firmware_sim.fixedpoint` (:mod:`gaitlog.firmware_sim.pic.gpsim_bench`)."""

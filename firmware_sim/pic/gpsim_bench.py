@@ -1,4 +1,4 @@
-"""The PIC16 arithmetic kernels run in gpsim, checked bit for bit against :mod:`firmware_sim.fixedpoint`.
+"""The PIC16 arithmetic kernels run in gpsim, checked bit for bit against :mod:`gaitlog.firmware_sim.fixedpoint`.
 
 The kernels (``firmware_sim/pic/*.asm``, calling convention in ``CONVENTION.md``) are assembled with
 gputils' ``gpasm`` into one test program (``harness.asm``) and executed by ``gpsim``'s PIC16F877 model,
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.fixedpoint import (
+from gaitlog.firmware_sim.fixedpoint import (
     CITED_CYCLES,
     CITED_SOURCES,
     C_DIV0,

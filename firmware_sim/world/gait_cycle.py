@@ -14,7 +14,7 @@ depth is the sum of Alvarez Fig. 3's two pendulums: ``h1`` = the drop of an arc 
 ``l_eff = pendulum_ratio · leg_length · f(v / v_pref)`` (see :class:`Subject`) over the mean half-chord
 of single stance, and ``h2 = d_ds² / (8 · double_support_radius_m)`` over the double-support travel.
 Forward it moves fastest in double support and slowest at mid-stance (``ap_speed_fluctuation``). Every
-channel is C2 with exact derivatives (:func:`firmware_sim.world.hermite.quintic_hermite` knots, and
+channel is C2 with exact derivatives (:func:`gaitlog.firmware_sim.world.hermite.quintic_hermite` knots, and
 :class:`CosineProfile` / :class:`WarpedPhase` composed analytically), so the rendered acceleration is the
 exact second derivative of the truth positions.
 
@@ -32,11 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PPoly
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from firmware_sim.world.corridor import CorridorPath
-from firmware_sim.world.hermite import evaluate, quintic_hermite
-from firmware_sim.world.subject import Subject
-from firmware_sim.world.walk_plan import WalkPlan
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.corridor import CorridorPath
+from gaitlog.firmware_sim.world.hermite import evaluate, quintic_hermite
+from gaitlog.firmware_sim.world.subject import Subject
+from gaitlog.firmware_sim.world.walk_plan import WalkPlan
 
 
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.errors import DeviceError
-from firmware_sim.world.base import Motion
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.world.base import Motion
 
 __all__ = ["CalibrationPoses", "fibonacci_directions", "minimum_jerk"]
 

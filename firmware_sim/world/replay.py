@@ -2,10 +2,10 @@
 
 A recording (acceleration in g, gravity included, on a regular grid at its own rate, with missing samples) is
 taken as the true specific force along the device's nominal axes and resampled to whatever rate the sensor
-model asks for, with an anti-aliasing polyphase filter (:func:`firmware_sim.world.resampling.resample_g`; never
+model asks for, with an anti-aliasing polyphase filter (:func:`gaitlog.firmware_sim.world.resampling.resample_g`; never
 by picking samples).
 
-Files are read by the host (:func:`host.files.inputs.read_acceleration`: logger files, IPOL, CSV), which hands
+Files are read by the host (:func:`gaitlog.host.files.inputs.read_acceleration`: logger files, IPOL, CSV), which hands
 the samples to :meth:`Replay.from_samples`. The physical input over a missing sample (a lost packet, a gap)
 was continuous, so the holes are *interpolated* linearly between their neighbours, and every filled range is
 reported in the truth (``filled``, ``filled_ranges_s``, ``filled_packets``, ``n_filled``): those stretches are
@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.errors import DeviceError
-from firmware_sim.world.base import Motion
-from firmware_sim.world.resampling import resample_g
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.firmware_sim.world.resampling import resample_g
 
 __all__ = ["Replay", "regular_grid"]
 

@@ -14,7 +14,7 @@ from fractions import Fraction
 import numpy as np
 from scipy import signal
 
-from firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.errors import DeviceError
 
 __all__ = ["rate_ratio", "resample_g"]
 

@@ -2,7 +2,7 @@
 
 Frames: body axes 1 = anterior, 2 = left, 3 = along the shank towards the knee; space axes 1' = walking
 direction, 2' = left, 3' = up. The orientation ``R`` (``dcm``) maps body to space, so a device at rest
-upright has ``R = I`` and reads ``(0, 0, +1) g`` (the project convention of :mod:`firmware_sim.world.base`).
+upright has ``R = I`` and reads ``(0, 0, +1) g`` (the project convention of :mod:`gaitlog.firmware_sim.world.base`).
 
 Motion (periodic, one gait cycle of ``cycle_s`` starting in foot-flat):
 
@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
 
 __all__ = ["PlatformRecording", "RigidBodyShank", "elementary_rotations", "fourier_series", "rotation_chain"]
 

@@ -3,7 +3,7 @@ intervals with a stopwatch").
 
 The stopwatch is not the logger: its splits are written on a sheet, on the stopwatch's own clock (zero when
 the observer started it), and reach the host apart from the memory dump; the host has to place them on the
-recording (:mod:`host.gait.stopwatch_laps`). Every press is late or early by a human timing error:
+recording (:mod:`gaitlog.host.gait.stopwatch_laps`). Every press is late or early by a human timing error:
 
 - start: the observer presses when they see the subject set off, a simple visual reaction, ~0.2 s late
   (SD 0.05 s): hand-started times run ~0.2-0.3 s short of electronic ones mostly through this start delay
@@ -52,7 +52,7 @@ class Stopwatch:
         ----------
         laps, excursions
             The walk's truth (``truth["laps"]``, ``truth["excursions"]`` of
-            :class:`firmware_sim.world.walking.Walking`); the lap at the excursion's 0 m is the set-off.
+            :class:`gaitlog.firmware_sim.world.walking.Walking`); the lap at the excursion's 0 m is the set-off.
         seed
             Seed of the observer's errors.
 

@@ -51,10 +51,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 #: Winter's anthropometric ratios (fraction of body height); the one home of these numbers
-#: (:mod:`host.gait.anthropometry` imports them).
+#: (:mod:`gaitlog.host.gait.anthropometry` imports them).
 LEG_LENGTH_PER_HEIGHT = 0.530
 HEEL_TOE_LENGTH_PER_HEIGHT = 0.152
 #: Ball-of-foot length (heel to first metatarsal head) per heel-to-toe length (ANSUR means 197/270 mm in men,
@@ -115,7 +115,7 @@ class Subject:
         Phase warp of the vertical centre-of-mass oscillation (0: a cosine; > 0: a broad crest in single
         stance and a sharp trough in double support, i.e. a sharp positive acceleration peak).
     vertical_skew
-        Skew of the vertical phase around the valley (:class:`~firmware_sim.world.gait_cycle.WarpedPhase`):
+        Skew of the vertical phase around the valley (:class:`~gaitlog.firmware_sim.world.gait_cycle.WarpedPhase`):
         the centre of mass decelerates its fall quickly and rises slowly, so the vertical acceleration stays
         above 1 g into early single stance (~80 ms after toe-off in the IPOL recordings).
     double_support_radius_m
@@ -138,7 +138,7 @@ class Subject:
         Sensor position relative to the centre of mass in trunk axes (forward, left, up).
     mounting_rotation_deg
         Rotation vector (degrees) of the device relative to its nominal mounting on the trunk (see
-        :mod:`firmware_sim.world.walking` for the nominal device axes).
+        :mod:`gaitlog.firmware_sim.world.walking` for the nominal device axes).
     heel_strike_acc_g, heel_strike_ap_acc_g, heel_strike_width_s, heel_strike_delay_s
         Heel-strike transient at the sensor: vertical peak, antero-posterior (braking) peak, in g at
         preferred speed (∝ speed), the Gaussian width, and its delay after heel strike (the lower back
@@ -351,7 +351,7 @@ class Subject:
 
         ``"people"``: the same draws, then (further draws from ``rng``) the trunk motion and gait timing of real
         lower-back walking, see :func:`_people_overrides`; walk it with
-        ``WalkPlan(**POPULATION_PLANS["people"])`` (:mod:`firmware_sim.world.walk_plan`).
+        ``WalkPlan(**POPULATION_PLANS["people"])`` (:mod:`gaitlog.firmware_sim.world.walk_plan`).
         ``ml_push_quantile`` (``"people"`` only): the subject's quantile, in (0, 1), of the between-subject
         trait that decides where its lateral spectrum peaks (:func:`ml_peak_pattern`); drawn from ``rng`` when
         None (:func:`random_subjects` stratifies it over the cohort).
@@ -432,7 +432,7 @@ class Subject:
 
 
 #: Populations of :meth:`Subject.random` and :func:`random_subjects` (with their walk habits in
-#: :data:`firmware_sim.world.walk_plan.POPULATION_PLANS`).
+#: :data:`gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS`).
 POPULATIONS = ("v1", "people")
 
 

@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.world.base import Motion
-from firmware_sim.world.rigid_body import rotation_chain
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.firmware_sim.world.rigid_body import rotation_chain
 
 __all__ = ["HALL_SENSOR_TO_LINK", "TwoLinkJoint", "TwoLinkRates"]
 

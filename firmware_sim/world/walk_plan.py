@@ -30,7 +30,7 @@ PAPER_HEIGHTS_M = (1.68, 1.86)
 #: How the logger runs over the protocol: one run through the rests, or STOP/START around each excursion.
 LOGGER_RUNS = ("continuous", "per-excursion")
 
-#: Walk habits of each population of :func:`firmware_sim.world.subject.random_subjects` (WalkPlan fields).
+#: Walk habits of each population of :func:`gaitlog.firmware_sim.world.subject.random_subjects` (WalkPlan fields).
 #: ``"people"``: tuned to the IPOL lower-back trials' U-turn duration (1.6 s median), step-time variability
 #: and the little forward acceleration left after the first toe-off: 1.2 s from set-off to the first heel
 #: strike, the centre of mass close to its speed by then and steady within ~2 m, i.e. 2-3 steps (Brenière &

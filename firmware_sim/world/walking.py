@@ -1,10 +1,10 @@
 """Walking with ground truth: the corridor protocol of Alvarez et al. (2006) seen by a lower-back logger.
 
-:class:`Walking` is a :class:`~firmware_sim.world.base.MotionSource`. A :class:`Subject` walks the
+:class:`Walking` is a :class:`~gaitlog.firmware_sim.world.base.MotionSource`. A :class:`Subject` walks the
 :class:`WalkPlan` (100 m out and back at preferred, fast, slow and medium speed, turns, rests,
 lap marks); the logger, strapped over L3, reads the specific force of its own point of the trunk.
 
-Device axes (nominal mounting; the project convention of :mod:`firmware_sim.world.base` applies)
+Device axes (nominal mounting; the project convention of :mod:`gaitlog.firmware_sim.world.base` applies)
 ----------------------------------------------------------------------------------------------------
 Like the Xsens MTw of the IPOL lower-back recordings: ``x`` **up** (vertical, reads +1 g standing),
 ``y`` **left** (medio-lateral), ``z`` **backward** (antero-posterior, pointing out of the back; forward
@@ -13,7 +13,7 @@ acceleration reads negative). The device is then rotated by the subject's ``moun
 
 What is modelled (richer than any estimator's assumptions)
 -----------------------------------------------------------
-- centre-of-mass path with double support and single stance (:mod:`firmware_sim.world.gait_cycle`):
+- centre-of-mass path with double support and single stance (:mod:`gaitlog.firmware_sim.world.gait_cycle`):
   one vertical oscillation per step whose depth is Alvarez's two pendulums (an arc flatter than the leg
   over single stance, a sag over double support), its low point early in double support and not at
   foot-flat, forward speed fluctuating within the step, speed-dependent step length and cadence (walk
@@ -22,7 +22,7 @@ What is modelled (richer than any estimator's assumptions)
 - trunk/pelvis motion: forward lean, pitch oscillation at step frequency, obliquity (roll) and pelvic
   rotation (yaw) at stride frequency, medio-lateral sway at stride frequency (and, for subjects that have
   them, such as the ``"people"`` population, lateral stride harmonics 2-10 with a step-to-step gain and forward
-  braking harmonics, :class:`~firmware_sim.world.subject.Subject`); the sensor's lever arm from
+  braking harmonics, :class:`~gaitlog.firmware_sim.world.subject.Subject`); the sensor's lever arm from
   the centre of mass adds tangential and centripetal accelerations, and its height differs from the
   centre of mass's;
 - contact transients: shortly after heel strike an upward impact and braking peak, just before the
@@ -64,12 +64,12 @@ import numpy as np
 from scipy.interpolate import PPoly
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
-from firmware_sim.world.corridor import CorridorPath
-from firmware_sim.world.gait_cycle import ExcursionPlan, plan_excursion
-from firmware_sim.world.hermite import constant_ppoly, evaluate, quintic_hermite
-from firmware_sim.world.subject import Subject
-from firmware_sim.world.walk_plan import WalkPlan
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.corridor import CorridorPath
+from gaitlog.firmware_sim.world.gait_cycle import ExcursionPlan, plan_excursion
+from gaitlog.firmware_sim.world.hermite import constant_ppoly, evaluate, quintic_hermite
+from gaitlog.firmware_sim.world.subject import Subject
+from gaitlog.firmware_sim.world.walk_plan import WalkPlan
 
 #: Nominal device axes in trunk axes (rows: device x, y, z; columns: trunk forward, left, up).
 DEVICE_FROM_TRUNK = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])

@@ -70,7 +70,7 @@ is then off by at most
 .. math:: |\Delta p_m| \le 4 \sigma_p \sqrt{\textstyle\sum_i P_{mi}^2} \;+\; \sqrt{3}\,\beta \sum_i |P_{mi}|
           \qquad (9)
 
-(four standard deviations of the noise term, plus the worst case of the bias term). :func:`host.accelerometer.fit.parameter_bounds`
+(four standard deviations of the noise term, plus the worst case of the bias term). :func:`gaitlog.host.accelerometer.fit.parameter_bounds`
 evaluates (9) for a given pose set; the emulator test checks the recovered parameters against it.
 
 References
@@ -90,9 +90,9 @@ from typing import Any, ClassVar, Self
 
 import numpy as np
 
-from host.errors import HostError
-from host.files.versioned_json import VersionedJson
-from protocol.header import CalibrationSlot
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.versioned_json import VersionedJson
+from gaitlog.protocol.header import CalibrationSlot
 
 #: Number of parameters of each model.
 MODELS: dict[str, int] = {"9-param": 9, "6-param": 6}
@@ -305,7 +305,7 @@ class AccCalibration(VersionedJson):
         return arr @ np.linalg.inv(self.matrix).T + self.offset
 
     def to_header_calibration(self) -> CalibrationSlot:
-        """The device header's calibration slot (``protocol.header.CalibrationSlot``, PROTOCOL.md 2.1).
+        """The device header's calibration slot (``gaitlog.protocol.header.CalibrationSlot``, PROTOCOL.md 2.1).
 
         Only a calibration of ADC counts fits the slot (``a_g = M (codes - offset)``).
         """

@@ -1,4 +1,4 @@
-"""Fitting the accelerometer calibration (:mod:`host.accelerometer.calibration`, whose docstring states the
+"""Fitting the accelerometer calibration (:mod:`gaitlog.host.accelerometer.calibration`, whose docstring states the
 model, the fit and its error bounds) to static poses: the algebraic ellipsoid start, Levenberg-Marquardt
 (``scipy.optimize.least_squares``) on the pose means, the error bounds (9), and :class:`AccCalibrator`, which
 finds the static windows of a recording and fits them.
@@ -14,7 +14,7 @@ from typing import Self
 import numpy as np
 from scipy.optimize import least_squares
 
-from host.accelerometer.calibration import (
+from gaitlog.host.accelerometer.calibration import (
     ANGLE_PAIRS,
     INPUT_UNITS,
     MODELS,
@@ -23,7 +23,7 @@ from host.accelerometer.calibration import (
     calibration_matrix,
     gram_from_angles,
 )
-from host.accelerometer.static_windows import StaticWindow, StaticWindowDetector
+from gaitlog.host.accelerometer.static_windows import StaticWindow, StaticWindowDetector
 
 #: Axis names, in column order.
 _AXES = "xyz"
@@ -297,7 +297,7 @@ class AccCalibrator:
     model
         ``"9-param"`` (default) or ``"6-param"``.
     hold_s, sd_factor, max_norm_g, min_angle_deg, trim_s
-        Rest detection, see :class:`host.accelerometer.static_windows.StaticWindowDetector`.
+        Rest detection, see :class:`gaitlog.host.accelerometer.static_windows.StaticWindowDetector`.
     min_direction_sv
         See :func:`fit_calibration`.
     """
@@ -337,7 +337,7 @@ class AccCalibrator:
         -------
         self
             With ``calibration_`` (:class:`AccCalibration`), ``windows_`` (the holds used, list of
-            :class:`~host.accelerometer.static_windows.StaticWindow`) and ``detector_`` (with its rejected holds).
+            :class:`~gaitlog.host.accelerometer.static_windows.StaticWindow`) and ``detector_`` (with its rejected holds).
         """
         if input_unit not in INPUT_UNITS:
             raise CalibrationError(f"input_unit must be one of {INPUT_UNITS}, got {input_unit!r}")

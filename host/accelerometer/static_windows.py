@@ -42,7 +42,7 @@ from typing import Self
 
 import numpy as np
 
-from host.errors import HostError
+from gaitlog.host.errors import HostError
 
 
 class StaticWindowError(HostError, ValueError):

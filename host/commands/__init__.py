@@ -1,1 +1,1 @@
-"""One module per ``gaitlog`` subcommand; see :mod:`host.cli` for the contract each module follows."""
+"""One module per ``gaitlog`` subcommand; see :mod:`gaitlog.host.cli` for the contract each module follows."""

@@ -6,12 +6,12 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from host.commands._options import POSITIVE_M
+from gaitlog.host.commands._options import POSITIVE_M
 
 if TYPE_CHECKING:
-    from host.files.inputs import AccelerationInput
-    from host.gait.anthropometry import AnatomyChoice
-    from host.gait.k_calibration import KFit
+    from gaitlog.host.files.inputs import AccelerationInput
+    from gaitlog.host.gait.anthropometry import AnatomyChoice
+    from gaitlog.host.gait.k_calibration import KFit
 
 #: The attribute names of the anatomy flags.
 ANATOMY_FLAGS = ("leg_length", "foot_length", "height")
@@ -35,9 +35,9 @@ def given_anatomy_flags(args: argparse.Namespace) -> list[str]:
 
 def lengths_from_args(args: argparse.Namespace, *, k: KFit | None = None, k_source: str | None = None,
                       data: AccelerationInput | None = None) -> AnatomyChoice:
-    """Leg and foot length by :func:`host.gait.anthropometry.choose_lengths` from the flags, the K file ``k``,
+    """Leg and foot length by :func:`gaitlog.host.gait.anthropometry.choose_lengths` from the flags, the K file ``k``,
     the height of an IPOL trial read into ``data`` and the step configuration of a logger recording in ``data``."""
-    from host.gait.anthropometry import choose_lengths
+    from gaitlog.host.gait.anthropometry import choose_lengths
 
     trial = data.ipol_trial if data is not None else None
     config = data.recording.step_config if data is not None and data.recording is not None else None

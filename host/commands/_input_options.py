@@ -1,5 +1,5 @@
 """The input flags of every command that reads a recording (not a command: the underscore keeps it out of
-``--help``): one spelling and one meaning each, read by :func:`host.files.inputs.read_acceleration`.
+``--help``): one spelling and one meaning each, read by :func:`gaitlog.host.files.inputs.read_acceleration`.
 
 ``--rate HZ`` is always the rate of the input (a CSV's; it must agree with a file that states its own);
 the emulated logger's own rate is ``--logger-rate`` wherever a command has one.
@@ -11,10 +11,10 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from host.commands._options import SAMPLING_RATE_HZ, whole
+from gaitlog.host.commands._options import SAMPLING_RATE_HZ, whole
 
 if TYPE_CHECKING:
-    from host.files.inputs import AccelerationInput
+    from gaitlog.host.files.inputs import AccelerationInput
 
 #: What every input argument accepts, for the help texts.
 INPUT_HELP = ("memory image, raw dump or wire capture, decoded .npz, IPOL trial (_lb.txt, .json or a one-trial "
@@ -40,7 +40,7 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
 
 def read_input(args: argparse.Namespace, path: str | Path) -> AccelerationInput:
     """Read ``path`` with the flags of :func:`add_input_options`."""
-    from host.files.inputs import read_acceleration
+    from gaitlog.host.files.inputs import read_acceleration
 
     return read_acceleration(path, sampling_rate_hz=args.rate, columns=args.columns, units=args.units,
                              calibration=args.calibration, skip_rows=args.skip_rows)

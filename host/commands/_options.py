@@ -44,12 +44,12 @@ def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "", *, m
 
 
 def logger_rate_hz(args: argparse.Namespace) -> float:
-    """``--logger-rate``, else the logger's default (:data:`firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`); a
-    :class:`~host.errors.HostError` unless positive and finite."""
+    """``--logger-rate``, else the logger's default (:data:`gaitlog.firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`); a
+    :class:`~gaitlog.host.errors.HostError` unless positive and finite."""
     import math
 
-    from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-    from host.errors import HostError
+    from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+    from gaitlog.host.errors import HostError
 
     if args.logger_rate is None:
         return DEFAULT_SAMPLING_RATE_HZ
@@ -144,12 +144,12 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
     ``outputs`` and ``inputs`` map the option (``"--out"``) or the argument's name (``"INPUT"``) to a path (None:
     not given). An output is refused when it is the same file as an input (:func:`os.path.samefile`, or the
     same resolved path: a symlink or another spelling is caught), the same as another output, a folder, or in a
-    folder that does not exist. Raises :class:`~host.errors.HostError` naming the option and the files.
+    folder that does not exist. Raises :class:`~gaitlog.host.errors.HostError` naming the option and the files.
     """
     import os
     from pathlib import Path
 
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     def same(a: Path, b: Path) -> bool:
         try:
@@ -187,7 +187,7 @@ def check_output_folder(option: str, folder: object) -> None:
     ``option``."""
     from pathlib import Path
 
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     path = Path(folder)  # type: ignore[arg-type]
     if path.exists() and not path.is_dir():
@@ -205,7 +205,7 @@ def _check_writable(option: str, out: object, folder: object) -> None:
     pseudo file systems, a full quota)."""
     import tempfile
 
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     try:
         with tempfile.TemporaryFile(dir=folder):  # type: ignore[call-overload]

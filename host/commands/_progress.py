@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator
 @contextlib.contextmanager
 def progress_bar(args: argparse.Namespace, total: int, unit: str) -> Iterator[Callable[..., None] | None]:
     """Yield ``tick(*_)`` (one more ``unit`` done) or None when no bar is shown."""
-    from host.commands._options import verbosity
+    from gaitlog.host.commands._options import verbosity
 
     if verbosity(args) < 0 or not sys.stderr.isatty():
         yield None

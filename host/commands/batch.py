@@ -1,4 +1,4 @@
-"""``gaitlog batch``: decode, calibrate and estimate every recording in a folder (:mod:`host.studies.batch`).
+"""``gaitlog batch``: decode, calibrate and estimate every recording in a folder (:mod:`gaitlog.host.studies.batch`).
 
 Per recording: ``OUT/NAME.steps.csv`` and ``OUT/NAME.json`` (its summary); for the batch: ``OUT/batch.csv`` (one
 row per recording, failures included with their error). A file that fails is listed and the batch goes on;
@@ -14,8 +14,8 @@ HELP = "estimate every recording in a folder (per-recording outputs, summary tab
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._anatomy_options import add_anatomy_options
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._anatomy_options import add_anatomy_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("folder", metavar="FOLDER", help="folder of memory images, raw dumps, wire captures or "
                         "decoded .npz files")
@@ -36,15 +36,15 @@ def run(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from host.accelerometer.calibration import AccCalibration
-    from host.commands._anatomy_options import lengths_from_args
-    from host.commands._options import check_output_folder, printer
-    from host.commands._progress import progress_bar
-    from host.errors import HostError
-    from host.gait.k_calibration import KFit
-    from host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
-    from host.studies.compare import rows_csv_text
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.host.accelerometer.calibration import AccCalibration
+    from gaitlog.host.commands._anatomy_options import lengths_from_args
+    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.gait.k_calibration import KFit
+    from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
+    from gaitlog.host.studies.compare import rows_csv_text
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     out = Path(args.out)
     folder = Path(args.folder)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import SEED, add_logger_rate_option, number, whole
+from gaitlog.host.commands._options import SEED, add_logger_rate_option, number, whole
 
 HELP = ("RAM, cycles per sample, program memory, EEPROM bandwidth and dump time of a logger configuration "
         "against the PIC16F877")
@@ -13,7 +13,7 @@ CONFIG_NAMES = ("alvarez-50", "alvarez-100", "morris-5", "morris-6", "hall")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("--config", metavar="NAME",
                         help="a configuration of the seed papers: " + ", ".join(CONFIG_NAMES) + " (default "
@@ -36,11 +36,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _config(args: argparse.Namespace):
-    """The configuration the options ask for (a :class:`firmware_sim.budget.LoggerConfig`)."""
+    """The configuration the options ask for (a :class:`gaitlog.firmware_sim.budget.LoggerConfig`)."""
     import dataclasses
 
-    from firmware_sim.budget import CONFIGURATIONS
-    from host.errors import HostError
+    from gaitlog.firmware_sim.budget import CONFIGURATIONS
+    from gaitlog.host.errors import HostError
 
     name = args.config or "alvarez-50"
     if name not in CONFIGURATIONS:
@@ -59,7 +59,7 @@ def _config(args: argparse.Namespace):
 
 
 def _check(c) -> None:
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     if not (1.0 <= c.sampling_rate_hz <= 100_000.0):
         raise HostError(f"--logger-rate {c.sampling_rate_hz:g} Hz is outside 1 .. 100000 Hz")
@@ -75,11 +75,11 @@ def _check(c) -> None:
 
 def _walk(c, seed: int) -> dict:
     """The on-line algorithm on a simulated walker at ``c``'s rate and crystal: its counters."""
-    from firmware_sim.adc import Adc
-    from firmware_sim.device import Logger
-    from firmware_sim.world.subject import random_subjects
-    from firmware_sim.world.walking import Walking
-    from protocol.steps import StepConfig
+    from gaitlog.firmware_sim.adc import Adc
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.world.subject import random_subjects
+    from gaitlog.firmware_sim.world.walking import Walking
+    from gaitlog.protocol.steps import StepConfig
 
     subject = random_subjects(1, seed=seed)[0]
     logger = Logger(adc=Adc(sampling_rate_hz=c.sampling_rate_hz), sampling_rate_hz=c.sampling_rate_hz,
@@ -94,7 +94,7 @@ def _walk(c, seed: int) -> dict:
 
 def _budget(c, seed: int) -> tuple[dict, list[str]]:
     """One configuration: the JSON document and the printed lines."""
-    from firmware_sim.budget import (
+    from gaitlog.firmware_sim.budget import (
         PIC_PROGRAM_WORDS,
         adc_max_sampling_rate_hz,
         algorithm_cycles_per_sample,
@@ -172,7 +172,7 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
 
 
 def _measure_kernels(args: argparse.Namespace) -> int:
-    from firmware_sim.pic.gpsim_bench import (
+    from gaitlog.firmware_sim.pic.gpsim_bench import (
         CYCLE_TABLE_PATH,
         cycle_table,
         gpsim_version,
@@ -181,7 +181,7 @@ def _measure_kernels(args: argparse.Namespace) -> int:
         missing_tools,
         write_cycle_table,
     )
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     reason = missing_tools()
     if reason:
@@ -204,9 +204,9 @@ def _measure_kernels(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     import json
 
-    from firmware_sim.budget import CONFIGURATIONS
-    from host.commands._options import logger_rate_hz, verbosity
-    from host.errors import HostError
+    from gaitlog.firmware_sim.budget import CONFIGURATIONS
+    from gaitlog.host.commands._options import logger_rate_hz, verbosity
+    from gaitlog.host.errors import HostError
 
     if args.measure_kernels:
         return _measure_kernels(args)

@@ -13,8 +13,8 @@ HELP = "Fit offsets, scales and axis angles to the static poses of a recording (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog calibrate``."""
-    from host.commands._input_options import INPUT_HELP, add_input_options
-    from host.commands._options import add_verbosity_options, number
+    from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
+    from gaitlog.host.commands._options import add_verbosity_options, number
 
     parser.add_argument("input", type=Path, metavar="INPUT", help=f"static poses: {INPUT_HELP}")
     parser.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="calibration file to write")
@@ -41,11 +41,11 @@ def _fmt(v: Any, spec: str = "+10.4f") -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Detect the static holds, fit the model, print a summary and write the JSON atomically."""
-    from host.accelerometer.calibration import ANGLE_NAMES
-    from host.accelerometer.fit import AccCalibrator
-    from host.commands._input_options import read_input
-    from host.commands._options import check_outputs, verbosity
-    from host.errors import HostError
+    from gaitlog.host.accelerometer.calibration import ANGLE_NAMES
+    from gaitlog.host.accelerometer.fit import AccCalibrator
+    from gaitlog.host.commands._input_options import read_input
+    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.errors import HostError
 
     path: Path = args.input
     if args.calibration:

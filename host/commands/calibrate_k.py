@@ -8,9 +8,9 @@ HELP = "fit the per-subject constants K and the M5 line from recordings with a k
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._anatomy_options import add_anatomy_options
-    from host.commands._input_options import INPUT_HELP, add_input_options
-    from host.commands._options import POSITIVE_M, add_verbosity_options
+    from gaitlog.host.commands._anatomy_options import add_anatomy_options
+    from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
+    from gaitlog.host.commands._options import POSITIVE_M, add_verbosity_options
 
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help=f"recording(s): {INPUT_HELP}; several inputs = several speeds")
@@ -34,14 +34,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
-    from host.commands._input_options import read_input
-    from host.commands._options import check_outputs, verbosity
-    from host.errors import HostError
-    from host.gait.k_calibration import calibrate
-    from host.gait.k_prior import PRIORS
-    from host.gait.pipeline import StepPipeline
-    from host.gait.sections import pool_steps, sections_from_marks
+    from gaitlog.host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
+    from gaitlog.host.commands._input_options import read_input
+    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.gait.k_calibration import calibrate
+    from gaitlog.host.gait.k_prior import PRIORS
+    from gaitlog.host.gait.pipeline import StepPipeline
+    from gaitlog.host.gait.sections import pool_steps, sections_from_marks
 
     if args.distance is not None and len(args.distance) not in (1, len(args.inputs)):
         raise HostError(f"--distance: give one value or one per input ({len(args.inputs)}), "

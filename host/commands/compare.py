@@ -7,17 +7,17 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
   summary and the saturation report. A recording carrying the device's own step records is first checked
   against the host's replay, bit for bit: a difference is an error (exit 1).
 * ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, offline,
-  online-float, online-fixed vs the world's truth, :mod:`host.studies.compare`), the error split ADC / algorithm /
+  online-float, online-fixed vs the world's truth, :mod:`gaitlog.host.studies.compare`), the error split ADC / algorithm /
   arithmetic and its 95 % bootstrap intervals over the subjects.
 * ``gaitlog compare --sweep``: ADC 8/10/12 bits x 25/50/100 Hz over ``--subjects`` (4) simulated subjects
-  (:mod:`host.studies.sweep`) and the answer about M5 and the 50 Hz step timing.
+  (:mod:`gaitlog.host.studies.sweep`) and the answer about M5 and the 50 Hz step timing.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from host.commands._options import (
+from gaitlog.host.commands._options import (
     POSITIVE_M,
     SEED,
     add_logger_rate_option,
@@ -29,9 +29,9 @@ HELP = "compare the offline chain with the on-line algorithm in float and fixed 
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._anatomy_options import add_anatomy_options
-    from host.commands._input_options import add_input_options
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._anatomy_options import add_anatomy_options
+    from gaitlog.host.commands._input_options import add_input_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
@@ -65,8 +65,8 @@ def _beside(out: str, suffix: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.commands._input_options import given_input_flags
-    from host.errors import HostError
+    from gaitlog.host.commands._input_options import given_input_flags
+    from gaitlog.host.errors import HostError
 
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
     if sum(modes) != 1:
@@ -90,17 +90,17 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from host.commands._options import check_outputs, printer
-    from host.commands._progress import progress_bar
-    from host.errors import HostError
-    from host.studies.compare import rows_csv_text
-    from host.studies.sweep import (
+    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.studies.compare import rows_csv_text
+    from gaitlog.host.studies.sweep import (
         SUMMARY_COLUMNS,
         AdcRateSweep,
         format_m5,
         format_summary,
     )
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.subjects < 1:
         raise HostError(f"--subjects must be >= 1, got {args.subjects}")
@@ -129,19 +129,19 @@ def _sweep(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from firmware_sim.algorithms.steps import columns_csv_text
-    from host.commands._options import check_outputs, printer
-    from host.commands._progress import progress_bar
-    from host.errors import HostError
-    from host.studies.compare import (
+    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
+    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.studies.compare import (
         bootstrap_budget,
         format_budget,
         format_step_diffs,
         rows_csv_text,
     )
-    from host.studies.simulation import simulate_comparisons
-    from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.host.studies.simulation import simulate_comparisons
+    from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.simulate < 1:
         raise HostError(f"--simulate must be >= 1, got {args.simulate}")
@@ -171,7 +171,7 @@ def _simulate(args: argparse.Namespace) -> int:
     sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
     say("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
     if args.out:
-        from host.studies.compare import BUDGET_COLUMNS
+        from gaitlog.host.studies.compare import BUDGET_COLUMNS
 
         cols: dict[str, list] = {}
         for r in results:
@@ -213,8 +213,8 @@ def format_segments(results: list) -> str:
     """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
     import numpy as np
 
-    from firmware_sim.algorithms.steps import ESTIMATORS
-    from host.studies.compare import CHAINS, SHARES, column_key
+    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+    from gaitlog.host.studies.compare import CHAINS, SHARES, column_key
 
     lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
              "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
@@ -241,15 +241,15 @@ def _recording(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from host.commands._anatomy_options import lengths_from_args
-    from host.commands._input_options import read_input
-    from host.commands._options import check_outputs, printer, verbosity
-    from host.errors import HostError
-    from host.files.replay import run_starts, verify_step_records
-    from host.gait.k_calibration import KFit
-    from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
+    from gaitlog.host.commands._anatomy_options import lengths_from_args
+    from gaitlog.host.commands._input_options import read_input
+    from gaitlog.host.commands._options import check_outputs, printer, verbosity
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.files.replay import run_starts, verify_step_records
+    from gaitlog.host.gait.k_calibration import KFit
+    from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     say = printer(args)
     p = Path(args.input)
@@ -268,7 +268,7 @@ def _recording(args: argparse.Namespace) -> int:
         raise HostError(check.error_message(p))
     cal, note = rec.default_calibration()
     if args.calibration:
-        from host.accelerometer.calibration import AccCalibration
+        from gaitlog.host.accelerometer.calibration import AccCalibration
 
         acc_cal = AccCalibration.load(args.calibration)
         try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import add_verbosity_options, check_outputs, verbosity
+from gaitlog.host.commands._options import add_verbosity_options, check_outputs, verbosity
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
@@ -45,10 +45,10 @@ def replay_error(recording, check) -> str:
 
 def _run_instrument(args: argparse.Namespace, rec, csv_path) -> int:
     """An instrument's recording (a channel map in the header, PROTOCOL.md 2.6): PREFIX.csv in the recording
-    format of ``gaitlog kinematics`` (:mod:`host.kinematics.sensor_csv`), one column per channel."""
-    from host.errors import HostError
-    from host.kinematics.logger_instruments import decoded_columns
-    from host.kinematics.sensor_csv import write_sensor_csv
+    format of ``gaitlog kinematics`` (:mod:`gaitlog.host.kinematics.sensor_csv`), one column per channel."""
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.kinematics.logger_instruments import decoded_columns
+    from gaitlog.host.kinematics.sensor_csv import write_sensor_csv
 
     if args.calibration:
         raise HostError(f"--calibration: {args.input} holds an instrument's channels (a channel map), each with its "
@@ -68,14 +68,14 @@ def _run_instrument(args: argparse.Namespace, rec, csv_path) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.errors import HostError
-    from host.files.decode import decode_file, output_paths, save_decoded
-    from host.files.replay import verify_step_records
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.files.decode import decode_file, output_paths, save_decoded
+    from gaitlog.host.files.replay import verify_step_records
 
     paths = output_paths(args.out)
     check_outputs({f"--out ({p.name})": p for p in paths.values()},
                   {"INPUT": args.input, "--calibration": args.calibration})
-    from protocol.channel_map import ChannelMap
+    from gaitlog.protocol.channel_map import ChannelMap
 
     rec = decode_file(args.input, accept_unverified=args.accept_unverified)
     if isinstance(rec.header.calibration, ChannelMap):
@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     calibration = None
     note = rec.default_calibration()[1]
     if args.calibration:
-        from host.accelerometer.calibration import AccCalibration
+        from gaitlog.host.accelerometer.calibration import AccCalibration
 
         calibration = AccCalibration.load(args.calibration)
         if getattr(calibration, "input_unit", "counts") != "counts":

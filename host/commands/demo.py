@@ -6,10 +6,10 @@ poses, CAL.json) -> summary (samples, gaps, duration and, per pose, the mean g a
 error of |a| before and after calibration) -> walk (a simulated subject through the paper's protocol,
 recorded by the same emulated device with the pose calibration in its header and its on-line step algorithm
 running) -> estimate (the host's offline float chain, K per subject, every 20 m section's ratio, CSV and the
-Figs 5-6 box plots: :mod:`host.studies.evaluation`) -> device (K sent to the device, the walk recorded again: the
+Figs 5-6 box plots: :mod:`gaitlog.host.studies.evaluation`) -> device (K sent to the device, the walk recorded again: the
 device's own per-step records, checked against the host's replay bit for bit, beside the offline chain)
--> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`host.studies.compare`)
--> plot (the device's walk decoded, K saved, a 30 s overview drawn: :mod:`host.studies.overview`) -> next (what
+-> split (offline vs on-line float vs on-line fixed on the same codes, one K: :mod:`gaitlog.host.studies.compare`)
+-> plot (the device's walk decoded, K saved, a 30 s overview drawn: :mod:`gaitlog.host.studies.overview`) -> next (what
 to open, and commands to try on the files written).
 
 The files stay in ``./gaitlog-demo/`` (or ``--out DIR``). The folder is marked as the demo's by
@@ -46,10 +46,10 @@ class Stage:
 
 
 def _record(ctx: dict[str, Any]) -> list[str]:
-    from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-    from firmware_sim.device import Logger
-    from firmware_sim.sensor import SensorModel
-    from firmware_sim.world.poses import CalibrationPoses
+    from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.sensor import SensorModel
+    from gaitlog.firmware_sim.world.poses import CalibrationPoses
 
     args = ctx["args"]
     source = CalibrationPoses(n_poses=args.poses, hold_s=5.0, move_s=2.0, seed=args.seed)
@@ -63,8 +63,8 @@ def _record(ctx: dict[str, Any]) -> list[str]:
 
 
 def _serve(ctx: dict[str, Any]) -> list[str]:
-    from firmware_sim.device import Logger
-    from firmware_sim.pty_server import serve_pty
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.pty_server import serve_pty
 
     server = serve_pty(Logger.from_image(ctx["recorded_image"]), baud=115200)
     server.start()
@@ -74,9 +74,9 @@ def _serve(ctx: dict[str, Any]) -> list[str]:
 
 
 def _dump(ctx: dict[str, Any]) -> list[str]:
-    from host.commands._options import verbosity
-    from host.link.logger_link import LoggerLink
-    from host.link.memory_dump import dump_memory
+    from gaitlog.host.commands._options import verbosity
+    from gaitlog.host.link.logger_link import LoggerLink
+    from gaitlog.host.link.memory_dump import dump_memory
 
     out = ctx["dir"] / "dumped.glimg"
     with LoggerLink(ctx["port"], baud=115200) as link:
@@ -88,7 +88,7 @@ def _dump(ctx: dict[str, Any]) -> list[str]:
 
 
 def _decode(ctx: dict[str, Any]) -> list[str]:
-    from host.files.decode import decode_file, save_outputs
+    from gaitlog.host.files.decode import decode_file, save_outputs
 
     rec = decode_file(ctx["dumped_image"])
     npz, csv = save_outputs(rec, ctx["dir"] / "decoded")
@@ -99,7 +99,7 @@ def _decode(ctx: dict[str, Any]) -> list[str]:
 def _calibrate(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from host.accelerometer.fit import AccCalibrator
+    from gaitlog.host.accelerometer.fit import AccCalibrator
 
     rec = ctx["recording"]
     n_poses = len(ctx["motion"].truth["hold_windows_s"])
@@ -157,8 +157,8 @@ def _summary(ctx: dict[str, Any]) -> list[str]:
 def _walk_logger(ctx: dict[str, Any], step_config: Any) -> Any:
     """The demo's device (the sensor of the poses), its header holding the pose calibration and
     ``step_config`` (as SET_CALIBRATION and SET_STEP_CONFIG would leave it)."""
-    from firmware_sim.device import Logger
-    from firmware_sim.sensor import SensorModel
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.sensor import SensorModel
 
     logger = Logger(sensor=SensorModel.draw(seed=ctx["args"].seed), step_config=step_config)
     logger.ring.set_calibration(ctx["walk_calibration"])
@@ -168,12 +168,12 @@ def _walk_logger(ctx: dict[str, Any], step_config: Any) -> Any:
 def _walk(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from firmware_sim.world.subject import random_subjects
-    from firmware_sim.world.walking import Walking
-    from host.studies.simulation import SimulatedRecording
-    from protocol.header import CalibrationSlot
-    from protocol.packing import FLAG_MARK
-    from protocol.steps import StepConfig
+    from gaitlog.firmware_sim.world.subject import random_subjects
+    from gaitlog.firmware_sim.world.walking import Walking
+    from gaitlog.host.studies.simulation import SimulatedRecording
+    from gaitlog.protocol.header import CalibrationSlot
+    from gaitlog.protocol.packing import FLAG_MARK
+    from gaitlog.protocol.steps import StepConfig
 
     args = ctx["args"]
     subject = random_subjects(1, seed=args.seed)[0]
@@ -202,10 +202,10 @@ def _walk(ctx: dict[str, Any]) -> list[str]:
 
 
 def _estimate(ctx: dict[str, Any]) -> list[str]:
-    from host.studies.compare import rows_csv_text
-    from host.studies.evaluation import evaluate_recording, format_summary, summarise
-    from host.studies.plots import plot_boxplots
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.host.studies.compare import rows_csv_text
+    from gaitlog.host.studies.evaluation import evaluate_recording, format_summary, summarise
+    from gaitlog.host.studies.plots import plot_boxplots
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     res = evaluate_recording(ctx["walk_recording"])
     summary = summarise(res.rows)
@@ -227,19 +227,19 @@ def _estimate(ctx: dict[str, Any]) -> list[str]:
 def _device(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from firmware_sim.algorithms.online import OnlineSteps
-    from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-    from firmware_sim.world.walking import Walking
-    from host.files.decode import decode_file
-    from host.files.replay import verify_step_records
-    from host.gait.sections import sections_from_marks
-    from host.studies.compare import (
+    from gaitlog.firmware_sim.algorithms.online import OnlineSteps
+    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+    from gaitlog.firmware_sim.world.walking import Walking
+    from gaitlog.host.files.decode import decode_file
+    from gaitlog.host.files.replay import verify_step_records
+    from gaitlog.host.gait.sections import sections_from_marks
+    from gaitlog.host.studies.compare import (
         match_steps,
         offline_step_table,
         segment_distances,
         step_differences,
     )
-    from protocol.steps import StepConfig
+    from gaitlog.protocol.steps import StepConfig
 
     sub = ctx["subject"]
     k = ctx["walk_result"].calibrations["multi-speed"]
@@ -279,11 +279,11 @@ def _device(ctx: dict[str, Any]) -> list[str]:
 def _split(ctx: dict[str, Any]) -> list[str]:
     import numpy as np
 
-    from firmware_sim.algorithms.steps import ESTIMATORS
-    from firmware_sim.fixedpoint import cycles_per_sample_available
-    from host.gait.sections import sections_from_marks
-    from host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+    from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
+    from gaitlog.host.gait.sections import sections_from_marks
+    from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     rec = ctx["walk_recording"]
     sub = rec.subject
@@ -315,10 +315,10 @@ def _split(ctx: dict[str, Any]) -> list[str]:
 
 
 def _plot(ctx: dict[str, Any]) -> list[str]:
-    from host.files.decode import decode_file, save_decoded
-    from host.studies.overview import recording_overview
-    from host.studies.plots import render_overview_png
-    from protocol.atomic_write import atomic_write_bytes
+    from gaitlog.host.files.decode import decode_file, save_decoded
+    from gaitlog.host.studies.overview import recording_overview
+    from gaitlog.host.studies.plots import render_overview_png
+    from gaitlog.protocol.atomic_write import atomic_write_bytes
 
     rec = decode_file(ctx["walk_k_image"])
     written = save_decoded(rec, ctx["dir"] / "walk_k")
@@ -373,7 +373,7 @@ STAGES: list[Stage] = [
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._options import SEED, add_verbosity_options, whole
+    from gaitlog.host.commands._options import SEED, add_verbosity_options, whole
 
     parser.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
                         help=f"keep the files in DIR (default ./{DEFAULT_OUT}; a previous demo's files there are "
@@ -389,9 +389,9 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from host.commands._options import check_output_folder, printer
-    from host.errors import HostError
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     say, detail = printer(args), printer(args, 1)
     out = Path(args.out)

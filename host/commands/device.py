@@ -8,7 +8,7 @@ import json
 import sys
 from typing import Any
 
-from host.commands._options import (
+from gaitlog.host.commands._options import (
     BAUD,
     TIMEOUT_S,
     UNIX_TIME_S,
@@ -69,12 +69,12 @@ STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     if args.action == "erase" and not args.yes and not sys.stdin.isatty():
         raise HostError("erase needs a confirmation: run it in a terminal to be asked, or pass --yes")
     slot = _calibration_slot(args) if args.action == "set-calibration" else None
-    from host.link.logger_link import LoggerLink
+    from gaitlog.host.link.logger_link import LoggerLink
 
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
         info = link.identify()
@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
 # ------------------------------------------------------------------------------------------------- reports
 def _identity(info: dict[str, int]) -> dict[str, Any]:
     """The IDENTIFY answer in the host's vocabulary (``sampling_rate_hz``, firmware as ``"major.minor"``)."""
-    from host.link.logger_link import device_identity
+    from gaitlog.host.link.logger_link import device_identity
 
     return device_identity(info)
 
@@ -109,7 +109,7 @@ def _identity_lines(port: str, info: dict[str, int]) -> list[str]:
 
 def _status(link) -> dict[str, Any]:
     """STATUS plus what the header says about stored step records and the calibration slot."""
-    from protocol.frames import DeviceState
+    from gaitlog.protocol.frames import DeviceState
 
     status = link.status()
     _, header = link.read_header()
@@ -151,8 +151,8 @@ def _say(args: argparse.Namespace, message: str) -> None:
 def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
     import datetime as _dt
 
-    from host.errors import HostError
-    from protocol.frames import DeviceState
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.frames import DeviceState
 
     before = link.status()
     if before["state"] == DeviceState.LOGGING:
@@ -168,7 +168,7 @@ def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 
 
 def _stop(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    from protocol.frames import DeviceState
+    from gaitlog.protocol.frames import DeviceState
 
     was = link.status()["state"]
     link.stop()
@@ -183,7 +183,7 @@ def _stop(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 
 
 def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     st = _status(link)
     if st["logging"]:
@@ -203,13 +203,13 @@ def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 def _calibration_slot(args: argparse.Namespace) -> bytes:
     """The 64-byte slot from ``CAL.json`` (or the empty slot for ``--nominal``), checked before any
     connection is made."""
-    from host.errors import HostError
-    from protocol.errors import ProtocolError
-    from protocol.header import CALIBRATION_SIZE
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.errors import ProtocolError
+    from gaitlog.protocol.header import CALIBRATION_SIZE
 
     if args.nominal:
         return bytes(CALIBRATION_SIZE)
-    from host.accelerometer.calibration import AccCalibration
+    from gaitlog.host.accelerometer.calibration import AccCalibration
 
     try:
         cal = AccCalibration.load(args.calibration)
@@ -222,8 +222,8 @@ def _calibration_slot(args: argparse.Namespace) -> bytes:
 
 
 def _set_calibration(args: argparse.Namespace, link, info: dict[str, int], slot: bytes) -> int:
-    from host.errors import HostError
-    from protocol.header import CalibrationSlot
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.header import CalibrationSlot
 
     cal = CalibrationSlot.from_bytes(slot, info["adc_bits"])
     link.set_calibration(slot)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from host.commands._options import (
+from gaitlog.host.commands._options import (
     BAUD,
     TIMEOUT_S,
     add_verbosity_options,
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     import signal
     from pathlib import Path
 
-    from host.link.memory_dump import metadata_path_for
+    from gaitlog.host.link.memory_dump import metadata_path_for
 
     out = Path(args.out)
     emu = args.port[len("emu://"):] if args.port.startswith("emu://") else None
@@ -63,10 +63,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _dump(args: argparse.Namespace, out, capture) -> int:
 
-    from host.errors import HostError
-    from host.link.logger_link import LoggerLink
-    from host.link.memory_dump import dump_memory, state_path_for
-    from protocol.atomic_write import atomic_write_bytes
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.link.logger_link import LoggerLink
+    from gaitlog.host.link.memory_dump import dump_memory, state_path_for
+    from gaitlog.protocol.atomic_write import atomic_write_bytes
 
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, capture=capture) as link:
         try:

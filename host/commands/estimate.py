@@ -1,10 +1,10 @@
 """``gaitlog estimate``: a recording (any input) -> per-step table CSV and the distance per estimator.
 
 Beside the step table's own columns, the CSV says where the leg and foot length came from
-(``lengths_source``: :data:`host.gait.anthropometry.LENGTH_SOURCES`; ``assumed-height`` when nothing about the
+(``lengths_source``: :data:`gaitlog.host.gait.anthropometry.LENGTH_SOURCES`; ``assumed-height`` when nothing about the
 wearer was known, also warned on stderr) and, with a K file, which of the step's quantities lie outside the
-range K was calibrated on (``outside_k_range``: names from :data:`host.gait.k_calibration.RANGE_QUANTITIES`
-joined by ``+``, empty when inside; :meth:`host.gait.k_calibration.KFit.outside_range`); the summary counts
+range K was calibrated on (``outside_k_range``: names from :data:`gaitlog.host.gait.k_calibration.RANGE_QUANTITIES`
+joined by ``+``, empty when inside; :meth:`gaitlog.host.gait.k_calibration.KFit.outside_range`); the summary counts
 those steps per estimator.
 """
 
@@ -16,9 +16,9 @@ HELP = "estimate every step's length and the distance walked (M1-M5) from a reco
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._anatomy_options import add_anatomy_options
-    from host.commands._input_options import INPUT_HELP, add_input_options
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._anatomy_options import add_anatomy_options
+    from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", help=INPUT_HELP)
     parser.add_argument("--out", metavar="STEPS.csv", help="write the per-step table here")
@@ -40,14 +40,14 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from firmware_sim.algorithms.steps import ESTIMATORS
-    from host.commands._anatomy_options import lengths_from_args
-    from host.commands._input_options import read_input
-    from host.commands._options import check_outputs, verbosity
-    from host.errors import HostError
-    from host.gait.anthropometry import LENGTH_MODEL
-    from host.gait.k_calibration import KFit
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+    from gaitlog.host.commands._anatomy_options import lengths_from_args
+    from gaitlog.host.commands._input_options import read_input
+    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.gait.anthropometry import LENGTH_MODEL
+    from gaitlog.host.gait.k_calibration import KFit
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.out:
         out = Path(args.out)
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     tables = {}
     fixed_report = ""
     if args.arithmetic in ("float", "both"):
-        from host.gait.pipeline import StepPipeline
+        from gaitlog.host.gait.pipeline import StepPipeline
 
         pipe = StepPipeline(leg_length_m=leg, foot_length_m=foot, calibration=k).run(
             data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
@@ -137,8 +137,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _csv_text(table, lengths_source: str, k) -> str:
     """The step table's CSV with ``lengths_source`` and ``outside_k_range`` (module notes)."""
-    from firmware_sim.algorithms.steps import csv_text
-    from host.gait.k_calibration import RANGE_QUANTITIES
+    from gaitlog.firmware_sim.algorithms.steps import csv_text
+    from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES
 
     head, *rows = table.to_csv_text().splitlines()
     n = table.n_steps
@@ -179,13 +179,13 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k):
     K as the float chain -> (StepTable, saturation report)."""
     import numpy as np
 
-    from host.errors import HostError
-    from host.files.replay import online_step_table, run_starts
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.files.replay import online_step_table, run_starts
 
     rec = data.recording
     adc_cal = rec.default_calibration()[0]
     if calibration:
-        from host.accelerometer.calibration import AccCalibration
+        from gaitlog.host.accelerometer.calibration import AccCalibration
 
         try:
             adc_cal = AccCalibration.load(calibration).to_header_calibration()

@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, whole
+from gaitlog.host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, whole
 
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("dataset", choices=["ipol", "sim"],
                         help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
@@ -60,11 +60,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_sim(args: argparse.Namespace) -> int:
-    from host.commands._options import check_output_folder, verbosity
-    from host.commands._progress import progress_bar
-    from host.errors import HostError
-    from host.studies.evaluation import SimulatedEvaluation
-    from protocol.adc_bits import check_adc_bits
+    from gaitlog.host.commands._options import check_output_folder, verbosity
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.studies.evaluation import SimulatedEvaluation
+    from gaitlog.protocol.adc_bits import check_adc_bits
 
     out = args.out or args.folder
     if out is None:
@@ -104,15 +104,15 @@ def _run_sim(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     if args.dataset == "sim":
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
-    from host.commands._options import check_outputs
-    from host.studies.compare import rows_csv_text
-    from host.studies.ipol_evaluation import (
+    from gaitlog.host.commands._options import check_outputs
+    from gaitlog.host.studies.compare import rows_csv_text
+    from gaitlog.host.studies.ipol_evaluation import (
         ARITHMETICS,
         CSV_COLUMNS,
         EVENT_COLUMNS,
@@ -125,8 +125,8 @@ def run(args: argparse.Namespace) -> int:
         main_rows,
         summarise,
     )
-    from protocol.adc_bits import check_adc_bits
-    from protocol.atomic_write import atomic_write_bytes, atomic_write_text
+    from gaitlog.protocol.adc_bits import check_adc_bits
+    from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
     check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     args.logger_rate = logger_rate_hz(args)
@@ -138,10 +138,10 @@ def run(args: argparse.Namespace) -> int:
     events_path = out.with_name(out.stem + "_events.csv")
     check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
                   {"DIR": args.folder})
-    from host.commands._options import verbosity
-    from host.commands._progress import progress_bar
-    from host.files.ipol import list_trials
-    from host.gait.anthropometry import LENGTH_MODEL
+    from gaitlog.host.commands._options import verbosity
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.files.ipol import list_trials
+    from gaitlog.host.gait.anthropometry import LENGTH_MODEL
 
     with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: res, below
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
                      f"{r['lengths_source']},{r['variant']},{r['distance_m']:.4f},{r['ratio']:.5f},{r['steps']},"
                      f"{r['reference_steps']},{outside},{r['cross_validated']}")
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
-    from host.studies.plots import render_chain_boxplots_png
+    from gaitlog.host.studies.plots import render_chain_boxplots_png
 
     png = render_chain_boxplots_png(main_rows(res.rows), arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")
@@ -217,7 +217,7 @@ def _count(values) -> dict:
 
 
 def _print_table(title: str, summary: list[dict]) -> None:
-    """One summary table (:func:`host.studies.ipol_evaluation.summarise`)."""
+    """One summary table (:func:`gaitlog.host.studies.ipol_evaluation.summarise`)."""
     print(title)
     print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}"
           f"{'steps|err|%':>13}{'|err|':>6}{'signed':>7}{'outside K':>14}")

@@ -7,7 +7,7 @@ import argparse
 import json
 from typing import Any
 
-from host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, verbosity
+from gaitlog.host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, verbosity
 
 HELP = "show the header and status of a memory image or of a live device (--port)"
 
@@ -23,8 +23,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def header_lines(header) -> list[str]:
-    """Readable lines describing a ``protocol.header.DeviceHeader``."""
-    from protocol.header import firmware_version_text
+    """Readable lines describing a ``gaitlog.protocol.header.DeviceHeader``."""
+    from gaitlog.protocol.header import firmware_version_text
 
     flags = [name for name, on in (("OVERWRITE", header.overwrite), ("WRAPPED", header.wrapped),
                                    ("LOGGING", header.logging), ("CAL_VALID", header.calibration.valid),
@@ -61,12 +61,12 @@ def step_lines(header) -> list[str]:
         q = cfg.quantised()
         algorithm = (f"on-line version {int(cfg.step_format)}, leg {q.leg_length_m:.4f} m, "
                      f"foot {q.foot_length_m:.4f} m, ")
-        from protocol.steps import ONLINE_ALGORITHM_VERSION
+        from gaitlog.protocol.steps import ONLINE_ALGORITHM_VERSION
 
         if cfg.older_algorithm:                                 # an older firmware's records
             algorithm += (f"records by {cfg.older_algorithm} (this host replays version "
                           f"{int(ONLINE_ALGORITHM_VERSION)}), ")
-        from firmware_sim.algorithms.parameters import M4_EXPONENT
+        from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 
         algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^{M4_EXPONENT:g}, "
                       f"M5 S = {q.k1_m5_m_s:.4f}/T {q.k2_m5_m:+.4f} m" if cfg.calibrated else
@@ -75,8 +75,8 @@ def step_lines(header) -> list[str]:
 
 
 def header_dict(header) -> dict[str, Any]:
-    """A ``protocol.header.DeviceHeader`` as JSON-ready values in the host's words (units in the keys)."""
-    from protocol.header import firmware_version_text
+    """A ``gaitlog.protocol.header.DeviceHeader`` as JSON-ready values in the host's words (units in the keys)."""
+    from gaitlog.protocol.header import firmware_version_text
 
     cfg = header.step_config
     return {
@@ -97,7 +97,7 @@ def header_dict(header) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     if (args.image is None) == (args.port is None):
         raise HostError("give either IMAGE or --port PORT")
@@ -110,8 +110,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _device_report(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]:
-    from host.commands.device import STATE_WORDS
-    from host.link.logger_link import LoggerLink, device_identity
+    from gaitlog.host.commands.device import STATE_WORDS
+    from gaitlog.host.link.logger_link import LoggerLink, device_identity
 
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
         info = link.identify()
@@ -129,7 +129,7 @@ def _device_report(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]
 
 
 def _file_report(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]:
-    from host.files.decode import decode_file
+    from gaitlog.host.files.decode import decode_file
 
     rec = decode_file(args.image)
     most = None if verbosity(args) > 0 else 20

@@ -7,9 +7,9 @@ Forms::
     gaitlog kinematics simulate --write-recording DIR     # the instruments' recordings + platforms + truth
     gaitlog kinematics [simulate] --out DIR               # simulate, analyse, report errors against the truth
 
-The recording format is :mod:`host.kinematics.sensor_csv`, the platform files
-:mod:`host.kinematics.platform_description`. Morris: every cycle from foot-flat to foot-flat
-(:mod:`host.kinematics.morris_analysis`), or the one given by ``--cycle``; outputs ``morris_orientation.csv``
+The recording format is :mod:`gaitlog.host.kinematics.sensor_csv`, the platform files
+:mod:`gaitlog.host.kinematics.platform_description`. Morris: every cycle from foot-flat to foot-flat
+(:mod:`gaitlog.host.kinematics.morris_analysis`), or the one given by ``--cycle``; outputs ``morris_orientation.csv``
 (direction cosines), ``morris_angular_velocity.csv``, ``morris_translation.csv`` (one row per sample, a
 ``cycle`` column) and Figs 4-7 of the first (or selected) cycle, Fig 7 also as ``morris_animation.gif``.
 Hall: ``hall_joint_angles.csv``, ``hall_link_orientation.csv``, ``hall_angular_velocity.csv`` and the angle
@@ -38,14 +38,14 @@ HALL_FILES = ("hall_joint_angles.csv", "hall_link_orientation.csv", "hall_angula
 
 def _snr_db(text: str) -> float:
     """``--snr-db``: a finite number of dB in 0..200, or ``inf`` (no noise)."""
-    from host.commands._options import number
+    from gaitlog.host.commands._options import number
 
     return float("inf") if text.strip().lower() == "inf" else number(minimum=0, maximum=200, unit="dB")(text)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
-    from host.commands._options import SEED, add_verbosity_options, number
+    from gaitlog.host.commands._options import SEED, add_verbosity_options, number
 
     parser.add_argument("method", nargs="?", choices=("simulate", "morris", "hall"), default="simulate",
                         help="morris or hall: analyse RECORDING; simulate (default): simulated instruments")
@@ -90,8 +90,8 @@ def morris_outputs(cycles: list, recording: Any, platform: Any, azimuth: float, 
     """``{file name: CSV text | (plot function, args, kwargs)}`` of a Morris analysis (nothing written yet)."""
     import numpy as np
 
-    from firmware_sim.algorithms.steps import columns_csv_text
-    from host.kinematics import plots
+    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
+    from gaitlog.host.kinematics import plots
 
     cyc = np.concatenate([np.full(c.t_s.size, i + 1) for i, c in enumerate(cycles)])
     t = np.concatenate([c.t_s for c in cycles])
@@ -111,7 +111,7 @@ def morris_outputs(cycles: list, recording: Any, platform: Any, azimuth: float, 
     c = cycles[0]
     r_o = platform.origin_from_pivot_m
     # Fig 4a: the whole record integrated from its start with the cycle's mean-rate start (no filtering)
-    from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
+    from gaitlog.host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
 
     readings = recording.columns(platform.sensors, "specific force")
     solver = AngularVelocityFromAccelerometers(positions_m=platform.positions_m, axes=platform.axes,
@@ -141,8 +141,8 @@ def hall_outputs(hall: Any, recording: Any, sequence: str) -> dict[str, Any]:
     """``{file name: CSV text | plot}`` of a Hall analysis."""
     import numpy as np
 
-    from firmware_sim.algorithms.steps import columns_csv_text
-    from host.kinematics import plots
+    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
+    from gaitlog.host.kinematics import plots
 
     t = recording.t_s
     names = ("flexion_deg", "version_deg", "axial_rotation_deg") if sequence == "yxz" else (
@@ -164,7 +164,7 @@ def hall_outputs(hall: Any, recording: Any, sequence: str) -> dict[str, Any]:
 
 def write_outputs(out: Path, outputs: dict[str, Any]) -> None:
     """Create ``out`` and write every output (texts atomically, figures through their atomic writers)."""
-    from protocol.atomic_write import atomic_write_text
+    from gaitlog.protocol.atomic_write import atomic_write_text
 
     out.mkdir(parents=True, exist_ok=True)
     for name, item in outputs.items():
@@ -179,9 +179,9 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
     """Hall's method on a recording: pre-test posture, offsets, CFC, link matrices, joint angles."""
     import numpy as np
 
-    from host.errors import HostError
-    from host.kinematics.joints import JOINT_MATRICES, HallJointKinematics
-    from host.kinematics.orientation import initial_dcm_from_gravity
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.kinematics.joints import JOINT_MATRICES, HallJointKinematics
+    from gaitlog.host.kinematics.orientation import initial_dcm_from_gravity
 
     ra = recording.columns(platform.link_a.rate_sensors, "angular rate")
     rb = recording.columns(platform.link_b.rate_sensors, "angular rate")
@@ -204,8 +204,8 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
 
 
 def _check_out(out: Path | None, what: str) -> Path:
-    from host.commands._options import check_output_folder
-    from host.errors import HostError
+    from gaitlog.host.commands._options import check_output_folder
+    from gaitlog.host.errors import HostError
 
     if out is None:
         raise HostError(f"{what}: give --out DIR for the results")
@@ -216,11 +216,11 @@ def _check_out(out: Path | None, what: str) -> Path:
 def _run_recording(args: argparse.Namespace) -> int:
     import warnings
 
-    from host.commands._options import printer
-    from host.errors import HostError
-    from host.kinematics.morris_analysis import analyse_morris_recording
-    from host.kinematics.platform_description import HallPlatform, MorrisPlatform
-    from host.kinematics.sensor_csv import read_sensor_csv
+    from gaitlog.host.commands._options import printer
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
+    from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
+    from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
 
     if args.recording is None or args.platform is None:
         raise HostError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
@@ -248,7 +248,7 @@ def _run_recording(args: argparse.Namespace) -> int:
         names = list(outputs)
     else:
         if args.cfc:
-            from host.kinematics.cfc_filter import cfc_coefficients
+            from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
 
             cfc_coefficients(args.cfc, recording.sampling_rate_hz)
         platform = HallPlatform.load(args.platform)
@@ -276,7 +276,7 @@ def morris_errors(cycle: Any, truth: dict[str, Any]) -> dict[str, float]:
     (accelerometers cannot sense it)."""
     import numpy as np
 
-    from host.kinematics.orientation import geodesic_distance_rad
+    from gaitlog.host.kinematics.orientation import geodesic_distance_rad
 
     sel = slice(cycle.start, cycle.stop + 1)
     true_dcm = truth["dcm"][sel]
@@ -301,7 +301,7 @@ def _truth_from_columns(sim: Any) -> dict[str, Any]:
 
 
 def _as_recording(sim: Any, rate: float) -> Any:
-    from host.kinematics.sensor_csv import SensorRecording, split_unit
+    from gaitlog.host.kinematics.sensor_csv import SensorRecording, split_unit
 
     ch, q = {}, {}
     for name, v in sim.columns.items():
@@ -315,12 +315,12 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from host.commands._options import check_output_folder, printer
-    from host.errors import HostError
-    from host.kinematics.cfc_filter import cfc_coefficients
-    from host.kinematics.joints import joint_angles_yxz
-    from host.kinematics.morris_analysis import analyse_morris_recording
-    from host.kinematics.simulated_instruments import (
+    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
+    from gaitlog.host.kinematics.joints import joint_angles_yxz
+    from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
+    from gaitlog.host.kinematics.simulated_instruments import (
         simulate_hall,
         simulate_morris,
         write_instrument,
@@ -390,7 +390,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     say(f"  initial posture   {fmt3(np.degrees(joint_angles_yxz(result.joint_matrix_[0])[0]))} deg")
     from dataclasses import replace
 
-    from firmware_sim.budget import CONFIGURATIONS, instrument_fit
+    from gaitlog.firmware_sim.budget import CONFIGURATIONS, instrument_fit
 
     n_acc = len(morris.platform.sensors)
     n_rate = len(hall.platform.link_a.rate_sensors) + len(hall.platform.link_b.rate_sensors)
@@ -412,7 +412,7 @@ def run(args: argparse.Namespace) -> int:
     """Dispatch on the method (module notes)."""
     if args.method == "simulate":
         if args.recording is not None:
-            from host.errors import HostError
+            from gaitlog.host.errors import HostError
 
             raise HostError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
         return _run_simulate(args)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._anatomy_options import add_anatomy_options
-from host.commands._options import add_verbosity_options, number
+from gaitlog.host.commands._anatomy_options import add_anatomy_options
+from gaitlog.host.commands._options import add_verbosity_options, number
 
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
@@ -31,14 +31,14 @@ def run(args: argparse.Namespace) -> int:
     import re
     from pathlib import Path
 
-    from host.commands._anatomy_options import lengths_from_args
-    from host.commands._options import check_outputs, printer
-    from host.errors import HostError
-    from host.files.inputs import read_acceleration
-    from host.gait.k_calibration import KFit
-    from host.studies.overview import recording_overview
-    from host.studies.plots import render_overview_png
-    from protocol.atomic_write import atomic_write_bytes
+    from gaitlog.host.commands._anatomy_options import lengths_from_args
+    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.files.inputs import read_acceleration
+    from gaitlog.host.gait.k_calibration import KFit
+    from gaitlog.host.studies.overview import recording_overview
+    from gaitlog.host.studies.plots import render_overview_png
+    from gaitlog.protocol.atomic_write import atomic_write_bytes
 
     src = Path(args.input)
     out = Path(args.out) if args.out else src.with_suffix(".png")

@@ -2,7 +2,7 @@
 
 The logger runs its on-line step algorithm while logging (PROTOCOL.md 2.2, 2.3) unless ``--steps off``: the
 step configuration is written to the header before START, from ``--height`` / ``--leg-length`` /
-``--foot-length`` (:func:`host.gait.anthropometry.choose_lengths`: else a replayed IPOL trial's height, else a
+``--foot-length`` (:func:`gaitlog.host.gait.anthropometry.choose_lengths`: else a replayed IPOL trial's height, else a
 1.70 m adult, with a warning) and, with ``--k-file``, the calibrated constants of a ``gaitlog calibrate-k`` file (whose
 leg and foot lengths are the ones K was fitted with). Without K the device stores the raw values.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from host.commands._options import (
+from gaitlog.host.commands._options import (
     POSITIVE_M,
     SEED,
     UNIX_TIME_S,
@@ -23,7 +23,7 @@ from host.commands._options import (
 )
 
 if TYPE_CHECKING:
-    from host.files.inputs import AccelerationInput
+    from gaitlog.host.files.inputs import AccelerationInput
 
 HELP = ("record a motion (calibration poses, a simulated walk or a replayed recording) with the emulated logger, "
         "its on-line step algorithm on, to a memory image")
@@ -33,8 +33,8 @@ WALK_CORRIDOR_M = 20.0
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._input_options import add_input_options
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._input_options import add_input_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
                         help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
@@ -73,7 +73,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                             "step option, the image's own setting)")
     steps.add_argument("--height", type=POSITIVE_M, metavar="M",
                        help="body height of the wearer, m: leg and foot length are estimated from it when not given "
-                            "(Winter; ANSUR; host.gait.anthropometry; default: a 1.70 m adult, with a warning)")
+                            "(Winter; ANSUR; gaitlog.host.gait.anthropometry; default: a 1.70 m adult, with a warning)")
     steps.add_argument("--leg-length", type=POSITIVE_M, metavar="M", help="leg length (greater trochanter to floor), m")
     steps.add_argument("--foot-length", type=POSITIVE_M, metavar="M",
                        help="foot length heel to first metatarsal head (M3's S2), m")
@@ -86,8 +86,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def read_replayed(args: argparse.Namespace) -> AccelerationInput | None:
     """The file of ``--motion replay FILE`` (with the input flags), else None."""
-    from host.commands._input_options import read_input
-    from host.errors import HostError
+    from gaitlog.host.commands._input_options import read_input
+    from gaitlog.host.errors import HostError
 
     if args.motion[0] != "replay":
         return None
@@ -99,19 +99,19 @@ def read_replayed(args: argparse.Namespace) -> AccelerationInput | None:
 def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None):
     """The motion source named by ``--motion``; ``data``: the replayed file (:func:`read_replayed`), read here
     when not given."""
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     kind = args.motion[0]
     if kind == "poses":
         if len(args.motion) != 1:
             raise HostError("--motion poses takes no file")
-        from firmware_sim.world.poses import CalibrationPoses
+        from gaitlog.firmware_sim.world.poses import CalibrationPoses
 
         return CalibrationPoses(n_poses=args.poses, seed=args.seed)
     if kind == "replay":
         if len(args.motion) != 2:
             raise HostError("--motion replay needs exactly one FILE")
-        from firmware_sim.world.replay import Replay
+        from gaitlog.firmware_sim.world.replay import Replay
 
         data = data if data is not None else read_replayed(args)
         return Replay.from_samples(data.g(), data.valid, sampling_rate_hz=data.sampling_rate_hz, source=data.source,
@@ -119,10 +119,10 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
     if kind == "walk":
         if len(args.motion) != 1:
             raise HostError("--motion walk takes no file")
-        from firmware_sim.world.subject import Subject
-        from firmware_sim.world.walk_plan import WalkPlan
-        from firmware_sim.world.walking import Walking
-        from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
+        from gaitlog.firmware_sim.world.subject import Subject
+        from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+        from gaitlog.firmware_sim.world.walking import Walking
+        from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths
 
         height = DEFAULT_HEIGHT_M if args.height is None else args.height
         anatomical_lengths(height_m=height)  # range check, named
@@ -135,8 +135,8 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
 
 def _refuse_input_flags(args: argparse.Namespace) -> None:
     """Input flags describe a replayed file: an error with any other motion."""
-    from host.commands._input_options import given_input_flags
-    from host.errors import HostError
+    from gaitlog.host.commands._input_options import given_input_flags
+    from gaitlog.host.errors import HostError
 
     extra = given_input_flags(args)
     if args.motion[0] != "replay" and extra:
@@ -145,13 +145,13 @@ def _refuse_input_flags(args: argparse.Namespace) -> None:
 
 def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, data: AccelerationInput | None = None):
     """The step configuration the options ask for, and the warnings to print; the leg and foot lengths by
-    :func:`host.commands._anatomy_options.lengths_from_args` (``data``: the replayed input, whose IPOL height
+    :func:`gaitlog.host.commands._anatomy_options.lengths_from_args` (``data``: the replayed input, whose IPOL height
     counts when no option gives one).
 
     Returns
     -------
     config, warnings
-        A :class:`protocol.steps.StepConfig` (``StepConfig.off()`` with ``--steps off``), or None with
+        A :class:`gaitlog.protocol.steps.StepConfig` (``StepConfig.off()`` with ``--steps off``), or None with
         ``appending`` and no step option (the image keeps its own), and warning lines.
 
     Raises
@@ -160,10 +160,10 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
         A length out of its plausible range, an unreadable or foreign ``--k-file``, lengths that contradict
         the ``--k-file``'s, or K values the step configuration cannot store (the field is named).
     """
-    from host.commands._anatomy_options import lengths_from_args
-    from host.errors import HostError
-    from protocol.errors import ProtocolError
-    from protocol.steps import StepConfig, StepFormat
+    from gaitlog.host.commands._anatomy_options import lengths_from_args
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.errors import ProtocolError
+    from gaitlog.protocol.steps import StepConfig, StepFormat
 
     given = {name: getattr(args, name) for name in ("height", "leg_length", "foot_length", "k_file")
              if getattr(args, name) is not None}
@@ -173,7 +173,7 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
         return None, []
     k = None
     if args.k_file is not None:
-        from host.gait.k_calibration import KFit
+        from gaitlog.host.gait.k_calibration import KFit
 
         k = KFit.load(args.k_file)
     lengths = lengths_from_args(args, k=k, data=data)
@@ -222,8 +222,8 @@ def fit_to_memory(motion, logger, *, overwrite: bool, name: str):
     """
     import numpy as np
 
-    from firmware_sim.world.base import Motion
-    from host.errors import HostError
+    from gaitlog.firmware_sim.world.base import Motion
+    from gaitlog.host.errors import HostError
 
     n = motion.acc_g.shape[0]
     rate = float(motion.sampling_rate_hz)
@@ -258,14 +258,14 @@ def instrument_paths(out) -> dict[str, object]:
 
 def run_instrument(args: argparse.Namespace) -> int:
     """``record --motion morris|hall``: the instrument through sensor -> ADC -> memory, refused where the
-    PIC16F877 cannot record it (:func:`host.kinematics.logger_instruments.check_fits`)."""
+    PIC16F877 cannot record it (:func:`gaitlog.host.kinematics.logger_instruments.check_fits`)."""
     import sys
     import time
 
-    from host.commands._options import check_outputs, verbosity
-    from host.errors import HostError
-    from host.kinematics.logger_instruments import record_instrument
-    from host.kinematics.sensor_csv import write_sensor_csv
+    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.kinematics.logger_instruments import record_instrument
+    from gaitlog.host.kinematics.sensor_csv import write_sensor_csv
 
     kind = args.motion[0]
     if len(args.motion) != 1:
@@ -305,11 +305,11 @@ def run(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from firmware_sim.device import Logger
-    from firmware_sim.sensor import SensorModel
-    from host.commands._options import check_outputs, verbosity
-    from host.errors import HostError
-    from host.kinematics.logger_instruments import INSTRUMENTS
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.sensor import SensorModel
+    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.kinematics.logger_instruments import INSTRUMENTS
 
     if args.motion[0] in INSTRUMENTS:
         return run_instrument(args)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.commands._options import BAUD, TCP_PORT, add_verbosity_options, verbosity
+from gaitlog.host.commands._options import BAUD, TCP_PORT, add_verbosity_options, verbosity
 
 HELP = ("serve a memory image as a live logger (its header's step configuration included) on a pty (prints its path) "
         "or a TCP port, until Ctrl-C")
@@ -30,19 +30,19 @@ def run(args: argparse.Namespace) -> int:
     import sys
     import time
 
-    from firmware_sim.algorithms.online import load_kernels
-    from firmware_sim.device import Logger
+    from gaitlog.firmware_sim.algorithms.online import load_kernels
+    from gaitlog.firmware_sim.device import Logger
 
     logger = Logger.from_image(args.image, image_path=args.image) if args.persist else Logger.from_image(args.image)
     if logger.header.step_config.enabled:
         load_kernels()          # a START over the port must not wait for a compilation
     if args.tcp is not None:
-        from firmware_sim.transport import serve_tcp
+        from gaitlog.firmware_sim.transport import serve_tcp
 
         server = serve_tcp(logger, port=args.tcp, baud=args.baud, wire_time=args.wire_time)
     else:
         # POSIX only (tty): not imported for --tcp
-        from firmware_sim.pty_server import serve_pty
+        from gaitlog.firmware_sim.pty_server import serve_pty
 
         server = serve_pty(logger, baud=args.baud, wire_time=args.wire_time)
     def _interrupt(signum, frame):  # SIGTERM (and SIGINT even when a shell started us in the background)

@@ -17,7 +17,7 @@ HELP = "write simulated walks as recordings (IPOL lower-back layout) for other t
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._options import SEED, add_verbosity_options, whole
+    from gaitlog.host.commands._options import SEED, add_verbosity_options, whole
 
     parser.add_argument("--ipol-out", metavar="DIR", required=True,
                         help="folder to write <subject>-<trial>_lb.txt and .json into (created if missing)")
@@ -35,10 +35,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from host.commands._options import check_output_folder, printer
-    from host.commands._progress import progress_bar
-    from host.errors import HostError
-    from host.studies.simulation import export_ipol
+    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.studies.simulation import export_ipol
 
     out = Path(args.ipol_out)
     check_output_folder("--ipol-out", out)

@@ -1,5 +1,5 @@
 """``gaitlog sweep``: a grid over ADC bits x logger rate x sensor noise x Q formats x mounting misalignment x
-simulated population x subjects x seeds (:mod:`host.studies.sweep_grid`), run as independent tasks on Dask (a local cluster by default, ``--scheduler``
+simulated population x subjects x seeds (:mod:`gaitlog.host.studies.sweep_grid`), run as independent tasks on Dask (a local cluster by default, ``--scheduler``
 for an existing one) or in this process (``--serial``); resumable.
 
 Everything goes to the ``--out`` folder: ``tasks/`` (one JSON file per finished task: a re-run with the same
@@ -7,7 +7,7 @@ Everything goes to the ``--out`` folder: ``tasks/`` (one JSON file per finished 
 x subject x 20 m section x calibration mode x estimator), ``splits.csv`` (per-step error split per
 configuration x subject x estimator), ``tasks.csv`` (timing error, saturation), ``summary.csv``, the answers
 ``smallest_bits.csv``, ``smallest_q_formats.csv`` and ``m5_rate.csv``, and ``figures/error_vs_<dimension>.png``
-for each swept dimension (:mod:`host.studies.sweep_figures`). The results do not depend on where or in which
+for each swept dimension (:mod:`gaitlog.host.studies.sweep_figures`). The results do not depend on where or in which
 order the tasks ran.
 """
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
-from host.commands._options import SEED, number, whole
+from gaitlog.host.commands._options import SEED, number, whole
 
 #: Larger summary tables are only written (and printed with -v).
 MAX_PRINTED_ROWS = 60
@@ -51,7 +51,7 @@ def _estimator(text: str) -> str:
 
 
 def _q_formats(text: str) -> str:
-    from firmware_sim.algorithms.format_kernel import KernelFormats
+    from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 
     try:
         return KernelFormats.parse(text).label()
@@ -59,12 +59,12 @@ def _q_formats(text: str) -> str:
         raise argparse.ArgumentTypeError(str(err)) from None
 
 
-#: The estimators' names (as :data:`firmware_sim.algorithms.steps.ESTIMATORS`; not imported: --help stays light).
+#: The estimators' names (as :data:`gaitlog.firmware_sim.algorithms.steps.ESTIMATORS`; not imported: --help stays light).
 ESTIMATOR_NAMES = ("M1", "M2", "M3", "M4", "M5")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="results folder (created; re-running with the same folder resumes)")
@@ -84,7 +84,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     grid.add_argument("--misalignment", type=_list(number(minimum=-45, maximum=45, unit="degrees")), metavar="DEG,DEG",
                       help="extra mounting tilt of the logger (pitch), degrees (negative: --misalignment=-5,0,5)")
     grid.add_argument("--population", type=_list(str), metavar="P,P",
-                      help="simulated populations (firmware_sim.world.walk_plan.POPULATION_PLANS: v1, people...)")
+                      help="simulated populations (gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS: v1, people...)")
     grid.add_argument("--subjects", type=whole(minimum=1, maximum=1000), metavar="N", help="simulated subjects per seed")
     grid.add_argument("--seeds", type=_list(SEED), metavar="S,S", help="seeds of the subject draws")
     grid.add_argument("--estimators", type=_list(_estimator), metavar="M1,M2", help="estimators kept (default all)")
@@ -103,12 +103,12 @@ def run(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from host.commands._options import check_output_folder, printer
-    from host.commands._progress import progress_bar
-    from host.errors import HostError
-    from host.studies.compare import rows_csv_text
-    from host.studies.sweep_figures import figure_dimensions, render_error_vs_png
-    from host.studies.sweep_grid import (
+    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.commands._progress import progress_bar
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.studies.compare import rows_csv_text
+    from gaitlog.host.studies.sweep_figures import figure_dimensions, render_error_vs_png
+    from gaitlog.host.studies.sweep_grid import (
         SECTION_COLUMNS,
         SPLIT_COLUMNS,
         SUMMARY_COLUMNS,
@@ -123,8 +123,8 @@ def run(args: argparse.Namespace) -> int:
         smallest_q_formats,
         summarise,
     )
-    from host.studies.task_store import TaskStore, run_serial
-    from protocol.atomic_write import atomic_write_bytes, atomic_write_text
+    from gaitlog.host.studies.task_store import TaskStore, run_serial
+    from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
     if args.serial and args.scheduler:
         raise HostError("--serial and --scheduler exclude each other")
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
             computed = run_serial(run_task, tasks, store, progress=tick)
             where = "this process"
         else:
-            from host.studies.dask_runner import run_on_dask
+            from gaitlog.host.studies.dask_runner import run_on_dask
 
             computed = run_on_dask(run_task, tasks, store, scheduler=args.scheduler, workers=args.workers,
                                    progress=tick, on_start=lambda w: detail(f"running on {w}"))
@@ -209,7 +209,7 @@ def _check_scheduler(scheduler: str) -> None:
     import json
     from pathlib import Path
 
-    from host.errors import HostError
+    from gaitlog.host.errors import HostError
 
     if "://" in scheduler:
         proto, _, rest = scheduler.partition("://")

@@ -1,14 +1,14 @@
-"""Decode a memory image, a raw XMODEM dump or a raw wire capture into a :class:`~host.files.recording.Recording`.
+"""Decode a memory image, a raw XMODEM dump or a raw wire capture into a :class:`~gaitlog.host.files.recording.Recording`.
 
-Three inputs (``protocol.image.detect_format`` tells them apart):
+Three inputs (``gaitlog.protocol.image.detect_format`` tells them apart):
 
 ``image``
     A ``.glimg`` memory-image file (``PROTOCOL.md`` section 6), as written by the emulator and by
     ``gaitlog dump``. Each 1024-byte block is used only when its CRC-32 matches (shifted blocks are recovered
-    by ``protocol.image.parse_image``); blocks marked missing or never found are reported as gaps.
+    by ``gaitlog.protocol.image.parse_image``); blocks marked missing or never found are reported as gaps.
 ``raw``
     The file an XMODEM receiver (``rx``) writes after XDUMP (section 5): the 256-byte header, then the memory
-    from address 0, then the check trailer (``protocol.raw_dump``), padded with 0x1A. Each 256-byte chunk is
+    from address 0, then the check trailer (``gaitlog.protocol.raw_dump``), padded with 0x1A. Each 256-byte chunk is
     used only when its CRC-32 in the trailer matches (shifted chunks are found again); samples of damaged
     chunks or beyond the end of a short file are reported missing. A raw dump without its trailer (older
     firmware, or an end cut off) cannot be verified: its samples are reported missing, and a warning and the
@@ -24,10 +24,10 @@ received intact: the decoder never invents a sample.
 
 Per-step records (``PROTOCOL.md`` 2.3) come the same way: from the step memory of an image of version 2, the
 step part of a raw dump (after the sample part, ``20 · n`` bytes), and the DATA frames of a capture at the
-step addresses (``protocol.steps.STEP_ADDRESS_BASE`` +). The stored records are put in ring order
+step addresses (``gaitlog.protocol.steps.STEP_ADDRESS_BASE`` +). The stored records are put in ring order
 (``DeviceHeader.step_slots``) and a record is used only when all 20 of its bytes were received intact and its
 CRC-16 matches; the others are dropped, never repaired, and reported as ``Recording.step_losses`` runs with
-the reason (:data:`STEP_REASONS`), in a note and in a warning. :func:`host.files.replay.verify_step_records`
+the reason (:data:`STEP_REASONS`), in a note and in a warning. :func:`gaitlog.host.files.replay.verify_step_records`
 checks the used records against the host's replay of the device's algorithm.
 """
 
@@ -40,13 +40,13 @@ from pathlib import Path
 
 import numpy as np
 
-from host.errors import HostError
-from host.files.recording import RecordGap, Recording, gaps_from_mask
-from protocol.commit_journal import torn_step_records
-from protocol.crc import crc16_xmodem, crc32
-from protocol.errors import ProtocolError
-from protocol.frames import SYNC, FrameType, parse_stream
-from protocol.header import (
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.recording import RecordGap, Recording, gaps_from_mask
+from gaitlog.protocol.commit_journal import torn_step_records
+from gaitlog.protocol.crc import crc16_xmodem, crc32
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import SYNC, FrameType, parse_stream
+from gaitlog.protocol.header import (
     HEADER_SIZE,
     MAGIC,
     PAGE_SAMPLES,
@@ -54,10 +54,10 @@ from protocol.header import (
     HeaderFlag,
     crc_span,
 )
-from protocol.image import detect_format, parse_image
-from protocol.packing import unpack_words
-from protocol.raw_dump import parse_raw_dump
-from protocol.steps import (
+from gaitlog.protocol.image import detect_format, parse_image
+from gaitlog.protocol.packing import unpack_words
+from gaitlog.protocol.raw_dump import parse_raw_dump
+from gaitlog.protocol.steps import (
     ONLINE_ALGORITHM_VERSION,
     STEP_RECORD_DTYPE,
     STEP_RECORD_SIZE,
@@ -494,7 +494,7 @@ def _assemble_steps(header, step_memory: np.ndarray, byte_ok: np.ndarray, byte_r
     Returns
     -------
     records, numbers, losses
-        The usable records (:data:`~protocol.steps.STEP_RECORD_DTYPE`, ring order), their absolute record
+        The usable records (:data:`~gaitlog.protocol.steps.STEP_RECORD_DTYPE`, ring order), their absolute record
         numbers, and the runs of dropped records with their reason. A note (and a warning) counts the drops.
     """
     n = int(header.n_steps_stored)

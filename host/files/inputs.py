@@ -3,11 +3,11 @@
 Accepted inputs (detected from the bytes, not trusted from the name)
 --------------------------------------------------------------------
 * **Logger files** -- a memory image (``GLIM``), a raw XMODEM dump (``GLOG``) or a wire capture
-  (:func:`host.files.decode.decode_file`), and the ``.npz`` of ``gaitlog decode``
-  (:meth:`host.files.recording.Recording.load`). Counts become g with ``calibration`` (``gaitlog calibrate``),
+  (:func:`gaitlog.host.files.decode.decode_file`), and the ``.npz`` of ``gaitlog decode``
+  (:meth:`gaitlog.host.files.recording.Recording.load`). Counts become g with ``calibration`` (``gaitlog calibrate``),
   else the header's calibration slot, else the nominal map; missing samples stay missing; MARK flags are the
   lap marks.
-* **IPOL lower-back layout** (:mod:`host.files.ipol`): a ``<s>-<t>_lb.txt`` file, its ``<s>-<t>.json``, or a
+* **IPOL lower-back layout** (:mod:`gaitlog.host.files.ipol`): a ``<s>-<t>_lb.txt`` file, its ``<s>-<t>.json``, or a
   folder holding exactly one trial (directly or in ``GaitData/``). Lost packets are missing samples.
 * **CSV** (``,``, ``;`` or tab): any column order. The data start at the first line with at least three numbers
   (after ``skip_rows`` lines; ``#`` lines are comments); the non-empty line just before it, with as many
@@ -23,7 +23,7 @@ Nothing is interpolated here: a missing sample is NaN in ``acc_g`` and False in 
 
 A text file larger than :data:`STREAM_TEXT_BYTES` is parsed line by line from the file, never held whole: the
 memory is the parsed table (``rows`` x ``columns`` float64, the rows checked against
-:data:`~host.files.limits.MAX_INPUT_SAMPLES` as they come), not the text and its list of lines.
+:data:`~gaitlog.host.files.limits.MAX_INPUT_SAMPLES` as they come), not the text and its list of lines.
 """
 
 from __future__ import annotations
@@ -36,21 +36,21 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.accelerometer.calibration import AccCalibration
-from host.errors import HostError
-from host.files.decode import decode_bytes
-from host.files.ipol import IpolTrial, list_trials, read_trial
-from host.files.limits import (
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.accelerometer.calibration import AccCalibration
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.host.files.ipol import IpolTrial, list_trials, read_trial
+from gaitlog.host.files.limits import (
     MAX_INPUT_SAMPLES,
     MAX_TEXT_BYTES,
     check_file_size,
     check_samples,
 )
-from host.files.recording import Recording
-from protocol.errors import ProtocolError
-from protocol.image import detect_format
-from protocol.packing import FLAG_MARK
+from gaitlog.host.files.recording import Recording
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.image import detect_format
+from gaitlog.protocol.packing import FLAG_MARK
 
 __all__ = ["STREAM_TEXT_BYTES", "UNITS", "AccelerationInput", "parse_columns", "read_acceleration"]
 
@@ -408,7 +408,7 @@ def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: lis
                 header: list[str]) -> np.ndarray:
     """The ``want`` columns of the data lines (line ``start`` on; blank and ``#`` lines skipped) as float64, NaN
     for an empty cell; filled a block of rows at a time, the rows bounded by
-    :data:`~host.files.limits.MAX_INPUT_SAMPLES` before each block is allocated."""
+    :data:`~gaitlog.host.files.limits.MAX_INPUT_SAMPLES` before each block is allocated."""
     blocks: list[np.ndarray] = []
     block = np.full((_ROWS_PER_BLOCK, len(want)), np.nan)
     k = 0

@@ -25,15 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.errors import HostError
-from host.files.limits import (
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.limits import (
     MAX_JSON_BYTES,
     MAX_TEXT_BYTES,
     check_file_size,
     check_samples,
 )
-from protocol.atomic_write import atomic_write
+from gaitlog.protocol.atomic_write import atomic_write
 
 #: Rate of the IPOL lower-back files (Xsens MTw packets), and of the trials :func:`write_trial` writes.
 IPOL_SAMPLING_RATE_HZ = 100.0
@@ -52,7 +52,7 @@ class IpolTrial:
     subject, trial
         Identifiers from the file name ``<subject>-<trial>``.
     acc_g
-        ``(n, 3)`` specific force in g (file's ``Acc_X..Z`` divided by :data:`~firmware_sim.world.base.STANDARD_GRAVITY_M_S2`), NaN at lost packets.
+        ``(n, 3)`` specific force in g (file's ``Acc_X..Z`` divided by :data:`~gaitlog.firmware_sim.world.base.STANDARD_GRAVITY_M_S2`), NaN at lost packets.
     valid
         ``(n,)`` bool, False at lost packets.
     sampling_rate_hz
@@ -222,7 +222,7 @@ def list_trials(folder: str | Path) -> list[Path]:
 
 def height_m_of(meta: dict) -> float | None:
     """The subject's height in metres from a trial JSON's ``Height`` (cm); None when absent, not a number or not
-    positive (a height outside the plausible range is left to :func:`host.gait.anthropometry.anatomical_lengths`
+    positive (a height outside the plausible range is left to :func:`gaitlog.host.gait.anthropometry.anatomical_lengths`
     to refuse, naming it)."""
     h = meta.get("Height")
     try:

@@ -1,9 +1,9 @@
 """How much the host reads from one input file: checked *before* allocating, so that a small hostile file (a CSV
 with a 2 x 10^5 s time gap, a zip bomb inside an NPZ, a ``.npy`` header claiming terabytes) is a one-line
-:class:`~host.errors.HostError` naming the file, not a crash or gigabytes of memory.
+:class:`~gaitlog.host.errors.HostError` naming the file, not a crash or gigabytes of memory.
 
 The bounds hold every genuine input with room to spare: the emulated logger stores at most
-:data:`protocol.header.MAX_CAPACITY_SAMPLES` (2^20) samples; :data:`MAX_INPUT_SAMPLES` is 2^22 (23 h at 50 Hz,
+:data:`gaitlog.protocol.header.MAX_CAPACITY_SAMPLES` (2^20) samples; :data:`MAX_INPUT_SAMPLES` is 2^22 (23 h at 50 Hz,
 11.6 h at 100 Hz), 100 MB per ``(n, 3)`` float64 array, so that reading stays well under 500 MB.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from host.errors import HostError
+from gaitlog.host.errors import HostError
 
 __all__ = ["MAX_INPUT_SAMPLES", "MAX_JSON_BYTES", "MAX_TEXT_BYTES", "check_file_size", "check_samples"]
 
@@ -30,7 +30,7 @@ def check_samples(n_samples: int, source: object, what: str = "") -> None:
     >>> check_samples(200_000_001, "gap.csv", "line 5: a time gap of 200000 s")
     Traceback (most recent call last):
     ...
-    host.errors.HostError: gap.csv: line 5: a time gap of 200000 s: the input would hold 200000001 samples, more than the 4194304 one input may hold; split it or check the times
+    gaitlog.host.errors.HostError: gap.csv: line 5: a time gap of 200000 s: the input would hold 200000001 samples, more than the 4194304 one input may hold; split it or check the times
     """
     if n_samples > MAX_INPUT_SAMPLES:
         raise HostError(f"{source}: {what + ': ' if what else ''}the input would hold {n_samples} samples, more than "

@@ -1,6 +1,6 @@
 """A matplotlib figure as PNG: rendered to bytes, or written atomically (whole file or nothing).
 
-The one place both figure modules (:mod:`host.studies.plots`, :mod:`host.kinematics.plots`) turn a
+The one place both figure modules (:mod:`gaitlog.host.studies.plots`, :mod:`gaitlog.host.kinematics.plots`) turn a
 :class:`matplotlib.figure.Figure` into a file: no pyplot, no global backend.
 """
 
@@ -11,7 +11,7 @@ import os
 
 from matplotlib.figure import Figure
 
-from protocol.atomic_write import atomic_write_bytes
+from gaitlog.protocol.atomic_write import atomic_write_bytes
 
 __all__ = ["figure_png_bytes", "write_figure_png"]
 
@@ -25,5 +25,5 @@ def figure_png_bytes(fig: Figure, *, dpi: int) -> bytes:
 
 
 def write_figure_png(fig: Figure, path: str | os.PathLike[str], *, dpi: int) -> None:
-    """Write ``fig`` to ``path`` as PNG, atomically (:func:`protocol.atomic_write.atomic_write_bytes`)."""
+    """Write ``fig`` to ``path`` as PNG, atomically (:func:`gaitlog.protocol.atomic_write.atomic_write_bytes`)."""
     atomic_write_bytes(path, figure_png_bytes(fig, dpi=dpi))

@@ -1,6 +1,6 @@
 """A decoded recording of the logger: raw counts, validity, flags, sample numbers, gaps and header.
 
-A :class:`Recording` is what :mod:`host.files.decode` returns for a memory image, a raw XMODEM dump or a wire
+A :class:`Recording` is what :mod:`gaitlog.host.files.decode` returns for a memory image, a raw XMODEM dump or a wire
 capture, and what every later stage (calibration, orientation, gait events, estimators) takes as input.
 
 Rows and gaps
@@ -38,12 +38,12 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-from host.errors import HostError
-from protocol.atomic_write import atomic_write, atomic_write_text
-from protocol.channel_map import ChannelMap
-from protocol.header import MAX_CAPACITY_SAMPLES, CalibrationSlot, DeviceHeader
-from protocol.steps import (
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.host.errors import HostError
+from gaitlog.protocol.atomic_write import atomic_write, atomic_write_text
+from gaitlog.protocol.channel_map import ChannelMap
+from gaitlog.protocol.header import MAX_CAPACITY_SAMPLES, CalibrationSlot, DeviceHeader
+from gaitlog.protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
     STEP_RECORD_DTYPE,
@@ -170,7 +170,7 @@ class Recording:
     start_time_s
         Unix time (UTC, s) of sample number 0 (the header's ``start_time_s``).
     header
-        The device header the samples were decoded with (``protocol.header.DeviceHeader``), or None.
+        The device header the samples were decoded with (``gaitlog.protocol.header.DeviceHeader``), or None.
     gaps
         Every run of missing samples, with its reason.
     adc_bits
@@ -180,7 +180,7 @@ class Recording:
     notes
         Human-readable remarks of the decoder (recovered shifts, conversion used, ...).
     step_records
-        ``(m,)`` :data:`protocol.steps.STEP_RECORD_DTYPE`: the device's per-step records that were received
+        ``(m,)`` :data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`: the device's per-step records that were received
         intact with a matching CRC, in ring order (oldest first), byte for byte as stored.
     step_record_numbers
         ``(m,)`` int64 absolute record numbers of ``step_records`` (increasing; a jump is a loss).
@@ -289,7 +289,7 @@ class Recording:
 
     @property
     def step_config(self) -> Any:
-        """The header's step configuration (``protocol.steps.StepConfig``), or None without a header."""
+        """The header's step configuration (``gaitlog.protocol.steps.StepConfig``), or None without a header."""
         return getattr(self.header, "step_config", None)
 
     @property
@@ -338,7 +338,7 @@ class Recording:
         Parameters
         ----------
         calibration
-            Object with ``apply(counts) -> g`` (``protocol.header.CalibrationSlot``, ``host.accelerometer.calibration.
+            Object with ``apply(counts) -> g`` (``gaitlog.protocol.header.CalibrationSlot``, ``gaitlog.host.accelerometer.calibration.
             AccCalibration``); default: the header's calibration slot, else the nominal ±2 g map.
         """
         self._refuse_channel_map()

@@ -1,6 +1,6 @@
 """Replay the logger's on-line step algorithm on dumped codes, and check the device's records bit for bit.
 
-The firmware runs :class:`firmware_sim.algorithms.online.OnlineStepAlgorithm` (fixed point) on every
+The firmware runs :class:`gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm` (fixed point) on every
 sample it stores and keeps one 20-byte record per foot-flat (PROTOCOL.md 2.3). The host has the same
 samples and the same configuration (the header: sampling rate, ADC width, calibration slot, step
 configuration), so it can run the same algorithm and must get the same records, byte for byte. A
@@ -25,14 +25,14 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
-from firmware_sim.algorithms.steps import StepTable
-from firmware_sim.firmware import step_algorithm_for
-from host.errors import HostError
-from host.files.recording import Recording
-from protocol.errors import ProtocolError
-from protocol.packing import FLAG_SESSION_START
-from protocol.steps import (
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.steps import StepTable
+from gaitlog.firmware_sim.firmware import step_algorithm_for
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.recording import Recording
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.packing import FLAG_SESSION_START
+from gaitlog.protocol.steps import (
     ALGORITHM_VERSIONS,
     ONLINE_ALGORITHM_VERSION,
     STEP_RECORD_DTYPE,
@@ -65,7 +65,7 @@ class ReplayCheck:
     Attributes
     ----------
     replay
-        The replayed records (:data:`protocol.steps.STEP_RECORD_DTYPE`, CRC set), every replayable run.
+        The replayed records (:data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`, CRC set), every replayable run.
     runs
         One :class:`RunCheck` per logging run found in the samples.
     n_device
@@ -82,7 +82,7 @@ class ReplayCheck:
         are unknown (stored, but dropped by the decoder: ``unknown_end_samples`` of :func:`check_records`).
     algorithm_version
         The header's ``step_format``: the on-line algorithm version that wrote the records. Only
-        :data:`protocol.steps.ONLINE_ALGORITHM_VERSION`'s are replayed; an older version's are not compared.
+        :data:`gaitlog.protocol.steps.ONLINE_ALGORITHM_VERSION`'s are replayed; an older version's are not compared.
     """
 
     replay: np.ndarray
@@ -286,7 +286,7 @@ def verify_step_records(recording: Recording) -> ReplayCheck | None:
 def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
     """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
 
-    ``calibration`` is a :class:`~host.gait.k_calibration.KFit` (K applied by the algorithm, in
+    ``calibration`` is a :class:`~gaitlog.host.gait.k_calibration.KFit` (K applied by the algorithm, in
     its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
     when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
     """
@@ -314,9 +314,9 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     codes
         ``(n, 3)`` ADC codes (``adc_bits`` bits).
     calibration
-        :class:`~host.gait.k_calibration.KFit` (the one K of the comparison) or None (raw).
+        :class:`~gaitlog.host.gait.k_calibration.KFit` (the one K of the comparison) or None (raw).
     adc_calibration
-        The device calibration (a :class:`protocol.header.CalibrationSlot`) or None for the nominal map.
+        The device calibration (a :class:`gaitlog.protocol.header.CalibrationSlot`) or None for the nominal map.
     arithmetic
         ``"fixed"`` (the logger's) or ``"float"``.
     valid, run_starts

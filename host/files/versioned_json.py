@@ -2,7 +2,7 @@
 
 Every such file holds ``"cal_type"`` (the schema name, e.g. ``"gaitlog.KCalibration"``) and
 ``"format_version"`` (``"major.minor"``) beside the result's own keys. :class:`VersionedJson` writes it
-atomically (whole file or nothing, :func:`protocol.atomic_write.atomic_write_text`) and reads it back with
+atomically (whole file or nothing, :func:`gaitlog.protocol.atomic_write.atomic_write_text`) and reads it back with
 one-line errors naming the file and the key: not JSON, another kind of file, a version this gaitlog does
 not read (newer: update gaitlog; older: redo the calibration), a bad field (the subclass's
 :meth:`VersionedJson.fields_from_dict`).
@@ -22,7 +22,7 @@ Offset(offset_g=0.5)
 >>> Offset.from_json('{"cal_type": "example.Offset", "format_version": "2.0", "offset_g": 1}', source="o.json")
 Traceback (most recent call last):
 ...
-host.errors.HostError: o.json: key 'format_version': this gaitlog reads version '1.0', the file has '2.0' (written by a newer gaitlog: update gaitlog)
+gaitlog.host.errors.HostError: o.json: key 'format_version': this gaitlog reads version '1.0', the file has '2.0' (written by a newer gaitlog: update gaitlog)
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ import os
 from pathlib import Path
 from typing import Any, ClassVar, Self
 
-from host.errors import HostError
-from host.files.limits import MAX_JSON_BYTES, check_file_size
-from protocol.atomic_write import atomic_write_text
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.limits import MAX_JSON_BYTES, check_file_size
+from gaitlog.protocol.atomic_write import atomic_write_text
 
 __all__ = ["VersionedJson"]
 

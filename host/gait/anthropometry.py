@@ -27,13 +27,13 @@ from __future__ import annotations
 import warnings
 from typing import NamedTuple
 
-from firmware_sim.world.subject import (
+from gaitlog.firmware_sim.world.subject import (
     BALL_OF_FOOT_PER_FOOT_LENGTH,
     FOOT_LENGTH_PER_HEIGHT,
     HEEL_TOE_LENGTH_PER_HEIGHT,
     LEG_LENGTH_PER_HEIGHT,
 )
-from host.errors import HostError
+from gaitlog.host.errors import HostError
 
 __all__ = ["BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT", "HEEL_TOE_LENGTH_PER_HEIGHT",
            "LEG_LENGTH_PER_HEIGHT", "LENGTH_MODEL", "LENGTH_SOURCES", "AnatomyChoice", "anatomical_lengths",

@@ -7,12 +7,12 @@ Notes
    first harmonic of its vertical acceleration is highest and its vertical velocity is zero: the instant
    Alvarez et al. reset the integrals at ("foot-flat, where the vertical velocity of the body is null").
    Peaks must be ``min_step_s`` apart (cadence at most 240 steps/min) and stand out by the prominence of
-   :mod:`firmware_sim.algorithms.parameters`: ``prominence_fraction`` of the walk's recent step amplitude,
+   :mod:`gaitlog.firmware_sim.algorithms.parameters`: ``prominence_fraction`` of the walk's recent step amplitude,
    at least ``min_prominence_m_s2`` and at most ``max_prominence_m_s2``, the cap also before the first step
    (by default 0.25 and 0.5 m/s^2: a 1 cm CoM excursion at 1.6 steps/s already gives ~1.5 m/s^2 peak to
    trough, so brisk walking stays at the cap; slow 0.3 m steps rise 0.3-0.8 m/s^2 and get the floor). The
    amplitude follows the accepted peaks in time order, as the on-line algorithm's does. Only a peak above
-   zero is a foot-flat, as in the on-line algorithm (version 2, :mod:`firmware_sim.algorithms.kernel` step
+   zero is a foot-flat, as in the on-line algorithm (version 2, :mod:`gaitlog.firmware_sim.algorithms.kernel` step
    5): in double support the centre of mass is accelerated upward; a peak at or below zero is a ripple of
    the single support. The minimum distance is applied to
    these candidates only (:func:`foot_flat_candidates`), the higher of two kept, as the on-line algorithm's
@@ -41,7 +41,7 @@ Notes
    step. After each foot-flat, the first peak ``stop_prominence_m_s2`` prominent between the minimum
    distance and three times it (about two typical steps) later is one more foot-flat when no foot-flat
    follows it within ``max_step_s`` (:func:`stop_steps`; the on-line algorithm's weak pending foot-flat,
-   :mod:`firmware_sim.algorithms.kernel` step 5).
+   :mod:`gaitlog.firmware_sim.algorithms.kernel` step 5).
 
 All indices are sample indices of the input. Samples marked invalid are never used (the filters are
 normalised convolutions over measured samples only).
@@ -54,15 +54,15 @@ from typing import Self
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import (
+from gaitlog.firmware_sim.algorithms.parameters import (
     EventParameters,
     amplitude_update,
     minimum_distance,
     prominence_threshold,
     samples,
 )
-from host.gait.masked_filter import masked_gaussian_lowpass
-from host.gait.peaks import find_peaks, keep_by_distance
+from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
+from gaitlog.host.gait.peaks import find_peaks, keep_by_distance
 
 
 class GaitEventDetector:
@@ -72,7 +72,7 @@ class GaitEventDetector:
     ----------
     parameters
         The rules shared with the firmware's on-line algorithm
-        (:class:`firmware_sim.algorithms.parameters.EventParameters`: cut-offs, step limits, prominence,
+        (:class:`gaitlog.firmware_sim.algorithms.parameters.EventParameters`: cut-offs, step limits, prominence,
         search windows, heel-strike delay, the second pass's fraction of the median step).
     max_gap_s
         Longest run of missing samples a step may contain (0.1 s); longer gaps split bouts.
@@ -82,8 +82,8 @@ class GaitEventDetector:
         still rests on several measured samples of the same step phase).
 
     Every duration becomes a whole number of samples by the one rounding rule of both chains
-    (:func:`firmware_sim.algorithms.parameters.samples`, half up), and the second pass's distance is the
-    shared integer rule (:func:`firmware_sim.algorithms.parameters.minimum_distance`).
+    (:func:`gaitlog.firmware_sim.algorithms.parameters.samples`, half up), and the second pass's distance is the
+    shared integer rule (:func:`gaitlog.firmware_sim.algorithms.parameters.minimum_distance`).
 
     Attributes
     ----------
@@ -200,14 +200,14 @@ class GaitEventDetector:
 def foot_flat_candidates(sig: np.ndarray, parameters: EventParameters) -> np.ndarray:
     """The peaks of ``sig`` (the first harmonic, m/s^2) that may be foot-flats (module notes 1): prominent by
     the threshold in force, ``min(cap, max(floor, fraction · A))``, the cap before the first accepted peak
-    (:func:`firmware_sim.algorithms.parameters.prominence_threshold`), and above zero. The minimum distance
+    (:func:`gaitlog.firmware_sim.algorithms.parameters.prominence_threshold`), and above zero. The minimum distance
     is applied to these candidates only, as the on-line algorithm lets only confirmed peaks compete: a
     nearby local maximum too weak to be a foot-flat cannot suppress one that is.
 
     ``A`` follows the peaks in time order as the on-line algorithm's hysteresis does: a peak (every local
     maximum at least ``min_prominence_m_s2`` prominent, no distance rule) is accepted when its prominence
     reaches the threshold in force, and then updates ``A`` with its rise from the lowest point since the
-    previous accepted peak (:func:`firmware_sim.algorithms.parameters.amplitude_update`). A loop over the
+    previous accepted peak (:func:`gaitlog.firmware_sim.algorithms.parameters.amplitude_update`). A loop over the
     peaks, not the samples.
 
     Returns
@@ -267,7 +267,7 @@ def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray, *
     missing samples (``~ok``) between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
     and ``to`` are the heel-strike before and the toe-off after each foot-flat (``-1`` = none); a step's
     toe-off that does not precede its heel-strike is impossible and becomes ``-1``. (The on-line
-    algorithm links its steps as it finds them, :mod:`firmware_sim.algorithms.kernel`.)
+    algorithm links its steps as it finds them, :mod:`gaitlog.firmware_sim.algorithms.kernel`.)
 
     Returns
     -------

@@ -19,20 +19,20 @@ M4's acceleration range, and the calibrated lengths of M1, M2, M4 and M5), and :
 says, per step of another walk and per estimator, when the step lies outside it (its K is then an
 extrapolation: another speed, another step length). The commands write it as a column and count it.
 
-:class:`KFit` saves/loads itself as versioned JSON (:class:`host.files.versioned_json.VersionedJson`,
+:class:`KFit` saves/loads itself as versioned JSON (:class:`gaitlog.host.files.versioned_json.VersionedJson`,
 ``format_version`` "1.3"; a "1.0" file, written before the calibrated range was stored, is read with
 ``calibrated_range`` None: nothing can then be said about the range; "1.0" and "1.1" files, written before
 M4's exponent was stored, are read with ``m4_exponent`` 1/4, Weinberg's, which they were fitted with;
 files before "1.3" have no ``shrinkage``: their K is the fitted one).
 
 *Shrinkage.* A K fitted on one short walk may be shrunk toward the K of a population
-(:meth:`host.gait.k_prior.KPrior.shrink`); ``shrinkage`` then records the fitted K, the population K and the
+(:meth:`gaitlog.host.gait.k_prior.KPrior.shrink`); ``shrinkage`` then records the fitted K, the population K and the
 weights, and K is the shrunk one.
 
 *M4's exponent.* ``k_m4`` is in m / (m/s^2)^p: it holds for the exponent it was fitted with
-(``m4_exponent``). The offline chain applies it with that exponent (:func:`host.gait.pipeline.
+(``m4_exponent``). The offline chain applies it with that exponent (:func:`gaitlog.host.gait.pipeline.
 apply_calibration`, from the step's range); the logger computes the firmware's exponent only
-(:data:`firmware_sim.algorithms.parameters.M4_EXPONENT`), so :meth:`KFit.step_constants` refuses a K fitted
+(:data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`), so :meth:`KFit.step_constants` refuses a K fitted
 with another.
 """
 
@@ -45,18 +45,18 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from host.errors import HostError
-from host.files.versioned_json import VersionedJson
-from host.gait.sections import Section, pool_steps
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.versioned_json import VersionedJson
+from gaitlog.host.gait.sections import Section, pool_steps
 
 if TYPE_CHECKING:  # pragma: no cover
-    from firmware_sim.algorithms.steps import StepTable
+    from gaitlog.firmware_sim.algorithms.steps import StepTable
 
 #: The quantities of :attr:`KFit.calibrated_range` (names of the per-step CSV columns).
 RANGE_QUANTITIES = ("duration_s", "h_m1_m", "h_m2_m", "acc_range_m4_m_s2", "length_m1_m", "length_m2_m",
                     "length_m4_m", "length_m5_m")
-#: The keys of :attr:`KFit.shrinkage` (:meth:`host.gait.k_prior.KPrior.shrink`).
+#: The keys of :attr:`KFit.shrinkage` (:meth:`gaitlog.host.gait.k_prior.KPrior.shrink`).
 SHRINKAGE_KEYS = ("source", "fitted", "population", "weight", "prior_distance_m")
 #: Per calibrated estimator, the quantities whose range its K holds for: the step duration (cadence: the
 #: speed), the estimator's own input and its length.
@@ -103,7 +103,7 @@ class KFit(VersionedJson):
         M4's exponent ``p`` that ``k_m4`` was fitted with (module notes; 1/4 in a "1.0" or "1.1" file).
     shrinkage
         None when K is the fitted one; else how K of M1, M2 and M4 was shrunk toward a population
-        (:meth:`host.gait.k_prior.KPrior.shrink`): ``source``, and per estimator the ``fitted`` K, the
+        (:meth:`gaitlog.host.gait.k_prior.KPrior.shrink`): ``source``, and per estimator the ``fitted`` K, the
         ``population`` K, the fitted K's ``weight`` and the prior's ``prior_distance_m``.
     """
 
@@ -135,7 +135,7 @@ class KFit(VersionedJson):
     shrinkage: dict[str, Any] | None = None
 
     def step_constants(self) -> dict[str, object]:
-        """The K fields of the device's step configuration (:class:`protocol.steps.StepConfig`, PROTOCOL.md 2.2):
+        """The K fields of the device's step configuration (:class:`gaitlog.protocol.steps.StepConfig`, PROTOCOL.md 2.2):
         ``calibrated`` and the constants of M1, M2, M4 and M5 (the leg and foot lengths are the caller's).
 
         Raises :class:`HostError` when ``k_m4`` was fitted with another M4 exponent than the logger's."""
@@ -337,10 +337,10 @@ def calibrate(
 
 def calibrate_on_sections(table: StepTable, pools: Sequence[Sequence[Section]], *, leg_length_m: float,
                           foot_length_m: float, subject: str = "") -> KFit:
-    """:func:`calibrate` on the steps of ``table`` pooled per run of lap sections (:func:`~host.gait.sections.pool_steps`).
+    """:func:`calibrate` on the steps of ``table`` pooled per run of lap sections (:func:`~gaitlog.host.gait.sections.pool_steps`).
 
     ``pools``: one list of consecutive sections per calibration point, e.g. a mode of
-    :func:`host.gait.sections.calibration_sets`; ``table`` is a step table without K (raw lengths).
+    :func:`gaitlog.host.gait.sections.calibration_sets`; ``table`` is a step table without K (raw lengths).
     """
     return calibrate([pool_steps(table, secs) for secs in pools], leg_length_m=leg_length_m,
                      foot_length_m=foot_length_m, subject=subject)

@@ -24,7 +24,7 @@ grows the fitted K takes over (40 m of calibration weigh twice as much as 20 m).
 *Where the numbers come from.* :data:`LOWER_BACK_PRIOR` was learned on the nine IPOL lower-back subjects
 (one K each, from their first trial, replayed through the emulated logger at 50 Hz with 10 bits, offline
 chain, U-turn excluded); ``d0`` per estimator is the value ``gaitlog evaluate ipol`` chooses on all of them
-(:data:`host.studies.tuning.K_CRITERION`). ``gaitlog evaluate ipol`` never scores a subject with it: each
+(:data:`gaitlog.host.studies.tuning.K_CRITERION`). ``gaitlog evaluate ipol`` never scores a subject with it: each
 subject's K is shrunk toward the median of the *other* subjects, with a ``d0`` chosen on the other subjects
 (leave-one-subject-out, nested). It is a prior for a sensor at the lower back (L3-L5); a logger worn
 elsewhere, or another step detector, has other K: fit a prior from its own people (:func:`population_prior`).
@@ -40,11 +40,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from host.errors import HostError
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.host.errors import HostError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from host.gait.k_calibration import KFit
+    from gaitlog.host.gait.k_calibration import KFit
 
 #: The estimators whose K the prior shrinks.
 PRIOR_ESTIMATORS = ("M1", "M2", "M4")

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import SIGMA_S_AT_1HZ
+from gaitlog.firmware_sim.algorithms.parameters import SIGMA_S_AT_1HZ
 
 #: Kernel half-width in standard deviations (scipy's default ``truncate``).
 TRUNCATE_SIGMAS = 4.0

@@ -1,6 +1,6 @@
 """Peaks of a sampled curve by minimum distance and prominence: ``scipy.signal.find_peaks``'s rules in numpy.
 
-The foot-flat search of :mod:`host.gait.events` needs two of ``find_peaks``' conditions, ``distance`` and
+The foot-flat search of :mod:`gaitlog.host.gait.events` needs two of ``find_peaks``' conditions, ``distance`` and
 ``prominence``; importing ``scipy.signal`` for them cost 0.6 s of every ``gaitlog estimate``. This module
 gives the same peaks, index for index (tested against scipy as the oracle), in the same order of rules:
 
@@ -96,7 +96,7 @@ def _runs(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def keep_by_distance(peaks: np.ndarray, height: np.ndarray, distance: int) -> np.ndarray:
     """Mask of the peaks kept when, from the highest down, each kept peak removes its neighbours closer than
     ``distance`` (greedy and sequential by nature; a loop over the peaks, not the samples). Rule 2 of the
-    module notes; :mod:`host.gait.events` applies it alone to the peaks that passed its own prominence rule.
+    module notes; :mod:`gaitlog.host.gait.events` applies it alone to the peaks that passed its own prominence rule.
 
     >>> keep_by_distance(np.array([3, 5, 9]), np.array([1.0, 2.0, 1.5]), 3).tolist()
     [False, True, True]

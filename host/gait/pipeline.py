@@ -3,13 +3,13 @@
 Steps of the chain (:class:`StepPipeline`):
 
 1. Tilt correction: vertical (and AP) dynamic acceleration from the gravity direction
-   (:func:`host.gait.axes.body_axes`).
-2. Events: foot-flat, heel-strike, toe-off (:class:`host.gait.events.GaitEventDetector`).
+   (:func:`gaitlog.host.gait.axes.body_axes`).
+2. Events: foot-flat, heel-strike, toe-off (:class:`gaitlog.host.gait.events.GaitEventDetector`).
 3. One row per foot-flat: the step that ends there. Its window is the previous foot-flat of the same
    walking bout to this one; the first foot-flat of a bout (gait initiation, or after a gap longer than
    ``max_gap_s``) ends a step that has no window: it is counted but its length is NaN.
-4. M1-M5 on every window (``host.gait.estimators``), raw (K = 1, or the cadence ``1/T`` for M5) and calibrated
-   with a :class:`~host.gait.k_calibration.KFit` when one is given. Without one, M1 and M2 use
+4. M1-M5 on every window (``gaitlog.host.gait.estimators``), raw (K = 1, or the cadence ``1/T`` for M5) and calibrated
+   with a :class:`~gaitlog.host.gait.k_calibration.KFit` when one is given. Without one, M1 and M2 use
    K = 1 (the bare pendulum model), M4 and M5 are NaN (they have no physical scale without K).
 
 Distance (:meth:`StepTable.distance_m`): the sum of the step lengths; a step whose length is NaN (no window,
@@ -26,18 +26,18 @@ from typing import TYPE_CHECKING, Self
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from firmware_sim.algorithms.steps import StepTable
-from host.gait.axes import BodyAxes, body_axes
-from host.gait.estimators.cadence import CadenceM5
-from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1
-from host.gait.estimators.two_phase import TwoPhasePendulumM3
-from host.gait.estimators.weinberg import WeinbergM4, weinberg_length_m
-from host.gait.events import GaitEventDetector
-from host.gait.integration import step_samples
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.firmware_sim.algorithms.steps import StepTable
+from gaitlog.host.gait.axes import BodyAxes, body_axes
+from gaitlog.host.gait.estimators.cadence import CadenceM5
+from gaitlog.host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1
+from gaitlog.host.gait.estimators.two_phase import TwoPhasePendulumM3
+from gaitlog.host.gait.estimators.weinberg import WeinbergM4, weinberg_length_m
+from gaitlog.host.gait.events import GaitEventDetector
+from gaitlog.host.gait.integration import step_samples
 
 if TYPE_CHECKING:  # pragma: no cover
-    from host.gait.k_calibration import KFit
+    from gaitlog.host.gait.k_calibration import KFit
 
 
 class StepPipeline:
@@ -46,7 +46,7 @@ class StepPipeline:
     Parameters
     ----------
     leg_length_m, foot_length_m
-        Anatomical inputs of M1-M3 (see :func:`host.gait.anthropometry.anatomical_lengths`).
+        Anatomical inputs of M1-M3 (see :func:`gaitlog.host.gait.anthropometry.anatomical_lengths`).
     calibration
         Per-subject constants (K of M1/M2/M4, K1/K2 of M5), or None.
     detector
@@ -57,7 +57,7 @@ class StepPipeline:
     Attributes
     ----------
     axes_, events_, steps_
-        :class:`~host.gait.axes.BodyAxes`, the fitted :class:`~host.gait.events.GaitEventDetector`,
+        :class:`~gaitlog.host.gait.axes.BodyAxes`, the fitted :class:`~gaitlog.host.gait.events.GaitEventDetector`,
         the :class:`StepTable`.
     notes_
         What the caller should tell the user, returned instead of warned: no walking steps detected, step
@@ -65,7 +65,7 @@ class StepPipeline:
 
     Examples
     --------
-    >>> from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+    >>> from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
     >>> sampling_rate_hz = 50.0; t = np.arange(int(20 * sampling_rate_hz)) / sampling_rate_hz
     >>> z = 0.02 * np.cos(2 * np.pi * 2.0 * t)                  # CoM, 2 steps/s, h = 4 cm, lowest at t = 0.25 + k/2
     >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2

@@ -7,7 +7,7 @@
   window, or whole steps by window midpoint, as counting steps between stopwatch laps).
 * :func:`calibration_sets` chooses the sections K is calibrated on in both modes, and :func:`pool_steps`
   pools the steps of a run of sections with their real distance (the input of
-  :func:`host.gait.k_calibration.calibrate`).
+  :func:`gaitlog.host.gait.k_calibration.calibrate`).
 """
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-from host.errors import HostError
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.host.errors import HostError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from firmware_sim.algorithms.steps import StepTable
+    from gaitlog.firmware_sim.algorithms.steps import StepTable
 
 __all__ = ["MODES", "Section", "calibration_sets", "pool_steps", "section_fractions", "sections_from_marks"]
 
@@ -131,7 +131,7 @@ def section_fractions(table: StepTable, t_start_s: float, t_end_s: float, *, edg
 
 def pool_steps(table: StepTable, sections: Sequence[Section]) -> tuple[StepTable, float]:
     """The whole steps (by window midpoint) from the start of the first section to the end of the last, and
-    the sections' real distance: one calibration section of :func:`host.gait.k_calibration.calibrate`."""
+    the sections' real distance: one calibration section of :func:`gaitlog.host.gait.k_calibration.calibrate`."""
     mask = section_fractions(table, sections[0].t_start_s, sections[-1].t_end_s, edge="whole") > 0
     return table.select(mask), float(sum(s.real_m for s in sections))
 

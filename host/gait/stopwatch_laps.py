@@ -1,7 +1,7 @@
 """An observer's stopwatch sheet placed on a recording (Alvarez et al. 2006, II-C: "Time laps were taken at
 20m intervals with a stopwatch").
 
-The sheet (:meth:`firmware_sim.world.stopwatch.Stopwatch.time_laps`) holds, per excursion, the splits read on
+The sheet (:meth:`gaitlog.firmware_sim.world.stopwatch.Stopwatch.time_laps`) holds, per excursion, the splits read on
 the stopwatch from the moment the observer started it as the walker set off. The logger knows nothing of the
 stopwatch, so the host anchors each excursion's splits at the set-off it sees in the recording
 (:func:`set_off_times`): the walker stands still at the start line when the logger is STARTed, and the
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from host.errors import HostError
+from gaitlog.host.errors import HostError
 
 __all__ = ["SET_OFF_THRESHOLD_G", "lap_table", "set_off_times"]
 
@@ -81,7 +81,7 @@ def set_off_times(acc_g: np.ndarray, valid: np.ndarray, run_rows: Sequence[tuple
 def lap_table(sheet: Mapping[str, Any], set_off_s: np.ndarray) -> dict[str, np.ndarray]:
     """The sheet's laps on the recording clock: split + the excursion's set-off.
 
-    Returns the lap table of :func:`host.gait.sections.sections_from_marks` (``time_s``, ``excursion``,
+    Returns the lap table of :func:`gaitlog.host.gait.sections.sections_from_marks` (``time_s``, ``excursion``,
     ``distance_m``, ``speed_label``); pass ``time_s`` as the marks.
 
     Raises

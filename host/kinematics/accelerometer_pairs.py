@@ -31,8 +31,8 @@ from typing import Self
 
 import numpy as np
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.errors import HostError
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.errors import HostError
 
 __all__ = ["AngularVelocityFromAccelerometers", "STANDARD_GRAVITY_M_S2", "gravity_from_pivot"]
 
@@ -171,7 +171,7 @@ def gravity_from_pivot(
     With the pivot fixed in space (foot-flat) the origin's translational acceleration is
     ``ω̇ × r + ω × (ω × r)`` (``r`` from pivot to origin, body axes), so the specific force minus that term is
     gravity's reaction, i.e. the up direction: feed the result to
-    :func:`host.kinematics.orientation.initial_dcm_from_gravity`.
+    :func:`gaitlog.host.kinematics.orientation.initial_dcm_from_gravity`.
 
     Parameters
     ----------

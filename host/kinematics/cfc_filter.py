@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import filtfilt
 
-from host.errors import HostError
+from gaitlog.host.errors import HostError
 
 __all__ = ["CFC_DESIGN_FACTOR", "cfc_coefficients", "cfc_filter", "cfc_min_rate_hz"]
 

@@ -2,7 +2,7 @@
 
 Frames follow Hall: a link matrix ``TA`` maps reference (laboratory) coordinates to link-A coordinates
 (its rows are the link's unit vectors in the reference frame, eq 1), so ``TA = λAᵀ`` for the project's
-body-to-space direction-cosine matrix ``λA`` (see :mod:`host.kinematics.orientation`). The joint matrix is
+body-to-space direction-cosine matrix ``λA`` (see :mod:`gaitlog.host.kinematics.orientation`). The joint matrix is
 ``T = TB · TAᵀ`` (eq 2) and for a ``y − x′ − z″`` sequence (flexion ``φ`` about y, version ``θ`` about the
 floating x′, axial rotation ``ψ`` about z″) it has the form of eq (3). Angles (eq 4, with the corrected
 ``φ``; atan2 forms keep the quadrant):
@@ -38,9 +38,9 @@ from typing import Literal, Self
 
 import numpy as np
 
-from host.errors import HostError
-from host.kinematics.cfc_filter import cfc_filter
-from host.kinematics.orientation import integrate_dcm
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.cfc_filter import cfc_filter
+from gaitlog.host.kinematics.orientation import integrate_dcm
 
 __all__ = [
     "JOINT_ANGLES",

@@ -1,14 +1,14 @@
 """What the logger's sensors cost Morris' and Hall's kinematics: error figures from the sensor model.
 
-An instrument recorded by the emulated logger (:mod:`host.kinematics.logger_instruments`) reaches the
+An instrument recorded by the emulated logger (:mod:`gaitlog.host.kinematics.logger_instruments`) reaches the
 kinematics with three sensor errors besides the method's own (Morris' ω3 = 0, the filters' lag) and the
 ADC's quantisation, which a recording without sensor errors keeps (``noise_free_deg`` below, measured):
 
 noise
     White per channel, ``σ² = noise_rms² + q²/12`` (``noise_rms`` of
-    :attr:`firmware_sim.channel_sensors.ChannelSensors.noise_rms`; ``q = full scale / 2^(b−1)`` the ADC step,
+    :attr:`gaitlog.firmware_sim.channel_sensors.ChannelSensors.noise_rms`; ``q = full scale / 2^(b−1)`` the ADC step,
     counted again because the noise dithers it). Morris: the angular acceleration comes from the pseudo-inverse
-    of the platform's design matrix ``H⁺`` (:class:`host.kinematics.accelerometer_pairs.AngularVelocityFromAccelerometers`),
+    of the platform's design matrix ``H⁺`` (:class:`gaitlog.host.kinematics.accelerometer_pairs.AngularVelocityFromAccelerometers`),
     so ``σα = g0·sqrt(Σ_j H⁺_kj² σ_j²)`` rad/s², white at ``dt``; integrated twice over a cycle ``T`` it leaves an
     orientation error of scale ``σα·√dt·T^1.5/√3`` (the end-point standard deviation of an integrated random
     walk). Hall: each link's rate noise integrates once, ``σ·√(dt·T)``, for the two links ``√2`` times that.
@@ -22,7 +22,7 @@ drift
 
 The stated bound of a recording's worst orientation (Morris) or joint-angle (Hall) error is
 ``noise_free_deg + K_SIGMA · noise + offset + drift`` with the offsets and drifts at their tolerances
-(:class:`firmware_sim.channel_sensors.SensorSpec`) and :data:`K_SIGMA` = 3 (the noise's contribution is a
+(:class:`gaitlog.firmware_sim.channel_sensors.SensorSpec`) and :data:`K_SIGMA` = 3 (the noise's contribution is a
 maximum over a cycle, not an end point: 3 scales hold it in every run measured, README).
 """
 
@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.channel_sensors import ChannelSensors
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
-from host.kinematics.platform_description import HallPlatform, MorrisPlatform
+from gaitlog.firmware_sim.channel_sensors import ChannelSensors
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
+from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
 
 __all__ = ["K_SIGMA", "ErrorBudget", "channel_noise_sd", "hall_error_budget", "morris_error_budget"]
 

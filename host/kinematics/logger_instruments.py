@@ -1,24 +1,24 @@
 """Morris' and Hall's instruments on the emulated logger: channel maps, the budget check, recording, decoding.
 
 The logger (PIC16F877, 8 analog inputs, 10-bit ADC, P32 words in the 24LC1025s) records an instrument through
-the same path as its own accelerometer: sensor (:class:`firmware_sim.channel_sensors.ChannelSensors`) ->
+the same path as its own accelerometer: sensor (:class:`gaitlog.firmware_sim.channel_sensors.ChannelSensors`) ->
 conditioning and ADC -> firmware ring buffer -> memory image / dump, with the header's channel map
 (``PROTOCOL.md`` 2.6) saying which input holds which sensor. The instruments:
 
 ``morris``
     Five (as published) or six single-axis accelerometers on the shank platform
-    (:func:`host.kinematics.simulated_instruments.simulate_morris`), ``acc1``.. on AN0.., at 100 Hz (his 10 ms).
+    (:func:`gaitlog.host.kinematics.simulated_instruments.simulate_morris`), ``acc1``.. on AN0.., at 100 Hz (his 10 ms).
 ``hall``
     Two triaxial angular-rate sensors (links A and B, ``A_x``.. on AN0-AN5) of Hall's two-link test
-    (:func:`~host.kinematics.simulated_instruments.simulate_hall`). Hall sampled at 10 kHz: the PIC cannot
+    (:func:`~gaitlog.host.kinematics.simulated_instruments.simulate_hall`). Hall sampled at 10 kHz: the PIC cannot
     (:func:`check_fits`). His pre-test posture came from the links' gravity; with those six channels the
     instrument needs 12 inputs, so on the logger the posture is the platform's ``initial_joint_deg`` (a
     goniometer reading before the test: here the simulation's true initial angles).
 
-:func:`check_fits` asks the budget model (:func:`firmware_sim.budget.instrument_fit`: ADC time, cycles, RAM,
+:func:`check_fits` asks the budget model (:func:`gaitlog.firmware_sim.budget.instrument_fit`: ADC time, cycles, RAM,
 EEPROM bandwidth) and refuses with the reason and the closest configuration that fits. :func:`decoded_columns`
-turns a decoded dump (:class:`host.files.recording.Recording` of a channel-mapped header) into the recording CSV
-columns of :mod:`host.kinematics.sensor_csv`.
+turns a decoded dump (:class:`gaitlog.host.files.recording.Recording` of a channel-mapped header) into the recording CSV
+columns of :mod:`gaitlog.host.kinematics.sensor_csv`.
 """
 
 from __future__ import annotations
@@ -28,15 +28,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from firmware_sim.budget import CONFIGURATIONS, LoggerConfig, instrument_fit
-from firmware_sim.channel_sensors import ACCELEROMETER, RATE_SENSOR, ChannelSensors
-from firmware_sim.device import Logger
-from host.errors import HostError
-from host.files.recording import Recording
-from host.kinematics.platform_description import HallPlatform, MorrisPlatform
-from host.kinematics.sensor_csv import SensorRecording, split_unit
-from host.kinematics.simulated_instruments import simulate_hall, simulate_morris
-from protocol.channel_map import (
+from gaitlog.firmware_sim.budget import CONFIGURATIONS, LoggerConfig, instrument_fit
+from gaitlog.firmware_sim.channel_sensors import ACCELEROMETER, RATE_SENSOR, ChannelSensors
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.recording import Recording
+from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
+from gaitlog.host.kinematics.sensor_csv import SensorRecording, split_unit
+from gaitlog.host.kinematics.simulated_instruments import simulate_hall, simulate_morris
+from gaitlog.protocol.channel_map import (
     ANGULAR_RATE,
     MAX_CHANNELS,
     SPECIFIC_FORCE,
@@ -69,7 +69,7 @@ def check_fits(instrument: str, n_channels: int, sampling_rate_hz: float) -> Non
     """Refuse (:class:`HostError`) a configuration the PIC16F877 cannot record: more channels than its 8 analog
     inputs, or what the budget model finds short (ADC, cycles, RAM, EEPROM); the message gives the reason and
     the closest configuration that fits (fewer channels: Hall's rate sensors without the gravity channels; the
-    fastest rate that fits, from :func:`firmware_sim.budget.instrument_fit`)."""
+    fastest rate that fits, from :func:`gaitlog.firmware_sim.budget.instrument_fit`)."""
     what = f"{instrument} with {n_channels} channels at {sampling_rate_hz:g} Hz"
     reasons, fits_channels = [], n_channels
     if n_channels > MAX_CHANNELS:
@@ -91,7 +91,7 @@ def check_fits(instrument: str, n_channels: int, sampling_rate_hz: float) -> Non
 @dataclass(frozen=True, eq=False)
 class LoggedInstrument:
     """An instrument recorded by the emulated logger: the logger (its memory), the platform description, the
-    truth at the logger's sample instants (columns as :mod:`host.kinematics.simulated_instruments` writes
+    truth at the logger's sample instants (columns as :mod:`gaitlog.host.kinematics.simulated_instruments` writes
     them), the sensors' parameters, the frames stored and taken (fewer stored: the memory filled up) and a
     comment."""
 
@@ -191,7 +191,7 @@ def decoded_columns(recording: Recording) -> tuple[np.ndarray, dict[str, np.ndar
 
 def sensor_recording(recording: Recording) -> SensorRecording:
     """A decoded instrument dump as the kinematics' recording (what ``gaitlog decode`` writes as CSV and
-    :func:`host.kinematics.sensor_csv.read_sensor_csv` reads back), in memory."""
+    :func:`gaitlog.host.kinematics.sensor_csv.read_sensor_csv` reads back), in memory."""
     t, columns = decoded_columns(recording)
     channels, quantities = {}, {}
     for name, values in columns.items():

@@ -33,16 +33,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from host.errors import HostError
-from host.kinematics.accelerometer_pairs import (
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.accelerometer_pairs import (
     STANDARD_GRAVITY_M_S2,
     AngularVelocityFromAccelerometers,
     gravity_from_pivot,
 )
-from host.kinematics.orientation import initial_dcm_from_gravity, integrate_dcm
-from host.kinematics.platform_description import MorrisPlatform
-from host.kinematics.sensor_csv import SensorRecording
-from host.kinematics.strapdown import (
+from gaitlog.host.kinematics.orientation import initial_dcm_from_gravity, integrate_dcm
+from gaitlog.host.kinematics.platform_description import MorrisPlatform
+from gaitlog.host.kinematics.sensor_csv import SensorRecording
+from gaitlog.host.kinematics.strapdown import (
     CycleTranslation,
     remove_cycle_drift,
     remove_gravity,

@@ -21,7 +21,7 @@ Contents
   for the incremental rotations, 3x3 matrices for the others).
 - :func:`orthonormalize_jordan` -- eq (18) with a divergence guard and an SVD fallback.
 - :func:`skew`, :func:`rotation_increments`, :func:`cumulative_matmul`, :func:`orthogonality_error`,
-  :func:`geodesic_distance_rad` -- the building blocks, also used by :mod:`host.kinematics.joints`.
+  :func:`geodesic_distance_rad` -- the building blocks, also used by :mod:`gaitlog.host.kinematics.joints`.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from typing import Literal, NamedTuple
 
 import numpy as np
 
-from host.errors import HostError
+from gaitlog.host.errors import HostError
 
 __all__ = [
     "JordanResult",

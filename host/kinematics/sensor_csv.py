@@ -19,7 +19,7 @@ Format
 - One row per sample, any sampling rate, but uniform: the rate is ``1 / median(Δt)`` and a step that
   differs from the median by more than 1 % is refused with its row number (a gap must be cut, not bridged).
 
-The platform description (:mod:`host.kinematics.platform_description`) refers to sensors by ``<sensor>``,
+The platform description (:mod:`gaitlog.host.kinematics.platform_description`) refers to sensors by ``<sensor>``,
 without the unit, so a file can change units without touching its platform.
 """
 
@@ -33,9 +33,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.errors import HostError
-from protocol.atomic_write import atomic_write_text
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.errors import HostError
+from gaitlog.protocol.atomic_write import atomic_write_text
 
 __all__ = ["SensorRecording", "read_sensor_csv", "split_unit", "write_sensor_csv"]
 

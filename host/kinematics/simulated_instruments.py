@@ -23,11 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.world.rigid_body import RigidBodyShank, elementary_rotations
-from firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
-from host.kinematics.joints import joint_angles_yxz
-from host.kinematics.platform_description import HallLink, HallPlatform, MorrisPlatform
-from host.kinematics.sensor_csv import write_sensor_csv
+from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank, elementary_rotations
+from gaitlog.firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
+from gaitlog.host.kinematics.joints import joint_angles_yxz
+from gaitlog.host.kinematics.platform_description import HallLink, HallPlatform, MorrisPlatform
+from gaitlog.host.kinematics.sensor_csv import write_sensor_csv
 
 __all__ = [
     "HALL_INITIAL_B_FROM_A",
@@ -98,7 +98,7 @@ def simulate_hall(*, sampling_rate_hz: float = 10_000.0, noise_rad_s: float = 0.
                   seed: int = 0, rate_offsets: bool = True) -> SimulatedInstrument:
     """Hall's two links with angular-rate sensors and gravity channels, pre-test posture not neutral.
     ``rate_offsets=False``: the rate channels without the world's sensor offsets (for a sensor model that
-    adds its own, :mod:`host.kinematics.logger_instruments`)."""
+    adds its own, :mod:`gaitlog.host.kinematics.logger_instruments`)."""
     src = TwoLinkJoint(noise_rad_s=0.0)
     r = src.render_rates(sampling_rate_hz)
     tr = r.truth

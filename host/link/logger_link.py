@@ -2,7 +2,7 @@
 
 :class:`LoggerLink` works on anything pyserial opens: a real port (``/dev/ttyUSB0``, ``COM3``), a pty path
 printed by ``gaitlog serve --pty``, ``socket://127.0.0.1:PORT`` from ``gaitlog serve --tcp``, and the
-in-process emulator ``emu://...`` (:mod:`host.link.transports.protocol_emu`).
+in-process emulator ``emu://...`` (:mod:`gaitlog.host.link.transports.protocol_emu`).
 
 Each command is one frame (``PROTOCOL.md`` section 3); the link numbers it with ``seq``, waits up to
 ``timeout_s`` for the answer with the same ``seq`` (less when an answer came damaged and the line then went
@@ -11,12 +11,12 @@ not come, comes damaged, or is ``NAK(BAD_CRC)``: as long as ``deadline_s`` has n
 attempt (and at most ``retries`` more times when ``retries`` is given). Nothing at all received in
 :data:`NO_DEVICE_ATTEMPTS` attempts in a row ends it sooner. The error then says which it was: no byte at all
 (port, baud, power) or bytes but no intact answer (a noisy line or a wrong baud rate). A NAK with any other
-error is final and raised as :class:`~host.errors.HostError` naming the command and the error.
+error is final and raised as :class:`~gaitlog.host.errors.HostError` naming the command and the error.
 
 :meth:`LoggerLink.dump_checked` runs DUMP_CHECKED (``PROTOCOL.md`` section 4): a DATA frame is used only when
 the DATA_CRC frame after it carries the CRC-32 of exactly the bytes received, so a damaged frame that passes
 its CRC-16 (about 1 in 65,536) is re-read instead of stored. :meth:`LoggerLink.abort` ends a stream. The bulk memory dump
-with re-reads and resume is :class:`host.link.memory_dump.MemoryDump` (:func:`host.link.memory_dump.dump_memory`).
+with re-reads and resume is :class:`gaitlog.host.link.memory_dump.MemoryDump` (:func:`gaitlog.host.link.memory_dump.dump_memory`).
 """
 
 from __future__ import annotations
@@ -31,10 +31,10 @@ from typing import IO, Any
 
 import serial
 
-from host.errors import HostError
-from host.link.transports import register
-from protocol.errors import ProtocolError
-from protocol.frames import (
+from gaitlog.host.errors import HostError
+from gaitlog.host.link.transports import register
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import (
     MAX_DATA,
     PAYLOAD_OFFSETS,
     PAYLOAD_STRUCTS,
@@ -48,7 +48,7 @@ from protocol.frames import (
     encode_frame,
     parse_payload,
 )
-from protocol.header import (
+from gaitlog.protocol.header import (
     CALIBRATION_SIZE,
     HEADER_SIZE,
     MILLIHZ_PER_HZ,
@@ -56,7 +56,7 @@ from protocol.header import (
     DeviceHeader,
     firmware_version_text,
 )
-from protocol.steps import STEP_ADDRESS_BASE, StepConfig
+from gaitlog.protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 _ERROR_HINTS = {ErrorCode.BUSY: "the device is logging: stop it first",
                 ErrorCode.MEMORY_FULL: "the memory is full: erase it first",
@@ -89,7 +89,7 @@ def _name(ftype: int) -> str:
 
 
 def _build(name: str, **fields: Any) -> bytes:
-    """Command payload via ``protocol.frames.build_payload`` (ProtocolError -> HostError)."""
+    """Command payload via ``gaitlog.protocol.frames.build_payload`` (ProtocolError -> HostError)."""
     try:
         return build_payload(FrameType[name], **fields)
     except ProtocolError as err:
@@ -190,7 +190,7 @@ class LoggerLink:
     >>> LoggerLink("/nonexistent/ttyX")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    host.errors.HostError: cannot open port '/nonexistent/ttyX': ...
+    gaitlog.host.errors.HostError: cannot open port '/nonexistent/ttyX': ...
     """
 
     def __init__(self, port: str, *, baud: int = 115200, timeout_s: float = 1.0, retries: int | None = None,
@@ -369,13 +369,13 @@ class LoggerLink:
         return info
 
     def status(self) -> dict[str, int]:
-        """STATUS -> ``state`` (a :class:`protocol.frames.DeviceState` code), ``flags``, ``samples_written``,
+        """STATUS -> ``state`` (a :class:`gaitlog.protocol.frames.DeviceState` code), ``flags``, ``samples_written``,
         ``write_index``."""
         fr = self.transact(FrameType.GET_STATUS, b"", FrameType.STATUS, expect_len=_STATUS_SIZE)
         return self._fields(fr)
 
     def _fields(self, frame) -> dict[str, int]:
-        """Payload fields of an answer (``protocol.frames.parse_payload``), as plain ints."""
+        """Payload fields of an answer (``gaitlog.protocol.frames.parse_payload``), as plain ints."""
         try:
             fields = parse_payload(frame, source=self.port)
         except ProtocolError as err:
@@ -414,7 +414,7 @@ class LoggerLink:
 
     def set_calibration(self, slot: bytes) -> None:
         """SET_CALIBRATION with a calibration slot of ``CALIBRATION_SIZE`` bytes
-        (``protocol.header.CalibrationSlot.to_bytes()``)."""
+        (``gaitlog.protocol.header.CalibrationSlot.to_bytes()``)."""
         if len(slot) != CALIBRATION_SIZE:
             raise HostError(f"calibration slot must be {CALIBRATION_SIZE} bytes, got {len(slot)}")
         self._ack(FrameType.SET_CALIBRATION, bytes(slot))
@@ -425,7 +425,7 @@ class LoggerLink:
         Parameters
         ----------
         config
-            A :class:`protocol.steps.StepConfig` (``StepConfig.off()`` turns the algorithm off) or its 32 bytes.
+            A :class:`gaitlog.protocol.steps.StepConfig` (``StepConfig.off()`` turns the algorithm off) or its 32 bytes.
 
         Raises
         ------
@@ -446,7 +446,7 @@ class LoggerLink:
 
     def read(self, address: int, length: int) -> bytes:
         """READ ``length`` (1 ... ``MAX_DATA``) bytes at the memory address ``address``: the sample memory from 0, the
-        step memory from ``protocol.steps.STEP_ADDRESS_BASE`` (:meth:`read_step_memory`)."""
+        step memory from ``gaitlog.protocol.steps.STEP_ADDRESS_BASE`` (:meth:`read_step_memory`)."""
         if not 1 <= length <= MAX_DATA:
             raise HostError(f"READ length must be 1..{MAX_DATA}, got {length}")
         payload = _build("READ", address=address, length=length)

@@ -1,4 +1,4 @@
-"""Dump a logger's memory over a :class:`~host.link.logger_link.LoggerLink`: stream, check, re-read, resume, write.
+"""Dump a logger's memory over a :class:`~gaitlog.host.link.logger_link.LoggerLink`: stream, check, re-read, resume, write.
 
 Steps (``PROTOCOL.md`` sections 3-4 and 6):
 
@@ -18,7 +18,7 @@ Steps (``PROTOCOL.md`` sections 3-4 and 6):
    chunk (the device ends the old stream on the new command).
 4. The passes go on while they bring new bytes; ``retries`` passes in a row that bring nothing end the dump
    (a dead line raises at the IDENTIFY that follows such a pass).
-5. The image (``protocol.image.build_image``: version 2 with the step memory when the header has one;
+5. The image (``gaitlog.protocol.image.build_image``: version 2 with the step memory when the header has one;
    blocks never received marked missing) and its JSON metadata
    sidecar ``OUT.json`` are written atomically; the partial state ``OUT.part`` (itself an image with the
    missing blocks marked) is written atomically as blocks arrive and removed when the dump is complete.
@@ -44,15 +44,15 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from host.errors import HostError
-from host.files.decode import decode_bytes
-from host.link.logger_link import LoggerLink, device_identity
-from protocol.atomic_write import atomic_write_bytes, atomic_write_text
-from protocol.errors import ProtocolError
-from protocol.frames import FRAME_OVERHEAD, MAX_DATA, PAYLOAD_STRUCTS, DeviceState, FrameType
-from protocol.header import PAGE_SAMPLES
-from protocol.image import build_image, parse_image
-from protocol.steps import STEP_ADDRESS_BASE
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.host.link.logger_link import LoggerLink, device_identity
+from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import FRAME_OVERHEAD, MAX_DATA, PAYLOAD_STRUCTS, DeviceState, FrameType
+from gaitlog.protocol.header import PAGE_SAMPLES
+from gaitlog.protocol.image import build_image, parse_image
+from gaitlog.protocol.steps import STEP_ADDRESS_BASE
 
 #: Block size of the image and of the resume bookkeeping (``PROTOCOL.md`` section 6).
 BLOCK_SIZE = 1024
@@ -143,7 +143,7 @@ class MemoryDump:
     Attributes
     ----------
     header_
-        The device header (``protocol.header.DeviceHeader``).
+        The device header (``gaitlog.protocol.header.DeviceHeader``).
     info_
         IDENTIFY answer.
     complete_
@@ -202,7 +202,7 @@ class MemoryDump:
     # -------------------------------------------------------------------------------------------- run
     def run(self, link, out_path: str | os.PathLike[str], *, resume: bool = False,
             progress: bool | Callable[[int], None] = True) -> MemoryDump:
-        """Dump through ``link`` (a :class:`~host.link.logger_link.LoggerLink`) to the image ``out_path``.
+        """Dump through ``link`` (a :class:`~gaitlog.host.link.logger_link.LoggerLink`) to the image ``out_path``.
 
         Raises
         ------

@@ -26,13 +26,13 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.steps import ESTIMATORS
-from host.accelerometer.calibration import AccCalibration
-from host.errors import HostError
-from host.files.inputs import AccelerationInput, read_acceleration
-from host.gait.anthropometry import AnatomyChoice
-from host.gait.pipeline import StepPipeline
-from protocol.atomic_write import atomic_write_text
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.accelerometer.calibration import AccCalibration
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.inputs import AccelerationInput, read_acceleration
+from gaitlog.host.gait.anthropometry import AnatomyChoice
+from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.protocol.atomic_write import atomic_write_text
 
 __all__ = ["BatchResult", "batch_inputs", "run_batch", "SUMMARY_COLUMNS"]
 
@@ -109,7 +109,7 @@ def run_batch(paths: list[Path], out: str | Path, *, calibration: AccCalibration
         Accelerometer calibration (``gaitlog calibrate``) applied to every recording (default: each file's own)
         and the file it came from.
     k, k_file
-        Per-subject constants (:class:`host.gait.k_calibration.KFit`) and the file they came from.
+        Per-subject constants (:class:`gaitlog.host.gait.k_calibration.KFit`) and the file they came from.
     lengths
         Leg and foot length for a recording read (e.g. the command's anatomy flags).
     settings

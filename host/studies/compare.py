@@ -2,18 +2,18 @@
 
 Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`compare_recording`):
 
-* **ideal**: the offline float chain (:class:`host.gait.pipeline.StepPipeline`, the paper's PC processing)
+* **ideal**: the offline float chain (:class:`gaitlog.host.gait.pipeline.StepPipeline`, the paper's PC processing)
   on the sensor's analog output at the sample instants, before quantisation (noise, filter,
   sample-and-hold included; no ADC). Simulated walks only;
 * **offline**: the same chain on the ADC codes (``adc_bits`` bits), converted to g with the device calibration;
 * **online-float**: the firmware's on-line algorithm
-  (:class:`firmware_sim.algorithms.online.OnlineStepAlgorithm`) on the same codes and the same device
+  (:class:`gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`) on the same codes and the same device
   calibration, in floating point;
 * **online-fixed**: the same algorithm in the PIC's fixed point: what the logger computes and stores.
 
-**One K.** Per calibration mode (single- and multi-speed, :func:`host.gait.sections.calibration_sets`), K
-(:class:`host.gait.k_calibration.KFit`) is fitted once, on the *offline* chain's table of the
-calibration sections (:func:`host.gait.k_calibration.calibrate_on_sections`), and that same K is used by every chain: ``apply_calibration`` for the
+**One K.** Per calibration mode (single- and multi-speed, :func:`gaitlog.host.gait.sections.calibration_sets`), K
+(:class:`gaitlog.host.gait.k_calibration.KFit`) is fitted once, on the *offline* chain's table of the
+calibration sections (:func:`gaitlog.host.gait.k_calibration.calibrate_on_sections`), and that same K is used by every chain: ``apply_calibration`` for the
 offline and ideal chains, the step configuration (``StepConfig(calibrated=True, k_m1=..., ...)``, K applied
 in the algorithm's own arithmetic, as the header stores it) for the on-line algorithm. K is never refitted
 per chain: a K fitted on each chain's own lengths absorbs any error proportional to the length (a 2 %
@@ -32,24 +32,24 @@ mutual nearest); a matched pair whose window start, heel-strike, toe-off or foot
 or more is a step where the two chains *detected different events*: it is counted and reported, and left
 out of the per-step differences (an event one sample apart is a different step window, not an arithmetic
 error); the section distances include every step. Per-20 m sections follow the paper's evaluation
-(:mod:`host.studies.evaluation`): lap marks, the calibration sections left out, ratio estimated / real.
+(:mod:`gaitlog.host.studies.evaluation`): lap marks, the calibration sections left out, ratio estimated / real.
 Saturation and wrap counts of every fixed-point run are kept (``saturation``); nothing saturates
 unreported. :func:`bootstrap_budget` gives 95 % intervals over subjects for the summary figures.
 
-Simulated walks (:class:`host.studies.simulation.AnalogWalk`): the world (:class:`firmware_sim.world.walking.Walking`) through the
-device's sensor model (:class:`firmware_sim.sensor.SensorModel`, the logger's default seeded unit) and the
-front end and timer of :class:`firmware_sim.adc.Adc`, exactly as :meth:`firmware_sim.device.Logger.record`
+Simulated walks (:class:`gaitlog.host.studies.simulation.AnalogWalk`): the world (:class:`gaitlog.firmware_sim.world.walking.Walking`) through the
+device's sensor model (:class:`gaitlog.firmware_sim.sensor.SensorModel`, the logger's default seeded unit) and the
+front end and timer of :class:`gaitlog.firmware_sim.adc.Adc`, exactly as :meth:`gaitlog.firmware_sim.device.Logger.record`
 does (same codes at 10 bits: tested), but quantised here at any width (the PIC's converter stops at 10
 bits; 12 bits is the sweep's hypothetical external converter) and kept before quantisation. The device
 calibration is the sensor's own truth (offsets, gains, axes), unbiased for the floor quantiser (``+0.5``
 code): the comparison isolates the ADC, the algorithm and the arithmetic; the pose calibration's own error
-is evaluated in :mod:`host.studies.evaluation`.
+is evaluated in :mod:`gaitlog.host.studies.evaluation`.
 
 Recordings (:func:`compare_recording`): a decoded recording has no truth and no analog output: offline,
 online-float and online-fixed with the given K (or none: K = 1, M4/M5 undefined), sections between MARK
 flags (``lap_m`` apart) or, without marks, every ``segment_m`` of the offline chain's M3 distance. A
 recording that carries the device's own step records is checked against the host's replay of the on-line
-algorithm, bit for bit (:func:`host.files.replay.verify_step_records`).
+algorithm, bit for bit (:func:`gaitlog.host.files.replay.verify_step_records`).
 """
 
 from __future__ import annotations
@@ -62,24 +62,24 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.algorithms.steps import (
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.steps import (
     ESTIMATORS,
     StepTable,
     csv_text,
     float_csv_cells,
 )
-from host.files.replay import online_step_table
-from host.gait.k_calibration import calibrate_on_sections
-from host.gait.pipeline import StepPipeline, apply_calibration
-from host.gait.sections import (
+from gaitlog.host.files.replay import online_step_table
+from gaitlog.host.gait.k_calibration import calibrate_on_sections
+from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
+from gaitlog.host.gait.sections import (
     MODES,
     Section,
     calibration_sets,
     section_fractions,
     sections_from_marks,
 )
-from protocol.header import CalibrationSlot
+from gaitlog.protocol.header import CalibrationSlot
 
 #: Foot-flats of two chains closer than this are the same step, s.
 MATCH_TOL_S = 0.1
@@ -339,7 +339,7 @@ class SampledWalk:
     def calibration(self, adc_bits: int) -> Any:
         """The device calibration for ``adc_bits``-bit codes: the sensor's truth, unbiased for ``floor``.
 
-        A :class:`protocol.header.CalibrationSlot` (``a = M (c - o)``), ``o = offset - 1/2`` code.
+        A :class:`gaitlog.protocol.header.CalibrationSlot` (``a = M (c - o)``), ``o = offset - 1/2`` code.
         """
         s = 2.0 ** (adc_bits - 10)
         return CalibrationSlot(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
@@ -754,7 +754,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     the offline chain and is the on-line algorithm's device calibration; ``calibration`` is the one K of
     every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
     (SESSION_START), where the on-line algorithm restarts. Sections: ``sections`` when given (e.g. the
-    walking plan's, :func:`host.gait.sections.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
+    walking plan's, :func:`gaitlog.host.gait.sections.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
     every ``segment_m`` of the offline chain's M3 distance.
 
     Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and
@@ -825,7 +825,7 @@ def rows_csv_text(rows: list[dict], columns: list[str] | tuple[str, ...] | None 
     """CSV text of dict rows (floats ``%.6g``, NaN as empty, anything else ``str``; a missing key is empty).
 
     Column by column: the float cells of a column are formatted together
-    (:func:`firmware_sim.algorithms.steps.float_csv_cells`), the rest by ``str``.
+    (:func:`gaitlog.firmware_sim.algorithms.steps.float_csv_cells`), the rest by ``str``.
     """
     if not rows:
         return ""

@@ -5,10 +5,10 @@ Only the command-line entry points that distribute work import this module (it i
 ~0.5 s), so ``gaitlog --help`` and the other commands never load it.
 
 The client (this process) submits the tasks without a stored result, and writes each result into the
-:class:`~host.studies.task_store.TaskStore` as it arrives: the workers need no shared file system, and a run
+:class:`~gaitlog.host.studies.task_store.TaskStore` as it arrives: the workers need no shared file system, and a run
 cut at any point keeps every finished task (the next run computes only the others).
 
-Tasks with a ``group`` attribute (e.g. :attr:`host.studies.sweep_grid.SweepTask.group`: the tasks of one simulated
+Tasks with a ``group`` attribute (e.g. :attr:`gaitlog.host.studies.sweep_grid.SweepTask.group`: the tasks of one simulated
 walk) share an expensive set-up that a worker keeps in memory; the groups are dealt round-robin to the workers
 as a preference (``allow_other_workers``: an idle worker still takes work), so each set-up is done about once
 instead of once per worker. Placement changes the time only, never a result. The workers must be
@@ -29,8 +29,8 @@ from typing import Any
 import dask
 from distributed import Client, LocalCluster, as_completed
 
-from host.errors import HostError
-from host.studies.task_store import TaskStore
+from gaitlog.host.errors import HostError
+from gaitlog.host.studies.task_store import TaskStore
 
 __all__ = ["run_on_dask"]
 

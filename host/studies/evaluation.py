@@ -1,26 +1,26 @@
 """The paper's evaluation on simulated subjects (Alvarez et al. 2006, sections II-C and IV, Figs 5-6).
 
-Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evaluate_recording`):
+Chain, per subject (:func:`gaitlog.host.studies.simulation.record_subject`, :func:`evaluate_recording`):
 
-1. *Device calibration*: the emulated logger (:class:`firmware_sim.device.Logger`, its own seeded sensor
+1. *Device calibration*: the emulated logger (:class:`gaitlog.firmware_sim.device.Logger`, its own seeded sensor
    errors: offsets, sensitivities, misalignment) records a static-pose session
-   (:class:`firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`host.accelerometer.fit.AccCalibrator`
+   (:class:`gaitlog.firmware_sim.world.poses.CalibrationPoses`), fitted with :class:`gaitlog.host.accelerometer.fit.AccCalibrator`
    ("a calibration procedure takes into account offset and scale factors and the orthogonality of the
    axes", II-B). ``calibrate_device=False`` uses the header's nominal map instead.
 2. *Walking*: the same logger (after ERASE) records the protocol of
-   :class:`firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); its memory image (header +
-   EEPROM, :func:`protocol.image.build_image`) is decoded as a dump would be (:func:`host.files.decode.decode_bytes`)
+   :class:`gaitlog.firmware_sim.world.walking.Walking` (10-bit ADC at 50 Hz by default); its memory image (header +
+   EEPROM, :func:`gaitlog.protocol.image.build_image`) is decoded as a dump would be (:func:`gaitlog.host.files.decode.decode_bytes`)
    and the codes converted to g with the fitted calibration. The lap button's MARK flags give the lap times,
    or (``laps="stopwatch"``, with the paper's protocol: 5-minute rests, the logger STOPped during them, one
    logging run per excursion) an observer's stopwatch sheet anchored at the set-off detected in each run
-   (:mod:`host.gait.stopwatch_laps`).
-3. *Steps*: :class:`host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
+   (:mod:`gaitlog.host.gait.stopwatch_laps`).
+3. *Steps*: :class:`gaitlog.host.gait.pipeline.StepPipeline` without calibration (raw M1-M4 lengths with K = 1,
    M5's cadence), with the subject's own leg and foot length ("the anatomical data of each individual").
 4. *Sections*: consecutive lap marks 20 m apart (default marks 10, 30, ..., 190 m of each excursion:
    the first 10 m of gait initiation are discarded, as in the paper). The section holding the 180° turn is
    left out by default (the paper's subjects "were allowed to turn freely between both 100 m segments";
    the estimators model straight walking); ``include_turn=True`` keeps it.
-5. *K calibration* (:func:`host.gait.sections.calibration_sets`, :func:`host.gait.k_calibration.calibrate_on_sections`):
+5. *K calibration* (:func:`gaitlog.host.gait.sections.calibration_sets`, :func:`gaitlog.host.gait.k_calibration.calibrate_on_sections`):
    **single-speed** = the first 40 m (two sections) of the preferred-speed excursion, pooled as one 40 m
    section (M5 then falls back to the walk-ratio line, with the calibrator's warning recorded);
    **multi-speed** = the first 40 m of every excursion, one 40 m section per speed. Calibration steps are
@@ -39,7 +39,7 @@ Chain, per subject (:func:`host.studies.simulation.record_subject`, :func:`evalu
 
 Rows, summaries (median, quartiles, extremes per estimator and mode), the CSV (atomic), the printed table
 and the paper-pattern checks (:func:`paper_pattern`) are below; the box-plot figure is
-:mod:`host.studies.plots`. With intervals: :func:`bootstrap_summary` (percentile bootstrap over subjects),
+:mod:`gaitlog.host.studies.plots`. With intervals: :func:`bootstrap_summary` (percentile bootstrap over subjects),
 the paper side by side (:func:`format_paper_table`, :func:`paper_claims`: what the paper's text states) and
 M5 against the generating heel-strike intervals (:func:`m5_timing_question`).
 """
@@ -55,32 +55,32 @@ from typing import Any, Self
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-from firmware_sim.algorithms.steps import ESTIMATORS
-from host.errors import HostError
-from host.gait.k_calibration import calibrate_on_sections
-from host.gait.pipeline import StepPipeline, apply_calibration
-from host.gait.sections import (
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.k_calibration import calibrate_on_sections
+from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
+from gaitlog.host.gait.sections import (
     MODES,
     calibration_sets,
     section_fractions,
     sections_from_marks,
 )
-from host.gait.stopwatch_laps import lap_table, set_off_times
-from host.studies.compare import (
+from gaitlog.host.gait.stopwatch_laps import lap_table, set_off_times
+from gaitlog.host.studies.compare import (
     BOOTSTRAP_LEVEL,
     BOOTSTRAP_RESAMPLES,
     match_events,
     subject_resamples,
 )
-from host.studies.plots import plot_boxplots
-from host.studies.simulation import (
+from gaitlog.host.studies.plots import plot_boxplots
+from gaitlog.host.studies.simulation import (
     SimulatedRecording,
     map_subjects,
     record_subject,
     simulated_population,
 )
-from protocol.atomic_write import atomic_write_text
+from gaitlog.protocol.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
                "estimated_m", "real_m", "ratio", "steps")
@@ -92,7 +92,7 @@ BOOT_COLUMNS = ("mode", "estimator", "statistic", "value", "ci_low", "ci_high", 
 # Sections and distances
 
 
-# (lap sections and step weights: host.gait.sections)
+# (lap sections and step weights: gaitlog.host.gait.sections)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -185,7 +185,7 @@ def evaluate_recording(rec: SimulatedRecording, *, section_m: float = 20.0, incl
                        corridor_length_m: float = 100.0, detector: Any = None) -> SubjectResult:
     """Steps, K calibration (both modes), section ratios and event scores of one recording.
 
-    ``detector``: a :class:`host.gait.events.GaitEventDetector` for the pipeline (default parameters when
+    ``detector``: a :class:`gaitlog.host.gait.events.GaitEventDetector` for the pipeline (default parameters when
     None).
     """
     sub = rec.subject
@@ -381,7 +381,7 @@ def _bootstrap(groups: Sequence[np.ndarray], statistic: Callable[..., np.ndarray
     """``statistic`` of the subjects' pooled values, and its percentile-bootstrap interval over subjects.
 
     ``groups`` (and each of ``more``, paired with it) hold one array per subject; ``counts`` (resamples x
-    subjects, :func:`host.studies.compare.subject_resamples`) how often each subject is drawn."""
+    subjects, :func:`gaitlog.host.studies.compare.subject_resamples`) how often each subject is drawn."""
     lists = (groups, *more)
 
     def pooled(weights: np.ndarray) -> np.ndarray:
@@ -622,20 +622,20 @@ class SimulatedEvaluation:
     Parameters
     ----------
     n_subjects, seed
-        Subjects drawn by :func:`firmware_sim.world.subject.random_subjects` (``seed``); subject ``i`` walks
+        Subjects drawn by :func:`gaitlog.firmware_sim.world.subject.random_subjects` (``seed``); subject ``i`` walks
         with seed ``seed * 1000 + i`` (independent of ``n_subjects`` and of ``workers``).
     walk_plan
-        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's gait
-        initiation and turn, :data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`).
+        :class:`~gaitlog.firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's gait
+        initiation and turn, :data:`~gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS`).
     population
         ``"people"`` (default: the walker tuned to real lower-back walking) or ``"v1"``.
     protocol
         ``"compact"`` (default: 60 s rests logged, the population's heights) or ``"paper"`` (Alvarez's
         protocol as run: 5-minute rests with the logger stopped, subjects of the paper's heights;
-        :func:`host.studies.simulation.simulated_population`).
+        :func:`gaitlog.host.studies.simulation.simulated_population`).
     laps
         ``"mark"`` (default: the logger's MARK button, exact) or ``"stopwatch"`` (the paper's observer,
-        :mod:`firmware_sim.world.stopwatch`, placed on the recording by :mod:`host.gait.stopwatch_laps`;
+        :mod:`gaitlog.firmware_sim.world.stopwatch`, placed on the recording by :mod:`gaitlog.host.gait.stopwatch_laps`;
         needs the ``"paper"`` protocol's one logging run per excursion).
     n_resamples
         Bootstrap resamples of the subjects for the intervals (0: no intervals, no M5 question).
@@ -648,7 +648,7 @@ class SimulatedEvaluation:
     calibrate_device
         Fit the device calibration on a pose session first.
     detector
-        :class:`host.gait.events.GaitEventDetector` of the pipeline (None: default parameters).
+        :class:`gaitlog.host.gait.events.GaitEventDetector` of the pipeline (None: default parameters).
 
     Attributes
     ----------

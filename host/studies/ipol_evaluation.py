@@ -1,9 +1,9 @@
 """The paper's evaluation on the IPOL lower-back recordings, replayed through the emulated logger.
 
-For every trial of an IPOL folder (:mod:`host.files.ipol`):
+For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
 
-1. *Replay*: the recording is the physical input of the logger (:class:`firmware_sim.world.replay.Replay`),
-   sampled by the emulated device (:class:`firmware_sim.device.Logger`) at ``sampling_rate_hz`` (50 Hz) with a
+1. *Replay*: the recording is the physical input of the logger (:class:`gaitlog.firmware_sim.world.replay.Replay`),
+   sampled by the emulated device (:class:`gaitlog.firmware_sim.device.Logger`) at ``sampling_rate_hz`` (50 Hz) with a
    ``adc_bits``-bit ADC (10), **with its on-line step algorithm on** (``StepConfig`` with the subject's leg and
    foot length, uncalibrated: the records hold the raw lengths), as a logger worn without K would record.
    The offline chain converts the codes back to g with the header's calibration (the nominal map). Replay
@@ -12,10 +12,10 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    lost) is marked missing for the offline chain, so no offline estimate rests on an invented sample. The
    on-line algorithm sees every stored code, as on the device.
 2. *Device = host*: the logger's stored step records are compared with the host's replay of the algorithm
-   on the stored codes, flags and header (:func:`host.files.replay.check_records`), byte for byte; a trial
+   on the stored codes, flags and header (:func:`gaitlog.host.files.replay.check_records`), byte for byte; a trial
    whose records differ is an error (:class:`HostError` naming the trial and the first record).
-3. *Steps*: the offline chain (:class:`host.gait.pipeline.StepPipeline`, the paper's PC processing) on
-   the whole recording, and the on-line algorithm (:class:`firmware_sim.algorithms.online.
+3. *Steps*: the offline chain (:class:`gaitlog.host.gait.pipeline.StepPipeline`, the paper's PC processing) on
+   the whole recording, and the on-line algorithm (:class:`gaitlog.firmware_sim.algorithms.online.
    OnlineStepAlgorithm`) on the same codes in floating point and in fixed point; a trial's steps are
    those whose heel-strike (or foot-flat) lies within ``TrialBoundaries`` shifted by ``+0.25 s`` at the
    start (the trial starts at the first toe-off; no heel strike can follow it sooner than a swing,
@@ -30,7 +30,7 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
    height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
    with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b).
-4b. *Tuned constants* (:mod:`host.studies.tuning`): the offline chain is run per trial for every candidate
+4b. *Tuned constants* (:mod:`gaitlog.host.studies.tuning`): the offline chain is run per trial for every candidate
    of the constants chosen from these recordings; for each subject the candidate is chosen on the other
    subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
    The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
@@ -40,25 +40,25 @@ For every trial of an IPOL folder (:mod:`host.files.ipol`):
    rows use it (K fitted with it); the on-line chains compute the shipped exponent, with K fitted with it.
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
-   :func:`host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
+   :func:`gaitlog.host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
    for the offline chain, the step configuration (``calibrated=True``) for the on-line algorithm, which
    applies it in its own arithmetic. M3 is never calibrated. Separately, and labelled so (``k_from =
    "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
    its own uncalibrated records of the calibration trial -- a different K, not a comparison.
-5b. *K prior* (:mod:`host.gait.k_prior`): every K above is shrunk toward the median K of the *other* subjects
+5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`): every K above is shrunk toward the median K of the *other* subjects
    (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` = 20 m, ``d0`` per
    estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
    the variants (the other U-turn rule, the height unknown, the on-line chain's own K) toward the same
    variant of the other subjects with the fold's ``d0``. The prior learned on every subject is printed
-   (:attr:`IpolResult.prior_all`; shipped as :data:`host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
+   (:attr:`IpolResult.prior_all`; shipped as :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
    :data:`CSV_COLUMNS` (ratio = distance / 20 m; steps = detected steps in the trial; reference = heel strikes
    in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
-   calibrated on, :meth:`host.gait.k_calibration.KFit.outside_range`, empty for M3). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
-   offline K) pair each on-line float step with its fixed-point and offline twins (:func:`host.studies.compare.
+   calibrated on, :meth:`gaitlog.host.gait.k_calibration.KFit.outside_range`, empty for M3). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
+   offline K) pair each on-line float step with its fixed-point and offline twins (:func:`gaitlog.host.studies.compare.
    match_steps`).
 
 :func:`done_figures` computes the issue's figures from the rows (device = host, the arithmetic and
@@ -76,28 +76,28 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
-from firmware_sim.algorithms.online import OnlineSteps
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from firmware_sim.device import Logger
-from firmware_sim.errors import DeviceError
-from firmware_sim.world.replay import Replay
-from host.errors import HostError
-from host.files.ipol import height_m_of, list_trials, read_trial
-from host.files.replay import check_records, online_step_table, run_starts
-from host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
-from host.gait.estimators.weinberg import weinberg_length_m
-from host.gait.k_calibration import KFit, calibrate
-from host.gait.k_prior import (
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
+from gaitlog.firmware_sim.algorithms.online import OnlineSteps
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.world.replay import Replay
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.ipol import height_m_of, list_trials, read_trial
+from gaitlog.host.files.replay import check_records, online_step_table, run_starts
+from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
+from gaitlog.host.gait.estimators.weinberg import weinberg_length_m
+from gaitlog.host.gait.k_calibration import KFit, calibrate
+from gaitlog.host.gait.k_prior import (
     PRIOR_DISTANCE_CANDIDATES_M,
     PRIOR_ESTIMATORS,
     KPrior,
     population_prior,
 )
-from host.gait.pipeline import StepPipeline, apply_calibration
-from host.studies.compare import match_steps
-from host.studies.tuning import (
+from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
+from gaitlog.host.studies.compare import match_steps
+from gaitlog.host.studies.tuning import (
     COUNT_CRITERION,
     CRITERION,
     K_CRITERION,
@@ -114,7 +114,7 @@ from host.studies.tuning import (
     least_spread,
     score_events,
 )
-from protocol.steps import StepConfig
+from gaitlog.protocol.steps import StepConfig
 
 #: Reference distance of an IPOL trial: 10 m out + 10 m back.
 IPOL_DISTANCE_M = 20.0
@@ -167,7 +167,7 @@ class ReplayedTrial:
         The stored sample flags, absolute sample numbers and the device header after the run (its step
         configuration, calibration, rate).
     device_records
-        The step records the logger stored (:data:`protocol.steps.STEP_RECORD_DTYPE`, CRC-good).
+        The step records the logger stored (:data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`, CRC-good).
     leg_length_m, foot_length_m
         The anatomy the logger's step configuration was given.
     """
@@ -228,13 +228,13 @@ class ReplayedTrial:
         return run_starts(np.ones(self.codes.shape[0], bool), self.flags)
 
     def check_records(self) -> Any:
-        """The device's records against the host's replay (:func:`host.files.replay.check_records`)."""
+        """The device's records against the host's replay (:func:`gaitlog.host.files.replay.check_records`)."""
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
     def online_table(self, *, arithmetic: str, calibration: KFit | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`host.files.replay.online_step_table`)."""
+        anatomy and ``calibration``'s K (:func:`gaitlog.host.files.replay.online_step_table`)."""
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
@@ -254,7 +254,7 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
     """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
 
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
-    trial's height (:func:`host.gait.anthropometry.choose_lengths`).
+    trial's height (:func:`gaitlog.host.gait.anthropometry.choose_lengths`).
     """
     lb_path = Path(lb_path)
     trial = read_trial(lb_path)         # the host's reader: the packet grid, lost packets missing, the JSON
@@ -358,7 +358,7 @@ class IpolResult:
         The U-turn rule of the main rows (``variant = "main"``); the offline chain is also scored with the
         other (``variant = "uturn-<rule>"``).
     candidates, event_scores, loso
-        The grid of the tuned constants (:func:`host.studies.tuning.candidates`, the defaults first), per
+        The grid of the tuned constants (:func:`gaitlog.host.studies.tuning.candidates`, the defaults first), per
         ``(subject, trial)`` and candidate the offline chain's (heel-strike, toe-off) scores against the
         foot sensors, and the leave-one-subject-out choice per subject.
     count_errors
@@ -367,7 +367,7 @@ class IpolResult:
     trial_events
         :data:`EVENT_COLUMNS` rows (every trial of a calibrated subject, offline and on-line fixed).
     m4_exponent
-        Per held-out subject, M4's exponent chosen on the other subjects (:data:`host.studies.tuning.
+        Per held-out subject, M4's exponent chosen on the other subjects (:data:`gaitlog.host.studies.tuning.
         K_CRITERION`).
     calibrations_online
         The K the on-line chains use per subject: ``calibrations``' own unless the subject's fold chose another
@@ -377,7 +377,7 @@ class IpolResult:
         the fold's M4 exponent, ``"online"``: with the logger's).
     prior_all
         The prior learned on every subject with the shipped constants (what
-        :data:`host.gait.k_prior.LOWER_BACK_PRIOR` ships; never used to score).
+        :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR` ships; never used to score).
     """
 
     rows: list[dict]
@@ -462,9 +462,9 @@ def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *,
                  source: str) -> tuple[KPrior, dict[str, float]]:
     """The K prior learned on ``transfers`` (subject: its first-trial K and its other trials' ratios with it).
 
-    The population K is the median over the subjects (:func:`host.gait.k_prior.population_prior`); ``d0`` per
-    estimator is the candidate (:data:`host.gait.k_prior.PRIOR_DISTANCE_CANDIDATES_M`) whose pooled ratios have
-    the smallest mean squared log ratio (:data:`host.studies.tuning.K_PRIOR_CRITERION`: the loss shrinkage
+    The population K is the median over the subjects (:func:`gaitlog.host.gait.k_prior.population_prior`); ``d0`` per
+    estimator is the candidate (:data:`gaitlog.host.gait.k_prior.PRIOR_DISTANCE_CANDIDATES_M`) whose pooled ratios have
+    the smallest mean squared log ratio (:data:`gaitlog.host.studies.tuning.K_PRIOR_CRITERION`: the loss shrinkage
     minimises, smoother than an IQR of a few dozen ratios), each subject's K shrunk toward the median of the
     *others* (so that no subject is pulled toward itself). Returns the prior and that error per estimator.
     """
@@ -511,7 +511,7 @@ def _event_row(rt: ReplayedTrial, table: StepTable, chain: str, calibration_tria
 
 def score_trial_events(rt: ReplayedTrial, table: StepTable) -> tuple[EventScore, EventScore]:
     """Heel strikes and toe-offs of a step table (:attr:`StepTable.heel_strike`, ``toe_off``; -1 = not found)
-    against the trial's foot-sensor events inside ``TrialBoundaries`` (:func:`host.studies.tuning.score_events`)."""
+    against the trial's foot-sensor events inside ``TrialBoundaries`` (:func:`gaitlog.host.studies.tuning.score_events`)."""
     to_ref, hs_ref = rt.reference_event_times_s()
     return (score_events(hs_ref, table.time_s(table.heel_strike[table.heel_strike >= 0])),
             score_events(to_ref, table.time_s(table.toe_off[table.toe_off >= 0])))
@@ -543,7 +543,7 @@ def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_tria
 
 
 def _offline(rt: ReplayedTrial, leg: float, foot: float, candidate: dict[str, Any]) -> StepTable:
-    """The offline chain on a replayed trial with one candidate's event detector (:mod:`host.studies.tuning`)."""
+    """The offline chain on a replayed trial with one candidate's event detector (:mod:`gaitlog.host.studies.tuning`)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return StepPipeline(leg_length_m=leg, foot_length_m=foot, detector=detector_for(candidate)).run(

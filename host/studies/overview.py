@@ -2,10 +2,10 @@
 
 :func:`recording_overview` gathers, for a time window of a decoded recording: the acceleration (3 axes, g;
 missing samples NaN), the gaps (runs of missing samples), the lap marks, the events of the host's offline
-chain (foot-flat, heel-strike, toe-off: :class:`host.gait.pipeline.StepPipeline`, run on the whole recording so
+chain (foot-flat, heel-strike, toe-off: :class:`gaitlog.host.gait.pipeline.StepPipeline`, run on the whole recording so
 the window's edges change nothing), the device's own step records when the recording holds some, and the
 per-step lengths of the chosen estimators (offline, and the device's beside them). The figure is drawn by
-:func:`host.studies.plots.render_overview_png`; the data are returned so that callers and tests read exactly
+:func:`gaitlog.host.studies.plots.render_overview_png`; the data are returned so that callers and tests read exactly
 what was drawn.
 
 Times are seconds since the recording's first row.
@@ -18,13 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from firmware_sim.algorithms.online import OnlineSteps
-from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from host.errors import HostError
-from host.files.recording import Recording
-from host.gait.k_calibration import KFit
-from host.gait.pipeline import StepPipeline
-from protocol.packing import FLAG_MARK
+from gaitlog.firmware_sim.algorithms.online import OnlineSteps
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.recording import Recording
+from gaitlog.host.gait.k_calibration import KFit
+from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.protocol.packing import FLAG_MARK
 
 #: Event names, in the order of the legend.
 EVENTS = ("foot-flat", "heel-strike", "toe-off", "device step")

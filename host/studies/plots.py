@@ -5,7 +5,7 @@ Fig. 6 adds M5). Each box is the median and quartiles of the 20 m section ratios
 extreme values (the paper plots "median, quartiles and extreme values"), so no point is drawn as an
 outlier. The dashed line is 100 %. Figures are :class:`matplotlib.figure.Figure` objects
 rendered straight to PNG (no pyplot, no global backend); the PNG is written atomically
-(:func:`protocol.atomic_write.atomic_write_bytes`). Only the commands that draw import this module.
+(:func:`gaitlog.protocol.atomic_write.atomic_write_bytes`). Only the commands that draw import this module.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from firmware_sim.algorithms.steps import ESTIMATORS
-from host.files.png_figure import figure_png_bytes
-from protocol.atomic_write import atomic_write_bytes
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.files.png_figure import figure_png_bytes
+from gaitlog.protocol.atomic_write import atomic_write_bytes
 
 PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),
           ("multi-speed", ESTIMATORS, "Calibration at every speed"))
@@ -58,7 +58,7 @@ def render_boxplots_png(rows: Sequence[dict], *, title: str | None = None, dpi: 
 
 
 def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None = None, dpi: int = 120) -> Path:
-    """Write the Figs 5-6 style box plots of ``rows`` (see :mod:`host.studies.evaluation`) to ``path`` (PNG)."""
+    """Write the Figs 5-6 style box plots of ``rows`` (see :mod:`gaitlog.host.studies.evaluation`) to ``path`` (PNG)."""
     png = render_boxplots_png(rows, title=title, dpi=dpi)
     atomic_write_bytes(path, png)
     return Path(path)
@@ -67,7 +67,7 @@ def plot_boxplots(rows: Sequence[dict], path: str | Path, *, title: str | None =
 def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, title: str | None = None,
                               dpi: int = 120) -> bytes:
     """Box plots of per-trial ratios (``estimator``, ``arithmetic``, ``k_from``, ``ratio`` rows of
-    :mod:`host.studies.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
+    :mod:`gaitlog.host.studies.ipol_evaluation`): one box per chain side by side for each estimator, the rows with the offline
     chain's K only (the comparison). Raises ValueError when there is nothing to plot."""
     ests = ESTIMATORS
     data = {(a, e): np.asarray([float(r["ratio"]) for r in rows if r["estimator"] == e and r["arithmetic"] == a
@@ -96,13 +96,13 @@ def render_chain_boxplots_png(rows: Sequence[dict], chains: Sequence[str], *, ti
     return figure_png_bytes(fig, dpi=dpi)
 
 
-#: Colour and marker of each event of the overview (:data:`host.studies.overview.EVENTS`).
+#: Colour and marker of each event of the overview (:data:`gaitlog.host.studies.overview.EVENTS`).
 _EVENT_STYLE = {"foot-flat": ("C3", "v"), "heel-strike": ("C0", "^"), "toe-off": ("C2", "o"),
                 "device step": ("k", "|")}
 
 
 def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi: int = 100) -> bytes:
-    """The overview of a recording's window (:class:`host.studies.overview.RecordingOverview`) as PNG bytes of
+    """The overview of a recording's window (:class:`gaitlog.host.studies.overview.RecordingOverview`) as PNG bytes of
     exactly ``size_px`` (width, height) pixels: the acceleration (x, y, z in g) with the gaps shaded, the lap
     marks as vertical lines and the events as markers on the top panel; each step's length per estimator
     (offline chain filled markers, the device's records open markers) on the bottom panel."""

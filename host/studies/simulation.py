@@ -2,9 +2,9 @@
 
 - :func:`record_subject` -> :class:`SimulatedRecording`: a subject walks the paper's protocol with the emulated
   logger (after a pose session that calibrates it), and its memory image is decoded as a dump would be (steps
-  1-2 of :mod:`host.studies.evaluation`).
+  1-2 of :mod:`gaitlog.host.studies.evaluation`).
 - :class:`AnalogWalk`: the same walk seen by the sensor on its fine analog grid, sampled at any rate into a
-  :class:`host.studies.compare.SampledWalk` (the ADC/rate/arithmetic comparison of :mod:`host.studies.compare`
+  :class:`gaitlog.host.studies.compare.SampledWalk` (the ADC/rate/arithmetic comparison of :mod:`gaitlog.host.studies.compare`
   and the sweep).
 - :func:`ipol_trial` / :func:`export_ipol`: the IPOL lower-back trial (stand, walk 10 m, U-turn, walk back,
   stop) walked by simulated subjects and written in the IPOL layout (``gaitlog simulate --ipol-out``), so that
@@ -24,25 +24,25 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
-from firmware_sim.device import Logger
-from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from firmware_sim.world.poses import CalibrationPoses
-from firmware_sim.world.stopwatch import Stopwatch
-from firmware_sim.world.subject import Subject, random_subjects
-from firmware_sim.world.walk_plan import PAPER_HEIGHTS_M, POPULATION_PLANS, WalkPlan
-from firmware_sim.world.walking import Walking
-from host.accelerometer.fit import AccCalibrator
-from host.errors import HostError
-from host.files.decode import decode_bytes
-from host.files.ipol import IPOL_SAMPLING_RATE_HZ, write_trial
-from host.files.replay import run_starts
-from host.studies.compare import SampledWalk, WalkComparison, compare_walk
-from protocol.header import CalibrationSlot
-from protocol.image import build_image
-from protocol.packing import FLAG_MARK
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.firmware_sim.world.stopwatch import Stopwatch
+from gaitlog.firmware_sim.world.subject import Subject, random_subjects
+from gaitlog.firmware_sim.world.walk_plan import PAPER_HEIGHTS_M, POPULATION_PLANS, WalkPlan
+from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.host.accelerometer.fit import AccCalibrator
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.host.files.ipol import IPOL_SAMPLING_RATE_HZ, write_trial
+from gaitlog.host.files.replay import run_starts
+from gaitlog.host.studies.compare import SampledWalk, WalkComparison, compare_walk
+from gaitlog.protocol.header import CalibrationSlot
+from gaitlog.protocol.image import build_image
+from gaitlog.protocol.packing import FLAG_MARK
 
 __all__ = ["PROTOCOLS", "AnalogWalk", "SimulatedRecording", "at_paper_heights", "export_ipol", "ipol_trial", "ipol_walk_plan",
            "record_subject", "simulated_population"]
@@ -67,7 +67,7 @@ class SimulatedRecording:
     Attributes
     ----------
     subject
-        The :class:`firmware_sim.world.subject.Subject`.
+        The :class:`gaitlog.firmware_sim.world.subject.Subject`.
     seed
         Seed of the walk and of the device.
     acc_g, valid
@@ -77,13 +77,13 @@ class SimulatedRecording:
     mark_times_s
         Times of the samples carrying the MARK flag (lap button).
     truth
-        The walk's truth (``steps``, ``laps``, ``excursions``, ...; see :mod:`firmware_sim.world.walking`).
+        The walk's truth (``steps``, ``laps``, ``excursions``, ...; see :mod:`gaitlog.firmware_sim.world.walking`).
     device_calibrated
         True when the codes were converted with a pose-session calibration (else the nominal map).
     run_rows
         ``[start, stop)`` rows of each logging run (from its SESSION_START sample).
     lap_sheet
-        The observer's stopwatch sheet (:meth:`firmware_sim.world.stopwatch.Stopwatch.time_laps`; its
+        The observer's stopwatch sheet (:meth:`gaitlog.firmware_sim.world.stopwatch.Stopwatch.time_laps`; its
         ``start_walk_s`` converted to the host clock as truth) when the laps were timed by stopwatch, else None.
     """
 
@@ -118,27 +118,27 @@ def _to_host(t_walk: np.ndarray, spans: list[tuple[float, float, float]]) -> np.
 
 def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10,
                    calibrate_device: bool = True, laps: str = "mark") -> SimulatedRecording:
-    """Walk ``subject`` through the protocol with the emulated logger (:mod:`host.studies.evaluation`, steps 1-2).
+    """Walk ``subject`` through the protocol with the emulated logger (:mod:`gaitlog.host.studies.evaluation`, steps 1-2).
 
-    The logger is STARTed and STOPped as the plan says (:attr:`~firmware_sim.world.walk_plan.WalkPlan.logger_runs`:
+    The logger is STARTed and STOPped as the plan says (:attr:`~gaitlog.firmware_sim.world.walk_plan.WalkPlan.logger_runs`:
     one run, or one per excursion with the rests unlogged), all runs into one memory (no ERASE between them);
     the host reads the memory image as a dump and splits it into runs at the SESSION_START samples.
 
     Parameters
     ----------
     subject
-        A :class:`firmware_sim.world.subject.Subject`.
+        A :class:`gaitlog.firmware_sim.world.subject.Subject`.
     seed
         Seeds the walk's variability, the pose session, the device's sensor errors and the observer.
     walk_plan
-        A :class:`firmware_sim.world.walk_plan.WalkPlan` (default: ``WalkPlan()``).
+        A :class:`gaitlog.firmware_sim.world.walk_plan.WalkPlan` (default: ``WalkPlan()``).
     sampling_rate_hz, adc_bits
         Logger sample rate and ADC resolution.
     calibrate_device
         Fit the device calibration on a pose session first (default) or use the nominal map.
     laps
         ``"mark"``: the MARK button is pressed at every lap (exactly); ``"stopwatch"``: an observer times them
-        (:class:`firmware_sim.world.stopwatch.Stopwatch`, no MARK on the device).
+        (:class:`gaitlog.firmware_sim.world.stopwatch.Stopwatch`, no MARK on the device).
 
     Raises
     ------
@@ -228,12 +228,12 @@ class AnalogWalk:
     Parameters
     ----------
     subject
-        :class:`firmware_sim.world.subject.Subject`.
+        :class:`gaitlog.firmware_sim.world.subject.Subject`.
     seed
         Seed of the walk; the sensor is the unit ``SensorModel.draw(seed=sensor_seed)`` (default: the
         logger's default for ``device_id = 1 + seed % 60000``, as :func:`record_subject`).
     walk_plan
-        :class:`firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
+        :class:`gaitlog.firmware_sim.world.walk_plan.WalkPlan` (default: the paper's).
 
     Attributes
     ----------
@@ -264,7 +264,7 @@ class AnalogWalk:
 
     def sample(self, sampling_rate_hz: float, *, noise_density_g_rthz: float | None = None) -> SampledWalk:
         """The analog output at the sample instants of a ``sampling_rate_hz`` timer, noise included (as
-        :meth:`firmware_sim.device.Logger.record`: same instants, same hold, same noise stream).
+        :meth:`gaitlog.firmware_sim.device.Logger.record`: same instants, same hold, same noise stream).
 
         ``noise_density_g_rthz`` replaces the sensor's white-noise density (default: the sensor's, 200 µg/√Hz);
         the noise stream (its seed) is the same, only scaled, so a noise sweep compares like with like."""
@@ -298,7 +298,7 @@ def simulated_population(n_subjects: int, *, seed: int = 0, population: str = "p
     """The subjects of a simulated study and the protocol they walk.
 
     ``protocol="compact"``: ``random_subjects(n_subjects, seed, population)`` walking ``walk_plan``, else
-    ``WalkPlan`` with the population's walk habits (:data:`~firmware_sim.world.walk_plan.POPULATION_PLANS`;
+    ``WalkPlan`` with the population's walk habits (:data:`~gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS`;
     None for ``"v1"``: the default plan: 60 s rests, the logger running throughout).
     ``protocol="paper"``: the same draws brought to the paper's heights (:func:`at_paper_heights`) walking
     ``walk_plan``, else :meth:`WalkPlan.paper` with the population's habits (5-minute rests, the logger
@@ -348,7 +348,7 @@ def simulate_comparisons(n_subjects: int, *, seed: int = 0, adc_bits: int = 10,
                          sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, workers: int = 1,
                          progress: Callable[[], object] | None = None,
                          population: str = "people") -> list[WalkComparison]:
-    """One :class:`host.studies.compare.WalkComparison` per simulated subject (``gaitlog compare --simulate``),
+    """One :class:`gaitlog.host.studies.compare.WalkComparison` per simulated subject (``gaitlog compare --simulate``),
     in parallel over subjects; ``progress()`` is called after each subject."""
     subjects, plan = simulated_population(n_subjects, seed=seed, population=population)
     jobs = [(s, seed * 1000 + i, adc_bits, sampling_rate_hz, plan) for i, s in enumerate(subjects)]
@@ -383,14 +383,14 @@ def _compared_subject(job: tuple) -> WalkComparison:
 def ipol_walk_plan(population: str = "people") -> WalkPlan:
     """The IPOL lower-back trial as a :class:`WalkPlan`: quiet standing (2 s: the tools take gravity from the
     first second), 10 m out, the U-turn, 10 m back, stop, stand 1.5 s; one excursion at the preferred speed.
-    Gait initiation, turn and termination: the population's (:data:`firmware_sim.world.walk_plan.POPULATION_PLANS`)."""
+    Gait initiation, turn and termination: the population's (:data:`gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS`)."""
     extra = POPULATION_PLANS[population]
     return WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=2.0, final_stand_s=1.5,
                     lap_marks_m=(0.0, 20.0), **extra)
 
 
 def ipol_trial(subject: Subject, *, seed: int, population: str = "people") -> tuple[np.ndarray, dict]:
-    """One simulated IPOL trial: ``(acc_m_s2, meta)`` for :func:`host.files.ipol.write_trial`.
+    """One simulated IPOL trial: ``(acc_m_s2, meta)`` for :func:`gaitlog.host.files.ipol.write_trial`.
 
     ``acc_m_s2`` is the world's specific force at the sensor, in the device axes (x up, y left, z backward, as
     the Xsens of the IPOL recordings; the subject's mounting tilt included), sampled at 100 Hz without noise.

@@ -1,9 +1,9 @@
 """ADC width x sample rate sweep over simulated subjects, and the paper's open question about M5.
 
-For every subject (:func:`firmware_sim.world.subject.random_subjects`) the walk and the sensor's analog
-response are computed once (:class:`host.studies.simulation.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
+For every subject (:func:`gaitlog.firmware_sim.world.subject.random_subjects`) the walk and the sensor's analog
+response are computed once (:class:`gaitlog.host.studies.simulation.AnalogWalk`); each sample rate (25, 50, 100 Hz) samples
 that same analog output (same sensor, same noise seed), and each ADC width (8, 10, 12 bits) quantises the
-same samples. Every configuration then runs the comparison of :func:`host.studies.compare.compare_walk`: the
+same samples. Every configuration then runs the comparison of :func:`gaitlog.host.studies.compare.compare_walk`: the
 ideal (no ADC) and offline float chains and the on-line algorithm in float and in fixed point, with **one
 K per configuration and mode** (single- and multi-speed), fitted on that configuration's offline chain and
 used by all four chains; 20 m section ratios and the per-step error split (ADC = offline - ideal,
@@ -58,11 +58,11 @@ from typing import Any, Self
 
 import numpy as np
 
-from firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from host.errors import HostError
-from host.gait.sections import MODES
-from host.studies.compare import (
+from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.sections import MODES
+from gaitlog.host.studies.compare import (
     CHAINS,
     SHARES,
     SampledWalk,
@@ -70,8 +70,8 @@ from host.studies.compare import (
     compare_walk,
     pair_label,
 )
-from host.studies.simulation import AnalogWalk, map_subjects, simulated_population
-from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
+from gaitlog.host.studies.simulation import AnalogWalk, map_subjects, simulated_population
+from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 ADC_BITS = (8, 10, 12)
 RATES_HZ = (DEFAULT_SAMPLING_RATE_HZ / 2, DEFAULT_SAMPLING_RATE_HZ, DEFAULT_SAMPLING_RATE_HZ * 2)
@@ -104,10 +104,10 @@ class ConfigResult:
 
 def run_config(sw: SampledWalk, subject: Any, adc_bits: int, *, ideal_table: StepTable | None = None,
                **options: Any) -> tuple[ConfigResult, StepTable]:
-    """One configuration (one ADC width on one sampled walk): :func:`host.studies.compare.compare_walk` kept as
+    """One configuration (one ADC width on one sampled walk): :func:`gaitlog.host.studies.compare.compare_walk` kept as
     a :class:`ConfigResult`, and the ideal chain's table (the analog input: the same at every width, reusable
     as ``ideal_table`` for the next width). The one home of the per-configuration work of this sweep and of
-    :mod:`host.studies.sweep_grid`."""
+    :mod:`gaitlog.host.studies.sweep_grid`."""
     wc = compare_walk(sw, subject, adc_bits=adc_bits, ideal_table=ideal_table, **options)
     fx = wc.runs["online-fixed"]
     return (ConfigResult(subject.subject_id, int(adc_bits), float(sw.sampling_rate_hz), wc.step_diffs, wc.segments,
@@ -134,18 +134,18 @@ class AdcRateSweep:
     Parameters
     ----------
     n_subjects, seed
-        Subjects of :func:`~firmware_sim.world.subject.random_subjects`; subject ``i`` walks with seed
-        ``seed * 1000 + i`` (as :class:`host.studies.evaluation.SimulatedEvaluation`).
+        Subjects of :func:`~gaitlog.firmware_sim.world.subject.random_subjects`; subject ``i`` walks with seed
+        ``seed * 1000 + i`` (as :class:`gaitlog.host.studies.evaluation.SimulatedEvaluation`).
     adc_bits, rates_hz
         ADC widths and sample rates.
     walk_plan
-        :class:`~firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's habits).
+        :class:`~gaitlog.firmware_sim.world.walk_plan.WalkPlan` (default: the paper's, with the population's habits).
     population
-        ``"people"`` (default) or ``"v1"`` (:func:`host.studies.simulation.simulated_population`).
+        ``"people"`` (default) or ``"v1"`` (:func:`gaitlog.host.studies.simulation.simulated_population`).
     workers
         Processes; results do not depend on it.
     calibration_sections, include_turn
-        See :func:`host.studies.compare.compare_walk`.
+        See :func:`gaitlog.host.studies.compare.compare_walk`.
 
     Attributes
     ----------

@@ -2,7 +2,7 @@
 swept dimension), with intervals over subjects.
 
 One figure per swept dimension with more than one value; the other dimensions are held at their reference
-(:func:`host.studies.sweep_grid.reference`: 10 bits, 50 Hz, the sensor's noise, the shipped Q formats, no extra
+(:func:`gaitlog.host.studies.sweep_grid.reference`: 10 bits, 50 Hz, the sensor's noise, the shipped Q formats, no extra
 misalignment, the default population, when swept). One line per estimator (multi-speed K); each point is the
 median over subjects, its bar the range over subjects (each subject's own per-step median, or section-ratio
 median):
@@ -12,7 +12,7 @@ median):
 * the offline chain's section ratio estimated / real, % (vs Q format: the on-line fixed-point chain's, pooled
   median only);
 * vs rate only: what the step timing adds to M5's section-ratio spread
-  (:func:`host.studies.sweep_grid.m5_rate_answer`), with its range over subjects.
+  (:func:`gaitlog.host.studies.sweep_grid.m5_rate_answer`), with its range over subjects.
 
 The dashed lines are the tolerances of the printed answers (1 mm; 1 %). Rendered straight to PNG (no pyplot);
 only ``gaitlog sweep`` imports this module.
@@ -25,9 +25,9 @@ import math
 import numpy as np
 from matplotlib.figure import Figure
 
-from firmware_sim.algorithms.steps import ESTIMATORS
-from host.files.png_figure import figure_png_bytes
-from host.studies.sweep_grid import (
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.files.png_figure import figure_png_bytes
+from gaitlog.host.studies.sweep_grid import (
     DEFAULT_POPULATION,
     RATIO_TOLERANCE,
     SENSOR_NOISE_G_RTHZ,

@@ -4,12 +4,12 @@ independent tasks, each deterministic from its seed.
 
 **Tasks.** One task is one subject of one seed and population (``random_subjects(n_subjects, seed=seed,
 population=population)[i]``, walking with seed ``seed * 1000 + i`` the protocol with the population's walk
-habits, as :class:`host.studies.sweep.AdcRateSweep`), its logger tilted by ``misalignment_deg`` more than the
+habits, as :class:`gaitlog.host.studies.sweep.AdcRateSweep`), its logger tilted by ``misalignment_deg`` more than the
 subject's own mounting (a pitch about the trunk's medio-lateral axis, composed with the subject's rotation),
 sampled at one rate with one noise density, quantised at one ADC width, and its fixed-point chain compiled
-with one set of Q formats (:class:`firmware_sim.algorithms.format_kernel.KernelFormats`, by label:
-``shipped``, ``acc10-lp12``...). Its work is :func:`host.studies.sweep.run_config` (the comparison of
-:func:`host.studies.compare.compare_walk`: ideal, offline, on-line float and on-line fixed-point chains, one K
+with one set of Q formats (:class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`, by label:
+``shipped``, ``acc10-lp12``...). Its work is :func:`gaitlog.host.studies.sweep.run_config` (the comparison of
+:func:`gaitlog.host.studies.compare.compare_walk`: ideal, offline, on-line float and on-line fixed-point chains, one K
 per calibration mode fitted on the offline chain): the same code as ``gaitlog compare --sweep``, so a grid of
 the same configurations gives the same numbers. A task depends on nothing but its own fields, so it gives the
 same rows in any process, in any order, on any machine: 1 worker, N workers, a remote cluster or a resumed run
@@ -27,7 +27,7 @@ per-task scalars (step-timing error, fixed-point saturation).
 
 **Q formats.** The fixed-point chain's formats are compile-time constants of the numba kernel; a set other
 than the shipped one is the same kernel text JIT-compiled with other fraction bits
-(:mod:`firmware_sim.algorithms.format_kernel`, ~10 s once per worker process and set), the shipped set runs the
+(:mod:`gaitlog.firmware_sim.algorithms.format_kernel`, ~10 s once per worker process and set), the shipped set runs the
 kernel built ahead of time. Only the on-line fixed-point chain depends on them: the arithmetic share (online-fixed
 - online-float) is the error they cause. :func:`smallest_q_formats` answers, per variable swept alone, the
 coarsest fraction bits keeping every estimator within 1 mm per step and 1 % per 20 m section of float.
@@ -57,17 +57,17 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.algorithms.format_kernel import KernelFormats
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.algorithms.steps import ESTIMATORS
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
-from host.errors import HostError
-from host.gait.sections import MODES
-from host.studies.compare import CHAINS, SHARES, column_key, pair_label
-from host.studies.simulation import AnalogWalk, simulated_population
-from host.studies.sweep import ADC_BITS, RATES_HZ, median_iqr, run_config
-from protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.sections import MODES
+from gaitlog.host.studies.compare import CHAINS, SHARES, column_key, pair_label
+from gaitlog.host.studies.simulation import AnalogWalk, simulated_population
+from gaitlog.host.studies.sweep import ADC_BITS, RATES_HZ, median_iqr, run_config
+from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
 #: The sensor's own white-noise density (ADXL202E typical), g/√Hz.
 SENSOR_NOISE_G_RTHZ: float = next(f.default for f in fields(SensorModel) if f.name == "noise_density_g_rthz")
@@ -77,7 +77,7 @@ PROTOCOLS: dict[str, WalkPlan | None] = {
     "paper": None,
     "short": WalkPlan(corridor_length_m=40.0, rest_s=8.0, lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 80.0)),
 }
-#: The simulated population when the grid names none (that of :func:`host.studies.simulation.simulated_population`).
+#: The simulated population when the grid names none (that of :func:`gaitlog.host.studies.simulation.simulated_population`).
 DEFAULT_POPULATION: str = inspect.signature(simulated_population).parameters["population"].default
 #: Largest extra mounting tilt, degrees.
 MAX_MISALIGNMENT_DEG = 45.0

@@ -3,7 +3,7 @@
 A :class:`TaskStore` is a folder with one JSON file per finished task (``tasks/<key>.json``, written
 atomically: a file is either complete or absent, never half-written). A task is anything with a ``key``
 attribute (a file-name-safe string that changes with every field the result depends on, e.g.
-:attr:`host.studies.sweep_grid.SweepTask.key`). Runners (:func:`run_serial`, :func:`host.studies.dask_runner.run_on_dask`)
+:attr:`gaitlog.host.studies.sweep_grid.SweepTask.key`). Runners (:func:`run_serial`, :func:`gaitlog.host.studies.dask_runner.run_on_dask`)
 compute only the tasks whose file is missing and write each result as it arrives; :meth:`TaskStore.collect`
 reads them back in the tasks' order, so the assembled results do not depend on which process finished first.
 
@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from host.errors import HostError
-from protocol.atomic_write import atomic_write_text
+from gaitlog.host.errors import HostError
+from gaitlog.protocol.atomic_write import atomic_write_text
 
 __all__ = ["TaskStore", "run_serial"]
 

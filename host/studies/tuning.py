@@ -8,23 +8,23 @@ is used), the one selection criterion (:data:`CRITERION`) and the LOSO procedure
 each subject, the value is chosen on the *other* subjects' trials, and that subject is scored with it.
 
 * ``heel_strike_rule``: ``"impact"`` (the maximum of the 5-10 Hz band of the vertical acceleration,
-  :mod:`host.gait.events` notes 2, the default) or ``"steepest-rise"`` (the largest sample-to-sample rise of
+  :mod:`gaitlog.host.gait.events` notes 2, the default) or ``"steepest-rise"`` (the largest sample-to-sample rise of
   the 10 Hz vertical acceleration, Zijlstra & Hof 2003's initial contact; :class:`SteepestRiseDetector`).
-* ``hs_delay_s``: the heel strike this long before the impact (:class:`firmware_sim.algorithms.parameters.
+* ``hs_delay_s``: the heel strike this long before the impact (:class:`gaitlog.firmware_sim.algorithms.parameters.
   EventParameters`; 0-80 ms, whole samples at 50 Hz; ignored by the steepest-rise rule).
-* ``m4_exponent``: M4's ``S = K (a_max - a_min)^p`` (:data:`firmware_sim.algorithms.parameters.M4_EXPONENT`;
+* ``m4_exponent``: M4's ``S = K (a_max - a_min)^p`` (:data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`;
   1/4 (Weinberg), 3/8, 1/2: why these, in that module's notes). Its criterion is the one K must meet
   (:data:`K_CRITERION`, :func:`least_spread` on the training subjects' ratios): the IQR of the calibrated M4
   distance ratio, K fitted on each training subject's first trial, shrunk as the evaluation uses it (toward
   the other training subjects' K, with the prior chosen on them for that exponent) and scored on its other
   trials, pooled; ties go to the earlier candidate (the default first). Only the M4 lengths are recomputed per candidate (from each step's range).
 * ``k_prior_distance_m``: the weight ``d0`` of the population prior K is shrunk toward, per estimator
-  (:mod:`host.gait.k_prior`), chosen with the population K of the training subjects by
-  :data:`K_PRIOR_CRITERION` (:func:`least_error`; ``host.studies.ipol_evaluation.choose_prior``).
-* ``stop_prominence_m_s2``: the stop rule's prominence (a bout's weak last step, :mod:`host.gait.events`
+  (:mod:`gaitlog.host.gait.k_prior`), chosen with the population K of the training subjects by
+  :data:`K_PRIOR_CRITERION` (:func:`least_error`; ``gaitlog.host.studies.ipol_evaluation.choose_prior``).
+* ``stop_prominence_m_s2``: the stop rule's prominence (a bout's weak last step, :mod:`gaitlog.host.gait.events`
   notes 5; 0: off), chosen by the step count (:data:`COUNT_CRITERION`).
 
-A parameter whose name is a field of :class:`~firmware_sim.algorithms.parameters.EventParameters` needs
+A parameter whose name is a field of :class:`~gaitlog.firmware_sim.algorithms.parameters.EventParameters` needs
 nothing else: add a :class:`TunedParameter` and it is searched (the grid is the product of the candidates).
 
 Criteria: for the heel-strike constants, heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot
@@ -47,11 +47,11 @@ from typing import Any
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT, EventParameters, samples
-from host.gait.events import GaitEventDetector, link_steps
-from host.gait.k_prior import LOWER_BACK_PRIOR, PRIOR_DISTANCE_CANDIDATES_M
-from host.gait.masked_filter import masked_gaussian_lowpass
-from host.studies.compare import match_events
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT, EventParameters, samples
+from gaitlog.host.gait.events import GaitEventDetector, link_steps
+from gaitlog.host.gait.k_prior import LOWER_BACK_PRIOR, PRIOR_DISTANCE_CANDIDATES_M
+from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
+from gaitlog.host.studies.compare import match_events
 
 __all__ = ["COUNT_CRITERION", "CRITERION", "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
            "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
@@ -80,14 +80,14 @@ class TunedParameter:
 #: Every constant chosen from the IPOL recordings (module notes).
 TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
     TunedParameter("heel_strike_rule", ("impact", "steepest-rise"), "impact",
-                   "host.gait.events (heel-strike = the impact in the 5-10 Hz band) and the on-line algorithm"),
+                   "gaitlog.host.gait.events (heel-strike = the impact in the 5-10 Hz band) and the on-line algorithm"),
     TunedParameter("hs_delay_s", (0.04, 0.0, 0.02, 0.06, 0.08), EventParameters().hs_delay_s,
                    "EventParameters.hs_delay_s (heel-strike before the impact), both chains"),
     TunedParameter("m4_exponent", (M4_EXPONENT, 0.25, 0.375), M4_EXPONENT,
-                   "firmware_sim.algorithms.parameters.M4_EXPONENT (M4 = K range^p), both chains",
+                   "gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT (M4 = K range^p), both chains",
                    criterion="k-transfer"),
     TunedParameter("k_prior_distance_m", PRIOR_DISTANCE_CANDIDATES_M, dict(LOWER_BACK_PRIOR.distance_m),
-                   "host.gait.k_prior.LOWER_BACK_PRIOR (K shrunk toward the other subjects' K), the host's K",
+                   "gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR (K shrunk toward the other subjects' K), the host's K",
                    criterion="k-prior"),
     TunedParameter("stop_prominence_m_s2", (0.0, 0.2, 0.3, 0.4), EventParameters().stop_prominence_m_s2,
                    "EventParameters.stop_prominence_m_s2 (a bout's weak last step), both chains",
@@ -103,7 +103,7 @@ K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subje
                "over the training subjects (ties: the earlier candidate)")
 
 
-#: The criterion of the K prior's weight (:func:`least_error`; :mod:`host.gait.k_prior`).
+#: The criterion of the K prior's weight (:func:`least_error`; :mod:`gaitlog.host.gait.k_prior`).
 K_PRIOR_CRITERION = ("mean squared log distance ratio, K from each training subject's first trial shrunk toward the "
                      "median K of the other training subjects, scored on its other trials, pooled (ties: the "
                      "smaller prior weight)")
@@ -221,7 +221,7 @@ def score_events(reference_s: np.ndarray, detected_s: np.ndarray, *, margin_s: f
     Only detected events from ``margin_s`` before the first to ``margin_s`` after the last reference event
     count (the reference covers the trial, the recording is longer). Matched: one-to-one within
     :data:`MATCH_TOLERANCE_S`; errors: of the pairs within :data:`TIMING_TOLERANCE_S`
-    (:func:`host.studies.compare.match_events`).
+    (:func:`gaitlog.host.studies.compare.match_events`).
 
     >>> s = score_events(np.array([1.0, 2.0, 3.0]), np.array([1.02, 2.1, 3.0, 9.0]))
     >>> (s.n_reference, s.n_detected, s.n_matched, round(s.f1, 3), round(s.median_abs_error_s, 3))

@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim import compiled, fixedpoint
-from firmware_sim.algorithms import aot_kernel, kernel
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.fixedpoint import ArithmeticContext, QFormat
-from protocol.header import CalibrationSlot
-from protocol.steps import StepConfig
+from gaitlog.firmware_sim import compiled, fixedpoint
+from gaitlog.firmware_sim.algorithms import aot_kernel, kernel
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.fixedpoint import ArithmeticContext, QFormat
+from gaitlog.protocol.header import CalibrationSlot
+from gaitlog.protocol.steps import StepConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 STEP_CONFIG = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
@@ -116,9 +116,9 @@ def test_from_float_saturates_huge_values_towards_their_sign() -> None:
 def test_configuring_the_algorithm_imports_no_numba() -> None:
     got = _child(
         "import json, sys\n"
-        "from firmware_sim.algorithms.online import OnlineConfig\n"
-        "from protocol.header import CalibrationSlot\n"
-        "from protocol.steps import StepConfig\n"
+        "from gaitlog.firmware_sim.algorithms.online import OnlineConfig\n"
+        "from gaitlog.protocol.header import CalibrationSlot\n"
+        "from gaitlog.protocol.steps import StepConfig\n"
         "cal = CalibrationSlot([510.0, 515.5, 508.25], [[0.0039, 1e-5, 0], [0, 0.00391, -2e-5], "
         "[0, 0, 0.0038]])\n"
         "sc = StepConfig(step_format=1, leg_length_m=0.93, foot_length_m=0.21)\n"
@@ -133,8 +133,8 @@ def test_lazy_functions_compile_together_on_first_call() -> None:
     assert hasattr(kernel.process, "py_func") and hasattr(kernel.reset, "py_func")
     got = _child(
         "import json, sys\n"
-        "from firmware_sim.algorithms import kernel\n"
-        "from firmware_sim.compiled import LazyDispatcher\n"
+        "from gaitlog.firmware_sim.algorithms import kernel\n"
+        "from gaitlog.firmware_sim.compiled import LazyDispatcher\n"
         "before = isinstance(kernel._sample, LazyDispatcher), 'numba' in sys.modules\n"
         "lazy = kernel.reset\n"
         "import numpy as np\n"
@@ -187,8 +187,8 @@ def test_estimate_loads_the_aot_kernel_without_numba(tmp_path: Path) -> None:
     np.save(tmp_path / "codes.npy", codes)
     got = _child(
         "import json, sys, numpy as np\n"
-        "from firmware_sim.algorithms.online import OnlineStepAlgorithm\n"
-        "from protocol.steps import StepConfig\n"
+        "from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm\n"
+        "from gaitlog.protocol.steps import StepConfig\n"
         "sc = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)\n"
         f"codes = np.load({str(tmp_path / 'codes.npy')!r})\n"
         "out = []\n"
@@ -229,7 +229,7 @@ def test_first_use_builds_once_while_another_process_waits(tmp_path: Path) -> No
     if not aot_kernel.enabled():
         pytest.skip("the ahead-of-time kernel is off (GAITLOG_NO_AOT or NUMBA_DISABLE_JIT)")
     script = ("import json, time\n"
-              "from firmware_sim.algorithms import aot_kernel\n"
+              "from gaitlog.firmware_sim.algorithms import aot_kernel\n"
               "t = time.monotonic()\n"
               "print(json.dumps([aot_kernel.entry_points('fixed')[1], time.monotonic() - t]))\n")
     e = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DISABLE_JIT", "GAITLOG_NO_AOT")}

@@ -1,4 +1,4 @@
-"""The PIC arithmetic of ``firmware_sim.fixedpoint``, bit-exact against apytypes (and Python integers), through
+"""The PIC arithmetic of ``gaitlog.firmware_sim.fixedpoint``, bit-exact against apytypes (and Python integers), through
 the compiled element loops and through their Python text (small arrays)."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim import fixedpoint
-from firmware_sim.fixedpoint import (
+from gaitlog.firmware_sim import fixedpoint
+from gaitlog.firmware_sim.fixedpoint import (
     CYCLES,
     ArithmeticContext,
     QFormat,

@@ -1,4 +1,4 @@
-"""The kernel compiled for other Q formats (:mod:`firmware_sim.algorithms.format_kernel`): the same text, the
+"""The kernel compiled for other Q formats (:mod:`gaitlog.firmware_sim.algorithms.format_kernel`): the same text, the
 shipped formats bit for bit the kernel built ahead of time, coarser ones further from the float kernel."""
 
 from __future__ import annotations
@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms import format_kernel
-from firmware_sim.algorithms import formats as fm
-from firmware_sim.algorithms.format_kernel import KernelFormats
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
-from protocol.steps import StepConfig
+from gaitlog.firmware_sim.algorithms import format_kernel
+from gaitlog.firmware_sim.algorithms import formats as fm
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
+from gaitlog.protocol.steps import StepConfig
 
 RATE_HZ = 50.0
 LEG_M, H_M = 0.9, 0.04

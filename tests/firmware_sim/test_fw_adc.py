@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from firmware_sim.adc import Adc
-from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sensor import SensorModel
 
 
 def _expected_code(acc_g: float, *, gain: float = 4.0, bits: int = 10, vlo: float = 0.0, vhi: float = 5.0) -> int:

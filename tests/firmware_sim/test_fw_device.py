@@ -10,13 +10,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.device import Logger
-from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.base import Motion
-from firmware_sim.world.poses import CalibrationPoses
-from protocol.errors import ProtocolError
-from protocol.header import DeviceHeader
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import DeviceHeader
 
 
 def _still(acc: list[float], seconds: float, rate: float = 500.0, **kw: object) -> Motion:
@@ -122,7 +122,7 @@ def test_image_save_load_property(tmp_path_factory: pytest.TempPathFactory, seed
 
 # ------------------------------------------------------------------------- the step memory (section 2.3)
 def _steps(n: int) -> bytes:
-    from protocol.steps import empty_step_records, pack_step_records
+    from gaitlog.protocol.steps import empty_step_records, pack_step_records
 
     rec = empty_step_records(n)
     rec["end_sample"] = 27 * np.arange(n)
@@ -131,7 +131,7 @@ def _steps(n: int) -> bytes:
 
 
 def test_logger_has_step_memory_and_config() -> None:
-    from protocol.steps import StepConfig
+    from gaitlog.protocol.steps import StepConfig
 
     cfg = StepConfig(step_format=3, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1)
     lg = Logger(step_config=cfg)
@@ -156,8 +156,8 @@ def test_logger_has_step_memory_and_config() -> None:
 
 
 def test_image_carries_the_step_memory(tmp_path: Path) -> None:
-    from protocol.image import parse_image
-    from protocol.steps import StepConfig
+    from gaitlog.protocol.image import parse_image
+    from gaitlog.protocol.steps import StepConfig
 
     cfg = StepConfig(step_format=3, leg_length_m=0.875)
     lg = Logger(device_id=5, sensor=SensorModel.ideal(), step_config=cfg)
@@ -182,7 +182,7 @@ def test_image_carries_the_step_memory(tmp_path: Path) -> None:
 
 
 def test_version_1_image_restores_with_an_empty_step_memory(tmp_path: Path) -> None:
-    from protocol.image import build_image
+    from gaitlog.protocol.image import build_image
 
     old = DeviceHeader(device_id=9, samples_written=100, write_index=100)  # no step memory: image version 1
     memory = np.random.default_rng(0).integers(0, 256, 262144, dtype=np.uint8)
@@ -197,7 +197,7 @@ def test_version_1_image_restores_with_an_empty_step_memory(tmp_path: Path) -> N
 
 
 def test_image_with_other_step_capacity_is_refused(tmp_path: Path) -> None:
-    from protocol.image import build_image
+    from gaitlog.protocol.image import build_image
 
     h = DeviceHeader(step_capacity=100, steps_written=5, step_write_index=5)
     path = tmp_path / "x.glimg"

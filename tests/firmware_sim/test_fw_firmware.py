@@ -11,10 +11,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.device import Logger
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.poses import CalibrationPoses
-from protocol.raw_dump import parse_raw_dump
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.protocol.raw_dump import parse_raw_dump
 
 # --- an independent, minimal implementation of the frame layout (section 3) --------------------------
 
@@ -252,7 +252,7 @@ STEP_BASE = 0x01000000
 
 def _step_bytes(first: int, n: int) -> bytes:
     """Records numbered first .. first+n-1, built with pack_step_records; the CRC checked here by crc_hqx."""
-    from protocol.steps import empty_step_records, pack_step_records
+    from gaitlog.protocol.steps import empty_step_records, pack_step_records
 
     rec = empty_step_records(n)
     k = np.arange(first, first + n)

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.adc import Adc
-from firmware_sim.device import Logger
-from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.base import MotionSource
-from firmware_sim.world.poses import CalibrationPoses
+from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.base import MotionSource
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
 
 
 def test_poses_is_a_motion_source_and_seeded() -> None:

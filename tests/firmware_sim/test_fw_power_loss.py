@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger, PowerCut
-from firmware_sim.world.poses import CalibrationPoses
-from host.files.decode import REASONS, decode_bytes
-from protocol.commit_journal import (
+from gaitlog.firmware_sim.device import Logger, PowerCut
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.host.files.decode import REASONS, decode_bytes
+from gaitlog.protocol.commit_journal import (
     ENTRY_BYTES,
     JOURNAL_ENTRIES,
     empty_journal,
@@ -23,9 +23,9 @@ from protocol.commit_journal import (
     torn_step_records,
     with_commit,
 )
-from protocol.header import PAGE_SAMPLES, DeviceHeader, HeaderFlag
-from protocol.image import build_image
-from protocol.steps import empty_step_records, pack_step_records
+from gaitlog.protocol.header import PAGE_SAMPLES, DeviceHeader, HeaderFlag
+from gaitlog.protocol.image import build_image
+from gaitlog.protocol.steps import empty_step_records, pack_step_records
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from firmware_sim.errors import DeviceError
-from firmware_sim.world.replay import Replay
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.world.replay import Replay
 
 
 def test_missing_samples_are_filled_between_their_neighbours_and_reported() -> None:

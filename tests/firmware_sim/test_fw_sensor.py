@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from firmware_sim.errors import DeviceError
-from firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sensor import SensorModel
 
 
 def _g(sensor: SensorModel, volts: np.ndarray) -> np.ndarray:

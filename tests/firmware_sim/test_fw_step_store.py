@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim.eeprom import Eeprom24LC1025
-from firmware_sim.errors import DeviceError
-from firmware_sim.step_store import StepStore
-from protocol.header import DeviceHeader, HeaderFlag
-from protocol.steps import empty_step_records, pack_step_records
+from gaitlog.firmware_sim.eeprom import Eeprom24LC1025
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.step_store import StepStore
+from gaitlog.protocol.header import DeviceHeader, HeaderFlag
+from gaitlog.protocol.steps import empty_step_records, pack_step_records
 
 
 def _records(first: int, n: int) -> bytes:

@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
-from firmware_sim.errors import DeviceError
-from firmware_sim.ring_buffer import MemoryFullError, RingBuffer
-from protocol.header import DeviceHeader
+from gaitlog.firmware_sim.eeprom import DataEeprom, Eeprom24LC1025, EepromBank
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.ring_buffer import MemoryFullError, RingBuffer
+from gaitlog.protocol.header import DeviceHeader
 
 
 def test_page_write_wraps_within_the_page_and_counts_wear() -> None:

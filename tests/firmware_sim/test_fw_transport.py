@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 import serial
 
-from firmware_sim.device import Logger
-from firmware_sim.pty_server import serve_pty
-from firmware_sim.sensor import SensorModel
-from firmware_sim.transport import FaultInjector, serve_tcp
-from firmware_sim.world.poses import CalibrationPoses
-from protocol.raw_dump import parse_raw_dump
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.pty_server import serve_pty
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.transport import FaultInjector, serve_tcp
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.protocol.raw_dump import parse_raw_dump
 
 
 def frame(ftype: int, seq: int, payload: bytes = b"") -> bytes:
@@ -169,8 +169,8 @@ def test_served_device_logs_in_real_time_after_start(tmp_path: Path) -> None:
 def test_tcp_serving_needs_no_tty_module() -> None:
     """``tty`` is POSIX-only: importing the transport and serving on TCP must work without it (Windows)."""
     code = ("import sys; sys.modules['tty'] = None\n"
-            "from firmware_sim.device import Logger\n"
-            "from firmware_sim.transport import serve_tcp\n"
+            "from gaitlog.firmware_sim.device import Logger\n"
+            "from gaitlog.firmware_sim.transport import serve_tcp\n"
             "with serve_tcp(Logger(), port=0) as server: print(server.url)\n")
     done = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True,
                           env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})

@@ -1,4 +1,4 @@
-"""The on-line step algorithm (``firmware_sim.algorithms``): analytic results, both arithmetics, streaming,
+"""The on-line step algorithm (``gaitlog.firmware_sim.algorithms``): analytic results, both arithmetics, streaming,
 the compiled kernel against its own Python text, flags, bounded memory."""
 
 from __future__ import annotations
@@ -12,18 +12,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms import kernel
-from firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
-from firmware_sim.algorithms.parameters import (
+from gaitlog.firmware_sim.algorithms import kernel
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.parameters import (
     M4_EXPONENT,
     STANDARD_GRAVITY_M_S2,
     EventParameters,
     OnlineParameters,
 )
-from firmware_sim.algorithms.steps import StepTable
-from protocol.errors import ProtocolError
-from protocol.header import CalibrationSlot
-from protocol.steps import StepConfig, StepFlag
+from gaitlog.firmware_sim.algorithms.steps import StepTable
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import CalibrationSlot
+from gaitlog.protocol.steps import StepConfig, StepFlag
 
 SAMPLING_RATE_HZ = 50.0
 ROOT = Path(__file__).resolve().parents[2]
@@ -126,8 +126,8 @@ def test_compiled_kernel_equals_its_python_text_bit_for_bit(tmp_path: Path) -> N
     np.save(tmp_path / "codes.npy", codes)
     script = (
         "import json, sys, numpy as np\n"
-        "from firmware_sim.algorithms.online import OnlineStepAlgorithm\n"
-        "from protocol.steps import StepConfig\n"
+        "from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm\n"
+        "from gaitlog.protocol.steps import StepConfig\n"
         f"codes = np.load({str(tmp_path / 'codes.npy')!r})\n"
         "out = {}\n"
         "for ar in ('fixed', 'float'):\n"

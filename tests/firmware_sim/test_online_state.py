@@ -6,16 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms import kernel, state
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.budget import (
+from gaitlog.firmware_sim.algorithms import kernel, state
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.budget import (
     PIC_RAM_BYTES,
     cycle_budget,
     logging_cycles_per_sample,
     ram_budget,
 )
-from firmware_sim.fixedpoint import cycles_per_sample_available
-from protocol.steps import StepConfig
+from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
+from gaitlog.protocol.steps import StepConfig
 
 ARRAYS = {"codes", "cfg_i", "cfg_v", "st_i", "st_v", "line", "durs", "scr", "out_i", "out_v", "cnt", "cyc"}
 

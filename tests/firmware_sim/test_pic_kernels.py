@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from firmware_sim.fixedpoint import CYCLES, MEASURED_CYCLES
-from firmware_sim.pic.gpsim_bench import (
+from gaitlog.firmware_sim.fixedpoint import CYCLES, MEASURED_CYCLES
+from gaitlog.firmware_sim.pic.gpsim_bench import (
     DEFAULT_RANDOM,
     KERNELS,
     TABLE_RULES,

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion, MotionSource
-from firmware_sim.world.rigid_body import RigidBodyShank, rotation_chain
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion, MotionSource
+from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank, rotation_chain
 
 
 def test_rotation_chain_matches_scipy_and_finite_differences() -> None:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.world.base import Motion, MotionSource
-from firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
+from gaitlog.firmware_sim.world.base import Motion, MotionSource
+from gaitlog.firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
 
 
 def test_truth_matrices_match_scipy_euler() -> None:

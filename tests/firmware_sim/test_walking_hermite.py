@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.world.hermite import constant_ppoly, quintic_hermite
+from gaitlog.firmware_sim.world.hermite import constant_ppoly, quintic_hermite
 
 knots = st.lists(st.floats(0.01, 2.0), min_size=1, max_size=12).map(lambda d: np.concatenate(([0.0], np.cumsum(d))))
 

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from firmware_sim.world.rigid_body import RigidBodyShank
-from host.errors import HostError
-from host.kinematics.accelerometer_pairs import (
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.accelerometer_pairs import (
     AngularVelocityFromAccelerometers,
     gravity_from_pivot,
 )
-from host.kinematics.orientation import initial_dcm_from_gravity
+from gaitlog.host.kinematics.orientation import initial_dcm_from_gravity
 
 GENTLE = dict(sagittal_deg=((1, 0.0, 20.0),), coronal_deg=((1, 0.0, 3.0),), axial_deg=((1, 0.0, 3.0),), n_cycles=1)
 

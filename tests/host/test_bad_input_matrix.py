@@ -1,7 +1,7 @@
 """Every ``gaitlog`` subcommand x at least 25 kinds of bad input: one error line on stderr naming the problem's
 place (the option or the file), a non-zero exit, no traceback, no output file left, the inputs unchanged.
 
-The commands run in-process (``host.cli.main``) in one folder that holds the fixtures; each case snapshots the
+The commands run in-process (``gaitlog.host.cli.main``) in one folder that holds the fixtures; each case snapshots the
 folder (names and bytes) before and checks it is identical after. Run as a script for the counts::
 
     python tests/host/test_bad_input_matrix.py        # prints each failing case and the totals
@@ -62,7 +62,7 @@ def _npy_header_only(shape: tuple[int, ...], dtype: str = "<u2") -> bytes:
 
 def build_fixtures(folder: Path) -> dict[str, Path]:
     """Good and bad files in ``folder``; returns name -> path."""
-    from host.cli import main
+    from gaitlog.host.cli import main
 
     folder.mkdir(parents=True, exist_ok=True)
     f = {n: folder / n for n in ("walk.glimg", "poses.glimg")}
@@ -474,7 +474,7 @@ def _on_alarm(signum, frame):
 
 def run_case(case: Case, fixtures: dict[str, Path], folder: Path, timeout_s: int = 60) -> list[str]:
     """Run ``case``; return the broken promises (empty when the error was as it should be)."""
-    from host.cli import main
+    from gaitlog.host.cli import main
 
     names = {**{k: str(v) for k, v in fixtures.items()}, "folder": str(folder)}
     argv = [re.sub(r"\{([^{}]+)\}", lambda m: names[m[1]], a) for a in case.argv]
@@ -542,7 +542,7 @@ def bad_input_folder(tmp_path_factory) -> tuple[Path, dict[str, Path]]:
 
 
 def test_every_command_gets_at_least_25_kinds_of_bad_input():
-    from host.cli import _command_modules
+    from gaitlog.host.cli import _command_modules
 
     per_command = Counter(c.command for c in CASES)
     for name in _command_modules():

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from host.cli import main
+from gaitlog.host.cli import main
 
 
 @pytest.fixture(scope="module")

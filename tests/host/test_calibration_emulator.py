@@ -29,11 +29,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim import device
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.poses import CalibrationPoses
-from host.accelerometer.calibration import AccCalibration
-from host.accelerometer.fit import AccCalibrator, parameter_bounds
+from gaitlog.firmware_sim import device
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.host.accelerometer.calibration import AccCalibration
+from gaitlog.host.accelerometer.fit import AccCalibrator, parameter_bounds
 
 
 def truth_in_counts(truth) -> dict[str, np.ndarray]:
@@ -106,8 +106,8 @@ def test_ten_bit_pose_session_recovers_the_sensor_within_the_lsb_bound(recorded)
 
 
 def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsys):
-    from host.cli import main
-    from host.files.recording import Recording
+    from gaitlog.host.cli import main
+    from gaitlog.host.files.recording import Recording
 
     logger, res = recorded
     rec = Recording.from_arrays(res.codes, flags=res.flags, sampling_rate_hz=logger.adc.sampling_rate_hz,
@@ -128,7 +128,7 @@ def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsy
     assert (np.abs(cal.offset - t["offset"]) / t["scale"] < 1e-3).all()
     # the device header carries the constants (PROTOCOL.md 2.1) and gives the same g within Q-format rounding
     slot = cal.to_header_calibration()
-    from protocol.header import CalibrationSlot
+    from gaitlog.protocol.header import CalibrationSlot
 
     back = CalibrationSlot.from_bytes(slot.to_bytes())
     np.testing.assert_allclose(back.apply(res.codes[:100]), cal.apply(res.codes[:100]), atol=1e-6)
@@ -139,7 +139,7 @@ def test_cli_on_the_emulated_recording_and_header_slot(recorded, tmp_path, capsy
 
 
 def test_noiseless_sensor_holds_look_stuck_and_are_refused():
-    from host.accelerometer.calibration import CalibrationError
+    from gaitlog.host.accelerometer.calibration import CalibrationError
 
     sensor = SensorModel.draw(seed=7, noise_density_g_rthz=0.0)
     logger = device.Logger(sensor=sensor, device_id=8)
@@ -152,7 +152,7 @@ def test_noiseless_sensor_holds_look_stuck_and_are_refused():
 
 
 def test_cli_takes_the_memory_image_directly(recorded, tmp_path, capsys):
-    from host.cli import main
+    from gaitlog.host.cli import main
 
     logger, res = recorded
     image = logger.save_image(tmp_path / "poses.glimg")

@@ -1,4 +1,4 @@
-"""host.accelerometer.calibration on a real IMU session (imucal's Ferraris recording) against imucal's reference calibration.
+"""gaitlog.host.accelerometer.calibration on a real IMU session (imucal's Ferraris recording) against imucal's reference calibration.
 
 The session holds six static poses (+-x, +-y, +-z, sections ``x_p`` ... ``z_a``) and three rotations about the
 vertical (``*_rot``: gravity stays on one axis, so they add no new directions). Six directions determine the
@@ -15,8 +15,8 @@ import json
 import numpy as np
 import pytest
 
-from host.accelerometer.calibration import CalibrationError
-from host.accelerometer.fit import AccCalibrator
+from gaitlog.host.accelerometer.calibration import CalibrationError
+from gaitlog.host.accelerometer.fit import AccCalibrator
 
 RATE_HZ = 204.8
 STATIC = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")
@@ -75,8 +75,8 @@ def test_nine_parameter_model_is_refused_with_six_poses(session):
 
 
 def test_cli_on_the_real_session(session, tmp_path, capsys):
-    from host.accelerometer.calibration import AccCalibration
-    from host.cli import main
+    from gaitlog.host.accelerometer.calibration import AccCalibration
+    from gaitlog.host.cli import main
 
     path, _, _, _ = session
     out = tmp_path / "cal.json"

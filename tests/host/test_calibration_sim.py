@@ -1,4 +1,4 @@
-"""host.accelerometer.calibration on a simulated sensor whose parameters are known (independent truth).
+"""gaitlog.host.accelerometer.calibration on a simulated sensor whose parameters are known (independent truth).
 
 The simulated sensor is built from its geometry, not from the code under test: three unit sensitive axes with
 pairwise angles ``90 deg - theta_ij``, turned by a random mounting rotation (scipy ``Rotation``), per-axis gain
@@ -15,21 +15,21 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from host.accelerometer.calibration import (
+from gaitlog.host.accelerometer.calibration import (
     AccCalibration,
     CalibrationError,
     axes_matrix,
     calibration_matrix,
     gram_from_angles,
 )
-from host.accelerometer.fit import (
+from gaitlog.host.accelerometer.fit import (
     direction_coverage,
     ellipsoid_fit,
     fit_calibration,
     parameter_bounds,
 )
-from host.errors import HostError
-from protocol import header
+from gaitlog.host.errors import HostError
+from gaitlog.protocol import header
 
 OFFSET_G = np.array([0.050, -0.030, 0.020])
 SCALE = np.array([1.02, 0.98, 1.01])
@@ -93,7 +93,7 @@ def test_ellipsoid_fit_recovers_a_known_ellipsoid():
 
 
 def test_analytic_jacobian_matches_finite_differences():
-    from host.accelerometer.fit import _jacobian, _residuals
+    from gaitlog.host.accelerometer.fit import _jacobian, _residuals
 
     rng = np.random.default_rng(2)
     y = unit_vectors(rng, 15) * 1.1 + 0.05
@@ -113,7 +113,7 @@ def test_analytic_jacobian_matches_finite_differences():
 # draws of 24 poses with 1 mg noise on each pose mean:
 #   random uniform poses: medians 0.61 mg / 0.074 deg / 1.73 mg; 9-param bounds hold in 53 %, 6-param > 15 mg in
 #     85 %, both in 45 %;
-#   well-spread poses (Fibonacci lattice, turned; the design of firmware_sim.world.poses): medians 0.41 mg /
+#   well-spread poses (Fibonacci lattice, turned; the design of gaitlog.firmware_sim.world.poses): medians 0.41 mg /
 #     0.059 deg / 1.29 mg, 9-param bounds hold in 87 %, but the 6-param model leaves only 13-15 mg (its uniform
 #     error floor is about half the eigenvalue spread of G - I, 11.4 mg here).
 # The single-case tests therefore use a random-pose draw (seed 5, the first seed of 0, 1, ... for which all four
@@ -164,7 +164,7 @@ def test_noiseless_nine_parameter_fit_is_exact():
 
 def test_monte_carlo_over_draws():
     """40 draws each of well-spread and random 24-pose sets with 1 mg noise (see the comment above)."""
-    from firmware_sim.world.poses import fibonacci_directions
+    from gaitlog.firmware_sim.world.poses import fibonacci_directions
 
     spread, rand = [], []
     for seed in range(40):
@@ -379,7 +379,7 @@ def test_property_apply_inverts_inverse(cal, acc):
 
 
 def test_calibrator_refuses_out_of_range_and_infinite_samples_naming_the_sample():
-    from host.accelerometer.fit import AccCalibrator
+    from gaitlog.host.accelerometer.fit import AccCalibrator
 
     codes = np.full((500, 3), 512.0)
     codes[321, 2] = 1024.0

@@ -9,11 +9,11 @@ import warnings
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from host.files.decode import decode_bytes
-from protocol.crc import crc16_xmodem
-from protocol.errors import ProtocolError
-from protocol.frames import FrameType, build_payload, encode_frame, parse_stream
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.protocol.crc import crc16_xmodem
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import FrameType, build_payload, encode_frame, parse_stream
 from tests.host.test_link_emu import smooth_motion
 
 N = 3000

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.signal import butter, freqz
 
-from host.errors import HostError
-from host.kinematics.cfc_filter import cfc_coefficients, cfc_filter, cfc_min_rate_hz
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.cfc_filter import cfc_coefficients, cfc_filter, cfc_min_rate_hz
 
 
 @pytest.mark.parametrize(("cfc", "sampling_rate_hz"), [(180, 10_000), (60, 1_000), (600, 20_000), (1000, 50_000), (180, 750)])

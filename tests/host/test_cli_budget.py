@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from firmware_sim.fixedpoint import CYCLES
-from host.cli import main
+from gaitlog.firmware_sim.fixedpoint import CYCLES
+from gaitlog.host.cli import main
 
 
 def test_budget_at_50_hz_fits(capsys: pytest.CaptureFixture[str]) -> None:
@@ -98,7 +98,7 @@ def test_instruments_on_the_logger_morris_fits_hall_refused_with_the_closest_rat
     is the largest at which every rule passes."""
     from dataclasses import replace
 
-    from firmware_sim.budget import CONFIGURATIONS, instrument_fit
+    from gaitlog.firmware_sim.budget import CONFIGURATIONS, instrument_fit
 
     for name in ("morris-5", "morris-6"):
         assert instrument_fit(CONFIGURATIONS[name]) == ([], 100.0)

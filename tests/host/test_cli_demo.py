@@ -6,8 +6,8 @@ from __future__ import annotations
 import json
 import shlex
 
-from host.cli import main
-from host.commands import demo
+from gaitlog.host.cli import main
+from gaitlog.host.commands import demo
 
 
 def test_demo_keeps_its_files_and_its_next_commands_run(tmp_path, monkeypatch, capsys) -> None:

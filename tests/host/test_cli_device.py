@@ -9,12 +9,12 @@ import json
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.transport import serve_tcp
-from firmware_sim.world.base import Motion
-from host.accelerometer.calibration import AccCalibration
-from host.cli import main
-from protocol.image import parse_image
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.transport import serve_tcp
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.accelerometer.calibration import AccCalibration
+from gaitlog.host.cli import main
+from gaitlog.protocol.image import parse_image
 
 N_SAMPLES = 500
 START_S = 1_700_000_000

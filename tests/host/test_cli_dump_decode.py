@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
-from host.accelerometer.calibration import AccCalibration
-from host.cli import main
-from host.files.recording import Recording
-from protocol.header import DeviceHeader
-from protocol.raw_dump import raw_dump_bytes
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.host.accelerometer.calibration import AccCalibration
+from gaitlog.host.cli import main
+from gaitlog.host.files.recording import Recording
+from gaitlog.protocol.header import DeviceHeader
+from gaitlog.protocol.raw_dump import raw_dump_bytes
 
 CAP = 65536
 
@@ -115,8 +115,8 @@ def test_record_replay_csv(tmp_path, capsys):
 
 
 def test_record_replay_says_how_many_samples_were_interpolated(tmp_path, capsys):
-    from firmware_sim.world.replay import Replay
-    from host.files.inputs import read_acceleration
+    from gaitlog.firmware_sim.world.replay import Replay
+    from gaitlog.host.files.inputs import read_acceleration
 
     t = np.arange(0, 30, 0.01)
     keep = np.ones(t.size, bool)

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.cli import main
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.cli import main
 
 G = STANDARD_GRAVITY_M_S2
 
@@ -38,7 +38,7 @@ def write_csv(path, acc, header=True):
 
 
 def write_npz(path, acc, sampling_rate_hz=50.0, valid=None, flags=None):
-    from host.files.recording import Recording
+    from gaitlog.host.files.recording import Recording
 
     codes = np.clip(np.floor(512 + acc * 256), 0, 1023)
     rec = Recording.from_arrays(codes, valid=valid, flags=flags, sampling_rate_hz=sampling_rate_hz)
@@ -175,8 +175,8 @@ def test_lengths_default_to_the_logger_step_configuration(tmp_path, capsys) -> N
 def test_calibrate_k_with_the_lower_back_prior(tmp_path, capsys) -> None:
     """--prior lower-back: the file's K is the fitted K shrunk toward the shipped population K with weights
     d / (d + d0), the fitted K and weights are stored and printed; the default is the fitted K alone."""
-    from host.gait.k_calibration import KFit
-    from host.gait.k_prior import LOWER_BACK_PRIOR
+    from gaitlog.host.gait.k_calibration import KFit
+    from gaitlog.host.gait.k_prior import LOWER_BACK_PRIOR
 
     acc, _ = walk_acc_g(n_steps=30)
     rec = tmp_path / "rec.npz"

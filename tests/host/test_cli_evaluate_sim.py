@@ -6,7 +6,7 @@ import csv
 
 import pytest
 
-from host.cli import main
+from gaitlog.host.cli import main
 
 
 def test_evaluate_sim_writes_sections_summary_and_figure(tmp_path, capsys):
@@ -23,7 +23,7 @@ def test_evaluate_sim_writes_sections_summary_and_figure(tmp_path, capsys):
     # estimators must be centred near 1 (the truth comes from the world, not from the estimators)
     # M4 within 6 %: the 'v1' walkers follow the walk-ratio law, under which the range of a pendulum's vertical
     # acceleration grows as the step length^4 (Weinberg's range^(1/4)); M4's exponent 1/2 is chosen on real
-    # people (host.studies.tuning): multi-speed median 1.050 on this subject, 1.028 on 4
+    # people (gaitlog.host.studies.tuning): multi-speed median 1.050 on this subject, 1.028 on 4
     for est, tol in (("M2", 0.05), ("M4", 0.06), ("M5", 0.05)):
         ratio = medians[("multi-speed", est)]
         assert abs(ratio - 1) < tol, (est, ratio)

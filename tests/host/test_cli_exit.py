@@ -5,11 +5,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from host.cli import main
+from gaitlog.host.cli import main
 
 
 def test_closed_stdout_exits_141_without_a_traceback():
-    proc = subprocess.Popen([sys.executable, "-m", "host", "budget", "--json"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog", "budget", "--json"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
     proc.stdout.close()                      # the reader is gone before the command writes (`| head -c 0`)
     _, err = proc.communicate(timeout=120)

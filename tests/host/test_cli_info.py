@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.base import Motion
-from host.cli import main
-from protocol.image import build_image, parse_image
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.cli import main
+from gaitlog.protocol.image import build_image, parse_image
 
 ROOT = Path(__file__).resolve().parents[2]
 N_SAMPLES = 700
@@ -107,7 +107,7 @@ def test_dump_verbose_reports_the_link(image, tmp_path, capsys):
 @pytest.mark.parametrize("flag, says_serving", [("-q", False), ("-v", True)])
 def test_serve_quiet_and_verbose(image, flag, says_serving):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "host", "serve", str(image), "--tcp", "0", flag],
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog", "serve", str(image), "--tcp", "0", flag],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         url = proc.stdout.readline().strip()

@@ -8,11 +8,11 @@ import struct
 import numpy as np
 import pytest
 
-from host.cli import main
-from host.files.recording import Recording
-from host.gait.pipeline import StepPipeline
-from host.studies.overview import recording_overview
-from protocol.packing import FLAG_MARK
+from gaitlog.host.cli import main
+from gaitlog.host.files.recording import Recording
+from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.host.studies.overview import recording_overview
+from gaitlog.protocol.packing import FLAG_MARK
 
 
 @pytest.fixture(scope="module")

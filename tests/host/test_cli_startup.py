@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from host.files.recording import Recording
+from gaitlog.host.files.recording import Recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
 PROBE = """
 import contextlib, io, json, sys
-from host.cli import main
+from gaitlog.host.cli import main
 with contextlib.redirect_stdout(io.StringIO()):
     code = main(sys.argv[1:])
 print(json.dumps({"code": code, "modules": sorted(sys.modules)}))
@@ -35,11 +35,11 @@ def modules_after(args: list[str]) -> tuple[int, set[str]]:
 
 def test_help_imports_no_numeric_library() -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    probe = "import sys\nfrom host.cli import build_parser\nbuild_parser()\nprint(' '.join(sorted(sys.modules)))"
+    probe = "import sys\nfrom gaitlog.host.cli import build_parser\nbuild_parser()\nprint(' '.join(sorted(sys.modules)))"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=ROOT,
                          check=True)
     loaded = set(out.stdout.split())
-    assert "host.commands.estimate" in loaded  # the probe did build the parser
+    assert "gaitlog.host.commands.estimate" in loaded  # the probe did build the parser
     assert not loaded & {"numpy", "scipy", "numba", "matplotlib", "importlib.metadata"}
 
 
@@ -53,6 +53,6 @@ def test_estimate_imports_no_scipy(tmp_path) -> None:
     Recording.from_arrays(codes, sampling_rate_hz=50.0, adc_bits=10).save_npz(path)
     code, loaded = modules_after(["estimate", str(path), "--arithmetic", "both", "--out", str(tmp_path / "s.csv")])
     assert code == 0
-    assert "firmware_sim.algorithms.online" in loaded  # the fixed-point chain did run
+    assert "gaitlog.firmware_sim.algorithms.online" in loaded  # the fixed-point chain did run
     # (numba itself loads scipy.linalg for its BLAS bindings: not ours to avoid)
-    assert not any(m.startswith(("scipy.signal", "scipy.ndimage", "matplotlib", "firmware_sim.sensor")) for m in loaded)
+    assert not any(m.startswith(("scipy.signal", "scipy.ndimage", "matplotlib", "gaitlog.firmware_sim.sensor")) for m in loaded)

@@ -8,9 +8,9 @@ import json
 
 import pytest
 
-from host.cli import build_parser, main
-from host.errors import HostError
-from host.gait.anthropometry import choose_lengths
+from gaitlog.host.cli import build_parser, main
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.anthropometry import choose_lengths
 
 
 def _leaf_commands() -> list[tuple[str, argparse.ArgumentParser]]:
@@ -32,7 +32,7 @@ def test_every_command_has_quiet_and_verbose() -> None:
         assert {"-q", "--quiet", "-v", "--verbose"} <= by_flag.keys(), name
         quiet, verbose = by_flag["-q"], by_flag["-v"]
         assert by_flag["--quiet"] is quiet and by_flag["--verbose"] is verbose, name
-        # the meaning host.commands._options.verbosity reads: quiet a flag, verbose a count
+        # the meaning gaitlog.host.commands._options.verbosity reads: quiet a flag, verbose a count
         assert (quiet.dest, quiet.const, quiet.default) == ("quiet", True, False), name
         assert isinstance(verbose, argparse._CountAction) and (verbose.dest, verbose.default) == ("verbose", 0), name
 
@@ -101,7 +101,7 @@ def main_raise(argv: list[str]) -> None:
 
 # ---------------------------------------------------------------------------------------------- progress
 def test_compare_simulate_ticks_once_per_subject(monkeypatch) -> None:
-    from host.studies import simulation
+    from gaitlog.host.studies import simulation
 
     monkeypatch.setattr(simulation, "_compared_subject", lambda job: job[1])     # the subject's seed, no simulation
     ticks = []

@@ -11,17 +11,17 @@ import csv
 import numpy as np
 import pytest
 
-from host.cli import main
+from gaitlog.host.cli import main
 
 
 @pytest.fixture(scope="module")
 def npz(tmp_path_factory):
-    from firmware_sim.device import Logger
-    from firmware_sim.world.subject import Subject
-    from firmware_sim.world.walk_plan import WalkPlan
-    from firmware_sim.world.walking import Walking
-    from host.files.decode import decode_file, save_outputs
-    from protocol.steps import StepConfig
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.world.subject import Subject
+    from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+    from gaitlog.firmware_sim.world.walking import Walking
+    from gaitlog.host.files.decode import decode_file, save_outputs
+    from gaitlog.protocol.steps import StepConfig
 
     d = tmp_path_factory.mktemp("cmp")
     walk_plan = WalkPlan(corridor_length_m=50.0, speeds=("preferred",), lap_marks_m=(0.0, 10.0, 30.0, 50.0,
@@ -40,7 +40,7 @@ def npz(tmp_path_factory):
 def _with_records(monkeypatch, records) -> None:
     """Recordings loaded from now on carry these device step records instead of their own (a device whose
     firmware computed differently)."""
-    from host.files.recording import Recording
+    from gaitlog.host.files.recording import Recording
 
     load = Recording.load.__func__
 
@@ -92,7 +92,7 @@ def test_compare_checks_the_device_records(npz, tmp_path, capsys) -> None:
 def test_compare_refuses_device_records_that_differ(npz, tmp_path, monkeypatch, capsys) -> None:
     """A record the device computed differently (here M2 of one record, CRC recomputed: a firmware bug, not
     a transmission error) is an error naming the record; nothing is written."""
-    from protocol.steps import STEP_RECORD_DTYPE, pack_step_records
+    from gaitlog.protocol.steps import STEP_RECORD_DTYPE, pack_step_records
 
     path, _, records = npz
     bad = records.copy()
@@ -127,7 +127,7 @@ def test_estimate_arithmetic_both(npz, tmp_path, capsys) -> None:
 def test_estimate_fixed_is_the_device_algorithm(npz, tmp_path, capsys) -> None:
     """--arithmetic fixed without K: the raw M1-M3 of the on-line algorithm in fixed point, i.e. what the
     logger stored (its records hold the raw UQ2.14 lengths)."""
-    from firmware_sim.world.subject import Subject
+    from gaitlog.firmware_sim.world.subject import Subject
 
     path, res, records = npz
     s = Subject()                             # the walker of the fixture, whose leg and foot the logger has
@@ -146,7 +146,7 @@ def test_estimate_fixed_is_the_device_algorithm(npz, tmp_path, capsys) -> None:
 
 def test_a_k_the_step_configuration_cannot_hold_is_an_error(npz, tmp_path, capsys) -> None:
     """K of M1 is stored as unsigned Q1.15 (below 2): a K file with 2.5 cannot be given to the on-line algorithm."""
-    from host.gait.k_calibration import KFit
+    from gaitlog.host.gait.k_calibration import KFit
 
     path, _, _ = npz
     k = tmp_path / "k.json"

@@ -16,8 +16,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms.steps import ESTIMATORS
-from host.cli import main
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.cli import main
 
 
 def _run(argv: list[str]) -> str:

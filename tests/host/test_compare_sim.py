@@ -1,4 +1,4 @@
-"""host.studies.compare on a simulated walk: the emulated logger, gravity and the world's truth are the references.
+"""gaitlog.host.studies.compare on a simulated walk: the emulated logger, gravity and the world's truth are the references.
 
 The comparison's rule is tested here with its reason: one K (fitted on the offline chain) for every chain.
 A 2 % scale error injected into the fixed-point chain alone shows up in full in the arithmetic share, and a
@@ -12,12 +12,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.algorithms.steps import ESTIMATORS, StepTable
-from host.files.replay import online_step_table
-from host.gait.k_calibration import calibrate_on_sections
-from host.gait.sections import calibration_sets, sections_from_marks
-from host.studies.compare import (
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
+from gaitlog.host.files.replay import online_step_table
+from gaitlog.host.gait.k_calibration import calibrate_on_sections
+from gaitlog.host.gait.sections import calibration_sets, sections_from_marks
+from gaitlog.host.studies.compare import (
     bootstrap_budget,
     compare_recording,
     compare_walk,
@@ -28,7 +28,7 @@ from host.studies.compare import (
     subject_resamples,
     truth_table,
 )
-from host.studies.simulation import AnalogWalk
+from gaitlog.host.studies.simulation import AnalogWalk
 
 SAMPLING_RATE_HZ = 50.0
 #: The scale error injected into the fixed-point chain.
@@ -53,8 +53,8 @@ class ScaledFixed(OnlineStepAlgorithm):
 @pytest.fixture(scope="module")
 def walk() -> SimpleNamespace:
     """A 60 m corridor out and back at two speeds (two straight evaluated sections per excursion)."""
-    from firmware_sim.world.subject import random_subjects
-    from firmware_sim.world.walk_plan import WalkPlan
+    from gaitlog.firmware_sim.world.subject import random_subjects
+    from gaitlog.firmware_sim.world.walk_plan import WalkPlan
 
     subject = random_subjects(2, seed=5)[1]
     walk_plan = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
@@ -68,11 +68,11 @@ def walk() -> SimpleNamespace:
 
 @pytest.mark.parametrize("adc_bits", [8, 10])
 def test_codes_are_what_the_emulated_logger_stores(walk, adc_bits) -> None:
-    from firmware_sim.adc import Adc
-    from firmware_sim.device import Logger
-    from firmware_sim.sensor import SensorModel
-    from firmware_sim.world.walking import Walking
-    from protocol.packing import FLAG_MARK
+    from gaitlog.firmware_sim.adc import Adc
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.sensor import SensorModel
+    from gaitlog.firmware_sim.world.walking import Walking
+    from gaitlog.protocol.packing import FLAG_MARK
 
     logger = Logger(sensor=SensorModel.draw(seed=walk.aw.sensor_.seed - 1), adc=Adc(adc_bits=adc_bits, sampling_rate_hz=SAMPLING_RATE_HZ))
     res = logger.record(Walking(subject=walk.subject, walk_plan=walk.walk_plan, seed=7))
@@ -265,7 +265,7 @@ def test_match_steps_counts_different_events() -> None:
 def test_saturation_is_reported_on_a_recording() -> None:
     """A calibration with 4x the gain drives the on-line algorithm's force past its format: counted and
     reported."""
-    from protocol.header import CalibrationSlot
+    from gaitlog.protocol.header import CalibrationSlot
 
     t = np.arange(int(30 * SAMPLING_RATE_HZ)) / SAMPLING_RATE_HZ
     codes = np.full((t.size, 3), 512, np.int64)
@@ -304,7 +304,7 @@ def test_online_runs_restart_at_run_starts_and_after_missing_samples(walk) -> No
 
 
 def _config(s):
-    from host.files.replay import step_config_for
+    from gaitlog.host.files.replay import step_config_for
 
     return step_config_for(leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
 

@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from firmware_sim.algorithms.steps import columns_csv_text
-from host.studies.compare import rows_csv_text
+from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
+from gaitlog.host.studies.compare import rows_csv_text
 
 
 def cell_by_cell_columns(cols: dict[str, np.ndarray]) -> str:

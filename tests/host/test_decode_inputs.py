@@ -1,4 +1,4 @@
-"""host.files.decode: images, raw dumps and wire captures -> exact samples, every gap reported, bad input refused.
+"""gaitlog.host.files.decode: images, raw dumps and wire captures -> exact samples, every gap reported, bad input refused.
 
 Truth is built here by hand (P32 words packed with plain integer arithmetic, ring slots computed from the
 spec's rule), never from the decoder's own output.
@@ -11,14 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.files.decode import decode_bytes, decode_file
-from host.link.transports.protocol_emu import LineFaults
-from protocol.errors import ProtocolError
-from protocol.frames import encode_frame
-from protocol.header import DeviceHeader
-from protocol.header import DeviceHeader as _Header
-from protocol.image import build_image as _build_current_image
-from protocol.image import image_version_for
+from gaitlog.host.files.decode import decode_bytes, decode_file
+from gaitlog.host.link.transports.protocol_emu import LineFaults
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import encode_frame
+from gaitlog.protocol.header import DeviceHeader
+from gaitlog.protocol.header import DeviceHeader as _Header
+from gaitlog.protocol.image import build_image as _build_current_image
+from gaitlog.protocol.image import image_version_for
 
 
 def build_image(header, memory, missing_blocks=(), block_size=1024, **kw) -> bytes:
@@ -227,9 +227,9 @@ def test_unknown_version_names_both_versions(tmp_path):
     header, memory, *_ = make_memory(100)
     hb = bytearray(header.to_bytes())
     hb[5] = 7  # protocol_version
-    from protocol.crc import crc16_xmodem
+    from gaitlog.protocol.crc import crc16_xmodem
 
-    from protocol.header import crc_span
+    from gaitlog.protocol.header import crc_span
 
     hb[254:256] = crc16_xmodem(crc_span(bytes(hb[:254]))).to_bytes(2, "big")
     p = tmp_path / "v7.bin"

@@ -7,13 +7,13 @@ import warnings
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from host.errors import HostError
-from host.gait.anthropometry import anatomical_lengths
-from host.gait.estimators.cadence import CadenceM5
-from host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1, pendulum_length_m
-from host.gait.estimators.two_phase import TwoPhasePendulumM3
-from host.gait.estimators.weinberg import WeinbergM4
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.anthropometry import anatomical_lengths
+from gaitlog.host.gait.estimators.cadence import CadenceM5
+from gaitlog.host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1, pendulum_length_m
+from gaitlog.host.gait.estimators.two_phase import TwoPhasePendulumM3
+from gaitlog.host.gait.estimators.weinberg import WeinbergM4
 
 
 def com_sinusoid(sampling_rate_hz: float, step_s: float, n: int, amp_m: float):

@@ -10,11 +10,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from firmware_sim.algorithms.steps import StepTable
-from host.errors import HostError
-from host.gait.k_calibration import KFit, calibrate
-from host.gait.pipeline import apply_calibration
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.firmware_sim.algorithms.steps import StepTable
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.k_calibration import KFit, calibrate
+from gaitlog.host.gait.pipeline import apply_calibration
 
 
 def table(raw_len: float, step_s: float, n: int, *, nan_first: bool = True) -> StepTable:

@@ -12,21 +12,21 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.stopwatch import Stopwatch
-from firmware_sim.world.subject import random_subjects
-from firmware_sim.world.walk_plan import (
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.stopwatch import Stopwatch
+from gaitlog.firmware_sim.world.subject import random_subjects
+from gaitlog.firmware_sim.world.walk_plan import (
     PAPER_HEIGHTS_M,
     PAPER_REST_S,
     POPULATION_PLANS,
     WalkPlan,
 )
-from firmware_sim.world.walking import Walking
-from host.cli import main
-from host.errors import HostError
-from host.gait.sections import MODES
-from host.gait.stopwatch_laps import lap_table, set_off_times
-from host.studies.evaluation import (
+from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.host.cli import main
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.sections import MODES
+from gaitlog.host.gait.stopwatch_laps import lap_table, set_off_times
+from gaitlog.host.studies.evaluation import (
     BOOT_STATISTICS,
     SimulatedEvaluation,
     SubjectResult,
@@ -37,7 +37,7 @@ from host.studies.evaluation import (
     paper_claims,
     summarise,
 )
-from host.studies.simulation import (
+from gaitlog.host.studies.simulation import (
     at_paper_heights,
     record_subject,
     simulated_population,

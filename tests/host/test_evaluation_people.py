@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import pytest
 
-from firmware_sim.world.walk_plan import POPULATION_PLANS
-from host.cli import main
-from host.studies import evaluation
-from host.studies.evaluation import SimulatedEvaluation
+from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS
+from gaitlog.host.cli import main
+from gaitlog.host.studies import evaluation
+from gaitlog.host.studies.evaluation import SimulatedEvaluation
 
 
 def test_the_people_population_walks_the_papers_protocol_with_its_own_habits(monkeypatch) -> None:

@@ -10,14 +10,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.algorithms.steps import StepTable
-from firmware_sim.world.subject import Subject
-from firmware_sim.world.walk_plan import WalkPlan
-from firmware_sim.world.walking import Walking
-from host.errors import HostError
-from host.gait.sections import MODES, section_fractions, sections_from_marks
-from host.studies.compare import match_events
-from host.studies.evaluation import (
+from gaitlog.firmware_sim.algorithms.steps import StepTable
+from gaitlog.firmware_sim.world.subject import Subject
+from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.sections import MODES, section_fractions, sections_from_marks
+from gaitlog.host.studies.compare import match_events
+from gaitlog.host.studies.evaluation import (
     ESTIMATORS,
     ROW_COLUMNS,
     SimulatedEvaluation,
@@ -26,7 +26,7 @@ from host.studies.evaluation import (
     paper_pattern,
     summarise,
 )
-from host.studies.simulation import SimulatedRecording
+from gaitlog.host.studies.simulation import SimulatedRecording
 
 #: 60 m corridor: marks 10, 30 | 50-70 holds the turn | 70, 90, 110; first 40 m = calibration.
 SHORT = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=8.0,
@@ -165,7 +165,7 @@ def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> No
     got = list(csv.DictReader(io.StringIO(out.read_text())))
     assert len(got) == len(a.rows_) and tuple(got[0]) == ROW_COLUMNS
     assert float(got[0]["ratio"]) == pytest.approx(a.rows_[0]["ratio"], rel=1e-5)
-    from host.studies.plots import plot_boxplots
+    from gaitlog.host.studies.plots import plot_boxplots
 
     png = plot_boxplots(a.rows_, tmp_path / "fig.png", title="test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -175,7 +175,7 @@ def test_simulated_evaluation_is_seeded_parallel_safe_and_writes(tmp_path) -> No
 
 
 def test_plot_refuses_empty() -> None:
-    from host.studies.plots import render_boxplots_png
+    from gaitlog.host.studies.plots import render_boxplots_png
 
     with pytest.raises(ValueError, match="no section"):
         render_boxplots_png([])

@@ -11,16 +11,16 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.ndimage import gaussian_filter1d
 
-from firmware_sim.algorithms.parameters import EventParameters
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.gait.axes import body_axes
-from host.gait.events import GaitEventDetector
-from host.gait.masked_filter import (
+from gaitlog.firmware_sim.algorithms.parameters import EventParameters
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.gait.axes import body_axes
+from gaitlog.host.gait.events import GaitEventDetector
+from gaitlog.host.gait.masked_filter import (
     gaussian_sigma_s,
     gaussian_smooth,
     masked_gaussian_lowpass,
 )
-from host.gait.pipeline import StepPipeline
+from gaitlog.host.gait.pipeline import StepPipeline
 
 G = STANDARD_GRAVITY_M_S2
 

@@ -22,11 +22,11 @@ def matched(shared_data) -> dict[str, dict[str, float]]:
     folder = shared_data / "ipol-lowerback-dev"
     if not folder.is_dir():
         pytest.skip("ipol-lowerback-dev not present")
-    from host.files.ipol import list_trials, read_trial
-    from host.gait.anthropometry import anatomical_lengths
-    from host.gait.pipeline import StepPipeline
-    from host.studies.compare import match_events
-    from host.studies.ipol_evaluation import replay_trial
+    from gaitlog.host.files.ipol import list_trials, read_trial
+    from gaitlog.host.gait.anthropometry import anatomical_lengths
+    from gaitlog.host.gait.pipeline import StepPipeline
+    from gaitlog.host.studies.compare import match_events
+    from gaitlog.host.studies.ipol_evaluation import replay_trial
 
     counts = {"heel_strike": [0, 0, 0], "toe_off": [0, 0, 0]}     # matched, reference, detected
     errors: dict[str, list[float]] = {"heel_strike": [], "toe_off": []}
@@ -78,12 +78,12 @@ def sections(shared_data) -> dict:
     folder = shared_data / "ipol-lowerback-dev"
     if not folder.is_dir():
         pytest.skip("ipol-lowerback-dev not present")
-    from firmware_sim.algorithms.parameters import EventParameters
-    from host.files.ipol import list_trials
-    from host.gait.events import GaitEventDetector
-    from host.gait.pipeline import StepPipeline
-    from host.studies.compare import match_events
-    from host.studies.ipol_evaluation import replay_trial, trial_steps
+    from gaitlog.firmware_sim.algorithms.parameters import EventParameters
+    from gaitlog.host.files.ipol import list_trials
+    from gaitlog.host.gait.events import GaitEventDetector
+    from gaitlog.host.gait.pipeline import StepPipeline
+    from gaitlog.host.studies.compare import match_events
+    from gaitlog.host.studies.ipol_evaluation import replay_trial, trial_steps
 
     rules = {"default": EventParameters(), "no-stop": EventParameters(stop_prominence_m_s2=0.0)}
     out: dict = {name: {"counts": {}, "errors": [], "last_missed": 0} for name in rules}

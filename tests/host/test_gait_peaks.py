@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.signal import find_peaks as scipy_find_peaks
 
-from host.gait.peaks import find_peaks
+from gaitlog.host.gait.peaks import find_peaks
 
 #: Small integers: plateaus, equal peaks (argsort ties) and equal bases are common.
 LEVELS = arrays(np.float64, st.integers(0, 300), elements=st.integers(-4, 4).map(float))

@@ -24,7 +24,7 @@ PEAK_RSS_LIMIT_MB = 500
 _CHILD = """
 import resource, sys
 resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
-from host.cli import main
+from gaitlog.host.cli import main
 code = main(sys.argv[1:])
 # VmHWM, the peak of this process's own memory (ru_maxrss would keep the parent's peak across fork + exec)
 hwm_kb = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))

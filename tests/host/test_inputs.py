@@ -1,12 +1,12 @@
-"""host.files.inputs: one reader for every input, checked against what was written."""
+"""gaitlog.host.files.inputs: one reader for every input, checked against what was written."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from host.errors import HostError
-from host.files.inputs import read_acceleration
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.inputs import read_acceleration
 
 RATE_HZ = 50.0
 

@@ -10,7 +10,7 @@ for a constant step length), so no detector can reach 0.10. Issue 12's IQR <= 0.
 with K shrunk toward the other subjects' K (the K prior), is met by M2 (0.048) and M4 (0.0585).
 
 The constants chosen on these trials (the heel-strike rule, ``hs_delay_s``, the stop rule's ``stop_prominence_m_s2`` and M4's exponent,
-:mod:`host.studies.tuning`) are chosen leave-one-subject-out by the command: every offline-chain figure is
+:mod:`gaitlog.host.studies.tuning`) are chosen leave-one-subject-out by the command: every offline-chain figure is
 cross-validated (measured: the defaults in 8 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out, M4's
 exponent 1/2 in 9 of 9), the on-line chains run the shipped defaults (cross-validated for the other 8 subjects). The on-line algorithm's gravity time constant comes from a
 ripple rule, ``firmware_sim/algorithms/parameters.py``; K is fitted per subject on trial 1 and scored on the
@@ -29,9 +29,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms.steps import ESTIMATORS
-from host.cli import main
-from host.gait.k_prior import LOWER_BACK_PRIOR
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.cli import main
+from gaitlog.host.gait.k_prior import LOWER_BACK_PRIOR
 
 pytestmark = pytest.mark.slow  # ~5 s: 52 trials through the emulated logger, once per module
 
@@ -108,12 +108,12 @@ def test_device_records_equal_the_host_replay(ipol) -> None:
 
 
 def test_device_records_are_the_algorithm_run_here(folder) -> None:
-    """The same, checked without host.files.replay on three trials: the algorithm built here from the header's
+    """The same, checked without gaitlog.host.files.replay on three trials: the algorithm built here from the header's
     configuration, run over the stored codes, gives the stored records field by field."""
-    from firmware_sim.algorithms.online import OnlineStepAlgorithm
-    from host.files.ipol import list_trials
-    from host.studies.ipol_evaluation import replay_trial
-    from protocol.steps import STEP_RECORD_DTYPE
+    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from gaitlog.host.files.ipol import list_trials
+    from gaitlog.host.studies.ipol_evaluation import replay_trial
+    from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
     for path in list_trials(folder)[:3]:
         with warnings.catch_warnings():

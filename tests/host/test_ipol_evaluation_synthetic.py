@@ -14,9 +14,9 @@ import warnings
 import numpy as np
 import pytest
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.cli import main
-from host.studies.ipol_evaluation import evaluate_folder, replay_trial
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.cli import main
+from gaitlog.host.studies.ipol_evaluation import evaluate_folder, replay_trial
 
 G = STANDARD_GRAVITY_M_S2
 
@@ -131,8 +131,8 @@ def test_unreadable_trial_and_single_trial_subject_are_skipped_and_listed(tmp_pa
 def test_device_records_that_differ_are_an_error(tmp_path, monkeypatch, capsys) -> None:
     """A logger whose stored records differ from the host's replay (here one M2 length, CRC recomputed: a
     firmware bug) stops the evaluation with an error naming the trial and the record; nothing is written."""
-    import host.studies.ipol_evaluation as ie
-    from protocol.steps import STEP_RECORD_DTYPE, pack_step_records
+    import gaitlog.host.studies.ipol_evaluation as ie
+    from gaitlog.protocol.steps import STEP_RECORD_DTYPE, pack_step_records
 
     write_ipol_trial(tmp_path, 5, 1, seed=9)
     write_ipol_trial(tmp_path, 5, 2, seed=10)

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from host.errors import HostError
-from host.files.ipol import STANDARD_GRAVITY_M_S2, list_trials, read_lb_file, read_trial
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.ipol import STANDARD_GRAVITY_M_S2, list_trials, read_lb_file, read_trial
 
 HEADER = "PacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\n"
 

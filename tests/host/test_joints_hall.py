@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
-from host.errors import HostError
-from host.kinematics.joints import (
+from gaitlog.firmware_sim.world.two_link import HALL_SENSOR_TO_LINK, TwoLinkJoint
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.joints import (
     HallJointKinematics,
     apply_right_leg_convention,
     joint_angles_yxz,

@@ -13,9 +13,9 @@ from itertools import permutations
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.base import Motion
-from host.cli import build_parser, main
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.cli import build_parser, main
 
 #: The commands the issue asks ``--json`` of (a table on stdout).
 TABLE_COMMANDS = {"info", "estimate", "budget", "device status", "device identify"}

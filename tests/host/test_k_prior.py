@@ -1,4 +1,4 @@
-"""The K prior (host.gait.k_prior): shrinkage toward a population K, against the formula written out."""
+"""The K prior (gaitlog.host.gait.k_prior): shrinkage toward a population K, against the formula written out."""
 
 from __future__ import annotations
 
@@ -9,15 +9,15 @@ import math
 import numpy as np
 import pytest
 
-from host.errors import HostError
-from host.gait.k_calibration import KFit, calibrate
-from host.gait.k_prior import (
+from gaitlog.host.errors import HostError
+from gaitlog.host.gait.k_calibration import KFit, calibrate
+from gaitlog.host.gait.k_prior import (
     LOWER_BACK_PRIOR,
     PRIOR_ESTIMATORS,
     KPrior,
     population_prior,
 )
-from host.gait.pipeline import apply_calibration
+from gaitlog.host.gait.pipeline import apply_calibration
 from tests.host.test_estimators_calibration import table
 
 
@@ -125,9 +125,9 @@ def _transfers(first_k_error: list[float], later_ratio: list[float]) -> dict:
 
 
 def test_choose_prior_shrinks_fully_when_first_trials_are_noise_and_not_at_all_when_they_are_exact() -> None:
-    """Analytic cases of the nested choice (host.studies.ipol_evaluation.choose_prior)."""
-    from host.gait.k_prior import PRIOR_DISTANCE_CANDIDATES_M
-    from host.studies.ipol_evaluation import choose_prior
+    """Analytic cases of the nested choice (gaitlog.host.studies.ipol_evaluation.choose_prior)."""
+    from gaitlog.host.gait.k_prior import PRIOR_DISTANCE_CANDIDATES_M
+    from gaitlog.host.studies.ipol_evaluation import choose_prior
 
     errors = [-0.06, -0.02, 0.0, 0.03, 0.07]
     # everybody has the same K: the first trial's deviation is pure noise, carried into the later ratios

@@ -19,18 +19,18 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from host.cli import main
-from host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
-from host.kinematics.morris_analysis import analyse_morris_recording
-from host.kinematics.platform_description import HallPlatform, MorrisPlatform
-from host.kinematics.sensor_csv import (
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.host.cli import main
+from gaitlog.host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
+from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
+from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
+from gaitlog.host.kinematics.sensor_csv import (
     SensorRecording,
     read_sensor_csv,
     split_unit,
     write_sensor_csv,
 )
-from host.kinematics.simulated_instruments import SimulatedInstrument, noise_sd_for_snr, simulate_morris
+from gaitlog.host.kinematics.simulated_instruments import SimulatedInstrument, noise_sd_for_snr, simulate_morris
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

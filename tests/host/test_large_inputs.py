@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.base import Motion
-from host.commands.record import MAX_RENDERED_SAMPLES, fit_to_memory
-from host.errors import HostError
-from host.files import inputs, limits
-from host.files.decode import decode_file
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.commands.record import MAX_RENDERED_SAMPLES, fit_to_memory
+from gaitlog.host.errors import HostError
+from gaitlog.host.files import inputs, limits
+from gaitlog.host.files.decode import decode_file
 
 ROOT = Path(__file__).resolve().parents[2]
 PEAK_RSS_LIMIT_MB = 500
@@ -106,7 +106,7 @@ def test_overwrite_mode_refuses_a_motion_longer_than_the_render_bound():
 
 _CHILD = """
 import sys
-from host.cli import main
+from gaitlog.host.cli import main
 code = main(sys.argv[1:])
 hwm_kb = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))
 print(hwm_kb // 1024)

@@ -1,4 +1,4 @@
-"""host.link.logger_link over the in-process emu:// device: commands, dump round trip, noisy line, cut line + resume.
+"""gaitlog.host.link.logger_link over the in-process emu:// device: commands, dump round trip, noisy line, cut line + resume.
 
 Truth is the device's own RecordResult (what the firmware stored), never the host's output.
 """
@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.base import Motion
-from host.errors import HostError
-from host.files.decode import decode_file
-from host.link.logger_link import LoggerLink
-from host.link.memory_dump import dump_memory
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.link.logger_link import LoggerLink
+from gaitlog.host.link.memory_dump import dump_memory
 
 CAP = 65536
 

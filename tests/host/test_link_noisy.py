@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from host.errors import HostError
-from host.files.decode import decode_file
-from host.link.logger_link import LoggerLink
-from host.link.memory_dump import best_chunk, dump_memory
-from protocol.crc import crc16_xmodem
-from protocol.frames import FrameType, build_payload, encode_frame, parse_payload, parse_stream
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.link.logger_link import LoggerLink
+from gaitlog.host.link.memory_dump import best_chunk, dump_memory
+from gaitlog.protocol.crc import crc16_xmodem
+from gaitlog.protocol.frames import FrameType, build_payload, encode_frame, parse_payload, parse_stream
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_link_emu import record_image  # noqa: E402
@@ -151,7 +151,7 @@ def test_no_device_and_noise_get_different_messages(image):
 def test_bad_timeout_is_one_line_error(image, tmp_path, value):
     for argv in (["dump", "--port", f"emu://{image[0]}", "--out", str(tmp_path / "x.glimg")],
                  ["device", "identify", "--port", f"emu://{image[0]}"]):
-        done = subprocess.run([sys.executable, "-m", "host", *argv, f"--timeout={value}"], capture_output=True,
+        done = subprocess.run([sys.executable, "-m", "gaitlog", *argv, f"--timeout={value}"], capture_output=True,
                               text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=tmp_path)
         assert done.returncode == 2 and done.stdout == ""
         assert done.stderr.count("\n") == 1 and "argument --timeout: must be a finite number" in done.stderr
@@ -166,7 +166,7 @@ def test_signal_saves_the_partial_state(image, tmp_path, how):
     out = tmp_path / "sig.glimg"
     port = f"emu://{path}?{_both_ways(0.01 / 3, 2)}"  # slow enough (seconds) to be caught in the middle
     ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if how.startswith("SIGINT") else None
-    proc = subprocess.Popen([sys.executable, "-m", "host", "dump", "--port", port, "--out", str(out), "--quiet"],
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog", "dump", "--port", port, "--out", str(out), "--quiet"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ignore,
                             env=dict(os.environ, PYTHONPATH=str(ROOT)))
     state = tmp_path / "sig.glimg.part"

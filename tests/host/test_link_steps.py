@@ -1,4 +1,4 @@
-"""host.link.logger_link's step commands over the in-process emu:// device: SET_STEP_CONFIG and READ of the step memory.
+"""gaitlog.host.link.logger_link's step commands over the in-process emu:// device: SET_STEP_CONFIG and READ of the step memory.
 
 Truth is the emulated device's own state (its header and step EEPROM), never the host's output.
 """
@@ -10,11 +10,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
-from host.errors import HostError
-from host.link.logger_link import LoggerLink
-from protocol.steps import STEP_ADDRESS_BASE, StepConfig
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.host.errors import HostError
+from gaitlog.host.link.logger_link import LoggerLink
+from gaitlog.protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 CONFIG = StepConfig(step_format=3, leg_length_m=0.9, foot_length_m=0.2)
 

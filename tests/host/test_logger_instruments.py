@@ -3,7 +3,7 @@ decode -> kinematics, against the simulation's truth (issue 16, item 5).
 
 The error figures (README, "Morris and Hall on the logger") come from ``benchmarks/logger_instrument_errors.py``
 over 12 seeds; the bound of each run is ``noise-free + 3σ + offset + drift`` from the sensor model
-(:mod:`host.kinematics.logger_error_budget`: noise through the platform's pseudo-inverse integrated twice for
+(:mod:`gaitlog.host.kinematics.logger_error_budget`: noise through the platform's pseudo-inverse integrated twice for
 Morris, once for Hall; offsets and drifts at their tolerances). Here: the CLI chain for one seed of each, the
 library chain over 12 seeds pinned to the README's figures, and the refusals with their closest fit.
 """
@@ -19,23 +19,23 @@ import pytest
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.budget import instrument_fit
-from firmware_sim.channel_sensors import ChannelSensors
-from firmware_sim.device import Logger
-from host.cli import main
-from host.errors import HostError
-from host.files.decode import decode_file
-from host.kinematics.logger_instruments import (
+from gaitlog.firmware_sim.budget import instrument_fit
+from gaitlog.firmware_sim.channel_sensors import ChannelSensors
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.host.cli import main
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.kinematics.logger_instruments import (
     check_fits,
     decoded_columns,
     instrument_config,
     record_instrument,
     sensor_recording,
 )
-from host.kinematics.sensor_csv import read_sensor_csv
-from protocol.channel_map import ANGULAR_RATE, SPECIFIC_FORCE, Channel, ChannelMap
-from protocol.errors import ProtocolError
-from protocol.header import DeviceHeader
+from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
+from gaitlog.protocol.channel_map import ANGULAR_RATE, SPECIFIC_FORCE, Channel, ChannelMap
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import DeviceHeader
 
 ROOT = Path(__file__).resolve().parents[2]
 _SPEC = importlib.util.spec_from_file_location("logger_instrument_errors",
@@ -138,8 +138,8 @@ def test_accelerometer_offsets_are_what_morris_cannot_afford(tmp_path: Path) -> 
     bound = errors.run_once("morris", {"n_accelerometers": 5}, 1, tmp_path)[2]
     li_bad = record_instrument("morris", seed=1, sensors=bad)
     rec = sensor_recording(decode_file(li_bad.logger.save_image(tmp_path / "bad.glimg")))
-    from host.commands.kinematics import _truth_from_columns, morris_errors
-    from host.kinematics.morris_analysis import analyse_morris_recording
+    from gaitlog.host.commands.kinematics import _truth_from_columns, morris_errors
+    from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
 
     cycles = analyse_morris_recording(rec, li_bad.platform)
     err = max(morris_errors(c, _truth_from_columns(errors._Truth(li_bad.truth)))["orientation_deg"] for c in cycles)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from host.cli import main
-from host.kinematics.plots import plot_dcm, stick_figure_points
+from gaitlog.host.cli import main
+from gaitlog.host.kinematics.plots import plot_dcm, stick_figure_points
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

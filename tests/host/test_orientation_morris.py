@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 from scipy.linalg import expm, polar
 from scipy.spatial.transform import Rotation
 
-from host.errors import HostError
-from host.kinematics.orientation import (
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.orientation import (
     cumulative_matmul,
     geodesic_distance_rad,
     initial_dcm_from_gravity,

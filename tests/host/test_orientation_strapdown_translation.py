@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from firmware_sim.world.rigid_body import RigidBodyShank
-from host.errors import HostError
-from host.kinematics.strapdown import (
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank
+from gaitlog.host.errors import HostError
+from gaitlog.host.kinematics.strapdown import (
     CycleTranslation,
     cumulative_trapezoid_m,
     remove_cycle_drift,

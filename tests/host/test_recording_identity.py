@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger, PowerCut
-from host.errors import HostError
-from host.files.decode import decode_bytes, decode_file
-from host.link.logger_link import LoggerLink
-from host.link.memory_dump import dump_memory
-from protocol.frames import FrameType, build_payload, encode_frame
+from gaitlog.firmware_sim.device import Logger, PowerCut
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_bytes, decode_file
+from gaitlog.host.link.logger_link import LoggerLink
+from gaitlog.host.link.memory_dump import dump_memory
+from gaitlog.protocol.frames import FrameType, build_payload, encode_frame
 from tests.host.test_link_emu import smooth_motion
 
 

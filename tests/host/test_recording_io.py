@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.errors import HostError
-from host.files.recording import CSV_COLUMNS, Gap, Recording
-from protocol.header import CalibrationSlot, DeviceHeader
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.recording import CSV_COLUMNS, Gap, Recording
+from gaitlog.protocol.header import CalibrationSlot, DeviceHeader
 
 
 @st.composite

@@ -1,5 +1,5 @@
-"""Replay of recorded files: the host reads them (:func:`host.files.inputs.read_acceleration`), the emulated
-world replays the samples (:meth:`firmware_sim.world.replay.Replay.from_samples`): the IPOL packet grid and its
+"""Replay of recorded files: the host reads them (:func:`gaitlog.host.files.inputs.read_acceleration`), the emulated
+world replays the samples (:meth:`gaitlog.firmware_sim.world.replay.Replay.from_samples`): the IPOL packet grid and its
 filled gaps, a CSV with a time column and a gap, units, resampling in band and through the logger."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from firmware_sim.device import Logger
-from firmware_sim.sensor import SensorModel
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2, MotionSource
-from firmware_sim.world.replay import Replay
-from host.files.inputs import read_acceleration
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, MotionSource
+from gaitlog.firmware_sim.world.replay import Replay
+from gaitlog.host.files.inputs import read_acceleration
 
 
 def _lowpass(x: np.ndarray, fc: float, sampling_rate_hz: float) -> np.ndarray:
@@ -115,7 +115,7 @@ def test_readme_walkthrough_figures(shared_data: Path, tmp_path: Path, capsys) -
     from the logger's fixed-point records; and trial 1's lost packets are counted."""
     import json
 
-    from host.cli import main
+    from gaitlog.host.cli import main
 
     trials = shared_data / "ipol-lowerback-dev" / "GaitData"
     for t in ("1-1", "1-2"):

@@ -1,12 +1,12 @@
 """Slow, short-stepped walking (step <= 0.35 m, cadence <= 90 /min): steps counted and M3 per bout.
 
-We have no real recording of such walking: the walkers are simulated (``firmware_sim.world``), logged as the
+We have no real recording of such walking: the walkers are simulated (``gaitlog.firmware_sim.world``), logged as the
 device would (10 bits, 50 Hz, nominal +-2 g) and run through both chains (the offline chain and the on-line
 algorithm in fixed point). The truth is the simulator's heel strikes and step lengths. Targets (issue 12):
 step count within 10 %, M3's per-bout mean step length within 1 +- 0.15 of the true mean.
 
 Measured with the default rule (on-line algorithm version 3: foot-flats need 0.25 of the recent step amplitude
-within 0.25-0.5 m/s^2, the 0.5 cap until a step is seen; firmware_sim.algorithms.parameters notes): steps
+within 0.25-0.5 m/s^2, the 0.5 cap until a step is seen; gaitlog.firmware_sim.algorithms.parameters notes): steps
 -3.1..-2.1 % offline, -2.8..+0.4 % on-line fixed; M3 per-bout ratio medians 1.115-1.149 offline, 1.105-1.130
 on-line fixed (M3's own bias on short steps: the pendulum of a 0.3 m step plus a whole foot length). The fixed
 0.5 m/s^2 threshold of versions 1-2 misses 17-25 % of these steps (strict xfail: the rule is what counts them;
@@ -20,15 +20,15 @@ import warnings
 import numpy as np
 import pytest
 
-from firmware_sim.algorithms.online import OnlineStepAlgorithm
-from firmware_sim.algorithms.parameters import EventParameters
-from firmware_sim.algorithms.steps import StepTable
-from firmware_sim.world.subject import Subject
-from firmware_sim.world.walk_plan import WalkPlan
-from firmware_sim.world.walking import Walking
-from host.gait.events import GaitEventDetector
-from host.gait.pipeline import StepPipeline
-from protocol.steps import StepConfig
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.parameters import EventParameters
+from gaitlog.firmware_sim.algorithms.steps import StepTable
+from gaitlog.firmware_sim.world.subject import Subject
+from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.host.gait.events import GaitEventDetector
+from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.protocol.steps import StepConfig
 
 pytestmark = pytest.mark.slow
 
@@ -99,7 +99,7 @@ def test_estimate_counts_slow_steps_by_default(tmp_path) -> None:
     from contextlib import redirect_stdout
     from io import StringIO
 
-    from host.cli import main
+    from gaitlog.host.cli import main
 
     subject, truth, codes = _walk(*WALKERS[0])
     true_n = np.unique(np.round(np.concatenate([truth["heel_strike_s"], truth["next_heel_strike_s"]]), 4)).size

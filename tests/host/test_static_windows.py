@@ -1,12 +1,12 @@
-"""host.accelerometer.static_windows: rest detection against the pose session's own truth (hold windows of the motion)."""
+"""gaitlog.host.accelerometer.static_windows: rest detection against the pose session's own truth (hold windows of the motion)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from firmware_sim.world.poses import CalibrationPoses
-from host.accelerometer.static_windows import (
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.host.accelerometer.static_windows import (
     StaticWindowDetector,
     StaticWindowError,
     find_static_windows,

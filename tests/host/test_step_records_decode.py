@@ -1,4 +1,4 @@
-"""host.files.decode + host.files.recording: the device's per-step records from images, raw dumps and wire captures.
+"""gaitlog.host.files.decode + gaitlog.host.files.recording: the device's per-step records from images, raw dumps and wire captures.
 
 Truth is built here by hand: record bytes packed with ``struct`` and ``binascii.crc_hqx`` (PROTOCOL.md 2.3's
 layout, not the project's packer), ring slots from the spec's rule, or the emulated device's own step memory.
@@ -21,14 +21,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.files.decode import STEP_REASONS, decode_bytes
-from host.files.recording import STEP_CSV_COLUMNS, Recording
-from host.files.replay import verify_step_records
-from protocol.frames import encode_frame
-from protocol.header import DeviceHeader
-from protocol.header import DeviceHeader as _Header
-from protocol.image import build_image as _build_current_image
-from protocol.image import image_version_for
+from gaitlog.host.files.decode import STEP_REASONS, decode_bytes
+from gaitlog.host.files.recording import STEP_CSV_COLUMNS, Recording
+from gaitlog.host.files.replay import verify_step_records
+from gaitlog.protocol.frames import encode_frame
+from gaitlog.protocol.header import DeviceHeader
+from gaitlog.protocol.header import DeviceHeader as _Header
+from gaitlog.protocol.image import build_image as _build_current_image
+from gaitlog.protocol.image import image_version_for
 
 
 def build_image(header, memory, missing_blocks=(), block_size=1024, **kw) -> bytes:
@@ -36,8 +36,8 @@ def build_image(header, memory, missing_blocks=(), block_size=1024, **kw) -> byt
     ``tests/protocol/test_corruption_campaign.py``)."""
     h = header if isinstance(header, _Header) else _Header.from_bytes(bytes(header))
     return _build_current_image(header, memory, missing_blocks, block_size, image_version=image_version_for(h), **kw)
-from protocol.raw_dump import raw_dump_bytes
-from protocol.steps import (
+from gaitlog.protocol.raw_dump import raw_dump_bytes
+from gaitlog.protocol.steps import (
     ONLINE_ALGORITHM_VERSION,
     STEP_ADDRESS_BASE,
     StepConfig,
@@ -216,7 +216,7 @@ def test_missing_blocks_and_a_version_1_file():
     assert_exact_or_dropped(rec, truth, set(range(51, 103)))
     assert "never received" in rec.step_losses[0].reason
     # an image of version 1 (written by a host older than the step memory) holds none of them
-    from protocol.image import IMAGE_PREFIX_STRUCT
+    from gaitlog.protocol.image import IMAGE_PREFIX_STRUCT
 
     v1 = bytearray(build_image(header.replace(step_capacity=0, steps_written=0, step_write_index=0), memory))
     table_end = 16 + 5 * 256
@@ -251,7 +251,7 @@ def test_a_record_not_received_is_dropped_even_when_its_crc_happens_to_match():
     """All-zero bytes carry a matching CRC-16/XMODEM (0x0000): a decoder that trusted the CRC alone would invent
     an all-zero record wherever a buffer of zeros was never filled. Every input path hands the step bytes with
     their received mask to one assembler; drive it with such a buffer."""
-    from host.files.decode import _assemble_steps
+    from gaitlog.host.files.decode import _assemble_steps
 
     header, _, step_memory, truth = synthetic(6, seed=1)
     buffer = bytearray(step_memory)
@@ -338,10 +338,10 @@ def test_steps_csv_columns_and_values(tmp_path):
 @pytest.fixture(scope="module")
 def walk():
     """A simulated walk recorded by the emulated logger with its on-line step algorithm on."""
-    from firmware_sim.device import Logger
-    from firmware_sim.world.subject import Subject
-    from firmware_sim.world.walk_plan import WalkPlan
-    from firmware_sim.world.walking import Walking
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.world.subject import Subject
+    from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+    from gaitlog.firmware_sim.world.walking import Walking
 
     walk_plan = WalkPlan(corridor_length_m=20.0, speeds=("preferred",), initial_stand_s=3.0,
                                final_stand_s=2.0, lap_marks_m=(0.0, 20.0, 40.0))
@@ -389,7 +389,7 @@ def test_dropped_records_are_not_compared_and_a_changed_one_is_found(walk):
 def test_the_device_stores_the_algorithm_version_it_runs(walk):
     """PROTOCOL.md 2.2 (versions): configured with step_format 1, firmware 1.2 stores 3, the version it runs;
     SET_STEP_CONFIG does the same; off stays off."""
-    from firmware_sim.device import Logger
+    from gaitlog.firmware_sim.device import Logger
 
     logger, _ = walk
     assert logger.header.step_config.step_format == StepFormat.V3 == ONLINE_ALGORITHM_VERSION
@@ -420,7 +420,7 @@ def test_an_image_of_an_older_algorithm_version_decodes_and_says_so(walk, versio
     assert "this host replays version 3, so they are not verified" in check.summary()
     current = decode_bytes(build_image(logger.header, logger.memory, step_memory=logger.step_memory))
     assert not any("algorithm version" in n for n in current.notes)
-    from host.commands.info import step_lines  # `gaitlog info` says it too
+    from gaitlog.host.commands.info import step_lines  # `gaitlog info` says it too
 
     assert (f"on-line version {version}, leg 0.9300 m, foot 0.1940 m, records by on-line algorithm version "
             f"{version} ({firmware})") in step_lines(rec.header)[1]

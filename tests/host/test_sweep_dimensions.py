@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from firmware_sim.algorithms.format_kernel import KernelFormats
-from firmware_sim.world.subject import random_subjects
-from firmware_sim.world.walk_plan import POPULATION_PLANS
-from host.cli import main
-from host.errors import HostError
-from host.studies.sweep_figures import figure_dimensions, render_error_vs_png
-from host.studies.sweep_grid import (
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
+from gaitlog.firmware_sim.world.subject import random_subjects
+from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS
+from gaitlog.host.cli import main
+from gaitlog.host.errors import HostError
+from gaitlog.host.studies.sweep_figures import figure_dimensions, render_error_vs_png
+from gaitlog.host.studies.sweep_grid import (
     SUMMARY_KEYS,
     SweepGrid,
     SweepTask,

@@ -15,17 +15,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.cli import main
-from host.errors import HostError
-from host.studies.sweep import AdcRateSweep
-from host.studies.sweep_grid import (
+from gaitlog.host.cli import main
+from gaitlog.host.errors import HostError
+from gaitlog.host.studies.sweep import AdcRateSweep
+from gaitlog.host.studies.sweep_grid import (
     SENSOR_NOISE_G_RTHZ,
     SweepGrid,
     analog_walk,
     run_task,
     walk_plan,
 )
-from host.studies.task_store import TaskStore, run_serial
+from gaitlog.host.studies.task_store import TaskStore, run_serial
 
 ROOT = Path(__file__).resolve().parents[2]
 #: 8 tasks: one subject of the short protocol, 2 widths x 2 rates x 2 Q-format sets, two estimators kept.
@@ -114,7 +114,7 @@ def test_serial_outputs(serial) -> None:
 
 def test_two_worker_local_cluster_gives_the_serial_results(serial, tmp_path) -> None:
     pytest.importorskip("distributed")
-    from host.studies.dask_runner import run_on_dask
+    from gaitlog.host.studies.dask_runner import run_on_dask
 
     store = TaskStore(tmp_path)
     tasks = _grid().tasks()
@@ -174,7 +174,7 @@ def test_a_cut_run_resumes_without_recomputing_finished_tasks(serial, tmp_path, 
     they were, only the others are computed, and the results equal an uninterrupted run's."""
     out = tmp_path / "cut"
     tasks_dir = out / "tasks"
-    proc = subprocess.Popen([sys.executable, "-m", "host.cli", "sweep", "--out", str(out), "-q", *where, *GRID_ARGS],
+    proc = subprocess.Popen([sys.executable, "-m", "gaitlog.host.cli", "sweep", "--out", str(out), "-q", *where, *GRID_ARGS],
                             env=dict(os.environ, PYTHONPATH=str(ROOT)), start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

@@ -1,16 +1,16 @@
-"""host.studies.sweep on one subject and a short protocol: the physics of quantisation and timing are the references."""
+"""gaitlog.host.studies.sweep on one subject and a short protocol: the physics of quantisation and timing are the references."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from host.studies.sweep import AdcRateSweep, format_m5, format_summary
+from gaitlog.host.studies.sweep import AdcRateSweep, format_m5, format_summary
 
 
 @pytest.fixture(scope="module")
 def sweep() -> AdcRateSweep:
-    from firmware_sim.world.walk_plan import WalkPlan
+    from gaitlog.firmware_sim.world.walk_plan import WalkPlan
 
     walk_plan = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
                                rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
@@ -86,7 +86,7 @@ def test_step_timing_error_falls_with_the_rate(sweep) -> None:
 
 
 def _m5_results(timing_sd: dict[float, float], model_sd: float = 0.03) -> list:
-    from host.studies.sweep import ConfigResult
+    from gaitlog.host.studies.sweep import ConfigResult
 
     rng = np.random.default_rng(0)
     model = rng.normal(1.0, model_sd, 400)               # per-section model error, the same at every rate
@@ -100,7 +100,7 @@ def _m5_results(timing_sd: dict[float, float], model_sd: float = 0.03) -> list:
 
 
 def test_m5_answer_no_when_the_model_dominates() -> None:
-    from host.studies.sweep import m5_timing_answer
+    from gaitlog.host.studies.sweep import m5_timing_answer
 
     ans = m5_timing_answer(_m5_results({25.0: 0.004, 50.0: 0.002, 100.0: 0.001}))
     share = {r["sampling_rate_hz"]: r["timing_share"] for r in ans["rows"]}
@@ -110,7 +110,7 @@ def test_m5_answer_no_when_the_model_dominates() -> None:
 
 
 def test_m5_answer_yes_when_timing_dominates_and_a_faster_rate_helps() -> None:
-    from host.studies.sweep import m5_timing_answer
+    from gaitlog.host.studies.sweep import m5_timing_answer
 
     ans = m5_timing_answer(_m5_results({25.0: 0.08, 50.0: 0.04, 100.0: 0.02}, model_sd=0.01))
     assert ans["verdict"].startswith("yes:")

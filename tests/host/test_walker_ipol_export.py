@@ -2,7 +2,7 @@
 
 The export is checked against the world's truth and the project's own IPOL reader; the realism against the
 real IPOL trials with ``../shared/tools/walking_stats.py`` (skipped when ``../shared`` is absent), statistic by
-statistic with issue 14's criterion (:mod:`host.studies.realism`): the ones the walker fails today are strict
+statistic with issue 14's criterion (:mod:`gaitlog.host.studies.realism`): the ones the walker fails today are strict
 xfails, so a change of the world that fixes or breaks one shows here.
 """
 
@@ -17,13 +17,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.world.base import STANDARD_GRAVITY_M_S2
-from firmware_sim.world.subject import random_subjects
-from firmware_sim.world.walking import Walking
-from host.cli import main
-from host.files.ipol import list_trials, read_trial
-from host.studies.realism import STATISTICS, judge
-from host.studies.simulation import (
+from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.firmware_sim.world.subject import random_subjects
+from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.host.cli import main
+from gaitlog.host.files.ipol import list_trials, read_trial
+from gaitlog.host.studies.realism import STATISTICS, judge
+from gaitlog.host.studies.simulation import (
     IPOL_SAMPLING_RATE_HZ,
     export_ipol,
     ipol_trial,

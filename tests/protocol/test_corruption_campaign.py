@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from host.files.decode import decode_bytes
-from protocol.header import DeviceHeader
-from protocol.image import build_image, image_version_for
-from protocol.packing import pack_words
-from protocol.raw_dump import raw_dump_bytes
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.protocol.header import DeviceHeader
+from gaitlog.protocol.image import build_image, image_version_for
+from gaitlog.protocol.packing import pack_words
+from gaitlog.protocol.raw_dump import raw_dump_bytes
 
 _PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_corruption.py"
 _spec = importlib.util.spec_from_file_location("bench_corruption", _PATH)

@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from firmware_sim.device import Logger
-from firmware_sim.errors import DeviceError
-from protocol.errors import ProtocolError
-from protocol.header import DeviceHeader, HeaderFlag
-from protocol.header_slots import (
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import DeviceHeader, HeaderFlag
+from gaitlog.protocol.header_slots import (
     SLOT_ADDRESSES,
     SLOT_BYTES,
     committed_header,

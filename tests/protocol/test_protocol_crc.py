@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol.crc import crc16_xmodem, crc32
+from gaitlog.protocol.crc import crc16_xmodem, crc32
 
 
 def _crc16_bitwise(data: bytes) -> int:

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol.frames import (
+from gaitlog.protocol.frames import (
     FRAME_STRUCT,
     MAX_PAYLOAD,
     ErrorCode,
@@ -26,8 +26,8 @@ from protocol.frames import (
     parse_payload,
     parse_stream,
 )
-from protocol.header import CalibrationSlot, DeviceHeader
-from protocol.steps import StepConfig
+from gaitlog.protocol.header import CalibrationSlot, DeviceHeader
+from gaitlog.protocol.steps import StepConfig
 
 
 def _ref_frame(t: int, seq: int, payload: bytes) -> bytes:

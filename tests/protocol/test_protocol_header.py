@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol.errors import ProtocolError
-from protocol.header import (
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.header import (
     CAPACITY_SAMPLES,
     HEADER_SIZE,
     MEMORY_BYTES,
@@ -19,7 +19,7 @@ from protocol.header import (
     DeviceHeader,
     HeaderFlag,
 )
-from protocol.steps import StepConfig
+from gaitlog.protocol.steps import StepConfig
 
 
 def _ref_header(**f: int) -> bytes:

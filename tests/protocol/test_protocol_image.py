@@ -13,18 +13,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol.errors import ProtocolError
-from protocol.frames import encode_frame
-from protocol.header import DeviceHeader, HeaderFlag
-from protocol.image import build_image as build_current_image
-from protocol.image import (
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import encode_frame
+from gaitlog.protocol.header import DeviceHeader, HeaderFlag
+from gaitlog.protocol.image import build_image as build_current_image
+from gaitlog.protocol.image import (
     detect_format,
     image_version_for,
     parse_image,
     read_image,
     write_image,
 )
-from protocol.steps import STEP_CAPACITY_RECORDS, empty_step_records, pack_step_records
+from gaitlog.protocol.steps import STEP_CAPACITY_RECORDS, empty_step_records, pack_step_records
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*are not usable:UserWarning")
 

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from protocol.errors import ProtocolError
-from protocol.packing import (
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.packing import (
     FLAG_MARK,
     FLAG_SESSION_START,
     bytes_to_words,

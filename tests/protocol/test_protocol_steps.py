@@ -12,9 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol.crc import crc16_xmodem_rows
-from protocol.errors import ProtocolError
-from protocol.steps import (
+from gaitlog.protocol.crc import crc16_xmodem_rows
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.steps import (
     STEP_ADDRESS_BASE,
     STEP_CAPACITY_RECORDS,
     STEP_CONFIG_SIZE,

@@ -16,9 +16,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from xmodem import XMODEM
 
-from protocol.errors import ProtocolError
-from protocol.raw_dump import TRAILER_GAP_BYTES, build_trailer, raw_dump_bytes
-from protocol.xmodem import (
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.raw_dump import TRAILER_GAP_BYTES, build_trailer, raw_dump_bytes
+from gaitlog.protocol.xmodem import (
     ACK,
     CAN,
     CRC_REQUEST,

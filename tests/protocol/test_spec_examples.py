@@ -18,11 +18,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from host.files.decode import decode_bytes
-from protocol.channel_map import Channel, ChannelMap
-from protocol.commit_journal import ENTRY_BYTES, JOURNAL_BYTES, JOURNAL_ENTRIES, JOURNAL_OFFSET
-from protocol.errors import ProtocolError
-from protocol.frames import (
+from gaitlog.host.files.decode import decode_bytes
+from gaitlog.protocol.channel_map import Channel, ChannelMap
+from gaitlog.protocol.commit_journal import ENTRY_BYTES, JOURNAL_BYTES, JOURNAL_ENTRIES, JOURNAL_OFFSET
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import (
     FRAME_HEAD_STRUCT,
     MAX_DATA,
     MAX_PAYLOAD,
@@ -34,23 +34,23 @@ from protocol.frames import (
     parse_payload,
     parse_stream,
 )
-from protocol.header import (
+from gaitlog.protocol.header import (
     CALIBRATION_OFFSETS,
     HEADER_OFFSETS,
     CalibrationSlot,
     DeviceHeader,
     HeaderFlag,
 )
-from protocol.image import (
+from gaitlog.protocol.image import (
     IMAGE_OFFSETS,
     IMAGE_PREFIX_STRUCT,
     SHIFT_SEARCH_BYTES,
     build_image,
     parse_image,
 )
-from protocol.packing import pack_words, unpack_words, words_to_bytes
-from protocol.raw_dump import raw_dump_bytes
-from protocol.steps import (
+from gaitlog.protocol.packing import pack_words, unpack_words, words_to_bytes
+from gaitlog.protocol.raw_dump import raw_dump_bytes
+from gaitlog.protocol.steps import (
     STEP_CONFIG_OFFSETS,
     STEP_CONFIG_STRUCT,
     STEP_RECORD_BODY_STRUCT,
@@ -64,7 +64,7 @@ from protocol.steps import (
     parse_step_record,
     unpack_step_records,
 )
-from protocol.xmodem import PAD, build_block, parse_block
+from gaitlog.protocol.xmodem import PAD, build_block, parse_block
 
 SPEC_PATH = Path(__file__).resolve().parents[2] / "protocol" / "PROTOCOL.md"
 SPEC = SPEC_PATH.read_text(encoding="utf-8")

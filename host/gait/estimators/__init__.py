@@ -1,6 +1,6 @@
-"""Step-length estimators M1-M5 of Alvarez et al. (2006) in the offline float chain (K: :mod:`host.gait.k_calibration`).
+"""Step-length estimators M1-M5 of Alvarez et al. (2006) in the offline float chain (K: :mod:`gaitlog.host.gait.k_calibration`).
 
-The names (``ESTIMATORS``) and the per-step table are defined once in ``firmware_sim.algorithms.steps``.
+The names (``ESTIMATORS``) and the per-step table are defined once in ``gaitlog.firmware_sim.algorithms.steps``.
 
 ========  =========================================  =====================================
 name      class                                      model

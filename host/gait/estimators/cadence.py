@@ -3,7 +3,7 @@
 .. math:: S = K_1 / T_{step} + K_2
 
 ``T_step`` the step duration (foot-flat to foot-flat), ``K1`` (m/s... m per Hz, i.e. m*s) and ``K2`` (m)
-fitted per subject by :func:`host.gait.k_calibration.calibrate`.
+fitted per subject by :func:`gaitlog.host.gait.k_calibration.calibrate`.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from typing import Self
 
 import numpy as np
 
-from host.gait.integration import StepSamples, step_samples, vertical_positions
+from gaitlog.host.gait.integration import StepSamples, step_samples, vertical_positions
 
 
 def pendulum_length_m(h_m: np.ndarray, leg_length_m: float) -> tuple[np.ndarray, int]:

@@ -15,8 +15,8 @@ from typing import Self
 
 import numpy as np
 
-from host.gait.estimators.pendulum import _check, pendulum_length_m
-from host.gait.integration import StepSamples, step_samples, vertical_positions
+from gaitlog.host.gait.estimators.pendulum import _check, pendulum_length_m
+from gaitlog.host.gait.integration import StepSamples, step_samples, vertical_positions
 
 
 class TwoPhasePendulumM3:

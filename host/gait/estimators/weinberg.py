@@ -2,8 +2,8 @@
 
 .. math:: S = K (a_{max} - a_{min})^p
 
-with ``p`` :data:`firmware_sim.algorithms.parameters.M4_EXPONENT` (1/2; Weinberg's is 1/4: why, and how it
-was chosen leave-one-subject-out, in that module's notes and :mod:`host.studies.tuning`)
+with ``p`` :data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT` (1/2; Weinberg's is 1/4: why, and how it
+was chosen leave-one-subject-out, in that module's notes and :mod:`gaitlog.host.studies.tuning`)
 
 per step, ``a`` the vertical acceleration low-passed at 3 Hz (its first harmonic; here a Gaussian
 low-pass with -3 dB at 3 Hz over the measured samples), max and min within the step (foot-flat to
@@ -17,9 +17,9 @@ from typing import Self
 
 import numpy as np
 
-from firmware_sim.algorithms.parameters import M4_EXPONENT
-from host.gait.integration import step_samples
-from host.gait.masked_filter import masked_gaussian_lowpass
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.host.gait.integration import step_samples
+from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
 
 
 class WeinbergM4:
@@ -32,7 +32,7 @@ class WeinbergM4:
     cutoff_hz
         Low-pass -3 dB frequency (3 Hz).
     exponent
-        ``p`` (the shipped :data:`~firmware_sim.algorithms.parameters.M4_EXPONENT` unless a study varies it).
+        ``p`` (the shipped :data:`~gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT` unless a study varies it).
 
     Examples
     --------

@@ -1,13 +1,13 @@
-"""pyserial URL handlers of gaitlog (``serial.protocol_handler_packages`` entry ``"host.link.transports"``).
+"""pyserial URL handlers of gaitlog (``serial.protocol_handler_packages`` entry ``"gaitlog.host.link.transports"``).
 
-:func:`register` makes ``serial.serial_for_url("emu://...")`` find :mod:`host.link.transports.protocol_emu`.
+:func:`register` makes ``serial.serial_for_url("emu://...")`` find :mod:`gaitlog.host.link.transports.protocol_emu`.
 """
 
 from __future__ import annotations
 
 import serial
 
-PACKAGE = "host.link.transports"
+PACKAGE = "gaitlog.host.link.transports"
 
 
 def register() -> None:

@@ -21,12 +21,12 @@ URL grammar::
 Examples: ``emu:///tmp/mem.glimg``, ``emu://?image=/tmp/mem.glimg&corrupt=0.001&seed=3``,
 ``emu:///tmp/mem.glimg?persist=1``.
 
-The device is ``firmware_sim.device.Logger``; its firmware is sans-I/O (``receive(data, now_s) -> bytes``),
+The device is ``gaitlog.firmware_sim.device.Logger``; its firmware is sans-I/O (``receive(data, now_s) -> bytes``),
 so a :meth:`Serial.write` runs the command handler at once and queues its answer for :meth:`Serial.read`.
 The baud rate is accepted and ignored (no wire-time pacing: use ``gaitlog serve --wire-time`` for that).
 Faults touch the device->host direction (``corrupt``, ``drop``, ``insert``, ``cut_after``) and the
 host->device direction (``h2d_*``) and are reproducible for a given seed and call sequence. A DUMP stream
-is pulled from the firmware a few frames ahead of the reader (:meth:`firmware_sim.firmware.Firmware.transmit`),
+is pulled from the firmware a few frames ahead of the reader (:meth:`gaitlog.firmware_sim.firmware.Firmware.transmit`),
 so a command sent in the middle of a stream ends it as it would on the line.
 Use this for tests; never ``loop://`` (a loopback is not a device).
 """
@@ -39,7 +39,7 @@ import urllib.parse
 import numpy as np
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-from firmware_sim.device import Logger
+from gaitlog.firmware_sim.device import Logger
 
 _FORM = ('expected "emu://[IMAGE_PATH][?image=PATH&seed=N&corrupt=P&drop=P&insert=P&cut_after=N&persist=0|1'
          '&h2d_corrupt=P&h2d_drop=P&h2d_insert=P]"')
@@ -208,7 +208,7 @@ class Serial(SerialBase):
 
     @property
     def device(self):
-        """The emulated ``firmware_sim.device.Logger`` (for tests)."""
+        """The emulated ``gaitlog.firmware_sim.device.Logger`` (for tests)."""
         return self._device
 
     @property
