@@ -415,6 +415,10 @@ def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: lis
     for line_no, ln in enumerate(lines, start + 1):   # text, one line at a time (np.loadtxt cannot take empty cells)
         if not ln.strip() or ln.lstrip().startswith("#"):
             continue
+        if k == _ROWS_PER_BLOCK:  # a row past a full block: counted before the next block is allocated
+            blocks.append(block)
+            check_samples(len(blocks) * _ROWS_PER_BLOCK + 1, p, f"line {line_no}")
+            block, k = np.full((_ROWS_PER_BLOCK, len(want)), np.nan), 0
         cells = ln.split(delim)
         if len(cells) <= want[-1]:
             raise HostError(f"{p}: line {line_no}: {len(cells)} fields, column {want[-1]} is missing")
@@ -427,10 +431,6 @@ def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: lis
                     name = header[c] if header else f"column {c}"
                     raise HostError(f"{p}: line {line_no}, {name}: not a number: {v!r}") from None
         k += 1
-        if k == _ROWS_PER_BLOCK:
-            blocks.append(block)
-            check_samples((len(blocks) + 1) * _ROWS_PER_BLOCK, p, f"line {line_no}")
-            block, k = np.full((_ROWS_PER_BLOCK, len(want)), np.nan), 0
     blocks.append(block[:k])
     return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
 

@@ -75,8 +75,18 @@ def test_streamed_rows_are_bounded_before_the_file_is_read_whole(tmp_path, monke
     monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)
     monkeypatch.setattr(inputs, "_ROWS_PER_BLOCK", 256)
     monkeypatch.setattr(limits, "MAX_INPUT_SAMPLES", 1000)
-    with pytest.raises(HostError, match=r"many\.csv: line 769: the input would hold 1024 samples, more than the 1000"):
+    with pytest.raises(HostError, match=r"many\.csv: line 1026: the input would hold 1025 samples, more than the 1000"):
         inputs.read_acceleration(path, sampling_rate_hz=50.0)
+
+
+def test_streamed_rows_exactly_at_the_bound_are_read(tmp_path, monkeypatch):
+    """As many rows as one input may hold, a whole number of blocks: read, not refused for the block after."""
+    path = tmp_path / "full.csv"
+    path.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 1024)
+    monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)
+    monkeypatch.setattr(inputs, "_ROWS_PER_BLOCK", 256)
+    monkeypatch.setattr(limits, "MAX_INPUT_SAMPLES", 1024)
+    assert inputs.read_acceleration(path, sampling_rate_hz=50.0).acc_g.shape == (1024, 3)
 
 
 def test_fit_to_memory_keeps_what_a_stop_when_full_memory_takes():
