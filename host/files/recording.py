@@ -40,9 +40,10 @@ import numpy as np
 
 from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.host.errors import HostError
+from gaitlog.host.files.limits import MAX_INPUT_SAMPLES
 from gaitlog.protocol.atomic_write import atomic_write, atomic_write_text
 from gaitlog.protocol.channel_map import ChannelMap
-from gaitlog.protocol.header import MAX_CAPACITY_SAMPLES, CalibrationSlot, DeviceHeader
+from gaitlog.protocol.header import CalibrationSlot, DeviceHeader
 from gaitlog.protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
@@ -60,9 +61,11 @@ NPZ_FORMAT_VERSION = 1
 #: The arrays of the NPZ layout (others in a file are not read).
 _NPZ_ARRAYS = ("codes", "valid", "flags", "sample_numbers", "header_bytes", "step_record_bytes", "step_record_numbers",
                "metadata_json")
-#: Largest NPZ member read, bytes: ``sample_numbers`` (int64) of a memory of MAX_CAPACITY_SAMPLES samples is the
-#: largest genuine one (8 MB); a zip bomb or a header claiming terabytes is refused before it is allocated.
-MAX_NPZ_ARRAY_BYTES = 8 * MAX_CAPACITY_SAMPLES + 4096
+#: Largest NPZ member read, bytes: ``sample_numbers`` (int64) of the longest input a command takes
+#: (:data:`~gaitlog.host.files.limits.MAX_INPUT_SAMPLES`, 23 h at 50 Hz: a replayed day, not only a logger's
+#: memory) is the largest genuine one (32 MB); a zip bomb or a header claiming terabytes is refused before it is
+#: allocated.
+MAX_NPZ_ARRAY_BYTES = 8 * MAX_INPUT_SAMPLES + 4096
 
 #: CSV columns written by :meth:`Recording.to_csv`, in order.
 CSV_COLUMNS = (

@@ -161,3 +161,15 @@ def test_record_replays_a_long_csv_in_bounded_memory(tmp_path):
     long_rec, short_rec = decode_file(tmp_path / "long.glimg"), decode_file(tmp_path / "short.glimg")
     assert long_rec.n_samples == short_rec.n_samples == 65536
     assert np.array_equal(np.asarray(long_rec.codes)[:, 0], np.asarray(short_rec.codes)[:, 0])
+
+
+def test_an_npz_longer_than_a_logger_memory_is_read(tmp_path):
+    """A replayed recording is longer than the 2^20-sample largest memory: an NPZ is bounded by what one input
+    may hold, as a CSV is, not by the logger's capacity."""
+    from gaitlog.host.files.recording import Recording
+    from gaitlog.protocol.header import MAX_CAPACITY_SAMPLES
+
+    n = MAX_CAPACITY_SAMPLES + 1
+    codes = np.tile(np.array([512, 512, 768]), (n, 1))
+    Recording.from_arrays(codes, sampling_rate_hz=50.0).save_npz(tmp_path / "long.npz")
+    assert Recording.load(tmp_path / "long.npz").codes.shape == (n, 3)
