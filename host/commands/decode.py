@@ -18,8 +18,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="convert counts to g with this calibration (default: the header's "
                              "calibration slot, else the nominal map)")
     parser.add_argument("--no-verify", action="store_true",
-                        help="write the step records even when they differ from the host's replay of the device's "
-                             "algorithm (default: a difference is an error and nothing is written)")
+                        help="write the step records as the device stored them, without replaying the device's "
+                             "algorithm to check them (default: a difference from the replay is an error and "
+                             "nothing is written)")
     parser.add_argument("--accept-unverified", action="store_true",
                         help="keep the samples of a raw dump without its check trailer (cut off, or older "
                              "firmware) as the file holds them, marked UNVERIFIED in a warning and the notes "
@@ -90,16 +91,17 @@ def run(args: argparse.Namespace) -> int:
             raise HostError(f"{args.calibration}: this calibration takes {calibration.input_unit}; decoding "
                             "needs a calibration of ADC counts (input_unit 'counts')")
         note = f"g from the calibration {args.calibration}"
-    check = verify_step_records(rec)
-    differs = check is not None and check.differs
-    if differs and not args.no_verify:
+    check = None if args.no_verify else verify_step_records(rec)
+    if check is not None and check.differs:
         raise HostError(replay_error(rec, check))
     written = save_decoded(rec, args.out, calibration)
     if verbosity(args) >= 0:
         print(f"{args.input}: {rec.summary(None if verbosity(args) > 0 else _LISTED_WITHOUT_VERBOSE)}")
         print(note)
         if check is not None:
-            print(check.summary() + (" (--no-verify: written anyway)" if differs else ""))
+            print(check.summary())
+        elif rec.n_step_records:
+            print(f"{rec.n_step_records} device step records written unchecked (--no-verify: not replayed)")
         if rec.n_step_records == 0:
             print(f"no step records in {args.input}: {output_paths(args.out)['steps_csv']} not written")
         print("wrote " + ", ".join(str(p) for p in written))
