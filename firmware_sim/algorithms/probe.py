@@ -1,0 +1,70 @@
+"""Probes into the fixed-point kernel: a stage's intermediate values, for the PIC assembly to be compared with.
+
+The on-line kernel (:mod:`gaitlog.firmware_sim.algorithms.kernel`) keeps only its state and its step records;
+the values in between (the calibrated axes of step 1, ...) are gone by the end of a sample. The PIC assembly
+(``firmware_sim/pic/logger.asm``, run by :mod:`gaitlog.firmware_sim.pic.gpsim_logger`) writes them to RAM, so
+a comparison needs them from the model too. A probe computes one stage with the kernel's own helpers and Q
+formats, over a whole array of samples; it does not change the kernel, and a test checks each probe against
+the kernel's state after the stage (``tests/firmware_sim/test_pic_logger.py``).
+
+Probes
+------
+:func:`calibrated_axes`
+    Step 1, calibration: ``c = requant(code, 0, code_frac) - offset`` (16 bits, saturating), then per row
+    the kernel's ``_calibrated`` (three 16 x 16 products summed with saturation in 32 bits, rounded half up
+    to Q2.13 g and saturated to 16 bits).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gaitlog.firmware_sim.algorithms import arithmetic as ar
+from gaitlog.firmware_sim.algorithms import kernel
+from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
+from gaitlog.firmware_sim.algorithms.formats import W16, centred_q
+from gaitlog.firmware_sim.compiled import njit
+from gaitlog.firmware_sim.fixedpoint import new_counters
+
+__all__ = ["calibrated_axes"]
+
+
+@njit(cache=True)
+def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt):  # pragma: no cover - compiled
+    cf = cfg_i[kernel.CI_CODE_FRAC]
+    mf = cfg_i[kernel.CI_MANT_FRAC]
+    for i in range(codes.shape[0]):
+        # kernel._front, step 1, line for line
+        c0 = ar.sub(ar.requant(codes[i, 0], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 0], W16, cnt)
+        c1 = ar.sub(ar.requant(codes[i, 1], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 1], W16, cnt)
+        c2 = ar.sub(ar.requant(codes[i, 2], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 2], W16, cnt)
+        for row in range(3):
+            out[i, row] = kernel._calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt)
+
+
+def calibrated_axes(codes: np.ndarray, calibration: CalibrationQ) -> np.ndarray:
+    """Step 1 of the fixed-point kernel on every sample: ``(n, 3)`` int64 calibrated axes, raw Q2.13 g.
+
+    Parameters
+    ----------
+    codes
+        ``(n, 3)`` ADC codes (counts).
+    calibration
+        The calibration as the PIC keeps it (:class:`~gaitlog.firmware_sim.algorithms.calibration.CalibrationQ`).
+
+    Examples
+    --------
+    >>> from gaitlog.firmware_sim.algorithms.calibration import nominal_calibration_q
+    >>> calibrated_axes(np.array([[512, 768, 256]]), nominal_calibration_q()).tolist()   # 0, +1, -1 g
+    [[0, 8192, -8192]]
+    """
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    cfg_i = np.zeros(kernel.N_CI, np.int64)
+    cfg_i[kernel.CI_CODE_FRAC] = centred_q(calibration.adc_bits).frac_bits
+    cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
+    cfg_v = np.zeros(kernel.CV_M + 9, np.int64)
+    cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw
+    cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
+    out = np.zeros((c.shape[0], 3), np.int64)
+    _calibrated_axes(c, cfg_i, cfg_v, out, new_counters())
+    return out
