@@ -96,7 +96,7 @@ def timer_setup(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ) -> Ti
     TimerSetup(prescale=2, ccpr1=46080, t1con=17)
     """
     cycles = cycles_per_sample_available(sampling_rate_hz, fosc_hz)
-    if abs(cycles - round(cycles)) > 1e-6 * cycles:
+    if abs(cycles - round(cycles)) > 1e-6:
         raise ValueError(f"{sampling_rate_hz:g} Hz is not a whole number of cycles at {fosc_hz / 1e6:g} MHz "
                          f"({cycles:.3f})")
     for prescale, bits in _PRESCALERS:
