@@ -205,7 +205,8 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float) -> str:
     """Run ``build`` in gpsim, logging writes to ``addrs``, until ``stop`` (``e LABEL`` or ``c CYCLES``)."""
     with tempfile.TemporaryDirectory(prefix="gpsim-logger-") as tmp:
         log = Path(tmp) / "writes.log"
-        lines = [f"log on {log}", *(f"log w {a}" for a in addrs), f"break {stop}", "run", "quit"]
+        lines = [*([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
+                 "quit"]
         (Path(tmp) / "run.stc").write_text("\n".join(lines) + "\n")
         proc = subprocess.run(["gpsim", "-i", "-s", str(build.cod), "-c", str(Path(tmp) / "run.stc")],
                               capture_output=True, text=True, timeout=timeout_s, cwd=tmp)
@@ -348,6 +349,16 @@ class PicLogger:
         if periods.size != 1:
             raise PicError(f"the sampling interrupt's period varies: {periods.tolist()} cycles")
         return isr[:32], int(periods[0])
+
+    def raw_speed(self, n_samples: int) -> tuple[int, float]:
+        """gpsim's own speed on this firmware: the production build, nothing logged, for ``n_samples`` sample
+        periods; returns (cycles simulated, wall seconds of the gpsim process)."""
+        t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
+        with tempfile.TemporaryDirectory(prefix="pic-logger-raw-") as tmp:
+            build = _assemble(Path(tmp), self._defines(0, True), test=False)
+            t0 = time.perf_counter()
+            _gpsim(build, [], f"c {t.period_cycles * n_samples}", self.timeout_s)
+            return t.period_cycles * n_samples, time.perf_counter() - t0
 
     def run(self, codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *,
             first_sample_number: int = 0) -> LoggerRun:
