@@ -13,6 +13,9 @@ Probes
     Step 1, calibration: ``c = requant(code, 0, code_frac) - offset`` (16 bits, saturating), then per row
     the kernel's ``_calibrated`` (three 16 x 16 products summed with saturation in 32 bits, rounded half up
     to Q2.13 g and saturated to 16 bits).
+:func:`gravity_states`
+    Step 2, gravity: the two exponential stages ``G1``, ``G2`` (Q2.29) after each sample of one run, from
+    the calibrated axes, with the warm-up shift of ``kernel._front``.
 """
 
 from __future__ import annotations
@@ -22,11 +25,11 @@ import numpy as np
 from gaitlog.firmware_sim.algorithms import arithmetic as ar
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
-from gaitlog.firmware_sim.algorithms.formats import W16, centred_q
+from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_GRAV, W16, W32, centred_q
 from gaitlog.firmware_sim.compiled import njit
 from gaitlog.firmware_sim.fixedpoint import new_counters
 
-__all__ = ["calibrated_axes"]
+__all__ = ["calibrated_axes", "gravity_states"]
 
 
 @njit(cache=True)
@@ -67,4 +70,43 @@ def calibrated_axes(codes: np.ndarray, calibration: CalibrationQ) -> np.ndarray:
     cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
     out = np.zeros((c.shape[0], 3), np.int64)
     _calibrated_axes(c, cfg_i, cfg_v, out, new_counters())
+    return out
+
+
+@njit(cache=True)
+def _gravity(f, g_shift, out, cnt):  # pragma: no cover - compiled
+    g1 = np.zeros(3, np.int64)
+    g2 = np.zeros(3, np.int64)
+    for n in range(f.shape[0]):
+        # kernel._front, step 2, line for line (n: the samples of the run before this one)
+        warm = 0
+        while (2 << warm) <= n + 1 and warm < g_shift:
+            warm += 1
+        for axis in range(3):
+            g1[axis] = ar.add(g1[axis], ar.scale2(ar.sub(ar.requant(f[n, axis], F_ACC, F_GRAV, W32, cnt), g1[axis],
+                                                         W32, cnt), -warm, W32, cnt), W32, cnt)
+            g2[axis] = ar.add(g2[axis], ar.scale2(ar.sub(g1[axis], g2[axis], W32, cnt), -warm, W32, cnt), W32, cnt)
+            out[n, axis] = g1[axis]
+            out[n, 3 + axis] = g2[axis]
+
+
+def gravity_states(calibrated: np.ndarray, gravity_shift: int) -> np.ndarray:
+    """Step 2 of the fixed-point kernel over one run (from START): ``(n, 6)`` int64 ``G1``, ``G2`` after each
+    sample, raw Q2.29 g.
+
+    Parameters
+    ----------
+    calibrated
+        ``(n, 3)`` calibrated axes, raw Q2.13 (:func:`calibrated_axes`).
+    gravity_shift
+        The kernel's ``G_SHIFT`` (``OnlineConfig.cfg_i[kernel.CI_G_SHIFT]``).
+
+    Examples
+    --------
+    >>> gravity_states(np.array([[8192, 0, 0], [0, 0, 0]]), 6)[:, [0, 3]].tolist()   # G1x, G2x: 1 g, then the mean
+    [[536870912, 536870912], [268435456, 402653184]]
+    """
+    f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
+    out = np.zeros((f.shape[0], 6), np.int64)
+    _gravity(f, int(gravity_shift), out, new_counters())
     return out

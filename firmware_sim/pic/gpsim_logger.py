@@ -39,14 +39,15 @@ import numpy as np
 
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from gaitlog.firmware_sim.algorithms.formats import F_ACC
-from gaitlog.firmware_sim.algorithms.probe import calibrated_axes
+from gaitlog.firmware_sim.algorithms.parameters import EventParameters, OnlineParameters, SampleCounts
+from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states
 from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, gpsim_version, missing_tools
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
 
 __all__ = ["LOGGER_ASM", "CHUNK_SAMPLES", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
-           "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify",
+           "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
            "missing_tools"]
 
 #: The firmware source.
@@ -219,6 +220,12 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float) -> str:
         return log.read_text(errors="replace") if log.exists() else ""
 
 
+#: Stage 2's state in RAM, in logger_ram.inc's order (G1X .. THR_H, 29 bytes): what a chunk hands the next.
+STATE_BYTES = 29
+#: RAM the harness snapshots after each sample (bank-0 symbols): stage outputs and state.
+_SNAPSHOT = ("FX_L", "FX_H", "FY_L", "FY_H", "FZ_L", "FZ_H", *(f"G{s}{a}" for s in "12" for a in "XYZ"))
+
+
 @dataclass(frozen=True)
 class LoggerRun:
     """The assembly on ``n`` samples in gpsim (the test build), and the interrupt measured on the production build.
@@ -229,20 +236,24 @@ class LoggerRun:
         ``(n, 4)`` uint8: the bytes the interrupt wrote into the page buffer per sample (a P32 word, LE).
     calibrated
         ``(n, 3)`` int64: stage 1's calibrated axes, raw Q2.13 g (``FX``, ``FY``, ``FZ``).
+    gravity
+        ``(n, 6)`` int64: stage 2's state after the sample, raw Q2.29 (``G1X..G1Z``, ``G2X..G2Z``).
     isr_cycles
         ``(n,)`` the interrupt, vector to RETFIE, as the production build takes it at this sample's page position.
     stage_cycles
-        ``(n,)`` stage 1 in the main loop (the word's read-back to the store of ``FZ``).
+        ``(n, 2)`` stage 1 (the word's read-back to the store of ``FZ``) and stage 2 (to the main loop's
+        ``DECF PENDING``), less any interrupt inside them.
     acquisition_cycles_min
         The shortest channel select to GO seen (the acquisition time the ADC got).
     period_cycles
         Measured cycles between two interrupts (the production build; all equal).
-    simulated_cycles, gpsim_s
-        Cycles gpsim simulated and the wall time of the gpsim runs (sum over chunks).
+    simulated_cycles, gpsim_s, wall_s
+        Cycles gpsim simulated, the wall time of the gpsim runs (sum over chunks), the whole run's wall time.
     """
 
     packed: np.ndarray
     calibrated: np.ndarray
+    gravity: np.ndarray
     isr_cycles: np.ndarray
     stage_cycles: np.ndarray
     acquisition_cycles_min: int
@@ -252,37 +263,72 @@ class LoggerRun:
     wall_s: float
 
 
-def _by_sample(cyc: np.ndarray, addr: np.ndarray, val: np.ndarray, n: int, logged: dict[str, int],
-               first_sample: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Per-sample outputs of one test-build run from its write log."""
+@dataclass(frozen=True)
+class _ChunkOut:
+    packed: np.ndarray
+    ram: np.ndarray            # (n, len(_SNAPSHOT) * bytes) snapshot bytes, see _snapshot_values
+    stage_cycles: np.ndarray
+    acquisition_cycles_min: int
+    final_state: list[int]     # STATE_BYTES bytes, the next chunk's start
+    simulated_cycles: int
+    gpsim_s: float
+
+
+def _int(b: np.ndarray, signed: bool = True) -> np.ndarray:
+    v = np.zeros(b.shape[0], np.int64)
+    for i in range(b.shape[1]):
+        v |= b[:, i].astype(np.int64) << (8 * i)
+    bits = 8 * b.shape[1]
+    return np.where(v >= 1 << (bits - 1), v - (1 << bits), v) if signed else v
+
+
+def _packed(addr: np.ndarray, val: np.ndarray, n: int, first_sample: int) -> np.ndarray:
     page = np.isin(addr, PAGE_ADDRS)
-    packed = val[page].reshape(-1, 4) if page.sum() % 4 == 0 else np.zeros((0, 4), np.int64)
-    if packed.shape[0] != n:
+    if page.sum() != 4 * n:
         raise PicError(f"gpsim wrote {int(page.sum())} page-buffer bytes for {n} samples")
     expect = np.asarray([_page_fsr(first_sample + i) for i in range(n)]) + 0x100
     if not np.array_equal(addr[page][0::4], expect):
         raise PicError("the page buffer was written out of order")
-    out = []
-    for name in ("FX_L", "FX_H", "FY_L", "FY_H", "FZ_L", "FZ_H"):
-        sel = addr == logged[name]
-        if sel.sum() != n:
-            raise PicError(f"gpsim wrote {name} {int(sel.sum())} times for {n} samples")
-        out.append(val[sel])
-    raw = np.stack([out[0] | out[1] << 8, out[2] | out[3] << 8, out[4] | out[5] << 8], axis=1)
-    calibrated = np.where(raw >= 0x8000, raw - 0x10000, raw)
-    w = cyc[addr == W_TEMP_ADDR]
-    isr_start, isr_end = w[0::2], w[1::2] + ISR_TAIL_CYCLES
-    start, end = cyc[addr == logged["B0"]], cyc[addr == logged["FZ_H"]]
-    if w.size != 2 * n or start.size != n or end.size != n:
-        raise PicError(f"gpsim logged {w.size // 2} interrupts and {start.size} stages for {n} samples")
-    # an interrupt that fell inside a stage is not the stage's
-    inside = np.array([np.sum(np.where((isr_start > s) & (isr_start < e), isr_end - isr_start, 0))
-                       for s, e in zip(start, end)], np.int64)
-    stage = end - start - inside
-    adc = cyc[addr == ADCON0_ADDR]
-    adc = adc[adc > isr_start[0]]
-    acq = int(np.min(adc[1::2] - adc[0::2])) if adc.size >= 2 else 0
-    return packed.astype(np.uint8), calibrated, stage, isr_end - isr_start, acq
+    return val[page].reshape(-1, 4).astype(np.uint8)
+
+
+def _replay_log(cyc, addr, val, n, sym, state0):
+    """One pass over the log: the RAM bytes ``sym`` names after each sample (snapshots at the main loop's
+    ``DECF PENDING``, outside the interrupt) and each sample's stage cycles."""
+    ram = dict(state0)
+    snap_addrs = sorted(a for a in ram)
+    snaps, stages = [], []
+    in_isr, isr_t, isr_sum = False, 0, 0
+    t_b0 = t_fz = None
+    isr_at_b0 = isr_at_fz = 0
+    for t, a, v in zip(cyc.tolist(), addr.tolist(), val.tolist()):
+        if a == W_TEMP_ADDR:
+            in_isr = not in_isr
+            if in_isr:
+                isr_t = t
+            else:
+                isr_sum += t + ISR_TAIL_CYCLES - isr_t
+            continue
+        if in_isr:
+            continue
+        if a in ram:
+            ram[a] = v
+        if a == sym["B0"]:
+            t_b0, isr_at_b0 = t, isr_sum
+        elif a == sym["FZ_H"]:
+            t_fz, isr_at_fz = t, isr_sum
+        elif a == sym["PENDING"] and t_b0 is not None:          # the sample's DECF (not the set-up's CLRF)
+            snaps.append([ram[x] for x in snap_addrs])
+            stages.append((t_fz - t_b0 - (isr_at_fz - isr_at_b0), t - t_fz - (isr_sum - isr_at_fz)))
+            t_b0 = None
+    if len(snaps) != n:
+        raise PicError(f"gpsim's main loop finished {len(snaps)} samples of {n}")
+    return np.asarray(snaps, np.int64), np.asarray(stages, np.int64), ram
+
+
+def _state_bytes(sym: dict[str, int], ram: dict[int, int]) -> list[int]:
+    g = sym["G1X"]
+    return [ram[g + i] for i in range(STATE_BYTES)]
 
 
 class PicLogger:
@@ -292,19 +338,25 @@ class PicLogger:
     ----------
     sampling_rate_hz, fosc_hz
         The timer's rate and the crystal.
+    gravity_shift
+        The gravity means' final shift (the kernel's ``G_SHIFT``); default: the on-line algorithm's at
+        ``sampling_rate_hz`` with the default parameters (6 at 50 Hz).
     source_impedance_ohm
         The ADC source (the ADXL202's 32 kOhm output): sets the acquisition delay.
     chunk_samples
         Samples per gpsim run (at most :data:`CHUNK_SAMPLES`).
     workers
-        gpsim processes at a time.
+        gpsim processes at a time (runs in parallel; the chunks of one run one after the other).
     """
 
     def __init__(self, *, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ,
+                 gravity_shift: int | None = None,
                  source_impedance_ohm: float = 32e3, chunk_samples: int = CHUNK_SAMPLES, workers: int = 2,
                  timeout_s: float = 600.0) -> None:
         self.sampling_rate_hz = sampling_rate_hz
         self.fosc_hz = fosc_hz
+        self.gravity_shift = gravity_shift if gravity_shift is not None else SampleCounts.at(
+            EventParameters(), OnlineParameters(), sampling_rate_hz).gravity_shift
         self.source_impedance_ohm = source_impedance_ohm
         self.chunk_samples = chunk_samples
         self.workers = workers
@@ -315,22 +367,50 @@ class PicLogger:
         return dict(CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con,
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
-                    PAGE_START=_page_fsr(first_sample), SESSION_START=int(session))
+                    PAGE_START=_page_fsr(first_sample), SESSION_START=int(session), G_SHIFT=self.gravity_shift)
 
-    def _chunk(self, codes, flags, cal_bytes, first_sample, session):
+    def _chunk(self, codes, flags, cal_bytes, first_sample, state) -> _ChunkOut:
+        """One gpsim run; ``state``: stage 2's bytes to start from (None: a START)."""
         with tempfile.TemporaryDirectory(prefix="pic-logger-") as tmp:
             d = Path(tmp)
             (d / "calibration.inc").write_text("".join(f"        retlw   0x{b:02X}\n" for b in cal_bytes))
+            (d / "state.inc").write_text("".join(f"        retlw   0x{b:02X}\n" for b in (state or [0] * STATE_BYTES)))
             words = _table_words(codes, flags)
             (d / "codes.inc").write_text("".join(f"        dw      0x{w:03X}\n" for w in words))
-            build = _assemble(d, dict(self._defines(first_sample, session), N_SAMPLES=codes.shape[0]), test=True)
-            logged = {k: build.symbols[k] for k in ("B0", "FX_L", "FX_H", "FY_L", "FY_H", "FZ_L", "FZ_H")}
+            build = _assemble(d, dict(self._defines(first_sample, state is None), N_SAMPLES=codes.shape[0]),
+                              test=True)
+            sym = build.symbols
+            tracked = {sym[k] + i for k in _SNAPSHOT for i in range(4 if k.startswith("G") else 1)}
+            tracked |= {sym["G1X"] + i for i in range(STATE_BYTES)}
+            logged = sorted(tracked | {sym["B0"], sym["PENDING"], W_TEMP_ADDR, ADCON0_ADDR, *PAGE_ADDRS})
             t0 = time.perf_counter()
-            text = _gpsim(build, [W_TEMP_ADDR, ADCON0_ADDR, *logged.values(), *PAGE_ADDRS], "e harness_done",
-                          self.timeout_s)
+            text = _gpsim(build, logged, "e harness_done", self.timeout_s)
             dt = time.perf_counter() - t0
-        cyc, addr, val = _writes(text, {W_TEMP_ADDR, ADCON0_ADDR, *logged.values(), *PAGE_ADDRS})
-        return _by_sample(cyc, addr, val, codes.shape[0], logged, first_sample), int(cyc.max()) if cyc.size else 0, dt
+        cyc, addr, val = _writes(text, set(logged))
+        n = codes.shape[0]
+        g0 = sym["G1X"]
+        start = {a: 0 for a in tracked}
+        start.update({g0 + i: b for i, b in enumerate(state or [0] * STATE_BYTES)})
+        if state is None:
+            start[sym["THR_L"]] = 2
+        snaps, stages, ram = _replay_log(cyc, addr, val, n, sym, start)
+        order = sorted(tracked)
+        cols = {a: i for i, a in enumerate(order)}
+        pick = [cols[sym[k] + i] for k in _SNAPSHOT for i in range(4 if k.startswith("G") else 1)]
+        adc = cyc[addr == ADCON0_ADDR][1:]                  # the first is the set-up's
+        acq = int(np.min(adc[1::2] - adc[0::2])) if adc.size >= 2 else 0
+        return _ChunkOut(_packed(addr, val, n, first_sample), snaps[:, pick], stages, acq,
+                         _state_bytes(sym, ram), int(cyc.max()) if cyc.size else 0, dt)
+
+    def _run_chunks(self, c, f, cal_bytes, first_sample_number, a, b) -> list[_ChunkOut]:
+        """The chunks of one logging run ``[a, b)``, one after the other, each starting where the last ended."""
+        out, state = [], None
+        for i in range(a, b, self.chunk_samples):
+            j = min(i + self.chunk_samples, b)
+            part = self._chunk(c[i:j], f[i:j], cal_bytes, first_sample_number + i, state)
+            out.append(part)
+            state = part.final_state
+        return out
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
@@ -362,30 +442,36 @@ class PicLogger:
 
     def run(self, codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *,
             first_sample_number: int = 0) -> LoggerRun:
-        """Run the assembly on ``codes`` (``(n, 3)``) with ``flags`` (S starts a run, M presses the button)."""
+        """Run the assembly on ``codes`` (``(n, 3)``) with ``flags`` (S starts a run, M presses the button).
+
+        The first sample starts a run whether or not it has S (the firmware's START)."""
         t0 = time.perf_counter()
         c = np.asarray(codes, np.int64).reshape(-1, 3)
         f = np.asarray(flags, np.int64).reshape(-1)
         cal_bytes = _calibration_bytes(calibration)
-        starts = sorted({0, *np.flatnonzero(f & FLAG_SESSION_START).tolist()})
-        bounds = []
-        for a, b in zip(starts, starts[1:] + [c.shape[0]]):
-            bounds += [(i, min(i + self.chunk_samples, b)) for i in range(a, b, self.chunk_samples)]
-        bounds = [(a, b) for a, b in bounds if b > a]
+        starts = run_starts(f)
+        runs = [(a, b) for a, b in zip(starts, starts[1:] + [c.shape[0]]) if b > a]
         with ThreadPoolExecutor(max_workers=max(1, self.workers)) as pool:
-            parts = list(pool.map(lambda ab: self._chunk(
-                c[ab[0]:ab[1]], f[ab[0]:ab[1]], cal_bytes, first_sample_number + ab[0],
-                bool(f[ab[0]] & FLAG_SESSION_START)), bounds))
+            per_run = list(pool.map(lambda ab: self._run_chunks(c, f, cal_bytes, first_sample_number, *ab), runs))
             isr_by_pos, period = self.measure_isr()
+        parts = [p for r in per_run for p in r]
+        if not parts:
+            raise ValueError("no samples to run")
+        ram = np.concatenate([p.ram for p in parts])
+        calibrated = np.stack([_int(ram[:, 2 * k:2 * k + 2]) for k in range(3)], axis=1)
+        gravity = np.stack([_int(ram[:, 6 + 4 * k:10 + 4 * k]) for k in range(6)], axis=1)
         positions = (first_sample_number + np.arange(c.shape[0])) % 32
         return LoggerRun(
-            packed=np.concatenate([p[0][0] for p in parts]) if parts else np.zeros((0, 4), np.uint8),
-            calibrated=np.concatenate([p[0][1] for p in parts]) if parts else np.zeros((0, 3), np.int64),
-            isr_cycles=isr_by_pos[positions], stage_cycles=np.concatenate([p[0][2] for p in parts]) if parts
-            else np.zeros(0, np.int64),
-            acquisition_cycles_min=min((p[0][4] for p in parts), default=0), period_cycles=period,
-            simulated_cycles=sum(p[1] for p in parts), gpsim_s=sum(p[2] for p in parts),
+            packed=np.concatenate([p.packed for p in parts]), calibrated=calibrated, gravity=gravity,
+            isr_cycles=isr_by_pos[positions], stage_cycles=np.concatenate([p.stage_cycles for p in parts]),
+            acquisition_cycles_min=min(p.acquisition_cycles_min for p in parts), period_cycles=period,
+            simulated_cycles=sum(p.simulated_cycles for p in parts), gpsim_s=sum(p.gpsim_s for p in parts),
             wall_s=time.perf_counter() - t0)
+
+
+def run_starts(flags: np.ndarray) -> list[int]:
+    """Where the logging runs start: sample 0 and every sample with the S flag."""
+    return sorted({0, *np.flatnonzero(np.asarray(flags) & FLAG_SESSION_START).tolist()})
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -522,8 +608,10 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
            source: str = "codes", first_sample_number: int = 0, harness: PicLogger | None = None) -> PicVerification:
     """Run the assembly in gpsim on ``codes`` and compare it with the model, stage by stage.
 
-    Stages: *packed words* (the page buffer's bytes vs :func:`~gaitlog.protocol.packing.pack_words`) and
-    *calibrated axes* (``FX..FZ`` vs :func:`~gaitlog.firmware_sim.algorithms.probe.calibrated_axes`).
+    Stages: *packed words* (the page buffer's bytes vs :func:`~gaitlog.protocol.packing.pack_words`),
+    *calibrated axes* (``FX..FZ`` vs :func:`~gaitlog.firmware_sim.algorithms.probe.calibrated_axes`) and
+    *gravity* (``G1``, ``G2`` after each sample vs :func:`~gaitlog.firmware_sim.algorithms.probe.gravity_states`,
+    restarted at each run's first sample).
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
     why = missing_tools()
@@ -535,14 +623,19 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz)
     run = h.run(c, f, calibration, first_sample_number=first_sample_number)
     expect_packed = np.frombuffer(words_to_bytes(pack_words(c, f)), np.uint8).reshape(-1, 4)
+    model_f = calibrated_axes(c, calibration)
+    starts = run_starts(f)
+    model_g = np.concatenate([gravity_states(model_f[a:b], h.gravity_shift)
+                              for a, b in zip(starts, starts[1:] + [c.shape[0]])])
     stages = [_compare("packed words", ("byte 0", "byte 1", "byte 2", "byte 3"), run.packed.astype(np.int64),
                        expect_packed.astype(np.int64)),
-              _compare("calibrated axes", ("fx", "fy", "fz"), run.calibrated, calibrated_axes(c, calibration))]
-    total = run.isr_cycles + run.stage_cycles
-    cycles = {"sampling interrupt": _stats(run.isr_cycles), "stage 1 (calibration)": _stats(run.stage_cycles),
-              "total in assembly": _stats(total)}
+              _compare("calibrated axes", ("fx", "fy", "fz"), run.calibrated, model_f),
+              _compare("gravity", ("g1x", "g1y", "g1z", "g2x", "g2y", "g2z"), run.gravity, model_g)]
+    total = run.isr_cycles + run.stage_cycles.sum(axis=1)
+    cycles = {"sampling interrupt": _stats(run.isr_cycles), "stage 1 (calibration)": _stats(run.stage_cycles[:, 0]),
+              "stage 2 (gravity)": _stats(run.stage_cycles[:, 1]), "total in assembly": _stats(total)}
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
-    notes = ["the I2C page write, the UART command handler and the algorithm after step 1 are not yet in assembly",
+    notes = ["the I2C page write, the UART command handler and the algorithm after step 2 are not yet in assembly",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),

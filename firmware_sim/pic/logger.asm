@@ -1,6 +1,6 @@
 ; The logger's per-sample firmware path: the sampling interrupt (timer, three ADC channels, P32 packing
-; into the page buffer, page handoff) and the main loop's first stage of the on-line step algorithm
-; (calibration: codes -> g in Q2.13, kernel.py step 1). RAM map: logger_ram.inc. Maths: the kernels
+; into the page buffer, page handoff) and the main loop's first stages of the on-line step algorithm
+; (calibration: codes -> g in Q2.13, kernel.py step 1; gravity, two exponential means, step 2). RAM map: logger_ram.inc. Maths: the kernels
 ; (registers.inc, CONVENTION.md).
 ;
 ; Assembled by gpsim_logger.py with these symbols (gpasm -D):
@@ -9,11 +9,14 @@
 ;   ACQ_LOOPS       acquisition delay: 3 cycles a loop (>= the ADXL202's 32 kOhm source's TACQ)
 ;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START, SESSION_START
 ;                   where the run is when this build starts (0, PAGE_A, 1 for a START)
+;   G_SHIFT         the gravity means' final shift (kernel CI G_SHIFT: 6 at 50 Hz)
 ; and, for the test build only (TEST_BUILD defined):
 ;   N_SAMPLES       samples in the code table (codes.inc at CODE_TABLE, one 14-bit word per code: bits 0-9
 ;                   the code, bit 10 of an x word = marker button pressed); after them the timer stops and
 ;                   the main loop ends at harness_done
-; The test build also takes its calibration from calibration.inc (25 RETLW: offsets, mantissas, shift);
+; The test build also takes its calibration from calibration.inc (25 RETLW: offsets, mantissas, shift)
+; and, unless SESSION_START, stage 2's state from state.inc (29 RETLW: G1, G2, WARM, NP1, THR: where the
+; previous chunk of the same run ended);
 ; the firmware proper converts the header's calibration slot at START (not yet in assembly).
         list    p=16f877
         #include <p16f877.inc>
@@ -232,6 +235,11 @@ start:
         movwf   ALG_PTR
 #if SESSION_START
         bsf     FW_FLAGS, FWF_SESSION
+        call    reset_gravity           ; START: a fresh state
+#else
+#ifdef TEST_BUILD
+        call    load_state              ; a later chunk of the run: the state where the last one ended
+#endif
 #endif
 #ifdef TEST_BUILD
         movlw   LOW CODE_TABLE
@@ -287,6 +295,7 @@ main_pending:
 main_sample:
         call    read_word
         call    stage_calibrate
+        call    stage_gravity
         decf    PENDING, F
         goto    main_loop
 
@@ -552,6 +561,200 @@ sum_add_acc:
         movwf   SUM3
         return
 
+; =====================================================================================================
+; Stage 2, gravity (kernel.py step 2): per axis G1 += (f << 16 - G1) >> WARM, G2 += (G1 - G2) >> WARM (32 bits,
+; saturating, the shifts rounding half up); WARM grows from 0 to G_SHIFT as the run reaches 2, 4, 8 ...
+; samples (the running mean while the run is young).
+GRAV_AXIS       macro   f_lo, f_hi, g1, g2
+        clrf    ACC0                    ; ACC = f in Q2.29: the Q2.13 word is the top half
+        clrf    ACC1
+        movf    f_lo, W
+        movwf   ACC2
+        movf    f_hi, W
+        movwf   ACC3
+        movlw   g1
+        movwf   FSR
+        call    acc_sub_fsr             ; f - G1
+        movf    WARM, W
+        movwf   ARG0
+        call    shr32r
+        call    fsr_add_acc             ; G1 += ...
+        call    acc_load_fsr            ; ACC = G1
+        movlw   g2
+        movwf   FSR
+        call    acc_sub_fsr             ; G1 - G2
+        movf    WARM, W
+        movwf   ARG0
+        call    shr32r
+        call    fsr_add_acc             ; G2 += ...
+        endm
+
+stage_gravity:
+        movlw   G_SHIFT
+        xorwf   WARM, W
+        btfsc   STATUS, Z
+        goto    sg_axes                 ; warmed up: the count is no longer needed
+        incf    NP1_L, F
+        btfsc   STATUS, Z
+        incf    NP1_H, F
+        movf    NP1_L, W
+        xorwf   THR_L, W
+        btfss   STATUS, Z
+        goto    sg_axes
+        movf    NP1_H, W
+        xorwf   THR_H, W
+        btfss   STATUS, Z
+        goto    sg_axes
+        incf    WARM, F                 ; n + 1 = 2 << WARM: one more bit of shift
+        bcf     STATUS, C
+        rlf     THR_L, F
+        rlf     THR_H, F
+sg_axes:
+        bcf     STATUS, IRP
+        GRAV_AXIS FX_L, FX_H, G1X, G2X
+        GRAV_AXIS FY_L, FY_H, G1Y, G2Y
+        GRAV_AXIS FZ_L, FZ_H, G1Z, G2Z
+        return
+
+; reset_gravity: G1 = G2 = 0, WARM = 0, NP1 = 0, THR = 2
+reset_gravity:
+        movlw   G1X
+        movwf   FSR
+        bcf     STATUS, IRP
+rg_clear:
+        clrf    INDF
+        incf    FSR, F
+        movf    FSR, W
+        xorlw   THR_H + 1
+        btfss   STATUS, Z
+        goto    rg_clear
+        movlw   2
+        movwf   THR_L
+        return
+
+; acc_load_fsr: ACC = the int32 at FSR (bank 0); FSR unchanged
+acc_load_fsr:
+        movf    INDF, W
+        movwf   ACC0
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC1
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC2
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC3
+        movlw   3
+        subwf   FSR, F
+        return
+
+; acc_sub_fsr: ACC = ACC - the int32 at FSR, saturated to 32 bits (FLAG_SAT when clipped); FSR unchanged
+acc_sub_fsr:
+        movlw   3
+        addwf   FSR, F
+        movf    INDF, W
+        xorwf   ACC3, W
+        movwf   SGN_T                   ; bit 7: the signs differ (only then can it overflow)
+        movf    ACC3, W
+        movwf   TMP2                    ; the minuend's sign
+        movlw   3
+        subwf   FSR, F
+        movf    INDF, W
+        subwf   ACC0, F
+        incf    FSR, F
+        movf    INDF, W
+        btfss   STATUS, C
+        incfsz  INDF, W                 ; subtrahend byte + borrow (0x100: ACC byte as is, borrow on)
+        subwf   ACC1, F
+        incf    FSR, F
+        movf    INDF, W
+        btfss   STATUS, C
+        incfsz  INDF, W
+        subwf   ACC2, F
+        incf    FSR, F
+        movf    INDF, W
+        btfss   STATUS, C
+        incfsz  INDF, W
+        subwf   ACC3, F
+        movlw   3
+        subwf   FSR, F
+        btfss   SGN_T, 7
+        return
+        movf    ACC3, W                 ; overflow when the result's sign is not the minuend's
+        xorwf   TMP2, W
+        andlw   0x80
+        btfsc   STATUS, Z
+        return
+        bsf     FLAGS, FLAG_SAT
+        movlw   0xFF
+        movwf   ACC0
+        movwf   ACC1
+        movwf   ACC2
+        movlw   0x7F
+        movwf   ACC3
+        btfss   TMP2, 7
+        return
+        clrf    ACC0                    ; a negative minuend: -2^31
+        clrf    ACC1
+        clrf    ACC2
+        movlw   0x80
+        movwf   ACC3
+        return
+
+; fsr_add_acc: the int32 at FSR += ACC, saturated to 32 bits (FLAG_SAT when clipped); FSR unchanged
+fsr_add_acc:
+        movlw   3
+        addwf   FSR, F
+        movf    INDF, W
+        xorwf   ACC3, W
+        movwf   SGN_T                   ; bit 7: the signs differ (no overflow possible)
+        movlw   3
+        subwf   FSR, F
+        movf    ACC0, W
+        addwf   INDF, F
+        incf    FSR, F
+        movf    ACC1, W
+        btfsc   STATUS, C
+        incfsz  ACC1, W
+        addwf   INDF, F
+        incf    FSR, F
+        movf    ACC2, W
+        btfsc   STATUS, C
+        incfsz  ACC2, W
+        addwf   INDF, F
+        incf    FSR, F
+        movf    ACC3, W
+        btfsc   STATUS, C
+        incfsz  ACC3, W
+        addwf   INDF, F
+        btfsc   SGN_T, 7
+        goto    fa_back
+        movf    INDF, W                 ; same signs: overflow when the sum's sign differs
+        xorwf   ACC3, W
+        andlw   0x80
+        btfsc   STATUS, Z
+        goto    fa_back
+        bsf     FLAGS, FLAG_SAT
+        movlw   0x7F                    ; 2^31 - 1 ...
+        btfsc   ACC3, 7
+        movlw   0x80                    ; ... or -2^31
+        movwf   INDF
+        movlw   0xFF
+        btfsc   ACC3, 7
+        movlw   0x00
+        decf    FSR, F
+        movwf   INDF
+        decf    FSR, F
+        movwf   INDF
+        decf    FSR, F
+        movwf   INDF
+        return
+fa_back:
+        movlw   3
+        subwf   FSR, F
+        return
+
 #ifdef TEST_BUILD
 ; load_calibration: bank 1 CAL_OFF .. CAL_SHIFT = calibration.inc's 25 bytes
 load_calibration:
@@ -572,6 +775,27 @@ lc_next:
         goto    lc_next
         clrf    PCLATH
         return
+
+; load_state: stage 2's state (G1X .. THR_H, 29 bytes) = state.inc's
+load_state:
+        movlw   G1X
+        movwf   FSR
+        bcf     STATUS, IRP
+        clrf    T_L
+        movlw   HIGH state_table
+        movwf   PCLATH
+ls_next:
+        movf    T_L, W
+        call    state_table
+        movwf   INDF
+        incf    FSR, F
+        incf    T_L, F
+        movf    T_L, W
+        xorlw   .29
+        btfss   STATUS, Z
+        goto    ls_next
+        clrf    PCLATH
+        return
 #endif
 
 kernels_begin:
@@ -582,10 +806,13 @@ kernels_end:
 code_end:
 
 #ifdef TEST_BUILD
-        org     CODE_TABLE - 0x20       ; one 256-word block: ADDWF PCL needs no carry into PCLATH
+        org     CODE_TABLE - 0x40       ; one 256-word block: ADDWF PCL needs no carry into PCLATH
 cal_table:
         addwf   PCL, F
         #include "calibration.inc"
+state_table:
+        addwf   PCL, F
+        #include "state.inc"
         org     CODE_TABLE
 code_table:
         #include "codes.inc"

@@ -14,7 +14,7 @@ import pytest
 
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
 from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_GRAV
-from gaitlog.firmware_sim.algorithms.probe import calibrated_axes
+from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states
 from gaitlog.firmware_sim.budget import adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.protocol.header import CalibrationSlot
@@ -76,6 +76,28 @@ def test_probe_is_the_kernels_step_1(name):
         assert np.array_equal(algo._st_v[G1:G1 + 3], probe[i] << (F_GRAV - F_ACC)), i
 
 
+def test_gravity_probe_is_the_kernels_step_2(simulated_walk):
+    """The kernel's G1, G2 after 1, 2, 3, 50, 64, 65 and 900 samples of a walk are the probe's rows."""
+    from gaitlog.firmware_sim.algorithms import kernel
+    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from gaitlog.firmware_sim.algorithms.state import G1, G2
+    from gaitlog.protocol.steps import StepConfig
+
+    codes = simulated_walk[0][:900]
+    algo = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=StepConfig(step_format=1, leg_length_m=0.9,
+                                                                              foot_length_m=0.26),
+                               calibration=SLOTS["device"])
+    shift = int(algo.config.cfg_i[kernel.CI_G_SHIFT])
+    probe = gravity_states(calibrated_axes(codes, CALS["device"]), shift)
+    done = 0
+    for upto in (1, 2, 3, 50, 64, 65, 900):
+        algo.feed(codes[done:upto], offset=done)
+        done = upto
+        state = np.concatenate([algo._st_v[G1:G1 + 3], algo._st_v[G2:G2 + 3]])
+        assert np.array_equal(state, probe[upto - 1]), upto
+    assert shift == 6 and not np.array_equal(probe[-1], probe[-2])
+
+
 @needs_gpsim
 @pytest.mark.parametrize("name", SLOTS)
 def test_random_codes_identical(name):
@@ -88,7 +110,7 @@ def test_random_codes_identical(name):
     flags[[3, 31, 32, 333]] |= FLAG_MARK
     r = gl.verify(codes, flags, CALS[name], harness=gl.PicLogger(chunk_samples=300))
     assert [(s.name, s.n_identical, s.n_compared) for s in r.stages] == [
-        ("packed words", n, n), ("calibrated axes", n, n)], r.format_table()
+        ("packed words", n, n), ("calibrated axes", n, n), ("gravity", n, n)], r.format_table()
     assert r.period_cycles == 92160
     assert r.acquisition_cycles_min >= r.acquisition_cycles_needed
     assert 0 < r.cycles["total in assembly"]["worst"] < 92160
@@ -101,9 +123,9 @@ def test_simulated_walk_identical(simulated_walk):
     codes = simulated_walk[0][:1500]
     flags = np.zeros(len(codes), np.int64)
     flags[0] = FLAG_SESSION_START
-    r = gl.verify(codes, flags, CALS["device"])
+    r = gl.verify(codes, flags, CALS["device"], harness=gl.PicLogger(chunk_samples=600))   # 3 chunks, one run
     assert r.identical, r.format_table()
-    assert r.stages[1].n_compared == 1500
+    assert [s.n_compared for s in r.stages] == [1500, 1500, 1500]
 
 
 @needs_gpsim
