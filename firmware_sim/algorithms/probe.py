@@ -16,6 +16,8 @@ Probes
 :func:`gravity_states`
     Step 2, gravity: the two exponential stages ``G1``, ``G2`` (Q2.29) after each sample of one run, from
     the calibrated axes, with the warm-up shift of ``kernel._front``.
+:func:`vertical_acceleration`
+    Step 3: ``a_v = (f·g - |g|^2) / |g|`` (Q2.13 g; 0 when ``|g|`` is at most ``G_MIN``).
 """
 
 from __future__ import annotations
@@ -25,11 +27,11 @@ import numpy as np
 from gaitlog.firmware_sim.algorithms import arithmetic as ar
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
-from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_GRAV, W16, W32, centred_q
+from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
 from gaitlog.firmware_sim.compiled import njit
 from gaitlog.firmware_sim.fixedpoint import new_counters
 
-__all__ = ["calibrated_axes", "gravity_states"]
+__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration"]
 
 
 @njit(cache=True)
@@ -109,4 +111,54 @@ def gravity_states(calibrated: np.ndarray, gravity_shift: int) -> np.ndarray:
     f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
     out = np.zeros((f.shape[0], 6), np.int64)
     _gravity(f, int(gravity_shift), out, new_counters())
+    return out
+
+
+@njit(cache=True)
+def _vertical(f, g2, g_min, out, cnt):  # pragma: no cover - compiled
+    for n in range(f.shape[0]):
+        fx, fy, fz = f[n, 0], f[n, 1], f[n, 2]
+        # kernel._front, step 3, line for line
+        gx = ar.requant(g2[n, 0], F_GRAV, F_ACC, W16, cnt)
+        gy = ar.requant(g2[n, 1], F_GRAV, F_ACC, W16, cnt)
+        gz = ar.requant(g2[n, 2], F_GRAV, F_ACC, W16, cnt)
+        norm2 = ar.add(ar.add(ar.mul(gx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
+                              ar.mul(gy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
+                       ar.mul(gz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt)
+        gn = ar.sqrt(norm2, F_ACC2, F_ACC, True, cnt)
+        av = fx * 0
+        if gn > g_min:
+            av = ar.div(ar.sub(ar.add(ar.add(ar.mul(fx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
+                                             ar.mul(fy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
+                                      ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt), norm2, W32, cnt),
+                        F_ACC2, gn, F_ACC, F_ACC, W16, cnt)
+        out[n] = av
+
+
+def vertical_acceleration(calibrated: np.ndarray, gravity2: np.ndarray, min_gravity_raw: int) -> np.ndarray:
+    """Step 3 of the fixed-point kernel on every sample: ``(n,)`` int64 a_v, raw Q2.13 g.
+
+    Parameters
+    ----------
+    calibrated
+        ``(n, 3)`` calibrated axes, raw Q2.13 (:func:`calibrated_axes`).
+    gravity2
+        ``(n, 3)`` the second gravity stage after each sample, raw Q2.29 (:func:`gravity_states`' last columns).
+    min_gravity_raw
+        The kernel's ``G_MIN`` (raw Q2.13).
+
+    Raises
+    ------
+    ValueError
+        As the kernel: ``|g|`` beyond a signed 16-bit divisor (a calibration far outside the sensor's range).
+
+    Examples
+    --------
+    >>> vertical_acceleration(np.array([[0, 0, 16384], [0, 0, 0]]), np.array([[0, 0, 1 << 29]] * 2), 1638).tolist()
+    [8192, -8192]
+    """
+    f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
+    g = np.ascontiguousarray(gravity2, dtype=np.int64).reshape(-1, 3)
+    out = np.zeros(f.shape[0], np.int64)
+    _vertical(f, g, int(min_gravity_raw), out, new_counters())
     return out

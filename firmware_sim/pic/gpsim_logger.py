@@ -38,9 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
-from gaitlog.firmware_sim.algorithms.formats import F_ACC
+from gaitlog.firmware_sim.algorithms.formats import ACC_Q, F_ACC
 from gaitlog.firmware_sim.algorithms.parameters import EventParameters, OnlineParameters, SampleCounts
-from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states
+from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states, vertical_acceleration
 from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, gpsim_version, missing_tools
@@ -223,7 +223,7 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float) -> str:
 #: Stage 2's state in RAM, in logger_ram.inc's order (G1X .. THR_H, 29 bytes): what a chunk hands the next.
 STATE_BYTES = 29
 #: RAM the harness snapshots after each sample (bank-0 symbols): stage outputs and state.
-_SNAPSHOT = ("FX_L", "FX_H", "FY_L", "FY_H", "FZ_L", "FZ_H", *(f"G{s}{a}" for s in "12" for a in "XYZ"))
+_SNAPSHOT = ("FX_L", "FX_H", "FY_L", "FY_H", "FZ_L", "FZ_H", *(f"G{s}{a}" for s in "12" for a in "XYZ"), "AV_L", "AV_H")
 
 
 @dataclass(frozen=True)
@@ -238,11 +238,13 @@ class LoggerRun:
         ``(n, 3)`` int64: stage 1's calibrated axes, raw Q2.13 g (``FX``, ``FY``, ``FZ``).
     gravity
         ``(n, 6)`` int64: stage 2's state after the sample, raw Q2.29 (``G1X..G1Z``, ``G2X..G2Z``).
+    a_v
+        ``(n,)`` int64: stage 3's vertical acceleration, raw Q2.13 g (``AV``).
     isr_cycles
         ``(n,)`` the interrupt, vector to RETFIE, as the production build takes it at this sample's page position.
     stage_cycles
-        ``(n, 2)`` stage 1 (the word's read-back to the store of ``FZ``) and stage 2 (to the main loop's
-        ``DECF PENDING``), less any interrupt inside them.
+        ``(n, 2)`` stage 1 (the word's read-back to the store of ``FZ``) and stages 2 and 3 (to the main
+        loop's ``DECF PENDING``), less any interrupt inside them.
     acquisition_cycles_min
         The shortest channel select to GO seen (the acquisition time the ADC got).
     period_cycles
@@ -254,6 +256,7 @@ class LoggerRun:
     packed: np.ndarray
     calibrated: np.ndarray
     gravity: np.ndarray
+    a_v: np.ndarray
     isr_cycles: np.ndarray
     stage_cycles: np.ndarray
     acquisition_cycles_min: int
@@ -357,6 +360,8 @@ class PicLogger:
         self.fosc_hz = fosc_hz
         self.gravity_shift = gravity_shift if gravity_shift is not None else SampleCounts.at(
             EventParameters(), OnlineParameters(), sampling_rate_hz).gravity_shift
+        #: the kernel's G_MIN: the smallest |g| that gives an a_v, raw Q2.13
+        self.min_gravity_raw = int(ACC_Q.from_float(OnlineParameters().min_gravity_g))
         self.source_impedance_ohm = source_impedance_ohm
         self.chunk_samples = chunk_samples
         self.workers = workers
@@ -367,7 +372,8 @@ class PicLogger:
         return dict(CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con,
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
-                    PAGE_START=_page_fsr(first_sample), SESSION_START=int(session), G_SHIFT=self.gravity_shift)
+                    PAGE_START=_page_fsr(first_sample), SESSION_START=int(session), G_SHIFT=self.gravity_shift,
+                    G_MIN=self.min_gravity_raw)
 
     def _chunk(self, codes, flags, cal_bytes, first_sample, state) -> _ChunkOut:
         """One gpsim run; ``state``: stage 2's bytes to start from (None: a START)."""
@@ -460,9 +466,10 @@ class PicLogger:
         ram = np.concatenate([p.ram for p in parts])
         calibrated = np.stack([_int(ram[:, 2 * k:2 * k + 2]) for k in range(3)], axis=1)
         gravity = np.stack([_int(ram[:, 6 + 4 * k:10 + 4 * k]) for k in range(6)], axis=1)
+        a_v = _int(ram[:, 30:32])
         positions = (first_sample_number + np.arange(c.shape[0])) % 32
         return LoggerRun(
-            packed=np.concatenate([p.packed for p in parts]), calibrated=calibrated, gravity=gravity,
+            packed=np.concatenate([p.packed for p in parts]), calibrated=calibrated, gravity=gravity, a_v=a_v,
             isr_cycles=isr_by_pos[positions], stage_cycles=np.concatenate([p.stage_cycles for p in parts]),
             acquisition_cycles_min=min(p.acquisition_cycles_min for p in parts), period_cycles=period,
             simulated_cycles=sum(p.simulated_cycles for p in parts), gpsim_s=sum(p.gpsim_s for p in parts),
@@ -605,13 +612,16 @@ class PicVerification:
 
 
 def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, sampling_rate_hz: float = 50.0,
-           source: str = "codes", first_sample_number: int = 0, harness: PicLogger | None = None) -> PicVerification:
+           source: str = "codes", first_sample_number: int = 0, harness: PicLogger | None = None,
+           a_v: bool = True) -> PicVerification:
     """Run the assembly in gpsim on ``codes`` and compare it with the model, stage by stage.
 
     Stages: *packed words* (the page buffer's bytes vs :func:`~gaitlog.protocol.packing.pack_words`),
     *calibrated axes* (``FX..FZ`` vs :func:`~gaitlog.firmware_sim.algorithms.probe.calibrated_axes`) and
     *gravity* (``G1``, ``G2`` after each sample vs :func:`~gaitlog.firmware_sim.algorithms.probe.gravity_states`,
-    restarted at each run's first sample).
+    restarted at each run's first sample) and *a_v* (``AV`` vs
+    :func:`~gaitlog.firmware_sim.algorithms.probe.vertical_acceleration`; ``a_v=False`` leaves it out, for a
+    calibration whose |g| exceeds the model's 16-bit divisor, where the model raises).
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
     why = missing_tools()
@@ -631,11 +641,14 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
                        expect_packed.astype(np.int64)),
               _compare("calibrated axes", ("fx", "fy", "fz"), run.calibrated, model_f),
               _compare("gravity", ("g1x", "g1y", "g1z", "g2x", "g2y", "g2z"), run.gravity, model_g)]
+    if a_v:
+        model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
+        stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
     total = run.isr_cycles + run.stage_cycles.sum(axis=1)
     cycles = {"sampling interrupt": _stats(run.isr_cycles), "stage 1 (calibration)": _stats(run.stage_cycles[:, 0]),
-              "stage 2 (gravity)": _stats(run.stage_cycles[:, 1]), "total in assembly": _stats(total)}
+              "stages 2-3 (gravity, a_v)": _stats(run.stage_cycles[:, 1]), "total in assembly": _stats(total)}
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
-    notes = ["the I2C page write, the UART command handler and the algorithm after step 2 are not yet in assembly",
+    notes = ["the I2C page write, the UART command handler and the algorithm after step 3 are not yet in assembly",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),

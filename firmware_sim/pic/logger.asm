@@ -1,6 +1,7 @@
 ; The logger's per-sample firmware path: the sampling interrupt (timer, three ADC channels, P32 packing
 ; into the page buffer, page handoff) and the main loop's first stages of the on-line step algorithm
-; (calibration: codes -> g in Q2.13, kernel.py step 1; gravity, two exponential means, step 2). RAM map: logger_ram.inc. Maths: the kernels
+; (calibration: codes -> g in Q2.13, kernel.py step 1; gravity, two exponential means, step 2; the
+; vertical acceleration a_v = (f.g - |g|^2) / |g|, step 3). RAM map: logger_ram.inc. Maths: the kernels
 ; (registers.inc, CONVENTION.md).
 ;
 ; Assembled by gpsim_logger.py with these symbols (gpasm -D):
@@ -10,6 +11,7 @@
 ;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START, SESSION_START
 ;                   where the run is when this build starts (0, PAGE_A, 1 for a START)
 ;   G_SHIFT         the gravity means' final shift (kernel CI G_SHIFT: 6 at 50 Hz)
+;   G_MIN           the smallest |g| that gives an a_v (kernel CV G_MIN, Q2.13: 0.2 g = 1638)
 ; and, for the test build only (TEST_BUILD defined):
 ;   N_SAMPLES       samples in the code table (codes.inc at CODE_TABLE, one 14-bit word per code: bits 0-9
 ;                   the code, bit 10 of an x word = marker button pressed); after them the timer stops and
@@ -296,6 +298,7 @@ main_sample:
         call    read_word
         call    stage_calibrate
         call    stage_gravity
+        call    stage_av
         decf    PENDING, F
         goto    main_loop
 
@@ -755,6 +758,129 @@ fa_back:
         subwf   FSR, F
         return
 
+; =====================================================================================================
+; Stage 3, vertical acceleration (kernel.py step 3): g = G2 in Q2.13 (rounded, saturated), |g|^2 exact in
+; Q5.26 (the sum saturating), |g| = isqrt32n (nearest); a_v = (f.g - |g|^2) / |g| rounded to nearest
+; (divr32s) and saturated to 16 bits, or 0 when |g| <= G_MIN.
+G_TO_ACC        macro   g2, lo, hi
+        movlw   g2
+        movwf   FSR
+        call    acc_load_fsr
+        movlw   .16
+        movwf   ARG0
+        call    shr32r
+        call    sat16
+        movf    ACC0, W
+        movwf   lo
+        movf    ACC1, W
+        movwf   hi
+        endm
+
+; SUM = a1 b1 + a2 b2 + a3 b3 (each product exact, the sum saturating)
+DOT3            macro   a1l, a1h, b1l, b1h, a2l, a2h, b2l, b2h, a3l, a3h, b3l, b3h
+        movf    a1l, W
+        movwf   ACC0
+        movf    a1h, W
+        movwf   ACC1
+        movf    b1l, W
+        movwf   ARG0
+        movf    b1h, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_set_acc
+        movf    a2l, W
+        movwf   ACC0
+        movf    a2h, W
+        movwf   ACC1
+        movf    b2l, W
+        movwf   ARG0
+        movf    b2h, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_add_acc
+        movf    a3l, W
+        movwf   ACC0
+        movf    a3h, W
+        movwf   ACC1
+        movf    b3l, W
+        movwf   ARG0
+        movf    b3h, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_add_acc
+        endm
+
+stage_av:
+        G_TO_ACC G2X, GX_L, GX_H
+        G_TO_ACC G2Y, GY_L, GY_H
+        G_TO_ACC G2Z, GZ_L, GZ_H
+        DOT3    GX_L, GX_H, GX_L, GX_H, GY_L, GY_H, GY_L, GY_H, GZ_L, GZ_H, GZ_L, GZ_H
+        movf    SUM0, W                 ; N2 = |g|^2, and the root's argument
+        movwf   N2_0
+        movwf   ACC0
+        movf    SUM1, W
+        movwf   N2_1
+        movwf   ACC1
+        movf    SUM2, W
+        movwf   N2_2
+        movwf   ACC2
+        movf    SUM3, W
+        movwf   N2_3
+        movwf   ACC3
+        call    isqrt32n
+        movf    ACC0, W
+        movwf   GN_L
+        movf    ACC1, W
+        movwf   GN_H
+        movlw   LOW (G_MIN + 1)         ; |g| > G_MIN <=> |g| - (G_MIN + 1) does not borrow
+        subwf   ACC0, W
+        movlw   HIGH (G_MIN + 1)
+        btfss   STATUS, C
+        addlw   1
+        subwf   ACC1, W
+        btfss   STATUS, C
+        goto    av_zero
+        DOT3    FX_L, FX_H, GX_L, GX_H, FY_L, FY_H, GY_L, GY_H, FZ_L, FZ_H, GZ_L, GZ_H
+        movf    SUM0, W                 ; ACC = f.g - |g|^2 (saturating)
+        movwf   ACC0
+        movf    SUM1, W
+        movwf   ACC1
+        movf    SUM2, W
+        movwf   ACC2
+        movf    SUM3, W
+        movwf   ACC3
+        movlw   N2_0
+        movwf   FSR
+        call    acc_sub_fsr
+        movf    GN_L, W
+        movwf   ARG0
+        movf    GN_H, W
+        movwf   ARG1
+        call    divr32s
+        call    sat16
+        movf    ACC0, W
+        movwf   AV_L
+        movf    ACC1, W
+        movwf   AV_H
+        return
+av_zero:
+        clrf    AV_L
+        clrf    AV_H
+        return
+
+; sum_set_acc: SUM = ACC
+sum_set_acc:
+        movf    ACC0, W
+        movwf   SUM0
+        movf    ACC1, W
+        movwf   SUM1
+        movf    ACC2, W
+        movwf   SUM2
+        movf    ACC3, W
+        movwf   SUM3
+        return
+
+
 #ifdef TEST_BUILD
 ; load_calibration: bank 1 CAL_OFF .. CAL_SHIFT = calibration.inc's 25 bytes
 load_calibration:
@@ -800,8 +926,10 @@ ls_next:
 
 kernels_begin:
         #include "mul.asm"
+        #include "div.asm"
         #include "shift.asm"
         #include "sat.asm"
+        #include "sqrt.asm"
 kernels_end:
 code_end:
 

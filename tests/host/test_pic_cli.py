@@ -28,6 +28,7 @@ def test_verify_simulated_walk(walk_image, capsys):
     assert "packed words       600 of 600 samples identical" in out
     assert "calibrated axes    600 of 600 samples identical" in out
     assert "gravity            600 of 600 samples identical" in out
+    assert "a_v                600 of 600 samples identical" in out
     assert "92,160 available" in out
 
 
@@ -35,7 +36,7 @@ def test_verify_simulated_walk(walk_image, capsys):
 def test_verify_json(walk_image, capsys):
     assert main(["pic", "verify", str(walk_image), "--limit", "100", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["identical"] and [s["n_identical"] for s in doc["stages"]] == [100, 100, 100]
+    assert doc["identical"] and [s["n_identical"] for s in doc["stages"]] == [100, 100, 100, 100]
     assert doc["ram_total_bytes"] <= 368 and doc["period_cycles"] == 92160
     assert doc["cycles_measured"]["total in assembly"]["worst"] < 92160
 
@@ -52,7 +53,7 @@ def test_verify_ipol_trial(shared_data, tmp_path, capsys):
     assert main(["pic", "verify", str(image), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     n = doc["n_samples"]
-    assert n > 1000 and [s["n_identical"] for s in doc["stages"]] == [n, n, n]
+    assert n > 1000 and [s["n_identical"] for s in doc["stages"]] == [n, n, n, n]
 
 
 @needs_gpsim
