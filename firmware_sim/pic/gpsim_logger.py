@@ -211,8 +211,9 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float) -> str:
         (Path(tmp) / "run.stc").write_text("\n".join(lines) + "\n")
         proc = subprocess.run(["gpsim", "-i", "-s", str(build.cod), "-c", str(Path(tmp) / "run.stc")],
                               capture_output=True, text=True, timeout=timeout_s, cwd=tmp)
-        if proc.returncode != 0 or "***ERROR" in proc.stdout or "cannot be set" in proc.stdout:
-            err = next((ln for ln in proc.stdout.splitlines() if "ERROR" in ln or "cannot" in ln),
+        bad = ("***ERROR", "cannot be set", "stack overflow", "stack underflow")
+        if proc.returncode != 0 or any(b in proc.stdout.lower() or b in proc.stdout for b in bad):
+            err = next((ln for ln in proc.stdout.splitlines() if any(b in ln.lower() or b in ln for b in bad)),
                        proc.stderr.strip()[-300:])
             raise PicError(f"gpsim failed on {build.cod.name} (exit {proc.returncode}): {err}")
         if "Hit a Breakpoint" not in proc.stdout and "cycle break" not in proc.stdout:
