@@ -59,7 +59,8 @@ def main() -> int:
         print(f"  {s.name}: {s.n_identical:,} of {s.n_compared:,} samples identical")
     failed = not r.identical or r.realtime_factor < TARGET_REALTIME
     if failed:
-        print("FAILED: " + ("a sample differs" if not r.identical else f"{r.realtime_factor:.1f}x < {TARGET_REALTIME:g}x"))
+        why = "a sample differs" if not r.identical else f"{r.realtime_factor:.1f}x < {TARGET_REALTIME:g}x"
+        print(f"FAILED: {why}")
     return 1 if failed else 0
 
 

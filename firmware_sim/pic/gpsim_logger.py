@@ -2,25 +2,27 @@
 
 ``logger.asm`` (RAM map ``logger_ram.inc``) is the sampling interrupt (CCP1 compare on Timer1 at the
 sampling rate, three ADC channels with their acquisition time, P32 packing into the 128-byte page buffer,
-the page handoff) and the main loop's first stage of the on-line algorithm (calibration, ``kernel.py``
-step 1). :class:`PicLogger` runs it in gpsim without stopping per sample:
+the page handoff) and the main loop's first three steps of the on-line algorithm (``kernel.py`` steps 1-3:
+calibration, gravity, a_v). :class:`PicLogger` runs it in gpsim without stopping per sample:
 
 * **Test build** (``TEST_BUILD``): after each conversion the interrupt overwrites ADRESH:ADRESL with the
   next code of a table assembled into program memory (words 0x0800-0x1FFF, one 14-bit word per code, bit
-  10 of an x word = the marker button), so a recording of up to :data:`CHUNK_SAMPLES` samples is one gpasm
-  and one gpsim run; longer ones are cut into chunks (step 1 keeps no state across samples; chunks run in
-  parallel). The timer runs at the real rate: gpsim simulates every cycle of every sample period.
+  10 of an x word = the marker button), so up to :data:`CHUNK_SAMPLES` samples are one gpasm and one gpsim
+  run. Longer runs are cut into chunks that run one after the other, each starting from the stage-2 state
+  the previous one's log ended with (``state.inc``); logging runs (S flags) run in parallel. The timer runs
+  at the real rate: gpsim simulates every cycle of every sample period.
 * **Outputs** come from gpsim's register-write log (``log w``), stamped with its cycle counter: the 128
-  page-buffer bytes (the packed words), the calibrated axes ``FX..FZ``, ``W_TEMP`` (the interrupt's
-  entry and exit), ``ADCON0`` (channel select and GO: the acquisition time) and ``B0`` (the main loop's
-  stage starts). Nothing stops the simulation before the table's end (``harness_done``).
+  page-buffer bytes (the packed words), the stage outputs and state (``FX..FZ``, ``G1``, ``G2``, ``AV``,
+  snapshot at the main loop's ``DECF PENDING`` that ends each sample), ``W_TEMP`` (the interrupt's entry
+  and exit), ``ADCON0`` (channel select and GO: the acquisition time) and ``B0`` (the main loop's start).
+  Nothing stops the simulation before the table's end (``harness_done``).
 * **Cycles**: the interrupt from its vector to RETFIE is measured on the production build (no table, no
-  injection) over :data:`ISR_PROBE_SAMPLES` samples at every page position; the stage from reading the
-  sample's word back from the page to storing ``FZ`` is measured per sample in the test build (the same
-  code), less any interrupt that fell inside it.
+  injection) over :data:`ISR_PROBE_SAMPLES` samples at every page position; the stages from reading the
+  sample's word back from the page to ``DECF PENDING`` are measured per sample in the test build (the same
+  code), less any interrupt that fell inside them.
 
 :func:`verify` compares with the Python model: :func:`gaitlog.protocol.packing.pack_words` for the words,
-:func:`gaitlog.firmware_sim.algorithms.probe.calibrated_axes` for step 1.
+the probes of :mod:`gaitlog.firmware_sim.algorithms.probe` for steps 1-3.
 """
 
 from __future__ import annotations
@@ -68,9 +70,6 @@ ADCON0_ADDR, W_TEMP_ADDR = 0x1F, 0x7F
 PAGE_ADDRS = tuple(range(0x110, 0x150)) + tuple(range(0x190, 0x1D0))
 #: Timer1 prescaler settings (T1CKPS bits in T1CON, TMR1ON set).
 _PRESCALERS = ((1, 0x01), (2, 0x11), (4, 0x21), (8, 0x31))
-#: General-purpose RAM blocks of the PIC16F877: (bank, first address, bytes).
-RAM_BLOCKS = ((0, 0x20, 80), (1, 0xA0, 80), (2, 0x110, 96), (3, 0x190, 96), ("common", 0x70, 16))
-
 
 class PicError(RuntimeError):
     """gpasm or gpsim failed, or their output is not what the harness expects."""
@@ -508,7 +507,8 @@ def memory_map(*, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_
         b = _assemble(Path(tmp), PicLogger(sampling_rate_hz=sampling_rate_hz, fosc_hz=fosc_hz)._defines(0, True),
                       test=False)
     s = b.symbols
-    ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1": s["RAM1_END"] - 0xA0, "bank 2 (page buffer)": s["RAM2_END"] - 0x110,
+    ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1": s["RAM1_END"] - 0xA0,
+           "bank 2 (page buffer)": s["RAM2_END"] - 0x110,
            "bank 3 (page buffer)": s["RAM3_END"] - 0x190, "common (kernels, W_TEMP)": 16}
     return MemoryMap(ram, s["code_end"], s["kernels_end"] - s["kernels_begin"])
 
@@ -593,7 +593,8 @@ class PicVerification:
         lines.append(f"RAM (measured, gpasm listing): {m.ram_total_bytes} of 368 bytes: "
                      + ", ".join(f"{k} {v}" for k, v in m.ram_bytes.items()))
         lines.append(f"program memory (measured): {m.program_words} of 8192 words ({m.kernel_words} kernels)")
-        lines.append(f"harness: {self.wall_s:.1f} s ({self.realtime_factor:.1f}x real time; gpsim {self.gpsim_s:.1f} s)")
+        lines.append(f"harness: {self.wall_s:.1f} s ({self.realtime_factor:.1f}x real time; "
+                     f"gpsim {self.gpsim_s:.1f} s)")
         lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
 
