@@ -1,0 +1,164 @@
+"""Probes into the fixed-point kernel: a stage's intermediate values, for the PIC assembly to be compared with.
+
+The on-line kernel (:mod:`gaitlog.firmware_sim.algorithms.kernel`) keeps only its state and its step records;
+the values in between (the calibrated axes of step 1, ...) are gone by the end of a sample. The PIC assembly
+(``firmware_sim/pic/logger.asm``, run by :mod:`gaitlog.firmware_sim.pic.gpsim_logger`) writes them to RAM, so
+a comparison needs them from the model too. A probe computes one stage with the kernel's own helpers and Q
+formats, over a whole array of samples; it does not change the kernel, and a test checks each probe against
+the kernel's state after the stage (``tests/firmware_sim/test_pic_logger.py``).
+
+Probes
+------
+:func:`calibrated_axes`
+    Step 1, calibration: ``c = requant(code, 0, code_frac) - offset`` (16 bits, saturating), then per row
+    the kernel's ``_calibrated`` (three 16 x 16 products summed with saturation in 32 bits, rounded half up
+    to Q2.13 g and saturated to 16 bits).
+:func:`gravity_states`
+    Step 2, gravity: the two exponential stages ``G1``, ``G2`` (Q2.29) after each sample of one run, from
+    the calibrated axes, with the warm-up shift of ``kernel._front``.
+:func:`vertical_acceleration`
+    Step 3: ``a_v = (f·g - |g|^2) / |g|`` (Q2.13 g; 0 when ``|g|`` is at most ``G_MIN``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gaitlog.firmware_sim.algorithms import arithmetic as ar
+from gaitlog.firmware_sim.algorithms import kernel
+from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
+from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
+from gaitlog.firmware_sim.compiled import njit
+from gaitlog.firmware_sim.fixedpoint import new_counters
+
+__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration"]
+
+
+@njit(cache=True)
+def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt):  # pragma: no cover - compiled
+    cf = cfg_i[kernel.CI_CODE_FRAC]
+    mf = cfg_i[kernel.CI_MANT_FRAC]
+    for i in range(codes.shape[0]):
+        # kernel._front, step 1, line for line
+        c0 = ar.sub(ar.requant(codes[i, 0], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 0], W16, cnt)
+        c1 = ar.sub(ar.requant(codes[i, 1], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 1], W16, cnt)
+        c2 = ar.sub(ar.requant(codes[i, 2], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 2], W16, cnt)
+        for row in range(3):
+            out[i, row] = kernel._calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt)
+
+
+def calibrated_axes(codes: np.ndarray, calibration: CalibrationQ) -> np.ndarray:
+    """Step 1 of the fixed-point kernel on every sample: ``(n, 3)`` int64 calibrated axes, raw Q2.13 g.
+
+    Parameters
+    ----------
+    codes
+        ``(n, 3)`` ADC codes (counts).
+    calibration
+        The calibration as the PIC keeps it (:class:`~gaitlog.firmware_sim.algorithms.calibration.CalibrationQ`).
+
+    Examples
+    --------
+    >>> from gaitlog.firmware_sim.algorithms.calibration import nominal_calibration_q
+    >>> calibrated_axes(np.array([[512, 768, 256]]), nominal_calibration_q()).tolist()   # 0, +1, -1 g
+    [[0, 8192, -8192]]
+    """
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    cfg_i = np.zeros(kernel.N_CI, np.int64)
+    cfg_i[kernel.CI_CODE_FRAC] = centred_q(calibration.adc_bits).frac_bits
+    cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
+    cfg_v = np.zeros(kernel.CV_M + 9, np.int64)
+    cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw
+    cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
+    out = np.zeros((c.shape[0], 3), np.int64)
+    _calibrated_axes(c, cfg_i, cfg_v, out, new_counters())
+    return out
+
+
+@njit(cache=True)
+def _gravity(f, g_shift, out, cnt):  # pragma: no cover - compiled
+    g1 = np.zeros(3, np.int64)
+    g2 = np.zeros(3, np.int64)
+    for n in range(f.shape[0]):
+        # kernel._front, step 2, line for line (n: the samples of the run before this one)
+        warm = 0
+        while (2 << warm) <= n + 1 and warm < g_shift:
+            warm += 1
+        for axis in range(3):
+            g1[axis] = ar.add(g1[axis], ar.scale2(ar.sub(ar.requant(f[n, axis], F_ACC, F_GRAV, W32, cnt), g1[axis],
+                                                         W32, cnt), -warm, W32, cnt), W32, cnt)
+            g2[axis] = ar.add(g2[axis], ar.scale2(ar.sub(g1[axis], g2[axis], W32, cnt), -warm, W32, cnt), W32, cnt)
+            out[n, axis] = g1[axis]
+            out[n, 3 + axis] = g2[axis]
+
+
+def gravity_states(calibrated: np.ndarray, gravity_shift: int) -> np.ndarray:
+    """Step 2 of the fixed-point kernel over one run (from START): ``(n, 6)`` int64 ``G1``, ``G2`` after each
+    sample, raw Q2.29 g.
+
+    Parameters
+    ----------
+    calibrated
+        ``(n, 3)`` calibrated axes, raw Q2.13 (:func:`calibrated_axes`).
+    gravity_shift
+        The kernel's ``G_SHIFT`` (``OnlineConfig.cfg_i[kernel.CI_G_SHIFT]``).
+
+    Examples
+    --------
+    >>> gravity_states(np.array([[8192, 0, 0], [0, 0, 0]]), 6)[:, [0, 3]].tolist()   # G1x, G2x: 1 g, then the mean
+    [[536870912, 536870912], [268435456, 402653184]]
+    """
+    f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
+    out = np.zeros((f.shape[0], 6), np.int64)
+    _gravity(f, int(gravity_shift), out, new_counters())
+    return out
+
+
+@njit(cache=True)
+def _vertical(f, g2, g_min, out, cnt):  # pragma: no cover - compiled
+    for n in range(f.shape[0]):
+        fx, fy, fz = f[n, 0], f[n, 1], f[n, 2]
+        # kernel._front, step 3, line for line
+        gx = ar.requant(g2[n, 0], F_GRAV, F_ACC, W16, cnt)
+        gy = ar.requant(g2[n, 1], F_GRAV, F_ACC, W16, cnt)
+        gz = ar.requant(g2[n, 2], F_GRAV, F_ACC, W16, cnt)
+        norm2 = ar.add(ar.add(ar.mul(gx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
+                              ar.mul(gy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
+                       ar.mul(gz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt)
+        gn = ar.sqrt(norm2, F_ACC2, F_ACC, True, cnt)
+        av = fx * 0
+        if gn > g_min:
+            av = ar.div(ar.sub(ar.add(ar.add(ar.mul(fx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
+                                             ar.mul(fy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
+                                      ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt), norm2, W32, cnt),
+                        F_ACC2, gn, F_ACC, F_ACC, W16, cnt)
+        out[n] = av
+
+
+def vertical_acceleration(calibrated: np.ndarray, gravity2: np.ndarray, min_gravity_raw: int) -> np.ndarray:
+    """Step 3 of the fixed-point kernel on every sample: ``(n,)`` int64 a_v, raw Q2.13 g.
+
+    Parameters
+    ----------
+    calibrated
+        ``(n, 3)`` calibrated axes, raw Q2.13 (:func:`calibrated_axes`).
+    gravity2
+        ``(n, 3)`` the second gravity stage after each sample, raw Q2.29 (:func:`gravity_states`' last columns).
+    min_gravity_raw
+        The kernel's ``G_MIN`` (raw Q2.13).
+
+    Raises
+    ------
+    ValueError
+        As the kernel: ``|g|`` beyond a signed 16-bit divisor (a calibration far outside the sensor's range).
+
+    Examples
+    --------
+    >>> vertical_acceleration(np.array([[0, 0, 16384], [0, 0, 0]]), np.array([[0, 0, 1 << 29]] * 2), 1638).tolist()
+    [8192, -8192]
+    """
+    f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
+    g = np.ascontiguousarray(gravity2, dtype=np.int64).reshape(-1, 3)
+    out = np.zeros(f.shape[0], np.int64)
+    _vertical(f, g, int(min_gravity_raw), out, new_counters())
+    return out

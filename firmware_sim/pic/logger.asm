@@ -1,0 +1,950 @@
+; The logger's per-sample firmware path: the sampling interrupt (timer, three ADC channels, P32 packing
+; into the page buffer, page handoff) and the main loop's first stages of the on-line step algorithm
+; (calibration: codes -> g in Q2.13, kernel.py step 1; gravity, two exponential means, step 2; the
+; vertical acceleration a_v = (f.g - |g|^2) / |g|, step 3). RAM map: logger_ram.inc. Maths: the kernels
+; (registers.inc, CONVENTION.md).
+;
+; Assembled by gpsim_logger.py with these symbols (gpasm -D):
+;   CCP_PERIOD      Timer1 counts per sample (CCPR1; compare mode, special event trigger resets Timer1)
+;   T1_SETUP        T1CON: prescaler bits | TMR1ON
+;   ACQ_LOOPS       acquisition delay: 3 cycles a loop (>= the ADXL202's 32 kOhm source's TACQ)
+;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START, SESSION_START
+;                   where the run is when this build starts (0, PAGE_A, 1 for a START)
+;   G_SHIFT         the gravity means' final shift (kernel CI G_SHIFT: 6 at 50 Hz)
+;   G_MIN           the smallest |g| that gives an a_v (kernel CV G_MIN, Q2.13: 0.2 g = 1638)
+; and, for the test build only (TEST_BUILD defined):
+;   N_SAMPLES       samples in the code table (codes.inc at CODE_TABLE, one 14-bit word per code: bits 0-9
+;                   the code, bit 10 of an x word = marker button pressed); after them the timer stops and
+;                   the main loop ends at harness_done
+; The test build also takes its calibration from calibration.inc (25 RETLW: offsets, mantissas, shift)
+; and, unless SESSION_START, stage 2's state from state.inc (29 RETLW: G1, G2, WARM, NP1, THR: where the
+; previous chunk of the same run ended);
+; the firmware proper converts the header's calibration slot at START (not yet in assembly).
+        list    p=16f877
+        #include <p16f877.inc>
+        #include "registers.inc"
+        #include "logger_ram.inc"
+        __CONFIG _HS_OSC & _WDT_OFF & _PWRTE_ON & _LVP_OFF & _BODEN_OFF & _CP_OFF
+
+ADC_SETUP       equ     0x82            ; ADCON1: right-justified, AN0-AN4 analog, Vref = VDD/VSS
+ADC_CH0         equ     0x81            ; ADCON0: Fosc/32 (TAD 1.74 us at 18.432 MHz), channel 0, ADON
+CODE_TABLE      equ     0x0800          ; test build: the code table (program memory pages 1-3)
+
+#ifdef TEST_BUILD
+; INJECT_CODE: the test build's ADC: ADRESH:ADRESL = the table's next code; bit 10 = marker button.
+; (In line: the interrupt stays 2 stack levels deep, the main loop's stage 5, 7 of the PIC's 8.)
+INJECT_CODE     macro
+        movf    TBL_L, W
+        bsf     STATUS, RP1             ; bank 2
+        movwf   EEADR
+        bcf     STATUS, RP1
+        movf    TBL_H, W
+        bsf     STATUS, RP1
+        movwf   EEADRH
+        bsf     STATUS, RP0             ; bank 3
+        bsf     EECON1, EEPGD
+        bsf     EECON1, RD
+        nop
+        nop
+        bcf     STATUS, RP0             ; bank 2
+        movf    EEDATA, W
+        bcf     STATUS, RP1
+        bsf     STATUS, RP0             ; bank 1
+        movwf   ADRESL
+        bcf     STATUS, RP0
+        bsf     STATUS, RP1             ; bank 2
+        movf    EEDATH, W
+        bcf     STATUS, RP1             ; bank 0
+        movwf   T_H
+        andlw   0x03
+        movwf   ADRESH
+        btfsc   T_H, 2
+        bsf     FW_FLAGS, FWF_MARK
+        incf    TBL_L, F
+        btfsc   STATUS, Z
+        incf    TBL_H, F
+        endm
+#endif
+
+; NEXT_WORD: W = the FSR after a word's last byte -> the FSR of the next word (the bank 2 half, then the
+; bank 3 half, then the page again). In line and branch-free (6 cycles): the interrupt stays 2 stack levels deep.
+NEXT_WORD       macro
+        xorlw   PAGE_A_END
+        btfsc   STATUS, Z
+        movlw   PAGE_B ^ PAGE_A_END     ; the end of words 0-15: word 16
+        xorlw   PAGE_A_END ^ PAGE_B_END
+        btfsc   STATUS, Z
+        movlw   PAGE_A ^ PAGE_B_END     ; the end of word 31: word 0
+        xorlw   PAGE_B_END
+        endm
+
+        org     0
+        goto    start
+
+; =====================================================================================================
+; The sampling interrupt: CCP1 compare (Timer1 reset by the special event trigger) once per sample period;
+; INT (RB0) is the marker button. Context: W in W_TEMP (common RAM), STATUS, PCLATH, FSR in bank 0.
+        org     4
+isr:
+        movwf   W_TEMP
+        swapf   STATUS, W
+        clrf    STATUS                  ; bank 0, IRP = 0
+        movwf   STATUS_TEMP
+        movf    PCLATH, W
+        movwf   PCLATH_TEMP
+        clrf    PCLATH
+        movf    FSR, W
+        movwf   FSR_TEMP
+        btfss   INTCON, INTF
+        goto    isr_timer
+        bcf     INTCON, INTF            ; the marker button: flag the next sample
+        bsf     FW_FLAGS, FWF_MARK
+isr_timer:
+        btfss   PIR1, CCP1IF
+        goto    isr_exit
+        bcf     PIR1, CCP1IF
+        movlw   ADC_CH0
+        call    adc_convert
+        movwf   XL
+        movf    ADRESH, W
+        movwf   XH
+        movlw   ADC_CH0 | (1 << 3)
+        call    adc_convert
+        movwf   YL
+        movf    ADRESH, W
+        movwf   YH
+        movlw   ADC_CH0 | (2 << 3)
+        call    adc_convert
+        movwf   ZL
+        movf    ADRESH, W
+        movwf   ZH
+        call    pack_word
+        incf    SAMPLE_L, F
+        btfsc   STATUS, Z
+        incf    SAMPLE_H, F
+        incf    PENDING, F              ; hand the sample to the main loop
+        movlw   .33
+        subwf   PENDING, W
+        btfsc   STATUS, C
+        bsf     FW_FLAGS, FWF_OVERRUN   ; PENDING > 32: the main loop lost a sample
+#ifdef TEST_BUILD
+        movlw   1
+        subwf   LEFT_L, F
+        btfss   STATUS, C
+        decf    LEFT_H, F
+        movf    LEFT_L, W
+        iorwf   LEFT_H, W
+        btfss   STATUS, Z
+        goto    isr_exit
+        bsf     STATUS, RP0             ; the table is done: no more samples
+        bcf     PIE1, CCP1IE
+        bcf     STATUS, RP0
+#endif
+isr_exit:
+        movf    FSR_TEMP, W
+        movwf   FSR
+        movf    PCLATH_TEMP, W
+        movwf   PCLATH
+        swapf   STATUS_TEMP, W
+        movwf   STATUS
+        swapf   W_TEMP, F
+        swapf   W_TEMP, W
+        retfie
+
+; adc_convert: select the channel (W = ADCON0), wait the acquisition time, convert.
+;   out: W = ADRESL (bank 0 selected again), ADRESH holds the high bits
+adc_convert:
+        movwf   ADCON0
+        movlw   ACQ_LOOPS
+        movwf   T_L
+acq_wait:
+        decfsz  T_L, F
+        goto    acq_wait
+        bsf     ADCON0, GO
+adc_busy:
+        btfsc   ADCON0, GO
+        goto    adc_busy
+#ifdef TEST_BUILD
+        INJECT_CODE
+#endif
+        bsf     STATUS, RP0
+        movf    ADRESL, W
+        bcf     STATUS, RP0
+        return
+
+; pack_word: the sample's P32 word (x | y << 10 | z << 20 | S << 30 | M << 31) into the page buffer, little
+; endian, at PAGE_PTR; advance PAGE_PTR (bank 2 half, then bank 3 half); a full page is handed off.
+pack_word:
+        movf    PAGE_PTR, W
+        movwf   FSR
+        bsf     STATUS, IRP
+        movf    XL, W                   ; byte 0: x bits 0-7
+        movwf   INDF
+        incf    FSR, F
+        movf    YL, W                   ; T = y << 2 (12 bits)
+        movwf   T_L
+        movf    YH, W
+        movwf   T_H
+        rlf     T_L, F
+        rlf     T_H, F
+        rlf     T_L, F
+        rlf     T_H, F
+        movf    T_L, W                  ; byte 1: x bits 8-9, y bits 0-5
+        andlw   0xFC
+        iorwf   XH, W
+        movwf   INDF
+        incf    FSR, F
+        swapf   ZL, W                   ; byte 2: y bits 6-9, z bits 0-3
+        andlw   0xF0
+        iorwf   T_H, W
+        movwf   INDF
+        incf    FSR, F
+        swapf   ZL, W                   ; byte 3: z bits 4-9, S, M
+        andlw   0x0F
+        movwf   T_L
+        swapf   ZH, W
+        iorwf   T_L, F
+        btfsc   FW_FLAGS, FWF_SESSION
+        bsf     T_L, 6
+        btfsc   FW_FLAGS, FWF_MARK
+        bsf     T_L, 7
+        movf    T_L, W
+        movwf   INDF
+        incf    FSR, F
+        bcf     STATUS, IRP
+        bcf     FW_FLAGS, FWF_SESSION
+        bcf     FW_FLAGS, FWF_MARK
+        movf    FSR, W
+        NEXT_WORD
+        movwf   PAGE_PTR
+        xorlw   PAGE_A
+        btfsc   STATUS, Z
+        bsf     FW_FLAGS, FWF_PAGE_FULL ; the I2C driver (the model's) writes the page from here
+        return
+
+
+
+; =====================================================================================================
+start:
+        clrf    STATUS
+        clrf    FLAGS
+        clrf    FW_FLAGS
+        clrf    PENDING
+        movlw   FIRST_SAMPLE_L
+        movwf   SAMPLE_L
+        movlw   FIRST_SAMPLE_H
+        movwf   SAMPLE_H
+        movlw   PAGE_START
+        movwf   PAGE_PTR
+        movwf   ALG_PTR
+#if SESSION_START
+        bsf     FW_FLAGS, FWF_SESSION
+        call    reset_gravity           ; START: a fresh state
+#else
+#ifdef TEST_BUILD
+        call    load_state              ; a later chunk of the run: the state where the last one ended
+#endif
+#endif
+#ifdef TEST_BUILD
+        movlw   LOW CODE_TABLE
+        movwf   TBL_L
+        movlw   HIGH CODE_TABLE
+        movwf   TBL_H
+        movlw   LOW N_SAMPLES
+        movwf   LEFT_L
+        movlw   HIGH N_SAMPLES
+        movwf   LEFT_H
+        call    load_calibration
+#endif
+        bsf     STATUS, RP0             ; bank 1
+        movlw   ADC_SETUP
+        movwf   ADCON1
+        bsf     TRISB, 0                ; RB0/INT: the marker button
+        bsf     PIE1, CCP1IE
+        bcf     STATUS, RP0
+        movlw   ADC_CH0
+        movwf   ADCON0
+        clrf    TMR1L
+        clrf    TMR1H
+        movlw   LOW CCP_PERIOD
+        movwf   CCPR1L
+        movlw   HIGH CCP_PERIOD
+        movwf   CCPR1H
+        movlw   0x0B                    ; CCP1: compare, special event trigger (resets Timer1)
+        movwf   CCP1CON
+        movlw   T1_SETUP
+        movwf   T1CON
+        clrf    PIR1
+        bsf     INTCON, INTE
+        bsf     INTCON, PEIE
+        bsf     INTCON, GIE
+
+; The main loop: the on-line algorithm on each sample the interrupt handed over, oldest first, read back
+; from the page buffer (it may fall up to 32 samples behind).
+main_loop:
+#ifdef TEST_BUILD
+        movf    LEFT_L, W               ; the table is done (no interrupt can come) and every sample
+        iorwf   LEFT_H, W               ; processed: the end (LEFT first: PENDING cannot grow after it)
+        btfss   STATUS, Z
+        goto    main_pending
+        movf    PENDING, W
+        btfsc   STATUS, Z
+        goto    harness_done
+main_pending:
+#endif
+        movf    PENDING, W
+        btfss   STATUS, Z
+        goto    main_sample
+        goto    main_loop
+main_sample:
+        call    read_word
+        call    stage_calibrate
+        call    stage_gravity
+        call    stage_av
+        decf    PENDING, F
+        goto    main_loop
+
+#ifdef TEST_BUILD
+harness_done:
+        goto    harness_done
+#endif
+
+; read_word: B3:B0 = the word at ALG_PTR; advance ALG_PTR
+read_word:
+        movf    ALG_PTR, W
+        movwf   FSR
+        bsf     STATUS, IRP
+        movf    INDF, W
+        movwf   B0
+        incf    FSR, F
+        movf    INDF, W
+        movwf   B1
+        incf    FSR, F
+        movf    INDF, W
+        movwf   B2
+        incf    FSR, F
+        movf    INDF, W
+        movwf   B3
+        incf    FSR, F
+        bcf     STATUS, IRP
+        movf    FSR, W
+        NEXT_WORD
+        movwf   ALG_PTR
+        return
+
+; =====================================================================================================
+; Stage 1, calibration (kernel.py step 1): c = (code << 5) - offset (Q10.5, saturating), then per axis
+; f = sat16(shr32r(sat32(m0 c0 + m1 c1 + m2 c2), CAL_SHIFT)) in Q2.13 g.
+stage_calibrate:
+        movf    B1, W                   ; x << 5 = ((B1 & 3):B0) << 5
+        andlw   0x03
+        movwf   C0H
+        movf    B0, W
+        movwf   C0L
+        movlw   5
+        call    shl_c0
+        movf    B2, W                   ; y << 5 = ((B2 & 0x0F):(B1 & 0xFC)) << 3
+        andlw   0x0F
+        movwf   C1H
+        movf    B1, W
+        andlw   0xFC
+        movwf   C1L
+        movlw   3
+        call    shl_c1
+        movf    B3, W                   ; z << 5 = ((B3 & 0x3F):(B2 & 0xF0)) << 1
+        andlw   0x3F
+        movwf   C2H
+        movf    B2, W
+        andlw   0xF0
+        movwf   C2L
+        movlw   1
+        call    shl_c2
+        movlw   LOW (CAL_OFF + 0)
+        movwf   FSR
+        movlw   C0L
+        call    sub_offset
+        movlw   LOW (CAL_OFF + 2)
+        movwf   FSR
+        movlw   C1L
+        call    sub_offset
+        movlw   LOW (CAL_OFF + 4)
+        movwf   FSR
+        movlw   C2L
+        call    sub_offset
+        movlw   LOW (CAL_M + 0)
+        call    cal_row
+        movf    ACC0, W
+        movwf   FX_L
+        movf    ACC1, W
+        movwf   FX_H
+        movlw   LOW (CAL_M + 6)
+        call    cal_row
+        movf    ACC0, W
+        movwf   FY_L
+        movf    ACC1, W
+        movwf   FY_H
+        movlw   LOW (CAL_M + .12)
+        call    cal_row
+        movf    ACC0, W
+        movwf   FZ_L
+        movf    ACC1, W
+        movwf   FZ_H
+        return
+
+; shl_c0/1/2: C_H:C_L <<= W (W >= 1; the codes' top bits are 0, so nothing is lost)
+shl_c0:
+        movwf   COUNT
+shl_c0_bit:
+        bcf     STATUS, C
+        rlf     C0L, F
+        rlf     C0H, F
+        decfsz  COUNT, F
+        goto    shl_c0_bit
+        return
+shl_c1:
+        movwf   COUNT
+shl_c1_bit:
+        bcf     STATUS, C
+        rlf     C1L, F
+        rlf     C1H, F
+        decfsz  COUNT, F
+        goto    shl_c1_bit
+        return
+shl_c2:
+        movwf   COUNT
+shl_c2_bit:
+        bcf     STATUS, C
+        rlf     C2L, F
+        rlf     C2H, F
+        decfsz  COUNT, F
+        goto    shl_c2_bit
+        return
+
+; sub_offset: the int16 at bank 0 address W -= the int16 at FSR (bank 1, IRP = 0), saturating
+sub_offset:
+        movwf   TMP2                    ; TMP2 = address of c
+        movf    INDF, W                 ; ARG = offset
+        movwf   ARG0
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ARG1
+        movf    TMP2, W
+        movwf   FSR                     ; FSR -> c (bank 0)
+        movf    INDF, W
+        movwf   ACC0
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC1
+        xorwf   ARG1, W                 ; SGN_T bit 7: the operands' signs differ
+        movwf   SGN_T
+        movf    ARG0, W                 ; ACC1:ACC0 -= ARG1:ARG0
+        subwf   ACC0, F
+        movf    ARG1, W
+        btfss   STATUS, C
+        incfsz  ARG1, W
+        subwf   ACC1, F
+        btfss   SGN_T, 7
+        goto    so_store                ; same signs: no overflow
+        movf    ACC1, W                 ; overflow when the result's sign differs from c's
+        xorwf   INDF, W
+        andlw   0x80
+        btfsc   STATUS, Z
+        goto    so_store
+        bsf     FLAGS, FLAG_SAT
+        movlw   0xFF                    ; c >= 0: 0x7FFF; c < 0: 0x8000
+        movwf   ACC0
+        movlw   0x7F
+        movwf   ACC1
+        btfss   INDF, 7
+        goto    so_store
+        clrf    ACC0
+        movlw   0x80
+        movwf   ACC1
+so_store:
+        movf    ACC1, W
+        movwf   INDF
+        decf    FSR, F
+        movf    ACC0, W
+        movwf   INDF
+        return
+
+; cal_row: ACC1:ACC0 = the row of mantissas at bank 1 address W applied to C0..C2, rounded to Q2.13
+cal_row:
+        movwf   FSR
+        call    load_mantissa
+        movf    C0L, W
+        movwf   ARG0
+        movf    C0H, W
+        movwf   ARG1
+        call    mul16s
+        movf    ACC0, W                 ; SUM = m0 c0
+        movwf   SUM0
+        movf    ACC1, W
+        movwf   SUM1
+        movf    ACC2, W
+        movwf   SUM2
+        movf    ACC3, W
+        movwf   SUM3
+        call    load_mantissa
+        movf    C1L, W
+        movwf   ARG0
+        movf    C1H, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_add_acc
+        call    load_mantissa
+        movf    C2L, W
+        movwf   ARG0
+        movf    C2H, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_add_acc
+        movf    SUM0, W                 ; ACC = SUM >> CAL_SHIFT (half up), saturated to 16 bits
+        movwf   ACC0
+        movf    SUM1, W
+        movwf   ACC1
+        movf    SUM2, W
+        movwf   ACC2
+        movf    SUM3, W
+        movwf   ACC3
+        bsf     STATUS, RP0
+        movf    CAL_SHIFT, W
+        bcf     STATUS, RP0
+        movwf   ARG0
+        call    shr32r
+        goto    sat16                   ; tail call
+
+; load_mantissa: ACC1:ACC0 = the int16 at FSR (bank 1); FSR += 2
+load_mantissa:
+        movf    INDF, W
+        movwf   ACC0
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC1
+        incf    FSR, F
+        return
+
+; sum_add_acc: SUM = SUM + ACC, saturated to a signed 32-bit word (FLAG_SAT when clipped)
+sum_add_acc:
+        movf    SUM3, W
+        xorwf   ACC3, W
+        movwf   SGN_T                   ; bit 7: the signs differ (no overflow possible)
+        movf    ACC0, W
+        addwf   SUM0, F
+        movf    ACC1, W
+        btfsc   STATUS, C
+        incfsz  ACC1, W
+        addwf   SUM1, F
+        movf    ACC2, W
+        btfsc   STATUS, C
+        incfsz  ACC2, W
+        addwf   SUM2, F
+        movf    ACC3, W
+        btfsc   STATUS, C
+        incfsz  ACC3, W
+        addwf   SUM3, F
+        btfsc   SGN_T, 7
+        return
+        movf    SUM3, W                 ; same signs: overflow when the sum's sign differs
+        xorwf   ACC3, W
+        andlw   0x80
+        btfsc   STATUS, Z
+        return
+        bsf     FLAGS, FLAG_SAT
+        movlw   0xFF
+        movwf   SUM0
+        movwf   SUM1
+        movwf   SUM2
+        movlw   0x7F
+        movwf   SUM3
+        btfss   ACC3, 7
+        return
+        clrf    SUM0                    ; negative: -2^31
+        clrf    SUM1
+        clrf    SUM2
+        movlw   0x80
+        movwf   SUM3
+        return
+
+; =====================================================================================================
+; Stage 2, gravity (kernel.py step 2): per axis G1 += (f << 16 - G1) >> WARM, G2 += (G1 - G2) >> WARM (32 bits,
+; saturating, the shifts rounding half up); WARM grows from 0 to G_SHIFT as the run reaches 2, 4, 8 ...
+; samples (the running mean while the run is young).
+GRAV_AXIS       macro   f_lo, f_hi, g1, g2
+        clrf    ACC0                    ; ACC = f in Q2.29: the Q2.13 word is the top half
+        clrf    ACC1
+        movf    f_lo, W
+        movwf   ACC2
+        movf    f_hi, W
+        movwf   ACC3
+        movlw   g1
+        movwf   FSR
+        call    acc_sub_fsr             ; f - G1
+        movf    WARM, W
+        movwf   ARG0
+        call    shr32r
+        call    fsr_add_acc             ; G1 += ...
+        call    acc_load_fsr            ; ACC = G1
+        movlw   g2
+        movwf   FSR
+        call    acc_sub_fsr             ; G1 - G2
+        movf    WARM, W
+        movwf   ARG0
+        call    shr32r
+        call    fsr_add_acc             ; G2 += ...
+        endm
+
+stage_gravity:
+        movlw   G_SHIFT
+        xorwf   WARM, W
+        btfsc   STATUS, Z
+        goto    sg_axes                 ; warmed up: the count is no longer needed
+        incf    NP1_L, F
+        btfsc   STATUS, Z
+        incf    NP1_H, F
+        movf    NP1_L, W
+        xorwf   THR_L, W
+        btfss   STATUS, Z
+        goto    sg_axes
+        movf    NP1_H, W
+        xorwf   THR_H, W
+        btfss   STATUS, Z
+        goto    sg_axes
+        incf    WARM, F                 ; n + 1 = 2 << WARM: one more bit of shift
+        bcf     STATUS, C
+        rlf     THR_L, F
+        rlf     THR_H, F
+sg_axes:
+        bcf     STATUS, IRP
+        GRAV_AXIS FX_L, FX_H, G1X, G2X
+        GRAV_AXIS FY_L, FY_H, G1Y, G2Y
+        GRAV_AXIS FZ_L, FZ_H, G1Z, G2Z
+        return
+
+; reset_gravity: G1 = G2 = 0, WARM = 0, NP1 = 0, THR = 2
+reset_gravity:
+        movlw   G1X
+        movwf   FSR
+        bcf     STATUS, IRP
+rg_clear:
+        clrf    INDF
+        incf    FSR, F
+        movf    FSR, W
+        xorlw   THR_H + 1
+        btfss   STATUS, Z
+        goto    rg_clear
+        movlw   2
+        movwf   THR_L
+        return
+
+; acc_load_fsr: ACC = the int32 at FSR (bank 0); FSR unchanged
+acc_load_fsr:
+        movf    INDF, W
+        movwf   ACC0
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC1
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC2
+        incf    FSR, F
+        movf    INDF, W
+        movwf   ACC3
+        movlw   3
+        subwf   FSR, F
+        return
+
+; acc_sub_fsr: ACC = ACC - the int32 at FSR, saturated to 32 bits (FLAG_SAT when clipped); FSR unchanged
+acc_sub_fsr:
+        movlw   3
+        addwf   FSR, F
+        movf    INDF, W
+        xorwf   ACC3, W
+        movwf   SGN_T                   ; bit 7: the signs differ (only then can it overflow)
+        movf    ACC3, W
+        movwf   TMP2                    ; the minuend's sign
+        movlw   3
+        subwf   FSR, F
+        movf    INDF, W
+        subwf   ACC0, F
+        incf    FSR, F
+        movf    INDF, W
+        btfss   STATUS, C
+        incfsz  INDF, W                 ; subtrahend byte + borrow (0x100: ACC byte as is, borrow on)
+        subwf   ACC1, F
+        incf    FSR, F
+        movf    INDF, W
+        btfss   STATUS, C
+        incfsz  INDF, W
+        subwf   ACC2, F
+        incf    FSR, F
+        movf    INDF, W
+        btfss   STATUS, C
+        incfsz  INDF, W
+        subwf   ACC3, F
+        movlw   3
+        subwf   FSR, F
+        btfss   SGN_T, 7
+        return
+        movf    ACC3, W                 ; overflow when the result's sign is not the minuend's
+        xorwf   TMP2, W
+        andlw   0x80
+        btfsc   STATUS, Z
+        return
+        bsf     FLAGS, FLAG_SAT
+        movlw   0xFF
+        movwf   ACC0
+        movwf   ACC1
+        movwf   ACC2
+        movlw   0x7F
+        movwf   ACC3
+        btfss   TMP2, 7
+        return
+        clrf    ACC0                    ; a negative minuend: -2^31
+        clrf    ACC1
+        clrf    ACC2
+        movlw   0x80
+        movwf   ACC3
+        return
+
+; fsr_add_acc: the int32 at FSR += ACC, saturated to 32 bits (FLAG_SAT when clipped); FSR unchanged
+fsr_add_acc:
+        movlw   3
+        addwf   FSR, F
+        movf    INDF, W
+        xorwf   ACC3, W
+        movwf   SGN_T                   ; bit 7: the signs differ (no overflow possible)
+        movlw   3
+        subwf   FSR, F
+        movf    ACC0, W
+        addwf   INDF, F
+        incf    FSR, F
+        movf    ACC1, W
+        btfsc   STATUS, C
+        incfsz  ACC1, W
+        addwf   INDF, F
+        incf    FSR, F
+        movf    ACC2, W
+        btfsc   STATUS, C
+        incfsz  ACC2, W
+        addwf   INDF, F
+        incf    FSR, F
+        movf    ACC3, W
+        btfsc   STATUS, C
+        incfsz  ACC3, W
+        addwf   INDF, F
+        btfsc   SGN_T, 7
+        goto    fa_back
+        movf    INDF, W                 ; same signs: overflow when the sum's sign differs
+        xorwf   ACC3, W
+        andlw   0x80
+        btfsc   STATUS, Z
+        goto    fa_back
+        bsf     FLAGS, FLAG_SAT
+        movlw   0x7F                    ; 2^31 - 1 ...
+        btfsc   ACC3, 7
+        movlw   0x80                    ; ... or -2^31
+        movwf   INDF
+        movlw   0xFF
+        btfsc   ACC3, 7
+        movlw   0x00
+        decf    FSR, F
+        movwf   INDF
+        decf    FSR, F
+        movwf   INDF
+        decf    FSR, F
+        movwf   INDF
+        return
+fa_back:
+        movlw   3
+        subwf   FSR, F
+        return
+
+; =====================================================================================================
+; Stage 3, vertical acceleration (kernel.py step 3): g = G2 in Q2.13 (rounded, saturated), |g|^2 exact in
+; Q5.26 (the sum saturating), |g| = isqrt32n (nearest); a_v = (f.g - |g|^2) / |g| rounded to nearest
+; (divr32s) and saturated to 16 bits, or 0 when |g| <= G_MIN.
+G_TO_ACC        macro   g2, lo, hi
+        movlw   g2
+        movwf   FSR
+        call    acc_load_fsr
+        movlw   .16
+        movwf   ARG0
+        call    shr32r
+        call    sat16
+        movf    ACC0, W
+        movwf   lo
+        movf    ACC1, W
+        movwf   hi
+        endm
+
+; SUM = a1 b1 + a2 b2 + a3 b3 (each product exact, the sum saturating)
+DOT3            macro   a1l, a1h, b1l, b1h, a2l, a2h, b2l, b2h, a3l, a3h, b3l, b3h
+        movf    a1l, W
+        movwf   ACC0
+        movf    a1h, W
+        movwf   ACC1
+        movf    b1l, W
+        movwf   ARG0
+        movf    b1h, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_set_acc
+        movf    a2l, W
+        movwf   ACC0
+        movf    a2h, W
+        movwf   ACC1
+        movf    b2l, W
+        movwf   ARG0
+        movf    b2h, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_add_acc
+        movf    a3l, W
+        movwf   ACC0
+        movf    a3h, W
+        movwf   ACC1
+        movf    b3l, W
+        movwf   ARG0
+        movf    b3h, W
+        movwf   ARG1
+        call    mul16s
+        call    sum_add_acc
+        endm
+
+stage_av:
+        G_TO_ACC G2X, GX_L, GX_H
+        G_TO_ACC G2Y, GY_L, GY_H
+        G_TO_ACC G2Z, GZ_L, GZ_H
+        DOT3    GX_L, GX_H, GX_L, GX_H, GY_L, GY_H, GY_L, GY_H, GZ_L, GZ_H, GZ_L, GZ_H
+        movf    SUM0, W                 ; N2 = |g|^2, and the root's argument
+        movwf   N2_0
+        movwf   ACC0
+        movf    SUM1, W
+        movwf   N2_1
+        movwf   ACC1
+        movf    SUM2, W
+        movwf   N2_2
+        movwf   ACC2
+        movf    SUM3, W
+        movwf   N2_3
+        movwf   ACC3
+        call    isqrt32n
+        movf    ACC0, W
+        movwf   GN_L
+        movf    ACC1, W
+        movwf   GN_H
+        movlw   LOW (G_MIN + 1)         ; |g| > G_MIN <=> |g| - (G_MIN + 1) does not borrow
+        subwf   ACC0, W
+        movlw   HIGH (G_MIN + 1)
+        btfss   STATUS, C
+        addlw   1
+        subwf   ACC1, W
+        btfss   STATUS, C
+        goto    av_zero
+        DOT3    FX_L, FX_H, GX_L, GX_H, FY_L, FY_H, GY_L, GY_H, FZ_L, FZ_H, GZ_L, GZ_H
+        movf    SUM0, W                 ; ACC = f.g - |g|^2 (saturating)
+        movwf   ACC0
+        movf    SUM1, W
+        movwf   ACC1
+        movf    SUM2, W
+        movwf   ACC2
+        movf    SUM3, W
+        movwf   ACC3
+        movlw   N2_0
+        movwf   FSR
+        call    acc_sub_fsr
+        movf    GN_L, W
+        movwf   ARG0
+        movf    GN_H, W
+        movwf   ARG1
+        call    divr32s
+        call    sat16
+        movf    ACC0, W
+        movwf   AV_L
+        movf    ACC1, W
+        movwf   AV_H
+        return
+av_zero:
+        clrf    AV_L
+        clrf    AV_H
+        return
+
+; sum_set_acc: SUM = ACC
+sum_set_acc:
+        movf    ACC0, W
+        movwf   SUM0
+        movf    ACC1, W
+        movwf   SUM1
+        movf    ACC2, W
+        movwf   SUM2
+        movf    ACC3, W
+        movwf   SUM3
+        return
+
+
+#ifdef TEST_BUILD
+; load_calibration: bank 1 CAL_OFF .. CAL_SHIFT = calibration.inc's 25 bytes
+load_calibration:
+        movlw   LOW CAL_OFF
+        movwf   FSR
+        clrf    T_L
+        movlw   HIGH cal_table
+        movwf   PCLATH
+lc_next:
+        movf    T_L, W
+        call    cal_table
+        movwf   INDF
+        incf    FSR, F
+        incf    T_L, F
+        movf    T_L, W
+        xorlw   .25
+        btfss   STATUS, Z
+        goto    lc_next
+        clrf    PCLATH
+        return
+
+; load_state: stage 2's state (G1X .. THR_H, 29 bytes) = state.inc's
+load_state:
+        movlw   G1X
+        movwf   FSR
+        bcf     STATUS, IRP
+        clrf    T_L
+        movlw   HIGH state_table
+        movwf   PCLATH
+ls_next:
+        movf    T_L, W
+        call    state_table
+        movwf   INDF
+        incf    FSR, F
+        incf    T_L, F
+        movf    T_L, W
+        xorlw   .29
+        btfss   STATUS, Z
+        goto    ls_next
+        clrf    PCLATH
+        return
+#endif
+
+kernels_begin:
+        #include "mul.asm"
+        #include "div.asm"
+        #include "shift.asm"
+        #include "sat.asm"
+        #include "sqrt.asm"
+kernels_end:
+code_end:
+
+#ifdef TEST_BUILD
+        org     CODE_TABLE - 0x40       ; one 256-word block: ADDWF PCL needs no carry into PCLATH
+cal_table:
+        addwf   PCL, F
+        #include "calibration.inc"
+state_table:
+        addwf   PCL, F
+        #include "state.inc"
+        org     CODE_TABLE
+code_table:
+        #include "codes.inc"
+#endif
+        end

@@ -1,0 +1,161 @@
+"""The logger's per-sample path in PIC16 assembly (firmware_sim/pic/logger.asm) in gpsim, against the model.
+
+Independent truths: the P32 words of ``gaitlog.protocol.packing`` (its own golden vectors in PROTOCOL.md), the
+fixed-point kernel's state after its first sample (for the probe), the datasheet's timer and ADC arithmetic,
+and a deliberately broken copy of the assembly that must be caught.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
+from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_GRAV
+from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states, vertical_acceleration
+from gaitlog.firmware_sim.budget import adc_acquisition_s, adc_tad_s
+from gaitlog.firmware_sim.pic import gpsim_logger as gl
+from gaitlog.protocol.header import CalibrationSlot
+from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START
+
+#: Device calibration slots (PROTOCOL.md 2.1), as the firmware receives them: the nominal map, a plausible
+#: device (offsets off 512, scale and cross-axis terms), and one that saturates the offset subtraction, the
+#: 32-bit sums and the 16-bit result.
+SLOTS = {
+    "nominal": CalibrationSlot.nominal(10),
+    "device": CalibrationSlot(np.array([505.25, 519.5, 498.0]),
+                              np.array([[0.0039, 0.0001, -0.00005], [0.00002, 0.00385, 0.0001],
+                                        [-0.0001, 0.00003, 0.00395]])),
+    "extreme": CalibrationSlot(np.array([-1024.0, 1023.96875, 3.125]),
+                               np.array([[0.99, 0.99, 0.99], [-0.99, -0.99, -0.99], [0.0, -0.0001, 0.99]])),
+}
+CALS = {k: CalibrationQ.from_protocol(v) for k, v in SLOTS.items()}
+
+needs_gpsim = pytest.mark.skipif(gl.missing_tools() is not None, reason=f"{gl.missing_tools()}")
+
+
+def test_timer_setup_is_the_sample_period():
+    t = gl.timer_setup(50.0)
+    assert (t.prescale, t.ccpr1, t.period_cycles) == (2, 46080, 92160)
+    assert gl.timer_setup(100.0).prescale == 1
+    with pytest.raises(ValueError, match="whole number"):
+        gl.timer_setup(71.0)                     # 64,901.4 cycles
+    with pytest.raises(ValueError, match="do not fit"):
+        gl.timer_setup(8.0)                      # 576,000 cycles > 8 x 65,535
+
+
+def test_acquisition_delay_covers_tacq_and_2_tad():
+    need = (adc_acquisition_s(32e3) + 2 * adc_tad_s(18.432e6)) * 18.432e6 / 4
+    n = gl.acquisition_loops()
+    assert 3 * n + 1 >= need > 3 * (n - 1) + 1
+
+
+@pytest.mark.parametrize("name", SLOTS)
+def test_probe_is_the_kernels_step_1(name):
+    """The kernel's gravity state after a run's first sample is its calibrated axes in the gravity format."""
+    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from gaitlog.firmware_sim.algorithms.state import G1
+    from gaitlog.protocol.steps import StepConfig
+
+    rng = np.random.default_rng(5)
+    codes = np.vstack([rng.integers(0, 1024, (40, 3)), [[0, 0, 0], [1023, 1023, 1023], [512, 512, 512]]])
+    algo = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=StepConfig(step_format=1, leg_length_m=0.9,
+                                                                              foot_length_m=0.26),
+                               calibration=SLOTS[name])
+    probe = calibrated_axes(codes, CALS[name])
+    if name == "extreme":
+        assert np.any(np.abs(probe) == 32767) and np.any(probe == -32768)      # the saturations are exercised
+    for i, c in enumerate(codes):
+        algo.reset()
+        try:
+            algo.feed(c.reshape(1, 3))
+        except ValueError:                  # the extreme slot: step 3 refuses |g| beyond 16 bits, after step 2
+            assert name == "extreme"
+        assert np.array_equal(algo._st_v[G1:G1 + 3], probe[i] << (F_GRAV - F_ACC)), i
+
+
+def test_gravity_and_a_v_probes_are_the_kernels_steps_2_3(simulated_walk):
+    """The kernel's G1, G2 after 1, 2, 3, 50, 64, 65 and 900 samples of a walk, and the a_v it stored in its
+    scratch ring for the last of them, are the probes'."""
+    from gaitlog.firmware_sim.algorithms import kernel
+    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+    from gaitlog.firmware_sim.algorithms.state import G1, G2
+    from gaitlog.protocol.steps import StepConfig
+
+    codes = simulated_walk[0][:900]
+    algo = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=StepConfig(step_format=1, leg_length_m=0.9,
+                                                                              foot_length_m=0.26),
+                               calibration=SLOTS["device"])
+    shift = int(algo.config.cfg_i[kernel.CI_G_SHIFT])
+    f = calibrated_axes(codes, CALS["device"])
+    probe = gravity_states(f, shift)
+    probe_av = vertical_acceleration(f, probe[:, 3:], int(algo.config.cfg_v[kernel.CV_G_MIN]))
+    done = 0
+    for upto in (1, 2, 3, 50, 64, 65, 900):
+        algo.feed(codes[done:upto], offset=done)
+        done = upto
+        state = np.concatenate([algo._st_v[G1:G1 + 3], algo._st_v[G2:G2 + 3]])
+        assert np.array_equal(state, probe[upto - 1]), upto
+        assert algo._scr[(upto - 1) % algo._scr.shape[0], kernel.S_AV] == probe_av[upto - 1], upto
+    assert shift == 6 and not np.array_equal(probe[-1], probe[-2]) and np.count_nonzero(probe_av) > 800
+    assert algo.config.cfg_v[kernel.CV_G_MIN] == gl.PicLogger().min_gravity_raw
+
+
+@needs_gpsim
+@pytest.mark.parametrize("name", SLOTS)
+def test_random_codes_identical(name):
+    rng = np.random.default_rng(11)
+    n = 700
+    codes = rng.integers(0, 1024, (n, 3))
+    codes[:4] = [[0, 0, 0], [1023, 1023, 1023], [1023, 0, 1023], [0, 1023, 0]]
+    flags = np.zeros(n, np.int64)
+    flags[[0, 450]] |= FLAG_SESSION_START          # two runs: two chunks
+    flags[[3, 31, 32, 333]] |= FLAG_MARK
+    # the extreme slot's |g| exceeds the model's 16-bit divisor: the model refuses a_v there, so it is left out
+    r = gl.verify(codes, flags, CALS[name], harness=gl.PicLogger(chunk_samples=300), a_v=name != "extreme")
+    want = [("packed words", n, n), ("calibrated axes", n, n), ("gravity", n, n)]
+    want += [("a_v", n, n)] if name != "extreme" else []
+    assert [(s.name, s.n_identical, s.n_compared) for s in r.stages] == want, r.format_table()
+    assert r.period_cycles == 92160
+    assert r.acquisition_cycles_min >= r.acquisition_cycles_needed
+    assert 0 < r.cycles["total in assembly"]["worst"] < 92160
+    assert r.memory.ram_total_bytes <= 368 and r.memory.program_words <= 8192
+    assert "of 700 samples identical" in r.format_table()
+
+
+@needs_gpsim
+def test_simulated_walk_identical(simulated_walk):
+    codes = simulated_walk[0][:1500]
+    flags = np.zeros(len(codes), np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["device"], harness=gl.PicLogger(chunk_samples=600))   # 3 chunks, one run
+    assert r.identical, r.format_table()
+    assert [s.n_compared for s in r.stages] == [1500, 1500, 1500, 1500]
+    f = calibrated_axes(codes, CALS["device"])
+    a_v = vertical_acceleration(f, gravity_states(f, 6)[:, 3:], gl.PicLogger().min_gravity_raw)
+    assert np.count_nonzero(a_v) > 1400 and a_v.max() > 2000 and a_v.min() < -2000     # a walk, not zeros
+
+
+@needs_gpsim
+def test_a_broken_assembly_is_named(tmp_path, monkeypatch):
+    """The S and M flag bits swapped in the packing: the first sample's byte 3 differs, and verify says so."""
+    src = gl.LOGGER_ASM.read_text()
+    assert src.count("bsf     T_L, 6") == 1
+    bad = tmp_path / "logger.asm"
+    bad.write_text(src.replace("bsf     T_L, 6", "bsf     T_L, 7"))
+    monkeypatch.setattr(gl, "LOGGER_ASM", bad)
+    codes = np.full((40, 3), 512)
+    flags = np.zeros(40, np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, nominal_calibration_q())
+    packed = r.stages[0]
+    assert not r.identical and packed.n_identical == 39 and all(s.identical for s in r.stages[1:])
+    assert packed.first_difference == {"sample": 0, "field": "byte 3", "gpsim": 0x80 | 0x20, "model": 0x40 | 0x20}
+    assert "first difference: sample 0, byte 3" in r.format_table()
+
+
+def test_chunk_fits_program_memory():
+    assert gl.CODE_TABLE + 3 * gl.CHUNK_SAMPLES <= 0x2000
+    assert math.isclose(gl.timer_setup(50.0).period_cycles, 92160)
