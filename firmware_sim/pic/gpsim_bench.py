@@ -176,12 +176,22 @@ def missing_tools() -> str | None:
     return None
 
 
+def copy_sources(build_dir: Path, main_asm: Path) -> None:
+    """The assembly sources copied into ``build_dir`` and assembled there under their bare names: a ``.cod`` file
+    holds each source's name in 63 bytes, and gpsim crashes (SIGSEGV) reading one with a longer path, as a
+    checkout's or a test's folder easily gives."""
+    for src in [*PIC_DIR.glob("*.asm"), *PIC_DIR.glob("*.inc")]:
+        if src.name != main_asm.name:
+            shutil.copyfile(src, build_dir / src.name)
+    shutil.copyfile(main_asm, build_dir / main_asm.name)
+
+
 def assemble(build_dir: Path) -> Path:
     """Assemble ``harness.asm`` with its kernels into ``build_dir``; returns the ``.cod`` for gpsim."""
     build_dir.mkdir(parents=True, exist_ok=True)
-    hex_path = build_dir / "harness.hex"
-    proc = subprocess.run(["gpasm", "-q", "-p", "p16f877", "-I", str(PIC_DIR), "-o", str(hex_path),
-                           str(PIC_DIR / "harness.asm")], capture_output=True, text=True, timeout=60)
+    copy_sources(build_dir, PIC_DIR / "harness.asm")
+    proc = subprocess.run(["gpasm", "-q", "-p", "p16f877", "-o", "harness.hex", "harness.asm"],
+                          capture_output=True, text=True, timeout=60, cwd=build_dir)
     cod = build_dir / "harness.cod"
     if proc.returncode != 0 or not cod.exists():
         raise RuntimeError(f"gpasm failed on {PIC_DIR / 'harness.asm'}: {(proc.stdout + proc.stderr).strip()}")

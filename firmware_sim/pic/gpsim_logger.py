@@ -45,7 +45,7 @@ from gaitlog.firmware_sim.algorithms.parameters import EventParameters, OnlinePa
 from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states, vertical_acceleration
 from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
-from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, gpsim_version, missing_tools
+from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
 
 __all__ = ["LOGGER_ASM", "CHUNK_SAMPLES", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
@@ -164,13 +164,13 @@ class _Build:
 
 def _assemble(build_dir: Path, defines: dict[str, int], *, test: bool) -> _Build:
     build_dir.mkdir(parents=True, exist_ok=True)
-    args = ["gpasm", "-p", "p16f877", "-I", str(PIC_DIR), "-I", str(build_dir), "-o",
-            str(build_dir / "logger.hex")]
+    copy_sources(build_dir, LOGGER_ASM)
+    args = ["gpasm", "-p", "p16f877", "-o", "logger.hex"]
     for k, v in defines.items():
         args += ["-D", f"{k}={_hex(v)}"]
     if test:
         args += ["-D", "TEST_BUILD"]
-    proc = subprocess.run([*args, str(LOGGER_ASM)], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([*args, "logger.asm"], capture_output=True, text=True, timeout=120, cwd=build_dir)
     cod = build_dir / "logger.cod"
     if proc.returncode != 0 or not cod.exists():
         errors = [ln for ln in (proc.stdout + proc.stderr).splitlines() if "Error" in ln] or [proc.stderr.strip()]
