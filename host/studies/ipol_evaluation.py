@@ -9,8 +9,10 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    The offline chain converts the codes back to g with the header's calibration (the nominal map). Replay
    interpolates the physical input over lost packets to keep it continuous; every logger sample whose
    instant falls on such an interpolated stretch (on a lost packet, or between two packets one of which was
-   lost) is marked missing for the offline chain, so no offline estimate rests on an invented sample. The
-   on-line algorithm sees every stored code, as on the device.
+   lost) is marked missing for the offline chain, which then treats it as any missing sample
+   (:mod:`gaitlog.host.gait.gaps`: runs up to 0.1 s interpolated on the logger's sample grid, longer ones end a
+   walking bout; per trial, the missing fraction and the longest gap go to the events CSV). The on-line
+   algorithm sees every stored code, as on the device.
 2. *Device = host*: the logger's stored step records are compared with the host's replay of the algorithm
    on the stored codes, flags and header (:func:`gaitlog.host.files.replay.check_records`), byte for byte; a trial
    whose records differ is an error (:class:`HostError` naming the trial and the first record).
@@ -88,6 +90,7 @@ from gaitlog.host.files.ipol import height_m_of, list_trials, read_trial
 from gaitlog.host.files.replay import check_records, online_step_table, run_starts
 from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
 from gaitlog.host.gait.estimators.weinberg import weinberg_length_m
+from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, GapFiller
 from gaitlog.host.gait.k_calibration import KFit, calibrate
 from gaitlog.host.gait.k_prior import (
     PRIOR_DISTANCE_CANDIDATES_M,
@@ -133,10 +136,12 @@ UTURN_RULES = ("exclude", "include")
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
                "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
 #: Per trial and chain (offline, online-fixed): steps in the trial, steps with each event found, M3's filled
-#: steps (no toe-off or heel strike: the bout median), and the events against the foot sensors.
+#: steps (no toe-off or heel strike: the bout median), the events against the foot sensors, and the logger
+#: samples missing between the trial boundaries (fraction, longest run, samples the offline chain interpolated:
+#: :mod:`gaitlog.host.gait.gaps`).
 EVENT_COLUMNS = ("subject", "trial", "calibration_trial", "chain", "steps", "heel_strike_found", "toe_off_found",
                  "m3_filled", "hs_reference", "hs_detected", "hs_matched", "to_reference", "to_detected", "to_matched",
-                 "steps_outside", "hs_reference_outside")
+                 "steps_outside", "hs_reference_outside", "missing_fraction", "longest_gap_s", "gap_samples_filled")
 STEP_COLUMNS = (("subject", "trial", "calibration_trial", "step", "foot_flat_s", "offline_step", "online_fixed_step",
                  "same_events_algorithm", "same_events_arithmetic")
                 + tuple(f"{e.lower()}_{a.replace('-', '_')}_m" for e in ESTIMATORS for a in ARITHMETICS))
@@ -222,6 +227,14 @@ class ReplayedTrial:
         """``(n, 2)`` foot-sensor (toe-off, heel strike) pairs of both feet, JSON packet indices."""
         pairs = list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))
         return np.asarray(pairs, np.float64).reshape(-1, 2)
+
+    def gaps(self) -> GapFiller:
+        """The missing samples between the trial boundaries, as the offline chain treats them
+        (:class:`gaitlog.host.gait.gaps.GapFiller`: fraction, longest gap, samples interpolated)."""
+        lo, hi = (int(round((self.seconds(b) - self.t0_s) * self.sampling_rate_hz))
+                  for b in self.meta["TrialBoundaries"])
+        lo, hi = max(lo, 0), min(hi + 1, self.valid.size)
+        return GapFiller().fill(self.acc_g[lo:hi], self.valid[lo:hi], sampling_rate_hz=self.sampling_rate_hz)
 
     def run_starts(self) -> np.ndarray:
         """Rows where a logging run starts (SESSION_START; every sample of a replayed trial is present)."""
@@ -500,13 +513,16 @@ def _event_row(rt: ReplayedTrial, table: StepTable, chain: str, calibration_tria
     (:data:`EVENT_COLUMNS`)."""
     sec, _ = trial_steps(rt, table, uturn="include")
     hs, to = score_trial_events(rt, table)
+    gaps = rt.gaps()
     return dict(subject=rt.subject, trial=rt.trial, calibration_trial=int(calibration_trial), chain=chain,
                 steps=sec.n_steps, heel_strike_found=int(np.count_nonzero(sec.heel_strike >= 0)),
                 toe_off_found=int(np.count_nonzero(sec.toe_off >= 0)),
                 m3_filled=int(np.count_nonzero(~np.isfinite(sec.length_m["M3"]))),
                 hs_reference=hs.n_reference, hs_detected=hs.n_detected, hs_matched=hs.n_matched,
                 to_reference=to.n_reference, to_detected=to.n_detected, to_matched=to.n_matched,
-                steps_outside=table.n_steps - sec.n_steps, hs_reference_outside=rt.reference_steps_outside())
+                steps_outside=table.n_steps - sec.n_steps, hs_reference_outside=rt.reference_steps_outside(),
+                missing_fraction=round(gaps.missing_fraction_, 4), longest_gap_s=round(gaps.longest_gap_s_, 3),
+                gap_samples_filled=gaps.n_filled_)
 
 
 def score_trial_events(rt: ReplayedTrial, table: StepTable) -> tuple[EventScore, EventScore]:
@@ -916,6 +932,16 @@ def format_events(result: IpolResult) -> str:
                          f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
                          f"{sum(r['m3_filled'] for r in mine)}")
         first = [r for r in rows if r["chain"] == chains[0]]
+        gappy = [r for r in first if r["missing_fraction"] > 0]
+        if gappy:
+            worst = max(first, key=lambda r: r["missing_fraction"])
+            longest = max(first, key=lambda r: r["longest_gap_s"])
+            lines.append(f"missing logger samples between the trial boundaries: {len(gappy)} of {len(first)} trials, "
+                         f"median {100 * float(np.median([r['missing_fraction'] for r in gappy])):.1f} % of those, "
+                         f"at most {100 * worst['missing_fraction']:.1f} % ({worst['subject']}-{worst['trial']}); "
+                         f"longest gap {longest['longest_gap_s']:.2f} s ({longest['subject']}-{longest['trial']}); "
+                         f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: {sum(r['gap_samples_filled'] for r in first)} "
+                         "samples")
         lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
                      f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
                      "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
