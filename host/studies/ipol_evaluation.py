@@ -23,12 +23,14 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    start (the trial starts at the first toe-off; no heel strike can follow it sooner than a swing,
    > 0.25 s) and by ``+0.2 s`` at the end (less than half a step: the detection latency of the last, weak
    heel strike).
-4. *U-turn* (``uturn="exclude"``, the default): the estimators assume straight walking and the paper's
-   sections were timed between lap marks on straight corridor, so steps whose heel-strike lies within
-   ``UTurnBoundaries`` do not contribute to the distance (they still count as steps). The reference
-   distance stays 20 m (10 m out + 10 m back). ``uturn="include"`` sums every step instead.
-   Both the per-subject calibration and the evaluation use the same rule, so K absorbs the part of the
-   20 m walked during the turn; M3, which has no K, is the one the choice affects (see the README numbers).
+4. *U-turn* (``uturn="include"``, the default): the score is what was walked: every step between the trial
+   boundaries counts, the turn's included, against 20 m (10 m out + 10 m back, the turn part of it).
+   ``uturn="exclude"`` leaves the steps whose heel strike lies within ``UTurnBoundaries`` out of the distance
+   (they still count as steps). It was the default; it is not any more because the number of such steps
+   differs from the calibration trial's by 1-2 in most trials and each moves a ratio by 2-2.6 %, and its dev
+   gain (IQR 0.048 against 0.053) was far inside the noise (``docs/topics/accuracy.md``: the gain's interval).
+   Both the per-subject calibration and the evaluation use the same rule, so K absorbs the turn either way;
+   M3, which has no K, reads the turn's short, turned steps as straight ones.
    The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
    height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
    with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b).
@@ -99,7 +101,7 @@ from gaitlog.host.gait.k_prior import (
     population_prior,
 )
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
-from gaitlog.host.studies.compare import match_steps
+from gaitlog.host.studies.compare import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, match_steps, subject_resamples
 from gaitlog.host.studies.tuning import (
     COUNT_CRITERION,
     CRITERION,
@@ -129,6 +131,15 @@ ARITHMETICS = ("offline", "online-float", "online-fixed")
 #: Where a row's K comes from: ``offline`` (the comparison, one K for every arithmetic) or ``own`` (the
 #: on-line algorithm's own K, fitted on its own records: a different K, not a comparison).
 K_FROM = ("offline", "own")
+
+#: Weinberg's exponent, M4's simpler choice (``variant = "m4-quarter"``: K refitted with it, no prior).
+WEINBERG_EXPONENT = 0.25
+
+#: Whether the main rows use K shrunk toward the other subjects' K (the K prior, step 5b). False: its
+#: cross-validated gain in IQR over the first trial's K alone has a 95 % subject-bootstrap interval that includes
+#: zero for M1, M2 and M4 (``docs/topics/accuracy.md``), so the paper's K stays and the prior is a second row
+#: (``variant = "k-prior"``; with True, the rows of the first trial's K alone are ``variant = "no-prior"``).
+K_PRIOR_IN_MAIN = False
 
 #: The two U-turn rules (module notes, step 4); both are reported.
 UTURN_RULES = ("exclude", "include")
@@ -308,7 +319,7 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
                          header, records[crc_ok], float(leg), float(foot))
 
 
-def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "exclude") -> tuple[StepTable, np.ndarray]:
+def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "include") -> tuple[StepTable, np.ndarray]:
     """Steps of the trial section and a mask of those that count for the distance (U-turn rule)."""
     lo, hi = rt.meta["TrialBoundaries"]
     t = table.event_time_s()
@@ -402,7 +413,7 @@ class IpolResult:
     replay_checks: list[dict] = field(default_factory=list)
     step_rows: list[dict] = field(default_factory=list)
     arithmetics: tuple[str, ...] = ARITHMETICS
-    uturn: str = "exclude"
+    uturn: str = "include"
     candidates: list[dict[str, Any]] = field(default_factory=list)
     event_scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]] = field(default_factory=dict)
     loso: LosoChoice = field(default_factory=lambda: LosoChoice({}, {}))
@@ -567,7 +578,7 @@ def _offline(rt: ReplayedTrial, leg: float, foot: float, candidate: dict[str, An
 
 
 def evaluate_folder(
-    folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "exclude",
+    folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "include",
     progress=None, arithmetic: tuple[str, ...] = ARITHMETICS,
 ) -> IpolResult:
     """Run the whole evaluation on an IPOL folder (see the module notes). Library code: no printing.
@@ -654,11 +665,12 @@ def evaluate_folder(
         pooled = []
         for j in range(len(exponents)):
             train = {o: t for o in scorable if o != s and (t := transfer(o, c, j)) is not None}
-            if len(train) < 2:          # no one to shrink toward: K as fitted
+            if len(train) >= 2:
+                priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")[0]
+            if j not in priors or not K_PRIOR_IN_MAIN:   # K as fitted (no one to shrink toward, or no prior)
                 pooled.append([r for _, ratios in train.values() for r in ratios["M4"]])
-                continue
-            priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")[0]
-            pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
+            else:
+                pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
         j, _ = least_spread(pooled)
         res.m4_exponent[s] = float(exponents[j])
         for key, jj in (("main", j), ("online", shipped_j)):
@@ -691,6 +703,7 @@ def evaluate_folder(
             a_leg, a_foot = anatomical_lengths(height_m=DEFAULT_HEIGHT_M)
             assumed = [_offline(rt, a_leg, a_foot, cands[c]) for rt, _ in trials]
             k_assumed = _calibrate_on(rt0, assumed[0], uturn=uturn, leg=a_leg, foot=a_foot, m4_exponent=p4)
+            k_quarter = _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=WEINBERG_EXPONENT)
         except HostError as err:
             res.skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
             continue
@@ -702,7 +715,7 @@ def evaluate_folder(
                 res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
         # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
         cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
-        fits[subject] = dict(k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own,
+        fits[subject] = dict(k=k, k_fitted=k, k_quarter=k_quarter, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own,
                              offs=offs, assumed=assumed, trials=trials, source=source, cv_online=cv_online)
     # 3b. every K shrunk toward the other subjects' (2c; the variants toward the same variant of the others, each
     #     fitted with its own fold's constants, with the d0 of the fold)
@@ -720,7 +733,10 @@ def evaluate_folder(
                 new[name] = population_prior(others, distance_m=priors["main"].distance_m, source=(
                     f"the other subjects' {name.removeprefix('k_')} K (leave-one-out)")).shrink(f[name])
     for subject, new in shrunk.items():
-        fits[subject].update(new)
+        if K_PRIOR_IN_MAIN:
+            fits[subject].update(new)
+        else:                   # the main rows keep the first trial's K; the shrunk one scores the k-prior rows
+            fits[subject]["k_shrunk"] = new["k"]
     # 3c. the rows
     for subject, f in fits.items():
         k, k_online, k_other, k_assumed, own = f["k"], f["k_online"], f["k_other"], f["k_assumed"], f["own"]
@@ -757,9 +773,17 @@ def evaluate_folder(
                 unknown = assumed[i].select(np.ones(assumed[i].n_steps, bool))
                 unknown.length_m = apply_calibration(assumed[i], k_assumed)
                 runs.append(("offline", "offline", unknown, k_assumed, uturn, "assumed-height", "height-unknown", True))
-                alone = offs[i].select(np.ones(offs[i].n_steps, bool))
-                alone.length_m = apply_calibration(offs[i], f["k_fitted"])
-                runs.append(("offline", "offline", alone, f["k_fitted"], uturn, source, "no-prior", True))
+                quarter = offs[i].select(np.ones(offs[i].n_steps, bool))
+                quarter.length_m = apply_calibration(offs[i], f["k_quarter"])
+                runs.append(("offline", "offline", quarter, f["k_quarter"], uturn, source, "m4-quarter", True))
+                if K_PRIOR_IN_MAIN:
+                    alone = offs[i].select(np.ones(offs[i].n_steps, bool))
+                    alone.length_m = apply_calibration(offs[i], f["k_fitted"])
+                    runs.append(("offline", "offline", alone, f["k_fitted"], uturn, source, "no-prior", True))
+                elif "k_shrunk" in f:
+                    prior = offs[i].select(np.ones(offs[i].n_steps, bool))
+                    prior.length_m = apply_calibration(offs[i], f["k_shrunk"])
+                    runs.append(("offline", "offline", prior, f["k_shrunk"], uturn, source, "k-prior", True))
             for a, k_from, table, kk, u, src, variant, cv in runs:
                 res.rows += _score_rows(rt, table, kk, arithmetic=a, k_from=k_from, uturn=u, lengths_source=src,
                                         variant=variant, cross_validated=cv)
@@ -782,13 +806,14 @@ def main_rows(rows: list[dict]) -> list[dict]:
 
 
 def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | None = "offline",
-              variant: str | None = "main") -> list[dict]:
+              variant: str | None = "main", intervals: bool = False) -> list[dict]:
     """Per estimator: n, median, quartiles, IQR, min, max of the ratio; the step count's median |error| (%
     and steps) and median signed error (steps, detected - reference); steps outside K's calibrated range (of
     the steps in the trials).
 
     ``arithmetic`` / ``k_from`` / ``variant`` keep only the rows of that arithmetic / K source / variant
-    (None: every row).
+    (None: every row). ``intervals``: also ``median_ci`` and ``iqr_ci``, 95 % subject-bootstrap intervals
+    (:func:`subject_intervals`).
     """
     if arithmetic is not None:
         rows = [r for r in rows if r.get("arithmetic", "offline") == arithmetic]
@@ -816,7 +841,102 @@ def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | 
                         step_error_median_signed=float(np.median(signed)) if signed.size else float("nan"),
                         steps_outside_k_range=None if any(o is None for o in outside) else int(sum(outside)),
                         steps_total=int(sum(s for s, _ in st))))
+        if intervals:
+            ci = subject_intervals(mine, name)
+            out[-1].update(median_ci=ci["median"][1:], iqr_ci=ci["iqr"][1:])
     return out
+
+
+def subject_groups(rows: list[dict], estimator: str) -> dict[int, np.ndarray]:
+    """``estimator``'s finite ratios of ``rows`` per subject (subject order)."""
+    out: dict[int, list[float]] = {}
+    for r in rows:
+        if r["estimator"] == estimator and math.isfinite(r["ratio"]):
+            out.setdefault(int(r["subject"]), []).append(float(r["ratio"]))
+    return {s: np.asarray(out[s]) for s in sorted(out)}
+
+
+def _median_iqr(x: np.ndarray) -> np.ndarray:
+    q1, med, q3 = np.percentile(x, [25, 50, 75]) if x.size else (math.nan,) * 3
+    return np.array([med, q3 - q1])
+
+
+def _resampled(groups: list[np.ndarray], counts: np.ndarray) -> np.ndarray:
+    """``(resamples, 2)`` median and IQR of the pooled ratios of each subject resample."""
+    return np.array([_median_iqr(np.concatenate([g for g, c in zip(groups, cs, strict=True) for _ in range(c)]))
+                     for cs in counts])
+
+
+def subject_intervals(rows: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
+                      level: float = BOOTSTRAP_LEVEL) -> dict[str, tuple[float, float, float]]:
+    """Median and IQR of ``estimator``'s ratios, each with its percentile-bootstrap interval over subjects
+    (subjects drawn with replacement, a subject's trials kept together): ``{"median": (value, low, high),
+    "iqr": (...)}``."""
+    groups = list(subject_groups(rows, estimator).values())
+    if not groups:
+        return {k: (math.nan,) * 3 for k in ("median", "iqr")}
+    value = _median_iqr(np.concatenate(groups))
+    boot = _resampled(groups, subject_resamples(len(groups), n_resamples=n_resamples, seed=seed))
+    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)], axis=0)
+    return {k: (float(value[j]), float(lo[j]), float(hi[j])) for j, k in enumerate(("median", "iqr"))}
+
+
+def choice_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES,
+                seed: int = 0, level: float = BOOTSTRAP_LEVEL) -> tuple[float, float, float]:
+    """The gain of a rule over the simpler choice: IQR of the ratios with the simple choice minus with the rule
+    (positive: the rule narrows), and its percentile-bootstrap interval over subjects (the same subjects drawn
+    for both; only subjects with ratios under both). The rule is kept only when the interval excludes zero."""
+    a, b = subject_groups(simple, estimator), subject_groups(rule, estimator)
+    subjects = [s for s in a if s in b]
+    if not subjects:
+        return (math.nan,) * 3
+    ga, gb = [a[s] for s in subjects], [b[s] for s in subjects]
+    gain = _median_iqr(np.concatenate(ga))[1] - _median_iqr(np.concatenate(gb))[1]
+    counts = subject_resamples(len(subjects), n_resamples=n_resamples, seed=seed)
+    boot = _resampled(ga, counts)[:, 1] - _resampled(gb, counts)[:, 1]
+    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
+    return float(gain), float(lo), float(hi)
+
+
+#: The choices scored by the rule (:func:`choice_gains`): name, the simple choice's rows, the rule's rows (offline
+#: chain), the estimators it acts on.
+CHOICES = (
+    ("K prior (K shrunk toward the other subjects' K) against the first trial's K alone", "no-prior", "main",
+     ("M1", "M2", "M4")),
+    ("K prior (K shrunk toward the other subjects' K) against the first trial's K alone", "main", "k-prior",
+     ("M1", "M2", "M4")),
+    ("M4's exponent chosen per fold against Weinberg's 1/4", "m4-quarter", "main", ("M4",)),
+    ("U-turn steps left out of the distance against every step summed", "main", "uturn-exclude", ESTIMATORS),
+)
+
+
+def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
+    """Each rule of :data:`CHOICES` against its simpler choice, per estimator: the cross-validated gain in IQR
+    with its 95 % subject-bootstrap interval (:func:`choice_gain`) and whether the rule is kept (the interval
+    excludes zero on the side of a gain). Empty for a choice whose rows are absent (e.g. the U-turn rule when
+    the main rows exclude the turn)."""
+    off = [r for r in result.rows if r["arithmetic"] == "offline" and r["k_from"] == "offline"]
+    out = []
+    for label, simple, rule, estimators in CHOICES:
+        a = [r for r in off if r["variant"] == simple]
+        b = [r for r in off if r["variant"] == rule]
+        if not a or not b:
+            continue
+        for e in estimators:
+            gain, lo, hi = choice_gain(a, b, e)
+            out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+    return out
+
+
+def format_choices(gains: list[dict[str, Any]]) -> str:
+    """:func:`choice_gains` as text."""
+    lines = ["choices against the simpler one (gain = IQR simple - IQR with the rule, cross-validated, 95 % "
+             "subject-bootstrap interval; a rule is kept only when the interval excludes zero):"]
+    for label in dict.fromkeys(g["choice"] for g in gains):
+        lines.append(f"  {label}: " + ", ".join(
+            f"{g['estimator']} {g['gain']:+.3f} [{g['low']:+.3f}, {g['high']:+.3f}] "
+            f"{'kept' if g['kept'] else 'not kept'}" for g in gains if g["choice"] == label))
+    return "\n".join(lines)
 
 
 def event_figures(result: IpolResult) -> dict[str, dict[str, Any]]:
@@ -885,7 +1005,8 @@ def format_tuning(result: IpolResult) -> str:
     every_default = (all(c == 0 for c in loso.values())
                      and all(math.isclose(v, M4_EXPONENT) for v in result.m4_exponent.values()))
     lines.append("cross-validated: every offline-chain figure (each subject scored with the constants chosen on "
-                 "the other subjects; K per subject from its first trial, shrunk toward the other subjects' K, scored "
+                 "the other subjects; K per subject from its first trial" + (
+                     ", shrunk toward the other subjects' K," if K_PRIOR_IN_MAIN else "") + " scored "
                  "on its other trials); the on-line "
                  "chains run the shipped defaults: "
                  + ("every fold chose them, so their figures are cross-validated too" if every_default else

@@ -98,9 +98,9 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
 CRITERION = (f"heel strikes within {1e3 * MATCH_TOLERANCE_S:.0f} ms of the foot sensors, F1 pooled over the "
              "training subjects' trials (ties: smaller median |error|)")
 #: The criterion of the ``"k-transfer"`` parameters.
-K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial (shrunk toward the "
-               "other training subjects' K, the prior chosen for the candidate) scored on its other trials, pooled "
-               "over the training subjects (ties: the earlier candidate)")
+K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial as the main rows use "
+               "it (shrunk toward the other training subjects' K only when the K prior is in the main rows) scored on "
+               "its other trials, pooled over the training subjects (ties: the earlier candidate)")
 
 
 #: The criterion of the K prior's weight (:func:`least_error`; :mod:`gaitlog.host.gait.k_prior`).
