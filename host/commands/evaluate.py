@@ -194,6 +194,11 @@ def run(args: argparse.Namespace) -> int:
         _print_table("arithmetic = offline, M4 with Weinberg's range^(1/4) (K refitted with it; M4 row only)",
                      [x for x in summarise(res.rows, arithmetic="offline", variant="m4-quarter", intervals=True)
                       if x["estimator"] == "M4"])
+        _print_table("baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
+                     "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "
+                     "M4 range^(1/4), K = 20 m / first trial's sum)",
+                     [x for x in summarise(res.rows, arithmetic="offline", variant="baseline", intervals=True)
+                      if x["estimator"] in ("M2", "M4")])
         if any(r["variant"] == "no-prior" for r in res.rows):
             _print_table("arithmetic = offline, NO K prior: K from trial 1 alone (the paper's K)",
                          summarise(res.rows, arithmetic="offline", variant="no-prior", intervals=True))

@@ -101,6 +101,7 @@ from gaitlog.host.gait.k_prior import (
     population_prior,
 )
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
+from gaitlog.host.gait.recipe import RecipeBaseline
 from gaitlog.host.studies.compare import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, match_steps, subject_resamples
 from gaitlog.host.studies.tuning import (
     COUNT_CRITERION,
@@ -787,9 +788,34 @@ def evaluate_folder(
             for a, k_from, table, kk, u, src, variant, cv in runs:
                 res.rows += _score_rows(rt, table, kk, arithmetic=a, k_from=k_from, uturn=u, lengths_source=src,
                                         variant=variant, cross_validated=cv)
+        if "offline" in arithmetic:
+            res.rows += baseline_rows([rt for rt, _ in trials], lengths[subject][0], source)
     if not res.rows:
         raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(res.skipped) + ")")
     return res
+
+
+def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_source: str) -> list[dict]:
+    """The recipe (:class:`gaitlog.host.gait.recipe.RecipeBaseline`) scored as the chain is: its steps whose end
+    lies in the trial section (step 3's window), summed; K per estimator = 20 m over the first trial's sum; one
+    :data:`CSV_COLUMNS` row per other trial and estimator (``variant = "baseline"``). Empty when the first trial
+    has no step."""
+    sums, steps = [], []
+    for rt in trials:
+        rec = RecipeBaseline(leg_length_m=leg_length_m).estimate(rt.acc_g, rt.valid, sampling_rate_hz=rt.sampling_rate_hz)
+        lo, hi = rt.meta["TrialBoundaries"]
+        t = rt.t0_s + rec.step_end_ / rt.sampling_rate_hz
+        inside = (t >= rt.seconds(lo) + SECTION_START_DELAY_S) & (t <= rt.seconds(hi) + SECTION_END_TOLERANCE_S)
+        sums.append({e: float(np.nansum(v[inside])) for e, v in rec.length_m_.items()})
+        steps.append(int(np.count_nonzero(inside)))
+    if not all(sums[0][e] > 0 for e in sums[0]):
+        return []
+    k = {e: IPOL_DISTANCE_M / v for e, v in sums[0].items()}
+    return [dict(subject=rt.subject, trial=rt.trial, estimator=e, arithmetic="offline", k_from="offline",
+                 uturn="include", lengths_source=lengths_source, variant="baseline", distance_m=k[e] * d[e],
+                 ratio=k[e] * d[e] / IPOL_DISTANCE_M, steps=n, reference_steps=rt.reference_steps(),
+                 steps_outside_k_range=None, cross_validated=1)
+            for rt, d, n in zip(trials[1:], sums[1:], steps[1:], strict=True) for e in d]
 
 
 def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str]) -> StepTable:
@@ -906,6 +932,7 @@ CHOICES = (
     ("K prior (K shrunk toward the other subjects' K) against the first trial's K alone", "main", "k-prior",
      ("M1", "M2", "M4")),
     ("M4's exponent chosen per fold against Weinberg's 1/4", "m4-quarter", "main", ("M4",)),
+    ("the shipped chain against the recipe (the baseline)", "baseline", "main", ("M2", "M4")),
     ("U-turn steps left out of the distance against every step summed", "main", "uturn-exclude", ESTIMATORS),
 )
 

@@ -107,8 +107,10 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "uturn-exclude", "exclude", "subject-height"),
                      ("offline", "offline", "height-unknown", "include", "assumed-height"),
                      ("offline", "offline", "m4-quarter", "include", "subject-height"),
-                     ("offline", "offline", "k-prior", "include", "subject-height")}
-    assert len(rows) == 8 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 8 kinds
+                     ("offline", "offline", "k-prior", "include", "subject-height"),
+                     ("offline", "offline", "baseline", "include", "subject-height")}
+    # 52 trials - 9 calibration trials, 5 estimators, 8 kinds; the baseline's M2 and M4
+    assert len(rows) == 8 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -441,3 +443,22 @@ def test_steps_outside_the_calibrated_range_are_counted(ipol) -> None:
 
 def test_nothing_saturates(ipol) -> None:
     assert "fixed-point saturation/wrap: none" in ipol.text
+
+
+def test_baseline_row_and_the_choices_are_printed(ipol) -> None:
+    """The recipe (gaitlog.host.gait.recipe) is scored beside the chain (measured: M2 1.006, IQR 0.055; M4 1.020,
+    IQR 0.078), and each choice's gain over the simpler one is printed with its interval: on these nine subjects
+    none excludes zero, the shipped chain's over the recipe included (M2 +0.002 [-0.025, +0.029])."""
+    for e, (med, q) in {"M2": (1.006, 0.055), "M4": (1.020, 0.078)}.items():
+        r = ratios(ipol.rows, e, variant="baseline")
+        assert r.size == 43
+        assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
+    assert "baseline, the recipe" in ipol.text
+    choices = ipol.text.split("choices against the simpler one")[1].split("steps|err|")[0]
+    for label in ("K prior", "M4's exponent chosen per fold", "the shipped chain against the recipe",
+                  "U-turn steps left out"):
+        line = next(ln for ln in choices.splitlines() if label in ln)
+        for m in re.finditer(r"(M\d) ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] (kept|not kept)", line):
+            gain, lo, hi = map(float, m.group(2, 3, 4))
+            assert lo <= gain <= hi and (m.group(5) == "kept") == (lo > 0), line
+        assert "not kept" in line
