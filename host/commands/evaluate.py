@@ -121,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
         done_figures,
         evaluate_folder,
         choice_gains,
+        count_gains,
         format_choices,
         format_done,
         format_events,
@@ -207,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
                          "(not kept: its gain's interval includes zero)",
                          summarise(res.rows, arithmetic="offline", variant="k-prior", intervals=True))
     if "offline" in arith:
-        print(format_choices(choice_gains(res)))
+        print(format_choices(choice_gains(res) + count_gains(res)))
     print("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of detected"
           " - reference; outside K: steps outside the range K was calibrated on (duration, the estimator's input "
           "or length), of the steps in the trials")
