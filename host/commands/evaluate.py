@@ -51,8 +51,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
-                        help="ipol: steps inside UTurnBoundaries: summed (default: the 20 m walked include the turn) or "
-                        "left out of the distance, in the main tables (the offline chain is reported with both)")
+                        help="ipol: steps inside UTurnBoundaries: summed (default: the 20 m walked include the "
+                        "turn) or left out of the distance, in the main tables (the offline chain is reported with both)")
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
@@ -172,8 +172,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
-          "trial 1 with the offline chain, for every arithmetic" + (
-              " and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "") + "; lengths from each subject's height ("
+          "trial 1 with the offline chain, for every arithmetic"
+          + (" and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "")
+          + "; lengths from each subject's height ("
           + ", ".join(f"{n} trials {src}" for src, n in _count(r["lengths_source"] for r in main_rows(res.rows)
                                                                  if r["estimator"] == "M1" and r["arithmetic"] == arith[0]
                                                                  and r["k_from"] == "offline").items())

@@ -49,12 +49,19 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    applies it in its own arithmetic. M3 is never calibrated. Separately, and labelled so (``k_from =
    "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
    its own uncalibrated records of the calibration trial -- a different K, not a comparison.
-5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`): every K above is shrunk toward the median K of the *other* subjects
+5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`), only when :data:`K_PRIOR_IN_MAIN` (it is not: its gain's interval
+   includes zero, step 5c; the k-prior rows shrink the main K alone): every K above is shrunk toward the median
+   K of the *other* subjects
    (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` = 20 m, ``d0`` per
    estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
    the variants (the other U-turn rule, the height unknown, the on-line chain's own K) toward the same
    variant of the other subjects with the fold's ``d0``. The prior learned on every subject is printed
    (:attr:`IpolResult.prior_all`; shipped as :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
+5c. *Baseline and choices*: the recipe (:class:`gaitlog.host.gait.recipe.RecipeBaseline`) is scored the same way
+   (rows ``variant = "baseline"``, :func:`baseline_rows`); every median and IQR of the tables carries a 95 %
+   subject-bootstrap interval (:func:`subject_intervals`); each rule of :data:`CHOICES` is scored against its
+   simpler choice (:func:`choice_gains`, :func:`count_gains`) and kept only when its gain's interval excludes
+   zero.
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
@@ -717,7 +724,8 @@ def evaluate_folder(
                 res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
         # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
         cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
-        fits[subject] = dict(k=k, k_fitted=k, k_quarter=k_quarter, k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own,
+        fits[subject] = dict(k=k, k_fitted=k, k_quarter=k_quarter,
+                             k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own,
                              offs=offs, assumed=assumed, trials=trials, source=source, cv_online=cv_online)
     # 3b. every K shrunk toward the other subjects' (2c; the variants toward the same variant of the others, each
     #     fitted with its own fold's constants, with the d0 of the fold)
@@ -803,7 +811,8 @@ def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_sour
     has no step."""
     sums, steps = [], []
     for rt in trials:
-        rec = RecipeBaseline(leg_length_m=leg_length_m).estimate(rt.acc_g, rt.valid, sampling_rate_hz=rt.sampling_rate_hz)
+        rec = RecipeBaseline(leg_length_m=leg_length_m).estimate(rt.acc_g, rt.valid,
+                                                                 sampling_rate_hz=rt.sampling_rate_hz)
         lo, hi = rt.meta["TrialBoundaries"]
         t = rt.t0_s + rec.step_end_ / rt.sampling_rate_hz
         inside = (t >= rt.seconds(lo) + SECTION_START_DELAY_S) & (t <= rt.seconds(hi) + SECTION_END_TOLERANCE_S)
@@ -1117,8 +1126,8 @@ def format_events(result: IpolResult) -> str:
                          f"median {100 * float(np.median([r['missing_fraction'] for r in gappy])):.1f} % of those, "
                          f"at most {100 * worst['missing_fraction']:.1f} % ({worst['subject']}-{worst['trial']}); "
                          f"longest gap {longest['longest_gap_s']:.2f} s ({longest['subject']}-{longest['trial']}); "
-                         f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: {sum(r['gap_samples_filled'] for r in first)} "
-                         "samples")
+                         f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: "
+                         f"{sum(r['gap_samples_filled'] for r in first)} samples")
         lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
                      f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
                      "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"

@@ -56,7 +56,8 @@ from gaitlog.host.gait.k_prior import LOWER_BACK_PRIOR, PRIOR_DISTANCE_CANDIDATE
 from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
 from gaitlog.host.studies.compare import match_events
 
-__all__ = ["COUNT_CRITERION", "CRITERION", "SIMPLER_COUNT_CHOICE", "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
+__all__ = ["COUNT_CRITERION", "CRITERION", "SIMPLER_COUNT_CHOICE",
+           "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
            "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
            "TunedParameter", "candidates", "choose_loso", "detector_for", "k_parameters",
            "least_error", "least_spread", "score_events"]

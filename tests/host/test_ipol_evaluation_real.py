@@ -2,20 +2,20 @@
 the logger's on-line step algorithm on; the offline chain and the on-line algorithm in float and in fixed point
 with ONE K per subject (fitted on trial 1 with the offline chain).
 
-``gaitlog evaluate ipol`` runs once (module fixture, ~5 s); every figure is computed here from the CSVs it
-writes (not by the code under test) and pinned near what is measured. M5's interquartile range misses
-issue 4's 0.10 with the offline chain (0.149: a strict expected failure): with K fitted on one 20 m trial at
-one speed, even the *reference* step events give M5 an IQR of 0.109 on these trials (walk-ratio model; 0.119
-for a constant step length), so no detector can reach 0.10. Issue 12's IQR <= 0.06 for calibrated M2 and M4,
-with K shrunk toward the other subjects' K (the K prior), is met by M2 (0.048) and M4 (0.0585).
+``gaitlog evaluate ipol`` runs once (module fixture, ~15 s of CPU; a second, offline-only run with ``--uturn
+exclude`` for the shipped prior); every figure is computed here from the CSVs it writes (not by the code under
+test) and pinned near what is measured. Every step between the trial boundaries is summed (U-turn included), K
+is the first trial's alone (the K prior's gain has a 95 % subject-bootstrap interval that includes zero), short
+gaps are interpolated (``gaitlog.host.gait.gaps``). M5's interquartile range misses issue 4's 0.10 (strict
+expected failure): with K fitted on one 20 m trial at one speed, even the *reference* step events give M5 an IQR
+of 0.109. Issue 12's M4 IQR <= 0.06, best IQR <= 0.05 and M3 within 1 +- 0.05 are strict expected failures
+under these rules (their reasons say by how much).
 
-The constants chosen on these trials (the heel-strike rule, ``hs_delay_s``, the stop rule's ``stop_prominence_m_s2`` and M4's exponent,
-:mod:`gaitlog.host.studies.tuning`) are chosen leave-one-subject-out by the command: every offline-chain figure is
-cross-validated (measured: the defaults in 8 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out, M4's
-exponent 1/2 in 9 of 9), the on-line chains run the shipped defaults (cross-validated for the other 8 subjects). The on-line algorithm's gravity time constant comes from a
-ripple rule, ``firmware_sim/algorithms/parameters.py``; K is fitted per subject on trial 1 and scored on the
-others, never on the trial it scores, and shrunk toward the median K of the other subjects with a weight chosen
-on them.
+The constants chosen on these trials (:mod:`gaitlog.host.studies.tuning`: the heel-strike rule, ``hs_delay_s``,
+the stop rule, ``prominence_fraction``, M4's exponent) are chosen leave-one-subject-out by the command: every
+offline-chain figure is cross-validated; the on-line chains run the shipped defaults (cross-validated only for
+the subject whose fold chose them). K is fitted per subject on trial 1 and scored on the others, never on the
+trial it scores.
 """
 
 from __future__ import annotations
@@ -294,7 +294,8 @@ def test_issue12_best_calibrated_iqr(ipol) -> None:
     assert min(iqr(ratios(ipol.rows, e)) for e in ("M1", "M2", "M4", "M5")) <= 0.05
 
 
-@pytest.mark.xfail(strict=True, reason="M3 without K reads the U-turn's short, turned steps as straight ones: with every "
+@pytest.mark.xfail(strict=True, reason="M3 without K reads the U-turn's short, turned steps as straight ones: with "
+                   "every "
                    "step summed, median 1.088 (offline), 1.089 (on-line fixed); with the turn left out (second row) "
                    "1.023, IQR 0.062")
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
@@ -399,7 +400,8 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
     n = sum(int(r["steps"]) for r in ev)
     to = sum(int(r["toe_off_found"]) for r in ev)
     filled = sum(int(r["m3_filled"]) for r in ev)
-    assert n == pytest.approx(1784, abs=20) and to == pytest.approx(1759, abs=20) and filled == pytest.approx(73, abs=15)
+    assert n == pytest.approx(1784, abs=20) and to == pytest.approx(1759, abs=20)
+    assert filled == pytest.approx(73, abs=15)
     assert f"offline, all trials: {n} steps, heel strike found on" in ipol.text
     assert f"toe-off on {to}, M3 filled on {filled}" in ipol.text
     # the rest of the recordings (not scored): measured offline 204, on-line fixed 195, 67 foot-sensor heel strikes
