@@ -51,8 +51,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_logger_rate_option(parser)
     parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
-                        help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed, in the "
-                        "main tables (the offline chain is reported with both)")
+                        help="ipol: steps inside UTurnBoundaries: summed (default: the 20 m walked include the "
+                        "turn) or left out of the distance, in the main tables (the offline chain is reported with both)")
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
@@ -116,9 +116,13 @@ def run(args: argparse.Namespace) -> int:
         ARITHMETICS,
         CSV_COLUMNS,
         EVENT_COLUMNS,
+        K_PRIOR_IN_MAIN,
         STEP_COLUMNS,
         done_figures,
         evaluate_folder,
+        choice_gains,
+        count_gains,
+        format_choices,
         format_done,
         format_events,
         format_tuning,
@@ -130,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     args.logger_rate = logger_rate_hz(args)
-    args.uturn = args.uturn or "exclude"
+    args.uturn = args.uturn or "include"
     args.arithmetic = args.arithmetic or "all"
     out = Path(args.out)
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
@@ -168,8 +172,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
           f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
-          "trial 1 with the offline chain and shrunk toward the other subjects' K (the K prior), for every "
-          "arithmetic; lengths from each subject's height ("
+          "trial 1 with the offline chain, for every arithmetic"
+          + (" and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "")
+          + "; lengths from each subject's height ("
           + ", ".join(f"{n} trials {src}" for src, n in _count(r["lengths_source"] for r in main_rows(res.rows)
                                                                  if r["estimator"] == "M1" and r["arithmetic"] == arith[0]
                                                                  and r["k_from"] == "offline").items())
@@ -180,16 +185,31 @@ def run(args: argparse.Namespace) -> int:
         tables.append(("online-fixed", "own", "on-line fixed with its OWN K (fitted on its own records of trial 1; "
                        "the device as it would be used -- a different K, not a comparison)"))
     for a, k_from, title in tables:
-        _print_table(title, summarise(res.rows, arithmetic=a, k_from=k_from))
+        _print_table(title, summarise(res.rows, arithmetic=a, k_from=k_from, intervals=True))
     if "offline" in arith:
         other = next(u for u in ("exclude", "include") if u != args.uturn)
         _print_table(f"arithmetic = offline, U-turn {other}d (the other rule; K fitted with it)",
-                     summarise(res.rows, arithmetic="offline", variant=f"uturn-{other}"))
+                     summarise(res.rows, arithmetic="offline", variant=f"uturn-{other}", intervals=True))
         _print_table("arithmetic = offline, height UNKNOWN: a 1.70 m adult assumed for every subject (K fitted with "
                      "those lengths; M3 has no K to absorb them)",
-                     summarise(res.rows, arithmetic="offline", variant="height-unknown"))
-        _print_table("arithmetic = offline, NO K prior: K from trial 1 alone (the paper's K)",
-                     summarise(res.rows, arithmetic="offline", variant="no-prior"))
+                     summarise(res.rows, arithmetic="offline", variant="height-unknown", intervals=True))
+        _print_table("arithmetic = offline, M4 with Weinberg's range^(1/4) (K refitted with it; M4 row only)",
+                     [x for x in summarise(res.rows, arithmetic="offline", variant="m4-quarter", intervals=True)
+                      if x["estimator"] == "M4"])
+        _print_table("baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
+                     "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "
+                     "M4 range^(1/4), K = 20 m / first trial's sum)",
+                     [x for x in summarise(res.rows, arithmetic="offline", variant="baseline", intervals=True)
+                      if x["estimator"] in ("M2", "M4")])
+        if any(r["variant"] == "no-prior" for r in res.rows):
+            _print_table("arithmetic = offline, NO K prior: K from trial 1 alone (the paper's K)",
+                         summarise(res.rows, arithmetic="offline", variant="no-prior", intervals=True))
+        if any(r["variant"] == "k-prior" for r in res.rows):
+            _print_table("arithmetic = offline, with the K prior: K from trial 1 shrunk toward the other subjects' K "
+                         "(not kept: its gain's interval includes zero)",
+                         summarise(res.rows, arithmetic="offline", variant="k-prior", intervals=True))
+    if "offline" in arith:
+        print(format_choices(choice_gains(res) + count_gains(res)))
     print("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of detected"
           " - reference; outside K: steps outside the range K was calibrated on (duration, the estimator's input "
           "or length), of the steps in the trials")
@@ -216,17 +236,22 @@ def _count(values) -> dict:
     return out
 
 
+def _ci(interval) -> str:
+    return "" if interval is None else f"[{interval[0]:.3f}, {interval[1]:.3f}]"
+
+
 def _print_table(title: str, summary: list[dict]) -> None:
     """One summary table (:func:`gaitlog.host.studies.ipol_evaluation.summarise`)."""
     print(title)
     print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}"
-          f"{'steps|err|%':>13}{'|err|':>6}{'signed':>7}{'outside K':>14}")
+          f"{'median 95% CI':>16}{'IQR 95% CI':>16}{'steps|err|%':>13}{'|err|':>6}{'signed':>7}{'outside K':>14}")
     for s in summary:
         if not s.get("n"):
             print(f"{s['estimator']:<10}{0:>4}")
             continue
         out_k = "-" if s["steps_outside_k_range"] is None else f"{s['steps_outside_k_range']}/{s['steps_total']}"
         print(f"{s['estimator']:<10}{s['n']:>4}{s['median']:>8.3f}{s['q1']:>8.3f}{s['q3']:>8.3f}{s['iqr']:>7.3f}"
-              f"{s['min']:>8.3f}{s['max']:>8.3f}{s['step_error_median_pct']:>13.2f}"
+              f"{s['min']:>8.3f}{s['max']:>8.3f}{_ci(s.get('median_ci')):>16}{_ci(s.get('iqr_ci')):>16}"
+              f"{s['step_error_median_pct']:>13.2f}"
               f"{s['step_error_median_abs']:>6.1f}{s['step_error_median_signed']:>+7.1f}{out_k:>14}")
 

@@ -61,6 +61,7 @@ from gaitlog.firmware_sim.algorithms.parameters import (
     prominence_threshold,
     samples,
 )
+from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S
 from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
 from gaitlog.host.gait.peaks import find_peaks, keep_by_distance
 
@@ -97,7 +98,7 @@ class GaitEventDetector:
         ``(m,)`` bout number of each foot-flat.
     """
 
-    def __init__(self, parameters: EventParameters | None = None, *, max_gap_s: float = 0.1,
+    def __init__(self, parameters: EventParameters | None = None, *, max_gap_s: float = MAX_INTERPOLATED_GAP_S,
                  min_weight: float = 0.25) -> None:
         self.parameters = parameters if parameters is not None else EventParameters()
         self.max_gap_s = max_gap_s

@@ -23,7 +23,8 @@ grows the fitted K takes over (40 m of calibration weigh twice as much as 20 m).
 
 *Where the numbers come from.* :data:`LOWER_BACK_PRIOR` was learned on the nine IPOL lower-back subjects
 (one K each, from their first trial, replayed through the emulated logger at 50 Hz with 10 bits, offline
-chain, U-turn excluded); ``d0`` per estimator is the value ``gaitlog evaluate ipol`` chooses on all of them
+chain with short gaps interpolated, U-turn excluded: a straight-walking K, ``gaitlog evaluate ipol --uturn exclude``);
+``d0`` per estimator is the value it chooses on all of them
 (:data:`gaitlog.host.studies.tuning.K_CRITERION`). ``gaitlog evaluate ipol`` never scores a subject with it: each
 subject's K is shrunk toward the median of the *other* subjects, with a ``d0`` chosen on the other subjects
 (leave-one-subject-out, nested). It is a prior for a sensor at the lower back (L3-L5); a logger worn
@@ -160,7 +161,7 @@ def population_prior(fits: Sequence[KFit], *, distance_m: Mapping[str, float] | 
 
 #: The prior learned on the nine IPOL lower-back subjects (module notes; reproduced by ``gaitlog evaluate ipol``,
 #: which prints it, and pinned by ``tests/host/test_ipol_evaluation_real.py``).
-LOWER_BACK_PRIOR = KPrior(k_m1=1.0866, k_m2=1.3380, k_m4_per_leg=0.3288, m4_exponent=M4_EXPONENT,
+LOWER_BACK_PRIOR = KPrior(k_m1=1.0866, k_m2=1.3380, k_m4_per_leg=0.3326, m4_exponent=M4_EXPONENT,
                           distance_m={"M1": 40.0, "M2": 30.0, "M4": 7.5},
                           source="IPOL lower back, 9 subjects, first trial each, 50 Hz, 10 bits", n_subjects=9)
 #: The priors a user can name (``gaitlog calibrate-k --prior``).

@@ -14,8 +14,11 @@ Steps of the chain (:class:`StepPipeline`):
 
 Distance (:meth:`StepTable.distance_m`): the sum of the step lengths; a step whose length is NaN (no window,
 a long gap, an impossible excursion) counts with the median length of the measured steps of its bout, and
-the number of such steps is reported (``n_filled``). Samples marked invalid are never used by any filter or
-integral (nothing is interpolated across a gap).
+the number of such steps is reported (``n_filled``).
+
+Missing samples (:mod:`gaitlog.host.gait.gaps`, step 0 of the chain): a run of at most
+:data:`~gaitlog.host.gait.gaps.MAX_INTERPOLATED_GAP_S` (0.1 s) is interpolated linearly on the sample grid; a
+longer run stays missing, is used by no filter or integral, and ends the walking bout (step 3).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from gaitlog.host.gait.estimators.pendulum import PendulumDriftM2, PendulumM1
 from gaitlog.host.gait.estimators.two_phase import TwoPhasePendulumM3
 from gaitlog.host.gait.estimators.weinberg import WeinbergM4, weinberg_length_m
 from gaitlog.host.gait.events import GaitEventDetector
+from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, GapFiller
 from gaitlog.host.gait.integration import step_samples
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -53,9 +57,13 @@ class StepPipeline:
         Event detector (default parameters when None).
     gravity_window_s
         Window of the moving-mean gravity estimate.
+    max_fill_s
+        Longest run of missing samples interpolated before everything else (:mod:`gaitlog.host.gait.gaps`).
 
     Attributes
     ----------
+    gaps_
+        The fitted :class:`~gaitlog.host.gait.gaps.GapFiller` (missing fraction, longest gap, samples filled).
     axes_, events_, steps_
         :class:`~gaitlog.host.gait.axes.BodyAxes`, the fitted :class:`~gaitlog.host.gait.events.GaitEventDetector`,
         the :class:`StepTable`.
@@ -84,12 +92,14 @@ class StepPipeline:
         calibration: KFit | None = None,
         detector: GaitEventDetector | None = None,
         gravity_window_s: float = 4.0,
+        max_fill_s: float = MAX_INTERPOLATED_GAP_S,
     ) -> None:
         self.leg_length_m = leg_length_m
         self.foot_length_m = foot_length_m
         self.calibration = calibration
         self.detector = detector
         self.gravity_window_s = gravity_window_s
+        self.max_fill_s = max_fill_s
 
     def __repr__(self) -> str:
         k = "with K" if self.calibration is not None else "raw (no K)"
@@ -109,6 +119,9 @@ class StepPipeline:
             raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
         if valid is not None and np.shape(valid) != (acc.shape[0],):
             raise ValueError(f"valid must have shape ({acc.shape[0]},), got {np.shape(valid)}")
+        self.gaps_ = GapFiller(max_gap_s=self.max_fill_s).fill(
+            acc, np.ones(acc.shape[0], bool) if valid is None else valid, sampling_rate_hz=sampling_rate_hz)
+        acc, valid = self.gaps_.acc_, self.gaps_.valid_
         self.axes_: BodyAxes = body_axes(acc, sampling_rate_hz=sampling_rate_hz, valid=valid,
                                          gravity_window_s=self.gravity_window_s)
         ok = self.axes_.valid

@@ -23,6 +23,9 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   :data:`K_PRIOR_CRITERION` (:func:`least_error`; ``gaitlog.host.studies.ipol_evaluation.choose_prior``).
 * ``stop_prominence_m_s2``: the stop rule's prominence (a bout's weak last step, :mod:`gaitlog.host.gait.events`
   notes 5; 0: off), chosen by the step count (:data:`COUNT_CRITERION`).
+* ``prominence_fraction``: the foot-flat threshold's share of the walk's recent step amplitude
+  (:mod:`gaitlog.firmware_sim.algorithms.parameters` notes; 0: the floor alone), chosen by the step count. It was
+  chosen on these recordings once (0.25 of 0.2, 0.25, 0.3) and is now chosen inside the folds like the others.
 
 A parameter whose name is a field of :class:`~gaitlog.firmware_sim.algorithms.parameters.EventParameters` needs
 nothing else: add a :class:`TunedParameter` and it is searched (the grid is the product of the candidates).
@@ -53,7 +56,8 @@ from gaitlog.host.gait.k_prior import LOWER_BACK_PRIOR, PRIOR_DISTANCE_CANDIDATE
 from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
 from gaitlog.host.studies.compare import match_events
 
-__all__ = ["COUNT_CRITERION", "CRITERION", "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
+__all__ = ["COUNT_CRITERION", "CRITERION", "SIMPLER_COUNT_CHOICE",
+           "K_CRITERION", "K_PRIOR_CRITERION", "MATCH_TOLERANCE_S",
            "TIMING_TOLERANCE_S", "TUNED_PARAMETERS", "EventScore", "LosoChoice", "SteepestRiseDetector",
            "TunedParameter", "candidates", "choose_loso", "detector_for", "k_parameters",
            "least_error", "least_spread", "score_events"]
@@ -92,15 +96,22 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
     TunedParameter("stop_prominence_m_s2", (0.0, 0.2, 0.3, 0.4), EventParameters().stop_prominence_m_s2,
                    "EventParameters.stop_prominence_m_s2 (a bout's weak last step), both chains",
                    criterion="step count"),
+    TunedParameter("prominence_fraction", (0.25, 0.2, 0.3, 0.0), EventParameters().prominence_fraction,
+                   "EventParameters.prominence_fraction (the foot-flat threshold's share of the recent step "
+                   "amplitude; 0: the floor alone), both chains", criterion="step count"),
 )
+
+#: The simpler choice of each step-counting constant (the rule off), which its chosen value must beat
+#: (``gaitlog.host.studies.ipol_evaluation.count_gains``).
+SIMPLER_COUNT_CHOICE = {"stop_prominence_m_s2": 0.0, "prominence_fraction": 0.0}
 
 #: The selection criterion, in words (printed by ``gaitlog evaluate ipol``).
 CRITERION = (f"heel strikes within {1e3 * MATCH_TOLERANCE_S:.0f} ms of the foot sensors, F1 pooled over the "
              "training subjects' trials (ties: smaller median |error|)")
 #: The criterion of the ``"k-transfer"`` parameters.
-K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial (shrunk toward the "
-               "other training subjects' K, the prior chosen for the candidate) scored on its other trials, pooled "
-               "over the training subjects (ties: the earlier candidate)")
+K_CRITERION = ("IQR of the calibrated distance ratio, K from each training subject's first trial as the main rows use "
+               "it (shrunk toward the other training subjects' K only when the K prior is in the main rows) scored on "
+               "its other trials, pooled over the training subjects (ties: the earlier candidate)")
 
 
 #: The criterion of the K prior's weight (:func:`least_error`; :mod:`gaitlog.host.gait.k_prior`).
@@ -131,7 +142,7 @@ def candidates(parameters: Sequence[TunedParameter] = TUNED_PARAMETERS) -> list[
     The :func:`k_parameters` are not part of the grid (:func:`least_spread`, :func:`least_error`).
 
     >>> len(candidates()), candidates()[0]
-    (24, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2})
+    (96, {'heel_strike_rule': 'impact', 'hs_delay_s': 0.04, 'stop_prominence_m_s2': 0.2, 'prominence_fraction': 0.25})
     """
     parameters = [p for p in parameters if p not in k_parameters(parameters)]
     default = {p.name: p.default for p in parameters}

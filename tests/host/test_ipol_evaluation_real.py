@@ -2,20 +2,20 @@
 the logger's on-line step algorithm on; the offline chain and the on-line algorithm in float and in fixed point
 with ONE K per subject (fitted on trial 1 with the offline chain).
 
-``gaitlog evaluate ipol`` runs once (module fixture, ~5 s); every figure is computed here from the CSVs it
-writes (not by the code under test) and pinned near what is measured. M5's interquartile range misses
-issue 4's 0.10 with the offline chain (0.149: a strict expected failure): with K fitted on one 20 m trial at
-one speed, even the *reference* step events give M5 an IQR of 0.109 on these trials (walk-ratio model; 0.119
-for a constant step length), so no detector can reach 0.10. Issue 12's IQR <= 0.06 for calibrated M2 and M4,
-with K shrunk toward the other subjects' K (the K prior), is met by M2 (0.048) and M4 (0.0585).
+``gaitlog evaluate ipol`` runs once (module fixture, ~15 s of CPU; a second, offline-only run with ``--uturn
+exclude`` for the shipped prior); every figure is computed here from the CSVs it writes (not by the code under
+test) and pinned near what is measured. Every step between the trial boundaries is summed (U-turn included), K
+is the first trial's alone (the K prior's gain has a 95 % subject-bootstrap interval that includes zero), short
+gaps are interpolated (``gaitlog.host.gait.gaps``). M5's interquartile range misses issue 4's 0.10 (strict
+expected failure): with K fitted on one 20 m trial at one speed, even the *reference* step events give M5 an IQR
+of 0.109. Issue 12's M4 IQR <= 0.06, best IQR <= 0.05 and M3 within 1 +- 0.05 are strict expected failures
+under these rules (their reasons say by how much).
 
-The constants chosen on these trials (the heel-strike rule, ``hs_delay_s``, the stop rule's ``stop_prominence_m_s2`` and M4's exponent,
-:mod:`gaitlog.host.studies.tuning`) are chosen leave-one-subject-out by the command: every offline-chain figure is
-cross-validated (measured: the defaults in 8 of 9 folds, ``hs_delay_s`` 0.06 s when subject 1 is held out, M4's
-exponent 1/2 in 9 of 9), the on-line chains run the shipped defaults (cross-validated for the other 8 subjects). The on-line algorithm's gravity time constant comes from a
-ripple rule, ``firmware_sim/algorithms/parameters.py``; K is fitted per subject on trial 1 and scored on the
-others, never on the trial it scores, and shrunk toward the median K of the other subjects with a weight chosen
-on them.
+The constants chosen on these trials (:mod:`gaitlog.host.studies.tuning`: the heel-strike rule, ``hs_delay_s``,
+the stop rule, ``prominence_fraction``, M4's exponent) are chosen leave-one-subject-out by the command: every
+offline-chain figure is cross-validated; the on-line chains run the shipped defaults (cross-validated only for
+the subject whose fold chose them). K is fitted per subject on trial 1 and scored on the others, never on the
+trial it scores.
 """
 
 from __future__ import annotations
@@ -63,6 +63,20 @@ def ipol(folder, tmp_path_factory):
     return SimpleNamespace(rows=rows, steps=steps, events=events, text=text.getvalue())
 
 
+@pytest.fixture(scope="module")
+def straight(folder, tmp_path_factory):
+    """``evaluate ipol --uturn exclude`` (the text only): the straight-walking K the shipped prior is learned on."""
+    import contextlib
+    import io
+
+    out = tmp_path_factory.mktemp("ipol_straight") / "eval.csv"
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        assert main(["evaluate", "ipol", str(folder), "--out", str(out), "--uturn", "exclude",
+                     "--arithmetic", "offline"]) == 0
+    return SimpleNamespace(text=text.getvalue())
+
+
 def ratios(rows, name, arithmetic="offline", k_from="offline", variant="main"):
     return np.array([float(r["ratio"]) for r in rows if r["estimator"] == name and r["arithmetic"] == arithmetic
                      and r["k_from"] == k_from and r["variant"] == variant])
@@ -86,14 +100,17 @@ def test_csv_layout(ipol) -> None:
                              "variant", "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range",
                              "cross_validated"]
     kinds = {(r["arithmetic"], r["k_from"], r["variant"], r["uturn"], r["lengths_source"]) for r in rows}
-    assert kinds == {("offline", "offline", "main", "exclude", "subject-height"),
-                     ("online-float", "offline", "main", "exclude", "subject-height"),
-                     ("online-fixed", "offline", "main", "exclude", "subject-height"),
-                     ("online-fixed", "own", "main", "exclude", "subject-height"),
-                     ("offline", "offline", "uturn-include", "include", "subject-height"),
-                     ("offline", "offline", "height-unknown", "exclude", "assumed-height"),
-                     ("offline", "offline", "no-prior", "exclude", "subject-height")}
-    assert len(rows) == 7 * 5 * 43                  # 52 trials - 9 calibration trials, 5 estimators, 7 kinds
+    assert kinds == {("offline", "offline", "main", "include", "subject-height"),
+                     ("online-float", "offline", "main", "include", "subject-height"),
+                     ("online-fixed", "offline", "main", "include", "subject-height"),
+                     ("online-fixed", "own", "main", "include", "subject-height"),
+                     ("offline", "offline", "uturn-exclude", "exclude", "subject-height"),
+                     ("offline", "offline", "height-unknown", "include", "assumed-height"),
+                     ("offline", "offline", "m4-quarter", "include", "subject-height"),
+                     ("offline", "offline", "k-prior", "include", "subject-height"),
+                     ("offline", "offline", "baseline", "include", "subject-height")}
+    # 52 trials - 9 calibration trials, 5 estimators, 8 kinds; the baseline's M2 and M4
+    assert len(rows) == 8 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -134,7 +151,7 @@ def test_device_records_are_the_algorithm_run_here(folder) -> None:
 def test_arithmetic_share_per_step(ipol) -> None:
     """Issue 10 (c): on-line fixed vs on-line float, same codes, same K, per step: median |d| <= 0.1 mm
     (0.015-0.063 mm measured) and at most 1 % of a step (0.29 %); events differ on 6 of 1,981 matched steps."""
-    measured_mm = {"M1": 0.063, "M2": 0.030, "M3": 0.026, "M4": 0.039, "M5": 0.015}
+    measured_mm = {"M1": 0.058, "M2": 0.028, "M3": 0.026, "M4": 0.036, "M5": 0.011}
     st = ipol.steps
     same = np.array([r["same_events_arithmetic"] == "1" for r in st])
     matched = np.array([int(r["online_fixed_step"]) >= 0 for r in st])
@@ -154,12 +171,13 @@ def test_arithmetic_share_per_step(ipol) -> None:
 
 
 def test_arithmetic_share_in_distance(ipol) -> None:
-    """Per trial, |ratio fixed - ratio float| median ~1e-4, at most 0.0035 (M1); the same steps counted."""
+    """Per trial, |ratio fixed - ratio float| median ~1e-4; at most 0.017 (M1, one trial: 0.0034 when the U-turn
+    steps were left out); the same steps counted."""
     for e in ESTIMATORS:
         a, b = ratio_pairs(ipol.rows, e, "online-fixed", "online-float")
         assert a.size == 43
         assert np.median(np.abs(a - b)) <= 3e-4, e
-        assert np.max(np.abs(a - b)) <= 0.005, e
+        assert np.max(np.abs(a - b)) <= 0.02, e
     steps = {(r["subject"], r["trial"], r["arithmetic"]): r["steps"] for r in ipol.rows if r["k_from"] == "offline"}
     for (s, t, a), n in steps.items():
         if a == "online-fixed":
@@ -167,7 +185,7 @@ def test_arithmetic_share_in_distance(ipol) -> None:
 
 
 # measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
-ALGORITHM_SHARE = {"M1": 0.0126, "M2": 0.0097, "M3": 0.0081, "M4": 0.0078, "M5": 0.0029}
+ALGORITHM_SHARE = {"M1": 0.0135, "M2": 0.0085, "M3": 0.0082, "M4": 0.0077, "M5": 0.0013}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
@@ -185,7 +203,7 @@ def test_algorithm_share_in_distance(ipol, name) -> None:
 
 
 @pytest.mark.parametrize("arithmetic", ["online-float", "online-fixed"])
-@pytest.mark.parametrize("name, measured", [("M2", 1.005), ("M4", 0.989)])
+@pytest.mark.parametrize("name, measured", [("M2", 1.005), ("M4", 0.995)])
 def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     """Issue 10 (c): the on-line algorithm with the offline chain's K: M2 and M4 median ratio within 1 +- 0.03."""
     med = np.median(ratios(ipol.rows, name, arithmetic))
@@ -193,26 +211,25 @@ def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     assert med == pytest.approx(measured, abs=0.005)
 
 
-@pytest.mark.parametrize("name, measured", [("M1", 1.002), ("M2", 1.004), ("M4", 0.988), ("M5", 0.992)])
+@pytest.mark.parametrize("name, measured", [("M1", 1.015), ("M2", 0.999), ("M4", 0.986), ("M5", 1.004)])
 def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
-    """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1, shrunk
-    toward the other subjects' own K)."""
+    """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1)."""
     assert "a different K, not a comparison" in ipol.text
     r = ratios(ipol.rows, name, "online-fixed", "own")
     assert r.size == 43
     assert np.median(r) == pytest.approx(measured, abs=0.005)
     if name == "M4":
-        assert iqr(r) == pytest.approx(0.0697, abs=0.005)
+        assert iqr(r) == pytest.approx(0.0706, abs=0.005)
 
 
-# The README's table: median ratio, IQR (and min, max offline) with the offline chain's K (shrunk toward the
-# other subjects' K)
+# The README's table: median ratio, IQR (and min, max offline) with the offline chain's K (the first trial's, no
+# prior), every step between the trial boundaries summed
 README_TABLE = {
-    "offline": {"M1": (1.012, 0.078, 0.888, 1.117), "M2": (0.998, 0.048, 0.830, 1.088),
-                "M3": (1.023, 0.061, 0.895, 1.150), "M4": (0.996, 0.058, 0.857, 1.087),
-                "M5": (0.998, 0.152, 0.815, 1.237)},
-    "online-fixed": {"M1": (1.015, 0.095), "M2": (1.005, 0.053), "M3": (1.027, 0.070), "M4": (0.989, 0.073),
-                     "M5": (0.978, 0.160)},
+    "offline": {"M1": (1.027, 0.058, 0.935, 1.115), "M2": (1.007, 0.053, 0.880, 1.105),
+                "M3": (1.088, 0.089, 0.971, 1.201), "M4": (0.997, 0.072, 0.847, 1.114),
+                "M5": (1.018, 0.153, 0.800, 1.233)},
+    "online-fixed": {"M1": (1.027, 0.072), "M2": (1.005, 0.059), "M3": (1.089, 0.083), "M4": (0.995, 0.076),
+                     "M5": (1.014, 0.186)},
 }
 
 
@@ -233,13 +250,14 @@ def test_readme_states_the_pinned_table() -> None:
         row = next(ln for ln in table.splitlines() if ln.startswith(f"| {name} "))
         cells = [c.strip() for c in row.strip("|").split("|")]
         off, fx = README_TABLE["offline"][name], README_TABLE["online-fixed"][name]
-        assert cells[1:6] == [f"{off[0]:.3f}", f"{off[1]:.3f}", f"{off[2]:.3f} – {off[3]:.3f}", f"{fx[0]:.3f}",
-                              f"{fx[1]:.3f}"], name
+        first = [c.split(" [")[0] for c in cells[1:6]]       # medians and IQRs carry their 95 % intervals
+        assert first == [f"{off[0]:.3f}", f"{off[1]:.3f}", f"{off[2]:.3f} – {off[3]:.3f}", f"{fx[0]:.3f}",
+                         f"{fx[1]:.3f}"], name
+        assert all(re.fullmatch(r"[0-9.]+ \[[0-9.]+, [0-9.]+\]", cells[j]) for j in (1, 2, 4, 5)), row
 
 
 def test_online_m4_iqr_meets_the_target(ipol) -> None:
-    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR is 0.073 (offline 0.0585); it
-    was 0.110 with Weinberg's range^(1/4) and the stop rule."""
+    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR is 0.076 (offline 0.072)."""
     assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
 
 
@@ -253,32 +271,36 @@ def test_m2_iqr(ipol) -> None:
 
 
 def test_m4_iqr(ipol) -> None:
-    """Issue 4's 0.10: met since M4 is K range^(1/2) (0.0585 with the K prior, 0.076 without; 0.104 with
-    Weinberg's range^(1/4))."""
+    """Issue 4's 0.10: met (0.072; Weinberg's range^(1/4), the variant m4-quarter: 0.093)."""
     assert iqr(ratios(ipol.rows, "M4")) <= 0.10
 
 
 @pytest.mark.parametrize("name", [
-    "M2", "M4"])
+    "M2", pytest.param("M4", marks=pytest.mark.xfail(strict=True, reason=(
+        "M4's IQR is 0.072 with the first trial's K (the K prior, 0.054, is not kept: its gain's 95 % subject-"
+        "bootstrap interval includes zero)")))])
 def test_issue12_calibrated_iqr(ipol, name) -> None:
-    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 0.998, 0.996) and IQR <= 0.06 (met: M2
-    0.048, M4 0.0585), K per subject from its first trial shrunk toward the other subjects' (M4: 0.076 with the
-    first trial's K alone; 0.0604 with the prior but M4's exponent chosen on unshrunk K, 3/8 for subject 7)."""
+    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 1.007, 0.997) and IQR <= 0.06 (M2 0.053 met,
+    M4 0.072 missed), K per subject from its first trial, every step of the trial summed."""
     r = ratios(ipol.rows, name)
     assert abs(np.median(r) - 1.0) <= 0.02
     assert iqr(r) <= 0.06
 
 
+@pytest.mark.xfail(strict=True, reason="the best calibrated IQR is M2's 0.053 with the first trial's K (0.047 with the "
+                   "K prior, not kept: its gain's interval includes zero)")
 def test_issue12_best_calibrated_iqr(ipol) -> None:
-    """Issue 12: the best calibrated estimator's IQR <= 0.05: M2's 0.048 with K shrunk toward the other
-    subjects' K (0.064 with the first trial's K alone; M1 0.078, M4 0.0585, M5 0.152)."""
+    """Issue 12: the best calibrated estimator's IQR <= 0.05 (M2 0.053, M1 0.058, M4 0.072, M5 0.153)."""
     assert min(iqr(ratios(ipol.rows, e)) for e in ("M1", "M2", "M4", "M5")) <= 0.05
 
 
+@pytest.mark.xfail(strict=True, reason="M3 without K reads the U-turn's short, turned steps as straight ones: with "
+                   "every "
+                   "step summed, median 1.088 (offline), 1.089 (on-line fixed); with the turn left out (second row) "
+                   "1.023, IQR 0.062")
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_issue12_m3_without_k(ipol, arithmetic) -> None:
-    """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08 (measured offline 1.023, 0.061; on-line
-    fixed 1.027, 0.070)."""
+    """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08."""
     r = ratios(ipol.rows, "M3", arithmetic)
     assert abs(np.median(r) - 1.0) <= 0.05 and iqr(r) <= 0.08
 
@@ -290,6 +312,7 @@ def test_m5_iqr(ipol) -> None:
 
 def test_m3_uncalibrated_median(ipol) -> None:
     assert abs(np.median(ratios(ipol.rows, "M3")) - 1.0) <= 0.10
+    assert abs(np.median(ratios(ipol.rows, "M3", variant="uturn-exclude")) - 1.0) <= 0.05
 
 
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
@@ -307,8 +330,8 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
     assert np.abs(d).max() <= 3
     if arithmetic == "online-fixed":           # the README's on-line figures
         assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(40, abs=2)
-    else:
-        assert (d.min(), d.max()) == (-1, 2) and np.abs(d).sum() == pytest.approx(36, abs=2)
+    else:                                      # 36 and -1..+2 before the short gaps were interpolated
+        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(39, abs=2)
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
@@ -323,23 +346,26 @@ def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
     line = t.split("hs_delay_s (default 0.04")[1].split("\n")[0]
     assert "0.04 in 8 of 9 folds" in line and "0.06 in 1 of 9 folds" in line
     line = t.split("m4_exponent (default 0.5")[1].split("\n")[0]
-    assert "criterion: IQR of the calibrated distance ratio" in line and "shrunk toward the" in line
-    assert "0.5 in 9 of 9 folds" in line
-    assert "stop_prominence_m_s2 (default 0.2" in t and "by step count): 0.2 in 9 of 9 folds" in t
+    assert "criterion: IQR of the calibrated distance ratio" in line and "as the main rows use it" in line
+    assert "0.375 in 1 of 9 folds, 0.5 in 8 of 9 folds" in line
+    assert "stop_prominence_m_s2 (default 0.2" in t and "by step count): 0.4 in 2 of 9 folds, 0.2 in 7 of 9 folds" in t
     assert "cross-validated: every offline-chain figure" in t
+    assert "prominence_fraction (default 0.25" in t and "by step count): 0.2 in 8 of 9 folds, 0.25 in 1 of 9 folds" in t
     not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0"}
-    assert not_cv == {("1", a) for a in ("online-float", "online-fixed")}
+    # the on-line chains run the shipped defaults, which only subject 4's fold chose
+    assert not_cv == {(s, a) for s in "12356789" for a in ("online-float", "online-fixed")}
     assert all(r["cross_validated"] == "1" for r in ipol.rows if r["arithmetic"] == "offline")
 
 
-def test_k_prior_is_chosen_leave_one_subject_out_and_the_shipped_one_is_reproduced(ipol) -> None:
-    """Issue 12 (4, 5): each subject's K is shrunk toward the median K of the other subjects, with d0 chosen on
-    them (nested); the prior learned on all nine (printed, never used to score) is what gaitlog ships.
-    Measured folds: d0 M1 20-60 m, M2 20-80 m, M4 5-15 m."""
+def test_k_prior_is_chosen_leave_one_subject_out_and_the_shipped_one_is_reproduced(ipol, straight) -> None:
+    """Issue 12 (4, 5): the k-prior rows shrink each subject's K toward the median K of the other subjects, with
+    d0 chosen on them (nested); not in the main rows (its gain's interval includes zero). The prior learned on all
+    nine with the turn left out (a straight-walking K; printed, never used to score) is what gaitlog ships."""
     line = ipol.text.split("k_prior_distance_m (")[1].split("\n")[0]
     assert "criterion: mean squared log distance ratio" in line
     assert all(f"{e} " in line and "of 9 folds" in line for e in ("M1", "M2", "M4"))
-    shipped = ipol.text.split("learned on every subject (shipped as LOWER_BACK_PRIOR")[1].split("\n")[0]
+    assert "(not kept: its gain's interval includes zero)" in ipol.text
+    shipped = straight.text.split("learned on every subject (shipped as LOWER_BACK_PRIOR")[1].split("\n")[0]
     p = LOWER_BACK_PRIOR
     assert ("d0 " + ", ".join(f"{e} {p.distance_m[e]:g} m" for e in ("M1", "M2", "M4"))) in shipped
     assert f"population K: M1 {p.k_m1:.4f}, M2 {p.k_m2:.4f}, M4 {p.k_m4_per_leg:.4f} x leg length" in shipped
@@ -367,20 +393,22 @@ def test_event_timing_is_printed_by_the_command(ipol) -> None:
 
 def test_events_found_and_filled_per_trial(ipol) -> None:
     """Per trial, the steps with a heel strike found, a toe-off found and filled are printed and written
-    (<CSV>_events.csv), and agree; measured offline 1,793 steps, HS on all, TO on 1,749, M3 filled on 96."""
+    (<CSV>_events.csv), and agree; measured offline 1,784 steps, HS on all, TO on 1,759, M3 filled on 73 (1,793,
+    1,749 and 96 before the short gaps were interpolated)."""
     ev = [r for r in ipol.events if r["chain"] == "offline"]
     assert len(ev) == 52 and len([r for r in ipol.events if r["chain"] == "online-fixed"]) == 52
     n = sum(int(r["steps"]) for r in ev)
     to = sum(int(r["toe_off_found"]) for r in ev)
     filled = sum(int(r["m3_filled"]) for r in ev)
-    assert n == pytest.approx(1793, abs=20) and to == pytest.approx(1749, abs=20) and filled == pytest.approx(96, abs=15)
+    assert n == pytest.approx(1784, abs=20) and to == pytest.approx(1759, abs=20)
+    assert filled == pytest.approx(73, abs=15)
     assert f"offline, all trials: {n} steps, heel strike found on" in ipol.text
     assert f"toe-off on {to}, M3 filled on {filled}" in ipol.text
-    # the rest of the recordings (not scored): measured offline 202, on-line fixed 195, 67 foot-sensor heel strikes
+    # the rest of the recordings (not scored): measured offline 204, on-line fixed 195, 67 foot-sensor heel strikes
     outside = {c: sum(int(r["steps_outside"]) for r in ipol.events if r["chain"] == c)
                for c in ("offline", "online-fixed")}
     ref = sum(int(r["hs_reference_outside"]) for r in ev)
-    assert ref == 67 and outside["offline"] == pytest.approx(202, abs=6)
+    assert ref == 67 and outside["offline"] == pytest.approx(204, abs=6)
     assert outside["online-fixed"] == pytest.approx(195, abs=6)
     assert (f"foot-sensor heel strikes {ref}, detected steps offline {outside['offline']}, online-fixed "
             f"{outside['online-fixed']}") in ipol.text
@@ -389,32 +417,52 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
                      rf"\s+{r['m3_filled']}\s", ipol.text, re.M)
 
 
-@pytest.mark.parametrize("variant, measured", [("uturn-include", {"M2": (0.995, 0.053), "M3": (1.086, 0.083)}),
-                                               ("height-unknown", {"M2": (0.996, 0.045), "M3": (1.018, 0.061)}),
-                                               ("no-prior", {"M1": (1.037, 0.089), "M2": (1.008, 0.064),
-                                                             "M4": (0.992, 0.076)})])
+@pytest.mark.parametrize("variant, measured", [("uturn-exclude", {"M2": (1.013, 0.064), "M3": (1.023, 0.062)}),
+                                               ("height-unknown", {"M2": (1.007, 0.053), "M3": (1.087, 0.079)}),
+                                               ("k-prior", {"M1": (1.016, 0.052), "M2": (1.000, 0.047),
+                                                            "M4": (0.998, 0.054)}),
+                                               ("m4-quarter", {"M4": (0.996, 0.093)})])
 def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
-    """Issue 12 (3): the offline chain also with the U-turn steps summed (M3, without K, then reads the turn as
-    straight walking: 1.086) and with the height unknown (a 1.70 m adult for everyone: these subjects are
-    1.63-1.80 m, so M3 barely moves; K absorbs most of the lengths of M1/M2/M4, the population K toward which
-    it is shrunk the rest), and with the first trial's K alone (no prior: what the prior buys)."""
+    """Issue 12 (3): the offline chain also with the U-turn steps left out (M3, without K, then reads 1.023: with
+    them it reads the turn as straight walking, 1.088), with the height unknown (a 1.70 m adult for everyone:
+    these subjects are 1.63-1.80 m; K absorbs the lengths of M1/M2/M4), with K shrunk toward the other subjects'
+    (the K prior: what it buys) and with Weinberg's 1/4 for M4."""
     for e, (med, q) in measured.items():
         r = ratios(ipol.rows, e, variant=variant)
         assert r.size == 43
         assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
-    assert "U-turn included (the other rule" in ipol.text and "height UNKNOWN: a 1.70 m adult assumed" in ipol.text
-    assert "NO K prior: K from trial 1 alone" in ipol.text
+    assert "U-turn excluded (the other rule" in ipol.text and "height UNKNOWN: a 1.70 m adult assumed" in ipol.text
+    assert "with the K prior: K from trial 1 shrunk" in ipol.text and "Weinberg's range^(1/4)" in ipol.text
 
 
 def test_steps_outside_the_calibrated_range_are_counted(ipol) -> None:
     """Issue 12 (4): K from one trial applied to the others: steps outside the range K was fitted on are counted
-    per trial (measured offline: M2 242 of 1,477 steps, M4 265); never for M3 (no K)."""
+    per trial (measured offline: M2 261 of 1,472 steps, M4 389); never for M3 (no K)."""
     rows = [r for r in ipol.rows if r["arithmetic"] == "offline" and r["variant"] == "main"]
     assert all(r["steps_outside_k_range"] == "" for r in rows if r["estimator"] == "M3")
     total = {e: sum(int(r["steps_outside_k_range"]) for r in rows if r["estimator"] == e) for e in ("M2", "M4")}
-    assert total["M2"] == pytest.approx(242, abs=25) and total["M4"] == pytest.approx(265, abs=30)
+    assert total["M2"] == pytest.approx(261, abs=25) and total["M4"] == pytest.approx(389, abs=30)
     assert re.search(rf"^M2 .*\s{total['M2']}/\d+$", ipol.text.split("arithmetic = offline")[1], re.M)
 
 
 def test_nothing_saturates(ipol) -> None:
     assert "fixed-point saturation/wrap: none" in ipol.text
+
+
+def test_baseline_row_and_the_choices_are_printed(ipol) -> None:
+    """The recipe (gaitlog.host.gait.recipe) is scored beside the chain (measured: M2 1.006, IQR 0.055; M4 1.020,
+    IQR 0.078), and each choice's gain over the simpler one is printed with its interval: on these nine subjects
+    none excludes zero, the shipped chain's over the recipe included (M2 +0.002 [-0.025, +0.029])."""
+    for e, (med, q) in {"M2": (1.006, 0.055), "M4": (1.020, 0.078)}.items():
+        r = ratios(ipol.rows, e, variant="baseline")
+        assert r.size == 43
+        assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
+    assert "baseline, the recipe" in ipol.text
+    choices = ipol.text.split("choices against the simpler one")[1].split("steps|err|")[0]
+    for label in ("K prior", "M4's exponent chosen per fold", "the shipped chain against the recipe",
+                  "U-turn steps left out", "stop_prominence_m_s2 chosen per fold", "prominence_fraction chosen"):
+        line = next(ln for ln in choices.splitlines() if label in ln)
+        for m in re.finditer(r"(M\d|steps) ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] (kept|not kept)", line):
+            gain, lo, hi = map(float, m.group(2, 3, 4))
+            assert lo <= gain <= hi and (m.group(5) == "kept") == (lo > 0), line
+        assert "not kept" in line
