@@ -98,12 +98,15 @@ from gaitlog.firmware_sim.algorithms.state import (
     F_LAST,
     F_LAST_WEAK,
     F_LOOK_MAX,
+    F_OLD,
     F_PEND,
     F_PEND_WEAK,
     F_RAW,
     FLAGS,
     G1,
     G2,
+    INDEX_HALF,
+    INDEX_MASK,
     LAST,
     LINE_POS,
     MN,
@@ -115,6 +118,7 @@ from gaitlog.firmware_sim.algorithms.state import (
     RAW,
     RAW_Y,
     N,
+    since,
 )
 from gaitlog.firmware_sim.compiled import njit, register_jitable
 from gaitlog.firmware_sim.fixedpoint import (
@@ -151,7 +155,9 @@ CV_STOP = CV["STOP"]
 CV_CAP = CV["CAP"]
 CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
 
-#: Columns of the integer record output: end index, window duration, toe-off index, heel-strike index, flags.
+#: Columns of the integer record output: the end index (16 bits, as the PIC keeps it; the driver restores the
+#: absolute index), the window duration, the toe-off after the window start (-1: none), the heel strike from the
+#: end (signed; meaningless with ``NO_HEEL_STRIKE``), the flags: the record's own fields.
 OUT_I = ("end", "duration", "toe_off", "heel_strike", "flags")
 #: Columns of the value record output: the five lengths, the excursions h (M1, M2) and h1 (M3), M4's range.
 OUT_V = ("length_m1", "length_m2", "length_m3", "length_m4", "length_m5", "h_m1", "h_m2", "h1_m3", "range_m4")
@@ -169,6 +175,7 @@ I2C_READ_OVERHEAD = 4
 
 # the shared rule, compiled into the kernel (parameters.py itself stays free of numba)
 register_jitable(minimum_distance)
+register_jitable(since)
 
 _NO_WINDOW = int(StepFlag.NO_WINDOW)
 _NO_TOE_OFF = int(StepFlag.NO_TOE_OFF)
@@ -233,23 +240,27 @@ def _read_cost(cnt, records, record_bytes):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _heel_strike(e, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
+def _heel_strike(e, m, cfg_i, st_i, scr, cnt):  # pragma: no cover - compiled
     """Heel-strike before the foot-flat ``e``: the first maximum of the impact band in
-    ``[e - hs_before, e + hs_after]`` (filter outputs up to ``m``), minus ``hs_delay``; -1 if none."""
+    ``[e - hs_before, e + hs_after]`` (filter outputs up to ``m``; none before the run's first, ``r3``), minus
+    ``hs_delay``; -1 if none. Indices are 16-bit (the loop runs on ``e``'s offsets, the ring wraps with them)."""
     size = cfg_i[CI_SCRATCH]
-    lo = max(e - cfg_i[CI_HS_BEFORE], cfg_i[CI_R3])
-    hi = min(e + cfg_i[CI_HS_AFTER], m)
+    young = not (st_i[FLAGS] & F_OLD)
+    lo = e - cfg_i[CI_HS_BEFORE]
+    if young and lo < cfg_i[CI_R3]:
+        lo = cfg_i[CI_R3]
+    hi = e + min(cfg_i[CI_HS_AFTER], since(m, e))
     best = -1
     peak = scr[lo % size, S_BAND]
     for j in range(lo, hi + 1):
         s_cost(cnt, OP_CMP32, 1)
         if best < 0 or scr[j % size, S_BAND] > peak:
             peak = scr[j % size, S_BAND]
-            best = j
+            best = j & INDEX_MASK
     _read_cost(cnt, hi - lo + 1, SCRATCH_B_BYTES)
-    if best < 0 or best - cfg_i[CI_HS_DELAY] < 0:
+    if best < 0 or (young and best < cfg_i[CI_HS_DELAY]):
         return -1
-    return best - cfg_i[CI_HS_DELAY]
+    return (best - cfg_i[CI_HS_DELAY]) & INDEX_MASK
 
 
 @njit(cache=True)
@@ -257,10 +268,10 @@ def _toe_off(s, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
     """Toe-off after the foot-flat ``s``: the first local minimum of ``d10`` in ``(s, s + to_span]``; -1."""
     size = cfg_i[CI_SCRATCH]
     _read_cost(cnt, cfg_i[CI_TO_SPAN] + 2, SCRATCH_B_BYTES)
-    for j in range(s + 1, min(s + cfg_i[CI_TO_SPAN], m - 1) + 1):
+    for j in range(s + 1, s + min(cfg_i[CI_TO_SPAN], since(m, s) - 1) + 1):
         s_cost(cnt, OP_CMP32, 2)
         if scr[j % size, S_D10] < scr[(j - 1) % size, S_D10] and scr[j % size, S_D10] <= scr[(j + 1) % size, S_D10]:
-            return j
+            return j & INDEX_MASK
     return -1
 
 
@@ -268,10 +279,10 @@ def _toe_off(s, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
 def _range(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     """M4's ``a_max - a_min`` of the 3 Hz signal in ``[s, e]`` (Q2.16 g)."""
     size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, e - s + 1, SCRATCH_B_BYTES)
+    _read_cost(cnt, since(e, s) + 1, SCRATCH_B_BYTES)
     y_max = scr[s % size, S_Y3]
     y_min = y_max
-    for j in range(s + 1, e + 1):
+    for j in range(s + 1, s + since(e, s) + 1):
         s_cost(cnt, OP_CMP32, 2)
         if scr[j % size, S_Y3] > y_max:
             y_max = scr[j % size, S_Y3]
@@ -289,12 +300,12 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     ``a + c1`` in closed form).
     """
     size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, e - s + 1, SCRATCH_A_BYTES)
+    _read_cost(cnt, since(e, s) + 1, SCRATCH_A_BYTES)
     vel = scr[0, S_AV] * 0
     pos = vel
     p_max = vel
     p_min = vel
-    for j in range(s + 1, e + 1):
+    for j in range(s + 1, s + since(e, s) + 1):
         v_new = ar.add(vel, ar.add(scr[j % size, S_AV], scr[(j - 1) % size, S_AV], W32, cnt), W32, cnt)
         pos = ar.add(pos, ar.add(v_new, vel, W32, cnt), W32, cnt)
         vel = v_new
@@ -303,10 +314,10 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
             p_max = pos
         if pos < p_min:
             p_min = pos
-    c1 = ar.div(ar.neg(vel, W32, cnt), F_ACC, 2 * (e - s), 0, F_POS2, W32, cnt)
+    c1 = ar.div(ar.neg(vel, W32, cnt), F_ACC, 2 * since(e, s), 0, F_POS2, W32, cnt)
     c2 = ar.div(ar.add(ar.requant(pos, F_POS, F_POS2, W32, cnt),
-                       ar.scale2(ar.mul_count(c1, (e - s) * (e - s), W32, cnt), 1, W32, cnt), W32, cnt),
-                F_POS2, e - s, 0, F_POS2, W32, cnt)
+                       ar.scale2(ar.mul_count(c1, since(e, s) * since(e, s), W32, cnt), 1, W32, cnt), W32, cnt),
+                F_POS2, since(e, s), 0, F_POS2, W32, cnt)
     return ar.sub(p_max, p_min, W32, cnt), c1, c2
 
 
@@ -316,7 +327,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     (additions only); returns its range over the step and over the single support ``[to, hs3]`` (M3;
     ``to < 0``: none)."""
     size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, e - s + 1, SCRATCH_A_BYTES)
+    _read_cost(cnt, since(e, s) + 1, SCRATCH_A_BYTES)
     vel = c1 * 0
     q = vel
     q_max = vel
@@ -326,7 +337,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     ramp = ar.scale2(c1, 1, W32, cnt)
     ramp_step = ar.scale2(c1, 2, W32, cnt)
     seen = False
-    for j in range(s + 1, e + 1):
+    for j in range(s + 1, s + since(e, s) + 1):
         v_new = ar.add(vel, ar.add(scr[j % size, S_AV], scr[(j - 1) % size, S_AV], W32, cnt), W32, cnt)
         dp = ar.requant(ar.add(v_new, vel, W32, cnt), F_POS, F_POS2, W32, cnt)
         vel = v_new
@@ -337,7 +348,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
             q_max = q
         if q < q_min:
             q_min = q
-        if to >= 0 and to <= j <= hs3:
+        if to >= 0 and since(j, to) >= 0 and since(j, hs3) <= 0:
             s_cost(cnt, OP_CMP32, 2)
             if not seen or q > s_max:
                 s_max = q
@@ -357,7 +368,7 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     zero = cfg_v[CV_DELTA] * 0
     flags = 0
     s = st_i[LAST] if st_i[FLAGS] & F_LAST else -1
-    hs = _heel_strike(e, m, cfg_i, scr, cnt)
+    hs = _heel_strike(e, m, cfg_i, st_i, scr, cnt)
     if hs < 0:
         flags |= _NO_HEEL_STRIKE
     to = -1
@@ -368,17 +379,17 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     l5 = zero
     for c in range(4):
         out_v[k, O_H1 + c] = zero
-    if s < 0 or e - s > cfg_i[CI_MAX_STEP]:
+    if s < 0 or since(e, s) > cfg_i[CI_MAX_STEP]:
         flags |= _NO_WINDOW
         s = -1
     else:
         # events of the window (the offline chain's rules: toe-off between the start and the heel-strike)
         to = _toe_off(s, m, cfg_i, scr, cnt)
-        if not (to > s and (hs < 0 or to < hs)):
+        if not (to >= 0 and (hs < 0 or since(to, hs) < 0)):
             to = -1
             flags |= _NO_TOE_OFF
-        hs3 = hs if hs > s else -1
-        if not (to >= 0 and 0 <= hs3 <= e and hs3 > to):
+        hs3 = hs if hs >= 0 and since(hs, s) > 0 else -1
+        if not (to >= 0 and hs3 >= 0 and since(hs3, e) <= 0 and since(hs3, to) > 0):
             flags |= _M3_UNDEFINED
             hs3 = -1
         s_cost(cnt, OP_DEE, 24)                  # K, leg, foot and the M5 constants from the data EEPROM
@@ -422,15 +433,16 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
                 length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
                 l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples
-        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, e - s, 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32, cnt),
+        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, since(e, s), 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32,
+                               cnt),
                         F_M5, F_STEP, U16, cnt)
     if cnt[C_STICKY]:
         flags |= _SATURATED
         cnt[C_STICKY] = 0
     out_i[k, O_END] = e
-    out_i[k, O_DUR] = e - s if s >= 0 else 0
-    out_i[k, O_TO] = to
-    out_i[k, O_HS] = hs
+    out_i[k, O_DUR] = since(e, s) if s >= 0 else 0
+    out_i[k, O_TO] = since(to, s) if to >= 0 else -1
+    out_i[k, O_HS] = since(hs, e) if hs >= 0 else 0
     out_i[k, O_FLAGS] = flags
     out_v[k, O_L + 0] = l1
     out_v[k, O_L + 1] = l2
@@ -458,13 +470,13 @@ def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, c
     if yp <= yp * 0:
         return k                                   # the CoM not accelerated upwards: no double support
     # the step-duration stream: peaks min_step apart (the offline chain's first pass)
-    if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] < cfg_i[CI_MIN_STEP]:
+    if (st_i[FLAGS] & F_RAW) and since(p, st_i[RAW]) < cfg_i[CI_MIN_STEP]:
         if yp > st_v[RAW_Y]:
             st_i[RAW] = p
             st_v[RAW_Y] = yp
     else:
-        if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] <= cfg_i[CI_MAX_STEP]:
-            durs[st_i[DUR_POS]] = p - st_i[RAW]
+        if (st_i[FLAGS] & F_RAW) and since(p, st_i[RAW]) <= cfg_i[CI_MAX_STEP]:
+            durs[st_i[DUR_POS]] = since(p, st_i[RAW])
             st_i[DUR_POS] = (st_i[DUR_POS] + 1) % cfg_i[CI_N_MED]
             if st_i[N_DUR] < cfg_i[CI_N_MED]:
                 st_i[N_DUR] += 1
@@ -476,13 +488,13 @@ def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, c
         st_v[RAW_Y] = yp
         st_i[FLAGS] |= F_RAW
     # foot-flat candidates
-    if (st_i[FLAGS] & F_LAST) and p - st_i[LAST] < st_i[DIST]:
+    if (st_i[FLAGS] & F_LAST) and since(p, st_i[LAST]) < st_i[DIST]:
         return k                                   # lower than a final foot-flat within the distance
     if not (st_i[FLAGS] & F_PEND):
         st_i[PEND] = p
         st_v[PEND_Y] = yp
         st_i[FLAGS] |= F_PEND
-    elif p - st_i[PEND] < st_i[DIST]:
+    elif since(p, st_i[PEND]) < st_i[DIST]:
         if yp > st_v[PEND_Y]:
             st_i[PEND] = p
             st_v[PEND_Y] = yp
@@ -510,6 +522,9 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
     """
     r3 = cfg_i[CI_R3]
     n = st_i[N]
+    if n & INDEX_HALF:                           # bit 15 of N: the run is old, N may wrap from now on
+        st_i[FLAGS] |= F_OLD
+    young = not (st_i[FLAGS] & F_OLD)
     # 1. calibration: f = M (codes - offset)
     c0 = ar.sub(ar.requant(cx, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 0], W16, cnt)
     c1 = ar.sub(ar.requant(cy, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 1], W16, cnt)
@@ -520,7 +535,7 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
     s_cost(cnt, OP_DEE, 25)                      # offsets, mantissas, exponent from the data EEPROM
     # 2. gravity: two exponential stages; the shift grows from 0 while the run is young (running mean)
     warm = 0
-    while (2 << warm) <= n + 1 and warm < cfg_i[CI_G_SHIFT]:
+    while warm < cfg_i[CI_G_SHIFT] and (not young or (2 << warm) <= n + 1):
         warm += 1
     for axis in range(3):
         st_v[G1 + axis] = ar.add(st_v[G1 + axis], ar.scale2(ar.sub(ar.requant(
@@ -547,8 +562,8 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
     line[st_i[LINE_POS]] = av
     st_i[LINE_POS] = (st_i[LINE_POS] + 1) % (2 * r3 + 1)
     scr[n % cfg_i[CI_SCRATCH], S_AV] = av
-    st_i[N] = n + 1
-    if n < 2 * r3:
+    st_i[N] = (n + 1) & INDEX_MASK
+    if young and n < 2 * r3:
         return False
     centre = (st_i[LINE_POS] - 1 - r3) % (2 * r3 + 1)
     scr[(n - r3) % cfg_i[CI_SCRATCH], S_Y3] = _fir(line, centre, 2 * r3 + 1, cfg_v, CV_W3, r3, cnt)
@@ -590,16 +605,16 @@ def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
     if not _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):
         return k
     # 5. foot-flat at the filter output m = n - r3: the pending foot-flat becomes final, then the hysteresis
-    m = st_i[N] - 1 - cfg_i[CI_R3]
+    m = (st_i[N] - 1 - cfg_i[CI_R3]) & INDEX_MASK
     y = scr[m % cfg_i[CI_SCRATCH], S_Y3]
     s_cost(cnt, OP_CMP32, 4)
-    if (st_i[FLAGS] & F_PEND) and m >= st_i[PEND] + (cfg_i[CI_MAX_STEP] if st_i[FLAGS] & F_PEND_WEAK
-                                                     else st_i[DIST]):
-        if not ((st_i[FLAGS] & F_LOOK_MAX) != 0 and st_i[MXPOS] < st_i[PEND] + st_i[DIST]
-                and st_v[MX] > st_v[PEND_Y] and m - st_i[PEND] <= cfg_i[CI_MAX_STEP]):
+    if (st_i[FLAGS] & F_PEND) and since(m, st_i[PEND]) >= (cfg_i[CI_MAX_STEP] if st_i[FLAGS] & F_PEND_WEAK
+                                                           else st_i[DIST]):
+        if not ((st_i[FLAGS] & F_LOOK_MAX) != 0 and since(st_i[MXPOS], st_i[PEND]) < st_i[DIST]
+                and st_v[MX] > st_v[PEND_Y] and since(m, st_i[PEND]) <= cfg_i[CI_MAX_STEP]):
             k = _finalise(st_i[PEND], m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
             st_i[FLAGS] &= ~F_PEND
-    if m == cfg_i[CI_R3]:                        # the run's first output
+    if m == cfg_i[CI_R3] and not (st_i[FLAGS] & F_OLD):    # the run's first output
         st_v[MN] = y
     elif st_i[FLAGS] & F_LOOK_MAX:
         if y > st_v[MX]:
@@ -666,7 +681,7 @@ def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
     the last step not itself a weak one)."""
     s_cost(cnt, OP_CMP16, 3)
     if ((st_i[FLAGS] & (F_LAST | F_LAST_WEAK | F_PEND)) == F_LAST
-            and st_i[DIST] <= st_i[MXPOS] - st_i[LAST] <= min(3 * st_i[DIST], cfg_i[CI_MAX_STEP])):
+            and st_i[DIST] <= since(st_i[MXPOS], st_i[LAST]) <= min(3 * st_i[DIST], cfg_i[CI_MAX_STEP])):
         st_i[PEND] = st_i[MXPOS]
         st_v[PEND_Y] = st_v[MX]
         st_i[FLAGS] |= F_PEND | F_PEND_WEAK
@@ -703,8 +718,9 @@ def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, c
 @njit(cache=True)
 def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """End of a run (STOP): the pending foot-flat becomes final with the samples there are."""
-    if st_i[FLAGS] & F_PEND and st_i[N] > 2 * cfg_i[CI_R3]:
-        k = _finalise(st_i[PEND], st_i[N] - 1 - cfg_i[CI_R3], cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+    if st_i[FLAGS] & F_PEND and (st_i[FLAGS] & F_OLD or st_i[N] > 2 * cfg_i[CI_R3]):
+        k = _finalise(st_i[PEND], (st_i[N] - 1 - cfg_i[CI_R3]) & INDEX_MASK, cfg_i, cfg_v, st_i, st_v, scr, out_i,
+                      out_v, k, cnt)
         st_i[FLAGS] &= ~F_PEND
     return k
 
