@@ -47,9 +47,10 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_FIRST_BYTE
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
-from gaitlog.firmware_sim.eeprom import Eeprom24LC1025
+from gaitlog.firmware_sim.eeprom import PAGE_BYTES, Eeprom24LC1025
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
 from gaitlog.firmware_sim.ring_buffer import MemoryFullError, RingBuffer
@@ -246,7 +247,10 @@ class Firmware:
             return self.ring.append(pack_words(c, flags))
         room = self.ring.room_samples
         n = c.shape[0] if room is None else min(c.shape[0], room)
-        self._store_steps(alg.feed(c[:n]))       # the algorithm sees exactly the samples that are stored
+        before = alg.scratch_page_writes
+        steps = alg.feed(c[:n])                  # the algorithm sees exactly the samples that are stored
+        self.steps.eeprom.count_page_writes(SCRATCH_FIRST_BYTE // PAGE_BYTES, alg.scratch_page_writes - before)
+        self._store_steps(steps)
         if room is not None and n == room:       # stop-when-full: this block fills the memory, the run ends
             self._end_steps()
         return self.ring.append(pack_words(c, flags))

@@ -70,6 +70,7 @@ from gaitlog.firmware_sim.algorithms.state import (
     variables,
 )
 from gaitlog.firmware_sim.algorithms.state import N as _N_SLOT
+from gaitlog.firmware_sim.eeprom import PAGE_BYTES
 from gaitlog.firmware_sim.fixedpoint import (
     C_CYCLES,
     C_DIV0,
@@ -120,12 +121,20 @@ def _kernel_q(half: np.ndarray) -> np.ndarray:
 
 
 def _scratch_size(c: SampleCounts) -> int:
-    """Scratch-ring length: a power of two covering the oldest record a step can read (see ``kernel``)."""
-    need = c.r3 + 2 * c.max_step + c.hs_before + c.to_span + 4
+    """The emulator's scratch ring (values): a power of two covering the oldest a_v a step can read, its
+    filters' reach included (see ``kernel``). The EEPROM's ring holds more (32,768 samples), the same values."""
+    need = 2 * c.r3 + 2 * c.max_step + c.hs_before + c.to_span + 4
     size = 1 << max(6, math.ceil(math.log2(need)))
     if size > INDEX_MODULUS:          # the ring follows the 16-bit indices across their wrap: it divides 2^16
         raise ValueError(f"the scratch ring needs {need} samples, more than the 16-bit indices reach")
     return size
+
+
+def _flush_samples(c: SampleCounts) -> int:
+    """a_v written to the scratch ring at a time: the largest power of two within the delay line (where they
+    wait, no RAM of their own) and half a 128-byte page (two bytes each; a power of two: the page writes are
+    aligned, and 2^16 is a multiple, so the 16-bit sample index wraps with them)."""
+    return 1 << int(math.floor(math.log2(min(2 * c.r3 + 1, PAGE_BYTES // kernel.SCRATCH_SAMPLE_BYTES))))
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,7 +225,7 @@ class OnlineConfig:
                                 CODE_FRAC=centred_q(adc_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
                                 SCRATCH=_scratch_size(c), W10=w10, W5=w5, AMP_SHIFT=ev.amplitude_shift,
-                                PRIOR_TWICE=c.prior_step_twice,
+                                PRIOR_TWICE=c.prior_step_twice, FLUSH=_flush_samples(c),
                                 BUDGET=int(cycles_available if cycles_available is not None
                                            else cycles_per_sample_available(sampling_rate_hz))).items():
             cfg_i[ci[name]] = value
@@ -459,7 +468,8 @@ class OnlineStepAlgorithm:
         self._st_v = np.zeros(N_VALUES, dt)
         self._line = np.zeros(2 * c.r3 + 1, dt)
         self._durs = np.zeros(c.median_steps, np.int64)
-        self._scr = np.zeros((int(self.config.cfg_i[kernel.CI_SCRATCH]), len(kernel.SCRATCH_COLUMNS)), dt)
+        self._scr = np.zeros(int(self.config.cfg_i[kernel.CI_SCRATCH]), dt)
+        self._wear = np.zeros(kernel.SCRATCH_PAGES, np.int64)
         self._cnt = new_counters()
         self._cyc = np.zeros(6, np.int64)
         self._fed = 0                # samples fed since the last reset (the driver's count; the kernel's N is 16-bit)
@@ -490,6 +500,22 @@ class OnlineStepAlgorithm:
         """Cycles counted by the fixed-point primitives and the kernel's I/O, since construction."""
         return CycleStats(int(self._cyc[0]), int(self._cyc[1]), int(self._cyc[2]), int(self._cyc[3]),
                           int(self._cyc[5]))
+
+    @property
+    def scratch_page_writes(self) -> np.ndarray:
+        """Page writes to each 128-byte page of the scratch ring (:data:`~gaitlog.firmware_sim.algorithms.kernel.
+        SCRATCH_PAGES` pages from the step EEPROM's second block) since construction: what the pages' write-cycle
+        counters (the 24LC1025's endurance) count."""
+        return self._wear.copy()
+
+    def _count_flushes(self, fed_before: int, fed_after: int) -> None:
+        """The kernel's scratch flushes while the run went from ``fed_before`` to ``fed_after`` samples (one
+        after every ``CI_FLUSH`` samples of the run): the k-th writes ``2 CI_FLUSH`` bytes from byte
+        ``2 CI_FLUSH k`` of the ring, modulo its length, one page write."""
+        flush = int(self.config.cfg_i[kernel.CI_FLUSH])
+        k = np.arange(fed_before // flush, fed_after // flush)
+        unit = kernel.SCRATCH_SAMPLE_BYTES * flush
+        np.add.at(self._wear, unit * k % kernel.SCRATCH_RING_BYTES // PAGE_BYTES, 1)
 
     def arithmetic_context(self) -> ArithmeticContext:
         """Calls, cycles, saturations, wraps and divisions by zero since construction."""
@@ -567,6 +593,7 @@ class OnlineStepAlgorithm:
             k = self._process(np.ascontiguousarray(block, dtype=self._st_v.dtype), self.config.cfg_i,
                               self.config.cfg_v, self._st_i, self._st_v, self._line, self._durs, self._scr, out_i,
                               out_v, 0, self._cnt, self._cyc)
+            self._count_flushes(self._fed, self._fed + block.shape[0])
             self._fed += block.shape[0]
             parts.append(self._steps(out_i, out_v, k, offset))
         if len(parts) == 1:

@@ -38,9 +38,10 @@ def _ring_mode_device_records(codes: np.ndarray, config: StepConfig) -> tuple[by
 def test_ring_mode_run_across_the_16_bit_wrap(simulated_walk: tuple) -> None:
     """Two copies of a walk (79,844 samples) on the device in ring mode: its kernel's indices wrap at sample
     65,536 (and the sample memory, 65,536 samples, overwrites its oldest). The expectation is the same signal
-    with the algorithm's index state moved by 39,936 (a multiple of the scratch ring) at sample 20,000: there
-    the indices wrap at sample 25,600, inside a walk, and run straight through 65,536. Every record must be the same, byte for byte (absolute end samples, the
-    toe-off and heel strike, flags, lengths, CRC): none depends on where the 16-bit indices wrap."""
+    with the algorithm's index state moved by 39,936 (a multiple of the emulator's scratch ring) at sample
+    20,000: there the indices wrap at sample 25,600, inside a walk, and run straight through 65,536. Every
+    record must be the same, byte for byte (absolute end samples, the toe-off and heel strike, flags, lengths,
+    CRC): none depends on where the 16-bit indices wrap."""
     walk, subject = simulated_walk
     codes = np.concatenate([walk, walk])
     config = StepConfig(step_format=1, leg_length_m=subject.leg_length_m, foot_length_m=subject.foot_length_m)
