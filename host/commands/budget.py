@@ -124,6 +124,7 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
     """One configuration: the JSON document and the printed lines."""
     from gaitlog.firmware_sim.budget import (
         LIFETIME_HOURS_PER_DAY,
+        LIFETIME_TARGET_YEARS,
         PIC_PROGRAM_WORDS,
         adc_max_sampling_rate_hz,
         algorithm_cycles_per_sample,
@@ -198,7 +199,8 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
     lines += [""] + endurance.lines()
     doc["endurance"] = {
         "measured": endurance.measured, "duration_s": endurance.duration_s, "lines": endurance.lines(),
-        "fits_10_years": endurance.fits(), "limiting": endurance.limiting.name,
+        "fits_10_years": endurance.fits(), "lifetime_target_years": LIFETIME_TARGET_YEARS,
+        "limiting": endurance.limiting.name,
         **{f"years_at_{h:g}_h_a_day": endurance.years(h) for h in LIFETIME_HOURS_PER_DAY},
         "regions": [{"name": r.name, "unit": r.unit, "worst_unit": r.worst_unit, "worst_cycles": r.worst_cycles,
                      "cycles_per_s": endurance.rate_per_s(r), "endurance_cycles": r.endurance_cycles,
