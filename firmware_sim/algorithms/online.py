@@ -122,7 +122,7 @@ def _kernel_q(half: np.ndarray) -> np.ndarray:
 
 def _scratch_size(c: SampleCounts) -> int:
     """The emulator's scratch ring (values): a power of two covering the oldest a_v a step can read, its
-    filters' reach included (see ``kernel``). The EEPROM's ring holds more (32,768 samples), the same values."""
+    filters' reach included (see ``kernel``). The EEPROM's ring holds more (32,512 samples), the same values."""
     need = 2 * c.r3 + 2 * c.max_step + c.hs_before + c.to_span + 4
     size = 1 << max(6, math.ceil(math.log2(need)))
     if size > INDEX_MODULUS:          # the ring follows the 16-bit indices across their wrap: it divides 2^16
