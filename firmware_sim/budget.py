@@ -11,8 +11,13 @@ Cycles per sample: the fixed-point kernel counts its primitives and I2C bytes on
 (:class:`gaitlog.firmware_sim.algorithms.online.CycleStats`: mean, worst sample, worst backlog); the logging
 interrupt's own work per sample is :data:`LOGGING_CYCLES`. Available: ``fosc / 4 / fs`` (92,160 at
 50 Hz with the 18.432 MHz crystal). The algorithm runs in the main loop, after the interrupt: a sample
-that costs more than one period (the end of a long step: two passes over its samples read back from the
-scratch EEPROM) is absorbed as long as the backlog stays bounded; the page buffer holds 32 samples.
+that costs more than one period (the end of a long step: its filters evaluated again and two passes over its
+samples, read back from the scratch EEPROM) is absorbed as long as the backlog stays bounded; the page buffer
+holds 32 samples.
+
+Endurance (:func:`endurance_budget`): the write cycles the EEPROM models count per page (per byte in the PIC's
+data EEPROM) over a run of continuous logging, the worst of each region against its endurance, in years of
+logging 8 and 24 hours a day (``docs/topics/eeprom-endurance.md``).
 
 Examples
 --------
@@ -41,7 +46,18 @@ from gaitlog.firmware_sim.algorithms.state import (
     temporaries_bytes,
     variables,
 )
-from gaitlog.firmware_sim.eeprom import DEVICE_BYTES, PAGE_BYTES
+from gaitlog.firmware_sim.algorithms.kernel import (
+    SCRATCH_FIRST_BYTE,
+    SCRATCH_PAGES,
+    SCRATCH_RING_BYTES,
+    SCRATCH_SAMPLE_BYTES,
+)
+from gaitlog.firmware_sim.eeprom import (
+    DATA_EEPROM_ENDURANCE_CYCLES,
+    DEVICE_BYTES,
+    ENDURANCE_CYCLES,
+    PAGE_BYTES,
+)
 from gaitlog.firmware_sim.fixedpoint import (
     CYCLES,
     DEFAULT_FOSC_HZ,
@@ -55,9 +71,10 @@ from gaitlog.protocol.header import HEADER_SIZE, MEMORY_BYTES
 
 __all__ = ["PIC_RAM_BYTES", "PIC_PROGRAM_WORDS", "FIRMWARE_RAM", "LOGGING_CYCLES", "CONFIGURATIONS", "LoggerConfig",
            "RamItem", "RamBudget", "CycleBudget", "ProgramBudget", "StorageBudget", "ram_budget", "cycle_budget",
-           "program_budget", "storage_budget", "logging_cycles", "logging_cycles_per_sample",
-           "algorithm_cycles_per_sample", "adc_acquisition_s", "adc_tad_s", "adc_channel_cycles",
-           "adc_max_sampling_rate_hz", "typical_cycles_per_sample", "shortfalls"]
+           "program_budget", "storage_budget", "EnduranceBudget", "MemoryWear", "endurance_budget",
+           "LIFETIME_HOURS_PER_DAY", "LIFETIME_TARGET_YEARS", "WEAR_RUN_SAMPLES", "scratch_page_writes_per_s",
+           "logging_cycles", "logging_cycles_per_sample", "algorithm_cycles_per_sample", "adc_acquisition_s",
+           "adc_tad_s", "adc_channel_cycles", "adc_max_sampling_rate_hz", "typical_cycles_per_sample", "shortfalls"]
 
 #: General-purpose RAM of the PIC16F877 (DS30292: 368 x 8; the largest contiguous bank block is 96 bytes).
 PIC_RAM_BYTES = 368
@@ -538,3 +555,137 @@ def instrument_fit(config: LoggerConfig) -> tuple[list[str], float]:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if not short(mid) else (lo, mid)
     return short(config.sampling_rate_hz), lo
+
+
+#: Hours of logging a day of the lifetime figures.
+LIFETIME_HOURS_PER_DAY = (8.0, 24.0)
+#: The 24LC1025s must last this many years of logging 8 hours a day.
+LIFETIME_TARGET_YEARS = 10.0
+#: Samples of the run whose write cycles the lifetime figures rest on: four whole laps of the scratch ring
+#: (:data:`~gaitlog.firmware_sim.algorithms.kernel.SCRATCH_RING_BYTES` at 2 bytes a sample, 32,512 samples),
+#: about two of the sample memory at 4 bytes a sample; the step ring's worst page (written as records come) is
+#: taken over whatever part of a lap the run covers: an overestimate of its rate, never an underestimate.
+WEAR_RUN_SAMPLES = 4 * SCRATCH_RING_BYTES // SCRATCH_SAMPLE_BYTES
+_YEAR_S = 365.25 * 86400.0
+
+
+def scratch_page_writes_per_s(sampling_rate_hz: float, flush_samples: int) -> float:
+    """The design's write cycles per second of each scratch-ring page: a page write every ``flush_samples``
+    samples, spread evenly over the ring's pages (aligned flush units that divide the page and the ring).
+
+    >>> round(scratch_page_writes_per_s(50.0, 16), 6)
+    0.006152
+    """
+    return sampling_rate_hz / flush_samples / SCRATCH_PAGES
+
+
+@dataclass(frozen=True)
+class MemoryWear:
+    """Write cycles of one region of a non-volatile memory over a run: per unit (page or byte), the worst (a
+    design's figures: the cycles of one second)."""
+
+    name: str
+    unit: str
+    cycles: tuple[float, ...]
+    first_unit: int
+    endurance_cycles: int
+    source: str
+
+    @property
+    def worst_unit(self) -> int:
+        """The unit with the most write cycles (its number in the memory)."""
+        return self.first_unit + int(max(range(len(self.cycles)), key=self.cycles.__getitem__))
+
+    @property
+    def worst_cycles(self) -> float:
+        """Its write cycles over the run."""
+        return max(self.cycles)
+
+
+@dataclass(frozen=True)
+class EnduranceBudget:
+    """How long the memories last under continuous logging: each region's worst unit, its write cycles per
+    second over the run (``duration_s`` of logging), against its endurance."""
+
+    config: LoggerConfig
+    duration_s: float
+    regions: tuple[MemoryWear, ...]
+    measured: bool
+
+    def rate_per_s(self, region: MemoryWear) -> float:
+        """Write cycles per second of the region's worst unit."""
+        return region.worst_cycles / self.duration_s
+
+    def lifetime_years(self, region: MemoryWear, hours_per_day: float) -> float:
+        """Years until the worst unit reaches its endurance, logging ``hours_per_day`` (inf: never written)."""
+        rate = self.rate_per_s(region)
+        return math.inf if rate == 0 else region.endurance_cycles / rate / (hours_per_day * 3600.0) * 86400.0 / _YEAR_S
+
+    @property
+    def limiting(self) -> MemoryWear:
+        """The 24LC1025 region that wears out first (the memory's lifetime)."""
+        pages = [r for r in self.regions if r.unit == "page"]
+        return max(pages, key=lambda r: self.rate_per_s(r) / r.endurance_cycles)
+
+    def years(self, hours_per_day: float) -> float:
+        """The 24LC1025s' lifetime: their first page to wear out."""
+        return self.lifetime_years(self.limiting, hours_per_day)
+
+    def fits(self, years: float = LIFETIME_TARGET_YEARS) -> bool:
+        """The 24LC1025s last ``years`` at 8 hours a day."""
+        return self.years(LIFETIME_HOURS_PER_DAY[0]) >= years
+
+    def lines(self) -> list[str]:
+        """A printed table."""
+        how = (f"measured by the model over {self.duration_s:,.0f} s of continuous logging" if self.measured
+               else "computed from the design")
+        h8, h24 = LIFETIME_HOURS_PER_DAY
+        out = [f"memory endurance ({how}; years of logging {h8:g} h / {h24:g} h a day)"]
+        for r in self.regions:
+            y8, y24 = self.lifetime_years(r, h8), self.lifetime_years(r, h24)
+            where = f"worst {r.unit} {r.worst_unit:4d}, {r.worst_cycles:5,.0f} cycles" if self.measured else ""
+            out.append(f"  {r.name:<16s} {where:<32s} {self.rate_per_s(r):9.6f}/s  {y8:10,.1f} y {y24:10,.1f} y"
+                       f"   ({r.source})")
+        out.append(f"  24LC1025 lifetime: {self.years(h8):,.1f} years at {h8:g} h a day, {self.years(h24):,.1f} at "
+                   f"{h24:g} h (the {self.limiting.name}); {'fits' if self.fits() else 'DOES NOT FIT'} "
+                   f"{LIFETIME_TARGET_YEARS:g} years")
+        for r in self.regions:
+            if r.unit != "page" and self.lifetime_years(r, h8) < LIFETIME_TARGET_YEARS:
+                out.append(f"  note: the {r.name}'s byte {r.worst_unit} ({r.source}) lasts "
+                           f"{self.lifetime_years(r, h8):.2f} years at {h8:g} h a day ({r.endurance_cycles:,d} "
+                           "cycles), short of the target; not in the 24LC1025 verdict")
+        return out
+
+
+def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, bank_wear=None, step_wear=None,
+                     data_wear=None, flush_samples: int = 0) -> EnduranceBudget:
+    """The lifetime of the logger's memories: measured (the wear counters of a run of ``duration_s``: the
+    sample bank's pages, the step EEPROM's, the data EEPROM's bytes) or, without them, computed from the design
+    (the sample pages written in turn; the scratch ring at ``flush_samples``, 0: no on-line algorithm)."""
+    if bank_wear is not None:
+        step = [int(x) for x in step_wear]
+        first = SCRATCH_FIRST_BYTE // PAGE_BYTES
+        regions = (
+            MemoryWear("sample memory", "page", tuple(int(x) for x in bank_wear), 0, ENDURANCE_CYCLES,
+                       "2 x 24LC1025, 128-byte pages written in turn"),
+            MemoryWear("step ring", "page", tuple(step[:first]), 0, ENDURANCE_CYCLES,
+                       "step EEPROM block 0: 20-byte records as they come"),
+            MemoryWear("scratch ring", "page", tuple(step[first:first + SCRATCH_PAGES]), first, ENDURANCE_CYCLES,
+                       f"step EEPROM block 1: a_v, one page write every {flush_samples} samples"),
+            MemoryWear("header slots", "page", tuple(step[first + SCRATCH_PAGES:]), first + SCRATCH_PAGES,
+                       ENDURANCE_CYCLES, "step EEPROM, end of block 1: header commits"),
+            MemoryWear("PIC data EEPROM", "byte", tuple(int(x) for x in data_wear), 0, DATA_EEPROM_ENDURANCE_CYCLES,
+                       "header and page-commit journal"),
+        )
+        return EnduranceBudget(config, float(duration_s), regions, True)
+    duration = 1.0
+    pages = 2 * DEVICE_BYTES // PAGE_BYTES
+    sample = config.bytes_per_sample * config.sampling_rate_hz / PAGE_BYTES / pages
+    regions = [MemoryWear("sample memory", "page", (sample,), 0, ENDURANCE_CYCLES,
+                          "2 x 24LC1025, 128-byte pages written in turn")]
+    if flush_samples:
+        regions.append(MemoryWear("scratch ring", "page", (scratch_page_writes_per_s(config.sampling_rate_hz,
+                                                                                     flush_samples),),
+                                  SCRATCH_FIRST_BYTE // PAGE_BYTES, ENDURANCE_CYCLES,
+                                  f"a page write every {flush_samples} samples over {SCRATCH_PAGES} pages"))
+    return EnduranceBudget(config, duration, tuple(regions), False)

@@ -11,7 +11,9 @@
 - **Sequential read**: the address counter rolls over from the end of a 64 KiB block to the start of the
   **same** block; to read across, the master must re-address (:meth:`EepromBank.read` does, and counts
   its transactions).
-- Wear: a write-cycle counter per page (endurance 1,000,000 cycles).
+- Wear: a write-cycle counter per page (endurance :data:`ENDURANCE_CYCLES`, 1,000,000 cycles): a page write of
+  any number of bytes costs its page one cycle (:meth:`Eeprom24LC1025.page_write`, :meth:`write_full_pages`,
+  and :meth:`count_page_writes` for the on-line algorithm's scratch ring, whose values its kernel keeps).
 
 PIC16F877 data EEPROM: 256 bytes, erased to 0xFF, written byte by byte (~4 ms each); the firmware
 writes only the bytes that change. A write counter per byte.
@@ -23,12 +25,16 @@ import numpy as np
 
 from gaitlog.firmware_sim.errors import DeviceError
 
-__all__ = ["Eeprom24LC1025", "EepromBank", "DataEeprom"]
+__all__ = ["Eeprom24LC1025", "EepromBank", "DataEeprom", "PAGE_BYTES", "ENDURANCE_CYCLES",
+           "DATA_EEPROM_ENDURANCE_CYCLES"]
 
 PAGE_BYTES = 128
 BLOCK_BYTES = 65536
 DEVICE_BYTES = 131072
+#: 24LC1025 endurance: write cycles per page (DS21941: 1,000,000).
 ENDURANCE_CYCLES = 1_000_000
+#: PIC16F877 data EEPROM endurance: erase/write cycles per byte (DS30292 parameter D120: 100,000 minimum).
+DATA_EEPROM_ENDURANCE_CYCLES = 100_000
 
 
 class Eeprom24LC1025:
@@ -86,6 +92,21 @@ class Eeprom24LC1025:
         self.memory[first_page * PAGE_BYTES:(first_page + n) * PAGE_BYTES] = data
         self.wear[first_page:first_page + n] += 1
         self.write_time_s += n * self.page_write_time_s
+
+    def count_page_writes(self, first_page: int, writes: np.ndarray) -> None:
+        """Account ``writes[i]`` page writes of page ``first_page + i`` whose bytes the emulator keeps elsewhere
+        (the on-line algorithm's scratch ring: its kernel holds the values): one write cycle each, and the
+        write time, as :meth:`page_write` would.
+
+        >>> e = Eeprom24LC1025()
+        >>> e.count_page_writes(512, np.array([2, 1])); e.wear[511:515].tolist(), e.write_time_s
+        ([0, 2, 1, 0], 0.015)
+        """
+        w = np.asarray(writes, np.int64)
+        if w.ndim != 1 or (w < 0).any() or not 0 <= first_page <= first_page + w.size <= self.wear.size:
+            raise DeviceError(f"{w.size} page write counts from page {first_page} outside 0..{self.wear.size}")
+        self.wear[first_page:first_page + w.size] += w.astype(np.uint32)
+        self.write_time_s += int(w.sum()) * self.page_write_time_s
 
     def sequential_read(self, address: int, length: int) -> bytes:
         """Random-address then sequential read of ``length`` bytes; rolls over within the 64 KiB block."""

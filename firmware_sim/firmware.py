@@ -47,9 +47,10 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_FIRST_BYTE, SCRATCH_PAGES, SCRATCH_SAMPLE_BYTES
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
-from gaitlog.firmware_sim.eeprom import Eeprom24LC1025
+from gaitlog.firmware_sim.eeprom import PAGE_BYTES, Eeprom24LC1025
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
 from gaitlog.firmware_sim.ring_buffer import MemoryFullError, RingBuffer
@@ -246,10 +247,20 @@ class Firmware:
             return self.ring.append(pack_words(c, flags))
         room = self.ring.room_samples
         n = c.shape[0] if room is None else min(c.shape[0], room)
-        self._store_steps(alg.feed(c[:n]))       # the algorithm sees exactly the samples that are stored
+        before = alg.scratch_page_writes
+        steps = alg.feed(c[:n])                  # the algorithm sees exactly the samples that are stored
+        self._count_scratch_writes(alg.scratch_page_writes - before)
+        self._store_steps(steps)
         if room is not None and n == room:       # stop-when-full: this block fills the memory, the run ends
             self._end_steps()
         return self.ring.append(pack_words(c, flags))
+
+    def _count_scratch_writes(self, writes: np.ndarray) -> None:
+        """The step algorithm's scratch page writes (per page of its ring, from the run's start) on the step
+        EEPROM: each run starts the ring at the page its first sample's number points to (2 bytes a sample, modulo
+        the ring), so that short runs do not all wear the ring's first pages."""
+        start = SCRATCH_SAMPLE_BYTES * int(self.ring.header.run_start_sample) // PAGE_BYTES % SCRATCH_PAGES
+        self.steps.eeprom.count_page_writes(SCRATCH_FIRST_BYTE // PAGE_BYTES, np.roll(writes, start))
 
     def log_steps(self, records: bytes) -> int:
         """Store per-step records from the on-line step algorithm (20 bytes each, section 2.3); return how

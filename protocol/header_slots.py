@@ -68,7 +68,7 @@ SLOT_BYTES = 168
 #: Slots (written alternately).
 SLOT_COUNT = 2
 #: Byte addresses of the slots in the step 24LC1025: the last two 256-byte page pairs of its second 64 KiB
-#: block (the on-line algorithm's scratch rings start at the block's beginning and are far smaller).
+#: block (the on-line algorithm's scratch ring fills the block from its beginning up to the first slot).
 SLOT_ADDRESSES = (0x1FE00, 0x1FF00)
 _HEADER_CRC = slice(254, 256)
 _SEQ = struct.Struct("<I")

@@ -64,9 +64,9 @@ def _signatures(v: str) -> dict[str, str]:
     i1, i2, v1, v2 = "int64[::1]", "int64[:, ::1]", f"{v}[::1]", f"{v}[:, ::1]"
     return {
         # codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt, cyc
-        "process": f"int64({v2}, {i1}, {v1}, {i1}, {v1}, {v1}, {i1}, {v2}, {i2}, {v2}, int64, {i1}, {i1})",
+        "process": f"int64({v2}, {i1}, {v1}, {i1}, {v1}, {v1}, {i1}, {v1}, {i2}, {v2}, int64, {i1}, {i1})",
         # cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt
-        "flush": f"int64({i1}, {v1}, {i1}, {v1}, {v2}, {i2}, {v2}, int64, {i1})",
+        "flush": f"int64({i1}, {v1}, {i1}, {v1}, {v1}, {i2}, {v2}, int64, {i1})",
         # cfg_i, st_i, st_v, line, durs
         "reset": f"void({i1}, {i1}, {v1}, {v1}, {i1})",
     }

@@ -16,11 +16,13 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    running mean). Causal; the offline chain's centred 4 s window needs 2 s of future samples.
 3. **Vertical acceleration** ``a_v = (f·g - |g|^2) / |g|`` (tilt correction; 0 when ``|g|`` is below
    ``min_gravity_g``).
-4. ``a_v`` enters a delay line of ``2 r3 + 1`` samples; the **centred Gaussian FIR** low-passes at 3 Hz
-   (``y3``), 10 Hz (``d10``) and 5 Hz are evaluated at the line's centre ``m = n - r3`` (the offline chain's
-   zero-phase filters, ``r3`` samples late); the impact band is ``d10 - d5``. a_v goes to one scratch ring,
-   y3, d10 and the band to another (the step EEPROM's second block; the emulator keeps their values in
-   ``scr``, its I2C bytes are counted).
+4. ``a_v`` enters a delay line of ``2 r3 + 1`` samples; the **centred Gaussian FIR** low-pass at 3 Hz
+   (``y3``) is evaluated at the line's centre ``m = n - r3`` (the offline chain's zero-phase filter, ``r3``
+   samples late). Every ``CI_FLUSH`` samples (a power of two, at most the line's length and half a page) the
+   line's newest a_v go to the scratch ring, the step EEPROM's second block, as one page write: no RAM
+   buffer, and each 128-byte page is written ``128 / (2 CI_FLUSH)`` times per lap of the 32,768-sample ring
+   (``docs/topics/eeprom-endurance.md``). The 10 Hz (``d10``) and 5 Hz FIR, the impact band ``d10 - d5``
+   and ``y3`` again are evaluated on the scratch ring where a step needs them (step 6).
 5. **Foot-flat** (peaks of ``y3``): a hysteresis detector confirms a peak when ``y3`` has risen by the
    prominence since the last trough and fallen by it since the peak; the prominence is a fraction of the
    recent step amplitude ``AMP`` (an exponential mean of the confirmed peaks' rises from the trough before
@@ -47,7 +49,8 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    foot-flat marked weak (:func:`_stop_candidate`); it is final ``max_step`` after it, and dropped at a
    full-prominence rise or foot-flat before (the walker did not stop). One weak step per bout end.
 6. **Steps** (:func:`_finalise`, at each final foot-flat ``e``, with the previous one ``s``): read back from
-   the scratch rings: the heel-strike (impact = first maximum of the band in ``[e - hs_before, e + hs_after]``,
+   the scratch ring (the filters evaluated on it, :func:`_fir_scratch`): the heel-strike (impact = first
+   maximum of the band in ``[e - hs_before, e + hs_after]``,
    minus ``hs_delay``), the toe-off (first local minimum of ``d10`` in ``(s, s + to_span]``), M4's range of
    ``y3`` in ``[s, e]``, and two passes over ``a_v[s..e]``: M1's double integral reset at ``s`` and its
    extremes; then, with ``c1 = -mean(a)`` and ``c2`` known in closed form (``P2(T) = 16 P(T) + 2 c1 T^2``),
@@ -98,12 +101,15 @@ from gaitlog.firmware_sim.algorithms.state import (
     F_LAST,
     F_LAST_WEAK,
     F_LOOK_MAX,
+    F_OLD,
     F_PEND,
     F_PEND_WEAK,
     F_RAW,
     FLAGS,
     G1,
     G2,
+    INDEX_HALF,
+    INDEX_MASK,
     LAST,
     LINE_POS,
     MN,
@@ -115,6 +121,7 @@ from gaitlog.firmware_sim.algorithms.state import (
     RAW,
     RAW_Y,
     N,
+    since,
 )
 from gaitlog.firmware_sim.compiled import njit, register_jitable
 from gaitlog.firmware_sim.fixedpoint import (
@@ -126,9 +133,12 @@ from gaitlog.firmware_sim.fixedpoint import (
     OP_I2C,
     s_cost,
 )
+from gaitlog.firmware_sim.eeprom import BLOCK_BYTES, PAGE_BYTES
+from gaitlog.protocol.header_slots import SLOT_ADDRESSES
 from gaitlog.protocol.steps import StepFlag
 
-__all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_COLUMNS"]
+__all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_SAMPLE_BYTES",
+           "SCRATCH_FIRST_BYTE", "SCRATCH_RING_BYTES", "SCRATCH_PAGES"]
 
 # ---------------------------------------------------------------------------------------------------------
 # configuration layout (filled by gaitlog.firmware_sim.algorithms.online.OnlineConfig)
@@ -136,11 +146,11 @@ __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_C
 #: Integer configuration slots (the same in both arithmetics).
 CI = dict(R3=0, R10=1, R5=2, MIN_STEP=3, MAX_STEP=4, HS_BEFORE=5, HS_AFTER=6, HS_DELAY=7, TO_SPAN=8,
           G_SHIFT=9, N_MED=10, FRACTION=11, CODE_FRAC=12, MANT_FRAC=13, EXC_SHIFT1=14, EXC_SHIFT2=15,
-          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21, PRIOR_TWICE=22)
+          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21, PRIOR_TWICE=22, FLUSH=23)
 N_CI = len(CI)
 (CI_R3, CI_R10, CI_R5, CI_MIN_STEP, CI_MAX_STEP, CI_HS_BEFORE, CI_HS_AFTER, CI_HS_DELAY, CI_TO_SPAN,
  CI_G_SHIFT, CI_N_MED, CI_FRACTION, CI_CODE_FRAC, CI_MANT_FRAC, CI_EXC_SHIFT1, CI_EXC_SHIFT2, CI_UNIT_FRAC,
- CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT, CI_PRIOR_TWICE) = range(N_CI)
+ CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT, CI_PRIOR_TWICE, CI_FLUSH) = range(N_CI)
 
 #: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
 CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, FRAC=22,
@@ -151,24 +161,31 @@ CV_STOP = CV["STOP"]
 CV_CAP = CV["CAP"]
 CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
 
-#: Columns of the integer record output: end index, window duration, toe-off index, heel-strike index, flags.
+#: Columns of the integer record output: the end index (16 bits, as the PIC keeps it; the driver restores the
+#: absolute index), the window duration, the toe-off after the window start (-1: none), the heel strike from the
+#: end (signed; meaningless with ``NO_HEEL_STRIKE``), the flags: the record's own fields.
 OUT_I = ("end", "duration", "toe_off", "heel_strike", "flags")
 #: Columns of the value record output: the five lengths, the excursions h (M1, M2) and h1 (M3), M4's range.
 OUT_V = ("length_m1", "length_m2", "length_m3", "length_m4", "length_m5", "h_m1", "h_m2", "h1_m3", "range_m4")
 O_END, O_DUR, O_TO, O_HS, O_FLAGS = range(5)
 O_L, O_H1, O_H2, O_H3, O_RANGE = 0, 5, 6, 7, 8
-#: Columns of the scratch rings (the step EEPROM's second block): a_v in one ring (2 bytes a sample, read
-#: by both integration passes), y3, d10 and the impact band in the other (3 bytes each).
-SCRATCH_COLUMNS = ("a_v", "y3", "d10", "band")
-S_AV, S_Y3, S_D10, S_BAND = range(4)
-SCRATCH_A_BYTES = 2
-SCRATCH_B_BYTES = 9
+#: The scratch ring holds a_v, 2 bytes a sample, in the step EEPROM's second block up to its header slots
+#: (:data:`SCRATCH_RING_BYTES`, 508 pages: 32,512 samples), written ``CI_FLUSH`` samples at a time (one
+#: aligned page write straight from the delay line: the run's k-th flush fills bytes ``2 CI_FLUSH k`` on, modulo
+#: the ring) and read back by the step's passes; the filters a step needs besides (y3 for M4's range, d10 for
+#: the toe-off, the impact band for the heel strike) are evaluated again on it. The emulator keeps its values
+#: in ``scr`` (the newest are the delay line's) and counts the I2C bytes; the driver counts the page writes.
+SCRATCH_SAMPLE_BYTES = 2
+SCRATCH_FIRST_BYTE = BLOCK_BYTES
+SCRATCH_RING_BYTES = SLOT_ADDRESSES[0] - SCRATCH_FIRST_BYTE
+SCRATCH_PAGES = SCRATCH_RING_BYTES // PAGE_BYTES
 #: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte.
 I2C_WRITE_OVERHEAD = 3
 I2C_READ_OVERHEAD = 4
 
 # the shared rule, compiled into the kernel (parameters.py itself stays free of numba)
 register_jitable(minimum_distance)
+register_jitable(since)
 
 _NO_WINDOW = int(StepFlag.NO_WINDOW)
 _NO_TOE_OFF = int(StepFlag.NO_TOE_OFF)
@@ -184,7 +201,9 @@ _SATURATED = int(StepFlag.SATURATED)
 
 @njit(cache=True)
 def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
-    """Centred symmetric FIR at ``centre`` of the delay line: ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16."""
+    """Centred symmetric FIR at ``centre`` of a ring of a_v (the delay line, or the scratch ring):
+    ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM."""
+    s_cost(cnt, OP_DEE, 2 * (r + 1))
     acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W32, cnt)
     for tap in range(1, r + 1):
         pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W16, cnt)
@@ -228,55 +247,75 @@ def _read_cost(cnt, records, record_bytes):  # pragma: no cover - compiled
     s_cost(cnt, OP_I2C, record_bytes * records + I2C_READ_OVERHEAD)
 
 
+@njit(cache=True)
+def _fir_scratch(scr, j, cfg_i, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
+    """The FIR of weights ``w0`` (radius ``r``) at sample ``j``, on a_v read back from the scratch ring (one
+    sequential read of its ``2 r + 1`` samples; the newest are still in the delay line: counted as read too)."""
+    _read_cost(cnt, 2 * r + 1, SCRATCH_SAMPLE_BYTES)
+    return _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
+
+
+@njit(cache=True)
+def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
+    """The impact band ``d10 - d5`` at sample ``j`` (Q2.16)."""
+    d10 = _fir_scratch(scr, j, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    return ar.sub(d10, _fir_scratch(scr, j, cfg_i, cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt), W_LP, cnt)
+
+
 # ---------------------------------------------------------------------------------------------------------
-# one step (at a final foot-flat): each part reads the scratch rings and keeps only its own accumulators
+# one step (at a final foot-flat): each part reads the scratch ring and keeps only its own accumulators
 
 
 @njit(cache=True)
-def _heel_strike(e, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
+def _heel_strike(e, m, cfg_i, cfg_v, st_i, scr, cnt):  # pragma: no cover - compiled
     """Heel-strike before the foot-flat ``e``: the first maximum of the impact band in
-    ``[e - hs_before, e + hs_after]`` (filter outputs up to ``m``), minus ``hs_delay``; -1 if none."""
-    size = cfg_i[CI_SCRATCH]
-    lo = max(e - cfg_i[CI_HS_BEFORE], cfg_i[CI_R3])
-    hi = min(e + cfg_i[CI_HS_AFTER], m)
+    ``[e - hs_before, e + hs_after]`` (filter outputs up to ``m``; none before the run's first, ``r3``), minus
+    ``hs_delay``; -1 if none. Indices are 16-bit (the loop runs on ``e``'s offsets, the ring wraps with them)."""
+    young = not (st_i[FLAGS] & F_OLD)
+    lo = e - cfg_i[CI_HS_BEFORE]
+    if young and lo < cfg_i[CI_R3]:
+        lo = cfg_i[CI_R3]
+    hi = e + min(cfg_i[CI_HS_AFTER], since(m, e))
     best = -1
-    peak = scr[lo % size, S_BAND]
+    peak = cfg_v[CV_DELTA] * 0
     for j in range(lo, hi + 1):
+        band = _band(scr, j, cfg_i, cfg_v, cnt)
         s_cost(cnt, OP_CMP32, 1)
-        if best < 0 or scr[j % size, S_BAND] > peak:
-            peak = scr[j % size, S_BAND]
-            best = j
-    _read_cost(cnt, hi - lo + 1, SCRATCH_B_BYTES)
-    if best < 0 or best - cfg_i[CI_HS_DELAY] < 0:
+        if best < 0 or band > peak:
+            peak = band
+            best = j & INDEX_MASK
+    if best < 0 or (young and best < cfg_i[CI_HS_DELAY]):
         return -1
-    return best - cfg_i[CI_HS_DELAY]
+    return (best - cfg_i[CI_HS_DELAY]) & INDEX_MASK
 
 
 @njit(cache=True)
-def _toe_off(s, m, cfg_i, scr, cnt):  # pragma: no cover - compiled
+def _toe_off(s, m, cfg_i, cfg_v, scr, cnt):  # pragma: no cover - compiled
     """Toe-off after the foot-flat ``s``: the first local minimum of ``d10`` in ``(s, s + to_span]``; -1."""
-    size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, cfg_i[CI_TO_SPAN] + 2, SCRATCH_B_BYTES)
-    for j in range(s + 1, min(s + cfg_i[CI_TO_SPAN], m - 1) + 1):
+    prev = _fir_scratch(scr, s, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    cur = _fir_scratch(scr, s + 1, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    for j in range(s + 1, s + min(cfg_i[CI_TO_SPAN], since(m, s) - 1) + 1):
+        nxt = _fir_scratch(scr, j + 1, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
         s_cost(cnt, OP_CMP32, 2)
-        if scr[j % size, S_D10] < scr[(j - 1) % size, S_D10] and scr[j % size, S_D10] <= scr[(j + 1) % size, S_D10]:
-            return j
+        if cur < prev and cur <= nxt:
+            return j & INDEX_MASK
+        prev = cur
+        cur = nxt
     return -1
 
 
 @njit(cache=True)
-def _range(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
+def _range(s, e, cfg_i, cfg_v, scr, cnt):  # pragma: no cover - compiled
     """M4's ``a_max - a_min`` of the 3 Hz signal in ``[s, e]`` (Q2.16 g)."""
-    size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, e - s + 1, SCRATCH_B_BYTES)
-    y_max = scr[s % size, S_Y3]
+    y_max = _fir_scratch(scr, s, cfg_i, cfg_v, CV_W3, cfg_i[CI_R3], cnt)
     y_min = y_max
-    for j in range(s + 1, e + 1):
+    for j in range(s + 1, s + since(e, s) + 1):
+        y = _fir_scratch(scr, j, cfg_i, cfg_v, CV_W3, cfg_i[CI_R3], cnt)
         s_cost(cnt, OP_CMP32, 2)
-        if scr[j % size, S_Y3] > y_max:
-            y_max = scr[j % size, S_Y3]
-        if scr[j % size, S_Y3] < y_min:
-            y_min = scr[j % size, S_Y3]
+        if y > y_max:
+            y_max = y
+        if y < y_min:
+            y_min = y
     return ar.sub(y_max, y_min, W_LP, cnt)
 
 
@@ -289,13 +328,13 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     ``a + c1`` in closed form).
     """
     size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, e - s + 1, SCRATCH_A_BYTES)
-    vel = scr[0, S_AV] * 0
+    _read_cost(cnt, since(e, s) + 1, SCRATCH_SAMPLE_BYTES)
+    vel = scr[0] * 0
     pos = vel
     p_max = vel
     p_min = vel
-    for j in range(s + 1, e + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size, S_AV], scr[(j - 1) % size, S_AV], W32, cnt), W32, cnt)
+    for j in range(s + 1, s + since(e, s) + 1):
+        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W32, cnt), W32, cnt)
         pos = ar.add(pos, ar.add(v_new, vel, W32, cnt), W32, cnt)
         vel = v_new
         s_cost(cnt, OP_CMP32, 2)
@@ -303,10 +342,10 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
             p_max = pos
         if pos < p_min:
             p_min = pos
-    c1 = ar.div(ar.neg(vel, W32, cnt), F_ACC, 2 * (e - s), 0, F_POS2, W32, cnt)
+    c1 = ar.div(ar.neg(vel, W32, cnt), F_ACC, 2 * since(e, s), 0, F_POS2, W32, cnt)
     c2 = ar.div(ar.add(ar.requant(pos, F_POS, F_POS2, W32, cnt),
-                       ar.scale2(ar.mul_count(c1, (e - s) * (e - s), W32, cnt), 1, W32, cnt), W32, cnt),
-                F_POS2, e - s, 0, F_POS2, W32, cnt)
+                       ar.scale2(ar.mul_count(c1, since(e, s) * since(e, s), W32, cnt), 1, W32, cnt), W32, cnt),
+                F_POS2, since(e, s), 0, F_POS2, W32, cnt)
     return ar.sub(p_max, p_min, W32, cnt), c1, c2
 
 
@@ -316,7 +355,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     (additions only); returns its range over the step and over the single support ``[to, hs3]`` (M3;
     ``to < 0``: none)."""
     size = cfg_i[CI_SCRATCH]
-    _read_cost(cnt, e - s + 1, SCRATCH_A_BYTES)
+    _read_cost(cnt, since(e, s) + 1, SCRATCH_SAMPLE_BYTES)
     vel = c1 * 0
     q = vel
     q_max = vel
@@ -326,8 +365,8 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     ramp = ar.scale2(c1, 1, W32, cnt)
     ramp_step = ar.scale2(c1, 2, W32, cnt)
     seen = False
-    for j in range(s + 1, e + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size, S_AV], scr[(j - 1) % size, S_AV], W32, cnt), W32, cnt)
+    for j in range(s + 1, s + since(e, s) + 1):
+        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W32, cnt), W32, cnt)
         dp = ar.requant(ar.add(v_new, vel, W32, cnt), F_POS, F_POS2, W32, cnt)
         vel = v_new
         q = ar.add(q, ar.add(ar.sub(dp, c2, W32, cnt), ramp, W32, cnt), W32, cnt)
@@ -337,7 +376,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
             q_max = q
         if q < q_min:
             q_min = q
-        if to >= 0 and to <= j <= hs3:
+        if to >= 0 and since(j, to) >= 0 and since(j, hs3) <= 0:
             s_cost(cnt, OP_CMP32, 2)
             if not seen or q > s_max:
                 s_max = q
@@ -357,7 +396,7 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     zero = cfg_v[CV_DELTA] * 0
     flags = 0
     s = st_i[LAST] if st_i[FLAGS] & F_LAST else -1
-    hs = _heel_strike(e, m, cfg_i, scr, cnt)
+    hs = _heel_strike(e, m, cfg_i, cfg_v, st_i, scr, cnt)
     if hs < 0:
         flags |= _NO_HEEL_STRIKE
     to = -1
@@ -368,17 +407,17 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     l5 = zero
     for c in range(4):
         out_v[k, O_H1 + c] = zero
-    if s < 0 or e - s > cfg_i[CI_MAX_STEP]:
+    if s < 0 or since(e, s) > cfg_i[CI_MAX_STEP]:
         flags |= _NO_WINDOW
         s = -1
     else:
         # events of the window (the offline chain's rules: toe-off between the start and the heel-strike)
-        to = _toe_off(s, m, cfg_i, scr, cnt)
-        if not (to > s and (hs < 0 or to < hs)):
+        to = _toe_off(s, m, cfg_i, cfg_v, scr, cnt)
+        if not (to >= 0 and (hs < 0 or since(to, hs) < 0)):
             to = -1
             flags |= _NO_TOE_OFF
-        hs3 = hs if hs > s else -1
-        if not (to >= 0 and 0 <= hs3 <= e and hs3 > to):
+        hs3 = hs if hs >= 0 and since(hs, s) > 0 else -1
+        if not (to >= 0 and hs3 >= 0 and since(hs3, e) <= 0 and since(hs3, to) > 0):
             flags |= _M3_UNDEFINED
             hs3 = -1
         s_cost(cnt, OP_DEE, 24)                  # K, leg, foot and the M5 constants from the data EEPROM
@@ -408,7 +447,7 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
         # M4 (eq 4): K (a_max - a_min)^p, p = M4_EXPONENT_EIGHTHS / 8, the range in g and K g0^p the constant:
         # the range's square root, fourth and eighth roots (rounded to nearest, 15 fraction bits each; the
         # first from the Q2.16 range), the constant (UQ2.14) multiplied by those the exponent's bits select
-        out_v[k, O_RANGE] = _range(s, e, cfg_i, scr, cnt)
+        out_v[k, O_RANGE] = _range(s, e, cfg_i, cfg_v, scr, cnt)
         length = ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt)          # range^(1/2)
         if M4_EXPONENT_EIGHTHS & 4:
             l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, U16, cnt)
@@ -422,15 +461,16 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
                 length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
                 l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples
-        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, e - s, 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32, cnt),
+        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, since(e, s), 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32,
+                               cnt),
                         F_M5, F_STEP, U16, cnt)
     if cnt[C_STICKY]:
         flags |= _SATURATED
         cnt[C_STICKY] = 0
     out_i[k, O_END] = e
-    out_i[k, O_DUR] = e - s if s >= 0 else 0
-    out_i[k, O_TO] = to
-    out_i[k, O_HS] = hs
+    out_i[k, O_DUR] = since(e, s) if s >= 0 else 0
+    out_i[k, O_TO] = since(to, s) if to >= 0 else -1
+    out_i[k, O_HS] = since(hs, e) if hs >= 0 else 0
     out_i[k, O_FLAGS] = flags
     out_v[k, O_L + 0] = l1
     out_v[k, O_L + 1] = l2
@@ -458,13 +498,13 @@ def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, c
     if yp <= yp * 0:
         return k                                   # the CoM not accelerated upwards: no double support
     # the step-duration stream: peaks min_step apart (the offline chain's first pass)
-    if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] < cfg_i[CI_MIN_STEP]:
+    if (st_i[FLAGS] & F_RAW) and since(p, st_i[RAW]) < cfg_i[CI_MIN_STEP]:
         if yp > st_v[RAW_Y]:
             st_i[RAW] = p
             st_v[RAW_Y] = yp
     else:
-        if (st_i[FLAGS] & F_RAW) and p - st_i[RAW] <= cfg_i[CI_MAX_STEP]:
-            durs[st_i[DUR_POS]] = p - st_i[RAW]
+        if (st_i[FLAGS] & F_RAW) and since(p, st_i[RAW]) <= cfg_i[CI_MAX_STEP]:
+            durs[st_i[DUR_POS]] = since(p, st_i[RAW])
             st_i[DUR_POS] = (st_i[DUR_POS] + 1) % cfg_i[CI_N_MED]
             if st_i[N_DUR] < cfg_i[CI_N_MED]:
                 st_i[N_DUR] += 1
@@ -476,13 +516,13 @@ def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, c
         st_v[RAW_Y] = yp
         st_i[FLAGS] |= F_RAW
     # foot-flat candidates
-    if (st_i[FLAGS] & F_LAST) and p - st_i[LAST] < st_i[DIST]:
+    if (st_i[FLAGS] & F_LAST) and since(p, st_i[LAST]) < st_i[DIST]:
         return k                                   # lower than a final foot-flat within the distance
     if not (st_i[FLAGS] & F_PEND):
         st_i[PEND] = p
         st_v[PEND_Y] = yp
         st_i[FLAGS] |= F_PEND
-    elif p - st_i[PEND] < st_i[DIST]:
+    elif since(p, st_i[PEND]) < st_i[DIST]:
         if yp > st_v[PEND_Y]:
             st_i[PEND] = p
             st_v[PEND_Y] = yp
@@ -504,12 +544,16 @@ def _calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt):  # pragma: no cover - comp
 
 @njit(cache=True)
 def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no cover - compiled
-    """Steps 1-4 for one sample: calibration, gravity, a_v, delay line, FIR outputs into the scratch rings.
+    """Steps 1-4 for one sample: calibration, gravity, a_v into the delay line (and every ``CI_FLUSH`` samples
+    from there to the scratch ring, one page write), the 3 Hz FIR output at the line's centre.
 
-    Returns True when the filters have an output (the run is at least ``2 r3 + 1`` samples old).
+    Returns whether the filters have an output (the run is at least ``2 r3 + 1`` samples old) and the output.
     """
     r3 = cfg_i[CI_R3]
     n = st_i[N]
+    if n & INDEX_HALF:                           # bit 15 of N: the run is old, N may wrap from now on
+        st_i[FLAGS] |= F_OLD
+    young = not (st_i[FLAGS] & F_OLD)
     # 1. calibration: f = M (codes - offset)
     c0 = ar.sub(ar.requant(cx, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 0], W16, cnt)
     c1 = ar.sub(ar.requant(cy, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 1], W16, cnt)
@@ -520,7 +564,7 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
     s_cost(cnt, OP_DEE, 25)                      # offsets, mantissas, exponent from the data EEPROM
     # 2. gravity: two exponential stages; the shift grows from 0 while the run is young (running mean)
     warm = 0
-    while (2 << warm) <= n + 1 and warm < cfg_i[CI_G_SHIFT]:
+    while warm < cfg_i[CI_G_SHIFT] and (not young or (2 << warm) <= n + 1):
         warm += 1
     for axis in range(3):
         st_v[G1 + axis] = ar.add(st_v[G1 + axis], ar.scale2(ar.sub(ar.requant(
@@ -543,23 +587,19 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
                                          ar.mul(fy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
                                   ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt), norm2, W32, cnt),
                     F_ACC2, gn, F_ACC, F_ACC, W16, cnt)
-    # 4. delay line, scratch records, the centred FIR outputs at m = n - r3
+    # 4. delay line; every CI_FLUSH samples its newest CI_FLUSH a_v go to the scratch ring as one page write
     line[st_i[LINE_POS]] = av
     st_i[LINE_POS] = (st_i[LINE_POS] + 1) % (2 * r3 + 1)
-    scr[n % cfg_i[CI_SCRATCH], S_AV] = av
-    st_i[N] = n + 1
-    if n < 2 * r3:
-        return False
+    scr[n % cfg_i[CI_SCRATCH]] = av
+    if (n + 1) % cfg_i[CI_FLUSH] == 0:
+        s_cost(cnt, OP_I2C, SCRATCH_SAMPLE_BYTES * cfg_i[CI_FLUSH] + I2C_WRITE_OVERHEAD)
+    st_i[N] = (n + 1) & INDEX_MASK
+    if young and n < 2 * r3:
+        return False, av * 0
+    # the 3 Hz output at the line's centre m = n - r3 (the peak detector's input)
     centre = (st_i[LINE_POS] - 1 - r3) % (2 * r3 + 1)
-    scr[(n - r3) % cfg_i[CI_SCRATCH], S_Y3] = _fir(line, centre, 2 * r3 + 1, cfg_v, CV_W3, r3, cnt)
-    scr[(n - r3) % cfg_i[CI_SCRATCH], S_D10] = _fir(line, centre, 2 * r3 + 1, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10],
-                                                    cnt)
-    scr[(n - r3) % cfg_i[CI_SCRATCH], S_BAND] = ar.sub(
-        scr[(n - r3) % cfg_i[CI_SCRATCH], S_D10],
-        _fir(line, centre, 2 * r3 + 1, cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt), W_LP, cnt)
-    s_cost(cnt, OP_DEE, 2 * (r3 + cfg_i[CI_R10] + cfg_i[CI_R5] + 3) + 3)      # FIR weights, prominence
-    s_cost(cnt, OP_I2C, SCRATCH_A_BYTES + SCRATCH_B_BYTES + 2 * I2C_WRITE_OVERHEAD)   # the scratch records
-    return True
+    s_cost(cnt, OP_DEE, 3)                       # the prominence
+    return True, _fir(line, centre, 2 * r3 + 1, cfg_v, CV_W3, r3, cnt)
 
 
 @njit(cache=True)
@@ -587,19 +627,19 @@ def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
 @njit(cache=True)
 def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
     """Everything the firmware does for one sample; returns the number of records written so far."""
-    if not _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):
+    ready, y = _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt)
+    if not ready:
         return k
     # 5. foot-flat at the filter output m = n - r3: the pending foot-flat becomes final, then the hysteresis
-    m = st_i[N] - 1 - cfg_i[CI_R3]
-    y = scr[m % cfg_i[CI_SCRATCH], S_Y3]
+    m = (st_i[N] - 1 - cfg_i[CI_R3]) & INDEX_MASK
     s_cost(cnt, OP_CMP32, 4)
-    if (st_i[FLAGS] & F_PEND) and m >= st_i[PEND] + (cfg_i[CI_MAX_STEP] if st_i[FLAGS] & F_PEND_WEAK
-                                                     else st_i[DIST]):
-        if not ((st_i[FLAGS] & F_LOOK_MAX) != 0 and st_i[MXPOS] < st_i[PEND] + st_i[DIST]
-                and st_v[MX] > st_v[PEND_Y] and m - st_i[PEND] <= cfg_i[CI_MAX_STEP]):
+    if (st_i[FLAGS] & F_PEND) and since(m, st_i[PEND]) >= (cfg_i[CI_MAX_STEP] if st_i[FLAGS] & F_PEND_WEAK
+                                                           else st_i[DIST]):
+        if not ((st_i[FLAGS] & F_LOOK_MAX) != 0 and since(st_i[MXPOS], st_i[PEND]) < st_i[DIST]
+                and st_v[MX] > st_v[PEND_Y] and since(m, st_i[PEND]) <= cfg_i[CI_MAX_STEP]):
             k = _finalise(st_i[PEND], m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
             st_i[FLAGS] &= ~F_PEND
-    if m == cfg_i[CI_R3]:                        # the run's first output
+    if m == cfg_i[CI_R3] and not (st_i[FLAGS] & F_OLD):    # the run's first output
         st_v[MN] = y
     elif st_i[FLAGS] & F_LOOK_MAX:
         if y > st_v[MX]:
@@ -666,7 +706,7 @@ def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
     the last step not itself a weak one)."""
     s_cost(cnt, OP_CMP16, 3)
     if ((st_i[FLAGS] & (F_LAST | F_LAST_WEAK | F_PEND)) == F_LAST
-            and st_i[DIST] <= st_i[MXPOS] - st_i[LAST] <= min(3 * st_i[DIST], cfg_i[CI_MAX_STEP])):
+            and st_i[DIST] <= since(st_i[MXPOS], st_i[LAST]) <= min(3 * st_i[DIST], cfg_i[CI_MAX_STEP])):
         st_i[PEND] = st_i[MXPOS]
         st_v[PEND_Y] = st_v[MX]
         st_i[FLAGS] |= F_PEND | F_PEND_WEAK
@@ -703,8 +743,9 @@ def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, c
 @njit(cache=True)
 def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """End of a run (STOP): the pending foot-flat becomes final with the samples there are."""
-    if st_i[FLAGS] & F_PEND and st_i[N] > 2 * cfg_i[CI_R3]:
-        k = _finalise(st_i[PEND], st_i[N] - 1 - cfg_i[CI_R3], cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+    if st_i[FLAGS] & F_PEND and (st_i[FLAGS] & F_OLD or st_i[N] > 2 * cfg_i[CI_R3]):
+        k = _finalise(st_i[PEND], (st_i[N] - 1 - cfg_i[CI_R3]) & INDEX_MASK, cfg_i, cfg_v, st_i, st_v, scr, out_i,
+                      out_v, k, cnt)
         st_i[FLAGS] &= ~F_PEND
     return k
 

@@ -60,8 +60,17 @@ from gaitlog.firmware_sim.algorithms.parameters import (
     OnlineParameters,
     SampleCounts,
 )
-from gaitlog.firmware_sim.algorithms.state import N_INDICES, N_VALUES, ram_bytes, variables
+from gaitlog.firmware_sim.algorithms.state import (
+    INDEX_HALF,
+    INDEX_MASK,
+    INDEX_MODULUS,
+    N_INDICES,
+    N_VALUES,
+    ram_bytes,
+    variables,
+)
 from gaitlog.firmware_sim.algorithms.state import N as _N_SLOT
+from gaitlog.firmware_sim.eeprom import PAGE_BYTES
 from gaitlog.firmware_sim.fixedpoint import (
     C_CYCLES,
     C_DIV0,
@@ -85,8 +94,10 @@ __all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", 
 
 #: The two arithmetics of the algorithm.
 ARITHMETICS = ("fixed", "float")
-#: :meth:`OnlineStepAlgorithm.run` feeds a recording in blocks of this many samples (memory stays bounded).
-BLOCK_SAMPLES = 65536
+#: :meth:`OnlineStepAlgorithm.feed` runs the kernel on blocks of at most this many samples (memory stays
+#: bounded; the kernel's 16-bit end indices of a block's records are then less than 2^16 samples behind its
+#: last sample, so the driver restores their absolute values).
+BLOCK_SAMPLES = INDEX_HALF
 #: M4's constant is K g0^p (p = :data:`~gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`): the range is in g on
 #: the device, in m/s^2 in K's unit.
 G0_POWER_M4 = STANDARD_GRAVITY_M_S2 ** M4_EXPONENT
@@ -110,9 +121,20 @@ def _kernel_q(half: np.ndarray) -> np.ndarray:
 
 
 def _scratch_size(c: SampleCounts) -> int:
-    """Scratch-ring length: a power of two covering the oldest record a step can read (see ``kernel``)."""
-    need = c.r3 + 2 * c.max_step + c.hs_before + c.to_span + 4
-    return 1 << max(6, math.ceil(math.log2(need)))
+    """The emulator's scratch ring (values): a power of two covering the oldest a_v a step can read, its
+    filters' reach included (see ``kernel``). The EEPROM's ring holds more (32,512 samples), the same values."""
+    need = 2 * c.r3 + 2 * c.max_step + c.hs_before + c.to_span + 4
+    size = 1 << max(6, math.ceil(math.log2(need)))
+    if size > INDEX_MODULUS:          # the ring follows the 16-bit indices across their wrap: it divides 2^16
+        raise ValueError(f"the scratch ring needs {need} samples, more than the 16-bit indices reach")
+    return size
+
+
+def _flush_samples(c: SampleCounts) -> int:
+    """a_v written to the scratch ring at a time: the largest power of two within the delay line (where they
+    wait, no RAM of their own) and half a 128-byte page (two bytes each; a power of two: the page writes are
+    aligned, and 2^16 is a multiple, so the 16-bit sample index wraps with them)."""
+    return 1 << int(math.floor(math.log2(min(2 * c.r3 + 1, PAGE_BYTES // kernel.SCRATCH_SAMPLE_BYTES))))
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,7 +225,7 @@ class OnlineConfig:
                                 CODE_FRAC=centred_q(adc_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
                                 SCRATCH=_scratch_size(c), W10=w10, W5=w5, AMP_SHIFT=ev.amplitude_shift,
-                                PRIOR_TWICE=c.prior_step_twice,
+                                PRIOR_TWICE=c.prior_step_twice, FLUSH=_flush_samples(c),
                                 BUDGET=int(cycles_available if cycles_available is not None
                                            else cycles_per_sample_available(sampling_rate_hz))).items():
             cfg_i[ci[name]] = value
@@ -446,9 +468,11 @@ class OnlineStepAlgorithm:
         self._st_v = np.zeros(N_VALUES, dt)
         self._line = np.zeros(2 * c.r3 + 1, dt)
         self._durs = np.zeros(c.median_steps, np.int64)
-        self._scr = np.zeros((int(self.config.cfg_i[kernel.CI_SCRATCH]), len(kernel.SCRATCH_COLUMNS)), dt)
+        self._scr = np.zeros(int(self.config.cfg_i[kernel.CI_SCRATCH]), dt)
+        self._wear = np.zeros(kernel.SCRATCH_PAGES, np.int64)
         self._cnt = new_counters()
         self._cyc = np.zeros(6, np.int64)
+        self._fed = 0                # samples fed since the last reset (the driver's count; the kernel's N is 16-bit)
         if self.arithmetic == "fixed" and not self.config.formats.shipped:
             (self._process, self._flush, self._reset), self.compiled_by = (
                 format_kernel.entry_points(self.config.formats), "jit")
@@ -469,13 +493,29 @@ class OnlineStepAlgorithm:
     @property
     def samples_seen(self) -> int:
         """Samples fed since the last :meth:`reset`."""
-        return int(self._st_i[_N_SLOT])
+        return self._fed
 
     @property
     def cycles(self) -> CycleStats:
         """Cycles counted by the fixed-point primitives and the kernel's I/O, since construction."""
         return CycleStats(int(self._cyc[0]), int(self._cyc[1]), int(self._cyc[2]), int(self._cyc[3]),
                           int(self._cyc[5]))
+
+    @property
+    def scratch_page_writes(self) -> np.ndarray:
+        """Page writes to each 128-byte page of the scratch ring (:data:`~gaitlog.firmware_sim.algorithms.kernel.
+        SCRATCH_PAGES` pages from the step EEPROM's second block) since construction: what the pages' write-cycle
+        counters (the 24LC1025's endurance) count."""
+        return self._wear.copy()
+
+    def _count_flushes(self, fed_before: int, fed_after: int) -> None:
+        """The kernel's scratch flushes while the run went from ``fed_before`` to ``fed_after`` samples (one
+        after every ``CI_FLUSH`` samples of the run): the k-th writes ``2 CI_FLUSH`` bytes from byte
+        ``2 CI_FLUSH k`` of the ring, modulo its length, one page write."""
+        flush = int(self.config.cfg_i[kernel.CI_FLUSH])
+        k = np.arange(fed_before // flush, fed_after // flush)
+        unit = kernel.SCRATCH_SAMPLE_BYTES * flush
+        np.add.at(self._wear, unit * k % kernel.SCRATCH_RING_BYTES // PAGE_BYTES, 1)
 
     def arithmetic_context(self) -> ArithmeticContext:
         """Calls, cycles, saturations, wraps and divisions by zero since construction."""
@@ -514,12 +554,19 @@ class OnlineStepAlgorithm:
         """START: forget the previous run."""
         self._reset(self.config.cfg_i, self._st_i, self._st_v, self._line, self._durs)
         self._scr[:] = 0
+        self._fed = 0
 
     def _steps(self, out_i: np.ndarray, out_v: np.ndarray, k: int, offset: int) -> OnlineSteps:
+        """The kernel's records as :class:`OnlineSteps`: its 16-bit end index made absolute from the samples fed
+        (as the firmware makes the record's 32-bit ``end_sample`` from its sample counter), the toe-off and heel
+        strike from their offsets."""
         sc = self.config.step_config
-        s = OnlineSteps(self.arithmetic, self.sampling_rate_hz, bool(sc.calibrated), out_i[:k, 0].copy(),
-                        out_i[:k, 1].copy(), out_i[:k, 2].copy(), out_i[:k, 3].copy(), out_i[:k, 4].copy(),
-                        out_v[:k, :5].copy(), out_v[:k, 5:].copy(), self.config.formats)
+        end = self._fed - 1 - ((self._st_i[_N_SLOT] - 1 - out_i[:k, 0]) & INDEX_MASK)
+        duration, to_rel, hs_rel, flags = (out_i[:k, c].copy() for c in range(1, 5))
+        toe_off = np.where(to_rel >= 0, end - duration + to_rel, -1)
+        heel_strike = np.where(flags & int(StepFlag.NO_HEEL_STRIKE), -1, end + hs_rel)
+        s = OnlineSteps(self.arithmetic, self.sampling_rate_hz, bool(sc.calibrated), end, duration, toe_off,
+                        heel_strike, flags, out_v[:k, :5].copy(), out_v[:k, 5:].copy(), self.config.formats)
         if not sc.calibrated:
             s.flags |= int(StepFlag.UNCALIBRATED)
         return s.shifted(offset) if offset else s
@@ -539,11 +586,19 @@ class OnlineStepAlgorithm:
         top = (1 << max(10, self.config.adc_bits)) - 1
         if c.size and (c.min() < 0 or c.max() > top):
             raise ValueError(f"ADC codes must be 0 .. {top}")
-        out_i, out_v = self._outputs(c.shape[0])
-        k = self._process(np.ascontiguousarray(c, dtype=self._st_v.dtype), self.config.cfg_i, self.config.cfg_v,
-                          self._st_i, self._st_v, self._line, self._durs, self._scr, out_i, out_v, 0, self._cnt,
-                          self._cyc)
-        return self._steps(out_i, out_v, k, offset)
+        parts = []
+        for a in range(0, c.shape[0], BLOCK_SAMPLES):
+            block = c[a:a + BLOCK_SAMPLES]
+            out_i, out_v = self._outputs(block.shape[0])
+            k = self._process(np.ascontiguousarray(block, dtype=self._st_v.dtype), self.config.cfg_i,
+                              self.config.cfg_v, self._st_i, self._st_v, self._line, self._durs, self._scr, out_i,
+                              out_v, 0, self._cnt, self._cyc)
+            self._count_flushes(self._fed, self._fed + block.shape[0])
+            self._fed += block.shape[0]
+            parts.append(self._steps(out_i, out_v, k, offset))
+        if len(parts) == 1:
+            return parts[0]
+        return OnlineSteps.concatenate(parts) if parts else self._steps(*self._outputs(0), 0, offset)
 
     def flush(self, *, offset: int = 0) -> OnlineSteps:
         """STOP: the pending foot-flat becomes final; return its record (if any)."""
@@ -556,7 +611,7 @@ class OnlineStepAlgorithm:
         """A whole recording: each run (from each index of ``run_starts``, default ``[0]``) starts with
         :meth:`reset` and ends with :meth:`flush`, as on the logger. Indices count from the first sample.
 
-        The samples are fed in blocks of :data:`BLOCK_SAMPLES` (the records do not depend on the blocks).
+        The records do not depend on how the samples are split into blocks.
         """
         c = np.asarray(codes)
         starts = np.unique(np.concatenate([[0], np.asarray(run_starts if run_starts is not None else [], np.int64)]))
@@ -565,8 +620,7 @@ class OnlineStepAlgorithm:
         parts = []
         for a, b in zip(bounds[:-1], bounds[1:]):
             self.reset()
-            for k in range(int(a), int(b), BLOCK_SAMPLES):   # blocks: bounded memory for any length
-                parts.append(self.feed(c[k:min(k + BLOCK_SAMPLES, int(b))], offset=int(a)))
+            parts.append(self.feed(c[int(a):int(b)], offset=int(a)))
             parts.append(self.flush(offset=int(a)))
         if not parts:
             return OnlineSteps.empty(self.arithmetic, self.sampling_rate_hz, self.config.step_config.calibrated)

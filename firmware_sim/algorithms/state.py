@@ -13,8 +13,12 @@ it: ``tests/firmware_sim/test_online_state.py`` checks that every local and argu
 function is declared here (and nothing else), that the call graph is the code's, and that a walk writes
 every persistent slot and nothing outside them.
 
-Widths are the PIC words: sample indices are 16-bit (they wrap on the PIC; every difference the algorithm
-takes is below 2^15 samples), filter outputs 24-bit (Q2.16), accumulators 32-bit. The firmware's own
+Widths are the PIC words: sample indices are 16-bit (:data:`INDEX_BITS`), filter outputs 24-bit (Q2.16),
+accumulators 32-bit. Indices wrap at 65,536 as the PIC's do: the kernel keeps them modulo :data:`INDEX_MODULUS`
+and compares them only through :func:`since`, the 16-bit difference read as signed (exact while the two are
+less than 2^15 samples apart, which every difference the algorithm takes is). What depends on the run's age
+(the gravity warm-up, the filters' first output) tests ``N`` only while ``FLAGS`` lacks ``F_OLD``, set once the
+run is 2^15 samples old. The firmware's own
 variables (page buffer, UART, header counters, maths registers ...) are declared in
 :mod:`gaitlog.firmware_sim.budget`, which adds them up against the 368 bytes.
 """
@@ -23,8 +27,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Variable", "VALUE_SLOTS", "INDEX_SLOTS", "N_VALUES", "N_INDICES", "FRAMES", "CALLS", "variables",
-           "persistent_bytes", "temporaries_bytes", "ram_bytes"]
+__all__ = ["Variable", "INDEX_BITS", "INDEX_MODULUS", "INDEX_MASK", "INDEX_HALF", "since", "VALUE_SLOTS",
+           "INDEX_SLOTS", "N_VALUES", "N_INDICES", "FRAMES", "CALLS", "variables", "persistent_bytes",
+           "temporaries_bytes", "ram_bytes"]
+
+
+#: Width of a sample index or sample counter on the PIC (``N``, ``MXPOS``, ``PEND``, ``LAST``, ``RAW`` and the
+#: kernel's index temporaries: 2-byte words).
+INDEX_BITS = 16
+INDEX_MODULUS = 1 << INDEX_BITS
+INDEX_MASK = INDEX_MODULUS - 1
+INDEX_HALF = INDEX_MODULUS >> 1
+
+
+def since(a: int, b: int) -> int:
+    """``a - b`` as the PIC computes it: the 16-bit difference read as signed, exact while the true difference
+    lies in ``-2^15 .. 2^15 - 1`` (compiled into the kernel).
+
+    >>> since(5, 65530), since(65530, 5), since(300, 200)
+    (11, -11, 100)
+    """
+    return ((a - b + INDEX_HALF) & INDEX_MASK) - INDEX_HALF
 
 
 @dataclass(frozen=True)
@@ -54,15 +77,16 @@ _VALUES = (
     ("RAW_Y", 1, 3, "3 Hz value of the last peak of the step-duration stream"),
     ("AMP", 1, 3, "recent step amplitude: exponential mean of the confirmed peaks' rises (Q2.16)"),
 )
+_INDEX_BYTES = INDEX_BITS // 8
 _INDICES = (
-    ("N", 1, 2, "samples since the run started (low 16 bits)"),
+    ("N", 1, _INDEX_BYTES, "samples since the run started (low 16 bits)"),
     ("LINE_POS", 1, 1, "write position in the a_v delay line"),
     ("FLAGS", 1, 1, "bits: looking for a peak, pending valid, last foot-flat valid, raw peak valid, "
-              "amplitude valid, pending is a weak stop step, last is one"),
-    ("MXPOS", 1, 2, "index of MX"),
-    ("PEND", 1, 2, "index of the pending foot-flat"),
-    ("LAST", 1, 2, "index of the last final foot-flat"),
-    ("RAW", 1, 2, "index of the last peak of the step-duration stream"),
+              "amplitude valid, pending is a weak stop step, last is one, the run is 2^15 samples old"),
+    ("MXPOS", 1, _INDEX_BYTES, "index of MX"),
+    ("PEND", 1, _INDEX_BYTES, "index of the pending foot-flat"),
+    ("LAST", 1, _INDEX_BYTES, "index of the last final foot-flat"),
+    ("RAW", 1, _INDEX_BYTES, "index of the last peak of the step-duration stream"),
     ("N_DUR", 1, 1, "step durations in the ring (saturates at its length)"),
     ("DUR_POS", 1, 1, "write position in the duration ring"),
     ("DIST", 1, 1, "current minimum foot-flat distance, samples"),
@@ -89,7 +113,7 @@ G1, G2, MX, MN, PEND_Y, RAW_Y, AMP = (VALUE_SLOTS[n] for n, *_ in _VALUES)
 N, LINE_POS, FLAGS, MXPOS, PEND, LAST, RAW, N_DUR, DUR_POS, DIST = (INDEX_SLOTS[n] for n, *_ in _INDICES)
 
 #: Bits of ``FLAGS``.
-F_LOOK_MAX, F_PEND, F_LAST, F_RAW, F_AMP, F_PEND_WEAK, F_LAST_WEAK = 1, 2, 4, 8, 16, 32, 64
+F_LOOK_MAX, F_PEND, F_LAST, F_RAW, F_AMP, F_PEND_WEAK, F_LAST_WEAK, F_OLD = 1, 2, 4, 8, 16, 32, 64, 128
 
 
 #: Arguments and locals of the kernel's functions: name -> (bytes on the PIC, why). Array arguments (the
@@ -99,7 +123,7 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
                 "row": (0, "the emulator's loop over a block; the firmware runs one sample per interrupt")},
     "_sample": {"cx": (0, "in the page buffer"), "cy": (0, "in the page buffer"), "cz": (0, "in the page buffer"),
                 "k": (0, "the step store's write index"), "m": (2, "index of the newest filter output"),
-                "y": (3, "its 3 Hz value, Q2.16")},
+                "y": (3, "its 3 Hz value, Q2.16"), "ready": (0, "a branch: the filters have an output")},
     "_weak_peak": {"y": (0, "alias of the caller's y"), "m": (0, "alias of the caller's m")},
     "_stop_candidate": {},
     "_prominence": {"scaled": (0, "fraction · AMP: the product in the maths registers, consumed by the caller's "
@@ -112,7 +136,7 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
         "warm": (1, "gravity shift while the run is young"), "axis": (1, "loop counter"),
         "gx": (2, "gravity x rounded to Q2.13"), "gy": (2, "gravity y"), "gz": (2, "gravity z"),
         "norm2": (4, "|g|^2, Q5.26"), "gn": (2, "|g|, Q2.13"), "av": (2, "a_v, Q2.13"),
-        "centre": (1, "delay-line position of the FIR centre"),
+        "centre": (1, "delay-line position of the FIR centre"), "young": (0, "bit of FLAGS"),
     },
     "_calibrated": {"row": (0, "unrolled: three copies"), "c0": (0, "alias"), "c1": (0, "alias"),
                     "c2": (0, "alias"), "mf": (0, "constant"), "cf": (0, "constant"), "acc": (4, "row sum, 32-bit")},
@@ -130,12 +154,16 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
         "c1": (4, "M2 c1, Q.17"), "c2": (4, "M2 c2, Q.17 per sample"), "length": (2, "pendulum length, UQ2.14; then M4's roots of the range, UQ1.15"),
         "bad": (0, "bit of flags (IMPOSSIBLE)"), "span3": (4, "M3 position range"),
     },
-    "_heel_strike": {"e": (0, "alias"), "m": (0, "alias"), "size": (0, "constant"), "lo": (2, "search start"),
+    "_heel_strike": {"e": (0, "alias"), "m": (0, "alias"), "young": (0, "bit of FLAGS"),
+                     "lo": (2, "search start"), "band": (3, "the impact band at j, Q2.16"),
                      "hi": (2, "search end"), "best": (2, "impact index"), "peak": (3, "impact value, Q2.16"),
                      "j": (2, "loop index")},
-    "_toe_off": {"s": (0, "alias"), "m": (0, "alias"), "size": (0, "constant"), "j": (2, "loop index")},
-    "_range": {"s": (0, "alias"), "e": (0, "alias"), "size": (0, "constant"), "y_max": (3, "3 Hz maximum"),
-               "y_min": (3, "3 Hz minimum"), "j": (2, "loop index")},
+    "_toe_off": {"s": (0, "alias"), "m": (0, "alias"), "j": (2, "loop index"), "prev": (3, "d10 at j - 1"),
+                 "cur": (3, "d10 at j"), "nxt": (3, "d10 at j + 1")},
+    "_range": {"s": (0, "alias"), "e": (0, "alias"), "y_max": (3, "3 Hz maximum"),
+               "y_min": (3, "3 Hz minimum"), "j": (2, "loop index"), "y": (3, "y3 at j")},
+    "_fir_scratch": {"j": (0, "alias"), "w0": (0, "constant"), "r": (0, "constant")},
+    "_band": {"j": (0, "alias"), "d10": (3, "d10 at j, while d5 is evaluated")},
     "_pass1": {"s": (0, "alias"), "e": (0, "alias"), "size": (0, "constant"), "vel": (4, "velocity accumulator"),
                "pos": (4, "position accumulator"), "p_max": (4, "M1 maximum"), "p_min": (4, "M1 minimum"),
                "j": (2, "loop index"), "v_new": (4, "next velocity"), "c1": (0, "returned in the caller's c1"),
@@ -168,9 +196,11 @@ CALLS: dict[str, tuple[str, ...]] = {
     "_confirmed": ("_median_twice", "_finalise"),
     "_median_twice": (),
     "_finalise": ("_heel_strike", "_toe_off", "_pass1", "_excursion", "_pendulum", "_pass2", "_range"),
-    "_heel_strike": ("_read_cost",),
-    "_toe_off": ("_read_cost",),
-    "_range": ("_read_cost",),
+    "_heel_strike": ("_band",),
+    "_toe_off": ("_fir_scratch",),
+    "_range": ("_fir_scratch",),
+    "_fir_scratch": ("_read_cost", "_fir"),
+    "_band": ("_fir_scratch",),
     "_pass1": ("_read_cost",),
     "_pass2": ("_read_cost",),
     "_excursion": (),

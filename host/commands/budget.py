@@ -89,16 +89,47 @@ def _walk(c, seed: int) -> dict:
     res = logger.record(Walking(subject=subject, seed=seed))
     alg = logger.firmware.step_algorithm
     return {"alg": alg, "subject": subject.subject_id, "n_samples": int(res.n_samples),
-            "steps": int(logger.header.steps_written)}
+            "steps": int(logger.header.steps_written), "codes": res.codes, "step_config": logger.header.step_config}
+
+
+def _wear(c, walk: dict):
+    """The memories' write cycles: a fresh logger in overwrite mode logs the walk over and over (continuous
+    logging) for :data:`~gaitlog.firmware_sim.budget.WEAR_RUN_SAMPLES`, in blocks shorter than a step (the
+    records are stored one by one, as they come); its endurance budget."""
+    import numpy as np
+
+    from gaitlog.firmware_sim.adc import Adc
+    from gaitlog.firmware_sim.algorithms import kernel
+    from gaitlog.firmware_sim.budget import WEAR_RUN_SAMPLES, endurance_budget
+    from gaitlog.firmware_sim.device import Logger
+
+    logger = Logger(adc=Adc(sampling_rate_hz=c.sampling_rate_hz), sampling_rate_hz=c.sampling_rate_hz,
+                    step_config=walk["step_config"], overwrite=True)
+    fw = logger.firmware
+    fw.fosc_hz = c.fosc_hz
+    fw.start_logging(start_time_s=0, overwrite=True)
+    codes = np.asarray(walk["codes"], np.int64)
+    codes = np.tile(codes, (-(-WEAR_RUN_SAMPLES // codes.shape[0]), 1))[:WEAR_RUN_SAMPLES]
+    block = fw.step_algorithm.config.counts.min_step       # at most one step record a block: each its own write
+    for a in range(0, codes.shape[0], block):
+        fw.log_samples(codes[a:a + block])
+    flush = int(fw.step_algorithm.config.cfg_i[kernel.CI_FLUSH])
+    fw.stop_logging()
+    return endurance_budget(c, duration_s=codes.shape[0] / c.sampling_rate_hz, bank_wear=logger.bank.wear,
+                            step_wear=logger.step_eeprom.wear, data_wear=logger.data_eeprom.wear,
+                            flush_samples=flush)
 
 
 def _budget(c, seed: int) -> tuple[dict, list[str]]:
     """One configuration: the JSON document and the printed lines."""
     from gaitlog.firmware_sim.budget import (
+        LIFETIME_HOURS_PER_DAY,
+        LIFETIME_TARGET_YEARS,
         PIC_PROGRAM_WORDS,
         adc_max_sampling_rate_hz,
         algorithm_cycles_per_sample,
         cycle_budget,
+        endurance_budget,
         program_budget,
         ram_budget,
         shortfalls,
@@ -164,6 +195,17 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
                      "capacity_bytes_per_s": storage.capacity_bytes_per_s, "page_cycle_ms": 1e3 * storage.page_cycle_s,
                      "recording_s": storage.recording_s, "lines": storage.lines()}
     doc["dump_s"] = storage.dump_s
+    endurance = _wear(c, walk) if walk else endurance_budget(c)
+    lines += [""] + endurance.lines()
+    doc["endurance"] = {
+        "measured": endurance.measured, "duration_s": endurance.duration_s, "lines": endurance.lines(),
+        "fits_10_years": endurance.fits(), "lifetime_target_years": LIFETIME_TARGET_YEARS,
+        "limiting": endurance.limiting.name,
+        **{f"years_at_{h:g}_h_a_day": endurance.years(h) for h in LIFETIME_HOURS_PER_DAY},
+        "regions": [{"name": r.name, "unit": r.unit, "worst_unit": r.worst_unit, "worst_cycles": r.worst_cycles,
+                     "cycles_per_s": endurance.rate_per_s(r), "endurance_cycles": r.endurance_cycles,
+                     **{f"years_at_{h:g}_h_a_day": endurance.lifetime_years(r, h) for h in LIFETIME_HOURS_PER_DAY},
+                     "source": r.source} for r in endurance.regions]}
     short = shortfalls(c, ram, cycles, program, storage)
     doc["does_not_fit"] = short
     doc["fits"] = not short

@@ -79,8 +79,10 @@ def test_cycles_fit_at_50_hz(simulated_walk: tuple) -> None:
     alg.run(codes)
     cb = cycle_budget(alg.cycles, 50.0)
     assert cb.fits
-    assert 15_000 <= cb.mean_algorithm <= 24_000          # 21.6k on this walker (gpsim-measured kernel costs)
-    assert cb.backlog_samples < 2.0
+    assert 15_000 <= cb.mean_algorithm <= 27_000          # 24.8k on this walker (gpsim-measured kernel costs)
+    # the end of a step evaluates its filters again on the a_v read back from the scratch ring (no RAM to keep
+    # them, and no EEPROM wear to write them): 6.0 samples behind at worst, the page buffer holds 32
+    assert cb.backlog_samples < 8.0
     assert cb.worst_algorithm > cb.available * 0.5         # the end of a step is the expensive sample
 
 

@@ -17,12 +17,12 @@ def test_budget_at_50_hz_fits(capsys: pytest.CaptureFixture[str]) -> None:
     assert "total                                         368  fits (+0 bytes)" in out
     assert "cycles at 50 Hz, 18.432 MHz: 92,160 per sample" in out
     number = lambda key: float(out.split(key)[1].split()[0].replace(",", ""))  # noqa: E731
-    assert 20_500 <= number("algorithm, mean") <= 22_800          # 21,840 measured on the default walker
-    assert 18_400 <= number("mean at the kernels' mean costs") <= 20_500     # 19,468
+    assert 24_000 <= number("algorithm, mean") <= 27_000          # 25,505 measured on the default walker
+    assert 21_500 <= number("mean at the kernels' mean costs") <= 24_500     # 23,149
     periods = number("algorithm, worst sample") / 92_160
-    assert 1.2 <= periods <= 2.2                                  # 1.54: the end of a long step
+    assert 5.0 <= periods <= 7.5          # 6.15: the end of a long step, its filters evaluated again on its a_v
     backlog = float(out.split("worst backlog")[1].split("(")[1].split()[0])
-    assert backlog < 1.2                                          # 0.56 samples behind at worst
+    assert backlog < 7.0                                          # 5.24 samples behind at worst (the buffer holds 32)
     assert "everything fits" in out and "dump, XMODEM-1K 115200 8N1 23.0 s" in out
 
 
@@ -30,7 +30,10 @@ def test_budget_at_100_hz_says_what_must_give_and_agrees_with_the_chain(capsys: 
     assert main(["budget", "--logger-rate", "100", "--json"]) == 1
     doc = json.loads(capsys.readouterr().out)
     assert doc["fits"] is False and doc["ram"]["fits"] is False and doc["ram"]["total_bytes"] == 404
-    assert doc["does_not_fit"] == ["RAM: 404 of 368 bytes (36 over)"]
+    # the step's filters evaluated again on the scratch ring (37-tap FIR at 100 Hz) leave the algorithm 188
+    # samples behind at the end of a long step: more than the 32 the page buffer holds
+    cycles, ram = doc["does_not_fit"]
+    assert cycles.startswith("cycles: mean load 80 %, backlog 18") and ram == "RAM: 404 of 368 bytes (36 over)"
     assert any("what must give: 36 bytes" in ln for ln in doc["ram"]["lines"])
     assert doc["sampling_rate_hz"] == 100.0 and doc["cycles"]["available_per_sample"] == pytest.approx(46_080)
     # the budget's figures are the chain's own counters on the same walk: RAM of the run's algorithm, and the
@@ -40,7 +43,7 @@ def test_budget_at_100_hz_says_what_must_give_and_agrees_with_the_chain(capsys: 
     from_counts = sum(CYCLES[k] * v for k, v in counts.items()) / doc["n_samples"]
     assert from_counts == pytest.approx(doc["cycles"]["mean_algorithm"], rel=1e-12)
     assert doc["cycles"]["mean_at_kernel_mean_costs"] < doc["cycles"]["mean_algorithm"]
-    assert doc["cycles"]["worst_algorithm"] > 4 * doc["cycles"]["available_per_sample"]   # 5.5 periods
+    assert doc["cycles"]["worst_algorithm"] > 30 * doc["cycles"]["available_per_sample"]   # 41 periods
 
 
 @pytest.mark.parametrize("config, channels, bytes_per_s", [("morris-5", 5, 800), ("morris-6", 6, 800)])
@@ -106,3 +109,25 @@ def test_instruments_on_the_logger_morris_fits_hall_refused_with_the_closest_rat
     assert [s.split(":")[0] for s in short] == ["ADC", "cycles", "EEPROM"]
     assert instrument_fit(replace(CONFIGURATIONS["hall"], sampling_rate_hz=fastest))[0] == []
     assert instrument_fit(replace(CONFIGURATIONS["hall"], sampling_rate_hz=fastest + 1))[0] != []
+
+
+def test_budget_states_the_memories_lifetime(capsys: pytest.CaptureFixture[str]) -> None:
+    """The lifetime of the 24LC1025s under continuous logging, from the write cycles the model counts over
+    four laps of the scratch ring, against the design's count: a page write of 32 bytes every 16 samples at
+    50 Hz, spread over the ring's 508 pages (65,024 bytes of block 1 before the header slots)."""
+    assert main(["budget", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["endurance"]
+    regions = {r["name"]: r for r in doc["regions"]}
+    scratch = regions["scratch ring"]
+    design = 50.0 / 16 / 508                                      # page writes per second per page
+    assert scratch["cycles_per_s"] == pytest.approx(design, rel=1e-12)
+    assert scratch["worst_cycles"] == 4 * 128 // 32 and doc["duration_s"] == pytest.approx(4 * 32_512 / 50.0)
+    years = 1_000_000 / design / (8 * 3600) / 365.25              # 15.45 years at 8 h a day
+    assert scratch["years_at_8_h_a_day"] == pytest.approx(years, rel=1e-12)
+    assert scratch["years_at_24_h_a_day"] == pytest.approx(years / 3, rel=1e-12)
+    # the memory's lifetime is its first page to wear out: at least 10 years of 8 h a day
+    limiting = regions[doc["limiting"]]
+    assert doc["years_at_8_h_a_day"] == limiting["years_at_8_h_a_day"] >= 10.0 and doc["fits_10_years"] is True
+    assert all(r["years_at_8_h_a_day"] >= doc["years_at_8_h_a_day"] for r in doc["regions"] if r["unit"] == "page")
+    # the step records are stored one by one as they come: the step ring's pages wear about as fast
+    assert 10.0 <= regions["step ring"]["years_at_8_h_a_day"] <= 40.0
