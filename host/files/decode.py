@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.host.errors import HostError
+from gaitlog.host.files.losses import SampleLosses, say_losses
 from gaitlog.host.files.recording import RecordGap, Recording, gaps_from_mask
 from gaitlog.protocol.commit_journal import torn_step_records
 from gaitlog.protocol.crc import crc16_xmodem, crc32
@@ -106,7 +107,8 @@ _FLAG_LOGGING = int(HeaderFlag.LOGGING)
 
 
 def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
-    """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file.
+    """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file, missing samples are said
+    in one :class:`~gaitlog.host.files.losses.MissingSamplesWarning`.
 
     ``accept_unverified``: as :func:`decode_bytes`.
 
@@ -119,7 +121,9 @@ def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False
     """
     path = Path(path)
     data = path.read_bytes()
-    return decode_bytes(data, source=str(path), accept_unverified=accept_unverified)
+    rec = decode_bytes(data, source=str(path), accept_unverified=accept_unverified)
+    say_losses(SampleLosses.from_recording(rec))
+    return rec
 
 
 def decode_bytes(data: bytes, source: str | None = None, *, accept_unverified: bool = False) -> Recording:
