@@ -76,6 +76,22 @@ BACKOFF_S = 0.01
 BACKOFF_MAX_S = 0.5
 
 
+def _runs(pieces: list[tuple[int, bytes]]) -> list[tuple[int, bytes]]:
+    """Adjacent ``(address, bytes)`` pieces joined into runs.
+
+    >>> _runs([(0, b"ab"), (2, b"c"), (9, b"d")])
+    [(0, b'abc'), (9, b'd')]
+    """
+    out: list[tuple[int, list[bytes], int]] = []
+    for address, data in pieces:
+        if out and out[-1][2] == address:
+            out[-1][1].append(data)
+            out[-1] = (out[-1][0], out[-1][1], address + len(data))
+        else:
+            out.append((address, [data], address + len(data)))
+    return [(a, b"".join(parts)) for a, parts, _ in out]
+
+
 def _nak_error(frame: Frame) -> int | None:
     """The error code of a NAK frame (None when its payload is too short to hold one)."""
     return frame.payload[_NAK_ERROR_OFFSET] if len(frame.payload) > _NAK_ERROR_OFFSET else None
@@ -587,8 +603,8 @@ class LoggerLink:
                     result.seen(a, address, chunk)
                     result.frames_verified += found.data_bytes == want
                     self.stats.crc32_mismatches += found.data_bytes != want
-                    for block_address, data in found.pieces():
-                        if block_address + len(data) <= end and on_data(block_address, data):
+                    for run_address, data in _runs(found.pieces()):  # one call per run of verified blocks
+                        if run_address + len(data) <= end and on_data(run_address, data):
                             return result
                     if result.frames_seen == n_frames and self.capture is None:
                         result.ended = True  # the rest is the header's copy and DUMP_END

@@ -141,6 +141,9 @@ class MemoryDump:
         Re-read passes over missing bytes after the first pass.
     state_interval_s
         Minimum time between two writes of the partial state.
+    blocks
+        None or True: DUMP_BLOCKS on a device of protocol version 2, DUMP_CHECKED on version 1; False:
+        DUMP_CHECKED always (the format before version 2, e.g. as a benchmark's baseline).
 
     Attributes
     ----------
@@ -158,8 +161,10 @@ class MemoryDump:
         Files written (the state file exists only while the dump is incomplete).
     """
 
-    def __init__(self, *, chunk_bytes: int | None = None, retries: int = 8, state_interval_s: float = 1.0) -> None:
+    def __init__(self, *, chunk_bytes: int | None = None, retries: int = 8, state_interval_s: float = 1.0,
+                 blocks: bool | None = None) -> None:
         self.chunk_bytes = chunk_bytes
+        self.blocks = blocks
         self.retries = retries
         self.state_interval_s = state_interval_s
 
@@ -222,7 +227,8 @@ class MemoryDump:
         started_utc = _dt.datetime.now(_dt.timezone.utc)
         # step 1: who is there, is it idle, its header
         self.info_ = link.identify()
-        self.blocks_ = int(self.info_["protocol_version"]) >= 2  # DUMP_BLOCKS (4.1), else DUMP_CHECKED (4)
+        # DUMP_BLOCKS (4.1) when the device has it, else DUMP_CHECKED (4); ``blocks=False`` asks for the latter
+        self.blocks_ = int(self.info_["protocol_version"]) >= 2 and self.blocks is not False
         self.max_chunk_ = self.chunk_bytes or (MAX_BLOCKS_DATA if self.blocks_ else MAX_DATA)
         status = link.status()
         if status["state"] == DeviceState.LOGGING:
@@ -385,10 +391,11 @@ class MemoryDump:
 
 def dump_memory(link: LoggerLink, out_path: str | os.PathLike[str], *,
                 progress: bool | Callable[[int], None] = True, resume: bool = False, retries: int = 8,
-                chunk_bytes: int | None = None) -> MemoryDump:
+                chunk_bytes: int | None = None, blocks: bool | None = None) -> MemoryDump:
     """Dump the stored memory of the logger on ``link`` to the image ``out_path`` (+ ``.json`` metadata):
     :meth:`MemoryDump.run` with ``retries`` and ``chunk_bytes``. Returns the finished :class:`MemoryDump`."""
-    return MemoryDump(retries=retries, chunk_bytes=chunk_bytes).run(link, out_path, resume=resume, progress=progress)
+    return MemoryDump(retries=retries, chunk_bytes=chunk_bytes, blocks=blocks).run(link, out_path, resume=resume,
+                                                                                 progress=progress)
 
 
 class _Transfer:
