@@ -150,7 +150,7 @@ def salvage_blocks(binding: int, body: bytes, addresses: list[int]) -> FoundBloc
     if n > full:
         sizes[-1] = rest - CHECK_BYTES
     padded = np.zeros(n * _STRIDE, dtype=np.uint8)
-    padded[: raw.size] = raw
+    padded[: min(raw.size, padded.size)] = raw[: padded.size]  # 1 or 2 bytes after the last block: no block
     grid = padded.reshape(n, _STRIDE)
     blocks = grid[:, :BLOCK_BYTES]
     end = sizes.copy()

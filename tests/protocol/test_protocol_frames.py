@@ -352,3 +352,14 @@ def test_truncated_mid_frame_and_lone_sync() -> None:
                                                       "stream ended inside a frame of length 100")]
     frames, errors = parse_stream(b"\xa5\x5a\x01")
     assert frames == [] and errors[0].reason == "truncated" and errors[0].length == 3
+
+
+def test_salvage_blocks_ignores_one_or_two_bytes_after_the_last_block() -> None:
+    """A damaged frame's extent may leave 1-2 bytes after its last whole block (a crash of the flip campaign)."""
+    from gaitlog.protocol.data_blocks import salvage_blocks
+
+    body = blocks_payload(0x1234, 512, bytes(range(256)) * 2)[4:]
+    for extra in (b"", b"\x00", b"\x00\x00"):
+        found = salvage_blocks(0x1234, body + extra, [512])
+        assert found.addresses.tolist() == [512, 768] and found.data == bytes(range(256)) * 2
+    assert salvage_blocks(0x1234, body, [256]).addresses.tolist() == []  # another address: nothing verifies
