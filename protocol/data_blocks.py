@@ -138,8 +138,10 @@ def salvage_blocks(binding: int, body: bytes, addresses: list[int]) -> FoundBloc
         left before the end, less its check).
     addresses
         Candidate memory addresses of the frame's first block (its address field, and what the frames around
-        it imply); a block is kept when its check matches under exactly one of them. (Block addresses of one
-        memory differ in their bits 8-23 only, a burst the CRC-16 always tells apart.)
+        it imply). The frame's address is the one candidate under which most blocks verify (none when two
+        tie); only the blocks that verify under it are kept, so a damaged block is never tried at another
+        address. (Block addresses of one memory differ in their bits 8-23 only, a burst the CRC-16 always
+        tells apart: an intact block verifies under its own address only.)
     """
     raw = np.frombuffer(bytes(body), dtype=np.uint8)
     full, rest = divmod(raw.size, _STRIDE)
@@ -155,16 +157,19 @@ def salvage_blocks(binding: int, body: bytes, addresses: list[int]) -> FoundBloc
     blocks = grid[:, :BLOCK_BYTES]
     end = sizes.copy()
     stored = (grid[np.arange(n), end].astype(np.uint16) << 8) | grid[np.arange(n), end + 1]
-    hits = np.zeros(n, dtype=np.int64)
-    where = np.zeros(n, dtype=np.int64)
+    best, best_hits, tie = None, 0, False
     for base in dict.fromkeys(int(a) for a in addresses):
         if not 0 <= base <= 0xFFFFFFFF - n * BLOCK_BYTES:
             continue
         addr = base + BLOCK_BYTES * np.arange(n, dtype=np.int64)
         hit = crc16_umts_rows(_rows(int(binding), addr, blocks, sizes)) == stored
-        hits += hit
-        where[hit] = addr[hit]
-    ok = hits == 1  # a block that verifies under two candidate addresses is placed nowhere
+        if int(hit.sum()) > best_hits:
+            best, best_hits, tie = (addr, hit), int(hit.sum()), False
+        elif best_hits and int(hit.sum()) == best_hits:
+            tie = True
+    if best is None or tie:  # no candidate, or two that explain as many blocks: place nothing
+        return _NONE
+    where, ok = best
     if not ok.any():
         return _NONE
     data = b"".join(blocks[i, : sizes[i]].tobytes() for i in np.flatnonzero(ok).tolist())

@@ -100,6 +100,7 @@ _TYPE_HEADER = int(FrameType.HEADER)
 _TYPE_DATA = int(FrameType.DATA)
 _TYPE_DATA_CRC = int(FrameType.DATA_CRC)
 _TYPE_DATA_BLOCKS = int(FrameType.DATA_BLOCKS)
+_TYPE_DUMP_END = int(FrameType.DUMP_END)
 #: Differing bytes up to which two damaged copies of a header are combined (2^n candidates, each checked by the
 #: header's CRC-16 and a copy's frame CRC-16).
 COMBINE_MAX_DIFFERING_BYTES = 10
@@ -497,8 +498,12 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
     starts_all = np.array([fr.offset for fr in frames], dtype=np.int64)
     ends_all = starts_all + np.array([FRAME_OVERHEAD + len(fr.payload) for fr in frames], dtype=np.int64)
     starts_set = set(starts_all.tolist())
+    if not _holds_blocks(data, frames, errors):  # a capture of protocol version 1: decoded as before
+        return out
     todo = {e.offset for e in errors if data[e.offset: e.offset + 2] == SYNC}
     todo |= {int(e) for e in ends_all.tolist() if e < len(data) and e not in starts_set}
+    ends_of_streams = [(fr.offset, int.from_bytes(fr.payload[:4], "little"), int.from_bytes(fr.payload[8:10], "little"))
+                       for fr in frames if fr.type == _TYPE_DUMP_END and len(fr.payload) == 10]
     lengths = [FRAME_OVERHEAD + len(fr.payload) for fr in intact]
     frame_bytes = max(set(lengths), key=lengths.count) if lengths else 0  # the stream's usual frame
     done: set[int] = set()
@@ -508,7 +513,7 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
         done.add(s)
         if s in starts_set or not belongs(s):
             continue
-        found, ends = _salvage_frame(data, s, starts_all, spans, binding, frame_bytes)
+        found, ends = _salvage_frame(data, s, starts_all, spans, binding, frame_bytes, ends_of_streams)
         out.salvaged += len(found)
         out.pieces += found
         if found:  # the next frame may be damaged too, its sync included: look where this one ends
@@ -516,10 +521,22 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
     return out
 
 
-def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, binding: int, frame_bytes: int
-                   ) -> tuple[list, set[int]]:
+def _holds_blocks(data: bytes, frames: list, errors: list) -> bool:
+    """The capture is of DUMP_BLOCKS streams: an intact DATA_BLOCKS frame, a damaged one whose sync and type
+    survived, or a HEADER frame followed by DUMP_END (how a DUMP_BLOCKS stream ends)."""
+    if any(fr.type == _TYPE_DATA_BLOCKS for fr in frames):
+        return True
+    if any(data[e.offset: e.offset + 3] == SYNC + bytes([_TYPE_DATA_BLOCKS]) for e in errors):
+        return True
+    return any(a.type == _TYPE_HEADER and b.type == _TYPE_DUMP_END for a, b in zip(frames, frames[1:]))
+
+
+def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, binding: int, frame_bytes: int,
+                   ends_of_streams: list) -> tuple[list, set[int]]:
     """The verified blocks of a damaged DATA_BLOCKS frame starting at stream offset ``s``, and the ends tried
-    (its length field's, the stream's usual frame length, the next intact frame)."""
+    (its length field's, the stream's usual frame length, the next intact frame). Addresses tried: its address
+    field, the intact DATA_BLOCKS frames before and after it, and the frame addresses of the stream that the
+    next intact DUMP_END (address, frames) implies."""
     k = int(np.searchsorted(starts_all, s, side="right"))
     next_start = int(starts_all[k]) if k < starts_all.size else len(data)
     length = int.from_bytes(data[s + 4: s + 6], "little") if s + 6 <= len(data) else 0
@@ -539,6 +556,9 @@ def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, bin
             addresses += [prev_end, prev_end + before[-1][3]]
         if after:
             addresses.append(after[0][2] - n_data)
+        stream_end = next((e for e in ends_of_streams if e[0] > s), None)
+        if stream_end is not None:  # the stream's first frame
+            addresses.append(stream_end[1])
         for address, chunk in salvage_blocks(binding, body, addresses).pieces():
             found.setdefault(address, chunk)
     return list(found.items()), extents
