@@ -111,10 +111,18 @@ class FoundBlocks:
     addresses: np.ndarray
     sizes: np.ndarray
     data: bytes
+    first_address: int = 0  #: the frame's address (of its block 0) the blocks verified under
 
     @property
     def data_bytes(self) -> int:
         return int(self.sizes.sum())
+
+    def leading(self) -> FoundBlocks:
+        """The blocks from the frame's block 0 up to the first that did not verify (alignment certain)."""
+        expected = self.first_address + BLOCK_BYTES * np.arange(self.addresses.size)
+        m = int(np.argmin(np.append(self.addresses == expected, False)))
+        return FoundBlocks(self.addresses[:m], self.sizes[:m], self.data[: int(self.sizes[:m].sum())],
+                           self.first_address)
 
     def pieces(self):
         """``(address, bytes)`` of each block."""
@@ -173,7 +181,7 @@ def salvage_blocks(binding: int, body: bytes, addresses: list[int]) -> FoundBloc
     if not ok.any():
         return _NONE
     data = b"".join(blocks[i, : sizes[i]].tobytes() for i in np.flatnonzero(ok).tolist())
-    return FoundBlocks(where[ok], sizes[ok], data)
+    return FoundBlocks(where[ok], sizes[ok], data, int(where[0]))
 
 
 def verified_blocks(binding: int, payload: bytes, address: int | None = None) -> FoundBlocks:

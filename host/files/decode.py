@@ -534,14 +534,20 @@ def _holds_blocks(data: bytes, frames: list, errors: list) -> bool:
 def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, binding: int, frame_bytes: int,
                    ends_of_streams: list) -> tuple[list, set[int]]:
     """The verified blocks of a damaged DATA_BLOCKS frame starting at stream offset ``s``, and the ends tried
-    (its length field's, the stream's usual frame length, the next intact frame). Addresses tried: its address
-    field, the intact DATA_BLOCKS frames before and after it, and the frame addresses of the stream that the
-    next intact DUMP_END (address, frames) implies."""
+    (its length field's when the frame it gives ends where the next frame starts, else that, the stream's usual
+    frame length and the next intact frame; in that case only the blocks before the first bad one are kept).
+    Addresses tried: its address field, the intact DATA_BLOCKS frames before and after it, and the first address
+    of the stream of the next intact DUMP_END."""
     k = int(np.searchsorted(starts_all, s, side="right"))
     next_start = int(starts_all[k]) if k < starts_all.size else len(data)
     length = int.from_bytes(data[s + 4: s + 6], "little") if s + 6 <= len(data) else 0
-    extents = {next_start}
-    for size in (FRAME_OVERHEAD + length, frame_bytes):
+    end = s + FRAME_OVERHEAD + length
+    # its length field ends it where the next frame (or the capture) starts: no byte dropped or inserted inside
+    whole = bool(payload_data_bytes(length)) and end <= next_start and (
+        end == next_start or end == len(data) or data[end: end + 2] == SYNC  # the next frame: its sync or its type
+        or data[end + 2: end + 3] in (bytes([_TYPE_HEADER]), bytes([_TYPE_DUMP_END]), bytes([_TYPE_DATA_BLOCKS])))
+    extents = {end} if whole else {next_start}
+    for size in (() if whole else (FRAME_OVERHEAD + length, frame_bytes)):
         if size > FRAME_OVERHEAD and payload_data_bytes(size - FRAME_OVERHEAD) and s + size <= next_start:
             extents.add(s + size)
     before = [sp for sp in spans if sp[1] <= s]
@@ -559,7 +565,10 @@ def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, bin
         stream_end = next((e for e in ends_of_streams if e[0] > s), None)
         if stream_end is not None:  # the stream's first frame
             addresses.append(stream_end[1])
-        for address, chunk in salvage_blocks(binding, body, addresses).pieces():
+        got = salvage_blocks(binding, body, addresses)
+        # a frame whose extent is uncertain (bytes dropped or inserted, or its length field hit) may be shifted
+        # after its first bad block: only the blocks before it are certain to be where they verify
+        for address, chunk in (got if whole else got.leading()).pieces():
             found.setdefault(address, chunk)
     return list(found.items()), extents
 
