@@ -76,12 +76,41 @@ def bench_decode() -> bool:
     return ok
 
 
+#: The same dump in the format before protocol version 2 (DUMP_CHECKED), run the same way: the same-run baseline.
+_BASELINE = ("import sys; from gaitlog.host.link.logger_link import LoggerLink; "
+             "from gaitlog.host.link.memory_dump import dump_memory\n"
+             "with LoggerLink(sys.argv[1]) as link: dump_memory(link, sys.argv[2], progress=False, blocks=False)")
+
+
+def _dump_s(env: dict, tmp: Path, name: str, baseline: bool) -> tuple[float, dict]:
+    """(duration_s of the metadata: IDENTIFY to image written, metadata) of one dump against a fresh server."""
+    server = subprocess.Popen([sys.executable, "-m", "gaitlog", "serve", str(tmp / "full.glimg"), "--pty",
+                               "--wire-time"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
+    try:
+        port = server.stdout.readline().strip()
+        argv = (["-c", _BASELINE, port, str(tmp / name)] if baseline else
+                ["-m", "gaitlog", "dump", "--port", port, "--out", str(tmp / name), "--quiet"])
+        done = subprocess.run([sys.executable, *argv], env=env, capture_output=True, text=True)
+    finally:
+        server.terminate()
+        server.wait(10)
+    if done.returncode != 0:
+        raise RuntimeError(done.stderr.strip())
+    meta = json.loads((tmp / f"{name}.json").read_text())
+    return meta["duration_s"], meta
+
+
 def bench_wire_time_dump() -> bool:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         image, codes = full_image(1)
         (tmp / "full.glimg").write_bytes(image)
+        try:
+            t_base, meta_base = _dump_s(env, tmp, "checked.glimg", baseline=True)
+        except RuntimeError as err:
+            print(f"wire-time dump baseline FAILED: {err}")
+            return False
         server = subprocess.Popen([sys.executable, "-m", "gaitlog", "serve", str(tmp / "full.glimg"), "--pty",
                                    "--wire-time"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                                   env=env)
@@ -108,6 +137,9 @@ def bench_wire_time_dump() -> bool:
           f"target <= {DUMP_TARGET_RATIO}x  [{'ok' if ok else 'MISSED'}]; vs the 4-byte-word floor "
           f"{262144 * 10 / 115200:.2f} s: {t / (262144 * 10 / 115200):.3f}x; "
           f"{meta['bytes_received']} B received; samples exact: {exact}")
+    print(f"  same-run baseline, the format before protocol version 2 (DUMP_CHECKED, 4096-byte DATA frames + "
+          f"DATA_CRC): {t_base:.2f} s -> {t_base / FLOOR_S:.3f}x, {meta_base['bytes_received']} B received; "
+          f"DUMP_BLOCKS costs {meta['bytes_received'] - meta_base['bytes_received']:+d} B, {t - t_base:+.3f} s")
     return ok
 
 

@@ -37,6 +37,9 @@ Streams (DUMP, DUMP_CHECKED; PROTOCOL.md section 4)
     DUMP_END; ABORT does only that (and cancels nothing else) and is answered ACK. DUMP_CHECKED follows
     every DATA frame with a DATA_CRC frame: the CRC-32 of the frame's bytes, computed byte by byte as they
     are read from the EEPROM (a 4-byte register; :data:`DUMP_CYCLES_PER_BYTE` says what that costs).
+    DUMP_BLOCKS (protocol version 2, section 4.1) sends DATA_BLOCKS frames, a CRC-16/UMTS check after every
+    64-sample block (a 2-byte register, bound to the header's CRC and the block's address), then the device
+    header again in a HEADER frame, then DUMP_END.
 """
 
 from __future__ import annotations
@@ -56,6 +59,7 @@ from gaitlog.firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
 from gaitlog.firmware_sim.ring_buffer import MemoryFullError, RingBuffer
 from gaitlog.firmware_sim.step_store import StepStore
 from gaitlog.protocol.crc import crc16_xmodem, crc32
+from gaitlog.protocol.data_blocks import blocks_payload, header_binding
 from gaitlog.protocol.frames import (
     COMMAND_TYPES,
     FRAME_OVERHEAD,
@@ -67,6 +71,7 @@ from gaitlog.protocol.frames import (
     Frame,
     FrameType,
     PayloadError,
+    WIRE_PROTOCOL_VERSION,
     build_payload,
     encode_frame,
     parse_payload,
@@ -110,7 +115,7 @@ def uart_cycles_per_byte(baud: float = 115200.0, fosc_hz: float = DEFAULT_FOSC_H
 
 
 _BUSY_WHEN_LOGGING = frozenset(
-    {FrameType.READ, FrameType.DUMP, FrameType.DUMP_CHECKED, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION,
+    {FrameType.READ, FrameType.DUMP, FrameType.DUMP_CHECKED, FrameType.DUMP_BLOCKS, FrameType.XDUMP, FrameType.ERASE, FrameType.SET_CALIBRATION,
      FrameType.SET_STEP_CONFIG, FrameType.START}
 )
 _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPES}
@@ -449,7 +454,7 @@ class Firmware:
         if ftype == FrameType.IDENTIFY:
             return encode_frame(FrameType.INFO, seq, build_payload(
                 FrameType.INFO, device_id=h.device_id, firmware_version=h.firmware_version,
-                protocol_version=h.protocol_version, adc_bits=h.adc_bits, sampling_rate_millihz=h.sampling_rate_millihz,
+                protocol_version=WIRE_PROTOCOL_VERSION, adc_bits=h.adc_bits, sampling_rate_millihz=h.sampling_rate_millihz,
                 capacity_samples=h.capacity_samples, packing=PACKING_P32, memory_bytes=h.memory_bytes,
             ))
         if ftype == FrameType.GET_STATUS:
@@ -477,9 +482,9 @@ class Firmware:
             if data is None:
                 return self._nak(t, seq, ErrorCode.BAD_ADDRESS)
             return encode_frame(FrameType.DATA, seq, address.to_bytes(4, "little") + data)
-        if ftype in (FrameType.DUMP, FrameType.DUMP_CHECKED):
+        if ftype in (FrameType.DUMP, FrameType.DUMP_CHECKED, FrameType.DUMP_BLOCKS):
             return self._dump(seq, int(fields["address"]), int(fields["length"]), int(fields["chunk"]),
-                              checked=ftype == FrameType.DUMP_CHECKED)
+                              checked=ftype == FrameType.DUMP_CHECKED, blocks=ftype == FrameType.DUMP_BLOCKS)
         if ftype == FrameType.ABORT:  # the stream it ends was ended on arrival
             return self._ack(t, seq)
         if ftype == FrameType.XDUMP:
@@ -504,26 +509,38 @@ class Firmware:
         region, offset = where
         return self.ring.read_bytes(offset, length) if region == "samples" else self.steps.read_bytes(offset, length)
 
-    def _dump(self, seq: int, address: int, length: int, chunk: int, *, checked: bool) -> bytes:
-        """DUMP / DUMP_CHECKED: start the stream of DATA frames of ``chunk`` bytes back to back (each followed
-        by its DATA_CRC when ``checked``), then DUMP_END (section 4); NAK BAD_ADDRESS at once."""
+    def _dump(self, seq: int, address: int, length: int, chunk: int, *, checked: bool, blocks: bool = False
+              ) -> bytes:
+        """DUMP / DUMP_CHECKED / DUMP_BLOCKS: start the stream of DATA (DATA_BLOCKS) frames of ``chunk`` bytes
+        back to back (each followed by its DATA_CRC when ``checked``), then (DUMP_BLOCKS) the HEADER again, then
+        DUMP_END (sections 4, 4.1); NAK BAD_ADDRESS at once."""
         h = self.ring.header
         if memory_region(address, length, sample_memory_bytes=h.memory_bytes,
                          step_memory_bytes=self.steps.size_bytes) is None:
-            return self._nak(FrameType.DUMP_CHECKED if checked else FrameType.DUMP, seq, ErrorCode.BAD_ADDRESS)
-        self._stream = self._stream_frames(seq, address, length, chunk, checked)
+            command = FrameType.DUMP_BLOCKS if blocks else FrameType.DUMP_CHECKED if checked else FrameType.DUMP
+            return self._nak(command, seq, ErrorCode.BAD_ADDRESS)
+        self._stream = self._stream_frames(seq, address, length, chunk, checked, blocks)
         return b""
 
-    def _stream_frames(self, seq: int, address: int, length: int, chunk: int, checked: bool) -> Iterator[bytes]:
+    def _stream_frames(self, seq: int, address: int, length: int, chunk: int, checked: bool,
+                       blocks: bool = False) -> Iterator[bytes]:
         n_frames = 0
+        header = self.ring.header.to_bytes()
+        binding = header_binding(header)
         for k, off in enumerate(range(0, length, chunk)):
             a = address + off
             data = self._read(a, min(chunk, length - off))
+            if blocks:
+                yield encode_frame(FrameType.DATA_BLOCKS, k & 0xFF, blocks_payload(binding, a, data))
+                n_frames += 1
+                continue
             yield encode_frame(FrameType.DATA, k & 0xFF, a.to_bytes(4, "little") + data)
             if checked:
                 self.stats["crc32_bytes"] += len(data)
                 yield encode_frame(FrameType.DATA_CRC, k & 0xFF, build_payload(FrameType.DATA_CRC, address=a,
                                                                                crc32=crc32(data)))
             n_frames += 1
+        if blocks:  # the header travels again, so that one damaged copy does not lose a capture (section 4.1)
+            yield encode_frame(FrameType.HEADER, seq, header)
         end = build_payload(FrameType.DUMP_END, address=address, length=length, frames=n_frames & 0xFFFF)
         yield encode_frame(FrameType.DUMP_END, seq, end)

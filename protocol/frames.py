@@ -25,6 +25,7 @@ from typing import Any
 import construct as cs
 
 from gaitlog.protocol.crc import crc16_xmodem
+from gaitlog.protocol.data_blocks import ADDRESS_BYTES, BLOCK_BYTES, CHECK_BYTES, MAX_BLOCKS_DATA, payload_data_bytes
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.header import CALIBRATION_SIZE, HEADER_SIZE, CalibrationSlot, DeviceHeader
 from gaitlog.protocol.layout import named_fields
@@ -35,6 +36,9 @@ __all__ = [
     "FRAME_OVERHEAD",
     "MAX_PAYLOAD",
     "MAX_DATA",
+    "MAX_BLOCKS_DATA",
+    "WIRE_PROTOCOL_VERSION",
+    "KNOWN_WIRE_PROTOCOL_VERSIONS",
     "ERASE_GUARD",
     "FrameType",
     "COMMAND_TYPES",
@@ -58,15 +62,19 @@ __all__ = [
 SYNC = b"\xa5\x5a"
 #: sync (2) + type (1) + seq (1) + length (2) + crc (2)
 FRAME_OVERHEAD = 8
-#: Largest legal ``length`` field: DATA address (4) + 4096 data bytes.
-MAX_PAYLOAD = 4100
 #: Largest READ length / DUMP chunk.
 MAX_DATA = 4096
+#: Largest legal ``length`` field: a DATA_BLOCKS frame of :data:`MAX_BLOCKS_DATA` bytes (address, 64 blocks and
+#: their checks: 16,516; protocol version 1: 4100, a DATA frame of 4096 bytes).
+MAX_PAYLOAD = ADDRESS_BYTES + MAX_BLOCKS_DATA + CHECK_BYTES * (MAX_BLOCKS_DATA // BLOCK_BYTES)
+#: The protocol version this package speaks (INFO ``protocol_version``; section 7), and those it still reads.
+WIRE_PROTOCOL_VERSION = 2
+KNOWN_WIRE_PROTOCOL_VERSIONS = (1, 2)
 ERASE_GUARD = b"ERASE"
 
 
 class FrameType(enum.IntEnum):
-    """Frame ``type`` codes (section 3.1). Commands are 0x01-0x0D, responses 0x81-0x91."""
+    """Frame ``type`` codes (section 3.1). Commands are 0x01-0x0E, responses 0x81-0x91."""
 
     IDENTIFY = 0x01
     GET_STATUS = 0x02
@@ -81,12 +89,14 @@ class FrameType(enum.IntEnum):
     SET_STEP_CONFIG = 0x0B
     ABORT = 0x0C
     DUMP_CHECKED = 0x0D
+    DUMP_BLOCKS = 0x0E
     INFO = 0x81
     STATUS = 0x82
     HEADER = 0x86
     DATA = 0x87
     DUMP_END = 0x88
     DATA_CRC = 0x89
+    DATA_BLOCKS = 0x8A
     ACK = 0x90
     NAK = 0x91
 
@@ -188,6 +198,7 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
     FrameType.READ: cs.Struct("address" / cs.Int32ul, "length" / cs.Int16ul),
     FrameType.DUMP: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "chunk" / cs.Int16ul),
     FrameType.DUMP_CHECKED: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "chunk" / cs.Int16ul),
+    FrameType.DUMP_BLOCKS: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "chunk" / cs.Int16ul),
     FrameType.ABORT: _EMPTY,
     FrameType.XDUMP: _EMPTY,
     FrameType.SET_CALIBRATION: cs.Struct("calibration" / cs.Bytes(CALIBRATION_SIZE)),
@@ -212,6 +223,7 @@ PAYLOAD_STRUCTS: dict[FrameType, cs.Struct] = {
     FrameType.DATA: cs.Struct("address" / cs.Int32ul, "data" / cs.GreedyBytes),
     FrameType.DUMP_END: cs.Struct("address" / cs.Int32ul, "length" / cs.Int32ul, "frames" / cs.Int16ul),
     FrameType.DATA_CRC: cs.Struct("address" / cs.Int32ul, "crc32" / cs.Int32ul),
+    FrameType.DATA_BLOCKS: cs.Struct("address" / cs.Int32ul, "blocks" / cs.GreedyBytes),
     FrameType.ACK: cs.Struct("command" / StrictEnum(cs.Int8ul, FrameType, COMMAND_TYPES)),
     FrameType.NAK: cs.Struct("command" / cs.Int8ul, "error" / StrictEnum(cs.Int8ul, ErrorCode)),
 }
@@ -228,6 +240,7 @@ FIELD_LIMITS: dict[tuple[FrameType, str], tuple[int, int]] = {
     (FrameType.READ, "length"): (1, MAX_DATA),
     (FrameType.DUMP, "chunk"): (1, MAX_DATA),
     (FrameType.DUMP_CHECKED, "chunk"): (1, MAX_DATA),
+    (FrameType.DUMP_BLOCKS, "chunk"): (1, MAX_BLOCKS_DATA),
 }
 
 
@@ -387,6 +400,9 @@ def build_payload(type: FrameType | int, **fields: Any) -> bytes:  # noqa: A002
     if ftype == FrameType.DATA and len(values["data"]) > MAX_DATA:
         raise PayloadError(f"DATA of {len(values['data'])} bytes exceeds {MAX_DATA}",
                            error_code=ErrorCode.BAD_LENGTH, offset=4)
+    if ftype == FrameType.DATA_BLOCKS and (payload_data_bytes(4 + len(values["blocks"])) or 0) > MAX_BLOCKS_DATA:
+        raise PayloadError(f"DATA_BLOCKS of {len(values['blocks'])} bytes exceeds 64 blocks",
+                           error_code=ErrorCode.BAD_LENGTH, offset=4)
     try:
         return struct.build(values)
     except cs.ConstructError as exc:
@@ -441,6 +457,11 @@ def parse_payload(frame: Frame, source: str | None = None) -> dict[str, Any]:
             raise PayloadError(f"DATA payload of {len(payload)} bytes (expected 4..{MAX_PAYLOAD})",
                                error_code=ErrorCode.BAD_LENGTH, offset=frame.offset + 4, source=source)
         return {"address": int.from_bytes(payload[:4], "little"), "data": bytes(payload[4:])}
+    if ftype == FrameType.DATA_BLOCKS:
+        if payload_data_bytes(len(payload)) is None:
+            raise PayloadError(f"DATA_BLOCKS payload of {len(payload)} bytes (4 + 258·k, or that + 3 … 257, expected)",
+                               error_code=ErrorCode.BAD_LENGTH, offset=frame.offset + 4, source=source)
+        return {"address": int.from_bytes(payload[:4], "little"), "blocks": bytes(payload[4:])}
     size = struct.sizeof()
     if len(payload) != size:
         raise PayloadError(f"{ftype.name} payload of {len(payload)} bytes (expected {size})",

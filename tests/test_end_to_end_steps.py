@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import binascii
 import csv
+import io
 import json
 import os
 import signal
@@ -32,8 +33,9 @@ from gaitlog.host.files.recording import STEP_CSV_COLUMNS, Recording
 from gaitlog.host.files.replay import verify_step_records
 from gaitlog.host.link.logger_link import LoggerLink
 from gaitlog.host.link.memory_dump import dump_memory
+from gaitlog.protocol.frames import FrameType, parse_stream
 from gaitlog.protocol.image import read_image
-from gaitlog.protocol.steps import StepConfig
+from gaitlog.protocol.steps import STEP_ADDRESS_BASE, StepConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 START_S = 1_700_000_000
@@ -281,17 +283,18 @@ def test_cli_resume_of_a_dump_cut_in_the_step_memory(walk_image, tmp_path, capsy
 
 
 def test_resume_keeps_the_step_bytes_already_received(walk_image, tmp_path):
-    """The partial state keeps whole 1024-byte image blocks: cut the step DUMP (DATA frames of 256 bytes) inside
+    """The partial state keeps whole 1024-byte image blocks: cut the step DUMP (DATA_BLOCKS frames of 256 bytes) inside
     its last frame, after the first 1024 step bytes arrived; the resumed dump reads only the rest."""
     image, _, records = walk_image
     assert 1024 < len(records) <= 1280
-    with LoggerLink(f"emu://{image}", timeout_s=0.5) as link:
+    capture = io.BytesIO()
+    with LoggerLink(f"emu://{image}", timeout_s=0.5, capture=capture) as link:
         dump_memory(link, tmp_path / "full.glimg", progress=False, chunk_bytes=256)
-    total = json.loads((tmp_path / "full.glimg.json").read_text())["bytes_received"]
     out = tmp_path / "d.glimg"
-    last_frame = 12 + len(records) - 1024
-    # the stream ends: the last DATA frame, its DATA_CRC (16 bytes), DUMP_END (18 bytes)
-    with LoggerLink(f"emu://{image}?cut_after={total - 18 - 16 - last_frame // 2}", timeout_s=0.1,
+    frames, _ = parse_stream(capture.getvalue())
+    last = [f for f in frames if f.type == FrameType.DATA_BLOCKS][-1]  # the step memory's last frame
+    assert int.from_bytes(last.payload[:4], "little") == STEP_ADDRESS_BASE + 1024
+    with LoggerLink(f"emu://{image}?cut_after={last.offset + len(last.payload) // 2}", timeout_s=0.1,
                     retries=0) as link:
         with pytest.raises(HostError, match="no answer to IDENTIFY"):
             dump_memory(link, out, progress=False, chunk_bytes=256, retries=1)

@@ -18,6 +18,17 @@ def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("-v", "--verbose", action="count", default=0, help="say more (repeat for more detail)")
 
 
+def add_max_missing_option(parser: argparse.ArgumentParser) -> None:
+    """``--max-missing PCT``: the missing share above which the command exits 1 (outputs still written, marked)."""
+    from gaitlog.host.files.limits import DEFAULT_MAX_MISSING_PERCENT
+
+    parser.add_argument("--max-missing", type=number(minimum=0, maximum=100, unit="%"),
+                        default=DEFAULT_MAX_MISSING_PERCENT, metavar="PCT",
+                        help="exit 1 when more than PCT %% of a recording's samples are missing (default "
+                             f"{DEFAULT_MAX_MISSING_PERCENT:g}); the outputs are written all the same, and the "
+                             "missing samples are marked in them")
+
+
 def verbosity(args: argparse.Namespace) -> int:
     """-1 with ``--quiet``, else the number of ``--verbose`` flags (0 by default)."""
     return -1 if getattr(args, "quiet", False) else int(getattr(args, "verbose", 0) or 0)

@@ -15,7 +15,7 @@ HELP = "estimate every recording in a folder (per-recording outputs, summary tab
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_max_missing_option, add_verbosity_options
 
     parser.add_argument("folder", metavar="FOLDER", help="folder of memory images, raw dumps, wire captures or "
                         "decoded .npz files")
@@ -28,6 +28,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
     add_anatomy_options(parser)
+    add_max_missing_option(parser)
     add_verbosity_options(parser)
 
 
@@ -69,21 +70,30 @@ def run(args: argparse.Namespace) -> int:
     rows = [r.summary for r in results]
     atomic_write_text(out / "batch.csv", rows_csv_text([{k: ("" if v is None else v) for k, v in r.items()}
                                                         for r in rows], SUMMARY_COLUMNS))
-    n = {s: sum(r.status == s for r in results) for s in ("done", "skipped", "failed")}
-    say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done']} computed, "
-        f"{n['skipped']} finished before (skipped), {n['failed']} failed")
-    say(f"{'recording':<28}{'status':<9}{'samples':>9}{'Hz':>6}{'steps':>7}{'M1 m':>9}{'M2 m':>9}{'M3 m':>9}")
+    n = {s: sum(r.status == s for r in results) for s in ("done", "partial", "skipped", "failed")}
+    over = [r for r in results if r.status != "failed" and (r.summary.get("missing_percent") or 0) > args.max_missing]
+    say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done'] + n['partial']} computed, "
+        f"{n['skipped']} finished before (skipped), {n['failed']} failed"
+        + (f"; {n['partial']} partial (samples missing)" if n["partial"] else ""))
+    say(f"{'recording':<28}{'status':<15}{'samples':>9}{'Hz':>6}{'steps':>7}{'M1 m':>9}{'M2 m':>9}{'M3 m':>9}")
     for r in rows:
         if r["status"] == "failed":
             continue
         dist = "".join(f"{r[k]:>9.2f}" if r[k] is not None else f"{'n/a':>9}"
                        for k in ("distance_m1_m", "distance_m2_m", "distance_m3_m"))
-        say(f"{r['recording']:<28}{r['status']:<9}{r['n_samples']:>9}{r['sampling_rate_hz']:>6g}{r['n_steps']:>7}{dist}")
+        status = f"partial {r['missing_percent']:.1f}%" if r["status"] == "partial" else r["status"]
+        say(f"{r['recording']:<28}{status:<15}{r['n_samples']:>9}{r['sampling_rate_hz']:>6g}{r['n_steps']:>7}{dist}")
     for r in results:
         if r.status == "failed":
             print(f"gaitlog batch: failed: {r.error if str(r.path) in r.error else f'{r.path}: {r.error}'}",
                   file=sys.stderr)
-        elif r.summary.get("warnings") and r.status == "done" and say is print:
+            continue
+        if r.status == "partial":  # the missing samples are always said, -q or not
+            print(f"gaitlog batch: warning: {r.summary['missing_line']}", file=sys.stderr)
+        if r.summary.get("warnings") and r.status in ("done", "partial") and say is print:
             print(f"gaitlog batch: warning: {r.summary['warnings']}", file=sys.stderr)
     say(f"written: {out}/batch.csv and per recording NAME.steps.csv, NAME.json")
-    return 1 if n["failed"] else 0
+    for r in over:
+        print(f"gaitlog batch: error: {r.path}: {r.summary['missing_percent']:.1f} % of the samples missing, above "
+              f"--max-missing {args.max_missing:g} % (its outputs are written, status partial)", file=sys.stderr)
+    return 1 if n["failed"] or over else 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gaitlog.host.commands._options import add_verbosity_options, check_outputs, verbosity
+from gaitlog.host.commands._options import add_max_missing_option, add_verbosity_options, check_outputs, verbosity
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
@@ -25,6 +25,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="keep the samples of a raw dump without its check trailer (cut off, or older "
                              "firmware) as the file holds them, marked UNVERIFIED in a warning and the notes "
                              "(default: nothing verifies them, so they are reported missing)")
+    add_max_missing_option(parser)
     add_verbosity_options(parser)
 
 #: Gaps and lost record runs listed one per line without ``-v``.
@@ -94,6 +95,12 @@ def run(args: argparse.Namespace) -> int:
     check = None if args.no_verify else verify_step_records(rec)
     if check is not None and check.differs:
         raise HostError(replay_error(rec, check))
+    from gaitlog.host.files.losses import SampleLosses
+
+    losses = SampleLosses.from_recording(rec)
+    over = losses.above(args.max_missing)
+    if over:  # the outputs are written all the same; the NPZ's notes and both validity columns mark it
+        rec.notes.append(losses.limit_text(args.max_missing))
     written = save_decoded(rec, args.out, calibration)
     if verbosity(args) >= 0:
         print(f"{args.input}: {rec.summary(None if verbosity(args) > 0 else _LISTED_WITHOUT_VERBOSE)}")
@@ -105,4 +112,7 @@ def run(args: argparse.Namespace) -> int:
         if rec.n_step_records == 0:
             print(f"no step records in {args.input}: {output_paths(args.out)['steps_csv']} not written")
         print("wrote " + ", ".join(str(p) for p in written))
+    if over:
+        raise HostError(f"{losses.limit_text(args.max_missing)}; wrote {', '.join(str(p) for p in written)} all the "
+                        "same (their valid column marks the missing samples)")
     return 0

@@ -18,7 +18,7 @@ HELP = "estimate every step's length and the distance walked (M1-M5) from a reco
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_max_missing_option, add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", help=INPUT_HELP)
     parser.add_argument("--out", metavar="STEPS.csv", help="write the per-step table here")
@@ -32,6 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="print the summary as one JSON document on stdout instead of the table")
     add_anatomy_options(parser)
     add_input_options(parser)
+    add_max_missing_option(parser)
     add_verbosity_options(parser)
 
 
@@ -55,6 +56,10 @@ def run(args: argparse.Namespace) -> int:
         check_outputs({"--out": out, **fixed},
                       {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration})
     data = read_input(args, args.input)
+    from gaitlog.host.files.inputs import input_losses
+
+    losses = input_losses(data)
+    over = losses.above(args.max_missing)
     if args.arithmetic != "float" and data.recording is None:
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a logger file or a "
                         "decoded recording (.npz from 'gaitlog decode'), not acceleration in g")
@@ -103,11 +108,14 @@ def run(args: argparse.Namespace) -> int:
                "height_known": not lengths.assumed, "length_model": LENGTH_MODEL, "k_file": args.k_file,
                "k_calibrated_range": k.calibrated_range if k is not None else None, "arithmetic": summary,
                "fixed_point_saturation": fixed_report if "fixed" in tables else None,
-               "per_step_tables": {a: str(p) for a, p in outs.items()}, "notes": notes}
+               "per_step_tables": {a: str(p) for a, p in outs.items()}, "notes": notes,
+               "missing_percent": round(losses.percent, 3), "max_missing_percent": args.max_missing,
+               "above_max_missing": over}
         print(json.dumps(doc, indent=2, allow_nan=False))
     elif verbosity(args) >= 0:
         print(f"{args.input}: {data.n_samples} samples at {data.sampling_rate_hz:g} Hz "
-              f"({data.n_missing} missing); {data.source}")
+              f"({data.n_missing} missing, {losses.percent:.1f} %"
+              + (f", above --max-missing {args.max_missing:g} %" if over else "") + f"); {data.source}")
         print(f"leg length {leg:.3f} m, foot length {foot:.3f} m, from: {lengths.source}"
               + (f" ({lengths.note})" if lengths.note and not lengths.assumed else "")
               + f"; K file: {args.k_file or 'none'}")
@@ -132,6 +140,10 @@ def run(args: argparse.Namespace) -> int:
     if verbosity(args) >= 0:
         for note in notes:
             print(f"gaitlog estimate: warning: {note}", file=sys.stderr)
+    if over:
+        raise HostError(losses.limit_text(args.max_missing) + ("; the results above are printed and "
+                        + (f"{', '.join(str(p) for p in outs.values())} written " if outs else "")
+                        + "all the same, from the samples there are"))
     return 0
 
 

@@ -41,11 +41,13 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.host.errors import HostError
+from gaitlog.host.files.losses import SampleLosses, say_losses
 from gaitlog.host.files.recording import RecordGap, Recording, gaps_from_mask
 from gaitlog.protocol.commit_journal import torn_step_records
 from gaitlog.protocol.crc import crc16_xmodem, crc32
+from gaitlog.protocol.data_blocks import ADDRESS_BYTES, header_binding, payload_data_bytes, salvage_blocks
 from gaitlog.protocol.errors import ProtocolError
-from gaitlog.protocol.frames import SYNC, FrameType, parse_stream
+from gaitlog.protocol.frames import FRAME_OVERHEAD, SYNC, FrameType, parse_stream
 from gaitlog.protocol.header import (
     HEADER_SIZE,
     MAGIC,
@@ -70,7 +72,7 @@ REASONS = (
     "block marked missing in the image (never received by the dump)",       # 0
     "block damaged in the image (CRC-32 mismatch, not found at a shifted offset)",  # 1
     "beyond the end of the truncated input",                                 # 2
-    "not received intact (no DATA frame with a good CRC covered it)",       # 3
+    "not received intact (no DATA frame with a good CRC, nor 64-sample block with a good check, covered it)",  # 3
     "code outside the ADC range of the header's adc_bits",                  # 4
     "chunk damaged in the raw dump (CRC-32 of its check trailer mismatch, not found at a shifted offset)",  # 5
     "raw dump's check trailer damaged: nothing can be verified",            # 6
@@ -97,11 +99,17 @@ _S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER = 4, 5
 _TYPE_HEADER = int(FrameType.HEADER)
 _TYPE_DATA = int(FrameType.DATA)
 _TYPE_DATA_CRC = int(FrameType.DATA_CRC)
+_TYPE_DATA_BLOCKS = int(FrameType.DATA_BLOCKS)
+_TYPE_DUMP_END = int(FrameType.DUMP_END)
+#: Differing bytes up to which two damaged copies of a header are combined (2^n candidates, each checked by the
+#: header's CRC-16 and a copy's frame CRC-16).
+COMBINE_MAX_DIFFERING_BYTES = 10
 _FLAG_LOGGING = int(HeaderFlag.LOGGING)
 
 
 def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
-    """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file.
+    """Decode the file at ``path`` (image, raw dump or wire capture); errors name the file, missing samples are said
+    in one :class:`~gaitlog.host.files.losses.MissingSamplesWarning`.
 
     ``accept_unverified``: as :func:`decode_bytes`.
 
@@ -114,7 +122,9 @@ def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False
     """
     path = Path(path)
     data = path.read_bytes()
-    return decode_bytes(data, source=str(path), accept_unverified=accept_unverified)
+    rec = decode_bytes(data, source=str(path), accept_unverified=accept_unverified)
+    say_losses(SampleLosses.from_recording(rec))
+    return rec
 
 
 def decode_bytes(data: bytes, source: str | None = None, *, accept_unverified: bool = False) -> Recording:
@@ -251,6 +261,10 @@ def _decode_raw(data: bytes, source: str | None, accept_unverified: bool = False
 def _decode_capture(data: bytes, source: str | None) -> Recording:
     frames, errors = parse_stream(data, source=source)
     known, unreadable = _header_boundaries(data, frames, errors)
+    combined = _combined_header(data, unreadable) if not known else None
+    if combined is not None:
+        known = [(off, combined, True) for off in unreadable.tolist()]
+        unreadable = unreadable[:0]
     if not known:
         damaged = unreadable.size
         raise ProtocolError(
@@ -265,7 +279,13 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
         header = DeviceHeader.from_bytes(header_bytes, source=source)
     except ProtocolError as err:
         raise err.at(offset=header_offset + 6) from err
-    if salvaged:
+    if combined is not None:
+        text = (f"every HEADER frame is damaged; the header was put together from {len(known)} damaged copies "
+                "(each byte where they differ taken from the copy whose choice passes the header's CRC-16 and a "
+                "copy's frame CRC-16)")
+        notes.append(text)
+        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
+    elif salvaged:
         text = (f"the HEADER frame at offset {header_offset} is damaged (its frame CRC-16 or framing failed); the "
                 "256-byte header it carries passed its own CRC-16 and every rule of section 2 (LOGGING clear: the "
                 "journal outside that CRC is not used) and places the samples")
@@ -306,6 +326,21 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
         target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
         target[offset: offset + chunk.size] = chunk
         seen[offset: offset + chunk.size] = True
+    blocks = _capture_blocks(data, frames, errors, known, unreadable, header_bytes)
+    for address, chunk_bytes in blocks.pieces:
+        where = memory_region(address, len(chunk_bytes), sample_memory_bytes=cap_bytes, step_memory_bytes=step_bytes)
+        if where is None:
+            outside += 1
+            continue
+        region, offset = where
+        target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
+        target[offset: offset + len(chunk_bytes)] = np.frombuffer(chunk_bytes, dtype=np.uint8)
+        seen[offset: offset + len(chunk_bytes)] = True
+    if blocks.salvaged:
+        notes.append(f"{blocks.salvaged} 64-sample block(s) kept from damaged DATA_BLOCKS frames (their checks verify "
+                     "at their addresses under this header, section 4.1)")
+    if blocks.foreign:
+        notes.append(f"{blocks.foreign} DATA_BLOCKS frame(s) under another header were not used")
     if outside:
         notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte sample memory and the "
                      f"{step_bytes}-byte step memory were ignored")
@@ -378,6 +413,164 @@ def _header_key(header_bytes: bytes) -> bytes:
     if len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING:
         return crc_span(header_bytes[:-2]) + header_bytes[-2:]
     return header_bytes
+
+
+def _combined_header(data: bytes, unreadable: np.ndarray) -> bytes | None:
+    """A header put together from two damaged HEADER frames (section 4.1): where the copies differ, each choice
+    of bytes is tried; it is used only when exactly one choice passes the header's own CRC-16, a copy's frame
+    CRC-16 (over that copy's type, seq and length) and the rules of section 2 (LOGGING clear). None otherwise."""
+    copies = [int(off) for off in unreadable.tolist() if off >= 0 and off + FRAME_OVERHEAD + HEADER_SIZE <= len(data)]
+    for i, a in enumerate(copies):
+        for b in copies[i + 1:]:
+            found = _combine_pair(data, a, b)
+            if found is not None:
+                return found
+    return None
+
+
+def _combine_pair(data: bytes, a: int, b: int) -> bytes | None:
+    pa = np.frombuffer(data, np.uint8, HEADER_SIZE, a + 6)
+    pb = np.frombuffer(data, np.uint8, HEADER_SIZE, b + 6)
+    differ = np.flatnonzero(pa != pb)
+    if not 0 < differ.size <= COMBINE_MAX_DIFFERING_BYTES:
+        return None
+    heads = [(data[o + 2: o + 6], int.from_bytes(data[o + 6 + HEADER_SIZE: o + 8 + HEADER_SIZE], "big")) for o in (a, b)]
+    good = set()
+    trial = pa.copy()
+    for choice in range(1 << differ.size):
+        pick = np.array([(choice >> k) & 1 for k in range(differ.size)], dtype=bool)
+        trial[differ] = np.where(pick, pb[differ], pa[differ])
+        raw = trial.tobytes()
+        if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
+            continue
+        if not any(crc16_xmodem(raw, crc16_xmodem(head)) == stored for head, stored in heads):
+            continue
+        try:
+            h = DeviceHeader.from_bytes(raw)
+        except ProtocolError:
+            continue
+        if h.header_version == 1 or not h.logging:
+            good.add(raw)
+    return good.pop() if len(good) == 1 else None
+
+
+class _CaptureBlocks:
+    """The 64-sample blocks of a capture's DATA_BLOCKS frames that verify under the decoded header."""
+
+    def __init__(self) -> None:
+        self.pieces: list[tuple[int, bytes]] = []
+        self.salvaged = 0
+        self.foreign = 0
+
+
+def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unreadable: np.ndarray,
+                    header_bytes: bytes) -> _CaptureBlocks:
+    """Blocks of intact DATA_BLOCKS frames, and of damaged ones found again inside their frames (section 4.1).
+
+    A frame belongs to the header when the nearest device header before it or after it (the copy a DUMP_BLOCKS
+    stream ends with) is readable and of the same memory state; every block must verify under that header's
+    ``binding``. A damaged frame is looked for at each sync with type 0x8A in the errors and where an intact
+    frame ends and no intact frame follows (a damaged sync); its blocks are tried at the addresses its own
+    address field and its intact neighbours imply, for the extent its length field and the next intact frame
+    imply.
+    """
+    out = _CaptureBlocks()
+    binding, key = header_binding(header_bytes), _header_key(header_bytes)
+    h_off = np.array([off for off, _, _ in known] + unreadable.tolist(), dtype=np.int64)
+    h_ok = np.array([_header_key(h) == key for _, h, _ in known] + [False] * unreadable.size, dtype=bool)
+    order = np.argsort(h_off, kind="stable")
+    h_off, h_ok = h_off[order], h_ok[order]
+
+    def belongs(offset: int) -> bool:
+        k = int(np.searchsorted(h_off, offset, side="right")) - 1
+        return bool((k >= 0 and h_ok[k]) or (k + 1 < h_off.size and h_ok[k + 1]))
+
+    intact = [fr for fr in frames if fr.type == _TYPE_DATA_BLOCKS and payload_data_bytes(len(fr.payload))]
+    spans = []  # (stream offset, end, first address, data bytes) of the intact DATA_BLOCKS frames
+    for fr in intact:
+        address = int.from_bytes(fr.payload[:ADDRESS_BYTES], "little")
+        spans.append((fr.offset, fr.offset + FRAME_OVERHEAD + len(fr.payload), address,
+                      payload_data_bytes(len(fr.payload))))
+        if not belongs(fr.offset):
+            out.foreign += 1
+            continue
+        out.pieces += salvage_blocks(binding, fr.payload[ADDRESS_BYTES:], [address]).pieces()
+    starts_all = np.array([fr.offset for fr in frames], dtype=np.int64)
+    ends_all = starts_all + np.array([FRAME_OVERHEAD + len(fr.payload) for fr in frames], dtype=np.int64)
+    starts_set = set(starts_all.tolist())
+    if not _holds_blocks(data, frames, errors):  # a capture of protocol version 1: decoded as before
+        return out
+    todo = {e.offset for e in errors if data[e.offset: e.offset + 2] == SYNC}
+    todo |= {int(e) for e in ends_all.tolist() if e < len(data) and e not in starts_set}
+    ends_of_streams = [(fr.offset, int.from_bytes(fr.payload[:4], "little"), int.from_bytes(fr.payload[8:10], "little"))
+                       for fr in frames if fr.type == _TYPE_DUMP_END and len(fr.payload) == 10]
+    lengths = [FRAME_OVERHEAD + len(fr.payload) for fr in intact]
+    frame_bytes = max(set(lengths), key=lengths.count) if lengths else 0  # the stream's usual frame
+    done: set[int] = set()
+    while todo:
+        s = min(todo)
+        todo.discard(s)
+        done.add(s)
+        if s in starts_set or not belongs(s):
+            continue
+        found, ends = _salvage_frame(data, s, starts_all, spans, binding, frame_bytes, ends_of_streams)
+        out.salvaged += len(found)
+        out.pieces += found
+        if found:  # the next frame may be damaged too, its sync included: look where this one ends
+            todo |= {e for e in ends if e < len(data) and e not in done}
+    return out
+
+
+def _holds_blocks(data: bytes, frames: list, errors: list) -> bool:
+    """The capture is of DUMP_BLOCKS streams: an intact DATA_BLOCKS frame, a damaged one whose sync and type
+    survived, or a HEADER frame followed by DUMP_END (how a DUMP_BLOCKS stream ends)."""
+    if any(fr.type == _TYPE_DATA_BLOCKS for fr in frames):
+        return True
+    if any(data[e.offset: e.offset + 3] == SYNC + bytes([_TYPE_DATA_BLOCKS]) for e in errors):
+        return True
+    return any(a.type == _TYPE_HEADER and b.type == _TYPE_DUMP_END for a, b in zip(frames, frames[1:]))
+
+
+def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, binding: int, frame_bytes: int,
+                   ends_of_streams: list) -> tuple[list, set[int]]:
+    """The verified blocks of a damaged DATA_BLOCKS frame starting at stream offset ``s``, and the ends tried
+    (its length field's when the frame it gives ends where the next frame starts, else that, the stream's usual
+    frame length and the next intact frame; in that case only the blocks before the first bad one are kept).
+    Addresses tried: its address field, the intact DATA_BLOCKS frames before and after it, and the first address
+    of the stream of the next intact DUMP_END."""
+    k = int(np.searchsorted(starts_all, s, side="right"))
+    next_start = int(starts_all[k]) if k < starts_all.size else len(data)
+    length = int.from_bytes(data[s + 4: s + 6], "little") if s + 6 <= len(data) else 0
+    end = s + FRAME_OVERHEAD + length
+    # its length field ends it where the next frame (or the capture) starts: no byte dropped or inserted inside
+    whole = bool(payload_data_bytes(length)) and end <= next_start and (
+        end == next_start or end == len(data) or data[end: end + 2] == SYNC  # the next frame: its sync or its type
+        or data[end + 2: end + 3] in (bytes([_TYPE_HEADER]), bytes([_TYPE_DUMP_END]), bytes([_TYPE_DATA_BLOCKS])))
+    extents = {end} if whole else {next_start}
+    for size in (() if whole else (FRAME_OVERHEAD + length, frame_bytes)):
+        if size > FRAME_OVERHEAD and payload_data_bytes(size - FRAME_OVERHEAD) and s + size <= next_start:
+            extents.add(s + size)
+    before = [sp for sp in spans if sp[1] <= s]
+    after = [sp for sp in spans if sp[0] >= s + FRAME_OVERHEAD]
+    found: dict[int, bytes] = {}
+    for end in sorted(extents):
+        body = data[s + 6 + ADDRESS_BYTES: end - 2]
+        n_data = payload_data_bytes(ADDRESS_BYTES + len(body)) or 0
+        addresses = [int.from_bytes(data[s + 6: s + 10], "little")] if s + 10 <= len(data) else []
+        if before:
+            prev_end = before[-1][2] + before[-1][3]
+            addresses += [prev_end, prev_end + before[-1][3]]
+        if after:
+            addresses.append(after[0][2] - n_data)
+        stream_end = next((e for e in ends_of_streams if e[0] > s), None)
+        if stream_end is not None:  # the stream's first frame
+            addresses.append(stream_end[1])
+        got = salvage_blocks(binding, body, addresses)
+        # a frame whose extent is uncertain (bytes dropped or inserted, or its length field hit) may be shifted
+        # after its first bad block: only the blocks before it are certain to be where they verify
+        for address, chunk in (got if whole else got.leading()).pieces():
+            found.setdefault(address, chunk)
+    return list(found.items()), extents
 
 
 def _checked_data_frames(frames: list) -> tuple[list, int]:

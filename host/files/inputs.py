@@ -47,12 +47,13 @@ from gaitlog.host.files.limits import (
     check_file_size,
     check_samples,
 )
+from gaitlog.host.files.losses import SampleLosses, say_losses
 from gaitlog.host.files.recording import Recording
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.image import detect_format
 from gaitlog.protocol.packing import FLAG_MARK
 
-__all__ = ["STREAM_TEXT_BYTES", "UNITS", "AccelerationInput", "parse_columns", "read_acceleration"]
+__all__ = ["STREAM_TEXT_BYTES", "UNITS", "AccelerationInput", "parse_columns", "read_acceleration", "input_losses"]
 
 #: Text inputs larger than this are parsed line by line from the file (a logger file is far smaller: an image of
 #: a full memory is under 600 kB, a wire capture of a noisy dump a few MB).
@@ -153,7 +154,8 @@ def parse_columns(text: str | Sequence[str | int] | None) -> list[str | int] | N
 def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None,
                       columns: str | Sequence[str | int] | None = None, units: str | None = None,
                       calibration: AccCalibration | str | Path | None = None, skip_rows: int = 0) -> AccelerationInput:
-    """Read ``path`` (see the module notes).
+    """Read ``path`` (see the module notes); missing samples are said in one
+    :class:`~gaitlog.host.files.losses.MissingSamplesWarning` (:func:`input_losses`).
 
     Parameters
     ----------
@@ -172,7 +174,23 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         A missing or unreadable file, an unknown format, an ambiguous or missing column, unit or rate, a flag
         that does not apply to this input; the message names the file (and line) and the flag to give.
     """
-    p = Path(path)
+    data = _read(Path(path), sampling_rate_hz, columns, units, calibration, skip_rows)
+    say_losses(input_losses(data))
+    return data
+
+
+def input_losses(data: AccelerationInput) -> SampleLosses:
+    """What is missing from an input, with the reasons of a logger recording's gaps."""
+    source = data.source.split(" (")[0]
+    if data.recording is not None:
+        return SampleLosses.from_recording(data.recording, data.valid, source)
+    why = ("lost packets (IPOL file)" if data.ipol_trial is not None else
+           "marked missing in the file (a decoded CSV's validity), empty or non-finite cells, or holes in its time grid")
+    return SampleLosses.from_mask(data.valid, source, why)
+
+
+def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
+          calibration: AccCalibration | str | Path | None, skip_rows: int) -> AccelerationInput:
     if sampling_rate_hz is not None and not (math.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
         raise HostError(f"--rate must be a positive number of Hz, got {sampling_rate_hz:g}")
     if units is not None and units not in UNITS:

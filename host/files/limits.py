@@ -14,8 +14,11 @@ from pathlib import Path
 
 from gaitlog.host.errors import HostError
 
-__all__ = ["MAX_INPUT_SAMPLES", "MAX_JSON_BYTES", "MAX_TEXT_BYTES", "check_file_size", "check_samples"]
+__all__ = ["DEFAULT_MAX_MISSING_PERCENT", "MAX_INPUT_SAMPLES", "MAX_JSON_BYTES", "MAX_TEXT_BYTES", "check_file_size", "check_samples"]
 
+#: Missing share of a recording (percent of its stored samples) above which ``decode``, ``estimate`` and ``batch``
+#: exit 1 (``--max-missing``; :mod:`gaitlog.host.files.losses`).
+DEFAULT_MAX_MISSING_PERCENT = 5.0
 #: Most samples (rows of the regular grid, gaps included) one input may hold.
 MAX_INPUT_SAMPLES = 1 << 22
 #: Largest text input (CSV, IPOL ``_lb.txt``) read, bytes: 2^22 rows of a decoded CSV (about 70 bytes each) fit.

@@ -33,8 +33,10 @@ import serial
 
 from gaitlog.host.errors import HostError
 from gaitlog.host.link.transports import register
+from gaitlog.protocol.data_blocks import verified_blocks
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import (
+    KNOWN_WIRE_PROTOCOL_VERSIONS,
     MAX_DATA,
     PAYLOAD_OFFSETS,
     PAYLOAD_STRUCTS,
@@ -52,7 +54,6 @@ from gaitlog.protocol.header import (
     CALIBRATION_SIZE,
     HEADER_SIZE,
     MILLIHZ_PER_HZ,
-    PROTOCOL_VERSION,
     DeviceHeader,
     firmware_version_text,
 )
@@ -73,6 +74,22 @@ NO_DEVICE_ATTEMPTS = 6
 #: Pause before the k-th resend of a command: BACKOFF_S · 2^(k-1), at most BACKOFF_MAX_S.
 BACKOFF_S = 0.01
 BACKOFF_MAX_S = 0.5
+
+
+def _runs(pieces: list[tuple[int, bytes]]) -> list[tuple[int, bytes]]:
+    """Adjacent ``(address, bytes)`` pieces joined into runs.
+
+    >>> _runs([(0, b"ab"), (2, b"c"), (9, b"d")])
+    [(0, b'abc'), (9, b'd')]
+    """
+    out: list[tuple[int, list[bytes], int]] = []
+    for address, data in pieces:
+        if out and out[-1][2] == address:
+            out[-1][1].append(data)
+            out[-1] = (out[-1][0], out[-1][1], address + len(data))
+        else:
+            out.append((address, [data], address + len(data)))
+    return [(a, b"".join(parts)) for a, parts, _ in out]
 
 
 def _nak_error(frame: Frame) -> int | None:
@@ -363,9 +380,9 @@ class LoggerLink:
         protocol version."""
         fr = self.transact(FrameType.IDENTIFY, b"", FrameType.INFO, expect_len=_INFO_SIZE)
         info = self._fields(fr)
-        if info["protocol_version"] != PROTOCOL_VERSION:
+        if info["protocol_version"] not in KNOWN_WIRE_PROTOCOL_VERSIONS:
             raise HostError(f"{self.port}: device speaks protocol version {info['protocol_version']}, this host "
-                            f"knows version {PROTOCOL_VERSION}: update gaitlog")
+                            f"knows versions {', '.join(map(str, KNOWN_WIRE_PROTOCOL_VERSIONS))}: update gaitlog")
         return info
 
     def status(self) -> dict[str, int]:
@@ -541,6 +558,71 @@ class LoggerLink:
                     self.retries is not None and attempt > self.retries):
                 if result.frames_seen:
                     result.frames_seen = n_frames  # the stream ran to its end unseen (or never started)
+                return result
+            self.stats.command_retries += 1
+
+    def dump_blocks(self, address: int, length: int, chunk: int, on_data: Callable[[int, bytes], bool | None],
+                    *, binding: int, keep_going: Callable[[int, int], bool] | None = None) -> StreamResult:
+        """DUMP_BLOCKS (protocol version 2, ``PROTOCOL.md`` 4.1) ``length`` bytes at ``address`` in DATA_BLOCKS frames
+        of ``chunk`` bytes; call ``on_data(address, data)`` for every 64-sample block of an intact frame (CRC-16
+        good, address and size fitting the request) whose check verifies under ``binding`` (the header's CRC).
+
+        Ends as :meth:`dump_checked`; a frame counts as verified when all its blocks verify. After the last frame
+        the device sends the header again and DUMP_END: with a capture file the stream is read to its end so
+        that the capture holds that second copy, without one the call returns at once.
+        """
+        command = _build("DUMP_BLOCKS", address=address, length=length, chunk=chunk)
+        end = address + length
+        n_frames = -(-length // chunk)
+        t0 = time.monotonic()
+        attempt = 0
+        while True:
+            seq = self.send(FrameType.DUMP_BLOCKS, command)
+            attempt += 1
+            result = StreamResult(frames_total=n_frames)
+            resend = False
+            damaged_before = self.stats.frame_errors
+            while True:
+                frame = self.next_frame(self.timeout_s, idle=True, quiet_s=self.quiet_s)
+                if frame is None:
+                    if self.stats.frame_errors > damaged_before:  # frames came, damaged: the stream ran unseen
+                        result.frames_seen = n_frames
+                    break
+                ftype = frame.type
+                if ftype == FrameType.NAK and frame.seq == seq:
+                    if _nak_error(frame) == ErrorCode.BAD_CRC:
+                        resend = True
+                        break
+                    self._raise_nak(FrameType.DUMP_BLOCKS, frame)
+                if ftype == FrameType.DATA_BLOCKS and len(frame.payload) > _DATA_OFFSET:
+                    a = int.from_bytes(frame.payload[:_DATA_OFFSET], "little")
+                    if not (address <= a < end and (a - address) % chunk == 0):
+                        continue
+                    found = verified_blocks(binding, frame.payload)
+                    want = min(chunk, end - a)
+                    result.seen(a, address, chunk)
+                    result.frames_verified += found.data_bytes == want
+                    self.stats.crc32_mismatches += found.data_bytes != want
+                    for run_address, data in _runs(found.pieces()):  # one call per run of verified blocks
+                        if run_address + len(data) <= end and on_data(run_address, data):
+                            return result
+                    if result.frames_seen == n_frames and self.capture is None:
+                        result.ended = True  # the rest is the header's copy and DUMP_END
+                        return result
+                    if keep_going is not None and not keep_going(result.frames_verified, result.frames_seen):
+                        self.stats.streams_abandoned += 1
+                        return result
+                    continue
+                if ftype == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
+                    end_fields = self._fields(frame)
+                    if end_fields["address"] == address and end_fields["length"] == length:
+                        result.ended = True
+                        result.frames_seen = n_frames
+                        return result
+            if not resend or time.monotonic() - t0 >= self.deadline_s or (
+                    self.retries is not None and attempt > self.retries):
+                if result.frames_seen:
+                    result.frames_seen = n_frames
                 return result
             self.stats.command_retries += 1
 

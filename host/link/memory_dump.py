@@ -48,6 +48,7 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_bytes
 from gaitlog.host.link.logger_link import LoggerLink, device_identity
 from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.protocol.data_blocks import MAX_BLOCKS_DATA, header_binding
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import FRAME_OVERHEAD, MAX_DATA, PAYLOAD_STRUCTS, DeviceState, FrameType
 from gaitlog.protocol.header import PAGE_SAMPLES
@@ -134,11 +135,15 @@ class MemoryDump:
     Parameters
     ----------
     chunk_bytes
-        DATA frame size of the first pass (1 ... ``MAX_DATA``; the largest keeps the framing at 0.3 %).
+        DATA frame size of the first pass (None: the largest the device offers: 16,384 bytes of DATA_BLOCKS
+        frames with protocol version 2, 4096 bytes of DUMP_CHECKED with version 1).
     retries
         Re-read passes over missing bytes after the first pass.
     state_interval_s
         Minimum time between two writes of the partial state.
+    blocks
+        None or True: DUMP_BLOCKS on a device of protocol version 2, DUMP_CHECKED on version 1; False:
+        DUMP_CHECKED always (the format before version 2, e.g. as a benchmark's baseline).
 
     Attributes
     ----------
@@ -156,8 +161,10 @@ class MemoryDump:
         Files written (the state file exists only while the dump is incomplete).
     """
 
-    def __init__(self, *, chunk_bytes: int = MAX_DATA, retries: int = 8, state_interval_s: float = 1.0) -> None:
+    def __init__(self, *, chunk_bytes: int | None = None, retries: int = 8, state_interval_s: float = 1.0,
+                 blocks: bool | None = None) -> None:
         self.chunk_bytes = chunk_bytes
+        self.blocks = blocks
         self.retries = retries
         self.state_interval_s = state_interval_s
 
@@ -220,6 +227,9 @@ class MemoryDump:
         started_utc = _dt.datetime.now(_dt.timezone.utc)
         # step 1: who is there, is it idle, its header
         self.info_ = link.identify()
+        # DUMP_BLOCKS (4.1) when the device has it, else DUMP_CHECKED (4); ``blocks=False`` asks for the latter
+        self.blocks_ = int(self.info_["protocol_version"]) >= 2 and self.blocks is not False
+        self.max_chunk_ = self.chunk_bytes or (MAX_BLOCKS_DATA if self.blocks_ else MAX_DATA)
         status = link.status()
         if status["state"] == DeviceState.LOGGING:
             raise HostError(f"{link.port}: the device is logging; stop it before dumping its memory")
@@ -244,13 +254,14 @@ class MemoryDump:
         """Passes of DUMP_CHECKED over everything missing with a chunk fitted to the line (steps 3-4 above),
         until nothing is missing or ``retries`` passes in a row brought nothing; the partial state is saved
         and the device's stream ended on any error or interrupt."""
-        chunk = self.chunk_bytes
+        chunk = self.max_chunk_
+        binding = header_binding(transfer.header_bytes)
         p_hat: float | None = None
         idle_passes = 0
 
         def fitted(verified: int, seen: int, c: int) -> int:
             rate = byte_error_rate(verified, seen, c)
-            return best_chunk(rate if p_hat is None else (p_hat + rate) / 2, self.chunk_bytes)
+            return best_chunk(rate if p_hat is None else (p_hat + rate) / 2, self.max_chunk_)
 
         try:
             while transfer.missing().any():
@@ -268,13 +279,17 @@ class MemoryDump:
                     def keep_going(verified: int, seen: int, c: int = c) -> bool:
                         return seen < JUDGE_AFTER_FRAMES or c <= MIN_CHUNK or fitted(verified, seen, c) * 2 >= c
 
-                    result = link.dump_checked(address, length, c, transfer.on_data, keep_going=keep_going)
+                    if self.blocks_:
+                        result = link.dump_blocks(address, length, c, transfer.on_data, binding=binding,
+                                                  keep_going=keep_going)
+                    else:
+                        result = link.dump_checked(address, length, c, transfer.on_data, keep_going=keep_going)
                     cursor = stop if result.ended or not result.frames_seen else min(
                         stop, start + result.frames_seen * c)
-                    if result.frames_seen >= 2 or (result.frames_seen and c == chunk):
+                    if result.frames_seen >= 2 or (result.frames_seen and (c == chunk or self.blocks_)):
                         rate = byte_error_rate(result.frames_verified, result.frames_seen, c)
                         p_hat = rate if p_hat is None else (p_hat + rate) / 2
-                        chunk = min(best_chunk(p_hat, self.chunk_bytes), 4 * chunk)
+                        chunk = min(best_chunk(p_hat, self.max_chunk_), 4 * chunk)
                     if not result.frames_seen and not result.ended:
                         break  # not a single frame: end the pass (the check below asks whether anybody is there)
                     transfer.chunk_used = chunk
@@ -376,10 +391,11 @@ class MemoryDump:
 
 def dump_memory(link: LoggerLink, out_path: str | os.PathLike[str], *,
                 progress: bool | Callable[[int], None] = True, resume: bool = False, retries: int = 8,
-                chunk_bytes: int = MAX_DATA) -> MemoryDump:
+                chunk_bytes: int | None = None, blocks: bool | None = None) -> MemoryDump:
     """Dump the stored memory of the logger on ``link`` to the image ``out_path`` (+ ``.json`` metadata):
     :meth:`MemoryDump.run` with ``retries`` and ``chunk_bytes``. Returns the finished :class:`MemoryDump`."""
-    return MemoryDump(retries=retries, chunk_bytes=chunk_bytes).run(link, out_path, resume=resume, progress=progress)
+    return MemoryDump(retries=retries, chunk_bytes=chunk_bytes, blocks=blocks).run(link, out_path, resume=resume,
+                                                                                 progress=progress)
 
 
 class _Transfer:

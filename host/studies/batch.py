@@ -29,7 +29,8 @@ import numpy as np
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.inputs import AccelerationInput, read_acceleration
+from gaitlog.host.files.inputs import AccelerationInput, input_losses, read_acceleration
+from gaitlog.host.files.losses import MissingSamplesWarning
 from gaitlog.host.gait.anthropometry import AnatomyChoice
 from gaitlog.host.gait.pipeline import StepPipeline
 from gaitlog.protocol.atomic_write import atomic_write_text
@@ -39,15 +40,17 @@ __all__ = ["BatchResult", "batch_inputs", "run_batch", "SUMMARY_COLUMNS"]
 #: Suffixes that are never inputs (sidecars, outputs of other commands).
 NOT_INPUTS = (".json", ".csv", ".txt", ".md")
 #: Columns of the batch summary table.
-SUMMARY_COLUMNS = (("recording", "status", "n_samples", "n_missing", "sampling_rate_hz", "n_steps", "n_bouts",
+SUMMARY_COLUMNS = (("recording", "status", "n_samples", "n_missing", "missing_percent", "sampling_rate_hz", "n_steps", "n_bouts",
                     "leg_length_m", "foot_length_m") + tuple(f"distance_{e.lower()}_m" for e in ESTIMATORS)
                    + ("warnings", "error"))
 
 
 @dataclass(frozen=True)
 class BatchResult:
-    """One recording of a batch: ``status`` is ``done`` (computed now), ``skipped`` (finished before, unchanged)
-    or ``failed`` (``error`` says why); ``summary`` the row of :data:`SUMMARY_COLUMNS`."""
+    """One recording of a batch: ``status`` is ``done`` (computed now), ``partial`` (computed now from a recording
+    with missing samples: ``summary["missing_percent"]``, and ``summary["missing_line"]`` the line that says
+    them), ``skipped`` (finished before, unchanged) or ``failed`` (``error`` says why); ``summary`` the row of
+    :data:`SUMMARY_COLUMNS`."""
 
     path: Path
     status: str
@@ -83,10 +86,14 @@ def _estimate(path: Path, calibration: AccCalibration | None, k: Any,
         choice = lengths(data)
         pipe = StepPipeline(leg_length_m=choice.leg_length_m, foot_length_m=choice.foot_length_m,
                             calibration=k).run(data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
-    notes = list(dict.fromkeys(str(w.message) for w in caught)) + list(pipe.notes_)
+    notes = list(dict.fromkeys(str(w.message) for w in caught if not issubclass(w.category, MissingSamplesWarning)))
+    notes += list(pipe.notes_)
+    losses = input_losses(data)
     steps = pipe.steps_
-    row: dict[str, Any] = {"recording": path.name, "status": "done", "n_samples": int(data.n_samples),
-                           "n_missing": int(data.n_missing), "sampling_rate_hz": float(data.sampling_rate_hz),
+    row: dict[str, Any] = {"recording": path.name, "status": "partial" if losses.ranges else "done",
+                           "n_samples": int(data.n_samples), "n_missing": int(data.n_missing),
+                           "missing_percent": round(losses.percent, 3), "missing_line": losses.line(),
+                           "sampling_rate_hz": float(data.sampling_rate_hz),
                            "n_steps": int(steps.n_steps),
                            "n_bouts": int(np.unique(steps.bout).size) if steps.n_steps else 0,
                            "leg_length_m": float(choice.leg_length_m), "foot_length_m": float(choice.foot_length_m)}
@@ -138,7 +145,7 @@ def run_batch(paths: list[Path], out: str | Path, *, calibration: AccCalibration
             row, steps_csv = _estimate(path, cal, k, lengths)
             atomic_write_text(out / f"{path.name}.steps.csv", steps_csv)
             atomic_write_text(done, json.dumps({"input": str(path), "stamp": stamp, "summary": row}, indent=2) + "\n")
-            results.append(BatchResult(path, "done", row))
+            results.append(BatchResult(path, row["status"], row))
         except Exception as err:  # noqa: BLE001 -- one bad file never stops the batch; its error is listed
             text = str(err) if isinstance(err, (HostError, OSError)) else f"{type(err).__name__}: {err}"
             text = text.splitlines()[0] if text else type(err).__name__

@@ -5,6 +5,8 @@ never a wrong sample. Truth is the emulated device's memory (its firmware's own 
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
+from tempfile import TemporaryDirectory
 
 import numpy as np
 import pytest
@@ -115,3 +117,89 @@ def test_checked_capture_uses_a_data_frame_only_with_its_data_crc() -> None:
     broken[crc_at + 8] ^= 0x01
     rec, _ = _decode(bytes(broken))
     assert not rec.valid[:256].any() and rec.valid[256:].all()
+
+
+# ------------------------------------------------------------------ protocol version 2: DUMP_BLOCKS captures
+@pytest.fixture(scope="module")
+def walk_capture():
+    """A 2 x 20 m walk (step algorithm on) dumped by `gaitlog dump`'s library through the emulator with a capture:
+    (capture bytes, truth codes in ring order, offset of the end of the first frame)."""
+    import io
+
+    from gaitlog.host.link.logger_link import LoggerLink
+    from gaitlog.host.link.memory_dump import dump_memory
+    from tests.test_end_to_end_steps import CONFIG, START_S, walking
+
+    logger = Logger(device_id=9, step_config=CONFIG)
+    result = logger.record(walking(), start_time_s=START_S)
+    codes = np.asarray(result.codes)
+    capture = io.BytesIO()
+    with TemporaryDirectory() as tmp:
+        image = Path(tmp) / "walk.glimg"
+        logger.save_image(image)
+        with LoggerLink(f"emu://{image}", timeout_s=0.5, capture=capture) as link:
+            dump_memory(link, Path(tmp) / "d.glimg", progress=False)
+    data = capture.getvalue()
+    frames, errors = parse_stream(data)
+    assert errors == [] and FrameType.DATA_BLOCKS in [f.type for f in frames]
+    assert [f.type for f in frames].count(FrameType.HEADER) >= 2  # the header travels at least twice
+    return data, codes, frames[1].offset
+
+
+def test_20_walk_captures_with_5_flipped_bytes_lose_at_most_64_samples_a_byte_and_say_it(walk_capture, tmp_path,
+                                                                                          capsys) -> None:
+    from gaitlog.host.cli import main
+    from gaitlog.host.files.recording import Recording
+
+    data, codes, start = walk_capture
+    assert 1900 <= codes.shape[0] <= 2100  # a 2 x 20 m walk at 50 Hz
+    rng = np.random.default_rng(32)
+    worst = 0
+    for i in range(20):
+        damaged = bytearray(data)
+        for p in rng.choice(np.arange(start, len(data)), 5, replace=False).tolist():
+            damaged[p] ^= int(rng.integers(1, 256))
+        path = tmp_path / f"cap{i}.bin"
+        path.write_bytes(bytes(damaged))
+        code = main(["decode", str(path), "--out", str(tmp_path / f"d{i}"), "-q", "--max-missing", "100"])
+        err = capsys.readouterr().err
+        assert code == 0
+        rec = Recording.load(tmp_path / f"d{i}.npz")
+        assert not (rec.valid & (rec.codes != codes).any(axis=1)).any()  # 0 wrong samples
+        lost = int((~rec.valid).sum())
+        assert lost <= 64 * 5
+        worst = max(worst, lost)
+        if lost:  # every loss said, once, with its count
+            line = [x for x in err.splitlines() if "samples missing" in x]
+            assert len(line) == 1 and f"{lost:,} of {codes.shape[0]:,} samples missing" in line[0]
+        else:
+            assert "samples missing" not in err
+    assert worst > 0  # the damage did cost something (the test can fail)
+
+
+def test_a_damaged_block_costs_its_64_samples_and_its_neighbours_are_kept(walk_capture) -> None:
+    data, codes, start = walk_capture
+    frames, _ = parse_stream(data)
+    f = next(fr for fr in frames if fr.type == FrameType.DATA_BLOCKS)
+    damaged = bytearray(data)
+    damaged[f.offset + 10 + 258 * 3 + 100] ^= 0x01  # block 3 of the first DATA_BLOCKS frame: samples 192-255
+    damaged[f.offset + 3] ^= 0x40  # and its seq: framing, found again all the same
+    rec, said = _decode(bytes(damaged))
+    first = rec.header.first_slot
+    lost = np.flatnonzero(~rec.valid)
+    np.testing.assert_array_equal((first + lost) % rec.header.capacity_samples, np.arange(192, 256))
+    np.testing.assert_array_equal(rec.codes[rec.valid], codes[rec.valid])
+    assert "64-sample block(s) kept from damaged DATA_BLOCKS frames" in " ".join(rec.notes)
+
+
+def test_both_header_copies_damaged_are_put_together(walk_capture) -> None:
+    data, codes, _ = walk_capture
+    frames, _ = parse_stream(data)
+    headers = [fr for fr in frames if fr.type == FrameType.HEADER]
+    damaged = bytearray(data)
+    for k, fr in enumerate(headers):
+        damaged[fr.offset + 6 + 30 + k] ^= 0x10  # inside each copy's own CRC, at different bytes
+    rec, said = _decode(bytes(damaged))
+    assert "put together from" in said
+    assert rec.valid.all()
+    np.testing.assert_array_equal(rec.codes, codes)

@@ -69,11 +69,12 @@ def test_decode_of_a_raw_dump_cut_before_its_trailer(tmp_path, capsys):
     h = DeviceHeader(capacity_samples=1024, samples_written=600, write_index=600)
     raw = tmp_path / "rx.bin"
     raw.write_bytes(raw_dump_bytes(h.to_bytes(), words.tobytes())[: 256 + 4 * 500])  # cut before its trailer
-    assert main(["decode", str(raw), "--out", str(tmp_path / "d")]) == 0
+    assert main(["decode", str(raw), "--out", str(tmp_path / "d")]) == 1  # all missing: above --max-missing
     out, err = capsys.readouterr()
     assert "600 samples (0 valid, 600 missing)" in out and "its 500 samples present cannot be verified" in err
+    assert "600 of 600 samples missing (100.0 %)" in err and "above --max-missing 5 %" in err
     assert not Recording.load(tmp_path / "d.npz").valid.any()
-    assert main(["decode", str(raw), "--out", str(tmp_path / "a"), "--accept-unverified"]) == 0
+    assert main(["decode", str(raw), "--out", str(tmp_path / "a"), "--accept-unverified", "--max-missing", "20"]) == 0
     out, err = capsys.readouterr()
     assert "(500 valid, 100 missing)" in out and "500 samples and 0 step records UNVERIFIED" in err
     rec = Recording.load(tmp_path / "a.npz")
@@ -135,10 +136,12 @@ def test_record_replay_says_how_many_samples_were_interpolated(tmp_path, capsys)
                  str(tmp_path / "g.glimg")]) == 0
     err = capsys.readouterr().err
     assert f"40 of {t.size} samples" in err and "(1.33%)" in err and "interpolated" in err
-    # -q: nothing
+    # -q: only the line that says which samples the input lacks
     assert main(["record", "--motion", "replay", str(path), "--start-time", "0", "-q", "--out",
                  str(tmp_path / "h.glimg")]) == 0
-    assert capsys.readouterr() == ("", "")
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "40 of 3,000 samples missing (1.3 %) at samples 500-529, " \
+        "1,200-1,209" in err
 
 
 def test_record_refuses_input_flags_without_a_replay(tmp_path, capsys):

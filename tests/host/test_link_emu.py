@@ -62,7 +62,7 @@ def test_commands(small_image):
     path, result = small_image
     with LoggerLink(f"emu://{path}", timeout_s=0.5) as link:
         info = link.identify()
-        assert info["protocol_version"] == 1 and info["capacity_samples"] == CAP
+        assert info["protocol_version"] == 2 and info["capacity_samples"] == CAP
         st = link.status()
         assert st["state"] == 0 and st["samples_written"] == 3000 and st["write_index"] == 3000
         raw, header = link.read_header()

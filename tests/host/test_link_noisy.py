@@ -72,7 +72,7 @@ class ForgingLine:
         self.forged = 0
 
     def apply(self, data: bytes) -> bytes:
-        if self.forged < self.n and data[:3] == b"\xa5\x5a\x87" and len(data) > 20:
+        if self.forged < self.n and data[:3] in (b"\xa5\x5a\x87", b"\xa5\x5a\x8a") and len(data) > 20:
             body = bytearray(data[2:-2])
             body[4 + 4 + 7] ^= 0x40  # a byte of the data, after type, seq, length and the address
             self.forged += 1
@@ -80,7 +80,8 @@ class ForgingLine:
         return data
 
 
-def test_data_frames_passing_their_crc16_are_caught_by_the_device_crc32(image, tmp_path):
+def test_data_frames_passing_their_crc16_are_caught_by_the_device_crc32_or_block_check(image, tmp_path):
+    """DATA_BLOCKS (protocol version 2): the forged frame passes its CRC-16, its block's CRC-16/UMTS fails."""
     path, codes = image
     out = tmp_path / "forged.glimg"
     with LoggerLink(f"emu://{path}", timeout_s=0.5) as link:

@@ -149,3 +149,40 @@ def test_old_image_whose_table_and_memory_moved_together_is_never_wrong() -> Non
     assert _score(damaged, memory) == (0, 0)  # nothing can be tied to its index: all reported missing
     intact_table = img[:at] + img[at + bs:]  # the same memory damage with the table intact loses one block
     assert _score(intact_table, memory) == (cap - bs // 4, 0)
+
+
+# ------------------------------------------------------------------ flip campaign (protocol version 2 captures)
+def test_flip_campaign_slice_loses_only_the_blocks_touched_and_says_so() -> None:
+    """Captures with 1-10 flipped bits, 1-10 flipped bytes or a burst: the DUMP_BLOCKS capture never gives a wrong
+    sample, loses nothing beyond the 64-sample blocks touched (and the frames whose framing was hit), and its
+    stderr line counts every lost sample; the same devices and damages in today's DUMP_CHECKED capture lose
+    whole 4096-byte frames (the baseline)."""
+    results = bench.flip_campaign(60, seed=21)
+    v1, v2 = results["capture-v1"], results["capture-v2"]
+    assert v2.files == 60 and v2.damaged_bytes == v1.damaged_bytes > 60
+    assert v2.wrong == 0 and v2.crashes == 0 and v2.refused == 0, v2.examples
+    assert v2.excess == 0 and v2.unsaid == 0, v2.examples
+    assert v2.max_lost_per_byte <= 64
+    assert v1.wrong == 0 and v1.lost > 4 * v2.lost  # the baseline loses whole frames
+
+
+def test_the_flip_campaign_can_fail() -> None:
+    real = bench.decode_bytes
+
+    def lenient(data, **kw):
+        rec = real(data, **kw)
+        rec.valid[:] = True
+        return rec
+
+    def dropping(data, **kw):
+        rec = real(data, **kw)
+        rec.valid[:] = False
+        return rec
+
+    try:
+        bench.decode_bytes = lenient
+        assert bench.flip_campaign(20, seed=2, kinds=("capture-v2",))["capture-v2"].wrong > 0
+        bench.decode_bytes = dropping
+        assert bench.flip_campaign(20, seed=2, kinds=("capture-v2",))["capture-v2"].excess > 0
+    finally:
+        bench.decode_bytes = real

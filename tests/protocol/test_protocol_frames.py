@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gaitlog.protocol.data_blocks import blocks_payload
 from gaitlog.protocol.frames import (
     FRAME_STRUCT,
     MAX_PAYLOAD,
@@ -48,8 +49,8 @@ def test_encode_matches_reference_and_parses(t: int, seq: int, payload: bytes) -
 
 
 def test_encode_rejects() -> None:
-    with pytest.raises(Exception, match="exceeds the maximum 4100"):
-        encode_frame(FrameType.DATA, 0, bytes(4101))
+    with pytest.raises(Exception, match=f"exceeds the maximum {MAX_PAYLOAD}"):
+        encode_frame(FrameType.DATA, 0, bytes(MAX_PAYLOAD + 1))
     with pytest.raises(Exception, match="seq 256"):
         encode_frame(FrameType.DATA, 256)
 
@@ -145,7 +146,9 @@ def test_set_step_config_rejections(payload: bytes, code: ErrorCode, offset: int
 @pytest.mark.parametrize(
     ("frame", "code", "offset"),
     [
-        (Frame(0x0E, 0, b""), ErrorCode.UNKNOWN_COMMAND, 2),
+        (Frame(0x0F, 0, b""), ErrorCode.UNKNOWN_COMMAND, 2),
+        (Frame(FrameType.DUMP_BLOCKS, 0, struct.pack("<IIH", 0, 10, 16385)), ErrorCode.BAD_ARGUMENT, 14),
+        (Frame(FrameType.DATA_BLOCKS, 0, b"\x00" * (4 + 258 + 2)), ErrorCode.BAD_LENGTH, 4),
         (Frame(0x7F, 0, b"", offset=50), ErrorCode.UNKNOWN_COMMAND, 52),
         (Frame(FrameType.START, 0, struct.pack("<IB", 0, 2)), ErrorCode.BAD_ARGUMENT, 10),
         (Frame(FrameType.ERASE, 0, b"erase"), ErrorCode.BAD_ARGUMENT, 6),
@@ -198,6 +201,9 @@ FIELD_STRATEGIES = {
     FrameType.DUMP_END: st.fixed_dictionaries(dict(address=u32, length=u32, frames=u16)),
     FrameType.DUMP_CHECKED: st.fixed_dictionaries(dict(address=u32, length=u32, chunk=st.integers(1, 4096))),
     FrameType.DATA_CRC: st.fixed_dictionaries(dict(address=u32, crc32=u32)),
+    FrameType.DUMP_BLOCKS: st.fixed_dictionaries(dict(address=u32, length=u32, chunk=st.integers(1, 16384))),
+    FrameType.DATA_BLOCKS: st.builds(lambda a, d: dict(address=a, blocks=blocks_payload(0x1234, a, d)[4:]),
+                                     st.integers(0, 2**32 - 2**15), st.binary(max_size=16384)),
     FrameType.ACK: st.fixed_dictionaries(dict(command=st.sampled_from([t for t in FrameType if t < 0x80]))),
     FrameType.NAK: st.fixed_dictionaries(dict(command=u8, error=st.sampled_from(list(ErrorCode)))),
 }
@@ -322,7 +328,7 @@ def test_absurd_length_does_not_allocate() -> None:
     finally:
         tracemalloc.stop()
     assert peak < 20_000
-    assert out[0] == FrameError(0, "bad_length", 6, "length field 65535 > 4100")
+    assert out[0] == FrameError(0, "bad_length", 6, f"length field 65535 > {MAX_PAYLOAD}")
     # a legal but large length waits for its bytes without allocating them
     p2 = FrameParser()
     assert p2.feed(b"\xa5\x5a\x87\x00\x04\x10") == [] and p2.buffered == 6
@@ -346,3 +352,14 @@ def test_truncated_mid_frame_and_lone_sync() -> None:
                                                       "stream ended inside a frame of length 100")]
     frames, errors = parse_stream(b"\xa5\x5a\x01")
     assert frames == [] and errors[0].reason == "truncated" and errors[0].length == 3
+
+
+def test_salvage_blocks_ignores_one_or_two_bytes_after_the_last_block() -> None:
+    """A damaged frame's extent may leave 1-2 bytes after its last whole block (a crash of the flip campaign)."""
+    from gaitlog.protocol.data_blocks import salvage_blocks
+
+    body = blocks_payload(0x1234, 512, bytes(range(256)) * 2)[4:]
+    for extra in (b"", b"\x00", b"\x00\x00"):
+        found = salvage_blocks(0x1234, body + extra, [512])
+        assert found.addresses.tolist() == [512, 768] and found.data == bytes(range(256)) * 2
+    assert salvage_blocks(0x1234, body, [256]).addresses.tolist() == []  # another address: nothing verifies

@@ -80,6 +80,19 @@ def _crc16(data: bytes) -> int:
 
 
 # ------------------------------------------------------------------------------------------ example parsing
+def _crc16_umts(data: bytes) -> int:
+    crc = 0
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x8005) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+    return crc
+
+
+def test_crc16_umts_check_value() -> None:
+    assert _crc16_umts(b"123456789") == 0xFEE8  # the catalogue's check value: the bitwise CRC here is right
+
+
 def _parse_hex(text: str, name: str) -> bytes:
     out = bytearray()
     for line in text.strip().splitlines():
@@ -251,8 +264,17 @@ def test_worked_example(name: str) -> None:
         assert int.from_bytes(data[4:6], "little") == len(data) - 8
         assert int.from_bytes(data[-2:], "big") == _crc16(data[2:-2])
         build_fields = {k: _resolve(v) for k, v in fields.items()}
-        if "data" in build_fields:
-            build_fields["data"] = bytes.fromhex(build_fields["data"])
+        for key in ("data", "blocks"):
+            if key in build_fields:
+                build_fields[key] = bytes.fromhex(build_fields[key])
+        if ftype == FrameType.DATA_BLOCKS:  # section 4.1: each block followed by its CRC-16/UMTS, by hand
+            binding, payload = bytes.fromhex(ex["binding"]), bytes.fromhex(ex["data"])
+            expected = bytearray()
+            for k in range(0, len(payload), 256):
+                block = payload[k: k + 256]
+                check = _crc16_umts(binding + (fields["address"] + k).to_bytes(4, "little") + block)
+                expected += block + check.to_bytes(2, "big")
+            assert bytes(expected) == build_fields["blocks"]
         assert encode_frame(ftype, seq, build_payload(ftype, **build_fields)) == data
         frames, errors = parse_stream(data)
         assert errors == [] and len(frames) == 1
@@ -367,6 +389,36 @@ def _check_raw_dump(data: bytes, fields: dict) -> None:
 
 
 def _check_capture(data: bytes, fields: dict) -> None:
+    if fields.get("blocks"):
+        _check_capture_blocks(data, fields)
+        return
+    _check_capture_frames(data, fields)
+
+
+def _check_capture_blocks(data: bytes, fields: dict) -> None:
+    """Section 4.1: a DUMP_BLOCKS session carries the header twice; the first copy damaged, the second places
+    the samples, and the DATA_BLOCKS frame's block verifies under its binding."""
+    header, samples, codes, _ = _raw_dump_parts(EXAMPLES[fields["example"]]["fields"])
+    binding = header.to_bytes()[254:256]
+    block = samples + _crc16_umts(binding + bytes(4) + samples).to_bytes(2, "big")
+    clean = bytearray(encode_frame(FrameType.HEADER, 1, header.to_bytes())
+                      + encode_frame(FrameType.DATA_BLOCKS, 0, bytes(4) + block)
+                      + encode_frame(FrameType.HEADER, 2, header.to_bytes())
+                      + encode_frame(FrameType.DUMP_END, 2, build_payload(FrameType.DUMP_END, address=0,
+                                                                         length=len(samples), frames=1)))
+    damaged = bytearray(clean)
+    damaged[fields["damaged_byte"]] ^= fields["xor"]
+    assert bytes(damaged) == data
+    assert int.from_bytes(data[260:262], "big") != _crc16(data[6:166])  # the first copy fails its own CRC
+    frames, _ = parse_stream(data)
+    assert [f.type for f in frames] == [FrameType.DATA_BLOCKS, FrameType.HEADER, FrameType.DUMP_END]
+    rec, said = _decoded(data)
+    assert rec.valid.all() and rec.codes.tolist() == codes.tolist()
+    with pytest.raises(ProtocolError, match="no intact HEADER frame"):  # without the second copy: refused
+        decode_bytes(bytes(damaged[:0x122]))
+
+
+def _check_capture_frames(data: bytes, fields: dict) -> None:
     """Section 4, decoding a capture: a HEADER frame that fails its CRC-16 but whose header verifies places
     the samples; one damaged inside the header's CRC does not."""
     header, samples, codes, _ = _raw_dump_parts(EXAMPLES[fields["example"]]["fields"])
