@@ -14,14 +14,32 @@ setuptools' ``package-dir`` installs them under this package.
 """
 
 import os as _os
+import sys as _sys
+from importlib.machinery import PathFinder as _PathFinder
 
 #: The distribution's version (pyproject.toml reads it from here).
 __version__ = "0.2.0"
 
-# In a source checkout (``python -m gaitlog`` or ``import gaitlog`` from the repository's root, where this folder
-# shadows an installed copy) the subpackages are this folder's siblings.
-_checkout = _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__)))
-if _os.path.isfile(_os.path.join(_checkout, "pyproject.toml")) and _os.path.isfile(
-        _os.path.join(_checkout, "host", "__init__.py")):
-    __path__.append(_checkout)  # noqa: F821 (a package's __path__)
-del _os, _checkout
+_SUBPACKAGES = ("protocol", "firmware_sim", "host")
+
+
+class _CheckoutFinder:
+    """Finds ``gaitlog.protocol``, ``gaitlog.firmware_sim`` and ``gaitlog.host`` beside this folder in a source
+    checkout, where this folder shadows an installed copy (``python -m gaitlog`` run from the repository's root
+    after a non-editable install). Asked last, after every installed finder."""
+
+    def __init__(self, root: str) -> None:
+        self.root = root
+
+    def find_spec(self, name, path=None, target=None):
+        prefix, _, sub = name.partition(".")
+        if prefix != "gaitlog" or sub not in _SUBPACKAGES:
+            return None
+        return _PathFinder.find_spec(name, [self.root])
+
+
+_root = _os.path.dirname(_os.path.dirname(_os.path.abspath(__file__)))
+if _os.path.isfile(_os.path.join(_root, "pyproject.toml")) and not any(
+        isinstance(f, _CheckoutFinder) for f in _sys.meta_path):
+    _sys.meta_path.append(_CheckoutFinder(_root))
+del _root
