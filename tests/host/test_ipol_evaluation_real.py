@@ -205,7 +205,7 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
         assert iqr(r) == pytest.approx(0.0697, abs=0.005)
 
 
-# The README's table: median ratio, IQR (and min, max offline) with the offline chain's K (shrunk toward the
+# The documentation's IPOL table (docs/validation/ipol.md): median ratio, IQR (and min, max offline) with the offline chain's K (shrunk toward the
 # other subjects' K)
 README_TABLE = {
     "offline": {"M1": (1.012, 0.078, 0.888, 1.117), "M2": (0.998, 0.048, 0.830, 1.088),
@@ -226,8 +226,8 @@ def test_readme_table(ipol, arithmetic, name) -> None:
 
 
 def test_readme_states_the_pinned_table() -> None:
-    """The README's IPOL table says what :data:`README_TABLE` pins (its rows, to the printed 3 decimals)."""
-    text = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    """The documentation's IPOL table says what :data:`README_TABLE` pins (its rows, to the printed 3 decimals)."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "validation" / "ipol.md").read_text(encoding="utf-8")
     table = text.split("| estimator | offline: median ratio | IQR | min – max | on-line fixed: median | IQR |")[1]
     for name in ESTIMATORS:
         row = next(ln for ln in table.splitlines() if ln.startswith(f"| {name} "))
