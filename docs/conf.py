@@ -28,12 +28,11 @@ extensions = [
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
 exclude_patterns = ["_build", ".venv"]
-myst_enable_extensions = ["colon_fence", "dollarmath"]
+myst_enable_extensions = ["colon_fence"]
 myst_heading_anchors = 3
-# PROTOCOL.md and FIXED_POINT.md are written for GitHub: their links to source files are not documents here.
-suppress_warnings = ["myst.xref_missing", "myst.header",
-                     # an attribute name (``valid``, ``sampling_rate_hz``) that several classes share
-                     "ref.python"]
+# An attribute name (``valid``, ``sampling_rate_hz``) that several classes share is an ambiguous reference in
+# the API pages; each page documents its own class's.
+suppress_warnings = ["ref.python"]
 
 autosummary_generate = True
 autodoc_default_options = {"members": True, "show-inheritance": True}
