@@ -1,11 +1,23 @@
-"""Every command of the README runs as written, in order, in an empty folder with ``../shared`` beside it.
+"""Every shell block of the README and of the documentation runs as written: the documentation test.
 
-The ``sh`` blocks of README.md (and each ``python`` block, as a script) are run by one bash shell (so ``&`` jobs and ``kill %1`` work) in a scratch
-folder whose parent holds a ``shared`` link to the real recordings, as a fresh clone beside ``../shared``
-would be. Not run here: the first block (install and the test command itself: CI runs them) and the
-benchmark block (minutes of timing; run by hand). A command that needs ``../shared/data`` is left out, with
-the reason, when the recordings are absent. Each command must exit 0, except those whose README comment
-says it exits 1.
+The rule:
+
+- The pages are README.md and every ``.md`` file under ``docs/`` (the generated ``_build`` and
+  ``_autosummary`` folders aside), so a page added under ``docs/topics/`` is tested without editing this file.
+- One page is one test, run in a fresh, empty folder whose parent holds a ``shared`` link to the real
+  recordings, as a fresh clone beside ``../shared`` would be.
+- The page's ```` ```sh ```` blocks run in the page's order, line by line, in one bash shell (so ``&`` jobs and
+  ``kill %1`` work); each ```` ```python ```` block runs as one ``python - <<EOF`` script at its place.
+- Each command must exit 0, except a command whose comment says ``(exit 1)``.
+- A block is left out only by an explicit marker, an HTML comment on the line before its fence (blank lines
+  between are allowed), which the rendered pages do not show::
+
+      <!-- not run by the documentation test: REASON -->
+
+  with the reason (the install and the test command themselves, which CI runs; benchmarks; minutes-long
+  studies). Nothing else is skipped, but: when the recordings are absent (``$GAITLOG_DATA_DIR``, else
+  ``../shared/data``), a page with a command that reads ``../shared`` is skipped whole, with the reason, as
+  the tests that need the data are (its later commands read what those made).
 """
 
 from __future__ import annotations
@@ -13,6 +25,7 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -21,57 +34,111 @@ from tests.conftest import DATA_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+DOCS = ROOT / "docs"
+#: The comment that leaves the next block out of the documentation test; it must give a reason.
+SKIP_MARKER = re.compile(r"<!--\s*not run by the documentation test:\s*(?P<reason>[^>]*?)\s*-->")
+#: The README's size limit: a front page, not a manual.
+README_MAX_BYTES = 12 * 1024
 
 
-def readme_commands() -> list[str]:
-    """The command lines of the README's ``sh`` blocks, but the first (install, tests) and the benchmarks, and
-    each ``python`` block as one ``python - <<EOF`` command, in the README's order."""
-    text = README.read_text(encoding="utf-8")
-    blocks = re.findall(r"```(sh|python)\n(.*?)```", text, flags=re.S)
-    first_sh = next(i for i, (kind, _) in enumerate(blocks) if kind == "sh")
+@dataclass(frozen=True)
+class Block:
+    """A fenced code block of a page: its language, its text and, when marked, why it does not run."""
+
+    kind: str
+    text: str
+    skip_reason: str | None
+
+
+def pages() -> list[Path]:
+    """README.md, then every Markdown page of ``docs/`` in path order."""
+    found = [p for p in DOCS.rglob("*.md") if not {"_build", "_autosummary"} & set(p.relative_to(DOCS).parts)]
+    return [README, *sorted(found)]
+
+
+def page_id(page: Path) -> str:
+    return str(page.relative_to(ROOT))
+
+
+def blocks(page: Path) -> list[Block]:
+    """The ``sh`` and ``python`` blocks of a page, in order, each with the reason of its marker (or None)."""
+    text = page.read_text(encoding="utf-8")
+    out = []
+    for m in re.finditer(r"^```(sh|python)[ \t]*\n(.*?)^```[ \t]*$", text, flags=re.S | re.M):
+        before = text[:m.start()].rstrip("\n").rsplit("\n", 1)[-1]
+        marker = SKIP_MARKER.search(before)
+        out.append(Block(m.group(1), m.group(2), marker.group("reason") if marker else None))
+    return out
+
+
+def page_commands(page: Path) -> list[str]:
+    """The command lines of a page's blocks that run (comment lines and blank lines dropped), and each
+    ``python`` block as one ``python - <<EOF`` command, in the page's order."""
     lines = []
-    for i, (kind, block) in enumerate(blocks):
-        if i == first_sh or "benchmarks/bench_" in block:
+    for block in blocks(page):
+        if block.skip_reason is not None:
             continue
-        if kind == "python":
-            lines.append(f"python - <<'README_PYTHON'\n{block}README_PYTHON")
+        if block.kind == "python":
+            lines.append(f"python - <<'DOCS_PYTHON'\n{block.text}DOCS_PYTHON")
             continue
-        lines += [ln for ln in block.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+        lines += [ln for ln in block.text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     return lines
 
 
 def expected_exit(line: str) -> int:
-    """1 when the README's comment says the command exits 1, else 0."""
+    """1 when the page's comment says the command exits 1, else 0."""
     return 1 if "(exit 1)" in line else 0
 
 
-def test_the_readme_has_commands() -> None:
-    lines = readme_commands()
-    assert len(lines) >= 20
-    assert any(ln.startswith("gaitlog record") for ln in lines) and any("kill %1" in ln for ln in lines)
-    assert any(ln.startswith("python - <<") for ln in lines)
+def test_the_pages_have_commands() -> None:
+    everything = [ln for page in pages() for ln in page_commands(page)]
+    assert len(everything) >= 40
+    assert any(ln.startswith("gaitlog record") for ln in everything)
+    assert any("kill %1" in ln for ln in everything)
+    assert any(ln.startswith("python - <<") for ln in everything)
+    assert len(page_commands(README)) >= 5, "the README's quick starts run"
 
 
-def test_every_readme_command_runs_as_written(tmp_path: Path) -> None:
+def test_every_marker_gives_a_reason_and_marks_a_block() -> None:
+    """A marker must say why, and must stand right before a block (else it silently marks nothing)."""
+    for page in pages():
+        text = page.read_text(encoding="utf-8")
+        n_markers = len(SKIP_MARKER.findall(text))
+        marked = [b for b in blocks(page) if b.skip_reason is not None]
+        assert n_markers == len(marked), f"{page_id(page)}: a marker stands before no sh/python block"
+        assert all(b.skip_reason for b in marked), f"{page_id(page)}: a marker without a reason"
+
+
+def test_the_readme_is_a_front_page() -> None:
+    size = len(README.read_bytes())
+    assert size <= README_MAX_BYTES, f"README.md is {size} bytes, more than {README_MAX_BYTES}: move text to docs/"
+    first = next(b for b in blocks(README) if b.kind == "sh")
+    assert "pip install . && gaitlog demo" in first.text and "python -m pytest -q" in first.text
+
+
+@pytest.mark.parametrize("page", pages(), ids=page_id)
+def test_every_command_of_the_page_runs_as_written(page: Path, tmp_path: Path) -> None:
+    lines = page_commands(page)
+    if not lines:
+        pytest.skip(f"{page_id(page)} shows no command that runs")
     if shutil.which("gaitlog") is None:
         pytest.fail("the gaitlog command is not installed (pip install -e '.[test]')")
     work = tmp_path / "clone"
     work.mkdir()
-    have_data = DATA_DIR.is_dir()
-    if have_data:
+    if DATA_DIR.is_dir():
         (tmp_path / "shared").symlink_to(DATA_DIR.parent, target_is_directory=True)
+    elif any("../shared" in line for line in lines):
+        pytest.skip(f"{page_id(page)} reads ../shared: real recordings not found at {DATA_DIR} "
+                    "(set GAITLOG_DATA_DIR)")
     script, expected = ["set +e"], {}
-    for i, line in enumerate(readme_commands()):
-        if not have_data and ("../shared" in line or line.startswith("python - <<")):
-            continue    # the recordings are absent (the Python example reads what the real-data walkthrough made)
+    for i, line in enumerate(lines):
         expected[i] = expected_exit(line)
         script.append(line)
         script.append(f'echo "__rc {i} $?"')
     script.append("kill %1 2>/dev/null; wait 2>/dev/null; true")
     run = subprocess.run(["bash", "-c", "\n".join(script)], cwd=work, capture_output=True, text=True,
-                         timeout=900)
+                         timeout=1200)
     codes = {int(m.group(1)): int(m.group(2)) for m in re.finditer(r"^__rc (\d+) (\d+)$", run.stdout, re.M)}
-    lines = readme_commands()
     failed = [f"{lines[i]!r}: exit {codes.get(i)} (expected {want})" for i, want in expected.items()
               if codes.get(i) != want]
-    assert not failed, "\n".join(failed) + "\n--- stderr ---\n" + run.stderr[-3000:]
+    assert not failed, f"{page_id(page)}:\n" + "\n".join(failed) + "\n--- stderr ---\n" + run.stderr[-3000:]

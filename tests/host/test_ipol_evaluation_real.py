@@ -222,8 +222,8 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
         assert iqr(r) == pytest.approx(0.0706, abs=0.005)
 
 
-# The README's table: median ratio, IQR (and min, max offline) with the offline chain's K (the first trial's, no
-# prior), every step between the trial boundaries summed
+# The documentation's IPOL table (docs/validation/ipol.md): median ratio, IQR (and min, max offline) with the
+# offline chain's K (the first trial's, no prior), every step between the trial boundaries summed
 README_TABLE = {
     "offline": {"M1": (1.027, 0.058, 0.935, 1.115), "M2": (1.007, 0.053, 0.880, 1.105),
                 "M3": (1.088, 0.089, 0.971, 1.201), "M4": (0.997, 0.072, 0.847, 1.114),
@@ -243,8 +243,8 @@ def test_readme_table(ipol, arithmetic, name) -> None:
 
 
 def test_readme_states_the_pinned_table() -> None:
-    """The README's IPOL table says what :data:`README_TABLE` pins (its rows, to the printed 3 decimals)."""
-    text = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    """The documentation's IPOL table says what :data:`README_TABLE` pins (its rows, to the printed 3 decimals)."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "validation" / "ipol.md").read_text(encoding="utf-8")
     table = text.split("| estimator | offline: median ratio | IQR | min – max | on-line fixed: median | IQR |")[1]
     for name in ESTIMATORS:
         row = next(ln for ln in table.splitlines() if ln.startswith(f"| {name} "))
