@@ -108,8 +108,10 @@ def test_pty_dump_and_decode_reproduce_the_device_records(walk_image, tmp_path, 
         end, dur, toe, heel, flags, *lengths = fields(records[20 * i: 20 * i + 20])
         assert int(row["end_sample"]) == end and float(row["time_s"]) == pytest.approx(end / 50.0, abs=1e-12)
         assert row["duration_s"] == ("" if dur == 0 else repr(dur / 50.0))
+        raw = {4: "raw_m4_range_pow_p", 5: "raw_m5_cadence_hz"} if flags & 0x40 else {}   # not lengths
         for k, q in enumerate(lengths, start=1):
-            assert row[f"length_m{k}_m"] == ("" if q == 0 else repr(q / 16384))
+            assert row[raw.get(k, f"length_m{k}_m")] == ("" if q == 0 else repr(q / 16384))
+            assert k not in raw or row[f"length_m{k}_m"] == ""
         assert row["lengths"] == ("raw" if flags & 0x40 else "K")
     # the foot-flat's time is on the sample CSV's clock: the sample row with that number has the same time
     samples = Recording.read_csv(tmp_path / "dec.csv")

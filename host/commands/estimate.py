@@ -137,18 +137,16 @@ def run(args: argparse.Namespace) -> int:
 
 def _csv_text(table, lengths_source: str, k) -> str:
     """The step table's CSV with ``lengths_source`` and ``outside_k_range`` (module notes)."""
-    from gaitlog.firmware_sim.algorithms.steps import csv_text
+    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
     from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES
 
-    head, *rows = table.to_csv_text().splitlines()
     n = table.n_steps
     if k is not None:
         out = k.outside_range(table)
         flags = ["+".join(q for q in RANGE_QUANTITIES if out[q][i]) for i in range(n)]
     else:
         flags = [""] * n
-    cells = [rows, [lengths_source] * n, flags]
-    return csv_text([head, "lengths_source", "outside_k_range"], cells)
+    return columns_csv_text({**table.columns(), "lengths_source": [lengths_source] * n, "outside_k_range": flags})
 
 
 def _summary(tables: dict, estimators: tuple[str, ...], k=None) -> dict[str, dict]:

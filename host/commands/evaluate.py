@@ -147,19 +147,16 @@ def run(args: argparse.Namespace) -> int:
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
         res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits, uturn=args.uturn,
                               arithmetic=arith, progress=tick)
-    lines = [",".join(CSV_COLUMNS)]
-    for r in res.rows:
-        outside = "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])
-        lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['k_from']},{r['uturn']},"
-                     f"{r['lengths_source']},{r['variant']},{r['distance_m']:.4f},{r['ratio']:.5f},{r['steps']},"
-                     f"{r['reference_steps']},{outside},{r['cross_validated']}")
+    rows = [{**{c: str(r[c]) for c in CSV_COLUMNS}, "distance_m": f"{r['distance_m']:.4f}", "ratio": f"{r['ratio']:.5f}",
+             "steps_outside_k_range": "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])}
+            for r in res.rows]
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
     from gaitlog.host.studies.plots import render_chain_boxplots_png
 
     png = render_chain_boxplots_png(main_rows(res.rows), arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")
     atomic_write_bytes(fig_path, png)
-    atomic_write_text(out, "\n".join(lines) + "\n")
+    atomic_write_text(out, rows_csv_text(rows, CSV_COLUMNS))
     if res.step_rows:
         atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
     if res.trial_events:
