@@ -49,12 +49,12 @@ def logger_rate_hz(args: argparse.Namespace) -> float:
     import math
 
     from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.logger_rate is None:
         return DEFAULT_SAMPLING_RATE_HZ
     if not (math.isfinite(args.logger_rate) and args.logger_rate > 0):
-        raise HostError(f"--logger-rate must be a positive number of Hz, got {args.logger_rate:g}")
+        raise UsageError(f"--logger-rate must be a positive number of Hz, got {args.logger_rate:g}")
     return float(args.logger_rate)
 
 
@@ -94,8 +94,9 @@ def number(*, minimum: float | None = None, maximum: float | None = None, above:
     return parse
 
 
-def whole(*, minimum: int | None = None, maximum: int | None = None) -> Callable[[str], int]:
-    """An argparse ``type`` for a whole number in ``minimum..maximum`` (a usage error naming the option).
+def whole(*, minimum: int | None = None, maximum: int | None = None, why: str = "") -> Callable[[str], int]:
+    """An argparse ``type`` for a whole number in ``minimum..maximum`` (a usage error naming the option;
+    ``why`` is appended to the message of a value out of range).
 
     >>> whole(minimum=1)("0")
     Traceback (most recent call last):
@@ -112,11 +113,24 @@ def whole(*, minimum: int | None = None, maximum: int | None = None) -> Callable
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}") from None
         if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
-            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}{why}")
         return value
 
     parse.__name__ = "whole number"
     return parse
+
+
+def add_adc_bits_option(parser: argparse.ArgumentParser, *, stored: bool, what: str = "") -> None:
+    """``--adc-bits B`` (default 10), one rule everywhere (:mod:`gaitlog.protocol.adc_bits`): 1 to 10 bits where
+    the codes go through the emulated logger, which stores them in 10-bit fields (``stored``), 1 to 12 where
+    they are simulated and compared, never stored. A value outside is a usage error (exit 2) that says so."""
+    from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, MAX_STORED_ADC_BITS
+
+    top = MAX_STORED_ADC_BITS if stored else MAX_SIMULATED_ADC_BITS
+    why = (f" (the logger stores {MAX_STORED_ADC_BITS}-bit codes; up to {MAX_SIMULATED_ADC_BITS} bits only where codes "
+           "are simulated and never stored: compare --simulate, sweep)") if stored else ""
+    parser.add_argument("--adc-bits", type=whole(minimum=1, maximum=top, why=why), default=10, metavar="B",
+                        help=f"ADC bits{' ' + what if what else ''}, 1-{top} (default 10)")
 
 
 #: ``--seed``: what numpy's generators take.

@@ -11,6 +11,10 @@ from __future__ import annotations
 import argparse
 
 HELP = "estimate every recording in a folder (per-recording outputs, summary table, failures listed; resumable)"
+#: Shown under "examples:" by ``gaitlog batch --help``.
+EXAMPLES = (
+    "gaitlog batch recordings/ --out results/ --k-file K.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -40,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.commands._anatomy_options import lengths_from_args
     from gaitlog.host.commands._options import check_output_folder, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
@@ -56,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         paths = batch_inputs(folder, args.pattern)
     except (ValueError, NotImplementedError) as err:
-        raise HostError(f"--pattern {args.pattern!r}: {err}") from None
+        raise UsageError(f"--pattern {args.pattern!r}: {err}") from None
     if not paths:
         raise HostError(f"{folder}: no input file matches --pattern {args.pattern!r}")
     say = printer(args)

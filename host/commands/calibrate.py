@@ -9,6 +9,10 @@ from pathlib import Path
 from typing import Any
 
 HELP = "Fit offsets, scales and axis angles to the static poses of a recording (logger file, .npz or CSV); write JSON."
+#: Shown under "examples:" by ``gaitlog calibrate --help``.
+EXAMPLES = (
+    "gaitlog calibrate poses.npz --out cal.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -45,11 +49,11 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.accelerometer.fit import AccCalibrator
     from gaitlog.host.commands._input_options import read_input
     from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import HostError, UsageError
 
     path: Path = args.input
     if args.calibration:
-        raise HostError("--calibration: calibrate fits a calibration; it does not take one")
+        raise UsageError("--calibration: calibrate fits a calibration; it does not take one")
     check_outputs({"--out": args.out}, {"INPUT": path})
     data = read_input(args, path)
     zero: Any = args.zero_counts

@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 
 HELP = "fit the per-subject constants K and the M5 line from recordings with a known distance"
+#: Shown under "examples:" by ``gaitlog calibrate-k --help``.
+EXAMPLES = (
+    "gaitlog calibrate-k walk.npz --distance 40 --out K.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -37,17 +41,17 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
     from gaitlog.host.commands._input_options import read_input
     from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import calibrate
     from gaitlog.host.gait.k_prior import PRIORS
     from gaitlog.host.gait.pipeline import StepPipeline
     from gaitlog.host.gait.sections import pool_steps, sections_from_marks
 
     if args.distance is not None and len(args.distance) not in (1, len(args.inputs)):
-        raise HostError(f"--distance: give one value or one per input ({len(args.inputs)}), "
+        raise UsageError(f"--distance: give one value or one per input ({len(args.inputs)}), "
                         f"got {len(args.distance)}")
     if args.lap_marks is not None and not args.lap_marks > 0:
-        raise HostError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
+        raise UsageError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
     check_outputs({"--out": args.out}, {**{f"INPUT {i + 1}": path for i, path in enumerate(args.inputs)},
                                         "--calibration": args.calibration})
     inputs = [read_input(args, path) for path in args.inputs]

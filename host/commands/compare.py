@@ -20,12 +20,18 @@ import argparse
 from gaitlog.host.commands._options import (
     POSITIVE_M,
     SEED,
+    add_adc_bits_option,
     add_logger_rate_option,
     logger_rate_hz,
     whole,
 )
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
+#: Shown under "examples:" by ``gaitlog compare --help``.
+EXAMPLES = (
+    "gaitlog compare walk.npz --k-file K.json",
+    "gaitlog compare --simulate 4 --adc-bits 12 --out sim.csv",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -43,7 +49,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--population", choices=["v1", "people"], default=None,
                         help="simulated population of --simulate/--sweep: people (default; tuned to real "
                         "lower-back walking) or v1")
-    parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
+    add_adc_bits_option(parser, stored=False, what="of --simulate")
     add_logger_rate_option(parser, "for --simulate")
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
     parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
@@ -66,22 +72,22 @@ def _beside(out: str, suffix: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from gaitlog.host.commands._input_options import given_input_flags
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
     if sum(modes) != 1:
-        raise HostError("give exactly one of INPUT, --simulate N or --sweep")
+        raise UsageError("give exactly one of INPUT, --simulate N or --sweep")
     if args.workers < 1:
-        raise HostError(f"--workers must be >= 1, got {args.workers}")
+        raise UsageError(f"--workers must be >= 1, got {args.workers}")
     if args.input is None:
         extra = given_input_flags(args) + [f"--{n.replace('_', '-')}" for n in ("k_file", "leg_length", "foot_length",
                                                                                  "height") if getattr(args, n)]
         if extra:
-            raise HostError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
+            raise UsageError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
     elif args.logger_rate is not None:
-        raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
+        raise UsageError("--logger-rate: only with --simulate (a recording states its own rate)")
     elif args.population is not None:
-        raise HostError("--population: only with --simulate / --sweep (a recording is its own walker)")
+        raise UsageError("--population: only with --simulate / --sweep (a recording is its own walker)")
     args.population = args.population or "people"
     mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
     return mode(args)
@@ -92,7 +98,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
     from gaitlog.host.commands._options import check_outputs, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.sweep import (
         SUMMARY_COLUMNS,
@@ -103,7 +109,7 @@ def _sweep(args: argparse.Namespace) -> int:
     from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.subjects < 1:
-        raise HostError(f"--subjects must be >= 1, got {args.subjects}")
+        raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
         check_outputs({"--out": args.out}, {})
@@ -132,7 +138,7 @@ def _simulate(args: argparse.Namespace) -> int:
     from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
     from gaitlog.host.commands._options import check_outputs, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import (
         bootstrap_budget,
         format_budget,
@@ -140,15 +146,13 @@ def _simulate(args: argparse.Namespace) -> int:
         rows_csv_text,
     )
     from gaitlog.host.studies.simulation import simulate_comparisons
-    from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
     from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.simulate < 1:
-        raise HostError(f"--simulate must be >= 1, got {args.simulate}")
-    check_adc_bits(args.adc_bits, max_bits=MAX_SIMULATED_ADC_BITS, what="--adc-bits", error=HostError)
+        raise UsageError(f"--simulate must be >= 1, got {args.simulate}")
     args.logger_rate = logger_rate_hz(args)
     if args.resamples < 1:
-        raise HostError(f"--resamples must be >= 1, got {args.resamples}")
+        raise UsageError(f"--resamples must be >= 1, got {args.resamples}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
         check_outputs({"--out": args.out}, {})

@@ -8,6 +8,11 @@ from gaitlog.host.commands._options import add_verbosity_options, check_outputs,
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
+#: Shown under "examples:" by ``gaitlog decode --help``.
+EXAMPLES = (
+    "gaitlog decode walk.glimg --out walk",
+    "gaitlog decode walk.glimg --out decoded/ --calibration cal.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -17,6 +17,11 @@ from gaitlog.host.commands._options import (
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
+#: Shown under "examples:" by ``gaitlog dump --help``.
+EXAMPLES = (
+    "gaitlog dump --port emu://walk.glimg --out copy.glimg",
+    "gaitlog dump --port /dev/ttyUSB0 --out walk.glimg --resume",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

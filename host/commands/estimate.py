@@ -13,6 +13,12 @@ from __future__ import annotations
 import argparse
 
 HELP = "estimate every step's length and the distance walked (M1-M5) from a recording (logger file, .npz, IPOL, CSV)"
+#: Shown under "examples:" by ``gaitlog estimate --help``.
+EXAMPLES = (
+    "gaitlog estimate walk.npz --height 1.75",
+    "gaitlog estimate walk.npz --k-file K.json --out steps.csv --arithmetic both",
+    "gaitlog estimate walk.npz --json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -19,9 +19,14 @@ from __future__ import annotations
 
 import argparse
 
-from gaitlog.host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, whole
+from gaitlog.host.commands._options import SEED, add_adc_bits_option, add_logger_rate_option, logger_rate_hz, whole
 
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
+#: Shown under "examples:" by ``gaitlog evaluate --help``.
+EXAMPLES = (
+    "gaitlog evaluate ipol GaitData --out ipol.csv",
+    "gaitlog evaluate sim --subjects 4 --out eval-sim",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -49,7 +54,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="sim: bootstrap resamples of the subjects for the intervals (default 2000; 0: none)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
-    parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
+    add_adc_bits_option(parser, stored=True, what="of the emulated logger")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
                         help="ipol: steps inside UTurnBoundaries: left out of the distance (default) or summed, in the "
                         "main tables (the offline chain is reported with both)")
@@ -62,27 +67,25 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def _run_sim(args: argparse.Namespace) -> int:
     from gaitlog.host.commands._options import check_output_folder, verbosity
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.evaluation import SimulatedEvaluation
-    from gaitlog.protocol.adc_bits import check_adc_bits
 
     out = args.out or args.folder
     if out is None:
-        raise HostError("evaluate sim: give the output folder as DIR or --out DIR")
+        raise UsageError("evaluate sim: give the output folder as DIR or --out DIR")
     check_output_folder("--out" if args.out else "DIR", out)
     unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
                                  ("--uturn", args.uturn)) if v is not None]
     args.protocol = args.protocol or "paper"
     args.laps = args.laps or ("stopwatch" if args.protocol == "paper" else "mark")
     if args.laps == "stopwatch" and args.protocol != "paper":
-        raise HostError("--laps stopwatch: only with --protocol paper (the host anchors the stopwatch at the "
+        raise UsageError("--laps stopwatch: only with --protocol paper (the host anchors the stopwatch at the "
                         "set-off of each logging run; the compact protocol logs through its rests)")
     if unhonoured:
-        raise HostError(f"{', '.join(unhonoured)}: only for 'evaluate ipol' (evaluate sim scores the offline chain "
+        raise UsageError(f"{', '.join(unhonoured)}: only for 'evaluate ipol' (evaluate sim scores the offline chain "
                         "on 20 m sections without U-turns, and writes its figures into the output folder)")
     if args.subjects < 1 or args.workers < 1:
-        raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
-    check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
+        raise UsageError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
     args.logger_rate = logger_rate_hz(args)
     with progress_bar(args, args.subjects, "subject") as tick:
         ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
@@ -104,12 +107,12 @@ def _run_sim(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.dataset == "sim":
         return _run_sim(args)
     if args.folder is None or args.out is None:
-        raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
+        raise UsageError("evaluate ipol: give the folder (DIR) and --out CSV")
     from gaitlog.host.commands._options import check_outputs
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.ipol_evaluation import (
@@ -125,10 +128,8 @@ def run(args: argparse.Namespace) -> int:
         main_rows,
         summarise,
     )
-    from gaitlog.protocol.adc_bits import check_adc_bits
     from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
-    check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     args.logger_rate = logger_rate_hz(args)
     args.uturn = args.uturn or "exclude"
     args.arithmetic = args.arithmetic or "all"

@@ -27,6 +27,11 @@ from pathlib import Path
 from typing import Any
 
 HELP = "Morris' and Hall's kinematics on a recording (morris / hall) or on simulated instruments (simulate)."
+#: Shown under "examples:" by ``gaitlog kinematics --help``.
+EXAMPLES = (
+    "gaitlog kinematics --out kin",
+    "gaitlog kinematics morris rec.csv --platform platform.json --out kin",
+)
 
 #: Files written by ``morris`` and ``hall`` into ``--out``.
 MORRIS_FILES = ("morris_orientation.csv", "morris_angular_velocity.csv", "morris_translation.csv",
@@ -205,10 +210,10 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
 
 def _check_out(out: Path | None, what: str) -> Path:
     from gaitlog.host.commands._options import check_output_folder
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if out is None:
-        raise HostError(f"{what}: give --out DIR for the results")
+        raise UsageError(f"{what}: give --out DIR for the results")
     check_output_folder("--out", out)
     return out
 
@@ -217,13 +222,13 @@ def _run_recording(args: argparse.Namespace) -> int:
     import warnings
 
     from gaitlog.host.commands._options import printer
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
     from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
     from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
 
     if args.recording is None or args.platform is None:
-        raise HostError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
+        raise UsageError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
     out = _check_out(args.out, f"kinematics {args.method}")
     recording = read_sensor_csv(args.recording)
     say = printer(args)
@@ -316,7 +321,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from gaitlog.host.commands._options import check_output_folder, printer
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
     from gaitlog.host.kinematics.joints import joint_angles_yxz
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
@@ -327,7 +332,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     )
 
     if args.out is None and args.write_recording is None:
-        raise HostError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
+        raise UsageError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
     if args.out is not None:
         _check_out(args.out, "kinematics simulate")
     if args.write_recording is not None:
@@ -412,8 +417,8 @@ def run(args: argparse.Namespace) -> int:
     """Dispatch on the method (module notes)."""
     if args.method == "simulate":
         if args.recording is not None:
-            from gaitlog.host.errors import HostError
+            from gaitlog.host.errors import UsageError
 
-            raise HostError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
+            raise UsageError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
         return _run_simulate(args)
     return _run_recording(args)

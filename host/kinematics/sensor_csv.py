@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.errors import HostError
 from gaitlog.protocol.atomic_write import atomic_write_text
@@ -181,8 +182,6 @@ def write_sensor_csv(path: str | os.PathLike[str], t_s: np.ndarray, columns: dic
     for name in columns:
         if check_units:
             split_unit(name)
-    from gaitlog.firmware_sim.algorithms.steps import csv_text
-
     cols = [np.asarray(t_s, dtype=np.float64)] + [np.asarray(v, dtype=np.float64) for v in columns.values()]
     if len({c.shape for c in cols}) != 1 or cols[0].ndim != 1:
         raise ValueError(f"columns of different shapes: {[c.shape for c in cols]}")
