@@ -152,13 +152,50 @@ POSITIVE_M = number(above=0, maximum=100_000, unit="m")
 
 
 # ------------------------------------------------------------------------------------------ output paths
-def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
+def add_force_option(parser: argparse.ArgumentParser, what: str = "existing output files") -> None:
+    """``--force``: overwrite ``what``; without it an existing output is refused (:func:`check_outputs`,
+    :func:`check_output_folder`) before any work."""
+    parser.add_argument("--force", action="store_true", help=f"overwrite {what} (refused without --force)")
+
+
+def out_path(value: str | None, name: str) -> str | None:
+    """``--out`` as every command reads it: a file name (for ``decode``, a prefix), or a folder -- a value that
+    ends with ``/`` or names an existing folder -- in which the output is called ``name`` (made by the command
+    from its input's name: ``decode walk.glimg --out outdir/`` writes ``outdir/walk.npz``). None stays None.
+
+    >>> out_path("results/", "walk.png")
+    'results/walk.png'
+    >>> out_path("walk_steps.csv", "walk.png")
+    'walk_steps.csv'
+    """
+    import os
+    from pathlib import Path
+
+    if value is None:
+        return None
+    text = os.fspath(value)
+    if text.endswith(("/", os.sep)) or Path(text).is_dir():
+        return os.path.join(text, name)
+    return value
+
+
+def input_stem(path: object) -> str:
+    """The name an input gives its outputs in a folder: its file name without the suffix (``walk.glimg`` ->
+    ``walk``; an IPOL ``1-1_lb.txt`` -> ``1-1_lb``)."""
+    from pathlib import Path
+
+    return Path(str(path).rstrip("/")).stem
+
+
+def check_outputs(outputs: dict[str, object], inputs: dict[str, object], *, force: bool | None = None) -> None:
     """Refuse, before any work, outputs that would overwrite an input or that cannot be written.
 
     ``outputs`` and ``inputs`` map the option (``"--out"``) or the argument's name (``"INPUT"``) to a path (None:
     not given). An output is refused when it is the same file as an input (:func:`os.path.samefile`, or the
     same resolved path: a symlink or another spelling is caught), the same as another output, a folder, or in a
-    folder that does not exist. Raises :class:`~gaitlog.host.errors.HostError` naming the option and the files.
+    folder that does not exist; and, with ``force`` False (``--force`` not given), when it exists. ``force``
+    None: the command itself continues an existing output (``record --append``, ``dump --resume``). Raises
+    :class:`~gaitlog.host.errors.HostError` naming the option and the files.
     """
     import os
     from pathlib import Path
@@ -193,12 +230,17 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
             raise HostError(f"{option} {out}: the folder {folder} {what}")
         _check_writable(option, out, folder)
         seen[option] = out
+    if force is False:
+        for option, out in seen.items():
+            if out.exists() or out.is_symlink():
+                raise HostError(f"{option} {out}: exists; give --force to overwrite it")
 
 
-def check_output_folder(option: str, folder: object) -> None:
+def check_output_folder(option: str, folder: object, *, force: bool | None = None) -> None:
     """Refuse, before any work, an output folder (created when missing) that cannot be made or written: an
-    existing file, a path under a file, a place where no file can be created. A :class:`HostError` naming
-    ``option``."""
+    existing file, a path under a file, a place where no file can be created; with ``force`` False
+    (``--force`` not given), a folder that is not empty (None: the command resumes into its own folder, or
+    decides itself). A :class:`HostError` naming ``option``."""
     from pathlib import Path
 
     from gaitlog.host.errors import HostError
@@ -212,6 +254,8 @@ def check_output_folder(option: str, folder: object) -> None:
     if not existing.is_dir():
         raise HostError(f"{option} {path}: {existing} is a file, not a folder")
     _check_writable(option, path, existing)
+    if force is False and path.is_dir() and any(path.iterdir()):
+        raise HostError(f"{option} {path}: exists and is not empty; give --force to write into it")
 
 
 def _check_writable(option: str, out: object, folder: object) -> None:

@@ -18,7 +18,7 @@ EXAMPLES = (
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog calibrate``."""
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options, number
+    from gaitlog.host.commands._options import add_force_option, add_verbosity_options, number
 
     parser.add_argument("input", type=Path, metavar="INPUT", help=f"static poses: {INPUT_HELP}")
     parser.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="calibration file to write")
@@ -30,6 +30,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "holds)")
     parser.add_argument("--counts-per-g", type=number(above=0), metavar="K",
                         help="nominal counts per g of a CSV in counts, for rest detection (default: estimated)")
+    add_force_option(parser)
     add_verbosity_options(parser)
     det = parser.add_argument_group("rest detection")
     det.add_argument("--hold", type=number(above=0, maximum=3600, unit="s"), default=3.0, metavar="S", help="minimum hold, seconds (default 3)")
@@ -48,13 +49,14 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.accelerometer.calibration import ANGLE_NAMES
     from gaitlog.host.accelerometer.fit import AccCalibrator
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
     from gaitlog.host.errors import HostError, UsageError
 
+    args.out = out_path(args.out, f"{input_stem(args.input)}_cal.json")
     path: Path = args.input
     if args.calibration:
         raise UsageError("--calibration: calibrate fits a calibration; it does not take one")
-    check_outputs({"--out": args.out}, {"INPUT": path})
+    check_outputs({"--out": args.out}, {"INPUT": path}, force=args.force)
     data = read_input(args, path)
     zero: Any = args.zero_counts
     per_g: Any = args.counts_per_g

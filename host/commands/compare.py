@@ -37,7 +37,7 @@ EXAMPLES = (
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
@@ -60,6 +60,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lap-m", type=POSITIVE_M, default=20.0, metavar="M", help="distance between MARK flags (20)")
     add_anatomy_options(parser)
     add_input_options(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -72,8 +73,11 @@ def _beside(out: str, suffix: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from gaitlog.host.commands._input_options import given_input_flags
+    from gaitlog.host.commands._options import input_stem, out_path
     from gaitlog.host.errors import UsageError
 
+    name = f"{input_stem(args.input)}_compare.csv" if args.input else "sweep.csv" if args.sweep else "simulate.csv"
+    args.out = out_path(args.out, name)
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
     if sum(modes) != 1:
         raise UsageError("give exactly one of INPUT, --simulate N or --sweep")
@@ -112,7 +116,7 @@ def _sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
-        check_outputs({"--out": args.out}, {})
+        check_outputs({"--out": args.out}, {}, force=args.force)
     t = time.perf_counter()
     with progress_bar(args, args.subjects, "subject") as tick:
         sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers,
@@ -155,7 +159,7 @@ def _simulate(args: argparse.Namespace) -> int:
         raise UsageError(f"--resamples must be >= 1, got {args.resamples}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
-        check_outputs({"--out": args.out}, {})
+        check_outputs({"--out": args.out}, {}, force=args.force)
     with progress_bar(args, args.simulate, "subject") as tick:
         results = simulate_comparisons(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
                                        sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick,
@@ -260,7 +264,7 @@ def _recording(args: argparse.Namespace) -> int:
     if args.out:
         check_outputs({"--out": args.out, "--out (_segments)": _beside(args.out, "_segments"),
                        "--out (_split)": _beside(args.out, "_split")},
-                      {"INPUT": p, "--k-file": args.k_file, "--calibration": args.calibration})
+                      {"INPUT": p, "--k-file": args.k_file, "--calibration": args.calibration}, force=args.force)
     data = read_input(args, p)
     rec = data.recording
     if rec is None:

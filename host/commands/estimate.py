@@ -24,7 +24,7 @@ EXAMPLES = (
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", help=INPUT_HELP)
     parser.add_argument("--out", metavar="STEPS.csv", help="write the per-step table here")
@@ -38,6 +38,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="print the summary as one JSON document on stdout instead of the table")
     add_anatomy_options(parser)
     add_input_options(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -49,17 +50,19 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
     from gaitlog.host.commands._anatomy_options import lengths_from_args
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
     from gaitlog.host.errors import HostError
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.protocol.atomic_write import atomic_write_text
 
+    args.out = out_path(args.out, f"{input_stem(args.input)}_steps.csv")
     if args.out:
         out = Path(args.out)
         fixed = {"--out (_fixed)": out.with_name(out.stem + "_fixed.csv")} if args.arithmetic == "both" else {}
         check_outputs({"--out": out, **fixed},
-                      {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration})
+                      {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration},
+                      force=args.force)
     data = read_input(args, args.input)
     if args.arithmetic != "float" and data.recording is None:
         raise HostError(f"{args.input}: --arithmetic {args.arithmetic} needs ADC codes: give a logger file or a "

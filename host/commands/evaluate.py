@@ -30,7 +30,7 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
 
     parser.add_argument("dataset", choices=["ipol", "sim"],
                         help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
@@ -61,6 +61,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -73,7 +74,7 @@ def _run_sim(args: argparse.Namespace) -> int:
     out = args.out or args.folder
     if out is None:
         raise UsageError("evaluate sim: give the output folder as DIR or --out DIR")
-    check_output_folder("--out" if args.out else "DIR", out)
+    check_output_folder("--out" if args.out else "DIR", out, force=args.force)
     unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
                                  ("--uturn", args.uturn)) if v is not None]
     args.protocol = args.protocol or "paper"
@@ -138,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     steps_path = out.with_name(out.stem + "_steps.csv")
     events_path = out.with_name(out.stem + "_events.csv")
     check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
-                  {"DIR": args.folder})
+                  {"DIR": args.folder}, force=args.force)
     from gaitlog.host.commands._options import verbosity
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.files.ipol import list_trials

@@ -50,7 +50,7 @@ def _snr_db(text: str) -> float:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
-    from gaitlog.host.commands._options import SEED, add_verbosity_options, number
+    from gaitlog.host.commands._options import SEED, add_force_option, add_verbosity_options, number
 
     parser.add_argument("method", nargs="?", choices=("simulate", "morris", "hall"), default="simulate",
                         help="morris or hall: analyse RECORDING; simulate (default): simulated instruments")
@@ -86,6 +86,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gyro-noise", type=number(minimum=0, maximum=100, unit="rad/s"), default=0.01, metavar="RAD_S",
                         help="simulate: angular-rate sensor noise, rad/s (default 0.01)")
     parser.add_argument("--seed", type=SEED, default=0, help="simulate: noise seed (default 0)")
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -208,13 +209,13 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
     ).compute(ra, rb, sampling_rate_hz=recording.sampling_rate_hz)
 
 
-def _check_out(out: Path | None, what: str) -> Path:
+def _check_out(out: Path | None, what: str, *, force: bool) -> Path:
     from gaitlog.host.commands._options import check_output_folder
     from gaitlog.host.errors import UsageError
 
     if out is None:
         raise UsageError(f"{what}: give --out DIR for the results")
-    check_output_folder("--out", out)
+    check_output_folder("--out", out, force=force)
     return out
 
 
@@ -229,7 +230,7 @@ def _run_recording(args: argparse.Namespace) -> int:
 
     if args.recording is None or args.platform is None:
         raise UsageError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
-    out = _check_out(args.out, f"kinematics {args.method}")
+    out = _check_out(args.out, f"kinematics {args.method}", force=args.force)
     recording = read_sensor_csv(args.recording)
     say = printer(args)
     if args.method == "morris":
@@ -334,9 +335,9 @@ def _run_simulate(args: argparse.Namespace) -> int:
     if args.out is None and args.write_recording is None:
         raise UsageError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
     if args.out is not None:
-        _check_out(args.out, "kinematics simulate")
+        _check_out(args.out, "kinematics simulate", force=args.force)
     if args.write_recording is not None:
-        check_output_folder("--write-recording", args.write_recording)
+        check_output_folder("--write-recording", args.write_recording, force=args.force)
     if args.cfc:
         cfc_coefficients(args.cfc, args.hall_rate)  # reject an invalid rate before any work
     snr = None if math.isinf(args.snr_db) else args.snr_db

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from gaitlog.host.commands._anatomy_options import add_anatomy_options
-from gaitlog.host.commands._options import add_verbosity_options, number
+from gaitlog.host.commands._options import add_force_option, add_verbosity_options, number
 
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
@@ -29,6 +29,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k'")
     parser.add_argument("--size", default="1400x700", metavar="WxH", help="figure size in pixels (default 1400x700)")
     add_anatomy_options(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -37,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, printer
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
     from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.files.inputs import read_acceleration
@@ -47,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.protocol.atomic_write import atomic_write_bytes
 
     src = Path(args.input)
-    out = Path(args.out) if args.out else src.with_suffix(".png")
+    out = Path(out_path(args.out, f"{input_stem(src)}.png") or src.with_suffix(".png"))
     size = re.fullmatch(r"(\d+)x(\d+)", args.size)
     if not size or not (100 <= int(size[1]) <= 10000 and 100 <= int(size[2]) <= 10000):
         raise UsageError(f"--size {args.size}: give WIDTHxHEIGHT in pixels, 100 to 10000 each (e.g. 1400x700)")
@@ -56,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     if unknown or not estimators:
         raise UsageError(f"--estimators {args.estimators!r}: unknown {', '.join(unknown) or '(none given)'}; choose "
                          f"from {','.join(ESTIMATORS)}")
-    check_outputs({"--out": out}, {"RECORDING": src, "--k-file": args.k_file})
+    check_outputs({"--out": out}, {"RECORDING": src, "--k-file": args.k_file}, force=args.force)
     if not src.is_file():
         raise HostError(f"{src}: no such file")
     data = read_acceleration(src)

@@ -40,7 +40,7 @@ WALK_CORRIDOR_M = 20.0
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
 
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
                         help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
@@ -87,6 +87,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                        help="calibrated constants (from `gaitlog calibrate-k`): the device stores calibrated "
                             "lengths; the leg and foot lengths come from this file")
     add_input_options(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -284,7 +285,7 @@ def run_instrument(args: argparse.Namespace) -> int:
                         "one run into an erased memory)")
     _refuse_input_flags(args)
     paths = instrument_paths(args.out)
-    check_outputs(paths, {})
+    check_outputs(paths, {}, force=args.force)
     start = int(time.time()) if args.start_time is None else args.start_time
     li = record_instrument(kind, sampling_rate_hz=args.logger_rate, n_accelerometers=args.accelerometers,
                            duration_s=args.duration, gravity_channels=args.gravity_channels, seed=args.seed,
@@ -313,10 +314,12 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.firmware_sim.device import Logger
     from gaitlog.firmware_sim.sensor import SensorModel
-    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
     from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.logger_instruments import INSTRUMENTS
 
+    replay = args.motion[0] == "replay" and len(args.motion) == 2
+    args.out = out_path(args.out, f"{input_stem(args.motion[1]) if replay else args.motion[0]}.glimg")
     if args.motion[0] in INSTRUMENTS:
         return run_instrument(args)
     args.logger_rate = logger_rate_hz(args)
@@ -325,7 +328,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     replayed = args.motion[1] if args.motion[0] == "replay" and len(args.motion) == 2 else None
     check_outputs({"--out": out}, {"--motion replay FILE": replayed, "--k-file": args.k_file,
-                                   "--calibration": args.calibration})
+                                   "--calibration": args.calibration}, force=None if args.append else args.force)
     if args.steps == "off":
         extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file")
                  if getattr(args, n) is not None]

@@ -69,15 +69,15 @@ def build_fixtures(folder: Path) -> dict[str, Path]:
     f = {n: folder / n for n in ("walk.glimg", "poses.glimg")}
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["record", "--motion", "walk", "--steps", "off", "--start-time", "0", "--out",
-                     str(f["walk.glimg"]), "-q"]) == 0
+                     str(f["walk.glimg"]), "-q", "--force"]) == 0
         assert main(["record", "--motion", "poses", "--steps", "off", "--start-time", "0",
-                     "--out", str(f["poses.glimg"]), "-q"]) == 0
-        assert main(["decode", str(f["walk.glimg"]), "--out", str(folder / "walk"), "-q"]) == 0
-        assert main(["decode", str(f["poses.glimg"]), "--out", str(folder / "poses"), "-q"]) == 0
+                     "--out", str(f["poses.glimg"]), "-q", "--force"]) == 0
+        assert main(["decode", str(f["walk.glimg"]), "--out", str(folder / "walk"), "-q", "--force"]) == 0
+        assert main(["decode", str(f["poses.glimg"]), "--out", str(folder / "poses"), "-q", "--force"]) == 0
         assert main(["calibrate", str(folder / "poses.npz"), "--out", str(folder / "cal.json"),
-                     "-q"]) == 0
+                     "-q", "--force"]) == 0
         assert main(["calibrate-k", str(folder / "walk.npz"), "--distance", "40", "--out", str(folder / "K.json"),
-                     "-q"]) == 0
+                     "-q", "--force"]) == 0
     for n in ("walk.npz", "walk.csv", "cal.json", "K.json"):
         f[n] = folder / n
     for extra in ("poses.npz", "poses.csv", "poses.steps.csv", "walk.steps.csv"):
@@ -188,7 +188,7 @@ def _cases() -> list[Case]:
         if same_as == "walk.npz":
             add(command, f"{option} = the input by a symlink", [*base, option, "{walk_link.npz}"], option)
         add(command, f"{option} in a missing folder", [*base, option, "{nofolder/out}" + suffix], option)
-        add(command, f"{option} is a folder", [*base, option, "{adir}"], option)
+        add(command, f"{option} in a missing folder/", [*base, option, "{nofolder/out}/"], option)
         add(command, f"{option} under a file", [*base, option, "{underfile/out}" + suffix], option)
         add(command, f"{option} unwritable", [*base, option, "/proc/gaitlog-out" + suffix], option)
 
@@ -250,7 +250,7 @@ def _cases() -> list[Case]:
         add("dump", f"emu:// {name}", ["dump", "--port", f"emu://{{{name}}}", "--out", "{folder}/d.glimg"], name)
     add("dump", "--out = the emulated image", [*dump, "--out", "{walk.glimg}"], "--out")
     add("dump", "--out in a missing folder", [*dump, "--out", "{nofolder/out}"], "--out")
-    add("dump", "--out is a folder", [*dump, "--out", "{adir}"], "--out")
+    add("dump", "--out in a missing folder/", [*dump, "--out", "{nofolder/out}/"], "--out")
     add("dump", "--out under a file", [*dump, "--out", "{underfile/out}"], "--out")
     add("dump", "--capture = the emulated image", [*dump, "--out", "{folder}/d.glimg", "--capture", "{walk.glimg}"],
         "--capture")
@@ -567,6 +567,66 @@ def test_bad_input_is_one_clear_error_line(case, bad_input_folder):
     folder, fixtures = bad_input_folder
     problems = run_case(case, fixtures, folder)
     assert not problems, problems
+
+
+# ------------------------------------------------------------------------------------------- the overwrite rule
+#: Per command: a run whose output (the path after it, under ``{out}``'s folder) already exists, which must be
+#: refused without ``--force``; or why the command has no output to refuse. A new command needs a row.
+OVERWRITE: dict[str, tuple[tuple[str, ...], str] | str] = {
+    "demo": "replaces its own previous output folder; a folder that is not one is refused (cases above)",
+    "record": (("record", "--motion", "walk", "--out", "{out}/r.glimg"), "r.glimg"),
+    "serve": "writes no file (--persist writes the served image back into itself, as asked)",
+    "device": "writes no file (only the logger's memory)",
+    "dump": (("dump", "--port", "emu://{walk.glimg}", "--out", "{out}/d.glimg"), "d.glimg"),
+    "decode": (("decode", "{walk.glimg}", "--out", "{out}/w"), "w.csv"),
+    "info": "writes no file",
+    "calibrate": (("calibrate", "{walk.npz}", "--out", "{out}/c.json"), "c.json"),
+    "estimate": (("estimate", "{walk.npz}", "--out", "{out}/s.csv"), "s.csv"),
+    "calibrate-k": (("calibrate-k", "{walk.npz}", "--distance", "40", "--out", "{out}/k.json"), "k.json"),
+    "evaluate": (("evaluate", "ipol", "{emptydir}", "--out", "{out}/e.csv"), "e.csv"),
+    "compare": (("compare", "{walk.npz}", "--out", "{out}/c.csv"), "c.csv"),
+    "simulate": (("simulate", "--subjects", "1", "--ipol-out", "{out}/sim"), "sim/1-1_lb.txt"),
+    "sweep": "resumes into its --out folder: a re-run computes only the tasks that are missing",
+    "batch": "resumes into its --out folder: a re-run skips the recordings it finished",
+    "plot": (("plot", "{walk.npz}", "--out", "{out}/p.png"), "p.png"),
+    "budget": "writes no file",
+    "kinematics": (("kinematics", "--out", "{out}/kin"), "kin/old.txt"),
+}
+
+
+def _top_commands() -> dict:
+    import argparse
+
+    from gaitlog.host.cli import build_parser
+
+    parser = build_parser()
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def test_every_command_has_a_row_of_the_overwrite_rule() -> None:
+    commands = _top_commands()
+    assert set(commands) == set(OVERWRITE), (f"commands without a row in OVERWRITE: {set(commands) - set(OVERWRITE)}; "
+                                             f"rows of no command: {set(OVERWRITE) - set(commands)}")
+    for name, row in OVERWRITE.items():
+        options = {o for a in commands[name]._actions for o in a.option_strings}
+        assert isinstance(row, str) or "--force" in options, f"{name} writes files but has no --force"
+
+
+@pytest.mark.parametrize("command", [c for c, row in OVERWRITE.items() if not isinstance(row, str)])
+def test_an_existing_output_is_refused_without_force(command, bad_input_folder, tmp_path, capsys) -> None:
+    from gaitlog.host.cli import main
+
+    _, fixtures = bad_input_folder
+    argv, existing = OVERWRITE[command]
+    names = {**{k: str(v) for k, v in fixtures.items()}, "out": str(tmp_path)}
+    target = tmp_path / existing
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_bytes(b"keep me")
+    before = _snapshot(tmp_path)
+    code = main([re.sub(r"\{([^{}]+)\}", lambda m: names[m[1]], a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1 and "--force" in err[0], (code, err)
+    assert _snapshot(tmp_path) == before
 
 
 def _main() -> int:

@@ -157,3 +157,32 @@ def test_every_command_shows_examples_in_its_help() -> None:
     assert "examples:" in parser.format_help()
     missing = [name for name, p in subs.choices.items() if "examples:\n  gaitlog " + name not in p.format_help()]
     assert not missing, f"commands without examples in --help (EXAMPLES in their module): {missing}"
+
+
+# ----------------------------------------------------------------------------------------- --out and --force
+def test_out_is_a_file_prefix_or_a_folder_with_or_without_a_slash(tmp_path, capsys) -> None:
+    image = tmp_path / "walk.glimg"
+    assert main(["record", "--motion", "poses", "--steps", "off", "--out", str(image), "-q"]) == 0
+    (tmp_path / "outdir").mkdir()
+    assert main(["decode", str(image), "--out", str(tmp_path / "outdir"), "-q"]) == 0     # an existing folder
+    assert {p.name for p in (tmp_path / "outdir").iterdir()} == {"walk.npz", "walk.csv"}
+    assert not (tmp_path / "outdir.csv").exists()
+    (tmp_path / "slash").mkdir()
+    assert main(["decode", str(image), "--out", f"{tmp_path / 'slash'}/", "-q"]) == 0      # a trailing slash
+    assert {p.name for p in (tmp_path / "slash").iterdir()} == {"walk.npz", "walk.csv"}
+    assert main(["decode", str(image), "--out", str(tmp_path / "w"), "-q"]) == 0            # a prefix
+    assert (tmp_path / "w.npz").is_file() and (tmp_path / "w.csv").is_file()
+    # a slash names a folder, which must exist: nothing is guessed
+    assert main(["decode", str(image), "--out", f"{tmp_path / 'nofolder'}/", "-q"]) == 1
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_an_existing_output_is_overwritten_only_with_force(tmp_path, capsys) -> None:
+    image = tmp_path / "p.glimg"
+    assert main(["record", "--motion", "poses", "--steps", "off", "--out", str(image), "-q"]) == 0
+    first = image.read_bytes()
+    assert main(["record", "--motion", "poses", "--steps", "off", "--seed", "3", "--out", str(image), "-q"]) == 1
+    assert "exists; give --force to overwrite it" in capsys.readouterr().err and image.read_bytes() == first
+    assert main(["record", "--motion", "poses", "--steps", "off", "--seed", "3", "--out", str(image), "-q",
+                 "--force"]) == 0
+    assert image.read_bytes() != first
