@@ -113,6 +113,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(), _compile_notice(args):   # a library's warning is one line naming the command, like an error
             warnings.showwarning = lambda message, *_args, **_kw: print(f"gaitlog {name}: warning: {message}",
                                                                           file=sys.stderr)
+            if getattr(args, "quiet", False):                     # -q: errors only
+                warnings.simplefilter("ignore")
             return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("gaitlog: interrupted", file=sys.stderr)

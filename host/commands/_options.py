@@ -24,8 +24,36 @@ def verbosity(args: argparse.Namespace) -> int:
 
 
 def printer(args: argparse.Namespace, level: int = 0) -> Callable[..., None]:
-    """``print`` when :func:`verbosity` is at least ``level`` (0: the summary, 1: ``-v`` detail), else a no-op."""
-    return print if verbosity(args) >= level else _silent
+    """``print`` when :func:`verbosity` is at least ``level`` (0: the summary, 1: ``-v`` detail), else a no-op;
+    a no-op too with ``--json`` (standard output holds the JSON document only)."""
+    return print if verbosity(args) >= level and not getattr(args, "json", False) else _silent
+
+
+def add_json_option(parser: argparse.ArgumentParser, what: str = "the tables") -> None:
+    """``--json``: print ``what`` as one JSON document on stdout instead of the text (:func:`print_json`)."""
+    parser.add_argument("--json", action="store_true", help=f"print {what} as one JSON document instead of text")
+
+
+def print_json(doc: object) -> None:
+    """Print ``doc`` as JSON: numpy values as numbers and lists, NaN and infinities as null (valid JSON)."""
+    import json
+
+    print(json.dumps(_json_ready(doc), indent=2, allow_nan=False))
+
+
+def _json_ready(value: object) -> object:
+    """``value`` with numpy scalars and arrays as Python numbers and lists, non-finite floats as None."""
+    import math
+
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if hasattr(value, "tolist"):                    # numpy arrays and scalars
+        return _json_ready(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value if isinstance(value, (str, int, float, bool, type(None))) else str(value)
 
 
 def _silent(*_args: object, **_kwargs: object) -> None:

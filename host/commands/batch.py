@@ -19,7 +19,7 @@ EXAMPLES = (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_json_option, add_verbosity_options
 
     parser.add_argument("folder", metavar="FOLDER", help="folder of memory images, raw dumps, wire captures or "
                         "decoded .npz files")
@@ -32,6 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
     add_anatomy_options(parser)
+    add_json_option(parser, "the summary table")
     add_verbosity_options(parser)
 
 
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.accelerometer.calibration import AccCalibration
     from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.commands._options import check_output_folder, print_json, printer
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import KFit
@@ -74,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_text(out / "batch.csv", rows_csv_text([{k: ("" if v is None else v) for k, v in r.items()}
                                                         for r in rows], SUMMARY_COLUMNS))
     n = {s: sum(r.status == s for r in results) for s in ("done", "skipped", "failed")}
+    if args.json:
+        print_json({"out": str(out), "recordings": rows})
     say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done']} computed, "
         f"{n['skipped']} finished before (skipped), {n['failed']} failed")
     say(f"{'recording':<28}{'status':<9}{'samples':>9}{'Hz':>6}{'steps':>7}{'M1 m':>9}{'M2 m':>9}{'M3 m':>9}")

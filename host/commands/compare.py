@@ -37,7 +37,7 @@ EXAMPLES = (
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
@@ -61,6 +61,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_anatomy_options(parser)
     add_input_options(parser)
     add_force_option(parser)
+    add_json_option(parser)
     add_verbosity_options(parser)
 
 
@@ -100,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._options import check_outputs, print_json, printer
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import rows_csv_text
@@ -133,6 +134,8 @@ def _sweep(args: argparse.Namespace) -> int:
         m5 = _beside(args.out, "_m5")
         atomic_write_text(m5, rows_csv_text(sw.m5_["rows"]))
         say(f"written: {args.out}, {m5}")
+    if args.json:
+        print_json({"summary": sw.summary_, "m5": sw.m5_["rows"]})
     return 0
 
 
@@ -140,7 +143,7 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
-    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._options import check_outputs, print_json, printer
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import (
@@ -193,6 +196,9 @@ def _simulate(args: argparse.Namespace) -> int:
         atomic_write_text(split, rows_csv_text(all_diffs))
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
         say(f"written: {args.out}, {seg}, {split}, {bud}")
+    if args.json:
+        print_json({"step_differences": _pool_diffs(all_diffs), "segments": [s for r in results for s in r.segments],
+                    "budget": budget, "saturation": {r.subject_id: r.saturation for r in results}})
     return 0
 
 
@@ -252,7 +258,7 @@ def _recording(args: argparse.Namespace) -> int:
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
     from gaitlog.host.commands._anatomy_options import lengths_from_args
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, printer, verbosity
+    from gaitlog.host.commands._options import check_outputs, print_json, printer, verbosity
     from gaitlog.host.errors import HostError
     from gaitlog.host.files.replay import run_starts, verify_step_records
     from gaitlog.host.gait.k_calibration import KFit
@@ -326,4 +332,7 @@ def _recording(args: argparse.Namespace) -> int:
         atomic_write_text(seg, rows_csv_text(res.segments))
         atomic_write_text(split, rows_csv_text(res.step_diffs))
         say(f"written: {args.out}, {seg}, {split}")
+    if args.json:
+        print_json({"input": str(p), "steps": {c: t.n_steps for c, t in tb.items()}, "step_differences": res.step_diffs,
+                    "segments": res.segments, "saturation": res.saturation, "cycles_per_sample": res.cycles_per_sample})
     return 0

@@ -30,7 +30,7 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("dataset", choices=["ipol", "sim"],
                         help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
@@ -62,11 +62,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
     add_force_option(parser)
+    add_json_option(parser)
     add_verbosity_options(parser)
 
 
 def _run_sim(args: argparse.Namespace) -> int:
-    from gaitlog.host.commands._options import check_output_folder, verbosity
+    from gaitlog.host.commands._options import check_output_folder, print_json, verbosity
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.evaluation import SimulatedEvaluation
@@ -93,6 +94,9 @@ def _run_sim(args: argparse.Namespace) -> int:
                                  workers=args.workers, population=args.population, protocol=args.protocol,
                                  laps=args.laps, n_resamples=args.resamples).run(progress=tick)
     paths = ev.write_outputs(out)
+    if args.json:
+        print_json({"out": str(out), "summary": ev.summary_, "intervals": ev.bootstrap_, "files": paths})
+        return 0
     if verbosity(args) < 0:
         return 0
     protocol = ("the paper's protocol (5-minute rests, logger stopped during them; heights 1.68-1.86 m)"
@@ -140,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     events_path = out.with_name(out.stem + "_events.csv")
     check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
                   {"DIR": args.folder}, force=args.force)
-    from gaitlog.host.commands._options import verbosity
+    from gaitlog.host.commands._options import print_json, verbosity
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.files.ipol import list_trials
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
@@ -163,6 +167,9 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
     if res.trial_events:
         atomic_write_text(events_path, rows_csv_text(res.trial_events, EVENT_COLUMNS))
+    if args.json:
+        print_json({"out": str(out), "rows": res.rows, "trial_events": res.trial_events})
+        return 0
     if verbosity(args) < 0:
         return 0
     print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "

@@ -60,6 +60,9 @@ def test_overview_holds_the_chains_events_and_the_device_records(walk_npz) -> No
     ends = (rec.step_records["end_sample"].astype(np.int64) - rec.sample_numbers[0]) / sampling_rate_hz
     np.testing.assert_array_equal(ov.events_s["device step"], ends[(ends >= 5.0) & (ends < 25.0)])
     assert set(ov.lengths_m) == {"M1", "M3", "M1 device", "M3 device"}
+    # the legend says which lengths are calibrated and which raw (a logger without K)
+    assert ov.length_kinds == {"M1": "host, no K", "M3": "host, no K", "M1 device": "device, raw K = 1",
+                               "M3 device": "device, raw K = 1"}
     t1, m1 = ov.lengths_m["M1"]
     assert t1.size >= 20 and np.all((0.3 < m1) & (m1 < 1.2))
     assert "RecordingOverview(" in repr(ov) and "array" not in repr(ov)
