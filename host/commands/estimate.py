@@ -136,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
                 mtxt = "n/a" if e["median_step_m"] is None else f"{e['median_step_m']:.3f}"
                 out_k = "" if e["steps_outside_k_range"] is None else f"{e['steps_outside_k_range']:>16}"
                 print(f"{name:<10}{dtxt:>12}{mtxt:>15}{e['steps_filled']:>14}{out_k}")
+            if verbosity(args) > 0:                 # -v: how many steps had each gait event found
+                print("events: " + ", ".join(f"{k} {v}" for k, v in tables[arith].event_counts().items()))
         if outs:
             print("per-step table: " + ", ".join(f"{p} ({a})" if len(outs) > 1 else str(p) for a, p in outs.items()))
     if verbosity(args) >= 0:

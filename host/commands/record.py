@@ -385,4 +385,8 @@ def run(args: argparse.Namespace) -> int:
                   f"{h.n_steps_stored} of {h.step_capacity}")
         else:
             print("on-line step algorithm off: no step records stored")
+    if verbosity(args) > 0:                         # -v: the device as written into the image's header
+        h = logger.header
+        print(f"header: device {h.device_id}, {h.sampling_rate_hz:g} Hz, {h.adc_bits}-bit ADC, "
+              f"start time {h.start_time}, samples written {h.samples_written}, write index {h.write_index}")
     return 0

@@ -186,3 +186,20 @@ def test_an_existing_output_is_overwritten_only_with_force(tmp_path, capsys) -> 
     assert main(["record", "--motion", "poses", "--steps", "off", "--seed", "3", "--out", str(image), "-q",
                  "--force"]) == 0
     assert image.read_bytes() != first
+
+
+def test_quiet_prints_errors_only_and_verbose_adds_detail(tmp_path, capsys) -> None:
+    image = tmp_path / "w.glimg"
+    assert main(["record", "--motion", "walk", "--out", str(image), "-q"]) == 0      # no height: a warning
+    assert capsys.readouterr() == ("", "")
+    assert main(["record", "--motion", "walk", "--out", str(image), "--force"]) == 0
+    plain = capsys.readouterr()
+    assert "warning" in plain.err and "header:" not in plain.out
+    assert main(["record", "--motion", "walk", "--out", str(image), "--force", "-v"]) == 0
+    assert "header: device" in capsys.readouterr().out
+    assert main(["estimate", str(image), "--height", "1.75", "-q"]) == 0
+    assert capsys.readouterr() == ("", "")
+    assert main(["estimate", str(image), "--height", "1.75"]) == 0
+    assert "events:" not in capsys.readouterr().out
+    assert main(["estimate", str(image), "--height", "1.75", "-v"]) == 0
+    assert "events: steps" in capsys.readouterr().out
