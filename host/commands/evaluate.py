@@ -118,7 +118,9 @@ def run(args: argparse.Namespace) -> int:
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise UsageError("evaluate ipol: give the folder (DIR) and --out CSV")
-    from gaitlog.host.commands._options import check_outputs
+    from gaitlog.host.commands._options import check_outputs, out_path
+
+    args.out = out_path(args.out, "ipol_evaluation.csv")
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.ipol_evaluation import (
         ARITHMETICS,
