@@ -22,9 +22,9 @@ import argparse
 import contextlib
 import difflib
 import importlib
-import re
 import os
 import pkgutil
+import re
 import sys
 import warnings
 from collections.abc import Iterator, Sequence
@@ -110,7 +110,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from gaitlog.host.errors import UsageError
 
     try:
-        with warnings.catch_warnings(), _compile_notice(args):   # a library's warning is one line naming the command, like an error
+        # a library's warning is one line naming the command, like an error
+        with warnings.catch_warnings(), _compile_notice(args):
             warnings.showwarning = lambda message, *_args, **_kw: print(f"gaitlog {name}: warning: {message}",
                                                                           file=sys.stderr)
             if getattr(args, "quiet", False):                     # -q: errors only

@@ -42,7 +42,8 @@ HEIGHT_M, LEG_LENGTH_M, FOOT_LENGTH_M = (_anatomy_length(w) for w in ("height", 
 
 def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
     """--leg-length / --foot-length / --height."""
-    parser.add_argument("--leg-length", type=LEG_LENGTH_M, metavar="M", help="leg length (greater trochanter to floor), m")
+    parser.add_argument("--leg-length", type=LEG_LENGTH_M, metavar="M",
+                        help="leg length (greater trochanter to floor), m")
     parser.add_argument("--foot-length", type=FOOT_LENGTH_M, metavar="M",
                         help="foot length heel to first metatarsal head (M3's S2), m")
     parser.add_argument("--height", type=HEIGHT_M, metavar="M",

@@ -155,7 +155,8 @@ def run(args: argparse.Namespace) -> int:
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
         res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits, uturn=args.uturn,
                               arithmetic=arith, progress=tick)
-    rows = [{**{c: str(r[c]) for c in CSV_COLUMNS}, "distance_m": f"{r['distance_m']:.4f}", "ratio": f"{r['ratio']:.5f}",
+    rows = [{**{c: str(r[c]) for c in CSV_COLUMNS},
+             "distance_m": f"{r['distance_m']:.4f}", "ratio": f"{r['ratio']:.5f}",
              "steps_outside_k_range": "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])}
             for r in res.rows]
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically

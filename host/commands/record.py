@@ -80,7 +80,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     steps.add_argument("--height", type=HEIGHT_M, metavar="M",
                        help="body height of the wearer, m: leg and foot length are estimated from it when not given "
                             "(Winter; ANSUR; gaitlog.host.gait.anthropometry; default: a 1.70 m adult, with a warning)")
-    steps.add_argument("--leg-length", type=LEG_LENGTH_M, metavar="M", help="leg length (greater trochanter to floor), m")
+    steps.add_argument("--leg-length", type=LEG_LENGTH_M, metavar="M",
+                       help="leg length (greater trochanter to floor), m")
     steps.add_argument("--foot-length", type=FOOT_LENGTH_M, metavar="M",
                        help="foot length heel to first metatarsal head (M3's S2), m")
     steps.add_argument("--k-file", metavar="K.json",

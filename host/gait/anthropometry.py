@@ -35,7 +35,8 @@ from gaitlog.firmware_sim.world.subject import (
 )
 from gaitlog.host.errors import HostError
 
-__all__ = ["ANATOMY_RANGES_M", "BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT", "HEEL_TOE_LENGTH_PER_HEIGHT",
+__all__ = ["ANATOMY_RANGES_M", "BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT",
+           "HEEL_TOE_LENGTH_PER_HEIGHT",
            "LEG_LENGTH_PER_HEIGHT", "LENGTH_MODEL", "LENGTH_SOURCES", "AnatomyChoice", "anatomical_lengths",
            "choose_lengths"]
 

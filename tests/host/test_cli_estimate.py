@@ -131,7 +131,8 @@ def test_bad_input_exit_1_and_no_output(tmp_path, capsys, argv, message) -> None
 @pytest.mark.parametrize("argv, message", [
     (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "175"], "metres"),
     (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "17.5"], "metres"),
-    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "--distance", "2", "--out", "{d}/o.json"], "one value"),
+    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "--distance", "2", "--out", "{d}/o.json"],
+     "one value"),
 ])
 def test_bad_option_values_exit_2_and_no_output(tmp_path, capsys, argv, message) -> None:
     acc, _ = walk_acc_g(n_steps=10)
