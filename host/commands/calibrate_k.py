@@ -14,7 +14,7 @@ EXAMPLES = (
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import POSITIVE_M, add_force_option, add_verbosity_options
+    from gaitlog.host.commands._options import POSITIVE_M, add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help=f"recording(s): {INPUT_HELP}; several inputs = several speeds")
@@ -33,6 +33,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_anatomy_options(parser)
     add_input_options(parser)
     add_force_option(parser)
+    add_json_option(parser, "the fitted calibration")
     add_verbosity_options(parser)
 
 
@@ -41,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, print_json, verbosity
     from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import calibrate
     from gaitlog.host.gait.k_prior import PRIORS
@@ -90,7 +91,12 @@ def run(args: argparse.Namespace) -> int:
     if args.prior != "none":
         k = PRIORS[args.prior].shrink(k)
     k.save(args.out)
-    if verbosity(args) >= 0:
+    if args.json:                                  # the file as written
+        import json
+        from pathlib import Path
+
+        print_json({"out": str(args.out), "k": json.loads(Path(args.out).read_text()), "notes": notes})
+    elif verbosity(args) >= 0:
         print(f"{len(sections)} section(s), {k.n_steps} steps, {k.distance_m:g} m ({k.mode}); leg length "
               f"{leg:.3f} m, foot length {foot:.3f} m, from: {lengths.source}" + (f" ({lengths.note})" if lengths.note and not lengths.assumed
                                                           else ""))

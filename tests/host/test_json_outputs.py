@@ -18,7 +18,8 @@ from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.cli import build_parser, main
 
 #: The commands the issue asks ``--json`` of (a table on stdout).
-TABLE_COMMANDS = {"info", "estimate", "budget", "device status", "device identify", "compare", "evaluate", "batch"}
+TABLE_COMMANDS = {"info", "estimate", "budget", "device status", "device identify", "compare", "evaluate", "batch",
+                  "calibrate", "calibrate-k"}
 
 _ISO_TIME = re.compile(r"\d{4}-\d\d-\d\dT[\d:]+(?:[+-]\d\d:\d\d)?")
 #: A number standing alone in the text (not part of a name such as Q2.29, v1, P32, mul16x16s); 9,412 is one.
