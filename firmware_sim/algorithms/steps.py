@@ -268,4 +268,19 @@ def csv_text(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)
     writer.writerows(zip(*cells))
-    return buf.getvalue()
+    text = buf.getvalue()
+    return text if "\r" not in text else _csv_text_quoting_cr(names, cells)
+
+
+def _csv_text_quoting_cr(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:
+    """:func:`csv_text` for cells holding a carriage return: :mod:`csv` quotes only the characters of its line
+    terminator, so each row is written with ``\\r\\n`` (a cell with ``\\r`` is quoted) and ends with ``\\n``."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\r\n")
+    lines = []
+    for row in (names, *zip(*cells)):
+        buf.seek(0)
+        buf.truncate()
+        writer.writerow(row)
+        lines.append(buf.getvalue()[:-2] + "\n")
+    return "".join(lines)
