@@ -568,6 +568,8 @@ def _more_line(n: int, max_listed: int | None, what: str) -> list[str]:
 
 def _where(cells: list[str], defined: list[bool]) -> list[str]:
     """``cells`` with an empty cell where not ``defined``."""
+    if all(defined):
+        return cells
     return [c if ok else "" for c, ok in zip(cells, defined, strict=True)]
 
 

@@ -113,3 +113,21 @@ def test_known_table() -> None:
     text = columns_csv_text({"step": np.arange(3), "length_m": np.array([0.7123456789, np.nan, -np.inf]),
                              "ok": np.array([True, False, True])})
     assert text == "step,length_m,ok\n0,0.712346,1\n1,,0\n2,,1\n"
+
+
+@settings(max_examples=300, deadline=None)
+@given(names=st.lists(st.text(max_size=3), max_size=4),
+       cells=st.lists(st.lists(st.one_of(st.text(max_size=4), st.sampled_from(["", ",", '"', "\r", "\n", "1.5"])),
+                               min_size=3, max_size=3), max_size=4))
+def test_csv_text_is_what_the_csv_module_writes(names, cells) -> None:
+    from gaitlog.firmware_sim.algorithms.steps import csv_text
+
+    cells = cells[:len(names)] + [["x"] * 3] * (len(names) - len(cells))     # one column per name
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(names)
+    writer.writerows(zip(*cells))
+    text = csv_text(names, cells)
+    if "\r" not in buf.getvalue():
+        assert text == buf.getvalue()                   # the fast path is the csv module's text, byte for byte
+    assert read_back(text) == [list(names), *map(list, zip(*cells))] if names else True
