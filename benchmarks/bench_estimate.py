@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         folder = Path(tmp)
         rec = make_input(folder)
         out = str(folder / "steps.csv")
-        estimate = [py, "-m", "gaitlog", "estimate", str(rec), "--out", out]
+        estimate = [py, "-m", "gaitlog", "estimate", str(rec), "--out", out, "--force"]  # rewritten each run
         wall(estimate + ["--arithmetic", "both"], env)  # warm the file cache; build the kernel if not yet built
         wall(estimate + ["--arithmetic", "both"], dict(env, GAITLOG_NO_AOT="1"))  # ... and numba's JIT cache
         t = {

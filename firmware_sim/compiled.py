@@ -41,8 +41,9 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-__all__ = ["COMPILED_SOURCES", "PRUNE_AFTER_DAYS", "LazyDispatcher", "cache_base", "cache_dir", "load_numba",
-           "njit", "numba_types", "overload", "prune_cache", "register_jitable", "source_hash", "touch"]
+__all__ = ["COMPILED_SOURCES", "PRUNE_AFTER_DAYS", "LazyDispatcher", "announce_compile", "cache_base", "cache_dir",
+           "compile_listeners", "load_numba", "njit", "numba_types", "overload", "prune_cache", "register_jitable",
+           "source_hash", "touch"]
 
 _ROOT = Path(__file__).resolve().parents[1]
 
@@ -54,6 +55,17 @@ COMPILED_SOURCES: tuple[str, ...] = ("firmware_sim/compiled.py", "firmware_sim/f
                                      "firmware_sim/pic/kernel_cycles.json")
 #: Cache folders (``numba-*``, ``aot-*``) of other source versions not used for this long are removed.
 PRUNE_AFTER_DAYS = 14.0
+
+#: Called with one line saying what is compiled, just before code is compiled rather than loaded from the
+#: cache (a first run, or a run after an edit of :data:`COMPILED_SOURCES`): the ``gaitlog`` command line
+#: registers one that prints it on stderr. This module prints nothing itself.
+compile_listeners: list[Callable[[str], None]] = []
+
+
+def announce_compile(what: str) -> None:
+    """Tell every :data:`compile_listeners` that ``what`` is being compiled now."""
+    for listener in list(compile_listeners):
+        listener(what)
 
 
 def _numba_version_text() -> bytes:
@@ -146,10 +158,12 @@ class _Registry:
             return
         d = cache_dir()
         try:
-            new = not d.exists()
+            new = not d.exists() or not any(d.iterdir())
             d.mkdir(parents=True, exist_ok=True)
         except OSError:
             return
+        if new:
+            announce_compile(f"numba compiles the firmware's code into {d}")
         if os.access(d, os.W_OK):
             numba.config.CACHE_DIR = str(d)
             touch(d)

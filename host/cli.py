@@ -4,24 +4,30 @@ One module per subcommand lives in ``host/commands/``; each defines
 
 - ``HELP: str`` -- the one-line help shown by ``gaitlog --help``;
 - ``configure(parser: argparse.ArgumentParser) -> None`` -- adds its arguments;
-- ``run(args: argparse.Namespace) -> int`` -- does the work and returns the exit code.
+- ``run(args: argparse.Namespace) -> int`` -- does the work and returns the exit code;
+- ``EXAMPLES: tuple[str, ...]`` -- command lines shown under "examples:" by ``gaitlog COMMAND --help``.
 
 Subcommand modules import only the standard library at module level (heavy libraries are imported inside
 ``run``) so that ``gaitlog --help`` and the start-up of every command stay fast.
 
 Exit codes: 0 success, 1 data / I/O / protocol / device error (message on stderr, no partial output),
-2 usage error (argparse), 130 interrupted, 141 stdout closed by its reader (``| head``).
+2 usage error (argparse's, or a :class:`~gaitlog.host.errors.UsageError` a command raises: a bad option value
+or combination), 130 interrupted, 141 stdout closed by its reader (``| head``). The conventions every command
+follows are in ``docs/topics/command-conventions.md``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import difflib
 import importlib
 import os
 import pkgutil
+import re
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import gaitlog.host.commands
 
@@ -39,23 +45,50 @@ def _command_modules() -> list[str]:
 
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (the problem, the option, where to read more), as
-    every other error of ``gaitlog``; exit 2."""
+    every other error of ``gaitlog``; exit 2. A mistyped command or action gets the nearest valid one."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {_suggest(message)} (usage: {self.prog} --help)\n")
+
+
+def _suggest(message: str) -> str:
+    """argparse's "invalid choice: 'decod' (choose from 'demo', ...)" as "invalid choice: 'decod' (did you mean
+    'decode'?)", through :func:`difflib.get_close_matches`; other messages unchanged."""
+    found = re.search(r"invalid choice: '([^']*)' (\(choose from (.*)\))$", message)
+    if not found:
+        return message
+    choices = re.findall(r"'([^']*)'", found[3])
+    close = difflib.get_close_matches(found[1], choices, n=1, cutoff=0.6)
+    hint = f"did you mean {close[0]!r}?" if close else f"choose from {', '.join(choices)}"
+    return f"{message[:found.start(2)]}({hint})"
+
+
+#: The examples of ``gaitlog --help``.
+EXAMPLES = (
+    "gaitlog demo --out demo-out                     # the whole chain on a simulated walk",
+    "gaitlog decode walk.glimg --out walk            # walk.npz, walk.csv (and walk.steps.csv)",
+    "gaitlog estimate walk.npz --json                # step lengths and distance, as JSON",
+)
+
+
+def _epilog(examples: Sequence[str]) -> str | None:
+    """The "examples:" block under a help text."""
+    return "examples:\n" + "\n".join(f"  {line}" for line in examples) if examples else None
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the ``gaitlog`` argument parser with every subcommand registered."""
     parser = _Parser(
-        prog="gaitlog",
+        prog="gaitlog", epilog=_epilog(EXAMPLES), formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Emulate, dump, decode, calibrate and analyse the PIC16F877 + ADXL202 gait logger.",
     )
     parser.add_argument("--version", action="version", version=f"gaitlog {gaitlog.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _command_modules():
         module = importlib.import_module(f"gaitlog.host.commands.{name}")
-        cmd = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.HELP)
+        cmd = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.HELP,
+                             epilog=_epilog(getattr(module, "EXAMPLES", ())),
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
         module.configure(cmd)
         cmd.set_defaults(_run=module.run)
     return parser
@@ -74,10 +107,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     name = " ".join(str(part) for part in (args.command, getattr(args, "action", None)) if part)
+    from gaitlog.host.errors import UsageError
+
     try:
-        with warnings.catch_warnings():   # a library's warning is one line naming the command, like an error
+        # a library's warning is one line naming the command, like an error
+        with warnings.catch_warnings(), _compile_notice(args):
             warnings.showwarning = lambda message, *_args, **_kw: print(f"gaitlog {name}: warning: {message}",
                                                                           file=sys.stderr)
+            if getattr(args, "quiet", False):                     # -q: errors only
+                warnings.simplefilter("ignore")
             return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("gaitlog: interrupted", file=sys.stderr)
@@ -87,9 +125,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         # interpreter's own flush of the dead pipe at exit
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except UsageError as err:
+        print(f"gaitlog {name}: error: {err} (usage: gaitlog {args.command} --help)", file=sys.stderr)
+        return 2
     except _known_errors() as err:
         print(f"gaitlog {name}: error: {_error_text(err)}", file=sys.stderr)
         return 1
+
+
+@contextlib.contextmanager
+def _compile_notice(args: argparse.Namespace) -> Iterator[None]:
+    """While a command runs, say once on stderr when code is compiled rather than loaded from the cache (the
+    first run after an install or an edit waits 20-30 s); not with ``-q``, not from worker processes."""
+    from gaitlog.firmware_sim.compiled import compile_listeners
+
+    said, pid = [], os.getpid()
+
+    def notice(what: str) -> None:
+        if not said and os.getpid() == pid and not getattr(args, "quiet", False):
+            said.append(what)
+            print(f"gaitlog: compiling once for this version ({what}); this takes about 30 s", file=sys.stderr,
+                  flush=True)
+
+    compile_listeners.append(notice)
+    try:
+        yield
+    finally:
+        compile_listeners.remove(notice)
 
 
 def _error_text(err: BaseException) -> str:

@@ -162,7 +162,7 @@ def test_record_command_and_demo(tmp_path, capsys):
     assert main(["record", "--motion", "poses", "--poses", "4", "--start-time", "0", "--out",
                  str(tmp_path / "p.glimg"), "--quiet"]) == 0
     assert (tmp_path / "p.glimg").exists()
-    assert main(["record", "--motion", "replay", "--out", str(tmp_path / "q.glimg")]) == 1
+    assert main(["record", "--motion", "replay", "--out", str(tmp_path / "q.glimg")]) == 2
     assert not (tmp_path / "q.glimg").exists()
     capsys.readouterr()
     assert main(["demo", "--out", str(tmp_path / "demo"), "--poses", "4"]) == 0  # tmp_path is not empty

@@ -110,8 +110,10 @@ def test_pty_dump_and_decode_reproduce_the_device_records(walk_image, tmp_path, 
         end, dur, toe, heel, flags, *lengths = fields(records[20 * i: 20 * i + 20])
         assert int(row["end_sample"]) == end and float(row["time_s"]) == pytest.approx(end / 50.0, abs=1e-12)
         assert row["duration_s"] == ("" if dur == 0 else repr(dur / 50.0))
+        raw = {4: "raw_m4_range_pow_p", 5: "raw_m5_cadence_hz"} if flags & 0x40 else {}   # not lengths
         for k, q in enumerate(lengths, start=1):
-            assert row[f"length_m{k}_m"] == ("" if q == 0 else repr(q / 16384))
+            assert row[raw.get(k, f"length_m{k}_m")] == ("" if q == 0 else repr(q / 16384))
+            assert k not in raw or row[f"length_m{k}_m"] == ""
         assert row["lengths"] == ("raw" if flags & 0x40 else "K")
     # the foot-flat's time is on the sample CSV's clock: the sample row with that number has the same time
     samples = Recording.read_csv(tmp_path / "dec.csv")
@@ -402,8 +404,8 @@ def test_record_with_a_k_file_stores_calibrated_lengths(tmp_path, capsys):
     (["--k-file", "{d}/acc.json"], 1, "acc.json: not a gaitlog K calibration"),
     (["--k-file", "{d}/big.json"], 1, "k_m1_q15: k_m1 3.5 outside the stored range"),
     (["--k-file", "{d}/k.json", "--height", "1.9"], 1, "K was fitted with a leg length of 0.9275 m"),
-    (["--height", "5"], 1, "height 5.0 m is outside 0.8-2.5 m"),
-    (["--leg-length", "0.1"], 1, "leg length 0.1 m is outside"),
+    (["--height", "5"], 2, "argument --height: must be a height of 0.8 to 2.5 m (give it in metres), got '5'"),
+    (["--leg-length", "0.1"], 2, "argument --leg-length: must be a leg length of 0.3 to 1.3 m"),
     (["--corridor-length", "5"], 2, "argument --corridor-length: must be a finite number >= 10 and <= 1000 m, got '5'"),
     (["--height", "tall"], 2, "argument --height: must be a finite number > 0 and <= 100000 m, got 'tall'"),
     (["--steps", "maybe"], 2, "invalid choice: 'maybe'"),

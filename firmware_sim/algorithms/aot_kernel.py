@@ -39,7 +39,7 @@ from pathlib import Path
 from types import ModuleType
 
 from gaitlog.firmware_sim.algorithms import kernel
-from gaitlog.firmware_sim.compiled import cache_base, load_numba, prune_cache, source_hash, touch
+from gaitlog.firmware_sim.compiled import announce_compile, cache_base, load_numba, prune_cache, source_hash, touch
 
 __all__ = ["ARITHMETIC_TYPES", "ENTRY_POINTS", "MODULE_NAME", "EntryPoint", "aot_dir", "build", "enabled", "entry_points",
            "load"]
@@ -114,6 +114,7 @@ def build(folder: Path | None = None) -> Path:
     existing = _module_file(final)
     if existing is not None:
         return existing
+    announce_compile(f"the on-line step kernel is compiled ahead of time into {final}")
     load_numba()                                     # the kernel's functions as numba dispatchers
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.with_name(f"{final.name}.build-{os.getpid()}")

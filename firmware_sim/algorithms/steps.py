@@ -13,6 +13,9 @@ the number of such steps is reported (``n_filled``).
 
 from __future__ import annotations
 
+import csv
+import io
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -219,21 +222,25 @@ class StepTable:
                    {"M1": exc[:, 0], "M2": exc[:, 1], "M3": exc[:, 2]}, rng, raw_m, length_m)
 
 
-def columns_csv_text(cols: dict[str, np.ndarray]) -> str:
+def columns_csv_text(cols: dict[str, np.ndarray | list[str]]) -> str:
     """CSV text of named equal-length columns: integers and booleans as integers, floats ``%.6g``, NaN as an
-    empty cell.
+    empty cell, text as it is (quoted by :func:`csv_text` where it holds a comma, a quote or a line break).
 
-    Formatted column by column (:func:`float_csv_cells`), then joined row by row (:func:`csv_text`): no
+    Formatted column by column (:func:`float_csv_cells`), then written row by row (:func:`csv_text`): no
     per-cell numpy indexing (0.1 s per 3,000-step table and 3.5 s per 110,000 before).
 
     >>> columns_csv_text({"n": np.array([1, 2]), "x_m": np.array([0.5, np.nan]), "ok": np.array([True, False])})
     'n,x_m,ok\\n1,0.5,1\\n2,,0\\n'
+    >>> columns_csv_text({"n": np.array([1]), "note": ["a, b"]})
+    'n,note\\n1,"a, b"\\n'
     """
     cells = []
     for values in cols.values():
         a = np.asarray(values)
         if a.dtype == bool or np.issubdtype(a.dtype, np.integer):
             cells.append(list(map(str, (a.astype(np.int64) if a.dtype == bool else a).tolist())))
+        elif a.dtype.kind in "USO":
+            cells.append(list(map(str, a.tolist())))
         else:
             cells.append(float_csv_cells(a))
     return csv_text(list(cols), cells)
@@ -249,6 +256,40 @@ def float_csv_cells(values: np.ndarray | list[float]) -> list[str]:
     return cells
 
 
-def csv_text(names: list[str], cells: list[list[str]]) -> str:
-    """CSV text of a header and columns of formatted cells (all the same length)."""
-    return "\n".join([",".join(names), *map(",".join, zip(*cells))]) + "\n"
+def csv_text(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:
+    """CSV text of a header and columns of formatted cells (all the same length): the one CSV writer of the
+    package, the standard library's (:mod:`csv`, ``\\n`` line ends, a cell quoted only where it holds a comma,
+    a quote or a line break), so every table reads back with :mod:`csv` as its header's columns.
+
+    >>> csv_text(["file", "error"], [["a.glimg"], ["bad header, version 9"]])
+    'file,error\\na.glimg,"bad header, version 9"\\n'
+    """
+    # Fast path, byte for byte what csv writes: the rows joined, kept only when nothing needs quoting -- no
+    # quote or carriage return anywhere, exactly one comma less than columns and one line end per row (a comma
+    # or line break inside a cell breaks the count) and more than one column (csv quotes a lone empty cell).
+    # Four times faster than csv's writer on a million rows of numbers (1.0 s -> 0.27 s for ten columns).
+    text = "\n".join(map(",".join, (names, *zip(*cells)))) + "\n"
+    n_rows = 1 + min((len(c) for c in cells), default=0)
+    if (len(names) > 1 and '"' not in text and "\r" not in text and text.count("\n") == n_rows
+            and text.count(",") == (len(names) - 1) * n_rows):
+        return text
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(names)
+    writer.writerows(zip(*cells))
+    text = buf.getvalue()
+    return text if "\r" not in text else _csv_text_quoting_cr(names, cells)
+
+
+def _csv_text_quoting_cr(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:
+    """:func:`csv_text` for cells holding a carriage return: :mod:`csv` quotes only the characters of its line
+    terminator, so each row is written with ``\\r\\n`` (a cell with ``\\r`` is quoted) and ends with ``\\n``."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\r\n")
+    lines = []
+    for row in (names, *zip(*cells)):
+        buf.seek(0)
+        buf.truncate()
+        writer.writerow(row)
+        lines.append(buf.getvalue()[:-2] + "\n")
+    return "".join(lines)

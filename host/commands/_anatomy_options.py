@@ -17,12 +17,36 @@ if TYPE_CHECKING:
 ANATOMY_FLAGS = ("leg_length", "foot_length", "height")
 
 
+def _anatomy_length(what: str):
+    """An argparse ``type`` for a ``what`` ("height", "leg length", "foot length") in metres, in the plausible
+    range of :data:`gaitlog.host.gait.anthropometry.ANATOMY_RANGES_M` (imported when the flag is given, so that
+    ``--help`` stays fast): a value outside is a usage error (exit 2), e.g. a height in cm or feet."""
+
+    def parse(text: str) -> float:
+        value = POSITIVE_M(text)
+        from gaitlog.host.gait.anthropometry import ANATOMY_RANGES_M
+
+        low, high = ANATOMY_RANGES_M[what]
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be a {what} of {low:g} to {high:g} m (give it in metres), got "
+                                             f"{text!r}")
+        return value
+
+    parse.__name__ = what
+    return parse
+
+
+#: ``--height``, ``--leg-length``, ``--foot-length`` (every command that takes them).
+HEIGHT_M, LEG_LENGTH_M, FOOT_LENGTH_M = (_anatomy_length(w) for w in ("height", "leg length", "foot length"))
+
+
 def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
     """--leg-length / --foot-length / --height."""
-    parser.add_argument("--leg-length", type=POSITIVE_M, metavar="M", help="leg length (greater trochanter to floor), m")
-    parser.add_argument("--foot-length", type=POSITIVE_M, metavar="M",
+    parser.add_argument("--leg-length", type=LEG_LENGTH_M, metavar="M",
+                        help="leg length (greater trochanter to floor), m")
+    parser.add_argument("--foot-length", type=FOOT_LENGTH_M, metavar="M",
                         help="foot length heel to first metatarsal head (M3's S2), m")
-    parser.add_argument("--height", type=POSITIVE_M, metavar="M",
+    parser.add_argument("--height", type=HEIGHT_M, metavar="M",
                         help="body height, m: leg = 0.530 H, foot = 0.111 H when not given (Winter; ANSUR); "
                              "default: the K file's lengths, else an IPOL trial's height, else those of the logger's step "
                              "configuration, else a 1.70 m adult")

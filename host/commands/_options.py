@@ -35,8 +35,36 @@ def verbosity(args: argparse.Namespace) -> int:
 
 
 def printer(args: argparse.Namespace, level: int = 0) -> Callable[..., None]:
-    """``print`` when :func:`verbosity` is at least ``level`` (0: the summary, 1: ``-v`` detail), else a no-op."""
-    return print if verbosity(args) >= level else _silent
+    """``print`` when :func:`verbosity` is at least ``level`` (0: the summary, 1: ``-v`` detail), else a no-op;
+    a no-op too with ``--json`` (standard output holds the JSON document only)."""
+    return print if verbosity(args) >= level and not getattr(args, "json", False) else _silent
+
+
+def add_json_option(parser: argparse.ArgumentParser, what: str = "the tables") -> None:
+    """``--json``: print ``what`` as one JSON document on stdout instead of the text (:func:`print_json`)."""
+    parser.add_argument("--json", action="store_true", help=f"print {what} as one JSON document instead of text")
+
+
+def print_json(doc: object) -> None:
+    """Print ``doc`` as JSON: numpy values as numbers and lists, NaN and infinities as null (valid JSON)."""
+    import json
+
+    print(json.dumps(_json_ready(doc), indent=2, allow_nan=False))
+
+
+def _json_ready(value: object) -> object:
+    """``value`` with numpy scalars and arrays as Python numbers and lists, non-finite floats as None."""
+    import math
+
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if hasattr(value, "tolist"):                    # numpy arrays and scalars
+        return _json_ready(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value if isinstance(value, (str, int, float, bool, type(None))) else str(value)
 
 
 def _silent(*_args: object, **_kwargs: object) -> None:
@@ -60,12 +88,12 @@ def logger_rate_hz(args: argparse.Namespace) -> float:
     import math
 
     from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.logger_rate is None:
         return DEFAULT_SAMPLING_RATE_HZ
     if not (math.isfinite(args.logger_rate) and args.logger_rate > 0):
-        raise HostError(f"--logger-rate must be a positive number of Hz, got {args.logger_rate:g}")
+        raise UsageError(f"--logger-rate must be a positive number of Hz, got {args.logger_rate:g}")
     return float(args.logger_rate)
 
 
@@ -105,8 +133,9 @@ def number(*, minimum: float | None = None, maximum: float | None = None, above:
     return parse
 
 
-def whole(*, minimum: int | None = None, maximum: int | None = None) -> Callable[[str], int]:
-    """An argparse ``type`` for a whole number in ``minimum..maximum`` (a usage error naming the option).
+def whole(*, minimum: int | None = None, maximum: int | None = None, why: str = "") -> Callable[[str], int]:
+    """An argparse ``type`` for a whole number in ``minimum..maximum`` (a usage error naming the option;
+    ``why`` is appended to the message of a value out of range).
 
     >>> whole(minimum=1)("0")
     Traceback (most recent call last):
@@ -123,11 +152,24 @@ def whole(*, minimum: int | None = None, maximum: int | None = None) -> Callable
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}") from None
         if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
-            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}{why}")
         return value
 
     parse.__name__ = "whole number"
     return parse
+
+
+def add_adc_bits_option(parser: argparse.ArgumentParser, *, stored: bool, what: str = "") -> None:
+    """``--adc-bits B`` (default 10), one rule everywhere (:mod:`gaitlog.protocol.adc_bits`): 1 to 10 bits where
+    the codes go through the emulated logger, which stores them in 10-bit fields (``stored``), 1 to 12 where
+    they are simulated and compared, never stored. A value outside is a usage error (exit 2) that says so."""
+    from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, MAX_STORED_ADC_BITS
+
+    top = MAX_STORED_ADC_BITS if stored else MAX_SIMULATED_ADC_BITS
+    why = (f" (the logger stores {MAX_STORED_ADC_BITS}-bit codes; up to {MAX_SIMULATED_ADC_BITS} bits only where codes "
+           "are simulated and never stored: compare --simulate, sweep)") if stored else ""
+    parser.add_argument("--adc-bits", type=whole(minimum=1, maximum=top, why=why), default=10, metavar="B",
+                        help=f"ADC bits{' ' + what if what else ''}, 1-{top} (default 10)")
 
 
 #: ``--seed``: what numpy's generators take.
@@ -149,13 +191,50 @@ POSITIVE_M = number(above=0, maximum=100_000, unit="m")
 
 
 # ------------------------------------------------------------------------------------------ output paths
-def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None:
+def add_force_option(parser: argparse.ArgumentParser, what: str = "existing output files") -> None:
+    """``--force``: overwrite ``what``; without it an existing output is refused (:func:`check_outputs`,
+    :func:`check_output_folder`) before any work."""
+    parser.add_argument("--force", action="store_true", help=f"overwrite {what} (refused without --force)")
+
+
+def out_path(value: str | None, name: str) -> str | None:
+    """``--out`` as every command reads it: a file name (for ``decode``, a prefix), or a folder -- a value that
+    ends with ``/`` or names an existing folder -- in which the output is called ``name`` (made by the command
+    from its input's name: ``decode walk.glimg --out outdir/`` writes ``outdir/walk.npz``). None stays None.
+
+    >>> out_path("results/", "walk.png")
+    'results/walk.png'
+    >>> out_path("walk_steps.csv", "walk.png")
+    'walk_steps.csv'
+    """
+    import os
+    from pathlib import Path
+
+    if value is None:
+        return None
+    text = os.fspath(value)
+    if text.endswith(("/", os.sep)) or Path(text).is_dir():
+        return os.path.join(text, name)
+    return value
+
+
+def input_stem(path: object) -> str:
+    """The name an input gives its outputs in a folder: its file name without the suffix (``walk.glimg`` ->
+    ``walk``; an IPOL ``1-1_lb.txt`` -> ``1-1_lb``)."""
+    from pathlib import Path
+
+    return Path(str(path).rstrip("/")).stem
+
+
+def check_outputs(outputs: dict[str, object], inputs: dict[str, object], *, force: bool | None = None) -> None:
     """Refuse, before any work, outputs that would overwrite an input or that cannot be written.
 
     ``outputs`` and ``inputs`` map the option (``"--out"``) or the argument's name (``"INPUT"``) to a path (None:
     not given). An output is refused when it is the same file as an input (:func:`os.path.samefile`, or the
     same resolved path: a symlink or another spelling is caught), the same as another output, a folder, or in a
-    folder that does not exist. Raises :class:`~gaitlog.host.errors.HostError` naming the option and the files.
+    folder that does not exist; and, with ``force`` False (``--force`` not given), when it exists. ``force``
+    None: the command itself continues an existing output (``record --append``, ``dump --resume``). Raises
+    :class:`~gaitlog.host.errors.HostError` naming the option and the files.
     """
     import os
     from pathlib import Path
@@ -190,12 +269,17 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object]) -> None
             raise HostError(f"{option} {out}: the folder {folder} {what}")
         _check_writable(option, out, folder)
         seen[option] = out
+    if force is False:
+        for option, out in seen.items():
+            if out.exists() or out.is_symlink():
+                raise HostError(f"{option} {out}: exists; give --force to overwrite it")
 
 
-def check_output_folder(option: str, folder: object) -> None:
+def check_output_folder(option: str, folder: object, *, force: bool | None = None) -> None:
     """Refuse, before any work, an output folder (created when missing) that cannot be made or written: an
-    existing file, a path under a file, a place where no file can be created. A :class:`HostError` naming
-    ``option``."""
+    existing file, a path under a file, a place where no file can be created; with ``force`` False
+    (``--force`` not given), a folder that is not empty (None: the command resumes into its own folder, or
+    decides itself). A :class:`HostError` naming ``option``."""
     from pathlib import Path
 
     from gaitlog.host.errors import HostError
@@ -209,6 +293,8 @@ def check_output_folder(option: str, folder: object) -> None:
     if not existing.is_dir():
         raise HostError(f"{option} {path}: {existing} is a file, not a folder")
     _check_writable(option, path, existing)
+    if force is False and path.is_dir() and any(path.iterdir()):
+        raise HostError(f"{option} {path}: exists and is not empty; give --force to write into it")
 
 
 def _check_writable(option: str, out: object, folder: object) -> None:

@@ -11,11 +11,15 @@ from __future__ import annotations
 import argparse
 
 HELP = "estimate every recording in a folder (per-recording outputs, summary table, failures listed; resumable)"
+#: Shown under "examples:" by ``gaitlog batch --help``.
+EXAMPLES = (
+    "gaitlog batch recordings/ --out results/ --k-file K.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._options import add_max_missing_option, add_verbosity_options
+    from gaitlog.host.commands._options import add_json_option, add_max_missing_option, add_verbosity_options
 
     parser.add_argument("folder", metavar="FOLDER", help="folder of memory images, raw dumps, wire captures or "
                         "decoded .npz files")
@@ -29,6 +33,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
     add_anatomy_options(parser)
     add_max_missing_option(parser)
+    add_json_option(parser, "the summary table")
     add_verbosity_options(parser)
 
 
@@ -39,9 +44,9 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.accelerometer.calibration import AccCalibration
     from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._options import check_output_folder, printer
+    from gaitlog.host.commands._options import check_output_folder, print_json, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
@@ -57,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         paths = batch_inputs(folder, args.pattern)
     except (ValueError, NotImplementedError) as err:
-        raise HostError(f"--pattern {args.pattern!r}: {err}") from None
+        raise UsageError(f"--pattern {args.pattern!r}: {err}") from None
     if not paths:
         raise HostError(f"{folder}: no input file matches --pattern {args.pattern!r}")
     say = printer(args)
@@ -72,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
                                                         for r in rows], SUMMARY_COLUMNS))
     n = {s: sum(r.status == s for r in results) for s in ("done", "partial", "skipped", "failed")}
     over = [r for r in results if r.status != "failed" and (r.summary.get("missing_percent") or 0) > args.max_missing]
+    if args.json:
+        print_json({"out": str(out), "recordings": rows})
     say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done'] + n['partial']} computed, "
         f"{n['skipped']} finished before (skipped), {n['failed']} failed"
         + (f"; {n['partial']} partial (samples missing)" if n["partial"] else ""))

@@ -9,6 +9,12 @@ from gaitlog.host.commands._options import SEED, add_logger_rate_option, number,
 
 HELP = ("RAM, cycles per sample, program memory, EEPROM bandwidth and dump time of a logger configuration "
         "against the PIC16F877")
+#: Shown under "examples:" by ``gaitlog budget --help``.
+EXAMPLES = (
+    "gaitlog budget",
+    "gaitlog budget --all --json",
+    "gaitlog budget --logger-rate 100 --crystal 20",
+)
 CONFIG_NAMES = ("alvarez-50", "alvarez-100", "morris-5", "morris-6", "hall")
 
 
@@ -40,11 +46,11 @@ def _config(args: argparse.Namespace):
     import dataclasses
 
     from gaitlog.firmware_sim.budget import CONFIGURATIONS
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     name = args.config or "alvarez-50"
     if name not in CONFIGURATIONS:
-        raise HostError(f"--config {name!r} is not one of {', '.join(CONFIGURATIONS)}")
+        raise UsageError(f"--config {name!r} is not one of {', '.join(CONFIGURATIONS)}")
     c = CONFIGURATIONS[name]
     changes = {}
     if args.logger_rate is not None:
@@ -59,18 +65,18 @@ def _config(args: argparse.Namespace):
 
 
 def _check(c) -> None:
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if not (1.0 <= c.sampling_rate_hz <= 100_000.0):
-        raise HostError(f"--logger-rate {c.sampling_rate_hz:g} Hz is outside 1 .. 100000 Hz")
+        raise UsageError(f"--logger-rate {c.sampling_rate_hz:g} Hz is outside 1 .. 100000 Hz")
     if not (0.032e6 <= c.fosc_hz <= 20e6):
-        raise HostError(f"--crystal {c.fosc_hz / 1e6} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
+        raise UsageError(f"--crystal {c.fosc_hz / 1e6} MHz is outside the PIC16F877's 0.032 .. 20 MHz")
     if not (1 <= c.adc_channels <= 8):
-        raise HostError(f"--channels {c.adc_channels} is outside the PIC16F877's 1 .. 8 analog inputs")
+        raise UsageError(f"--channels {c.adc_channels} is outside the PIC16F877's 1 .. 8 analog inputs")
     if c.online_estimator and c.adc_channels != 3:
-        raise HostError(f"--estimator on reads the Alvarez logger's three axes; --channels is {c.adc_channels}")
+        raise UsageError(f"--estimator on reads the Alvarez logger's three axes; --channels is {c.adc_channels}")
     if c.online_estimator and c.sampling_rate_hz > 1000.0:
-        raise HostError(f"--estimator on: the walk is simulated at 1 .. 1000 Hz, not {c.sampling_rate_hz:g} Hz")
+        raise UsageError(f"--estimator on: the walk is simulated at 1 .. 1000 Hz, not {c.sampling_rate_hz:g} Hz")
 
 
 def _walk(c, seed: int) -> dict:
@@ -248,7 +254,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.firmware_sim.budget import CONFIGURATIONS
     from gaitlog.host.commands._options import logger_rate_hz, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.measure_kernels:
         return _measure_kernels(args)
@@ -256,7 +262,7 @@ def run(args: argparse.Namespace) -> int:
         args.logger_rate = logger_rate_hz(args)
     if args.all:
         if any(v is not None for v in (args.config, args.logger_rate, args.crystal, args.channels, args.estimator)):
-            raise HostError("--all budgets the five configurations as they are; it takes no --config, --logger-rate, "
+            raise UsageError("--all budgets the five configurations as they are; it takes no --config, --logger-rate, "
                             "--crystal, --channels or --estimator")
         configs = list(CONFIGURATIONS.values())
     else:

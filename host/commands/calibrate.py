@@ -9,12 +9,16 @@ from pathlib import Path
 from typing import Any
 
 HELP = "Fit offsets, scales and axis angles to the static poses of a recording (logger file, .npz or CSV); write JSON."
+#: Shown under "examples:" by ``gaitlog calibrate --help``.
+EXAMPLES = (
+    "gaitlog calibrate poses.npz --out cal.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog calibrate``."""
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options, number
+    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options, number
 
     parser.add_argument("input", type=Path, metavar="INPUT", help=f"static poses: {INPUT_HELP}")
     parser.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="calibration file to write")
@@ -26,6 +30,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "holds)")
     parser.add_argument("--counts-per-g", type=number(above=0), metavar="K",
                         help="nominal counts per g of a CSV in counts, for rest detection (default: estimated)")
+    add_force_option(parser)
+    add_json_option(parser, "the fitted calibration")
     add_verbosity_options(parser)
     det = parser.add_argument_group("rest detection")
     det.add_argument("--hold", type=number(above=0, maximum=3600, unit="s"), default=3.0, metavar="S", help="minimum hold, seconds (default 3)")
@@ -44,13 +50,14 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.accelerometer.calibration import ANGLE_NAMES
     from gaitlog.host.accelerometer.fit import AccCalibrator
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, print_json, verbosity
+    from gaitlog.host.errors import HostError, UsageError
 
+    args.out = out_path(args.out, f"{input_stem(args.input)}_cal.json")
     path: Path = args.input
     if args.calibration:
-        raise HostError("--calibration: calibrate fits a calibration; it does not take one")
-    check_outputs({"--out": args.out}, {"INPUT": path})
+        raise UsageError("--calibration: calibrate fits a calibration; it does not take one")
+    check_outputs({"--out": args.out}, {"INPUT": path}, force=args.force)
     data = read_input(args, path)
     zero: Any = args.zero_counts
     per_g: Any = args.counts_per_g
@@ -77,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
                       valid_range=valid_range)
     cal = cal_run.calibration_
     det = cal_run.detector_
-    out = sys.stdout if verbosity(args) >= 0 else io.StringIO()
+    out = sys.stdout if verbosity(args) >= 0 and not args.json else io.StringIO()
     print(f"input: {source}", file=out)
     print(f"static poses: {cal.n_poses} used, {len(det.rejected_)} holds rejected "
           f"(hold >= {args.hold:g} s, noise floor {_fmt(det.noise_floor_, '.3g')} {unit})", file=out)
@@ -99,4 +106,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"rejected samples {w.start}-{w.stop}: {reason}", file=out)
     cal.save(args.out)
     print(f"wrote {args.out}", file=out)
+    if args.json:                                  # the file as written, with the poses behind it
+        import json
+        from pathlib import Path
+
+        print_json({"out": str(args.out), "calibration": json.loads(Path(args.out).read_text()),
+                    "poses": [{"start_sample": w.start, "stop_sample": w.stop, "mean": w.mean, "residual_g": r}
+                              for w, r in zip(cal_run.windows_, cal.pose_residuals_g, strict=True)],
+                    "rejected": [{"start_sample": w.start, "stop_sample": w.stop, "reason": reason}
+                                 for w, reason in det.rejected_]})
     return 0

@@ -5,12 +5,16 @@ from __future__ import annotations
 import argparse
 
 HELP = "fit the per-subject constants K and the M5 line from recordings with a known distance"
+#: Shown under "examples:" by ``gaitlog calibrate-k --help``.
+EXAMPLES = (
+    "gaitlog calibrate-k walk.npz --distance 40 --out K.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import POSITIVE_M, add_verbosity_options
+    from gaitlog.host.commands._options import POSITIVE_M, add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help=f"recording(s): {INPUT_HELP}; several inputs = several speeds")
@@ -28,6 +32,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "paper's K, fitted on these walks alone")
     add_anatomy_options(parser)
     add_input_options(parser)
+    add_force_option(parser)
+    add_json_option(parser, "the fitted calibration")
     add_verbosity_options(parser)
 
 
@@ -36,20 +42,21 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, print_json, verbosity
+    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import calibrate
     from gaitlog.host.gait.k_prior import PRIORS
     from gaitlog.host.gait.pipeline import StepPipeline
     from gaitlog.host.gait.sections import pool_steps, sections_from_marks
 
+    args.out = out_path(args.out, f"{input_stem(args.inputs[0])}_K.json")
     if args.distance is not None and len(args.distance) not in (1, len(args.inputs)):
-        raise HostError(f"--distance: give one value or one per input ({len(args.inputs)}), "
+        raise UsageError(f"--distance: give one value or one per input ({len(args.inputs)}), "
                         f"got {len(args.distance)}")
     if args.lap_marks is not None and not args.lap_marks > 0:
-        raise HostError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
+        raise UsageError(f"--lap-marks must be a positive distance, got {args.lap_marks}")
     check_outputs({"--out": args.out}, {**{f"INPUT {i + 1}": path for i, path in enumerate(args.inputs)},
-                                        "--calibration": args.calibration})
+                                        "--calibration": args.calibration}, force=args.force)
     inputs = [read_input(args, path) for path in args.inputs]
     heights = {d.ipol_trial.height_m for d in inputs if d.ipol_trial is not None and d.ipol_trial.height_m}
     if len(heights) > 1 and not given_anatomy_flags(args):
@@ -84,7 +91,12 @@ def run(args: argparse.Namespace) -> int:
     if args.prior != "none":
         k = PRIORS[args.prior].shrink(k)
     k.save(args.out)
-    if verbosity(args) >= 0:
+    if args.json:                                  # the file as written
+        import json
+        from pathlib import Path
+
+        print_json({"out": str(args.out), "k": json.loads(Path(args.out).read_text()), "notes": notes})
+    elif verbosity(args) >= 0:
         print(f"{len(sections)} section(s), {k.n_steps} steps, {k.distance_m:g} m ({k.mode}); leg length "
               f"{leg:.3f} m, foot length {foot:.3f} m, from: {lengths.source}" + (f" ({lengths.note})" if lengths.note and not lengths.assumed
                                                           else ""))

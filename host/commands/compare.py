@@ -20,18 +20,24 @@ import argparse
 from gaitlog.host.commands._options import (
     POSITIVE_M,
     SEED,
+    add_adc_bits_option,
     add_logger_rate_option,
     logger_rate_hz,
     whole,
 )
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
+#: Shown under "examples:" by ``gaitlog compare --help``.
+EXAMPLES = (
+    "gaitlog compare walk.npz --k-file K.json",
+    "gaitlog compare --simulate 4 --adc-bits 12 --out sim.csv",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
@@ -43,7 +49,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--population", choices=["v1", "people"], default=None,
                         help="simulated population of --simulate/--sweep: people (default; tuned to real "
                         "lower-back walking) or v1")
-    parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits of --simulate, 1-12 (default 10)")
+    add_adc_bits_option(parser, stored=False, what="of --simulate")
     add_logger_rate_option(parser, "for --simulate")
     parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
     parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
@@ -54,6 +60,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lap-m", type=POSITIVE_M, default=20.0, metavar="M", help="distance between MARK flags (20)")
     add_anatomy_options(parser)
     add_input_options(parser)
+    add_force_option(parser)
+    add_json_option(parser)
     add_verbosity_options(parser)
 
 
@@ -66,22 +74,25 @@ def _beside(out: str, suffix: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from gaitlog.host.commands._input_options import given_input_flags
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.commands._options import input_stem, out_path
+    from gaitlog.host.errors import UsageError
 
+    name = f"{input_stem(args.input)}_compare.csv" if args.input else "sweep.csv" if args.sweep else "simulate.csv"
+    args.out = out_path(args.out, name)
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
     if sum(modes) != 1:
-        raise HostError("give exactly one of INPUT, --simulate N or --sweep")
+        raise UsageError("give exactly one of INPUT, --simulate N or --sweep")
     if args.workers < 1:
-        raise HostError(f"--workers must be >= 1, got {args.workers}")
+        raise UsageError(f"--workers must be >= 1, got {args.workers}")
     if args.input is None:
         extra = given_input_flags(args) + [f"--{n.replace('_', '-')}" for n in ("k_file", "leg_length", "foot_length",
                                                                                  "height") if getattr(args, n)]
         if extra:
-            raise HostError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
+            raise UsageError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
     elif args.logger_rate is not None:
-        raise HostError("--logger-rate: only with --simulate (a recording states its own rate)")
+        raise UsageError("--logger-rate: only with --simulate (a recording states its own rate)")
     elif args.population is not None:
-        raise HostError("--population: only with --simulate / --sweep (a recording is its own walker)")
+        raise UsageError("--population: only with --simulate / --sweep (a recording is its own walker)")
     args.population = args.population or "people"
     mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
     return mode(args)
@@ -90,9 +101,9 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     import time
 
-    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._options import check_outputs, print_json, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.sweep import (
         SUMMARY_COLUMNS,
@@ -103,10 +114,10 @@ def _sweep(args: argparse.Namespace) -> int:
     from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.subjects < 1:
-        raise HostError(f"--subjects must be >= 1, got {args.subjects}")
+        raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
-        check_outputs({"--out": args.out}, {})
+        check_outputs({"--out": args.out}, {}, force=args.force)
     t = time.perf_counter()
     with progress_bar(args, args.subjects, "subject") as tick:
         sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers,
@@ -123,6 +134,8 @@ def _sweep(args: argparse.Namespace) -> int:
         m5 = _beside(args.out, "_m5")
         atomic_write_text(m5, rows_csv_text(sw.m5_["rows"]))
         say(f"written: {args.out}, {m5}")
+    if args.json:
+        print_json({"summary": sw.summary_, "m5": sw.m5_["rows"]})
     return 0
 
 
@@ -130,9 +143,9 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
-    from gaitlog.host.commands._options import check_outputs, printer
+    from gaitlog.host.commands._options import check_outputs, print_json, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import (
         bootstrap_budget,
         format_budget,
@@ -140,18 +153,16 @@ def _simulate(args: argparse.Namespace) -> int:
         rows_csv_text,
     )
     from gaitlog.host.studies.simulation import simulate_comparisons
-    from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
     from gaitlog.protocol.atomic_write import atomic_write_text
 
     if args.simulate < 1:
-        raise HostError(f"--simulate must be >= 1, got {args.simulate}")
-    check_adc_bits(args.adc_bits, max_bits=MAX_SIMULATED_ADC_BITS, what="--adc-bits", error=HostError)
+        raise UsageError(f"--simulate must be >= 1, got {args.simulate}")
     args.logger_rate = logger_rate_hz(args)
     if args.resamples < 1:
-        raise HostError(f"--resamples must be >= 1, got {args.resamples}")
+        raise UsageError(f"--resamples must be >= 1, got {args.resamples}")
     say, detail = printer(args), printer(args, 1)
     if args.out:
-        check_outputs({"--out": args.out}, {})
+        check_outputs({"--out": args.out}, {}, force=args.force)
     with progress_bar(args, args.simulate, "subject") as tick:
         results = simulate_comparisons(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
                                        sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick,
@@ -185,6 +196,9 @@ def _simulate(args: argparse.Namespace) -> int:
         atomic_write_text(split, rows_csv_text(all_diffs))
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
         say(f"written: {args.out}, {seg}, {split}, {bud}")
+    if args.json:
+        print_json({"step_differences": _pool_diffs(all_diffs), "segments": [s for r in results for s in r.segments],
+                    "budget": budget, "saturation": {r.subject_id: r.saturation for r in results}})
     return 0
 
 
@@ -244,7 +258,7 @@ def _recording(args: argparse.Namespace) -> int:
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
     from gaitlog.host.commands._anatomy_options import lengths_from_args
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, printer, verbosity
+    from gaitlog.host.commands._options import check_outputs, print_json, printer, verbosity
     from gaitlog.host.errors import HostError
     from gaitlog.host.files.replay import run_starts, verify_step_records
     from gaitlog.host.gait.k_calibration import KFit
@@ -256,7 +270,7 @@ def _recording(args: argparse.Namespace) -> int:
     if args.out:
         check_outputs({"--out": args.out, "--out (_segments)": _beside(args.out, "_segments"),
                        "--out (_split)": _beside(args.out, "_split")},
-                      {"INPUT": p, "--k-file": args.k_file, "--calibration": args.calibration})
+                      {"INPUT": p, "--k-file": args.k_file, "--calibration": args.calibration}, force=args.force)
     data = read_input(args, p)
     rec = data.recording
     if rec is None:
@@ -318,4 +332,7 @@ def _recording(args: argparse.Namespace) -> int:
         atomic_write_text(seg, rows_csv_text(res.segments))
         atomic_write_text(split, rows_csv_text(res.step_diffs))
         say(f"written: {args.out}, {seg}, {split}")
+    if args.json:
+        print_json({"input": str(p), "steps": {c: t.n_steps for c, t in tb.items()}, "step_differences": res.step_diffs,
+                    "segments": res.segments, "saturation": res.saturation, "cycles_per_sample": res.cycles_per_sample})
     return 0

@@ -4,10 +4,23 @@ from __future__ import annotations
 
 import argparse
 
-from gaitlog.host.commands._options import add_max_missing_option, add_verbosity_options, check_outputs, verbosity
+from gaitlog.host.commands._options import (
+    add_force_option,
+    add_max_missing_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
+    out_path,
+    verbosity,
+)
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
+#: Shown under "examples:" by ``gaitlog decode --help``.
+EXAMPLES = (
+    "gaitlog decode walk.glimg --out walk",
+    "gaitlog decode walk.glimg --out decoded/ --calibration cal.json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -26,6 +39,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "firmware) as the file holds them, marked UNVERIFIED in a warning and the notes "
                              "(default: nothing verifies them, so they are reported missing)")
     add_max_missing_option(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 #: Gaps and lost record runs listed one per line without ``-v``.
@@ -74,9 +88,10 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.files.decode import decode_file, output_paths, save_decoded
     from gaitlog.host.files.replay import verify_step_records
 
+    args.out = out_path(args.out, input_stem(args.input))
     paths = output_paths(args.out)
     check_outputs({f"--out ({p.name})": p for p in paths.values()},
-                  {"INPUT": args.input, "--calibration": args.calibration})
+                  {"INPUT": args.input, "--calibration": args.calibration}, force=args.force)
     from gaitlog.protocol.channel_map import ChannelMap
 
     rec = decode_file(args.input, accept_unverified=args.accept_unverified)

@@ -30,6 +30,11 @@ from typing import Any
 HELP = ("run the whole path on defaults: record poses -> serve on a pty -> dump -> decode -> calibrate -> summary "
         "-> walk a simulated subject -> M1-M5 per 20 m and box plots -> the device's own step records -> the "
         "error split -> an overview plot; the files stay in ./gaitlog-demo/")
+#: Shown under "examples:" by ``gaitlog demo --help``.
+EXAMPLES = (
+    "gaitlog demo --out demo-out",
+    "gaitlog demo --out demo-out --force -q",
+)
 
 #: Default output folder (relative to the working directory).
 DEFAULT_OUT = "gaitlog-demo"

@@ -17,6 +17,11 @@ from gaitlog.host.commands._options import (
 )
 
 HELP = "control a live logger (--port): identify, status, start, stop, erase, set-calibration"
+#: Shown under "examples:" by ``gaitlog device --help``.
+EXAMPLES = (
+    "gaitlog device status --port emu://walk.glimg",
+    "gaitlog device start --port /dev/ttyUSB0",
+)
 
 _PORT_HELP = ("the logger: serial device (/dev/ttyUSB0, COM3), pty path from `gaitlog serve --pty`, "
               "socket://HOST:PORT from `gaitlog serve --tcp`, or emu://IMAGE (the in-process emulator)")
@@ -69,10 +74,10 @@ STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.action == "erase" and not args.yes and not sys.stdin.isatty():
-        raise HostError("erase needs a confirmation: run it in a terminal to be asked, or pass --yes")
+        raise UsageError("erase needs a confirmation: run it in a terminal to be asked, or pass --yes")
     slot = _calibration_slot(args) if args.action == "set-calibration" else None
     from gaitlog.host.link.logger_link import LoggerLink
 

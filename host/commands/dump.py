@@ -9,14 +9,21 @@ import sys
 from gaitlog.host.commands._options import (
     BAUD,
     TIMEOUT_S,
+    add_force_option,
     add_verbosity_options,
     check_outputs,
+    out_path,
     verbosity,
     whole,
 )
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
+#: Shown under "examples:" by ``gaitlog dump --help``.
+EXAMPLES = (
+    "gaitlog dump --port emu://walk.glimg --out copy.glimg",
+    "gaitlog dump --port /dev/ttyUSB0 --out walk.glimg --resume",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -34,6 +41,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "it is answered, for at most 30 s")
     parser.add_argument("--capture", metavar="FILE", help="also save every byte received (a wire capture that "
                         "`gaitlog decode` reads)")
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -44,10 +52,10 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.link.memory_dump import metadata_path_for
 
-    out = Path(args.out)
+    out = Path(out_path(args.out, "dump.glimg"))
     emu = args.port[len("emu://"):] if args.port.startswith("emu://") else None
     check_outputs({"--out": out, "--out (.json)": metadata_path_for(out), "--capture": args.capture},
-                  {"--port emu:// image": emu})
+                  {"--port emu:// image": emu}, force=args.force)
     capture = io.BytesIO() if args.capture else None
 
     def _interrupt(signum, frame):  # SIGTERM, and SIGINT even when a shell started us in the background

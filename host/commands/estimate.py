@@ -13,12 +13,18 @@ from __future__ import annotations
 import argparse
 
 HELP = "estimate every step's length and the distance walked (M1-M5) from a recording (logger file, .npz, IPOL, CSV)"
+#: Shown under "examples:" by ``gaitlog estimate --help``.
+EXAMPLES = (
+    "gaitlog estimate walk.npz --height 1.75",
+    "gaitlog estimate walk.npz --k-file K.json --out steps.csv --arithmetic both",
+    "gaitlog estimate walk.npz --json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._anatomy_options import add_anatomy_options
     from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_max_missing_option, add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_max_missing_option, add_verbosity_options
 
     parser.add_argument("input", metavar="INPUT", help=INPUT_HELP)
     parser.add_argument("--out", metavar="STEPS.csv", help="write the per-step table here")
@@ -33,6 +39,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_anatomy_options(parser)
     add_input_options(parser)
     add_max_missing_option(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -44,17 +51,19 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
     from gaitlog.host.commands._anatomy_options import lengths_from_args
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, verbosity
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
     from gaitlog.host.errors import HostError
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.protocol.atomic_write import atomic_write_text
 
+    args.out = out_path(args.out, f"{input_stem(args.input)}_steps.csv")
     if args.out:
         out = Path(args.out)
         fixed = {"--out (_fixed)": out.with_name(out.stem + "_fixed.csv")} if args.arithmetic == "both" else {}
         check_outputs({"--out": out, **fixed},
-                      {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration})
+                      {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration},
+                      force=args.force)
     data = read_input(args, args.input)
     from gaitlog.host.files.inputs import input_losses
 
@@ -135,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
                 mtxt = "n/a" if e["median_step_m"] is None else f"{e['median_step_m']:.3f}"
                 out_k = "" if e["steps_outside_k_range"] is None else f"{e['steps_outside_k_range']:>16}"
                 print(f"{name:<10}{dtxt:>12}{mtxt:>15}{e['steps_filled']:>14}{out_k}")
+            if verbosity(args) > 0:                 # -v: how many steps had each gait event found
+                print("events: " + ", ".join(f"{k} {v}" for k, v in tables[arith].event_counts().items()))
         if outs:
             print("per-step table: " + ", ".join(f"{p} ({a})" if len(outs) > 1 else str(p) for a, p in outs.items()))
     if verbosity(args) >= 0:
@@ -149,18 +160,16 @@ def run(args: argparse.Namespace) -> int:
 
 def _csv_text(table, lengths_source: str, k) -> str:
     """The step table's CSV with ``lengths_source`` and ``outside_k_range`` (module notes)."""
-    from gaitlog.firmware_sim.algorithms.steps import csv_text
+    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
     from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES
 
-    head, *rows = table.to_csv_text().splitlines()
     n = table.n_steps
     if k is not None:
         out = k.outside_range(table)
         flags = ["+".join(q for q in RANGE_QUANTITIES if out[q][i]) for i in range(n)]
     else:
         flags = [""] * n
-    cells = [rows, [lengths_source] * n, flags]
-    return csv_text([head, "lengths_source", "outside_k_range"], cells)
+    return columns_csv_text({**table.columns(), "lengths_source": [lengths_source] * n, "outside_k_range": flags})
 
 
 def _summary(tables: dict, estimators: tuple[str, ...], k=None) -> dict[str, dict]:

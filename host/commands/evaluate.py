@@ -19,13 +19,18 @@ from __future__ import annotations
 
 import argparse
 
-from gaitlog.host.commands._options import SEED, add_logger_rate_option, logger_rate_hz, whole
+from gaitlog.host.commands._options import SEED, add_adc_bits_option, add_logger_rate_option, logger_rate_hz, whole
 
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
+#: Shown under "examples:" by ``gaitlog evaluate --help``.
+EXAMPLES = (
+    "gaitlog evaluate ipol GaitData --out ipol.csv",
+    "gaitlog evaluate sim --subjects 4 --out eval-sim",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("dataset", choices=["ipol", "sim"],
                         help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
@@ -49,46 +54,49 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="sim: bootstrap resamples of the subjects for the intervals (default 2000; 0: none)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
-    parser.add_argument("--adc-bits", type=int, default=10, help="ADC bits, 1-10 (10)")
+    add_adc_bits_option(parser, stored=True, what="of the emulated logger")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
                         help="ipol: steps inside UTurnBoundaries: summed (default: the 20 m walked include the "
                         "turn) or left out of the distance, in the main tables (the offline chain is reported with both)")
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
+    add_force_option(parser)
+    add_json_option(parser)
     add_verbosity_options(parser)
 
 
 def _run_sim(args: argparse.Namespace) -> int:
-    from gaitlog.host.commands._options import check_output_folder, verbosity
+    from gaitlog.host.commands._options import check_output_folder, print_json, verbosity
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.evaluation import SimulatedEvaluation
-    from gaitlog.protocol.adc_bits import check_adc_bits
 
     out = args.out or args.folder
     if out is None:
-        raise HostError("evaluate sim: give the output folder as DIR or --out DIR")
-    check_output_folder("--out" if args.out else "DIR", out)
+        raise UsageError("evaluate sim: give the output folder as DIR or --out DIR")
+    check_output_folder("--out" if args.out else "DIR", out, force=args.force)
     unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
                                  ("--uturn", args.uturn)) if v is not None]
     args.protocol = args.protocol or "paper"
     args.laps = args.laps or ("stopwatch" if args.protocol == "paper" else "mark")
     if args.laps == "stopwatch" and args.protocol != "paper":
-        raise HostError("--laps stopwatch: only with --protocol paper (the host anchors the stopwatch at the "
+        raise UsageError("--laps stopwatch: only with --protocol paper (the host anchors the stopwatch at the "
                         "set-off of each logging run; the compact protocol logs through its rests)")
     if unhonoured:
-        raise HostError(f"{', '.join(unhonoured)}: only for 'evaluate ipol' (evaluate sim scores the offline chain "
+        raise UsageError(f"{', '.join(unhonoured)}: only for 'evaluate ipol' (evaluate sim scores the offline chain "
                         "on 20 m sections without U-turns, and writes its figures into the output folder)")
     if args.subjects < 1 or args.workers < 1:
-        raise HostError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
-    check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
+        raise UsageError(f"--subjects and --workers must be >= 1, got {args.subjects} and {args.workers}")
     args.logger_rate = logger_rate_hz(args)
     with progress_bar(args, args.subjects, "subject") as tick:
         ev = SimulatedEvaluation(n_subjects=args.subjects, seed=args.seed, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
                                  workers=args.workers, population=args.population, protocol=args.protocol,
                                  laps=args.laps, n_resamples=args.resamples).run(progress=tick)
     paths = ev.write_outputs(out)
+    if args.json:
+        print_json({"out": str(out), "summary": ev.summary_, "intervals": ev.bootstrap_, "files": paths})
+        return 0
     if verbosity(args) < 0:
         return 0
     protocol = ("the paper's protocol (5-minute rests, logger stopped during them; heights 1.68-1.86 m)"
@@ -104,13 +112,15 @@ def _run_sim(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.dataset == "sim":
         return _run_sim(args)
     if args.folder is None or args.out is None:
-        raise HostError("evaluate ipol: give the folder (DIR) and --out CSV")
-    from gaitlog.host.commands._options import check_outputs
+        raise UsageError("evaluate ipol: give the folder (DIR) and --out CSV")
+    from gaitlog.host.commands._options import check_outputs, out_path
+
+    args.out = out_path(args.out, "ipol_evaluation.csv")
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.ipol_evaluation import (
         ARITHMETICS,
@@ -129,10 +139,8 @@ def run(args: argparse.Namespace) -> int:
         main_rows,
         summarise,
     )
-    from gaitlog.protocol.adc_bits import check_adc_bits
     from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
-    check_adc_bits(args.adc_bits, what="--adc-bits", error=HostError)
     args.logger_rate = logger_rate_hz(args)
     args.uturn = args.uturn or "include"
     args.arithmetic = args.arithmetic or "all"
@@ -141,8 +149,8 @@ def run(args: argparse.Namespace) -> int:
     steps_path = out.with_name(out.stem + "_steps.csv")
     events_path = out.with_name(out.stem + "_events.csv")
     check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
-                  {"DIR": args.folder})
-    from gaitlog.host.commands._options import verbosity
+                  {"DIR": args.folder}, force=args.force)
+    from gaitlog.host.commands._options import print_json, verbosity
     from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.files.ipol import list_trials
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
@@ -151,23 +159,24 @@ def run(args: argparse.Namespace) -> int:
         arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
         res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits, uturn=args.uturn,
                               arithmetic=arith, progress=tick)
-    lines = [",".join(CSV_COLUMNS)]
-    for r in res.rows:
-        outside = "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])
-        lines.append(f"{r['subject']},{r['trial']},{r['estimator']},{r['arithmetic']},{r['k_from']},{r['uturn']},"
-                     f"{r['lengths_source']},{r['variant']},{r['distance_m']:.4f},{r['ratio']:.5f},{r['steps']},"
-                     f"{r['reference_steps']},{outside},{r['cross_validated']}")
+    rows = [{**{c: str(r[c]) for c in CSV_COLUMNS},
+             "distance_m": f"{r['distance_m']:.4f}", "ratio": f"{r['ratio']:.5f}",
+             "steps_outside_k_range": "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])}
+            for r in res.rows]
     # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
     from gaitlog.host.studies.plots import render_chain_boxplots_png
 
     png = render_chain_boxplots_png(main_rows(res.rows), arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
                                     "K from trial 1 (offline chain) for every chain")
     atomic_write_bytes(fig_path, png)
-    atomic_write_text(out, "\n".join(lines) + "\n")
+    atomic_write_text(out, rows_csv_text(rows, CSV_COLUMNS))
     if res.step_rows:
         atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
     if res.trial_events:
         atomic_write_text(events_path, rows_csv_text(res.trial_events, EVENT_COLUMNS))
+    if args.json:
+        print_json({"out": str(out), "rows": res.rows, "trial_events": res.trial_events})
+        return 0
     if verbosity(args) < 0:
         return 0
     print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "

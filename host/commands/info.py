@@ -10,6 +10,12 @@ from typing import Any
 from gaitlog.host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, verbosity
 
 HELP = "show the header and status of a memory image or of a live device (--port)"
+#: Shown under "examples:" by ``gaitlog info --help``.
+EXAMPLES = (
+    "gaitlog info walk.glimg",
+    "gaitlog info walk.glimg --json",
+    "gaitlog info --port emu://walk.glimg",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -97,10 +103,10 @@ def header_dict(header) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if (args.image is None) == (args.port is None):
-        raise HostError("give either IMAGE or --port PORT")
+        raise UsageError("give either IMAGE or --port PORT")
     report = _device_report(args) if args.port else _file_report(args)
     if args.json:
         print(json.dumps(report[0], indent=2))

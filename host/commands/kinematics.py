@@ -27,6 +27,11 @@ from pathlib import Path
 from typing import Any
 
 HELP = "Morris' and Hall's kinematics on a recording (morris / hall) or on simulated instruments (simulate)."
+#: Shown under "examples:" by ``gaitlog kinematics --help``.
+EXAMPLES = (
+    "gaitlog kinematics --out kin",
+    "gaitlog kinematics morris rec.csv --platform platform.json --out kin",
+)
 
 #: Files written by ``morris`` and ``hall`` into ``--out``.
 MORRIS_FILES = ("morris_orientation.csv", "morris_angular_velocity.csv", "morris_translation.csv",
@@ -45,7 +50,7 @@ def _snr_db(text: str) -> float:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
-    from gaitlog.host.commands._options import SEED, add_verbosity_options, number
+    from gaitlog.host.commands._options import SEED, add_force_option, add_verbosity_options, number
 
     parser.add_argument("method", nargs="?", choices=("simulate", "morris", "hall"), default="simulate",
                         help="morris or hall: analyse RECORDING; simulate (default): simulated instruments")
@@ -81,6 +86,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gyro-noise", type=number(minimum=0, maximum=100, unit="rad/s"), default=0.01, metavar="RAD_S",
                         help="simulate: angular-rate sensor noise, rad/s (default 0.01)")
     parser.add_argument("--seed", type=SEED, default=0, help="simulate: noise seed (default 0)")
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -203,13 +209,13 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
     ).compute(ra, rb, sampling_rate_hz=recording.sampling_rate_hz)
 
 
-def _check_out(out: Path | None, what: str) -> Path:
+def _check_out(out: Path | None, what: str, *, force: bool) -> Path:
     from gaitlog.host.commands._options import check_output_folder
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if out is None:
-        raise HostError(f"{what}: give --out DIR for the results")
-    check_output_folder("--out", out)
+        raise UsageError(f"{what}: give --out DIR for the results")
+    check_output_folder("--out", out, force=force)
     return out
 
 
@@ -217,14 +223,14 @@ def _run_recording(args: argparse.Namespace) -> int:
     import warnings
 
     from gaitlog.host.commands._options import printer
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
     from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
     from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
 
     if args.recording is None or args.platform is None:
-        raise HostError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
-    out = _check_out(args.out, f"kinematics {args.method}")
+        raise UsageError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
+    out = _check_out(args.out, f"kinematics {args.method}", force=args.force)
     recording = read_sensor_csv(args.recording)
     say = printer(args)
     if args.method == "morris":
@@ -316,7 +322,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from gaitlog.host.commands._options import check_output_folder, printer
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
     from gaitlog.host.kinematics.joints import joint_angles_yxz
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
@@ -327,11 +333,11 @@ def _run_simulate(args: argparse.Namespace) -> int:
     )
 
     if args.out is None and args.write_recording is None:
-        raise HostError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
+        raise UsageError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
     if args.out is not None:
-        _check_out(args.out, "kinematics simulate")
+        _check_out(args.out, "kinematics simulate", force=args.force)
     if args.write_recording is not None:
-        check_output_folder("--write-recording", args.write_recording)
+        check_output_folder("--write-recording", args.write_recording, force=args.force)
     if args.cfc:
         cfc_coefficients(args.cfc, args.hall_rate)  # reject an invalid rate before any work
     snr = None if math.isinf(args.snr_db) else args.snr_db
@@ -412,8 +418,8 @@ def run(args: argparse.Namespace) -> int:
     """Dispatch on the method (module notes)."""
     if args.method == "simulate":
         if args.recording is not None:
-            from gaitlog.host.errors import HostError
+            from gaitlog.host.errors import UsageError
 
-            raise HostError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
+            raise UsageError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
         return _run_simulate(args)
     return _run_recording(args)

@@ -5,10 +5,15 @@ from __future__ import annotations
 import argparse
 
 from gaitlog.host.commands._anatomy_options import add_anatomy_options
-from gaitlog.host.commands._options import add_verbosity_options, number
+from gaitlog.host.commands._options import add_force_option, add_verbosity_options, number
 
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
+#: Shown under "examples:" by ``gaitlog plot --help``.
+EXAMPLES = (
+    "gaitlog plot walk.npz --out walk.png",
+    "gaitlog plot walk.npz --start 10 --duration 5 --estimators M1,M5",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -24,6 +29,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k'")
     parser.add_argument("--size", default="1400x700", metavar="WxH", help="figure size in pixels (default 1400x700)")
     add_anatomy_options(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
@@ -32,8 +38,9 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._options import check_outputs, printer
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, printer
+    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.files.inputs import read_acceleration
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.overview import recording_overview
@@ -41,11 +48,16 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.protocol.atomic_write import atomic_write_bytes
 
     src = Path(args.input)
-    out = Path(args.out) if args.out else src.with_suffix(".png")
+    out = Path(out_path(args.out, f"{input_stem(src)}.png") or src.with_suffix(".png"))
     size = re.fullmatch(r"(\d+)x(\d+)", args.size)
     if not size or not (100 <= int(size[1]) <= 10000 and 100 <= int(size[2]) <= 10000):
-        raise HostError(f"--size {args.size}: give WIDTHxHEIGHT in pixels, 100 to 10000 each (e.g. 1400x700)")
-    check_outputs({"--out": out}, {"RECORDING": src, "--k-file": args.k_file})
+        raise UsageError(f"--size {args.size}: give WIDTHxHEIGHT in pixels, 100 to 10000 each (e.g. 1400x700)")
+    estimators = [e.strip().upper() for e in args.estimators.split(",") if e.strip()]
+    unknown = [e for e in estimators if e not in ESTIMATORS]
+    if unknown or not estimators:
+        raise UsageError(f"--estimators {args.estimators!r}: unknown {', '.join(unknown) or '(none given)'}; choose "
+                         f"from {','.join(ESTIMATORS)}")
+    check_outputs({"--out": out}, {"RECORDING": src, "--k-file": args.k_file}, force=args.force)
     if not src.is_file():
         raise HostError(f"{src}: no such file")
     data = read_acceleration(src)
@@ -56,7 +68,6 @@ def run(args: argparse.Namespace) -> int:
     cal = KFit.load(args.k_file) if args.k_file else None
     lengths = lengths_from_args(args, k=cal, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
-    estimators = [e.strip().upper() for e in args.estimators.split(",") if e.strip()]
     overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, calibration=cal, start_s=args.start,
                                   duration_s=args.duration, estimators=estimators)
     atomic_write_bytes(out, render_overview_png(overview, size_px=(int(size[1]), int(size[2]))))

@@ -12,8 +12,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from gaitlog.host.commands._anatomy_options import FOOT_LENGTH_M, HEIGHT_M, LEG_LENGTH_M
 from gaitlog.host.commands._options import (
-    POSITIVE_M,
     SEED,
     UNIX_TIME_S,
     add_logger_rate_option,
@@ -27,6 +27,12 @@ if TYPE_CHECKING:
 
 HELP = ("record a motion (calibration poses, a simulated walk or a replayed recording) with the emulated logger, "
         "its on-line step algorithm on, to a memory image")
+#: Shown under "examples:" by ``gaitlog record --help``.
+EXAMPLES = (
+    "gaitlog record --motion walk --height 1.75 --out walk.glimg",
+    "gaitlog record --motion poses --out poses.glimg",
+    "gaitlog record --motion replay trial_lb.txt --out trial.glimg",
+)
 
 #: One-way corridor length of ``--motion walk`` when not given, m (an out-and-back excursion of 40 m).
 WALK_CORRIDOR_M = 20.0
@@ -34,7 +40,7 @@ WALK_CORRIDOR_M = 20.0
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_verbosity_options
+    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
 
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
                         help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
@@ -71,46 +77,48 @@ def configure(parser: argparse.ArgumentParser) -> None:
     steps.add_argument("--steps", choices=("on", "off"), default=None,
                        help="run the on-line step algorithm while logging (default: on; with --append and no "
                             "step option, the image's own setting)")
-    steps.add_argument("--height", type=POSITIVE_M, metavar="M",
+    steps.add_argument("--height", type=HEIGHT_M, metavar="M",
                        help="body height of the wearer, m: leg and foot length are estimated from it when not given "
                             "(Winter; ANSUR; gaitlog.host.gait.anthropometry; default: a 1.70 m adult, with a warning)")
-    steps.add_argument("--leg-length", type=POSITIVE_M, metavar="M", help="leg length (greater trochanter to floor), m")
-    steps.add_argument("--foot-length", type=POSITIVE_M, metavar="M",
+    steps.add_argument("--leg-length", type=LEG_LENGTH_M, metavar="M",
+                       help="leg length (greater trochanter to floor), m")
+    steps.add_argument("--foot-length", type=FOOT_LENGTH_M, metavar="M",
                        help="foot length heel to first metatarsal head (M3's S2), m")
     steps.add_argument("--k-file", metavar="K.json",
                        help="calibrated constants (from `gaitlog calibrate-k`): the device stores calibrated "
                             "lengths; the leg and foot lengths come from this file")
     add_input_options(parser)
+    add_force_option(parser)
     add_verbosity_options(parser)
 
 
 def read_replayed(args: argparse.Namespace) -> AccelerationInput | None:
     """The file of ``--motion replay FILE`` (with the input flags), else None."""
     from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     if args.motion[0] != "replay":
         return None
     if len(args.motion) != 2:
-        raise HostError("--motion replay needs exactly one FILE")
+        raise UsageError("--motion replay needs exactly one FILE")
     return read_input(args, args.motion[1])
 
 
 def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None):
     """The motion source named by ``--motion``; ``data``: the replayed file (:func:`read_replayed`), read here
     when not given."""
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     kind = args.motion[0]
     if kind == "poses":
         if len(args.motion) != 1:
-            raise HostError("--motion poses takes no file")
+            raise UsageError("--motion poses takes no file")
         from gaitlog.firmware_sim.world.poses import CalibrationPoses
 
         return CalibrationPoses(n_poses=args.poses, seed=args.seed)
     if kind == "replay":
         if len(args.motion) != 2:
-            raise HostError("--motion replay needs exactly one FILE")
+            raise UsageError("--motion replay needs exactly one FILE")
         from gaitlog.firmware_sim.world.replay import Replay
 
         data = data if data is not None else read_replayed(args)
@@ -118,7 +126,7 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
                                    marker_times_s=data.mark_index / data.sampling_rate_hz)
     if kind == "walk":
         if len(args.motion) != 1:
-            raise HostError("--motion walk takes no file")
+            raise UsageError("--motion walk takes no file")
         from gaitlog.firmware_sim.world.subject import Subject
         from gaitlog.firmware_sim.world.walk_plan import WalkPlan
         from gaitlog.firmware_sim.world.walking import Walking
@@ -130,17 +138,17 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
         walk_plan = WalkPlan(corridor_length_m=corridor, speeds=("preferred",), initial_stand_s=3.0,
                                    final_stand_s=2.0, lap_marks_m=(0.0, corridor, 2.0 * corridor))
         return Walking(subject=Subject.from_height(height), walk_plan=walk_plan, seed=args.seed)
-    raise HostError(f"--motion: unknown kind {kind!r} (expected 'poses', 'walk' or 'replay FILE')")
+    raise UsageError(f"--motion: unknown kind {kind!r} (expected 'poses', 'walk' or 'replay FILE')")
 
 
 def _refuse_input_flags(args: argparse.Namespace) -> None:
     """Input flags describe a replayed file: an error with any other motion."""
     from gaitlog.host.commands._input_options import given_input_flags
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
 
     extra = given_input_flags(args)
     if args.motion[0] != "replay" and extra:
-        raise HostError(f"{', '.join(extra)}: only for --motion replay FILE")
+        raise UsageError(f"{', '.join(extra)}: only for --motion replay FILE")
 
 
 def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, data: AccelerationInput | None = None):
@@ -263,22 +271,22 @@ def run_instrument(args: argparse.Namespace) -> int:
     import time
 
     from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.logger_instruments import record_instrument
     from gaitlog.host.kinematics.sensor_csv import write_sensor_csv
 
     kind = args.motion[0]
     if len(args.motion) != 1:
-        raise HostError(f"--motion {kind} takes no file")
+        raise UsageError(f"--motion {kind} takes no file")
     extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file", "steps")
              if getattr(args, n) is not None] + [o for o, on in (("--append", args.append),
                                                                  ("--overwrite-oldest", args.overwrite_oldest)) if on]
     if extra:
-        raise HostError(f"{', '.join(extra)}: not with --motion {kind} (an instrument's channels, no step algorithm, "
+        raise UsageError(f"{', '.join(extra)}: not with --motion {kind} (an instrument's channels, no step algorithm, "
                         "one run into an erased memory)")
     _refuse_input_flags(args)
     paths = instrument_paths(args.out)
-    check_outputs(paths, {})
+    check_outputs(paths, {}, force=args.force)
     start = int(time.time()) if args.start_time is None else args.start_time
     li = record_instrument(kind, sampling_rate_hz=args.logger_rate, n_accelerometers=args.accelerometers,
                            duration_s=args.duration, gravity_channels=args.gravity_channels, seed=args.seed,
@@ -307,19 +315,21 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.firmware_sim.device import Logger
     from gaitlog.firmware_sim.sensor import SensorModel
-    from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.logger_instruments import INSTRUMENTS
 
+    replay = args.motion[0] == "replay" and len(args.motion) == 2
+    args.out = out_path(args.out, f"{input_stem(args.motion[1]) if replay else args.motion[0]}.glimg")
     if args.motion[0] in INSTRUMENTS:
         return run_instrument(args)
     args.logger_rate = logger_rate_hz(args)
     if args.logger_rate > 1000:
-        raise HostError(f"--logger-rate {args.logger_rate:g}: above 1000 Hz only for --motion morris or hall")
+        raise UsageError(f"--logger-rate {args.logger_rate:g}: above 1000 Hz only for --motion morris or hall")
     out = Path(args.out)
     replayed = args.motion[1] if args.motion[0] == "replay" and len(args.motion) == 2 else None
     check_outputs({"--out": out}, {"--motion replay FILE": replayed, "--k-file": args.k_file,
-                                   "--calibration": args.calibration})
+                                   "--calibration": args.calibration}, force=None if args.append else args.force)
     if args.steps == "off":
         extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file")
                  if getattr(args, n) is not None]
@@ -376,4 +386,8 @@ def run(args: argparse.Namespace) -> int:
                   f"{h.n_steps_stored} of {h.step_capacity}")
         else:
             print("on-line step algorithm off: no step records stored")
+    if verbosity(args) > 0:                         # -v: the device as written into the image's header
+        h = logger.header
+        print(f"header: device {h.device_id}, {h.sampling_rate_hz:g} Hz, {h.adc_bits}-bit ADC, "
+              f"start time {h.start_time}, samples written {h.samples_written}, write index {h.write_index}")
     return 0

@@ -8,6 +8,11 @@ from gaitlog.host.commands._options import BAUD, TCP_PORT, add_verbosity_options
 
 HELP = ("serve a memory image as a live logger (its header's step configuration included) on a pty (prints its path) "
         "or a TCP port, until Ctrl-C")
+#: Shown under "examples:" by ``gaitlog serve --help``.
+EXAMPLES = (
+    "gaitlog serve walk.glimg --tcp 5000",
+    "gaitlog serve walk.glimg --pty --persist",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -14,6 +14,10 @@ from __future__ import annotations
 import argparse
 
 HELP = "write simulated walks as recordings (IPOL lower-back layout) for other tools"
+#: Shown under "examples:" by ``gaitlog simulate --help``.
+EXAMPLES = (
+    "gaitlog simulate --subjects 2 --ipol-out sim-trials",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -23,6 +23,10 @@ MAX_PRINTED_ROWS = 60
 
 HELP = ("parameter sweep (ADC bits x rate x noise x Q formats x misalignment x population x subjects) on Dask or "
         "in-process; resumable, CSV + figures")
+#: Shown under "examples:" by ``gaitlog sweep --help``.
+EXAMPLES = (
+    "gaitlog sweep --out sweep-out --adc-bits 8,10,12 --logger-rate 25,50 --subjects 2",
+)
 
 
 def _list(item: Callable[[str], object]) -> Callable[[str], list]:
@@ -105,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.commands._options import check_output_folder, printer
     from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.sweep_figures import figure_dimensions, render_error_vs_png
     from gaitlog.host.studies.sweep_grid import (
@@ -127,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
 
     if args.serial and args.scheduler:
-        raise HostError("--serial and --scheduler exclude each other")
+        raise UsageError("--serial and --scheduler exclude each other")
     if args.scheduler:
         _check_scheduler(args.scheduler)
     spec = SweepGrid.load(args.spec).to_spec() if args.spec else {}
@@ -209,13 +213,13 @@ def _check_scheduler(scheduler: str) -> None:
     import json
     from pathlib import Path
 
-    from gaitlog.host.errors import HostError
+    from gaitlog.host.errors import HostError, UsageError
 
     if "://" in scheduler:
         proto, _, rest = scheduler.partition("://")
         host, _, port = rest.rpartition(":")
         if not proto or not host or not port.isdigit() or not 0 < int(port) < 65536:
-            raise HostError(f"--scheduler {scheduler}: not an address PROTOCOL://HOST:PORT (e.g. tcp://10.0.0.5:8786)")
+            raise UsageError(f"--scheduler {scheduler}: not an address PROTOCOL://HOST:PORT (e.g. tcp://10.0.0.5:8786)")
         return
     p = Path(scheduler)
     if not p.exists():

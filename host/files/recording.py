@@ -39,6 +39,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.limits import MAX_INPUT_SAMPLES
 from gaitlog.protocol.atomic_write import atomic_write, atomic_write_text
@@ -72,10 +73,15 @@ CSV_COLUMNS = (
     "sample_number", "time_s", "x_counts", "y_counts", "z_counts", "x_g", "y_g", "z_g", "flags", "valid",
 )
 
+#: The raw values of an uncalibrated device record that are not lengths, by the index of their length field:
+#: M4 with K = 1 is range^p ((m/s^2)^p, p = 1/2) and M5 with K1 = 1 m s, K2 = 0 is the cadence 1/T in Hz
+#: (PROTOCOL.md 2.2). They get their own columns; a ``_m`` column only ever holds a length in m.
+RAW_STEP_CSV_COLUMNS = {3: "raw_m4_range_pow_p", 4: "raw_m5_cadence_hz"}
+
 #: CSV columns written by :meth:`Recording.to_steps_csv`, in order (one row per device step record).
 STEP_CSV_COLUMNS = (
     "record_number", "end_sample", "time_s", "duration_s", "toe_off_s", "heel_strike_s", "flags",
-    *(f"length_m{k}_m" for k in range(1, len(STEP_LENGTH_FIELDS) + 1)), "lengths",
+    *(f"length_m{k}_m" for k in range(1, len(STEP_LENGTH_FIELDS) + 1)), *RAW_STEP_CSV_COLUMNS.values(), "lengths",
 )
 
 
@@ -470,14 +476,13 @@ class Recording:
         Missing rows keep their sample number and time, have ``valid`` 0 and empty counts, g and flags.
         """
         g = self.acc_g(calibration)
-        good = "%d,%.4f,%d,%d,%d,%.6f,%.6f,%.6f,%d,1"
-        bad = "%d,%.4f,,,,,,,,0"
-        rows = zip(self.sample_numbers.tolist(), self.time_s.tolist(), self.codes[:, 0].tolist(),
-                   self.codes[:, 1].tolist(), self.codes[:, 2].tolist(), g[:, 0].tolist(), g[:, 1].tolist(),
-                   g[:, 2].tolist(), self.flags.tolist(), self.valid.tolist())
-        lines = [",".join(CSV_COLUMNS)]
-        lines += [good % r[:9] if r[9] else bad % r[:2] for r in rows]
-        atomic_write_text(path, "\n".join(lines) + "\n")
+        valid = self.valid.tolist()
+        ints = [self.codes[:, 0], self.codes[:, 1], self.codes[:, 2]]
+        columns = [list(map(str, self.sample_numbers.tolist())), list(map("{:.4f}".format, self.time_s.tolist())),
+                   *(_where(list(map(str, c.tolist())), valid) for c in ints),
+                   *(_where(list(map("{:.6f}".format, g[:, k].tolist())), valid) for k in range(3)),
+                   _where(list(map(str, self.flags.tolist())), valid), ["1" if v else "0" for v in valid]]
+        atomic_write_text(path, csv_text(CSV_COLUMNS, columns))
 
     def to_steps_csv(self, path: str | os.PathLike[str]) -> None:
         """Write one row per usable device step record (columns :data:`STEP_CSV_COLUMNS`), atomically.
@@ -488,7 +493,9 @@ class Recording:
         step (``NO_WINDOW``), a toe-off or heel strike not found, a length of 0 ("not computed", the flags say
         why). ``flags`` lists the flag names joined by ``|``. ``lengths`` is ``K`` when the device applied the
         calibrated constants (lengths in m) and ``raw`` when it did not (``UNCALIBRATED``: M1, M2, M4 with
-        K = 1, M5 the cadence 1/T in Hz; PROTOCOL.md 2.2).
+        K = 1, M5 the cadence 1/T in Hz; PROTOCOL.md 2.2). A raw record's M4 and M5 are not lengths: they go to
+        ``raw_m4_range_pow_p`` and ``raw_m5_cadence_hz`` (:data:`RAW_STEP_CSV_COLUMNS`) and its ``length_m4_m`` and
+        ``length_m5_m`` are empty; a calibrated record leaves the raw columns empty.
         """
         r = self.step_records
         sampling_rate_hz = self.sampling_rate_hz
@@ -503,15 +510,17 @@ class Recording:
         has_heel = (heel != HEEL_STRIKE_NOT_FOUND) & ((fl & StepFlag.NO_HEEL_STRIKE) == 0)
 
         names = {int(v): "|".join(f.name for f in StepFlag if v & f) for v in np.unique(fl).tolist()}
+        calibrated = (fl & StepFlag.UNCALIBRATED) == 0
         columns = [
             self.step_record_numbers.astype(str).tolist(), end.astype(str).tolist(), _cells(end / sampling_rate_hz),
             _cells(dur / sampling_rate_hz, has_window), _cells((end - dur + toe) / sampling_rate_hz, has_toe), _cells((end + heel) / sampling_rate_hz, has_heel),
             [names[v] for v in fl.tolist()],
-            *(_cells(lengths[:, k], lengths[:, k] != 0) for k in range(lengths.shape[1])),
-            ["raw" if v & StepFlag.UNCALIBRATED else "K" for v in fl.tolist()],
+            *(_cells(lengths[:, k], (lengths[:, k] != 0) & (calibrated | (k not in RAW_STEP_CSV_COLUMNS)))
+              for k in range(lengths.shape[1])),
+            *(_cells(lengths[:, k], (lengths[:, k] != 0) & ~calibrated) for k in RAW_STEP_CSV_COLUMNS),
+            ["K" if v else "raw" for v in calibrated.tolist()],
         ]
-        lines = [",".join(STEP_CSV_COLUMNS)] + [",".join(row) for row in zip(*columns)]
-        atomic_write_text(path, "\n".join(lines) + "\n")
+        atomic_write_text(path, csv_text(STEP_CSV_COLUMNS, columns))
 
     @staticmethod
     def read_csv(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
@@ -558,6 +567,13 @@ def _more_line(n: int, max_listed: int | None, what: str) -> list[str]:
     if max_listed is None or n <= max_listed:
         return []
     return [f"  ... {n - max_listed} more {what} (-v lists them all)"]
+
+
+def _where(cells: list[str], defined: list[bool]) -> list[str]:
+    """``cells`` with an empty cell where not ``defined``."""
+    if all(defined):
+        return cells
+    return [c if ok else "" for c, ok in zip(cells, defined, strict=True)]
 
 
 def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:

@@ -35,9 +35,14 @@ from gaitlog.firmware_sim.world.subject import (
 )
 from gaitlog.host.errors import HostError
 
-__all__ = ["BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT", "HEEL_TOE_LENGTH_PER_HEIGHT",
+__all__ = ["ANATOMY_RANGES_M", "BALL_OF_FOOT_PER_FOOT_LENGTH", "DEFAULT_HEIGHT_M", "FOOT_LENGTH_PER_HEIGHT",
+           "HEEL_TOE_LENGTH_PER_HEIGHT",
            "LEG_LENGTH_PER_HEIGHT", "LENGTH_MODEL", "LENGTH_SOURCES", "AnatomyChoice", "anatomical_lengths",
            "choose_lengths"]
+
+#: The plausible adult/child values of a given height, leg length and foot length, m (the command line's
+#: ``--height``, ``--leg-length`` and ``--foot-length`` take these ranges).
+ANATOMY_RANGES_M = {"height": (0.8, 2.5), "leg length": (0.3, 1.3), "foot length": (0.08, 0.4)}
 
 #: Height used when nothing is known (adult population mean, both sexes, ~1.70 m).
 DEFAULT_HEIGHT_M = 1.70
@@ -65,7 +70,7 @@ def anatomical_lengths(
     Raises
     ------
     HostError
-        A given length is not a plausible adult/child value (leg 0.3-1.3 m, foot 0.1-0.4 m, height 0.8-2.5 m).
+        A given length is not a plausible adult/child value (:data:`ANATOMY_RANGES_M`).
 
     Examples
     --------
@@ -74,12 +79,10 @@ def anatomical_lengths(
     >>> anatomical_lengths(leg_length_m=0.9, foot_length_m=0.26)
     (0.9, 0.26)
     """
-    if height_m is not None and not (0.8 <= height_m <= 2.5):
-        raise HostError(f"height {height_m!r} m is outside 0.8-2.5 m (give it in metres)")
-    if leg_length_m is not None and not (0.3 <= leg_length_m <= 1.3):
-        raise HostError(f"leg length {leg_length_m!r} m is outside 0.3-1.3 m (give it in metres)")
-    if foot_length_m is not None and not (0.08 <= foot_length_m <= 0.4):
-        raise HostError(f"foot length {foot_length_m!r} m is outside 0.1-0.4 m (give it in metres)")
+    for what, value in (("height", height_m), ("leg length", leg_length_m), ("foot length", foot_length_m)):
+        low, high = ANATOMY_RANGES_M[what]
+        if value is not None and not (low <= value <= high):
+            raise HostError(f"{what} {value!r} m is outside {low:g}-{high:g} m (give it in metres)")
     if (leg_length_m is None or foot_length_m is None) and height_m is None:
         warnings.warn(f"no height given: anatomical lengths estimated for a {DEFAULT_HEIGHT_M} m adult",
                       stacklevel=2)

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.errors import HostError
 from gaitlog.protocol.atomic_write import atomic_write_text
@@ -182,10 +183,8 @@ def write_sensor_csv(path: str | os.PathLike[str], t_s: np.ndarray, columns: dic
         if check_units:
             split_unit(name)
     cols = [np.asarray(t_s, dtype=np.float64)] + [np.asarray(v, dtype=np.float64) for v in columns.values()]
-    table = np.column_stack(cols)
-    buf = io.StringIO()
-    for line in comment.splitlines():
-        buf.write(f"# {line}\n")
-    buf.write(",".join(["time_s", *columns]) + "\n")
-    np.savetxt(buf, table, delimiter=",", fmt="%.9g")
-    atomic_write_text(path, buf.getvalue())
+    if len({c.shape for c in cols}) != 1 or cols[0].ndim != 1:
+        raise ValueError(f"columns of different shapes: {[c.shape for c in cols]}")
+    cells = [list(map("{:.9g}".format, c.tolist())) for c in cols]
+    head = "".join(f"# {line}\n" for line in comment.splitlines())
+    atomic_write_text(path, head + csv_text(["time_s", *columns], cells))

@@ -46,8 +46,6 @@ M5 against the generating heel-strike intervals (:func:`m5_timing_question`).
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -71,6 +69,7 @@ from gaitlog.host.studies.compare import (
     BOOTSTRAP_LEVEL,
     BOOTSTRAP_RESAMPLES,
     match_events,
+    rows_csv_text,
     subject_resamples,
 )
 from gaitlog.host.studies.plots import plot_boxplots
@@ -607,15 +606,6 @@ def format_summary(summary: Sequence[dict], events: dict[str, EventScore] | None
     return "\n".join(lines)
 
 
-def _csv_text(rows: Sequence[dict], columns: Sequence[str]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore", lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    return buf.getvalue()
-
-
 class SimulatedEvaluation:
     """Run N simulated subjects through the protocol, the logger and the float chain; evaluate.
 
@@ -717,9 +707,9 @@ class SimulatedEvaluation:
 
     def write_csv(self, path: str | Path, *, summary_path: str | Path | None = None) -> None:
         """Section rows (``ROW_COLUMNS``) to ``path`` and optionally the summary to ``summary_path``, atomically."""
-        atomic_write_text(path, _csv_text(self.rows_, ROW_COLUMNS))
+        atomic_write_text(path, rows_csv_text(self.rows_, ROW_COLUMNS))
         if summary_path is not None:
-            atomic_write_text(summary_path, _csv_text(self.summary_, SUMMARY_COLUMNS))
+            atomic_write_text(summary_path, rows_csv_text(self.summary_, SUMMARY_COLUMNS))
 
 
     def write_outputs(self, out_dir: str | Path, *, stem: str = "simulated", title: str | None = None) -> dict[str, Path]:
@@ -731,7 +721,7 @@ class SimulatedEvaluation:
         self.write_csv(paths["rows"], summary_path=paths["summary"])
         if self.bootstrap_:
             paths["intervals"] = out / f"{stem}_intervals.csv"
-            atomic_write_text(paths["intervals"], _csv_text(self.bootstrap_, BOOT_COLUMNS))
+            atomic_write_text(paths["intervals"], rows_csv_text(self.bootstrap_, BOOT_COLUMNS))
         plot_boxplots(self.rows_, paths["figure"], title=title or (
             f"{self.n_subjects} simulated subjects, {self.sampling_rate_hz:g} Hz, {self.adc_bits} bit"))
         return paths

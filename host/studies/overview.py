@@ -14,7 +14,7 @@ Times are seconds since the recording's first row.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,6 +53,10 @@ class RecordingOverview:
     lengths_m
         ``{label: (times, lengths)}``: per estimator the offline chain's lengths at each step's foot-flat
         (``"M1"``), and the device's (``"M1 device"``) when it stored records; NaN lengths are left out.
+    length_kinds
+        ``{label: kind}`` for the legend: ``"host, K"`` or ``"host, no K"`` (the offline chain, with or without
+        the K file), ``"device, K"`` (the logger's calibrated lengths) or ``"device, raw K = 1"`` (a logger without
+        K: uncalibrated lengths, not comparable with calibrated ones).
     """
 
     source: str
@@ -63,6 +67,7 @@ class RecordingOverview:
     marks_s: np.ndarray
     events_s: dict[str, np.ndarray]
     lengths_m: dict[str, tuple[np.ndarray, np.ndarray]]
+    length_kinds: dict[str, str] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         counts = ", ".join(f"{k} {v.size}" for k, v in self.events_s.items())
@@ -115,13 +120,16 @@ def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: fl
     events = {"foot-flat": inside(offline.foot_flat) / sampling_rate_hz, "heel-strike": inside(offline.heel_strike) / sampling_rate_hz,
               "toe-off": inside(offline.toe_off) / sampling_rate_hz,
               "device step": inside(tables[" device"].foot_flat) / sampling_rate_hz if " device" in tables else np.zeros(0)}
-    lengths = {}
+    kinds = {"": "host, K" if calibration is not None else "host, no K",
+             " device": "device, K" if rec.n_step_records and online.calibrated else "device, raw K = 1"}
+    lengths, length_kinds = {}, {}
     for suffix, table in tables.items():
         for name in estimators:
             sel = (table.foot_flat >= i0) & (table.foot_flat < i1) & np.isfinite(table.length_m[name])
             lengths[name + suffix] = (table.foot_flat[sel] / sampling_rate_hz, table.length_m[name][sel])
+            length_kinds[name + suffix] = kinds[suffix]
     miss = np.flatnonzero(np.diff(np.r_[0, (~valid[i0:i1]).astype(np.int8), 0]))
     gaps = [((i0 + a) / sampling_rate_hz, (i0 + b) / sampling_rate_hz) for a, b in zip(miss[::2], miss[1::2], strict=True)]
     marks = np.flatnonzero(np.asarray(rec.flags[i0:i1]) & FLAG_MARK)
     return RecordingOverview(source, (start_s, end_s), np.arange(i0, i1) / sampling_rate_hz, acc[i0:i1], gaps,
-                             (i0 + marks) / sampling_rate_hz, events, lengths)
+                             (i0 + marks) / sampling_rate_hz, events, lengths, length_kinds)

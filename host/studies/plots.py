@@ -137,7 +137,9 @@ def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi
             continue
         device = label.endswith("device")
         color = f"C{ESTIMATORS.index(label.split()[0])}"
-        ax_len.plot(times, lengths, ls="none", marker="o", ms=3, color=color, label=label,
+        kind = overview.length_kinds.get(label)                  # calibrated (K) or raw: said in the legend
+        ax_len.plot(times, lengths, ls="none", marker="o", ms=3, color=color,
+                    label=f"{label.split()[0]} {kind}" if kind else label,
                     markerfacecolor="none" if device else color)
     ax_len.set_ylabel("step length (m)")
     ax_len.set_xlabel("time since the first sample (s)")

@@ -38,6 +38,7 @@ class Case:
     kind: str
     argv: tuple[str, ...]
     place: str
+    code: int = 1           # 2: a usage error (a bad option value, a missing or extra argument); 1: data or I/O
 
 
 # ---------------------------------------------------------------------------------------------------- fixtures
@@ -68,15 +69,15 @@ def build_fixtures(folder: Path) -> dict[str, Path]:
     f = {n: folder / n for n in ("walk.glimg", "poses.glimg")}
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         assert main(["record", "--motion", "walk", "--steps", "off", "--start-time", "0", "--out",
-                     str(f["walk.glimg"]), "-q"]) == 0
+                     str(f["walk.glimg"]), "-q", "--force"]) == 0
         assert main(["record", "--motion", "poses", "--steps", "off", "--start-time", "0",
-                     "--out", str(f["poses.glimg"]), "-q"]) == 0
-        assert main(["decode", str(f["walk.glimg"]), "--out", str(folder / "walk"), "-q"]) == 0
-        assert main(["decode", str(f["poses.glimg"]), "--out", str(folder / "poses"), "-q"]) == 0
+                     "--out", str(f["poses.glimg"]), "-q", "--force"]) == 0
+        assert main(["decode", str(f["walk.glimg"]), "--out", str(folder / "walk"), "-q", "--force"]) == 0
+        assert main(["decode", str(f["poses.glimg"]), "--out", str(folder / "poses"), "-q", "--force"]) == 0
         assert main(["calibrate", str(folder / "poses.npz"), "--out", str(folder / "cal.json"),
-                     "-q"]) == 0
+                     "-q", "--force"]) == 0
         assert main(["calibrate-k", str(folder / "walk.npz"), "--distance", "40", "--out", str(folder / "K.json"),
-                     "-q"]) == 0
+                     "-q", "--force"]) == 0
     for n in ("walk.npz", "walk.csv", "cal.json", "K.json"):
         f[n] = folder / n
     for extra in ("poses.npz", "poses.csv", "poses.steps.csv", "walk.steps.csv"):
@@ -170,12 +171,15 @@ BAD_COUNT = ("0", "-1", "10000000000", "1.5", "abc")
 def _cases() -> list[Case]:
     cases: list[Case] = []
 
-    def add(command: str, kind: str, argv: list[str], place: str) -> None:
-        cases.append(Case(command, kind, tuple(argv), place))
+    def add(command: str, kind: str, argv: list[str], place: str, code: int = 1) -> None:
+        cases.append(Case(command, kind, tuple(argv), place, code))
+
+    def usage(command: str, kind: str, argv: list[str], place: str) -> None:
+        add(command, kind, argv, place, 2)
 
     def options(command: str, base: list[str], option: str, values: tuple[str, ...]) -> None:
         for v in values:
-            add(command, f"{option} {v!r}", [*base, option, v], option)
+            usage(command, f"{option} {v!r}", [*base, option, v], option)
 
     def outputs(command: str, base: list[str], option: str, same_as: str, suffix: str = "") -> None:
         """The output ``option``: equal to the input ``same_as`` (as given and through a symlink), in a missing
@@ -184,7 +188,7 @@ def _cases() -> list[Case]:
         if same_as == "walk.npz":
             add(command, f"{option} = the input by a symlink", [*base, option, "{walk_link.npz}"], option)
         add(command, f"{option} in a missing folder", [*base, option, "{nofolder/out}" + suffix], option)
-        add(command, f"{option} is a folder", [*base, option, "{adir}"], option)
+        add(command, f"{option} in a missing folder/", [*base, option, "{nofolder/out}/"], option)
         add(command, f"{option} under a file", [*base, option, "{underfile/out}" + suffix], option)
         add(command, f"{option} unwritable", [*base, option, "/proc/gaitlog-out" + suffix], option)
 
@@ -214,17 +218,18 @@ def _cases() -> list[Case]:
     options("info", ["info", "--port", "emu://{walk.glimg}"], "--timeout", BAD_POSITIVE)
     options("info", ["info", "--port", "emu://{walk.glimg}"], "--baud", BAD_COUNT)
     add("info", "--port missing device", ["info", "--port", "{folder}/no-such-port"], "no-such-port")
-    add("info", "IMAGE and --port", ["info", "{walk.glimg}", "--port", "emu://{walk.glimg}"], "--port")
+    usage("info", "neither IMAGE nor --port", ["info"], "IMAGE")
+    usage("info", "IMAGE and --port", ["info", "{walk.glimg}", "--port", "emu://{walk.glimg}"], "--port")
 
     # serve (bad inputs only: a good one would serve forever)
     for name in LOGGER_FILES + ("huge_header.npz", "damaged_zip.npz", "nested.json"):
         add("serve", f"input {name}", ["serve", f"{{{name}}}", "--tcp", "0"], name)
     for v in ("70000", "-1", "abc", "1.5", "65536", "99999999999"):
-        add("serve", f"--tcp {v!r}", ["serve", "{walk.glimg}", "--tcp", v], "--tcp")
+        usage("serve", f"--tcp {v!r}", ["serve", "{walk.glimg}", "--tcp", v], "--tcp")
     options("serve", ["serve", "{walk.glimg}", "--tcp", "0"], "--baud", BAD_COUNT)
     add("serve", "--persist on a missing image", ["serve", "{missing.glimg}", "--persist", "--tcp", "0"],
         "missing.glimg")
-    add("serve", "--pty and --tcp", ["serve", "{walk.glimg}", "--pty", "--tcp", "0"], "--tcp")
+    usage("serve", "--pty and --tcp", ["serve", "{walk.glimg}", "--pty", "--tcp", "0"], "--tcp")
 
     # device
     port = ["--port", "emu://{walk.glimg}"]
@@ -236,8 +241,8 @@ def _cases() -> list[Case]:
     add("device", "emu:// missing image", ["device", "status", "--port", "emu://{missing.glimg}"], "missing.glimg")
     add("device", "emu:// garbage image", ["device", "status", "--port", "emu://{garbage.bin}"], "garbage.bin")
     for v in ("-1", "abc", "99999999999999"):
-        add("device", f"start --start-time {v!r}", ["device", "start", *port, "--start-time", v], "--start-time")
-    add("device", "unknown action", ["device", "explode", *port], "explode")
+        usage("device", f"start --start-time {v!r}", ["device", "start", *port, "--start-time", v], "--start-time")
+    usage("device", "unknown action", ["device", "explode", *port], "explode")
 
     # dump
     dump = ["dump", "--port", "emu://{walk.glimg}"]
@@ -245,7 +250,7 @@ def _cases() -> list[Case]:
         add("dump", f"emu:// {name}", ["dump", "--port", f"emu://{{{name}}}", "--out", "{folder}/d.glimg"], name)
     add("dump", "--out = the emulated image", [*dump, "--out", "{walk.glimg}"], "--out")
     add("dump", "--out in a missing folder", [*dump, "--out", "{nofolder/out}"], "--out")
-    add("dump", "--out is a folder", [*dump, "--out", "{adir}"], "--out")
+    add("dump", "--out in a missing folder/", [*dump, "--out", "{nofolder/out}/"], "--out")
     add("dump", "--out under a file", [*dump, "--out", "{underfile/out}"], "--out")
     add("dump", "--capture = the emulated image", [*dump, "--out", "{folder}/d.glimg", "--capture", "{walk.glimg}"],
         "--capture")
@@ -271,8 +276,8 @@ def _cases() -> list[Case]:
     for name in K_FILES:
         add("record", f"--k-file {name}", ["record", "--motion", "walk", *rec_out, "--k-file", f"{{{name}}}"], name)
     outputs("record", ["record", "--motion", "replay", "{walk.npz}"], "--out", "walk.npz")
-    add("record", "--motion unknown", ["record", "--motion", "fly", *rec_out], "--motion")
-    add("record", "--motion replay without file", ["record", "--motion", "replay", *rec_out], "--motion")
+    usage("record", "--motion unknown", ["record", "--motion", "fly", *rec_out], "--motion")
+    usage("record", "--motion replay without file", ["record", "--motion", "replay", *rec_out], "--motion")
 
     # calibrate
     cal_out = ["--out", "{folder}/c.json"]
@@ -293,7 +298,8 @@ def _cases() -> list[Case]:
         add("estimate", f"--k-file {name}", ["estimate", "{walk.npz}", "--k-file", f"{{{name}}}"], name)
     for name in CAL_FILES:
         add("estimate", f"--calibration {name}", ["estimate", "{walk.npz}", "--calibration", f"{{{name}}}"], name)
-    options("estimate", ["estimate", "{walk.npz}"], "--height", BAD_POSITIVE)
+    options("estimate", ["estimate", "{walk.npz}"], "--height", BAD_POSITIVE + ("17.5", "175", "0.5"))
+    options("estimate", ["estimate", "{walk.npz}"], "--leg-length", ("90", "0.1"))
     options("estimate", ["estimate", "{walk.npz}"], "--foot-length", ("nan", "-1", "0", "inf"))
     options("estimate", ["estimate", "{walk.csv}"], "--rate", BAD_POSITIVE)
     outputs("estimate", ["estimate", "{walk.npz}"], "--out", "walk.npz", ".csv")
@@ -315,7 +321,8 @@ def _cases() -> list[Case]:
     sim = ["evaluate", "sim", "--out", "{folder}/ev"]
     options("evaluate", sim, "--subjects", BAD_COUNT)
     options("evaluate", sim, "--workers", BAD_COUNT)
-    options("evaluate", sim, "--adc-bits", ("0", "-1", "99", "abc"))
+    options("evaluate", sim, "--adc-bits", ("0", "-1", "99", "abc", "11"))
+    options("evaluate", ["evaluate", "ipol", "{emptydir}", "--out", "{folder}/e.csv"], "--adc-bits", ("12",))
     options("evaluate", sim, "--logger-rate", BAD_POSITIVE)
     add("evaluate", "sim DIR is a file", ["evaluate", "sim", "{walk.csv}"], "walk.csv")
     add("evaluate", "sim --out under a file", ["evaluate", "sim", "--out", "{underfile/out}"], "--out")
@@ -323,8 +330,8 @@ def _cases() -> list[Case]:
         "--out")
     add("evaluate", "ipol --figure in a missing folder",
         ["evaluate", "ipol", "{emptydir}", "--out", "{folder}/e.csv", "--figure", "{nofolder/out}"], "--figure")
-    add("evaluate", "ipol without --out", ["evaluate", "ipol", "{emptydir}"], "--out")
-    add("evaluate", "unknown dataset", ["evaluate", "mars"], "mars")
+    usage("evaluate", "ipol without --out", ["evaluate", "ipol", "{emptydir}"], "--out")
+    usage("evaluate", "unknown dataset", ["evaluate", "mars"], "mars")
 
     # compare
     recording_input("compare", ["compare"], [])
@@ -341,7 +348,8 @@ def _cases() -> list[Case]:
     # plot
     recording_input("plot", ["plot"], ["--out", "{folder}/p.png"])
     plot = ["plot", "{walk.npz}", "--out", "{folder}/p.png"]
-    options("plot", plot, "--start", BAD_FINITE + ("-1",))
+    options("plot", plot, "--start", ("nan", "inf", "-inf", "abc", "-1"))
+    add("plot", "--start after the end", [*plot, "--start", "1e300"], "--start")       # the recording's data
     options("plot", plot, "--duration", ("nan", "inf", "0", "-5", "abc", ""))
     options("plot", plot, "--size", ("0x0", "abc", "100000x100000", "-5x10"))
     options("plot", plot, "--estimators", ("M9", "", ",,"))
@@ -353,8 +361,8 @@ def _cases() -> list[Case]:
     options("budget", ["budget"], "--crystal", BAD_POSITIVE + ("1e9", "0.001", "1,5", "0x10"))
     options("budget", ["budget"], "--logger-rate", BAD_POSITIVE)
     options("budget", ["budget"], "--seed", ("-1", "abc", "1.5", "99999999999999999999999"))
-    add("budget", "unknown option", ["budget", "--crystals", "4"], "--crystals")
-    add("budget", "extra argument", ["budget", "extra"], "extra")
+    usage("budget", "unknown option", ["budget", "--crystals", "4"], "--crystals")
+    usage("budget", "extra argument", ["budget", "extra"], "extra")
 
     # kinematics
     kin = ["kinematics", "--out", "{folder}/kin"]
@@ -363,7 +371,7 @@ def _cases() -> list[Case]:
     options("kinematics", kin, "--snr-db", ("nan", "-inf", "-5", "1e300", "abc"))
     options("kinematics", kin, "--azimuth", ("nan", "400", "abc"))
     options("kinematics", kin, "--elevation", ("nan", "91", "abc"))
-    add("kinematics", "morris without a recording", ["kinematics", "morris", "--out", "{folder}/kin"], "RECORDING")
+    usage("kinematics", "morris without a recording", ["kinematics", "morris", "--out", "{folder}/kin"], "RECORDING")
     add("kinematics", "morris recording missing", ["kinematics", "morris", "{missing.npz}", "--platform",
                                                    "{walk.csv}", "--out", "{folder}/kin"], "missing.npz")
     add("kinematics", "morris recording is not a sensor CSV", ["kinematics", "morris", "{walk.csv}", "--platform",
@@ -385,10 +393,10 @@ def _cases() -> list[Case]:
         "--ipol-out")
     add("simulate", "--ipol-out unwritable", ["simulate", "--subjects", "1", "--ipol-out", "/proc/gaitlog-sim"],
         "--ipol-out")
-    add("simulate", "--ipol-out missing", ["simulate", "--subjects", "1"], "--ipol-out")
-    add("simulate", "unknown option", [*sim, "--fast"], "--fast")
-    add("simulate", "extra argument", [*sim, "now"], "now")
-    add("simulate", "-q and -v", [*sim, "-q", "-v"], "-v")
+    usage("simulate", "--ipol-out missing", ["simulate", "--subjects", "1"], "--ipol-out")
+    usage("simulate", "unknown option", [*sim, "--fast"], "--fast")
+    usage("simulate", "extra argument", [*sim, "now"], "now")
+    usage("simulate", "-q and -v", [*sim, "-q", "-v"], "-v")
 
     # demo
     demo = ["demo", "--out", "{folder}/demo-out"]
@@ -400,11 +408,11 @@ def _cases() -> list[Case]:
     add("demo", "--out under a file", ["demo", "--out", "{underfile/out}"], "--out")
     add("demo", "--out a non-empty foreign folder", ["demo", "--out", "{folder}"], "--out")
     add("demo", "--out unwritable", ["demo", "--out", "/proc/gaitlog-demo"], "--out")
-    add("demo", "unknown option", ["demo", "--fast"], "--fast")
-    add("demo", "extra argument", ["demo", "now"], "now")
-    add("demo", "--out without a value", ["demo", "--out"], "--out")
+    usage("demo", "unknown option", ["demo", "--fast"], "--fast")
+    usage("demo", "extra argument", ["demo", "now"], "now")
+    usage("demo", "--out without a value", ["demo", "--out"], "--out")
     add("demo", "--out under a missing folder under a file", ["demo", "--out", "{underfile/out}/deeper"], "--out")
-    add("demo", "-q and -v", ["demo", "-q", "-v", "--out", "{folder}/demo-out"], "-v")
+    usage("demo", "-q and -v", ["demo", "-q", "-v", "--out", "{folder}/demo-out"], "-v")
 
     # sweep (a slip would run a 1-task sweep and leave its folder: the snapshot catches it)
     sweep = ["sweep", "--out", "{folder}/sweep-out", "--serial", "--protocol", "short", "--subjects", "1",
@@ -421,11 +429,13 @@ def _cases() -> list[Case]:
     add("sweep", "--out is a file", [*sweep, "--out", "{walk.csv}"], "--out")
     add("sweep", "--out under a file", [*sweep, "--out", "{underfile/out}"], "--out")
     add("sweep", "--out unwritable", [*sweep, "--out", "/proc/gaitlog-sweep"], "--out")
-    add("sweep", "--serial and --scheduler", [*sweep, "--scheduler", "tcp://127.0.0.1:8786"], "--scheduler")
+    usage("sweep", "--serial and --scheduler", [*sweep, "--scheduler", "tcp://127.0.0.1:8786"], "--scheduler")
     sweep_dask = [a for a in sweep if a != "--serial"]
-    for v in ("tcp://", "tcp://127.0.0.1:99999", "{garbage.bin}", "{nested.json}", "{nofolder/out}"):
+    for v in ("tcp://", "tcp://127.0.0.1:99999"):
+        usage("sweep", f"--scheduler {v!r}", [*sweep_dask, "--scheduler", v], "--scheduler")
+    for v in ("{garbage.bin}", "{nested.json}", "{nofolder/out}"):
         add("sweep", f"--scheduler {v!r}", [*sweep_dask, "--scheduler", v], "--scheduler")
-    add("sweep", "without --out", ["sweep", "--serial"], "--out")
+    usage("sweep", "without --out", ["sweep", "--serial"], "--out")
 
     # batch (bad invocations; a bad recording inside the folder is reported by the batch, not refused)
     batch = ["batch", "{emptydir}", "--out", "{folder}/batch-out"]
@@ -434,7 +444,7 @@ def _cases() -> list[Case]:
     add("batch", "FOLDER without inputs", batch, "emptydir")
     add("batch", "--pattern matching nothing", ["batch", "{folder}", "--out", "{folder}/batch-out", "--pattern",
                                                 "*.none"], "--pattern")
-    add("batch", "--pattern absolute", ["batch", "{folder}", "--out", "{folder}/batch-out", "--pattern", "/etc/*"],
+    usage("batch", "--pattern absolute", ["batch", "{folder}", "--out", "{folder}/batch-out", "--pattern", "/etc/*"],
         "--pattern")
     for name in CAL_FILES:
         add("batch", f"--calibration {name}", [*batch, "--calibration", f"{{{name}}}"], name)
@@ -445,7 +455,7 @@ def _cases() -> list[Case]:
     add("batch", "--out is a file", ["batch", "{emptydir}", "--out", "{walk.csv}"], "--out")
     add("batch", "--out under a file", ["batch", "{emptydir}", "--out", "{underfile/out}"], "--out")
     add("batch", "--out unwritable", ["batch", "{emptydir}", "--out", "/proc/gaitlog-batch"], "--out")
-    add("batch", "without --out", ["batch", "{emptydir}"], "--out")
+    usage("batch", "without --out", ["batch", "{emptydir}"], "--out")
     return cases
 
 
@@ -503,6 +513,8 @@ def run_case(case: Case, fixtures: dict[str, Path], folder: Path, timeout_s: int
     if code is not None:
         if code == 0:
             problems.append("exit 0")
+        elif code != case.code:
+            problems.append(f"exit {code}, not {case.code} ({'usage' if case.code == 2 else 'data or I/O'} error)")
         if "Traceback" in text:
             problems.append("traceback on stderr")
         if len(lines) != 1:
@@ -555,6 +567,66 @@ def test_bad_input_is_one_clear_error_line(case, bad_input_folder):
     folder, fixtures = bad_input_folder
     problems = run_case(case, fixtures, folder)
     assert not problems, problems
+
+
+# ------------------------------------------------------------------------------------------- the overwrite rule
+#: Per command: a run whose output (the path after it, under ``{out}``'s folder) already exists, which must be
+#: refused without ``--force``; or why the command has no output to refuse. A new command needs a row.
+OVERWRITE: dict[str, tuple[tuple[str, ...], str] | str] = {
+    "demo": "replaces its own previous output folder; a folder that is not one is refused (cases above)",
+    "record": (("record", "--motion", "walk", "--out", "{out}/r.glimg"), "r.glimg"),
+    "serve": "writes no file (--persist writes the served image back into itself, as asked)",
+    "device": "writes no file (only the logger's memory)",
+    "dump": (("dump", "--port", "emu://{walk.glimg}", "--out", "{out}/d.glimg"), "d.glimg"),
+    "decode": (("decode", "{walk.glimg}", "--out", "{out}/w"), "w.csv"),
+    "info": "writes no file",
+    "calibrate": (("calibrate", "{walk.npz}", "--out", "{out}/c.json"), "c.json"),
+    "estimate": (("estimate", "{walk.npz}", "--out", "{out}/s.csv"), "s.csv"),
+    "calibrate-k": (("calibrate-k", "{walk.npz}", "--distance", "40", "--out", "{out}/k.json"), "k.json"),
+    "evaluate": (("evaluate", "ipol", "{emptydir}", "--out", "{out}/e.csv"), "e.csv"),
+    "compare": (("compare", "{walk.npz}", "--out", "{out}/c.csv"), "c.csv"),
+    "simulate": (("simulate", "--subjects", "1", "--ipol-out", "{out}/sim"), "sim/1-1_lb.txt"),
+    "sweep": "resumes into its --out folder: a re-run computes only the tasks that are missing",
+    "batch": "resumes into its --out folder: a re-run skips the recordings it finished",
+    "plot": (("plot", "{walk.npz}", "--out", "{out}/p.png"), "p.png"),
+    "budget": "writes no file",
+    "kinematics": (("kinematics", "--out", "{out}/kin"), "kin/old.txt"),
+}
+
+
+def _top_commands() -> dict:
+    import argparse
+
+    from gaitlog.host.cli import build_parser
+
+    parser = build_parser()
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def test_every_command_has_a_row_of_the_overwrite_rule() -> None:
+    commands = _top_commands()
+    assert set(commands) == set(OVERWRITE), (f"commands without a row in OVERWRITE: {set(commands) - set(OVERWRITE)}; "
+                                             f"rows of no command: {set(OVERWRITE) - set(commands)}")
+    for name, row in OVERWRITE.items():
+        options = {o for a in commands[name]._actions for o in a.option_strings}
+        assert isinstance(row, str) or "--force" in options, f"{name} writes files but has no --force"
+
+
+@pytest.mark.parametrize("command", [c for c, row in OVERWRITE.items() if not isinstance(row, str)])
+def test_an_existing_output_is_refused_without_force(command, bad_input_folder, tmp_path, capsys) -> None:
+    from gaitlog.host.cli import main
+
+    _, fixtures = bad_input_folder
+    argv, existing = OVERWRITE[command]
+    names = {**{k: str(v) for k, v in fixtures.items()}, "out": str(tmp_path)}
+    target = tmp_path / existing
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_bytes(b"keep me")
+    before = _snapshot(tmp_path)
+    code = main([re.sub(r"\{([^{}]+)\}", lambda m: names[m[1]], a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1 and "--force" in err[0], (code, err)
+    assert _snapshot(tmp_path) == before
 
 
 def _main() -> int:

@@ -69,3 +69,17 @@ def test_batch_refuses_an_empty_folder_and_writing_into_its_input(tmp_path, caps
     (tmp_path / "x.npz").write_bytes(b"PK\x03\x04")
     assert main(["batch", str(tmp_path), "--out", str(tmp_path)]) == 1
     assert "other than the input folder" in capsys.readouterr().err
+
+
+def test_a_summary_row_with_commas_reads_back_as_the_header_columns(tmp_path, capsys) -> None:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    name = "junk, with commas; and \"quotes\".bin"
+    (folder / name).write_bytes(b"\x00\xff" * 100)
+    assert main(["batch", str(folder), "--out", str(tmp_path / "out"), "-q"]) == 1
+    capsys.readouterr()
+    with open(tmp_path / "out" / "batch.csv", newline="") as f:
+        header, *rows = list(csv.reader(f))
+    assert len(rows) == 1 and len(rows[0]) == len(header)
+    row = dict(zip(header, rows[0], strict=True))
+    assert row["recording"] == name and row["status"] == "failed" and "," in row["error"]

@@ -79,7 +79,7 @@ def test_csv_counts_with_columns_by_index_and_skipped_preamble(tmp_path, capsys)
     np.testing.assert_allclose(cal.scale_per_g, 255.6 * SCALE, rtol=2e-3)
     # by name
     code, _, err = run_cli(capsys, str(csv_path), "--out", str(out), "--units", "counts", "--rate", "50",
-                           "--columns", "a,b,c", "--skip-rows", "2")
+                           "--columns", "a,b,c", "--skip-rows", "2", "--force")
     assert code == 0, err
 
 
@@ -164,7 +164,7 @@ def test_units_told_by_the_data_when_the_names_do_not(tmp_path, capsys):
     for scale, unit in ((1.0, "g"), (9.80665, "m/s2")):
         path = write(tmp_path / f"s{scale}.csv", "a,b,c", acc * scale)
         code, text, err = run_cli(capsys, str(path), "--out", str(tmp_path / "c.json"), "--rate", "50",
-                                  "--model", "6-param")
+                                  "--model", "6-param", "--force")
         assert code == 0, err
         assert "rms" in text and f"(CSV, {unit}" not in text   # the fit runs in g either way
         assert ", 50 Hz, g)" in text

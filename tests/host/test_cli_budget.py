@@ -90,7 +90,7 @@ def test_budget_bad_input(argv: list[str], message: str, capsys: pytest.CaptureF
     (["budget", "--all", "--logger-rate", "25"], "--all budgets the five configurations as they are"),
 ])
 def test_budget_bad_configuration(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(argv) == 1
+    assert main(argv) == 2                                   # a bad option value or combination: a usage error
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and err.count("\n") == 1
 

@@ -108,7 +108,7 @@ def test_erase_refused_without_terminal_and_without_yes(image, capsys, monkeypat
     before = image.read_bytes()
     monkeypatch.setattr("sys.stdin", io.StringIO("y\n"))  # piped input is not a confirmation
     code, out, err = _device(capsys, "erase", "--port", f"emu://{image}?persist=1")
-    assert code == 1 and out == ""
+    assert code == 2 and out == ""                       # a missing --yes is a usage error
     assert "erase needs a confirmation" in err and "--yes" in err and len(err.strip().splitlines()) == 1
     assert image.read_bytes() == before
 

@@ -145,6 +145,6 @@ def test_record_replay_says_how_many_samples_were_interpolated(tmp_path, capsys)
 
 
 def test_record_refuses_input_flags_without_a_replay(tmp_path, capsys):
-    assert main(["record", "--motion", "walk", "--rate", "100", "--out", str(tmp_path / "w.glimg")]) == 1
+    assert main(["record", "--motion", "walk", "--rate", "100", "--out", str(tmp_path / "w.glimg")]) == 2
     assert "--rate: only for --motion replay FILE" in capsys.readouterr().err
     assert not (tmp_path / "w.glimg").exists()

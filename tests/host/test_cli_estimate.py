@@ -111,10 +111,8 @@ def test_calibrate_k_with_lap_marks(tmp_path, capsys) -> None:
 @pytest.mark.parametrize("argv, message", [
     (["estimate", "{d}/missing.csv", "--rate", "50"], "no such file"),
     (["estimate", "{d}/walk.csv"], "--rate"),
-    (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "175"], "metres"),
     (["estimate", "{d}/bad.csv", "--rate", "50"], "not a number"),
     (["estimate", "{d}/walk.csv", "--rate", "50", "--k-file", "{d}/bad.json"], "format_version"),
-    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "--distance", "2", "--out", "{d}/o.json"], "one value"),
     (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--lap-marks", "20", "--out", "{d}/o.json"], "MARK"),
     (["evaluate", "ipol", "{d}", "--out", "{d}/o.csv"], "IPOL layout"),
 ])
@@ -127,6 +125,25 @@ def test_bad_input_exit_1_and_no_output(tmp_path, capsys, argv, message) -> None
     code = main([a.format(d=tmp_path) for a in argv])
     err = capsys.readouterr().err
     assert code == 1 and message in err
+    assert set(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "175"], "metres"),
+    (["estimate", "{d}/walk.csv", "--rate", "50", "--height", "17.5"], "metres"),
+    (["calibrate-k", "{d}/walk.csv", "--rate", "50", "--distance", "1", "--distance", "2", "--out", "{d}/o.json"],
+     "one value"),
+])
+def test_bad_option_values_exit_2_and_no_output(tmp_path, capsys, argv, message) -> None:
+    acc, _ = walk_acc_g(n_steps=10)
+    write_csv(tmp_path / "walk.csv", acc)
+    before = set(p.name for p in tmp_path.iterdir())
+    try:
+        code = main([a.format(d=tmp_path) for a in argv])
+    except SystemExit as exc:                      # the parser's own usage error
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert set(p.name for p in tmp_path.iterdir()) == before
 
 

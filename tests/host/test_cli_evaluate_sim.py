@@ -30,12 +30,12 @@ def test_evaluate_sim_writes_sections_summary_and_figure(tmp_path, capsys):
 
 
 def test_evaluate_sim_needs_an_output_folder(capsys):
-    assert main(["evaluate", "sim"]) == 1
+    assert main(["evaluate", "sim"]) == 2
     assert "output folder" in capsys.readouterr().err
 
 
 def test_evaluate_ipol_needs_folder_and_out(tmp_path, capsys):
-    assert main(["evaluate", "ipol", str(tmp_path)]) == 1
+    assert main(["evaluate", "ipol", str(tmp_path)]) == 2
     assert "--out" in capsys.readouterr().err
 
 
@@ -50,6 +50,6 @@ def test_evaluate_ipol_refuses_a_missing_output_folder_before_any_work(tmp_path,
 
 @pytest.mark.parametrize("flag", [["--arithmetic", "offline"], ["--figure", "x.png"], ["--uturn", "include"]])
 def test_evaluate_sim_refuses_the_flags_it_cannot_honour(tmp_path, capsys, flag):
-    assert main(["evaluate", "sim", str(tmp_path / "o"), "--subjects", "1", *flag]) == 1
+    assert main(["evaluate", "sim", str(tmp_path / "o"), "--subjects", "1", *flag]) == 2
     assert f"{flag[0]}: only for 'evaluate ipol'" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()

@@ -60,6 +60,9 @@ def test_overview_holds_the_chains_events_and_the_device_records(walk_npz) -> No
     ends = (rec.step_records["end_sample"].astype(np.int64) - rec.sample_numbers[0]) / sampling_rate_hz
     np.testing.assert_array_equal(ov.events_s["device step"], ends[(ends >= 5.0) & (ends < 25.0)])
     assert set(ov.lengths_m) == {"M1", "M3", "M1 device", "M3 device"}
+    # the legend says which lengths are calibrated and which raw (a logger without K)
+    assert ov.length_kinds == {"M1": "host, no K", "M3": "host, no K", "M1 device": "device, raw K = 1",
+                               "M3 device": "device, raw K = 1"}
     t1, m1 = ov.lengths_m["M1"]
     assert t1.size >= 20 and np.all((0.3 < m1) & (m1 < 1.2))
     assert "RecordingOverview(" in repr(ov) and "array" not in repr(ov)
@@ -82,14 +85,14 @@ def test_overview_gaps_and_marks() -> None:
     assert ov.events_s["device step"].size == 0 and "M1 device" not in ov.lengths_m
 
 
-@pytest.mark.parametrize(("extra", "message"), [
-    (["--start", "1e6"], "outside the recording"),
-    (["--estimators", "M1,M9"], "unknown M9"),
-    (["--size", "big"], "--size"),
+@pytest.mark.parametrize(("extra", "message", "code"), [
+    (["--start", "1e6"], "outside the recording", 1),        # wrong for this recording: a data error
+    (["--estimators", "M1,M9"], "unknown M9", 2),             # wrong for any: a usage error
+    (["--size", "big"], "--size", 2),
 ])
-def test_bad_options_fail_without_a_file(walk_npz, tmp_path, capsys, extra, message) -> None:
+def test_bad_options_fail_without_a_file(walk_npz, tmp_path, capsys, extra, message, code) -> None:
     out = tmp_path / "fig.png"
-    assert main(["plot", str(walk_npz), "--out", str(out), *extra]) == 1
+    assert main(["plot", str(walk_npz), "--out", str(out), *extra]) == code
     assert message in capsys.readouterr().err
     assert not out.exists()
 
@@ -100,6 +103,8 @@ def test_bad_input_fails_without_a_file_and_keeps_an_old_one(tmp_path, capsys) -
     out = tmp_path / "fig.png"
     out.write_bytes(b"old")
     assert main(["plot", str(bad), "--out", str(out)]) == 1
+    assert "exists; give --force" in capsys.readouterr().err        # refused before the input is read
+    assert main(["plot", str(bad), "--out", str(out), "--force"]) == 1
     err = capsys.readouterr().err
     assert "bad.npz" in err and "Traceback" not in err
     assert out.read_bytes() == b"old"

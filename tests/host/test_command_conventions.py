@@ -107,3 +107,99 @@ def test_compare_simulate_ticks_once_per_subject(monkeypatch) -> None:
     ticks = []
     assert simulation.simulate_comparisons(3, seed=1, progress=lambda: ticks.append(1)) == [1000, 1001, 1002]
     assert len(ticks) == 3
+
+
+# ---------------------------------------------------------------------------------- usage, suggestions, notices
+@pytest.mark.parametrize(("argv", "hint"), [(["decod"], "did you mean 'decode'?"),
+                                            (["estimat", "x"], "did you mean 'estimate'?"),
+                                            (["device", "stauts"], "did you mean 'status'?")])
+def test_a_mistyped_command_exits_2_and_suggests_the_right_one(argv, hint, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and hint in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_bad_option_value_a_command_finds_exits_2(tmp_path, capsys) -> None:
+    # found by the command, not the parser (UsageError): still a usage error
+    assert main(["compare", "--simulate", "1", str(tmp_path / "x.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "give exactly one of" in err and "(usage: gaitlog compare --help)" in err
+
+
+def test_one_adc_bits_limit_stated_where_the_logger_stores_the_codes(capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["evaluate", "ipol", "x", "--adc-bits", "12"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "1..10" in err and "compare --simulate, sweep" in err
+    args = build_parser().parse_args(["compare", "--simulate", "1", "--adc-bits", "12"])
+    assert args.adc_bits == 12
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_compilation_is_announced_once_on_stderr(quiet, capsys) -> None:
+    from gaitlog.firmware_sim.compiled import announce_compile, compile_listeners
+    from gaitlog.host.cli import _compile_notice
+
+    before = list(compile_listeners)
+    with _compile_notice(argparse.Namespace(quiet=quiet)):
+        announce_compile("numba compiles the firmware's code into /tmp/x")
+        announce_compile("the on-line step kernel is compiled ahead of time into /tmp/y")
+    assert compile_listeners == before
+    err = capsys.readouterr().err.splitlines()
+    assert err == ([] if quiet else ["gaitlog: compiling once for this version (numba compiles the firmware's code "
+                                     "into /tmp/x); this takes about 30 s"])
+
+
+def test_every_command_shows_examples_in_its_help() -> None:
+    parser = build_parser()
+    subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert "examples:" in parser.format_help()
+    missing = [name for name, p in subs.choices.items() if "examples:\n  gaitlog " + name not in p.format_help()]
+    assert not missing, f"commands without examples in --help (EXAMPLES in their module): {missing}"
+
+
+# ----------------------------------------------------------------------------------------- --out and --force
+def test_out_is_a_file_prefix_or_a_folder_with_or_without_a_slash(tmp_path, capsys) -> None:
+    image = tmp_path / "walk.glimg"
+    assert main(["record", "--motion", "poses", "--steps", "off", "--out", str(image), "-q"]) == 0
+    (tmp_path / "outdir").mkdir()
+    assert main(["decode", str(image), "--out", str(tmp_path / "outdir"), "-q"]) == 0     # an existing folder
+    assert {p.name for p in (tmp_path / "outdir").iterdir()} == {"walk.npz", "walk.csv"}
+    assert not (tmp_path / "outdir.csv").exists()
+    (tmp_path / "slash").mkdir()
+    assert main(["decode", str(image), "--out", f"{tmp_path / 'slash'}/", "-q"]) == 0      # a trailing slash
+    assert {p.name for p in (tmp_path / "slash").iterdir()} == {"walk.npz", "walk.csv"}
+    assert main(["decode", str(image), "--out", str(tmp_path / "w"), "-q"]) == 0            # a prefix
+    assert (tmp_path / "w.npz").is_file() and (tmp_path / "w.csv").is_file()
+    # a slash names a folder, which must exist: nothing is guessed
+    assert main(["decode", str(image), "--out", f"{tmp_path / 'nofolder'}/", "-q"]) == 1
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_an_existing_output_is_overwritten_only_with_force(tmp_path, capsys) -> None:
+    image = tmp_path / "p.glimg"
+    assert main(["record", "--motion", "poses", "--steps", "off", "--out", str(image), "-q"]) == 0
+    first = image.read_bytes()
+    assert main(["record", "--motion", "poses", "--steps", "off", "--seed", "3", "--out", str(image), "-q"]) == 1
+    assert "exists; give --force to overwrite it" in capsys.readouterr().err and image.read_bytes() == first
+    assert main(["record", "--motion", "poses", "--steps", "off", "--seed", "3", "--out", str(image), "-q",
+                 "--force"]) == 0
+    assert image.read_bytes() != first
+
+
+def test_quiet_prints_errors_only_and_verbose_adds_detail(tmp_path, capsys) -> None:
+    image = tmp_path / "w.glimg"
+    assert main(["record", "--motion", "walk", "--out", str(image), "-q"]) == 0      # no height: a warning
+    assert capsys.readouterr() == ("", "")
+    assert main(["record", "--motion", "walk", "--out", str(image), "--force"]) == 0
+    plain = capsys.readouterr()
+    assert "warning" in plain.err and "header:" not in plain.out
+    assert main(["record", "--motion", "walk", "--out", str(image), "--force", "-v"]) == 0
+    assert "header: device" in capsys.readouterr().out
+    assert main(["estimate", str(image), "--height", "1.75", "-q"]) == 0
+    assert capsys.readouterr() == ("", "")
+    assert main(["estimate", str(image), "--height", "1.75"]) == 0
+    assert "events:" not in capsys.readouterr().out
+    assert main(["estimate", str(image), "--height", "1.75", "-v"]) == 0
+    assert "events: steps" in capsys.readouterr().out

@@ -161,8 +161,8 @@ def test_a_k_the_step_configuration_cannot_hold_is_an_error(npz, tmp_path, capsy
 
 def test_bad_invocations(npz, tmp_path, capsys) -> None:
     path, _, _ = npz
-    assert main(["compare"]) == 1
-    assert main(["compare", str(path), "--sweep"]) == 1
+    assert main(["compare"]) == 2                             # usage errors the command finds: exit 2 too
+    assert main(["compare", str(path), "--sweep"]) == 2
     assert main(["compare", str(tmp_path / "missing.npz")]) == 1
     with pytest.raises(SystemExit) as usage:                  # a bad number is a usage error (exit 2)
         main(["compare", "--simulate", "0"])

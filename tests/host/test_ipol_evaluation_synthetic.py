@@ -115,7 +115,9 @@ def test_cli_evaluate_writes_csv_and_figure(tmp_path, capsys) -> None:
     with open(out.with_name("eval_steps.csv"), newline="") as fh:
         steps = list(csv.DictReader(fh))
     assert {r["trial"] for r in steps} == {"1", "2"} and len(steps) > 60
-    assert main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--adc-bits", "12"]) == 1
+    with pytest.raises(SystemExit) as usage:            # the logger stores 10-bit codes: a usage error
+        main(["evaluate", "ipol", str(tmp_path), "--out", str(out), "--adc-bits", "12", "--force"])
+    assert usage.value.code == 2
 
 
 def test_unreadable_trial_and_single_trial_subject_are_skipped_and_listed(tmp_path, capsys) -> None:

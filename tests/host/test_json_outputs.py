@@ -18,7 +18,8 @@ from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.cli import build_parser, main
 
 #: The commands the issue asks ``--json`` of (a table on stdout).
-TABLE_COMMANDS = {"info", "estimate", "budget", "device status", "device identify"}
+TABLE_COMMANDS = {"info", "estimate", "budget", "device status", "device identify", "compare", "evaluate", "batch",
+                  "calibrate", "calibrate-k"}
 
 _ISO_TIME = re.compile(r"\d{4}-\d\d-\d\dT[\d:]+(?:[+-]\d\d:\d\d)?")
 #: A number standing alone in the text (not part of a name such as Q2.29, v1, P32, mul16x16s); 9,412 is one.
@@ -108,3 +109,16 @@ def test_the_comparison_can_fail() -> None:
     assert _numbers_missing_from_json("500 samples, 0.8 % full, 9,412 cycles", {"n": 500, "c": 9412}) == [
         ("0.8", "500 samples, 0.8 % full, 9,412 cycles")]
     assert _numbers_missing_from_json("0.8 % full", {"n": 4, "of": 500}) == []
+
+
+def test_compare_and_batch_json_is_the_only_stdout(tmp_path, capsys) -> None:
+    image = tmp_path / "in" / "walk.glimg"
+    image.parent.mkdir()
+    assert main(["record", "--motion", "walk", "--height", "1.75", "--out", str(image), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(image), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["steps"]["offline"] > 10 and {"estimator", "section"} <= set(doc["segments"][0])
+    assert main(["batch", str(image.parent), "--out", str(tmp_path / "out"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [r["recording"] for r in doc["recordings"]] == ["walk.glimg"] and doc["recordings"][0]["status"] == "done"

@@ -185,7 +185,7 @@ def test_cli_refuses_gravity_channels_and_too_fast(tmp_path: Path, capsys: pytes
     assert main(["record", "--motion", "hall", "--gravity-channels", "--logger-rate", "2000", "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert "8 analog inputs" in err and "drop --gravity-channels" in err and "Traceback" not in err
-    assert main(["record", "--motion", "walk", "--logger-rate", "2000", "--out", str(out)]) == 1
+    assert main(["record", "--motion", "walk", "--logger-rate", "2000", "--out", str(out)]) == 2    # usage
     assert "only for --motion morris or hall" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
 

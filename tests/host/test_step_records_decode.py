@@ -328,7 +328,12 @@ def test_steps_csv_columns_and_values(tmp_path):
     assert [r["flags"] for r in got] == ["NO_WINDOW|UNCALIBRATED", "UNCALIBRATED",
                                          "NO_TOE_OFF|NO_HEEL_STRIKE|M3_UNDEFINED"]
     assert [got[0][f"length_m{k}_m"] for k in range(1, 6)] == [""] * 5  # 0: not computed
-    assert [float(got[1][f"length_m{k}_m"]) for k in range(1, 6)] == [0.6875, 0.703125, 0.71875, 0.6953125, 2.0]
+    # a raw record: M1-M3 are lengths (K = 1); M4 (range^p) and M5 (the cadence, Hz) are not: their own columns
+    assert [float(got[1][f"length_m{k}_m"]) for k in range(1, 4)] == [0.6875, 0.703125, 0.71875]
+    assert [got[1][f"length_m{k}_m"] for k in (4, 5)] == ["", ""]
+    assert (float(got[1]["raw_m4_range_pow_p"]), float(got[1]["raw_m5_cadence_hz"])) == (0.6953125, 2.0)
+    assert [got[2][c] for c in ("raw_m4_range_pow_p", "raw_m5_cadence_hz")] == ["", ""]    # calibrated: none
+    assert (float(got[2]["length_m4_m"]), float(got[2]["length_m5_m"])) == (8000 / 16384, 7000 / 16384)
     assert [got[2][f"length_m{k}_m"] for k in (2, 3)] == ["", ""]
     assert float(got[2]["length_m1_m"]) == 9000 / 16384
     assert [r["lengths"] for r in got] == ["raw", "raw", "K"]
