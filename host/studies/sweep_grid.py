@@ -653,11 +653,12 @@ def m5_rate_answer(sections: list[dict]) -> dict:
 
 def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     """Printed summary of one calibration mode."""
+    width = max([12] + [len(effects_label(r)) + 1 for r in summary if r["mode"] == mode])
     lines = [f"{mode} calibration (one K per configuration, fitted on its offline chain); section ratio "
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
              "mm: per-step median |offline - ideal| / |online-fixed - online-float|; Q: fixed-point formats, "
              "tilt: extra misalignment, deg; conv/sensor: the converter's and sensor's effects that are on",
-             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'conv/sensor':<12}{'est':<4}{'subj':>5}{'n':>6}"
+             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}{'subj':>5}{'n':>6}"
              f"{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}{'ADC mm':>8}"
              f"{'arith mm':>9}{'arith max':>10}"]
     for r in summary:
@@ -665,7 +666,7 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
             continue
         lines.append(f"{r['adc_bits']:>4}{r['sampling_rate_hz']:>6g}{1e6 * r['noise_density_g_rthz']:>9.0f} "
                      f"{r['q_formats']:<10}{r['misalignment_deg']:>5g} {r['population']:<7}"
-                     f"{effects_label(r):<12}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
+                     f"{effects_label(r):<{width}}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
                      f"{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}{r['median_online_fixed']:>8.3f}"
                      f"{r['subject_median_offline_lo']:>7.3f}-{r['subject_median_offline_hi']:<6.3f}"
                      f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
