@@ -46,7 +46,11 @@ DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger 
               "q_formats": ("Q formats of the fixed-point chain", "shipped"),
               "misalignment_deg": ("extra mounting tilt, degrees", 0.0),
               "population": ("simulated population", DEFAULT_POPULATION),
-              **{k: (f"{what.split(' (')[0]}, {unit}", 0.0) for k, (what, unit, _) in EFFECT_DIMENSIONS.items()}}
+              **{k: (f"{label}, {EFFECT_DIMENSIONS[k][1]}", 0.0) for k, label in (
+                  ("inl_lsb", "converter INL"), ("dnl_lsb", "converter DNL"), ("adc_offset_lsb", "converter offset"),
+                  ("adc_gain_error_lsb", "converter gain error"), ("acquisition_time_us", "acquisition time"),
+                  ("source_impedance_ohm", "source impedance"), ("flicker_corner_hz", "1/f corner"),
+                  ("temperature_swing_c", "temperature swing"))}}
 #: Dimensions drawn as categories (in the grid's order), not on a numeric axis.
 _CATEGORICAL = ("q_formats", "population")
 
@@ -136,7 +140,7 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
             ax.set_xticks([pos[x] for x in xs], [f"{x * scale:g}" for x in xs])
     axes[0].legend(fontsize=7)
     held_text = ", ".join(f"{k}={v:g}" if isinstance(v, float) and not math.isnan(v) else f"{k}={v}"
-                          for k, v in held.items())
+                          for k, v in held.items() if k not in EFFECT_DIMENSIONS or v != 0.0)   # effects: when on
     fig.suptitle(f"error vs {DIMENSIONS[dimension][0]} ({mode} K; median and range over subjects)\n{held_text}",
                  fontsize=8)
     return figure_png_bytes(fig, dpi=dpi)

@@ -17,10 +17,12 @@ from gaitlog.firmware_sim.world.walking import Walking
 from gaitlog.host.cli import build_parser, main
 from gaitlog.host.commands.sweep import EFFECT_OPTIONS
 from gaitlog.host.errors import HostError
+from gaitlog.host.studies.sweep_figures import DIMENSIONS as FIGURE_DIMENSIONS
 from gaitlog.host.studies.sweep_grid import (
     EFFECT_DIMENSIONS,
     OPTIONS,
     SPEC_KEYS,
+    SUMMARY_KEYS,
     SweepGrid,
     SweepTask,
     analog_walk,
@@ -93,6 +95,7 @@ def test_inl_sweep_runs_from_the_command_line(tmp_path, capsys) -> None:
     header, *rows = (out / "summary.csv").read_text().splitlines()
     assert "inl_lsb" in header.split(",") and len(rows) == 4                 # 2 INL x 2 modes x M2
     assert (out / "figures" / "error_vs_inl_lsb.png").exists()
+    assert set(SUMMARY_KEYS) <= set(FIGURE_DIMENSIONS)                     # every dimension can be drawn
     with pytest.raises(SystemExit) as exit_info:                              # usage error: exit 2
         main(["sweep", "--out", str(out), "--inl-lsb", "0,9"])
     assert exit_info.value.code == 2 and "--inl-lsb" in capsys.readouterr().err
