@@ -155,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
         smallest_adc_bits,
         smallest_q_formats,
         summarise,
+        with_effects,
     )
     from gaitlog.host.studies.task_store import TaskStore, run_serial
     from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
@@ -198,9 +199,9 @@ def run(args: argparse.Namespace) -> int:
                                    progress=tick, on_start=lambda w: detail(f"running on {w}"))
             where = args.scheduler or f"a local cluster of {args.workers} worker(s)"
     say(f"computed {computed} task(s) on {where} in {time.perf_counter() - t:.1f} s")
-    results = store.collect(tasks)
-    sections = [r for res in results for r in res["sections"]]
-    splits = [r for res in results for r in res["splits"]]
+    results = store.collect(tasks)         # rows of a folder from before the effects were dimensions: effects off
+    sections = [with_effects(r) for res in results for r in res["sections"]]
+    splits = [with_effects(r) for res in results for r in res["splits"]]
     summary = summarise(sections, splits)
     smallest = smallest_adc_bits(summary)
     smallest_q = smallest_q_formats(summary)

@@ -6,6 +6,9 @@ runs; ``--list-dimensions`` lists the grid's actual parameters, and says which a
 from __future__ import annotations
 
 import argparse
+import csv
+import io
+import json
 from dataclasses import fields, replace
 
 import numpy as np
@@ -136,3 +139,23 @@ def test_list_dimensions_matches_the_sweeps_parameters(capsys) -> None:
     # the command's options are the grid's effects, with their units and ranges
     assert [(k, u, hi) for k, u, _, _, hi in EFFECT_OPTIONS] == [(k, v[1], v[2]) for k, v in EFFECT_DIMENSIONS.items()]
     assert set(OPTIONS) == sweepable
+
+
+def test_a_results_folder_from_before_the_effects_resumes_as_effects_off(tmp_path) -> None:
+    """A task stored without the effect columns (as every task was before) is found by its unchanged name and
+    read as all effects off; a new INL value is computed beside it."""
+    out = tmp_path / "old"
+    args = ["sweep", "--out", str(out), "--serial", "--protocol", "short", "--subjects", "1", "--adc-bits", "10",
+            "--logger-rate", "50", "--estimators", "M2", "-q"]
+    assert main(args) == 0
+    (stored,) = (out / "tasks").glob("*.json")
+    doc = json.loads(stored.read_text())
+    for part in ("sections", "splits"):
+        for row in doc[part]:
+            for k in EFFECT_DIMENSIONS:
+                row.pop(k, None)
+    stored.write_text(json.dumps(doc))
+    assert main(args + ["--inl-lsb", "0,1"]) == 0
+    assert len(list((out / "tasks").glob("*.json"))) == 2
+    rows = list(csv.DictReader(io.StringIO((out / "sections.csv").read_text())))
+    assert {r["inl_lsb"] for r in rows} == {"0", "1"}
