@@ -76,7 +76,19 @@ from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
 from gaitlog.firmware_sim.algorithms import format_kernel, formats
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.fixedpoint import QFormat
-from gaitlog.firmware_sim.sensor import REFERENCE_TEMPERATURE_C, SensorModel, TemperatureProfile, datasheet_tempcos
+from gaitlog.firmware_sim.adc import (
+    ADXL202_OUTPUT_RESISTANCE_OHM,
+    DATASHEET_SOURCE_IMPEDANCE_OHM,
+    pic_acquisition_time_s,
+)
+from gaitlog.firmware_sim.sensor import (
+    ADXL202_OFFSET_TEMPCO_G_PER_C,
+    ADXL202_SENSITIVITY_TEMPCO_PER_C,
+    REFERENCE_TEMPERATURE_C,
+    SensorModel,
+    TemperatureProfile,
+    datasheet_tempcos,
+)
 from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from gaitlog.host.errors import HostError
 from gaitlog.host.gait.sections import MODES
@@ -108,12 +120,14 @@ EFFECT_DIMENSIONS: dict[str, tuple[str, str, float]] = {
     "adc_offset_lsb": ("converter offset error (PIC16F877: < ±2)", "LSB", 16.0),
     "adc_gain_error_lsb": ("converter gain error (PIC16F877: < ±1)", "LSB", 16.0),
     "acquisition_time_us": ("acquisition time before each channel's conversion: sequential sampling, the channel "
-                            "skew (0: simultaneous; data sheet example 19.72)", "µs", 1000.0),
+                            "skew (0: simultaneous; data sheet example "
+                            f"{pic_acquisition_time_s(DATASHEET_SOURCE_IMPEDANCE_OHM) * 1e6:.2f})", "µs", 1000.0),
     "source_impedance_ohm": ("source impedance the hold capacitor charges through: the settling error (with an "
-                             "acquisition time; ADXL202 unbuffered: 32000)", "Ω", 1e6),
+                             f"acquisition time; ADXL202 unbuffered: {ADXL202_OUTPUT_RESISTANCE_OHM:g})", "Ω", 1e6),
     "flicker_corner_hz": ("sensor 1/f noise corner (0: white noise only)", "Hz", 100.0),
-    "temperature_swing_c": ("temperature ramp over the walk from 25 °C, ADXL202E typical drift (2 mg/°C, "
-                            "0.011 %/°C)", "°C", 100.0),
+    "temperature_swing_c": (f"temperature ramp over the walk from {REFERENCE_TEMPERATURE_C:g} °C, ADXL202E typical "
+                            f"drift ({ADXL202_OFFSET_TEMPCO_G_PER_C * 1e3:g} mg/°C, "
+                            f"{ADXL202_SENSITIVITY_TEMPCO_PER_C * 100:.3f} %/°C)", "°C", 100.0),
 }
 #: Keys of a spec file and their meaning.
 SPEC_KEYS = {
