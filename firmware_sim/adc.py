@@ -31,9 +31,12 @@ converter, code for code); :meth:`Adc.datasheet` sets them at the data sheet's l
   the held voltage keeps the fraction ``ε = exp(−(T_ACQ − T_AMP) / (C_HOLD (R_IC + R_SS + R_S)))`` of the
   difference (:attr:`Adc.settling_fraction`; ``1/2047``, half a 10-bit LSB of a full-scale step, at the data
   sheet's ``T_ACQ`` for that ``R_S``). Channel 0's previous voltage is the last channel's (the capacitor tracks
-  it between ticks). The model's front end is an amplifier (a low source impedance, default 0 Ω); an ADXL202
-  output wired straight to the pin is 32 kΩ in series with its filter capacitor, whose charge sharing with
-  the hold capacitor this first-order model does not describe.
+  it between ticks). The model's front end is an amplifier (a low source impedance, default 0 Ω). An ADXL202
+  output wired straight to the pin is its 32 kΩ with the filter capacitor ``C_S`` at the pin
+  (``source_capacitance_f``): the two capacitors first share their charge through ``R_IC + R_SS``, then both
+  recharge through ``R_S``; ``ε`` is then the hold capacitor's part of the solution of that two-capacitor network
+  (a 2 x 2 matrix exponential), ``≈ C_HOLD / (C_HOLD + C_S)`` when ``C_S`` is large (4.8e-4 for 0.25 µF). The
+  pin capacitor's own disturbance is assumed recovered by the next tick (``R_S C_S`` = 8 ms against 20 ms).
 * *INL and DNL* (``inl_lsb``, ``dnl_lsb``; data sheet: both below ±1 LSB, monotonic): a seeded static transfer
   curve per device (:class:`TransferCurve`): a smooth bow of peak ``inl_lsb`` (three random-phase harmonics
   vanishing at the end transitions) plus an independent uniform jitter of each code transition, ±``dnl_lsb``/2,
@@ -49,6 +52,7 @@ import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
+from scipy import linalg
 
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.protocol.adc_bits import check_adc_bits
@@ -211,6 +215,9 @@ class Adc:
         (module notes); 0 (default): all channels held at the tick instant.
     source_impedance_ohm
         Source impedance each input is charged through (settling error; with sequential sampling only), Ω.
+    source_capacitance_f
+        Capacitance at the pin behind ``source_impedance_ohm`` (an unbuffered ADXL202's filter capacitor), F;
+        0 (default): none, the data sheet's one-pole model.
     inl_lsb, dnl_lsb, offset_error_lsb, gain_error_lsb
         Static errors of the transfer curve (:class:`TransferCurve`), LSB; 0 by default.
     linearity_seed
@@ -234,6 +241,7 @@ class Adc:
     timer_error_ppm: float = 0.0
     acquisition_time_s: float = 0.0
     source_impedance_ohm: float = 0.0
+    source_capacitance_f: float = 0.0
     inl_lsb: float = 0.0
     dnl_lsb: float = 0.0
     offset_error_lsb: float = 0.0
@@ -248,6 +256,8 @@ class Adc:
             raise DeviceError(f"VREF+ ({self.vref_high_v} V) must be above VREF- ({self.vref_low_v} V)")
         if not (self.gain > 0 and abs(self.timer_error_ppm) < 1e5):
             raise DeviceError("ADC gain must be > 0 and the timer error below 1e5 ppm")
+        if not (0.0 <= self.source_capacitance_f <= 1e-3):
+            raise DeviceError(f"source capacitance must be 0 .. 1 mF, got {self.source_capacitance_f!r} F")
         if not (0.0 <= self.acquisition_time_s <= 1e-3 and 0.0 <= self.source_impedance_ohm <= 1e7):
             raise DeviceError(f"acquisition time must be 0 .. 1 ms and the source impedance 0 .. 10 Mohm, got "
                               f"{self.acquisition_time_s!r} s and {self.source_impedance_ohm!r} ohm")
@@ -298,9 +308,16 @@ class Adc:
         when simultaneous)."""
         if not self.sequential:
             return 0.0
-        tau_s = HOLD_CAPACITANCE_F * (INTERCONNECT_RESISTANCE_OHM + SAMPLING_SWITCH_RESISTANCE_OHM
-                                      + self.source_impedance_ohm)
-        return math.exp(-max(self.acquisition_time_s - AMPLIFIER_SETTLING_S, 0.0) / tau_s)
+        charge_s = max(self.acquisition_time_s - AMPLIFIER_SETTLING_S, 0.0)
+        r_hold_ohm = INTERCONNECT_RESISTANCE_OHM + SAMPLING_SWITCH_RESISTANCE_OHM
+        if self.source_capacitance_f == 0.0 or self.source_impedance_ohm == 0.0:
+            r_ohm = r_hold_ohm + (self.source_impedance_ohm if self.source_capacitance_f == 0.0 else 0.0)
+            return math.exp(-charge_s / (HOLD_CAPACITANCE_F * r_ohm))
+        # deviations from the source voltage of the pin (C_S) and the hold capacitor: d/dt e = A e, e(0) = (0, 1)
+        c_s, c_h, r_s = self.source_capacitance_f, HOLD_CAPACITANCE_F, self.source_impedance_ohm
+        a = np.array([[-1.0 / (r_s * c_s) - 1.0 / (r_hold_ohm * c_s), 1.0 / (r_hold_ohm * c_s)],
+                      [1.0 / (r_hold_ohm * c_h), -1.0 / (r_hold_ohm * c_h)]])
+        return float((linalg.expm(a * charge_s) @ np.array([0.0, 1.0]))[1])
 
     @functools.cached_property
     def transfer_curve(self) -> TransferCurve:

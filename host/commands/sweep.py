@@ -85,6 +85,8 @@ EFFECT_OPTIONS = (("inl_lsb", "LSB", "converter INL (PIC16F877: < 1)", 0, 8),
                    "(0: simultaneous; data sheet example 19.72)", 0, 1000),
                   ("source_impedance_ohm", "Ω", "source impedance: the settling error (with an acquisition time; "
                    "ADXL202 unbuffered 32000)", 0, 1e6),
+                  ("source_capacitance_nf", "nF", "capacitance at the pin behind the source impedance (ADXL202 "
+                   "unbuffered: its filter capacitor, 250)", 0, 1e4),
                   ("flicker_corner_hz", "Hz", "sensor 1/f noise corner (0: white only)", 0, 100),
                   ("temperature_swing_c", "°C", "temperature ramp from 25 °C over the walk, ADXL202E typical drift",
                    -100, 100))

@@ -49,7 +49,8 @@ DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger 
               **{k: (f"{label}, {EFFECT_DIMENSIONS[k][1]}", 0.0) for k, label in (
                   ("inl_lsb", "converter INL"), ("dnl_lsb", "converter DNL"), ("adc_offset_lsb", "converter offset"),
                   ("adc_gain_error_lsb", "converter gain error"), ("acquisition_time_us", "acquisition time"),
-                  ("source_impedance_ohm", "source impedance"), ("flicker_corner_hz", "1/f corner"),
+                  ("source_impedance_ohm", "source impedance"),
+                  ("source_capacitance_nf", "source capacitance"), ("flicker_corner_hz", "1/f corner"),
                   ("temperature_swing_c", "temperature swing"))}}
 #: Dimensions drawn as categories (in the grid's order), not on a numeric axis.
 _CATEGORICAL = ("q_formats", "population")

@@ -124,6 +124,8 @@ EFFECT_DIMENSIONS: dict[str, tuple[str, str, float]] = {
                             f"{pic_acquisition_time_s(DATASHEET_SOURCE_IMPEDANCE_OHM) * 1e6:.2f})", "µs", 1000.0),
     "source_impedance_ohm": ("source impedance the hold capacitor charges through: the settling error (with an "
                              f"acquisition time; ADXL202 unbuffered: {ADXL202_OUTPUT_RESISTANCE_OHM:g})", "Ω", 1e6),
+    "source_capacitance_nf": ("capacitance at the pin behind the source impedance (0: none; ADXL202 unbuffered: its "
+                              "filter capacitor, 250 for 20 Hz)", "nF", 1e4),
     "flicker_corner_hz": ("sensor 1/f noise corner (0: white noise only)", "Hz", 100.0),
     "temperature_swing_c": (f"temperature ramp over the walk from {REFERENCE_TEMPERATURE_C:g} °C, ADXL202E typical "
                             f"drift ({ADXL202_OFFSET_TEMPCO_G_PER_C * 1e3:g} mg/°C, "
@@ -187,6 +189,7 @@ class SweepTask:
     adc_gain_error_lsb: float = 0.0
     acquisition_time_us: float = 0.0
     source_impedance_ohm: float = 0.0
+    source_capacitance_nf: float = 0.0
     flicker_corner_hz: float = 0.0
     temperature_swing_c: float = 0.0
 
@@ -226,6 +229,7 @@ class SweepGrid:
     adc_gain_error_lsb: tuple[float, ...] = (0.0,)
     acquisition_time_us: tuple[float, ...] = (0.0,)
     source_impedance_ohm: tuple[float, ...] = (0.0,)
+    source_capacitance_nf: tuple[float, ...] = (0.0,)
     flicker_corner_hz: tuple[float, ...] = (0.0,)
     temperature_swing_c: tuple[float, ...] = (0.0,)
     subjects: int = 4
@@ -432,7 +436,8 @@ def run_task(task: SweepTask) -> dict:
 
 def effects_of(effects: dict[str, float], walk: AnalogWalk) -> tuple[dict[str, Any], dict[str, Any]]:
     """The sensor changes and the converter fields (:meth:`AnalogWalk.sample`) of a task's effects on ``walk``
-    (module notes; empty when all are off)."""
+    (module notes; empty when all are off; an effect missing from ``effects`` is off)."""
+    effects = with_effects(effects)
     sensor: dict[str, Any] = {}
     if effects["flicker_corner_hz"]:
         sensor["flicker_corner_hz"] = effects["flicker_corner_hz"]
@@ -446,12 +451,15 @@ def effects_of(effects: dict[str, float], walk: AnalogWalk) -> tuple[dict[str, A
                                             ("source_impedance_ohm", "source_impedance_ohm")) if effects[e]}
     if effects["acquisition_time_us"]:
         converter["acquisition_time_s"] = effects["acquisition_time_us"] * 1e-6
+    if effects["source_capacitance_nf"]:
+        converter["source_capacitance_f"] = effects["source_capacitance_nf"] * 1e-9
     return sensor, converter
 
 
 #: Short names of the effects in labels (:func:`effects_label`).
 _EFFECT_SHORT = {"inl_lsb": "inl", "dnl_lsb": "dnl", "adc_offset_lsb": "off", "adc_gain_error_lsb": "gain",
-                 "acquisition_time_us": "acq", "source_impedance_ohm": "rs", "flicker_corner_hz": "fc",
+                 "acquisition_time_us": "acq", "source_impedance_ohm": "rs", "source_capacitance_nf": "cs",
+                 "flicker_corner_hz": "fc",
                  "temperature_swing_c": "dT"}
 
 

@@ -78,6 +78,21 @@ def test_settling_error_of_a_full_scale_step() -> None:
     assert codes[0, 0] == math.floor(1024 * slow.settling_fraction) and codes[0, 0] > 20
 
 
+def test_settling_through_an_unbuffered_adxl202_filter_capacitor() -> None:
+    """32 kOhm with 0.25 uF at the pin: the charge is shared first (the hold capacitor keeps C_H / (C_H + C_S) of
+    the step), then both recharge through R_S: eps = C_H / (C_H + C_S) exp(-t / (R_S (C_S + C_H))), 50x less
+    than the one-pole model's; a vanishing C_S gives the one-pole model back."""
+    t_s = 19.72e-6 - 2e-6
+    adc = Adc(acquisition_time_s=19.72e-6, source_impedance_ohm=32e3, source_capacitance_f=0.25e-6)
+    c_h, c_s = HOLD_CAPACITANCE_F, 0.25e-6
+    expected = c_h / (c_h + c_s) * math.exp(-t_s / (32e3 * (c_s + c_h)))
+    assert adc.settling_fraction == pytest.approx(expected, rel=1e-3)
+    one_pole = Adc(acquisition_time_s=19.72e-6, source_impedance_ohm=32e3)
+    assert one_pole.settling_fraction > 50 * adc.settling_fraction
+    tiny = Adc(acquisition_time_s=19.72e-6, source_impedance_ohm=32e3, source_capacitance_f=1e-16)
+    assert tiny.settling_fraction == pytest.approx(one_pole.settling_fraction, rel=1e-4)
+
+
 def test_sequential_sampling_skews_the_channels_of_a_known_sine() -> None:
     """One 5 Hz sine on all three inputs: channel c is held T_ACQ + c (T_ACQ + 14 T_AD) after the tick, so its
     fitted phase leads channel 0's by 2 pi f c period (the skew, an analytic phase)."""
@@ -143,8 +158,8 @@ def test_datasheet_converter_and_its_limits() -> None:
     a = Adc.datasheet(seed=3)
     assert a.acquisition_time_s == pytest.approx(pic_acquisition_time_s(10e3)) and a.sequential
     assert (a.inl_lsb, a.dnl_lsb, abs(a.offset_error_lsb), abs(a.gain_error_lsb)) == (1.0, 1.0, 2.0, 1.0)
-    assert set(a.effects()) == {"acquisition_time_s", "source_impedance_ohm", "inl_lsb", "dnl_lsb",
-                                "offset_error_lsb", "gain_error_lsb", "linearity_seed"}
+    assert set(a.effects()) == {"acquisition_time_s", "source_impedance_ohm", "source_capacitance_f", "inl_lsb",
+                                "dnl_lsb", "offset_error_lsb", "gain_error_lsb", "linearity_seed"}
     with pytest.raises(DeviceError, match="DNL"):
         Adc(dnl_lsb=1.5)
     with pytest.raises(DeviceError, match="do not fit"):

@@ -43,10 +43,11 @@ def _adc_share_mm(result: dict) -> dict[str, float]:
 
 
 def test_sweep_codes_are_what_the_logger_stores_with_a_real_converter_and_a_drifting_sensor() -> None:
-    """Every effect on at once (INL, DNL, offset, gain, 32 kOhm unbuffered after the data sheet's T_ACQ, a 1 Hz 1/f
-    corner, +25 C): the sampled walk's 10-bit codes equal the emulated logger's, code for code."""
+    """Every effect on at once (INL, DNL, offset, gain, 32 kOhm and 250 nF unbuffered after the data sheet's T_ACQ,
+    a 1 Hz 1/f corner, +25 C): the sampled walk's 10-bit codes equal the emulated logger's, code for code."""
     effects = dict(inl_lsb=1.0, dnl_lsb=1.0, adc_offset_lsb=2.0, adc_gain_error_lsb=-1.0, acquisition_time_us=19.72,
-                   source_impedance_ohm=32e3, flicker_corner_hz=1.0, temperature_swing_c=25.0)
+                   source_impedance_ohm=32e3, source_capacitance_nf=250.0, flicker_corner_hz=1.0,
+                   temperature_swing_c=25.0)
     subject, walk = analog_walk(0, 0, 1, "short")
     sensor_changes, converter = effects_of(effects, walk)
     sw = walk.sample(50.0, sensor_changes=sensor_changes, converter=converter)
