@@ -261,9 +261,7 @@ class Adc:
         if not (0.0 <= self.acquisition_time_s <= 1e-3 and 0.0 <= self.source_impedance_ohm <= 1e7):
             raise DeviceError(f"acquisition time must be 0 .. 1 ms and the source impedance 0 .. 10 Mohm, got "
                               f"{self.acquisition_time_s!r} s and {self.source_impedance_ohm!r} ohm")
-        if self.sequential and 3 * self.channel_period_s >= 1.0 / self.actual_rate_hz:
-            raise DeviceError(f"three channels of {self.channel_period_s * 1e6:.1f} us do not fit in one "
-                              f"{1e3 / self.actual_rate_hz:.3f} ms sample period")
+        self.channel_delays_s(3)  # noqa: B018  (three channels fit in a sample period)
         self.transfer_curve  # noqa: B018  (checks the static errors)
 
     @classmethod
@@ -300,7 +298,11 @@ class Adc:
         """``(n_channels,)`` hold instant of each channel after the tick, s (``T_ACQ + c · period``)."""
         if not self.sequential:
             return np.zeros(int(n_channels))
-        return self.acquisition_time_s + self.channel_period_s * np.arange(int(n_channels))
+        delays = self.acquisition_time_s + self.channel_period_s * np.arange(int(n_channels))
+        if delays[-1] + TADS_PER_CHANNEL * TAD_S >= 1.0 / self.actual_rate_hz:
+            raise DeviceError(f"{n_channels} channels of {self.channel_period_s * 1e6:.1f} us do not fit in one "
+                              f"{1e3 / self.actual_rate_hz:.3f} ms sample period")
+        return delays
 
     @property
     def settling_fraction(self) -> float:

@@ -164,3 +164,5 @@ def test_datasheet_converter_and_its_limits() -> None:
         Adc(dnl_lsb=1.5)
     with pytest.raises(DeviceError, match="do not fit"):
         Adc(sampling_rate_hz=1000.0, acquisition_time_s=900e-6)
+    with pytest.raises(DeviceError, match="12 channels"):                  # an instrument's many channels
+        Adc(sampling_rate_hz=2000.0, acquisition_time_s=19.72e-6).channel_delays_s(12)
