@@ -7,8 +7,8 @@ Front end (assumed; the paper gives no schematic): the ADXL202 XFILT/YFILT outpu
 2.5 V, so ±2 g spans ±2.496 V around mid-scale: 255.6 codes/g, 0 g at code 512. Both are parameters; so
 are ``vref_low_v``/``vref_high_v`` (VREF- and VREF+ on RA2/RA3), the number of bits and the rate.
 
-Quantiser: ideal by default, ``code = floor((v − VREF-) / (VREF+ − VREF-) · 2^bits)`` clipped to ``0 … 2^bits − 1``
-(input beyond the references gives the end codes; the amplifier output is also limited to the reference
+Quantiser: ideal by default, ``code = floor((v − VREF-) / (VREF+ − VREF-) · 2^bits)`` clipped to
+``0 … 2^bits − 1`` (input beyond the references gives the end codes; the amplifier output is also limited to the reference
 span, as a rail-to-rail op-amp on the same supply would be).
 
 Timer: the sample clock runs at ``sampling_rate_hz · (1 + timer_error_ppm·1e-6)``; sample ``k`` is taken at
@@ -38,9 +38,9 @@ converter, code for code); :meth:`Adc.datasheet` sets them at the data sheet's l
   (a 2 x 2 matrix exponential), ``≈ C_HOLD / (C_HOLD + C_S)`` when ``C_S`` is large (4.8e-4 for 0.25 µF). The
   pin capacitor's own disturbance is assumed recovered by the next tick (``R_S C_S`` = 8 ms against 20 ms).
 * *INL and DNL* (``inl_lsb``, ``dnl_lsb``; data sheet: both below ±1 LSB, monotonic): a seeded static transfer
-  curve per device (:class:`TransferCurve`): a smooth bow of peak ``inl_lsb`` (``sin(m π u)``, ``m`` = 1, 2, 3,
-  with seeded amplitudes: zero at the end transitions) plus an independent uniform jitter of each code transition, ±``dnl_lsb``/2,
-  so adjacent code widths differ from 1 LSB by less than ``dnl_lsb``.
+  curve per device (:class:`TransferCurve`): a smooth bow of peak ``inl_lsb`` (``sin(m π u)``, ``m`` = 1, 2,
+  3, with seeded amplitudes: zero at the end transitions) plus an independent uniform jitter of each code
+  transition, ±``dnl_lsb``/2, so adjacent code widths differ from 1 LSB by less than ``dnl_lsb``.
 * *Offset and gain error* (``offset_error_lsb``: the first transition's shift, data sheet < ±2 LSB;
   ``gain_error_lsb``: the end transition's error after the offset is removed, < ±1 LSB).
 """
