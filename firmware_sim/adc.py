@@ -8,8 +8,8 @@ Front end (assumed; the paper gives no schematic): the ADXL202 XFILT/YFILT outpu
 are ``vref_low_v``/``vref_high_v`` (VREF- and VREF+ on RA2/RA3), the number of bits and the rate.
 
 Quantiser: ideal by default, ``code = floor((v − VREF-) / (VREF+ − VREF-) · 2^bits)`` clipped to
-``0 … 2^bits − 1`` (input beyond the references gives the end codes; the amplifier output is also limited to the reference
-span, as a rail-to-rail op-amp on the same supply would be).
+``0 … 2^bits − 1`` (input beyond the references gives the end codes; the amplifier output is also limited to
+the reference span, as a rail-to-rail op-amp on the same supply would be).
 
 Timer: the sample clock runs at ``sampling_rate_hz · (1 + timer_error_ppm·1e-6)``; sample ``k`` is taken at
 ``t_first + k / rate_actual``. Sample-and-hold: the fine-grid analog signal is linearly interpolated at the
