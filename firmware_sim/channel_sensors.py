@@ -11,6 +11,11 @@ x / range``, zero at mid-scale), so the channel map's full scale (``gaitlog.prot
 :class:`gaitlog.firmware_sim.adc.Adc` (gain 1) quantises. The accelerometers and the rate sensors are the same model
 with different parameters, as their datasheets describe them by the same four figures.
 
+Beyond them (off by default): 1/f noise below a corner ``flicker_corner`` per channel (density ``d² (1 +
+f_c / f)``: :func:`gaitlog.firmware_sim.sensor.flicker_noise`, its own seeded stream), and the converter's
+effects (sequential sampling of the channels, settling, INL/DNL, offset and gain error: :meth:`ChannelSensors.adc`
+passes them to :class:`gaitlog.firmware_sim.adc.Adc`).
+
 Examples
 --------
 >>> s = ChannelSensors.ideal([4.0, 30.0], noise=False)
@@ -29,7 +34,7 @@ from scipy import signal
 
 from gaitlog.firmware_sim.adc import Adc
 from gaitlog.firmware_sim.errors import DeviceError
-from gaitlog.firmware_sim.sensor import ou_noise
+from gaitlog.firmware_sim.sensor import FLICKER_LOW_HZ, flicker_noise, flicker_rng, ou_noise
 
 __all__ = ["ACCELEROMETER", "RATE_SENSOR", "ChannelSensors", "SensorSpec"]
 
@@ -69,7 +74,8 @@ RATE_SENSOR = SensorSpec(30.0, 1.5e-4, 400.0, 0.05, 0.02,
 
 @dataclass(frozen=True, eq=False)
 class ChannelSensors:
-    """``N`` single-axis sensors (module notes); every parameter an ``(N,)`` array in the channel's unit."""
+    """``N`` single-axis sensors (module notes); every parameter an ``(N,)`` array in the channel's unit
+    (``flicker_corner_hz``: the 1/f corners, Hz, default none)."""
 
     range: np.ndarray
     noise_density: np.ndarray
@@ -77,11 +83,15 @@ class ChannelSensors:
     offset: np.ndarray
     drift_per_s: np.ndarray
     seed: int = 0
+    flicker_corner_hz: np.ndarray | None = None
     _rng: np.random.Generator = field(init=False, repr=False)
+    _flicker_rng: np.random.Generator = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = np.asarray(self.range).size
-        for name in ("range", "noise_density", "bandwidth_hz", "offset", "drift_per_s"):
+        if self.flicker_corner_hz is None:
+            object.__setattr__(self, "flicker_corner_hz", np.zeros(n))
+        for name in ("range", "noise_density", "bandwidth_hz", "offset", "drift_per_s", "flicker_corner_hz"):
             a = np.array(getattr(self, name), dtype=np.float64).reshape(-1)
             if a.shape != (n,) or not np.isfinite(a).all():
                 raise DeviceError(f"ChannelSensors.{name}: expected {n} finite values, got {a!r}")
@@ -89,7 +99,10 @@ class ChannelSensors:
             object.__setattr__(self, name, a)
         if np.any(self.range <= 0) or np.any(self.bandwidth_hz <= 0) or np.any(self.noise_density < 0):
             raise DeviceError("ChannelSensors: ranges and bandwidths must be > 0, noise densities >= 0")
+        if np.any(self.flicker_corner_hz < 0):
+            raise DeviceError("ChannelSensors: 1/f corners must be >= 0 Hz")
         object.__setattr__(self, "_rng", np.random.default_rng(self.seed))
+        object.__setattr__(self, "_flicker_rng", flicker_rng(self.seed))
 
     @property
     def n_channels(self) -> int:
@@ -117,21 +130,26 @@ class ChannelSensors:
         """The same parts (range, bandwidth) without noise, offset or drift: what is left is the ADC's
         quantisation and the filter's lag."""
         z = np.zeros(self.n_channels)
-        return ChannelSensors(self.range, z, self.bandwidth_hz, z, z, seed=self.seed)
+        return ChannelSensors(self.range, z, self.bandwidth_hz, z, z, seed=self.seed, flicker_corner_hz=z)
 
     @property
     def noise_rms(self) -> np.ndarray:
         """``(N,)`` output noise rms: white noise through the one-pole filter, ``d · sqrt(π/2 · f_-3dB)``."""
         return self.noise_density * np.sqrt(np.pi / 2.0 * self.bandwidth_hz)
 
-    def adc(self, sampling_rate_hz: float, adc_bits: int = 10) -> Adc:
-        """The converter behind these channels: 0-5 V span, the conditioning already done (gain 1)."""
-        return Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz, gain=1.0, ref_v=2.5)
+    def adc(self, sampling_rate_hz: float, adc_bits: int = 10, **effects: float) -> Adc:
+        """The converter behind these channels: 0-5 V span, the conditioning already done (gain 1); ``effects``:
+        the converter's (:class:`gaitlog.firmware_sim.adc.Adc` fields ``acquisition_time_s``, ``inl_lsb``...)."""
+        return Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz, gain=1.0, ref_v=2.5, **effects)
 
     def noise(self, times_s: np.ndarray) -> np.ndarray:
         """Filtered white noise ``(n, N)`` drawn exactly at the instants ``times_s`` (:func:`gaitlog.firmware_sim.sensor.
-        ou_noise`)."""
-        return ou_noise(times_s, self.noise_rms, self.bandwidth_hz, self._rng)
+        ou_noise`), plus the 1/f part of the channels with a corner."""
+        white = ou_noise(times_s, self.noise_rms, self.bandwidth_hz, self._rng)
+        if not np.any(self.flicker_corner_hz):
+            return white
+        return white + flicker_noise(times_s, self.noise_density, self.flicker_corner_hz, FLICKER_LOW_HZ,
+                                     self.bandwidth_hz, self._flicker_rng)
 
     def sample(self, values: np.ndarray, sampling_rate_hz: float, t0_s: float, adc: Adc) -> tuple[np.ndarray, np.ndarray]:
         """Sensor -> conditioning -> sample-and-hold -> ADC.
@@ -170,4 +188,5 @@ class ChannelSensors:
         """Every parameter, for the ground truth."""
         return {"range": self.range.tolist(), "noise_density": self.noise_density.tolist(),
                 "bandwidth_hz": self.bandwidth_hz.tolist(), "offset": self.offset.tolist(),
-                "drift_per_s": self.drift_per_s.tolist(), "noise_rms": self.noise_rms.tolist(), "seed": self.seed}
+                "drift_per_s": self.drift_per_s.tolist(), "noise_rms": self.noise_rms.tolist(), "seed": self.seed,
+                "flicker_corner_hz": self.flicker_corner_hz.tolist()}

@@ -230,8 +230,8 @@ class Logger:
         times = self._live_t0 + (self._live_taken + np.arange(due)) / self.adc.actual_rate_hz
         self._live_taken += due
         volts = np.repeat(self.sensor.static_v(self.live_acc_g), due, axis=0)
-        volts += self.sensor.noise_g(times) * self.sensor.gain_v_per_g
-        return self.firmware.log_samples(self.adc.convert(volts))
+        volts += (self.sensor.noise_g(times) + self.sensor.flicker_g(times)) * self.sensor.gain_v_per_g
+        return self.firmware.log_samples(self.adc.convert(self.sensor.drifted_v(volts, times - self._live_t0)))
 
     def erase(self) -> None:
         """ERASE: forget every stored sample and per-step record (calibration and step configuration kept)."""
@@ -374,7 +374,9 @@ class Logger:
         held = self.adc.hold(volts, rate, motion.t0_s, times)
         # the sensor noise (an Ornstein-Uhlenbeck process after the RC filter) drawn at the sample instants
         held += self.sensor.noise_g(times) * self.sensor.gain_v_per_g
-        codes = self.adc.convert(held)
+        if self.sensor.flicker_corner_hz:
+            held += self.sensor.flicker_g(times) * self.sensor.gain_v_per_g
+        codes = self.adc.convert(self.sensor.drifted_v(held, times - motion.t0_s))
         marks = np.zeros(times.size, dtype=bool)
         if motion.marker_times_s.size:
             k = np.searchsorted(times, motion.marker_times_s, side="left")
@@ -467,7 +469,8 @@ def _adc_truth(adc: Adc) -> dict[str, Any]:
     return {
         "adc_bits": adc.adc_bits, "sampling_rate_hz": adc.sampling_rate_hz, "actual_sampling_rate_hz": adc.actual_rate_hz,
         "vref_low_v": adc.vref_low_v, "vref_high_v": adc.vref_high_v, "gain": adc.gain, "ref_v": adc.ref_v,
-        "timer_error_ppm": adc.timer_error_ppm,
+        "timer_error_ppm": adc.timer_error_ppm, **adc.effects(), "channel_delays_s": adc.channel_delays_s(3).tolist(),
+        "settling_fraction": adc.settling_fraction,
     }
 
 

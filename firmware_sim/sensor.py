@@ -34,6 +34,23 @@ noise density              200 µg/√Hz (fixed)     ADXL202E typical
 full scale                 ±2 g (fixed)           ADXL202 measurement range
 sensitivity at 5 V         312 mV/g  *            ratiometric; HARDWARE.md marks 312 mV/g unverified
 =========================  =====================  ==============================================================
+
+**Beyond white noise** (each a parameter, **off by default**: the defaults give today's sensor, sample for
+sample):
+
+- *1/f noise* (``flicker_corner_hz``): the noise density is ``d² (1 + f_c / f)`` (one-sided, g²/Hz): 1/f below
+  the corner ``f_c``, white above. The 1/f part is a sum of Ornstein-Uhlenbeck processes (Lorentzians) with
+  corners spaced :data:`FLICKER_POLES_PER_DECADE` per decade from ``flicker_low_hz`` (the longest correlation
+  time kept, default 1 mHz) to the output filter's cut-off, each of variance ``d² f_c ln r`` (``r`` the
+  corners' ratio): their sum's density is ``d² f_c / f`` between them (:func:`flicker_noise`), drawn exactly at
+  the sample instants from its own seeded stream (the white noise's stream is unchanged). Above the cut-off
+  it falls as 1/f² instead of through the RC filter as the white part does: there the white part dominates.
+- *Temperature drift* (``offset_tempco_g_per_c``, ``sensitivity_tempco_per_c``, ``temperature``): at the
+  temperature ``T(t)`` of a :class:`TemperatureProfile` the offset is ``b + α_b (T − T_ref)`` and the sensitivity
+  ``S (1 + e) (1 + α_s (T − T_ref))``, ``T_ref`` = 25 °C (where the device is calibrated). ADXL202E typicals
+  (:data:`ADXL202_OFFSET_TEMPCO_G_PER_C` 2 mg/°C, :data:`ADXL202_SENSITIVITY_TEMPCO_PER_C` ±0.5 % from 25 to
+  70 °C; ADI ADXL202E data sheet, *unverified* as HARDWARE.md says of its tolerance table) with seeded signs:
+  :func:`datasheet_tempcos`.
 """
 
 from __future__ import annotations
@@ -46,7 +63,95 @@ from scipy.spatial.transform import Rotation
 
 from gaitlog.firmware_sim.errors import DeviceError
 
-__all__ = ["SensorModel", "AXIS_PARTS", "filter_cutoff_hz", "ou_noise"]
+__all__ = ["ADXL202_OFFSET_TEMPCO_G_PER_C", "ADXL202_SENSITIVITY_TEMPCO_PER_C", "AXIS_PARTS",
+           "REFERENCE_TEMPERATURE_C", "SensorModel", "TemperatureProfile", "datasheet_tempcos", "filter_cutoff_hz",
+           "flicker_noise", "flicker_rng", "ou_noise"]
+
+#: Temperature at which the sensor's offset and sensitivity are what they are (the calibration's), °C.
+REFERENCE_TEMPERATURE_C = 25.0
+#: ADXL202E typical 0 g offset drift, g/°C (data sheet "0 g offset vs. temperature", 2.0 mg/°C; *unverified*).
+ADXL202_OFFSET_TEMPCO_G_PER_C = 2.0e-3
+#: ADXL202E typical sensitivity drift, 1/°C (data sheet ±0.5 % from 25 °C to 70 °C; *unverified*).
+ADXL202_SENSITIVITY_TEMPCO_PER_C = 0.005 / 45.0
+#: Corners of the 1/f synthesis per decade (:func:`flicker_noise`).
+FLICKER_POLES_PER_DECADE = 3
+#: Lowest corner of the 1/f synthesis unless told otherwise, Hz (a 160 s correlation time scale).
+FLICKER_LOW_HZ = 1e-3
+#: Substreams of a sensor's seed: the 1/f noise and the temperature coefficients' signs.
+_FLICKER_STREAM, _TEMPCO_STREAM = 1, 2
+
+
+def flicker_rng(seed: int) -> np.random.Generator:
+    """A fresh generator of the 1/f noise of the sensor seeded ``seed`` (independent of its white noise)."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), _FLICKER_STREAM]))
+
+
+def datasheet_tempcos(seed: int) -> dict[str, np.ndarray]:
+    """ADXL202E typical temperature coefficients with seeded signs per axis: ``offset_tempco_g_per_c`` and
+    ``sensitivity_tempco_per_c``, ``(3,)`` each (keyword arguments of :class:`SensorModel`).
+
+    >>> t = datasheet_tempcos(1)
+    >>> np.abs(t["offset_tempco_g_per_c"]).tolist()
+    [0.002, 0.002, 0.002]
+    """
+    signs = np.random.default_rng(np.random.SeedSequence([int(seed), _TEMPCO_STREAM])).choice([-1.0, 1.0], (2, 3))
+    return {"offset_tempco_g_per_c": signs[0] * ADXL202_OFFSET_TEMPCO_G_PER_C,
+            "sensitivity_tempco_per_c": signs[1] * ADXL202_SENSITIVITY_TEMPCO_PER_C}
+
+
+def flicker_noise(times_s: np.ndarray, density: np.ndarray, corner_hz: np.ndarray, low_hz: float,
+                  high_hz: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """1/f noise ``(n, N)`` of one-sided density ``density² · corner_hz / f`` between ``low_hz`` and ``high_hz``,
+    drawn exactly at the increasing instants ``times_s`` (module notes: Lorentzians, each an Ornstein-Uhlenbeck
+    process of :func:`ou_noise`, :data:`FLICKER_POLES_PER_DECADE` per decade, variance ``density² corner ln r``).
+    Channels with a zero corner or density get zeros."""
+    t = np.asarray(times_s, dtype=np.float64)
+    d = np.asarray(density, dtype=np.float64).reshape(-1)
+    fc = np.broadcast_to(np.asarray(corner_hz, dtype=np.float64), d.shape)
+    hi = np.broadcast_to(np.asarray(high_hz, dtype=np.float64), d.shape)
+    if not (low_hz > 0 and np.all(hi > low_hz) and np.all(fc >= 0)):
+        raise DeviceError(f"1/f noise needs 0 < low ({low_hz!r} Hz) < high ({hi.tolist()} Hz) and corners >= 0")
+    ratio = 10.0 ** (1.0 / FLICKER_POLES_PER_DECADE)
+    out = np.zeros((t.size, d.size))
+    for j in np.flatnonzero((d > 0) & (fc > 0)):
+        poles_hz = low_hz * ratio ** np.arange(int(np.ceil(np.log(hi[j] / low_hz) / np.log(ratio))) + 1)
+        sigma = np.full(poles_hz.size, d[j] * np.sqrt(fc[j] * np.log(ratio)))
+        out[:, j] = ou_noise(t, sigma, poles_hz, rng).sum(axis=1)
+    return out
+
+
+@dataclass(frozen=True)
+class TemperatureProfile:
+    """The sensor's temperature vs time since the recording started: piecewise linear through the points
+    ``(times_s[i], temperatures_c[i])``, held beyond the first and the last. Default: 25 °C throughout.
+
+    >>> TemperatureProfile.ramp(25.0, 50.0, 100.0).at(np.array([-1.0, 50.0, 200.0])).tolist()
+    [25.0, 37.5, 50.0]
+    """
+
+    times_s: tuple[float, ...] = (0.0,)
+    temperatures_c: tuple[float, ...] = (REFERENCE_TEMPERATURE_C,)
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times_s, dtype=np.float64)
+        c = np.asarray(self.temperatures_c, dtype=np.float64)
+        if t.ndim != 1 or t.shape != c.shape or t.size == 0 or not (np.isfinite(t).all() and np.isfinite(c).all()):
+            raise DeviceError("a temperature profile needs as many finite times as temperatures, at least one")
+        if np.any(np.diff(t) <= 0) or np.any(c < -60.0) or np.any(c > 150.0):
+            raise DeviceError("temperature profile: times must increase, temperatures lie in -60 .. 150 °C")
+        object.__setattr__(self, "times_s", tuple(float(x) for x in t))
+        object.__setattr__(self, "temperatures_c", tuple(float(x) for x in c))
+
+    @classmethod
+    def ramp(cls, start_c: float, end_c: float, duration_s: float) -> TemperatureProfile:
+        """A linear ramp from ``start_c`` at 0 s to ``end_c`` at ``duration_s``."""
+        if start_c == end_c:
+            return cls((0.0,), (float(start_c),))
+        return cls((0.0, float(duration_s)), (float(start_c), float(end_c)))
+
+    def at(self, elapsed_s: np.ndarray) -> np.ndarray:
+        """Temperatures, °C, at the times ``elapsed_s`` since the start."""
+        return np.interp(np.asarray(elapsed_s, dtype=np.float64), self.times_s, self.temperatures_c)
 
 
 def _ou_regular(drive: np.ndarray, a: float, x0: float) -> np.ndarray:
@@ -140,6 +245,16 @@ class SensorModel:
         Rate of the fine time grid the analog behaviour (filter, noise) is simulated on.
     seed
         Seed of the noise generator (each call of :meth:`respond` without ``rng`` continues one stream).
+    flicker_corner_hz
+        1/f corner of the noise, Hz (module notes); 0 (default): white noise only.
+    flicker_low_hz
+        Lowest frequency of the 1/f synthesis, Hz.
+    offset_tempco_g_per_c, sensitivity_tempco_per_c
+        ``(3,)`` temperature coefficients of the offset (g/°C) and of the sensitivity (1/°C); 0 by default.
+    temperature
+        The sensor's :class:`TemperatureProfile` over the recording (default 25 °C throughout).
+    reference_temperature_c
+        Temperature at which ``offset_g`` and ``sensitivity_error`` hold, °C.
 
     Examples
     --------
@@ -160,11 +275,19 @@ class SensorModel:
     sensitivity_v_per_g: float = 0.312
     internal_rate_hz: float = 500.0
     seed: int = 0
+    flicker_corner_hz: float = 0.0
+    flicker_low_hz: float = FLICKER_LOW_HZ
+    offset_tempco_g_per_c: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sensitivity_tempco_per_c: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    temperature: TemperatureProfile = field(default_factory=TemperatureProfile)
+    reference_temperature_c: float = REFERENCE_TEMPERATURE_C
     _rng: np.random.Generator = field(init=False, repr=False)
+    _flicker_rng: np.random.Generator = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         for name, shape in (("offset_g", (3,)), ("sensitivity_error", (3,)), ("axes", (3, 3)),
-                            ("filter_capacitance_f", (3,)), ("bandwidth_factor", (3,))):
+                            ("filter_capacitance_f", (3,)), ("bandwidth_factor", (3,)),
+                            ("offset_tempco_g_per_c", (3,)), ("sensitivity_tempco_per_c", (3,))):
             arr = np.array(getattr(self, name), dtype=np.float64)
             if arr.shape == () and shape == (3,):
                 arr = np.full(3, float(arr))
@@ -183,7 +306,13 @@ class SensorModel:
                 f"filter cut-off {self.cutoff_hz.max():.1f} Hz is not below the Nyquist frequency of the "
                 f"internal rate {self.internal_rate_hz} Hz: raise internal_rate_hz or the capacitance"
             )
+        if not (0.0 <= self.flicker_corner_hz <= 1e3 and 0.0 < self.flicker_low_hz < self.cutoff_hz.min()):
+            raise DeviceError(f"1/f corner must be 0 .. 1000 Hz and its lowest frequency between 0 and the filter "
+                              f"cut-off, got {self.flicker_corner_hz!r} and {self.flicker_low_hz!r} Hz")
+        if not isinstance(self.temperature, TemperatureProfile):
+            raise DeviceError(f"SensorModel.temperature must be a TemperatureProfile, got {self.temperature!r}")
         object.__setattr__(self, "_rng", np.random.default_rng(self.seed))
+        object.__setattr__(self, "_flicker_rng", flicker_rng(self.seed))
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -202,9 +331,12 @@ class SensorModel:
         xy_orthogonality_tol_deg: float = 0.01,
         mounting_tol_deg: float = 2.0,
         bandwidth_tol: float = 0.15,
+        temperature_drift: bool = False,
         **overrides: object,
     ) -> SensorModel:
-        """A seeded assembly with every error drawn uniformly within the tolerances (module docstring).
+        """A seeded assembly with every error drawn uniformly within the tolerances (module docstring);
+        ``temperature_drift``: the ADXL202E's typical temperature coefficients with seeded signs
+        (:func:`datasheet_tempcos`, from a stream of their own: the other draws are the same either way).
 
         Examples
         --------
@@ -233,6 +365,8 @@ class SensorModel:
         params: dict[str, object] = dict(
             offset_g=offset, sensitivity_error=sens, axes=axes, bandwidth_factor=bw, seed=seed + 1
         )
+        if temperature_drift:
+            params.update(datasheet_tempcos(seed + 1))
         params.update(overrides)
         return cls(**params)  # type: ignore[arg-type]
 
@@ -277,6 +411,32 @@ class SensorModel:
         if t.size == 0 or self.noise_density_g_rthz == 0:
             return np.zeros((t.size, 3))
         return ou_noise(t, self.noise_rms_g, self.cutoff_hz, self._rng if rng is None else rng)
+
+    def flicker_g(self, times_s: np.ndarray, *, rng: np.random.Generator | None = None) -> np.ndarray:
+        """The 1/f part of the noise in g, ``(n, 3)``, at the increasing instants ``times_s`` (module notes;
+        zeros without a corner). ``rng``: default the model's own 1/f stream (:func:`flicker_rng`)."""
+        t = np.asarray(times_s, dtype=np.float64)
+        if t.size == 0 or self.flicker_corner_hz == 0 or self.noise_density_g_rthz == 0:
+            return np.zeros((t.size, 3))
+        return flicker_noise(t, np.full(3, self.noise_density_g_rthz), self.flicker_corner_hz, self.flicker_low_hz,
+                             self.cutoff_hz, self._flicker_rng if rng is None else rng)
+
+    @property
+    def drifts(self) -> bool:
+        """Whether the offset or the sensitivity changes with temperature over the profile."""
+        hot = np.any(np.asarray(self.temperature.temperatures_c) != self.reference_temperature_c)
+        return bool(hot and (np.any(self.offset_tempco_g_per_c) or np.any(self.sensitivity_tempco_per_c)))
+
+    def drifted_v(self, volts: np.ndarray, elapsed_s: np.ndarray) -> np.ndarray:
+        """Output voltages ``(n, 3)`` of the sensor at the reference temperature moved to its temperature at
+        ``elapsed_s`` since the start (module notes): ``V0 + (v − V0)(1 + α_s ΔT) + S (1 + e)(1 + α_s ΔT) α_b ΔT``.
+        ``volts`` itself when nothing drifts."""
+        if not self.drifts:
+            return volts
+        dt_c = (self.temperature.at(elapsed_s) - self.reference_temperature_c)[:, None]
+        scale = 1.0 + self.sensitivity_tempco_per_c * dt_c
+        return self.zero_g_v + (np.asarray(volts, np.float64) - self.zero_g_v) * scale \
+            + self.gain_v_per_g * scale * self.offset_tempco_g_per_c * dt_c
 
     # ------------------------------------------------------------------ action
     def respond(self, acc_g: np.ndarray, sampling_rate_hz: float, *, rng: np.random.Generator | None = None,
@@ -346,4 +506,11 @@ class SensorModel:
             "sensitivity_v_per_g": self.sensitivity_v_per_g,
             "gain_v_per_g": self.gain_v_per_g.copy(),
             "seed": self.seed,
+            "flicker_corner_hz": self.flicker_corner_hz,
+            "flicker_low_hz": self.flicker_low_hz,
+            "offset_tempco_g_per_c": self.offset_tempco_g_per_c.copy(),
+            "sensitivity_tempco_per_c": self.sensitivity_tempco_per_c.copy(),
+            "temperature_profile": {"times_s": list(self.temperature.times_s),
+                                    "temperatures_c": list(self.temperature.temperatures_c)},
+            "reference_temperature_c": self.reference_temperature_c,
         }

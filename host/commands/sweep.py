@@ -21,11 +21,12 @@ from gaitlog.host.commands._options import SEED, number, whole
 #: Larger summary tables are only written (and printed with -v).
 MAX_PRINTED_ROWS = 60
 
-HELP = ("parameter sweep (ADC bits x rate x noise x Q formats x misalignment x population x subjects) on Dask or "
-        "in-process; resumable, CSV + figures")
+HELP = ("parameter sweep (ADC bits x rate x noise x converter and sensor errors x Q formats x misalignment x "
+        "population x subjects) on Dask or in-process; resumable, CSV + figures")
 #: Shown under "examples:" by ``gaitlog sweep --help``.
 EXAMPLES = (
     "gaitlog sweep --out sweep-out --adc-bits 8,10,12 --logger-rate 25,50 --subjects 2",
+    "gaitlog sweep --list-dimensions",
 )
 
 
@@ -67,13 +68,45 @@ def _q_formats(text: str) -> str:
 ESTIMATOR_NAMES = ("M1", "M2", "M3", "M4", "M5")
 
 
+class _ListDimensions(argparse.Action):
+    """``--list-dimensions``: print every dimension (:func:`gaitlog.host.studies.sweep_grid.format_dimensions`) and
+    exit 0, before the required options are checked (as ``--help``)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        from gaitlog.host.studies.sweep_grid import format_dimensions
+
+        print(format_dimensions())
+        parser.exit(0)
+
+
+#: The converter's and the sensor's sweep options: grid key, unit, meaning, allowed range (as
+#: :data:`gaitlog.host.studies.sweep_grid.EFFECT_DIMENSIONS`; not imported: --help stays light; a test holds them equal).
+EFFECT_OPTIONS = (("inl_lsb", "LSB", "converter INL (PIC16F877: < 1)", 0, 8),
+                  ("dnl_lsb", "LSB", "converter DNL (PIC16F877: < 1)", 0, 1),
+                  ("adc_offset_lsb", "LSB", "converter offset error (PIC16F877: < ±2)", -16, 16),
+                  ("adc_gain_error_lsb", "LSB", "converter gain error (PIC16F877: < ±1)", -16, 16),
+                  ("acquisition_time_us", "µs", "acquisition time per channel: sequential sampling, the channel skew "
+                   "(0: simultaneous; data sheet example 19.72)", 0, 1000),
+                  ("source_impedance_ohm", "Ω", "source impedance: the settling error (with an acquisition time; "
+                   "ADXL202 unbuffered 32000)", 0, 1e6),
+                  ("source_capacitance_nf", "nF", "capacitance at the pin behind the source impedance (ADXL202 "
+                   "unbuffered: its filter capacitor, 250)", 0, 1e4),
+                  ("flicker_corner_hz", "Hz", "sensor 1/f noise corner (0: white only)", 0, 100),
+                  ("temperature_swing_c", "°C", "temperature ramp from 25 °C over the walk, ADXL202E typical drift",
+                   -100, 100))
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
     from gaitlog.host.commands._options import add_verbosity_options
 
+    parser.add_argument("--list-dimensions", action=_ListDimensions, nargs=0,
+                        help="print every dimension (unit, default, option or 'not yet sweepable') and exit")
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="results folder (created; re-running with the same folder resumes)")
     parser.add_argument("--spec", metavar="FILE", help="grid spec, .json or .toml (keys: adc_bits, sampling_rate_hz, "
-                        "noise_density_g_rthz, q_formats, misalignment_deg, population, subjects, seeds, estimators, protocol); "
+                        "noise_density_g_rthz, q_formats, misalignment_deg, population, the converter/sensor keys of "
+                        "--list-dimensions, subjects, seeds, estimators, protocol); "
                         "the options below override it")
     grid = parser.add_argument_group("grid (default: 8,10,12 bits x 25,50,100 Hz, the sensor's noise, 4 subjects, seed 0)")
     grid.add_argument("--adc-bits", type=_list(whole(minimum=1, maximum=12)), metavar="B,B", help="ADC widths, bits")
@@ -89,6 +122,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                       help="extra mounting tilt of the logger (pitch), degrees (negative: --misalignment=-5,0,5)")
     grid.add_argument("--population", type=_list(str), metavar="P,P",
                       help="simulated populations (gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS: v1, people...)")
+    for key, unit, what, lo, hi in EFFECT_OPTIONS:
+        grid.add_argument("--" + key.replace("_", "-"), dest=key, type=_list(number(minimum=lo, maximum=hi, unit=unit)),
+                          metavar="X,X", help=f"{what}, {unit} (default 0: off)")
     grid.add_argument("--subjects", type=whole(minimum=1, maximum=1000), metavar="N", help="simulated subjects per seed")
     grid.add_argument("--seeds", type=_list(SEED), metavar="S,S", help="seeds of the subject draws")
     grid.add_argument("--estimators", type=_list(_estimator), metavar="M1,M2", help="estimators kept (default all)")
@@ -126,6 +162,7 @@ def run(args: argparse.Namespace) -> int:
         smallest_adc_bits,
         smallest_q_formats,
         summarise,
+        with_effects,
     )
     from gaitlog.host.studies.task_store import TaskStore, run_serial
     from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
@@ -138,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
     for key, value in (("adc_bits", args.adc_bits), ("sampling_rate_hz", args.logger_rate),
                        ("noise_density_g_rthz", args.noise_density), ("q_formats", args.q_formats),
                        ("misalignment_deg", args.misalignment), ("population", args.population),
-                       ("subjects", args.subjects),
+                       *((key, getattr(args, key)) for key, *_ in EFFECT_OPTIONS), ("subjects", args.subjects),
                        ("seeds", args.seeds), ("estimators", args.estimators), ("protocol", args.protocol)):
         if value is not None:
             spec[key] = value
@@ -154,6 +191,7 @@ def run(args: argparse.Namespace) -> int:
     say(f"sweep: {len(tasks)} tasks ({len(grid.seeds)} seed(s) x {len(grid.population)} population(s) x "
         f"{len(grid.misalignment_deg)} misalignment(s) x {grid.subjects} subject(s) x "
         f"{len(grid.sampling_rate_hz)} rate(s) x {len(grid.noise_density_g_rthz)} noise level(s) x "
+        f"{len(grid.effect_sets())} converter/sensor setting(s) x "
         f"{len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC width(s)), {n_done} already in "
         f"{store.tasks_folder}")
     t = time.perf_counter()
@@ -168,9 +206,9 @@ def run(args: argparse.Namespace) -> int:
                                    progress=tick, on_start=lambda w: detail(f"running on {w}"))
             where = args.scheduler or f"a local cluster of {args.workers} worker(s)"
     say(f"computed {computed} task(s) on {where} in {time.perf_counter() - t:.1f} s")
-    results = store.collect(tasks)
-    sections = [r for res in results for r in res["sections"]]
-    splits = [r for res in results for r in res["splits"]]
+    results = store.collect(tasks)         # rows of a folder from before the effects were dimensions: effects off
+    sections = [with_effects(r) for res in results for r in res["sections"]]
+    splits = [with_effects(r) for res in results for r in res["splits"]]
     summary = summarise(sections, splits)
     smallest = smallest_adc_bits(summary)
     smallest_q = smallest_q_formats(summary)

@@ -62,6 +62,7 @@ from typing import Any
 
 import numpy as np
 
+from gaitlog.firmware_sim.adc import TransferCurve
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.steps import (
     ESTIMATORS,
@@ -317,6 +318,12 @@ class SampledWalk:
         The sensor's truth in code units: ``code_10 = offset + gain_matrix @ a_g`` (within the rails).
     truth
         The walk's truth (``steps``, ``laps``, ``excursions``).
+    adc_input_10, converter
+        A real converter (:mod:`gaitlog.firmware_sim.adc`: sequential sampling, settling, INL/DNL, offset and
+        gain error): its input in 10-bit code units (channels held one after the other, settled) and its
+        transfer curve at 10 bits (the same device's at any width). None: the ideal converter, ``code_10``
+        quantised by ``floor``. ``code_10`` stays the analog input of the ideal chain either way, so the
+        converter's effects land in the ADC share (offline - ideal).
     """
 
     code_10: np.ndarray
@@ -326,23 +333,42 @@ class SampledWalk:
     offset_code_10: np.ndarray
     gain_matrix_code_10: np.ndarray
     truth: dict
+    adc_input_10: np.ndarray | None = None
+    converter: TransferCurve | None = None
 
     def codes(self, adc_bits: int) -> np.ndarray:
-        """``(n, 3)`` int64 codes of an ideal ``adc_bits``-bit converter (``floor``, clipped, as ``Adc.convert``)."""
+        """``(n, 3)`` int64 codes of the ``adc_bits``-bit converter (``floor``, clipped, as ``Adc.convert``, or the
+        real converter's transfer curve at that width)."""
+        if self.converter is not None:
+            x = (self.code_10 if self.adc_input_10 is None else self.adc_input_10) * 2.0 ** (adc_bits - 10)
+            return self.converter.at_bits(adc_bits).quantise(x).astype(np.int64)
         x = np.floor(self.code_10 * 2.0 ** (adc_bits - 10))
         return np.clip(x, 0, (1 << adc_bits) - 1).astype(np.int64)
 
     def ideal_codes(self, adc_bits: int) -> np.ndarray:
-        """The analog input in ``adc_bits``-bit code units, shifted by the floor's mean half code (unbiased)."""
-        return self.code_10 * 2.0 ** (adc_bits - 10) - 0.5
+        """The analog input in ``adc_bits``-bit code units, shifted by the floor's mean half code (unbiased); with a
+        real converter, as its linear part (offset and gain, :meth:`TransferCurve.linear`) would code it, so that
+        :meth:`calibration` gives the ideal chain the sensor's truth."""
+        if self.converter is None:
+            return self.code_10 * 2.0 ** (adc_bits - 10) - 0.5
+        a, b = self.converter.at_bits(adc_bits).linear()
+        return (self.code_10 * 2.0 ** (adc_bits - 10) - a) / b - 0.5
 
     def calibration(self, adc_bits: int) -> Any:
         """The device calibration for ``adc_bits``-bit codes: the sensor's truth, unbiased for ``floor``.
 
-        A :class:`gaitlog.protocol.header.CalibrationSlot` (``a = M (c - o)``), ``o = offset - 1/2`` code.
+        A :class:`gaitlog.protocol.header.CalibrationSlot` (``a = M (c - o)``), ``o = offset - 1/2`` code. With a
+        real converter, through its end-point line ``T_k = a + b k`` (:meth:`TransferCurve.linear`): ``o = (offset
+        - a) / b - 1/2``, gains ``/ b``: a pose calibration on the device measures the converter's offset and
+        gain error with the sensor's, so they are calibrated away; its INL and DNL are not. The sensor's
+        temperature drift is not either (the truth is the sensor's at the reference temperature).
         """
         s = 2.0 ** (adc_bits - 10)
-        return CalibrationSlot(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
+        if self.converter is None:
+            return CalibrationSlot(self.offset_code_10 * s - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s), valid=True)
+        a, b = self.converter.at_bits(adc_bits).linear()
+        return CalibrationSlot((self.offset_code_10 * s - a) / b - 0.5, np.linalg.inv(self.gain_matrix_code_10 * s / b),
+                               valid=True)
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ so that the studies on recordings (``gaitlog compare`` on a file) and the comman
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from itertools import pairwise
@@ -27,7 +27,7 @@ import numpy as np
 from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.errors import DeviceError
-from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.sensor import SensorModel, flicker_rng
 from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.poses import CalibrationPoses
 from gaitlog.firmware_sim.world.stopwatch import Stopwatch
@@ -262,19 +262,36 @@ class AnalogWalk:
         self.truth_ = {k: motion.truth[k] for k in ("steps", "laps", "excursions", "rests") if k in motion.truth}
         return self
 
-    def sample(self, sampling_rate_hz: float, *, noise_density_g_rthz: float | None = None) -> SampledWalk:
+    def sample(self, sampling_rate_hz: float, *, noise_density_g_rthz: float | None = None,
+               sensor_changes: Mapping[str, Any] | None = None, converter: Mapping[str, Any] | None = None
+               ) -> SampledWalk:
         """The analog output at the sample instants of a ``sampling_rate_hz`` timer, noise included (as
         :meth:`gaitlog.firmware_sim.device.Logger.record`: same instants, same hold, same noise stream).
 
         ``noise_density_g_rthz`` replaces the sensor's white-noise density (default: the sensor's, 200 µg/√Hz);
-        the noise stream (its seed) is the same, only scaled, so a noise sweep compares like with like."""
+        the noise stream (its seed) is the same, only scaled, so a noise sweep compares like with like.
+        ``sensor_changes``: other :class:`SensorModel` fields replaced (1/f corner, temperature coefficients and
+        profile: applied at the sample instants, the 1/f noise from its own stream). ``converter``:
+        :class:`gaitlog.firmware_sim.adc.Adc` fields of a real converter (sequential sampling, settling, INL/DNL,
+        offset, gain error; the device's curve seeded with the sensor's seed unless ``linearity_seed`` is given):
+        the codes come from it, the ideal chain keeps the simultaneous, unquantised input."""
         adc = Adc(adc_bits=10, sampling_rate_hz=sampling_rate_hz)
         sen = self.sensor_
         if noise_density_g_rthz is not None:
             sen = replace(sen, noise_density_g_rthz=float(noise_density_g_rthz))
+        if sensor_changes:
+            sen = replace(sen, **sensor_changes)
         times = adc.sample_times_s(self.t0_s_, self.t_last_s_)
-        held = adc.hold(self.volts_, self.rate_hz_, self.t0_s_, times)
-        held = held + sen.noise_g(times, rng=np.random.default_rng(sen.seed)) * sen.gain_v_per_g
+        noise_v = sen.noise_g(times, rng=np.random.default_rng(sen.seed)) * sen.gain_v_per_g
+        flicker_v = sen.flicker_g(times, rng=flicker_rng(sen.seed)) * sen.gain_v_per_g if sen.flicker_corner_hz else None
+
+        def analog(conv: Adc) -> np.ndarray:          # the operations of Logger.record, in its order
+            held = conv.hold(self.volts_, self.rate_hz_, self.t0_s_, times) + noise_v
+            if flicker_v is not None:
+                held = held + flicker_v
+            return sen.drifted_v(held, times - self.t0_s_)
+
+        held = analog(adc)
         # the converter input in 10-bit code units (Adc.convert without the floor), clipped to the span
         lsb = adc.lsb_v
         v = adc.ref_v + adc.gain * (held - adc.ref_v)
@@ -286,7 +303,12 @@ class AnalogWalk:
         if self.marker_times_s_.size:
             k = np.searchsorted(times, self.marker_times_s_, side="left")
             marks[k[k < times.size]] = True
-        return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_)
+        real = None if not converter else replace(adc, **({"linearity_seed": int(sen.seed)} | dict(converter)))
+        if real is None or real.ideal:
+            return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_)
+        adc_input = real.input_lsb(analog(real) if real.sequential else held)
+        return SampledWalk(x, times, times[marks], float(sampling_rate_hz), offset, gain, self.truth_,
+                           np.minimum(adc_input, float(adc.n_codes) - 1e-9), real.transfer_curve)
 
 
 _T = TypeVar("_T")

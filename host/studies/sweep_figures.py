@@ -29,11 +29,13 @@ from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
 from gaitlog.host.files.png_figure import figure_png_bytes
 from gaitlog.host.studies.sweep_grid import (
     DEFAULT_POPULATION,
+    EFFECT_DIMENSIONS,
     RATIO_TOLERANCE,
     SENSOR_NOISE_G_RTHZ,
     STEP_TOLERANCE_MM,
     SUMMARY_KEYS,
     reference,
+    with_effects,
 )
 
 __all__ = ["DIMENSIONS", "figure_dimensions", "render_error_vs_png"]
@@ -43,7 +45,13 @@ DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger 
               "noise_density_g_rthz": ("sensor noise density, µg/√Hz", SENSOR_NOISE_G_RTHZ),
               "q_formats": ("Q formats of the fixed-point chain", "shipped"),
               "misalignment_deg": ("extra mounting tilt, degrees", 0.0),
-              "population": ("simulated population", DEFAULT_POPULATION)}
+              "population": ("simulated population", DEFAULT_POPULATION),
+              **{k: (f"{label}, {EFFECT_DIMENSIONS[k][1]}", 0.0) for k, label in (
+                  ("inl_lsb", "converter INL"), ("dnl_lsb", "converter DNL"), ("adc_offset_lsb", "converter offset"),
+                  ("adc_gain_error_lsb", "converter gain error"), ("acquisition_time_us", "acquisition time"),
+                  ("source_impedance_ohm", "source impedance"),
+                  ("source_capacitance_nf", "source capacitance"), ("flicker_corner_hz", "1/f corner"),
+                  ("temperature_swing_c", "temperature swing"))}}
 #: Dimensions drawn as categories (in the grid's order), not on a numeric axis.
 _CATEGORICAL = ("q_formats", "population")
 
@@ -51,8 +59,8 @@ _CATEGORICAL = ("q_formats", "population")
 def _values(summary: list[dict], key: str) -> list:
     out: list = []
     for r in summary:
-        if r[key] not in out:
-            out.append(r[key])
+        if r.get(key, 0.0) not in out:                    # an effect missing from a row is off
+            out.append(r.get(key, 0.0))
     return out
 
 
@@ -71,7 +79,8 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
     if len(xs) < 2:
         raise ValueError(f"{dimension}: fewer than two swept values, nothing to plot")
     held = {k: reference(_values(summary, k), DIMENSIONS[k][1]) for k in SUMMARY_KEYS if k != dimension}
-    rows = [r for r in summary if r["mode"] == mode and all(r[k] == v for k, v in held.items())]
+    rows = [with_effects(r) for r in summary]
+    rows = [r for r in rows if r["mode"] == mode and all(r[k] == v for k, v in held.items())]
     categorical = dimension in _CATEGORICAL
     if not categorical:
         xs = sorted(xs)
@@ -132,7 +141,7 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
             ax.set_xticks([pos[x] for x in xs], [f"{x * scale:g}" for x in xs])
     axes[0].legend(fontsize=7)
     held_text = ", ".join(f"{k}={v:g}" if isinstance(v, float) and not math.isnan(v) else f"{k}={v}"
-                          for k, v in held.items())
+                          for k, v in held.items() if k not in EFFECT_DIMENSIONS or v != 0.0)   # effects: when on
     fig.suptitle(f"error vs {DIMENSIONS[dimension][0]} ({mode} K; median and range over subjects)\n{held_text}",
                  fontsize=8)
     return figure_png_bytes(fig, dpi=dpi)

@@ -36,6 +36,18 @@ coarsest fraction bits keeping every estimator within 1 mm per step and 1 % per 
 adds (``sqrt(var(sampled T) - var(exact T))``, the same K) per rate, and the lowest rate from which it stays
 within 1 %.
 
+**The converter and the sensor** (:data:`EFFECT_DIMENSIONS`, each 0 = off by default): INL, DNL, offset and
+gain error of the converter (LSB of the swept width), its acquisition time (sequential sampling: the channel
+skew; µs) and the source impedance it charges through (the settling error; with an acquisition time only), the
+sensor's 1/f corner and a temperature swing (a linear ramp from 25 °C to 25 °C + swing over the walk, the
+ADXL202E's typical temperature coefficients with signs seeded by the subject's sensor). Each subject wears its
+own device: the INL/DNL curve and the coefficients' signs are seeded with its sensor's seed. The ideal chain
+keeps the simultaneous, unquantised input: the converter's effects land in the ADC share (offline - ideal); the
+sensor's in every chain (and in the section ratios against the real distance). The device calibration takes the
+converter's offset and gain error in, as a pose calibration would (:meth:`gaitlog.host.studies.compare.SampledWalk.
+calibration`); the drift and the nonlinearity are left. :func:`dimensions` lists every dimension, sweepable or
+not yet (``gaitlog sweep --list-dimensions``).
+
 **Spec files.** :meth:`SweepGrid.from_spec` reads a JSON or TOML mapping with the keys of :data:`SPEC_KEYS`
 (lists or single values); anything else is an error naming the key.
 """
@@ -45,6 +57,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
+import itertools
 import json
 import math
 import threading
@@ -60,7 +73,22 @@ from scipy.spatial.transform import Rotation
 from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-from gaitlog.firmware_sim.sensor import SensorModel
+from gaitlog.firmware_sim.algorithms import format_kernel, formats
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.firmware_sim.fixedpoint import QFormat
+from gaitlog.firmware_sim.adc import (
+    ADXL202_OUTPUT_RESISTANCE_OHM,
+    DATASHEET_SOURCE_IMPEDANCE_OHM,
+    pic_acquisition_time_s,
+)
+from gaitlog.firmware_sim.sensor import (
+    ADXL202_OFFSET_TEMPCO_G_PER_C,
+    ADXL202_SENSITIVITY_TEMPCO_PER_C,
+    REFERENCE_TEMPERATURE_C,
+    SensorModel,
+    TemperatureProfile,
+    datasheet_tempcos,
+)
 from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from gaitlog.host.errors import HostError
 from gaitlog.host.gait.sections import MODES
@@ -85,6 +113,24 @@ MAX_MISALIGNMENT_DEG = 45.0
 MAX_SPEC_BYTES = 1 << 20
 #: Rendered walks kept per process (:func:`analog_walk`).
 WALK_MEMO_SIZE = 2
+#: The converter's and the sensor's effects (module notes): grid field -> (meaning, unit, largest magnitude).
+EFFECT_DIMENSIONS: dict[str, tuple[str, str, float]] = {
+    "inl_lsb": ("converter INL, peak of the seeded bow (PIC16F877: < 1)", "LSB", 8.0),
+    "dnl_lsb": ("converter DNL, seeded code-width jitter (PIC16F877: < 1)", "LSB", 1.0),
+    "adc_offset_lsb": ("converter offset error (PIC16F877: < ±2)", "LSB", 16.0),
+    "adc_gain_error_lsb": ("converter gain error (PIC16F877: < ±1)", "LSB", 16.0),
+    "acquisition_time_us": ("acquisition time before each channel's conversion: sequential sampling, the channel "
+                            "skew (0: simultaneous; data sheet example "
+                            f"{pic_acquisition_time_s(DATASHEET_SOURCE_IMPEDANCE_OHM) * 1e6:.2f})", "µs", 1000.0),
+    "source_impedance_ohm": ("source impedance the hold capacitor charges through: the settling error (with an "
+                             f"acquisition time; ADXL202 unbuffered: {ADXL202_OUTPUT_RESISTANCE_OHM:g})", "Ω", 1e6),
+    "source_capacitance_nf": ("capacitance at the pin behind the source impedance (0: none; ADXL202 unbuffered: its "
+                              "filter capacitor, 250 for 20 Hz)", "nF", 1e4),
+    "flicker_corner_hz": ("sensor 1/f noise corner (0: white noise only)", "Hz", 100.0),
+    "temperature_swing_c": (f"temperature ramp over the walk from {REFERENCE_TEMPERATURE_C:g} °C, ADXL202E typical "
+                            f"drift ({ADXL202_OFFSET_TEMPCO_G_PER_C * 1e3:g} mg/°C, "
+                            f"{ADXL202_SENSITIVITY_TEMPCO_PER_C * 100:.3f} %/°C)", "°C", 100.0),
+}
 #: Keys of a spec file and their meaning.
 SPEC_KEYS = {
     "adc_bits": "ADC widths, bits",
@@ -93,6 +139,7 @@ SPEC_KEYS = {
     "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12: acc, grav, lp, m2pos)",
     "misalignment_deg": "extra mounting tilts of the logger (pitch), degrees",
     "population": f"simulated populations ({', '.join(POPULATION_PLANS)})",
+    **{k: f"{v[0]}, {v[1]}" for k, v in EFFECT_DIMENSIONS.items()},
     "subjects": "simulated subjects per seed",
     "seeds": "seeds of the subject draws",
     "estimators": f"estimators kept in the rows ({', '.join(ESTIMATORS)})",
@@ -102,10 +149,10 @@ SPEC_KEYS = {
 RATIO_KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Configuration columns, first in every row.
 CONFIG_COLUMNS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                  "population", "protocol", "seed")
+                  "population", "protocol", "seed", *EFFECT_DIMENSIONS)
 #: The configuration columns a summary row is grouped by (the others are pooled).
 SUMMARY_KEYS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                "population")
+                "population", *EFFECT_DIMENSIONS)
 SECTION_COLUMNS = CONFIG_COLUMNS + ("subject", "excursion", "speed_label", "section", "real_m", "mode", "estimator") \
     + tuple(f"ratio_{k}" for k in RATIO_KINDS)
 SPLIT_COLUMNS = CONFIG_COLUMNS + ("subject", "share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm",
@@ -136,6 +183,15 @@ class SweepTask:
     q_formats: str = "shipped"
     misalignment_deg: float = 0.0
     population: str = DEFAULT_POPULATION
+    inl_lsb: float = 0.0
+    dnl_lsb: float = 0.0
+    adc_offset_lsb: float = 0.0
+    adc_gain_error_lsb: float = 0.0
+    acquisition_time_us: float = 0.0
+    source_impedance_ohm: float = 0.0
+    source_capacitance_nf: float = 0.0
+    flicker_corner_hz: float = 0.0
+    temperature_swing_c: float = 0.0
 
     @property
     def group(self) -> tuple:
@@ -144,11 +200,17 @@ class SweepTask:
 
     @property
     def key(self) -> str:
-        """A file-name-safe name, unique for the task's fields (readable part + hash of all fields)."""
-        text = json.dumps(asdict(self), sort_keys=True)
+        """A file-name-safe name, unique for the task's fields (readable part + hash of all fields; the effects
+        of :data:`EFFECT_DIMENSIONS` only when on, so the tasks of an earlier grid keep their names)."""
+        text = json.dumps({k: v for k, v in asdict(self).items() if k not in EFFECT_DIMENSIONS or v != 0.0},
+                          sort_keys=True)
         digest = hashlib.sha256(text.encode()).hexdigest()[:12]
         return (f"seed{self.seed}-s{self.subject_index}-{self.adc_bits}b-{self.sampling_rate_hz:g}Hz-"
-                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{digest}")
+                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{effects_label(asdict(self), sep='-')}{digest}")
+
+    def effects(self) -> dict[str, float]:
+        """The values of :data:`EFFECT_DIMENSIONS`."""
+        return {k: getattr(self, k) for k in EFFECT_DIMENSIONS}
 
 
 @dataclass(frozen=True)
@@ -161,6 +223,15 @@ class SweepGrid:
     q_formats: tuple[str, ...] = ("shipped",)
     misalignment_deg: tuple[float, ...] = (0.0,)
     population: tuple[str, ...] = (DEFAULT_POPULATION,)
+    inl_lsb: tuple[float, ...] = (0.0,)
+    dnl_lsb: tuple[float, ...] = (0.0,)
+    adc_offset_lsb: tuple[float, ...] = (0.0,)
+    adc_gain_error_lsb: tuple[float, ...] = (0.0,)
+    acquisition_time_us: tuple[float, ...] = (0.0,)
+    source_impedance_ohm: tuple[float, ...] = (0.0,)
+    source_capacitance_nf: tuple[float, ...] = (0.0,)
+    flicker_corner_hz: tuple[float, ...] = (0.0,)
+    temperature_swing_c: tuple[float, ...] = (0.0,)
     subjects: int = 4
     seeds: tuple[int, ...] = (0,)
     estimators: tuple[str, ...] = ESTIMATORS
@@ -171,7 +242,7 @@ class SweepGrid:
         for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                     "population", "seeds", "estimators"):
+                     "population", "seeds", "estimators", *EFFECT_DIMENSIONS):
             if not getattr(self, name):
                 raise HostError(f"sweep grid: {name} is empty")
         labels = []
@@ -189,7 +260,7 @@ class SweepGrid:
             raise HostError(f"sweep grid: unknown population(s) {', '.join(unknown_pop)}; known: "
                             f"{', '.join(POPULATION_PLANS)}")
         for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                     "population", "seeds"):
+                     "population", "seeds", *EFFECT_DIMENSIONS):
             values = getattr(self, name)
             if len(set(values)) != len(values):
                 raise HostError(f"sweep grid: {name} lists a value twice")
@@ -199,6 +270,7 @@ class SweepGrid:
         for n in self.noise_density_g_rthz:
             if not (math.isfinite(n) and 0.0 <= n <= 0.01):
                 raise HostError(f"sweep grid: noise density {n:g} g/√Hz outside 0-0.01")
+        self._check_effects()
         if not 1 <= self.subjects <= 1000:
             raise HostError(f"sweep grid: subjects must be 1..1000, got {self.subjects}")
         unknown = [e for e in self.estimators if e not in ESTIMATORS]
@@ -207,6 +279,16 @@ class SweepGrid:
         if self.protocol not in PROTOCOLS:
             raise HostError(f"sweep grid: unknown protocol {self.protocol!r}; known: {', '.join(PROTOCOLS)}")
 
+    def _check_effects(self) -> None:
+        """:data:`EFFECT_DIMENSIONS` within their ranges (and those whose sign has no meaning not negative)."""
+        for name, (_, unit, top) in EFFECT_DIMENSIONS.items():
+            values = tuple(float(v) for v in getattr(self, name))
+            object.__setattr__(self, name, values)
+            signed = name in ("adc_offset_lsb", "adc_gain_error_lsb", "temperature_swing_c")
+            for v in values:
+                if not (math.isfinite(v) and (signed or v >= 0) and abs(v) <= top):
+                    raise HostError(f"sweep grid: {name} {v:g} {unit} outside {'±' if signed else '0 .. '}{top:g}")
+
     @classmethod
     def from_spec(cls, spec: dict, *, source: str = "spec") -> SweepGrid:
         """A grid from a mapping with the keys of :data:`SPEC_KEYS` (scalars or lists; missing keys: defaults)."""
@@ -214,7 +296,8 @@ class SweepGrid:
         if unknown:
             raise HostError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
         kinds = {"adc_bits": int, "sampling_rate_hz": float, "noise_density_g_rthz": float, "seeds": int,
-                 "estimators": str, "q_formats": str, "misalignment_deg": float, "population": str}
+                 "estimators": str, "q_formats": str, "misalignment_deg": float, "population": str,
+                 **dict.fromkeys(EFFECT_DIMENSIONS, float)}
         kw: dict[str, Any] = {}
         for key, value in spec.items():
             try:
@@ -262,12 +345,18 @@ class SweepGrid:
 
     def tasks(self) -> list[SweepTask]:
         """Every task, seed by seed, population, misalignment and subject (the walk's order), then rate, noise,
-        Q formats and width."""
+        the converter's and sensor's effects, Q formats and width."""
         return [SweepTask(seed, i, self.subjects, b, float(r), float(n), self.protocol, tuple(self.estimators),
-                          self.calibration_sections, q, float(m), pop)
+                          self.calibration_sections, q, float(m), pop, **effects)
                 for seed in self.seeds for pop in self.population for m in self.misalignment_deg
                 for i in range(self.subjects) for r in self.sampling_rate_hz
-                for n in self.noise_density_g_rthz for q in self.q_formats for b in self.adc_bits]
+                for n in self.noise_density_g_rthz for effects in self.effect_sets()
+                for q in self.q_formats for b in self.adc_bits]
+
+    def effect_sets(self) -> list[dict[str, float]]:
+        """Every combination of the :data:`EFFECT_DIMENSIONS` values, in the grid's order."""
+        return [dict(zip(EFFECT_DIMENSIONS, combo, strict=True))
+                for combo in itertools.product(*(getattr(self, k) for k in EFFECT_DIMENSIONS))]
 
 
 _WALKS: OrderedDict[tuple, AnalogWalk] = OrderedDict()
@@ -323,7 +412,9 @@ def run_task(task: SweepTask) -> dict:
     """The rows of one task (module notes): ``{"sections": [...], "splits": [...], "task": {...}}``."""
     subject, walk = analog_walk(task.seed, task.subject_index, task.n_subjects, task.protocol, task.population,
                                 task.misalignment_deg)
-    sw = walk.sample(task.sampling_rate_hz, noise_density_g_rthz=task.noise_density_g_rthz)
+    sensor_changes, converter = effects_of(task.effects(), walk)
+    sw = walk.sample(task.sampling_rate_hz, noise_density_g_rthz=task.noise_density_g_rthz,
+                     sensor_changes=sensor_changes, converter=converter)
     formats = KernelFormats.parse(task.q_formats)
     fixed = OnlineStepAlgorithm if formats.shipped else functools.partial(OnlineStepAlgorithm, formats=formats)
     result, _ = run_config(sw, subject, task.adc_bits, calibration_sections=task.calibration_sections,
@@ -331,7 +422,7 @@ def run_task(task: SweepTask) -> dict:
     config = dict(adc_bits=task.adc_bits, sampling_rate_hz=task.sampling_rate_hz,
                   noise_density_g_rthz=task.noise_density_g_rthz, q_formats=task.q_formats,
                   misalignment_deg=task.misalignment_deg, population=task.population, protocol=task.protocol,
-                  seed=task.seed)
+                  seed=task.seed, **task.effects())
     keep = set(task.estimators)
     sections = [config | {k: _plain(s[k]) for k in SECTION_COLUMNS if k in s and k not in config}
                 for s in result.segments if s["estimator"] in keep]
@@ -341,6 +432,52 @@ def run_task(task: SweepTask) -> dict:
                             saturated=int(result.saturated), wrapped=int(result.wrapped),
                             saturation=result.saturation)
     return {"sections": sections, "splits": splits, "task": scalars}
+
+
+def effects_of(effects: dict[str, float], walk: AnalogWalk) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The sensor changes and the converter fields (:meth:`AnalogWalk.sample`) of a task's effects on ``walk``
+    (module notes; empty when all are off; an effect missing from ``effects`` is off)."""
+    effects = with_effects(effects)
+    sensor: dict[str, Any] = {}
+    if effects["flicker_corner_hz"]:
+        sensor["flicker_corner_hz"] = effects["flicker_corner_hz"]
+    if effects["temperature_swing_c"]:
+        ref = REFERENCE_TEMPERATURE_C
+        sensor.update(datasheet_tempcos(walk.sensor_.seed), temperature=TemperatureProfile.ramp(
+            ref, ref + effects["temperature_swing_c"], walk.t_last_s_ - walk.t0_s_))
+    converter = {k: effects[e] for k, e in (("inl_lsb", "inl_lsb"), ("dnl_lsb", "dnl_lsb"),
+                                            ("offset_error_lsb", "adc_offset_lsb"),
+                                            ("gain_error_lsb", "adc_gain_error_lsb"),
+                                            ("source_impedance_ohm", "source_impedance_ohm")) if effects[e]}
+    if effects["acquisition_time_us"]:
+        converter["acquisition_time_s"] = effects["acquisition_time_us"] * 1e-6
+    if effects["source_capacitance_nf"]:
+        converter["source_capacitance_f"] = effects["source_capacitance_nf"] * 1e-9
+    return sensor, converter
+
+
+#: Short names of the effects in labels (:func:`effects_label`).
+_EFFECT_SHORT = {"inl_lsb": "inl", "dnl_lsb": "dnl", "adc_offset_lsb": "off", "adc_gain_error_lsb": "gain",
+                 "acquisition_time_us": "acq", "source_impedance_ohm": "rs", "source_capacitance_nf": "cs",
+                 "flicker_corner_hz": "fc",
+                 "temperature_swing_c": "dT"}
+
+
+def effects_label(row: dict, *, sep: str = " ") -> str:
+    """The effects that are on in ``row`` as ``inl1 dT25`` (each followed by ``sep`` when ``sep`` is ``-``;
+    empty when none; ``-`` for a printed row without any)."""
+    on = [f"{_EFFECT_SHORT[k]}{row[k]:g}" for k in EFFECT_DIMENSIONS if row.get(k, 0.0)]
+    if sep == "-":
+        return "".join(f"{x}-" for x in on)
+    return sep.join(on) or "-"
+
+
+def with_effects(row: dict) -> dict:
+    """``row`` with the :data:`EFFECT_DIMENSIONS` it lacks at 0 (off): rows of a results folder written before
+    the converter's and sensor's effects were dimensions resume as what they were."""
+    if all(k in row for k in EFFECT_DIMENSIONS):
+        return row
+    return dict.fromkeys(EFFECT_DIMENSIONS, 0.0) | row
 
 
 def _order(values: list) -> dict:
@@ -372,6 +509,7 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
     |offline - ideal| and |online-fixed - online-float| (multi-speed lengths), ``*_lo`` / ``*_hi`` their range
     over subjects.
     """
+    sections, splits = [with_effects(r) for r in sections], [with_effects(r) for r in splits]
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
     q_order = _order([s["q_formats"] for s in sections])
     pop_order = _order([s["population"] for s in sections])
@@ -382,8 +520,8 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
     for d in splits:
         split_groups.setdefault(tuple(d[k] for k in SUMMARY_KEYS) + (d["pair"], d["estimator"]), []).append(d)
     out = []
-    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], q_order[k[3]], k[0],
-                                             MODES.index(k[6]), ESTIMATORS.index(k[7]))):
+    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-2], q_order[k[3]], k[0],
+                                             MODES.index(k[-2]), ESTIMATORS.index(k[-1]))):
         *config, mode, est = key
         seg = groups[key]
         row: dict[str, Any] = dict(zip(SUMMARY_KEYS, config, strict=True))
@@ -427,11 +565,12 @@ def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list
     per 20 m section (largest |offline - ideal| ratio); ``smallest_adc_bits`` is None when no swept width does.
     The ADC share does not involve the fixed-point chain: the rows of one Q-format set are used (the shipped one
     when swept)."""
-    rows = [r for r in summary if r["mode"] == mode]
+    rows = [with_effects(r) for r in summary if r["mode"] == mode]
     if not rows:
         return []
     q = reference([r["q_formats"] for r in rows], "shipped")
-    keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", "estimator")
+    keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", *EFFECT_DIMENSIONS,
+            "estimator")
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         if r["q_formats"] == q:
@@ -447,7 +586,7 @@ def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> lis
     bits from which on every wider swept one keeps the arithmetic share (online-fixed - online-float) within
     :data:`STEP_TOLERANCE_MM` per step and :data:`RATIO_TOLERANCE` per 20 m section. ``smallest_frac_bits``
     is None when no swept width does; the shipped width is then the one to keep (or widen)."""
-    rows = [r for r in summary if r["mode"] == mode]
+    rows = [with_effects(r) for r in summary if r["mode"] == mode]
     shipped = KernelFormats()
     by_field: dict[str, dict[str, int]] = {}
     for label in _order([r["q_formats"] for r in rows]):
@@ -455,7 +594,8 @@ def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> lis
         differ = [n for n in KernelFormats.field_names() if getattr(f, n) != getattr(shipped, n)]
         for n in differ if len(differ) == 1 else (KernelFormats.field_names() if not differ else ()):
             by_field.setdefault(n, {})[label] = getattr(f, n)
-    keys = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", "estimator")
+    keys = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population",
+            *EFFECT_DIMENSIONS, "estimator")
     out = []
     for name, labels in by_field.items():
         if len(labels) < 2:
@@ -481,12 +621,12 @@ def m5_rate_answer(sections: list[dict]) -> dict:
     str}``; a row per (mode, rate) with ``n``, ``iqr``, ``std``, ``iqr_exact``, ``std_exact``, ``timing_part``
     and ``timing_part_lo/hi``: its range over subjects (each subject's own sampled and exact spread).
     """
-    m5 = [s for s in sections if s["estimator"] == "M5"]
+    m5 = [with_effects(s) for s in sections if s["estimator"] == "M5"]
     if not m5:
         return {"rows": [], "rate_hz": None, "verdict": ""}
     ref = {k: reference(list(_order([s[k] for s in m5])), p) for k, p in
            (("adc_bits", 10), ("q_formats", "shipped"), ("noise_density_g_rthz", SENSOR_NOISE_G_RTHZ),
-            ("misalignment_deg", 0.0), ("population", DEFAULT_POPULATION))}
+            ("misalignment_deg", 0.0), ("population", DEFAULT_POPULATION), *((k, 0.0) for k in EFFECT_DIMENSIONS))}
     m5 = [s for s in m5 if all(s[k] == v for k, v in ref.items())]
     rates = sorted({s["sampling_rate_hz"] for s in m5})
 
@@ -535,11 +675,12 @@ def m5_rate_answer(sections: list[dict]) -> dict:
 
 def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     """Printed summary of one calibration mode."""
+    width = max([12] + [len(effects_label(r)) + 1 for r in summary if r["mode"] == mode])
     lines = [f"{mode} calibration (one K per configuration, fitted on its offline chain); section ratio "
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
              "mm: per-step median |offline - ideal| / |online-fixed - online-float|; Q: fixed-point formats, "
-             "tilt: extra misalignment, deg",
-             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'est':<4}{'subj':>5}{'n':>6}"
+             "tilt: extra misalignment, deg; conv/sensor: the converter's and sensor's effects that are on",
+             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}{'subj':>5}{'n':>6}"
              f"{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}{'ADC mm':>8}"
              f"{'arith mm':>9}{'arith max':>10}"]
     for r in summary:
@@ -547,7 +688,7 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
             continue
         lines.append(f"{r['adc_bits']:>4}{r['sampling_rate_hz']:>6g}{1e6 * r['noise_density_g_rthz']:>9.0f} "
                      f"{r['q_formats']:<10}{r['misalignment_deg']:>5g} {r['population']:<7}"
-                     f"{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
+                     f"{effects_label(r):<{width}}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
                      f"{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}{r['median_online_fixed']:>8.3f}"
                      f"{r['subject_median_offline_lo']:>7.3f}-{r['subject_median_offline_hi']:<6.3f}"
                      f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
@@ -556,8 +697,9 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
 
 
 def _where(r: dict) -> str:
+    effects = effects_label(r)
     return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
-            f"{r['misalignment_deg']:g} deg, {r['population']}")
+            f"{r['misalignment_deg']:g} deg, {r['population']}" + (f", {effects}" if effects != "-" else ""))
 
 
 def format_smallest_bits(rows: list[dict]) -> str:
@@ -581,7 +723,7 @@ def format_smallest_q(rows: list[dict]) -> str:
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault((r["variable"], r["adc_bits"], r["sampling_rate_hz"], r["noise_density_g_rthz"],
-                           r["misalignment_deg"], r["population"]), []).append(r)
+                           r["misalignment_deg"], r["population"], *(r[k] for k in EFFECT_DIMENSIONS)), []).append(r)
     for (name, bits, *_), g in groups.items():
         need = [r["smallest_frac_bits"] for r in g]
         total = None if None in need else max(need)
@@ -608,3 +750,95 @@ def format_m5_rate(m5: dict) -> str:
                      f"{r['timing_part_lo']:>8.4f}-{r['timing_part_hi']:<7.4f}")
     lines.append(m5["verdict"])
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Every dimension of the question, sweepable or not yet (gaitlog sweep --list-dimensions)
+
+#: The ``gaitlog sweep`` option of each grid key (the effects: ``--`` + the key with dashes).
+OPTIONS = {"adc_bits": "--adc-bits", "sampling_rate_hz": "--logger-rate", "noise_density_g_rthz": "--noise-density",
+           "q_formats": "--q-formats", "misalignment_deg": "--misalignment", "population": "--population",
+           "subjects": "--subjects", "seeds": "--seeds",
+           **{k: "--" + k.replace("_", "-") for k in EFFECT_DIMENSIONS}}
+#: Units of the grid keys that are not effects.
+_UNITS = {"adc_bits": "bits", "sampling_rate_hz": "Hz", "noise_density_g_rthz": "g/√Hz", "q_formats": "set",
+          "misalignment_deg": "degrees", "population": "name", "subjects": "count", "seeds": "seed"}
+#: Formats whose fraction bits are a_v's (:class:`KernelFormats`: the accumulators keep them).
+_FOLLOWS_ACC = ("VELOCITY_Q", "POSITION_Q")
+#: The rounding of the fixed-point chain today (:mod:`gaitlog.firmware_sim.algorithms.arithmetic`).
+SHIPPED_ROUNDING = "half-up (products, shifts), nearest ties away (divisions)"
+
+
+@dataclass(frozen=True)
+class Dimension:
+    """One dimension of a quantisation study: its name, unit, default, and the ``gaitlog sweep`` option that
+    sweeps it (None: not yet sweepable)."""
+
+    name: str
+    unit: str
+    default: str
+    option: str | None
+    what: str
+
+    def line(self) -> str:
+        """One printed line: name, unit, default, option or "not yet sweepable", meaning."""
+        how = self.option if self.option is not None else "not yet sweepable"
+        return f"{self.name:<28} {self.unit:<8} default {self.default:<22} {how:<26} {self.what}"
+
+
+def _default_text(value: Any) -> str:
+    values = value if isinstance(value, tuple) else (value,)
+    return ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in values)
+
+
+def _format_dimensions() -> list[Dimension]:
+    """Word and fraction bits of every Q format of :mod:`gaitlog.firmware_sim.algorithms.formats`: the fraction bits
+    of the :class:`KernelFormats` variables through ``--q-formats``, the rest not yet."""
+    shipped = KernelFormats()
+    label_of = {}
+    for name in KernelFormats.field_names():
+        short = KernelFormats(**{name: 1}).label().rstrip("0123456789")
+        label_of[id(_shipped_format(name))] = (short, getattr(shipped, name))
+    out = []
+    for name in formats.__all__:
+        q = getattr(formats, name)
+        if not isinstance(q, QFormat):
+            continue
+        short = label_of.get(id(q)) or (label_of[id(formats.ACC_Q)] if name in _FOLLOWS_ACC else None)
+        follows = " (follows ACC_Q's)" if name in _FOLLOWS_ACC else ""
+        out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None, f"word of {q}"))
+        out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits),
+                             f"--q-formats {short[0]}N" if short else None,
+                             f"fraction bits of {q}" + (f" (fewer than shipped only){follows}" if short else "")))
+    return out
+
+
+def _shipped_format(field_name: str) -> QFormat:
+    """The shipped format a :class:`KernelFormats` field sets the fraction bits of."""
+    return format_kernel._SHIPPED[field_name]          # noqa: SLF001  (the kernel's own table, defined once there)
+
+
+def dimensions() -> list[Dimension]:
+    """Every dimension of the question (module notes): the grid's (sweepable, with their default grid values)
+    and the fixed-point chain's that the grid cannot change yet (each format's word bits and most fraction bits,
+    the rounding mode, M4's exponent)."""
+    grid = SweepGrid()
+    out = []
+    for key, option in OPTIONS.items():
+        if key in EFFECT_DIMENSIONS:
+            what, unit, _ = EFFECT_DIMENSIONS[key]
+        else:
+            what, unit = SPEC_KEYS[key], _UNITS[key]
+        out.append(Dimension(key, unit, _default_text(getattr(grid, key)), option, what))
+    out += _format_dimensions()
+    out.append(Dimension("rounding_mode", "mode", "shipped", None,
+                         f"rounding per operation class (truncate, half-up, convergent); shipped: {SHIPPED_ROUNDING}"))
+    out.append(Dimension("m4_exponent", "1", f"{M4_EXPONENT:g}", None, "M4's exponent p in S = K (a_max - a_min)^p "
+                         "(Weinberg's 1/4; the firmware's 1/2)"))
+    return out
+
+
+def format_dimensions() -> str:
+    """The printed list of :func:`dimensions`, one a line, with a header line."""
+    head = f"{'dimension':<28} {'unit':<8} {'default':<30} {'gaitlog sweep option':<26} meaning"
+    return "\n".join([head] + [d.line() for d in dimensions()])
