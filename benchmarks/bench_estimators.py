@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 from _timing import best_of
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))

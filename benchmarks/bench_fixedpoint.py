@@ -23,7 +23,7 @@ from _timing import best_of
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gaitlog.firmware_sim.fixedpoint import QFormat, cumsum, div, isqrt, mul_q  # noqa: E402
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 N = 65_536
 PRIMITIVE_TARGET_S = 0.005

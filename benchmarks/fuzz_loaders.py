@@ -9,7 +9,7 @@ escaping is a crash, counted and shown (target, exception, the input's first byt
 The inputs are valid seeds of each format put through 1-3 random mutations (bit flips, random or boundary
 bytes, inserted / dropped / duplicated spans, truncation, splices of two seeds) and, for the NPZ and JSON
 loaders, structure-aware ones (an array replaced by one of another dtype or shape; a JSON value replaced by a
-nested, ragged, huge, NaN or wrongly typed one). ``tests/host/test_fuzz_loaders.py`` runs the same targets
+nested, ragged, huge, NaN or wrongly typed one). ``tests/host/files/test_fuzz_loaders.py`` runs the same targets
 under hypothesis with a few thousand examples.
 """
 

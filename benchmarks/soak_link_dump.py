@@ -10,7 +10,7 @@ decodes as valid but differs is a *wrong sample* (the target is 0), a missing on
 Run ``python benchmarks/soak_link_dump.py`` (100 dumps at 1e-3, about 6 minutes on one CPU) or e.g.
 ``--dumps 10 --error-rate 1e-2``. Prints one line per dump and a summary (dumps, wrong samples, incomplete
 dumps, time per dump against a clean dump measured in the same run); exits 1 on a wrong sample or an
-incomplete dump. Not run by CI (too long); ``tests/host/test_link_noisy.py`` runs a small memory at 1e-2.
+incomplete dump. Not run by CI (too long); ``tests/host/link/test_link_noisy.py`` runs a small memory at 1e-2.
 """
 
 from __future__ import annotations

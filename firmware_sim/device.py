@@ -35,7 +35,7 @@ from gaitlog.firmware_sim.sensor import SensorModel
 from gaitlog.firmware_sim.step_store import StepStore
 from gaitlog.firmware_sim.world.base import Motion, MotionSource
 from gaitlog.firmware_sim.world.resampling import resample_g
-from gaitlog.protocol.atomic_write import atomic_write_bytes
+from gaitlog.atomic_write import atomic_write_bytes
 from gaitlog.protocol.channel_map import ChannelMap
 from gaitlog.protocol.commit_journal import torn_step_records
 from gaitlog.protocol.errors import ProtocolError

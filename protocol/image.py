@@ -41,7 +41,6 @@ memory image: 1 of the 1 blocks holding stored samples are not usable (block 0)
 
 from __future__ import annotations
 
-import os
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -50,7 +49,6 @@ from typing import Literal
 import construct as cs
 import numpy as np
 
-from gaitlog.protocol.atomic_write import atomic_write_bytes
 from gaitlog.protocol.crc import crc32
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import Frame, FrameParser
@@ -80,8 +78,6 @@ __all__ = [
     "image_memory_bytes",
     "image_version_for",
     "parse_image",
-    "read_image",
-    "write_image",
 ]
 
 IMAGE_MAGIC = b"GLIM"
@@ -330,20 +326,6 @@ def build_image(header: bytes | DeviceHeader, memory: bytes | bytearray | memory
     crcs[states == BLOCK_MISSING] ^= np.uint32(0xFFFFFFFF)
     table = prefix + crcs.tobytes() + states.tobytes()
     return b"".join((table, crc32(table).to_bytes(4, "little"), hbytes, bytes(mem)))
-
-
-def write_image(path: str | os.PathLike[str], header: bytes | DeviceHeader, memory: bytes | np.ndarray,
-                missing_blocks: Iterable[int] = (), block_size: int = DEFAULT_BLOCK_SIZE, *,
-                step_memory: bytes | np.ndarray | None = None) -> None:
-    """Write a ``.glimg`` file atomically (complete or not at all); arguments as :func:`build_image`."""
-    atomic_write_bytes(path, build_image(header, memory, missing_blocks, block_size, step_memory=step_memory))
-
-
-def read_image(path: str | os.PathLike[str]) -> ImageContents:
-    """Read and parse a ``.glimg`` file; errors name the file."""
-    with open(path, "rb") as f:
-        data = f.read()
-    return parse_image(data, source=str(path))
 
 
 def _blocks(indices: np.ndarray) -> str:

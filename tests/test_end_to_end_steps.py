@@ -34,8 +34,14 @@ from gaitlog.host.files.replay import verify_step_records
 from gaitlog.host.link.logger_link import LoggerLink
 from gaitlog.host.link.memory_dump import dump_memory
 from gaitlog.protocol.frames import FrameType, parse_stream
-from gaitlog.protocol.image import read_image
+from gaitlog.protocol.image import parse_image
 from gaitlog.protocol.steps import STEP_ADDRESS_BASE, StepConfig
+
+
+def read_image(path: Path):
+    """A ``.glimg`` file parsed (the protocol works on bytes; reading the file is the caller's)."""
+    return parse_image(Path(path).read_bytes(), source=str(path))
+
 
 ROOT = Path(__file__).resolve().parents[1]
 START_S = 1_700_000_000

@@ -12,7 +12,8 @@ PACKAGES = ("protocol", "firmware_sim", "host", "gaitlog")
 #: Layer of each package or host room: a module may import only from its own layer or a lower one.
 LAYERS = {"protocol": 0, "firmware_sim": 1, "host": 2, "host.errors": 2, "host.link": 3, "host.files": 3,
           "host.accelerometer": 3, "host.gait": 3, "host.kinematics": 3, "host.studies": 4, "host.commands": 5,
-          "host.cli": 6, "gaitlog.__main__": 7, "gaitlog": 0}
+          "host.cli": 6, "gaitlog.__main__": 7, "gaitlog": 0,
+          "gaitlog.units": -1, "gaitlog.atomic_write": -1}
 #: Modules whose functions may import (the command line's lazy imports keep ``gaitlog --help`` fast).
 LAZY_ALLOWED = ("host.commands.", "host.cli", "gaitlog.__main__")
 
@@ -157,3 +158,23 @@ def test_pyproject_installs_every_package_under_gaitlog() -> None:
                              for package in PACKAGES[:3] for p in (ROOT / package).rglob("__init__.py")}
     assert set(setuptools["packages"]) == folders
     assert setuptools["package-dir"] == {"gaitlog": "gaitlog", **{f"gaitlog.{p}": p for p in PACKAGES[:3]}}
+
+
+#: Calls that touch files: none may stand in ``protocol/`` (the binary contract works on bytes; the one place
+#: that writes files for every package is ``gaitlog/atomic_write.py``, below all of them).
+FILE_CALLS = {"open", "read_bytes", "write_bytes", "read_text", "write_text", "fdopen", "mkstemp",
+              "NamedTemporaryFile", "rename", "unlink"}
+
+
+def test_protocol_opens_no_file() -> None:
+    found = []
+    for name, tree in MODULES.items():
+        if name.split(".")[0] != "protocol":
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call):
+                f = node.func
+                called = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+                if called in FILE_CALLS:
+                    found.append(f"{name}:{node.lineno}: {ast.unparse(node)[:80]}")
+    assert not found, "\n".join(found)

@@ -55,7 +55,6 @@ from gaitlog.firmware_sim.algorithms.formats import (
 from gaitlog.firmware_sim.algorithms.parameters import (
     M4_EXPONENT,
     SIGMA_S_AT_1HZ,
-    STANDARD_GRAVITY_M_S2,
     EventParameters,
     OnlineParameters,
     SampleCounts,
@@ -89,6 +88,7 @@ from gaitlog.protocol.steps import (
     StepFlag,
     empty_step_records,
 )
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", "CycleStats", "load_kernels"]
 

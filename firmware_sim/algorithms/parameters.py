@@ -27,7 +27,7 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   version 3). Walkers whose amplitude is at least ``cap / fraction`` (2 m/s^2: brisk walking) keep the
   fixed 0.5 m/s^2 of versions 1-2; slow, short steps (0.30-0.35 m at 70-90 /min, whose 3 Hz first harmonic
   rises 0.3-0.8 m/s^2) get down to the floor: the fixed threshold missed 17-25 % of them, this rule
-  -3.1..+0.4 % (``tests/host/test_slow_walking_sim.py``, simulated walkers: there is no such recording).
+  -3.1..+0.4 % (``tests/host/gait/test_slow_walking_sim.py``, simulated walkers: there is no such recording).
   History (issue 12): the rule was first uncapped, ``max(0.25, 0.2 A)``, and the floor also its threshold
   before the first step; the fraction and floor were chosen on simulated walkers (``gaitlog.firmware_sim.world``,
   six random subjects, seed 3, three speeds, 20 m out and back: fraction 0.2 gave step count errors -1..+2
@@ -57,7 +57,7 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   fixed 179 -> 195 steps, fixed threshold -> this rule); on simulated walkers
   the walk's amplitude, remembered through a sitting rest, lets the sit-to-stand before the next walk pass
   as a step (4 times in 6 subjects' 18 rests: heel-strike F1 0.9903 -> 0.98997 on 3 subjects, a strict
-  xfail in ``tests/host/test_evaluation_sim.py``). Resetting the threshold to the cap when a bout ends
+  xfail in ``tests/host/studies/test_evaluation_sim.py``). Resetting the threshold to the cap when a bout ends
   removes those but misses a slow walker's next bout start (count -6 %, M3 1.154), so it is not done.
 * Stop rule (``stop_prominence_m_s2``, 0.2 m/s^2; 0: off): the step that brings the walker to a stop
   raises the 3 Hz signal less than a walking step, and the full prominence missed it in 25 of the 52 IPOL
@@ -93,11 +93,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 __all__ = ["prominence_threshold", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
            "gaussian_radius", "FRACTION_SCALE",
-           "STANDARD_GRAVITY_M_S2", "SIGMA_S_AT_1HZ"]
+           "SIGMA_S_AT_1HZ"]
 
 #: Gaussian sigma (s) whose -3 dB cut-off is 1 Hz: ``|H(f)| = exp(-(2 pi f sigma)^2 / 2) = 1/sqrt(2)``.
 SIGMA_S_AT_1HZ = float(math.sqrt(math.log(2.0)) / (2.0 * math.pi))

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gaitlog.firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
-from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.atomic_write import atomic_write_text
 from gaitlog.protocol.steps import StepFlag
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "float_csv_cells"]
 

@@ -4,7 +4,7 @@ Axis and sign convention (one convention for the whole project)
 ----------------------------------------------------------------
 Accelerations are *specific force* in g along the device's nominal axes ``x, y, z`` (columns 0, 1, 2):
 what an ideal accelerometer reads. A device at rest with its ``+z`` axis pointing up reads ``(0, 0, +1)``;
-in free fall it reads ``(0, 0, 0)``. One g is 9.80665 m/s^2 (``STANDARD_GRAVITY_M_S2``).
+in free fall it reads ``(0, 0, 0)``. One g is 9.80665 m/s^2 (:data:`gaitlog.units.STANDARD_GRAVITY_M_S2`).
 """
 
 from __future__ import annotations
@@ -14,10 +14,6 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-
-#: Standard gravity, m/s^2 per g.
-STANDARD_GRAVITY_M_S2 = 9.80665
-
 
 @dataclass(frozen=True, eq=False)
 class Motion:

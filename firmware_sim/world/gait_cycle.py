@@ -32,11 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PPoly
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.corridor import CorridorPath
 from gaitlog.firmware_sim.world.hermite import evaluate, quintic_hermite
 from gaitlog.firmware_sim.world.subject import Subject
 from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
 

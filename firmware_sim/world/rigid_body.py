@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["PlatformRecording", "RigidBodyShank", "elementary_rotations", "fourier_series", "rotation_chain"]
 

@@ -50,8 +50,8 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 #: Winter's anthropometric ratios (fraction of body height); the one home of these numbers
 #: (:mod:`gaitlog.host.gait.anthropometry` imports them).

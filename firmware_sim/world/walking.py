@@ -64,12 +64,13 @@ import numpy as np
 from scipy.interpolate import PPoly
 from scipy.spatial.transform import Rotation
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.firmware_sim.world.corridor import CorridorPath
 from gaitlog.firmware_sim.world.gait_cycle import ExcursionPlan, plan_excursion
 from gaitlog.firmware_sim.world.hermite import constant_ppoly, evaluate, quintic_hermite
 from gaitlog.firmware_sim.world.subject import Subject
 from gaitlog.firmware_sim.world.walk_plan import WalkPlan
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 #: Nominal device axes in trunk axes (rows: device x, y, z; columns: trunk forward, left, up).
 DEVICE_FROM_TRUNK = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])

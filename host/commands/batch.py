@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     out = Path(args.out)
     folder = Path(args.folder)

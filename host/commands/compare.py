@@ -111,7 +111,7 @@ def _sweep(args: argparse.Namespace) -> int:
         format_m5,
         format_summary,
     )
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     if args.subjects < 1:
         raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
@@ -153,7 +153,7 @@ def _simulate(args: argparse.Namespace) -> int:
         rows_csv_text,
     )
     from gaitlog.host.studies.simulation import simulate_comparisons
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     if args.simulate < 1:
         raise UsageError(f"--simulate must be >= 1, got {args.simulate}")
@@ -263,7 +263,7 @@ def _recording(args: argparse.Namespace) -> int:
     from gaitlog.host.files.replay import run_starts, verify_step_records
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     say = printer(args)
     p = Path(args.input)

@@ -210,7 +210,7 @@ def _estimate(ctx: dict[str, Any]) -> list[str]:
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.evaluation import evaluate_recording, format_summary, summarise
     from gaitlog.host.studies.plots import plot_boxplots
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     res = evaluate_recording(ctx["walk_recording"])
     summary = summarise(res.rows)
@@ -288,7 +288,7 @@ def _split(ctx: dict[str, Any]) -> list[str]:
     from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
     from gaitlog.host.gait.sections import sections_from_marks
     from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     rec = ctx["walk_recording"]
     sub = rec.subject
@@ -323,7 +323,7 @@ def _plot(ctx: dict[str, Any]) -> list[str]:
     from gaitlog.host.files.decode import decode_file, save_decoded
     from gaitlog.host.studies.overview import recording_overview
     from gaitlog.host.studies.plots import render_overview_png
-    from gaitlog.protocol.atomic_write import atomic_write_bytes
+    from gaitlog.atomic_write import atomic_write_bytes
 
     rec = decode_file(ctx["walk_k_image"])
     written = save_decoded(rec, ctx["dir"] / "walk_k")
@@ -396,7 +396,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.host.commands._options import check_output_folder, printer
     from gaitlog.host.errors import HostError
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     say, detail = printer(args), printer(args, 1)
     out = Path(args.out)

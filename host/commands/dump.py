@@ -74,7 +74,7 @@ def _dump(args: argparse.Namespace, out, capture) -> int:
     from gaitlog.host.errors import HostError
     from gaitlog.host.link.logger_link import LoggerLink
     from gaitlog.host.link.memory_dump import dump_memory, state_path_for
-    from gaitlog.protocol.atomic_write import atomic_write_bytes
+    from gaitlog.atomic_write import atomic_write_bytes
 
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, capture=capture) as link:
         try:

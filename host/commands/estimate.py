@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.errors import HostError
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
     from gaitlog.host.gait.k_calibration import KFit
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     args.out = out_path(args.out, f"{input_stem(args.input)}_steps.csv")
     if args.out:

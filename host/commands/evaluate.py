@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         main_rows,
         summarise,
     )
-    from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
+    from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 
     args.logger_rate = logger_rate_hz(args)
     args.uturn = args.uturn or "include"

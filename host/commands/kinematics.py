@@ -170,7 +170,7 @@ def hall_outputs(hall: Any, recording: Any, sequence: str) -> dict[str, Any]:
 
 def write_outputs(out: Path, outputs: dict[str, Any]) -> None:
     """Create ``out`` and write every output (texts atomically, figures through their atomic writers)."""
-    from gaitlog.protocol.atomic_write import atomic_write_text
+    from gaitlog.atomic_write import atomic_write_text
 
     out.mkdir(parents=True, exist_ok=True)
     for name, item in outputs.items():

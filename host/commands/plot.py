@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.overview import recording_overview
     from gaitlog.host.studies.plots import render_overview_png
-    from gaitlog.protocol.atomic_write import atomic_write_bytes
+    from gaitlog.atomic_write import atomic_write_bytes
 
     src = Path(args.input)
     out = Path(out_path(args.out, f"{input_stem(src)}.png") or src.with_suffix(".png"))

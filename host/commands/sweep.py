@@ -165,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
         with_effects,
     )
     from gaitlog.host.studies.task_store import TaskStore, run_serial
-    from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
+    from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 
     if args.serial and args.scheduler:
         raise UsageError("--serial and --scheduler exclude each other")

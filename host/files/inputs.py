@@ -36,7 +36,6 @@ from pathlib import Path
 
 import numpy as np
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_bytes
@@ -52,6 +51,7 @@ from gaitlog.host.files.recording import Recording
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.image import detect_format
 from gaitlog.protocol.packing import FLAG_MARK
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["STREAM_TEXT_BYTES", "UNITS", "AccelerationInput", "parse_columns", "read_acceleration", "input_losses"]
 

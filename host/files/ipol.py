@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.limits import (
     MAX_JSON_BYTES,
@@ -33,7 +32,8 @@ from gaitlog.host.files.limits import (
     check_file_size,
     check_samples,
 )
-from gaitlog.protocol.atomic_write import atomic_write
+from gaitlog.atomic_write import atomic_write
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 #: Rate of the IPOL lower-back files (Xsens MTw packets), and of the trials :func:`write_trial` writes.
 IPOL_SAMPLING_RATE_HZ = 100.0

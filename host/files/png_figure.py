@@ -11,7 +11,7 @@ import os
 
 from matplotlib.figure import Figure
 
-from gaitlog.protocol.atomic_write import atomic_write_bytes
+from gaitlog.atomic_write import atomic_write_bytes
 
 __all__ = ["figure_png_bytes", "write_figure_png"]
 
@@ -25,5 +25,5 @@ def figure_png_bytes(fig: Figure, *, dpi: int) -> bytes:
 
 
 def write_figure_png(fig: Figure, path: str | os.PathLike[str], *, dpi: int) -> None:
-    """Write ``fig`` to ``path`` as PNG, atomically (:func:`gaitlog.protocol.atomic_write.atomic_write_bytes`)."""
+    """Write ``fig`` to ``path`` as PNG, atomically (:func:`gaitlog.atomic_write.atomic_write_bytes`)."""
     atomic_write_bytes(path, figure_png_bytes(fig, dpi=dpi))

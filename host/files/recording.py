@@ -42,7 +42,7 @@ from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.limits import MAX_INPUT_SAMPLES
-from gaitlog.protocol.atomic_write import atomic_write, atomic_write_text
+from gaitlog.atomic_write import atomic_write, atomic_write_text
 from gaitlog.protocol.channel_map import ChannelMap
 from gaitlog.protocol.header import CalibrationSlot, DeviceHeader
 from gaitlog.protocol.steps import (

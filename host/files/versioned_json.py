@@ -2,7 +2,7 @@
 
 Every such file holds ``"cal_type"`` (the schema name, e.g. ``"gaitlog.KCalibration"``) and
 ``"format_version"`` (``"major.minor"``) beside the result's own keys. :class:`VersionedJson` writes it
-atomically (whole file or nothing, :func:`gaitlog.protocol.atomic_write.atomic_write_text`) and reads it back with
+atomically (whole file or nothing, :func:`gaitlog.atomic_write.atomic_write_text`) and reads it back with
 one-line errors naming the file and the key: not JSON, another kind of file, a version this gaitlog does
 not read (newer: update gaitlog; older: redo the calibration), a bad field (the subclass's
 :meth:`VersionedJson.fields_from_dict`).
@@ -34,7 +34,7 @@ from typing import Any, ClassVar, Self
 
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.limits import MAX_JSON_BYTES, check_file_size
-from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.atomic_write import atomic_write_text
 
 __all__ = ["VersionedJson"]
 

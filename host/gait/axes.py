@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.gait.masked_filter import masked_moving_mean
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
 @dataclass(frozen=True, eq=False)

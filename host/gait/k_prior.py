@@ -160,7 +160,7 @@ def population_prior(fits: Sequence[KFit], *, distance_m: Mapping[str, float] | 
 
 
 #: The prior learned on the nine IPOL lower-back subjects (module notes; reproduced by ``gaitlog evaluate ipol``,
-#: which prints it, and pinned by ``tests/host/test_ipol_evaluation_real.py``).
+#: which prints it, and pinned by ``tests/host/studies/test_ipol_evaluation_real.py``).
 LOWER_BACK_PRIOR = KPrior(k_m1=1.0866, k_m2=1.3380, k_m4_per_leg=0.3326, m4_exponent=M4_EXPONENT,
                           distance_m={"M1": 40.0, "M2": 30.0, "M4": 7.5},
                           source="IPOL lower back, 9 subjects, first trial each, 50 Hz, 10 bits", n_subjects=9)

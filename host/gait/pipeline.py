@@ -73,7 +73,7 @@ class StepPipeline:
 
     Examples
     --------
-    >>> from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
+    >>> from gaitlog.units import STANDARD_GRAVITY_M_S2
     >>> sampling_rate_hz = 50.0; t = np.arange(int(20 * sampling_rate_hz)) / sampling_rate_hz
     >>> z = 0.02 * np.cos(2 * np.pi * 2.0 * t)                  # CoM, 2 steps/s, h = 4 cm, lowest at t = 0.25 + k/2
     >>> acc = np.zeros((t.size, 3)); acc[:, 2] = 1.0 - 0.02 * (2 * np.pi * 2.0) ** 2 * np.cos(2 * np.pi * 2.0 * t) / STANDARD_GRAVITY_M_S2

@@ -27,8 +27,8 @@ from typing import Self
 
 import numpy as np
 from scipy.signal import butter, filtfilt, find_peaks
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 
 #: Low-pass of step 3, Hz (the paper's M4 filter).
 LOWPASS_HZ = 3.0

@@ -31,8 +31,8 @@ from typing import Self
 
 import numpy as np
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.errors import HostError
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["AngularVelocityFromAccelerometers", "STANDARD_GRAVITY_M_S2", "gravity_from_pivot"]
 

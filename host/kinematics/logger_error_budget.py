@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from gaitlog.firmware_sim.channel_sensors import ChannelSensors
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
 from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["K_SIGMA", "ErrorBudget", "channel_noise_sd", "hall_error_budget", "morris_error_budget"]
 

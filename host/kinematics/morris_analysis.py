@@ -35,7 +35,6 @@ from scipy.ndimage import uniform_filter1d
 
 from gaitlog.host.errors import HostError
 from gaitlog.host.kinematics.accelerometer_pairs import (
-    STANDARD_GRAVITY_M_S2,
     AngularVelocityFromAccelerometers,
     gravity_from_pivot,
 )
@@ -47,6 +46,7 @@ from gaitlog.host.kinematics.strapdown import (
     remove_cycle_drift,
     remove_gravity,
 )
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = [
     "MorrisAnalysis",

@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.firmware_sim.algorithms.steps import csv_text
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.errors import HostError
-from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["SensorRecording", "read_sensor_csv", "split_unit", "write_sensor_csv"]
 

@@ -47,7 +47,7 @@ from tqdm import tqdm
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_bytes
 from gaitlog.host.link.logger_link import LoggerLink, device_identity
-from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 from gaitlog.protocol.data_blocks import MAX_BLOCKS_DATA, header_binding
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import FRAME_OVERHEAD, MAX_DATA, PAYLOAD_STRUCTS, DeviceState, FrameType

@@ -33,7 +33,7 @@ from gaitlog.host.files.inputs import AccelerationInput, input_losses, read_acce
 from gaitlog.host.files.losses import MissingSamplesWarning
 from gaitlog.host.gait.anthropometry import AnatomyChoice
 from gaitlog.host.gait.pipeline import StepPipeline
-from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.atomic_write import atomic_write_text
 
 __all__ = ["BatchResult", "batch_inputs", "run_batch", "SUMMARY_COLUMNS"]
 

@@ -18,7 +18,7 @@ offline and ideal chains, the step configuration (``StepConfig(calibrated=True, 
 in the algorithm's own arithmetic, as the header stores it) for the on-line algorithm. K is never refitted
 per chain: a K fitted on each chain's own lengths absorbs any error proportional to the length (a 2 %
 scale error of the fixed-point lengths becomes K' = K / 1.02 and vanishes from the distances, as
-``tests/host/test_compare_sim.py`` shows), and finding such errors is what the comparison is for.
+``tests/host/studies/test_compare_sim.py`` shows), and finding such errors is what the comparison is for.
 
 **Error split** (:data:`SHARES`), per step and per 20 m section::
 

@@ -79,7 +79,7 @@ from gaitlog.host.studies.simulation import (
     record_subject,
     simulated_population,
 )
-from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
                "estimated_m", "real_m", "ratio", "steps")

@@ -5,7 +5,7 @@ Fig. 6 adds M5). Each box is the median and quartiles of the 20 m section ratios
 extreme values (the paper plots "median, quartiles and extreme values"), so no point is drawn as an
 outlier. The dashed line is 100 %. Figures are :class:`matplotlib.figure.Figure` objects
 rendered straight to PNG (no pyplot, no global backend); the PNG is written atomically
-(:func:`gaitlog.protocol.atomic_write.atomic_write_bytes`). Only the commands that draw import this module.
+(:func:`gaitlog.atomic_write.atomic_write_bytes`). Only the commands that draw import this module.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
 from gaitlog.host.files.png_figure import figure_png_bytes
-from gaitlog.protocol.atomic_write import atomic_write_bytes
+from gaitlog.atomic_write import atomic_write_bytes
 
 PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),
           ("multi-speed", ESTIMATORS, "Calibration at every speed"))

@@ -28,7 +28,6 @@ from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.firmware_sim.sensor import SensorModel, flicker_rng
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.poses import CalibrationPoses
 from gaitlog.firmware_sim.world.stopwatch import Stopwatch
 from gaitlog.firmware_sim.world.subject import Subject, random_subjects
@@ -43,6 +42,7 @@ from gaitlog.host.studies.compare import SampledWalk, WalkComparison, compare_wa
 from gaitlog.protocol.header import CalibrationSlot
 from gaitlog.protocol.image import build_image
 from gaitlog.protocol.packing import FLAG_MARK
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 __all__ = ["PROTOCOLS", "AnalogWalk", "SimulatedRecording", "at_paper_heights", "export_ipol", "ipol_trial", "ipol_walk_plan",
            "record_subject", "simulated_population"]

@@ -25,7 +25,7 @@ being calibrated; it is never refitted per chain.)
 Parallel runs (``workers``) give the same numbers as serial ones (everything is seeded per subject).
 
 Measured (``gaitlog compare --sweep``: 4 subjects, seed 0, the paper's protocol, 96 evaluated 20 m sections
-per configuration, ~10 s on 2 cores; pinned by ``tests/host/test_compare_figures.py``):
+per configuration, ~10 s on 2 cores; pinned by ``tests/host/commands/test_compare_figures.py``):
 
 * ADC share, per step (median ``|offline - ideal|``, multi-speed K, 50 Hz): M1 2.9 / 0.71 / 0.18 mm at
   8 / 10 / 12 bits, M2 1.05 / 0.28 / 0.07 mm, M4 0.54 / 0.14 / 0.03 mm (a quarter per two bits); the pooled
@@ -46,7 +46,7 @@ per configuration, ~10 s on 2 cores; pinned by ``tests/host/test_compare_figures
   the rest is the cadence-length line itself (how each walker's step length departs from ``K1/T + K2``
   within and across speeds). This is a statement about the simulated walkers; on the IPOL trials M5's
   spread (IQR 0.149 with the single-speed fallback) is likewise the model's, as the reference-event
-  analysis of ``tests/host/test_ipol_evaluation_real.py`` notes.
+  analysis of ``tests/host/studies/test_ipol_evaluation_real.py`` notes.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from gaitlog.host.errors import HostError
-from gaitlog.protocol.atomic_write import atomic_write_text
+from gaitlog.atomic_write import atomic_write_text
 
 __all__ = ["TaskStore", "run_serial"]
 

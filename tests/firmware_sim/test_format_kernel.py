@@ -10,8 +10,8 @@ from gaitlog.firmware_sim.algorithms import format_kernel
 from gaitlog.firmware_sim.algorithms import formats as fm
 from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
-from gaitlog.firmware_sim.algorithms.parameters import STANDARD_GRAVITY_M_S2
 from gaitlog.protocol.steps import StepConfig
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 RATE_HZ = 50.0
 LEG_M, H_M = 0.9, 0.04

@@ -1,5 +1,5 @@
 """Replay of recorded samples (:meth:`Replay.from_samples`): holes interpolated and reported, anti-aliased
-resampling. Files are read by the host (tests/host/test_replay_files.py)."""
+resampling. Files are read by the host (tests/host/files/test_replay_files.py)."""
 
 from __future__ import annotations
 

@@ -16,7 +16,6 @@ from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from gaitlog.firmware_sim.algorithms.parameters import (
     M4_EXPONENT,
-    STANDARD_GRAVITY_M_S2,
     EventParameters,
     OnlineParameters,
 )
@@ -24,6 +23,7 @@ from gaitlog.firmware_sim.algorithms.steps import StepTable
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.header import CalibrationSlot
 from gaitlog.protocol.steps import StepConfig, StepFlag
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 SAMPLING_RATE_HZ = 50.0
 ROOT = Path(__file__).resolve().parents[2]

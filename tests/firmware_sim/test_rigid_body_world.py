@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion, MotionSource
+from gaitlog.firmware_sim.world.base import Motion, MotionSource
 from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank, rotation_chain
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
 def test_rotation_chain_matches_scipy_and_finite_differences() -> None:

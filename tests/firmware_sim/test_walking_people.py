@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from scipy.integrate import cumulative_trapezoid
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.firmware_sim.world.subject import Subject, random_subjects
 from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 PLAN = WalkPlan(corridor_length_m=10.0, speeds=("preferred",), initial_stand_s=2.0, final_stand_s=1.0,
                 lap_marks_m=(0.0, 20.0), **POPULATION_PLANS["people"])

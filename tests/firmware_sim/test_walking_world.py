@@ -7,11 +7,12 @@ import pytest
 from scipy.integrate import cumulative_trapezoid
 from scipy.spatial.transform import Rotation
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion, MotionSource
+from gaitlog.firmware_sim.world.base import Motion, MotionSource
 from gaitlog.firmware_sim.world.corridor import CorridorPath
 from gaitlog.firmware_sim.world.subject import Subject, random_subjects
 from gaitlog.firmware_sim.world.walk_plan import WalkPlan
 from gaitlog.firmware_sim.world.walking import Walking
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 ONE_EXCURSION = WalkPlan(speeds=("preferred",), initial_stand_s=3.0, final_stand_s=2.0)
 TWO_EXCURSIONS = WalkPlan(speeds=("fast", "slow"), initial_stand_s=3.0, final_stand_s=2.0, rest_s=12.0,

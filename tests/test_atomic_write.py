@@ -1,4 +1,4 @@
-"""gaitlog.protocol.atomic_write: files appear whole or not at all, with the permissions a plain open() would give."""
+"""gaitlog.atomic_write: files appear whole or not at all, with the permissions a plain open() would give."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from gaitlog.protocol.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX permission bits")
@@ -29,7 +29,7 @@ def test_new_file_keeps_the_users_umask(tmp_path, umask):
 
 
 def test_failed_write_leaves_nothing(tmp_path):
-    from gaitlog.protocol.atomic_write import atomic_write
+    from gaitlog.atomic_write import atomic_write
 
     with pytest.raises(RuntimeError), atomic_write(tmp_path / "y.bin") as fh:
         fh.write(b"partial")
