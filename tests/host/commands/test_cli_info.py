@@ -17,7 +17,7 @@ from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.cli import main
 from gaitlog.protocol.image import build_image, parse_image
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 N_SAMPLES = 700
 
 

@@ -23,7 +23,7 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files import inputs, limits
 from gaitlog.host.files.decode import decode_file
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 PEAK_RSS_LIMIT_MB = 500
 #: The README's figure for the 3 h CSV, with room for other numpy/scipy builds.
 README_PEAK_MB = 280

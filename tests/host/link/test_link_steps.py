@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from gaitlog.firmware_sim.device import Logger
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.errors import HostError
 from gaitlog.host.link.logger_link import LoggerLink
 from gaitlog.protocol.steps import STEP_ADDRESS_BASE, StepConfig
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 CONFIG = StepConfig(step_format=3, leg_length_m=0.9, foot_length_m=0.2)
 

@@ -18,7 +18,7 @@ from gaitlog.host.gait.k_prior import (
     population_prior,
 )
 from gaitlog.host.gait.pipeline import apply_calibration
-from tests.host.test_estimators_calibration import table
+from tests.host.gait.test_estimators_calibration import table
 
 
 def fit(raw_len: float = 0.5, distance_m: float = 18.0, leg: float = 0.9) -> KFit:

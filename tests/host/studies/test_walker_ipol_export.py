@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.subject import random_subjects
 from gaitlog.firmware_sim.world.walking import Walking
 from gaitlog.host.cli import main
@@ -29,6 +28,7 @@ from gaitlog.host.studies.simulation import (
     ipol_trial,
     ipol_walk_plan,
 )
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 from tests.conftest import DATA_DIR
 
 
@@ -133,5 +133,5 @@ def test_simulated_median_is_inside_the_real_band_and_near_the_real_median(walki
 
 
 def test_the_tool_is_not_part_of_the_project() -> None:
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     assert not list(root.rglob("walking_stats.py"))

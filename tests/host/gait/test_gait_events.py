@@ -12,7 +12,6 @@ from hypothesis.extra.numpy import arrays
 from scipy.ndimage import gaussian_filter1d
 
 from gaitlog.firmware_sim.algorithms.parameters import EventParameters
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.gait.axes import body_axes
 from gaitlog.host.gait.events import GaitEventDetector
 from gaitlog.host.gait.masked_filter import (
@@ -21,6 +20,7 @@ from gaitlog.host.gait.masked_filter import (
     masked_gaussian_lowpass,
 )
 from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 G = STANDARD_GRAVITY_M_S2
 

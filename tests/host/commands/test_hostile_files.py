@@ -88,7 +88,7 @@ def hostile(tmp_path_factory) -> dict[str, Path]:
 
 def peak_rss_mb(argv: list[str]) -> tuple[int, str, int]:
     """Run ``gaitlog argv`` in a child; return its exit code, stderr and peak RSS in MB."""
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     proc = subprocess.run([sys.executable, "-c", _CHILD, *argv], capture_output=True, text=True, timeout=300,
                           cwd=root, env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"})
     lines = proc.stdout.strip().splitlines()

@@ -14,7 +14,7 @@ from gaitlog.host.files.decode import decode_bytes, decode_file
 from gaitlog.host.link.logger_link import LoggerLink
 from gaitlog.host.link.memory_dump import dump_memory
 from gaitlog.protocol.frames import FrameType, build_payload, encode_frame
-from tests.host.test_link_emu import smooth_motion
+from tests.host.link.test_link_emu import smooth_motion
 
 
 def _twins(tmp_path, n=8300):

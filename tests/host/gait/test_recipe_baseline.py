@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.gait.recipe import RecipeBaseline, _joint_correction_excursion_m
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 FS_HZ = 50.0
 

@@ -16,7 +16,7 @@ from gaitlog.host.files.decode import decode_bytes
 from gaitlog.protocol.crc import crc16_xmodem
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import FrameType, build_payload, encode_frame, parse_stream
-from tests.host.test_link_emu import smooth_motion
+from tests.host.link.test_link_emu import smooth_motion
 
 N = 3000
 HEADER_FRAME = 6 + 256 + 2

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from gaitlog.firmware_sim.algorithms.online import OnlineSteps
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.files.inputs import read_acceleration
 from gaitlog.host.files.recording import Recording
 from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
 def _walk_g(n: int = 3000, sampling_rate_hz: float = 50.0) -> np.ndarray:

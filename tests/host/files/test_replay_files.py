@@ -12,9 +12,10 @@ from scipy import signal
 
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.sensor import SensorModel
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, MotionSource
+from gaitlog.firmware_sim.world.base import MotionSource
 from gaitlog.firmware_sim.world.replay import Replay
 from gaitlog.host.files.inputs import read_acceleration
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
 def _lowpass(x: np.ndarray, fc: float, sampling_rate_hz: float) -> np.ndarray:

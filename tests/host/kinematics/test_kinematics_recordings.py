@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.cli import main
 from gaitlog.host.kinematics.accelerometer_pairs import AngularVelocityFromAccelerometers
 from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
@@ -31,6 +30,7 @@ from gaitlog.host.kinematics.sensor_csv import (
     write_sensor_csv,
 )
 from gaitlog.host.kinematics.simulated_instruments import SimulatedInstrument, noise_sd_for_snr, simulate_morris
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

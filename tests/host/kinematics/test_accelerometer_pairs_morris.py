@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank
 from gaitlog.host.errors import HostError
 from gaitlog.host.kinematics.accelerometer_pairs import (
@@ -13,6 +12,7 @@ from gaitlog.host.kinematics.accelerometer_pairs import (
     gravity_from_pivot,
 )
 from gaitlog.host.kinematics.orientation import initial_dcm_from_gravity
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 GENTLE = dict(sagittal_deg=((1, 0.0, 20.0),), coronal_deg=((1, 0.0, 3.0),), axial_deg=((1, 0.0, 3.0),), n_cycles=1)
 

@@ -244,7 +244,7 @@ def test_readme_table(ipol, arithmetic, name) -> None:
 
 def test_readme_states_the_pinned_table() -> None:
     """The documentation's IPOL table says what :data:`README_TABLE` pins (its rows, to the printed 3 decimals)."""
-    text = (Path(__file__).resolve().parents[2] / "docs" / "validation" / "ipol.md").read_text(encoding="utf-8")
+    text = (Path(__file__).resolve().parents[3] / "docs" / "validation" / "ipol.md").read_text(encoding="utf-8")
     table = text.split("| estimator | offline: median ratio | IQR | min – max | on-line fixed: median | IQR |")[1]
     for name in ESTIMATORS:
         row = next(ln for ln in table.splitlines() if ln.startswith(f"| {name} "))

@@ -27,7 +27,7 @@ from gaitlog.host.studies.sweep_grid import (
 )
 from gaitlog.host.studies.task_store import TaskStore, run_serial
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 #: 8 tasks: one subject of the short protocol, 2 widths x 2 rates x 2 Q-format sets, two estimators kept.
 GRID_ARGS = ["--protocol", "short", "--subjects", "1", "--seeds", "0", "--adc-bits", "8,10",
              "--logger-rate", "25,50", "--q-formats", "shipped,acc10", "--estimators", "M2,M5"]

@@ -37,7 +37,7 @@ from gaitlog.protocol.channel_map import ANGULAR_RATE, SPECIFIC_FORCE, Channel, 
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.header import DeviceHeader
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 _SPEC = importlib.util.spec_from_file_location("logger_instrument_errors",
                                                ROOT / "benchmarks" / "logger_instrument_errors.py")
 errors = importlib.util.module_from_spec(_SPEC)

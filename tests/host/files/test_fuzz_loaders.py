@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 _SPEC = importlib.util.spec_from_file_location(
-    "fuzz_loaders", Path(__file__).resolve().parents[2] / "benchmarks" / "fuzz_loaders.py")
+    "fuzz_loaders", Path(__file__).resolve().parents[3] / "benchmarks" / "fuzz_loaders.py")
 fuzz = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(fuzz)
 

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.rigid_body import RigidBodyShank
 from gaitlog.host.errors import HostError
 from gaitlog.host.kinematics.strapdown import (
@@ -15,6 +14,7 @@ from gaitlog.host.kinematics.strapdown import (
     remove_cycle_drift,
     remove_gravity,
 )
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
 def test_remove_gravity_against_scipy_rotation() -> None:

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from gaitlog.firmware_sim.device import Logger
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2, Motion
+from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.cli import main
 from gaitlog.host.files.recording import Recording
 from gaitlog.protocol.header import DeviceHeader
 from gaitlog.protocol.raw_dump import raw_dump_bytes
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 CAP = 65536
 

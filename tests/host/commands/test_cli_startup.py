@@ -13,7 +13,7 @@ import numpy as np
 
 from gaitlog.host.files.recording import Recording
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 PROBE = """
 import contextlib, io, json, sys

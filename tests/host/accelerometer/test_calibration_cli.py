@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.firmware_sim.world.poses import CalibrationPoses
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.cli import main
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 RATE_HZ = 50.0
 OFFSET_G = np.array([0.05, -0.03, 0.02])

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.ipol import STANDARD_GRAVITY_M_S2, list_trials, read_lb_file, read_trial
+from gaitlog.host.files.ipol import list_trials, read_lb_file, read_trial
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 HEADER = "PacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\n"
 

@@ -4,7 +4,7 @@ place (the option or the file), a non-zero exit, no traceback, no output file le
 The commands run in-process (``gaitlog.host.cli.main``) in one folder that holds the fixtures; each case snapshots the
 folder (names and bytes) before and checks it is identical after. Run as a script for the counts::
 
-    python tests/host/test_bad_input_matrix.py        # prints each failing case and the totals
+    python tests/host/commands/test_bad_input_matrix.py        # prints each failing case and the totals
 """
 
 from __future__ import annotations

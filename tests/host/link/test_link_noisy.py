@@ -29,7 +29,7 @@ from gaitlog.protocol.frames import FrameType, build_payload, encode_frame, pars
 sys.path.insert(0, str(Path(__file__).parent))
 from test_link_emu import record_image  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 N_SAMPLES = 3000
 
 

@@ -191,7 +191,7 @@ def test_bad_population_size() -> None:
 # the step, centre of mass lowest ~40 ms after heel strike and ~100 ms before toe-off),
 # single-stance arc from the same recordings (M3 with the paper's inputs ~1.0 of the step), default detector,
 # SimulatedEvaluation(seed=0, population="v1"): 3 subjects (this fixture) / 6 subjects (the figures were
-# measured on v1; on people, 4 subjects, heel-strike F1 is 0.965: tests/host/test_evaluation_people.py).
+# measured on v1; on people, 4 subjects, heel-strike F1 is 0.965: tests/host/studies/test_evaluation_people.py).
 
 FOOT_FLAT_REASON = (
     "the detector's foot-flat is the centre of mass's low point (Alvarez's null vertical velocity, 9 ms from "

@@ -14,9 +14,9 @@ import warnings
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.cli import main
 from gaitlog.host.studies.ipol_evaluation import evaluate_folder, replay_trial
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 G = STANDARD_GRAVITY_M_S2
 

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.world.base import STANDARD_GRAVITY_M_S2
 from gaitlog.host.cli import main
+from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 G = STANDARD_GRAVITY_M_S2
 
