@@ -42,7 +42,7 @@ INDEX_HALF = INDEX_MODULUS >> 1
 
 def since(a: int, b: int) -> int:
     """``a - b`` as the PIC computes it: the 16-bit difference read as signed, exact while the true difference
-    lies in ``-2^15 .. 2^15 - 1`` (compiled into the kernel).
+    lies in ``[-2^15, 2^15)`` (compiled into the kernel).
 
     >>> since(5, 65530), since(65530, 5), since(300, 200)
     (11, -11, 100)
