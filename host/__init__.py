@@ -4,6 +4,8 @@ This package may import ``protocol`` and ``firmware_sim``; nothing imports it.
 
 Subpackages
 -----------
+storage
+    Below the others: typed versioned JSON results, input size limits, PNG figures.
 link
     The serial side: :class:`~gaitlog.host.link.logger_link.LoggerLink` over pyserial, the memory dump, ``emu://``.
 files

@@ -114,8 +114,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(), _compile_notice(args):
             warnings.showwarning = lambda message, *_args, **_kw: print(f"gaitlog {name}: warning: {message}",
                                                                           file=sys.stderr)
-            if getattr(args, "quiet", False):                     # -q: errors only
+            if getattr(args, "quiet", False):                     # -q: errors only, and the missing-samples line
+                from gaitlog.host.files.losses import MissingSamplesWarning
+
                 warnings.simplefilter("ignore")
+                warnings.simplefilter("always", MissingSamplesWarning)
             return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("gaitlog: interrupted", file=sys.stderr)

@@ -10,7 +10,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("protocol", "firmware_sim", "host", "gaitlog")
 #: Layer of each package or host room: a module may import only from its own layer or a lower one.
-LAYERS = {"protocol": 0, "firmware_sim": 1, "host": 2, "host.errors": 2, "host.link": 3, "host.files": 3,
+LAYERS = {"protocol": 0, "firmware_sim": 1, "host": 2, "host.errors": 2, "host.storage": 2, "host.link": 3, "host.files": 3,
           "host.accelerometer": 3, "host.gait": 3, "host.kinematics": 3, "host.studies": 4, "host.commands": 5,
           "host.cli": 6, "gaitlog.__main__": 7, "gaitlog": 0,
           "gaitlog.units": -1, "gaitlog.atomic_write": -1}
@@ -178,3 +178,31 @@ def test_protocol_opens_no_file() -> None:
                 if called in FILE_CALLS:
                     found.append(f"{name}:{node.lineno}: {ast.unparse(node)[:80]}")
     assert not found, "\n".join(found)
+
+
+def test_no_loop_between_host_subpackages() -> None:
+    """Inside ``host``, one subpackage per concept and no two that import each other, even through other
+    modules (``files`` -> ``accelerometer`` -> ``files`` was one, until the storage utilities moved below both)."""
+    def room(module: str) -> str:
+        parts = module.split(".")
+        return ".".join(parts[:2]) if parts[0] == "host" and len(parts) > 1 else parts[0]
+
+    graph: dict[str, set[str]] = {}
+    for name, tree in MODULES.items():
+        if not name.startswith("host."):
+            continue
+        for node in _module_level_imports(tree):
+            graph.setdefault(room(name), set()).update(
+                room(t) for t in _imported(node, name) if t.startswith("host.") and room(t) != room(name))
+    loops = []
+    for a, targets in graph.items():
+        seen, todo = set(), list(targets)
+        while todo:
+            b = todo.pop()
+            if b == a:
+                loops.append(a)
+                break
+            if b not in seen:
+                seen.add(b)
+                todo.extend(graph.get(b, ()))
+    assert not loops, f"host subpackages that reach themselves through imports: {sorted(loops)}"

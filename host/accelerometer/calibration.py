@@ -91,7 +91,7 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.versioned_json import VersionedJson
+from gaitlog.host.storage.versioned_json import VersionedJson
 from gaitlog.protocol.header import CalibrationSlot
 
 #: Number of parameters of each model.

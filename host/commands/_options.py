@@ -20,7 +20,7 @@ def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
 
 def add_max_missing_option(parser: argparse.ArgumentParser) -> None:
     """``--max-missing PCT``: the missing share above which the command exits 1 (outputs still written, marked)."""
-    from gaitlog.host.files.limits import DEFAULT_MAX_MISSING_PERCENT
+    from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
 
     parser.add_argument("--max-missing", type=number(minimum=0, maximum=100, unit="%"),
                         default=DEFAULT_MAX_MISSING_PERCENT, metavar="PCT",

@@ -5,9 +5,14 @@ from __future__ import annotations
 
 import argparse
 
-from gaitlog.host.commands._options import add_verbosity_options, whole
+from gaitlog.host.commands._options import add_json_option, add_verbosity_options, whole
 
 HELP = "run the logger's PIC16 assembly in gpsim on a recording and compare it with the Python model"
+#: Shown under "examples:" by ``gaitlog pic --help``.
+EXAMPLES = (
+    "gaitlog pic verify walk.glimg",
+    "gaitlog pic verify walk.glimg --limit 500 --json",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -17,7 +22,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="a recording gaitlog decode reads (memory image, raw dump, wire capture)")
     parser.add_argument("--limit", type=whole(minimum=1), metavar="N",
                         help="compare the first N samples only (default: all; gpsim runs about 15x real time)")
-    parser.add_argument("--json", action="store_true", help="print one JSON document instead of the table")
+    add_json_option(parser, "the comparison")
     add_verbosity_options(parser)
 
 

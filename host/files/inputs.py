@@ -23,7 +23,7 @@ Nothing is interpolated here: a missing sample is NaN in ``acc_g`` and False in 
 
 A text file larger than :data:`STREAM_TEXT_BYTES` is parsed line by line from the file, never held whole: the
 memory is the parsed table (``rows`` x ``columns`` float64, the rows checked against
-:data:`~gaitlog.host.files.limits.MAX_INPUT_SAMPLES` as they come), not the text and its list of lines.
+:data:`~gaitlog.host.storage.limits.MAX_INPUT_SAMPLES` as they come), not the text and its list of lines.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_bytes
 from gaitlog.host.files.ipol import IpolTrial, list_trials, read_trial
-from gaitlog.host.files.limits import (
+from gaitlog.host.storage.limits import (
     MAX_INPUT_SAMPLES,
     MAX_TEXT_BYTES,
     check_file_size,
@@ -426,7 +426,7 @@ def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: lis
                 header: list[str]) -> np.ndarray:
     """The ``want`` columns of the data lines (line ``start`` on; blank and ``#`` lines skipped) as float64, NaN
     for an empty cell; filled a block of rows at a time, the rows bounded by
-    :data:`~gaitlog.host.files.limits.MAX_INPUT_SAMPLES` before each block is allocated."""
+    :data:`~gaitlog.host.storage.limits.MAX_INPUT_SAMPLES` before each block is allocated."""
     blocks: list[np.ndarray] = []
     block = np.full((_ROWS_PER_BLOCK, len(want)), np.nan)
     k = 0

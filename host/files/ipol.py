@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.limits import (
+from gaitlog.host.storage.limits import (
     MAX_JSON_BYTES,
     MAX_TEXT_BYTES,
     check_file_size,

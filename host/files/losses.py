@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaitlog.host.files.limits import DEFAULT_MAX_MISSING_PERCENT
+from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
 
 __all__ = ["DEFAULT_MAX_MISSING_PERCENT", "RANGES_SHOWN", "MissingSamplesWarning", "SampleLosses", "say_losses"]
 

@@ -41,7 +41,7 @@ import numpy as np
 from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.limits import MAX_INPUT_SAMPLES
+from gaitlog.host.storage.limits import MAX_INPUT_SAMPLES
 from gaitlog.atomic_write import atomic_write, atomic_write_text
 from gaitlog.protocol.channel_map import ChannelMap
 from gaitlog.protocol.header import CalibrationSlot, DeviceHeader
@@ -63,7 +63,7 @@ NPZ_FORMAT_VERSION = 1
 _NPZ_ARRAYS = ("codes", "valid", "flags", "sample_numbers", "header_bytes", "step_record_bytes", "step_record_numbers",
                "metadata_json")
 #: Largest NPZ member read, bytes: ``sample_numbers`` (int64) of the longest input a command takes
-#: (:data:`~gaitlog.host.files.limits.MAX_INPUT_SAMPLES`, 23 h at 50 Hz: a replayed day, not only a logger's
+#: (:data:`~gaitlog.host.storage.limits.MAX_INPUT_SAMPLES`, 23 h at 50 Hz: a replayed day, not only a logger's
 #: memory) is the largest genuine one (32 MB); a zip bomb or a header claiming terabytes is refused before it is
 #: allocated.
 MAX_NPZ_ARRAY_BYTES = 8 * MAX_INPUT_SAMPLES + 4096

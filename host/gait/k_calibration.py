@@ -19,7 +19,7 @@ M4's acceleration range, and the calibrated lengths of M1, M2, M4 and M5), and :
 says, per step of another walk and per estimator, when the step lies outside it (its K is then an
 extrapolation: another speed, another step length). The commands write it as a column and count it.
 
-:class:`KFit` saves/loads itself as versioned JSON (:class:`gaitlog.host.files.versioned_json.VersionedJson`,
+:class:`KFit` saves/loads itself as versioned JSON (:class:`gaitlog.host.storage.versioned_json.VersionedJson`,
 ``format_version`` "1.3"; a "1.0" file, written before the calibrated range was stored, is read with
 ``calibrated_range`` None: nothing can then be said about the range; "1.0" and "1.1" files, written before
 M4's exponent was stored, are read with ``m4_exponent`` 1/4, Weinberg's, which they were fitted with;
@@ -47,7 +47,7 @@ import numpy as np
 
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.versioned_json import VersionedJson
+from gaitlog.host.storage.versioned_json import VersionedJson
 from gaitlog.host.gait.sections import Section, pool_steps
 
 if TYPE_CHECKING:  # pragma: no cover

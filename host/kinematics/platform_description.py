@@ -38,7 +38,7 @@ from typing import Any, Self
 import numpy as np
 
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.versioned_json import VersionedJson
+from gaitlog.host.storage.versioned_json import VersionedJson
 
 __all__ = ["HALL_SEQUENCES", "HallLink", "HallPlatform", "MorrisPlatform", "check_rotation"]
 

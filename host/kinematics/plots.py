@@ -16,7 +16,7 @@
 
 Figures are :class:`matplotlib.figure.Figure` objects rendered straight to PNG (no pyplot, no global backend:
 importing this module changes nothing for a program that uses matplotlib itself); every figure goes through
-:func:`gaitlog.host.files.png_figure.write_figure_png` (the GIF through a temporary file renamed into place). Only ``gaitlog kinematics`` imports this module.
+:func:`gaitlog.host.storage.png_figure.write_figure_png` (the GIF through a temporary file renamed into place). Only ``gaitlog kinematics`` imports this module.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import numpy as np
 from matplotlib.animation import PillowWriter
 from matplotlib.figure import Figure
 
-from gaitlog.host.files.png_figure import write_figure_png
+from gaitlog.host.storage.png_figure import write_figure_png
 
 __all__ = [
     "BODY_MODEL_POINTS_M",

@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-from gaitlog.host.files.png_figure import figure_png_bytes
+from gaitlog.host.storage.png_figure import figure_png_bytes
 from gaitlog.atomic_write import atomic_write_bytes
 
 PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),

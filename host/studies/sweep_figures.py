@@ -26,7 +26,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-from gaitlog.host.files.png_figure import figure_png_bytes
+from gaitlog.host.storage.png_figure import figure_png_bytes
 from gaitlog.host.studies.sweep_grid import (
     DEFAULT_POPULATION,
     EFFECT_DIMENSIONS,

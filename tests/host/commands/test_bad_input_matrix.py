@@ -357,6 +357,16 @@ def _cases() -> list[Case]:
         add("plot", f"--k-file {name}", [*plot, "--k-file", f"{{{name}}}"], name)
     outputs("plot", ["plot", "{walk.npz}"], "--out", "walk.npz", ".png")
 
+    # pic
+    for name in LOGGER_FILES + ("huge_header.npz", "damaged_zip.npz", "truncated.npz", "object.npz", "latin1.csv",
+                                "nan.csv"):
+        add("pic", f"verify {name}", ["pic", "verify", f"{{{name}}}"], name)
+    options("pic", ["pic", "verify", "{walk.glimg}"], "--limit", ("0", "-1", "abc", "1.5", "", "nan", "1e3"))
+    usage("pic", "unknown action", ["pic", "explode", "{walk.glimg}"], "explode")
+    usage("pic", "no recording", ["pic", "verify"], "RECORDING")
+    usage("pic", "unknown option", ["pic", "verify", "{walk.glimg}", "--limits", "3"], "--limits")
+    usage("pic", "extra argument", ["pic", "verify", "{walk.glimg}", "extra"], "extra")
+
     # budget
     options("budget", ["budget"], "--crystal", BAD_POSITIVE + ("1e9", "0.001", "1,5", "0x10"))
     options("budget", ["budget"], "--logger-rate", BAD_POSITIVE)
@@ -590,6 +600,7 @@ OVERWRITE: dict[str, tuple[tuple[str, ...], str] | str] = {
     "batch": "resumes into its --out folder: a re-run skips the recordings it finished",
     "plot": (("plot", "{walk.npz}", "--out", "{out}/p.png"), "p.png"),
     "budget": "writes no file",
+    "pic": "writes no file",
     "kinematics": (("kinematics", "--out", "{out}/kin"), "kin/old.txt"),
 }
 

@@ -20,7 +20,8 @@ from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.commands.record import MAX_RENDERED_SAMPLES, fit_to_memory
 from gaitlog.host.errors import HostError
-from gaitlog.host.files import inputs, limits
+from gaitlog.host.files import inputs
+from gaitlog.host.storage import limits
 from gaitlog.host.files.decode import decode_file
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -32,9 +32,9 @@ import os
 from pathlib import Path
 from typing import Any, ClassVar, Self
 
-from gaitlog.host.errors import HostError
-from gaitlog.host.files.limits import MAX_JSON_BYTES, check_file_size
 from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.errors import HostError
+from gaitlog.host.storage.limits import MAX_JSON_BYTES, check_file_size
 
 __all__ = ["VersionedJson"]
 
