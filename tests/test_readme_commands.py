@@ -134,7 +134,7 @@ def test_every_command_of_the_page_runs_as_written(page: Path, tmp_path: Path) -
     for i, line in enumerate(lines):
         expected[i] = expected_exit(line)
         script.append(line)
-        script.append(f'echo "__rc {i} $?"')
+        script.append(f'printf "\\n__rc {i} %d\\n" $?')  # on a line of its own after output without a newline
     script.append("kill %1 2>/dev/null; wait 2>/dev/null; true")
     run = subprocess.run(["bash", "-c", "\n".join(script)], cwd=work, capture_output=True, text=True,
                          timeout=1200)

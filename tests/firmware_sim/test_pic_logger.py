@@ -98,7 +98,7 @@ def test_gravity_and_a_v_probes_are_the_kernels_steps_2_3(simulated_walk):
         done = upto
         state = np.concatenate([algo._st_v[G1:G1 + 3], algo._st_v[G2:G2 + 3]])
         assert np.array_equal(state, probe[upto - 1]), upto
-        assert algo._scr[(upto - 1) % algo._scr.shape[0], kernel.S_AV] == probe_av[upto - 1], upto
+        assert algo._scr[(upto - 1) % algo._scr.shape[0]] == probe_av[upto - 1], upto   # the scratch ring: a_v
     assert shift == 6 and not np.array_equal(probe[-1], probe[-2]) and np.count_nonzero(probe_av) > 800
     assert algo.config.cfg_v[kernel.CV_G_MIN] == gl.PicLogger().min_gravity_raw
 

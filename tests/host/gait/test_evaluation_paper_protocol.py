@@ -258,7 +258,7 @@ def test_m5_question_recovers_a_known_timing_share() -> None:
 
 
 def test_stopwatch_laps_need_the_papers_protocol(tmp_path, capsys) -> None:
-    assert main(["evaluate", "sim", str(tmp_path / "o"), "--protocol", "compact", "--laps", "stopwatch"]) == 1
+    assert main(["evaluate", "sim", str(tmp_path / "o"), "--protocol", "compact", "--laps", "stopwatch"]) == 2  # a usage error
     assert "--laps stopwatch: only with --protocol paper" in capsys.readouterr().err
     with pytest.raises(HostError, match="stopwatch laps need"):
         SimulatedEvaluation(n_subjects=1, laps="stopwatch").run()

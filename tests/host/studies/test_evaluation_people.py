@@ -58,5 +58,5 @@ def test_readme_figures_of_the_people_population() -> None:
 
 
 def test_compare_refuses_a_population_for_a_recording(tmp_path, capsys) -> None:
-    assert main(["compare", str(tmp_path / "rec.npz"), "--population", "people"]) == 1
+    assert main(["compare", str(tmp_path / "rec.npz"), "--population", "people"]) == 2  # a usage error
     assert "--population: only with --simulate / --sweep" in capsys.readouterr().err
