@@ -1179,36 +1179,38 @@ def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | 
     (None: every row). ``intervals``: also ``median_ci`` and ``iqr_ci``, 95 % subject-bootstrap intervals
     (:func:`subject_intervals`).
     """
-    if arithmetic is not None:
-        rows = [r for r in rows if r.get("arithmetic", "offline") == arithmetic]
-    if k_from is not None:
-        rows = [r for r in rows if r.get("k_from", "offline") == k_from]
-    if variant is not None:
-        rows = [r for r in rows if r.get("variant", "main") == variant]
+    for key, want, default in (("arithmetic", arithmetic, "offline"), ("k_from", k_from, "offline"),
+                               ("variant", variant, "main")):
+        if want is not None:
+            rows = [r for r in rows if r.get(key, default) == want]
     out = []
     for name in ESTIMATORS:
         mine = [row for row in rows if row["estimator"] == name]
-        r = np.array([row["ratio"] for row in mine], float)
-        st = [(row["steps"], row["reference_steps"]) for row in mine]
-        err = np.array([abs(s - ref) / ref * 100 for s, ref in st if ref > 0], float)
-        signed = np.array([s - ref for s, ref in st if ref > 0], float)
-        outside = [row.get("steps_outside_k_range") for row in mine]
-        r = r[np.isfinite(r)]
-        if r.size == 0:
-            out.append(dict(estimator=name, n=0))
-            continue
-        q1, med, q3 = np.percentile(r, [25, 50, 75])
-        out.append(dict(estimator=name, n=int(r.size), median=float(med), q1=float(q1), q3=float(q3),
-                        iqr=float(q3 - q1), min=float(r.min()), max=float(r.max()),
-                        step_error_median_pct=float(np.median(err)) if err.size else float("nan"),
-                        step_error_median_abs=float(np.median(np.abs(signed))) if signed.size else float("nan"),
-                        step_error_median_signed=float(np.median(signed)) if signed.size else float("nan"),
-                        steps_outside_k_range=None if any(o is None for o in outside) else int(sum(outside)),
-                        steps_total=int(sum(s for s, _ in st))))
-        if intervals:
+        out.append(_estimator_summary(name, mine))
+        if intervals and out[-1]["n"]:
             ci = subject_intervals(mine, name)
             out[-1].update(median_ci=ci["median"][1:], iqr_ci=ci["iqr"][1:])
     return out
+
+
+def _estimator_summary(name: str, mine: list[dict]) -> dict[str, Any]:
+    """:func:`summarise`'s figures of one estimator's rows (``n = 0`` alone when no ratio is finite)."""
+    r = np.array([row["ratio"] for row in mine], float)
+    st = [(row["steps"], row["reference_steps"]) for row in mine]
+    err = np.array([abs(s - ref) / ref * 100 for s, ref in st if ref > 0], float)
+    signed = np.array([s - ref for s, ref in st if ref > 0], float)
+    outside = [row.get("steps_outside_k_range") for row in mine]
+    r = r[np.isfinite(r)]
+    if r.size == 0:
+        return dict(estimator=name, n=0)
+    q1, med, q3 = np.percentile(r, [25, 50, 75])
+    return dict(estimator=name, n=int(r.size), median=float(med), q1=float(q1), q3=float(q3),
+                iqr=float(q3 - q1), min=float(r.min()), max=float(r.max()),
+                step_error_median_pct=float(np.median(err)) if err.size else float("nan"),
+                step_error_median_abs=float(np.median(np.abs(signed))) if signed.size else float("nan"),
+                step_error_median_signed=float(np.median(signed)) if signed.size else float("nan"),
+                steps_outside_k_range=None if any(o is None for o in outside) else int(sum(outside)),
+                steps_total=int(sum(s for s, _ in st)))
 
 
 def subject_groups(rows: list[dict], estimator: str) -> dict[int, np.ndarray]:
@@ -1410,57 +1412,82 @@ def format_tuning(result: IpolResult) -> str:
 
 def format_events(result: IpolResult) -> str:
     """:func:`event_figures` and the per-trial event counts (:attr:`IpolResult.trial_events`) as text."""
-    figs = event_figures(result)
+    lines = _event_figure_lines(event_figures(result))
+    if result.trial_events:
+        lines += _trial_event_lines(result.trial_events)
+    return "\n".join(lines)
+
+
+def _timing(e: EventScore) -> str:
+    """The median |error| and median error of matched events, as :func:`format_events` prints them."""
+    return (f", median |error| {1e3 * e.median_abs_error_s:.0f} ms ({1e3 * e.median_error_s:+.0f} ms)"
+            if e.errors_s.size else "")
+
+
+def _event_figure_lines(figs: dict[str, dict[str, Any]]) -> list[str]:
+    """:func:`event_figures` as text lines."""
     tol = f"{1e3 * MATCH_TOLERANCE_S:.0f} ms"
     lines = [f"events against the foot sensors (F1 within {tol}; median |error| and median error, detected - "
              f"reference, of the events within {1e3 * TIMING_TOLERANCE_S:.0f} ms):"]
     for label, f in figs.items():
         hs, to = f["hs"], f["to"]
-
-        def timing(e: EventScore) -> str:
-            return (f", median |error| {1e3 * e.median_abs_error_s:.0f} ms ({1e3 * e.median_error_s:+.0f} ms)"
-                    if e.errors_s.size else "")
         lines.append(f"  {label}{' [cross-validated]' if f['cross_validated'] else ''}: heel strike F1 {hs.f1:.3f} "
-                     f"({hs.n_matched} of {hs.n_reference} reference, {hs.n_detected} detected){timing(hs)}; "
+                     f"({hs.n_matched} of {hs.n_reference} reference, {hs.n_detected} detected){_timing(hs)}; "
                      f"toe-off F1 {to.f1:.3f} ({to.n_matched} of {to.n_reference}, {to.n_detected} detected)"
-                     f"{timing(to)}")
-    rows = result.trial_events
-    if rows:
-        by = {(r["subject"], r["trial"], r["chain"]): r for r in rows}
-        chains = [c for c in ("offline", "online-fixed") if any(k[2] == c for k in by)]
-        lines.append("steps per trial (between the trial boundaries) with a heel strike found, a toe-off found, and "
-                     "filled (M3 without both events: the bout median); * = calibration trial")
-        lines.append(f"{'trial':<8}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains))
-        for s, t in dict.fromkeys((k[0], k[1]) for k in by):
-            cells = []
-            for c in chains:
-                r = by.get((s, t, c))
-                cells.append(f"{r['steps']:>19}{r['heel_strike_found']:>5}{r['toe_off_found']:>4}{r['m3_filled']:>6}"
-                             if r else f"{'':>34}")
-            star = "*" if any(by[k]["calibration_trial"] for k in by if k[:2] == (s, t)) else ""
-            lines.append(f"{f'{s}-{t}{star}':<8}" + "".join(cells))
+                     f"{_timing(to)}")
+    return lines
+
+
+def _trial_event_lines(rows: list[dict]) -> list[str]:
+    """The per-trial event counts (:data:`EVENT_COLUMNS` rows) as text lines: a table, totals per chain, the
+    missing samples and what lies outside the trial boundaries."""
+    by = {(r["subject"], r["trial"], r["chain"]): r for r in rows}
+    chains = [c for c in ("offline", "online-fixed") if any(k[2] == c for k in by)]
+    lines = _trial_table_lines(by, chains)
+    for c in chains:
+        mine = [r for r in rows if r["chain"] == c]
+        n = sum(r["steps"] for r in mine)
+        lines.append(f"  {c}, all trials: {n} steps, heel strike found on {sum(r['heel_strike_found'] for r in mine)}"
+                     f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
+                     f"{sum(r['m3_filled'] for r in mine)}")
+    first = [r for r in rows if r["chain"] == chains[0]]
+    lines += _gap_lines(first)
+    lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
+                 f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
+                 "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
+                                      for c in chains))
+    return lines
+
+
+def _trial_table_lines(by: dict[tuple[int, int, str], dict], chains: list[str]) -> list[str]:
+    """The table of :func:`_trial_event_lines`: per trial, each chain's steps with each event found and filled."""
+    lines = ["steps per trial (between the trial boundaries) with a heel strike found, a toe-off found, and "
+             "filled (M3 without both events: the bout median); * = calibration trial",
+             f"{'trial':<8}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains)]
+    for s, t in dict.fromkeys((k[0], k[1]) for k in by):
+        cells = []
         for c in chains:
-            mine = [r for r in rows if r["chain"] == c]
-            n = sum(r["steps"] for r in mine)
-            lines.append(f"  {c}, all trials: {n} steps, heel strike found on {sum(r['heel_strike_found'] for r in mine)}"
-                         f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
-                         f"{sum(r['m3_filled'] for r in mine)}")
-        first = [r for r in rows if r["chain"] == chains[0]]
-        gappy = [r for r in first if r["missing_fraction"] > 0]
-        if gappy:
-            worst = max(first, key=lambda r: r["missing_fraction"])
-            longest = max(first, key=lambda r: r["longest_gap_s"])
-            lines.append(f"missing logger samples between the trial boundaries: {len(gappy)} of {len(first)} trials, "
-                         f"median {100 * float(np.median([r['missing_fraction'] for r in gappy])):.1f} % of those, "
-                         f"at most {100 * worst['missing_fraction']:.1f} % ({worst['subject']}-{worst['trial']}); "
-                         f"longest gap {longest['longest_gap_s']:.2f} s ({longest['subject']}-{longest['trial']}); "
-                         f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: "
-                         f"{sum(r['gap_samples_filled'] for r in first)} samples")
-        lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
-                     f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
-                     "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
-                                          for c in chains))
-    return "\n".join(lines)
+            r = by.get((s, t, c))
+            cells.append(f"{r['steps']:>19}{r['heel_strike_found']:>5}{r['toe_off_found']:>4}{r['m3_filled']:>6}"
+                         if r else f"{'':>34}")
+        star = "*" if any(by[k]["calibration_trial"] for k in by if k[:2] == (s, t)) else ""
+        lines.append(f"{f'{s}-{t}{star}':<8}" + "".join(cells))
+    return lines
+
+
+def _gap_lines(rows: list[dict]) -> list[str]:
+    """The missing logger samples of one chain's per-trial rows, as a text line (none when no sample is missing)."""
+    gappy = [r for r in rows if r["missing_fraction"] > 0]
+    if not gappy:
+        return []
+    worst = max(rows, key=lambda r: r["missing_fraction"])
+    longest = max(rows, key=lambda r: r["longest_gap_s"])
+    return [f"missing logger samples between the trial boundaries: {len(gappy)} of {len(rows)} trials, "
+            f"median {100 * float(np.median([r['missing_fraction'] for r in gappy])):.1f} % of those, "
+            f"at most {100 * worst['missing_fraction']:.1f} % ({worst['subject']}-{worst['trial']}); "
+            f"longest gap {longest['longest_gap_s']:.2f} s ({longest['subject']}-{longest['trial']}); "
+            f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: "
+            f"{sum(r['gap_samples_filled'] for r in rows)} samples"]
 
 
 def done_figures(result: IpolResult) -> dict[str, Any]:
@@ -1486,17 +1513,35 @@ def done_figures(result: IpolResult) -> dict[str, Any]:
     same = np.array([r["same_events_arithmetic"] for r in st], bool)
     matched = np.array([r["online_fixed_step"] >= 0 for r in st], bool)
     out["matched"], out["different_events"] = int(matched.sum()), int((matched & ~same).sum())
-    out["arithmetic_step"] = {}
+    out["arithmetic_step"] = _arithmetic_step(st, same)
+    out.update(_ratio_differences(result.rows))
+    out["median_ratio"] = {a: {s["estimator"]: s.get("median", math.nan) for s in summarise(result.rows, arithmetic=a)}
+                           for a in result.arithmetics}
+    out["own"] = {s["estimator"]: dict(median=s.get("median", math.nan), iqr=s.get("iqr", math.nan))
+                  for s in summarise(result.rows, arithmetic="online-fixed", k_from="own")}
+    return out
+
+
+def _arithmetic_step(st: list[dict], same: np.ndarray) -> dict[str, dict[str, Any]]:
+    """:func:`done_figures`' ``arithmetic_step``: per estimator, online-fixed - online-float over the matched steps
+    of :data:`STEP_COLUMNS` rows ``st`` with the same events (``same``)."""
+    out = {}
     for e in ESTIMATORS:
         k = e.lower()
         x = np.array([r[f"{k}_online_fixed_m"] for r in st], float)
         y = np.array([r[f"{k}_online_float_m"] for r in st], float)
         g = same & np.isfinite(x) & np.isfinite(y)
         d = np.abs(x[g] - y[g])
-        out["arithmetic_step"][e] = dict(n=int(d.size), median_abs_mm=1e3 * float(np.median(d)) if d.size else math.nan,
-                                         max_abs_mm=1e3 * float(d.max()) if d.size else math.nan,
-                                         max_rel=float(np.max(d / y[g])) if d.size else math.nan)
-    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in main_rows(result.rows)
+        out[e] = dict(n=int(d.size), median_abs_mm=1e3 * float(np.median(d)) if d.size else math.nan,
+                      max_abs_mm=1e3 * float(d.max()) if d.size else math.nan,
+                      max_rel=float(np.max(d / y[g])) if d.size else math.nan)
+    return out
+
+
+def _ratio_differences(rows: list[dict]) -> dict[str, dict[str, dict[str, Any]]]:
+    """:func:`done_figures`' ``algorithm_ratio`` and ``arithmetic_ratio`` from the main rows with the offline K."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in main_rows(rows)
           if r["k_from"] == "offline"}
     for key, (a, b) in (("algorithm_ratio", ("online-float", "offline")),
                         ("arithmetic_ratio", ("online-fixed", "online-float"))):
@@ -1506,10 +1551,6 @@ def done_figures(result: IpolResult) -> dict[str, Any]:
             d = d[np.isfinite(d)]
             out[key][e] = dict(n=int(d.size), median=float(np.median(d)) if d.size else math.nan,
                                max=float(d.max()) if d.size else math.nan)
-    out["median_ratio"] = {a: {s["estimator"]: s.get("median", math.nan) for s in summarise(result.rows, arithmetic=a)}
-                           for a in result.arithmetics}
-    out["own"] = {s["estimator"]: dict(median=s.get("median", math.nan), iqr=s.get("iqr", math.nan))
-                  for s in summarise(result.rows, arithmetic="online-fixed", k_from="own")}
     return out
 
 
