@@ -72,6 +72,9 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    offline K) pair each on-line float step with its fixed-point and offline twins (:func:`gaitlog.host.studies.compare.
    match_steps`).
 
+:class:`IpolEvaluation` runs these steps as numbered stages (its notes), each returning a small dataclass;
+:func:`evaluate_folder` is its result on a folder.
+
 :func:`done_figures` computes the issue's figures from the rows (device = host, the arithmetic and
 algorithm shares, the calibrated medians); :func:`format_done` prints them.
 """
@@ -458,7 +461,8 @@ KTransfer = tuple[KFit, dict[str, list[float]]]
 
 
 def _calibrated(table: StepTable, k: KFit) -> StepTable:
-    """A copy of ``table`` with its lengths calibrated with ``k`` (:func:`gaitlog.host.gait.pipeline.apply_calibration`)."""
+    """A copy of ``table`` with its lengths calibrated with ``k``
+    (:func:`gaitlog.host.gait.pipeline.apply_calibration`)."""
     out = table.select(np.ones(table.n_steps, bool))
     out.length_m = apply_calibration(table, k)
     return out
@@ -979,8 +983,9 @@ class IpolEvaluation:
         k_assumed = _calibrate_on(rt0, assumed[0], uturn=self.uturn, leg=a_leg, foot=a_foot, m4_exponent=p4)
         k_quarter = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=WEINBERG_EXPONENT)
         # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
+        cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
         return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
-                          k_quarter=k_quarter, own=None, cross_validated_online=c == 0 and math.isclose(p4, M4_EXPONENT))
+                          k_quarter=k_quarter, own=None, cross_validated_online=cv_online)
 
     def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
         """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
@@ -1013,38 +1018,39 @@ class IpolEvaluation:
     # 6. the rows ---------------------------------------------------------------------------------------------
 
     def _score(self, stage: FitStage) -> ScoreStage:
-        scores = ScoreStage([], [], [], 0, [])
+        rows: list[dict] = []
+        step_rows: list[dict] = []
+        trial_events: list[dict] = []
+        saturation: list[str] = []
         for fit in stage.fits.values():
             trials = fit.replayed.trials
-            for i, rt in enumerate(trials):
-                tables = self._trial_tables(fit, i, scores.saturation)
+            for i, rt in enumerate(trials):     # every trial's step and event rows; the first is not scored
+                tables = self._trial_tables(fit, i, saturation)
                 if set(tables) == set(ARITHMETICS):
-                    scores.step_rows.extend(_step_rows(rt, tables, i == 0))
-                for a in ("offline", "online-fixed"):
-                    if a in tables:
-                        scores.trial_events.append(_event_row(rt, tables[a], a, i == 0))
-                if i == 0:
-                    continue
-                scores = replace(scores, n_trials=scores.n_trials + 1)
-                for chain in self._chains(fit, i, tables, scores.saturation):
-                    scores.rows.extend(chain.rows(rt))
+                    step_rows += _step_rows(rt, tables, i == 0)
+                trial_events += [_event_row(rt, tables[a], a, i == 0) for a in ("offline", "online-fixed")
+                                 if a in tables]
+                if i > 0:
+                    rows += [row for chain in self._chains(fit, i, tables, saturation) for row in chain.rows(rt)]
             if "offline" in self.arithmetic:
-                scores.rows.extend(baseline_rows(trials, fit.replayed.leg_length_m, fit.replayed.lengths_source))
-        return scores
+                rows += baseline_rows(trials, fit.replayed.leg_length_m, fit.replayed.lengths_source)
+        n_trials = sum(len(f.replayed.trials) - 1 for f in stage.fits.values())
+        return ScoreStage(rows, step_rows, trial_events, n_trials, saturation)
 
     def _trial_tables(self, fit: SubjectFit, i: int, saturation: list[str]) -> dict[str, StepTable]:
         """Trial ``i``'s step table per arithmetic, with the offline K."""
         return {a: _calibrated(fit.offline[i], fit.k) if a == "offline"
                 else _online(fit.replayed.trials[i], a, fit.k_online, saturation) for a in self.arithmetic}
 
-    def _chains(self, fit: SubjectFit, i: int, tables: dict[str, StepTable], saturation: list[str]) -> list[ScoredChain]:
+    def _chains(self, fit: SubjectFit, i: int, tables: dict[str, StepTable],
+                saturation: list[str]) -> list[ScoredChain]:
         """The chains scored on trial ``i``: each arithmetic, the own K, and the offline variants."""
         src, cv = fit.replayed.lengths_source, fit.cross_validated_online
         runs = [ScoredChain(a, "offline", tables[a], fit.k if a == "offline" else fit.k_online, self.uturn, src, "main",
                             a == "offline" or cv) for a in self.arithmetic]
         if fit.own is not None:
-            runs.append(ScoredChain("online-fixed", "own", _online(fit.replayed.trials[i], "fixed", fit.own, saturation),
-                                    fit.own, self.uturn, src, "main", cv))
+            own = _online(fit.replayed.trials[i], "fixed", fit.own, saturation)
+            runs.append(ScoredChain("online-fixed", "own", own, fit.own, self.uturn, src, "main", cv))
         if "offline" in self.arithmetic:
             runs += self._offline_variants(fit, i)
         return runs
