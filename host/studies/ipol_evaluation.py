@@ -72,6 +72,9 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    offline K) pair each on-line float step with its fixed-point and offline twins (:func:`gaitlog.host.studies.compare.
    match_steps`).
 
+:class:`IpolEvaluation` runs these steps as numbered stages (its notes), each returning a small dataclass;
+:func:`evaluate_folder` is its result on a folder.
+
 :func:`done_figures` computes the issue's figures from the rows (device = host, the arithmetic and
 algorithm shares, the calibrated medians); :func:`format_done` prints them.
 """
@@ -81,9 +84,10 @@ from __future__ import annotations
 import math
 import warnings
 from collections import Counter
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -452,21 +456,31 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
                      subject=str(rt.subject), m4_exponent=m4_exponent)
 
 
-def _transfer(trials: list[tuple[ReplayedTrial, list[StepTable]]], candidate: int, exponent: float, *,
-              uturn: str, leg: float, foot: float) -> tuple[KFit, dict[str, list[float]]] | None:
+#: One subject's first-trial K and its other trials' ratios with it (:func:`choose_prior`'s input).
+KTransfer = tuple[KFit, dict[str, list[float]]]
+
+
+def _calibrated(table: StepTable, k: KFit) -> StepTable:
+    """A copy of ``table`` with its lengths calibrated with ``k``
+    (:func:`gaitlog.host.gait.pipeline.apply_calibration`)."""
+    out = table.select(np.ones(table.n_steps, bool))
+    out.length_m = apply_calibration(table, k)
+    return out
+
+
+def _transfer(subject: ReplayedSubject, candidate: int, exponent: float, *, uturn: str) -> KTransfer | None:
     """A subject's K fitted on its first trial (the offline chain of one event candidate, M4 computed with
     ``exponent``) and the distance ratios of M1, M2 and M4 on its other trials with that K (the input of
     the ``"k-transfer"`` criterion); None when the calibration fails."""
-    offs = [tables[candidate] for _, tables in trials]
+    offs = subject.offline(candidate)
     try:
-        k = _calibrate_on(trials[0][0], offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=exponent)
+        k = _calibrate_on(subject.trials[0], offs[0], uturn=uturn, leg=subject.leg_length_m,
+                          foot=subject.foot_length_m, m4_exponent=exponent)
     except HostError:
         return None
     out: dict[str, list[float]] = {e: [] for e in PRIOR_ESTIMATORS}
-    for (rt, _), off in zip(trials[1:], offs[1:], strict=True):
-        table = off.select(np.ones(off.n_steps, bool))
-        table.length_m = apply_calibration(off, k)
-        sec, counts = trial_steps(rt, table, uturn=uturn)
+    for rt, off in zip(subject.trials[1:], offs[1:], strict=True):
+        sec, counts = trial_steps(rt, _calibrated(off, k), uturn=uturn)
         for e in PRIOR_ESTIMATORS:
             out[e].append(section_distance(sec, counts, e) / IPOL_DISTANCE_M)
     return k, out
@@ -480,7 +494,7 @@ def _shrunk_ratios(fit: KFit, ratios: list[float], estimator: str, prior: KPrior
     return [r * scale for r in ratios]
 
 
-def _shrunk_pool(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], estimator: str,
+def _shrunk_pool(transfers: dict[int, KTransfer], estimator: str,
                  distance_m: dict[str, float]) -> list[float]:
     """The ratios of ``estimator`` of every subject of ``transfers``, its K shrunk toward the median K of the
     *others* with the prior weights ``distance_m`` (:func:`choose_prior`'s pooled ratios)."""
@@ -491,7 +505,7 @@ def _shrunk_pool(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], esti
     return out
 
 
-def choose_prior(transfers: dict[int, tuple[KFit, dict[str, list[float]]]], *,
+def choose_prior(transfers: dict[int, KTransfer], *,
                  source: str) -> tuple[KPrior, dict[str, float]]:
     """The K prior learned on ``transfers`` (subject: its first-trial K and its other trials' ratios with it).
 
@@ -586,222 +600,542 @@ def _offline(rt: ReplayedTrial, leg: float, foot: float, candidate: dict[str, An
             rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s).steps_
 
 
-def evaluate_folder(
-    folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "include",
-    progress=None, arithmetic: tuple[str, ...] = ARITHMETICS,
-) -> IpolResult:
-    """Run the whole evaluation on an IPOL folder (see the module notes). Library code: no printing.
+# The evaluation as an object (module notes): IpolEvaluation.run is a sequence of numbered stages, each
+# returning one of the small dataclasses below.
 
-    ``progress`` (optional) is called with each trial name as it starts. ``arithmetic``: any of
-    :data:`ARITHMETICS`; every one uses the offline chain's K of the subject's calibration trial. With
-    ``online-fixed``, the own-K rows are added (``k_from = "own"``).
+@dataclass(frozen=True, eq=False)
+class ReplayedSubject:
+    """One subject's readable trials, replayed (stage 1).
 
-    Raises
-    ------
-    HostError
-        A trial whose device records differ from the host's replay (naming the first record), or nothing
-        to evaluate.
+    Attributes
+    ----------
+    subject
+        Identifier.
+    trials
+        The readable trials in file order; the first is the calibration trial.
+    offline_tables
+        Per trial, the offline chain with each candidate of the tuned constants (``[trial][candidate]``).
+    leg_length_m, foot_length_m, lengths_source
+        The anatomy of the first readable trial (it configures every later one) and where it came from.
     """
-    for a in arithmetic:
-        if a not in ARITHMETICS:
-            raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {a!r}")
-    if uturn not in UTURN_RULES:
-        raise ValueError(f"uturn must be 'exclude' or 'include', got {uturn!r}")
-    other_uturn = next(u for u in UTURN_RULES if u != uturn)
-    files = list_trials(folder)
-    by_subject: dict[int, list[Path]] = {}
-    for f in files:
-        by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
-    cands = candidates()
-    res = IpolResult([], {}, 0, arithmetics=tuple(arithmetic), uturn=uturn, candidates=cands)
-    # 1. replay every trial; the offline chain per candidate of the tuned constants (cached per trial)
-    replayed: dict[int, list[tuple[ReplayedTrial, list[StepTable]]]] = {}
-    lengths: dict[int, tuple[float, float, str]] = {}
-    for subject, paths in by_subject.items():
-        trials: list[tuple[ReplayedTrial, list[StepTable]]] = []
+
+    subject: int
+    trials: list[ReplayedTrial]
+    offline_tables: list[list[StepTable]]
+    leg_length_m: float
+    foot_length_m: float
+    lengths_source: str
+
+    def offline(self, candidate: int) -> list[StepTable]:
+        """Per trial, the offline chain with one candidate of the tuned constants."""
+        return [tables[candidate] for tables in self.offline_tables]
+
+
+@dataclass(frozen=True, eq=False)
+class ReplayStage:
+    """Stage 1: every trial replayed through the emulated logger.
+
+    Attributes
+    ----------
+    n_files
+        Per subject (file order), its trial files, readable or not.
+    subjects
+        The subjects with at least one readable trial.
+    candidates
+        The grid of the tuned constants each trial's offline chain ran with (the defaults first).
+    replay_checks
+        Per readable trial, the device records against the host's replay (:attr:`IpolResult.replay_checks`).
+    skipped
+        The unreadable trials and why.
+    """
+
+    n_files: dict[int, int]
+    subjects: dict[int, ReplayedSubject]
+    candidates: list[dict[str, Any]]
+    replay_checks: list[dict]
+    skipped: list[str]
+
+
+@dataclass(frozen=True, eq=False)
+class EventConstantsStage:
+    """Stage 2: the tuned event constants, chosen leave-one-subject-out (:attr:`IpolResult.event_scores`,
+    :attr:`IpolResult.count_errors`, :attr:`IpolResult.loso`)."""
+
+    event_scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]]
+    count_errors: dict[tuple[int, int], list[int]]
+    loso: LosoChoice
+
+
+@dataclass(frozen=True, eq=False)
+class FoldChoice:
+    """Stage 3, one held-out subject: M4's exponent and the K priors chosen on the other subjects
+    (``"main"``: with the fold's exponent, ``"online"``: with the logger's; either may be absent)."""
+
+    m4_exponent: float
+    priors: dict[str, KPrior]
+
+
+@dataclass(frozen=True, eq=False)
+class KConstantsStage:
+    """Stage 3: the constants chosen on calibrated ratios, per held-out subject, and the prior learned on
+    every subject (:attr:`IpolResult.prior_all`)."""
+
+    folds: dict[int, FoldChoice]
+    prior_all: KPrior | None
+
+
+@dataclass(frozen=True, eq=False)
+class SubjectFit:
+    """Stage 4: one subject's K, fitted on its first trial with the constants of its fold (stage 5 shrinks it).
+
+    Attributes
+    ----------
+    replayed
+        The subject's trials.
+    offline, assumed
+        Per trial, the offline chain with the fold's event constants, with the subject's lengths and with a
+        1.70 m adult's.
+    k, k_fitted
+        The main rows' K, and the first trial's K alone (equal unless :data:`K_PRIOR_IN_MAIN`).
+    k_online
+        The on-line chains' K (the logger's M4 exponent).
+    k_other, k_assumed, k_quarter
+        K for the other U-turn rule, for the height unknown, and with Weinberg's exponent.
+    own
+        The on-line algorithm's own K (None without ``online-fixed`` or when its calibration failed).
+    cross_validated_online
+        Whether the subject's fold chose the on-line chains' defaults.
+    k_shrunk
+        The K of the ``k-prior`` rows (stage 5; None without a prior).
+    """
+
+    replayed: ReplayedSubject
+    offline: list[StepTable]
+    assumed: list[StepTable]
+    k: KFit
+    k_fitted: KFit
+    k_online: KFit
+    k_other: KFit
+    k_assumed: KFit
+    k_quarter: KFit
+    own: KFit | None
+    cross_validated_online: bool
+    k_shrunk: KFit | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class FitStage:
+    """Stage 4: the subjects fitted, and the subjects (or own-K calibrations) skipped and why."""
+
+    fits: dict[int, SubjectFit]
+    skipped: list[str]
+
+
+@dataclass(frozen=True, eq=False)
+class ShrunkK:
+    """Stage 5, one subject: its K shrunk toward the other subjects' (a variant None when it has too few others)."""
+
+    k: KFit
+    k_fitted: KFit
+    k_online: KFit
+    k_other: KFit | None
+    k_assumed: KFit | None
+    own: KFit | None
+
+
+@dataclass(frozen=True, eq=False)
+class ScoredChain:
+    """Stage 6: one chain of one scored trial, as its :data:`CSV_COLUMNS` rows are computed."""
+
+    arithmetic: str
+    k_from: str
+    table: StepTable
+    k: KFit
+    uturn: str
+    lengths_source: str
+    variant: str
+    cross_validated: bool
+
+    def rows(self, rt: ReplayedTrial) -> list[dict]:
+        """The chain's rows for ``rt`` (one per estimator)."""
+        return _score_rows(rt, self.table, self.k, arithmetic=self.arithmetic, k_from=self.k_from, uturn=self.uturn,
+                           lengths_source=self.lengths_source, variant=self.variant,
+                           cross_validated=self.cross_validated)
+
+
+@dataclass(frozen=True, eq=False)
+class ScoreStage:
+    """Stage 6: the rows (:attr:`IpolResult.rows`, ``step_rows``, ``trial_events``), the scored trials and the
+    fixed-point saturation reports."""
+
+    rows: list[dict]
+    step_rows: list[dict]
+    trial_events: list[dict]
+    n_trials: int
+    saturation: list[str]
+
+
+@dataclass(eq=False)
+class _Transfers:
+    """:func:`_transfer` per (subject, event candidate, exponent index), computed once (stage 3)."""
+
+    subjects: dict[int, ReplayedSubject]
+    exponents: tuple[float, ...]
+    uturn: str
+    cache: dict[tuple[int, int, int], KTransfer | None] = field(default_factory=dict)
+
+    def __call__(self, subject: int, candidate: int, j: int) -> KTransfer | None:
+        key = (subject, candidate, j)
+        if key not in self.cache:
+            self.cache[key] = _transfer(self.subjects[subject], candidate, self.exponents[j], uturn=self.uturn)
+        return self.cache[key]
+
+    def pool(self, subjects: list[int], candidate: int, j: int) -> dict[int, KTransfer]:
+        """The transfers of ``subjects`` whose calibration succeeded (their order)."""
+        return {o: t for o in subjects if (t := self(o, candidate, j)) is not None}
+
+
+class IpolEvaluation:
+    """The whole evaluation on an IPOL folder (module notes), in numbered stages. Library code: no printing.
+
+    Parameters
+    ----------
+    sampling_rate_hz, adc_bits
+        The emulated logger's sample rate and ADC width.
+    uturn
+        The U-turn rule of the main rows (:data:`UTURN_RULES`).
+    arithmetic
+        Any of :data:`ARITHMETICS`; every one uses the offline chain's K of the subject's calibration trial.
+        With ``online-fixed``, the own-K rows are added (``k_from = "own"``).
+
+    Attributes
+    ----------
+    replay_, event_constants_, k_constants_, fits_, scores_
+        Stages 1 to 6 (:class:`ReplayStage`, :class:`EventConstantsStage`, :class:`KConstantsStage`,
+        :class:`FitStage` after the shrinking of stage 5, :class:`ScoreStage`).
+    result_
+        Stage 7: :class:`IpolResult`.
+
+    Notes
+    -----
+    1. Replay every trial; the offline chain per candidate of the tuned constants (cached per trial).
+    2. The tuned event constants, leave-one-subject-out (heel strikes against the foot sensors).
+    3. M4's exponent and the K prior, chosen per held-out subject on the other subjects' calibrated ratios:
+       for each exponent, the other subjects' first-trial K (the fold's event constants) and ``d0`` chosen on
+       them (:func:`choose_prior`, nested); the exponent is then chosen on their M4 ratios with K as it is
+       used. The shipped prior is the one learned on every subject with the shipped constants.
+    4. Per subject: K on the first trial with the constants chosen without it.
+    5. Every K shrunk toward the other subjects' (the variants toward the same variant of the others, with the
+       fold's ``d0``): the main K when :data:`K_PRIOR_IN_MAIN`, else the ``k-prior`` rows' K.
+    6. The rows: every trial's step and event rows, the other trials scored.
+    7. The result.
+    """
+
+    def __init__(self, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10,
+                 uturn: str = "include", arithmetic: tuple[str, ...] = ARITHMETICS) -> None:
+        self.sampling_rate_hz = sampling_rate_hz
+        self.adc_bits = adc_bits
+        self.uturn = uturn
+        self.arithmetic = arithmetic
+
+    def run(self, folder: str | Path, *, progress: Callable[[str], object] | None = None) -> Self:
+        """Evaluate ``folder``; ``progress`` (optional) is called with each trial name as it starts.
+
+        Raises
+        ------
+        HostError
+            A trial whose device records differ from the host's replay (naming the first record), or nothing
+            to evaluate.
+        """
+        self._check_parameters()
+        self.replay_ = self._replay(list_trials(folder), progress)                               # 1.
+        self.event_constants_ = self._choose_event_constants(self.replay_)                       # 2.
+        self.k_constants_ = self._choose_k_constants(self.replay_, self.event_constants_)        # 3.
+        fits = self._fit(self.replay_, self.event_constants_, self.k_constants_)                 # 4.
+        self.fits_ = self._shrink(fits, self.k_constants_)                                       # 5.
+        self.scores_ = self._score(self.fits_)                                                   # 6.
+        self.result_ = self._result()                                                            # 7.
+        if not self.result_.rows:
+            raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(self.result_.skipped) + ")")
+        return self
+
+    @property
+    def other_uturn(self) -> str:
+        """The U-turn rule the ``uturn-<rule>`` rows are scored with."""
+        return next(u for u in UTURN_RULES if u != self.uturn)
+
+    def _check_parameters(self) -> None:
+        for a in self.arithmetic:
+            if a not in ARITHMETICS:
+                raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {a!r}")
+        if self.uturn not in UTURN_RULES:
+            raise ValueError(f"uturn must be 'exclude' or 'include', got {self.uturn!r}")
+
+    # 1. replay -----------------------------------------------------------------------------------------------
+
+    def _replay(self, files: list[Path], progress: Callable[[str], object] | None) -> ReplayStage:
+        by_subject: dict[int, list[Path]] = {}
+        for f in files:
+            by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
+        stage = ReplayStage({s: len(p) for s, p in by_subject.items()}, {}, candidates(), [], [])
+        for subject, paths in by_subject.items():
+            replayed = self._replay_subject(subject, paths, stage, progress)
+            if replayed is not None:
+                stage.subjects[subject] = replayed
+        return stage
+
+    def _replay_subject(self, subject: int, paths: list[Path], stage: ReplayStage,
+                        progress: Callable[[str], object] | None) -> ReplayedSubject | None:
+        """One subject's trials (None when none is readable); checks and skips go to ``stage``."""
+        trials: list[ReplayedTrial] = []
+        tables: list[list[StepTable]] = []
         leg = foot = None
         for p in paths:
             if progress is not None:
                 progress(p.name)
             try:   # the anatomy of the subject's first readable trial configures every later one
-                rt = replay_trial(p, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, leg_length_m=leg,
-                                  foot_length_m=foot)
+                rt = replay_trial(p, sampling_rate_hz=self.sampling_rate_hz, adc_bits=self.adc_bits,
+                                  leg_length_m=leg, foot_length_m=foot)
             except HostError as err:   # one unreadable trial must not sink the whole evaluation
-                res.skipped.append(f"{p.name}: {err}")
+                stage.skipped.append(f"{p.name}: {err}")
                 continue
-            if leg is None:
-                lengths[subject] = (rt.leg_length_m, rt.foot_length_m, choose_lengths(
-                    trial_height_m=rt.height_m).source)
             leg, foot = rt.leg_length_m, rt.foot_length_m
             check = rt.check_records()
-            res.replay_checks.append(dict(trial=p.name, n_device=check.n_device, n_compared=check.n_compared,
-                                          n_identical=check.n_identical))
+            stage.replay_checks.append(dict(trial=p.name, n_device=check.n_device, n_compared=check.n_compared,
+                                            n_identical=check.n_identical))
             if check.differs:
                 raise HostError(check.error_message(p))
-            trials.append((rt, [_offline(rt, leg, foot, c) for c in cands]))
-        if trials:
-            replayed[subject] = trials
-    # 2. the tuned constants, leave-one-subject-out (heel strikes against the foot sensors)
-    for subject, trials in replayed.items():
-        for rt, tables in trials:
-            res.event_scores[(subject, rt.trial)] = [score_trial_events(rt, t) for t in tables]
-            res.count_errors[(subject, rt.trial)] = [
-                trial_steps(rt, t, uturn="include")[0].n_steps - rt.reference_steps() for t in tables]
-    if replayed:
-        res.loso = choose_loso({s: [[hs for hs, _ in res.event_scores[(s, rt.trial)]] for rt, _ in trials]
-                                for s, trials in replayed.items()},
-                               {s: [res.count_errors[(s, rt.trial)] for rt, _ in trials]
-                                for s, trials in replayed.items()}, cands)
-    # 2b. M4's exponent and the K prior are chosen on the calibrated ratios of the other subjects (2c)
-    exponents = next(p.candidates for p in TUNED_PARAMETERS if p.name == "m4_exponent")
-    shipped_j = next(j for j, e in enumerate(exponents) if math.isclose(e, M4_EXPONENT))
-    scorable = [s for s, trials in replayed.items() if len(trials) >= 2]
-    cache: dict[tuple[int, int, int], tuple[KFit, dict[str, list[float]]] | None] = {}
+            trials.append(rt)
+            tables.append([_offline(rt, leg, foot, c) for c in stage.candidates])
+        if not trials:
+            return None
+        first = trials[0]
+        return ReplayedSubject(subject, trials, tables, first.leg_length_m, first.foot_length_m,
+                               choose_lengths(trial_height_m=first.height_m).source)
 
-    def transfer(o: int, c: int, j: int) -> tuple[KFit, dict[str, list[float]]] | None:
-        if (o, c, j) not in cache:
-            cache[(o, c, j)] = _transfer(replayed[o], c, exponents[j], uturn=uturn, leg=lengths[o][0],
-                                         foot=lengths[o][1])
-        return cache[(o, c, j)]
+    # 2. the tuned event constants ----------------------------------------------------------------------------
 
-    # 2c. with the K prior, leave-one-subject-out: for each exponent, the other subjects' first-trial K (the
-    #     fold's event constants) and d0 chosen on them (choose_prior, nested); the exponent is then chosen on
-    #     their M4 ratios with K as it is used, shrunk (each toward the median of the others); the shipped
-    #     prior is the one learned on every subject with the shipped constants
-    for s in scorable:
-        c = res.loso.chosen[s]
-        priors: dict[int, KPrior] = {}
-        pooled = []
-        for j in range(len(exponents)):
-            train = {o: t for o in scorable if o != s and (t := transfer(o, c, j)) is not None}
-            if len(train) >= 2:
-                priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")[0]
-            if j not in priors or not K_PRIOR_IN_MAIN:   # K as fitted (no one to shrink toward, or no prior)
-                pooled.append([r for _, ratios in train.values() for r in ratios["M4"]])
-            else:
-                pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
-        j, _ = least_spread(pooled)
-        res.m4_exponent[s] = float(exponents[j])
-        for key, jj in (("main", j), ("online", shipped_j)):
-            if jj in priors:
-                res.priors.setdefault(s, {})[key] = priors[jj]
-    every = {o: t for o in scorable if (t := transfer(o, 0, shipped_j)) is not None}
-    if len(every) >= 3:
-        res.prior_all = choose_prior(every, source=f"IPOL lower back, subjects {', '.join(map(str, every))}, "
+    @staticmethod
+    def _choose_event_constants(replay: ReplayStage) -> EventConstantsStage:
+        scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]] = {}
+        errors: dict[tuple[int, int], list[int]] = {}
+        for subject, rs in replay.subjects.items():
+            for rt, tables in zip(rs.trials, rs.offline_tables, strict=True):
+                scores[(subject, rt.trial)] = [score_trial_events(rt, t) for t in tables]
+                errors[(subject, rt.trial)] = [trial_steps(rt, t, uturn="include")[0].n_steps - rt.reference_steps()
+                                               for t in tables]
+        loso = LosoChoice({}, {})
+        if replay.subjects:
+            loso = choose_loso({s: [[hs for hs, _ in scores[(s, rt.trial)]] for rt in rs.trials]
+                                for s, rs in replay.subjects.items()},
+                               {s: [errors[(s, rt.trial)] for rt in rs.trials] for s, rs in replay.subjects.items()},
+                               replay.candidates)
+        return EventConstantsStage(scores, errors, loso)
+
+    # 3. M4's exponent and the K prior ------------------------------------------------------------------------
+
+    def _choose_k_constants(self, replay: ReplayStage, events: EventConstantsStage) -> KConstantsStage:
+        exponents = next(p.candidates for p in TUNED_PARAMETERS if p.name == "m4_exponent")
+        shipped_j = next(j for j, e in enumerate(exponents) if math.isclose(e, M4_EXPONENT))
+        scorable = [s for s, rs in replay.subjects.items() if len(rs.trials) >= 2]
+        transfers = _Transfers(replay.subjects, tuple(exponents), self.uturn)
+        folds = {s: _fold_choice([o for o in scorable if o != s], events.loso.chosen[s], transfers, shipped_j)
+                 for s in scorable}
+        every = transfers.pool(scorable, 0, shipped_j)
+        prior_all = None
+        if len(every) >= 3:
+            prior_all = choose_prior(every, source=f"IPOL lower back, subjects {', '.join(map(str, every))}, "
                                                    "first trial each")[0]
-    # 3. per subject: K on the first trial with the constants chosen without it, the other trials scored
-    fits: dict[int, dict[str, Any]] = {}
-    for subject in by_subject:
-        trials = replayed.get(subject, [])
-        if len(by_subject[subject]) < 2:
-            res.skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
-            continue
-        if len(trials) < 2:
-            res.skipped.append(f"subject {subject}: fewer than two readable trials")
-            continue
-        c = res.loso.chosen[subject]
-        p4 = res.m4_exponent.get(subject, M4_EXPONENT)
-        leg, foot, source = lengths[subject]
-        offs = [tables[c] for _, tables in trials]
-        rt0 = trials[0][0]
-        try:
-            k = _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=p4)
-            k_online = (k if math.isclose(p4, M4_EXPONENT)
-                        else _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot))
-            k_other = _calibrate_on(rt0, offs[0], uturn=other_uturn, leg=leg, foot=foot, m4_exponent=p4)
-            a_leg, a_foot = anatomical_lengths(height_m=DEFAULT_HEIGHT_M)
-            assumed = [_offline(rt, a_leg, a_foot, cands[c]) for rt, _ in trials]
-            k_assumed = _calibrate_on(rt0, assumed[0], uturn=uturn, leg=a_leg, foot=a_foot, m4_exponent=p4)
-            k_quarter = _calibrate_on(rt0, offs[0], uturn=uturn, leg=leg, foot=foot, m4_exponent=WEINBERG_EXPONENT)
-        except HostError as err:
-            res.skipped.append(f"subject {subject}: calibration on {rt0.path.name} failed: {err}")
-            continue
-        own = None
-        if "online-fixed" in arithmetic:
+        return KConstantsStage(folds, prior_all)
+
+    # 4. K per subject ----------------------------------------------------------------------------------------
+
+    def _fit(self, replay: ReplayStage, events: EventConstantsStage, constants: KConstantsStage) -> FitStage:
+        stage = FitStage({}, [])
+        for subject, n_files in replay.n_files.items():
+            rs = replay.subjects.get(subject)
+            if n_files < 2:
+                stage.skipped.append(f"subject {subject}: only one trial, nothing to evaluate after calibration")
+                continue
+            if rs is None or len(rs.trials) < 2:
+                stage.skipped.append(f"subject {subject}: fewer than two readable trials")
+                continue
+            fold = constants.folds.get(subject)
             try:
-                own = _calibrate_on(rt0, rt0.device_table(), uturn=uturn, leg=leg, foot=foot)
+                fit = self._fit_subject(rs, replay.candidates, events.loso.chosen[subject],
+                                        fold.m4_exponent if fold is not None else M4_EXPONENT)
             except HostError as err:
-                res.skipped.append(f"subject {subject}: own-K calibration of the on-line algorithm failed: {err}")
+                stage.skipped.append(f"subject {subject}: calibration on {rs.trials[0].path.name} failed: {err}")
+                continue
+            stage.fits[subject] = replace(fit, own=self._own_k(rs, stage.skipped))
+        return stage
+
+    def _fit_subject(self, rs: ReplayedSubject, cands: list[dict[str, Any]], c: int, p4: float) -> SubjectFit:
+        """The subject's K with event candidate ``c`` and M4 exponent ``p4`` (``own`` left None)."""
+        leg, foot, rt0 = rs.leg_length_m, rs.foot_length_m, rs.trials[0]
+        offs = rs.offline(c)
+        k = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p4)
+        k_online = (k if math.isclose(p4, M4_EXPONENT)
+                    else _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot))
+        k_other = _calibrate_on(rt0, offs[0], uturn=self.other_uturn, leg=leg, foot=foot, m4_exponent=p4)
+        a_leg, a_foot = anatomical_lengths(height_m=DEFAULT_HEIGHT_M)
+        assumed = [_offline(rt, a_leg, a_foot, cands[c]) for rt in rs.trials]
+        k_assumed = _calibrate_on(rt0, assumed[0], uturn=self.uturn, leg=a_leg, foot=a_foot, m4_exponent=p4)
+        k_quarter = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=WEINBERG_EXPONENT)
         # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
         cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
-        fits[subject] = dict(k=k, k_fitted=k, k_quarter=k_quarter,
-                             k_online=k_online, k_other=k_other, k_assumed=k_assumed, own=own,
-                             offs=offs, assumed=assumed, trials=trials, source=source, cv_online=cv_online)
-    # 3b. every K shrunk toward the other subjects' (2c; the variants toward the same variant of the others, each
-    #     fitted with its own fold's constants, with the d0 of the fold)
-    shrunk: dict[int, dict[str, KFit]] = {}
-    for subject, f in fits.items():
-        priors = res.priors.get(subject)
-        if not priors:
-            continue
-        new = shrunk[subject] = {"k": priors["main"].shrink(f["k"]), "k_fitted": f["k"]}
-        new["k_online"] = new["k"] if f["k_online"] is f["k"] else priors["online"].shrink(f["k_online"])
-        for name in ("k_other", "k_assumed", "own"):
-            others = [g[name] for o, g in fits.items() if o != subject and g[name] is not None and f[name] is not None
-                      and math.isclose(g[name].m4_exponent, f[name].m4_exponent)]
-            if len(others) >= 2:
-                new[name] = population_prior(others, distance_m=priors["main"].distance_m, source=(
-                    f"the other subjects' {name.removeprefix('k_')} K (leave-one-out)")).shrink(f[name])
-    for subject, new in shrunk.items():
+        return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
+                          k_quarter=k_quarter, own=None, cross_validated_online=cv_online)
+
+    def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
+        """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
+        if "online-fixed" not in self.arithmetic:
+            return None
+        rt0 = rs.trials[0]
+        try:
+            return _calibrate_on(rt0, rt0.device_table(), uturn=self.uturn, leg=rs.leg_length_m,
+                                 foot=rs.foot_length_m)
+        except HostError as err:
+            skipped.append(f"subject {rs.subject}: own-K calibration of the on-line algorithm failed: {err}")
+            return None
+
+    # 5. the K prior ------------------------------------------------------------------------------------------
+
+    @staticmethod
+    def _shrink(stage: FitStage, constants: KConstantsStage) -> FitStage:
+        shrunk = {s: _shrunk_k(s, stage.fits, fold.priors) for s, fold in constants.folds.items()
+                  if s in stage.fits and fold.priors}
+        fits = dict(stage.fits)
+        for subject, new in shrunk.items():
+            if K_PRIOR_IN_MAIN:
+                variants = {n: getattr(new, n) for n in ("k_other", "k_assumed", "own") if getattr(new, n) is not None}
+                fits[subject] = replace(fits[subject], k=new.k, k_fitted=new.k_fitted, k_online=new.k_online,
+                                        **variants)
+            else:           # the main rows keep the first trial's K; the shrunk one scores the k-prior rows
+                fits[subject] = replace(fits[subject], k_shrunk=new.k)
+        return FitStage(fits, stage.skipped)
+
+    # 6. the rows ---------------------------------------------------------------------------------------------
+
+    def _score(self, stage: FitStage) -> ScoreStage:
+        rows: list[dict] = []
+        step_rows: list[dict] = []
+        trial_events: list[dict] = []
+        saturation: list[str] = []
+        for fit in stage.fits.values():
+            trials = fit.replayed.trials
+            for i, rt in enumerate(trials):     # every trial's step and event rows; the first is not scored
+                tables = self._trial_tables(fit, i, saturation)
+                if set(tables) == set(ARITHMETICS):
+                    step_rows += _step_rows(rt, tables, i == 0)
+                trial_events += [_event_row(rt, tables[a], a, i == 0) for a in ("offline", "online-fixed")
+                                 if a in tables]
+                if i > 0:
+                    rows += [row for chain in self._chains(fit, i, tables, saturation) for row in chain.rows(rt)]
+            if "offline" in self.arithmetic:
+                rows += baseline_rows(trials, fit.replayed.leg_length_m, fit.replayed.lengths_source)
+        n_trials = sum(len(f.replayed.trials) - 1 for f in stage.fits.values())
+        return ScoreStage(rows, step_rows, trial_events, n_trials, saturation)
+
+    def _trial_tables(self, fit: SubjectFit, i: int, saturation: list[str]) -> dict[str, StepTable]:
+        """Trial ``i``'s step table per arithmetic, with the offline K."""
+        return {a: _calibrated(fit.offline[i], fit.k) if a == "offline"
+                else _online(fit.replayed.trials[i], a, fit.k_online, saturation) for a in self.arithmetic}
+
+    def _chains(self, fit: SubjectFit, i: int, tables: dict[str, StepTable],
+                saturation: list[str]) -> list[ScoredChain]:
+        """The chains scored on trial ``i``: each arithmetic, the own K, and the offline variants."""
+        src, cv = fit.replayed.lengths_source, fit.cross_validated_online
+        runs = [ScoredChain(a, "offline", tables[a], fit.k if a == "offline" else fit.k_online, self.uturn, src, "main",
+                            a == "offline" or cv) for a in self.arithmetic]
+        if fit.own is not None:
+            own = _online(fit.replayed.trials[i], "fixed", fit.own, saturation)
+            runs.append(ScoredChain("online-fixed", "own", own, fit.own, self.uturn, src, "main", cv))
+        if "offline" in self.arithmetic:
+            runs += self._offline_variants(fit, i)
+        return runs
+
+    def _offline_variants(self, fit: SubjectFit, i: int) -> list[ScoredChain]:
+        """The offline chain on trial ``i`` with the other U-turn rule, the height unknown, Weinberg's exponent and
+        the other K (the first trial's alone, or shrunk)."""
+        off, src, u = fit.offline[i], fit.replayed.lengths_source, self.uturn
+        runs = [ScoredChain("offline", "offline", _calibrated(off, fit.k_other), fit.k_other, self.other_uturn, src,
+                            f"uturn-{self.other_uturn}", True),
+                ScoredChain("offline", "offline", _calibrated(fit.assumed[i], fit.k_assumed), fit.k_assumed, u,
+                            "assumed-height", "height-unknown", True),
+                ScoredChain("offline", "offline", _calibrated(off, fit.k_quarter), fit.k_quarter, u, src, "m4-quarter",
+                            True)]
         if K_PRIOR_IN_MAIN:
-            fits[subject].update(new)
-        else:                   # the main rows keep the first trial's K; the shrunk one scores the k-prior rows
-            fits[subject]["k_shrunk"] = new["k"]
-    # 3c. the rows
-    for subject, f in fits.items():
-        k, k_online, k_other, k_assumed, own = f["k"], f["k_online"], f["k_other"], f["k_assumed"], f["own"]
-        offs, assumed, trials, source, cv_online = f["offs"], f["assumed"], f["trials"], f["source"], f["cv_online"]
-        res.calibrations[subject] = k
-        res.calibrations_online[subject] = k_online
-        if own is not None:
-            res.calibrations_own[subject] = own
-        for i, (rt, _) in enumerate(trials):
-            tables: dict[str, StepTable] = {}
-            for a in arithmetic:
-                if a == "offline":
-                    tables[a] = offs[i].select(np.ones(offs[i].n_steps, bool))
-                    tables[a].length_m = apply_calibration(offs[i], k)
-                else:
-                    tables[a] = _online(rt, a, k_online, res.saturation)
-            if set(tables) == set(ARITHMETICS):
-                res.step_rows += _step_rows(rt, tables, i == 0)
-            for a in ("offline", "online-fixed"):
-                if a in tables:
-                    res.trial_events.append(_event_row(rt, tables[a], a, i == 0))
-            if i == 0:
-                continue
-            res.n_trials += 1
-            runs = [(a, "offline", tables[a], k if a == "offline" else k_online, uturn, source, "main",
-                     a == "offline" or cv_online) for a in arithmetic]
-            if own is not None:
-                runs.append(("online-fixed", "own", _online(rt, "fixed", own, res.saturation), own, uturn, source,
-                             "main", cv_online))
-            if "offline" in arithmetic:
-                other = offs[i].select(np.ones(offs[i].n_steps, bool))
-                other.length_m = apply_calibration(offs[i], k_other)
-                runs.append(("offline", "offline", other, k_other, other_uturn, source, f"uturn-{other_uturn}", True))
-                unknown = assumed[i].select(np.ones(assumed[i].n_steps, bool))
-                unknown.length_m = apply_calibration(assumed[i], k_assumed)
-                runs.append(("offline", "offline", unknown, k_assumed, uturn, "assumed-height", "height-unknown", True))
-                quarter = offs[i].select(np.ones(offs[i].n_steps, bool))
-                quarter.length_m = apply_calibration(offs[i], f["k_quarter"])
-                runs.append(("offline", "offline", quarter, f["k_quarter"], uturn, source, "m4-quarter", True))
-                if K_PRIOR_IN_MAIN:
-                    alone = offs[i].select(np.ones(offs[i].n_steps, bool))
-                    alone.length_m = apply_calibration(offs[i], f["k_fitted"])
-                    runs.append(("offline", "offline", alone, f["k_fitted"], uturn, source, "no-prior", True))
-                elif "k_shrunk" in f:
-                    prior = offs[i].select(np.ones(offs[i].n_steps, bool))
-                    prior.length_m = apply_calibration(offs[i], f["k_shrunk"])
-                    runs.append(("offline", "offline", prior, f["k_shrunk"], uturn, source, "k-prior", True))
-            for a, k_from, table, kk, u, src, variant, cv in runs:
-                res.rows += _score_rows(rt, table, kk, arithmetic=a, k_from=k_from, uturn=u, lengths_source=src,
-                                        variant=variant, cross_validated=cv)
-        if "offline" in arithmetic:
-            res.rows += baseline_rows([rt for rt, _ in trials], lengths[subject][0], source)
-    if not res.rows:
-        raise HostError(f"{folder}: nothing to evaluate (" + "; ".join(res.skipped) + ")")
-    return res
+            runs.append(ScoredChain("offline", "offline", _calibrated(off, fit.k_fitted), fit.k_fitted, u, src,
+                                    "no-prior", True))
+        elif fit.k_shrunk is not None:
+            runs.append(ScoredChain("offline", "offline", _calibrated(off, fit.k_shrunk), fit.k_shrunk, u, src,
+                                    "k-prior", True))
+        return runs
+
+    # 7. the result -------------------------------------------------------------------------------------------
+
+    def _result(self) -> IpolResult:
+        replay, events, constants, fits, scores = (self.replay_, self.event_constants_, self.k_constants_, self.fits_,
+                                                   self.scores_)
+        priors = {s: fold.priors for s, fold in constants.folds.items() if fold.priors}
+        return IpolResult(
+            rows=scores.rows, calibrations={s: f.k for s, f in fits.fits.items()}, n_trials=scores.n_trials,
+            skipped=replay.skipped + fits.skipped,
+            calibrations_own={s: f.own for s, f in fits.fits.items() if f.own is not None},
+            saturation=scores.saturation, replay_checks=replay.replay_checks, step_rows=scores.step_rows,
+            arithmetics=tuple(self.arithmetic), uturn=self.uturn, candidates=replay.candidates,
+            event_scores=events.event_scores, loso=events.loso, trial_events=scores.trial_events,
+            m4_exponent={s: fold.m4_exponent for s, fold in constants.folds.items()},
+            calibrations_online={s: f.k_online for s, f in fits.fits.items()}, count_errors=events.count_errors,
+            priors=priors, prior_all=constants.prior_all)
+
+
+def _fold_choice(others: list[int], candidate: int, transfers: _Transfers, shipped_j: int) -> FoldChoice:
+    """Stage 3 for one held-out subject: per exponent, the K prior learned on ``others`` (with the fold's event
+    ``candidate``; at least two of them calibrated), then the exponent whose pooled M4 ratios of ``others``, with
+    K as it is used, spread least (:func:`gaitlog.host.studies.tuning.least_spread`)."""
+    priors: dict[int, KPrior] = {}
+    pooled = []
+    for j in range(len(transfers.exponents)):
+        train = transfers.pool(others, candidate, j)
+        if len(train) >= 2:
+            priors[j] = choose_prior(train, source=f"subjects {', '.join(map(str, train))} (leave-one-out)")[0]
+        if j not in priors or not K_PRIOR_IN_MAIN:   # K as fitted (no one to shrink toward, or no prior)
+            pooled.append([r for _, ratios in train.values() for r in ratios["M4"]])
+        else:
+            pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
+    j, _ = least_spread(pooled)
+    return FoldChoice(float(transfers.exponents[j]),
+                      {key: priors[jj] for key, jj in (("main", j), ("online", shipped_j)) if jj in priors})
+
+
+def _shrunk_k(subject: int, fits: dict[int, SubjectFit], priors: dict[str, KPrior]) -> ShrunkK:
+    """Stage 5 for one subject: its K shrunk with its fold's priors; each variant toward the same variant of the
+    other subjects (at least two, fitted with the same M4 exponent) with the fold's ``d0``."""
+    f = fits[subject]
+    k = priors["main"].shrink(f.k)
+    variants: dict[str, KFit | None] = {}
+    for name in ("k_other", "k_assumed", "own"):
+        mine = getattr(f, name)
+        others = [getattr(g, name) for o, g in fits.items() if o != subject and getattr(g, name) is not None
+                  and mine is not None and math.isclose(getattr(g, name).m4_exponent, mine.m4_exponent)]
+        variants[name] = None
+        if len(others) >= 2:
+            variants[name] = population_prior(others, distance_m=priors["main"].distance_m, source=(
+                f"the other subjects' {name.removeprefix('k_')} K (leave-one-out)")).shrink(mine)
+    return ShrunkK(k=k, k_fitted=f.k, k_online=k if f.k_online is f.k else priors["online"].shrink(f.k_online),
+                   **variants)
+
+
+def evaluate_folder(
+    folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "include",
+    progress: Callable[[str], object] | None = None, arithmetic: tuple[str, ...] = ARITHMETICS,
+) -> IpolResult:
+    """:class:`IpolEvaluation` on ``folder``: its :attr:`~IpolEvaluation.result_` (``progress``: see
+    :meth:`IpolEvaluation.run`)."""
+    return IpolEvaluation(sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, uturn=uturn,
+                          arithmetic=arithmetic).run(folder, progress=progress).result_
 
 
 def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_source: str) -> list[dict]:
@@ -851,36 +1185,38 @@ def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | 
     (None: every row). ``intervals``: also ``median_ci`` and ``iqr_ci``, 95 % subject-bootstrap intervals
     (:func:`subject_intervals`).
     """
-    if arithmetic is not None:
-        rows = [r for r in rows if r.get("arithmetic", "offline") == arithmetic]
-    if k_from is not None:
-        rows = [r for r in rows if r.get("k_from", "offline") == k_from]
-    if variant is not None:
-        rows = [r for r in rows if r.get("variant", "main") == variant]
+    for key, want, default in (("arithmetic", arithmetic, "offline"), ("k_from", k_from, "offline"),
+                               ("variant", variant, "main")):
+        if want is not None:
+            rows = [r for r in rows if r.get(key, default) == want]
     out = []
     for name in ESTIMATORS:
         mine = [row for row in rows if row["estimator"] == name]
-        r = np.array([row["ratio"] for row in mine], float)
-        st = [(row["steps"], row["reference_steps"]) for row in mine]
-        err = np.array([abs(s - ref) / ref * 100 for s, ref in st if ref > 0], float)
-        signed = np.array([s - ref for s, ref in st if ref > 0], float)
-        outside = [row.get("steps_outside_k_range") for row in mine]
-        r = r[np.isfinite(r)]
-        if r.size == 0:
-            out.append(dict(estimator=name, n=0))
-            continue
-        q1, med, q3 = np.percentile(r, [25, 50, 75])
-        out.append(dict(estimator=name, n=int(r.size), median=float(med), q1=float(q1), q3=float(q3),
-                        iqr=float(q3 - q1), min=float(r.min()), max=float(r.max()),
-                        step_error_median_pct=float(np.median(err)) if err.size else float("nan"),
-                        step_error_median_abs=float(np.median(np.abs(signed))) if signed.size else float("nan"),
-                        step_error_median_signed=float(np.median(signed)) if signed.size else float("nan"),
-                        steps_outside_k_range=None if any(o is None for o in outside) else int(sum(outside)),
-                        steps_total=int(sum(s for s, _ in st))))
-        if intervals:
+        out.append(_estimator_summary(name, mine))
+        if intervals and out[-1]["n"]:
             ci = subject_intervals(mine, name)
             out[-1].update(median_ci=ci["median"][1:], iqr_ci=ci["iqr"][1:])
     return out
+
+
+def _estimator_summary(name: str, mine: list[dict]) -> dict[str, Any]:
+    """:func:`summarise`'s figures of one estimator's rows (``n = 0`` alone when no ratio is finite)."""
+    r = np.array([row["ratio"] for row in mine], float)
+    st = [(row["steps"], row["reference_steps"]) for row in mine]
+    err = np.array([abs(s - ref) / ref * 100 for s, ref in st if ref > 0], float)
+    signed = np.array([s - ref for s, ref in st if ref > 0], float)
+    outside = [row.get("steps_outside_k_range") for row in mine]
+    r = r[np.isfinite(r)]
+    if r.size == 0:
+        return dict(estimator=name, n=0)
+    q1, med, q3 = np.percentile(r, [25, 50, 75])
+    return dict(estimator=name, n=int(r.size), median=float(med), q1=float(q1), q3=float(q3),
+                iqr=float(q3 - q1), min=float(r.min()), max=float(r.max()),
+                step_error_median_pct=float(np.median(err)) if err.size else float("nan"),
+                step_error_median_abs=float(np.median(np.abs(signed))) if signed.size else float("nan"),
+                step_error_median_signed=float(np.median(signed)) if signed.size else float("nan"),
+                steps_outside_k_range=None if any(o is None for o in outside) else int(sum(outside)),
+                steps_total=int(sum(s for s, _ in st)))
 
 
 def subject_groups(rows: list[dict], estimator: str) -> dict[int, np.ndarray]:
@@ -1082,57 +1418,82 @@ def format_tuning(result: IpolResult) -> str:
 
 def format_events(result: IpolResult) -> str:
     """:func:`event_figures` and the per-trial event counts (:attr:`IpolResult.trial_events`) as text."""
-    figs = event_figures(result)
+    lines = _event_figure_lines(event_figures(result))
+    if result.trial_events:
+        lines += _trial_event_lines(result.trial_events)
+    return "\n".join(lines)
+
+
+def _timing(e: EventScore) -> str:
+    """The median |error| and median error of matched events, as :func:`format_events` prints them."""
+    return (f", median |error| {1e3 * e.median_abs_error_s:.0f} ms ({1e3 * e.median_error_s:+.0f} ms)"
+            if e.errors_s.size else "")
+
+
+def _event_figure_lines(figs: dict[str, dict[str, Any]]) -> list[str]:
+    """:func:`event_figures` as text lines."""
     tol = f"{1e3 * MATCH_TOLERANCE_S:.0f} ms"
     lines = [f"events against the foot sensors (F1 within {tol}; median |error| and median error, detected - "
              f"reference, of the events within {1e3 * TIMING_TOLERANCE_S:.0f} ms):"]
     for label, f in figs.items():
         hs, to = f["hs"], f["to"]
-
-        def timing(e: EventScore) -> str:
-            return (f", median |error| {1e3 * e.median_abs_error_s:.0f} ms ({1e3 * e.median_error_s:+.0f} ms)"
-                    if e.errors_s.size else "")
         lines.append(f"  {label}{' [cross-validated]' if f['cross_validated'] else ''}: heel strike F1 {hs.f1:.3f} "
-                     f"({hs.n_matched} of {hs.n_reference} reference, {hs.n_detected} detected){timing(hs)}; "
+                     f"({hs.n_matched} of {hs.n_reference} reference, {hs.n_detected} detected){_timing(hs)}; "
                      f"toe-off F1 {to.f1:.3f} ({to.n_matched} of {to.n_reference}, {to.n_detected} detected)"
-                     f"{timing(to)}")
-    rows = result.trial_events
-    if rows:
-        by = {(r["subject"], r["trial"], r["chain"]): r for r in rows}
-        chains = [c for c in ("offline", "online-fixed") if any(k[2] == c for k in by)]
-        lines.append("steps per trial (between the trial boundaries) with a heel strike found, a toe-off found, and "
-                     "filled (M3 without both events: the bout median); * = calibration trial")
-        lines.append(f"{'trial':<8}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains))
-        for s, t in dict.fromkeys((k[0], k[1]) for k in by):
-            cells = []
-            for c in chains:
-                r = by.get((s, t, c))
-                cells.append(f"{r['steps']:>19}{r['heel_strike_found']:>5}{r['toe_off_found']:>4}{r['m3_filled']:>6}"
-                             if r else f"{'':>34}")
-            star = "*" if any(by[k]["calibration_trial"] for k in by if k[:2] == (s, t)) else ""
-            lines.append(f"{f'{s}-{t}{star}':<8}" + "".join(cells))
+                     f"{_timing(to)}")
+    return lines
+
+
+def _trial_event_lines(rows: list[dict]) -> list[str]:
+    """The per-trial event counts (:data:`EVENT_COLUMNS` rows) as text lines: a table, totals per chain, the
+    missing samples and what lies outside the trial boundaries."""
+    by = {(r["subject"], r["trial"], r["chain"]): r for r in rows}
+    chains = [c for c in ("offline", "online-fixed") if any(k[2] == c for k in by)]
+    lines = _trial_table_lines(by, chains)
+    for c in chains:
+        mine = [r for r in rows if r["chain"] == c]
+        n = sum(r["steps"] for r in mine)
+        lines.append(f"  {c}, all trials: {n} steps, heel strike found on {sum(r['heel_strike_found'] for r in mine)}"
+                     f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
+                     f"{sum(r['m3_filled'] for r in mine)}")
+    first = [r for r in rows if r["chain"] == chains[0]]
+    lines += _gap_lines(first)
+    lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
+                 f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
+                 "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
+                                      for c in chains))
+    return lines
+
+
+def _trial_table_lines(by: dict[tuple[int, int, str], dict], chains: list[str]) -> list[str]:
+    """The table of :func:`_trial_event_lines`: per trial, each chain's steps with each event found and filled."""
+    lines = ["steps per trial (between the trial boundaries) with a heel strike found, a toe-off found, and "
+             "filled (M3 without both events: the bout median); * = calibration trial",
+             f"{'trial':<8}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains)]
+    for s, t in dict.fromkeys((k[0], k[1]) for k in by):
+        cells = []
         for c in chains:
-            mine = [r for r in rows if r["chain"] == c]
-            n = sum(r["steps"] for r in mine)
-            lines.append(f"  {c}, all trials: {n} steps, heel strike found on {sum(r['heel_strike_found'] for r in mine)}"
-                         f", toe-off on {sum(r['toe_off_found'] for r in mine)}, M3 filled on "
-                         f"{sum(r['m3_filled'] for r in mine)}")
-        first = [r for r in rows if r["chain"] == chains[0]]
-        gappy = [r for r in first if r["missing_fraction"] > 0]
-        if gappy:
-            worst = max(first, key=lambda r: r["missing_fraction"])
-            longest = max(first, key=lambda r: r["longest_gap_s"])
-            lines.append(f"missing logger samples between the trial boundaries: {len(gappy)} of {len(first)} trials, "
-                         f"median {100 * float(np.median([r['missing_fraction'] for r in gappy])):.1f} % of those, "
-                         f"at most {100 * worst['missing_fraction']:.1f} % ({worst['subject']}-{worst['trial']}); "
-                         f"longest gap {longest['longest_gap_s']:.2f} s ({longest['subject']}-{longest['trial']}); "
-                         f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: "
-                         f"{sum(r['gap_samples_filled'] for r in first)} samples")
-        lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
-                     f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
-                     "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
-                                          for c in chains))
-    return "\n".join(lines)
+            r = by.get((s, t, c))
+            cells.append(f"{r['steps']:>19}{r['heel_strike_found']:>5}{r['toe_off_found']:>4}{r['m3_filled']:>6}"
+                         if r else f"{'':>34}")
+        star = "*" if any(by[k]["calibration_trial"] for k in by if k[:2] == (s, t)) else ""
+        lines.append(f"{f'{s}-{t}{star}':<8}" + "".join(cells))
+    return lines
+
+
+def _gap_lines(rows: list[dict]) -> list[str]:
+    """The missing logger samples of one chain's per-trial rows, as a text line (none when no sample is missing)."""
+    gappy = [r for r in rows if r["missing_fraction"] > 0]
+    if not gappy:
+        return []
+    worst = max(rows, key=lambda r: r["missing_fraction"])
+    longest = max(rows, key=lambda r: r["longest_gap_s"])
+    return [f"missing logger samples between the trial boundaries: {len(gappy)} of {len(rows)} trials, "
+            f"median {100 * float(np.median([r['missing_fraction'] for r in gappy])):.1f} % of those, "
+            f"at most {100 * worst['missing_fraction']:.1f} % ({worst['subject']}-{worst['trial']}); "
+            f"longest gap {longest['longest_gap_s']:.2f} s ({longest['subject']}-{longest['trial']}); "
+            f"gaps up to {MAX_INTERPOLATED_GAP_S:g} s interpolated by the offline chain: "
+            f"{sum(r['gap_samples_filled'] for r in rows)} samples"]
 
 
 def done_figures(result: IpolResult) -> dict[str, Any]:
@@ -1158,17 +1519,35 @@ def done_figures(result: IpolResult) -> dict[str, Any]:
     same = np.array([r["same_events_arithmetic"] for r in st], bool)
     matched = np.array([r["online_fixed_step"] >= 0 for r in st], bool)
     out["matched"], out["different_events"] = int(matched.sum()), int((matched & ~same).sum())
-    out["arithmetic_step"] = {}
+    out["arithmetic_step"] = _arithmetic_step(st, same)
+    out.update(_ratio_differences(result.rows))
+    out["median_ratio"] = {a: {s["estimator"]: s.get("median", math.nan) for s in summarise(result.rows, arithmetic=a)}
+                           for a in result.arithmetics}
+    out["own"] = {s["estimator"]: dict(median=s.get("median", math.nan), iqr=s.get("iqr", math.nan))
+                  for s in summarise(result.rows, arithmetic="online-fixed", k_from="own")}
+    return out
+
+
+def _arithmetic_step(st: list[dict], same: np.ndarray) -> dict[str, dict[str, Any]]:
+    """:func:`done_figures`' ``arithmetic_step``: per estimator, online-fixed - online-float over the matched steps
+    of :data:`STEP_COLUMNS` rows ``st`` with the same events (``same``)."""
+    out = {}
     for e in ESTIMATORS:
         k = e.lower()
         x = np.array([r[f"{k}_online_fixed_m"] for r in st], float)
         y = np.array([r[f"{k}_online_float_m"] for r in st], float)
         g = same & np.isfinite(x) & np.isfinite(y)
         d = np.abs(x[g] - y[g])
-        out["arithmetic_step"][e] = dict(n=int(d.size), median_abs_mm=1e3 * float(np.median(d)) if d.size else math.nan,
-                                         max_abs_mm=1e3 * float(d.max()) if d.size else math.nan,
-                                         max_rel=float(np.max(d / y[g])) if d.size else math.nan)
-    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in main_rows(result.rows)
+        out[e] = dict(n=int(d.size), median_abs_mm=1e3 * float(np.median(d)) if d.size else math.nan,
+                      max_abs_mm=1e3 * float(d.max()) if d.size else math.nan,
+                      max_rel=float(np.max(d / y[g])) if d.size else math.nan)
+    return out
+
+
+def _ratio_differences(rows: list[dict]) -> dict[str, dict[str, dict[str, Any]]]:
+    """:func:`done_figures`' ``algorithm_ratio`` and ``arithmetic_ratio`` from the main rows with the offline K."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    by = {(r["subject"], r["trial"], r["estimator"], r["arithmetic"]): r["ratio"] for r in main_rows(rows)
           if r["k_from"] == "offline"}
     for key, (a, b) in (("algorithm_ratio", ("online-float", "offline")),
                         ("arithmetic_ratio", ("online-fixed", "online-float"))):
@@ -1178,10 +1557,6 @@ def done_figures(result: IpolResult) -> dict[str, Any]:
             d = d[np.isfinite(d)]
             out[key][e] = dict(n=int(d.size), median=float(np.median(d)) if d.size else math.nan,
                                max=float(d.max()) if d.size else math.nan)
-    out["median_ratio"] = {a: {s["estimator"]: s.get("median", math.nan) for s in summarise(result.rows, arithmetic=a)}
-                           for a in result.arithmetics}
-    out["own"] = {s["estimator"]: dict(median=s.get("median", math.nan), iqr=s.get("iqr", math.nan))
-                  for s in summarise(result.rows, arithmetic="online-fixed", k_from="own")}
     return out
 
 

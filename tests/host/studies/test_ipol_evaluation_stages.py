@@ -1,0 +1,74 @@
+"""The IPOL evaluation as an object (:class:`gaitlog.host.studies.ipol_evaluation.IpolEvaluation`) on a synthetic
+folder: its numbered stages, and the command's files pinned byte for byte.
+
+The digests were taken on the same folder with the evaluation before it became an object (one long
+``evaluate_folder``) and after: equal. Update them only deliberately, when the figures are meant to change.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import warnings
+
+import pytest
+
+from gaitlog.host.cli import main
+from gaitlog.host.studies.ipol_evaluation import (
+    EventConstantsStage,
+    FitStage,
+    IpolEvaluation,
+    KConstantsStage,
+    ReplayStage,
+    ScoreStage,
+)
+from tests.host.studies.test_ipol_evaluation_synthetic import write_ipol_trial
+
+#: sha256 of the files ``gaitlog evaluate ipol`` writes on :func:`folder`.
+DIGESTS = {
+    "eval.csv": "298879b11b8ef8af4df435408e3f2487e1440cde92479a2f66c9378453020573",
+    "eval_steps.csv": "03cd9d679396faf605f94c059da78b4d683d7e7ba129f66c5c13f74edde59739",
+    "eval_events.csv": "f6f094b61cc7ed56c99c4d7bab7c54687dfc3832c37659f7bbf9c06457ed440b",
+}
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """Subject 1 with two trials, subject 2 with one (skipped after replay)."""
+    path = tmp_path_factory.mktemp("ipol")
+    write_ipol_trial(path, 1, 1, seed=1)
+    write_ipol_trial(path, 1, 2, seed=2)
+    write_ipol_trial(path, 2, 1, seed=3)
+    return path
+
+
+def test_stages(folder) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ev = IpolEvaluation(arithmetic=("offline", "online-fixed")).run(folder)
+    assert ev.arithmetic == ("offline", "online-fixed")            # __init__ stores, run leaves the parameters
+    assert isinstance(ev.replay_, ReplayStage) and ev.replay_.n_files == {1: 2, 2: 1}
+    assert [len(s.trials) for s in ev.replay_.subjects.values()] == [2, 1]
+    assert all(len(t) == len(ev.replay_.candidates) for t in ev.replay_.subjects[1].offline_tables)
+    assert isinstance(ev.event_constants_, EventConstantsStage) and set(ev.event_constants_.loso.chosen) == {1, 2}
+    # one scorable subject: no other subject to learn a prior or an exponent on
+    assert isinstance(ev.k_constants_, KConstantsStage) and ev.k_constants_.prior_all is None
+    assert ev.k_constants_.folds[1].priors == {}
+    assert isinstance(ev.fits_, FitStage) and list(ev.fits_.fits) == [1]
+    assert ev.fits_.skipped == ["subject 2: only one trial, nothing to evaluate after calibration"]
+    fit = ev.fits_.fits[1]
+    assert fit.k is fit.k_fitted and fit.k_shrunk is None and fit.own is not None
+    assert isinstance(ev.scores_, ScoreStage) and ev.scores_.n_trials == 1 and ev.scores_.step_rows == []
+    res = ev.result_
+    assert res.rows is ev.scores_.rows and res.calibrations == {1: fit.k} and res.calibrations_own == {1: fit.own}
+    assert res.skipped == ev.replay_.skipped + ev.fits_.skipped
+    assert {(r["arithmetic"], r["k_from"]) for r in res.rows if r["variant"] == "main"} == {
+        ("offline", "offline"), ("online-fixed", "offline"), ("online-fixed", "own")}
+
+
+def test_command_files_pinned(folder, tmp_path) -> None:
+    out = tmp_path / "eval.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["evaluate", "ipol", str(folder), "--out", str(out), "-q"]) == 0
+    got = {name: hashlib.sha256((tmp_path / name).read_bytes()).hexdigest() for name in DIGESTS}
+    assert got == DIGESTS
