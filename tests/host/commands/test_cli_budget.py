@@ -31,10 +31,11 @@ def test_budget_at_100_hz_says_what_must_give_and_agrees_with_the_chain(capsys: 
     assert main(["budget", "--logger-rate", "100", "--json"]) == 1
     doc = json.loads(capsys.readouterr().out)
     assert doc["fits"] is False and doc["ram"]["fits"] is False and doc["ram"]["total_bytes"] == 404
-    # the step's filters evaluated again on the scratch ring (37-tap FIR at 100 Hz) leave the algorithm 188
-    # samples behind at the end of a long step: more than the 32 the page buffer holds
+    # the step's filters evaluated again on the scratch ring (37-tap FIR at 100 Hz) leave the algorithm 209
+    # samples behind at the end of a long step (188 before the interrupt's ADC was calibrated against gpsim):
+    # more than the 32 the page buffer holds
     cycles, ram = doc["does_not_fit"]
-    assert cycles.startswith("cycles: mean load 80 %, backlog 18") and ram == "RAM: 404 of 368 bytes (36 over)"
+    assert cycles.startswith("cycles: mean load 80 %, backlog 209") and ram == "RAM: 404 of 368 bytes (36 over)"
     assert any("what must give: 36 bytes" in ln for ln in doc["ram"]["lines"])
     assert doc["sampling_rate_hz"] == 100.0 and doc["cycles"]["available_per_sample"] == pytest.approx(46_080)
     # the budget's figures are the chain's own counters on the same walk: RAM of the run's algorithm, and the
@@ -55,8 +56,9 @@ def test_morris_configurations_fit(config: str, channels: int, bytes_per_s: int,
     assert doc["adc_channels"] == channels and doc["sampling_rate_hz"] == 100.0 and doc["online_estimator"] is False
     assert doc["eeprom"]["write_bytes_per_s"] == bytes_per_s and doc["does_not_fit"] == []
     assert doc["ram"]["algorithm_bytes"] == 0 and doc["ram"]["total_bytes"] == 182
-    # ADC: (19.72 us acquisition + 12 x 1.736 us) per channel, busy-waited: cycles at 4.608 MIPS
-    expected = channels * 186.9 + 60 * 2 + 20 + 131 * 99 / 16 + (6 * 8 + 2 * 24 + 40 + 150) / 16   # + page commit
+    # ADC: (2 + 12) x 1.736 us + 19.72 us acquisition per channel, busy-waited, + 14 cycles of polling and
+    # reading (calibrated against gpsim): cycles at 4.608 MIPS
+    expected = channels * (186.9 + 16.0 + 14) + 60 * 2 + 20 + 131 * 99 / 16 + (6 * 8 + 2 * 24 + 40 + 150) / 16   # + page commit
     assert doc["cycles"]["logging_per_sample"] == pytest.approx(expected, rel=2e-3)
 
 
@@ -153,7 +155,10 @@ def test_measure_on_the_simulated_walk(capsys: pytest.CaptureFixture[str]) -> No
     assert doc["measured"] is True and doc["n_samples"] == 1200 and doc["source"].startswith("simulated walker")
     cyc = doc["cycles_per_sample"]
     _within_10_percent(cyc["steps 1-3"])
-    assert cyc["sampling interrupt"]["measured"]["worst"] == cyc["sampling interrupt"]["measured"]["mean"]
+    isr = cyc["sampling interrupt"]
+    assert isr["measured"]["worst"] == isr["measured"]["mean"]                 # branch-free: every sample alike
+    # the interrupt's ADC calibrated against gpsim: within 3 % (10.5 % below before)
+    assert abs(isr["error"]["mean_percent"]) <= 3.0, isr
     total = cyc["total in assembly"]["measured"]
     assert total["mean"] <= total["p99"] <= total["worst"] < 92_160
     assert doc["ram_total_bytes_measured"] == gl.memory_map().ram_total_bytes <= 368
