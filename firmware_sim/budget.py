@@ -398,7 +398,7 @@ def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOS
 #: Cycles per call of each primitive for the model's *mean* estimate: the kernels' mean measured in gpsim where
 #: a kernel exists (``kernel_cycles.json``), :data:`CYCLES` otherwise. This is the calibration against the chip
 #: (``gaitlog budget --measure``): priced at the worst-case :data:`CYCLES`, the model put steps 1-3 19 % above
-#: gpsim's mean on a walk (12 % with a device calibration); at these means it is within 10 % (+5.6 % with the
+#: gpsim's mean on a walk (13 % with a device calibration); at these means it is within 10 % (+5.6 % with the
 #: nominal calibration, whose six zero cross-axis products run the multiply kernel faster than its mean; +0.5 %
 #: with a device calibration). A per-primitive correction (e.g. the cited sat32, 20 cycles, against the 6-11 of
 #: the assembly's sign test) fitted to one calibration moved the other away, so none is applied.
