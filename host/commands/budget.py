@@ -50,7 +50,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--recording", metavar="FILE",
                         help="with --measure: the recording to run (any file gaitlog decode reads; 10-bit codes; "
                              "default: the simulated walker of --seed)")
-    parser.add_argument("--limit", type=whole(minimum=1), metavar="N", default=MEASURE_SAMPLES,
+    parser.add_argument("--limit", type=whole(minimum=1), metavar="N",
                         help=f"with --measure: run the first N valid samples (default {MEASURE_SAMPLES:,}: a minute "
                              "at 50 Hz, about ten seconds of gpsim)")
     add_verbosity_options(parser)
@@ -94,6 +94,17 @@ def _check(c) -> None:
         raise UsageError(f"--estimator on: the walk is simulated at 1 .. 1000 Hz, not {c.sampling_rate_hz:g} Hz")
 
 
+def _check_measure(args: argparse.Namespace, configs: list) -> None:
+    """``--measure``, ``--recording`` and ``--limit`` go together, and only with the Alvarez logger."""
+    from gaitlog.host.errors import UsageError
+
+    if (args.recording is not None or args.limit is not None) and not args.measure:
+        raise UsageError("--recording and --limit choose the walk of --measure; add --measure")
+    if args.measure and (args.all or not configs[0].online_estimator or configs[0].adc_channels != 3):
+        raise UsageError("--measure runs the Alvarez logger's assembly (three axes, on-line estimator on); "
+                         "it takes no --all, --estimator off or --channels other than 3")
+
+
 def _walk(c, seed: int) -> dict:
     """The on-line algorithm on a simulated walker at ``c``'s rate and crystal: its counters."""
     from gaitlog.firmware_sim.adc import Adc
@@ -125,10 +136,11 @@ def _chip(args: argparse.Namespace, c, walk: dict | None):
     from gaitlog.host.errors import HostError
     from gaitlog.protocol.packing import FLAG_SESSION_START
 
+    limit = args.limit or MEASURE_SAMPLES
     if args.recording is None and walk is None:
         raise HostError(f"--measure: no walk to run at {c.sampling_rate_hz:g} Hz (no cycles left for the algorithm)")
     if args.recording is None:
-        codes = np.asarray(walk["codes"], np.int64)[:args.limit]
+        codes = np.asarray(walk["codes"], np.int64)[:limit]
         flags = np.zeros(codes.shape[0], np.int64)
         flags[0] = FLAG_SESSION_START
         cal, rate, first, source = walk["calibration"], c.sampling_rate_hz, 0, f"simulated walker {walk['subject']}"
@@ -136,7 +148,7 @@ def _chip(args: argparse.Namespace, c, walk: dict | None):
         from gaitlog.host.files.decode import decode_file
 
         rec = decode_file(args.recording)
-        keep = np.flatnonzero(rec.valid)[:args.limit]
+        keep = np.flatnonzero(rec.valid)[:limit]
         if rec.adc_bits != 10 or keep.size == 0:
             raise HostError(f"{args.recording}: {rec.adc_bits}-bit codes, {keep.size} valid samples; the assembly "
                             "runs on the PIC16F877's 10-bit codes")
@@ -326,11 +338,7 @@ def run(args: argparse.Namespace) -> int:
         configs = [_config(args)]
     for c in configs:
         _check(c)
-    if (args.recording is not None or args.limit != MEASURE_SAMPLES) and not args.measure:
-        raise UsageError("--recording and --limit choose the walk of --measure; add --measure")
-    if args.measure and (args.all or not configs[0].online_estimator or configs[0].adc_channels != 3):
-        raise UsageError("--measure runs the Alvarez logger's assembly (three axes, on-line estimator on); "
-                         "it takes no --all, --estimator off or --channels other than 3")
+    _check_measure(args, configs)
     results = [_budget(c, args.seed, args) for c in configs]
     code = 0 if all(d["fits"] for d, _ in results) else 1
     if args.json:
