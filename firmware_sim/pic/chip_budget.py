@@ -18,7 +18,7 @@ import numpy as np
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from gaitlog.firmware_sim.algorithms.probe import front_operation_counts
 from gaitlog.firmware_sim.budget import LoggerConfig, estimated_cycles, interrupt_cycles_estimate
-from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ
+from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.firmware_sim.pic.gpsim_logger import MemoryMap, PicLogger, memory_map, run_starts
 
@@ -73,6 +73,16 @@ class ChipBudget:
     parts: tuple[CyclePart, ...]
     memory: MemoryMap | None
     why_not_measured: str | None
+    period_cycles: float = 0.0
+
+    @property
+    def worst_backlog_cycles(self) -> float:
+        """The most work the assembly part still owed when a sample came (Lindley's recursion on the measured,
+        else estimated, total per sample against the period; 0 when every sample fits its period)."""
+        total = self.part("total in assembly")
+        t = total.measured_cycles if self.measured else total.estimated_cycles
+        s = np.concatenate([[0.0], np.cumsum(t - self.period_cycles)])
+        return float(np.max(s - np.minimum.accumulate(s)))
 
     @property
     def measured(self) -> bool:
@@ -103,6 +113,9 @@ class ChipBudget:
             out.append(f"  {p.name:<26} {m['mean']:14,.1f} {m['p99']:8,.1f} {m['worst']:7,.0f} | "
                        f"{e['mean']:14,.1f} {e['worst']:7,.0f} | {r['mean_cycles']:+8,.1f} ({r['mean_percent']:+.1f} %), "
                        f"{r['worst_cycles']:+7,.0f} ({r['worst_percent']:+.1f} %)")
+        worst = self.part("total in assembly").measured_cycles.max()
+        out.append(f"  worst total {worst:,.0f} of {self.period_cycles:,.0f} cycles per sample "
+                   f"({100 * worst / self.period_cycles:.1f} %), worst backlog {self.worst_backlog_cycles:,.0f} cycles")
         m = self.memory
         out.append(f"  RAM, measured (gpasm listing): {m.ram_total_bytes} of 368 bytes ("
                    + ", ".join(f"{k} {v}" for k, v in m.ram_bytes.items()) + ")")
@@ -114,6 +127,7 @@ class ChipBudget:
         """The JSON form."""
         doc = {"source": self.source, "n_samples": self.n_samples, "sampling_rate_hz": self.sampling_rate_hz,
                "measured": self.measured, "why_not_measured": self.why_not_measured,
+               "period_cycles": self.period_cycles, "worst_backlog_cycles": self.worst_backlog_cycles,
                "cycles_per_sample": {p.name: p.summary() for p in self.parts},
                "still_estimated": ["steps 4 and later of the algorithm", "I2C page write and commit", "UART"]}
         if self.memory is not None:
@@ -146,4 +160,5 @@ def chip_budget(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ,
     else:
         meas += [None, None]
     parts = tuple(CyclePart(n, m, e) for n, m, e in zip(STEPS, meas, est))
-    return ChipBudget(source, int(c.shape[0]), float(h.sampling_rate_hz), parts, mem, why)
+    return ChipBudget(source, int(c.shape[0]), float(h.sampling_rate_hz), parts, mem, why,
+                      cycles_per_sample_available(h.sampling_rate_hz, h.fosc_hz))

@@ -206,3 +206,17 @@ def test_budget_without_gpsim_gives_the_models_figures_marked_estimated(simulate
     interrupt = doc["cycles_per_sample"]["sampling interrupt"]
     assert set(interrupt) == {"estimated"} and interrupt["estimated"]["mean"] == pytest.approx(interrupt_cycles_estimate())
     assert "not measured (gpsim not installed)" in b.lines()[0]
+
+
+def test_chip_budget_backlog_is_lindleys_recursion():
+    """The worst backlog against a loop over the samples (the independent form of the recursion)."""
+    from gaitlog.firmware_sim.pic.chip_budget import STEPS, ChipBudget, CyclePart
+
+    t = np.array([50.0, 150.0, 180.0, 20.0, 90.0, 300.0, 10.0])
+    parts = tuple(CyclePart(n, t if n == "total in assembly" else np.zeros_like(t), t) for n in STEPS)
+    b = ChipBudget("x", t.size, 50.0, parts, None, None, period_cycles=100.0)
+    owed = worst = 0.0
+    for x in t:
+        owed = max(0.0, owed + x - 100.0)
+        worst = max(worst, owed)
+    assert b.worst_backlog_cycles == worst == 240.0

@@ -161,6 +161,7 @@ def test_measure_on_the_simulated_walk(capsys: pytest.CaptureFixture[str]) -> No
     assert abs(isr["error"]["mean_percent"]) <= 3.0, isr
     total = cyc["total in assembly"]["measured"]
     assert total["mean"] <= total["p99"] <= total["worst"] < 92_160
+    assert doc["period_cycles"] == 92_160 and doc["worst_backlog_cycles"] == 0      # every sample within its period
     assert doc["ram_total_bytes_measured"] == gl.memory_map().ram_total_bytes <= 368
     assert 0 < doc["program_words_measured"] <= 8192
     assert "steps 4 and later of the algorithm" in doc["still_estimated"]
