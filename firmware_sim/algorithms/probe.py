@@ -29,13 +29,13 @@ from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
 from gaitlog.firmware_sim.compiled import njit
-from gaitlog.firmware_sim.fixedpoint import new_counters
+from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OPS, new_counters
 
-__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration"]
+__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts"]
 
 
 @njit(cache=True)
-def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt):  # pragma: no cover - compiled
+def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt, trace):  # pragma: no cover - compiled
     cf = cfg_i[kernel.CI_CODE_FRAC]
     mf = cfg_i[kernel.CI_MANT_FRAC]
     for i in range(codes.shape[0]):
@@ -45,6 +45,7 @@ def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt):  # pragma: no cover - compi
         c2 = ar.sub(ar.requant(codes[i, 2], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 2], W16, cnt)
         for row in range(3):
             out[i, row] = kernel._calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt)
+        trace[i, :] = cnt
 
 
 def calibrated_axes(codes: np.ndarray, calibration: CalibrationQ) -> np.ndarray:
@@ -64,6 +65,10 @@ def calibrated_axes(codes: np.ndarray, calibration: CalibrationQ) -> np.ndarray:
     [[0, 8192, -8192]]
     """
     c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    return _calibrated_traced(c, calibration)[0]
+
+
+def _calibrated_traced(c: np.ndarray, calibration: CalibrationQ) -> tuple[np.ndarray, np.ndarray]:
     cfg_i = np.zeros(kernel.N_CI, np.int64)
     cfg_i[kernel.CI_CODE_FRAC] = centred_q(calibration.adc_bits).frac_bits
     cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
@@ -71,12 +76,13 @@ def calibrated_axes(codes: np.ndarray, calibration: CalibrationQ) -> np.ndarray:
     cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw
     cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
     out = np.zeros((c.shape[0], 3), np.int64)
-    _calibrated_axes(c, cfg_i, cfg_v, out, new_counters())
-    return out
+    trace = np.zeros((c.shape[0], N_COUNTERS), np.int64)
+    _calibrated_axes(c, cfg_i, cfg_v, out, new_counters(), trace)
+    return out, _per_sample(trace)
 
 
 @njit(cache=True)
-def _gravity(f, g_shift, out, cnt):  # pragma: no cover - compiled
+def _gravity(f, g_shift, out, cnt, trace):  # pragma: no cover - compiled
     g1 = np.zeros(3, np.int64)
     g2 = np.zeros(3, np.int64)
     for n in range(f.shape[0]):
@@ -90,6 +96,7 @@ def _gravity(f, g_shift, out, cnt):  # pragma: no cover - compiled
             g2[axis] = ar.add(g2[axis], ar.scale2(ar.sub(g1[axis], g2[axis], W32, cnt), -warm, W32, cnt), W32, cnt)
             out[n, axis] = g1[axis]
             out[n, 3 + axis] = g2[axis]
+        trace[n, :] = cnt
 
 
 def gravity_states(calibrated: np.ndarray, gravity_shift: int) -> np.ndarray:
@@ -109,13 +116,18 @@ def gravity_states(calibrated: np.ndarray, gravity_shift: int) -> np.ndarray:
     [[536870912, 536870912], [268435456, 402653184]]
     """
     f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
+    return _gravity_traced(f, gravity_shift)[0]
+
+
+def _gravity_traced(f: np.ndarray, gravity_shift: int) -> tuple[np.ndarray, np.ndarray]:
     out = np.zeros((f.shape[0], 6), np.int64)
-    _gravity(f, int(gravity_shift), out, new_counters())
-    return out
+    trace = np.zeros((f.shape[0], N_COUNTERS), np.int64)
+    _gravity(f, int(gravity_shift), out, new_counters(), trace)
+    return out, _per_sample(trace)
 
 
 @njit(cache=True)
-def _vertical(f, g2, g_min, out, cnt):  # pragma: no cover - compiled
+def _vertical(f, g2, g_min, out, cnt, trace):  # pragma: no cover - compiled
     for n in range(f.shape[0]):
         fx, fy, fz = f[n, 0], f[n, 1], f[n, 2]
         # kernel._front, step 3, line for line
@@ -133,6 +145,7 @@ def _vertical(f, g2, g_min, out, cnt):  # pragma: no cover - compiled
                                       ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt), norm2, W32, cnt),
                         F_ACC2, gn, F_ACC, F_ACC, W16, cnt)
         out[n] = av
+        trace[n, :] = cnt
 
 
 def vertical_acceleration(calibrated: np.ndarray, gravity2: np.ndarray, min_gravity_raw: int) -> np.ndarray:
@@ -159,6 +172,40 @@ def vertical_acceleration(calibrated: np.ndarray, gravity2: np.ndarray, min_grav
     """
     f = np.ascontiguousarray(calibrated, dtype=np.int64).reshape(-1, 3)
     g = np.ascontiguousarray(gravity2, dtype=np.int64).reshape(-1, 3)
+    return _vertical_traced(f, g, min_gravity_raw)[0]
+
+
+def _vertical_traced(f: np.ndarray, g: np.ndarray, min_gravity_raw: int) -> tuple[np.ndarray, np.ndarray]:
     out = np.zeros(f.shape[0], np.int64)
-    _vertical(f, g, int(min_gravity_raw), out, new_counters())
-    return out
+    trace = np.zeros((f.shape[0], N_COUNTERS), np.int64)
+    _vertical(f, g, int(min_gravity_raw), out, new_counters(), trace)
+    return out, _per_sample(trace)
+
+
+def _per_sample(trace: np.ndarray) -> np.ndarray:
+    """Each sample's calls per primitive (``(n, len(OPS))``) from the counters after each sample."""
+    calls = trace[:, :len(OPS)]
+    return np.diff(calls, axis=0, prepend=np.zeros((1, len(OPS)), np.int64))
+
+
+def front_operation_counts(codes: np.ndarray, calibration: CalibrationQ, gravity_shift: int, min_gravity_raw: int,
+                           run_starts: list[int] | tuple[int, ...] = (0,)) -> tuple[np.ndarray, np.ndarray]:
+    """The model's primitive calls per sample in steps 1-3, as the kernel counts them: ``(stage 1, stages 2-3)``,
+    each ``(n, len(OPS))`` int64 (columns in :data:`~gaitlog.firmware_sim.fixedpoint.OPS` order). Step 2 restarts
+    at each of ``run_starts`` (the runs' first samples, 0 first). The cycle budget prices them.
+
+    Examples
+    --------
+    >>> from gaitlog.firmware_sim.algorithms.calibration import nominal_calibration_q
+    >>> from gaitlog.firmware_sim.fixedpoint import OPS
+    >>> s1, s23 = front_operation_counts(np.array([[512, 768, 256]] * 2), nominal_calibration_q(), 6, 1638)
+    >>> int(s1[0, OPS.index("mul16x16s")]), int(s23[1, OPS.index("isqrt32")])    # 3 x 3 products, one root
+    (9, 1)
+    """
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    f, stage1 = _calibrated_traced(c, calibration)
+    bounds = list(run_starts) + [c.shape[0]]
+    parts = [_gravity_traced(f[a:b], gravity_shift) for a, b in zip(bounds, bounds[1:]) if b > a]
+    g = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 6), np.int64)
+    stage2 = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, len(OPS)), np.int64)
+    return stage1, stage2 + _vertical_traced(f, np.ascontiguousarray(g[:, 3:]), min_gravity_raw)[1]

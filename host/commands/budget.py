@@ -14,7 +14,11 @@ EXAMPLES = (
     "gaitlog budget",
     "gaitlog budget --all --json",
     "gaitlog budget --logger-rate 100 --crystal 20",
+    "gaitlog budget --measure",
+    "gaitlog budget --measure --recording walk.glimg --json",
 )
+#: Samples ``--measure`` runs in gpsim by default (a minute of walking at 50 Hz).
+MEASURE_SAMPLES = 3000
 CONFIG_NAMES = ("alvarez-50", "alvarez-100", "morris-5", "morris-6", "hall")
 
 
@@ -38,6 +42,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--measure-kernels", action="store_true",
                         help="run the PIC assembly kernels in gpsim (bit-exact check against fixedpoint.py, cycles "
                              "per call) and rewrite firmware_sim/pic/kernel_cycles.json; needs gputils and gpsim")
+    parser.add_argument("--measure", action="store_true",
+                        help="run the firmware's assembly part (sampling interrupt, steps 1-3 of the algorithm) in "
+                             "gpsim on a walk and report its cycles per sample, RAM and program words as measured, "
+                             "beside the model's estimate and error; without gputils/gpsim, the model's figures "
+                             "marked estimated")
+    parser.add_argument("--recording", metavar="FILE",
+                        help="with --measure: the recording to run (any file gaitlog decode reads; 10-bit codes; "
+                             "default: the simulated walker of --seed)")
+    parser.add_argument("--limit", type=whole(minimum=1), metavar="N",
+                        help=f"with --measure: run the first N valid samples (default {MEASURE_SAMPLES:,}: a minute "
+                             "at 50 Hz, about ten seconds of gpsim)")
     add_verbosity_options(parser)
 
 
@@ -79,6 +94,17 @@ def _check(c) -> None:
         raise UsageError(f"--estimator on: the walk is simulated at 1 .. 1000 Hz, not {c.sampling_rate_hz:g} Hz")
 
 
+def _check_measure(args: argparse.Namespace, configs: list) -> None:
+    """``--measure``, ``--recording`` and ``--limit`` go together, and only with the Alvarez logger."""
+    from gaitlog.host.errors import UsageError
+
+    if (args.recording is not None or args.limit is not None) and not args.measure:
+        raise UsageError("--recording and --limit choose the walk of --measure; add --measure")
+    if args.measure and (args.all or not configs[0].online_estimator or configs[0].adc_channels != 3):
+        raise UsageError("--measure runs the Alvarez logger's assembly (three axes, on-line estimator on); "
+                         "it takes no --all, --estimator off or --channels other than 3")
+
+
 def _walk(c, seed: int) -> dict:
     """The on-line algorithm on a simulated walker at ``c``'s rate and crystal: its counters."""
     from gaitlog.firmware_sim.adc import Adc
@@ -95,7 +121,46 @@ def _walk(c, seed: int) -> dict:
     res = logger.record(Walking(subject=subject, seed=seed))
     alg = logger.firmware.step_algorithm
     return {"alg": alg, "subject": subject.subject_id, "n_samples": int(res.n_samples),
-            "steps": int(logger.header.steps_written), "codes": res.codes, "step_config": logger.header.step_config}
+            "steps": int(logger.header.steps_written), "codes": res.codes, "step_config": logger.header.step_config,
+            "calibration": logger.header.calibration}
+
+
+def _chip(args: argparse.Namespace, c, walk: dict | None):
+    """The assembly part measured in gpsim (:func:`gaitlog.firmware_sim.pic.chip_budget.chip_budget`) on
+    ``--recording`` or the budget's simulated walk."""
+    import numpy as np
+
+    from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
+    from gaitlog.firmware_sim.pic.chip_budget import chip_budget
+    from gaitlog.firmware_sim.pic.gpsim_logger import PicError
+    from gaitlog.host.errors import HostError
+    from gaitlog.protocol.packing import FLAG_SESSION_START
+
+    limit = args.limit or MEASURE_SAMPLES
+    if args.recording is None and walk is None:
+        raise HostError(f"--measure: no walk to run at {c.sampling_rate_hz:g} Hz (no cycles left for the algorithm)")
+    if args.recording is None:
+        codes = np.asarray(walk["codes"], np.int64)[:limit]
+        flags = np.zeros(codes.shape[0], np.int64)
+        flags[0] = FLAG_SESSION_START
+        cal, rate, first, source = walk["calibration"], c.sampling_rate_hz, 0, f"simulated walker {walk['subject']}"
+    else:
+        from gaitlog.host.files.decode import decode_file
+
+        rec = decode_file(args.recording)
+        keep = np.flatnonzero(rec.valid)[:limit]
+        if rec.adc_bits != 10 or keep.size == 0:
+            raise HostError(f"{args.recording}: {rec.adc_bits}-bit codes, {keep.size} valid samples; the assembly "
+                            "runs on the PIC16F877's 10-bit codes")
+        codes, flags, rate = rec.codes[keep], rec.flags[keep], rec.sampling_rate_hz
+        cal = rec.header.calibration if rec.header is not None else None
+        first, source = int(rec.sample_numbers[keep[0]]), str(args.recording)
+    cal_q = CalibrationQ.from_protocol(cal) if cal is not None else nominal_calibration_q()
+    try:
+        return chip_budget(codes, flags, cal_q, sampling_rate_hz=rate, fosc_hz=c.fosc_hz, source=source,
+                           first_sample_number=first)
+    except (PicError, ValueError) as err:
+        raise HostError(f"--measure: {err}") from err
 
 
 def _wear(c, walk: dict):
@@ -126,7 +191,7 @@ def _wear(c, walk: dict):
                             flush_samples=flush)
 
 
-def _budget(c, seed: int) -> tuple[dict, list[str]]:
+def _budget(c, seed: int, args: argparse.Namespace | None = None) -> tuple[dict, list[str]]:
     """One configuration: the JSON document and the printed lines."""
     from gaitlog.firmware_sim.budget import (
         LIFETIME_HOURS_PER_DAY,
@@ -212,6 +277,10 @@ def _budget(c, seed: int) -> tuple[dict, list[str]]:
                      "cycles_per_s": endurance.rate_per_s(r), "endurance_cycles": r.endurance_cycles,
                      **{f"years_at_{h:g}_h_a_day": endurance.lifetime_years(r, h) for h in LIFETIME_HOURS_PER_DAY},
                      "source": r.source} for r in endurance.regions]}
+    if args is not None and args.measure:
+        chip = _chip(args, c, walk)
+        lines += [""] + chip.lines()
+        doc["assembly_part"] = chip.to_dict()
     short = shortfalls(c, ram, cycles, program, storage)
     doc["does_not_fit"] = short
     doc["fits"] = not short
@@ -269,7 +338,8 @@ def run(args: argparse.Namespace) -> int:
         configs = [_config(args)]
     for c in configs:
         _check(c)
-    results = [_budget(c, args.seed) for c in configs]
+    _check_measure(args, configs)
+    results = [_budget(c, args.seed, args) for c in configs]
     code = 0 if all(d["fits"] for d, _ in results) else 1
     if args.json:
         print(json.dumps(results[0][0] if not args.all else [d for d, _ in results], indent=2))

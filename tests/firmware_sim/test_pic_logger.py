@@ -14,7 +14,12 @@ import pytest
 
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
 from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_GRAV
-from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states, vertical_acceleration
+from gaitlog.firmware_sim.algorithms.probe import (
+    calibrated_axes,
+    front_operation_counts,
+    gravity_states,
+    vertical_acceleration,
+)
 from gaitlog.firmware_sim.budget import adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.protocol.header import CalibrationSlot
@@ -159,3 +164,59 @@ def test_a_broken_assembly_is_named(tmp_path, monkeypatch):
 def test_chunk_fits_program_memory():
     assert gl.CODE_TABLE + 3 * gl.CHUNK_SAMPLES <= 0x2000
     assert math.isclose(gl.timer_setup(50.0).period_cycles, 92160)
+
+
+@needs_gpsim
+@pytest.mark.parametrize("name", ["nominal", "device"])
+def test_budget_model_within_10_percent_of_the_chip_on_steps_1_to_3(simulated_walk, name):
+    """The model's mean estimate of steps 1-3 (primitive calls at the kernels' mean costs) against gpsim's
+    measurement of the same samples, with the nominal calibration (zero cross-axis terms) and a device's; the
+    worst-case cost table bounds every measured sample, and priced at it the mean is off by more than 10 %."""
+    from gaitlog.firmware_sim.fixedpoint import CYCLES, OPS
+    from gaitlog.firmware_sim.pic.chip_budget import chip_budget
+
+    codes = simulated_walk[0][:1000]
+    flags = np.zeros(len(codes), np.int64)
+    flags[0] = FLAG_SESSION_START
+    b = chip_budget(codes, flags, CALS[name], harness=gl.PicLogger(chunk_samples=500))
+    assert b.measured and b.memory.ram_total_bytes <= 368 and b.memory.program_words <= 8192
+    steps = b.part("steps 1-3")
+    measured, estimated = steps.measured_cycles.mean(), steps.estimated_cycles.mean()
+    assert abs(estimated - measured) <= 0.10 * measured, (estimated, measured)
+    total = b.part("total in assembly")
+    assert np.array_equal(total.measured_cycles, b.part("sampling interrupt").measured_cycles
+                          + steps.measured_cycles)
+    assert 0 < total.measured_cycles.max() < gl.timer_setup(50.0).period_cycles
+    s1, s23 = front_operation_counts(codes, CALS[name], 6, gl.PicLogger().min_gravity_raw)
+    worst = np.array([CYCLES[k] for k in OPS])
+    assert np.all(s1 @ worst >= b.part("step 1 (calibration)").measured_cycles)
+    assert np.all(s23 @ worst >= b.part("steps 2-3 (gravity, a_v)").measured_cycles)
+    assert ((s1 + s23) @ worst).mean() > 1.10 * measured
+
+
+def test_budget_without_gpsim_gives_the_models_figures_marked_estimated(simulated_walk, monkeypatch):
+    from gaitlog.firmware_sim.budget import interrupt_cycles_estimate
+    from gaitlog.firmware_sim.pic.chip_budget import chip_budget
+
+    monkeypatch.setattr(gl, "missing_tools", lambda: "gpsim not installed")
+    b = chip_budget(simulated_walk[0][:200], np.zeros(200, np.int64), CALS["nominal"])
+    assert not b.measured and b.memory is None
+    doc = b.to_dict()
+    assert doc["measured"] is False and doc["why_not_measured"] == "gpsim not installed"
+    interrupt = doc["cycles_per_sample"]["sampling interrupt"]
+    assert set(interrupt) == {"estimated"} and interrupt["estimated"]["mean"] == pytest.approx(interrupt_cycles_estimate())
+    assert "not measured (gpsim not installed)" in b.lines()[0]
+
+
+def test_chip_budget_backlog_is_lindleys_recursion():
+    """The worst backlog against a loop over the samples (the independent form of the recursion)."""
+    from gaitlog.firmware_sim.pic.chip_budget import STEPS, ChipBudget, CyclePart
+
+    t = np.array([50.0, 150.0, 180.0, 20.0, 90.0, 300.0, 10.0])
+    parts = tuple(CyclePart(n, t if n == "total in assembly" else np.zeros_like(t), t) for n in STEPS)
+    b = ChipBudget("x", t.size, 50.0, parts, None, None, period_cycles=100.0)
+    owed = worst = 0.0
+    for x in t:
+        owed = max(0.0, owed + x - 100.0)
+        worst = max(worst, owed)
+    assert b.worst_backlog_cycles == worst == 240.0
