@@ -17,8 +17,18 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.ranges import RangeCollector, RangeReport
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.firmware import step_algorithm_for
+from gaitlog.firmware_sim.world.subject import random_subjects
+from gaitlog.firmware_sim.world.walking import Walking
 from gaitlog.host.errors import HostError
+from gaitlog.host.files.decode import decode_file
+from gaitlog.host.files.replay import run_starts
+from gaitlog.host.studies.ipol_evaluation import replay_trial
+from gaitlog.protocol.steps import StepConfig
 
 __all__ = ["collect_ranges", "ipol_trial_paths", "recording_segments"]
 
@@ -32,8 +42,6 @@ def recording_segments(valid: np.ndarray, flags: np.ndarray) -> list[tuple[int, 
     >>> recording_segments(np.array([1, 1, 0, 1, 1, 1], bool), np.array([1, 0, 0, 0, 1, 0]))
     [(0, 2), (3, 4), (4, 6)]
     """
-    from gaitlog.host.files.replay import run_starts
-
     ok = np.asarray(valid, bool)
     cut = np.zeros(ok.size, bool)
     cut[run_starts(ok, flags)] = True
@@ -58,11 +66,6 @@ def ipol_trial_paths(path: Path) -> list[Path]:
 
 
 def _add_recording(collector: RangeCollector, path: Path) -> None:
-    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
-    from gaitlog.firmware_sim.firmware import step_algorithm_for
-    from gaitlog.host.files.decode import decode_file
-    from gaitlog.protocol.steps import StepConfig
-
     rec = decode_file(path)
     if rec.header is None:
         raise HostError(f"{path}: no logger header: ranges needs a logger recording, an IPOL trial or --simulate")
@@ -78,22 +81,12 @@ def _add_recording(collector: RangeCollector, path: Path) -> None:
 
 
 def _add_trial(collector: RangeCollector, lb_path: Path) -> None:
-    from gaitlog.firmware_sim.firmware import step_algorithm_for
-    from gaitlog.host.studies.ipol_evaluation import replay_trial
-
     rt = replay_trial(lb_path)
     segments = recording_segments(np.ones(rt.codes.shape[0], bool), rt.flags)
     collector.add(step_algorithm_for(rt.header), rt.codes, segments=segments, name=str(lb_path))
 
 
 def _add_walks(collector: RangeCollector, n: int, seed: int) -> None:
-    from gaitlog.firmware_sim.adc import Adc
-    from gaitlog.firmware_sim.device import Logger
-    from gaitlog.firmware_sim.firmware import step_algorithm_for
-    from gaitlog.firmware_sim.world.subject import random_subjects
-    from gaitlog.firmware_sim.world.walking import Walking
-    from gaitlog.protocol.steps import StepConfig
-
     for i, subject in enumerate(random_subjects(n, seed=seed)):
         logger = Logger(adc=Adc(), step_config=StepConfig(step_format=1, leg_length_m=subject.leg_length_m,
                                                           foot_length_m=subject.foot_length_m))
