@@ -112,7 +112,7 @@ TRACKED = (
     Tracked("2 l, foot", "TWO_LENGTH_Q", "constant", "m"),
     Tracked("2 l h - h^2 (M1)", "PENDULUM_ARG_Q", "derived", "m^2"),
     Tracked("2 l h - h^2 (M2, M3)", "PENDULUM_ARG2_Q", "derived", "m^2"),
-    Tracked("lengths M1-M5", "STEP_Q", "record", "m"),
+    *(Tracked(f"length M{i}", "STEP_Q", "record", "m") for i in range(1, 6)),
     Tracked("K1, K2 (as used)", "K_Q", "constant", "1"),
     Tracked("K4 g0^p", "K4_Q", "constant", "1"),
     Tracked("sqrt(range) (M4)", "ROOT4_Q", "derived", "g^1/2"),
@@ -274,7 +274,8 @@ class RangeReport:
                   " (--margin-bits); headroom: log2(limit / observed), tighter side",
                   "seen: state = read after every sample; probe = the kernel's step recomputed on every sample; "
                   "record = step records; derived = recomputed from a_v and the records; constant = configured; "
-                  "none = not observed"]
+                  "none = not observed; lengths, K and M5's constants are the raw values (K = 1) where the "
+                  "logger's K is not calibrated"]
         return "\n".join(lines)
 
 
@@ -380,7 +381,8 @@ class RangeCollector:
     def _records(self, alg: OnlineStepAlgorithm, steps: OnlineSteps, av: np.ndarray) -> None:
         """The records' values and the step passes' temporaries derived from them."""
         lengths, extras = np.asarray(steps.lengths, np.int64), np.asarray(steps.extras, np.int64)
-        self._see("lengths M1-M5", lengths)
+        for i in range(5):
+            self._see(f"length M{i + 1}", lengths[:, i])
         self._see("h (M1)", extras[:, 0])
         self._see("h (M2), h1 (M3)", extras[:, 1:3])
         self._see("M4 range", extras[:, 3])
