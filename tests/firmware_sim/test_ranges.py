@@ -95,14 +95,15 @@ def test_observing_does_not_change_the_records():
     codes = _sinusoid_codes(12.0)
     plain = _algorithm().run(codes).to_records(0)
     seen = _algorithm()
-    c = RangeCollector()
     steps = []
-    orig = seen.feed
-    seen.feed = lambda block, **kw: steps.append(orig(block, **kw)) or steps[-1]
+    feed, flush = seen.feed, seen.flush
+    seen.feed = lambda block, **kw: steps.append(feed(block, **kw)) or steps[-1]
+    seen.flush = lambda **kw: steps.append(flush(**kw)) or steps[-1]
+    c = RangeCollector()
     c.add(seen, codes)
-    assert c.report().n_steps == plain.size
-    got = np.concatenate([s.to_records(0) for s in steps] + [seen.flush().to_records(0)])
-    assert got[: plain.size - 1].tobytes() == plain[: plain.size - 1].tobytes()
+    assert c.report().n_steps == plain.size > 10
+    got = np.concatenate([s.to_records(0) for s in steps])
+    assert got.tobytes() == plain.tobytes()
 
 
 def test_every_format_has_a_row():
