@@ -14,20 +14,21 @@ same. What is observed, and how, is said per row (:data:`HOW`):
     every value a state variable takes (and a_v, the newest entry of the delay line).
 ``probe``
     Step 1 of the kernel recomputed on every sample by :func:`gaitlog.firmware_sim.algorithms.probe.calibrated_axes`
-    (the kernel's own helper, checked against the kernel by the PIC tests), or computed exactly (int64, no
-    saturation) from observed values with the kernel's expression: the centred codes, gravity rounded to
-    Q2.13, ``|g|^2`` and ``f·g - |g|^2``.
+    (the kernel's own helper, checked against the kernel by the PIC tests); M2's c1 and c2 from the kernel's
+    own ``_pass1`` run on the observed a_v of each step; or computed exactly (int64, no saturation) from
+    observed values with the kernel's expression: the centred codes, gravity rounded to Q2.13, ``|g|^2`` and
+    ``f·g - |g|^2``.
 ``record``
     The step records' lengths, excursions and M4's range (every value written).
 ``derived``
     Temporaries of a step's passes recomputed in int64 from the observed a_v, the records' windows and
-    excursions with the kernel's formulas: M1's velocity and position accumulators, ``2 l h - h^2``, M4's
-    square root. Not read from the kernel: a value beyond the word is counted where the kernel would saturate.
+    excursions with the kernel's formulas: M1's velocity and position accumulators, M2's corrected position
+    p2, ``2 l h - h^2``, M4's square root. Not read from the kernel: a value beyond the word is counted where the kernel would saturate.
 ``constant``
     Configuration the kernel keeps (FIR weights, calibration, leg, K ...): the values configured.
 ``none``
-    Not observed: temporaries the kernel does not expose (the FIR accumulator's partial sums, M2's corrected
-    position and its c1, c2). Their rows have no range.
+    Not observed: temporaries the kernel does not expose (the FIR accumulator's partial sums). Their rows
+    have no range.
 
 A row's ``saturations`` counts the observed values at the word's limit (at either limit when signed, at the
 top when unsigned: 0 is a common unsigned value), or beyond it for derived values; the kernel's own counters
@@ -64,7 +65,7 @@ from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from gaitlog.firmware_sim.algorithms.probe import calibrated_axes
 from gaitlog.firmware_sim.algorithms.state import AMP, G1, G2, MN, MX, PEND_Y, RAW_Y
-from gaitlog.firmware_sim.fixedpoint import QFormat
+from gaitlog.firmware_sim.fixedpoint import QFormat, new_counters
 from gaitlog.protocol.steps import StepFlag
 
 __all__ = ["HOW", "TRACKED", "Tracked", "VariableRange", "RangeReport", "RangeCollector", "smallest_format"]
@@ -105,7 +106,8 @@ TRACKED = (
     Tracked("M4 range", "LOWPASS_Q", "record", "g"),
     Tracked("V (M1 pass)", "VELOCITY_Q", "derived", "2 g Ts"),
     Tracked("P (M1 pass)", "POSITION_Q", "derived", "4 g Ts^2"),
-    Tracked("p2, c1, c2 (M2 pass)", "POSITION2_Q", "none", "4 g Ts^2"),
+    Tracked("c1, c2 (M2 pass)", "POSITION2_Q", "probe", "4 g Ts^2"),
+    Tracked("p2 (M2 pass)", "POSITION2_Q", "derived", "4 g Ts^2"),
     Tracked("h (M1)", "EXCURSION_Q", "record", "m"),
     Tracked("h (M2), h1 (M3)", "EXCURSION2_Q", "record", "m"),
     Tracked("leg, foot (stored)", "LENGTH_Q", "constant", "m"),
@@ -395,12 +397,22 @@ class RangeCollector:
             x = two_leg * h - ((h * h + (1 << (s - 1))) >> s)
             self._see(name, x[x >= 0])                     # x < 0: IMPOSSIBLE, a sign test before the root
         windows = [(int(e - d), int(e)) for e, d in zip(steps.end, steps.duration) if d > 0 and e - d >= 0]
+        cfg_i = alg.config.cfg_i.copy()
+        cfg_i[kernel.CI_SCRATCH] = max(av.size, 1)          # the run's a_v as the scratch ring, never wrapped
         for s, e in windows:
-            pair = av[s + 1:e + 1] + av[s:e]
-            vel = np.cumsum(pair)
-            pos = np.cumsum(vel + np.r_[0, vel[:-1]])
-            self._see("V (M1 pass)", vel)
-            self._see("P (M1 pass)", pos)
+            self._passes(av, s, e, cfg_i)
+
+    def _passes(self, av: np.ndarray, s: int, e: int, cfg_i: np.ndarray) -> None:
+        """A step's two passes: M1's V and P, and M2's p2, derived (int64, the kernel's increments); c1 and c2
+        from the kernel's own ``_pass1`` on the observed a_v."""
+        vel = np.cumsum(av[s + 1:e + 1] + av[s:e])
+        two = vel + np.r_[0, vel[:-1]]
+        self._see("V (M1 pass)", vel)
+        self._see("P (M1 pass)", np.cumsum(two))
+        _, c1, c2 = kernel._pass1(s, e, cfg_i, av, new_counters())
+        self._see("c1, c2 (M2 pass)", [c1, c2])
+        ramp = 2 * c1 + 4 * c1 * np.arange(vel.size)       # 2 c1 (2 tau - 1)
+        self._see("p2 (M2 pass)", np.cumsum((two << (fm.F_POS2 - fm.F_POS)) - c2 + ramp))
 
     def _constants(self, alg: OnlineStepAlgorithm) -> None:
         v = alg.config.cfg_v

@@ -75,6 +75,9 @@ def test_walking_sinusoid_gives_the_analytic_velocity_position_and_excursion():
     assert r.row("P (M1 pass)").min_raw >= 0
     assert p_max_m == pytest.approx(r.row("h (M1)").max_real, rel=0.002)
     assert r.row("h (M2), h1 (M3)").max_real == pytest.approx(0.04, rel=0.02)   # drift-corrected: h = 4 cm
+    # M2's p2, derived with c1 and c2 from the kernel's own first pass, gives the kernel's largest h of M2
+    p2_max_m = r.row("p2 (M2 pass)").max_real * STANDARD_GRAVITY_M_S2 * ts * ts / 4
+    assert p2_max_m == pytest.approx(r.row("h (M2), h1 (M3)").max_real, rel=0.002)
     assert r.row("FIR accumulator").min_raw is None and r.row("FIR accumulator").how == "none"
 
 
