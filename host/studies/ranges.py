@@ -2,7 +2,7 @@
 
 Each source is run through the logger's on-line algorithm as the logger sets it up from its header (rate, ADC
 width, calibration, step configuration; :func:`gaitlog.firmware_sim.firmware.step_algorithm_for`) and observed by
-:class:`gaitlog.firmware_sim.algorithms.ranges.RangeCollector`:
+:class:`gaitlog.firmware_sim.ranges.RangeCollector`:
 
 * a logger recording (anything ``gaitlog decode`` reads): its runs, cut at every missing sample;
 * an IPOL trial (``_lb.txt``, its ``.json``, or a folder of trials): replayed through the emulated logger
@@ -19,7 +19,7 @@ import numpy as np
 
 from gaitlog.firmware_sim.adc import Adc
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
-from gaitlog.firmware_sim.algorithms.ranges import RangeCollector, RangeReport
+from gaitlog.firmware_sim.ranges import RangeCollector, RangeReport
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.firmware import step_algorithm_for
 from gaitlog.firmware_sim.world.subject import random_subjects

@@ -1,4 +1,4 @@
-"""Range collection (firmware_sim/algorithms/ranges.py): ranges known analytically, a saturating input, the
+"""Range collection (firmware_sim/ranges.py): ranges known analytically, a saturating input, the
 proposals, and that observing does not change the records."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 
 from gaitlog.firmware_sim.algorithms.formats import ACC_Q, GRAVITY_Q
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
-from gaitlog.firmware_sim.algorithms.ranges import TRACKED, RangeCollector, smallest_format
+from gaitlog.firmware_sim.ranges import TRACKED, RangeCollector, smallest_format
 from gaitlog.protocol.header import CalibrationSlot
 from gaitlog.protocol.steps import StepConfig
 from gaitlog.units import STANDARD_GRAVITY_M_S2
