@@ -68,6 +68,7 @@ from gaitlog.firmware_sim.algorithms.state import (
     ram_bytes,
     variables,
 )
+from gaitlog.firmware_sim.algorithms.state import LINE_POS as LINE_POS_SLOT
 from gaitlog.firmware_sim.algorithms.state import N as _N_SLOT
 from gaitlog.firmware_sim.eeprom import PAGE_BYTES
 from gaitlog.firmware_sim.fixedpoint import (
@@ -549,6 +550,16 @@ class OnlineStepAlgorithm:
         """The declared state variables for this configuration."""
         c = self.config.counts
         return variables(line_length=2 * c.r3 + 1, median_steps=c.median_steps)
+
+    def state_values(self) -> np.ndarray:
+        """A copy of the kernel's value state (slots of :data:`gaitlog.firmware_sim.algorithms.state.VALUE_SLOTS`:
+        raw fixed point or floats), as it is between two samples (an observer's view; the run is not touched)."""
+        return self._st_v.copy()
+
+    def newest_vertical_acceleration(self) -> int | float:
+        """The a_v of the last sample fed (the delay line's newest entry; 0 before the first)."""
+        pos = int(self._st_i[LINE_POS_SLOT])
+        return self._line[(pos - 1) % self._line.size].item()
 
     def reset(self) -> None:
         """START: forget the previous run."""

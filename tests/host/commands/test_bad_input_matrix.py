@@ -367,6 +367,15 @@ def _cases() -> list[Case]:
     usage("pic", "unknown option", ["pic", "verify", "{walk.glimg}", "--limits", "3"], "--limits")
     usage("pic", "extra argument", ["pic", "verify", "{walk.glimg}", "extra"], "extra")
 
+    # ranges
+    recording_input("ranges", ["ranges"], [])
+    options("ranges", ["ranges"], "--simulate", BAD_COUNT)
+    options("ranges", ["ranges", "{walk.glimg}"], "--margin-bits", ("-1", "17", "abc", "1.5", ""))
+    options("ranges", ["ranges", "{walk.glimg}"], "--seed", ("-1", "abc", "1.5", "99999999999999999999999"))
+    usage("ranges", "no input", ["ranges"], "RECORDING")
+    usage("ranges", "unknown option", ["ranges", "{walk.glimg}", "--margins", "3"], "--margins")
+    add("ranges", "a folder without IPOL trials", ["ranges", "{emptydir}"], "emptydir")
+
     # budget
     options("budget", ["budget"], "--crystal", BAD_POSITIVE + ("1e9", "0.001", "1,5", "0x10"))
     options("budget", ["budget"], "--logger-rate", BAD_POSITIVE)
@@ -600,6 +609,7 @@ OVERWRITE: dict[str, tuple[tuple[str, ...], str] | str] = {
     "batch": "resumes into its --out folder: a re-run skips the recordings it finished",
     "plot": (("plot", "{walk.npz}", "--out", "{out}/p.png"), "p.png"),
     "budget": "writes no file",
+    "ranges": "writes no file",
     "pic": "writes no file",
     "kinematics": (("kinematics", "--out", "{out}/kin"), "kin/old.txt"),
 }

@@ -1,0 +1,87 @@
+"""`gaitlog ranges`: the table and --json say the same, a logger image and IPOL trials are read, bad input exits
+1 or 2 with one line."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.world.base import Motion
+from gaitlog.host.cli import main
+from gaitlog.units import STANDARD_GRAVITY_M_S2
+
+IPOL = Path(os.environ.get("GAITLOG_DATA_DIR", "/nonexistent")) / "ipol-lowerback-dev" / "GaitData"
+
+
+@pytest.fixture
+def image(tmp_path):
+    """20 s of a sinusoidal centre of mass (h = 4 cm, 2 steps/s) on z, logged."""
+    t = np.arange(1000) / 50.0
+    acc = np.zeros((t.size, 3))
+    acc[:, 2] = 1 - 0.02 * (4 * np.pi) ** 2 * np.cos(4 * np.pi * t) / STANDARD_GRAVITY_M_S2
+    logger = Logger(device_id=7)
+    logger.record(Motion(acc_g=acc, sampling_rate_hz=50.0), start_time_s=1_700_000_000)
+    path = tmp_path / "rec.glimg"
+    logger.save_image(path)
+    return path
+
+
+def test_json_gives_the_table(image, capsys):
+    assert main(["ranges", str(image)]) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert main(["ranges", str(image), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["n_steps"] > 20 and doc["sources"] == [str(image)] and doc["margin_bits"] == 1
+    assert len(doc["rows"]) == len([ln for ln in table if ln.split(" ")[0].endswith("_Q")])
+    for row in doc["rows"]:
+        line = next(ln for ln in table if ln.startswith(f"{row['format_name']} ") and f" {row['variable']} " in ln)
+        cells = line[len(row["format_name"]):].replace(row["variable"], "", 1).split()
+        assert cells[0] == row["how"] and cells[1] == row["format"]
+        if row["min_raw"] is None:
+            assert cells[2:4] == ["-", "-"] and row["proposed"] is None
+            continue
+        assert [int(cells[2]), int(cells[3])] == [row["min_raw"], row["max_raw"]]
+        assert float(cells[4]) == pytest.approx(row["min_real"], rel=1e-4, abs=1e-9)
+        assert cells[-3:] == [str(row["saturations"]), row["proposed"], str(row["proposed_bits"])]
+    assert doc["headline"] in table
+
+
+def test_margin_bits_widen_the_proposals(image, capsys):
+    docs = []
+    for b in ("0", "4"):
+        assert main(["ranges", str(image), "--margin-bits", b, "--json"]) == 0
+        docs.append({r["variable"]: r for r in json.loads(capsys.readouterr().out)["rows"]})
+    assert docs[1]["a_v"]["proposed_bits"] == docs[0]["a_v"]["proposed_bits"] + 4
+
+
+@pytest.mark.skipif(not IPOL.is_dir(), reason="needs GAITLOG_DATA_DIR with ipol-lowerback-dev")
+def test_ipol_trials_are_replayed(capsys):
+    trial = sorted(IPOL.glob("*_lb.txt"))[0]
+    assert main(["ranges", str(trial), str(trial.with_name(trial.name.replace("_lb.txt", ".json"))), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["sources"] == [str(trial)] * 2 and doc["n_steps"] > 0
+
+
+@pytest.mark.parametrize(("argv", "code", "says"), [
+    (["ranges"], 2, "RECORDING"),
+    (["ranges", "--simulate", "0"], 2, "--simulate"),
+    (["ranges", "--margin-bits", "17", "{image}"], 2, "--margin-bits"),
+    (["ranges", "{missing}"], 1, "missing.glimg"),
+    (["ranges", "{empty_dir}"], 1, "without IPOL trials"),
+    (["ranges", "{garbage}"], 1, "garbage.bin"),
+])
+def test_bad_input_exits_with_one_line(argv, code, says, image, tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "garbage.bin").write_bytes(b"\x00garbage" * 10)
+    paths = {"image": image, "missing": tmp_path / "missing.glimg", "empty_dir": tmp_path / "empty",
+             "garbage": tmp_path / "garbage.bin"}
+    args = [a.format(**{k: str(v) for k, v in paths.items()}) for a in argv]
+    with pytest.raises(SystemExit) as exc:
+        raise SystemExit(main(args))
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc.value.code == code and len(err) == 1 and says in err[0] and "Traceback" not in err[0]
