@@ -16,15 +16,35 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
 from __future__ import annotations
 
 import argparse
+import sys
+import time
+from pathlib import Path
 
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._input_options import add_input_options, given_input_flags, read_input
 from gaitlog.host.commands._options import (
     POSITIVE_M,
     SEED,
     add_adc_bits_option,
+    add_force_option,
+    add_json_option,
     add_logger_rate_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
     logger_rate_hz,
+    out_path,
+    print_json,
+    printer,
+    verbosity,
     whole,
 )
+from gaitlog.host.commands._progress import progress_bar
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 #: Shown under "examples:" by ``gaitlog compare --help``.
@@ -35,10 +55,6 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
-
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
                         "algorithm needs the ADC codes)")
@@ -66,17 +82,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _beside(out: str, suffix: str) -> str:
-    from pathlib import Path
-
     p = Path(out)
     return str(p.with_name(p.stem + suffix + ".csv"))
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.commands._input_options import given_input_flags
-    from gaitlog.host.commands._options import input_stem, out_path
-    from gaitlog.host.errors import UsageError
-
     name = f"{input_stem(args.input)}_compare.csv" if args.input else "sweep.csv" if args.sweep else "simulate.csv"
     args.out = out_path(args.out, name)
     modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
@@ -99,11 +109,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    import time
-
-    from gaitlog.host.commands._options import check_outputs, print_json, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.sweep import (
         SUMMARY_COLUMNS,
@@ -111,7 +116,6 @@ def _sweep(args: argparse.Namespace) -> int:
         format_m5,
         format_summary,
     )
-    from gaitlog.atomic_write import atomic_write_text
 
     if args.subjects < 1:
         raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
@@ -143,9 +147,6 @@ def _simulate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
-    from gaitlog.host.commands._options import check_outputs, print_json, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import (
         bootstrap_budget,
         format_budget,
@@ -153,7 +154,6 @@ def _simulate(args: argparse.Namespace) -> int:
         rows_csv_text,
     )
     from gaitlog.host.studies.simulation import simulate_comparisons
-    from gaitlog.atomic_write import atomic_write_text
 
     if args.simulate < 1:
         raise UsageError(f"--simulate must be >= 1, got {args.simulate}")
@@ -250,20 +250,12 @@ def format_segments(results: list) -> str:
 
 
 def _recording(args: argparse.Namespace) -> int:
-    import sys
-    from pathlib import Path
-
     import numpy as np
 
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, print_json, printer, verbosity
-    from gaitlog.host.errors import HostError
     from gaitlog.host.files.replay import run_starts, verify_step_records
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from gaitlog.atomic_write import atomic_write_text
 
     say = printer(args)
     p = Path(args.input)

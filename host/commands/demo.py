@@ -23,9 +23,18 @@ adds entries of the shared ``context`` dict and returns lines to print).
 from __future__ import annotations
 
 import argparse
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
+
+from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.host.commands._options import SEED, add_verbosity_options, check_output_folder, printer, verbosity, whole
+from gaitlog.host.errors import HostError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = ("run the whole path on defaults: record poses -> serve on a pty -> dump -> decode -> calibrate -> summary "
         "-> walk a simulated subject -> M1-M5 per 20 m and box plots -> the device's own step records -> the "
@@ -79,7 +88,6 @@ def _serve(ctx: dict[str, Any]) -> list[str]:
 
 
 def _dump(ctx: dict[str, Any]) -> list[str]:
-    from gaitlog.host.commands._options import verbosity
     from gaitlog.host.link.logger_link import LoggerLink
     from gaitlog.host.link.memory_dump import dump_memory
 
@@ -210,7 +218,6 @@ def _estimate(ctx: dict[str, Any]) -> list[str]:
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.evaluation import evaluate_recording, format_summary, summarise
     from gaitlog.host.studies.plots import plot_boxplots
-    from gaitlog.atomic_write import atomic_write_text
 
     res = evaluate_recording(ctx["walk_recording"])
     summary = summarise(res.rows)
@@ -288,7 +295,6 @@ def _split(ctx: dict[str, Any]) -> list[str]:
     from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
     from gaitlog.host.gait.sections import sections_from_marks
     from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from gaitlog.atomic_write import atomic_write_text
 
     rec = ctx["walk_recording"]
     sub = rec.subject
@@ -323,7 +329,6 @@ def _plot(ctx: dict[str, Any]) -> list[str]:
     from gaitlog.host.files.decode import decode_file, save_decoded
     from gaitlog.host.studies.overview import recording_overview
     from gaitlog.host.studies.plots import render_overview_png
-    from gaitlog.atomic_write import atomic_write_bytes
 
     rec = decode_file(ctx["walk_k_image"])
     written = save_decoded(rec, ctx["dir"] / "walk_k")
@@ -378,8 +383,6 @@ STAGES: list[Stage] = [
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import SEED, add_verbosity_options, whole
-
     parser.add_argument("--out", metavar="DIR", default=DEFAULT_OUT,
                         help=f"keep the files in DIR (default ./{DEFAULT_OUT}; a previous demo's files there are "
                         "replaced)")
@@ -391,13 +394,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from gaitlog.host.commands._options import check_output_folder, printer
-    from gaitlog.host.errors import HostError
-    from gaitlog.atomic_write import atomic_write_text
-
     say, detail = printer(args), printer(args, 1)
     out = Path(args.out)
     check_output_folder("--out", out)

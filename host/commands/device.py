@@ -8,13 +8,12 @@ import json
 import sys
 from typing import Any
 
-from gaitlog.host.commands._options import (
-    BAUD,
-    TIMEOUT_S,
-    UNIX_TIME_S,
-    add_verbosity_options,
-    verbosity,
-)
+from gaitlog.host.commands._options import BAUD, TIMEOUT_S, UNIX_TIME_S, add_verbosity_options, verbosity
+from gaitlog.host.errors import HostError, UsageError
+from gaitlog.protocol.errors import ProtocolError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "control a live logger (--port): identify, status, start, stop, erase, set-calibration"
 #: Shown under "examples:" by ``gaitlog device --help``.
@@ -74,8 +73,6 @@ STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.errors import UsageError
-
     if args.action == "erase" and not args.yes and not sys.stdin.isatty():
         raise UsageError("erase needs a confirmation: run it in a terminal to be asked, or pass --yes")
     slot = _calibration_slot(args) if args.action == "set-calibration" else None
@@ -156,7 +153,6 @@ def _say(args: argparse.Namespace, message: str) -> None:
 def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
     import datetime as _dt
 
-    from gaitlog.host.errors import HostError
     from gaitlog.protocol.frames import DeviceState
 
     before = link.status()
@@ -188,8 +184,6 @@ def _stop(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 
 
 def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    from gaitlog.host.errors import HostError
-
     st = _status(link)
     if st["logging"]:
         raise HostError(f"logger {info['device_id']} on {args.port} is logging: stop it first "
@@ -208,8 +202,6 @@ def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 def _calibration_slot(args: argparse.Namespace) -> bytes:
     """The 64-byte slot from ``CAL.json`` (or the empty slot for ``--nominal``), checked before any
     connection is made."""
-    from gaitlog.host.errors import HostError
-    from gaitlog.protocol.errors import ProtocolError
     from gaitlog.protocol.header import CALIBRATION_SIZE
 
     if args.nominal:
@@ -227,7 +219,6 @@ def _calibration_slot(args: argparse.Namespace) -> bytes:
 
 
 def _set_calibration(args: argparse.Namespace, link, info: dict[str, int], slot: bytes) -> int:
-    from gaitlog.host.errors import HostError
     from gaitlog.protocol.header import CalibrationSlot
 
     cal = CalibrationSlot.from_bytes(slot, info["adc_bits"])

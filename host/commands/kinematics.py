@@ -23,8 +23,25 @@ comparison, the same shank without axial rotation and a six-accelerometer platfo
 from __future__ import annotations
 
 import argparse
+import math
+import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
+
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.commands._options import (
+    SEED,
+    add_force_option,
+    add_verbosity_options,
+    check_output_folder,
+    number,
+    printer,
+)
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "Morris' and Hall's kinematics on a recording (morris / hall) or on simulated instruments (simulate)."
 #: Shown under "examples:" by ``gaitlog kinematics --help``.
@@ -43,15 +60,11 @@ HALL_FILES = ("hall_joint_angles.csv", "hall_link_orientation.csv", "hall_angula
 
 def _snr_db(text: str) -> float:
     """``--snr-db``: a finite number of dB in 0..200, or ``inf`` (no noise)."""
-    from gaitlog.host.commands._options import number
-
     return float("inf") if text.strip().lower() == "inf" else number(minimum=0, maximum=200, unit="dB")(text)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog kinematics``."""
-    from gaitlog.host.commands._options import SEED, add_force_option, add_verbosity_options, number
-
     parser.add_argument("method", nargs="?", choices=("simulate", "morris", "hall"), default="simulate",
                         help="morris or hall: analyse RECORDING; simulate (default): simulated instruments")
     parser.add_argument("recording", nargs="?", type=Path, metavar="RECORDING",
@@ -170,8 +183,6 @@ def hall_outputs(hall: Any, recording: Any, sequence: str) -> dict[str, Any]:
 
 def write_outputs(out: Path, outputs: dict[str, Any]) -> None:
     """Create ``out`` and write every output (texts atomically, figures through their atomic writers)."""
-    from gaitlog.atomic_write import atomic_write_text
-
     out.mkdir(parents=True, exist_ok=True)
     for name, item in outputs.items():
         if isinstance(item, str):
@@ -185,7 +196,6 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
     """Hall's method on a recording: pre-test posture, offsets, CFC, link matrices, joint angles."""
     import numpy as np
 
-    from gaitlog.host.errors import HostError
     from gaitlog.host.kinematics.joints import JOINT_MATRICES, HallJointKinematics
     from gaitlog.host.kinematics.orientation import initial_dcm_from_gravity
 
@@ -210,9 +220,6 @@ def analyse_hall(recording: Any, platform: Any, cfc: float, angle_mode: str) -> 
 
 
 def _check_out(out: Path | None, what: str, *, force: bool) -> Path:
-    from gaitlog.host.commands._options import check_output_folder
-    from gaitlog.host.errors import UsageError
-
     if out is None:
         raise UsageError(f"{what}: give --out DIR for the results")
     check_output_folder("--out", out, force=force)
@@ -220,10 +227,6 @@ def _check_out(out: Path | None, what: str, *, force: bool) -> Path:
 
 
 def _run_recording(args: argparse.Namespace) -> int:
-    import warnings
-
-    from gaitlog.host.commands._options import printer
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
     from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
     from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
@@ -317,12 +320,8 @@ def _as_recording(sim: Any, rate: float) -> Any:
 
 
 def _run_simulate(args: argparse.Namespace) -> int:
-    import math
-
     import numpy as np
 
-    from gaitlog.host.commands._options import check_output_folder, printer
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
     from gaitlog.host.kinematics.joints import joint_angles_yxz
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
@@ -394,8 +393,6 @@ def _run_simulate(args: argparse.Namespace) -> int:
         f"{fmt3(np.degrees(true_angles[-1]))} deg")
     say(f"  literal sum of incremental Euler angles ends at {fmt3(np.degrees(literal.angles_rad_[-1]))} deg")
     say(f"  initial posture   {fmt3(np.degrees(joint_angles_yxz(result.joint_matrix_[0])[0]))} deg")
-    from dataclasses import replace
-
     from gaitlog.firmware_sim.budget import CONFIGURATIONS, instrument_fit
 
     n_acc = len(morris.platform.sensors)
@@ -418,8 +415,6 @@ def run(args: argparse.Namespace) -> int:
     """Dispatch on the method (module notes)."""
     if args.method == "simulate":
         if args.recording is not None:
-            from gaitlog.host.errors import UsageError
-
             raise UsageError("kinematics simulate takes no RECORDING (did you mean 'kinematics morris REC.csv'?)")
         return _run_simulate(args)
     return _run_recording(args)
