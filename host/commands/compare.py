@@ -1,5 +1,5 @@
 """``gaitlog compare``: the offline float chain vs the on-line algorithm in float and in fixed point (vs truth
-on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the offline chain, for every chain.
+on simulated subjects). One K per calibration mode, fitted on the offline chain, for every chain.
 
 * ``gaitlog compare REC.npz``: a decoded recording's codes through the offline chain and the on-line
   algorithm in both arithmetics (with ``--k-file``'s K, else K = 1); per-step table, per-20 m segment table
@@ -9,15 +9,15 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
 * ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, offline,
   online-float, online-fixed vs the world's truth, :mod:`gaitlog.host.studies.compare`), the error split ADC / algorithm /
   arithmetic and its 95 % bootstrap intervals over the subjects.
-* ``gaitlog compare --sweep``: ADC 8/10/12 bits x 25/50/100 Hz over ``--subjects`` (4) simulated subjects
-  (:mod:`gaitlog.host.studies.sweep`) and the answer about M5 and the 50 Hz step timing.
+
+The ADC width x rate sweep and the M5 question are ``gaitlog sweep``'s (:mod:`gaitlog.host.studies.sweep_grid`):
+``compare --sweep`` is a usage error that names the ``gaitlog sweep`` command line giving the same grid.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 from gaitlog.atomic_write import atomic_write_text
@@ -59,17 +59,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
                         "algorithm needs the ADC codes)")
     parser.add_argument("--simulate", type=whole(minimum=1, maximum=1000), metavar="N", help="compare on N simulated subjects instead")
-    parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
-    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="subjects of the sweep (default 4)")
+    # moved to `gaitlog sweep`: still parsed, only to name the command line that replaces it
+    parser.add_argument("--sweep", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the simulated subjects (default 0)")
     parser.add_argument("--population", choices=["v1", "people"], default=None,
-                        help="simulated population of --simulate/--sweep: people (default; tuned to real "
+                        help="simulated population of --simulate: people (default; tuned to real "
                         "lower-back walking) or v1")
     add_adc_bits_option(parser, stored=False, what="of --simulate")
     add_logger_rate_option(parser, "for --simulate")
-    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
-    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
-                        "segments, split and budget go beside it (_segments.csv, _split.csv, _budget.csv / _m5.csv)")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate (default 2)")
+    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate); segments, split and budget go "
+                        "beside it (_segments.csv, _split.csv, _budget.csv)")
     parser.add_argument("--resamples", type=whole(minimum=1, maximum=1_000_000), default=2000,
                         help="bootstrap resamples of the subjects for --simulate's intervals (default 2000)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
@@ -87,60 +88,34 @@ def _beside(out: str, suffix: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    name = f"{input_stem(args.input)}_compare.csv" if args.input else "sweep.csv" if args.sweep else "simulate.csv"
+    if args.sweep:
+        raise UsageError(f"--sweep: moved to gaitlog sweep; the same grid (ADC 8/10/12 bits x 25/50/100 Hz) is "
+                         f"`{_sweep_command_line(args)}`")
+    name = f"{input_stem(args.input)}_compare.csv" if args.input else "simulate.csv"
     args.out = out_path(args.out, name)
-    modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
-    if sum(modes) != 1:
-        raise UsageError("give exactly one of INPUT, --simulate N or --sweep")
+    if (args.input is None) == (args.simulate is None):
+        raise UsageError("give exactly one of INPUT or --simulate N")
     if args.workers < 1:
         raise UsageError(f"--workers must be >= 1, got {args.workers}")
     if args.input is None:
         extra = given_input_flags(args) + [f"--{n.replace('_', '-')}" for n in ("k_file", "leg_length", "foot_length",
                                                                                  "height") if getattr(args, n)]
         if extra:
-            raise UsageError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
+            raise UsageError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate")
     elif args.logger_rate is not None:
         raise UsageError("--logger-rate: only with --simulate (a recording states its own rate)")
     elif args.population is not None:
-        raise UsageError("--population: only with --simulate / --sweep (a recording is its own walker)")
+        raise UsageError("--population: only with --simulate (a recording is its own walker)")
     args.population = args.population or "people"
-    mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
-    return mode(args)
+    return _simulate(args) if args.simulate is not None else _recording(args)
 
 
-def _sweep(args: argparse.Namespace) -> int:
-    from gaitlog.host.studies.compare import rows_csv_text
-    from gaitlog.host.studies.sweep import (
-        SUMMARY_COLUMNS,
-        AdcRateSweep,
-        format_m5,
-        format_summary,
-    )
-
-    if args.subjects < 1:
-        raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
-    say, detail = printer(args), printer(args, 1)
-    if args.out:
-        check_outputs({"--out": args.out}, {}, force=args.force)
-    t = time.perf_counter()
-    with progress_bar(args, args.subjects, "subject") as tick:
-        sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers,
-                          population=args.population).run(progress=tick)
-    say(f"sweep: {args.subjects} simulated subjects ('{args.population}') x ADC 8/10/12 bits x 25/50/100 Hz in "
-        f"{time.perf_counter() - t:.1f} s")
-    say(format_summary(sw.summary_))
-    say()
-    detail(format_summary(sw.summary_, mode="single-speed"))
-    detail()
-    say(format_m5(sw.m5_))
-    if args.out:
-        atomic_write_text(args.out, rows_csv_text(sw.summary_, SUMMARY_COLUMNS))
-        m5 = _beside(args.out, "_m5")
-        atomic_write_text(m5, rows_csv_text(sw.m5_["rows"]))
-        say(f"written: {args.out}, {m5}")
-    if args.json:
-        print_json({"summary": sw.summary_, "m5": sw.m5_["rows"]})
-    return 0
+def _sweep_command_line(args: argparse.Namespace) -> str:
+    """The ``gaitlog sweep`` command line of what ``compare --sweep`` ran (its subjects, seed, population and
+    workers; the results folder named after ``--out``)."""
+    out = Path(args.out).with_suffix("") if args.out else Path("sweep-out")
+    return (f"gaitlog sweep --out {out} --subjects {args.subjects} --seeds {args.seed} "
+            f"--population {args.population or 'people'} --workers {args.workers}")
 
 
 def _simulate(args: argparse.Namespace) -> int:
