@@ -119,13 +119,15 @@ def _sweep_command_line(args: argparse.Namespace) -> str:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
     from gaitlog.host.studies.compare import (
+        BUDGET_COLUMNS,
         bootstrap_budget,
         format_budget,
+        format_segments,
         format_step_diffs,
+        pool_step_diffs,
+        pooled_step_columns,
         rows_csv_text,
     )
     from gaitlog.host.studies.simulation import simulate_comparisons
@@ -148,7 +150,7 @@ def _simulate(args: argparse.Namespace) -> int:
         detail(f"  {r.subject_id}: {r.steps['step'].size} steps (offline chain), step durations off by "
                f"{r.timing['rms_ms']:.1f} ms rms; saturation/wrap: {r.saturation or 'none'}")
     all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
-    say(format_step_diffs(_pool_diffs(all_diffs)))
+    say(format_step_diffs(pool_step_diffs(all_diffs)))
     say()
     say(format_segments(results))
     say()
@@ -157,71 +159,16 @@ def _simulate(args: argparse.Namespace) -> int:
     sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
     say("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
     if args.out:
-        from gaitlog.host.studies.compare import BUDGET_COLUMNS
-
-        cols: dict[str, list] = {}
-        for r in results:
-            n = r.steps["step"].size
-            cols.setdefault("subject", []).append(np.full(n, int(r.subject_id.lstrip("S") or 0)))
-            for k, v in r.steps.items():
-                cols.setdefault(k, []).append(v)
-        atomic_write_text(args.out, columns_csv_text({k: np.concatenate(v) for k, v in cols.items()}))
+        atomic_write_text(args.out, columns_csv_text(pooled_step_columns(results)))
         seg, split, bud = _beside(args.out, "_segments"), _beside(args.out, "_split"), _beside(args.out, "_budget")
         atomic_write_text(seg, rows_csv_text([s for r in results for s in r.segments]))
         atomic_write_text(split, rows_csv_text(all_diffs))
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
         say(f"written: {args.out}, {seg}, {split}, {bud}")
     if args.json:
-        print_json({"step_differences": _pool_diffs(all_diffs), "segments": [s for r in results for s in r.segments],
+        print_json({"step_differences": pool_step_diffs(all_diffs), "segments": [s for r in results for s in r.segments],
                     "budget": budget, "saturation": {r.subject_id: r.saturation for r in results}})
     return 0
-
-
-def _pool_diffs(rows: list[dict]) -> list[dict]:
-    """Per (pair, estimator) over subjects: median of medians, max of maxima, summed counts."""
-    import numpy as np
-
-    out = []
-    keys = []
-    for r in rows:
-        if (r["pair"], r["estimator"]) not in keys:
-            keys.append((r["pair"], r["estimator"]))
-    for pair, est in keys:
-        rs = [r for r in rows if r["pair"] == pair and r["estimator"] == est]
-        out.append(dict(share=rs[0].get("share", ""), pair=pair, estimator=est, n=sum(r["n"] for r in rs),
-                        median_abs_mm=float(np.nanmedian([r["median_abs_mm"] for r in rs])),
-                        p95_abs_mm=float(np.nanmax([r["p95_abs_mm"] for r in rs])),
-                        max_abs_mm=float(np.nanmax([r["max_abs_mm"] for r in rs])),
-                        bias_mm=float(np.nanmedian([r["bias_mm"] for r in rs])),
-                        max_rel=float(np.nanmax([r["max_rel"] for r in rs])),
-                        n_different_events=sum(r["n_different_events"] for r in rs)))
-    return out
-
-
-def format_segments(results: list) -> str:
-    """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
-    import numpy as np
-
-    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-    from gaitlog.host.studies.compare import CHAINS, SHARES, column_key
-
-    lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
-             "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
-             f"{'mode':<13}{'est':<5}{'n':>4}" + "".join(f"{c:>13}{'IQR':>7}" for c in CHAINS)
-             + f"{'ADC max':>9}{'alg max':>9}{'arith max':>10}"]
-    segs = [s for r in results for s in r.segments]
-    for mode in ("single-speed", "multi-speed"):
-        for est in ESTIMATORS:
-            sel = [s for s in segs if s["mode"] == mode and s["estimator"] == est]
-            if not sel:
-                continue
-            v = {k: np.array([s[f"ratio_{column_key(k)}"] for s in sel], float) for k in CHAINS}
-            q = {k: np.percentile(x, [25, 50, 75]) for k, x in v.items()}
-            lines.append(f"{mode:<13}{est:<5}{len(sel):>4}" + "".join(
-                f"{q[k][1]:>13.3f}{q[k][2] - q[k][0]:>7.3f}" for k in CHAINS)
-                + "".join(f"{np.max(np.abs(v[a] - v[b])):>{w}.{p}f}"
-                          for (a, b), w, p in zip(SHARES.values(), (9, 9, 10), (4, 4, 5))))
-    return "\n".join(lines)
 
 
 def _recording(args: argparse.Namespace) -> int:

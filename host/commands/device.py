@@ -4,6 +4,7 @@ memory (after confirmation) and set its calibration slot."""
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import sys
 from typing import Any
@@ -151,8 +152,6 @@ def _say(args: argparse.Namespace, message: str) -> None:
 
 # ------------------------------------------------------------------------------------------------- actions
 def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    import datetime as _dt
-
     from gaitlog.protocol.frames import DeviceState
 
     before = link.status()
@@ -161,7 +160,7 @@ def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
                         f"({before['samples_written']} samples written): nothing changed")
     link.start(args.start_time, overwrite=args.overwrite)
     after = _status(link)
-    when = _dt.datetime.fromisoformat(after["start_time_utc"]) if after["start_time_utc"] else None
+    when = datetime.datetime.fromisoformat(after["start_time_utc"]) if after["start_time_utc"] else None
     mode = "overwrites the oldest samples when full" if args.overwrite else "stops when the memory is full"
     _say(args, f"logger {info['device_id']} is logging since {when.isoformat() if when else '?'} "
                f"({after['samples_stored']} samples already stored; it {mode})")
