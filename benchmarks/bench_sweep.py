@@ -1,4 +1,5 @@
-"""Benchmark: the 9-configuration ADC x rate sweep (``gaitlog sweep``'s default grid), and the peak memory and time of ``gaitlog demo``.
+"""Benchmark: the 9-configuration ADC x rate sweep (``gaitlog sweep``'s default grid), and the peak memory and
+time of ``gaitlog demo``.
 
 Targets: the sweep of 9 configurations (ADC 8/10/12 bits x 25/50/100 Hz) over a 4-subject simulated
 protocol in <= 60 s (issue 5); peak memory of ``gaitlog demo`` <= 400 MB and its time <= 60 s. (The memory

@@ -68,9 +68,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "lower-back walking) or v1")
     add_adc_bits_option(parser, stored=False, what="of --simulate")
     add_logger_rate_option(parser, "for --simulate")
-    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate (default 2)")
-    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate); segments, split and budget go "
-                        "beside it (_segments.csv, _split.csv, _budget.csv)")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2,
+                        help="processes for --simulate (default 2)")
+    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate); segments, split and "
+                        "budget go beside it (_segments.csv, _split.csv, _budget.csv)")
     parser.add_argument("--resamples", type=whole(minimum=1, maximum=1_000_000), default=2000,
                         help="bootstrap resamples of the subjects for --simulate's intervals (default 2000)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
@@ -166,7 +167,8 @@ def _simulate(args: argparse.Namespace) -> int:
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
         say(f"written: {args.out}, {seg}, {split}, {bud}")
     if args.json:
-        print_json({"step_differences": pool_step_diffs(all_diffs), "segments": [s for r in results for s in r.segments],
+        print_json({"step_differences": pool_step_diffs(all_diffs),
+                    "segments": [s for r in results for s in r.segments],
                     "budget": budget, "saturation": {r.subject_id: r.saturation for r in results}})
     return 0
 

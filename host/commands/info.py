@@ -11,7 +11,8 @@ from gaitlog.host.commands._options import BAUD, TIMEOUT_S, add_verbosity_option
 from gaitlog.host.commands.device import STATE_WORDS
 from gaitlog.host.errors import UsageError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# Imports inside functions are only of numpy, of modules that load numpy, scipy, numba, dask or matplotlib, and
+# of gaitlog.firmware_sim.algorithms.parameters (its dataclasses: ~3 ms):
 # `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "show the header and status of a memory image or of a live device (--port)"

@@ -34,7 +34,8 @@ from gaitlog.host.commands._options import (
 from gaitlog.host.errors import HostError, UsageError
 from gaitlog.protocol.errors import ProtocolError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# Imports inside functions are only of numpy, of modules that load numpy, scipy, numba, dask or matplotlib, and
+# of gaitlog.firmware_sim.world.walk_plan (its dataclasses: ~3 ms):
 # `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 if TYPE_CHECKING:

@@ -4,15 +4,16 @@ independent tasks, each deterministic from its seed.
 
 **Tasks.** One task is one subject of one seed and population (``random_subjects(n_subjects, seed=seed,
 population=population)[i]``, walking with seed ``seed * 1000 + i`` the protocol with the population's walk
-habits, as :class:`gaitlog.host.studies.evaluation.SimulatedEvaluation`), its logger tilted by ``misalignment_deg`` more than the
-subject's own mounting (a pitch about the trunk's medio-lateral axis, composed with the subject's rotation),
-sampled at one rate with one noise density, quantised at one ADC width, and its fixed-point chain compiled
-with one set of Q formats (:class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`, by label:
-``shipped``, ``acc10-lp12``...). Its work is the comparison of :func:`gaitlog.host.studies.compare.compare_walk`
-(ideal, offline, on-line float and on-line fixed-point chains, one K per calibration mode fitted on the offline
-chain, used by all four), the same as ``gaitlog compare --simulate``'s for one configuration. A task depends on nothing but its own fields, so it gives the
-same rows in any process, in any order, on any machine: 1 worker, N workers, a remote cluster or a resumed run
-agree exactly (the tests check it).
+habits, as :class:`gaitlog.host.studies.evaluation.SimulatedEvaluation`), its logger tilted by
+``misalignment_deg`` more than the subject's own mounting (a pitch about the trunk's medio-lateral axis,
+composed with the subject's rotation), sampled at one rate with one noise density, quantised at one ADC width,
+and its fixed-point chain compiled with one set of Q formats
+(:class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`, by label: ``shipped``,
+``acc10-lp12``...). Its work is the comparison of :func:`gaitlog.host.studies.compare.compare_walk` (ideal,
+offline, on-line float and on-line fixed-point chains, one K per calibration mode fitted on the offline chain,
+used by all four), as ``gaitlog compare --simulate`` runs it for one configuration. A task depends on nothing
+but its own fields, so it gives the same rows in any process, in any order, on any machine: 1 worker, N
+workers, a remote cluster or a resumed run agree exactly (the tests check it).
 
 The expensive part, rendering the walk and the sensor's analog response, depends on the subject and seed only;
 a process keeps the last :data:`WALK_MEMO_SIZE` rendered walks (:func:`analog_walk`), so the tasks of one
