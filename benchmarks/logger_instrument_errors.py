@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.firmware_sim.channel_sensors import ACCELEROMETER, RATE_SENSOR
-from gaitlog.host.commands.kinematics import _truth_from_columns, analyse_hall, morris_errors
 from gaitlog.host.files.decode import decode_file
 from gaitlog.host.kinematics.logger_error_budget import hall_error_budget, morris_error_budget
 from gaitlog.host.kinematics.logger_instruments import (
@@ -33,6 +32,7 @@ from gaitlog.host.kinematics.logger_instruments import (
     sensor_recording,
 )
 from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
+from gaitlog.host.kinematics.reports import analyse_hall, morris_errors, truth_from_columns
 
 #: (label, instrument, keyword arguments of record_instrument)
 CONFIGURATIONS = (
@@ -65,7 +65,7 @@ def run_once(instrument: str, kwargs: dict, seed: int, folder: Path) -> tuple[fl
         rec = _decoded(x, folder)
         if instrument == "morris":
             cycles = analyse_morris_recording(rec, x.platform)
-            truth = _truth_from_columns(_Truth(x.truth))
+            truth = truth_from_columns(_Truth(x.truth))
             errs.append(max(morris_errors(c, truth)["orientation_deg"] for c in cycles))
             cycle_s = max(cycle_s, max(c.t_s[-1] - c.t_s[0] for c in cycles))
         else:

@@ -87,6 +87,35 @@ def test_no_import_inside_a_library_function() -> None:
     assert not hidden, "imports inside library functions:\n" + "\n".join(sorted(set(hidden)))
 
 
+#: Most imports inside the functions of ``host/commands/`` (an ``ast`` count; the goal is fewer than 80). The
+#: commands import at module level what costs ``gaitlog --help`` nothing measurable (the standard library,
+#: ``host.errors``, the option helpers) and inside functions only numpy, scipy, numba, dask, matplotlib and
+#: the modules that load them.
+MAX_COMMAND_FUNCTION_IMPORTS = 147
+
+
+def _function_level_imports(tree: ast.Module) -> list[ast.Import | ast.ImportFrom]:
+    """Imports whose nearest enclosing scope is a function (each statement once, nested functions included)."""
+    found = []
+
+    def walk(node: ast.AST, in_function: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            if in_function and isinstance(child, (ast.Import, ast.ImportFrom)):
+                found.append(child)
+            walk(child, in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)))
+
+    walk(tree, False)
+    return found
+
+
+def test_commands_import_inside_functions_only_what_costs_start_up() -> None:
+    count = {name: len(_function_level_imports(tree)) for name, tree in MODULES.items()
+             if name.startswith("host.commands.")}
+    total = sum(count.values())
+    assert total <= MAX_COMMAND_FUNCTION_IMPORTS, (
+        f"{total} imports inside functions of host/commands/ (at most {MAX_COMMAND_FUNCTION_IMPORTS}): "
+        + ", ".join(f"{n} {c}" for n, c in sorted(count.items(), key=lambda x: -x[1]) if c))
+
 
 def test_imports_go_only_downwards() -> None:
     upward = []

@@ -8,6 +8,9 @@ from typing import TYPE_CHECKING
 
 from gaitlog.host.commands._options import POSITIVE_M
 
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+
 if TYPE_CHECKING:
     from gaitlog.host.files.inputs import AccelerationInput
     from gaitlog.host.gait.anthropometry import AnatomyChoice

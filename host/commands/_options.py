@@ -8,7 +8,19 @@ Commands print their summary through :func:`printer` rather than redirecting std
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import os
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
+
+from gaitlog.host.errors import HostError, UsageError
+from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
+from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, MAX_STORED_ADC_BITS
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 
 def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
@@ -20,8 +32,6 @@ def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
 
 def add_max_missing_option(parser: argparse.ArgumentParser) -> None:
     """``--max-missing PCT``: the missing share above which the command exits 1 (outputs still written, marked)."""
-    from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
-
     parser.add_argument("--max-missing", type=number(minimum=0, maximum=100, unit="%"),
                         default=DEFAULT_MAX_MISSING_PERCENT, metavar="PCT",
                         help="exit 1 when more than PCT %% of a recording's samples are missing (default "
@@ -47,15 +57,11 @@ def add_json_option(parser: argparse.ArgumentParser, what: str = "the tables") -
 
 def print_json(doc: object) -> None:
     """Print ``doc`` as JSON: numpy values as numbers and lists, NaN and infinities as null (valid JSON)."""
-    import json
-
     print(json.dumps(_json_ready(doc), indent=2, allow_nan=False))
 
 
 def _json_ready(value: object) -> object:
     """``value`` with numpy scalars and arrays as Python numbers and lists, non-finite floats as None."""
-    import math
-
     if isinstance(value, dict):
         return {str(k): _json_ready(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -85,10 +91,7 @@ def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "", *, m
 def logger_rate_hz(args: argparse.Namespace) -> float:
     """``--logger-rate``, else the logger's default (:data:`gaitlog.firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`); a
     :class:`~gaitlog.host.errors.HostError` unless positive and finite."""
-    import math
-
     from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-    from gaitlog.host.errors import UsageError
 
     if args.logger_rate is None:
         return DEFAULT_SAMPLING_RATE_HZ
@@ -112,8 +115,6 @@ def number(*, minimum: float | None = None, maximum: float | None = None, above:
     ...
     argparse.ArgumentTypeError: must be a finite number > 0 s, got 'nan'
     """
-    import math
-
     bounds = " and ".join(b for b in (
         f">= {minimum:g}" if minimum is not None else "", f"> {above:g}" if above is not None else "",
         f"<= {maximum:g}" if maximum is not None else "") if b)
@@ -163,8 +164,6 @@ def add_adc_bits_option(parser: argparse.ArgumentParser, *, stored: bool, what: 
     """``--adc-bits B`` (default 10), one rule everywhere (:mod:`gaitlog.protocol.adc_bits`): 1 to 10 bits where
     the codes go through the emulated logger, which stores them in 10-bit fields (``stored``), 1 to 12 where
     they are simulated and compared, never stored. A value outside is a usage error (exit 2) that says so."""
-    from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, MAX_STORED_ADC_BITS
-
     top = MAX_STORED_ADC_BITS if stored else MAX_SIMULATED_ADC_BITS
     why = (f" (the logger stores {MAX_STORED_ADC_BITS}-bit codes; up to {MAX_SIMULATED_ADC_BITS} bits only where codes "
            "are simulated and never stored: compare --simulate, sweep)") if stored else ""
@@ -207,9 +206,6 @@ def out_path(value: str | None, name: str) -> str | None:
     >>> out_path("walk_steps.csv", "walk.png")
     'walk_steps.csv'
     """
-    import os
-    from pathlib import Path
-
     if value is None:
         return None
     text = os.fspath(value)
@@ -221,8 +217,6 @@ def out_path(value: str | None, name: str) -> str | None:
 def input_stem(path: object) -> str:
     """The name an input gives its outputs in a folder: its file name without the suffix (``walk.glimg`` ->
     ``walk``; an IPOL ``1-1_lb.txt`` -> ``1-1_lb``)."""
-    from pathlib import Path
-
     return Path(str(path).rstrip("/")).stem
 
 
@@ -236,11 +230,6 @@ def check_outputs(outputs: dict[str, object], inputs: dict[str, object], *, forc
     None: the command itself continues an existing output (``record --append``, ``dump --resume``). Raises
     :class:`~gaitlog.host.errors.HostError` naming the option and the files.
     """
-    import os
-    from pathlib import Path
-
-    from gaitlog.host.errors import HostError
-
     def same(a: Path, b: Path) -> bool:
         try:
             if a.exists() and b.exists():
@@ -280,10 +269,6 @@ def check_output_folder(option: str, folder: object, *, force: bool | None = Non
     existing file, a path under a file, a place where no file can be created; with ``force`` False
     (``--force`` not given), a folder that is not empty (None: the command resumes into its own folder, or
     decides itself). A :class:`HostError` naming ``option``."""
-    from pathlib import Path
-
-    from gaitlog.host.errors import HostError
-
     path = Path(folder)  # type: ignore[arg-type]
     if path.exists() and not path.is_dir():
         raise HostError(f"{option} {path}: exists and is not a folder")
@@ -300,10 +285,6 @@ def check_output_folder(option: str, folder: object, *, force: bool | None = Non
 def _check_writable(option: str, out: object, folder: object) -> None:
     """A :class:`HostError` unless a file can be created in ``folder`` (tried: permissions, read-only or
     pseudo file systems, a full quota)."""
-    import tempfile
-
-    from gaitlog.host.errors import HostError
-
     try:
         with tempfile.TemporaryFile(dir=folder):  # type: ignore[call-overload]
             pass

@@ -9,6 +9,25 @@ input and settings, and retries the failed ones.
 from __future__ import annotations
 
 import argparse
+import sys
+import time
+from pathlib import Path
+
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._options import (
+    add_json_option,
+    add_max_missing_option,
+    add_verbosity_options,
+    check_output_folder,
+    print_json,
+    printer,
+)
+from gaitlog.host.commands._progress import progress_bar
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "estimate every recording in a folder (per-recording outputs, summary table, failures listed; resumable)"
 #: Shown under "examples:" by ``gaitlog batch --help``.
@@ -18,9 +37,6 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._options import add_json_option, add_max_missing_option, add_verbosity_options
-
     parser.add_argument("folder", metavar="FOLDER", help="folder of memory images, raw dumps, wire captures or "
                         "decoded .npz files")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
@@ -38,19 +54,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-    import time
-    from pathlib import Path
-
     from gaitlog.host.accelerometer.calibration import AccCalibration
-    from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._options import check_output_folder, print_json, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
-    from gaitlog.atomic_write import atomic_write_text
 
     out = Path(args.out)
     folder = Path(args.folder)

@@ -4,9 +4,27 @@ from __future__ import annotations
 
 import argparse
 import io
+import json
 import sys
 from pathlib import Path
 from typing import Any
+
+from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options, read_input
+from gaitlog.host.commands._options import (
+    add_force_option,
+    add_json_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
+    number,
+    out_path,
+    print_json,
+    verbosity,
+)
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "Fit offsets, scales and axis angles to the static poses of a recording (logger file, .npz or CSV); write JSON."
 #: Shown under "examples:" by ``gaitlog calibrate --help``.
@@ -17,9 +35,6 @@ EXAMPLES = (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of ``gaitlog calibrate``."""
-    from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options, number
-
     parser.add_argument("input", type=Path, metavar="INPUT", help=f"static poses: {INPUT_HELP}")
     parser.add_argument("--out", type=Path, required=True, metavar="CAL.json", help="calibration file to write")
     parser.add_argument("--model", choices=("9-param", "6-param"), default="9-param",
@@ -49,9 +64,6 @@ def run(args: argparse.Namespace) -> int:
     """Detect the static holds, fit the model, print a summary and write the JSON atomically."""
     from gaitlog.host.accelerometer.calibration import ANGLE_NAMES
     from gaitlog.host.accelerometer.fit import AccCalibrator
-    from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, print_json, verbosity
-    from gaitlog.host.errors import HostError, UsageError
 
     args.out = out_path(args.out, f"{input_stem(args.input)}_cal.json")
     path: Path = args.input
@@ -107,9 +119,6 @@ def run(args: argparse.Namespace) -> int:
     cal.save(args.out)
     print(f"wrote {args.out}", file=out)
     if args.json:                                  # the file as written, with the poses behind it
-        import json
-        from pathlib import Path
-
         print_json({"out": str(args.out), "calibration": json.loads(Path(args.out).read_text()),
                     "poses": [{"start_sample": w.start, "stop_sample": w.stop, "mean": w.mean, "residual_g": r}
                               for w, r in zip(cal_run.windows_, cal.pose_residuals_g, strict=True)],

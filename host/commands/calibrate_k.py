@@ -3,6 +3,27 @@
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+from pathlib import Path
+
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, given_anatomy_flags, lengths_from_args
+from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options, read_input
+from gaitlog.host.commands._options import (
+    POSITIVE_M,
+    add_force_option,
+    add_json_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
+    out_path,
+    print_json,
+    verbosity,
+)
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "fit the per-subject constants K and the M5 line from recordings with a known distance"
 #: Shown under "examples:" by ``gaitlog calibrate-k --help``.
@@ -12,10 +33,6 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import POSITIVE_M, add_force_option, add_json_option, add_verbosity_options
-
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help=f"recording(s): {INPUT_HELP}; several inputs = several speeds")
     how = parser.add_mutually_exclusive_group(required=True)
@@ -38,12 +55,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
-    from gaitlog.host.commands._anatomy_options import given_anatomy_flags, lengths_from_args
-    from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, print_json, verbosity
-    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.gait.k_calibration import calibrate
     from gaitlog.host.gait.k_prior import PRIORS
     from gaitlog.host.gait.pipeline import StepPipeline
@@ -92,9 +103,6 @@ def run(args: argparse.Namespace) -> int:
         k = PRIORS[args.prior].shrink(k)
     k.save(args.out)
     if args.json:                                  # the file as written
-        import json
-        from pathlib import Path
-
         print_json({"out": str(args.out), "k": json.loads(Path(args.out).read_text()), "notes": notes})
     elif verbosity(args) >= 0:
         print(f"{len(sections)} section(s), {k.n_steps} steps, {k.distance_m:g} m ({k.mode}); leg length "

@@ -1,5 +1,5 @@
 """``gaitlog compare``: the offline float chain vs the on-line algorithm in float and in fixed point (vs truth
-on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the offline chain, for every chain.
+on simulated subjects). One K per calibration mode, fitted on the offline chain, for every chain.
 
 * ``gaitlog compare REC.npz``: a decoded recording's codes through the offline chain and the on-line
   algorithm in both arithmetics (with ``--k-file``'s K, else K = 1); per-step table, per-20 m segment table
@@ -9,22 +9,42 @@ on simulated subjects); ``--sweep``. One K per calibration mode, fitted on the o
 * ``gaitlog compare --simulate N``: N simulated subjects through the paper's protocol (ideal, offline,
   online-float, online-fixed vs the world's truth, :mod:`gaitlog.host.studies.compare`), the error split ADC / algorithm /
   arithmetic and its 95 % bootstrap intervals over the subjects.
-* ``gaitlog compare --sweep``: ADC 8/10/12 bits x 25/50/100 Hz over ``--subjects`` (4) simulated subjects
-  (:mod:`gaitlog.host.studies.sweep`) and the answer about M5 and the 50 Hz step timing.
+
+The ADC width x rate sweep and the M5 question are ``gaitlog sweep``'s (:mod:`gaitlog.host.studies.sweep_grid`):
+``compare --sweep`` is a usage error that names the ``gaitlog sweep`` command line giving the same grid.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._input_options import add_input_options, given_input_flags, read_input
 from gaitlog.host.commands._options import (
     POSITIVE_M,
     SEED,
     add_adc_bits_option,
+    add_force_option,
+    add_json_option,
     add_logger_rate_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
     logger_rate_hz,
+    out_path,
+    print_json,
+    printer,
+    verbosity,
     whole,
 )
+from gaitlog.host.commands._progress import progress_bar
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 #: Shown under "examples:" by ``gaitlog compare --help``.
@@ -35,25 +55,23 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
-
     parser.add_argument("input", metavar="INPUT", nargs="?",
                         help="logger recording: memory image, raw dump, wire capture or decoded .npz (the on-line "
                         "algorithm needs the ADC codes)")
     parser.add_argument("--simulate", type=whole(minimum=1, maximum=1000), metavar="N", help="compare on N simulated subjects instead")
-    parser.add_argument("--sweep", action="store_true", help="ADC bits 8/10/12 x rate 25/50/100 Hz sweep")
-    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="subjects of the sweep (default 4)")
+    # moved to `gaitlog sweep`: still parsed, only to name the command line that replaces it
+    parser.add_argument("--sweep", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help=argparse.SUPPRESS)
     parser.add_argument("--seed", type=SEED, default=0, help="seed of the simulated subjects (default 0)")
     parser.add_argument("--population", choices=["v1", "people"], default=None,
-                        help="simulated population of --simulate/--sweep: people (default; tuned to real "
+                        help="simulated population of --simulate: people (default; tuned to real "
                         "lower-back walking) or v1")
     add_adc_bits_option(parser, stored=False, what="of --simulate")
     add_logger_rate_option(parser, "for --simulate")
-    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2, help="processes for --simulate/--sweep (default 2)")
-    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate) or sweep summary; "
-                        "segments, split and budget go beside it (_segments.csv, _split.csv, _budget.csv / _m5.csv)")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=2,
+                        help="processes for --simulate (default 2)")
+    parser.add_argument("--out", metavar="CSV", help="per-step table (recording, --simulate); segments, split and "
+                        "budget go beside it (_segments.csv, _split.csv, _budget.csv)")
     parser.add_argument("--resamples", type=whole(minimum=1, maximum=1_000_000), default=2000,
                         help="bootstrap resamples of the subjects for --simulate's intervals (default 2000)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants for a recording (M4/M5 need it)")
@@ -66,94 +84,54 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _beside(out: str, suffix: str) -> str:
-    from pathlib import Path
-
     p = Path(out)
     return str(p.with_name(p.stem + suffix + ".csv"))
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.commands._input_options import given_input_flags
-    from gaitlog.host.commands._options import input_stem, out_path
-    from gaitlog.host.errors import UsageError
-
-    name = f"{input_stem(args.input)}_compare.csv" if args.input else "sweep.csv" if args.sweep else "simulate.csv"
+    if args.sweep:
+        raise UsageError(f"--sweep: moved to gaitlog sweep; the same grid (ADC 8/10/12 bits x 25/50/100 Hz) is "
+                         f"`{_sweep_command_line(args)}`")
+    name = f"{input_stem(args.input)}_compare.csv" if args.input else "simulate.csv"
     args.out = out_path(args.out, name)
-    modes = [args.input is not None, args.simulate is not None, bool(args.sweep)]
-    if sum(modes) != 1:
-        raise UsageError("give exactly one of INPUT, --simulate N or --sweep")
+    if (args.input is None) == (args.simulate is None):
+        raise UsageError("give exactly one of INPUT or --simulate N")
     if args.workers < 1:
         raise UsageError(f"--workers must be >= 1, got {args.workers}")
     if args.input is None:
         extra = given_input_flags(args) + [f"--{n.replace('_', '-')}" for n in ("k_file", "leg_length", "foot_length",
                                                                                  "height") if getattr(args, n)]
         if extra:
-            raise UsageError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate / --sweep")
+            raise UsageError(f"{', '.join(extra)}: only for a recording INPUT, not with --simulate")
     elif args.logger_rate is not None:
         raise UsageError("--logger-rate: only with --simulate (a recording states its own rate)")
     elif args.population is not None:
-        raise UsageError("--population: only with --simulate / --sweep (a recording is its own walker)")
+        raise UsageError("--population: only with --simulate (a recording is its own walker)")
     args.population = args.population or "people"
-    mode = _sweep if args.sweep else _simulate if args.simulate is not None else _recording
-    return mode(args)
+    return _simulate(args) if args.simulate is not None else _recording(args)
 
 
-def _sweep(args: argparse.Namespace) -> int:
-    import time
-
-    from gaitlog.host.commands._options import check_outputs, print_json, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import UsageError
-    from gaitlog.host.studies.compare import rows_csv_text
-    from gaitlog.host.studies.sweep import (
-        SUMMARY_COLUMNS,
-        AdcRateSweep,
-        format_m5,
-        format_summary,
-    )
-    from gaitlog.atomic_write import atomic_write_text
-
-    if args.subjects < 1:
-        raise UsageError(f"--subjects must be >= 1, got {args.subjects}")
-    say, detail = printer(args), printer(args, 1)
-    if args.out:
-        check_outputs({"--out": args.out}, {}, force=args.force)
-    t = time.perf_counter()
-    with progress_bar(args, args.subjects, "subject") as tick:
-        sw = AdcRateSweep(n_subjects=args.subjects, seed=args.seed, workers=args.workers,
-                          population=args.population).run(progress=tick)
-    say(f"sweep: {args.subjects} simulated subjects ('{args.population}') x ADC 8/10/12 bits x 25/50/100 Hz in "
-        f"{time.perf_counter() - t:.1f} s")
-    say(format_summary(sw.summary_))
-    say()
-    detail(format_summary(sw.summary_, mode="single-speed"))
-    detail()
-    say(format_m5(sw.m5_))
-    if args.out:
-        atomic_write_text(args.out, rows_csv_text(sw.summary_, SUMMARY_COLUMNS))
-        m5 = _beside(args.out, "_m5")
-        atomic_write_text(m5, rows_csv_text(sw.m5_["rows"]))
-        say(f"written: {args.out}, {m5}")
-    if args.json:
-        print_json({"summary": sw.summary_, "m5": sw.m5_["rows"]})
-    return 0
+def _sweep_command_line(args: argparse.Namespace) -> str:
+    """The ``gaitlog sweep`` command line of what ``compare --sweep`` ran (its subjects, seed, population and
+    workers; the results folder named after ``--out``)."""
+    out = Path(args.out).with_suffix("") if args.out else Path("sweep-out")
+    return (f"gaitlog sweep --out {out} --subjects {args.subjects} --seeds {args.seed} "
+            f"--population {args.population or 'people'} --workers {args.workers}")
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
-    from gaitlog.host.commands._options import check_outputs, print_json, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import (
+        BUDGET_COLUMNS,
         bootstrap_budget,
         format_budget,
+        format_segments,
         format_step_diffs,
+        pool_step_diffs,
+        pooled_step_columns,
         rows_csv_text,
     )
     from gaitlog.host.studies.simulation import simulate_comparisons
-    from gaitlog.atomic_write import atomic_write_text
 
     if args.simulate < 1:
         raise UsageError(f"--simulate must be >= 1, got {args.simulate}")
@@ -173,7 +151,7 @@ def _simulate(args: argparse.Namespace) -> int:
         detail(f"  {r.subject_id}: {r.steps['step'].size} steps (offline chain), step durations off by "
                f"{r.timing['rms_ms']:.1f} ms rms; saturation/wrap: {r.saturation or 'none'}")
     all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
-    say(format_step_diffs(_pool_diffs(all_diffs)))
+    say(format_step_diffs(pool_step_diffs(all_diffs)))
     say()
     say(format_segments(results))
     say()
@@ -182,88 +160,26 @@ def _simulate(args: argparse.Namespace) -> int:
     sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
     say("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
     if args.out:
-        from gaitlog.host.studies.compare import BUDGET_COLUMNS
-
-        cols: dict[str, list] = {}
-        for r in results:
-            n = r.steps["step"].size
-            cols.setdefault("subject", []).append(np.full(n, int(r.subject_id.lstrip("S") or 0)))
-            for k, v in r.steps.items():
-                cols.setdefault(k, []).append(v)
-        atomic_write_text(args.out, columns_csv_text({k: np.concatenate(v) for k, v in cols.items()}))
+        atomic_write_text(args.out, columns_csv_text(pooled_step_columns(results)))
         seg, split, bud = _beside(args.out, "_segments"), _beside(args.out, "_split"), _beside(args.out, "_budget")
         atomic_write_text(seg, rows_csv_text([s for r in results for s in r.segments]))
         atomic_write_text(split, rows_csv_text(all_diffs))
         atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
         say(f"written: {args.out}, {seg}, {split}, {bud}")
     if args.json:
-        print_json({"step_differences": _pool_diffs(all_diffs), "segments": [s for r in results for s in r.segments],
+        print_json({"step_differences": pool_step_diffs(all_diffs),
+                    "segments": [s for r in results for s in r.segments],
                     "budget": budget, "saturation": {r.subject_id: r.saturation for r in results}})
     return 0
 
 
-def _pool_diffs(rows: list[dict]) -> list[dict]:
-    """Per (pair, estimator) over subjects: median of medians, max of maxima, summed counts."""
-    import numpy as np
-
-    out = []
-    keys = []
-    for r in rows:
-        if (r["pair"], r["estimator"]) not in keys:
-            keys.append((r["pair"], r["estimator"]))
-    for pair, est in keys:
-        rs = [r for r in rows if r["pair"] == pair and r["estimator"] == est]
-        out.append(dict(share=rs[0].get("share", ""), pair=pair, estimator=est, n=sum(r["n"] for r in rs),
-                        median_abs_mm=float(np.nanmedian([r["median_abs_mm"] for r in rs])),
-                        p95_abs_mm=float(np.nanmax([r["p95_abs_mm"] for r in rs])),
-                        max_abs_mm=float(np.nanmax([r["max_abs_mm"] for r in rs])),
-                        bias_mm=float(np.nanmedian([r["bias_mm"] for r in rs])),
-                        max_rel=float(np.nanmax([r["max_rel"] for r in rs])),
-                        n_different_events=sum(r["n_different_events"] for r in rs)))
-    return out
-
-
-def format_segments(results: list) -> str:
-    """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
-    import numpy as np
-
-    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-    from gaitlog.host.studies.compare import CHAINS, SHARES, column_key
-
-    lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
-             "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
-             f"{'mode':<13}{'est':<5}{'n':>4}" + "".join(f"{c:>13}{'IQR':>7}" for c in CHAINS)
-             + f"{'ADC max':>9}{'alg max':>9}{'arith max':>10}"]
-    segs = [s for r in results for s in r.segments]
-    for mode in ("single-speed", "multi-speed"):
-        for est in ESTIMATORS:
-            sel = [s for s in segs if s["mode"] == mode and s["estimator"] == est]
-            if not sel:
-                continue
-            v = {k: np.array([s[f"ratio_{column_key(k)}"] for s in sel], float) for k in CHAINS}
-            q = {k: np.percentile(x, [25, 50, 75]) for k, x in v.items()}
-            lines.append(f"{mode:<13}{est:<5}{len(sel):>4}" + "".join(
-                f"{q[k][1]:>13.3f}{q[k][2] - q[k][0]:>7.3f}" for k in CHAINS)
-                + "".join(f"{np.max(np.abs(v[a] - v[b])):>{w}.{p}f}"
-                          for (a, b), w, p in zip(SHARES.values(), (9, 9, 10), (4, 4, 5))))
-    return "\n".join(lines)
-
-
 def _recording(args: argparse.Namespace) -> int:
-    import sys
-    from pathlib import Path
-
     import numpy as np
 
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, print_json, printer, verbosity
-    from gaitlog.host.errors import HostError
     from gaitlog.host.files.replay import run_starts, verify_step_records
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-    from gaitlog.atomic_write import atomic_write_text
 
     say = printer(args)
     p = Path(args.input)

@@ -13,6 +13,10 @@ from gaitlog.host.commands._options import (
     out_path,
     verbosity,
 )
+from gaitlog.host.errors import HostError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = ("decode a memory image, raw dump or wire capture to PREFIX.csv and PREFIX.npz (gaps reported), and the "
         "device's step records to PREFIX.steps.csv (checked against the host's replay)")
@@ -62,7 +66,6 @@ def replay_error(recording, check) -> str:
 def _run_instrument(args: argparse.Namespace, rec, csv_path) -> int:
     """An instrument's recording (a channel map in the header, PROTOCOL.md 2.6): PREFIX.csv in the recording
     format of ``gaitlog kinematics`` (:mod:`gaitlog.host.kinematics.sensor_csv`), one column per channel."""
-    from gaitlog.host.errors import HostError
     from gaitlog.host.kinematics.logger_instruments import decoded_columns
     from gaitlog.host.kinematics.sensor_csv import write_sensor_csv
 
@@ -84,7 +87,6 @@ def _run_instrument(args: argparse.Namespace, rec, csv_path) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.errors import HostError
     from gaitlog.host.files.decode import decode_file, output_paths, save_decoded
     from gaitlog.host.files.replay import verify_step_records
 

@@ -4,17 +4,17 @@ memory (after confirmation) and set its calibration slot."""
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import sys
 from typing import Any
 
-from gaitlog.host.commands._options import (
-    BAUD,
-    TIMEOUT_S,
-    UNIX_TIME_S,
-    add_verbosity_options,
-    verbosity,
-)
+from gaitlog.host.commands._options import BAUD, TIMEOUT_S, UNIX_TIME_S, add_verbosity_options, verbosity
+from gaitlog.host.errors import HostError, UsageError
+from gaitlog.protocol.errors import ProtocolError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "control a live logger (--port): identify, status, start, stop, erase, set-calibration"
 #: Shown under "examples:" by ``gaitlog device --help``.
@@ -74,8 +74,6 @@ STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.errors import UsageError
-
     if args.action == "erase" and not args.yes and not sys.stdin.isatty():
         raise UsageError("erase needs a confirmation: run it in a terminal to be asked, or pass --yes")
     slot = _calibration_slot(args) if args.action == "set-calibration" else None
@@ -154,9 +152,6 @@ def _say(args: argparse.Namespace, message: str) -> None:
 
 # ------------------------------------------------------------------------------------------------- actions
 def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    import datetime as _dt
-
-    from gaitlog.host.errors import HostError
     from gaitlog.protocol.frames import DeviceState
 
     before = link.status()
@@ -165,7 +160,7 @@ def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
                         f"({before['samples_written']} samples written): nothing changed")
     link.start(args.start_time, overwrite=args.overwrite)
     after = _status(link)
-    when = _dt.datetime.fromisoformat(after["start_time_utc"]) if after["start_time_utc"] else None
+    when = datetime.datetime.fromisoformat(after["start_time_utc"]) if after["start_time_utc"] else None
     mode = "overwrites the oldest samples when full" if args.overwrite else "stops when the memory is full"
     _say(args, f"logger {info['device_id']} is logging since {when.isoformat() if when else '?'} "
                f"({after['samples_stored']} samples already stored; it {mode})")
@@ -188,8 +183,6 @@ def _stop(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 
 
 def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    from gaitlog.host.errors import HostError
-
     st = _status(link)
     if st["logging"]:
         raise HostError(f"logger {info['device_id']} on {args.port} is logging: stop it first "
@@ -208,8 +201,6 @@ def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
 def _calibration_slot(args: argparse.Namespace) -> bytes:
     """The 64-byte slot from ``CAL.json`` (or the empty slot for ``--nominal``), checked before any
     connection is made."""
-    from gaitlog.host.errors import HostError
-    from gaitlog.protocol.errors import ProtocolError
     from gaitlog.protocol.header import CALIBRATION_SIZE
 
     if args.nominal:
@@ -227,7 +218,6 @@ def _calibration_slot(args: argparse.Namespace) -> bytes:
 
 
 def _set_calibration(args: argparse.Namespace, link, info: dict[str, int], slot: bytes) -> int:
-    from gaitlog.host.errors import HostError
     from gaitlog.protocol.header import CalibrationSlot
 
     cal = CalibrationSlot.from_bytes(slot, info["adc_bits"])

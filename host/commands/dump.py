@@ -4,8 +4,12 @@ image plus JSON metadata."""
 from __future__ import annotations
 
 import argparse
+import io
+import signal
 import sys
+from pathlib import Path
 
+from gaitlog.atomic_write import atomic_write_bytes
 from gaitlog.host.commands._options import (
     BAUD,
     TIMEOUT_S,
@@ -16,6 +20,10 @@ from gaitlog.host.commands._options import (
     verbosity,
     whole,
 )
+from gaitlog.host.errors import HostError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
@@ -46,10 +54,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import io
-    import signal
-    from pathlib import Path
-
     from gaitlog.host.link.memory_dump import metadata_path_for
 
     out = Path(out_path(args.out, "dump.glimg"))
@@ -71,10 +75,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _dump(args: argparse.Namespace, out, capture) -> int:
 
-    from gaitlog.host.errors import HostError
     from gaitlog.host.link.logger_link import LoggerLink
     from gaitlog.host.link.memory_dump import dump_memory, state_path_for
-    from gaitlog.atomic_write import atomic_write_bytes
 
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout, capture=capture) as link:
         try:

@@ -11,6 +11,26 @@ those steps per estimator.
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+from pathlib import Path
+
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options, read_input
+from gaitlog.host.commands._options import (
+    add_force_option,
+    add_max_missing_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
+    out_path,
+    verbosity,
+)
+from gaitlog.host.errors import HostError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "estimate every step's length and the distance walked (M1-M5) from a recording (logger file, .npz, IPOL, CSV)"
 #: Shown under "examples:" by ``gaitlog estimate --help``.
@@ -22,10 +42,6 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._anatomy_options import add_anatomy_options
-    from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options
-    from gaitlog.host.commands._options import add_force_option, add_max_missing_option, add_verbosity_options
-
     parser.add_argument("input", metavar="INPUT", help=INPUT_HELP)
     parser.add_argument("--out", metavar="STEPS.csv", help="write the per-step table here")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
@@ -44,18 +60,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-    import sys
-    from pathlib import Path
-
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-    from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
-    from gaitlog.host.errors import HostError
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
     from gaitlog.host.gait.k_calibration import KFit
-    from gaitlog.atomic_write import atomic_write_text
 
     args.out = out_path(args.out, f"{input_stem(args.input)}_steps.csv")
     if args.out:
@@ -200,7 +207,6 @@ def _fixed_steps(data, calibration: str | None, leg: float, foot: float, k):
     K as the float chain -> (StepTable, saturation report)."""
     import numpy as np
 
-    from gaitlog.host.errors import HostError
     from gaitlog.host.files.replay import online_step_table, run_starts
 
     rec = data.recording

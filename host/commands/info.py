@@ -8,6 +8,12 @@ import json
 from typing import Any
 
 from gaitlog.host.commands._options import BAUD, TIMEOUT_S, add_verbosity_options, verbosity
+from gaitlog.host.commands.device import STATE_WORDS
+from gaitlog.host.errors import UsageError
+
+# Imports inside functions are only of numpy, of modules that load numpy, scipy, numba, dask or matplotlib, and
+# of gaitlog.firmware_sim.algorithms.parameters (its dataclasses: ~3 ms):
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "show the header and status of a memory image or of a live device (--port)"
 #: Shown under "examples:" by ``gaitlog info --help``.
@@ -103,8 +109,6 @@ def header_dict(header) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.errors import UsageError
-
     if (args.image is None) == (args.port is None):
         raise UsageError("give either IMAGE or --port PORT")
     report = _device_report(args) if args.port else _file_report(args)
@@ -116,7 +120,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _device_report(args: argparse.Namespace) -> tuple[dict[str, Any], list[str]]:
-    from gaitlog.host.commands.device import STATE_WORDS
     from gaitlog.host.link.logger_link import LoggerLink, device_identity
 
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:

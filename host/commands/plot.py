@@ -3,9 +3,24 @@
 from __future__ import annotations
 
 import argparse
+import re
+from pathlib import Path
 
-from gaitlog.host.commands._anatomy_options import add_anatomy_options
-from gaitlog.host.commands._options import add_force_option, add_verbosity_options, number
+from gaitlog.atomic_write import atomic_write_bytes
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._options import (
+    add_force_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
+    number,
+    out_path,
+    printer,
+)
+from gaitlog.host.errors import HostError, UsageError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
@@ -34,18 +49,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import re
-    from pathlib import Path
-
-    from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, printer
     from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-    from gaitlog.host.errors import HostError, UsageError
     from gaitlog.host.files.inputs import read_acceleration
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.overview import recording_overview
     from gaitlog.host.studies.plots import render_overview_png
-    from gaitlog.atomic_write import atomic_write_bytes
 
     src = Path(args.input)
     out = Path(out_path(args.out, f"{input_stem(src)}.png") or src.with_suffix(".png"))

@@ -10,17 +10,33 @@ leg and foot lengths are the ones K was fitted with). Without K the device store
 from __future__ import annotations
 
 import argparse
+import sys
+import time
+from pathlib import Path
 from typing import TYPE_CHECKING
 
-from gaitlog.host.commands._anatomy_options import FOOT_LENGTH_M, HEIGHT_M, LEG_LENGTH_M
+from gaitlog.host.commands._anatomy_options import FOOT_LENGTH_M, HEIGHT_M, LEG_LENGTH_M, lengths_from_args
+from gaitlog.host.commands._input_options import add_input_options, given_input_flags, read_input
 from gaitlog.host.commands._options import (
     SEED,
     UNIX_TIME_S,
+    add_force_option,
     add_logger_rate_option,
+    add_verbosity_options,
+    check_outputs,
+    input_stem,
     logger_rate_hz,
     number,
+    out_path,
+    verbosity,
     whole,
 )
+from gaitlog.host.errors import HostError, UsageError
+from gaitlog.protocol.errors import ProtocolError
+
+# Imports inside functions are only of numpy, of modules that load numpy, scipy, numba, dask or matplotlib, and
+# of gaitlog.firmware_sim.world.walk_plan (its dataclasses: ~3 ms):
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 if TYPE_CHECKING:
     from gaitlog.host.files.inputs import AccelerationInput
@@ -39,9 +55,6 @@ WALK_CORRIDOR_M = 20.0
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._input_options import add_input_options
-    from gaitlog.host.commands._options import add_force_option, add_verbosity_options
-
     parser.add_argument("--motion", nargs="+", required=True, metavar=("KIND", "FILE"),
                         help="'poses' (static calibration poses), 'walk' (a simulated subject of --height walking "
                              "a corridor out and back at preferred speed), 'replay FILE' (a real recording: CSV, "
@@ -94,9 +107,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def read_replayed(args: argparse.Namespace) -> AccelerationInput | None:
     """The file of ``--motion replay FILE`` (with the input flags), else None."""
-    from gaitlog.host.commands._input_options import read_input
-    from gaitlog.host.errors import UsageError
-
     if args.motion[0] != "replay":
         return None
     if len(args.motion) != 2:
@@ -107,8 +117,6 @@ def read_replayed(args: argparse.Namespace) -> AccelerationInput | None:
 def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None):
     """The motion source named by ``--motion``; ``data``: the replayed file (:func:`read_replayed`), read here
     when not given."""
-    from gaitlog.host.errors import UsageError
-
     kind = args.motion[0]
     if kind == "poses":
         if len(args.motion) != 1:
@@ -143,9 +151,6 @@ def build_motion(args: argparse.Namespace, data: AccelerationInput | None = None
 
 def _refuse_input_flags(args: argparse.Namespace) -> None:
     """Input flags describe a replayed file: an error with any other motion."""
-    from gaitlog.host.commands._input_options import given_input_flags
-    from gaitlog.host.errors import UsageError
-
     extra = given_input_flags(args)
     if args.motion[0] != "replay" and extra:
         raise UsageError(f"{', '.join(extra)}: only for --motion replay FILE")
@@ -168,9 +173,6 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
         A length out of its plausible range, an unreadable or foreign ``--k-file``, lengths that contradict
         the ``--k-file``'s, or K values the step configuration cannot store (the field is named).
     """
-    from gaitlog.host.commands._anatomy_options import lengths_from_args
-    from gaitlog.host.errors import HostError
-    from gaitlog.protocol.errors import ProtocolError
     from gaitlog.protocol.steps import StepConfig, StepFormat
 
     given = {name: getattr(args, name) for name in ("height", "leg_length", "foot_length", "k_file")
@@ -231,7 +233,6 @@ def fit_to_memory(motion, logger, *, overwrite: bool, name: str):
     import numpy as np
 
     from gaitlog.firmware_sim.world.base import Motion
-    from gaitlog.host.errors import HostError
 
     n = motion.acc_g.shape[0]
     rate = float(motion.sampling_rate_hz)
@@ -257,8 +258,6 @@ def instrument_paths(out) -> dict[str, object]:
     """The files ``record --motion morris|hall --out IMAGE`` writes: the image, ``<stem>_platform.json`` (the
     platform description of ``gaitlog kinematics``) and ``<stem>_truth.csv`` (the simulation's truth at the
     logger's sample instants)."""
-    from pathlib import Path
-
     out = Path(out)
     return {"--out": out, "--out (platform)": out.with_name(f"{out.stem}_platform.json"),
             "--out (truth)": out.with_name(f"{out.stem}_truth.csv")}
@@ -267,11 +266,6 @@ def instrument_paths(out) -> dict[str, object]:
 def run_instrument(args: argparse.Namespace) -> int:
     """``record --motion morris|hall``: the instrument through sensor -> ADC -> memory, refused where the
     PIC16F877 cannot record it (:func:`gaitlog.host.kinematics.logger_instruments.check_fits`)."""
-    import sys
-    import time
-
-    from gaitlog.host.commands._options import check_outputs, verbosity
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.logger_instruments import record_instrument
     from gaitlog.host.kinematics.sensor_csv import write_sensor_csv
 
@@ -309,14 +303,8 @@ def run_instrument(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-    import time
-    from pathlib import Path
-
     from gaitlog.firmware_sim.device import Logger
     from gaitlog.firmware_sim.sensor import SensorModel
-    from gaitlog.host.commands._options import check_outputs, input_stem, out_path, verbosity
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.kinematics.logger_instruments import INSTRUMENTS
 
     replay = args.motion[0] == "replay" and len(args.motion) == 2

@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import signal
+import sys
+import time
 
 from gaitlog.host.commands._options import BAUD, TCP_PORT, add_verbosity_options, verbosity
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = ("serve a memory image as a live logger (its header's step configuration included) on a pty (prints its path) "
         "or a TCP port, until Ctrl-C")
@@ -31,10 +37,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import signal
-    import sys
-    import time
-
     from gaitlog.firmware_sim.algorithms.online import load_kernels
     from gaitlog.firmware_sim.device import Logger
 

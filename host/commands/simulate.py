@@ -12,6 +12,14 @@ height in cm). The folder reads like the real IPOL ``GaitData`` (``gaitlog evalu
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from gaitlog.host.commands._options import SEED, add_verbosity_options, check_output_folder, printer, whole
+from gaitlog.host.commands._progress import progress_bar
+from gaitlog.host.errors import HostError
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "write simulated walks as recordings (IPOL lower-back layout) for other tools"
 #: Shown under "examples:" by ``gaitlog simulate --help``.
@@ -21,8 +29,6 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import SEED, add_verbosity_options, whole
-
     parser.add_argument("--ipol-out", metavar="DIR", required=True,
                         help="folder to write <subject>-<trial>_lb.txt and .json into (created if missing)")
     parser.add_argument("--subjects", type=whole(minimum=1, maximum=10_000), default=20, help="simulated subjects (default 20)")
@@ -37,11 +43,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from gaitlog.host.commands._options import check_output_folder, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import HostError
     from gaitlog.host.studies.simulation import export_ipol
 
     out = Path(args.ipol_out)

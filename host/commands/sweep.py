@@ -14,9 +14,19 @@ order the tasks ran.
 from __future__ import annotations
 
 import argparse
+import json
+import time
 from collections.abc import Callable
+from pathlib import Path
 
-from gaitlog.host.commands._options import SEED, number, whole
+from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.host.commands._options import SEED, add_verbosity_options, check_output_folder, number, printer, whole
+from gaitlog.host.commands._progress import progress_bar
+from gaitlog.host.errors import HostError, UsageError
+from gaitlog.host.studies.task_store import TaskStore, run_serial
+
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
+# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 #: Larger summary tables are only written (and printed with -v).
 MAX_PRINTED_ROWS = 60
@@ -98,8 +108,6 @@ EFFECT_OPTIONS = (("inl_lsb", "LSB", "converter INL (PIC16F877: < 1)", 0, 8),
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import add_verbosity_options
-
     parser.add_argument("--list-dimensions", action=_ListDimensions, nargs=0,
                         help="print every dimension (unit, default, option or 'not yet sweepable') and exit")
     parser.add_argument("--out", required=True, metavar="DIR",
@@ -139,13 +147,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-    import time
-    from pathlib import Path
-
-    from gaitlog.host.commands._options import check_output_folder, printer
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.compare import rows_csv_text
     from gaitlog.host.studies.sweep_figures import figure_dimensions, render_error_vs_png
     from gaitlog.host.studies.sweep_grid import (
@@ -164,8 +165,6 @@ def run(args: argparse.Namespace) -> int:
         summarise,
         with_effects,
     )
-    from gaitlog.host.studies.task_store import TaskStore, run_serial
-    from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 
     if args.serial and args.scheduler:
         raise UsageError("--serial and --scheduler exclude each other")
@@ -248,11 +247,6 @@ def run(args: argparse.Namespace) -> int:
 def _check_scheduler(scheduler: str) -> None:
     """``--scheduler``: ``tcp://HOST:PORT`` (or another Dask protocol), or a scheduler file that is JSON with an
     ``address`` once it exists (a scheduler may still be writing it: a missing file is waited for)."""
-    import json
-    from pathlib import Path
-
-    from gaitlog.host.errors import HostError, UsageError
-
     if "://" in scheduler:
         proto, _, rest = scheduler.partition("://")
         host, _, port = rest.rpartition(":")

@@ -881,3 +881,54 @@ def format_step_diffs(rows: list[dict]) -> str:
                      f"{r['median_abs_mm']:>11.3f}{r['p95_abs_mm']:>9.3f}{r['max_abs_mm']:>9.2f}{r['bias_mm']:>+9.3f}"
                      f"{100 * r['max_rel']:>10.3f}{r['n_different_events']:>8}")
     return "\n".join(lines)
+
+
+def pool_step_diffs(rows: list[dict]) -> list[dict]:
+    """Per (pair, estimator) over subjects: median of medians, max of maxima, summed counts."""
+    out = []
+    keys = []
+    for r in rows:
+        if (r["pair"], r["estimator"]) not in keys:
+            keys.append((r["pair"], r["estimator"]))
+    for pair, est in keys:
+        rs = [r for r in rows if r["pair"] == pair and r["estimator"] == est]
+        out.append(dict(share=rs[0].get("share", ""), pair=pair, estimator=est, n=sum(r["n"] for r in rs),
+                        median_abs_mm=float(np.nanmedian([r["median_abs_mm"] for r in rs])),
+                        p95_abs_mm=float(np.nanmax([r["p95_abs_mm"] for r in rs])),
+                        max_abs_mm=float(np.nanmax([r["max_abs_mm"] for r in rs])),
+                        bias_mm=float(np.nanmedian([r["bias_mm"] for r in rs])),
+                        max_rel=float(np.nanmax([r["max_rel"] for r in rs])),
+                        n_different_events=sum(r["n_different_events"] for r in rs)))
+    return out
+
+
+def format_segments(results: list[WalkComparison]) -> str:
+    """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
+    lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
+             "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
+             f"{'mode':<13}{'est':<5}{'n':>4}" + "".join(f"{c:>13}{'IQR':>7}" for c in CHAINS)
+             + f"{'ADC max':>9}{'alg max':>9}{'arith max':>10}"]
+    segs = [s for r in results for s in r.segments]
+    for mode in ("single-speed", "multi-speed"):
+        for est in ESTIMATORS:
+            sel = [s for s in segs if s["mode"] == mode and s["estimator"] == est]
+            if not sel:
+                continue
+            v = {k: np.array([s[f"ratio_{column_key(k)}"] for s in sel], float) for k in CHAINS}
+            q = {k: np.percentile(x, [25, 50, 75]) for k, x in v.items()}
+            lines.append(f"{mode:<13}{est:<5}{len(sel):>4}" + "".join(
+                f"{q[k][1]:>13.3f}{q[k][2] - q[k][0]:>7.3f}" for k in CHAINS)
+                + "".join(f"{np.max(np.abs(v[a] - v[b])):>{w}.{p}f}"
+                          for (a, b), w, p in zip(SHARES.values(), (9, 9, 10), (4, 4, 5))))
+    return "\n".join(lines)
+
+
+def pooled_step_columns(results: list[WalkComparison]) -> dict[str, np.ndarray]:
+    """The per-step tables of several simulated subjects as one, with a ``subject`` column (its number)."""
+    cols: dict[str, list] = {}
+    for r in results:
+        n = r.steps["step"].size
+        cols.setdefault("subject", []).append(np.full(n, int(r.subject_id.lstrip("S") or 0)))
+        for k, v in r.steps.items():
+            cols.setdefault(k, []).append(v)
+    return {k: np.concatenate(v) for k, v in cols.items()}

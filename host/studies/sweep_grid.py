@@ -4,16 +4,16 @@ independent tasks, each deterministic from its seed.
 
 **Tasks.** One task is one subject of one seed and population (``random_subjects(n_subjects, seed=seed,
 population=population)[i]``, walking with seed ``seed * 1000 + i`` the protocol with the population's walk
-habits, as :class:`gaitlog.host.studies.sweep.AdcRateSweep`), its logger tilted by ``misalignment_deg`` more than the
-subject's own mounting (a pitch about the trunk's medio-lateral axis, composed with the subject's rotation),
-sampled at one rate with one noise density, quantised at one ADC width, and its fixed-point chain compiled
-with one set of Q formats (:class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`, by label:
-``shipped``, ``acc10-lp12``...). Its work is :func:`gaitlog.host.studies.sweep.run_config` (the comparison of
-:func:`gaitlog.host.studies.compare.compare_walk`: ideal, offline, on-line float and on-line fixed-point chains, one K
-per calibration mode fitted on the offline chain): the same code as ``gaitlog compare --sweep``, so a grid of
-the same configurations gives the same numbers. A task depends on nothing but its own fields, so it gives the
-same rows in any process, in any order, on any machine: 1 worker, N workers, a remote cluster or a resumed run
-agree exactly (the tests check it).
+habits, as :class:`gaitlog.host.studies.evaluation.SimulatedEvaluation`), its logger tilted by
+``misalignment_deg`` more than the subject's own mounting (a pitch about the trunk's medio-lateral axis,
+composed with the subject's rotation), sampled at one rate with one noise density, quantised at one ADC width,
+and its fixed-point chain compiled with one set of Q formats
+(:class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`, by label: ``shipped``,
+``acc10-lp12``...). Its work is the comparison of :func:`gaitlog.host.studies.compare.compare_walk` (ideal,
+offline, on-line float and on-line fixed-point chains, one K per calibration mode fitted on the offline chain,
+used by all four), as ``gaitlog compare --simulate`` runs it for one configuration. A task depends on nothing
+but its own fields, so it gives the same rows in any process, in any order, on any machine: 1 worker, N
+workers, a remote cluster or a resumed run agree exactly (the tests check it).
 
 The expensive part, rendering the walk and the sensor's analog response, depends on the subject and seed only;
 a process keeps the last :data:`WALK_MEMO_SIZE` rendered walks (:func:`analog_walk`), so the tasks of one
@@ -32,7 +32,9 @@ kernel built ahead of time. Only the on-line fixed-point chain depends on them: 
 - online-float) is the error they cause. :func:`smallest_q_formats` answers, per variable swept alone, the
 coarsest fraction bits keeping every estimator within 1 mm per step and 1 % per 20 m section of float.
 
-**M5 and the rate.** :func:`m5_rate_answer`: the part of M5's section-ratio spread that the sampled step timing
+**M5 and the rate** (Alvarez et al. left open whether M5's spread comes from timing steps at 50 Hz; M5 is
+``K1 / T + K2`` with ``T`` counted in samples, so timing enters M5 alone). :func:`m5_rate_answer`, the project's
+one answer to it: the part of M5's section-ratio spread that the sampled step timing
 adds (``sqrt(var(sampled T) - var(exact T))``, the same K) per rate, and the lowest rate from which it stays
 within 1 %.
 
@@ -78,6 +80,7 @@ from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.fixedpoint import QFormat
 from gaitlog.firmware_sim.adc import (
     ADXL202_OUTPUT_RESISTANCE_OHM,
+    DEFAULT_SAMPLING_RATE_HZ,
     DATASHEET_SOURCE_IMPEDANCE_OHM,
     pic_acquisition_time_s,
 )
@@ -92,11 +95,13 @@ from gaitlog.firmware_sim.sensor import (
 from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from gaitlog.host.errors import HostError
 from gaitlog.host.gait.sections import MODES
-from gaitlog.host.studies.compare import CHAINS, SHARES, column_key, pair_label
+from gaitlog.host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_label
 from gaitlog.host.studies.simulation import AnalogWalk, simulated_population
-from gaitlog.host.studies.sweep import ADC_BITS, RATES_HZ, median_iqr, run_config
 from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
+#: The default grid's ADC widths, bits, and logger rates, Hz (half, once and twice the logger's 50 Hz).
+ADC_BITS = (8, 10, 12)
+RATES_HZ = (DEFAULT_SAMPLING_RATE_HZ / 2, DEFAULT_SAMPLING_RATE_HZ, DEFAULT_SAMPLING_RATE_HZ * 2)
 #: The sensor's own white-noise density (ADXL202E typical), g/√Hz.
 SENSOR_NOISE_G_RTHZ: float = next(f.default for f in fields(SensorModel) if f.name == "noise_density_g_rthz")
 #: Walking protocols: the paper's (10 min, 12 laps of 20 m at four speeds) and a short one for quick looks and
@@ -417,8 +422,9 @@ def run_task(task: SweepTask) -> dict:
                      sensor_changes=sensor_changes, converter=converter)
     formats = KernelFormats.parse(task.q_formats)
     fixed = OnlineStepAlgorithm if formats.shipped else functools.partial(OnlineStepAlgorithm, formats=formats)
-    result, _ = run_config(sw, subject, task.adc_bits, calibration_sections=task.calibration_sections,
-                           fixed_algorithm=fixed)
+    result = compare_walk(sw, subject, adc_bits=task.adc_bits, calibration_sections=task.calibration_sections,
+                          fixed_algorithm=fixed)
+    fx = result.runs["online-fixed"]
     config = dict(adc_bits=task.adc_bits, sampling_rate_hz=task.sampling_rate_hz,
                   noise_density_g_rthz=task.noise_density_g_rthz, q_formats=task.q_formats,
                   misalignment_deg=task.misalignment_deg, population=task.population, protocol=task.protocol,
@@ -429,7 +435,7 @@ def run_task(task: SweepTask) -> dict:
     splits = [config | {"subject": subject.subject_id} | {k: _plain(d[k]) for k in SPLIT_COLUMNS if k in d}
               for d in result.step_diffs if d["estimator"] in keep]
     scalars = config | dict(subject=subject.subject_id, timing_rms_ms=_plain(result.timing["rms_ms"]),
-                            saturated=int(result.saturated), wrapped=int(result.wrapped),
+                            saturated=int(fx.saturated), wrapped=int(fx.wrapped),
                             saturation=result.saturation)
     return {"sections": sections, "splits": splits, "task": scalars}
 
@@ -492,6 +498,15 @@ def reference(values: list | tuple, preferred: Any) -> Any:
     """``preferred`` when it is among ``values``, else the first of them (what the other figures and answers hold
     fixed while one dimension varies)."""
     return preferred if preferred in values else values[0]
+
+
+def median_iqr(v: np.ndarray) -> tuple[float, float]:
+    """Median and interquartile range of the finite values of ``v`` (NaN, NaN when there are none)."""
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return math.nan, math.nan
+    q1, med, q3 = np.percentile(v, [25, 50, 75])
+    return float(med), float(q3 - q1)
 
 
 def _range(v: list[float]) -> tuple[float, float, float]:

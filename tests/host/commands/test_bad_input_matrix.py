@@ -339,7 +339,7 @@ def _cases() -> list[Case]:
     options("compare", ["compare", "--simulate", "1"], "--adc-bits", ("0", "-1", "99", "abc"))
     options("compare", ["compare", "--simulate", "1"], "--workers", ("0", "-1", "abc"))
     options("compare", ["compare", "--simulate", "1"], "--resamples", ("0", "-1", "10000000000", "abc"))
-    options("compare", ["compare", "--sweep"], "--subjects", ("0", "-1", "10000000000"))
+    usage("compare", "--sweep (moved to gaitlog sweep)", ["compare", "--sweep"], "gaitlog sweep --out sweep-out")
     options("compare", ["compare", "{walk.npz}"], "--lap-m", BAD_POSITIVE)
     for name in K_FILES:
         add("compare", f"--k-file {name}", ["compare", "{walk.npz}", "--k-file", f"{{{name}}}"], name)

@@ -8,6 +8,7 @@ import shlex
 
 from gaitlog.host.cli import main
 from gaitlog.host.commands import demo
+from gaitlog.host.studies import demo as demo_stages
 
 
 def test_demo_keeps_its_files_and_its_next_commands_run(tmp_path, monkeypatch, capsys) -> None:
@@ -33,7 +34,7 @@ def short_demo(ctx) -> list[str]:
 
 
 def test_demo_refuses_a_folder_that_is_not_its_own(tmp_path, monkeypatch, capsys) -> None:
-    monkeypatch.setattr(demo, "STAGES", [demo.Stage("short", short_demo)])
+    monkeypatch.setattr(demo_stages, "STAGES", [demo_stages.Stage("short", short_demo)])
     other = tmp_path / "mine"
     other.mkdir()
     (other / "notes.txt").write_text("keep")
@@ -52,7 +53,7 @@ def test_demo_refuses_a_folder_that_is_not_its_own(tmp_path, monkeypatch, capsys
 
 
 def test_demo_replaces_a_previous_demo_output(tmp_path, monkeypatch) -> None:
-    monkeypatch.setattr(demo, "STAGES", [demo.Stage("short", short_demo)])
+    monkeypatch.setattr(demo_stages, "STAGES", [demo_stages.Stage("short", short_demo)])
     folder = tmp_path / "d"
     assert main(["demo", "--out", str(folder)]) == 0
     (folder / "one.txt").write_text("old")

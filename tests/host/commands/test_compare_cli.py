@@ -172,6 +172,9 @@ def test_bad_invocations(npz, tmp_path, capsys) -> None:
     assert main(["estimate", str(csv_in), "--rate", "50", "--arithmetic", "fixed"]) == 1
     err = capsys.readouterr().err
     assert "needs ADC codes" in err and "exactly one of" in err
+    assert main(["compare", "--sweep", "--population", "v1", "--out", "s.csv"]) == 2  # moved: the line to run instead
+    assert ("--sweep: moved to gaitlog sweep; the same grid (ADC 8/10/12 bits x 25/50/100 Hz) is `gaitlog sweep "
+            "--out s --subjects 4 --seeds 0 --population v1 --workers 2`") in capsys.readouterr().err
 
 
 def test_demo_walks_estimates_and_compares(tmp_path, capsys) -> None:

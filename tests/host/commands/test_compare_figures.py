@@ -1,4 +1,4 @@
-"""The README's error-budget figures, as ``gaitlog compare --simulate 4`` and ``gaitlog compare --sweep`` give them.
+"""The README's error-budget figures, as ``gaitlog compare --simulate 4`` and ``gaitlog sweep`` give them.
 
 Four simulated subjects (seed 0) walk the paper's protocol; one K per mode and configuration, fitted on the
 offline chain, for every chain. The per-step and per-section figures are recomputed here from the CSVs the
@@ -42,9 +42,10 @@ def simulated(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sweep") / "sweep.csv"
-    text = _run(["compare", "--sweep", "--population", "v1", "--workers", "2", "--out", str(out)])
-    return SimpleNamespace(text=text, summary=_csv(out), m5=_csv(out.with_name("sweep_m5.csv")))
+    out = tmp_path_factory.mktemp("sweep")                 # the default grid: 8/10/12 bits x 25/50/100 Hz, 4 subjects
+    text = _run(["sweep", "--population", "v1", "--workers", "2", "--out", str(out)])
+    return SimpleNamespace(text=text, summary=_csv(out / "summary.csv"), splits=_csv(out / "splits.csv"),
+                           tasks=_csv(out / "tasks.csv"), m5=_csv(out / "m5_rate.csv"))
 
 
 def _col(rows, name) -> np.ndarray:
@@ -146,22 +147,31 @@ def test_sweep_arithmetic_share_everywhere(sweep) -> None:
     assert len(sweep.summary) == 9 * 2 * 5
     arith = np.array([float(r["arith_step_mm"]) for r in sweep.summary])
     assert arith.min() == pytest.approx(0.015, abs=0.003) and arith.max() == pytest.approx(0.083, abs=0.01)
-    for r in sweep.summary:
-        assert int(r["saturated"]) == 0, r
-        worst = float(r["arith_step_max_rel"])
-        if (r["adc_bits"], float(r["sampling_rate_hz"])) == ("10", 25.0) and r["estimator"] in ("M1", "M2", "M4"):
-            assert worst <= {"M1": 0.30, "M2": 0.035, "M4": 0.022}[r["estimator"]], r
-        elif (r["adc_bits"], float(r["sampling_rate_hz"]), r["estimator"]) == ("8", 25.0, "M1"):
-            assert worst <= 0.03, r
+    assert len(sweep.tasks) == 9 * 4
+    for r in sweep.tasks:
+        assert int(r["saturated"]) == 0 and int(r["wrapped"]) == 0, r
+    worst_rel: dict[tuple, list[float]] = {}             # per configuration and estimator, over the subjects
+    for r in sweep.splits:
+        if r["share"] == "arithmetic":
+            key = (r["adc_bits"], float(r["sampling_rate_hz"]), r["estimator"])
+            worst_rel.setdefault(key, []).append(float(r["max_rel"] or "nan"))
+    assert len(worst_rel) == 9 * 5
+    for (adc_bits, rate, est), values in worst_rel.items():
+        worst = float(np.nanmax(values))
+        if (adc_bits, rate) == ("10", 25.0) and est in ("M1", "M2", "M4"):
+            assert worst <= {"M1": 0.30, "M2": 0.035, "M4": 0.022}[est], (adc_bits, rate, est, worst)
+        elif (adc_bits, rate, est) == ("8", 25.0, "M1"):
+            assert worst <= 0.03, (adc_bits, rate, est, worst)
         else:
-            assert worst <= 0.005, r
+            assert worst <= 0.005, (adc_bits, rate, est, worst)
 
 
 def test_sweep_m5_timing_answer(sweep) -> None:
     """M5 (offline chain, 10 bits, multi-speed K): IQR 0.0147 / 0.0141 / 0.0151 at 25 / 50 / 100 Hz, 0.0131 with
-    the world's step durations and the same K: the 50 Hz step timing is not where M5's spread comes from."""
+    the world's step durations and the same K: the 50 Hz step timing is not where M5's spread comes from (what it
+    adds stays within 1 % from the lowest swept rate on)."""
     m5 = {(r["mode"], float(r["sampling_rate_hz"])): r for r in sweep.m5}
     for rate, measured in ((25.0, 0.0147), (50.0, 0.0141), (100.0, 0.0151)):
         assert float(m5[("multi-speed", rate)]["iqr"]) == pytest.approx(measured, abs=0.0005)
     assert float(m5[("multi-speed", 50.0)]["iqr_exact"]) == pytest.approx(0.0131, abs=0.0005)
-    assert "M5 and the 50 Hz step timing: no:" in sweep.text
+    assert "M5's step-timing error does not matter from the lowest swept rate, 25 Hz, on" in sweep.text

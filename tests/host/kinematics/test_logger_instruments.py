@@ -138,11 +138,11 @@ def test_accelerometer_offsets_are_what_morris_cannot_afford(tmp_path: Path) -> 
     bound = errors.run_once("morris", {"n_accelerometers": 5}, 1, tmp_path)[2]
     li_bad = record_instrument("morris", seed=1, sensors=bad)
     rec = sensor_recording(decode_file(li_bad.logger.save_image(tmp_path / "bad.glimg")))
-    from gaitlog.host.commands.kinematics import _truth_from_columns, morris_errors
     from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
+    from gaitlog.host.kinematics.reports import morris_errors, truth_from_columns
 
     cycles = analyse_morris_recording(rec, li_bad.platform)
-    err = max(morris_errors(c, _truth_from_columns(errors._Truth(li_bad.truth)))["orientation_deg"] for c in cycles)
+    err = max(morris_errors(c, truth_from_columns(errors._Truth(li_bad.truth)))["orientation_deg"] for c in cycles)
     assert err > 2 * bound
 
 

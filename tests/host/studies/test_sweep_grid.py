@@ -17,13 +17,11 @@ import pytest
 
 from gaitlog.host.cli import main
 from gaitlog.host.errors import HostError
-from gaitlog.host.studies.sweep import AdcRateSweep
 from gaitlog.host.studies.sweep_grid import (
     SENSOR_NOISE_G_RTHZ,
     SweepGrid,
     analog_walk,
     run_task,
-    walk_plan,
 )
 from gaitlog.host.studies.task_store import TaskStore, run_serial
 
@@ -65,21 +63,6 @@ def test_spec_file_and_options_make_the_same_grid(tmp_path) -> None:
         SweepGrid.load(tmp_path / "bad.toml")
     with pytest.raises(HostError, match="ADC bits"):
         SweepGrid(adc_bits=(40,))
-
-
-def test_a_task_is_the_compare_sweep_configuration() -> None:
-    """One home for the work: the grid's task gives the section ratios of `compare --sweep`'s configuration."""
-    task = next(t for t in _grid().tasks() if t.adc_bits == 10 and t.sampling_rate_hz == 50.0)
-    rows = run_task(task)["sections"]
-    # the grid's default population is simulated_population's (people), walking the protocol with its habits
-    assert task.population == "people"
-    ref = AdcRateSweep(n_subjects=1, seed=0, adc_bits=(10,), rates_hz=(50.0,),
-                       walk_plan=walk_plan("short", task.population), population=task.population).run()
-    ref_rows = [s for s in ref.results_[0].segments if s["estimator"] in ("M2", "M5")]
-    assert len(rows) == len(ref_rows) > 0
-    for a, b in zip(rows, ref_rows, strict=True):
-        assert (a["section"], a["mode"], a["estimator"]) == (b["section"], b["mode"], b["estimator"])
-        assert a["ratio_offline"] == b["ratio_offline"] and a["ratio_online_fixed"] == b["ratio_online_fixed"]
 
 
 def test_noise_density_scales_the_sensor_noise() -> None:

@@ -1,38 +1,50 @@
-"""gaitlog.host.studies.sweep on one subject and a short protocol: the physics of quantisation and timing are the references."""
+"""gaitlog.host.studies.sweep_grid on one subject and the short protocol: the physics of quantisation and timing are
+the references."""
 
 from __future__ import annotations
+
+import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from gaitlog.host.studies.sweep import AdcRateSweep, format_m5, format_summary
+from gaitlog.host.studies.sweep_grid import (
+    SweepGrid,
+    format_m5_rate,
+    format_summary,
+    m5_rate_answer,
+    run_task,
+    summarise,
+)
 
 
 @pytest.fixture(scope="module")
-def sweep() -> AdcRateSweep:
-    from gaitlog.firmware_sim.world.walk_plan import WalkPlan
-
-    walk_plan = WalkPlan(corridor_length_m=60.0, speeds=("preferred", "fast"), rest_s=10.0,
-                               rest_postures=("standing",), lap_marks_m=(0.0, 10.0, 30.0, 50.0, 70.0, 90.0, 110.0,
-                                                                         120.0))
-    ticks = []
-    sw = AdcRateSweep(n_subjects=1, seed=2, adc_bits=(8, 10, 12), rates_hz=(25.0, 100.0), walk_plan=walk_plan).run(
-        progress=lambda: ticks.append(len(ticks)))
-    sw.ticks = ticks
-    return sw
+def sweep() -> SimpleNamespace:
+    grid = SweepGrid(adc_bits=(8, 10, 12), sampling_rate_hz=(25.0, 100.0), subjects=1, seeds=(2,), protocol="short")
+    results = [run_task(t) for t in grid.tasks()]
+    sections = [r for res in results for r in res["sections"]]
+    splits = [r for res in results for r in res["splits"]]
+    return SimpleNamespace(tasks=[res["task"] for res in results], splits=splits, summary=summarise(sections, splits),
+                           m5=m5_rate_answer(sections))
 
 
 def row(sweep, adc_bits, rate, est, mode="multi-speed"):
-    return next(r for r in sweep.summary_ if r["adc_bits"] == adc_bits and r["sampling_rate_hz"] == rate and r["estimator"] == est
-                and r["mode"] == mode)
+    return next(r for r in sweep.summary if r["adc_bits"] == adc_bits and r["sampling_rate_hz"] == rate
+                and r["estimator"] == est and r["mode"] == mode)
+
+
+def split(sweep, adc_bits, rate, est, share) -> dict:
+    return next(d for d in sweep.splits if d["adc_bits"] == adc_bits and d["sampling_rate_hz"] == rate
+                and d["estimator"] == est and d["share"] == share)
 
 
 def test_every_configuration_is_there(sweep) -> None:
-    assert sweep.ticks == [0]                   # progress: once per subject (all its configurations)
-    assert {(r.adc_bits, r.sampling_rate_hz) for r in sweep.results_} == {(b, f) for b in (8, 10, 12) for f in (25.0, 100.0)}
-    assert len(sweep.summary_) == 6 * 2 * 5
-    text = format_summary(sweep.summary_) + format_m5(sweep.m5_)
-    assert "multi-speed calibration" in text and "M5 (offline chain, 10-bit codes)" in text
+    assert {(t["adc_bits"], t["sampling_rate_hz"]) for t in sweep.tasks} == {(b, f) for b in (8, 10, 12)
+                                                                              for f in (25.0, 100.0)}
+    assert len(sweep.summary) == 6 * 2 * 5
+    text = format_summary(sweep.summary) + format_m5_rate(sweep.m5)
+    assert "multi-speed calibration" in text and "M5 (offline chain, 10 bits)" in text
 
 
 @pytest.mark.parametrize("rate", [25.0, 100.0])
@@ -56,11 +68,14 @@ def test_m1_adc_share_is_a_bias_of_where_one_g_falls(sweep, rate) -> None:
 
 def test_arithmetic_share_is_a_tenth_of_a_millimetre_everywhere(sweep) -> None:
     """The on-line algorithm in fixed vs float point, one K per configuration: 0.01-0.11 mm per step (median)
-    at every width and rate, at most 0.07 % of a step; nothing saturates."""
-    for r in sweep.summary_:
+    at every width and rate, at most 0.2 % of a step; nothing saturates."""
+    for r in sweep.summary:
         assert r["arith_step_mm"] <= 0.15, r
-        assert r["arith_step_max_rel"] <= 0.002, r
-        assert r["saturated"] == 0, r
+    for d in sweep.splits:
+        if d["share"] == "arithmetic":
+            assert d["max_rel"] <= 0.002, d
+    for t in sweep.tasks:
+        assert t["saturated"] == 0 and t["wrapped"] == 0, t
 
 
 @pytest.mark.parametrize("rate", [25.0, 100.0])
@@ -68,49 +83,19 @@ def test_algorithm_share_does_not_depend_on_the_adc(sweep, rate) -> None:
     """online-float - offline is the algorithms' difference (causal gravity, on-line events), not the
     converter's: the same within 10 % at 8, 10 and 12 bits, and tens of times the arithmetic's share."""
     for est in ("M1", "M2", "M4"):
-        a = [row(sweep, b, rate, est)["algorithm_step_mm"] for b in (8, 10, 12)]
+        a = [split(sweep, b, rate, est, "algorithm")["median_abs_mm"] for b in (8, 10, 12)]
         assert max(a) <= 1.1 * min(a), (est, a)
-        assert min(a) > 10 * max(row(sweep, b, rate, est)["arith_step_mm"] for b in (8, 10, 12)), est
+        assert min(a) > 10 * max(split(sweep, b, rate, est, "arithmetic")["median_abs_mm"] for b in (8, 10, 12)), est
 
 
 def test_step_timing_error_falls_with_the_rate(sweep) -> None:
-    rows = {(r["mode"], r["sampling_rate_hz"]): r for r in sweep.m5_["rows"]}
-    assert set(rows) == {(m, f) for m in ("single-speed", "multi-speed") for f in (25.0, 100.0)}
+    timing = {t["sampling_rate_hz"]: t["timing_rms_ms"] for t in sweep.tasks if t["adc_bits"] == 10}
     # duration error against the world's truth: the sample period dominates at 25 Hz (40 ms)
-    assert rows[("multi-speed", 25.0)]["timing_rms_ms"] > rows[("multi-speed", 100.0)]["timing_rms_ms"]
+    assert timing[25.0] > timing[100.0]
+    for rate, rms_ms in timing.items():
+        # a sample period alone (two independent roundings) cannot exceed the measured duration error
+        assert 1e3 / rate / math.sqrt(6.0) <= rms_ms + 1.0
+    rows = {(r["mode"], r["sampling_rate_hz"]): r for r in sweep.m5["rows"]}
+    assert set(rows) == {(m, f) for m in ("single-speed", "multi-speed") for f in (25.0, 100.0)}
     for r in rows.values():
-        assert 0.0 <= r["timing_share"] <= 1.0
-        # a sample period alone cannot exceed the measured duration error (detection adds to it)
-        assert r["sampling_rms_ms"] <= r["timing_rms_ms"] + 1.0
-    assert sweep.m5_["verdict"] == ""              # no 50 Hz configuration, no verdict
-
-
-def _m5_results(timing_sd: dict[float, float], model_sd: float = 0.03) -> list:
-    from gaitlog.host.studies.sweep import ConfigResult
-
-    rng = np.random.default_rng(0)
-    model = rng.normal(1.0, model_sd, 400)               # per-section model error, the same at every rate
-    out = []
-    for rate, sd in timing_sd.items():
-        tim = rng.normal(0.0, sd, model.size)
-        segs = [dict(mode="multi-speed", estimator="M5", ratio_offline=m + t, ratio_exact_timing=m)
-                for m, t in zip(model, tim)]
-        out.append(ConfigResult("S00", 10, rate, [], segs, dict(rms_ms=1000 / rate / 6 ** 0.5), "", 0, 0, 0.0))
-    return out
-
-
-def test_m5_answer_no_when_the_model_dominates() -> None:
-    from gaitlog.host.studies.sweep import m5_timing_answer
-
-    ans = m5_timing_answer(_m5_results({25.0: 0.004, 50.0: 0.002, 100.0: 0.001}))
-    share = {r["sampling_rate_hz"]: r["timing_share"] for r in ans["rows"]}
-    assert share[25.0] > share[50.0] > share[100.0] >= 0.0
-    assert share[50.0] == pytest.approx(0.002 ** 2 / (0.03 ** 2 + 0.002 ** 2), abs=0.01)
-    assert ans["verdict"].startswith("no:")
-
-
-def test_m5_answer_yes_when_timing_dominates_and_a_faster_rate_helps() -> None:
-    from gaitlog.host.studies.sweep import m5_timing_answer
-
-    ans = m5_timing_answer(_m5_results({25.0: 0.08, 50.0: 0.04, 100.0: 0.02}, model_sd=0.01))
-    assert ans["verdict"].startswith("yes:")
+        assert r["timing_part"] >= 0.0 and np.isfinite(r["iqr"]) and np.isfinite(r["iqr_exact"])
