@@ -209,10 +209,11 @@ def summarise(results: list[ConfigResult]) -> list[dict]:
 
     ``median_<chain>`` / ``iqr_<chain>``: the pooled 20 m section ratios of each chain (one K per
     configuration and mode, from its offline chain). ``adc_step_mm`` / ``algorithm_step_mm`` /
-    ``arith_step_mm``: median over subjects of the per-step median |offline - ideal|, |online-float -
-    offline| and |online-fixed - online-float| (multi-speed lengths, steps with the same events);
+    ``arith_step_mm``: median over subjects of the per-step median ``|offline - ideal|``,
+    ``|online-float - offline|`` and ``|online-fixed - online-float|`` (multi-speed lengths, steps with the same
+    events);
     ``arith_step_max_rel``: the largest per-step relative online-fixed - online-float difference;
-    ``*_ratio_abs_max``: largest per-section |ratio difference| of each share.
+    ``*_ratio_abs_max``: largest per-section ``|ratio difference|`` of each share.
     """
     out = []
     configs = sorted({(r.adc_bits, r.sampling_rate_hz) for r in results}, key=lambda c: (c[1], c[0]))
