@@ -199,7 +199,7 @@ def ou_noise(times_s: np.ndarray, noise_rms: np.ndarray, cutoff_hz: np.ndarray,
 #: Which part and channel gives each device axis.
 AXIS_PARTS = ("A.X", "A.Y", "B.X")
 
-#: ADXL202 filter constant: f_-3dB = 5 µF / C.
+#: ADXL202 filter constant: ``f_-3dB = 5 µF / C``.
 FILTER_CONSTANT_F_HZ = 5e-6
 
 

@@ -38,20 +38,20 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   threshold before the first step is the cap, not the floor: with the floor the offline chain found
   foot-flats in the standing 4-5 s before walking in 7 of the 52 IPOL trials (subjects 4 and 9) and in the
   0.4 s weight shift before the first step in 16 more. The fraction 0.25 (of 0.2, 0.25, 0.3) is the best on
-  the IPOL step count in both chains (sum of |errors| over the 52 trials, U-turns included, offline 43 / 41 /
+  the IPOL step count in both chains (sum of ``|errors|`` over the 52 trials, U-turns included, offline 43 / 41 /
   42, on-line float 58 / 52 / 53; fixed threshold 42 and 52): 0.2 let low-amplitude IPOL subject 3
   (``A`` ~1.5 m/s^2) count secondary bumps 0.41-0.50 m/s^2 prominent between steps; a leave-one-subject-out
   choice by ``gaitlog.host.studies.tuning``'s step-count criterion gave 0.25 in 9 of 9 folds (measured then; it is
   a constant chosen on the IPOL recordings; the slow walkers sit at the floor, most IPOL walking at the
   cap). It was first opt-in (``gaitlog estimate --slow-walking``,
-  algorithm version 2): as a default it moved the on-line vs offline M2 median |ratio difference| on IPOL
+  algorithm version 2): as a default it moved the on-line vs offline M2 median ``|ratio difference|`` on IPOL
   from 0.0087 to 0.0106-0.0110, past issue 10's 0.01. The cause was in the offline chain: its minimum
   distance ran over every local maximum before the prominence rule, so a weak bump could suppress a
   foot-flat the on-line algorithm confirms (``gaitlog.host.gait.events`` notes 1; IPOL trial 8-2's first step).
   With the distance among prominent peaks only, the rule as default costs nothing measurable on IPOL
   against the fixed threshold (``gaitlog evaluate ipol``: in the scored sections only trial 3-4 moves, by
   one step; offline M2 0.998 / IQR 0.048 and M4 IQR 0.058 unchanged, on-line vs offline M2 0.0097 either
-  way, step counts' sum of |errors| 37 -> 36 offline, 41 -> 40 on-line). What it costs: outside the trial
+  way, step counts' sum of ``|errors|`` 37 -> 36 offline, 41 -> 40 on-line). What it costs: outside the trial
   boundaries (standing, shuffling and turning before and after the IPOL trials) the foot sensors mark 67
   heel strikes and both rules detect about three times that (``evaluate ipol``: offline 189 -> 202, on-line
   fixed 179 -> 195 steps, fixed threshold -> this rule); on simulated walkers

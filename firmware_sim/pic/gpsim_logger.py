@@ -360,7 +360,7 @@ class PicLogger:
         self.fosc_hz = fosc_hz
         self.gravity_shift = gravity_shift if gravity_shift is not None else SampleCounts.at(
             EventParameters(), OnlineParameters(), sampling_rate_hz).gravity_shift
-        #: the kernel's G_MIN: the smallest |g| that gives an a_v, raw Q2.13
+        #: the kernel's G_MIN: the smallest ``|g|`` that gives an a_v, raw Q2.13
         self.min_gravity_raw = int(ACC_Q.from_float(OnlineParameters().min_gravity_g))
         self.source_impedance_ohm = source_impedance_ohm
         self.chunk_samples = chunk_samples
@@ -623,7 +623,7 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     *gravity* (``G1``, ``G2`` after each sample vs :func:`~gaitlog.firmware_sim.algorithms.probe.gravity_states`,
     restarted at each run's first sample) and *a_v* (``AV`` vs
     :func:`~gaitlog.firmware_sim.algorithms.probe.vertical_acceleration`; ``a_v=False`` leaves it out, for a
-    calibration whose |g| exceeds the model's 16-bit divisor, where the model raises).
+    calibration whose ``|g|`` exceeds the model's 16-bit divisor, where the model raises).
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
     why = missing_tools()

@@ -5,7 +5,7 @@
 lap marks); the logger, strapped over L3, reads the specific force of its own point of the trunk.
 
 Device axes (nominal mounting; the project convention of :mod:`gaitlog.firmware_sim.world.base` applies)
-----------------------------------------------------------------------------------------------------
+--------------------------------------------------------------------------------------------------------
 Like the Xsens MTw of the IPOL lower-back recordings: ``x`` **up** (vertical, reads +1 g standing),
 ``y`` **left** (medio-lateral), ``z`` **backward** (antero-posterior, pointing out of the back; forward
 acceleration reads negative). The device is then rotated by the subject's ``mounting_rotation_deg``

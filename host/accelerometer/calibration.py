@@ -6,7 +6,7 @@ The model is the non-orthogonal one of Krohn et al. (2005) [1]_, the calibration
 Sensor model
 ------------
 Sensor axis ``j`` has offset ``b_j`` and gain ``k_j`` (input unit per g) along a unit sensitive direction
-``s_j``; at rest, with specific force ``a`` (|a| = 1 g),
+``s_j``; at rest, with specific force ``a`` (``|a|`` = 1 g),
 
 .. math:: r_j = b_j + k_j \, s_j \cdot a \qquad (1)
 
@@ -16,7 +16,7 @@ The three non-orthogonality angles are the deviations from 90 deg of the angles 
 .. math:: G = S S^\mathsf{T}, \qquad G_{ii} = 1, \; G_{ij} = \sin\theta_{ij} \qquad (2)
 
 (rows of ``S`` are the ``s_j``), which is all a gravity-only calibration can see: the mounting rotation of the
-whole triad is not observable from |a| = 1 g (see ``shared/notes/CALIBRATION-KINEMATICS.md``). Inverting (1)
+whole triad is not observable from ``|a|`` = 1 g (see ``shared/notes/CALIBRATION-KINEMATICS.md``). Inverting (1)
 with ``u = K^{-1}(r - b)``, ``K = diag(k)``:
 
 .. math:: a = S^{-1} u, \qquad |a|^2 = u^\mathsf{T} G^{-1} u \qquad (3)
@@ -55,7 +55,7 @@ input is close to uniform and independent of the signal, so each axis of a pose 
 .. math:: \sigma_p = \sqrt{(\sigma_s^2 + q^2/12)/N} \qquad (7)
 
 (1.13 mg rms for quantisation alone, 0.19 mg per pose mean with ``sigma_s`` = 2 mg and ``N`` = 140), plus a
-deterministic bias: the mean of a quantised Gaussian differs from its input by at most
+deterministic bias [2]_: the mean of a quantised Gaussian differs from its input by at most
 
 .. math:: \beta = \frac{q}{\pi} e^{-2\pi^2 \sigma_s^2 / q^2} \qquad (8)
 

@@ -69,6 +69,10 @@ from gaitlog.host.gait.peaks import find_peaks, keep_by_distance
 class GaitEventDetector:
     """Detect foot-flat, heel-strike and toe-off in vertical trunk acceleration (the offline chain).
 
+    Every duration becomes a whole number of samples by the one rounding rule of both chains
+    (:func:`gaitlog.firmware_sim.algorithms.parameters.samples`, half up), and the second pass's distance is the
+    shared integer rule (:func:`gaitlog.firmware_sim.algorithms.parameters.minimum_distance`).
+
     Parameters
     ----------
     parameters
@@ -81,10 +85,6 @@ class GaitEventDetector:
         Normalised convolution: fraction of the Gaussian kernel's weight that must fall on measured
         samples for the filtered value to exist (0.25; the 3 Hz kernel spans ~±0.17 s, so a filtered value
         still rests on several measured samples of the same step phase).
-
-    Every duration becomes a whole number of samples by the one rounding rule of both chains
-    (:func:`gaitlog.firmware_sim.algorithms.parameters.samples`, half up), and the second pass's distance is the
-    shared integer rule (:func:`gaitlog.firmware_sim.algorithms.parameters.minimum_distance`).
 
     Attributes
     ----------

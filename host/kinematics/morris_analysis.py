@@ -61,7 +61,7 @@ __all__ = [
 
 @dataclass(frozen=True, eq=False)
 class MorrisCycle:
-    """One analysed cycle; arrays over its samples ``start .. stop`` (inclusive).
+    """One analysed cycle; arrays over its samples ``start`` to ``stop`` (inclusive).
 
     ``t_s`` is the recording's time; ``dcm`` body-to-space (space axis 3 up, heading ``λ12 = 0`` at the
     start); ``position_m`` of the platform origin relative to its start, space axes.

@@ -34,7 +34,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
    height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
    with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b).
-4b. *Tuned constants* (:mod:`gaitlog.host.studies.tuning`): the offline chain is run per trial for every candidate
+
+   4b. *Tuned constants* (:mod:`gaitlog.host.studies.tuning`): the offline chain is run per trial for every candidate
    of the constants chosen from these recordings; for each subject the candidate is chosen on the other
    subjects' heel strikes against the foot sensors, and that subject's offline rows use it (cross-validated).
    The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
@@ -49,7 +50,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    applies it in its own arithmetic. M3 is never calibrated. Separately, and labelled so (``k_from =
    "own"``), the on-line algorithm is also run *as the device would be used*: with its own K, fitted on
    its own uncalibrated records of the calibration trial -- a different K, not a comparison.
-5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`), only when :data:`K_PRIOR_IN_MAIN` (it is not: its gain's interval
+
+   5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`), only when :data:`K_PRIOR_IN_MAIN` (it is not: its gain's interval
    includes zero, step 5c; the k-prior rows shrink the main K alone): every K above is shrunk toward the median
    K of the *other* subjects
    (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` = 20 m, ``d0`` per
@@ -57,7 +59,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    the variants (the other U-turn rule, the height unknown, the on-line chain's own K) toward the same
    variant of the other subjects with the fold's ``d0``. The prior learned on every subject is printed
    (:attr:`IpolResult.prior_all`; shipped as :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
-5c. *Baseline and choices*: the recipe (:class:`gaitlog.host.gait.recipe.RecipeBaseline`) is scored the same way
+
+   5c. *Baseline and choices*: the recipe (:class:`gaitlog.host.gait.recipe.RecipeBaseline`) is scored the same way
    (rows ``variant = "baseline"``, :func:`baseline_rows`); every median and IQR of the tables carries a 95 %
    subject-bootstrap interval (:func:`subject_intervals`); each rule of :data:`CHOICES` is scored against its
    simpler choice (:func:`choice_gains`, :func:`count_gains`) and kept only when its gain's interval excludes
@@ -1177,7 +1180,7 @@ def main_rows(rows: list[dict]) -> list[dict]:
 
 def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | None = "offline",
               variant: str | None = "main", intervals: bool = False) -> list[dict]:
-    """Per estimator: n, median, quartiles, IQR, min, max of the ratio; the step count's median |error| (%
+    """Per estimator: n, median, quartiles, IQR, min, max of the ratio; the step count's median ``|error|`` (%
     and steps) and median signed error (steps, detected - reference); steps outside K's calibrated range (of
     the steps in the trials).
 
@@ -1304,7 +1307,7 @@ def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
 def count_gains(result: IpolResult, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
                 level: float = BOOTSTRAP_LEVEL) -> list[dict[str, Any]]:
     """Each step-counting constant (:data:`gaitlog.host.studies.tuning.SIMPLER_COUNT_CHOICE`) against the rule off:
-    per subject, its trials' |detected - reference steps| with its fold's candidate and with the same candidate
+    per subject, its trials' ``|detected - reference steps|`` with its fold's candidate and with the same candidate
     but that constant at its simpler value; the gain is the mean per trial of the difference (steps; positive: the
     rule counts better), with its 95 % subject-bootstrap interval. Kept only when the interval excludes zero."""
     grid, out = result.candidates, []
@@ -1425,7 +1428,7 @@ def format_events(result: IpolResult) -> str:
 
 
 def _timing(e: EventScore) -> str:
-    """The median |error| and median error of matched events, as :func:`format_events` prints them."""
+    """The median ``|error|`` and median error of matched events, as :func:`format_events` prints them."""
     return (f", median |error| {1e3 * e.median_abs_error_s:.0f} ms ({1e3 * e.median_error_s:+.0f} ms)"
             if e.errors_s.size else "")
 
@@ -1504,10 +1507,10 @@ def done_figures(result: IpolResult) -> dict[str, Any]:
     dict
         ``identity``: trials and records compared and identical (device vs host replay);
         ``arithmetic_step``: per estimator, over the matched steps with the same events of every trial,
-        ``n``, ``median_abs_mm`` and ``max_abs_mm`` of online-fixed - online-float and ``max_rel`` (|d| /
+        ``n``, ``median_abs_mm`` and ``max_abs_mm`` of online-fixed - online-float and ``max_rel`` (``|d|`` /
         the float length); ``different_events``: matched steps whose events differ, of ``matched``;
         ``algorithm_ratio`` / ``arithmetic_ratio``: per estimator, the median and max over the scored trials of
-        |ratio online-float - ratio offline| and |ratio online-fixed - ratio online-float|; ``median_ratio``:
+        ``|ratio online-float - ratio offline|`` and ``|ratio online-fixed - ratio online-float|``; ``median_ratio``:
         per arithmetic and estimator, the median ratio with the offline K; ``own``: the on-line fixed rows
         with their own K, per estimator (median, IQR).
     """

@@ -167,7 +167,7 @@ SUMMARY_COLUMNS = (SUMMARY_KEYS + ("mode", "estimator", "n_subjects", "n_section
                    + ("subject_median_offline_lo", "subject_median_offline_hi", "adc_ratio_abs_max",
                       "adc_step_mm", "arith_ratio_abs_max", "arith_step_mm", "arith_step_mm_lo", "arith_step_mm_hi",
                       "adc_step_mm_lo", "adc_step_mm_hi"))
-#: The quantisation question's tolerances: per-step |offline - ideal| median and section-ratio difference.
+#: The quantisation question's tolerances: per-step ``|offline - ideal|`` median and section-ratio difference.
 STEP_TOLERANCE_MM = 1.0
 RATIO_TOLERANCE = 0.01
 
@@ -519,10 +519,10 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
 
     ``median_<chain>`` / ``iqr_<chain>``: pooled 20 m section ratios; ``subject_median_offline_lo/hi``: the
     range over subjects of each subject's median offline ratio (the interval over subjects);
-    ``adc_ratio_abs_max`` / ``arith_ratio_abs_max``: the largest per-section |offline - ideal| and |online-fixed
-    - online-float| ratio; ``adc_step_mm`` / ``arith_step_mm``: median over subjects of the per-step median
-    |offline - ideal| and |online-fixed - online-float| (multi-speed lengths), ``*_lo`` / ``*_hi`` their range
-    over subjects.
+    ``adc_ratio_abs_max`` / ``arith_ratio_abs_max``: the largest per-section ``|offline - ideal|`` and
+    ``|online-fixed - online-float|`` ratio; ``adc_step_mm`` / ``arith_step_mm``: median over subjects of the
+    per-step median ``|offline - ideal|`` and ``|online-fixed - online-float|`` (multi-speed lengths), ``*_lo`` /
+    ``*_hi`` their range over subjects.
     """
     sections, splits = [with_effects(r) for r in sections], [with_effects(r) for r in splits]
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
@@ -577,7 +577,7 @@ def _smallest(rows: list[dict], size: str, share: str) -> Any:
 def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
     """Per (rate, noise, misalignment, population, estimator): the smallest swept ADC width from which on every
     wider one the ADC share stays within :data:`STEP_TOLERANCE_MM` per step (median) and :data:`RATIO_TOLERANCE`
-    per 20 m section (largest |offline - ideal| ratio); ``smallest_adc_bits`` is None when no swept width does.
+    per 20 m section (largest ``|offline - ideal|`` ratio); ``smallest_adc_bits`` is None when no swept width does.
     The ADC share does not involve the fixed-point chain: the rows of one Q-format set are used (the shipped one
     when swept)."""
     rows = [with_effects(r) for r in summary if r["mode"] == mode]

@@ -32,9 +32,9 @@ nothing else: add a :class:`TunedParameter` and it is searched (the grid is the 
 
 Criteria: for the heel-strike constants, heel strikes within :data:`MATCH_TOLERANCE_S` (40 ms) of the foot
 sensors, F1 pooled over the training subjects' trials (more matched, fewer missed and fewer extra); ties go
-to the smaller median |timing error|, then to the earlier candidate (the default comes first). For the
+to the smaller median ``|timing error|``, then to the earlier candidate (the default comes first). For the
 step-counting constants (``criterion = "step count"``), chosen second with the heel-strike constants of the
-fold: the sum over the training trials of |detected - reference steps| (the trial section, U-turn steps
+fold: the sum over the training trials of ``|detected - reference steps|`` (the trial section, U-turn steps
 included; ties: the earlier candidate). Only the event detection is re-run per candidate (the offline chain
 on cached trials, milliseconds per trial), never the logger's replay. M4's exponent (``criterion =
 "k-transfer"``) is chosen apart, by :data:`K_CRITERION` (:func:`least_spread`).
