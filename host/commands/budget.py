@@ -4,8 +4,21 @@ bandwidth, dump time)? ``--measure-kernels`` re-measures the arithmetic kernels'
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 
-from gaitlog.host.commands._options import SEED, add_logger_rate_option, number, whole
+# numpy and everything that imports it (firmware_sim, protocol.steps, the decoders) is imported inside the
+# functions that use it: `gaitlog --help` must not load it.
+from gaitlog.host.commands._options import (
+    SEED,
+    add_logger_rate_option,
+    add_verbosity_options,
+    logger_rate_hz,
+    number,
+    verbosity,
+    whole,
+)
+from gaitlog.host.errors import HostError, UsageError
 
 HELP = ("RAM, cycles per sample, program memory, EEPROM bandwidth and dump time of a logger configuration "
         "against the PIC16F877")
@@ -23,7 +36,6 @@ CONFIG_NAMES = ("alvarez-50", "alvarez-100", "morris-5", "morris-6", "hall")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import add_verbosity_options
 
     parser.add_argument("--config", metavar="NAME",
                         help="a configuration of the seed papers: " + ", ".join(CONFIG_NAMES) + " (default "
@@ -58,10 +70,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def _config(args: argparse.Namespace):
     """The configuration the options ask for (a :class:`gaitlog.firmware_sim.budget.LoggerConfig`)."""
-    import dataclasses
 
     from gaitlog.firmware_sim.budget import CONFIGURATIONS
-    from gaitlog.host.errors import UsageError
 
     name = args.config or "alvarez-50"
     if name not in CONFIGURATIONS:
@@ -80,7 +90,6 @@ def _config(args: argparse.Namespace):
 
 
 def _check(c) -> None:
-    from gaitlog.host.errors import UsageError
 
     if not (1.0 <= c.sampling_rate_hz <= 100_000.0):
         raise UsageError(f"--logger-rate {c.sampling_rate_hz:g} Hz is outside 1 .. 100000 Hz")
@@ -96,7 +105,6 @@ def _check(c) -> None:
 
 def _check_measure(args: argparse.Namespace, configs: list) -> None:
     """``--measure``, ``--recording`` and ``--limit`` go together, and only with the Alvarez logger."""
-    from gaitlog.host.errors import UsageError
 
     if (args.recording is not None or args.limit is not None) and not args.measure:
         raise UsageError("--recording and --limit choose the walk of --measure; add --measure")
@@ -133,7 +141,6 @@ def _chip(args: argparse.Namespace, c, walk: dict | None):
     from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
     from gaitlog.firmware_sim.pic.chip_budget import chip_budget
     from gaitlog.firmware_sim.pic.gpsim_logger import PicError
-    from gaitlog.host.errors import HostError
     from gaitlog.protocol.packing import FLAG_SESSION_START
 
     limit = args.limit or MEASURE_SAMPLES
@@ -298,7 +305,6 @@ def _measure_kernels(args: argparse.Namespace) -> int:
         missing_tools,
         write_cycle_table,
     )
-    from gaitlog.host.errors import HostError
 
     reason = missing_tools()
     if reason:
@@ -319,11 +325,8 @@ def _measure_kernels(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
 
     from gaitlog.firmware_sim.budget import CONFIGURATIONS
-    from gaitlog.host.commands._options import logger_rate_hz, verbosity
-    from gaitlog.host.errors import UsageError
 
     if args.measure_kernels:
         return _measure_kernels(args)

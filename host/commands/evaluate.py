@@ -18,8 +18,26 @@ heel-strike intervals.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from gaitlog.host.commands._options import SEED, add_adc_bits_option, add_logger_rate_option, logger_rate_hz, whole
+from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
+from gaitlog.host.commands._options import (
+    SEED,
+    add_adc_bits_option,
+    add_force_option,
+    add_json_option,
+    add_logger_rate_option,
+    add_verbosity_options,
+    check_output_folder,
+    check_outputs,
+    logger_rate_hz,
+    out_path,
+    print_json,
+    verbosity,
+    whole,
+)
+from gaitlog.host.commands._progress import progress_bar
+from gaitlog.host.errors import UsageError
 
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 #: Shown under "examples:" by ``gaitlog evaluate --help``.
@@ -30,7 +48,6 @@ EXAMPLES = (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from gaitlog.host.commands._options import add_force_option, add_json_option, add_verbosity_options
 
     parser.add_argument("dataset", choices=["ipol", "sim"],
                         help="ipol: a folder in the layout of Voisard et al. 2023; sim: simulated subjects")
@@ -67,9 +84,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_sim(args: argparse.Namespace) -> int:
-    from gaitlog.host.commands._options import check_output_folder, print_json, verbosity
-    from gaitlog.host.commands._progress import progress_bar
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.evaluation import SimulatedEvaluation
 
     out = args.out or args.folder
@@ -110,15 +124,12 @@ def _run_sim(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
-    from gaitlog.host.errors import UsageError
 
     if args.dataset == "sim":
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise UsageError("evaluate ipol: give the folder (DIR) and --out CSV")
-    from gaitlog.host.commands._options import check_outputs, out_path
 
     args.out = out_path(args.out, "ipol_evaluation.csv")
     from gaitlog.host.studies.compare import rows_csv_text
@@ -139,7 +150,6 @@ def run(args: argparse.Namespace) -> int:
         main_rows,
         summarise,
     )
-    from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 
     args.logger_rate = logger_rate_hz(args)
     args.uturn = args.uturn or "include"
@@ -150,8 +160,6 @@ def run(args: argparse.Namespace) -> int:
     events_path = out.with_name(out.stem + "_events.csv")
     check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
                   {"DIR": args.folder}, force=args.force)
-    from gaitlog.host.commands._options import print_json, verbosity
-    from gaitlog.host.commands._progress import progress_bar
     from gaitlog.host.files.ipol import list_trials
     from gaitlog.host.gait.anthropometry import LENGTH_MODEL
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from gaitlog.host.commands._options import add_json_option, add_verbosity_options, whole
+from gaitlog.host.errors import HostError
 
 HELP = "run the logger's PIC16 assembly in gpsim on a recording and compare it with the Python model"
 #: Shown under "examples:" by ``gaitlog pic --help``.
@@ -31,7 +32,6 @@ def run(args: argparse.Namespace) -> int:
 
     from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ, nominal_calibration_q
     from gaitlog.firmware_sim.pic.gpsim_logger import PicError, missing_tools, verify
-    from gaitlog.host.errors import HostError
     from gaitlog.host.files.decode import decode_file
 
     rec = decode_file(args.recording)

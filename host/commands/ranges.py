@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import argparse
 
-from gaitlog.host.commands._options import SEED, add_json_option, add_verbosity_options, whole
+from gaitlog.host.commands._options import SEED, add_json_option, add_verbosity_options, print_json, verbosity, whole
+from gaitlog.host.errors import UsageError
 
 HELP = ("observed range, headroom, saturations and the smallest format of every fixed-point variable of the "
         "on-line step algorithm")
@@ -33,8 +34,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.commands._options import print_json, verbosity
-    from gaitlog.host.errors import UsageError
     from gaitlog.host.studies.ranges import collect_ranges
 
     if not args.recordings and not args.simulate:

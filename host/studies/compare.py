@@ -903,7 +903,7 @@ def pool_step_diffs(rows: list[dict]) -> list[dict]:
 
 
 def format_segments(results: list[WalkComparison]) -> str:
-    """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max |d|)."""
+    """Per estimator and mode: section-ratio median/IQR of each chain and the split in ratio (max ``|d|``)."""
     lines = ["20 m sections: ratio estimated / real (median, IQR) per chain; ADC = offline - ideal, alg = "
              "online-float - offline, arith = online-fixed - online-float (max |difference in ratio|)",
              f"{'mode':<13}{'est':<5}{'n':>4}" + "".join(f"{c:>13}{'IQR':>7}" for c in CHAINS)

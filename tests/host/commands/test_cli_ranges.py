@@ -4,8 +4,6 @@
 from __future__ import annotations
 
 import json
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +12,9 @@ from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.cli import main
 from gaitlog.units import STANDARD_GRAVITY_M_S2
+from tests.conftest import DATA_DIR
 
-IPOL = Path(os.environ.get("GAITLOG_DATA_DIR", "/nonexistent")) / "ipol-lowerback-dev" / "GaitData"
+IPOL = DATA_DIR / "ipol-lowerback-dev" / "GaitData"
 
 
 @pytest.fixture
@@ -59,7 +58,7 @@ def test_margin_bits_widen_the_proposals(image, capsys):
     assert docs[1]["a_v"]["proposed_bits"] == docs[0]["a_v"]["proposed_bits"] + 4
 
 
-@pytest.mark.skipif(not IPOL.is_dir(), reason="needs GAITLOG_DATA_DIR with ipol-lowerback-dev")
+@pytest.mark.skipif(not IPOL.is_dir(), reason=f"the IPOL trials are not at {IPOL} (set GAITLOG_DATA_DIR)")
 def test_ipol_trials_are_replayed(capsys):
     trial = sorted(IPOL.glob("*_lb.txt"))[0]
     assert main(["ranges", str(trial), str(trial.with_name(trial.name.replace("_lb.txt", ".json"))), "--json"]) == 0
