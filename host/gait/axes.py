@@ -132,9 +132,11 @@ def _jerk(hor: np.ndarray, pair: np.ndarray) -> np.ndarray:
     d = np.empty((3, int(np.count_nonzero(pair))), order="F")
     at = 0
     for lo, hi, _, _ in halo_blocks(pair.size, 0):
-        part = np.diff(hor[:, lo:hi + 1], axis=1)[:, pair[lo:hi]]
-        d[:, at:at + part.shape[1]] = part
-        at += part.shape[1]
+        p = pair[lo:hi]
+        m = int(np.count_nonzero(p))
+        for r in range(3):
+            d[r, at:at + m] = np.subtract(hor[r, lo + 1:hi + 1], hor[r, lo:hi])[p]
+        at += m
     return d
 
 

@@ -62,8 +62,11 @@ class StepSamples:
     def _reduce(self, ufunc: np.ufunc, x: np.ndarray) -> np.ndarray:
         if self.first.size == 0:
             return np.zeros(0)
-        xp = np.append(np.asarray(x, np.float64), np.nan)   # pad: empty trailing windows index the pad
-        out = ufunc.reduceat(xp, self.first)
+        x = np.asarray(x, np.float64)
+        out = np.full(self.first.size, np.nan)
+        inside = self.first < x.size                        # empty trailing windows start past the end
+        if inside.any():
+            out[inside] = ufunc.reduceat(x, self.first[inside])
         out[self.n_measured < 2] = np.nan
         return out
 

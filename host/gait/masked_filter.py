@@ -159,9 +159,15 @@ def masked_moving_mean(x: np.ndarray, valid: np.ndarray | None, *, window: int) 
         np.cumsum(w, out=cw[lo + 1 - (lo > 0):hi + 1])
     out = np.full(n, np.nan)
     for lo, hi, _, _ in halo_blocks(n, 0):
-        start = np.arange(lo - window // 2, hi - window // 2)
-        first, last = np.clip(start, 0, n), np.clip(start + window, 0, n)
-        num = cx[last] - cx[first]
-        den = cw[last] - cw[first]
+        a = lo - window // 2                              # the window of sample i is [i + a - lo, ... + window)
+        num = _shifted(cx, a + window, hi - lo) - _shifted(cx, a, hi - lo)
+        den = _shifted(cw, a + window, hi - lo) - _shifted(cw, a, hi - lo)
         np.divide(num, den, out=out[lo:hi], where=den > 0)
     return out
+
+
+def _shifted(c: np.ndarray, start: int, m: int) -> np.ndarray:
+    """``c[clip(start + arange(m), 0, c.size - 1)]``: a slice where no index is clipped."""
+    if start >= 0 and start + m <= c.size:
+        return c[start:start + m]
+    return np.take(c, np.arange(start, start + m), mode="clip")
