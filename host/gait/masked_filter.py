@@ -167,7 +167,17 @@ def masked_moving_mean(x: np.ndarray, valid: np.ndarray | None, *, window: int) 
 
 
 def _shifted(c: np.ndarray, start: int, m: int) -> np.ndarray:
-    """``c[clip(start + arange(m), 0, c.size - 1)]``: a slice where no index is clipped."""
-    if start >= 0 and start + m <= c.size:
+    """``c[clip(start + arange(m), 0, c.size - 1)]`` from slices.
+
+    >>> _shifted(np.arange(4), -2, 8).tolist()
+    [0, 0, 0, 1, 2, 3, 3, 3]
+    """
+    lead = min(max(-start, 0), m)                  # indices below 0
+    trail = min(max(start + m - c.size, 0), m - lead)   # indices above the last
+    if not lead and not trail:
         return c[start:start + m]
-    return np.take(c, np.arange(start, start + m), mode="clip")
+    out = np.empty(m, c.dtype)
+    out[:lead] = c[0]
+    out[m - trail:] = c[-1]
+    out[lead:m - trail] = c[start + lead:start + m - trail]
+    return out
