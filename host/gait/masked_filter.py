@@ -8,6 +8,11 @@ NaN (too little data to say anything).
 The Gaussian itself is :func:`gaussian_smooth`: ``scipy.ndimage.gaussian_filter1d(x, sigma, mode="constant",
 truncate=4.0)`` value for value (the same kernel and the same order of additions; tested against scipy), in
 numpy, so that the estimate path does not import ``scipy.ndimage`` (0.2 s).
+
+Long signals are filtered in blocks of :data:`BLOCK_SAMPLES` with the kernel's halo (:func:`halo_blocks`), and the
+moving mean's cumulative sums run block after block with the sum so far as the first term: the results are those
+of the whole-array computation bit for bit, and the time per sample no longer grows once the arrays outgrow the
+cache (``benchmarks/bench_long_recordings.py``).
 """
 
 from __future__ import annotations
