@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaitlog.host.gait.masked_filter import masked_moving_mean
+from gaitlog.host.gait.masked_filter import halo_blocks, masked_moving_mean
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
@@ -82,31 +82,62 @@ def body_axes(
     if acc.ndim != 2 or acc.shape[1] != 3:
         raise ValueError(f"acc_g must have shape (n, 3), got {acc.shape}")
     n = acc.shape[0]
-    cols = np.ascontiguousarray(acc.T)                      # (3, n): contiguous columns are fast
-    ok = np.isfinite(cols).all(axis=0)
+    ok = np.isfinite(acc[:, 0]) & np.isfinite(acc[:, 1]) & np.isfinite(acc[:, 2])   # 8x all(axis=1)'s speed
     if valid is not None:
         ok &= np.asarray(valid, dtype=bool)
-    grav = np.stack([masked_moving_mean(c, ok, window=int(round(gravity_window_s * sampling_rate_hz)))
-                     for c in cols])
-    gnorm = np.sqrt(grav[0] ** 2 + grav[1] ** 2 + grav[2] ** 2)
-    ok &= np.isfinite(gnorm) & (gnorm > 0.2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ghat = grav / gnorm
-    proj = cols[0] * ghat[0] + cols[1] * ghat[1] + cols[2] * ghat[2]
-    acc_v = np.where(ok, (proj - gnorm) * STANDARD_GRAVITY_M_S2, np.nan)
-    # horizontal dynamic acceleration (the vertical part removed)
-    hor = cols - grav - (proj - gnorm) * ghat
+    window = int(round(gravity_window_s * sampling_rate_hz))
+    grav = np.empty((3, n))
+    for k in range(3):
+        grav[k] = masked_moving_mean(acc[:, k], ok, window=window)
+    acc_v = np.empty(n)
+    hor = np.empty((3, n))
+    for lo, hi, _, _ in halo_blocks(n, 0):      # element-wise, one cache-sized block at a time
+        ok[lo:hi] &= _vertical_block(acc[lo:hi], grav[:, lo:hi], acc_v[lo:hi], hor[:, lo:hi])
+        acc_v[lo:hi][~ok[lo:hi]] = np.nan
     acc_ap = np.full(n, np.nan)
     pair = ok[1:] & ok[:-1]
     if np.count_nonzero(pair) >= 3:
         # principal direction of the horizontal *jerk* (first difference): differencing weights the AP
         # component at step frequency (~2 Hz) 4x over the ML sway at stride frequency (~1 Hz) in variance
-        d = np.diff(hor, axis=1)[:, pair]
+        d = _jerk(hor, pair)
         _, vecs = np.linalg.eigh(d @ d.T)
+        del d
         ap_dir = vecs[:, -1]
-        acc_ap = np.where(ok, (ap_dir @ np.where(ok, hor, 0.0)) * STANDARD_GRAVITY_M_S2, np.nan)
+        for lo, hi, _, _ in halo_blocks(n, 0):
+            np.copyto(hor[:, lo:hi], 0.0, where=~ok[lo:hi])
+        acc_ap = ap_dir @ hor
+        acc_ap *= STANDARD_GRAVITY_M_S2
+        acc_ap[~ok] = np.nan
         acc_ap = _orient_ap(acc_ap, acc_v, sampling_rate_hz)
     return BodyAxes(acc_v, acc_ap, grav.T, ok)
+
+
+def _vertical_block(acc: np.ndarray, grav: np.ndarray, acc_v: np.ndarray, hor: np.ndarray) -> np.ndarray:
+    """One block of :func:`body_axes`: ``acc_v`` and ``hor`` filled from ``acc`` ``(m, 3)`` and ``grav`` ``(3, m)``;
+    returns where the gravity estimate is usable."""
+    cols = np.ascontiguousarray(acc.T)
+    gnorm = np.sqrt(grav[0] ** 2 + grav[1] ** 2 + grav[2] ** 2)
+    ok = np.isfinite(gnorm) & (gnorm > 0.2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ghat = grav / gnorm
+    dyn = cols[0] * ghat[0] + cols[1] * ghat[1] + cols[2] * ghat[2] - gnorm       # projection minus |g|
+    np.multiply(dyn, STANDARD_GRAVITY_M_S2, out=acc_v)
+    # horizontal dynamic acceleration (the vertical part removed)
+    np.subtract(cols - grav, dyn * ghat, out=hor)
+    return ok
+
+
+def _jerk(hor: np.ndarray, pair: np.ndarray) -> np.ndarray:
+    """``np.diff(hor, axis=1)[:, pair]`` (the same Fortran-ordered array), filled block by block."""
+    d = np.empty((3, int(np.count_nonzero(pair))), order="F")
+    at = 0
+    for lo, hi, _, _ in halo_blocks(pair.size, 0):
+        p = pair[lo:hi]
+        m = int(np.count_nonzero(p))
+        for r in range(3):
+            d[r, at:at + m] = np.subtract(hor[r, lo + 1:hi + 1], hor[r, lo:hi])[p]
+        at += m
+    return d
 
 
 def _orient_ap(acc_ap: np.ndarray, acc_v: np.ndarray, sampling_rate_hz: float) -> np.ndarray:

@@ -133,7 +133,10 @@ class GaitEventDetector:
         # the peak search needs a continuous curve: across stretches where the filter has too little
         # measured data the curve is drawn straight (for the search only), and no peak may lie there
         fin = np.isfinite(lp)
-        sig = np.interp(np.arange(n), np.flatnonzero(fin), lp[fin]) if not fin.all() else lp
+        sig = lp
+        if not fin.all():
+            sig = lp.copy()
+            sig[~fin] = np.interp(np.flatnonzero(~fin), np.flatnonzero(fin), lp[fin])
         dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
         candidates = foot_flat_candidates(sig, p)
 

@@ -51,6 +51,10 @@ class StepSamples:
     #: :func:`vertical_positions`), so that M1, M2 and M3 on the same windows integrate once
     _positions: dict = field(default_factory=dict, repr=False, compare=False)
 
+    def spread(self, x: np.ndarray) -> np.ndarray:
+        """Per-window values ``(k,)`` repeated for each of the window's samples: ``x[step]``, read in order."""
+        return np.repeat(x, self.n_measured)
+
     def reduce_max(self, x: np.ndarray) -> np.ndarray:
         """Per-window maximum of a per-sample array (NaN ignored; NaN for windows with < 2 samples)."""
         return self._reduce(np.fmax, x)
@@ -62,8 +66,11 @@ class StepSamples:
     def _reduce(self, ufunc: np.ufunc, x: np.ndarray) -> np.ndarray:
         if self.first.size == 0:
             return np.zeros(0)
-        xp = np.append(np.asarray(x, np.float64), np.nan)   # pad: empty trailing windows index the pad
-        out = ufunc.reduceat(xp, self.first)
+        x = np.asarray(x, np.float64)
+        out = np.full(self.first.size, np.nan)
+        inside = self.first < x.size                        # empty trailing windows start past the end
+        if inside.any():
+            out[inside] = ufunc.reduceat(x, self.first[inside])
         out[self.n_measured < 2] = np.nan
         return out
 
@@ -90,13 +97,14 @@ def step_samples(start: np.ndarray, end: np.ndarray, valid: np.ndarray, sampling
     offsets = np.concatenate([[0], np.cumsum(lengths)[:-1]]) if k else np.zeros(0, np.int64)
     total = int(lengths.sum()) if k else 0
     step = np.repeat(np.arange(k), lengths)
-    index = np.repeat(start, lengths) + (np.arange(total) - np.repeat(offsets, lengths))
+    index = np.arange(total) + np.repeat(start - offsets, lengths)
     keep = valid[index]
     n_missing = np.bincount(step[~keep], minlength=k).astype(np.int64)
     index, step = index[keep], step[keep]
     n_measured = np.bincount(step, minlength=k).astype(np.int64)
     first = np.concatenate([[0], np.cumsum(n_measured)[:-1]]).astype(np.int64) if k else np.zeros(0, np.int64)
-    tau_s = (index - index[first[step]]) / sampling_rate_hz if index.size else np.zeros(0)
+    nz = n_measured > 0
+    tau_s = (index - np.repeat(index[first[nz]], n_measured[nz])) / sampling_rate_hz if index.size else np.zeros(0)
     duration_s = np.full(k, np.nan)
     has = n_measured >= 2
     if has.any():
@@ -109,12 +117,18 @@ def _segment_cumtrapz(y: np.ndarray, ss: StepSamples) -> np.ndarray:
     """Cumulative trapezoid of ``y`` (per sample of ``ss``) within each window, 0 at each window's start."""
     if y.size == 0:
         return y.copy()
-    dt = np.diff(ss.tau_s, prepend=0.0)
-    inc = 0.5 * (y + np.r_[y[0], y[:-1]]) * dt
-    starts = ss.first[ss.n_measured > 0]
+    inc = np.empty(y.size)
+    np.add(y[1:], y[:-1], out=inc[1:])
+    inc[0] = y[0] + y[0]
+    inc *= 0.5
+    inc[1:] *= np.subtract(ss.tau_s[1:], ss.tau_s[:-1])
+    inc[0] *= ss.tau_s[0]
+    nz = ss.n_measured > 0
+    starts = ss.first[nz]
     inc[starts] = 0.0
-    cs = np.cumsum(inc)
-    return cs - cs[ss.first[ss.step]]
+    cs = np.cumsum(inc, out=inc)
+    cs -= np.repeat(cs[starts], ss.n_measured[nz])
+    return cs
 
 
 def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndarray, np.ndarray]:
@@ -144,11 +158,11 @@ def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndar
     has = ss.n_measured > 0
     last = np.zeros(ss.first.size, np.int64)
     last[has] = ss.first[has] + ss.n_measured[has] - 1
-    T = ss.duration_s[ss.step]
+    T = ss.spread(ss.duration_s)
     with np.errstate(invalid="ignore", divide="ignore"):
-        c1 = -v[last][ss.step] / T                                   # eq (2): v(t1) = 0, c1 = -mean(a)
+        c1 = -ss.spread(v[last]) / T                                  # eq (2): v(t1) = 0, c1 = -mean(a)
         p_c1 = p1 + 0.5 * c1 * ss.tau_s ** 2                         # exact trapezoid of c1 * tau
-        c2 = -p_c1[last][ss.step] / T                                # eq (3): p(t1) = p(t0) = 0
+        c2 = -ss.spread(p_c1[last]) / T                               # eq (3): p(t1) = p(t0) = 0
     p2 = p_c1 + c2 * ss.tau_s
     ss._positions[id(acc_v_m_s2)] = (acc_v_m_s2, p1, p2)   # the reference keeps the id unique
     return p1, p2

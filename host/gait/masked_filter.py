@@ -8,6 +8,11 @@ NaN (too little data to say anything).
 The Gaussian itself is :func:`gaussian_smooth`: ``scipy.ndimage.gaussian_filter1d(x, sigma, mode="constant",
 truncate=4.0)`` value for value (the same kernel and the same order of additions; tested against scipy), in
 numpy, so that the estimate path does not import ``scipy.ndimage`` (0.2 s).
+
+Long signals are filtered in blocks of :data:`BLOCK_SAMPLES` with the kernel's halo (:func:`halo_blocks`), and the
+moving mean's cumulative sums run block after block with the sum so far as the first term: the results are those
+of the whole-array computation bit for bit, and the time per sample no longer grows once the arrays outgrow the
+cache (``benchmarks/bench_long_recordings.py``).
 """
 
 from __future__ import annotations
@@ -18,6 +23,9 @@ from gaitlog.firmware_sim.algorithms.parameters import SIGMA_S_AT_1HZ
 
 #: Kernel half-width in standard deviations (scipy's default ``truncate``).
 TRUNCATE_SIGMAS = 4.0
+
+#: Samples per block of the element-wise stages (:func:`halo_blocks`): ~0.5 MB per float64 array.
+BLOCK_SAMPLES = 65_536
 
 
 def gaussian_sigma_s(cutoff_hz: float) -> float:
@@ -65,24 +73,40 @@ def masked_gaussian_lowpass(
     True
     """
     x = np.asarray(x, dtype=np.float64)
-    w = np.isfinite(x) if x.ndim == 1 else np.all(np.isfinite(x), axis=1)
-    if valid is not None:
-        w = w & np.asarray(valid, dtype=bool)
-    wf = w.astype(np.float64)
-    xz = np.where(w if x.ndim == 1 else w[:, None], x, 0.0)
+    if x.ndim != 1:  # column by column on contiguous copies: ~10x faster than filtering along a strided axis 0
+        return np.stack([masked_gaussian_lowpass(c, valid, cutoff_hz=cutoff_hz, sampling_rate_hz=sampling_rate_hz,
+                                                 min_weight=min_weight) for c in np.ascontiguousarray(x.T)], axis=1)
     sigma = gaussian_sigma_s(cutoff_hz) * sampling_rate_hz
-    if x.ndim == 1:
-        num = gaussian_smooth(xz, sigma)
-    else:  # column by column on contiguous copies: ~10x faster than filtering along a strided axis 0
-        num = np.stack([gaussian_smooth(c, sigma) for c in np.ascontiguousarray(xz.T)], axis=1)
-    # weight of a full kernel; zeros beyond the ends make the edges look like missing data (as they are)
-    den = gaussian_smooth(wf, sigma)
-    ok = den >= min_weight
+    radius = int(TRUNCATE_SIGMAS * sigma + 0.5)
+    v = None if valid is None else np.asarray(valid, dtype=bool)
     out = np.full(x.shape, np.nan)
-    if x.ndim == 1:
-        out[ok] = num[ok] / den[ok]
-    else:
-        out[ok] = num[ok] / den[ok, None]
+    for lo, hi, a, b in halo_blocks(x.size, radius):
+        w = np.isfinite(x[lo:hi])
+        if v is not None:
+            w &= v[lo:hi]
+        num = gaussian_smooth(np.where(w, x[lo:hi], 0.0), sigma)[a:b]
+        # weight of a full kernel; zeros beyond the ends make the edges look like missing data (as they are)
+        den = gaussian_smooth(w.astype(np.float64), sigma)[a:b]
+        np.divide(num, den, out=out[lo + a:lo + b], where=den >= min_weight)
+    return out
+
+
+def halo_blocks(n: int, halo: int, block: int | None = None) -> list[tuple[int, int, int, int]]:
+    """Cut ``n`` samples into blocks of ``block`` (default :data:`BLOCK_SAMPLES`) with ``halo`` samples either side.
+
+    Each item ``(lo, hi, a, b)`` is a segment ``[lo, hi)`` of the input (the block and its halo, clipped at the
+    ends) whose own samples are ``[lo + a, lo + b)``: a filter of support ``2 halo + 1`` run on the segment is
+    exact on ``[a, b)``. One block's arrays stay in the cache, where whole-array temporaries do not.
+
+    >>> halo_blocks(10, 2, block=4)
+    [(0, 6, 0, 4), (2, 10, 2, 6), (6, 10, 2, 4)]
+    """
+    block = max(1, BLOCK_SAMPLES if block is None else int(block))
+    out = []
+    for s in range(0, n, block):
+        e = min(n, s + block)
+        lo, hi = max(0, s - halo), min(n, e + halo)
+        out.append((lo, hi, s - lo, e - lo))
     return out
 
 
@@ -105,8 +129,11 @@ def gaussian_smooth(x: np.ndarray, sigma_samples: float) -> np.ndarray:
     n = x.size
     padded = np.concatenate([np.zeros(radius), x, np.zeros(radius)])
     out = x * kernel[radius]
+    term = np.empty(n)
     for j in range(radius, 0, -1):
-        out += (padded[radius - j:radius - j + n] + padded[radius + j:radius + j + n]) * kernel[radius + j]
+        np.add(padded[radius - j:radius - j + n], padded[radius + j:radius + j + n], out=term)
+        term *= kernel[radius + j]
+        out += term
     return out
 
 
@@ -119,19 +146,43 @@ def masked_moving_mean(x: np.ndarray, valid: np.ndarray | None, *, window: int) 
     x = np.asarray(x, dtype=np.float64)
     if x.ndim != 1:
         return np.stack([masked_moving_mean(c, valid, window=window) for c in np.ascontiguousarray(x.T)], axis=1)
-    w = np.isfinite(x)
-    if valid is not None:
-        w = w & np.asarray(valid, dtype=bool)
+    v = None if valid is None else np.asarray(valid, dtype=bool)
     window = max(1, int(window))
-    # centred running sums by cumulative sums: O(n)
-    cx = np.concatenate([[0.0], np.cumsum(np.where(w, x, 0.0))])
-    cw = np.concatenate([[0], np.cumsum(w)])
-    i = np.arange(x.size)
-    lo = np.clip(i - window // 2, 0, x.size)
-    hi = np.clip(i - window // 2 + window, 0, x.size)
-    num = cx[hi] - cx[lo]
-    den = cw[hi] - cw[lo]
-    out = np.full(x.size, np.nan)
-    ok = den > 0
-    out[ok] = num[ok] / den[ok]
+    n = x.size
+    # centred running sums by cumulative sums: O(n); the sums run over the whole signal, block after block
+    cx = np.zeros(n + 1)
+    cw = np.zeros(n + 1, np.int64)
+    for lo, hi, _, _ in halo_blocks(n, 0):
+        w = np.isfinite(x[lo:hi])
+        if v is not None:
+            w &= v[lo:hi]
+        xz = np.where(w, x[lo:hi], 0.0)
+        if lo:  # carry the sum so far as the first term: the additions of one whole-signal cumsum, in order
+            xz = np.concatenate([cx[lo:lo + 1], xz])
+            w = np.concatenate([cw[lo:lo + 1], w])
+        np.cumsum(xz, out=cx[lo + 1 - (lo > 0):hi + 1])
+        np.cumsum(w, out=cw[lo + 1 - (lo > 0):hi + 1])
+    out = np.full(n, np.nan)
+    for lo, hi, _, _ in halo_blocks(n, 0):
+        a = lo - window // 2                              # the window of sample i is [i + a - lo, ... + window)
+        num = _shifted(cx, a + window, hi - lo) - _shifted(cx, a, hi - lo)
+        den = _shifted(cw, a + window, hi - lo) - _shifted(cw, a, hi - lo)
+        np.divide(num, den, out=out[lo:hi], where=den > 0)
+    return out
+
+
+def _shifted(c: np.ndarray, start: int, m: int) -> np.ndarray:
+    """``c[clip(start + arange(m), 0, c.size - 1)]`` from slices.
+
+    >>> _shifted(np.arange(4), -2, 8).tolist()
+    [0, 0, 0, 1, 2, 3, 3, 3]
+    """
+    lead = min(max(-start, 0), m)                  # indices below 0
+    trail = min(max(start + m - c.size, 0), m - lead)   # indices above the last
+    if not lead and not trail:
+        return c[start:start + m]
+    out = np.empty(m, c.dtype)
+    out[:lead] = c[0]
+    out[m - trail:] = c[-1]
+    out[lead:m - trail] = c[start + lead:start + m - trail]
     return out

@@ -75,8 +75,7 @@ class TwoPhasePendulumM3:
         ss = samples if samples is not None else step_samples(start, end, ok, sampling_rate_hz)
         p2 = vertical_positions(acc, ss)[1]
         has = (to >= start) & (hs <= end) & (to >= 0) & (hs >= 0) & (hs > to)
-        s_to, s_hs = to[ss.step], hs[ss.step]
-        inside = (ss.index >= s_to) & (ss.index <= s_hs) & has[ss.step]
+        inside = (ss.index >= ss.spread(to)) & (ss.index <= ss.spread(hs)) & ss.spread(has)
         h1 = ss.reduce_max(np.where(inside, p2, np.nan)) - ss.reduce_min(np.where(inside, p2, np.nan))
         self.single_support_excursion_m_ = h1
         s1, self.n_impossible_ = pendulum_length_m(h1, leg_length_m)
