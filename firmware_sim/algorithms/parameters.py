@@ -28,7 +28,7 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   fixed 0.5 m/s^2 of versions 1-2; slow, short steps (0.30-0.35 m at 70-90 /min, whose 3 Hz first harmonic
   rises 0.3-0.8 m/s^2) get down to the floor: the fixed threshold missed 17-25 % of them, this rule
   -3.1..+0.4 % (``tests/host/gait/test_slow_walking_sim.py``, simulated walkers: there is no such recording).
-  History (issue 12): the rule was first uncapped, ``max(0.25, 0.2 A)``, and the floor also its threshold
+  History: the rule was first uncapped, ``max(0.25, 0.2 A)``, and the floor also its threshold
   before the first step; the fraction and floor were chosen on simulated walkers (``gaitlog.firmware_sim.world``,
   six random subjects, seed 3, three speeds, 20 m out and back: fraction 0.2 gave step count errors -1..+2
   of 188, 0.15: +2..+3, 0.25: -3..0, 0.3: -7..-4; floor 0.15-0.2 added +2..+9, 0.3 missed 2-4 % of the
@@ -45,7 +45,7 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   a constant chosen on the IPOL recordings; the slow walkers sit at the floor, most IPOL walking at the
   cap). It was first opt-in (``gaitlog estimate --slow-walking``,
   algorithm version 2): as a default it moved the on-line vs offline M2 median ``|ratio difference|`` on IPOL
-  from 0.0087 to 0.0106-0.0110, past issue 10's 0.01. The cause was in the offline chain: its minimum
+  from 0.0087 to 0.0106-0.0110, past the 0.01 the two chains are held to. The cause was in the offline chain: its minimum
   distance ran over every local maximum before the prominence rule, so a weak bump could suppress a
   foot-flat the on-line algorithm confirms (``gaitlog.host.gait.events`` notes 1; IPOL trial 8-2's first step).
   With the distance among prominent peaks only, the rule as default costs nothing measurable on IPOL

@@ -17,7 +17,7 @@ Notes
    the single support. The minimum distance is applied to
    these candidates only (:func:`foot_flat_candidates`), the higher of two kept, as the on-line algorithm's
    pending foot-flat competes only with confirmed peaks; a second pass raises it to ``min_step_fraction``
-   of the median step duration. (Until issue 12's last change the distance came first, over every local
+   of the median step duration. (In on-line algorithm version 2 the distance came first, over every local
    maximum, as ``scipy.signal.find_peaks`` orders its rules: a weak bump 0.3 s before a step's foot-flat
    could then suppress it. IPOL trial 8-2: a 0.30 m/s^2 bump at 4.76 s suppressed the 0.60 m/s^2 peak at
    5.08 s that the on-line algorithm confirms.)

@@ -1,4 +1,4 @@
-"""Offline vs on-line algorithm, float vs fixed point, vs truth: the error budget of M1-M5 (issues 5 and 10).
+"""Offline vs on-line algorithm, float vs fixed point, vs truth: the error budget of M1-M5.
 
 Four chains run on one walk (:func:`compare_walk`) or on one recording (:func:`compare_recording`):
 

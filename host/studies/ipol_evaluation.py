@@ -78,7 +78,7 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
 :class:`IpolEvaluation` runs these steps as numbered stages (its notes), each returning a small dataclass;
 :func:`evaluate_folder` is its result on a folder.
 
-:func:`done_figures` computes the issue's figures from the rows (device = host, the arithmetic and
+:func:`done_figures` computes the targets' figures from the rows (device = host, the arithmetic and
 algorithm shares, the calibrated medians); :func:`format_done` prints them.
 """
 
@@ -1500,7 +1500,7 @@ def _gap_lines(rows: list[dict]) -> list[str]:
 
 
 def done_figures(result: IpolResult) -> dict[str, Any]:
-    """The issue's figures from an evaluation with every arithmetic (see :func:`format_done`).
+    """The targets' figures from an evaluation with every arithmetic (see :func:`format_done`).
 
     Returns
     -------

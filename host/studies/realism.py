@@ -2,9 +2,9 @@
 
 The statistics are those of ``../shared/tools/walking_stats.py`` (lower-back walking in the IPOL layout; the
 project does not ship or import that tool: its per-trial CSV columns are named here). For each statistic the
-median over simulated trials is compared with the real trials' (issue 14): it passes when it lies inside
-the real 5-95 % band and within ±20 % of the real median. ``checked`` marks the statistics issue 14 names
-("done means"); the others are recording properties (lost packets, the sensor's standing noise and scale)
+median over simulated trials is compared with the real trials': it passes when it lies inside
+the real 5-95 % band and within ±20 % of the real median. ``checked`` marks the statistics the realism criterion
+names; the others are recording properties (lost packets, the sensor's standing noise and scale)
 or follow from the checked ones, and are reported for information.
 """
 
@@ -71,7 +71,7 @@ class Verdict:
 
     @property
     def passes(self) -> bool:
-        """Both: issue 14's criterion."""
+        """Both: the realism criterion."""
         return self.in_band and self.near_median
 
 
