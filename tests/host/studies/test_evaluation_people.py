@@ -59,4 +59,4 @@ def test_readme_figures_of_the_people_population() -> None:
 
 def test_compare_refuses_a_population_for_a_recording(tmp_path, capsys) -> None:
     assert main(["compare", str(tmp_path / "rec.npz"), "--population", "people"]) == 2  # a usage error
-    assert "--population: only with --simulate / --sweep" in capsys.readouterr().err
+    assert "--population: only with --simulate" in capsys.readouterr().err
