@@ -67,12 +67,18 @@ def crc16_xmodem_rows(rows: np.ndarray) -> np.ndarray:
     >>> [hex(c) for c in crc16_xmodem_rows(rows)]
     ['0x31c3', '0x31c3']
     """
+    return _rows_crc16(rows, _CRC16_TABLE)
+
+
+def _rows_crc16(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """The byte-wise algorithm of a non-reflected 16-bit CRC with a zero register and no final XOR, over every
+    row of ``rows`` at once (``table``: the CRC of each single byte)."""
     r = np.asarray(rows, dtype=np.uint8)
     if r.ndim != 2:
         raise ValueError(f"rows must be a 2-D uint8 array, got shape {r.shape}")
     crc = np.zeros(r.shape[0], dtype=np.uint16)
     for j in range(r.shape[1]):
-        crc = (crc << 8) ^ _CRC16_TABLE[(crc >> 8) ^ r[:, j]]
+        crc = (crc << 8) ^ table[(crc >> 8) ^ r[:, j]]
     return crc
 
 
@@ -102,13 +108,7 @@ def crc16_umts_rows(rows: np.ndarray) -> np.ndarray:
     >>> int(crc16_umts_rows(np.frombuffer(b"\\x00\\x00123456789", dtype=np.uint8).reshape(1, 11))[0])
     65256
     """
-    r = np.asarray(rows, dtype=np.uint8)
-    if r.ndim != 2:
-        raise ValueError(f"rows must be a 2-D uint8 array, got shape {r.shape}")
-    crc = np.zeros(r.shape[0], dtype=np.uint16)
-    for j in range(r.shape[1]):
-        crc = (crc << 8) ^ _CRC16_UMTS_TABLE[(crc >> 8) ^ r[:, j]]
-    return crc
+    return _rows_crc16(rows, _CRC16_UMTS_TABLE)
 
 
 def crc32(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
