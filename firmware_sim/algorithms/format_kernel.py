@@ -148,6 +148,11 @@ class KernelFormats:
         """The FIR outputs' format."""
         return self.q("lowpass_frac_bits")
 
+    def theory_bits(self) -> dict[str, int]:
+        """The fraction bits the quantisation theory's arithmetic share takes
+        (:func:`gaitlog.host.studies.quantisation_theory.arithmetic_sigma_m`'s keywords)."""
+        return {"acc_frac_bits": self.acc_frac_bits, "lowpass_frac_bits": self.lowpass_frac_bits}
+
     def constants(self) -> dict[str, int]:
         """The kernel's compile-time integers these formats replace (names as in ``formats``)."""
         lp = self.lowpass_q

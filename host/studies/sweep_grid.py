@@ -96,6 +96,12 @@ from gaitlog.firmware_sim.world.walk_plan import POPULATION_PLANS, WalkPlan
 from gaitlog.host.errors import HostError
 from gaitlog.host.gait.sections import MODES
 from gaitlog.host.studies.compare import CHAINS, SHARES, column_key, compare_walk, pair_label
+from gaitlog.host.studies.quantisation_theory import (
+    adc_sigma_m,
+    adc_vertical_variance_m2_s4,
+    arithmetic_sigma_m,
+    median_abs_of_mixture,
+)
 from gaitlog.host.studies.simulation import AnalogWalk, simulated_population
 from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
 
@@ -161,12 +167,12 @@ SUMMARY_KEYS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_forma
 SECTION_COLUMNS = CONFIG_COLUMNS + ("subject", "excursion", "speed_label", "section", "real_m", "mode", "estimator") \
     + tuple(f"ratio_{k}" for k in RATIO_KINDS)
 SPLIT_COLUMNS = CONFIG_COLUMNS + ("subject", "share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm",
-                                  "max_abs_mm", "bias_mm", "max_rel", "n_different_events")
+                                  "max_abs_mm", "bias_mm", "max_rel", "n_different_events", "theory_median_abs_mm")
 SUMMARY_COLUMNS = (SUMMARY_KEYS + ("mode", "estimator", "n_subjects", "n_sections")
                    + tuple(f"{q}_{k}" for k in RATIO_KINDS[:-1] for q in ("median", "iqr"))
                    + ("subject_median_offline_lo", "subject_median_offline_hi", "adc_ratio_abs_max",
                       "adc_step_mm", "arith_ratio_abs_max", "arith_step_mm", "arith_step_mm_lo", "arith_step_mm_hi",
-                      "adc_step_mm_lo", "adc_step_mm_hi"))
+                      "adc_step_mm_lo", "adc_step_mm_hi", "adc_step_mm_theory", "arith_step_mm_theory"))
 #: The quantisation question's tolerances: per-step ``|offline - ideal|`` median and section-ratio difference.
 STEP_TOLERANCE_MM = 1.0
 RATIO_TOLERANCE = 0.01
@@ -430,14 +436,33 @@ def run_task(task: SweepTask) -> dict:
                   misalignment_deg=task.misalignment_deg, population=task.population, protocol=task.protocol,
                   seed=task.seed, **task.effects())
     keep = set(task.estimators)
+    theory = predicted_step_errors_mm(sw, subject, result, task.adc_bits, formats)
     sections = [config | {k: _plain(s[k]) for k in SECTION_COLUMNS if k in s and k not in config}
                 for s in result.segments if s["estimator"] in keep]
     splits = [config | {"subject": subject.subject_id} | {k: _plain(d[k]) for k in SPLIT_COLUMNS if k in d}
+              | {"theory_median_abs_mm": theory.get((d["share"], d["estimator"]), math.nan)}
               for d in result.step_diffs if d["estimator"] in keep]
     scalars = config | dict(subject=subject.subject_id, timing_rms_ms=_plain(result.timing["rms_ms"]),
                             saturated=int(fx.saturated), wrapped=int(fx.wrapped),
                             saturation=result.saturation)
     return {"sections": sections, "splits": splits, "task": scalars}
+
+
+def predicted_step_errors_mm(sw: Any, subject: Any, result: Any, adc_bits: int,
+                             kernel_formats: KernelFormats) -> dict[tuple[str, str], float]:
+    """The quantisation theory's median per-step ``|error|``, mm, of the ADC share and of the arithmetic share
+    (:mod:`gaitlog.host.studies.quantisation_theory`), per estimator, over the offline chain's steps (multi-speed K):
+    ``{(share, estimator): mm}``."""
+    table = result.runs["offline"].tables["multi-speed"]
+    cal = sw.calibration(adc_bits)
+    var_av = adc_vertical_variance_m2_s4(cal, np.mean(cal.apply(sw.codes(adc_bits)), axis=0))
+    adc = adc_sigma_m(table, var_av, leg_length_m=subject.leg_length_m)
+    arith, bias = arithmetic_sigma_m(table, leg_length_m=subject.leg_length_m, **kernel_formats.theory_bits())
+    out = {}
+    for est in ESTIMATORS:
+        out[("adc", est)] = 1e3 * median_abs_of_mixture(adc[est])
+        out[("arithmetic", est)] = 1e3 * median_abs_of_mixture(arith[est], bias[est])
+    return out
 
 
 def effects_of(effects: dict[str, float], walk: AnalogWalk) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -522,7 +547,8 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
     ``adc_ratio_abs_max`` / ``arith_ratio_abs_max``: the largest per-section ``|offline - ideal|`` and
     ``|online-fixed - online-float|`` ratio; ``adc_step_mm`` / ``arith_step_mm``: median over subjects of the
     per-step median ``|offline - ideal|`` and ``|online-fixed - online-float|`` (multi-speed lengths), ``*_lo`` /
-    ``*_hi`` their range over subjects.
+    ``*_hi`` their range over subjects; ``adc_step_mm_theory`` / ``arith_step_mm_theory`` the quantisation theory's
+    prediction of the same medians (:func:`predicted_step_errors_mm`; NaN for results stored without it).
     """
     sections, splits = [with_effects(r) for r in sections], [with_effects(r) for r in splits]
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
@@ -552,8 +578,9 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
             d = ratio[a] - ratio[b]
             row[f"{share}_ratio_abs_max"] = float(np.nanmax(np.abs(d))) if np.isfinite(d).any() else math.nan
         for share, col in (("adc", "adc_step_mm"), ("arithmetic", "arith_step_mm")):
-            v = [x["median_abs_mm"] for x in split_groups.get(tuple(config) + (labels[share], est), [])]
-            row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range(v)
+            found = split_groups.get(tuple(config) + (labels[share], est), [])
+            row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range([x["median_abs_mm"] for x in found])
+            row[f"{col}_theory"] = _range([x.get("theory_median_abs_mm", math.nan) for x in found])[0]
         out.append(row)
     return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
 
@@ -693,11 +720,12 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     width = max([12] + [len(effects_label(r)) + 1 for r in summary if r["mode"] == mode])
     lines = [f"{mode} calibration (one K per configuration, fitted on its offline chain); section ratio "
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
-             "mm: per-step median |offline - ideal| / |online-fixed - online-float|; Q: fixed-point formats, "
+             "mm: per-step median |offline - ideal| / |online-fixed - online-float|, each with the quantisation "
+             "theory's prediction beside it (theory: q^2/12 carried through the estimator); Q: fixed-point formats, "
              "tilt: extra misalignment, deg; conv/sensor: the converter's and sensor's effects that are on",
              f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}{'subj':>5}{'n':>6}"
              f"{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}{'ADC mm':>8}"
-             f"{'arith mm':>9}{'arith max':>10}"]
+             f"{'theory':>8}{'arith mm':>9}{'theory':>8}{'arith max':>10}"]
     for r in summary:
         if r["mode"] != mode:
             continue
@@ -706,8 +734,8 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
                      f"{effects_label(r):<{width}}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
                      f"{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}{r['median_online_fixed']:>8.3f}"
                      f"{r['subject_median_offline_lo']:>7.3f}-{r['subject_median_offline_hi']:<6.3f}"
-                     f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['arith_step_mm']:>9.3f}"
-                     f"{r['arith_ratio_abs_max']:>10.4f}")
+                     f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['adc_step_mm_theory']:>8.3f}"
+                     f"{r['arith_step_mm']:>9.3f}{r['arith_step_mm_theory']:>8.3f}{r['arith_ratio_abs_max']:>10.4f}")
     return "\n".join(lines)
 
 
