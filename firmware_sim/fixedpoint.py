@@ -109,6 +109,11 @@ __all__ = [
     "s_cost",
     "s_div",
     "s_div_round",
+    "s_div_mode",
+    "ROUND_TRUNCATE",
+    "ROUND_HALF_UP",
+    "ROUND_CONVERGENT",
+    "ROUNDING_MODES",
     "s_from_float",
     "s_isqrt",
     "s_mul",
@@ -123,6 +128,13 @@ __all__ = [
 ]
 
 Rounding = Literal["half_up", "floor"]
+
+#: Rounding modes of the scalar primitives' ``half_up`` argument and of :func:`s_div_mode` (a sweep dimension of
+#: the fixed-point chain, per operation class: :mod:`gaitlog.firmware_sim.algorithms.format_kernel`).
+ROUND_TRUNCATE, ROUND_HALF_UP, ROUND_CONVERGENT = 0, 1, 2
+#: Their names.
+ROUNDING_MODES: dict[str, int] = {"truncate": ROUND_TRUNCATE, "half-up": ROUND_HALF_UP,
+                                  "convergent": ROUND_CONVERGENT}
 Overflow = Literal["saturate", "wrap"]
 
 #: The logger's crystal: 18.432 MHz, a baud-rate crystal (``gaitlog.firmware_sim.uart``); 4 clocks per cycle.
@@ -262,14 +274,23 @@ def s_overflow(x, bits, signed, wrap, cnt):
 
 @register_jitable
 def s_shift_right(x, s, half_up, cnt):
-    """Drop ``s >= 0`` fraction bits: ``(x + 2**(s-1)) >> s`` (``half_up``) or ``x >> s``."""
+    """Drop ``s >= 0`` fraction bits: ``(x + 2**(s-1)) >> s`` (``half_up``) or ``x >> s``.
+
+    ``half_up`` is also a rounding mode (:data:`ROUND_TRUNCATE` = False, :data:`ROUND_HALF_UP` = True,
+    :data:`ROUND_CONVERGENT`: half up, an exact tie to the even neighbour; one comparison more).
+    """
     if s == 0:
         return x
     s_cost(cnt, OP_SHIFT, s)
-    if half_up:
-        s_cost(cnt, OP_ROUND, 1)
-        return (x + (1 << (s - 1))) >> s
-    return x >> s
+    if not half_up:
+        return x >> s
+    s_cost(cnt, OP_ROUND, 1)
+    q = (x + (1 << (s - 1))) >> s
+    if half_up == ROUND_CONVERGENT:
+        s_cost(cnt, OP_CMP16, 1)
+        if (x & ((1 << s) - 1)) == (1 << (s - 1)) and (q & 1):
+            q -= 1
+    return q
 
 
 @register_jitable
@@ -368,6 +389,21 @@ def s_div_round(n, d, bits, signed, cnt):
     if (n < 0) != (d < 0):
         q = -q
     return s_overflow(q, bits, signed, False, cnt)
+
+
+@register_jitable
+def s_div_mode(n, d, bits, signed, mode, cnt):
+    """32 / 16-bit division in rounding ``mode``: :data:`ROUND_HALF_UP` rounds the magnitude's half up (ties away
+    from zero, :func:`s_div_round`), :data:`ROUND_TRUNCATE` truncates towards zero (:func:`s_div`),
+    :data:`ROUND_CONVERGENT` rounds to nearest with exact ties to the even quotient (one comparison more)."""
+    if mode == ROUND_TRUNCATE:
+        return s_div(n, d, bits, signed, cnt)[0]
+    q = s_div_round(n, d, bits, signed, cnt)
+    if mode == ROUND_CONVERGENT and d != 0:
+        s_cost(cnt, OP_CMP16, 1)
+        if 2 * (abs(n) % abs(d)) == abs(d) and (q & 1):
+            q = q - 1 if q > 0 else q + 1
+    return q
 
 
 @register_jitable

@@ -41,8 +41,8 @@ from types import ModuleType
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.compiled import announce_compile, cache_base, load_numba, prune_cache, source_hash, touch
 
-__all__ = ["ARITHMETIC_TYPES", "ENTRY_POINTS", "MODULE_NAME", "EntryPoint", "aot_dir", "build", "enabled", "entry_points",
-           "load"]
+__all__ = ["ARITHMETIC_TYPES", "ENTRY_POINTS", "MODULE_NAME", "EntryPoint", "aot_dir", "build", "build_or_wait",
+           "enabled", "entry_points", "kernel_exports", "load"]
 
 #: Name of the extension module.
 MODULE_NAME = "gaitlog_online_kernel"
@@ -82,39 +82,56 @@ def aot_dir() -> Path:
     return cache_base() / f"aot-{source_hash()}"
 
 
-def _module_file(folder: Path) -> Path | None:
-    found = sorted(folder.glob(MODULE_NAME + ".*so")) + sorted(folder.glob(MODULE_NAME + ".*pyd"))
+def _module_file(folder: Path, module_name: str = MODULE_NAME) -> Path | None:
+    found = sorted(folder.glob(module_name + ".*so")) + sorted(folder.glob(module_name + ".*pyd"))
     return found[0] if found else None
 
 
-def load(folder: Path | None = None) -> ModuleType | None:
+#: The exports of the shipped module: ``<entry point>_<arithmetic>``.
+_EXPORTS = tuple(f"{n}_{a}" for n in ENTRY_POINTS for a in ARITHMETIC_TYPES)
+
+
+def load(folder: Path | None = None, *, module_name: str = MODULE_NAME,
+         exports: tuple[str, ...] = _EXPORTS) -> ModuleType | None:
     """The built module, imported by path (numba is not imported); None if not built or unloadable."""
     folder = folder if folder is not None else aot_dir()
-    path = _module_file(folder)
+    path = _module_file(folder, module_name)
     if path is None:
         return None
     try:
-        spec = importlib.util.spec_from_file_location(MODULE_NAME, path)
+        spec = importlib.util.spec_from_file_location(module_name, path)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
     except (ImportError, OSError):
         return None
-    if not all(hasattr(module, f"{n}_{a}") for n in ENTRY_POINTS for a in ARITHMETIC_TYPES):
+    if not all(hasattr(module, name) for name in exports):
         return None
     touch(folder)
     return module
 
 
-def build(folder: Path | None = None) -> Path:
+def kernel_exports(namespace: dict | None = None, arithmetics: tuple[str, ...] = tuple(ARITHMETIC_TYPES)
+                   ) -> list[tuple[str, str, Callable]]:
+    """``(export name, numba signature, Python function)`` of the entry points of the kernel whose compiled
+    functions are ``namespace``'s (default the shipped kernel module's), for ``arithmetics``."""
+    ns = namespace if namespace is not None else vars(kernel)
+    return [(f"{name}_{arithmetic}", sig, ns[name].py_func) for arithmetic in arithmetics
+            for name, sig in _signatures(ARITHMETIC_TYPES[arithmetic]).items()]
+
+
+def build(folder: Path | None = None, *, module_name: str = MODULE_NAME,
+          exports: Callable[[], list[tuple[str, str, Callable]]] | None = None, what: str = "") -> Path:
     """Compile the module into ``folder`` (default :func:`aot_dir`) unless it is there; return its path.
+    ``exports`` gives what it exports (:func:`kernel_exports`, called only when a build is needed; default the
+    shipped kernel's entry points in both arithmetics).
 
     Raises whatever the compilation raises (no compiler, no Python headers, no setuptools).
     """
     final = folder if folder is not None else aot_dir()
-    existing = _module_file(final)
+    existing = _module_file(final, module_name)
     if existing is not None:
         return existing
-    announce_compile(f"the on-line step kernel is compiled ahead of time into {final}")
+    announce_compile(f"the on-line step kernel{what} is compiled ahead of time into {final}")
     load_numba()                                     # the kernel's functions as numba dispatchers
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.with_name(f"{final.name}.build-{os.getpid()}")
@@ -127,21 +144,20 @@ def build(folder: Path | None = None) -> Path:
             warnings.filterwarnings("ignore", message=".*pycc.*", category=PendingDeprecationWarning)
             warnings.filterwarnings("ignore", message=".*pycc.*", category=DeprecationWarning)
             pycc = importlib.import_module("numba.pycc")
-            cc = pycc.CC(MODULE_NAME, source_module=kernel)
+            cc = pycc.CC(module_name, source_module=kernel)
             cc.output_dir = str(tmp)
             cc.verbose = False
-            for arithmetic, value_type in ARITHMETIC_TYPES.items():
-                for name, sig in _signatures(value_type).items():
-                    cc.export(f"{name}_{arithmetic}", sig)(getattr(kernel, name).py_func)
+            for name, sig, fn in (exports() if exports is not None else kernel_exports()):
+                cc.export(name, sig)(fn)
             cc.compile()
         try:
             os.rename(tmp, final)                    # atomic; fails if another process got there first
         except OSError:
-            if _module_file(final) is None:
+            if _module_file(final, module_name) is None:
                 raise
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return _module_file(final)
+    return _module_file(final, module_name)
 
 
 def _lock_is_stale(lock: Path) -> bool:
@@ -161,11 +177,15 @@ def _lock_is_stale(lock: Path) -> bool:
     return False
 
 
-def _build_or_wait() -> ModuleType | None:
-    """The module: loaded, else built by this process (under the lock) or by another one (waited for);
-    None if the build failed, now or before, or took too long."""
-    final = aot_dir()
-    module = load(final)
+def build_or_wait(final: Path | None = None, *, module_name: str = MODULE_NAME,
+                  exports: Callable[[], list[tuple[str, str, Callable]]] | None = None,
+                  names: tuple[str, ...] = _EXPORTS, what: str = "") -> ModuleType | None:
+    """The module in ``final`` (default :func:`aot_dir`, the shipped kernel): loaded, else built by this process
+    (under the lock) or by another one (waited for: processes of one machine build it once); None if the build
+    failed, now or before, or took too long. ``module_name``, ``exports``, ``names``: another kernel's module
+    (:mod:`gaitlog.firmware_sim.algorithms.format_kernel`'s variants)."""
+    final = final if final is not None else aot_dir()
+    module = load(final, module_name=module_name, exports=names)
     if module is not None:
         return module
     failed = final.with_name(final.name + ".failed")
@@ -182,7 +202,7 @@ def _build_or_wait() -> ModuleType | None:
             if time.monotonic() > deadline:
                 return None
             time.sleep(0.2)
-            module = load(final)
+            module = load(final, module_name=module_name, exports=names)
             if module is not None:
                 return module
             continue
@@ -191,7 +211,7 @@ def _build_or_wait() -> ModuleType | None:
         try:
             os.write(fd, str(os.getpid()).encode())
             os.close(fd)
-            build(final)
+            build(final, module_name=module_name, exports=exports, what=what)
             prune_cache(final)                       # long-unused builds of other versions of the sources
         except Exception as exc:  # noqa: BLE001 - any build failure: recorded, numba's JIT is used instead
             try:
@@ -201,7 +221,7 @@ def _build_or_wait() -> ModuleType | None:
             return None
         finally:
             lock.unlink(missing_ok=True)
-        return load(final)
+        return load(final, module_name=module_name, exports=names)
     return None
 
 
@@ -235,7 +255,7 @@ def entry_points(arithmetic: str) -> tuple[tuple[EntryPoint, EntryPoint, EntryPo
     """
     found = _ENTRY_POINTS.get(arithmetic)
     if found is None:
-        module = _build_or_wait() if enabled() else None
+        module = build_or_wait() if enabled() else None
         if module is not None:
             fns, by = [getattr(module, f"{name}_{arithmetic}") for name in ENTRY_POINTS], "aot"
         else:

@@ -37,9 +37,10 @@ from gaitlog.firmware_sim.compiled import numba_types as types
 from gaitlog.firmware_sim.compiled import overload
 from gaitlog.firmware_sim.fixedpoint import (
     OP_MUL8,
+    ROUND_HALF_UP,
     s_add,
     s_cost,
-    s_div_round,
+    s_div_mode,
     s_isqrt,
     s_mul_q,
     s_requantize,
@@ -47,7 +48,17 @@ from gaitlog.firmware_sim.fixedpoint import (
     s_shift_right,
 )
 
-__all__ = ["mul", "add", "sub", "neg", "requant", "scale2", "div", "sqrt", "mul_count"]
+__all__ = ["mul", "add", "sub", "neg", "requant", "scale2", "div", "sqrt", "mul_count", "FIXED", "ROUNDING_CLASSES"]
+
+#: The rounding mode of each operation class (:data:`gaitlog.firmware_sim.fixedpoint.ROUNDING_MODES`): products
+#: (``mul``), right shifts (``requant``, ``scale2``, the divisor's and the square root's alignment) and quotients
+#: (``div``). The firmware's: half up everywhere (a quotient's magnitude: ties away from zero). A kernel compiled
+#: for other modes (:mod:`gaitlog.firmware_sim.algorithms.format_kernel`) replaces these constants.
+ROUND_MUL = ROUND_HALF_UP
+ROUND_SHIFT = ROUND_HALF_UP
+ROUND_DIV = ROUND_HALF_UP
+#: The operation classes and their constants' names.
+ROUNDING_CLASSES = {"mul": "ROUND_MUL", "shift": "ROUND_SHIFT", "div": "ROUND_DIV"}
 
 
 def _fixed(x) -> bool:
@@ -60,7 +71,7 @@ def _fixed(x) -> bool:
 
 def _mul_fixed(a, fa, b, fb, fo, bits, cnt):
     signed = bits > 0
-    return s_mul_q(a, b, fa + fb - fo, abs(bits), signed, True, False, cnt)
+    return s_mul_q(a, b, fa + fb - fo, abs(bits), signed, ROUND_MUL, False, cnt)
 
 
 def _add_fixed(a, b, bits, cnt):
@@ -76,23 +87,23 @@ def _neg_fixed(a, bits, cnt):
 
 
 def _requant_fixed(a, fa, fo, bits, cnt):
-    return s_requantize(a, fo - fa, abs(bits), bits > 0, True, False, cnt)
+    return s_requantize(a, fo - fa, abs(bits), bits > 0, ROUND_SHIFT, False, cnt)
 
 
 def _scale2_fixed(a, k, bits, cnt):
     if k >= 0:
         return s_shift_left(a, k, abs(bits), bits > 0, False, cnt)
-    return s_shift_right(a, -k, True, cnt)
+    return s_shift_right(a, -k, ROUND_SHIFT, cnt)
 
 
 def _div_fixed(a, fa, b, fb, fo, bits, cnt):
     s = fo - fa + fb          # the dividend's pre-shift: quotient frac = (fa + s) - fb = fo
-    n = s_shift_left(a, s, 32, True, False, cnt) if s >= 0 else s_shift_right(a, -s, True, cnt)
-    return s_div_round(n, b, abs(bits), bits > 0, cnt)
+    n = s_shift_left(a, s, 32, True, False, cnt) if s >= 0 else s_shift_right(a, -s, ROUND_SHIFT, cnt)
+    return s_div_mode(n, b, abs(bits), bits > 0, ROUND_DIV, cnt)
 
 
 def _sqrt_fixed(a, fa, fo, nearest, cnt):
-    x = s_requantize(a, 2 * fo - fa, 32, False, True, False, cnt)
+    x = s_requantize(a, 2 * fo - fa, 32, False, ROUND_SHIFT, False, cnt)
     return s_isqrt(x, nearest, cnt)
 
 
@@ -100,6 +111,11 @@ def _mul_count_fixed(a, n, bits, cnt):
     # value times a small non-negative integer (a sample count): a 32 x 8 multiply, four 8 x 8 products
     s_cost(cnt, OP_MUL8, 4)
     return s_add(0, a * n, abs(bits), bits > 0, False, cnt)
+
+
+#: The fixed-point implementation of each operation (a kernel compiled for other rounding modes compiles these).
+FIXED = {"mul": _mul_fixed, "add": _add_fixed, "sub": _sub_fixed, "neg": _neg_fixed, "requant": _requant_fixed,
+         "scale2": _scale2_fixed, "div": _div_fixed, "sqrt": _sqrt_fixed, "mul_count": _mul_count_fixed}
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ The on-line algorithm applies it per sample (:mod:`gaitlog.firmware_sim.algorith
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -79,6 +79,17 @@ class CalibrationQ:
     def from_protocol(cls, calibration: object, *, adc_bits: int = 10) -> CalibrationQ:
         """From a :class:`gaitlog.protocol.header.CalibrationSlot` (its ``offset_counts`` and ``matrix_g_per_count``)."""
         return cls.from_float(calibration.offset_counts, calibration.matrix_g_per_count, adc_bits=adc_bits)
+
+    def with_mantissa_bits(self, bits: int) -> CalibrationQ:
+        """The same calibration with mantissas of ``bits`` fraction bits instead of Q0.15's (rounded half up; a
+        sweep's question, the shipped ``bits`` give ``self``)."""
+        drop = MANTISSA_Q.frac_bits - int(bits)
+        if drop < 0:
+            raise ValueError(f"mantissa bits must be at most {MANTISSA_Q.frac_bits}, got {bits}")
+        if drop == 0:
+            return self
+        mant = (self.mantissa_raw + (1 << (drop - 1))) >> drop
+        return replace(self, mantissa_raw=mant, matrix_frac_bits=self.matrix_frac_bits - drop)
 
     @property
     def offset_counts(self) -> np.ndarray:

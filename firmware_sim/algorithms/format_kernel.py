@@ -20,31 +20,56 @@ import threading
 import types
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
-from gaitlog.firmware_sim.algorithms import kernel
+from gaitlog.firmware_sim.algorithms import arithmetic, kernel
 from gaitlog.firmware_sim.algorithms.formats import (
+    ACC2_Q,
     ACC_Q,
+    EXCURSION2_Q,
+    EXCURSION_Q,
+    FIR_SUM_Q,
     GRAVITY_Q,
+    K4_Q,
+    K_Q,
+    KERNEL_Q,
     LOWPASS_Q,
+    M5_Q,
+    MANTISSA_Q,
     POSITION2_Q,
     POSITION_Q,
+    ROOT4_Q,
+    STEP_Q,
     word,
 )
 from gaitlog.firmware_sim.compiled import load_numba
-from gaitlog.firmware_sim.fixedpoint import QFormat
+from gaitlog.firmware_sim.fixedpoint import ROUNDING_MODES, QFormat
 
-__all__ = ["MAX_VARIANTS", "KernelFormats", "compile_kernel", "entry_points"]
+__all__ = ["MAX_VARIANTS", "KernelFormats", "compile_kernel", "entry_points", "SHIPPED_ROUNDING"]
 
 #: Format sets whose compiled kernel a process keeps (a sweep cycles through its sets once per walk: keep them all).
 MAX_VARIANTS = 32
 #: The kernel's entry points (as :data:`gaitlog.firmware_sim.algorithms.aot_kernel.ENTRY_POINTS`).
 _NAMES = ("process", "flush", "reset")
-#: Each field's shipped format and its short name in a label.
+#: Each fraction-bits field's shipped format, its short name in a label (letters only: the bits follow) and the
+#: kernel constant it replaces (None: the configuration's, not compiled in).
 _SHIPPED = {"acc_frac_bits": ACC_Q, "gravity_frac_bits": GRAVITY_Q, "lowpass_frac_bits": LOWPASS_Q,
-            "position2_frac_bits": POSITION2_Q}
+            "position2_frac_bits": POSITION2_Q, "acc2_frac_bits": ACC2_Q, "fir_frac_bits": FIR_SUM_Q,
+            "kernel_frac_bits": KERNEL_Q, "excursion_frac_bits": EXCURSION_Q, "excursion2_frac_bits": EXCURSION2_Q,
+            "root_frac_bits": ROOT4_Q, "step_frac_bits": STEP_Q, "k_frac_bits": K_Q, "k4_frac_bits": K4_Q,
+            "m5_frac_bits": M5_Q, "mantissa_frac_bits": MANTISSA_Q}
 _SHORT = {"acc_frac_bits": "acc", "gravity_frac_bits": "grav", "lowpass_frac_bits": "lp",
-          "position2_frac_bits": "m2pos"}
+          "position2_frac_bits": "m2pos", "acc2_frac_bits": "sq", "fir_frac_bits": "fir", "kernel_frac_bits": "kern",
+          "excursion_frac_bits": "exc", "excursion2_frac_bits": "excc", "root_frac_bits": "root",
+          "step_frac_bits": "step", "k_frac_bits": "k", "k4_frac_bits": "kw", "m5_frac_bits": "cad",
+          "mantissa_frac_bits": "mant", "lowpass_int_bits": "lpint"}
+_CONSTANT = {"acc2_frac_bits": "F_ACC2", "fir_frac_bits": "F_FIR", "kernel_frac_bits": "F_KERNEL",
+             "excursion_frac_bits": "F_EXC", "excursion2_frac_bits": "F_EXC2", "root_frac_bits": "F_ROOT",
+             "step_frac_bits": "F_STEP", "k_frac_bits": "F_K", "k4_frac_bits": "F_K4", "m5_frac_bits": "F_M5"}
+#: The rounding fields (operation classes of :data:`gaitlog.firmware_sim.algorithms.arithmetic.ROUNDING_CLASSES`).
+_ROUNDING = {"mul_rounding": "mul", "shift_rounding": "shift", "div_rounding": "div"}
+#: The firmware's rounding mode of every class.
+SHIPPED_ROUNDING = "half-up"
 
 
 @dataclass(frozen=True)
@@ -74,25 +99,51 @@ class KernelFormats:
     gravity_frac_bits: int = GRAVITY_Q.frac_bits
     lowpass_frac_bits: int = LOWPASS_Q.frac_bits
     position2_frac_bits: int = POSITION2_Q.frac_bits
+    acc2_frac_bits: int = ACC2_Q.frac_bits
+    fir_frac_bits: int = FIR_SUM_Q.frac_bits
+    kernel_frac_bits: int = KERNEL_Q.frac_bits
+    excursion_frac_bits: int = EXCURSION_Q.frac_bits
+    excursion2_frac_bits: int = EXCURSION2_Q.frac_bits
+    root_frac_bits: int = ROOT4_Q.frac_bits
+    step_frac_bits: int = STEP_Q.frac_bits
+    k_frac_bits: int = K_Q.frac_bits
+    k4_frac_bits: int = K4_Q.frac_bits
+    m5_frac_bits: int = M5_Q.frac_bits
+    mantissa_frac_bits: int = MANTISSA_Q.frac_bits
+    lowpass_int_bits: int = LOWPASS_Q.int_bits
+    mul_rounding: str = SHIPPED_ROUNDING
+    shift_rounding: str = SHIPPED_ROUNDING
+    div_rounding: str = SHIPPED_ROUNDING
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            v, top = getattr(self, f.name), _SHIPPED[f.name].frac_bits
+        for name in self.field_names():
+            v, top = getattr(self, name), _SHIPPED[name].frac_bits
             if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= top:
-                raise ValueError(f"{f.name} must be an integer 1 .. {top} (the shipped format's), got {v!r}")
+                raise ValueError(f"{name} must be an integer 1 .. {top} (the shipped format's), got {v!r}")
+        top = LOWPASS_Q.word_bits - 1 - self.lowpass_frac_bits
+        w = self.lowpass_int_bits
+        if isinstance(w, bool) or not isinstance(w, int) or not 0 <= w <= top:
+            raise ValueError(f"lowpass_int_bits must be an integer 0 .. {top} (sign + integer + fraction bits within "
+                             f"the {LOWPASS_Q.word_bits}-bit RAM word), got {w!r}")
+        for name in _ROUNDING:
+            if getattr(self, name) not in ROUNDING_MODES:
+                raise ValueError(f"{name} must be one of {', '.join(ROUNDING_MODES)}, got {getattr(self, name)!r}")
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
-        """The fields, in order."""
-        return tuple(f.name for f in fields(cls))
+        """The fraction-bits fields, in order."""
+        return tuple(f.name for f in fields(cls) if f.name.endswith("_frac_bits"))
 
     @classmethod
-    def parse(cls, label: str) -> KernelFormats:
+    def parse(cls, label: str, rounding: str = "shipped") -> KernelFormats:
         """The formats of a :meth:`label` (``"shipped"``, or ``acc10-lp12``: the fields named, in any order,
-        each with its fraction bits; the others shipped). Raises ValueError naming what is wrong."""
+        each with its fraction bits, ``lpw17`` the lowpass word's bits; the others shipped) and the rounding of
+        a :meth:`rounding_label` (``"shipped"``, a mode for every class, or ``mul:truncate+div:convergent``).
+        Raises ValueError naming what is wrong."""
+        modes = cls.parse_rounding(rounding)
         text = label.strip()
         if text == "shipped":
-            return cls()
+            return cls(**modes)
         by_short = {v: k for k, v in _SHORT.items()}
         kw: dict[str, int] = {}
         for part in text.split("-"):
@@ -105,20 +156,63 @@ class KernelFormats:
                 raise ValueError(f"Q formats {label!r}: {m.group(1)} given twice")
             kw[name] = int(m.group(2))
         try:
-            return cls(**kw)
+            return cls(**kw, **modes)
         except ValueError as err:
             raise ValueError(f"Q formats {label!r}: {err}") from None
 
+    @staticmethod
+    def parse_rounding(label: str) -> dict[str, str]:
+        """The rounding fields of a :meth:`rounding_label` (ValueError naming what is wrong)."""
+        text = label.strip()
+        if text == "shipped":
+            return {}
+        if text in ROUNDING_MODES:
+            return dict.fromkeys(_ROUNDING, text)
+        by_class = {v: k for k, v in _ROUNDING.items()}
+        out: dict[str, str] = {}
+        for part in text.split("+"):
+            cls_name, _, mode = part.partition(":")
+            if cls_name not in by_class or mode not in ROUNDING_MODES:
+                raise ValueError(f"rounding {label!r}: {part!r} is not CLASS:MODE with CLASS one of "
+                                 f"{', '.join(by_class)} and MODE one of {', '.join(ROUNDING_MODES)} (e.g. "
+                                 f"mul:truncate+div:convergent), nor a MODE alone, nor 'shipped'")
+            if by_class[cls_name] in out:
+                raise ValueError(f"rounding {label!r}: {cls_name} given twice")
+            out[by_class[cls_name]] = mode
+        return out
+
     def label(self) -> str:
-        """``"shipped"``, else the fields that differ from it, e.g. ``acc10-lp12`` (:meth:`parse` reads it)."""
+        """``"shipped"``, else the fields that differ from it, e.g. ``acc10-lp12`` (:meth:`parse` reads it; the
+        rounding is :meth:`rounding_label`'s)."""
         parts = [f"{_SHORT[n]}{getattr(self, n)}" for n in self.field_names()
                  if getattr(self, n) != _SHIPPED[n].frac_bits]
+        if self.lowpass_int_bits != LOWPASS_Q.int_bits:
+            parts.append(f"{_SHORT['lowpass_int_bits']}{self.lowpass_int_bits}")
         return "-".join(parts) if parts else "shipped"
+
+    def rounding_label(self) -> str:
+        """``"shipped"``, one mode (every class), or the classes that differ, e.g. ``mul:truncate``."""
+        modes = {n: getattr(self, n) for n in _ROUNDING}
+        if all(m == SHIPPED_ROUNDING for m in modes.values()):
+            return "shipped"
+        if len(set(modes.values())) == 1:
+            return next(iter(modes.values()))
+        return "+".join(f"{_ROUNDING[n]}:{m}" for n, m in modes.items() if m != SHIPPED_ROUNDING)
 
     @property
     def shipped(self) -> bool:
         """True for the firmware's own formats (the kernel built ahead of time runs them)."""
         return self == KernelFormats()
+
+    @property
+    def compiled_shipped(self) -> bool:
+        """True when the kernel's compile-time constants are the firmware's (the kernel built ahead of time runs
+        them; the calibration's mantissa bits are configuration)."""
+        return replace(self, mantissa_frac_bits=MANTISSA_Q.frac_bits).shipped
+
+    def rounding_constants(self) -> dict[str, int]:
+        """The arithmetic's rounding constants these modes replace (``ROUND_MUL``...)."""
+        return {arithmetic.ROUNDING_CLASSES[c]: ROUNDING_MODES[getattr(self, n)] for n, c in _ROUNDING.items()}
 
     def q(self, name: str) -> QFormat:
         """The format of field ``name`` (e.g. ``"acc_frac_bits"``): the shipped one with these fraction bits
@@ -148,17 +242,26 @@ class KernelFormats:
         """The FIR outputs' format."""
         return self.q("lowpass_frac_bits")
 
+    @property
+    def lowpass_word_bits(self) -> int:
+        """The lowpass outputs' word, where they saturate: sign + integer + fraction bits (shipped 19, in a
+        24-bit RAM word)."""
+        return 1 + self.lowpass_int_bits + self.lowpass_frac_bits
+
     def theory_bits(self) -> dict[str, int]:
         """The fraction bits the quantisation theory's arithmetic share takes
         (:func:`gaitlog.host.studies.quantisation_theory.arithmetic_sigma_m`'s keywords)."""
-        return {"acc_frac_bits": self.acc_frac_bits, "lowpass_frac_bits": self.lowpass_frac_bits}
+        return {"acc_frac_bits": self.acc_frac_bits, "lowpass_frac_bits": self.lowpass_frac_bits,
+                "excursion_frac_bits": (self.excursion_frac_bits, self.excursion2_frac_bits),
+                "step_frac_bits": self.step_frac_bits, "k_frac_bits": self.k_frac_bits,
+                "k4_frac_bits": self.k4_frac_bits}
 
     def constants(self) -> dict[str, int]:
         """The kernel's compile-time integers these formats replace (names as in ``formats``)."""
-        lp = self.lowpass_q
         return {"F_ACC": self.acc_frac_bits, "F_POS": self.acc_frac_bits, "F_GRAV": self.gravity_frac_bits,
-                "F_LP": self.lowpass_frac_bits, "W_LP": word(QFormat(LOWPASS_Q.int_bits, lp.frac_bits, word_bits=LOWPASS_Q.word_bits)),
-                "F_POS2": self.position2_frac_bits}
+                "F_LP": self.lowpass_frac_bits, "W_LP": self.lowpass_word_bits,
+                "F_POS2": self.position2_frac_bits,
+                **{c: getattr(self, n) for n, c in _CONSTANT.items()}}
 
 
 _VARIANTS: OrderedDict[KernelFormats, tuple[Callable, Callable, Callable]] = OrderedDict()
@@ -176,15 +279,29 @@ def _kernel_functions(namespace: dict) -> dict[str, types.FunctionType]:
     return out
 
 
+def _rounding_arithmetic(formats: KernelFormats, numba: types.ModuleType) -> types.ModuleType:
+    """The arithmetic vocabulary of the fixed point (:data:`arithmetic.FIXED`) compiled with ``formats``' rounding
+    constants, as a module the kernel's copy calls (``ar.mul`` ...): the same functions' code, other globals."""
+    namespace = dict(vars(arithmetic))
+    namespace.update(formats.rounding_constants())
+    module = types.ModuleType(f"{arithmetic.__name__}[{formats.rounding_label()}]")
+    for name, py in arithmetic.FIXED.items():
+        fn = types.FunctionType(py.__code__, namespace, py.__name__, py.__defaults__, py.__closure__)
+        setattr(module, name, numba.njit(cache=False)(fn))
+    return module
+
+
 def compile_kernel(formats: KernelFormats) -> tuple[Callable, Callable, Callable]:
     """``process``, ``flush``, ``reset`` compiled now for ``formats`` (any set, the shipped one included: the
-    tests check that this gives the kernel built ahead of time bit for bit); not kept (:func:`entry_points`)."""
+    tests check that this gives the kernel built ahead of time bit for bit); not kept (:func:`entry_points`).
+    Fixed point only: the arithmetic is the fixed-point one, with ``formats``' rounding modes."""
     numba = load_numba()
     namespace = dict(vars(kernel))
     namespace.update(formats.constants())
+    namespace["ar"] = _rounding_arithmetic(formats, numba)
     for name, py in _kernel_functions(vars(kernel)).items():
         fn = types.FunctionType(py.__code__, namespace, py.__name__, py.__defaults__, py.__closure__)
-        fn.__qualname__ = f"{py.__qualname__}[{formats.label()}]"
+        fn.__qualname__ = f"{py.__qualname__}[{formats.label()}/{formats.rounding_label()}]"
         namespace[name] = numba.njit(cache=False)(fn)
     return tuple(namespace[n] for n in _NAMES)
 
@@ -194,7 +311,7 @@ def entry_points(formats: KernelFormats) -> tuple[Callable, Callable, Callable]:
 
     Raises ValueError for the shipped formats: they run the kernel built ahead of time.
     """
-    if formats.shipped:
+    if formats.compiled_shipped:
         raise ValueError("the shipped formats run the kernel built ahead of time (aot_kernel.entry_points)")
     with _LOCK:
         found = _VARIANTS.get(formats)

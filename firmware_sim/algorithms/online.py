@@ -43,7 +43,6 @@ from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.formats import (
     EXCURSION2_Q,
     EXCURSION_Q,
-    K4_Q,
     K_Q,
     KERNEL_Q,
     LENGTH_Q,
@@ -77,6 +76,7 @@ from gaitlog.firmware_sim.fixedpoint import (
     C_SAT,
     C_WRAP,
     ArithmeticContext,
+    QFormat,
     cycles_per_sample_available,
     mul_q,
     new_counters,
@@ -113,10 +113,11 @@ def _gaussian_half(cutoff_hz: float, sampling_rate_hz: float, radius: int) -> np
     return phi[radius:]
 
 
-def _kernel_q(half: np.ndarray) -> np.ndarray:
-    """Q1.14 half kernel whose full kernel sums to exactly 2^14 (the rounding residue in the centre tap)."""
-    one = 1 << KERNEL_Q.frac_bits
-    q = np.asarray(KERNEL_Q.from_float(half), np.int64)
+def _kernel_q(half: np.ndarray, fmt: QFormat = KERNEL_Q) -> np.ndarray:
+    """Q1.14 half kernel (or ``fmt``'s) whose full kernel sums to exactly 2^14 (the rounding residue in the centre
+    tap)."""
+    one = 1 << fmt.frac_bits
+    q = np.asarray(fmt.from_float(half), np.int64)
     q[0] += one - (q[0] + 2 * int(q[1:].sum()))
     return q
 
@@ -203,7 +204,7 @@ class OnlineConfig:
         if not sc.leg_length_m > 0:
             raise ValueError("the step configuration needs a leg length > 0")
         cal_q = (CalibrationQ.from_protocol(calibration, adc_bits=adc_bits) if calibration is not None
-                 else nominal_calibration_q(adc_bits=adc_bits))
+                 else nominal_calibration_q(adc_bits=adc_bits)).with_mantissa_bits(fq.mantissa_frac_bits)
         halves = [_gaussian_half(ev.ff_cutoff_hz, sampling_rate_hz, c.r3), _gaussian_half(ev.detail_cutoff_hz, sampling_rate_hz, c.r10),
                   _gaussian_half(ev.impact_cutoff_hz, sampling_rate_hz, c.r5)]
         w10 = kernel.CV_W3 + c.r3 + 1
@@ -236,24 +237,27 @@ class OnlineConfig:
             raw = sc.raw if cal else dict(sc.raw, k_m1_q15=1 << 15, k_m2_q15=1 << 15, k_m4_q15=1 << 15,
                                           k1_m5_q16=1 << 16, k2_m5_q16=0)
             # K' = K g0^p: one UQ1.15 multiply at START
-            k4p = int(mul_q(np.int64(raw["k_m4_q15"]), K4_Q.from_float(G0_POWER_M4), K_Q.frac_bits, K4_Q, signed=False))
+            k_q, k4_q, m5_q = fq.q("k_frac_bits"), fq.q("k4_frac_bits"), fq.q("m5_frac_bits")
+            k4p = int(mul_q(np.int64(raw["k_m4_q15"]), k4_q.from_float(G0_POWER_M4), K_Q.frac_bits, k4_q, signed=False))
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
                 DELTA=int(fq.lowpass_q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 CAP=int(fq.lowpass_q.from_float(ev.max_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
-                FRAC=int(KERNEL_Q.from_float(ev.prominence_fraction)),
+                FRAC=int(fq.q("kernel_frac_bits").from_float(ev.prominence_fraction)),
                 STOP=int(fq.lowpass_q.from_float(ev.stop_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 G_MIN=int(fq.acc_q.from_float(on.min_gravity_g)),
                 TWO_LEG=raw["leg_length_q15"],                       # UQ1.15 l read as UQ2.14: 2 l
-                FOOT=int(requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, TWO_LENGTH_Q)),
-                K1=raw["k_m1_q15"], K2=raw["k_m2_q15"], K4=k4p,
-                K1FS=int(M5_Q.from_float(k1fs / 2 ** 16)),
-                K2M5=raw["k2_m5_q16"],
+                # the foot is added to M3's pendulum length: in the step format (UQ2.14, as TWO_LENGTH_Q)
+                FOOT=int(requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, fq.q("step_frac_bits"))),
+                K1=int(requantize(np.int64(raw["k_m1_q15"]), K_Q, k_q)),
+                K2=int(requantize(np.int64(raw["k_m2_q15"]), K_Q, k_q)), K4=k4p,
+                K1FS=int(m5_q.from_float(k1fs / 2 ** 16)),
+                K2M5=int(requantize(np.int64(raw["k2_m5_q16"]), M5_Q, m5_q)),
                 UNIT=int(math.floor(unit * 2 ** unit_frac + 0.5)),
             )
             cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = cal_q.offset_raw
             cfg_v[kernel.CV_M:kernel.CV_M + 9] = cal_q.mantissa_raw.reshape(9)
-            weights = [_kernel_q(h) for h in halves]
+            weights = [_kernel_q(h, fq.q("kernel_frac_bits")) for h in halves]
         else:
             cfg_v = np.zeros(n_v, np.float64)
             values = dict(
@@ -349,14 +353,16 @@ class OnlineSteps:
 
     def length_m(self) -> np.ndarray:
         """``(n, 5)`` lengths in metres (fixed point converted; 0 stays 0)."""
-        return STEP_Q.to_float(self.lengths) if self.arithmetic == "fixed" else np.asarray(self.lengths, float)
+        return (self.formats.q("step_frac_bits").to_float(self.lengths) if self.arithmetic == "fixed"
+                else np.asarray(self.lengths, float))
 
     def excursion_m(self) -> np.ndarray:
         """``(n, 3)`` vertical excursions h (M1), h (M2), h1 (M3) in metres."""
         x = self.extras[:, :3]
         if self.arithmetic != "fixed":
             return np.asarray(x, float)
-        return np.column_stack([EXCURSION_Q.to_float(x[:, 0]), EXCURSION2_Q.to_float(x[:, 1:])])
+        return np.column_stack([self.formats.q("excursion_frac_bits").to_float(x[:, 0]),
+                                self.formats.q("excursion2_frac_bits").to_float(x[:, 1:])])
 
     def range_g(self) -> np.ndarray:
         """``(n,)`` M4's range of the 3 Hz vertical acceleration, g."""
@@ -474,7 +480,7 @@ class OnlineStepAlgorithm:
         self._cnt = new_counters()
         self._cyc = np.zeros(6, np.int64)
         self._fed = 0                # samples fed since the last reset (the driver's count; the kernel's N is 16-bit)
-        if self.arithmetic == "fixed" and not self.config.formats.shipped:
+        if self.arithmetic == "fixed" and not self.config.formats.compiled_shipped:
             (self._process, self._flush, self._reset), self.compiled_by = (
                 format_kernel.entry_points(self.config.formats), "jit")
         else:

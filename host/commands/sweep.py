@@ -74,6 +74,15 @@ def _q_formats(text: str) -> str:
         raise argparse.ArgumentTypeError(str(err)) from None
 
 
+def _rounding(text: str) -> str:
+    from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
+
+    try:
+        return KernelFormats.parse("shipped", text).rounding_label()
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 #: The estimators' names (as :data:`gaitlog.firmware_sim.algorithms.steps.ESTIMATORS`; not imported: --help stays light).
 ESTIMATOR_NAMES = ("M1", "M2", "M3", "M4", "M5")
 
@@ -113,7 +122,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="results folder (created; re-running with the same folder resumes)")
     parser.add_argument("--spec", metavar="FILE", help="grid spec, .json or .toml (keys: adc_bits, sampling_rate_hz, "
-                        "noise_density_g_rthz, q_formats, misalignment_deg, population, the converter/sensor keys of "
+                        "noise_density_g_rthz, q_formats, rounding, misalignment_deg, population, the converter/sensor keys of "
                         "--list-dimensions, subjects, seeds, estimators, protocol); "
                         "the options below override it")
     grid = parser.add_argument_group("grid (default: 8,10,12 bits x 25,50,100 Hz, the sensor's noise, 4 subjects, seed 0)")
@@ -123,9 +132,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
                       help="sensor white-noise densities, g/√Hz (the ADXL202E's: 200e-6)")
     grid.add_argument("--q-formats", type=_list(_q_formats), metavar="SET,SET",
                       help="Q-format sets of the fixed-point chain: 'shipped' or fraction bits of the variables "
-                      "changed, e.g. shipped,acc10,acc8,lp12,grav20,m2pos13 (acc: a_v and its integrals, grav: "
-                      "gravity, lp: lowpass outputs, m2pos: M2's position); each non-shipped set is JIT-compiled "
-                      "once per worker (~10-25 s)")
+                      "changed, e.g. shipped,acc10,acc8,lp12,grav20,m2pos13,k12 (acc: a_v and its integrals, grav: "
+                      "gravity, lp: lowpass outputs, m2pos: M2's position; sq, fir, kern, exc, excc, root, step, k, "
+                      "kw, cad, mant: the other formats, --list-dimensions; lpintN: the lowpass's integer bits); "
+                      "each non-shipped set is compiled once per machine (~10-25 s), kept in the compile cache")
+    grid.add_argument("--rounding", type=_list(_rounding), metavar="R,R",
+                      help="rounding of the fixed-point chain: shipped, truncate, half-up, convergent (every "
+                      "operation class) or per class, e.g. shipped,truncate,mul:truncate+div:convergent (classes "
+                      "mul, shift, div)")
     grid.add_argument("--misalignment", type=_list(number(minimum=-45, maximum=45, unit="degrees")), metavar="DEG,DEG",
                       help="extra mounting tilt of the logger (pitch), degrees (negative: --misalignment=-5,0,5)")
     grid.add_argument("--population", type=_list(str), metavar="P,P",
@@ -173,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
     spec = SweepGrid.load(args.spec).to_spec() if args.spec else {}
     for key, value in (("adc_bits", args.adc_bits), ("sampling_rate_hz", args.logger_rate),
                        ("noise_density_g_rthz", args.noise_density), ("q_formats", args.q_formats),
+                       ("rounding", args.rounding),
                        ("misalignment_deg", args.misalignment), ("population", args.population),
                        *((key, getattr(args, key)) for key, *_ in EFFECT_OPTIONS), ("subjects", args.subjects),
                        ("seeds", args.seeds), ("estimators", args.estimators), ("protocol", args.protocol)):
@@ -191,7 +206,8 @@ def run(args: argparse.Namespace) -> int:
         f"{len(grid.misalignment_deg)} misalignment(s) x {grid.subjects} subject(s) x "
         f"{len(grid.sampling_rate_hz)} rate(s) x {len(grid.noise_density_g_rthz)} noise level(s) x "
         f"{len(grid.effect_sets())} converter/sensor setting(s) x "
-        f"{len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC width(s)), {n_done} already in "
+        f"{len(grid.rounding)} rounding(s) x {len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC "
+        f"width(s)), {n_done} already in "
         f"{store.tasks_folder}")
     t = time.perf_counter()
     with progress_bar(args, len(tasks) - n_done, "task") as tick:
@@ -208,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
     results = store.collect(tasks)         # rows of a folder from before the effects were dimensions: effects off
     sections = [with_effects(r) for res in results for r in res["sections"]]
     splits = [with_effects(r) for res in results for r in res["splits"]]
-    summary = summarise(sections, splits)
+    summary = summarise(sections, splits, [res["task"] for res in results])
     smallest = smallest_adc_bits(summary)
     smallest_q = smallest_q_formats(summary)
     m5 = m5_rate_answer(sections)

@@ -44,6 +44,7 @@ __all__ = ["DIMENSIONS", "figure_dimensions", "render_error_vs_png"]
 DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger sampling rate, Hz", 50.0),
               "noise_density_g_rthz": ("sensor noise density, µg/√Hz", SENSOR_NOISE_G_RTHZ),
               "q_formats": ("Q formats of the fixed-point chain", "shipped"),
+              "rounding": ("rounding of the fixed-point chain", "shipped"),
               "misalignment_deg": ("extra mounting tilt, degrees", 0.0),
               "population": ("simulated population", DEFAULT_POPULATION),
               **{k: (f"{label}, {EFFECT_DIMENSIONS[k][1]}", 0.0) for k, label in (
@@ -53,7 +54,7 @@ DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger 
                   ("source_capacitance_nf", "source capacitance"), ("flicker_corner_hz", "1/f corner"),
                   ("temperature_swing_c", "temperature swing"))}}
 #: Dimensions drawn as categories (in the grid's order), not on a numeric axis.
-_CATEGORICAL = ("q_formats", "population")
+_CATEGORICAL = ("q_formats", "population", "rounding")
 
 
 def _values(summary: list[dict], key: str) -> list:
@@ -86,8 +87,8 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
         xs = sorted(xs)
     scale = 1e6 if dimension == "noise_density_g_rthz" else 1.0
     pos = {x: (i if categorical else x * scale) for i, x in enumerate(xs)}
-    panels = [("adc_step_mm", "ADC share |offline − ideal|, mm/step", STEP_TOLERANCE_MM, 1.0),
-              ("arith_step_mm", "arithmetic share |fixed − float|, mm/step", STEP_TOLERANCE_MM, 1.0),
+    panels = [("adc_step_mm", "ADC share |offline − ideal|, mm/step (x: theory)", STEP_TOLERANCE_MM, 1.0),
+              ("arith_step_mm", "arithmetic share |fixed − float|, mm/step (x: theory)", STEP_TOLERANCE_MM, 1.0),
               ("subject_median_offline", "offline section ratio, % of real", None, 100.0)]
     with_m5 = dimension == "sampling_rate_hz" and m5 is not None and bool(m5.get("rows"))
     fig = Figure(figsize=(3.4 * (len(panels) + with_m5), 3.4))
@@ -109,6 +110,10 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
             err = np.vstack([np.clip(m - lo_, 0, None), np.clip(hi_ - m, 0, None)])
             ax.errorbar(x, m, yerr=np.where(np.isfinite(err), err, 0.0), marker="o", ms=3, lw=1, capsize=2,
                         color=f"C{ESTIMATORS.index(est)}", label=est)
+            if col in ("adc_step_mm", "arith_step_mm"):                   # the quantisation theory beside it
+                theory = np.array([k * r.get(f"{col}_theory", np.nan) for r in pts], float)
+                ax.plot(x, np.where(theory > 0, theory, np.nan), ls=":", marker="x", ms=4, lw=1,
+                        color=f"C{ESTIMATORS.index(est)}")
         if tol is not None:
             ax.axhline(tol, color="0.4", ls="--", lw=0.8)
             ax.set_yscale("log")

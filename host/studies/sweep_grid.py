@@ -147,7 +147,11 @@ SPEC_KEYS = {
     "adc_bits": "ADC widths, bits",
     "sampling_rate_hz": "logger sampling rates, Hz",
     "noise_density_g_rthz": "sensor white-noise densities, g/√Hz",
-    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12: acc, grav, lp, m2pos)",
+    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12-k12: fraction bits of acc, "
+                 "grav, lp, m2pos, sq, fir, kern, exc, excc, root, step, k, kw, cad, mant; lpint: the lowpass's "
+                 "integer bits)",
+    "rounding": "rounding of the fixed-point chain (shipped, truncate, half-up, convergent, or per operation class, "
+                "e.g. mul:truncate+div:convergent)",
     "misalignment_deg": "extra mounting tilts of the logger (pitch), degrees",
     "population": f"simulated populations ({', '.join(POPULATION_PLANS)})",
     **{k: f"{v[0]}, {v[1]}" for k, v in EFFECT_DIMENSIONS.items()},
@@ -160,10 +164,10 @@ SPEC_KEYS = {
 RATIO_KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Configuration columns, first in every row.
 CONFIG_COLUMNS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                  "population", "protocol", "seed", *EFFECT_DIMENSIONS)
+                  "population", "protocol", "seed", *EFFECT_DIMENSIONS, "rounding")
 #: The configuration columns a summary row is grouped by (the others are pooled).
 SUMMARY_KEYS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                "population", *EFFECT_DIMENSIONS)
+                "population", *EFFECT_DIMENSIONS, "rounding")
 SECTION_COLUMNS = CONFIG_COLUMNS + ("subject", "excursion", "speed_label", "section", "real_m", "mode", "estimator") \
     + tuple(f"ratio_{k}" for k in RATIO_KINDS)
 SPLIT_COLUMNS = CONFIG_COLUMNS + ("subject", "share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm",
@@ -172,7 +176,8 @@ SUMMARY_COLUMNS = (SUMMARY_KEYS + ("mode", "estimator", "n_subjects", "n_section
                    + tuple(f"{q}_{k}" for k in RATIO_KINDS[:-1] for q in ("median", "iqr"))
                    + ("subject_median_offline_lo", "subject_median_offline_hi", "adc_ratio_abs_max",
                       "adc_step_mm", "arith_ratio_abs_max", "arith_step_mm", "arith_step_mm_lo", "arith_step_mm_hi",
-                      "adc_step_mm_lo", "adc_step_mm_hi", "adc_step_mm_theory", "arith_step_mm_theory"))
+                      "adc_step_mm_lo", "adc_step_mm_hi", "adc_step_mm_theory", "arith_step_mm_theory",
+                      "ram_bytes", "cycles_per_sample", "cpu_load"))
 #: The quantisation question's tolerances: per-step ``|offline - ideal|`` median and section-ratio difference.
 STEP_TOLERANCE_MM = 1.0
 RATIO_TOLERANCE = 0.01
@@ -203,6 +208,7 @@ class SweepTask:
     source_capacitance_nf: float = 0.0
     flicker_corner_hz: float = 0.0
     temperature_swing_c: float = 0.0
+    rounding: str = "shipped"
 
     @property
     def group(self) -> tuple:
@@ -213,11 +219,13 @@ class SweepTask:
     def key(self) -> str:
         """A file-name-safe name, unique for the task's fields (readable part + hash of all fields; the effects
         of :data:`EFFECT_DIMENSIONS` only when on, so the tasks of an earlier grid keep their names)."""
-        text = json.dumps({k: v for k, v in asdict(self).items() if k not in EFFECT_DIMENSIONS or v != 0.0},
+        text = json.dumps({k: v for k, v in asdict(self).items() if k not in _DEFAULTS or v != _DEFAULTS[k]},
                           sort_keys=True)
         digest = hashlib.sha256(text.encode()).hexdigest()[:12]
+        rounding = "" if self.rounding == "shipped" else f"{self.rounding.replace(':', '.')}-"
         return (f"seed{self.seed}-s{self.subject_index}-{self.adc_bits}b-{self.sampling_rate_hz:g}Hz-"
-                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{effects_label(asdict(self), sep='-')}{digest}")
+                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{rounding}{effects_label(asdict(self), sep='-')}"
+                f"{digest}")
 
     def effects(self) -> dict[str, float]:
         """The values of :data:`EFFECT_DIMENSIONS`."""
@@ -243,6 +251,7 @@ class SweepGrid:
     source_capacitance_nf: tuple[float, ...] = (0.0,)
     flicker_corner_hz: tuple[float, ...] = (0.0,)
     temperature_swing_c: tuple[float, ...] = (0.0,)
+    rounding: tuple[str, ...] = ("shipped",)
     subjects: int = 4
     seeds: tuple[int, ...] = (0,)
     estimators: tuple[str, ...] = ESTIMATORS
@@ -253,16 +262,16 @@ class SweepGrid:
         for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                     "population", "seeds", "estimators", *EFFECT_DIMENSIONS):
+                     "population", "seeds", "estimators", "rounding", *EFFECT_DIMENSIONS):
             if not getattr(self, name):
                 raise HostError(f"sweep grid: {name} is empty")
-        labels = []
-        for q in self.q_formats:
-            try:
-                labels.append(KernelFormats.parse(q).label())
-            except ValueError as err:
-                raise HostError(f"sweep grid: {err}") from None
+        try:
+            labels = [KernelFormats.parse(q).label() for q in self.q_formats]
+            roundings = [KernelFormats.parse("shipped", r).rounding_label() for r in self.rounding]
+        except ValueError as err:
+            raise HostError(f"sweep grid: {err}") from None
         object.__setattr__(self, "q_formats", tuple(labels))         # canonical labels
+        object.__setattr__(self, "rounding", tuple(roundings))
         for m in self.misalignment_deg:
             if not (math.isfinite(m) and abs(m) <= MAX_MISALIGNMENT_DEG):
                 raise HostError(f"sweep grid: misalignment {m:g} degrees outside ±{MAX_MISALIGNMENT_DEG:g}")
@@ -271,7 +280,7 @@ class SweepGrid:
             raise HostError(f"sweep grid: unknown population(s) {', '.join(unknown_pop)}; known: "
                             f"{', '.join(POPULATION_PLANS)}")
         for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                     "population", "seeds", *EFFECT_DIMENSIONS):
+                     "population", "seeds", "rounding", *EFFECT_DIMENSIONS):
             values = getattr(self, name)
             if len(set(values)) != len(values):
                 raise HostError(f"sweep grid: {name} lists a value twice")
@@ -307,7 +316,7 @@ class SweepGrid:
         if unknown:
             raise HostError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
         kinds = {"adc_bits": int, "sampling_rate_hz": float, "noise_density_g_rthz": float, "seeds": int,
-                 "estimators": str, "q_formats": str, "misalignment_deg": float, "population": str,
+                 "estimators": str, "q_formats": str, "misalignment_deg": float, "population": str, "rounding": str,
                  **dict.fromkeys(EFFECT_DIMENSIONS, float)}
         kw: dict[str, Any] = {}
         for key, value in spec.items():
@@ -356,12 +365,12 @@ class SweepGrid:
 
     def tasks(self) -> list[SweepTask]:
         """Every task, seed by seed, population, misalignment and subject (the walk's order), then rate, noise,
-        the converter's and sensor's effects, Q formats and width."""
+        the converter's and sensor's effects, rounding, Q formats and width."""
         return [SweepTask(seed, i, self.subjects, b, float(r), float(n), self.protocol, tuple(self.estimators),
-                          self.calibration_sections, q, float(m), pop, **effects)
+                          self.calibration_sections, q, float(m), pop, **effects, rounding=rd)
                 for seed in self.seeds for pop in self.population for m in self.misalignment_deg
                 for i in range(self.subjects) for r in self.sampling_rate_hz
-                for n in self.noise_density_g_rthz for effects in self.effect_sets()
+                for n in self.noise_density_g_rthz for effects in self.effect_sets() for rd in self.rounding
                 for q in self.q_formats for b in self.adc_bits]
 
     def effect_sets(self) -> list[dict[str, float]]:
@@ -426,7 +435,7 @@ def run_task(task: SweepTask) -> dict:
     sensor_changes, converter = effects_of(task.effects(), walk)
     sw = walk.sample(task.sampling_rate_hz, noise_density_g_rthz=task.noise_density_g_rthz,
                      sensor_changes=sensor_changes, converter=converter)
-    formats = KernelFormats.parse(task.q_formats)
+    formats = KernelFormats.parse(task.q_formats, task.rounding)
     fixed = OnlineStepAlgorithm if formats.shipped else functools.partial(OnlineStepAlgorithm, formats=formats)
     result = compare_walk(sw, subject, adc_bits=task.adc_bits, calibration_sections=task.calibration_sections,
                           fixed_algorithm=fixed)
@@ -434,7 +443,7 @@ def run_task(task: SweepTask) -> dict:
     config = dict(adc_bits=task.adc_bits, sampling_rate_hz=task.sampling_rate_hz,
                   noise_density_g_rthz=task.noise_density_g_rthz, q_formats=task.q_formats,
                   misalignment_deg=task.misalignment_deg, population=task.population, protocol=task.protocol,
-                  seed=task.seed, **task.effects())
+                  seed=task.seed, **task.effects(), rounding=task.rounding)
     keep = set(task.estimators)
     theory = predicted_step_errors_mm(sw, subject, result, task.adc_bits, formats)
     sections = [config | {k: _plain(s[k]) for k in SECTION_COLUMNS if k in s and k not in config}
@@ -444,7 +453,7 @@ def run_task(task: SweepTask) -> dict:
               for d in result.step_diffs if d["estimator"] in keep]
     scalars = config | dict(subject=subject.subject_id, timing_rms_ms=_plain(result.timing["rms_ms"]),
                             saturated=int(fx.saturated), wrapped=int(fx.wrapped),
-                            saturation=result.saturation)
+                            saturation=result.saturation, cycles_per_sample=_plain(fx.cycles_per_sample))
     return {"sections": sections, "splits": splits, "task": scalars}
 
 
@@ -503,12 +512,17 @@ def effects_label(row: dict, *, sep: str = " ") -> str:
     return sep.join(on) or "-"
 
 
+#: The value of each later-added dimension that rows written before it had (:func:`with_effects`; a task's key
+#: leaves a field at this value out, so earlier results folders resume).
+_DEFAULTS: dict[str, Any] = {**dict.fromkeys(EFFECT_DIMENSIONS, 0.0), "rounding": "shipped"}
+
+
 def with_effects(row: dict) -> dict:
-    """``row`` with the :data:`EFFECT_DIMENSIONS` it lacks at 0 (off): rows of a results folder written before
-    the converter's and sensor's effects were dimensions resume as what they were."""
-    if all(k in row for k in EFFECT_DIMENSIONS):
+    """``row`` with the :data:`EFFECT_DIMENSIONS` it lacks at 0 (off) and the shipped rounding: rows of a results
+    folder written before these were dimensions resume as what they were."""
+    if all(k in row for k in _DEFAULTS):
         return row
-    return dict.fromkeys(EFFECT_DIMENSIONS, 0.0) | row
+    return _DEFAULTS | row
 
 
 def _order(values: list) -> dict:
@@ -539,7 +553,7 @@ def _range(v: list[float]) -> tuple[float, float, float]:
     return (float(np.median(v)), float(min(v)), float(max(v))) if v else (math.nan, math.nan, math.nan)
 
 
-def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
+def summarise(sections: list[dict], splits: list[dict], tasks: list[dict] | None = None) -> list[dict]:
     """One row per configuration (:data:`SUMMARY_KEYS`), mode and estimator, pooled over seeds and subjects.
 
     ``median_<chain>`` / ``iqr_<chain>``: pooled 20 m section ratios; ``subject_median_offline_lo/hi``: the
@@ -549,6 +563,8 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
     per-step median ``|offline - ideal|`` and ``|online-fixed - online-float|`` (multi-speed lengths), ``*_lo`` /
     ``*_hi`` their range over subjects; ``adc_step_mm_theory`` / ``arith_step_mm_theory`` the quantisation theory's
     prediction of the same medians (:func:`predicted_step_errors_mm`; NaN for results stored without it).
+    ``ram_bytes``, ``cycles_per_sample``, ``cpu_load``: the configuration's cost in ``gaitlog budget``'s model
+    (:func:`configuration_cost`, from the ``tasks`` rows' counted cycles; NaN without them).
     """
     sections, splits = [with_effects(r) for r in sections], [with_effects(r) for r in splits]
     labels = {s: pair_label(a, b) for s, (a, b) in SHARES.items()}
@@ -560,6 +576,9 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
     split_groups: dict[tuple, list[dict]] = {}
     for d in splits:
         split_groups.setdefault(tuple(d[k] for k in SUMMARY_KEYS) + (d["pair"], d["estimator"]), []).append(d)
+    cycles: dict[tuple, list[float]] = {}
+    for t in map(with_effects, tasks or []):
+        cycles.setdefault(tuple(t[k] for k in SUMMARY_KEYS), []).append(t.get("cycles_per_sample", math.nan))
     out = []
     for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-2], q_order[k[3]], k[0],
                                              MODES.index(k[-2]), ESTIMATORS.index(k[-1]))):
@@ -581,8 +600,22 @@ def summarise(sections: list[dict], splits: list[dict]) -> list[dict]:
             found = split_groups.get(tuple(config) + (labels[share], est), [])
             row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range([x["median_abs_mm"] for x in found])
             row[f"{col}_theory"] = _range([x.get("theory_median_abs_mm", math.nan) for x in found])[0]
+        row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0]))
         out.append(row)
     return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
+
+
+def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float) -> dict[str, float]:
+    """A configuration's cost in ``gaitlog budget``'s model (:mod:`gaitlog.firmware_sim.budget`): the logger's RAM
+    at the rate (``ram_bytes``, of the PIC16F877's 368), the on-line algorithm's mean cycles per sample as its
+    fixed-point run counted them (``cycles_per_sample``: rounding modes and formats change the operations), and
+    the CPU load with the logging interrupt (``cpu_load``, 1 = every cycle of a sample period)."""
+    from gaitlog.firmware_sim.budget import LoggerConfig, logging_cycles_per_sample, ram_budget
+    from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
+
+    logging = logging_cycles_per_sample(LoggerConfig("alvarez", float(sampling_rate_hz), 3))
+    return dict(ram_bytes=ram_budget(sampling_rate_hz).total_bytes, cycles_per_sample=cycles_per_sample,
+                cpu_load=(cycles_per_sample + logging) / cycles_per_sample_available(sampling_rate_hz))
 
 
 def _within(r: dict, share: str) -> bool:
@@ -611,11 +644,12 @@ def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list
     if not rows:
         return []
     q = reference([r["q_formats"] for r in rows], "shipped")
+    rd = reference([r["rounding"] for r in rows], "shipped")
     keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", *EFFECT_DIMENSIONS,
             "estimator")
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
-        if r["q_formats"] == q:
+        if r["q_formats"] == q and r["rounding"] == rd:
             groups.setdefault(tuple(r[k] for k in keys), []).append(r)
     return [dict(zip(keys, k, strict=True)) | dict(smallest_adc_bits=_smallest(g, "adc_bits", "adc"),
                                                   swept_bits="/".join(str(r["adc_bits"]) for r in g))
@@ -637,7 +671,7 @@ def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> lis
         for n in differ if len(differ) == 1 else (KernelFormats.field_names() if not differ else ()):
             by_field.setdefault(n, {})[label] = getattr(f, n)
     keys = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population",
-            *EFFECT_DIMENSIONS, "estimator")
+            *EFFECT_DIMENSIONS, "rounding", "estimator")
     out = []
     for name, labels in by_field.items():
         if len(labels) < 2:
@@ -668,7 +702,8 @@ def m5_rate_answer(sections: list[dict]) -> dict:
         return {"rows": [], "rate_hz": None, "verdict": ""}
     ref = {k: reference(list(_order([s[k] for s in m5])), p) for k, p in
            (("adc_bits", 10), ("q_formats", "shipped"), ("noise_density_g_rthz", SENSOR_NOISE_G_RTHZ),
-            ("misalignment_deg", 0.0), ("population", DEFAULT_POPULATION), *((k, 0.0) for k in EFFECT_DIMENSIONS))}
+            ("misalignment_deg", 0.0), ("population", DEFAULT_POPULATION), *((k, 0.0) for k in EFFECT_DIMENSIONS),
+            ("rounding", "shipped"))}
     m5 = [s for s in m5 if all(s[k] == v for k, v in ref.items())]
     rates = sorted({s["sampling_rate_hz"] for s in m5})
 
@@ -715,27 +750,39 @@ def m5_rate_answer(sections: list[dict]) -> dict:
     return {"rows": rows, "rate_hz": rate_hz, "verdict": verdict}
 
 
+def _q_label(r: dict) -> str:
+    """A row's fixed-point chain: its Q formats, and its rounding when not the shipped one (``acc10/truncate``)."""
+    rounding = r.get("rounding", "shipped")
+    return r["q_formats"] + ("" if rounding == "shipped" else f"/{rounding}")
+
+
 def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
-    """Printed summary of one calibration mode."""
-    width = max([12] + [len(effects_label(r)) + 1 for r in summary if r["mode"] == mode])
+    """Printed summary of one calibration mode: accuracy, the quantisation theory beside it, and the cost."""
+    rows = [with_effects(r) for r in summary if r["mode"] == mode]
+    width = max([12] + [len(effects_label(r)) + 1 for r in rows])
+    qw = max([10] + [len(_q_label(r)) + 1 for r in rows])
     lines = [f"{mode} calibration (one K per configuration, fitted on its offline chain); section ratio "
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
              "mm: per-step median |offline - ideal| / |online-fixed - online-float|, each with the quantisation "
-             "theory's prediction beside it (theory: q^2/12 carried through the estimator); Q: fixed-point formats, "
-             "tilt: extra misalignment, deg; conv/sensor: the converter's and sensor's effects that are on",
-             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<10}{'tilt':>5} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}{'subj':>5}{'n':>6}"
-             f"{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}{'ADC mm':>8}"
-             f"{'theory':>8}{'arith mm':>9}{'theory':>8}{'arith max':>10}"]
-    for r in summary:
-        if r["mode"] != mode:
-            continue
+             "theory's prediction beside it (theory: q^2/12 carried through the estimator); Q: fixed-point formats "
+             "(/rounding when not the shipped), tilt: extra misalignment, deg; conv/sensor: the converter's and "
+             "sensor's effects that are on; RAM B, cycles, load: the configuration's cost in gaitlog budget's model "
+             "(RAM of 368 bytes, the algorithm's mean cycles per sample, CPU load with the logging)",
+             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<{qw}}{'tilt':>5} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}"
+             f"{'subj':>5}{'n':>6}{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}"
+             f"{'ADC mm':>8}{'theory':>8}{'arith mm':>9}{'theory':>8}{'arith max':>10}{'RAM B':>6}{'cycles':>8}"
+             f"{'load':>6}"]
+    for r in rows:
         lines.append(f"{r['adc_bits']:>4}{r['sampling_rate_hz']:>6g}{1e6 * r['noise_density_g_rthz']:>9.0f} "
-                     f"{r['q_formats']:<10}{r['misalignment_deg']:>5g} {r['population']:<7}"
-                     f"{effects_label(r):<{width}}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}{r['median_ideal']:>8.3f}"
-                     f"{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}{r['median_online_fixed']:>8.3f}"
+                     f"{_q_label(r):<{qw}}{r['misalignment_deg']:>5g} {r['population']:<7}"
+                     f"{effects_label(r):<{width}}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}"
+                     f"{r['median_ideal']:>8.3f}{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}"
+                     f"{r['median_online_fixed']:>8.3f}"
                      f"{r['subject_median_offline_lo']:>7.3f}-{r['subject_median_offline_hi']:<6.3f}"
-                     f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r['adc_step_mm_theory']:>8.3f}"
-                     f"{r['arith_step_mm']:>9.3f}{r['arith_step_mm_theory']:>8.3f}{r['arith_ratio_abs_max']:>10.4f}")
+                     f"{r['adc_ratio_abs_max']:>9.4f}{r['adc_step_mm']:>8.3f}{r.get('adc_step_mm_theory', math.nan):>8.3f}"
+                     f"{r['arith_step_mm']:>9.3f}{r.get('arith_step_mm_theory', math.nan):>8.3f}"
+                     f"{r['arith_ratio_abs_max']:>10.4f}{r.get('ram_bytes', 0):>6}"
+                     f"{r.get('cycles_per_sample', math.nan):>8.0f}{r.get('cpu_load', math.nan):>6.2f}")
     return "\n".join(lines)
 
 
@@ -801,15 +848,16 @@ def format_m5_rate(m5: dict) -> str:
 #: The ``gaitlog sweep`` option of each grid key (the effects: ``--`` + the key with dashes).
 OPTIONS = {"adc_bits": "--adc-bits", "sampling_rate_hz": "--logger-rate", "noise_density_g_rthz": "--noise-density",
            "q_formats": "--q-formats", "misalignment_deg": "--misalignment", "population": "--population",
-           "subjects": "--subjects", "seeds": "--seeds",
+           "subjects": "--subjects", "seeds": "--seeds", "rounding": "--rounding",
            **{k: "--" + k.replace("_", "-") for k in EFFECT_DIMENSIONS}}
 #: Units of the grid keys that are not effects.
 _UNITS = {"adc_bits": "bits", "sampling_rate_hz": "Hz", "noise_density_g_rthz": "g/√Hz", "q_formats": "set",
-          "misalignment_deg": "degrees", "population": "name", "subjects": "count", "seeds": "seed"}
+          "misalignment_deg": "degrees", "population": "name", "subjects": "count", "seeds": "seed",
+          "rounding": "mode"}
 #: Formats whose fraction bits are a_v's (:class:`KernelFormats`: the accumulators keep them).
 _FOLLOWS_ACC = ("VELOCITY_Q", "POSITION_Q")
 #: The rounding of the fixed-point chain today (:mod:`gaitlog.firmware_sim.algorithms.arithmetic`).
-SHIPPED_ROUNDING = "half-up (products, shifts), nearest ties away (divisions)"
+SHIPPED_ROUNDING = "half-up (products, shifts; a quotient's magnitude: ties away from zero)"
 
 
 @dataclass(frozen=True)
@@ -836,46 +884,45 @@ def _default_text(value: Any) -> str:
 
 def _format_dimensions() -> list[Dimension]:
     """Word and fraction bits of every Q format of :mod:`gaitlog.firmware_sim.algorithms.formats`: the fraction bits
-    of the :class:`KernelFormats` variables through ``--q-formats``, the rest not yet."""
-    shipped = KernelFormats()
-    label_of = {}
-    for name in KernelFormats.field_names():
-        short = KernelFormats(**{name: 1}).label().rstrip("0123456789")
-        label_of[id(_shipped_format(name))] = (short, getattr(shipped, name))
+    of the :class:`KernelFormats` variables and the lowpass word through ``--q-formats``; the other words not yet
+    (the kernel's words are shared constants, 16 and 32 bits)."""
+    by_format = {id(_shipped_format(name)): name for name in KernelFormats.field_names()}
     out = []
     for name in formats.__all__:
         q = getattr(formats, name)
         if not isinstance(q, QFormat):
             continue
-        short = label_of.get(id(q)) or (label_of[id(formats.ACC_Q)] if name in _FOLLOWS_ACC else None)
+        field_name = by_format.get(id(q)) or ("acc_frac_bits" if name in _FOLLOWS_ACC else None)
+        short = KernelFormats(**{field_name: 1}).label().rstrip("0123456789") if field_name else None
         follows = " (follows ACC_Q's)" if name in _FOLLOWS_ACC else ""
-        out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None, f"word of {q}"))
+        if name == "LOWPASS_Q":
+            out.append(Dimension(f"{name}.word_bits", "bits", str(KernelFormats().lowpass_word_bits), "--q-formats lpintN",
+                                 f"word of {q} where it saturates: sign + N integer bits + fraction bits"))
+        else:
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None, f"word of {q}"))
         out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits),
-                             f"--q-formats {short[0]}N" if short else None,
+                             f"--q-formats {short}N" if short else None,
                              f"fraction bits of {q}" + (f" (fewer than shipped only){follows}" if short else "")))
     return out
 
 
-def _shipped_format(field_name: str) -> QFormat:
-    """The shipped format a :class:`KernelFormats` field sets the fraction bits of."""
-    return format_kernel._SHIPPED[field_name]          # noqa: SLF001  (the kernel's own table, defined once there)
-
-
 def dimensions() -> list[Dimension]:
     """Every dimension of the question (module notes): the grid's (sweepable, with their default grid values)
-    and the fixed-point chain's that the grid cannot change yet (each format's word bits and most fraction bits,
-    the rounding mode, M4's exponent)."""
+    and the fixed-point chain's that the grid cannot change yet (the words of most formats, M4's exponent)."""
     grid = SweepGrid()
     out = []
     for key, option in OPTIONS.items():
+        if key == "rounding":
+            continue                                 # listed with the formats below
         if key in EFFECT_DIMENSIONS:
             what, unit, _ = EFFECT_DIMENSIONS[key]
         else:
             what, unit = SPEC_KEYS[key], _UNITS[key]
         out.append(Dimension(key, unit, _default_text(getattr(grid, key)), option, what))
     out += _format_dimensions()
-    out.append(Dimension("rounding_mode", "mode", "shipped", None,
-                         f"rounding per operation class (truncate, half-up, convergent); shipped: {SHIPPED_ROUNDING}"))
+    out.append(Dimension("rounding_mode", "mode", "shipped", "--rounding",
+                         "rounding per operation class (mul, shift, div) of the fixed-point chain: truncate, half-up, "
+                         f"convergent (--rounding truncate or mul:truncate+div:convergent); shipped: {SHIPPED_ROUNDING}"))
     out.append(Dimension("m4_exponent", "1", f"{M4_EXPONENT:g}", None, "M4's exponent p in S = K (a_max - a_min)^p "
                          "(Weinberg's 1/4; the firmware's 1/2)"))
     return out

@@ -41,7 +41,11 @@ def test_default_formats_are_the_module_constants() -> None:
     assert k.shipped and k.acc_q == fm.ACC_Q and k.lowpass_q == fm.LOWPASS_Q and k.position2_q == fm.POSITION2_Q
     assert k.position_q == fm.POSITION_Q
     assert k.constants() == dict(F_ACC=fm.F_ACC, F_POS=fm.F_POS, F_GRAV=fm.F_GRAV, F_LP=fm.F_LP, W_LP=fm.W_LP,
-                                 F_POS2=fm.F_POS2)
+                                 F_POS2=fm.F_POS2, F_ACC2=fm.F_ACC2, F_FIR=fm.F_FIR, F_KERNEL=fm.F_KERNEL,
+                                 F_EXC=fm.F_EXC, F_EXC2=fm.F_EXC2, F_ROOT=fm.F_ROOT, F_STEP=fm.F_STEP, F_K=fm.F_K,
+                                 F_K4=fm.F_K4, F_M5=fm.F_M5)
+    assert k.mantissa_frac_bits == fm.MANTISSA_Q.frac_bits and k.rounding_label() == "shipped"
+    assert k.rounding_constants() == dict(ROUND_MUL=1, ROUND_SHIFT=1, ROUND_DIV=1)
     assert not KernelFormats(acc_frac_bits=10).shipped
     with pytest.raises(ValueError, match="acc_frac_bits"):
         KernelFormats(acc_frac_bits=fm.F_ACC + 1)          # only narrower: the range is kept
