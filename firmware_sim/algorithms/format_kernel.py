@@ -6,23 +6,34 @@ chain's main state variables) other than the shipped one, :func:`entry_points` c
 copy of the kernel module's globals in which :meth:`KernelFormats.constants` replace the shipped integers:
 no second text of the algorithm, numba folds the new constants exactly as it folds the shipped ones.
 
-The variants are JIT-compiled by numba without its disk cache (the cache is keyed by the source file, which
-is the shipped kernel's: a variant must never be loaded as the shipped kernel or the reverse), about 8 s per
-format set, once per process (kept in memory, :data:`MAX_VARIANTS` of them). The shipped formats always run
-the kernel built ahead of time (:mod:`gaitlog.firmware_sim.algorithms.aot_kernel`). Only the fixed-point arithmetic
-has formats; a float kernel is the shipped one.
+A variant is compiled ahead of time into the compile cache, once per machine: an extension module in
+``aot-<sources>-<formats>`` beside the shipped kernel's (:func:`variant_folder`; the hash of the compiled sources
+and a digest of every field of the formats, :func:`cache_key`), built by the first process that needs it under
+the shipped module's lock protocol (:func:`gaitlog.firmware_sim.algorithms.aot_kernel.build_or_wait`): the other
+processes (a sweep's Dask workers) wait for it and load it, and later runs load it in milliseconds. numba's
+own disk cache is not used (it is keyed by the source file, which is the shipped kernel's: a variant must never be
+loaded as the shipped kernel or the reverse). Without a compiler (or with ``GAITLOG_NO_AOT=1``) a variant is
+JIT-compiled, about 8-25 s, once per process. Either way a process keeps :data:`MAX_VARIANTS` of them in memory.
+The shipped formats always run the shipped kernel built ahead of time. Only the fixed-point arithmetic has
+formats; a float kernel is the shipped one.
+
+**Rounding.** :class:`KernelFormats` also holds the rounding mode of each operation class (products, right
+shifts, quotients: :data:`gaitlog.firmware_sim.algorithms.arithmetic.ROUNDING_CLASSES`): a variant's kernel calls
+the arithmetic's fixed-point functions compiled with those modes in place of the shipped ``ROUND_*`` constants.
 """
 
 from __future__ import annotations
 
+import hashlib
 import re
 import threading
 import types
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
+from pathlib import Path
 
-from gaitlog.firmware_sim.algorithms import arithmetic, kernel
+from gaitlog.firmware_sim.algorithms import aot_kernel, arithmetic, kernel
 from gaitlog.firmware_sim.algorithms.formats import (
     ACC2_Q,
     ACC_Q,
@@ -45,7 +56,8 @@ from gaitlog.firmware_sim.algorithms.formats import (
 from gaitlog.firmware_sim.compiled import load_numba
 from gaitlog.firmware_sim.fixedpoint import ROUNDING_MODES, QFormat
 
-__all__ = ["MAX_VARIANTS", "KernelFormats", "compile_kernel", "entry_points", "SHIPPED_ROUNDING"]
+__all__ = ["MAX_VARIANTS", "KernelFormats", "cache_key", "compile_kernel", "entry_points", "variant_folder",
+           "SHIPPED_ROUNDING"]
 
 #: Format sets whose compiled kernel a process keeps (a sweep cycles through its sets once per walk: keep them all).
 MAX_VARIANTS = 32
@@ -291,10 +303,9 @@ def _rounding_arithmetic(formats: KernelFormats, numba: types.ModuleType) -> typ
     return module
 
 
-def compile_kernel(formats: KernelFormats) -> tuple[Callable, Callable, Callable]:
-    """``process``, ``flush``, ``reset`` compiled now for ``formats`` (any set, the shipped one included: the
-    tests check that this gives the kernel built ahead of time bit for bit); not kept (:func:`entry_points`).
-    Fixed point only: the arithmetic is the fixed-point one, with ``formats``' rounding modes."""
+def _variant_namespace(formats: KernelFormats) -> dict:
+    """A copy of the kernel module's globals with ``formats``' constants, its rounding's arithmetic, and every
+    kernel function re-bound to it as a numba dispatcher (compiled when first called or exported)."""
     numba = load_numba()
     namespace = dict(vars(kernel))
     namespace.update(formats.constants())
@@ -303,7 +314,42 @@ def compile_kernel(formats: KernelFormats) -> tuple[Callable, Callable, Callable
         fn = types.FunctionType(py.__code__, namespace, py.__name__, py.__defaults__, py.__closure__)
         fn.__qualname__ = f"{py.__qualname__}[{formats.label()}/{formats.rounding_label()}]"
         namespace[name] = numba.njit(cache=False)(fn)
+    return namespace
+
+
+def compile_kernel(formats: KernelFormats) -> tuple[Callable, Callable, Callable]:
+    """``process``, ``flush``, ``reset`` JIT-compiled now for ``formats`` (any set, the shipped one included: the
+    tests check that this gives the kernel built ahead of time bit for bit); not kept (:func:`entry_points`).
+    Fixed point only: the arithmetic is the fixed-point one, with ``formats``' rounding modes."""
+    namespace = _variant_namespace(formats)
     return tuple(namespace[n] for n in _NAMES)
+
+
+def cache_key(formats: KernelFormats) -> str:
+    """A short digest of every field of ``formats``: the name of its compiled module in the compile cache."""
+    text = ",".join(f"{f.name}={getattr(formats, f.name)}" for f in fields(formats))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def variant_folder(formats: KernelFormats) -> Path:
+    """The compile cache's folder of ``formats``' module: beside the shipped kernel's (:func:`aot_kernel.aot_dir`,
+    the same hash of the compiled sources), ``aot-<sources>-<formats>``."""
+    shipped = aot_kernel.aot_dir()
+    return shipped.with_name(f"{shipped.name}-{cache_key(formats)}")
+
+
+def _cached_module(formats: KernelFormats) -> tuple[Callable, Callable, Callable] | None:
+    """``formats``' entry points from the compile cache's module: loaded, else built (by this process, or by
+    another one of this machine, waited for: module notes); None when it cannot be built or is turned off."""
+    if not aot_kernel.enabled():
+        return None
+    key = cache_key(formats)
+    names = tuple(f"{n}_fixed" for n in _NAMES)
+    module = aot_kernel.build_or_wait(
+        variant_folder(formats), module_name=f"{aot_kernel.MODULE_NAME}_{key}", names=names,
+        exports=lambda: aot_kernel.kernel_exports(_variant_namespace(formats), ("fixed",)),
+        what=f" for formats {formats.label()}, rounding {formats.rounding_label()}")
+    return None if module is None else tuple(getattr(module, n) for n in names)
 
 
 def entry_points(formats: KernelFormats) -> tuple[Callable, Callable, Callable]:
@@ -316,7 +362,7 @@ def entry_points(formats: KernelFormats) -> tuple[Callable, Callable, Callable]:
     with _LOCK:
         found = _VARIANTS.get(formats)
         if found is None:
-            found = compile_kernel(formats)
+            found = _cached_module(formats) or compile_kernel(formats)
             _VARIANTS[formats] = found
             while len(_VARIANTS) > MAX_VARIANTS:
                 _VARIANTS.popitem(last=False)
