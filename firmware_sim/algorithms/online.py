@@ -458,7 +458,9 @@ class OnlineStepAlgorithm:
     cycles
         :class:`CycleStats` of everything fed so far (fixed point; not meaningful in float).
     compiled_by
-        ``"aot"`` (the kernel compiled ahead of time, :mod:`gaitlog.firmware_sim.algorithms.aot_kernel`) or ``"jit"``.
+        ``"aot"`` (the kernel compiled ahead of time, :mod:`gaitlog.firmware_sim.algorithms.aot_kernel`), ``"jit"``, or
+        ``"variant"`` (other formats or rounding: :mod:`gaitlog.firmware_sim.algorithms.format_kernel`'s module in the
+        compile cache, or its JIT).
     """
 
     def __init__(self, *, sampling_rate_hz: float, step_config: StepConfig, calibration: object | None = None,
@@ -482,7 +484,7 @@ class OnlineStepAlgorithm:
         self._fed = 0                # samples fed since the last reset (the driver's count; the kernel's N is 16-bit)
         if self.arithmetic == "fixed" and not self.config.formats.compiled_shipped:
             (self._process, self._flush, self._reset), self.compiled_by = (
-                format_kernel.entry_points(self.config.formats), "jit")
+                format_kernel.entry_points(self.config.formats), "variant")
         else:
             (self._process, self._flush, self._reset), self.compiled_by = aot_kernel.entry_points(self.arithmetic)
         self.reset()

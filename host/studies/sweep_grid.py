@@ -150,8 +150,9 @@ SPEC_KEYS = {
     "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12-k12: fraction bits of acc, "
                  "grav, lp, m2pos, sq, fir, kern, exc, excc, root, step, k, kw, cad, mant; lpint: the lowpass's "
                  "integer bits)",
-    "rounding": "rounding of the fixed-point chain (shipped, truncate, half-up, convergent, or per operation class, "
-                "e.g. mul:truncate+div:convergent)",
+    "rounding": "rounding of the fixed-point chain per operation class (mul, shift, div): shipped, truncate, "
+                "half-up, convergent, or per class, e.g. mul:truncate+div:convergent; shipped: half-up (a quotient's "
+                "magnitude: ties away from zero)",
     "misalignment_deg": "extra mounting tilts of the logger (pitch), degrees",
     "population": f"simulated populations ({', '.join(POPULATION_PLANS)})",
     **{k: f"{v[0]}, {v[1]}" for k, v in EFFECT_DIMENSIONS.items()},
@@ -788,8 +789,10 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
 
 def _where(r: dict) -> str:
     effects = effects_label(r)
+    rounding = r.get("rounding", "shipped")
     return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
-            f"{r['misalignment_deg']:g} deg, {r['population']}" + (f", {effects}" if effects != "-" else ""))
+            f"{r['misalignment_deg']:g} deg, {r['population']}" + (f", {effects}" if effects != "-" else "")
+            + (f", rounding {rounding}" if rounding != "shipped" else ""))
 
 
 def format_smallest_bits(rows: list[dict]) -> str:
@@ -813,7 +816,8 @@ def format_smallest_q(rows: list[dict]) -> str:
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault((r["variable"], r["adc_bits"], r["sampling_rate_hz"], r["noise_density_g_rthz"],
-                           r["misalignment_deg"], r["population"], *(r[k] for k in EFFECT_DIMENSIONS)), []).append(r)
+                           r["misalignment_deg"], r["population"], *(r[k] for k in EFFECT_DIMENSIONS),
+                           r.get("rounding", "shipped")), []).append(r)
     for (name, bits, *_), g in groups.items():
         need = [r["smallest_frac_bits"] for r in g]
         total = None if None in need else max(need)
@@ -856,8 +860,6 @@ _UNITS = {"adc_bits": "bits", "sampling_rate_hz": "Hz", "noise_density_g_rthz": 
           "rounding": "mode"}
 #: Formats whose fraction bits are a_v's (:class:`KernelFormats`: the accumulators keep them).
 _FOLLOWS_ACC = ("VELOCITY_Q", "POSITION_Q")
-#: The rounding of the fixed-point chain today (:mod:`gaitlog.firmware_sim.algorithms.arithmetic`).
-SHIPPED_ROUNDING = "half-up (products, shifts; a quotient's magnitude: ties away from zero)"
 
 
 @dataclass(frozen=True)
@@ -899,30 +901,32 @@ def _format_dimensions() -> list[Dimension]:
             out.append(Dimension(f"{name}.word_bits", "bits", str(KernelFormats().lowpass_word_bits), "--q-formats lpintN",
                                  f"word of {q} where it saturates: sign + N integer bits + fraction bits"))
         else:
-            out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None, f"word of {q}"))
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None,
+                                 f"word of {q} (the kernel's 16- and 32-bit words are shared by several formats)"))
         out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits),
                              f"--q-formats {short}N" if short else None,
                              f"fraction bits of {q}" + (f" (fewer than shipped only){follows}" if short else "")))
     return out
 
 
+def _shipped_format(field_name: str) -> QFormat:
+    """The shipped format a :class:`KernelFormats` field sets the fraction bits of."""
+    return format_kernel._SHIPPED[field_name]          # noqa: SLF001  (the kernel's own table, defined once there)
+
+
 def dimensions() -> list[Dimension]:
-    """Every dimension of the question (module notes): the grid's (sweepable, with their default grid values)
-    and the fixed-point chain's that the grid cannot change yet (the words of most formats, M4's exponent)."""
+    """Every dimension of the question (module notes): the grid's (sweepable, with their default grid values; the
+    rounding among them) and the fixed-point chain's formats, with those the grid cannot change yet (the words of
+    most formats, M4's exponent)."""
     grid = SweepGrid()
     out = []
     for key, option in OPTIONS.items():
-        if key == "rounding":
-            continue                                 # listed with the formats below
         if key in EFFECT_DIMENSIONS:
             what, unit, _ = EFFECT_DIMENSIONS[key]
         else:
             what, unit = SPEC_KEYS[key], _UNITS[key]
         out.append(Dimension(key, unit, _default_text(getattr(grid, key)), option, what))
     out += _format_dimensions()
-    out.append(Dimension("rounding_mode", "mode", "shipped", "--rounding",
-                         "rounding per operation class (mul, shift, div) of the fixed-point chain: truncate, half-up, "
-                         f"convergent (--rounding truncate or mul:truncate+div:convergent); shipped: {SHIPPED_ROUNDING}"))
     out.append(Dimension("m4_exponent", "1", f"{M4_EXPONENT:g}", None, "M4's exponent p in S = K (a_max - a_min)^p "
                          "(Weinberg's 1/4; the firmware's 1/2)"))
     return out

@@ -402,3 +402,61 @@ def test_unsigned_div_matches_apytypes(rounded: bool) -> None:
     assert ctx.calls["div32by16u"] == n.size
     with pytest.raises(ValueError, match="unsigned 32-bit dividend"):
         div(np.array([-1]), np.array([3]), signed=False)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# rounding modes (the sweep's per-class rounding): against exact rational arithmetic
+
+
+def _exact_round(num: int, den: int, mode: str) -> int:
+    """``num / den`` rounded by ``mode`` with Python's exact fractions (the independent truth)."""
+    from fractions import Fraction
+    import math as _m
+
+    x = Fraction(num, den)
+    if mode == "floor":
+        return _m.floor(x)
+    if mode == "half-up":
+        return _m.floor(x + Fraction(1, 2))
+    if mode == "convergent":
+        return round(x)                           # Fraction.__round__: ties to even
+    if mode == "toward-zero":
+        return int(x)
+    if mode == "half-away":
+        return _m.floor(abs(x) + Fraction(1, 2)) * (1 if x >= 0 else -1)
+    raise ValueError(mode)
+
+
+def test_shift_right_rounding_modes_match_exact_fractions() -> None:
+    from gaitlog.firmware_sim.fixedpoint import ROUND_CONVERGENT, ROUND_HALF_UP, ROUND_TRUNCATE, new_counters, s_shift_right
+
+    cnt = new_counters()
+    for x in range(-70, 71):
+        for s in (1, 2, 3):
+            assert s_shift_right(x, s, ROUND_TRUNCATE, cnt) == _exact_round(x, 1 << s, "floor")
+            assert s_shift_right(x, s, ROUND_HALF_UP, cnt) == _exact_round(x, 1 << s, "half-up")
+            assert s_shift_right(x, s, True, cnt) == _exact_round(x, 1 << s, "half-up")
+            assert s_shift_right(x, s, ROUND_CONVERGENT, cnt) == _exact_round(x, 1 << s, "convergent"), (x, s)
+
+
+def test_division_rounding_modes_match_exact_fractions() -> None:
+    from gaitlog.firmware_sim.fixedpoint import ROUND_CONVERGENT, ROUND_HALF_UP, ROUND_TRUNCATE, new_counters, s_div_mode
+
+    cnt = new_counters()
+    for n in range(-60, 61):
+        for d in (-8, -6, -4, -3, -2, 2, 3, 4, 6, 8):
+            assert s_div_mode(n, d, 32, True, ROUND_TRUNCATE, cnt) == _exact_round(n, d, "toward-zero")
+            assert s_div_mode(n, d, 32, True, ROUND_HALF_UP, cnt) == _exact_round(n, d, "half-away")
+            assert s_div_mode(n, d, 32, True, ROUND_CONVERGENT, cnt) == _exact_round(n, d, "convergent"), (n, d)
+
+
+def test_rounding_costs_truncate_least_convergent_most() -> None:
+    """Truncation drops the rounding addition; convergent rounding adds a tie test (cycle model)."""
+    from gaitlog.firmware_sim.fixedpoint import C_CYCLES, ROUNDING_MODES, new_counters, s_shift_right
+
+    cycles = {}
+    for name, mode in ROUNDING_MODES.items():
+        cnt = new_counters()
+        s_shift_right(12345, 4, mode, cnt)
+        cycles[name] = cnt[C_CYCLES]
+    assert cycles["truncate"] < cycles["half-up"] < cycles["convergent"]

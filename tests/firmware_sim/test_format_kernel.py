@@ -85,7 +85,7 @@ def test_coarser_formats_move_the_fixed_point_chain_away_from_float() -> None:
     ref, _ = run(None, codes)
     narrow = KernelFormats(acc_frac_bits=4, lowpass_frac_bits=8)
     got, alg = run(narrow, codes)
-    assert alg.compiled_by == "jit" and alg.config.formats == narrow and got.formats == narrow
+    assert alg.compiled_by == "variant" and alg.config.formats == narrow and got.formats == narrow
     assert format_kernel.entry_points(narrow)[0] is alg._process          # compiled once per process
     np.testing.assert_array_equal(ref.end, flt.end)
     n = min(flt.n_steps, got.n_steps)
@@ -93,3 +93,40 @@ def test_coarser_formats_move_the_fixed_point_chain_away_from_float() -> None:
     err = [np.median(np.abs(s.length_m()[3:n - 3, :4] - flt.length_m()[3:n - 3, :4]), axis=0) for s in (ref, got)]
     assert np.all(err[0] < 5e-4), err[0]                                  # shipped: < 0.5 mm of float (M1-M4)
     assert np.max(err[1]) > 10 * np.max(err[0]) and np.max(err[1]) > 1e-3, err
+
+
+def test_rounding_and_new_format_labels_parse_back() -> None:
+    assert KernelFormats.parse("shipped", "half-up") == KernelFormats()            # the shipped modes, named
+    t = KernelFormats.parse("shipped", "truncate")
+    assert (t.mul_rounding, t.shift_rounding, t.div_rounding) == ("truncate",) * 3 and t.rounding_label() == "truncate"
+    assert t.rounding_constants() == dict(ROUND_MUL=0, ROUND_SHIFT=0, ROUND_DIV=0) and not t.compiled_shipped
+    m = KernelFormats.parse("k12-step12-lpint1", "div:convergent+mul:truncate")
+    assert (m.k_frac_bits, m.step_frac_bits, m.lowpass_int_bits, m.lowpass_word_bits) == (12, 12, 1, 18)
+    assert m.rounding_label() == "mul:truncate+div:convergent" and m.label() == "step12-k12-lpint1"
+    assert KernelFormats.parse(m.label(), m.rounding_label()) == m
+    assert m.constants()["F_K"] == 12 and m.constants()["F_STEP"] == 12 and m.constants()["W_LP"] == 18
+    assert KernelFormats(mantissa_frac_bits=10).compiled_shipped                   # configuration, not compiled
+    assert len({format_kernel.cache_key(f) for f in (KernelFormats(), t, m)}) == 3
+    for bad in ("mul:floor", "add:truncate", "mul:truncate+mul:half-up", "nearest"):
+        with pytest.raises(ValueError, match="rounding"):
+            KernelFormats.parse("shipped", bad)
+    with pytest.raises(ValueError, match="lowpass_int_bits"):
+        KernelFormats(lowpass_int_bits=8)
+
+
+def test_truncation_biases_the_lengths_down_and_saves_cycles() -> None:
+    """Every class truncated (floor): each rounding loses half an lsb on average, so the fixed-point lengths fall
+    below the shipped (half-up) ones against float, and the rounding additions are not paid; the mantissa bits
+    (configuration) run the shipped compiled kernel."""
+    codes = noisy_sinusoid_codes()
+    flt, _ = run(None, codes, arithmetic="float")
+    ref, a_ref = run(None, codes)
+    trunc = KernelFormats.parse("step10-k10", "truncate")
+    got, alg = run(trunc, codes)
+    assert alg.config.formats == trunc and got.formats == trunc
+    n = min(flt.n_steps, ref.n_steps, got.n_steps)
+    bias = [np.median(s.length_m()[3:n - 3, :2] - flt.length_m()[3:n - 3, :2]) for s in (ref, got)]
+    assert bias[1] < bias[0] - 2.0 ** -11, bias            # two truncations of 2^-10 m: ~1 mm lower
+    assert alg.cycles.mean < a_ref.cycles.mean
+    mant, a_mant = run(KernelFormats(mantissa_frac_bits=8), codes)
+    assert a_mant.compiled_by == "aot" and not np.array_equal(mant.lengths, ref.lengths)
