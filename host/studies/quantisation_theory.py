@@ -111,12 +111,26 @@ def position_error_variance(n: int, sampling_rate_hz: float, *, corrected: bool,
     >>> n = 400; round(position_error_variance(n, 1.0, corrected=False, ends=True) / (n ** 3 / 3), 2)
     1.0
     """
+    return _samples_variance(int(n), bool(corrected), bool(ends)) / sampling_rate_hz ** 4
+
+
+@functools.lru_cache(maxsize=4096)
+def _samples_variance(n: int, corrected: bool, ends: bool) -> float:
+    """:func:`position_error_variance` in sample periods (cached: a walk's steps take few distinct lengths)."""
     if n < 2:
         return 0.0
-    p1, p2 = _position_operator(int(n))
+    p1, p2 = _position_operator(n)
     p = p2 if corrected else p1
     row = p[n] - p[0] if ends else p[n // 4] - p[(3 * n) // 4]
-    return float(np.sum(row * row)) / sampling_rate_hz ** 4
+    return float(np.sum(row * row))
+
+
+def _excursion_variances(table: StepTable, corrected: bool) -> np.ndarray:
+    """Each step's :func:`position_error_variance` (NaN without a window)."""
+    rate = table.sampling_rate_hz
+    n = np.rint(table.duration_s * rate)
+    return np.array([position_error_variance(int(k), rate, corrected=corrected) if np.isfinite(k) else np.nan
+                     for k in n])
 
 
 def adc_vertical_variance_m2_s4(calibration: Any, gravity_g: np.ndarray) -> float:
@@ -145,12 +159,10 @@ def adc_sigma_m(table: StepTable, var_av_m2_s4: float, *, leg_length_m: float,
     """Per estimator, each step's predicted standard deviation (m) of the calibrated length's error for a white
     a_v error of variance ``var_av_m2_s4`` (module notes); NaN where the step has no length."""
     rate = table.sampling_rate_hz
-    n = np.rint(table.duration_s * rate)
     out: dict[str, np.ndarray] = {}
     h = table.vertical_excursion_m
     for est, corrected in (("M1", False), ("M2", True), ("M3", True)):
-        var_h = np.array([position_error_variance(int(k), rate, corrected=corrected) if np.isfinite(k) else np.nan
-                          for k in n]) * var_av_m2_s4
+        var_h = _excursion_variances(table, corrected) * var_av_m2_s4
         slope = _pendulum_slope(h[est], leg_length_m) * (_k(table, est) if est != "M3" else 1.0)
         out[est] = np.abs(slope) * np.sqrt(var_h)
     var_r = 2.0 * fir_noise_gain(FF_CUTOFF_HZ, rate) * var_av_m2_s4
@@ -176,15 +188,13 @@ def arithmetic_sigma_m(table: StepTable, *, leg_length_m: float, acc_frac_bits: 
     var_step = uniform_variance(2.0 ** -step_frac_bits)
     var_k = uniform_variance(2.0 ** -k_frac_bits)                      # K rounded (the lengths' K = 1 one)
     rate = table.sampling_rate_hz
-    n = np.rint(table.duration_s * rate)
     h = table.vertical_excursion_m
     out: dict[str, np.ndarray] = {}
     bias: dict[str, np.ndarray] = {}
     for est, corrected, f_h, roundings in (("M1", False, excursion_frac_bits[0], 2),
                                            ("M2", True, excursion_frac_bits[1], 2),
                                            ("M3", True, excursion_frac_bits[1], 1)):
-        var_h = np.array([position_error_variance(int(k), rate, corrected=corrected) if np.isfinite(k) else np.nan
-                          for k in n]) * var_av + uniform_variance(2.0 ** -f_h)
+        var_h = _excursion_variances(table, corrected) * var_av + uniform_variance(2.0 ** -f_h)
         k = _k(table, est) if est != "M3" else 1.0
         slope = _pendulum_slope(h[est], leg_length_m) * k
         root_step = 2.0 * 2.0 ** -((two_length_frac_bits + f_h) // 2)
