@@ -77,7 +77,8 @@ from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
 from gaitlog.firmware_sim.algorithms import format_kernel, formats
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
-from gaitlog.firmware_sim.fixedpoint import QFormat
+from gaitlog.firmware_sim.budget import LoggerConfig, logging_cycles_per_sample, ram_budget
+from gaitlog.firmware_sim.fixedpoint import QFormat, cycles_per_sample_available
 from gaitlog.firmware_sim.adc import (
     ADXL202_OUTPUT_RESISTANCE_OHM,
     DEFAULT_SAMPLING_RATE_HZ,
@@ -611,9 +612,6 @@ def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float) -> dic
     at the rate (``ram_bytes``, of the PIC16F877's 368), the on-line algorithm's mean cycles per sample as its
     fixed-point run counted them (``cycles_per_sample``: rounding modes and formats change the operations), and
     the CPU load with the logging interrupt (``cpu_load``, 1 = every cycle of a sample period)."""
-    from gaitlog.firmware_sim.budget import LoggerConfig, logging_cycles_per_sample, ram_budget
-    from gaitlog.firmware_sim.fixedpoint import cycles_per_sample_available
-
     logging = logging_cycles_per_sample(LoggerConfig("alvarez", float(sampling_rate_hz), 3))
     return dict(ram_bytes=ram_budget(sampling_rate_hz).total_bytes, cycles_per_sample=cycles_per_sample,
                 cpu_load=(cycles_per_sample + logging) / cycles_per_sample_available(sampling_rate_hz))
