@@ -582,8 +582,9 @@ def summarise(sections: list[dict], splits: list[dict], tasks: list[dict] | None
     for t in map(with_effects, tasks or []):
         cycles.setdefault(tuple(t[k] for k in SUMMARY_KEYS), []).append(t.get("cycles_per_sample", math.nan))
     out = []
-    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-2], q_order[k[3]], k[0],
-                                             MODES.index(k[-2]), ESTIMATORS.index(k[-1]))):
+    r_order = _order([s["rounding"] for s in sections])
+    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-3], r_order[k[-3]],
+                                             q_order[k[3]], k[0], MODES.index(k[-2]), ESTIMATORS.index(k[-1]))):
         *config, mode, est = key
         seg = groups[key]
         row: dict[str, Any] = dict(zip(SUMMARY_KEYS, config, strict=True))
