@@ -7,7 +7,8 @@ Everything goes to the ``--out`` folder: ``tasks/`` (one JSON file per finished 
 x subject x 20 m section x calibration mode x estimator), ``splits.csv`` (per-step error split per
 configuration x subject x estimator), ``tasks.csv`` (timing error, saturation), ``summary.csv``, the answers
 ``smallest_bits.csv``, ``smallest_q_formats.csv`` and ``m5_rate.csv``, and ``figures/error_vs_<dimension>.png``
-for each swept dimension (:mod:`gaitlog.host.studies.sweep_figures`). The results do not depend on where or in which
+for each swept dimension (:mod:`gaitlog.host.studies.sweep_figures`). The summary prints, beside each measured
+quantisation error, the quantisation theory's prediction, and each configuration's RAM, cycles and CPU load. The results do not depend on where or in which
 order the tasks ran.
 """
 
@@ -31,8 +32,8 @@ from gaitlog.host.studies.task_store import TaskStore, run_serial
 #: Larger summary tables are only written (and printed with -v).
 MAX_PRINTED_ROWS = 60
 
-HELP = ("parameter sweep (ADC bits x rate x noise x converter and sensor errors x Q formats x misalignment x "
-        "population x subjects) on Dask or in-process; resumable, CSV + figures")
+HELP = ("parameter sweep (ADC bits x rate x noise x converter and sensor errors x Q formats x rounding x "
+        "misalignment x population x subjects) on Dask or in-process; resumable, CSV + figures")
 #: Shown under "examples:" by ``gaitlog sweep --help``.
 EXAMPLES = (
     "gaitlog sweep --out sweep-out --adc-bits 8,10,12 --logger-rate 25,50 --subjects 2",

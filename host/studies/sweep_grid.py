@@ -32,6 +32,14 @@ kernel built ahead of time. Only the on-line fixed-point chain depends on them: 
 - online-float) is the error they cause. :func:`smallest_q_formats` answers, per variable swept alone, the
 coarsest fraction bits keeping every estimator within 1 mm per step and 1 % per 20 m section of float.
 
+**Rounding** (``rounding``: ``shipped``, a mode for every operation class, or e.g. ``mul:truncate+div:convergent``)
+is compiled into the fixed-point kernel with the Q formats (:class:`KernelFormats`); like them it changes only the
+on-line fixed-point chain. A task at the shipped rounding keeps the name it had before rounding was a dimension.
+
+**Theory and cost.** Each task also predicts its ADC and arithmetic shares from ``q^2/12`` carried through the
+estimators (:func:`predicted_step_errors_mm`, :mod:`gaitlog.host.studies.quantisation_theory`), and the summary puts
+each configuration's cost in ``gaitlog budget``'s model beside its accuracy (:func:`configuration_cost`).
+
 **M5 and the rate** (Alvarez et al. left open whether M5's spread comes from timing steps at 50 Hz; M5 is
 ``K1 / T + K2`` with ``T`` counted in samples, so timing enters M5 alone). :func:`m5_rate_answer`, the project's
 one answer to it: the part of M5's section-ratio spread that the sampled step timing
