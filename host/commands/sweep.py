@@ -66,22 +66,23 @@ def _estimator(text: str) -> str:
     return text
 
 
-def _q_formats(text: str) -> str:
+def _fixed_point_label(text: str, *, rounding: bool) -> str:
+    """The canonical label of a Q-format set (or of a rounding), a usage error naming what is wrong."""
     from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 
     try:
-        return KernelFormats.parse(text).label()
+        return (KernelFormats.parse("shipped", text).rounding_label() if rounding
+                else KernelFormats.parse(text).label())
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _q_formats(text: str) -> str:
+    return _fixed_point_label(text, rounding=False)
 
 
 def _rounding(text: str) -> str:
-    from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
-
-    try:
-        return KernelFormats.parse("shipped", text).rounding_label()
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+    return _fixed_point_label(text, rounding=True)
 
 
 #: The estimators' names (as :data:`gaitlog.firmware_sim.algorithms.steps.ESTIMATORS`; not imported: --help stays light).
