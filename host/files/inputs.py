@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -118,6 +118,9 @@ class AccelerationInput:
     adc_bits: int | None = None
     recording: Recording | None = field(default=None, repr=False)
     ipol_trial: IpolTrial | None = field(default=None, repr=False)
+    #: A logger recording read with ``arrays=False``: its counts-to-g map, applied block by block (:meth:`blocks`)
+    #: instead of ``acc_g`` and ``counts`` held whole.
+    to_g: object = field(default=None, repr=False)
 
     @property
     def n_samples(self) -> int:
@@ -131,10 +134,27 @@ class AccelerationInput:
 
     def g(self) -> np.ndarray:
         """:attr:`acc_g`, or a :class:`HostError` when the input is counts without a calibration."""
+        if self.acc_g is None and self.to_g is not None and self.recording is not None:
+            return self.recording.acc_g(self.to_g)
         if self.acc_g is None:
             raise HostError(f"{self.source}: acceleration in ADC counts and no calibration to turn it into g; "
                             "give --calibration CAL.json (from 'gaitlog calibrate')")
         return self.acc_g
+
+    def blocks(self, size: int = 1 << 16) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """``(g, valid)`` of ``size`` samples at a time (the last block shorter): a logger recording read with
+        ``arrays=False`` is converted one block at a time, so no ``(n, 3)`` float array is held."""
+        n = self.n_samples
+        if self.acc_g is None and self.to_g is not None and self.recording is not None:
+            rec = self.recording
+            for lo in range(0, n, size):
+                g = np.asarray(self.to_g.apply(rec.codes[lo:lo + size].astype(np.float64)), np.float64)
+                g[~self.valid[lo:lo + size]] = np.nan
+                yield g, self.valid[lo:lo + size]
+            return
+        acc = self.g()
+        for lo in range(0, n, size):
+            yield acc[lo:lo + size], self.valid[lo:lo + size]
 
     def __repr__(self) -> str:
         return (f"AccelerationInput({self.n_samples} samples at {self.sampling_rate_hz:g} Hz, {self.n_missing} "
@@ -153,7 +173,8 @@ def parse_columns(text: str | Sequence[str | int] | None) -> list[str | int] | N
 
 def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None,
                       columns: str | Sequence[str | int] | None = None, units: str | None = None,
-                      calibration: AccCalibration | str | Path | None = None, skip_rows: int = 0) -> AccelerationInput:
+                      calibration: AccCalibration | str | Path | None = None, skip_rows: int = 0,
+                      arrays: bool = True) -> AccelerationInput:
     """Read ``path`` (see the module notes); missing samples are said in one
     :class:`~gaitlog.host.files.losses.MissingSamplesWarning` (:func:`input_losses`).
 
@@ -167,6 +188,9 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         CSV only (an error for other inputs).
     calibration
         Accelerometer calibration (object or JSON path) applied to readings in its input unit.
+    arrays
+        False: a logger recording keeps its codes only (``acc_g`` and ``counts`` None; g block by block,
+        :meth:`AccelerationInput.blocks`), for the long recordings of the streaming commands.
 
     Raises
     ------
@@ -174,7 +198,7 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         A missing or unreadable file, an unknown format, an ambiguous or missing column, unit or rate, a flag
         that does not apply to this input; the message names the file (and line) and the flag to give.
     """
-    data = _read(Path(path), sampling_rate_hz, columns, units, calibration, skip_rows)
+    data = _read(Path(path), sampling_rate_hz, columns, units, calibration, skip_rows, arrays)
     say_losses(input_losses(data))
     return data
 
@@ -190,7 +214,7 @@ def input_losses(data: AccelerationInput) -> SampleLosses:
 
 
 def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
-          calibration: AccCalibration | str | Path | None, skip_rows: int) -> AccelerationInput:
+          calibration: AccCalibration | str | Path | None, skip_rows: int, arrays: bool = True) -> AccelerationInput:
     if sampling_rate_hz is not None and not (math.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
         raise HostError(f"--rate must be a positive number of Hz, got {sampling_rate_hz:g}")
     if units is not None and units not in UNITS:
@@ -233,7 +257,7 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
         rec = Recording.load(p)
     else:
         rec = decode_bytes(data, source=str(p))
-    return _from_recording(rec, p, sampling_rate_hz, cal)
+    return _from_recording(rec, p, sampling_rate_hz, cal, arrays)
 
 
 # ------------------------------------------------------------------------------------------------ formats
@@ -290,22 +314,25 @@ def _check_rate(p: Path, file_rate: float, asked: float | None) -> None:
         raise HostError(f"{p}: the file says {file_rate:g} Hz, --rate says {asked:g} Hz; drop --rate")
 
 
-def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
+def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None,
+                    arrays: bool = True) -> AccelerationInput:
     _check_rate(p, float(rec.sampling_rate_hz), rate)
-    counts = rec.codes.astype(np.float64)
-    counts[~rec.valid] = np.nan
     if cal is None:
         m, note = rec.default_calibration()
     else:
         if cal.input_unit != "counts":
             raise HostError(f"{p}: the calibration takes {cal.input_unit}, this file holds ADC counts")
         m, note = cal, "g from the given calibration"
+    marks = np.flatnonzero((np.asarray(rec.flags) & FLAG_MARK) != 0)
+    source = f"{p} (logger recording, {int(rec.adc_bits)}-bit; {note})"
+    if not arrays:
+        return AccelerationInput(None, np.asarray(rec.valid, bool), float(rec.sampling_rate_hz), marks, source,
+                                 None, int(rec.adc_bits), rec, to_g=m)
+    counts = rec.codes.astype(np.float64)
+    counts[~rec.valid] = np.nan
     acc = rec.acc_g(m)
     valid = np.asarray(rec.valid, bool) & np.all(np.isfinite(acc), axis=1)
-    marks = np.flatnonzero((np.asarray(rec.flags) & FLAG_MARK) != 0)
-    return AccelerationInput(acc, valid, float(rec.sampling_rate_hz), marks,
-                             f"{p} (logger recording, {int(rec.adc_bits)}-bit; {note})", counts, int(rec.adc_bits),
-                             rec)
+    return AccelerationInput(acc, valid, float(rec.sampling_rate_hz), marks, source, counts, int(rec.adc_bits), rec)
 
 
 def _from_ipol(p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
