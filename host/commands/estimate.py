@@ -60,7 +60,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.estimate import estimate_recording
 
     args.out = out_path(args.out, f"{input_stem(args.input)}_steps.csv")
@@ -74,7 +73,11 @@ def run(args: argparse.Namespace) -> int:
                       {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration},
                       force=args.force)
     data = read_input(args, args.input, arrays=False)
-    k = KFit.load(args.k_file) if args.k_file else None
+    k = None
+    if args.k_file:
+        from gaitlog.host.gait.k_calibration import KFit
+
+        k = KFit.load(args.k_file)
     result = estimate_recording(data, arithmetic=args.arithmetic, k=k, adc_calibration_file=args.calibration,
                                 lengths=lengths_from_args(args, k=k, data=data), input_name=args.input)
     if outs:

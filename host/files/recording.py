@@ -624,16 +624,29 @@ def read_npz_arrays(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
                     if nbytes > MAX_NPZ_ARRAY_BYTES:
                         raise HostError(f"{where}: declares shape {shape} ({nbytes} bytes), more than a recording "
                                         f"holds ({MAX_NPZ_ARRAY_BYTES} bytes)")
-                    data = fh.read(nbytes)
-                if len(data) != nbytes:
-                    raise HostError(f"{where}: truncated ({len(data)} of {nbytes} bytes)")
-                array = np.frombuffer(data, dtype=dtype, count=count)
+                    raw = np.empty(nbytes, np.uint8)       # read in place: no bytes object and copy beside it
+                    got = _read_into(fh, raw)
+                if got != nbytes:
+                    raise HostError(f"{where}: truncated ({got} of {nbytes} bytes)")
+                array = raw.view(dtype)[:count]
                 arrays[name] = array.reshape(shape[::-1]).T if fortran else array.reshape(shape)
     except HostError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as err:
         raise HostError(f"{path}: damaged or truncated recording NPZ ({err})") from err
-    return {k: v.copy() for k, v in arrays.items()}
+    return arrays
+
+
+def _read_into(fh: Any, raw: np.ndarray) -> int:
+    """Fill ``raw`` (uint8) from ``fh`` up to its size; the number of bytes read (fewer at the end of the data)."""
+    view = memoryview(raw)
+    got = 0
+    while got < raw.size:
+        k = fh.readinto(view[got:got + (1 << 20)])   # a zip member's readinto reads a bytes object this long
+        if not k:
+            break
+        got += k
+    return got
 
 
 def _load_step_records(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any], header: Any

@@ -8,7 +8,7 @@ the 4 s gravity mean, the Gaussian low-passes), so every sample is computed as i
 
 1. Per block: short gaps filled, gravity and the vertical acceleration, its first harmonic (3 Hz). The moving
    mean's cumulative sum continues from block to block (the carried sum is the first term: the additions of one
-   whole-signal sum, in order). Kept: the vertical acceleration and where it is measured (9 bytes a sample), and
+   whole-signal sum, in order). Kept: the vertical acceleration and where it is measured (in a temporary file), and
    the first harmonic's *turning points* (:class:`TurningPoints`: the runs higher or lower than both neighbours),
    on which peaks and prominences are those of the whole curve, however far a prominence reaches.
 2. At the end: the foot-flats on the turning points
@@ -17,12 +17,14 @@ the 4 s gravity mean, the Gaussian low-passes), so every sample is computed as i
    recomputed around the foot-flats, block by block, the bouts from the long runs of missing samples, and M1-M5
    per group of steps (:func:`gaitlog.host.gait.pipeline.step_table`), each group on the samples it spans.
 
-Memory: the kept vertical acceleration (9 bytes a sample) and one block's temporaries; a step is counted once
-(a foot-flat is one turning point, wherever the blocks are cut).
+Memory: one block's temporaries, the turning points (a few bytes a sample) and the step table; the kept vertical
+acceleration (9 bytes a sample) goes to a temporary file and is read back a group of steps at a time. A step is
+counted once (a foot-flat is one turning point, wherever the blocks are cut).
 """
 
 from __future__ import annotations
 
+import tempfile
 import warnings
 from typing import TYPE_CHECKING, Self
 
@@ -45,28 +47,33 @@ __all__ = ["StreamingStepPipeline", "TurningPoints"]
 BLOCK_SAMPLES = 1 << 16
 
 
-class _Chunks:
-    """Per-sample arrays kept as a list of blocks; :meth:`take` joins the ones a range needs."""
+class _Spill:
+    """The kept per-sample arrays (the vertical acceleration and where it is measured), appended block after block
+    to temporary files and read back by range (:meth:`take`): the process holds one block of them, not the recording
+    (the operating system's file cache holds the rest, outside the process's memory)."""
 
     def __init__(self) -> None:
-        self.parts: list[tuple[np.ndarray, ...]] = []
-        self.starts: list[int] = []
+        self.files = (tempfile.TemporaryFile(), tempfile.TemporaryFile())
+        self.dtypes = (np.dtype(np.float64), np.dtype(bool))
         self.n = 0
 
     def append(self, *arrays: np.ndarray) -> None:
-        self.starts.append(self.n)
-        self.parts.append(arrays)
+        for f, a, dt in zip(self.files, arrays, self.dtypes):
+            f.seek(self.n * dt.itemsize)
+            f.write(np.ascontiguousarray(a, dt).tobytes())
         self.n += arrays[0].size
 
     def take(self, lo: int, hi: int) -> tuple[np.ndarray, ...]:
         lo, hi = max(lo, 0), min(hi, self.n)
-        i = max(np.searchsorted(self.starts, lo, side="right") - 1, 0)
-        pieces = []
-        while i < len(self.parts) and self.starts[i] < hi:
-            s = self.starts[i]
-            pieces.append(tuple(a[max(lo - s, 0):hi - s] for a in self.parts[i]))
-            i += 1
-        return tuple(np.concatenate(col) for col in zip(*pieces))
+        out = []
+        for f, dt in zip(self.files, self.dtypes):
+            f.seek(lo * dt.itemsize)
+            out.append(np.frombuffer(f.read((hi - lo) * dt.itemsize), dt).copy())
+        return tuple(out)
+
+    def close(self) -> None:
+        for f in self.files:
+            f.close()
 
 
 class TurningPoints:
@@ -121,6 +128,7 @@ class TurningPoints:
             self._run = None
         self.values = np.concatenate(self._values) if self._values else np.zeros(0)
         self.index = np.concatenate(self._index).astype(np.int64) if self._index else np.zeros(0, np.int64)
+        self._values, self._index = [], []
 
 
 class _DrawnCurve:
@@ -226,7 +234,7 @@ class StreamingStepPipeline:
         self._avail = 0
         self._done = 0                                            # samples computed
         self._carry = (0, np.zeros(3), np.zeros(3, np.int64))     # cumulative sums at a sample
-        self._kept = _Chunks()
+        self._kept = _Spill()
         self._points = TurningPoints()
         self._curve = _DrawnCurve(self._points)
 
@@ -252,7 +260,10 @@ class StreamingStepPipeline:
         self._curve.finish()
         self.n_samples_ = n
         self.notes_: list[str] = []
-        self.steps_ = self._table(n)
+        try:
+            self.steps_ = self._table(n)
+        finally:
+            self._kept.close()
         return self
 
     # ------------------------------------------------------------------------------------------- per block
@@ -365,9 +376,10 @@ class StreamingStepPipeline:
 
     def _missing_runs(self) -> tuple[np.ndarray, np.ndarray]:
         """Start and end of every run of samples not measured (or not finite), joined across blocks."""
-        starts, ends = [], []
-        for (av, ok), at in zip(self._kept.parts, self._kept.starts):
-            s, e = missing_runs(ok)
+        starts: list[int] = []
+        ends: list[int] = []
+        for at in range(0, self._kept.n, BLOCK_SAMPLES):
+            s, e = missing_runs(self._kept.take(at, at + BLOCK_SAMPLES)[1])
             s, e = (s + at).tolist(), (e + at).tolist()
             if s and ends and ends[-1] == s[0]:
                 ends[-1] = e[0]

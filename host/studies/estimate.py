@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,8 +26,10 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.inputs import AccelerationInput, input_losses
 from gaitlog.host.files.losses import SampleLosses
 from gaitlog.host.gait.anthropometry import LENGTH_MODEL, AnatomyChoice
-from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES, KFit
 from gaitlog.host.gait.streaming import StreamingStepPipeline
+
+if TYPE_CHECKING:  # pragma: no cover -- k_calibration loads scipy (0.3 s): imported only when there is a K
+    from gaitlog.host.gait.k_calibration import KFit
 
 __all__ = ["ARITHMETICS", "EstimateResult", "estimate_recording", "float_steps", "summarise"]
 
@@ -35,6 +37,8 @@ __all__ = ["ARITHMETICS", "EstimateResult", "estimate_recording", "float_steps",
 ARITHMETICS = ("float", "fixed", "both")
 #: Samples fed to the chains, and rows written to a CSV, at a time.
 BLOCK_SAMPLES = 1 << 16
+#: Rows of a step table formatted at a time (their cells are Python strings: ~1 kB a row).
+CSV_ROWS = 4096
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,12 +72,14 @@ class EstimateResult:
     losses: SampleLosses
     notes: list[str] = field(default_factory=list)
 
-    def csv_blocks(self, arithmetic: str, rows: int = BLOCK_SAMPLES):
+    def csv_blocks(self, arithmetic: str, rows: int = CSV_ROWS):
         """The CSV text of one table (module notes), ``rows`` rows at a time, the header in the first."""
         table = self.tables[arithmetic]
         cols = table.columns()
         n = table.n_steps
         out = self.k.outside_range(table) if self.k is not None else None
+        if out is not None:
+            from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES
         for lo in range(0, max(n, 1), rows):
             hi = min(n, lo + rows)
             flags = (["+".join(q for q in RANGE_QUANTITIES if out[q][i]) for i in range(lo, hi)]
@@ -127,11 +133,14 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
     notes = [lengths.note] if lengths.assumed else []
     tables: dict[str, StepTable] = {}
     report = ""
+    fixed = None
+    if arithmetic in ("fixed", "both"):     # first: its transient memory is the larger, before any table is held
+        fixed, report = fixed_steps(data, adc_calibration_file, lengths, k)
     if arithmetic in ("float", "both"):
         tables["float"], chain_notes = float_steps(data, lengths, k)
         notes += chain_notes
-    if arithmetic in ("fixed", "both"):
-        tables["fixed"], report = fixed_steps(data, adc_calibration_file, lengths, k)
+    if fixed is not None:
+        tables["fixed"] = fixed
     summary = summarise(tables, k)
     notes += _k_notes(summary)
     return EstimateResult(data, lengths, k, tables, report, summary, input_losses(data), notes)
