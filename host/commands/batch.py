@@ -9,6 +9,7 @@ input and settings, and retries the failed ones.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
 from pathlib import Path
@@ -22,6 +23,7 @@ from gaitlog.host.commands._options import (
     check_output_folder,
     print_json,
     printer,
+    whole,
 )
 from gaitlog.host.commands._progress import progress_bar
 from gaitlog.host.errors import HostError, UsageError
@@ -33,6 +35,8 @@ HELP = "estimate every recording in a folder (per-recording outputs, summary tab
 #: Shown under "examples:" by ``gaitlog batch --help``.
 EXAMPLES = (
     "gaitlog batch recordings/ --out results/ --k-file K.json",
+    "gaitlog batch recordings/ --out results/ --workers 4",
+    "gaitlog batch recordings/ --out results/ --scheduler scheduler.json",
 )
 
 
@@ -47,10 +51,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "(default: each file's own)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="compute the recordings on an existing Dask "
+                        "scheduler: its address or the scheduler file it wrote (dask scheduler --scheduler-file FILE); "
+                        "the outputs are written here as each recording finishes, the same as one after the other")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), metavar="N",
+                        help="compute the recordings on a local Dask cluster of N worker processes (default: one "
+                             "after the other in this process)")
     add_anatomy_options(parser)
     add_max_missing_option(parser)
     add_json_option(parser, "the summary table")
     add_verbosity_options(parser)
+
+
+def recording_lengths(flags: argparse.Namespace, k, data) -> object:
+    """Leg and foot length of one recording from the anatomy flags (module-level: it travels to Dask workers)."""
+    return lengths_from_args(flags, k=k, data=data)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,6 +74,12 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
 
+    if args.scheduler and args.workers:
+        raise UsageError("--scheduler and --workers exclude each other (the scheduler's cluster has its own workers)")
+    if args.scheduler:
+        from gaitlog.host.commands.sweep import _check_scheduler
+
+        _check_scheduler(args.scheduler)
     out = Path(args.out)
     folder = Path(args.folder)
     check_output_folder("--out", out)
@@ -77,8 +98,10 @@ def run(args: argparse.Namespace) -> int:
     t = time.perf_counter()
     with progress_bar(args, len(paths), "recording") as tick:
         results = run_batch(paths, out, calibration=cal, calibration_file=args.calibration, k=k, k_file=args.k_file,
-                            lengths=lambda data: lengths_from_args(args, k=k, data=data), settings=settings,
-                            progress=tick)
+                            lengths=functools.partial(recording_lengths, argparse.Namespace(
+                                leg_length=args.leg_length, foot_length=args.foot_length, height=args.height,
+                                k_file=args.k_file), k), settings=settings, progress=tick,
+                            scheduler=args.scheduler, workers=args.workers)
     rows = [r.summary for r in results]
     atomic_write_text(out / "batch.csv", rows_csv_text([{k: ("" if v is None else v) for k, v in r.items()}
                                                         for r in rows], SUMMARY_COLUMNS))

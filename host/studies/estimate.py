@@ -31,7 +31,7 @@ from gaitlog.host.gait.streaming import StreamingStepPipeline
 if TYPE_CHECKING:  # pragma: no cover -- k_calibration loads scipy (0.3 s): imported only when there is a K
     from gaitlog.host.gait.k_calibration import KFit
 
-__all__ = ["ARITHMETICS", "EstimateResult", "estimate_recording", "float_steps", "summarise"]
+__all__ = ["ARITHMETICS", "EstimateResult", "estimate_recording", "float_steps", "summarise", "write_table_csv"]
 
 #: ``--arithmetic`` choices: the offline float chain, the logger's on-line algorithm, both.
 ARITHMETICS = ("float", "fixed", "both")
@@ -93,9 +93,7 @@ class EstimateResult:
         written: list[Path] = []
         try:
             for arith, path in outs.items():
-                with atomic_write(path, "w", encoding="utf-8", newline="") as fh:
-                    for text in self.csv_blocks(arith):
-                        fh.write(text)
+                _write_blocks(path, self.csv_blocks(arith))
                 written.append(path)
         except BaseException:
             for path in written:
@@ -115,6 +113,25 @@ class EstimateResult:
                 "per_step_tables": {a: str(p) for a, p in outs.items()}, "notes": self.notes,
                 "missing_percent": round(self.losses.percent, 3), "max_missing_percent": max_missing,
                 "above_max_missing": self.losses.above(max_missing)}
+
+
+def write_table_csv(path: Path, columns: dict, rows: int = CSV_ROWS) -> None:
+    """Write named equal-length columns as CSV (:func:`~gaitlog.firmware_sim.algorithms.steps.columns_csv_text`,
+    the same text), ``rows`` rows formatted at a time, atomically."""
+    n = len(next(iter(columns.values()))) if columns else 0
+
+    def blocks():
+        for lo in range(0, max(n, 1), rows):
+            text = columns_csv_text({c: np.asarray(v)[lo:lo + rows] for c, v in columns.items()})
+            yield text if lo == 0 else text.split("\n", 1)[1]
+
+    _write_blocks(path, blocks())
+
+
+def _write_blocks(path: Path, blocks) -> None:
+    with atomic_write(path, "w", encoding="utf-8", newline="") as fh:
+        for text in blocks:
+            fh.write(text)
 
 
 def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: AnatomyChoice, k: KFit | None = None,
