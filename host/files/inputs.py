@@ -400,7 +400,7 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
     pos = {c: k for k, c in enumerate(want)}
     if table.shape[0] < 2:
         raise HostError(f"{p}: fewer than 2 data lines")
-    parts = {unit: table[:, [pos[c] for c in triple]] for triple, unit in axes}
+    parts = {unit: _columns(table, [pos[c] for c in triple]) for triple, unit in axes}
     if "auto" in parts:
         v = parts.pop("auto")
         parts[_unit_from_norm(p, v)] = v
@@ -426,8 +426,11 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
         marks = grid[(flags & FLAG_MARK) != 0]
 
     def on_grid(v: np.ndarray) -> np.ndarray:
-        out = np.full((n, 3), np.nan)
-        out[grid] = v
+        if n == v.shape[0]:                # every row on its own grid point: the table's columns, NaN where missing
+            out = v
+        else:
+            out = np.full((n, 3), np.nan)
+            out[grid] = v
         out[~valid] = np.nan
         return out
 
@@ -447,6 +450,13 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
         valid &= np.all(np.isfinite(g), axis=1)
     unit_words = " and ".join(sorted(parts))
     return AccelerationInput(g, valid, float(rate), marks, f"{p} (CSV, {unit_words}; {note})", counts)
+
+
+def _columns(table: np.ndarray, index: list[int]) -> np.ndarray:
+    """``table[:, index]``, a view when the columns are adjacent and in order (a long table is not copied)."""
+    if index == list(range(index[0], index[0] + len(index))):
+        return table[:, index[0]:index[0] + len(index)]
+    return table[:, index]
 
 
 def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: list[int],
@@ -477,7 +487,15 @@ def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: lis
                     raise HostError(f"{p}: line {line_no}, {name}: not a number: {v!r}") from None
         k += 1
     blocks.append(block[:k])
-    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+    if len(blocks) == 1:
+        return blocks[0]
+    table = np.empty((sum(b.shape[0] for b in blocks), len(want)))   # pages taken as the blocks are copied in
+    at = 0
+    for i, b in enumerate(blocks):
+        table[at:at + b.shape[0]] = b
+        at += b.shape[0]
+        blocks[i] = b = None               # each block given back once copied: the peak is the table and one block
+    return table
 
 
 def _axes(p: Path, names: list[str], header: list[str], numeric: list[int], cols: list[str | int] | None,
@@ -515,8 +533,14 @@ def _unit(p: Path, hint: str | None, units: str | None) -> str:
 
 
 def _median_norm(v: np.ndarray) -> float:
-    ok = np.all(np.isfinite(v), axis=1)
-    return float(np.median(np.linalg.norm(v[ok], axis=1))) if ok.any() else float("nan")
+    """Median norm of the finite rows of ``v`` (``np.linalg.norm``'s sums, a block of rows at a time)."""
+    norms = []
+    for lo in range(0, v.shape[0], _ROWS_PER_BLOCK):
+        b = v[lo:lo + _ROWS_PER_BLOCK]
+        b = b[np.all(np.isfinite(b), axis=1)]
+        norms.append(np.sqrt(np.add.reduce(b * b, axis=1)))
+    norm = np.concatenate(norms) if norms else np.zeros(0)
+    return float(np.median(norm)) if norm.size else float("nan")
 
 
 def _unit_from_norm(p: Path, v: np.ndarray) -> str:
