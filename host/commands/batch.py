@@ -112,6 +112,17 @@ def run(args: argparse.Namespace) -> int:
     say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done'] + n['partial']} computed, "
         f"{n['skipped']} finished before (skipped), {n['failed']} failed"
         + (f"; {n['partial']} partial (samples missing)" if n["partial"] else ""))
+    _print_rows(say, rows)
+    _print_notes(say, results)
+    say(f"written: {out}/batch.csv and per recording NAME.steps.csv, NAME.json")
+    for r in over:
+        print(f"gaitlog batch: error: {r.path}: {r.summary['missing_percent']:.1f} % of the samples missing, above "
+              f"--max-missing {args.max_missing:g} % (its outputs are written, status partial)", file=sys.stderr)
+    return 1 if n["failed"] or over else 0
+
+
+def _print_rows(say, rows: list[dict]) -> None:
+    """The table of the recordings computed or skipped."""
     say(f"{'recording':<28}{'status':<15}{'samples':>9}{'Hz':>6}{'steps':>7}{'M1 m':>9}{'M2 m':>9}{'M3 m':>9}")
     for r in rows:
         if r["status"] == "failed":
@@ -120,6 +131,10 @@ def run(args: argparse.Namespace) -> int:
                        for k in ("distance_m1_m", "distance_m2_m", "distance_m3_m"))
         status = f"partial {r['missing_percent']:.1f}%" if r["status"] == "partial" else r["status"]
         say(f"{r['recording']:<28}{status:<15}{r['n_samples']:>9}{r['sampling_rate_hz']:>6g}{r['n_steps']:>7}{dist}")
+
+
+def _print_notes(say, results: list) -> None:
+    """Failures, missing samples and the chain's warnings, on stderr."""
     for r in results:
         if r.status == "failed":
             print(f"gaitlog batch: failed: {r.error if str(r.path) in r.error else f'{r.path}: {r.error}'}",
@@ -129,8 +144,3 @@ def run(args: argparse.Namespace) -> int:
             print(f"gaitlog batch: warning: {r.summary['missing_line']}", file=sys.stderr)
         if r.summary.get("warnings") and r.status in ("done", "partial") and say is print:
             print(f"gaitlog batch: warning: {r.summary['warnings']}", file=sys.stderr)
-    say(f"written: {out}/batch.csv and per recording NAME.steps.csv, NAME.json")
-    for r in over:
-        print(f"gaitlog batch: error: {r.path}: {r.summary['missing_percent']:.1f} % of the samples missing, above "
-              f"--max-missing {args.max_missing:g} % (its outputs are written, status partial)", file=sys.stderr)
-    return 1 if n["failed"] or over else 0
