@@ -319,17 +319,14 @@ class StreamingStepPipeline:
         self._done = e
 
     # ------------------------------------------------------------------------------------------- at the end
-    def _bands(self, lo: int, hi: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Samples ``[lo, hi)`` with the radius of the widest filter either side: (start, a_v, measured, the first
-        harmonic, the 10 Hz signal, the impact band), each exact on ``[lo, hi)``."""
-        p, mw, rate = self.detector.parameters, self.detector.min_weight, self.rate
+    def _bands(self, lo: int, hi: int, *cutoffs: float) -> tuple[int, np.ndarray, np.ndarray, list[np.ndarray]]:
+        """Samples ``[lo, hi)`` with the radius of the widest filter either side: (their start, a_v, measured, the
+        masked Gaussian low-pass at each of ``cutoffs``), the low-passes exact on ``[lo, hi)``."""
+        mw, rate = self.detector.min_weight, self.rate
         a = max(0, lo - self.radius)
         av, ok = self._kept.take(a, hi + self.radius)
-
-        def low(cut: float) -> np.ndarray:
-            return masked_gaussian_lowpass(av, ok, cutoff_hz=cut, sampling_rate_hz=rate, min_weight=mw)
-
-        return a, av, ok, low(p.ff_cutoff_hz), low(p.detail_cutoff_hz), low(p.impact_cutoff_hz)
+        return a, av, ok, [masked_gaussian_lowpass(av, ok, cutoff_hz=c, sampling_rate_hz=rate, min_weight=mw)
+                           for c in cutoffs]
 
     def _events(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Foot-flats, heel strikes and toe-offs (``-1``: none)."""
@@ -347,7 +344,8 @@ class StreamingStepPipeline:
             if a == b:
                 continue
             lo = max(0, int(ff[a]) - reach)
-            start, _, _, _, det, imp = self._bands(lo, min(n, int(ff[b - 1]) + reach + 1))
+            start, _, _, (det, imp) = self._bands(lo, min(n, int(ff[b - 1]) + reach + 1), p.detail_cutoff_hz,
+                                                  p.impact_cutoff_hz)
             h, t = heel_strikes_toe_offs(det, det - imp, ff[a:b] - start, p, self.rate)
             hs[a:b] = np.where(h >= 0, h + start, -1)
             to[a:b] = np.where(t >= 0, t + start, -1)
@@ -363,7 +361,7 @@ class StreamingStepPipeline:
         self.notes_ += [str(c.message) for c in caught]
 
         def take(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            start, av, ok, lp, _, _ = self._bands(lo, hi)
+            start, av, ok, (lp,) = self._bands(lo, hi, self.detector.parameters.ff_cutoff_hz)
             return av[lo - start:hi - start], ok[lo - start:hi - start], lp[lo - start:hi - start]
 
         table, self.n_impossible_ = step_table(
