@@ -52,7 +52,6 @@ import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
-from scipy import linalg
 
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.protocol.adc_bits import check_adc_bits
@@ -319,6 +318,8 @@ class Adc:
         c_s, c_h, r_s = self.source_capacitance_f, HOLD_CAPACITANCE_F, self.source_impedance_ohm
         a = np.array([[-1.0 / (r_s * c_s) - 1.0 / (r_hold_ohm * c_s), 1.0 / (r_hold_ohm * c_s)],
                       [1.0 / (r_hold_ohm * c_h), -1.0 / (r_hold_ohm * c_h)]])
+        from scipy import linalg     # here: every command that reads a recording imports this module (0.3 s)
+
         return float((linalg.expm(a * charge_s) @ np.array([0.0, 1.0]))[1])
 
     @functools.cached_property

@@ -41,12 +41,13 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
                      help="accelerometer calibration (from 'gaitlog calibrate') applied to the readings")
 
 
-def read_input(args: argparse.Namespace, path: str | Path) -> AccelerationInput:
-    """Read ``path`` with the flags of :func:`add_input_options`."""
+def read_input(args: argparse.Namespace, path: str | Path, *, arrays: bool = True) -> AccelerationInput:
+    """Read ``path`` with the flags of :func:`add_input_options` (``arrays``: see
+    :func:`gaitlog.host.files.inputs.read_acceleration`)."""
     from gaitlog.host.files.inputs import read_acceleration
 
     return read_acceleration(path, sampling_rate_hz=args.rate, columns=args.columns, units=args.units,
-                             calibration=args.calibration, skip_rows=args.skip_rows)
+                             calibration=args.calibration, skip_rows=args.skip_rows, arrays=arrays)
 
 
 def given_input_flags(args: argparse.Namespace) -> list[str]:

@@ -9,6 +9,7 @@ input and settings, and retries the failed ones.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 import time
 from pathlib import Path
@@ -22,6 +23,7 @@ from gaitlog.host.commands._options import (
     check_output_folder,
     print_json,
     printer,
+    whole,
 )
 from gaitlog.host.commands._progress import progress_bar
 from gaitlog.host.errors import HostError, UsageError
@@ -33,6 +35,8 @@ HELP = "estimate every recording in a folder (per-recording outputs, summary tab
 #: Shown under "examples:" by ``gaitlog batch --help``.
 EXAMPLES = (
     "gaitlog batch recordings/ --out results/ --k-file K.json",
+    "gaitlog batch recordings/ --out results/ --workers 4",
+    "gaitlog batch recordings/ --out results/ --scheduler scheduler.json",
 )
 
 
@@ -47,10 +51,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "(default: each file's own)")
     parser.add_argument("--k-file", metavar="K.json", help="per-subject constants from 'gaitlog calibrate-k' "
                         "(without it M1/M2 use K = 1 and M4/M5 are not computed)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="compute the recordings on an existing Dask "
+                        "scheduler: its address or the scheduler file it wrote (dask scheduler --scheduler-file FILE); "
+                        "the outputs are written here as each recording finishes, the same as one after the other")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), metavar="N",
+                        help="compute the recordings on a local Dask cluster of N worker processes (default: one "
+                             "after the other in this process)")
     add_anatomy_options(parser)
     add_max_missing_option(parser)
     add_json_option(parser, "the summary table")
     add_verbosity_options(parser)
+
+
+def recording_lengths(flags: argparse.Namespace, k, data) -> object:
+    """Leg and foot length of one recording from the anatomy flags (module-level: it travels to Dask workers)."""
+    return lengths_from_args(flags, k=k, data=data)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,6 +74,12 @@ def run(args: argparse.Namespace) -> int:
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
 
+    if args.scheduler and args.workers:
+        raise UsageError("--scheduler and --workers exclude each other (the scheduler's cluster has its own workers)")
+    if args.scheduler:
+        from gaitlog.host.commands.sweep import _check_scheduler
+
+        _check_scheduler(args.scheduler)
     out = Path(args.out)
     folder = Path(args.folder)
     check_output_folder("--out", out)
@@ -77,8 +98,10 @@ def run(args: argparse.Namespace) -> int:
     t = time.perf_counter()
     with progress_bar(args, len(paths), "recording") as tick:
         results = run_batch(paths, out, calibration=cal, calibration_file=args.calibration, k=k, k_file=args.k_file,
-                            lengths=lambda data: lengths_from_args(args, k=k, data=data), settings=settings,
-                            progress=tick)
+                            lengths=functools.partial(recording_lengths, argparse.Namespace(
+                                leg_length=args.leg_length, foot_length=args.foot_length, height=args.height,
+                                k_file=args.k_file), k), settings=settings, progress=tick,
+                            scheduler=args.scheduler, workers=args.workers)
     rows = [r.summary for r in results]
     atomic_write_text(out / "batch.csv", rows_csv_text([{k: ("" if v is None else v) for k, v in r.items()}
                                                         for r in rows], SUMMARY_COLUMNS))
@@ -89,6 +112,17 @@ def run(args: argparse.Namespace) -> int:
     say(f"batch: {len(results)} recording(s) in {time.perf_counter() - t:.1f} s: {n['done'] + n['partial']} computed, "
         f"{n['skipped']} finished before (skipped), {n['failed']} failed"
         + (f"; {n['partial']} partial (samples missing)" if n["partial"] else ""))
+    _print_rows(say, rows)
+    _print_notes(say, results)
+    say(f"written: {out}/batch.csv and per recording NAME.steps.csv, NAME.json")
+    for r in over:
+        print(f"gaitlog batch: error: {r.path}: {r.summary['missing_percent']:.1f} % of the samples missing, above "
+              f"--max-missing {args.max_missing:g} % (its outputs are written, status partial)", file=sys.stderr)
+    return 1 if n["failed"] or over else 0
+
+
+def _print_rows(say, rows: list[dict]) -> None:
+    """The table of the recordings computed or skipped."""
     say(f"{'recording':<28}{'status':<15}{'samples':>9}{'Hz':>6}{'steps':>7}{'M1 m':>9}{'M2 m':>9}{'M3 m':>9}")
     for r in rows:
         if r["status"] == "failed":
@@ -97,6 +131,10 @@ def run(args: argparse.Namespace) -> int:
                        for k in ("distance_m1_m", "distance_m2_m", "distance_m3_m"))
         status = f"partial {r['missing_percent']:.1f}%" if r["status"] == "partial" else r["status"]
         say(f"{r['recording']:<28}{status:<15}{r['n_samples']:>9}{r['sampling_rate_hz']:>6g}{r['n_steps']:>7}{dist}")
+
+
+def _print_notes(say, results: list) -> None:
+    """Failures, missing samples and the chain's warnings, on stderr."""
     for r in results:
         if r.status == "failed":
             print(f"gaitlog batch: failed: {r.error if str(r.path) in r.error else f'{r.path}: {r.error}'}",
@@ -106,8 +144,3 @@ def run(args: argparse.Namespace) -> int:
             print(f"gaitlog batch: warning: {r.summary['missing_line']}", file=sys.stderr)
         if r.summary.get("warnings") and r.status in ("done", "partial") and say is print:
             print(f"gaitlog batch: warning: {r.summary['warnings']}", file=sys.stderr)
-    say(f"written: {out}/batch.csv and per recording NAME.steps.csv, NAME.json")
-    for r in over:
-        print(f"gaitlog batch: error: {r.path}: {r.summary['missing_percent']:.1f} % of the samples missing, above "
-              f"--max-missing {args.max_missing:g} % (its outputs are written, status partial)", file=sys.stderr)
-    return 1 if n["failed"] or over else 0

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -118,6 +118,9 @@ class AccelerationInput:
     adc_bits: int | None = None
     recording: Recording | None = field(default=None, repr=False)
     ipol_trial: IpolTrial | None = field(default=None, repr=False)
+    #: A logger recording read with ``arrays=False``: its counts-to-g map, applied block by block (:meth:`blocks`)
+    #: instead of ``acc_g`` and ``counts`` held whole.
+    to_g: object = field(default=None, repr=False)
 
     @property
     def n_samples(self) -> int:
@@ -131,10 +134,27 @@ class AccelerationInput:
 
     def g(self) -> np.ndarray:
         """:attr:`acc_g`, or a :class:`HostError` when the input is counts without a calibration."""
+        if self.acc_g is None and self.to_g is not None and self.recording is not None:
+            return self.recording.acc_g(self.to_g)
         if self.acc_g is None:
             raise HostError(f"{self.source}: acceleration in ADC counts and no calibration to turn it into g; "
                             "give --calibration CAL.json (from 'gaitlog calibrate')")
         return self.acc_g
+
+    def blocks(self, size: int = 1 << 16) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """``(g, valid)`` of ``size`` samples at a time (the last block shorter): a logger recording read with
+        ``arrays=False`` is converted one block at a time, so no ``(n, 3)`` float array is held."""
+        n = self.n_samples
+        if self.acc_g is None and self.to_g is not None and self.recording is not None:
+            rec = self.recording
+            for lo in range(0, n, size):
+                g = np.asarray(self.to_g.apply(rec.codes[lo:lo + size].astype(np.float64)), np.float64)
+                g[~self.valid[lo:lo + size]] = np.nan
+                yield g, self.valid[lo:lo + size]
+            return
+        acc = self.g()
+        for lo in range(0, n, size):
+            yield acc[lo:lo + size], self.valid[lo:lo + size]
 
     def __repr__(self) -> str:
         return (f"AccelerationInput({self.n_samples} samples at {self.sampling_rate_hz:g} Hz, {self.n_missing} "
@@ -153,7 +173,8 @@ def parse_columns(text: str | Sequence[str | int] | None) -> list[str | int] | N
 
 def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None,
                       columns: str | Sequence[str | int] | None = None, units: str | None = None,
-                      calibration: AccCalibration | str | Path | None = None, skip_rows: int = 0) -> AccelerationInput:
+                      calibration: AccCalibration | str | Path | None = None, skip_rows: int = 0,
+                      arrays: bool = True) -> AccelerationInput:
     """Read ``path`` (see the module notes); missing samples are said in one
     :class:`~gaitlog.host.files.losses.MissingSamplesWarning` (:func:`input_losses`).
 
@@ -167,6 +188,9 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         CSV only (an error for other inputs).
     calibration
         Accelerometer calibration (object or JSON path) applied to readings in its input unit.
+    arrays
+        False: a logger recording keeps its codes only (``acc_g`` and ``counts`` None; g block by block,
+        :meth:`AccelerationInput.blocks`), for the long recordings of the streaming commands.
 
     Raises
     ------
@@ -174,7 +198,7 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
         A missing or unreadable file, an unknown format, an ambiguous or missing column, unit or rate, a flag
         that does not apply to this input; the message names the file (and line) and the flag to give.
     """
-    data = _read(Path(path), sampling_rate_hz, columns, units, calibration, skip_rows)
+    data = _read(Path(path), sampling_rate_hz, columns, units, calibration, skip_rows, arrays)
     say_losses(input_losses(data))
     return data
 
@@ -190,7 +214,7 @@ def input_losses(data: AccelerationInput) -> SampleLosses:
 
 
 def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
-          calibration: AccCalibration | str | Path | None, skip_rows: int) -> AccelerationInput:
+          calibration: AccCalibration | str | Path | None, skip_rows: int, arrays: bool = True) -> AccelerationInput:
     if sampling_rate_hz is not None and not (math.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
         raise HostError(f"--rate must be a positive number of Hz, got {sampling_rate_hz:g}")
     if units is not None and units not in UNITS:
@@ -233,7 +257,7 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
         rec = Recording.load(p)
     else:
         rec = decode_bytes(data, source=str(p))
-    return _from_recording(rec, p, sampling_rate_hz, cal)
+    return _from_recording(rec, p, sampling_rate_hz, cal, arrays)
 
 
 # ------------------------------------------------------------------------------------------------ formats
@@ -290,22 +314,25 @@ def _check_rate(p: Path, file_rate: float, asked: float | None) -> None:
         raise HostError(f"{p}: the file says {file_rate:g} Hz, --rate says {asked:g} Hz; drop --rate")
 
 
-def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
+def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None,
+                    arrays: bool = True) -> AccelerationInput:
     _check_rate(p, float(rec.sampling_rate_hz), rate)
-    counts = rec.codes.astype(np.float64)
-    counts[~rec.valid] = np.nan
     if cal is None:
         m, note = rec.default_calibration()
     else:
         if cal.input_unit != "counts":
             raise HostError(f"{p}: the calibration takes {cal.input_unit}, this file holds ADC counts")
         m, note = cal, "g from the given calibration"
+    marks = np.flatnonzero((np.asarray(rec.flags) & FLAG_MARK) != 0)
+    source = f"{p} (logger recording, {int(rec.adc_bits)}-bit; {note})"
+    if not arrays:
+        return AccelerationInput(None, np.asarray(rec.valid, bool), float(rec.sampling_rate_hz), marks, source,
+                                 None, int(rec.adc_bits), rec, to_g=m)
+    counts = rec.codes.astype(np.float64)
+    counts[~rec.valid] = np.nan
     acc = rec.acc_g(m)
     valid = np.asarray(rec.valid, bool) & np.all(np.isfinite(acc), axis=1)
-    marks = np.flatnonzero((np.asarray(rec.flags) & FLAG_MARK) != 0)
-    return AccelerationInput(acc, valid, float(rec.sampling_rate_hz), marks,
-                             f"{p} (logger recording, {int(rec.adc_bits)}-bit; {note})", counts, int(rec.adc_bits),
-                             rec)
+    return AccelerationInput(acc, valid, float(rec.sampling_rate_hz), marks, source, counts, int(rec.adc_bits), rec)
 
 
 def _from_ipol(p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
@@ -373,7 +400,7 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
     pos = {c: k for k, c in enumerate(want)}
     if table.shape[0] < 2:
         raise HostError(f"{p}: fewer than 2 data lines")
-    parts = {unit: table[:, [pos[c] for c in triple]] for triple, unit in axes}
+    parts = {unit: _columns(table, [pos[c] for c in triple]) for triple, unit in axes}
     if "auto" in parts:
         v = parts.pop("auto")
         parts[_unit_from_norm(p, v)] = v
@@ -399,8 +426,11 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
         marks = grid[(flags & FLAG_MARK) != 0]
 
     def on_grid(v: np.ndarray) -> np.ndarray:
-        out = np.full((n, 3), np.nan)
-        out[grid] = v
+        if n == v.shape[0]:                # every row on its own grid point: the table's columns, NaN where missing
+            out = v
+        else:
+            out = np.full((n, 3), np.nan)
+            out[grid] = v
         out[~valid] = np.nan
         return out
 
@@ -420,6 +450,13 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
         valid &= np.all(np.isfinite(g), axis=1)
     unit_words = " and ".join(sorted(parts))
     return AccelerationInput(g, valid, float(rate), marks, f"{p} (CSV, {unit_words}; {note})", counts)
+
+
+def _columns(table: np.ndarray, index: list[int]) -> np.ndarray:
+    """``table[:, index]``, a view when the columns are adjacent and in order (a long table is not copied)."""
+    if index == list(range(index[0], index[0] + len(index))):
+        return table[:, index[0]:index[0] + len(index)]
+    return table[:, index]
 
 
 def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: list[int],
@@ -450,7 +487,15 @@ def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: lis
                     raise HostError(f"{p}: line {line_no}, {name}: not a number: {v!r}") from None
         k += 1
     blocks.append(block[:k])
-    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+    if len(blocks) == 1:
+        return blocks[0]
+    table = np.empty((sum(b.shape[0] for b in blocks), len(want)))   # pages taken as the blocks are copied in
+    at = 0
+    for i, b in enumerate(blocks):
+        table[at:at + b.shape[0]] = b
+        at += b.shape[0]
+        blocks[i] = b = None               # each block given back once copied: the peak is the table and one block
+    return table
 
 
 def _axes(p: Path, names: list[str], header: list[str], numeric: list[int], cols: list[str | int] | None,
@@ -488,8 +533,14 @@ def _unit(p: Path, hint: str | None, units: str | None) -> str:
 
 
 def _median_norm(v: np.ndarray) -> float:
-    ok = np.all(np.isfinite(v), axis=1)
-    return float(np.median(np.linalg.norm(v[ok], axis=1))) if ok.any() else float("nan")
+    """Median norm of the finite rows of ``v`` (``np.linalg.norm``'s sums, a block of rows at a time)."""
+    norms = []
+    for lo in range(0, v.shape[0], _ROWS_PER_BLOCK):
+        b = v[lo:lo + _ROWS_PER_BLOCK]
+        b = b[np.all(np.isfinite(b), axis=1)]
+        norms.append(np.sqrt(np.add.reduce(b * b, axis=1)))
+    norm = np.concatenate(norms) if norms else np.zeros(0)
+    return float(np.median(norm)) if norm.size else float("nan")
 
 
 def _unit_from_norm(p: Path, v: np.ndarray) -> str:

@@ -68,7 +68,8 @@ class SampleLosses:
         missing = ~valid
         if not missing.any():
             return cls(source, int(valid.size), (), ())
-        d = np.diff(np.concatenate(([0], missing.view(np.int8), [0])))
+        edge = np.zeros(1, np.int8)                           # int8 throughout: 1 byte a sample, not 8
+        d = np.diff(np.concatenate((edge, missing.view(np.int8), edge)))
         starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1
         counts: Counter[str] = Counter()
         covered = 0

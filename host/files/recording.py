@@ -26,7 +26,6 @@ in ``step_records``: it is counted in one of the ``step_losses`` runs, with the 
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import zipfile
@@ -68,6 +67,8 @@ _NPZ_ARRAYS = ("codes", "valid", "flags", "sample_numbers", "header_bytes", "ste
 #: allocated.
 MAX_NPZ_ARRAY_BYTES = 8 * MAX_INPUT_SAMPLES + 4096
 
+#: Rows of the sample CSV formatted at a time (:meth:`Recording.to_csv`).
+_CSV_ROWS = 1 << 16
 #: CSV columns written by :meth:`Recording.to_csv`, in order.
 CSV_COLUMNS = (
     "sample_number", "time_s", "x_counts", "y_counts", "z_counts", "x_g", "y_g", "z_g", "flags", "valid",
@@ -416,14 +417,12 @@ class Recording:
         if self.header is not None:
             header_bytes = np.frombuffer(self.header.to_bytes(), dtype=np.uint8)
         meta = json.dumps(self.metadata(), sort_keys=True)
-        buf = io.BytesIO()
         step_bytes = np.frombuffer(self.step_records.tobytes(), dtype=np.uint8)
-        np.savez_compressed(buf, codes=self.codes, valid=self.valid, flags=self.flags,
-                            sample_numbers=self.sample_numbers, header_bytes=header_bytes,
-                            step_record_bytes=step_bytes, step_record_numbers=self.step_record_numbers,
-                            metadata_json=np.array(meta))
-        with atomic_write(path, "wb") as handle:
-            handle.write(buf.getvalue())
+        with atomic_write(path, "wb") as handle:       # compressed straight into the file: no copy in memory
+            np.savez_compressed(handle, codes=self.codes, valid=self.valid, flags=self.flags,
+                                sample_numbers=self.sample_numbers, header_bytes=header_bytes,
+                                step_record_bytes=step_bytes, step_record_numbers=self.step_record_numbers,
+                                metadata_json=np.array(meta))
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "Recording":
@@ -475,14 +474,24 @@ class Recording:
 
         Missing rows keep their sample number and time, have ``valid`` 0 and empty counts, g and flags.
         """
-        g = self.acc_g(calibration)
-        valid = self.valid.tolist()
-        ints = [self.codes[:, 0], self.codes[:, 1], self.codes[:, 2]]
-        columns = [list(map(str, self.sample_numbers.tolist())), list(map("{:.4f}".format, self.time_s.tolist())),
-                   *(_where(list(map(str, c.tolist())), valid) for c in ints),
+        self._refuse_channel_map()
+        cal = self.default_calibration()[0] if calibration is None else calibration
+        with atomic_write(path, "w", encoding="utf-8", newline="") as fh:
+            for lo in range(0, max(self.n_samples, 1), _CSV_ROWS):    # a block of rows at a time: bounded memory
+                text = self._csv_rows(cal, lo, lo + _CSV_ROWS)
+                fh.write(text if lo == 0 else text.split("\n", 1)[1])
+
+    def _csv_rows(self, cal: CountsToG, lo: int, hi: int) -> str:
+        """:meth:`to_csv`'s text of the rows ``[lo, hi)``, with the header."""
+        codes = self.codes[lo:hi]
+        g = np.asarray(cal.apply(codes.astype(np.float64)), dtype=np.float64).reshape(-1, 3)
+        valid = self.valid[lo:hi].tolist()
+        columns = [list(map(str, self.sample_numbers[lo:hi].tolist())),
+                   list(map("{:.4f}".format, (self.sample_numbers[lo:hi] / self.sampling_rate_hz).tolist())),
+                   *(_where(list(map(str, codes[:, k].tolist())), valid) for k in range(3)),
                    *(_where(list(map("{:.6f}".format, g[:, k].tolist())), valid) for k in range(3)),
-                   _where(list(map(str, self.flags.tolist())), valid), ["1" if v else "0" for v in valid]]
-        atomic_write_text(path, csv_text(CSV_COLUMNS, columns))
+                   _where(list(map(str, self.flags[lo:hi].tolist())), valid), ["1" if v else "0" for v in valid]]
+        return csv_text(CSV_COLUMNS, columns)
 
     def to_steps_csv(self, path: str | os.PathLike[str]) -> None:
         """Write one row per usable device step record (columns :data:`STEP_CSV_COLUMNS`), atomically.
@@ -624,16 +633,29 @@ def read_npz_arrays(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
                     if nbytes > MAX_NPZ_ARRAY_BYTES:
                         raise HostError(f"{where}: declares shape {shape} ({nbytes} bytes), more than a recording "
                                         f"holds ({MAX_NPZ_ARRAY_BYTES} bytes)")
-                    data = fh.read(nbytes)
-                if len(data) != nbytes:
-                    raise HostError(f"{where}: truncated ({len(data)} of {nbytes} bytes)")
-                array = np.frombuffer(data, dtype=dtype, count=count)
+                    raw = np.empty(nbytes, np.uint8)       # read in place: no bytes object and copy beside it
+                    got = _read_into(fh, raw)
+                if got != nbytes:
+                    raise HostError(f"{where}: truncated ({got} of {nbytes} bytes)")
+                array = raw.view(dtype)[:count]
                 arrays[name] = array.reshape(shape[::-1]).T if fortran else array.reshape(shape)
     except HostError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as err:
         raise HostError(f"{path}: damaged or truncated recording NPZ ({err})") from err
-    return {k: v.copy() for k, v in arrays.items()}
+    return arrays
+
+
+def _read_into(fh: Any, raw: np.ndarray) -> int:
+    """Fill ``raw`` (uint8) from ``fh`` up to its size; the number of bytes read (fewer at the end of the data)."""
+    view = memoryview(raw)
+    got = 0
+    while got < raw.size:
+        k = fh.readinto(view[got:got + (1 << 20)])   # a zip member's readinto reads a bytes object this long
+        if not k:
+            break
+        got += k
+    return got
 
 
 def _load_step_records(path: Path, arrays: dict[str, np.ndarray], meta: dict[str, Any], header: Any

@@ -301,6 +301,10 @@ def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: A
     return cfg
 
 
+#: Samples of a run fed to the on-line algorithm at a time (its ``feed`` is block-wise: the same records).
+_FEED_SAMPLES = 1 << 16
+
+
 def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
                       calibration: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
                       arithmetic: str = "fixed", valid: np.ndarray | None = None,
@@ -350,7 +354,8 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     parts = []
     for a, b in zip(starts.tolist(), stops.tolist()):
         alg.reset()
-        parts.append(alg.feed(c[a:b].astype(np.int64), offset=a))
+        for lo in range(a, b, _FEED_SAMPLES):       # a run in pieces: no (n, 3) int64 copy of a long recording
+            parts.append(alg.feed(c[lo:min(b, lo + _FEED_SAMPLES)].astype(np.int64), offset=a))
         parts.append(alg.flush(offset=a))
     steps = (OnlineSteps.concatenate(parts) if parts else
              OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, calibration is not None))

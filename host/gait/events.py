@@ -50,6 +50,7 @@ normalised convolutions over measured samples only).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import Self
 
 import numpy as np
@@ -61,7 +62,7 @@ from gaitlog.firmware_sim.algorithms.parameters import (
     prominence_threshold,
     samples,
 )
-from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S
+from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, missing_runs
 from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
 from gaitlog.host.gait.peaks import find_peaks, keep_by_distance
 
@@ -137,34 +138,11 @@ class GaitEventDetector:
         if not fin.all():
             sig = lp.copy()
             sig[~fin] = np.interp(np.flatnonzero(~fin), np.flatnonzero(fin), lp[fin])
-        dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
-        candidates = foot_flat_candidates(sig, p)
-
-        def foot_flats(distance: int) -> np.ndarray:
-            """The candidates ``distance`` apart, the higher kept (notes 1)."""
-            return candidates[keep_by_distance(candidates, sig[candidates], distance)]
-
-        ff = foot_flats(dist0)
-        # second pass: a step cannot be much shorter than the typical step of the recording (cadence
-        # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
-        d = np.diff(ff)
-        d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
-        dist = dist0
-        if d.size >= 3:
-            dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
-            ff = foot_flats(dist)
-        ff = ff[fin[ff]] if ff.size else ff
-        ff = ff.astype(np.int64)
-        if p.stop_prominence_m_s2 > 0 and ff.size:
-            ff = stop_steps(sig, ff, fin, dist=dist, max_step=samples(p.max_step_s, sampling_rate_hz),
-                            prominence=p.stop_prominence_m_s2)
+        ff = curve_foot_flats(sig, None, lambda i: fin[i], p, sampling_rate_hz)
         # 2./3. heel-strike and toe-off around each foot-flat (vectorised over fixed-size windows)
         band = det - masked_gaussian_lowpass(a, ok, cutoff_hz=p.impact_cutoff_hz, sampling_rate_hz=sampling_rate_hz,
                                              min_weight=self.min_weight)
-        impact = self._search(band, ff, -samples(p.hs_search_s, sampling_rate_hz), samples(p.hs_after_s, sampling_rate_hz), mode="argmax")
-        hs = impact - samples(p.hs_delay_s, sampling_rate_hz)
-        hs = np.where((impact >= 0) & (hs >= 0), hs, -1).astype(np.int64)
-        to = self._first_local_min(det, ff, samples(p.to_search_s, sampling_rate_hz))
+        hs, to = heel_strikes_toe_offs(det, band, ff, p, sampling_rate_hz)
         # 4. bouts and steps
         for name, value in link_steps(ff, hs, to, ok, sampling_rate_hz=sampling_rate_hz, max_gap_s=self.max_gap_s,
                                       max_step_s=p.max_step_s).items():
@@ -199,6 +177,20 @@ class GaitEventDetector:
         has = is_min.any(axis=1)
         j = np.argmax(is_min, axis=1) + 1
         return np.where(has, idx[np.arange(centre.size), j], -1).astype(np.int64)
+
+
+def heel_strikes_toe_offs(det: np.ndarray, band: np.ndarray, ff: np.ndarray, parameters: EventParameters,
+                          sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """The heel-strike before and the toe-off after each foot-flat ``ff`` (module notes 2 and 3; ``-1``: none) from
+    the 10 Hz signal ``det`` and the impact band ``band``, arrays that hold every sample of the searched windows
+    (or end where the recording does)."""
+    p = parameters
+    impact = GaitEventDetector._search(band, ff, -samples(p.hs_search_s, sampling_rate_hz),
+                                       samples(p.hs_after_s, sampling_rate_hz), mode="argmax")
+    hs = impact - samples(p.hs_delay_s, sampling_rate_hz)
+    hs = np.where((impact >= 0) & (hs >= 0), hs, -1).astype(np.int64)
+    to = GaitEventDetector._first_local_min(det, ff, samples(p.to_search_s, sampling_rate_hz))
+    return hs, to
 
 
 def foot_flat_candidates(sig: np.ndarray, parameters: EventParameters) -> np.ndarray:
@@ -236,18 +228,57 @@ def foot_flat_candidates(sig: np.ndarray, parameters: EventParameters) -> np.nda
     return cand[accepted & (sig[cand] > 0)].astype(np.int64)
 
 
-def stop_steps(sig: np.ndarray, ff: np.ndarray, fin: np.ndarray, *, dist: int, max_step: int,
-               prominence: float) -> np.ndarray:
+def curve_foot_flats(sig: np.ndarray, index: np.ndarray | None, finite: Callable[[np.ndarray], np.ndarray],
+                     parameters: EventParameters, sampling_rate_hz: float) -> np.ndarray:
+    """The foot-flats (module notes 1 and 5) of the first harmonic drawn without gaps, ``sig``.
+
+    ``sig`` is either the whole curve (``index`` None) or its turning points only: the value of every maximal run
+    of equal samples that is higher, or lower, than both neighbouring runs (the first and last runs included),
+    ``index`` holding the sample index of each run's middle (:class:`gaitlog.host.gait.streaming.TurningPoints`).
+    Peaks, prominences and the minima between peaks are the same on both, so the foot-flats are too.
+    ``finite(i)`` says where the filtered curve itself exists (no foot-flat elsewhere). Returns sample indices.
+    """
+    p = parameters
+
+    def at(j: np.ndarray) -> np.ndarray:
+        return j if index is None else index[j]
+
+    dist0 = max(1, samples(p.min_step_s, sampling_rate_hz))
+    found = foot_flat_candidates(sig, p)
+    candidates, height = at(found), sig[found]
+
+    def foot_flats(distance: int) -> np.ndarray:
+        """The candidates ``distance`` apart, the higher kept (notes 1)."""
+        return candidates[keep_by_distance(candidates, height, distance)]
+
+    ff = foot_flats(dist0)
+    # second pass: a step cannot be much shorter than the typical step of the recording (cadence
+    # changes slowly); peaks closer than ``min_step_fraction`` of the median step are not steps
+    d = np.diff(ff)
+    d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
+    dist = dist0
+    if d.size >= 3:
+        dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
+        ff = foot_flats(dist)
+    ff = ff[finite(ff)] if ff.size else ff
+    ff = ff.astype(np.int64)
+    if p.stop_prominence_m_s2 > 0 and ff.size:
+        q = at(find_peaks(sig, prominence=p.stop_prominence_m_s2))
+        q = q[finite(q)] if q.size else q
+        ff = stop_steps(q, ff, dist=dist, max_step=samples(p.max_step_s, sampling_rate_hz))
+    return ff
+
+
+def stop_steps(cand: np.ndarray, ff: np.ndarray, *, dist: int, max_step: int) -> np.ndarray:
     """The foot-flats ``ff`` with each walking bout's weak last step added (module notes 5, the stop rule).
 
-    After a foot-flat ``f`` (``ff`` holds full-prominence foot-flats only), the first peak ``q`` of ``sig``
-    at least ``prominence`` prominent with ``f + dist <= q <= f + min(3 dist, max_step)`` (within about two
+    ``cand``: the peaks of the first harmonic at least the stop rule's prominence prominent, where it exists.
+    After a foot-flat ``f`` (``ff`` holds full-prominence foot-flats only), the first peak ``q`` of ``cand``
+    with ``f + dist <= q <= f + min(3 dist, max_step)`` (within about two
     typical steps: ``dist`` is 0.6 of the typical step) is the step that brings the walker to a stop when no
     foot-flat of ``ff`` follows within ``max_step`` after ``q`` (so ``f`` ended a bout, and ``q`` ends it).
     At most one such step per bout end.
     """
-    cand = find_peaks(sig, prominence=prominence)
-    cand = cand[fin[cand]] if cand.size else cand
     if cand.size == 0 or ff.size == 0:
         return ff
     j = np.searchsorted(cand, ff + dist)
@@ -263,12 +294,13 @@ def warn_if_no_steps(detector: GaitEventDetector) -> None:
         warnings.warn("no walking steps detected (no two foot-flats within max_step_s)", stacklevel=3)
 
 
-def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray, *, sampling_rate_hz: float,
+def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray | tuple[np.ndarray, np.ndarray], *, sampling_rate_hz: float,
                max_gap_s: float, max_step_s: float) -> dict[str, np.ndarray]:
     """Walking bouts and steps from per-foot-flat event indices (index bookkeeping, no arithmetic).
 
     Consecutive foot-flats ``ff`` form a step when they are at most ``max_step_s`` apart and no run of
-    missing samples (``~ok``) between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
+    missing samples (``~ok``; or ``ok`` is the ``(starts, ends)`` of those runs, :func:`gaitlog.host.gait.gaps.missing_runs`)
+    between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
     and ``to`` are the heel-strike before and the toe-off after each foot-flat (``-1`` = none); a step's
     toe-off that does not precede its heel-strike is impossible and becomes ``-1``. (The on-line
     algorithm links its steps as it finds them, :mod:`gaitlog.firmware_sim.algorithms.kernel`.)
@@ -281,9 +313,14 @@ def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray, *
     """
     if ff.size:
         interval_ok = np.diff(ff) <= max_step_s * sampling_rate_hz
-        # longest run of missing samples between consecutive foot-flats
-        worst = _between_max(_gap_lengths(ok), ff)
-        link = interval_ok & (worst <= int(round(max_gap_s * sampling_rate_hz)))
+        # no run of missing samples longer than max_gap_s touches [ff_k, ff_k+1)
+        starts, ends = ok if isinstance(ok, tuple) else missing_runs(ok)
+        long_ = ends - starts > int(round(max_gap_s * sampling_rate_hz))
+        starts, ends = starts[long_], ends[long_]
+        j = np.searchsorted(ends, ff[:-1], side="right")     # the first long run ending after ff_k
+        crossed = (j < ends.size) & (starts[np.minimum(j, max(ends.size - 1, 0))] < ff[1:]) if ends.size else \
+            np.zeros(ff.size - 1, bool)
+        link = interval_ok & ~crossed
         bout = np.concatenate([[0], np.cumsum(~link)])
     else:
         link = np.zeros(0, bool)
@@ -295,23 +332,3 @@ def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray, *
     return {"foot_flat_": ff, "heel_strike_": hs, "toe_off_": to, "bout_": bout, "step_start_": ff[k],
             "step_end_": ff[k + 1], "step_toe_off_": np.where(bad, -1, step_toe_off),
             "step_heel_strike_": step_heel_strike, "step_bout_": bout[k] if k.size else np.zeros(0, np.int64)}
-
-
-def _gap_lengths(ok: np.ndarray) -> np.ndarray:
-    """For every sample, the length of the run of missing samples it belongs to (0 where measured)."""
-    miss = ~ok
-    if not miss.any():
-        return np.zeros(ok.size, np.int64)
-    d = np.diff(np.concatenate([[0], miss.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    paint = np.zeros(ok.size + 1, np.int64)
-    np.add.at(paint, starts, ends - starts)
-    np.add.at(paint, ends, -(ends - starts))
-    return np.cumsum(paint)[:-1]
-
-
-def _between_max(x: np.ndarray, marks: np.ndarray) -> np.ndarray:
-    """``max(x[m_k:m_k+1])`` between consecutive strictly increasing ``marks``."""
-    if marks.size < 2:
-        return np.zeros(0, x.dtype)
-    return np.maximum.reduceat(x[: marks[-1]], marks[:-1])

@@ -41,7 +41,8 @@ def missing_runs(valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ([1, 4], [3, 5])
     """
     v = np.asarray(valid, bool).astype(np.int8)
-    d = np.diff(np.concatenate(([1], v, [1])))
+    edge = np.ones(1, np.int8)                                # int8 throughout: 1 byte a sample, not 8
+    d = np.diff(np.concatenate((edge, v, edge)))
     return np.flatnonzero(d == -1), np.flatnonzero(d == 1)
 
 

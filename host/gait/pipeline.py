@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Self
 
 import numpy as np
@@ -136,65 +137,110 @@ class StepPipeline:
 
     def _table(self, av: np.ndarray, ok: np.ndarray, sampling_rate_hz: float, t0_s: float) -> StepTable:
         ev = self.events_
-        ff = ev.foot_flat_
-        m = ff.size
-        start = np.full(m, -1, np.int64)
-        toe = np.full(m, -1, np.int64)
-        if m > 1:
-            linked = ev.bout_[1:] == ev.bout_[:-1]
-            start[1:] = np.where(linked, ff[:-1], -1)
-            toe[1:] = np.where(linked, ev.toe_off_[:-1], -1)
-        has = start >= 0
-        # a toe-off must fall between the window start and the heel-strike
-        hs = ev.heel_strike_
-        toe = np.where((toe > start) & ((hs < 0) | (toe < hs)), toe, -1)
-        w = np.flatnonzero(has)
-        s_w, e_w = start[w], ff[w]
-        leg, foot = self.leg_length_m, self.foot_length_m
-        ss = step_samples(s_w, e_w, ok & np.isfinite(av), sampling_rate_hz)     # shared by M1-M3
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            m1 = PendulumM1().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=sampling_rate_hz,
-                                       leg_length_m=leg, valid=ok, samples=ss)
-            m2 = PendulumDriftM2().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=sampling_rate_hz,
-                                            leg_length_m=leg, valid=ok, samples=ss)
-            m3 = TwoPhasePendulumM3().estimate(av, step_start=s_w, step_end=e_w, step_toe_off=toe[w],
-                                               step_heel_strike=np.where(hs[w] > s_w, hs[w], -1),
-                                               sampling_rate_hz=sampling_rate_hz, leg_length_m=leg, foot_length_m=foot,
-                                               valid=ok, samples=ss)
-            m4 = WeinbergM4().estimate(av, step_start=s_w, step_end=e_w, sampling_rate_hz=sampling_rate_hz, valid=ok,
-                                       lowpassed=ev.first_harmonic_m_s2_)
-        del caught                     # the estimators' warnings are their n_impossible_ counts, summed here
-        self.n_impossible_ = sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
+        lp = ev.first_harmonic_m_s2_
+        ok = ok & np.isfinite(av)
+        table, self.n_impossible_ = step_table(
+            ev.foot_flat_, ev.heel_strike_, ev.toe_off_, ev.bout_, lambda lo, hi: (av[lo:hi], ok[lo:hi], lp[lo:hi]),
+            sampling_rate_hz=sampling_rate_hz, t0_s=t0_s, leg_length_m=self.leg_length_m,
+            foot_length_m=self.foot_length_m, calibration=self.calibration)
         if self.n_impossible_:
-            self.notes_.append(f"{self.n_impossible_} step length(s) set to NaN for an impossible vertical "
-                               f"excursion (h > 2 l with l = {leg} m)")
-
-        def spread(x: np.ndarray) -> np.ndarray:
-            out = np.full(m, np.nan)
-            out[w] = x
-            return out
-
-        n_missing = np.zeros(m, np.int64)
-        duration = np.full(m, np.nan)
-        if w.size:
-            duration[w] = (e_w - s_w) / sampling_rate_hz
-            n_missing[w] = ss.n_missing
-        raw = {
-            "M1": spread(m1.step_length_m_),
-            "M2": spread(m2.step_length_m_),
-            "M3": spread(m3.step_length_m_),
-            "M4": spread(m4.step_length_m_),
-            "M5": np.where(duration > 0, 1.0 / duration, np.nan),
-        }
-        table = StepTable(
-            sampling_rate_hz, float(t0_s), ff, hs.copy(), toe, start, ev.bout_.copy(), duration, n_missing,
-            {"M1": spread(m1.vertical_excursion_m_), "M2": spread(m2.vertical_excursion_m_),
-             "M3": spread(m3.single_support_excursion_m_)},
-            spread(m4.acc_range_m_s2_), raw, {},
-        )
-        table.length_m = apply_calibration(table, self.calibration)
+            self.notes_.append(impossible_note(self.n_impossible_, self.leg_length_m))
         return table
+
+
+#: Steps whose windows start in the same block of this many samples are integrated together (one cumulative sum
+#: from zero, :mod:`gaitlog.host.gait.integration`): a step's numbers depend on the samples of its block only, so
+#: the streaming chain (:mod:`gaitlog.host.gait.streaming`) gives the whole-array results bit for bit, and the
+#: running sum stays short on long recordings.
+STEP_GROUP_SAMPLES = 1 << 16
+
+
+def impossible_note(n_impossible: int, leg_length_m: float) -> str:
+    """The note on the steps set to NaN for an impossible vertical excursion."""
+    return (f"{n_impossible} step length(s) set to NaN for an impossible vertical excursion (h > 2 l with "
+            f"l = {leg_length_m} m)")
+
+
+def step_table(ff: np.ndarray, hs: np.ndarray, toe_off: np.ndarray, bout: np.ndarray,
+               take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]], *, sampling_rate_hz: float,
+               t0_s: float, leg_length_m: float, foot_length_m: float,
+               calibration: KFit | None) -> tuple[StepTable, int]:
+    """The step table (steps 3 and 4 of the module notes) from the per-foot-flat events and ``take(lo, hi)``, which
+    returns the vertical acceleration, where it is measured and finite, and its first harmonic on samples
+    ``[lo, hi)``; also the number of step lengths (M1-M3 summed) set to NaN for an impossible excursion."""
+    m = ff.size
+    start = np.full(m, -1, np.int64)
+    toe = np.full(m, -1, np.int64)
+    if m > 1:
+        linked = bout[1:] == bout[:-1]
+        start[1:] = np.where(linked, ff[:-1], -1)
+        toe[1:] = np.where(linked, toe_off[:-1], -1)
+    # a toe-off must fall between the window start and the heel-strike
+    toe = np.where((toe > start) & ((hs < 0) | (toe < hs)), toe, -1)
+    w = np.flatnonzero(start >= 0)
+    s_w, e_w = start[w], ff[w]
+    est = _estimate_groups(take, s_w, e_w, toe[w], np.where(hs[w] > s_w, hs[w], -1), sampling_rate_hz,
+                           leg_length_m, foot_length_m)
+
+    def spread(x: np.ndarray) -> np.ndarray:
+        out = np.full(m, np.nan)
+        out[w] = x
+        return out
+
+    n_missing = np.zeros(m, np.int64)
+    duration = np.full(m, np.nan)
+    if w.size:
+        duration[w] = (e_w - s_w) / sampling_rate_hz
+        n_missing[w] = est["n_missing"]
+    raw = {"M1": spread(est["M1"]), "M2": spread(est["M2"]), "M3": spread(est["M3"]), "M4": spread(est["M4"]),
+           "M5": np.where(duration > 0, 1.0 / duration, np.nan)}
+    table = StepTable(
+        sampling_rate_hz, float(t0_s), ff, hs.copy(), toe, start, bout.copy(), duration, n_missing,
+        {"M1": spread(est["h1"]), "M2": spread(est["h2"]), "M3": spread(est["h3"])},
+        spread(est["range"]), raw, {},
+    )
+    table.length_m = apply_calibration(table, calibration)
+    return table, int(est["n_impossible"])
+
+
+def _estimate_groups(take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]], s_w: np.ndarray,
+                     e_w: np.ndarray, toe: np.ndarray, hs: np.ndarray, sampling_rate_hz: float, leg: float,
+                     foot: float) -> dict:
+    """M1-M4 on the windows ``[s_w, e_w]``, the steps starting in one :data:`STEP_GROUP_SAMPLES` block at a time,
+    each group on the samples its windows span (``take``); the per-step results concatenated."""
+    keys = ("M1", "M2", "M3", "M4", "h1", "h2", "h3", "range", "n_missing")
+    parts: dict[str, list] = {k: [] for k in keys}
+    n_impossible = 0
+    group = s_w // STEP_GROUP_SAMPLES
+    cuts = np.flatnonzero(np.diff(group)) + 1
+    for a, b in zip(np.r_[0, cuts].tolist(), np.r_[cuts, s_w.size].tolist()):
+        if a == b:
+            continue
+        lo, hi = int(s_w[a]), int(e_w[a:b].max()) + 1
+        av, ok, lp = take(lo, hi)
+        s, e = s_w[a:b] - lo, e_w[a:b] - lo
+        t, h = np.where(toe[a:b] >= 0, toe[a:b] - lo, -1), np.where(hs[a:b] >= 0, hs[a:b] - lo, -1)
+        ss = step_samples(s, e, ok, sampling_rate_hz)     # shared by M1-M3
+        with warnings.catch_warnings(record=True):    # the estimators' warnings are their n_impossible_ counts
+            warnings.simplefilter("always")
+            m1 = PendulumM1().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz,
+                                       leg_length_m=leg, valid=ok, samples=ss)
+            m2 = PendulumDriftM2().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz,
+                                            leg_length_m=leg, valid=ok, samples=ss)
+            m3 = TwoPhasePendulumM3().estimate(av, step_start=s, step_end=e, step_toe_off=t, step_heel_strike=h,
+                                               sampling_rate_hz=sampling_rate_hz, leg_length_m=leg,
+                                               foot_length_m=foot, valid=ok, samples=ss)
+            m4 = WeinbergM4().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz, valid=ok,
+                                       lowpassed=lp)
+        n_impossible += sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))
+        for k, v in zip(keys, (m1.step_length_m_, m2.step_length_m_, m3.step_length_m_, m4.step_length_m_,
+                               m1.vertical_excursion_m_, m2.vertical_excursion_m_, m3.single_support_excursion_m_,
+                               m4.acc_range_m_s2_, ss.n_missing)):
+            parts[k].append(v)
+    out = {k: np.concatenate(v) if v else np.zeros(0, np.int64 if k == "n_missing" else np.float64)
+           for k, v in parts.items()}
+    out["n_impossible"] = n_impossible
+    return out
 
 
 def apply_calibration(table: StepTable, calibration: KFit | None) -> dict[str, np.ndarray]:

@@ -8,6 +8,11 @@ finished: a re-run skips it when the input file and the settings (calibration, K
 (the JSON keeps their SHA-256), and recomputes it otherwise. Failed recordings leave no output, so a re-run
 retries them.
 
+With a scheduler or workers (``gaitlog batch --scheduler/--workers``) the recordings are computed on Dask, each a
+task (:class:`BatchJob` on a :class:`BatchTask`); this process writes each one's outputs as it arrives, so the
+workers need no shared file system for the outputs (they read the inputs by path). A bad file is a failed row
+either way, and the outputs are the same as one after the other here.
+
 Inputs are every regular file of the folder matching the pattern but hidden files and the sidecars and
 outputs of other commands (``.json``, ``.csv``, ``.txt``, ``.md``): memory images, raw dumps, wire captures,
 decoded ``.npz``.
@@ -26,16 +31,16 @@ from typing import Any
 
 import numpy as np
 
-from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.inputs import AccelerationInput, input_losses, read_acceleration
 from gaitlog.host.files.losses import MissingSamplesWarning
 from gaitlog.host.gait.anthropometry import AnatomyChoice
-from gaitlog.host.gait.pipeline import StepPipeline
+from gaitlog.host.studies.estimate import float_steps, write_table_csv
 from gaitlog.atomic_write import atomic_write_text
 
-__all__ = ["BatchResult", "batch_inputs", "run_batch", "SUMMARY_COLUMNS"]
+__all__ = ["BatchJob", "BatchResult", "BatchTask", "batch_inputs", "run_batch", "SUMMARY_COLUMNS"]
 
 #: Suffixes that are never inputs (sidecars, outputs of other commands).
 NOT_INPUTS = (".json", ".csv", ".txt", ".md")
@@ -78,18 +83,16 @@ def _sha256(path: Path | None) -> str | None:
 
 
 def _estimate(path: Path, calibration: AccCalibration | None, k: Any,
-              lengths: Callable[[AccelerationInput], AnatomyChoice]) -> tuple[dict, str]:
-    """The summary row and the per-step CSV text of one recording."""
+              lengths: Callable[[AccelerationInput], AnatomyChoice]) -> tuple[dict, StepTable]:
+    """The summary row and the per-step table of one recording (the streaming chain: bounded memory)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        data = read_acceleration(path, calibration=calibration)
+        data = read_acceleration(path, calibration=calibration, arrays=False)
         choice = lengths(data)
-        pipe = StepPipeline(leg_length_m=choice.leg_length_m, foot_length_m=choice.foot_length_m,
-                            calibration=k).run(data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid)
+        steps, chain_notes = float_steps(data, choice, k)
     notes = list(dict.fromkeys(str(w.message) for w in caught if not issubclass(w.category, MissingSamplesWarning)))
-    notes += list(pipe.notes_)
+    notes += chain_notes
     losses = input_losses(data)
-    steps = pipe.steps_
     row: dict[str, Any] = {"recording": path.name, "status": "partial" if losses.ranges else "done",
                            "n_samples": int(data.n_samples), "n_missing": int(data.n_missing),
                            "missing_percent": round(losses.percent, 3), "missing_line": losses.line(),
@@ -102,12 +105,71 @@ def _estimate(path: Path, calibration: AccCalibration | None, k: Any,
         row[f"distance_{e.lower()}_m"] = float(d) if math.isfinite(d) else None
     row["warnings"] = "; ".join(notes)
     row["error"] = ""
-    return row, steps.to_csv_text()
+    return row, steps
+
+
+@dataclass(frozen=True)
+class BatchTask:
+    """One recording to compute (picklable: it travels to a Dask worker); ``key`` names it uniquely."""
+
+    key: str
+    path: Path
+
+
+@dataclass(frozen=True)
+class BatchJob:
+    """What every recording is computed with; calling it on a :class:`BatchTask` returns ``{"row", "steps",
+    "error"}``: the summary row and the step table, or the one-line error (a worker never raises, so a bad file
+    is reported as in a serial run). ``lengths`` must be picklable (a module-level function or a partial of one)
+    to run on Dask."""
+
+    calibration: AccCalibration | None
+    k: Any
+    lengths: Callable[[AccelerationInput], AnatomyChoice]
+
+    def __call__(self, task: BatchTask) -> dict:
+        try:
+            row, steps = _estimate(task.path, self.calibration, self.k, self.lengths)
+        except Exception as err:  # noqa: BLE001 -- one bad file never stops the batch; its error is listed
+            text = str(err) if isinstance(err, (HostError, OSError)) else f"{type(err).__name__}: {err}"
+            return {"row": None, "steps": None, "error": text.splitlines()[0] if text else type(err).__name__}
+        return {"row": row, "steps": steps, "error": ""}
+
+
+class _Outputs:
+    """The batch's side of :func:`gaitlog.host.studies.dask_runner.run_on_dask`'s store: writes a recording's outputs
+    (``NAME.steps.csv`` a block of rows at a time, then ``NAME.json``) as its result arrives, in this process."""
+
+    def __init__(self, out: Path, stamps: dict[str, dict]) -> None:
+        self.out, self.stamps = out, stamps
+        self.results: dict[str, BatchResult] = {}
+
+    def pending(self, tasks: list[BatchTask]) -> list[BatchTask]:
+        return list(tasks)
+
+    def write(self, task: BatchTask, result: dict) -> None:
+        path = task.path
+        done = self.out / f"{path.name}.json"
+        try:
+            if result["error"]:
+                raise HostError(result["error"])
+            row = result["row"]
+            write_table_csv(self.out / f"{path.name}.steps.csv", result["steps"].columns())
+            atomic_write_text(done, json.dumps({"input": str(path), "stamp": self.stamps[task.key], "summary": row},
+                                               indent=2) + "\n")
+            self.results[task.key] = BatchResult(path, row["status"], row)
+        except (HostError, OSError) as err:
+            text = str(err).splitlines()[0] if str(err) else type(err).__name__
+            done.unlink(missing_ok=True)
+            self.results[task.key] = BatchResult(path, "failed", {"recording": path.name, "status": "failed",
+                                                                  "error": text}, text)
 
 
 def run_batch(paths: list[Path], out: str | Path, *, calibration: AccCalibration | None = None,
-              calibration_file: str | Path | None = None, k: Any = None, k_file: str | Path | None = None, lengths: Callable[[AccelerationInput], AnatomyChoice],
-              settings: dict | None = None, progress: Callable[[], object] | None = None) -> list[BatchResult]:
+              calibration_file: str | Path | None = None, k: Any = None, k_file: str | Path | None = None,
+              lengths: Callable[[AccelerationInput], AnatomyChoice], settings: dict | None = None,
+              progress: Callable[[], object] | None = None, scheduler: str | None = None,
+              workers: int | None = None) -> list[BatchResult]:
     """Estimate every path (module notes); returns one :class:`BatchResult` per path, in order.
 
     Parameters
@@ -118,40 +180,57 @@ def run_batch(paths: list[Path], out: str | Path, *, calibration: AccCalibration
     k, k_file
         Per-subject constants (:class:`gaitlog.host.gait.k_calibration.KFit`) and the file they came from.
     lengths
-        Leg and foot length for a recording read (e.g. the command's anatomy flags).
+        Leg and foot length for a recording read (e.g. the command's anatomy flags); picklable for Dask.
     settings
         Anything else the results depend on (kept in each ``NAME.json``; a change recomputes).
+    scheduler, workers
+        Run the recordings on Dask (:func:`gaitlog.host.studies.dask_runner.run_on_dask`): an existing scheduler
+        (address or scheduler file), or a local cluster of ``workers`` processes; both None: one after the other
+        in this process. The results are the same either way.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cal = calibration
     fixed = {"calibration_sha256": _sha256(Path(calibration_file)) if calibration_file else None,
              "k_file_sha256": _sha256(Path(k_file)) if k_file else None, "settings": settings or {}}
-    results = []
-    for path in paths:
-        done = out / f"{path.name}.json"
+    earlier: dict[str, BatchResult] = {}
+    stamps: dict[str, dict] = {}
+    tasks = []
+    for i, path in enumerate(paths):
+        key = f"{i:06d}"
         try:
-            stamp = fixed | {"input_sha256": _sha256(path)}
-            if done.is_file():
-                try:
-                    old = json.loads(done.read_text(encoding="utf-8"))
-                except (OSError, json.JSONDecodeError):
-                    old = {}
-                if old.get("stamp") == stamp:
-                    results.append(BatchResult(path, "skipped", old["summary"] | {"status": "skipped"}))
-                    if progress is not None:
-                        progress()
-                    continue
-            row, steps_csv = _estimate(path, cal, k, lengths)
-            atomic_write_text(out / f"{path.name}.steps.csv", steps_csv)
-            atomic_write_text(done, json.dumps({"input": str(path), "stamp": stamp, "summary": row}, indent=2) + "\n")
-            results.append(BatchResult(path, row["status"], row))
-        except Exception as err:  # noqa: BLE001 -- one bad file never stops the batch; its error is listed
-            text = str(err) if isinstance(err, (HostError, OSError)) else f"{type(err).__name__}: {err}"
-            text = text.splitlines()[0] if text else type(err).__name__
-            done.unlink(missing_ok=True)
-            results.append(BatchResult(path, "failed", {"recording": path.name, "status": "failed", "error": text},
-                                       text))
-        if progress is not None:
-            progress()
-    return results
+            stamps[key] = fixed | {"input_sha256": _sha256(path)}
+        except OSError as err:
+            text = f"{path}: cannot read: {err.strerror or err}"
+            earlier[key] = BatchResult(path, "failed", {"recording": path.name, "status": "failed", "error": text}, text)
+            continue
+        old = _finished(out / f"{path.name}.json")
+        if old.get("stamp") == stamps[key]:
+            earlier[key] = BatchResult(path, "skipped", old["summary"] | {"status": "skipped"})
+            if progress is not None:
+                progress()
+            continue
+        tasks.append(BatchTask(key, path))
+    outputs = _Outputs(out, stamps)
+    job = BatchJob(calibration, k, lengths)
+    if scheduler is None and workers is None:
+        for task in tasks:
+            outputs.write(task, job(task))
+            if progress is not None:
+                progress()
+    elif tasks:
+        from gaitlog.host.studies.dask_runner import run_on_dask
+
+        run_on_dask(job, tasks, outputs, scheduler=scheduler, workers=workers or 2, progress=progress)
+    results = earlier | outputs.results
+    return [results[f"{i:06d}"] for i in range(len(paths))]
+
+
+def _finished(done: Path) -> dict:
+    """The ``NAME.json`` of a recording finished before, or {}."""
+    if not done.is_file():
+        return {}
+    try:
+        old = json.loads(done.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return {}
+    return old if isinstance(old, dict) else {}

@@ -471,6 +471,13 @@ def _cases() -> list[Case]:
         add("batch", f"--k-file {name}", [*batch, "--k-file", f"{{{name}}}"], name)
     options("batch", batch, "--height", BAD_POSITIVE)
     add("batch", "--out = FOLDER", ["batch", "{emptydir}", "--out", "{emptydir}"], "--out")
+    options("batch", batch, "--workers", ("0", "-1", "abc"))
+    usage("batch", "--workers and --scheduler", [*batch, "--workers", "2", "--scheduler", "tcp://127.0.0.1:8786"],
+          "--scheduler")
+    for v in ("tcp://", "tcp://127.0.0.1:99999"):
+        usage("batch", f"--scheduler {v!r}", [*batch, "--scheduler", v], "--scheduler")
+    for v in ("{garbage.bin}", "{nested.json}", "{nofolder/out}"):
+        add("batch", f"--scheduler {v!r}", [*batch, "--scheduler", v], "--scheduler")
     add("batch", "--out is a file", ["batch", "{emptydir}", "--out", "{walk.csv}"], "--out")
     add("batch", "--out under a file", ["batch", "{emptydir}", "--out", "{underfile/out}"], "--out")
     add("batch", "--out unwritable", ["batch", "{emptydir}", "--out", "/proc/gaitlog-batch"], "--out")

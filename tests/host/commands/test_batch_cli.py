@@ -83,3 +83,24 @@ def test_a_summary_row_with_commas_reads_back_as_the_header_columns(tmp_path, ca
     assert len(rows) == 1 and len(rows[0]) == len(header)
     row = dict(zip(header, rows[0], strict=True))
     assert row["recording"] == name and row["status"] == "failed" and "," in row["error"]
+
+
+def _outputs(out):
+    return {p.name: p.read_bytes() for p in sorted(out.iterdir()) if p.name != "batch.csv"} | {
+        "batch.csv": "\n".join(sorted(open(out / "batch.csv").read().splitlines()[1:]))}
+
+
+def test_dask_workers_give_the_serial_results_and_the_same_failures(folder, tmp_path, capsys) -> None:
+    pytest.importorskip("distributed")
+    serial, dask = tmp_path / "serial", tmp_path / "dask"
+    assert main(["batch", str(folder), "--out", str(serial), "-q"]) == 1
+    first = capsys.readouterr().err
+    assert main(["batch", str(folder), "--out", str(dask), "-q", "--workers", "2"]) == 1
+    assert capsys.readouterr().err == first                    # the same failures, said the same way
+    a, b = _outputs(serial), _outputs(dask)
+    assert a.keys() == b.keys() and {"a.glimg.steps.csv", "b.glimg.steps.csv"} <= a.keys()
+    for name in a:
+        if name.endswith(".json"):        # the input's path differs (the same folder): compare the summary
+            assert json.loads(a[name])["summary"] == json.loads(b[name])["summary"], name
+        else:
+            assert a[name] == b[name], name

@@ -147,3 +147,20 @@ def test_summary_lists_at_most_max_listed_gaps_and_counts_the_rest():
     full = rec.summary().splitlines()
     assert sum(line.startswith("  samples ") for line in full) == 15
     assert not any("more gap" in line for line in full)
+
+
+def test_the_sample_csv_written_in_blocks_equals_one_block(tmp_path, monkeypatch) -> None:
+    """``to_csv`` formats a block of rows at a time (bounded memory): the text is the one of a single block,
+    cut anywhere (here at 7 rows, across missing samples)."""
+    import gaitlog.host.files.recording as recording
+
+    rng = np.random.default_rng(3)
+    n = 100
+    valid = rng.random(n) > 0.2
+    rec = Recording(codes=rng.integers(0, 1024, (n, 3)), valid=valid, flags=rng.integers(0, 4, n),
+                    sample_numbers=np.arange(n) + 17, sampling_rate_hz=50.0)
+    rec.to_csv(tmp_path / "one.csv")
+    monkeypatch.setattr(recording, "_CSV_ROWS", 7)
+    rec.to_csv(tmp_path / "blocks.csv")
+    assert (tmp_path / "blocks.csv").read_bytes() == (tmp_path / "one.csv").read_bytes()
+    assert (tmp_path / "one.csv").read_text().count("\n") == n + 1

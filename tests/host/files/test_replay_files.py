@@ -134,3 +134,30 @@ def test_readme_walkthrough_figures(shared_data: Path, tmp_path: Path, capsys) -
     got = {a: {m: doc["arithmetic"][a]["estimators"][m]["distance_m"] for m in readme[a]} for a in readme}
     for a in readme:
         assert got[a] == pytest.approx(readme[a], abs=0.006), a
+
+
+def test_the_on_line_run_fed_in_pieces_gives_the_same_table(monkeypatch) -> None:
+    """``online_step_table`` feeds a run a block at a time (bounded memory): the records are those of one feed."""
+    import numpy as np
+
+    import gaitlog.host.files.replay as replay
+
+    t = np.arange(20_000) / 50.0
+    g = np.stack([0.1 + 0.1 * np.sin(2 * np.pi * 1.8 * t), -0.2 + 0.05 * np.sin(np.pi * 1.8 * t),
+                  0.97 + 0.25 * np.cos(2 * np.pi * 1.8 * t)], axis=1)
+    codes = np.clip(np.round(512 + 256 * g), 0, 1023).astype(np.int64)
+    valid = np.ones(t.size, bool)
+    valid[7_000:7_010] = False
+
+    def run() -> dict:
+        table, _ = replay.online_step_table(codes, sampling_rate_hz=50.0, leg_length_m=0.9, foot_length_m=0.26,
+                                            valid=valid)
+        return table.columns()
+
+    whole = run()
+    monkeypatch.setattr(replay, "_FEED_SAMPLES", 997)
+    pieces = run()
+    assert whole.keys() == pieces.keys() and len(whole["step"]) > 100
+    for k in whole:
+        assert np.array_equal(np.asarray(whole[k]), np.asarray(pieces[k]),
+                              equal_nan=np.asarray(whole[k]).dtype.kind == "f"), k
