@@ -57,7 +57,7 @@ from gaitlog.firmware_sim.algorithms.state import (
     N,
 )
 from gaitlog.firmware_sim.compiled import njit
-from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OPS, new_counters
+from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
            "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace"]
@@ -74,6 +74,7 @@ def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt, trace):  # pragma: no cover 
         c2 = ar.sub(ar.requant(codes[i, 2], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 2], W16, cnt)
         for row in range(3):
             out[i, row] = kernel._calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt)
+        s_cost(cnt, OP_DEE, 25)                  # offsets, mantissas, exponent from the data EEPROM
         trace[i, :] = cnt
 
 

@@ -18,7 +18,8 @@ EXAMPLES = (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("action", choices=("verify",),
-                        help="verify: the assembly's packed words and calibrated axes against the model's")
+                        help="verify: the assembly's packed words, steps 1-5 of the algorithm and its foot-flats "
+                             "against the model's")
     parser.add_argument("recording", metavar="RECORDING",
                         help="a recording gaitlog decode reads (memory image, raw dump, wire capture)")
     parser.add_argument("--limit", type=whole(minimum=1), metavar="N",
