@@ -509,6 +509,48 @@ class PicLogger:
         return _RunOut(_packed(addr, val, n, first_sample), ram, ready, calls, stages, acq,
                        int(cyc.max()) if cyc.size else 0, dt)
 
+    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ) -> tuple[np.ndarray, np.ndarray]:
+        """One run from START with a lean write log, for runs too long to log every stage (a ring-mode run
+        past the 16-bit index wrap): ``finalise``'s calls (as :attr:`LoggerRun.calls`) and the detector's state
+        after the last sample (as a row of :attr:`LoggerRun.detector`). Only the call record, the detector's
+        state and ``PENDING`` are logged; a sample ends where ``PENDING`` is decremented."""
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix="pic-logger-lean-") as tmp:
+            d = Path(tmp)
+            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
+                                                  _config_bytes(_calibration_bytes(calibration), self._weights())))
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n), test=True)
+            sym = build.symbols
+            state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
+                                                                             for i in range(self._n_med())]
+            rec = [(sym[k], b) for k, b in _RECORD]
+            tracked = {a + i for a, b, _ in state for i in range(b)} | {a + i for a, b in rec for i in range(b)}
+            text = _gpsim(build, sorted(tracked | {sym["PENDING"]}), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.zeros(n, np.int64), period))
+        _, addr, val = _writes(text, tracked | {sym["PENDING"]})
+        ram = dict.fromkeys(tracked, 0)
+        pending, done, started, calls = 0, 0, False, []
+        for a, v in zip(addr.tolist(), val.tolist()):
+            if a == sym["PENDING"]:
+                started |= v == (pending + 1) & 0xFF
+                done += v == (pending - 1) & 0xFF
+                pending = v
+                continue
+            ram[a] = v
+            if a == sym["REC_FLAGS"] and started:
+                calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+        if done != n:
+            raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+
+        def value(a, b, signed):
+            v = sum(ram[a + i] << (8 * i) for i in range(b))
+            return v - (1 << (8 * b)) if signed and v >= 1 << (8 * b - 1) else v
+
+        return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
+                np.asarray([value(a, b, sg) for a, b, sg in state], np.int64))
+
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
         run started at sample 0, and the period between interrupts."""
