@@ -215,6 +215,38 @@ def test_a_broken_detector_is_named(simulated_walk, monkeypatch):
     assert f"first difference: sample {d['sample']}, {d['field']}" in r.format_table()
 
 
+@needs_gpsim
+def test_lean_run_gives_the_calls_and_final_state(simulated_walk):
+    """run_calls (the lean log for long runs) against the kernel fed one sample at a time."""
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = simulated_walk[0][:800]
+    calls, state = gl.PicLogger().run_calls(codes, CALS["device"])
+    trace = detector_trace(codes, CALS["device"])
+    assert calls.shape[0] >= 3 and np.array_equal(calls, trace.calls)
+    assert np.array_equal(state, trace.state[-1])
+
+
+@needs_gpsim
+@pytest.mark.slow
+def test_ring_mode_across_the_16_bit_wrap(simulated_walk):
+    """More than 65,536 samples in one run (the walk repeated): every finalise call and the final detector
+    state are the kernel's, across F_OLD (2^15) and the wrap of N and of the indices (2^16). Minutes in gpsim."""
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+    from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_MODULUS
+
+    walk = simulated_walk[0]
+    codes = np.tile(walk, (INDEX_MODULUS // len(walk) + 2, 1))[:INDEX_MODULUS + 3000]
+    calls, state = gl.PicLogger().run_calls(codes, CALS["nominal"])
+    trace = detector_trace(codes, CALS["nominal"])
+    assert np.any(trace.calls[:, 0] >= INDEX_MODULUS) and np.any(trace.calls[:, 1] < trace.calls[:, 2])
+    assert np.all(trace.calls[trace.calls[:, 0] >= INDEX_MODULUS // 2, 4] & F_OLD)
+    assert calls.shape == trace.calls.shape
+    bad = np.flatnonzero(np.any(calls != trace.calls, axis=1))
+    assert bad.size == 0, (calls[bad[:1]], trace.calls[bad[:1]])
+    assert np.array_equal(state, trace.state[-1])
+
+
 def test_conversions_outside_their_stimulus_are_refused():
     p = gl.timer_setup(50.0).period_cycles
     ok = np.repeat(np.arange(4) + 1, 3) * p + np.tile([300, 500, 700], 4)
