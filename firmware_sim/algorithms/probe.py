@@ -35,6 +35,7 @@ from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from dataclasses import dataclass
 
 from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
+from gaitlog.firmware_sim.algorithms.online import OnlineConfig, OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.state import (
     AMP,
     DIST,
@@ -58,6 +59,7 @@ from gaitlog.firmware_sim.algorithms.state import (
 )
 from gaitlog.firmware_sim.compiled import njit
 from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
+from gaitlog.protocol.steps import StepConfig
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
            "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace"]
@@ -261,9 +263,6 @@ _TRACE_LEG_M, _TRACE_FOOT_M = 0.9, 0.26
 def online_config(sampling_rate_hz: float):
     """The on-line algorithm's fixed-point configuration at ``sampling_rate_hz`` with the default parameters
     (:class:`~gaitlog.firmware_sim.algorithms.online.OnlineConfig`; the nominal calibration)."""
-    from gaitlog.firmware_sim.algorithms.online import OnlineConfig
-    from gaitlog.protocol.steps import StepConfig
-
     return OnlineConfig.build(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
         step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))
 
@@ -301,10 +300,6 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
     >>> t.ready.tolist().index(True), int(t.y3[-1]), t.calls.shape   # r3 = 9 at 50 Hz: the 19th sample
     (18, 0, (0, 5))
     """
-    from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
-    from gaitlog.firmware_sim.fixedpoint import new_counters
-    from gaitlog.protocol.steps import StepConfig
-
     c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
     algo = OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
         step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from gaitlog.firmware_sim.algorithms.formats import ACC_Q, F_ACC
 from gaitlog.firmware_sim.algorithms.parameters import FRACTION_SCALE, EventParameters, OnlineParameters, SampleCounts
@@ -445,8 +446,6 @@ class PicLogger:
         self.timeout_s = timeout_s
 
     def _defines(self, first_sample: int) -> dict[str, int]:
-        from gaitlog.firmware_sim.algorithms import kernel
-
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
         ci, cv = self.config.cfg_i, self.config.cfg_v
         steps = {k: int(ci[kernel.CI[k]]) for k in ("R3", "N_MED", "MIN_STEP", "MAX_STEP", "FRACTION", "AMP_SHIFT",
@@ -463,13 +462,9 @@ class PicLogger:
                     G_MIN=self.min_gravity_raw, **steps)
 
     def _n_med(self) -> int:
-        from gaitlog.firmware_sim.algorithms import kernel
-
         return int(self.config.cfg_i[kernel.CI_N_MED])
 
     def _weights(self) -> np.ndarray:
-        from gaitlog.firmware_sim.algorithms import kernel
-
         r3 = int(self.config.cfg_i[kernel.CI_R3])
         return self.config.cfg_v[kernel.CV_W3:kernel.CV_W3 + r3 + 1]
 

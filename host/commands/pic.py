@@ -23,7 +23,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recording", metavar="RECORDING",
                         help="a recording gaitlog decode reads (memory image, raw dump, wire capture)")
     parser.add_argument("--limit", type=whole(minimum=1), metavar="N",
-                        help="compare the first N samples only (default: all; gpsim runs about 15x real time)")
+                        help="compare the first N samples only (default: all; gpsim runs a few times real time)")
     add_json_option(parser, "the comparison")
     add_verbosity_options(parser)
 
