@@ -134,6 +134,18 @@ def test_random_codes_identical(name):
 
 
 @needs_gpsim
+def test_every_code_converts_exactly():
+    """gpsim's converter, driven by the harness's analog stimuli, gives every one of the 1,024 codes on each
+    channel (the packed words against pack_words: the codes themselves)."""
+    k = np.arange(1024)
+    codes = np.stack([k, 1023 - k, (7 * k + 3) % 1024], axis=1)
+    flags = np.zeros(1024, np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["nominal"], a_v=False)
+    assert r.stages[0].name == "packed words" and r.stages[0].identical, r.format_table()
+
+
+@needs_gpsim
 def test_simulated_walk_identical(simulated_walk):
     codes = simulated_walk[0][:1500]
     flags = np.zeros(len(codes), np.int64)
