@@ -289,9 +289,10 @@ class DetectorTrace:
 
 
 def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
-                   run_starts: list[int] | tuple[int, ...] = (0,)) -> DetectorTrace:
+                   run_starts: list[int] | tuple[int, ...] = (0,), start_n: int = 0) -> DetectorTrace:
     """Steps 4-5 of the fixed-point kernel on every sample: the kernel fed one sample at a time (runs restart
-    at ``run_starts``), its y3, detector state and ``_finalise`` calls after each.
+    at ``run_starts``), its y3, detector state and ``_finalise`` calls after each. ``start_n``: the kernel's
+    ``N`` after each START (0; else a run that old, as the PIC test build's ``START_N``).
 
     Examples
     --------
@@ -319,6 +320,7 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
     for i in range(n):
         if i in starts:
             algo.reset()
+            algo._st_i[N] = start_n
         prev = algo._st_i.copy()
         steps = algo.feed(c[i:i + 1])
         st_i, st_v = algo._st_i, algo._st_v
@@ -330,7 +332,7 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
         state[i, len(_DETECTOR_SLOTS):] = algo._durs
         for end in steps.end.tolist():
             e = int(prev[PEND])
-            if (end & INDEX_MASK) != e:
+            if ((end + start_n) & INDEX_MASK) != e:          # the driver counts from START
                 raise AssertionError(f"sample {i}: the kernel's record ends at {end}, its pending foot-flat was {e}")
             calls.append([i, e, int(prev[LAST]), int((st_i[N] - 1 - r3) & INDEX_MASK),
                           int(prev[FLAGS] & (F_LAST | F_PEND_WEAK) | st_i[FLAGS] & F_OLD)])

@@ -57,6 +57,7 @@ from gaitlog.firmware_sim.algorithms.probe import (
     online_config,
     vertical_acceleration,
 )
+from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
 from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
@@ -476,7 +477,7 @@ class PicLogger:
             d = Path(tmp)
             (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n"
                                                   for b in _config_bytes(cal_bytes, self._weights())))
-            build = _assemble(d, dict(self._defines(first_sample), N_SAMPLES=n), test=True)
+            build = _assemble(d, dict(self._defines(first_sample), N_SAMPLES=n, START_N=0), test=True)
             sym = build.symbols
             tracked = {sym[k] + i for k, b in _SNAPSHOT for i in range(b)}
             tracked |= {sym[k] + i for k, b, _ in _DETECTOR for i in range(b)}
@@ -504,11 +505,19 @@ class PicLogger:
         return _RunOut(_packed(addr, val, n, first_sample), ram, ready, calls, stages, acq,
                        int(cyc.max()) if cyc.size else 0, dt)
 
-    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ) -> tuple[np.ndarray, np.ndarray]:
-        """One run from START with a lean write log, for runs too long to log every stage (a ring-mode run
-        past the 16-bit index wrap): ``finalise``'s calls (as :attr:`LoggerRun.calls`) and the detector's state
-        after the last sample (as a row of :attr:`LoggerRun.detector`). Only the call record, the detector's
-        state and ``PENDING`` are logged; a sample ends where ``PENDING`` is decremented."""
+    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *,
+                  start_n: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`) and the
+        detector's state after the last sample (as a row of :attr:`LoggerRun.detector`). Only the call record,
+        the detector's state and ``PENDING`` are logged; a sample ends where ``PENDING`` is decremented.
+
+        ``start_n``: the kernel's ``N`` at START (the test build's ``START_N``: a run that old, its gravity
+        warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
+        samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
+        samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
+        the kernel at the same ``N``."""
+        if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
+            raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
         c = np.asarray(codes, np.int64).reshape(-1, 3)
         n = c.shape[0]
@@ -516,7 +525,7 @@ class PicLogger:
             d = Path(tmp)
             (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
                                                   _config_bytes(_calibration_bytes(calibration), self._weights())))
-            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n), test=True)
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n), test=True)
             sym = build.symbols
             state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
                                                                              for i in range(self._n_med())]

@@ -25,7 +25,9 @@
 ; The calibration and the FIR weights are read from the data EEPROM (EE_CAL, EE_W3 in logger_ram.inc) where
 ; they are used, as the model charges them; the harness assembles the configuration into it (config.inc, DE).
 ; The test build (TEST_BUILD defined) also takes N_SAMPLES: after that many samples the interrupt stops the
-; timer and the main loop ends at harness_done. Both builds convert the real ADC inputs AN0-AN2 (the harness
+; timer and the main loop ends at harness_done; and START_N: the kernel's N at START (0; otherwise the run
+; is taken to be START_N samples old, its gravity warm-up over: WARM = G_SHIFT; the index-wrap tests
+; start near 2^15 and 2^16 instead of simulating 65,536 samples first). Both builds convert the real ADC inputs AN0-AN2 (the harness
 ; drives them with gpsim's analog stimuli) and take the marker button on RB0/INT.
         list    p=16f877
         #include <p16f877.inc>
@@ -208,6 +210,14 @@ start:
         call    reset_gravity           ; START: a fresh state
         call    reset_steps
 #ifdef TEST_BUILD
+#if START_N
+        movlw   LOW START_N             ; a run START_N samples old (the index-wrap tests)
+        movwf   N_L
+        movlw   HIGH START_N
+        movwf   N_H
+        movlw   G_SHIFT
+        movwf   WARM
+#endif
         movlw   LOW N_SAMPLES
         movwf   LEFT_L
         movlw   HIGH N_SAMPLES

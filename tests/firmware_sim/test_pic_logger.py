@@ -240,20 +240,26 @@ def test_lean_run_gives_the_calls_and_final_state(simulated_walk):
 
 
 @needs_gpsim
-@pytest.mark.slow
-def test_ring_mode_across_the_16_bit_wrap(simulated_walk):
-    """More than 65,536 samples in one run (the walk repeated): every finalise call and the final detector
-    state are the kernel's, across F_OLD (2^15) and the wrap of N and of the indices (2^16). Minutes in gpsim."""
+@pytest.mark.parametrize("crossing", ["F_OLD", "wrap"])
+def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
+    """A run that starts 1,200 samples before 2^15 (F_OLD: N may wrap from then on) or before 2^16 (N and the
+    indices wrap) and walks on for 2,500 samples: every finalise call and the final detector state are the
+    kernel's started at the same N (the test build's START_N), across the crossing."""
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
-    from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_MODULUS
+    from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_HALF, INDEX_MODULUS
 
-    walk = simulated_walk[0]
-    codes = np.tile(walk, (INDEX_MODULUS // len(walk) + 2, 1))[:INDEX_MODULUS + 3000]
-    calls, state = gl.PicLogger().run_calls(codes, CALS["nominal"])
-    trace = detector_trace(codes, CALS["nominal"])
-    assert np.any(trace.calls[:, 0] >= INDEX_MODULUS) and np.any(trace.calls[:, 1] < trace.calls[:, 2])
-    assert np.all(trace.calls[trace.calls[:, 0] >= INDEX_MODULUS // 2, 4] & F_OLD)
-    assert calls.shape == trace.calls.shape
+    edge = INDEX_HALF if crossing == "F_OLD" else INDEX_MODULUS
+    codes = simulated_walk[0][550:3050]                  # walking from the first steps on
+    calls, state = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - 1200)
+    trace = detector_trace(codes, CALS["nominal"], start_n=edge - 1200)
+    after = trace.calls[:, 0] >= 1200
+    assert after.sum() > 20 and (~after).sum() > 20
+    assert np.all(trace.calls[after, 4] & F_OLD)
+    if crossing == "wrap":
+        assert np.any(trace.calls[:, 1] < trace.calls[:, 2])          # e wrapped past 0, its s did not
+    else:
+        assert not np.any(trace.calls[~after, 4] & F_OLD)
+    assert calls.shape == trace.calls.shape, (calls.shape, trace.calls.shape)
     bad = np.flatnonzero(np.any(calls != trace.calls, axis=1))
     assert bad.size == 0, (calls[bad[:1]], trace.calls[bad[:1]])
     assert np.array_equal(state, trace.state[-1])
