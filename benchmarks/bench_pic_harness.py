@@ -2,9 +2,9 @@
 
 Run: ``python benchmarks/bench_pic_harness.py`` (needs gputils and gpsim). A simulated subject's walk (the
 first 1,250 samples, 25 s at 50 Hz: a 20 m trial) goes through
-:func:`gaitlog.firmware_sim.pic.gpsim_logger.verify` -- assemble the test build with the codes in program
-memory, run gpsim through every cycle of every sample period with its write log on, parse the log, run the
-model, compare -- timed end to end. Baseline in the same run: gpsim alone on the production build for the
+:func:`gaitlog.firmware_sim.pic.gpsim_logger.verify` -- assemble the test build, run gpsim with the codes as
+analog stimuli on the ADC inputs through every cycle of every sample period with its write log on, parse the
+log, run the model, compare -- timed end to end. Baseline in the same run: gpsim alone on the production build for the
 same 1,250 periods, nothing logged (its raw speed, cycles per second). Target: the whole verification at
 least 5x real time (25 s of recording in at most 5 s). Exits 1 if a sample differs or the target is missed.
 """

@@ -18,6 +18,11 @@ Probes
     the calibrated axes, with the warm-up shift of ``kernel._front``.
 :func:`vertical_acceleration`
     Step 3: ``a_v = (f·g - |g|^2) / |g|`` (Q2.13 g; 0 when ``|g|`` is at most ``G_MIN``).
+:func:`detector_trace`
+    Steps 4-5: the kernel itself (:class:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`) fed
+    one sample at a time, its state read after each: y3 (the kernel's ``_fir`` on its delay line, run
+    uncompiled), the detector's slots (:data:`DETECTOR_FIELDS`) and each call of ``_finalise``
+    (:data:`CALL_FIELDS`).
 """
 
 from __future__ import annotations
@@ -27,11 +32,37 @@ import numpy as np
 from gaitlog.firmware_sim.algorithms import arithmetic as ar
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
-from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
-from gaitlog.firmware_sim.compiled import njit
-from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OPS, new_counters
+from dataclasses import dataclass
 
-__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts"]
+from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
+from gaitlog.firmware_sim.algorithms.online import OnlineConfig, OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.state import (
+    AMP,
+    DIST,
+    DUR_POS,
+    F_LAST,
+    F_OLD,
+    F_PEND_WEAK,
+    FLAGS,
+    INDEX_MASK,
+    LAST,
+    LINE_POS,
+    MN,
+    MX,
+    MXPOS,
+    N_DUR,
+    PEND,
+    PEND_Y,
+    RAW,
+    RAW_Y,
+    N,
+)
+from gaitlog.firmware_sim.compiled import njit
+from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
+from gaitlog.protocol.steps import StepConfig
+
+__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
+           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace"]
 
 
 @njit(cache=True)
@@ -45,6 +76,7 @@ def _calibrated_axes(codes, cfg_i, cfg_v, out, cnt, trace):  # pragma: no cover 
         c2 = ar.sub(ar.requant(codes[i, 2], 0, cf, W16, cnt), cfg_v[kernel.CV_OFF + 2], W16, cnt)
         for row in range(3):
             out[i, row] = kernel._calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt)
+        s_cost(cnt, OP_DEE, 25)                  # offsets, mantissas, exponent from the data EEPROM
         trace[i, :] = cnt
 
 
@@ -209,3 +241,99 @@ def front_operation_counts(codes: np.ndarray, calibration: CalibrationQ, gravity
     g = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 6), np.int64)
     stage2 = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, len(OPS)), np.int64)
     return stage1, stage2 + _vertical_traced(f, np.ascontiguousarray(g[:, 3:]), min_gravity_raw)[1]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# steps 4-5
+
+#: The detector's state compared after each sample (the kernel's slots; the durations ring ``d0 ..`` follows).
+DETECTOR_FIELDS = ("mn", "mx", "mxpos", "pend", "pend_y", "last", "raw", "raw_y", "amp", "dist", "n_dur", "dur_pos",
+                   "flags", "n", "line_pos")
+_DETECTOR_SLOTS = (("v", MN), ("v", MX), ("i", MXPOS), ("i", PEND), ("v", PEND_Y), ("i", LAST), ("i", RAW),
+                   ("v", RAW_Y), ("v", AMP), ("i", DIST), ("i", N_DUR), ("i", DUR_POS), ("i", FLAGS), ("i", N),
+                   ("i", LINE_POS))
+#: A call of ``_finalise``: the sample (from the run's first), the foot-flat ``e``, the previous one ``s`` (the
+#: ``LAST`` slot as it stands), the newest output ``m``, and the flags the step reads (``F_LAST``,
+#: ``F_PEND_WEAK``, ``F_OLD``).
+CALL_FIELDS = ("sample", "e", "s", "m", "flags")
+#: Leg and foot of the step configuration the trace runs with (steps 4-5 do not read it; ``_finalise`` does).
+_TRACE_LEG_M, _TRACE_FOOT_M = 0.9, 0.26
+
+
+def online_config(sampling_rate_hz: float):
+    """The on-line algorithm's fixed-point configuration at ``sampling_rate_hz`` with the default parameters
+    (:class:`~gaitlog.firmware_sim.algorithms.online.OnlineConfig`; the nominal calibration)."""
+    return OnlineConfig.build(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
+        step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))
+
+
+@dataclass(frozen=True)
+class DetectorTrace:
+    """:func:`detector_trace`'s result.
+
+    Attributes
+    ----------
+    y3, ready
+        ``(n,)`` int64: the 3 Hz FIR output (raw Q2.16; 0 where there is none) and bool: whether the sample has one.
+    state
+        ``(n, len(DETECTOR_FIELDS) + median_steps)`` int64: the detector's slots after each sample, then the
+        durations ring.
+    calls
+        ``(k, len(CALL_FIELDS))`` int64: each call of ``_finalise`` while the samples were fed (not the STOP's).
+    """
+
+    y3: np.ndarray
+    ready: np.ndarray
+    state: np.ndarray
+    calls: np.ndarray
+
+
+def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
+                   run_starts: list[int] | tuple[int, ...] = (0,), start_n: int = 0) -> DetectorTrace:
+    """Steps 4-5 of the fixed-point kernel on every sample: the kernel fed one sample at a time (runs restart
+    at ``run_starts``), its y3, detector state and ``_finalise`` calls after each. ``start_n``: the kernel's
+    ``N`` after each START (0; else a run that old, as the PIC test build's ``START_N``).
+
+    Examples
+    --------
+    >>> from gaitlog.firmware_sim.algorithms.calibration import nominal_calibration_q
+    >>> t = detector_trace(np.full((20, 3), 512) + [0, 0, 256], nominal_calibration_q())     # still: 1 g on z
+    >>> t.ready.tolist().index(True), int(t.y3[-1]), t.calls.shape   # r3 = 9 at 50 Hz: the 19th sample
+    (18, 0, (0, 5))
+    """
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    algo = OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
+        step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))
+    cfg_i, cfg_v = algo.config.cfg_i, algo.config.cfg_v
+    cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw            # the PIC's calibration, as is
+    cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
+    cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
+    r3 = int(cfg_i[kernel.CI_R3])
+    fir = kernel._fir.py_func
+    cnt = new_counters()
+    n = c.shape[0]
+    y3 = np.zeros(n, np.int64)
+    ready = np.zeros(n, bool)
+    state = np.zeros((n, len(DETECTOR_FIELDS) + int(cfg_i[kernel.CI_N_MED])), np.int64)
+    calls = []
+    starts = set(run_starts) | {0}
+    for i in range(n):
+        if i in starts:
+            algo.reset()
+            algo._st_i[N] = start_n
+        prev = algo._st_i.copy()
+        steps = algo.feed(c[i:i + 1])
+        st_i, st_v = algo._st_i, algo._st_v
+        ready[i] = bool(st_i[FLAGS] & F_OLD) or prev[N] >= 2 * r3
+        if ready[i]:
+            centre = (int(st_i[LINE_POS]) - 1 - r3) % (2 * r3 + 1)
+            y3[i] = fir(algo._line, centre, 2 * r3 + 1, cfg_v, kernel.CV_W3, r3, cnt)
+        state[i, :len(_DETECTOR_SLOTS)] = [st_v[k] if kind == "v" else st_i[k] for kind, k in _DETECTOR_SLOTS]
+        state[i, len(_DETECTOR_SLOTS):] = algo._durs
+        for end in steps.end.tolist():
+            e = int(prev[PEND])
+            if ((end + start_n) & INDEX_MASK) != e:          # the driver counts from START
+                raise AssertionError(f"sample {i}: the kernel's record ends at {end}, its pending foot-flat was {e}")
+            calls.append([i, e, int(prev[LAST]), int((st_i[N] - 1 - r3) & INDEX_MASK),
+                          int(prev[FLAGS] & (F_LAST | F_PEND_WEAK) | st_i[FLAGS] & F_OLD)])
+    return DetectorTrace(y3, ready, state, np.asarray(calls, np.int64).reshape(-1, len(CALL_FIELDS)))

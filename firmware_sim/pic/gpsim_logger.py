@@ -2,27 +2,32 @@
 
 ``logger.asm`` (RAM map ``logger_ram.inc``) is the sampling interrupt (CCP1 compare on Timer1 at the
 sampling rate, three ADC channels with their acquisition time, P32 packing into the 128-byte page buffer,
-the page handoff) and the main loop's first three steps of the on-line algorithm (``kernel.py`` steps 1-3:
-calibration, gravity, a_v). :class:`PicLogger` runs it in gpsim without stopping per sample:
+the page handoff) and the main loop's steps 1-5 of the on-line algorithm (``kernel.py``: calibration,
+gravity, a_v; ``steps.asm``: the delay line and the 3 Hz FIR y3, the foot-flat detector and its calls of
+``finalise``). :class:`PicLogger` runs it in gpsim without stopping per sample:
 
-* **Test build** (``TEST_BUILD``): after each conversion the interrupt overwrites ADRESH:ADRESL with the
-  next code of a table assembled into program memory (words 0x0800-0x1FFF, one 14-bit word per code, bit
-  10 of an x word = the marker button), so up to :data:`CHUNK_SAMPLES` samples are one gpasm and one gpsim
-  run. Longer runs are cut into chunks that run one after the other, each starting from the stage-2 state
-  the previous one's log ended with (``state.inc``); logging runs (S flags) run in parallel. The timer runs
-  at the real rate: gpsim simulates every cycle of every sample period.
+* **The ADC is driven by gpsim's analog stimuli**: each code ``c`` is the voltage ``c · 5 V / 1023`` on
+  AN0-AN2 (gpsim converts ``round(1023 V / VDD)``, so the voltage at the code's centre gives the code
+  exactly), set half a period before the sample's conversion and held for one period; the marker button is
+  a pulse on RB0/INT before the sample it marks. The firmware converts as on the chip: no code table, no
+  injection, and a whole logging run (up to an S flag) is one gpsim run, from START, of any length.
+  The configuration (calibration, FIR weights) is in the data EEPROM, as the host writes it
+  (``config.inc``); the test build (``TEST_BUILD``) adds only a sample count after which the timer stops and
+  the main loop ends at ``harness_done``. Logging runs (S flags) run in parallel.
 * **Outputs** come from gpsim's register-write log (``log w``), stamped with its cycle counter: the 128
   page-buffer bytes (the packed words), the stage outputs and state (``FX..FZ``, ``G1``, ``G2``, ``AV``,
-  snapshot at the main loop's ``DECF PENDING`` that ends each sample), ``W_TEMP`` (the interrupt's entry
-  and exit), ``ADCON0`` (channel select and GO: the acquisition time) and ``B0`` (the main loop's start).
-  Nothing stops the simulation before the table's end (``harness_done``).
-* **Cycles**: the interrupt from its vector to RETFIE is measured on the production build (no table, no
-  injection) over :data:`ISR_PROBE_SAMPLES` samples at every page position; the stages from reading the
-  sample's word back from the page to ``DECF PENDING`` are measured per sample in the test build (the same
-  code), less any interrupt that fell inside them.
+  ``Y3`` and the detector's bank-1 state, snapshot at the main loop's ``DECF PENDING`` that ends each
+  sample), ``finalise``'s call record (taken at each write of ``REC_FLAGS``), ``W_TEMP`` (the interrupt's
+  entry and exit), ``ADCON0`` (channel select and GO: the acquisition time) and ``B0``, ``FZ_H``,
+  ``AV_H``, ``M_L`` (where the stages begin and end). Nothing stops the simulation before ``harness_done``.
+* **Cycles**: the interrupt from its vector to RETFIE is measured on the production build over
+  :data:`ISR_PROBE_SAMPLES` samples at every page position; the stages per sample in the test build (the
+  same code), less any interrupt that fell inside them.
 
 :func:`verify` compares with the Python model: :func:`gaitlog.protocol.packing.pack_words` for the words,
-the probes of :mod:`gaitlog.firmware_sim.algorithms.probe` for steps 1-3.
+the probes of :mod:`gaitlog.firmware_sim.algorithms.probe` for steps 1-3 and, through
+:func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` (the kernel itself, one sample at a time), y3,
+the detector's state after every sample and every call of ``finalise``.
 """
 
 from __future__ import annotations
@@ -39,32 +44,42 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
 from gaitlog.firmware_sim.algorithms.formats import ACC_Q, F_ACC
-from gaitlog.firmware_sim.algorithms.parameters import EventParameters, OnlineParameters, SampleCounts
-from gaitlog.firmware_sim.algorithms.probe import calibrated_axes, gravity_states, vertical_acceleration
+from gaitlog.firmware_sim.algorithms.parameters import FRACTION_SCALE, EventParameters, OnlineParameters, SampleCounts
+from gaitlog.firmware_sim.algorithms.probe import (
+    DETECTOR_FIELDS,
+    CALL_FIELDS,
+    calibrated_axes,
+    detector_trace,
+    gravity_states,
+    online_config,
+    vertical_acceleration,
+)
+from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
 from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
 
-__all__ = ["LOGGER_ASM", "CHUNK_SAMPLES", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
+__all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
            "missing_tools"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
-#: Samples per gpsim run: the code table fills program memory 0x0800-0x1FFF (6,144 words, 3 per sample).
-CHUNK_SAMPLES = 2048
-#: Program memory of the code table (logger.asm's CODE_TABLE).
-CODE_TABLE = 0x0800
+#: The ADC's full scale (VDD, ADCON1 = 0x82: Vref = VDD/VSS) in gpsim, volts.
+VDD_V = 5.0
+#: gpsim's 10-bit conversion: ``round(ADC_STEPS · V / VDD)``.
+ADC_STEPS = 1023
+#: Cycles the marker button's pulse on RB0 stays high.
+MARK_PULSE_CYCLES = 1000
 #: Samples of the production build's run that measures the interrupt (two pages: every page position).
 ISR_PROBE_SAMPLES = 64
 #: Cycles of the interrupt after its exit stamp (the write of ``SWAPF W_TEMP, F``): that SWAPF, ``SWAPF
 #: W_TEMP, W`` and RETFIE (2).
 ISR_TAIL_CYCLES = 4
-#: Bit of a table word (x code) that presses the marker button.
-TABLE_MARK_BIT = 10
 #: gpsim's ADCON0, the kernels' W_TEMP (common RAM) and the page buffer's two halves.
 ADCON0_ADDR, W_TEMP_ADDR = 0x1F, 0x7F
 PAGE_ADDRS = tuple(range(0x110, 0x150)) + tuple(range(0x190, 0x1D0))
@@ -145,10 +160,46 @@ def _calibration_bytes(cal: CalibrationQ) -> list[int]:
     return out + [shift]
 
 
-def _table_words(codes: np.ndarray, flags: np.ndarray) -> np.ndarray:
-    words = np.asarray(codes, np.int64).reshape(-1, 3).copy()
-    words[:, 0] |= ((np.asarray(flags) & FLAG_MARK) != 0).astype(np.int64) << TABLE_MARK_BIT
-    return words.reshape(-1)
+def _config_bytes(cal_bytes: list[int], weights: np.ndarray) -> list[int]:
+    """The data EEPROM's configuration (logger_ram.inc's EE_CAL, EE_W3): the calibration, then the 3 Hz
+    half-kernel (Q1.14 int16, little-endian)."""
+    out = list(cal_bytes)
+    for w in np.asarray(weights, np.int64).tolist():
+        if not -32768 <= w <= 32767:
+            raise ValueError(f"a FIR weight {w} does not fit its 16-bit word")
+        out += [w & 0xFF, (w >> 8) & 0xFF]
+    if len(out) > 256:
+        raise ValueError(f"the configuration takes {len(out)} bytes, more than the 256 of the data EEPROM")
+    return out
+
+
+def _stimuli(codes: np.ndarray, flags: np.ndarray, period_cycles: int) -> str:
+    """gpsim commands that drive AN0-AN2 with the codes and press the marker button (RB0) where ``flags`` has
+    M: sample ``k``'s voltages hold from cycle ``(k + 1/2) P`` to ``(k + 3/2) P``, around its conversion
+    near ``(k + 1) P`` (checked against the log by :func:`_check_conversions`)."""
+    at = ((np.arange(codes.shape[0]) + 0.5) * period_cycles).astype(np.int64)
+    out = []
+    for ch in range(3):
+        pts = ",\n".join(f"{t}, {c * VDD_V / ADC_STEPS:.12g}" for t, c in zip(at.tolist(), codes[:, ch].tolist()))
+        out.append(f"stimulus asynchronous_stimulus\ninitial_state 0\nstart_cycle 0\nanalog\n{{ {pts} }}\n"
+                   f"name an{ch}\nend\nnode n_an{ch}\nattach n_an{ch} an{ch} porta{ch}")
+    marks = at[(np.asarray(flags) & FLAG_MARK) != 0]
+    if marks.size:
+        pts = ",\n".join(f"{t}, 1, {t + MARK_PULSE_CYCLES}, 0" for t in marks.tolist())
+        out.append(f"stimulus asynchronous_stimulus\ninitial_state 0\nstart_cycle 0\ndigital\n{{ {pts} }}\n"
+                   f"name mark\nend\nnode n_mark\nattach n_mark mark portb0")
+    return "\n".join(out) + "\n"
+
+
+def _check_conversions(t_go: np.ndarray, n: int, period_cycles: int) -> None:
+    """Each sample's three conversions (``GO``) fall inside the period its stimulus holds."""
+    if t_go.size != 3 * n:
+        raise PicError(f"gpsim converted {t_go.size} times for {n} samples (3 each)")
+    k = np.repeat(np.arange(n), 3)
+    bad = (t_go <= (k + 0.5) * period_cycles) | (t_go >= (k + 1.5) * period_cycles)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise PicError(f"sample {i // 3}'s conversion at cycle {int(t_go[i])} is outside its stimulus' period")
 
 
 def _page_fsr(sample_number: int) -> int:
@@ -201,11 +252,12 @@ def _writes(log_text: str, wanted: set[int]) -> tuple[np.ndarray, np.ndarray, np
     return np.asarray(cyc, np.int64), np.asarray(addr, np.int64), np.asarray(val, np.int64)
 
 
-def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float) -> str:
-    """Run ``build`` in gpsim, logging writes to ``addrs``, until ``stop`` (``e LABEL`` or ``c CYCLES``)."""
+def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "") -> str:
+    """Run ``build`` in gpsim (``stimuli``: commands that attach stimuli), logging writes to ``addrs``, until
+    ``stop`` (``e LABEL`` or ``c CYCLES``)."""
     with tempfile.TemporaryDirectory(prefix="gpsim-logger-") as tmp:
         log = Path(tmp) / "writes.log"
-        lines = [*([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
+        lines = [*([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
                  "quit"]
         (Path(tmp) / "run.stc").write_text("\n".join(lines) + "\n")
         proc = subprocess.run(["gpsim", "-i", "-s", str(build.cod), "-c", str(Path(tmp) / "run.stc")],
@@ -220,10 +272,20 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float) -> str:
         return log.read_text(errors="replace") if log.exists() else ""
 
 
-#: Stage 2's state in RAM, in logger_ram.inc's order (G1X .. THR_H, 29 bytes): what a chunk hands the next.
-STATE_BYTES = 29
-#: RAM the harness snapshots after each sample (bank-0 symbols): stage outputs and state.
-_SNAPSHOT = ("FX_L", "FX_H", "FY_L", "FY_H", "FZ_L", "FZ_H", *(f"G{s}{a}" for s in "12" for a in "XYZ"), "AV_L", "AV_H")
+#: RAM the harness snapshots after each sample (bank-0 symbols, bytes): stage outputs and state.
+_SNAPSHOT = (("FX_L", 2), ("FY_L", 2), ("FZ_L", 2), *((f"G{s}{a}", 4) for s in "12" for a in "XYZ"), ("AV_L", 2),
+             ("Y3_0", 3))
+#: The detector's state (bank 1), in :data:`~gaitlog.firmware_sim.algorithms.probe.DETECTOR_FIELDS` order:
+#: (symbol, bytes, signed); the durations ring follows.
+_DETECTOR = (("MN", 3, True), ("MX", 3, True), ("MXPOS", 2, False), ("PEND", 2, False), ("PEND_Y", 3, True),
+             ("LAST", 2, False), ("RAW", 2, False), ("RAW_Y", 3, True), ("AMP", 3, True), ("DIST", 1, False),
+             ("N_DUR", 1, False), ("DUR_POS", 1, False), ("AFLAGS", 1, False), ("N_L", 2, False),
+             ("LINE_POS", 1, False))
+#: finalise's call record: (symbol, bytes), after the sample index.
+_RECORD = (("REC_E", 2), ("REC_S", 2), ("REC_M", 2), ("REC_FLAGS", 1))
+#: Stages timed per sample, and the write that ends each (``M_L``: written only once the filter has an output).
+STAGES = ("step 1 (calibration)", "steps 2-3 (gravity, a_v)", "step 4 (delay line, 3 Hz FIR)",
+          "step 5 (foot-flat detector)")
 
 
 @dataclass(frozen=True)
@@ -240,23 +302,32 @@ class LoggerRun:
         ``(n, 6)`` int64: stage 2's state after the sample, raw Q2.29 (``G1X..G1Z``, ``G2X..G2Z``).
     a_v
         ``(n,)`` int64: stage 3's vertical acceleration, raw Q2.13 g (``AV``).
+    y3, ready
+        ``(n,)`` int64 step 4's 3 Hz FIR output (raw Q2.16, ``Y3``) and bool: whether the sample had one.
+    detector
+        ``(n, len(DETECTOR_FIELDS))`` int64: step 5's state after the sample (indices unsigned 16-bit).
+    calls
+        ``(k, len(CALL_FIELDS))`` int64: each call of ``finalise``: the sample, e, s, m, flags.
     isr_cycles
         ``(n,)`` the interrupt, vector to RETFIE, as the production build takes it at this sample's page position.
     stage_cycles
-        ``(n, 2)`` stage 1 (the word's read-back to the store of ``FZ``) and stages 2 and 3 (to the main
-        loop's ``DECF PENDING``), less any interrupt inside them.
+        ``(n, 4)`` the :data:`STAGES`, less any interrupt inside them.
     acquisition_cycles_min
         The shortest channel select to GO seen (the acquisition time the ADC got).
     period_cycles
         Measured cycles between two interrupts (the production build; all equal).
     simulated_cycles, gpsim_s, wall_s
-        Cycles gpsim simulated, the wall time of the gpsim runs (sum over chunks), the whole run's wall time.
+        Cycles gpsim simulated, the wall time of the gpsim runs (sum over runs), the whole run's wall time.
     """
 
     packed: np.ndarray
     calibrated: np.ndarray
     gravity: np.ndarray
     a_v: np.ndarray
+    y3: np.ndarray
+    ready: np.ndarray
+    detector: np.ndarray
+    calls: np.ndarray
     isr_cycles: np.ndarray
     stage_cycles: np.ndarray
     acquisition_cycles_min: int
@@ -267,12 +338,13 @@ class LoggerRun:
 
 
 @dataclass(frozen=True)
-class _ChunkOut:
+class _RunOut:
     packed: np.ndarray
-    ram: np.ndarray            # (n, len(_SNAPSHOT) * bytes) snapshot bytes, see _snapshot_values
+    ram: dict              # name -> (n,) int64 snapshot values
+    ready: np.ndarray
+    calls: np.ndarray
     stage_cycles: np.ndarray
     acquisition_cycles_min: int
-    final_state: list[int]     # STATE_BYTES bytes, the next chunk's start
     simulated_cycles: int
     gpsim_s: float
 
@@ -295,43 +367,52 @@ def _packed(addr: np.ndarray, val: np.ndarray, n: int, first_sample: int) -> np.
     return val[page].reshape(-1, 4).astype(np.uint8)
 
 
-def _replay_log(cyc, addr, val, n, sym, state0):
-    """One pass over the log: the RAM bytes ``sym`` names after each sample (snapshots at the main loop's
-    ``DECF PENDING``, outside the interrupt) and each sample's stage cycles."""
-    ram = dict(state0)
-    snap_addrs = sorted(a for a in ram)
-    snaps, stages = [], []
-    in_isr, isr_t, isr_sum = False, 0, 0
-    t_b0 = t_fz = None
-    isr_at_b0 = isr_at_fz = 0
+@dataclass
+class _Replay:
+    """The state of one pass over the log (see :func:`_replay_log`)."""
+
+    ram: dict
+    in_isr: bool = False
+    isr_t: int = 0
+    isr_sum: int = 0
+    marks: list = field(default_factory=list)
+
+
+def _replay_log(cyc, addr, val, n, sym, ram0):
+    """One pass over the log: the RAM bytes after each sample (snapshots at the main loop's ``DECF PENDING``,
+    outside the interrupt), whether the sample reached step 5, each call record, each sample's stage cycles."""
+    r = _Replay(dict(ram0))
+    snap_addrs = sorted(r.ram)
+    bounds = [sym["B0"], sym["FZ_H"], sym["AV_H"], sym["M_L"]]
+    snaps, stages, ready, calls = [], [], [], []
+    rec_flags, rec = sym["REC_FLAGS"], [(sym[k], b) for k, b in _RECORD]
     for t, a, v in zip(cyc.tolist(), addr.tolist(), val.tolist()):
         if a == W_TEMP_ADDR:
-            in_isr = not in_isr
-            if in_isr:
-                isr_t = t
+            r.in_isr = not r.in_isr
+            if r.in_isr:
+                r.isr_t = t
             else:
-                isr_sum += t + ISR_TAIL_CYCLES - isr_t
+                r.isr_sum += t + ISR_TAIL_CYCLES - r.isr_t
             continue
-        if in_isr:
+        if r.in_isr:
             continue
-        if a in ram:
-            ram[a] = v
-        if a == sym["B0"]:
-            t_b0, isr_at_b0 = t, isr_sum
-        elif a == sym["FZ_H"]:
-            t_fz, isr_at_fz = t, isr_sum
-        elif a == sym["PENDING"] and t_b0 is not None:          # the sample's DECF (not the set-up's CLRF)
-            snaps.append([ram[x] for x in snap_addrs])
-            stages.append((t_fz - t_b0 - (isr_at_fz - isr_at_b0), t - t_fz - (isr_sum - isr_at_fz)))
-            t_b0 = None
+        if a in r.ram:
+            r.ram[a] = v
+        if len(r.marks) < len(bounds) and a == bounds[len(r.marks)]:     # the stages' ends, in their order
+            r.marks.append((t, r.isr_sum))
+        if a == rec_flags and r.marks:           # (not START's clearing)
+            calls.append([len(snaps)] + [sum(r.ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+        if a == sym["PENDING"] and r.marks:       # the sample's DECF (not the set-up's CLRF)
+            snaps.append([r.ram[x] for x in snap_addrs])
+            ready.append(len(r.marks) == len(bounds))
+            ts = r.marks + [(t, r.isr_sum)]
+            times = [((ts[i + 1][0] - ts[i][0]) - (ts[i + 1][1] - ts[i][1])) for i in range(len(ts) - 1)]
+            stages.append(times + [0] * (len(STAGES) - len(times)))
+            r.marks = []
     if len(snaps) != n:
         raise PicError(f"gpsim's main loop finished {len(snaps)} samples of {n}")
-    return np.asarray(snaps, np.int64), np.asarray(stages, np.int64), ram
-
-
-def _state_bytes(sym: dict[str, int], ram: dict[int, int]) -> list[int]:
-    g = sym["G1X"]
-    return [ram[g + i] for i in range(STATE_BYTES)]
+    return (np.asarray(snaps, np.int64), snap_addrs, np.asarray(ready, bool),
+            np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)), np.asarray(stages, np.int64))
 
 
 class PicLogger:
@@ -346,84 +427,140 @@ class PicLogger:
         ``sampling_rate_hz`` with the default parameters (6 at 50 Hz).
     source_impedance_ohm
         The ADC source (the ADXL202's 32 kOhm output): sets the acquisition delay.
-    chunk_samples
-        Samples per gpsim run (at most :data:`CHUNK_SAMPLES`).
     workers
-        gpsim processes at a time (runs in parallel; the chunks of one run one after the other).
+        gpsim processes at a time (one per logging run).
     """
 
     def __init__(self, *, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ,
                  gravity_shift: int | None = None,
-                 source_impedance_ohm: float = 32e3, chunk_samples: int = CHUNK_SAMPLES, workers: int = 2,
-                 timeout_s: float = 600.0) -> None:
+                 source_impedance_ohm: float = 32e3, workers: int = 2, timeout_s: float = 600.0) -> None:
         self.sampling_rate_hz = sampling_rate_hz
         self.fosc_hz = fosc_hz
         self.gravity_shift = gravity_shift if gravity_shift is not None else SampleCounts.at(
             EventParameters(), OnlineParameters(), sampling_rate_hz).gravity_shift
         #: the kernel's G_MIN: the smallest ``|g|`` that gives an a_v, raw Q2.13
         self.min_gravity_raw = int(ACC_Q.from_float(OnlineParameters().min_gravity_g))
+        #: the on-line algorithm's configuration at this rate (steps 4-5's constants and weights)
+        self.config = online_config(sampling_rate_hz)
         self.source_impedance_ohm = source_impedance_ohm
-        self.chunk_samples = chunk_samples
         self.workers = workers
         self.timeout_s = timeout_s
 
-    def _defines(self, first_sample: int, session: bool) -> dict[str, int]:
+    def _defines(self, first_sample: int) -> dict[str, int]:
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
+        ci, cv = self.config.cfg_i, self.config.cfg_v
+        steps = {k: int(ci[kernel.CI[k]]) for k in ("R3", "N_MED", "MIN_STEP", "MAX_STEP", "FRACTION", "AMP_SHIFT",
+                                                     "PRIOR_TWICE", "FLUSH")}
+        steps.update({k: int(cv[kernel.CV[k]]) for k in ("DELTA", "CAP", "FRAC", "STOP")})
+        if not (steps["MAX_STEP"] < 256 and steps["FRACTION"] <= FRACTION_SCALE and steps["FLUSH"] <= 128
+                and min(steps["DELTA"], steps["CAP"], steps["STOP"], steps["FRAC"]) >= 0):
+            raise ValueError(f"the assembly's steps 4-5 need MAX_STEP < 256, FRACTION <= {FRACTION_SCALE}, "
+                             f"FLUSH <= 128 and non-negative thresholds: {steps}")
         return dict(CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con,
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
-                    PAGE_START=_page_fsr(first_sample), SESSION_START=int(session), G_SHIFT=self.gravity_shift,
-                    G_MIN=self.min_gravity_raw)
+                    PAGE_START=_page_fsr(first_sample), G_SHIFT=self.gravity_shift,
+                    G_MIN=self.min_gravity_raw, **steps)
 
-    def _chunk(self, codes, flags, cal_bytes, first_sample, state) -> _ChunkOut:
-        """One gpsim run; ``state``: stage 2's bytes to start from (None: a START)."""
+    def _n_med(self) -> int:
+        return int(self.config.cfg_i[kernel.CI_N_MED])
+
+    def _weights(self) -> np.ndarray:
+        r3 = int(self.config.cfg_i[kernel.CI_R3])
+        return self.config.cfg_v[kernel.CV_W3:kernel.CV_W3 + r3 + 1]
+
+    def _run_one(self, codes, flags, cal_bytes, first_sample) -> _RunOut:
+        """One logging run (a START) in one gpsim run."""
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        n = codes.shape[0]
         with tempfile.TemporaryDirectory(prefix="pic-logger-") as tmp:
             d = Path(tmp)
-            (d / "calibration.inc").write_text("".join(f"        retlw   0x{b:02X}\n" for b in cal_bytes))
-            (d / "state.inc").write_text("".join(f"        retlw   0x{b:02X}\n" for b in (state or [0] * STATE_BYTES)))
-            words = _table_words(codes, flags)
-            (d / "codes.inc").write_text("".join(f"        dw      0x{w:03X}\n" for w in words))
-            build = _assemble(d, dict(self._defines(first_sample, state is None), N_SAMPLES=codes.shape[0]),
-                              test=True)
+            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n"
+                                                  for b in _config_bytes(cal_bytes, self._weights())))
+            build = _assemble(d, dict(self._defines(first_sample), N_SAMPLES=n, START_N=0), test=True)
             sym = build.symbols
-            tracked = {sym[k] + i for k in _SNAPSHOT for i in range(4 if k.startswith("G") else 1)}
-            tracked |= {sym["G1X"] + i for i in range(STATE_BYTES)}
-            logged = sorted(tracked | {sym["B0"], sym["PENDING"], W_TEMP_ADDR, ADCON0_ADDR, *PAGE_ADDRS})
+            tracked = {sym[k] + i for k, b in _SNAPSHOT for i in range(b)}
+            tracked |= {sym[k] + i for k, b, _ in _DETECTOR for i in range(b)}
+            tracked |= {sym["DURS"] + i for i in range(self._n_med())}
+            tracked |= {sym[k] + i for k, b in _RECORD for i in range(b)}
+            logged = sorted(tracked | {sym["B0"], sym["FZ_H"], sym["AV_H"], sym["M_L"], sym["PENDING"], W_TEMP_ADDR,
+                                       ADCON0_ADDR, *PAGE_ADDRS})
             t0 = time.perf_counter()
-            text = _gpsim(build, logged, "e harness_done", self.timeout_s)
+            text = _gpsim(build, logged, "e harness_done", self.timeout_s, _stimuli(codes, flags, period))
             dt = time.perf_counter() - t0
         cyc, addr, val = _writes(text, set(logged))
-        n = codes.shape[0]
-        g0 = sym["G1X"]
         start = {a: 0 for a in tracked}
-        start.update({g0 + i: b for i, b in enumerate(state or [0] * STATE_BYTES)})
-        if state is None:
-            start[sym["THR_L"]] = 2
-        snaps, stages, ram = _replay_log(cyc, addr, val, n, sym, start)
-        order = sorted(tracked)
-        cols = {a: i for i, a in enumerate(order)}
-        pick = [cols[sym[k] + i] for k in _SNAPSHOT for i in range(4 if k.startswith("G") else 1)]
+        start[sym["THR_L"]] = 2
+        snaps, order, ready, calls, stages = _replay_log(cyc, addr, val, n, sym, start)
+        col = {a: i for i, a in enumerate(order)}
+        ram = {}
+        for k, b in _SNAPSHOT:
+            ram[k] = snaps[:, [col[sym[k] + i] for i in range(b)]]
+        for k, b, _ in _DETECTOR:
+            ram[k] = snaps[:, [col[sym[k] + i] for i in range(b)]]
+        ram["DURS"] = snaps[:, [col[sym["DURS"] + i] for i in range(self._n_med())]]
         adc = cyc[addr == ADCON0_ADDR][1:]                  # the first is the set-up's
+        _check_conversions(adc[1::2], n, period)
         acq = int(np.min(adc[1::2] - adc[0::2])) if adc.size >= 2 else 0
-        return _ChunkOut(_packed(addr, val, n, first_sample), snaps[:, pick], stages, acq,
-                         _state_bytes(sym, ram), int(cyc.max()) if cyc.size else 0, dt)
+        return _RunOut(_packed(addr, val, n, first_sample), ram, ready, calls, stages, acq,
+                       int(cyc.max()) if cyc.size else 0, dt)
 
-    def _run_chunks(self, c, f, cal_bytes, first_sample_number, a, b) -> list[_ChunkOut]:
-        """The chunks of one logging run ``[a, b)``, one after the other, each starting where the last ended."""
-        out, state = [], None
-        for i in range(a, b, self.chunk_samples):
-            j = min(i + self.chunk_samples, b)
-            part = self._chunk(c[i:j], f[i:j], cal_bytes, first_sample_number + i, state)
-            out.append(part)
-            state = part.final_state
-        return out
+    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *,
+                  start_n: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`) and the
+        detector's state after the last sample (as a row of :attr:`LoggerRun.detector`). Only the call record,
+        the detector's state and ``PENDING`` are logged; a sample ends where ``PENDING`` is decremented.
+
+        ``start_n``: the kernel's ``N`` at START (the test build's ``START_N``: a run that old, its gravity
+        warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
+        samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
+        samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
+        the kernel at the same ``N``."""
+        if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
+            raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix="pic-logger-lean-") as tmp:
+            d = Path(tmp)
+            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
+                                                  _config_bytes(_calibration_bytes(calibration), self._weights())))
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n), test=True)
+            sym = build.symbols
+            state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
+                                                                             for i in range(self._n_med())]
+            rec = [(sym[k], b) for k, b in _RECORD]
+            tracked = {a + i for a, b, _ in state for i in range(b)} | {a + i for a, b in rec for i in range(b)}
+            text = _gpsim(build, sorted(tracked | {sym["PENDING"]}), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.zeros(n, np.int64), period))
+        _, addr, val = _writes(text, tracked | {sym["PENDING"]})
+        ram = dict.fromkeys(tracked, 0)
+        pending, done, started, calls = 0, 0, False, []
+        for a, v in zip(addr.tolist(), val.tolist()):
+            if a == sym["PENDING"]:
+                started |= v == (pending + 1) & 0xFF
+                done += v == (pending - 1) & 0xFF
+                pending = v
+                continue
+            ram[a] = v
+            if a == sym["REC_FLAGS"] and started:
+                calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+        if done != n:
+            raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+
+        def value(a, b, signed):
+            v = sum(ram[a + i] << (8 * i) for i in range(b))
+            return v - (1 << (8 * b)) if signed and v >= 1 << (8 * b - 1) else v
+
+        return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
+                np.asarray([value(a, b, sg) for a, b, sg in state], np.int64))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
         run started at sample 0, and the period between interrupts."""
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
         with tempfile.TemporaryDirectory(prefix="pic-logger-isr-") as tmp:
-            build = _assemble(Path(tmp), self._defines(0, True), test=False)
+            build = _assemble(Path(tmp), self._defines(0), test=False)
             stop = f"c {t.period_cycles * (ISR_PROBE_SAMPLES + 1)}"
             text = _gpsim(build, [W_TEMP_ADDR], stop, self.timeout_s)
         cyc, _, _ = _writes(text, {W_TEMP_ADDR})
@@ -441,7 +578,7 @@ class PicLogger:
         periods; returns (cycles simulated, wall seconds of the gpsim process)."""
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
         with tempfile.TemporaryDirectory(prefix="pic-logger-raw-") as tmp:
-            build = _assemble(Path(tmp), self._defines(0, True), test=False)
+            build = _assemble(Path(tmp), self._defines(0), test=False)
             t0 = time.perf_counter()
             _gpsim(build, [], f"c {t.period_cycles * n_samples}", self.timeout_s)
             return t.period_cycles * n_samples, time.perf_counter() - t0
@@ -457,19 +594,26 @@ class PicLogger:
         cal_bytes = _calibration_bytes(calibration)
         starts = run_starts(f)
         runs = [(a, b) for a, b in zip(starts, starts[1:] + [c.shape[0]]) if b > a]
-        with ThreadPoolExecutor(max_workers=max(1, self.workers)) as pool:
-            per_run = list(pool.map(lambda ab: self._run_chunks(c, f, cal_bytes, first_sample_number, *ab), runs))
-            isr_by_pos, period = self.measure_isr()
-        parts = [p for r in per_run for p in r]
-        if not parts:
+        if not runs:
             raise ValueError("no samples to run")
-        ram = np.concatenate([p.ram for p in parts])
-        calibrated = np.stack([_int(ram[:, 2 * k:2 * k + 2]) for k in range(3)], axis=1)
-        gravity = np.stack([_int(ram[:, 6 + 4 * k:10 + 4 * k]) for k in range(6)], axis=1)
-        a_v = _int(ram[:, 30:32])
+        with ThreadPoolExecutor(max_workers=max(1, self.workers)) as pool:
+            parts = list(pool.map(lambda ab: self._run_one(c[ab[0]:ab[1]], f[ab[0]:ab[1]], cal_bytes,
+                                                           first_sample_number + ab[0]), runs))
+            isr_by_pos, period = self.measure_isr()
+
+        def cat(key, signed=True):
+            return np.concatenate([_int(p.ram[key], signed) for p in parts])
+
+        calls = [p.calls + np.array([a] + [0] * len(_RECORD)) for p, (a, _) in zip(parts, runs)]
+        detector = np.stack([cat(k, s) for k, _, s in _DETECTOR], axis=1)
+        durs = np.concatenate([p.ram["DURS"] for p in parts]).astype(np.int64)
         positions = (first_sample_number + np.arange(c.shape[0])) % 32
         return LoggerRun(
-            packed=np.concatenate([p.packed for p in parts]), calibrated=calibrated, gravity=gravity, a_v=a_v,
+            packed=np.concatenate([p.packed for p in parts]),
+            calibrated=np.stack([cat(k) for k in ("FX_L", "FY_L", "FZ_L")], axis=1),
+            gravity=np.stack([cat(f"G{s}{a}") for s in "12" for a in "XYZ"], axis=1), a_v=cat("AV_L"),
+            y3=cat("Y3_0"), ready=np.concatenate([p.ready for p in parts]),
+            detector=np.concatenate([detector, durs], axis=1), calls=np.concatenate(calls),
             isr_cycles=isr_by_pos[positions], stage_cycles=np.concatenate([p.stage_cycles for p in parts]),
             acquisition_cycles_min=min(p.acquisition_cycles_min for p in parts), period_cycles=period,
             simulated_cycles=sum(p.simulated_cycles for p in parts), gpsim_s=sum(p.gpsim_s for p in parts),
@@ -489,12 +633,14 @@ def run_starts(flags: np.ndarray) -> list[int]:
 class MemoryMap:
     """RAM and program memory of the production build, from gpasm's listing (measured).
 
-    ``ram_bytes`` per block (bank 0-3 and common RAM), ``program_words``: words from 0 to ``code_end``.
+    ``ram_bytes`` per block (bank 0-3 and common RAM), ``program_words``: words from 0 to ``code_end`` (page 0)
+    plus page 1's routines; ``kernel_words``: the arithmetic kernels; ``steps_words``: steps 4-5 (both pages).
     """
 
     ram_bytes: dict[str, int]
     program_words: int
     kernel_words: int
+    steps_words: int = 0
 
     @property
     def ram_total_bytes(self) -> int:
@@ -504,13 +650,15 @@ class MemoryMap:
 def memory_map(*, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ) -> MemoryMap:
     """Assemble the production build and read its RAM blocks' ends and program size from the listing."""
     with tempfile.TemporaryDirectory(prefix="pic-logger-map-") as tmp:
-        b = _assemble(Path(tmp), PicLogger(sampling_rate_hz=sampling_rate_hz, fosc_hz=fosc_hz)._defines(0, True),
+        b = _assemble(Path(tmp), PicLogger(sampling_rate_hz=sampling_rate_hz, fosc_hz=fosc_hz)._defines(0),
                       test=False)
     s = b.symbols
-    ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1": s["RAM1_END"] - 0xA0,
+    page1 = s["page1_end"] - s["page1_begin"]
+    ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1 (steps 4-5)": s["RAM1_END"] - 0xA0,
            "bank 2 (page buffer)": s["RAM2_END"] - 0x110,
            "bank 3 (page buffer)": s["RAM3_END"] - 0x190, "common (kernels, W_TEMP)": 16}
-    return MemoryMap(ram, s["code_end"], s["kernels_end"] - s["kernels_begin"])
+    return MemoryMap(ram, s["code_end"] + page1, s["kernels_end"] - s["kernels_begin"],
+                     s["steps_end"] - s["steps_begin"] + page1)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -578,7 +726,8 @@ class PicVerification:
         lines = [f"{self.source}: {self.n_samples:,} samples at {self.sampling_rate_hz:g} Hz, PIC assembly in gpsim "
                  f"{self.gpsim} vs the Python model"]
         for s in self.stages:
-            line = f"  {s.name:<18} {s.n_identical:,} of {s.n_compared:,} samples identical"
+            unit = "calls" if s.name == "finalise calls" else "samples"
+            line = f"  {s.name:<18} {s.n_identical:,} of {s.n_compared:,} {unit} identical"
             if s.first_difference:
                 d = s.first_difference
                 line += (f"; first difference: sample {d['sample']}, {d['field']}: gpsim {d['gpsim']}, "
@@ -586,7 +735,7 @@ class PicVerification:
             lines.append(line)
         lines.append(f"cycles per sample (measured in gpsim; {self.period_cycles:,} available):")
         for k, v in self.cycles.items():
-            lines.append(f"  {k:<28} mean {v['mean']:>8,.1f}   p99 {v['p99']:>8,.1f}   worst {v['worst']:>7,}")
+            lines.append(f"  {k:<30} mean {v['mean']:>8,.1f}   p99 {v['p99']:>8,.1f}   worst {v['worst']:>7,}")
         lines.append(f"ADC acquisition: {self.acquisition_cycles_min} cycles from channel select to GO (measured; "
                      f"needed {self.acquisition_cycles_needed:.1f})")
         m = self.memory
@@ -613,6 +762,25 @@ class PicVerification:
         return json.dumps(doc, indent=2)
 
 
+def _compare_calls(pic: np.ndarray, model: np.ndarray) -> StageComparison:
+    """finalise's calls, in order: identical when the lists are; else the first call that differs (or is
+    missing on one side)."""
+    k = max(pic.shape[0], model.shape[0])
+    same = [i < pic.shape[0] and i < model.shape[0] and np.array_equal(pic[i], model[i]) for i in range(k)]
+    first = None
+    if not all(same):
+        i = same.index(False)
+        if i >= pic.shape[0] or i >= model.shape[0]:
+            first = {"call": i, "sample": int((model if i < model.shape[0] else pic)[i, 0]), "field": "call",
+                     "gpsim": "none" if i >= pic.shape[0] else "a call", "model": "none" if i >= model.shape[0]
+                     else "a call"}
+        else:
+            j = int(np.flatnonzero(pic[i] != model[i])[0])
+            first = {"call": i, "sample": int(min(pic[i, 0], model[i, 0])), "field": CALL_FIELDS[j],
+                     "gpsim": int(pic[i, j]), "model": int(model[i, j])}
+    return StageComparison("finalise calls", k, int(sum(same)), first)
+
+
 def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, sampling_rate_hz: float = 50.0,
            source: str = "codes", first_sample_number: int = 0, harness: PicLogger | None = None,
            a_v: bool = True) -> PicVerification:
@@ -622,8 +790,11 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     *calibrated axes* (``FX..FZ`` vs :func:`~gaitlog.firmware_sim.algorithms.probe.calibrated_axes`) and
     *gravity* (``G1``, ``G2`` after each sample vs :func:`~gaitlog.firmware_sim.algorithms.probe.gravity_states`,
     restarted at each run's first sample) and *a_v* (``AV`` vs
-    :func:`~gaitlog.firmware_sim.algorithms.probe.vertical_acceleration`; ``a_v=False`` leaves it out, for a
-    calibration whose ``|g|`` exceeds the model's 16-bit divisor, where the model raises).
+    :func:`~gaitlog.firmware_sim.algorithms.probe.vertical_acceleration`), then through
+    :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace`: *y3* (whether the sample has a filter
+    output, and ``Y3``), *detector* (the bank-1 state after each sample) and *finalise calls* (each call's
+    sample, e, s, m, flags). ``a_v=False`` leaves out a_v and steps 4-5, for a calibration whose ``|g|``
+    exceeds the model's 16-bit divisor, where the model raises.
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
     why = missing_tools()
@@ -646,11 +817,21 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     if a_v:
         model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
         stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
+        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts)
+        stages.append(_compare("y3", ("ready", "y3"), np.stack([run.ready, np.where(run.ready, run.y3, 0)], axis=1),
+                               np.stack([trace.ready, np.where(trace.ready, trace.y3, 0)], axis=1)))
+        n_med = trace.state.shape[1] - len(DETECTOR_FIELDS)
+        stages.append(_compare("detector", DETECTOR_FIELDS + tuple(f"durations[{i}]" for i in range(n_med)),
+                               run.detector, trace.state))
+        stages.append(_compare_calls(run.calls, trace.calls))
     total = run.isr_cycles + run.stage_cycles.sum(axis=1)
-    cycles = {"sampling interrupt": _stats(run.isr_cycles), "stage 1 (calibration)": _stats(run.stage_cycles[:, 0]),
-              "stages 2-3 (gravity, a_v)": _stats(run.stage_cycles[:, 1]), "total in assembly": _stats(total)}
+    cycles = {"sampling interrupt": _stats(run.isr_cycles)}
+    cycles.update({name: _stats(run.stage_cycles[:, i]) for i, name in enumerate(STAGES)})
+    cycles["total in assembly"] = _stats(total)
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
-    notes = ["the I2C page write, the UART command handler and the algorithm after step 3 are not yet in assembly",
+    notes = ["the I2C page writes (pages, scratch ring), the UART command handler and the step record "
+             "(finalise's computation, step 6) are not yet in assembly; finalise leaves its arguments in a call "
+             "record",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),

@@ -4,22 +4,31 @@
 ; vertical acceleration a_v = (f.g - |g|^2) / |g|, step 3). RAM map: logger_ram.inc. Maths: the kernels
 ; (registers.inc, CONVENTION.md).
 ;
+; Steps 4-5 (kernel.py): a_v into the delay line, the centred 3 Hz FIR y3 (stage_fir), the foot-flat
+; detector (stage_detect: hysteresis, prominence, confirmed peaks, durations and minimum distance, the
+; pending foot-flat, the stop rule); each final foot-flat calls finalise, which for now leaves its
+; arguments in a call record (the step record is step_record.asm's). The scratch ring's page write is the
+; driver's: scratch_flush marks it.
+;
 ; Assembled by gpsim_logger.py with these symbols (gpasm -D):
 ;   CCP_PERIOD      Timer1 counts per sample (CCPR1; compare mode, special event trigger resets Timer1)
 ;   T1_SETUP        T1CON: prescaler bits | TMR1ON
 ;   ACQ_LOOPS       acquisition delay: 3 cycles a loop (>= the ADXL202's 32 kOhm source's TACQ)
-;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START, SESSION_START
-;                   where the run is when this build starts (0, PAGE_A, 1 for a START)
+;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START
+;                   the sample number the run (a START) begins at, and its word's place in the page buffer
 ;   G_SHIFT         the gravity means' final shift (kernel CI G_SHIFT: 6 at 50 Hz)
 ;   G_MIN           the smallest |g| that gives an a_v (kernel CV G_MIN, Q2.13: 0.2 g = 1638)
-; and, for the test build only (TEST_BUILD defined):
-;   N_SAMPLES       samples in the code table (codes.inc at CODE_TABLE, one 14-bit word per code: bits 0-9
-;                   the code, bit 10 of an x word = marker button pressed); after them the timer stops and
-;                   the main loop ends at harness_done
-; The test build also takes its calibration from calibration.inc (25 RETLW: offsets, mantissas, shift)
-; and, unless SESSION_START, stage 2's state from state.inc (29 RETLW: G1, G2, WARM, NP1, THR: where the
-; previous chunk of the same run ended);
-; the firmware proper converts the header's calibration slot at START (not yet in assembly).
+;   R3, N_MED, MIN_STEP, MAX_STEP, FRACTION, AMP_SHIFT, PRIOR_TWICE, FLUSH
+;                   the kernel's CI slots of the same names (samples; FRACTION out of 1000)
+;   DELTA, CAP, FRAC, STOP
+;                   the kernel's CV slots (prominence floor and cap, Q2.16; fraction, Q1.14; stop, Q2.16)
+; The calibration and the FIR weights are read from the data EEPROM (EE_CAL, EE_W3 in logger_ram.inc) where
+; they are used, as the model charges them; the harness assembles the configuration into it (config.inc, DE).
+; The test build (TEST_BUILD defined) also takes N_SAMPLES: after that many samples the interrupt stops the
+; timer and the main loop ends at harness_done; and START_N: the kernel's N at START (0; otherwise the run
+; is taken to be START_N samples old, its gravity warm-up over: WARM = G_SHIFT; the index-wrap tests
+; start near 2^15 and 2^16 instead of simulating 65,536 samples first). Both builds convert the real ADC inputs AN0-AN2 (the harness
+; drives them with gpsim's analog stimuli) and take the marker button on RB0/INT.
         list    p=16f877
         #include <p16f877.inc>
         #include "registers.inc"
@@ -28,43 +37,6 @@
 
 ADC_SETUP       equ     0x82            ; ADCON1: right-justified, AN0-AN4 analog, Vref = VDD/VSS
 ADC_CH0         equ     0x81            ; ADCON0: Fosc/32 (TAD 1.74 us at 18.432 MHz), channel 0, ADON
-CODE_TABLE      equ     0x0800          ; test build: the code table (program memory pages 1-3)
-
-#ifdef TEST_BUILD
-; INJECT_CODE: the test build's ADC: ADRESH:ADRESL = the table's next code; bit 10 = marker button.
-; (In line: the interrupt stays 2 stack levels deep, the main loop's stage 5, 7 of the PIC's 8.)
-INJECT_CODE     macro
-        movf    TBL_L, W
-        bsf     STATUS, RP1             ; bank 2
-        movwf   EEADR
-        bcf     STATUS, RP1
-        movf    TBL_H, W
-        bsf     STATUS, RP1
-        movwf   EEADRH
-        bsf     STATUS, RP0             ; bank 3
-        bsf     EECON1, EEPGD
-        bsf     EECON1, RD
-        nop
-        nop
-        bcf     STATUS, RP0             ; bank 2
-        movf    EEDATA, W
-        bcf     STATUS, RP1
-        bsf     STATUS, RP0             ; bank 1
-        movwf   ADRESL
-        bcf     STATUS, RP0
-        bsf     STATUS, RP1             ; bank 2
-        movf    EEDATH, W
-        bcf     STATUS, RP1             ; bank 0
-        movwf   T_H
-        andlw   0x03
-        movwf   ADRESH
-        btfsc   T_H, 2
-        bsf     FW_FLAGS, FWF_MARK
-        incf    TBL_L, F
-        btfsc   STATUS, Z
-        incf    TBL_H, F
-        endm
-#endif
 
 ; NEXT_WORD: W = the FSR after a word's last byte -> the FSR of the next word (the bank 2 half, then the
 ; bank 3 half, then the page again). In line and branch-free (6 cycles): the interrupt stays 2 stack levels deep.
@@ -136,7 +108,7 @@ isr_timer:
         iorwf   LEFT_H, W
         btfss   STATUS, Z
         goto    isr_exit
-        bsf     STATUS, RP0             ; the table is done: no more samples
+        bsf     STATUS, RP0             ; N_SAMPLES taken: no more samples
         bcf     PIE1, CCP1IE
         bcf     STATUS, RP0
 #endif
@@ -164,9 +136,6 @@ acq_wait:
 adc_busy:
         btfsc   ADCON0, GO
         goto    adc_busy
-#ifdef TEST_BUILD
-        INJECT_CODE
-#endif
         bsf     STATUS, RP0
         movf    ADRESL, W
         bcf     STATUS, RP0
@@ -237,24 +206,22 @@ start:
         movlw   PAGE_START
         movwf   PAGE_PTR
         movwf   ALG_PTR
-#if SESSION_START
         bsf     FW_FLAGS, FWF_SESSION
         call    reset_gravity           ; START: a fresh state
-#else
+        call    reset_steps
 #ifdef TEST_BUILD
-        call    load_state              ; a later chunk of the run: the state where the last one ended
+#if START_N
+        movlw   LOW START_N             ; a run START_N samples old (the index-wrap tests)
+        movwf   N_L
+        movlw   HIGH START_N
+        movwf   N_H
+        movlw   G_SHIFT
+        movwf   WARM
 #endif
-#endif
-#ifdef TEST_BUILD
-        movlw   LOW CODE_TABLE
-        movwf   TBL_L
-        movlw   HIGH CODE_TABLE
-        movwf   TBL_H
         movlw   LOW N_SAMPLES
         movwf   LEFT_L
         movlw   HIGH N_SAMPLES
         movwf   LEFT_H
-        call    load_calibration
 #endif
         bsf     STATUS, RP0             ; bank 1
         movlw   ADC_SETUP
@@ -283,7 +250,7 @@ start:
 ; from the page buffer (it may fall up to 32 samples behind).
 main_loop:
 #ifdef TEST_BUILD
-        movf    LEFT_L, W               ; the table is done (no interrupt can come) and every sample
+        movf    LEFT_L, W               ; N_SAMPLES taken (no interrupt can come) and every sample
         iorwf   LEFT_H, W               ; processed: the end (LEFT first: PENDING cannot grow after it)
         btfss   STATUS, Z
         goto    main_pending
@@ -301,6 +268,7 @@ main_sample:
         call    stage_calibrate
         call    stage_gravity
         call    stage_av
+        call    stage_fir               ; step 4, and step 5 (stage_detect) once the filter has an output
         decf    PENDING, F
         goto    main_loop
 
@@ -359,31 +327,24 @@ stage_calibrate:
         movwf   C2L
         movlw   1
         call    shl_c2
-        movlw   LOW (CAL_OFF + 0)
-        movwf   FSR
+        movlw   EE_CAL                  ; the offsets, then the matrix rows, in the EEPROM's order
+        movwf   EE_PTR
         movlw   C0L
         call    sub_offset
-        movlw   LOW (CAL_OFF + 2)
-        movwf   FSR
         movlw   C1L
         call    sub_offset
-        movlw   LOW (CAL_OFF + 4)
-        movwf   FSR
         movlw   C2L
         call    sub_offset
-        movlw   LOW (CAL_M + 0)
         call    cal_row
         movf    ACC0, W
         movwf   FX_L
         movf    ACC1, W
         movwf   FX_H
-        movlw   LOW (CAL_M + 6)
         call    cal_row
         movf    ACC0, W
         movwf   FY_L
         movf    ACC1, W
         movwf   FY_H
-        movlw   LOW (CAL_M + .12)
         call    cal_row
         movf    ACC0, W
         movwf   FZ_L
@@ -420,13 +381,12 @@ shl_c2_bit:
         goto    shl_c2_bit
         return
 
-; sub_offset: the int16 at bank 0 address W -= the int16 at FSR (bank 1, IRP = 0), saturating
+; sub_offset: the int16 at bank 0 address W -= the next int16 of the EEPROM (EE_PTR), saturating
 sub_offset:
         movwf   TMP2                    ; TMP2 = address of c
-        movf    INDF, W                 ; ARG = offset
+        call    ee_next                 ; ARG = offset
         movwf   ARG0
-        incf    FSR, F
-        movf    INDF, W
+        call    ee_next
         movwf   ARG1
         movf    TMP2, W
         movwf   FSR                     ; FSR -> c (bank 0)
@@ -468,9 +428,8 @@ so_store:
         movwf   INDF
         return
 
-; cal_row: ACC1:ACC0 = the row of mantissas at bank 1 address W applied to C0..C2, rounded to Q2.13
+; cal_row: ACC1:ACC0 = the row of mantissas at EE_PTR applied to C0..C2, rounded to Q2.13
 cal_row:
-        movwf   FSR
         call    load_mantissa
         movf    C0L, W
         movwf   ARG0
@@ -507,21 +466,34 @@ cal_row:
         movwf   ACC2
         movf    SUM3, W
         movwf   ACC3
-        bsf     STATUS, RP0
-        movf    CAL_SHIFT, W
-        bcf     STATUS, RP0
+        movlw   EE_CAL_SHIFT
+        call    ee_read
         movwf   ARG0
         call    shr32r
         goto    sat16                   ; tail call
 
-; load_mantissa: ACC1:ACC0 = the int16 at FSR (bank 1); FSR += 2
+; load_mantissa: ACC1:ACC0 = the next int16 of the EEPROM (EE_PTR += 2)
 load_mantissa:
-        movf    INDF, W
+        call    ee_next
         movwf   ACC0
-        incf    FSR, F
-        movf    INDF, W
+        call    ee_next
         movwf   ACC1
-        incf    FSR, F
+        return
+
+; ee_next: W = the data-EEPROM byte at EE_PTR, EE_PTR += 1; ee_read: W = the byte at address W.
+; Called and returning in bank 0 (FSR, IRP untouched).
+ee_next:
+        movf    EE_PTR, W
+        incf    EE_PTR, F
+ee_read:
+        bsf     STATUS, RP1             ; bank 2
+        movwf   EEADR
+        bsf     STATUS, RP0             ; bank 3
+        bcf     EECON1, EEPGD
+        bsf     EECON1, RD
+        bcf     STATUS, RP0             ; bank 2
+        movf    EEDATA, W
+        bcf     STATUS, RP1             ; bank 0
         return
 
 ; sum_add_acc: SUM = SUM + ACC, saturated to a signed 32-bit word (FLAG_SAT when clipped)
@@ -599,14 +571,18 @@ stage_gravity:
         xorwf   WARM, W
         btfsc   STATUS, Z
         goto    sg_axes                 ; warmed up: the count is no longer needed
-        incf    NP1_L, F
+        movf    N_L, W                  ; n + 1 (N counts the run's samples before this one)
+        movwf   ACC0
+        movf    N_H, W
+        movwf   ACC1
+        incf    ACC0, F
         btfsc   STATUS, Z
-        incf    NP1_H, F
-        movf    NP1_L, W
+        incf    ACC1, F
+        movf    ACC0, W
         xorwf   THR_L, W
         btfss   STATUS, Z
         goto    sg_axes
-        movf    NP1_H, W
+        movf    ACC1, W
         xorwf   THR_H, W
         btfss   STATUS, Z
         goto    sg_axes
@@ -621,7 +597,7 @@ sg_axes:
         GRAV_AXIS FZ_L, FZ_H, G1Z, G2Z
         return
 
-; reset_gravity: G1 = G2 = 0, WARM = 0, NP1 = 0, THR = 2
+; reset_gravity: G1 = G2 = 0, WARM = 0, N = 0, THR = 2
 reset_gravity:
         movlw   G1X
         movwf   FSR
@@ -883,48 +859,9 @@ sum_set_acc:
         return
 
 
-#ifdef TEST_BUILD
-; load_calibration: bank 1 CAL_OFF .. CAL_SHIFT = calibration.inc's 25 bytes
-load_calibration:
-        movlw   LOW CAL_OFF
-        movwf   FSR
-        clrf    T_L
-        movlw   HIGH cal_table
-        movwf   PCLATH
-lc_next:
-        movf    T_L, W
-        call    cal_table
-        movwf   INDF
-        incf    FSR, F
-        incf    T_L, F
-        movf    T_L, W
-        xorlw   .25
-        btfss   STATUS, Z
-        goto    lc_next
-        clrf    PCLATH
-        return
-
-; load_state: stage 2's state (G1X .. THR_H, 29 bytes) = state.inc's
-load_state:
-        movlw   G1X
-        movwf   FSR
-        bcf     STATUS, IRP
-        clrf    T_L
-        movlw   HIGH state_table
-        movwf   PCLATH
-ls_next:
-        movf    T_L, W
-        call    state_table
-        movwf   INDF
-        incf    FSR, F
-        incf    T_L, F
-        movf    T_L, W
-        xorlw   .29
-        btfss   STATUS, Z
-        goto    ls_next
-        clrf    PCLATH
-        return
-#endif
+steps_begin:
+        #include "steps.asm"
+steps_end:
 
 kernels_begin:
         #include "mul.asm"
@@ -934,17 +871,16 @@ kernels_begin:
         #include "sqrt.asm"
 kernels_end:
 code_end:
+    if code_end > 0x800
+        error "page 0 overflows: move routines that call nothing to steps_page1.asm"
+    endif
+        org     0x800
+page1_begin:
+        #include "steps_page1.asm"
+page1_end:
 
 #ifdef TEST_BUILD
-        org     CODE_TABLE - 0x40       ; one 256-word block: ADDWF PCL needs no carry into PCLATH
-cal_table:
-        addwf   PCL, F
-        #include "calibration.inc"
-state_table:
-        addwf   PCL, F
-        #include "state.inc"
-        org     CODE_TABLE
-code_table:
-        #include "codes.inc"
+        org     0x2100                  ; the data EEPROM: the configuration the host would have written
+        #include "config.inc"
 #endif
         end

@@ -18,11 +18,12 @@ EXAMPLES = (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("action", choices=("verify",),
-                        help="verify: the assembly's packed words and calibrated axes against the model's")
+                        help="verify: the assembly's packed words, steps 1-5 of the algorithm and its foot-flats "
+                             "against the model's")
     parser.add_argument("recording", metavar="RECORDING",
                         help="a recording gaitlog decode reads (memory image, raw dump, wire capture)")
     parser.add_argument("--limit", type=whole(minimum=1), metavar="N",
-                        help="compare the first N samples only (default: all; gpsim runs about 15x real time)")
+                        help="compare the first N samples only (default: all; gpsim runs a few times real time)")
     add_json_option(parser, "the comparison")
     add_verbosity_options(parser)
 

@@ -1,8 +1,9 @@
 """The logger's per-sample path in PIC16 assembly (firmware_sim/pic/logger.asm) in gpsim, against the model.
 
 Independent truths: the P32 words of ``gaitlog.protocol.packing`` (its own golden vectors in PROTOCOL.md), the
-fixed-point kernel's state after its first sample (for the probe), the datasheet's timer and ADC arithmetic,
-and a deliberately broken copy of the assembly that must be caught.
+fixed-point kernel's state after its first sample (for the probe), the kernel itself fed one sample at a time
+(steps 4-5: y3, the detector's state, finalise's calls), the datasheet's timer and ADC arithmetic, and
+deliberately broken copies of the assembly that must be caught.
 """
 
 from __future__ import annotations
@@ -116,13 +117,15 @@ def test_random_codes_identical(name):
     codes = rng.integers(0, 1024, (n, 3))
     codes[:4] = [[0, 0, 0], [1023, 1023, 1023], [1023, 0, 1023], [0, 1023, 0]]
     flags = np.zeros(n, np.int64)
-    flags[[0, 450]] |= FLAG_SESSION_START          # two runs: two chunks
-    flags[[3, 31, 32, 333]] |= FLAG_MARK
-    # the extreme slot's |g| exceeds the model's 16-bit divisor: the model refuses a_v there, so it is left out
-    r = gl.verify(codes, flags, CALS[name], harness=gl.PicLogger(chunk_samples=300), a_v=name != "extreme")
+    flags[[0, 450]] |= FLAG_SESSION_START          # two runs: two gpsim runs, each from START
+    flags[[3, 31, 32, 333, 451]] |= FLAG_MARK       # the button on RB0 (a digital stimulus)
+    # the extreme slot's |g| exceeds the model's 16-bit divisor: the model refuses a_v there, so it and steps 4-5
+    # are left out
+    r = gl.verify(codes, flags, CALS[name], a_v=name != "extreme")
     want = [("packed words", n, n), ("calibrated axes", n, n), ("gravity", n, n)]
-    want += [("a_v", n, n)] if name != "extreme" else []
-    assert [(s.name, s.n_identical, s.n_compared) for s in r.stages] == want, r.format_table()
+    want += [("a_v", n, n), ("y3", n, n), ("detector", n, n)] if name != "extreme" else []
+    assert [(s.name, s.n_identical, s.n_compared) for s in r.stages[:len(want)]] == want, r.format_table()
+    assert r.identical, r.format_table()
     assert r.period_cycles == 92160
     assert r.acquisition_cycles_min >= r.acquisition_cycles_needed
     assert 0 < r.cycles["total in assembly"]["worst"] < 92160
@@ -131,16 +134,31 @@ def test_random_codes_identical(name):
 
 
 @needs_gpsim
+def test_every_code_converts_exactly():
+    """gpsim's converter, driven by the harness's analog stimuli, gives every one of the 1,024 codes on each
+    channel (the packed words against pack_words: the codes themselves)."""
+    k = np.arange(1024)
+    codes = np.stack([k, 1023 - k, (7 * k + 3) % 1024], axis=1)
+    flags = np.zeros(1024, np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["nominal"], a_v=False)
+    assert r.stages[0].name == "packed words" and r.stages[0].identical, r.format_table()
+
+
+@needs_gpsim
 def test_simulated_walk_identical(simulated_walk):
     codes = simulated_walk[0][:1500]
     flags = np.zeros(len(codes), np.int64)
     flags[0] = FLAG_SESSION_START
-    r = gl.verify(codes, flags, CALS["device"], harness=gl.PicLogger(chunk_samples=600))   # 3 chunks, one run
+    r = gl.verify(codes, flags, CALS["device"])         # one run, one gpsim run
     assert r.identical, r.format_table()
-    assert [s.n_compared for s in r.stages] == [1500, 1500, 1500, 1500]
+    assert [s.n_compared for s in r.stages[:6]] == [1500] * 6
+    calls = r.stages[6]
+    assert calls.name == "finalise calls" and calls.n_compared > 25        # a walk's foot-flats, each one compared
     f = calibrated_axes(codes, CALS["device"])
     a_v = vertical_acceleration(f, gravity_states(f, 6)[:, 3:], gl.PicLogger().min_gravity_raw)
     assert np.count_nonzero(a_v) > 1400 and a_v.max() > 2000 and a_v.min() < -2000     # a walk, not zeros
+    assert "finalise calls" in r.format_table() and r.cycles["step 5 (foot-flat detector)"]["worst"] > 0
 
 
 @needs_gpsim
@@ -161,9 +179,101 @@ def test_a_broken_assembly_is_named(tmp_path, monkeypatch):
     assert "first difference: sample 0, byte 3" in r.format_table()
 
 
-def test_chunk_fits_program_memory():
-    assert gl.CODE_TABLE + 3 * gl.CHUNK_SAMPLES <= 0x2000
-    assert math.isclose(gl.timer_setup(50.0).period_cycles, 92160)
+@needs_gpsim
+def test_ipol_trial_identical_with_a_weak_step(shared_data):
+    """An IPOL trial replayed at 50 Hz through the logger (10-bit codes): every stage identical, including a
+    bout's weak last step (the stop rule) among finalise's calls."""
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.world.replay import Replay
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+    from gaitlog.firmware_sim.algorithms.state import F_PEND_WEAK
+    from gaitlog.host.files.inputs import read_acceleration
+
+    with pytest.warns(Warning, match="missing"):
+        data = read_acceleration(shared_data / "ipol-lowerback-dev" / "GaitData" / "1-1_lb.txt")
+    src = Replay.from_samples(data.g(), data.valid, sampling_rate_hz=data.sampling_rate_hz, source=data.source)
+    codes = Logger().record(src).codes.astype(np.int64)
+    flags = np.zeros(len(codes), np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, nominal_calibration_q(), source="1-1")
+    assert r.identical, r.format_table()
+    assert len(codes) > 1400 and r.stages[6].n_compared > 25
+    trace = detector_trace(codes, nominal_calibration_q())
+    assert np.any(trace.calls[:, 4] & F_PEND_WEAK), "the trial no longer exercises the stop rule"
+
+
+@needs_gpsim
+def test_a_broken_detector_is_named(simulated_walk, monkeypatch):
+    """The amplitude's exponential mean one shift too slow in steps.asm: y3 stays identical, the detector
+    differs at the second confirmed peak, and verify names the sample and the variable (AMP)."""
+    real = gl.copy_sources
+    src = (gl.PIC_DIR / "steps.asm").read_text()
+    marker = "        movlw   AMP_SHIFT\n"
+    assert src.count(marker) == 1
+
+    def broken(build_dir, main_asm):
+        real(build_dir, main_asm)
+        (build_dir / "steps.asm").write_text(src.replace(marker, "        movlw   AMP_SHIFT + 1\n"))
+
+    monkeypatch.setattr(gl, "copy_sources", broken)
+    codes = simulated_walk[0][:700]                 # the walk's first confirmed peaks come after 11 s
+    flags = np.zeros(len(codes), np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["device"])
+    by = {s.name: s for s in r.stages}
+    assert all(by[k].identical for k in ("packed words", "calibrated axes", "gravity", "a_v", "y3")), r.format_table()
+    d = by["detector"].first_difference
+    assert not r.identical and d is not None and d["field"] == "amp", r.format_table()
+    assert f"first difference: sample {d['sample']}, {d['field']}" in r.format_table()
+
+
+@needs_gpsim
+def test_lean_run_gives_the_calls_and_final_state(simulated_walk):
+    """run_calls (the lean log for long runs) against the kernel fed one sample at a time."""
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = simulated_walk[0][:800]
+    calls, state = gl.PicLogger().run_calls(codes, CALS["device"])
+    trace = detector_trace(codes, CALS["device"])
+    assert calls.shape[0] >= 3 and np.array_equal(calls, trace.calls)
+    assert np.array_equal(state, trace.state[-1])
+
+
+@needs_gpsim
+@pytest.mark.parametrize("crossing", ["F_OLD", "wrap"])
+def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
+    """A run that starts 1,200 samples before 2^15 (F_OLD: N may wrap from then on) or before 2^16 (N and the
+    indices wrap) and walks on for 2,500 samples: every finalise call and the final detector state are the
+    kernel's started at the same N (the test build's START_N), across the crossing."""
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+    from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_HALF, INDEX_MODULUS
+
+    edge = INDEX_HALF if crossing == "F_OLD" else INDEX_MODULUS
+    codes = simulated_walk[0][550:3050]                  # walking from the first steps on
+    calls, state = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - 1200)
+    trace = detector_trace(codes, CALS["nominal"], start_n=edge - 1200)
+    after = trace.calls[:, 0] >= 1200
+    assert after.sum() > 20 and (~after).sum() > 20
+    assert np.all(trace.calls[after, 4] & F_OLD)
+    if crossing == "wrap":
+        assert np.any(trace.calls[:, 1] < trace.calls[:, 2])          # e wrapped past 0, its s did not
+    else:
+        assert not np.any(trace.calls[~after, 4] & F_OLD)
+    assert calls.shape == trace.calls.shape, (calls.shape, trace.calls.shape)
+    bad = np.flatnonzero(np.any(calls != trace.calls, axis=1))
+    assert bad.size == 0, (calls[bad[:1]], trace.calls[bad[:1]])
+    assert np.array_equal(state, trace.state[-1])
+
+
+def test_conversions_outside_their_stimulus_are_refused():
+    p = gl.timer_setup(50.0).period_cycles
+    ok = np.repeat(np.arange(4) + 1, 3) * p + np.tile([300, 500, 700], 4)
+    gl._check_conversions(ok, 4, p)
+    with pytest.raises(gl.PicError, match="sample 2's conversion"):
+        gl._check_conversions(np.where(np.arange(12) == 7, ok + p, ok), 4, p)
+    with pytest.raises(gl.PicError, match="converted 11 times"):
+        gl._check_conversions(ok[:11], 4, p)
+    assert math.isclose(p, 92160)
 
 
 @needs_gpsim
@@ -178,7 +288,7 @@ def test_budget_model_within_10_percent_of_the_chip_on_steps_1_to_3(simulated_wa
     codes = simulated_walk[0][:1000]
     flags = np.zeros(len(codes), np.int64)
     flags[0] = FLAG_SESSION_START
-    b = chip_budget(codes, flags, CALS[name], harness=gl.PicLogger(chunk_samples=500))
+    b = chip_budget(codes, flags, CALS[name])
     assert b.measured and b.memory.ram_total_bytes <= 368 and b.memory.program_words <= 8192
     steps = b.part("steps 1-3")
     measured, estimated = steps.measured_cycles.mean(), steps.estimated_cycles.mean()
