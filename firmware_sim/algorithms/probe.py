@@ -18,9 +18,15 @@ Probes
     the calibrated axes, with the warm-up shift of ``kernel._front``.
 :func:`vertical_acceleration`
     Step 3: ``a_v = (f·g - |g|^2) / |g|`` (Q2.13 g; 0 when ``|g|`` is at most ``G_MIN``).
+:func:`finalise_calls`
+    Step 6: the inputs of every ``_finalise`` call of a run (the foot-flats, the state's ``LAST`` and ``FLAGS``,
+    the sticky saturation flag), each call's counted cycles, the run's a_v and the records the calls wrote
+    (``tests/firmware_sim/test_pic_step_record.py`` checks them against the kernel's own run).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,7 +37,8 @@ from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, 
 from gaitlog.firmware_sim.compiled import njit
 from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OPS, new_counters
 
-__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts"]
+__all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "FinaliseTrace",
+           "finalise_calls"]
 
 
 @njit(cache=True)
@@ -209,3 +216,103 @@ def front_operation_counts(codes: np.ndarray, calibration: CalibrationQ, gravity
     g = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 6), np.int64)
     stage2 = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, len(OPS)), np.int64)
     return stage1, stage2 + _vertical_traced(f, np.ascontiguousarray(g[:, 3:]), min_gravity_raw)[1]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# step 6: the inputs of every _finalise call, traced while the kernel runs
+
+
+@dataclass(frozen=True)
+class FinaliseTrace:
+    """Every call of the kernel's ``_finalise`` over one run, with what it was given and what it cost.
+
+    Attributes
+    ----------
+    e, m, last, flags
+        ``(k,)`` int64: the final foot-flat, the newest filter output, the state's ``LAST`` and ``FLAGS`` on entry
+        (16-bit indices, as the kernel keeps them).
+    sticky
+        ``(k,)`` int64: the sticky saturation flag on entry (a saturation since the previous step).
+    m_abs
+        ``(k,)`` int64: the absolute sample number of ``m`` (``first_sample_number`` + its index in the run).
+    cycles
+        ``(k,)`` int64: the cycles the kernel counted inside the call (its cost model, I2C and data-EEPROM
+        reads included).
+    a_v
+        ``(n,)`` int64: each sample's vertical acceleration (raw Q2.13), as the delay line and the scratch ring
+        received it.
+    records
+        ``(k,)`` :data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`: the records (CRC set) the calls wrote.
+    """
+
+    e: np.ndarray
+    m: np.ndarray
+    last: np.ndarray
+    flags: np.ndarray
+    sticky: np.ndarray
+    m_abs: np.ndarray
+    cycles: np.ndarray
+    a_v: np.ndarray
+    records: np.ndarray
+
+
+def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0) -> FinaliseTrace:
+    """Run a fixed-point :class:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm` over one run of
+    ``codes`` (``(n, 3)``; START before, STOP after, as :meth:`run` does for one run) and trace each
+    ``_finalise`` call.
+
+    The per-sample driver (``kernel._sample``, ``_confirmed``, ``flush``) runs as Python (their ``py_func``)
+    with ``_finalise`` wrapped; everything else, ``_finalise`` itself included, is the compiled kernel. The
+    kernel is not edited: its module globals are swapped for the run and restored. A test checks that the
+    records equal :meth:`OnlineStepAlgorithm.run`'s.
+    """
+    from gaitlog.firmware_sim.algorithms.state import FLAGS as FLAGS_SLOT
+    from gaitlog.firmware_sim.algorithms.state import LAST as LAST_SLOT
+    from gaitlog.firmware_sim.algorithms.state import LINE_POS
+    from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY
+    from gaitlog.protocol.steps import STEP_RECORD_DTYPE, pack_step_records
+
+    if algorithm.arithmetic != "fixed":
+        raise ValueError("the trace is of the fixed-point kernel (the PIC's)")
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    algorithm.reset()                                    # loads the compiled kernel (module globals replaced)
+    cfg_i, cfg_v = algorithm.config.cfg_i, algorithm.config.cfg_v
+    st_i, st_v, line, durs, scr, cnt = (algorithm._st_i, algorithm._st_v, algorithm._line, algorithm._durs,
+                                        algorithm._scr, algorithm._cnt)
+    r3 = int(cfg_i[kernel.CI_R3])
+    out_i, out_v = algorithm._outputs(c.shape[0])
+    rows: list[tuple[int, ...]] = []
+    where = {"row": 0}
+    real = kernel._finalise
+
+    def traced(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):
+        before = int(cnt[C_CYCLES])
+        entry = (int(e), int(m), int(st_i[LAST_SLOT]), int(st_i[FLAGS_SLOT]), int(cnt[C_STICKY]),
+                 int(first_sample_number) + where["row"] - r3)
+        k = real(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+        rows.append(entry + (int(cnt[C_CYCLES]) - before,))
+        return k
+
+    saved = {name: getattr(kernel, name) for name in ("_finalise", "_confirmed")}
+    a_v = np.zeros(c.shape[0], np.int64)
+    k = 0
+    try:
+        kernel._finalise = traced
+        kernel._confirmed = getattr(saved["_confirmed"], "py_func", saved["_confirmed"])
+        sample = kernel._sample.py_func
+        for row in range(c.shape[0]):
+            where["row"] = row
+            cnt[C_CYCLES] = 0
+            k = sample(c[row, 0], c[row, 1], c[row, 2], cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
+                       k, cnt)
+            a_v[row] = line[(int(st_i[LINE_POS]) - 1) % line.size]
+        where["row"] = c.shape[0] - 1
+        k = kernel.flush.py_func(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+    finally:
+        for name, fn in saved.items():
+            setattr(kernel, name, fn)
+    algorithm._fed = c.shape[0]
+    recs = algorithm._steps(out_i, out_v, k, 0).to_records(first_sample_number)
+    recs = np.frombuffer(pack_step_records(recs), dtype=STEP_RECORD_DTYPE).copy() if recs.size else recs
+    t = np.asarray(rows, np.int64).reshape(-1, 7)
+    return FinaliseTrace(*(t[:, i].copy() for i in range(7)), a_v=a_v, records=recs)
