@@ -238,11 +238,16 @@ class FinaliseTrace:
     cycles
         ``(k,)`` int64: the cycles the kernel counted inside the call (its cost model, I2C and data-EEPROM
         reads included).
+    ops
+        ``(k, len(OPS))`` int64: the primitives the kernel counted inside the call
+        (:data:`~gaitlog.firmware_sim.fixedpoint.OPS` order).
     a_v
         ``(n,)`` int64: each sample's vertical acceleration (raw Q2.13), as the delay line and the scratch ring
         received it.
     records
         ``(k,)`` :data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`: the records (CRC set) the calls wrote.
+    extras
+        ``(k, 4)``: what the records do not store: the excursions h (M1, M2), h1 (M3) and M4's range (raw).
     """
 
     e: np.ndarray
@@ -252,8 +257,16 @@ class FinaliseTrace:
     sticky: np.ndarray
     m_abs: np.ndarray
     cycles: np.ndarray
+    ops: np.ndarray
     a_v: np.ndarray
     records: np.ndarray
+    extras: np.ndarray
+
+    def subset(self, calls: np.ndarray) -> FinaliseTrace:
+        """The calls at ``calls`` (indices or a mask), with the whole run's a_v."""
+        c = np.asarray(calls)
+        return FinaliseTrace(self.e[c], self.m[c], self.last[c], self.flags[c], self.sticky[c], self.m_abs[c],
+                             self.cycles[c], self.ops[c], self.a_v, self.records[c], self.extras[c])
 
 
 def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0) -> FinaliseTrace:
@@ -282,15 +295,18 @@ def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0
     r3 = int(cfg_i[kernel.CI_R3])
     out_i, out_v = algorithm._outputs(c.shape[0])
     rows: list[tuple[int, ...]] = []
+    ops: list[np.ndarray] = []
     where = {"row": 0}
     real = kernel._finalise
 
     def traced(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):
         before = int(cnt[C_CYCLES])
+        ops_before = cnt[:len(OPS)].copy()
         entry = (int(e), int(m), int(st_i[LAST_SLOT]), int(st_i[FLAGS_SLOT]), int(cnt[C_STICKY]),
                  int(first_sample_number) + where["row"] - r3)
         k = real(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
         rows.append(entry + (int(cnt[C_CYCLES]) - before,))
+        ops.append(cnt[:len(OPS)] - ops_before)
         return k
 
     saved = {name: getattr(kernel, name) for name in ("_finalise", "_confirmed")}
@@ -312,7 +328,9 @@ def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0
         for name, fn in saved.items():
             setattr(kernel, name, fn)
     algorithm._fed = c.shape[0]
-    recs = algorithm._steps(out_i, out_v, k, 0).to_records(first_sample_number)
+    steps = algorithm._steps(out_i, out_v, k, 0)
+    recs = steps.to_records(first_sample_number)
     recs = np.frombuffer(pack_step_records(recs), dtype=STEP_RECORD_DTYPE).copy() if recs.size else recs
     t = np.asarray(rows, np.int64).reshape(-1, 7)
-    return FinaliseTrace(*(t[:, i].copy() for i in range(7)), a_v=a_v, records=recs)
+    return FinaliseTrace(*(t[:, i].copy() for i in range(7)), ops=np.asarray(ops, np.int64).reshape(-1, len(OPS)),
+                         a_v=a_v, records=recs, extras=np.asarray(steps.extras, np.int64).reshape(-1, 4))

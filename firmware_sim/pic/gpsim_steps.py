@@ -37,7 +37,8 @@ from gaitlog.firmware_sim.pic.gpsim_logger import PicError, _symbols, _writes
 from gaitlog.protocol.steps import STEP_RECORD_OFFSETS, STEP_RECORD_SIZE, StepFlag
 
 __all__ = ["STEP_BENCH_ASM", "STEPS_PER_RUN", "TABLE_SAMPLES", "CALL_STAMP_CYCLES", "config_bytes",
-           "StepBenchRun", "run_bench", "RecordDifference", "StepVerification", "verify_steps", "missing_tools"]
+           "StepBenchRun", "program_words", "stack_levels", "finalise_stack_levels", "run_bench", "RecordDifference", "StepVerification", "verify_steps", "compare",
+           "missing_tools"]
 
 #: The bench's source.
 STEP_BENCH_ASM = PIC_DIR / "step_bench.asm"
@@ -104,6 +105,66 @@ def config_bytes(cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = Tru
 
 
 # ---------------------------------------------------------------------------------------------------------
+# the stack: a static bound over every path of the assembled program
+
+
+def program_words(hex_path: Path) -> dict[int, int]:
+    """Program memory (word address -> 14-bit word) of an Intel HEX file as gpasm writes it (INHX8M/32)."""
+    mem: dict[int, int] = {}
+    base = 0
+    for line in hex_path.read_text().split():
+        b = bytes.fromhex(line[1:])
+        n, addr, kind, data = b[0], b[1] << 8 | b[2], b[3], b[4:4 + b[0]]
+        if kind == 4:
+            base = (data[0] << 8 | data[1]) << 16
+        elif kind == 0:
+            for i in range(0, n, 2):
+                mem[(base + addr + i) // 2] = data[i] | data[i + 1] << 8
+    return mem
+
+
+def stack_levels(mem: dict[int, int], entry: int) -> int:
+    """The most return addresses a call of ``entry`` puts on the stack, its own included, over every path
+    (CALL k: one more level at k; GOTO k: the same level; a skip: both next instructions; RETURN, RETLW: back).
+    Computed jumps (writes to PCL) are refused: their targets are not in the code."""
+    memo: dict[int, int] = {}
+    active: set[int] = set()
+
+    def below(pc: int) -> int:
+        if pc in memo:
+            return memo[pc]
+        if pc in active:                           # a loop: no deeper than the path that entered it
+            return 0
+        w = mem.get(pc)
+        if w is None:
+            raise ValueError(f"the path from 0x{entry:04X} runs into unprogrammed word 0x{pc:04X}")
+        active.add(pc)
+        if w in (0x0008, 0x0009) or w & 0x3C00 == 0x3400:              # RETURN, RETFIE, RETLW
+            d = 0
+        elif w & 0x3800 == 0x2000:                                      # CALL
+            d = max(1 + below(w & 0x7FF), below(pc + 1))
+        elif w & 0x3800 == 0x2800:                                      # GOTO
+            d = below(w & 0x7FF)
+        elif w & 0x3C00 in (0x1800, 0x1C00) or w & 0x3F00 in (0x0B00, 0x0F00):   # BTFSC/BTFSS, DECFSZ/INCFSZ
+            d = max(below(pc + 1), below(pc + 2))
+        else:
+            if w & 0x3000 == 0 and w & 0x80 and w & 0x7F == 0x02:       # a byte operation that writes PCL
+                raise ValueError(f"a computed jump at 0x{pc:04X}")
+            d = below(pc + 1)
+        active.discard(pc)
+        memo[pc] = d
+        return d
+
+    import sys
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, 20000))
+    try:
+        return 1 + below(entry)
+    finally:
+        sys.setrecursionlimit(limit)
+
+
+# ---------------------------------------------------------------------------------------------------------
 # the bench
 
 
@@ -119,9 +180,11 @@ class StepBenchRun:
         ``(k, 4)`` int64: after the call, the algorithm's FLAGS, LAST, the kernels' FLAGS register.
     cycles
         ``(k,)`` int64: the call, CALL and RETURN included (gpsim's cycle counter).
-    program_words, ram_bytes
-        finalise and its helpers (without the kernels): words from the listing; RAM of its map (banks 2 and 3
-        tails, the bank-0 alias).
+    program_words, kernel_words, ram_bytes
+        finalise and its helpers (without the kernels) and the kernels: words from the listing; RAM of its map
+        (banks 2 and 3 tails, the bank-0 alias).
+    stack_levels
+        :func:`stack_levels` of ``finalise`` in the assembled bench (every path, the kernels included).
     gpsim_runs, simulated_cycles, gpsim_s
         gpsim runs, the cycles they simulated, their wall time.
     """
@@ -132,6 +195,7 @@ class StepBenchRun:
     program_words: int
     kernel_words: int
     ram_bytes: dict
+    stack_levels: int
     gpsim_runs: int
     simulated_cycles: int
     gpsim_s: float
@@ -188,7 +252,6 @@ def _write_tables(folder: Path, trace: FinaliseTrace, a: int, b: int, first: int
 
 
 def _assemble(folder: Path, source: Path, n_steps: int, j0: int) -> dict[str, int]:
-    copy_sources(folder, source)
     proc = subprocess.run(["gpasm", "-p", "p16f877", "-q", "-w2", "-D", f"N_STEPS=0x{n_steps:X}",
                            "-D", f"SCR_J0=0x{j0 & 0xFFFF:X}", source.name], capture_output=True, text=True,
                           timeout=120, cwd=folder)
@@ -199,9 +262,14 @@ def _assemble(folder: Path, source: Path, n_steps: int, j0: int) -> dict[str, in
     return _symbols(folder / (source.stem + ".lst"))
 
 
-def _gpsim(folder: Path, cod: Path, addrs: list[int], timeout_s: float) -> tuple[str, str]:
+#: gpsim stops a bench run after this many cycles a step (a step takes a few hundred thousand).
+MAX_CYCLES_PER_STEP = 5_000_000
+
+
+def _gpsim(folder: Path, cod: Path, addrs: list[int], n_steps: int, timeout_s: float) -> tuple[str, str]:
     log = folder / "writes.log"
-    lines = [f"log on {log}", *(f"log w 0x{a:X}" for a in addrs), "break e bench_done", "run", "cycles", "quit"]
+    lines = [f"log on {log}", *(f"log w 0x{a:X}" for a in addrs),
+             f"break c {MAX_CYCLES_PER_STEP * (n_steps + 1)}", "break e bench_done", "run", "cycles", "quit"]
     (folder / "run.stc").write_text("\n".join(lines) + "\n")
     proc = subprocess.run(["gpsim", "-i", "-s", cod.name, "-c", "run.stc"], capture_output=True, text=True,
                           timeout=timeout_s, cwd=folder)
@@ -209,31 +277,52 @@ def _gpsim(folder: Path, cod: Path, addrs: list[int], timeout_s: float) -> tuple
     if proc.returncode != 0 or any(b in proc.stdout for b in bad):
         err = next((ln for ln in proc.stdout.splitlines() if any(b in ln for b in bad)), proc.stderr.strip()[-300:])
         raise PicError(f"gpsim failed on {cod.name} (exit {proc.returncode}): {err}")
-    if "Hit a Breakpoint" not in proc.stdout:
-        raise PicError(f"gpsim stopped before bench_done: {proc.stdout.strip()[-300:]}")
+    tail = proc.stdout.strip()[-400:]
+    if "Hit a Breakpoint" not in proc.stdout or "cycle break" in proc.stdout.lower():
+        raise PicError(f"gpsim stopped before bench_done: {tail[-300:]}")
     return (log.read_text(errors="replace") if log.exists() else ""), proc.stdout
 
 
+def finalise_stack_levels(*, overrides: dict[str, str] | None = None) -> int:
+    """:func:`stack_levels` of ``finalise`` in the bench assembled without tables (``overrides``: as
+    :func:`run_bench`)."""
+    with tempfile.TemporaryDirectory(prefix="gpsim-steps-") as tmp:
+        folder = Path(tmp)
+        copy_sources(folder, STEP_BENCH_ASM)
+        for name, text in (overrides or {}).items():
+            (folder / name).write_text(text)
+        for name in ("steps.inc", "scratch.inc"):
+            (folder / name).write_text("")
+        (folder / "config.inc").write_text("        org     0x2100\n")
+        sym = _assemble(folder, STEP_BENCH_ASM, 1, 0)
+        return stack_levels(program_words(folder / (STEP_BENCH_ASM.stem + ".hex")), sym["finalise"])
+
+
 def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = True,
-              m4_eighths: int = M4_EXPONENT_EIGHTHS, source: Path | None = None,
+              m4_eighths: int = M4_EXPONENT_EIGHTHS, overrides: dict[str, str] | None = None,
               timeout_s: float = 600.0) -> StepBenchRun:
-    """Run ``step_bench.asm`` (or ``source``, a variant of it in PIC_DIR's company) on every call of ``trace``."""
+    """Run ``step_bench.asm`` on every call of ``trace``; ``overrides`` replaces source files by name (a test's
+    broken variant)."""
     why = missing_tools()
     if why:
         raise PicError(f"the step bench needs gputils and gpsim: {why}")
-    src = Path(source) if source is not None else STEP_BENCH_ASM
+    src = STEP_BENCH_ASM
     ci = {k: int(cfg_i[v]) for k, v in kernel.CI.items()}
     cfg = config_bytes(cfg_i, cfg_v, calibrated=calibrated, m4_eighths=m4_eighths)
     recs, state, cycles = [], [], []
     sym: dict[str, int] = {}
-    sim_cycles, t_gpsim, runs = 0, 0.0, 0
+    sim_cycles, t_gpsim, runs, levels = 0, 0.0, 0, 0
     for a, b, first in _segments(trace, ci):
         with tempfile.TemporaryDirectory(prefix="gpsim-steps-") as tmp:
             folder = Path(tmp)
+            copy_sources(folder, src)
+            for name, text in (overrides or {}).items():
+                (folder / name).write_text(text)
             _write_tables(folder, trace, a, b, first, cfg)
             sym = _assemble(folder, src, b - a, first)
+            levels = max(levels, stack_levels(program_words(folder / (src.stem + ".hex")), sym["finalise"]))
             t0 = time.perf_counter()
-            log, out = _gpsim(folder, folder / (src.stem + ".cod"), [sym["OUTB"], sym["MARK"]], timeout_s)
+            log, out = _gpsim(folder, folder / (src.stem + ".cod"), [sym["OUTB"], sym["MARK"]], b - a, timeout_s)
             t_gpsim += time.perf_counter() - t0
             runs += 1
         cyc, addr, val = _writes(log, {sym["OUTB"], sym["MARK"]})
@@ -254,9 +343,10 @@ def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, cal
                         np.concatenate(state) if state else np.zeros((0, 3), np.int64),
                         np.concatenate(cycles) if cycles else np.zeros(0, np.int64),
                         sym.get("step_code_end", 0) - sym.get("step_code_begin", 0),
-                        sym.get("kernels_end", 0) - sym.get("kernels_begin", 0), ram, runs, sim_cycles, t_gpsim) \
+                        sym.get("kernels_end", 0) - sym.get("kernels_begin", 0), ram, levels, runs, sim_cycles,
+                        t_gpsim) \
         if k else StepBenchRun(np.zeros((0, 20), np.uint8), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), 0, 0,
-                               {}, 0, 0, 0.0)
+                               {}, 0, 0, 0, 0.0)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -315,15 +405,20 @@ class StepVerification:
         return head if not self.differences else f"{head}; first difference: {self.differences[0]}"
 
 
-def verify_steps(algorithm, codes: np.ndarray, *, first_sample_number: int = 0, source: Path | None = None,
-                 m4_eighths: int = M4_EXPONENT_EIGHTHS) -> StepVerification:
+def verify_steps(algorithm, codes: np.ndarray, *, first_sample_number: int = 0,
+                 overrides: dict[str, str] | None = None) -> StepVerification:
     """Run one run of ``codes`` through the model (``algorithm``, a fixed-point
     :class:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`) and the assembly; compare every record
     byte for byte, and the state each call leaves (``LAST``, ``FLAGS``, the sticky flag cleared)."""
     trace = finalise_calls(algorithm, codes, first_sample_number=first_sample_number)
-    cfg = algorithm.config
-    bench = run_bench(trace, cfg.cfg_i, cfg.cfg_v, calibrated=bool(cfg.step_config.calibrated),
-                      m4_eighths=m4_eighths, source=source)
+    return compare(trace, algorithm.config, overrides=overrides)
+
+
+def compare(trace: FinaliseTrace, config, *, overrides: dict[str, str] | None = None) -> StepVerification:
+    """The bench on the calls of ``trace`` (of an algorithm with ``config``, its ``OnlineConfig``) against the
+    records and state the model's calls left."""
+    bench = run_bench(trace, config.cfg_i, config.cfg_v, calibrated=bool(config.step_config.calibrated),
+                      overrides=overrides)
     model = trace.records.view(np.uint8).reshape(-1, STEP_RECORD_SIZE)
     diffs = [_first_difference(i, bench.records[i].tobytes(), model[i].tobytes())
              for i in range(model.shape[0]) if not np.array_equal(bench.records[i], model[i])]
