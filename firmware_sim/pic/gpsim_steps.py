@@ -37,7 +37,7 @@ from gaitlog.firmware_sim.pic.gpsim_logger import PicError, _symbols, _writes
 from gaitlog.protocol.steps import STEP_RECORD_OFFSETS, STEP_RECORD_SIZE, StepFlag
 
 __all__ = ["STEP_BENCH_ASM", "STEPS_PER_RUN", "TABLE_SAMPLES", "CALL_STAMP_CYCLES", "config_bytes",
-           "StepBenchRun", "program_words", "stack_levels", "finalise_stack_levels", "run_bench", "RecordDifference", "StepVerification", "verify_steps", "compare",
+           "StepBenchRun", "program_words", "stack_levels", "finalise_stack_levels", "run_bench", "RecordDifference", "StepVerification", "verify_steps", "compare", "RING_256K_SAMPLES", "with_scratch_ring",
            "missing_tools"]
 
 #: The bench's source.
@@ -54,6 +54,25 @@ OUT_BYTES = STEP_RECORD_SIZE + 4
 MAX_R3, MAX_R_EVENTS = 9, 5
 #: Offset of the 3 Hz weights in the configuration (step_record_ram.inc CFG_W3).
 CFG_W3 = 36
+
+
+#: Samples the scratch ring holds in a 24xx256 (32 KiB, two bytes a sample): the bench's EEPROM.
+RING_256K_SAMPLES = 32768 // 2
+
+
+def with_scratch_ring(algorithm, samples: int = RING_256K_SAMPLES):
+    """``algorithm`` (an :class:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`) with its emulated
+    scratch ring enlarged to ``samples`` (a power of two dividing 2^16), as an EEPROM ring holds them.
+
+    The emulator's ring is the smallest power of two that ``online._scratch_size`` finds sufficient (256 at
+    50 Hz), but a weak stop step (the stop rule) can be finalised more than that after its foot-flat: the
+    emulator then reads samples its ring has overwritten, where the EEPROM ring still holds them.
+    """
+    if samples & (samples - 1) or not 0 < samples <= 1 << 16:
+        raise ValueError(f"the ring's {samples} samples must be a power of two up to 65,536")
+    algorithm.config.cfg_i[kernel.CI_SCRATCH] = samples
+    algorithm._scr = np.zeros(samples, algorithm._scr.dtype)
+    return algorithm
 
 
 def _u16(v: int, what: str) -> list[int]:

@@ -205,20 +205,36 @@ def test_m4_with_weinbergs_exponent(walk_trace):
                                                                                    model[:, 16:18])
 
 
-@needs_gpsim
-def test_ipol_trial_replayed_at_50_hz(shared_data, tmp_path):
+def _ipol_codes(shared_data, tmp_path, name: str):
     from gaitlog.host.cli import main
     from gaitlog.host.files.decode import decode_file
 
-    trial = shared_data / "ipol-lowerback-dev" / "GaitData" / "1-1_lb.txt"
+    trial = shared_data / "ipol-lowerback-dev" / "GaitData" / f"{name}_lb.txt"
     if not trial.exists():
         pytest.skip(f"{trial} not present")
-    image = tmp_path / "ipol.glimg"
+    image = tmp_path / f"{name}.glimg"
     assert main(["record", "--motion", "replay", str(trial), "--steps", "off", "--start-time", "0",
                  "--out", str(image), "-q"]) == 0
     rec = decode_file(image)
     assert rec.sampling_rate_hz == 50.0 and np.all(rec.valid)
-    algo = _algo(RAW)
-    v = gs.verify_steps(algo, rec.codes, first_sample_number=int(rec.sample_numbers[0]))
-    assert v.n_steps > 10
+    return rec.codes, int(rec.sample_numbers[0])
+
+
+@needs_gpsim
+@pytest.mark.parametrize("name", ["1-1", "6-5"])
+def test_ipol_trials_replayed_at_50_hz(shared_data, tmp_path, name):
+    """Every record of the trial, the model's scratch ring as large as the 24xx256's (16,384 samples)."""
+    codes, first = _ipol_codes(shared_data, tmp_path, name)
+    v = gs.verify_steps(gs.with_scratch_ring(_algo(RAW)), codes, first_sample_number=first)
+    assert v.n_steps > 30
+    assert v.identical, v.summary()
+
+
+@needs_gpsim
+@pytest.mark.xfail(strict=True, reason="the emulator's 256-sample scratch ring (online._scratch_size) is too short "
+                                       "for a weak stop step finalised 235 samples after its foot-flat: step 30's "
+                                       "toe-off is read from overwritten samples")
+def test_ipol_trial_with_the_emulators_scratch_ring(shared_data, tmp_path):
+    codes, first = _ipol_codes(shared_data, tmp_path, "6-5")
+    v = gs.verify_steps(_algo(RAW), codes, first_sample_number=first)
     assert v.identical, v.summary()
