@@ -233,8 +233,8 @@ def _reach(trace: FinaliseTrace, i: int, ci: dict) -> tuple[int, int]:
     return lo, m + r
 
 
-def _segments(trace: FinaliseTrace, ci: dict) -> list[tuple[int, int, int]]:
-    """Greedy runs of consecutive calls: ``(first call, end call, first table sample)``."""
+def _segments(trace: FinaliseTrace, ci: dict) -> list[tuple[int, int, int, int]]:
+    """Greedy runs of consecutive calls: ``(first call, end call, first and last sample read)``."""
     out, a = [], 0
     n = len(trace.e)
     while a < n:
@@ -248,8 +248,26 @@ def _segments(trace: FinaliseTrace, ci: dict) -> list[tuple[int, int, int]]:
             b += 1
         if hi - lo + 1 > TABLE_SAMPLES:
             raise ValueError(f"step {a} reads {hi - lo + 1} samples, more than the table's {TABLE_SAMPLES}")
-        out.append((a, b, lo))
+        out.append((a, b, lo, hi))
         a = b
+    return out
+
+
+#: The ring on the bench's 24xx256 (step_record.asm's defaults): 16,384 samples from byte 0.
+RING_MASK = RING_256K_SAMPLES - 1
+#: gpsim's I2C bus: the EEPROM module on RC3 (SCL) and RC4 (SDA), 10 kOhm pull-ups.
+_I2C_SETUP = ("module library libgpsim_modules.so", "module load e24xx256 ee", "module load pullup Rscl",
+              "module load pullup Rsda", "Rscl.resistance = 10000.", "Rsda.resistance = 10000.", "node scl",
+              "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin")
+
+
+def _eeprom_lines(trace: FinaliseTrace, first: int, last: int) -> list[str]:
+    """gpsim commands that fill the 24xx256 with the segment's a_v at their ring addresses."""
+    out = []
+    for j in range(max(first, 0), min(last + 1, trace.a_v.size)):
+        v = int(trace.a_v[j]) & 0xFFFF
+        addr = 2 * (j & RING_MASK)
+        out += [f"ee.eeData[0x{addr:X}] = 0x{v & 0xFF:X}", f"ee.eeData[0x{addr + 1:X}] = 0x{v >> 8:X}"]
     return out
 
 
@@ -270,10 +288,10 @@ def _write_tables(folder: Path, trace: FinaliseTrace, a: int, b: int, first: int
         f"        de      0x{v:02X}\n" for v in cfg))
 
 
-def _assemble(folder: Path, source: Path, n_steps: int, j0: int) -> dict[str, int]:
+def _assemble(folder: Path, source: Path, n_steps: int, j0: int, table: bool = False) -> dict[str, int]:
     proc = subprocess.run(["gpasm", "-p", "p16f877", "-q", "-w2", "-D", f"N_STEPS=0x{n_steps:X}",
-                           "-D", f"SCR_J0=0x{j0 & 0xFFFF:X}", source.name], capture_output=True, text=True,
-                          timeout=120, cwd=folder)
+                           "-D", f"SCR_J0=0x{j0 & 0xFFFF:X}", *(["-D", "TABLE_READER"] if table else []),
+                           source.name], capture_output=True, text=True, timeout=120, cwd=folder)
     cod = folder / (source.stem + ".cod")
     if proc.returncode != 0 or not cod.exists():
         errors = [ln for ln in (proc.stdout + proc.stderr).splitlines() if "rror" in ln] or [proc.stderr.strip()]
@@ -285,9 +303,10 @@ def _assemble(folder: Path, source: Path, n_steps: int, j0: int) -> dict[str, in
 MAX_CYCLES_PER_STEP = 5_000_000
 
 
-def _gpsim(folder: Path, cod: Path, addrs: list[int], n_steps: int, timeout_s: float) -> tuple[str, str]:
+def _gpsim(folder: Path, cod: Path, addrs: list[int], n_steps: int, timeout_s: float,
+           setup: list[str]) -> tuple[str, str]:
     log = folder / "writes.log"
-    lines = [f"log on {log}", *(f"log w 0x{a:X}" for a in addrs),
+    lines = [*setup, f"log on {log}", *(f"log w 0x{a:X}" for a in addrs),
              f"break c {MAX_CYCLES_PER_STEP * (n_steps + 1)}", "break e bench_done", "run", "cycles", "quit"]
     (folder / "run.stc").write_text("\n".join(lines) + "\n")
     proc = subprocess.run(["gpsim", "-i", "-s", cod.name, "-c", "run.stc"], capture_output=True, text=True,
@@ -319,9 +338,12 @@ def finalise_stack_levels(*, overrides: dict[str, str] | None = None) -> int:
 
 def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = True,
               m4_eighths: int = M4_EXPONENT_EIGHTHS, overrides: dict[str, str] | None = None,
-              timeout_s: float = 600.0) -> StepBenchRun:
+              reader: str = "i2c", timeout_s: float = 600.0) -> StepBenchRun:
     """Run ``step_bench.asm`` on every call of ``trace``; ``overrides`` replaces source files by name (a test's
-    broken variant)."""
+    broken variant). ``reader``: the scratch ring on the I2C bus (``"i2c"``, the firmware's reader, a 24xx256
+    in gpsim filled by its script) or the test build's table in program memory (``"table"``)."""
+    if reader not in ("i2c", "table"):
+        raise ValueError(f"reader must be 'i2c' or 'table', got {reader!r}")
     why = missing_tools()
     if why:
         raise PicError(f"the step bench needs gputils and gpsim: {why}")
@@ -331,17 +353,19 @@ def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, cal
     recs, state, cycles = [], [], []
     sym: dict[str, int] = {}
     sim_cycles, t_gpsim, runs, levels = 0, 0.0, 0, 0
-    for a, b, first in _segments(trace, ci):
+    for a, b, first, last in _segments(trace, ci):
         with tempfile.TemporaryDirectory(prefix="gpsim-steps-") as tmp:
             folder = Path(tmp)
             copy_sources(folder, src)
             for name, text in (overrides or {}).items():
                 (folder / name).write_text(text)
             _write_tables(folder, trace, a, b, first, cfg)
-            sym = _assemble(folder, src, b - a, first)
+            sym = _assemble(folder, src, b - a, first, table=reader == "table")
             levels = max(levels, stack_levels(program_words(folder / (src.stem + ".hex")), sym["finalise"]))
             t0 = time.perf_counter()
-            log, out = _gpsim(folder, folder / (src.stem + ".cod"), [sym["OUTB"], sym["MARK"]], b - a, timeout_s)
+            setup = [] if reader == "table" else [*_I2C_SETUP, *_eeprom_lines(trace, first, last)]
+            log, out = _gpsim(folder, folder / (src.stem + ".cod"), [sym["OUTB"], sym["MARK"]], b - a, timeout_s,
+                              setup)
             t_gpsim += time.perf_counter() - t0
             runs += 1
         cyc, addr, val = _writes(log, {sym["OUTB"], sym["MARK"]})

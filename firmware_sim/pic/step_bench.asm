@@ -2,9 +2,12 @@
 ; gpsim_steps.py writes the tables and assembles with (gpasm -D):
 ;   N_STEPS         steps in the step table
 ;   SCR_J0          the sample index of the scratch table's first sample
+;   TABLE_READER    (optional) the scratch ring's test-build reader: a table in program memory, not the I2C bus
 ; and the includes: steps.inc (STEP_TABLE: per step 12 words, the low byte of each: e, m, LAST, the
 ; algorithm's FLAGS, the sticky saturation flag, the absolute sample number of m (4 bytes, LE)),
-; scratch.inc (SCR_TABLE: a_v, two words a sample) and config.inc (the data EEPROM: the step configuration).
+; scratch.inc (SCR_TABLE: a_v, two words a sample; TABLE_READER only) and config.inc (the data EEPROM: the
+; step configuration). Without TABLE_READER the ring is a 24xx256 on the MSSP's I2C bus (RC3 SCL, RC4 SDA), that
+; gpsim's e24xx256 module models and the gpsim script fills before the run.
 ; Per step the bench loads the inputs, stamps MARK, calls finalise from four stack levels deep (so a
 ; finalise deeper than 4 levels overflows the PIC's 8-level stack: gpsim reports it), stamps MARK again and
 ; writes the record's 20 bytes, then ALG_FLAGS, ALG_LAST_L/H and the kernels' FLAGS, to OUTB. gpsim's
@@ -18,7 +21,9 @@
 
 BENCH_CODE      equ     0x0800          ; the bench in page 1: page 0 holds finalise and the kernels
 STEP_TABLE      equ     0x0A00
+#ifdef TABLE_READER
 SCR_TABLE       equ     0x1000
+#endif
 STEP_WORDS      equ     .12
 
 MARK            equ     0x7F            ; common RAM (the logger's W_TEMP: no interrupts here)
@@ -50,6 +55,17 @@ kernels_end:
 start:
         clrf    STATUS
         clrf    FLAGS
+#ifndef TABLE_READER
+        banksel TRISC                   ; the MSSP: I2C master, 419 kHz (SSPADD = 10 at 18.432 MHz)
+        bsf     TRISC, 3
+        bsf     TRISC, 4
+        movlw   .10
+        movwf   SSPADD
+        clrf    SSPSTAT
+        banksel SSPCON
+        movlw   0x28
+        movwf   SSPCON
+#endif
         banksel LEFT_L
         movlw   LOW N_STEPS
         movwf   LEFT_L
@@ -179,8 +195,10 @@ tbl_byte:
 
         org     STEP_TABLE
         #include "steps.inc"
+#ifdef TABLE_READER
         org     SCR_TABLE
         #include "scratch.inc"
+#endif
         #include "config.inc"
 
         end

@@ -597,6 +597,7 @@ p1_loop:
         B3
         decfsz  CNT, F
         goto    p1_loop
+        call    scr_close
         ; c1 = -V / 2T (Q.17: V has 13 fraction bits, 4 more before the division)
         movlw   LOW P_VEL
         call    ld32_w
@@ -737,6 +738,7 @@ p2_ramp:
         B3
         decfsz  CNT, F
         goto    p2_loop
+        call    scr_close
         ; M2
         movlw   LOW P_MAX
         call    ld32_w
@@ -1737,5 +1739,90 @@ scr_next:
 scr_close:
         return
 #else
-        error   "the scratch ring's I2C reader is not written yet: assemble with SCR_TABLE (the test build)"
+; The scratch ring on the I2C bus: the MSSP in I2C master mode (SSPCON = 0x28, SSPADD set by the firmware's
+; start-up, RC3 = SCL, RC4 = SDA, pull-ups), a random read to set the EEPROM's address counter, then a
+; sequential read, each byte acknowledged; scr_close reads one byte more, not acknowledged, and stops.
+; The ring: SCR_RING_MASK + 1 samples (a power of two: the 16-bit index wraps with it), two bytes each (LE),
+; from byte SCR_BASE of the device SCR_CONTROL answers to. 24xx256 (the bench): control 1010 A2 A1 A0 R/W =
+; 0xA0, the whole 32 KiB; the logger's 24LC1025: 1010 B0 A1 A0 R/W with the block select B0 = 1 for the second
+; 64 KiB block (0xA8 | the chip's A1 A0 << 1), the ring from its byte 0 (16,384 samples, 32 KiB).
+; The waits are in line: scr_open and scr_next run at most one level below finalise's helpers.
+#ifndef SCR_CONTROL
+SCR_CONTROL     equ     0xA0
+#endif
+#ifndef SCR_RING_MASK
+SCR_RING_MASK   equ     0x3FFF
+#endif
+#ifndef SCR_BASE
+SCR_BASE        equ     0x0000
+#endif
+I2C_WAIT        macro                   ; bank 0: wait for the MSSP's event, clear it
+        bcf     STATUS, RP0
+        bcf     STATUS, RP1
+        btfss   PIR1, SSPIF
+        goto    $-1
+        bcf     PIR1, SSPIF
+        endm
+I2C_CMD         macro   bit             ; SSPCON2 bit (SEN, RSEN, PEN, RCEN), then wait
+        bsf     STATUS, RP0             ; bank 1
+        bcf     STATUS, RP1
+        bsf     SSPCON2, bit
+        I2C_WAIT
+        endm
+I2C_ACK         macro   nack            ; acknowledge (ACKDT = nack) the byte received
+        bsf     STATUS, RP0
+        bcf     STATUS, RP1
+        if nack
+        bsf     SSPCON2, ACKDT
+        else
+        bcf     SSPCON2, ACKDT
+        endif
+        bsf     SSPCON2, ACKEN
+        I2C_WAIT
+        endm
+
+; i2c_tx: send W, wait for the acknowledge slot (the acknowledge itself is not checked).
+i2c_tx:
+        bcf     STATUS, RP0
+        bcf     STATUS, RP1
+        movwf   SSPBUF
+        I2C_WAIT
+        return
+scr_open:
+        bcf     STATUS, C               ; TMP1:TMP0 = SCR_BASE + 2 (j & SCR_RING_MASK)
+        rlf     ARG0, W
+        movwf   TMP0
+        rlf     ARG1, W
+        andlw   HIGH ((SCR_RING_MASK << 1) | 1)
+        addlw   HIGH SCR_BASE
+        movwf   TMP1
+        I2C_CMD SEN
+        movlw   SCR_CONTROL
+        call    i2c_tx
+        movf    TMP1, W
+        call    i2c_tx
+        movf    TMP0, W
+        call    i2c_tx
+        I2C_CMD RSEN
+        movlw   SCR_CONTROL | 1
+        call    i2c_tx
+        bsf     STATUS, RP1             ; bank 2
+        return
+scr_next:
+        I2C_CMD RCEN
+        movf    SSPBUF, W
+        movwf   TMP0
+        I2C_ACK 0
+        I2C_CMD RCEN
+        movf    SSPBUF, W
+        movwf   TMP1
+        I2C_ACK 0
+        bsf     STATUS, RP1             ; bank 2
+        return
+scr_close:
+        I2C_CMD RCEN
+        I2C_ACK 1
+        I2C_CMD PEN
+        bsf     STATUS, RP1
+        return
 #endif
