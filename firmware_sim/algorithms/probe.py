@@ -271,13 +271,13 @@ class FinaliseTrace:
 
 def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0) -> FinaliseTrace:
     """Run a fixed-point :class:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm` over one run of
-    ``codes`` (``(n, 3)``; START before, STOP after, as :meth:`run` does for one run) and trace each
+    ``codes`` (``(n, 3)``; START before, STOP after, as its ``run`` does for one run) and trace each
     ``_finalise`` call.
 
     The per-sample driver (``kernel._sample``, ``_confirmed``, ``flush``) runs as Python (their ``py_func``)
     with ``_finalise`` wrapped; everything else, ``_finalise`` itself included, is the compiled kernel. The
     kernel is not edited: its module globals are swapped for the run and restored. A test checks that the
-    records equal :meth:`OnlineStepAlgorithm.run`'s.
+    records equal :meth:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm.run`'s.
     """
     from gaitlog.firmware_sim.algorithms.state import FLAGS as FLAGS_SLOT
     from gaitlog.firmware_sim.algorithms.state import LAST as LAST_SLOT

@@ -238,3 +238,18 @@ def test_ipol_trial_with_the_emulators_scratch_ring(shared_data, tmp_path):
     codes, first = _ipol_codes(shared_data, tmp_path, "6-5")
     v = gs.verify_steps(_algo(RAW), codes, first_sample_number=first)
     assert v.identical, v.summary()
+
+
+@needs_gpsim
+def test_the_program_memory_reader_gives_the_same_records(walk_trace):
+    """The test build's scratch reader (a table in program memory) and the I2C bus read the same samples."""
+    algo, tr = walk_trace
+    sub = tr.subset(np.arange(1, 11))
+    cfg = algo.config
+    i2c = gs.run_bench(sub, cfg.cfg_i, cfg.cfg_v, calibrated=False)
+    table = gs.run_bench(sub, cfg.cfg_i, cfg.cfg_v, calibrated=False, reader="table")
+    assert np.array_equal(i2c.records, table.records)
+    assert np.array_equal(i2c.records, sub.records.view(np.uint8).reshape(-1, 20))
+    assert np.all(i2c.cycles > table.cycles + 50_000)                  # the bus costs: ~135 cycles a byte
+    with pytest.raises(ValueError, match="reader"):
+        gs.run_bench(sub, cfg.cfg_i, cfg.cfg_v, reader="spi")
