@@ -23,17 +23,21 @@ Probes
     one sample at a time, its state read after each: y3 (the kernel's ``_fir`` on its delay line, run
     uncompiled), the detector's slots (:data:`DETECTOR_FIELDS`) and each call of ``_finalise``
     (:data:`CALL_FIELDS`).
+:func:`finalise_calls`
+    Step 6: the inputs of every ``_finalise`` call of a run (the foot-flats, the state's ``LAST`` and ``FLAGS``,
+    the sticky saturation flag), each call's counted cycles, the run's a_v and the records the calls wrote
+    (``tests/firmware_sim/test_pic_step_record.py`` checks them against the kernel's own run).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from gaitlog.firmware_sim.algorithms import arithmetic as ar
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
-from dataclasses import dataclass
-
 from gaitlog.firmware_sim.algorithms.formats import F_ACC, F_ACC2, F_GRAV, W16, W32, centred_q
 from gaitlog.firmware_sim.algorithms.online import OnlineConfig, OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.state import (
@@ -62,7 +66,7 @@ from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OP_DEE, OPS, new_counter
 from gaitlog.protocol.steps import StepConfig
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
-           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace"]
+           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls"]
 
 
 @njit(cache=True)
@@ -337,3 +341,121 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
             calls.append([i, e, int(prev[LAST]), int((st_i[N] - 1 - r3) & INDEX_MASK),
                           int(prev[FLAGS] & (F_LAST | F_PEND_WEAK) | st_i[FLAGS] & F_OLD)])
     return DetectorTrace(y3, ready, state, np.asarray(calls, np.int64).reshape(-1, len(CALL_FIELDS)))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# step 6: the inputs of every _finalise call, traced while the kernel runs
+
+
+@dataclass(frozen=True)
+class FinaliseTrace:
+    """Every call of the kernel's ``_finalise`` over one run, with what it was given and what it cost.
+
+    Attributes
+    ----------
+    e, m, last, flags
+        ``(k,)`` int64: the final foot-flat, the newest filter output, the state's ``LAST`` and ``FLAGS`` on entry
+        (16-bit indices, as the kernel keeps them).
+    sticky
+        ``(k,)`` int64: the sticky saturation flag on entry (a saturation since the previous step).
+    m_abs
+        ``(k,)`` int64: the absolute sample number of ``m`` (``first_sample_number`` + its index in the run).
+    cycles
+        ``(k,)`` int64: the cycles the kernel counted inside the call (its cost model, I2C and data-EEPROM
+        reads included).
+    ops
+        ``(k, len(OPS))`` int64: the primitives the kernel counted inside the call
+        (:data:`~gaitlog.firmware_sim.fixedpoint.OPS` order).
+    a_v
+        ``(n,)`` int64: each sample's vertical acceleration (raw Q2.13), as the delay line and the scratch ring
+        received it.
+    records
+        ``(k,)`` :data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`: the records (CRC set) the calls wrote.
+    extras
+        ``(k, 4)``: what the records do not store: the excursions h (M1, M2), h1 (M3) and M4's range (raw).
+    """
+
+    e: np.ndarray
+    m: np.ndarray
+    last: np.ndarray
+    flags: np.ndarray
+    sticky: np.ndarray
+    m_abs: np.ndarray
+    cycles: np.ndarray
+    ops: np.ndarray
+    a_v: np.ndarray
+    records: np.ndarray
+    extras: np.ndarray
+
+    def subset(self, calls: np.ndarray) -> FinaliseTrace:
+        """The calls at ``calls`` (indices or a mask), with the whole run's a_v."""
+        c = np.asarray(calls)
+        return FinaliseTrace(self.e[c], self.m[c], self.last[c], self.flags[c], self.sticky[c], self.m_abs[c],
+                             self.cycles[c], self.ops[c], self.a_v, self.records[c], self.extras[c])
+
+
+def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0) -> FinaliseTrace:
+    """Run a fixed-point :class:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm` over one run of
+    ``codes`` (``(n, 3)``; START before, STOP after, as its ``run`` does for one run) and trace each
+    ``_finalise`` call.
+
+    The per-sample driver (``kernel._sample``, ``_confirmed``, ``flush``) runs as Python (their ``py_func``)
+    with ``_finalise`` wrapped; everything else, ``_finalise`` itself included, is the compiled kernel. The
+    kernel is not edited: its module globals are swapped for the run and restored. A test checks that the
+    records equal :meth:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm.run`'s.
+    """
+    from gaitlog.firmware_sim.algorithms.state import FLAGS as FLAGS_SLOT
+    from gaitlog.firmware_sim.algorithms.state import LAST as LAST_SLOT
+    from gaitlog.firmware_sim.algorithms.state import LINE_POS
+    from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY
+    from gaitlog.protocol.steps import STEP_RECORD_DTYPE, pack_step_records
+
+    if algorithm.arithmetic != "fixed":
+        raise ValueError("the trace is of the fixed-point kernel (the PIC's)")
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    algorithm.reset()                                    # loads the compiled kernel (module globals replaced)
+    cfg_i, cfg_v = algorithm.config.cfg_i, algorithm.config.cfg_v
+    st_i, st_v, line, durs, scr, cnt = (algorithm._st_i, algorithm._st_v, algorithm._line, algorithm._durs,
+                                        algorithm._scr, algorithm._cnt)
+    r3 = int(cfg_i[kernel.CI_R3])
+    out_i, out_v = algorithm._outputs(c.shape[0])
+    rows: list[tuple[int, ...]] = []
+    ops: list[np.ndarray] = []
+    where = {"row": 0}
+    real = kernel._finalise
+
+    def traced(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):
+        before = int(cnt[C_CYCLES])
+        ops_before = cnt[:len(OPS)].copy()
+        entry = (int(e), int(m), int(st_i[LAST_SLOT]), int(st_i[FLAGS_SLOT]), int(cnt[C_STICKY]),
+                 int(first_sample_number) + where["row"] - r3)
+        k = real(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+        rows.append(entry + (int(cnt[C_CYCLES]) - before,))
+        ops.append(cnt[:len(OPS)] - ops_before)
+        return k
+
+    saved = {name: getattr(kernel, name) for name in ("_finalise", "_confirmed")}
+    a_v = np.zeros(c.shape[0], np.int64)
+    k = 0
+    try:
+        kernel._finalise = traced
+        kernel._confirmed = getattr(saved["_confirmed"], "py_func", saved["_confirmed"])
+        sample = kernel._sample.py_func
+        for row in range(c.shape[0]):
+            where["row"] = row
+            cnt[C_CYCLES] = 0
+            k = sample(c[row, 0], c[row, 1], c[row, 2], cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
+                       k, cnt)
+            a_v[row] = line[(int(st_i[LINE_POS]) - 1) % line.size]
+        where["row"] = c.shape[0] - 1
+        k = kernel.flush.py_func(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
+    finally:
+        for name, fn in saved.items():
+            setattr(kernel, name, fn)
+    algorithm._fed = c.shape[0]
+    steps = algorithm._steps(out_i, out_v, k, 0)
+    recs = steps.to_records(first_sample_number)
+    recs = np.frombuffer(pack_step_records(recs), dtype=STEP_RECORD_DTYPE).copy() if recs.size else recs
+    t = np.asarray(rows, np.int64).reshape(-1, 7)
+    return FinaliseTrace(*(t[:, i].copy() for i in range(7)), ops=np.asarray(ops, np.int64).reshape(-1, len(OPS)),
+                         a_v=a_v, records=recs, extras=np.asarray(steps.extras, np.int64).reshape(-1, 4))
