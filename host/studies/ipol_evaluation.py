@@ -84,6 +84,7 @@ algorithm shares, the calibrated medians); :func:`format_done` prints them.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections import Counter
@@ -95,8 +96,8 @@ from typing import Any, Self
 import numpy as np
 
 from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
-from gaitlog.firmware_sim.algorithms.online import OnlineSteps
-from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT, EventParameters
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.errors import DeviceError
@@ -159,6 +160,19 @@ K_PRIOR_IN_MAIN = False
 
 #: The two U-turn rules (module notes, step 4); both are reported.
 UTURN_RULES = ("exclude", "include")
+
+#: The on-line algorithm's own rules against their simpler choices (rows ``arithmetic = "online-fixed"``, K the
+#: offline chain's, as the main rows): variant -> the :class:`~gaitlog.firmware_sim.algorithms.parameters.
+#: EventParameters` fields it changes from the defaults, the on-line algorithm re-run in fixed point on the stored
+#: codes with them. ``stop-off``: no stop rule; ``prominence-fixed``: the fixed foot-flat prominence of on-line
+#: algorithm versions 1-2 (the cap, 0.5 m/s^2, floor = cap).
+ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
+    "stop-off": dict(stop_prominence_m_s2=0.0),
+    "prominence-fixed": dict(min_prominence_m_s2=EventParameters().max_prominence_m_s2),
+}
+#: The on-line chain's M4 with each exponent (variant -> exponent): ``K range^p`` of the on-line fixed-point
+#: records' ranges (host float; the arithmetic's share is ~1e-4), K fitted with ``p`` on the offline chain.
+ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-half": 0.5}
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
                "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
@@ -272,14 +286,17 @@ class ReplayedTrial:
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
-    def online_table(self, *, arithmetic: str, calibration: KFit | None = None) -> tuple[StepTable, Any]:
+    def online_table(self, *, arithmetic: str, calibration: KFit | None = None,
+                     events: EventParameters | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`gaitlog.host.files.replay.online_step_table`)."""
+        anatomy and ``calibration``'s K (:func:`gaitlog.host.files.replay.online_step_table`); ``events``: other
+        rules than the defaults (a study's variant, not what the logger ran)."""
+        algorithm = (OnlineStepAlgorithm if events is None else functools.partial(OnlineStepAlgorithm, events=events))
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
                                  adc_bits=self.adc_bits, arithmetic=arithmetic, run_starts=self.run_starts(),
-                                 t0_s=self.t0_s)
+                                 t0_s=self.t0_s, algorithm=algorithm)
 
     def device_table(self) -> StepTable:
         """The logger's own records as a table (raw lengths: it ran uncalibrated)."""
@@ -439,6 +456,14 @@ class IpolResult:
     count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     priors: dict[int, dict[str, KPrior]] = field(default_factory=dict)
     prior_all: KPrior | None = None
+
+
+def _with_m4_lengths(table: StepTable, k: KFit) -> StepTable:
+    """A copy of ``table`` whose calibrated M4 lengths are ``k``'s ``K range^p`` (p its exponent) of each step's
+    range."""
+    out = table.select(np.ones(table.n_steps, bool))
+    out.length_m = {**table.length_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=k.k_m4, exponent=k.m4_exponent)}
+    return out
 
 
 def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
@@ -704,6 +729,8 @@ class SubjectFit:
         The on-line chains' K (the logger's M4 exponent).
     k_other, k_assumed, k_quarter
         K for the other U-turn rule, for the height unknown, and with Weinberg's exponent.
+    k_by_exponent
+        K fitted with each exponent of :data:`ONLINE_M4_VARIANTS` (the on-line chain's M4 rows).
     own
         The on-line algorithm's own K (None without ``online-fixed`` or when its calibration failed).
     cross_validated_online
@@ -723,6 +750,7 @@ class SubjectFit:
     k_quarter: KFit
     own: KFit | None
     cross_validated_online: bool
+    k_by_exponent: dict[float, KFit] = field(default_factory=dict)
     k_shrunk: KFit | None = None
 
 
@@ -987,8 +1015,10 @@ class IpolEvaluation:
         k_quarter = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=WEINBERG_EXPONENT)
         # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
         cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
+        k_by_exponent = {p: _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p)
+                         for p in ONLINE_M4_VARIANTS.values()} if "online-fixed" in self.arithmetic else {}
         return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
-                          k_quarter=k_quarter, own=None, cross_validated_online=cv_online)
+                          k_quarter=k_quarter, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent)
 
     def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
         """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
@@ -1056,6 +1086,22 @@ class IpolEvaluation:
             runs.append(ScoredChain("online-fixed", "own", own, fit.own, self.uturn, src, "main", cv))
         if "offline" in self.arithmetic:
             runs += self._offline_variants(fit, i)
+        if "online-fixed" in self.arithmetic:
+            runs += self._online_variants(fit, i, tables["online-fixed"], saturation)
+        return runs
+
+    def _online_variants(self, fit: SubjectFit, i: int, table: StepTable, saturation: list[str]) -> list[ScoredChain]:
+        """The on-line fixed chain on trial ``i`` with each of :data:`ONLINE_EVENT_VARIANTS` and
+        :data:`ONLINE_M4_VARIANTS` (the offline K; ``cross_validated`` 0: the on-line rules were chosen on these
+        trials)."""
+        rt, src = fit.replayed.trials[i], fit.replayed.lengths_source
+        runs = [ScoredChain("online-fixed", "offline", _online(rt, "online-fixed", fit.k_online, saturation,
+                                                               events=replace(EventParameters(), **fields)),
+                            fit.k_online, self.uturn, src, name, False)
+                for name, fields in ONLINE_EVENT_VARIANTS.items()]
+        runs += [ScoredChain("online-fixed", "offline", _with_m4_lengths(table, fit.k_by_exponent[p]),
+                             fit.k_by_exponent[p], self.uturn, src, name, False)
+                 for name, p in ONLINE_M4_VARIANTS.items()]
         return runs
 
     def _offline_variants(self, fit: SubjectFit, i: int) -> list[ScoredChain]:
@@ -1165,9 +1211,12 @@ def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_sour
             for rt, d, n in zip(trials[1:], sums[1:], steps[1:], strict=True) for e in d]
 
 
-def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str]) -> StepTable:
+def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str],
+            events: EventParameters | None = None) -> StepTable:
+    """The on-line chain of ``arithmetic`` on ``rt``'s stored codes with ``k`` (and ``events``' rules instead of the
+    defaults); a fixed-point saturation is added to ``saturation``."""
     ar = arithmetic.removeprefix("online-")
-    table, alg = rt.online_table(arithmetic=ar, calibration=k)
+    table, alg = rt.online_table(arithmetic=ar, calibration=k, events=events)
     if ar == "fixed" and alg.arithmetic_context().report():
         saturation.append(f"{rt.path.name}: {alg.arithmetic_context().report()}")
     return table
@@ -1286,22 +1335,65 @@ CHOICES = (
 )
 
 
+#: The on-line algorithm's own rules scored by the rule (:func:`choice_gains`, rows ``online-fixed``): name, the
+#: simple choice's rows, the rule's rows (:data:`ONLINE_EVENT_VARIANTS`, :data:`ONLINE_M4_VARIANTS`), the
+#: estimators whose IQR it is scored on; the step-counting rules also by the step count (:func:`row_count_gain`).
+#: In-sample: these rules were chosen on these trials, so each gain is, if anything, optimistic.
+ONLINE_CHOICES = (
+    ("on-line: the stop rule (stop_prominence_m_s2 as shipped) against none", "stop-off", "main", ("M2", "M4")),
+    ("on-line: the adaptive foot-flat prominence as shipped against the fixed 0.5 m/s^2", "prominence-fixed", "main",
+     ("M2", "M4")),
+    ("on-line: M4's exponent 1/2 against Weinberg's 1/4 (both from the records' ranges)", "m4-quarter", "m4-half",
+     ("M4",)),
+)
+
+
 def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
-    """Each rule of :data:`CHOICES` against its simpler choice, per estimator: the cross-validated gain in IQR
-    with its 95 % subject-bootstrap interval (:func:`choice_gain`) and whether the rule is kept (the interval
-    excludes zero on the side of a gain). Empty for a choice whose rows are absent (e.g. the U-turn rule when
-    the main rows exclude the turn)."""
-    off = [r for r in result.rows if r["arithmetic"] == "offline" and r["k_from"] == "offline"]
+    """Each rule of :data:`CHOICES` (offline chain) and of :data:`ONLINE_CHOICES` (on-line fixed chain) against its
+    simpler choice, per estimator: the gain in IQR with its 95 % subject-bootstrap interval (:func:`choice_gain`)
+    and whether the rule is kept (the interval excludes zero on the side of a gain); the on-line step-counting
+    rules also by the step count (:func:`row_count_gain`). Empty for a choice whose rows are absent (e.g. the
+    U-turn rule when the main rows exclude the turn)."""
     out = []
-    for label, simple, rule, estimators in CHOICES:
-        a = [r for r in off if r["variant"] == simple]
-        b = [r for r in off if r["variant"] == rule]
-        if not a or not b:
-            continue
-        for e in estimators:
-            gain, lo, hi = choice_gain(a, b, e)
-            out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+    for arithmetic, choices in (("offline", CHOICES), ("online-fixed", ONLINE_CHOICES)):
+        mine = [r for r in result.rows if r["arithmetic"] == arithmetic and r["k_from"] == "offline"]
+        for label, simple, rule, estimators in choices:
+            a = [r for r in mine if r["variant"] == simple]
+            b = [r for r in mine if r["variant"] == rule]
+            if not a or not b:
+                continue
+            for e in estimators:
+                gain, lo, hi = choice_gain(a, b, e)
+                out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+            if simple in ONLINE_EVENT_VARIANTS and arithmetic != "offline":
+                gain, lo, hi = row_count_gain(a, b)
+                out.append(dict(choice=label, estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
     return out
+
+
+def _mean_gain(diffs: list[np.ndarray], *, n_resamples: int, seed: int, level: float) -> tuple[float, float, float]:
+    """The mean of per-subject arrays of per-trial differences pooled, and its percentile-bootstrap interval over
+    subjects (a subject's trials kept together)."""
+    counts = subject_resamples(len(diffs), n_resamples=n_resamples, seed=seed)
+    boot = [np.mean(np.concatenate([d for d, k in zip(diffs, cs, strict=True) for _ in range(k)])) for cs in counts]
+    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
+    return float(np.mean(np.concatenate(diffs))), float(lo), float(hi)
+
+
+def row_count_gain(simple: list[dict], rule: list[dict], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
+                   level: float = BOOTSTRAP_LEVEL) -> tuple[float, float, float]:
+    """The step-count gain of a rule (rows ``rule``) over the simpler choice (rows ``simple``, the same trials): per
+    trial ``|steps - reference| simple - |steps - reference| rule`` (steps; positive: the rule counts better), its
+    mean and 95 % subject-bootstrap interval."""
+    def errors(rows: list[dict]) -> dict[tuple[int, int], int]:
+        return {(int(r["subject"]), int(r["trial"])): abs(int(r["steps"]) - int(r["reference_steps"])) for r in rows}
+    a, b = errors(simple), errors(rule)
+    per: dict[int, list[int]] = {}
+    for key in sorted(k for k in a if k in b):
+        per.setdefault(key[0], []).append(a[key] - b[key])
+    if not per:
+        return (math.nan,) * 3
+    return _mean_gain([np.asarray(v, float) for v in per.values()], n_resamples=n_resamples, seed=seed, level=level)
 
 
 def count_gains(result: IpolResult, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
@@ -1322,13 +1414,9 @@ def count_gains(result: IpolResult, *, n_resamples: int = BOOTSTRAP_RESAMPLES, s
             diffs.append(np.array([abs(e[twin]) - abs(e[c]) for e in errs], float))
         if not diffs:
             continue
-        counts = subject_resamples(len(diffs), n_resamples=n_resamples, seed=seed)
-        boot = [np.mean(np.concatenate([d for d, k in zip(diffs, cs, strict=True) for _ in range(k)])) for cs in counts]
-        lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
-        gain = float(np.mean(np.concatenate(diffs)))
+        gain, lo, hi = _mean_gain(diffs, n_resamples=n_resamples, seed=seed, level=level)
         out.append(dict(choice=f"{name} chosen per fold against {simple!r} (the rule off); gain in mean |step-count "
-                        "error| per trial, steps", estimator="steps", gain=gain, low=float(lo), high=float(hi),
-                        kept=bool(lo > 0)))
+                        "error| per trial, steps", estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
     return out
 
 

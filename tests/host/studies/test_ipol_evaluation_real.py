@@ -108,9 +108,11 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "height-unknown", "include", "assumed-height"),
                      ("offline", "offline", "m4-quarter", "include", "subject-height"),
                      ("offline", "offline", "k-prior", "include", "subject-height"),
-                     ("offline", "offline", "baseline", "include", "subject-height")}
-    # 52 trials - 9 calibration trials, 5 estimators, 8 kinds; the baseline's M2 and M4
-    assert len(rows) == 8 * 5 * 43 + 2 * 43
+                     ("offline", "offline", "baseline", "include", "subject-height")} | {
+        ("online-fixed", "offline", v, "include", "subject-height")
+        for v in ("stop-off", "prominence-fixed", "m4-quarter", "m4-half")}
+    # 52 trials - 9 calibration trials, 5 estimators, 12 kinds; the baseline's M2 and M4
+    assert len(rows) == 12 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -351,9 +353,12 @@ def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
     assert "stop_prominence_m_s2 (default 0.2" in t and "by step count): 0.4 in 2 of 9 folds, 0.2 in 7 of 9 folds" in t
     assert "cross-validated: every offline-chain figure" in t
     assert "prominence_fraction (default 0.25" in t and "by step count): 0.2 in 8 of 9 folds, 0.25 in 1 of 9 folds" in t
-    not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0"}
+    not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0" and r["variant"] == "main"}
     # the on-line chains run the shipped defaults, which only subject 4's fold chose
     assert not_cv == {(s, a) for s in "12356789" for a in ("online-float", "online-fixed")}
+    # the on-line rules' variants were chosen on these trials: never cross-validated
+    assert all(r["cross_validated"] == "0" for r in ipol.rows if r["arithmetic"] == "online-fixed"
+               and r["variant"] != "main")
     assert all(r["cross_validated"] == "1" for r in ipol.rows if r["arithmetic"] == "offline")
 
 
