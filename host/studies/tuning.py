@@ -87,7 +87,7 @@ TUNED_PARAMETERS: tuple[TunedParameter, ...] = (
                    "gaitlog.host.gait.events (heel-strike = the impact in the 5-10 Hz band) and the on-line algorithm"),
     TunedParameter("hs_delay_s", (0.04, 0.0, 0.02, 0.06, 0.08), EventParameters().hs_delay_s,
                    "EventParameters.hs_delay_s (heel-strike before the impact), both chains"),
-    TunedParameter("m4_exponent", (M4_EXPONENT, 0.25, 0.375), M4_EXPONENT,
+    TunedParameter("m4_exponent", tuple(dict.fromkeys((M4_EXPONENT, 0.25, 0.375, 0.5))), M4_EXPONENT,
                    "gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT (M4 = K range^p), both chains",
                    criterion="k-transfer"),
     TunedParameter("k_prior_distance_m", PRIOR_DISTANCE_CANDIDATES_M, dict(LOWER_BACK_PRIOR.distance_m),
