@@ -45,7 +45,7 @@ def read_image(path: Path):
 
 ROOT = Path(__file__).resolve().parents[1]
 START_S = 1_700_000_000
-CONFIG = StepConfig(step_format=3, leg_length_m=0.9275, foot_length_m=0.1943)
+CONFIG = StepConfig(step_format=4, leg_length_m=0.9275, foot_length_m=0.1943, m4_exponent=0.25)
 
 
 def walking(corridor_m: float = 20.0, seed: int = 1, height_m: float = 1.75):
@@ -475,7 +475,7 @@ def test_info_shows_the_step_configuration_and_counts(walk_image, capsys):
     assert main(["info", str(image)]) == 0
     out = capsys.readouterr().out
     assert f"step memory      3276 records; {n} written (stored {n}, oldest is record 0 in slot 0)" in out
-    assert "step algorithm   on-line version 3, leg 0.9275 m, foot 0.1943 m, raw" in out
+    assert "step algorithm   on-line version 4, leg 0.9275 m, foot 0.1943 m, raw" in out
     assert f"step records     {n} of {n} stored records decode (0 dropped)" in out
     assert main(["info", "--port", f"emu://{image}"]) == 0
     out = capsys.readouterr().out

@@ -165,10 +165,10 @@ UTURN_RULES = ("exclude", "include")
 #: The on-line algorithm's own rules against their simpler choices (rows ``arithmetic = "online-fixed"``, K the
 #: offline chain's, as the main rows): variant -> the :class:`~gaitlog.firmware_sim.algorithms.parameters.
 #: EventParameters` fields it changes from the defaults, the on-line algorithm re-run in fixed point on the stored
-#: codes with them. ``stop-off``: no stop rule; ``prominence-fixed``: the fixed foot-flat prominence of on-line
-#: algorithm versions 1-2 (the cap, 0.5 m/s^2, floor = cap).
+#: codes with them. ``stop-v3``: the stop rule of on-line algorithm versions 1-3 (0.2 m/s^2; version 4 has none);
+#: ``prominence-fixed``: the fixed foot-flat prominence of versions 1-2 (the cap, 0.5 m/s^2, floor = cap).
 ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
-    "stop-off": dict(stop_prominence_m_s2=0.0),
+    "stop-v3": dict(stop_prominence_m_s2=0.2),
     "prominence-fixed": dict(min_prominence_m_s2=EventParameters().max_prominence_m_s2),
 }
 #: The on-line chain's M4 with each exponent (variant -> exponent): ``K range^p`` of the on-line fixed-point
@@ -698,7 +698,8 @@ class EventConstantsStage:
 @dataclass(frozen=True, eq=False)
 class FoldChoice:
     """Stage 3, one held-out subject: M4's exponent and the K priors chosen on the other subjects
-    (``"main"``: with the fold's exponent, ``"online"``: with the logger's; either may be absent)."""
+    (``"main"`` and ``"online"``: with the shipped exponent, which the main rows use; absent with too few
+    others)."""
 
     m4_exponent: float
     priors: dict[str, KPrior]
@@ -1158,7 +1159,7 @@ def _fold_choice(others: list[int], candidate: int, transfers: _Transfers, shipp
             pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
     j, _ = least_spread(pooled)
     return FoldChoice(float(transfers.exponents[j]),
-                      {key: priors[jj] for key, jj in (("main", j), ("online", shipped_j)) if jj in priors})
+                      {key: priors[shipped_j] for key in ("main", "online") if shipped_j in priors})
 
 
 def _shrunk_k(subject: int, fits: dict[int, SubjectFit], priors: dict[str, KPrior]) -> ShrunkK:
@@ -1342,7 +1343,8 @@ CHOICES = (
 #: estimators whose IQR it is scored on; the step-counting rules also by the step count (:func:`row_count_gain`).
 #: In-sample: these rules were chosen on these trials, so each gain is, if anything, optimistic.
 ONLINE_CHOICES = (
-    ("on-line: the stop rule (stop_prominence_m_s2 as shipped) against none", "stop-off", "main", ("M2", "M4")),
+    ("on-line: the stop rule of versions 1-3 (stop_prominence_m_s2 0.2) against none (version 4)", "main", "stop-v3",
+     ("M2", "M4")),
     ("on-line: the adaptive foot-flat prominence as shipped against the fixed 0.5 m/s^2", "prominence-fixed", "main",
      ("M2", "M4")),
     ("on-line: M4's exponent 1/2 against Weinberg's 1/4 (both from the records' ranges)", "m4-quarter", "m4-half",
@@ -1367,7 +1369,7 @@ def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
             for e in estimators:
                 gain, lo, hi = choice_gain(a, b, e)
                 out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
-            if simple in ONLINE_EVENT_VARIANTS and arithmetic != "offline":
+            if ONLINE_EVENT_VARIANTS.keys() & {simple, rule} and arithmetic != "offline":
                 gain, lo, hi = row_count_gain(a, b)
                 out.append(dict(choice=label, estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
     return out

@@ -160,8 +160,11 @@ def test_a_format_1_1_file_keeps_weinbergs_exponent(tmp_path) -> None:
     old = KFit.load(p)
     assert old.m4_exponent == 0.25 and old.k_m4 == cal.k_m4
     t = table(0.5, 0.55, 30)
-    lengths = apply_calibration(t, old)
-    np.testing.assert_allclose(lengths["M4"][1:], cal.k_m4 * t.acc_range_m_s2[1:] ** 0.25)
+    assert M4_EXPONENT == 0.25          # Weinberg's is the chain's again: the raw lengths are range^(1/4)
+    np.testing.assert_allclose(apply_calibration(t, old)["M4"], apply_calibration(t, cal)["M4"])
+    # a K fitted with another exponent (format 1.2 on) is applied with it, from the step's range
+    half = dataclasses.replace(cal, m4_exponent=0.5)
+    np.testing.assert_allclose(apply_calibration(t, half)["M4"][1:], cal.k_m4 * t.acc_range_m_s2[1:] ** 0.5)
     assert old.step_constants()["m4_exponent"] == 0.25
     assert cal.step_constants()["k_m4"] == cal.k_m4
     with pytest.raises(HostError, match="exponent 0.6; the logger computes whole eighths up to 4/8"):

@@ -110,7 +110,7 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "k-prior", "include", "subject-height"),
                      ("offline", "offline", "baseline", "include", "subject-height")} | {
         ("online-fixed", "offline", v, "include", "subject-height")
-        for v in ("stop-off", "prominence-fixed", "m4-quarter", "m4-half")}
+        for v in ("stop-v3", "prominence-fixed", "m4-quarter", "m4-half")}
     # 52 trials - 9 calibration trials, 5 estimators, 12 kinds; the baseline's M2 and M4
     assert len(rows) == 12 * 5 * 43 + 2 * 43
     for r in rows:
