@@ -65,7 +65,9 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    (rows ``variant = "baseline"``, :func:`baseline_rows`); every median and IQR of the tables carries a 95 %
    subject-bootstrap interval (:func:`subject_intervals`); each rule of :data:`CHOICES` is scored against its
    simpler choice (:func:`choice_gains`, :func:`count_gains`) and kept only when its gain's interval excludes
-   zero.
+   zero. The on-line algorithm's own rules (:data:`ONLINE_CHOICES`) are scored the same way on the on-line fixed
+   chain, re-run on the stored codes with the simpler choice (:data:`ONLINE_EVENT_VARIANTS`,
+   :data:`ONLINE_M4_VARIANTS`; in-sample: those rules were chosen on these trials).
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,

@@ -326,17 +326,17 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
-    """Issue 12 (5): the heel-strike rule, hs_delay_s and M4's exponent are chosen per held-out subject on the
-    other eight; the command says which figures are cross-validated. Measured: the impact rule in 9 of 9 folds,
-    hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out), M4's exponent 1/2 in 9 (chosen with K shrunk
-    as it is used; 3/8 for subject 7 with K unshrunk): the on-line rows of subject 1 are marked not
-    cross-validated."""
+    """Issue 12 (5): the heel-strike rule, hs_delay_s, prominence_fraction and M4's exponent are chosen per
+    held-out subject on the other eight; the command says which figures are cross-validated. Measured: the impact
+    rule in 9 of 9 folds, hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out), prominence_fraction 0.2 in 8
+    and 0 in 1, M4's exponent 1/2 in 7 and 3/8 in 2 (the m4-per-fold rows; the main rows use the shipped 1/4): the
+    on-line rows (the shipped prominence_fraction 0.25) are marked not cross-validated for every subject."""
     t = ipol.text
     assert "chosen leave-one-subject-out" in t and "criterion: heel strikes within 40 ms" in t
     assert "heel_strike_rule (default 'impact'" in t and "'impact' in 9 of 9 folds" in t
     line = t.split("hs_delay_s (default 0.04")[1].split("\n")[0]
     assert "0.04 in 8 of 9 folds" in line and "0.06 in 1 of 9 folds" in line
-    line = t.split("m4_exponent (default 0.5")[1].split("\n")[0]
+    line = t.split("m4_exponent (default 0.25")[1].split("\n")[0]
     assert "criterion: IQR of the calibrated distance ratio" in line and "as the main rows use it" in line
     assert "0.5 in 7 of 9 folds, 0.375 in 2 of 9 folds" in line      # the m4-per-fold rows; the main rows: 1/4
     assert "stop_prominence_m_s2 (" not in t                            # off, no longer tuned (the rule's verdict)
