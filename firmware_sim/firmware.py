@@ -52,6 +52,7 @@ import numpy as np
 
 from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_FIRST_BYTE, SCRATCH_PAGES, SCRATCH_SAMPLE_BYTES
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
 from gaitlog.firmware_sim.eeprom import PAGE_BYTES, Eeprom24LC1025
 from gaitlog.firmware_sim.errors import DeviceError
@@ -85,9 +86,9 @@ from gaitlog.protocol.xmodem import XmodemSender
 __all__ = ["Firmware", "FIRMWARE_VERSION", "INTER_BYTE_TIMEOUT_S", "ASCII_XDUMP", "as_run", "step_algorithm_for",
            "CRC32_CYCLES_PER_BYTE", "DUMP_CYCLES_PER_BYTE", "uart_cycles_per_byte"]
 
-#: Firmware version 1.2 (major·256 + minor): on-line algorithm version 3 (``step_format`` 3; 1.1 ran and
-#: stored version 2, 1.0 version 1).
-FIRMWARE_VERSION = 0x0102
+#: Firmware version 1.3 (major·256 + minor): on-line algorithm version 4 (``step_format`` 4; 1.2 ran and
+#: stored version 3, 1.1 version 2, 1.0 version 1).
+FIRMWARE_VERSION = 0x0103
 #: Partial frames are dropped after this much silence.
 INTER_BYTE_TIMEOUT_S = 0.1
 #: The terminal command that arms XDUMP.
@@ -122,11 +123,14 @@ _PAYLOAD_SIZE = {t: PAYLOAD_STRUCTS[FrameType(t)].sizeof() for t in COMMAND_TYPE
 
 
 def as_run(config: StepConfig | None) -> StepConfig | None:
-    """The step configuration as the firmware stores it: an on-line ``step_format`` (1, 2 or 3) becomes the version
-    it runs (:data:`gaitlog.protocol.steps.ONLINE_ALGORITHM_VERSION`), so the header says what wrote the records."""
+    """The step configuration as the firmware stores it: an on-line ``step_format`` (1-4) becomes the version it
+    runs (:data:`gaitlog.protocol.steps.ONLINE_ALGORITHM_VERSION`), so the header says what wrote the records, and
+    an M4 exponent not given (0) becomes the firmware's default
+    (:data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`), so it says what M4 computed."""
     if config is None or not config.enabled:
         return config
-    return dataclasses.replace(config, step_format=ONLINE_ALGORITHM_VERSION)
+    return dataclasses.replace(config, step_format=ONLINE_ALGORITHM_VERSION,
+                               m4_exponent=config.m4_exponent if config.m4_exponent > 0 else M4_EXPONENT)
 
 
 def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> OnlineStepAlgorithm | None:

@@ -52,6 +52,7 @@ __all__ = [
     "ONLINE_ALGORITHM_VERSION",
     "ALGORITHM_VERSIONS",
     "StepConfigFlag",
+    "M4_EXPONENT_EIGHTHS_MAX",
     "STEP_RECORD_BODY_STRUCT",
     "STEP_RECORD_STRUCT",
     "STEP_RECORD_OFFSETS",
@@ -110,13 +111,17 @@ class StepFormat(enum.IntEnum):
     OFF = 0  #: the on-line step algorithm is off (plain logging)
     V1 = 1  #: on-line algorithm version 1 (firmware 1.0; images only: later firmware stores its own version)
     V2 = 2  #: on-line algorithm version 2 (firmware 1.1; images only: firmware 1.2 stores 3)
-    V3 = 3  #: on-line algorithm version 3 (firmware 1.2: the version the firmware runs)
+    V3 = 3  #: on-line algorithm version 3 (firmware 1.2; images only: firmware 1.3 stores 4)
+    V4 = 4  #: on-line algorithm version 4 (firmware 1.3: the version the firmware runs)
 
 
 #: The on-line algorithm version the firmware runs: SET_STEP_CONFIG with any on-line ``step_format`` turns
 #: it on, and the device stores this version in its header (PROTOCOL.md 2.2), so an image says which
 #: algorithm wrote its step records.
-ONLINE_ALGORITHM_VERSION = StepFormat.V3
+ONLINE_ALGORITHM_VERSION = StepFormat.V4
+#: The largest M4 exponent a step configuration holds, in eighths (1/2: the uncalibrated record's ``range^p``, in
+#: (m/s^2)^p, must fit its 0-4 m length field up to a range of 16 m/s^2).
+M4_EXPONENT_EIGHTHS_MAX = 4
 
 #: What each on-line algorithm version computed, one line each (a decoder says it for an image's records).
 ALGORITHM_VERSIONS = {
@@ -128,6 +133,9 @@ ALGORITHM_VERSIONS = {
                     "0.5 m/s^2 foot-flat prominence; M4 = K range^(1/2)"),
     StepFormat.V3: ("on-line algorithm version 3 (firmware 1.2): as version 2, with the foot-flat prominence 0.25 "
                     "of the recent step amplitude within 0.25-0.5 m/s^2 (slow, short-stepped walking)"),
+    StepFormat.V4: ("on-line algorithm version 4 (firmware 1.3): as version 3, with M4's exponent p from the step "
+                    "configuration (m4_exponent_eighths; the firmware's default 1/4, Weinberg's) and no stop rule "
+                    "(a bout's weak last step is not counted)"),
 }
 
 
@@ -168,7 +176,8 @@ STEP_CONFIG_STRUCT = cs.Struct(
     "k_m4_q15" / cs.Int16ul,
     "k1_m5_q16" / cs.Int32sl,
     "k2_m5_q16" / cs.Int32sl,
-    "reserved" / cs.Padding(12),
+    "m4_exponent_eighths" / cs.Int8ul,
+    "reserved" / cs.Padding(11),
 )
 
 
@@ -396,6 +405,18 @@ def _fraction_bits(fieldname: str) -> int:
     return int(fieldname.rsplit("_q", 1)[1])
 
 
+def _m4_eighths(exponent: object) -> int:
+    """M4's exponent as the stored eighths (0: not given), or :class:`ProtocolError` naming the field."""
+    try:
+        e = float(exponent) * 8.0  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise _config_error(f"m4_exponent must be a number, got {exponent!r}", "m4_exponent_eighths") from None
+    if not (math.isfinite(e) and abs(e - round(e)) < 1e-9 and 0 <= round(e) <= M4_EXPONENT_EIGHTHS_MAX):
+        raise _config_error(f"m4_exponent must be 0 (not given) or a whole number of eighths up to "
+                            f"{M4_EXPONENT_EIGHTHS_MAX}/8, got {exponent!r}", "m4_exponent_eighths")
+    return int(round(e))
+
+
 def _config_error(what: str, fieldname: str, source: str | None = None, base: int = 0) -> ProtocolError:
     return ProtocolError(f"{fieldname}: {what}", offset=base + STEP_CONFIG_OFFSETS[fieldname][0], source=source)
 
@@ -407,7 +428,7 @@ class StepConfig:
     Parameters
     ----------
     step_format
-        0 (:attr:`StepFormat.OFF`): on-line step algorithm off; 1, 2 or 3: on (:data:`ALGORITHM_VERSIONS`; the
+        0 (:attr:`StepFormat.OFF`): on-line step algorithm off; 1-4: on (:data:`ALGORITHM_VERSIONS`; the
         device runs :data:`ONLINE_ALGORITHM_VERSION` and stores it, whichever of them it was sent).
     calibrated
         The K constants are valid (``step_flags`` bit ``CALIBRATED``).
@@ -416,9 +437,13 @@ class StepConfig:
     k_m1, k_m2
         K of M1 and M2 (dimensionless), unsigned Q1.15 (0 ... 2).
     k_m4
-        K of M4, m/(m/s²)^p (p the on-line algorithm's M4 exponent, 1/2), unsigned Q1.15 (0 ... 2).
+        K of M4, m/(m/s²)^p (p: ``m4_exponent``), unsigned Q1.15 (0 ... 2).
     k1_m5_m_s, k2_m5_m
         M5's ``S = K1/T + K2``: K1 in m·s and K2 in m, signed Q15.16 (±32768).
+    m4_exponent
+        M4's exponent p (``S = K range^p``), whole eighths from 1/8 to 1/2, stored in eighths (byte 20,
+        ``m4_exponent_eighths``); 0: not given (SET_STEP_CONFIG: the firmware's default; a block of versions 1-3,
+        whose byte 20 was reserved: p is the version's, 1/2 for versions 2 and 3).
 
     Notes
     -----
@@ -448,6 +473,7 @@ class StepConfig:
     k_m4: float = 0.0
     k1_m5_m_s: float = 0.0
     k2_m5_m: float = 0.0
+    m4_exponent: float = 0.0
 
     @classmethod
     def off(cls) -> "StepConfig":
@@ -480,7 +506,7 @@ class StepConfig:
         try:
             fmt = StepFormat(int(self.step_format))
         except (ValueError, TypeError):
-            raise _config_error(f"unknown step format {self.step_format!r} (known: 0 off, 1-3 on-line "
+            raise _config_error(f"unknown step format {self.step_format!r} (known: 0 off, 1-4 on-line "
                                 f"algorithm versions)",
                                 "step_format") from None
         out = {"step_format": int(fmt), "step_flags": int(StepConfigFlag.CALIBRATED) if self.calibrated else 0}
@@ -502,10 +528,11 @@ class StepConfig:
         if fmt != StepFormat.OFF and out["leg_length_q15"] == 0:
             raise _config_error(f"step_format {int(fmt)} needs a leg length > 0 (found {self.leg_length_m} m)",
                                 "leg_length_q15")
+        out["m4_exponent_eighths"] = _m4_eighths(self.m4_exponent)
         return out
 
     def to_bytes(self) -> bytes:
-        """The 32-byte block (reserved bytes 0).
+        """The 32-byte block (reserved bytes 0; byte 20 M4's exponent in eighths, 0 when not given).
 
         Raises
         ------
@@ -518,22 +545,28 @@ class StepConfig:
     @classmethod
     def from_bytes(cls, data: bytes | bytearray | memoryview, *, source: str | None = None,
                    base_offset: int = 0) -> "StepConfig":
-        """Parse a 32-byte block (reserved bytes 20-31 are ignored).
+        """Parse a 32-byte block (reserved bytes 21-31 are ignored, and byte 20 below version 4, where it was
+        reserved).
 
         Raises
         ------
         ProtocolError
-            Wrong length, ``step_format`` > 3, reserved ``step_flags`` bits set, or an on-line format with a
-            leg length of 0; offsets are ``base_offset`` plus the field's offset in the block.
+            Wrong length, ``step_format`` > 4, reserved ``step_flags`` bits set, an on-line format with a
+            leg length of 0, or M4's exponent above 1/2; offsets are ``base_offset`` plus the field's offset in
+            the block.
         """
         if len(data) != STEP_CONFIG_SIZE:
             raise ProtocolError(f"step configuration block: expected {STEP_CONFIG_SIZE} bytes, found {len(data)}",
                                 offset=base_offset, source=source)
         c = _STEP_CONFIG_FAST.parse(bytes(data))
         if c.step_format not in {int(f) for f in StepFormat}:
-            raise _config_error(f"unknown step format {c.step_format} (known: 0 off, 1-3 on-line algorithm "
+            raise _config_error(f"unknown step format {c.step_format} (known: 0 off, 1-4 on-line algorithm "
                                 "versions)",
                                 "step_format", source, base_offset)
+        eighths = c.m4_exponent_eighths if c.step_format >= StepFormat.V4 else 0   # versions 1-3: reserved
+        if eighths > M4_EXPONENT_EIGHTHS_MAX:
+            raise _config_error(f"M4's exponent {eighths}/8 above {M4_EXPONENT_EIGHTHS_MAX}/8",
+                                "m4_exponent_eighths", source, base_offset)
         if c.step_flags & ~int(StepConfigFlag.CALIBRATED):
             raise _config_error(f"reserved bits set in 0x{c.step_flags:02x} (only 0x01 CALIBRATED is defined)",
                                 "step_flags", source, base_offset)
@@ -543,7 +576,7 @@ class StepConfig:
                                 base_offset)
         values = {attr: c[name] / (1 << _fraction_bits(name)) for attr, name in _CONFIG_VALUES}
         return cls(step_format=StepFormat(c.step_format),
-                   calibrated=bool(c.step_flags & StepConfigFlag.CALIBRATED), **values)
+                   calibrated=bool(c.step_flags & StepConfigFlag.CALIBRATED), m4_exponent=eighths / 8, **values)
 
     def quantised(self) -> "StepConfig":
         """The configuration exactly as it is stored."""

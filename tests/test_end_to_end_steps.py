@@ -45,7 +45,7 @@ def read_image(path: Path):
 
 ROOT = Path(__file__).resolve().parents[1]
 START_S = 1_700_000_000
-CONFIG = StepConfig(step_format=3, leg_length_m=0.9275, foot_length_m=0.1943)
+CONFIG = StepConfig(step_format=4, leg_length_m=0.9275, foot_length_m=0.1943, m4_exponent=0.25)
 
 
 def walking(corridor_m: float = 20.0, seed: int = 1, height_m: float = 1.75):
@@ -232,8 +232,11 @@ def test_noisy_line_capture_decodes_to_the_same_records(walk_image, tmp_path):
                  "--capture", str(tmp_path / "wire.bin"), "--timeout", "0.2", "--quiet"]) == 0
     meta = json.loads((tmp_path / "n.glimg.json").read_text())
     assert meta["frames_damaged"] > 0 and meta["complete"]
-    for source in ("n.glimg", "wire.bin"):
-        assert main(["decode", str(tmp_path / source), "--out", str(tmp_path / source[0]), "--quiet"]) == 0
+    # the wire capture of this seed loses 258 of 1,997 samples (12.9 %: five 64-sample blocks, samples 0-144 among
+    # them) although the dump completes: decoded with the loss allowed, its step records must still be exact
+    # (with seeds 4 and 5 it loses none; measured with on-line algorithm version 4's records)
+    for source, allowed in (("n.glimg", []), ("wire.bin", ["--max-missing", "15"])):
+        assert main(["decode", str(tmp_path / source), "--out", str(tmp_path / source[0]), "--quiet", *allowed]) == 0
         assert Recording.load(tmp_path / f"{source[0]}.npz").step_records.tobytes() == records
 
 
@@ -475,7 +478,7 @@ def test_info_shows_the_step_configuration_and_counts(walk_image, capsys):
     assert main(["info", str(image)]) == 0
     out = capsys.readouterr().out
     assert f"step memory      3276 records; {n} written (stored {n}, oldest is record 0 in slot 0)" in out
-    assert "step algorithm   on-line version 3, leg 0.9275 m, foot 0.1943 m, raw" in out
+    assert "step algorithm   on-line version 4, leg 0.9275 m, foot 0.1943 m, raw" in out
     assert f"step records     {n} of {n} stored records decode (0 dropped)" in out
     assert main(["info", "--port", f"emu://{image}"]) == 0
     out = capsys.readouterr().out

@@ -54,8 +54,8 @@ PENDULUM_ARG2_Q = QFormat(0, 32, signed=False, word_bits=32)
 STEP_Q = QFormat(2, 14, signed=False)
 #: K of M1/M2 (and of M4, m / (m/s^2)^p, as the step configuration stores it): unsigned Q1.15.
 K_Q = QFormat(1, 15, signed=False)
-#: M4's device constant ``K g0^p`` (p = ``parameters.M4_EXPONENT``, 1/2: g0^(1/2) = 3.13 without K): unsigned
-#: Q2.14.
+#: M4's device constant ``K g0^p`` (p the step configuration's M4 exponent, at most 1/2: g0^(1/2) = 3.13 without
+#: K; the default 1/4: 1.77): unsigned Q2.14.
 K4_Q = QFormat(2, 14, signed=False)
 #: M4's square root, fourth and eighth roots of the range (g^(1/2), g^(1/4), g^(1/8)): unsigned Q1.15 (a
 #: walking trunk's 3 Hz range is below 2 g; a range of 4 g saturates the square root's 32-bit argument, counted).

@@ -56,8 +56,8 @@ Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
    extremes; then, with ``c1 = -mean(a)`` and ``c2`` known in closed form (``P2(T) = 16 P(T) + 2 c1 T^2``),
    M2's corrected position ``p2`` and its extremes, and M3's single-support extremes (Alvarez eqs 1-3).
    Lengths: M1, M2 ``K 2 sqrt(2 l h - h^2)`` (``h > 2 l``: ``IMPOSSIBLE``, length 0), M3
-   ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max - a_min)^p`` (p = ``parameters.M4_EXPONENT``, 1/2: square
-   roots rounded to nearest),
+   ``2 sqrt(2 l h1 - h1^2) + foot``, M4 ``K (a_max - a_min)^p`` (p from the step configuration, default
+   ``parameters.M4_EXPONENT``, 1/4: square roots rounded to nearest),
    M5 ``K1 / T + K2`` (eqs 1, 4; the seeds' corrections). One record per foot-flat: a step
    whose previous foot-flat is more than ``max_step`` back (or none) starts a walking bout and has no
    window (``NO_WINDOW``, lengths 0).
@@ -92,7 +92,7 @@ from gaitlog.firmware_sim.algorithms.formats import (
     W33,
     W_LP,
 )
-from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT_EIGHTHS, minimum_distance
+from gaitlog.firmware_sim.algorithms.parameters import minimum_distance
 from gaitlog.firmware_sim.algorithms.state import (
     AMP,
     DIST,
@@ -146,11 +146,11 @@ __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_S
 #: Integer configuration slots (the same in both arithmetics).
 CI = dict(R3=0, R10=1, R5=2, MIN_STEP=3, MAX_STEP=4, HS_BEFORE=5, HS_AFTER=6, HS_DELAY=7, TO_SPAN=8,
           G_SHIFT=9, N_MED=10, FRACTION=11, CODE_FRAC=12, MANT_FRAC=13, EXC_SHIFT1=14, EXC_SHIFT2=15,
-          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21, PRIOR_TWICE=22, FLUSH=23)
+          UNIT_FRAC=16, SCRATCH=17, W10=18, W5=19, BUDGET=20, AMP_SHIFT=21, PRIOR_TWICE=22, FLUSH=23, M4_EIGHTHS=24)
 N_CI = len(CI)
 (CI_R3, CI_R10, CI_R5, CI_MIN_STEP, CI_MAX_STEP, CI_HS_BEFORE, CI_HS_AFTER, CI_HS_DELAY, CI_TO_SPAN,
  CI_G_SHIFT, CI_N_MED, CI_FRACTION, CI_CODE_FRAC, CI_MANT_FRAC, CI_EXC_SHIFT1, CI_EXC_SHIFT2, CI_UNIT_FRAC,
- CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT, CI_PRIOR_TWICE, CI_FLUSH) = range(N_CI)
+ CI_SCRATCH, CI_W10, CI_W5, CI_BUDGET, CI_AMP_SHIFT, CI_PRIOR_TWICE, CI_FLUSH, CI_M4_EIGHTHS) = range(N_CI)
 
 #: Value configuration slots (raw fixed point or float); the FIR half-kernels follow at ``W3``.
 CV = dict(DELTA=0, G_MIN=1, TWO_LEG=2, FOOT=3, K1=4, K2=5, K4=6, K1FS=7, K2M5=8, UNIT=9, OFF=10, M=13, FRAC=22,
@@ -444,20 +444,22 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
                 flags |= _IMPOSSIBLE
             else:
                 l3 = ar.add(length, cfg_v[CV_FOOT], U16, cnt)
-        # M4 (eq 4): K (a_max - a_min)^p, p = M4_EXPONENT_EIGHTHS / 8, the range in g and K g0^p the constant:
-        # the range's square root, fourth and eighth roots (rounded to nearest, 15 fraction bits each; the
-        # first from the Q2.16 range), the constant (UQ2.14) multiplied by those the exponent's bits select
+        # M4 (eq 4): K (a_max - a_min)^p, p = the configuration's eighths / 8 (on-line algorithm version 4; the
+        # step configuration's m4_exponent_eighths), the range in g and K g0^p the constant: the range's square
+        # root, fourth and eighth roots (rounded to nearest, 15 fraction bits each; the first from the Q2.16
+        # range), the constant (UQ2.14) multiplied by those the exponent's bits select
+        eighths = cfg_i[CI_M4_EIGHTHS]
         out_v[k, O_RANGE] = _range(s, e, cfg_i, cfg_v, scr, cnt)
         length = ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt)          # range^(1/2)
-        if M4_EXPONENT_EIGHTHS & 4:
+        if eighths & 4:
             l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, U16, cnt)
         else:
             l4 = ar.requant(cfg_v[CV_K4], F_K4, F_STEP, U16, cnt)
-        if M4_EXPONENT_EIGHTHS & 3:                                           # only the roots needed
+        if eighths & 3:                                                       # only the roots needed
             length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)               # range^(1/4)
-            if M4_EXPONENT_EIGHTHS & 2:
+            if eighths & 2:
                 l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
-            if M4_EXPONENT_EIGHTHS & 1:
+            if eighths & 1:
                 length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
                 l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples

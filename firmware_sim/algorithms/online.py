@@ -14,7 +14,7 @@ calibrated), the rules (:class:`~gaitlog.firmware_sim.algorithms.parameters.Even
 :class:`~gaitlog.firmware_sim.algorithms.parameters.OnlineParameters`) and the sampling rate. In fixed point every
 constant is quantised as the PIC keeps it; in float the configuration's values are used as they are stored
 in the header (the same numbers): the arithmetic is the only difference. Without a calibrated K, the
-lengths are the raw values a K calibration needs (K = 1; M4 in (m/s^2)^p, p = ``parameters.M4_EXPONENT``, M5 = 1/T in Hz: K1 = 1 m·s,
+lengths are the raw values a K calibration needs (K = 1; M4 in (m/s^2)^p, p the step configuration's M4 exponent (default ``parameters.M4_EXPONENT``), M5 = 1/T in Hz: K1 = 1 m·s,
 K2 = 0), flagged ``UNCALIBRATED``.
 
 Examples
@@ -57,6 +57,7 @@ from gaitlog.firmware_sim.algorithms.parameters import (
     EventParameters,
     OnlineParameters,
     SampleCounts,
+    m4_exponent_eighths,
 )
 from gaitlog.firmware_sim.algorithms.state import (
     INDEX_HALF,
@@ -99,9 +100,6 @@ ARITHMETICS = ("fixed", "float")
 #: bounded; the kernel's 16-bit end indices of a block's records are then less than 2^16 samples behind its
 #: last sample, so the driver restores their absolute values).
 BLOCK_SAMPLES = INDEX_HALF
-#: M4's constant is K g0^p (p = :data:`~gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`): the range is in g on
-#: the device, in m/s^2 in K's unit.
-G0_POWER_M4 = STANDARD_GRAVITY_M_S2 ** M4_EXPONENT
 
 
 def _gaussian_half(cutoff_hz: float, sampling_rate_hz: float, radius: int) -> np.ndarray:
@@ -217,6 +215,10 @@ class OnlineConfig:
         shifts = [max(0, math.ceil(math.log2(2.0 ** q.frac_bits * e.max_value / unit / 65535.0)))
                   for q, e in ((fq.position_q, EXCURSION_Q), (fq.position2_q, EXCURSION2_Q))]
         cal = sc.calibrated
+        # M4's exponent: the configuration's, else the default (what the firmware stores at START); its constant
+        # is K g0^p (the range is in g on the device, in m/s^2 in K's unit)
+        m4_eighths = m4_exponent_eighths(sc.m4_exponent if sc.m4_exponent > 0 else M4_EXPONENT)
+        g0_power_m4 = STANDARD_GRAVITY_M_S2 ** (m4_eighths / 8)
         k1, k2, k4 = (sc.k_m1, sc.k_m2, sc.k_m4) if cal else (1.0, 1.0, 1.0)
         k1_m5, k2_m5 = (sc.k1_m5_m_s, sc.k2_m5_m) if cal else (1.0, 0.0)
         cfg_i = np.zeros(kernel.N_CI, np.int64)
@@ -227,7 +229,7 @@ class OnlineConfig:
                                 CODE_FRAC=centred_q(adc_bits).frac_bits, MANT_FRAC=cal_q.matrix_frac_bits,
                                 EXC_SHIFT1=shifts[0], EXC_SHIFT2=shifts[1], UNIT_FRAC=unit_frac,
                                 SCRATCH=_scratch_size(c), W10=w10, W5=w5, AMP_SHIFT=ev.amplitude_shift,
-                                PRIOR_TWICE=c.prior_step_twice, FLUSH=_flush_samples(c),
+                                PRIOR_TWICE=c.prior_step_twice, FLUSH=_flush_samples(c), M4_EIGHTHS=m4_eighths,
                                 BUDGET=int(cycles_available if cycles_available is not None
                                            else cycles_per_sample_available(sampling_rate_hz))).items():
             cfg_i[ci[name]] = value
@@ -238,7 +240,7 @@ class OnlineConfig:
                                           k1_m5_q16=1 << 16, k2_m5_q16=0)
             # K' = K g0^p: one UQ1.15 multiply at START
             k_q, k4_q, m5_q = fq.q("k_frac_bits"), fq.q("k4_frac_bits"), fq.q("m5_frac_bits")
-            k4p = int(mul_q(np.int64(raw["k_m4_q15"]), k4_q.from_float(G0_POWER_M4), K_Q.frac_bits, k4_q, signed=False))
+            k4p = int(mul_q(np.int64(raw["k_m4_q15"]), k4_q.from_float(g0_power_m4), K_Q.frac_bits, k4_q, signed=False))
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
             values = dict(
                 DELTA=int(fq.lowpass_q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
@@ -265,7 +267,7 @@ class OnlineConfig:
                 CAP=ev.max_prominence_m_s2 / STANDARD_GRAVITY_M_S2,
                 STOP=ev.stop_prominence_m_s2 / STANDARD_GRAVITY_M_S2,
                 G_MIN=on.min_gravity_g,
-                TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * G0_POWER_M4,
+                TWO_LEG=2.0 * sc.leg_length_m, FOOT=sc.foot_length_m, K1=k1, K2=k2, K4=k4 * g0_power_m4,
                 K1FS=k1_m5 * sampling_rate_hz, K2M5=k2_m5, UNIT=unit,
             )
             slot = calibration.quantised() if calibration is not None else None

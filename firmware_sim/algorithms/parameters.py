@@ -59,13 +59,21 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   as a step (4 times in 6 subjects' 18 rests: heel-strike F1 0.9903 -> 0.98997 on 3 subjects, a strict
   xfail in ``tests/host/studies/test_evaluation_sim.py``). Resetting the threshold to the cap when a bout ends
   removes those but misses a slow walker's next bout start (count -6 %, M3 1.154), so it is not done.
-* Stop rule (``stop_prominence_m_s2``, 0.2 m/s^2; 0: off): the step that brings the walker to a stop
+* Stop rule (``stop_prominence_m_s2``; default 0: off since on-line algorithm version 4): the step that brings the
+  walker to a stop
   raises the 3 Hz signal less than a walking step, and the full prominence missed it in 25 of the 52 IPOL
   trials. After a bout's last full foot-flat, the first peak within about two steps (the minimum distance
   ``DIST`` to three times it, ``DIST`` being 0.6 of the typical step) that stands out
   by ``stop_prominence_m_s2`` is one more step when no full foot-flat follows within ``max_step``. Chosen
   leave-one-subject-out on the IPOL trials by the step count (``gaitlog.host.studies.tuning``; every fold chose
-  0.2 of 0, 0.2, 0.3, 0.4): the stopping step is then missed in 15 trials offline (16 on-line).
+  0.2 of 0, 0.2, 0.3, 0.4 then): the stopping step was then missed in 15 trials offline (16 on-line). It was the
+  default (0.2) up to on-line algorithm version 3. Put through the rule for choices (a constant chosen on recordings
+  is kept only when its gain's 95 % subject-bootstrap interval excludes zero), it fails: with short gaps interpolated
+  and every step of a trial scored, the folds chose 0.2 in 7 of 9 and the cross-validated gain in mean |step-count
+  error| per trial is -0.06 [-0.15, +0.04] steps offline; the shipped 0.2 in the on-line fixed chain, in-sample,
+  -0.09 [-0.24, +0.09] steps, M2 IQR -0.004 [-0.014, +0.009] (``gaitlog evaluate ipol``'s choices). The
+  simulated slow walkers' counts and M3 are the same with and without it (both chains, three walkers). So the
+  simpler choice stays: no stop rule; the rule remains a parameter (``0.2``: versions 1-3's).
 * On-line only: gravity is a causal two-stage exponential mean of time constant ``gravity_tau_s``,
   replacing the offline chain's centred 4 s window (which needs 2 s of future samples). Rule: the smallest
   power-of-two number of samples whose second-order attenuation ``(2 pi f tau)^-2`` at a slow step
@@ -75,8 +83,9 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   the rule, not those trials, sets it. The typical step duration is the median of the last
   ``median_steps`` (7) peak intervals; before three are known, the prior ``prior_step_s`` (0.55 s, a
   literature cadence; the offline chain has the whole recording's median instead).
-* M4's exponent :data:`M4_EXPONENT` 1/2, not Weinberg's 1/4 (Alvarez eq 4; Weinberg, ADI AN-602, fitted on
-  his own device). With K fitted on one trial, a range^(1/4) follows a subject's later, longer or shorter
+* M4's exponent :data:`M4_EXPONENT` 1/4, Weinberg's (Alvarez eq 4; Weinberg, ADI AN-602), the default of the step
+  configuration's ``m4_exponent`` (on-line algorithm version 4; versions 2-3 computed 1/2). It was 1/2, argued
+  so: with K fitted on one trial, a range^(1/4) follows a subject's later, longer or shorter
   steps too little: IPOL subject 5 walks its first trial with 38 steps of 0.53 m and its others with 33 of
   0.61 m (-13 %); the fourth root of the range of the 3 Hz vertical acceleration per step moves by -2 %, its
   square root by -4 %. The exponent is a constant chosen from the IPOL recordings, chosen
@@ -85,7 +94,11 @@ Why each default is what it is (the measured figures behind them are in ``gaitlo
   whole eighths, which the firmware computes with square roots, and at most 1/2 so that the uncalibrated
   record's ``range^p``, in (m/s^2)^p, fits its 0-4 m UQ2.14 length up to a range of 16 m/s^2: 5/8 would
   saturate it from 9.2 m/s^2, 0.94 g, which simulated walking reaches). 1/2 in 8 of 9 folds (3/8 when IPOL
-  subject 7 is held out).
+  subject 7 is held out). Put through the rule for choices, 1/2 fails: its gain in IQR of the calibrated M4 ratio
+  over 1/4 is +0.021 [-0.009, +0.044] offline (the exponent chosen per fold) and +0.028 [-0.011, +0.057] in the
+  on-line fixed chain (in-sample), 95 % subject-bootstrap intervals that include zero, so Weinberg's 1/4 is the
+  default again; the exponent stays a parameter of the step configuration (a K file stores the one K was fitted
+  with, and the logger computes that one).
 """
 
 from __future__ import annotations
@@ -94,7 +107,7 @@ import math
 from dataclasses import dataclass
 
 
-__all__ = ["prominence_threshold", "M4_EXPONENT", "M4_EXPONENT_EIGHTHS", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
+__all__ = ["prominence_threshold", "M4_EXPONENT", "m4_exponent_eighths", "EventParameters", "OnlineParameters", "SampleCounts", "samples", "minimum_distance", "amplitude_update",
            "gaussian_radius", "FRACTION_SCALE",
            "SIGMA_S_AT_1HZ"]
 
@@ -114,11 +127,9 @@ def m4_exponent_eighths(exponent: float) -> int:
     return round(e)
 
 
-#: M4's exponent: ``S = K (a_max - a_min)^M4_EXPONENT`` (module notes; Weinberg's is 1/4).
-M4_EXPONENT = 1 / 2
-#: The same in eighths (the firmware's square-root chain: range^(1/2), ^(1/4), ^(1/8) multiplied as its bits
-#: select).
-M4_EXPONENT_EIGHTHS = m4_exponent_eighths(M4_EXPONENT)
+#: M4's exponent: ``S = K (a_max - a_min)^M4_EXPONENT`` (module notes): Weinberg's 1/4, the default of the step
+#: configuration's ``m4_exponent``.
+M4_EXPONENT = 1 / 4
 #: ``min_step_fraction`` is applied as the integer ``round(fraction · FRACTION_SCALE)`` (a 3-digit constant).
 FRACTION_SCALE = 1000
 
@@ -175,7 +186,7 @@ class EventParameters:
         ``amplitude_steps`` peaks, a power of two), clamped to ``[min_prominence_m_s2,
         max_prominence_m_s2]`` (:func:`prominence_threshold`; floor = cap: a fixed threshold).
     stop_prominence_m_s2
-        The stop rule (module notes): a bout's weak last step stands out by this much (0: off).
+        The stop rule (module notes): a bout's weak last step stands out by this much (0, the default: off).
     """
 
     ff_cutoff_hz: float = 3.0
@@ -192,7 +203,7 @@ class EventParameters:
     min_step_fraction: float = 0.6
     prominence_fraction: float = 0.25
     amplitude_steps: int = 4
-    stop_prominence_m_s2: float = 0.2
+    stop_prominence_m_s2: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("ff_cutoff_hz", "detail_cutoff_hz", "impact_cutoff_hz", "min_step_s", "max_step_s",

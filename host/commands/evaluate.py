@@ -210,8 +210,8 @@ def run(args: argparse.Namespace) -> int:
         _print_table("arithmetic = offline, height UNKNOWN: a 1.70 m adult assumed for every subject (K fitted with "
                      "those lengths; M3 has no K to absorb them)",
                      summarise(res.rows, arithmetic="offline", variant="height-unknown", intervals=True))
-        _print_table("arithmetic = offline, M4 with Weinberg's range^(1/4) (K refitted with it; M4 row only)",
-                     [x for x in summarise(res.rows, arithmetic="offline", variant="m4-quarter", intervals=True)
+        _print_table("arithmetic = offline, M4 with the exponent chosen per fold (K refitted with it; M4 row only)",
+                     [x for x in summarise(res.rows, arithmetic="offline", variant="m4-per-fold", intervals=True)
                       if x["estimator"] == "M4"])
         _print_table("baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
                      "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "

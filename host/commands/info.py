@@ -80,7 +80,8 @@ def step_lines(header) -> list[str]:
                           f"{int(ONLINE_ALGORITHM_VERSION)}), ")
         from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 
-        algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^{M4_EXPONENT:g}, "
+        p4 = q.m4_exponent if q.m4_exponent > 0 else (M4_EXPONENT if int(cfg.step_format) >= 4 else 0.5)
+        algorithm += (f"calibrated: K M1 {q.k_m1:.4f}, M2 {q.k_m2:.4f}, M4 {q.k_m4:.4f} m/(m/s^2)^{p4:g}, "
                       f"M5 S = {q.k1_m5_m_s:.4f}/T {q.k2_m5_m:+.4f} m" if cfg.calibrated else
                       "raw (no K: M1, M2, M4 with K = 1, M5 the cadence in Hz)")
     return [f"step memory      {memory}", f"step algorithm   {algorithm}"]

@@ -31,9 +31,9 @@ weights, and K is the shrunk one.
 
 *M4's exponent.* ``k_m4`` is in m / (m/s^2)^p: it holds for the exponent it was fitted with
 (``m4_exponent``). The offline chain applies it with that exponent (:func:`gaitlog.host.gait.pipeline.
-apply_calibration`, from the step's range); the logger computes the firmware's exponent only
-(:data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`), so :meth:`KFit.step_constants` refuses a K fitted
-with another.
+apply_calibration`, from the step's range); the logger (on-line algorithm version 4) computes the exponent its
+step configuration gives, whole eighths up to 1/2, so :meth:`KFit.step_constants` passes it on and refuses a K fitted
+with another exponent.
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 import numpy as np
 
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.protocol.steps import M4_EXPONENT_EIGHTHS_MAX
 from gaitlog.host.errors import HostError
 from gaitlog.host.storage.versioned_json import VersionedJson
 from gaitlog.host.gait.sections import Section, pool_steps
@@ -138,12 +139,15 @@ class KFit(VersionedJson):
         """The K fields of the device's step configuration (:class:`gaitlog.protocol.steps.StepConfig`, PROTOCOL.md 2.2):
         ``calibrated`` and the constants of M1, M2, M4 and M5 (the leg and foot lengths are the caller's).
 
-        Raises :class:`HostError` when ``k_m4`` was fitted with another M4 exponent than the logger's."""
-        if not math.isclose(self.m4_exponent, M4_EXPONENT):
-            raise HostError(f"K calibration: M4's K was fitted with the exponent {self.m4_exponent:g}, the logger "
-                            f"computes {M4_EXPONENT:g}; {self.REDO}")
+        and M4's exponent ``k_m4`` was fitted with (the logger computes it: whole eighths up to 1/2).
+
+        Raises :class:`HostError` when ``k_m4`` was fitted with an exponent the logger cannot compute."""
+        eighths = self.m4_exponent * 8
+        if not (abs(eighths - round(eighths)) < 1e-9 and 1 <= round(eighths) <= M4_EXPONENT_EIGHTHS_MAX):
+            raise HostError(f"K calibration: M4's K was fitted with the exponent {self.m4_exponent:g}; the logger "
+                            f"computes whole eighths up to {M4_EXPONENT_EIGHTHS_MAX}/8; {self.REDO}")
         return dict(calibrated=True, k_m1=float(self.k_m1), k_m2=float(self.k_m2), k_m4=float(self.k_m4),
-                    k1_m5_m_s=float(self.k1_m5_m_s), k2_m5_m=float(self.k2_m5_m))
+                    k1_m5_m_s=float(self.k1_m5_m_s), k2_m5_m=float(self.k2_m5_m), m4_exponent=float(self.m4_exponent))
 
     def fields_to_dict(self) -> dict[str, object]:
         """The fields, as stored in the JSON file (NaN for a K that could not be fitted)."""

@@ -41,8 +41,9 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    The on-line chains run the shipped defaults (``cross_validated`` = 1 when the subject's fold chose them).
    M4's exponent (a ``"k-transfer"`` constant) is chosen per held-out subject on the other subjects' calibrated
    M4 ratios (K from their first trial, shrunk as in step 5b with the prior chosen on them for that exponent,
-   their event constants those of the fold), and that subject's offline
-   rows use it (K fitted with it); the on-line chains compute the shipped exponent, with K fitted with it.
+   their event constants those of the fold), and that subject's ``m4-per-fold`` rows use it (K fitted with it);
+   it is not kept by the rule for choices (step 5c), so the main rows and the on-line chains compute the shipped
+   exponent (:data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`, Weinberg's 1/4), K fitted with it.
 5. *Calibration*: per subject, **one K** (M1/M2/M4 and the M5 line) is fitted on the first trial with
    the **offline** chain (20 m, one speed: M5 uses its walk-ratio fallback,
    :func:`gaitlog.host.gait.k_calibration.calibrate`); every arithmetic uses that K: ``apply_calibration``
@@ -64,7 +65,9 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    (rows ``variant = "baseline"``, :func:`baseline_rows`); every median and IQR of the tables carries a 95 %
    subject-bootstrap interval (:func:`subject_intervals`); each rule of :data:`CHOICES` is scored against its
    simpler choice (:func:`choice_gains`, :func:`count_gains`) and kept only when its gain's interval excludes
-   zero.
+   zero. The on-line algorithm's own rules (:data:`ONLINE_CHOICES`) are scored the same way on the on-line fixed
+   chain, re-run on the stored codes with the simpler choice (:data:`ONLINE_EVENT_VARIANTS`,
+   :data:`ONLINE_M4_VARIANTS`; in-sample: those rules were chosen on these trials).
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
@@ -84,6 +87,7 @@ algorithm shares, the calibrated medians); :func:`format_done` prints them.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections import Counter
@@ -95,8 +99,8 @@ from typing import Any, Self
 import numpy as np
 
 from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ, Adc
-from gaitlog.firmware_sim.algorithms.online import OnlineSteps
-from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT, EventParameters
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.errors import DeviceError
@@ -148,7 +152,7 @@ ARITHMETICS = ("offline", "online-float", "online-fixed")
 #: on-line algorithm's own K, fitted on its own records: a different K, not a comparison).
 K_FROM = ("offline", "own")
 
-#: Weinberg's exponent, M4's simpler choice (``variant = "m4-quarter"``: K refitted with it, no prior).
+#: Weinberg's exponent, M4's simpler choice (the shipped one; the on-line rows ``variant = "m4-quarter"``).
 WEINBERG_EXPONENT = 0.25
 
 #: Whether the main rows use K shrunk toward the other subjects' K (the K prior, step 5b). False: its
@@ -159,6 +163,19 @@ K_PRIOR_IN_MAIN = False
 
 #: The two U-turn rules (module notes, step 4); both are reported.
 UTURN_RULES = ("exclude", "include")
+
+#: The on-line algorithm's own rules against their simpler choices (rows ``arithmetic = "online-fixed"``, K the
+#: offline chain's, as the main rows): variant -> the :class:`~gaitlog.firmware_sim.algorithms.parameters.
+#: EventParameters` fields it changes from the defaults, the on-line algorithm re-run in fixed point on the stored
+#: codes with them. ``stop-v3``: the stop rule of on-line algorithm versions 1-3 (0.2 m/s^2; version 4 has none);
+#: ``prominence-fixed``: the fixed foot-flat prominence of versions 1-2 (the cap, 0.5 m/s^2, floor = cap).
+ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
+    "stop-v3": dict(stop_prominence_m_s2=0.2),
+    "prominence-fixed": dict(min_prominence_m_s2=EventParameters().max_prominence_m_s2),
+}
+#: The on-line chain's M4 with each exponent (variant -> exponent): ``K range^p`` of the on-line fixed-point
+#: records' ranges (host float; the arithmetic's share is ~1e-4), K fitted with ``p`` on the offline chain.
+ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-half": 0.5}
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
                "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
@@ -272,14 +289,17 @@ class ReplayedTrial:
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
-    def online_table(self, *, arithmetic: str, calibration: KFit | None = None) -> tuple[StepTable, Any]:
+    def online_table(self, *, arithmetic: str, calibration: KFit | None = None,
+                     events: EventParameters | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`gaitlog.host.files.replay.online_step_table`)."""
+        anatomy and ``calibration``'s K (:func:`gaitlog.host.files.replay.online_step_table`); ``events``: other
+        rules than the defaults (a study's variant, not what the logger ran)."""
+        algorithm = (OnlineStepAlgorithm if events is None else functools.partial(OnlineStepAlgorithm, events=events))
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
                                  calibration=calibration, adc_calibration=self.header.calibration,
                                  adc_bits=self.adc_bits, arithmetic=arithmetic, run_starts=self.run_starts(),
-                                 t0_s=self.t0_s)
+                                 t0_s=self.t0_s, algorithm=algorithm)
 
     def device_table(self) -> StepTable:
         """The logger's own records as a table (raw lengths: it ran uncalibrated)."""
@@ -439,6 +459,14 @@ class IpolResult:
     count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     priors: dict[int, dict[str, KPrior]] = field(default_factory=dict)
     prior_all: KPrior | None = None
+
+
+def _with_m4_lengths(table: StepTable, k: KFit) -> StepTable:
+    """A copy of ``table`` whose calibrated M4 lengths are ``k``'s ``K range^p`` (p its exponent) of each step's
+    range."""
+    out = table.select(np.ones(table.n_steps, bool))
+    out.length_m = {**table.length_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=k.k_m4, exponent=k.m4_exponent)}
+    return out
 
 
 def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
@@ -672,7 +700,8 @@ class EventConstantsStage:
 @dataclass(frozen=True, eq=False)
 class FoldChoice:
     """Stage 3, one held-out subject: M4's exponent and the K priors chosen on the other subjects
-    (``"main"``: with the fold's exponent, ``"online"``: with the logger's; either may be absent)."""
+    (``"main"`` and ``"online"``: with the shipped exponent, which the main rows use; absent with too few
+    others)."""
 
     m4_exponent: float
     priors: dict[str, KPrior]
@@ -702,8 +731,10 @@ class SubjectFit:
         The main rows' K, and the first trial's K alone (equal unless :data:`K_PRIOR_IN_MAIN`).
     k_online
         The on-line chains' K (the logger's M4 exponent).
-    k_other, k_assumed, k_quarter
-        K for the other U-turn rule, for the height unknown, and with Weinberg's exponent.
+    k_other, k_assumed, k_fold
+        K for the other U-turn rule, for the height unknown, and with M4's exponent chosen in the subject's fold.
+    k_by_exponent
+        K fitted with each exponent of :data:`ONLINE_M4_VARIANTS` (the on-line chain's M4 rows).
     own
         The on-line algorithm's own K (None without ``online-fixed`` or when its calibration failed).
     cross_validated_online
@@ -720,9 +751,10 @@ class SubjectFit:
     k_online: KFit
     k_other: KFit
     k_assumed: KFit
-    k_quarter: KFit
+    k_fold: KFit
     own: KFit | None
     cross_validated_online: bool
+    k_by_exponent: dict[float, KFit] = field(default_factory=dict)
     k_shrunk: KFit | None = None
 
 
@@ -977,18 +1009,21 @@ class IpolEvaluation:
         """The subject's K with event candidate ``c`` and M4 exponent ``p4`` (``own`` left None)."""
         leg, foot, rt0 = rs.leg_length_m, rs.foot_length_m, rs.trials[0]
         offs = rs.offline(c)
-        k = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p4)
-        k_online = (k if math.isclose(p4, M4_EXPONENT)
-                    else _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot))
-        k_other = _calibrate_on(rt0, offs[0], uturn=self.other_uturn, leg=leg, foot=foot, m4_exponent=p4)
+        # the main rows and the on-line chains: the shipped M4 exponent (the fold's is not kept by the rule for
+        # choices: its gain's interval includes zero); the fold's scores the m4-per-fold rows
+        k = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot)
+        k_online = k
+        k_other = _calibrate_on(rt0, offs[0], uturn=self.other_uturn, leg=leg, foot=foot)
         a_leg, a_foot = anatomical_lengths(height_m=DEFAULT_HEIGHT_M)
         assumed = [_offline(rt, a_leg, a_foot, cands[c]) for rt in rs.trials]
-        k_assumed = _calibrate_on(rt0, assumed[0], uturn=self.uturn, leg=a_leg, foot=a_foot, m4_exponent=p4)
-        k_quarter = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=WEINBERG_EXPONENT)
-        # the on-line algorithm runs the defaults (event candidate 0, the logger's M4 exponent)
-        cv_online = c == 0 and math.isclose(p4, M4_EXPONENT)
+        k_assumed = _calibrate_on(rt0, assumed[0], uturn=self.uturn, leg=a_leg, foot=a_foot)
+        k_fold = _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p4)
+        # the on-line algorithm runs the defaults (event candidate 0)
+        cv_online = c == 0
+        k_by_exponent = {p: _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p)
+                         for p in ONLINE_M4_VARIANTS.values()} if "online-fixed" in self.arithmetic else {}
         return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
-                          k_quarter=k_quarter, own=None, cross_validated_online=cv_online)
+                          k_fold=k_fold, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent)
 
     def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
         """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
@@ -1056,17 +1091,33 @@ class IpolEvaluation:
             runs.append(ScoredChain("online-fixed", "own", own, fit.own, self.uturn, src, "main", cv))
         if "offline" in self.arithmetic:
             runs += self._offline_variants(fit, i)
+        if "online-fixed" in self.arithmetic:
+            runs += self._online_variants(fit, i, tables["online-fixed"], saturation)
+        return runs
+
+    def _online_variants(self, fit: SubjectFit, i: int, table: StepTable, saturation: list[str]) -> list[ScoredChain]:
+        """The on-line fixed chain on trial ``i`` with each of :data:`ONLINE_EVENT_VARIANTS` and
+        :data:`ONLINE_M4_VARIANTS` (the offline K; ``cross_validated`` 0: the on-line rules were chosen on these
+        trials)."""
+        rt, src = fit.replayed.trials[i], fit.replayed.lengths_source
+        runs = [ScoredChain("online-fixed", "offline", _online(rt, "online-fixed", fit.k_online, saturation,
+                                                               events=replace(EventParameters(), **fields)),
+                            fit.k_online, self.uturn, src, name, False)
+                for name, fields in ONLINE_EVENT_VARIANTS.items()]
+        runs += [ScoredChain("online-fixed", "offline", _with_m4_lengths(table, fit.k_by_exponent[p]),
+                             fit.k_by_exponent[p], self.uturn, src, name, False)
+                 for name, p in ONLINE_M4_VARIANTS.items()]
         return runs
 
     def _offline_variants(self, fit: SubjectFit, i: int) -> list[ScoredChain]:
-        """The offline chain on trial ``i`` with the other U-turn rule, the height unknown, Weinberg's exponent and
-        the other K (the first trial's alone, or shrunk)."""
+        """The offline chain on trial ``i`` with the other U-turn rule, the height unknown, M4's exponent chosen in
+        the fold and the other K (the first trial's alone, or shrunk)."""
         off, src, u = fit.offline[i], fit.replayed.lengths_source, self.uturn
         runs = [ScoredChain("offline", "offline", _calibrated(off, fit.k_other), fit.k_other, self.other_uturn, src,
                             f"uturn-{self.other_uturn}", True),
                 ScoredChain("offline", "offline", _calibrated(fit.assumed[i], fit.k_assumed), fit.k_assumed, u,
                             "assumed-height", "height-unknown", True),
-                ScoredChain("offline", "offline", _calibrated(off, fit.k_quarter), fit.k_quarter, u, src, "m4-quarter",
+                ScoredChain("offline", "offline", _calibrated(off, fit.k_fold), fit.k_fold, u, src, "m4-per-fold",
                             True)]
         if K_PRIOR_IN_MAIN:
             runs.append(ScoredChain("offline", "offline", _calibrated(off, fit.k_fitted), fit.k_fitted, u, src,
@@ -1110,7 +1161,7 @@ def _fold_choice(others: list[int], candidate: int, transfers: _Transfers, shipp
             pooled.append(_shrunk_pool(train, "M4", priors[j].distance_m))
     j, _ = least_spread(pooled)
     return FoldChoice(float(transfers.exponents[j]),
-                      {key: priors[jj] for key, jj in (("main", j), ("online", shipped_j)) if jj in priors})
+                      {key: priors[shipped_j] for key in ("main", "online") if shipped_j in priors})
 
 
 def _shrunk_k(subject: int, fits: dict[int, SubjectFit], priors: dict[str, KPrior]) -> ShrunkK:
@@ -1165,9 +1216,12 @@ def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_sour
             for rt, d, n in zip(trials[1:], sums[1:], steps[1:], strict=True) for e in d]
 
 
-def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str]) -> StepTable:
+def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str],
+            events: EventParameters | None = None) -> StepTable:
+    """The on-line chain of ``arithmetic`` on ``rt``'s stored codes with ``k`` (and ``events``' rules instead of the
+    defaults); a fixed-point saturation is added to ``saturation``."""
     ar = arithmetic.removeprefix("online-")
-    table, alg = rt.online_table(arithmetic=ar, calibration=k)
+    table, alg = rt.online_table(arithmetic=ar, calibration=k, events=events)
     if ar == "fixed" and alg.arithmetic_context().report():
         saturation.append(f"{rt.path.name}: {alg.arithmetic_context().report()}")
     return table
@@ -1280,28 +1334,72 @@ CHOICES = (
      ("M1", "M2", "M4")),
     ("K prior (K shrunk toward the other subjects' K) against the first trial's K alone", "main", "k-prior",
      ("M1", "M2", "M4")),
-    ("M4's exponent chosen per fold against Weinberg's 1/4", "m4-quarter", "main", ("M4",)),
+    ("M4's exponent chosen per fold against the shipped one (Weinberg's 1/4)", "main", "m4-per-fold", ("M4",)),
     ("the shipped chain against the recipe (the baseline)", "baseline", "main", ("M2", "M4")),
     ("U-turn steps left out of the distance against every step summed", "main", "uturn-exclude", ESTIMATORS),
 )
 
 
+#: The on-line algorithm's own rules scored by the rule (:func:`choice_gains`, rows ``online-fixed``): name, the
+#: simple choice's rows, the rule's rows (:data:`ONLINE_EVENT_VARIANTS`, :data:`ONLINE_M4_VARIANTS`), the
+#: estimators whose IQR it is scored on; the step-counting rules also by the step count (:func:`row_count_gain`).
+#: In-sample: these rules were chosen on these trials, so each gain is, if anything, optimistic.
+ONLINE_CHOICES = (
+    ("on-line: the stop rule of versions 1-3 (stop_prominence_m_s2 0.2) against none (version 4)", "main", "stop-v3",
+     ("M2", "M4")),
+    ("on-line: the adaptive foot-flat prominence as shipped against the fixed 0.5 m/s^2", "prominence-fixed", "main",
+     ("M2", "M4")),
+    ("on-line: M4's exponent 1/2 against Weinberg's 1/4 (both from the records' ranges)", "m4-quarter", "m4-half",
+     ("M4",)),
+)
+
+
 def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
-    """Each rule of :data:`CHOICES` against its simpler choice, per estimator: the cross-validated gain in IQR
-    with its 95 % subject-bootstrap interval (:func:`choice_gain`) and whether the rule is kept (the interval
-    excludes zero on the side of a gain). Empty for a choice whose rows are absent (e.g. the U-turn rule when
-    the main rows exclude the turn)."""
-    off = [r for r in result.rows if r["arithmetic"] == "offline" and r["k_from"] == "offline"]
+    """Each rule of :data:`CHOICES` (offline chain) and of :data:`ONLINE_CHOICES` (on-line fixed chain) against its
+    simpler choice, per estimator: the gain in IQR with its 95 % subject-bootstrap interval (:func:`choice_gain`)
+    and whether the rule is kept (the interval excludes zero on the side of a gain); the on-line step-counting
+    rules also by the step count (:func:`row_count_gain`). Empty for a choice whose rows are absent (e.g. the
+    U-turn rule when the main rows exclude the turn)."""
     out = []
-    for label, simple, rule, estimators in CHOICES:
-        a = [r for r in off if r["variant"] == simple]
-        b = [r for r in off if r["variant"] == rule]
-        if not a or not b:
-            continue
-        for e in estimators:
-            gain, lo, hi = choice_gain(a, b, e)
-            out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+    for arithmetic, choices in (("offline", CHOICES), ("online-fixed", ONLINE_CHOICES)):
+        mine = [r for r in result.rows if r["arithmetic"] == arithmetic and r["k_from"] == "offline"]
+        for label, simple, rule, estimators in choices:
+            a = [r for r in mine if r["variant"] == simple]
+            b = [r for r in mine if r["variant"] == rule]
+            if not a or not b:
+                continue
+            for e in estimators:
+                gain, lo, hi = choice_gain(a, b, e)
+                out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+            if ONLINE_EVENT_VARIANTS.keys() & {simple, rule} and arithmetic != "offline":
+                gain, lo, hi = row_count_gain(a, b)
+                out.append(dict(choice=label, estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
     return out
+
+
+def _mean_gain(diffs: list[np.ndarray], *, n_resamples: int, seed: int, level: float) -> tuple[float, float, float]:
+    """The mean of per-subject arrays of per-trial differences pooled, and its percentile-bootstrap interval over
+    subjects (a subject's trials kept together)."""
+    counts = subject_resamples(len(diffs), n_resamples=n_resamples, seed=seed)
+    boot = [np.mean(np.concatenate([d for d, k in zip(diffs, cs, strict=True) for _ in range(k)])) for cs in counts]
+    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
+    return float(np.mean(np.concatenate(diffs))), float(lo), float(hi)
+
+
+def row_count_gain(simple: list[dict], rule: list[dict], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
+                   level: float = BOOTSTRAP_LEVEL) -> tuple[float, float, float]:
+    """The step-count gain of a rule (rows ``rule``) over the simpler choice (rows ``simple``, the same trials): per
+    trial ``|steps - reference| simple - |steps - reference| rule`` (steps; positive: the rule counts better), its
+    mean and 95 % subject-bootstrap interval."""
+    def errors(rows: list[dict]) -> dict[tuple[int, int], int]:
+        return {(int(r["subject"]), int(r["trial"])): abs(int(r["steps"]) - int(r["reference_steps"])) for r in rows}
+    a, b = errors(simple), errors(rule)
+    per: dict[int, list[int]] = {}
+    for key in sorted(k for k in a if k in b):
+        per.setdefault(key[0], []).append(a[key] - b[key])
+    if not per:
+        return (math.nan,) * 3
+    return _mean_gain([np.asarray(v, float) for v in per.values()], n_resamples=n_resamples, seed=seed, level=level)
 
 
 def count_gains(result: IpolResult, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
@@ -1322,13 +1420,9 @@ def count_gains(result: IpolResult, *, n_resamples: int = BOOTSTRAP_RESAMPLES, s
             diffs.append(np.array([abs(e[twin]) - abs(e[c]) for e in errs], float))
         if not diffs:
             continue
-        counts = subject_resamples(len(diffs), n_resamples=n_resamples, seed=seed)
-        boot = [np.mean(np.concatenate([d for d, k in zip(diffs, cs, strict=True) for _ in range(k)])) for cs in counts]
-        lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
-        gain = float(np.mean(np.concatenate(diffs)))
+        gain, lo, hi = _mean_gain(diffs, n_resamples=n_resamples, seed=seed, level=level)
         out.append(dict(choice=f"{name} chosen per fold against {simple!r} (the rule off); gain in mean |step-count "
-                        "error| per trial, steps", estimator="steps", gain=gain, low=float(lo), high=float(hi),
-                        kept=bool(lo > 0)))
+                        "error| per trial, steps", estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
     return out
 
 
@@ -1406,8 +1500,7 @@ def format_tuning(result: IpolResult) -> str:
         counts = {v: values.count(v) for v in dict.fromkeys(values)}
         lines.append(f"  {p.name} (default {p.default!r}; {p.used_in}; by {p.criterion}): "
                      + ", ".join(f"{v!r} in {n} of {len(values)} folds" for v, n in counts.items()))
-    every_default = (all(c == 0 for c in loso.values())
-                     and all(math.isclose(v, M4_EXPONENT) for v in result.m4_exponent.values()))
+    every_default = all(c == 0 for c in loso.values())
     lines.append("cross-validated: every offline-chain figure (each subject scored with the constants chosen on "
                  "the other subjects; K per subject from its first trial" + (
                      ", shrunk toward the other subjects' K," if K_PRIOR_IN_MAIN else "") + " scored "

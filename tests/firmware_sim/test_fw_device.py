@@ -133,7 +133,8 @@ def _steps(n: int) -> bytes:
 def test_logger_has_step_memory_and_config() -> None:
     from gaitlog.protocol.steps import StepConfig
 
-    cfg = StepConfig(step_format=3, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1)
+    cfg = StepConfig(step_format=4, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.1,
+                     m4_exponent=0.25)   # as firmware 1.3 stores it
     lg = Logger(step_config=cfg)
     h = lg.header
     assert (h.step_capacity, h.steps_written, h.step_write_index) == (3276, 0, 0)
@@ -159,7 +160,7 @@ def test_image_carries_the_step_memory(tmp_path: Path) -> None:
     from gaitlog.protocol.image import parse_image
     from gaitlog.protocol.steps import StepConfig
 
-    cfg = StepConfig(step_format=3, leg_length_m=0.875)
+    cfg = StepConfig(step_format=4, leg_length_m=0.875, m4_exponent=0.25)
     lg = Logger(device_id=5, sensor=SensorModel.ideal(), step_config=cfg)
     lg.firmware.start_logging(start_time_s=1000, overwrite=True)
     lg.firmware.log_samples(np.full((300, 3), 512))

@@ -128,11 +128,13 @@ def test_set_step_config_payload() -> None:
 @pytest.mark.parametrize(
     ("payload", "code", "offset"),
     [
-        (b"\x04" + bytes(31), ErrorCode.BAD_ARGUMENT, 106),  # unknown step_format
+        (b"\x05" + bytes(31), ErrorCode.BAD_ARGUMENT, 106),  # unknown step_format
         (b"\x01\x80\x00\x70" + bytes(28), ErrorCode.BAD_ARGUMENT, 107),  # reserved step_flags bit
         (b"\x01\x01" + bytes(30), ErrorCode.BAD_ARGUMENT, 108),  # format 1 with leg length 0
         (b"\x02\x00" + bytes(30), ErrorCode.BAD_ARGUMENT, 108),  # format 2 with leg length 0
         (b"\x03\x00" + bytes(30), ErrorCode.BAD_ARGUMENT, 108),  # format 3 with leg length 0
+        (b"\x04\x00" + bytes(30), ErrorCode.BAD_ARGUMENT, 108),  # format 4 with leg length 0
+        (b"\x04\x00\x00\x70" + bytes(16) + b"\x05" + bytes(11), ErrorCode.BAD_ARGUMENT, 126),  # M4 exponent 5/8
         (bytes(31), ErrorCode.BAD_LENGTH, 104),
         (bytes(33), ErrorCode.BAD_LENGTH, 104),
     ],

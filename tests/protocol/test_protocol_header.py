@@ -287,7 +287,7 @@ def test_saturated_step_counter_allows_any_index() -> None:
         (_corrupt(GOOD_STEPS, 44, struct.pack("<I", 3299)), 44, "steps_written: 3299"),
         (_corrupt(GOOD, 44, struct.pack("<I", 5)), 44, "steps_written: 5 records written but step_capacity is 0"),
         (_corrupt(GOOD, 48, struct.pack("<H", 1)), 48, "step_write_index: 1 but step_capacity is 0"),
-        (_corrupt(GOOD_STEPS, 128, b"\x04"), 128, "step_format: unknown step format 4"),
+        (_corrupt(GOOD_STEPS, 128, b"\x05"), 128, "step_format: unknown step format 5"),
         (_corrupt(GOOD_STEPS, 129, b"\x03"), 129, "step_flags: reserved bits set in 0x03"),
         (_corrupt(GOOD_STEPS, 130, b"\x00\x00"), 130, "leg_length_q15: step_format 1 needs a leg length"),
     ],
@@ -310,7 +310,7 @@ def test_step_reserved_bytes_are_ignored() -> None:
         (dict(steps_written=-1), 44, "steps_written"),
         (dict(step_write_index=3276), 48, "step_write_index"),
         (dict(step_config=StepConfig(step_format=1, leg_length_m=2.5)), 130, "leg_length_q15"),
-        (dict(step_config=StepConfig(step_format=4)), 128, "step_format"),
+        (dict(step_config=StepConfig(step_format=5)), 128, "step_format"),
         (dict(step_config="off"), 128, "must be a StepConfig"),
     ],
 )

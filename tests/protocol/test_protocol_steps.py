@@ -179,7 +179,8 @@ def test_config_matches_reference_layout() -> None:
     assert cfg.to_bytes() == ref and len(ref) == 32
     assert StepConfig.from_bytes(ref) == cfg  # exact in the Q formats
     assert cfg.raw == dict(step_format=1, step_flags=1, leg_length_q15=28672, foot_length_q15=8192,
-                           k_m1_q15=40960, k_m2_q15=16384, k_m4_q15=20480, k1_m5_q16=-32768, k2_m5_q16=49152)
+                           k_m1_q15=40960, k_m2_q15=16384, k_m4_q15=20480, k1_m5_q16=-32768, k2_m5_q16=49152,
+                           m4_exponent_eighths=0)
     assert StepConfig.off().to_bytes() == bytes(32) and not StepConfig.off().enabled and cfg.enabled
     # reserved bytes 20-31 are ignored by readers
     assert StepConfig.from_bytes(ref[:20] + b"\xff" * 12) == cfg
@@ -204,7 +205,7 @@ def test_config_rounds_half_up() -> None:
 @pytest.mark.parametrize(
     ("changes", "offset", "match"),
     [
-        (dict(step_format=4), 0, "step_format: unknown step format 4"),
+        (dict(step_format=5), 0, "step_format: unknown step format 5"),
         (dict(leg_length_m=2.0), 2, r"leg_length_q15: leg_length_m 2.0 outside the stored range 0 \.\.\. 1.99997"),
         (dict(leg_length_m=-0.001), 2, "leg_length_q15: leg_length_m -0.001 outside"),
         (dict(leg_length_m=1e-6), 2, "leg_length_q15: step_format 1 needs a leg length > 0"),
@@ -236,7 +237,7 @@ def test_config_extremes_are_stored() -> None:
 @pytest.mark.parametrize(
     ("data", "offset", "match"),
     [
-        (_ref_config(4, 0, 29491, 0, 0, 0, 0, 0, 0), 0, "step_format: unknown step format 4"),
+        (_ref_config(5, 0, 29491, 0, 0, 0, 0, 0, 0), 0, "step_format: unknown step format 5"),
         (_ref_config(255, 0, 0, 0, 0, 0, 0, 0, 0), 0, "unknown step format 255"),
         (_ref_config(1, 0x02, 29491, 0, 0, 0, 0, 0, 0), 1, r"step_flags: reserved bits set in 0x02"),
         (_ref_config(0, 0x81, 0, 0, 0, 0, 0, 0, 0), 1, "step_flags: reserved bits"),
@@ -272,3 +273,19 @@ def test_config_quantisation_property(leg: float, foot: float, k: list[float], m
                       ("k_m2", 2.0**-15), ("k_m4", 2.0**-15), ("k1_m5_m_s", 2.0**-16), ("k2_m5_m", 2.0**-16)):
         err = getattr(q, attr) - getattr(cfg, attr)
         assert -lsb / 2 < err <= lsb / 2, attr  # half up: ties go up
+
+
+def test_version_4_stores_m4s_exponent_in_eighths() -> None:
+    """Byte 20 of a version-4 block is M4's exponent in eighths (0: not given, 1-4: 1/8 .. 1/2); in a block of
+    versions 1-3 it was reserved and is ignored; 5/8 and odd fractions are refused, naming the field."""
+    ref = bytearray(_ref_config(4, 0, 29491, 0, 0, 0, 0, 0, 0))
+    ref[20] = 3
+    assert StepConfig.from_bytes(bytes(ref)).m4_exponent == 0.375
+    assert StepConfig(step_format=4, leg_length_m=0.9, m4_exponent=0.375).to_bytes() == bytes(ref)
+    ref[0] = 3
+    assert StepConfig.from_bytes(bytes(ref)).m4_exponent == 0.0
+    with pytest.raises(ProtocolError, match="m4_exponent_eighths: m4_exponent must be 0") as info:
+        StepConfig(step_format=4, leg_length_m=0.9, m4_exponent=0.3).to_bytes()
+    assert info.value.offset == 20
+    with pytest.raises(ProtocolError, match="m4_exponent_eighths"):
+        StepConfig(step_format=4, leg_length_m=0.9, m4_exponent=0.625).to_bytes()

@@ -240,7 +240,8 @@ def test_worked_example(name: str) -> None:
         assert (f2 == 0).all() and cmap.frames(c2).tolist() == fields["codes"]
         np.testing.assert_array_equal(cmap.values(cmap.frames(c2), adc_bits=10), fields["values"])
     elif kind == "step-config":
-        assert len(data) == 32 and data[20:] == bytes(12)
+        eighths = round(8 * fields.get("m4_exponent", 0)) if fields["step_format"] >= 4 else 0
+        assert len(data) == 32 and data[20] == eighths and data[21:] == bytes(11)
         assert StepConfig(**fields).to_bytes() == data
         back = StepConfig.from_bytes(data)
         for key, value in fields.items():

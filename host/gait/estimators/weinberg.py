@@ -2,8 +2,8 @@
 
 .. math:: S = K (a_{max} - a_{min})^p
 
-with ``p`` :data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT` (1/2; Weinberg's is 1/4: why, and how it
-was chosen leave-one-subject-out, in that module's notes and :mod:`gaitlog.host.studies.tuning`)
+with ``p`` :data:`gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT` (Weinberg's 1/4; 1/2, tuned on IPOL, did
+not pass the project's rule for choices: that module's notes and :mod:`gaitlog.host.studies.tuning`)
 
 per step, ``a`` the vertical acceleration low-passed at 3 Hz (its first harmonic; here a Gaussian
 low-pass with -3 dB at 3 Hz over the measured samples), max and min within the step (foot-flat to

@@ -392,28 +392,29 @@ def test_dropped_records_are_not_compared_and_a_changed_one_is_found(walk):
 
 
 def test_the_device_stores_the_algorithm_version_it_runs(walk):
-    """PROTOCOL.md 2.2 (versions): configured with step_format 1, firmware 1.2 stores 3, the version it runs;
-    SET_STEP_CONFIG does the same; off stays off."""
+    """PROTOCOL.md 2.2 (versions): configured with step_format 1, firmware 1.3 stores 4, the version it runs, and
+    M4's exponent not given as its default 1/4; SET_STEP_CONFIG does the same; off stays off."""
     from gaitlog.firmware_sim.device import Logger
 
     logger, _ = walk
-    assert logger.header.step_config.step_format == StepFormat.V3 == ONLINE_ALGORITHM_VERSION
-    assert logger.header.firmware_version == 0x0102
+    assert logger.header.step_config.step_format == StepFormat.V4 == ONLINE_ALGORITHM_VERSION
+    assert logger.header.firmware_version == 0x0103
     other = Logger(device_id=6)
     other.step_config = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)
-    assert other.header.step_config.step_format == 3 and other.header.step_config.leg_length_m == 0.9
+    assert other.header.step_config.step_format == 4 and other.header.step_config.leg_length_m == 0.9
+    assert other.header.step_config.m4_exponent == 0.25
     other.step_config = StepConfig()
     assert other.header.step_config.step_format == 0
 
 
-@pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.parametrize("version", [1, 2, 3])
 def test_an_image_of_an_older_algorithm_version_decodes_and_says_so(walk, version):
-    """An image firmware 1.0 or 1.1 wrote (step_format 1 or 2) decodes with its records as stored; the host
-    replays only version 3, so they are reported as the older version's, not verified (and not a mismatch)."""
+    """An image firmware 1.0, 1.1 or 1.2 wrote (step_format 1-3) decodes with its records as stored; the host
+    replays only version 4, so they are reported as the older version's, not verified (and not a mismatch)."""
     logger, stored = walk
     firmware = f"firmware 1.{version - 1}"
     old = copy.deepcopy(logger.header)
-    old.step_config = dataclasses.replace(old.step_config, step_format=StepFormat(version))
+    old.step_config = dataclasses.replace(old.step_config, step_format=StepFormat(version), m4_exponent=0.0)
     old.firmware_version = 0x0100 + version - 1
     rec = decode_bytes(build_image(old, logger.memory, step_memory=logger.step_memory))
     assert rec.header.step_config.step_format == version and rec.step_records.tobytes() == stored
@@ -422,7 +423,7 @@ def test_an_image_of_an_older_algorithm_version_decodes_and_says_so(walk, versio
     assert check.algorithm_version == version and check.n_compared == 0 and not check.differs
     assert check.n_device == len(stored) // 20
     assert f"on-line algorithm version {version} ({firmware})" in check.summary()
-    assert "this host replays version 3, so they are not verified" in check.summary()
+    assert "this host replays version 4, so they are not verified" in check.summary()
     current = decode_bytes(build_image(logger.header, logger.memory, step_memory=logger.step_memory))
     assert not any("algorithm version" in n for n in current.notes)
     from gaitlog.host.commands.info import step_lines  # `gaitlog info` says it too

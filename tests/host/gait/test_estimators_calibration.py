@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import json
 import warnings
 
@@ -147,7 +149,8 @@ def test_a_format_1_0_file_is_read_without_a_range(tmp_path) -> None:
 
 def test_a_format_1_1_file_keeps_weinbergs_exponent(tmp_path) -> None:
     """A K file written before M4's exponent was stored (format 1.1) was fitted with range^(1/4): it is read
-    so, applied so on the host (from the step's range), and refused for the logger, which computes another."""
+    so, applied so on the host (from the step's range), and given to the logger with its exponent (on-line algorithm
+    version 4 computes the configuration's, whole eighths up to 1/2; another is refused)."""
     cal = calibrate([(table(0.5, 0.55, 30), 18.0)], leg_length_m=0.9, foot_length_m=0.2)
     d = cal.to_dict()
     d["format_version"] = "1.1"
@@ -157,11 +160,15 @@ def test_a_format_1_1_file_keeps_weinbergs_exponent(tmp_path) -> None:
     old = KFit.load(p)
     assert old.m4_exponent == 0.25 and old.k_m4 == cal.k_m4
     t = table(0.5, 0.55, 30)
-    lengths = apply_calibration(t, old)
-    np.testing.assert_allclose(lengths["M4"][1:], cal.k_m4 * t.acc_range_m_s2[1:] ** 0.25)
-    with pytest.raises(HostError, match="exponent 0.25"):
-        old.step_constants()
+    assert M4_EXPONENT == 0.25          # Weinberg's is the chain's again: the raw lengths are range^(1/4)
+    np.testing.assert_allclose(apply_calibration(t, old)["M4"], apply_calibration(t, cal)["M4"])
+    # a K fitted with another exponent (format 1.2 on) is applied with it, from the step's range
+    half = dataclasses.replace(cal, m4_exponent=0.5)
+    np.testing.assert_allclose(apply_calibration(t, half)["M4"][1:], cal.k_m4 * t.acc_range_m_s2[1:] ** 0.5)
+    assert old.step_constants()["m4_exponent"] == 0.25
     assert cal.step_constants()["k_m4"] == cal.k_m4
+    with pytest.raises(HostError, match="exponent 0.6; the logger computes whole eighths up to 4/8"):
+        dataclasses.replace(cal, m4_exponent=0.6).step_constants()
     d["m4_exponent"] = 0.5
     p.write_text(json.dumps(d))
     with pytest.raises(HostError, match="'m4_exponent' in a format 1.1 file"):

@@ -73,7 +73,7 @@ def test_toe_off_timing(matched) -> None:
 @pytest.fixture(scope="module")
 def sections(shared_data) -> dict:
     """Per trial (all 52), the offline chain's steps within the trial section (the evaluation's rule), with the
-    shipped defaults and with the stop rule off; whether the trial's last reference heel strike has a detected
+    shipped defaults (no stop rule) and with the stop rule of on-line algorithm versions 1-3; whether the trial's last reference heel strike has a detected
     step within 0.15 s."""
     folder = shared_data / "ipol-lowerback-dev"
     if not folder.is_dir():
@@ -85,7 +85,7 @@ def sections(shared_data) -> dict:
     from gaitlog.host.studies.compare import match_events
     from gaitlog.host.studies.ipol_evaluation import replay_trial, trial_steps
 
-    rules = {"default": EventParameters(), "no-stop": EventParameters(stop_prominence_m_s2=0.0)}
+    rules = {"default": EventParameters(), "stop-v3": EventParameters(stop_prominence_m_s2=0.2)}
     out: dict = {name: {"counts": {}, "errors": [], "last_missed": 0} for name in rules}
     for path in list_trials(folder):
         with warnings.catch_warnings():
@@ -121,17 +121,27 @@ def test_events_found_and_filled_per_step(sections) -> None:
 
 
 def test_step_count_per_trial(sections) -> None:
-    """Per 20 m trial (52): median |error| 1 step, median signed error 0 (measured: 21 trials exact, errors
-    -2..+2, sum of |errors| 42; without the stop rule 19 exact, -3..+2, 46)."""
+    """Per 20 m trial (52): median |error| 1 step, median signed error 0 (measured without the stop rule, the
+    default since on-line algorithm version 4: MEASURED_DEFAULT; with the stop rule of versions 1-3 (0.2 m/s^2):
+    MEASURED_STOP)."""
     e = sections["default"]["errors"]
     assert e.size == 52
     assert np.median(np.abs(e)) <= 1 and np.median(e) == 0, e
-    assert np.abs(e).max() <= 2, e
-    assert np.abs(e).sum() <= 44 < np.abs(sections["no-stop"]["errors"]).sum(), e
+    assert np.abs(e).max() <= 3, e
+    for name, (exact, lo, hi, total) in (("default", MEASURED_DEFAULT), ("stop-v3", MEASURED_STOP)):
+        e = sections[name]["errors"]
+        assert (int(np.sum(e == 0)), int(e.min()), int(e.max()), int(np.abs(e).sum())) == (exact, lo, hi, total), name
+
+
+#: Measured per-trial step-count errors of the offline chain on the 52 trials: (trials exact, min, max, sum of
+#: |errors|), without the stop rule (the default) and with the stop rule of versions 1-3.
+MEASURED_DEFAULT = (18, -3, 2, 46)
+MEASURED_STOP = (19, -2, 2, 42)
 
 
 def test_stop_rule_finds_the_last_step(sections) -> None:
     """The step that brings the walker to a stop (the trial's last foot-sensor heel strike): without a detected
-    step within 0.15 s in 15 of 52 trials with the stop rule, 25 without it (measured)."""
-    assert sections["default"]["last_missed"] <= 17, sections["default"]["last_missed"]
-    assert sections["no-stop"]["last_missed"] >= 22, sections["no-stop"]["last_missed"]
+    step within 0.15 s in 15 of 52 trials with the stop rule of versions 1-3, 25 without it (the default: it
+    does not help the count, docs/topics/accuracy.md)."""
+    assert sections["stop-v3"]["last_missed"] <= 17, sections["stop-v3"]["last_missed"]
+    assert sections["default"]["last_missed"] >= 22, sections["default"]["last_missed"]

@@ -75,14 +75,14 @@ def test_refusals() -> None:
     with pytest.raises(HostError, match="no K"):
         population_prior([])
     with pytest.raises(HostError, match="different M4 exponents"):
-        population_prior([k, dataclasses.replace(k, m4_exponent=0.25)])
+        population_prior([k, dataclasses.replace(k, m4_exponent=0.5)])
     s = LOWER_BACK_PRIOR.shrink(k)
     with pytest.raises(HostError, match="already shrunk"):
         LOWER_BACK_PRIOR.shrink(s)
     with pytest.raises(HostError, match="not shrunk ones"):
         population_prior([s])
-    with pytest.raises(HostError, match="M4's exponent 0.5, the K with 0.25"):
-        LOWER_BACK_PRIOR.shrink(dataclasses.replace(k, m4_exponent=0.25))
+    with pytest.raises(HostError, match="M4's exponent 0.25, the K with 0.5"):
+        LOWER_BACK_PRIOR.shrink(dataclasses.replace(k, m4_exponent=0.5))
 
 
 def test_shrunk_k_file_round_trip_and_older_formats(tmp_path) -> None:

@@ -17,7 +17,7 @@ from gaitlog.host.link.logger_link import LoggerLink
 from gaitlog.protocol.steps import STEP_ADDRESS_BASE, StepConfig
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-CONFIG = StepConfig(step_format=3, leg_length_m=0.9, foot_length_m=0.2)
+CONFIG = StepConfig(step_format=4, leg_length_m=0.9, foot_length_m=0.2, m4_exponent=0.25)
 
 
 @pytest.fixture()
@@ -36,22 +36,26 @@ def image(tmp_path):
 
 def test_set_step_config_is_stored_in_the_header(image):
     path, _ = image
-    calibrated = StepConfig(step_format=3, calibrated=True, leg_length_m=0.95, foot_length_m=0.21, k_m1=1.1,
-                            k_m2=1.05, k_m4=0.5, k1_m5_m_s=0.3, k2_m5_m=0.25)
+    calibrated = StepConfig(step_format=4, calibrated=True, leg_length_m=0.95, foot_length_m=0.21, k_m1=1.1,
+                            k_m2=1.05, k_m4=0.5, k1_m5_m_s=0.3, k2_m5_m=0.25, m4_exponent=0.5)
     with LoggerLink(f"emu://{path}", timeout_s=0.5) as link:
         link.set_step_config(calibrated)
         assert link.read_header()[1].step_config == calibrated.quantised()
         # a host that knows an older version: the device stores the version it runs (PROTOCOL.md 2.2)
+        # (byte 20 is reserved in a version-1 block: M4's exponent is then the firmware's default, 1/4)
         link.set_step_config(dataclasses.replace(calibrated, step_format=1))
-        assert link.read_header()[1].step_config == calibrated.quantised()
+        assert link.read_header()[1].step_config == dataclasses.replace(calibrated, m4_exponent=0.25).quantised()
+        # M4's exponent not given (0): the device stores its default, Weinberg's 1/4
+        link.set_step_config(dataclasses.replace(calibrated, m4_exponent=0.0))
+        assert link.read_header()[1].step_config == dataclasses.replace(calibrated, m4_exponent=0.25).quantised()
         link.set_step_config(StepConfig.off().to_bytes())
         assert not link.read_header()[1].step_config.enabled
         # refused on the host, the field named, nothing sent
         with pytest.raises(HostError, match="leg_length_q15"):
             link.set_step_config(StepConfig(step_format=1))
-        # refused by the device: a block section 2.2 refuses (step_format 4)
+        # refused by the device: a block section 2.2 refuses (step_format 5)
         with pytest.raises(HostError, match="SET_STEP_CONFIG: NAK BAD_ARGUMENT"):
-            link.set_step_config(bytes([4]) + bytes(31))
+            link.set_step_config(bytes([5]) + bytes(31))
         link.start(1_700_000_100)
         with pytest.raises(HostError, match="SET_STEP_CONFIG: NAK BUSY"):
             link.set_step_config(CONFIG)

@@ -237,12 +237,12 @@ def test_done_anatomical_foot_flat_timing(population) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="M4 = K range^(1/2) since issue 12 (chosen leave-one-subject-out on the "
-                   "IPOL people; narrower on the 'people' walkers too): the 'v1' walkers follow the walk-ratio law, "
-                   "whose pendulum range grows as the step length^4 (Weinberg's 1/4), so on them single-speed M4's "
-                   "range (0.285) passes M1's (0.206) and multi-speed K does not narrow it")
 def test_done_paper_pattern(population) -> None:
     """M1 widest, multi-speed narrower, M3 (no K) comparable to calibrated M2/M4 (see ``paper_pattern``).
+
+    It holds again with Weinberg's range^(1/4) (on-line algorithm version 4): the 'v1' walkers follow the walk-ratio
+    law, whose pendulum range grows as the step length^4. With range^(1/2) (versions 2-3) it failed: single-speed
+    M4's range (0.285) passed M1's (0.206) and multi-speed K did not narrow it. Figures measured with 1/2 follow.
 
     Measured (single-speed IQR M1/M2/M3/M4; multi-speed M4): 3 subjects 7.4/5.3/5.4/4.1 %, 4.3 %; 6 subjects
     7.5/5.5/8.5/4.3 %, 4.3 %; 8 subjects 7.9/5.8/8.7/4.7 %, 4.9 %. M1 and M2 narrow with multi-speed K; M4 does

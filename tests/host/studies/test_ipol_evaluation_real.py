@@ -2,8 +2,7 @@
 the logger's on-line step algorithm on; the offline chain and the on-line algorithm in float and in fixed point
 with ONE K per subject (fitted on trial 1 with the offline chain).
 
-``gaitlog evaluate ipol`` runs once (module fixture, ~15 s of CPU; a second, offline-only run with ``--uturn
-exclude`` for the shipped prior); every figure is computed here from the CSVs it writes (not by the code under
+``gaitlog evaluate ipol`` runs once (module fixture, ~40 s of CPU); every figure is computed here from the CSVs it writes (not by the code under
 test) and pinned near what is measured. Every step between the trial boundaries is summed (U-turn included), K
 is the first trial's alone (the K prior's gain has a 95 % subject-bootstrap interval that includes zero), short
 gaps are interpolated (``gaitlog.host.gait.gaps``). M5's interquartile range misses issue 4's 0.10 (strict
@@ -63,20 +62,6 @@ def ipol(folder, tmp_path_factory):
     return SimpleNamespace(rows=rows, steps=steps, events=events, text=text.getvalue())
 
 
-@pytest.fixture(scope="module")
-def straight(folder, tmp_path_factory):
-    """``evaluate ipol --uturn exclude`` (the text only): the straight-walking K the shipped prior is learned on."""
-    import contextlib
-    import io
-
-    out = tmp_path_factory.mktemp("ipol_straight") / "eval.csv"
-    text = io.StringIO()
-    with contextlib.redirect_stdout(text):
-        assert main(["evaluate", "ipol", str(folder), "--out", str(out), "--uturn", "exclude",
-                     "--arithmetic", "offline"]) == 0
-    return SimpleNamespace(text=text.getvalue())
-
-
 def ratios(rows, name, arithmetic="offline", k_from="offline", variant="main"):
     return np.array([float(r["ratio"]) for r in rows if r["estimator"] == name and r["arithmetic"] == arithmetic
                      and r["k_from"] == k_from and r["variant"] == variant])
@@ -106,11 +91,13 @@ def test_csv_layout(ipol) -> None:
                      ("online-fixed", "own", "main", "include", "subject-height"),
                      ("offline", "offline", "uturn-exclude", "exclude", "subject-height"),
                      ("offline", "offline", "height-unknown", "include", "assumed-height"),
-                     ("offline", "offline", "m4-quarter", "include", "subject-height"),
+                     ("offline", "offline", "m4-per-fold", "include", "subject-height"),
                      ("offline", "offline", "k-prior", "include", "subject-height"),
-                     ("offline", "offline", "baseline", "include", "subject-height")}
-    # 52 trials - 9 calibration trials, 5 estimators, 8 kinds; the baseline's M2 and M4
-    assert len(rows) == 8 * 5 * 43 + 2 * 43
+                     ("offline", "offline", "baseline", "include", "subject-height")} | {
+        ("online-fixed", "offline", v, "include", "subject-height")
+        for v in ("stop-v3", "prominence-fixed", "m4-quarter", "m4-half")}
+    # 52 trials - 9 calibration trials, 5 estimators, 12 kinds; the baseline's M2 and M4
+    assert len(rows) == 12 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -151,7 +138,7 @@ def test_device_records_are_the_algorithm_run_here(folder) -> None:
 def test_arithmetic_share_per_step(ipol) -> None:
     """Issue 10 (c): on-line fixed vs on-line float, same codes, same K, per step: median |d| <= 0.1 mm
     (0.015-0.063 mm measured) and at most 1 % of a step (0.29 %); events differ on 6 of 1,981 matched steps."""
-    measured_mm = {"M1": 0.058, "M2": 0.028, "M3": 0.026, "M4": 0.036, "M5": 0.011}
+    measured_mm = {"M1": 0.057, "M2": 0.028, "M3": 0.026, "M4": 0.023, "M5": 0.012}
     st = ipol.steps
     same = np.array([r["same_events_arithmetic"] == "1" for r in st])
     matched = np.array([int(r["online_fixed_step"]) >= 0 for r in st])
@@ -185,7 +172,7 @@ def test_arithmetic_share_in_distance(ipol) -> None:
 
 
 # measured median |ratio on-line float - ratio offline| per trial (43 trials, one K from the offline chain)
-ALGORITHM_SHARE = {"M1": 0.0135, "M2": 0.0085, "M3": 0.0082, "M4": 0.0077, "M5": 0.0013}
+ALGORITHM_SHARE = {"M1": 0.0109, "M2": 0.0096, "M3": 0.0086, "M4": 0.0040, "M5": 0.0014}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)
@@ -203,7 +190,7 @@ def test_algorithm_share_in_distance(ipol, name) -> None:
 
 
 @pytest.mark.parametrize("arithmetic", ["online-float", "online-fixed"])
-@pytest.mark.parametrize("name, measured", [("M2", 1.005), ("M4", 0.995)])
+@pytest.mark.parametrize("name, measured", [("M2", 1.003), ("M4", 0.992)])
 def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     """Issue 10 (c): the on-line algorithm with the offline chain's K: M2 and M4 median ratio within 1 +- 0.03."""
     med = np.median(ratios(ipol.rows, name, arithmetic))
@@ -211,7 +198,7 @@ def test_calibrated_online_median(ipol, arithmetic, name, measured) -> None:
     assert med == pytest.approx(measured, abs=0.005)
 
 
-@pytest.mark.parametrize("name, measured", [("M1", 1.015), ("M2", 0.999), ("M4", 0.986), ("M5", 1.004)])
+@pytest.mark.parametrize("name, measured", [("M1", 1.028), ("M2", 1.003), ("M4", 0.994), ("M5", 1.017)])
 def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     """The on-line fixed algorithm with its own K (a different K: fitted on its own records of trial 1)."""
     assert "a different K, not a comparison" in ipol.text
@@ -219,17 +206,17 @@ def test_own_k_as_the_device_would_be_used(ipol, name, measured) -> None:
     assert r.size == 43
     assert np.median(r) == pytest.approx(measured, abs=0.005)
     if name == "M4":
-        assert iqr(r) == pytest.approx(0.0706, abs=0.005)
+        assert iqr(r) == pytest.approx(0.1165, abs=0.005)
 
 
 # The documentation's IPOL table (docs/validation/ipol.md): median ratio, IQR (and min, max offline) with the
 # offline chain's K (the first trial's, no prior), every step between the trial boundaries summed
 README_TABLE = {
-    "offline": {"M1": (1.027, 0.058, 0.935, 1.115), "M2": (1.007, 0.053, 0.880, 1.105),
-                "M3": (1.088, 0.089, 0.971, 1.201), "M4": (0.997, 0.072, 0.847, 1.114),
-                "M5": (1.018, 0.153, 0.800, 1.233)},
-    "online-fixed": {"M1": (1.027, 0.072), "M2": (1.005, 0.059), "M3": (1.089, 0.083), "M4": (0.995, 0.076),
-                     "M5": (1.014, 0.186)},
+    "offline": {"M1": (1.019, 0.072, 0.901, 1.098), "M2": (1.003, 0.056, 0.880, 1.105),
+                "M3": (1.088, 0.081, 0.971, 1.201), "M4": (0.996, 0.101, 0.857, 1.117),
+                "M5": (1.011, 0.165, 0.780, 1.233)},
+    "online-fixed": {"M1": (1.020, 0.078), "M2": (1.003, 0.055), "M3": (1.083, 0.081), "M4": (0.992, 0.101),
+                     "M5": (1.000, 0.179)},
 }
 
 
@@ -256,8 +243,10 @@ def test_readme_states_the_pinned_table() -> None:
         assert all(re.fullmatch(r"[0-9.]+ \[[0-9.]+, [0-9.]+\]", cells[j]) for j in (1, 2, 4, 5)), row
 
 
+@pytest.mark.xfail(strict=True, reason="with Weinberg's 1/4 (the exponent 1/2 did not pass the rule for choices), "
+                   "the on-line M4 IQR is 0.1007 [0.056, 0.142]: over 0.10 by less than its interval is wide")
 def test_online_m4_iqr_meets_the_target(ipol) -> None:
-    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR is 0.076 (offline 0.072)."""
+    """Issue 4's 0.10: with the offline chain's K, the on-line algorithm's M4 IQR (0.1007; offline 0.1008)."""
     assert iqr(ratios(ipol.rows, "M4", "online-fixed")) <= 0.10
 
 
@@ -270,34 +259,36 @@ def test_m2_iqr(ipol) -> None:
     assert iqr(ratios(ipol.rows, "M2")) <= 0.10
 
 
+@pytest.mark.xfail(strict=True, reason="with Weinberg's 1/4 M4's IQR is 0.1008 [0.054, 0.139] (the exponent chosen "
+                   "per fold, not kept by the rule for choices: 0.092)")
 def test_m4_iqr(ipol) -> None:
-    """Issue 4's 0.10: met (0.072; Weinberg's range^(1/4), the variant m4-quarter: 0.093)."""
+    """Issue 4's 0.10 (missed by 0.001: 0.1008)."""
     assert iqr(ratios(ipol.rows, "M4")) <= 0.10
 
 
 @pytest.mark.parametrize("name", [
     "M2", pytest.param("M4", marks=pytest.mark.xfail(strict=True, reason=(
-        "M4's IQR is 0.072 with the first trial's K (the K prior, 0.054, is not kept: its gain's 95 % subject-"
-        "bootstrap interval includes zero)")))])
+        "M4's IQR is 0.101 with the first trial's K and Weinberg's 1/4 (the K prior, 0.062, and the exponent "
+        "chosen per fold, 0.092, are not kept: their gains' 95 % subject-bootstrap intervals include zero)")))])
 def test_issue12_calibrated_iqr(ipol, name) -> None:
-    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 1.007, 0.997) and IQR <= 0.06 (M2 0.053 met,
-    M4 0.072 missed), K per subject from its first trial, every step of the trial summed."""
+    """Issue 12: calibrated M2 and M4, median within 1 +- 0.02 (met: 1.003, 0.996) and IQR <= 0.06 (M2 0.056 met,
+    M4 0.101 missed), K per subject from its first trial, every step of the trial summed."""
     r = ratios(ipol.rows, name)
     assert abs(np.median(r) - 1.0) <= 0.02
     assert iqr(r) <= 0.06
 
 
-@pytest.mark.xfail(strict=True, reason="the best calibrated IQR is M2's 0.053 with the first trial's K (0.047 with the "
+@pytest.mark.xfail(strict=True, reason="the best calibrated IQR is M2's 0.056 with the first trial's K (0.044 with the "
                    "K prior, not kept: its gain's interval includes zero)")
 def test_issue12_best_calibrated_iqr(ipol) -> None:
-    """Issue 12: the best calibrated estimator's IQR <= 0.05 (M2 0.053, M1 0.058, M4 0.072, M5 0.153)."""
+    """Issue 12: the best calibrated estimator's IQR <= 0.05 (M2 0.056, M1 0.072, M4 0.101, M5 0.165)."""
     assert min(iqr(ratios(ipol.rows, e)) for e in ("M1", "M2", "M4", "M5")) <= 0.05
 
 
 @pytest.mark.xfail(strict=True, reason="M3 without K reads the U-turn's short, turned steps as straight ones: with "
                    "every "
-                   "step summed, median 1.088 (offline), 1.089 (on-line fixed); with the turn left out (second row) "
-                   "1.023, IQR 0.062")
+                   "step summed, median 1.088 (offline), 1.083 (on-line fixed); with the turn left out (second row) "
+                   "1.022, IQR 0.059")
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_issue12_m3_without_k(ipol, arithmetic) -> None:
     """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08."""
@@ -329,43 +320,46 @@ def test_step_count_median_error(ipol, arithmetic) -> None:
     assert np.median(np.abs(d)) <= 1 and np.median(d) == 0
     assert np.abs(d).max() <= 3
     if arithmetic == "online-fixed":           # the README's on-line figures
-        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(40, abs=2)
+        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(36, abs=2)
     else:                                      # 36 and -1..+2 before the short gaps were interpolated
-        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(39, abs=2)
+        assert (d.min(), d.max()) == (-2, 2) and np.abs(d).sum() == pytest.approx(37, abs=2)
 
 
 def test_constants_are_chosen_leave_one_subject_out(ipol) -> None:
-    """Issue 12 (5): the heel-strike rule, hs_delay_s and M4's exponent are chosen per held-out subject on the
-    other eight; the command says which figures are cross-validated. Measured: the impact rule in 9 of 9 folds,
-    hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out), M4's exponent 1/2 in 9 (chosen with K shrunk
-    as it is used; 3/8 for subject 7 with K unshrunk): the on-line rows of subject 1 are marked not
-    cross-validated."""
+    """Issue 12 (5): the heel-strike rule, hs_delay_s, prominence_fraction and M4's exponent are chosen per
+    held-out subject on the other eight; the command says which figures are cross-validated. Measured: the impact
+    rule in 9 of 9 folds, hs_delay_s 0.04 s in 8 and 0.06 s in 1 (subject 1 held out), prominence_fraction 0.2 in 8
+    and 0 in 1, M4's exponent 1/2 in 7 and 3/8 in 2 (the m4-per-fold rows; the main rows use the shipped 1/4): the
+    on-line rows (the shipped prominence_fraction 0.25) are marked not cross-validated for every subject."""
     t = ipol.text
     assert "chosen leave-one-subject-out" in t and "criterion: heel strikes within 40 ms" in t
     assert "heel_strike_rule (default 'impact'" in t and "'impact' in 9 of 9 folds" in t
     line = t.split("hs_delay_s (default 0.04")[1].split("\n")[0]
     assert "0.04 in 8 of 9 folds" in line and "0.06 in 1 of 9 folds" in line
-    line = t.split("m4_exponent (default 0.5")[1].split("\n")[0]
+    line = t.split("m4_exponent (default 0.25")[1].split("\n")[0]
     assert "criterion: IQR of the calibrated distance ratio" in line and "as the main rows use it" in line
-    assert "0.375 in 1 of 9 folds, 0.5 in 8 of 9 folds" in line
-    assert "stop_prominence_m_s2 (default 0.2" in t and "by step count): 0.4 in 2 of 9 folds, 0.2 in 7 of 9 folds" in t
+    assert "0.5 in 7 of 9 folds, 0.375 in 2 of 9 folds" in line      # the m4-per-fold rows; the main rows: 1/4
+    assert "stop_prominence_m_s2 (" not in t                            # off, no longer tuned (the rule's verdict)
     assert "cross-validated: every offline-chain figure" in t
-    assert "prominence_fraction (default 0.25" in t and "by step count): 0.2 in 8 of 9 folds, 0.25 in 1 of 9 folds" in t
-    not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0"}
-    # the on-line chains run the shipped defaults, which only subject 4's fold chose
-    assert not_cv == {(s, a) for s in "12356789" for a in ("online-float", "online-fixed")}
+    assert "prominence_fraction (default 0.25" in t and "by step count): 0.2 in 8 of 9 folds, 0.0 in 1 of 9 folds" in t
+    not_cv = {(r["subject"], r["arithmetic"]) for r in ipol.rows if r["cross_validated"] == "0" and r["variant"] == "main"}
+    # the on-line chains run the shipped defaults, which no fold chose (prominence_fraction)
+    assert not_cv == {(s, a) for s in "123456789" for a in ("online-float", "online-fixed")}
+    # the on-line rules' variants were chosen on these trials: never cross-validated
+    assert all(r["cross_validated"] == "0" for r in ipol.rows if r["arithmetic"] == "online-fixed"
+               and r["variant"] != "main")
     assert all(r["cross_validated"] == "1" for r in ipol.rows if r["arithmetic"] == "offline")
 
 
-def test_k_prior_is_chosen_leave_one_subject_out_and_the_shipped_one_is_reproduced(ipol, straight) -> None:
+def test_k_prior_is_chosen_leave_one_subject_out_and_the_shipped_one_is_reproduced(ipol) -> None:
     """Issue 12 (4, 5): the k-prior rows shrink each subject's K toward the median K of the other subjects, with
     d0 chosen on them (nested); not in the main rows (its gain's interval includes zero). The prior learned on all
-    nine with the turn left out (a straight-walking K; printed, never used to score) is what gaitlog ships."""
+    nine under the evaluation's scoring (every step summed; printed, never used to score) is what gaitlog ships."""
     line = ipol.text.split("k_prior_distance_m (")[1].split("\n")[0]
     assert "criterion: mean squared log distance ratio" in line
     assert all(f"{e} " in line and "of 9 folds" in line for e in ("M1", "M2", "M4"))
     assert "(not kept: its gain's interval includes zero)" in ipol.text
-    shipped = straight.text.split("learned on every subject (shipped as LOWER_BACK_PRIOR")[1].split("\n")[0]
+    shipped = ipol.text.split("learned on every subject (shipped as LOWER_BACK_PRIOR")[1].split("\n")[0]
     p = LOWER_BACK_PRIOR
     assert ("d0 " + ", ".join(f"{e} {p.distance_m[e]:g} m" for e in ("M1", "M2", "M4"))) in shipped
     assert f"population K: M1 {p.k_m1:.4f}, M2 {p.k_m2:.4f}, M4 {p.k_m4_per_leg:.4f} x leg length" in shipped
@@ -408,8 +402,8 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
     outside = {c: sum(int(r["steps_outside"]) for r in ipol.events if r["chain"] == c)
                for c in ("offline", "online-fixed")}
     ref = sum(int(r["hs_reference_outside"]) for r in ev)
-    assert ref == 67 and outside["offline"] == pytest.approx(204, abs=6)
-    assert outside["online-fixed"] == pytest.approx(195, abs=6)
+    assert ref == 67 and outside["offline"] == pytest.approx(196, abs=6)
+    assert outside["online-fixed"] == pytest.approx(181, abs=6)
     assert (f"foot-sensor heel strikes {ref}, detected steps offline {outside['offline']}, online-fixed "
             f"{outside['online-fixed']}") in ipol.text
     r = ev[1]
@@ -417,11 +411,11 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
                      rf"\s+{r['m3_filled']}\s", ipol.text, re.M)
 
 
-@pytest.mark.parametrize("variant, measured", [("uturn-exclude", {"M2": (1.013, 0.064), "M3": (1.023, 0.062)}),
-                                               ("height-unknown", {"M2": (1.007, 0.053), "M3": (1.087, 0.079)}),
-                                               ("k-prior", {"M1": (1.016, 0.052), "M2": (1.000, 0.047),
-                                                            "M4": (0.998, 0.054)}),
-                                               ("m4-quarter", {"M4": (0.996, 0.093)})])
+@pytest.mark.parametrize("variant, measured", [("uturn-exclude", {"M2": (1.013, 0.067), "M3": (1.022, 0.059)}),
+                                               ("height-unknown", {"M2": (1.003, 0.056), "M3": (1.084, 0.080)}),
+                                               ("k-prior", {"M1": (1.014, 0.063), "M2": (1.000, 0.044),
+                                                            "M4": (0.975, 0.062)}),
+                                               ("m4-per-fold", {"M4": (0.997, 0.092)})])
 def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
     """Issue 12 (3): the offline chain also with the U-turn steps left out (M3, without K, then reads 1.023: with
     them it reads the turn as straight walking, 1.088), with the height unknown (a 1.70 m adult for everyone:
@@ -432,7 +426,7 @@ def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
         assert r.size == 43
         assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
     assert "U-turn excluded (the other rule" in ipol.text and "height UNKNOWN: a 1.70 m adult assumed" in ipol.text
-    assert "with the K prior: K from trial 1 shrunk" in ipol.text and "Weinberg's range^(1/4)" in ipol.text
+    assert "with the K prior: K from trial 1 shrunk" in ipol.text and "M4 with the exponent chosen per fold" in ipol.text
 
 
 def test_steps_outside_the_calibrated_range_are_counted(ipol) -> None:
@@ -460,7 +454,8 @@ def test_baseline_row_and_the_choices_are_printed(ipol) -> None:
     assert "baseline, the recipe" in ipol.text
     choices = ipol.text.split("choices against the simpler one")[1].split("steps|err|")[0]
     for label in ("K prior", "M4's exponent chosen per fold", "the shipped chain against the recipe",
-                  "U-turn steps left out", "stop_prominence_m_s2 chosen per fold", "prominence_fraction chosen"):
+                  "U-turn steps left out", "prominence_fraction chosen", "on-line: the stop rule of versions 1-3",
+                  "on-line: the adaptive foot-flat prominence", "on-line: M4's exponent 1/2 against"):
         line = next(ln for ln in choices.splitlines() if label in ln)
         for m in re.finditer(r"(M\d|steps) ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] (kept|not kept)", line):
             gain, lo, hi = map(float, m.group(2, 3, 4))

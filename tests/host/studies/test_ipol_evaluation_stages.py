@@ -25,8 +25,8 @@ from tests.host.studies.test_ipol_evaluation_synthetic import write_ipol_trial
 
 #: sha256 of the files ``gaitlog evaluate ipol`` writes on :func:`folder`.
 DIGESTS = {
-    "eval.csv": "298879b11b8ef8af4df435408e3f2487e1440cde92479a2f66c9378453020573",
-    "eval_steps.csv": "03cd9d679396faf605f94c059da78b4d683d7e7ba129f66c5c13f74edde59739",
+    "eval.csv": "c04254c2e99adb4bbe832b73ad619429e25fa040afa9541399e725b38c5ba2da",
+    "eval_steps.csv": "dd483e51c82e7642aeb0d7d43301174c843e781a0b21b1c879a105543ad39eab",
     "eval_events.csv": "f6f094b61cc7ed56c99c4d7bab7c54687dfc3832c37659f7bbf9c06457ed440b",
 }
 
