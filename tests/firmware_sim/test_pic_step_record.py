@@ -265,3 +265,17 @@ def test_no_heel_strike_in_a_young_run():
     assert np.all(tr.records["heel_strike_samples"][(tr.records["flags"] & StepFlag.NO_HEEL_STRIKE) != 0] == -128)
     v = gs.compare(tr, algo.config)
     assert v.identical, v.summary()
+
+
+@needs_gpsim
+def test_across_the_16_bit_index_wrap(simulated_walk):
+    """A run of 79,844 samples (the walk twice): the steps around sample 65,536, where e, s and m wrap (one
+    window starts before the wrap and ends after it)."""
+    codes = np.concatenate([simulated_walk[0], simulated_walk[0]])
+    algo = gs.with_scratch_ring(_algo(RAW))
+    tr = finalise_calls(algo, codes)
+    near = np.flatnonzero((tr.m_abs >= 65536 - 200) & (tr.m_abs < 65536 + 600))
+    sub = tr.subset(near)
+    assert np.any(sub.last > sub.e) and np.any(sub.m < sub.e) and near.size > 10
+    v = gs.compare(sub, algo.config)
+    assert v.identical, v.summary()
