@@ -7,13 +7,15 @@ runs it in gpsim on every step of a run and compares the record bytes with the m
 * the model's inputs of each ``_finalise`` call (e, m, ``LAST``, ``FLAGS``, the sticky saturation flag, the
   absolute sample number of m) and its records come from
   :func:`gaitlog.firmware_sim.algorithms.probe.finalise_calls`;
-* the bench (``step_bench.asm``) holds them as a table in program memory, the step configuration
-  (:func:`config_bytes`) in the data EEPROM, and the run's a_v as the scratch ring's test-build table (two
-  words a sample: the production reader of the ring on the I2C bus is not written yet); a run of up to
-  :data:`STEPS_PER_RUN` steps whose reads all fall within :data:`TABLE_SAMPLES` samples is one gpasm and one
-  gpsim run, and nothing stops the simulation before its end;
+* the bench (``step_bench.asm``) holds them as a table in program memory and the step configuration
+  (:func:`config_bytes`) in the data EEPROM; ``finalise`` reads the run's a_v from the scratch ring on the I2C
+  bus, a 24xx256 that gpsim's ``e24xx256`` module models and the gpsim script fills (:data:`RING_256K_SAMPLES`
+  samples; the model's emulated ring is set to as many, :func:`with_scratch_ring`), or, in the test build,
+  from a table in program memory (``reader="table"``);
+* up to :data:`STEPS_PER_RUN` steps whose reads all fall within :data:`TABLE_SAMPLES` samples are one gpasm
+  and one gpsim run, and nothing stops the simulation before its end;
 * gpsim's register-write log gives each step's record bytes (``OUTB``), the state after it and two cycle
-  stamps around the call (``MARK``).
+  stamps around the call (``MARK``); :func:`stack_levels` bounds the stack over every path of the program.
 
 A difference names the step and the record field (:data:`gaitlog.protocol.steps.STEP_RECORD_OFFSETS`).
 """
@@ -44,7 +46,7 @@ __all__ = ["STEP_BENCH_ASM", "STEPS_PER_RUN", "TABLE_SAMPLES", "CALL_STAMP_CYCLE
 STEP_BENCH_ASM = PIC_DIR / "step_bench.asm"
 #: Steps per gpsim run: the step table at 0x0A00-0x0FFF, 12 words a step.
 STEPS_PER_RUN = (0x1000 - 0x0A00) // 12
-#: Samples of the scratch table per gpsim run: 0x1000-0x1FFF, two words a sample.
+#: Samples a gpsim run may read: the test build's table at 0x1000-0x1FFF holds as many (two words a sample).
 TABLE_SAMPLES = 0x1000 // 2
 #: Cycles between the two ``MARK`` stamps that are not finalise's CALL, body and RETURN (the second MOVWF).
 CALL_STAMP_CYCLES = 1

@@ -970,7 +970,7 @@ excursion:
         CP16    P_H, ACC0
         return
 
-; pendulum: P_H = h (F_TWO_LEN + W fraction bits... W = f_h - 14, 2 or 4) -> W = 0 and ACC1:ACC0 =
+; pendulum: P_H = h (f_h fraction bits; W = f_h - 14: 2 for M1, 4 for M2/M3) -> W = 0 and ACC1:ACC0 =
 ; 2 sqrt(2 l h - h^2) in UQ2.14, or W = 1 when h^2 > 2 l h (kernel _pendulum).
 pendulum:
         movwf   SIGNS

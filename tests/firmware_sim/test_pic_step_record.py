@@ -253,3 +253,29 @@ def test_the_program_memory_reader_gives_the_same_records(walk_trace):
     assert np.all(i2c.cycles > table.cycles + 50_000)                  # the bus costs: ~135 cycles a byte
     with pytest.raises(ValueError, match="reader"):
         gs.run_bench(sub, cfg.cfg_i, cfg.cfg_v, reader="spi")
+
+
+@needs_gpsim
+def test_no_heel_strike_in_a_young_run():
+    """A heel strike before sample 0 (a young run, hs_delay of 1.2 s): -128 and NO_HEEL_STRIKE, as the model."""
+    algo = _algo(RAW)
+    algo.config.cfg_i[kernel.CI_HS_DELAY] = 60
+    tr = finalise_calls(algo, _stomping(1200))
+    assert np.count_nonzero(tr.records["flags"] & StepFlag.NO_HEEL_STRIKE) >= 2
+    assert np.all(tr.records["heel_strike_samples"][(tr.records["flags"] & StepFlag.NO_HEEL_STRIKE) != 0] == -128)
+    v = gs.compare(tr, algo.config)
+    assert v.identical, v.summary()
+
+
+@needs_gpsim
+def test_across_the_16_bit_index_wrap(simulated_walk):
+    """A run of 79,844 samples (the walk twice): the steps around sample 65,536, where e, s and m wrap (one
+    window starts before the wrap and ends after it)."""
+    codes = np.concatenate([simulated_walk[0], simulated_walk[0]])
+    algo = gs.with_scratch_ring(_algo(RAW))
+    tr = finalise_calls(algo, codes)
+    near = np.flatnonzero((tr.m_abs >= 65536 - 200) & (tr.m_abs < 65536 + 600))
+    sub = tr.subset(near)
+    assert np.any(sub.last > sub.e) and np.any(sub.m < sub.e) and near.size > 10
+    v = gs.compare(sub, algo.config)
+    assert v.identical, v.summary()
