@@ -53,6 +53,8 @@ DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger 
                   ("source_impedance_ohm", "source impedance"),
                   ("source_capacitance_nf", "source capacitance"), ("flicker_corner_hz", "1/f corner"),
                   ("temperature_swing_c", "temperature swing"))}}
+#: Dimensions that change only the on-line fixed-point chain (its section ratio is drawn, not the offline one).
+_FIXED_POINT_ONLY = ("q_formats", "rounding")
 #: Dimensions drawn as categories (in the grid's order), not on a numeric axis.
 _CATEGORICAL = ("q_formats", "population", "rounding")
 
@@ -98,7 +100,7 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
     for ax, (col, label, tol, k) in zip(axes, panels, strict=False):
         for j, est in enumerate(ests):
             pts = [r for x in xs for r in rows if r[dimension] == x and r["estimator"] == est]
-            if col == "subject_median_offline" and dimension == "q_formats":      # only the fixed chain changes
+            if col == "subject_median_offline" and dimension in _FIXED_POINT_ONLY:      # only the fixed chain changes
                 mid = [k * r["median_online_fixed"] for r in pts]
                 lo = hi = mid
             else:
@@ -120,7 +122,7 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
         else:
             ax.axhline(100.0, color="0.4", ls="--", lw=0.8)
         ax.set_title(label.replace("offline", "on-line fixed-point") if col == "subject_median_offline"
-                     and dimension == "q_formats" else label, fontsize=8)
+                     and dimension in _FIXED_POINT_ONLY else label, fontsize=8)
     if with_m5:
         ax = axes[-1]
         for j, mode_ in enumerate(("single-speed", "multi-speed")):

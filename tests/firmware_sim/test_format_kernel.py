@@ -139,3 +139,33 @@ def test_truncation_biases_the_lengths_down_and_saves_cycles() -> None:
     step = 2.0 ** -coarse.matrix_frac_bits
     assert coarse.matrix_frac_bits == cal.matrix_frac_bits - 7 and np.max(np.abs(coarse.mantissa_raw)) < 1 << 8
     assert 0 < np.max(np.abs(coarse.matrix_g_per_count - cal.matrix_g_per_count)) <= step / 2
+
+
+def test_a_variant_is_built_once_per_machine_and_loaded_without_compiling() -> None:
+    """The first process that needs a format set builds its module into the compile cache; another process (a
+    sweep's worker) loads it without numba: it cannot have compiled anything."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from gaitlog.firmware_sim.algorithms import aot_kernel
+    from gaitlog.firmware_sim.compiled import cache_base
+
+    if not aot_kernel.enabled():
+        pytest.skip("the ahead-of-time kernels are off (GAITLOG_NO_AOT or NUMBA_DISABLE_JIT)")
+    narrow = KernelFormats(acc_frac_bits=4, lowpass_frac_bits=8)
+    format_kernel.entry_points(narrow)
+    folder = format_kernel.variant_folder(narrow)
+    if list(folder.parent.glob(folder.name + ".failed")):
+        pytest.skip("no compiler here: the variant is JIT-compiled in each process")
+    assert len(list(folder.glob("*.so"))) == 1
+    script = ("import sys\n"
+              "from gaitlog.firmware_sim.algorithms import format_kernel as f\n"
+              "fns = f.entry_points(f.KernelFormats(acc_frac_bits=4, lowpass_frac_bits=8))\n"
+              "print('numba' in sys.modules, type(fns[0]).__name__)\n")
+    env = dict(os.environ, GAITLOG_CACHE_DIR=str(cache_base()),
+               PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["False", "builtin_function_or_method"], out.stdout
