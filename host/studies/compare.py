@@ -80,6 +80,13 @@ from gaitlog.host.gait.sections import (
     section_fractions,
     sections_from_marks,
 )
+from gaitlog.host.studies.stats import (
+    BOOTSTRAP_LEVEL,
+    BOOTSTRAP_RESAMPLES,
+    MEDIAN,
+    subject_bootstrap,
+    subject_resamples,
+)
 from gaitlog.protocol.header import CalibrationSlot
 
 #: Foot-flats of two chains closer than this are the same step, s.
@@ -89,9 +96,6 @@ CHAINS = ("ideal", "offline", "online-float", "online-fixed")
 #: The error split: share -> (chain a, chain b); the share is ``a - b``.
 SHARES: dict[str, tuple[str, str]] = {"adc": ("offline", "ideal"), "algorithm": ("online-float", "offline"),
                                       "arithmetic": ("online-fixed", "online-float")}
-#: Bootstrap resamples of :func:`bootstrap_budget` and the interval's level.
-BOOTSTRAP_RESAMPLES = 2000
-BOOTSTRAP_LEVEL = 0.95
 
 STEP_DIFF_COLUMNS = ("share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm", "max_abs_mm", "bias_mm",
                      "max_rel", "n_matched", "n_different_events", "n_only_a", "n_only_b")
@@ -605,47 +609,7 @@ def _same_of_b(match: StepMatch, n_b: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------------
-# Bootstrap over subjects
-
-
-def resampled_medians(groups: list[np.ndarray], counts: np.ndarray, *, chunk: int = 250) -> np.ndarray:
-    """Median of the pooled values of ``groups`` when group ``g`` is taken ``counts[r, g]`` times, per row.
-
-    The median of the multiset (the mean of its two middle values when its size is even), as ``np.median``
-    of the repeated values, without repeating them; NaN for a row with no value.
-
-    Examples
-    --------
-    >>> groups = [np.array([1.0, 5.0]), np.array([2.0]), np.array([])]
-    >>> resampled_medians(groups, np.array([[1, 1, 0], [0, 3, 1], [2, 0, 0], [0, 0, 2]])).tolist()
-    [2.0, 2.0, 3.0, nan]
-    >>> float(np.median([1.0, 5.0, 2.0]))
-    2.0
-    """
-    counts = np.atleast_2d(np.asarray(counts, np.int64))
-    v = np.concatenate([np.asarray(g, np.float64).ravel() for g in groups]) if groups else np.zeros(0)
-    gid = np.repeat(np.arange(len(groups)), [np.asarray(g).size for g in groups])
-    out = np.full(counts.shape[0], np.nan)
-    if v.size == 0:
-        return out
-    order = np.argsort(v, kind="stable")
-    v, gid = v[order], gid[order]
-    for r0 in range(0, counts.shape[0], chunk):
-        cum = np.cumsum(counts[r0:r0 + chunk][:, gid], axis=1)
-        total = cum[:, -1]
-        lo = np.argmax(cum > ((total - 1) // 2)[:, None], axis=1)
-        hi = np.argmax(cum > (total // 2)[:, None], axis=1)
-        out[r0:r0 + chunk] = np.where(total > 0, 0.5 * (v[lo] + v[hi]), np.nan)
-    return out
-
-
-def subject_resamples(n_subjects: int, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> np.ndarray:
-    """``(n_resamples, n_subjects)`` how many times each subject is drawn (with replacement, seeded)."""
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, n_subjects, size=(n_resamples, n_subjects))
-    counts = np.zeros((n_resamples, n_subjects), np.int64)
-    np.add.at(counts, (np.repeat(np.arange(n_resamples), n_subjects), draws.ravel()), 1)
-    return counts
+# Bootstrap over subjects (gaitlog.host.studies.stats)
 
 
 def bootstrap_budget(comparisons: list[WalkComparison], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
@@ -668,14 +632,10 @@ def bootstrap_budget(comparisons: list[WalkComparison], *, n_resamples: int = BO
     if n_sub == 0:
         return []
     counts = subject_resamples(n_sub, n_resamples=n_resamples, seed=seed)
-    ones = np.ones((1, n_sub), np.int64)
-    q = 50.0 * (1.0 - level), 50.0 * (1.0 + level)
 
     def row(kind: str, share: str, pair: str, mode: str, est: str, statistic: str, groups: list[np.ndarray]) -> dict:
-        value = float(resampled_medians(groups, ones)[0])
-        boot = resampled_medians(groups, counts)
-        lo, hi = (np.nanpercentile(boot, q) if np.any(np.isfinite(boot)) else (math.nan, math.nan))
-        return dict(kind=kind, share=share, pair=pair, mode=mode, estimator=est, statistic=statistic, value=value,
+        value, lo, hi = subject_bootstrap(groups, MEDIAN, counts, level=level)
+        return dict(kind=kind, share=share, pair=pair, mode=mode, estimator=est, statistic=statistic, value=float(value),
                     ci_low=float(lo), ci_high=float(hi), n_subjects=n_sub, n=int(sum(g.size for g in groups)))
 
     out = []
