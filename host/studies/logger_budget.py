@@ -41,6 +41,7 @@ from gaitlog.firmware_sim.world.subject import random_subjects
 from gaitlog.firmware_sim.world.walking import Walking
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_file
+from gaitlog.host.studies.pic_runs import assembly_input
 from gaitlog.protocol.packing import FLAG_SESSION_START
 from gaitlog.protocol.steps import StepConfig
 
@@ -129,17 +130,17 @@ def _chip(measure: Measure, c, walk: dict | None):
         codes = np.asarray(walk["codes"], np.int64)[:limit]
         flags = np.zeros(codes.shape[0], np.int64)
         flags[0] = FLAG_SESSION_START
-        cal, rate, first, source = walk["calibration"], c.sampling_rate_hz, 0, f"simulated walker {walk['subject']}"
+        cal = walk["calibration"]
+        cal_q = CalibrationQ.from_protocol(cal) if cal is not None else nominal_calibration_q()
+        rate, first, source = c.sampling_rate_hz, 0, f"simulated walker {walk['subject']}"
     else:
         rec = decode_file(measure.recording)
-        keep = np.flatnonzero(rec.valid)[:limit]
-        if rec.adc_bits != 10 or keep.size == 0:
-            raise HostError(f"{measure.recording}: {rec.adc_bits}-bit codes, {keep.size} valid samples; the assembly "
-                            "runs on the PIC16F877's 10-bit codes")
-        codes, flags, rate = rec.codes[keep], rec.flags[keep], rec.sampling_rate_hz
-        cal = rec.header.calibration if rec.header is not None else None
-        first, source = int(rec.sample_numbers[keep[0]]), str(measure.recording)
-    cal_q = CalibrationQ.from_protocol(cal) if cal is not None else nominal_calibration_q()
+        run = assembly_input(rec, measure.recording, limit)
+        if rec.adc_bits != 10 or run.codes.shape[0] == 0:
+            raise HostError(f"{measure.recording}: {rec.adc_bits}-bit codes, {run.codes.shape[0]} valid samples; the "
+                            "assembly runs on the PIC16F877's 10-bit codes")
+        codes, flags, rate, cal_q = run.codes, run.flags, run.sampling_rate_hz, run.calibration_q
+        first, source = run.first_sample_number, run.source
     try:
         return chip_budget(codes, flags, cal_q, sampling_rate_hz=rate, fosc_hz=c.fosc_hz, source=source,
                            first_sample_number=first)
