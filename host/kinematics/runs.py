@@ -160,8 +160,8 @@ def _morris_error_line(label: str, cycles, truth) -> str:
 
 
 def _instrument_fit_lines(morris, hall, morris_rate_hz: float, hall_rate_hz: float) -> list[str]:
-    """Whether the simulated instruments fit the PIC16F877 logger (:func:`gaitlog.firmware_sim.budget.
-    instrument_fit`)."""
+    """Whether the simulated instruments fit the PIC16F877 logger
+    (:func:`gaitlog.firmware_sim.budget.instrument_fit`)."""
     n_acc = len(morris.platform.sensors)
     n_rate = len(hall.platform.link_a.rate_sensors) + len(hall.platform.link_b.rate_sensors)
     lines = []

@@ -71,7 +71,7 @@ from gaitlog.firmware_sim.algorithms.steps import (
     float_csv_cells,
 )
 from gaitlog.host.files.replay import online_step_table
-from gaitlog.host.gait.k_calibration import calibrate_on_sections
+from gaitlog.host.gait.k_calibration import KFit, calibrate_on_sections
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
 from gaitlog.host.gait.sections import (
     MODES,
@@ -118,18 +118,18 @@ def pair_label(a: str, b: str) -> str:
 
 
 def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                       calibration: Any = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
-    """The offline float chain's table (warnings about impossible excursions are silenced: they are counted
-    as NaN)."""
+                       k_fit: KFit | None = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
+    """The offline float chain's table with the step constants ``k_fit`` (None: raw lengths; warnings about
+    impossible excursions are silenced: they are counted as NaN)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
+        return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=k_fit).run(
             acc_g, sampling_rate_hz=sampling_rate_hz, valid=valid, t0_s=t0_s).steps_
 
 
-def calibrated(table: StepTable, calibration: Any) -> StepTable:
-    """An offline table with ``calibration``'s K applied to its raw lengths (``apply_calibration``)."""
-    return replace(table, length_m=apply_calibration(table, calibration))
+def calibrated(table: StepTable, k_fit: KFit | None) -> StepTable:
+    """An offline table with the step constants ``k_fit`` applied to its raw lengths (``apply_calibration``)."""
+    return replace(table, length_m=apply_calibration(table, k_fit))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -729,16 +729,16 @@ class RecordingComparison:
 
 
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      adc_calibration: Any = None, adc_bits: int = 10, valid: np.ndarray | None = None,
-                      calibration: Any = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
+                      adc_calibration: CalibrationSlot | None = None, adc_bits: int = 10,
+                      valid: np.ndarray | None = None, k_fit: KFit | None = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
                       segment_m: float = 20.0, t0_s: float = 0.0, sections: list[Section] | None = None,
                       run_starts: np.ndarray | None = None) -> RecordingComparison:
     """Offline chain, on-line float and on-line fixed on the same codes (no truth): matched steps,
     differences, sections.
 
     ``adc_calibration`` (``offset_counts``, ``matrix_g_per_count``; None = nominal) converts codes to g for
-    the offline chain and is the on-line algorithm's device calibration; ``calibration`` is the one K of
-    every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
+    the offline chain and is the on-line algorithm's device calibration; ``k_fit`` holds the step constants
+    (K) of every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
     (SESSION_START), where the on-line algorithm restarts. Sections: ``sections`` when given (e.g. the
     walking plan's, :func:`gaitlog.host.gait.sections.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
     every ``segment_m`` of the offline chain's M3 distance.
@@ -751,10 +751,9 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     cal = adc_calibration if adc_calibration is not None else CalibrationSlot.nominal(adc_bits)
     acc = np.asarray(cal.apply(c.astype(np.float64)), np.float64)
     acc[~ok] = np.nan
-    kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m,
-              calibration=calibration, t0_s=t0_s)
-    okw = dict(kw, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
-    tables = {"offline": offline_step_table(acc, valid=ok, **kw)}
+    kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m, t0_s=t0_s)
+    okw = dict(kw, calibration=k_fit, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
+    tables = {"offline": offline_step_table(acc, valid=ok, k_fit=k_fit, **kw)}
     tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
     tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", **okw)
     shares = {s: SHARES[s] for s in ("algorithm", "arithmetic")}

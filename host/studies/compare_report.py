@@ -81,8 +81,9 @@ class SimulatedComparisonReport(_Lines):
 def compare_simulated(n_subjects: int, *, seed: int, adc_bits: int, sampling_rate_hz: float, workers: int,
                       population: str, n_resamples: int,
                       progress: Callable[[str], object] | None = None) -> SimulatedComparisonReport:
-    """``n_subjects`` simulated subjects through the four chains (:func:`gaitlog.host.studies.simulation.
-    simulate_comparisons`) and the error budget with bootstrap intervals over them (``n_resamples``)."""
+    """``n_subjects`` simulated subjects through the four chains
+    (:func:`gaitlog.host.studies.simulation.simulate_comparisons`) and the error budget with bootstrap intervals
+    over them (``n_resamples``)."""
     results = simulate_comparisons(n_subjects, seed=seed, adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz,
                                    workers=workers, progress=progress, population=population)
     report = SimulatedComparisonReport(results=results)
@@ -157,7 +158,7 @@ def compare_input(data: AccelerationInput, source: Path, *, calibration_file: st
     t = rec.time_s
     res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
                             foot_length_m=foot, adc_calibration=cal, adc_bits=int(rec.adc_bits), valid=rec.valid,
-                            calibration=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=lap_m,
+                            k_fit=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=lap_m,
                             t0_s=float(t[0]) if t.size else 0.0, run_starts=starts)
     report = RecordingComparisonReport(source=str(source), comparison=res,
                                        warning=lengths.note if lengths.assumed else None)

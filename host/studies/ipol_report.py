@@ -77,8 +77,8 @@ class IpolOutputs:
 
 @dataclass(frozen=True)
 class IpolReport:
-    """What ``gaitlog evaluate ipol`` writes and prints: the evaluation's :class:`~gaitlog.host.studies.
-    ipol_evaluation.IpolResult` and the settings it ran with."""
+    """What ``gaitlog evaluate ipol`` writes and prints: the evaluation's result
+    (:class:`~gaitlog.host.studies.ipol_evaluation.IpolResult`) and the settings it ran with."""
 
     result: IpolResult
     outputs: IpolOutputs

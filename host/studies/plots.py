@@ -156,9 +156,9 @@ def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi
 
 def plot_recording(src: str | Path, out: str | Path, *, k_file: str | None, lengths_for, start_s: float | None,
                    duration_s: float | None, estimators: Sequence[str], size_px: tuple[int, int]) -> str:
-    """``gaitlog plot``: the overview of the logger recording at ``src`` (:func:`gaitlog.host.studies.overview.
-    recording_overview` with ``k_file``'s K, else none, and the lengths ``lengths_for(k, data)`` gives) written as a
-    PNG of ``size_px`` to ``out``; the line that says what it shows.
+    """``gaitlog plot``: the overview of the logger recording at ``src`` written as a PNG of ``size_px`` to
+    ``out`` (:func:`gaitlog.host.studies.overview.recording_overview` with ``k_file``'s K, else none, and the
+    lengths ``lengths_for(k, data)`` gives); the line that says what it shows.
 
     Raises
     ------
@@ -170,10 +170,10 @@ def plot_recording(src: str | Path, out: str | Path, *, k_file: str | None, leng
         raise HostError(f"{src}: plot draws a logger recording (memory image, raw dump, wire capture or decoded "
                         f".npz); this is {data.source}: record it first (gaitlog record --motion replay)")
     rec = data.recording
-    cal = KFit.load(k_file) if k_file else None
-    lengths = lengths_for(cal, data)
+    k_fit = KFit.load(k_file) if k_file else None
+    lengths = lengths_for(k_fit, data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
-    overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, calibration=cal, start_s=start_s,
+    overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, k_fit=k_fit, start_s=start_s,
                                   duration_s=duration_s, estimators=estimators)
     atomic_write_bytes(out, render_overview_png(overview, size_px=size_px))
     ev = ", ".join(f"{v.size} {k}" for k, v in overview.events_s.items() if v.size or k != "device step")
