@@ -30,7 +30,6 @@ from gaitlog.host.commands._options import (
     check_outputs,
     logger_rate_hz,
     out_path,
-    print_json,
     verbosity,
     whole,
 )
@@ -109,7 +108,7 @@ def _run_sim(args: argparse.Namespace) -> int:
                                  laps=args.laps, n_resamples=args.resamples).run(progress=tick)
     paths = ev.write_outputs(out)
     if args.json:
-        print_json({"out": str(out), "summary": ev.summary_, "intervals": ev.bootstrap_, "files": paths})
+        print(ev.to_json(out, paths))
         return 0
     if verbosity(args) < 0:
         return 0

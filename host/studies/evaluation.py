@@ -65,6 +65,7 @@ from gaitlog.host.gait.sections import (
     sections_from_marks,
 )
 from gaitlog.host.gait.stopwatch_laps import lap_table, set_off_times
+from gaitlog.host.storage.json_text import json_text
 from gaitlog.host.studies.compare import match_events, rows_csv_text
 from gaitlog.host.studies.plots import plot_boxplots
 from gaitlog.host.studies.simulation import (
@@ -678,6 +679,11 @@ class SimulatedEvaluation:
         if self.bootstrap_:
             text += "\n\n" + format_paper_table(self.bootstrap_) + "\n\n" + format_m5_question(self.m5_)
         return text
+
+    def to_json(self, out: str | Path, paths: dict[str, Path]) -> str:
+        """The summary, the intervals and the files :meth:`write_outputs` wrote into ``out`` (``paths``) as one
+        JSON document."""
+        return json_text({"out": str(out), "summary": self.summary_, "intervals": self.bootstrap_, "files": paths})
 
     def write_csv(self, path: str | Path, *, summary_path: str | Path | None = None) -> None:
         """Section rows (``ROW_COLUMNS``) to ``path`` and optionally the summary to ``summary_path``, atomically."""
