@@ -35,11 +35,11 @@ from gaitlog.host.studies.compare import (
 )
 from gaitlog.host.studies.simulation import simulate_comparisons
 
-__all__ = ["RecordingComparisonReport", "SimulatedComparisonReport", "compare_input", "compare_simulated"]
+__all__ = ["RecordingComparisonReport", "ReportLines", "SimulatedComparisonReport", "compare_input", "compare_simulated"]
 
 
 @dataclass
-class _Lines:
+class ReportLines:
     """Printed lines, each with the verbosity it needs (0: the summary, 1: ``-v``)."""
 
     lines: list[tuple[int, str]] = field(default_factory=list)
@@ -53,7 +53,7 @@ class _Lines:
 
 
 @dataclass
-class SimulatedComparisonReport(_Lines):
+class SimulatedComparisonReport(ReportLines):
     """``compare --simulate``: the comparisons of the simulated subjects and the bootstrapped error budget."""
 
     results: list = field(default_factory=list)
@@ -105,7 +105,7 @@ def compare_simulated(n_subjects: int, *, seed: int, adc_bits: int, sampling_rat
 
 
 @dataclass
-class RecordingComparisonReport(_Lines):
+class RecordingComparisonReport(ReportLines):
     """``compare RECORDING``: the comparison (:class:`gaitlog.host.studies.compare.RecordingComparison`) and the
     note on assumed lengths (``warning``: a line for standard error, or None)."""
 
