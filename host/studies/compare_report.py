@@ -169,7 +169,7 @@ def compare_input(data: AccelerationInput, source: Path, *, calibration_file: st
         f"{marks.size} MARK flag(s)", 1)
     say(f"leg length {leg:.3f} m, foot length {foot:.3f} m"
         + (f" ({lengths.note})" if lengths.note and not lengths.assumed else "")
-        + "; K file: {args.k_file or 'none (K = 1, M4/M5 n/a)'} (the same K for every chain)")
+        + f"; K file: {k_file or 'none (K = 1, M4/M5 n/a)'} (the same K for every chain)")
     tb = res.tables
     say("steps: " + ", ".join(f"{c} {tb[c].n_steps}" for c in tb) + "; " + "; ".join(
         f"{s}: matched {m.n_matched}, different events {int(np.count_nonzero(~m.same_events))}, "
