@@ -87,11 +87,11 @@ def test_no_import_inside_a_library_function() -> None:
     assert not hidden, "imports inside library functions:\n" + "\n".join(sorted(set(hidden)))
 
 
-#: Most imports inside the functions of ``host/commands/`` (an ``ast`` count; the goal is fewer than 80). The
+#: Most imports inside the functions of ``host/commands/`` (an ``ast`` count; fewer than 80 asked, 73 reached). The
 #: commands import at module level what costs ``gaitlog --help`` nothing measurable (the standard library,
 #: ``host.errors``, the option helpers) and inside functions only numpy, scipy, numba, dask, matplotlib and
 #: the modules that load them.
-MAX_COMMAND_FUNCTION_IMPORTS = 135
+MAX_COMMAND_FUNCTION_IMPORTS = 73
 
 
 def _function_level_imports(tree: ast.Module) -> list[ast.Import | ast.ImportFrom]:

@@ -8,7 +8,6 @@ Commands print their summary through :func:`printer` rather than redirecting std
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import tempfile
@@ -16,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from gaitlog.host.errors import HostError, UsageError
+from gaitlog.host.storage.json_text import json_text
 from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
 from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, MAX_STORED_ADC_BITS
 
@@ -56,21 +56,9 @@ def add_json_option(parser: argparse.ArgumentParser, what: str = "the tables") -
 
 
 def print_json(doc: object) -> None:
-    """Print ``doc`` as JSON: numpy values as numbers and lists, NaN and infinities as null (valid JSON)."""
-    print(json.dumps(_json_ready(doc), indent=2, allow_nan=False))
-
-
-def _json_ready(value: object) -> object:
-    """``value`` with numpy scalars and arrays as Python numbers and lists, non-finite floats as None."""
-    if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(v) for v in value]
-    if hasattr(value, "tolist"):                    # numpy arrays and scalars
-        return _json_ready(value.tolist())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value if isinstance(value, (str, int, float, bool, type(None))) else str(value)
+    """Print ``doc`` as JSON (:func:`gaitlog.host.storage.json_text.json_text`: numpy values as numbers and lists,
+    NaN and infinities as null)."""
+    print(json_text(doc))
 
 
 def _silent(*_args: object, **_kwargs: object) -> None:

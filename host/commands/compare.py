@@ -20,7 +20,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_text
 from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
 from gaitlog.host.commands._input_options import add_input_options, given_input_flags, read_input
 from gaitlog.host.commands._options import (
@@ -35,16 +34,14 @@ from gaitlog.host.commands._options import (
     input_stem,
     logger_rate_hz,
     out_path,
-    print_json,
-    printer,
     verbosity,
     whole,
 )
 from gaitlog.host.commands._progress import progress_bar
-from gaitlog.host.errors import HostError, UsageError
+from gaitlog.host.errors import UsageError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# The comparisons load numpy and numba: imported inside _simulate and _recording, so that `gaitlog --help`
+# stays light (tests/host/commands/test_cli_startup.py).
 
 HELP = "compare the offline chain with the on-line algorithm in float and fixed point (and truth): per step, 20 m"
 #: Shown under "examples:" by ``gaitlog compare --help``.
@@ -84,6 +81,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def _beside(out: str, suffix: str) -> str:
+    """The CSV written beside ``out``: ``<stem><suffix>.csv``."""
     p = Path(out)
     return str(p.with_name(p.stem + suffix + ".csv"))
 
@@ -120,135 +118,49 @@ def _sweep_command_line(args: argparse.Namespace) -> str:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
-    from gaitlog.host.studies.compare import (
-        BUDGET_COLUMNS,
-        bootstrap_budget,
-        format_budget,
-        format_segments,
-        format_step_diffs,
-        pool_step_diffs,
-        pooled_step_columns,
-        rows_csv_text,
-    )
-    from gaitlog.host.studies.simulation import simulate_comparisons
-
     if args.simulate < 1:
         raise UsageError(f"--simulate must be >= 1, got {args.simulate}")
     args.logger_rate = logger_rate_hz(args)
     if args.resamples < 1:
         raise UsageError(f"--resamples must be >= 1, got {args.resamples}")
-    say, detail = printer(args), printer(args, 1)
     if args.out:
         check_outputs({"--out": args.out}, {}, force=args.force)
+    from gaitlog.host.studies.compare_report import compare_simulated
+
     with progress_bar(args, args.simulate, "subject") as tick:
-        results = simulate_comparisons(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
-                                       sampling_rate_hz=args.logger_rate, workers=args.workers, progress=tick,
-                                       population=args.population)
-    say(f"{len(results)} simulated subject(s) ('{args.population}'), {args.adc_bits}-bit ADC at {args.logger_rate:g} Hz; one K per mode, "
-        "fitted on the offline chain, used by every chain (multi-speed for the per-step rows)")
-    for r in results:
-        detail(f"  {r.subject_id}: {r.steps['step'].size} steps (offline chain), step durations off by "
-               f"{r.timing['rms_ms']:.1f} ms rms; saturation/wrap: {r.saturation or 'none'}")
-    all_diffs = [d | {"subject": r.subject_id} for r in results for d in r.step_diffs]
-    say(format_step_diffs(pool_step_diffs(all_diffs)))
-    say()
-    say(format_segments(results))
-    say()
-    budget = bootstrap_budget(results, n_resamples=args.resamples, seed=args.seed)
-    say(format_budget(budget, n_resamples=args.resamples, seed=args.seed))
-    sat = [f"{r.subject_id}: {r.saturation}" for r in results if r.saturation]
-    say("saturation/wrap in the fixed-point runs: " + ("; ".join(sat) if sat else "none"))
-    if args.out:
-        atomic_write_text(args.out, columns_csv_text(pooled_step_columns(results)))
-        seg, split, bud = _beside(args.out, "_segments"), _beside(args.out, "_split"), _beside(args.out, "_budget")
-        atomic_write_text(seg, rows_csv_text([s for r in results for s in r.segments]))
-        atomic_write_text(split, rows_csv_text(all_diffs))
-        atomic_write_text(bud, rows_csv_text(budget, BUDGET_COLUMNS))
-        say(f"written: {args.out}, {seg}, {split}, {bud}")
-    if args.json:
-        print_json({"step_differences": pool_step_diffs(all_diffs),
-                    "segments": [s for r in results for s in r.segments],
-                    "budget": budget, "saturation": {r.subject_id: r.saturation for r in results}})
+        report = compare_simulated(args.simulate, seed=args.seed, adc_bits=args.adc_bits,
+                                   sampling_rate_hz=args.logger_rate, workers=args.workers,
+                                   population=args.population, n_resamples=args.resamples, progress=tick)
+    _print(args, report, ("_segments", "_split", "_budget"))
     return 0
 
 
 def _recording(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
-    from gaitlog.host.files.replay import run_starts, verify_step_records
-    from gaitlog.host.gait.k_calibration import KFit
-    from gaitlog.host.studies.compare import compare_recording, format_step_diffs, rows_csv_text
-
-    say = printer(args)
     p = Path(args.input)
     if args.out:
         check_outputs({"--out": args.out, "--out (_segments)": _beside(args.out, "_segments"),
                        "--out (_split)": _beside(args.out, "_split")},
                       {"INPUT": p, "--k-file": args.k_file, "--calibration": args.calibration}, force=args.force)
     data = read_input(args, p)
-    rec = data.recording
-    if rec is None:
-        raise HostError(f"{p}: compare runs the on-line algorithm on ADC codes: give a logger recording (memory "
-                        "image, raw dump, wire capture or decoded .npz), not acceleration in g")
-    # the device's own records first: a device that does not compute what the host replays is an error
-    check = verify_step_records(rec)
-    if check is not None and check.differs:
-        raise HostError(check.error_message(p))
-    cal, note = rec.default_calibration()
-    if args.calibration:
-        from gaitlog.host.accelerometer.calibration import AccCalibration
+    from gaitlog.host.studies.compare_report import compare_input
 
-        acc_cal = AccCalibration.load(args.calibration)
-        try:
-            cal = acc_cal.to_header_calibration()
-        except HostError as err:
-            raise HostError(f"{args.calibration}: {err}") from None
-        note = f"g from {args.calibration}"
-    k = KFit.load(args.k_file) if args.k_file else None
-    lengths = lengths_from_args(args, k=k, data=data)
-    leg, foot = lengths.leg_length_m, lengths.foot_length_m
-    flags = np.asarray(rec.flags)
-    marks = data.mark_index
-    starts = run_starts(rec.valid, flags)
-    t = rec.time_s
-    res = compare_recording(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
-                            foot_length_m=foot, adc_calibration=cal, adc_bits=int(rec.adc_bits), valid=rec.valid,
-                            calibration=k, mark_times_s=t[marks] if marks.size >= 2 else None, lap_m=args.lap_m,
-                            t0_s=float(t[0]) if t.size else 0.0, run_starts=starts)
-    say(f"{p}: {rec.n_samples} samples at {rec.sampling_rate_hz:g} Hz ({rec.n_missing} missing); {note}")
-    say(check.summary() if check is not None else "device step records: none in this recording")
-    printer(args, 1)(f"{starts.size} run(s) of contiguous samples (the on-line algorithm restarts after each gap), "
-                     f"{marks.size} MARK flag(s)")
-    say(f"leg length {leg:.3f} m, foot length {foot:.3f} m"
-        + (f" ({lengths.note})" if lengths.note and not lengths.assumed else "") + "; K file: {args.k_file or 'none (K = 1, M4/M5 n/a)'}"
-          " (the same K for every chain)")
-    tb = res.tables
-    say("steps: " + ", ".join(f"{c} {tb[c].n_steps}" for c in tb) + "; " + "; ".join(
-        f"{s}: matched {m.n_matched}, different events {int(np.count_nonzero(~m.same_events))}, "
-        f"found by one chain only {m.only_a.size + m.only_b.size}" for s, m in res.matches.items()))
-    say(format_step_diffs(res.step_diffs))
-    say(f"segments: {res.segment_source}; alg = online-float - offline, arith = online-fixed - online-float")
-    say(f"{'seg':>4}{'t0 s':>8}{'t1 s':>8}" + "".join(f"{e + ' offline m':>13}{'alg mm':>9}{'arith mm':>9}"
-                                                    for e in ESTIMATORS))
-    for i in sorted({r["section"] for r in res.segments}):
-        rs = {r["estimator"]: r for r in res.segments if r["section"] == i}
-        r0 = rs["M1"]
-        say(f"{i:>4}{r0['t_start_s']:>8.1f}{r0['t_end_s']:>8.1f}" + "".join(
-            f"{rs[e]['offline_m']:>13.3f}{1e3 * rs[e]['algorithm_m']:>9.2f}{1e3 * rs[e]['arithmetic_m']:>9.2f}"
-            for e in ESTIMATORS))
-    say(f"saturation/wrap in the fixed-point run: {res.saturation or 'none'}; "
-        f"PIC cycles per sample {res.cycles_per_sample:.0f} (mean)")
-    if lengths.assumed and verbosity(args) >= 0:
-        print(f"gaitlog compare: warning: {lengths.note}", file=sys.stderr)
-    if args.out:
-        atomic_write_text(args.out, columns_csv_text(res.steps))
-        seg, split = _beside(args.out, "_segments"), _beside(args.out, "_split")
-        atomic_write_text(seg, rows_csv_text(res.segments))
-        atomic_write_text(split, rows_csv_text(res.step_diffs))
-        say(f"written: {args.out}, {seg}, {split}")
-    if args.json:
-        print_json({"input": str(p), "steps": {c: t.n_steps for c, t in tb.items()}, "step_differences": res.step_diffs,
-                    "segments": res.segments, "saturation": res.saturation, "cycles_per_sample": res.cycles_per_sample})
+    report = compare_input(data, p, calibration_file=args.calibration, k_file=args.k_file, lap_m=args.lap_m,
+                           lengths_for=lambda k: lengths_from_args(args, k=k, data=data))
+    _print(args, report, ("_segments", "_split"))
+    if report.warning and verbosity(args) >= 0:
+        print(f"gaitlog compare: warning: {report.warning}", file=sys.stderr)
     return 0
+
+
+def _print(args: argparse.Namespace, report, suffixes: tuple[str, ...]) -> None:
+    """The report's files (``--out`` and the ones beside it, named by ``suffixes``), its text (``-v``: with its
+    detail lines) and, with ``--json``, its document."""
+    written = [args.out] + [_beside(args.out, s) for s in suffixes] if args.out else []
+    if written:
+        report.write_outputs(*written)
+    if verbosity(args) >= 0 and not args.json:
+        print(report.format_table(verbosity(args)))
+        if written:
+            print(f"written: {', '.join(written)}")
+    if args.json:
+        print(report.to_json())

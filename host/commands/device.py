@@ -4,17 +4,15 @@ memory (after confirmation) and set its calibration slot."""
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import sys
 from typing import Any
 
 from gaitlog.host.commands._options import BAUD, TIMEOUT_S, UNIX_TIME_S, add_verbosity_options, verbosity
 from gaitlog.host.errors import HostError, UsageError
-from gaitlog.protocol.errors import ProtocolError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# The link loads numpy and pyserial: run imports it, so that `gaitlog --help` stays light
+# (tests/host/commands/test_cli_startup.py).
 
 HELP = "control a live logger (--port): identify, status, start, stop, erase, set-calibration"
 #: Shown under "examples:" by ``gaitlog device --help``.
@@ -69,72 +67,35 @@ def configure(parser: argparse.ArgumentParser) -> None:
                        help="clear the slot: the logger uses the nominal map (±2 g over the ADC span)")
 
 
-#: STATUS ``state`` in the user's words.
-STATE_WORDS = {0: "idle", 1: "logging", 2: "stopped because the memory is full"}
-
-
 def run(args: argparse.Namespace) -> int:
     if args.action == "erase" and not args.yes and not sys.stdin.isatty():
         raise UsageError("erase needs a confirmation: run it in a terminal to be asked, or pass --yes")
-    slot = _calibration_slot(args) if args.action == "set-calibration" else None
-    from gaitlog.host.link.logger_link import LoggerLink
+    from gaitlog.host.link.device_control import DeviceControl, LoggerLink, calibration_slot
 
+    slot = calibration_slot(None if args.nominal else args.calibration) if args.action == "set-calibration" else None
     with LoggerLink(args.port, baud=args.baud, timeout_s=args.timeout) as link:
-        info = link.identify()
+        device = DeviceControl(link, args.port)
         if args.action == "identify":
-            return _report(args, _identity(info), _identity_lines(args.port, info))
+            return _report(args, device.identity(), device.identity_lines())
         if args.action == "status":
-            return _report(args, _status(link), _status_lines(args.port, info, _status(link)))
+            return _report(args, device.status(), device.status_lines(device.status()))
         if args.action == "start":
-            return _start(args, link, info)
-        if args.action == "stop":
-            return _stop(args, link, info)
-        if args.action == "erase":
-            return _erase(args, link, info)
-        return _set_calibration(args, link, info, slot)
-
-
-# ------------------------------------------------------------------------------------------------- reports
-def _identity(info: dict[str, int]) -> dict[str, Any]:
-    """The IDENTIFY answer in the host's vocabulary (``sampling_rate_hz``, firmware as ``"major.minor"``)."""
-    from gaitlog.host.link.logger_link import device_identity
-
-    return device_identity(info)
-
-
-def _identity_lines(port: str, info: dict[str, int]) -> list[str]:
-    ident = _identity(info)
-    return [f"logger {ident['device_id']} on {port}",
-            f"firmware {ident['firmware_version']}, protocol v{ident['protocol_version']}",
-            (f"{ident['adc_bits']}-bit ADC at {ident['sampling_rate_hz']:g} Hz, room for "
-             f"{ident['capacity_samples']} samples ({ident['memory_bytes']} bytes)")]
-
-
-def _status(link) -> dict[str, Any]:
-    """STATUS plus what the header says about stored step records and the calibration slot."""
-    from gaitlog.protocol.frames import DeviceState
-
-    status = link.status()
-    _, header = link.read_header()
-    return {"device_id": header.device_id, "state": STATE_WORDS.get(status["state"], str(status["state"])),
-            "logging": status["state"] == DeviceState.LOGGING, "overwrite": header.overwrite,
-            "samples_written": status["samples_written"], "samples_stored": header.n_stored,
-            "capacity_samples": header.capacity_samples, "write_index": status["write_index"],
-            "start_time_utc": header.start_time.isoformat() if header.start_time_s else None,
-            "step_records_stored": header.n_steps_stored, "step_algorithm_on": bool(header.step_config.enabled),
-            "calibration_set": bool(header.calibration.valid)}
-
-
-def _status_lines(port: str, info: dict[str, int], st: dict[str, Any]) -> list[str]:
-    full = 100.0 * st["samples_stored"] / st["capacity_samples"]
-    mode = "overwriting the oldest samples when full" if st["overwrite"] else "stopping when full"
-    return [f"logger {st['device_id']} on {port}: {st['state']}"
-            + (f" ({mode})" if st["logging"] else ""),
-            (f"{st['samples_stored']} samples stored of {st['capacity_samples']} ({full:.1f} % full), "
-             f"{st['samples_written']} written since the last erase"),
-            f"{st['step_records_stored']} step records stored; on-line step algorithm "
-            + ("on" if st["step_algorithm_on"] else "off"),
-            "calibration slot: " + ("set" if st["calibration_set"] else "empty (the nominal map is used)")]
+            message = device.start(args.start_time, overwrite=args.overwrite)
+        elif args.action == "stop":
+            message = device.stop()
+        elif args.action == "erase":
+            what = device.erasable()
+            if not args.yes:
+                answer = input(f"Erase {what}? The calibration and step configuration are kept. [y/N] ")
+                if answer.strip().lower() not in ("y", "yes"):
+                    raise HostError("erase not confirmed: nothing erased")
+            link.erase()
+            message = f"erased {what}"
+        else:
+            message = device.set_calibration(slot, args.calibration)
+    if verbosity(args) >= 0:
+        print(message)
+    return 0
 
 
 def _report(args: argparse.Namespace, data: dict[str, Any], lines: list[str]) -> int:
@@ -142,95 +103,4 @@ def _report(args: argparse.Namespace, data: dict[str, Any], lines: list[str]) ->
         print(json.dumps(data, indent=2))
     elif verbosity(args) >= 0:
         print("\n".join(lines))
-    return 0
-
-
-def _say(args: argparse.Namespace, message: str) -> None:
-    if verbosity(args) >= 0:
-        print(message)
-
-
-# ------------------------------------------------------------------------------------------------- actions
-def _start(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    from gaitlog.protocol.frames import DeviceState
-
-    before = link.status()
-    if before["state"] == DeviceState.LOGGING:
-        raise HostError(f"logger {info['device_id']} on {args.port} is already logging "
-                        f"({before['samples_written']} samples written): nothing changed")
-    link.start(args.start_time, overwrite=args.overwrite)
-    after = _status(link)
-    when = datetime.datetime.fromisoformat(after["start_time_utc"]) if after["start_time_utc"] else None
-    mode = "overwrites the oldest samples when full" if args.overwrite else "stops when the memory is full"
-    _say(args, f"logger {info['device_id']} is logging since {when.isoformat() if when else '?'} "
-               f"({after['samples_stored']} samples already stored; it {mode})")
-    return 0
-
-
-def _stop(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    from gaitlog.protocol.frames import DeviceState
-
-    was = link.status()["state"]
-    link.stop()
-    st = _status(link)
-    if was != DeviceState.LOGGING:
-        _say(args, f"logger {info['device_id']} was not logging ({st['state']}); "
-                   f"{st['samples_stored']} samples stored")
-    else:
-        _say(args, f"logger {info['device_id']} stopped logging: {st['samples_stored']} samples and "
-                   f"{st['step_records_stored']} step records stored")
-    return 0
-
-
-def _erase(args: argparse.Namespace, link, info: dict[str, int]) -> int:
-    st = _status(link)
-    if st["logging"]:
-        raise HostError(f"logger {info['device_id']} on {args.port} is logging: stop it first "
-                        "(`gaitlog device stop`); nothing erased")
-    what = (f"{st['samples_stored']} stored samples and {st['step_records_stored']} step records of logger "
-            f"{info['device_id']} on {args.port}")
-    if not args.yes:
-        answer = input(f"Erase {what}? The calibration and step configuration are kept. [y/N] ")
-        if answer.strip().lower() not in ("y", "yes"):
-            raise HostError("erase not confirmed: nothing erased")
-    link.erase()
-    _say(args, f"erased {what}")
-    return 0
-
-
-def _calibration_slot(args: argparse.Namespace) -> bytes:
-    """The 64-byte slot from ``CAL.json`` (or the empty slot for ``--nominal``), checked before any
-    connection is made."""
-    from gaitlog.protocol.header import CALIBRATION_SIZE
-
-    if args.nominal:
-        return bytes(CALIBRATION_SIZE)
-    from gaitlog.host.accelerometer.calibration import AccCalibration
-
-    try:
-        cal = AccCalibration.load(args.calibration)
-    except OSError as err:
-        raise HostError(f"cannot read the calibration file {args.calibration}: {err.strerror or err}") from err
-    try:
-        return cal.to_header_calibration().to_bytes()
-    except (ProtocolError, ValueError) as err:
-        raise HostError(f"{args.calibration}: does not fit the logger's calibration slot: {err}") from err
-
-
-def _set_calibration(args: argparse.Namespace, link, info: dict[str, int], slot: bytes) -> int:
-    from gaitlog.protocol.header import CalibrationSlot
-
-    cal = CalibrationSlot.from_bytes(slot, info["adc_bits"])
-    link.set_calibration(slot)
-    _, header = link.read_header()
-    stored = header.calibration
-    if stored.valid != cal.valid or (cal.valid and stored.to_bytes() != slot):
-        raise HostError(f"logger {info['device_id']} acknowledged the calibration but its header does not hold it")
-    if cal.valid:
-        offset = ", ".join(f"{v:.3f}" for v in stored.offset_counts)
-        _say(args, f"calibration of {args.calibration} stored in logger {info['device_id']}: offset {offset} "
-                   "counts (fixed point: offset to 1/65536 count, matrix to 2^-30 g/count)")
-    else:
-        _say(args, f"calibration slot of logger {info['device_id']} cleared: it uses the nominal map "
-                   f"(±2 g over the {info['adc_bits']}-bit ADC span)")
     return 0

@@ -18,9 +18,7 @@ heel-strike intervals.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
 from gaitlog.host.commands._options import (
     SEED,
     add_adc_bits_option,
@@ -32,12 +30,13 @@ from gaitlog.host.commands._options import (
     check_outputs,
     logger_rate_hz,
     out_path,
-    print_json,
     verbosity,
     whole,
 )
 from gaitlog.host.commands._progress import progress_bar
 from gaitlog.host.errors import UsageError
+
+# The studies load numpy, numba and matplotlib: _run_sim and run import them, so that `gaitlog --help` does not.
 
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 #: Shown under "examples:" by ``gaitlog evaluate --help``.
@@ -109,7 +108,7 @@ def _run_sim(args: argparse.Namespace) -> int:
                                  laps=args.laps, n_resamples=args.resamples).run(progress=tick)
     paths = ev.write_outputs(out)
     if args.json:
-        print_json({"out": str(out), "summary": ev.summary_, "intervals": ev.bootstrap_, "files": paths})
+        print(ev.to_json(out, paths))
         return 0
     if verbosity(args) < 0:
         return 0
@@ -124,151 +123,22 @@ def _run_sim(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-
-
     if args.dataset == "sim":
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise UsageError("evaluate ipol: give the folder (DIR) and --out CSV")
+    from gaitlog.host.studies.ipol_report import IpolOutputs, evaluate_ipol, list_trials
 
-    args.out = out_path(args.out, "ipol_evaluation.csv")
-    from gaitlog.host.studies.compare import rows_csv_text
-    from gaitlog.host.studies.ipol_evaluation import (
-        ARITHMETICS,
-        CSV_COLUMNS,
-        EVENT_COLUMNS,
-        K_PRIOR_IN_MAIN,
-        STEP_COLUMNS,
-        done_figures,
-        evaluate_folder,
-        choice_gains,
-        count_gains,
-        format_choices,
-        format_done,
-        format_events,
-        format_tuning,
-        main_rows,
-        summarise,
-    )
-
+    outputs = IpolOutputs.beside(out_path(args.out, "ipol_evaluation.csv"), args.figure)
     args.logger_rate = logger_rate_hz(args)
-    args.uturn = args.uturn or "include"
-    args.arithmetic = args.arithmetic or "all"
-    out = Path(args.out)
-    fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
-    steps_path = out.with_name(out.stem + "_steps.csv")
-    events_path = out.with_name(out.stem + "_events.csv")
-    check_outputs({"--out": out, "--figure": fig_path, "--out (_steps)": steps_path, "--out (_events)": events_path},
-                  {"DIR": args.folder}, force=args.force)
-    from gaitlog.host.files.ipol import list_trials
-    from gaitlog.host.gait.anthropometry import LENGTH_MODEL
-
-    with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: res, below
-        arith = ARITHMETICS if args.arithmetic == "all" else (args.arithmetic,)
-        res = evaluate_folder(args.folder, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits, uturn=args.uturn,
-                              arithmetic=arith, progress=tick)
-    rows = [{**{c: str(r[c]) for c in CSV_COLUMNS},
-             "distance_m": f"{r['distance_m']:.4f}", "ratio": f"{r['ratio']:.5f}",
-             "steps_outside_k_range": "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])}
-            for r in res.rows]
-    # figure first (it can fail on a broken matplotlib); the CSVs are written last, all atomically
-    from gaitlog.host.studies.plots import render_chain_boxplots_png
-
-    png = render_chain_boxplots_png(main_rows(res.rows), arith, title=f"IPOL lower back, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
-                                    "K from trial 1 (offline chain) for every chain")
-    atomic_write_bytes(fig_path, png)
-    atomic_write_text(out, rows_csv_text(rows, CSV_COLUMNS))
-    if res.step_rows:
-        atomic_write_text(steps_path, rows_csv_text(res.step_rows, STEP_COLUMNS))
-    if res.trial_events:
-        atomic_write_text(events_path, rows_csv_text(res.trial_events, EVENT_COLUMNS))
+    check_outputs({"--out": outputs.out, "--figure": outputs.figure, "--out (_steps)": outputs.steps,
+                   "--out (_events)": outputs.events}, {"DIR": args.folder}, force=args.force)
+    with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: in the report
+        report = evaluate_ipol(args.folder, outputs, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
+                               uturn=args.uturn or "include", arithmetic=args.arithmetic or "all", progress=tick)
+    report.write_outputs()
     if args.json:
-        print_json({"out": str(out), "rows": res.rows, "trial_events": res.trial_events})
-        return 0
-    if verbosity(args) < 0:
-        return 0
-    print(f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {args.logger_rate:g} Hz, {args.adc_bits} bits, "
-          f"U-turn {args.uturn}d, emulated logger with its on-line algorithm on; one K per subject, fitted on "
-          "trial 1 with the offline chain, for every arithmetic"
-          + (" and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "")
-          + "; lengths from each subject's height ("
-          + ", ".join(f"{n} trials {src}" for src, n in _count(r["lengths_source"] for r in main_rows(res.rows)
-                                                                 if r["estimator"] == "M1" and r["arithmetic"] == arith[0]
-                                                                 and r["k_from"] == "offline").items())
-          + f"): {LENGTH_MODEL}")
-    print(format_tuning(res))
-    tables = [(a, "offline", f"arithmetic = {a}") for a in arith]
-    if "online-fixed" in arith:
-        tables.append(("online-fixed", "own", "on-line fixed with its OWN K (fitted on its own records of trial 1; "
-                       "the device as it would be used -- a different K, not a comparison)"))
-    for a, k_from, title in tables:
-        _print_table(title, summarise(res.rows, arithmetic=a, k_from=k_from, intervals=True))
-    if "offline" in arith:
-        other = next(u for u in ("exclude", "include") if u != args.uturn)
-        _print_table(f"arithmetic = offline, U-turn {other}d (the other rule; K fitted with it)",
-                     summarise(res.rows, arithmetic="offline", variant=f"uturn-{other}", intervals=True))
-        _print_table("arithmetic = offline, height UNKNOWN: a 1.70 m adult assumed for every subject (K fitted with "
-                     "those lengths; M3 has no K to absorb them)",
-                     summarise(res.rows, arithmetic="offline", variant="height-unknown", intervals=True))
-        _print_table("arithmetic = offline, M4 with the exponent chosen per fold (K refitted with it; M4 row only)",
-                     [x for x in summarise(res.rows, arithmetic="offline", variant="m4-per-fold", intervals=True)
-                      if x["estimator"] == "M4"])
-        _print_table("baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
-                     "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "
-                     "M4 range^(1/4), K = 20 m / first trial's sum)",
-                     [x for x in summarise(res.rows, arithmetic="offline", variant="baseline", intervals=True)
-                      if x["estimator"] in ("M2", "M4")])
-        if any(r["variant"] == "no-prior" for r in res.rows):
-            _print_table("arithmetic = offline, NO K prior: K from trial 1 alone (the paper's K)",
-                         summarise(res.rows, arithmetic="offline", variant="no-prior", intervals=True))
-        if any(r["variant"] == "k-prior" for r in res.rows):
-            _print_table("arithmetic = offline, with the K prior: K from trial 1 shrunk toward the other subjects' K "
-                         "(not kept: its gain's interval includes zero)",
-                         summarise(res.rows, arithmetic="offline", variant="k-prior", intervals=True))
-    if "offline" in arith:
-        print(format_choices(choice_gains(res) + count_gains(res)))
-    print("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of detected"
-          " - reference; outside K: steps outside the range K was calibrated on (duration, the estimator's input "
-          "or length), of the steps in the trials")
-    print(format_events(res))
-    if set(arith) == set(ARITHMETICS):
-        print(format_done(done_figures(res)))
-    else:
-        chk = res.replay_checks
-        same = sum(c["n_identical"] == c["n_compared"] for c in chk)
-        print(f"device step records = host replay, byte for byte: {same} of {len(chk)} trials, "
-              f"{sum(c['n_identical'] for c in chk)} of {sum(c['n_compared'] for c in chk)} records")
-    print("fixed-point saturation/wrap: " + ("; ".join(res.saturation) if res.saturation else "none"))
-    for msg in res.skipped:
-        print(f"skipped: {msg}")
-    print(f"written: {out}" + (f", {steps_path}" if res.step_rows else "")
-          + (f", {events_path}" if res.trial_events else "") + f", {fig_path}")
+        print(report.to_json())
+    elif verbosity(args) >= 0:
+        print(report.format_table())
     return 0
-
-
-def _count(values) -> dict:
-    out: dict = {}
-    for v in values:
-        out[v] = out.get(v, 0) + 1
-    return out
-
-
-def _ci(interval) -> str:
-    return "" if interval is None else f"[{interval[0]:.3f}, {interval[1]:.3f}]"
-
-
-def _print_table(title: str, summary: list[dict]) -> None:
-    """One summary table (:func:`gaitlog.host.studies.ipol_evaluation.summarise`)."""
-    print(title)
-    print(f"{'estimator':<10}{'n':>4}{'median':>8}{'q1':>8}{'q3':>8}{'IQR':>7}{'min':>8}{'max':>8}"
-          f"{'median 95% CI':>16}{'IQR 95% CI':>16}{'steps|err|%':>13}{'|err|':>6}{'signed':>7}{'outside K':>14}")
-    for s in summary:
-        if not s.get("n"):
-            print(f"{s['estimator']:<10}{0:>4}")
-            continue
-        out_k = "-" if s["steps_outside_k_range"] is None else f"{s['steps_outside_k_range']}/{s['steps_total']}"
-        print(f"{s['estimator']:<10}{s['n']:>4}{s['median']:>8.3f}{s['q1']:>8.3f}{s['q3']:>8.3f}{s['iqr']:>7.3f}"
-              f"{s['min']:>8.3f}{s['max']:>8.3f}{_ci(s.get('median_ci')):>16}{_ci(s.get('iqr_ci')):>16}"
-              f"{s['step_error_median_pct']:>13.2f}"
-              f"{s['step_error_median_abs']:>6.1f}{s['step_error_median_signed']:>+7.1f}{out_k:>14}")
-

@@ -23,9 +23,6 @@ comparison, the same shank without axial rotation and a six-accelerometer platfo
 from __future__ import annotations
 
 import argparse
-import math
-import warnings
-from dataclasses import replace
 from pathlib import Path
 
 from gaitlog.host.commands._options import (
@@ -35,11 +32,12 @@ from gaitlog.host.commands._options import (
     check_output_folder,
     number,
     printer,
+    verbosity,
 )
 from gaitlog.host.errors import UsageError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# The kinematics runs load numpy, scipy and matplotlib: imported inside the functions that run them, so that
+# `gaitlog --help` stays light (tests/host/commands/test_cli_startup.py).
 
 HELP = "Morris' and Hall's kinematics on a recording (morris / hall) or on simulated instruments (simulate)."
 #: Shown under "examples:" by ``gaitlog kinematics --help``.
@@ -110,158 +108,38 @@ def _check_out(out: Path | None, what: str, *, force: bool) -> Path:
 
 
 def _run_recording(args: argparse.Namespace) -> int:
-    from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
-    from gaitlog.host.kinematics.platform_description import HallPlatform, MorrisPlatform
-    from gaitlog.host.kinematics.reports import analyse_hall, hall_outputs, morris_outputs, write_outputs
-    from gaitlog.host.kinematics.sensor_csv import read_sensor_csv
-
     if args.recording is None or args.platform is None:
         raise UsageError(f"kinematics {args.method}: give the RECORDING csv and --platform JSON")
     out = _check_out(args.out, f"kinematics {args.method}", force=args.force)
-    recording = read_sensor_csv(args.recording)
-    say = printer(args)
-    if args.method == "morris":
-        platform = MorrisPlatform.load(args.platform)
-        cycle = tuple(args.cycle) if args.cycle else None
-        cycles = analyse_morris_recording(recording, platform, cycle_s=cycle)
-        outputs = morris_outputs(cycles, recording, platform, args.azimuth, args.elevation, not args.no_animation)
-        write_outputs(out, outputs)
-        zero = f", rate about axis {'/'.join(str(a + 1) for a in platform.assume_zero_rate_axes)} assumed zero" \
-            if platform.assume_zero_rate_axes else ""
-        say(f"Morris: {len(platform.sensors)} accelerometers{zero}, {recording.sampling_rate_hz:g} Hz, "
-            f"{len(cycles)} cycle(s): " + ", ".join(f"{c.t_s[0]:.2f}-{c.t_s[-1]:.2f} s" for c in cycles))
-        for i, c in enumerate(cycles):
-            disp = c.position_m[-1] - c.position_m[0]
-            say(f"  cycle {i + 1}: peak |ω| {float(abs(c.omega_rad_s).max()):.2f} rad/s, displacement "
-                f"{float(disp[0]):.3f} m forwards, {float(disp[1]):.3f} m sideways")
-            if abs(c.pivot_misfit_g) > 0.1:
-                say(f"  warning: cycle {i + 1} starts at {c.t_s[0]:.2f} s where the shank is not turning about a "
-                    f"fixed pivot (gravity from eq 11 is {1 + c.pivot_misfit_g:.2f} g, not 1 g): the initial direction "
-                    "cosines need a start in foot-flat")
-        names = list(outputs)
-    else:
-        if args.cfc:
-            from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
+    from gaitlog.host.kinematics.runs import analyse_recording
 
-            cfc_coefficients(args.cfc, recording.sampling_rate_hz)
-        platform = HallPlatform.load(args.platform)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            hall = analyse_hall(recording, platform, args.cfc, args.angle_mode)
-        outputs = hall_outputs(hall, recording, platform.sequence)
-        write_outputs(out, outputs)
-        import numpy as np
-
-        final = np.degrees(hall.angles_rad_[-1])
-        say(f"Hall: sequence {platform.sequence}, {platform.side} side, {recording.sampling_rate_hz:g} Hz, "
-            f"CFC {args.cfc:g}, {hall.angles_rad_.shape[0]} samples; final angles "
-            f"({', '.join(f'{x:.2f}' for x in final)}) deg")
-        for w in caught:
-            say(f"  warning: {w.message}")
-        names = list(outputs)
-    say(f"written to {out}/: {' '.join(names)}")
+    report = analyse_recording(args.method, args.recording, args.platform, out,
+                               cycle=tuple(args.cycle) if args.cycle else None, azimuth=args.azimuth,
+                               elevation=args.elevation, animation=not args.no_animation, cfc=args.cfc,
+                               angle_mode=args.angle_mode)
+    printer(args)(report.format_table())
     return 0
 
 
 # ---------------------------------------------------------------------------------------------- simulate
 def _run_simulate(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from gaitlog.host.kinematics.cfc_filter import cfc_coefficients
-    from gaitlog.host.kinematics.joints import joint_angles_yxz
-    from gaitlog.host.kinematics.morris_analysis import analyse_morris_recording
-    from gaitlog.host.kinematics.reports import (
-        analyse_hall,
-        as_recording,
-        hall_outputs,
-        morris_errors,
-        morris_outputs,
-        truth_from_columns,
-        write_outputs,
-    )
-    from gaitlog.host.kinematics.simulated_instruments import (
-        simulate_hall,
-        simulate_morris,
-        write_instrument,
-    )
-
     if args.out is None and args.write_recording is None:
         raise UsageError("kinematics simulate: give --out DIR (figures and errors) and/or --write-recording DIR")
     if args.out is not None:
         _check_out(args.out, "kinematics simulate", force=args.force)
     if args.write_recording is not None:
         check_output_folder("--write-recording", args.write_recording, force=args.force)
+    from gaitlog.host.kinematics.runs import cfc_coefficients, simulate_and_analyse
+
     if args.cfc:
         cfc_coefficients(args.cfc, args.hall_rate)  # reject an invalid rate before any work
-    snr = None if math.isinf(args.snr_db) else args.snr_db
-    kw = {"snr_db": snr, "sampling_rate_hz": args.morris_rate, "seed": args.seed}
-    morris = simulate_morris(n_accelerometers=args.accelerometers, **kw)
-    hall = simulate_hall(sampling_rate_hz=args.hall_rate, noise_rad_s=args.gyro_noise, seed=args.seed)
-    say, detail = printer(args), printer(args, 1)
-    if args.write_recording is not None:
-        paths = write_instrument(morris, args.write_recording, "morris") + write_instrument(
-            hall, args.write_recording, "hall")
-        say(f"recordings written to {args.write_recording}/: {' '.join(p.name for p in paths)}")
-    if args.out is None:
-        return 0
-    # Morris as published, and what its ω3 = 0 assumption costs
-    rec = as_recording(morris, args.morris_rate)
-    cycles = analyse_morris_recording(rec, morris.platform)
-    variants = [("as simulated", cycles, truth_from_columns(morris))]
-    for label, sim in (("no axial rotation", simulate_morris(n_accelerometers=args.accelerometers,
-                                                              axial_rotation=False, **kw)),
-                       ("6 accelerometers" if args.accelerometers == 5 else "5 accelerometers",
-                        simulate_morris(n_accelerometers=11 - args.accelerometers, **kw))):
-        variants.append((label, analyse_morris_recording(as_recording(sim, args.morris_rate), sim.platform),
-                         truth_from_columns(sim)))
-    hall_rec = as_recording(hall, args.hall_rate)
-    result = analyse_hall(hall_rec, hall.platform, args.cfc, "absolute")
-    literal = analyse_hall(hall_rec, hall.platform, args.cfc, "incremental_sum")
-    identity = hall.platform.__class__(hall.platform.link_a, hall.platform.link_b, "yxz", "left",
-                                       hall.platform.pretest_s, np.zeros(3))
-    naive = analyse_hall(hall_rec, identity, args.cfc, "absolute")
-    tr = hall.truth
-    true_angles = np.stack([tr["phi_rad"], tr["theta_rad"], tr["psi_rad"]], axis=1)
-    outputs = morris_outputs(cycles, rec, morris.platform, args.azimuth, args.elevation, not args.no_animation)
-    outputs.update(hall_outputs(result, hall_rec, "yxz"))
-    outputs["hall_joint_angles.png"] = (outputs["hall_joint_angles.png"][0], outputs["hall_joint_angles.png"][1],
-                                        {"sequence": "yxz", "truth_rad": true_angles})
-    write_outputs(args.out, outputs)
-    noise = "no noise" if snr is None else f"{snr:g} dB SNR"
-    say(f"Morris shank, {args.accelerometers} accelerometers, {args.morris_rate:g} Hz, {noise}, "
-        f"{len(cycles)} cycle(s) found from foot-flat:")
-    for label, cs, truth in variants:
-        errs = [morris_errors(c, truth) for c in cs]
-        say(f"  {label:<18} orientation max error {max(e['orientation_deg'] for e in errs):.3g} deg "
-            f"(tilt {max(e['tilt_deg'] for e in errs):.3g} deg), ω max error "
-            f"{max(e['omega_rad_s'] for e in errs):.3g} rad/s (axial rate peak "
-            f"{max(e['omega_axial_peak_rad_s'] for e in errs):.2f} rad/s), position max error "
-            f"{max(e['position_m'] for e in errs):.3g} m")
-    err = np.degrees(np.abs(result.angles_rad_ - true_angles).max(axis=0))
-    err_naive = np.degrees(np.abs(naive.angles_rad_ - true_angles).max(axis=0))
-    fmt3 = lambda xs: "(" + ", ".join(f"{x:.3g}" for x in xs) + ")"  # noqa: E731
-    say(f"Hall two links, {args.hall_rate:g} Hz, CFC {args.cfc:g}, gyro noise {args.gyro_noise:g} rad/s:")
-    say(f"  joint angles      max error {fmt3(err)} deg (phi, theta, psi), initial A-B from the pre-test gravity")
-    say(f"  with identity     max error {fmt3(err_naive)} deg (initial A-B taken as identity)")
-    say(f"  final angles      {fmt3(np.degrees(result.angles_rad_[-1]))} deg, truth "
-        f"{fmt3(np.degrees(true_angles[-1]))} deg")
-    say(f"  literal sum of incremental Euler angles ends at {fmt3(np.degrees(literal.angles_rad_[-1]))} deg")
-    say(f"  initial posture   {fmt3(np.degrees(joint_angles_yxz(result.joint_matrix_[0])[0]))} deg")
-    from gaitlog.firmware_sim.budget import CONFIGURATIONS, instrument_fit
-
-    n_acc = len(morris.platform.sensors)
-    n_rate = len(hall.platform.link_a.rate_sensors) + len(hall.platform.link_b.rate_sensors)
-    for name, config in (("Morris", replace(CONFIGURATIONS["morris-6" if n_acc == 6 else "morris-5"],
-                                            sampling_rate_hz=args.morris_rate, adc_channels=n_acc)),
-                         ("Hall", replace(CONFIGURATIONS["hall"], sampling_rate_hz=args.hall_rate, adc_channels=n_rate))):
-        short, fastest = instrument_fit(config)
-        verdict = ("fits" if not short else "does not fit: " + "; ".join(short)
-                   + f"; the closest that fits: {config.adc_channels} channels at {int(fastest)} Hz")
-        say(f"on the PIC16F877 logger, {name} ({config.adc_channels} channels at {config.sampling_rate_hz:g} Hz, "
-            f"`gaitlog budget --config {config.name}`): {verdict}")
-    say(f"figures and results written to {args.out}/: {' '.join(outputs)}")
-    for name in outputs:
-        detail(f"  {args.out / name}")
+    report = simulate_and_analyse(out=args.out, write_recording=args.write_recording,
+                                  accelerometers=args.accelerometers, snr_db=args.snr_db,
+                                  morris_rate_hz=args.morris_rate, hall_rate_hz=args.hall_rate,
+                                  gyro_noise_rad_s=args.gyro_noise, cfc=args.cfc, seed=args.seed,
+                                  azimuth=args.azimuth, elevation=args.elevation, animation=not args.no_animation)
+    if report.lines:
+        printer(args)(report.format_table(verbose=verbosity(args) > 0))
     return 0
 
 

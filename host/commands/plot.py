@@ -6,7 +6,6 @@ import argparse
 import re
 from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_bytes
 from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
 from gaitlog.host.commands._options import (
     add_force_option,
@@ -19,8 +18,8 @@ from gaitlog.host.commands._options import (
 )
 from gaitlog.host.errors import HostError, UsageError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# The overview loads numpy, scipy and matplotlib: run imports it, so that `gaitlog --help` stays light
+# (tests/host/commands/test_cli_startup.py).
 
 HELP = ("draw a recording's acceleration (gaps shaded, lap marks), the detected gait events and each step's "
         "length per estimator to a PNG")
@@ -49,11 +48,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-    from gaitlog.host.files.inputs import read_acceleration
-    from gaitlog.host.gait.k_calibration import KFit
-    from gaitlog.host.studies.overview import recording_overview
-    from gaitlog.host.studies.plots import render_overview_png
+    from gaitlog.host.studies.plots import ESTIMATORS, plot_recording
 
     src = Path(args.input)
     out = Path(out_path(args.out, f"{input_stem(src)}.png") or src.with_suffix(".png"))
@@ -68,19 +63,8 @@ def run(args: argparse.Namespace) -> int:
     check_outputs({"--out": out}, {"RECORDING": src, "--k-file": args.k_file}, force=args.force)
     if not src.is_file():
         raise HostError(f"{src}: no such file")
-    data = read_acceleration(src)
-    if data.recording is None:
-        raise HostError(f"{src}: plot draws a logger recording (memory image, raw dump, wire capture or decoded "
-                        f".npz); this is {data.source}: record it first (gaitlog record --motion replay)")
-    rec = data.recording
-    cal = KFit.load(args.k_file) if args.k_file else None
-    lengths = lengths_from_args(args, k=cal, data=data)
-    leg, foot = lengths.leg_length_m, lengths.foot_length_m
-    overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, calibration=cal, start_s=args.start,
-                                  duration_s=args.duration, estimators=estimators)
-    atomic_write_bytes(out, render_overview_png(overview, size_px=(int(size[1]), int(size[2]))))
-    ev = ", ".join(f"{v.size} {k}" for k, v in overview.events_s.items() if v.size or k != "device step")
-    printer(args)(f"{out}: {overview.window_s[0]:g}-{overview.window_s[1]:g} s of {src} ({overview.time_s.size} samples, "
-          f"{len(overview.gaps_s)} gap(s), {overview.marks_s.size} lap mark(s)); {ev}; leg {leg:.3f} m, "
-          f"foot {foot:.3f} m" + (f" ({lengths.note})" if lengths.note else ""))
+    line = plot_recording(src, out, k_file=args.k_file, lengths_for=lambda k, data: lengths_from_args(args, k=k, data=data),
+                          start_s=args.start, duration_s=args.duration, estimators=estimators,
+                          size_px=(int(size[1]), int(size[2])))
+    printer(args)(line)
     return 0

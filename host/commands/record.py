@@ -303,28 +303,16 @@ def run_instrument(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.firmware_sim.device import Logger
-    from gaitlog.firmware_sim.sensor import SensorModel
     from gaitlog.host.kinematics.logger_instruments import INSTRUMENTS
 
     replay = args.motion[0] == "replay" and len(args.motion) == 2
     args.out = out_path(args.out, f"{input_stem(args.motion[1]) if replay else args.motion[0]}.glimg")
     if args.motion[0] in INSTRUMENTS:
         return run_instrument(args)
-    args.logger_rate = logger_rate_hz(args)
-    if args.logger_rate > 1000:
-        raise UsageError(f"--logger-rate {args.logger_rate:g}: above 1000 Hz only for --motion morris or hall")
     out = Path(args.out)
-    replayed = args.motion[1] if args.motion[0] == "replay" and len(args.motion) == 2 else None
-    check_outputs({"--out": out}, {"--motion replay FILE": replayed, "--k-file": args.k_file,
-                                   "--calibration": args.calibration}, force=None if args.append else args.force)
-    if args.steps == "off":
-        extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file")
-                 if getattr(args, n) is not None]
-        if extra:
-            print(f"gaitlog record: error: --steps off runs no step algorithm: {', '.join(extra)} would be ignored; "
-                  "drop them", file=sys.stderr)
-            return 2
+    replayed = args.motion[1] if replay else None
+    if not _check_record_options(args, out, replayed):
+        return 2
     appending = bool(args.append and out.exists())
     _refuse_input_flags(args)
     data = read_replayed(args)
@@ -338,17 +326,7 @@ def run(args: argparse.Namespace) -> int:
               f"({n_interpolated / n:.2%}) were missing (lost packets or gaps) and are interpolated in the "
               "replayed motion: those stretches are not measured motion", file=sys.stderr)
     start = int(time.time()) if args.start_time is None else args.start_time
-    if appending:
-        logger = Logger.from_image(out, overwrite=args.overwrite_oldest)  # the mode is START's, as on the device
-        if config is not None:
-            if logger.header.n_steps_stored and config.quantised() != logger.step_config:
-                warnings_.append(f"{out} holds {logger.header.n_steps_stored} step records logged with another step "
-                                 "configuration; the header keeps only the new one, so `gaitlog decode` will find "
-                                 "those records different from its replay (--no-verify)")
-            logger.step_config = config  # as SET_STEP_CONFIG before START
-    else:
-        logger = Logger(sensor=SensorModel.draw(seed=args.seed), sampling_rate_hz=args.logger_rate,
-                        overwrite=args.overwrite_oldest, step_config=config)
+    logger = _logger(args, out, appending, config, warnings_)
     for line in warnings_ if verbosity(args) >= 0 else ():
         print(f"gaitlog record: warning: {line}", file=sys.stderr)
     steps_before, written_before = logger.header.steps_written, logger.header.samples_written
@@ -362,20 +340,61 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     logger.save_image(out)
     if verbosity(args) >= 0:
-        h = logger.header
-        print(f"{out}: recorded {n_taken} samples ({motion.duration_s:.1f} s of {args.motion[0]}); "
-              f"memory holds {h.n_stored} of {h.capacity_samples}" + (", wrapped" if h.wrapped else ""))
-        cfg = h.step_config
-        if cfg.enabled:
-            q = cfg.quantised()
-            print(f"{h.steps_written - steps_before} step records stored by the on-line algorithm (leg "
-                  f"{q.leg_length_m:.3f} m, foot {q.foot_length_m:.3f} m, "
-                  + ("calibrated K" if cfg.calibrated else "raw: no K") + f"); step memory holds "
-                  f"{h.n_steps_stored} of {h.step_capacity}")
-        else:
-            print("on-line step algorithm off: no step records stored")
-    if verbosity(args) > 0:                         # -v: the device as written into the image's header
-        h = logger.header
-        print(f"header: device {h.device_id}, {h.sampling_rate_hz:g} Hz, {h.adc_bits}-bit ADC, "
-              f"start time {h.start_time}, samples written {h.samples_written}, write index {h.write_index}")
+        print(_recorded_lines(args, out, logger.header, n_taken, motion.duration_s, steps_before))
     return 0
+
+
+def _check_record_options(args: argparse.Namespace, out: Path, replayed: str | None) -> bool:
+    """The logger rate, the outputs and ``--steps off`` checked (False: the error is printed, exit 2)."""
+    args.logger_rate = logger_rate_hz(args)
+    if args.logger_rate > 1000:
+        raise UsageError(f"--logger-rate {args.logger_rate:g}: above 1000 Hz only for --motion morris or hall")
+    check_outputs({"--out": out}, {"--motion replay FILE": replayed, "--k-file": args.k_file,
+                                   "--calibration": args.calibration}, force=None if args.append else args.force)
+    if args.steps == "off":
+        extra = [f"--{n.replace('_', '-')}" for n in ("height", "leg_length", "foot_length", "k_file")
+                 if getattr(args, n) is not None]
+        if extra:
+            print(f"gaitlog record: error: --steps off runs no step algorithm: {', '.join(extra)} would be ignored; "
+                  "drop them", file=sys.stderr)
+            return False
+    return True
+
+
+def _logger(args: argparse.Namespace, out: Path, appending: bool, config, warnings_: list[str]):
+    """The emulated logger to record with: the image at ``out`` when appending (``config``, when given, set as
+    SET_STEP_CONFIG would before START; a note in ``warnings_`` when it replaces another), else a new one."""
+    from gaitlog.firmware_sim.device import Logger
+    from gaitlog.firmware_sim.sensor import SensorModel
+
+    if not appending:
+        return Logger(sensor=SensorModel.draw(seed=args.seed), sampling_rate_hz=args.logger_rate,
+                      overwrite=args.overwrite_oldest, step_config=config)
+    logger = Logger.from_image(out, overwrite=args.overwrite_oldest)  # the mode is START's, as on the device
+    if config is not None:
+        if logger.header.n_steps_stored and config.quantised() != logger.step_config:
+            warnings_.append(f"{out} holds {logger.header.n_steps_stored} step records logged with another step "
+                             "configuration; the header keeps only the new one, so `gaitlog decode` will find "
+                             "those records different from its replay (--no-verify)")
+        logger.step_config = config  # as SET_STEP_CONFIG before START
+    return logger
+
+
+def _recorded_lines(args: argparse.Namespace, out: Path, h, n_taken: int, duration_s: float,
+                    steps_before: int) -> str:
+    """What ``record`` says of the image it wrote (``h``: its header); ``-v``: the header's fields too."""
+    lines = [f"{out}: recorded {n_taken} samples ({duration_s:.1f} s of {args.motion[0]}); "
+             f"memory holds {h.n_stored} of {h.capacity_samples}" + (", wrapped" if h.wrapped else "")]
+    cfg = h.step_config
+    if cfg.enabled:
+        q = cfg.quantised()
+        lines.append(f"{h.steps_written - steps_before} step records stored by the on-line algorithm (leg "
+                     f"{q.leg_length_m:.3f} m, foot {q.foot_length_m:.3f} m, "
+                     + ("calibrated K" if cfg.calibrated else "raw: no K") + f"); step memory holds "
+                     f"{h.n_steps_stored} of {h.step_capacity}")
+    else:
+        lines.append("on-line step algorithm off: no step records stored")
+    if verbosity(args) > 0:                         # -v: the device as written into the image's header
+        lines.append(f"header: device {h.device_id}, {h.sampling_rate_hz:g} Hz, {h.adc_bits}-bit ADC, "
+                     f"start time {h.start_time}, samples written {h.samples_written}, write index {h.write_index}")
+    return "\n".join(lines)

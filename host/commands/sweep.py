@@ -20,8 +20,16 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_bytes, atomic_write_text
-from gaitlog.host.commands._options import SEED, add_verbosity_options, check_output_folder, number, printer, whole
+from gaitlog.atomic_write import atomic_write_text
+from gaitlog.host.commands._options import (
+    SEED,
+    add_verbosity_options,
+    check_output_folder,
+    number,
+    printer,
+    verbosity,
+    whole,
+)
 from gaitlog.host.commands._progress import progress_bar
 from gaitlog.host.errors import HostError, UsageError
 from gaitlog.host.studies.task_store import TaskStore, run_serial
@@ -163,24 +171,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.studies.compare import rows_csv_text
-    from gaitlog.host.studies.sweep_figures import figure_dimensions, render_error_vs_png
-    from gaitlog.host.studies.sweep_grid import (
-        SECTION_COLUMNS,
-        SPLIT_COLUMNS,
-        SUMMARY_COLUMNS,
-        SweepGrid,
-        format_m5_rate,
-        format_smallest_bits,
-        format_smallest_q,
-        format_summary,
-        m5_rate_answer,
-        run_task,
-        smallest_adc_bits,
-        smallest_q_formats,
-        summarise,
-        with_effects,
-    )
+    from gaitlog.host.studies.sweep_grid import SweepGrid, run_task
 
     if args.serial and args.scheduler:
         raise UsageError("--serial and --scheduler exclude each other")
@@ -223,42 +214,11 @@ def run(args: argparse.Namespace) -> int:
                                    progress=tick, on_start=lambda w: detail(f"running on {w}"))
             where = args.scheduler or f"a local cluster of {args.workers} worker(s)"
     say(f"computed {computed} task(s) on {where} in {time.perf_counter() - t:.1f} s")
-    results = store.collect(tasks)         # rows of a folder from before the effects were dimensions: effects off
-    sections = [with_effects(r) for res in results for r in res["sections"]]
-    splits = [with_effects(r) for res in results for r in res["splits"]]
-    summary = summarise(sections, splits, [res["task"] for res in results])
-    smallest = smallest_adc_bits(summary)
-    smallest_q = smallest_q_formats(summary)
-    m5 = m5_rate_answer(sections)
-    atomic_write_text(out / "sections.csv", rows_csv_text(sections, SECTION_COLUMNS))
-    atomic_write_text(out / "splits.csv", rows_csv_text(splits, SPLIT_COLUMNS))
-    atomic_write_text(out / "tasks.csv", rows_csv_text([res["task"] for res in results]))
-    atomic_write_text(out / "summary.csv", rows_csv_text(summary, SUMMARY_COLUMNS))
-    atomic_write_text(out / "smallest_bits.csv", rows_csv_text(smallest))
-    atomic_write_text(out / "smallest_q_formats.csv", rows_csv_text(smallest_q))
-    atomic_write_text(out / "m5_rate.csv", rows_csv_text(m5["rows"]))
-    figures = []
-    for dim in figure_dimensions(summary):
-        (out / "figures").mkdir(exist_ok=True)
-        figures.append(out / "figures" / f"error_vs_{dim}.png")
-        atomic_write_bytes(figures[-1], render_error_vs_png(summary, dim, m5=m5))
-    big = len(summary) > 2 * MAX_PRINTED_ROWS                    # both modes
-    (detail if big else say)(format_summary(summary))
-    detail()
-    detail(format_summary(summary, mode="single-speed"))
-    if big:
-        say(f"summary: {len(summary) // 2} configuration x estimator rows per calibration mode in {out}/summary.csv "
-            "(-v prints them)")
-    say()
-    (detail if len(smallest) > MAX_PRINTED_ROWS else say)(format_smallest_bits(smallest))
-    say()
-    (detail if len(smallest_q) > MAX_PRINTED_ROWS else say)(format_smallest_q(smallest_q))
-    say()
-    say(format_m5_rate(m5))
-    sat = sum(res["task"]["saturated"] + res["task"]["wrapped"] for res in results)
-    say(f"fixed-point saturation/wrap over all tasks: {sat}")
-    say(f"written: {out}/sections.csv ({len(sections)} rows), splits.csv, tasks.csv, summary.csv, smallest_bits.csv, "
-        f"smallest_q_formats.csv, m5_rate.csv" + (f", figures/ ({', '.join(p.name for p in figures)})" if figures else ""))
+    from gaitlog.host.studies.sweep_report import sweep_report
+
+    report = sweep_report(store.collect(tasks), out, max_printed_rows=MAX_PRINTED_ROWS)
+    report.write_outputs(out)
+    printer(args)(report.format_table(verbosity(args)))
     return 0
 
 

@@ -394,17 +394,23 @@ def _header_boundaries(data: bytes, frames: list, errors: list
     for i in idx.tolist():
         payload_at = int(at[i])
         raw = data[payload_at: payload_at + HEADER_SIZE]
-        if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
-            continue
-        try:
-            h = DeviceHeader.from_bytes(raw)
-        except ProtocolError:
-            continue
-        if h.header_version == 1 or not h.logging:
+        if _closed_header(raw):
             known[payload_at - 6] = (raw, True)
             readable[i] = True
     unreadable = at[~readable] - 6
     return [(off, raw, salvaged) for off, (raw, salvaged) in sorted(known.items())], unreadable
+
+
+def _closed_header(raw: bytes) -> bool:
+    """``raw`` is a header that a salvage may use: its own CRC-16 verifies, it parses, and it is version 1 or has
+    LOGGING clear (section 2)."""
+    if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
+        return False
+    try:
+        h = DeviceHeader.from_bytes(raw)
+    except ProtocolError:
+        return False
+    return h.header_version == 1 or not h.logging
 
 
 def _header_key(header_bytes: bytes) -> bytes:
@@ -441,15 +447,7 @@ def _combine_pair(data: bytes, a: int, b: int) -> bytes | None:
         pick = np.array([(choice >> k) & 1 for k in range(differ.size)], dtype=bool)
         trial[differ] = np.where(pick, pb[differ], pa[differ])
         raw = trial.tobytes()
-        if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
-            continue
-        if not any(crc16_xmodem(raw, crc16_xmodem(head)) == stored for head, stored in heads):
-            continue
-        try:
-            h = DeviceHeader.from_bytes(raw)
-        except ProtocolError:
-            continue
-        if h.header_version == 1 or not h.logging:
+        if any(crc16_xmodem(raw, crc16_xmodem(head)) == stored for head, stored in heads) and _closed_header(raw):
             good.add(raw)
     return good.pop() if len(good) == 1 else None
 

@@ -176,6 +176,123 @@ class StreamResult:
         self.frames_seen = max(self.frames_seen, (a - address) // chunk + 1)
 
 
+class _Stream:
+    """The data frames of one checked dump stream (:meth:`LoggerLink._stream`): ``take`` reads one frame and
+    returns True (the stream is done: return its result), False (a data frame, taken) or None (not a data frame
+    of this protocol)."""
+
+    def __init__(self, link: LoggerLink, address: int, length: int, chunk: int,
+                 on_data: Callable[[int, bytes], bool | None], keep_going: Callable[[int, int], bool] | None) -> None:
+        self.link, self.address, self.length, self.chunk = link, address, length, chunk
+        self.on_data, self.keep_going = on_data, keep_going
+        self.end = address + length
+        self.n_frames = -(-length // chunk)
+        self.result = StreamResult(frames_total=self.n_frames)
+
+    def restart(self) -> StreamResult:
+        """A new attempt (the command just sent): a fresh result."""
+        self.result = StreamResult(frames_total=self.n_frames)
+        return self.result
+
+    def quiet(self) -> None:
+        """The line went quiet."""
+
+    def take(self, frame: Frame) -> bool | None:
+        raise NotImplementedError
+
+    def _abandon(self, frames_seen: int) -> bool:
+        """``keep_going`` says no: count the stream abandoned."""
+        if self.keep_going is not None and not self.keep_going(self.result.frames_verified, frames_seen):
+            self.link.stats.streams_abandoned += 1
+            return True
+        return False
+
+
+class _ChecksumStream(_Stream):
+    """DUMP_CHECKED: a DATA frame, then its DATA_CRC (CRC-32 of the frame's bytes)."""
+
+    def restart(self) -> StreamResult:
+        self.pending: tuple[int, bytes] | None = None
+        return super().restart()
+
+    def take(self, frame: Frame) -> bool | None:
+        if frame.type == FrameType.DATA and len(frame.payload) > _DATA_OFFSET:
+            return self._data(frame)
+        if frame.type == FrameType.DATA_CRC and len(frame.payload) == _DATA_CRC_SIZE:
+            return self._data_crc(frame)
+        self.pending = None
+        return None
+
+    def _data(self, frame: Frame) -> bool:
+        a = int.from_bytes(frame.payload[:_DATA_OFFSET], "little")
+        data = frame.payload[_DATA_OFFSET:]
+        n = len(data)
+        fits = self.address <= a and a + n <= self.end and (a - self.address) % self.chunk == 0 and n == min(
+            self.chunk, self.end - a)
+        self.pending = (a, data) if fits else None
+        if not fits:
+            return False
+        self.result.seen(a, self.address, self.chunk)
+        # this frame's own check is still to come: judge the frames before it
+        return self._abandon(self.result.frames_seen - 1)
+
+    def _data_crc(self, frame: Frame) -> bool:
+        result, pending = self.result, self.pending
+        a = int.from_bytes(frame.payload[:4], "little")
+        crc = int.from_bytes(frame.payload[4:8], "little")
+        if self.address <= a < self.end and (a - self.address) % self.chunk == 0:
+            result.seen(a, self.address, self.chunk)
+        self.pending = None
+        if pending is not None and pending[0] == a:
+            if zlib.crc32(pending[1]) & 0xFFFFFFFF == crc:
+                result.frames_verified += 1
+                if self.on_data(a, pending[1]):
+                    return True
+            else:
+                self.link.stats.crc32_mismatches += 1
+        if result.frames_seen == self.n_frames and (a - self.address) // self.chunk == self.n_frames - 1:
+            result.ended = True  # the last frame's check: only DUMP_END is left to come
+            return True
+        return self._abandon(result.frames_seen)
+
+
+class _BlockStream(_Stream):
+    """DUMP_BLOCKS (protocol version 2): DATA_BLOCKS frames whose 64-sample blocks carry their own checks, bound
+    to the header's CRC (``binding``)."""
+
+    def __init__(self, *args: Any, binding: int) -> None:
+        super().__init__(*args)
+        self.binding = binding
+
+    def restart(self) -> StreamResult:
+        self.damaged_before = self.link.stats.frame_errors
+        return super().restart()
+
+    def quiet(self) -> None:
+        if self.link.stats.frame_errors > self.damaged_before:  # frames came, damaged: the stream ran unseen
+            self.result.frames_seen = self.n_frames
+
+    def take(self, frame: Frame) -> bool | None:
+        if not (frame.type == FrameType.DATA_BLOCKS and len(frame.payload) > _DATA_OFFSET):
+            return None
+        result = self.result
+        a = int.from_bytes(frame.payload[:_DATA_OFFSET], "little")
+        if not (self.address <= a < self.end and (a - self.address) % self.chunk == 0):
+            return False
+        found = verified_blocks(self.binding, frame.payload)
+        want = min(self.chunk, self.end - a)
+        result.seen(a, self.address, self.chunk)
+        result.frames_verified += found.data_bytes == want
+        self.link.stats.crc32_mismatches += found.data_bytes != want
+        for run_address, data in _runs(found.pieces()):  # one call per run of verified blocks
+            if run_address + len(data) <= self.end and self.on_data(run_address, data):
+                return True
+        if result.frames_seen == self.n_frames and self.link.capture is None:
+            result.ended = True  # the rest is the header's copy and DUMP_END
+            return True
+        return self._abandon(result.frames_seen)
+
+
 class LoggerLink:
     """A connection to a logger.
 
@@ -493,73 +610,7 @@ class LoggerLink:
         :meth:`abort`) ends it. Raises on a NAK other than BAD_CRC (a damaged command is sent again, within
         the retries and deadline of a command).
         """
-        command = _build("DUMP_CHECKED", address=address, length=length, chunk=chunk)
-        end = address + length
-        n_frames = -(-length // chunk)
-        t0 = time.monotonic()
-        attempt = 0
-        while True:
-            seq = self.send(FrameType.DUMP_CHECKED, command)
-            attempt += 1
-            result = StreamResult(frames_total=n_frames)
-            pending: tuple[int, bytes] | None = None
-            resend = False
-            while True:
-                frame = self.next_frame(self.timeout_s, idle=True, quiet_s=self.quiet_s)
-                if frame is None:
-                    break
-                ftype = frame.type
-                if ftype == FrameType.NAK and frame.seq == seq:
-                    if _nak_error(frame) == ErrorCode.BAD_CRC:
-                        resend = True
-                        break
-                    self._raise_nak(FrameType.DUMP_CHECKED, frame)
-                if ftype == FrameType.DATA and len(frame.payload) > _DATA_OFFSET:
-                    a = int.from_bytes(frame.payload[:_DATA_OFFSET], "little")
-                    data = frame.payload[_DATA_OFFSET:]
-                    n = len(data)
-                    fits = address <= a and a + n <= end and (a - address) % chunk == 0 and n == min(chunk, end - a)
-                    pending = (a, data) if fits else None
-                    if fits:
-                        result.seen(a, address, chunk)
-                        # this frame's own check is still to come: judge the frames before it
-                        if keep_going is not None and not keep_going(result.frames_verified, result.frames_seen - 1):
-                            self.stats.streams_abandoned += 1
-                            return result
-                    continue
-                if ftype == FrameType.DATA_CRC and len(frame.payload) == _DATA_CRC_SIZE:
-                    a = int.from_bytes(frame.payload[:4], "little")
-                    crc = int.from_bytes(frame.payload[4:8], "little")
-                    if address <= a < end and (a - address) % chunk == 0:
-                        result.seen(a, address, chunk)
-                    if pending is not None and pending[0] == a:
-                        if zlib.crc32(pending[1]) & 0xFFFFFFFF == crc:
-                            result.frames_verified += 1
-                            if on_data(a, pending[1]):
-                                return result
-                        else:
-                            self.stats.crc32_mismatches += 1
-                    pending = None
-                    if result.frames_seen == n_frames and (a - address) // chunk == n_frames - 1:
-                        result.ended = True  # the last frame's check: only DUMP_END is left to come
-                        return result
-                    if keep_going is not None and not keep_going(result.frames_verified, result.frames_seen):
-                        self.stats.streams_abandoned += 1
-                        return result
-                    continue
-                pending = None
-                if ftype == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
-                    end_fields = self._fields(frame)
-                    if end_fields["address"] == address and end_fields["length"] == length:
-                        result.ended = True
-                        result.frames_seen = n_frames
-                        return result
-            if not resend or time.monotonic() - t0 >= self.deadline_s or (
-                    self.retries is not None and attempt > self.retries):
-                if result.frames_seen:
-                    result.frames_seen = n_frames  # the stream ran to its end unseen (or never started)
-                return result
-            self.stats.command_retries += 1
+        return self._stream(FrameType.DUMP_CHECKED, _ChecksumStream(self, address, length, chunk, on_data, keep_going))
 
     def dump_blocks(self, address: int, length: int, chunk: int, on_data: Callable[[int, bytes], bool | None],
                     *, binding: int, keep_going: Callable[[int, int], bool] | None = None) -> StreamResult:
@@ -571,58 +622,44 @@ class LoggerLink:
         the device sends the header again and DUMP_END: with a capture file the stream is read to its end so
         that the capture holds that second copy, without one the call returns at once.
         """
-        command = _build("DUMP_BLOCKS", address=address, length=length, chunk=chunk)
-        end = address + length
-        n_frames = -(-length // chunk)
+        return self._stream(FrameType.DUMP_BLOCKS,
+                            _BlockStream(self, address, length, chunk, on_data, keep_going, binding=binding))
+
+    def _stream(self, ftype: int, stream: _Stream) -> StreamResult:
+        """Send ``ftype`` (DUMP_CHECKED or DUMP_BLOCKS) for ``stream`` and read the frames that answer it, each
+        through ``stream.take`` (its protocol's data frames); the NAK and DUMP_END rules, the quiet line and the
+        retries of a damaged command are the same for both."""
+        command = _build(FrameType(ftype).name, address=stream.address, length=stream.length, chunk=stream.chunk)
         t0 = time.monotonic()
         attempt = 0
         while True:
-            seq = self.send(FrameType.DUMP_BLOCKS, command)
+            seq = self.send(ftype, command)
             attempt += 1
-            result = StreamResult(frames_total=n_frames)
+            result = stream.restart()
             resend = False
-            damaged_before = self.stats.frame_errors
             while True:
                 frame = self.next_frame(self.timeout_s, idle=True, quiet_s=self.quiet_s)
                 if frame is None:
-                    if self.stats.frame_errors > damaged_before:  # frames came, damaged: the stream ran unseen
-                        result.frames_seen = n_frames
+                    stream.quiet()
                     break
-                ftype = frame.type
-                if ftype == FrameType.NAK and frame.seq == seq:
+                if frame.type == FrameType.NAK and frame.seq == seq:
                     if _nak_error(frame) == ErrorCode.BAD_CRC:
                         resend = True
                         break
-                    self._raise_nak(FrameType.DUMP_BLOCKS, frame)
-                if ftype == FrameType.DATA_BLOCKS and len(frame.payload) > _DATA_OFFSET:
-                    a = int.from_bytes(frame.payload[:_DATA_OFFSET], "little")
-                    if not (address <= a < end and (a - address) % chunk == 0):
-                        continue
-                    found = verified_blocks(binding, frame.payload)
-                    want = min(chunk, end - a)
-                    result.seen(a, address, chunk)
-                    result.frames_verified += found.data_bytes == want
-                    self.stats.crc32_mismatches += found.data_bytes != want
-                    for run_address, data in _runs(found.pieces()):  # one call per run of verified blocks
-                        if run_address + len(data) <= end and on_data(run_address, data):
-                            return result
-                    if result.frames_seen == n_frames and self.capture is None:
-                        result.ended = True  # the rest is the header's copy and DUMP_END
-                        return result
-                    if keep_going is not None and not keep_going(result.frames_verified, result.frames_seen):
-                        self.stats.streams_abandoned += 1
-                        return result
-                    continue
-                if ftype == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
+                    self._raise_nak(ftype, frame)
+                done = stream.take(frame)
+                if done:
+                    return result
+                if done is None and frame.type == FrameType.DUMP_END and len(frame.payload) == _DUMP_END_SIZE:
                     end_fields = self._fields(frame)
-                    if end_fields["address"] == address and end_fields["length"] == length:
+                    if end_fields["address"] == stream.address and end_fields["length"] == stream.length:
                         result.ended = True
-                        result.frames_seen = n_frames
+                        result.frames_seen = stream.n_frames
                         return result
             if not resend or time.monotonic() - t0 >= self.deadline_s or (
                     self.retries is not None and attempt > self.retries):
                 if result.frames_seen:
-                    result.frames_seen = n_frames
+                    result.frames_seen = stream.n_frames  # the stream ran to its end unseen (or never started)
                 return result
             self.stats.command_retries += 1
 

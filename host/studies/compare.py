@@ -71,7 +71,7 @@ from gaitlog.firmware_sim.algorithms.steps import (
     float_csv_cells,
 )
 from gaitlog.host.files.replay import online_step_table
-from gaitlog.host.gait.k_calibration import calibrate_on_sections
+from gaitlog.host.gait.k_calibration import KFit, calibrate_on_sections
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
 from gaitlog.host.gait.sections import (
     MODES,
@@ -79,6 +79,13 @@ from gaitlog.host.gait.sections import (
     calibration_sets,
     section_fractions,
     sections_from_marks,
+)
+from gaitlog.host.studies.stats import (
+    BOOTSTRAP_LEVEL,
+    BOOTSTRAP_RESAMPLES,
+    MEDIAN,
+    subject_bootstrap,
+    subject_resamples,
 )
 from gaitlog.protocol.header import CalibrationSlot
 
@@ -89,9 +96,6 @@ CHAINS = ("ideal", "offline", "online-float", "online-fixed")
 #: The error split: share -> (chain a, chain b); the share is ``a - b``.
 SHARES: dict[str, tuple[str, str]] = {"adc": ("offline", "ideal"), "algorithm": ("online-float", "offline"),
                                       "arithmetic": ("online-fixed", "online-float")}
-#: Bootstrap resamples of :func:`bootstrap_budget` and the interval's level.
-BOOTSTRAP_RESAMPLES = 2000
-BOOTSTRAP_LEVEL = 0.95
 
 STEP_DIFF_COLUMNS = ("share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm", "max_abs_mm", "bias_mm",
                      "max_rel", "n_matched", "n_different_events", "n_only_a", "n_only_b")
@@ -114,18 +118,18 @@ def pair_label(a: str, b: str) -> str:
 
 
 def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                       calibration: Any = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
-    """The offline float chain's table (warnings about impossible excursions are silenced: they are counted
-    as NaN)."""
+                       k_fit: KFit | None = None, valid: np.ndarray | None = None, t0_s: float = 0.0) -> StepTable:
+    """The offline float chain's table with the step constants ``k_fit`` (None: raw lengths; warnings about
+    impossible excursions are silenced: they are counted as NaN)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
+        return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=k_fit).run(
             acc_g, sampling_rate_hz=sampling_rate_hz, valid=valid, t0_s=t0_s).steps_
 
 
-def calibrated(table: StepTable, calibration: Any) -> StepTable:
-    """An offline table with ``calibration``'s K applied to its raw lengths (``apply_calibration``)."""
-    return replace(table, length_m=apply_calibration(table, calibration))
+def calibrated(table: StepTable, k_fit: KFit | None) -> StepTable:
+    """An offline table with the step constants ``k_fit`` applied to its raw lengths (``apply_calibration``)."""
+    return replace(table, length_m=apply_calibration(table, k_fit))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -605,47 +609,7 @@ def _same_of_b(match: StepMatch, n_b: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------------
-# Bootstrap over subjects
-
-
-def resampled_medians(groups: list[np.ndarray], counts: np.ndarray, *, chunk: int = 250) -> np.ndarray:
-    """Median of the pooled values of ``groups`` when group ``g`` is taken ``counts[r, g]`` times, per row.
-
-    The median of the multiset (the mean of its two middle values when its size is even), as ``np.median``
-    of the repeated values, without repeating them; NaN for a row with no value.
-
-    Examples
-    --------
-    >>> groups = [np.array([1.0, 5.0]), np.array([2.0]), np.array([])]
-    >>> resampled_medians(groups, np.array([[1, 1, 0], [0, 3, 1], [2, 0, 0], [0, 0, 2]])).tolist()
-    [2.0, 2.0, 3.0, nan]
-    >>> float(np.median([1.0, 5.0, 2.0]))
-    2.0
-    """
-    counts = np.atleast_2d(np.asarray(counts, np.int64))
-    v = np.concatenate([np.asarray(g, np.float64).ravel() for g in groups]) if groups else np.zeros(0)
-    gid = np.repeat(np.arange(len(groups)), [np.asarray(g).size for g in groups])
-    out = np.full(counts.shape[0], np.nan)
-    if v.size == 0:
-        return out
-    order = np.argsort(v, kind="stable")
-    v, gid = v[order], gid[order]
-    for r0 in range(0, counts.shape[0], chunk):
-        cum = np.cumsum(counts[r0:r0 + chunk][:, gid], axis=1)
-        total = cum[:, -1]
-        lo = np.argmax(cum > ((total - 1) // 2)[:, None], axis=1)
-        hi = np.argmax(cum > (total // 2)[:, None], axis=1)
-        out[r0:r0 + chunk] = np.where(total > 0, 0.5 * (v[lo] + v[hi]), np.nan)
-    return out
-
-
-def subject_resamples(n_subjects: int, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> np.ndarray:
-    """``(n_resamples, n_subjects)`` how many times each subject is drawn (with replacement, seeded)."""
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, n_subjects, size=(n_resamples, n_subjects))
-    counts = np.zeros((n_resamples, n_subjects), np.int64)
-    np.add.at(counts, (np.repeat(np.arange(n_resamples), n_subjects), draws.ravel()), 1)
-    return counts
+# Bootstrap over subjects (gaitlog.host.studies.stats)
 
 
 def bootstrap_budget(comparisons: list[WalkComparison], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
@@ -668,14 +632,10 @@ def bootstrap_budget(comparisons: list[WalkComparison], *, n_resamples: int = BO
     if n_sub == 0:
         return []
     counts = subject_resamples(n_sub, n_resamples=n_resamples, seed=seed)
-    ones = np.ones((1, n_sub), np.int64)
-    q = 50.0 * (1.0 - level), 50.0 * (1.0 + level)
 
     def row(kind: str, share: str, pair: str, mode: str, est: str, statistic: str, groups: list[np.ndarray]) -> dict:
-        value = float(resampled_medians(groups, ones)[0])
-        boot = resampled_medians(groups, counts)
-        lo, hi = (np.nanpercentile(boot, q) if np.any(np.isfinite(boot)) else (math.nan, math.nan))
-        return dict(kind=kind, share=share, pair=pair, mode=mode, estimator=est, statistic=statistic, value=value,
+        value, lo, hi = subject_bootstrap(groups, MEDIAN, counts, level=level)
+        return dict(kind=kind, share=share, pair=pair, mode=mode, estimator=est, statistic=statistic, value=float(value),
                     ci_low=float(lo), ci_high=float(hi), n_subjects=n_sub, n=int(sum(g.size for g in groups)))
 
     out = []
@@ -769,16 +729,16 @@ class RecordingComparison:
 
 
 def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      adc_calibration: Any = None, adc_bits: int = 10, valid: np.ndarray | None = None,
-                      calibration: Any = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
+                      adc_calibration: CalibrationSlot | None = None, adc_bits: int = 10,
+                      valid: np.ndarray | None = None, k_fit: KFit | None = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
                       segment_m: float = 20.0, t0_s: float = 0.0, sections: list[Section] | None = None,
                       run_starts: np.ndarray | None = None) -> RecordingComparison:
     """Offline chain, on-line float and on-line fixed on the same codes (no truth): matched steps,
     differences, sections.
 
     ``adc_calibration`` (``offset_counts``, ``matrix_g_per_count``; None = nominal) converts codes to g for
-    the offline chain and is the on-line algorithm's device calibration; ``calibration`` is the one K of
-    every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
+    the offline chain and is the on-line algorithm's device calibration; ``k_fit`` holds the step constants
+    (K) of every chain (None: raw lengths, M4/M5 undefined). ``run_starts``: the logging runs' first rows
     (SESSION_START), where the on-line algorithm restarts. Sections: ``sections`` when given (e.g. the
     walking plan's, :func:`gaitlog.host.gait.sections.sections_from_marks`), else between MARK flags ``lap_m`` apart, else
     every ``segment_m`` of the offline chain's M3 distance.
@@ -791,10 +751,9 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     cal = adc_calibration if adc_calibration is not None else CalibrationSlot.nominal(adc_bits)
     acc = np.asarray(cal.apply(c.astype(np.float64)), np.float64)
     acc[~ok] = np.nan
-    kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m,
-              calibration=calibration, t0_s=t0_s)
-    okw = dict(kw, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
-    tables = {"offline": offline_step_table(acc, valid=ok, **kw)}
+    kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m, t0_s=t0_s)
+    okw = dict(kw, calibration=k_fit, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
+    tables = {"offline": offline_step_table(acc, valid=ok, k_fit=k_fit, **kw)}
     tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
     tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", **okw)
     shares = {s: SHARES[s] for s in ("algorithm", "arithmetic")}

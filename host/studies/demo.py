@@ -215,7 +215,7 @@ def _device(ctx: dict[str, Any]) -> list[str]:
         rec.sample_numbers[0]), sampling_rate_hz=rec.sampling_rate_hz), t0_s=t0)
     walk = ctx["walk_recording"]
     offline = offline_step_table(walk.acc_g, sampling_rate_hz=walk.sampling_rate_hz, leg_length_m=sub.leg_length_m,
-                                 foot_length_m=sub.foot_length_m, calibration=k, t0_s=t0)
+                                 foot_length_m=sub.foot_length_m, k_fit=k, t0_s=t0)
     secs = [s for s in sections_from_marks(walk.mark_times_s, walk.truth["laps"]) if not s.turn]
     real = np.array([s.real_m for s in secs])
     d_dev, d_off = segment_distances(device, secs), segment_distances(offline, secs)
@@ -240,7 +240,7 @@ def _split(ctx: dict[str, Any]) -> list[str]:
     secs = [s for s in sections_from_marks(rec.mark_times_s, rec.truth["laps"]) if not s.turn]
     res = compare_recording(ctx["walk_codes"], sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=sub.leg_length_m,
                             foot_length_m=sub.foot_length_m, adc_calibration=ctx["walk_calibration"],
-                            calibration=ctx["walk_result"].calibrations["multi-speed"], t0_s=rec.t0_s, sections=secs)
+                            k_fit=ctx["walk_result"].calibrations["multi-speed"], t0_s=rec.t0_s, sections=secs)
     path = ctx["dir"] / "walk_split.csv"
     atomic_write_text(path, rows_csv_text(res.segments))
     tb = res.tables
@@ -270,7 +270,7 @@ def _plot(ctx: dict[str, Any]) -> list[str]:
     sub = ctx["subject"]
     start_s = 60.0
     overview = recording_overview(rec, leg_length_m=sub.leg_length_m, foot_length_m=sub.foot_length_m,
-                                  calibration=ctx["walk_result"].calibrations["multi-speed"], start_s=start_s,
+                                  k_fit=ctx["walk_result"].calibrations["multi-speed"], start_s=start_s,
                                   duration_s=30.0)
     png = ctx["dir"] / "walk_k.png"
     atomic_write_bytes(png, render_overview_png(overview))

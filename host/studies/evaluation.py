@@ -65,13 +65,8 @@ from gaitlog.host.gait.sections import (
     sections_from_marks,
 )
 from gaitlog.host.gait.stopwatch_laps import lap_table, set_off_times
-from gaitlog.host.studies.compare import (
-    BOOTSTRAP_LEVEL,
-    BOOTSTRAP_RESAMPLES,
-    match_events,
-    rows_csv_text,
-    subject_resamples,
-)
+from gaitlog.host.storage.json_text import json_text
+from gaitlog.host.studies.compare import match_events, rows_csv_text
 from gaitlog.host.studies.plots import plot_boxplots
 from gaitlog.host.studies.simulation import (
     SimulatedRecording,
@@ -79,6 +74,7 @@ from gaitlog.host.studies.simulation import (
     record_subject,
     simulated_population,
 )
+from gaitlog.host.studies.stats import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, subject_bootstrap, subject_resamples
 from gaitlog.atomic_write import atomic_write_text
 
 ROW_COLUMNS = ("subject", "excursion", "speed_label", "section", "start_m", "end_m", "turn", "mode", "estimator",
@@ -375,27 +371,6 @@ def _section_stats(v: np.ndarray) -> np.ndarray:
     return np.array([med, q1, q3, q3 - q1, v.min(), v.max()])
 
 
-def _bootstrap(groups: Sequence[np.ndarray], statistic: Callable[..., np.ndarray], counts: np.ndarray,
-               level: float, *more: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``statistic`` of the subjects' pooled values, and its percentile-bootstrap interval over subjects.
-
-    ``groups`` (and each of ``more``, paired with it) hold one array per subject; ``counts`` (resamples x
-    subjects, :func:`gaitlog.host.studies.compare.subject_resamples`) how often each subject is drawn."""
-    lists = (groups, *more)
-
-    def pooled(weights: np.ndarray) -> np.ndarray:
-        picks = np.repeat(np.arange(len(groups)), weights)
-        return statistic(*(np.concatenate([np.asarray(g[i], np.float64) for i in picks]) if picks.size
-                           else np.zeros(0) for g in lists))
-
-    value = pooled(np.ones(len(groups), np.int64))
-    boot = np.array([pooled(c) for c in counts])
-    q = 50.0 * (1.0 - level), 50.0 * (1.0 + level)
-    with np.errstate(all="ignore"):
-        lo, hi = np.nanpercentile(boot, q, axis=0) if np.isfinite(boot).any() else (value * np.nan, value * np.nan)
-    return value, lo, hi
-
-
 def bootstrap_summary(results: Sequence[SubjectResult], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
                       level: float = BOOTSTRAP_LEVEL) -> list[dict]:
     """:func:`summarise`'s figures (``BOOT_STATISTICS``) per mode and estimator with percentile-bootstrap
@@ -409,7 +384,7 @@ def bootstrap_summary(results: Sequence[SubjectResult], *, n_resamples: int = BO
                       for res in results]
             if not any(g.size for g in groups):
                 continue
-            value, lo, hi = _bootstrap(groups, _section_stats, counts, level)
+            value, lo, hi = subject_bootstrap(groups, _section_stats, counts, level=level)
             for k, name in enumerate(BOOT_STATISTICS):
                 out.append({"mode": mode, "estimator": est, "statistic": name, "value": float(value[k]),
                             "ci_low": float(lo[k]), "ci_high": float(hi[k]), "n_subjects": len(results)})
@@ -544,7 +519,7 @@ def m5_timing_question(results: Sequence[SubjectResult], *, sampling_rate_hz: fl
         for level_name in ("step", "section"):
             det = [np.asarray(r.m5[mode][f"{level_name}_detected"], float) for r in results]
             exa = [np.asarray(r.m5[mode][f"{level_name}_exact"], float) for r in results]
-            value, lo, hi = _bootstrap(det, spread, counts, level, exa)
+            value, lo, hi = subject_bootstrap(det, spread, counts, exa, level=level)
             row = {"mode": mode, "level": level_name, "n": int(sum(d.size for d in det)), "n_subjects": len(results)}
             for k, name in enumerate(("iqr_detected", "iqr_exact", "sd_detected", "sd_exact", "timing_share")):
                 row[name], row[name + "_low"], row[name + "_high"] = float(value[k]), float(lo[k]), float(hi[k])
@@ -704,6 +679,11 @@ class SimulatedEvaluation:
         if self.bootstrap_:
             text += "\n\n" + format_paper_table(self.bootstrap_) + "\n\n" + format_m5_question(self.m5_)
         return text
+
+    def to_json(self, out: str | Path, paths: dict[str, Path]) -> str:
+        """The summary, the intervals and the files :meth:`write_outputs` wrote into ``out`` (``paths``) as one
+        JSON document."""
+        return json_text({"out": str(out), "summary": self.summary_, "intervals": self.bootstrap_, "files": paths})
 
     def write_csv(self, path: str | Path, *, summary_path: str | Path | None = None) -> None:
         """Section rows (``ROW_COLUMNS``) to ``path`` and optionally the summary to ``summary_path``, atomically."""

@@ -120,7 +120,8 @@ from gaitlog.host.gait.k_prior import (
 )
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
 from gaitlog.host.gait.recipe import RecipeBaseline
-from gaitlog.host.studies.compare import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, match_steps, subject_resamples
+from gaitlog.host.studies.compare import match_steps
+from gaitlog.host.studies.stats import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, subject_bootstrap, subject_resamples
 from gaitlog.host.studies.tuning import (
     COUNT_CRITERION,
     CRITERION,
@@ -1290,12 +1291,6 @@ def _median_iqr(x: np.ndarray) -> np.ndarray:
     return np.array([med, q3 - q1])
 
 
-def _resampled(groups: list[np.ndarray], counts: np.ndarray) -> np.ndarray:
-    """``(resamples, 2)`` median and IQR of the pooled ratios of each subject resample."""
-    return np.array([_median_iqr(np.concatenate([g for g, c in zip(groups, cs, strict=True) for _ in range(c)]))
-                     for cs in counts])
-
-
 def subject_intervals(rows: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,
                       level: float = BOOTSTRAP_LEVEL) -> dict[str, tuple[float, float, float]]:
     """Median and IQR of ``estimator``'s ratios, each with its percentile-bootstrap interval over subjects
@@ -1304,9 +1299,8 @@ def subject_intervals(rows: list[dict], estimator: str, *, n_resamples: int = BO
     groups = list(subject_groups(rows, estimator).values())
     if not groups:
         return {k: (math.nan,) * 3 for k in ("median", "iqr")}
-    value = _median_iqr(np.concatenate(groups))
-    boot = _resampled(groups, subject_resamples(len(groups), n_resamples=n_resamples, seed=seed))
-    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)], axis=0)
+    counts = subject_resamples(len(groups), n_resamples=n_resamples, seed=seed)
+    value, lo, hi = subject_bootstrap(groups, _median_iqr, counts, level=level)
     return {k: (float(value[j]), float(lo[j]), float(hi[j])) for j, k in enumerate(("median", "iqr"))}
 
 
@@ -1320,10 +1314,8 @@ def choice_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resam
     if not subjects:
         return (math.nan,) * 3
     ga, gb = [a[s] for s in subjects], [b[s] for s in subjects]
-    gain = _median_iqr(np.concatenate(ga))[1] - _median_iqr(np.concatenate(gb))[1]
     counts = subject_resamples(len(subjects), n_resamples=n_resamples, seed=seed)
-    boot = _resampled(ga, counts)[:, 1] - _resampled(gb, counts)[:, 1]
-    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
+    gain, lo, hi = subject_bootstrap(ga, lambda a, b: _median_iqr(a)[1] - _median_iqr(b)[1], counts, gb, level=level)
     return float(gain), float(lo), float(hi)
 
 
@@ -1381,9 +1373,8 @@ def _mean_gain(diffs: list[np.ndarray], *, n_resamples: int, seed: int, level: f
     """The mean of per-subject arrays of per-trial differences pooled, and its percentile-bootstrap interval over
     subjects (a subject's trials kept together)."""
     counts = subject_resamples(len(diffs), n_resamples=n_resamples, seed=seed)
-    boot = [np.mean(np.concatenate([d for d, k in zip(diffs, cs, strict=True) for _ in range(k)])) for cs in counts]
-    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
-    return float(np.mean(np.concatenate(diffs))), float(lo), float(hi)
+    gain, lo, hi = subject_bootstrap(diffs, np.mean, counts, level=level)
+    return float(gain), float(lo), float(hi)
 
 
 def row_count_gain(simple: list[dict], rule: list[dict], *, n_resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0,

@@ -76,10 +76,11 @@ class RecordingOverview:
 
 
 def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: float,
-                       calibration: KFit | None = None, start_s: float = 0.0,
+                       k_fit: KFit | None = None, start_s: float = 0.0,
                        duration_s: float | None = None,
                        estimators: Sequence[str] = ESTIMATORS) -> RecordingOverview:
-    """The overview data of ``rec`` between ``start_s`` and ``start_s + duration_s`` (default: to the end).
+    """The overview data of ``rec`` between ``start_s`` and ``start_s + duration_s`` (default: to the end), the
+    host chain's lengths with the step constants ``k_fit`` (None: no K).
 
     Raises
     ------
@@ -104,7 +105,7 @@ def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: fl
     i0, i1 = int(np.ceil(start_s * sampling_rate_hz - 1e-9)), int(np.ceil(end_s * sampling_rate_hz - 1e-9))
     acc = rec.acc_g()
     valid = np.asarray(rec.valid, bool)
-    pipe = StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration).run(
+    pipe = StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=k_fit).run(
         acc, sampling_rate_hz=sampling_rate_hz, valid=valid)
     offline = pipe.steps_
     tables = {"": offline}
@@ -120,7 +121,7 @@ def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: fl
     events = {"foot-flat": inside(offline.foot_flat) / sampling_rate_hz, "heel-strike": inside(offline.heel_strike) / sampling_rate_hz,
               "toe-off": inside(offline.toe_off) / sampling_rate_hz,
               "device step": inside(tables[" device"].foot_flat) / sampling_rate_hz if " device" in tables else np.zeros(0)}
-    kinds = {"": "host, K" if calibration is not None else "host, no K",
+    kinds = {"": "host, K" if k_fit is not None else "host, no K",
              " device": "device, K" if rec.n_step_records and online.calibrated else "device, raw K = 1"}
     lengths, length_kinds = {}, {}
     for suffix, table in tables.items():

@@ -17,7 +17,11 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
+from gaitlog.host.errors import HostError
+from gaitlog.host.files.inputs import read_acceleration
+from gaitlog.host.gait.k_calibration import KFit
 from gaitlog.host.storage.png_figure import figure_png_bytes
+from gaitlog.host.studies.overview import recording_overview
 from gaitlog.atomic_write import atomic_write_bytes
 
 PANELS = (("single-speed", ESTIMATORS[:4], "Calibration at preferred speed"),
@@ -148,3 +152,31 @@ def render_overview_png(overview, *, size_px: tuple[int, int] = (1400, 700), dpi
     ax_len.grid(alpha=0.3)
     ax_len.set_xlim(*overview.window_s)
     return figure_png_bytes(fig, dpi=dpi)
+
+
+def plot_recording(src: str | Path, out: str | Path, *, k_file: str | None, lengths_for, start_s: float | None,
+                   duration_s: float | None, estimators: Sequence[str], size_px: tuple[int, int]) -> str:
+    """``gaitlog plot``: the overview of the logger recording at ``src`` written as a PNG of ``size_px`` to
+    ``out`` (:func:`gaitlog.host.studies.overview.recording_overview` with ``k_file``'s K, else none, and the
+    lengths ``lengths_for(k, data)`` gives); the line that says what it shows.
+
+    Raises
+    ------
+    HostError
+        ``src`` is not a logger recording (acceleration in g has no codes to replay).
+    """
+    data = read_acceleration(src)
+    if data.recording is None:
+        raise HostError(f"{src}: plot draws a logger recording (memory image, raw dump, wire capture or decoded "
+                        f".npz); this is {data.source}: record it first (gaitlog record --motion replay)")
+    rec = data.recording
+    k_fit = KFit.load(k_file) if k_file else None
+    lengths = lengths_for(k_fit, data)
+    leg, foot = lengths.leg_length_m, lengths.foot_length_m
+    overview = recording_overview(rec, leg_length_m=leg, foot_length_m=foot, k_fit=k_fit, start_s=start_s,
+                                  duration_s=duration_s, estimators=estimators)
+    atomic_write_bytes(out, render_overview_png(overview, size_px=size_px))
+    ev = ", ".join(f"{v.size} {k}" for k, v in overview.events_s.items() if v.size or k != "device step")
+    return (f"{out}: {overview.window_s[0]:g}-{overview.window_s[1]:g} s of {src} ({overview.time_s.size} samples, "
+            f"{len(overview.gaps_s)} gap(s), {overview.marks_s.size} lap mark(s)); {ev}; leg {leg:.3f} m, "
+            f"foot {foot:.3f} m" + (f" ({lengths.note})" if lengths.note else ""))

@@ -426,7 +426,7 @@ def test_an_image_of_an_older_algorithm_version_decodes_and_says_so(walk, versio
     assert "this host replays version 4, so they are not verified" in check.summary()
     current = decode_bytes(build_image(logger.header, logger.memory, step_memory=logger.step_memory))
     assert not any("algorithm version" in n for n in current.notes)
-    from gaitlog.host.commands.info import step_lines  # `gaitlog info` says it too
+    from gaitlog.host.files.info_report import step_lines  # `gaitlog info` says it too
 
     assert (f"on-line version {version}, leg 0.9300 m, foot 0.1940 m, records by on-line algorithm version "
             f"{version} ({firmware})") in step_lines(rec.header)[1]

@@ -22,10 +22,8 @@ from gaitlog.host.studies.compare import (
     compare_recording,
     compare_walk,
     match_steps,
-    resampled_medians,
     segment_distances,
     step_differences,
-    subject_resamples,
     truth_table,
 )
 from gaitlog.host.studies.simulation import AnalogWalk
@@ -307,17 +305,6 @@ def _config(s):
     from gaitlog.host.files.replay import step_config_for
 
     return step_config_for(leg_length_m=s.leg_length_m, foot_length_m=s.foot_length_m)
-
-
-def test_resampled_medians_are_the_medians_of_the_repeated_values() -> None:
-    rng = np.random.default_rng(1)
-    groups = [rng.normal(i, 1.0, rng.integers(0, 40)) for i in range(5)]
-    counts = subject_resamples(5, n_resamples=300, seed=3)
-    assert np.array_equal(counts.sum(axis=1), np.full(300, 5))
-    got = resampled_medians(groups, counts)
-    want = [np.median(np.concatenate([np.repeat(g[None], c, axis=0).ravel() for g, c in zip(groups, row)]))
-            if any(c and g.size for g, c in zip(groups, row)) else np.nan for row in counts]
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
 
 
 def test_bootstrap_intervals_cover_the_subjects(walk) -> None:
