@@ -318,9 +318,10 @@ class Adc:
         c_s, c_h, r_s = self.source_capacitance_f, HOLD_CAPACITANCE_F, self.source_impedance_ohm
         a = np.array([[-1.0 / (r_s * c_s) - 1.0 / (r_hold_ohm * c_s), 1.0 / (r_hold_ohm * c_s)],
                       [1.0 / (r_hold_ohm * c_h), -1.0 / (r_hold_ohm * c_h)]])
-        from scipy import linalg     # here: every command that reads a recording imports this module (0.3 s)
-
-        return float((linalg.expm(a * charge_s) @ np.array([0.0, 1.0]))[1])
+        # e(t) = V exp(L t) V^-1 e(0): A's eigenvalues are real, negative and distinct (two RC poles)
+        poles, vectors = np.linalg.eig(a)
+        weights = np.linalg.solve(vectors, np.array([0.0, 1.0]))
+        return float((vectors @ (np.exp(poles.real * charge_s) * weights.real))[1])
 
     @functools.cached_property
     def transfer_curve(self) -> TransferCurve:

@@ -62,8 +62,8 @@ from gaitlog.firmware_sim.algorithms.state import (
     N,
 )
 from gaitlog.firmware_sim.compiled import njit
-from gaitlog.firmware_sim.fixedpoint import N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
-from gaitlog.protocol.steps import StepConfig
+from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
+from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
            "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls"]
@@ -404,12 +404,6 @@ def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0
     kernel is not edited: its module globals are swapped for the run and restored. A test checks that the
     records equal :meth:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm.run`'s.
     """
-    from gaitlog.firmware_sim.algorithms.state import FLAGS as FLAGS_SLOT
-    from gaitlog.firmware_sim.algorithms.state import LAST as LAST_SLOT
-    from gaitlog.firmware_sim.algorithms.state import LINE_POS
-    from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY
-    from gaitlog.protocol.steps import STEP_RECORD_DTYPE, pack_step_records
-
     if algorithm.arithmetic != "fixed":
         raise ValueError("the trace is of the fixed-point kernel (the PIC's)")
     c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
@@ -427,7 +421,7 @@ def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0
     def traced(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):
         before = int(cnt[C_CYCLES])
         ops_before = cnt[:len(OPS)].copy()
-        entry = (int(e), int(m), int(st_i[LAST_SLOT]), int(st_i[FLAGS_SLOT]), int(cnt[C_STICKY]),
+        entry = (int(e), int(m), int(st_i[LAST]), int(st_i[FLAGS]), int(cnt[C_STICKY]),
                  int(first_sample_number) + where["row"] - r3)
         k = real(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt)
         rows.append(entry + (int(cnt[C_CYCLES]) - before,))

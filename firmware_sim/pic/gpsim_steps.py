@@ -23,6 +23,7 @@ A difference names the step and the record field (:data:`gaitlog.protocol.steps.
 from __future__ import annotations
 
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -176,7 +177,6 @@ def stack_levels(mem: dict[int, int], entry: int) -> int:
         memo[pc] = d
         return d
 
-    import sys
     limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(limit, 20000))
     try:
