@@ -70,7 +70,7 @@ def test_identify_and_status(logger: Logger) -> None:
     t, s, p = one(send(logger, frame(0x01, 9)))
     assert (t, s) == (0x81, 9)
     dev, fw, proto, bits, rate, cap, packing, mem = struct.unpack("<IHBBIIBI", p)
-    assert (dev, fw, proto, bits, rate, cap, packing, mem) == (0x1234, 0x0102, 2, 10, 50_000, 65536, 1, 262144)  # wire protocol 2 (DUMP_BLOCKS)
+    assert (dev, fw, proto, bits, rate, cap, packing, mem) == (0x1234, 0x0103, 2, 10, 50_000, 65536, 1, 262144)  # wire protocol 2 (DUMP_BLOCKS)
     t, s, p = one(send(logger, frame(0x02, 10)))
     state, flags, written, windex = struct.unpack("<BBII", p)
     assert (t, s, state, written, windex, flags & 0x04) == (0x82, 10, 0, 550, 550, 0)
