@@ -448,18 +448,17 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
         # step configuration's m4_exponent_eighths), the range in g and K g0^p the constant: the range's square
         # root, fourth and eighth roots (rounded to nearest, 15 fraction bits each; the first from the Q2.16
         # range), the constant (UQ2.14) multiplied by those the exponent's bits select
-        eighths = cfg_i[CI_M4_EIGHTHS]
         out_v[k, O_RANGE] = _range(s, e, cfg_i, cfg_v, scr, cnt)
         length = ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt)          # range^(1/2)
-        if eighths & 4:
+        if cfg_i[CI_M4_EIGHTHS] & 4:
             l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, U16, cnt)
         else:
             l4 = ar.requant(cfg_v[CV_K4], F_K4, F_STEP, U16, cnt)
-        if eighths & 3:                                                       # only the roots needed
+        if cfg_i[CI_M4_EIGHTHS] & 3:                                          # only the roots needed
             length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)               # range^(1/4)
-            if eighths & 2:
+            if cfg_i[CI_M4_EIGHTHS] & 2:
                 l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
-            if eighths & 1:
+            if cfg_i[CI_M4_EIGHTHS] & 1:
                 length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
                 l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples

@@ -166,9 +166,9 @@ K_PRIOR_IN_MAIN = False
 UTURN_RULES = ("exclude", "include")
 
 #: The on-line algorithm's own rules against their simpler choices (rows ``arithmetic = "online-fixed"``, K the
-#: offline chain's, as the main rows): variant -> the :class:`~gaitlog.firmware_sim.algorithms.parameters.
-#: EventParameters` fields it changes from the defaults, the on-line algorithm re-run in fixed point on the stored
-#: codes with them. ``stop-v3``: the stop rule of on-line algorithm versions 1-3 (0.2 m/s^2; version 4 has none);
+#: offline chain's, as the main rows): variant -> the
+#: :class:`~gaitlog.firmware_sim.algorithms.parameters.EventParameters` fields it changes from the defaults, the
+#: on-line algorithm re-run in fixed point on the stored codes with them. ``stop-v3``: the stop rule of on-line algorithm versions 1-3 (0.2 m/s^2; version 4 has none);
 #: ``prominence-fixed``: the fixed foot-flat prominence of versions 1-2 (the cap, 0.5 m/s^2, floor = cap).
 ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
     "stop-v3": dict(stop_prominence_m_s2=0.2),

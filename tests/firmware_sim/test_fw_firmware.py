@@ -70,7 +70,7 @@ def test_identify_and_status(logger: Logger) -> None:
     t, s, p = one(send(logger, frame(0x01, 9)))
     assert (t, s) == (0x81, 9)
     dev, fw, proto, bits, rate, cap, packing, mem = struct.unpack("<IHBBIIBI", p)
-    assert (dev, fw, proto, bits, rate, cap, packing, mem) == (0x1234, 0x0102, 2, 10, 50_000, 65536, 1, 262144)  # wire protocol 2 (DUMP_BLOCKS)
+    assert (dev, fw, proto, bits, rate, cap, packing, mem) == (0x1234, 0x0103, 2, 10, 50_000, 65536, 1, 262144)  # wire protocol 2 (DUMP_BLOCKS)
     t, s, p = one(send(logger, frame(0x02, 10)))
     state, flags, written, windex = struct.unpack("<BBII", p)
     assert (t, s, state, written, windex, flags & 0x04) == (0x82, 10, 0, 550, 550, 0)
@@ -284,20 +284,23 @@ def test_log_steps_only_while_logging(logger: Logger) -> None:
 
 
 def test_set_step_config(logger: Logger) -> None:
-    block = struct.pack("<BBHHHHHii12x", 3, 1, 29491, 6554, 36045, 32768, 16384, 19661, -13107)
-    # step_format 1 or 2 (a host that knows an older version) turns the algorithm on: stored as 3, the version
-    # it runs
-    assert one(send(logger, frame(0x0B, 1, b"\x01" + block[1:]))) == (ACK, 1, b"\x0b")
+    # as firmware 1.3 stores it: on-line algorithm version 4, M4's exponent 2/8 (its default, byte 20)
+    block = struct.pack("<BBHHHHHiiB11x", 4, 1, 29491, 6554, 36045, 32768, 16384, 19661, -13107, 2)
+    # step_format 1 or 2 (a host that knows an older version) turns the algorithm on: stored as 4, the version
+    # it runs, with M4's exponent not given (byte 20 is reserved below version 4): the default
+    older = b"\x01" + block[1:20] + bytes(12)
+    assert one(send(logger, frame(0x0B, 1, older))) == (ACK, 1, b"\x0b")
     assert one(send(logger, frame(0x06, 2)))[2][128:160] == block
-    assert one(send(logger, frame(0x0B, 1, b"\x02" + block[1:]))) == (ACK, 1, b"\x0b")
+    assert one(send(logger, frame(0x0B, 1, b"\x02" + older[1:]))) == (ACK, 1, b"\x0b")
     hdr = one(send(logger, frame(0x06, 2)))[2]
     assert hdr[128:160] == block and logger.data_eeprom.read(128, 32) == block
     assert logger.step_config.raw["k2_m5_q16"] == -13107
     assert one(send(logger, frame(0x0B, 1, block))) == (ACK, 1, b"\x0b")
     assert one(send(logger, frame(0x06, 2)))[2][128:160] == block
-    refused = (b"\x04" + block[1:], block[:1] + b"\x03" + block[2:], b"\x01\x00\x00\x00" + block[4:],
-               b"\x03\x00\x00\x00" + block[4:])
-    for seq, bad in enumerate(refused, 3):  # unknown format, reserved flag bit, format 1 or 3 with leg length 0
+    refused = (b"\x05" + block[1:], block[:1] + b"\x03" + block[2:], b"\x01\x00\x00\x00" + block[4:],
+               b"\x04\x00\x00\x00" + block[4:], block[:20] + b"\x05" + block[21:])
+    # unknown format, reserved flag bit, format 1 or 4 with leg length 0, M4's exponent 5/8
+    for seq, bad in enumerate(refused, 3):
         assert one(send(logger, frame(0x0B, seq, bad))) == (NAK, seq, bytes([0x0B, BAD_ARGUMENT]))
     assert one(send(logger, frame(0x0B, 8, block[:31]))) == (NAK, 8, bytes([0x0B, BAD_LENGTH]))
     assert one(send(logger, frame(0x06, 8)))[2][128:160] == block  # the refused blocks changed nothing

@@ -57,7 +57,7 @@ def test_identify_text_and_json(image, capsys):
     ident = json.loads(out)
     assert code == 0
     assert ident["device_id"] == 7 and ident["sampling_rate_hz"] == 50.0 and ident["adc_bits"] == 10
-    assert ident["capacity_samples"] == 65536 and ident["firmware_version"] == "1.2"
+    assert ident["capacity_samples"] == 65536 and ident["firmware_version"] == "1.3"
 
 
 def test_status_json_counts_what_was_recorded(image, capsys):

@@ -63,7 +63,7 @@ def test_info_json_of_a_file(dumped, capsys):
     assert main(["info", str(dumped), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["header"]["device_id"] == 5 and report["header"]["sampling_rate_hz"] == 50.0
-    assert report["header"]["samples_stored"] == N_SAMPLES and report["header"]["firmware_version"] == "1.2"
+    assert report["header"]["samples_stored"] == N_SAMPLES and report["header"]["firmware_version"] == "1.3"
     assert report["samples"] == {"n_stored": N_SAMPLES, "n_valid": N_SAMPLES, "duration_s": N_SAMPLES / 50.0,
                                  "gaps": []}
     assert any("empty (never written" in note for note in report["notes"])

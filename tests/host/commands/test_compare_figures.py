@@ -61,9 +61,9 @@ def _per_step_mm(rows, est, a, b, same) -> np.ndarray:
 
 # pooled per-step median |a - b|, mm (4 subjects, ~4,300 steps; multi-speed K)
 PER_STEP_MM = {
-    ("offline", "ideal", "same_events_adc"): {"M1": 0.69, "M2": 0.27, "M4": 0.26},
-    ("online_float", "offline", "same_events_algorithm"): {"M1": 10.7, "M2": 9.6, "M4": 7.4},
-    ("online_fixed", "online_float", "same_events_arithmetic"): {"M1": 0.054, "M2": 0.028, "M4": 0.049},
+    ("offline", "ideal", "same_events_adc"): {"M1": 0.69, "M2": 0.27, "M4": 0.128},
+    ("online_float", "offline", "same_events_algorithm"): {"M1": 10.7, "M2": 9.6, "M4": 3.79},
+    ("online_fixed", "online_float", "same_events_arithmetic"): {"M1": 0.054, "M2": 0.028, "M4": 0.020},
 }
 
 
@@ -88,7 +88,7 @@ def test_the_error_split_per_section(simulated) -> None:
     """Multi-speed K, 96 sections: the arithmetic moves a section ratio by <= 2e-4, the algorithm by up to 0.03
     (its median +0.0007 ... +0.0035), the ADC by ~0 (median) and 0.012 at most (M1)."""
     seg = [r for r in simulated.segments if r["mode"] == "multi-speed"]
-    for est, alg_median in (("M1", 0.0007), ("M2", 0.0035), ("M4", 0.0025)):
+    for est, alg_median in (("M1", 0.0007), ("M2", 0.0035), ("M4", 0.0014)):
         s = [r for r in seg if r["estimator"] == est]
         assert len(s) == 96
         ar = _col(s, "ratio_online_fixed") - _col(s, "ratio_online_float")

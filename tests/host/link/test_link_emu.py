@@ -95,7 +95,7 @@ def test_dump_round_trip_bit_identical(which, small_image, wrapped_image, tmp_pa
     assert meta["sha256"] == hashlib.sha256(out.read_bytes()).hexdigest()
     assert meta["complete"] and meta["missing_ranges"] == [] and meta["device"]["device_id"] == 1
     assert meta["format_version"] == 2 and meta["device"]["sampling_rate_hz"] == 50.0  # Hz, not the wire's mHz
-    assert "sampling_rate_millihz" not in meta["device"] and meta["device"]["firmware_version"] == "1.2"
+    assert "sampling_rate_millihz" not in meta["device"] and meta["device"]["firmware_version"] == "1.3"
     assert not (tmp_path / "dumped.glimg.part").exists()
 
 
