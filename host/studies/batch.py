@@ -201,7 +201,8 @@ def run_batch(paths: list[Path], out: str | Path, *, calibration: AccCalibration
             stamps[key] = fixed | {"input_sha256": _sha256(path)}
         except OSError as err:
             text = f"{path}: cannot read: {err.strerror or err}"
-            earlier[key] = BatchResult(path, "failed", {"recording": path.name, "status": "failed", "error": text}, text)
+            earlier[key] = BatchResult(path, "failed", {"recording": path.name, "status": "failed", "error": text},
+                                       text)
             continue
         old = _finished(out / f"{path.name}.json")
         if old.get("stamp") == stamps[key]:
