@@ -13,8 +13,8 @@ Whole process (``--process``): ``gaitlog estimate`` in a fresh process, as a use
 synthetic walk: a CSV at 50 Hz (``x_g,y_g,z_g``) with ``--arithmetic float`` and a decoded-recording ``.npz``
 (10-bit codes of the same walk, nominal map) with ``--arithmetic both``, each at 64K, 1M and 4M samples: wall
 time (best of ``--repeat`` at 64K, one run above), time per sample as a ratio to the 64K run of the same file
-kind, and peak resident memory of the process (``wait4``'s ``ru_maxrss``). Targets: 4M <= 200 MB and within 1.3x of the 64K time per
-sample. Then ``estimate --arithmetic both`` on the 64K ``.npz`` against the same work done with mobgap when it is
+kind, and peak resident memory of the process (``wait4``'s ``ru_maxrss``). Targets: 4M <= 200 MB and within 1.3x
+of the 64K time per sample. Then ``estimate --arithmetic both`` on the 64K ``.npz`` against the same work done with mobgap when it is
 installed (Ionescu's initial contacts and Zijlstra's step lengths on the same acceleration, in a fresh process:
 imports, reading, detection, lengths, CSV out), target <= 0.1x mobgap's time; without mobgap only the 64K figure.
 
