@@ -24,6 +24,7 @@ counted once (a foot-flat is one turning point, wherever the blocks are cut).
 
 from __future__ import annotations
 
+import functools
 import tempfile
 import warnings
 from typing import TYPE_CHECKING, Self
@@ -41,10 +42,32 @@ from gaitlog.host.gait.pipeline import impossible_note, step_table
 if TYPE_CHECKING:  # pragma: no cover
     from gaitlog.host.gait.k_calibration import KFit
 
-__all__ = ["StreamingStepPipeline", "TurningPoints"]
+__all__ = ["StreamingStepPipeline", "TurningPoints", "give_back_memory"]
 
 #: Samples computed per block (the last one may be shorter).
 BLOCK_SAMPLES = 1 << 16
+
+
+def give_back_memory() -> None:
+    """Return the C heap's free pages to the operating system (glibc's ``malloc_trim``; nothing elsewhere).
+
+    numpy's temporaries of a few hundred kB come from the heap once glibc has raised its mmap threshold, and a
+    freed one in the middle of the heap stays in the process: between the stages of a long recording the
+    resident memory would grow by tens of MB that nothing uses (measured: 43 MB after the on-line run of 4M
+    samples)."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@functools.cache
+def _malloc_trim():
+    try:
+        import ctypes
+
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
 
 
 class _Spill:
@@ -317,6 +340,8 @@ class StreamingStepPipeline:
         self._kept.append(av[s - av_lo:e - av_lo].copy(), good[s - av_lo:e - av_lo].copy())
         self._curve.feed(lp)
         self._done = e
+        if (e // self.block) % 8 == 0:
+            give_back_memory()
 
     # ------------------------------------------------------------------------------------------- at the end
     def _bands(self, lo: int, hi: int, *cutoffs: float) -> tuple[int, np.ndarray, np.ndarray, list[np.ndarray]]:
@@ -355,12 +380,14 @@ class StreamingStepPipeline:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             ff, hs, to = self._events(n)
+            give_back_memory()
             runs = self._missing_runs()
             ev = link_steps(ff, hs, to, runs, sampling_rate_hz=self.rate, max_gap_s=self.detector.max_gap_s,
                             max_step_s=self.detector.parameters.max_step_s)
         self.notes_ += [str(c.message) for c in caught]
 
         def take(lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            give_back_memory()                      # the previous group's temporaries
             start, av, ok, (lp,) = self._bands(lo, hi, self.detector.parameters.ff_cutoff_hz)
             return av[lo - start:hi - start], ok[lo - start:hi - start], lp[lo - start:hi - start]
 

@@ -26,7 +26,7 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.inputs import AccelerationInput, input_losses
 from gaitlog.host.files.losses import SampleLosses
 from gaitlog.host.gait.anthropometry import LENGTH_MODEL, AnatomyChoice
-from gaitlog.host.gait.streaming import StreamingStepPipeline
+from gaitlog.host.gait.streaming import StreamingStepPipeline, give_back_memory
 
 if TYPE_CHECKING:  # pragma: no cover -- k_calibration loads scipy (0.3 s): imported only when there is a K
     from gaitlog.host.gait.k_calibration import KFit
@@ -153,6 +153,7 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
     fixed = None
     if arithmetic in ("fixed", "both"):     # first: its transient memory is the larger, before any table is held
         fixed, report = fixed_steps(data, adc_calibration_file, lengths, k)
+        give_back_memory()
     if arithmetic in ("float", "both"):
         tables["float"], chain_notes = float_steps(data, lengths, k)
         notes += chain_notes
