@@ -52,12 +52,11 @@ import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
+from scipy import linalg
 
 from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ  # noqa: F401 -- defined there, used here too
 from gaitlog.protocol.adc_bits import check_adc_bits
-
-#: The logger's sample-timer rate unless told otherwise (Alvarez et al. 2006: 50 Hz), Hz.
-DEFAULT_SAMPLING_RATE_HZ = 50.0
 
 #: PIC16F87X A/D acquisition model (DS30292C section 11.1): hold capacitor, interconnect and sampling-switch
 #: resistance (VDD = 5 V), amplifier settling, the hold's temperature coefficient above 25 °C.
@@ -318,8 +317,6 @@ class Adc:
         c_s, c_h, r_s = self.source_capacitance_f, HOLD_CAPACITANCE_F, self.source_impedance_ohm
         a = np.array([[-1.0 / (r_s * c_s) - 1.0 / (r_hold_ohm * c_s), 1.0 / (r_hold_ohm * c_s)],
                       [1.0 / (r_hold_ohm * c_h), -1.0 / (r_hold_ohm * c_h)]])
-        from scipy import linalg     # here: every command that reads a recording imports this module (0.3 s)
-
         return float((linalg.expm(a * charge_s) @ np.array([0.0, 1.0]))[1])
 
     @functools.cached_property

@@ -24,6 +24,7 @@ counted once (a foot-flat is one turning point, wherever the blocks are cut).
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import tempfile
 import warnings
@@ -63,8 +64,6 @@ def give_back_memory() -> None:
 @functools.cache
 def _malloc_trim():
     try:
-        import ctypes
-
         return ctypes.CDLL("libc.so.6").malloc_trim
     except (OSError, AttributeError):
         return None
