@@ -29,7 +29,7 @@ from gaitlog.host.files.losses import SampleLosses
 from gaitlog.host.gait.anthropometry import LENGTH_MODEL, AnatomyChoice
 from gaitlog.host.files.replay import online_step_table, run_starts
 from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES, KFit
-from gaitlog.host.gait.streaming import StreamingStepPipeline, give_back_memory
+from gaitlog.host.gait.streaming import StreamingStepPipeline, bound_heap, give_back_memory
 
 __all__ = ["ARITHMETICS", "EstimateResult", "estimate_recording", "float_steps", "summarise", "write_table_csv"]
 
@@ -145,6 +145,7 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
     if arithmetic != "float" and data.recording is None:
         raise HostError(f"{input_name or data.source}: --arithmetic {arithmetic} needs ADC codes: give a logger "
                         "file or a decoded recording (.npz from 'gaitlog decode'), not acceleration in g")
+    bound_heap()                              # block-sized temporaries from mmap: no heap growth on long inputs
     notes = [lengths.note] if lengths.assumed else []
     tables: dict[str, StepTable] = {}
     report = ""
