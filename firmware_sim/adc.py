@@ -54,10 +54,8 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from gaitlog.firmware_sim.errors import DeviceError
+from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ  # noqa: F401 -- defined there, used here too
 from gaitlog.protocol.adc_bits import check_adc_bits
-
-#: The logger's sample-timer rate unless told otherwise (Alvarez et al. 2006: 50 Hz), Hz.
-DEFAULT_SAMPLING_RATE_HZ = 50.0
 
 #: PIC16F87X A/D acquisition model (DS30292C section 11.1): hold capacitor, interconnect and sampling-switch
 #: resistance (VDD = 5 V), amplifier settling, the hold's temperature coefficient above 25 °C.

@@ -68,18 +68,27 @@ def recording_lengths(flags: argparse.Namespace, k, data) -> object:
     return lengths_from_args(flags, k=k, data=data)
 
 
+def _dask_runner(args: argparse.Namespace):
+    """``--scheduler``/``--workers`` checked, and Dask's runner when one is given (else None: in this process)."""
+    if args.scheduler and args.workers:
+        raise UsageError("--scheduler and --workers exclude each other (the scheduler's cluster has its own workers)")
+    if not (args.scheduler or args.workers):
+        return None
+    from gaitlog.host.commands.sweep import _check_scheduler
+    from gaitlog.host.studies.dask_runner import run_on_dask
+
+    if args.scheduler:
+        _check_scheduler(args.scheduler)
+    return run_on_dask
+
+
 def run(args: argparse.Namespace) -> int:
     from gaitlog.host.accelerometer.calibration import AccCalibration
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
 
-    if args.scheduler and args.workers:
-        raise UsageError("--scheduler and --workers exclude each other (the scheduler's cluster has its own workers)")
-    if args.scheduler:
-        from gaitlog.host.commands.sweep import _check_scheduler
-
-        _check_scheduler(args.scheduler)
+    run_on_dask = _dask_runner(args)
     out = Path(args.out)
     folder = Path(args.folder)
     check_output_folder("--out", out)
@@ -101,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
                             lengths=functools.partial(recording_lengths, argparse.Namespace(
                                 leg_length=args.leg_length, foot_length=args.foot_length, height=args.height,
                                 k_file=args.k_file), k), settings=settings, progress=tick,
-                            scheduler=args.scheduler, workers=args.workers)
+                            scheduler=args.scheduler, workers=args.workers, run_on_dask=run_on_dask)
     rows = [r.summary for r in results]
     atomic_write_text(out / "batch.csv", rows_csv_text([{k: ("" if v is None else v) for k, v in r.items()}
                                                         for r in rows], SUMMARY_COLUMNS))

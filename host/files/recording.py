@@ -37,7 +37,7 @@ from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
-from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.host.errors import HostError
 from gaitlog.host.storage.limits import MAX_INPUT_SAMPLES

@@ -294,13 +294,13 @@ def warn_if_no_steps(detector: GaitEventDetector) -> None:
         warnings.warn("no walking steps detected (no two foot-flats within max_step_s)", stacklevel=3)
 
 
-def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray | tuple[np.ndarray, np.ndarray], *, sampling_rate_hz: float,
-               max_gap_s: float, max_step_s: float) -> dict[str, np.ndarray]:
+def link_steps(ff: np.ndarray, hs: np.ndarray, to: np.ndarray, ok: np.ndarray | tuple[np.ndarray, np.ndarray], *,
+               sampling_rate_hz: float, max_gap_s: float, max_step_s: float) -> dict[str, np.ndarray]:
     """Walking bouts and steps from per-foot-flat event indices (index bookkeeping, no arithmetic).
 
     Consecutive foot-flats ``ff`` form a step when they are at most ``max_step_s`` apart and no run of
-    missing samples (``~ok``; or ``ok`` is the ``(starts, ends)`` of those runs, :func:`gaitlog.host.gait.gaps.missing_runs`)
-    between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
+    missing samples (``~ok``; or ``ok`` is the ``(starts, ends)`` of those runs,
+    :func:`gaitlog.host.gait.gaps.missing_runs`) between them is longer than ``max_gap_s``; otherwise a new bout starts. ``hs``
     and ``to`` are the heel-strike before and the toe-off after each foot-flat (``-1`` = none); a step's
     toe-off that does not precede its heel-strike is impossible and becomes ``-1``. (The on-line
     algorithm links its steps as it finds them, :mod:`gaitlog.firmware_sim.algorithms.kernel`.)

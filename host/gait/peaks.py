@@ -14,8 +14,8 @@ gives the same peaks, index for index (tested against scipy as the oracle), in t
    ``>= prominence``.
 
 The prominence is vectorised: the point where the curve first rises above a peak is searched among the
-curve's *tops* (maximal runs of equal samples that are higher than both neighbours, ends included) by
-binary lifting over a table of running maxima, and the lowest point up to it is one ``np.minimum.reduceat``.
+curve's *tops* (maximal runs of equal samples that are higher than both neighbours, ends included) as each
+top's previous greater top, by pointer jumping, and the lowest point up to it is one ``np.minimum.reduceat``.
 The nearest higher top ``c`` to the left of a peak ``p`` gives the same minimum as scipy's sample-by-sample
 walk, which stops at the nearest higher *sample* ``j``: ``c`` ends at or before ``j``, and a sample between
 ``c`` and ``j`` lower than the minimum after ``j`` would leave a higher top between it and ``j``, nearer
@@ -136,20 +136,26 @@ def _prominences(a: np.ndarray, peaks: np.ndarray, peak_top: np.ndarray, top_sta
 
 
 def _nearest_higher_before(values: np.ndarray, index: np.ndarray, level: np.ndarray) -> np.ndarray:
-    """For each query ``q``: the largest ``i < index[q]`` with ``values[i] > level[q]``, or -1.
+    """For each query ``q`` (``level[q]`` is ``values[index[q]]``, a top's own value): the largest ``i < index[q]``
+    with ``values[i] > level[q]``, or -1: the previous greater element, :func:`_previous_greater`."""
+    return _previous_greater(values)[np.asarray(index, dtype=np.intp)]
 
-    Binary lifting over a table of running maxima: ``table[b][i] = max(values[i - 2**b + 1 .. i])`` with a
-    ``+inf`` sentinel before the first value, so a jump never passes it; from ``index - 1`` the queries jump
-    back by ``2**b`` (``b`` from high to low) over every block that holds nothing above ``level``.
+
+def _previous_greater(values: np.ndarray) -> np.ndarray:
+    """For every ``i``: the largest ``j < i`` with ``values[j] > values[i]``, or -1.
+
+    Pointer jumping, all elements at once: each points at a candidate ``j`` with nothing above ``values[i]``
+    between them (first ``i - 1``); while the candidate is not higher, it jumps to the candidate's own candidate,
+    which keeps that true. The pointers double their reach each round (a few int arrays of memory, where a table
+    of running maxima took one float array per power of two).
+
+    >>> _previous_greater(np.array([5.0, 1.0, 3.0, 3.0, 6.0, 2.0])).tolist()
+    [-1, 0, 0, 0, -1, 4]
     """
-    ext = np.r_[np.inf, values]
-    table = [ext]
-    step = 1
-    while step < ext.size:
-        prev = table[-1]
-        table.append(np.r_[prev[:step], np.maximum(prev[step:], prev[:-step])])
-        step *= 2
-    cur = np.asarray(index, dtype=np.intp).copy()  # ext index of values[index - 1]
-    for b in range(len(table) - 1, -1, -1):
-        cur -= np.where(table[b][cur] <= level, 1 << b, 0)
-    return cur - 1
+    p = np.arange(-1, values.size - 1, dtype=np.intp)
+    active = np.arange(1, values.size, dtype=np.intp)
+    while active.size:
+        active = active[values[p[active]] <= values[active]]
+        p[active] = p[p[active]]
+        active = active[p[active] >= 0]
+    return p

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
+from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.host.errors import HostError
 
 if TYPE_CHECKING:  # pragma: no cover

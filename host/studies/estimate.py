@@ -16,20 +16,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from gaitlog.atomic_write import atomic_write
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable, columns_csv_text
+from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.inputs import AccelerationInput, input_losses
 from gaitlog.host.files.losses import SampleLosses
 from gaitlog.host.gait.anthropometry import LENGTH_MODEL, AnatomyChoice
-from gaitlog.host.gait.streaming import StreamingStepPipeline
-
-if TYPE_CHECKING:  # pragma: no cover -- k_calibration loads scipy (0.3 s): imported only when there is a K
-    from gaitlog.host.gait.k_calibration import KFit
+from gaitlog.host.files.replay import online_step_table, run_starts
+from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES, KFit
+from gaitlog.host.gait.streaming import StreamingStepPipeline, bound_heap, give_back_memory
 
 __all__ = ["ARITHMETICS", "EstimateResult", "estimate_recording", "float_steps", "summarise", "write_table_csv"]
 
@@ -78,8 +78,6 @@ class EstimateResult:
         cols = table.columns()
         n = table.n_steps
         out = self.k.outside_range(table) if self.k is not None else None
-        if out is not None:
-            from gaitlog.host.gait.k_calibration import RANGE_QUANTITIES
         for lo in range(0, max(n, 1), rows):
             hi = min(n, lo + rows)
             flags = (["+".join(q for q in RANGE_QUANTITIES if out[q][i]) for i in range(lo, hi)]
@@ -147,12 +145,14 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
     if arithmetic != "float" and data.recording is None:
         raise HostError(f"{input_name or data.source}: --arithmetic {arithmetic} needs ADC codes: give a logger "
                         "file or a decoded recording (.npz from 'gaitlog decode'), not acceleration in g")
+    bound_heap()                              # block-sized temporaries from mmap: no heap growth on long inputs
     notes = [lengths.note] if lengths.assumed else []
     tables: dict[str, StepTable] = {}
     report = ""
     fixed = None
     if arithmetic in ("fixed", "both"):     # first: its transient memory is the larger, before any table is held
         fixed, report = fixed_steps(data, adc_calibration_file, lengths, k)
+        give_back_memory()
     if arithmetic in ("float", "both"):
         tables["float"], chain_notes = float_steps(data, lengths, k)
         notes += chain_notes
@@ -178,13 +178,9 @@ def fixed_steps(data: AccelerationInput, calibration_file: str | None, lengths: 
                 k: KFit | None) -> tuple[StepTable, str]:
     """The on-line algorithm in fixed point (the logger's) on the codes of a logger recording, with the same K as
     the float chain -> (table, saturation report)."""
-    from gaitlog.host.files.replay import online_step_table, run_starts
-
     rec = data.recording
     adc_cal = rec.default_calibration()[0]
     if calibration_file:
-        from gaitlog.host.accelerometer.calibration import AccCalibration
-
         try:
             adc_cal = AccCalibration.load(calibration_file).to_header_calibration()
         except HostError as err:
