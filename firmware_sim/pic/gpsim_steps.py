@@ -33,7 +33,6 @@ import numpy as np
 
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.formats import F_EXC, F_EXC2, F_POS, F_POS2
-from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT_EIGHTHS
 from gaitlog.firmware_sim.algorithms.probe import FinaliseTrace, finalise_calls
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, missing_tools
 from gaitlog.firmware_sim.pic.gpsim_logger import PicError, _symbols, _writes
@@ -91,7 +90,7 @@ def _s32(v: int) -> list[int]:
 
 
 def config_bytes(cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = True,
-                 m4_eighths: int = M4_EXPONENT_EIGHTHS) -> list[int]:
+                 m4_eighths: int | None = None) -> list[int]:
     """The step configuration as ``step_record.asm`` reads it from the data EEPROM (``CFG_*`` offsets of
     ``step_record_ram.inc``), from the kernel's configuration arrays (``OnlineConfig.cfg_i``, ``cfg_v``).
 
@@ -111,7 +110,8 @@ def config_bytes(cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = Tru
     w10_at = CFG_W3 + 2 * (ci["R3"] + 1)
     w5_at = w10_at + 2 * (ci["R10"] + 1)
     head = [ci["R3"], ci["R10"], ci["R5"], ci["MAX_STEP"], ci["HS_BEFORE"], ci["HS_AFTER"], ci["HS_DELAY"],
-            ci["TO_SPAN"], ci["EXC_SHIFT1"], exc1_mul, ci["EXC_SHIFT2"], exc2_mul, int(m4_eighths),
+            ci["TO_SPAN"], ci["EXC_SHIFT1"], exc1_mul, ci["EXC_SHIFT2"], exc2_mul,
+            ci["M4_EIGHTHS"] if m4_eighths is None else int(m4_eighths),
             0 if calibrated else int(StepFlag.UNCALIBRATED), w10_at, w5_at]
     v = {k: int(cfg_v[i]) for k, i in kernel.CV.items() if i < len(cfg_v)}
     words = []
@@ -339,7 +339,7 @@ def finalise_stack_levels(*, overrides: dict[str, str] | None = None) -> int:
 
 
 def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = True,
-              m4_eighths: int = M4_EXPONENT_EIGHTHS, overrides: dict[str, str] | None = None,
+              m4_eighths: int | None = None, overrides: dict[str, str] | None = None,
               reader: str = "i2c", timeout_s: float = 600.0) -> StepBenchRun:
     """Run ``step_bench.asm`` on every call of ``trace``; ``overrides`` replaces source files by name (a test's
     broken variant). ``reader``: the scratch ring on the I2C bus (``"i2c"``, the firmware's reader, a 24xx256
