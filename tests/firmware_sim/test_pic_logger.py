@@ -128,7 +128,9 @@ def test_random_codes_identical(name):
     assert r.identical, r.format_table()
     assert r.period_cycles == 92160
     assert r.acquisition_cycles_min >= r.acquisition_cycles_needed
-    assert 0 < r.cycles["total in assembly"]["worst"] < 92160
+    # a step record takes several sample periods; the page buffer lets the main loop fall up to 32 behind
+    assert 0 < r.cycles["total in assembly"]["mean"] < 92160
+    assert r.backlog_max < gl.PAGE_WORDS
     assert r.memory.ram_total_bytes <= 368 and r.memory.program_words <= 8192
     assert "of 700 samples identical" in r.format_table()
 
