@@ -17,7 +17,7 @@ gravity, a_v; ``steps.asm``: the delay line and the 3 Hz FIR y3, the foot-flat d
 * **Outputs** come from gpsim's register-write log (``log w``), stamped with its cycle counter: the 128
   page-buffer bytes (the packed words), the stage outputs and state (``FX..FZ``, ``G1``, ``G2``, ``AV``,
   ``Y3`` and the detector's bank-1 state, snapshot at the main loop's ``DECF PENDING`` that ends each
-  sample), ``finalise``'s call record (taken at each write of ``REC_FLAGS``), ``W_TEMP`` (the interrupt's
+  sample), ``finalise``'s call record (taken at each write of ``CALL_FLAGS``), ``W_TEMP`` (the interrupt's
   entry and exit), ``ADCON0`` (channel select and GO: the acquisition time) and ``B0``, ``FZ_H``,
   ``AV_H``, ``M_L`` (where the stages begin and end). Nothing stops the simulation before ``harness_done``.
 * **Cycles**: the interrupt from its vector to RETFIE is measured on the production build over
@@ -265,10 +265,11 @@ def _writes(log_text: str, wanted: set[int]) -> tuple[np.ndarray, np.ndarray, np
 
 def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "") -> str:
     """Run ``build`` in gpsim (``stimuli``: commands that attach stimuli), logging writes to ``addrs``, until
-    ``stop`` (``e LABEL`` or ``c CYCLES``)."""
+    ``stop`` (``e LABEL`` or ``c CYCLES``). The scratch ring's EEPROM is on the I2C bus in every run (the
+    firmware's page writes wait for its acknowledge)."""
     with tempfile.TemporaryDirectory(prefix="gpsim-logger-") as tmp:
         log = Path(tmp) / "writes.log"
-        lines = [*([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
+        lines = [*I2C_SETUP, *([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
                  "quit"]
         (Path(tmp) / "run.stc").write_text("\n".join(lines) + "\n")
         proc = subprocess.run(["gpsim", "-i", "-s", str(build.cod), "-c", str(Path(tmp) / "run.stc")],
@@ -531,8 +532,7 @@ class PicLogger:
             logged = sorted(tracked | {sym["B0"], sym["FZ_H"], sym["AV_H"], sym["M_L"], sym["PENDING"], sym["STATUS_TEMP"], PCLATH_ADDR,
                                        ADCON0_ADDR, *PAGE_ADDRS})
             t0 = time.perf_counter()
-            text = _gpsim(build, logged, "e harness_done", self.timeout_s,
-                          "\n".join([*I2C_SETUP, _stimuli(codes, flags, period)]))
+            text = _gpsim(build, logged, "e harness_done", self.timeout_s, _stimuli(codes, flags, period))
             dt = time.perf_counter() - t0
         cyc, addr, val = _writes(text, set(logged))
         start = {a: 0 for a in tracked}
@@ -590,7 +590,7 @@ class PicLogger:
                 pending = v
                 continue
             ram[a] = v
-            if a == sym["REC_FLAGS"] and started:
+            if a == sym["CALL_FLAGS"] and started:
                 calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
         if done != n:
             raise PicError(f"gpsim's main loop finished {done} samples of {n}")
