@@ -31,7 +31,7 @@ Probes
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -63,7 +63,7 @@ from gaitlog.firmware_sim.algorithms.state import (
 )
 from gaitlog.firmware_sim.compiled import njit
 from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
-from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
+from gaitlog.protocol.steps import StepConfig, pack_step_records
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
            "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls"]
@@ -290,13 +290,18 @@ class DetectorTrace:
     ready: np.ndarray
     state: np.ndarray
     calls: np.ndarray
+    #: ``(k, 20)`` uint8: the step records the calls made, packed as the device stores them (CRC included),
+    #: their end sample counted from their run's START
+    records: np.ndarray = field(default_factory=lambda: np.zeros((0, 20), np.uint8))
 
 
 def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
-                   run_starts: list[int] | tuple[int, ...] = (0,), start_n: int = 0) -> DetectorTrace:
+                   run_starts: list[int] | tuple[int, ...] = (0,), start_n: int = 0,
+                   scratch_ring: int = 0) -> DetectorTrace:
     """Steps 4-5 of the fixed-point kernel on every sample: the kernel fed one sample at a time (runs restart
     at ``run_starts``), its y3, detector state and ``_finalise`` calls after each. ``start_n``: the kernel's
-    ``N`` after each START (0; else a run that old, as the PIC test build's ``START_N``).
+    ``N`` after each START (0; else a run that old, as the PIC test build's ``START_N``). ``scratch_ring``:
+    the scratch ring's samples (a power of two; 0: the emulator's), as the PIC's EEPROM ring holds them.
 
     Examples
     --------
@@ -312,8 +317,12 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
     cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw            # the PIC's calibration, as is
     cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
     cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
+    if scratch_ring:
+        cfg_i[kernel.CI_SCRATCH] = scratch_ring
+        algo._scr = np.zeros(scratch_ring, algo._scr.dtype)
     r3 = int(cfg_i[kernel.CI_R3])
     fir = kernel._fir.py_func
+    records = []
     cnt = new_counters()
     n = c.shape[0]
     y3 = np.zeros(n, np.int64)
@@ -334,13 +343,16 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
             y3[i] = fir(algo._line, centre, 2 * r3 + 1, cfg_v, kernel.CV_W3, r3, cnt)
         state[i, :len(_DETECTOR_SLOTS)] = [st_v[k] if kind == "v" else st_i[k] for kind, k in _DETECTOR_SLOTS]
         state[i, len(_DETECTOR_SLOTS):] = algo._durs
+        if len(steps.end):
+            records.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
         for end in steps.end.tolist():
             e = int(prev[PEND])
             if ((end + start_n) & INDEX_MASK) != e:          # the driver counts from START
                 raise AssertionError(f"sample {i}: the kernel's record ends at {end}, its pending foot-flat was {e}")
             calls.append([i, e, int(prev[LAST]), int((st_i[N] - 1 - r3) & INDEX_MASK),
                           int(prev[FLAGS] & (F_LAST | F_PEND_WEAK) | st_i[FLAGS] & F_OLD)])
-    return DetectorTrace(y3, ready, state, np.asarray(calls, np.int64).reshape(-1, len(CALL_FIELDS)))
+    return DetectorTrace(y3, ready, state, np.asarray(calls, np.int64).reshape(-1, len(CALL_FIELDS)),
+                         np.concatenate(records) if records else np.zeros((0, 20), np.uint8))
 
 
 # ---------------------------------------------------------------------------------------------------------

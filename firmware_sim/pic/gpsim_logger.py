@@ -17,7 +17,7 @@ gravity, a_v; ``steps.asm``: the delay line and the 3 Hz FIR y3, the foot-flat d
 * **Outputs** come from gpsim's register-write log (``log w``), stamped with its cycle counter: the 128
   page-buffer bytes (the packed words), the stage outputs and state (``FX..FZ``, ``G1``, ``G2``, ``AV``,
   ``Y3`` and the detector's bank-1 state, snapshot at the main loop's ``DECF PENDING`` that ends each
-  sample), ``finalise``'s call record (taken at each write of ``REC_FLAGS``), ``W_TEMP`` (the interrupt's
+  sample), ``finalise``'s call record (taken at each write of ``CALL_FLAGS``), ``W_TEMP`` (the interrupt's
   entry and exit), ``ADCON0`` (channel select and GO: the acquisition time) and ``B0``, ``FZ_H``,
   ``AV_H``, ``M_L`` (where the stages begin and end). Nothing stops the simulation before ``harness_done``.
 * **Cycles**: the interrupt from its vector to RETFIE is measured on the production build over
@@ -62,6 +62,7 @@ from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, a
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
+from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
@@ -82,7 +83,17 @@ ISR_PROBE_SAMPLES = 64
 ISR_TAIL_CYCLES = 4
 #: gpsim's ADCON0, the kernels' W_TEMP (common RAM) and the page buffer's two halves.
 ADCON0_ADDR, W_TEMP_ADDR = 0x1F, 0x7F
+#: Samples in the scratch ring on the I2C EEPROM (step_record.asm SCR_RING_MASK + 1; a 24xx256 in gpsim).
+SCRATCH_RING_SAMPLES = 0x4000
+#: PCLATH: the interrupt writes it twice in bank 0 (cleared at entry, restored at exit)
+PCLATH_ADDR = 0x0A
+#: The interrupt as the test build's log shows it: its first bank-0 write (STATUS_TEMP) comes this many cycles
+#: after the vector, its exit's PCLATH write this many before the exit's W_TEMP write. gpsim logs W_TEMP only
+#: when it is written at 0x7F, i.e. when the interrupt came in bank 0, and the step record runs in banks 2-3.
+ISR_ENTRY_CYCLES, ISR_EXIT_CYCLES = 3, 3
 PAGE_ADDRS = tuple(range(0x110, 0x150)) + tuple(range(0x190, 0x1D0))
+#: P32 words in the page buffer: the most samples the main loop may fall behind
+PAGE_WORDS = len(PAGE_ADDRS) // 4
 #: Timer1 prescaler settings (T1CKPS bits in T1CON, TMR1ON set).
 _PRESCALERS = ((1, 0x01), (2, 0x11), (4, 0x21), (8, 0x31))
 
@@ -254,10 +265,11 @@ def _writes(log_text: str, wanted: set[int]) -> tuple[np.ndarray, np.ndarray, np
 
 def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "") -> str:
     """Run ``build`` in gpsim (``stimuli``: commands that attach stimuli), logging writes to ``addrs``, until
-    ``stop`` (``e LABEL`` or ``c CYCLES``)."""
+    ``stop`` (``e LABEL`` or ``c CYCLES``). The scratch ring's EEPROM is on the I2C bus in every run (the
+    firmware's page writes wait for its acknowledge)."""
     with tempfile.TemporaryDirectory(prefix="gpsim-logger-") as tmp:
         log = Path(tmp) / "writes.log"
-        lines = [*([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
+        lines = [*I2C_SETUP, *([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
                  "quit"]
         (Path(tmp) / "run.stc").write_text("\n".join(lines) + "\n")
         proc = subprocess.run(["gpsim", "-i", "-s", str(build.cod), "-c", str(Path(tmp) / "run.stc")],
@@ -272,6 +284,14 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli
         return log.read_text(errors="replace") if log.exists() else ""
 
 
+#: The data-EEPROM address of the step configuration (logger_ram.inc STEP_CFG_EE).
+STEP_CFG_EE = 0x30
+#: gpsim's I2C bus: the scratch ring's EEPROM (e24xx256, control byte 0xA0) on RC3 (SCL) and RC4 (SDA), 10 kOhm
+#: pull-ups, as the step record's bench has it (gpsim_steps).
+I2C_SETUP = ("module library libgpsim_modules.so", "module load e24xx256 ee", "module load pullup Rscl",
+             "module load pullup Rsda", "Rscl.resistance = 10000.", "Rsda.resistance = 10000.", "node scl",
+             "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin")
+
 #: RAM the harness snapshots after each sample (bank-0 symbols, bytes): stage outputs and state.
 _SNAPSHOT = (("FX_L", 2), ("FY_L", 2), ("FZ_L", 2), *((f"G{s}{a}", 4) for s in "12" for a in "XYZ"), ("AV_L", 2),
              ("Y3_0", 3))
@@ -282,7 +302,9 @@ _DETECTOR = (("MN", 3, True), ("MX", 3, True), ("MXPOS", 2, False), ("PEND", 2, 
              ("N_DUR", 1, False), ("DUR_POS", 1, False), ("AFLAGS", 1, False), ("N_L", 2, False),
              ("LINE_POS", 1, False))
 #: finalise's call record: (symbol, bytes), after the sample index.
-_RECORD = (("REC_E", 2), ("REC_S", 2), ("REC_M", 2), ("REC_FLAGS", 1))
+_RECORD = (("CALL_E", 2), ("CALL_S", 2), ("CALL_M", 2), ("CALL_FLAGS", 1))
+#: Bytes of the step record (step_record.asm ``REC``), taken when finalise has written ``LAST``'s high byte.
+STEP_RECORD_BYTES = 20
 #: Stages timed per sample, and the write that ends each (``M_L``: written only once the filter has an output).
 STAGES = ("step 1 (calibration)", "steps 2-3 (gravity, a_v)", "step 4 (delay line, 3 Hz FIR)",
           "step 5 (foot-flat detector)")
@@ -335,6 +357,8 @@ class LoggerRun:
     simulated_cycles: int
     gpsim_s: float
     wall_s: float
+    records: np.ndarray = field(default_factory=lambda: np.zeros((0, STEP_RECORD_BYTES), np.uint8))
+    backlog_max: int = 0
 
 
 @dataclass(frozen=True)
@@ -347,6 +371,8 @@ class _RunOut:
     acquisition_cycles_min: int
     simulated_cycles: int
     gpsim_s: float
+    records: np.ndarray
+    backlog_max: int
 
 
 def _int(b: np.ndarray, signed: bool = True) -> np.ndarray:
@@ -385,14 +411,18 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
     snap_addrs = sorted(r.ram)
     bounds = [sym["B0"], sym["FZ_H"], sym["AV_H"], sym["M_L"]]
     snaps, stages, ready, calls = [], [], [], []
-    rec_flags, rec = sym["REC_FLAGS"], [(sym[k], b) for k, b in _RECORD]
+    rec_flags, rec = sym["CALL_FLAGS"], [(sym[k], b) for k, b in _RECORD]
+    step_rec, last_h, due, records = sym["REC"], sym["LAST"] + 1, False, []
+    status_temp, pclath_seen = sym["STATUS_TEMP"], 0
     for t, a, v in zip(cyc.tolist(), addr.tolist(), val.tolist()):
-        if a == W_TEMP_ADDR:
-            r.in_isr = not r.in_isr
-            if r.in_isr:
-                r.isr_t = t
-            else:
-                r.isr_sum += t + ISR_TAIL_CYCLES - r.isr_t
+        if a == status_temp:
+            r.in_isr, r.isr_t, pclath_seen = True, t - ISR_ENTRY_CYCLES, 0
+            continue
+        if a == PCLATH_ADDR:
+            pclath_seen += r.in_isr
+            if r.in_isr and pclath_seen == 2:
+                r.in_isr = False
+                r.isr_sum += t + ISR_EXIT_CYCLES + ISR_TAIL_CYCLES - r.isr_t
             continue
         if r.in_isr:
             continue
@@ -402,6 +432,10 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
             r.marks.append((t, r.isr_sum))
         if a == rec_flags and r.marks:           # (not START's clearing)
             calls.append([len(snaps)] + [sum(r.ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+            due = True
+        if a == last_h and due:                  # the step record's end: LAST = e
+            records.append([r.ram[step_rec + i] for i in range(STEP_RECORD_BYTES)])
+            due = False
         if a == sym["PENDING"] and r.marks:       # the sample's DECF (not the set-up's CLRF)
             snaps.append([r.ram[x] for x in snap_addrs])
             ready.append(len(r.marks) == len(bounds))
@@ -412,7 +446,8 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
     if len(snaps) != n:
         raise PicError(f"gpsim's main loop finished {len(snaps)} samples of {n}")
     return (np.asarray(snaps, np.int64), snap_addrs, np.asarray(ready, bool),
-            np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)), np.asarray(stages, np.int64))
+            np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)), np.asarray(stages, np.int64),
+            np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES))
 
 
 class PicLogger:
@@ -462,6 +497,17 @@ class PicLogger:
                     PAGE_START=_page_fsr(first_sample), G_SHIFT=self.gravity_shift,
                     G_MIN=self.min_gravity_raw, **steps)
 
+    def _eeprom(self, cal_bytes: list[int]) -> list[int]:
+        """The data EEPROM: the calibration and the 3 Hz half-kernel (logger_ram.inc EE_*), then the step
+        configuration at STEP_CFG_EE (step_record_ram.inc CFG_*, :func:`gpsim_steps.config_bytes`)."""
+        from gaitlog.firmware_sim.pic.gpsim_steps import config_bytes
+        head = _config_bytes(cal_bytes, self._weights())
+        if len(head) > STEP_CFG_EE:
+            raise ValueError(f"the configuration's {len(head)} bytes overlap the step configuration at {STEP_CFG_EE}")
+        step = config_bytes(self.config.cfg_i, self.config.cfg_v,
+                            calibrated=bool(self.config.step_config.calibrated))
+        return head + [0xFF] * (STEP_CFG_EE - len(head)) + step
+
     def _n_med(self) -> int:
         return int(self.config.cfg_i[kernel.CI_N_MED])
 
@@ -475,15 +521,15 @@ class PicLogger:
         n = codes.shape[0]
         with tempfile.TemporaryDirectory(prefix="pic-logger-") as tmp:
             d = Path(tmp)
-            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n"
-                                                  for b in _config_bytes(cal_bytes, self._weights())))
+            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in self._eeprom(cal_bytes)))
             build = _assemble(d, dict(self._defines(first_sample), N_SAMPLES=n, START_N=0), test=True)
             sym = build.symbols
             tracked = {sym[k] + i for k, b in _SNAPSHOT for i in range(b)}
             tracked |= {sym[k] + i for k, b, _ in _DETECTOR for i in range(b)}
             tracked |= {sym["DURS"] + i for i in range(self._n_med())}
             tracked |= {sym[k] + i for k, b in _RECORD for i in range(b)}
-            logged = sorted(tracked | {sym["B0"], sym["FZ_H"], sym["AV_H"], sym["M_L"], sym["PENDING"], W_TEMP_ADDR,
+            tracked |= {sym["REC"] + i for i in range(STEP_RECORD_BYTES)}
+            logged = sorted(tracked | {sym["B0"], sym["FZ_H"], sym["AV_H"], sym["M_L"], sym["PENDING"], sym["STATUS_TEMP"], PCLATH_ADDR,
                                        ADCON0_ADDR, *PAGE_ADDRS})
             t0 = time.perf_counter()
             text = _gpsim(build, logged, "e harness_done", self.timeout_s, _stimuli(codes, flags, period))
@@ -491,7 +537,7 @@ class PicLogger:
         cyc, addr, val = _writes(text, set(logged))
         start = {a: 0 for a in tracked}
         start[sym["THR_L"]] = 2
-        snaps, order, ready, calls, stages = _replay_log(cyc, addr, val, n, sym, start)
+        snaps, order, ready, calls, stages, records = _replay_log(cyc, addr, val, n, sym, start)
         col = {a: i for i, a in enumerate(order)}
         ram = {}
         for k, b in _SNAPSHOT:
@@ -503,7 +549,8 @@ class PicLogger:
         _check_conversions(adc[1::2], n, period)
         acq = int(np.min(adc[1::2] - adc[0::2])) if adc.size >= 2 else 0
         return _RunOut(_packed(addr, val, n, first_sample), ram, ready, calls, stages, acq,
-                       int(cyc.max()) if cyc.size else 0, dt)
+                       int(cyc.max()) if cyc.size else 0, dt, records,
+                       int(val[addr == sym["PENDING"]].max(initial=0)))
 
     def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *,
                   start_n: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -543,7 +590,7 @@ class PicLogger:
                 pending = v
                 continue
             ram[a] = v
-            if a == sym["REC_FLAGS"] and started:
+            if a == sym["CALL_FLAGS"] and started:
                 calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
         if done != n:
             raise PicError(f"gpsim's main loop finished {done} samples of {n}")
@@ -617,7 +664,8 @@ class PicLogger:
             isr_cycles=isr_by_pos[positions], stage_cycles=np.concatenate([p.stage_cycles for p in parts]),
             acquisition_cycles_min=min(p.acquisition_cycles_min for p in parts), period_cycles=period,
             simulated_cycles=sum(p.simulated_cycles for p in parts), gpsim_s=sum(p.gpsim_s for p in parts),
-            wall_s=time.perf_counter() - t0)
+            wall_s=time.perf_counter() - t0, records=np.concatenate([p.records for p in parts]),
+            backlog_max=max(p.backlog_max for p in parts))
 
 
 def run_starts(flags: np.ndarray) -> list[int]:
@@ -634,13 +682,17 @@ class MemoryMap:
     """RAM and program memory of the production build, from gpasm's listing (measured).
 
     ``ram_bytes`` per block (bank 0-3 and common RAM), ``program_words``: words from 0 to ``code_end`` (page 0)
-    plus page 1's routines; ``kernel_words``: the arithmetic kernels; ``steps_words``: steps 4-5 (both pages).
+    plus page 1's routines and page 2; ``kernel_words``: the arithmetic kernels (page 0's and page 2's copy);
+    ``steps_words``: steps 4-5 (both pages); ``step_record_words``: the step record (page 2, without its
+    kernels) and its joins (page 1); ``pages``: words used per program-memory page.
     """
 
     ram_bytes: dict[str, int]
     program_words: int
     kernel_words: int
     steps_words: int = 0
+    step_record_words: int = 0
+    pages: dict[str, int] = field(default_factory=dict)
 
     @property
     def ram_total_bytes(self) -> int:
@@ -654,11 +706,16 @@ def memory_map(*, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_
                       test=False)
     s = b.symbols
     page1 = s["page1_end"] - s["page1_begin"]
+    joins = s["join_end"] - s["join_begin"]
+    page2 = s["page2_end"] - s["page2_begin"]
+    kernels = s["kernels_end"] - s["kernels_begin"]
     ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1 (steps 4-5)": s["RAM1_END"] - 0xA0,
-           "bank 2 (page buffer)": s["RAM2_END"] - 0x110,
-           "bank 3 (page buffer)": s["RAM3_END"] - 0x190, "common (kernels, W_TEMP)": 16}
-    return MemoryMap(ram, s["code_end"] + page1, s["kernels_end"] - s["kernels_begin"],
-                     s["steps_end"] - s["steps_begin"] + page1)
+           "bank 2 (page buffer, step record)": s["RAM2_END"] - 0x110 + s["RAM2_STEP_END"] - 0x150,
+           "bank 3 (page buffer, step record)": s["RAM3_END"] - 0x190 + s["RAM3_STEP_END"] - 0x1D0,
+           "common (kernels, W_TEMP)": 16}
+    pages = {"page 0": s["code_end"], "page 1": page1 + joins, "page 2": page2}
+    return MemoryMap(ram, sum(pages.values()), 2 * kernels, s["steps_end"] - s["steps_begin"] + page1,
+                     page2 - kernels + joins, pages)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -712,6 +769,8 @@ class PicVerification:
     wall_s: float
     gpsim: str = ""
     notes: list[str] = field(default_factory=list)
+    #: the most samples taken and not yet processed (PENDING, measured): the page buffer holds 32
+    backlog_max: int = 0
 
     @property
     def identical(self) -> bool:
@@ -726,22 +785,27 @@ class PicVerification:
         lines = [f"{self.source}: {self.n_samples:,} samples at {self.sampling_rate_hz:g} Hz, PIC assembly in gpsim "
                  f"{self.gpsim} vs the Python model"]
         for s in self.stages:
-            unit = "calls" if s.name == "finalise calls" else "samples"
+            unit = {"finalise calls": "calls", "step records": "records"}.get(s.name, "samples")
             line = f"  {s.name:<18} {s.n_identical:,} of {s.n_compared:,} {unit} identical"
             if s.first_difference:
                 d = s.first_difference
-                line += (f"; first difference: sample {d['sample']}, {d['field']}: gpsim {d['gpsim']}, "
-                         f"model {d['model']}")
+                where = (f"record {d['record']} (end sample {d['sample']})" if "record" in d
+                         else f"sample {d['sample']}")
+                line += f"; first difference: {where}, {d['field']}: gpsim {d['gpsim']}, model {d['model']}"
             lines.append(line)
         lines.append(f"cycles per sample (measured in gpsim; {self.period_cycles:,} available):")
         for k, v in self.cycles.items():
             lines.append(f"  {k:<30} mean {v['mean']:>8,.1f}   p99 {v['p99']:>8,.1f}   worst {v['worst']:>7,}")
+        lines.append(f"backlog (measured): at most {self.backlog_max} samples waiting for the main loop, of the "
+                     f"{PAGE_WORDS}-sample page buffer")
         lines.append(f"ADC acquisition: {self.acquisition_cycles_min} cycles from channel select to GO (measured; "
                      f"needed {self.acquisition_cycles_needed:.1f})")
         m = self.memory
         lines.append(f"RAM (measured, gpasm listing): {m.ram_total_bytes} of 368 bytes: "
                      + ", ".join(f"{k} {v}" for k, v in m.ram_bytes.items()))
-        lines.append(f"program memory (measured): {m.program_words} of 8192 words ({m.kernel_words} kernels)")
+        lines.append(f"program memory (measured): {m.program_words:,} of 8,192 words ({m.kernel_words} kernels in two "
+                     f"copies, {m.step_record_words:,} step record); "
+                     + ", ".join(f"{k} {v:,} of 2,048" for k, v in m.pages.items()))
         lines.append(f"harness: {self.wall_s:.1f} s ({self.realtime_factor:.1f}x real time; "
                      f"gpsim {self.gpsim_s:.1f} s)")
         lines += [f"note: {n}" for n in self.notes]
@@ -753,7 +817,7 @@ class PicVerification:
                "stages": [{"name": s.name, "n_compared": s.n_compared, "n_identical": s.n_identical,
                            "first_difference": s.first_difference} for s in self.stages],
                "cycles_measured": self.cycles, "period_cycles": self.period_cycles,
-               "acquisition_cycles_min": self.acquisition_cycles_min,
+               "acquisition_cycles_min": self.acquisition_cycles_min, "backlog_max_samples": self.backlog_max,
                "acquisition_cycles_needed": round(self.acquisition_cycles_needed, 1),
                "ram_bytes_measured": self.memory.ram_bytes, "ram_total_bytes": self.memory.ram_total_bytes,
                "program_words_measured": self.memory.program_words, "kernel_words": self.memory.kernel_words,
@@ -779,6 +843,27 @@ def _compare_calls(pic: np.ndarray, model: np.ndarray) -> StageComparison:
             first = {"call": i, "sample": int(min(pic[i, 0], model[i, 0])), "field": CALL_FIELDS[j],
                      "gpsim": int(pic[i, j]), "model": int(model[i, j])}
     return StageComparison("finalise calls", k, int(sum(same)), first)
+
+
+def _compare_records(pic: np.ndarray, model: np.ndarray) -> StageComparison:
+    """The step records (``(k, 20)`` bytes each side), in order: identical when every byte is; else the first
+    record that differs, its end sample and its first differing field (or the record missing on one side)."""
+    k = max(pic.shape[0], model.shape[0])
+    same = [i < pic.shape[0] and i < model.shape[0] and np.array_equal(pic[i], model[i]) for i in range(k)]
+    first = None
+    if not all(same):
+        i = same.index(False)
+        side = model if i < model.shape[0] else pic
+        end = int(np.frombuffer(side[i].tobytes(), STEP_RECORD_DTYPE)["end_sample"][0])
+        if i >= pic.shape[0] or i >= model.shape[0]:
+            first = {"record": i, "sample": end, "field": "record",
+                     "gpsim": "none" if i >= pic.shape[0] else "a record",
+                     "model": "none" if i >= model.shape[0] else "a record"}
+        else:
+            a, b = (np.frombuffer(x[i].tobytes(), STEP_RECORD_DTYPE)[0] for x in (pic, model))
+            name = next(n for n in STEP_RECORD_DTYPE.names if a[n] != b[n])
+            first = {"record": i, "sample": end, "field": name, "gpsim": int(a[name]), "model": int(b[name])}
+    return StageComparison("step records", k, int(sum(same)), first)
 
 
 def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, sampling_rate_hz: float = 50.0,
@@ -817,22 +902,24 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     if a_v:
         model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
         stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
-        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts)
+        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts, scratch_ring=SCRATCH_RING_SAMPLES)
         stages.append(_compare("y3", ("ready", "y3"), np.stack([run.ready, np.where(run.ready, run.y3, 0)], axis=1),
                                np.stack([trace.ready, np.where(trace.ready, trace.y3, 0)], axis=1)))
         n_med = trace.state.shape[1] - len(DETECTOR_FIELDS)
         stages.append(_compare("detector", DETECTOR_FIELDS + tuple(f"durations[{i}]" for i in range(n_med)),
                                run.detector, trace.state))
         stages.append(_compare_calls(run.calls, trace.calls))
+        stages.append(_compare_records(run.records, trace.records))
     total = run.isr_cycles + run.stage_cycles.sum(axis=1)
     cycles = {"sampling interrupt": _stats(run.isr_cycles)}
     cycles.update({name: _stats(run.stage_cycles[:, i]) for i, name in enumerate(STAGES)})
     cycles["total in assembly"] = _stats(total)
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
-    notes = ["the I2C page writes (pages, scratch ring), the UART command handler and the step record "
-             "(finalise's computation, step 6) are not yet in assembly; finalise leaves its arguments in a call "
-             "record",
+    notes = ["the sample pages' I2C write, the UART command handler and STOP's last step record are not yet in "
+             "assembly; the step records' end sample counts from the run's START",
+             f"the model's scratch ring holds {SCRATCH_RING_SAMPLES:,} samples, as the 24xx256 ring the assembly "
+             "writes and reads",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),
-                           run.gpsim_s, time.perf_counter() - t0, gpsim_version(), notes)
+                           run.gpsim_s, time.perf_counter() - t0, gpsim_version(), notes, run.backlog_max)

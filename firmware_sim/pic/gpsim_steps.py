@@ -35,7 +35,7 @@ from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.formats import F_EXC, F_EXC2, F_POS, F_POS2
 from gaitlog.firmware_sim.algorithms.probe import FinaliseTrace, finalise_calls
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, missing_tools
-from gaitlog.firmware_sim.pic.gpsim_logger import PicError, _symbols, _writes
+from gaitlog.firmware_sim.pic.gpsim_logger import I2C_SETUP, SCRATCH_RING_SAMPLES, PicError, _symbols, _writes
 from gaitlog.protocol.steps import STEP_RECORD_OFFSETS, STEP_RECORD_SIZE, StepFlag
 
 __all__ = ["STEP_BENCH_ASM", "STEPS_PER_RUN", "TABLE_SAMPLES", "CALL_STAMP_CYCLES", "config_bytes",
@@ -59,7 +59,7 @@ CFG_W3 = 36
 
 
 #: Samples the scratch ring holds in a 24xx256 (32 KiB, two bytes a sample): the bench's EEPROM.
-RING_256K_SAMPLES = 32768 // 2
+RING_256K_SAMPLES = SCRATCH_RING_SAMPLES
 
 
 def with_scratch_ring(algorithm, samples: int = RING_256K_SAMPLES):
@@ -107,11 +107,13 @@ def config_bytes(cfg_i: np.ndarray, cfg_v: np.ndarray, *, calibrated: bool = Tru
     exc2_mul = F_POS2 - ci["EXC_SHIFT2"] + ci["UNIT_FRAC"] - F_EXC2
     if not (0 <= exc1_mul <= 31 and 0 <= exc2_mul <= 31):
         raise ValueError(f"the excursions' product shifts {exc1_mul}, {exc2_mul} are outside 0 .. 31")
+    if m4_eighths is None:                      # the configuration's own (online.py: the step configuration's p)
+        m4_eighths = ci["M4_EIGHTHS"]
     w10_at = CFG_W3 + 2 * (ci["R3"] + 1)
     w5_at = w10_at + 2 * (ci["R10"] + 1)
     head = [ci["R3"], ci["R10"], ci["R5"], ci["MAX_STEP"], ci["HS_BEFORE"], ci["HS_AFTER"], ci["HS_DELAY"],
             ci["TO_SPAN"], ci["EXC_SHIFT1"], exc1_mul, ci["EXC_SHIFT2"], exc2_mul,
-            ci["M4_EIGHTHS"] if m4_eighths is None else int(m4_eighths),
+            int(m4_eighths),
             0 if calibrated else int(StepFlag.UNCALIBRATED), w10_at, w5_at]
     v = {k: int(cfg_v[i]) for k, i in kernel.CV.items() if i < len(cfg_v)}
     words = []
@@ -257,10 +259,8 @@ def _segments(trace: FinaliseTrace, ci: dict) -> list[tuple[int, int, int, int]]
 
 #: The ring on the bench's 24xx256 (step_record.asm's defaults): 16,384 samples from byte 0.
 RING_MASK = RING_256K_SAMPLES - 1
-#: gpsim's I2C bus: the EEPROM module on RC3 (SCL) and RC4 (SDA), 10 kOhm pull-ups.
-_I2C_SETUP = ("module library libgpsim_modules.so", "module load e24xx256 ee", "module load pullup Rscl",
-              "module load pullup Rsda", "Rscl.resistance = 10000.", "Rsda.resistance = 10000.", "node scl",
-              "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin")
+#: gpsim's I2C bus: the logger harness's (the 24xx256 on RC3 SCL, RC4 SDA, 10 kOhm pull-ups).
+_I2C_SETUP = I2C_SETUP
 
 
 def _eeprom_lines(trace: FinaliseTrace, first: int, last: int) -> list[str]:

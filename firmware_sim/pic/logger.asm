@@ -33,6 +33,13 @@
         #include <p16f877.inc>
         #include "registers.inc"
         #include "logger_ram.inc"
+; the step record's RAM (step_record_ram.inc: the tails of banks 2 and 3, the kernels' common RAM between
+; their calls, and stage 3's |g|^2 in bank 0) on the algorithm state that steps 4-5 own
+ALG_FLAGS       equ     AFLAGS          ; state.py FLAGS and LAST, read and updated by finalise
+ALG_LAST_L      equ     LAST
+ALG_LAST_H      equ     LAST + 1
+STEP_CFG_EE     equ     0x30            ; the step configuration in the data EEPROM, after the calibration's
+        #include "step_record_ram.inc"
         __CONFIG _HS_OSC & _WDT_OFF & _PWRTE_ON & _LVP_OFF & _BODEN_OFF & _CP_OFF
 
 ADC_SETUP       equ     0x82            ; ADCON1: right-justified, AN0-AN4 analog, Vref = VDD/VSS
@@ -228,7 +235,14 @@ start:
         movwf   ADCON1
         bsf     TRISB, 0                ; RB0/INT: the marker button
         bsf     PIE1, CCP1IE
+        bsf     TRISC, 3                ; the MSSP: I2C master, 419 kHz (SSPADD = 10 at 18.432 MHz): the
+        bsf     TRISC, 4                ; scratch ring's EEPROM (RC3 SCL, RC4 SDA)
+        movlw   .10
+        movwf   SSPADD
+        clrf    SSPSTAT
         bcf     STATUS, RP0
+        movlw   0x28
+        movwf   SSPCON
         movlw   ADC_CH0
         movwf   ADCON0
         clrf    TMR1L
@@ -878,6 +892,36 @@ code_end:
 page1_begin:
         #include "steps_page1.asm"
 page1_end:
+
+; Page 2: the step record (kernel.py step 6, step_record.asm) with its own copy of the kernels
+; (page2_names.inc renames the copy's labels). Entered from page 1's fin_join by a jump with PCLATH = 0x10.
+        org     0x1000
+page2_begin:
+        #include "page2_names.inc"
+#define FINALISE_FAR
+step_code_begin:
+        #include "step_record.asm"
+step_code_end:
+        #include "mul.asm"
+        #include "div.asm"
+        #include "shift.asm"
+        #include "sat.asm"
+        #include "sqrt.asm"
+        #include "page2_names_end.inc"
+page2_end:
+    if page2_end > 0x1800
+        error "page 2 overflows"
+    endif
+
+; Page 1, after steps 4-5's routines: the joins to the step record (fin_join, scr_write; step_join.asm).
+; They follow page 2 in the source because they use step_record.asm's I2C macros.
+        org     page1_end
+join_begin:
+        #include "step_join.asm"
+join_end:
+    if join_end > 0x1000
+        error "page 1 overflows"
+    endif
 
 #ifdef TEST_BUILD
         org     0x2100                  ; the data EEPROM: the configuration the host would have written

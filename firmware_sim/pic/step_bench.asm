@@ -15,7 +15,15 @@
         list    p=16f877
         #include <p16f877.inc>
         #include "registers.inc"
+; The logger's RAM map sized as at 50 Hz (steps 4-5's delay line and durations ring): the bench uses only the
+; algorithm state finalise reads and updates (AFLAGS, LAST), as logger.asm does; finalise itself reads r3
+; and its other counts from the data EEPROM.
+R3              equ     .9
+N_MED           equ     .7
         #include "logger_ram.inc"
+ALG_FLAGS       equ     AFLAGS
+ALG_LAST_L      equ     LAST
+ALG_LAST_H      equ     LAST + 1
         #include "step_record_ram.inc"
         __CONFIG _HS_OSC & _WDT_OFF & _PWRTE_ON & _LVP_OFF & _BODEN_OFF & _CP_OFF
 
@@ -27,7 +35,7 @@ SCR_TABLE       equ     0x1000
 STEP_WORDS      equ     .12
 
 MARK            equ     0x7F            ; common RAM (the logger's W_TEMP: no interrupts here)
-        cblock  ALG_STATE_END
+        cblock  XL                      ; bank 0: the interrupt's bytes (no interrupts here)
         OUTB                            ; the bench's output byte (logged)
         LEFT_L, LEFT_H                  ; steps still to run
         TBL_L, TBL_H                    ; program-memory address of the next table word
@@ -83,11 +91,11 @@ step_next:
         banksel E_H
         movwf   E_H
         call    tbl_byte
-        banksel M_L
-        movwf   M_L
+        banksel FM_L
+        movwf   FM_L
         call    tbl_byte
-        banksel M_H
-        movwf   M_H
+        banksel FM_H
+        movwf   FM_H
         call    tbl_byte
         banksel ALG_LAST_L
         movwf   ALG_LAST_L
@@ -128,12 +136,17 @@ out_rec:
         incf    FSR, F
         decfsz  COUNT, F
         goto    out_rec
-        banksel ALG_FLAGS
+        banksel ALG_FLAGS               ; the state (bank 1) to OUTB (bank 0)
         movf    ALG_FLAGS, W
+        banksel OUTB
         movwf   OUTB
+        banksel ALG_LAST_L
         movf    ALG_LAST_L, W
+        banksel OUTB
         movwf   OUTB
+        banksel ALG_LAST_H
         movf    ALG_LAST_H, W
+        banksel OUTB
         movwf   OUTB
         movf    FLAGS, W
         movwf   OUTB

@@ -2,7 +2,7 @@
 ; for bit. RAM and configuration map: step_record_ram.inc. Maths: the kernels (registers.inc, CONVENTION.md).
 ;
 ; finalise
-;   in:  E_L/E_H = e (the final foot-flat), M_L/M_H = m (the newest filter output), REC+0..3 = the absolute
+;   in:  E_L/E_H = e (the final foot-flat), FM_L/FM_H = m (the newest filter output), REC+0..3 = the absolute
 ;        sample number of m (32-bit), ALG_FLAGS / ALG_LAST_L/H = the algorithm's FLAGS and LAST (state.py),
 ;        FLAGS bit FLAG_SAT = the sticky saturation flag since the last step;
 ;        the step configuration in the data EEPROM (STEP_CFG_EE, step_record_ram.inc's CFG_*);
@@ -110,12 +110,12 @@ fin_clear:
         goto    fin_clear
         ; 1. end_sample = REC+0..3 - (m - e)
         movf    E_L, W
-        subwf   M_L, W
+        subwf   FM_L, W
         movwf   TMP0
         movf    E_H, W
         btfss   STATUS, C
         incf    E_H, W
-        subwf   M_H, W
+        subwf   FM_H, W
         movwf   TMP1                    ; TMP1:TMP0 = since(m, e) >= 0
         movf    TMP0, W
         subwf   REC+0, F
@@ -172,12 +172,12 @@ hs_lo_ok:
         subwf   E_L, W
         movwf   CNT2                    ; e - lo (<= hs_before)
         movf    E_L, W
-        subwf   M_L, W
+        subwf   FM_L, W
         movwf   TMP0
         movf    E_H, W
         btfss   STATUS, C
         incf    E_H, W
-        subwf   M_H, W                  ; W = high byte of m - e
+        subwf   FM_H, W                  ; W = high byte of m - e
         movwf   TMP1
         CFGW    CFG_HS_AFTER
         movwf   TMP2                    ; hs_after
@@ -336,12 +336,12 @@ no_window:
 toe_off:
         ; samples: min(to_span, m - s - 1)
         movf    S_L, W
-        subwf   M_L, W
+        subwf   FM_L, W
         movwf   TMP0
         movf    S_H, W
         btfss   STATUS, C
         incf    S_H, W
-        subwf   M_H, W
+        subwf   FM_H, W
         movwf   TMP1                    ; m - s
         movlw   1
         subwf   TMP0, F
@@ -859,6 +859,10 @@ record:
         bcf     ALG_FLAGS, AF_PEND_WEAK
         bcf     STATUS, RP0
         bcf     STATUS, RP1
+#ifdef FINALISE_FAR
+        bcf     STATUS, IRP             ; the logger: back to steps 4-5 in page 0 (bank 0, IRP = 0)
+        clrf    PCLATH
+#endif
         return
 
 ; ==========================================================================================================

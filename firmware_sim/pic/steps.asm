@@ -96,6 +96,10 @@ sf_line:
         incf    N_L, F                  ; N += 1 (16 bits, wraps)
         btfsc   STATUS, Z
         incf    N_H, F
+        btfsc   STATUS, Z               ; N_U:N_T carry the count on (the step record's sample number)
+        incf    N_U, F
+        btfsc   STATUS, Z
+        incf    N_T, F
         movf    N_L, W                  ; the run's (k+1) FLUSH-th sample: a page of a_v is due
         andlw   FLUSH - 1
         btfsc   STATUS, Z
@@ -174,12 +178,12 @@ sf_tap:
         call    st24
         goto    stage_detect            ; tail call: the stack stays as deep as before
 
-; scratch_flush: the delay line's newest FLUSH a_v are due in the scratch ring (kernel.py step 4: one aligned
-; page write of 2 FLUSH bytes). The I2C driver is the model's (its cost an estimate there); this marks the
-; point for it (FWF_SCRATCH), where an I2C master in assembly takes over.
+; scratch_flush: the delay line's newest FLUSH a_v go to the scratch ring (kernel.py step 4: one aligned
+; page write of 2 FLUSH bytes): scr_write in page 2, which returns here with bank 0 and PCLATH = 0.
 scratch_flush:
-        bsf     FW_FLAGS, FWF_SCRATCH
-        return
+        movlw   HIGH scr_write
+        movwf   PCLATH
+        goto    scr_write
 
 ; line_load: ACC1:ACC0 = LINE[W]
 line_load:
@@ -679,42 +683,34 @@ dist_div:
         return
 
 ; finalise (kernel._finalise at the final foot-flat e = PEND, newest output m): the call record (e, s = LAST,
-; m, the flags the step reads: LAST valid, PEND weak, the run old), then the end of _finalise: LAST = e,
-; F_LAST, F_LAST_WEAK = F_PEND_WEAK, F_PEND_WEAK cleared
+; m, the flags the step reads: LAST valid, PEND weak, the run old; the harness compares it), then the step
+; record, step_record.asm's finalise in page 2 by a jump (fin_join): the caller's CALL is its return, so
+; steps 4-5 and the step record share the stack levels (logger.asm: 8 of 8 with the interrupt's)
 finalise:
         movlw   PEND
         call    ld16
-        movlw   REC_E
+        movlw   CALL_E
         call    st16
         movlw   LAST
         call    ld16
-        movlw   REC_S
+        movlw   CALL_S
         call    st16
         movlw   M_L
         call    ld16
-        movlw   REC_M
+        movlw   CALL_M
         call    st16
         movlw   AFLAGS
         movwf   FSR
         movf    INDF, W
         andlw   (1 << AF_LAST) | (1 << AF_PEND_WEAK) | (1 << AF_OLD)
         movwf   TMP2
-        movlw   REC_FLAGS
+        movlw   CALL_FLAGS
         movwf   FSR
         movf    TMP2, W
         movwf   INDF
-        movlw   PEND
-        call    ld16
-        movlw   LAST
-        call    st16
-        movlw   AFLAGS
-        movwf   FSR
-        bsf     INDF, AF_LAST
-        bcf     INDF, AF_LAST_WEAK
-        btfsc   INDF, AF_PEND_WEAK
-        bsf     INDF, AF_LAST_WEAK
-        bcf     INDF, AF_PEND_WEAK
-        return
+        movlw   HIGH fin_join           ; the step record (page 2): it returns to the caller with bank 0,
+        movwf   PCLATH                  ; IRP = 0 and PCLATH = 0
+        goto    fin_join
 
 ; reset_steps (START): steps 4-5's state cleared, DIST from the prior typical step
 reset_steps:

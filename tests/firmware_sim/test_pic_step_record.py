@@ -231,10 +231,9 @@ def test_ipol_trials_replayed_at_50_hz(shared_data, tmp_path, name):
 
 
 @needs_gpsim
-@pytest.mark.xfail(strict=True, reason="the emulator's 256-sample scratch ring (online._scratch_size) is too short "
-                                       "for a weak stop step finalised 235 samples after its foot-flat: step 30's "
-                                       "toe-off is read from overwritten samples")
 def test_ipol_trial_with_the_emulators_scratch_ring(shared_data, tmp_path):
+    """The emulator's own 256-sample ring (online._scratch_size) holds what every step of this trial reads: its
+    latest step is finalised 24 samples after its foot-flat, and a window longer than max_step reads nothing."""
     codes, first = _ipol_codes(shared_data, tmp_path, "6-5")
     v = gs.verify_steps(_algo(RAW), codes, first_sample_number=first)
     assert v.identical, v.summary()

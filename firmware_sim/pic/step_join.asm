@@ -1,0 +1,139 @@
+; The logger's joins to the step record, in page 1 (logger.asm): entered by a jump with PCLATH = 0x08 from
+; page 0; the step record (page 2) and scr_write return to the caller there with bank 0, IRP = 0 and
+; PCLATH = 0 (RETURN takes the whole address from the stack; PCLATH only matters to the next GOTO or CALL).
+
+; fin_join (from steps.asm's finalise, bank 0): the step record's inputs from steps 4-5's state, then the step
+; record itself (step_record.asm's finalise, finalise_p2 in page 2), whose RETURN ends the caller's CALL:
+;   E = e = PEND, FM = m = M (16-bit indices); REC+0..3 = the run's sample number of m: N - 1 - R3 in 32 bits
+;   (N_T:N_U:N_H:N_L after step 4's increment); ALG_FLAGS, ALG_LAST are AFLAGS, LAST (logger_ram.inc), and the
+;   saturation flag is the kernels' sticky FLAG_SAT, as the model's s_overflow.
+fin_join:
+        bsf     STATUS, RP0             ; bank 1: e
+        movf    PEND, W
+        movwf   TMP0
+        movf    PEND + 1, W
+        movwf   TMP1
+        bcf     STATUS, RP0             ; bank 0: m
+        movf    M_L, W
+        movwf   TMP2
+        movf    M_H, W
+        movwf   COUNT
+        movf    N_L, W                  ; ACC = N (32 bits) - (R3 + 1)
+        movwf   ACC0
+        movf    N_H, W
+        movwf   ACC1
+        movf    N_U, W
+        movwf   ACC2
+        movf    N_T, W
+        movwf   ACC3
+        movlw   R3 + 1
+        subwf   ACC0, F
+        btfsc   STATUS, C
+        goto    fj_store
+        movlw   1                       ; the borrow, on through the upper bytes
+        subwf   ACC1, F
+        btfss   STATUS, C
+        subwf   ACC2, F
+        btfss   STATUS, C
+        subwf   ACC3, F
+fj_store:
+        bsf     STATUS, RP0             ; bank 3
+        bsf     STATUS, RP1
+        movf    TMP0, W
+        movwf   E_L
+        movf    TMP1, W
+        movwf   E_H
+        movf    TMP2, W
+        movwf   FM_L
+        movf    COUNT, W
+        movwf   FM_H
+        movf    ACC0, W
+        movwf   REC
+        movf    ACC1, W
+        movwf   REC + 1
+        movf    ACC2, W
+        movwf   REC + 2
+        movf    ACC3, W
+        movwf   REC + 3
+        movlw   HIGH finalise_p2
+        movwf   PCLATH
+        goto    finalise_p2
+
+; scr_write (from steps.asm's scratch_flush, bank 0, after step 4's N += 1 with N a multiple of FLUSH): the
+; delay line's newest FLUSH a_v, samples j = N - FLUSH .. N - 1, to the scratch ring at byte
+; SCR_BASE + 2 (j & SCR_RING_MASK), where finalise's reader (scr_open) looks for them: one page write
+; (2 FLUSH bytes, aligned: FLUSH is a power of two and 2 FLUSH divides the EEPROM's page). Then acknowledge
+; polling: the EEPROM does not answer its control byte until its write cycle is over, so the step record's
+; reads never meet a write in progress.
+scr_write:
+        movlw   LOW FLUSH               ; ARG1:ARG0 = j = N - FLUSH
+        subwf   N_L, W
+        movwf   ARG0
+        movf    N_H, W
+        btfss   STATUS, C
+        decf    N_H, W
+        movwf   ARG1
+        bcf     STATUS, C               ; TMP1:TMP0 = SCR_BASE + 2 (j & SCR_RING_MASK)
+        rlf     ARG0, W
+        movwf   TMP0
+        rlf     ARG1, W
+        andlw   HIGH ((SCR_RING_MASK << 1) | 1)
+        addlw   HIGH SCR_BASE
+        movwf   TMP1
+        bsf     STATUS, RP0             ; j's place in the line: (LINE_POS - FLUSH) mod LINE_LEN
+        movf    LINE_POS, W
+        bcf     STATUS, RP0
+        addlw   LINE_LEN - FLUSH
+        movwf   COUNT
+        sublw   LINE_LEN - 1
+        movlw   LINE_LEN
+        btfss   STATUS, C
+        subwf   COUNT, F
+        bcf     STATUS, C               ; FSR = LINE + 2 (that place), IRP = 0
+        rlf     COUNT, W
+        addlw   LINE
+        movwf   FSR
+        bcf     STATUS, IRP
+        I2C_CMD SEN
+        movlw   SCR_CONTROL
+        call    sw_tx
+        movf    TMP1, W
+        call    sw_tx
+        movf    TMP0, W
+        call    sw_tx
+        movlw   2 * FLUSH
+        movwf   COUNT
+sw_byte:
+        movf    INDF, W
+        call    sw_tx
+        incf    FSR, F
+        movf    FSR, W
+        xorlw   LINE + 2 * LINE_LEN     ; the line's end: on from its start
+        movlw   LINE
+        btfsc   STATUS, Z
+        movwf   FSR
+        decfsz  COUNT, F
+        goto    sw_byte
+        I2C_CMD PEN
+sw_poll:
+        I2C_CMD SEN
+        movlw   SCR_CONTROL
+        call    sw_tx
+        bsf     STATUS, RP0
+        btfss   SSPCON2, ACKSTAT        ; acknowledged: the write cycle is over
+        goto    sw_done
+        I2C_CMD PEN
+        goto    sw_poll
+sw_done:
+        I2C_CMD PEN
+        clrf    STATUS
+        clrf    PCLATH
+        return
+
+; sw_tx: send W, wait for the acknowledge slot (step_record.asm's i2c_tx, for page 1)
+sw_tx:
+        bcf     STATUS, RP0
+        bcf     STATUS, RP1
+        movwf   SSPBUF
+        I2C_WAIT
+        return
