@@ -478,10 +478,20 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
     h_ok = np.array([_header_key(h) == key for _, h, _ in known] + [False] * unreadable.size, dtype=bool)
     order = np.argsort(h_off, kind="stable")
     h_off, h_ok = h_off[order], h_ok[order]
+    # the readable headers alone: a closed state (version 2, LOGGING clear) never comes back once the memory changed
+    # (START draws a new recording number and nonce, ERASE zeroes the counters), so a frame between two readable
+    # copies of it, with only damaged headers between (a retried stream whose copy and the one before are both
+    # damaged), was sent from that memory
+    closed = len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING
+    r_off = np.array([off for off, _, _ in known], dtype=np.int64)
+    r_ok = np.array([_header_key(h) == key for _, h, _ in known], dtype=bool)
 
     def belongs(offset: int) -> bool:
         k = int(np.searchsorted(h_off, offset, side="right")) - 1
-        return bool((k >= 0 and h_ok[k]) or (k + 1 < h_off.size and h_ok[k + 1]))
+        if (k >= 0 and h_ok[k]) or (k + 1 < h_off.size and h_ok[k + 1]):
+            return True
+        j = int(np.searchsorted(r_off, offset, side="right")) - 1
+        return bool(closed and j >= 0 and j + 1 < r_off.size and r_ok[j] and r_ok[j + 1])
 
     intact = [fr for fr in frames if fr.type == _TYPE_DATA_BLOCKS and payload_data_bytes(len(fr.payload))]
     spans = []  # (stream offset, end, first address, data bytes) of the intact DATA_BLOCKS frames
