@@ -81,9 +81,11 @@ REASONS = (
     "image of version 1 or 2 whose block table is damaged: its blocks cannot be verified",  # 9
     ("raw dump without its check trailer (cut off, or older firmware): cannot be verified "
      "(--accept-unverified keeps it, marked UNVERIFIED)"),                   # 10
+    ("received only in DATA_BLOCKS frames between damaged header copies that do not verify, with no readable copy "
+     "of the decoded header on both sides: the memory state they were read from is not proven"),  # 11
 )
 (_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL,
- _R_TABLE, _R_NO_TRAILER) = range(11)
+ _R_TABLE, _R_NO_TRAILER, _R_UNPLACED) = range(12)
 #: Reason texts of the step-record losses (the first four as for samples).
 STEP_REASONS = REASONS[:4] + (
     "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
@@ -93,8 +95,9 @@ STEP_REASONS = REASONS[:4] + (
     REASONS[_R_UNVERIFIABLE],                                                # 7
     "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 8
     REASONS[_R_NO_TRAILER],                                                  # 9
+    REASONS[_R_UNPLACED],                                                    # 10
 )
-_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER = 4, 5, 6, 7, 8, 9
+_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER, _S_UNPLACED = 4, 5, 6, 7, 8, 9, 10
 
 _TYPE_HEADER = int(FrameType.HEADER)
 _TYPE_DATA = int(FrameType.DATA)
@@ -341,6 +344,19 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
                      "at their addresses under this header, section 4.1)")
     if blocks.foreign:
         notes.append(f"{blocks.foreign} DATA_BLOCKS frame(s) under another header were not used")
+    unplaced = np.zeros(cap_bytes, dtype=bool)
+    step_unplaced = np.zeros(step_bytes, dtype=bool)
+    for address, chunk_bytes in blocks.unplaced_pieces:
+        where = memory_region(address, len(chunk_bytes), sample_memory_bytes=cap_bytes, step_memory_bytes=step_bytes)
+        if where is not None:
+            region, offset = where
+            (unplaced if region == "samples" else step_unplaced)[offset: offset + len(chunk_bytes)] = True
+    if blocks.unplaced:
+        text = (f"{blocks.unplaced} DATA_BLOCKS frame(s) not used although their blocks verify under this header's "
+                "binding: each lies between damaged header copies that do not verify, with no readable copy of this "
+                "header on both sides, so the memory state it was read from is not proven (section 4.1)")
+        notes.append(text)
+        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
     if outside:
         notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte sample memory and the "
                      f"{step_bytes}-byte step memory were ignored")
@@ -348,9 +364,11 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
         notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
     slot_ok = covered.reshape(-1, 4).all(axis=1)
     slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
+    slot_reason[unplaced.reshape(-1, 4).any(axis=1) & ~slot_ok] = _R_UNPLACED
+    step_reason = np.full(step_bytes, _R_NOT_RECEIVED, np.int8)
+    step_reason[step_unplaced & ~step_covered] = _S_UNPLACED
     header = _interrupted_run(header, step_memory, source, notes)
-    steps = _assemble_steps(header, step_memory, step_covered, np.full(step_bytes, _R_NOT_RECEIVED, np.int8), source,
-                            notes)
+    steps = _assemble_steps(header, step_memory, step_covered, step_reason, source, notes)
     return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
 
 
@@ -459,6 +477,8 @@ class _CaptureBlocks:
         self.pieces: list[tuple[int, bytes]] = []
         self.salvaged = 0
         self.foreign = 0
+        self.unplaced = 0  #: intact frames whose blocks verify, but whose memory state no readable header proves
+        self.unplaced_pieces: list[tuple[int, bytes]] = []
 
 
 def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unreadable: np.ndarray,
@@ -500,7 +520,12 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
         spans.append((fr.offset, fr.offset + FRAME_OVERHEAD + len(fr.payload), address,
                       payload_data_bytes(len(fr.payload))))
         if not belongs(fr.offset):
-            out.foreign += 1
+            pieces = salvage_blocks(binding, fr.payload[ADDRESS_BYTES:], [address]).pieces()
+            if pieces:  # said as the reason of the samples it would have given
+                out.unplaced += 1
+                out.unplaced_pieces += pieces
+            else:
+                out.foreign += 1
             continue
         out.pieces += salvage_blocks(binding, fr.payload[ADDRESS_BYTES:], [address]).pieces()
     starts_all = np.array([fr.offset for fr in frames], dtype=np.int64)

@@ -242,10 +242,11 @@ def test_a_retried_stream_between_two_damaged_header_copies_is_used() -> None:
     rec, said = _decode(capture)
     assert rec.valid.all(), said
     np.testing.assert_array_equal(rec.codes, codes)
-    # without the last stream the retry has no readable copy after it: samples 0-63 are reported missing
+    # without the last stream the retry has no readable copy after it: samples 0-63 are reported missing, and why
     rec, said = _decode(read_header + first + retry)
     np.testing.assert_array_equal(np.flatnonzero(~rec.valid), np.arange(64))
     assert [(g.first_sample_number, g.last_sample_number) for g in rec.gaps] == [(0, 63)]
-    assert "not received intact" in rec.gaps[0].reason
+    assert rec.gaps[0].reason.startswith("received only in DATA_BLOCKS frames between damaged header copies")
+    assert "1 DATA_BLOCKS frame(s) not used although their blocks verify" in said, said
     np.testing.assert_array_equal(rec.codes[rec.valid], codes[rec.valid])
 
