@@ -81,9 +81,11 @@ REASONS = (
     "image of version 1 or 2 whose block table is damaged: its blocks cannot be verified",  # 9
     ("raw dump without its check trailer (cut off, or older firmware): cannot be verified "
      "(--accept-unverified keeps it, marked UNVERIFIED)"),                   # 10
+    ("received only in DATA_BLOCKS frames between damaged header copies that do not verify, with no readable copy "
+     "of the decoded header on both sides: the memory state they were read from is not proven"),  # 11
 )
 (_R_MISSING, _R_DAMAGED, _R_TRUNCATED, _R_NOT_RECEIVED, _R_RANGE, _R_CHUNK, _R_UNVERIFIABLE, _R_TORN, _R_NO_JOURNAL,
- _R_TABLE, _R_NO_TRAILER) = range(11)
+ _R_TABLE, _R_NO_TRAILER, _R_UNPLACED) = range(12)
 #: Reason texts of the step-record losses (the first four as for samples).
 STEP_REASONS = REASONS[:4] + (
     "record CRC mismatch (its bytes arrived, but not as the device wrote them: a page write cut by a power loss, "
@@ -93,8 +95,9 @@ STEP_REASONS = REASONS[:4] + (
     REASONS[_R_UNVERIFIABLE],                                                # 7
     "overwritten by a record a power loss left uncommitted (after the run's last journal entry)",  # 8
     REASONS[_R_NO_TRAILER],                                                  # 9
+    REASONS[_R_UNPLACED],                                                    # 10
 )
-_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER = 4, 5, 6, 7, 8, 9
+_S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER, _S_UNPLACED = 4, 5, 6, 7, 8, 9, 10
 
 _TYPE_HEADER = int(FrameType.HEADER)
 _TYPE_DATA = int(FrameType.DATA)
@@ -314,33 +317,24 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
     covered = np.zeros(cap_bytes, dtype=bool)
     step_memory = np.full(step_bytes, 0xFF, dtype=np.uint8)
     step_covered = np.zeros(step_bytes, dtype=bool)
-    outside = 0
-    for fr in data_frames:
-        address = int.from_bytes(fr.payload[:4], "little")
-        chunk = np.frombuffer(fr.payload, dtype=np.uint8, offset=4)
-        where = memory_region(address, chunk.size, sample_memory_bytes=cap_bytes, step_memory_bytes=step_bytes)
-        if where is None:
-            outside += 1
-            continue
-        region, offset = where
-        target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
-        target[offset: offset + chunk.size] = chunk
-        seen[offset: offset + chunk.size] = True
+    outside = _place([(int.from_bytes(fr.payload[:4], "little"), fr.payload[4:]) for fr in data_frames], memory,
+                     covered, step_memory, step_covered)
     blocks = _capture_blocks(data, frames, errors, known, unreadable, header_bytes)
-    for address, chunk_bytes in blocks.pieces:
-        where = memory_region(address, len(chunk_bytes), sample_memory_bytes=cap_bytes, step_memory_bytes=step_bytes)
-        if where is None:
-            outside += 1
-            continue
-        region, offset = where
-        target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
-        target[offset: offset + len(chunk_bytes)] = np.frombuffer(chunk_bytes, dtype=np.uint8)
-        seen[offset: offset + len(chunk_bytes)] = True
+    outside += _place(blocks.pieces, memory, covered, step_memory, step_covered)
     if blocks.salvaged:
         notes.append(f"{blocks.salvaged} 64-sample block(s) kept from damaged DATA_BLOCKS frames (their checks verify "
                      "at their addresses under this header, section 4.1)")
     if blocks.foreign:
         notes.append(f"{blocks.foreign} DATA_BLOCKS frame(s) under another header were not used")
+    unplaced, step_unplaced = np.zeros(cap_bytes, dtype=bool), np.zeros(step_bytes, dtype=bool)
+    _place(blocks.unplaced_pieces, np.zeros(cap_bytes, np.uint8), unplaced, np.zeros(step_bytes, np.uint8),
+           step_unplaced)  # where only blocks of frames no readable header places were received
+    if blocks.unplaced:
+        text = (f"{blocks.unplaced} DATA_BLOCKS frame(s) not used although their blocks verify under this header's "
+                "binding: each lies between damaged header copies that do not verify, with no readable copy of this "
+                "header on both sides, so the memory state it was read from is not proven (section 4.1)")
+        notes.append(text)
+        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
     if outside:
         notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte sample memory and the "
                      f"{step_bytes}-byte step memory were ignored")
@@ -348,10 +342,30 @@ def _decode_capture(data: bytes, source: str | None) -> Recording:
         notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
     slot_ok = covered.reshape(-1, 4).all(axis=1)
     slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
+    slot_reason[unplaced.reshape(-1, 4).any(axis=1) & ~slot_ok] = _R_UNPLACED
+    step_reason = np.full(step_bytes, _R_NOT_RECEIVED, np.int8)
+    step_reason[step_unplaced & ~step_covered] = _S_UNPLACED
     header = _interrupted_run(header, step_memory, source, notes)
-    steps = _assemble_steps(header, step_memory, step_covered, np.full(step_bytes, _R_NOT_RECEIVED, np.int8), source,
-                            notes)
+    steps = _assemble_steps(header, step_memory, step_covered, step_reason, source, notes)
     return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
+
+
+def _place(pieces: list[tuple[int, bytes]], memory: np.ndarray, covered: np.ndarray, step_memory: np.ndarray,
+           step_covered: np.ndarray) -> int:
+    """Write ``(address, bytes)`` pieces into the sample or the step memory and mark them covered; return how many
+    were addressed outside both."""
+    outside = 0
+    for address, chunk_bytes in pieces:
+        where = memory_region(address, len(chunk_bytes), sample_memory_bytes=covered.size,
+                              step_memory_bytes=step_covered.size)
+        if where is None:
+            outside += 1
+            continue
+        region, offset = where
+        target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
+        target[offset: offset + len(chunk_bytes)] = np.frombuffer(chunk_bytes, dtype=np.uint8)
+        seen[offset: offset + len(chunk_bytes)] = True
+    return outside
 
 
 def _header_boundaries(data: bytes, frames: list, errors: list
@@ -459,6 +473,46 @@ class _CaptureBlocks:
         self.pieces: list[tuple[int, bytes]] = []
         self.salvaged = 0
         self.foreign = 0
+        self.unplaced = 0  #: intact frames whose blocks verify, but whose memory state no readable header proves
+        self.unplaced_pieces: list[tuple[int, bytes]] = []
+
+    def take(self, pieces: list[tuple[int, bytes]], belongs: bool) -> None:
+        """The verified blocks of an intact frame: used when it belongs to the header, else counted (those that
+        verify all the same are kept apart, to say why the samples they carry are missing)."""
+        if belongs:
+            self.pieces += pieces
+        elif pieces:
+            self.unplaced += 1
+            self.unplaced_pieces += pieces
+        else:
+            self.foreign += 1
+
+
+def _belongs_to(header_bytes: bytes, known: list, unreadable: np.ndarray):
+    """``belongs(offset)``: a DATA_BLOCKS frame at ``offset`` belongs to ``header_bytes`` (section 4.1).
+
+    It does when the nearest header before it or after it is readable and of the same memory state. It also does
+    when both are damaged but the nearest readable headers on both sides are of that state and it is closed
+    (version 2, LOGGING clear): such a state never comes back once the memory changed (START draws a new recording
+    number and nonce, ERASE zeroes the counters), so every header between is of it too (a retried stream whose
+    header copy and the copy before it were both damaged)."""
+    key = _header_key(header_bytes)
+    h_off = np.array([off for off, _, _ in known] + unreadable.tolist(), dtype=np.int64)
+    h_ok = np.array([_header_key(h) == key for _, h, _ in known] + [False] * unreadable.size, dtype=bool)
+    order = np.argsort(h_off, kind="stable")
+    h_off, h_ok = h_off[order], h_ok[order]
+    closed = len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING
+    r_off = np.array([off for off, _, _ in known], dtype=np.int64)
+    r_ok = np.array([_header_key(h) == key for _, h, _ in known], dtype=bool)
+
+    def belongs(offset: int) -> bool:
+        k = int(np.searchsorted(h_off, offset, side="right")) - 1
+        if (k >= 0 and h_ok[k]) or (k + 1 < h_off.size and h_ok[k + 1]):
+            return True
+        j = int(np.searchsorted(r_off, offset, side="right")) - 1
+        return bool(closed and j >= 0 and j + 1 < r_off.size and r_ok[j] and r_ok[j + 1])
+
+    return belongs
 
 
 def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unreadable: np.ndarray,
@@ -473,26 +527,15 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
     imply.
     """
     out = _CaptureBlocks()
-    binding, key = header_binding(header_bytes), _header_key(header_bytes)
-    h_off = np.array([off for off, _, _ in known] + unreadable.tolist(), dtype=np.int64)
-    h_ok = np.array([_header_key(h) == key for _, h, _ in known] + [False] * unreadable.size, dtype=bool)
-    order = np.argsort(h_off, kind="stable")
-    h_off, h_ok = h_off[order], h_ok[order]
-
-    def belongs(offset: int) -> bool:
-        k = int(np.searchsorted(h_off, offset, side="right")) - 1
-        return bool((k >= 0 and h_ok[k]) or (k + 1 < h_off.size and h_ok[k + 1]))
-
+    binding = header_binding(header_bytes)
+    belongs = _belongs_to(header_bytes, known, unreadable)
     intact = [fr for fr in frames if fr.type == _TYPE_DATA_BLOCKS and payload_data_bytes(len(fr.payload))]
     spans = []  # (stream offset, end, first address, data bytes) of the intact DATA_BLOCKS frames
     for fr in intact:
         address = int.from_bytes(fr.payload[:ADDRESS_BYTES], "little")
         spans.append((fr.offset, fr.offset + FRAME_OVERHEAD + len(fr.payload), address,
                       payload_data_bytes(len(fr.payload))))
-        if not belongs(fr.offset):
-            out.foreign += 1
-            continue
-        out.pieces += salvage_blocks(binding, fr.payload[ADDRESS_BYTES:], [address]).pieces()
+        out.take(salvage_blocks(binding, fr.payload[ADDRESS_BYTES:], [address]).pieces(), belongs(fr.offset))
     starts_all = np.array([fr.offset for fr in frames], dtype=np.int64)
     ends_all = starts_all + np.array([FRAME_OVERHEAD + len(fr.payload) for fr in frames], dtype=np.int64)
     starts_set = set(starts_all.tolist())

@@ -203,3 +203,50 @@ def test_both_header_copies_damaged_are_put_together(walk_capture) -> None:
     assert "put together from" in said
     assert rec.valid.all()
     np.testing.assert_array_equal(rec.codes, codes)
+
+
+def _blocks_stream(logger: Logger, seq: int, address: int, length: int, chunk: int) -> bytes:
+    """The device's bytes of one DUMP_BLOCKS command: DATA_BLOCKS frames, the header's copy, DUMP_END."""
+    payload = build_payload(FrameType.DUMP_BLOCKS, address=address, length=length, chunk=chunk)
+    return logger.firmware.receive(encode_frame(FrameType.DUMP_BLOCKS, seq, payload), now_s=0.0)
+
+
+def _damage_header_copy(stream: bytes, byte: int) -> bytes:
+    """``stream`` with its HEADER frame's header byte ``byte`` (inside the header's own CRC) flipped: unreadable."""
+    (header,) = [fr for fr in parse_stream(stream)[0] if fr.type == FrameType.HEADER]
+    out = bytearray(stream)
+    out[header.offset + 6 + byte] ^= 0x10
+    return bytes(out)
+
+
+def test_a_retried_stream_between_two_damaged_header_copies_is_used() -> None:
+    """A noisy dump's pattern: a stream whose first frame and header copy are damaged, the host's retry of that
+    frame whose header copy is damaged too, then a stream ending with an intact copy. The retry lies between two
+    readable copies of the same closed header (only damaged ones between), so its blocks are used: nothing lost."""
+    logger, codes = _logger(n=N)
+    length = 4 * N
+    first = _blocks_stream(logger, 2, 0, length, 1024)
+    frames, _ = parse_stream(first)
+    data0 = next(fr for fr in frames if fr.type == FrameType.DATA_BLOCKS)
+    assert int.from_bytes(data0.payload[:4], "little") == 0
+    first = bytearray(first)
+    first[data0.offset + 6 + 4 + 10] ^= 0x01  # block 0 of the first frame: samples 0-63, only in the retry
+    first = _damage_header_copy(bytes(first), 30)
+    retry = _damage_header_copy(_blocks_stream(logger, 3, 0, 1024, 1024), 40)
+    last = _blocks_stream(logger, 4, 1024, 1024, 1024)  # its header copy intact
+    read_header = logger.firmware.receive(encode_frame(FrameType.READ_HEADER, 1), now_s=0.0)
+    capture = read_header + first + retry + last
+    # the truth of the pattern: the retry's only readable neighbours are the first and last copies
+    assert [fr.offset for fr in parse_stream(capture)[0] if fr.type == FrameType.HEADER] == \
+        [0, len(read_header) + len(first) + len(retry) + len(last) - 18 - HEADER_FRAME]
+    rec, said = _decode(capture)
+    assert rec.valid.all(), said
+    np.testing.assert_array_equal(rec.codes, codes)
+    # without the last stream the retry has no readable copy after it: samples 0-63 are reported missing, and why
+    rec, said = _decode(read_header + first + retry)
+    np.testing.assert_array_equal(np.flatnonzero(~rec.valid), np.arange(64))
+    assert [(g.first_sample_number, g.last_sample_number) for g in rec.gaps] == [(0, 63)]
+    assert rec.gaps[0].reason.startswith("received only in DATA_BLOCKS frames between damaged header copies")
+    assert "1 DATA_BLOCKS frame(s) not used although their blocks verify" in said, said
+    np.testing.assert_array_equal(rec.codes[rec.valid], codes[rec.valid])
+
