@@ -317,6 +317,7 @@ def _check_rate(p: Path, file_rate: float, asked: float | None) -> None:
 def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None,
                     arrays: bool = True) -> AccelerationInput:
     _check_rate(p, float(rec.sampling_rate_hz), rate)
+    rec.require_three_axes()                       # an instrument's dump (a channel map): refused before any block
     if cal is None:
         m, note = rec.default_calibration()
     else:

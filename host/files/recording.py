@@ -335,7 +335,7 @@ class Recording:
                 f"g from the nominal map (no calibration in the header): 0 g at code {2 ** (self.adc_bits - 1)}, "
                 f"{4.0 / 2 ** self.adc_bits:.6g} g per count")
 
-    def _refuse_channel_map(self) -> None:
+    def require_three_axes(self) -> None:
         """An instrument's dump (a channel map in the header, ``PROTOCOL.md`` 2.6) has no three axes in g."""
         if isinstance(getattr(self.header, "calibration", None), ChannelMap):
             raise HostError(f"{self.source}: holds an instrument's channels (a channel map, PROTOCOL.md 2.6), not "
@@ -351,7 +351,7 @@ class Recording:
             Object with ``apply(counts) -> g`` (``gaitlog.protocol.header.CalibrationSlot``, ``gaitlog.host.accelerometer.calibration.
             AccCalibration``); default: the header's calibration slot, else the nominal ±2 g map.
         """
-        self._refuse_channel_map()
+        self.require_three_axes()
         cal = self.default_calibration()[0] if calibration is None else calibration
         g = np.asarray(cal.apply(self.codes.astype(np.float64)), dtype=np.float64).reshape(-1, 3).copy()
         g[~self.valid] = np.nan
@@ -474,7 +474,7 @@ class Recording:
 
         Missing rows keep their sample number and time, have ``valid`` 0 and empty counts, g and flags.
         """
-        self._refuse_channel_map()
+        self.require_three_axes()
         cal = self.default_calibration()[0] if calibration is None else calibration
         with atomic_write(path, "w", encoding="utf-8", newline="") as fh:
             for lo in range(0, max(self.n_samples, 1), _CSV_ROWS):    # a block of rows at a time: bounded memory

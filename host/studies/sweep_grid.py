@@ -275,13 +275,7 @@ class SweepGrid:
                      "population", "seeds", "estimators", "rounding", *EFFECT_DIMENSIONS):
             if not getattr(self, name):
                 raise HostError(f"sweep grid: {name} is empty")
-        try:
-            labels = [KernelFormats.parse(q).label() for q in self.q_formats]
-            roundings = [KernelFormats.parse("shipped", r).rounding_label() for r in self.rounding]
-        except ValueError as err:
-            raise HostError(f"sweep grid: {err}") from None
-        object.__setattr__(self, "q_formats", tuple(labels))         # canonical labels
-        object.__setattr__(self, "rounding", tuple(roundings))
+        self._canonical_fixed_point()
         for m in self.misalignment_deg:
             if not (math.isfinite(m) and abs(m) <= MAX_MISALIGNMENT_DEG):
                 raise HostError(f"sweep grid: misalignment {m:g} degrees outside ±{MAX_MISALIGNMENT_DEG:g}")
@@ -308,6 +302,16 @@ class SweepGrid:
             raise HostError(f"sweep grid: unknown estimator(s) {', '.join(unknown)}; known: {', '.join(ESTIMATORS)}")
         if self.protocol not in PROTOCOLS:
             raise HostError(f"sweep grid: unknown protocol {self.protocol!r}; known: {', '.join(PROTOCOLS)}")
+
+    def _canonical_fixed_point(self) -> None:
+        """The Q-format sets and roundings by their canonical labels (a bad one: :class:`HostError`)."""
+        try:
+            labels = [KernelFormats.parse(q).label() for q in self.q_formats]
+            roundings = [KernelFormats.parse("shipped", r).rounding_label() for r in self.rounding]
+        except ValueError as err:
+            raise HostError(f"sweep grid: {err}") from None
+        object.__setattr__(self, "q_formats", tuple(labels))
+        object.__setattr__(self, "rounding", tuple(roundings))
 
     def _check_effects(self) -> None:
         """:data:`EFFECT_DIMENSIONS` within their ranges (and those whose sign has no meaning not negative)."""
@@ -593,27 +597,32 @@ def summarise(sections: list[dict], splits: list[dict], tasks: list[dict] | None
     r_order = _order([s["rounding"] for s in sections])
     for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-3], r_order[k[-3]],
                                              q_order[k[3]], k[0], MODES.index(k[-2]), ESTIMATORS.index(k[-1]))):
-        *config, mode, est = key
-        seg = groups[key]
-        row: dict[str, Any] = dict(zip(SUMMARY_KEYS, config, strict=True))
-        row.update(mode=mode, estimator=est, n_subjects=len({(s["seed"], s["subject"]) for s in seg}),
-                   n_sections=len(seg))
-        ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in RATIO_KINDS}
-        for k in RATIO_KINDS[:-1]:
-            row[f"median_{k}"], row[f"iqr_{k}"] = median_iqr(ratio[k])
-        per_subject = [median_iqr(np.array([s["ratio_offline"] for s in seg if (s["seed"], s["subject"]) == subj], float))[0]
-                       for subj in sorted({(s["seed"], s["subject"]) for s in seg})]
-        _, row["subject_median_offline_lo"], row["subject_median_offline_hi"] = _range(per_subject)
-        for share, a, b in (("adc", "offline", "ideal"), ("arith", "online_fixed", "online_float")):
-            d = ratio[a] - ratio[b]
-            row[f"{share}_ratio_abs_max"] = float(np.nanmax(np.abs(d))) if np.isfinite(d).any() else math.nan
-        for share, col in (("adc", "adc_step_mm"), ("arithmetic", "arith_step_mm")):
-            found = split_groups.get(tuple(config) + (labels[share], est), [])
-            row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range([x["median_abs_mm"] for x in found])
-            row[f"{col}_theory"] = _range([x.get("theory_median_abs_mm", math.nan) for x in found])[0]
-        row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0]))
-        out.append(row)
+        out.append(_summary_row(key, groups[key], split_groups, cycles, labels))
     return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
+
+
+def _summary_row(key: tuple, seg: list[dict], split_groups: dict[tuple, list[dict]],
+                 cycles: dict[tuple, list[float]], labels: dict[str, str]) -> dict[str, Any]:
+    """:func:`summarise`'s row of one configuration, mode and estimator (``key``) from its sections ``seg``."""
+    *config, mode, est = key
+    row: dict[str, Any] = dict(zip(SUMMARY_KEYS, config, strict=True))
+    row.update(mode=mode, estimator=est, n_subjects=len({(s["seed"], s["subject"]) for s in seg}),
+               n_sections=len(seg))
+    ratio = {k: np.array([s[f"ratio_{k}"] for s in seg], float) for k in RATIO_KINDS}
+    for k in RATIO_KINDS[:-1]:
+        row[f"median_{k}"], row[f"iqr_{k}"] = median_iqr(ratio[k])
+    per_subject = [median_iqr(np.array([s["ratio_offline"] for s in seg if (s["seed"], s["subject"]) == subj], float))[0]
+                   for subj in sorted({(s["seed"], s["subject"]) for s in seg})]
+    _, row["subject_median_offline_lo"], row["subject_median_offline_hi"] = _range(per_subject)
+    for share, a, b in (("adc", "offline", "ideal"), ("arith", "online_fixed", "online_float")):
+        d = ratio[a] - ratio[b]
+        row[f"{share}_ratio_abs_max"] = float(np.nanmax(np.abs(d))) if np.isfinite(d).any() else math.nan
+    for share, col in (("adc", "adc_step_mm"), ("arithmetic", "arith_step_mm")):
+        found = split_groups.get(tuple(config) + (labels[share], est), [])
+        row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range([x["median_abs_mm"] for x in found])
+        row[f"{col}_theory"] = _range([x.get("theory_median_abs_mm", math.nan) for x in found])[0]
+    row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0]))
+    return row
 
 
 def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float) -> dict[str, float]:

@@ -285,7 +285,8 @@ def test_printed_figures_of_three_people_walkers_on_the_papers_protocol() -> Non
     assert b[("single-speed", "M1", "median")]["ci_low"] == pytest.approx(0.961, abs=0.005)
     assert b[("single-speed", "M1", "median")]["ci_high"] == pytest.approx(0.991, abs=0.005)
     verdicts = {c: v for c, _, _, v in paper_claims(ev.bootstrap_)}
-    assert verdicts["multi-speed: M1-M4 medians 100-105 %"] == "disagrees (M1, M3 outside)"
+    # M4 left the band with Weinberg's 1/4 (on-line algorithm version 4's M4 exponent)
+    assert verdicts["multi-speed: M1-M4 medians 100-105 %"] == "disagrees (M1, M3, M4 outside)"
     assert verdicts["single-speed: M1 worst case ~140 %"] == "disagrees"
     assert verdicts["multi-speed: M5 has the lowest median (98 %)"] == "disagrees (not the lowest)"
     assert len(ev.results_[0].rows) == 2 * 5 * 24      # 4 excursions x 6 straight sections after calibration
