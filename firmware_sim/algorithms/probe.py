@@ -63,7 +63,7 @@ from gaitlog.firmware_sim.algorithms.state import (
 )
 from gaitlog.firmware_sim.compiled import njit
 from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
-from gaitlog.protocol.steps import StepConfig, pack_step_records
+from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
            "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls"]

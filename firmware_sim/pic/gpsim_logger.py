@@ -61,6 +61,7 @@ from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
 from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
+from gaitlog.firmware_sim.pic.step_config import config_bytes
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
@@ -500,7 +501,6 @@ class PicLogger:
     def _eeprom(self, cal_bytes: list[int]) -> list[int]:
         """The data EEPROM: the calibration and the 3 Hz half-kernel (logger_ram.inc EE_*), then the step
         configuration at STEP_CFG_EE (step_record_ram.inc CFG_*, :func:`gpsim_steps.config_bytes`)."""
-        from gaitlog.firmware_sim.pic.gpsim_steps import config_bytes
         head = _config_bytes(cal_bytes, self._weights())
         if len(head) > STEP_CFG_EE:
             raise ValueError(f"the configuration's {len(head)} bytes overlap the step configuration at {STEP_CFG_EE}")
@@ -923,3 +923,4 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),
                            run.gpsim_s, time.perf_counter() - t0, gpsim_version(), notes, run.backlog_max)
+
