@@ -87,3 +87,48 @@ def lrzsz_rx() -> LrzszRx:
     if shutil.which("rx") is None:
         pytest.skip("lrzsz `rx` is not installed (apt-get install lrzsz)")
     return LrzszRx()
+
+
+@pytest.fixture
+def dask_scheduler_file(tmp_path: Path):
+    """A Dask scheduler and one worker started apart, as a user would (port 0: no free port needed); yields the
+    scheduler file, stops both after the test. Skips when distributed is absent or they do not come up."""
+    pytest.importorskip("distributed")
+    import json
+    import sys
+    import time
+
+    from distributed import Client
+
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    scheduler_file = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                               "--port", "0", "--scheduler-file", str(scheduler_file), "--no-dashboard"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline, addr = time.monotonic() + 60, None
+        while addr is None and time.monotonic() < deadline:
+            try:
+                addr = json.loads(scheduler_file.read_text())["address"]
+            except (OSError, ValueError, KeyError):
+                time.sleep(0.2)
+        if addr is None:
+            pytest.skip("a dask scheduler on 127.0.0.1 wrote no address within 60 s")
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr, "--nthreads", "1",
+                                       "--nworkers", "1", "--no-dashboard"], env=env, cwd=tmp_path,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        try:
+            with Client(addr, timeout="30s") as client:
+                client.wait_for_workers(1, timeout=60)
+        except (OSError, TimeoutError) as err:
+            pytest.skip(f"could not start a scheduler and a worker on 127.0.0.1: {err}")
+        yield scheduler_file
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in reversed(procs):
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()

@@ -106,51 +106,13 @@ def test_dask_workers_give_the_serial_results_and_the_same_failures(folder, tmp_
             assert a[name] == b[name], name
 
 
-def test_a_scheduler_started_separately_gives_the_serial_results(folder, tmp_path, capsys) -> None:
+def test_a_scheduler_started_separately_gives_the_serial_results(folder, tmp_path, capsys,
+                                                                  dask_scheduler_file) -> None:
     """``--scheduler`` with the scheduler file of a scheduler and worker started apart (port 0: no free port
     needed), as ``gaitlog sweep`` is tested."""
-    pytest.importorskip("distributed")
-    import os
-    import subprocess
-    import sys
-    import time
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[3]
-    env = dict(os.environ, PYTHONPATH=str(root))
-    scheduler_file = tmp_path / "scheduler.json"
-    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                               "--port", "0", "--scheduler-file", str(scheduler_file), "--no-dashboard"], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        deadline = time.monotonic() + 60
-        while not scheduler_file.is_file() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        if not scheduler_file.is_file():
-            pytest.skip("a dask scheduler on 127.0.0.1 wrote no scheduler file within 60 s")
-        addr = json.loads(scheduler_file.read_text())["address"]
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr, "--nthreads", "1",
-                                       "--nworkers", "1", "--no-dashboard"], env=env, cwd=tmp_path,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        from distributed import Client
-
-        try:
-            with Client(addr, timeout="30s") as client:
-                client.wait_for_workers(1, timeout=60)
-        except (OSError, TimeoutError) as err:
-            pytest.skip(f"could not start a scheduler and a worker on 127.0.0.1: {err}")
-        serial, remote = tmp_path / "serial", tmp_path / "remote"
-        assert main(["batch", str(folder), "--out", str(serial), "-q"]) == 1
-        first = capsys.readouterr().err
-        assert main(["batch", str(folder), "--out", str(remote), "-q", "--scheduler", str(scheduler_file)]) == 1
-        assert capsys.readouterr().err == first
-        assert _outputs(serial) == _outputs(remote)
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in reversed(procs):
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+    serial, remote = tmp_path / "serial", tmp_path / "remote"
+    assert main(["batch", str(folder), "--out", str(serial), "-q"]) == 1
+    first = capsys.readouterr().err
+    assert main(["batch", str(folder), "--out", str(remote), "-q", "--scheduler", str(dask_scheduler_file)]) == 1
+    assert capsys.readouterr().err == first
+    assert _outputs(serial) == _outputs(remote)

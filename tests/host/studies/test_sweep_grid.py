@@ -105,50 +105,11 @@ def test_two_worker_local_cluster_gives_the_serial_results(serial, tmp_path) -> 
     assert _files(tmp_path) == {k: v for k, v in _files(serial).items() if k.startswith("tasks/")}
 
 
-def _scheduler_address(scheduler_file: Path, timeout_s: float = 60.0) -> str | None:
-    """The address a scheduler started with ``--port 0`` wrote to its scheduler file (no port has to be free)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            return json.loads(scheduler_file.read_text())["address"]
-        except (OSError, ValueError, KeyError):
-            time.sleep(0.2)
-    return None
-
-
-def test_a_scheduler_started_separately_gives_the_serial_results(serial, tmp_path) -> None:
-    pytest.importorskip("distributed")
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    scheduler_file = tmp_path / "scheduler.json"
-    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                               "--port", "0", "--scheduler-file", str(scheduler_file), "--no-dashboard"], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        addr = _scheduler_address(scheduler_file)
-        if addr is None:
-            pytest.skip("a dask scheduler on 127.0.0.1 wrote no address within 60 s")
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr, "--nthreads", "1",
-                                       "--nworkers", "1", "--no-dashboard"], env=env, cwd=tmp_path,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        from distributed import Client
-
-        try:
-            with Client(addr, timeout="30s") as client:
-                client.wait_for_workers(1, timeout=60)
-        except (OSError, TimeoutError) as err:
-            pytest.skip(f"could not start a scheduler and a worker on 127.0.0.1: {err}")
-        out = tmp_path / "remote"
-        assert main(["sweep", "--out", str(out), "--scheduler", addr, "-q", *GRID_ARGS]) == 0
-        assert _files(out) == _files(serial)
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in reversed(procs):
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+def test_a_scheduler_started_separately_gives_the_serial_results(serial, tmp_path, dask_scheduler_file) -> None:
+    addr = json.loads(dask_scheduler_file.read_text())["address"]
+    out = tmp_path / "remote"
+    assert main(["sweep", "--out", str(out), "--scheduler", addr, "-q", *GRID_ARGS]) == 0
+    assert _files(out) == _files(serial)
 
 
 @pytest.mark.parametrize("where", [["--serial"], ["--workers", "2"]])
