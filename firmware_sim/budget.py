@@ -260,7 +260,7 @@ def logging_cycles_per_sample(config: LoggerConfig | None = None) -> float:
     """Cycles the logging interrupt takes per sample (:func:`logging_cycles`).
 
     >>> round(logging_cycles_per_sample())
-    1423
+    1550
     """
     return float(sum(c for c, _ in logging_cycles(config).values()))
 

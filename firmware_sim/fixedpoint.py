@@ -76,6 +76,8 @@ __all__ = [
     "OPS",
     "CYCLE_TABLE",
     "I2C_BYTE_CYCLES",
+    "I2C_SCL_CYCLES",
+    "I2C_BYTE_INSTRUCTION_CYCLES",
     "DEFAULT_FOSC_HZ",
     "cycles_per_sample_available",
     "N_COUNTERS",
@@ -139,10 +141,21 @@ Overflow = Literal["saturate", "wrap"]
 
 #: The logger's crystal: 18.432 MHz, a baud-rate crystal (``gaitlog.firmware_sim.uart``); 4 clocks per cycle.
 DEFAULT_FOSC_HZ = 18_432_000.0
-#: I2C master at 400 kHz nominal: SSPADD = round(fosc / (4 · 400 kHz)) - 1 = 10, so one SCL period is 11
-#: instruction cycles (419 kHz) and a byte with its acknowledge (9 SCL periods) 99 cycles of a busy-waiting
-#: master (computed; PIC16F87X datasheet, MSSP baud rate ``fosc / (4 (SSPADD + 1))``).
-I2C_BYTE_CYCLES = 9 * 11
+#: I2C master at 400 kHz nominal: SSPADD = round(fosc / (4 · 400 kHz)) - 1 = 10 (logger.asm). The datasheet's
+#: baud rate ``fosc / (4 (SSPADD + 1))`` makes one SCL period 11 instruction cycles (419 kHz); gpsim's MSSP takes
+#: SSPADD + 2 = 12 (``gaitlog.firmware_sim.pic.chip_budget.i2c_event_cycles`` times each bus event: a byte sent
+#: or received is 8 of these periods, an acknowledge 1), and the budget prices the bus as gpsim runs it.
+I2C_SCL_CYCLES = 10 + 2
+#: The instructions the scratch ring's reader (step_record.asm ``scr_next``) runs for each byte besides the bus:
+#: ``I2C_CMD RCEN`` (3) and its wait (5: bank select, the polling loop's exit, ``BCF SSPIF``), ``MOVF``/``MOVWF``
+#: (2), ``I2C_ACK`` (4) and its wait (5), and half of ``scr_next``'s ``CALL``, ``RETURN`` and bank select (5 for
+#: its two bytes; 2.5, counted as 3).
+I2C_BYTE_INSTRUCTION_CYCLES = 3 + 5 + 2 + 4 + 5 + 3
+#: One byte received from the external EEPROM and acknowledged, as the assembly's reader takes it: 9 SCL periods
+#: (8 data bits, the acknowledge) and its instructions, 130 cycles (gpsim: 106 + 21 a byte, 5 a pair; a byte
+#: sent, ``MOVLW``/``CALL i2c_tx``, 121). The model's I2C reads and page writes count their bytes at this price,
+#: and 4 (read) or 3 (write) bytes for the control and address bytes, start, restart and stop.
+I2C_BYTE_CYCLES = 9 * I2C_SCL_CYCLES + I2C_BYTE_INSTRUCTION_CYCLES
 
 
 def cycles_per_sample_available(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ) -> float:
@@ -180,7 +193,8 @@ CITED_SOURCES: dict[str, str] = {
     "mul16x16s": "Microchip AN617, FXM1616S worst case",
     "mul16x16u": "Microchip AN617, FXM1616U worst case",
     "div32by16u": "Microchip AN617, FXD3216U worst case",
-    "i2c_byte": "computed: 9 SCL periods of 11 cycles (SSPADD = 10 at 18.432 MHz, 419 kHz)",
+    "i2c_byte": "computed from the assembly: 9 SCL periods of 12 cycles as gpsim runs the MSSP at SSPADD = 10 "
+                "(18.432 MHz) and the reader's 22 instruction cycles a byte",
     **{k: "estimate: counted from a hand-written PIC16 instruction sequence"
        for k in ("add16", "add32", "sat16", "sat32", "shift32_per_bit", "round32", "compare16", "compare32",
                  "mul8x8u", "div32by16s", "isqrt32", "data_eeprom_byte", "ram_copy8")},

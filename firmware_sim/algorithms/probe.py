@@ -62,11 +62,12 @@ from gaitlog.firmware_sim.algorithms.state import (
     N,
 )
 from gaitlog.firmware_sim.compiled import njit
-from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_DEE, OPS, new_counters, s_cost
+from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_DEE, OP_I2C, OPS, new_counters, s_cost
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
-           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls"]
+           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls",
+           "OperationCounts", "algorithm_operation_counts"]
 
 
 @njit(cache=True)
@@ -465,3 +466,68 @@ def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0
     t = np.asarray(rows, np.int64).reshape(-1, 7)
     return FinaliseTrace(*(t[:, i].copy() for i in range(7)), ops=np.asarray(ops, np.int64).reshape(-1, len(OPS)),
                          a_v=a_v, records=recs, extras=np.asarray(steps.extras, np.int64).reshape(-1, 4))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the whole algorithm's primitive calls per sample (the cycle budget prices them)
+
+
+@dataclass(frozen=True)
+class OperationCounts:
+    """:func:`algorithm_operation_counts`' result: each sample's primitive calls per step of the algorithm, each
+    ``(n, len(OPS))`` int64 (columns in :data:`~gaitlog.firmware_sim.fixedpoint.OPS` order), and the samples
+    whose step 5 wrote a step record."""
+
+    step1: np.ndarray
+    steps23: np.ndarray
+    step4: np.ndarray
+    step5: np.ndarray
+    record_samples: np.ndarray
+
+
+def algorithm_operation_counts(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
+                               run_starts: list[int] | tuple[int, ...] = (0,), *, gravity_shift: int,
+                               min_gravity_raw: int, scratch_ring: int = 0) -> OperationCounts:
+    """The model's primitive calls per sample in each step, as the kernel counts them: steps 1-3 from
+    :func:`front_operation_counts`; steps 4-5 from the kernel fed one sample at a time (as
+    :func:`detector_trace`), less steps 1-3. Step 4 is the 3 Hz FIR (one evaluation and the prominence's
+    data-EEPROM bytes on each sample with an output) and the scratch ring's page write (every ``CI_FLUSH``
+    samples); step 5, the rest (the detector, ``_finalise`` and its step record)."""
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    s1, s23 = front_operation_counts(c, calibration, gravity_shift, min_gravity_raw, run_starts)
+    algo = OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
+        step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))
+    cfg_i, cfg_v = algo.config.cfg_i, algo.config.cfg_v
+    cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw
+    cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
+    cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
+    if scratch_ring:
+        cfg_i[kernel.CI_SCRATCH] = scratch_ring
+        algo._scr = np.zeros(scratch_ring, algo._scr.dtype)
+    n = c.shape[0]
+    whole = np.zeros((n, len(OPS)), np.int64)
+    ready = np.zeros(n, bool)
+    flush = np.zeros(n, bool)
+    records = []
+    starts = set(run_starts) | {0}
+    r3, every = int(cfg_i[kernel.CI_R3]), int(cfg_i[kernel.CI_FLUSH])
+    for i in range(n):
+        if i in starts:
+            algo.reset()
+        before, n_before, flags_before = algo._cnt[:len(OPS)].copy(), int(algo._st_i[N]), int(algo._st_i[FLAGS])
+        if len(algo.feed(c[i:i + 1]).end):
+            records.append(i)
+        whole[i] = algo._cnt[:len(OPS)] - before
+        ready[i] = bool(flags_before & F_OLD) or n_before >= 2 * r3
+        flush[i] = (n_before + 1) % every == 0
+    fir_ops = new_counters()
+    kernel._fir.py_func(np.zeros(2 * r3 + 1, algo._line.dtype), 0, 2 * r3 + 1, cfg_v, kernel.CV_W3, r3, fir_ops)
+    one_fir = fir_ops[:len(OPS)].copy()
+    one_fir[OP_DEE] += 3                                                # the prominence, read with the output
+    write = np.zeros(len(OPS), np.int64)
+    write[OP_I2C] = kernel.SCRATCH_SAMPLE_BYTES * every + kernel.I2C_WRITE_OVERHEAD
+    s4 = ready[:, None] * one_fir + flush[:, None] * write
+    s5 = whole - s1 - s23 - s4
+    if np.any(s5 < 0):
+        raise AssertionError("the kernel counted fewer calls than steps 1-4 make")
+    return OperationCounts(s1, s23, s4, s5, np.asarray(records, np.int64))

@@ -54,10 +54,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="run the PIC assembly kernels in gpsim (bit-exact check against fixedpoint.py, cycles "
                              "per call) and rewrite firmware_sim/pic/kernel_cycles.json; needs gputils and gpsim")
     parser.add_argument("--measure", action="store_true",
-                        help="run the firmware's assembly part (sampling interrupt, steps 1-3 of the algorithm) in "
-                             "gpsim on a walk and report its cycles per sample, RAM and program words as measured, "
-                             "beside the model's estimate and error; without gputils/gpsim, the model's figures "
-                             "marked estimated")
+                        help="run the firmware's assembly part (sampling interrupt, steps 1-5 of the on-line "
+                             "algorithm with its step records) in gpsim on a walk and report its cycles per sample "
+                             "(mean, 99th percentile, worst), each step record's cycles, the backlog, RAM and program "
+                             "words as measured, beside the model's estimate and error; without gputils/gpsim, the "
+                             "model's figures marked estimated")
     parser.add_argument("--recording", metavar="FILE",
                         help="with --measure: the recording to run (any file gaitlog decode reads; 10-bit codes; "
                              "default: the simulated walker of --seed)")
