@@ -270,7 +270,7 @@ def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     """Cycles per sample period left to the on-line step algorithm: the period minus the logging interrupt.
 
     >>> round(algorithm_cycles_per_sample(50.0))
-    90737
+    90610
     """
     if config is None:
         config = LoggerConfig("alvarez", float(sampling_rate_hz), 3, fosc_hz=float(fosc_hz))
@@ -608,7 +608,7 @@ def instrument_fit(config: LoggerConfig) -> tuple[list[str], float]:
     []
     >>> short, fastest = instrument_fit(CONFIGURATIONS["hall"])
     >>> short[0][:40], round(fastest)
-    ('ADC: 6 channels take 233.5 us per sample', 2107)
+    ('ADC: 6 channels take 233.5 us per sample', 1903)
     """
     def short(rate_hz: float) -> list[str]:
         c = replace(config, sampling_rate_hz=rate_hz, online_estimator=False)

@@ -163,7 +163,7 @@ def test_measure_on_the_simulated_walk(capsys: pytest.CaptureFixture[str]) -> No
     # the interrupt's ADC calibrated against gpsim: within 3 % (10.5 % below before)
     assert abs(isr["error"]["mean_percent"]) <= 3.0, isr
     total = cyc["total in assembly"]["measured"]
-    assert total["mean"] <= total["p99"] <= total["worst"] < 92_160
+    assert total["mean"] <= total["p99"] <= total["worst"]
     # a step record takes several periods; the page buffer's 32 samples absorb the backlog
     assert total["worst"] > 3 * 92_160 and doc["period_cycles"] == 92_160
     assert 0 < doc["worst_backlog_samples_measured"] < 32 and doc["worst_backlog_cycles"] > 92_160
