@@ -431,7 +431,7 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
             r.ram[a] = v
         if len(r.marks) < len(bounds) and a == bounds[len(r.marks)]:     # the stages' ends, in their order
             r.marks.append((t, r.isr_sum))
-        if a == rec_flags and r.marks:           # (not START's clearing)
+        if a == rec_flags and (r.marks or snaps):    # a sample's call or STOP's (not START's clearing)
             calls.append([len(snaps)] + [sum(r.ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
             due = True
         if a == last_h and due:                  # the step record's end: LAST = e
@@ -877,8 +877,9 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     restarted at each run's first sample) and *a_v* (``AV`` vs
     :func:`~gaitlog.firmware_sim.algorithms.probe.vertical_acceleration`), then through
     :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace`: *y3* (whether the sample has a filter
-    output, and ``Y3``), *detector* (the bank-1 state after each sample) and *finalise calls* (each call's
-    sample, e, s, m, flags). ``a_v=False`` leaves out a_v and steps 4-5, for a calibration whose ``|g|``
+    output, and ``Y3``), *detector* (the bank-1 state after each sample), *finalise calls* (each call's
+    sample, e, s, m, flags) and *step records* (20 bytes each), STOP's call and record at each run's end
+    included. ``a_v=False`` leaves out a_v and steps 4-5, for a calibration whose ``|g|``
     exceeds the model's 16-bit divisor, where the model raises.
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
@@ -915,8 +916,8 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     cycles.update({name: _stats(run.stage_cycles[:, i]) for i, name in enumerate(STAGES)})
     cycles["total in assembly"] = _stats(total)
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
-    notes = ["the sample pages' I2C write, the UART command handler and STOP's last step record are not yet in "
-             "assembly; the step records' end sample counts from the run's START",
+    notes = ["the sample pages' I2C write and the UART command handler are not yet in assembly (STOP comes after "
+             "the run's last sample); the step records' end sample counts from the run's START",
              f"the model's scratch ring holds {SCRATCH_RING_SAMPLES:,} samples, as the 24xx256 ring the assembly "
              "writes and reads",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
