@@ -207,6 +207,8 @@ def test_ipol_trial_identical(shared_data):
     trace = detector_trace(codes, nominal_calibration_q())
     assert trace.calls.shape[0] == r.stages[7].n_compared == 36
     assert trace.calls[-1, 0] == len(codes)                  # the 36th is STOP's (kernel.flush), compared too
+    assert len(r.stop_cycles) == 1 and r.stop_cycles[0] == pytest.approx(111_722, rel=0.01)      # measured
+    assert "STOP (measured): a pending step finalised at the end of 1 run(s)" in r.format_table()
 
 
 @needs_gpsim
@@ -404,9 +406,11 @@ def test_a_broken_stop_is_named(simulated_walk, monkeypatch, mutant):
         assert calls.n_identical == 1 and calls.first_difference["field"] == "call", table
         assert (d["record"], d["sample"], d["gpsim"], d["model"]) == (1, 588, "none", "a record"), table
         assert "first difference: record 1 (end sample 588), record: gpsim none, model a record" in table
+        assert r.stop_cycles == ()
     else:
         assert calls.identical and (d["record"], d["sample"]) == (1, 588), table
         assert f"first difference: record 1 (end sample 588), {d['field']}: gpsim {d['gpsim']}" in table
+        assert len(r.stop_cycles) == 1 and r.stop_cycles[0] > 50_000            # the step record itself
 
 
 def test_page_2_renames_every_kernel_label():
