@@ -366,6 +366,25 @@ def test_a_broken_scratch_write_is_caught(simulated_walk, monkeypatch):
     assert f"first difference: record 0 (end sample {d['sample']}), {d['field']}" in r.format_table()
 
 
+@needs_gpsim
+def test_stop_between_two_runs(simulated_walk):
+    """Two runs (S at 600), each in its own gpsim run: the first ends with its foot-flat at 588 pending, the
+    second (walking on from its START) with one too. Each STOP's call carries its run's end (600, 900) and its
+    record is the model's (kernel.flush); the first has a window (e - s = 45 samples): the whole step record,
+    after the sampling stopped."""
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = simulated_walk[0][:900]
+    flags = np.zeros(len(codes), np.int64)
+    flags[[0, 600]] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["device"])
+    assert r.identical, r.format_table()
+    trace = detector_trace(codes, CALS["device"], run_starts=[0, 600])
+    assert trace.calls[:2, 0].tolist() == [569, 600] and trace.calls[1, 1:3].tolist() == [588, 543]
+    assert trace.calls[-1, 0] == 900 and r.stages[7].n_identical == r.stages[7].n_compared == 12
+    assert r.stop_cycles == (pytest.approx(631_072, rel=0.01), pytest.approx(487_159, rel=0.01))     # measured
+
+
 #: The STOP path broken two ways in steps.asm / logger.asm: (file, marker, replacement).
 STOP_MUTANTS = {
     # no kernel.flush at STOP: the run's last call and record are missing on the PIC's side
