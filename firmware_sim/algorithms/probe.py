@@ -284,7 +284,8 @@ class DetectorTrace:
         ``(n, len(DETECTOR_FIELDS) + median_steps)`` int64: the detector's slots after each sample, then the
         durations ring.
     calls
-        ``(k, len(CALL_FIELDS))`` int64: each call of ``_finalise`` while the samples were fed (not the STOP's).
+        ``(k, len(CALL_FIELDS))`` int64: each call of ``_finalise``, while the samples were fed and at each run's
+        STOP (``flush``; its sample is the run's end: its last sample's index + 1).
     """
 
     y3: np.ndarray
@@ -333,6 +334,8 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
     starts = set(run_starts) | {0}
     for i in range(n):
         if i in starts:
+            if i:
+                _stop(algo, i, r3, calls, records)
             algo.reset()
             algo._st_i[N] = start_n
         prev = algo._st_i.copy()
@@ -352,8 +355,21 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
                 raise AssertionError(f"sample {i}: the kernel's record ends at {end}, its pending foot-flat was {e}")
             calls.append([i, e, int(prev[LAST]), int((st_i[N] - 1 - r3) & INDEX_MASK),
                           int(prev[FLAGS] & (F_LAST | F_PEND_WEAK) | st_i[FLAGS] & F_OLD)])
+    if n:
+        _stop(algo, n, r3, calls, records)
     return DetectorTrace(y3, ready, state, np.asarray(calls, np.int64).reshape(-1, len(CALL_FIELDS)),
                          np.concatenate(records) if records else np.zeros((0, 20), np.uint8))
+
+
+def _stop(algo, end: int, r3: int, calls: list, records: list) -> None:
+    """STOP after a run whose last sample is ``end - 1``: ``flush``, its call (if it finalised the pending
+    foot-flat) and record appended, as :func:`detector_trace` lists them."""
+    prev = algo._st_i.copy()
+    steps = algo.flush()
+    if len(steps.end):
+        records.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
+        calls.append([end, int(prev[PEND]), int(prev[LAST]), int((prev[N] - 1 - r3) & INDEX_MASK),
+                      int(prev[FLAGS] & (F_LAST | F_PEND_WEAK | F_OLD))])
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -360,6 +360,9 @@ class LoggerRun:
     wall_s: float
     records: np.ndarray = field(default_factory=lambda: np.zeros((0, STEP_RECORD_BYTES), np.uint8))
     backlog_max: int = 0
+    #: per run whose STOP finalised a step: cycles from its last sample's end (``DECF PENDING``) to the STOP
+    #: record's end (``LAST`` written), the scratch ring's partial block included
+    stop_cycles: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -374,6 +377,7 @@ class _RunOut:
     gpsim_s: float
     records: np.ndarray
     backlog_max: int
+    stop_cycles: int = 0          # 0: STOP finalised nothing
 
 
 def _int(b: np.ndarray, signed: bool = True) -> np.ndarray:
@@ -414,6 +418,7 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
     snaps, stages, ready, calls = [], [], [], []
     rec_flags, rec = sym["CALL_FLAGS"], [(sym[k], b) for k, b in _RECORD]
     step_rec, last_h, due, records = sym["REC"], sym["LAST"] + 1, False, []
+    t_end = stop_cycles = 0                      # the last sample's DECF PENDING; STOP's record after it
     status_temp, pclath_seen = sym["STATUS_TEMP"], 0
     for t, a, v in zip(cyc.tolist(), addr.tolist(), val.tolist()):
         if a == status_temp:
@@ -431,24 +436,25 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
             r.ram[a] = v
         if len(r.marks) < len(bounds) and a == bounds[len(r.marks)]:     # the stages' ends, in their order
             r.marks.append((t, r.isr_sum))
-        if a == rec_flags and r.marks:           # (not START's clearing)
+        if a == rec_flags and (r.marks or snaps):    # a sample's call or STOP's (not START's clearing)
             calls.append([len(snaps)] + [sum(r.ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
             due = True
         if a == last_h and due:                  # the step record's end: LAST = e
             records.append([r.ram[step_rec + i] for i in range(STEP_RECORD_BYTES)])
             due = False
+            stop_cycles = t - t_end if len(snaps) == n else 0
         if a == sym["PENDING"] and r.marks:       # the sample's DECF (not the set-up's CLRF)
             snaps.append([r.ram[x] for x in snap_addrs])
             ready.append(len(r.marks) == len(bounds))
             ts = r.marks + [(t, r.isr_sum)]
             times = [((ts[i + 1][0] - ts[i][0]) - (ts[i + 1][1] - ts[i][1])) for i in range(len(ts) - 1)]
             stages.append(times + [0] * (len(STAGES) - len(times)))
-            r.marks = []
+            r.marks, t_end = [], t
     if len(snaps) != n:
         raise PicError(f"gpsim's main loop finished {len(snaps)} samples of {n}")
     return (np.asarray(snaps, np.int64), snap_addrs, np.asarray(ready, bool),
             np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)), np.asarray(stages, np.int64),
-            np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES))
+            np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), stop_cycles)
 
 
 class PicLogger:
@@ -537,7 +543,7 @@ class PicLogger:
         cyc, addr, val = _writes(text, set(logged))
         start = {a: 0 for a in tracked}
         start[sym["THR_L"]] = 2
-        snaps, order, ready, calls, stages, records = _replay_log(cyc, addr, val, n, sym, start)
+        snaps, order, ready, calls, stages, records, stop_cycles = _replay_log(cyc, addr, val, n, sym, start)
         col = {a: i for i, a in enumerate(order)}
         ram = {}
         for k, b in _SNAPSHOT:
@@ -550,7 +556,7 @@ class PicLogger:
         acq = int(np.min(adc[1::2] - adc[0::2])) if adc.size >= 2 else 0
         return _RunOut(_packed(addr, val, n, first_sample), ram, ready, calls, stages, acq,
                        int(cyc.max()) if cyc.size else 0, dt, records,
-                       int(val[addr == sym["PENDING"]].max(initial=0)))
+                       int(val[addr == sym["PENDING"]].max(initial=0)), stop_cycles)
 
     def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *,
                   start_n: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -665,7 +671,8 @@ class PicLogger:
             acquisition_cycles_min=min(p.acquisition_cycles_min for p in parts), period_cycles=period,
             simulated_cycles=sum(p.simulated_cycles for p in parts), gpsim_s=sum(p.gpsim_s for p in parts),
             wall_s=time.perf_counter() - t0, records=np.concatenate([p.records for p in parts]),
-            backlog_max=max(p.backlog_max for p in parts))
+            backlog_max=max(p.backlog_max for p in parts), stop_cycles=tuple(p.stop_cycles for p in parts
+                                                                           if p.stop_cycles))
 
 
 def run_starts(flags: np.ndarray) -> list[int]:
@@ -771,6 +778,8 @@ class PicVerification:
     notes: list[str] = field(default_factory=list)
     #: the most samples taken and not yet processed (PENDING, measured): the page buffer holds 32
     backlog_max: int = 0
+    #: :attr:`LoggerRun.stop_cycles`: STOP's last step record, per run that had one (measured)
+    stop_cycles: tuple[int, ...] = ()
 
     @property
     def identical(self) -> bool:
@@ -796,6 +805,9 @@ class PicVerification:
         lines.append(f"cycles per sample (measured in gpsim; {self.period_cycles:,} available):")
         for k, v in self.cycles.items():
             lines.append(f"  {k:<30} mean {v['mean']:>8,.1f}   p99 {v['p99']:>8,.1f}   worst {v['worst']:>7,}")
+        if self.stop_cycles:
+            lines.append(f"STOP (measured): a pending step finalised at the end of {len(self.stop_cycles)} run(s), "
+                         f"its record done {max(self.stop_cycles):,} cycles after the run's last sample (worst)")
         lines.append(f"backlog (measured): at most {self.backlog_max} samples waiting for the main loop, of the "
                      f"{PAGE_WORDS}-sample page buffer")
         lines.append(f"ADC acquisition: {self.acquisition_cycles_min} cycles from channel select to GO (measured; "
@@ -818,6 +830,7 @@ class PicVerification:
                            "first_difference": s.first_difference} for s in self.stages],
                "cycles_measured": self.cycles, "period_cycles": self.period_cycles,
                "acquisition_cycles_min": self.acquisition_cycles_min, "backlog_max_samples": self.backlog_max,
+               "stop_cycles_measured": list(self.stop_cycles),
                "acquisition_cycles_needed": round(self.acquisition_cycles_needed, 1),
                "ram_bytes_measured": self.memory.ram_bytes, "ram_total_bytes": self.memory.ram_total_bytes,
                "program_words_measured": self.memory.program_words, "kernel_words": self.memory.kernel_words,
@@ -877,8 +890,9 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     restarted at each run's first sample) and *a_v* (``AV`` vs
     :func:`~gaitlog.firmware_sim.algorithms.probe.vertical_acceleration`), then through
     :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace`: *y3* (whether the sample has a filter
-    output, and ``Y3``), *detector* (the bank-1 state after each sample) and *finalise calls* (each call's
-    sample, e, s, m, flags). ``a_v=False`` leaves out a_v and steps 4-5, for a calibration whose ``|g|``
+    output, and ``Y3``), *detector* (the bank-1 state after each sample), *finalise calls* (each call's
+    sample, e, s, m, flags) and *step records* (20 bytes each), STOP's call and record at each run's end
+    included. ``a_v=False`` leaves out a_v and steps 4-5, for a calibration whose ``|g|``
     exceeds the model's 16-bit divisor, where the model raises.
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
@@ -915,12 +929,13 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     cycles.update({name: _stats(run.stage_cycles[:, i]) for i, name in enumerate(STAGES)})
     cycles["total in assembly"] = _stats(total)
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
-    notes = ["the sample pages' I2C write, the UART command handler and STOP's last step record are not yet in "
-             "assembly; the step records' end sample counts from the run's START",
+    notes = ["the sample pages' I2C write and the UART command handler are not yet in assembly (STOP comes after "
+             "the run's last sample); the step records' end sample counts from the run's START",
              f"the model's scratch ring holds {SCRATCH_RING_SAMPLES:,} samples, as the 24xx256 ring the assembly "
              "writes and reads",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),
-                           run.gpsim_s, time.perf_counter() - t0, gpsim_version(), notes, run.backlog_max)
+                           run.gpsim_s, time.perf_counter() - t0, gpsim_version(), notes, run.backlog_max,
+                           run.stop_cycles)
 

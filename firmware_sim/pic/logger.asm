@@ -25,7 +25,9 @@
 ; The calibration and the FIR weights are read from the data EEPROM (EE_CAL, EE_W3 in logger_ram.inc) where
 ; they are used, as the model charges them; the harness assembles the configuration into it (config.inc, DE).
 ; The test build (TEST_BUILD defined) also takes N_SAMPLES: after that many samples the interrupt stops the
-; timer and the main loop ends at harness_done; and START_N: the kernel's N at START (0; otherwise the run
+; timer and sets FWF_STOP (the production build's STOP command, which the UART handler still leaves to the
+; model), and the main loop, once it has caught up, finalises the pending step (step_flush) and ends at
+; harness_done; and START_N: the kernel's N at START (0; otherwise the run
 ; is taken to be START_N samples old, its gravity warm-up over: WARM = G_SHIFT; the index-wrap tests
 ; start near 2^15 and 2^16 instead of simulating 65,536 samples first). Both builds convert the real ADC inputs AN0-AN2 (the harness
 ; drives them with gpsim's analog stimuli) and take the marker button on RB0/INT.
@@ -115,9 +117,10 @@ isr_timer:
         iorwf   LEFT_H, W
         btfss   STATUS, Z
         goto    isr_exit
-        bsf     STATUS, RP0             ; N_SAMPLES taken: no more samples
-        bcf     PIE1, CCP1IE
+        bsf     STATUS, RP0             ; N_SAMPLES taken: no more samples, STOP (the UART handler's STOP
+        bcf     PIE1, CCP1IE            ; command in the production build, still the model's)
         bcf     STATUS, RP0
+        bsf     FW_FLAGS, FWF_STOP
 #endif
 isr_exit:
         movf    FSR_TEMP, W
@@ -263,16 +266,12 @@ start:
 ; The main loop: the on-line algorithm on each sample the interrupt handed over, oldest first, read back
 ; from the page buffer (it may fall up to 32 samples behind).
 main_loop:
-#ifdef TEST_BUILD
-        movf    LEFT_L, W               ; N_SAMPLES taken (no interrupt can come) and every sample
-        iorwf   LEFT_H, W               ; processed: the end (LEFT first: PENDING cannot grow after it)
-        btfss   STATUS, Z
-        goto    main_pending
+        btfss   FW_FLAGS, FWF_STOP      ; STOP (the sampling interrupt is off) and every sample processed:
+        goto    main_pending            ; the run ends (FWF_STOP first: PENDING cannot grow after it)
         movf    PENDING, W
         btfsc   STATUS, Z
-        goto    harness_done
+        goto    main_stop
 main_pending:
-#endif
         movf    PENDING, W
         btfss   STATUS, Z
         goto    main_sample
@@ -286,9 +285,15 @@ main_sample:
         decf    PENDING, F
         goto    main_loop
 
+; STOP (kernel.flush, the model's Device.stop_logging): the pending foot-flat becomes the run's last step record
+main_stop:
+        call    step_flush
+        bcf     FW_FLAGS, FWF_STOP
 #ifdef TEST_BUILD
 harness_done:
         goto    harness_done
+#else
+        goto    main_loop               ; idle until the next START (the UART handler's, still the model's)
 #endif
 
 ; read_word: B3:B0 = the word at ALG_PTR; advance ALG_PTR
@@ -921,6 +926,9 @@ join_begin:
 join_end:
     if join_end > 0x1000
         error "page 1 overflows"
+    endif
+    if (scr_write_w >> .11) != 1
+        error "step_flush reaches scr_write_w with PCLATH bit 3 only: it must be in page 1"
     endif
 
 #ifdef TEST_BUILD

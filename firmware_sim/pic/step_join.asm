@@ -65,9 +65,13 @@ fj_store:
 ; (2 FLUSH bytes, aligned: FLUSH is a power of two and 2 FLUSH divides the EEPROM's page). Then acknowledge
 ; polling: the EEPROM does not answer its control byte until its write cycle is over, so the step record's
 ; reads never meet a write in progress.
+; scr_write_w (from steps.asm's step_flush at STOP): the same for the newest K = W = N mod FLUSH a_v (1 .. FLUSH
+; - 1), the start of the block the next flush would have written: a shorter write within the same page.
 scr_write:
-        movlw   LOW FLUSH               ; ARG1:ARG0 = j = N - FLUSH
-        subwf   N_L, W
+        movlw   LOW FLUSH
+scr_write_w:
+        movwf   COUNT                   ; COUNT = K
+        subwf   N_L, W                  ; ARG1:ARG0 = j = N - K
         movwf   ARG0
         movf    N_H, W
         btfss   STATUS, C
@@ -80,17 +84,18 @@ scr_write:
         andlw   HIGH ((SCR_RING_MASK << 1) | 1)
         addlw   HIGH SCR_BASE
         movwf   TMP1
-        bsf     STATUS, RP0             ; j's place in the line: (LINE_POS - FLUSH) mod LINE_LEN
-        movf    LINE_POS, W
+        movf    COUNT, W                ; j's place in the line: (LINE_POS - K) mod LINE_LEN
+        sublw   LINE_LEN
+        bsf     STATUS, RP0
+        addwf   LINE_POS, W
         bcf     STATUS, RP0
-        addlw   LINE_LEN - FLUSH
-        movwf   COUNT
+        movwf   ARG0
         sublw   LINE_LEN - 1
         movlw   LINE_LEN
         btfss   STATUS, C
-        subwf   COUNT, F
+        subwf   ARG0, F
         bcf     STATUS, C               ; FSR = LINE + 2 (that place), IRP = 0
-        rlf     COUNT, W
+        rlf     ARG0, W
         addlw   LINE
         movwf   FSR
         bcf     STATUS, IRP
@@ -101,8 +106,8 @@ scr_write:
         call    sw_tx
         movf    TMP0, W
         call    sw_tx
-        movlw   2 * FLUSH
-        movwf   COUNT
+        bcf     STATUS, C               ; 2 K bytes
+        rlf     COUNT, F
 sw_byte:
         movf    INDF, W
         call    sw_tx

@@ -1,7 +1,8 @@
 ; Steps 4 and 5 of the on-line algorithm (kernel.py): the a_v delay line and the centred 3 Hz FIR
 ; (stage_fir, kernel._front's step 4 and kernel._fir), the foot-flat detector (stage_detect: kernel._sample's
 ; step 5, _prominence, _confirmed, _median_twice, parameters.minimum_distance, _weak_peak, _stop_candidate),
-; and finalise (the end of kernel._finalise; the step record itself is step_record.asm's).
+; finalise (the end of kernel._finalise; the step record itself is step_record.asm's), and step_flush
+; (kernel.flush: STOP's finalise).
 ;
 ; The code runs in bank 0 and reaches the state in bank 1 through FSR (IRP = 0: FSR spans banks 0 and 1,
 ; and the kernels' common RAM: REM0..REM2 serve as a 24-bit operand). Values are Q2.16 in 24-bit words,
@@ -711,6 +712,41 @@ finalise:
         movlw   HIGH fin_join           ; the step record (page 2): it returns to the caller with bank 0,
         movwf   PCLATH                  ; IRP = 0 and PCLATH = 0
         goto    fin_join
+
+; step_flush (kernel.flush, at STOP): the pending foot-flat becomes final with the samples there are. When
+; there is one (F_PEND) and the run has had a filter output (F_OLD or N > 2 R3), finalise at e = PEND and the
+; newest output m = N - 1 - R3 (16 bits, as stage_detect computes it after the last sample's N += 1), then
+; F_PEND cleared. Called by the main loop once every sample taken is processed: 1 level, finalise's CALL and
+; the step record below it (4 levels with finalise's return): 5 of 8 with the interrupt's 2 (scr_write_w: 2).
+step_flush:
+        JAF_CLR AF_PEND, fl_done
+        JAF_SET AF_OLD, fl_final
+        movf    N_H, W
+        btfss   STATUS, Z
+        goto    fl_final
+        movlw   LINE_LEN                ; young: N > 2 R3 <=> N - (2 R3 + 1) does not borrow
+        subwf   N_L, W
+        btfss   STATUS, C
+        return
+fl_final:
+        movf    N_L, W                  ; the newest N mod FLUSH a_v are not in the scratch ring yet (the
+        andlw   FLUSH - 1               ; model's newest are its delay line's): the step record reads them
+        btfsc   STATUS, Z               ; there, so they go first (scr_write_w in page 1, which returns with
+        goto    fl_m                    ; PCLATH = 0)
+        bsf     PCLATH, 3
+        call    scr_write_w
+fl_m:
+        movlw   LOW (R3 + 1)            ; m = N - 1 - R3 (16 bits)
+        subwf   N_L, W
+        movwf   M_L
+        movf    N_H, W
+        btfss   STATUS, C
+        decf    N_H, W
+        movwf   M_H
+        call    finalise
+        AFCLR   AF_PEND
+fl_done:
+        return
 
 ; reset_steps (START): steps 4-5's state cleared, DIST from the prior typical step
 reset_steps:

@@ -188,7 +188,7 @@ def test_a_broken_assembly_is_named(tmp_path, monkeypatch):
 @needs_gpsim
 def test_ipol_trial_identical(shared_data):
     """An IPOL trial replayed at 50 Hz through the logger (10-bit codes): every stage identical, finalise's
-    calls and the step records too. (Under the current stop rule this trial's calls include no weak step.)"""
+    calls and the step records too, STOP's included. (Under the current stop rule this trial's calls include no weak step.)"""
     from gaitlog.firmware_sim.device import Logger
     from gaitlog.firmware_sim.world.replay import Replay
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
@@ -205,7 +205,10 @@ def test_ipol_trial_identical(shared_data):
     assert len(codes) > 1400 and r.stages[6].n_compared > 25
     assert r.stages[7].name == "step records" and r.stages[7].n_compared == r.stages[6].n_compared
     trace = detector_trace(codes, nominal_calibration_q())
-    assert trace.calls.shape[0] == r.stages[7].n_compared
+    assert trace.calls.shape[0] == r.stages[7].n_compared == 36
+    assert trace.calls[-1, 0] == len(codes)                  # the 36th is STOP's (kernel.flush), compared too
+    assert len(r.stop_cycles) == 1 and r.stop_cycles[0] == pytest.approx(111_722, rel=0.01)      # measured
+    assert "STOP (measured): a pending step finalised at the end of 1 run(s)" in r.format_table()
 
 
 @needs_gpsim
@@ -345,12 +348,12 @@ def test_a_broken_scratch_write_is_caught(simulated_walk, monkeypatch):
     the step records (read back from what the firmware wrote) differ, and verify names the record and field."""
     real = gl.copy_sources
     src = (gl.PIC_DIR / "step_join.asm").read_text()
-    marker = "        movlw   LOW FLUSH               ; ARG1:ARG0 = j = N - FLUSH\n"
+    marker = "; j's place in the line: (LINE_POS - K) mod LINE_LEN\n        sublw   LINE_LEN\n"
     assert src.count(marker) == 1
 
-    def broken(build_dir, main_asm):
+    def broken(build_dir, main_asm):          # the data one place earlier in the line: a_v[j - 1] at j
         real(build_dir, main_asm)
-        (build_dir / "step_join.asm").write_text(src.replace(marker, "        movlw   LOW FLUSH - 1\n"))
+        (build_dir / "step_join.asm").write_text(src.replace(marker, marker.replace("LINE_LEN\n", "LINE_LEN - 1\n")))
 
     monkeypatch.setattr(gl, "copy_sources", broken)
     codes = simulated_walk[0][:900]
@@ -362,6 +365,72 @@ def test_a_broken_scratch_write_is_caught(simulated_walk, monkeypatch):
     d = by["step records"].first_difference
     assert not r.identical and d is not None and d["record"] == 0, r.format_table()
     assert f"first difference: record 0 (end sample {d['sample']}), {d['field']}" in r.format_table()
+
+
+@needs_gpsim
+def test_stop_between_two_runs(simulated_walk):
+    """Two runs (S at 600), each in its own gpsim run: the first ends with its foot-flat at 588 pending, the
+    second (walking on from its START) with one too. Each STOP's call carries its run's end (600, 900) and its
+    record is the model's (kernel.flush); the first has a window (e - s = 45 samples): the whole step record,
+    after the sampling stopped."""
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = simulated_walk[0][:900]
+    flags = np.zeros(len(codes), np.int64)
+    flags[[0, 600]] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["device"])
+    assert r.identical, r.format_table()
+    trace = detector_trace(codes, CALS["device"], run_starts=[0, 600])
+    assert trace.calls[:2, 0].tolist() == [569, 600] and trace.calls[1, 1:3].tolist() == [588, 543]
+    assert trace.calls[-1, 0] == 900 and r.stages[7].n_identical == r.stages[7].n_compared == 12
+    assert r.stop_cycles == (pytest.approx(631_072, rel=0.01), pytest.approx(487_159, rel=0.01))     # measured
+
+
+#: The STOP path broken two ways in steps.asm / logger.asm: (file, marker, replacement).
+STOP_MUTANTS = {
+    # no kernel.flush at STOP: the run's last call and record are missing on the PIC's side
+    "no flush": ("logger.asm", "        call    step_flush\n", "        nop\n"),
+    # STOP finalises without first writing the delay line's newest N mod FLUSH a_v to the scratch ring
+    "no partial block": ("steps.asm", "        bsf     PCLATH, 3\n        call    scr_write_w\n", ""),
+}
+
+
+@needs_gpsim
+@pytest.mark.parametrize("mutant", STOP_MUTANTS)
+def test_a_broken_stop_is_named(simulated_walk, monkeypatch, mutant):
+    """STOP (kernel.flush) finalises the pending foot-flat: 600 samples of the walk end 12 samples after one
+    (e = 588, its record reads a_v up to the run's last sample, after the last flush at 592). Without the
+    flush, the last call and record are missing and verify names them; without the partial block, the call is
+    identical and the record, read from a ring that lacks samples 592-599, differs in a named field."""
+    real = gl.copy_sources
+    name, marker, repl = STOP_MUTANTS[mutant]
+    src = (gl.PIC_DIR / name).read_text()
+    assert src.count(marker) == 1
+
+    def broken(build_dir, main_asm):
+        real(build_dir, main_asm)
+        (build_dir / name).write_text(src.replace(marker, repl))
+
+    monkeypatch.setattr(gl, "copy_sources", broken)
+    codes = simulated_walk[0][:600]
+    flags = np.zeros(len(codes), np.int64)
+    flags[0] = FLAG_SESSION_START
+    r = gl.verify(codes, flags, CALS["device"])
+    by = {s.name: s for s in r.stages}
+    table = r.format_table()
+    assert all(by[k].identical for k in ("packed words", "calibrated axes", "gravity", "a_v", "y3", "detector")), table
+    calls, records = by["finalise calls"], by["step records"]
+    assert calls.n_compared == records.n_compared == 2 and records.n_identical == 1, table
+    d = records.first_difference
+    if mutant == "no flush":
+        assert calls.n_identical == 1 and calls.first_difference["field"] == "call", table
+        assert (d["record"], d["sample"], d["gpsim"], d["model"]) == (1, 588, "none", "a record"), table
+        assert "first difference: record 1 (end sample 588), record: gpsim none, model a record" in table
+        assert r.stop_cycles == ()
+    else:
+        assert calls.identical and (d["record"], d["sample"]) == (1, 588), table
+        assert f"first difference: record 1 (end sample 588), {d['field']}: gpsim {d['gpsim']}" in table
+        assert len(r.stop_cycles) == 1 and r.stop_cycles[0] > 50_000            # the step record itself
 
 
 def test_page_2_renames_every_kernel_label():
@@ -397,3 +466,11 @@ def test_stack_stays_within_eight_levels(tmp_path):
     assert (isr, step_record, levels("scr_write", 0x800)) == (2, 4, 2)
     assert 1 + levels("stage_calibrate", 0) + isr <= 8
     assert 2 + step_record + isr == 8
+    # STOP: the main loop calls step_flush, which calls scr_write_w (page 1) and finalise (whose jump to the step
+    # record leaves page 0). Both stubbed with a RETURN, step_flush's own paths take 2 levels; each callee then
+    # stands for its real depth (its return included): the step record's 4, scr_write_w's 2.
+    stubbed = {a: w for a, w in mem.items() if a < 0x800}
+    stubbed[sym["finalise"]] = stubbed[sym["scr_write_w"] & 0x7FF] = 0x0008
+    flush = gs.stack_levels(stubbed, sym["step_flush"])
+    assert (flush, levels("scr_write_w", 0x800)) == (2, 2)
+    assert (flush - 1) + max(step_record, 2) + isr == 7
