@@ -310,6 +310,21 @@ class Decomposition:
     max_reproduction_error: float
     reference_count: dict[str, tuple[float, float, float]]
 
+    def count_share(self, a: str, b: str, estimator: str = "M4") -> tuple[float, float]:
+        """How much of the ratio difference between mixes ``a`` and ``b`` (labels) the step count explains: over the
+        scored trials, the correlation of ``estimator``'s ratio ``a - b`` with the difference of their step-count
+        errors against the first trial's (``error_vs_first``, what moves a ratio once K is fixed), and the
+        least-squares slope (ratio per step)."""
+        def by(label: str, key: str) -> dict[tuple[int, int], float]:
+            return {(r["subject"], r["trial"]): float(r[key]) for r in self.rows[label] if r["estimator"] == estimator}
+        ra, rb, ea, eb = by(a, "ratio"), by(b, "ratio"), by(a, "error_vs_first"), by(b, "error_vs_first")
+        keys = sorted(k for k in ra if k in rb)
+        x = np.array([ea[k] - eb[k] for k in keys])
+        y = np.array([ra[k] - rb[k] for k in keys])
+        if x.size < 3 or np.ptp(x) == 0:
+            return math.nan, math.nan
+        return float(np.corrcoef(x, y)[0, 1]), float(np.polyfit(x, y, 1)[0])
+
     def format(self) -> str:
         """The table as text: per mix, each estimator's median, IQR [interval] and gain over the chain [interval]."""
         lines = ["M2 and M4, one ingredient swapped at a time (K from each subject's first trial, its other trials "
@@ -325,6 +340,10 @@ class Decomposition:
         (m, _, _), (q, ql, qh) = self.reference_count["median"], self.reference_count["iqr"]
         lines.append(f"  the foot sensors' heel strikes counted (every step the same length): {m:.3f} IQR {q:.3f} "
                      f"[{ql:.3f}, {qh:.3f}]")
+        swapped = Mix.side("chain").swapped("boundaries").label()
+        corr, slope = self.count_share(Mix.side("chain").label(), swapped)
+        lines.append(f"chain - ({swapped}), M4 ratio per trial against the difference of their step-count errors "
+                     f"(each against its first trial's): correlation {corr:.3f}, {100 * slope:.1f} % per step")
         lines.append(f"the chain and the recipe reproduce evaluate ipol's main and baseline rows within "
                      f"{self.max_reproduction_error:.1e}")
         return "\n".join(lines)
