@@ -275,8 +275,9 @@ def mix_rows(subjects: list[list[TrialParts]], mix: Mix, estimators: tuple[str, 
 @dataclass(frozen=True)
 class MixFigures:
     """One mix's figures per estimator: ``median`` and ``iqr`` (value, low, high), ``gain`` over the chain
-    (IQR chain - IQR mix; value, low, high); per scored trial, the mean |detected - reference steps|
-    (``step_error``) and the mean |that error minus the first trial's| (``step_error_vs_first``)."""
+    (IQR chain - IQR mix; value, low, high); per scored trial, the mean ``|detected - reference steps|``
+    (``step_error``) and the mean of the absolute difference between that error and the first trial's
+    (``step_error_vs_first``)."""
 
     mix: Mix
     median: dict[str, tuple[float, float, float]]
