@@ -69,6 +69,10 @@ class RecipeBaseline:
 
     Attributes
     ----------
+    vertical_m_s2_, lowpassed_m_s2_
+        ``(n,)`` the vertical acceleration of step 2 and its low-pass of step 3, m/s^2.
+    peak_
+        The peaks of step 3 (sample indices).
     step_end_
         ``(k,)`` sample index of each step's end (the peak that closes it).
     length_m_
@@ -80,19 +84,44 @@ class RecipeBaseline:
 
     def estimate(self, acc_g: np.ndarray, valid: np.ndarray, *, sampling_rate_hz: float) -> Self:
         """Steps 1-5 on ``acc_g`` (``(n, 3)`` g) with ``valid`` (``(n,)``) at ``sampling_rate_hz``."""
-        idx = np.arange(acc_g.shape[0])
-        ok = np.asarray(valid, bool) & np.all(np.isfinite(acc_g), axis=1)
-        acc = np.column_stack([np.interp(idx, idx[ok], acc_g[ok, k]) for k in range(3)])        # 1
-        g = acc[: max(int(STANDING_S * sampling_rate_hz), 2)].mean(axis=0)                      # 2
-        vertical = (acc @ (g / np.linalg.norm(g)) - np.linalg.norm(g)) * STANDARD_GRAVITY_M_S2
-        low = filtfilt(*butter(4, LOWPASS_HZ, fs=sampling_rate_hz), vertical)                   # 3
-        peaks, _ = find_peaks(low, distance=max(int(MIN_STEP_S * sampling_rate_hz), 1),
-                              prominence=PEAK_PROMINENCE_M_S2)
-        dt = 1.0 / sampling_rate_hz
-        h = np.array([_joint_correction_excursion_m(vertical[a:b + 1], dt) for a, b in zip(peaks[:-1], peaks[1:])])
-        l_m = self.leg_length_m                                                                  # 4
-        m2 = np.where(h < 2 * l_m, 2 * np.sqrt(np.clip(2 * l_m * h - h ** 2, 0, None)), np.nan)
-        m4 = np.array([np.ptp(low[a:b + 1]) for a, b in zip(peaks[:-1], peaks[1:])]) ** 0.25    # 5
+        vertical = standing_vertical_m_s2(acc_g, valid, sampling_rate_hz=sampling_rate_hz)      # 1, 2
+        low = zero_phase_lowpass_m_s2(vertical, sampling_rate_hz=sampling_rate_hz)              # 3
+        peaks = step_peaks(low, sampling_rate_hz=sampling_rate_hz)
+        self.vertical_m_s2_, self.lowpassed_m_s2_, self.peak_ = vertical, low, peaks
         self.step_end_ = peaks[1:]
-        self.length_m_ = {"M2": m2, "M4": m4}
+        self.length_m_ = {"M2": joint_correction_lengths_m(vertical, peaks[:-1], peaks[1:], sampling_rate_hz=
+                                                           sampling_rate_hz, leg_length_m=self.leg_length_m),  # 4
+                          "M4": np.array([np.ptp(low[a:b + 1]) for a, b in zip(peaks[:-1], peaks[1:])]) ** 0.25}  # 5
         return self
+
+
+def standing_vertical_m_s2(acc_g: np.ndarray, valid: np.ndarray, *, sampling_rate_hz: float) -> np.ndarray:
+    """Steps 1 and 2: every missing sample of ``acc_g`` (``(n, 3)`` g) interpolated, projected on the direction of
+    the first second's mean and that mean's norm subtracted; m/s^2, up positive."""
+    idx = np.arange(acc_g.shape[0])
+    ok = np.asarray(valid, bool) & np.all(np.isfinite(acc_g), axis=1)
+    acc = np.column_stack([np.interp(idx, idx[ok], acc_g[ok, k]) for k in range(3)])
+    g = acc[: max(int(STANDING_S * sampling_rate_hz), 2)].mean(axis=0)
+    return (acc @ (g / np.linalg.norm(g)) - np.linalg.norm(g)) * STANDARD_GRAVITY_M_S2
+
+
+def zero_phase_lowpass_m_s2(x_m_s2: np.ndarray, *, sampling_rate_hz: float) -> np.ndarray:
+    """Step 3's filter: 4th-order Butterworth at :data:`LOWPASS_HZ`, run forward and back (``x`` finite)."""
+    return filtfilt(*butter(4, LOWPASS_HZ, fs=sampling_rate_hz), x_m_s2)
+
+
+def step_peaks(low_m_s2: np.ndarray, *, sampling_rate_hz: float) -> np.ndarray:
+    """Step 3's peaks of the low-passed vertical acceleration (sample indices): the steps lie between them."""
+    peaks, _ = find_peaks(low_m_s2, distance=max(int(MIN_STEP_S * sampling_rate_hz), 1),
+                          prominence=PEAK_PROMINENCE_M_S2)
+    return peaks
+
+
+def joint_correction_lengths_m(vertical_m_s2: np.ndarray, start: np.ndarray, end: np.ndarray, *,
+                               sampling_rate_hz: float, leg_length_m: float) -> np.ndarray:
+    """Step 4 on the windows ``[start_k, end_k]`` of ``vertical_m_s2`` (finite there): M2's lengths with K = 1
+    (NaN for an excursion over twice the leg)."""
+    dt = 1.0 / sampling_rate_hz
+    h = np.array([_joint_correction_excursion_m(vertical_m_s2[a:b + 1], dt) for a, b in zip(start, end)])
+    l_m = leg_length_m
+    return np.where(h < 2 * l_m, 2 * np.sqrt(np.clip(2 * l_m * h - h ** 2, 0, None)), np.nan)
