@@ -40,6 +40,7 @@ import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import NamedTuple
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +68,7 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
-           "missing_tools"]
+           "missing_tools", "LeanRun", "scratch_ring_byte"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -283,6 +284,52 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli
         if "Hit a Breakpoint" not in proc.stdout and "cycle break" not in proc.stdout:
             raise PicError(f"gpsim stopped before {stop!r}: {proc.stdout.strip()[-300:]}")
         return log.read_text(errors="replace") if log.exists() else ""
+
+
+def scratch_ring_byte(j: int, base: int = 0, ring_samples: int = SCRATCH_RING_SAMPLES) -> int:
+    """The EEPROM byte where the firmware keeps the a_v of sample ``j`` (its 16-bit index): ``base + 2 (j mod
+    ring_samples)``, the ring a power of two that the 16-bit index wraps with (step_record.asm ``scr_open``,
+    step_join.asm ``scr_write``).
+
+    >>> scratch_ring_byte(0xFFFF), scratch_ring_byte(0x10000), scratch_ring_byte(5, 0x2000, 0x2000)
+    (32766, 0, 8202)
+    """
+    return base + 2 * (j & (ring_samples - 1))
+
+
+def _lean_replay(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int],
+                 tracked: set[int]) -> tuple[list, list, dict[int, int]]:
+    """The lean log's calls (sample, then the call record), step records (taken when the step record writes
+    ``LAST``'s high byte after a call) and the RAM at the end."""
+    ram = dict.fromkeys(tracked, 0)
+    rec = [(sym[k], b) for k, b in _RECORD]
+    step_rec, last_h, due = sym["REC"], sym["LAST"] + 1, False
+    pending, done, started, calls, records = 0, 0, False, [], []
+    for a, v in zip(addr.tolist(), val.tolist()):
+        if a == sym["PENDING"]:
+            started |= v == (pending + 1) & 0xFF
+            done += v == (pending - 1) & 0xFF
+            pending = v
+            continue
+        ram[a] = v
+        if a == sym["CALL_FLAGS"] and started:
+            calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+            due = True
+        if a == last_h and due:
+            records.append([ram[step_rec + i] for i in range(STEP_RECORD_BYTES)])
+            due = False
+    if done != n:
+        raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+    return calls, records, ram
+
+
+class LeanRun(NamedTuple):
+    """:meth:`PicLogger.run_calls`: ``finalise``'s calls, the detector's state after the last sample, and the
+    step records (``(k, 20)`` bytes)."""
+
+    calls: np.ndarray
+    state: np.ndarray
+    records: np.ndarray
 
 
 #: The data-EEPROM address of the step configuration (logger_ram.inc STEP_CFG_EE).
@@ -552,17 +599,19 @@ class PicLogger:
                        int(cyc.max()) if cyc.size else 0, dt, records,
                        int(val[addr == sym["PENDING"]].max(initial=0)))
 
-    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *,
-                  start_n: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`) and the
-        detector's state after the last sample (as a row of :attr:`LoggerRun.detector`). Only the call record,
-        the detector's state and ``PENDING`` are logged; a sample ends where ``PENDING`` is decremented.
+    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *, start_n: int = 0, scratch_base: int = 0,
+                  scratch_ring: int = SCRATCH_RING_SAMPLES) -> LeanRun:
+        """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`), the step
+        records (as :attr:`LoggerRun.records`) and the detector's state after the last sample (as a row of
+        :attr:`LoggerRun.detector`). Only the call record, the step record, the detector's state and ``PENDING``
+        are logged; a sample ends where ``PENDING`` is decremented.
 
         ``start_n``: the kernel's ``N`` at START (the test build's ``START_N``: a run that old, its gravity
         warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
         samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
         samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
-        the kernel at the same ``N``."""
+        the kernel at the same ``N``. ``scratch_base``, ``scratch_ring``: the ring's first byte and its samples (``SCR_BASE``,
+        ``SCR_RING_MASK + 1``; the default is the bench's whole 24xx256)."""
         if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
             raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
@@ -571,36 +620,27 @@ class PicLogger:
         with tempfile.TemporaryDirectory(prefix="pic-logger-lean-") as tmp:
             d = Path(tmp)
             (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
-                                                  _config_bytes(_calibration_bytes(calibration), self._weights())))
-            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n), test=True)
+                                                  self._eeprom(_calibration_bytes(calibration))))
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n, SCR_BASE=scratch_base,
+                                      SCR_RING_MASK=scratch_ring - 1), test=True)
             sym = build.symbols
             state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
                                                                              for i in range(self._n_med())]
             rec = [(sym[k], b) for k, b in _RECORD]
             tracked = {a + i for a, b, _ in state for i in range(b)} | {a + i for a, b in rec for i in range(b)}
+            tracked |= {sym["REC"] + i for i in range(STEP_RECORD_BYTES)}
             text = _gpsim(build, sorted(tracked | {sym["PENDING"]}), "e harness_done", self.timeout_s,
                           _stimuli(c, np.zeros(n, np.int64), period))
         _, addr, val = _writes(text, tracked | {sym["PENDING"]})
-        ram = dict.fromkeys(tracked, 0)
-        pending, done, started, calls = 0, 0, False, []
-        for a, v in zip(addr.tolist(), val.tolist()):
-            if a == sym["PENDING"]:
-                started |= v == (pending + 1) & 0xFF
-                done += v == (pending - 1) & 0xFF
-                pending = v
-                continue
-            ram[a] = v
-            if a == sym["CALL_FLAGS"] and started:
-                calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
-        if done != n:
-            raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+        calls, records, ram = _lean_replay(addr, val, n, sym, tracked)
 
         def value(a, b, signed):
             v = sum(ram[a + i] << (8 * i) for i in range(b))
             return v - (1 << (8 * b)) if signed and v >= 1 << (8 * b - 1) else v
 
-        return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
-                np.asarray([value(a, b, sg) for a, b, sg in state], np.int64))
+        return LeanRun(np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
+                       np.asarray([value(a, b, sg) for a, b, sg in state], np.int64),
+                       np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a

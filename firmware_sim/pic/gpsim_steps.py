@@ -35,7 +35,7 @@ from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.probe import FinaliseTrace, finalise_calls
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, missing_tools
 from gaitlog.firmware_sim.pic.step_config import CFG_W3, MAX_R3, MAX_R_EVENTS, s32_le_bytes, config_bytes  # noqa: F401 -- re-exported
-from gaitlog.firmware_sim.pic.gpsim_logger import I2C_SETUP, SCRATCH_RING_SAMPLES, PicError, _symbols, _writes
+from gaitlog.firmware_sim.pic.gpsim_logger import I2C_SETUP, SCRATCH_RING_SAMPLES, PicError, _symbols, _writes, scratch_ring_byte
 from gaitlog.protocol.steps import STEP_RECORD_OFFSETS, STEP_RECORD_SIZE
 
 __all__ = ["STEP_BENCH_ASM", "STEPS_PER_RUN", "TABLE_SAMPLES", "CALL_STAMP_CYCLES", "config_bytes",
@@ -202,8 +202,6 @@ def _segments(trace: FinaliseTrace, ci: dict) -> list[tuple[int, int, int, int]]
     return out
 
 
-#: The ring on the bench's 24xx256 (step_record.asm's defaults): 16,384 samples from byte 0.
-RING_MASK = RING_256K_SAMPLES - 1
 #: gpsim's I2C bus: the logger harness's (the 24xx256 on RC3 SCL, RC4 SDA, 10 kOhm pull-ups).
 _I2C_SETUP = I2C_SETUP
 
@@ -213,7 +211,7 @@ def _eeprom_lines(trace: FinaliseTrace, first: int, last: int) -> list[str]:
     out = []
     for j in range(max(first, 0), min(last + 1, trace.a_v.size)):
         v = int(trace.a_v[j]) & 0xFFFF
-        addr = 2 * (j & RING_MASK)
+        addr = scratch_ring_byte(j)
         out += [f"ee.eeData[0x{addr:X}] = 0x{v & 0xFF:X}", f"ee.eeData[0x{addr + 1:X}] = 0x{v >> 8:X}"]
     return out
 

@@ -1751,14 +1751,15 @@ scr_close:
 ; 0xA0, the whole 32 KiB; the logger's 24LC1025: 1010 B0 A1 A0 R/W with the block select B0 = 1 for the second
 ; 64 KiB block (0xA8 | the chip's A1 A0 << 1), the ring from its byte 0 (16,384 samples, 32 KiB).
 ; The waits are in line: scr_open and scr_next run at most one level below finalise's helpers.
+; (#define, not equ: gpasm's #ifndef does not see a -D symbol, and an equ would then read "0x3FFF equ ...")
 #ifndef SCR_CONTROL
-SCR_CONTROL     equ     0xA0
+#define SCR_CONTROL     0xA0
 #endif
 #ifndef SCR_RING_MASK
-SCR_RING_MASK   equ     0x3FFF
+#define SCR_RING_MASK   0x3FFF
 #endif
 #ifndef SCR_BASE
-SCR_BASE        equ     0x0000
+#define SCR_BASE        0x0000
 #endif
 I2C_WAIT        macro                   ; bank 0: wait for the MSSP's event, clear it
         bcf     STATUS, RP0

@@ -25,6 +25,7 @@ from gaitlog.firmware_sim.budget import adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.protocol.header import CalibrationSlot
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START
+from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 #: Device calibration slots (PROTOCOL.md 2.1), as the firmware receives them: the nominal map, a plausible
 #: device (offsets off 512, scale and cross-axis terms), and one that saturates the offset subtraction, the
@@ -239,36 +240,83 @@ def test_lean_run_gives_the_calls_and_final_state(simulated_walk):
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
 
     codes = simulated_walk[0][:800]
-    calls, state = gl.PicLogger().run_calls(codes, CALS["device"])
-    trace = detector_trace(codes, CALS["device"])
+    calls, state, records = gl.PicLogger().run_calls(codes, CALS["device"])
+    trace = detector_trace(codes, CALS["device"], scratch_ring=gl.SCRATCH_RING_SAMPLES)
     assert calls.shape[0] >= 3 and np.array_equal(calls, trace.calls)
     assert np.array_equal(state, trace.state[-1])
+    assert records.shape == trace.records.shape and np.array_equal(records, trace.records)
+
+
+#: The wrap runs: 1,200 samples before the edge, 2,500 samples of walking.
+WRAP_LEAD, WRAP_SAMPLES = 1200, 2500
+
+
+def _wrap_run(walk, edge, **ring):
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = walk[0][550:550 + WRAP_SAMPLES]              # walking from the first steps on
+    run = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - WRAP_LEAD, **ring)
+    trace = detector_trace(codes, CALS["nominal"], start_n=edge - WRAP_LEAD,
+                           scratch_ring=ring.get("scratch_ring", gl.SCRATCH_RING_SAMPLES))
+    return codes, run, trace
+
+
+def _windows(records: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each record's window as the chip counts it (from N = 0 at START): its first and its end sample."""
+    rec = np.frombuffer(records.tobytes(), STEP_RECORD_DTYPE)
+    end = rec["end_sample"].astype(np.int64)
+    return end - rec["duration_samples"].astype(np.int64), end
 
 
 @needs_gpsim
 @pytest.mark.parametrize("crossing", ["F_OLD", "wrap"])
 def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
     """A run that starts 1,200 samples before 2^15 (F_OLD: N may wrap from then on) or before 2^16 (N and the
-    indices wrap) and walks on for 2,500 samples: every finalise call and the final detector state are the
-    kernel's started at the same N (the test build's START_N), across the crossing."""
+    indices wrap) and walks on for 2,500 samples: every finalise call, every step record byte for byte (one of
+    them with a window across the wrap), and the final detector state are the kernel's started at the same N
+    (the test build's START_N), across the crossing. Every record reads only a_v of its own run: the first ends
+    62 samples after START, and its reads reach back hs_before + r5 = 15."""
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
     from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_HALF, INDEX_MODULUS
 
     edge = INDEX_HALF if crossing == "F_OLD" else INDEX_MODULUS
-    codes = simulated_walk[0][550:3050]                  # walking from the first steps on
-    calls, state = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - 1200)
-    trace = detector_trace(codes, CALS["nominal"], start_n=edge - 1200)
-    after = trace.calls[:, 0] >= 1200
+    _, (calls, state, records), trace = _wrap_run(simulated_walk, edge)
+    after = trace.calls[:, 0] >= WRAP_LEAD
     assert after.sum() > 20 and (~after).sum() > 20
     assert np.all(trace.calls[after, 4] & F_OLD)
+    first, end = _windows(trace.records)
     if crossing == "wrap":
         assert np.any(trace.calls[:, 1] < trace.calls[:, 2])          # e wrapped past 0, its s did not
+        assert np.any((first < edge) & (end >= edge))                 # a window across the wrap
     else:
         assert not np.any(trace.calls[~after, 4] & F_OLD)
     assert calls.shape == trace.calls.shape, (calls.shape, trace.calls.shape)
     bad = np.flatnonzero(np.any(calls != trace.calls, axis=1))
     assert bad.size == 0, (calls[bad[:1]], trace.calls[bad[:1]])
     assert np.array_equal(state, trace.state[-1])
+    assert records.shape == trace.records.shape and records.shape[0] > 40, (records.shape, trace.records.shape)
+    bad = np.flatnonzero(np.any(records != trace.records, axis=1))
+    assert bad.size == 0, (bad[:3], records[bad[:1]], trace.records[bad[:1]])
+    assert first.min() >= edge - WRAP_LEAD + 15                       # no read before START
+
+
+@needs_gpsim
+def test_a_ring_the_sequential_read_does_not_wrap_with_is_caught(simulated_walk):
+    """A deliberately wrong wrap: the ring moved to bytes 0x2000-0x5FFF of the 24xx256 (8,192 samples, a
+    power of two that 2^16 is a multiple of), so the writes and each read's start still follow the 16-bit
+    index, but a sequential read that passes the ring's end runs on into byte 0x6000 instead of wrapping. In
+    the wrap run the ring's end falls at sample 65,536 only: the records before the first window across the
+    wrap are the model's, and a record whose window crosses it is not."""
+    from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
+
+    _, run, trace = _wrap_run(simulated_walk, INDEX_MODULUS, scratch_base=0x2000, scratch_ring=0x2000)
+    assert run.records.shape == trace.records.shape and np.array_equal(run.calls, trace.calls)
+    bad = np.flatnonzero(np.any(run.records != trace.records, axis=1))
+    first, end = _windows(trace.records)
+    # the reads of a record reach a filter radius (r3 = 9) and the heel strike's search beyond its window
+    near = np.flatnonzero((first - 30 < INDEX_MODULUS) & (end + 30 >= INDEX_MODULUS))
+    assert bad.size >= 1 and bad[0] >= 20, bad
+    assert set(bad.tolist()) <= set(near.tolist()), (bad, near)
 
 
 def test_conversions_outside_their_stimulus_are_refused():
