@@ -334,11 +334,13 @@ class LeanRun(NamedTuple):
 
 #: The data-EEPROM address of the step configuration (logger_ram.inc STEP_CFG_EE).
 STEP_CFG_EE = 0x30
-#: gpsim's I2C bus: the scratch ring's EEPROM (e24xx256, control byte 0xA0) on RC3 (SCL) and RC4 (SDA), 10 kOhm
-#: pull-ups, as the step record's bench has it (gpsim_steps).
+#: gpsim's I2C bus: the scratch ring's EEPROM (e24xx256) on RC3 (SCL) and RC4 (SDA), 10 kOhm pull-ups, as the
+#: step record's bench has it (gpsim_steps). Its A2 pin is pulled high, so that it answers the control byte
+#: 0xA8 (1010 A2 A1 A0 R/W), the logger's 24LC1025 second block (1010 B0 A1 A0 R/W, step_record.asm SCR_CONTROL).
 I2C_SETUP = ("module library libgpsim_modules.so", "module load e24xx256 ee", "module load pullup Rscl",
              "module load pullup Rsda", "Rscl.resistance = 10000.", "Rsda.resistance = 10000.", "node scl",
-             "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin")
+             "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin",
+             "module load pullup Ra2", "Ra2.resistance = 10000.", "node a2", "attach a2 ee.A2 Ra2.pin")
 
 #: RAM the harness snapshots after each sample (bank-0 symbols, bytes): stage outputs and state.
 _SNAPSHOT = (("FX_L", 2), ("FY_L", 2), ("FZ_L", 2), *((f"G{s}{a}", 4) for s in "12" for a in "XYZ"), ("AV_L", 2),

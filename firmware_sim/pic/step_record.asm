@@ -1747,13 +1747,14 @@ scr_close:
 ; start-up, RC3 = SCL, RC4 = SDA, pull-ups), a random read to set the EEPROM's address counter, then a
 ; sequential read, each byte acknowledged; scr_close reads one byte more, not acknowledged, and stops.
 ; The ring: SCR_RING_MASK + 1 samples (a power of two: the 16-bit index wraps with it), two bytes each (LE),
-; from byte SCR_BASE of the device SCR_CONTROL answers to. 24xx256 (the bench): control 1010 A2 A1 A0 R/W =
-; 0xA0, the whole 32 KiB; the logger's 24LC1025: 1010 B0 A1 A0 R/W with the block select B0 = 1 for the second
-; 64 KiB block (0xA8 | the chip's A1 A0 << 1), the ring from its byte 0 (16,384 samples, 32 KiB).
+; from byte SCR_BASE of the device SCR_CONTROL answers to: 0xA8, the logger's 24LC1025 (1010 B0 A1 A0 R/W)
+; with the block select B0 = 1 for the second 64 KiB block and A1 = A0 = 0 (its A2 pin tied high), the ring
+; from its byte 0 (16,384 samples, 32 KiB). The bench's 24xx256 (1010 A2 A1 A0 R/W) answers 0xA8 with its A2
+; pin pulled high; the ring is its whole 32 KiB, so a sequential read wraps with the ring.
 ; The waits are in line: scr_open and scr_next run at most one level below finalise's helpers.
 ; (#define, not equ: gpasm's #ifndef does not see a -D symbol, and an equ would then read "0x3FFF equ ...")
 #ifndef SCR_CONTROL
-#define SCR_CONTROL     0xA0
+#define SCR_CONTROL     0xA8
 #endif
 #ifndef SCR_RING_MASK
 #define SCR_RING_MASK   0x3FFF
