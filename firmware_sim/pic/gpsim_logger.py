@@ -40,8 +40,8 @@ import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import NamedTuple
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -612,8 +612,8 @@ class PicLogger:
         warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
         samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
         samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
-        the kernel at the same ``N``. ``scratch_base``, ``scratch_ring``: the ring's first byte and its samples (``SCR_BASE``,
-        ``SCR_RING_MASK + 1``; the default is the bench's whole 24xx256)."""
+        the kernel at the same ``N``. ``scratch_base``, ``scratch_ring``: the ring's first byte and its samples
+        (``SCR_BASE``, ``SCR_RING_MASK + 1``; the default is the bench's whole 24xx256)."""
         if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
             raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles

@@ -258,7 +258,7 @@ def _wrap_run(walk, edge, **ring):
     run = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - WRAP_LEAD, **ring)
     trace = detector_trace(codes, CALS["nominal"], start_n=edge - WRAP_LEAD,
                            scratch_ring=ring.get("scratch_ring", gl.SCRATCH_RING_SAMPLES))
-    return codes, run, trace
+    return run, trace
 
 
 def _windows(records: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +280,7 @@ def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
     from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_HALF, INDEX_MODULUS
 
     edge = INDEX_HALF if crossing == "F_OLD" else INDEX_MODULUS
-    _, (calls, state, records), trace = _wrap_run(simulated_walk, edge)
+    (calls, state, records), trace = _wrap_run(simulated_walk, edge)
     after = trace.calls[:, 0] >= WRAP_LEAD
     assert after.sum() > 20 and (~after).sum() > 20
     assert np.all(trace.calls[after, 4] & F_OLD)
@@ -309,7 +309,7 @@ def test_a_ring_the_sequential_read_does_not_wrap_with_is_caught(simulated_walk)
     wrap are the model's, and a record whose window crosses it is not."""
     from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
 
-    _, run, trace = _wrap_run(simulated_walk, INDEX_MODULUS, scratch_base=0x2000, scratch_ring=0x2000)
+    run, trace = _wrap_run(simulated_walk, INDEX_MODULUS, scratch_base=0x2000, scratch_ring=0x2000)
     assert run.records.shape == trace.records.shape and np.array_equal(run.calls, trace.calls)
     bad = np.flatnonzero(np.any(run.records != trace.records, axis=1))
     first, end = _windows(trace.records)
