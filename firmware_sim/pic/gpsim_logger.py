@@ -68,7 +68,7 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
-           "missing_tools", "LeanRun", "scratch_ring_byte"]
+           "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -85,8 +85,11 @@ ISR_PROBE_SAMPLES = 64
 ISR_TAIL_CYCLES = 4
 #: gpsim's ADCON0, the kernels' W_TEMP (common RAM) and the page buffer's two halves.
 ADCON0_ADDR, W_TEMP_ADDR = 0x1F, 0x7F
-#: Samples in the scratch ring on the I2C EEPROM (step_record.asm SCR_RING_MASK + 1; a 24xx256 in gpsim).
-SCRATCH_RING_SAMPLES = 0x4000
+#: Ring samples that gpsim's 24xx256 (32 KiB, the address's bit 15 ignored) keeps apart: ring samples ``p`` and
+#: ``p + 16,384`` of the assembly's ring (:data:`~gaitlog.firmware_sim.algorithms.kernel.SCRATCH_RING_SAMPLES`,
+#: 32,512) share a byte there, so the bench stands in for the 24LC1025's block while no sample a step reads is
+#: 16,128 or more samples older than the newest written (a step reads a few hundred back).
+BENCH_RING_SAMPLES = 0x4000
 #: PCLATH: the interrupt writes it twice in bank 0 (cleared at entry, restored at exit)
 PCLATH_ADDR = 0x0A
 #: The interrupt as the test build's log shows it: its first bank-0 write (STATUS_TEMP) comes this many cycles
@@ -227,6 +230,8 @@ class _Build:
 
 
 def _assemble(build_dir: Path, defines: dict[str, int], *, test: bool) -> _Build:
+    if test and not 0 < defines.get("N_SAMPLES", 1) < INDEX_MODULUS:
+        raise ValueError(f"the test build stops on the 16-bit sample count: N_SAMPLES must be 1 .. {INDEX_MODULUS - 1}")
     build_dir.mkdir(parents=True, exist_ok=True)
     copy_sources(build_dir, LOGGER_ASM)
     args = ["gpasm", "-p", "p16f877", "-o", "logger.hex"]
@@ -286,15 +291,15 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli
         return log.read_text(errors="replace") if log.exists() else ""
 
 
-def scratch_ring_byte(j: int, base: int = 0, ring_samples: int = SCRATCH_RING_SAMPLES) -> int:
-    """The EEPROM byte where the firmware keeps the a_v of sample ``j`` (its 16-bit index): ``base + 2 (j mod
-    ring_samples)``, the ring a power of two that the 16-bit index wraps with (step_record.asm ``scr_open``,
-    step_join.asm ``scr_write``).
+def scratch_offset(run_start_sample: int, f: int) -> int:
+    """The assembly's ring offset ``SCR_K`` (logger_ram.inc) once the run's sample ``f`` (counted from START) is
+    written: the 16-bit index ``j`` of a sample is at ring sample ``K + j``, plus the ring's length when that
+    is negative (:func:`~gaitlog.firmware_sim.algorithms.kernel.scratch_ring_sample`, the model's placement).
 
-    >>> scratch_ring_byte(0xFFFF), scratch_ring_byte(0x10000), scratch_ring_byte(5, 0x2000, 0x2000)
-    (32766, 0, 8202)
+    >>> scratch_offset(0, 0), scratch_offset(64 * 507, 0), scratch_offset(64 * 507, 64), scratch_offset(0, 65536)
+    (0, 32448, 65472, 512)
     """
-    return base + 2 * (j & (ring_samples - 1))
+    return (kernel.scratch_ring_sample(run_start_sample, f) - int(f)) & 0xFFFF
 
 
 def _lean_replay(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int],
@@ -545,6 +550,7 @@ class PicLogger:
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
                     PAGE_START=_page_fsr(first_sample), G_SHIFT=self.gravity_shift,
+                    SCR_SAMPLES=kernel.SCRATCH_RING_SAMPLES, SCR_K0=scratch_offset(first_sample, 0),
                     G_MIN=self.min_gravity_raw, **steps)
 
     def _eeprom(self, cal_bytes: list[int]) -> list[int]:
@@ -601,8 +607,8 @@ class PicLogger:
                        int(cyc.max()) if cyc.size else 0, dt, records,
                        int(val[addr == sym["PENDING"]].max(initial=0)))
 
-    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *, start_n: int = 0, scratch_base: int = 0,
-                  scratch_ring: int = SCRATCH_RING_SAMPLES) -> LeanRun:
+    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *, start_n: int = 0,
+                  run_start_sample: int = 0) -> LeanRun:
         """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`), the step
         records (as :attr:`LoggerRun.records`) and the detector's state after the last sample (as a row of
         :attr:`LoggerRun.detector`). Only the call record, the step record, the detector's state and ``PENDING``
@@ -612,8 +618,9 @@ class PicLogger:
         warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
         samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
         samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
-        the kernel at the same ``N``. ``scratch_base``, ``scratch_ring``: the ring's first byte and its samples
-        (``SCR_BASE``, ``SCR_RING_MASK + 1``; the default is the bench's whole 24xx256)."""
+        the kernel at the same ``N``. ``run_start_sample``: the run's first sample number, which places the
+        scratch ring's start (``SCR_K0``: the run's sample ``start_n`` at ring sample ``(S + start_n) mod
+        32,512``, ``S`` the first sample of its start page)."""
         if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
             raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
@@ -623,8 +630,8 @@ class PicLogger:
             d = Path(tmp)
             (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
                                                   self._eeprom(_calibration_bytes(calibration))))
-            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n, SCR_BASE=scratch_base,
-                                      SCR_RING_MASK=scratch_ring - 1), test=True)
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n,
+                                      SCR_K0=scratch_offset(run_start_sample, start_n)), test=True)
             sym = build.symbols
             state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
                                                                              for i in range(self._n_med())]
@@ -944,7 +951,7 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     if a_v:
         model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
         stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
-        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts, scratch_ring=SCRATCH_RING_SAMPLES)
+        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts)
         stages.append(_compare("y3", ("ready", "y3"), np.stack([run.ready, np.where(run.ready, run.y3, 0)], axis=1),
                                np.stack([trace.ready, np.where(trace.ready, trace.y3, 0)], axis=1)))
         n_med = trace.state.shape[1] - len(DETECTOR_FIELDS)
@@ -959,8 +966,8 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
     notes = ["the sample pages' I2C write, the UART command handler and STOP's last step record are not yet in "
              "assembly; the step records' end sample counts from the run's START",
-             f"the model's scratch ring holds {SCRATCH_RING_SAMPLES:,} samples, as the 24xx256 ring the assembly "
-             "writes and reads",
+             f"the assembly's scratch ring is the model's ({kernel.SCRATCH_RING_SAMPLES:,} samples from the run's start "
+             "page); gpsim's 24xx256 keeps ring samples 16,384 apart on one byte",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),
