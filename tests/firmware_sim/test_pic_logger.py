@@ -273,9 +273,11 @@ def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
     """A run that starts 1,200 samples before 2^15 (F_OLD: N may wrap from then on) or before 2^16 (N and the
     indices wrap) and walks on for 2,500 samples: every finalise call, every step record byte for byte (one of
     them with a window across the wrap), and the final detector state are the kernel's started at the same N
-    (the test build's START_N), across the crossing. Every record reads only a_v of its own run: the first ends
+    (the test build's START_N), across the crossing; the first run also has a window across the scratch ring's
+    end (the run's sample 32,512 from start page 0). Every record reads only a_v of its own run: the first ends
     62 samples after START, and its reads reach back hs_before + r5 = 15."""
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
+    from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_RING_SAMPLES
     from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_HALF, INDEX_MODULUS
 
     edge = INDEX_HALF if crossing == "F_OLD" else INDEX_MODULUS
@@ -289,6 +291,8 @@ def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
         assert np.any((first < edge) & (end >= edge))                 # a window across the wrap
     else:
         assert not np.any(trace.calls[~after, 4] & F_OLD)
+        ring_end = SCRATCH_RING_SAMPLES                              # start page 0: the run's sample 32,512
+        assert np.any((first < ring_end) & (end > ring_end))          # a window across the scratch ring's end
     assert calls.shape == trace.calls.shape, (calls.shape, trace.calls.shape)
     bad = np.flatnonzero(np.any(calls != trace.calls, axis=1))
     assert bad.size == 0, (calls[bad[:1]], trace.calls[bad[:1]])
