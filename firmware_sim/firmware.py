@@ -50,7 +50,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_FIRST_BYTE, SCRATCH_PAGES, SCRATCH_SAMPLE_BYTES
+from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_FIRST_BYTE, scratch_start_page
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
@@ -268,7 +268,7 @@ class Firmware:
         """The step algorithm's scratch page writes (per page of its ring, from the run's start) on the step
         EEPROM: each run starts the ring at the page its first sample's number points to (2 bytes a sample, modulo
         the ring), so that short runs do not all wear the ring's first pages."""
-        start = SCRATCH_SAMPLE_BYTES * int(self.ring.header.run_start_sample) // PAGE_BYTES % SCRATCH_PAGES
+        start = scratch_start_page(self.ring.header.run_start_sample)
         self.steps.eeprom.count_page_writes(SCRATCH_FIRST_BYTE // PAGE_BYTES, np.roll(writes, start))
 
     def log_steps(self, records: bytes) -> int:

@@ -138,7 +138,8 @@ from gaitlog.protocol.header_slots import SLOT_ADDRESSES
 from gaitlog.protocol.steps import StepFlag
 
 __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_SAMPLE_BYTES",
-           "SCRATCH_FIRST_BYTE", "SCRATCH_RING_BYTES", "SCRATCH_PAGES"]
+           "SCRATCH_FIRST_BYTE", "SCRATCH_RING_BYTES", "SCRATCH_PAGES", "SCRATCH_RING_SAMPLES",
+           "scratch_start_page", "scratch_ring_sample"]
 
 # ---------------------------------------------------------------------------------------------------------
 # configuration layout (filled by gaitlog.firmware_sim.algorithms.online.OnlineConfig)
@@ -179,6 +180,24 @@ SCRATCH_SAMPLE_BYTES = 2
 SCRATCH_FIRST_BYTE = BLOCK_BYTES
 SCRATCH_RING_BYTES = SLOT_ADDRESSES[0] - SCRATCH_FIRST_BYTE
 SCRATCH_PAGES = SCRATCH_RING_BYTES // PAGE_BYTES
+SCRATCH_RING_SAMPLES = SCRATCH_RING_BYTES // SCRATCH_SAMPLE_BYTES
+
+
+def scratch_start_page(run_start_sample: int) -> int:
+    """The scratch ring's page where a run starts: the page its first sample's number points to (2 bytes a
+    sample, modulo the ring's pages), so that short runs do not all wear the ring's first pages."""
+    return SCRATCH_SAMPLE_BYTES * int(run_start_sample) // PAGE_BYTES % SCRATCH_PAGES
+
+
+def scratch_ring_sample(run_start_sample: int, f: int) -> int:
+    """The ring sample (from the ring's first byte, 2 bytes each) that holds the run's sample ``f`` (counted from
+    START): ``(S + f) mod`` :data:`SCRATCH_RING_SAMPLES`, ``S`` the first sample of the run's start page.
+
+    >>> scratch_ring_sample(0, 32511), scratch_ring_sample(0, 32512), scratch_ring_sample(64 * 507, 64)
+    (32511, 0, 0)
+    """
+    first = scratch_start_page(run_start_sample) * PAGE_BYTES // SCRATCH_SAMPLE_BYTES
+    return (first + int(f)) % SCRATCH_RING_SAMPLES
 #: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte.
 I2C_WRITE_OVERHEAD = 3
 I2C_READ_OVERHEAD = 4

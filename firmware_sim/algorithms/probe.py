@@ -304,6 +304,7 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
     at ``run_starts``), its y3, detector state and ``_finalise`` calls after each. ``start_n``: the kernel's
     ``N`` after each START (0; else a run that old, as the PIC test build's ``START_N``). ``scratch_ring``:
     the scratch ring's samples (a power of two; 0: the emulator's), as the PIC's EEPROM ring holds them.
+    The records' end sample counts from ``N`` = 0 at START, as the PIC counts it (``start_n`` included).
 
     Examples
     --------
@@ -348,7 +349,7 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
         state[i, :len(_DETECTOR_SLOTS)] = [st_v[k] if kind == "v" else st_i[k] for kind, k in _DETECTOR_SLOTS]
         state[i, len(_DETECTOR_SLOTS):] = algo._durs
         if len(steps.end):
-            records.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
+            records.append(np.frombuffer(pack_step_records(steps.to_records(start_n)), np.uint8).reshape(-1, 20))
         for end in steps.end.tolist():
             e = int(prev[PEND])
             if ((end + start_n) & INDEX_MASK) != e:          # the driver counts from START

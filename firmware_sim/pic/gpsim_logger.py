@@ -41,6 +41,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -67,7 +68,7 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
-           "missing_tools"]
+           "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -84,8 +85,11 @@ ISR_PROBE_SAMPLES = 64
 ISR_TAIL_CYCLES = 4
 #: gpsim's ADCON0, the kernels' W_TEMP (common RAM) and the page buffer's two halves.
 ADCON0_ADDR, W_TEMP_ADDR = 0x1F, 0x7F
-#: Samples in the scratch ring on the I2C EEPROM (step_record.asm SCR_RING_MASK + 1; a 24xx256 in gpsim).
-SCRATCH_RING_SAMPLES = 0x4000
+#: Ring samples that gpsim's 24xx256 (32 KiB, the address's bit 15 ignored) keeps apart: ring samples ``p`` and
+#: ``p + 16,384`` of the assembly's ring (:data:`~gaitlog.firmware_sim.algorithms.kernel.SCRATCH_RING_SAMPLES`,
+#: 32,512) share a byte there, so the bench stands in for the 24LC1025's block while no sample a step reads is
+#: 16,128 or more samples older than the newest written (a step reads a few hundred back).
+BENCH_RING_SAMPLES = 0x4000
 #: PCLATH: the interrupt writes it twice in bank 0 (cleared at entry, restored at exit)
 PCLATH_ADDR = 0x0A
 #: The interrupt as the test build's log shows it: its first bank-0 write (STATUS_TEMP) comes this many cycles
@@ -226,6 +230,8 @@ class _Build:
 
 
 def _assemble(build_dir: Path, defines: dict[str, int], *, test: bool) -> _Build:
+    if test and not 0 < defines.get("N_SAMPLES", 1) < INDEX_MODULUS:
+        raise ValueError(f"the test build stops on the 16-bit sample count: N_SAMPLES must be 1 .. {INDEX_MODULUS - 1}")
     build_dir.mkdir(parents=True, exist_ok=True)
     copy_sources(build_dir, LOGGER_ASM)
     args = ["gpasm", "-p", "p16f877", "-o", "logger.hex"]
@@ -285,13 +291,61 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli
         return log.read_text(errors="replace") if log.exists() else ""
 
 
+def scratch_offset(run_start_sample: int, f: int) -> int:
+    """The assembly's ring offset ``SCR_K`` (logger_ram.inc) once the run's sample ``f`` (counted from START) is
+    written: the 16-bit index ``j`` of a sample is at ring sample ``K + j``, plus the ring's length when that
+    is negative (:func:`~gaitlog.firmware_sim.algorithms.kernel.scratch_ring_sample`, the model's placement).
+
+    >>> scratch_offset(0, 0), scratch_offset(64 * 507, 0), scratch_offset(64 * 507, 64), scratch_offset(0, 65536)
+    (0, 32448, 65472, 512)
+    """
+    return (kernel.scratch_ring_sample(run_start_sample, f) - int(f)) & 0xFFFF
+
+
+def _lean_replay(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int],
+                 tracked: set[int]) -> tuple[list, list, dict[int, int]]:
+    """The lean log's calls (sample, then the call record), step records (taken when the step record writes
+    ``LAST``'s high byte after a call) and the RAM at the end."""
+    ram = dict.fromkeys(tracked, 0)
+    rec = [(sym[k], b) for k, b in _RECORD]
+    step_rec, last_h, due = sym["REC"], sym["LAST"] + 1, False
+    pending, done, started, calls, records = 0, 0, False, [], []
+    for a, v in zip(addr.tolist(), val.tolist()):
+        if a == sym["PENDING"]:
+            started |= v == (pending + 1) & 0xFF
+            done += v == (pending - 1) & 0xFF
+            pending = v
+            continue
+        ram[a] = v
+        if a == sym["CALL_FLAGS"] and started:
+            calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+            due = True
+        if a == last_h and due:
+            records.append([ram[step_rec + i] for i in range(STEP_RECORD_BYTES)])
+            due = False
+    if done != n:
+        raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+    return calls, records, ram
+
+
+class LeanRun(NamedTuple):
+    """:meth:`PicLogger.run_calls`: ``finalise``'s calls, the detector's state after the last sample, and the
+    step records (``(k, 20)`` bytes)."""
+
+    calls: np.ndarray
+    state: np.ndarray
+    records: np.ndarray
+
+
 #: The data-EEPROM address of the step configuration (logger_ram.inc STEP_CFG_EE).
 STEP_CFG_EE = 0x30
-#: gpsim's I2C bus: the scratch ring's EEPROM (e24xx256, control byte 0xA0) on RC3 (SCL) and RC4 (SDA), 10 kOhm
-#: pull-ups, as the step record's bench has it (gpsim_steps).
+#: gpsim's I2C bus: the scratch ring's EEPROM (e24xx256) on RC3 (SCL) and RC4 (SDA), 10 kOhm pull-ups, as the
+#: step record's bench has it (gpsim_steps). Its A2 pin is pulled high, so that it answers the control byte
+#: 0xA8 (1010 A2 A1 A0 R/W), the logger's 24LC1025 second block (1010 B0 A1 A0 R/W, step_record.asm SCR_CONTROL).
 I2C_SETUP = ("module library libgpsim_modules.so", "module load e24xx256 ee", "module load pullup Rscl",
              "module load pullup Rsda", "Rscl.resistance = 10000.", "Rsda.resistance = 10000.", "node scl",
-             "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin")
+             "node sda", "attach scl portc3 ee.SCL Rscl.pin", "attach sda portc4 ee.SDA Rsda.pin",
+             "module load pullup Ra2", "Ra2.resistance = 10000.", "node a2", "attach a2 ee.A2 Ra2.pin")
 
 #: RAM the harness snapshots after each sample (bank-0 symbols, bytes): stage outputs and state.
 _SNAPSHOT = (("FX_L", 2), ("FY_L", 2), ("FZ_L", 2), *((f"G{s}{a}", 4) for s in "12" for a in "XYZ"), ("AV_L", 2),
@@ -502,6 +556,7 @@ class PicLogger:
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
                     PAGE_START=_page_fsr(first_sample), G_SHIFT=self.gravity_shift,
+                    SCR_SAMPLES=kernel.SCRATCH_RING_SAMPLES, SCR_K0=scratch_offset(first_sample, 0),
                     G_MIN=self.min_gravity_raw, **steps)
 
     def _eeprom(self, cal_bytes: list[int]) -> list[int]:
@@ -558,17 +613,20 @@ class PicLogger:
                        int(cyc.max()) if cyc.size else 0, dt, records,
                        int(val[addr == sym["PENDING"]].max(initial=0)), stop_cycles)
 
-    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *,
-                  start_n: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`) and the
-        detector's state after the last sample (as a row of :attr:`LoggerRun.detector`). Only the call record,
-        the detector's state and ``PENDING`` are logged; a sample ends where ``PENDING`` is decremented.
+    def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *, start_n: int = 0,
+                  run_start_sample: int = 0) -> LeanRun:
+        """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`), the step
+        records (as :attr:`LoggerRun.records`) and the detector's state after the last sample (as a row of
+        :attr:`LoggerRun.detector`). Only the call record, the step record, the detector's state and ``PENDING``
+        are logged; a sample ends where ``PENDING`` is decremented.
 
         ``start_n``: the kernel's ``N`` at START (the test build's ``START_N``: a run that old, its gravity
         warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
         samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
         samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
-        the kernel at the same ``N``."""
+        the kernel at the same ``N``. ``run_start_sample``: the run's first sample number, which places the
+        scratch ring's start (``SCR_K0``: the run's sample ``start_n`` at ring sample ``(S + start_n) mod
+        32,512``, ``S`` the first sample of its start page)."""
         if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
             raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
@@ -577,36 +635,27 @@ class PicLogger:
         with tempfile.TemporaryDirectory(prefix="pic-logger-lean-") as tmp:
             d = Path(tmp)
             (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
-                                                  _config_bytes(_calibration_bytes(calibration), self._weights())))
-            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n), test=True)
+                                                  self._eeprom(_calibration_bytes(calibration))))
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n,
+                                      SCR_K0=scratch_offset(run_start_sample, start_n)), test=True)
             sym = build.symbols
             state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
                                                                              for i in range(self._n_med())]
             rec = [(sym[k], b) for k, b in _RECORD]
             tracked = {a + i for a, b, _ in state for i in range(b)} | {a + i for a, b in rec for i in range(b)}
+            tracked |= {sym["REC"] + i for i in range(STEP_RECORD_BYTES)}
             text = _gpsim(build, sorted(tracked | {sym["PENDING"]}), "e harness_done", self.timeout_s,
                           _stimuli(c, np.zeros(n, np.int64), period))
         _, addr, val = _writes(text, tracked | {sym["PENDING"]})
-        ram = dict.fromkeys(tracked, 0)
-        pending, done, started, calls = 0, 0, False, []
-        for a, v in zip(addr.tolist(), val.tolist()):
-            if a == sym["PENDING"]:
-                started |= v == (pending + 1) & 0xFF
-                done += v == (pending - 1) & 0xFF
-                pending = v
-                continue
-            ram[a] = v
-            if a == sym["CALL_FLAGS"] and started:
-                calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
-        if done != n:
-            raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+        calls, records, ram = _lean_replay(addr, val, n, sym, tracked)
 
         def value(a, b, signed):
             v = sum(ram[a + i] << (8 * i) for i in range(b))
             return v - (1 << (8 * b)) if signed and v >= 1 << (8 * b - 1) else v
 
-        return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
-                np.asarray([value(a, b, sg) for a, b, sg in state], np.int64))
+        return LeanRun(np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
+                       np.asarray([value(a, b, sg) for a, b, sg in state], np.int64),
+                       np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
@@ -916,7 +965,7 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     if a_v:
         model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
         stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
-        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts, scratch_ring=SCRATCH_RING_SAMPLES)
+        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts)
         stages.append(_compare("y3", ("ready", "y3"), np.stack([run.ready, np.where(run.ready, run.y3, 0)], axis=1),
                                np.stack([trace.ready, np.where(trace.ready, trace.y3, 0)], axis=1)))
         n_med = trace.state.shape[1] - len(DETECTOR_FIELDS)
@@ -931,8 +980,8 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     need = (adc_acquisition_s(h.source_impedance_ohm) + 2 * adc_tad_s(h.fosc_hz)) * h.fosc_hz / 4.0
     notes = ["the sample pages' I2C write and the UART command handler are not yet in assembly (STOP comes after "
              "the run's last sample); the step records' end sample counts from the run's START",
-             f"the model's scratch ring holds {SCRATCH_RING_SAMPLES:,} samples, as the 24xx256 ring the assembly "
-             "writes and reads",
+             f"the assembly's scratch ring is the model's ({kernel.SCRATCH_RING_SAMPLES:,} samples from the run's start "
+             "page); gpsim's 24xx256 keeps ring samples 16,384 apart on one byte",
              f"ADC conversion: {ADC_CONVERSION_TAD} TAD as gpsim times it"]
     return PicVerification(source, int(c.shape[0]), h.sampling_rate_hz, stages, cycles, run.acquisition_cycles_min,
                            need, run.period_cycles, memory_map(sampling_rate_hz=h.sampling_rate_hz, fosc_hz=h.fosc_hz),

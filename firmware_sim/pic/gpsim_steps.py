@@ -35,7 +35,7 @@ from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.probe import FinaliseTrace, finalise_calls
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, missing_tools
 from gaitlog.firmware_sim.pic.step_config import CFG_W3, MAX_R3, MAX_R_EVENTS, s32_le_bytes, config_bytes  # noqa: F401 -- re-exported
-from gaitlog.firmware_sim.pic.gpsim_logger import I2C_SETUP, SCRATCH_RING_SAMPLES, PicError, _symbols, _writes
+from gaitlog.firmware_sim.pic.gpsim_logger import BENCH_RING_SAMPLES, I2C_SETUP, PicError, _symbols, _writes, scratch_offset
 from gaitlog.protocol.steps import STEP_RECORD_OFFSETS, STEP_RECORD_SIZE
 
 __all__ = ["STEP_BENCH_ASM", "STEPS_PER_RUN", "TABLE_SAMPLES", "CALL_STAMP_CYCLES", "config_bytes",
@@ -54,8 +54,8 @@ CALL_STAMP_CYCLES = 1
 OUT_BYTES = STEP_RECORD_SIZE + 4
 
 
-#: Samples the scratch ring holds in a 24xx256 (32 KiB, two bytes a sample): the bench's EEPROM.
-RING_256K_SAMPLES = SCRATCH_RING_SAMPLES
+#: Samples a 24xx256 holds (32 KiB, two bytes a sample): the bench's EEPROM.
+RING_256K_SAMPLES = BENCH_RING_SAMPLES
 
 
 def with_scratch_ring(algorithm, samples: int = RING_256K_SAMPLES):
@@ -202,18 +202,24 @@ def _segments(trace: FinaliseTrace, ci: dict) -> list[tuple[int, int, int, int]]
     return out
 
 
-#: The ring on the bench's 24xx256 (step_record.asm's defaults): 16,384 samples from byte 0.
-RING_MASK = RING_256K_SAMPLES - 1
 #: gpsim's I2C bus: the logger harness's (the 24xx256 on RC3 SCL, RC4 SDA, 10 kOhm pull-ups).
 _I2C_SETUP = I2C_SETUP
 
 
+def _run_start(trace: FinaliseTrace) -> int:
+    """The run's first sample number (``m_abs`` of a call less its run index ``m``; the first call comes before
+    the 16-bit index wraps)."""
+    return int(trace.m_abs[0]) - int(trace.m[0]) if len(trace.m) else 0
+
+
 def _eeprom_lines(trace: FinaliseTrace, first: int, last: int) -> list[str]:
-    """gpsim commands that fill the 24xx256 with the segment's a_v at their ring addresses."""
-    out = []
+    """gpsim commands that fill the 24xx256 with the segment's a_v where the logger's scr_write puts them: the
+    run's sample ``f`` at ring sample ``(S + f) mod 32,512`` (``kernel.scratch_ring_sample``), byte twice that,
+    its bit 15 dropped as the 24xx256 drops it."""
+    out, start = [], _run_start(trace)
     for j in range(max(first, 0), min(last + 1, trace.a_v.size)):
         v = int(trace.a_v[j]) & 0xFFFF
-        addr = 2 * (j & RING_MASK)
+        addr = 2 * kernel.scratch_ring_sample(start, j) % (2 * RING_256K_SAMPLES)
         out += [f"ee.eeData[0x{addr:X}] = 0x{v & 0xFF:X}", f"ee.eeData[0x{addr + 1:X}] = 0x{v >> 8:X}"]
     return out
 
@@ -235,9 +241,10 @@ def _write_tables(folder: Path, trace: FinaliseTrace, a: int, b: int, first: int
         f"        de      0x{v:02X}\n" for v in cfg))
 
 
-def _assemble(folder: Path, source: Path, n_steps: int, j0: int, table: bool = False) -> dict[str, int]:
+def _assemble(folder: Path, source: Path, n_steps: int, j0: int, table: bool = False, k0: int = 0) -> dict[str, int]:
     proc = subprocess.run(["gpasm", "-p", "p16f877", "-q", "-w2", "-D", f"N_STEPS=0x{n_steps:X}",
-                           "-D", f"SCR_J0=0x{j0 & 0xFFFF:X}", *(["-D", "TABLE_READER"] if table else []),
+                           "-D", f"SCR_J0=0x{j0 & 0xFFFF:X}", "-D", f"SCR_SAMPLES=0x{kernel.SCRATCH_RING_SAMPLES:X}",
+                           "-D", f"SCR_K0=0x{k0:X}", *(["-D", "TABLE_READER"] if table else []),
                            source.name], capture_output=True, text=True, timeout=120, cwd=folder)
     cod = folder / (source.stem + ".cod")
     if proc.returncode != 0 or not cod.exists():
@@ -307,7 +314,9 @@ def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, cal
             for name, text in (overrides or {}).items():
                 (folder / name).write_text(text)
             _write_tables(folder, trace, a, b, first, cfg)
-            sym = _assemble(folder, src, b - a, first, table=reader == "table")
+            newest = min(last, trace.a_v.size - 1)          # the ring's offset once the segment's last is written
+            sym = _assemble(folder, src, b - a, first, table=reader == "table",
+                            k0=scratch_offset(_run_start(trace), newest))
             levels = max(levels, stack_levels(program_words(folder / (src.stem + ".hex")), sym["finalise"]))
             t0 = time.perf_counter()
             setup = [] if reader == "table" else [*_I2C_SETUP, *_eeprom_lines(trace, first, last)]
@@ -328,7 +337,7 @@ def run_bench(trace: FinaliseTrace, cfg_i: np.ndarray, cfg_v: np.ndarray, *, cal
         sim_cycles += int(cyc.max()) if cyc.size else 0
     k = len(trace.e)
     ram = {"bank 2": sym.get("RAM2_STEP_END", 0x170) - 0x150, "bank 3": sym.get("RAM3_STEP_END", 0x1F0) - 0x1D0,
-           "bank 0 alias": 4}
+           "bank 0 alias": 6}
     return StepBenchRun(np.concatenate(recs).astype(np.uint8) if recs else np.zeros((0, 20), np.uint8),
                         np.concatenate(state) if state else np.zeros((0, 3), np.int64),
                         np.concatenate(cycles) if cycles else np.zeros(0, np.int64),

@@ -16,6 +16,10 @@
 ;   ACQ_LOOPS       acquisition delay: 3 cycles a loop (>= the ADXL202's 32 kOhm source's TACQ)
 ;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START
 ;                   the sample number the run (a START) begins at, and its word's place in the page buffer
+;   SCR_K0          the scratch ring's offset at START (SCR_K, logger_ram.inc): the ring sample of the run's
+;                   first sample (the first of the page the run's first sample number points to, kernel.py
+;                   scratch_ring_sample), minus the kernel's N at START, modulo 2^16
+;   SCR_SAMPLES     the scratch ring's samples (kernel.py SCRATCH_RING_SAMPLES: 32,512)
 ;   G_SHIFT         the gravity means' final shift (kernel CI G_SHIFT: 6 at 50 Hz)
 ;   G_MIN           the smallest |g| that gives an a_v (kernel CV G_MIN, Q2.13: 0.2 g = 1638)
 ;   R3, N_MED, MIN_STEP, MAX_STEP, FRACTION, AMP_SHIFT, PRIOR_TWICE, FLUSH
@@ -24,9 +28,9 @@
 ;                   the kernel's CV slots (prominence floor and cap, Q2.16; fraction, Q1.14; stop, Q2.16)
 ; The calibration and the FIR weights are read from the data EEPROM (EE_CAL, EE_W3 in logger_ram.inc) where
 ; they are used, as the model charges them; the harness assembles the configuration into it (config.inc, DE).
-; The test build (TEST_BUILD defined) also takes N_SAMPLES: after that many samples the interrupt stops the
-; timer and sets FWF_STOP (the production build's STOP command, which the UART handler still leaves to the
-; model), and the main loop, once it has caught up, finalises the pending step (step_flush) and ends at
+; The test build (TEST_BUILD defined) also takes N_SAMPLES (< 65,536): after that many samples the interrupt
+; stops the timer and sets FWF_STOP (the production build's STOP command, which the UART handler still leaves
+; to the model), and the main loop, once it has caught up, finalises the pending step (step_flush) and ends at
 ; harness_done; and START_N: the kernel's N at START (0; otherwise the run
 ; is taken to be START_N samples old, its gravity warm-up over: WARM = G_SHIFT; the index-wrap tests
 ; start near 2^15 and 2^16 instead of simulating 65,536 samples first). Both builds convert the real ADC inputs AN0-AN2 (the harness
@@ -109,12 +113,12 @@ isr_timer:
         btfsc   STATUS, C
         bsf     FW_FLAGS, FWF_OVERRUN   ; PENDING > 32: the main loop lost a sample
 #ifdef TEST_BUILD
-        movlw   1
-        subwf   LEFT_L, F
-        btfss   STATUS, C
-        decf    LEFT_H, F
-        movf    LEFT_L, W
-        iorwf   LEFT_H, W
+        movf    SAMPLE_L, W             ; N_SAMPLES taken (SAMPLE at FIRST_SAMPLE + N_SAMPLES): no more samples
+        xorlw   LOW (FIRST_SAMPLE_L + (FIRST_SAMPLE_H << 8) + N_SAMPLES)
+        btfss   STATUS, Z
+        goto    isr_exit
+        movf    SAMPLE_H, W
+        xorlw   HIGH (FIRST_SAMPLE_L + (FIRST_SAMPLE_H << 8) + N_SAMPLES)
         btfss   STATUS, Z
         goto    isr_exit
         bsf     STATUS, RP0             ; N_SAMPLES taken: no more samples, STOP (the UART handler's STOP
@@ -228,11 +232,11 @@ start:
         movlw   G_SHIFT
         movwf   WARM
 #endif
-        movlw   LOW N_SAMPLES
-        movwf   LEFT_L
-        movlw   HIGH N_SAMPLES
-        movwf   LEFT_H
 #endif
+        movlw   LOW SCR_K0              ; the scratch ring's offset at START (logger_ram.inc SCR_K)
+        movwf   SCR_K_L
+        movlw   HIGH SCR_K0
+        movwf   SCR_K_H
         bsf     STATUS, RP0             ; bank 1
         movlw   ADC_SETUP
         movwf   ADCON1

@@ -3,6 +3,7 @@
 ;   N_STEPS         steps in the step table
 ;   SCR_J0          the sample index of the scratch table's first sample
 ;   TABLE_READER    (optional) the scratch ring's test-build reader: a table in program memory, not the I2C bus
+;   SCR_SAMPLES, SCR_K0 (without TABLE_READER) the scratch ring's samples and its offset K (logger.asm)
 ; and the includes: steps.inc (STEP_TABLE: per step 12 words, the low byte of each: e, m, LAST, the
 ; algorithm's FLAGS, the sticky saturation flag, the absolute sample number of m (4 bytes, LE)),
 ; scratch.inc (SCR_TABLE: a_v, two words a sample; TABLE_READER only) and config.inc (the data EEPROM: the
@@ -73,6 +74,11 @@ start:
         banksel SSPCON
         movlw   0x28
         movwf   SSPCON
+        banksel SCR_K_L                 ; the scratch ring's offset (logger_ram.inc SCR_K): the segment's
+        movlw   LOW SCR_K0              ; samples are where the logger's scr_write put them
+        movwf   SCR_K_L
+        movlw   HIGH SCR_K0
+        movwf   SCR_K_H
 #endif
         banksel LEFT_L
         movlw   LOW N_STEPS

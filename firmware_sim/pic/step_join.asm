@@ -60,31 +60,50 @@ fj_store:
         goto    finalise_p2
 
 ; scr_write (from steps.asm's scratch_flush, bank 0, after step 4's N += 1 with N a multiple of FLUSH): the
-; delay line's newest FLUSH a_v, samples j = N - FLUSH .. N - 1, to the scratch ring at byte
-; SCR_BASE + 2 (j & SCR_RING_MASK), where finalise's reader (scr_open) looks for them: one page write
-; (2 FLUSH bytes, aligned: FLUSH is a power of two and 2 FLUSH divides the EEPROM's page). Then acknowledge
-; polling: the EEPROM does not answer its control byte until its write cycle is over, so the step record's
-; reads never meet a write in progress.
-; scr_write_w (from steps.asm's step_flush at STOP): the same for the newest K = W = N mod FLUSH a_v (1 .. FLUSH
-; - 1), the start of the block the next flush would have written: a shorter write within the same page.
+; delay line's newest FLUSH a_v, samples j = N - FLUSH .. N - 1, to the scratch ring at ring sample
+; K + j (SCR_K, 16 bits; the run's sample f at (S + f) mod SCR_SAMPLES, S from the run's start page), byte
+; 2 (K + j) of the ring's block, where finalise's reader (scr_open) looks for them: one page write (2 FLUSH
+; bytes, aligned: FLUSH is a power of two that divides the ring's start, its length and half the EEPROM's
+; page). A write that would start at the ring's end (ring sample SCR_SAMPLES) starts at 0 instead, and K goes
+; down by SCR_SAMPLES: the cursor wraps with the ring, not with the 16-bit index. Then acknowledge polling:
+; the EEPROM does not answer its control byte until its write cycle is over, so the step record's reads never
+; meet a write in progress.
+; scr_write_w (from steps.asm's step_flush at STOP): the same for the newest COUNT = W = N mod FLUSH a_v
+; (1 .. FLUSH - 1), the start of the block the next flush would have written: a shorter write within the
+; same page.
 scr_write:
         movlw   LOW FLUSH
 scr_write_w:
-        movwf   COUNT                   ; COUNT = K
-        subwf   N_L, W                  ; ARG1:ARG0 = j = N - K
+        movwf   COUNT                   ; COUNT = the a_v to write
+        subwf   N_L, W                  ; ARG1:ARG0 = j = N - COUNT
         movwf   ARG0
         movf    N_H, W
         btfss   STATUS, C
         decf    N_H, W
         movwf   ARG1
-        bcf     STATUS, C               ; TMP1:TMP0 = SCR_BASE + 2 (j & SCR_RING_MASK)
+        movf    SCR_K_L, W              ; ARG1:ARG0 = K + j, the ring sample
+        addwf   ARG0, F
+        movf    SCR_K_H, W
+        btfsc   STATUS, C
+        addlw   1
+        addwf   ARG1, F
+        movf    ARG0, F                 ; the ring's end (SCR_SAMPLES, a multiple of 256): on from ring sample 0
+        btfss   STATUS, Z
+        goto    sw_place
+        movf    ARG1, W
+        xorlw   HIGH SCR_SAMPLES
+        btfss   STATUS, Z
+        goto    sw_place
+        clrf    ARG1
+        movlw   HIGH SCR_SAMPLES
+        subwf   SCR_K_H, F              ; K -= SCR_SAMPLES
+sw_place:
+        bcf     STATUS, C               ; TMP1:TMP0 = 2 (K + j), the byte in the ring's block
         rlf     ARG0, W
         movwf   TMP0
         rlf     ARG1, W
-        andlw   HIGH ((SCR_RING_MASK << 1) | 1)
-        addlw   HIGH SCR_BASE
         movwf   TMP1
-        movf    COUNT, W                ; j's place in the line: (LINE_POS - K) mod LINE_LEN
+        movf    COUNT, W                ; j's place in the line: (LINE_POS - COUNT) mod LINE_LEN
         sublw   LINE_LEN
         bsf     STATUS, RP0
         addwf   LINE_POS, W
@@ -106,7 +125,7 @@ scr_write_w:
         call    sw_tx
         movf    TMP0, W
         call    sw_tx
-        bcf     STATUS, C               ; 2 K bytes
+        bcf     STATUS, C               ; 2 COUNT bytes
         rlf     COUNT, F
 sw_byte:
         movf    INDF, W

@@ -1746,20 +1746,22 @@ scr_close:
 ; The scratch ring on the I2C bus: the MSSP in I2C master mode (SSPCON = 0x28, SSPADD set by the firmware's
 ; start-up, RC3 = SCL, RC4 = SDA, pull-ups), a random read to set the EEPROM's address counter, then a
 ; sequential read, each byte acknowledged; scr_close reads one byte more, not acknowledged, and stops.
-; The ring: SCR_RING_MASK + 1 samples (a power of two: the 16-bit index wraps with it), two bytes each (LE),
-; from byte SCR_BASE of the device SCR_CONTROL answers to. 24xx256 (the bench): control 1010 A2 A1 A0 R/W =
-; 0xA0, the whole 32 KiB; the logger's 24LC1025: 1010 B0 A1 A0 R/W with the block select B0 = 1 for the second
-; 64 KiB block (0xA8 | the chip's A1 A0 << 1), the ring from its byte 0 (16,384 samples, 32 KiB).
+; The ring: SCR_SAMPLES samples (kernel.py SCRATCH_RING_SAMPLES, a multiple of 256 up to 32,768), two bytes
+; each (LE), from byte 0 of the device SCR_CONTROL answers to: 0xA8, the logger's 24LC1025 (1010 B0 A1 A0 R/W)
+; with the block select B0 = 1 for the second 64 KiB block and A1 = A0 = 0 (its A2 pin tied high), up to
+; the header slots. Sample index j is at ring sample K + j (SCR_K, 16 bits, scr_write), plus SCR_SAMPLES when
+; that is negative (a sample written before the ring's last wrap, which took SCR_SAMPLES off K). The
+; EEPROM's address counter does not wrap with the ring (the 24LC1025's runs on from the ring's end into the
+; header slots): a read that reaches the ring's end is stopped and opened again at ring sample 0.
+; The bench's 24xx256 (1010 A2 A1 A0 R/W) answers 0xA8 with its A2 pin pulled high and ignores the address's
+; bit 15: ring samples p and p + 16,384 share a byte there.
 ; The waits are in line: scr_open and scr_next run at most one level below finalise's helpers.
 #ifndef SCR_CONTROL
-SCR_CONTROL     equ     0xA0
+#define SCR_CONTROL     0xA8
 #endif
-#ifndef SCR_RING_MASK
-SCR_RING_MASK   equ     0x3FFF
-#endif
-#ifndef SCR_BASE
-SCR_BASE        equ     0x0000
-#endif
+    if LOW (SCR_SAMPLES) != 0 || SCR_SAMPLES > 0x8000
+        error "the scratch ring's samples must be a multiple of 256 up to 32,768"
+    endif
 I2C_WAIT        macro                   ; bank 0: wait for the MSSP's event, clear it
         bcf     STATUS, RP0
         bcf     STATUS, RP1
@@ -1793,19 +1795,28 @@ i2c_tx:
         I2C_WAIT
         return
 scr_open:
-        bcf     STATUS, C               ; TMP1:TMP0 = SCR_BASE + 2 (j & SCR_RING_MASK)
-        rlf     ARG0, W
-        movwf   TMP0
-        rlf     ARG1, W
-        andlw   HIGH ((SCR_RING_MASK << 1) | 1)
-        addlw   HIGH SCR_BASE
-        movwf   TMP1
+        bcf     STATUS, RP1             ; bank 0: SCR_POS = K + j, plus SCR_SAMPLES when negative
+        bcf     STATUS, RP0
+        movf    SCR_K_L, W
+        addwf   ARG0, W
+        movwf   SCR_POS
+        movf    SCR_K_H, W
+        btfsc   STATUS, C
+        addlw   1
+        addwf   ARG1, W
+        movwf   SCR_POS+1
+        movlw   HIGH (SCR_SAMPLES)
+        btfsc   SCR_POS+1, 7
+        addwf   SCR_POS+1, F
+scr_at:                                 ; a random read from ring sample SCR_POS (byte 2 SCR_POS)
         I2C_CMD SEN
         movlw   SCR_CONTROL
         call    i2c_tx
-        movf    TMP1, W
+        rlf     SCR_POS, W              ; C = bit 7 of the low byte
+        rlf     SCR_POS+1, W
         call    i2c_tx
-        movf    TMP0, W
+        bcf     STATUS, C
+        rlf     SCR_POS, W
         call    i2c_tx
         I2C_CMD RSEN
         movlw   SCR_CONTROL | 1
@@ -1820,11 +1831,24 @@ scr_next:
         I2C_CMD RCEN
         movf    SSPBUF, W
         movwf   TMP1
+        incf    SCR_POS, F              ; bank 0: the next sample's ring sample
+        btfss   STATUS, Z
+        goto    sn_ack
+        incf    SCR_POS+1, F
+        movf    SCR_POS+1, W
+        xorlw   HIGH (SCR_SAMPLES)
+        btfss   STATUS, Z
+        goto    sn_ack
+        clrf    SCR_POS+1               ; the ring's end: the byte not acknowledged, stop, read on from ring sample 0
+        call    scr_stop
+        goto    scr_at
+sn_ack:
         I2C_ACK 0
         bsf     STATUS, RP1             ; bank 2
         return
 scr_close:
         I2C_CMD RCEN
+scr_stop:
         I2C_ACK 1
         I2C_CMD PEN
         bsf     STATUS, RP1

@@ -25,6 +25,7 @@ from gaitlog.firmware_sim.budget import adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.protocol.header import CalibrationSlot
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START
+from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 #: Device calibration slots (PROTOCOL.md 2.1), as the firmware receives them: the nominal map, a plausible
 #: device (offsets off 512, scale and cross-axis terms), and one that saturates the offset subtraction, the
@@ -242,36 +243,135 @@ def test_lean_run_gives_the_calls_and_final_state(simulated_walk):
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
 
     codes = simulated_walk[0][:800]
-    calls, state = gl.PicLogger().run_calls(codes, CALS["device"])
+    calls, state, records = gl.PicLogger().run_calls(codes, CALS["device"])
     trace = detector_trace(codes, CALS["device"])
     assert calls.shape[0] >= 3 and np.array_equal(calls, trace.calls)
     assert np.array_equal(state, trace.state[-1])
+    assert records.shape == trace.records.shape and np.array_equal(records, trace.records)
+
+
+#: The wrap runs: 1,200 samples before the edge, 2,500 samples of walking.
+WRAP_LEAD, WRAP_SAMPLES = 1200, 2500
+
+
+def _wrap_run(walk, edge):
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = walk[0][550:550 + WRAP_SAMPLES]              # walking from the first steps on
+    run = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - WRAP_LEAD)
+    trace = detector_trace(codes, CALS["nominal"], start_n=edge - WRAP_LEAD)
+    return run, trace
+
+
+def _windows(records: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each record's window as the chip counts it (from N = 0 at START): its first and its end sample."""
+    rec = np.frombuffer(records.tobytes(), STEP_RECORD_DTYPE)
+    end = rec["end_sample"].astype(np.int64)
+    return end - rec["duration_samples"].astype(np.int64), end
 
 
 @needs_gpsim
 @pytest.mark.parametrize("crossing", ["F_OLD", "wrap"])
 def test_ring_mode_across_2_15_and_the_16_bit_wrap(simulated_walk, crossing):
     """A run that starts 1,200 samples before 2^15 (F_OLD: N may wrap from then on) or before 2^16 (N and the
-    indices wrap) and walks on for 2,500 samples: every finalise call and the final detector state are the
-    kernel's started at the same N (the test build's START_N), across the crossing."""
+    indices wrap) and walks on for 2,500 samples: every finalise call, every step record byte for byte (one of
+    them with a window across the wrap), and the final detector state are the kernel's started at the same N
+    (the test build's START_N), across the crossing; the first run also has a window across the scratch ring's
+    end (the run's sample 32,512 from start page 0). Every record reads only a_v of its own run: the first ends
+    62 samples after START, and its reads reach back hs_before + r5 = 15."""
     from gaitlog.firmware_sim.algorithms.probe import detector_trace
+    from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_RING_SAMPLES
     from gaitlog.firmware_sim.algorithms.state import F_OLD, INDEX_HALF, INDEX_MODULUS
 
     edge = INDEX_HALF if crossing == "F_OLD" else INDEX_MODULUS
-    codes = simulated_walk[0][550:3050]                  # walking from the first steps on
-    calls, state = gl.PicLogger().run_calls(codes, CALS["nominal"], start_n=edge - 1200)
-    trace = detector_trace(codes, CALS["nominal"], start_n=edge - 1200)
-    after = trace.calls[:, 0] >= 1200
+    (calls, state, records), trace = _wrap_run(simulated_walk, edge)
+    after = trace.calls[:, 0] >= WRAP_LEAD
     assert after.sum() > 20 and (~after).sum() > 20
     assert np.all(trace.calls[after, 4] & F_OLD)
+    first, end = _windows(trace.records)
     if crossing == "wrap":
         assert np.any(trace.calls[:, 1] < trace.calls[:, 2])          # e wrapped past 0, its s did not
+        assert np.any((first < edge) & (end >= edge))                 # a window across the wrap
     else:
         assert not np.any(trace.calls[~after, 4] & F_OLD)
+        ring_end = SCRATCH_RING_SAMPLES                              # start page 0: the run's sample 32,512
+        assert np.any((first < ring_end) & (end > ring_end))          # a window across the scratch ring's end
     assert calls.shape == trace.calls.shape, (calls.shape, trace.calls.shape)
     bad = np.flatnonzero(np.any(calls != trace.calls, axis=1))
     assert bad.size == 0, (calls[bad[:1]], trace.calls[bad[:1]])
     assert np.array_equal(state, trace.state[-1])
+    assert records.shape == trace.records.shape and records.shape[0] > 40, (records.shape, trace.records.shape)
+    bad = np.flatnonzero(np.any(records != trace.records, axis=1))
+    assert bad.size == 0, (bad[:3], records[bad[:1]], trace.records[bad[:1]])
+    assert first.min() >= edge - WRAP_LEAD + 15                       # no read before START
+
+
+def test_scratch_offset_is_the_models_placement():
+    """The assembly's ring offset K puts the 16-bit index j of the run's sample f at the model's ring sample
+    (S + f) mod 32,512: at K + j, plus 32,512 when that is negative (a sample written before the ring's last
+    wrap), for every sample up to 16,000 back from the newest, across the ring's end and the index's wrap."""
+    from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_RING_SAMPLES, scratch_ring_sample
+
+    for start in (0, 64 * 500, 64 * 507, 123_456_789):
+        for newest in (0, 5000, 32_511, 65_535, 65_536, 100_000):
+            k = gl.scratch_offset(start, newest)
+            f = np.arange(max(0, newest - 16_000), newest + 1)
+            raw = (k + (f & 0xFFFF)) & 0xFFFF
+            pos = np.where(raw & 0x8000, (raw + SCRATCH_RING_SAMPLES) & 0xFFFF, raw)
+            assert np.array_equal(pos, [scratch_ring_sample(start, x) for x in f]), (start, newest)
+
+
+#: A run of the walk whose start page puts the scratch ring's end inside a step's window.
+RING_END_SAMPLES = 800
+
+
+def _ring_end_run(walk):
+    """The walk's first samples, with the run's start page chosen so that the ring's end (ring sample 32,512)
+    falls on a page boundary (a multiple of 64 samples) well inside the window of the first record that has
+    one (at 50 Hz: record 1, window 543-588, the ring's end at 576, start page 499): its passes read across it."""
+    from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_RING_SAMPLES, scratch_ring_sample
+    from gaitlog.firmware_sim.algorithms.probe import detector_trace
+
+    codes = walk[0][:RING_END_SAMPLES]
+    trace = detector_trace(codes, CALS["device"])
+    first, end = _windows(trace.records)
+    inside = [(i, (e - 3) // 64 * 64) for i, (a, e) in enumerate(zip(first, end)) if (e - 3) // 64 * 64 > a + 2]
+    assert inside, (first, end)
+    rec, wrap = inside[0]
+    start = SCRATCH_RING_SAMPLES - wrap                                  # S + wrap = 32,512
+    assert scratch_ring_sample(start, wrap) == 0 and scratch_ring_sample(start, wrap - 1) == SCRATCH_RING_SAMPLES - 1
+    return codes, trace, start, rec, wrap
+
+
+@needs_gpsim
+def test_the_ring_wraps_at_32512_inside_a_steps_window(simulated_walk, monkeypatch):
+    """The run's start page puts the ring's end inside a step's window: the records are the model's, byte for
+    byte. With the reader's reopening at the ring's end removed, the sequential read runs on past it (into the
+    header slots on a 24LC1025; the 24xx256 rolls over to byte 0x7E00) and that record differs, with none but
+    those whose reads come near the ring's end."""
+    codes, trace, start, rec, wrap = _ring_end_run(simulated_walk)
+    run = gl.PicLogger().run_calls(codes, CALS["device"], run_start_sample=start)
+    assert np.array_equal(run.calls, trace.calls) and run.records.shape == trace.records.shape
+    bad = np.flatnonzero(np.any(run.records != trace.records, axis=1))
+    assert bad.size == 0, (bad, rec)
+
+    real = gl.copy_sources
+    src = (gl.PIC_DIR / "step_record.asm").read_text()
+    reopen = "        call    scr_stop\n        goto    scr_at\n"
+    assert src.count(reopen) == 1
+
+    def no_reopen(build_dir, main_asm):
+        real(build_dir, main_asm)
+        (build_dir / "step_record.asm").write_text(src.replace(reopen, ""))
+
+    monkeypatch.setattr(gl, "copy_sources", no_reopen)
+    broken = gl.PicLogger().run_calls(codes, CALS["device"], run_start_sample=start)
+    assert np.array_equal(broken.calls, trace.calls)
+    bad = np.flatnonzero(np.any(broken.records != trace.records, axis=1))
+    first, end = _windows(trace.records)
+    # the reads of a record reach a filter radius (r3 = 9) and the heel strike's search beyond its window
+    near = np.flatnonzero((first - 30 < wrap) & (end + 30 >= wrap))
+    assert rec in bad and set(bad.tolist()) <= set(near.tolist()), (bad, near, rec)
 
 
 def test_conversions_outside_their_stimulus_are_refused():

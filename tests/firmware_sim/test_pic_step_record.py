@@ -115,7 +115,7 @@ def test_walk_records_identical(walk_trace):
     assert v.summary() == "step records       80 of 80 identical"
     assert v.identical and v.state_identical
     assert np.all(v.pic_cycles > 10_000)
-    assert v.bench.gpsim_runs >= 2 and v.bench.ram_bytes == {"bank 2": 32, "bank 3": 32, "bank 0 alias": 4}
+    assert v.bench.gpsim_runs >= 2 and v.bench.ram_bytes == {"bank 2": 32, "bank 3": 32, "bank 0 alias": 6}
 
 
 @needs_gpsim
