@@ -29,6 +29,7 @@ from gaitlog.firmware_sim.algorithms.probe import algorithm_operation_counts
 from gaitlog.firmware_sim.budget import LoggerConfig, estimated_cycles, interrupt_cycles_estimate
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
+from gaitlog.firmware_sim.pic.gpsim_bench import copy_sources
 from gaitlog.firmware_sim.pic.gpsim_logger import MemoryMap, PicLogger, memory_map, run_starts
 
 __all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "I2C_EVENTS",
@@ -284,7 +285,7 @@ def i2c_event_cycles(timeout_s: float = 60.0) -> list[tuple[str, int]]:
         raise gl.PicError(why)
     with tempfile.TemporaryDirectory(prefix="gpsim-i2c-") as tmp:
         asm = Path(tmp) / I2C_BENCH_ASM.name
-        asm.write_text(I2C_BENCH_ASM.read_text())
+        copy_sources(Path(tmp), I2C_BENCH_ASM)
         proc = subprocess.run(["gpasm", "-p", "p16f877", asm.name], capture_output=True, text=True, timeout=60,
                               cwd=tmp)
         cod = asm.with_suffix(".cod")

@@ -1,6 +1,6 @@
 ; The I2C bench: the scratch ring's bus events, each timed in gpsim (chip_budget.i2c_event_cycles).
-; The MSSP is set up as logger.asm sets it (I2C master, SSPADD = 10 at 18.432 MHz), and the macros and i2c_tx are
-; step_record.asm's, instruction for instruction: a random read's opening (start, control, address, restart,
+; The MSSP is set up as logger.asm sets it (I2C master, SSPADD = 10 at 18.432 MHz), the macros are step_record.asm's (i2c.inc) and
+; i2c_tx is its routine, instruction for instruction: a random read's opening (start, control, address, restart,
 ; control), two bytes received and acknowledged as scr_next receives them, the last byte not acknowledged and
 ; the stop, as scr_close. A write of MARK (d'1', d'2', ...) follows each event; gpsim logs its cycle.
         list    p=16f877
@@ -8,30 +8,7 @@
         __config _HS_OSC & _WDT_OFF & _LVP_OFF
 MARK    equ     0x20
 TMP0    equ     0x21
-I2C_WAIT        macro
-        bcf     STATUS, RP0
-        bcf     STATUS, RP1
-        btfss   PIR1, SSPIF
-        goto    $-1
-        bcf     PIR1, SSPIF
-        endm
-I2C_CMD         macro   bit
-        bsf     STATUS, RP0
-        bcf     STATUS, RP1
-        bsf     SSPCON2, bit
-        I2C_WAIT
-        endm
-I2C_ACK         macro   nack
-        bsf     STATUS, RP0
-        bcf     STATUS, RP1
-        if nack
-        bsf     SSPCON2, ACKDT
-        else
-        bcf     SSPCON2, ACKDT
-        endif
-        bsf     SSPCON2, ACKEN
-        I2C_WAIT
-        endm
+        #include "i2c.inc"
 MARKW   macro   k
         movlw   k
         movwf   MARK

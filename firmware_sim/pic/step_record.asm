@@ -1762,30 +1762,7 @@ scr_close:
     if LOW (SCR_SAMPLES) != 0 || SCR_SAMPLES > 0x8000
         error "the scratch ring's samples must be a multiple of 256 up to 32,768"
     endif
-I2C_WAIT        macro                   ; bank 0: wait for the MSSP's event, clear it
-        bcf     STATUS, RP0
-        bcf     STATUS, RP1
-        btfss   PIR1, SSPIF
-        goto    $-1
-        bcf     PIR1, SSPIF
-        endm
-I2C_CMD         macro   bit             ; SSPCON2 bit (SEN, RSEN, PEN, RCEN), then wait
-        bsf     STATUS, RP0             ; bank 1
-        bcf     STATUS, RP1
-        bsf     SSPCON2, bit
-        I2C_WAIT
-        endm
-I2C_ACK         macro   nack            ; acknowledge (ACKDT = nack) the byte received
-        bsf     STATUS, RP0
-        bcf     STATUS, RP1
-        if nack
-        bsf     SSPCON2, ACKDT
-        else
-        bcf     SSPCON2, ACKDT
-        endif
-        bsf     SSPCON2, ACKEN
-        I2C_WAIT
-        endm
+        #include "i2c.inc"
 
 ; i2c_tx: send W, wait for the acknowledge slot (the acknowledge itself is not checked).
 i2c_tx:
