@@ -7,8 +7,10 @@ One module per subcommand lives in ``host/commands/``; each defines
 - ``run(args: argparse.Namespace) -> int`` -- does the work and returns the exit code;
 - ``EXAMPLES: tuple[str, ...]`` -- command lines shown under "examples:" by ``gaitlog COMMAND --help``.
 
-Subcommand modules import only the standard library at module level (heavy libraries are imported inside
-``run``) so that ``gaitlog --help`` and the start-up of every command stay fast.
+Subcommand modules import only the standard library at module level (heavy libraries, and the standard modules
+only a run needs -- tempfile, dataclasses -- are imported inside ``run``) so that ``gaitlog --help`` and
+the start-up of every command stay fast: ``gaitlog --help`` loads no numpy and no :mod:`inspect`
+(tests/host/commands/test_cli_startup.py). A run builds only its own subcommand's arguments (:class:`_CommandParser`).
 
 Exit codes: 0 success, 1 data / I/O / protocol / device error (message on stderr, no partial output),
 2 usage error (argparse's, or a :class:`~gaitlog.host.errors.UsageError` a command raises: a bad option value
@@ -20,14 +22,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import difflib
 import importlib
 import os
-import pkgutil
 import re
 import sys
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import gaitlog.host.commands
 
@@ -39,7 +39,10 @@ _ORDER = (
 
 
 def _command_modules() -> list[str]:
-    found = {m.name for m in pkgutil.iter_modules(gaitlog.host.commands.__path__) if not m.name.startswith("_")}
+    """The command modules' names, in the order of :data:`_ORDER` (the folder is listed, not searched with
+    :mod:`pkgutil`, which loads :mod:`inspect` and with it ast, dis and tokenize: milliseconds of every start)."""
+    found = {name.removesuffix(".py") for folder in gaitlog.host.commands.__path__ for name in os.listdir(folder)
+             if name.endswith(".py") and not name.startswith("_")}
     return [n for n in _ORDER if n in found] + sorted(found.difference(_ORDER))
 
 
@@ -54,6 +57,8 @@ class _Parser(argparse.ArgumentParser):
 def _suggest(message: str) -> str:
     """argparse's "invalid choice: 'decod' (choose from 'demo', ...)" as "invalid choice: 'decod' (did you mean
     'decode'?)", through :func:`difflib.get_close_matches`; other messages unchanged."""
+    import difflib  # only for a usage error: not loaded by a run
+
     found = re.search(r"invalid choice: '([^']*)' (\(choose from (.*)\))$", message)
     if not found:
         return message
@@ -77,21 +82,67 @@ def _epilog(examples: Sequence[str]) -> str | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Return the ``gaitlog`` argument parser with every subcommand registered."""
+    """Return the ``gaitlog`` argument parser with every subcommand registered and configured."""
+    return _build(lazy=False)
+
+
+def _build(*, lazy: bool) -> argparse.ArgumentParser:
+    """The ``gaitlog`` parser; with ``lazy`` a subcommand's arguments are added only when that subcommand is
+    parsed or its help shown (:class:`_CommandParser`), so a run configures one subcommand, not all of them."""
     parser = _Parser(
         prog="gaitlog", epilog=_epilog(EXAMPLES), formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Emulate, dump, decode, calibrate and analyse the PIC16F877 + ADXL202 gait logger.",
     )
     parser.add_argument("--version", action="version", version=f"gaitlog {gaitlog.__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_CommandParser)
     for name in _command_modules():
         module = importlib.import_module(f"gaitlog.host.commands.{name}")
         cmd = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.HELP,
                              epilog=_epilog(getattr(module, "EXAMPLES", ())),
-                             formatter_class=argparse.RawDescriptionHelpFormatter)
-        module.configure(cmd)
+                             formatter_class=argparse.RawDescriptionHelpFormatter, configure=module.configure)
+        if not lazy:
+            cmd.configured()
         cmd.set_defaults(_run=module.run)
     return parser
+
+
+class _CommandParser(_Parser):
+    """A subcommand's parser: its arguments are added by the command module's ``configure`` on first use
+    (parsing its arguments, or formatting its usage or help), or at once by :meth:`configured`. The parsers of
+    a subcommand's own actions (``gaitlog device status``) are of this class too, configured by their caller."""
+
+    def __init__(self, *args, configure: Callable[[argparse.ArgumentParser], None] | None = None, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._configure: Callable[[argparse.ArgumentParser], None] | None = configure
+
+    def configured(self) -> _CommandParser:
+        """This parser with the command's arguments added (once)."""
+        if self._configure is not None:
+            configure, self._configure = self._configure, None
+            configure(self)
+        return self
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        return super(_CommandParser, self.configured()).parse_known_args(args, namespace)
+
+    def format_usage(self) -> str:
+        return super(_CommandParser, self.configured()).format_usage()
+
+    def format_help(self) -> str:
+        return super(_CommandParser, self.configured()).format_help()
+
+
+#: OpenBLAS's thread count for the commands: one. Their matrix products are small ((n, 3) by (3, 3)), where
+#: waking a pool of threads costs more than it saves (tens of ms on a loaded machine), and so does starting the
+#: pool when numpy is imported; a value already in the environment is kept.
+_BLAS_THREADS_VARIABLE = "OPENBLAS_NUM_THREADS"
+
+
+def _single_threaded_blas() -> None:
+    """Set :data:`_BLAS_THREADS_VARIABLE` to 1 unless it is set, before numpy is imported (after, it would not
+    act; a command's worker processes inherit it)."""
+    if "numpy" not in sys.modules:
+        os.environ.setdefault(_BLAS_THREADS_VARIABLE, "1")
 
 
 def _known_errors() -> tuple[type[BaseException], ...]:
@@ -104,8 +155,8 @@ def _known_errors() -> tuple[type[BaseException], ...]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gaitlog`` with ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    _single_threaded_blas()
+    args = _build(lazy=True).parse_args(argv)
     name = " ".join(str(part) for part in (args.command, getattr(args, "action", None)) if part)
     from gaitlog.host.errors import UsageError
 

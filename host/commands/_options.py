@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,8 +18,9 @@ from gaitlog.host.storage.json_text import json_text
 from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
 from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, MAX_STORED_ADC_BITS
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib, and of
+# the few standard modules that `gaitlog --help` does without (tempfile, dataclasses): it imports every
+# command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 
 def add_verbosity_options(parser: argparse.ArgumentParser) -> None:
@@ -273,6 +273,8 @@ def check_output_folder(option: str, folder: object, *, force: bool | None = Non
 def _check_writable(option: str, out: object, folder: object) -> None:
     """A :class:`HostError` unless a file can be created in ``folder`` (tried: permissions, read-only or
     pseudo file systems, a full quota)."""
+    import tempfile  # not at the top: it loads shutil and random, which `gaitlog --help` does without
+
     try:
         with tempfile.TemporaryFile(dir=folder):  # type: ignore[call-overload]
             pass

@@ -14,7 +14,6 @@ import sys
 import time
 from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_text
 from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
 from gaitlog.host.commands._options import (
     add_json_option,
@@ -28,8 +27,9 @@ from gaitlog.host.commands._options import (
 from gaitlog.host.commands._progress import progress_bar
 from gaitlog.host.errors import HostError, UsageError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib, and of
+# the few standard modules that `gaitlog --help` does without (tempfile, dataclasses): it imports every
+# command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = "estimate every recording in a folder (per-recording outputs, summary table, failures listed; resumable)"
 #: Shown under "examples:" by ``gaitlog batch --help``.
@@ -83,6 +83,7 @@ def _dask_runner(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    from gaitlog.atomic_write import atomic_write_text
     from gaitlog.host.accelerometer.calibration import AccCalibration
     from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch

@@ -4,7 +4,6 @@ bandwidth, dump time)? ``--measure-kernels`` re-measures the arithmetic kernels'
 from __future__ import annotations
 
 import argparse
-import dataclasses
 
 # The budget library loads numpy, the emulated device and the decoders: imported inside run (and the gpsim bench
 # inside _measure_kernels) so that `gaitlog --help` does not load them.
@@ -71,6 +70,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def _config(args: argparse.Namespace, configurations: dict):
     """The configuration of ``configurations`` the options ask for (a
     :class:`gaitlog.firmware_sim.budget.LoggerConfig`)."""
+    import dataclasses  # not at the top: it loads inspect (ast, dis, tokenize), which `gaitlog --help` does without
+
     name = args.config or "alvarez-50"
     if name not in configurations:
         raise UsageError(f"--config {name!r} is not one of {', '.join(configurations)}")

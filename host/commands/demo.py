@@ -27,7 +27,6 @@ import json
 from pathlib import Path
 from typing import Any
 
-from gaitlog.atomic_write import atomic_write_text
 from gaitlog.host.commands._options import SEED, add_verbosity_options, check_output_folder, printer, verbosity, whole
 from gaitlog.host.errors import HostError
 
@@ -61,6 +60,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from gaitlog.atomic_write import atomic_write_text
     from gaitlog.host.studies import demo
 
     say, detail = printer(args), printer(args, 1)

@@ -9,7 +9,6 @@ import signal
 import sys
 from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_bytes
 from gaitlog.host.commands._options import (
     BAUD,
     TIMEOUT_S,
@@ -22,8 +21,9 @@ from gaitlog.host.commands._options import (
 )
 from gaitlog.host.errors import HostError
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib, and of
+# the few standard modules that `gaitlog --help` does without (tempfile, dataclasses): it imports every
+# command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 HELP = ("dump a logger's memory and step records (port, pty path, socket:// or emu:// URL) to a memory image + "
         "metadata")
@@ -75,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _dump(args: argparse.Namespace, out, capture) -> int:
 
+    from gaitlog.atomic_write import atomic_write_bytes
     from gaitlog.host.link.logger_link import LoggerLink
     from gaitlog.host.link.memory_dump import dump_memory, state_path_for
 

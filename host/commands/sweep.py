@@ -20,7 +20,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from gaitlog.atomic_write import atomic_write_text
 from gaitlog.host.commands._options import (
     SEED,
     add_verbosity_options,
@@ -32,10 +31,10 @@ from gaitlog.host.commands._options import (
 )
 from gaitlog.host.commands._progress import progress_bar
 from gaitlog.host.errors import HostError, UsageError
-from gaitlog.host.studies.task_store import TaskStore, run_serial
 
-# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib:
-# `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
+# Imports inside functions are only of numpy and of modules that load numpy, scipy, numba, dask or matplotlib, and of
+# the few standard modules that `gaitlog --help` does without (tempfile, dataclasses): it imports every
+# command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 #: Larger summary tables are only written (and printed with -v).
 MAX_PRINTED_ROWS = 60
@@ -171,7 +170,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from gaitlog.atomic_write import atomic_write_text
     from gaitlog.host.studies.sweep_grid import SweepGrid, run_task
+    from gaitlog.host.studies.task_store import TaskStore, run_serial
 
     if args.serial and args.scheduler:
         raise UsageError("--serial and --scheduler exclude each other")

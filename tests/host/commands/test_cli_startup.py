@@ -43,6 +43,21 @@ def test_help_imports_no_numeric_library() -> None:
     assert not loaded & {"numpy", "scipy", "numba", "matplotlib", "importlib.metadata"}
 
 
+def test_help_process_imports_no_numpy() -> None:
+    """The whole ``gaitlog --help`` process, as a user starts it, read from ``python -X importtime``: no numpy
+    (``import numpy`` alone takes longer than --help's 0.1 s budget on a loaded machine), and none of the
+    standard modules only a run needs (inspect with ast/dis/tokenize, tempfile, dataclasses, pkgutil, difflib)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-X", "importtime", "-m", "gaitlog", "--help"], capture_output=True,
+                         text=True, env=env, cwd=ROOT, check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("usage: gaitlog")
+    loaded = {line.rsplit("|", 1)[1].strip() for line in out.stderr.splitlines() if line.startswith("import time:")}
+    assert {"gaitlog.host.cli", "gaitlog.host.commands._options", "argparse"} <= loaded  # the commands were loaded
+    assert not {m for m in loaded if m.split(".")[0] in ("numpy", "scipy", "numba", "matplotlib", "dask")}
+    assert not loaded & {"inspect", "tempfile", "dataclasses", "pkgutil", "difflib"}
+
+
 def test_estimate_imports_no_scipy(tmp_path) -> None:
     rng = np.random.default_rng(0)
     n = 3000
