@@ -709,14 +709,25 @@ class PicLogger:
             raise PicError(f"the sampling interrupt's period varies: {periods.tolist()} cycles")
         return isr[:32], int(periods[0])
 
-    def raw_speed(self, n_samples: int) -> tuple[int, float]:
+    def raw_speed(self, n_samples: int, *, codes: np.ndarray | None = None,
+                  calibration: CalibrationQ | None = None) -> tuple[int, float]:
         """gpsim's own speed on this firmware: the production build, nothing logged, for ``n_samples`` sample
-        periods; returns (cycles simulated, wall seconds of the gpsim process)."""
+        periods; returns (cycles simulated, wall seconds of the gpsim process). With ``codes`` and
+        ``calibration``: the test build on the first ``n_samples`` codes' stimuli instead, nothing logged, to
+        ``harness_done`` (the same work as a harness run, with no log to write or read)."""
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
         with tempfile.TemporaryDirectory(prefix="pic-logger-raw-") as tmp:
-            build = _assemble(Path(tmp), self._defines(0), test=False)
+            if codes is None or calibration is None:
+                build = _assemble(Path(tmp), self._defines(0), test=False)
+                stop, stimuli = f"c {t.period_cycles * n_samples}", ""
+            else:
+                c = np.asarray(codes, np.int64).reshape(-1, 3)[:n_samples]
+                (Path(tmp) / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
+                                                              self._eeprom(_calibration_bytes(calibration))))
+                build = _assemble(Path(tmp), dict(self._defines(0), N_SAMPLES=c.shape[0], START_N=0), test=True)
+                stop, stimuli = "e harness_done", _stimuli(c, np.zeros(c.shape[0], np.int64), t.period_cycles)
             t0 = time.perf_counter()
-            _gpsim(build, [], f"c {t.period_cycles * n_samples}", self.timeout_s)
+            _gpsim(build, [], stop, self.timeout_s, stimuli)
             return t.period_cycles * n_samples, time.perf_counter() - t0
 
     def run_records(self, codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *,
