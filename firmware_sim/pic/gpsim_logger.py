@@ -1026,21 +1026,21 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     f = np.asarray(flags, np.int64).reshape(-1)
     h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz)
     starts = run_starts(f)
-    with ThreadPoolExecutor(max_workers=1) as pool:        # gpsim runs while the model's kernel is traced
+    with ThreadPoolExecutor(max_workers=1) as pool:        # gpsim runs while the model computes
         pending = pool.submit(h.run, c, f, calibration, first_sample_number=first_sample_number)
+        model_f = calibrated_axes(c, calibration)
+        model_g = np.concatenate([gravity_states(model_f[a:b], h.gravity_shift)
+                                  for a, b in zip(starts, starts[1:] + [c.shape[0]])])
+        model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw) if a_v else None
         trace = (detector_trace(c, calibration, h.sampling_rate_hz, starts, scratch_ring=SCRATCH_RING_SAMPLES)
                  if a_v else None)
         run = pending.result()
     expect_packed = np.frombuffer(words_to_bytes(pack_words(c, f)), np.uint8).reshape(-1, 4)
-    model_f = calibrated_axes(c, calibration)
-    model_g = np.concatenate([gravity_states(model_f[a:b], h.gravity_shift)
-                              for a, b in zip(starts, starts[1:] + [c.shape[0]])])
     stages = [_compare("packed words", ("byte 0", "byte 1", "byte 2", "byte 3"), run.packed.astype(np.int64),
                        expect_packed.astype(np.int64)),
               _compare("calibrated axes", ("fx", "fy", "fz"), run.calibrated, model_f),
               _compare("gravity", ("g1x", "g1y", "g1z", "g2x", "g2y", "g2z"), run.gravity, model_g)]
     if a_v:
-        model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
         stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
         stages.append(_compare("y3", ("ready", "y3"), np.stack([run.ready, np.where(run.ready, run.y3, 0)], axis=1),
                                np.stack([trace.ready, np.where(trace.ready, trace.y3, 0)], axis=1)))
