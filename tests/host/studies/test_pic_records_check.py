@@ -29,7 +29,9 @@ SUBJECTS = 20
 #: many as the model makes (measured).
 IPOL_RECORDS, SUBJECT_RECORDS = 1936, 1216
 #: The one record that differs (measured): trial 8-3's 21st record (end sample 871), whose M4 length the assembly
-#: makes 1 LSB (Q2.14) shorter than the model. Every other record of every trial and subject is identical.
+#: makes 1 LSB (Q2.14) shorter than the model. Every other record of every trial and subject is identical. (Its
+#: range's 3 Hz filter reads a_v up to sample 880, past the last scratch write at the call, 864-879: see
+#: docs/topics/pic-firmware.md.)
 KNOWN_DIFFERENCES = {"8-3_lb": {"record": 20, "sample": 871, "field": "length_m4_q14", "gpsim": 18426, "model": 18427}}
 
 
