@@ -66,8 +66,8 @@ from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_D
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
-           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "FinaliseTrace", "finalise_calls",
-           "OperationCounts", "algorithm_operation_counts"]
+           "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "step_records", "FinaliseTrace",
+           "finalise_calls", "OperationCounts", "algorithm_operation_counts"]
 
 
 @njit(cache=True)
@@ -297,6 +297,38 @@ class DetectorTrace:
     records: np.ndarray = field(default_factory=lambda: np.zeros((0, 20), np.uint8))
 
 
+def _trace_algorithm(calibration: CalibrationQ, sampling_rate_hz: float, scratch_ring: int) -> OnlineStepAlgorithm:
+    """The fixed-point kernel as the PIC runs it: the PIC's calibration as is, the trace's step configuration and
+    (``scratch_ring`` > 0) a scratch ring of that many samples."""
+    algo = OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
+        step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))
+    cfg_i, cfg_v = algo.config.cfg_i, algo.config.cfg_v
+    cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw            # the PIC's calibration, as is
+    cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
+    cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
+    if scratch_ring:
+        cfg_i[kernel.CI_SCRATCH] = scratch_ring
+        algo._scr = np.zeros(scratch_ring, algo._scr.dtype)
+    return algo
+
+
+def step_records(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
+                 run_starts: list[int] | tuple[int, ...] = (0,), scratch_ring: int = 0) -> np.ndarray:
+    """The step records :func:`detector_trace` gives (``(k, 20)`` uint8, each end sample counted from its run's
+    START), from the compiled kernel fed each run whole: what the PIC's records are checked against when only
+    the records are compared (no per-sample state to read, so no sample-at-a-time loop)."""
+    c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
+    algo = _trace_algorithm(calibration, sampling_rate_hz, scratch_ring)
+    bounds = sorted(set(run_starts) | {0}) + [c.shape[0]]
+    out = [np.zeros((0, 20), np.uint8)]
+    for a, b in zip(bounds, bounds[1:]):
+        algo.reset()
+        steps = algo.feed(c[a:b])
+        if len(steps.end):
+            out.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
+    return np.concatenate(out)
+
+
 def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
                    run_starts: list[int] | tuple[int, ...] = (0,), start_n: int = 0,
                    scratch_ring: int = 0) -> DetectorTrace:
@@ -314,15 +346,8 @@ def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_h
     (18, 0, (0, 5))
     """
     c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
-    algo = OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=StepConfig(
-        step_format=1, leg_length_m=_TRACE_LEG_M, foot_length_m=_TRACE_FOOT_M))
+    algo = _trace_algorithm(calibration, sampling_rate_hz, scratch_ring)
     cfg_i, cfg_v = algo.config.cfg_i, algo.config.cfg_v
-    cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = calibration.offset_raw            # the PIC's calibration, as is
-    cfg_v[kernel.CV_M:kernel.CV_M + 9] = np.asarray(calibration.mantissa_raw, np.int64).reshape(9)
-    cfg_i[kernel.CI_MANT_FRAC] = calibration.matrix_frac_bits
-    if scratch_ring:
-        cfg_i[kernel.CI_SCRATCH] = scratch_ring
-        algo._scr = np.zeros(scratch_ring, algo._scr.dtype)
     r3 = int(cfg_i[kernel.CI_R3])
     fir = kernel._fir.py_func
     records = []

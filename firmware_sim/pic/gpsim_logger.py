@@ -55,6 +55,7 @@ from gaitlog.firmware_sim.algorithms.probe import (
     calibrated_axes,
     detector_trace,
     gravity_states,
+    step_records,
     online_config,
     vertical_acceleration,
 )
@@ -68,7 +69,8 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
-           "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES"]
+           "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun", "period_setup",
+           "RecordsVerification", "verify_records"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -192,16 +194,18 @@ def _config_bytes(cal_bytes: list[int], weights: np.ndarray) -> list[int]:
 def _stimuli(codes: np.ndarray, flags: np.ndarray, period_cycles: int) -> str:
     """gpsim commands that drive AN0-AN2 with the codes and press the marker button (RB0) where ``flags`` has
     M: sample ``k``'s voltages hold from cycle ``(k + 1/2) P`` to ``(k + 3/2) P``, around its conversion
-    near ``(k + 1) P`` (checked against the log by :func:`_check_conversions`)."""
+    near ``(k + 1) P`` (checked against the log by :func:`_check_conversions`). Each stimulus' points are on one
+    line: gpsim parses points written one a line in a time quadratic in their number, on one line in a linear
+    time (16,000 points: 3.4 s of CPU against 0.2 s, measured)."""
     at = ((np.arange(codes.shape[0]) + 0.5) * period_cycles).astype(np.int64)
     out = []
     for ch in range(3):
-        pts = ",\n".join(f"{t}, {c * VDD_V / ADC_STEPS:.12g}" for t, c in zip(at.tolist(), codes[:, ch].tolist()))
+        pts = ", ".join(f"{t}, {c * VDD_V / ADC_STEPS:.12g}" for t, c in zip(at.tolist(), codes[:, ch].tolist()))
         out.append(f"stimulus asynchronous_stimulus\ninitial_state 0\nstart_cycle 0\nanalog\n{{ {pts} }}\n"
                    f"name an{ch}\nend\nnode n_an{ch}\nattach n_an{ch} an{ch} porta{ch}")
     marks = at[(np.asarray(flags) & FLAG_MARK) != 0]
     if marks.size:
-        pts = ",\n".join(f"{t}, 1, {t + MARK_PULSE_CYCLES}, 0" for t in marks.tolist())
+        pts = ", ".join(f"{t}, 1, {t + MARK_PULSE_CYCLES}, 0" for t in marks.tolist())
         out.append(f"stimulus asynchronous_stimulus\ninitial_state 0\nstart_cycle 0\ndigital\n{{ {pts} }}\n"
                    f"name mark\nend\nnode n_mark\nattach n_mark mark portb0")
     return "\n".join(out) + "\n"
@@ -251,26 +255,55 @@ def _assemble(build_dir: Path, defines: dict[str, int], *, test: bool) -> _Build
 # running
 
 
-_WRITE = re.compile(r"^0x([0-9A-Fa-f]+) p16f877|^\s+Wrote: 0x([0-9A-Fa-f]+) to \S+\(0x([0-9A-Fa-f]+)\)", re.M)
+#: gpsim's ``log w`` lines: an instruction's line starts ``0x`` and its cycle counter in 16 hex digits; each of its
+#: writes follows as ``  Wrote: 0xVVVV to NAME(0xAAAA) was 0xOOOO`` (value at a fixed column, address at a fixed
+#: distance from the line's end). Source and ``Read:`` lines come between.
+_CYCLE_DIGITS = 16
+_WROTE = b"  Wrote: 0x"
+_WROTE_TAIL = len("(0xAAAA) was 0xOOOO")
+_HEX = np.full(256, -1, np.int64)
+_HEX[np.frombuffer(b"0123456789abcdef", np.uint8)] = np.arange(16)
+_HEX[np.frombuffer(b"ABCDEF", np.uint8)] = np.arange(10, 16)
 
 
-def _writes(log_text: str, wanted: set[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(cycle, address, value) of every logged write to an address in ``wanted``."""
-    cyc, addr, val = [], [], []
-    now = 0
-    for m in _WRITE.finditer(log_text):
-        if m.group(1) is not None:
-            now = int(m.group(1), 16)
-            continue
-        a = int(m.group(3), 16)
-        if a in wanted and not (cyc and cyc[-1] == now and addr[-1] == a):   # BSF ADCON0, GO is logged twice
-            cyc.append(now)
-            addr.append(a)
-            val.append(int(m.group(2), 16))
-    return np.asarray(cyc, np.int64), np.asarray(addr, np.int64), np.asarray(val, np.int64)
+def _hex_at(buf: np.ndarray, at: np.ndarray, digits: int) -> np.ndarray:
+    """The ``digits`` hex digits of ``buf`` from each position in ``at``, as int64 (-1 where one is not hex)."""
+    d = _HEX[buf[at[:, None] + np.arange(digits)]]
+    v = np.zeros(at.size, np.int64)
+    for j in range(digits):
+        v = (v << 4) | d[:, j]
+    return np.where((d < 0).any(axis=1), -1, v)
 
 
-def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "") -> str:
+def _writes(log_text: str | bytes, wanted: set[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cycle, address, value) of every logged write to an address in ``wanted``, parsed in numpy (a recording's
+    log has millions of lines)."""
+    raw = log_text.encode() if isinstance(log_text, str) else log_text
+    buf = np.frombuffer(raw + b"\n" + b" " * 32, np.uint8)        # padding: fixed-column reads stay inside
+    ends = np.flatnonzero(buf[:len(raw) + 1] == ord("\n"))
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    length = ends - starts
+    is_cycle = (length > 2 + _CYCLE_DIGITS) & (buf[starts] == ord("0")) & (buf[starts + 1] == ord("x"))
+    is_cycle &= buf[starts + 2 + _CYCLE_DIGITS] == ord(" ")
+    is_write = length > len(_WROTE) + _WROTE_TAIL
+    for j, ch in enumerate(_WROTE):
+        is_write &= buf[starts + j] == ch
+    is_write &= buf[np.maximum(ends - _WROTE_TAIL, 0)] == ord("(")
+    cycle_of_line = np.concatenate([[0], _hex_at(buf, starts[is_cycle] + 2, _CYCLE_DIGITS)])[np.cumsum(is_cycle)]
+    w = np.flatnonzero(is_write)
+    addr = _hex_at(buf, ends[w] - _WROTE_TAIL + 3, 4)
+    val = _hex_at(buf, starts[w] + len(_WROTE), 4)
+    cyc = cycle_of_line[w]
+    if (addr < 0).any() or (val < 0).any() or (cyc < 0).any():
+        raise PicError("gpsim's write log has a line the harness cannot read")
+    keep = np.isin(addr, np.fromiter(wanted, np.int64, len(wanted)))
+    cyc, addr, val = cyc[keep], addr[keep], val[keep]
+    repeat = np.zeros(cyc.size, bool)                # BSF ADCON0, GO is logged twice
+    repeat[1:] = (cyc[1:] == cyc[:-1]) & (addr[1:] == addr[:-1])
+    return cyc[~repeat], addr[~repeat], val[~repeat]
+
+
+def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "") -> bytes:
     """Run ``build`` in gpsim (``stimuli``: commands that attach stimuli), logging writes to ``addrs``, until
     ``stop`` (``e LABEL`` or ``c CYCLES``). The scratch ring's EEPROM is on the I2C bus in every run (the
     firmware's page writes wait for its acknowledge)."""
@@ -288,7 +321,7 @@ def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli
             raise PicError(f"gpsim failed on {build.cod.name} (exit {proc.returncode}): {err}")
         if "Hit a Breakpoint" not in proc.stdout and "cycle break" not in proc.stdout:
             raise PicError(f"gpsim stopped before {stop!r}: {proc.stdout.strip()[-300:]}")
-        return log.read_text(errors="replace") if log.exists() else ""
+        return log.read_bytes() if log.exists() else b""
 
 
 def scratch_offset(run_start_sample: int, f: int) -> int:
@@ -511,6 +544,64 @@ def _replay_log(cyc, addr, val, n, sym, ram0):
             np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), stop_cycles)
 
 
+@dataclass(frozen=True)
+class RecordsRun:
+    """One logging run in gpsim's lean records mode (:meth:`PicLogger.run_records`).
+
+    ``calls``: ``(k, len(CALL_FIELDS))`` as :attr:`LoggerRun.calls` (the sample from the run's first);
+    ``records``: ``(k, 20)`` uint8, each record's bytes when ``finalise`` wrote ``LAST``; ``backlog_max``: the
+    most samples waiting (``PENDING``); ``period_cycles``: the sampling period the run had; ``gpsim_s``: the
+    gpsim process's wall time.
+    """
+
+    calls: np.ndarray
+    records: np.ndarray
+    backlog_max: int
+    period_cycles: int
+    simulated_cycles: int
+    gpsim_s: float
+
+
+def _records_from_log(cyc: np.ndarray, addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int]
+                      ) -> tuple[np.ndarray, np.ndarray, int]:
+    """The calls, the step records and the largest backlog from a lean write log (``PENDING``, the call record,
+    ``REC``, ``LAST``'s high byte): a sample ends where the main loop decrements ``PENDING``, the interrupt's
+    increments start the run."""
+    rec, step_rec, last_h = [(sym[k], b) for k, b in _RECORD], sym["REC"], sym["LAST"] + 1
+    ram: dict[int, int] = {}
+    pending, done, started, due, calls, records = 0, 0, False, False, [], []
+    for a, v in zip(addr.tolist(), val.tolist()):
+        if a == sym["PENDING"]:
+            started |= v == (pending + 1) & 0xFF
+            done += v == (pending - 1) & 0xFF
+            pending = v
+            continue
+        ram[a] = v
+        if a == sym["CALL_FLAGS"] and started:
+            calls.append([done] + [sum(ram.get(s + i, 0) << (8 * i) for i in range(b)) for s, b in rec])
+            due = True
+        elif a == last_h and due:                # the step record's end: LAST = e
+            records.append([ram.get(step_rec + i, 0) for i in range(STEP_RECORD_BYTES)])
+            due = False
+    if done != n:
+        raise PicError(f"gpsim's main loop finished {done} samples of {n}")
+    return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
+            np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), int(val[addr == sym["PENDING"]].max(initial=0)))
+
+
+def period_setup(period_cycles: int) -> TimerSetup:
+    """Timer1 and CCP1 for a sampling period of ``period_cycles`` instruction cycles (the smallest prescaler
+    whose CCPR1 holds it exactly).
+
+    >>> period_setup(46_080)
+    TimerSetup(prescale=1, ccpr1=46080, t1con=1)
+    """
+    for prescale, bits in _PRESCALERS:
+        if period_cycles % prescale == 0 and period_cycles // prescale <= 0xFFFF:
+            return TimerSetup(prescale, period_cycles // prescale, bits)
+    raise ValueError(f"{period_cycles} cycles per sample do not fit Timer1 and CCPR1")
+
+
 class PicLogger:
     """Runs ``logger.asm`` in gpsim on a recording's codes (see the module notes).
 
@@ -622,11 +713,11 @@ class PicLogger:
 
         ``start_n``: the kernel's ``N`` at START (the test build's ``START_N``: a run that old, its gravity
         warm-up over), so that a run crosses 2^15 (``F_OLD``) or the 16-bit index wrap after a few thousand
-        samples. gpsim parses a stimulus in a time quadratic in its length (16,000 samples: 10 s), so 65,536
-        samples from 0 are out of reach; :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts
-        the kernel at the same ``N``. ``run_start_sample``: the run's first sample number, which places the
-        scratch ring's start (``SCR_K0``: the run's sample ``start_n`` at ring sample ``(S + start_n) mod
-        32,512``, ``S`` the first sample of its start page)."""
+        samples instead of the 65,536 (6 x 10^9 cycles) a run from 0 would take;
+        :func:`~gaitlog.firmware_sim.algorithms.probe.detector_trace` starts the kernel at the same ``N``.
+        ``run_start_sample``: the run's first sample number, which places the scratch ring's start (``SCR_K0``:
+        the run's sample ``start_n`` at ring sample ``(S + start_n) mod 32,512``, ``S`` the first sample of its
+        start page)."""
         if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
             raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
@@ -675,15 +766,61 @@ class PicLogger:
             raise PicError(f"the sampling interrupt's period varies: {periods.tolist()} cycles")
         return isr[:32], int(periods[0])
 
-    def raw_speed(self, n_samples: int) -> tuple[int, float]:
+    def raw_speed(self, n_samples: int, *, codes: np.ndarray | None = None,
+                  calibration: CalibrationQ | None = None) -> tuple[int, float]:
         """gpsim's own speed on this firmware: the production build, nothing logged, for ``n_samples`` sample
-        periods; returns (cycles simulated, wall seconds of the gpsim process)."""
+        periods; returns (cycles simulated, wall seconds of the gpsim process). With ``codes`` and
+        ``calibration``: the test build on the first ``n_samples`` codes' stimuli instead, nothing logged, to
+        ``harness_done`` (the same work as a harness run, with no log to write or read)."""
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
         with tempfile.TemporaryDirectory(prefix="pic-logger-raw-") as tmp:
-            build = _assemble(Path(tmp), self._defines(0), test=False)
+            if codes is None or calibration is None:
+                build = _assemble(Path(tmp), self._defines(0), test=False)
+                stop, stimuli = f"c {t.period_cycles * n_samples}", ""
+            else:
+                c = np.asarray(codes, np.int64).reshape(-1, 3)[:n_samples]
+                (Path(tmp) / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
+                                                              self._eeprom(_calibration_bytes(calibration))))
+                build = _assemble(Path(tmp), dict(self._defines(0), N_SAMPLES=c.shape[0], START_N=0), test=True)
+                stop, stimuli = "e harness_done", _stimuli(c, np.zeros(c.shape[0], np.int64), t.period_cycles)
             t0 = time.perf_counter()
-            _gpsim(build, [], f"c {t.period_cycles * n_samples}", self.timeout_s)
+            _gpsim(build, [], stop, self.timeout_s, stimuli)
             return t.period_cycles * n_samples, time.perf_counter() - t0
+
+    def run_records(self, codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *,
+                    first_sample_number: int = 0, period_cycles: int | None = None) -> RecordsRun:
+        """One logging run (``codes`` from a START to the next) in the records-only lean mode: the same test
+        build, the codes as analog stimuli, but only ``PENDING``, ``ADCON0``, ``finalise``'s call record, the
+        step record (``REC``) and ``LAST``'s high byte are logged, so that gpsim's log stays small and its
+        parsing costs little next to gpsim. The conversions are checked against their stimuli as in
+        :meth:`run`.
+
+        ``period_cycles``: the sampling period (default: the rate's). A shorter one runs the same code with
+        fewer idle cycles per sample; the step records do not depend on it as long as the main loop keeps up
+        (``backlog_max`` below :data:`PAGE_WORDS`, which :func:`verify_records` requires)."""
+        t = period_setup(period_cycles) if period_cycles else timer_setup(self.sampling_rate_hz, self.fosc_hz)
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix="pic-logger-records-") as tmp:
+            d = Path(tmp)
+            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
+                                                  self._eeprom(_calibration_bytes(calibration))))
+            defines = dict(self._defines(first_sample_number), CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con)
+            build = _assemble(d, dict(defines, N_SAMPLES=n, START_N=0), test=True)
+            sym = build.symbols
+            logged = {sym[k] + i for k, b in _RECORD for i in range(b)} | {sym["PENDING"], sym["LAST"] + 1,
+                                                                            ADCON0_ADDR}
+            logged |= {sym["REC"] + i for i in range(STEP_RECORD_BYTES)}
+            t0 = time.perf_counter()
+            text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.asarray(flags, np.int64).reshape(-1), t.period_cycles))
+            dt = time.perf_counter() - t0
+        cyc, addr, val = _writes(text, logged)
+        adc = cyc[addr == ADCON0_ADDR][1:]                  # the first is the set-up's
+        _check_conversions(adc[1::2], n, t.period_cycles)
+        other = addr != ADCON0_ADDR
+        calls, records, backlog = _records_from_log(cyc[other], addr[other], val[other], n, sym)
+        return RecordsRun(calls, records, backlog, t.period_cycles, int(cyc.max(initial=0)), dt)
 
     def run(self, codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *,
             first_sample_number: int = 0) -> LoggerRun:
@@ -699,9 +836,10 @@ class PicLogger:
         if not runs:
             raise ValueError("no samples to run")
         with ThreadPoolExecutor(max_workers=max(1, self.workers)) as pool:
+            isr = pool.submit(self.measure_isr)                 # the production build, beside the first run
             parts = list(pool.map(lambda ab: self._run_one(c[ab[0]:ab[1]], f[ab[0]:ab[1]], cal_bytes,
                                                            first_sample_number + ab[0]), runs))
-            isr_by_pos, period = self.measure_isr()
+            isr_by_pos, period = isr.result()
 
         def cat(key, signed=True):
             return np.concatenate([_int(p.ram[key], signed) for p in parts])
@@ -952,20 +1090,23 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     c = np.asarray(codes, np.int64).reshape(-1, 3)
     f = np.asarray(flags, np.int64).reshape(-1)
     h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz)
-    run = h.run(c, f, calibration, first_sample_number=first_sample_number)
-    expect_packed = np.frombuffer(words_to_bytes(pack_words(c, f)), np.uint8).reshape(-1, 4)
-    model_f = calibrated_axes(c, calibration)
     starts = run_starts(f)
-    model_g = np.concatenate([gravity_states(model_f[a:b], h.gravity_shift)
-                              for a, b in zip(starts, starts[1:] + [c.shape[0]])])
+    with ThreadPoolExecutor(max_workers=1) as pool:        # gpsim runs while the model computes
+        pending = pool.submit(h.run, c, f, calibration, first_sample_number=first_sample_number)
+        model_f = calibrated_axes(c, calibration)
+        model_g = np.concatenate([gravity_states(model_f[a:b], h.gravity_shift)
+                                  for a, b in zip(starts, starts[1:] + [c.shape[0]])])
+        model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw) if a_v else None
+        trace = (detector_trace(c, calibration, h.sampling_rate_hz, starts)
+                 if a_v else None)
+        run = pending.result()
+    expect_packed = np.frombuffer(words_to_bytes(pack_words(c, f)), np.uint8).reshape(-1, 4)
     stages = [_compare("packed words", ("byte 0", "byte 1", "byte 2", "byte 3"), run.packed.astype(np.int64),
                        expect_packed.astype(np.int64)),
               _compare("calibrated axes", ("fx", "fy", "fz"), run.calibrated, model_f),
               _compare("gravity", ("g1x", "g1y", "g1z", "g2x", "g2y", "g2z"), run.gravity, model_g)]
     if a_v:
-        model_av = vertical_acceleration(model_f, model_g[:, 3:], h.min_gravity_raw)
         stages.append(_compare("a_v", ("a_v",), run.a_v.reshape(-1, 1), model_av.reshape(-1, 1)))
-        trace = detector_trace(c, calibration, h.sampling_rate_hz, starts)
         stages.append(_compare("y3", ("ready", "y3"), np.stack([run.ready, np.where(run.ready, run.y3, 0)], axis=1),
                                np.stack([trace.ready, np.where(trace.ready, trace.y3, 0)], axis=1)))
         n_med = trace.state.shape[1] - len(DETECTOR_FIELDS)
@@ -988,3 +1129,59 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
                            run.gpsim_s, time.perf_counter() - t0, gpsim_version(), notes, run.backlog_max,
                            run.stop_cycles)
 
+
+
+@dataclass(frozen=True)
+class RecordsVerification:
+    """:func:`verify_records`' result: the step records compared, the backlog, the harness's speed."""
+
+    source: str
+    n_samples: int
+    sampling_rate_hz: float
+    records: StageComparison
+    backlog_max: int
+    period_cycles: int
+    simulated_cycles: int
+    gpsim_s: float
+    wall_s: float
+
+    @property
+    def identical(self) -> bool:
+        """Every record identical, and the main loop kept up (no sample lost to a full page buffer)."""
+        return self.records.identical and self.backlog_max < PAGE_WORDS
+
+    @property
+    def realtime_factor(self) -> float:
+        """Recording seconds per wall second (gpasm, gpsim, parsing, the model)."""
+        return self.n_samples / self.sampling_rate_hz / self.wall_s if self.wall_s > 0 else float("inf")
+
+
+def verify_records(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, sampling_rate_hz: float = 50.0,
+                   source: str = "codes", first_sample_number: int = 0, harness: PicLogger | None = None,
+                   period_cycles: int | None = None) -> RecordsVerification:
+    """The step records only: every logging run through gpsim in the lean records mode
+    (:meth:`PicLogger.run_records`) and the model's records from the kernel fed each run whole
+    (:func:`~gaitlog.firmware_sim.algorithms.probe.step_records`, the scratch ring at the EEPROM ring's
+    samples), compared byte for byte. :func:`verify` compares the same records and every stage besides.
+    Raises :class:`PicError` when gpasm/gpsim are absent or fail."""
+    why = missing_tools()
+    if why:
+        raise PicError(why)
+    t0 = time.perf_counter()
+    c = np.asarray(codes, np.int64).reshape(-1, 3)
+    f = np.asarray(flags, np.int64).reshape(-1)
+    h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz)
+    starts = run_starts(f)
+    runs = [(a, b) for a, b in zip(starts, starts[1:] + [c.shape[0]]) if b > a]
+    if not runs:
+        raise ValueError("no samples to run")
+    with ThreadPoolExecutor(max_workers=max(1, h.workers)) as pool:
+        parts = list(pool.map(lambda ab: h.run_records(c[ab[0]:ab[1]], f[ab[0]:ab[1]], calibration,
+                                                       first_sample_number=first_sample_number + ab[0],
+                                                       period_cycles=period_cycles), runs))
+    model = step_records(c, calibration, h.sampling_rate_hz, starts)
+    pic = np.concatenate([p.records for p in parts])
+    return RecordsVerification(source, int(c.shape[0]), h.sampling_rate_hz, _compare_records(pic, model),
+                               max(p.backlog_max for p in parts), parts[0].period_cycles,
+                               sum(p.simulated_cycles for p in parts), sum(p.gpsim_s for p in parts),
+                               time.perf_counter() - t0)
