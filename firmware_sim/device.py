@@ -42,6 +42,15 @@ from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
 from gaitlog.protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
 from gaitlog.protocol.image import build_image, parse_image
+from gaitlog.protocol.journal_ring import (
+    ENTRY_BYTES_V3,
+    HEADER_VERSION_RING,
+    RING_FIRST_BYTE,
+    RING_PAGE_BYTES,
+    RING_PAGES,
+    STEP_CAPACITY_RECORDS_V3,
+    last_ring_commit,
+)
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, unpack_words
 from gaitlog.protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
 
@@ -127,6 +136,11 @@ class Logger:
     step_config
         Step configuration of the header (section 2.2); default off. A restored image brings its own. One
         that cannot be stored raises :class:`~gaitlog.protocol.errors.ProtocolError` (naming the field).
+    journal_ring
+        Header version 3 (``PROTOCOL.md`` section 2.7): the run's page-commit journal in a 96-page ring of
+        the step EEPROM, one entry every second page, instead of the data EEPROM's journal area (which wears
+        out in about a month of 8 h logging); the step ring then holds 2662 records. Default False (header
+        version 2).
 
     Examples
     --------
@@ -149,6 +163,7 @@ class Logger:
         live_acc_g: tuple[float, float, float] = (0.0, 0.0, 1.0),
         step_config: StepConfig | None = None,
         channel_map: ChannelMap | None = None,
+        journal_ring: bool = False,
     ) -> None:
         if adc is not None and sampling_rate_hz is not None and abs(adc.sampling_rate_hz - sampling_rate_hz) > 1e-9:
             raise DeviceError(f"sampling_rate_hz {sampling_rate_hz} disagrees with adc.sampling_rate_hz {adc.sampling_rate_hz}")
@@ -168,9 +183,11 @@ class Logger:
             adc_bits=int(self.adc.adc_bits),
             capacity_samples=CAPACITY_SAMPLES,
             adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
-            step_capacity=STEP_CAPACITY_RECORDS,
+            step_capacity=STEP_CAPACITY_RECORDS_V3 if journal_ring else STEP_CAPACITY_RECORDS,
             step_config=as_run(step_config),
         )
+        if journal_ring:  # header version 3: the run's journal in the step EEPROM (PROTOCOL.md 2.7)
+            header.header_version = HEADER_VERSION_RING
         if channel_map is not None:  # an instrument's channels (PROTOCOL.md 2.6) instead of the three axes
             header.axes, header.calibration = channel_map.n_channels, channel_map
         header.validate()  # a step configuration that cannot be stored fails here, not at the first commit
@@ -301,7 +318,13 @@ class Logger:
         torn); a version-1 header has no journal and its run's samples are dropped (LOGGING cleared). The
         header is committed and the firmware starts afresh (RAM state lost)."""
         if header.logging:
-            header = header.recovered()
+            ring = None
+            if int(header.header_version) == HEADER_VERSION_RING:
+                entries = [self.step_eeprom.sequential_read(RING_FIRST_BYTE + RING_PAGE_BYTES * k, ENTRY_BYTES_V3)
+                           for k in range(RING_PAGES)]
+                ring = last_ring_commit(entries, recording_number=header.recording_number,
+                                        recording_nonce=header.recording_nonce)
+            header = header.recovered(ring)
             if header.power_lost:
                 header.torn_step_records = torn_step_records(header, self.step_eeprom.memory)
             header.flags &= ~int(HeaderFlag.LOGGING)
