@@ -19,6 +19,10 @@ from its high byte to its low byte). A power loss therefore loses at most the pa
 :meth:`gaitlog.protocol.header.DeviceHeader.recovered` rebuilds the counters of the last committed page.
 :meth:`RingBuffer.power_cut` models the cut, including one inside the last page write or journal write.
 
+Header version 3 (section 2.7): the journal is a ring of 96 pages in the step EEPROM (``slot_eeprom``); after
+every second page commit one 16-byte entry is written there (one page write), and the data EEPROM is
+written by header commits only. A power loss then loses at most two pages.
+
 Header commits (section 2.5): with a slot EEPROM (the step 24LC1025) every commit first writes the new header
 bytes 0-159 and CRC to the older of the two header slots there (:mod:`gaitlog.protocol.header_slots`), then the
 changed bytes of the data EEPROM; a power loss inside it leaves either the old header or a slot from which
