@@ -526,6 +526,7 @@ class RingBuffer:
         """Write the partial RAM page (a page write shorter than 128 bytes, within one page; STOP commits it
         with the header, so it has no journal entry)."""
         self._in_flight = None
+        self._entry_in_flight = None  # the flushed page is in flight now, not the last entry
         self._commit_in_flight = None
         if self._pending.size:
             addr = 4 * self._pending_slot
