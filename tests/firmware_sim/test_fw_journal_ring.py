@@ -11,8 +11,10 @@ import copy
 import numpy as np
 import pytest
 
-from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.device import Logger, PowerCut
 from gaitlog.firmware_sim.eeprom import DATA_EEPROM_ENDURANCE_CYCLES, ENDURANCE_CYCLES
+from gaitlog.firmware_sim.world.poses import CalibrationPoses
+from gaitlog.host.files.decode import decode_bytes
 from gaitlog.protocol.header import PAGE_SAMPLES, DeviceHeader
 from gaitlog.protocol.journal_ring import (
     ENTRY_BYTES_V3,
@@ -179,3 +181,22 @@ def test_campaign_on_header_version_3():
     assert res.failures == [] and res.ok and res.wrong_samples == 0 and res.misreported == 0
     assert res.max_lost_samples == 2 * PAGE_SAMPLES
     assert {"in the page write", "in the journal write", "between samples"} <= set(res.cut_kinds)
+
+
+def test_record_with_a_power_cut_decodes_and_says_two_pages(tmp_path):
+    """The Logger API on header version 3: a run cut in the entry after a page; the image decodes the
+    samples of the journalled commits, exactly those recorded, and says at most two pages were lost."""
+    motion = CalibrationPoses(n_poses=4, hold_s=3.0, move_s=1.0)
+    logger = Logger(journal_ring=True, image_path=tmp_path / "d.glimg")
+    first = logger.record(motion)
+    n_cut = PAGE_SAMPLES - first.n_samples % PAGE_SAMPLES + 9 * PAGE_SAMPLES   # commit 10: an entry after it
+    res = logger.record(motion, power_cut=PowerCut(at_sample=n_cut, at_byte=RING_PAGE_BYTES + 3))
+    h = logger.header
+    assert h.power_lost and h.header_version == 3
+    assert res.n_taken - (h.samples_written - first.n_samples) == 2 * PAGE_SAMPLES   # the entry torn: 9, 10
+    with pytest.warns(UserWarning, match="at most two 32-sample pages"):
+        rec = decode_bytes((tmp_path / "d.glimg").read_bytes())
+    assert rec.valid.all() and rec.n_samples == h.samples_written
+    np.testing.assert_array_equal(rec.codes[:first.n_samples], first.codes)
+    np.testing.assert_array_equal(rec.codes[first.n_samples:], res.codes[: h.samples_written - first.n_samples])
+    assert Logger.from_image(tmp_path / "d.glimg", journal_ring=True).header.to_bytes() == h.to_bytes()
