@@ -303,7 +303,9 @@ class Logger:
             step_memory = None
         elif header.step_capacity != self.header.step_capacity:
             raise DeviceError(f"{source}: image holds {header.step_capacity} step records; this device "
-                              f"{self.header.step_capacity}")
+                              f"{self.header.step_capacity}" + (" (a header-version-3 image: Logger(journal_ring=True))"
+                                                                if header.header_version == HEADER_VERSION_RING
+                                                                else ""))
         elif step_memory is None and header.steps_written:
             raise DeviceError(f"{source}: the header has {header.n_steps_stored} stored step records but no step "
                               "memory was given")
