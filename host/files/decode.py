@@ -50,6 +50,7 @@ from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import FRAME_OVERHEAD, SYNC, FrameType, parse_stream
 from gaitlog.protocol.header import (
     HEADER_SIZE,
+    KNOWN_HEADER_VERSIONS,
     MAGIC,
     PAGE_SAMPLES,
     DeviceHeader,
@@ -399,11 +400,11 @@ def _header_boundaries(data: bytes, frames: list, errors: list
     ends = starts + np.array([8 + len(fr.payload) for fr in frames], dtype=np.int64)
     k = np.searchsorted(starts, at, side="right") - 1
     at = at[(at < n) & ~((k >= 0) & (at < ends[np.maximum(k, 0)] if ends.size else False))]
-    # the fixed bytes of section 2 (versions 1-2, protocol 1, 1-8 axes: 3 or a channel map's, P32) before any CRC
-    # or parse
+    # the fixed bytes of section 2 (a known header version, protocol 1, 1-8 axes: 3 or a channel map's, P32)
+    # before any CRC or parse
     idx = np.flatnonzero(at + HEADER_SIZE <= n)
     w = at[idx]
-    idx = idx[((b[w + 4] == 1) | (b[w + 4] == 2)) & (b[w + 5] == 1) & (b[w + 17] >= 1) & (b[w + 17] <= 8)
+    idx = idx[np.isin(b[w + 4], KNOWN_HEADER_VERSIONS) & (b[w + 5] == 1) & (b[w + 17] >= 1) & (b[w + 17] <= 8)
               & (b[w + 18] == 1)]
     readable = np.zeros(at.size, dtype=bool)
     for i in idx.tolist():
