@@ -683,6 +683,9 @@ class EnduranceBudget:
     #: Runs (START ... STOP) the measurement logged: the byte regions, written by header commits only (header
     #: version 3), are then also given in runs; 0: not stated.
     runs: int = 0
+    #: Header version of the measured logger (3, the default device: the journal ring; 2: the data EEPROM's
+    #: journal); 0: not stated (computed from the design).
+    header_version: int = 0
 
     def rate_per_s(self, region: MemoryWear) -> float:
         """Write cycles per second of the region's worst unit."""
@@ -712,7 +715,8 @@ class EnduranceBudget:
         how = (f"measured by the model over {self.duration_s:,.0f} s of continuous logging" if self.measured
                else "computed from the design")
         h8, h24 = LIFETIME_HOURS_PER_DAY
-        out = [f"memory endurance ({how}; years of logging {h8:g} h / {h24:g} h a day)"]
+        device = f"the logger, header version {self.header_version}; " if self.header_version else ""
+        out = [f"memory endurance ({device}{how}; years of logging {h8:g} h / {h24:g} h a day)"]
         for r in self.regions:
             y8, y24 = self.lifetime_years(r, h8), self.lifetime_years(r, h24)
             where = f"worst {r.unit} {r.worst_unit:4d}, {r.worst_cycles:5,.0f} cycles" if self.measured else ""
@@ -750,9 +754,10 @@ def _step_rings(step: list[int], journal_ring: bool) -> tuple[MemoryWear, ...]:
 def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, bank_wear=None, step_wear=None,
                      data_wear=None, flush_samples: int = 0, journal_ring: bool = False) -> EnduranceBudget:
     """The lifetime of the logger's memories: measured (the wear counters of a run of ``duration_s``: the
-    sample bank's pages, the step EEPROM's, the data EEPROM's bytes; ``journal_ring``: a header-version-3
-    logger, whose journal is in the step EEPROM) or, without them, computed from the design (the sample pages
-    written in turn; the scratch ring at ``flush_samples``, 0: no on-line algorithm)."""
+    sample bank's pages, the step EEPROM's, the data EEPROM's bytes; ``journal_ring``: the logger has header
+    version 3, the default, whose journal is in the step EEPROM; False: version 2) or, without them, computed
+    from the design (the sample pages written in turn; the scratch ring at ``flush_samples``, 0: no on-line
+    algorithm)."""
     if bank_wear is not None:
         step = [int(x) for x in step_wear]
         first = SCRATCH_FIRST_BYTE // PAGE_BYTES
@@ -767,7 +772,8 @@ def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, b
             MemoryWear("PIC data EEPROM", "byte", tuple(int(x) for x in data_wear), 0, DATA_EEPROM_ENDURANCE_CYCLES,
                        "header commits: START and STOP" if journal_ring else "header and page-commit journal"),
         )
-        return EnduranceBudget(config, float(duration_s), regions, True, 1 if journal_ring else 0)
+        return EnduranceBudget(config, float(duration_s), regions, True, 1 if journal_ring else 0,
+                               3 if journal_ring else 2)
     duration = 1.0
     pages = 2 * DEVICE_BYTES // PAGE_BYTES
     sample = config.bytes_per_sample * config.sampling_rate_hz / PAGE_BYTES / pages

@@ -13,6 +13,7 @@ import pytest
 
 from gaitlog.firmware_sim.device import Logger, PowerCut
 from gaitlog.firmware_sim.eeprom import DATA_EEPROM_ENDURANCE_CYCLES, ENDURANCE_CYCLES
+from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.firmware_sim.world.poses import CalibrationPoses
 from gaitlog.host.files.decode import decode_bytes
 from gaitlog.protocol.header import PAGE_SAMPLES, DeviceHeader
@@ -151,12 +152,30 @@ def test_a_torn_entry_never_claims_its_commit():
             assert got == ((m, m // 3) if bytes(torn) == new else (m - 2, (m - 2) // 3)), (j, value)
 
 
-def test_version_2_logger_is_unchanged():
-    """The default logger keeps header version 2 and its data EEPROM journal."""
-    logger = _logging(4 * PAGE_SAMPLES, overwrite=False)
-    assert logger.header.header_version == 3 and logger.header.step_capacity == 2662
-    v2 = Logger()
-    assert v2.header.header_version == 2 and v2.header.step_capacity == 3276
+def test_header_version_3_is_the_default_and_version_2_selectable(tmp_path):
+    """A new logger has header version 3 (its data EEPROM takes header commits only); ``journal_ring=False``
+    builds one of version 2, whose journal is in the data EEPROM. A device built from an image keeps the
+    image's header version unless one is asked for, and one asked for refuses an image of the other."""
+    default = _logging(4 * PAGE_SAMPLES, overwrite=False)
+    assert (default.header.header_version, default.header.step_capacity) == (3, 2662)
+    assert default.header.commit_journal == Logger(journal_ring=False).header.commit_journal   # untouched
+    assert (Logger().header.header_version, Logger(journal_ring=True).header.header_version) == (3, 3)
+    v2 = Logger(journal_ring=False, overwrite=False)
+    v2.firmware.start_logging(start_time_s=0, overwrite=False)
+    v2.firmware.log_samples(_codes(4 * PAGE_SAMPLES))
+    assert (v2.header.header_version, v2.header.step_capacity) == (2, 3276)
+    assert v2.ring.ring_journal is False and (v2.step_eeprom.memory[RING_FIRST_BYTE:65536] == 0xFF).all()
+    assert v2.header.commit_journal != default.header.commit_journal   # four commits journalled
+    v2.firmware.stop_logging()
+    default.firmware.stop_logging()
+    for lg, name, version, cap in ((v2, "v2.glimg", 2, 3276), (default, "v3.glimg", 3, 2662)):
+        path = lg.save_image(tmp_path / name)
+        for back in (Logger.from_image(path), Logger(image_path=path)):
+            assert (back.header.header_version, back.header.step_capacity) == (version, cap)
+            assert back.header.to_bytes() == lg.header.to_bytes() and back.memory == lg.memory
+        other = version == 2   # journal_ring=True for the version-2 image, False for the version-3 one
+        with pytest.raises(DeviceError, match=f"image holds {cap} step records; this device {5938 - cap}"):
+            Logger.from_image(path, journal_ring=other)
 
 
 def test_a_cut_in_stops_flush_keeps_the_last_entry():
