@@ -49,9 +49,9 @@ html_title = f"gaitlog {release}"
 
 
 def setup(app):
-    """PROTOCOL.md labels its worked examples' fences (``example``, ``header-slot-example``) for its tests:
-    they are plain text to Sphinx."""
+    """PROTOCOL.md labels its worked examples' fences (``example``, ``header-slot-example``,
+    ``journal-ring-example``) for its tests: they are plain text to Sphinx."""
     from pygments.lexers.special import TextLexer
 
-    for name in ("example", "header-slot-example"):
+    for name in ("example", "header-slot-example", "journal-ring-example"):
         app.add_lexer(name, TextLexer)

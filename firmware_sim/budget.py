@@ -71,6 +71,7 @@ from gaitlog.firmware_sim.fixedpoint import (
 from gaitlog.firmware_sim.ring_buffer import WORDS_PER_PAGE
 from gaitlog.firmware_sim.uart import UartTiming
 from gaitlog.protocol.header import HEADER_SIZE, MEMORY_BYTES
+from gaitlog.protocol.journal_ring import COMMIT_PAGES, RING_FIRST_BYTE, STEP_CAPACITY_RECORDS_V3
 
 __all__ = ["PIC_RAM_BYTES", "PIC_PROGRAM_WORDS", "FIRMWARE_RAM", "LOGGING_CYCLES", "CONFIGURATIONS", "LoggerConfig",
            "RamItem", "RamBudget", "CycleBudget", "ProgramBudget", "StorageBudget", "ram_budget", "cycle_budget",
@@ -679,6 +680,12 @@ class EnduranceBudget:
     duration_s: float
     regions: tuple[MemoryWear, ...]
     measured: bool
+    #: Runs (START ... STOP) the measurement logged: the byte regions, written by header commits only (header
+    #: version 3), are then also given in runs; 0: not stated.
+    runs: int = 0
+    #: Header version of the measured logger (3, the default device: the journal ring; 2: the data EEPROM's
+    #: journal); 0: not stated (computed from the design).
+    header_version: int = 0
 
     def rate_per_s(self, region: MemoryWear) -> float:
         """Write cycles per second of the region's worst unit."""
@@ -708,7 +715,8 @@ class EnduranceBudget:
         how = (f"measured by the model over {self.duration_s:,.0f} s of continuous logging" if self.measured
                else "computed from the design")
         h8, h24 = LIFETIME_HOURS_PER_DAY
-        out = [f"memory endurance ({how}; years of logging {h8:g} h / {h24:g} h a day)"]
+        device = f"the logger, header version {self.header_version}; " if self.header_version else ""
+        out = [f"memory endurance ({device}{how}; years of logging {h8:g} h / {h24:g} h a day)"]
         for r in self.regions:
             y8, y24 = self.lifetime_years(r, h8), self.lifetime_years(r, h24)
             where = f"worst {r.unit} {r.worst_unit:4d}, {r.worst_cycles:5,.0f} cycles" if self.measured else ""
@@ -718,6 +726,11 @@ class EnduranceBudget:
                    f"{h24:g} h (the {self.limiting.name}); {'fits' if self.fits() else 'DOES NOT FIT'} "
                    f"{LIFETIME_TARGET_YEARS:g} years")
         for r in self.regions:
+            if r.unit != "page" and self.runs and r.worst_cycles:
+                per_run = r.worst_cycles / self.runs
+                out.append(f"  {r.name}: {per_run:g} cycles a run (a START and a STOP) on its worst byte, "
+                           f"{r.endurance_cycles / per_run:,.0f} runs ({r.endurance_cycles / per_run / 3652.5:.1f} a "
+                           "day for 10 years); the years above assume a run per measurement")
             if r.unit != "page" and self.lifetime_years(r, h8) < LIFETIME_TARGET_YEARS:
                 out.append(f"  note: the {r.name}'s byte {r.worst_unit} ({r.source}) lasts "
                            f"{self.lifetime_years(r, h8):.2f} years at {h8:g} h a day ({r.endurance_cycles:,d} "
@@ -725,27 +738,42 @@ class EnduranceBudget:
         return out
 
 
+def _step_rings(step: list[int], journal_ring: bool) -> tuple[MemoryWear, ...]:
+    """The step EEPROM's block 0: the step ring, and with header version 3 the journal ring behind it."""
+    first = SCRATCH_FIRST_BYTE // PAGE_BYTES
+    if not journal_ring:
+        return (MemoryWear("step ring", "page", tuple(step[:first]), 0, ENDURANCE_CYCLES,
+                           "step EEPROM block 0: 20-byte records as they come"),)
+    ring = RING_FIRST_BYTE // PAGE_BYTES
+    return (MemoryWear("step ring", "page", tuple(step[:ring]), 0, ENDURANCE_CYCLES,
+                       f"step EEPROM block 0: {STEP_CAPACITY_RECORDS_V3} 20-byte records as they come"),
+            MemoryWear("journal ring", "page", tuple(step[ring:first]), ring, ENDURANCE_CYCLES,
+                       f"step EEPROM end of block 0: an entry every {COMMIT_PAGES} page commits"))
+
+
 def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, bank_wear=None, step_wear=None,
-                     data_wear=None, flush_samples: int = 0) -> EnduranceBudget:
+                     data_wear=None, flush_samples: int = 0, journal_ring: bool = False) -> EnduranceBudget:
     """The lifetime of the logger's memories: measured (the wear counters of a run of ``duration_s``: the
-    sample bank's pages, the step EEPROM's, the data EEPROM's bytes) or, without them, computed from the design
-    (the sample pages written in turn; the scratch ring at ``flush_samples``, 0: no on-line algorithm)."""
+    sample bank's pages, the step EEPROM's, the data EEPROM's bytes; ``journal_ring``: the logger has header
+    version 3, the default, whose journal is in the step EEPROM; False: version 2) or, without them, computed
+    from the design (the sample pages written in turn; the scratch ring at ``flush_samples``, 0: no on-line
+    algorithm)."""
     if bank_wear is not None:
         step = [int(x) for x in step_wear]
         first = SCRATCH_FIRST_BYTE // PAGE_BYTES
         regions = (
             MemoryWear("sample memory", "page", tuple(int(x) for x in bank_wear), 0, ENDURANCE_CYCLES,
                        "2 x 24LC1025, 128-byte pages written in turn"),
-            MemoryWear("step ring", "page", tuple(step[:first]), 0, ENDURANCE_CYCLES,
-                       "step EEPROM block 0: 20-byte records as they come"),
+            *_step_rings(step, journal_ring),
             MemoryWear("scratch ring", "page", tuple(step[first:first + SCRATCH_PAGES]), first, ENDURANCE_CYCLES,
                        f"step EEPROM block 1: a_v, one page write every {flush_samples} samples"),
             MemoryWear("header slots", "page", tuple(step[first + SCRATCH_PAGES:]), first + SCRATCH_PAGES,
                        ENDURANCE_CYCLES, "step EEPROM, end of block 1: header commits"),
             MemoryWear("PIC data EEPROM", "byte", tuple(int(x) for x in data_wear), 0, DATA_EEPROM_ENDURANCE_CYCLES,
-                       "header and page-commit journal"),
+                       "header commits: START and STOP" if journal_ring else "header and page-commit journal"),
         )
-        return EnduranceBudget(config, float(duration_s), regions, True)
+        return EnduranceBudget(config, float(duration_s), regions, True, 1 if journal_ring else 0,
+                               3 if journal_ring else 2)
     duration = 1.0
     pages = 2 * DEVICE_BYTES // PAGE_BYTES
     sample = config.bytes_per_sample * config.sampling_rate_hz / PAGE_BYTES / pages

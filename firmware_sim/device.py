@@ -11,9 +11,11 @@ whole-array page writes. The UART side is :attr:`Logger.firmware` (sans-I/O; see
 The EEPROM contents persist as a memory-image file (``PROTOCOL.md`` section 6, :mod:`gaitlog.protocol.image`)
 between runs, as the real EEPROMs keep their data with the power off: ``Logger(image_path=p)`` restores
 ``p`` if it exists and every :meth:`record` saves it back (atomically); :meth:`Logger.from_image` restores
-any image. The emulated logger has the step memory of section 2.3 (a third 24LC1025, ``step_capacity``
-3276), so it writes ``image_version`` 2; an image of version 1 (no step memory) restores with an empty
-step memory.
+any image. The emulated logger has the step memory of section 2.3 (a third 24LC1025), so it writes
+``image_version`` 2; an image of version 1 (no step memory) restores with an empty step memory. A new
+logger has header version 3 (section 2.7: the run's page-commit journal in a 96-page ring of the step
+EEPROM, ``step_capacity`` 2662); ``Logger(journal_ring=False)`` builds one of header version 2 (the journal
+in the data EEPROM, ``step_capacity`` 3276), and a restored image keeps its own header version.
 """
 
 from __future__ import annotations
@@ -42,6 +44,15 @@ from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.header import CAPACITY_SAMPLES, DeviceHeader, HeaderFlag
 from gaitlog.protocol.header_slots import SLOT_ADDRESSES, SLOT_BYTES, committed_header
 from gaitlog.protocol.image import build_image, parse_image
+from gaitlog.protocol.journal_ring import (
+    ENTRY_BYTES_V3,
+    HEADER_VERSION_RING,
+    RING_FIRST_BYTE,
+    RING_PAGE_BYTES,
+    RING_PAGES,
+    STEP_CAPACITY_RECORDS_V3,
+    last_ring_commit,
+)
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, unpack_words
 from gaitlog.protocol.steps import STEP_CAPACITY_RECORDS, StepConfig
 
@@ -127,6 +138,12 @@ class Logger:
     step_config
         Step configuration of the header (section 2.2); default off. A restored image brings its own. One
         that cannot be stored raises :class:`~gaitlog.protocol.errors.ProtocolError` (naming the field).
+    journal_ring
+        True: header version 3 (``PROTOCOL.md`` section 2.7), the run's page-commit journal in a 96-page ring
+        of the step EEPROM, one entry every second page; the step ring holds 2662 records. False: header
+        version 2, the journal in the data EEPROM's journal area (which wears out in about a month of 8 h
+        logging); the step ring holds 3276 records. None (default): header version 3 for a new device, and
+        a restored image's own version (2 or 3) for a device built from one.
 
     Examples
     --------
@@ -149,6 +166,7 @@ class Logger:
         live_acc_g: tuple[float, float, float] = (0.0, 0.0, 1.0),
         step_config: StepConfig | None = None,
         channel_map: ChannelMap | None = None,
+        journal_ring: bool | None = None,
     ) -> None:
         if adc is not None and sampling_rate_hz is not None and abs(adc.sampling_rate_hz - sampling_rate_hz) > 1e-9:
             raise DeviceError(f"sampling_rate_hz {sampling_rate_hz} disagrees with adc.sampling_rate_hz {adc.sampling_rate_hz}")
@@ -168,9 +186,12 @@ class Logger:
             adc_bits=int(self.adc.adc_bits),
             capacity_samples=CAPACITY_SAMPLES,
             adc_vref_mv=int(round((self.adc.vref_high_v - self.adc.vref_low_v) * 1000)),
-            step_capacity=STEP_CAPACITY_RECORDS,
+            step_capacity=STEP_CAPACITY_RECORDS if journal_ring is False else STEP_CAPACITY_RECORDS_V3,
             step_config=as_run(step_config),
         )
+        self._journal_ring = journal_ring  # None: a restored image keeps its own header version
+        if journal_ring is not False:  # header version 3: the run's journal in the step EEPROM (PROTOCOL.md 2.7)
+            header.header_version = HEADER_VERSION_RING
         if channel_map is not None:  # an instrument's channels (PROTOCOL.md 2.6) instead of the three axes
             header.axes, header.calibration = channel_map.n_channels, channel_map
         header.validate()  # a step configuration that cannot be stored fails here, not at the first commit
@@ -198,7 +219,8 @@ class Logger:
 
     @property
     def step_memory(self) -> bytes:
-        """The whole step memory (the ring of 3276 records, 65,520 bytes), as the step EEPROM holds it."""
+        """The whole step memory (the ring of ``step_capacity`` records: 2662, 53,240 bytes, on header version
+        3; 3276, 65,520 bytes, on version 2), as the step EEPROM holds it."""
         return self.steps.contents()
 
     @property
@@ -281,12 +303,20 @@ class Logger:
                 f"{source}: image holds {header.capacity_samples} samples / {memory.size} bytes; this device "
                 f"{self.header.capacity_samples} / {self.bank.size_bytes}"
             )
+        cap = self.header.step_capacity
+        if self._journal_ring is None:  # the device is the image's: its header version's step ring
+            cap = STEP_CAPACITY_RECORDS_V3 if header.header_version == HEADER_VERSION_RING else STEP_CAPACITY_RECORDS
         if header.step_capacity == 0:
-            header.step_capacity = self.header.step_capacity  # steps_written is 0: an empty ring
+            header.step_capacity = cap  # steps_written is 0: an empty ring
             step_memory = None
-        elif header.step_capacity != self.header.step_capacity:
+        elif header.step_capacity != cap:
+            hint = ""
+            if header.header_version == HEADER_VERSION_RING:
+                hint = " (a header-version-3 image: Logger(journal_ring=True) or the default)"
+            elif header.step_capacity == STEP_CAPACITY_RECORDS:
+                hint = " (a header-version-2 image: Logger(journal_ring=False) or the default)"
             raise DeviceError(f"{source}: image holds {header.step_capacity} step records; this device "
-                              f"{self.header.step_capacity}")
+                              f"{cap}" + hint)
         elif step_memory is None and header.steps_written:
             raise DeviceError(f"{source}: the header has {header.n_steps_stored} stored step records but no step "
                               "memory was given")
@@ -301,7 +331,13 @@ class Logger:
         torn); a version-1 header has no journal and its run's samples are dropped (LOGGING cleared). The
         header is committed and the firmware starts afresh (RAM state lost)."""
         if header.logging:
-            header = header.recovered()
+            ring = None
+            if int(header.header_version) == HEADER_VERSION_RING:
+                entries = [self.step_eeprom.sequential_read(RING_FIRST_BYTE + RING_PAGE_BYTES * k, ENTRY_BYTES_V3)
+                           for k in range(RING_PAGES)]
+                ring = last_ring_commit(entries, recording_number=header.recording_number,
+                                        recording_nonce=header.recording_nonce)
+            header = header.recovered(ring)
             if header.power_lost:
                 header.torn_step_records = torn_step_records(header, self.step_eeprom.memory)
             header.flags &= ~int(HeaderFlag.LOGGING)

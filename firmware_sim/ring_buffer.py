@@ -19,6 +19,10 @@ from its high byte to its low byte). A power loss therefore loses at most the pa
 :meth:`gaitlog.protocol.header.DeviceHeader.recovered` rebuilds the counters of the last committed page.
 :meth:`RingBuffer.power_cut` models the cut, including one inside the last page write or journal write.
 
+Header version 3 (section 2.7): the journal is a ring of 96 pages in the step EEPROM (``slot_eeprom``); after
+every second page commit one 16-byte entry is written there (one page write), and the data EEPROM is
+written by header commits only. A power loss then loses at most two pages.
+
 Header commits (section 2.5): with a slot EEPROM (the step 24LC1025) every commit first writes the new header
 bytes 0-159 and CRC to the older of the two header slots there (:mod:`gaitlog.protocol.header_slots`), then the
 changed bytes of the data EEPROM; a power loss inside it leaves either the old header or a slot from which
@@ -45,6 +49,16 @@ from gaitlog.protocol.header import (
     CalibrationSlot,
     DeviceHeader,
     HeaderFlag,
+)
+from gaitlog.protocol.journal_ring import (
+    COMMIT_PAGES,
+    ENTRY_BYTES_V3,
+    HEADER_VERSION_RING,
+    RING_FIRST_BYTE,
+    RING_PAGE_BYTES,
+    RING_PAGES,
+    entry_bytes,
+    ring_address,
 )
 from gaitlog.protocol.header_slots import (
     SLOT_ADDRESSES,
@@ -115,6 +129,17 @@ class RingBuffer:
         #: The last header commit, for :meth:`power_cut_header`: (data EEPROM before, data EEPROM after, slot
         #: address, slot before, slot after), or None.
         self._commit_in_flight: tuple[bytes, bytes, int, bytes, bytes] | None = None
+        #: Header version 3: the journal-ring entry written after the last page write (address, bytes before,
+        #: bytes written), or None (the last page commit wrote no entry).
+        self._entry_in_flight: tuple[int, bytes, bytes] | None = None
+        if self.ring_journal and slot_eeprom is None:
+            raise DeviceError("header version 3 keeps its journal ring in the step EEPROM: none was given")
+
+    @property
+    def ring_journal(self) -> bool:
+        """The run's journal is the step EEPROM's journal ring (header version 3, section 2.7), not the data
+        EEPROM's journal area."""
+        return int(self.header.header_version) == HEADER_VERSION_RING
 
     # ------------------------------------------------------------------ state
     @property
@@ -355,7 +380,7 @@ class RingBuffer:
         self._pending = buf.copy()
         self._pending_slot = slot
         if commits:
-            journal_before = self._journal(commits)
+            journal_before = self._ring_journal(commits) if self.ring_journal else self._journal(commits)
             assert last is not None
             self._in_flight = None if self._pending.size else (
                 last[0], last[1], self.bank.read(last[0], len(last[1])), journal_before)
@@ -386,6 +411,36 @@ class RingBuffer:
             self.data_eeprom.write(JOURNAL_OFFSET + ENTRY_BYTES * k, entry)
         return journal_before
 
+    def _ring_journal(self, commits: int) -> bytes:
+        """Header version 3 (section 2.7): after every second page commit, one 16-byte entry page write to the
+        journal ring of the step EEPROM (acknowledge-polled). Only the last 96 entries can survive: the
+        earlier ones are accounted (a write cycle of their page each). Returns the data EEPROM journal
+        (untouched while logging)."""
+        h = self.header
+        steps = int(h.steps_written) - self._run_steps0
+        first = self._commits + 1
+        self._commits += commits
+        entries = np.arange(-(-first // COMMIT_PAGES) * COMMIT_PAGES, self._commits + 1, COMMIT_PAGES)
+        self._entry_in_flight = None
+        if entries.size > RING_PAGES:
+            pages = (int(h.recording_number) + entries[:-RING_PAGES] // COMMIT_PAGES - 1) % RING_PAGES
+            self.slot_eeprom.count_page_writes(RING_FIRST_BYTE // RING_PAGE_BYTES,
+                                               np.bincount(pages, minlength=RING_PAGES))
+            entries = entries[-RING_PAGES:]
+        for m in entries.tolist():
+            addr = ring_address(m, recording_number=h.recording_number)
+            before = self.slot_eeprom.sequential_read(addr, ENTRY_BYTES_V3)
+            entry = entry_bytes(m, steps=steps, recording_number=h.recording_number,
+                                recording_nonce=h.recording_nonce)
+            self.slot_eeprom.page_write(addr, entry, now_s=self.slot_eeprom.busy_until_s)
+            self._entry_in_flight = (addr, before, entry) if m == self._commits else None
+        return h.commit_journal
+
+    def ring_entries(self) -> list[bytes]:
+        """The first 16 bytes of every journal-ring page (what power-up reads, section 2.7)."""
+        return [self.slot_eeprom.sequential_read(RING_FIRST_BYTE + RING_PAGE_BYTES * k, ENTRY_BYTES_V3)
+                for k in range(RING_PAGES)]
+
     def power_cut(self, at_byte: int | None, *, garbage: int = 0x5A) -> int:
         """The power fails now: what the EEPROMs hold afterwards (the RAM, page buffer included, is lost).
 
@@ -408,6 +463,8 @@ class RingBuffer:
         """
         if at_byte is None or self._in_flight is None or not self.logging:
             return 0
+        if self.ring_journal:
+            return self._power_cut_ring(int(at_byte), garbage)
         addr, old, new, journal_before = self._in_flight
         n_page = len(new)
         journal_after = self.header.commit_journal
@@ -428,10 +485,34 @@ class RingBuffer:
             self.data_eeprom.memory[JOURNAL_OFFSET:JOURNAL_OFFSET + len(torn)] = np.frombuffer(bytes(torn), np.uint8)
         return int(at_byte)
 
+    def _power_cut_ring(self, at_byte: int, garbage: int) -> int:
+        """:meth:`power_cut` of header version 3: bytes ``0 … len(page) − 1`` tear the sample page (the
+        journal-ring entry after it, if the commit has one, is then not written), the next 16 the entry's page
+        write (section 2.7)."""
+        assert self._in_flight is not None and self.slot_eeprom is not None
+        addr, old, new, _ = self._in_flight
+        entry = self._entry_in_flight
+        if at_byte < len(new):
+            torn = bytearray(old)
+            torn[:at_byte] = new[:at_byte]
+            torn[at_byte] = garbage
+            self.bank.fault_write(addr, bytes(torn))
+            if entry is not None:
+                self.slot_eeprom.memory[entry[0]:entry[0] + ENTRY_BYTES_V3] = np.frombuffer(entry[1], np.uint8)
+        elif entry is not None and at_byte - len(new) < ENTRY_BYTES_V3:
+            j = at_byte - len(new)
+            torn = bytearray(entry[1])
+            torn[:j] = entry[2][:j]
+            torn[j] = garbage
+            self.slot_eeprom.memory[entry[0]:entry[0] + ENTRY_BYTES_V3] = np.frombuffer(bytes(torn), np.uint8)
+        return at_byte
+
     def in_flight_bytes(self) -> int:
         """Bytes of the last write still in flight if the power failed now (page and journal entry; 0: none)."""
         if self._in_flight is None or not self.logging:
             return 0
+        if self.ring_journal:
+            return len(self._in_flight[2]) + (ENTRY_BYTES_V3 if self._entry_in_flight is not None else 0)
         return len(self._in_flight[2]) + len(_journal_write_order(self._in_flight[3], self.header.commit_journal))
 
     def _account_overwrites(self, n_words: int) -> None:
@@ -445,6 +526,7 @@ class RingBuffer:
         """Write the partial RAM page (a page write shorter than 128 bytes, within one page; STOP commits it
         with the header, so it has no journal entry)."""
         self._in_flight = None
+        self._entry_in_flight = None  # the flushed page is in flight now, not the last entry
         self._commit_in_flight = None
         if self._pending.size:
             addr = 4 * self._pending_slot

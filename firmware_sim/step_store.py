@@ -2,8 +2,9 @@
 
 While logging, the firmware's on-line step algorithm produces one 20-byte record per detected foot-flat
 (:func:`gaitlog.protocol.steps.pack_step_records` builds them); the step store writes each at slot
-``step_write_index`` of a ring of ``step_capacity`` = 3276 records in the first 64 KiB block of the step
-EEPROM (record ``k`` at byte ``20·k``). The ring always overwrites its oldest record: there is no
+``step_write_index`` of a ring of ``step_capacity`` records in the first 64 KiB block of the step EEPROM
+(record ``k`` at byte ``20·k``): 2662 in front of the journal ring on header version 3 (section 2.7, the
+logger's default), 3276 on header version 2. The ring always overwrites its oldest record: there is no
 stop-when-full mode for steps. The second 64 KiB block of that EEPROM is the algorithm's private scratch
 ring; the step store never touches it.
 

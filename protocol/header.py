@@ -42,6 +42,7 @@ from gaitlog.protocol.commit_journal import (
 )
 from gaitlog.protocol.crc import crc16_xmodem
 from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.journal_ring import COMMIT_PAGES, HEADER_VERSION_RING, STEP_CAPACITY_RECORDS_V3
 from gaitlog.protocol.layout import field_offsets
 from gaitlog.protocol.steps import (
     STEP_CAPACITY_RECORDS,
@@ -87,7 +88,7 @@ MAGIC = b"GLOG"
 #: header CRC over bytes 0-159. Version 1 headers (CRC over 0-253, no identity, no journal) are still read.
 HEADER_VERSION = 2
 #: Header versions a decoder reads.
-KNOWN_HEADER_VERSIONS = (1, 2)
+KNOWN_HEADER_VERSIONS = (1, 2, HEADER_VERSION_RING)
 #: Samples per 128-byte sample EEPROM page (the unit of a commit, section 2.4).
 PAGE_SAMPLES = 32
 PROTOCOL_VERSION = 1
@@ -405,17 +406,20 @@ class DeviceHeader(_HeaderIntFields):
             return np.zeros(0, dtype=np.int64)
         return (self.write_index + np.arange(self.torn_slots, dtype=np.int64)) % self.capacity_samples
 
-    def recovered(self) -> "DeviceHeader":
+    def recovered(self, last: tuple[int, int] | None = None) -> "DeviceHeader":
         """The header after a power loss during a run (``LOGGING`` set, header version 2): the counters of the
         run's last committed page from the journal (section 2.4), ``LOGGING`` cleared, ``POWER_LOST`` set,
         ``torn_slots`` the slots of the page in flight that were stored samples, ``torn_step_records`` 0 (the
         firmware sets it after looking at the step ring). What the firmware writes at power-up and what a
         decoder applies to a header read with ``LOGGING`` set. A header without ``LOGGING``, or of version 1
-        (no journal), is returned unchanged.
+        (no journal), is returned unchanged. ``last``: ``(m, steps)`` of the last commit when the journal is
+        elsewhere (header version 3: :func:`gaitlog.protocol.journal_ring.last_ring_commit`; without it a
+        version-3 run recovers nothing, as its data EEPROM journal stays empty); up to two pages from the
+        recovered ``write_index`` are then torn.
         """
         if not self.logging or self.header_version == 1:
             return self
-        m, steps = last_commit(self.commit_journal)
+        m, steps = last if last is not None else last_commit(self.commit_journal)
         cap = int(self.capacity_samples)
         n = committed_samples(m, first_slot=int(self.write_index), page_samples=PAGE_SAMPLES)
         if not self.overwrite:
@@ -430,6 +434,8 @@ class DeviceHeader(_HeaderIntFields):
         torn = 0
         if flags & HeaderFlag.WRAPPED and not flags & HeaderFlag.FULL_STOPPED:
             torn = PAGE_SAMPLES - wi % PAGE_SAMPLES
+            if self.header_version == HEADER_VERSION_RING:
+                torn = min(torn + (COMMIT_PAGES - 1) * PAGE_SAMPLES, cap)
         out = self.replace(flags=flags, samples_written=sw, write_index=wi, torn_slots=torn, torn_step_records=0)
         if self.step_capacity and steps != STEPS_SATURATED:
             out.steps_written = min(int(self.steps_written) + steps, STEPS_WRITTEN_MAX)
@@ -580,9 +586,10 @@ class DeviceHeader(_HeaderIntFields):
                            "samples_written", source)
         if self.run_start_sample > sw:
             raise _err(f"{self.run_start_sample} beyond samples_written {sw}", "run_start_sample", source)
-        if self.torn_slots > PAGE_SAMPLES - self.write_index % PAGE_SAMPLES:
+        pages = COMMIT_PAGES if self.header_version == HEADER_VERSION_RING else 1
+        if self.torn_slots > pages * PAGE_SAMPLES - self.write_index % PAGE_SAMPLES:
             raise _err(f"{self.torn_slots} slots from write_index {self.write_index} leave its "
-                       f"{PAGE_SAMPLES}-sample page", "torn_slots", source)
+                       f"{PAGE_SAMPLES}-sample page" + (" and the next" if pages > 1 else ""), "torn_slots", source)
         if self.header_version == 1 and (self.recording_number or self.recording_nonce or self.torn_slots
                                          or self.torn_step_records):
             raise _err("header version 1 has no recording identity and no torn slots", "header_version", source)
@@ -599,9 +606,11 @@ class DeviceHeader(_HeaderIntFields):
     def _validate_steps(self, source: str | None) -> None:
         """The step counters (section 2.3): like the sample counters, but the step ring always overwrites."""
         cap, sw, wi = self.step_capacity, self.steps_written, self.step_write_index
-        if cap > STEP_CAPACITY_RECORDS:
-            raise _err(f"{cap} records do not fit the step ring (at most {STEP_CAPACITY_RECORDS} in a 64 KiB "
-                       "block)", "step_capacity", source)
+        most = STEP_CAPACITY_RECORDS_V3 if self.header_version == HEADER_VERSION_RING else STEP_CAPACITY_RECORDS
+        if cap > most:
+            raise _err(f"{cap} records do not fit the step ring (at most {most} in a 64 KiB block"
+                       + (", in front of the journal ring)" if most != STEP_CAPACITY_RECORDS else ")"),
+                       "step_capacity", source)
         if cap == 0:
             if sw != 0:
                 raise _err(f"{sw} records written but step_capacity is 0 (no step memory)", "steps_written",

@@ -504,7 +504,7 @@ def test_info_shows_the_step_configuration_and_counts(walk_image, capsys):
     n = len(records) // 20
     assert main(["info", str(image)]) == 0
     out = capsys.readouterr().out
-    assert f"step memory      3276 records; {n} written (stored {n}, oldest is record 0 in slot 0)" in out
+    assert f"step memory      2662 records; {n} written (stored {n}, oldest is record 0 in slot 0)" in out
     assert "step algorithm   on-line version 4, leg 0.9275 m, foot 0.1943 m, raw" in out
     assert f"step records     {n} of {n} stored records decode (0 dropped)" in out
     assert main(["info", "--port", f"emu://{image}"]) == 0

@@ -50,6 +50,7 @@ from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.frames import FRAME_OVERHEAD, SYNC, FrameType, parse_stream
 from gaitlog.protocol.header import (
     HEADER_SIZE,
+    KNOWN_HEADER_VERSIONS,
     MAGIC,
     PAGE_SAMPLES,
     DeviceHeader,
@@ -57,6 +58,7 @@ from gaitlog.protocol.header import (
     crc_span,
 )
 from gaitlog.protocol.image import detect_format, parse_image
+from gaitlog.protocol.journal_ring import HEADER_VERSION_RING
 from gaitlog.protocol.packing import unpack_words
 from gaitlog.protocol.raw_dump import parse_raw_dump
 from gaitlog.protocol.steps import (
@@ -398,11 +400,11 @@ def _header_boundaries(data: bytes, frames: list, errors: list
     ends = starts + np.array([8 + len(fr.payload) for fr in frames], dtype=np.int64)
     k = np.searchsorted(starts, at, side="right") - 1
     at = at[(at < n) & ~((k >= 0) & (at < ends[np.maximum(k, 0)] if ends.size else False))]
-    # the fixed bytes of section 2 (versions 1-2, protocol 1, 1-8 axes: 3 or a channel map's, P32) before any CRC
-    # or parse
+    # the fixed bytes of section 2 (a known header version, protocol 1, 1-8 axes: 3 or a channel map's, P32)
+    # before any CRC or parse
     idx = np.flatnonzero(at + HEADER_SIZE <= n)
     w = at[idx]
-    idx = idx[((b[w + 4] == 1) | (b[w + 4] == 2)) & (b[w + 5] == 1) & (b[w + 17] >= 1) & (b[w + 17] <= 8)
+    idx = idx[np.isin(b[w + 4], KNOWN_HEADER_VERSIONS) & (b[w + 5] == 1) & (b[w + 17] >= 1) & (b[w + 17] <= 8)
               & (b[w + 18] == 1)]
     readable = np.zeros(at.size, dtype=bool)
     for i in idx.tolist():
@@ -670,8 +672,10 @@ def _interrupted_run(header, step_memory, source: str | None, notes: list[str]):
     A header with ``LOGGING`` set was read while a run was in progress or after a power loss cut it (the data
     EEPROM as it was left): version 2 is recovered from its page-commit journal, exactly as the device does
     at power-up (``DeviceHeader.recovered``); version 1 has no journal, so the run's samples are lost and,
-    in OVERWRITE mode, every stored sample may have been overwritten by them (reported missing). A header
-    with ``POWER_LOST`` (a device that powered up after the cut) needs no recovery, only the report.
+    in OVERWRITE mode, every stored sample may have been overwritten by them (reported missing); version 3
+    keeps its journal in the step EEPROM's ring (section 2.7), which no input holds, so no page of the run is
+    recovered. A header with ``POWER_LOST`` (a device that powered up after the cut) needs no recovery, only
+    the report (at most two pages lost in version 3).
     """
     if header.logging and header.header_version == 1:
         text = (f"the header (version 1) has LOGGING set: a run started at sample {header.run_start_sample} was "
@@ -681,20 +685,24 @@ def _interrupted_run(header, step_memory, source: str | None, notes: list[str]):
         notes.append(text)
         warnings.warn(f"{source or 'input'}: {text}", stacklevel=4)
         return header
+    ring = header.header_version == HEADER_VERSION_RING
     if header.logging:
         header = header.recovered()
         header.torn_step_records = torn_step_records(header, np.asarray(step_memory, np.uint8))
         notes.append("the header has LOGGING set (read during a run, or left so by a power loss): recovered "
-                     "from its page-commit journal as the device does at power-up")
+                     + ("from its page-commit journal as the device does at power-up" if not ring else
+                        "without its journal ring (header version 3 keeps it in the step EEPROM, not in the input): "
+                        "no page of the run is recovered"))
     if header.power_lost:
         last = int(header.samples_written) - 1
         text = (f"recording {header.recording_number} (device {header.device_id}) was cut by a power loss: its "
                 f"samples {header.run_start_sample} … {last} (to the last committed page) are recovered "
                 f"({int(header.samples_written) - int(header.run_start_sample)} samples); the samples it took "
-                f"after sample {last} (at most one {PAGE_SAMPLES}-sample page) were lost")
+                f"after sample {last} (at most {'two' if ring else 'one'} {PAGE_SAMPLES}-sample "
+                f"page{'s' if ring else ''}) were lost")
         if header.torn_slot_numbers().size:
-            text += (f"; the {header.torn_slots} oldest stored samples were in the page in flight and are reported "
-                     "missing")
+            text += (f"; the {header.torn_slots} oldest stored samples were in the page{'s' if ring else ''} in "
+                     "flight and are reported missing")
         if header.torn_step_records:
             text += (f"; the {header.torn_step_records} oldest stored step record(s) were overwritten by records "
                      "after the last commit and are dropped")

@@ -149,14 +149,16 @@ def _chip(measure: Measure, c, walk: dict | None):
 
 
 def _wear(c, walk: dict):
-    """The memories' write cycles: a fresh logger in overwrite mode logs the walk over and over (continuous
-    logging) for :data:`~gaitlog.firmware_sim.budget.WEAR_RUN_SAMPLES`, in blocks shorter than a step (the
+    """The memories' write cycles: a fresh logger as shipped (header version 3, the default: the page-commit
+    journal in the step EEPROM's journal ring, PROTOCOL.md 2.7) in overwrite mode logs the walk over and over
+    (continuous logging) for :data:`~gaitlog.firmware_sim.budget.WEAR_RUN_SAMPLES`, in blocks shorter than a step (the
     records are stored one by one, as they come); its endurance budget."""
 
     logger = Logger(adc=Adc(sampling_rate_hz=c.sampling_rate_hz), sampling_rate_hz=c.sampling_rate_hz,
                     step_config=walk["step_config"], overwrite=True)
     fw = logger.firmware
     fw.fosc_hz = c.fosc_hz
+    before = (logger.bank.wear, logger.step_eeprom.wear.copy(), logger.data_eeprom.wear.copy())  # the run's own
     fw.start_logging(start_time_s=0, overwrite=True)
     codes = np.asarray(walk["codes"], np.int64)
     codes = np.tile(codes, (-(-WEAR_RUN_SAMPLES // codes.shape[0]), 1))[:WEAR_RUN_SAMPLES]
@@ -165,9 +167,10 @@ def _wear(c, walk: dict):
         fw.log_samples(codes[a:a + block])
     flush = int(fw.step_algorithm.config.cfg_i[kernel.CI_FLUSH])
     fw.stop_logging()
-    return endurance_budget(c, duration_s=codes.shape[0] / c.sampling_rate_hz, bank_wear=logger.bank.wear,
-                            step_wear=logger.step_eeprom.wear, data_wear=logger.data_eeprom.wear,
-                            flush_samples=flush)
+    return endurance_budget(c, duration_s=codes.shape[0] / c.sampling_rate_hz, bank_wear=logger.bank.wear - before[0],
+                            step_wear=logger.step_eeprom.wear - before[1],
+                            data_wear=logger.data_eeprom.wear - before[2],
+                            flush_samples=flush, journal_ring=logger.ring.ring_journal)
 
 
 def _budget(c: LoggerConfig, seed: int, measure: Measure | None = None) -> ConfigurationBudget:
@@ -234,6 +237,7 @@ def _budget(c: LoggerConfig, seed: int, measure: Measure | None = None) -> Confi
     lines += [""] + endurance.lines()
     doc["endurance"] = {
         "measured": endurance.measured, "duration_s": endurance.duration_s, "lines": endurance.lines(),
+        "header_version": endurance.header_version,
         "fits_10_years": endurance.fits(), "lifetime_target_years": LIFETIME_TARGET_YEARS,
         "limiting": endurance.limiting.name,
         **{f"years_at_{h:g}_h_a_day": endurance.years(h) for h in LIFETIME_HOURS_PER_DAY},

@@ -137,9 +137,11 @@ def test_logger_has_step_memory_and_config() -> None:
                      m4_exponent=0.25)   # as firmware 1.3 stores it
     lg = Logger(step_config=cfg)
     h = lg.header
-    assert (h.step_capacity, h.steps_written, h.step_write_index) == (3276, 0, 0)
+    # header version 3, the default: the step ring in front of the journal ring (version 2: 3276, 65,520 bytes)
+    assert (h.header_version, h.step_capacity, h.steps_written, h.step_write_index) == (3, 2662, 0, 0)
     assert lg.step_config == cfg and lg.data_eeprom.read(128, 32) == cfg.to_bytes()
-    assert len(lg.step_memory) == 65520 and set(lg.step_memory) == {0xFF}
+    assert len(lg.step_memory) == 53240 and set(lg.step_memory) == {0xFF}
+    assert len(Logger(journal_ring=False).step_memory) == 65520
     lg.step_config = StepConfig.off()
     assert lg.data_eeprom.read(128, 32) == bytes(32)
     lg.step_config = cfg
@@ -164,14 +166,14 @@ def test_image_carries_the_step_memory(tmp_path: Path) -> None:
     lg = Logger(device_id=5, sensor=SensorModel.ideal(), step_config=cfg)
     lg.firmware.start_logging(start_time_s=1000, overwrite=True)
     lg.firmware.log_samples(np.full((300, 3), 512))
-    lg.firmware.log_steps(_steps(3400))  # wraps the step ring
+    lg.firmware.log_steps(_steps(3400))  # wraps the step ring (2662 records)
     lg.firmware.stop_logging()
     path = lg.save_image(tmp_path / "s.glimg")
     raw = path.read_bytes()
-    assert raw[4] == 3 and int.from_bytes(raw[8:12], "little") == 262144 + 65520
+    assert raw[4] == 3 and int.from_bytes(raw[8:12], "little") == 262144 + 53240
     c = parse_image(raw)
     records, ok = c.step_records()
-    assert ok.all() and records["end_sample"].tolist() == (27 * np.arange(124, 3400)).tolist()
+    assert ok.all() and records["end_sample"].tolist() == (27 * np.arange(738, 3400)).tolist()
     back = Logger.from_image(path)
     assert back.step_memory == lg.step_memory and back.memory == lg.memory
     assert back.header.to_bytes() == lg.header.to_bytes() and back.step_config == cfg.quantised()
@@ -179,7 +181,7 @@ def test_image_carries_the_step_memory(tmp_path: Path) -> None:
     back.firmware.start_logging(start_time_s=2000, overwrite=True)
     assert back.firmware.log_steps(_steps(1)) == 1
     back.firmware.stop_logging()
-    assert (back.header.steps_written, back.header.step_write_index) == (3401, 125)
+    assert (back.header.steps_written, back.header.step_write_index) == (3401, 739)
 
 
 def test_version_1_image_restores_with_an_empty_step_memory(tmp_path: Path) -> None:

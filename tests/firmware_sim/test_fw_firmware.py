@@ -114,7 +114,8 @@ def test_erase_guard(logger: Logger) -> None:
 def test_read_header_and_read(logger: Logger) -> None:
     t, s, p = one(send(logger, frame(0x06, 1)))
     assert t == 0x86 and len(p) == 256 and p[:4] == b"GLOG"
-    assert p[4] == 2 and struct.unpack(">H", p[254:256])[0] == binascii.crc_hqx(p[:160], 0)  # header v2: CRC 0-159
+    # header version 3, the default (version 2's layout, the journal in the step EEPROM): CRC over bytes 0-159
+    assert p[4] == 3 and struct.unpack(">H", p[254:256])[0] == binascii.crc_hqx(p[:160], 0)
     assert struct.unpack_from("<II", p, 28) == (550, 550)  # write_index, samples_written
     mem = logger.memory
     t, s, p = one(send(logger, frame(0x07, 2, struct.pack("<IH", 100, 4096))))
@@ -248,6 +249,9 @@ def test_xdump_received_by_pypi_xmodem(logger: Logger, arm: str) -> None:
 
 # --- the step memory (section 2.3): SET_STEP_CONFIG, READ/DUMP at 0x01000000, ERASE, XDUMP ------------------
 STEP_BASE = 0x01000000
+#: The default logger's step ring (header version 3: in front of the journal ring): 2662 records, 53,240 bytes.
+STEP_CAP = 2662
+STEP_BYTES = 20 * STEP_CAP
 
 
 def _step_bytes(first: int, n: int) -> bytes:
@@ -276,7 +280,7 @@ def test_log_steps_only_while_logging(logger: Logger) -> None:
     assert logger.firmware.log_steps(_step_bytes(0, 3)) == 0 and logger.header.steps_written == 0
     assert _log_steps(logger, _step_bytes(0, 3)) == 3
     hdr = one(send(logger, frame(0x06, 1)))[2]
-    assert struct.unpack_from("<IHH", hdr, 44) == (3, 3, 3276)  # committed at STOP
+    assert struct.unpack_from("<IHH", hdr, 44) == (3, 3, STEP_CAP)  # committed at STOP
     assert logger.data_eeprom.read(44, 8) == hdr[44:52]
     # STATUS and INFO are unchanged by the step memory
     assert struct.unpack("<BBII", one(send(logger, frame(0x02, 2)))[2])[2:] == (550, 550)
@@ -308,7 +312,7 @@ def test_set_step_config(logger: Logger) -> None:
     _log_steps(logger, _step_bytes(0, 5))
     assert one(send(logger, frame(0x05, 9, b"ERASE"))) == (ACK, 9, b"\x05")
     hdr = one(send(logger, frame(0x06, 10)))[2]
-    assert struct.unpack_from("<IHH", hdr, 44) == (0, 0, 3276) and hdr[128:160] == block
+    assert struct.unpack_from("<IHH", hdr, 44) == (0, 0, STEP_CAP) and hdr[128:160] == block
     assert logger.data_eeprom.read(0, 256) == hdr
 
 
@@ -318,34 +322,34 @@ def test_read_and_dump_step_memory(logger: Logger) -> None:
     t, s, p = one(send(logger, frame(0x07, 1, struct.pack("<IH", STEP_BASE + 20, 60))))
     assert (t, s) == (0x87, 1) and struct.unpack_from("<I", p)[0] == STEP_BASE + 20 and p[4:] == data[20:80]
     step_memory = logger.step_memory
-    assert len(step_memory) == 65520 and step_memory[:200] == data
-    last = STEP_BASE + 65520 - 20
+    assert len(step_memory) == STEP_BYTES and step_memory[:200] == data
+    last = STEP_BASE + STEP_BYTES - 20
     assert one(send(logger, frame(0x07, 2, struct.pack("<IH", last, 20))))[2][4:] == step_memory[-20:]
     # ranges that are not inside one region: NAK BAD_ADDRESS
-    for seq, (address, length) in enumerate(((last, 21), (STEP_BASE - 4, 8), (262144, 16), (STEP_BASE + 65520, 1),
+    for seq, (address, length) in enumerate(((last, 21), (STEP_BASE - 4, 8), (262144, 16), (STEP_BASE + STEP_BYTES, 1),
                                              (0x02000000, 4)), 3):
         assert one(send(logger, frame(0x07, seq, struct.pack("<IH", address, length)))) == (
             NAK, seq, bytes([0x07, BAD_ADDRESS])), (address, length)
     # DUMP of the whole step memory in chunks of whole records: addresses as requested
-    out = frames_of(send(logger, frame(0x08, 20, struct.pack("<IIH", STEP_BASE, 65520, 2040))))
-    assert len(out) == 33 + 1 and out[-1] == (0x88, 20, struct.pack("<IIH", STEP_BASE, 65520, 33))
-    assert [struct.unpack_from("<I", p)[0] for _, _, p in out[:-1]] == [STEP_BASE + 2040 * k for k in range(33)]
+    out = frames_of(send(logger, frame(0x08, 20, struct.pack("<IIH", STEP_BASE, STEP_BYTES, 2040))))
+    assert len(out) == 27 + 1 and out[-1] == (0x88, 20, struct.pack("<IIH", STEP_BASE, STEP_BYTES, 27))
+    assert [struct.unpack_from("<I", p)[0] for _, _, p in out[:-1]] == [STEP_BASE + 2040 * k for k in range(27)]
     assert b"".join(p[4:] for _, _, p in out[:-1]) == step_memory
     assert one(send(logger, frame(0x08, 21, struct.pack("<IIH", 262144 - 8, 16 + STEP_BASE, 4096)))) == (
         NAK, 21, bytes([0x08, BAD_ADDRESS]))
-    assert one(send(logger, frame(0x08, 22, struct.pack("<IIH", STEP_BASE, 65521, 4096)))) == (
+    assert one(send(logger, frame(0x08, 22, struct.pack("<IIH", STEP_BASE, STEP_BYTES + 1, 4096)))) == (
         NAK, 22, bytes([0x08, BAD_ADDRESS]))
 
 
 def test_step_ring_wraps_through_the_firmware(logger: Logger) -> None:
-    data = _step_bytes(0, 3276 + 500)
-    assert _log_steps(logger, data[:20 * 3000]) == 3000
-    assert _log_steps(logger, data[20 * 3000:]) == 776
+    data = _step_bytes(0, STEP_CAP + 500)
+    assert _log_steps(logger, data[:20 * 2500]) == 2500
+    assert _log_steps(logger, data[20 * 2500:]) == 662
     hdr = one(send(logger, frame(0x06, 1)))[2]
-    assert struct.unpack_from("<IHH", hdr, 44) == (3776, 500, 3276)
-    out = frames_of(send(logger, frame(0x08, 2, struct.pack("<IIH", STEP_BASE, 65520, 4080))))
+    assert struct.unpack_from("<IHH", hdr, 44) == (3162, 500, STEP_CAP)
+    out = frames_of(send(logger, frame(0x08, 2, struct.pack("<IIH", STEP_BASE, STEP_BYTES, 4080))))
     mem = b"".join(p[4:] for _, _, p in out[:-1])
-    # ring order by hand: the oldest record (number 500) is in slot 500, the newest (3775) in slot 499
+    # ring order by hand: the oldest record (number 500) is in slot 500, the newest (3161) in slot 499
     ordered = mem[20 * 500:] + mem[:20 * 500]
     assert ordered == data[20 * 500:]
 

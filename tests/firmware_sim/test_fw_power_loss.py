@@ -1,6 +1,7 @@
 """Power loss during logging (PROTOCOL.md 2.4): the page-commit journal, the emulator's cut model, recovery at
 power-up and by the decoder, and a campaign of random cuts in both memory modes (the full 1,000-cut campaign
-is ``benchmarks/power_cut_campaign.py``)."""
+is ``benchmarks/power_cut_campaign.py``). On header version 2 (``Logger(journal_ring=False)``), whose journal
+in the data EEPROM bounds a loss to one page; the default, version 3, in ``test_fw_journal_ring.py``."""
 
 from __future__ import annotations
 
@@ -61,10 +62,10 @@ def test_a_torn_entry_never_claims_a_commit(m):
 
 
 def test_record_with_a_power_cut_in_a_page_write(tmp_path):
-    """The Logger API: a run of real motion cut inside a page write; the device recovers to the last committed
-    page, the image decodes exactly those samples and says what was lost."""
+    """The Logger API on header version 2: a run of real motion cut inside a page write; the device recovers to
+    the last committed page, the image decodes exactly those samples and says what was lost."""
     motion = CalibrationPoses(n_poses=4, hold_s=3.0, move_s=1.0)
-    logger = Logger(device_id=5, image_path=tmp_path / "d.glimg")
+    logger = Logger(device_id=5, image_path=tmp_path / "d.glimg", journal_ring=False)
     first = logger.record(motion)
     n_cut = PAGE_SAMPLES - first.n_samples % PAGE_SAMPLES + 7 * PAGE_SAMPLES  # its last sample completes a page
     res = logger.record(motion, power_cut=PowerCut(at_sample=n_cut, at_byte=77))
@@ -85,9 +86,10 @@ def test_record_with_a_power_cut_in_a_page_write(tmp_path):
 
 
 def test_wrapped_memory_reports_the_torn_page_of_old_samples():
-    """OVERWRITE over a wrapped memory, cut in the page write: the 32 oldest slots (the page in flight) are reported
-    missing with that reason, every other sample is exact; the raw data EEPROM (LOGGING set) decodes the same."""
-    logger = Logger(device_id=2, overwrite=True)
+    """Header version 2, OVERWRITE over a wrapped memory, cut in the page write: the 32 oldest slots (the page in
+    flight) are reported missing with that reason, every other sample is exact; the raw data EEPROM (LOGGING set)
+    decodes the same."""
+    logger = Logger(device_id=2, overwrite=True, journal_ring=False)
     fw = logger.firmware
     codes = np.stack([np.arange(70_000) % 1024, np.arange(70_000) // 1024, np.full(70_000, 1)], axis=1)
     fw.start_logging(start_time_s=1, overwrite=True)

@@ -100,7 +100,7 @@ GOOD = _ref_header(**BASE)
         (b"GLOX" + GOOD[4:], 0, "magic"),
         (GOOD[:100], 100, "truncated"),
         (GOOD[:254] + b"\x00\x00", 254, "header_crc: CRC mismatch"),
-        (_corrupt(GOOD, 4, b"\x03")[:254] + _crc(_corrupt(GOOD, 4, b"\x03")[:160]), 4, "unknown header version 3"),
+        (_corrupt(GOOD, 4, b"\x04")[:254] + _crc(_corrupt(GOOD, 4, b"\x04")[:160]), 4, "unknown header version 4"),
         (_corrupt(GOOD, 5, b"\x07"), 5, "unknown protocol version 7 .this decoder knows 1"),
         (_corrupt(GOOD, 12, bytes(4)), 12, "sample rate 0"),
         (_corrupt(GOOD, 16, b"\x0b"), 16, "adc_bits"),

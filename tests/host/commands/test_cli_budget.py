@@ -138,6 +138,25 @@ def test_budget_states_the_memories_lifetime(capsys: pytest.CaptureFixture[str])
     assert 10.0 <= regions["step ring"]["years_at_8_h_a_day"] <= 40.0
 
 
+def test_budget_every_memory_lasts_ten_years_with_the_journal_ring(capsys: pytest.CaptureFixture[str]) -> None:
+    """The default logger, header version 3: the journal ring's counted cycles are the entries of the run (one
+    per two 32-sample pages) spread over its 96 pages from the run's page on, and every region, the PIC's data
+    EEPROM included, lasts 10 years of 8 h a day."""
+    assert main(["budget", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)["endurance"]
+    assert doc["header_version"] == 3 and doc["lines"][0].startswith("memory endurance (the logger, header version 3;")
+    regions = {r["name"]: r for r in doc["regions"]}
+    assert regions["step ring"]["source"].startswith("step EEPROM block 0: 2662 20-byte records")
+    ring = regions["journal ring"]
+    entries = int(doc["duration_s"] * 50.0) // 32 // 2             # 4 x 32,512 samples: 2032 entries
+    assert ring["worst_cycles"] == -(-entries // 96) == 22
+    assert ring["cycles_per_s"] == pytest.approx(22 / doc["duration_s"], rel=1e-12)
+    assert ring["years_at_8_h_a_day"] == pytest.approx(1e6 / (22 / doc["duration_s"]) / (8 * 3600) / 365.25)
+    assert all(r["years_at_8_h_a_day"] >= 10.0 for r in doc["regions"]), [
+        (r["name"], r["years_at_8_h_a_day"]) for r in doc["regions"]]
+    assert regions["PIC data EEPROM"]["worst_cycles"] == 2              # a START and a STOP, nothing between
+
+
 needs_gpsim = pytest.mark.skipif(gl.missing_tools() is not None, reason=f"{gl.missing_tools()}")
 IPOL_TRIAL = "ipol-lowerback-dev/GaitData/1-1_lb.txt"
 

@@ -22,8 +22,8 @@ N = 3000
 HEADER_FRAME = 6 + 256 + 2
 
 
-def _logger(seed: int = 1, n: int = N) -> tuple[Logger, np.ndarray]:
-    logger = Logger(device_id=5)
+def _logger(seed: int = 1, n: int = N, *, journal_ring: bool | None = None) -> tuple[Logger, np.ndarray]:
+    logger = Logger(device_id=5, journal_ring=journal_ring)
     result = logger.record(smooth_motion(n, seed), start_time_s=1_700_000_000)
     return logger, np.asarray(result.codes)
 
@@ -43,10 +43,13 @@ def _decode(data: bytes):
     return rec, " | ".join(str(w.message) for w in caught)
 
 
+@pytest.mark.parametrize("journal_ring", [True, False], ids=["header-v3", "header-v2"])
 @pytest.mark.parametrize(("where", "why"), [(4, "the frame's length field"), (200, "the journal (LOGGING clear)"),
                                             (262, "the frame's CRC-16")])
-def test_a_damaged_header_frame_whose_header_verifies_is_used(where: int, why: str) -> None:
-    logger, codes = _logger()
+def test_a_damaged_header_frame_whose_header_verifies_is_used(where: int, why: str, journal_ring: bool) -> None:
+    """On both header versions (3, the default logger's: its journal area unused; 2)."""
+    logger, codes = _logger(journal_ring=journal_ring)
+    assert logger.header.header_version == (3 if journal_ring else 2)
     capture = bytearray(_session(logger, 4 * N))
     capture[where] ^= 0x5A  # outside the bytes the header's own CRC-16 covers (0-159 of the payload)
     frames, _ = parse_stream(bytes(capture))
