@@ -242,7 +242,7 @@ def chip_budget(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ,
     f = np.asarray(flags, np.int64).reshape(-1)
     h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz, fosc_hz=fosc_hz)
     ops = algorithm_operation_counts(c, calibration, h.sampling_rate_hz, run_starts(f), gravity_shift=h.gravity_shift,
-                                     min_gravity_raw=h.min_gravity_raw, scratch_ring=gl.SCRATCH_RING_SAMPLES)
+                                     min_gravity_raw=h.min_gravity_raw)
     est = [np.full(c.shape[0], interrupt_cycles_estimate(_config(h)))] + [
         estimated_cycles(x) for x in (ops.step1, ops.steps23, ops.step4, ops.step5)]
     why = gl.missing_tools()
@@ -291,7 +291,7 @@ def i2c_event_cycles(timeout_s: float = 60.0) -> list[tuple[str, int]]:
         cod = asm.with_suffix(".cod")
         if proc.returncode != 0 or not cod.exists():
             raise gl.PicError(f"gpasm failed on {I2C_BENCH_ASM.name}: {(proc.stdout + proc.stderr).strip()[-300:]}")
-        log = gl._gpsim(gl._Build(cod, {}), [_MARK_ADDRESS], "e done", timeout_s)
+        log = gl._gpsim(gl._Build(cod, {}), [_MARK_ADDRESS], "e done", timeout_s).decode(errors="replace")
     stamps = [int(m.group(1), 16) for m in _MARK_WRITE.finditer(log)]
     if len(stamps) < len(I2C_EVENTS) + 1:
         raise gl.PicError(f"the I2C bench logged {len(stamps)} marks, not {len(I2C_EVENTS) + 1}")

@@ -448,7 +448,7 @@ def test_a_broken_scratch_write_is_caught(simulated_walk, monkeypatch):
     the step records (read back from what the firmware wrote) differ, and verify names the record and field."""
     real = gl.copy_sources
     src = (gl.PIC_DIR / "step_join.asm").read_text()
-    marker = "; j's place in the line: (LINE_POS - K) mod LINE_LEN\n        sublw   LINE_LEN\n"
+    marker = "; j's place in the line: (LINE_POS - COUNT) mod LINE_LEN\n        sublw   LINE_LEN\n"
     assert src.count(marker) == 1
 
     def broken(build_dir, main_asm):          # the data one place earlier in the line: a_v[j - 1] at j
