@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from gaitlog.firmware_sim.algorithms.calibration import nominal_calibration_q
+from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_RING_SAMPLES
 from gaitlog.firmware_sim.algorithms.probe import detector_trace, step_records
 from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.host.files.decode import decode_file
@@ -73,13 +74,15 @@ def test_every_ipol_trial_and_20_simulated_subjects_give_the_models_records(ipol
 
 
 def test_whole_run_records_are_the_sample_at_a_time_kernels(ipol_inputs):
-    """step_records (the kernel fed each run whole) gives detector_trace's records (one sample at a time),
-    across a second START too."""
+    """step_records (the kernel fed each run whole, then its STOP) gives detector_trace's records (one sample at
+    a time, flush at each run's end), across a second START too: both runs end with a pending foot-flat, so
+    each STOP's record is among them."""
     run = ipol_inputs[0]
     codes = np.concatenate([run.codes, run.codes[:700]])
     starts = [0, run.codes.shape[0]]
-    whole = step_records(codes, run.calibration_q, 50.0, starts, scratch_ring=gl.SCRATCH_RING_SAMPLES)
-    trace = detector_trace(codes, run.calibration_q, 50.0, starts, scratch_ring=gl.SCRATCH_RING_SAMPLES)
+    whole = step_records(codes, run.calibration_q, 50.0, starts, scratch_ring=SCRATCH_RING_SAMPLES)
+    trace = detector_trace(codes, run.calibration_q, 50.0, starts, scratch_ring=SCRATCH_RING_SAMPLES)
+    assert set(trace.calls[:, 0].tolist()) >= {starts[1], codes.shape[0]}, "a run's STOP finalised nothing"
     assert whole.shape[0] > 40 and np.array_equal(whole, trace.records)
 
 
