@@ -618,6 +618,7 @@ class PicLogger:
         steps = {k: int(ci[kernel.CI[k]]) for k in ("R3", "N_MED", "MIN_STEP", "MAX_STEP", "FRACTION", "AMP_SHIFT",
                                                      "PRIOR_TWICE", "FLUSH")}
         steps.update({k: int(cv[kernel.CV[k]]) for k in ("DELTA", "CAP", "FRAC", "STOP")})
+        steps["SCR_AHEAD_E"], steps["SCR_AHEAD_S"] = kernel.scratch_reads_ahead(ci)
         if not (steps["MAX_STEP"] < 256 and steps["FRACTION"] <= FRACTION_SCALE and steps["FLUSH"] <= 128
                 and min(steps["DELTA"], steps["CAP"], steps["STOP"], steps["FRAC"]) >= 0):
             raise ValueError(f"the assembly's steps 4-5 need MAX_STEP < 256, FRACTION <= {FRACTION_SCALE}, "
