@@ -139,7 +139,7 @@ from gaitlog.protocol.steps import StepFlag
 
 __all__ = ["process", "flush", "reset", "CI", "CV", "OUT_I", "OUT_V", "SCRATCH_SAMPLE_BYTES",
            "SCRATCH_FIRST_BYTE", "SCRATCH_RING_BYTES", "SCRATCH_PAGES", "SCRATCH_RING_SAMPLES",
-           "scratch_start_page", "scratch_ring_sample"]
+           "scratch_start_page", "scratch_ring_sample", "scratch_reads_ahead", "scratch_tail_write"]
 
 # ---------------------------------------------------------------------------------------------------------
 # configuration layout (filled by gaitlog.firmware_sim.algorithms.online.OnlineConfig)
@@ -198,6 +198,38 @@ def scratch_ring_sample(run_start_sample: int, f: int) -> int:
     """
     first = scratch_start_page(run_start_sample) * PAGE_BYTES // SCRATCH_SAMPLE_BYTES
     return (first + int(f)) % SCRATCH_RING_SAMPLES
+
+
+def scratch_reads_ahead(cfg_i: np.ndarray) -> tuple[int, int]:
+    """How far past a step's final foot-flat ``e``, and past its previous foot-flat ``s`` (with one), the step
+    record (:func:`_finalise`) reads a_v on the scratch ring: M4's range, the 3 Hz FIR up to ``e`` (radius
+    ``R3``), and the heel strike's band up to ``e + HS_AFTER`` (radius ``max(R10, R5)``); the toe-off's d10 up
+    to ``s + TO_SPAN + 1`` (radius ``R10``). None reads past ``N - 1`` (each stops at ``m = N - 1 - R3``).
+    The PIC writes the a_v newer than the last flush first when these reach them (step_join.asm's fin_join).
+
+    >>> from gaitlog.firmware_sim.algorithms.probe import online_config
+    >>> scratch_reads_ahead(online_config(50.0).cfg_i)
+    (9, 19)
+    """
+    r3, r10, r5 = int(cfg_i[CI_R3]), int(cfg_i[CI_R10]), int(cfg_i[CI_R5])
+    return max(r3, int(cfg_i[CI_HS_AFTER]) + max(r10, r5)), int(cfg_i[CI_TO_SPAN]) + 1 + r10
+
+
+def scratch_tail_write(e: int, s: int, n: int, cfg_i: np.ndarray) -> bool:
+    """Whether the PIC writes the scratch ring's tail (the newest ``N mod FLUSH`` a_v, one partial page write)
+    before the step record at final foot-flat ``e`` (``s``: the previous foot-flat, -1 without one), ``N``
+    (``n``) samples into the run (16-bit indices): when the step record's reads (:func:`scratch_reads_ahead`)
+    reach the first sample not yet flushed, ``N - N mod FLUSH``.
+
+    >>> from gaitlog.firmware_sim.algorithms.probe import online_config
+    >>> ci = online_config(50.0).cfg_i
+    >>> scratch_tail_write(871, 850, 890, ci), scratch_tail_write(870, -1, 890, ci), scratch_tail_write(871, 850, 896, ci)
+    (True, False, False)
+    """
+    tail = int(n) % int(cfg_i[CI_FLUSH])
+    first = (int(n) - tail) & INDEX_MASK
+    ahead_e, ahead_s = scratch_reads_ahead(cfg_i)
+    return bool(tail) and (since(int(e) + ahead_e, first) >= 0 or (s >= 0 and since(int(s) + ahead_s, first) >= 0))
 #: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte.
 I2C_WRITE_OVERHEAD = 3
 I2C_READ_OVERHEAD = 4

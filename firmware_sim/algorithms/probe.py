@@ -315,7 +315,8 @@ def _trace_algorithm(calibration: CalibrationQ, sampling_rate_hz: float, scratch
 def step_records(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
                  run_starts: list[int] | tuple[int, ...] = (0,), scratch_ring: int = 0) -> np.ndarray:
     """The step records :func:`detector_trace` gives (``(k, 20)`` uint8, each end sample counted from its run's
-    START), from the compiled kernel fed each run whole: what the PIC's records are checked against when only
+    START), from the compiled kernel fed each run whole, then its STOP (``flush``: the pending foot-flat's
+    record, as the PIC's ``step_flush`` writes it): what the PIC's records are checked against when only
     the records are compared (no per-sample state to read, so no sample-at-a-time loop)."""
     c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
     algo = _trace_algorithm(calibration, sampling_rate_hz, scratch_ring)
@@ -323,9 +324,9 @@ def step_records(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz:
     out = [np.zeros((0, 20), np.uint8)]
     for a, b in zip(bounds, bounds[1:]):
         algo.reset()
-        steps = algo.feed(c[a:b])
-        if len(steps.end):
-            out.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
+        for steps in (algo.feed(c[a:b]), algo.flush()):        # the run's samples, then its STOP
+            if len(steps.end):
+                out.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
     return np.concatenate(out)
 
 

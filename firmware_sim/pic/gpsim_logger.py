@@ -335,30 +335,36 @@ def scratch_offset(run_start_sample: int, f: int) -> int:
     return (kernel.scratch_ring_sample(run_start_sample, f) - int(f)) & 0xFFFF
 
 
-def _lean_replay(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int],
-                 tracked: set[int]) -> tuple[list, list, dict[int, int]]:
-    """The lean log's calls (sample, then the call record), step records (taken when the step record writes
-    ``LAST``'s high byte after a call) and the RAM at the end."""
-    ram = dict.fromkeys(tracked, 0)
-    rec = [(sym[k], b) for k, b in _RECORD]
-    step_rec, last_h, due = sym["REC"], sym["LAST"] + 1, False
-    pending, done, started, calls, records = 0, 0, False, [], []
+def _lean_log(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int]
+              ) -> tuple[np.ndarray, np.ndarray, dict[int, int], int]:
+    """One pass over a lean write log (``PENDING``, the call record, ``REC``, ``LAST``'s high byte and whatever
+    else was logged): the calls (as :attr:`LoggerRun.calls`), the step records (taken when the step record
+    writes ``LAST``'s high byte after a call), the logged RAM at the end (address -> byte) and the largest
+    backlog (``PENDING``). A sample ends where the main loop decrements ``PENDING``; the interrupt's first
+    increment starts the run (START's clearing of the call record is not a call). STOP's call, after the last
+    sample, has the run's end as its sample (``n``), as :func:`_replay_log` counts it."""
+    rec, step_rec, last_h = [(sym[k], b) for k, b in _RECORD], sym["REC"], sym["LAST"] + 1
+    ram: dict[int, int] = {}
+    pending = done = backlog = 0
+    started = due = False
+    calls, records = [], []
     for a, v in zip(addr.tolist(), val.tolist()):
         if a == sym["PENDING"]:
             started |= v == (pending + 1) & 0xFF
             done += v == (pending - 1) & 0xFF
-            pending = v
+            pending, backlog = v, max(backlog, v)
             continue
         ram[a] = v
         if a == sym["CALL_FLAGS"] and started:
-            calls.append([done] + [sum(ram[s + i] << (8 * i) for i in range(b)) for s, b in rec])
+            calls.append([done] + [sum(ram.get(s + i, 0) << (8 * i) for i in range(b)) for s, b in rec])
             due = True
-        if a == last_h and due:
-            records.append([ram[step_rec + i] for i in range(STEP_RECORD_BYTES)])
+        elif a == last_h and due:                # the step record's end: LAST = e
+            records.append([ram.get(step_rec + i, 0) for i in range(STEP_RECORD_BYTES)])
             due = False
     if done != n:
         raise PicError(f"gpsim's main loop finished {done} samples of {n}")
-    return calls, records, ram
+    return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
+            np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), ram, backlog)
 
 
 class LeanRun(NamedTuple):
@@ -562,33 +568,6 @@ class RecordsRun:
     gpsim_s: float
 
 
-def _records_from_log(cyc: np.ndarray, addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int]
-                      ) -> tuple[np.ndarray, np.ndarray, int]:
-    """The calls, the step records and the largest backlog from a lean write log (``PENDING``, the call record,
-    ``REC``, ``LAST``'s high byte): a sample ends where the main loop decrements ``PENDING``, the interrupt's
-    increments start the run."""
-    rec, step_rec, last_h = [(sym[k], b) for k, b in _RECORD], sym["REC"], sym["LAST"] + 1
-    ram: dict[int, int] = {}
-    pending, done, started, due, calls, records = 0, 0, False, False, [], []
-    for a, v in zip(addr.tolist(), val.tolist()):
-        if a == sym["PENDING"]:
-            started |= v == (pending + 1) & 0xFF
-            done += v == (pending - 1) & 0xFF
-            pending = v
-            continue
-        ram[a] = v
-        if a == sym["CALL_FLAGS"] and started:
-            calls.append([done] + [sum(ram.get(s + i, 0) << (8 * i) for i in range(b)) for s, b in rec])
-            due = True
-        elif a == last_h and due:                # the step record's end: LAST = e
-            records.append([ram.get(step_rec + i, 0) for i in range(STEP_RECORD_BYTES)])
-            due = False
-    if done != n:
-        raise PicError(f"gpsim's main loop finished {done} samples of {n}")
-    return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
-            np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), int(val[addr == sym["PENDING"]].max(initial=0)))
-
-
 def period_setup(period_cycles: int) -> TimerSetup:
     """Timer1 and CCP1 for a sampling period of ``period_cycles`` instruction cycles (the smallest prescaler
     whose CCPR1 holds it exactly).
@@ -639,6 +618,7 @@ class PicLogger:
         steps = {k: int(ci[kernel.CI[k]]) for k in ("R3", "N_MED", "MIN_STEP", "MAX_STEP", "FRACTION", "AMP_SHIFT",
                                                      "PRIOR_TWICE", "FLUSH")}
         steps.update({k: int(cv[kernel.CV[k]]) for k in ("DELTA", "CAP", "FRAC", "STOP")})
+        steps["SCR_AHEAD_E"], steps["SCR_AHEAD_S"] = kernel.scratch_reads_ahead(ci)
         if not (steps["MAX_STEP"] < 256 and steps["FRACTION"] <= FRACTION_SCALE and steps["FLUSH"] <= 128
                 and min(steps["DELTA"], steps["CAP"], steps["STOP"], steps["FRAC"]) >= 0):
             raise ValueError(f"the assembly's steps 4-5 need MAX_STEP < 256, FRACTION <= {FRACTION_SCALE}, "
@@ -738,15 +718,13 @@ class PicLogger:
             text = _gpsim(build, sorted(tracked | {sym["PENDING"]}), "e harness_done", self.timeout_s,
                           _stimuli(c, np.zeros(n, np.int64), period))
         _, addr, val = _writes(text, tracked | {sym["PENDING"]})
-        calls, records, ram = _lean_replay(addr, val, n, sym, tracked)
+        calls, records, ram, _ = _lean_log(addr, val, n, sym)
 
         def value(a, b, signed):
-            v = sum(ram[a + i] << (8 * i) for i in range(b))
+            v = sum(ram.get(a + i, 0) << (8 * i) for i in range(b))
             return v - (1 << (8 * b)) if signed and v >= 1 << (8 * b - 1) else v
 
-        return LeanRun(np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
-                       np.asarray([value(a, b, sg) for a, b, sg in state], np.int64),
-                       np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES))
+        return LeanRun(calls, np.asarray([value(a, b, sg) for a, b, sg in state], np.int64), records)
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
@@ -819,7 +797,7 @@ class PicLogger:
         adc = cyc[addr == ADCON0_ADDR][1:]                  # the first is the set-up's
         _check_conversions(adc[1::2], n, t.period_cycles)
         other = addr != ADCON0_ADDR
-        calls, records, backlog = _records_from_log(cyc[other], addr[other], val[other], n, sym)
+        calls, records, _, backlog = _lean_log(addr[other], val[other], n, sym)
         return RecordsRun(calls, records, backlog, t.period_cycles, int(cyc.max(initial=0)), dt)
 
     def run(self, codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *,

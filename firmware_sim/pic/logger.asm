@@ -26,6 +26,9 @@
 ;                   the kernel's CI slots of the same names (samples; FRACTION out of 1000)
 ;   DELTA, CAP, FRAC, STOP
 ;                   the kernel's CV slots (prominence floor and cap, Q2.16; fraction, Q1.14; stop, Q2.16)
+;   SCR_AHEAD_E, SCR_AHEAD_S
+;                   how far past e and past s the step record reads a_v (kernel.py scratch_reads_ahead: 9, 19 at
+;                   50 Hz): fin_join writes the ring's tail first when they reach past its last flush
 ; The calibration and the FIR weights are read from the data EEPROM (EE_CAL, EE_W3 in logger_ram.inc) where
 ; they are used, as the model charges them; the harness assembles the configuration into it (config.inc, DE).
 ; The test build (TEST_BUILD defined) also takes N_SAMPLES (< 65,536): after that many samples the interrupt
@@ -293,6 +296,7 @@ main_sample:
 main_stop:
         call    step_flush
         bcf     FW_FLAGS, FWF_STOP
+        bcf     FW_FLAGS, FWF_TAIL
 #ifdef TEST_BUILD
 harness_done:
         goto    harness_done

@@ -7,7 +7,43 @@
 ;   E = e = PEND, FM = m = M (16-bit indices); REC+0..3 = the run's sample number of m: N - 1 - R3 in 32 bits
 ;   (N_T:N_U:N_H:N_L after step 4's increment); ALG_FLAGS, ALG_LAST are AFLAGS, LAST (logger_ram.inc), and the
 ;   saturation flag is the kernels' sticky FLAG_SAT, as the model's s_overflow.
+; First the scratch ring's tail: the step record reads a_v up to e + SCR_AHEAD_E (M4's range: the 3 Hz FIR at
+; e; the heel strike's band at e + hs_after) and, with a previous foot-flat s (AF_LAST), up to s + SCR_AHEAD_S
+; (the toe-off's d10), none past N - 1; the ring has them up to the last flush, F0 - 1, F0 = N - N mod FLUSH.
+; When that bound reaches F0, the newest N mod FLUSH a_v go to the ring first (scr_write_w, the write
+; step_flush makes at STOP, which sets FWF_TAIL so that it is not made twice): otherwise the reader would get
+; the ring's older bytes there. Only then: a write at every call would wear the ring's pages more.
 fin_join:
+        btfsc   FW_FLAGS, FWF_TAIL      ; STOP's step_flush wrote them
+        goto    fj_inputs
+        movf    N_L, W
+        andlw   FLUSH - 1
+        btfsc   STATUS, Z
+        goto    fj_inputs               ; N a multiple of FLUSH: every a_v is on the ring
+        bcf     STATUS, IRP
+        movlw   PEND
+        movwf   FSR
+        movlw   SCR_AHEAD_E
+        call    fj_reach
+        btfss   TMP1, 7
+        goto    fj_tail
+        movlw   AFLAGS
+        movwf   FSR
+        btfss   INDF, AF_LAST
+        goto    fj_inputs
+        movlw   LAST
+        movwf   FSR
+        movlw   SCR_AHEAD_S
+        call    fj_reach
+        btfsc   TMP1, 7
+        goto    fj_inputs
+fj_tail:
+        movf    N_L, W
+        andlw   FLUSH - 1
+        call    scr_write_w             ; returns in bank 0 with PCLATH = 0
+        movlw   HIGH fin_join
+        movwf   PCLATH
+fj_inputs:
         bsf     STATUS, RP0             ; bank 1: e
         movf    PEND, W
         movwf   TMP0
@@ -58,6 +94,25 @@ fj_store:
         movlw   HIGH finalise_p2
         movwf   PCLATH
         goto    finalise_p2
+
+; fj_reach (bank 0, IRP = 0): FSR = a 16-bit index (bank 1), W = an offset -> TMP1:TMP0 = index + W - F0, F0 =
+; N - N mod FLUSH the first sample not yet on the ring (16 bits: bit 7 of TMP1 clear when index + W >= F0)
+fj_reach:
+        addwf   INDF, W
+        movwf   TMP0
+        incf    FSR, F
+        movf    INDF, W
+        btfsc   STATUS, C
+        addlw   1
+        movwf   TMP1
+        movf    N_L, W
+        andlw   0x100 - FLUSH
+        subwf   TMP0, F
+        movf    N_H, W
+        btfss   STATUS, C
+        incf    N_H, W
+        subwf   TMP1, F
+        return
 
 ; scr_write (from steps.asm's scratch_flush, bank 0, after step 4's N += 1 with N a multiple of FLUSH): the
 ; delay line's newest FLUSH a_v, samples j = N - FLUSH .. N - 1, to the scratch ring at ring sample

@@ -735,6 +735,7 @@ fl_final:
         goto    fl_m                    ; PCLATH = 0)
         bsf     PCLATH, 3
         call    scr_write_w
+        bsf     FW_FLAGS, FWF_TAIL      ; written: fin_join does not write them again
 fl_m:
         movlw   LOW (R3 + 1)            ; m = N - 1 - R3 (16 bits)
         subwf   N_L, W
