@@ -17,6 +17,19 @@ os.environ.setdefault("GAITLOG_CACHE_DIR", str(Path(__file__).resolve().parents[
 DATA_DIR = Path(os.environ.get("GAITLOG_DATA_DIR", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config: pytest.Config) -> None:
+    """The suite runs on every core: ``-n auto --dist loadgroup`` when pytest-xdist is loaded and the command
+    line gave no ``-n`` (``-n 0`` or ``-p no:xdist``: one process). ``loadgroup`` keeps the tests of one
+    ``xdist_group`` on one worker, one after another, also under an explicit ``-n``."""
+    if not config.pluginmanager.hasplugin("xdist") or hasattr(config, "workerinput"):
+        return
+    if config.option.numprocesses is None:
+        config.option.numprocesses = "auto"
+    if config.option.dist == "no":
+        config.option.dist = "loadgroup"
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The ``shared/data`` folder; the test is skipped with a reason when it is absent."""
