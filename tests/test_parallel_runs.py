@@ -4,6 +4,7 @@ when the plugin is loaded and no ``-n`` was given, so ``-n 0``, ``-n N`` and ``-
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from argparse import Namespace
@@ -36,14 +37,18 @@ def test_the_hook_fills_in_only_what_the_command_line_left_out(given: dict, expe
     assert vars(config.option) == expected
 
 
-def test_the_hook_leaves_a_worker_and_a_run_without_xdist_alone() -> None:
-    worker = _Config({"xdist"}, numprocesses=None, dist="no")
-    worker.workerinput = {}
-    plain = _Config(set())
-    for config in (worker, plain):
-        before = dict(vars(config.option))
-        pytest_cmdline_main(config)
-        assert vars(config.option) == before
+def test_a_worker_takes_the_grouping_from_the_controller() -> None:
+    """A worker parses only the command line, where ``--dist loadgroup`` need not be: the controller tells it."""
+    worker = _Config({"xdist"}, numprocesses=None, dist="no", loadgroup=False)
+    worker.workerinput = {"loadgroup": True}
+    pytest_cmdline_main(worker)
+    assert vars(worker.option) == {"numprocesses": None, "dist": "no", "loadgroup": True}
+
+
+def test_a_run_without_xdist_is_left_alone() -> None:
+    plain = _Config(set(), numprocesses=None, dist="no")
+    pytest_cmdline_main(plain)
+    assert vars(plain.option) == {"numprocesses": None, "dist": "no"}
 
 
 @pytest.mark.parametrize("switch", [["-p", "no:xdist"], ["-n", "0"]])
@@ -54,3 +59,16 @@ def test_a_file_runs_in_one_process(switch: list[str]) -> None:
                           env={k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")})
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "passed" in done.stdout and "workers" not in done.stdout
+
+
+def test_the_default_run_keeps_a_group_on_one_worker() -> None:
+    """The README's command, on the documentation test's quick checks (one ``xdist_group``): every test reports
+    the group in its id, and one worker ran them all (pytest 9.2 with pytest-xdist 3.8 spread them instead)."""
+    argv = [sys.executable, "-m", "pytest", "-v", "-p", "no:cacheprovider", "-n", "2", "tests/test_readme_commands.py",
+            "-k", "marker or front_page or have_commands"]
+    done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300, check=False,
+                          env={k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")})
+    ran = re.findall(r"^\[(gw\d+)\] .*PASSED (\S+)", done.stdout, re.M)
+    assert done.returncode == 0 and len(ran) == 3, done.stdout[-2000:] + done.stderr[-2000:]
+    assert all(nodeid.endswith("@documentation_commands") for _, nodeid in ran), ran
+    assert len({worker for worker, _ in ran}) == 1, ran

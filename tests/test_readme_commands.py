@@ -32,6 +32,10 @@ import pytest
 
 from tests.conftest import DATA_DIR
 
+#: The pages run one after another, in this order, on one worker (pytest-xdist): their servers and schedulers (the
+#: decode tutorial's on a fixed TCP port), and the ``sleep``s that wait for them, are written for one page at a time.
+pytestmark = pytest.mark.xdist_group("documentation_commands")
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 DOCS = ROOT / "docs"
