@@ -61,14 +61,18 @@ def test_a_file_runs_in_one_process(switch: list[str]) -> None:
     assert "passed" in done.stdout and "workers" not in done.stdout
 
 
-def test_the_default_run_keeps_a_group_on_one_worker() -> None:
-    """The README's command, on the documentation test's quick checks (one ``xdist_group``): every test reports
-    the group in its id, and one worker ran them all (pytest 9.2 with pytest-xdist 3.8 spread them instead)."""
-    argv = [sys.executable, "-m", "pytest", "-v", "-p", "no:cacheprovider", "-n", "2", "tests/test_readme_commands.py",
-            "-k", "marker or front_page or have_commands"]
-    done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300, check=False,
+def test_the_default_run_keeps_a_group_on_one_worker(tmp_path: Path) -> None:
+    """Four tests of one ``xdist_group`` under ``-n 2``: every test reports the group in its id, and one worker
+    ran them all (pytest 9.2 with pytest-xdist 3.8 spread them instead)."""
+    (tmp_path / "conftest.py").write_text((ROOT / "tests" / "conftest.py").read_text())
+    (tmp_path / "test_grouped.py").write_text(
+        "import time\nimport pytest\n\npytestmark = pytest.mark.xdist_group('together')\n\n"
+        + "".join(f"def test_{i}():\n    time.sleep(0.2)\n\n" for i in range(4)))
+    argv = [sys.executable, "-m", "pytest", "-v", "-p", "no:cacheprovider", "-n", "2", "--rootdir", str(tmp_path),
+            str(tmp_path / "test_grouped.py")]
+    done = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False,
                           env={k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")})
     ran = re.findall(r"^\[(gw\d+)\] .*PASSED (\S+)", done.stdout, re.M)
-    assert done.returncode == 0 and len(ran) == 3, done.stdout[-2000:] + done.stderr[-2000:]
-    assert all(nodeid.endswith("@documentation_commands") for _, nodeid in ran), ran
+    assert done.returncode == 0 and len(ran) == 4, done.stdout[-2000:] + done.stderr[-2000:]
+    assert all(nodeid.endswith("@together") for _, nodeid in ran), ran
     assert len({worker for worker, _ in ran}) == 1, ran
