@@ -17,6 +17,55 @@ os.environ.setdefault("GAITLOG_CACHE_DIR", str(Path(__file__).resolve().parents[
 DATA_DIR = Path(os.environ.get("GAITLOG_DATA_DIR", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config: pytest.Config) -> None:
+    """The suite runs on every core: ``-n auto --dist loadgroup`` when pytest-xdist is loaded and the command
+    line gave no ``-n`` (``-n 0`` or ``-p no:xdist``: one process). ``loadgroup`` keeps the tests of one
+    ``xdist_group`` on one worker, one after another, also under an explicit ``-n``."""
+    if not config.pluginmanager.hasplugin("xdist"):
+        return
+    if hasattr(config, "workerinput"):          # a worker parses only the command line: told by the hook below
+        config.option.loadgroup = config.workerinput.get("loadgroup", config.option.loadgroup)
+        return
+    if config.option.numprocesses is None:
+        config.option.numprocesses = "auto"
+    if config.option.dist == "no":
+        config.option.dist = "loadgroup"
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node) -> None:
+    """pytest-xdist, before a worker starts: whether the run groups by ``xdist_group`` (chosen above)."""
+    node.workerinput["loadgroup"] = node.config.option.dist == "loadgroup"
+
+
+#: A module of at most this many tests that share a module-scoped fixture runs on one worker (see below).
+MODULE_GROUP_MAX_TESTS = 60
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """On a pytest-xdist worker: the tests of a module that share a module-scoped fixture (a simulated walk, an
+    evaluation) form one ``xdist_group``, so the fixture is built once, not once per worker. A larger module (the
+    bad-input matrix) stays spread over the workers. Runs before xdist reads the marks."""
+    if not hasattr(config, "workerinput"):
+        return
+    per_module: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        per_module.setdefault(item.nodeid.split("::")[0], []).append(item)
+    for module, tests in per_module.items():
+        if len(tests) <= MODULE_GROUP_MAX_TESTS and any(map(_uses_module_fixture, tests)):
+            for item in tests:
+                if item.get_closest_marker("xdist_group") is None:
+                    item.add_marker(pytest.mark.xdist_group(module))
+
+
+def _uses_module_fixture(item: pytest.Item) -> bool:
+    info = getattr(item, "_fixtureinfo", None)
+    return info is not None and any(defs and defs[-1].scope in ("module", "class", "package")
+                                    for defs in info.name2fixturedefs.values())
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The ``shared/data`` folder; the test is skipped with a reason when it is absent."""

@@ -32,6 +32,11 @@ import pytest
 
 from tests.conftest import DATA_DIR
 
+#: The pages that start a background job (a server on a fixed TCP port, a Dask scheduler, each followed by a
+#: ``sleep`` that waits for it) run one after another on one worker (pytest-xdist); the other pages, each in its
+#: own folder, spread over the workers.
+SERVER_PAGES_GROUP = "documentation_servers"
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 DOCS = ROOT / "docs"
@@ -85,6 +90,17 @@ def page_commands(page: Path) -> list[str]:
     return lines
 
 
+def starts_a_background_job(page: Path) -> bool:
+    """Whether a command of the page runs in the background (``&`` not part of ``&&``)."""
+    return any(re.search(r"(?<![&>])&(?!&)", ln) for ln in page_commands(page))
+
+
+def page_params() -> list:
+    """Each page, those with a background job in one ``xdist_group``."""
+    return [pytest.param(p, marks=pytest.mark.xdist_group(SERVER_PAGES_GROUP)) if starts_a_background_job(p) else p
+            for p in pages()]
+
+
 def expected_exit(line: str) -> int:
     """1 when the page's comment says the command exits 1, else 0."""
     return 1 if "(exit 1)" in line else 0
@@ -116,7 +132,7 @@ def test_the_readme_is_a_front_page() -> None:
     assert "pip install . && gaitlog demo" in first.text and "python -m pytest -q" in first.text
 
 
-@pytest.mark.parametrize("page", pages(), ids=page_id)
+@pytest.mark.parametrize("page", page_params(), ids=page_id)
 def test_every_command_of_the_page_runs_as_written(page: Path, tmp_path: Path) -> None:
     lines = page_commands(page)
     if not lines:
@@ -142,3 +158,11 @@ def test_every_command_of_the_page_runs_as_written(page: Path, tmp_path: Path) -
     failed = [f"{lines[i]!r}: exit {codes.get(i)} (expected {want})" for i, want in expected.items()
               if codes.get(i) != want]
     assert not failed, f"{page_id(page)}:\n" + "\n".join(failed) + "\n--- stderr ---\n" + run.stderr[-3000:]
+
+
+def test_the_pages_with_a_background_job_are_one_group() -> None:
+    """The decode tutorial's server (a fixed port) and the quantisation tutorial's scheduler are found, and a
+    page without a job is not grouped."""
+    grouped = {page_id(p) for p in pages() if starts_a_background_job(p)}
+    assert {"docs/tutorials/decode.md", "docs/tutorials/quantisation.md"} <= grouped
+    assert "README.md" not in grouped
