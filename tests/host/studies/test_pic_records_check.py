@@ -24,7 +24,8 @@ from gaitlog.protocol.packing import FLAG_SESSION_START
 
 needs_gpsim = pytest.mark.skipif(gl.missing_tools() is not None, reason=f"{gl.missing_tools()}")
 
-#: The IPOL lower-back trials in ../shared/data.
+#: The IPOL lower-back trials of the development data in ../shared/data. Another lab's folder in the same layout
+#: is checked trial for trial as well; only the counts pinned below are the development data's.
 IPOL_TRIALS = 52
 #: Simulated subjects (evaluate sim's population, seed 0).
 SUBJECTS = 20
@@ -39,7 +40,8 @@ def ipol_inputs(shared_data, tmp_path_factory):
     from gaitlog.host.cli import main
 
     files = sorted((shared_data / "ipol-lowerback-dev" / "GaitData").glob("*_lb.txt"))
-    assert len(files) == IPOL_TRIALS
+    if not files:
+        pytest.skip("no IPOL lower-back trial in ipol-lowerback-dev/GaitData")
     out = tmp_path_factory.mktemp("ipol-glimg")
     inputs = []
     for f in files:
@@ -52,18 +54,22 @@ def ipol_inputs(shared_data, tmp_path_factory):
 
 @needs_gpsim
 def test_every_ipol_trial_and_20_simulated_subjects_give_the_models_records(ipol_inputs):
-    """All 52 trials and 20 subjects through gpsim (two processes at a time), at the real 50 Hz period: every
-    step record identical, STOP's included, none lost to the page buffer, and as many as measured."""
+    """Every trial (52 in the development data) and 20 subjects through gpsim (two processes at a time), at the
+    real 50 Hz period: every step record identical, STOP's included, none lost to the page buffer, and as many as
+    measured."""
     subjects = simulated_inputs(SUBJECTS)
     check = check_records(ipol_inputs + subjects, workers=2)
     assert check.identical, "\n".join(check.differences())
     assert [r.period_cycles for r in check.results] == [gl.timer_setup(50.0).period_cycles] * len(check.results)
-    ipol = sum(r.records.n_compared for r in check.results[:IPOL_TRIALS])
-    sim = sum(r.records.n_compared for r in check.results[IPOL_TRIALS:])
+    n_ipol = len(ipol_inputs)
+    ipol = sum(r.records.n_compared for r in check.results[:n_ipol])
+    sim = sum(r.records.n_compared for r in check.results[n_ipol:])
     assert all(r.records.n_compared > 10 for r in check.results), [r.records.n_compared for r in check.results]
     print(f"records check: {check.n_samples:,} samples, {ipol} + {sim} records, {check.wall_s:.1f} s, "
           f"backlog at most {max(r.backlog_max for r in check.results)}")
-    assert (ipol, sim) == (IPOL_RECORDS, SUBJECT_RECORDS)
+    assert sim == SUBJECT_RECORDS
+    if n_ipol == IPOL_TRIALS:       # the development data's trials
+        assert ipol == IPOL_RECORDS
 
 
 def test_whole_run_records_are_the_sample_at_a_time_kernels(ipol_inputs):
@@ -85,7 +91,9 @@ def test_a_record_reading_past_the_last_flush_needs_the_rings_tail(ipol_inputs, 
     past the last scratch flush (864-879). fin_join writes the ring's tail first (the one call of the first
     1,000 samples whose reads reach it), and the records are the model's; without that write the reader gets
     the ring's older bytes and M4 comes out 1 LSB short."""
-    run = next(r for r in ipol_inputs if r.source == "8-3_lb")
+    run = next((r for r in ipol_inputs if r.source == "8-3_lb"), None)
+    if run is None:
+        pytest.skip("IPOL trial 8-3 (development data) is not in the folder")
     codes, flags = run.codes[:1000], run.flags[:1000]
     ci = gl.PicLogger().config.cfg_i
     r3 = int(ci[kernel.CI_R3])
