@@ -61,7 +61,7 @@ from gaitlog.firmware_sim.algorithms.state import (
     RAW_Y,
     N,
 )
-from gaitlog.firmware_sim.compiled import njit
+from gaitlog.firmware_sim.compiled import load_numba, njit
 from gaitlog.firmware_sim.fixedpoint import C_CYCLES, C_STICKY, N_COUNTERS, OP_DEE, OP_I2C, OPS, new_counters, s_cost
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_records
 
@@ -463,7 +463,8 @@ def finalise_calls(algorithm, codes: np.ndarray, *, first_sample_number: int = 0
     if algorithm.arithmetic != "fixed":
         raise ValueError("the trace is of the fixed-point kernel (the PIC's)")
     c = np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3)
-    algorithm.reset()                                    # loads the compiled kernel (module globals replaced)
+    load_numba()       # the kernel's module globals become numba's dispatchers before two are swapped below: an
+    algorithm.reset()  # ahead-of-time kernel loads no numba, and a swap over a lazy one would restore it unloaded
     cfg_i, cfg_v = algorithm.config.cfg_i, algorithm.config.cfg_v
     st_i, st_v, line, durs, scr, cnt = (algorithm._st_i, algorithm._st_v, algorithm._line, algorithm._durs,
                                         algorithm._scr, algorithm._cnt)

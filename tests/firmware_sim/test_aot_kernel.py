@@ -269,3 +269,30 @@ def test_prune_removes_only_long_unused_folders_of_other_versions(tmp_path: Path
     removed = compiled.prune_cache(keep)
     assert sorted(removed) == sorted(old)
     assert all(p.exists() for p in (keep, *recent, other)) and not any(p.exists() for p in old)
+
+
+def test_a_finalise_trace_under_the_aot_kernel_leaves_the_jit_usable() -> None:
+    """probe.finalise_calls swaps two of the kernel's module globals for a run. Under the ahead-of-time kernel
+    numba is not loaded yet; had the swap saved a lazy dispatcher, numba would skip replacing that global when it
+    loads during the trace, and restoring it would leave ``_finalise`` lazy, so the JIT's ``flush`` could no longer
+    be compiled (a test order under pytest-xdist met this). In a fresh interpreter: the trace, then the JIT."""
+    _aot_or_skip()
+    got = _child(
+        "import json\n"
+        "import numpy as np\n"
+        "from gaitlog.firmware_sim.algorithms import kernel\n"
+        "from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm\n"
+        "from gaitlog.firmware_sim.algorithms.probe import finalise_calls\n"
+        "from gaitlog.protocol.steps import StepConfig\n"
+        "sc = StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2)\n"
+        "alg = OnlineStepAlgorithm(sampling_rate_hz=50.0, arithmetic='fixed', step_config=sc)\n"
+        "t = np.arange(1500) / 50.0\n"
+        "codes = np.stack([np.full(t.size, 512), np.full(t.size, 512),\n"
+        "                  (640 + 60 * np.sin(2 * np.pi * 1.8 * t)).astype(np.int64)], axis=1)\n"
+        "aot = alg.compiled_by\n"
+        "finalise_calls(alg, codes)\n"
+        "jit = OnlineStepAlgorithm(sampling_rate_hz=50.0, arithmetic='fixed', step_config=sc)\n"
+        "jit._process, jit._flush, jit._reset = kernel.process, kernel.flush, kernel.reset\n"
+        "jit.run(codes)\n"
+        "print(json.dumps([aot, type(kernel._finalise).__name__]))\n")
+    assert got == ["aot", "CPUDispatcher"]
