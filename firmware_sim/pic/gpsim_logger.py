@@ -1044,6 +1044,18 @@ def _compare_records(pic: np.ndarray, model: np.ndarray) -> StageComparison:
     return StageComparison("step records", k, int(sum(same)), first)
 
 
+def _verification_inputs(codes: np.ndarray, flags: np.ndarray, sampling_rate_hz: float,
+                         harness: PicLogger | None) -> tuple[np.ndarray, np.ndarray, PicLogger, list[int]]:
+    """What :func:`verify` and :func:`verify_records` start from: the codes ``(n, 3)``, the flags, the harness and
+    the runs' first samples; :class:`PicError` when gpasm/gpsim are absent."""
+    why = missing_tools()
+    if why:
+        raise PicError(why)
+    f = np.asarray(flags, np.int64).reshape(-1)
+    return (np.asarray(codes, np.int64).reshape(-1, 3), f,
+            harness or PicLogger(sampling_rate_hz=sampling_rate_hz), run_starts(f))
+
+
 def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, sampling_rate_hz: float = 50.0,
            source: str = "codes", first_sample_number: int = 0, harness: PicLogger | None = None,
            a_v: bool = True) -> PicVerification:
@@ -1061,14 +1073,8 @@ def verify(codes: np.ndarray, flags: np.ndarray, calibration: CalibrationQ, *, s
     exceeds the model's 16-bit divisor, where the model raises.
     Raises :class:`PicError` when gpasm/gpsim are absent or fail.
     """
-    why = missing_tools()
-    if why:
-        raise PicError(why)
     t0 = time.perf_counter()
-    c = np.asarray(codes, np.int64).reshape(-1, 3)
-    f = np.asarray(flags, np.int64).reshape(-1)
-    h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz)
-    starts = run_starts(f)
+    c, f, h, starts = _verification_inputs(codes, flags, sampling_rate_hz, harness)
     with ThreadPoolExecutor(max_workers=1) as pool:        # gpsim runs while the model computes
         pending = pool.submit(h.run, c, f, calibration, first_sample_number=first_sample_number)
         model_f = calibrated_axes(c, calibration)
@@ -1139,17 +1145,11 @@ def verify_records(codes: np.ndarray, flags: np.ndarray, calibration: Calibratio
                    period_cycles: int | None = None) -> RecordsVerification:
     """The step records only: every logging run through gpsim in the lean records mode
     (:meth:`PicLogger.run_records`) and the model's records from the kernel fed each run whole
-    (:func:`~gaitlog.firmware_sim.algorithms.probe.step_records`, the scratch ring at the EEPROM ring's
-    samples), compared byte for byte. :func:`verify` compares the same records and every stage besides.
+    (:func:`~gaitlog.firmware_sim.algorithms.probe.step_records`, STOP's included, the model's own scratch
+    ring), compared byte for byte. :func:`verify` compares the same records and every stage besides.
     Raises :class:`PicError` when gpasm/gpsim are absent or fail."""
-    why = missing_tools()
-    if why:
-        raise PicError(why)
     t0 = time.perf_counter()
-    c = np.asarray(codes, np.int64).reshape(-1, 3)
-    f = np.asarray(flags, np.int64).reshape(-1)
-    h = harness or PicLogger(sampling_rate_hz=sampling_rate_hz)
-    starts = run_starts(f)
+    c, f, h, starts = _verification_inputs(codes, flags, sampling_rate_hz, harness)
     runs = [(a, b) for a, b in zip(starts, starts[1:] + [c.shape[0]]) if b > a]
     if not runs:
         raise ValueError("no samples to run")
