@@ -612,6 +612,11 @@ class PicLogger:
         self.workers = workers
         self.timeout_s = timeout_s
 
+    def _write_config(self, build_dir: Path, cal_bytes: list[int]) -> None:
+        """The data EEPROM's configuration (the calibration's bytes, FIR weights, step configuration) as
+        ``config.inc`` in ``build_dir``."""
+        (build_dir / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in self._eeprom(cal_bytes)))
+
     def _defines(self, first_sample: int) -> dict[str, int]:
         t = timer_setup(self.sampling_rate_hz, self.fosc_hz)
         ci, cv = self.config.cfg_i, self.config.cfg_v
@@ -653,7 +658,7 @@ class PicLogger:
         n = codes.shape[0]
         with tempfile.TemporaryDirectory(prefix="pic-logger-") as tmp:
             d = Path(tmp)
-            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in self._eeprom(cal_bytes)))
+            self._write_config(d, cal_bytes)
             build = _assemble(d, dict(self._defines(first_sample), N_SAMPLES=n, START_N=0), test=True)
             sym = build.symbols
             tracked = {sym[k] + i for k, b in _SNAPSHOT for i in range(b)}
@@ -705,8 +710,7 @@ class PicLogger:
         n = c.shape[0]
         with tempfile.TemporaryDirectory(prefix="pic-logger-lean-") as tmp:
             d = Path(tmp)
-            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
-                                                  self._eeprom(_calibration_bytes(calibration))))
+            self._write_config(d, _calibration_bytes(calibration))
             build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n,
                                       SCR_K0=scratch_offset(run_start_sample, start_n)), test=True)
             sym = build.symbols
@@ -757,8 +761,7 @@ class PicLogger:
                 stop, stimuli = f"c {t.period_cycles * n_samples}", ""
             else:
                 c = np.asarray(codes, np.int64).reshape(-1, 3)[:n_samples]
-                (Path(tmp) / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
-                                                              self._eeprom(_calibration_bytes(calibration))))
+                self._write_config(Path(tmp), _calibration_bytes(calibration))
                 build = _assemble(Path(tmp), dict(self._defines(0), N_SAMPLES=c.shape[0], START_N=0), test=True)
                 stop, stimuli = "e harness_done", _stimuli(c, np.zeros(c.shape[0], np.int64), t.period_cycles)
             t0 = time.perf_counter()
@@ -781,8 +784,7 @@ class PicLogger:
         n = c.shape[0]
         with tempfile.TemporaryDirectory(prefix="pic-logger-records-") as tmp:
             d = Path(tmp)
-            (d / "config.inc").write_text("".join(f"        de      0x{b:02X}\n" for b in
-                                                  self._eeprom(_calibration_bytes(calibration))))
+            self._write_config(d, _calibration_bytes(calibration))
             defines = dict(self._defines(first_sample_number), CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con)
             build = _assemble(d, dict(defines, N_SAMPLES=n, START_N=0), test=True)
             sym = build.symbols

@@ -11,6 +11,15 @@
 ; are 16 bits; since(a, b) is their difference read as signed, sign-extended into ACC.
 
 ; ---- flags of AFLAGS (bank 1) through FSR -------------------------------------------------------------
+SET_M           macro                   ; M = N - 1 - R3 (16 bits), the filter output's index
+        movlw   LOW (R3 + 1)
+        subwf   N_L, W
+        movwf   M_L
+        movf    N_H, W
+        btfss   STATUS, C
+        decf    N_H, W
+        movwf   M_H
+        endm
 JAF_SET         macro   bit, label      ; goto label when AFLAGS.bit is set
         movlw   AFLAGS
         movwf   FSR
@@ -203,13 +212,7 @@ line_load:
 ; =====================================================================================================
 ; Step 5: the foot-flat detector at the filter output m = N - 1 - R3 (y3 in Y3).
 stage_detect:
-        movlw   LOW (R3 + 1)            ; m = N - 1 - R3 (16 bits)
-        subwf   N_L, W
-        movwf   M_L
-        movf    N_H, W
-        btfss   STATUS, C
-        decf    N_H, W
-        movwf   M_H
+        SET_M                           ; m = N - 1 - R3 (16 bits)
         ; the pending foot-flat becomes final: m >= PEND + (MAX_STEP if weak else DIST), unless the peak
         ; being climbed lies within DIST of it, is higher, and m <= PEND + MAX_STEP (the look-ahead)
         JAF_CLR AF_PEND, sd_hyst
@@ -737,13 +740,7 @@ fl_final:
         call    scr_write_w
         bsf     FW_FLAGS, FWF_TAIL      ; written: fin_join does not write them again
 fl_m:
-        movlw   LOW (R3 + 1)            ; m = N - 1 - R3 (16 bits)
-        subwf   N_L, W
-        movwf   M_L
-        movf    N_H, W
-        btfss   STATUS, C
-        decf    N_H, W
-        movwf   M_H
+        SET_M                           ; m = N - 1 - R3 (16 bits)
         call    finalise
         AFCLR   AF_PEND
 fl_done:
