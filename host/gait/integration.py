@@ -166,3 +166,31 @@ def vertical_positions(acc_v_m_s2: np.ndarray, ss: StepSamples) -> tuple[np.ndar
     p2 = p_c1 + c2 * ss.tau_s
     ss._positions[id(acc_v_m_s2)] = (acc_v_m_s2, p1, p2)   # the reference keeps the id unique
     return p1, p2
+
+
+def m2_vertical_velocity(acc_v_m_s2: np.ndarray, ss: StepSamples) -> np.ndarray:
+    """Per-sample vertical velocity (m/s) of every window with M2's corrections (eqs 2-3): the derivative of
+    :func:`vertical_positions`' M2 position, ``v + c1 tau + c2`` (0 at the window's ends up to ``c2``).
+
+    >>> sampling_rate_hz, T, A = 200.0, 0.5, 0.02
+    >>> t = np.arange(int(T * sampling_rate_hz) + 1) / sampling_rate_hz
+    >>> a = A * (2 * np.pi / T) ** 2 * np.cos(2 * np.pi * t / T)          # z = -A cos(2 pi t / T)
+    >>> ss = step_samples(np.array([0]), np.array([t.size - 1]), np.ones(t.size, bool), sampling_rate_hz)
+    >>> v = m2_vertical_velocity(a, ss)
+    >>> round(float(v[25]), 3), round(float(A * 2 * np.pi / T), 3)        # fastest a quarter into the step
+    (0.251, 0.251)
+    """
+    a = np.asarray(acc_v_m_s2, np.float64)[ss.index]
+    if a.size == 0:
+        return a
+    v = _segment_cumtrapz(a, ss)
+    p1 = _segment_cumtrapz(v, ss)
+    has = ss.n_measured > 0
+    last = np.zeros(ss.first.size, np.int64)
+    last[has] = ss.first[has] + ss.n_measured[has] - 1
+    T = ss.spread(ss.duration_s)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c1 = -ss.spread(v[last]) / T
+        p_c1 = p1 + 0.5 * c1 * ss.tau_s ** 2
+        c2 = -ss.spread(p_c1[last]) / T
+    return v + c1 * ss.tau_s + c2

@@ -6,6 +6,19 @@
 heel-strike (single support, the inverted pendulum over the stance leg), ``S2`` the foot length (the
 double-support displacement, taken constant). Steps without a toe-off or heel-strike, or with an impossible
 ``h1 > 2 l``, are NaN (counted in ``n_impossible_`` / ``n_no_events_``).
+
+``double_support`` chooses the double-support term (:data:`DOUBLE_SUPPORT_RULES`; none has a constant chosen on
+recordings):
+
+* ``"foot"`` (the default, Alvarez's): ``S2`` = the foot length, the same for every step;
+* ``"single-support-speed"``: the centre of mass crosses the double support at its mean single-support speed,
+  ``S2 = S1 (T - T_ss) / T_ss`` with ``T`` the step window and ``T_ss`` toe-off to heel-strike (no foot length);
+* ``"end-speed"``: at the speed the pendulum has where single support ends (toe-off and heel-strike): on an arc
+  of radius ``l`` the velocity is tangent, so the horizontal speed is ``|v_z| cos(theta) / sin(theta)`` with
+  ``sin(theta) = (S1 / 2) / l`` and ``v_z`` the M2-corrected vertical velocity at that event;
+  ``S2 = v_x(toe-off) (toe-off - start) + v_x(heel-strike) (end - heel-strike)``.
+
+The double support scored against the IPOL foot sensors: :mod:`gaitlog.host.studies.ipol_m3`.
 """
 
 from __future__ import annotations
@@ -16,7 +29,10 @@ from typing import Self
 import numpy as np
 
 from gaitlog.host.gait.estimators.pendulum import _check, pendulum_length_m
-from gaitlog.host.gait.integration import StepSamples, step_samples, vertical_positions
+from gaitlog.host.gait.integration import StepSamples, m2_vertical_velocity, step_samples, vertical_positions
+
+#: The double-support terms of :class:`TwoPhasePendulumM3` (module notes); the first is Alvarez's and the default.
+DOUBLE_SUPPORT_RULES = ("foot", "single-support-speed", "end-speed")
 
 
 class TwoPhasePendulumM3:
@@ -38,8 +54,10 @@ class TwoPhasePendulumM3:
     (0.691, 0.691)
     """
 
-    def __init__(self) -> None:
-        pass
+    def __init__(self, *, double_support: str = "foot") -> None:
+        if double_support not in DOUBLE_SUPPORT_RULES:
+            raise ValueError(f"double_support must be one of {', '.join(DOUBLE_SUPPORT_RULES)}, got {double_support!r}")
+        self.double_support = double_support
 
     def estimate(
         self,
@@ -58,7 +76,8 @@ class TwoPhasePendulumM3:
         """Estimate each step ``[step_start_k, step_end_k]`` with single support ``[toe_off_k, heel_strike_k]``.
 
         ``-1`` in ``step_toe_off`` / ``step_heel_strike`` means "not detected" (the step is NaN).
-        Sets ``single_support_excursion_m_``, ``step_length_m_``, ``n_impossible_``, ``n_no_events_``.
+        Sets ``single_support_excursion_m_``, ``pendulum_length_m_`` (S1), ``double_support_length_m_`` (S2),
+        ``step_length_m_``, ``n_impossible_``, ``n_no_events_``.
         """
         acc = np.asarray(acc_v_m_s2, np.float64)
         start = np.asarray(step_start, np.int64)
@@ -80,8 +99,39 @@ class TwoPhasePendulumM3:
         self.single_support_excursion_m_ = h1
         s1, self.n_impossible_ = pendulum_length_m(h1, leg_length_m)
         self.n_no_events_ = int(np.count_nonzero(~has))
-        self.step_length_m_ = s1 + foot_length_m
+        self.pendulum_length_m_ = s1
+        self.double_support_length_m_ = self._double_support(acc, ss, s1, start, end, np.where(has, to, start),
+                                                             np.where(has, hs, end), sampling_rate_hz,
+                                                             leg_length_m, foot_length_m)
+        self.step_length_m_ = s1 + self.double_support_length_m_
         if self.n_impossible_:
             warnings.warn(f"M3: {self.n_impossible_} step(s) with an impossible single-support excursion "
                           f"(h1 > 2 l) set to NaN", stacklevel=2)
         return self
+
+    def _double_support(self, acc: np.ndarray, ss: StepSamples, s1: np.ndarray, start: np.ndarray, end: np.ndarray,
+                        to: np.ndarray, hs: np.ndarray, sampling_rate_hz: float, leg_length_m: float,
+                        foot_length_m: float) -> np.ndarray:
+        """S2 per step by :attr:`double_support` (module notes); NaN where S1 is."""
+        before_s, after_s = (to - start) / sampling_rate_hz, (end - hs) / sampling_rate_hz
+        if self.double_support == "foot":
+            return np.where(np.isfinite(s1), foot_length_m, np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            if self.double_support == "single-support-speed":
+                return s1 * (before_s + after_s) / ((hs - to) / sampling_rate_hz)
+            v = m2_vertical_velocity(acc, ss)
+            v_to, v_hs = self._at(v, ss, to), self._at(v, ss, hs)
+            half = s1 / 2
+            cot = np.sqrt(leg_length_m ** 2 - half ** 2) / half   # horizontal / vertical speed on the arc
+            return cot * (np.abs(v_to) * before_s + np.abs(v_hs) * after_s)
+
+    @staticmethod
+    def _at(v: np.ndarray, ss: StepSamples, index: np.ndarray) -> np.ndarray:
+        """Each window's value of the per-sample ``v`` at sample ``index[k]`` (its nearest measured sample)."""
+        if index.size == 0 or ss.index.size == 0:
+            return np.full(index.size, np.nan)
+        span = int(ss.index.max()) + 1
+        key = ss.step * span + ss.index                    # strictly increasing: window, then sample
+        k = np.searchsorted(key, np.arange(index.size) * span + index)
+        k = np.clip(np.minimum(np.maximum(k, ss.first), ss.first + ss.n_measured - 1), 0, ss.index.size - 1)
+        return np.where(ss.n_measured > 0, v[k], np.nan)
