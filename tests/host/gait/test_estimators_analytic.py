@@ -164,3 +164,25 @@ def test_window_without_measured_samples_is_nan_and_others_stay_aligned() -> Non
     h = m2.vertical_excursion_m_
     assert np.isnan(h[1])
     assert np.allclose(h[[0, 2, 3]], 2 * amp, atol=1e-3)
+
+
+@pytest.mark.parametrize("rule", ["single-support-speed", "end-speed"])
+def test_m3_double_support_rules_on_an_exact_pendulum(rule) -> None:
+    """The double support covered at the single support's mean speed (chord / T_ss) or at the pendulum's speed
+    where single support ends (l omega cos theta0, the arc's tangent): geometry, not eq (1)."""
+    sampling_rate_hz, l, theta0, t_ds, t_ss = 1000.0, 0.9, np.radians(17.0), 0.06, 0.42
+    t, a, to, hs = two_phase_step(sampling_rate_hz, l, theta0, t_ds=t_ds, t_ss=t_ss)
+    m3 = TwoPhasePendulumM3(double_support=rule).estimate(
+        a, step_start=[0], step_end=[t.size - 1], step_toe_off=[to], step_heel_strike=[hs],
+        sampling_rate_hz=sampling_rate_hz, leg_length_m=l, foot_length_m=0.19)
+    chord, om = 2 * l * np.sin(theta0), 2 * theta0 / t_ss
+    expected = chord * 2 * t_ds / t_ss if rule == "single-support-speed" else l * om * np.cos(theta0) * 2 * t_ds
+    assert m3.double_support_length_m_[0] == pytest.approx(expected, rel=1e-2)
+    # 1 % on S1: h1's quadrature (above), S1 ~ sqrt(h1)
+    assert m3.pendulum_length_m_[0] == pytest.approx(chord, rel=1e-2)
+    assert m3.step_length_m_[0] == pytest.approx(m3.pendulum_length_m_[0] + m3.double_support_length_m_[0])
+
+
+def test_m3_rejects_an_unknown_double_support_rule() -> None:
+    with pytest.raises(ValueError, match="double_support"):
+        TwoPhasePendulumM3(double_support="toe")
