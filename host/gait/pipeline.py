@@ -60,6 +60,9 @@ class StepPipeline:
         Window of the moving-mean gravity estimate.
     max_fill_s
         Longest run of missing samples interpolated before everything else (:mod:`gaitlog.host.gait.gaps`).
+    m3_double_support
+        M3's double-support term (:data:`~gaitlog.host.gait.estimators.two_phase.DOUBLE_SUPPORT_RULES`; the foot
+        length, Alvarez's, by default).
 
     Attributes
     ----------
@@ -94,6 +97,7 @@ class StepPipeline:
         detector: GaitEventDetector | None = None,
         gravity_window_s: float = 4.0,
         max_fill_s: float = MAX_INTERPOLATED_GAP_S,
+        m3_double_support: str = "foot",
     ) -> None:
         self.leg_length_m = leg_length_m
         self.foot_length_m = foot_length_m
@@ -101,6 +105,7 @@ class StepPipeline:
         self.detector = detector
         self.gravity_window_s = gravity_window_s
         self.max_fill_s = max_fill_s
+        self.m3_double_support = m3_double_support
 
     def __repr__(self) -> str:
         k = "with K" if self.calibration is not None else "raw (no K)"
@@ -142,7 +147,7 @@ class StepPipeline:
         table, self.n_impossible_ = step_table(
             ev.foot_flat_, ev.heel_strike_, ev.toe_off_, ev.bout_, lambda lo, hi: (av[lo:hi], ok[lo:hi], lp[lo:hi]),
             sampling_rate_hz=sampling_rate_hz, t0_s=t0_s, leg_length_m=self.leg_length_m,
-            foot_length_m=self.foot_length_m, calibration=self.calibration)
+            foot_length_m=self.foot_length_m, calibration=self.calibration, m3_double_support=self.m3_double_support)
         if self.n_impossible_:
             self.notes_.append(impossible_note(self.n_impossible_, self.leg_length_m))
         return table
@@ -164,7 +169,7 @@ def impossible_note(n_impossible: int, leg_length_m: float) -> str:
 def step_table(ff: np.ndarray, hs: np.ndarray, toe_off: np.ndarray, bout: np.ndarray,
                take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]], *, sampling_rate_hz: float,
                t0_s: float, leg_length_m: float, foot_length_m: float,
-               calibration: KFit | None) -> tuple[StepTable, int]:
+               calibration: KFit | None, m3_double_support: str = "foot") -> tuple[StepTable, int]:
     """The step table (steps 3 and 4 of the module notes) from the per-foot-flat events and ``take(lo, hi)``, which
     returns the vertical acceleration, where it is measured and finite, and its first harmonic on samples
     ``[lo, hi)``; also the number of step lengths (M1-M3 summed) set to NaN for an impossible excursion."""
@@ -180,7 +185,7 @@ def step_table(ff: np.ndarray, hs: np.ndarray, toe_off: np.ndarray, bout: np.nda
     w = np.flatnonzero(start >= 0)
     s_w, e_w = start[w], ff[w]
     est = _estimate_groups(take, s_w, e_w, toe[w], np.where(hs[w] > s_w, hs[w], -1), sampling_rate_hz,
-                           leg_length_m, foot_length_m)
+                           leg_length_m, foot_length_m, m3_double_support)
 
     def spread(x: np.ndarray) -> np.ndarray:
         out = np.full(m, np.nan)
@@ -205,7 +210,7 @@ def step_table(ff: np.ndarray, hs: np.ndarray, toe_off: np.ndarray, bout: np.nda
 
 def _estimate_groups(take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]], s_w: np.ndarray,
                      e_w: np.ndarray, toe: np.ndarray, hs: np.ndarray, sampling_rate_hz: float, leg: float,
-                     foot: float) -> dict:
+                     foot: float, m3_double_support: str = "foot") -> dict:
     """M1-M4 on the windows ``[s_w, e_w]``, the steps starting in one :data:`STEP_GROUP_SAMPLES` block at a time,
     each group on the samples its windows span (``take``); the per-step results concatenated."""
     keys = ("M1", "M2", "M3", "M4", "h1", "h2", "h3", "range", "n_missing")
@@ -227,7 +232,7 @@ def _estimate_groups(take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np
                                        leg_length_m=leg, valid=ok, samples=ss)
             m2 = PendulumDriftM2().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz,
                                             leg_length_m=leg, valid=ok, samples=ss)
-            m3 = TwoPhasePendulumM3().estimate(av, step_start=s, step_end=e, step_toe_off=t, step_heel_strike=h,
+            m3 = TwoPhasePendulumM3(double_support=m3_double_support).estimate(av, step_start=s, step_end=e, step_toe_off=t, step_heel_strike=h,
                                                sampling_rate_hz=sampling_rate_hz, leg_length_m=leg,
                                                foot_length_m=foot, valid=ok, samples=ss)
             m4 = WeinbergM4().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz, valid=ok,

@@ -33,7 +33,9 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    M3, which has no K, reads the turn's short, turned steps as straight ones.
    The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
    height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
-   with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b).
+   with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b), and with M3's double
+   support covered at the single support's speed (``variant = "m3-single-support-speed"``,
+   :data:`M3_DOUBLE_SUPPORT_VARIANT`; the other estimators as the main rows).
 
    4b. *Tuned constants* (:mod:`gaitlog.host.studies.tuning`): the offline chain is run per trial for every candidate
    of the constants chosen from these recordings; for each subject the candidate is chosen on the other
@@ -161,6 +163,11 @@ WEINBERG_EXPONENT = 0.25
 #: zero for M1, M2 and M4 (``docs/topics/accuracy.md``), so the paper's K stays and the prior is a second row
 #: (``variant = "k-prior"``; with True, the rows of the first trial's K alone are ``variant = "no-prior"``).
 K_PRIOR_IN_MAIN = False
+
+#: M3's double support of the ``m3-<rule>`` rows (:data:`gaitlog.host.gait.estimators.two_phase.DOUBLE_SUPPORT_RULES`):
+#: covered at the single support's mean speed, no constant; not kept, its gain's interval includes zero
+#: (:mod:`gaitlog.host.studies.ipol_m3`), so the main rows keep Alvarez's foot length.
+M3_DOUBLE_SUPPORT_VARIANT = "single-support-speed"
 
 #: The two U-turn rules (module notes, step 4); both are reported.
 UTURN_RULES = ("exclude", "include")
@@ -624,11 +631,13 @@ def _step_rows(rt: ReplayedTrial, tables: dict[str, StepTable], calibration_tria
     return out
 
 
-def _offline(rt: ReplayedTrial, leg: float, foot: float, candidate: dict[str, Any]) -> StepTable:
+def _offline(rt: ReplayedTrial, leg: float, foot: float, candidate: dict[str, Any],
+             m3_double_support: str = "foot") -> StepTable:
     """The offline chain on a replayed trial with one candidate's event detector (:mod:`gaitlog.host.studies.tuning`)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return StepPipeline(leg_length_m=leg, foot_length_m=foot, detector=detector_for(candidate)).run(
+        return StepPipeline(leg_length_m=leg, foot_length_m=foot, detector=detector_for(candidate),
+                            m3_double_support=m3_double_support).run(
             rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s).steps_
 
 
@@ -742,6 +751,9 @@ class SubjectFit:
         Whether the subject's fold chose the on-line chains' defaults.
     k_shrunk
         The K of the ``k-prior`` rows (stage 5; None without a prior).
+    m3_variant
+        Per trial, the offline chain with M3's double support by :data:`M3_DOUBLE_SUPPORT_VARIANT` (the
+        ``m3-<rule>`` rows; M3 has no K, the other estimators are the main rows').
     """
 
     replayed: ReplayedSubject
@@ -757,6 +769,7 @@ class SubjectFit:
     cross_validated_online: bool
     k_by_exponent: dict[float, KFit] = field(default_factory=dict)
     k_shrunk: KFit | None = None
+    m3_variant: list[StepTable] = field(default_factory=list)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1023,8 +1036,10 @@ class IpolEvaluation:
         cv_online = c == 0
         k_by_exponent = {p: _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p)
                          for p in ONLINE_M4_VARIANTS.values()} if "online-fixed" in self.arithmetic else {}
+        m3v = [_offline(rt, leg, foot, cands[c], M3_DOUBLE_SUPPORT_VARIANT) for rt in rs.trials]
         return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
-                          k_fold=k_fold, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent)
+                          k_fold=k_fold, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent,
+                          m3_variant=m3v)
 
     def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
         """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
@@ -1119,7 +1134,9 @@ class IpolEvaluation:
                 ScoredChain("offline", "offline", _calibrated(fit.assumed[i], fit.k_assumed), fit.k_assumed, u,
                             "assumed-height", "height-unknown", True),
                 ScoredChain("offline", "offline", _calibrated(off, fit.k_fold), fit.k_fold, u, src, "m4-per-fold",
-                            True)]
+                            True),
+                ScoredChain("offline", "offline", _calibrated(fit.m3_variant[i], fit.k), fit.k, u, src,
+                            f"m3-{M3_DOUBLE_SUPPORT_VARIANT}", True)]
         if K_PRIOR_IN_MAIN:
             runs.append(ScoredChain("offline", "offline", _calibrated(off, fit.k_fitted), fit.k_fitted, u, src,
                                     "no-prior", True))
@@ -1329,6 +1346,8 @@ CHOICES = (
     ("M4's exponent chosen per fold against the shipped one (Weinberg's 1/4)", "main", "m4-per-fold", ("M4",)),
     ("the shipped chain against the recipe (the baseline)", "baseline", "main", ("M2", "M4")),
     ("U-turn steps left out of the distance against every step summed", "main", "uturn-exclude", ESTIMATORS),
+    ("M3's double support at the single support's speed against the foot length", "main",
+     f"m3-{M3_DOUBLE_SUPPORT_VARIANT}", ("M3",)),
 )
 
 

@@ -12,7 +12,8 @@ trial's distance implies:
   (:data:`~gaitlog.host.gait.estimators.two_phase.DOUBLE_SUPPORT_RULES`);
 * per trial: the M3 ratio (sum of the steps over 20 m, a step without a length counted with its bout's median as
   the chain does) for each rule, with the turn and without it (``evaluate ipol``'s ``uturn-exclude`` rows: the
-  straight steps over 20 m), and the *implied double-support length* ``D* = (20 m - sum S1) / steps``: what S2
+  straight steps over 20 m, a lower bound of how long the straight steps read: they cover less than 20 m), the
+  mean straight step over 20 m / steps (an upper bound: the turn's steps are the shorter ones), and the *implied double-support length* ``D* = (20 m - sum S1) / steps``: what S2
   would have to be for the trial to come out right if the pendulum were exact;
 * per subject (age, height, sex from the JSON; step / height = 20 m over the foot sensors' heel strikes, per metre
   of height) and per group of them (:data:`GROUPS`): the medians over the scored trials (every trial but the
@@ -20,7 +21,10 @@ trial's distance implies:
 * per rule against Alvarez's foot length: the gain in median ``|log ratio|`` and in IQR (foot's minus the rule's:
   positive, the rule is better), with 95 % subject-bootstrap intervals over the same draws for both
   (:func:`gaitlog.host.studies.ipol_evaluation.choice_gain`). No rule has a constant chosen on recordings, so no
-  fold is needed beyond the event constants'.
+  fold is needed beyond the event constants';
+* for comparison, the fitted answer (:data:`SCALED_RULE`, an exploration: nothing ships it): S2 = ``c`` x the foot
+  length, ``c`` chosen leave-one-subject-out as the median ``D* / S2`` of the other subjects' trials (every trial
+  of theirs), the held-out subject scored with its fold's ``c`` (``fold_scales_``).
 
 :class:`M3Decomposition` runs it on an :class:`~gaitlog.host.studies.ipol_evaluation.IpolEvaluation` already run.
 """
@@ -47,7 +51,10 @@ from gaitlog.host.studies.ipol_evaluation import (
 from gaitlog.host.studies.stats import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, subject_bootstrap, subject_resamples
 from gaitlog.host.studies.tuning import detector_for
 
-__all__ = ["GROUPS", "M3Decomposition", "TrialM3"]
+__all__ = ["GROUPS", "SCALED_RULE", "M3Decomposition", "TrialM3"]
+
+#: The fitted comparison's name (module notes): the foot length scaled by a constant chosen in the folds.
+SCALED_RULE = "foot-scaled-per-fold"
 
 #: The groups of subjects compared: name -> (subject field, threshold); below / at-or-above the threshold.
 GROUPS: dict[str, tuple[str, float]] = {"age": ("age", 58.0), "height": ("height_m", 1.72),
@@ -92,10 +99,18 @@ class TrialM3:
     age: float
     sex: str
 
-    def ratio(self, rule: str, *, uturn: str = "include") -> float:
-        """The rule's M3 distance over 20 m, every step (``include``) or the straight ones (``exclude``)."""
-        v = self.length_m[rule]
+    def ratio(self, rule: str, *, uturn: str = "include", scale: float = 1.0) -> float:
+        """The rule's M3 distance over 20 m, every step (``include``) or the straight ones (``exclude``); ``scale``
+        multiplies the foot rule's S2 (a filled step is its bout's median, so it moves by the same amount)."""
+        v = self.length_m[rule] - (1.0 - scale) * self.foot_length_m * (rule == "foot")
         return float(np.sum(v if uturn == "include" else v[~self.turn])) / IPOL_DISTANCE_M
+
+    def straight_step_ratio(self, rule: str) -> float:
+        """The rule's mean straight step over the trial's mean step (20 m / steps): the turn's steps are shorter than
+        the straight ones, so the straight steps' true mean is longer than 20 m / steps and this bounds the straight
+        steps' reading from above (:meth:`ratio` with ``uturn="exclude"``, over the full 20 m, from below)."""
+        v = self.length_m[rule][~self.turn]
+        return float(np.mean(v)) * self.turn.size / IPOL_DISTANCE_M if v.size else math.nan
 
     def implied_double_support_m(self) -> float:
         """``D* = (20 m - sum S1) / steps``, S1 filled as the chain fills lengths (module notes)."""
@@ -165,7 +180,8 @@ class M3Decomposition:
         Per subject: ``subject``, ``age``, ``sex``, ``height_m``, ``step_per_height``, ``foot_length_m``,
         ``implied_double_support_m`` (median ``D*``), ``straight_pendulum_m`` / ``turn_pendulum_m`` (mean S1 per
         step), ``double_support_fraction`` (median ``1 - T_ss / T`` of the chain's events), ``ratio_<rule>`` and
-        ``ratio_<rule>_straight`` (median over the scored trials, the turn included / left out).
+        ``ratio_<rule>_straight`` (median over the scored trials, the turn included / left out),
+        ``straight_step_ratio_foot`` (:meth:`TrialM3.straight_step_ratio`, median).
     groups_
         Per group (:data:`GROUPS`) and side (``below`` / ``above``): ``subjects`` and the medians of the subjects'
         ``ratio_*``, ``implied_double_support_m / foot_length_m``.
@@ -173,6 +189,10 @@ class M3Decomposition:
         Per rule and U-turn rule (``include``/``exclude``): ``median``, ``iqr`` (value, low, high),
         ``abs_log`` (median ``|log ratio|``, low, high) and, against the first rule, ``gain_iqr`` and
         ``gain_abs_log`` (value, low, high; positive: the rule is better).
+    correlations_
+        Per ``(subject field, quantity)`` (fields of :data:`GROUPS`; ``ratio_foot``, the shipped M3 ratio with the
+        turn, or ``implied_per_foot``, ``D* / S2``): the correlation over the subjects and its subject-bootstrap
+        interval (value, low, high).
     regression_
         Least squares over the scored trials of ``20 m = a sum S1 + b steps``: ``a`` (the pendulum's scale the
         distance asks for) and ``b`` (m per step, the double support it asks for).
@@ -197,7 +217,11 @@ class M3Decomposition:
                         for s, fit in evaluation.fits_.fits.items() for i, rt in enumerate(fit.replayed.trials)]
         self.subjects_ = [self._subject(s) for s in sorted({t.subject for t in self.trials_})]
         self.groups_ = self._groups()
-        self.figures_ = {(rule, u): self._figures(rule, u) for rule in self.rules for u in ("include", "exclude")}
+        self.correlations_ = {(f, q): self._correlation(f, q) for f, _ in GROUPS.values()
+                              for q in ("ratio_foot", "implied_per_foot")}
+        self.fold_scales_ = self._fold_scales()
+        self.figures_ = {(rule, u): self._figures(rule, u) for rule in self.rules + (SCALED_RULE,)
+                         for u in ("include", "exclude")}
         scored = [t for t in self.trials_ if t.scored]
         a = np.array([[np.sum(t.length_m["foot"] - t.foot_length_m), t.turn.size] for t in scored])
         coef = np.linalg.lstsq(a, np.full(len(scored), IPOL_DISTANCE_M), rcond=None)[0] if scored else (math.nan,) * 2
@@ -206,8 +230,33 @@ class M3Decomposition:
 
     def rows(self, rule: str, uturn: str = "include") -> list[dict]:
         """The rule's scored trials as ``evaluate ipol`` rows (``subject``, ``trial``, ``estimator`` = M3, ``ratio``)."""
+        if rule == SCALED_RULE:
+            return [dict(subject=t.subject, trial=t.trial, estimator="M3",
+                         ratio=t.ratio("foot", uturn=uturn, scale=self.fold_scales_[t.subject]))
+                    for t in self.trials_ if t.scored]
         return [dict(subject=t.subject, trial=t.trial, estimator="M3", ratio=t.ratio(rule, uturn=uturn))
                 for t in self.trials_ if t.scored]
+
+    def _correlation(self, field: str, quantity: str) -> tuple[float, float, float]:
+        """Correlation of a subject field with a subject quantity, and its subject-bootstrap interval."""
+        def value(s: dict[str, Any]) -> float:
+            return s["implied_double_support_m"] / s["foot_length_m"] if quantity == "implied_per_foot" else s[quantity]
+        mine = [s for s in self.subjects_ if math.isfinite(s[field]) and math.isfinite(value(s))]
+        if len(mine) < 3:
+            return (math.nan,) * 3
+
+        def corr(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+            with np.errstate(all="ignore"):
+                return np.array([np.corrcoef(x, y)[0, 1] if np.ptp(x) > 0 and np.ptp(y) > 0 else math.nan])
+        counts = subject_resamples(len(mine), n_resamples=self.n_resamples, seed=self.seed)
+        r, lo, hi = subject_bootstrap([np.array([s[field]]) for s in mine], corr, counts,
+                                      [np.array([value(s)]) for s in mine], level=self.level)
+        return float(r[0]), float(lo[0]), float(hi[0])
+
+    def _fold_scales(self) -> dict[int, float]:
+        """Per subject, ``c`` = the median ``D* / S2`` over the other subjects' trials (module notes)."""
+        implied = [(t.subject, t.implied_double_support_m() / t.foot_length_m) for t in self.trials_]
+        return {s: _median([c for o, c in implied if o != s]) for s in sorted({t.subject for t in self.trials_})}
 
     def _subject(self, subject: int) -> dict[str, Any]:
         mine = [t for t in self.trials_ if t.subject == subject]
@@ -227,11 +276,13 @@ class M3Decomposition:
         for rule in self.rules:
             out[f"ratio_{rule}"] = _median([t.ratio(rule) for t in scored])
             out[f"ratio_{rule}_straight"] = _median([t.ratio(rule, uturn="exclude") for t in scored])
+        out["straight_step_ratio_foot"] = _median([t.straight_step_ratio("foot") for t in scored])
         return out
 
     def _groups(self) -> dict[tuple[str, str], dict[str, Any]]:
         out = {}
-        keys = [k for k in self.subjects_[0] if k.startswith("ratio_")] if self.subjects_ else []
+        keys = ([k for k in self.subjects_[0] if k.startswith("ratio_") or k == "straight_step_ratio_foot"]
+                if self.subjects_ else [])
         for name, (field, threshold) in GROUPS.items():
             for side in ("below", "above"):
                 mine = [s for s in self.subjects_ if math.isfinite(s[field])
@@ -261,19 +312,26 @@ class M3Decomposition:
         lines = ["M3 without K against the foot events (scored trials; D* = (20 m - sum S1) / steps, the double "
                  "support the distance implies if the pendulum is exact):",
                  "subject age sex height step/height S2(foot) D* D*/S2 S1 straight S1 turn DS fraction "
+                 "straight-step/(20 m/steps) "
                  + " ".join(f"ratio[{r}] straight" for r in self.rules)]
         for s in self.subjects_:
             lines.append(f"  {s['subject']} {s['age']:.0f} {s['sex']} {s['height_m']:.2f} {s['step_per_height']:.3f} "
                          f"{s['foot_length_m']:.3f} {s['implied_double_support_m']:.3f} "
                          f"{s['implied_double_support_m'] / s['foot_length_m']:.2f} {s['straight_pendulum_m']:.3f} "
                          f"{s['turn_pendulum_m']:.3f} {s['double_support_fraction']:.3f} "
+                         f"{s['straight_step_ratio_foot']:.3f} "
                          + " ".join(f"{s[f'ratio_{r}']:.3f} {s[f'ratio_{r}_straight']:.3f}" for r in self.rules))
         for (name, side), g in self.groups_.items():
             lines.append(f"  {name} {side} {GROUPS[name][1]:g}: subjects {g['subjects']} D*/S2 "
-                         f"{g['implied_per_foot']:.2f} " + " ".join(
+                         f"{g['implied_per_foot']:.2f} straight-step/(20 m/steps) {g['straight_step_ratio_foot']:.3f} "
+                         + " ".join(
                              f"{r} {g[f'ratio_{r}']:.3f} (straight {g[f'ratio_{r}_straight']:.3f})" for r in self.rules))
         lines.append(f"20 m = a sum S1 + b steps over the scored trials: a = {self.regression_['a']:.3f}, "
                      f"b = {self.regression_['b']:.3f} m per step")
+        lines += [f"correlation over the subjects of {q} with {f}: {r:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+                  for (f, q), (r, lo, hi) in self.correlations_.items()]
+        c = list(self.fold_scales_.values())
+        lines.append(f"{SCALED_RULE} (exploration, not shipped): c chosen per fold {min(c):.3f}-{max(c):.3f}")
         for (rule, u), f in self.figures_.items():
             cells = [f"{k} {v:.3f} [{lo:.3f}, {hi:.3f}]" for k, (v, lo, hi) in f.items() if not k.startswith("gain")]
             cells += [f"{k} {v:+.3f} [{lo:+.3f}, {hi:+.3f}]" for k, (v, lo, hi) in f.items() if k.startswith("gain")]

@@ -45,6 +45,8 @@ _OFFLINE_VARIANTS = (
     ("height-unknown", "arithmetic = offline, height UNKNOWN: a 1.70 m adult assumed for every subject (K fitted "
      "with those lengths; M3 has no K to absorb them)", None),
     ("m4-per-fold", "arithmetic = offline, M4 with the exponent chosen per fold (K refitted with it; M4 row only)", ("M4",)),
+    ("m3-single-support-speed", "arithmetic = offline, M3's double support covered at the single support's speed "
+     "(S1 (T - T_ss) / T_ss instead of the foot length; M3 row only)", ("M3",)),
     ("baseline", "baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
      "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "
      "M4 range^(1/4), K = 20 m / first trial's sum)", ("M2", "M4")),

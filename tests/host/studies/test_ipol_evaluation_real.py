@@ -92,12 +92,13 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "uturn-exclude", "exclude", "subject-height"),
                      ("offline", "offline", "height-unknown", "include", "assumed-height"),
                      ("offline", "offline", "m4-per-fold", "include", "subject-height"),
+                     ("offline", "offline", "m3-single-support-speed", "include", "subject-height"),
                      ("offline", "offline", "k-prior", "include", "subject-height"),
                      ("offline", "offline", "baseline", "include", "subject-height")} | {
         ("online-fixed", "offline", v, "include", "subject-height")
         for v in ("stop-v3", "prominence-fixed", "m4-quarter", "m4-half")}
-    # 52 trials - 9 calibration trials, 5 estimators, 12 kinds; the baseline's M2 and M4
-    assert len(rows) == 12 * 5 * 43 + 2 * 43
+    # 52 trials - 9 calibration trials, 5 estimators, 13 kinds; the baseline's M2 and M4
+    assert len(rows) == 13 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -285,10 +286,10 @@ def test_issue12_best_calibrated_iqr(ipol) -> None:
     assert min(iqr(ratios(ipol.rows, e)) for e in ("M1", "M2", "M4", "M5")) <= 0.05
 
 
-@pytest.mark.xfail(strict=True, reason="M3 without K reads the U-turn's short, turned steps as straight ones: with "
-                   "every "
-                   "step summed, median 1.088 (offline), 1.083 (on-line fixed); with the turn left out (second row) "
-                   "1.022, IQR 0.059")
+@pytest.mark.xfail(strict=True, reason="M3 without K reads long through its double-support term (the foot length, "
+                   "0.111 x height, where the trials' distance asks for 0.145 m a step; the pendulum term is right "
+                   "within 1.5 %, host/studies/ipol_m3.py): with every step summed, median 1.088 (offline), 1.083 "
+                   "(on-line fixed); the double support at the single support's speed 0.980 but IQR 0.091")
 @pytest.mark.parametrize("arithmetic", ["offline", "online-fixed"])
 def test_issue12_m3_without_k(ipol, arithmetic) -> None:
     """Issue 12: M3 without K, median within 1 +- 0.05 and IQR <= 0.08."""
@@ -455,9 +456,20 @@ def test_baseline_row_and_the_choices_are_printed(ipol) -> None:
     choices = ipol.text.split("choices against the simpler one")[1].split("steps|err|")[0]
     for label in ("K prior", "M4's exponent chosen per fold", "the shipped chain against the recipe",
                   "U-turn steps left out", "prominence_fraction chosen", "on-line: the stop rule of versions 1-3",
-                  "on-line: the adaptive foot-flat prominence", "on-line: M4's exponent 1/2 against"):
+                  "on-line: the adaptive foot-flat prominence", "on-line: M4's exponent 1/2 against",
+                  "M3's double support at the single support's speed"):
         line = next(ln for ln in choices.splitlines() if label in ln)
         for m in re.finditer(r"(M\d|steps) ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] (kept|not kept)", line):
             gain, lo, hi = map(float, m.group(2, 3, 4))
             assert lo <= gain <= hi and (m.group(5) == "kept") == (lo > 0), line
         assert "not kept" in line
+
+
+def test_m3_double_support_row(ipol) -> None:
+    """docs/validation/ipol.md: M3 with the double support covered at the single support's speed (no foot length,
+    no constant) reads 0.980, IQR 0.091 (the main rows: 1.088, 0.081); the other estimators are the main rows'."""
+    r = ratios(ipol.rows, "M3", variant="m3-single-support-speed")
+    assert r.size == 43
+    assert np.median(r) == pytest.approx(0.980, abs=0.003) and iqr(r) == pytest.approx(0.091, abs=0.003)
+    assert np.array_equal(ratios(ipol.rows, "M2", variant="m3-single-support-speed"), ratios(ipol.rows, "M2"))
+    assert "M3's double support covered at the single support's speed" in ipol.text

@@ -64,18 +64,19 @@ def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
         warnings.simplefilter("ignore")
         res = evaluate_folder(tmp_path)
     # one scored trial: 5 estimators x 3 arithmetics with the offline K, + 5 on-line fixed rows with its own K,
-    # + the offline chain with the U-turn left out, with the height unknown (here it is: no height in the JSON)
-    # and with M4's exponent chosen in the fold (no k-prior rows: one subject has no other subject to shrink toward),
+    # + the offline chain with the U-turn left out, with the height unknown (here it is: no height in the JSON),
+    # with M4's exponent chosen in the fold and with M3's double support at the single support's speed (no k-prior
+    # rows: one subject has no other subject to shrink toward),
     # the on-line fixed chain with each of its rules' simpler or former choices, and the recipe baseline's M2 and M4
-    assert res.n_trials == 1 and len(res.rows) == 57
-    base = {r["estimator"]: r["ratio"] for r in res.rows[55:]}
-    assert [r["variant"] for r in res.rows[55:]] == ["baseline"] * 2 and set(base) == {"M2", "M4"}
+    assert res.n_trials == 1 and len(res.rows) == 62
+    base = {r["estimator"]: r["ratio"] for r in res.rows[60:]}
+    assert [r["variant"] for r in res.rows[60:]] == ["baseline"] * 2 and set(base) == {"M2", "M4"}
     assert all(v == pytest.approx(1.0, abs=0.03) for v in base.values()), base
-    assert [(r["arithmetic"], r["k_from"], r["variant"]) for r in res.rows[:55:5]] == [
+    assert [(r["arithmetic"], r["k_from"], r["variant"]) for r in res.rows[:60:5]] == [
         ("offline", "offline", "main"), ("online-float", "offline", "main"), ("online-fixed", "offline", "main"),
         ("online-fixed", "own", "main"), ("offline", "offline", "uturn-exclude"),
         ("offline", "offline", "height-unknown"), ("offline", "offline", "m4-per-fold"),
-        ("online-fixed", "offline", "stop-v3"), ("online-fixed", "offline", "prominence-fixed"),
+        ("offline", "offline", "m3-single-support-speed"), ("online-fixed", "offline", "stop-v3"), ("online-fixed", "offline", "prominence-fixed"),
         ("online-fixed", "offline", "m4-quarter"), ("online-fixed", "offline", "m4-half")]
     assert res.priors == {} and res.calibrations[1].shrinkage is None
     # the m4-per-fold rows differ from the main ones in M4 alone, and so do the on-line m4-quarter rows from the
@@ -83,8 +84,12 @@ def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
     assert [r["ratio"] for r in res.rows[:5] if r["estimator"] != "M4"] == [
         r["ratio"] for r in res.rows[30:35] if r["estimator"] != "M4"]
     assert [r["ratio"] for r in res.rows[10:15] if r["estimator"] != "M4"] == [
-        r["ratio"] for r in res.rows[45:50] if r["estimator"] != "M4"]
-    assert res.rows[48]["ratio"] == pytest.approx(res.rows[13]["ratio"], abs=1e-4)
+        r["ratio"] for r in res.rows[50:55] if r["estimator"] != "M4"]
+    assert res.rows[53]["ratio"] == pytest.approx(res.rows[13]["ratio"], abs=1e-4)
+    # the m3-single-support-speed rows differ from the main ones in M3 alone
+    assert [r["ratio"] for r in res.rows[:5] if r["estimator"] != "M3"] == [
+        r["ratio"] for r in res.rows[35:40] if r["estimator"] != "M3"]
+    assert res.rows[37]["estimator"] == "M3" and res.rows[37]["ratio"] != res.rows[2]["ratio"]
     assert {r["lengths_source"] for r in res.rows} == {"assumed-height"}
     res.rows = [r for r in res.rows if r["variant"] == "main"]
     for arith, k_from in (("offline", "offline"), ("online-fixed", "offline"), ("online-fixed", "own")):
