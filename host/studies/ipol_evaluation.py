@@ -30,7 +30,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    differs from the calibration trial's by 1-2 in most trials and each moves a ratio by 2-2.6 %, and its dev
    gain (IQR 0.048 against 0.053) was far inside the noise (``docs/topics/accuracy.md``: the gain's interval).
    Both the per-subject calibration and the evaluation use the same rule, so K absorbs the turn either way;
-   M3, which has no K, reads the turn's short, turned steps as straight ones.
+   M3, which has no K, has fewer steps against the same 20 m when the turn's are left out
+   (:mod:`gaitlog.host.studies.ipol_m3`: its pendulum term follows the turn's shorter steps, its foot length does not).
    The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
    height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
    with the first trial's K alone (``variant = "no-prior"``: not shrunk, step 5b), and with M3's double
