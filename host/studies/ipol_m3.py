@@ -63,8 +63,7 @@ GROUPS: dict[str, tuple[str, float]] = {"age": ("age", 58.0), "height": ("height
 
 @dataclass(frozen=True, eq=False)
 class TrialM3:
-    """One trial's M3 steps (the trial's steps of the offline chain, :func:`~gaitlog.host.studies.ipol_evaluation.
-    trial_steps`).
+    """One trial's M3 steps: the offline chain's steps of the trial section (as ``evaluate ipol`` selects them).
 
     Attributes
     ----------
