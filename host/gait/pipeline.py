@@ -232,9 +232,9 @@ def _estimate_groups(take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np
                                        leg_length_m=leg, valid=ok, samples=ss)
             m2 = PendulumDriftM2().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz,
                                             leg_length_m=leg, valid=ok, samples=ss)
-            m3 = TwoPhasePendulumM3(double_support=m3_double_support).estimate(av, step_start=s, step_end=e, step_toe_off=t, step_heel_strike=h,
-                                               sampling_rate_hz=sampling_rate_hz, leg_length_m=leg,
-                                               foot_length_m=foot, valid=ok, samples=ss)
+            m3 = TwoPhasePendulumM3(double_support=m3_double_support).estimate(
+                av, step_start=s, step_end=e, step_toe_off=t, step_heel_strike=h, sampling_rate_hz=sampling_rate_hz,
+                leg_length_m=leg, foot_length_m=foot, valid=ok, samples=ss)
             m4 = WeinbergM4().estimate(av, step_start=s, step_end=e, sampling_rate_hz=sampling_rate_hz, valid=ok,
                                        lowpassed=lp)
         n_impossible += sum(int(getattr(x, "n_impossible_", 0)) for x in (m1, m2, m3))

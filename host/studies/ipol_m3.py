@@ -51,7 +51,7 @@ from gaitlog.host.studies.ipol_evaluation import (
 from gaitlog.host.studies.stats import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, subject_bootstrap, subject_resamples
 from gaitlog.host.studies.tuning import detector_for
 
-__all__ = ["GROUPS", "SCALED_RULE", "M3Decomposition", "TrialM3"]
+__all__ = ["GROUPS", "SCALED_RULE", "M3Decomposition", "TrialM3", "trial_m3"]
 
 #: The fitted comparison's name (module notes): the foot length scaled by a constant chosen in the folds.
 SCALED_RULE = "foot-scaled-per-fold"
