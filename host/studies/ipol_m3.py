@@ -188,6 +188,11 @@ class M3Decomposition:
         Per rule and U-turn rule (``include``/``exclude``): ``median``, ``iqr`` (value, low, high),
         ``abs_log`` (median ``|log ratio|``, low, high) and, against the first rule, ``gain_iqr`` and
         ``gain_abs_log`` (value, low, high; positive: the rule is better).
+    parts_
+        Per part (``straight``, ``turn``), over the scored trials' steps: ``steps``, the means of ``S1``
+        (``pendulum_m``), of each rule's ``S2`` (``double_support_m_<rule>``) and of the foot rule's step
+        (``m3_m``, filled steps included), and ``trial_mean_step_m``, the mean of 20 m / steps over those steps'
+        trials (what every step would be if all were equal).
     correlations_
         Per ``(subject field, quantity)`` (fields of :data:`GROUPS`; ``ratio_foot``, the shipped M3 ratio with the
         turn, or ``implied_per_foot``, ``D* / S2``): the correlation over the subjects and its subject-bootstrap
@@ -216,6 +221,7 @@ class M3Decomposition:
                         for s, fit in evaluation.fits_.fits.items() for i, rt in enumerate(fit.replayed.trials)]
         self.subjects_ = [self._subject(s) for s in sorted({t.subject for t in self.trials_})]
         self.groups_ = self._groups()
+        self.parts_ = {part: self._part(part == "turn") for part in ("straight", "turn")}
         self.correlations_ = {(f, q): self._correlation(f, q) for f, _ in GROUPS.values()
                               for q in ("ratio_foot", "implied_per_foot")}
         self.fold_scales_ = self._fold_scales()
@@ -235,6 +241,20 @@ class M3Decomposition:
                     for t in self.trials_ if t.scored]
         return [dict(subject=t.subject, trial=t.trial, estimator="M3", ratio=t.ratio(rule, uturn=uturn))
                 for t in self.trials_ if t.scored]
+
+    def _part(self, turn: bool) -> dict[str, float]:
+        scored = [t for t in self.trials_ if t.scored]
+
+        def pooled(f: Any) -> np.ndarray:
+            return np.concatenate([np.asarray(f(t), np.float64)[t.turn == turn] for t in scored])
+        out = {"steps": float(pooled(lambda t: np.ones(t.turn.size)).size),
+               "pendulum_m": float(np.nanmean(pooled(lambda t: t.pendulum_m))),
+               "m3_m": float(np.mean(pooled(lambda t: t.length_m["foot"]))),
+               "trial_mean_step_m": float(np.mean(pooled(lambda t: np.full(t.turn.size,
+                                                                           IPOL_DISTANCE_M / t.turn.size))))}
+        out.update({f"double_support_m_{r}": float(np.nanmean(pooled(lambda t, r=r: t.double_support_m[r])))
+                    for r in self.rules})
+        return out
 
     def _correlation(self, field: str, quantity: str) -> tuple[float, float, float]:
         """Correlation of a subject field with a subject quantity, and its subject-bootstrap interval."""
@@ -325,6 +345,10 @@ class M3Decomposition:
                          f"{g['implied_per_foot']:.2f} straight-step/(20 m/steps) {g['straight_step_ratio_foot']:.3f} "
                          + " ".join(
                              f"{r} {g[f'ratio_{r}']:.3f} (straight {g[f'ratio_{r}_straight']:.3f})" for r in self.rules))
+        for part, f in self.parts_.items():
+            lines.append(f"{part} steps ({f['steps']:.0f}): mean S1 {f['pendulum_m']:.3f} m, S2 " + ", ".join(
+                f"{r} {f[f'double_support_m_{r}']:.3f}" for r in self.rules) + f" m; M3 {f['m3_m']:.3f} m against "
+                f"20 m / steps {f['trial_mean_step_m']:.3f} m")
         lines.append(f"20 m = a sum S1 + b steps over the scored trials: a = {self.regression_['a']:.3f}, "
                      f"b = {self.regression_['b']:.3f} m per step")
         lines += [f"correlation over the subjects of {q} with {f}: {r:+.2f} [{lo:+.2f}, {hi:+.2f}]"
