@@ -49,8 +49,10 @@ def test_the_double_support_term_carries_the_long_reading(m3) -> None:
         "implied_per_foot"]
     straight, turn = d.parts_["straight"], d.parts_["turn"]
     assert (straight["steps"], turn["steps"]) == (1351, 115)
-    assert straight["pendulum_m"] == pytest.approx(0.456, abs=0.002) and turn["pendulum_m"] == pytest.approx(0.330, abs=0.002)
-    assert straight["m3_m"] == pytest.approx(0.648, abs=0.002) and straight["trial_mean_step_m"] == pytest.approx(0.587, abs=0.002)
+    assert straight["pendulum_m"] == pytest.approx(0.456, abs=0.002)
+    assert turn["pendulum_m"] == pytest.approx(0.330, abs=0.002)
+    assert straight["m3_m"] == pytest.approx(0.648, abs=0.002)
+    assert straight["trial_mean_step_m"] == pytest.approx(0.587, abs=0.002)
     for part in (straight, turn):     # the foot length: each subject's, the same on every step
         assert part["double_support_m_foot"] == pytest.approx(0.192, abs=0.001)
     for s in d.subjects_:
