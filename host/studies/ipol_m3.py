@@ -197,6 +197,8 @@ class M3Decomposition:
         Per ``(subject field, quantity)`` (fields of :data:`GROUPS`; ``ratio_foot``, the shipped M3 ratio with the
         turn, or ``implied_per_foot``, ``D* / S2``): the correlation over the subjects and its subject-bootstrap
         interval (value, low, high).
+    fold_scales_
+        Per subject, the ``c`` of :data:`SCALED_RULE` chosen on the other subjects (module notes; not shipped).
     regression_
         Least squares over the scored trials of ``20 m = a sum S1 + b steps``: ``a`` (the pendulum's scale the
         distance asks for) and ``b`` (m per step, the double support it asks for).
