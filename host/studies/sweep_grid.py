@@ -723,30 +723,12 @@ def m5_rate_answer(sections: list[dict]) -> dict:
             ("rounding", "shipped"))}
     m5 = [s for s in m5 if all(s[k] == v for k, v in ref.items())]
     rates = sorted({s["sampling_rate_hz"] for s in m5})
-
-    def spread(seg: list[dict]) -> tuple[float, float, float, float, float, int]:
-        a = np.array([s["ratio_offline"] for s in seg], float)
-        e = np.array([s["ratio_exact_timing"] for s in seg], float)
-        g = np.isfinite(a) & np.isfinite(e)
-        a, e = a[g], e[g]
-        if a.size < 3:
-            return (math.nan,) * 5 + (int(a.size),)
-        va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
-        return (median_iqr(a)[1], math.sqrt(va), median_iqr(e)[1], math.sqrt(ve), math.sqrt(max(va - ve, 0.0)),
-                int(a.size))
-
     rows = []
     for mode in MODES:
         for rate in rates:
             seg = [s for s in m5 if s["mode"] == mode and s["sampling_rate_hz"] == rate]
-            if not seg:
-                continue
-            iqr, std, iqr_e, std_e, part, n = spread(seg)
-            subj = [spread([s for s in seg if (s["seed"], s["subject"]) == k])[4]
-                    for k in sorted({(s["seed"], s["subject"]) for s in seg})]
-            _, lo, hi = _range(subj)
-            rows.append(dict(mode=mode, sampling_rate_hz=rate, n=n, iqr=iqr, std=std, iqr_exact=iqr_e,
-                             std_exact=std_e, timing_part=part, timing_part_lo=lo, timing_part_hi=hi) | ref)
+            if seg:
+                rows.append(_m5_rate_row(seg, mode, rate) | ref)
     ok = {rate: all(r["timing_part"] <= RATIO_TOLERANCE for r in rows if r["sampling_rate_hz"] == rate)
           for rate in rates}
     rate_hz = None
@@ -754,17 +736,44 @@ def m5_rate_answer(sections: list[dict]) -> dict:
         if not ok[rate]:
             break
         rate_hz = rate
+    return {"rows": rows, "rate_hz": rate_hz, "verdict": _m5_verdict(rates, rate_hz)}
+
+
+def _m5_spread(seg: list[dict]) -> tuple[float, float, float, float, float, int]:
+    """IQR and standard deviation of the sampled and of the exact-timing ratios of ``seg``, the timing part
+    ``sqrt(var(sampled) - var(exact))`` and the number of finite pairs (NaNs below 3 pairs)."""
+    a = np.array([s["ratio_offline"] for s in seg], float)
+    e = np.array([s["ratio_exact_timing"] for s in seg], float)
+    g = np.isfinite(a) & np.isfinite(e)
+    a, e = a[g], e[g]
+    if a.size < 3:
+        return (math.nan,) * 5 + (int(a.size),)
+    va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
+    return (median_iqr(a)[1], math.sqrt(va), median_iqr(e)[1], math.sqrt(ve), math.sqrt(max(va - ve, 0.0)),
+            int(a.size))
+
+
+def _m5_rate_row(seg: list[dict], mode: str, rate: float) -> dict:
+    """:func:`m5_rate_answer`'s row of one mode and rate from its sections ``seg`` (pooled, and per subject)."""
+    iqr, std, iqr_e, std_e, part, n = _m5_spread(seg)
+    subj = [_m5_spread([s for s in seg if (s["seed"], s["subject"]) == k])[4]
+            for k in sorted({(s["seed"], s["subject"]) for s in seg})]
+    _, lo, hi = _range(subj)
+    return dict(mode=mode, sampling_rate_hz=rate, n=n, iqr=iqr, std=std, iqr_exact=iqr_e, std_exact=std_e,
+                timing_part=part, timing_part_lo=lo, timing_part_hi=hi)
+
+
+def _m5_verdict(rates: list[float], rate_hz: float | None) -> str:
+    """The sentence of :func:`m5_rate_answer`: from which swept rate on the step timing stops mattering."""
     swept = "/".join(f"{r:g}" for r in rates)
     if rate_hz is None:
-        verdict = (f"M5's step-timing error matters at every swept rate ({swept} Hz): it adds more than "
-                   f"{100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
-    elif rate_hz == rates[0]:
-        verdict = (f"M5's step-timing error does not matter from the lowest swept rate, {rate_hz:g} Hz, on (swept "
-                   f"{swept} Hz): it adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
-    else:
-        verdict = (f"M5's step-timing error stops mattering at {rate_hz:g} Hz (swept {swept} Hz): from there on it "
-                   f"adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
-    return {"rows": rows, "rate_hz": rate_hz, "verdict": verdict}
+        return (f"M5's step-timing error matters at every swept rate ({swept} Hz): it adds more than "
+                f"{100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    if rate_hz == rates[0]:
+        return (f"M5's step-timing error does not matter from the lowest swept rate, {rate_hz:g} Hz, on (swept "
+                f"{swept} Hz): it adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    return (f"M5's step-timing error stops mattering at {rate_hz:g} Hz (swept {swept} Hz): from there on it "
+            f"adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
 
 
 def _q_label(r: dict) -> str:
