@@ -73,6 +73,7 @@ import math
 import threading
 import tomllib
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -641,11 +642,13 @@ def _within(r: dict, share: str) -> bool:
     return bool(r[f"{share}_step_mm"] <= STEP_TOLERANCE_MM and r[f"{share}_ratio_abs_max"] <= RATIO_TOLERANCE)
 
 
-def _smallest(rows: list[dict], size: str, share: str) -> Any:
-    """The smallest ``size`` from which on every larger one of ``rows`` is within the tolerances (None: none)."""
+def _smallest(rows: list[dict], size: str, share: str | Callable[[dict], bool]) -> Any:
+    """The smallest ``size`` from which on every larger one of ``rows`` is within the tolerances (``share``: ``adc``
+    or ``arith`` per :func:`_within`, or a test of a row; None: none)."""
+    holds = share if callable(share) else functools.partial(_within, share=share)
     best = None
     for r in sorted(rows, key=lambda r: r[size], reverse=True):
-        if not _within(r, share):
+        if not holds(r):
             break
         best = r[size]
     return best
@@ -671,6 +674,46 @@ def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list
     return [dict(zip(keys, k, strict=True)) | dict(smallest_adc_bits=_smallest(g, "adc_bits", "adc"),
                                                   swept_bits="/".join(str(r["adc_bits"]) for r in g))
             for k, g in groups.items()]
+
+
+#: What :func:`smallest_formats` reports at the width it names, measured and predicted (summary columns).
+FORMAT_ERROR_COLUMNS = ("adc_step_mm", "adc_step_mm_theory", "arith_step_mm", "arith_step_mm_theory",
+                        "adc_ratio_abs_max", "arith_ratio_abs_max")
+
+
+def _predicted_within(r: dict) -> bool:
+    """The quantisation theory's per-step medians of both shares within :data:`STEP_TOLERANCE_MM` (NaN: not)."""
+    return bool(r["adc_step_mm_theory"] <= STEP_TOLERANCE_MM and r["arith_step_mm_theory"] <= STEP_TOLERANCE_MM)
+
+
+def smallest_formats(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
+    """The smallest formats under a real converter: per converter/sensor setting, Q-format set, rounding (and rate,
+    noise, misalignment, population) and estimator, the smallest swept ADC width from which on every wider one keeps
+    both shares within the tolerances: the ADC share (offline - ideal, what the converter costs, its INL and DNL
+    included) and the arithmetic share (online-fixed - online-float, what the Q formats and the rounding cost),
+    each within :data:`STEP_TOLERANCE_MM` per step and :data:`RATIO_TOLERANCE` per 20 m section.
+
+    Beside it, ``predicted_adc_bits``: the same answer from the quantisation theory's per-step predictions alone
+    (``adc_step_mm_theory``, ``arith_step_mm_theory``; the theory has no section-ratio prediction, and models
+    neither INL/DNL nor truncation's bias, so where these matter the two answers part). The measured and predicted
+    errors (:data:`FORMAT_ERROR_COLUMNS`) are those at ``at_bits``: the measured answer, or the widest swept width
+    when no width holds (``smallest_adc_bits`` None)."""
+    rows = [with_effects(r) for r in summary if r["mode"] == mode]
+    keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", *EFFECT_DIMENSIONS,
+            "q_formats", "rounding", "estimator")
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in keys), []).append(r)
+    out = []
+    for k, g in groups.items():
+        g = sorted(g, key=lambda r: r["adc_bits"])
+        bits = _smallest(g, "adc_bits", lambda r: _within(r, "adc") and _within(r, "arith"))
+        at = next(r for r in g if r["adc_bits"] == (g[-1]["adc_bits"] if bits is None else bits))
+        out.append(dict(zip(keys, k, strict=True)) | dict(
+            smallest_adc_bits=bits, predicted_adc_bits=_smallest(g, "adc_bits", _predicted_within),
+            at_bits=at["adc_bits"], swept_bits="/".join(str(r["adc_bits"]) for r in g))
+            | {c: at[c] for c in FORMAT_ERROR_COLUMNS})
+    return out
 
 
 def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
@@ -812,11 +855,16 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     return "\n".join(lines)
 
 
+def _held(r: dict) -> str:
+    """A row's rate, noise, extra tilt and population, as printed."""
+    return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
+            f"{r['misalignment_deg']:g} deg, {r['population']}")
+
+
 def _where(r: dict) -> str:
     effects = effects_label(r)
     rounding = r.get("rounding", "shipped")
-    return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
-            f"{r['misalignment_deg']:g} deg, {r['population']}" + (f", {effects}" if effects != "-" else "")
+    return (_held(r) + (f", {effects}" if effects != "-" else "")
             + (f", rounding {rounding}" if rounding != "shipped" else ""))
 
 
@@ -828,6 +876,36 @@ def format_smallest_bits(rows: list[dict]) -> str:
         b = r["smallest_adc_bits"]
         lines.append(f"  {_where(r)}, {r['estimator']}: {b if b is not None else 'none'} bits (swept {r['swept_bits']})")
     return "\n".join(lines)
+
+
+def format_smallest_formats(rows: list[dict]) -> str:
+    """Printed answer of :func:`smallest_formats`: per converter/sensor setting, fixed-point chain and estimator, the
+    smallest ADC width measured and predicted, and the errors at it, measured beside predicted."""
+    if not rows or all("/" not in r["swept_bits"] for r in rows):
+        return ("smallest formats under the converter: only one ADC width swept (--adc-bits 8,9,10,11,12 asks which "
+                "width each setting needs)")
+    width = max([12] + [len(effects_label(r)) + 1 for r in rows])
+    qw = max([12] + [len(_q_label(r)) + 1 for r in rows])
+    lines = [f"smallest formats under the converter: the smallest swept ADC width from which on both the ADC share "
+             f"(offline - ideal) and the arithmetic share (online-fixed - online-float) stay within "
+             f"{STEP_TOLERANCE_MM:g} mm per step and {100 * RATIO_TOLERANCE:g} % per 20 m section (multi-speed K); "
+             "theory: the width the quantisation theory's per-step predictions give (it models neither INL/DNL nor "
+             "truncation's bias); at that width (the widest swept when none holds), per-step median |error| measured "
+             "beside predicted, mm, and the largest section error, %",
+             f"{'conv/sensor':<{width}}{'Q/rounding':<{qw}}{'est':<4}{'bits':>5}{'theory':>7}{'at':>4}"
+             f"{'ADC mm':>8}{'theory':>8}{'arith mm':>9}{'theory':>8}{'ADC %':>7}{'arith %':>8}"]
+    for r in rows:
+        where = "" if len({_held(x) for x in rows}) == 1 else f"  ({_held(r)})"
+        lines.append(f"{effects_label(r):<{width}}{_q_label(r):<{qw}}{r['estimator']:<4}"
+                     f"{_bits_text(r['smallest_adc_bits']):>5}{_bits_text(r['predicted_adc_bits']):>7}"
+                     f"{r['at_bits']:>4}{r['adc_step_mm']:>8.3f}{r['adc_step_mm_theory']:>8.3f}"
+                     f"{r['arith_step_mm']:>9.3f}{r['arith_step_mm_theory']:>8.3f}"
+                     f"{100 * r['adc_ratio_abs_max']:>7.2f}{100 * r['arith_ratio_abs_max']:>8.2f}{where}")
+    return "\n".join(lines)
+
+
+def _bits_text(bits: int | None) -> str:
+    return "none" if bits is None else str(bits)
 
 
 def format_smallest_q(rows: list[dict]) -> str:
