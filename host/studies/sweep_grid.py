@@ -39,6 +39,8 @@ on-line fixed-point chain. A task at the shipped rounding keeps the name it had 
 **Theory and cost.** Each task also predicts its ADC and arithmetic shares from ``q^2/12`` carried through the
 estimators (:func:`predicted_step_errors_mm`, :mod:`gaitlog.host.studies.quantisation_theory`), and the summary puts
 each configuration's cost in ``gaitlog budget``'s model beside its accuracy (:func:`configuration_cost`).
+:func:`smallest_formats` answers, per converter setting, Q-format set and rounding, the smallest ADC width holding
+both shares, measured and as the theory predicts it.
 
 **M5 and the rate** (Alvarez et al. left open whether M5's spread comes from timing steps at 50 Hz; M5 is
 ``K1 / T + K2`` with ``T`` counted in samples, so timing enters M5 alone). :func:`m5_rate_answer`, the project's
