@@ -49,7 +49,8 @@ class SweepReport(ReportLines):
     def write_outputs(self, out: str | Path) -> list[Path]:
         """``sections.csv``, ``splits.csv``, ``tasks.csv``, ``summary.csv``, ``smallest_bits.csv``,
         ``smallest_q_formats.csv``, ``smallest_formats.csv``, ``m5_rate.csv`` and
-        ``figures/error_vs_<dimension>.png`` into ``out``; the figures written. The text's closing lines (saturation and wrap, the files written) are added here."""
+        ``figures/error_vs_<dimension>.png`` into ``out``; the figures written. The text's closing lines
+        (saturation and wrap, the files written) are added here."""
         out = Path(out)
         atomic_write_text(out / "sections.csv", rows_csv_text(self.sections, SECTION_COLUMNS))
         atomic_write_text(out / "splits.csv", rows_csv_text(self.splits, SPLIT_COLUMNS))
