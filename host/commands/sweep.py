@@ -6,10 +6,11 @@ Everything goes to the ``--out`` folder: ``tasks/`` (one JSON file per finished 
 ``--out`` computes only the missing ones), ``spec.json`` (the grid), ``sections.csv`` (one row per configuration
 x subject x 20 m section x calibration mode x estimator), ``splits.csv`` (per-step error split per
 configuration x subject x estimator), ``tasks.csv`` (timing error, saturation), ``summary.csv``, the answers
-``smallest_bits.csv``, ``smallest_q_formats.csv`` and ``m5_rate.csv``, and ``figures/error_vs_<dimension>.png``
-for each swept dimension (:mod:`gaitlog.host.studies.sweep_figures`). The summary prints, beside each measured
-quantisation error, the quantisation theory's prediction, and each configuration's RAM, cycles and CPU load. The results do not depend on where or in which
-order the tasks ran.
+``smallest_bits.csv``, ``smallest_q_formats.csv``, ``smallest_formats.csv`` (the smallest ADC width per converter
+setting, Q-format set and rounding, measured beside predicted) and ``m5_rate.csv``, and
+``figures/error_vs_<dimension>.png`` for each swept dimension (:mod:`gaitlog.host.studies.sweep_figures`). The
+summary prints, beside each measured quantisation error, the quantisation theory's prediction, and each
+configuration's RAM, cycles and CPU load. The results do not depend on where or in which order the tasks ran.
 """
 
 from __future__ import annotations

@@ -21,6 +21,7 @@ only ``gaitlog sweep`` imports this module.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -84,71 +85,106 @@ def render_error_vs_png(summary: list[dict], dimension: str, *, m5: dict | None 
     held = {k: reference(_values(summary, k), DIMENSIONS[k][1]) for k in SUMMARY_KEYS if k != dimension}
     rows = [with_effects(r) for r in summary]
     rows = [r for r in rows if r["mode"] == mode and all(r[k] == v for k, v in held.items())]
+    xs, pos, scale = _positions(xs, dimension)
+    with_m5 = dimension == "sampling_rate_hz" and m5 is not None and bool(m5.get("rows"))
+    fig = Figure(figsize=(3.4 * (len(_PANELS) + with_m5), 3.4))
+    axes = fig.subplots(1, len(_PANELS) + with_m5, squeeze=False)[0]
+    ests = [e for e in ESTIMATORS if any(r["estimator"] == e for r in rows)]
+    width = 0.08 * (max(pos.values()) - min(pos.values()) or 1.0)
+    for ax, panel in zip(axes, _PANELS, strict=False):
+        for j, est in enumerate(ests):
+            pts = [r for x in xs for r in rows if r[dimension] == x and r["estimator"] == est]
+            x = np.array([pos[r[dimension]] for r in pts], float) + (j - (len(ests) - 1) / 2) * width / len(ests)
+            _draw_estimator(ax, panel, dimension, est, pts, x)
+        _finish_panel(ax, panel, dimension)
+    if with_m5:
+        _draw_m5_panel(axes[-1], m5)
+    _label_axes(axes, dimension, xs, pos, scale)
+    fig.suptitle(f"error vs {DIMENSIONS[dimension][0]} ({mode} K; median and range over subjects)\n{_held_text(held)}",
+                 fontsize=8)
+    return figure_png_bytes(fig, dpi=dpi)
+
+
+def _positions(xs: list, dimension: str) -> tuple[list, dict, float]:
+    """The swept values in plotting order (the grid's for a category, else sorted), each one's position on the x
+    axis, and the axis scale (µg/√Hz for the noise)."""
     categorical = dimension in _CATEGORICAL
     if not categorical:
         xs = sorted(xs)
     scale = 1e6 if dimension == "noise_density_g_rthz" else 1.0
-    pos = {x: (i if categorical else x * scale) for i, x in enumerate(xs)}
-    panels = [("adc_step_mm", "ADC share |offline − ideal|, mm/step (x: theory)", STEP_TOLERANCE_MM, 1.0),
-              ("arith_step_mm", "arithmetic share |fixed − float|, mm/step (x: theory)", STEP_TOLERANCE_MM, 1.0),
-              ("subject_median_offline", "offline section ratio, % of real", None, 100.0)]
-    with_m5 = dimension == "sampling_rate_hz" and m5 is not None and bool(m5.get("rows"))
-    fig = Figure(figsize=(3.4 * (len(panels) + with_m5), 3.4))
-    axes = fig.subplots(1, len(panels) + with_m5, squeeze=False)[0]
-    ests = [e for e in ESTIMATORS if any(r["estimator"] == e for r in rows)]
-    width = 0.08 * (max(pos.values()) - min(pos.values()) or 1.0)
-    for ax, (col, label, tol, k) in zip(axes, panels, strict=False):
-        for j, est in enumerate(ests):
-            pts = [r for x in xs for r in rows if r[dimension] == x and r["estimator"] == est]
-            if col == "subject_median_offline" and dimension in _FIXED_POINT_ONLY:      # only the fixed chain changes
-                mid = [k * r["median_online_fixed"] for r in pts]
-                lo = hi = mid
-            else:
-                mid = [k * r["median_offline" if col == "subject_median_offline" else col] for r in pts]
-                lo = [k * r[f"{col}_lo"] for r in pts]
-                hi = [k * r[f"{col}_hi"] for r in pts]
-            x = np.array([pos[r[dimension]] for r in pts], float) + (j - (len(ests) - 1) / 2) * width / len(ests)
-            m, lo_, hi_ = (np.array(v, float) for v in (mid, lo, hi))
-            err = np.vstack([np.clip(m - lo_, 0, None), np.clip(hi_ - m, 0, None)])
-            ax.errorbar(x, m, yerr=np.where(np.isfinite(err), err, 0.0), marker="o", ms=3, lw=1, capsize=2,
-                        color=f"C{ESTIMATORS.index(est)}", label=est)
-            if col in ("adc_step_mm", "arith_step_mm"):                   # the quantisation theory beside it
-                theory = np.array([k * r.get(f"{col}_theory", np.nan) for r in pts], float)
-                ax.plot(x, np.where(theory > 0, theory, np.nan), ls=":", marker="x", ms=4, lw=1,
-                        color=f"C{ESTIMATORS.index(est)}")
-        if tol is not None:
-            ax.axhline(tol, color="0.4", ls="--", lw=0.8)
-            ax.set_yscale("log")
-        else:
-            ax.axhline(100.0, color="0.4", ls="--", lw=0.8)
-        ax.set_title(label.replace("offline", "on-line fixed-point") if col == "subject_median_offline"
-                     and dimension in _FIXED_POINT_ONLY else label, fontsize=8)
-    if with_m5:
-        ax = axes[-1]
-        for j, mode_ in enumerate(("single-speed", "multi-speed")):
-            rs = sorted((r for r in m5["rows"] if r["mode"] == mode_), key=lambda r: r["sampling_rate_hz"])
-            if not rs:
-                continue
-            m = np.array([100 * r["timing_part"] for r in rs])
-            lo = np.array([100 * r["timing_part_lo"] for r in rs])
-            hi = np.array([100 * r["timing_part_hi"] for r in rs])
-            err = np.vstack([np.clip(m - lo, 0, None), np.clip(hi - m, 0, None)])
-            ax.errorbar([r["sampling_rate_hz"] for r in rs], m, yerr=np.where(np.isfinite(err), err, 0.0),
-                        marker="s", ms=3, lw=1, capsize=2, color=f"C{5 + j}", label=mode_)
-        ax.axhline(100 * RATIO_TOLERANCE, color="0.4", ls="--", lw=0.8)
-        ax.set_title("M5: what the step timing adds to the spread, %", fontsize=8)
-        ax.legend(fontsize=7)
+    return xs, {x: (i if categorical else x * scale) for i, x in enumerate(xs)}, scale
+
+
+def _label_axes(axes: Any, dimension: str, xs: list, pos: dict, scale: float) -> None:
+    """Every panel's x label, ticks (the swept values) and grid; the estimators' legend on the first."""
     for ax in axes:
         ax.set_xlabel(DIMENSIONS[dimension][0], fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-        if categorical:
+        if dimension in _CATEGORICAL:
             ax.set_xticks(range(len(xs)), [str(x) for x in xs], rotation=30, ha="right")
         else:
             ax.set_xticks([pos[x] for x in xs], [f"{x * scale:g}" for x in xs])
     axes[0].legend(fontsize=7)
-    held_text = ", ".join(f"{k}={v:g}" if isinstance(v, float) and not math.isnan(v) else f"{k}={v}"
-                          for k, v in held.items() if k not in EFFECT_DIMENSIONS or v != 0.0)   # effects: when on
-    fig.suptitle(f"error vs {DIMENSIONS[dimension][0]} ({mode} K; median and range over subjects)\n{held_text}",
-                 fontsize=8)
-    return figure_png_bytes(fig, dpi=dpi)
+
+
+def _held_text(held: dict) -> str:
+    """The dimensions held at their reference, for the title (the converter's and sensor's effects when on)."""
+    return ", ".join(f"{k}={v:g}" if isinstance(v, float) and not math.isnan(v) else f"{k}={v}"
+                     for k, v in held.items() if k not in EFFECT_DIMENSIONS or v != 0.0)
+
+
+#: The panels of every figure: summary column, title, tolerance line (None: the real distance), scale.
+_PANELS = (("adc_step_mm", "ADC share |offline − ideal|, mm/step (x: theory)", STEP_TOLERANCE_MM, 1.0),
+           ("arith_step_mm", "arithmetic share |fixed − float|, mm/step (x: theory)", STEP_TOLERANCE_MM, 1.0),
+           ("subject_median_offline", "offline section ratio, % of real", None, 100.0))
+
+
+def _draw_estimator(ax: Any, panel: tuple, dimension: str, est: str, pts: list[dict], x: np.ndarray) -> None:
+    """One estimator's points ``pts`` (at ``x``) on a panel of :data:`_PANELS`: median and range over subjects,
+    and the quantisation theory's prediction as crosses on the shares' panels."""
+    col, _, _, k = panel
+    if col == "subject_median_offline" and dimension in _FIXED_POINT_ONLY:      # only the fixed chain changes
+        mid = [k * r["median_online_fixed"] for r in pts]
+        lo = hi = mid
+    else:
+        mid = [k * r["median_offline" if col == "subject_median_offline" else col] for r in pts]
+        lo = [k * r[f"{col}_lo"] for r in pts]
+        hi = [k * r[f"{col}_hi"] for r in pts]
+    m, lo_, hi_ = (np.array(v, float) for v in (mid, lo, hi))
+    err = np.vstack([np.clip(m - lo_, 0, None), np.clip(hi_ - m, 0, None)])
+    ax.errorbar(x, m, yerr=np.where(np.isfinite(err), err, 0.0), marker="o", ms=3, lw=1, capsize=2,
+                color=f"C{ESTIMATORS.index(est)}", label=est)
+    if col in ("adc_step_mm", "arith_step_mm"):                   # the quantisation theory beside it
+        theory = np.array([k * r.get(f"{col}_theory", np.nan) for r in pts], float)
+        ax.plot(x, np.where(theory > 0, theory, np.nan), ls=":", marker="x", ms=4, lw=1,
+                color=f"C{ESTIMATORS.index(est)}")
+
+
+def _finish_panel(ax: Any, panel: tuple, dimension: str) -> None:
+    """A panel's tolerance line (log scale for the shares; 100 % for the ratio) and title."""
+    col, label, tol, _ = panel
+    if tol is not None:
+        ax.axhline(tol, color="0.4", ls="--", lw=0.8)
+        ax.set_yscale("log")
+    else:
+        ax.axhline(100.0, color="0.4", ls="--", lw=0.8)
+    ax.set_title(label.replace("offline", "on-line fixed-point") if col == "subject_median_offline"
+                 and dimension in _FIXED_POINT_ONLY else label, fontsize=8)
+
+
+def _draw_m5_panel(ax: Any, m5: dict) -> None:
+    """The rate figure's last panel: what the step timing adds to M5's spread per mode (:func:`m5_rate_answer`)."""
+    for j, mode_ in enumerate(("single-speed", "multi-speed")):
+        rs = sorted((r for r in m5["rows"] if r["mode"] == mode_), key=lambda r: r["sampling_rate_hz"])
+        if not rs:
+            continue
+        m = np.array([100 * r["timing_part"] for r in rs])
+        lo = np.array([100 * r["timing_part_lo"] for r in rs])
+        hi = np.array([100 * r["timing_part_hi"] for r in rs])
+        err = np.vstack([np.clip(m - lo, 0, None), np.clip(hi - m, 0, None)])
+        ax.errorbar([r["sampling_rate_hz"] for r in rs], m, yerr=np.where(np.isfinite(err), err, 0.0),
+                    marker="s", ms=3, lw=1, capsize=2, color=f"C{5 + j}", label=mode_)
+    ax.axhline(100 * RATIO_TOLERANCE, color="0.4", ls="--", lw=0.8)
+    ax.set_title("M5: what the step timing adds to the spread, %", fontsize=8)
+    ax.legend(fontsize=7)

@@ -39,6 +39,8 @@ on-line fixed-point chain. A task at the shipped rounding keeps the name it had 
 **Theory and cost.** Each task also predicts its ADC and arithmetic shares from ``q^2/12`` carried through the
 estimators (:func:`predicted_step_errors_mm`, :mod:`gaitlog.host.studies.quantisation_theory`), and the summary puts
 each configuration's cost in ``gaitlog budget``'s model beside its accuracy (:func:`configuration_cost`).
+:func:`smallest_formats` answers, per converter setting, Q-format set and rounding, the smallest ADC width holding
+both shares, measured and as the theory predicts it.
 
 **M5 and the rate** (Alvarez et al. left open whether M5's spread comes from timing steps at 50 Hz; M5 is
 ``K1 / T + K2`` with ``T`` counted in samples, so timing enters M5 alone). :func:`m5_rate_answer`, the project's
@@ -73,6 +75,7 @@ import math
 import threading
 import tomllib
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -641,11 +644,13 @@ def _within(r: dict, share: str) -> bool:
     return bool(r[f"{share}_step_mm"] <= STEP_TOLERANCE_MM and r[f"{share}_ratio_abs_max"] <= RATIO_TOLERANCE)
 
 
-def _smallest(rows: list[dict], size: str, share: str) -> Any:
-    """The smallest ``size`` from which on every larger one of ``rows`` is within the tolerances (None: none)."""
+def _smallest(rows: list[dict], size: str, share: str | Callable[[dict], bool]) -> Any:
+    """The smallest ``size`` from which on every larger one of ``rows`` is within the tolerances (``share``: ``adc``
+    or ``arith`` per :func:`_within`, or a test of a row; None: none)."""
+    holds = share if callable(share) else functools.partial(_within, share=share)
     best = None
     for r in sorted(rows, key=lambda r: r[size], reverse=True):
-        if not _within(r, share):
+        if not holds(r):
             break
         best = r[size]
     return best
@@ -671,6 +676,46 @@ def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list
     return [dict(zip(keys, k, strict=True)) | dict(smallest_adc_bits=_smallest(g, "adc_bits", "adc"),
                                                   swept_bits="/".join(str(r["adc_bits"]) for r in g))
             for k, g in groups.items()]
+
+
+#: What :func:`smallest_formats` reports at the width it names, measured and predicted (summary columns).
+FORMAT_ERROR_COLUMNS = ("adc_step_mm", "adc_step_mm_theory", "arith_step_mm", "arith_step_mm_theory",
+                        "adc_ratio_abs_max", "arith_ratio_abs_max")
+
+
+def _predicted_within(r: dict) -> bool:
+    """The quantisation theory's per-step medians of both shares within :data:`STEP_TOLERANCE_MM` (NaN: not)."""
+    return bool(r["adc_step_mm_theory"] <= STEP_TOLERANCE_MM and r["arith_step_mm_theory"] <= STEP_TOLERANCE_MM)
+
+
+def smallest_formats(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
+    """The smallest formats under a real converter: per converter/sensor setting, Q-format set, rounding (and rate,
+    noise, misalignment, population) and estimator, the smallest swept ADC width from which on every wider one keeps
+    both shares within the tolerances: the ADC share (offline - ideal, what the converter costs, its INL and DNL
+    included) and the arithmetic share (online-fixed - online-float, what the Q formats and the rounding cost),
+    each within :data:`STEP_TOLERANCE_MM` per step and :data:`RATIO_TOLERANCE` per 20 m section.
+
+    Beside it, ``predicted_adc_bits``: the same answer from the quantisation theory's per-step predictions alone
+    (``adc_step_mm_theory``, ``arith_step_mm_theory``; the theory has no section-ratio prediction, and models
+    neither INL/DNL nor truncation's bias, so where these matter the two answers part). The measured and predicted
+    errors (:data:`FORMAT_ERROR_COLUMNS`) are those at ``at_bits``: the measured answer, or the widest swept width
+    when no width holds (``smallest_adc_bits`` None)."""
+    rows = [with_effects(r) for r in summary if r["mode"] == mode]
+    keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", *EFFECT_DIMENSIONS,
+            "q_formats", "rounding", "estimator")
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in keys), []).append(r)
+    out = []
+    for k, g in groups.items():
+        g = sorted(g, key=lambda r: r["adc_bits"])
+        bits = _smallest(g, "adc_bits", lambda r: _within(r, "adc") and _within(r, "arith"))
+        at = next(r for r in g if r["adc_bits"] == (g[-1]["adc_bits"] if bits is None else bits))
+        out.append(dict(zip(keys, k, strict=True)) | dict(
+            smallest_adc_bits=bits, predicted_adc_bits=_smallest(g, "adc_bits", _predicted_within),
+            at_bits=at["adc_bits"], swept_bits="/".join(str(r["adc_bits"]) for r in g))
+            | {c: at[c] for c in FORMAT_ERROR_COLUMNS})
+    return out
 
 
 def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> list[dict]:
@@ -723,30 +768,12 @@ def m5_rate_answer(sections: list[dict]) -> dict:
             ("rounding", "shipped"))}
     m5 = [s for s in m5 if all(s[k] == v for k, v in ref.items())]
     rates = sorted({s["sampling_rate_hz"] for s in m5})
-
-    def spread(seg: list[dict]) -> tuple[float, float, float, float, float, int]:
-        a = np.array([s["ratio_offline"] for s in seg], float)
-        e = np.array([s["ratio_exact_timing"] for s in seg], float)
-        g = np.isfinite(a) & np.isfinite(e)
-        a, e = a[g], e[g]
-        if a.size < 3:
-            return (math.nan,) * 5 + (int(a.size),)
-        va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
-        return (median_iqr(a)[1], math.sqrt(va), median_iqr(e)[1], math.sqrt(ve), math.sqrt(max(va - ve, 0.0)),
-                int(a.size))
-
     rows = []
     for mode in MODES:
         for rate in rates:
             seg = [s for s in m5 if s["mode"] == mode and s["sampling_rate_hz"] == rate]
-            if not seg:
-                continue
-            iqr, std, iqr_e, std_e, part, n = spread(seg)
-            subj = [spread([s for s in seg if (s["seed"], s["subject"]) == k])[4]
-                    for k in sorted({(s["seed"], s["subject"]) for s in seg})]
-            _, lo, hi = _range(subj)
-            rows.append(dict(mode=mode, sampling_rate_hz=rate, n=n, iqr=iqr, std=std, iqr_exact=iqr_e,
-                             std_exact=std_e, timing_part=part, timing_part_lo=lo, timing_part_hi=hi) | ref)
+            if seg:
+                rows.append(_m5_rate_row(seg, mode, rate) | ref)
     ok = {rate: all(r["timing_part"] <= RATIO_TOLERANCE for r in rows if r["sampling_rate_hz"] == rate)
           for rate in rates}
     rate_hz = None
@@ -754,17 +781,44 @@ def m5_rate_answer(sections: list[dict]) -> dict:
         if not ok[rate]:
             break
         rate_hz = rate
+    return {"rows": rows, "rate_hz": rate_hz, "verdict": _m5_verdict(rates, rate_hz)}
+
+
+def _m5_spread(seg: list[dict]) -> tuple[float, float, float, float, float, int]:
+    """IQR and standard deviation of the sampled and of the exact-timing ratios of ``seg``, the timing part
+    ``sqrt(var(sampled) - var(exact))`` and the number of finite pairs (NaNs below 3 pairs)."""
+    a = np.array([s["ratio_offline"] for s in seg], float)
+    e = np.array([s["ratio_exact_timing"] for s in seg], float)
+    g = np.isfinite(a) & np.isfinite(e)
+    a, e = a[g], e[g]
+    if a.size < 3:
+        return (math.nan,) * 5 + (int(a.size),)
+    va, ve = float(np.var(a, ddof=1)), float(np.var(e, ddof=1))
+    return (median_iqr(a)[1], math.sqrt(va), median_iqr(e)[1], math.sqrt(ve), math.sqrt(max(va - ve, 0.0)),
+            int(a.size))
+
+
+def _m5_rate_row(seg: list[dict], mode: str, rate: float) -> dict:
+    """:func:`m5_rate_answer`'s row of one mode and rate from its sections ``seg`` (pooled, and per subject)."""
+    iqr, std, iqr_e, std_e, part, n = _m5_spread(seg)
+    subj = [_m5_spread([s for s in seg if (s["seed"], s["subject"]) == k])[4]
+            for k in sorted({(s["seed"], s["subject"]) for s in seg})]
+    _, lo, hi = _range(subj)
+    return dict(mode=mode, sampling_rate_hz=rate, n=n, iqr=iqr, std=std, iqr_exact=iqr_e, std_exact=std_e,
+                timing_part=part, timing_part_lo=lo, timing_part_hi=hi)
+
+
+def _m5_verdict(rates: list[float], rate_hz: float | None) -> str:
+    """The sentence of :func:`m5_rate_answer`: from which swept rate on the step timing stops mattering."""
     swept = "/".join(f"{r:g}" for r in rates)
     if rate_hz is None:
-        verdict = (f"M5's step-timing error matters at every swept rate ({swept} Hz): it adds more than "
-                   f"{100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
-    elif rate_hz == rates[0]:
-        verdict = (f"M5's step-timing error does not matter from the lowest swept rate, {rate_hz:g} Hz, on (swept "
-                   f"{swept} Hz): it adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
-    else:
-        verdict = (f"M5's step-timing error stops mattering at {rate_hz:g} Hz (swept {swept} Hz): from there on it "
-                   f"adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
-    return {"rows": rows, "rate_hz": rate_hz, "verdict": verdict}
+        return (f"M5's step-timing error matters at every swept rate ({swept} Hz): it adds more than "
+                f"{100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    if rate_hz == rates[0]:
+        return (f"M5's step-timing error does not matter from the lowest swept rate, {rate_hz:g} Hz, on (swept "
+                f"{swept} Hz): it adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
+    return (f"M5's step-timing error stops mattering at {rate_hz:g} Hz (swept {swept} Hz): from there on it "
+            f"adds at most {100 * RATIO_TOLERANCE:g} % to M5's section-ratio spread")
 
 
 def _q_label(r: dict) -> str:
@@ -803,11 +857,16 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
     return "\n".join(lines)
 
 
+def _held(r: dict) -> str:
+    """A row's rate, noise, extra tilt and population, as printed."""
+    return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
+            f"{r['misalignment_deg']:g} deg, {r['population']}")
+
+
 def _where(r: dict) -> str:
     effects = effects_label(r)
     rounding = r.get("rounding", "shipped")
-    return (f"{r['sampling_rate_hz']:g} Hz, noise {1e6 * r['noise_density_g_rthz']:.0f} ug/rtHz, tilt "
-            f"{r['misalignment_deg']:g} deg, {r['population']}" + (f", {effects}" if effects != "-" else "")
+    return (_held(r) + (f", {effects}" if effects != "-" else "")
             + (f", rounding {rounding}" if rounding != "shipped" else ""))
 
 
@@ -819,6 +878,36 @@ def format_smallest_bits(rows: list[dict]) -> str:
         b = r["smallest_adc_bits"]
         lines.append(f"  {_where(r)}, {r['estimator']}: {b if b is not None else 'none'} bits (swept {r['swept_bits']})")
     return "\n".join(lines)
+
+
+def format_smallest_formats(rows: list[dict]) -> str:
+    """Printed answer of :func:`smallest_formats`: per converter/sensor setting, fixed-point chain and estimator, the
+    smallest ADC width measured and predicted, and the errors at it, measured beside predicted."""
+    if not rows or all("/" not in r["swept_bits"] for r in rows):
+        return ("smallest formats under the converter: only one ADC width swept (--adc-bits 8,9,10,11,12 asks which "
+                "width each setting needs)")
+    width = max([12] + [len(effects_label(r)) + 1 for r in rows])
+    qw = max([12] + [len(_q_label(r)) + 1 for r in rows])
+    lines = [f"smallest formats under the converter: the smallest swept ADC width from which on both the ADC share "
+             f"(offline - ideal) and the arithmetic share (online-fixed - online-float) stay within "
+             f"{STEP_TOLERANCE_MM:g} mm per step and {100 * RATIO_TOLERANCE:g} % per 20 m section (multi-speed K); "
+             "theory: the width the quantisation theory's per-step predictions give (it models neither INL/DNL nor "
+             "truncation's bias); at that width (the widest swept when none holds), per-step median |error| measured "
+             "beside predicted, mm, and the largest section error, %",
+             f"{'conv/sensor':<{width}}{'Q/rounding':<{qw}}{'est':<4}{'bits':>5}{'theory':>7}{'at':>4}"
+             f"{'ADC mm':>8}{'theory':>8}{'arith mm':>9}{'theory':>8}{'ADC %':>7}{'arith %':>8}"]
+    for r in rows:
+        where = "" if len({_held(x) for x in rows}) == 1 else f"  ({_held(r)})"
+        lines.append(f"{effects_label(r):<{width}}{_q_label(r):<{qw}}{r['estimator']:<4}"
+                     f"{_bits_text(r['smallest_adc_bits']):>5}{_bits_text(r['predicted_adc_bits']):>7}"
+                     f"{r['at_bits']:>4}{r['adc_step_mm']:>8.3f}{r['adc_step_mm_theory']:>8.3f}"
+                     f"{r['arith_step_mm']:>9.3f}{r['arith_step_mm_theory']:>8.3f}"
+                     f"{100 * r['adc_ratio_abs_max']:>7.2f}{100 * r['arith_ratio_abs_max']:>8.2f}{where}")
+    return "\n".join(lines)
+
+
+def _bits_text(bits: int | None) -> str:
+    return "none" if bits is None else str(bits)
 
 
 def format_smallest_q(rows: list[dict]) -> str:

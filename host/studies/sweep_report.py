@@ -1,5 +1,6 @@
 """What ``gaitlog sweep`` makes of its tasks' results (:func:`sweep_report`): the summary per configuration and
-estimator, the smallest ADC width and Q formats that hold, the M5 rate answer, their CSVs and figures
+estimator, the smallest ADC width and Q formats that hold, the smallest formats under the converter (ADC width per
+converter setting, Q-format set and rounding, measured beside predicted), the M5 rate answer, their CSVs and figures
 (:meth:`SweepReport.write_outputs`) and the printed text (:meth:`~SweepReport.format_table`; long tables only
 with ``-v``)."""
 
@@ -18,10 +19,12 @@ from gaitlog.host.studies.sweep_grid import (
     SUMMARY_COLUMNS,
     format_m5_rate,
     format_smallest_bits,
+    format_smallest_formats,
     format_smallest_q,
     format_summary,
     m5_rate_answer,
     smallest_adc_bits,
+    smallest_formats,
     smallest_q_formats,
     summarise,
     with_effects,
@@ -40,12 +43,14 @@ class SweepReport(ReportLines):
     summary: list[dict] = field(default_factory=list)
     smallest: list[dict] = field(default_factory=list)
     smallest_q: list[dict] = field(default_factory=list)
+    smallest_formats: list[dict] = field(default_factory=list)
     m5: dict = field(default_factory=dict)
 
     def write_outputs(self, out: str | Path) -> list[Path]:
         """``sections.csv``, ``splits.csv``, ``tasks.csv``, ``summary.csv``, ``smallest_bits.csv``,
-        ``smallest_q_formats.csv``, ``m5_rate.csv`` and ``figures/error_vs_<dimension>.png`` into ``out``; the
-        figures written. The text's closing lines (saturation and wrap, the files written) are added here."""
+        ``smallest_q_formats.csv``, ``smallest_formats.csv``, ``m5_rate.csv`` and
+        ``figures/error_vs_<dimension>.png`` into ``out``; the figures written. The text's closing lines
+        (saturation and wrap, the files written) are added here."""
         out = Path(out)
         atomic_write_text(out / "sections.csv", rows_csv_text(self.sections, SECTION_COLUMNS))
         atomic_write_text(out / "splits.csv", rows_csv_text(self.splits, SPLIT_COLUMNS))
@@ -53,6 +58,7 @@ class SweepReport(ReportLines):
         atomic_write_text(out / "summary.csv", rows_csv_text(self.summary, SUMMARY_COLUMNS))
         atomic_write_text(out / "smallest_bits.csv", rows_csv_text(self.smallest))
         atomic_write_text(out / "smallest_q_formats.csv", rows_csv_text(self.smallest_q))
+        atomic_write_text(out / "smallest_formats.csv", rows_csv_text(self.smallest_formats))
         atomic_write_text(out / "m5_rate.csv", rows_csv_text(self.m5["rows"]))
         figures = []
         for dim in figure_dimensions(self.summary):
@@ -62,7 +68,7 @@ class SweepReport(ReportLines):
         sat = sum(res["task"]["saturated"] + res["task"]["wrapped"] for res in self.results)
         self.say(f"fixed-point saturation/wrap over all tasks: {sat}")
         self.say(f"written: {out}/sections.csv ({len(self.sections)} rows), splits.csv, tasks.csv, summary.csv, "
-                 "smallest_bits.csv, smallest_q_formats.csv, m5_rate.csv"
+                 "smallest_bits.csv, smallest_q_formats.csv, smallest_formats.csv, m5_rate.csv"
                  + (f", figures/ ({', '.join(p.name for p in figures)})" if figures else ""))
         return figures
 
@@ -76,6 +82,7 @@ def sweep_report(results: list[dict], out: str | Path, *, max_printed_rows: int)
     summary = summarise(sections, splits, [res["task"] for res in results])
     report = SweepReport(results=results, sections=sections, splits=splits, summary=summary,
                          smallest=smallest_adc_bits(summary), smallest_q=smallest_q_formats(summary),
+                         smallest_formats=smallest_formats(summary),
                          m5=m5_rate_answer(sections))
     say = report.say
     big = len(summary) > 2 * max_printed_rows                    # both modes
@@ -89,6 +96,8 @@ def sweep_report(results: list[dict], out: str | Path, *, max_printed_rows: int)
     say(format_smallest_bits(report.smallest), 1 if len(report.smallest) > max_printed_rows else 0)
     say()
     say(format_smallest_q(report.smallest_q), 1 if len(report.smallest_q) > max_printed_rows else 0)
+    say()
+    say(format_smallest_formats(report.smallest_formats), 1 if len(report.smallest_formats) > max_printed_rows else 0)
     say()
     say(format_m5_rate(report.m5))
     return report

@@ -169,3 +169,31 @@ def test_a_variant_is_built_once_per_machine_and_loaded_without_compiling() -> N
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["False", "builtin_function_or_method"], out.stdout
+
+
+def _sine_codes(amplitude_g: float, frequency_hz: float = 2.0, seconds: float = 40.0) -> np.ndarray:
+    """10-bit codes of a vertical acceleration ``A sin(2 pi f t)`` (ramped in over 4 s, so the gravity estimate
+    starts settled), tilted, with 3 mg noise."""
+    t = np.arange(int(seconds * RATE_HZ)) / RATE_HZ
+    a_v = amplitude_g * np.minimum(t / 4.0, 1.0) * np.sin(2 * np.pi * frequency_hz * t)
+    up = np.array([0.93, -0.2, 0.3]) / np.linalg.norm([0.93, -0.2, 0.3])
+    acc = (1.0 + a_v)[:, None] * up + np.random.default_rng(1).normal(0.0, 0.003, (t.size, 3))
+    return np.clip(np.floor(acc * 256 + 512), 0, 1023).astype(np.int64)
+
+
+def test_a_narrower_lowpass_word_saturates_where_its_range_says() -> None:
+    """``lpint0``: the lowpass outputs in a sign + 0 integer + 16 fraction-bit word, range [-1, 1) g. The 3 Hz
+    Gaussian (-3 dB at 3 Hz) passes a 2 Hz sine with gain ``2^(-(2/3)^2 / 2)`` = 0.857, and the largest lowpass
+    value the chain forms is the step's peak-to-peak rise ``MX - MN`` = 2 x 0.857 A: the word saturates from
+    A = 1 / (2 x 0.857) = 0.583 g on. 3 % below it nothing saturates, 3 % above it every step does; the shipped
+    19-bit word (±4 g) holds both."""
+    gain = 2.0 ** (-((2.0 / 3.0) ** 2) / 2.0)
+    limit_g = 2.0 ** 0 / (2.0 * gain)
+    narrow = KernelFormats(lowpass_int_bits=0)
+    assert narrow.lowpass_word_bits == 17 and narrow.label() == "lpint0"
+    below, a_below = run(narrow, _sine_codes(0.97 * limit_g))
+    above, a_above = run(narrow, _sine_codes(1.03 * limit_g))
+    assert below.n_steps > 60 and a_below.saturations == 0 and a_below.wraps == 0
+    assert a_above.saturations >= above.n_steps > 60 and a_above.wraps == 0
+    _, shipped = run(None, _sine_codes(1.03 * limit_g))
+    assert shipped.saturations == 0

@@ -21,9 +21,11 @@ from gaitlog.host.studies.sweep_grid import (
     SweepGrid,
     SweepTask,
     analog_walk,
+    format_smallest_formats,
     m5_rate_answer,
     misaligned,
     run_task,
+    smallest_formats,
     smallest_q_formats,
     walk_plan,
 )
@@ -110,6 +112,43 @@ def test_smallest_q_formats_is_the_last_width_of_an_unbroken_run_within_toleranc
     assert got["lowpass_frac_bits"]["smallest_frac_bits"] == 16
     assert smallest_q_formats([_summary_row(arith_step_mm=2.0), _summary_row(q_formats="acc10")])[0][
         "smallest_frac_bits"] is None                                               # the shipped set itself fails
+
+
+def _width_row(bits: int, **kw) -> dict:
+    """A summary row at ``bits`` whose shares halve per bit, as q does: 1.6 mm at 8 bits, 0.8 at 9, 0.4 at 10...;
+    the theory predicts half of it (a converter error it does not model); the arithmetic share is small."""
+    row = _summary_row(adc_bits=bits, adc_step_mm=1.6 / 2 ** (bits - 8), adc_step_mm_theory=0.8 / 2 ** (bits - 8),
+                       arith_step_mm_theory=0.04, adc_ratio_abs_max=0.001)
+    return row | kw
+
+
+def test_smallest_formats_names_the_width_holding_both_shares_measured_beside_predicted() -> None:
+    """Measured: 8 bits fails the step (1.6 mm), so 9; predicted (half the measurement) 8. Under INL the section
+    error breaks at 9 bits (1.5 %): 10, the theory still 8. Under truncation the arithmetic share fails at every
+    width below 11 (1.2 mm): 11, which the theory (0.04 mm) does not see. M5 fails at the widest width: none, and
+    the errors are reported at the widest. Each row carries the errors at its width."""
+    rows = [_width_row(b) for b in (8, 9, 10, 11, 12)]
+    rows += [_width_row(b, inl_lsb=1.0, **({"adc_ratio_abs_max": 0.015} if b <= 9 else {})) for b in (8, 9, 10, 11, 12)]
+    rows += [_width_row(b, rounding="truncate", **({"arith_step_mm": 1.2} if b < 11 else {}))
+             for b in (8, 9, 10, 11, 12)]
+    rows += [_width_row(b, estimator="M5", adc_ratio_abs_max=0.02 if b == 12 else 0.001) for b in (10, 12, 8)]
+    rows += [_width_row(10, mode="single-speed", adc_step_mm=5.0)]                            # not the mode asked
+    got = {(r["inl_lsb"], r["rounding"], r["estimator"]): r for r in smallest_formats(rows)}
+    assert len(got) == 4
+    shipped = got[(0.0, "shipped", "M1")]
+    assert (shipped["smallest_adc_bits"], shipped["predicted_adc_bits"], shipped["at_bits"]) == (9, 8, 9)
+    assert (shipped["adc_step_mm"], shipped["adc_step_mm_theory"]) == (0.8, 0.4)
+    inl = got[(1.0, "shipped", "M1")]
+    assert (inl["smallest_adc_bits"], inl["predicted_adc_bits"]) == (10, 8)
+    trunc = got[(0.0, "truncate", "M1")]
+    assert (trunc["smallest_adc_bits"], trunc["predicted_adc_bits"], trunc["arith_step_mm"]) == (11, 8, 0.05)
+    m5 = got[(0.0, "shipped", "M5")]
+    assert (m5["smallest_adc_bits"], m5["at_bits"], m5["swept_bits"]) == (None, 12, "8/10/12")
+    assert m5["adc_ratio_abs_max"] == 0.02
+    text = format_smallest_formats(smallest_formats(rows))
+    assert text.splitlines()[2].split()[:6] == ["-", "shipped", "M1", "9", "8", "9"]
+    assert "inl1" in text and "shipped/truncate" in text and " none " in text
+    assert "only one ADC width swept" in format_smallest_formats(smallest_formats([_width_row(10)]))
 
 
 def _m5_sections(timing_sd: dict[float, float], n_subjects: int = 4, n: int = 60) -> list[dict]:

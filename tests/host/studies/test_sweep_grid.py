@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[3]
 GRID_ARGS = ["--protocol", "short", "--subjects", "1", "--seeds", "0", "--adc-bits", "8,10",
              "--logger-rate", "25,50", "--q-formats", "shipped,acc10", "--estimators", "M2,M5"]
 OUTPUTS = ("sections.csv", "splits.csv", "tasks.csv", "summary.csv", "smallest_bits.csv", "smallest_q_formats.csv",
-           "m5_rate.csv")
+           "smallest_formats.csv", "m5_rate.csv")
 
 
 def _grid() -> SweepGrid:
