@@ -109,7 +109,7 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.ipol import height_m_of, list_trials, read_trial
 from gaitlog.host.files.replay import check_records, online_step_table, run_starts
 from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
-from gaitlog.host.gait.estimators.weinberg import weinberg_length_m
+from gaitlog.host.gait.estimators.weinberg import duration_share_length_m, range_share_length_m, weinberg_length_m
 from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, GapFiller
 from gaitlog.host.gait.k_calibration import KFit, calibrate
 from gaitlog.host.gait.k_prior import (
@@ -177,6 +177,13 @@ ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
 #: The on-line chain's M4 with each exponent (variant -> exponent): ``K range^p`` of the on-line fixed-point
 #: records' ranges (host float; the arithmetic's share is ~1e-4), K fitted with ``p`` on the offline chain.
 ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-half": 0.5}
+#: M4 length rules without a constant, scored on the offline chain as extra rows (variant = the rule; K fitted with
+#: it on the first trial; :func:`with_m4_rule`): ``m4-range-share``, a step whose range is below the trial's
+#: median counts the share of a typical step its range is (:func:`gaitlog.host.gait.estimators.weinberg.
+#: range_share_length_m`); ``m4-duration-share``, each step's Weinberg length times its duration's share of the
+#: trial's median, at most 1 (:func:`~gaitlog.host.gait.estimators.weinberg.duration_share_length_m`). Neither is
+#: kept by the rule for choices (``docs/topics/accuracy.md``): the main rows use Weinberg's length.
+M4_STEP_RULES = ("m4-range-share", "m4-duration-share")
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
                "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
@@ -356,12 +363,16 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
                          header, records[crc_ok], float(leg), float(foot))
 
 
-def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "include") -> tuple[StepTable, np.ndarray]:
-    """Steps of the trial section and a mask of those that count for the distance (U-turn rule)."""
+def section_mask(rt: ReplayedTrial, table: StepTable) -> np.ndarray:
+    """Which rows of ``table`` are the trial section's (heel strike, or foot-flat, within the shifted boundaries)."""
     lo, hi = rt.meta["TrialBoundaries"]
     t = table.event_time_s()
-    inside = (t >= rt.seconds(lo) + SECTION_START_DELAY_S) & (t <= rt.seconds(hi) + SECTION_END_TOLERANCE_S)
-    sec = table.select(inside)
+    return (t >= rt.seconds(lo) + SECTION_START_DELAY_S) & (t <= rt.seconds(hi) + SECTION_END_TOLERANCE_S)
+
+
+def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "include") -> tuple[StepTable, np.ndarray]:
+    """Steps of the trial section and a mask of those that count for the distance (U-turn rule)."""
+    sec = table.select(section_mask(rt, table))
     counts = np.ones(sec.n_steps, bool)
     ub = rt.meta.get("UTurnBoundaries")
     if uturn == "exclude" and ub:
@@ -477,6 +488,27 @@ def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
         return table
     out = table.select(np.ones(table.n_steps, bool))
     out.raw_m = {**table.raw_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=1.0, exponent=exponent)}
+    return out
+
+
+def with_m4_rule(rt: ReplayedTrial, table: StepTable, rule: str) -> StepTable:
+    """``table`` with its raw M4 lengths from one of :data:`M4_STEP_RULES`, the typical step (median range or
+    duration) that of the steps of ``rt``'s trial section; ``table`` itself when the section has none."""
+    inside = section_mask(rt, table)
+    if rule == "m4-range-share":
+        r = table.acc_range_m_s2[inside]
+        if not np.isfinite(r).any():
+            return table
+        raw = range_share_length_m(table.acc_range_m_s2, float(np.nanmedian(r)), k=1.0)
+    elif rule == "m4-duration-share":
+        t = table.duration_s[inside]
+        if not np.isfinite(t).any():
+            return table
+        raw = duration_share_length_m(table.acc_range_m_s2, table.duration_s, float(np.nanmedian(t)), k=1.0)
+    else:
+        raise ValueError(f"rule must be one of {M4_STEP_RULES}, got {rule!r}")
+    out = table.select(np.ones(table.n_steps, bool))
+    out.raw_m = {**table.raw_m, "M4": raw}
     return out
 
 
@@ -742,6 +774,8 @@ class SubjectFit:
         Whether the subject's fold chose the on-line chains' defaults.
     k_shrunk
         The K of the ``k-prior`` rows (stage 5; None without a prior).
+    k_m4_rules
+        K fitted with each of :data:`M4_STEP_RULES` (their rows).
     """
 
     replayed: ReplayedSubject
@@ -757,6 +791,7 @@ class SubjectFit:
     cross_validated_online: bool
     k_by_exponent: dict[float, KFit] = field(default_factory=dict)
     k_shrunk: KFit | None = None
+    k_m4_rules: dict[str, KFit] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1023,8 +1058,11 @@ class IpolEvaluation:
         cv_online = c == 0
         k_by_exponent = {p: _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p)
                          for p in ONLINE_M4_VARIANTS.values()} if "online-fixed" in self.arithmetic else {}
+        k_m4_rules = {rule: _calibrate_on(rt0, with_m4_rule(rt0, offs[0], rule), uturn=self.uturn, leg=leg, foot=foot)
+                      for rule in M4_STEP_RULES}
         return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
-                          k_fold=k_fold, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent)
+                          k_fold=k_fold, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent,
+                          k_m4_rules=k_m4_rules)
 
     def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
         """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
@@ -1094,6 +1132,11 @@ class IpolEvaluation:
             runs += self._offline_variants(fit, i)
         if "online-fixed" in self.arithmetic:
             runs += self._online_variants(fit, i, tables["online-fixed"], saturation)
+        if "offline" in self.arithmetic:       # M4's length rules (their rows differ from the main ones in M4 alone)
+            rt = fit.replayed.trials[i]
+            runs += [ScoredChain("offline", "offline", _calibrated(with_m4_rule(rt, fit.offline[i], rule), k), k,
+                                 self.uturn, fit.replayed.lengths_source, rule, True)
+                     for rule, k in fit.k_m4_rules.items()]
         return runs
 
     def _online_variants(self, fit: SubjectFit, i: int, table: StepTable, saturation: list[str]) -> list[ScoredChain]:
@@ -1319,6 +1362,24 @@ def choice_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resam
     return float(gain), float(lo), float(hi)
 
 
+def _median_abs_log(x: np.ndarray) -> float:
+    return float(np.median(np.abs(np.log(x)))) if x.size else math.nan
+
+
+def log_error_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES,
+                   seed: int = 0, level: float = BOOTSTRAP_LEVEL) -> tuple[float, float, float]:
+    """As :func:`choice_gain`, the gain in the median ``|log ratio|`` (the typical error of a trial, over- and
+    underestimation alike) instead of the IQR: simple minus rule (positive: the rule errs less)."""
+    a, b = subject_groups(simple, estimator), subject_groups(rule, estimator)
+    subjects = [s for s in a if s in b]
+    if not subjects:
+        return (math.nan,) * 3
+    counts = subject_resamples(len(subjects), n_resamples=n_resamples, seed=seed)
+    gain, lo, hi = subject_bootstrap([a[s] for s in subjects], lambda x, y: _median_abs_log(x) - _median_abs_log(y),
+                                     counts, [b[s] for s in subjects], level=level)
+    return float(gain), float(lo), float(hi)
+
+
 #: The choices scored by the rule (:func:`choice_gains`): name, the simple choice's rows, the rule's rows (offline
 #: chain), the estimators it acts on.
 CHOICES = (
@@ -1327,6 +1388,10 @@ CHOICES = (
     ("K prior (K shrunk toward the other subjects' K) against the first trial's K alone", "main", "k-prior",
      ("M1", "M2", "M4")),
     ("M4's exponent chosen per fold against the shipped one (Weinberg's 1/4)", "main", "m4-per-fold", ("M4",)),
+    ("M4: a step below the trial's median range counts its share of a typical step, against Weinberg's length",
+     "main", "m4-range-share", ("M4",)),
+    ("M4: Weinberg's length times the step's share of the trial's median duration, against Weinberg's length",
+     "main", "m4-duration-share", ("M4",)),
     ("the shipped chain against the recipe (the baseline)", "baseline", "main", ("M2", "M4")),
     ("U-turn steps left out of the distance against every step summed", "main", "uturn-exclude", ESTIMATORS),
 )
@@ -1363,6 +1428,10 @@ def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
             for e in estimators:
                 gain, lo, hi = choice_gain(a, b, e)
                 out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+                if rule in M4_STEP_RULES:
+                    gain, lo, hi = log_error_gain(a, b, e)
+                    out.append(dict(choice=label, estimator=f"{e} median |log ratio|", gain=gain, low=lo, high=hi,
+                                    kept=bool(lo > 0)))
             if ONLINE_EVENT_VARIANTS.keys() & {simple, rule} and arithmetic != "offline":
                 gain, lo, hi = row_count_gain(a, b)
                 out.append(dict(choice=label, estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))

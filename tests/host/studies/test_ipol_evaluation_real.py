@@ -93,11 +93,13 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "height-unknown", "include", "assumed-height"),
                      ("offline", "offline", "m4-per-fold", "include", "subject-height"),
                      ("offline", "offline", "k-prior", "include", "subject-height"),
+                     ("offline", "offline", "m4-range-share", "include", "subject-height"),
+                     ("offline", "offline", "m4-duration-share", "include", "subject-height"),
                      ("offline", "offline", "baseline", "include", "subject-height")} | {
         ("online-fixed", "offline", v, "include", "subject-height")
         for v in ("stop-v3", "prominence-fixed", "m4-quarter", "m4-half")}
-    # 52 trials - 9 calibration trials, 5 estimators, 12 kinds; the baseline's M2 and M4
-    assert len(rows) == 12 * 5 * 43 + 2 * 43
+    # 52 trials - 9 calibration trials, 5 estimators, 14 kinds; the baseline's M2 and M4
+    assert len(rows) == 14 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -415,7 +417,9 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
                                                ("height-unknown", {"M2": (1.003, 0.056), "M3": (1.084, 0.080)}),
                                                ("k-prior", {"M1": (1.014, 0.063), "M2": (1.000, 0.044),
                                                             "M4": (0.975, 0.062)}),
-                                               ("m4-per-fold", {"M4": (0.997, 0.092)})])
+                                               ("m4-per-fold", {"M4": (0.997, 0.092)}),
+                                               ("m4-range-share", {"M4": (0.990, 0.059)}),
+                                               ("m4-duration-share", {"M4": (0.997, 0.071)})])
 def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
     """Issue 12 (3): the offline chain also with the U-turn steps left out (M3, without K, then reads 1.023: with
     them it reads the turn as straight walking, 1.088), with the height unknown (a 1.70 m adult for everyone:
@@ -461,3 +465,32 @@ def test_baseline_row_and_the_choices_are_printed(ipol) -> None:
             gain, lo, hi = map(float, m.group(2, 3, 4))
             assert lo <= gain <= hi and (m.group(5) == "kept") == (lo > 0), line
         assert "not kept" in line
+
+
+@pytest.mark.parametrize("variant, label, measured", [
+    ("m4-range-share", "M4: a step below the trial's median range counts its share",
+     dict(iqr=(+0.042, -0.006, +0.082), log=(+0.023, -0.002, +0.045))),
+    ("m4-duration-share", "M4: Weinberg's length times the step's share of the trial's median duration",
+     dict(iqr=(+0.030, -0.020, +0.068), log=(+0.015, -0.003, +0.043)))])
+def test_m4_step_rules_do_not_pass_the_rule_for_choices(ipol, variant, label, measured) -> None:
+    """M4 with a weak (or short) step counted as its share of the trial's typical step, no constant: it narrows M4
+    (IQR 0.101 -> 0.059 and 0.071), but neither gain's 95 % subject-bootstrap interval excludes zero, in IQR or in
+    the median |log ratio|, so the main rows keep Weinberg's length. The rows differ from the main ones in M4
+    alone, and the printed gain is the CSV's IQR difference."""
+    main_, rule = ({(r["subject"], r["trial"], r["estimator"]): float(r["ratio"]) for r in ipol.rows
+                    if r["arithmetic"] == "offline" and r["variant"] == v} for v in ("main", variant))
+    assert main_.keys() == rule.keys()
+    assert all(rule[k] == main_[k] for k in main_ if k[2] != "M4")
+    assert sum(rule[k] != main_[k] for k in main_ if k[2] == "M4") > 40
+    line = next(ln for ln in ipol.text.split("choices against the simpler one")[1].splitlines() if label in ln)
+    m = re.search(r"M4 ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept, M4 median \|log ratio\| "
+                  r"([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept", line)
+    assert m, line
+    got = tuple(map(float, m.groups()))
+    assert got == pytest.approx(measured["iqr"] + measured["log"], abs=0.004)
+    assert got[1] < 0 < got[0] < got[2] and got[4] < 0 < got[3] < got[5]
+    assert got[0] == pytest.approx(iqr(ratios(ipol.rows, "M4")) - iqr(ratios(ipol.rows, "M4", variant=variant)),
+                                   abs=0.001)
+    log_gain = (np.median(np.abs(np.log(ratios(ipol.rows, "M4"))))
+                - np.median(np.abs(np.log(ratios(ipol.rows, "M4", variant=variant)))))
+    assert got[3] == pytest.approx(log_gain, abs=0.001)
