@@ -179,10 +179,11 @@ ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
 ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-half": 0.5}
 #: M4 length rules without a constant, scored on the offline chain as extra rows (variant = the rule; K fitted with
 #: it on the first trial; :func:`with_m4_rule`): ``m4-range-share``, a step whose range is below the trial's
-#: median counts the share of a typical step its range is (:func:`gaitlog.host.gait.estimators.weinberg.
-#: range_share_length_m`); ``m4-duration-share``, each step's Weinberg length times its duration's share of the
-#: trial's median, at most 1 (:func:`~gaitlog.host.gait.estimators.weinberg.duration_share_length_m`). Neither is
-#: kept by the rule for choices (``docs/topics/accuracy.md``): the main rows use Weinberg's length.
+#: median counts the share of a typical step its range is
+#: (:func:`~gaitlog.host.gait.estimators.weinberg.range_share_length_m`); ``m4-duration-share``, each step's
+#: Weinberg length times its duration's share of the trial's median, at most 1
+#: (:func:`~gaitlog.host.gait.estimators.weinberg.duration_share_length_m`). Neither is kept by the rule for choices
+#: (``docs/topics/accuracy.md``): the main rows use Weinberg's length.
 M4_STEP_RULES = ("m4-range-share", "m4-duration-share")
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",

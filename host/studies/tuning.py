@@ -26,6 +26,9 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   no stop rule was -0.058 [-0.154, +0.043] steps per trial (95 % subject-bootstrap interval), so the rule for
   choices keeps the simpler choice, off (the default since on-line algorithm version 4; ``gaitlog evaluate ipol``
   still scores the versions-1-3 value in the on-line chain, ``gaitlog.host.studies.ipol_evaluation.ONLINE_CHOICES``).
+* M4's weak-step rules (``gaitlog.host.studies.ipol_evaluation.M4_STEP_RULES``: a step counted as its share of the
+  trial's typical step, by range or by duration) have no constant, so nothing of them is tuned here; they are scored
+  against Weinberg's length by the rule for choices and not kept (their gains' intervals include zero).
 * ``prominence_fraction``: the foot-flat threshold's share of the walk's recent step amplitude
   (:mod:`gaitlog.firmware_sim.algorithms.parameters` notes; 0: the floor alone), chosen by the step count. It was
   chosen on these recordings once (0.25 of 0.2, 0.25, 0.3) and is now chosen inside the folds like the others.
