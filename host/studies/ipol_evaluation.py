@@ -177,8 +177,9 @@ ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
 #: The on-line chain's M4 with each exponent (variant -> exponent): ``K range^p`` of the on-line fixed-point
 #: records' ranges (host float; the arithmetic's share is ~1e-4), K fitted with ``p`` on the offline chain.
 ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-half": 0.5}
-#: M4 length rules without a constant, scored on the offline chain as extra rows (variant = the rule; K fitted with
-#: it on the first trial; :func:`with_m4_rule`): ``m4-range-share``, a step whose range is below the trial's
+#: M4 length rules without a constant, scored as extra rows on the offline chain and, on the host, on the on-line
+#: fixed chain's records (variant = the rule; K fitted with it on the first trial's offline chain;
+#: :func:`with_m4_rule`): ``m4-range-share``, a step whose range is below the trial's
 #: median counts the share of a typical step its range is
 #: (:func:`~gaitlog.host.gait.estimators.weinberg.range_share_length_m`); ``m4-duration-share``, each step's
 #: Weinberg length times its duration's share of the trial's median, at most 1
@@ -489,6 +490,14 @@ def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
         return table
     out = table.select(np.ones(table.n_steps, bool))
     out.raw_m = {**table.raw_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=1.0, exponent=exponent)}
+    return out
+
+
+def _with_m4_rule_lengths(rt: ReplayedTrial, table: StepTable, rule: str, k: KFit) -> StepTable:
+    """A copy of ``table`` whose calibrated M4 lengths are ``rule``'s (:func:`with_m4_rule`, from each step's range
+    and duration) with ``k``'s K; the other lengths as they are (the on-line chain's own arithmetic)."""
+    out = table.select(np.ones(table.n_steps, bool))
+    out.length_m = {**table.length_m, "M4": k.k_m4 * with_m4_rule(rt, table, rule).raw_m["M4"]}
     return out
 
 
@@ -1143,7 +1152,8 @@ class IpolEvaluation:
     def _online_variants(self, fit: SubjectFit, i: int, table: StepTable, saturation: list[str]) -> list[ScoredChain]:
         """The on-line fixed chain on trial ``i`` with each of :data:`ONLINE_EVENT_VARIANTS` and
         :data:`ONLINE_M4_VARIANTS` (the offline K; ``cross_validated`` 0: the on-line rules were chosen on these
-        trials)."""
+        trials), and its records' M4 with each of :data:`M4_STEP_RULES` (K fitted with the rule on the offline chain;
+        no constant, so cross-validated as the on-line main rows are)."""
         rt, src = fit.replayed.trials[i], fit.replayed.lengths_source
         runs = [ScoredChain("online-fixed", "offline", _online(rt, "online-fixed", fit.k_online, saturation,
                                                                events=replace(EventParameters(), **fields)),
@@ -1152,6 +1162,8 @@ class IpolEvaluation:
         runs += [ScoredChain("online-fixed", "offline", _with_m4_lengths(table, fit.k_by_exponent[p]),
                              fit.k_by_exponent[p], self.uturn, src, name, False)
                  for name, p in ONLINE_M4_VARIANTS.items()]
+        runs += [ScoredChain("online-fixed", "offline", _with_m4_rule_lengths(rt, table, rule, k), k, self.uturn, src,
+                             rule, fit.cross_validated_online) for rule, k in fit.k_m4_rules.items()]
         return runs
 
     def _offline_variants(self, fit: SubjectFit, i: int) -> list[ScoredChain]:
@@ -1409,6 +1421,10 @@ ONLINE_CHOICES = (
      ("M2", "M4")),
     ("on-line: M4's exponent 1/2 against Weinberg's 1/4 (both from the records' ranges)", "m4-quarter", "m4-half",
      ("M4",)),
+    ("on-line: M4 with a step below the trial's median range counted as its share of a typical step (from the "
+     "records' ranges, no constant) against the logger's Weinberg length", "main", "m4-range-share", ("M4",)),
+    ("on-line: M4 times the step's share of the trial's median duration (from the records, no constant) against the "
+     "logger's Weinberg length", "main", "m4-duration-share", ("M4",)),
 )
 
 

@@ -95,11 +95,13 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "k-prior", "include", "subject-height"),
                      ("offline", "offline", "m4-range-share", "include", "subject-height"),
                      ("offline", "offline", "m4-duration-share", "include", "subject-height"),
+                     ("online-fixed", "offline", "m4-range-share", "include", "subject-height"),
+                     ("online-fixed", "offline", "m4-duration-share", "include", "subject-height"),
                      ("offline", "offline", "baseline", "include", "subject-height")} | {
         ("online-fixed", "offline", v, "include", "subject-height")
         for v in ("stop-v3", "prominence-fixed", "m4-quarter", "m4-half")}
-    # 52 trials - 9 calibration trials, 5 estimators, 14 kinds; the baseline's M2 and M4
-    assert len(rows) == 14 * 5 * 43 + 2 * 43
+    # 52 trials - 9 calibration trials, 5 estimators, 16 kinds; the baseline's M2 and M4
+    assert len(rows) == 16 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -494,3 +496,22 @@ def test_m4_step_rules_do_not_pass_the_rule_for_choices(ipol, variant, label, me
     log_gain = (np.median(np.abs(np.log(ratios(ipol.rows, "M4"))))
                 - np.median(np.abs(np.log(ratios(ipol.rows, "M4", variant=variant)))))
     assert got[3] == pytest.approx(log_gain, abs=0.001)
+
+
+@pytest.mark.parametrize("variant, measured", [("m4-range-share", (0.988, 0.068, 0.0041)),
+                                               ("m4-duration-share", (0.991, 0.070, 0.0045))])
+def test_m4_step_rules_on_the_logger_records(ipol, variant, measured) -> None:
+    """The same rules applied on the host to the on-line fixed chain's records (each carries its range and duration),
+    K the offline chain's fitted with the rule: the logger need not change. They stay as close to the offline chain
+    as Weinberg's length does (median |ratio difference| 0.0040), well within 0.01; and their gains over the
+    logger's own M4 are inside the noise too (printed)."""
+    med, q, share = measured
+    r = ratios(ipol.rows, "M4", "online-fixed", variant=variant)
+    assert r.size == 43
+    assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
+    d = np.abs(r - ratios(ipol.rows, "M4", variant=variant))         # the same (subject, trial) order
+    assert np.median(d) == pytest.approx(share, abs=0.001) and np.median(d) < 0.01
+    label = {"m4-range-share": "counted as its share of a typical step", "m4-duration-share": "median duration"}[variant]
+    line = next(ln for ln in ipol.text.splitlines() if ln.startswith("  on-line: M4") and label in ln)
+    m = re.search(r"M4 ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept", line)
+    assert m and float(m.group(2)) < 0 < float(m.group(3)), line

@@ -68,11 +68,16 @@ def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
     # and with M4's exponent chosen in the fold (no k-prior rows: one subject has no other subject to shrink toward),
     # the on-line fixed chain with each of its rules' simpler or former choices, the offline chain with each of M4's
     # length rules, and the recipe baseline's M2 and M4
-    assert res.n_trials == 1 and len(res.rows) == 67
-    base = {r["estimator"]: r["ratio"] for r in res.rows[65:]}
-    assert [r["variant"] for r in res.rows[65:]] == ["baseline"] * 2 and set(base) == {"M2", "M4"}
-    assert [r["variant"] for r in res.rows[55:65:5]] == ["m4-range-share", "m4-duration-share"]
-    assert all(r["ratio"] == pytest.approx(1.0, abs=0.03) for r in res.rows[55:65] if r["estimator"] == "M4")
+    assert res.n_trials == 1 and len(res.rows) == 77
+    base = {r["estimator"]: r["ratio"] for r in res.rows[75:]}
+    assert [r["variant"] for r in res.rows[75:]] == ["baseline"] * 2 and set(base) == {"M2", "M4"}
+    assert [(r["arithmetic"], r["variant"]) for r in res.rows[55:75:5]] == [
+        ("online-fixed", "m4-range-share"), ("online-fixed", "m4-duration-share"),
+        ("offline", "m4-range-share"), ("offline", "m4-duration-share")]
+    assert all(r["ratio"] == pytest.approx(1.0, abs=0.03) for r in res.rows[55:75] if r["estimator"] == "M4")
+    # the on-line rows of M4's length rules differ from the on-line fixed chain's in M4 alone
+    assert [r["ratio"] for r in res.rows[10:15] if r["estimator"] != "M4"] == [
+        r["ratio"] for r in res.rows[55:60] if r["estimator"] != "M4"]
     assert all(v == pytest.approx(1.0, abs=0.03) for v in base.values()), base
     assert [(r["arithmetic"], r["k_from"], r["variant"]) for r in res.rows[:55:5]] == [
         ("offline", "offline", "main"), ("online-float", "offline", "main"), ("online-fixed", "offline", "main"),
