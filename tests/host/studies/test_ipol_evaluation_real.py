@@ -511,7 +511,8 @@ def test_m4_step_rules_on_the_logger_records(ipol, variant, measured) -> None:
     assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
     d = np.abs(r - ratios(ipol.rows, "M4", variant=variant))         # the same (subject, trial) order
     assert np.median(d) == pytest.approx(share, abs=0.001) and np.median(d) < 0.01
-    label = {"m4-range-share": "counted as its share of a typical step", "m4-duration-share": "median duration"}[variant]
+    label = {"m4-range-share": "counted as its share of a typical step",
+             "m4-duration-share": "median duration"}[variant]
     line = next(ln for ln in ipol.text.splitlines() if ln.startswith("  on-line: M4") and label in ln)
     m = re.search(r"M4 ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept", line)
     assert m and float(m.group(2)) < 0 < float(m.group(3)), line
