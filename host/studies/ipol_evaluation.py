@@ -67,7 +67,10 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    simpler choice (:func:`choice_gains`, :func:`count_gains`) and kept only when its gain's interval excludes
    zero. The on-line algorithm's own rules (:data:`ONLINE_CHOICES`) are scored the same way on the on-line fixed
    chain, re-run on the stored codes with the simpler choice (:data:`ONLINE_EVENT_VARIANTS`,
-   :data:`ONLINE_M4_VARIANTS`; in-sample: those rules were chosen on these trials).
+   :data:`ONLINE_M4_VARIANTS`; in-sample: those rules were chosen on these trials). M4's length rules without a
+   constant (:data:`M4_STEP_RULES`, K fitted with each on the first trial) are rows ``variant = <rule>`` of the
+   offline chain and of the on-line fixed chain's records, scored against Weinberg's length in IQR and in the median
+   ``|log ratio|`` (:func:`log_error_gain`).
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
