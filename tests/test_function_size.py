@@ -18,7 +18,6 @@ KNOWN_OVER = {
     "host/files/decode.py:_salvage_frame": (28, 40),
     "host/files/inputs.py:_from_csv": (45, 79),
     "host/gait/k_calibration.py:fields_from_dict": (32, 31),
-    "host/studies/evaluation.py:paper_claims": (41, 58),
     "host/studies/simulation.py:record_subject": (25, 104),
     "host/studies/sweep_figures.py:render_error_vs_png": (59, 80),
     "host/studies/sweep_grid.py:m5_rate_answer": (29, 61),
