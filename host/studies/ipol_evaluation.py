@@ -70,7 +70,10 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    simpler choice (:func:`choice_gains`, :func:`count_gains`) and kept only when its gain's interval excludes
    zero. The on-line algorithm's own rules (:data:`ONLINE_CHOICES`) are scored the same way on the on-line fixed
    chain, re-run on the stored codes with the simpler choice (:data:`ONLINE_EVENT_VARIANTS`,
-   :data:`ONLINE_M4_VARIANTS`; in-sample: those rules were chosen on these trials).
+   :data:`ONLINE_M4_VARIANTS`; in-sample: those rules were chosen on these trials). M4's length rules without a
+   constant (:data:`M4_STEP_RULES`, K fitted with each on the first trial) are rows ``variant = <rule>`` of the
+   offline chain and of the on-line fixed chain's records, scored against Weinberg's length in IQR and in the median
+   ``|log ratio|`` (:func:`log_error_gain`).
 6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
    no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
@@ -112,7 +115,7 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.ipol import height_m_of, list_trials, read_trial
 from gaitlog.host.files.replay import check_records, online_step_table, run_starts
 from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
-from gaitlog.host.gait.estimators.weinberg import weinberg_length_m
+from gaitlog.host.gait.estimators.weinberg import duration_share_length_m, range_share_length_m, weinberg_length_m
 from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, GapFiller
 from gaitlog.host.gait.k_calibration import KFit, calibrate
 from gaitlog.host.gait.k_prior import (
@@ -185,6 +188,15 @@ ONLINE_EVENT_VARIANTS: dict[str, dict[str, float]] = {
 #: The on-line chain's M4 with each exponent (variant -> exponent): ``K range^p`` of the on-line fixed-point
 #: records' ranges (host float; the arithmetic's share is ~1e-4), K fitted with ``p`` on the offline chain.
 ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-half": 0.5}
+#: M4 length rules without a constant, scored as extra rows on the offline chain and, on the host, on the on-line
+#: fixed chain's records (variant = the rule; K fitted with it on the first trial's offline chain;
+#: :func:`with_m4_rule`): ``m4-range-share``, a step whose range is below the trial's
+#: median counts the share of a typical step its range is
+#: (:func:`~gaitlog.host.gait.estimators.weinberg.range_share_length_m`); ``m4-duration-share``, each step's
+#: Weinberg length times its duration's share of the trial's median, at most 1
+#: (:func:`~gaitlog.host.gait.estimators.weinberg.duration_share_length_m`). Neither is kept by the rule for choices
+#: (``docs/topics/accuracy.md``): the main rows use Weinberg's length.
+M4_STEP_RULES = ("m4-range-share", "m4-duration-share")
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
                "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
@@ -364,12 +376,16 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
                          header, records[crc_ok], float(leg), float(foot))
 
 
-def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "include") -> tuple[StepTable, np.ndarray]:
-    """Steps of the trial section and a mask of those that count for the distance (U-turn rule)."""
+def section_mask(rt: ReplayedTrial, table: StepTable) -> np.ndarray:
+    """Which rows of ``table`` are the trial section's (heel strike, or foot-flat, within the shifted boundaries)."""
     lo, hi = rt.meta["TrialBoundaries"]
     t = table.event_time_s()
-    inside = (t >= rt.seconds(lo) + SECTION_START_DELAY_S) & (t <= rt.seconds(hi) + SECTION_END_TOLERANCE_S)
-    sec = table.select(inside)
+    return (t >= rt.seconds(lo) + SECTION_START_DELAY_S) & (t <= rt.seconds(hi) + SECTION_END_TOLERANCE_S)
+
+
+def trial_steps(rt: ReplayedTrial, table: StepTable, *, uturn: str = "include") -> tuple[StepTable, np.ndarray]:
+    """Steps of the trial section and a mask of those that count for the distance (U-turn rule)."""
+    sec = table.select(section_mask(rt, table))
     counts = np.ones(sec.n_steps, bool)
     ub = rt.meta.get("UTurnBoundaries")
     if uturn == "exclude" and ub:
@@ -485,6 +501,35 @@ def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
         return table
     out = table.select(np.ones(table.n_steps, bool))
     out.raw_m = {**table.raw_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=1.0, exponent=exponent)}
+    return out
+
+
+def _with_m4_rule_lengths(rt: ReplayedTrial, table: StepTable, rule: str, k: KFit) -> StepTable:
+    """A copy of ``table`` whose calibrated M4 lengths are ``rule``'s (:func:`with_m4_rule`, from each step's range
+    and duration) with ``k``'s K; the other lengths as they are (the on-line chain's own arithmetic)."""
+    out = table.select(np.ones(table.n_steps, bool))
+    out.length_m = {**table.length_m, "M4": k.k_m4 * with_m4_rule(rt, table, rule).raw_m["M4"]}
+    return out
+
+
+def with_m4_rule(rt: ReplayedTrial, table: StepTable, rule: str) -> StepTable:
+    """``table`` with its raw M4 lengths from one of :data:`M4_STEP_RULES`, the typical step (median range or
+    duration) that of the steps of ``rt``'s trial section; ``table`` itself when the section has none."""
+    inside = section_mask(rt, table)
+    if rule == "m4-range-share":
+        r = table.acc_range_m_s2[inside]
+        if not np.isfinite(r).any():
+            return table
+        raw = range_share_length_m(table.acc_range_m_s2, float(np.nanmedian(r)), k=1.0)
+    elif rule == "m4-duration-share":
+        t = table.duration_s[inside]
+        if not np.isfinite(t).any():
+            return table
+        raw = duration_share_length_m(table.acc_range_m_s2, table.duration_s, float(np.nanmedian(t)), k=1.0)
+    else:
+        raise ValueError(f"rule must be one of {M4_STEP_RULES}, got {rule!r}")
+    out = table.select(np.ones(table.n_steps, bool))
+    out.raw_m = {**table.raw_m, "M4": raw}
     return out
 
 
@@ -755,6 +800,8 @@ class SubjectFit:
     m3_variant
         Per trial, the offline chain with M3's double support by :data:`M3_DOUBLE_SUPPORT_VARIANT` (the
         ``m3-<rule>`` rows; M3 has no K, the other estimators are the main rows').
+    k_m4_rules
+        K fitted with each of :data:`M4_STEP_RULES` (their rows).
     """
 
     replayed: ReplayedSubject
@@ -771,6 +818,7 @@ class SubjectFit:
     k_by_exponent: dict[float, KFit] = field(default_factory=dict)
     k_shrunk: KFit | None = None
     m3_variant: list[StepTable] = field(default_factory=list)
+    k_m4_rules: dict[str, KFit] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1038,9 +1086,11 @@ class IpolEvaluation:
         k_by_exponent = {p: _calibrate_on(rt0, offs[0], uturn=self.uturn, leg=leg, foot=foot, m4_exponent=p)
                          for p in ONLINE_M4_VARIANTS.values()} if "online-fixed" in self.arithmetic else {}
         m3v = [_offline(rt, leg, foot, cands[c], M3_DOUBLE_SUPPORT_VARIANT) for rt in rs.trials]
+        k_m4_rules = {rule: _calibrate_on(rt0, with_m4_rule(rt0, offs[0], rule), uturn=self.uturn, leg=leg, foot=foot)
+                      for rule in M4_STEP_RULES}
         return SubjectFit(rs, offs, assumed, k=k, k_fitted=k, k_online=k_online, k_other=k_other, k_assumed=k_assumed,
                           k_fold=k_fold, own=None, cross_validated_online=cv_online, k_by_exponent=k_by_exponent,
-                          m3_variant=m3v)
+                          m3_variant=m3v, k_m4_rules=k_m4_rules)
 
     def _own_k(self, rs: ReplayedSubject, skipped: list[str]) -> KFit | None:
         """The on-line algorithm's own K (only with ``online-fixed``); a failure is skipped, the subject kept."""
@@ -1110,12 +1160,18 @@ class IpolEvaluation:
             runs += self._offline_variants(fit, i)
         if "online-fixed" in self.arithmetic:
             runs += self._online_variants(fit, i, tables["online-fixed"], saturation)
+        if "offline" in self.arithmetic:       # M4's length rules (their rows differ from the main ones in M4 alone)
+            rt = fit.replayed.trials[i]
+            runs += [ScoredChain("offline", "offline", _calibrated(with_m4_rule(rt, fit.offline[i], rule), k), k,
+                                 self.uturn, fit.replayed.lengths_source, rule, True)
+                     for rule, k in fit.k_m4_rules.items()]
         return runs
 
     def _online_variants(self, fit: SubjectFit, i: int, table: StepTable, saturation: list[str]) -> list[ScoredChain]:
         """The on-line fixed chain on trial ``i`` with each of :data:`ONLINE_EVENT_VARIANTS` and
         :data:`ONLINE_M4_VARIANTS` (the offline K; ``cross_validated`` 0: the on-line rules were chosen on these
-        trials)."""
+        trials), and its records' M4 with each of :data:`M4_STEP_RULES` (K fitted with the rule on the offline chain;
+        no constant, so cross-validated as the on-line main rows are)."""
         rt, src = fit.replayed.trials[i], fit.replayed.lengths_source
         runs = [ScoredChain("online-fixed", "offline", _online(rt, "online-fixed", fit.k_online, saturation,
                                                                events=replace(EventParameters(), **fields)),
@@ -1124,6 +1180,8 @@ class IpolEvaluation:
         runs += [ScoredChain("online-fixed", "offline", _with_m4_lengths(table, fit.k_by_exponent[p]),
                              fit.k_by_exponent[p], self.uturn, src, name, False)
                  for name, p in ONLINE_M4_VARIANTS.items()]
+        runs += [ScoredChain("online-fixed", "offline", _with_m4_rule_lengths(rt, table, rule, k), k, self.uturn, src,
+                             rule, fit.cross_validated_online) for rule, k in fit.k_m4_rules.items()]
         return runs
 
     def _offline_variants(self, fit: SubjectFit, i: int) -> list[ScoredChain]:
@@ -1337,6 +1395,24 @@ def choice_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resam
     return float(gain), float(lo), float(hi)
 
 
+def _median_abs_log(x: np.ndarray) -> float:
+    return float(np.median(np.abs(np.log(x)))) if x.size else math.nan
+
+
+def log_error_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES,
+                   seed: int = 0, level: float = BOOTSTRAP_LEVEL) -> tuple[float, float, float]:
+    """As :func:`choice_gain`, the gain in the median ``|log ratio|`` (the typical error of a trial, over- and
+    underestimation alike) instead of the IQR: simple minus rule (positive: the rule errs less)."""
+    a, b = subject_groups(simple, estimator), subject_groups(rule, estimator)
+    subjects = [s for s in a if s in b]
+    if not subjects:
+        return (math.nan,) * 3
+    counts = subject_resamples(len(subjects), n_resamples=n_resamples, seed=seed)
+    gain, lo, hi = subject_bootstrap([a[s] for s in subjects], lambda x, y: _median_abs_log(x) - _median_abs_log(y),
+                                     counts, [b[s] for s in subjects], level=level)
+    return float(gain), float(lo), float(hi)
+
+
 #: The choices scored by the rule (:func:`choice_gains`): name, the simple choice's rows, the rule's rows (offline
 #: chain), the estimators it acts on.
 CHOICES = (
@@ -1345,6 +1421,10 @@ CHOICES = (
     ("K prior (K shrunk toward the other subjects' K) against the first trial's K alone", "main", "k-prior",
      ("M1", "M2", "M4")),
     ("M4's exponent chosen per fold against the shipped one (Weinberg's 1/4)", "main", "m4-per-fold", ("M4",)),
+    ("M4: a step below the trial's median range counts its share of a typical step, against Weinberg's length",
+     "main", "m4-range-share", ("M4",)),
+    ("M4: Weinberg's length times the step's share of the trial's median duration, against Weinberg's length",
+     "main", "m4-duration-share", ("M4",)),
     ("the shipped chain against the recipe (the baseline)", "baseline", "main", ("M2", "M4")),
     ("U-turn steps left out of the distance against every step summed", "main", "uturn-exclude", ESTIMATORS),
     ("M3's double support at the single support's speed against the foot length", "main",
@@ -1363,6 +1443,10 @@ ONLINE_CHOICES = (
      ("M2", "M4")),
     ("on-line: M4's exponent 1/2 against Weinberg's 1/4 (both from the records' ranges)", "m4-quarter", "m4-half",
      ("M4",)),
+    ("on-line: M4 with a step below the trial's median range counted as its share of a typical step (from the "
+     "records' ranges, no constant) against the logger's Weinberg length", "main", "m4-range-share", ("M4",)),
+    ("on-line: M4 times the step's share of the trial's median duration (from the records, no constant) against the "
+     "logger's Weinberg length", "main", "m4-duration-share", ("M4",)),
 )
 
 
@@ -1383,6 +1467,10 @@ def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
             for e in estimators:
                 gain, lo, hi = choice_gain(a, b, e)
                 out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
+                if rule in M4_STEP_RULES:
+                    gain, lo, hi = log_error_gain(a, b, e)
+                    out.append(dict(choice=label, estimator=f"{e} median |log ratio|", gain=gain, low=lo, high=hi,
+                                    kept=bool(lo > 0)))
             if ONLINE_EVENT_VARIANTS.keys() & {simple, rule} and arithmetic != "offline":
                 gain, lo, hi = row_count_gain(a, b)
                 out.append(dict(choice=label, estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))

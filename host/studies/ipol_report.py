@@ -47,6 +47,10 @@ _OFFLINE_VARIANTS = (
     ("m4-per-fold", "arithmetic = offline, M4 with the exponent chosen per fold (K refitted with it; M4 row only)", ("M4",)),
     ("m3-single-support-speed", "arithmetic = offline, M3's double support covered at the single support's speed "
      "(S1 (T - T_ss) / T_ss instead of the foot length; M3 row only)", ("M3",)),
+    ("m4-range-share", "arithmetic = offline, M4 with a step below the trial's median range counted as its share of a "
+     "typical step (K refitted with it; M4 row only; not kept: its gain's interval includes zero)", ("M4",)),
+    ("m4-duration-share", "arithmetic = offline, M4 times the step's share of the trial's median duration (K refitted "
+     "with it; M4 row only; not kept: its gain's interval includes zero)", ("M4",)),
     ("baseline", "baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
      "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "
      "M4 range^(1/4), K = 20 m / first trial's sum)", ("M2", "M4")),

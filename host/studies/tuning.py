@@ -26,6 +26,9 @@ each subject, the value is chosen on the *other* subjects' trials, and that subj
   no stop rule was -0.058 [-0.154, +0.043] steps per trial (95 % subject-bootstrap interval), so the rule for
   choices keeps the simpler choice, off (the default since on-line algorithm version 4; ``gaitlog evaluate ipol``
   still scores the versions-1-3 value in the on-line chain, ``gaitlog.host.studies.ipol_evaluation.ONLINE_CHOICES``).
+* M4's weak-step rules (``gaitlog.host.studies.ipol_evaluation.M4_STEP_RULES``: a step counted as its share of the
+  trial's typical step, by range or by duration) have no constant, so nothing of them is tuned here; they are scored
+  against Weinberg's length by the rule for choices and not kept (their gains' intervals include zero).
 * ``prominence_fraction``: the foot-flat threshold's share of the walk's recent step amplitude
   (:mod:`gaitlog.firmware_sim.algorithms.parameters` notes; 0: the floor alone), chosen by the step count. It was
   chosen on these recordings once (0.25 of 0.2, 0.25, 0.3) and is now chosen inside the folds like the others.
@@ -264,6 +267,39 @@ class LosoChoice:
     training_f1: dict[int, float]
 
 
+def _event_key(pooled: EventScore) -> tuple[float, float]:
+    """:data:`CRITERION` as an ordering key (larger is better): the F1, then the smaller median ``|timing
+    error|`` (an undefined one last)."""
+    err = pooled.median_abs_error_s
+    return (pooled.f1, -err if np.isfinite(err) else -np.inf)
+
+
+def _best_on_events(scores: Mapping[int, Sequence[Sequence[EventScore]]], training: Sequence[int],
+                    among: Sequence[int]) -> tuple[int, float]:
+    """The candidate of ``among`` with the best :data:`CRITERION` on the ``training`` subjects' trials (ties: the
+    earlier), and its F1."""
+    best, key_best = among[0], None
+    for c in among:
+        key = _event_key(EventScore.pooled([t[c] for o in training for t in scores[o]]))
+        if key_best is None or key > key_best:
+            best, key_best = c, key
+    return best, float(key_best[0]) if key_best is not None else float("nan")
+
+
+def _fewest_count_errors(count_errors: Mapping[int, Sequence[Sequence[int]]], training: Sequence[int],
+                         among: Sequence[int]) -> int:
+    """The candidate of ``among`` with the smallest :data:`COUNT_CRITERION` on the ``training`` subjects' trials
+    (ties: the earlier)."""
+    cost = {c: sum(abs(int(t[c])) for o in training for t in count_errors[o]) for c in among}
+    return min(among, key=lambda c: (cost[c], c))
+
+
+def _sharing(grid: Sequence[Mapping[str, Any]], n_candidates: int, like: Mapping[str, Any],
+             names: Sequence[str]) -> list[int]:
+    """The candidates (of the first ``n_candidates`` of ``grid``) whose ``names`` take ``like``'s values."""
+    return [c for c in range(n_candidates) if all(grid[c][n] == like[n] for n in names)]
+
+
 def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]],
                 count_errors: Mapping[int, Sequence[Sequence[int]]] | None = None,
                 grid: Sequence[Mapping[str, Any]] | None = None,
@@ -289,26 +325,18 @@ def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]],
     subjects = list(scores)
     n_cand = len(next(iter(next(iter(scores.values())))))
     count_names = [p.name for p in parameters if p.criterion == "step count"]
-    default = {p.name: p.default for p in parameters}
-    two_stage = count_errors is not None and grid is not None and count_names
-    first = [c for c in range(n_cand)
-             if not two_stage or all(grid[c][n] == default[n] for n in count_names)]
+    two_stage = count_errors is not None and grid is not None and bool(count_names)
+    first = list(range(n_cand))
+    if two_stage:
+        first = _sharing(grid, n_cand, {p.name: p.default for p in parameters}, count_names)
     chosen, f1s = {}, {}
     for s in subjects:
-        best, key_best = first[0], None
-        for c in first:
-            pooled = EventScore.pooled([t[c] for o in subjects if o != s for t in scores[o]])
-            err = pooled.median_abs_error_s
-            key = (pooled.f1, -err if np.isfinite(err) else -np.inf)
-            if key_best is None or key > key_best:
-                best, key_best = c, key
-        f1s[s] = float(key_best[0]) if key_best is not None else float("nan")
+        training = [o for o in subjects if o != s]
+        chosen[s], f1s[s] = _best_on_events(scores, training, first)
         if two_stage:
-            same = [c for c in range(n_cand)
-                    if all(grid[c][n] == grid[best][n] for n in grid[best] if n not in count_names)]
-            cost = {c: sum(abs(int(t[c])) for o in subjects if o != s for t in count_errors[o]) for c in same}
-            best = min(same, key=lambda c: (cost[c], c))
-        chosen[s] = best
+            event_names = [n for n in grid[chosen[s]] if n not in count_names]
+            chosen[s] = _fewest_count_errors(count_errors, training,
+                                             _sharing(grid, n_cand, grid[chosen[s]], event_names))
     return LosoChoice(chosen, f1s)
 
 

@@ -86,3 +86,34 @@ def weinberg_length_m(acc_range_m_s2: np.ndarray, *, k: float, exponent: float =
     [0.6, nan]
     """
     return k * np.power(np.asarray(acc_range_m_s2, np.float64), exponent)
+
+
+def range_share_length_m(acc_range_m_s2: np.ndarray, typical_range_m_s2: float, *, k: float,
+                         exponent: float = M4_EXPONENT) -> np.ndarray:
+    """M4 with a weak step counted as its share of a typical step: ``k r^p`` for a step whose range ``r`` is at
+    least the typical range ``r_t``, ``k r_t^p (r / r_t)`` below it (NaN stays NaN).
+
+    Weinberg's ``r^p`` with ``p = 1/4`` gives a step with a quarter of the typical range 71 % of a typical step's
+    length, so the weak steps of a turn, a start or a stop count nearly as whole steps; here such a step counts
+    25 %. No constant: ``r_t`` is the walk's own (a study passes the median range of the trial's steps). The two
+    branches meet at ``r_t``.
+
+    >>> range_share_length_m(np.array([4.0, 1.0, np.nan]), 4.0, k=1.0, exponent=0.5).tolist()
+    [2.0, 0.5, nan]
+    """
+    r = np.asarray(acc_range_m_s2, np.float64)
+    return np.where(r < typical_range_m_s2, k * typical_range_m_s2 ** exponent * (r / typical_range_m_s2),
+                    weinberg_length_m(r, k=k, exponent=exponent))
+
+
+def duration_share_length_m(acc_range_m_s2: np.ndarray, duration_s: np.ndarray, typical_duration_s: float, *,
+                            k: float, exponent: float = M4_EXPONENT) -> np.ndarray:
+    """M4 with a short step counted as its share of a typical step's time: ``k r^p min(1, T / T_t)``, ``T`` the
+    step's duration and ``T_t`` the walk's typical one (a study passes the median of the trial's steps; NaN stays
+    NaN). No constant.
+
+    >>> duration_share_length_m(np.array([16.0, 16.0]), np.array([0.25, 0.6]), 0.5, k=1.0).tolist()
+    [1.0, 2.0]
+    """
+    share = np.minimum(1.0, np.asarray(duration_s, np.float64) / typical_duration_s)
+    return weinberg_length_m(acc_range_m_s2, k=k, exponent=exponent) * share

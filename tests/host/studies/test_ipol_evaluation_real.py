@@ -94,11 +94,15 @@ def test_csv_layout(ipol) -> None:
                      ("offline", "offline", "m4-per-fold", "include", "subject-height"),
                      ("offline", "offline", "m3-single-support-speed", "include", "subject-height"),
                      ("offline", "offline", "k-prior", "include", "subject-height"),
+                     ("offline", "offline", "m4-range-share", "include", "subject-height"),
+                     ("offline", "offline", "m4-duration-share", "include", "subject-height"),
+                     ("online-fixed", "offline", "m4-range-share", "include", "subject-height"),
+                     ("online-fixed", "offline", "m4-duration-share", "include", "subject-height"),
                      ("offline", "offline", "baseline", "include", "subject-height")} | {
         ("online-fixed", "offline", v, "include", "subject-height")
         for v in ("stop-v3", "prominence-fixed", "m4-quarter", "m4-half")}
-    # 52 trials - 9 calibration trials, 5 estimators, 13 kinds; the baseline's M2 and M4
-    assert len(rows) == 13 * 5 * 43 + 2 * 43
+    # 52 trials - 9 calibration trials, 5 estimators, 17 kinds; the baseline's M2 and M4
+    assert len(rows) == 17 * 5 * 43 + 2 * 43
     for r in rows:
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
@@ -416,7 +420,9 @@ def test_events_found_and_filled_per_trial(ipol) -> None:
                                                ("height-unknown", {"M2": (1.003, 0.056), "M3": (1.084, 0.080)}),
                                                ("k-prior", {"M1": (1.014, 0.063), "M2": (1.000, 0.044),
                                                             "M4": (0.975, 0.062)}),
-                                               ("m4-per-fold", {"M4": (0.997, 0.092)})])
+                                               ("m4-per-fold", {"M4": (0.997, 0.092)}),
+                                               ("m4-range-share", {"M4": (0.990, 0.059)}),
+                                               ("m4-duration-share", {"M4": (0.997, 0.071)})])
 def test_uturn_both_ways_and_height_unknown(ipol, variant, measured) -> None:
     """Issue 12 (3): the offline chain also with the U-turn steps left out (M3, without K, then reads 1.023: with
     them it reads the turn as straight walking, 1.088), with the height unknown (a 1.70 m adult for everyone:
@@ -473,3 +479,52 @@ def test_m3_double_support_row(ipol) -> None:
     assert np.median(r) == pytest.approx(0.980, abs=0.003) and iqr(r) == pytest.approx(0.091, abs=0.003)
     assert np.array_equal(ratios(ipol.rows, "M2", variant="m3-single-support-speed"), ratios(ipol.rows, "M2"))
     assert "M3's double support covered at the single support's speed" in ipol.text
+
+
+@pytest.mark.parametrize("variant, label, measured", [
+    ("m4-range-share", "M4: a step below the trial's median range counts its share",
+     dict(iqr=(+0.042, -0.006, +0.082), log=(+0.023, -0.002, +0.045))),
+    ("m4-duration-share", "M4: Weinberg's length times the step's share of the trial's median duration",
+     dict(iqr=(+0.030, -0.020, +0.068), log=(+0.015, -0.003, +0.043)))])
+def test_m4_step_rules_do_not_pass_the_rule_for_choices(ipol, variant, label, measured) -> None:
+    """M4 with a weak (or short) step counted as its share of the trial's typical step, no constant: it narrows M4
+    (IQR 0.101 -> 0.059 and 0.071), but neither gain's 95 % subject-bootstrap interval excludes zero, in IQR or in
+    the median |log ratio|, so the main rows keep Weinberg's length. The rows differ from the main ones in M4
+    alone, and the printed gain is the CSV's IQR difference."""
+    main_, rule = ({(r["subject"], r["trial"], r["estimator"]): float(r["ratio"]) for r in ipol.rows
+                    if r["arithmetic"] == "offline" and r["variant"] == v} for v in ("main", variant))
+    assert main_.keys() == rule.keys()
+    assert all(rule[k] == main_[k] for k in main_ if k[2] != "M4")
+    assert sum(rule[k] != main_[k] for k in main_ if k[2] == "M4") > 40
+    line = next(ln for ln in ipol.text.split("choices against the simpler one")[1].splitlines() if label in ln)
+    m = re.search(r"M4 ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept, M4 median \|log ratio\| "
+                  r"([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept", line)
+    assert m, line
+    got = tuple(map(float, m.groups()))
+    assert got == pytest.approx(measured["iqr"] + measured["log"], abs=0.004)
+    assert got[1] < 0 < got[0] < got[2] and got[4] < 0 < got[3] < got[5]
+    assert got[0] == pytest.approx(iqr(ratios(ipol.rows, "M4")) - iqr(ratios(ipol.rows, "M4", variant=variant)),
+                                   abs=0.001)
+    log_gain = (np.median(np.abs(np.log(ratios(ipol.rows, "M4"))))
+                - np.median(np.abs(np.log(ratios(ipol.rows, "M4", variant=variant)))))
+    assert got[3] == pytest.approx(log_gain, abs=0.001)
+
+
+@pytest.mark.parametrize("variant, measured", [("m4-range-share", (0.988, 0.068, 0.0041)),
+                                               ("m4-duration-share", (0.991, 0.070, 0.0045))])
+def test_m4_step_rules_on_the_logger_records(ipol, variant, measured) -> None:
+    """The same rules applied on the host to the on-line fixed chain's records (each carries its range and duration),
+    K the offline chain's fitted with the rule: the logger need not change. They stay as close to the offline chain
+    as Weinberg's length does (median |ratio difference| 0.0040), well within 0.01; and their gains over the
+    logger's own M4 are inside the noise too (printed)."""
+    med, q, share = measured
+    r = ratios(ipol.rows, "M4", "online-fixed", variant=variant)
+    assert r.size == 43
+    assert np.median(r) == pytest.approx(med, abs=0.003) and iqr(r) == pytest.approx(q, abs=0.003)
+    d = np.abs(r - ratios(ipol.rows, "M4", variant=variant))         # the same (subject, trial) order
+    assert np.median(d) == pytest.approx(share, abs=0.001) and np.median(d) < 0.01
+    label = {"m4-range-share": "counted as its share of a typical step",
+             "m4-duration-share": "median duration"}[variant]
+    line = next(ln for ln in ipol.text.splitlines() if ln.startswith("  on-line: M4") and label in ln)
+    m = re.search(r"M4 ([+-][0-9.]+) \[([+-][0-9.]+), ([+-][0-9.]+)\] not kept", line)
+    assert m and float(m.group(2)) < 0 < float(m.group(3)), line

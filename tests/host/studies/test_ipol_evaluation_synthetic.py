@@ -67,16 +67,25 @@ def test_synthetic_folder_ratio_one_and_no_invented_samples(tmp_path) -> None:
     # + the offline chain with the U-turn left out, with the height unknown (here it is: no height in the JSON),
     # with M4's exponent chosen in the fold and with M3's double support at the single support's speed (no k-prior
     # rows: one subject has no other subject to shrink toward),
-    # the on-line fixed chain with each of its rules' simpler or former choices, and the recipe baseline's M2 and M4
-    assert res.n_trials == 1 and len(res.rows) == 62
-    base = {r["estimator"]: r["ratio"] for r in res.rows[60:]}
-    assert [r["variant"] for r in res.rows[60:]] == ["baseline"] * 2 and set(base) == {"M2", "M4"}
+    # the on-line fixed chain with each of its rules' simpler or former choices, the offline chain with each of M4's
+    # length rules, and the recipe baseline's M2 and M4
+    assert res.n_trials == 1 and len(res.rows) == 82
+    base = {r["estimator"]: r["ratio"] for r in res.rows[80:]}
+    assert [r["variant"] for r in res.rows[80:]] == ["baseline"] * 2 and set(base) == {"M2", "M4"}
+    assert [(r["arithmetic"], r["variant"]) for r in res.rows[60:80:5]] == [
+        ("online-fixed", "m4-range-share"), ("online-fixed", "m4-duration-share"),
+        ("offline", "m4-range-share"), ("offline", "m4-duration-share")]
+    assert all(r["ratio"] == pytest.approx(1.0, abs=0.03) for r in res.rows[60:80] if r["estimator"] == "M4")
+    # the on-line rows of M4's length rules differ from the on-line fixed chain's in M4 alone
+    assert [r["ratio"] for r in res.rows[10:15] if r["estimator"] != "M4"] == [
+        r["ratio"] for r in res.rows[60:65] if r["estimator"] != "M4"]
     assert all(v == pytest.approx(1.0, abs=0.03) for v in base.values()), base
     assert [(r["arithmetic"], r["k_from"], r["variant"]) for r in res.rows[:60:5]] == [
         ("offline", "offline", "main"), ("online-float", "offline", "main"), ("online-fixed", "offline", "main"),
         ("online-fixed", "own", "main"), ("offline", "offline", "uturn-exclude"),
         ("offline", "offline", "height-unknown"), ("offline", "offline", "m4-per-fold"),
-        ("offline", "offline", "m3-single-support-speed"), ("online-fixed", "offline", "stop-v3"), ("online-fixed", "offline", "prominence-fixed"),
+        ("offline", "offline", "m3-single-support-speed"), ("online-fixed", "offline", "stop-v3"),
+        ("online-fixed", "offline", "prominence-fixed"),
         ("online-fixed", "offline", "m4-quarter"), ("online-fixed", "offline", "m4-half")]
     assert res.priors == {} and res.calibrations[1].shrinkage is None
     # the m4-per-fold rows differ from the main ones in M4 alone, and so do the on-line m4-quarter rows from the
