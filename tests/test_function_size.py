@@ -16,7 +16,6 @@ MAX_LINES = 100
 KNOWN_OVER = {
     "host/files/inputs.py:_from_csv": (45, 79),
     "host/studies/evaluation.py:paper_claims": (41, 58),
-    "host/studies/simulation.py:record_subject": (25, 104),
     "host/studies/sweep_figures.py:render_error_vs_png": (59, 80),
     "host/studies/sweep_grid.py:m5_rate_answer": (29, 61),
     "host/studies/tuning.py:choose_loso": (28, 46),
