@@ -34,6 +34,7 @@ from typing import NamedTuple
 import construct as cs
 import numpy as np
 
+from gaitlog.protocol.channel_map import MAX_CHANNELS
 from gaitlog.protocol.crc import crc16_xmodem
 from gaitlog.protocol.data_blocks import ADDRESS_BYTES, payload_data_bytes, salvage_blocks
 from gaitlog.protocol.errors import ProtocolError
@@ -74,7 +75,6 @@ _DUMP_END = PAYLOAD_STRUCTS[FrameType.DUMP_END]
 _BLOCKS_STREAM_TYPES = tuple(bytes([t]) for t in (FrameType.HEADER, FrameType.DUMP_END, FrameType.DATA_BLOCKS))
 _HEADER_TYPE = bytes([FrameType.HEADER])
 _AT = {name: HEADER_OFFSETS[name][0] for name in ("header_version", "protocol_version", "axes", "packing", "flags")}
-_MAX_AXES = 8  # a channel map's channels: the PIC16F877's analog inputs (section 2.6)
 #: Differing bytes up to which two damaged copies of a header are combined (2^n candidates, each checked by the
 #: header's CRC-16 and a copy's frame CRC-16).
 COMBINE_MAX_DIFFERING_BYTES = 10
@@ -136,13 +136,13 @@ def _outside_frames(at: np.ndarray, frames: list[Frame], n: int) -> np.ndarray:
 
 def _plausible(data: bytes, at: np.ndarray) -> np.ndarray:
     """Indices into ``at`` of the whole headers whose fixed bytes of section 2 hold (a known header version,
-    protocol 1, 1-8 axes: 3 or a channel map's, P32), before any CRC or parse."""
+    protocol 1, 1-8 axes: 3 or a channel map's channels, P32), before any CRC or parse."""
     b = np.frombuffer(data, dtype=np.uint8)
     idx = np.flatnonzero(at + HEADER_SIZE <= b.size)
     w = at[idx]
     axes = b[w + _AT["axes"]]
     return idx[np.isin(b[w + _AT["header_version"]], KNOWN_HEADER_VERSIONS)
-               & (b[w + _AT["protocol_version"]] == PROTOCOL_VERSION) & (axes >= 1) & (axes <= _MAX_AXES)
+               & (b[w + _AT["protocol_version"]] == PROTOCOL_VERSION) & (axes >= 1) & (axes <= MAX_CHANNELS)
                & (b[w + _AT["packing"]] == PACKING_P32)]
 
 

@@ -55,7 +55,7 @@ from gaitlog.protocol.commit_journal import torn_step_records
 from gaitlog.protocol.crc import crc32
 from gaitlog.protocol.data_blocks import header_binding, verified_blocks
 from gaitlog.protocol.errors import ProtocolError
-from gaitlog.protocol.frames import FrameType, parse_payload, parse_stream
+from gaitlog.protocol.frames import PAYLOAD_OFFSETS, PAYLOAD_STRUCTS, FrameType, parse_payload, parse_stream
 from gaitlog.protocol.header import HEADER_SIZE, PAGE_SAMPLES, DeviceHeader
 from gaitlog.protocol.image import detect_format, parse_image
 from gaitlog.protocol.journal_ring import HEADER_VERSION_RING
@@ -103,6 +103,8 @@ _S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER, _S_UN
 
 _TYPE_DATA = int(FrameType.DATA)
 _TYPE_DATA_CRC = int(FrameType.DATA_CRC)
+_DATA_AT = PAYLOAD_OFFSETS[FrameType.DATA]["data"]  # a DATA payload's address field is before it
+_DATA_CRC_BYTES = PAYLOAD_STRUCTS[FrameType.DATA_CRC].sizeof()
 
 
 def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
@@ -473,22 +475,26 @@ def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unread
 
 def _checked_data_frames(frames: list) -> tuple[list, int]:
     """The DATA frames to use, and how many were rejected: in a capture holding DATA_CRC frames (a DUMP_CHECKED
-    stream, section 4) a DATA frame is used only when the next intact frame is a DATA_CRC with its address and
-    the CRC-32 of its data bytes; in one without (DUMP, READ) on its CRC-16 (as a host without DUMP_CHECKED)."""
+    stream, section 4) a DATA frame is used only when the next intact frame confirms it (:func:`_confirmed`); in
+    one without (DUMP, READ) on its CRC-16 (as a host without DUMP_CHECKED)."""
     checked = any(fr.type == _TYPE_DATA_CRC for fr in frames)
     out, rejected = [], 0
     for k, fr in enumerate(frames):
-        if fr.type != _TYPE_DATA or len(fr.payload) < 4:
+        if fr.type != _TYPE_DATA or len(fr.payload) < _DATA_AT:
             continue
-        if checked:
-            nxt = frames[k + 1] if k + 1 < len(frames) else None
-            if (nxt is None or nxt.type != _TYPE_DATA_CRC or len(nxt.payload) != 8
-                    or nxt.payload[:4] != fr.payload[:4]
-                    or int.from_bytes(nxt.payload[4:], "little") != crc32(fr.payload[4:])):
-                rejected += 1
-                continue
+        if checked and not _confirmed(fr, frames[k + 1] if k + 1 < len(frames) else None):
+            rejected += 1
+            continue
         out.append(fr)
     return out, rejected
+
+
+def _confirmed(data_frame, following) -> bool:
+    """``following`` is a DATA_CRC frame with the DATA frame's address and the CRC-32 of its data bytes."""
+    if following is None or following.type != _TYPE_DATA_CRC or len(following.payload) != _DATA_CRC_BYTES:
+        return False
+    check, sent = parse_payload(following), parse_payload(data_frame)
+    return check["address"] == sent["address"] and check["crc32"] == crc32(sent["data"])
 
 
 def _recording_text(header_bytes: bytes) -> str:
