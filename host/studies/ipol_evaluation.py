@@ -298,7 +298,7 @@ class ReplayedTrial:
         algorithm = (OnlineStepAlgorithm if events is None else functools.partial(OnlineStepAlgorithm, events=events))
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
-                                 calibration=calibration, adc_calibration=self.header.calibration,
+                                 k_fit=calibration, adc_calibration=self.header.calibration,
                                  adc_bits=self.adc_bits, arithmetic=arithmetic, run_starts=self.run_starts(),
                                  t0_s=self.t0_s, algorithm=algorithm)
 
