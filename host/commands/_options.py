@@ -11,8 +11,8 @@ import argparse
 import math
 import os
 from collections.abc import Callable
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 from gaitlog.host.errors import HostError, UsageError
 from gaitlog.host.storage.json_text import json_text
