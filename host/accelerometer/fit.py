@@ -110,6 +110,20 @@ def _describe_direction(v: np.ndarray) -> str:
     return f"direction ({comp}), mostly the {_AXES[j]} axis"
 
 
+def _check_valid_range(x: np.ndarray, valid_range: tuple[float, float] | None, row: str) -> None:
+    """Refuse an ``(n, 3)`` array with a value outside ``valid_range`` (NaN passes), naming the first ``row``
+    (``"pose"``, ``"sample"``), its axis and value, and how many rows are out of range."""
+    if valid_range is None:
+        return
+    lo, hi = valid_range
+    with np.errstate(invalid="ignore"):
+        out = (x < lo) | (x > hi)
+    if out.any():
+        r, c = (int(v[0]) for v in np.nonzero(out))
+        raise CalibrationError(f"{row} {r}: axis {_AXES[c]} = {x[r, c]:.6g} is outside the valid range "
+                               f"[{lo}, {hi}] ({int(out.any(axis=1).sum())} {row}(s) out of range)")
+
+
 def _check_poses(means: np.ndarray, model: str, valid_range: tuple[float, float] | None) -> None:
     if means.ndim != 2 or means.shape[1] != 3:
         raise CalibrationError(f"pose means must have shape (n, 3), got {means.shape}")
@@ -118,13 +132,7 @@ def _check_poses(means: np.ndarray, model: str, valid_range: tuple[float, float]
         rows = np.flatnonzero(bad.any(axis=1))
         raise CalibrationError(f"pose means contain NaN or infinite values at row(s) {rows[:10].tolist()} "
                                f"(axis {_AXES[int(np.flatnonzero(bad[rows[0]])[0])]} of row {rows[0]})")
-    if valid_range is not None:
-        lo, hi = valid_range
-        out = (means < lo) | (means > hi)
-        if out.any():
-            r, c = (int(v[0]) for v in np.nonzero(out))
-            raise CalibrationError(f"pose {r}: axis {_AXES[c]} = {means[r, c]:.6g} is outside the valid range "
-                                   f"[{lo}, {hi}] ({int(out.any(axis=1).sum())} pose(s) out of range)")
+    _check_valid_range(means, valid_range, "pose")
     need = MODELS[model]
     if len(means) < need:
         raise CalibrationError(f"the {model} model needs at least {need} static poses, found {len(means)}; "
@@ -347,14 +355,7 @@ class AccCalibrator:
         if np.isinf(x).any():
             r, c = (int(v[0]) for v in np.nonzero(np.isinf(x)))
             raise CalibrationError(f"sample {r}: axis {_AXES[c]} is infinite")
-        if valid_range is not None:
-            lo, hi = valid_range
-            with np.errstate(invalid="ignore"):
-                out = (x < lo) | (x > hi)
-            if out.any():
-                r, c = (int(v[0]) for v in np.nonzero(out))
-                raise CalibrationError(f"sample {r}: axis {_AXES[c]} = {x[r, c]:.6g} is outside the valid range "
-                                       f"[{lo}, {hi}] ({int(out.any(axis=1).sum())} sample(s) out of range)")
+        _check_valid_range(x, valid_range, "sample")
         if input_unit == "g" and unit_per_g is None:
             unit_per_g = 1.0
         det = StaticWindowDetector(hold_s=self.hold_s, sd_factor=self.sd_factor, max_norm_g=self.max_norm_g,

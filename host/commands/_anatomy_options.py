@@ -1,5 +1,5 @@
-"""``--leg-length``, ``--foot-length`` and ``--height`` of the gait commands, and the lengths they choose (not a
-command: the underscore keeps it out of ``--help``)."""
+"""``--leg-length``, ``--foot-length`` and ``--height`` of the gait commands, the lengths they choose, and the K
+of ``--k-file`` (not a command: the underscore keeps it out of ``--help``)."""
 
 from __future__ import annotations
 
@@ -58,6 +58,16 @@ def add_anatomy_options(parser: argparse.ArgumentParser) -> None:
 def given_anatomy_flags(args: argparse.Namespace) -> list[str]:
     """The anatomy flags given on the command line, spelled as flags."""
     return [f"--{n.replace('_', '-')}" for n in ANATOMY_FLAGS if getattr(args, n, None) is not None]
+
+
+def k_fit_from_args(args: argparse.Namespace) -> KFit | None:
+    """The step constants K of ``--k-file`` (:meth:`gaitlog.host.gait.k_calibration.KFit.load`), None without it
+    (or with an empty path, as :func:`lengths_from_args` takes it)."""
+    if not args.k_file:
+        return None
+    from gaitlog.host.gait.k_calibration import KFit
+
+    return KFit.load(args.k_file)
 
 
 def lengths_from_args(args: argparse.Namespace, *, k: KFit | None = None, k_source: str | None = None,

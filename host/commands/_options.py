@@ -12,6 +12,7 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from gaitlog.host.errors import HostError, UsageError
 from gaitlog.host.storage.json_text import json_text
@@ -107,19 +108,9 @@ def number(*, minimum: float | None = None, maximum: float | None = None, above:
         f">= {minimum:g}" if minimum is not None else "", f"> {above:g}" if above is not None else "",
         f"<= {maximum:g}" if maximum is not None else "") if b)
     wanted = f"a finite number{' ' + bounds if bounds else ''}{' ' + unit if unit else ''}"
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}") from None
-        if not (math.isfinite(value) and (minimum is None or value >= minimum)
-                and (maximum is None or value <= maximum) and (above is None or value > above)):
-            raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}")
-        return value
-
-    parse.__name__ = "number"
-    return parse
+    return _argument_type("number", float, wanted, lambda value: (
+        math.isfinite(value) and (minimum is None or value >= minimum) and (maximum is None or value <= maximum)
+        and (above is None or value > above)))
 
 
 def whole(*, minimum: int | None = None, maximum: int | None = None, why: str = "") -> Callable[[str], int]:
@@ -134,17 +125,26 @@ def whole(*, minimum: int | None = None, maximum: int | None = None, why: str = 
     bounds = (f"{minimum}..{maximum}" if minimum is not None and maximum is not None else
               f">= {minimum}" if minimum is not None else f"<= {maximum}" if maximum is not None else "")
     wanted = f"a whole number{' ' + bounds if bounds else ''}"
+    return _argument_type("whole number", int, wanted, lambda value: (
+        (minimum is None or value >= minimum) and (maximum is None or value <= maximum)), why=why)
 
-    def parse(text: str) -> int:
+
+def _argument_type(name: str, convert: Callable[[str], Any], wanted: str, accept: Callable[[Any], bool], *,
+                   why: str = "") -> Callable[[str], Any]:
+    """The argparse ``type`` of :func:`number` and :func:`whole`: ``convert(text)``, refused unless ``accept``
+    (``must be <wanted>, got '<text>'``, and ``why`` after a value ``accept`` refuses); ``name`` is its
+    ``__name__``."""
+
+    def parse(text: str) -> Any:
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}") from None
-        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+        if not accept(value):
             raise argparse.ArgumentTypeError(f"must be {wanted}, got {text!r}{why}")
         return value
 
-    parse.__name__ = "whole number"
+    parse.__name__ = name
     return parse
 
 

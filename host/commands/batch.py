@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, k_fit_from_args, lengths_from_args
 from gaitlog.host.commands._options import (
     add_json_option,
     add_max_missing_option,
@@ -85,7 +85,6 @@ def _dask_runner(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     from gaitlog.atomic_write import atomic_write_text
     from gaitlog.host.accelerometer.calibration import AccCalibration
-    from gaitlog.host.gait.k_calibration import KFit
     from gaitlog.host.studies.batch import SUMMARY_COLUMNS, batch_inputs, run_batch
     from gaitlog.host.studies.compare import rows_csv_text
 
@@ -96,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     if folder.is_dir() and out.resolve() == folder.resolve():
         raise HostError(f"--out {out}: is the input FOLDER; give an output folder other than the input folder")
     cal = AccCalibration.load(args.calibration) if args.calibration else None
-    k = KFit.load(args.k_file) if args.k_file else None
+    k = k_fit_from_args(args)
     try:
         paths = batch_inputs(folder, args.pattern)
     except (ValueError, NotImplementedError) as err:

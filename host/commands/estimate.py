@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from gaitlog.host.commands._anatomy_options import add_anatomy_options, lengths_from_args
+from gaitlog.host.commands._anatomy_options import add_anatomy_options, k_fit_from_args, lengths_from_args
 from gaitlog.host.commands._input_options import INPUT_HELP, add_input_options, read_input
 from gaitlog.host.commands._options import (
     add_force_option,
@@ -73,11 +73,7 @@ def run(args: argparse.Namespace) -> int:
                       {"INPUT": args.input, "--k-file": args.k_file, "--calibration": args.calibration},
                       force=args.force)
     data = read_input(args, args.input, arrays=False)
-    k = None
-    if args.k_file:
-        from gaitlog.host.gait.k_calibration import KFit
-
-        k = KFit.load(args.k_file)
+    k = k_fit_from_args(args)
     result = estimate_recording(data, arithmetic=args.arithmetic, k=k, adc_calibration_file=args.calibration,
                                 lengths=lengths_from_args(args, k=k, data=data), input_name=args.input)
     if outs:

@@ -15,7 +15,13 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from gaitlog.host.commands._anatomy_options import FOOT_LENGTH_M, HEIGHT_M, LEG_LENGTH_M, lengths_from_args
+from gaitlog.host.commands._anatomy_options import (
+    FOOT_LENGTH_M,
+    HEIGHT_M,
+    LEG_LENGTH_M,
+    k_fit_from_args,
+    lengths_from_args,
+)
 from gaitlog.host.commands._input_options import add_input_options, given_input_flags, read_input
 from gaitlog.host.commands._options import (
     SEED,
@@ -181,11 +187,7 @@ def step_config_from_args(args: argparse.Namespace, *, appending: bool = False, 
         return StepConfig.off(), []
     if appending and args.steps is None and not given:
         return None, []
-    k = None
-    if args.k_file is not None:
-        from gaitlog.host.gait.k_calibration import KFit
-
-        k = KFit.load(args.k_file)
+    k = k_fit_from_args(args)
     lengths = lengths_from_args(args, k=k, data=data)
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     k_fields = {}

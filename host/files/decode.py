@@ -43,20 +43,20 @@ import numpy as np
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.losses import SampleLosses, say_losses
 from gaitlog.host.files.recording import RecordGap, Recording, gaps_from_mask
-from gaitlog.protocol.commit_journal import torn_step_records
-from gaitlog.protocol.crc import crc16_xmodem, crc32
-from gaitlog.protocol.data_blocks import ADDRESS_BYTES, header_binding, payload_data_bytes, salvage_blocks
-from gaitlog.protocol.errors import ProtocolError
-from gaitlog.protocol.frames import FRAME_OVERHEAD, SYNC, FrameType, parse_stream
-from gaitlog.protocol.header import (
-    HEADER_SIZE,
-    KNOWN_HEADER_VERSIONS,
-    MAGIC,
-    PAGE_SAMPLES,
-    DeviceHeader,
-    HeaderFlag,
-    crc_span,
+from gaitlog.protocol.capture_salvage import (
+    PAYLOAD_AT,
+    BlocksFrames,
+    closed_state,
+    combined_header,
+    find_header_copies,
+    state_key,
 )
+from gaitlog.protocol.commit_journal import torn_step_records
+from gaitlog.protocol.crc import crc32
+from gaitlog.protocol.data_blocks import header_binding, verified_blocks
+from gaitlog.protocol.errors import ProtocolError
+from gaitlog.protocol.frames import PAYLOAD_OFFSETS, PAYLOAD_STRUCTS, FrameType, parse_payload, parse_stream
+from gaitlog.protocol.header import HEADER_SIZE, PAGE_SAMPLES, DeviceHeader
 from gaitlog.protocol.image import detect_format, parse_image
 from gaitlog.protocol.journal_ring import HEADER_VERSION_RING
 from gaitlog.protocol.packing import unpack_words
@@ -101,15 +101,10 @@ STEP_REASONS = REASONS[:4] + (
 )
 _S_CRC, _S_NOT_IN_FILE, _S_CHUNK, _S_UNVERIFIABLE, _S_TORN, _S_NO_TRAILER, _S_UNPLACED = 4, 5, 6, 7, 8, 9, 10
 
-_TYPE_HEADER = int(FrameType.HEADER)
 _TYPE_DATA = int(FrameType.DATA)
 _TYPE_DATA_CRC = int(FrameType.DATA_CRC)
-_TYPE_DATA_BLOCKS = int(FrameType.DATA_BLOCKS)
-_TYPE_DUMP_END = int(FrameType.DUMP_END)
-#: Differing bytes up to which two damaged copies of a header are combined (2^n candidates, each checked by the
-#: header's CRC-16 and a copy's frame CRC-16).
-COMBINE_MAX_DIFFERING_BYTES = 10
-_FLAG_LOGGING = int(HeaderFlag.LOGGING)
+_DATA_AT = PAYLOAD_OFFSETS[FrameType.DATA]["data"]  # a DATA payload's address field is before it
+_DATA_CRC_BYTES = PAYLOAD_STRUCTS[FrameType.DATA_CRC].sizeof()
 
 
 def decode_file(path: str | os.PathLike[str], *, accept_unverified: bool = False) -> Recording:
@@ -265,207 +260,147 @@ def _decode_raw(data: bytes, source: str | None, accept_unverified: bool = False
 
 def _decode_capture(data: bytes, source: str | None) -> Recording:
     frames, errors = parse_stream(data, source=source)
-    known, unreadable = _header_boundaries(data, frames, errors)
-    combined = _combined_header(data, unreadable) if not known else None
-    if combined is not None:
-        known = [(off, combined, True) for off in unreadable.tolist()]
-        unreadable = unreadable[:0]
-    if not known:
-        damaged = unreadable.size
-        raise ProtocolError(
-            f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
-            f"{len(errors)} framing errors"
-            + (f", and the {damaged} damaged one(s) do not verify (the header's own CRC-16 or the rules of section 2 "
-               "fail, or LOGGING is set and its journal is outside that CRC)" if damaged else "")
-            + ": cannot place the samples", offset=int(unreadable[0]) if damaged else 0, source=source)
-    notes = []
+    known, unreadable, combined = _capture_headers(data, frames, errors, source)
     header_offset, header_bytes, salvaged = known[-1]
     try:
         header = DeviceHeader.from_bytes(header_bytes, source=source)
     except ProtocolError as err:
-        raise err.at(offset=header_offset + 6) from err
-    if combined is not None:
-        text = (f"every HEADER frame is damaged; the header was put together from {len(known)} damaged copies "
-                "(each byte where they differ taken from the copy whose choice passes the header's CRC-16 and a "
-                "copy's frame CRC-16)")
-        notes.append(text)
-        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
-    elif salvaged:
-        text = (f"the HEADER frame at offset {header_offset} is damaged (its frame CRC-16 or framing failed); the "
-                "256-byte header it carries passed its own CRC-16 and every rule of section 2 (LOGGING clear: the "
-                "journal outside that CRC is not used) and places the samples")
-        notes.append(text)
-        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
+        raise err.at(offset=header_offset + PAYLOAD_AT) from err
+    notes: list[str] = []
+    if salvaged:  # a damaged copy's header, or one put together from two of them
+        _tell(notes, source, _repaired_header_text(len(known), header_offset, combined))
     data_frames, rejected = _checked_data_frames(frames)
     if rejected:
         notes.append(f"{rejected} DATA frame(s) of a DUMP_CHECKED stream not used: their DATA_CRC frame was damaged, "
                      "or its CRC-32 differs from the bytes received (section 4)")
     data_frames, foreign, unknown = _frames_of_header(known, unreadable, header_bytes, data_frames)
     if foreign:
-        others = {h for _, h, _ in known if _header_key(h) != _header_key(header_bytes)}
-        ids = sorted({_recording_text(h) for h in others} - {_recording_text(header_bytes)})
-        why = (f"{len(ids)} other recording(s) ({', '.join(ids)})" if ids else
-               f"{len(others)} other state(s) of this recording's header" if others else "no known header")
-        text = (f"the capture spans {len(others) + unknown + 1} device headers: decoded "
-                f"{_recording_text(header_bytes)} (HEADER frame at offset {header_offset}); {foreign} DATA frame(s) "
-                f"under {why}"
-                + (f", or under {unknown} damaged HEADER frame(s) that do not verify" if unknown else "")
-                + ", or before any HEADER frame, were not used")
-        notes.append(text)
-        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
-    cap_bytes = int(header.capacity_samples) * 4
-    step_bytes = int(header.step_memory_bytes)
-    memory = np.zeros(cap_bytes, dtype=np.uint8)
-    covered = np.zeros(cap_bytes, dtype=bool)
-    step_memory = np.full(step_bytes, 0xFF, dtype=np.uint8)
-    step_covered = np.zeros(step_bytes, dtype=bool)
-    outside = _place([(int.from_bytes(fr.payload[:4], "little"), fr.payload[4:]) for fr in data_frames], memory,
-                     covered, step_memory, step_covered)
+        _tell(notes, source, _foreign_frames_text(known, header_offset, header_bytes, foreign, unknown))
     blocks = _capture_blocks(data, frames, errors, known, unreadable, header_bytes)
-    outside += _place(blocks.pieces, memory, covered, step_memory, step_covered)
+    received, unplaced = _CaptureMemory(header), _CaptureMemory(header)
+    outside = received.place(_data_frame_pieces(data_frames)) + received.place(blocks.pieces)
+    unplaced.place(blocks.unplaced_pieces)  # where only blocks of frames no readable header places were received
     if blocks.salvaged:
         notes.append(f"{blocks.salvaged} 64-sample block(s) kept from damaged DATA_BLOCKS frames (their checks verify "
                      "at their addresses under this header, section 4.1)")
     if blocks.foreign:
         notes.append(f"{blocks.foreign} DATA_BLOCKS frame(s) under another header were not used")
-    unplaced, step_unplaced = np.zeros(cap_bytes, dtype=bool), np.zeros(step_bytes, dtype=bool)
-    _place(blocks.unplaced_pieces, np.zeros(cap_bytes, np.uint8), unplaced, np.zeros(step_bytes, np.uint8),
-           step_unplaced)  # where only blocks of frames no readable header places were received
     if blocks.unplaced:
-        text = (f"{blocks.unplaced} DATA_BLOCKS frame(s) not used although their blocks verify under this header's "
-                "binding: each lies between damaged header copies that do not verify, with no readable copy of this "
-                "header on both sides, so the memory state it was read from is not proven (section 4.1)")
-        notes.append(text)
-        warnings.warn(f"{source or 'capture'}: {text}", stacklevel=3)
+        _tell(notes, source, f"{blocks.unplaced} DATA_BLOCKS frame(s) not used although their blocks verify under "
+              "this header's binding: each lies between damaged header copies that do not verify, with no readable "
+              "copy of this header on both sides, so the memory state it was read from is not proven (section 4.1)")
     if outside:
-        notes.append(f"{outside} DATA frame(s) addressed outside the {cap_bytes}-byte sample memory and the "
-                     f"{step_bytes}-byte step memory were ignored")
+        notes.append(f"{outside} DATA frame(s) addressed outside the {received.covered.size}-byte sample memory and "
+                     f"the {received.step_covered.size}-byte step memory were ignored")
     if errors:
         notes.append(f"{len(errors)} framing error(s) in the capture (their bytes were not used)")
-    slot_ok = covered.reshape(-1, 4).all(axis=1)
-    slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
-    slot_reason[unplaced.reshape(-1, 4).any(axis=1) & ~slot_ok] = _R_UNPLACED
-    step_reason = np.full(step_bytes, _R_NOT_RECEIVED, np.int8)
-    step_reason[step_unplaced & ~step_covered] = _S_UNPLACED
-    header = _interrupted_run(header, step_memory, source, notes)
-    steps = _assemble_steps(header, step_memory, step_covered, step_reason, source, notes)
-    return _assemble(header, memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
+    slot_ok, slot_reason, step_reason = received.reasons(unplaced)
+    header = _interrupted_run(header, received.step_memory, source, notes)
+    steps = _assemble_steps(header, received.step_memory, received.step_covered, step_reason, source, notes)
+    return _assemble(header, received.memory, slot_ok, slot_reason, source, "wire capture", notes, steps)
 
 
-def _place(pieces: list[tuple[int, bytes]], memory: np.ndarray, covered: np.ndarray, step_memory: np.ndarray,
-           step_covered: np.ndarray) -> int:
-    """Write ``(address, bytes)`` pieces into the sample or the step memory and mark them covered; return how many
-    were addressed outside both."""
-    outside = 0
-    for address, chunk_bytes in pieces:
-        where = memory_region(address, len(chunk_bytes), sample_memory_bytes=covered.size,
-                              step_memory_bytes=step_covered.size)
-        if where is None:
-            outside += 1
-            continue
-        region, offset = where
-        target, seen = (memory, covered) if region == "samples" else (step_memory, step_covered)
-        target[offset: offset + len(chunk_bytes)] = np.frombuffer(chunk_bytes, dtype=np.uint8)
-        seen[offset: offset + len(chunk_bytes)] = True
-    return outside
+def _tell(notes: list[str], source: str | None, text: str) -> None:
+    """A note of the capture, said in a warning too (its stack level: the caller of :func:`decode_bytes`, when
+    called from :func:`_decode_capture`)."""
+    notes.append(text)
+    warnings.warn(f"{source or 'capture'}: {text}", stacklevel=4)
 
 
-def _header_boundaries(data: bytes, frames: list, errors: list
-                       ) -> tuple[list[tuple[int, bytes, bool]], np.ndarray]:
-    """Where a device header starts in a capture: ``(frame offset, header bytes, salvaged)`` of the headers
-    that can be read, in stream order, and the frame offsets of those that cannot.
+def _capture_headers(data: bytes, frames: list, errors: list, source: str | None
+                     ) -> tuple[list[tuple[int, bytes, bool]], np.ndarray, bool]:
+    """The device headers of a capture (:func:`~gaitlog.protocol.capture_salvage.find_header_copies`), the offsets
+    of the damaged copies that do not verify, and whether the header was put together from two of them
+    (:func:`~gaitlog.protocol.capture_salvage.combined_header`, when no copy can be read).
 
-    An intact HEADER frame gives its payload (``salvaged`` False). In the bytes of no intact frame, a damaged
-    HEADER frame is looked for: the magic ``GLOG`` (its payload) or a sync with type 0x86. Its 256 bytes are
-    used (``salvaged`` True) only when they pass the header's own CRC-16 and every rule of ``PROTOCOL.md``
-    section 2 and LOGGING is clear (version 2 keeps the journal, which a decoder would then need, outside
-    that CRC); otherwise it is unreadable: the DATA frames after it belong to a header nobody can read, and
-    are not used under an earlier one. Vectorised, so that a hostile file full of ``GLOG`` costs little.
+    Raises
+    ------
+    ProtocolError
+        No header can be read nor put together: nothing places the samples.
     """
-    n = len(data)
-    known: dict[int, tuple[bytes, bool]] = {}
-    for fr in frames:
-        if fr.type == _TYPE_HEADER and len(fr.payload) == HEADER_SIZE:
-            known[fr.offset] = (bytes(fr.payload), False)
-    b = np.frombuffer(data, dtype=np.uint8)
-    at = np.flatnonzero(np.all([b[k: n - 3 + k] == MAGIC[k] for k in range(4)], axis=0)) if n >= 4 else \
-        np.zeros(0, np.int64)
-    typed = [e.offset + 6 for e in errors
-             if data[e.offset: e.offset + 2] == SYNC and data[e.offset + 2: e.offset + 3] == bytes([_TYPE_HEADER])]
-    if typed:
-        at = np.sort(np.concatenate([at, np.asarray(typed, dtype=np.int64)]))
-        at = at[np.r_[True, at[1:] != at[:-1]]]
-    # not inside an intact frame (intact frames do not overlap: the parser consumed each)
-    starts = np.array([fr.offset for fr in frames], dtype=np.int64)
-    ends = starts + np.array([8 + len(fr.payload) for fr in frames], dtype=np.int64)
-    k = np.searchsorted(starts, at, side="right") - 1
-    at = at[(at < n) & ~((k >= 0) & (at < ends[np.maximum(k, 0)] if ends.size else False))]
-    # the fixed bytes of section 2 (a known header version, protocol 1, 1-8 axes: 3 or a channel map's, P32)
-    # before any CRC or parse
-    idx = np.flatnonzero(at + HEADER_SIZE <= n)
-    w = at[idx]
-    idx = idx[np.isin(b[w + 4], KNOWN_HEADER_VERSIONS) & (b[w + 5] == 1) & (b[w + 17] >= 1) & (b[w + 17] <= 8)
-              & (b[w + 18] == 1)]
-    readable = np.zeros(at.size, dtype=bool)
-    for i in idx.tolist():
-        payload_at = int(at[i])
-        raw = data[payload_at: payload_at + HEADER_SIZE]
-        if _closed_header(raw):
-            known[payload_at - 6] = (raw, True)
-            readable[i] = True
-    unreadable = at[~readable] - 6
-    return [(off, raw, salvaged) for off, (raw, salvaged) in sorted(known.items())], unreadable
+    known, unreadable = find_header_copies(data, frames, errors)
+    if known:
+        return known, unreadable, False
+    combined = combined_header(data, unreadable)
+    if combined is not None:
+        return [(off, combined, True) for off in unreadable.tolist()], unreadable[:0], True
+    damaged = unreadable.size
+    raise ProtocolError(
+        f"wire capture has no intact HEADER frame (type 0x86) among {len(frames)} intact frames and "
+        f"{len(errors)} framing errors"
+        + (f", and the {damaged} damaged one(s) do not verify (the header's own CRC-16 or the rules of section 2 "
+           "fail, or LOGGING is set and its journal is outside that CRC)" if damaged else "")
+        + ": cannot place the samples", offset=int(unreadable[0]) if damaged else 0, source=source)
 
 
-def _closed_header(raw: bytes) -> bool:
-    """``raw`` is a header that a salvage may use: its own CRC-16 verifies, it parses, and it is version 1 or has
-    LOGGING clear (section 2)."""
-    if crc16_xmodem(crc_span(raw[:-2])) != int.from_bytes(raw[-2:], "big"):
-        return False
-    try:
-        h = DeviceHeader.from_bytes(raw)
-    except ProtocolError:
-        return False
-    return h.header_version == 1 or not h.logging
+def _repaired_header_text(n_copies: int, header_offset: int, combined: bool) -> str:
+    """What the note says of a header read from a damaged HEADER frame, or put together from ``n_copies``."""
+    if combined:
+        return (f"every HEADER frame is damaged; the header was put together from {n_copies} damaged copies "
+                "(each byte where they differ taken from the copy whose choice passes the header's CRC-16 and a "
+                "copy's frame CRC-16)")
+    return (f"the HEADER frame at offset {header_offset} is damaged (its frame CRC-16 or framing failed); the "
+            "256-byte header it carries passed its own CRC-16 and every rule of section 2 (LOGGING clear: the "
+            "journal outside that CRC is not used) and places the samples")
 
 
-def _header_key(header_bytes: bytes) -> bytes:
-    """The bytes that name a memory's state: the whole header, or with LOGGING clear (version 2) the part its
-    CRC covers (the journal is then meaningless, section 2.4)."""
-    if len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING:
-        return crc_span(header_bytes[:-2]) + header_bytes[-2:]
-    return header_bytes
+def _foreign_frames_text(known: list[tuple[int, bytes, bool]], header_offset: int, header_bytes: bytes, foreign: int,
+                         unknown: int) -> str:
+    """What the note says of the ``foreign`` DATA frames not used: under other headers, under ``unknown`` damaged
+    ones, or before any."""
+    others = {h for _, h, _ in known if state_key(h) != state_key(header_bytes)}
+    ids = sorted({_recording_text(h) for h in others} - {_recording_text(header_bytes)})
+    why = (f"{len(ids)} other recording(s) ({', '.join(ids)})" if ids else
+           f"{len(others)} other state(s) of this recording's header" if others else "no known header")
+    return (f"the capture spans {len(others) + unknown + 1} device headers: decoded "
+            f"{_recording_text(header_bytes)} (HEADER frame at offset {header_offset}); {foreign} DATA frame(s) "
+            f"under {why}"
+            + (f", or under {unknown} damaged HEADER frame(s) that do not verify" if unknown else "")
+            + ", or before any HEADER frame, were not used")
 
 
-def _combined_header(data: bytes, unreadable: np.ndarray) -> bytes | None:
-    """A header put together from two damaged HEADER frames (section 4.1): where the copies differ, each choice
-    of bytes is tried; it is used only when exactly one choice passes the header's own CRC-16, a copy's frame
-    CRC-16 (over that copy's type, seq and length) and the rules of section 2 (LOGGING clear). None otherwise."""
-    copies = [int(off) for off in unreadable.tolist() if off >= 0 and off + FRAME_OVERHEAD + HEADER_SIZE <= len(data)]
-    for i, a in enumerate(copies):
-        for b in copies[i + 1:]:
-            found = _combine_pair(data, a, b)
-            if found is not None:
-                return found
-    return None
+def _data_frame_pieces(data_frames: list) -> list[tuple[int, bytes]]:
+    """``(address, bytes)`` of DATA frames (section 3.1)."""
+    return [(int(fields["address"]), fields["data"]) for fields in map(parse_payload, data_frames)]
 
 
-def _combine_pair(data: bytes, a: int, b: int) -> bytes | None:
-    pa = np.frombuffer(data, np.uint8, HEADER_SIZE, a + 6)
-    pb = np.frombuffer(data, np.uint8, HEADER_SIZE, b + 6)
-    differ = np.flatnonzero(pa != pb)
-    if not 0 < differ.size <= COMBINE_MAX_DIFFERING_BYTES:
-        return None
-    heads = [(data[o + 2: o + 6], int.from_bytes(data[o + 6 + HEADER_SIZE: o + 8 + HEADER_SIZE], "big")) for o in (a, b)]
-    good = set()
-    trial = pa.copy()
-    for choice in range(1 << differ.size):
-        pick = np.array([(choice >> k) & 1 for k in range(differ.size)], dtype=bool)
-        trial[differ] = np.where(pick, pb[differ], pa[differ])
-        raw = trial.tobytes()
-        if any(crc16_xmodem(raw, crc16_xmodem(head)) == stored for head, stored in heads) and _closed_header(raw):
-            good.add(raw)
-    return good.pop() if len(good) == 1 else None
+class _CaptureMemory:
+    """The sample memory and the step memory as the frames of a capture carried them, and which bytes they
+    carried (``covered``)."""
+
+    def __init__(self, header: DeviceHeader) -> None:
+        cap_bytes, step_bytes = int(header.capacity_samples) * 4, int(header.step_memory_bytes)
+        self.memory = np.zeros(cap_bytes, dtype=np.uint8)
+        self.covered = np.zeros(cap_bytes, dtype=bool)
+        self.step_memory = np.full(step_bytes, 0xFF, dtype=np.uint8)
+        self.step_covered = np.zeros(step_bytes, dtype=bool)
+
+    def place(self, pieces: list[tuple[int, bytes]]) -> int:
+        """Write ``(address, bytes)`` pieces into the sample or the step memory and mark them covered; return how
+        many were addressed outside both."""
+        outside = 0
+        for address, chunk_bytes in pieces:
+            where = memory_region(address, len(chunk_bytes), sample_memory_bytes=self.covered.size,
+                                  step_memory_bytes=self.step_covered.size)
+            if where is None:
+                outside += 1
+                continue
+            region, offset = where
+            target, seen = ((self.memory, self.covered) if region == "samples" else
+                            (self.step_memory, self.step_covered))
+            target[offset: offset + len(chunk_bytes)] = np.frombuffer(chunk_bytes, dtype=np.uint8)
+            seen[offset: offset + len(chunk_bytes)] = True
+        return outside
+
+    def reasons(self, unplaced: _CaptureMemory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per sample slot whether it was received (all four bytes), and the reason of each slot and each step
+        memory byte that was not: not received, or received only in frames ``unplaced`` holds."""
+        slot_ok = self.covered.reshape(-1, 4).all(axis=1)
+        slot_reason = np.full(slot_ok.size, _R_NOT_RECEIVED, dtype=np.int8)
+        slot_reason[unplaced.covered.reshape(-1, 4).any(axis=1) & ~slot_ok] = _R_UNPLACED
+        step_reason = np.full(self.step_covered.size, _R_NOT_RECEIVED, np.int8)
+        step_reason[unplaced.step_covered & ~self.step_covered] = _S_UNPLACED
+        return slot_ok, slot_reason, step_reason
 
 
 class _CaptureBlocks:
@@ -498,14 +433,14 @@ def _belongs_to(header_bytes: bytes, known: list, unreadable: np.ndarray):
     (version 2, LOGGING clear): such a state never comes back once the memory changed (START draws a new recording
     number and nonce, ERASE zeroes the counters), so every header between is of it too (a retried stream whose
     header copy and the copy before it were both damaged)."""
-    key = _header_key(header_bytes)
+    key = state_key(header_bytes)
     h_off = np.array([off for off, _, _ in known] + unreadable.tolist(), dtype=np.int64)
-    h_ok = np.array([_header_key(h) == key for _, h, _ in known] + [False] * unreadable.size, dtype=bool)
+    h_ok = np.array([state_key(h) == key for _, h, _ in known] + [False] * unreadable.size, dtype=bool)
     order = np.argsort(h_off, kind="stable")
     h_off, h_ok = h_off[order], h_ok[order]
-    closed = len(header_bytes) == HEADER_SIZE and header_bytes[4] != 1 and not header_bytes[19] & _FLAG_LOGGING
+    closed = closed_state(header_bytes)
     r_off = np.array([off for off, _, _ in known], dtype=np.int64)
-    r_ok = np.array([_header_key(h) == key for _, h, _ in known], dtype=bool)
+    r_ok = np.array([state_key(h) == key for _, h, _ in known], dtype=bool)
 
     def belongs(offset: int) -> bool:
         k = int(np.searchsorted(h_off, offset, side="right")) - 1
@@ -519,121 +454,47 @@ def _belongs_to(header_bytes: bytes, known: list, unreadable: np.ndarray):
 
 def _capture_blocks(data: bytes, frames: list, errors: list, known: list, unreadable: np.ndarray,
                     header_bytes: bytes) -> _CaptureBlocks:
-    """Blocks of intact DATA_BLOCKS frames, and of damaged ones found again inside their frames (section 4.1).
+    """Blocks of intact DATA_BLOCKS frames, and of damaged ones found again (section 4.1,
+    :class:`~gaitlog.protocol.capture_salvage.BlocksFrames`).
 
     A frame belongs to the header when the nearest device header before it or after it (the copy a DUMP_BLOCKS
-    stream ends with) is readable and of the same memory state; every block must verify under that header's
-    ``binding``. A damaged frame is looked for at each sync with type 0x8A in the errors and where an intact
-    frame ends and no intact frame follows (a damaged sync); its blocks are tried at the addresses its own
-    address field and its intact neighbours imply, for the extent its length field and the next intact frame
-    imply.
+    stream ends with) is readable and of the same memory state (:func:`_belongs_to`); every block must verify
+    under that header's ``binding``.
     """
     out = _CaptureBlocks()
     binding = header_binding(header_bytes)
     belongs = _belongs_to(header_bytes, known, unreadable)
-    intact = [fr for fr in frames if fr.type == _TYPE_DATA_BLOCKS and payload_data_bytes(len(fr.payload))]
-    spans = []  # (stream offset, end, first address, data bytes) of the intact DATA_BLOCKS frames
-    for fr in intact:
-        address = int.from_bytes(fr.payload[:ADDRESS_BYTES], "little")
-        spans.append((fr.offset, fr.offset + FRAME_OVERHEAD + len(fr.payload), address,
-                      payload_data_bytes(len(fr.payload))))
-        out.take(salvage_blocks(binding, fr.payload[ADDRESS_BYTES:], [address]).pieces(), belongs(fr.offset))
-    starts_all = np.array([fr.offset for fr in frames], dtype=np.int64)
-    ends_all = starts_all + np.array([FRAME_OVERHEAD + len(fr.payload) for fr in frames], dtype=np.int64)
-    starts_set = set(starts_all.tolist())
-    if not _holds_blocks(data, frames, errors):  # a capture of protocol version 1: decoded as before
-        return out
-    todo = {e.offset for e in errors if data[e.offset: e.offset + 2] == SYNC}
-    todo |= {int(e) for e in ends_all.tolist() if e < len(data) and e not in starts_set}
-    ends_of_streams = [(fr.offset, int.from_bytes(fr.payload[:4], "little"), int.from_bytes(fr.payload[8:10], "little"))
-                       for fr in frames if fr.type == _TYPE_DUMP_END and len(fr.payload) == 10]
-    lengths = [FRAME_OVERHEAD + len(fr.payload) for fr in intact]
-    frame_bytes = max(set(lengths), key=lengths.count) if lengths else 0  # the stream's usual frame
-    done: set[int] = set()
-    while todo:
-        s = min(todo)
-        todo.discard(s)
-        done.add(s)
-        if s in starts_set or not belongs(s):
-            continue
-        found, ends = _salvage_frame(data, s, starts_all, spans, binding, frame_bytes, ends_of_streams)
-        out.salvaged += len(found)
-        out.pieces += found
-        if found:  # the next frame may be damaged too, its sync included: look where this one ends
-            todo |= {e for e in ends if e < len(data) and e not in done}
+    stream = BlocksFrames(data, frames, errors)
+    for fr in stream.intact:
+        out.take(verified_blocks(binding, fr.payload).pieces(), belongs(fr.offset))
+    found = stream.salvage(binding, belongs)
+    out.salvaged += len(found)
+    out.pieces += found
     return out
-
-
-def _holds_blocks(data: bytes, frames: list, errors: list) -> bool:
-    """The capture is of DUMP_BLOCKS streams: an intact DATA_BLOCKS frame, a damaged one whose sync and type
-    survived, or a HEADER frame followed by DUMP_END (how a DUMP_BLOCKS stream ends)."""
-    if any(fr.type == _TYPE_DATA_BLOCKS for fr in frames):
-        return True
-    if any(data[e.offset: e.offset + 3] == SYNC + bytes([_TYPE_DATA_BLOCKS]) for e in errors):
-        return True
-    return any(a.type == _TYPE_HEADER and b.type == _TYPE_DUMP_END for a, b in zip(frames, frames[1:]))
-
-
-def _salvage_frame(data: bytes, s: int, starts_all: np.ndarray, spans: list, binding: int, frame_bytes: int,
-                   ends_of_streams: list) -> tuple[list, set[int]]:
-    """The verified blocks of a damaged DATA_BLOCKS frame starting at stream offset ``s``, and the ends tried
-    (its length field's when the frame it gives ends where the next frame starts, else that, the stream's usual
-    frame length and the next intact frame; in that case only the blocks before the first bad one are kept).
-    Addresses tried: its address field, the intact DATA_BLOCKS frames before and after it, and the first address
-    of the stream of the next intact DUMP_END."""
-    k = int(np.searchsorted(starts_all, s, side="right"))
-    next_start = int(starts_all[k]) if k < starts_all.size else len(data)
-    length = int.from_bytes(data[s + 4: s + 6], "little") if s + 6 <= len(data) else 0
-    end = s + FRAME_OVERHEAD + length
-    # its length field ends it where the next frame (or the capture) starts: no byte dropped or inserted inside
-    whole = bool(payload_data_bytes(length)) and end <= next_start and (
-        end == next_start or end == len(data) or data[end: end + 2] == SYNC  # the next frame: its sync or its type
-        or data[end + 2: end + 3] in (bytes([_TYPE_HEADER]), bytes([_TYPE_DUMP_END]), bytes([_TYPE_DATA_BLOCKS])))
-    extents = {end} if whole else {next_start}
-    for size in (() if whole else (FRAME_OVERHEAD + length, frame_bytes)):
-        if size > FRAME_OVERHEAD and payload_data_bytes(size - FRAME_OVERHEAD) and s + size <= next_start:
-            extents.add(s + size)
-    before = [sp for sp in spans if sp[1] <= s]
-    after = [sp for sp in spans if sp[0] >= s + FRAME_OVERHEAD]
-    found: dict[int, bytes] = {}
-    for end in sorted(extents):
-        body = data[s + 6 + ADDRESS_BYTES: end - 2]
-        n_data = payload_data_bytes(ADDRESS_BYTES + len(body)) or 0
-        addresses = [int.from_bytes(data[s + 6: s + 10], "little")] if s + 10 <= len(data) else []
-        if before:
-            prev_end = before[-1][2] + before[-1][3]
-            addresses += [prev_end, prev_end + before[-1][3]]
-        if after:
-            addresses.append(after[0][2] - n_data)
-        stream_end = next((e for e in ends_of_streams if e[0] > s), None)
-        if stream_end is not None:  # the stream's first frame
-            addresses.append(stream_end[1])
-        got = salvage_blocks(binding, body, addresses)
-        # a frame whose extent is uncertain (bytes dropped or inserted, or its length field hit) may be shifted
-        # after its first bad block: only the blocks before it are certain to be where they verify
-        for address, chunk in (got if whole else got.leading()).pieces():
-            found.setdefault(address, chunk)
-    return list(found.items()), extents
 
 
 def _checked_data_frames(frames: list) -> tuple[list, int]:
     """The DATA frames to use, and how many were rejected: in a capture holding DATA_CRC frames (a DUMP_CHECKED
-    stream, section 4) a DATA frame is used only when the next intact frame is a DATA_CRC with its address and
-    the CRC-32 of its data bytes; in one without (DUMP, READ) on its CRC-16 (as a host without DUMP_CHECKED)."""
+    stream, section 4) a DATA frame is used only when the next intact frame confirms it (:func:`_confirmed`); in
+    one without (DUMP, READ) on its CRC-16 (as a host without DUMP_CHECKED)."""
     checked = any(fr.type == _TYPE_DATA_CRC for fr in frames)
     out, rejected = [], 0
     for k, fr in enumerate(frames):
-        if fr.type != _TYPE_DATA or len(fr.payload) < 4:
+        if fr.type != _TYPE_DATA or len(fr.payload) < _DATA_AT:
             continue
-        if checked:
-            nxt = frames[k + 1] if k + 1 < len(frames) else None
-            if (nxt is None or nxt.type != _TYPE_DATA_CRC or len(nxt.payload) != 8
-                    or nxt.payload[:4] != fr.payload[:4]
-                    or int.from_bytes(nxt.payload[4:], "little") != crc32(fr.payload[4:])):
-                rejected += 1
-                continue
+        if checked and not _confirmed(fr, frames[k + 1] if k + 1 < len(frames) else None):
+            rejected += 1
+            continue
         out.append(fr)
     return out, rejected
+
+
+def _confirmed(data_frame, following) -> bool:
+    """``following`` is a DATA_CRC frame with the DATA frame's address and the CRC-32 of its data bytes."""
+    if following is None or following.type != _TYPE_DATA_CRC or len(following.payload) != _DATA_CRC_BYTES:
+        return False
+    check, sent = parse_payload(following), parse_payload(data_frame)
+    return check["address"] == sent["address"] and check["crc32"] == crc32(sent["data"])
 
 
 def _recording_text(header_bytes: bytes) -> str:
@@ -652,9 +513,9 @@ def _frames_of_header(known: list[tuple[int, bytes, bool]], unreadable: np.ndarr
     how many others there were, and how many damaged HEADER frames that do not verify there were: frames
     under another header belong to another recording (or another state of the memory), frames under a
     damaged one to a header nobody can read, frames before the first HEADER frame to no known one (section 4)."""
-    key = _header_key(header_bytes)
+    key = state_key(header_bytes)
     starts = np.concatenate([np.array([off for off, _, _ in known], dtype=np.int64), unreadable.astype(np.int64)])
-    same = np.concatenate([np.array([_header_key(h) == key for _, h, _ in known], dtype=bool),
+    same = np.concatenate([np.array([state_key(h) == key for _, h, _ in known], dtype=bool),
                            np.zeros(unreadable.size, dtype=bool)])
     order = np.argsort(starts, kind="stable")
     starts, same = starts[order], same[order]

@@ -283,16 +283,16 @@ def verify_step_records(recording: Recording) -> ReplayCheck | None:
 # The on-line algorithm on a recording's codes, as a host StepTable
 
 
-def step_config_for(*, leg_length_m: float, foot_length_m: float, calibration: Any = None) -> Any:
-    """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``calibration``.
+def step_config_for(*, leg_length_m: float, foot_length_m: float, k_fit: Any = None) -> Any:
+    """The on-line algorithm's step configuration: the anatomy and, when given, the K of ``k_fit``.
 
-    ``calibration`` is a :class:`~gaitlog.host.gait.k_calibration.KFit` (K applied by the algorithm, in
+    ``k_fit`` is a :class:`~gaitlog.host.gait.k_calibration.KFit` (K applied by the algorithm, in
     its arithmetic) or None (raw lengths, K = 1, records flagged UNCALIBRATED). Raises :class:`HostError`
     when a value does not fit the header's step configuration block (PROTOCOL.md 2.2).
     """
     kw: dict[str, Any] = dict(step_format=ONLINE_ALGORITHM_VERSION, leg_length_m=float(leg_length_m), foot_length_m=float(foot_length_m))
-    if calibration is not None:
-        kw.update(calibration.step_constants())
+    if k_fit is not None:
+        kw.update(k_fit.step_constants())
     cfg = StepConfig(**kw)
     try:
         cfg.raw
@@ -306,7 +306,7 @@ _FEED_SAMPLES = 1 << 16
 
 
 def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_m: float, foot_length_m: float,
-                      calibration: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
+                      k_fit: Any = None, adc_calibration: Any = None, adc_bits: int = 10,
                       arithmetic: str = "fixed", valid: np.ndarray | None = None,
                       run_starts: np.ndarray | None = None, t0_s: float = 0.0,
                       algorithm: Callable[..., OnlineStepAlgorithm] = OnlineStepAlgorithm,
@@ -317,7 +317,7 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     ----------
     codes
         ``(n, 3)`` ADC codes (``adc_bits`` bits).
-    calibration
+    k_fit
         :class:`~gaitlog.host.gait.k_calibration.KFit` (the one K of the comparison) or None (raw).
     adc_calibration
         The device calibration (a :class:`gaitlog.protocol.header.CalibrationSlot`) or None for the nominal map.
@@ -333,13 +333,13 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     Returns
     -------
     table, algorithm
-        The table (lengths with K when ``calibration`` is given, else the raw values in ``raw_m``) and the
+        The table (lengths with K when ``k_fit`` is given, else the raw values in ``raw_m``) and the
         algorithm after the run (``saturations``, ``cycles``, ``arithmetic_context()``).
     """
     c = np.asarray(codes)
     n = c.shape[0]
     ok = np.ones(n, bool) if valid is None else np.asarray(valid, bool)
-    cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=calibration)
+    cfg = step_config_for(leg_length_m=leg_length_m, foot_length_m=foot_length_m, k_fit=k_fit)
     alg = algorithm(sampling_rate_hz=sampling_rate_hz, step_config=cfg, calibration=adc_calibration,
                     arithmetic=arithmetic, adc_bits=adc_bits)
     # stretches of present samples, cut at every run start: [a, b) with b the next cut or missing sample
@@ -358,5 +358,5 @@ def online_step_table(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
             parts.append(alg.feed(c[lo:min(b, lo + _FEED_SAMPLES)].astype(np.int64), offset=a))
         parts.append(alg.flush(offset=a))
     steps = (OnlineSteps.concatenate(parts) if parts else
-             OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, calibration is not None))
+             OnlineSteps.empty(arithmetic, alg.sampling_rate_hz, k_fit is not None))
     return StepTable.from_online(steps, t0_s=t0_s), alg

@@ -157,34 +157,13 @@ class KFit(VersionedJson):
     def fields_from_dict(cls, data: dict[str, object], *, source: str) -> KFit:
         """Rebuild from the file's keys; :class:`HostError` naming ``source`` on a missing, extra or bad field."""
         try:
-            cal = cls(**data)  # type: ignore[arg-type]
+            fit = cls(**data)  # type: ignore[arg-type]
         except TypeError as err:
             raise HostError(f"{source}: bad fields: {err}") from err
-        for name in ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m", "m4_exponent"):
-            if isinstance(getattr(cal, name), bool) or not isinstance(getattr(cal, name), (int, float)):
-                raise HostError(f"{source}: key {name!r} must be a number")
-        if cal.calibrated_range is not None:
-            rng = cal.calibrated_range
-            if not isinstance(rng, dict) or set(rng) != set(RANGE_QUANTITIES) or not all(
-                    isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                                for x in v) for v in rng.values()):
-                raise HostError(f"{source}: key 'calibrated_range' must map {', '.join(RANGE_QUANTITIES)} to "
-                                "[min, max]")
-        if cal.shrinkage is not None:
-            sh = cal.shrinkage
-            if not (isinstance(sh, dict) and set(sh) == set(SHRINKAGE_KEYS) and isinstance(sh["source"], str)
-                    and all(isinstance(sh[k], dict) and set(sh[k]) == {"M1", "M2", "M4"} and all(
-                        isinstance(x, (int, float)) and not isinstance(x, bool) for x in sh[k].values())
-                            for k in SHRINKAGE_KEYS if k != "source")):
-                raise HostError(f"{source}: key 'shrinkage' must map source to text and "
-                                f"{', '.join(k for k in SHRINKAGE_KEYS if k != 'source')} to {{M1, M2, M4: number}}")
-        if not (math.isfinite(cal.m4_exponent) and 0 < cal.m4_exponent <= 1):
-            raise HostError(f"{source}: key 'm4_exponent' must be in (0, 1], got {cal.m4_exponent!r}")
-        for name in ("leg_length_m", "foot_length_m"):
-            if not (math.isfinite(getattr(cal, name)) and getattr(cal, name) > 0):
-                raise HostError(f"{source}: key {name!r} must be a positive length in metres, got "
-                                f"{getattr(cal, name)!r}")
-        return cal
+        problem = _field_problem(fit)
+        if problem is not None:
+            raise HostError(f"{source}: {problem}")
+        return fit
 
     @classmethod
     def from_dict(cls, data: object, *, source: str | None = None) -> Self:
@@ -236,6 +215,50 @@ class KFit(VersionedJson):
         return ("calibrated on steps of " + f"{r['duration_s'][0]:.2f}-{r['duration_s'][1]:.2f} s, "
                 + ", ".join(f"{e} {r[f'length_{e.lower()}_m'][0]:.2f}-{r[f'length_{e.lower()}_m'][1]:.2f} m"
                             for e in RANGE_OF_ESTIMATOR))
+
+
+#: The fields of :class:`KFit` that are numbers in its file.
+_NUMBER_FIELDS = ("k_m1", "k_m2", "k_m4", "k1_m5_m_s", "k2_m5_m", "leg_length_m", "foot_length_m", "m4_exponent")
+#: The estimators of :attr:`KFit.shrinkage`'s per-estimator maps.
+_SHRUNK_ESTIMATORS = {"M1", "M2", "M4"}
+
+
+def _field_problem(fit: KFit) -> str | None:
+    """What is wrong with the fields of a K calibration read from a file (the first thing, as the message's
+    text), or None."""
+    for name in _NUMBER_FIELDS:
+        if not _is_number(getattr(fit, name)):
+            return f"key {name!r} must be a number"
+    if fit.calibrated_range is not None and not _is_range_map(fit.calibrated_range):
+        return f"key 'calibrated_range' must map {', '.join(RANGE_QUANTITIES)} to [min, max]"
+    if fit.shrinkage is not None and not _is_shrinkage(fit.shrinkage):
+        return (f"key 'shrinkage' must map source to text and "
+                f"{', '.join(k for k in SHRINKAGE_KEYS if k != 'source')} to {{M1, M2, M4: number}}")
+    if not (math.isfinite(fit.m4_exponent) and 0 < fit.m4_exponent <= 1):
+        return f"key 'm4_exponent' must be in (0, 1], got {fit.m4_exponent!r}"
+    for name in ("leg_length_m", "foot_length_m"):
+        length_m = getattr(fit, name)
+        if not (math.isfinite(length_m) and length_m > 0):
+            return f"key {name!r} must be a positive length in metres, got {length_m!r}"
+    return None
+
+
+def _is_number(value: object) -> bool:
+    """A JSON number: an int or a float, not a bool."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_range_map(value: object) -> bool:
+    """``{quantity: [min, max]}`` over exactly :data:`RANGE_QUANTITIES`, numbers."""
+    return isinstance(value, dict) and set(value) == set(RANGE_QUANTITIES) and all(
+        isinstance(pair, list) and len(pair) == 2 and all(map(_is_number, pair)) for pair in value.values())
+
+
+def _is_shrinkage(value: object) -> bool:
+    """Exactly the keys :data:`SHRINKAGE_KEYS`: ``source`` a text, each other ``{M1, M2, M4: number}``."""
+    return (isinstance(value, dict) and set(value) == set(SHRINKAGE_KEYS) and isinstance(value["source"], str)
+            and all(isinstance(value[k], dict) and set(value[k]) == _SHRUNK_ESTIMATORS
+                    and all(map(_is_number, value[k].values())) for k in SHRINKAGE_KEYS if k != "source"))
 
 
 def _range_of(tables: Sequence[StepTable], k: dict[str, Any]) -> dict[str, list[float]]:

@@ -52,7 +52,7 @@ class StepPipeline:
     ----------
     leg_length_m, foot_length_m
         Anatomical inputs of M1-M3 (see :func:`gaitlog.host.gait.anthropometry.anatomical_lengths`).
-    calibration
+    k_fit
         Per-subject constants (K of M1/M2/M4, K1/K2 of M5), or None.
     detector
         Event detector (default parameters when None).
@@ -93,7 +93,7 @@ class StepPipeline:
         *,
         leg_length_m: float,
         foot_length_m: float,
-        calibration: KFit | None = None,
+        k_fit: KFit | None = None,
         detector: GaitEventDetector | None = None,
         gravity_window_s: float = 4.0,
         max_fill_s: float = MAX_INTERPOLATED_GAP_S,
@@ -101,14 +101,14 @@ class StepPipeline:
     ) -> None:
         self.leg_length_m = leg_length_m
         self.foot_length_m = foot_length_m
-        self.calibration = calibration
+        self.k_fit = k_fit
         self.detector = detector
         self.gravity_window_s = gravity_window_s
         self.max_fill_s = max_fill_s
         self.m3_double_support = m3_double_support
 
     def __repr__(self) -> str:
-        k = "with K" if self.calibration is not None else "raw (no K)"
+        k = "with K" if self.k_fit is not None else "raw (no K)"
         done = f", fitted: {self.steps_.n_steps} steps" if hasattr(self, "steps_") else ""
         return (f"StepPipeline(leg {self.leg_length_m:.3f} m, foot {self.foot_length_m:.3f} m, {k}, "
                 f"gravity window {self.gravity_window_s:g} s{done})")
@@ -147,7 +147,7 @@ class StepPipeline:
         table, self.n_impossible_ = step_table(
             ev.foot_flat_, ev.heel_strike_, ev.toe_off_, ev.bout_, lambda lo, hi: (av[lo:hi], ok[lo:hi], lp[lo:hi]),
             sampling_rate_hz=sampling_rate_hz, t0_s=t0_s, leg_length_m=self.leg_length_m,
-            foot_length_m=self.foot_length_m, calibration=self.calibration, m3_double_support=self.m3_double_support)
+            foot_length_m=self.foot_length_m, k_fit=self.k_fit, m3_double_support=self.m3_double_support)
         if self.n_impossible_:
             self.notes_.append(impossible_note(self.n_impossible_, self.leg_length_m))
         return table
@@ -169,7 +169,7 @@ def impossible_note(n_impossible: int, leg_length_m: float) -> str:
 def step_table(ff: np.ndarray, hs: np.ndarray, toe_off: np.ndarray, bout: np.ndarray,
                take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]], *, sampling_rate_hz: float,
                t0_s: float, leg_length_m: float, foot_length_m: float,
-               calibration: KFit | None, m3_double_support: str = "foot") -> tuple[StepTable, int]:
+               k_fit: KFit | None, m3_double_support: str = "foot") -> tuple[StepTable, int]:
     """The step table (steps 3 and 4 of the module notes) from the per-foot-flat events and ``take(lo, hi)``, which
     returns the vertical acceleration, where it is measured and finite, and its first harmonic on samples
     ``[lo, hi)``; also the number of step lengths (M1-M3 summed) set to NaN for an impossible excursion."""
@@ -204,7 +204,7 @@ def step_table(ff: np.ndarray, hs: np.ndarray, toe_off: np.ndarray, bout: np.nda
         {"M1": spread(est["h1"]), "M2": spread(est["h2"]), "M3": spread(est["h3"])},
         spread(est["range"]), raw, {},
     )
-    table.length_m = apply_calibration(table, calibration)
+    table.length_m = apply_calibration(table, k_fit)
     return table, int(est["n_impossible"])
 
 
@@ -248,25 +248,25 @@ def _estimate_groups(take: Callable[[int, int], tuple[np.ndarray, np.ndarray, np
     return out
 
 
-def apply_calibration(table: StepTable, calibration: KFit | None) -> dict[str, np.ndarray]:
+def apply_calibration(table: StepTable, k_fit: KFit | None) -> dict[str, np.ndarray]:
     """Calibrated lengths of every estimator from the raw ones (see :class:`StepPipeline` notes)."""
     raw = table.raw_m
     nan = np.full(table.n_steps, np.nan)
-    if calibration is None:
+    if k_fit is None:
         return {"M1": raw["M1"].copy(), "M2": raw["M2"].copy(), "M3": raw["M3"].copy(), "M4": nan.copy(),
                 "M5": nan.copy()}
-    m5 = CadenceM5(k1_m_s=calibration.k1_m5_m_s, k2_m=calibration.k2_m5_m).estimate(
+    m5 = CadenceM5(k1_m_s=k_fit.k1_m5_m_s, k2_m=k_fit.k2_m5_m).estimate(
         step_duration_s=table.duration_s).step_length_m_
     # M4: K with the exponent it was fitted with (the chain's raw lengths use M4_EXPONENT; an older K file's
     # 1/4 is applied to the step's range)
-    if math.isclose(calibration.m4_exponent, M4_EXPONENT):
-        m4 = calibration.k_m4 * raw["M4"]
+    if math.isclose(k_fit.m4_exponent, M4_EXPONENT):
+        m4 = k_fit.k_m4 * raw["M4"]
     else:
         rng = table.acc_range_m_s2 if table.acc_range_m_s2.size == table.n_steps else nan
-        m4 = weinberg_length_m(rng, k=calibration.k_m4, exponent=calibration.m4_exponent)
+        m4 = weinberg_length_m(rng, k=k_fit.k_m4, exponent=k_fit.m4_exponent)
     return {
-        "M1": calibration.k_m1 * raw["M1"],
-        "M2": calibration.k_m2 * raw["M2"],
+        "M1": k_fit.k_m1 * raw["M1"],
+        "M2": k_fit.k_m2 * raw["M2"],
         "M3": raw["M3"].copy(),
         "M4": m4,
         "M5": m5,

@@ -251,13 +251,13 @@ class StreamingStepPipeline:
     """
 
     def __init__(self, *, leg_length_m: float, foot_length_m: float, sampling_rate_hz: float,
-                 calibration: KFit | None = None, detector: GaitEventDetector | None = None,
+                 k_fit: KFit | None = None, detector: GaitEventDetector | None = None,
                  gravity_window_s: float = 4.0, max_fill_s: float = MAX_INTERPOLATED_GAP_S, t0_s: float = 0.0,
                  block: int = BLOCK_SAMPLES) -> None:
         rate = float(sampling_rate_hz)
         if not (np.isfinite(rate) and rate > 0):
             raise ValueError(f"sampling_rate_hz must be positive, got {sampling_rate_hz!r}")
-        self.leg_length_m, self.foot_length_m, self.calibration = leg_length_m, foot_length_m, calibration
+        self.leg_length_m, self.foot_length_m, self.k_fit = leg_length_m, foot_length_m, k_fit
         self.rate, self.t0_s, self.block = rate, t0_s, max(1, int(block))
         self.detector = (detector if detector is not None else GaitEventDetector()).clone()
         self.max_fill_s = max_fill_s
@@ -410,7 +410,7 @@ class StreamingStepPipeline:
         table, self.n_impossible_ = step_table(
             ev["foot_flat_"], ev["heel_strike_"], ev["toe_off_"], ev["bout_"], take, sampling_rate_hz=self.rate,
             t0_s=self.t0_s, leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
-            calibration=self.calibration)
+            k_fit=self.k_fit)
         if self.n_impossible_:
             self.notes_.append(impossible_note(self.n_impossible_, self.leg_length_m))
         return table

@@ -123,7 +123,7 @@ def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length
     impossible excursions are silenced: they are counted as NaN)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=k_fit).run(
+        return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, k_fit=k_fit).run(
             acc_g, sampling_rate_hz=sampling_rate_hz, valid=valid, t0_s=t0_s).steps_
 
 
@@ -416,7 +416,7 @@ def _online_run(arithmetic: str, codes: np.ndarray, cals: dict[str, Any], *, alg
                 **kw: Any) -> ChainRun:
     tables, reports, sat, wrap, cyc = {}, [], 0, 0, math.nan
     for m in MODES:
-        tables[m], alg = online_step_table(codes, calibration=cals[m], arithmetic=arithmetic, algorithm=algorithm,
+        tables[m], alg = online_step_table(codes, k_fit=cals[m], arithmetic=arithmetic, algorithm=algorithm,
                                            **kw)
         if arithmetic == "fixed":
             rep = alg.arithmetic_context().report()
@@ -752,7 +752,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
     acc = np.asarray(cal.apply(c.astype(np.float64)), np.float64)
     acc[~ok] = np.nan
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m, t0_s=t0_s)
-    okw = dict(kw, calibration=k_fit, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
+    okw = dict(kw, k_fit=k_fit, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
     tables = {"offline": offline_step_table(acc, valid=ok, k_fit=k_fit, **kw)}
     tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
     tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", **okw)

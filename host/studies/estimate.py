@@ -167,7 +167,7 @@ def float_steps(data: AccelerationInput, lengths: AnatomyChoice, k: KFit | None,
                 block: int = BLOCK_SAMPLES) -> tuple[StepTable, list[str]]:
     """The offline chain on ``data``, fed ``block`` samples at a time -> (table, notes)."""
     pipe = StreamingStepPipeline(leg_length_m=lengths.leg_length_m, foot_length_m=lengths.foot_length_m,
-                                 sampling_rate_hz=data.sampling_rate_hz, calibration=k)
+                                 sampling_rate_hz=data.sampling_rate_hz, k_fit=k)
     for g, valid in data.blocks(block):
         pipe.feed(g, valid)
     pipe.finish()
@@ -188,7 +188,7 @@ def fixed_steps(data: AccelerationInput, calibration_file: str | None, lengths: 
     valid = np.asarray(rec.valid, bool)
     table, alg = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz,
                                    leg_length_m=lengths.leg_length_m, foot_length_m=lengths.foot_length_m,
-                                   calibration=k, adc_calibration=adc_cal, adc_bits=int(rec.adc_bits),
+                                   k_fit=k, adc_calibration=adc_cal, adc_bits=int(rec.adc_bits),
                                    arithmetic="fixed", valid=valid, run_starts=run_starts(valid, rec.flags))
     return table, alg.arithmetic_context().report()
 

@@ -310,15 +310,15 @@ class ReplayedTrial:
         return check_records(self.codes, np.ones(self.codes.shape[0], bool), self.flags, self.sample_numbers,
                              self.header, self.device_records)
 
-    def online_table(self, *, arithmetic: str, calibration: KFit | None = None,
+    def online_table(self, *, arithmetic: str, k_fit: KFit | None = None,
                      events: EventParameters | None = None) -> tuple[StepTable, Any]:
         """The on-line algorithm on the stored codes, the header's device calibration and rate, this trial's
-        anatomy and ``calibration``'s K (:func:`gaitlog.host.files.replay.online_step_table`); ``events``: other
+        anatomy and ``k_fit``'s K (:func:`gaitlog.host.files.replay.online_step_table`); ``events``: other
         rules than the defaults (a study's variant, not what the logger ran)."""
         algorithm = (OnlineStepAlgorithm if events is None else functools.partial(OnlineStepAlgorithm, events=events))
         return online_step_table(self.codes, sampling_rate_hz=self.header.sampling_rate_hz,
                                  leg_length_m=self.leg_length_m, foot_length_m=self.foot_length_m,
-                                 calibration=calibration, adc_calibration=self.header.calibration,
+                                 k_fit=k_fit, adc_calibration=self.header.calibration,
                                  adc_bits=self.adc_bits, arithmetic=arithmetic, run_starts=self.run_starts(),
                                  t0_s=self.t0_s, algorithm=algorithm)
 
@@ -1298,7 +1298,7 @@ def _online(rt: ReplayedTrial, arithmetic: str, k: KFit, saturation: list[str],
     """The on-line chain of ``arithmetic`` on ``rt``'s stored codes with ``k`` (and ``events``' rules instead of the
     defaults); a fixed-point saturation is added to ``saturation``."""
     ar = arithmetic.removeprefix("online-")
-    table, alg = rt.online_table(arithmetic=ar, calibration=k, events=events)
+    table, alg = rt.online_table(arithmetic=ar, k_fit=k, events=events)
     if ar == "fixed" and alg.arithmetic_context().report():
         saturation.append(f"{rt.path.name}: {alg.arithmetic_context().report()}")
     return table

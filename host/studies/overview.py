@@ -105,7 +105,7 @@ def recording_overview(rec: Recording, *, leg_length_m: float, foot_length_m: fl
     i0, i1 = int(np.ceil(start_s * sampling_rate_hz - 1e-9)), int(np.ceil(end_s * sampling_rate_hz - 1e-9))
     acc = rec.acc_g()
     valid = np.asarray(rec.valid, bool)
-    pipe = StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, calibration=k_fit).run(
+    pipe = StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, k_fit=k_fit).run(
         acc, sampling_rate_hz=sampling_rate_hz, valid=valid)
     offline = pipe.steps_
     tables = {"": offline}

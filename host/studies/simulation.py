@@ -148,78 +148,122 @@ def record_subject(subject: Any, *, seed: int, walk_plan: Any = None, sampling_r
     if laps not in LAP_TIMINGS:
         raise HostError(f"laps must be one of {LAP_TIMINGS}, got {laps!r}")
     logger = Logger(adc=Adc(adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz), sampling_rate_hz=sampling_rate_hz, device_id=1 + seed % 60000)
-    if calibrate_device:
-        poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
-        full = float(2**adc_bits)
-        apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=sampling_rate_hz,
-                                          input_unit="counts", zero=full / 2, unit_per_g=full / 4,
-                                          valid_range=(0.0, full - 1)).calibration_.apply
-        logger.erase()
-    else:
-        apply = CalibrationSlot.nominal(adc_bits).apply
+    apply = (_pose_calibration(logger, seed=seed, adc_bits=adc_bits, sampling_rate_hz=sampling_rate_hz)
+             if calibrate_device else CalibrationSlot.nominal(adc_bits).apply)
     walking = Walking(subject=subject, walk_plan=walk_plan, seed=seed)
+    results = _log_runs(logger, walking, subject.subject_id, mark_laps=laps == "mark")
+    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be, cut into runs.
+    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
+                          source=f"{subject.subject_id}.sim")
+    walk_times_s, bounds = _stored_runs(stored, results, subject.subject_id)
+    host = _HostClock.join(stored, apply, walk_times_s, bounds)
+    res = results[-1]
+    truth = _truth_on_host_clock(res.truth, host.spans)
+    sheet = None
+    if laps == "stopwatch":
+        sheet = Stopwatch().time_laps(res.truth["laps"], res.truth["excursions"], seed=seed)
+        sheet["start_walk_s"] = _to_host(sheet["start_walk_s"], host.spans)
+    return SimulatedRecording(subject, int(seed), host.acc_g, host.valid, host.sampling_rate_hz, 0.0,
+                              host.mark_times_s, truth, bool(calibrate_device), host.run_rows, sheet)
+
+
+def _pose_calibration(logger: Logger, *, seed: int, adc_bits: int, sampling_rate_hz: float
+                      ) -> Callable[[np.ndarray], np.ndarray]:
+    """The device calibration fitted on a pose session the logger records (then erased): codes -> g."""
+    poses = logger.record(CalibrationPoses(n_poses=12, hold_s=4.0, move_s=1.5, seed=seed))
+    full = float(2**adc_bits)
+    apply = AccCalibrator().calibrate(poses.codes.astype(np.float64), sampling_rate_hz=sampling_rate_hz,
+                                      input_unit="counts", zero=full / 2, unit_per_g=full / 4,
+                                      valid_range=(0.0, full - 1)).calibration_.apply
+    logger.erase()
+    return apply
+
+
+def _log_runs(logger: Logger, walking: Walking, subject_id: str, *, mark_laps: bool) -> list:
+    """The logger's result of each logging run of the walk (the MARK button pressed at every lap only when
+    ``mark_laps``); :class:`HostError` when a run does not fit in its memory."""
     results = []
     for motion in walking.render_runs(logger.sensor.internal_rate_hz):
-        if laps == "stopwatch":
+        if not mark_laps:
             motion = replace(motion, marker_times_s=np.zeros(0))
         try:
             results.append(logger.record(motion, start_time_s=1_700_000_000 + int(motion.t0_s)))
         except DeviceError as err:
-            raise HostError(f"subject {subject.subject_id}: logging run {len(results) + 1}: {err}; the protocol "
+            raise HostError(f"subject {subject_id}: logging run {len(results) + 1}: {err}; the protocol "
                             "does not fit in the logger's memory (stop the logger during the rests)") from None
         if results[-1].n_taken != results[-1].n_samples:
-            raise HostError(f"subject {subject.subject_id}: the logger stored {results[-1].n_samples} of "
+            raise HostError(f"subject {subject_id}: the logger stored {results[-1].n_samples} of "
                             f"{results[-1].n_taken} samples of run {len(results)} (memory full): the protocol does not "
                             "fit in the logger's memory (stop the logger during the rests)")
-    # What the host gets: the memory image (header + EEPROM), decoded as a dump would be, cut into runs.
-    stored = decode_bytes(build_image(logger.header.to_bytes(), logger.memory, step_memory=logger.step_memory),
-                          source=f"{subject.subject_id}.sim")
+    return results
+
+
+def _stored_runs(stored: Any, results: list, subject_id: str) -> tuple[np.ndarray, list[int]]:
+    """The walk-clock time of each decoded sample, and the rows where each run starts (then the end): the
+    decoded samples must be the logged ones and hold one SESSION_START per run (:class:`HostError` otherwise)."""
     numbers = np.concatenate([np.asarray(r.sample_numbers) for r in results])
     times = np.concatenate([np.asarray(r.sample_times_s, np.float64) for r in results])
     pos = np.searchsorted(numbers, stored.sample_numbers)
     if np.any(pos >= numbers.size) or np.any(numbers[np.minimum(pos, numbers.size - 1)] != stored.sample_numbers):
-        raise HostError(f"subject {subject.subject_id}: decoded sample numbers do not match the recording")
+        raise HostError(f"subject {subject_id}: decoded sample numbers do not match the recording")
     starts = run_starts(stored.valid, stored.flags)
     if starts.size != len(results) or (starts.size and starts[0] != 0):
-        raise HostError(f"subject {subject.subject_id}: {starts.size} logging runs in the dump for {len(results)} "
+        raise HostError(f"subject {subject_id}: {starts.size} logging runs in the dump for {len(results)} "
                         "STARTs")
-    rate = float(1.0 / np.median(np.diff(times[pos])))
-    gap = round(RUN_GAP_S * rate)
-    bounds = [int(x) for x in starts] + [int(stored.sample_numbers.size)]
-    acc_all = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
-    ok_all = np.asarray(stored.valid, bool) & np.isfinite(acc_all).all(axis=1)
-    flags_all = np.asarray(stored.flags)
-    acc_parts, ok_parts, mark_parts, rows, spans = [], [], [], [], []
-    row = 0
-    for a, b in pairwise(bounds):
-        if rows:
-            acc_parts.append(np.full((gap, 3), np.nan))
-            ok_parts.append(np.zeros(gap, bool))
-            row += gap
-        acc_parts.append(acc_all[a:b])
-        ok_parts.append(ok_all[a:b])
-        mark_parts.append(row + np.flatnonzero(flags_all[a:b] & FLAG_MARK))
-        rows.append((row, row + b - a))
-        spans.append((float(times[pos[a]]), float(times[pos[b - 1]]), row / rate))
-        row += b - a
-    acc = np.concatenate(acc_parts)
-    valid = np.concatenate(ok_parts)
-    acc[~valid] = np.nan
-    marks = np.concatenate(mark_parts) / rate
-    res = results[-1]
-    truth = {k: dict(res.truth[k]) for k in _TRUTH_TIMES if k in res.truth}
+    return times[pos], [int(x) for x in starts] + [int(stored.sample_numbers.size)]
+
+
+@dataclass(frozen=True)
+class _HostClock:
+    """The decoded runs on the host's clock (:class:`SimulatedRecording`): one after the other, ``RUN_GAP_S`` of
+    missing rows between them. ``spans``: per run, its first and last sample's walk time and its host time."""
+
+    acc_g: np.ndarray
+    valid: np.ndarray
+    mark_times_s: np.ndarray
+    run_rows: tuple[tuple[int, int], ...]
+    spans: list[tuple[float, float, float]]
+    sampling_rate_hz: float
+
+    @classmethod
+    def join(cls, stored: Any, apply: Callable[[np.ndarray], np.ndarray], walk_times_s: np.ndarray,
+             bounds: list[int]) -> _HostClock:
+        """The runs of ``stored`` (rows ``bounds[i]`` to ``bounds[i + 1]``, at ``walk_times_s``), calibrated by
+        ``apply`` (codes -> g; an invalid or non-finite sample becomes NaN)."""
+        rate = float(1.0 / np.median(np.diff(walk_times_s)))
+        gap = round(RUN_GAP_S * rate)
+        acc_all = np.asarray(apply(stored.codes.astype(np.float64)), np.float64)
+        ok_all = np.asarray(stored.valid, bool) & np.isfinite(acc_all).all(axis=1)
+        flags_all = np.asarray(stored.flags)
+        acc_parts, ok_parts, mark_parts, rows, spans = [], [], [], [], []
+        row = 0
+        for a, b in pairwise(bounds):
+            if rows:
+                acc_parts.append(np.full((gap, 3), np.nan))
+                ok_parts.append(np.zeros(gap, bool))
+                row += gap
+            acc_parts.append(acc_all[a:b])
+            ok_parts.append(ok_all[a:b])
+            mark_parts.append(row + np.flatnonzero(flags_all[a:b] & FLAG_MARK))
+            rows.append((row, row + b - a))
+            spans.append((float(walk_times_s[a]), float(walk_times_s[b - 1]), row / rate))
+            row += b - a
+        acc = np.concatenate(acc_parts)
+        valid = np.concatenate(ok_parts)
+        acc[~valid] = np.nan
+        return cls(acc, valid, np.concatenate(mark_parts) / rate, tuple(rows), spans, rate)
+
+
+def _truth_on_host_clock(truth: dict, spans: list[tuple[float, float, float]]) -> dict:
+    """The walk's truth with its times (:data:`_TRUTH_TIMES`) on the host's clock (:func:`_to_host`)."""
+    out = {k: dict(truth[k]) for k in _TRUTH_TIMES if k in truth}
     for part, keys in _TRUTH_TIMES.items():
         for key in keys:
-            if part in truth and key in truth[part]:
-                truth[part][key] = _to_host(truth[part][key], spans)
-    if "subject" in res.truth:
-        truth["subject"] = res.truth["subject"]
-    sheet = None
-    if laps == "stopwatch":
-        sheet = Stopwatch().time_laps(res.truth["laps"], res.truth["excursions"], seed=seed)
-        sheet["start_walk_s"] = _to_host(sheet["start_walk_s"], spans)
-    return SimulatedRecording(subject, int(seed), acc, valid, rate, 0.0, marks, truth, bool(calibrate_device),
-                              tuple(rows), sheet)
+            if part in out and key in out[part]:
+                out[part][key] = _to_host(out[part][key], spans)
+    if "subject" in truth:
+        out["subject"] = truth["subject"]
+    return out
 
 
 class AnalogWalk:

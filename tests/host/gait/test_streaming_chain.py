@@ -53,7 +53,7 @@ def columns_equal(a, b) -> list[str]:
 
 
 def stream(acc, valid, cuts, block, k=None):
-    s = StreamingStepPipeline(leg_length_m=0.9, foot_length_m=0.26, sampling_rate_hz=RATE_HZ, calibration=k,
+    s = StreamingStepPipeline(leg_length_m=0.9, foot_length_m=0.26, sampling_rate_hz=RATE_HZ, k_fit=k,
                               block=block)
     for lo, hi in zip(cuts[:-1], cuts[1:]):
         s.feed(acc[lo:hi], valid[lo:hi])
@@ -67,7 +67,7 @@ def test_streaming_equals_the_whole_array(n, seed, block, k) -> None:
     acc, valid = walk(n, seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        ref = StepPipeline(leg_length_m=0.9, foot_length_m=0.26, calibration=k).run(
+        ref = StepPipeline(leg_length_m=0.9, foot_length_m=0.26, k_fit=k).run(
             acc, sampling_rate_hz=RATE_HZ, valid=valid)
     steps = ref.steps_
     assert steps.n_steps > n / 60

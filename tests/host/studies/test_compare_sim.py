@@ -223,7 +223,7 @@ def test_a_k_refitted_per_arithmetic_would_hide_the_scale_error(walk) -> None:
         raw, _ = online_step_table(codes, arithmetic=ar, algorithm=alg, **kw)
         own_k = calibrate_on_sections(raw, pools["multi-speed"], leg_length_m=s.leg_length_m,
                                       foot_length_m=s.foot_length_m)
-        table, _ = online_step_table(codes, arithmetic=ar, algorithm=alg, calibration=own_k, **kw)
+        table, _ = online_step_table(codes, arithmetic=ar, algorithm=alg, k_fit=own_k, **kw)
         dist[name] = segment_distances(table, evaluated)
     real = np.array([x.real_m for x in evaluated])[:, None]
     refit = np.median(np.abs(dist["scaled"] - dist["float"]) / real, axis=0)
