@@ -363,6 +363,8 @@ class CycleBudget:
     worst_algorithm: int
     worst_backlog: int
     logging: float
+    #: The logging interrupt's page commit per sample (:func:`logging_cycles`) and how it was obtained.
+    page_commit: tuple[float, str] = (0.0, "")
 
     @property
     def available(self) -> float:
@@ -389,6 +391,7 @@ class CycleBudget:
         return [
             f"cycles at {self.sampling_rate_hz:g} Hz, {self.fosc_hz / 1e6:g} MHz: {self.available:,.0f} per sample",
             f"  logging interrupt            {self.logging:10,.0f}",
+            f"    of which page commit       {self.page_commit[0]:10,.1f}   ({self.page_commit[1]})",
             f"  algorithm, mean              {self.mean_algorithm:10,.0f}   (load {100 * self.mean_load:.0f} %)",
             f"  algorithm, worst sample      {self.worst_algorithm:10,d}   "
             f"({self.worst_algorithm / self.available:.2f} periods)",
@@ -403,10 +406,11 @@ def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOS
     ``cycles_available =`` :func:`algorithm_cycles_per_sample`, as the firmware does); ``stats = None``: no
     on-line algorithm, the logging interrupt only. ``journal_entry_cycles``: as :func:`logging_cycles`."""
     logging = logging_cycles_per_sample(config, journal_entry_cycles=journal_entry_cycles)
+    commit = logging_cycles(config, journal_entry_cycles=journal_entry_cycles)["page commit"]
     if stats is None:
-        return CycleBudget(float(sampling_rate_hz), float(fosc_hz), 0.0, 0, 0, logging)
+        return CycleBudget(float(sampling_rate_hz), float(fosc_hz), 0.0, 0, 0, logging, commit)
     return CycleBudget(float(sampling_rate_hz), float(fosc_hz), stats.mean, int(stats.worst), int(stats.worst_backlog),
-                       logging)
+                       logging, commit)
 
 
 #: Cycles per call of each primitive for the model's *mean* estimate: the kernels' mean measured in gpsim where

@@ -129,6 +129,7 @@ from gaitlog.firmware_sim.fixedpoint import (
     C_STICKY,
     OP_CMP16,
     OP_CMP32,
+    OP_COPY,
     OP_DEE,
     OP_I2C,
     s_cost,
@@ -234,9 +235,15 @@ def scratch_tail_write(e: int, s: int, n: int, cfg_i: np.ndarray) -> bool:
     first = (int(n) - tail) & INDEX_MASK
     ahead_e, ahead_s = scratch_reads_ahead(cfg_i)
     return bool(tail) and (since(int(e) + ahead_e, first) >= 0 or (s >= 0 and since(int(s) + ahead_s, first) >= 0))
-#: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte.
+
+
+#: Byte moves of each FIR product besides its arithmetic (the loop's bookkeeping, :func:`_fir`).
+FIR_TAP_COPIES = 8
+#: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte, and
+#: its close receives one byte more, not acknowledged, before the stop (step_record.asm ``scr_close``: gpsim's
+#: bus receives 2 r + 1 samples' bytes and one for each read of the step record).
 I2C_WRITE_OVERHEAD = 3
-I2C_READ_OVERHEAD = 4
+I2C_READ_OVERHEAD = 5
 
 # the shared rule, compiled into the kernel (parameters.py itself stays free of numba)
 register_jitable(minimum_distance)
@@ -257,8 +264,13 @@ _SATURATED = int(StepFlag.SATURATED)
 @njit(cache=True)
 def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
     """Centred symmetric FIR at ``centre`` of a ring of a_v (the delay line, or the scratch ring):
-    ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM."""
+    ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM. Each of its ``r + 1``
+    products also moves bytes into the multiplier's operands, as the assembly does it (steps.asm ``sf_tap``,
+    step_record.asm ``fir_tap``): the a_v (2), the weight (2), the operand (2) and the running sum (2 of its 4
+    loaded or stored), and tests the loop's end or its index's wrap (a 16-bit compare)."""
     s_cost(cnt, OP_DEE, 2 * (r + 1))
+    s_cost(cnt, OP_COPY, FIR_TAP_COPIES * (r + 1))
+    s_cost(cnt, OP_CMP16, r + 1)
     acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W32, cnt)
     for tap in range(1, r + 1):
         pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W16, cnt)
@@ -312,9 +324,12 @@ def _fir_scratch(scr, j, cfg_i, cfg_v, w0, r, cnt):  # pragma: no cover - compil
 
 @njit(cache=True)
 def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
-    """The impact band ``d10 - d5`` at sample ``j`` (Q2.16)."""
-    d10 = _fir_scratch(scr, j, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
-    return ar.sub(d10, _fir_scratch(scr, j, cfg_i, cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt), W_LP, cnt)
+    """The impact band ``d10 - d5`` at sample ``j`` (Q2.16): both filters on one read of the ring, the window
+    of the larger radius (as the step record reads it, step_record.asm)."""
+    _read_cost(cnt, 2 * max(cfg_i[CI_R10], cfg_i[CI_R5]) + 1, SCRATCH_SAMPLE_BYTES)
+    d10 = _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    return ar.sub(d10, _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt),
+                  W_LP, cnt)
 
 
 # ---------------------------------------------------------------------------------------------------------

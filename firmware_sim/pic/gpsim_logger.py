@@ -70,7 +70,7 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
            "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun", "period_setup",
-           "RecordsVerification", "verify_records", "bus_page_writes"]
+           "RecordsVerification", "verify_records", "bus_page_writes", "bus_reads", "BusRun"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -604,6 +604,33 @@ def bus_page_writes(addr: np.ndarray, val: np.ndarray) -> np.ndarray:
     return np.asarray(rows, np.int64).reshape(-1, 3)
 
 
+#: SSPCON2's receive-enable bit: one byte received.
+SSPCON2_RCEN = 0x08
+
+
+def bus_reads(addr: np.ndarray, val: np.ndarray) -> np.ndarray:
+    """The random reads in the same write log as :func:`bus_page_writes`: ``(k, 3)`` int64 rows of (samples the
+    main loop had finished, reads begun, i.e. repeated starts, bytes received), one row per sample with a read."""
+    rows: dict[int, list[int]] = {}
+    done = pending = 0
+    for a, v in zip(addr.tolist(), val.tolist()):
+        if a == SSPCON2_ADDR and v & (SSPCON2_RSEN | SSPCON2_RCEN):
+            row = rows.setdefault(done, [done, 0, 0])
+            row[1] += bool(v & SSPCON2_RSEN)
+            row[2] += bool(v & SSPCON2_RCEN)
+        elif a not in (SSPBUF_ADDR, SSPCON2_ADDR):
+            done += v == (pending - 1) & 0xFF
+            pending = v
+    return np.asarray([rows[k] for k in sorted(rows)], np.int64).reshape(-1, 3)
+
+
+class BusRun(NamedTuple):
+    """:meth:`PicLogger.run_bus`: the page writes (:func:`bus_page_writes`) and the reads (:func:`bus_reads`)."""
+
+    page_writes: np.ndarray
+    reads: np.ndarray
+
+
 def period_setup(period_cycles: int) -> TimerSetup:
     """Timer1 and CCP1 for a sampling period of ``period_cycles`` instruction cycles (the smallest prescaler
     whose CCPR1 holds it exactly).
@@ -768,10 +795,14 @@ class PicLogger:
 
     def run_page_writes(self, codes: np.ndarray, calibration: CalibrationQ, *, run_start_sample: int = 0
                         ) -> np.ndarray:
+        """The page writes the firmware put on the I2C bus in one run (:meth:`run_bus`)."""
+        return self.run_bus(codes, calibration, run_start_sample=run_start_sample).page_writes
+
+    def run_bus(self, codes: np.ndarray, calibration: CalibrationQ, *, run_start_sample: int = 0) -> BusRun:
         """One run from START to STOP (``step_flush``) with only ``PENDING`` and the MSSP's ``SSPBUF`` and
         ``SSPCON2`` logged: the page writes the firmware put on the I2C bus (:func:`bus_page_writes`; the
-        scratch ring's flushes and its tail writes). ``run_start_sample`` places the ring's start as in
-        :meth:`run_calls`."""
+        scratch ring's flushes and its tail writes) and its reads (:func:`bus_reads`). ``run_start_sample``
+        places the ring's start as in :meth:`run_calls`."""
         period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
         c = np.asarray(codes, np.int64).reshape(-1, 3)
         n = c.shape[0]
@@ -784,7 +815,7 @@ class PicLogger:
             text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
                           _stimuli(c, np.zeros(n, np.int64), period))
         _, addr, val = _writes(text, logged)
-        return bus_page_writes(addr, val)
+        return BusRun(bus_page_writes(addr, val), bus_reads(addr, val))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a

@@ -208,7 +208,8 @@ def _budget(c: LoggerConfig, seed: int, measure: Measure | None = None) -> Confi
            "ram": {"fits": ram.fits, "total_bytes": ram.total_bytes, "algorithm_bytes": ram.algorithm_bytes,
                    "firmware_bytes": ram.firmware_bytes, "lines": ram.lines()}}
     cyc = {"fits": cycles.fits and cycles.logging <= cycles.available, "available_per_sample": cycles.available,
-           "logging_per_sample": cycles.logging, "mean_algorithm": cycles.mean_algorithm,
+           "logging_per_sample": cycles.logging, "page_commit_per_sample": cycles.page_commit[0],
+           "page_commit_source": cycles.page_commit[1], "mean_algorithm": cycles.mean_algorithm,
            "worst_algorithm": cycles.worst_algorithm, "worst_backlog_samples": cycles.backlog_samples
            if walk else 0.0, "mean_load": cycles.mean_load}
     if walk:
