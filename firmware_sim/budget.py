@@ -71,13 +71,13 @@ from gaitlog.firmware_sim.fixedpoint import (
 from gaitlog.firmware_sim.ring_buffer import WORDS_PER_PAGE
 from gaitlog.firmware_sim.uart import UartTiming
 from gaitlog.protocol.header import HEADER_SIZE, MEMORY_BYTES
-from gaitlog.protocol.journal_ring import COMMIT_PAGES, RING_FIRST_BYTE, STEP_CAPACITY_RECORDS_V3
+from gaitlog.protocol.journal_ring import COMMIT_PAGES, ENTRY_BYTES_V3, RING_FIRST_BYTE, STEP_CAPACITY_RECORDS_V3
 
 __all__ = ["PIC_RAM_BYTES", "PIC_PROGRAM_WORDS", "FIRMWARE_RAM", "LOGGING_CYCLES", "CONFIGURATIONS", "LoggerConfig",
            "RamItem", "RamBudget", "CycleBudget", "ProgramBudget", "StorageBudget", "ram_budget", "cycle_budget",
            "program_budget", "storage_budget", "EnduranceBudget", "MemoryWear", "endurance_budget",
            "LIFETIME_HOURS_PER_DAY", "LIFETIME_TARGET_YEARS", "WEAR_RUN_SAMPLES", "scratch_page_writes_per_s",
-           "logging_cycles", "logging_cycles_per_sample", "algorithm_cycles_per_sample", "adc_acquisition_s",
+           "logging_cycles", "logging_cycles_per_sample", "JOURNAL_ENTRY_CYCLES_ESTIMATE", "algorithm_cycles_per_sample", "adc_acquisition_s",
            "adc_tad_s", "adc_channel_cycles", "adc_max_sampling_rate_hz", "typical_cycles_per_sample", "shortfalls",
            "MEAN_CYCLES", "estimated_cycles", "ADC_CALIBRATION", "logged_channel_cycles", "INTERRUPT_PARTS", "interrupt_cycles_estimate"]
 
@@ -224,12 +224,27 @@ def logged_channel_cycles(config: LoggerConfig) -> float:
             + ADC_CALIBRATION["settle_tad"][0] * tad_cycles + ADC_CALIBRATION["read_cycles"][0])
 
 
-def logging_cycles(config: LoggerConfig | None = None) -> dict[str, tuple[float, str]]:
-    """The logging interrupt's cycles per sample (besides the algorithm), with where each comes from."""
+#: The header version 3 journal entry's cycles without gpsim (``docs/topics/eeprom-endurance.md``): its page write,
+#: control, address and 16 bytes, at the assembly's I2C byte, and a CRC-16 over 14 bytes at about 60 cycles a
+#: byte (estimated; ``gaitlog budget --measure`` measures ``firmware_sim/pic/journal.asm`` in gpsim instead).
+JOURNAL_ENTRY_CYCLES_ESTIMATE = (3 + ENTRY_BYTES_V3) * I2C_BYTE_CYCLES + (ENTRY_BYTES_V3 - 2) * 60.0
+
+
+def logging_cycles(config: LoggerConfig | None = None, *,
+                   journal_entry_cycles: float | None = None) -> dict[str, tuple[float, str]]:
+    """The logging interrupt's cycles per sample (besides the algorithm), with where each comes from.
+    ``journal_entry_cycles``: header version 3's journal entry measured in gpsim (``firmware_sim/pic/journal.asm``,
+    :func:`gaitlog.firmware_sim.pic.gpsim_journal.journal_entry_cycles`); None: the estimate
+    :data:`JOURNAL_ENTRY_CYCLES_ESTIMATE`."""
     c = config or CONFIGURATIONS["alvarez-50"]
     per = logged_channel_cycles(c)
     words = c.bytes_per_sample // 4
     samples_per_page = PAGE_BYTES / c.bytes_per_sample
+    entry = JOURNAL_ENTRY_CYCLES_ESTIMATE if journal_entry_cycles is None else float(journal_entry_cycles)
+    how = ("estimated: its page write of 19 bytes at the I2C byte's cycles and a CRC-16 over 14 bytes"
+           if journal_entry_cycles is None else
+           "measured in gpsim: firmware_sim/pic/journal.asm, the page write streamed with its CRC-16 and the "
+           "acknowledge polling of its write cycle")
     return {
         "ADC": (c.adc_channels * per,
                 f"{c.adc_channels} conversions of {per:.0f} cycles: "
@@ -242,13 +257,9 @@ def logging_cycles(config: LoggerConfig | None = None) -> dict[str, tuple[float,
         "page write": ((PAGE_BYTES + 3) * I2C_BYTE_CYCLES / samples_per_page,
                        f"one 128-byte page + control and address every {samples_per_page:g} samples, busy-waiting "
                        "I2C (computed)"),
-        "page commit": ((6 * 8 + 2 * 24 + 40 + 150) / samples_per_page,
-                        "estimate: after each page write, read the 6 bytes of its journal entry (8 each), write the "
-                        "changed ones (24 each: EEADR, EEDATA, the 55/AA sequence; measured 2.0 a page on a walk with "
-                        "the step algorithm on, the low bytes of commit and steps, 1 with it off), 40 of bookkeeping, "
-                        "and the entry's index (commit - 1) mod 15 from the page count by 16 shift-and-subtract steps "
-                        "(~150: no RAM byte kept for it); the ~4 ms byte writes run in the background "
-                        "(PROTOCOL.md 2.4)"),
+        "page commit": (entry / (COMMIT_PAGES * samples_per_page),
+                        f"header version 3: a 16-byte journal entry every {COMMIT_PAGES} pages "
+                        f"({COMMIT_PAGES * samples_per_page:g} samples), {entry:,.0f} cycles ({how})"),
         "interrupt entry and exit": (20.0, "estimate: context save and restore"),
     }
 
@@ -257,13 +268,14 @@ def logging_cycles(config: LoggerConfig | None = None) -> dict[str, tuple[float,
 LOGGING_CYCLES: dict[str, tuple[float, str]] = logging_cycles()
 
 
-def logging_cycles_per_sample(config: LoggerConfig | None = None) -> float:
+def logging_cycles_per_sample(config: LoggerConfig | None = None, *, journal_entry_cycles: float | None = None
+                              ) -> float:
     """Cycles the logging interrupt takes per sample (:func:`logging_cycles`).
 
     >>> round(logging_cycles_per_sample())
-    1550
+    1593
     """
-    return float(sum(c for c, _ in logging_cycles(config).values()))
+    return float(sum(c for c, _ in logging_cycles(config, journal_entry_cycles=journal_entry_cycles).values()))
 
 
 def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAULT_FOSC_HZ,
@@ -271,7 +283,7 @@ def algorithm_cycles_per_sample(sampling_rate_hz: float, fosc_hz: float = DEFAUL
     """Cycles per sample period left to the on-line step algorithm: the period minus the logging interrupt.
 
     >>> round(algorithm_cycles_per_sample(50.0))
-    90610
+    90567
     """
     if config is None:
         config = LoggerConfig("alvarez", float(sampling_rate_hz), 3, fosc_hz=float(fosc_hz))
@@ -351,6 +363,8 @@ class CycleBudget:
     worst_algorithm: int
     worst_backlog: int
     logging: float
+    #: The logging interrupt's page commit per sample (:func:`logging_cycles`) and how it was obtained.
+    page_commit: tuple[float, str] = (0.0, "")
 
     @property
     def available(self) -> float:
@@ -377,6 +391,7 @@ class CycleBudget:
         return [
             f"cycles at {self.sampling_rate_hz:g} Hz, {self.fosc_hz / 1e6:g} MHz: {self.available:,.0f} per sample",
             f"  logging interrupt            {self.logging:10,.0f}",
+            f"    of which page commit       {self.page_commit[0]:10,.1f}   ({self.page_commit[1]})",
             f"  algorithm, mean              {self.mean_algorithm:10,.0f}   (load {100 * self.mean_load:.0f} %)",
             f"  algorithm, worst sample      {self.worst_algorithm:10,d}   "
             f"({self.worst_algorithm / self.available:.2f} periods)",
@@ -386,14 +401,16 @@ class CycleBudget:
 
 
 def cycle_budget(stats, sampling_rate_hz: float, *, fosc_hz: float = DEFAULT_FOSC_HZ,
-                 config: LoggerConfig | None = None) -> CycleBudget:
+                 config: LoggerConfig | None = None, journal_entry_cycles: float | None = None) -> CycleBudget:
     """Cycle budget from a run's :class:`~gaitlog.firmware_sim.algorithms.online.CycleStats` (run with
     ``cycles_available =`` :func:`algorithm_cycles_per_sample`, as the firmware does); ``stats = None``: no
-    on-line algorithm, the logging interrupt only."""
+    on-line algorithm, the logging interrupt only. ``journal_entry_cycles``: as :func:`logging_cycles`."""
+    logging = logging_cycles_per_sample(config, journal_entry_cycles=journal_entry_cycles)
+    commit = logging_cycles(config, journal_entry_cycles=journal_entry_cycles)["page commit"]
     if stats is None:
-        return CycleBudget(float(sampling_rate_hz), float(fosc_hz), 0.0, 0, 0, logging_cycles_per_sample(config))
+        return CycleBudget(float(sampling_rate_hz), float(fosc_hz), 0.0, 0, 0, logging, commit)
     return CycleBudget(float(sampling_rate_hz), float(fosc_hz), stats.mean, int(stats.worst), int(stats.worst_backlog),
-                       logging_cycles_per_sample(config))
+                       logging, commit)
 
 
 #: Cycles per call of each primitive for the model's *mean* estimate: the kernels' mean measured in gpsim where
@@ -609,7 +626,7 @@ def instrument_fit(config: LoggerConfig) -> tuple[list[str], float]:
     []
     >>> short, fastest = instrument_fit(CONFIGURATIONS["hall"])
     >>> short[0][:40], round(fastest)
-    ('ADC: 6 channels take 233.5 us per sample', 1903)
+    ('ADC: 6 channels take 233.5 us per sample', 1883)
     """
     def short(rate_hz: float) -> list[str]:
         c = replace(config, sampling_rate_hz=rate_hz, online_estimator=False)
@@ -752,12 +769,14 @@ def _step_rings(step: list[int], journal_ring: bool) -> tuple[MemoryWear, ...]:
 
 
 def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, bank_wear=None, step_wear=None,
-                     data_wear=None, flush_samples: int = 0, journal_ring: bool = False) -> EnduranceBudget:
+                     data_wear=None, flush_samples: int = 0, journal_ring: bool = False,
+                     scratch_tail_writes: int = 0) -> EnduranceBudget:
     """The lifetime of the logger's memories: measured (the wear counters of a run of ``duration_s``: the
     sample bank's pages, the step EEPROM's, the data EEPROM's bytes; ``journal_ring``: the logger has header
-    version 3, the default, whose journal is in the step EEPROM; False: version 2) or, without them, computed
+    version 3, the default, whose journal is in the step EEPROM; False: version 2; ``scratch_tail_writes``:
+    the scratch ring's tail writes among the step EEPROM's counts, for the label) or, without them, computed
     from the design (the sample pages written in turn; the scratch ring at ``flush_samples``, 0: no on-line
-    algorithm)."""
+    algorithm: its flushes only)."""
     if bank_wear is not None:
         step = [int(x) for x in step_wear]
         first = SCRATCH_FIRST_BYTE // PAGE_BYTES
@@ -766,7 +785,8 @@ def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, b
                        "2 x 24LC1025, 128-byte pages written in turn"),
             *_step_rings(step, journal_ring),
             MemoryWear("scratch ring", "page", tuple(step[first:first + SCRATCH_PAGES]), first, ENDURANCE_CYCLES,
-                       f"step EEPROM block 1: a_v, one page write every {flush_samples} samples"),
+                       f"step EEPROM block 1: a_v, one page write every {flush_samples} samples and "
+                       f"{scratch_tail_writes} tail writes"),
             MemoryWear("header slots", "page", tuple(step[first + SCRATCH_PAGES:]), first + SCRATCH_PAGES,
                        ENDURANCE_CYCLES, "step EEPROM, end of block 1: header commits"),
             MemoryWear("PIC data EEPROM", "byte", tuple(int(x) for x in data_wear), 0, DATA_EEPROM_ENDURANCE_CYCLES,
@@ -783,5 +803,6 @@ def endurance_budget(config: LoggerConfig, *, duration_s: float | None = None, b
         regions.append(MemoryWear("scratch ring", "page", (scratch_page_writes_per_s(config.sampling_rate_hz,
                                                                                      flush_samples),),
                                   SCRATCH_FIRST_BYTE // PAGE_BYTES, ENDURANCE_CYCLES,
-                                  f"a page write every {flush_samples} samples over {SCRATCH_PAGES} pages"))
+                                  f"a page write every {flush_samples} samples over {SCRATCH_PAGES} pages; "
+                                  "its tail writes not counted"))
     return EnduranceBudget(config, duration, tuple(regions), False)

@@ -225,8 +225,12 @@ class Firmware:
 
     def _end_steps(self) -> None:
         """The run ends: the step algorithm's pending foot-flat becomes final and is stored."""
-        if self.step_algorithm is not None and self.ring.logging:
-            self._store_steps(self.step_algorithm.flush())
+        alg = self.step_algorithm
+        if alg is not None and self.ring.logging:
+            before = alg.scratch_page_writes
+            steps = alg.flush()                  # with the scratch ring's tail written first (a page write)
+            self._count_scratch_writes(alg.scratch_page_writes - before)
+            self._store_steps(steps)
 
     def _store_steps(self, steps: OnlineSteps) -> None:
         if steps.n_steps:

@@ -154,7 +154,8 @@ I2C_BYTE_INSTRUCTION_CYCLES = 3 + 5 + 2 + 4 + 5 + 3
 #: One byte received from the external EEPROM and acknowledged, as the assembly's reader takes it: 9 SCL periods
 #: (8 data bits, the acknowledge) and its instructions, 130 cycles (gpsim: 106 + 21 a byte, 5 a pair; a byte
 #: sent, ``MOVLW``/``CALL i2c_tx``, 121). The model's I2C reads and page writes count their bytes at this price,
-#: and 4 (read) or 3 (write) bytes for the control and address bytes, start, restart and stop.
+#: and 5 (read: with the byte its close receives, not acknowledged) or 3 (write) bytes for the control and address
+#: bytes, start, restart and stop (``kernel.I2C_READ_OVERHEAD``, ``I2C_WRITE_OVERHEAD``).
 I2C_BYTE_CYCLES = 9 * I2C_SCL_CYCLES + I2C_BYTE_INSTRUCTION_CYCLES
 
 

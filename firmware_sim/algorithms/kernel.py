@@ -129,6 +129,7 @@ from gaitlog.firmware_sim.fixedpoint import (
     C_STICKY,
     OP_CMP16,
     OP_CMP32,
+    OP_COPY,
     OP_DEE,
     OP_I2C,
     s_cost,
@@ -164,11 +165,13 @@ CV_OFF, CV_M, CV_W3 = CV["OFF"], CV["M"], CV["W3"]
 
 #: Columns of the integer record output: the end index (16 bits, as the PIC keeps it; the driver restores the
 #: absolute index), the window duration, the toe-off after the window start (-1: none), the heel strike from the
-#: end (signed; meaningless with ``NO_HEEL_STRIKE``), the flags: the record's own fields.
-OUT_I = ("end", "duration", "toe_off", "heel_strike", "flags")
+#: end (signed; meaningless with ``NO_HEEL_STRIKE``), the flags: the record's own fields; then, not stored,
+#: ``scratch_tail``: the kernel's ``N`` (16 bits) when the PIC wrote the scratch ring's tail before this record
+#: (:func:`_scratch_tail`, one partial page write), 0 when it did not (a tail write has ``N mod FLUSH > 0``).
+OUT_I = ("end", "duration", "toe_off", "heel_strike", "flags", "scratch_tail")
 #: Columns of the value record output: the five lengths, the excursions h (M1, M2) and h1 (M3), M4's range.
 OUT_V = ("length_m1", "length_m2", "length_m3", "length_m4", "length_m5", "h_m1", "h_m2", "h1_m3", "range_m4")
-O_END, O_DUR, O_TO, O_HS, O_FLAGS = range(5)
+O_END, O_DUR, O_TO, O_HS, O_FLAGS, O_TAIL = range(6)
 O_L, O_H1, O_H2, O_H3, O_RANGE = 0, 5, 6, 7, 8
 #: The scratch ring holds a_v, 2 bytes a sample, in the step EEPROM's second block up to its header slots
 #: (:data:`SCRATCH_RING_BYTES`, 508 pages: 32,512 samples), written ``CI_FLUSH`` samples at a time (one
@@ -200,6 +203,7 @@ def scratch_ring_sample(run_start_sample: int, f: int) -> int:
     return (first + int(f)) % SCRATCH_RING_SAMPLES
 
 
+@register_jitable
 def scratch_reads_ahead(cfg_i: np.ndarray) -> tuple[int, int]:
     """How far past a step's final foot-flat ``e``, and past its previous foot-flat ``s`` (with one), the step
     record (:func:`_finalise`) reads a_v on the scratch ring: M4's range, the 3 Hz FIR up to ``e`` (radius
@@ -215,6 +219,7 @@ def scratch_reads_ahead(cfg_i: np.ndarray) -> tuple[int, int]:
     return max(r3, int(cfg_i[CI_HS_AFTER]) + max(r10, r5)), int(cfg_i[CI_TO_SPAN]) + 1 + r10
 
 
+@register_jitable
 def scratch_tail_write(e: int, s: int, n: int, cfg_i: np.ndarray) -> bool:
     """Whether the PIC writes the scratch ring's tail (the newest ``N mod FLUSH`` a_v, one partial page write)
     before the step record at final foot-flat ``e`` (``s``: the previous foot-flat, -1 without one), ``N``
@@ -230,9 +235,15 @@ def scratch_tail_write(e: int, s: int, n: int, cfg_i: np.ndarray) -> bool:
     first = (int(n) - tail) & INDEX_MASK
     ahead_e, ahead_s = scratch_reads_ahead(cfg_i)
     return bool(tail) and (since(int(e) + ahead_e, first) >= 0 or (s >= 0 and since(int(s) + ahead_s, first) >= 0))
-#: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte.
+
+
+#: Byte moves of each FIR product besides its arithmetic (the loop's bookkeeping, :func:`_fir`).
+FIR_TAP_COPIES = 8
+#: I2C bytes around a transfer: a write sends control + 2 address bytes; a read adds a second control byte, and
+#: its close receives one byte more, not acknowledged, before the stop (step_record.asm ``scr_close``: gpsim's
+#: bus receives 2 r + 1 samples' bytes and one for each read of the step record).
 I2C_WRITE_OVERHEAD = 3
-I2C_READ_OVERHEAD = 4
+I2C_READ_OVERHEAD = 5
 
 # the shared rule, compiled into the kernel (parameters.py itself stays free of numba)
 register_jitable(minimum_distance)
@@ -253,8 +264,13 @@ _SATURATED = int(StepFlag.SATURATED)
 @njit(cache=True)
 def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
     """Centred symmetric FIR at ``centre`` of a ring of a_v (the delay line, or the scratch ring):
-    ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM."""
+    ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM. Each of its ``r + 1``
+    products also moves bytes into the multiplier's operands, as the assembly does it (steps.asm ``sf_tap``,
+    step_record.asm ``fir_tap``): the a_v (2), the weight (2), the operand (2) and the running sum (2 of its 4
+    loaded or stored), and tests the loop's end or its index's wrap (a 16-bit compare)."""
     s_cost(cnt, OP_DEE, 2 * (r + 1))
+    s_cost(cnt, OP_COPY, FIR_TAP_COPIES * (r + 1))
+    s_cost(cnt, OP_CMP16, r + 1)
     acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W32, cnt)
     for tap in range(1, r + 1):
         pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W16, cnt)
@@ -308,9 +324,12 @@ def _fir_scratch(scr, j, cfg_i, cfg_v, w0, r, cnt):  # pragma: no cover - compil
 
 @njit(cache=True)
 def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
-    """The impact band ``d10 - d5`` at sample ``j`` (Q2.16)."""
-    d10 = _fir_scratch(scr, j, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
-    return ar.sub(d10, _fir_scratch(scr, j, cfg_i, cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt), W_LP, cnt)
+    """The impact band ``d10 - d5`` at sample ``j`` (Q2.16): both filters on one read of the ring, the window
+    of the larger radius (as the step record reads it, step_record.asm)."""
+    _read_cost(cnt, 2 * max(cfg_i[CI_R10], cfg_i[CI_R5]) + 1, SCRATCH_SAMPLE_BYTES)
+    d10 = _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    return ar.sub(d10, _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt),
+                  W_LP, cnt)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -438,6 +457,16 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
 
 
 @njit(cache=True)
+def _scratch_tail(n, cfg_i, out_i, k, cnt):  # pragma: no cover - compiled
+    """The PIC writes the scratch ring's tail before record ``k``: the delay line's newest ``N mod FLUSH`` a_v
+    (``n`` = ``N``), one partial page write at the block the next flush rewrites (step_join.asm's
+    ``scr_write_w``), where :func:`scratch_tail_write` holds and at STOP. Its bus bytes are counted, its ``N``
+    goes to ``out_i[k, O_TAIL]`` (the driver counts the page's write cycle from it)."""
+    s_cost(cnt, OP_I2C, SCRATCH_SAMPLE_BYTES * (n % cfg_i[CI_FLUSH]) + I2C_WRITE_OVERHEAD)
+    out_i[k, O_TAIL] = n
+
+
+@njit(cache=True)
 def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """The step ending at the final foot-flat ``e`` (newest filter output ``m``): record ``k``.
 
@@ -447,6 +476,8 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     zero = cfg_v[CV_DELTA] * 0
     flags = 0
     s = st_i[LAST] if st_i[FLAGS] & F_LAST else -1
+    if out_i[k, O_TAIL] == 0 and scratch_tail_write(e, s, st_i[N], cfg_i):
+        _scratch_tail(st_i[N], cfg_i, out_i, k, cnt)
     hs = _heel_strike(e, m, cfg_i, cfg_v, st_i, scr, cnt)
     if hs < 0:
         flags |= _NO_HEEL_STRIKE
@@ -796,6 +827,8 @@ def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, c
 def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """End of a run (STOP): the pending foot-flat becomes final with the samples there are."""
     if st_i[FLAGS] & F_PEND and (st_i[FLAGS] & F_OLD or st_i[N] > 2 * cfg_i[CI_R3]):
+        if st_i[N] % cfg_i[CI_FLUSH]:            # the newest a_v go to the ring first, whatever the step reads
+            _scratch_tail(st_i[N], cfg_i, out_i, k, cnt)
         k = _finalise(st_i[PEND], (st_i[N] - 1 - cfg_i[CI_R3]) & INDEX_MASK, cfg_i, cfg_v, st_i, st_v, scr, out_i,
                       out_v, k, cnt)
         st_i[FLAGS] &= ~F_PEND

@@ -481,6 +481,7 @@ class OnlineStepAlgorithm:
         self._durs = np.zeros(c.median_steps, np.int64)
         self._scr = np.zeros(int(self.config.cfg_i[kernel.CI_SCRATCH]), dt)
         self._wear = np.zeros(kernel.SCRATCH_PAGES, np.int64)
+        self._tails: list[np.ndarray] = []
         self._cnt = new_counters()
         self._cyc = np.zeros(6, np.int64)
         self._fed = 0                # samples fed since the last reset (the driver's count; the kernel's N is 16-bit)
@@ -519,14 +520,35 @@ class OnlineStepAlgorithm:
         counters (the 24LC1025's endurance) count."""
         return self._wear.copy()
 
+    @property
+    def scratch_tail_samples(self) -> np.ndarray:
+        """The scratch ring's tail writes since construction (the PIC's partial page writes of the newest
+        ``N mod FLUSH`` a_v before a step record that reads them, and at STOP; ``kernel._scratch_tail``), each
+        as the samples its run had then: also in :attr:`scratch_page_writes`, on the page the next flush
+        rewrites."""
+        return np.concatenate([np.zeros(0, np.int64), *self._tails])
+
+    def _count_page_writes(self, blocks: np.ndarray) -> None:
+        """One write cycle on the page of each flush block ``k`` of the run (``2 CI_FLUSH`` bytes from byte
+        ``2 CI_FLUSH k`` of the ring, modulo its length): a flush writes the whole block, a tail write its
+        start."""
+        unit = kernel.SCRATCH_SAMPLE_BYTES * int(self.config.cfg_i[kernel.CI_FLUSH])
+        np.add.at(self._wear, unit * np.asarray(blocks, np.int64) % kernel.SCRATCH_RING_BYTES // PAGE_BYTES, 1)
+
     def _count_flushes(self, fed_before: int, fed_after: int) -> None:
         """The kernel's scratch flushes while the run went from ``fed_before`` to ``fed_after`` samples (one
-        after every ``CI_FLUSH`` samples of the run): the k-th writes ``2 CI_FLUSH`` bytes from byte
-        ``2 CI_FLUSH k`` of the ring, modulo its length, one page write."""
+        after every ``CI_FLUSH`` samples of the run)."""
         flush = int(self.config.cfg_i[kernel.CI_FLUSH])
-        k = np.arange(fed_before // flush, fed_after // flush)
-        unit = kernel.SCRATCH_SAMPLE_BYTES * flush
-        np.add.at(self._wear, unit * k % kernel.SCRATCH_RING_BYTES // PAGE_BYTES, 1)
+        self._count_page_writes(np.arange(fed_before // flush, fed_after // flush))
+
+    def _count_tails(self, out_i: np.ndarray, k: int, fed_before: int) -> None:
+        """The tail writes before the kernel's records ``out_i[:k]``, made while the run went on from
+        ``fed_before`` samples (by at most :data:`BLOCK_SAMPLES`): their 16-bit ``N`` made the run's count."""
+        n16 = out_i[:k, kernel.O_TAIL]
+        n16 = n16[n16 > 0]
+        n = fed_before + ((n16 - fed_before) & INDEX_MASK)
+        self._tails.append(n)
+        self._count_page_writes(n // int(self.config.cfg_i[kernel.CI_FLUSH]))
 
     def arithmetic_context(self) -> ArithmeticContext:
         """Calls, cycles, saturations, wraps and divisions by zero since construction."""
@@ -615,6 +637,7 @@ class OnlineStepAlgorithm:
                               self.config.cfg_v, self._st_i, self._st_v, self._line, self._durs, self._scr, out_i,
                               out_v, 0, self._cnt, self._cyc)
             self._count_flushes(self._fed, self._fed + block.shape[0])
+            self._count_tails(out_i, k, self._fed)
             self._fed += block.shape[0]
             parts.append(self._steps(out_i, out_v, k, offset))
         if len(parts) == 1:
@@ -626,6 +649,7 @@ class OnlineStepAlgorithm:
         out_i, out_v = self._outputs(0)
         k = self._flush(self.config.cfg_i, self.config.cfg_v, self._st_i, self._st_v, self._scr, out_i, out_v, 0,
                         self._cnt)
+        self._count_tails(out_i, k, self._fed)
         return self._steps(out_i, out_v, k, offset)
 
     def run(self, codes: np.ndarray, *, run_starts: np.ndarray | None = None) -> OnlineSteps:

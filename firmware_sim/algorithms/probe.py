@@ -67,7 +67,7 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE, StepConfig, pack_step_reco
 
 __all__ = ["calibrated_axes", "gravity_states", "vertical_acceleration", "front_operation_counts", "online_config",
            "DETECTOR_FIELDS", "CALL_FIELDS", "DetectorTrace", "detector_trace", "step_records", "FinaliseTrace",
-           "finalise_calls", "OperationCounts", "algorithm_operation_counts"]
+           "finalise_calls", "OperationCounts", "algorithm_operation_counts", "scratch_writes"]
 
 
 @njit(cache=True)
@@ -328,6 +328,18 @@ def step_records(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz:
             if len(steps.end):
                 out.append(np.frombuffer(pack_step_records(steps.to_records(0)), np.uint8).reshape(-1, 20))
     return np.concatenate(out)
+
+
+def scratch_writes(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,
+                   scratch_ring: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """One run (START, ``codes``, STOP) of the compiled kernel: the write cycles of each scratch-ring page, counted
+    from the run's first (:attr:`~gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm.scratch_page_writes`:
+    the flushes and the tail writes), and each tail write's sample count (``N``; the run's length at STOP)."""
+    algo = _trace_algorithm(calibration, sampling_rate_hz, scratch_ring)
+    algo.reset()
+    algo.feed(np.ascontiguousarray(codes, dtype=np.int64).reshape(-1, 3))
+    algo.flush()
+    return algo.scratch_page_writes, algo.scratch_tail_samples
 
 
 def detector_trace(codes: np.ndarray, calibration: CalibrationQ, sampling_rate_hz: float = 50.0,

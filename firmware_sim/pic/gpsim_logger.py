@@ -70,7 +70,7 @@ from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
            "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
            "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun", "period_setup",
-           "RecordsVerification", "verify_records"]
+           "RecordsVerification", "verify_records", "bus_page_writes", "bus_reads", "BusRun"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -303,13 +303,14 @@ def _writes(log_text: str | bytes, wanted: set[int]) -> tuple[np.ndarray, np.nda
     return cyc[~repeat], addr[~repeat], val[~repeat]
 
 
-def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "") -> bytes:
+def _gpsim(build: _Build, addrs: list[int], stop: str, timeout_s: float, stimuli: str = "",
+           bus: tuple[str, ...] | None = None) -> bytes:
     """Run ``build`` in gpsim (``stimuli``: commands that attach stimuli), logging writes to ``addrs``, until
     ``stop`` (``e LABEL`` or ``c CYCLES``). The scratch ring's EEPROM is on the I2C bus in every run (the
-    firmware's page writes wait for its acknowledge)."""
+    firmware's page writes wait for its acknowledge; ``bus``: other gpsim commands that set up the bus)."""
     with tempfile.TemporaryDirectory(prefix="gpsim-logger-") as tmp:
         log = Path(tmp) / "writes.log"
-        lines = [*I2C_SETUP, *([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
+        lines = [*(I2C_SETUP if bus is None else bus), *([stimuli] if stimuli else []), *([f"log on {log}"] if addrs else []), *(f"log w {a}" for a in addrs), f"break {stop}", "run",
                  "quit"]
         (Path(tmp) / "run.stc").write_text("\n".join(lines) + "\n")
         proc = subprocess.run(["gpsim", "-i", "-s", str(build.cod), "-c", str(Path(tmp) / "run.stc")],
@@ -568,6 +569,68 @@ class RecordsRun:
     gpsim_s: float
 
 
+#: The MSSP's SSPBUF (bank 0) and SSPCON2 (bank 1), and SSPCON2's start and repeated-start bits.
+SSPBUF_ADDR, SSPCON2_ADDR, SSPCON2_SEN, SSPCON2_RSEN = 0x13, 0x91, 0x01, 0x02
+#: The control byte of a write to the scratch ring's block (step_record.asm SCR_CONTROL, the 24LC1025's second).
+SCR_CONTROL_WRITE = 0xA8
+
+
+def bus_page_writes(addr: np.ndarray, val: np.ndarray) -> np.ndarray:
+    """The page writes on the I2C bus in a write log of ``PENDING`` (any address but the MSSP's), ``SSPBUF`` and
+    ``SSPCON2``: ``(k, 3)`` int64 rows of (samples the main loop had finished, the first byte's address, data
+    bytes). A transfer runs from one start condition (``SEN`` set) to the next; a page write is one that sends
+    the write control byte, two address bytes and data, with no repeated start (a read has one; the
+    acknowledge polling sends the control byte alone)."""
+    rows: list[list[int]] = []
+    done, pending, sent, restart = 0, 0, [], False
+
+    def close() -> None:
+        if not restart and len(sent) > 3 and sent[0] == SCR_CONTROL_WRITE:
+            rows.append([sent_at, (sent[1] << 8) | sent[2], len(sent) - 3])
+
+    sent_at = 0
+    for a, v in zip(addr.tolist(), val.tolist()):
+        if a == SSPBUF_ADDR:
+            sent.append(v)
+        elif a == SSPCON2_ADDR:
+            if v & SSPCON2_SEN:
+                close()
+                sent, restart, sent_at = [], False, done
+            restart |= bool(v & SSPCON2_RSEN)
+        else:
+            done += v == (pending - 1) & 0xFF
+            pending = v
+    close()
+    return np.asarray(rows, np.int64).reshape(-1, 3)
+
+
+#: SSPCON2's receive-enable bit: one byte received.
+SSPCON2_RCEN = 0x08
+
+
+def bus_reads(addr: np.ndarray, val: np.ndarray) -> np.ndarray:
+    """The random reads in the same write log as :func:`bus_page_writes`: ``(k, 3)`` int64 rows of (samples the
+    main loop had finished, reads begun, i.e. repeated starts, bytes received), one row per sample with a read."""
+    rows: dict[int, list[int]] = {}
+    done = pending = 0
+    for a, v in zip(addr.tolist(), val.tolist()):
+        if a == SSPCON2_ADDR and v & (SSPCON2_RSEN | SSPCON2_RCEN):
+            row = rows.setdefault(done, [done, 0, 0])
+            row[1] += bool(v & SSPCON2_RSEN)
+            row[2] += bool(v & SSPCON2_RCEN)
+        elif a not in (SSPBUF_ADDR, SSPCON2_ADDR):
+            done += v == (pending - 1) & 0xFF
+            pending = v
+    return np.asarray([rows[k] for k in sorted(rows)], np.int64).reshape(-1, 3)
+
+
+class BusRun(NamedTuple):
+    """:meth:`PicLogger.run_bus`: the page writes (:func:`bus_page_writes`) and the reads (:func:`bus_reads`)."""
+
+    page_writes: np.ndarray
+    reads: np.ndarray
+
+
 def period_setup(period_cycles: int) -> TimerSetup:
     """Timer1 and CCP1 for a sampling period of ``period_cycles`` instruction cycles (the smallest prescaler
     whose CCPR1 holds it exactly).
@@ -729,6 +792,30 @@ class PicLogger:
             return v - (1 << (8 * b)) if signed and v >= 1 << (8 * b - 1) else v
 
         return LeanRun(calls, np.asarray([value(a, b, sg) for a, b, sg in state], np.int64), records)
+
+    def run_page_writes(self, codes: np.ndarray, calibration: CalibrationQ, *, run_start_sample: int = 0
+                        ) -> np.ndarray:
+        """The page writes the firmware put on the I2C bus in one run (:meth:`run_bus`)."""
+        return self.run_bus(codes, calibration, run_start_sample=run_start_sample).page_writes
+
+    def run_bus(self, codes: np.ndarray, calibration: CalibrationQ, *, run_start_sample: int = 0) -> BusRun:
+        """One run from START to STOP (``step_flush``) with only ``PENDING`` and the MSSP's ``SSPBUF`` and
+        ``SSPCON2`` logged: the page writes the firmware put on the I2C bus (:func:`bus_page_writes`; the
+        scratch ring's flushes and its tail writes) and its reads (:func:`bus_reads`). ``run_start_sample``
+        places the ring's start as in :meth:`run_calls`."""
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix="pic-logger-bus-") as tmp:
+            d = Path(tmp)
+            self._write_config(d, _calibration_bytes(calibration))
+            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=0,
+                                      SCR_K0=scratch_offset(run_start_sample, 0)), test=True)
+            logged = {build.symbols["PENDING"], SSPBUF_ADDR, SSPCON2_ADDR}
+            text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.zeros(n, np.int64), period))
+        _, addr, val = _writes(text, logged)
+        return BusRun(bus_page_writes(addr, val), bus_reads(addr, val))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a

@@ -35,6 +35,7 @@ from gaitlog.firmware_sim.budget import (
     typical_cycles_per_sample,
 )
 from gaitlog.firmware_sim.device import Logger
+from gaitlog.firmware_sim.pic import gpsim_journal, gpsim_logger
 from gaitlog.firmware_sim.pic.chip_budget import chip_budget
 from gaitlog.firmware_sim.pic.gpsim_logger import PicError
 from gaitlog.firmware_sim.world.subject import random_subjects
@@ -170,7 +171,19 @@ def _wear(c, walk: dict):
     return endurance_budget(c, duration_s=codes.shape[0] / c.sampling_rate_hz, bank_wear=logger.bank.wear - before[0],
                             step_wear=logger.step_eeprom.wear - before[1],
                             data_wear=logger.data_eeprom.wear - before[2],
-                            flush_samples=flush, journal_ring=logger.ring.ring_journal)
+                            flush_samples=flush, journal_ring=logger.ring.ring_journal,
+                            scratch_tail_writes=fw.step_algorithm.scratch_tail_samples.size)
+
+
+def _journal_entry(measure: Measure | None) -> float | None:
+    """With ``--measure``: the page-commit journal entry's cycles measured in gpsim (``journal.asm``); None (the
+    budget's estimate) without it or without gputils/gpsim."""
+    if measure is None or gpsim_logger.missing_tools() is not None:
+        return None
+    try:
+        return gpsim_journal.journal_entry_cycles()
+    except PicError as err:
+        raise HostError(f"--measure: {err}") from err
 
 
 def _budget(c: LoggerConfig, seed: int, measure: Measure | None = None) -> ConfigurationBudget:
@@ -181,7 +194,9 @@ def _budget(c: LoggerConfig, seed: int, measure: Measure | None = None) -> Confi
     walk = None
     if c.online_estimator and algorithm_cycles_per_sample(c.sampling_rate_hz, c.fosc_hz, c) > 0:
         walk = _walk(c, seed)
-    cycles = cycle_budget(walk["alg"].cycles if walk else None, c.sampling_rate_hz, fosc_hz=c.fosc_hz, config=c)
+    entry = _journal_entry(measure)
+    cycles = cycle_budget(walk["alg"].cycles if walk else None, c.sampling_rate_hz, fosc_hz=c.fosc_hz, config=c,
+                          journal_entry_cycles=entry)
     lines = [f"== {c.name}: {c.sampling_rate_hz:g} Hz, {c.adc_channels} ADC channels, {c.fosc_hz / 1e6:g} MHz, "
              f"on-line estimator {'on' if c.online_estimator else 'off'}", f"   {c.source}" if c.source else "",
              f"ADC: at most {adc_max_sampling_rate_hz(c.adc_channels, c.fosc_hz, c.source_impedance_ohm):,.0f} Hz "
@@ -193,7 +208,8 @@ def _budget(c: LoggerConfig, seed: int, measure: Measure | None = None) -> Confi
            "ram": {"fits": ram.fits, "total_bytes": ram.total_bytes, "algorithm_bytes": ram.algorithm_bytes,
                    "firmware_bytes": ram.firmware_bytes, "lines": ram.lines()}}
     cyc = {"fits": cycles.fits and cycles.logging <= cycles.available, "available_per_sample": cycles.available,
-           "logging_per_sample": cycles.logging, "mean_algorithm": cycles.mean_algorithm,
+           "logging_per_sample": cycles.logging, "page_commit_per_sample": cycles.page_commit[0],
+           "page_commit_source": cycles.page_commit[1], "mean_algorithm": cycles.mean_algorithm,
            "worst_algorithm": cycles.worst_algorithm, "worst_backlog_samples": cycles.backlog_samples
            if walk else 0.0, "mean_load": cycles.mean_load}
     if walk:

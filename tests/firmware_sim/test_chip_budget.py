@@ -64,7 +64,8 @@ def test_operation_counts_split_the_kernels_own_count(simulated_walk):
     assert ops.record_samples.size == len(steps.end) > 5
     writes = ops.step4[:, OPS.index("i2c_byte")]
     assert np.count_nonzero(writes) == 900 // 16 and set(np.unique(writes)) == {0, 35}
-    assert np.all(ops.step5[ops.record_samples, OPS.index("i2c_byte")] > 500)        # the ring read back
+    # the ring read back: at least the heel strike's 14 windows of 11 a_v, 5 bytes around each read
+    assert np.all(ops.step5[ops.record_samples, OPS.index("i2c_byte")] >= 14 * (22 + 5))
 
 
 @needs_gpsim
@@ -98,17 +99,18 @@ def _check_records(b, n_records: int) -> None:
 
 @needs_gpsim
 def test_the_model_per_step_record_within_10_percent_on_ipol_1_1(ipol_1_1):
-    """Every step record of IPOL trial 1-1: the model's mean within 10 % of gpsim's (measured: 462,603 against
-    449,942, -2.7 %; at 99 cycles an I2C byte it was -16.6 %), each record's error within -6 % .. +20 % (the
-    first step of the run, whose filters the assembly evaluates on fewer samples, +19 %)."""
+    """Every step record of IPOL trial 1-1: the model's mean within 10 % of gpsim's (measured: 466,552 against
+    442,204, -5.2 %; at 99 cycles an I2C byte it was -16.6 %), each record's error within -8 % .. -2 % (-5.7 % to
+    -5.0 %: the first step of the run, with no window, is no longer apart since the heel strike's band counts one
+    read, as the assembly makes it; it was +17.9 %)."""
     b = chip_budget(ipol_1_1, _flags(len(ipol_1_1)), nominal_calibration_q(), source="1-1")
     assert b.measured and b.n_samples == 1519
     _check_records(b, 35)
     rec = b.records
     assert rec.measured_cycles.mean() == pytest.approx(462_603, rel=0.02)
-    assert rec.mean_error_percent == pytest.approx(-2.7, abs=1.5)
-    assert np.all((rec.error_percent > -6.0) & (rec.error_percent < 20.0))
-    assert np.median(rec.error_percent) == pytest.approx(-2.8, abs=1.0)
+    assert rec.mean_error_percent == pytest.approx(-5.2, abs=1.5)
+    assert np.all((rec.error_percent > -8.0) & (rec.error_percent < -2.0))
+    assert np.median(rec.error_percent) == pytest.approx(-5.2, abs=1.0)
     total = b.part("total in assembly").summary()
     assert total["measured"]["mean"] == pytest.approx(24_095, rel=0.02)
     assert abs(total["error"]["mean_cycles"]) <= 0.05 * total["measured"]["mean"]
@@ -120,7 +122,10 @@ def test_the_calibration_holds_on_a_simulated_walk(simulated_walk):
     codes = simulated_walk[0][:1500]
     b = chip_budget(codes, _flags(len(codes)), nominal_calibration_q(), source="walk")
     _check_records(b, 33)
-    assert b.records.mean_error_percent == pytest.approx(-2.7, abs=2.0)
+    assert b.records.mean_error_percent == pytest.approx(-5.1, abs=2.0)               # measured: -5.1 %
+    assert np.all((b.records.error_percent > -8.0) & (b.records.error_percent < -2.0))  # -5.3 % .. -4.9 %
+    # step 4, the FIR and the scratch ring's flushes, with the FIR's byte moves counted: -0.4 % (-11 % before)
+    assert abs(b.part("step 4 (3 Hz FIR, scratch)").summary()["error"]["mean_percent"]) <= 3.0
 
 
 def test_without_gpsim_every_figure_is_estimated(simulated_walk, monkeypatch):
