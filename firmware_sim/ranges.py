@@ -23,7 +23,9 @@ same. What is observed, and how, is said per row (:data:`HOW`):
 ``derived``
     Temporaries of a step's passes recomputed in int64 from the observed a_v, the records' windows and
     excursions with the kernel's formulas: M1's velocity and position accumulators, M2's corrected position
-    p2, ``2 l h - h^2``, M4's square root. Not read from the kernel: a value beyond the word is counted where the kernel would saturate.
+    p2, ``2 l h - h^2``, M4's square root, M5's ``K1 fs / N + K2`` before the record's unsigned word
+    (:func:`m5_before_storing`). Not read from the kernel: a value beyond the word is counted where the kernel
+    would saturate.
 ``constant``
     Configuration the kernel keeps (FIR weights, calibration, leg, K ...): the values configured.
 ``none``
@@ -31,7 +33,8 @@ same. What is observed, and how, is said per row (:data:`HOW`):
     have no range.
 
 A row's ``saturations`` counts the observed values at the word's limit (at either limit when signed, at the
-top when unsigned: 0 is a common unsigned value), or beyond it for derived values; the kernel's own counters
+top when unsigned: 0 is a common unsigned value), or beyond it for derived values (below 0 too, for an
+unsigned word); the kernel's own counters
 (saturations, wraps, divisions by zero of every primitive, not per variable) are in
 :attr:`RangeReport.kernel_saturations` and beside it.
 
