@@ -23,7 +23,9 @@ same. What is observed, and how, is said per row (:data:`HOW`):
 ``derived``
     Temporaries of a step's passes recomputed in int64 from the observed a_v, the records' windows and
     excursions with the kernel's formulas: M1's velocity and position accumulators, M2's corrected position
-    p2, ``2 l h - h^2``, M4's square root. Not read from the kernel: a value beyond the word is counted where the kernel would saturate.
+    p2, ``2 l h - h^2``, M4's square root, M5's ``K1 fs / N + K2`` before the record's unsigned word
+    (:func:`m5_before_storing`). Not read from the kernel: a value beyond the word is counted where the kernel
+    would saturate.
 ``constant``
     Configuration the kernel keeps (FIR weights, calibration, leg, K ...): the values configured.
 ``none``
@@ -31,7 +33,8 @@ same. What is observed, and how, is said per row (:data:`HOW`):
     have no range.
 
 A row's ``saturations`` counts the observed values at the word's limit (at either limit when signed, at the
-top when unsigned: 0 is a common unsigned value), or beyond it for derived values; the kernel's own counters
+top when unsigned: 0 is a common unsigned value), or beyond it for derived values (below 0 too, for an
+unsigned word); the kernel's own counters
 (saturations, wraps, divisions by zero of every primitive, not per variable) are in
 :attr:`RangeReport.kernel_saturations` and beside it.
 
@@ -59,6 +62,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from gaitlog.firmware_sim.algorithms import arithmetic as ar
 from gaitlog.firmware_sim.algorithms import formats as fm
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
@@ -68,7 +72,8 @@ from gaitlog.firmware_sim.algorithms.state import AMP, G1, G2, MN, MX, PEND_Y, R
 from gaitlog.firmware_sim.fixedpoint import QFormat, new_counters
 from gaitlog.protocol.steps import StepFlag
 
-__all__ = ["HOW", "TRACKED", "Tracked", "VariableRange", "RangeReport", "RangeCollector", "smallest_format"]
+__all__ = ["HOW", "TRACKED", "Tracked", "VariableRange", "RangeReport", "RangeCollector", "m5_before_storing",
+           "smallest_format"]
 
 #: How a row's values are observed (module notes), in the table's order of trust.
 HOW = ("state", "probe", "record", "derived", "constant", "none")
@@ -115,6 +120,7 @@ TRACKED = (
     Tracked("2 l h - h^2 (M1)", "PENDULUM_ARG_Q", "derived", "m^2"),
     Tracked("2 l h - h^2 (M2, M3)", "PENDULUM_ARG2_Q", "derived", "m^2"),
     *(Tracked(f"length M{i}", "STEP_Q", "record", "m") for i in range(1, 6)),
+    Tracked("K1 fs / N + K2 (M5)", "STEP_Q", "derived", "m"),
     Tracked("K1, K2 (as used)", "K_Q", "constant", "1"),
     Tracked("K4 g0^p", "K4_Q", "constant", "1"),
     Tracked("sqrt(range) (M4)", "ROOT4_Q", "derived", "g^1/2"),
@@ -136,19 +142,42 @@ def _limits(q: QFormat) -> tuple[int, int]:
 def smallest_format(lo_raw: int, hi_raw: int, q: QFormat, margin_bits: int) -> tuple[int, int]:
     """The smallest format with ``q``'s fraction bits and signedness that holds ``[lo_raw, hi_raw]`` (raw counts
     of ``q``) magnified by ``2^margin_bits``: ``(integer bits, total bits)`` (integer bits may be negative, as
-    ``EXCURSION2_Q``'s -2).
+    ``EXCURSION2_Q``'s -2). A negative ``lo_raw`` of an unsigned ``q`` (a derived value below its word) needs a
+    sign: the format proposed is then signed.
 
     >>> smallest_format(0, 1 << 29, fm.GRAVITY_Q, 0), smallest_format(0, 1 << 29, fm.GRAVITY_Q, 1)
     ((1, 31), (2, 32))
     >>> smallest_format(0, 6000, fm.STEP_Q, 1), smallest_format(-1, 0, fm.ACC_Q, 0)
     ((0, 14), (-13, 1))
+    >>> smallest_format(-2000, 20000, fm.STEP_Q, 0)      # -0.12 .. 1.22 m: a sign and Q1.14
+    (1, 16)
     """
     hi, lo = int(hi_raw) << margin_bits, int(lo_raw) << margin_bits
-    if q.signed:
+    signed = q.signed or lo < 0
+    if signed:
         total = 1 + max(max(hi, 0).bit_length(), (-min(lo, 0) - 1).bit_length() if lo < 0 else 0)
     else:
         total = max(max(hi, 0).bit_length(), 1)
-    return total - q.frac_bits - int(q.signed), total
+    return total - q.frac_bits - int(signed), total
+
+
+def m5_before_storing(cfg_v: np.ndarray, durations_samples: np.ndarray) -> np.ndarray:
+    """M5 of steps of ``durations_samples`` samples (records without a window, duration 0, left out) in
+    ``STEP_Q``'s raw counts: the kernel's ``K1 fs / N + K2`` with its own primitives, but requantised into a
+    32-bit word instead of the record's unsigned 16 bits, so a negative length (a calibrated ``K2 < 0`` and
+    ``N > K1 fs / -K2``, which the kernel stores as 0 and counts as a saturation) stays negative.
+
+    >>> from gaitlog.protocol.steps import StepConfig
+    >>> alg = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=StepConfig(step_format=1, leg_length_m=0.9,
+    ...                                                                         foot_length_m=0.2))
+    >>> (m5_before_storing(alg.config.cfg_v, np.array([0, 25, 50])) * fm.STEP_Q.lsb).tolist()   # K = 1: 1 / T
+    [2.0, 1.0]
+    """
+    cnt = new_counters()
+    k1fs, k2 = int(cfg_v[kernel.CV_K1FS]), int(cfg_v[kernel.CV_K2M5])
+    return np.array([ar.requant(ar.add(ar.div(k1fs, fm.F_M5, int(n), 0, fm.F_M5, fm.W32, cnt), k2, fm.W32, cnt),
+                                fm.F_M5, fm.F_STEP, fm.W32, cnt)
+                     for n in np.asarray(durations_samples, np.int64) if n > 0], np.int64)
 
 
 @dataclass(frozen=True)
@@ -310,8 +339,7 @@ class RangeCollector:
         self._hi[name] = max(hi, self._hi.get(name, hi))
         self._n[name] = self._n.get(name, 0) + int(v.size)
         at = v >= hi_lim
-        if _format(t.format_name, self._adc_bits).signed:
-            at |= v <= lo_lim
+        at |= (v <= lo_lim) if _format(t.format_name, self._adc_bits).signed else (v < 0)
         self._sat[name] = self._sat.get(name, 0) + int(np.count_nonzero(at))
 
     def add(self, algorithm: OnlineStepAlgorithm, codes: np.ndarray, *, segments: Sequence[tuple[int, int]] = (),
@@ -390,6 +418,7 @@ class RangeCollector:
         self._see("M4 range", extras[:, 3])
         rng = np.maximum(extras[:, 3], 0)
         self._see("sqrt(range) (M4)", np.rint(np.sqrt(rng.astype(np.float64) * 2.0 ** (2 * fm.F_ROOT - fm.F_LP))))
+        self._see("K1 fs / N + K2 (M5)", m5_before_storing(alg.config.cfg_v, steps.duration))
         two_leg = int(alg.config.cfg_v[kernel.CV_TWO_LEG])
         for name, h, f_h in (("2 l h - h^2 (M1)", extras[:, 0], fm.F_EXC),
                              ("2 l h - h^2 (M2, M3)", extras[:, 1:3], fm.F_EXC2)):
@@ -437,7 +466,8 @@ class RangeCollector:
         lo, hi = self._lo[t.name], self._hi[t.name]
         m, total = smallest_format(lo, hi, q, margin_bits)
         return VariableRange(**common, min_raw=lo, max_raw=hi, min_real=lo * q.lsb, max_real=hi * q.lsb,
-                             headroom_bits=_headroom_bits(q, lo, hi), proposed=_q_name(m, q.frac_bits, q.signed),
+                             headroom_bits=_headroom_bits(q, lo, hi),
+                             proposed=_q_name(m, q.frac_bits, q.signed or lo < 0),
                              proposed_bits=total)
 
     def report(self, *, margin_bits: int = 1) -> RangeReport:

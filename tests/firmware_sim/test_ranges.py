@@ -120,3 +120,33 @@ def test_smallest_format_edges():
     assert smallest_format(-32768, 32767, ACC_Q, 0) == (2, 16)
     assert smallest_format(-32769, 0, ACC_Q, 0) == (3, 17)
     assert smallest_format(0, 0, ACC_Q, 0) == (-13, 1)
+
+
+def _slow_walk_codes(seconds: float = 40.0, step_hz: float = 1.0) -> np.ndarray:
+    """A centre of mass z = -3 cm cos(2 pi f t) on z: one step per 1 / f s (50 samples at 1 Hz)."""
+    t = np.arange(int(seconds * RATE_HZ)) / RATE_HZ
+    acc = np.zeros((t.size, 3))
+    acc[:, 2] = 1 - 0.03 * (2 * np.pi * step_hz) ** 2 * np.cos(2 * np.pi * step_hz * t) / STANDARD_GRAVITY_M_S2
+    return np.clip(np.floor(acc * 256 + 512), 0, 1023).astype(np.int64)
+
+
+@pytest.mark.parametrize("k2_m5_m, saturates", [(-1.0, True), (-0.8, False)])
+def test_m5_below_zero_is_reported_where_k1_fs_over_n_plus_k2_is_negative(k2_m5_m, saturates):
+    # M5 = K1/T + K2 with K1 = 0.9 m s: negative for T > 0.9 / -K2, i.e. for the 1 s steps when K2 = -1 m
+    # (0.9 - 1 = -0.1 m, stored as 0 in the unsigned UQ2.14 and counted by the kernel), +0.1 m when K2 = -0.8
+    cfg = StepConfig(step_format=1, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.0, k_m2=1.0,
+                     k_m4=1.0, k1_m5_m_s=0.9, k2_m5_m=k2_m5_m)
+    c = RangeCollector()
+    c.add(OnlineStepAlgorithm(sampling_rate_hz=RATE_HZ, step_config=cfg), _slow_walk_codes(), name="1 s steps")
+    r = c.report()
+    row = r.row("K1 fs / N + K2 (M5)")
+    windowed = r.n_steps - 1                                   # the first record has no window
+    assert windowed > 30
+    assert row.how == "derived" and row.n_values == windowed
+    assert row.max_real == pytest.approx(0.9 + k2_m5_m, abs=0.01)        # the 50-sample steps
+    assert row.saturations == (windowed if saturates else 0) == r.kernel_saturations == r.saturated_records
+    assert r.row("length M5").saturations == 0                # the record reads 0: only the derived row sees it
+    if saturates:
+        assert row.min_real < 0 and row.proposed.startswith("Q") and "K1 fs / N + K2 (M5)" in r.headline()
+    else:
+        assert row.min_real > 0 and row.proposed.startswith("UQ")

@@ -11,6 +11,7 @@ import pytest
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.world.base import Motion
 from gaitlog.host.cli import main
+from gaitlog.protocol.steps import StepConfig
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 from tests.conftest import DATA_DIR
 
@@ -84,3 +85,24 @@ def test_bad_input_exits_with_one_line(argv, code, says, image, tmp_path, capsys
         raise SystemExit(main(args))
     err = capsys.readouterr().err.strip().splitlines()
     assert exc.value.code == code and len(err) == 1 and says in err[0] and "Traceback" not in err[0]
+
+
+def test_m5_below_zero_is_in_the_table_and_the_headline(tmp_path, capsys):
+    # a logger calibrated with M5 = 0.9 m s / T - 1 m walking 1 s steps: M5 = -0.1 m on every step, stored as 0;
+    # the table's derived M5 row counts them all, as the kernel does
+    t = np.arange(2000) / 50.0
+    acc = np.zeros((t.size, 3))
+    acc[:, 2] = 1 - 0.03 * (2 * np.pi) ** 2 * np.cos(2 * np.pi * t) / STANDARD_GRAVITY_M_S2
+    cfg = StepConfig(step_format=1, calibrated=True, leg_length_m=0.9, foot_length_m=0.2, k_m1=1.0, k_m2=1.0,
+                     k_m4=1.0, k1_m5_m_s=0.9, k2_m5_m=-1.0)
+    logger = Logger(device_id=7, step_config=cfg)
+    logger.record(Motion(acc_g=acc, sampling_rate_hz=50.0), start_time_s=1_700_000_000)
+    path = tmp_path / "slow.glimg"
+    logger.save_image(path)
+    assert main(["ranges", str(path), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    row = {r["variable"]: r for r in doc["rows"]}["K1 fs / N + K2 (M5)"]
+    assert doc["n_steps"] > 30 and row["saturations"] == doc["kernel_saturations"] == doc["saturated_records"] > 30
+    assert row["min_real"] == pytest.approx(-0.1, abs=0.06) and "K1 fs / N + K2 (M5) (STEP_Q)" in doc["headline"]
+    assert main(["ranges", str(path)]) == 0
+    assert "at the limit: K1 fs / N + K2 (M5)" in capsys.readouterr().out
