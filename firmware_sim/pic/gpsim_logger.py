@@ -595,11 +595,15 @@ class PicLogger:
         The ADC source (the ADXL202's 32 kOhm output): sets the acquisition delay.
     workers
         gpsim processes at a time (one per logging run).
+    overwrite, steps_written
+        The header at START (logger_ram.inc's header counters): ring mode (else stop when full) and
+        ``steps_written``; ``samples_written`` at START is each run's first sample number.
     """
 
     def __init__(self, *, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ,
                  gravity_shift: int | None = None,
-                 source_impedance_ohm: float = 32e3, workers: int = 2, timeout_s: float = 600.0) -> None:
+                 source_impedance_ohm: float = 32e3, workers: int = 2, timeout_s: float = 600.0,
+                 overwrite: bool = True, steps_written: int = 0) -> None:
         self.sampling_rate_hz = sampling_rate_hz
         self.fosc_hz = fosc_hz
         self.gravity_shift = gravity_shift if gravity_shift is not None else SampleCounts.at(
@@ -611,6 +615,8 @@ class PicLogger:
         self.source_impedance_ohm = source_impedance_ohm
         self.workers = workers
         self.timeout_s = timeout_s
+        self.overwrite = overwrite
+        self.steps_written = steps_written
 
     def _write_config(self, build_dir: Path, cal_bytes: list[int]) -> None:
         """The data EEPROM's configuration (the calibration's bytes, FIR weights, step configuration) as
@@ -631,6 +637,8 @@ class PicLogger:
         return dict(CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con,
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
+                    FIRST_SAMPLE_U=(first_sample >> 16) & 0xFF, FIRST_SAMPLE_T=(first_sample >> 24) & 0xFF,
+                    OVERWRITE=int(self.overwrite), STEPS_WRITTEN=self.steps_written,
                     PAGE_START=_page_fsr(first_sample), G_SHIFT=self.gravity_shift,
                     SCR_SAMPLES=kernel.SCRATCH_RING_SAMPLES, SCR_K0=scratch_offset(first_sample, 0),
                     G_MIN=self.min_gravity_raw, **steps)
@@ -673,7 +681,6 @@ class PicLogger:
             dt = time.perf_counter() - t0
         cyc, addr, val = _writes(text, set(logged))
         start = {a: 0 for a in tracked}
-        start[sym["THR_L"]] = 2
         snaps, order, ready, calls, stages, records, stop_cycles = _replay_log(cyc, addr, val, n, sym, start)
         col = {a: i for i, a in enumerate(order)}
         ram = {}
