@@ -60,15 +60,16 @@ from gaitlog.firmware_sim.algorithms.probe import (
     vertical_acceleration,
 )
 from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
-from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
+from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, PIC_RAM_BYTES, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
+from gaitlog.firmware_sim.pic.ram_map import FIRMWARE_GROUPS, ram_map
 from gaitlog.firmware_sim.pic.step_config import config_bytes
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
-           "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
+           "PicLogger", "HeaderRun", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
            "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun", "period_setup",
            "RecordsVerification", "verify_records"]
 
@@ -365,6 +366,18 @@ def _lean_log(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int]
         raise PicError(f"gpsim's main loop finished {done} samples of {n}")
     return (np.asarray(calls, np.int64).reshape(-1, 1 + len(_RECORD)),
             np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), ram, backlog)
+
+
+class HeaderRun(NamedTuple):
+    """:meth:`PicLogger.run_header`: the samples the main loop processed and the header counters after the run
+    (logger_ram.inc): ``samples_written`` (2^32 - 1 once saturated), ``write_index`` (its low 16 bits),
+    ``steps_written`` and the run's mode (``overwrite``); a run stopped when full processed fewer samples."""
+
+    samples_processed: int
+    samples_written: int
+    write_index: int
+    steps_written: int
+    overwrite: bool
 
 
 class LeanRun(NamedTuple):
@@ -737,6 +750,34 @@ class PicLogger:
 
         return LeanRun(calls, np.asarray([value(a, b, sg) for a, b, sg in state], np.int64), records)
 
+    def run_header(self, codes: np.ndarray, calibration: CalibrationQ, *, first_sample_number: int = 0) -> HeaderRun:
+        """One run from START with the header at ``first_sample_number`` samples written (``overwrite`` and
+        ``steps_written`` from the harness): the header counters (logger_ram.inc) after the run, from a lean
+        write log. In stop-when-full mode the run ends where the memory fills (the interrupt's STOP)."""
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix="pic-logger-header-") as tmp:
+            d = Path(tmp)
+            self._write_config(d, _calibration_bytes(calibration))
+            build = _assemble(d, dict(self._defines(first_sample_number), N_SAMPLES=n, START_N=0), test=True)
+            sym = build.symbols
+            names = ("SAMPLE_L", "SAMPLE_H", "SAMPLE_U", "SAMPLE_T", "STEPS_W", "STEPS_W+1", "STEPS_W+2",
+                     "STEPS_W+3", "FW_FLAGS", "PENDING")
+            addr_of = {k: sym[k.split("+")[0]] + int(k.split("+")[1] if "+" in k else 0) for k in names}
+            text = _gpsim(build, sorted(addr_of.values()), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.zeros(n, np.int64), period))
+        _, addr, val = _writes(text, set(addr_of.values()))
+        last = {a: v for a, v in zip(addr.tolist(), val.tolist())}
+        b = {k: last.get(a, 0) for k, a in addr_of.items()}
+        done = int(np.sum(np.diff(val[addr == addr_of["PENDING"]]) == -1) if (addr == addr_of["PENDING"]).any() else 0)
+        low = b["SAMPLE_L"] | b["SAMPLE_H"] << 8
+        sw = low | b["SAMPLE_U"] << 16 | b["SAMPLE_T"] << 24
+        saturated = bool(b["FW_FLAGS"] >> sym["FWF_SW_SAT"] & 1)
+        steps = sum(b[f"STEPS_W+{i}" if i else "STEPS_W"] << (8 * i) for i in range(4))
+        return HeaderRun(done, 0xFFFFFFFF if saturated else sw, low, steps,
+                         bool(b["FW_FLAGS"] >> sym["FWF_OVERWRITE"] & 1))
+
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
         run started at sample 0, and the period between interrupts."""
@@ -862,9 +903,12 @@ def run_starts(flags: np.ndarray) -> list[int]:
 class MemoryMap:
     """RAM and program memory of the production build, from gpasm's listing (measured).
 
-    ``ram_bytes`` per block (bank 0-3 and common RAM), ``program_words``: words from 0 to ``code_end`` (page 0)
-    plus page 1's routines and page 2; ``kernel_words``: the arithmetic kernels (page 0's and page 2's copy);
-    ``steps_words``: steps 4-5 (both pages); ``step_record_words``: the step record (page 2, without its
+    ``ram_bytes`` per block (bank 0-3 and common RAM) and ``ram_groups``, the firmware's own variable groups
+    (:data:`~.ram_map.FIRMWARE_GROUPS`: the header counters, and the UART handler's and the page writer's, reserved
+    at the model's sizes), both from one :class:`~.ram_map.RamMap`; ``ram_problems``: what
+    :meth:`~.ram_map.RamMap.problems` finds (empty when it fits). ``program_words``: words from 0 to ``code_end``
+    (page 0) plus page 1's routines and page 2; ``kernel_words``: the arithmetic kernels (page 0's and page 2's
+    copy); ``steps_words``: steps 4-5 (both pages); ``step_record_words``: the step record (page 2, without its
     kernels) and its joins (page 1); ``pages``: words used per program-memory page.
     """
 
@@ -874,29 +918,42 @@ class MemoryMap:
     steps_words: int = 0
     step_record_words: int = 0
     pages: dict[str, int] = field(default_factory=dict)
+    ram_groups: dict[str, int] = field(default_factory=dict)
+    ram_problems: tuple[str, ...] = ()
 
     @property
     def ram_total_bytes(self) -> int:
         return sum(self.ram_bytes.values())
 
+    def ram_line(self) -> str:
+        """The RAM figure, per bank and with the firmware's groups named."""
+        groups = ", ".join(f"{k} {v}" + (" (reserved: the model's part, its estimate)"
+                                         if FIRMWARE_GROUPS[k][2] else "") for k, v in self.ram_groups.items())
+        return (f"{self.ram_total_bytes} of {PIC_RAM_BYTES} bytes ("
+                + ", ".join(f"{k} {v}" for k, v in self.ram_bytes.items()) + f"); of them the firmware's {groups}"
+                + ("" if not self.ram_problems else "; PROBLEMS: " + "; ".join(self.ram_problems)))
+
+
+_RAM_BLOCKS = ("bank 0", "bank 1 (steps 4-5, header counters)", "bank 2 (page buffer, step record)",
+               "bank 3 (page buffer, step record)", "common (kernels, W_TEMP)")
+
 
 def memory_map(*, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ) -> MemoryMap:
-    """Assemble the production build and read its RAM blocks' ends and program size from the listing."""
+    """Assemble the production build and read its RAM map (:func:`~.ram_map.ram_map`) and program size from the
+    listing."""
     with tempfile.TemporaryDirectory(prefix="pic-logger-map-") as tmp:
         b = _assemble(Path(tmp), PicLogger(sampling_rate_hz=sampling_rate_hz, fosc_hz=fosc_hz)._defines(0),
                       test=False)
+        ram = ram_map((Path(tmp) / "logger.lst").read_text(errors="replace"), b.symbols)
     s = b.symbols
     page1 = s["page1_end"] - s["page1_begin"]
     joins = s["join_end"] - s["join_begin"]
     page2 = s["page2_end"] - s["page2_begin"]
     kernels = s["kernels_end"] - s["kernels_begin"]
-    ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1 (steps 4-5)": s["RAM1_END"] - 0xA0,
-           "bank 2 (page buffer, step record)": s["RAM2_END"] - 0x110 + s["RAM2_STEP_END"] - 0x150,
-           "bank 3 (page buffer, step record)": s["RAM3_END"] - 0x190 + s["RAM3_STEP_END"] - 0x1D0,
-           "common (kernels, W_TEMP)": 16}
     pages = {"page 0": s["code_end"], "page 1": page1 + joins, "page 2": page2}
-    return MemoryMap(ram, sum(pages.values()), 2 * kernels, s["steps_end"] - s["steps_begin"] + page1,
-                     page2 - kernels + joins, pages)
+    return MemoryMap(dict(zip(_RAM_BLOCKS, ram.bank_bytes().values())), sum(pages.values()), 2 * kernels,
+                     s["steps_end"] - s["steps_begin"] + page1, page2 - kernels + joins, pages, ram.groups(),
+                     tuple(ram.problems()))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -987,8 +1044,7 @@ class PicVerification:
         lines.append(f"ADC acquisition: {self.acquisition_cycles_min} cycles from channel select to GO (measured; "
                      f"needed {self.acquisition_cycles_needed:.1f})")
         m = self.memory
-        lines.append(f"RAM (measured, gpasm listing): {m.ram_total_bytes} of 368 bytes: "
-                     + ", ".join(f"{k} {v}" for k, v in m.ram_bytes.items()))
+        lines.append(f"RAM (measured, gpasm listing): {m.ram_line()}")
         lines.append(f"program memory (measured): {m.program_words:,} of 8,192 words ({m.kernel_words} kernels in two "
                      f"copies, {m.step_record_words:,} step record); "
                      + ", ".join(f"{k} {v:,} of 2,048" for k, v in m.pages.items()))
@@ -1007,6 +1063,7 @@ class PicVerification:
                "stop_cycles_measured": list(self.stop_cycles),
                "acquisition_cycles_needed": round(self.acquisition_cycles_needed, 1),
                "ram_bytes_measured": self.memory.ram_bytes, "ram_total_bytes": self.memory.ram_total_bytes,
+               "ram_groups_measured": self.memory.ram_groups, "ram_problems": list(self.memory.ram_problems),
                "program_words_measured": self.memory.program_words, "kernel_words": self.memory.kernel_words,
                "wall_s": round(self.wall_s, 3), "gpsim_s": round(self.gpsim_s, 3),
                "realtime_factor": round(self.realtime_factor, 2), "notes": self.notes}

@@ -762,7 +762,7 @@ rs_clear:
         clrf    INDF
         incf    FSR, F
         movf    FSR, W
-        xorlw   RAM1_END
+        xorlw   RAM1_FW                 ; steps 4-5's state (not the header counters after it)
         btfss   STATUS, Z
         goto    rs_clear
         movlw   LOW PRIOR_TWICE
