@@ -32,7 +32,7 @@ from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.firmware_sim.pic.gpsim_bench import copy_sources
 from gaitlog.firmware_sim.pic.gpsim_logger import MemoryMap, PicLogger, memory_map, run_starts
 
-__all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "I2C_EVENTS",
+__all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "RAM_ESTIMATE_NOTE", "I2C_EVENTS",
            "i2c_event_cycles"]
 
 #: The parts compared, in order: the interrupt, the algorithm's steps (the harness's stages) and their sums.

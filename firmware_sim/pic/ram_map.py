@@ -12,12 +12,15 @@ outside a bank's general-purpose registers, two allocations on the same byte, an
 
 >>> lines = ["                      00001         cblock  0x20",
 ...          "  00000020            00002         A_L, A_H   ; a",
-...          "  00000022            00003         END_",
+...          "  00000022            00003         A_END",
 ...          "                      00004         endc",
 ...          "  00000020            00005 B_L             equ     A_L"]
->>> m = ram_map("\\n".join(lines), {"A_L": 0x20, "A_H": 0x21, "END_": 0x22, "B_L": 0x20})
->>> [(v.name, v.address, v.size) for v in m.allocations], m.aliases
-([('A_L', 32, 1), ('A_H', 33, 1), ('END_', 34, 0)], {'B_L': 'A_L'})
+>>> m = ram_map("\\n".join(lines), {"A_L": 0x20, "A_H": 0x21, "A_END": 0x22, "B_L": 0x20, "W_TEMP": 0x7F})
+>>> [(v.name, v.address, v.size) for v in m.allocations][:3], m.aliases, m.total_bytes
+([('A_L', 32, 1), ('A_H', 33, 1), ('A_END', 34, 0)], {'B_L': 'A_L'}, 131)
+>>> m.problems()[0]
+'alias B_L of A_L is not a documented overlay'
+
 """
 
 from __future__ import annotations
