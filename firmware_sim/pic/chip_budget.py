@@ -32,8 +32,8 @@ from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.firmware_sim.pic.gpsim_bench import copy_sources
 from gaitlog.firmware_sim.pic.gpsim_logger import MemoryMap, PicLogger, memory_map, run_starts
 
-__all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "RAM_ESTIMATE_NOTE", "I2C_EVENTS",
-           "i2c_event_cycles"]
+__all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "RAM_ESTIMATE_NOTE",
+           "I2C_EVENTS", "i2c_event_cycles"]
 
 #: The parts compared, in order: the interrupt, the algorithm's steps (the harness's stages) and their sums.
 STEPS = ("sampling interrupt", "step 1 (calibration)", "steps 2-3 (gravity, a_v)", "steps 1-3",
@@ -41,8 +41,9 @@ STEPS = ("sampling interrupt", "step 1 (calibration)", "steps 2-3 (gravity, a_v)
 #: Why ``gaitlog budget``'s RAM estimate (:func:`gaitlog.firmware_sim.budget.ram_budget`) differs from the measured map.
 RAM_ESTIMATE_NOTE = ("budget.ram_budget: the algorithm's temporaries by the kernel's declared frames, not the "
                      "assembly's overlays; the header counters at 13 bytes, where the map keeps 8: write_index is "
-                     "samples_written's low half (65,536 slots), the flags live in FW_FLAGS and step_write_index is "
-                     "steps_written mod the step capacity, computed when a record is stored")
+                     "samples_written's low half (65,536 slots), the flags follow from the run's mode and that "
+                     "count, and step_write_index is steps_written mod the step capacity, computed when a record "
+                     "is stored")
 #: What the assembly does not do yet: its cycles are in neither figure.
 STILL_ESTIMATED = ("the sample pages' I2C write and commit", "STOP's last step record", "UART")
 

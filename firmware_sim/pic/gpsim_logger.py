@@ -69,9 +69,9 @@ from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, 
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
-           "PicLogger", "HeaderRun", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
-           "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun", "period_setup",
-           "RecordsVerification", "verify_records"]
+           "PicLogger", "HeaderRun", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify",
+           "run_starts", "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun",
+           "period_setup", "RecordsVerification", "verify_records"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -762,21 +762,18 @@ class PicLogger:
             self._write_config(d, _calibration_bytes(calibration))
             build = _assemble(d, dict(self._defines(first_sample_number), N_SAMPLES=n, START_N=0), test=True)
             sym = build.symbols
-            names = ("SAMPLE_L", "SAMPLE_H", "SAMPLE_U", "SAMPLE_T", "STEPS_W", "STEPS_W+1", "STEPS_W+2",
-                     "STEPS_W+3", "FW_FLAGS", "PENDING")
-            addr_of = {k: sym[k.split("+")[0]] + int(k.split("+")[1] if "+" in k else 0) for k in names}
-            text = _gpsim(build, sorted(addr_of.values()), "e harness_done", self.timeout_s,
+            counted = [sym["SAMPLE_L"], sym["SAMPLE_H"], sym["SAMPLE_U"], sym["SAMPLE_T"]]
+            steps_at = [sym["STEPS_W"] + i for i in range(4)]
+            logged = {*counted, *steps_at, sym["FW_FLAGS"], sym["PENDING"]}
+            text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
                           _stimuli(c, np.zeros(n, np.int64), period))
-        _, addr, val = _writes(text, set(addr_of.values()))
+        _, addr, val = _writes(text, logged)
         last = {a: v for a, v in zip(addr.tolist(), val.tolist())}
-        b = {k: last.get(a, 0) for k, a in addr_of.items()}
-        done = int(np.sum(np.diff(val[addr == addr_of["PENDING"]]) == -1) if (addr == addr_of["PENDING"]).any() else 0)
-        low = b["SAMPLE_L"] | b["SAMPLE_H"] << 8
-        sw = low | b["SAMPLE_U"] << 16 | b["SAMPLE_T"] << 24
-        saturated = bool(b["FW_FLAGS"] >> sym["FWF_SW_SAT"] & 1)
-        steps = sum(b[f"STEPS_W+{i}" if i else "STEPS_W"] << (8 * i) for i in range(4))
-        return HeaderRun(done, 0xFFFFFFFF if saturated else sw, low, steps,
-                         bool(b["FW_FLAGS"] >> sym["FWF_OVERWRITE"] & 1))
+        sw, steps = (sum(last.get(a, 0) << (8 * i) for i, a in enumerate(at)) for at in (counted, steps_at))
+        flags = last.get(sym["FW_FLAGS"], 0)
+        done = int(np.sum(np.diff(val[addr == sym["PENDING"]]) == -1))         # the main loop's DECF PENDING
+        return HeaderRun(done, 0xFFFFFFFF if flags >> sym["FWF_SW_SAT"] & 1 else sw, sw & 0xFFFF, steps,
+                         bool(flags >> sym["FWF_OVERWRITE"] & 1))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a

@@ -59,9 +59,11 @@ def test_a_group_smaller_than_the_models_is_named(monkeypatch):
 
 @needs_gpsim
 def test_an_undocumented_overlap_is_named(monkeypatch):
-    m = _edited_map(monkeypatch, "B0              equ     FX_L", "B0              equ     FX_L\nSPARE           equ     AV_L")
+    alias = "B0              equ     FX_L"
+    m = _edited_map(monkeypatch, alias, alias + "\nSPARE           equ     AV_L")
     assert m.ram_problems == ("alias SPARE of AV_L is not a documented overlay",)
-    m = _edited_map(monkeypatch, "AF_LOOK_MAX     equ     0", "        cblock  0xEE\n        EXTRA\n        endc\nAF_LOOK_MAX     equ     0")
+    bits = "AF_LOOK_MAX     equ     0"
+    m = _edited_map(monkeypatch, bits, "        cblock  0xEE\n        EXTRA\n        endc\n" + bits)
     assert any("share 0x0EE" in p for p in m.ram_problems)
 
 
