@@ -32,12 +32,18 @@ from gaitlog.firmware_sim.pic import gpsim_logger as gl
 from gaitlog.firmware_sim.pic.gpsim_bench import copy_sources
 from gaitlog.firmware_sim.pic.gpsim_logger import MemoryMap, PicLogger, memory_map, run_starts
 
-__all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "I2C_EVENTS",
-           "i2c_event_cycles"]
+__all__ = ["CyclePart", "RecordCycles", "ChipBudget", "chip_budget", "STEPS", "STILL_ESTIMATED", "RAM_ESTIMATE_NOTE",
+           "I2C_EVENTS", "i2c_event_cycles"]
 
 #: The parts compared, in order: the interrupt, the algorithm's steps (the harness's stages) and their sums.
 STEPS = ("sampling interrupt", "step 1 (calibration)", "steps 2-3 (gravity, a_v)", "steps 1-3",
          "step 4 (3 Hz FIR, scratch)", "step 5 (detector, record)", "steps 1-5", "total in assembly")
+#: Why ``gaitlog budget``'s RAM estimate (:func:`gaitlog.firmware_sim.budget.ram_budget`) differs from the measured map.
+RAM_ESTIMATE_NOTE = ("budget.ram_budget: the algorithm's temporaries by the kernel's declared frames, not the "
+                     "assembly's overlays; the header counters at 13 bytes, where the map keeps 8: write_index is "
+                     "samples_written's low half (65,536 slots), the flags follow from the run's mode and that "
+                     "count, and step_write_index is steps_written mod the step capacity, computed when a record "
+                     "is stored")
 #: What the assembly does not do yet: its cycles are in neither figure.
 STILL_ESTIMATED = ("the sample pages' I2C write and commit", "STOP's last step record", "UART")
 
@@ -203,8 +209,8 @@ class ChipBudget:
                    f"({self.worst_backlog_cycles / self.period_cycles:.2f} periods; the model's: "
                    f"{self.backlog_cycles(False) / self.period_cycles:.2f})")
         m = self.memory
-        out.append(f"  RAM, measured (gpasm listing): {m.ram_total_bytes} of 368 bytes ("
-                   + ", ".join(f"{k} {v}" for k, v in m.ram_bytes.items()) + ")")
+        out.append(f"  RAM, measured (gpasm listing): {m.ram_line()}")
+        out.append(f"  the model's RAM estimate ({RAM_ESTIMATE_NOTE}) is not this map: the map above is the firmware's")
         out.append(f"  program memory, measured: {m.program_words:,} of 8,192 words ({m.kernel_words} of them kernels)")
         out.append("  still estimated: " + ", ".join(STILL_ESTIMATED))
         return out
@@ -221,6 +227,7 @@ class ChipBudget:
                "still_estimated": list(STILL_ESTIMATED)}
         if self.memory is not None:
             doc.update(ram_bytes_measured=self.memory.ram_bytes, ram_total_bytes_measured=self.memory.ram_total_bytes,
+                       ram_groups_measured=self.memory.ram_groups, ram_problems=list(self.memory.ram_problems),
                        program_words_measured=self.memory.program_words, kernel_words=self.memory.kernel_words)
         return doc
 

@@ -60,17 +60,18 @@ from gaitlog.firmware_sim.algorithms.probe import (
     vertical_acceleration,
 )
 from gaitlog.firmware_sim.algorithms.state import INDEX_MODULUS
-from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, adc_acquisition_s, adc_tad_s
+from gaitlog.firmware_sim.budget import ADC_CONVERSION_TAD, PIC_RAM_BYTES, adc_acquisition_s, adc_tad_s
 from gaitlog.firmware_sim.fixedpoint import DEFAULT_FOSC_HZ, cycles_per_sample_available
 from gaitlog.firmware_sim.pic.gpsim_bench import PIC_DIR, copy_sources, gpsim_version, missing_tools
+from gaitlog.firmware_sim.pic.ram_map import FIRMWARE_GROUPS, ram_map
 from gaitlog.firmware_sim.pic.step_config import config_bytes
 from gaitlog.protocol.packing import FLAG_MARK, FLAG_SESSION_START, pack_words, words_to_bytes
 from gaitlog.protocol.steps import STEP_RECORD_DTYPE
 
 __all__ = ["LOGGER_ASM", "TimerSetup", "timer_setup", "acquisition_loops", "LoggerRun",
-           "PicLogger", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify", "run_starts",
-           "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun", "period_setup",
-           "RecordsVerification", "verify_records", "bus_page_writes", "bus_reads", "BusRun"]
+           "PicLogger", "HeaderRun", "MemoryMap", "memory_map", "StageComparison", "PicVerification", "verify",
+           "run_starts", "missing_tools", "LeanRun", "scratch_offset", "BENCH_RING_SAMPLES", "RecordsRun",
+           "period_setup", "RecordsVerification", "verify_records", "bus_page_writes", "bus_reads", "BusRun"]
 
 #: The firmware source.
 LOGGER_ASM = PIC_DIR / "logger.asm"
@@ -368,6 +369,18 @@ def _lean_log(addr: np.ndarray, val: np.ndarray, n: int, sym: dict[str, int]
             np.asarray(records, np.uint8).reshape(-1, STEP_RECORD_BYTES), ram, backlog)
 
 
+class HeaderRun(NamedTuple):
+    """:meth:`PicLogger.run_header`: the samples the main loop processed and the header counters after the run
+    (logger_ram.inc): ``samples_written`` (2^32 - 1 once saturated), ``write_index`` (its low 16 bits),
+    ``steps_written`` and the run's mode (``overwrite``); a run stopped when full processed fewer samples."""
+
+    samples_processed: int
+    samples_written: int
+    write_index: int
+    steps_written: int
+    overwrite: bool
+
+
 class LeanRun(NamedTuple):
     """:meth:`PicLogger.run_calls`: ``finalise``'s calls, the detector's state after the last sample, and the
     step records (``(k, 20)`` bytes)."""
@@ -658,11 +671,15 @@ class PicLogger:
         The ADC source (the ADXL202's 32 kOhm output): sets the acquisition delay.
     workers
         gpsim processes at a time (one per logging run).
+    overwrite, steps_written
+        The header at START (logger_ram.inc's header counters): ring mode (else stop when full) and
+        ``steps_written``; ``samples_written`` at START is each run's first sample number.
     """
 
     def __init__(self, *, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ,
                  gravity_shift: int | None = None,
-                 source_impedance_ohm: float = 32e3, workers: int = 2, timeout_s: float = 600.0) -> None:
+                 source_impedance_ohm: float = 32e3, workers: int = 2, timeout_s: float = 600.0,
+                 overwrite: bool = True, steps_written: int = 0) -> None:
         self.sampling_rate_hz = sampling_rate_hz
         self.fosc_hz = fosc_hz
         self.gravity_shift = gravity_shift if gravity_shift is not None else SampleCounts.at(
@@ -674,6 +691,8 @@ class PicLogger:
         self.source_impedance_ohm = source_impedance_ohm
         self.workers = workers
         self.timeout_s = timeout_s
+        self.overwrite = overwrite
+        self.steps_written = steps_written
 
     def _write_config(self, build_dir: Path, cal_bytes: list[int]) -> None:
         """The data EEPROM's configuration (the calibration's bytes, FIR weights, step configuration) as
@@ -694,6 +713,8 @@ class PicLogger:
         return dict(CCP_PERIOD=t.ccpr1, T1_SETUP=t.t1con,
                     ACQ_LOOPS=acquisition_loops(self.fosc_hz, self.source_impedance_ohm),
                     FIRST_SAMPLE_L=first_sample & 0xFF, FIRST_SAMPLE_H=(first_sample >> 8) & 0xFF,
+                    FIRST_SAMPLE_U=(first_sample >> 16) & 0xFF, FIRST_SAMPLE_T=(first_sample >> 24) & 0xFF,
+                    OVERWRITE=int(self.overwrite), STEPS_WRITTEN=self.steps_written,
                     PAGE_START=_page_fsr(first_sample), G_SHIFT=self.gravity_shift,
                     SCR_SAMPLES=kernel.SCRATCH_RING_SAMPLES, SCR_K0=scratch_offset(first_sample, 0),
                     G_MIN=self.min_gravity_raw, **steps)
@@ -736,7 +757,6 @@ class PicLogger:
             dt = time.perf_counter() - t0
         cyc, addr, val = _writes(text, set(logged))
         start = {a: 0 for a in tracked}
-        start[sym["THR_L"]] = 2
         snaps, order, ready, calls, stages, records, stop_cycles = _replay_log(cyc, addr, val, n, sym, start)
         col = {a: i for i, a in enumerate(order)}
         ram = {}
@@ -816,6 +836,31 @@ class PicLogger:
                           _stimuli(c, np.zeros(n, np.int64), period))
         _, addr, val = _writes(text, logged)
         return BusRun(bus_page_writes(addr, val), bus_reads(addr, val))
+
+    def run_header(self, codes: np.ndarray, calibration: CalibrationQ, *, first_sample_number: int = 0) -> HeaderRun:
+        """One run from START with the header at ``first_sample_number`` samples written (``overwrite`` and
+        ``steps_written`` from the harness): the header counters (logger_ram.inc) after the run, from a lean
+        write log. In stop-when-full mode the run ends where the memory fills (the interrupt's STOP)."""
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix="pic-logger-header-") as tmp:
+            d = Path(tmp)
+            self._write_config(d, _calibration_bytes(calibration))
+            build = _assemble(d, dict(self._defines(first_sample_number), N_SAMPLES=n, START_N=0), test=True)
+            sym = build.symbols
+            counted = [sym["SAMPLE_L"], sym["SAMPLE_H"], sym["SAMPLE_U"], sym["SAMPLE_T"]]
+            steps_at = [sym["STEPS_W"] + i for i in range(4)]
+            logged = {*counted, *steps_at, sym["FW_FLAGS"], sym["PENDING"]}
+            text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.zeros(n, np.int64), period))
+        _, addr, val = _writes(text, logged)
+        last = {a: v for a, v in zip(addr.tolist(), val.tolist())}
+        sw, steps = (sum(last.get(a, 0) << (8 * i) for i, a in enumerate(at)) for at in (counted, steps_at))
+        flags = last.get(sym["FW_FLAGS"], 0)
+        done = int(np.sum(np.diff(val[addr == sym["PENDING"]]) == -1))         # the main loop's DECF PENDING
+        return HeaderRun(done, 0xFFFFFFFF if flags >> sym["FWF_SW_SAT"] & 1 else sw, sw & 0xFFFF, steps,
+                         bool(flags >> sym["FWF_OVERWRITE"] & 1))
 
     def measure_isr(self) -> tuple[np.ndarray, int]:
         """The production build's interrupt: cycles (vector to RETFIE) at each of the 32 page positions of a
@@ -942,9 +987,12 @@ def run_starts(flags: np.ndarray) -> list[int]:
 class MemoryMap:
     """RAM and program memory of the production build, from gpasm's listing (measured).
 
-    ``ram_bytes`` per block (bank 0-3 and common RAM), ``program_words``: words from 0 to ``code_end`` (page 0)
-    plus page 1's routines and page 2; ``kernel_words``: the arithmetic kernels (page 0's and page 2's copy);
-    ``steps_words``: steps 4-5 (both pages); ``step_record_words``: the step record (page 2, without its
+    ``ram_bytes`` per block (bank 0-3 and common RAM) and ``ram_groups``, the firmware's own variable groups
+    (:data:`~.ram_map.FIRMWARE_GROUPS`: the header counters, and the UART handler's and the page writer's, reserved
+    at the model's sizes), both from one :class:`~.ram_map.RamMap`; ``ram_problems``: what
+    :meth:`~.ram_map.RamMap.problems` finds (empty when it fits). ``program_words``: words from 0 to ``code_end``
+    (page 0) plus page 1's routines and page 2; ``kernel_words``: the arithmetic kernels (page 0's and page 2's
+    copy); ``steps_words``: steps 4-5 (both pages); ``step_record_words``: the step record (page 2, without its
     kernels) and its joins (page 1); ``pages``: words used per program-memory page.
     """
 
@@ -954,29 +1002,42 @@ class MemoryMap:
     steps_words: int = 0
     step_record_words: int = 0
     pages: dict[str, int] = field(default_factory=dict)
+    ram_groups: dict[str, int] = field(default_factory=dict)
+    ram_problems: tuple[str, ...] = ()
 
     @property
     def ram_total_bytes(self) -> int:
         return sum(self.ram_bytes.values())
 
+    def ram_line(self) -> str:
+        """The RAM figure, per bank and with the firmware's groups named."""
+        groups = ", ".join(f"{k} {v}" + (" (reserved: the model's part, its estimate)"
+                                         if FIRMWARE_GROUPS[k][2] else "") for k, v in self.ram_groups.items())
+        return (f"{self.ram_total_bytes} of {PIC_RAM_BYTES} bytes ("
+                + ", ".join(f"{k} {v}" for k, v in self.ram_bytes.items()) + f"); of them the firmware's {groups}"
+                + ("" if not self.ram_problems else "; PROBLEMS: " + "; ".join(self.ram_problems)))
+
+
+_RAM_BLOCKS = ("bank 0", "bank 1 (steps 4-5, header counters)", "bank 2 (page buffer, step record)",
+               "bank 3 (page buffer, step record)", "common (kernels, W_TEMP)")
+
 
 def memory_map(*, sampling_rate_hz: float = 50.0, fosc_hz: float = DEFAULT_FOSC_HZ) -> MemoryMap:
-    """Assemble the production build and read its RAM blocks' ends and program size from the listing."""
+    """Assemble the production build and read its RAM map (:func:`~.ram_map.ram_map`) and program size from the
+    listing."""
     with tempfile.TemporaryDirectory(prefix="pic-logger-map-") as tmp:
         b = _assemble(Path(tmp), PicLogger(sampling_rate_hz=sampling_rate_hz, fosc_hz=fosc_hz)._defines(0),
                       test=False)
+        ram = ram_map((Path(tmp) / "logger.lst").read_text(errors="replace"), b.symbols)
     s = b.symbols
     page1 = s["page1_end"] - s["page1_begin"]
     joins = s["join_end"] - s["join_begin"]
     page2 = s["page2_end"] - s["page2_begin"]
     kernels = s["kernels_end"] - s["kernels_begin"]
-    ram = {"bank 0": s["RAM0_END"] - 0x20, "bank 1 (steps 4-5)": s["RAM1_END"] - 0xA0,
-           "bank 2 (page buffer, step record)": s["RAM2_END"] - 0x110 + s["RAM2_STEP_END"] - 0x150,
-           "bank 3 (page buffer, step record)": s["RAM3_END"] - 0x190 + s["RAM3_STEP_END"] - 0x1D0,
-           "common (kernels, W_TEMP)": 16}
     pages = {"page 0": s["code_end"], "page 1": page1 + joins, "page 2": page2}
-    return MemoryMap(ram, sum(pages.values()), 2 * kernels, s["steps_end"] - s["steps_begin"] + page1,
-                     page2 - kernels + joins, pages)
+    return MemoryMap(dict(zip(_RAM_BLOCKS, ram.bank_bytes().values())), sum(pages.values()), 2 * kernels,
+                     s["steps_end"] - s["steps_begin"] + page1, page2 - kernels + joins, pages, ram.groups(),
+                     tuple(ram.problems()))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -1067,8 +1128,7 @@ class PicVerification:
         lines.append(f"ADC acquisition: {self.acquisition_cycles_min} cycles from channel select to GO (measured; "
                      f"needed {self.acquisition_cycles_needed:.1f})")
         m = self.memory
-        lines.append(f"RAM (measured, gpasm listing): {m.ram_total_bytes} of 368 bytes: "
-                     + ", ".join(f"{k} {v}" for k, v in m.ram_bytes.items()))
+        lines.append(f"RAM (measured, gpasm listing): {m.ram_line()}")
         lines.append(f"program memory (measured): {m.program_words:,} of 8,192 words ({m.kernel_words} kernels in two "
                      f"copies, {m.step_record_words:,} step record); "
                      + ", ".join(f"{k} {v:,} of 2,048" for k, v in m.pages.items()))
@@ -1087,6 +1147,7 @@ class PicVerification:
                "stop_cycles_measured": list(self.stop_cycles),
                "acquisition_cycles_needed": round(self.acquisition_cycles_needed, 1),
                "ram_bytes_measured": self.memory.ram_bytes, "ram_total_bytes": self.memory.ram_total_bytes,
+               "ram_groups_measured": self.memory.ram_groups, "ram_problems": list(self.memory.ram_problems),
                "program_words_measured": self.memory.program_words, "kernel_words": self.memory.kernel_words,
                "wall_s": round(self.wall_s, 3), "gpsim_s": round(self.gpsim_s, 3),
                "realtime_factor": round(self.realtime_factor, 2), "notes": self.notes}

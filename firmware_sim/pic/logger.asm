@@ -14,8 +14,12 @@
 ;   CCP_PERIOD      Timer1 counts per sample (CCPR1; compare mode, special event trigger resets Timer1)
 ;   T1_SETUP        T1CON: prescaler bits | TMR1ON
 ;   ACQ_LOOPS       acquisition delay: 3 cycles a loop (>= the ADXL202's 32 kOhm source's TACQ)
-;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, PAGE_START
-;                   the sample number the run (a START) begins at, and its word's place in the page buffer
+;   FIRST_SAMPLE_L, FIRST_SAMPLE_H, FIRST_SAMPLE_U, FIRST_SAMPLE_T, PAGE_START
+;                   the sample number the run (a START) begins at (the header's samples_written at START, 32
+;                   bits), and its word's place in the page buffer
+;   OVERWRITE, STEPS_WRITTEN
+;                   the run's mode (the header's OVERWRITE flag: 1 ring, 0 stop when full) and the header's
+;                   steps_written at START (32 bits); the header counters are logger_ram.inc's
 ;   SCR_K0          the scratch ring's offset at START (SCR_K, logger_ram.inc): the ring sample of the run's
 ;                   first sample (the first of the page the run's first sample number points to, kernel.py
 ;                   scratch_ring_sample), minus the kernel's N at START, modulo 2^16
@@ -66,6 +70,22 @@ NEXT_WORD       macro
         xorlw   PAGE_B_END
         endm
 
+; PAGE_FSR: FSR (IRP = 1) = the page-buffer word of slot w = SAMPLE_L mod 32 (the sample the interrupt takes):
+; 0x10 + 4 w, words 16-31 at 0x90 + 4 (w - 16) (logger_ram.inc PAGE_A, PAGE_B). Branch-free (11 cycles).
+PAGE_FSR        macro
+        movf    SAMPLE_L, W
+        andlw   0x1F
+        movwf   FSR
+        addwf   FSR, F                  ; 2 w
+        movf    FSR, W
+        addwf   FSR, F                  ; 4 w
+        movlw   PAGE_A
+        btfsc   FSR, 6                  ; w >= 16
+        movlw   PAGE_B - 0x40
+        addwf   FSR, F
+        bsf     STATUS, IRP
+        endm
+
         org     0
         goto    start
 
@@ -91,25 +111,60 @@ isr_timer:
         btfss   PIR1, CCP1IF
         goto    isr_exit
         bcf     PIR1, CCP1IF
-        movlw   ADC_CH0
+        PAGE_FSR                        ; FSR (IRP = 1) = this sample's word: the slot SAMPLE_L mod 32
+        movlw   ADC_CH0                 ; x: byte 0 = x bits 0-7; T_H = x bits 8-9
         call    adc_convert
-        movwf   XL
+        movwf   INDF
+        incf    FSR, F
         movf    ADRESH, W
-        movwf   XH
-        movlw   ADC_CH0 | (1 << 3)
+        movwf   T_H
+        movlw   ADC_CH0 | (1 << 3)      ; y: byte 1 = x bits 8-9, y bits 0-5; T_H = y bits 6-9
         call    adc_convert
-        movwf   YL
-        movf    ADRESH, W
-        movwf   YH
-        movlw   ADC_CH0 | (2 << 3)
+        movwf   T_L                     ; T_L = y bits 5-0, -, 7 after two rotates; C = y bit 6
+        rlf     T_L, F
+        rlf     T_L, F
+        movf    T_L, W
+        andlw   0xFC
+        iorwf   T_H, W
+        movwf   INDF
+        incf    FSR, F
+        movf    ADRESH, W               ; T_H = y9 y8, then y7 and y6 rotated in below them
+        movwf   T_H
+        rrf     T_L, F                  ; C = y bit 7 (T_L bit 7 = y bit 6)
+        rlf     T_H, F
+        rlf     T_L, F                  ; C = y bit 6
+        rlf     T_H, F
+        movlw   ADC_CH0 | (2 << 3)      ; z: byte 2 = y bits 6-9, z bits 0-3; byte 3 = z bits 4-9, S, M
         call    adc_convert
-        movwf   ZL
-        movf    ADRESH, W
-        movwf   ZH
-        call    pack_word
-        incf    SAMPLE_L, F
+        movwf   T_L
+        swapf   T_L, W
+        andlw   0xF0
+        iorwf   T_H, W
+        movwf   INDF
+        incf    FSR, F
+        swapf   T_L, W
+        andlw   0x0F
+        movwf   T_L
+        swapf   ADRESH, W
+        iorwf   T_L, F
+        btfsc   FW_FLAGS, FWF_SESSION
+        bsf     T_L, 6
+        btfsc   FW_FLAGS, FWF_MARK
+        bsf     T_L, 7
+        movf    T_L, W
+        movwf   INDF
+        bcf     STATUS, IRP
+        bcf     FW_FLAGS, FWF_SESSION
+        bcf     FW_FLAGS, FWF_MARK
+        incf    SAMPLE_L, F             ; the header's samples_written (write_index: bits 0-15)
         btfsc   STATUS, Z
         incf    SAMPLE_H, F
+        btfsc   STATUS, Z
+        call    sample_wrap             ; bits 0-15 wrapped (every 65,536 samples)
+        movf    SAMPLE_L, W
+        andlw   0x1F
+        btfsc   STATUS, Z
+        bsf     FW_FLAGS, FWF_PAGE_FULL ; the page's last word: the I2C driver (the model's) writes the page
         incf    PENDING, F              ; hand the sample to the main loop
         movlw   .33
         subwf   PENDING, W
@@ -158,57 +213,31 @@ adc_busy:
         bcf     STATUS, RP0
         return
 
-; pack_word: the sample's P32 word (x | y << 10 | z << 20 | S << 30 | M << 31) into the page buffer, little
-; endian, at PAGE_PTR; advance PAGE_PTR (bank 2 half, then bank 3 half); a full page is handed off.
-pack_word:
-        movf    PAGE_PTR, W
-        movwf   FSR
-        bsf     STATUS, IRP
-        movf    XL, W                   ; byte 0: x bits 0-7
-        movwf   INDF
-        incf    FSR, F
-        movf    YL, W                   ; T = y << 2 (12 bits)
-        movwf   T_L
-        movf    YH, W
-        movwf   T_H
-        rlf     T_L, F
-        rlf     T_H, F
-        rlf     T_L, F
-        rlf     T_H, F
-        movf    T_L, W                  ; byte 1: x bits 8-9, y bits 0-5
-        andlw   0xFC
-        iorwf   XH, W
-        movwf   INDF
-        incf    FSR, F
-        swapf   ZL, W                   ; byte 2: y bits 6-9, z bits 0-3
-        andlw   0xF0
-        iorwf   T_H, W
-        movwf   INDF
-        incf    FSR, F
-        swapf   ZL, W                   ; byte 3: z bits 4-9, S, M
-        andlw   0x0F
-        movwf   T_L
-        swapf   ZH, W
-        iorwf   T_L, F
-        btfsc   FW_FLAGS, FWF_SESSION
-        bsf     T_L, 6
-        btfsc   FW_FLAGS, FWF_MARK
-        bsf     T_L, 7
-        movf    T_L, W
-        movwf   INDF
-        incf    FSR, F
-        bcf     STATUS, IRP
-        bcf     FW_FLAGS, FWF_SESSION
-        bcf     FW_FLAGS, FWF_MARK
-        movf    FSR, W
-        NEXT_WORD
-        movwf   PAGE_PTR
-        xorlw   PAGE_A
+; sample_wrap (the interrupt, bank 0): samples_written reached a multiple of 2^16, the capacity (write_index
+; wrapped to slot 0): bits 16-31 (bank 1) += 1, saturating at 2^32 - 1 (FWF_SW_SAT; SAMPLE_L/H go on as
+; write_index, as the model's header keeps counting it). The memory is now full: in ring mode (FWF_OVERWRITE)
+; the header's WRAPPED holds (it is samples_written >= capacity); otherwise the run stops here (the header's
+; FULL_STOPPED, Ring.append: the sample that fills the memory is the last one), as the test build's stop.
+sample_wrap:
+        bsf     STATUS, RP0             ; bank 1
+        incf    SAMPLE_U, F
         btfsc   STATUS, Z
-        bsf     FW_FLAGS, FWF_PAGE_FULL ; the I2C driver (the model's) writes the page from here
+        incf    SAMPLE_T, F
+        btfss   STATUS, Z
+        goto    sw_full
+        decf    SAMPLE_U, F             ; bits 16-31 were 0xFFFF: samples_written stays at 2^32 - 1
+        decf    SAMPLE_T, F
+        bcf     STATUS, RP0
+        bsf     FW_FLAGS, FWF_SW_SAT
+sw_full:
+        bcf     STATUS, RP0             ; bank 0
+        btfsc   FW_FLAGS, FWF_OVERWRITE
         return
-
-
+        bsf     FW_FLAGS, FWF_STOP      ; stop when full: no more samples, STOP
+        bsf     STATUS, RP0
+        bcf     PIE1, CCP1IE
+        bcf     STATUS, RP0
+        return
 
 ; =====================================================================================================
 start:
@@ -221,9 +250,25 @@ start:
         movlw   FIRST_SAMPLE_H
         movwf   SAMPLE_H
         movlw   PAGE_START
-        movwf   PAGE_PTR
         movwf   ALG_PTR
         bsf     FW_FLAGS, FWF_SESSION
+    if OVERWRITE
+        bsf     FW_FLAGS, FWF_OVERWRITE
+    endif
+        bsf     STATUS, RP0             ; bank 1: the header's counters at START
+        movlw   FIRST_SAMPLE_U
+        movwf   SAMPLE_U
+        movlw   FIRST_SAMPLE_T
+        movwf   SAMPLE_T
+        movlw   STEPS_WRITTEN & 0xFF
+        movwf   STEPS_W
+        movlw   (STEPS_WRITTEN >> .8) & 0xFF
+        movwf   STEPS_W + 1
+        movlw   (STEPS_WRITTEN >> .16) & 0xFF
+        movwf   STEPS_W + 2
+        movlw   (STEPS_WRITTEN >> .24) & 0xFF
+        movwf   STEPS_W + 3
+        bcf     STATUS, RP0
         call    reset_gravity           ; START: a fresh state
         call    reset_steps
 #ifdef TEST_BUILD
@@ -598,6 +643,22 @@ stage_gravity:
         xorwf   WARM, W
         btfsc   STATUS, Z
         goto    sg_axes                 ; warmed up: the count is no longer needed
+        movf    WARM, W                 ; ARG = 2 << WARM, where WARM grows next (WARM < G_SHIFT here)
+        movwf   COUNT
+        movlw   2
+        movwf   ARG0
+        clrf    ARG1
+        incf    COUNT, F
+sg_thr:
+        decfsz  COUNT, F
+        goto    sg_shift
+        goto    sg_cmp
+sg_shift:
+        bcf     STATUS, C
+        rlf     ARG0, F
+        rlf     ARG1, F
+        goto    sg_thr
+sg_cmp:
         movf    N_L, W                  ; n + 1 (N counts the run's samples before this one)
         movwf   ACC0
         movf    N_H, W
@@ -606,17 +667,14 @@ stage_gravity:
         btfsc   STATUS, Z
         incf    ACC1, F
         movf    ACC0, W
-        xorwf   THR_L, W
+        xorwf   ARG0, W
         btfss   STATUS, Z
         goto    sg_axes
         movf    ACC1, W
-        xorwf   THR_H, W
+        xorwf   ARG1, W
         btfss   STATUS, Z
         goto    sg_axes
         incf    WARM, F                 ; n + 1 = 2 << WARM: one more bit of shift
-        bcf     STATUS, C
-        rlf     THR_L, F
-        rlf     THR_H, F
 sg_axes:
         bcf     STATUS, IRP
         GRAV_AXIS FX_L, FX_H, G1X, G2X
@@ -624,7 +682,7 @@ sg_axes:
         GRAV_AXIS FZ_L, FZ_H, G1Z, G2Z
         return
 
-; reset_gravity: G1 = G2 = 0, WARM = 0, N = 0, THR = 2
+; reset_gravity: G1 = G2 = 0, WARM = 0, N = 0 (its 32 bits)
 reset_gravity:
         movlw   G1X
         movwf   FSR
@@ -633,11 +691,9 @@ rg_clear:
         clrf    INDF
         incf    FSR, F
         movf    FSR, W
-        xorlw   THR_H + 1
+        xorlw   N_T + 1
         btfss   STATUS, Z
         goto    rg_clear
-        movlw   2
-        movwf   THR_L
         return
 
 ; acc_load_fsr: ACC = the int32 at FSR (bank 0); FSR unchanged

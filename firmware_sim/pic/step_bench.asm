@@ -36,7 +36,7 @@ SCR_TABLE       equ     0x1000
 STEP_WORDS      equ     .12
 
 MARK            equ     0x7F            ; common RAM (the logger's W_TEMP: no interrupts here)
-        cblock  XL                      ; bank 0: the interrupt's bytes (no interrupts here)
+        cblock  STATUS_TEMP             ; bank 0: the interrupt's 5 bytes (no interrupts here)
         OUTB                            ; the bench's output byte (logged)
         LEFT_L, LEFT_H                  ; steps still to run
         TBL_L, TBL_H                    ; program-memory address of the next table word

@@ -2,9 +2,10 @@
 ; page 0; the step record (page 2) and scr_write return to the caller there with bank 0, IRP = 0 and
 ; PCLATH = 0 (RETURN takes the whole address from the stack; PCLATH only matters to the next GOTO or CALL).
 
-; fin_join (from steps.asm's finalise, bank 0): the step record's inputs from steps 4-5's state, then the step
-; record itself (step_record.asm's finalise, finalise_p2 in page 2), whose RETURN ends the caller's CALL:
-;   E = e = PEND, FM = m = M (16-bit indices); REC+0..3 = the run's sample number of m: N - 1 - R3 in 32 bits
+; fin_join (from steps.asm's finalise, bank 0): the header's steps_written counted, the step record's inputs from
+; steps 4-5's state, then the step record itself (step_record.asm's finalise, finalise_p2 in page 2), whose
+; RETURN ends the caller's CALL: E = e = PEND, FM = m = M (16-bit indices: finalise's call record wrote them);
+;   REC+0..3 = the run's sample number of m: N - 1 - R3 in 32 bits
 ;   (N_T:N_U:N_H:N_L after step 4's increment); ALG_FLAGS, ALG_LAST are AFLAGS, LAST (logger_ram.inc), and the
 ;   saturation flag is the kernels' sticky FLAG_SAT, as the model's s_overflow.
 ; First the scratch ring's tail: the step record reads a_v up to e + SCR_AHEAD_E (M4's range: the 3 Hz FIR at
@@ -44,16 +45,22 @@ fj_tail:
         movlw   HIGH fin_join
         movwf   PCLATH
 fj_inputs:
-        bsf     STATUS, RP0             ; bank 1: e
-        movf    PEND, W
-        movwf   TMP0
-        movf    PEND + 1, W
-        movwf   TMP1
-        bcf     STATUS, RP0             ; bank 0: m
-        movf    M_L, W
-        movwf   TMP2
-        movf    M_H, W
-        movwf   COUNT
+        bsf     STATUS, RP0             ; bank 1: the header's steps_written += 1, saturating at 2^32 - 1
+        incfsz  STEPS_W, F              ; (Header.steps_written: the model counts each record it stores)
+        goto    fj_counted
+        incfsz  STEPS_W + 1, F
+        goto    fj_counted
+        incfsz  STEPS_W + 2, F
+        goto    fj_counted
+        incfsz  STEPS_W + 3, F
+        goto    fj_counted
+        movlw   0xFF                    ; it was 2^32 - 1: it stays there
+        movwf   STEPS_W
+        movwf   STEPS_W + 1
+        movwf   STEPS_W + 2
+        movwf   STEPS_W + 3
+fj_counted:
+        bcf     STATUS, RP0             ; bank 0
         movf    N_L, W                  ; ACC = N (32 bits) - (R3 + 1)
         movwf   ACC0
         movf    N_H, W
@@ -75,14 +82,6 @@ fj_inputs:
 fj_store:
         bsf     STATUS, RP0             ; bank 3
         bsf     STATUS, RP1
-        movf    TMP0, W
-        movwf   E_L
-        movf    TMP1, W
-        movwf   E_H
-        movf    TMP2, W
-        movwf   FM_L
-        movf    COUNT, W
-        movwf   FM_H
         movf    ACC0, W
         movwf   REC
         movf    ACC1, W

@@ -687,22 +687,29 @@ dist_div:
         return
 
 ; finalise (kernel._finalise at the final foot-flat e = PEND, newest output m): the call record (e, s = LAST,
-; m, the flags the step reads: LAST valid, PEND weak, the run old; the harness compares it), then the step
+; m, the flags the step reads: LAST valid, PEND weak, the run old; the harness compares it): e, s and m go
+; straight to the step record's inputs E, S, FM (bank 3), the flags to CALL_FLAGS (written last), then the step
 ; record, step_record.asm's finalise in page 2 by a jump (fin_join): the caller's CALL is its return, so
 ; steps 4-5 and the step record share the stack levels (logger.asm: 8 of 8 with the interrupt's)
 finalise:
-        movlw   PEND
+        movlw   PEND                    ; e, s, m: the step record's inputs E, S, FM (bank 3, IRP = 1)
         call    ld16
-        movlw   CALL_E
+        bsf     STATUS, IRP
+        movlw   LOW CALL_E
         call    st16
+        bcf     STATUS, IRP
         movlw   LAST
         call    ld16
-        movlw   CALL_S
+        bsf     STATUS, IRP
+        movlw   LOW CALL_S
         call    st16
+        bcf     STATUS, IRP
         movlw   M_L
         call    ld16
-        movlw   CALL_M
+        bsf     STATUS, IRP
+        movlw   LOW CALL_M
         call    st16
+        bcf     STATUS, IRP
         movlw   AFLAGS
         movwf   FSR
         movf    INDF, W
@@ -755,7 +762,7 @@ rs_clear:
         clrf    INDF
         incf    FSR, F
         movf    FSR, W
-        xorlw   RAM1_END
+        xorlw   RAM1_FW                 ; steps 4-5's state (not the header counters after it)
         btfss   STATUS, Z
         goto    rs_clear
         movlw   LOW PRIOR_TWICE
