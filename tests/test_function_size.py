@@ -16,7 +16,6 @@ MAX_LINES = 100
 KNOWN_OVER = {
     "host/files/decode.py:_decode_capture": (28, 87),
     "host/files/decode.py:_salvage_frame": (28, 40),
-    "host/files/inputs.py:_from_csv": (45, 79),
     "host/gait/k_calibration.py:fields_from_dict": (32, 31),
     "host/studies/evaluation.py:paper_claims": (41, 58),
     "host/studies/simulation.py:record_subject": (25, 104),
