@@ -19,7 +19,8 @@ from pathlib import Path
 from gaitlog.host.errors import HostError
 
 __all__ = ["DEFAULT_MAX_MISSING_PERCENT", "MAX_GRID_SAMPLES_PER_ROW", "MAX_JSON_BYTES", "MAX_NPZ_EXPANSION",
-           "MAX_TEXT_BYTES", "available_memory_bytes", "check_file_size", "check_grid", "check_memory"]
+           "MAX_TEXT_BYTES", "MEMORY_SHARE", "NPZ_SMALL_BYTES", "available_memory_bytes", "check_file_size",
+           "check_grid", "check_memory"]
 
 #: Missing share of a recording (percent of its stored samples) above which ``decode``, ``estimate`` and ``batch``
 #: exit 1 (``--max-missing``; :mod:`gaitlog.host.files.losses`).
