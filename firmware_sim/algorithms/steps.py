@@ -280,7 +280,10 @@ def float_csv_cells(values: np.ndarray | list[float]) -> list[str]:
     """The CSV cells of real values: ``%.6g``, an empty cell for NaN and infinities (the one rule of every
     CSV table the package writes)."""
     a = np.asarray(values, dtype=np.float64)
-    cells = list(map("{:.6g}".format, a.tolist()))
+    if a.size == 0:
+        return []
+    # one %-format of the whole column, split at a separator no number holds: twice as fast as a format per cell
+    cells = ("\x1f".join(["%.6g"] * a.size) % tuple(a.ravel().tolist())).split("\x1f")
     for i in np.flatnonzero(~np.isfinite(a)).tolist():
         cells[i] = ""
     return cells

@@ -609,9 +609,9 @@ def read_npz_arrays(path: Path, names: Sequence[str],
     object arrays (pickles) are refused; a declared shape must be the zip member's declared size, which deflate
     must be able to reach from the compressed size (:data:`DEFLATE_MAX_RATIO`); the arrays together may be at most
     :data:`~gaitlog.host.storage.limits.MAX_NPZ_EXPANSION` times their compressed size (a zip bomb of zeros is
-    about 1,000 times) unless small, must include ``required``, must share their sample count when they are a recording's,
-    and must fit in memory (:func:`~gaitlog.host.storage.limits.check_memory`). The data are then read up to the
-    declared size only.
+    about 1,000 times) unless small, must include ``required``, must share their sample count when they are a
+    recording's, and must fit in memory (:func:`~gaitlog.host.storage.limits.check_memory`). The data are then
+    read up to the declared size only.
 
     Raises
     ------
@@ -686,8 +686,9 @@ def _judge_npz(path: Path, members: dict[str, _Member], required: Sequence[str])
     total = sum(m.nbytes for m in members.values())
     packed = sum(m.info.compress_size for m in members.values())
     if total > max(NPZ_SMALL_BYTES, MAX_NPZ_EXPANSION * packed):
-        raise HostError(f"{path}: its arrays declare {total} bytes from {packed} compressed ({total / max(packed, 1):,.0f}"
-                        f" times); a recording NPZ is at most {MAX_NPZ_EXPANSION} times: a zip bomb, not read")
+        raise HostError(f"{path}: its arrays declare {total} bytes from {packed} compressed "
+                        f"({total / max(packed, 1):,.0f} times); a recording NPZ is at most {MAX_NPZ_EXPANSION} "
+                        "times: a zip bomb, not read")
     missing = sorted(set(required) - members.keys())
     if missing:
         raise HostError(f"{path}: not a gaitlog recording NPZ (missing arrays {missing})")

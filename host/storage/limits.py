@@ -13,7 +13,6 @@ zip's declared and compressed sizes (:data:`MAX_NPZ_EXPANSION`) and against the 
 from __future__ import annotations
 
 import os
-import resource
 from pathlib import Path
 
 from gaitlog.host.errors import HostError
@@ -29,16 +28,16 @@ DEFAULT_MAX_MISSING_PERCENT = 5.0
 #: file holds: a genuine gap (the logger paused over lunch) is within it, a 68-byte file spreading four rows over
 #: 2 x 10^8 grid samples is not.
 MAX_GRID_SAMPLES_PER_ROW = 100
-#: How many times the arrays of a recording NPZ may be larger than their compressed size in the zip: a recording's sample numbers are
-#: distinct int64 values, which deflate shrinks about 5 times, so even constant codes compress only about 10
-#: times (a zip bomb of zeros: about 1,000 times).
+#: How many times the arrays of a recording NPZ may be larger than their compressed size in the zip: a recording's
+#: sample numbers are distinct int64 values, which deflate shrinks about 5 times, so even constant codes compress
+#: only about 10 times (a zip bomb of zeros: about 1,000 times).
 MAX_NPZ_EXPANSION = 64
 #: Arrays of an NPZ at most this large (bytes) are read whatever their expansion (a short recording's metadata).
 NPZ_SMALL_BYTES = 64 << 20
 #: Share of the memory available that one input may take when it is held (the chain's blocks need the rest).
 MEMORY_SHARE = 0.5
-#: Largest text input read whole (a logger file, an IPOL ``_lb.txt``), bytes; a CSV larger than this is parsed line
-#: by line and judged by its rows.
+#: Largest file read whole (a logger file, an IPOL ``_lb.txt``), bytes; a CSV larger than
+#: :data:`gaitlog.host.files.inputs.STREAM_TEXT_BYTES` is parsed line by line and judged by its rows instead.
 MAX_TEXT_BYTES = 320 << 20
 #: Largest JSON file (calibration, K, trial metadata) read, bytes; a genuine one is a few kB.
 MAX_JSON_BYTES = 4 << 20
@@ -57,12 +56,13 @@ def available_memory_bytes() -> int:
         except (ValueError, OSError, AttributeError):
             pass
     try:
-        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-        if soft != resource.RLIM_INFINITY:
+        with open("/proc/self/limits", encoding="ascii") as fh:      # an address-space limit (RLIMIT_AS), if set
+            soft = next(ln.split()[3] for ln in fh if ln.startswith("Max address space"))
+        if soft != "unlimited":
             with open("/proc/self/statm", encoding="ascii") as fh:
                 used = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-            avail = min(avail, max(soft - used, 0))
-    except (OSError, ValueError, IndexError):
+            avail = min(avail, max(int(soft) - used, 0))
+    except (OSError, StopIteration, ValueError, IndexError):
         pass
     return avail
 

@@ -19,8 +19,9 @@ RATE_HZ = 50.0
 K = KFit(k_m1=1.1, k_m2=0.97, k_m4=0.45, k1_m5_m_s=0.3, k2_m5_m=0.2, mode="single-speed", m5_fallback=False,
          leg_length_m=0.9, foot_length_m=0.26, n_sections=2, n_steps=40, distance_m=30.0)
 CAL = CalibrationSlot(np.array([511.3, 514.8, 509.1]),
-                      np.array([[0.00392, 0.00004, -0.00002], [-0.00003, 0.00389, 0.00005], [0.00001, 0.00002, 0.00395]]),
-                      valid=True)
+                      np.array([[0.00392, 0.00004, -0.00002],
+                                [-0.00003, 0.00389, 0.00005],
+                                [0.00001, 0.00002, 0.00395]]), valid=True)
 
 
 def walk_codes(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
