@@ -51,9 +51,8 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from gaitlog.firmware_sim.algorithms.kernel import SCRATCH_FIRST_BYTE, scratch_start_page
-from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps, step_algorithm_for
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
-from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
 from gaitlog.firmware_sim.eeprom import PAGE_BYTES, Eeprom24LC1025
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.firmware_sim.fixedpoint import CYCLES, DEFAULT_FOSC_HZ
@@ -131,18 +130,6 @@ def as_run(config: StepConfig | None) -> StepConfig | None:
         return config
     return dataclasses.replace(config, step_format=ONLINE_ALGORITHM_VERSION,
                                m4_exponent=config.m4_exponent if config.m4_exponent > 0 else M4_EXPONENT)
-
-
-def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> OnlineStepAlgorithm | None:
-    """The on-line step algorithm as the firmware sets it up at START from its header (sampling rate, ADC
-    width, calibration slot, step configuration; fixed point), or None when the header turns it off. The
-    host's replay (:mod:`gaitlog.host.files.replay`) uses the same, so device and replay cannot be set up differently."""
-    if not header.step_config.enabled:
-        return None
-    sampling_rate_hz = header.sampling_rate_hz
-    return OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=header.step_config, calibration=header.calibration,
-                               arithmetic="fixed", adc_bits=header.adc_bits,
-                               cycles_available=algorithm_cycles_per_sample(sampling_rate_hz, fosc_hz))
 
 
 class Firmware:

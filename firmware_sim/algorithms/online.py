@@ -71,11 +71,13 @@ from gaitlog.firmware_sim.algorithms.state import (
 from gaitlog.firmware_sim.algorithms.state import LINE_POS as LINE_POS_SLOT
 from gaitlog.firmware_sim.algorithms.state import N as _N_SLOT
 from gaitlog.firmware_sim.eeprom import PAGE_BYTES
+from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
 from gaitlog.firmware_sim.fixedpoint import (
     C_CYCLES,
     C_DIV0,
     C_SAT,
     C_WRAP,
+    DEFAULT_FOSC_HZ,
     ArithmeticContext,
     QFormat,
     cycles_per_sample_available,
@@ -83,6 +85,7 @@ from gaitlog.firmware_sim.fixedpoint import (
     new_counters,
     requantize,
 )
+from gaitlog.protocol.header import DeviceHeader
 from gaitlog.protocol.steps import (
     HEEL_STRIKE_NOT_FOUND,
     STEP_LENGTH_FIELDS,
@@ -92,7 +95,8 @@ from gaitlog.protocol.steps import (
 )
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-__all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", "CycleStats", "load_kernels"]
+__all__ = ["ARITHMETICS", "OnlineConfig", "OnlineSteps", "OnlineStepAlgorithm", "CycleStats", "load_kernels",
+           "step_algorithm_for"]
 
 #: The two arithmetics of the algorithm.
 ARITHMETICS = ("fixed", "float")
@@ -670,6 +674,19 @@ class OnlineStepAlgorithm:
         if not parts:
             return OnlineSteps.empty(self.arithmetic, self.sampling_rate_hz, self.config.step_config.calibrated)
         return OnlineSteps.concatenate(parts)
+
+
+def step_algorithm_for(header: DeviceHeader, *, fosc_hz: float = DEFAULT_FOSC_HZ) -> OnlineStepAlgorithm | None:
+    """The on-line step algorithm as the firmware sets it up at START from its header (sampling rate, ADC
+    width, calibration slot, step configuration; fixed point), or None when the header turns it off. The
+    host's replay (:mod:`gaitlog.host.files.replay`) uses the same, so device and replay cannot be set up
+    differently (:class:`gaitlog.firmware_sim.firmware.Firmware` takes it from here)."""
+    if not header.step_config.enabled:
+        return None
+    sampling_rate_hz = header.sampling_rate_hz
+    return OnlineStepAlgorithm(sampling_rate_hz=sampling_rate_hz, step_config=header.step_config,
+                               calibration=header.calibration, arithmetic="fixed", adc_bits=header.adc_bits,
+                               cycles_available=algorithm_cycles_per_sample(sampling_rate_hz, fosc_hz))
 
 
 def load_kernels(arithmetics: tuple[str, ...] = ("fixed",)) -> None:

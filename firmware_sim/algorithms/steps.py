@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,11 +26,40 @@ from gaitlog.atomic_write import atomic_write_text
 from gaitlog.protocol.steps import StepFlag
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "float_csv_cells"]
+__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "distinct", "float_csv_cells", "nan_median"]
 
 #: The step-length estimators of Alvarez et al. (2006): M1 pendulum, M2 pendulum with drift correction,
 #: M3 two-phase pendulum + foot length (no K), M4 Weinberg, M5 cadence line.
 ESTIMATORS = ("M1", "M2", "M3", "M4", "M5")
+
+
+def nan_median(values: np.ndarray) -> float:
+    """``np.nanmedian`` of ``values`` (flattened; NaN when none is a number), the same bits, by ``np.partition``:
+    ``np.median`` imports ``numpy.ma`` for its NaN check (about 30 ms of a short ``gaitlog estimate``).
+
+    >>> nan_median(np.array([3.0, np.nan, 1.0, 2.0, 10.0])), nan_median(np.array([np.nan]))
+    (2.5, nan)
+    """
+    v = np.asarray(values, np.float64).ravel()
+    v = v[~np.isnan(v)]
+    k = v.size // 2
+    if v.size == 0:
+        return math.nan
+    if v.size % 2:
+        return float(np.partition(v, k)[k])
+    p = np.partition(v, (k - 1, k))
+    return float((p[k - 1] + p[k]) / 2)
+
+
+def distinct(values: np.ndarray) -> np.ndarray:
+    """``np.unique(values)`` (sorted, flattened) without ``numpy.ma`` (which ``np.unique`` imports to ask whether
+    its input is masked).
+
+    >>> distinct(np.array([3, 1, 3, 2, 1])).tolist()
+    [1, 2, 3]
+    """
+    v = np.sort(np.asarray(values).ravel())
+    return v[np.r_[True, v[1:] != v[:-1]]] if v.size else v
 
 
 @dataclass(eq=False)
@@ -136,11 +166,11 @@ class StepTable:
         bad = ~np.isfinite(v)
         if not bad.any():
             return v, 0
-        overall = np.nanmedian(v) if np.any(~bad) else np.nan
-        for b in np.unique(self.bout[bad]):  # loop over bouts (few), not samples
+        overall = nan_median(v) if np.any(~bad) else np.nan
+        for b in distinct(self.bout[bad]):  # loop over bouts (few), not samples
             sel = self.bout == b
             good = v[sel & ~bad]
-            v[sel & bad] = np.median(good) if good.size else overall
+            v[sel & bad] = nan_median(good) if good.size else overall
         return v, int(np.count_nonzero(bad))
 
     def distance_m(self, estimator: str, *, raw: bool = False) -> tuple[float, int]:
@@ -250,7 +280,10 @@ def float_csv_cells(values: np.ndarray | list[float]) -> list[str]:
     """The CSV cells of real values: ``%.6g``, an empty cell for NaN and infinities (the one rule of every
     CSV table the package writes)."""
     a = np.asarray(values, dtype=np.float64)
-    cells = list(map("{:.6g}".format, a.tolist()))
+    if a.size == 0:
+        return []
+    # one %-format of the whole column, split at a separator no number holds: twice as fast as a format per cell
+    cells = ("\x1f".join(["%.6g"] * a.size) % tuple(a.ravel().tolist())).split("\x1f")
     for i in np.flatnonzero(~np.isfinite(a)).tolist():
         cells[i] = ""
     return cells

@@ -22,8 +22,9 @@ Accepted inputs (detected from the bytes, not trusted from the name)
 Nothing is interpolated here: a missing sample is NaN in ``acc_g`` and False in ``valid``.
 
 A text file larger than :data:`STREAM_TEXT_BYTES` is parsed line by line from the file, never held whole: the
-memory is the parsed table (``rows`` x ``columns`` float64, the rows checked against
-:data:`~gaitlog.host.storage.limits.MAX_INPUT_SAMPLES` as they come), not the text and its list of lines.
+memory is the parsed table (``rows`` x ``columns`` float64, checked against the memory available as it grows), not
+the text and its list of lines. No input is refused for its length: a CSV for what it parses, an NPZ for what its
+arrays declare against what the zip holds (:mod:`gaitlog.host.storage.limits`).
 """
 
 from __future__ import annotations
@@ -41,10 +42,11 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_bytes
 from gaitlog.host.files.ipol import IpolTrial, list_trials, read_trial
 from gaitlog.host.storage.limits import (
-    MAX_INPUT_SAMPLES,
+    MAX_GRID_SAMPLES_PER_ROW,
     MAX_TEXT_BYTES,
     check_file_size,
-    check_samples,
+    check_grid,
+    check_memory,
 )
 from gaitlog.host.files.losses import SampleLosses, say_losses
 from gaitlog.host.files.recording import Recording
@@ -228,7 +230,9 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
         return _from_ipol(p, sampling_rate_hz, cal)
     if not p.is_file():
         raise HostError(f"{p}: no such file")
-    check_file_size(p, MAX_TEXT_BYTES, "an input file")
+    if _starts_zip(p):                              # an NPZ: judged by its arrays, read from the file (not whole)
+        _only_csv(p, cols, units, skip_rows)
+        return _from_recording(Recording.load(p), p, sampling_rate_hz, cal, arrays)
     large = _large_text(p)
     if large is not None:
         if large.lstrip().lower().startswith("acquisition frequency"):
@@ -239,6 +243,7 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
                 return _from_csv(p, fh, sampling_rate_hz, cols, units, cal, skip_rows)
         except OSError as err:
             raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
+    check_file_size(p, MAX_TEXT_BYTES, "an input file")   # read whole: a logger file, or a small text
     try:
         data = p.read_bytes()
     except OSError as err:
@@ -253,18 +258,21 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
             return _from_ipol(p, sampling_rate_hz, cal)
         return _from_csv(p, text.splitlines(), sampling_rate_hz, cols, units, cal, skip_rows)
     _only_csv(p, cols, units, skip_rows)
-    if kind == "npz":
-        rec = Recording.load(p)
-    else:
-        rec = decode_bytes(data, source=str(p))
-    return _from_recording(rec, p, sampling_rate_hz, cal, arrays)
+    return _from_recording(decode_bytes(data, source=str(p)), p, sampling_rate_hz, cal, arrays)
 
 
 # ------------------------------------------------------------------------------------------------ formats
+def _starts_zip(p: Path) -> bool:
+    """Whether ``p`` starts as a zip archive (an NPZ) does."""
+    try:
+        with p.open("rb") as fh:
+            return fh.read(4) == b"PK\x03\x04"
+    except OSError as err:
+        raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
+
+
 def _kind(data: bytes, p: Path) -> str:
-    """``npz``, ``logger`` (image, raw dump, capture) or ``text``."""
-    if data[:4] == b"PK\x03\x04":
-        return "npz"
+    """``logger`` (image, raw dump, capture) or ``text``."""
     try:
         detect_format(data)
         return "logger"
@@ -280,7 +288,7 @@ def _kind(data: bytes, p: Path) -> str:
 
 def _large_text(p: Path) -> str | None:
     """The first 64 KiB of ``p`` as text when ``p`` is a text file larger than :data:`STREAM_TEXT_BYTES` (to be
-    parsed line by line), else None (read whole: small, an ``.npz``, a logger file, or not text)."""
+    parsed line by line), else None (read whole: small, a logger file, or not text)."""
     try:
         if p.stat().st_size <= STREAM_TEXT_BYTES:
             return None
@@ -288,8 +296,6 @@ def _large_text(p: Path) -> str | None:
             probe = fh.read(65536)
     except OSError as err:
         raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
-    if probe[:4] == b"PK\x03\x04":
-        return None
     try:
         detect_format(probe)
         return None
@@ -376,31 +382,60 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
               cal: AccCalibration | None, skip_rows: int) -> AccelerationInput:
     """A CSV from its ``lines`` (a list, or an open file read line by line: nothing but the table is kept)."""
     it = iter(lines)
-    start, delim, header, prev, first = None, ",", [], None, ""
+    start, first, delim, header = _data_start(p, it, skip_rows)
+    names = [h.lower() for h in header]
+    numeric = [j for j, f in enumerate(_split(first, delim)) if _number(f)]
+    axes = _axes(p, names, header, numeric, cols, units)
+    time_col = next((names.index(t) for t in _TIME_NAMES if t in names), None) if rate is None else None
+    extra = {names.index(c) for c in ("flags", "valid") if c in names}
+    want = sorted({c for triple, _ in axes for c in triple} | ({time_col} if time_col is not None else set()) | extra)
+    table = _parse_rows(p, itertools.chain([first], it), start, delim, want, header)
+    pos = {c: k for k, c in enumerate(want)}
+    if table.shape[0] < 2:
+        raise HostError(f"{p}: fewer than 2 data lines")
+    parts = _unit_parts(p, table, axes, pos)
+    ok = np.all([np.all(np.isfinite(v), axis=1) for v in parts.values()], axis=0)
+    if "valid" in names:
+        ok &= table[:, pos[names.index("valid")]] == 1
+    if rate is None:
+        if time_col is None:
+            raise HostError(f"{p}: no time column ({'/'.join(_TIME_NAMES)}) to take the rate from; give --rate HZ")
+        rate, grid = _time_grid(p, table[:, pos[time_col]], start)
+    else:
+        grid = np.arange(table.shape[0])
+    n = int(grid[-1]) + 1 if grid.size else 0
+    valid = np.zeros(n, bool)
+    valid[grid] = ok
+    marks = np.zeros(0, np.int64)
+    if "flags" in names:
+        flags = np.nan_to_num(table[:, pos[names.index("flags")]]).astype(np.int64)
+        marks = grid[(flags & FLAG_MARK) != 0]
+    g, counts, note = _csv_g(p, parts, grid, valid, cal)
+    if g is not None:
+        valid &= np.all(np.isfinite(g), axis=1)
+    unit_words = " and ".join(sorted(parts))
+    return AccelerationInput(g, valid, float(rate), marks, f"{p} (CSV, {unit_words}; {note})", counts)
+
+
+def _data_start(p: Path, it: Iterator[str], skip_rows: int) -> tuple[int, str, str, list[str]]:
+    """The first data line of a CSV (module notes), read from ``it`` up to it: its index, the line, the delimiter
+    and the header's fields (empty without a header)."""
+    prev = None
     for i, line in enumerate(it):
         if i < skip_rows or not line.strip() or line.lstrip().startswith("#"):
             continue
         delim = next((d for d in ("\t", ";", ",") if d in line), ",")
         fields = _split(line, delim)
         if sum(_number(f) for f in fields) >= 3:
-            start, first = i, line
-            header = prev if prev is not None and len(prev) == len(fields) else []
-            break
+            return i, line, delim, prev if prev is not None and len(prev) == len(fields) else []
         prev = fields
-    if start is None:
-        raise HostError(f"{p}: no line with three numbers (after {skip_rows} skipped); is this a CSV of "
-                        "accelerations?")
-    names = [h.lower() for h in header]
-    numeric = [j for j, f in enumerate(_split(first, delim)) if _number(f)]
-    axes = _axes(p, names, header, numeric, cols, units)
-    time_col = next((names.index(t) for t in _TIME_NAMES if t in names), None) if rate is None else None
-    want = sorted({c for triple, _ in axes for c in triple} | ({time_col} if time_col is not None else set())
-                  | ({names.index("flags")} if "flags" in names else set())
-                  | ({names.index("valid")} if "valid" in names else set()))
-    table = _parse_rows(p, itertools.chain([first], it), start, delim, want, header)
-    pos = {c: k for k, c in enumerate(want)}
-    if table.shape[0] < 2:
-        raise HostError(f"{p}: fewer than 2 data lines")
+    raise HostError(f"{p}: no line with three numbers (after {skip_rows} skipped); is this a CSV of accelerations?")
+
+
+def _unit_parts(p: Path, table: np.ndarray, axes: list[tuple[list[int], str]], pos: dict[int, int]
+                ) -> dict[str, np.ndarray]:
+    """``{unit: (rows, 3) columns}`` of the axis triples, the unit of an unnamed one told by the norm, each norm
+    checked against gravity in its unit."""
     parts = {unit: _columns(table, [pos[c] for c in triple]) for triple, unit in axes}
     if "auto" in parts:
         v = parts.pop("auto")
@@ -408,23 +443,14 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
     for unit in ("g", "m/s2"):
         if unit in parts:
             _check_norm(p, parts[unit], unit)
-    ok = np.all([np.all(np.isfinite(v), axis=1) for v in parts.values()], axis=0)
-    if "valid" in names:
-        ok &= table[:, pos[names.index("valid")]] == 1
-    flags = np.nan_to_num(table[:, pos[names.index("flags")]]).astype(np.int64) if "flags" in names else None
-    if rate is None:
-        if time_col is None:
-            raise HostError(f"{p}: no time column ({'/'.join(_TIME_NAMES)}) to take the rate from; give --rate HZ")
-        rate, grid = _time_grid(p, table[:, pos[time_col]], start)
-    else:
-        grid = np.arange(table.shape[0])
-    check_samples(table.shape[0], p)
-    n = int(grid[-1]) + 1 if grid.size else 0
-    valid = np.zeros(n, bool)
-    valid[grid] = ok
-    marks = np.zeros(0, np.int64)
-    if flags is not None:
-        marks = grid[(flags & FLAG_MARK) != 0]
+    return parts
+
+
+def _csv_g(p: Path, parts: dict[str, np.ndarray], grid: np.ndarray, valid: np.ndarray, cal: AccCalibration | None
+           ) -> tuple[np.ndarray | None, np.ndarray | None, str]:
+    """(g, counts, how g was obtained) on the grid, NaN where not ``valid``; g None for counts without a
+    calibration."""
+    n = valid.size
 
     def on_grid(v: np.ndarray) -> np.ndarray:
         if n == v.shape[0]:                # every row on its own grid point: the table's columns, NaN where missing
@@ -447,10 +473,7 @@ def _from_csv(p: Path, lines: Iterable[str], rate: float | None, cols: list[str 
         g, note = np.asarray(cal.apply(raw), np.float64), "g from the given calibration"
     elif g is None:
         note = "ADC counts"
-    if g is not None:
-        valid &= np.all(np.isfinite(g), axis=1)
-    unit_words = " and ".join(sorted(parts))
-    return AccelerationInput(g, valid, float(rate), marks, f"{p} (CSV, {unit_words}; {note})", counts)
+    return g, counts, note
 
 
 def _columns(table: np.ndarray, index: list[int]) -> np.ndarray:
@@ -463,17 +486,17 @@ def _columns(table: np.ndarray, index: list[int]) -> np.ndarray:
 def _parse_rows(p: Path, lines: Iterable[str], start: int, delim: str, want: list[int],
                 header: list[str]) -> np.ndarray:
     """The ``want`` columns of the data lines (line ``start`` on; blank and ``#`` lines skipped) as float64, NaN
-    for an empty cell; filled a block of rows at a time, the rows bounded by
-    :data:`~gaitlog.host.storage.limits.MAX_INPUT_SAMPLES` before each block is allocated."""
+    for an empty cell; filled a block of rows at a time, the table (and its final copy) checked against the memory
+    available before each block is allocated (:func:`~gaitlog.host.storage.limits.check_memory`)."""
     blocks: list[np.ndarray] = []
     block = np.full((_ROWS_PER_BLOCK, len(want)), np.nan)
     k = 0
     for line_no, ln in enumerate(lines, start + 1):   # text, one line at a time (np.loadtxt cannot take empty cells)
         if not ln.strip() or ln.lstrip().startswith("#"):
             continue
-        if k == _ROWS_PER_BLOCK:  # a row past a full block: counted before the next block is allocated
+        if k == _ROWS_PER_BLOCK:  # a row past a full block: the table judged before the next block is allocated
             blocks.append(block)
-            check_samples(len(blocks) * _ROWS_PER_BLOCK + 1, p, f"line {line_no}")
+            check_memory(2 * (len(blocks) + 1) * block.nbytes, p, f"line {line_no}: the table so far")
             block, k = np.full((_ROWS_PER_BLOCK, len(want)), np.nan), 0
         cells = ln.split(delim)
         if len(cells) <= want[-1]:
@@ -574,10 +597,11 @@ def _time_grid(p: Path, t: np.ndarray, start: int) -> tuple[float, np.ndarray]:
         raise HostError(f"{p}: line {start + k + 2}: time does not increase; give --rate HZ instead")
     step = float(np.median(dt))
     span = (t[-1] - t[0]) / step
-    if not span < MAX_INPUT_SAMPLES:
+    if not span < MAX_GRID_SAMPLES_PER_ROW * t.size:
         k = int(np.argmax(dt))
-        check_samples(int(min(span, 2**62)) + 1, p, f"line {start + k + 2}: a time gap of {dt[k]:g} s at a "
-                      f"{1.0 / step:g} Hz grid")
+        check_grid(int(min(span, 2**62)) + 1, t.size, p, f"line {start + k + 2}: a time gap of {dt[k]:g} s at a "
+                   f"{1.0 / step:g} Hz grid")
+    check_memory(int(span + 1) * 49, p, "its time grid")     # g and counts (n, 3) float64, valid
     grid = np.round((t - t[0]) / step).astype(np.int64)
     if np.any(np.diff(grid) <= 0):
         raise HostError(f"{p}: the times are not on a regular grid (two rows within one step); give --rate HZ")

@@ -30,7 +30,8 @@ from gaitlog.host.storage.limits import (
     MAX_JSON_BYTES,
     MAX_TEXT_BYTES,
     check_file_size,
-    check_samples,
+    check_grid,
+    check_memory,
 )
 from gaitlog.atomic_write import atomic_write
 from gaitlog.units import STANDARD_GRAVITY_M_S2
@@ -162,7 +163,8 @@ def read_lb_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, float, int]:
         counter, data = counter[keep], data[keep]
     first_counter = int(counter[0])
     n = int(counter[-1] - first_counter + 1)
-    check_samples(n, path, f"PacketCounter {first_counter} .. {int(counter[-1])}")
+    check_grid(n, counter.size, path, f"PacketCounter {first_counter} .. {int(counter[-1])}")
+    check_memory(25 * n, path, "its packet grid")
     acc = np.full((n, 3), np.nan)
     valid = np.zeros(n, bool)
     idx = counter - first_counter

@@ -40,7 +40,7 @@ import numpy as np
 from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.firmware_sim.algorithms.steps import csv_text
 from gaitlog.host.errors import HostError
-from gaitlog.host.storage.limits import MAX_INPUT_SAMPLES
+from gaitlog.host.storage.limits import MAX_NPZ_EXPANSION, NPZ_SMALL_BYTES, check_memory
 from gaitlog.atomic_write import atomic_write, atomic_write_text
 from gaitlog.protocol.channel_map import ChannelMap
 from gaitlog.protocol.header import CalibrationSlot, DeviceHeader
@@ -61,11 +61,12 @@ NPZ_FORMAT_VERSION = 1
 #: The arrays of the NPZ layout (others in a file are not read).
 _NPZ_ARRAYS = ("codes", "valid", "flags", "sample_numbers", "header_bytes", "step_record_bytes", "step_record_numbers",
                "metadata_json")
-#: Largest NPZ member read, bytes: ``sample_numbers`` (int64) of the longest input a command takes
-#: (:data:`~gaitlog.host.storage.limits.MAX_INPUT_SAMPLES`, 23 h at 50 Hz: a replayed day, not only a logger's
-#: memory) is the largest genuine one (32 MB); a zip bomb or a header claiming terabytes is refused before it is
-#: allocated.
-MAX_NPZ_ARRAY_BYTES = 8 * MAX_INPUT_SAMPLES + 4096
+#: Most bytes deflate inflates one compressed byte to (its longest match, 258 bytes, coded in 2 bits: 1,032): a zip
+#: member saying it is larger than this times its compressed size lies about its size.
+DEFLATE_MAX_RATIO = 1032
+#: The arrays a recording NPZ must have, and the first axis they share (the samples).
+_NPZ_REQUIRED = ("codes", "valid", "flags", "sample_numbers", "header_bytes", "metadata_json")
+_NPZ_PER_SAMPLE = ("codes", "valid", "flags", "sample_numbers")
 
 #: Rows of the sample CSV formatted at a time (:meth:`Recording.to_csv`).
 _CSV_ROWS = 1 << 16
@@ -440,10 +441,7 @@ class Recording:
         if magic != b"PK\x03\x04":
             raise HostError(f"{path}: not a gaitlog recording NPZ (an NPZ is a zip archive; this file starts with "
                             f"{magic!r}, offset 0)")
-        arrays = read_npz_arrays(path, _NPZ_ARRAYS)
-        missing = {"codes", "valid", "flags", "sample_numbers", "header_bytes", "metadata_json"} - arrays.keys()
-        if missing:
-            raise HostError(f"{path}: not a gaitlog recording NPZ (missing arrays {sorted(missing)})")
+        arrays = read_npz_arrays(path, _NPZ_ARRAYS, required=_NPZ_REQUIRED)
         try:
             meta = json.loads(str(arrays["metadata_json"]))
         except (ValueError, RecursionError) as err:
@@ -593,57 +591,113 @@ def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:
     return text
 
 
-def read_npz_arrays(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
-    """The arrays ``names`` of the NPZ ``path`` (others are not read), each checked before it is allocated.
+class _Member(NamedTuple):
+    """One ``.npy`` member of an NPZ, as its headers declare it."""
 
-    Each member's ``.npy`` header is read first: object arrays (pickles) are refused, and so is any array of
-    more than :data:`MAX_NPZ_ARRAY_BYTES` bytes, by its declared shape and by the zip's declared size; the
-    data are then read up to the declared size only (a zip bomb never inflates past it).
+    info: zipfile.ZipInfo
+    shape: tuple[int, ...]
+    fortran: bool
+    dtype: np.dtype
+    nbytes: int
+
+
+def read_npz_arrays(path: Path, names: Sequence[str],
+                    required: Sequence[str] = ()) -> dict[str, np.ndarray]:
+    """The arrays ``names`` of the NPZ ``path`` (others are not read), judged by their headers before any is read.
+
+    Each member's ``.npy`` header is read first, and nothing is inflated until all agree with what the file holds:
+    object arrays (pickles) are refused; a declared shape must be the zip member's declared size, which deflate
+    must be able to reach from the compressed size (:data:`DEFLATE_MAX_RATIO`); the arrays together may be at most
+    :data:`~gaitlog.host.storage.limits.MAX_NPZ_EXPANSION` times their compressed size (a zip bomb of zeros is
+    about 1,000 times) unless small, must include ``required``, must share their sample count when they are a
+    recording's, and must fit in memory (:func:`~gaitlog.host.storage.limits.check_memory`). The data are then
+    read up to the declared size only.
 
     Raises
     ------
     HostError
-        Not a zip archive, a damaged or truncated member, a pickled or oversized array; naming the file and
-        the member.
+        Not a zip archive, a damaged or truncated member, a pickled, oversized or inconsistent array; naming the
+        file and the member.
     """
-    fmt = np.lib.format
     arrays: dict[str, np.ndarray] = {}
     try:
         with zipfile.ZipFile(path) as zf:
-            for info in zf.infolist():
-                name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
-                if name not in names or name in arrays:
-                    continue
-                where = f"{path}: array {name!r}"
-                if info.flag_bits & 0x1:
-                    raise HostError(f"{where}: encrypted in the zip (a gaitlog NPZ never is)")
-                if info.file_size > MAX_NPZ_ARRAY_BYTES + 4096:
-                    raise HostError(f"{where}: {info.file_size} bytes uncompressed, more than a recording holds "
-                                    f"({MAX_NPZ_ARRAY_BYTES}): not a gaitlog recording NPZ")
-                with zf.open(info) as fh:
-                    version = fmt.read_magic(fh)
-                    if version not in ((1, 0), (2, 0)):
-                        raise HostError(f"{where}: .npy format version {version} is not read")
-                    read_header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
-                    shape, fortran, dtype = read_header(fh)
-                    if dtype.hasobject:
-                        raise HostError(f"{where}: holds Python objects (a pickle), which gaitlog never reads")
-                    count = int(np.prod(shape, dtype=object))
-                    nbytes = count * dtype.itemsize
-                    if nbytes > MAX_NPZ_ARRAY_BYTES:
-                        raise HostError(f"{where}: declares shape {shape} ({nbytes} bytes), more than a recording "
-                                        f"holds ({MAX_NPZ_ARRAY_BYTES} bytes)")
-                    raw = np.empty(nbytes, np.uint8)       # read in place: no bytes object and copy beside it
+            members = _npz_members(path, zf, names)
+            _judge_npz(path, members, required)
+            for name, m in members.items():
+                raw = np.empty(m.nbytes, np.uint8)       # read in place: no bytes object and copy beside it
+                with zf.open(m.info) as fh:
+                    _npy_header(fh)
                     got = _read_into(fh, raw)
-                if got != nbytes:
-                    raise HostError(f"{where}: truncated ({got} of {nbytes} bytes)")
-                array = raw.view(dtype)[:count]
-                arrays[name] = array.reshape(shape[::-1]).T if fortran else array.reshape(shape)
+                if got != m.nbytes:
+                    raise HostError(f"{path}: array {name!r}: truncated ({got} of {m.nbytes} bytes)")
+                array = raw.view(m.dtype)
+                arrays[name] = array.reshape(m.shape[::-1]).T if m.fortran else array.reshape(m.shape)
     except HostError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as err:
         raise HostError(f"{path}: damaged or truncated recording NPZ ({err})") from err
     return arrays
+
+
+def _npy_header(fh: Any) -> tuple[tuple[int, ...], bool, np.dtype]:
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version not in ((1, 0), (2, 0)):
+        raise ValueError(f".npy format version {version} is not read")
+    read_header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+    return read_header(fh)
+
+
+def _npz_members(path: Path, zf: zipfile.ZipFile, names: Sequence[str]) -> dict[str, _Member]:
+    """The members ``names`` by their headers (the ``.npy`` header inflated, nothing more), each checked alone."""
+    members: dict[str, _Member] = {}
+    for info in zf.infolist():
+        name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+        if name not in names or name in members:
+            continue
+        where = f"{path}: array {name!r}"
+        if info.flag_bits & 0x1:
+            raise HostError(f"{where}: encrypted in the zip (a gaitlog NPZ never is)")
+        if info.compress_type == zipfile.ZIP_STORED and info.file_size != info.compress_size:
+            raise HostError(f"{where}: stored uncompressed in {info.compress_size} bytes, the zip says "
+                            f"{info.file_size}: not a gaitlog recording NPZ")
+        if info.file_size > DEFLATE_MAX_RATIO * info.compress_size + 4096:
+            raise HostError(f"{where}: the zip says {info.file_size} bytes from {info.compress_size} compressed, "
+                            f"more than deflate can give: not a gaitlog recording NPZ")
+        with zf.open(info) as fh:
+            try:
+                shape, fortran, dtype = _npy_header(fh)
+            except ValueError as err:
+                raise HostError(f"{where}: {err}") from None
+            header_bytes = fh.tell()
+        if dtype.hasobject:
+            raise HostError(f"{where}: holds Python objects (a pickle), which gaitlog never reads")
+        nbytes = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        if header_bytes + nbytes != info.file_size:
+            raise HostError(f"{where}: declares shape {shape} ({nbytes} bytes), its zip member holds "
+                            f"{info.file_size - header_bytes}: not a gaitlog recording NPZ")
+        members[name] = _Member(info, tuple(shape), bool(fortran), dtype, nbytes)
+    return members
+
+
+def _judge_npz(path: Path, members: dict[str, _Member], required: Sequence[str]) -> None:
+    """The members together against what the file holds (sizes, required arrays, shared sample count, memory)."""
+    total = sum(m.nbytes for m in members.values())
+    packed = sum(m.info.compress_size for m in members.values())
+    if total > max(NPZ_SMALL_BYTES, MAX_NPZ_EXPANSION * packed):
+        raise HostError(f"{path}: its arrays declare {total} bytes from {packed} compressed "
+                        f"({total / max(packed, 1):,.0f} times); a recording NPZ is at most {MAX_NPZ_EXPANSION} "
+                        "times: a zip bomb, not read")
+    missing = sorted(set(required) - members.keys())
+    if missing:
+        raise HostError(f"{path}: not a gaitlog recording NPZ (missing arrays {missing})")
+    counts = {name: members[name].shape[0] if members[name].shape else -1
+              for name in _NPZ_PER_SAMPLE if name in members and name in required}
+    if len(set(counts.values())) > 1:
+        raise HostError(f"{path}: not a gaitlog recording NPZ (its arrays disagree on the sample count: "
+                        + ", ".join(f"{k} {v}" for k, v in counts.items()) + ")")
+    check_memory(total, path, "its arrays")
 
 
 def _read_into(fh: Any, raw: np.ndarray) -> int:

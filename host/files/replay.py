@@ -25,9 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
+from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps, step_algorithm_for
 from gaitlog.firmware_sim.algorithms.steps import StepTable
-from gaitlog.firmware_sim.firmware import step_algorithm_for
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.recording import Recording
 from gaitlog.protocol.errors import ProtocolError

@@ -62,6 +62,7 @@ from gaitlog.firmware_sim.algorithms.parameters import (
     prominence_threshold,
     samples,
 )
+from gaitlog.firmware_sim.algorithms.steps import nan_median
 from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, missing_runs
 from gaitlog.host.gait.masked_filter import masked_gaussian_lowpass
 from gaitlog.host.gait.peaks import find_peaks, keep_by_distance
@@ -258,7 +259,7 @@ def curve_foot_flats(sig: np.ndarray, index: np.ndarray | None, finite: Callable
     d = d[d <= samples(p.max_step_s, sampling_rate_hz)]
     dist = dist0
     if d.size >= 3:
-        dist = minimum_distance(int(round(2 * float(np.median(d)))), dist0, p.min_step_fraction_scaled)
+        dist = minimum_distance(int(round(2 * nan_median(d))), dist0, p.min_step_fraction_scaled)
         ff = foot_flats(dist)
     ff = ff[finite(ff)] if ff.size else ff
     ff = ff.astype(np.int64)

@@ -73,6 +73,7 @@ from gaitlog.firmware_sim.algorithms.steps import (
 from gaitlog.host.files.replay import online_step_table
 from gaitlog.host.gait.k_calibration import KFit, calibrate_on_sections
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
+from gaitlog.host.gait.streaming import BLOCK_SAMPLES as STREAM_BLOCK_SAMPLES, StreamingStepPipeline
 from gaitlog.host.gait.sections import (
     MODES,
     Section,
@@ -125,6 +126,24 @@ def offline_step_table(acc_g: np.ndarray, *, sampling_rate_hz: float, leg_length
         warnings.simplefilter("ignore", UserWarning)
         return StepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m, k_fit=k_fit).run(
             acc_g, sampling_rate_hz=sampling_rate_hz, valid=valid, t0_s=t0_s).steps_
+
+
+def streamed_offline_table(codes: np.ndarray, valid: np.ndarray, adc_calibration: Any, *, sampling_rate_hz: float,
+                           leg_length_m: float, foot_length_m: float, k_fit: KFit | None = None, t0_s: float = 0.0,
+                           block: int = STREAM_BLOCK_SAMPLES) -> StepTable:
+    """:func:`offline_step_table` of the codes in g (``adc_calibration.apply``, NaN where not ``valid``), computed
+    ``block`` samples at a time (:class:`~gaitlog.host.gait.streaming.StreamingStepPipeline`, the whole-array
+    table bit for bit): no ``(n, 3)`` float array and no whole-array chain is held, only the codes."""
+    c, ok = np.asarray(codes), np.asarray(valid, bool)
+    pipe = StreamingStepPipeline(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
+                                 sampling_rate_hz=sampling_rate_hz, k_fit=k_fit, t0_s=t0_s, block=block)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        for lo in range(0, c.shape[0], block):
+            g = np.asarray(adc_calibration.apply(c[lo:lo + block].astype(np.float64)), np.float64)
+            g[~ok[lo:lo + block]] = np.nan
+            pipe.feed(g, ok[lo:lo + block])
+        return pipe.finish().steps_
 
 
 def calibrated(table: StepTable, k_fit: KFit | None) -> StepTable:
@@ -732,7 +751,7 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
                       adc_calibration: CalibrationSlot | None = None, adc_bits: int = 10,
                       valid: np.ndarray | None = None, k_fit: KFit | None = None, mark_times_s: np.ndarray | None = None, lap_m: float = 20.0,
                       segment_m: float = 20.0, t0_s: float = 0.0, sections: list[Section] | None = None,
-                      run_starts: np.ndarray | None = None) -> RecordingComparison:
+                      run_starts: np.ndarray | None = None, block: int = STREAM_BLOCK_SAMPLES) -> RecordingComparison:
     """Offline chain, on-line float and on-line fixed on the same codes (no truth): matched steps,
     differences, sections.
 
@@ -745,15 +764,17 @@ def compare_recording(codes: np.ndarray, *, sampling_rate_hz: float, leg_length_
 
     Segment rows hold ``<chain>_m`` and ``ratio_<chain>`` for the three chains, ``algorithm_m`` and
     ``arithmetic_m`` (the shares in distance).
+
+    In bounded memory besides the codes: the offline chain is fed ``block`` samples at a time
+    (:func:`streamed_offline_table`) and the on-line algorithm is fed block-wise; the matching, sections and
+    per-step columns work on the step tables.
     """
     c = np.asarray(codes)
     ok = np.ones(c.shape[0], bool) if valid is None else np.asarray(valid, bool)
     cal = adc_calibration if adc_calibration is not None else CalibrationSlot.nominal(adc_bits)
-    acc = np.asarray(cal.apply(c.astype(np.float64)), np.float64)
-    acc[~ok] = np.nan
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg_length_m, foot_length_m=foot_length_m, t0_s=t0_s)
     okw = dict(kw, k_fit=k_fit, adc_calibration=cal, adc_bits=adc_bits, valid=ok, run_starts=run_starts)
-    tables = {"offline": offline_step_table(acc, valid=ok, k_fit=k_fit, **kw)}
+    tables = {"offline": streamed_offline_table(c, ok, cal, k_fit=k_fit, block=block, **kw)}
     tables["online-float"], _ = online_step_table(c, arithmetic="float", **okw)
     tables["online-fixed"], alg = online_step_table(c, arithmetic="fixed", **okw)
     shares = {s: SHARES[s] for s in ("algorithm", "arithmetic")}

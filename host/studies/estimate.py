@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from gaitlog.atomic_write import atomic_write
-from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable, columns_csv_text
+from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable, columns_csv_text, distinct, nan_median
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.inputs import AccelerationInput, input_losses
@@ -203,14 +203,14 @@ def summarise(tables: dict[str, StepTable], k: KFit | None = None) -> dict[str, 
         for name in ESTIMATORS:
             d, filled = steps.distance_m(name)
             lengths = steps.length_m[name]
-            med = float(np.nanmedian(lengths)) if np.isfinite(lengths).any() else float("nan")
+            med = nan_median(lengths) if np.isfinite(lengths).any() else float("nan")
             est[name] = {"distance_m": float(d) if np.isfinite(d) else None,
                          "median_step_m": med if np.isfinite(med) else None, "steps_filled": int(filled),
                          "steps_outside_k_range": int(outside[name].sum()) if outside is not None and name in outside
                          else None}
         out[arith] = {"n_steps": int(steps.n_steps),
                       "steps_outside_k_range": int(outside["any"].sum()) if outside is not None else None,
-                      "n_bouts": int(np.unique(steps.bout).size) if steps.n_steps else 0, "estimators": est}
+                      "n_bouts": int(distinct(steps.bout).size) if steps.n_steps else 0, "estimators": est}
     return out
 
 

@@ -68,26 +68,54 @@ def test_streamed_csv_errors_name_the_line(tmp_path, monkeypatch):
         inputs.read_acceleration(path)
 
 
-def test_streamed_rows_are_bounded_before_the_file_is_read_whole(tmp_path, monkeypatch):
-    """Rows are counted as they come: the error falls at the first block past the bound, not after the table
-    of the whole file was built."""
+def _memory(monkeypatch, n_bytes: int) -> None:
+    monkeypatch.setattr(limits, "available_memory_bytes", lambda: n_bytes)
+
+
+def test_streamed_rows_are_judged_by_memory_before_the_file_is_read_whole(tmp_path, monkeypatch):
+    """No row count is refused: the table is judged against the memory available as it grows, and the error falls
+    at the first block that would not fit (blocks of 256 rows x 3 columns = 6,144 bytes; the table and its final
+    copy: 2 x 4 blocks = 49,152 bytes > half of 90,000), not after the table of the whole file was built."""
     path = tmp_path / "many.csv"
     path.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 5000)
     monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)
     monkeypatch.setattr(inputs, "_ROWS_PER_BLOCK", 256)
-    monkeypatch.setattr(limits, "MAX_INPUT_SAMPLES", 1000)
-    with pytest.raises(HostError, match=r"many\.csv: line 1026: the input would hold 1025 samples, more than the 1000"):
+    _memory(monkeypatch, 90_000)
+    with pytest.raises(HostError, match=r"many\.csv: line 770: the table so far would take 0 MB, more than 50% of "
+                                        r"the 0 MB of memory available; split the input"):
         inputs.read_acceleration(path, sampling_rate_hz=50.0)
 
 
-def test_streamed_rows_exactly_at_the_bound_are_read(tmp_path, monkeypatch):
-    """As many rows as one input may hold, a whole number of blocks: read, not refused for the block after."""
+def test_streamed_rows_that_fit_are_read_whole_blocks_and_all(tmp_path, monkeypatch):
+    """As many rows as fit, a whole number of blocks: read, not refused for a block that is never needed."""
     path = tmp_path / "full.csv"
-    path.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 1024)
+    path.write_text("x_g,y_g,z_g\n" + "0,0,1\n" * 768)
     monkeypatch.setattr(inputs, "STREAM_TEXT_BYTES", 0)
     monkeypatch.setattr(inputs, "_ROWS_PER_BLOCK", 256)
-    monkeypatch.setattr(limits, "MAX_INPUT_SAMPLES", 1024)
-    assert inputs.read_acceleration(path, sampling_rate_hz=50.0).acc_g.shape == (1024, 3)
+    _memory(monkeypatch, 90_000)
+    assert inputs.read_acceleration(path, sampling_rate_hz=50.0).acc_g.shape == (768, 3)
+
+
+def test_a_csv_longer_than_the_old_fixed_bound_is_read(tmp_path, monkeypatch):
+    """2^22 + 1 rows (the old fixed bound was 2^22): a CSV is judged by what it parses, not by a sample count."""
+    n = (1 << 22) + 1
+    path = tmp_path / "day.csv"
+    with path.open("w") as fh:
+        fh.write("x_g,y_g,z_g\n")
+        fh.write("0,0,1\n" * n)
+    data = inputs.read_acceleration(path, sampling_rate_hz=50.0)
+    assert data.n_samples == n and data.n_missing == 0 and float(data.acc_g[-1, 2]) == 1.0
+
+
+def test_a_time_gap_is_judged_against_the_rows(tmp_path):
+    """A gap of 99 samples a row is a gap (missing samples); four rows over 2 x 10^8 grid samples are refused."""
+    ok, bad = tmp_path / "ok.csv", tmp_path / "bad.csv"
+    ok.write_text("time_s,x_g,y_g,z_g\n0,0,0,1\n0.01,0,0,1\n0.02,0,0,1\n0.03,0,0,1\n2.0,0,0,1\n")
+    assert inputs.read_acceleration(ok).n_missing == 196
+    bad.write_text("time_s,x_g,y_g,z_g\n0,0,0,1\n0.001,0,0,1\n0.002,0,0,1\n200000,0,0,1\n")
+    with pytest.raises(HostError, match=r"bad\.csv: line 5: a time gap of 200000 s at a 1000 Hz grid: 4 rows on a "
+                                        r"grid of 200000001 samples, more than 100 a row"):
+        inputs.read_acceleration(bad)
 
 
 def test_fit_to_memory_keeps_what_a_stop_when_full_memory_takes():
@@ -162,6 +190,77 @@ def test_record_replays_a_long_csv_in_bounded_memory(tmp_path):
     long_rec, short_rec = decode_file(tmp_path / "long.glimg"), decode_file(tmp_path / "short.glimg")
     assert long_rec.n_samples == short_rec.n_samples == 65536
     assert np.array_equal(np.asarray(long_rec.codes)[:, 0], np.asarray(short_rec.codes)[:, 0])
+
+
+def _zeros_npz(path: Path, n: int) -> None:
+    """A recording NPZ whose arrays all declare ``n`` samples, every byte zero: a zip bomb that agrees with itself
+    (the arrays a recording needs, one sample count, sizes the zip can really inflate to)."""
+    import io
+    import zipfile
+
+    def member(zf, name, shape, dtype, fill=None):
+        with zf.open(name + ".npy", "w", force_zip64=True) as fh:
+            np.lib.format.write_array_header_1_0(fh, {"descr": np.dtype(dtype).str, "fortran_order": False,
+                                                      "shape": shape})
+            left = int(np.prod(shape)) * np.dtype(dtype).itemsize
+            chunk = bytes(1 << 24)
+            while left:
+                fh.write(chunk[:min(left, len(chunk))])
+                left -= min(left, len(chunk))
+
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        for name, shape, dtype in (("codes", (n, 3), "<u2"), ("valid", (n,), "|b1"), ("flags", (n,), "|u1"),
+                                   ("sample_numbers", (n,), "<i8"), ("header_bytes", (0,), "|u1")):
+            member(zf, name, shape, dtype)
+        buf = io.BytesIO()
+        np.save(buf, np.array('{"format_version": 1}'))
+        zf.writestr("metadata_json.npy", buf.getvalue())
+
+
+def test_a_self_consistent_zip_bomb_is_refused_before_it_inflates(tmp_path):
+    """2^24 samples of zeros (268 MB of arrays) in about 1.2 MB: refused from the headers, nothing allocated."""
+    import tracemalloc
+
+    from gaitlog.host.files.recording import Recording
+
+    path = tmp_path / "bomb.npz"
+    _zeros_npz(path, 1 << 24)
+    assert path.stat().st_size < 2 << 20
+    tracemalloc.start()
+    try:
+        with pytest.raises(HostError, match=r"bomb\.npz: its arrays declare 268435\d+ bytes from \d+ compressed "
+                                            r"\([\d,]+ times\); a recording NPZ is at most 64 times: a zip bomb"):
+            Recording.load(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 << 20, peak
+
+
+def test_a_recording_longer_than_the_old_fixed_bound_is_read_in_its_own_size(tmp_path):
+    """A 24 h recording at 50 Hz and a bit (2^22 + 2^16 samples; the old fixed bound was 2^22) with the ADC noise of
+    a still logger: accepted, and read in the memory its arrays take (16 bytes a sample; 2 more for a moment while
+    the lap marks are found), no more."""
+    import tracemalloc
+
+    from gaitlog.host.files.recording import Recording
+
+    n = (1 << 22) + (1 << 16)
+    rng = np.random.default_rng(7)
+    codes = np.array([512, 512, 768]) + rng.integers(-2, 3, (n, 3))
+    path = tmp_path / "day.npz"
+    Recording.from_arrays(codes, sampling_rate_hz=50.0).save_npz(path)
+    tracemalloc.start()
+    try:
+        data = inputs.read_acceleration(path, arrays=False)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert data.n_samples == n and data.n_missing == 0
+    assert np.array_equal(data.recording.codes, codes)
+    assert peak < 18.5 * n, peak / n
+    g, valid = next(data.blocks())
+    assert g.shape == (1 << 16, 3) and valid.all()
 
 
 def test_an_npz_longer_than_a_logger_memory_is_read(tmp_path):
