@@ -29,7 +29,7 @@ def test_s05_m5_goes_negative_once_on_a_long_detected_step():
     zero_crossing = k.k1_m5_m_s * RATE_HZ / -k.k2_m5_m            # samples: M5 < 0 for longer steps
     alg = OnlineStepAlgorithm(sampling_rate_hz=RATE_HZ, adc_bits=ADC_BITS, calibration=sw.calibration(ADC_BITS),
                               step_config=step_config_for(leg_length_m=subject.leg_length_m,
-                                                          foot_length_m=subject.foot_length_m, calibration=k))
+                                                          foot_length_m=subject.foot_length_m, k_fit=k))
     c = RangeCollector()
     c.add(alg, sw.codes(ADC_BITS), name="S05")
     r = c.report()
