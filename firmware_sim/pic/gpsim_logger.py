@@ -38,6 +38,7 @@ import re
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -772,6 +773,24 @@ class PicLogger:
                        int(cyc.max()) if cyc.size else 0, dt, records,
                        int(val[addr == sym["PENDING"]].max(initial=0)), stop_cycles)
 
+    def _logged_run(self, codes: np.ndarray, calibration: CalibrationQ, defines: dict[str, int],
+                    logged: Callable[[dict[str, int]], set[int]], prefix: str
+                    ) -> tuple[dict[str, int], np.ndarray, np.ndarray, np.ndarray]:
+        """One test-build run of ``codes`` (a START to the harness's end, at the rate's period, no marker flags)
+        with only the addresses ``logged(symbols)`` in gpsim's write log: the build's symbols and the writes
+        (cycles, addresses, values)."""
+        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
+        c = np.asarray(codes, np.int64).reshape(-1, 3)
+        n = c.shape[0]
+        with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+            d = Path(tmp)
+            self._write_config(d, _calibration_bytes(calibration))
+            build = _assemble(d, dict(defines, N_SAMPLES=n), test=True)
+            wanted = logged(build.symbols)
+            text = _gpsim(build, sorted(wanted), "e harness_done", self.timeout_s,
+                          _stimuli(c, np.zeros(n, np.int64), period))
+        return (build.symbols, *_writes(text, wanted))
+
     def run_calls(self, codes: np.ndarray, calibration: CalibrationQ, *, start_n: int = 0,
                   run_start_sample: int = 0) -> LeanRun:
         """One run from START with a lean write log: ``finalise``'s calls (as :attr:`LoggerRun.calls`), the step
@@ -788,23 +807,19 @@ class PicLogger:
         start page)."""
         if start_n and not (2 << self.gravity_shift) <= start_n < INDEX_MODULUS:
             raise ValueError(f"start_n must be 0 or {2 << self.gravity_shift} .. {INDEX_MODULUS - 1}")
-        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
-        c = np.asarray(codes, np.int64).reshape(-1, 3)
-        n = c.shape[0]
-        with tempfile.TemporaryDirectory(prefix="pic-logger-lean-") as tmp:
-            d = Path(tmp)
-            self._write_config(d, _calibration_bytes(calibration))
-            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=start_n,
-                                      SCR_K0=scratch_offset(run_start_sample, start_n)), test=True)
-            sym = build.symbols
-            state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
-                                                                             for i in range(self._n_med())]
-            rec = [(sym[k], b) for k, b in _RECORD]
-            tracked = {a + i for a, b, _ in state for i in range(b)} | {a + i for a, b in rec for i in range(b)}
-            tracked |= {sym["REC"] + i for i in range(STEP_RECORD_BYTES)}
-            text = _gpsim(build, sorted(tracked | {sym["PENDING"]}), "e harness_done", self.timeout_s,
-                          _stimuli(c, np.zeros(n, np.int64), period))
-        _, addr, val = _writes(text, tracked | {sym["PENDING"]})
+        n = np.asarray(codes).reshape(-1, 3).shape[0]
+
+        def tracked(sym: dict[str, int]) -> set[int]:
+            out = {sym[k] + i for k, b, _ in _DETECTOR for i in range(b)}
+            out |= {sym["DURS"] + i for i in range(self._n_med())}
+            out |= {sym[k] + i for k, b in _RECORD for i in range(b)}
+            return out | {sym["REC"] + i for i in range(STEP_RECORD_BYTES)} | {sym["PENDING"]}
+
+        sym, _, addr, val = self._logged_run(codes, calibration, dict(self._defines(0), START_N=start_n,
+                                             SCR_K0=scratch_offset(run_start_sample, start_n)), tracked,
+                                             "pic-logger-lean-")
+        state = [(sym[k], b, signed) for k, b, signed in _DETECTOR] + [(sym["DURS"] + i, 1, False)
+                                                                         for i in range(self._n_med())]
         calls, records, ram, _ = _lean_log(addr, val, n, sym)
 
         def value(a, b, signed):
@@ -823,38 +838,23 @@ class PicLogger:
         ``SSPCON2`` logged: the page writes the firmware put on the I2C bus (:func:`bus_page_writes`; the
         scratch ring's flushes and its tail writes) and its reads (:func:`bus_reads`). ``run_start_sample``
         places the ring's start as in :meth:`run_calls`."""
-        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
-        c = np.asarray(codes, np.int64).reshape(-1, 3)
-        n = c.shape[0]
-        with tempfile.TemporaryDirectory(prefix="pic-logger-bus-") as tmp:
-            d = Path(tmp)
-            self._write_config(d, _calibration_bytes(calibration))
-            build = _assemble(d, dict(self._defines(0), N_SAMPLES=n, START_N=0,
-                                      SCR_K0=scratch_offset(run_start_sample, 0)), test=True)
-            logged = {build.symbols["PENDING"], SSPBUF_ADDR, SSPCON2_ADDR}
-            text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
-                          _stimuli(c, np.zeros(n, np.int64), period))
-        _, addr, val = _writes(text, logged)
+        _, _, addr, val = self._logged_run(
+            codes, calibration, dict(self._defines(0), START_N=0, SCR_K0=scratch_offset(run_start_sample, 0)),
+            lambda sym: {sym["PENDING"], SSPBUF_ADDR, SSPCON2_ADDR}, "pic-logger-bus-")
         return BusRun(bus_page_writes(addr, val), bus_reads(addr, val))
 
     def run_header(self, codes: np.ndarray, calibration: CalibrationQ, *, first_sample_number: int = 0) -> HeaderRun:
         """One run from START with the header at ``first_sample_number`` samples written (``overwrite`` and
         ``steps_written`` from the harness): the header counters (logger_ram.inc) after the run, from a lean
         write log. In stop-when-full mode the run ends where the memory fills (the interrupt's STOP)."""
-        period = timer_setup(self.sampling_rate_hz, self.fosc_hz).period_cycles
-        c = np.asarray(codes, np.int64).reshape(-1, 3)
-        n = c.shape[0]
-        with tempfile.TemporaryDirectory(prefix="pic-logger-header-") as tmp:
-            d = Path(tmp)
-            self._write_config(d, _calibration_bytes(calibration))
-            build = _assemble(d, dict(self._defines(first_sample_number), N_SAMPLES=n, START_N=0), test=True)
-            sym = build.symbols
-            counted = [sym["SAMPLE_L"], sym["SAMPLE_H"], sym["SAMPLE_U"], sym["SAMPLE_T"]]
-            steps_at = [sym["STEPS_W"] + i for i in range(4)]
-            logged = {*counted, *steps_at, sym["FW_FLAGS"], sym["PENDING"]}
-            text = _gpsim(build, sorted(logged), "e harness_done", self.timeout_s,
-                          _stimuli(c, np.zeros(n, np.int64), period))
-        _, addr, val = _writes(text, logged)
+        sample_bytes = ("SAMPLE_L", "SAMPLE_H", "SAMPLE_U", "SAMPLE_T")
+        sym, _, addr, val = self._logged_run(
+            codes, calibration, dict(self._defines(first_sample_number), START_N=0),
+            lambda sym: ({sym[k] for k in (*sample_bytes, "FW_FLAGS", "PENDING")}
+                         | {sym["STEPS_W"] + i for i in range(4)}),
+            "pic-logger-header-")
+        counted = [sym[k] for k in sample_bytes]
+        steps_at = [sym["STEPS_W"] + i for i in range(4)]
         last = {a: v for a, v in zip(addr.tolist(), val.tolist())}
         sw, steps = (sum(last.get(a, 0) << (8 * i) for i, a in enumerate(at)) for at in (counted, steps_at))
         flags = last.get(sym["FW_FLAGS"], 0)
