@@ -14,15 +14,7 @@ MARKW   macro   k
         movwf   MARK
         endm
         org     0
-        bsf     STATUS, RP0
-        bsf     TRISC, 3
-        bsf     TRISC, 4
-        movlw   .10
-        movwf   SSPADD
-        clrf    SSPSTAT
-        bcf     STATUS, RP0
-        movlw   0x28
-        movwf   SSPCON
+        I2C_MASTER
         MARKW   d'1'
         I2C_CMD SEN
         MARKW   d'2'

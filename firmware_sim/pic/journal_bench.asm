@@ -27,15 +27,7 @@ LOAD32  macro   dst, value
         movwf   dst + 3
         endm
         org     0
-        bsf     STATUS, RP0
-        bsf     TRISC, 3
-        bsf     TRISC, 4
-        movlw   .10
-        movwf   SSPADD
-        clrf    SSPSTAT
-        bcf     STATUS, RP0
-        movlw   0x28
-        movwf   SSPCON
+        I2C_MASTER
         LOAD32  JE_RAM, E_M
         LOAD32  JE_RAM + 4, E_S
         LOAD32  JE_RAM + 8, E_R
