@@ -42,11 +42,11 @@ from gaitlog.host.errors import HostError
 from gaitlog.host.files.decode import decode_bytes
 from gaitlog.host.files.ipol import IpolTrial, list_trials, read_trial
 from gaitlog.host.storage.limits import (
-    MAX_GRID_SAMPLES_PER_ROW,
     MAX_TEXT_BYTES,
     check_file_size,
     check_grid,
     check_memory,
+    grid_limit,
 )
 from gaitlog.host.files.losses import SampleLosses, say_losses
 from gaitlog.host.files.recording import Recording
@@ -597,7 +597,7 @@ def _time_grid(p: Path, t: np.ndarray, start: int) -> tuple[float, np.ndarray]:
         raise HostError(f"{p}: line {start + k + 2}: time does not increase; give --rate HZ instead")
     step = float(np.median(dt))
     span = (t[-1] - t[0]) / step
-    if not span < MAX_GRID_SAMPLES_PER_ROW * t.size:
+    if not span < grid_limit(t.size):
         k = int(np.argmax(dt))
         check_grid(int(min(span, 2**62)) + 1, t.size, p, f"line {start + k + 2}: a time gap of {dt[k]:g} s at a "
                    f"{1.0 / step:g} Hz grid")

@@ -5,7 +5,8 @@ of memory, while a genuine recording of any length that fits in memory is read.
 
 There is no fixed sample count. A CSV's rows are what it parses (bounded by its bytes; the table is checked
 against the memory available as it grows); a time grid may spread them over at most
-:data:`MAX_GRID_SAMPLES_PER_ROW` samples each; an NPZ's arrays are judged by their declared shapes against the
+:data:`MAX_GRID_SAMPLES_PER_ROW` samples each, or over :data:`GRID_SAMPLES_ALWAYS_READ` whatever their number (a short
+recording with a long pause); an NPZ's arrays are judged by their declared shapes against the
 zip's declared and compressed sizes (:data:`MAX_NPZ_EXPANSION`) and against the memory available
 (:func:`check_memory`).
 """
@@ -17,9 +18,9 @@ from pathlib import Path
 
 from gaitlog.host.errors import HostError
 
-__all__ = ["DEFAULT_MAX_MISSING_PERCENT", "MAX_GRID_SAMPLES_PER_ROW", "MAX_JSON_BYTES", "MAX_NPZ_EXPANSION",
+__all__ = ["DEFAULT_MAX_MISSING_PERCENT", "GRID_SAMPLES_ALWAYS_READ", "MAX_GRID_SAMPLES_PER_ROW", "MAX_JSON_BYTES", "MAX_NPZ_EXPANSION",
            "MAX_TEXT_BYTES", "MEMORY_SHARE", "NPZ_SMALL_BYTES", "available_memory_bytes", "check_file_size",
-           "check_grid", "check_memory"]
+           "check_grid", "check_memory", "grid_limit"]
 
 #: Missing share of a recording (percent of its stored samples) above which ``decode``, ``estimate`` and ``batch``
 #: exit 1 (``--max-missing``; :mod:`gaitlog.host.files.losses`).
@@ -28,6 +29,9 @@ DEFAULT_MAX_MISSING_PERCENT = 5.0
 #: file holds: a genuine gap (the logger paused over lunch) is within it, a 68-byte file spreading four rows over
 #: 2 x 10^8 grid samples is not.
 MAX_GRID_SAMPLES_PER_ROW = 100
+#: Samples of a time grid read whatever the rows (2^21: 11.6 h at 50 Hz, about 100 MB as the chain holds it): a few
+#: minutes of walking either side of an overnight pause is a genuine recording, not a hostile file.
+GRID_SAMPLES_ALWAYS_READ = 1 << 21
 #: How many times the arrays of a recording NPZ may be larger than their compressed size in the zip: a recording's
 #: sample numbers are distinct int64 values, which deflate shrinks about 5 times, so even constant codes compress
 #: only about 10 times (a zip bomb of zeros: about 1,000 times).
@@ -76,18 +80,28 @@ def check_memory(n_bytes: int, source: object, what: str) -> None:
                         f"{MEMORY_SHARE:.0%} of the {avail / 2**20:,.0f} MB of memory available; split the input")
 
 
+def grid_limit(n_rows: int) -> int:
+    """Most samples a regular time grid may spread ``n_rows`` read samples over: :data:`MAX_GRID_SAMPLES_PER_ROW`
+    a row, and at least :data:`GRID_SAMPLES_ALWAYS_READ`.
+
+    >>> grid_limit(4), grid_limit(1_000_000)
+    (2097152, 100000000)
+    """
+    return max(MAX_GRID_SAMPLES_PER_ROW * max(n_rows, 1), GRID_SAMPLES_ALWAYS_READ)
+
+
 def check_grid(n_grid: int, n_rows: int, source: object, what: str) -> None:
     """Raise :class:`HostError` when a regular grid of ``n_grid`` samples would spread ``n_rows`` read samples
-    over more than :data:`MAX_GRID_SAMPLES_PER_ROW` samples each (``what`` names the gap).
+    over more than :func:`grid_limit` samples (``what`` names the gap).
 
     >>> check_grid(200_000_001, 4, "gap.csv", "line 5: a time gap of 200000 s")
     Traceback (most recent call last):
     ...
-    gaitlog.host.errors.HostError: gap.csv: line 5: a time gap of 200000 s: 4 rows on a grid of 200000001 samples, more than 100 a row; check the times
+    gaitlog.host.errors.HostError: gap.csv: line 5: a time gap of 200000 s: 4 rows on a grid of 200000001 samples, more than 100 a row or 2097152 in all; check the times
     """
-    if n_grid > MAX_GRID_SAMPLES_PER_ROW * max(n_rows, 1):
+    if n_grid > grid_limit(n_rows):
         raise HostError(f"{source}: {what + ': ' if what else ''}{n_rows} rows on a grid of {n_grid} samples, more "
-                        f"than {MAX_GRID_SAMPLES_PER_ROW} a row; check the times")
+                        f"than {MAX_GRID_SAMPLES_PER_ROW} a row or {GRID_SAMPLES_ALWAYS_READ} in all; check the times")
 
 
 def check_file_size(path: str | os.PathLike[str], limit_bytes: int, what: str) -> None:

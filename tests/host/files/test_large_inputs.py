@@ -114,8 +114,19 @@ def test_a_time_gap_is_judged_against_the_rows(tmp_path):
     assert inputs.read_acceleration(ok).n_missing == 196
     bad.write_text("time_s,x_g,y_g,z_g\n0,0,0,1\n0.001,0,0,1\n0.002,0,0,1\n200000,0,0,1\n")
     with pytest.raises(HostError, match=r"bad\.csv: line 5: a time gap of 200000 s at a 1000 Hz grid: 4 rows on a "
-                                        r"grid of 200000001 samples, more than 100 a row"):
+                                        r"grid of 200000001 samples, more than 100 a row or 2097152 in all"):
         inputs.read_acceleration(bad)
+
+
+def test_a_short_recording_with_a_long_pause_is_read(tmp_path):
+    """Ten rows either side of a 3-hour pause at 50 Hz (540,000 grid samples, 27,000 a row) are a recording: the
+    pause is missing samples, the rows are exact where they were measured."""
+    rows = [f"{k * 0.02:.2f},0,0,1" for k in range(10)] + [f"{10800 + k * 0.02:.2f},0,0.5,1" for k in range(10)]
+    path = tmp_path / "pause.csv"
+    path.write_text("time_s,x_g,y_g,z_g\n" + "\n".join(rows) + "\n")
+    data = inputs.read_acceleration(path)
+    assert data.n_samples == 540_010 and data.n_missing == 540_010 - 20
+    assert float(data.acc_g[-1, 1]) == 0.5 and float(data.acc_g[9, 1]) == 0.0
 
 
 def test_fit_to_memory_keeps_what_a_stop_when_full_memory_takes():
