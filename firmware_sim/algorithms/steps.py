@@ -381,7 +381,8 @@ def _digit_cells(magnitude: np.ndarray, negative: np.ndarray | None, decimals: i
     n = magnitude.size
     top = int(magnitude.max()) if n else 0
     most = max(int(np.searchsorted(_POW10, np.uint64(top), side="right")), decimals + 1)
-    kind = np.uint16 if top < 1 << 16 else np.uint32 if top < 1 << 32 else np.uint64  # narrow division is faster
+    big = max(top, 10 ** (most - 1))                   # the largest number and power of ten divided
+    kind = np.uint16 if big < 1 << 16 else np.uint32 if big < 1 << 32 else np.uint64  # narrow division is faster
     powers = _POW10[:most][::-1].astype(kind)
     quotients = magnitude.astype(kind, copy=False)[:, None] // powers   # magnitude // 10^k, most significant first
     digits = quotients.copy()
