@@ -585,7 +585,9 @@ def _more_line(n: int, max_listed: int | None, what: str) -> list[str]:
 
 def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:
     """CSV cells of float values: the shortest text that reads back the same float, empty where not defined."""
-    text = [repr(v) for v in np.asarray(values, np.float64).tolist()]
+    v = np.asarray(values, np.float64).ravel().tolist()
+    # one %-format of the column, split at a separator no number holds: repr of each, twice as fast as repr per cell
+    text = ("\x1f".join(["%r"] * len(v)) % tuple(v)).split("\x1f") if v else []
     if defined is not None:
         text = [t if ok else "" for t, ok in zip(text, np.asarray(defined, bool).tolist())]
     return text
