@@ -455,20 +455,19 @@ def _matrix_cells(chars: np.ndarray) -> list[str]:
 
 def _matrix_csv_text(names: Sequence[str], cells: Sequence[np.ndarray]) -> str | None:
     """:func:`csv_text` of character matrices, by numpy: the cells and separators of each row side by side, the
-    NUL padding dropped. None when the general writer must do it (a cell to quote; one column, where :mod:`csv`
-    quotes an empty cell; columns of different lengths)."""
+    NUL padding dropped. None when the general writer must do it (a character at or below the comma, which may
+    need quoting; one column, where :mod:`csv` quotes an empty cell; columns of different lengths)."""
     n = cells[0].shape[0] if cells else 0
     if len(names) < 2 or len(cells) != len(names) or any(c.shape[0] != n for c in cells):
         return None
-    comma, line_end = np.full((n, 1), ord(","), np.uint8), np.full((n, 1), ord("\n"), np.uint8)
-    table = np.concatenate([part for chars in cells for part in (chars.astype(np.uint8, copy=False), comma)][:-1]
-                           + [line_end], axis=1)
-    body = table[table != 0].tobytes()
-    # as csv_text's fast path: nothing to quote when no quote nor carriage return is there and every comma and
-    # line end is a separator
-    if b'"' in body or b"\r" in body or body.count(b",") != (len(names) - 1) * n or body.count(b"\n") != n:
+    cells = [c.astype(np.uint8, copy=False) for c in cells]
+    # nothing to quote when every character is above the comma ('-', '.', digits, letters): the quote, the
+    # carriage return and the line feed are below it. NUL padding, less one, wraps to 255
+    if n and min((int((c - np.uint8(1)).min()) for c in cells if c.size), default=255) < ord(","):
         return None
-    return ",".join(names) + "\n" + body.decode("utf-8")
+    comma, line_end = np.full((n, 1), ord(","), np.uint8), np.full((n, 1), ord("\n"), np.uint8)
+    table = np.concatenate([part for chars in cells for part in (chars, comma)][:-1] + [line_end], axis=1)
+    return ",".join(names) + "\n" + table[table != 0].tobytes().decode("utf-8")
 
 
 def _csv_text_quoting_cr(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:

@@ -124,3 +124,5 @@ def test_csv_text_of_matrices_and_cells_mixed_or_quoted() -> None:
     assert csv_text(["n"], [int_csv_cells(np.array([1, 2]), np.array([True, False]))]) == 'n\n1\n""\n'
     assert csv_text(["n", "m"], [numbers, numbers]) == "n,m\n1,1\n-2,-2\n30,30\n"
     assert csv_text(["n", "m"], [numbers[:0], numbers[:0]]) == "n,m\n"
+    text = np.frombuffer(b'\0a,b"c d', np.uint8).reshape(1, -1)             # a comma, a quote, a space
+    assert csv_text(["t", "n"], [text, numbers[:1]]) == 't,n\n"a,b""c d",1\n'
