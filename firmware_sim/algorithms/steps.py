@@ -26,7 +26,8 @@ from gaitlog.atomic_write import atomic_write_text
 from gaitlog.protocol.steps import StepFlag
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "distinct", "float_csv_cells", "nan_median"]
+__all__ = ["ESTIMATORS", "StepTable", "columns_csv_text", "csv_text", "distinct", "fixed_csv_cells", "float_csv_cells",
+           "int_csv_cells", "nan_median"]
 
 #: The step-length estimators of Alvarez et al. (2006): M1 pendulum, M2 pendulum with drift correction,
 #: M3 two-phase pendulum + foot length (no K), M4 Weinberg, M5 cadence line.
@@ -289,14 +290,145 @@ def float_csv_cells(values: np.ndarray | list[float]) -> list[str]:
     return cells
 
 
-def csv_text(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:
+#: Powers of ten as uint64, 10^0 .. 10^19 (every uint64 has at most 20 digits).
+_POW10 = np.array([10 ** k for k in range(20)], dtype=np.uint64)
+#: Below 2^52 every half-integer is a float64: a scaled value under it is rounded by numpy (see fixed_csv_cells).
+_HALVES_EXACT = float(2 ** 52)
+#: Veltkamp's splitting constant of float64, 2^27 + 1.
+_SPLITTER = float(2 ** 27 + 1)
+
+
+def int_csv_cells(values: np.ndarray, defined: np.ndarray | None = None) -> np.ndarray:
+    """The CSV cells of integers (or booleans: 0 and 1), ``str(int(v))``, empty where not ``defined``, as a
+    character matrix for :func:`csv_text`: formatted by numpy, no Python object per cell.
+
+    A character matrix is ``(n, width)`` uint8, one ASCII cell per row, right-aligned; NUL bytes are padding.
+
+    >>> [bytes(row) for row in int_csv_cells(np.array([0, -7, 12]), np.array([True, True, False]))]
+    [b'\\x00\\x000', b'\\x00-7', b'\\x00\\x00\\x00']
+    """
+    a = np.asarray(values).ravel()
+    if a.dtype == bool:
+        a = a.view(np.uint8)
+    if a.dtype.kind == "u":
+        negative, magnitude = None, a
+    else:
+        a = a.astype(np.int64, copy=False)
+        negative = a < 0
+        # |a| without overflow at the int64 minimum: -a = ~a + 1, with ~a >= 0 where a < 0
+        magnitude = np.where(negative, (~a).astype(np.uint64) + np.uint64(1), a.astype(np.uint64))
+    return _digit_cells(magnitude, negative, 0, defined)
+
+
+def fixed_csv_cells(values: np.ndarray, decimals: int, defined: np.ndarray | None = None) -> np.ndarray:
+    """The CSV cells of real values with ``decimals`` (0 to 15) digits after the point, ``format(v, f".{decimals}f")``
+    byte for byte (``-0.0000`` for a small negative, ``nan``, ``inf``), empty where not ``defined``, as a character
+    matrix for :func:`csv_text` (:func:`int_csv_cells`), formatted by numpy.
+
+    The digits are ``|v| · 10^decimals`` rounded half to even, as Python rounds the exact decimal value: the
+    product's rounding error is found exactly (Dekker's product), and settles a product that rounded onto a half.
+    A value that is not finite, or whose product reaches 2^52, is formatted by Python.
+
+    >>> csv_text(["x", "y"], [fixed_csv_cells(np.array([0.5, -1e-9, 2.03125, 1.00005, np.nan]), 4),
+    ...                       fixed_csv_cells(np.arange(5.0), 0)])
+    'x,y\\n0.5000,0\\n-0.0000,1\\n2.0312,2\\n1.0001,3\\nnan,4\\n'
+    """
+    if not 0 <= decimals <= 15:
+        raise ValueError(f"decimals must be 0 to 15, not {decimals}")
+    a = np.asarray(values, dtype=np.float64).ravel()
+    scale = 10.0 ** decimals
+    with np.errstate(invalid="ignore", over="ignore"):
+        magnitude = np.abs(a)
+        exact = np.isfinite(magnitude) & (magnitude * scale < _HALVES_EXACT)
+        magnitude = np.where(exact, magnitude, 0.0)
+        scaled = magnitude * scale
+    rounded = np.rint(scaled)
+    on_half = np.flatnonzero(np.abs(scaled - np.floor(scaled)) == 0.5)
+    if on_half.size:  # the exact product is scaled + its rounding error: a half only when that error is 0
+        error = _product_error(magnitude[on_half], scale, scaled[on_half])
+        rounded[on_half] = np.where(error > 0, np.ceil(scaled[on_half]),
+                                    np.where(error < 0, np.floor(scaled[on_half]), rounded[on_half]))
+    negative = np.signbit(a)
+    cells = _digit_cells(rounded.astype(np.uint64), negative if negative.any() else None, decimals, None)
+    inexact = np.flatnonzero(~exact)
+    if inexact.size:                                   # NaN, infinities and huge values: Python's text
+        text = [format(v, f".{decimals}f").encode() for v in a[inexact].tolist()]
+        width = max(cells.shape[1], max(map(len, text)))
+        cells = np.concatenate([np.zeros((a.size, width - cells.shape[1]), np.uint8), cells], axis=1)
+        cells[inexact] = np.frombuffer(b"".join(t.rjust(width, b"\0") for t in text), np.uint8).reshape(-1, width)
+    if defined is not None:
+        cells[~np.asarray(defined, bool).ravel()] = 0
+    return cells
+
+
+def _product_error(x: np.ndarray, y: float, product: np.ndarray) -> np.ndarray:
+    """``x · y - product`` exactly, for ``product`` the float64 product of ``x`` and ``y`` (Dekker's two-product,
+    Veltkamp's split into 26-bit halves; exact while nothing overflows)."""
+    def split(v):
+        c = _SPLITTER * v
+        high = c - (c - v)
+        return high, v - high
+
+    xh, xl = split(x)
+    yh, yl = split(np.float64(y))
+    return ((xh * yh - product) + xh * yl + xl * yh) + xl * yl
+
+
+def _digit_cells(magnitude: np.ndarray, negative: np.ndarray | None, decimals: int,
+                 defined: np.ndarray | None) -> np.ndarray:
+    """The character matrix of ``magnitude`` (unsigned) in decimal with a point before its last ``decimals``
+    digits (at least one digit before it), a ``-`` where ``negative`` (None: nowhere).
+
+    Digit by digit from the last, each a division of the whole column by 10: a scalar divisor, which numpy
+    divides by multiplication (sixteen times faster than dividing by an array of powers of ten)."""
+    n = magnitude.size
+    top = int(magnitude.max()) if n else 0
+    most = max(int(np.searchsorted(_POW10, np.uint64(top), side="right")), decimals + 1)
+    kind = np.uint16 if top < 1 << 16 else np.uint32 if top < 1 << 32 else np.uint64  # narrow division is faster
+    sign, point = int(negative is not None), int(decimals > 0)
+    cells = np.zeros((n, sign + most + point), np.uint8)
+    quotient, ten = magnitude.astype(kind), kind(10)
+    column = cells.shape[1] - 1
+    for k in range(most):                          # k: the digit's place from the right
+        if point and k == decimals:
+            cells[:, column] = ord(".")
+            column -= 1
+        next_quotient = quotient // ten
+        digit = (quotient - next_quotient * ten).astype(np.uint8) | np.uint8(ord("0"))
+        if k > decimals:                           # a leading zero (quotient 0) is padding
+            digit *= quotient != 0
+        cells[:, column] = digit
+        column -= 1
+        quotient = next_quotient
+    if negative is not None and negative.any():
+        rows = np.flatnonzero(negative)
+        digits = np.maximum(np.searchsorted(_POW10, magnitude[rows].astype(np.uint64), side="right"), decimals + 1)
+        cells[rows, cells.shape[1] - 1 - digits - point] = ord("-")
+    if defined is not None:
+        cells[~np.asarray(defined, bool).ravel()] = 0
+    return cells
+
+
+def csv_text(names: Sequence[str], cells: Sequence[Sequence[str] | np.ndarray]) -> str:
     """CSV text of a header and columns of formatted cells (all the same length): the one CSV writer of the
     package, the standard library's (:mod:`csv`, ``\\n`` line ends, a cell quoted only where it holds a comma,
     a quote or a line break), so every table reads back with :mod:`csv` as its header's columns.
 
+    A column is a sequence of ``str``, or a character matrix (:func:`int_csv_cells`, :func:`fixed_csv_cells`);
+    when every column is a matrix (and no cell needs quoting), numpy puts the rows together, without a Python
+    object per cell.
+
     >>> csv_text(["file", "error"], [["a.glimg"], ["bad header, version 9"]])
     'file,error\\na.glimg,"bad header, version 9"\\n'
+    >>> csv_text(["n", "x"], [int_csv_cells(np.array([1, -22])), fixed_csv_cells(np.array([0.25, -3.0]), 1)])
+    'n,x\\n1,0.2\\n-22,-3.0\\n'
     """
+    matrices = [isinstance(c, np.ndarray) and c.ndim == 2 for c in cells]
+    if any(matrices):
+        text = _matrix_csv_text(names, cells) if all(matrices) else None
+        if text is not None:
+            return text
+        cells = [_matrix_cells(c) if is_matrix else c for c, is_matrix in zip(cells, matrices)]
     # Fast path, byte for byte what csv writes: the rows joined, kept only when nothing needs quoting -- no
     # quote or carriage return anywhere, exactly one comma less than columns and one line end per row (a comma
     # or line break inside a cell breaks the count) and more than one column (csv quotes a lone empty cell).
@@ -312,6 +444,30 @@ def csv_text(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:
     writer.writerows(zip(*cells))
     text = buf.getvalue()
     return text if "\r" not in text else _csv_text_quoting_cr(names, cells)
+
+
+def _matrix_cells(chars: np.ndarray) -> list[str]:
+    """The cells of a character matrix as text."""
+    rows = np.ascontiguousarray(chars, np.uint8)
+    return [b.replace(b"\0", b"").decode() for b in rows.view(f"S{max(rows.shape[1], 1)}").ravel().tolist()] \
+        if rows.shape[1] else [""] * rows.shape[0]
+
+
+def _matrix_csv_text(names: Sequence[str], cells: Sequence[np.ndarray]) -> str | None:
+    """:func:`csv_text` of character matrices, by numpy: the cells and separators of each row side by side, the
+    NUL padding dropped. None when the general writer must do it (a character at or below the comma, which may
+    need quoting; one column, where :mod:`csv` quotes an empty cell; columns of different lengths)."""
+    n = cells[0].shape[0] if cells else 0
+    if len(names) < 2 or len(cells) != len(names) or any(c.shape[0] != n for c in cells):
+        return None
+    cells = [c.astype(np.uint8, copy=False) for c in cells]
+    # nothing to quote when every character is above the comma ('-', '.', digits, letters): the quote, the
+    # carriage return and the line feed are below it. NUL padding, less one, wraps to 255
+    if n and min((int((c - np.uint8(1)).min()) for c in cells if c.size), default=255) < ord(","):
+        return None
+    comma, line_end = np.full((n, 1), ord(","), np.uint8), np.full((n, 1), ord("\n"), np.uint8)
+    table = np.concatenate([part for chars in cells for part in (chars, comma)][:-1] + [line_end], axis=1)
+    return ",".join(names) + "\n" + table[table != 0].tobytes().decode("utf-8")
 
 
 def _csv_text_quoting_cr(names: Sequence[str], cells: Sequence[Sequence[str]]) -> str:

@@ -38,7 +38,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ
-from gaitlog.firmware_sim.algorithms.steps import csv_text
+from gaitlog.firmware_sim.algorithms.steps import csv_text, distinct, fixed_csv_cells, int_csv_cells
 from gaitlog.host.errors import HostError
 from gaitlog.host.storage.limits import MAX_NPZ_EXPANSION, NPZ_SMALL_BYTES, check_memory
 from gaitlog.atomic_write import atomic_write, atomic_write_text
@@ -70,6 +70,8 @@ _NPZ_PER_SAMPLE = ("codes", "valid", "flags", "sample_numbers")
 
 #: Rows of the sample CSV formatted at a time (:meth:`Recording.to_csv`).
 _CSV_ROWS = 1 << 16
+#: zlib level of the NPZ written by :meth:`Recording.save_npz` (numpy's ``savez_compressed`` takes the default, 6).
+_NPZ_COMPRESS_LEVEL = 1
 #: CSV columns written by :meth:`Recording.to_csv`, in order.
 CSV_COLUMNS = (
     "sample_number", "time_s", "x_counts", "y_counts", "z_counts", "x_g", "y_g", "z_g", "flags", "valid",
@@ -419,11 +421,16 @@ class Recording:
             header_bytes = np.frombuffer(self.header.to_bytes(), dtype=np.uint8)
         meta = json.dumps(self.metadata(), sort_keys=True)
         step_bytes = np.frombuffer(self.step_records.tobytes(), dtype=np.uint8)
-        with atomic_write(path, "wb") as handle:       # compressed straight into the file: no copy in memory
-            np.savez_compressed(handle, codes=self.codes, valid=self.valid, flags=self.flags,
-                                sample_numbers=self.sample_numbers, header_bytes=header_bytes,
-                                step_record_bytes=step_bytes, step_record_numbers=self.step_record_numbers,
-                                metadata_json=np.array(meta))
+        arrays = {"codes": self.codes, "valid": self.valid, "flags": self.flags, "sample_numbers": self.sample_numbers,
+                  "header_bytes": header_bytes, "step_record_bytes": step_bytes,
+                  "step_record_numbers": self.step_record_numbers, "metadata_json": np.array(meta)}
+        # compressed straight into the file (no copy in memory), as np.savez_compressed does but at zlib's level 1:
+        # a full memory's NPZ 6 % larger, written in a sixth of the time of the default level 6
+        with atomic_write(path, "wb") as handle, zipfile.ZipFile(handle, "w", zipfile.ZIP_DEFLATED,
+                                                                 compresslevel=_NPZ_COMPRESS_LEVEL) as archive:
+            for name, values in arrays.items():
+                with archive.open(name + ".npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, np.asanyarray(values), allow_pickle=False)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "Recording":
@@ -483,12 +490,12 @@ class Recording:
         """:meth:`to_csv`'s text of the rows ``[lo, hi)``, with the header."""
         codes = self.codes[lo:hi]
         g = np.asarray(cal.apply(codes.astype(np.float64)), dtype=np.float64).reshape(-1, 3)
-        valid = self.valid[lo:hi].tolist()
-        columns = [list(map(str, self.sample_numbers[lo:hi].tolist())),
-                   list(map("{:.4f}".format, (self.sample_numbers[lo:hi] / self.sampling_rate_hz).tolist())),
-                   *(_where(list(map(str, codes[:, k].tolist())), valid) for k in range(3)),
-                   *(_where(list(map("{:.6f}".format, g[:, k].tolist())), valid) for k in range(3)),
-                   _where(list(map(str, self.flags[lo:hi].tolist())), valid), ["1" if v else "0" for v in valid]]
+        valid = np.asarray(self.valid[lo:hi], bool)
+        sample_numbers = self.sample_numbers[lo:hi]
+        columns = [int_csv_cells(sample_numbers), fixed_csv_cells(sample_numbers / self.sampling_rate_hz, 4),
+                   *(int_csv_cells(codes[:, k], valid) for k in range(3)),
+                   *(fixed_csv_cells(g[:, k], 6, valid) for k in range(3)),
+                   int_csv_cells(self.flags[lo:hi], valid), int_csv_cells(valid)]
         return csv_text(CSV_COLUMNS, columns)
 
     def to_steps_csv(self, path: str | os.PathLike[str]) -> None:
@@ -516,7 +523,7 @@ class Recording:
         has_toe = has_window & (toe > 0) & ((fl & StepFlag.NO_TOE_OFF) == 0)
         has_heel = (heel != HEEL_STRIKE_NOT_FOUND) & ((fl & StepFlag.NO_HEEL_STRIKE) == 0)
 
-        names = {int(v): "|".join(f.name for f in StepFlag if v & f) for v in np.unique(fl).tolist()}
+        names = {int(v): "|".join(f.name for f in StepFlag if v & f) for v in distinct(fl).tolist()}
         calibrated = (fl & StepFlag.UNCALIBRATED) == 0
         columns = [
             self.step_record_numbers.astype(str).tolist(), end.astype(str).tolist(), _cells(end / sampling_rate_hz),
@@ -576,16 +583,11 @@ def _more_line(n: int, max_listed: int | None, what: str) -> list[str]:
     return [f"  ... {n - max_listed} more {what} (-v lists them all)"]
 
 
-def _where(cells: list[str], defined: list[bool]) -> list[str]:
-    """``cells`` with an empty cell where not ``defined``."""
-    if all(defined):
-        return cells
-    return [c if ok else "" for c, ok in zip(cells, defined, strict=True)]
-
-
 def _cells(values: np.ndarray, defined: np.ndarray | None = None) -> list[str]:
     """CSV cells of float values: the shortest text that reads back the same float, empty where not defined."""
-    text = [repr(v) for v in np.asarray(values, np.float64).tolist()]
+    v = np.asarray(values, np.float64).ravel().tolist()
+    # one %-format of the column, split at a separator no number holds: repr of each, twice as fast as repr per cell
+    text = ("\x1f".join(["%r"] * len(v)) % tuple(v)).split("\x1f") if v else []
     if defined is not None:
         text = [t if ok else "" for t, ok in zip(text, np.asarray(defined, bool).tolist())]
     return text
