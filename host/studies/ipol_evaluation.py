@@ -1417,7 +1417,8 @@ def choice_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resam
 
 
 def _median_abs_log(x: np.ndarray) -> float:
-    return float(np.median(np.abs(np.log(x)))) if x.size else math.nan
+    with np.errstate(divide="ignore"):            # a trial with no step scores 0: |log 0| is inf, as it should be
+        return float(np.median(np.abs(np.log(x)))) if x.size else math.nan
 
 
 def log_error_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES,
