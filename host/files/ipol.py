@@ -193,7 +193,7 @@ def _rate_hz(path: Path, first_line: str) -> float:
 def _bad_line(path: Path, cols: list[int]) -> str | None:
     """Where the data rows of ``path`` first fail to give a number in each of ``cols`` (``"line N: ..."``, the
     file's line number), None when they do not (the caller then says what the parser said)."""
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding="utf-8", errors="replace") as fh:
         for n, line in enumerate(fh, start=1):
             if n <= 2:
                 continue

@@ -74,8 +74,12 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    constant (:data:`M4_STEP_RULES`, K fitted with each on the first trial) are rows ``variant = <rule>`` of the
    offline chain and of the on-line fixed chain's records, scored against Weinberg's length in IQR and in the median
    ``|log ratio|`` (:func:`log_error_gain`).
-6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
-   no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
+6. *Robustness*: a trial that cannot be read is skipped (:func:`gaitlog.host.files.ipol.read_trial` names the line
+   or JSON field), and so is a subject whose calibration trial has no usable step; a trial with no foot-sensor heel
+   strike between its boundaries is scored for distance but left out of the event and step-count criteria; files
+   that look meant for the folder but are not read are listed (:func:`gaitlog.host.files.ipol.stray_files`); every
+   skip is returned (``IpolResult.skipped``, printed by the command), not warned. K comes from each subject's first
+   readable trial (``IpolResult.calibration_trials``).
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
    :data:`CSV_COLUMNS` (ratio = distance / 20 m; steps = detected steps in the trial; reference = heel strikes
