@@ -7,7 +7,7 @@ in m/s^2, gravity included, +g on the axis pointing up) and ``GaitData/<subject>
 heel-strike] pairs, ``Height`` in cm, sometimes missing).
 
 Every sample index in the JSON counts *packets*, not file rows, and the files have lost packets. This
-reader puts each file on the regular ``PacketCounter`` grid: index ``i`` of the returned arrays is packet
+reader puts each file on the regular ``PacketCounter`` grid (its 16-bit wrap-around undone): index ``i`` of the returned arrays is packet
 ``first_counter + i``; a lost packet is a row of NaN with ``valid[i] = False``. Nothing is interpolated.
 A duplicated packet keeps its first copy (a warning is issued when the copies differ).
 
@@ -45,6 +45,8 @@ _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$", re.IGNORECASE)
 _LIKE_NAME = re.compile(r"_lb\.txt$", re.IGNORECASE)
 #: A trial JSON, ``<subject>-<trial>.json`` (any case).
 _JSON_NAME = re.compile(r"^(\d+)-(\d+)\.json$", re.IGNORECASE)
+#: ``PacketCounter`` counts modulo 2**16 (the Xsens MTw's 16-bit counter): a long recording wraps to 0.
+PACKET_COUNTER_MODULUS = 1 << 16
 #: Columns written by :func:`write_trial` (the reader needs these four; the Xsens files add gyroscope and
 #: magnetometer columns).
 WRITTEN_COLUMNS = ("PacketCounter", "Acc_X", "Acc_Y", "Acc_Z")
@@ -153,12 +155,13 @@ def read_lb_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, float, int]:
     counter = data[:, 0]
     if not np.all(np.isfinite(counter)) or np.any(counter != np.round(counter)):
         raise HostError(f"{path}: PacketCounter is not an integer everywhere")
-    counter = counter.astype(np.int64)
+    raw = counter.astype(np.int64)
+    counter = _unwrapped(raw)
     d = np.diff(counter)
     back = np.flatnonzero(d < 0)
     if back.size:
-        raise HostError(f"{path}: line {back[0] + 4}: PacketCounter goes backwards ({counter[back[0]]} -> "
-                        f"{counter[back[0] + 1]}); wrap-around is not supported")
+        raise HostError(f"{path}: line {back[0] + 4}: PacketCounter goes backwards ({raw[back[0]]} -> "
+                        f"{raw[back[0] + 1]}), and not from the top of its 16 bits to the bottom (a wrap)")
     dup = np.flatnonzero(d == 0)
     if dup.size:
         differ = np.any(data[dup, 1:] != data[dup + 1, 1:])
@@ -178,6 +181,18 @@ def read_lb_file(path: str | Path) -> tuple[np.ndarray, np.ndarray, float, int]:
     acc[idx] = data[:, 1:4] / STANDARD_GRAVITY_M_S2
     valid[idx] = True
     return acc, valid, rate, first_counter
+
+
+def _unwrapped(counter: np.ndarray) -> np.ndarray:
+    """``PacketCounter`` with its 16-bit wrap-arounds undone: a step down of more than half the range
+    (65535 -> 0, across lost packets too) adds :data:`PACKET_COUNTER_MODULUS` to every later counter; any other step
+    down is left for the caller to refuse.
+
+    >>> _unwrapped(np.array([65534, 65535, 1, 2])).tolist()
+    [65534, 65535, 65537, 65538]
+    """
+    wraps = np.diff(counter) < -PACKET_COUNTER_MODULUS // 2
+    return counter + PACKET_COUNTER_MODULUS * np.concatenate([[0], np.cumsum(wraps)])
 
 
 def _rate_hz(path: Path, first_line: str) -> float:

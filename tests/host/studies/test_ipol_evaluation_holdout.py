@@ -279,6 +279,19 @@ def test_malformed_trials_are_refused_naming_file_and_place(tmp_path, kw, match)
         read_trial(write_small(tmp_path, **kw))
 
 
+def test_the_counter_wrap_is_undone(tmp_path) -> None:
+    """A recording that starts near the top of the 16-bit ``PacketCounter`` and wraps to 0 (packet 65535 lost at
+    the wrap) is one grid, the lost packet missing; a step down that is not a wrap is refused."""
+    counters = [65530, 65531, 65532, 65533, 65534, 0, 1, 2, 3, 4, 5, 6]
+    rows = [f"{c}.0\t9.8\t{0.1 * i}\t0.5\n" for i, c in enumerate(counters)]
+    t = read_trial(write_small(tmp_path, rows=rows, meta=GOOD_META))
+    assert t.first_counter == 65530 and t.valid.tolist() == [True] * 5 + [False] + [True] * 7
+    assert t.acc_g[6, 1] * 9.80665 == pytest.approx(0.5)          # counter 0 is grid index 6
+    rows[7] = "20000.0\t9.8\t0.1\t0.5\n"
+    with pytest.raises(HostError, match=r"line 11: PacketCounter goes backwards \(20000 -> 3\)"):
+        read_trial(write_small(tmp_path, rows=rows, meta=GOOD_META))
+
+
 def test_names_in_other_cases_are_read_and_twins_refused(tmp_path) -> None:
     """``_LB.txt`` and ``.JSON`` are read (the JSON found in another case); two files of one subject and trial
     (``01-2`` and ``1-2``) are refused, naming both; stray names are listed, not dropped in silence."""
