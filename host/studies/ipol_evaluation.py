@@ -1634,7 +1634,20 @@ def format_tuning(result: IpolResult) -> str:
                  + ("every fold chose them, so their figures are cross-validated too" if every_default else
                     "some folds chose otherwise, so their rows of those subjects are NOT cross-validated "
                     "(column cross_validated = 0)"))
+    lines += _nothing_to_choose_on(result)
     return "\n".join(lines)
+
+
+def _nothing_to_choose_on(result: IpolResult) -> list[str]:
+    """A line saying why the folds' choices above are the defaults by absence, when they are: one subject (no
+    other to choose on), or no trial with foot-sensor events (no criterion)."""
+    if len(result.loso.chosen) < 2:
+        return ["  (one subject: no other subject to choose on, so the defaults stand and nothing is cross-validated "
+                "between subjects)"]
+    if not result.event_scores:
+        return ["  (no trial has foot-sensor heel strikes between its boundaries: no criterion to choose the event "
+                "constants by, so the defaults stand)"]
+    return []
 
 
 def format_events(result: IpolResult) -> str:

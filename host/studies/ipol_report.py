@@ -122,17 +122,18 @@ class IpolReport:
     def format_table(self) -> str:
         """The printed report: the heading, the tuned constants, the summary tables, the choices, the events, the
         device checks and the files written."""
-        res, arith = self.result, self.arithmetic
+        res, arith, resamples = self.result, self.arithmetic, self._resamples()
         lines = [self._heading(), format_tuning(res)]
         for a, k_from, title in self._main_tables():
             lines += _summary_table(title, summarise(res.rows, arithmetic=a, k_from=k_from, intervals=True,
-                                                     n_resamples=self.n_resamples))
+                                                     n_resamples=resamples))
         if "offline" in arith:
             lines += self._offline_tables()
-            lines.append(format_choices(choice_gains(res, n_resamples=self.n_resamples)
-                                        + count_gains(res, n_resamples=self.n_resamples))
-                         if self.n_resamples > 0 else "choices against the simpler one: not scored (no bootstrap "
-                         "resamples, so no interval to keep a rule by)")
+            lines.append(format_choices(choice_gains(res, n_resamples=resamples)
+                                        + count_gains(res, n_resamples=resamples))
+                         if resamples > 0 else "choices against the simpler one: not scored (" + (
+                             "no bootstrap resamples" if self.n_resamples == 0 else "one subject: a bootstrap over "
+                             "subjects has nothing to resample") + ", so no interval to keep a rule by)")
         lines.append("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of "
                      "detected - reference; outside K: steps outside the range K was calibrated on (duration, the "
                      "estimator's input or length), of the steps in the trials")
@@ -144,6 +145,11 @@ class IpolReport:
         lines.append(f"written: {paths.out}" + (f", {paths.steps}" if res.step_rows else "")
                      + (f", {paths.events}" if res.trial_events else "") + f", {paths.figure}")
         return "\n".join(lines)
+
+    def _resamples(self) -> int:
+        """The subject bootstrap's resamples: none with one subject (every resample would be that subject: an
+        interval of width zero, not a 95 % one)."""
+        return self.n_resamples if len(self.result.calibrations) >= 2 else 0
 
     def _heading(self) -> str:
         res, arith = self.result, self.arithmetic
@@ -174,13 +180,13 @@ class IpolReport:
         lines: list[str] = []
         for variant, title, shown in _OFFLINE_VARIANTS:
             summary = summarise(rows, arithmetic="offline", variant=variant.format(other=other), intervals=True,
-                                n_resamples=self.n_resamples)
+                                n_resamples=self._resamples())
             lines += _summary_table(title.format(other=other),
                                     [x for x in summary if shown is None or x["estimator"] in shown])
         for variant, title in _OPTIONAL_VARIANTS:
             if any(r["variant"] == variant for r in rows):
                 lines += _summary_table(title, summarise(rows, arithmetic="offline", variant=variant, intervals=True,
-                                                         n_resamples=self.n_resamples))
+                                                         n_resamples=self._resamples()))
         return lines
 
     def _replay_line(self) -> str:

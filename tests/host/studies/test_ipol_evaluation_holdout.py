@@ -25,6 +25,7 @@ import pytest
 from gaitlog.host.cli import main
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.ipol import list_trials, read_trial, stray_files
+from tests.host.studies.test_ipol_evaluation_synthetic import write_ipol_trial
 
 #: The subset every real-data run starts from: 3 subjects, trials 1 and 2 (one scored trial each).
 SUBJECTS, TRIALS = (1, 2, 3), (1, 2)
@@ -321,3 +322,17 @@ def test_twin_files_are_an_error_with_nothing_written(tmp_path, capsys) -> None:
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "01-2_lb.txt and 1-2_lb.txt are both subject 1 trial 2" in err
     assert not list(out.parent.iterdir())
+
+
+def test_one_subject_claims_no_interval_and_no_choice(tmp_path) -> None:
+    """One subject (synthetic walks): a bootstrap over subjects would draw that subject every time, so the table
+    prints no interval, scores no choice and says why, and the folds' constants are said to be the defaults by
+    absence."""
+    write_ipol_trial(tmp_path, 7, 1, seed=1)
+    write_ipol_trial(tmp_path, 7, 2, seed=2)
+    res = run_ipol(tmp_path, tmp_path / "out")
+    assert res.rc == 0, res.err
+    assert "1 subjects, 1 evaluated trials" in res.out
+    assert "one subject: no other subject to choose on, so the defaults stand" in res.out
+    assert "choices against the simpler one: not scored (one subject: a bootstrap over subjects" in res.out
+    assert all("[" not in ln for ln in offline_table(res.out))
