@@ -1646,7 +1646,7 @@ def _nothing_to_choose_on(result: IpolResult) -> list[str]:
                 "between subjects)"]
     if not result.event_scores:
         return ["  (no trial has foot-sensor heel strikes between its boundaries: no criterion to choose the event "
-                "constants by, so the defaults stand)"]
+                "and step-counting constants by, so the defaults stand)"]
     return []
 
 

@@ -336,3 +336,21 @@ def test_one_subject_claims_no_interval_and_no_choice(tmp_path) -> None:
     assert "one subject: no other subject to choose on, so the defaults stand" in res.out
     assert "choices against the simpler one: not scored (one subject: a bootstrap over subjects" in res.out
     assert all("[" not in ln for ln in offline_table(res.out))
+
+
+def test_no_foot_events_anywhere_scores_distance_and_says_the_defaults_stand(tmp_path) -> None:
+    """Lab walks without foot sensors (two synthetic subjects, no foot events, no U-turn in the JSON): every trial
+    is scored for distance and named as left out of the event scores; the constants are the defaults, said so."""
+    for subject in (1, 2):
+        for trial in (1, 2):
+            write_ipol_trial(tmp_path, subject, trial, seed=10 * subject + trial)
+            edit_json(tmp_path / f"{subject}-{trial}.json",
+                      lambda m: [m.pop(k) for k in ("LeftFootEvents", "RightFootEvents", "UTurnBoundaries")])
+    res = run_ipol(tmp_path, tmp_path / "out")
+    assert res.rc == 0, res.err
+    assert res.err.count("no foot-sensor heel strike between the trial boundaries") == 4
+    assert "no criterion to choose the event and step-counting constants by, so the defaults stand" in res.out
+    rows = list(csv.DictReader(io.StringIO("\n".join(res.lines))))
+    main = [r for r in rows if r["variant"] == "main" and r["estimator"] == "M2"]
+    assert [(r["subject"], r["trial"], r["reference_steps"]) for r in main] == [("1", "2", "0"), ("2", "2", "0")]
+    assert all(float(r["ratio"]) == pytest.approx(1.0, abs=0.05) for r in main)
