@@ -271,7 +271,7 @@ def _is_index(x: object) -> bool:
 
 def check_meta(meta: dict, n_packets: int, json_path: str | Path) -> None:
     """Refuse a trial JSON whose fields the evaluation reads are malformed: ``TrialBoundaries`` two whole
-    numbers, start before end, both on the recording's packet grid (``0 .. n_packets - 1``); ``UTurnBoundaries``
+    numbers, start before end, both on the recording's packet grid (``0`` to ``n_packets - 1``); ``UTurnBoundaries``
     absent, empty or two whole numbers; ``LeftFootEvents`` / ``RightFootEvents`` absent or lists of
     [toe-off, heel-strike] pairs of whole numbers. Other fields (age, sex, weight, unknown ones) are not read.
 
