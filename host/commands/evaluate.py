@@ -18,6 +18,7 @@ heel-strike intervals.
 from __future__ import annotations
 
 import argparse
+import sys
 
 from gaitlog.host.commands._options import (
     SEED,
@@ -67,7 +68,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="sim: who times the 20 m laps: an observer's stopwatch (default, the paper's; needs "
                         "--protocol paper) or the logger's MARK button (exact)")
     parser.add_argument("--resamples", type=whole(minimum=0, maximum=1_000_000), default=2000,
-                        help="sim: bootstrap resamples of the subjects for the intervals (default 2000; 0: none)")
+                        help="bootstrap resamples of the subjects for the intervals (default 2000; 0: none, and ipol "
+                        "scores no choice)")
     parser.add_argument("--figure", metavar="PNG", help="ipol: box plot (default: CSV name with .png)")
     add_logger_rate_option(parser)
     add_adc_bits_option(parser, stored=True, what="of the emulated logger")
@@ -135,8 +137,11 @@ def run(args: argparse.Namespace) -> int:
                    "--out (_events)": outputs.events}, {"DIR": args.folder}, force=args.force)
     with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: in the report
         report = evaluate_ipol(args.folder, outputs, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
-                               uturn=args.uturn or "include", arithmetic=args.arithmetic or "all", progress=tick)
+                               uturn=args.uturn or "include", arithmetic=args.arithmetic or "all",
+                               n_resamples=args.resamples, progress=tick)
     report.write_outputs()
+    for msg in report.result.skipped:                # on stderr too, even with -q: data left out is never silent
+        print(f"gaitlog evaluate ipol: skipped: {msg}", file=sys.stderr)
     if args.json:
         print(report.to_json())
     elif verbosity(args) >= 0:

@@ -74,8 +74,12 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    constant (:data:`M4_STEP_RULES`, K fitted with each on the first trial) are rows ``variant = <rule>`` of the
    offline chain and of the on-line fixed chain's records, scored against Weinberg's length in IQR and in the median
    ``|log ratio|`` (:func:`log_error_gain`).
-6. *Robustness*: a trial that cannot be read is skipped, and so is a subject whose calibration trial has
-   no usable step; every skip is returned (``IpolResult.skipped``, printed by the command), not warned.
+6. *Robustness*: a trial that cannot be read is skipped (:func:`gaitlog.host.files.ipol.read_trial` names the line
+   or JSON field), and so is a subject whose calibration trial has no usable step; a trial with no foot-sensor heel
+   strike between its boundaries is scored for distance but left out of the event and step-count criteria; files
+   that look meant for the folder but are not read are listed (:func:`gaitlog.host.files.ipol.stray_files`); every
+   skip is returned (``IpolResult.skipped``, printed by the command), not warned. K comes from each subject's first
+   readable trial (``IpolResult.calibration_trials``).
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
    :data:`CSV_COLUMNS` (ratio = distance / 20 m; steps = detected steps in the trial; reference = heel strikes
@@ -112,7 +116,14 @@ from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.errors import DeviceError
 from gaitlog.firmware_sim.world.replay import Replay
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.ipol import height_m_of, list_trials, read_trial
+from gaitlog.host.files.ipol import (
+    height_m_of,
+    json_path_of,
+    list_trials,
+    read_trial,
+    stray_files,
+    trial_key,
+)
 from gaitlog.host.files.replay import check_records, online_step_table, run_starts
 from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
 from gaitlog.host.gait.estimators.weinberg import duration_share_length_m, range_share_length_m, weinberg_length_m
@@ -290,7 +301,7 @@ class ReplayedTrial:
 
     def _foot_events(self) -> np.ndarray:
         """``(n, 2)`` foot-sensor (toe-off, heel strike) pairs of both feet, JSON packet indices."""
-        pairs = list(self.meta.get("LeftFootEvents", [])) + list(self.meta.get("RightFootEvents", []))
+        pairs = list(self.meta.get("LeftFootEvents") or []) + list(self.meta.get("RightFootEvents") or [])
         return np.asarray(pairs, np.float64).reshape(-1, 2)
 
     def gaps(self) -> GapFiller:
@@ -348,8 +359,9 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
     try:                                                  # no height: the default stature, as the paper's inputs
         lengths = choose_lengths(leg_length_m=leg_length_m, foot_length_m=foot_length_m,
                                  trial_height_m=height_m_of(meta))
-    except HostError as err:
-        raise HostError(f"{lb_path.with_name(lb_path.name.replace('_lb.txt', '.json'))}: {err}") from None
+    except HostError as err:                              # the JSON's Height is in cm, not the metres of --height
+        raise HostError(f"{json_path_of(lb_path)}: {str(err).replace(' (give it in metres)', '')} (its 'Height' is "
+                        "read in cm)") from None
     leg, foot = lengths.leg_length_m, lengths.foot_length_m
     src_rate = replay.sampling_rate_hz
     filled = np.asarray(replay.truth.get("filled", np.zeros(replay.acc_g.shape[0], bool)), bool)
@@ -463,6 +475,9 @@ class IpolResult:
     prior_all
         The prior learned on every subject with the shipped constants (what
         :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR` ships; never used to score).
+    calibration_trials
+        Per calibrated subject, the trial its K was fitted on: its first readable trial in file order (trial 1
+        unless that is absent or unreadable).
     """
 
     rows: list[dict]
@@ -484,6 +499,7 @@ class IpolResult:
     count_errors: dict[tuple[int, int], list[int]] = field(default_factory=dict)
     priors: dict[int, dict[str, KPrior]] = field(default_factory=dict)
     prior_all: KPrior | None = None
+    calibration_trials: dict[int, int] = field(default_factory=dict)
 
 
 def _with_m4_lengths(table: StepTable, k: KFit) -> StepTable:
@@ -746,11 +762,13 @@ class ReplayStage:
 @dataclass(frozen=True, eq=False)
 class EventConstantsStage:
     """Stage 2: the tuned event constants, chosen leave-one-subject-out (:attr:`IpolResult.event_scores`,
-    :attr:`IpolResult.count_errors`, :attr:`IpolResult.loso`)."""
+    :attr:`IpolResult.count_errors`, :attr:`IpolResult.loso`); ``skipped``: the trials left out of them (no
+    foot-sensor heel strike between their boundaries)."""
 
     event_scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]]
     count_errors: dict[tuple[int, int], list[int]]
     loso: LosoChoice
+    skipped: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True, eq=False)
@@ -947,6 +965,7 @@ class IpolEvaluation:
         """
         self._check_parameters()
         self.replay_ = self._replay(list_trials(folder), progress)                               # 1.
+        self.replay_.skipped[:0] = stray_files(folder)
         self.event_constants_ = self._choose_event_constants(self.replay_)                       # 2.
         self.k_constants_ = self._choose_k_constants(self.replay_, self.event_constants_)        # 3.
         fits = self._fit(self.replay_, self.event_constants_, self.k_constants_)                 # 4.
@@ -974,7 +993,7 @@ class IpolEvaluation:
     def _replay(self, files: list[Path], progress: Callable[[str], object] | None) -> ReplayStage:
         by_subject: dict[int, list[Path]] = {}
         for f in files:
-            by_subject.setdefault(int(f.name.split("-")[0]), []).append(f)
+            by_subject.setdefault(trial_key(f)[0], []).append(f)
         stage = ReplayStage({s: len(p) for s, p in by_subject.items()}, {}, candidates(), [], [])
         for subject, paths in by_subject.items():
             replayed = self._replay_subject(subject, paths, stage, progress)
@@ -1017,18 +1036,22 @@ class IpolEvaluation:
     def _choose_event_constants(replay: ReplayStage) -> EventConstantsStage:
         scores: dict[tuple[int, int], list[tuple[EventScore, EventScore]]] = {}
         errors: dict[tuple[int, int], list[int]] = {}
+        skipped: list[str] = []
         for subject, rs in replay.subjects.items():
             for rt, tables in zip(rs.trials, rs.offline_tables, strict=True):
+                if rt.reference_steps() == 0:     # nothing to score against: not a trial of zero steps
+                    skipped.append(f"{rt.path.name}: no foot-sensor heel strike between the trial boundaries; left "
+                                   "out of the event and step-count scores (its distance is scored)")
+                    continue
                 scores[(subject, rt.trial)] = [score_trial_events(rt, t) for t in tables]
                 errors[(subject, rt.trial)] = [trial_steps(rt, t, uturn="include")[0].n_steps - rt.reference_steps()
                                                for t in tables]
         loso = LosoChoice({}, {})
         if replay.subjects:
-            loso = choose_loso({s: [[hs for hs, _ in scores[(s, rt.trial)]] for rt in rs.trials]
-                                for s, rs in replay.subjects.items()},
-                               {s: [errors[(s, rt.trial)] for rt in rs.trials] for s, rs in replay.subjects.items()},
-                               replay.candidates)
-        return EventConstantsStage(scores, errors, loso)
+            scored = {s: [rt.trial for rt in rs.trials if (s, rt.trial) in scores] for s, rs in replay.subjects.items()}
+            loso = choose_loso({s: [[hs for hs, _ in scores[(s, t)]] for t in ts] for s, ts in scored.items()},
+                               {s: [errors[(s, t)] for t in ts] for s, ts in scored.items()}, replay.candidates)
+        return EventConstantsStage(scores, errors, loso, skipped)
 
     # 3. M4's exponent and the K prior ------------------------------------------------------------------------
 
@@ -1212,14 +1235,15 @@ class IpolEvaluation:
         priors = {s: fold.priors for s, fold in constants.folds.items() if fold.priors}
         return IpolResult(
             rows=scores.rows, calibrations={s: f.k for s, f in fits.fits.items()}, n_trials=scores.n_trials,
-            skipped=replay.skipped + fits.skipped,
+            skipped=replay.skipped + events.skipped + fits.skipped,
             calibrations_own={s: f.own for s, f in fits.fits.items() if f.own is not None},
             saturation=scores.saturation, replay_checks=replay.replay_checks, step_rows=scores.step_rows,
             arithmetics=tuple(self.arithmetic), uturn=self.uturn, candidates=replay.candidates,
             event_scores=events.event_scores, loso=events.loso, trial_events=scores.trial_events,
             m4_exponent={s: fold.m4_exponent for s, fold in constants.folds.items()},
             calibrations_online={s: f.k_online for s, f in fits.fits.items()}, count_errors=events.count_errors,
-            priors=priors, prior_all=constants.prior_all)
+            priors=priors, prior_all=constants.prior_all,
+            calibration_trials={s: f.replayed.trials[0].trial for s, f in fits.fits.items()})
 
 
 def _fold_choice(others: list[int], candidate: int, transfers: _Transfers, shipped_j: int) -> FoldChoice:
@@ -1310,14 +1334,15 @@ def main_rows(rows: list[dict]) -> list[dict]:
 
 
 def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | None = "offline",
-              variant: str | None = "main", intervals: bool = False) -> list[dict]:
+              variant: str | None = "main", intervals: bool = False,
+              n_resamples: int = BOOTSTRAP_RESAMPLES) -> list[dict]:
     """Per estimator: n, median, quartiles, IQR, min, max of the ratio; the step count's median ``|error|`` (%
     and steps) and median signed error (steps, detected - reference); steps outside K's calibrated range (of
     the steps in the trials).
 
     ``arithmetic`` / ``k_from`` / ``variant`` keep only the rows of that arithmetic / K source / variant
     (None: every row). ``intervals``: also ``median_ci`` and ``iqr_ci``, 95 % subject-bootstrap intervals
-    (:func:`subject_intervals`).
+    (:func:`subject_intervals`, ``n_resamples`` resamples; none when it is 0).
     """
     for key, want, default in (("arithmetic", arithmetic, "offline"), ("k_from", k_from, "offline"),
                                ("variant", variant, "main")):
@@ -1327,8 +1352,8 @@ def summarise(rows: list[dict], *, arithmetic: str | None = None, k_from: str | 
     for name in ESTIMATORS:
         mine = [row for row in rows if row["estimator"] == name]
         out.append(_estimator_summary(name, mine))
-        if intervals and out[-1]["n"]:
-            ci = subject_intervals(mine, name)
+        if intervals and n_resamples > 0 and out[-1]["n"]:
+            ci = subject_intervals(mine, name, n_resamples=n_resamples)
             out[-1].update(median_ci=ci["median"][1:], iqr_ci=ci["iqr"][1:])
     return out
 
@@ -1396,7 +1421,8 @@ def choice_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resam
 
 
 def _median_abs_log(x: np.ndarray) -> float:
-    return float(np.median(np.abs(np.log(x)))) if x.size else math.nan
+    with np.errstate(divide="ignore"):            # a trial with no step scores 0: |log 0| is inf, as it should be
+        return float(np.median(np.abs(np.log(x)))) if x.size else math.nan
 
 
 def log_error_gain(simple: list[dict], rule: list[dict], estimator: str, *, n_resamples: int = BOOTSTRAP_RESAMPLES,
@@ -1450,7 +1476,7 @@ ONLINE_CHOICES = (
 )
 
 
-def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
+def choice_gains(result: IpolResult, *, n_resamples: int = BOOTSTRAP_RESAMPLES) -> list[dict[str, Any]]:
     """Each rule of :data:`CHOICES` (offline chain) and of :data:`ONLINE_CHOICES` (on-line fixed chain) against its
     simpler choice, per estimator: the gain in IQR with its 95 % subject-bootstrap interval (:func:`choice_gain`)
     and whether the rule is kept (the interval excludes zero on the side of a gain); the on-line step-counting
@@ -1465,14 +1491,14 @@ def choice_gains(result: IpolResult) -> list[dict[str, Any]]:
             if not a or not b:
                 continue
             for e in estimators:
-                gain, lo, hi = choice_gain(a, b, e)
+                gain, lo, hi = choice_gain(a, b, e, n_resamples=n_resamples)
                 out.append(dict(choice=label, estimator=e, gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
                 if rule in M4_STEP_RULES:
-                    gain, lo, hi = log_error_gain(a, b, e)
+                    gain, lo, hi = log_error_gain(a, b, e, n_resamples=n_resamples)
                     out.append(dict(choice=label, estimator=f"{e} median |log ratio|", gain=gain, low=lo, high=hi,
                                     kept=bool(lo > 0)))
             if ONLINE_EVENT_VARIANTS.keys() & {simple, rule} and arithmetic != "offline":
-                gain, lo, hi = row_count_gain(a, b)
+                gain, lo, hi = row_count_gain(a, b, n_resamples=n_resamples)
                 out.append(dict(choice=label, estimator="steps", gain=gain, low=lo, high=hi, kept=bool(lo > 0)))
     return out
 
@@ -1555,7 +1581,7 @@ def event_figures(result: IpolResult) -> dict[str, dict[str, Any]]:
             hs=EventScore.pooled([result.event_scores[k][0][0] for k in keys]),
             to=EventScore.pooled([result.event_scores[k][0][1] for k in keys]),
             cross_validated=all(c == 0 for c in loso.values()))
-    fx = [r for r in result.trial_events if r["chain"] == "online-fixed"]
+    fx = [r for r in result.trial_events if r["chain"] == "online-fixed" and r["hs_reference"] > 0]
     if fx:
         out["on-line fixed, shipped defaults"] = dict(
             hs=EventScore(sum(r["hs_reference"] for r in fx), sum(r["hs_detected"] for r in fx),
@@ -1608,7 +1634,20 @@ def format_tuning(result: IpolResult) -> str:
                  + ("every fold chose them, so their figures are cross-validated too" if every_default else
                     "some folds chose otherwise, so their rows of those subjects are NOT cross-validated "
                     "(column cross_validated = 0)"))
+    lines += _nothing_to_choose_on(result)
     return "\n".join(lines)
+
+
+def _nothing_to_choose_on(result: IpolResult) -> list[str]:
+    """A line saying why the folds' choices above are the defaults by absence, when they are: one subject (no
+    other to choose on), or no trial with foot-sensor events (no criterion)."""
+    if len(result.loso.chosen) < 2:
+        return ["  (one subject: no other subject to choose on, so the defaults stand and nothing is cross-validated "
+                "between subjects)"]
+    if not result.event_scores:
+        return ["  (no trial has foot-sensor heel strikes between its boundaries: no criterion to choose the event "
+                "and step-counting constants by, so the defaults stand)"]
+    return []
 
 
 def format_events(result: IpolResult) -> str:
@@ -1653,6 +1692,12 @@ def _trial_event_lines(rows: list[dict]) -> list[str]:
                      f"{sum(r['m3_filled'] for r in mine)}")
     first = [r for r in rows if r["chain"] == chains[0]]
     lines += _gap_lines(first)
+    broken = [r for r in first if r["calibration_trial"] and r["longest_gap_s"] > MAX_INTERPOLATED_GAP_S]
+    if broken:
+        lines.append(f"calibration trials with a gap over {MAX_INTERPOLATED_GAP_S:g} s (a walking bout ends there: "
+                     "steps can be lost from the 20 m K is fitted on): " + ", ".join(
+                         f"{r['subject']}-{r['trial']} ({100 * r['missing_fraction']:.1f} % missing, longest gap "
+                         f"{r['longest_gap_s']:.2f} s)" for r in broken))
     lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "
                  f"scored): foot-sensor heel strikes {sum(r['hs_reference_outside'] for r in first)}, detected "
                  "steps " + ", ".join(f"{c} {sum(r['steps_outside'] for r in rows if r['chain'] == c)}"
@@ -1663,16 +1708,20 @@ def _trial_event_lines(rows: list[dict]) -> list[str]:
 def _trial_table_lines(by: dict[tuple[int, int, str], dict], chains: list[str]) -> list[str]:
     """The table of :func:`_trial_event_lines`: per trial, each chain's steps with each event found and filled."""
     lines = ["steps per trial (between the trial boundaries) with a heel strike found, a toe-off found, and "
-             "filled (M3 without both events: the bout median); * = calibration trial",
-             f"{'trial':<8}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains)]
+             "filled (M3 without both events: the bout median); * = calibration trial; the logger samples missing "
+             "between the trial boundaries (% and the longest gap, s)",
+             f"{'trial':<10}" + "".join(f"{c + ': steps HS TO filled':>34}" for c in chains)
+             + f"{'missing %':>11}{'gap s':>7}"]
     for s, t in dict.fromkeys((k[0], k[1]) for k in by):
         cells = []
         for c in chains:
             r = by.get((s, t, c))
             cells.append(f"{r['steps']:>19}{r['heel_strike_found']:>5}{r['toe_off_found']:>4}{r['m3_filled']:>6}"
                          if r else f"{'':>34}")
-        star = "*" if any(by[k]["calibration_trial"] for k in by if k[:2] == (s, t)) else ""
-        lines.append(f"{f'{s}-{t}{star}':<8}" + "".join(cells))
+        first = next(by[k] for k in by if k[:2] == (s, t))
+        star = "*" if first["calibration_trial"] else ""
+        lines.append(f"{f'{s}-{t}{star}':<10}" + "".join(cells)
+                     + f"{100 * first['missing_fraction']:>11.1f}{first['longest_gap_s']:>7.2f}")
     return lines
 
 

@@ -34,6 +34,7 @@ from gaitlog.host.studies.ipol_evaluation import (
     summarise,
 )
 from gaitlog.host.studies.plots import render_chain_boxplots_png
+from gaitlog.host.studies.stats import BOOTSTRAP_RESAMPLES
 
 #: ``list_trials`` is here too so that the command counts the trials of its progress bar with one import.
 __all__ = ["IpolOutputs", "IpolReport", "evaluate_ipol", "list_trials"]
@@ -92,6 +93,7 @@ class IpolReport:
     adc_bits: int
     uturn: str
     arithmetic: tuple[str, ...]
+    n_resamples: int = BOOTSTRAP_RESAMPLES
 
     def write_outputs(self) -> None:
         """The figure first (it can fail on a broken matplotlib), then the CSVs, each written atomically."""
@@ -112,19 +114,26 @@ class IpolReport:
 
     def to_json(self) -> str:
         """The rows and the per-trial events as one JSON document."""
-        return json_text({"out": str(self.outputs.out), "rows": self.result.rows,
-                          "trial_events": self.result.trial_events})
+        res = self.result
+        return json_text({"out": str(self.outputs.out), "rows": res.rows, "trial_events": res.trial_events,
+                          "calibration_trials": {str(s): t for s, t in res.calibration_trials.items()},
+                          "skipped": res.skipped})
 
     def format_table(self) -> str:
         """The printed report: the heading, the tuned constants, the summary tables, the choices, the events, the
         device checks and the files written."""
-        res, arith = self.result, self.arithmetic
+        res, arith, resamples = self.result, self.arithmetic, self._resamples()
         lines = [self._heading(), format_tuning(res)]
         for a, k_from, title in self._main_tables():
-            lines += _summary_table(title, summarise(res.rows, arithmetic=a, k_from=k_from, intervals=True))
+            lines += _summary_table(title, summarise(res.rows, arithmetic=a, k_from=k_from, intervals=True,
+                                                     n_resamples=resamples))
         if "offline" in arith:
             lines += self._offline_tables()
-            lines.append(format_choices(choice_gains(res) + count_gains(res)))
+            lines.append(format_choices(choice_gains(res, n_resamples=resamples)
+                                        + count_gains(res, n_resamples=resamples))
+                         if resamples > 0 else "choices against the simpler one: not scored (" + (
+                             "no bootstrap resamples" if self.n_resamples == 0 else "one subject: a bootstrap over "
+                             "subjects has nothing to resample") + ", so no interval to keep a rule by)")
         lines.append("steps|err|: median over trials of |detected - reference steps| (% and steps); signed: median of "
                      "detected - reference; outside K: steps outside the range K was calibrated on (duration, the "
                      "estimator's input or length), of the steps in the trials")
@@ -137,16 +146,25 @@ class IpolReport:
                      + (f", {paths.events}" if res.trial_events else "") + f", {paths.figure}")
         return "\n".join(lines)
 
+    def _resamples(self) -> int:
+        """The subject bootstrap's resamples: none with one subject (every resample would be that subject: an
+        interval of width zero, not a 95 % one)."""
+        return self.n_resamples if len(self.result.calibrations) >= 2 else 0
+
     def _heading(self) -> str:
         res, arith = self.result, self.arithmetic
-        sources = Counter(r["lengths_source"] for r in main_rows(res.rows)
-                          if r["estimator"] == "M1" and r["arithmetic"] == arith[0] and r["k_from"] == "offline")
+        mine = [r for r in main_rows(res.rows)
+                if r["estimator"] == "M1" and r["arithmetic"] == arith[0] and r["k_from"] == "offline"]
+        sources = Counter(r["lengths_source"] for r in mine)
+        assumed = sorted({r["subject"] for r in mine if r["lengths_source"] != "subject-height"})
         return (f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {self.sampling_rate_hz:g} Hz, "
                 f"{self.adc_bits} bits, U-turn {self.uturn}d, emulated logger with its on-line algorithm on; one K per "
-                "subject, fitted on trial 1 with the offline chain, for every arithmetic"
+                f"subject, fitted on {_calibration_text(res.calibration_trials)} with the offline chain, for every "
+                "arithmetic"
                 + (" and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "")
                 + "; lengths from each subject's height ("
                 + ", ".join(f"{n} trials {src}" for src, n in sources.items())
+                + (f"; no height in the JSON of subject {', '.join(map(str, assumed))}" if assumed else "")
                 + f"): {LENGTH_MODEL}")
 
     def _main_tables(self) -> list[tuple[str, str, str]]:
@@ -161,12 +179,14 @@ class IpolReport:
         other = next(u for u in ("exclude", "include") if u != self.uturn)
         lines: list[str] = []
         for variant, title, shown in _OFFLINE_VARIANTS:
-            summary = summarise(rows, arithmetic="offline", variant=variant.format(other=other), intervals=True)
+            summary = summarise(rows, arithmetic="offline", variant=variant.format(other=other), intervals=True,
+                                n_resamples=self._resamples())
             lines += _summary_table(title.format(other=other),
                                     [x for x in summary if shown is None or x["estimator"] in shown])
         for variant, title in _OPTIONAL_VARIANTS:
             if any(r["variant"] == variant for r in rows):
-                lines += _summary_table(title, summarise(rows, arithmetic="offline", variant=variant, intervals=True))
+                lines += _summary_table(title, summarise(rows, arithmetic="offline", variant=variant, intervals=True,
+                                                         n_resamples=self._resamples()))
         return lines
 
     def _replay_line(self) -> str:
@@ -177,16 +197,27 @@ class IpolReport:
 
 
 def evaluate_ipol(folder: str | Path, outputs: IpolOutputs, *, sampling_rate_hz: float, adc_bits: int,
-                  uturn: str = "include", arithmetic: str = "all",
+                  uturn: str = "include", arithmetic: str = "all", n_resamples: int = BOOTSTRAP_RESAMPLES,
                   progress: Callable[[str], object] | None = None) -> IpolReport:
     """The IPOL evaluation of ``folder`` (:func:`gaitlog.host.studies.ipol_evaluation.evaluate_folder`) as a
     report whose files go to ``outputs``; nothing is written until :meth:`IpolReport.write_outputs`.
-    ``arithmetic`` is one of :data:`~gaitlog.host.studies.ipol_evaluation.ARITHMETICS` or ``"all"``."""
+    ``arithmetic`` is one of :data:`~gaitlog.host.studies.ipol_evaluation.ARITHMETICS` or ``"all"``;
+    ``n_resamples``: the subject bootstrap's resamples of the printed intervals (0: none, and no choice scored)."""
     arithmetic = ARITHMETICS if arithmetic == "all" else (arithmetic,)
     res = evaluate_folder(folder, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, uturn=uturn,
                           arithmetic=arithmetic, progress=progress)
     return IpolReport(result=res, outputs=outputs, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits,
-                      uturn=uturn, arithmetic=arithmetic)
+                      uturn=uturn, arithmetic=arithmetic, n_resamples=n_resamples)
+
+
+def _calibration_text(trials: dict[int, int]) -> str:
+    """Which trial each subject's K was fitted on: ``trial 1``, or the subjects whose first readable trial is
+    another named."""
+    other = {s: t for s, t in trials.items() if t != 1}
+    if not other:
+        return "trial 1"
+    return ("its first readable trial (" + ("" if len(other) == len(trials) else "trial 1; ")
+            + ", ".join(f"subject {s}: trial {s}-{t}" for s, t in other.items()) + ")")
 
 
 def _ci(interval) -> str:

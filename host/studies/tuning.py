@@ -323,7 +323,8 @@ def choose_loso(scores: Mapping[int, Sequence[Sequence[EventScore]]],
     {1: 1, 2: 1}
     """
     subjects = list(scores)
-    n_cand = len(next(iter(next(iter(scores.values())))))
+    # the grid says how many candidates there are (a subject may have no scored trial)
+    n_cand = len(grid) if grid is not None else len(next(t for trials in scores.values() for t in trials))
     count_names = [p.name for p in parameters if p.criterion == "step count"]
     two_stage = count_errors is not None and grid is not None and bool(count_names)
     first = list(range(n_cand))
