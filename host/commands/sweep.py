@@ -141,11 +141,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     grid.add_argument("--noise-density", type=_list(number(minimum=0, maximum=0.01, unit="g/√Hz")), metavar="G,G",
                       help="sensor white-noise densities, g/√Hz (the ADXL202E's: 200e-6)")
     grid.add_argument("--q-formats", type=_list(_q_formats), metavar="SET,SET",
-                      help="Q-format sets of the fixed-point chain: 'shipped' or fraction bits of the variables "
-                      "changed, e.g. shipped,acc10,acc8,lp12,grav20,m2pos13,k12 (acc: a_v and its integrals, grav: "
-                      "gravity, lp: lowpass outputs, m2pos: M2's position; sq, fir, kern, exc, excc, root, step, k, "
-                      "kw, cad, mant: the other formats, --list-dimensions; lpintN: the lowpass's integer bits); "
-                      "each non-shipped set is compiled once per machine (~10-25 s), kept in the compile cache")
+                      help="Q-format sets of the fixed-point chain: 'shipped' or the bits of the formats changed, "
+                      "e.g. shipped,acc10,acc8,lp12,grav20,m2pos13,k12,wgrav24,wstep15: NAME+N fewer fraction bits "
+                      "(acc: a_v and its integrals, grav: gravity, lp: lowpass outputs, m2pos: M2's position; sq, fir, "
+                      "kern, exc, excc, leg, twoleg, parg, pargc, root, step, k, kw, cad, mant: the other formats), "
+                      "wNAME+N a narrower word where the format's values saturate (sign included, at most its "
+                      "container; wvel, wpos: M1's integrals, wcode: the centred codes), lpintN the lowpass's "
+                      "integer bits; every name in --list-dimensions; each non-shipped set is compiled once per "
+                      "machine (~10-25 s), kept in the compile cache")
     grid.add_argument("--rounding", type=_list(_rounding), metavar="R,R",
                       help="rounding of the fixed-point chain: shipped, truncate, half-up, convergent (every "
                       "operation class) or per class, e.g. shipped,truncate,mul:truncate+div:convergent (classes "

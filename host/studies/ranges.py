@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.ranges import RangeCollector, RangeReport
 from gaitlog.firmware_sim.device import Logger
@@ -97,16 +98,18 @@ def _add_walks(collector: RangeCollector, n: int, seed: int) -> None:
 
 
 def collect_ranges(paths: Sequence[str | Path], *, n_simulated: int = 0, seed: int = 0,
-                   margin_bits: int = 1) -> RangeReport:
+                   margin_bits: int = 1, words: str = "shipped") -> RangeReport:
     """Ranges of every fixed-point variable over ``paths`` (recordings, IPOL trials or folders of them) and
-    ``n_simulated`` walks (module notes).
+    ``n_simulated`` walks (module notes), their saturations and headroom counted at the words of ``words`` (a
+    :class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats` label of words only;
+    :class:`~gaitlog.firmware_sim.ranges.RangeCollector`).
 
     Raises
     ------
     HostError
         A path is unreadable or holds no codes to run (the message names it).
     """
-    collector = RangeCollector()
+    collector = RangeCollector(None if words == "shipped" else KernelFormats.parse(words))
     for p in map(Path, paths):
         if not p.exists():
             raise HostError(f"{p}: no such file or folder")

@@ -86,7 +86,7 @@ from scipy.spatial.transform import Rotation
 from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-from gaitlog.firmware_sim.algorithms import format_kernel, formats
+from gaitlog.firmware_sim.algorithms import formats
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.budget import LoggerConfig, logging_cycles_per_sample, ram_budget
 from gaitlog.firmware_sim.fixedpoint import QFormat, cycles_per_sample_available
@@ -159,9 +159,10 @@ SPEC_KEYS = {
     "adc_bits": "ADC widths, bits",
     "sampling_rate_hz": "logger sampling rates, Hz",
     "noise_density_g_rthz": "sensor white-noise densities, g/√Hz",
-    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12-k12: fraction bits of acc, "
-                 "grav, lp, m2pos, sq, fir, kern, exc, excc, root, step, k, kw, cad, mant; lpint: the lowpass's "
-                 "integer bits)",
+    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12-wstep15: fraction bits of "
+                 "acc, grav, lp, m2pos, sq, fir, kern, exc, excc, root, step, k, kw, cad, mant, leg, twoleg, parg, "
+                 "pargc; w+name: a format's word (wacc12, wgrav24, wvel, wpos, wcode ...); lpint: the lowpass's "
+                 "integer bits; --list-dimensions)",
     "rounding": "rounding of the fixed-point chain per operation class (mul, shift, div): shipped, truncate, "
                 "half-up, convergent, or per class, e.g. mul:truncate+div:convergent; shipped: half-up (a quotient's "
                 "magnitude: ties away from zero)",
@@ -624,17 +625,23 @@ def _summary_row(key: tuple, seg: list[dict], split_groups: dict[tuple, list[dic
         found = split_groups.get(tuple(config) + (labels[share], est), [])
         row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range([x["median_abs_mm"] for x in found])
         row[f"{col}_theory"] = _range([x.get("theory_median_abs_mm", math.nan) for x in found])[0]
-    row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0]))
+    row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0],
+                                  row["q_formats"]))
     return row
 
 
-def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float) -> dict[str, float]:
+def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float,
+                       q_formats: str = "shipped") -> dict[str, float]:
     """A configuration's cost in ``gaitlog budget``'s model (:mod:`gaitlog.firmware_sim.budget`): the logger's RAM
-    at the rate (``ram_bytes``, of the PIC16F877's 368), the on-line algorithm's mean cycles per sample as its
-    fixed-point run counted them (``cycles_per_sample``: rounding modes and formats change the operations), and
-    the CPU load with the logging interrupt (``cpu_load``, 1 = every cycle of a sample period)."""
+    at the rate with the algorithm's state in the words of ``q_formats`` (a :class:`KernelFormats` label:
+    ``ram_bytes``, of the PIC16F877's 368; a narrower word saves whole bytes of the state variables, not of the
+    temporaries), the on-line algorithm's mean cycles per sample as its fixed-point run counted them
+    (``cycles_per_sample``: rounding modes and formats change the operations; a word of 16 bits or fewer is
+    counted with the 16-bit additions), and the CPU load with the logging interrupt (``cpu_load``, 1 = every
+    cycle of a sample period)."""
     logging = logging_cycles_per_sample(LoggerConfig("alvarez", float(sampling_rate_hz), 3))
-    return dict(ram_bytes=ram_budget(sampling_rate_hz).total_bytes, cycles_per_sample=cycles_per_sample,
+    ram = ram_budget(sampling_rate_hz, formats=KernelFormats.parse(q_formats))
+    return dict(ram_bytes=ram.total_bytes, cycles_per_sample=cycles_per_sample,
                 cpu_load=(cycles_per_sample + logging) / cycles_per_sample_available(sampling_rate_hz))
 
 
@@ -730,7 +737,8 @@ def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> lis
     for label in _order([r["q_formats"] for r in rows]):
         f = KernelFormats.parse(label)
         differ = [n for n in KernelFormats.field_names() if getattr(f, n) != getattr(shipped, n)]
-        for n in differ if len(differ) == 1 else (KernelFormats.field_names() if not differ else ()):
+        alone = len(differ) == 1 and replace(f, **{differ[0]: getattr(shipped, differ[0])}).label() == "shipped"
+        for n in differ if alone else (KernelFormats.field_names() if f.label() == "shipped" else ()):
             by_field.setdefault(n, {})[label] = getattr(f, n)
     keys = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population",
             *EFFECT_DIMENSIONS, "rounding", "estimator")
@@ -990,33 +998,39 @@ def _default_text(value: Any) -> str:
 
 
 def _format_dimensions() -> list[Dimension]:
-    """Word and fraction bits of every Q format of :mod:`gaitlog.firmware_sim.algorithms.formats`: the fraction bits
-    of the :class:`KernelFormats` variables and the lowpass word through ``--q-formats``; the other words not yet
-    (the kernel's words are shared constants, 16 and 32 bits)."""
-    by_format = {id(_shipped_format(name)): name for name in KernelFormats.field_names()}
-    out = []
+    """Word and fraction bits of every Q format of :mod:`gaitlog.firmware_sim.algorithms.formats` (and of the
+    centred codes, ``centred_q``), each with the ``--q-formats`` token that sweeps it (:class:`KernelFormats`)."""
+    code = formats.centred_q(10)
+    out = [Dimension("CENTRED_Q.word_bits", "bits", str(code.total_bits), "--q-formats wcodeN",
+                     _word_meaning(code, "code_word_bits")),
+           Dimension("CENTRED_Q.frac_bits", "bits", str(code.frac_bits), "--adc-bits",
+                     "fraction bits of the centred codes and calibration offsets: 15 - max(10, ADC bits)")]
     for name in formats.__all__:
         q = getattr(formats, name)
         if not isinstance(q, QFormat):
             continue
-        field_name = by_format.get(id(q)) or ("acc_frac_bits" if name in _FOLLOWS_ACC else None)
-        short = KernelFormats(**{field_name: 1}).label().rstrip("0123456789") if field_name else None
-        follows = " (follows ACC_Q's)" if name in _FOLLOWS_ACC else ""
+        frac, word = KernelFormats.sweep_fields(q)
         if name == "LOWPASS_Q":
             out.append(Dimension(f"{name}.word_bits", "bits", str(KernelFormats().lowpass_word_bits), "--q-formats lpintN",
                                  f"word of {q} where it saturates: sign + N integer bits + fraction bits"))
+        elif word is None:
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.total_bits), f"--q-formats {KernelFormats.token(frac)}N",
+                                 f"word of {q}: 1 + N fraction bits (block floating point: the shared exponent "
+                                 "keeps the range)"))
         else:
-            out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None,
-                                 f"word of {q} (the kernel's 16- and 32-bit words are shared by several formats)"))
-        out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits),
-                             f"--q-formats {short}N" if short else None,
-                             f"fraction bits of {q}" + (f" (fewer than shipped only){follows}" if short else "")))
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.total_bits),
+                                 f"--q-formats {KernelFormats.token(word)}N", _word_meaning(q, word)))
+        follows = " (follows ACC_Q's)" if name in _FOLLOWS_ACC else ""
+        out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits), f"--q-formats {KernelFormats.token(frac)}N",
+                             f"fraction bits of {q} (fewer than shipped only){follows}"))
     return out
 
 
-def _shipped_format(field_name: str) -> QFormat:
-    """The shipped format a :class:`KernelFormats` field sets the fraction bits of."""
-    return format_kernel._SHIPPED[field_name]          # noqa: SLF001  (the kernel's own table, defined once there)
+def _word_meaning(q: QFormat, word_field: str) -> str:
+    """The meaning of a word dimension: where its values saturate, how narrow it may be."""
+    where = ("the configured values saturate" if KernelFormats.configuration_only(word_field)
+             else "every value stored saturates")
+    return f"word of {q}, sign included: {where} at N bits (2 .. its {q.word_bits}-bit container)"
 
 
 def dimensions() -> list[Dimension]:
