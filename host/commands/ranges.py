@@ -30,7 +30,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=SEED, default=0, help="first simulated walker's seed (default 0)")
     parser.add_argument("--margin-bits", type=whole(minimum=0, maximum=16), default=1, metavar="B",
                         help="the proposed formats hold the observed range times 2^B (0-16, default 1)")
-    parser.add_argument("--words", type=_words, metavar="LABEL",
+    parser.add_argument("--words", metavar="LABEL",
                         help="count saturations and headroom against narrower words, a --q-formats label of words "
                              "only (e.g. wexc12-wgrav24-lpint1; gaitlog sweep --list-dimensions): the values the "
                              "shipped run stores beyond them")
@@ -38,26 +38,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_verbosity_options(parser)
 
 
-def _words(text: str) -> str:
-    """A format set of words only, canonical label; a usage error naming what is wrong."""
-    from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
-
-    try:
-        words = KernelFormats.parse(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
-    if any(getattr(words, n) != getattr(KernelFormats(), n) for n in KernelFormats.field_names()):
-        raise argparse.ArgumentTypeError(f"{text!r}: words only (wNAME+N, lpintN): the ranges are the shipped run's")
-    return words.label()
-
-
 def run(args: argparse.Namespace) -> int:
-    from gaitlog.host.studies.ranges import collect_ranges
+    from gaitlog.host.studies.ranges import collect_ranges, words_label
 
     if not args.recordings and not args.simulate:
         raise UsageError("give at least one RECORDING or --simulate N")
+    try:
+        words = words_label(args.words or "shipped")
+    except ValueError as err:
+        raise UsageError(f"--words: {err}") from None
     report = collect_ranges(args.recordings, n_simulated=args.simulate or 0, seed=args.seed,
-                            margin_bits=args.margin_bits, words=args.words or "shipped")
+                            margin_bits=args.margin_bits, words=words)
     if args.json:
         print_json(report.to_dict())
     elif verbosity(args) >= 0:

@@ -31,7 +31,7 @@ from gaitlog.host.files.replay import run_starts
 from gaitlog.host.studies.ipol_evaluation import replay_trial
 from gaitlog.protocol.steps import StepConfig
 
-__all__ = ["collect_ranges", "ipol_trial_paths", "recording_segments"]
+__all__ = ["collect_ranges", "ipol_trial_paths", "recording_segments", "words_label"]
 
 #: The step configuration of a recording whose header turns the algorithm off (the ranges need one).
 DEFAULT_LEG_M, DEFAULT_FOOT_M = 0.9, 0.2
@@ -95,6 +95,20 @@ def _add_walks(collector: RangeCollector, n: int, seed: int) -> None:
         segments = recording_segments(np.ones(res.codes.shape[0], bool), np.asarray(res.flags))
         collector.add(step_algorithm_for(logger.header), res.codes, segments=segments,
                       name=f"simulated walker {i} (seed {seed + i})")
+
+
+def words_label(text: str) -> str:
+    """The canonical label of a format set of words only (``wexc12-wgrav24``, ``lpint1``, ``shipped``): the
+    words ranges can be counted at (the run is the shipped one's). ValueError naming what is wrong.
+
+    >>> words_label("wexc12-wgrav24"), words_label("shipped")
+    ('wgrav24-wexc12', 'shipped')
+    """
+    words = KernelFormats.parse(text)
+    if any(getattr(words, n) != getattr(KernelFormats(), n) for n in KernelFormats.field_names()):
+        raise ValueError(f"{text!r}: words only (wNAME+N, lpintN), not fraction bits: the ranges are the shipped "
+                         "run's")
+    return words.label()
 
 
 def collect_ranges(paths: Sequence[str | Path], *, n_simulated: int = 0, seed: int = 0,

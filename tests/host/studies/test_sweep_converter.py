@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.world.walking import Walking
 from gaitlog.host.cli import build_parser, main
@@ -137,12 +138,15 @@ def test_list_dimensions_matches_the_sweeps_parameters(capsys) -> None:
             assert d.name in task_fields
     names = {d.name for d in dims}
     assert {"rounding", "m4_exponent", "K_Q.word_bits", "K_Q.frac_bits", "ACC_Q.frac_bits"} <= names
-    assert {d.name for d in dims if d.option is None} >= {"m4_exponent", "K_Q.word_bits"}
-    frac = {d.name: d.option for d in dims if d.name.endswith(".frac_bits")}
-    not_yet = {n for n, o in frac.items() if o is None}
-    # the products' formats the kernel derives from others (not stored variables)
-    assert not_yet == {"PENDULUM_ARG_Q.frac_bits", "PENDULUM_ARG2_Q.frac_bits", "TWO_LENGTH_Q.frac_bits",
-                       "LENGTH_Q.frac_bits"}, not_yet
+    # every format's word and fraction bits sweep: only M4's exponent does not
+    assert {d.name for d in dims if d.option is None} == {"m4_exponent"}
+    words = {d.name: d.option for d in dims if d.name.endswith(".word_bits")}
+    assert len(words) == len([d for d in dims if d.name.endswith(".frac_bits")]) > 20
+    for name, option in words.items():
+        token = option.split()[-1].rstrip("N")
+        if name not in ("LOWPASS_Q.word_bits", "MANTISSA_Q.word_bits"):
+            q = KernelFormats.parse(f"{token}8")          # the token sweeps that format's word
+            assert q.label() == f"{token}8", name
     lowpass_word = next(d for d in dims if d.name == "LOWPASS_Q.word_bits")
     assert lowpass_word.option == "--q-formats lpintN" and lowpass_word.default == "19"
     assert next(d for d in dims if d.name == "rounding").option == "--rounding"
