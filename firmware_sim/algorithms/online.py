@@ -597,7 +597,7 @@ class OnlineStepAlgorithm:
     def variables(self):
         """The declared state variables for this configuration."""
         c = self.config.counts
-        return variables(line_length=2 * c.r3 + 1, median_steps=c.median_steps)
+        return variables(line_length=2 * c.r3 + 1, median_steps=c.median_steps, formats=self.config.formats)
 
     def state_values(self) -> np.ndarray:
         """A copy of the kernel's value state (slots of :data:`gaitlog.firmware_sim.algorithms.state.VALUE_SLOTS`:

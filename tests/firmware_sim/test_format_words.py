@@ -12,7 +12,7 @@ from gaitlog.firmware_sim.algorithms import formats as fm
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
-from gaitlog.firmware_sim.algorithms.state import WORD_OF
+from gaitlog.firmware_sim.algorithms.state import G1, G2, WORD_OF
 from gaitlog.firmware_sim.budget import ram_budget
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.ranges import RangeCollector
@@ -54,6 +54,26 @@ def test_a_narrower_word_is_fewer_integer_bits_and_saturates_at_its_range() -> N
     c = k.constants()
     assert (c["W_ACC"], c["W_STEP"], c["W_GRAV"]) == (12, -13, 24)
     assert c["F_ACC"] == fm.F_ACC and c["W_ACC2"] == fm.W_ACC2          # the rest shipped
+
+
+def test_a_narrower_signed_word_saturates_at_its_twos_complement_limits() -> None:
+    """A still logger, nominal calibration: gravity is the calibrated f from the first sample on (the warm-up's
+    shift starts at 0), ``±2^29`` raw in Q2.29. In a 30-bit word (Q0.29) +1 g is beyond ``2^29 - 1`` and -1 g is
+    the word's minimum, ``-2^29``: z up, every sample's f stored as gravity saturates once, at ``2^29 - 1``, in
+    both stages; upside down nothing saturates and gravity is the shipped run's."""
+    still = {"up": np.tile([512, 512, 768], (300, 1)), "down": np.tile([512, 512, 256], (300, 1))}
+    words = KernelFormats(gravity_word_bits=30)
+    assert words.q("gravity_frac_bits").max_raw == 2 ** 29 - 1 and words.q("gravity_frac_bits").min_raw == -2 ** 29
+    cfg = dict(sampling_rate_hz=50.0, step_config=StepConfig(step_format=1, leg_length_m=0.9, foot_length_m=0.2))
+    for side, z_raw, sat in (("up", 2 ** 29 - 1, 300), ("down", -2 ** 29, 0)):
+        narrow, shipped = OnlineStepAlgorithm(**cfg, formats=words), OnlineStepAlgorithm(**cfg)
+        narrow.feed(still[side])
+        shipped.feed(still[side])
+        g = narrow.state_values()
+        assert g[G1 + 2] == g[G2 + 2] == z_raw and g[G1] == g[G2 + 1] == 0, side
+        assert narrow.saturations == sat and shipped.saturations == 0, side
+        assert shipped.state_values()[G2 + 2] == (2 ** 29 if side == "up" else -2 ** 29)
+        assert narrow.newest_vertical_acceleration() == shipped.newest_vertical_acceleration() == 0
 
 
 def test_configuration_words_saturate_the_configured_values_in_the_shipped_kernel() -> None:
