@@ -15,7 +15,7 @@ EXAMPLES = (
     "gaitlog ranges walk.glimg",
     "gaitlog ranges ipol-lowerback-dev --simulate 20",
     "gaitlog ranges --simulate 2 --margin-bits 2 --json",
-    "gaitlog ranges --simulate 2 --words wexc12-wgrav24",
+    "gaitlog ranges --simulate 2 --words wexc14-wexcc15",
 )
 #: ``--simulate`` at most (each walker takes a few seconds).
 MAX_SIMULATED = 1000
@@ -32,7 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="the proposed formats hold the observed range times 2^B (0-16, default 1)")
     parser.add_argument("--words", metavar="LABEL",
                         help="count saturations and headroom against narrower words, a --q-formats label of words "
-                             "only (e.g. wexc12-wgrav24-lpint1; gaitlog sweep --list-dimensions): the values the "
+                             "only (e.g. wexc14-wexcc15-lpint1; gaitlog sweep --list-dimensions): the values the "
                              "shipped run stores beyond them")
     add_json_option(parser, "the table")
     add_verbosity_options(parser)
