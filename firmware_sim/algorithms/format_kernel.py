@@ -90,8 +90,8 @@ _CONSTANT = {"acc2_frac_bits": "F_ACC2", "fir_frac_bits": "F_FIR", "kernel_frac_
              "two_leg_frac_bits": "F_TWO_LEN"}
 #: Each word field (``<name>_word_bits``: where the format's values saturate, sign included): its shipped format,
 #: the frac field whose bits its format has (None: a format without one), its kernel constant (None: the
-#: configuration's, saturated when the algorithm is configured). Its label token is ``w`` + the frac field's
-#: short name (``wacc12``); the lowpass's word is ``lowpass_int_bits`` (``lpint``).
+#: configuration's, saturated when the algorithm is configured) and its label token after ``w`` (None: the frac
+#: field's short name, ``wacc12``); the lowpass's word is ``lowpass_int_bits`` (``lpint``).
 _WORDS = {
     "code_word_bits": (centred_q(10), None, "W_CODE", "code"),
     "acc_word_bits": (ACC_Q, "acc_frac_bits", "W_ACC", None),
@@ -137,10 +137,10 @@ class KernelFormats:
     **Words** (``<format>_word_bits``, label ``w`` + the format's name: ``wacc12``, ``wgrav24``...): the bits,
     sign included, where a format's values saturate, at most its shipped container (16, 24 or 32 bits). A narrower
     word is fewer integer bits: every store of a value of that format (each primitive's result word) saturates at
-    ``±(2^(W-1) - 1) / 2^frac`` (signed; ``(2^W - 1) / 2^frac`` unsigned), counted, as the shipped code saturates
-    every result (the PIC's saturating routines, never a wrap). Formats of configuration only (the FIR weights,
-    leg and foot, K, K4: ``kernel``, ``leg``, ``twoleg``, ``k``, ``kw``) saturate when the algorithm is
-    configured; the shipped kernel runs them. The lowpass's word is ``lowpass_int_bits`` (``lpint``: it keeps
+    ``(2^(W-1) - 1) / 2^frac`` and ``-2^(W-1) / 2^frac`` (signed, two's complement; unsigned at ``(2^W - 1) / 2^frac``
+    and 0), counted, as the shipped code saturates every result (the PIC's saturating routines, never a wrap).
+    Formats of configuration only (the FIR weights, leg and foot, K, K4: ``kernel``, ``leg``, ``twoleg``, ``k``,
+    ``kw``) saturate when the algorithm is configured; the shipped kernel runs them. The lowpass's word is ``lowpass_int_bits`` (``lpint``: it keeps
     its integer bits, not its word, when its fraction bits shrink); the mantissas' is their fraction bits (block
     floating point).
 
@@ -320,7 +320,8 @@ class KernelFormats:
     @property
     def compiled_shipped(self) -> bool:
         """True when the kernel's compile-time constants are the firmware's (the kernel built ahead of time runs
-        them; the calibration's mantissa bits are configuration)."""
+        them; the calibration's mantissa bits, the leg's fraction bits and the configuration's words only change
+        the configuration)."""
         return replace(self, **{n: getattr(KernelFormats(), n) for n in _CONFIGURATION_ONLY}).shipped
 
     def rounding_constants(self) -> dict[str, int]:

@@ -1014,7 +1014,8 @@ def _format_dimensions() -> list[Dimension]:
             out.append(Dimension(f"{name}.word_bits", "bits", str(KernelFormats().lowpass_word_bits), "--q-formats lpintN",
                                  f"word of {q} where it saturates: sign + N integer bits + fraction bits"))
         elif word is None:
-            out.append(Dimension(f"{name}.word_bits", "bits", str(q.total_bits), f"--q-formats {KernelFormats.token(frac)}N",
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.total_bits),
+                                 f"--q-formats {KernelFormats.token(frac)}N",
                                  f"word of {q}: 1 + N fraction bits (block floating point: the shared exponent "
                                  "keeps the range)"))
         else:

@@ -46,7 +46,7 @@ def test_every_word_parses_back_and_none_is_wider_than_its_container() -> None:
 
 
 def test_a_narrower_word_is_fewer_integer_bits_and_saturates_at_its_range() -> None:
-    """``F`` with ``W`` bits: ``±(2^(W-1) - 1) / 2^frac`` (unsigned ``(2^W - 1) / 2^frac``)."""
+    """``F`` with ``W`` bits: ``(2^(W-1) - 1) / 2^frac`` and ``-2^(W-1) / 2^frac`` (unsigned ``(2^W - 1) / 2^frac``)."""
     k = KernelFormats.parse("wacc12-wstep13-wgrav24")
     assert k.acc_q.max_value == pytest.approx((2 ** 11 - 1) / 2 ** 13) and k.acc_q.min_raw == -(2 ** 11)
     assert k.q("step_frac_bits").max_value == pytest.approx((2 ** 13 - 1) / 2 ** 14)
