@@ -112,6 +112,12 @@ def test_smallest_q_formats_is_the_last_width_of_an_unbroken_run_within_toleranc
     assert got["lowpass_frac_bits"]["smallest_frac_bits"] == 16
     assert smallest_q_formats([_summary_row(arith_step_mm=2.0), _summary_row(q_formats="acc10")])[0][
         "smallest_frac_bits"] is None                                               # the shipped set itself fails
+    # a narrower word (alone, or beside fewer fraction bits) is no fraction-bits width: it answers nothing, and
+    # is not taken for the shipped set
+    words = [_summary_row(), _summary_row(q_formats="acc10"), _summary_row(q_formats="wacc12", arith_step_mm=9.0),
+             _summary_row(q_formats="acc9-wacc14", arith_step_mm=9.0)]
+    got = smallest_q_formats(words)
+    assert [(r["variable"], r["swept_frac_bits"], r["smallest_frac_bits"]) for r in got] == [("acc_frac_bits", "13/10", 10)]
 
 
 def _width_row(bits: int, **kw) -> dict:
