@@ -117,7 +117,8 @@ def test_smallest_q_formats_is_the_last_width_of_an_unbroken_run_within_toleranc
     words = [_summary_row(), _summary_row(q_formats="acc10"), _summary_row(q_formats="wacc12", arith_step_mm=9.0),
              _summary_row(q_formats="acc9-wacc14", arith_step_mm=9.0)]
     got = smallest_q_formats(words)
-    assert [(r["variable"], r["swept_frac_bits"], r["smallest_frac_bits"]) for r in got] == [("acc_frac_bits", "13/10", 10)]
+    assert [(r["variable"], r["swept_frac_bits"], r["smallest_frac_bits"]) for r in got] == [
+        ("acc_frac_bits", "13/10", 10)]
 
 
 def _width_row(bits: int, **kw) -> dict:
