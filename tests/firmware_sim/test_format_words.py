@@ -88,6 +88,9 @@ def test_configuration_words_saturate_the_configured_values_in_the_shipped_kerne
     assert alg.compiled_by != "variant" and v[kernel.CV_K1] == 2 ** 15 - 1 and v[kernel.CV_K2] == sc.raw["k_m2_q15"]
     assert v[kernel.CV_TWO_LEG] == 2 ** 12 - 1                   # 2 l: the saturated leg's bits, one fraction bit fewer
     assert v[kernel.CV_FOOT] == 2 ** 12 >> 1                     # the saturated foot in UQ2.14, rounded half up
+    # the leg stored with 13 fraction bits: 0.9 m = 29491 / 2^15 -> 7373 / 2^13, 2 l = 7373 << 2 in UQ2.14
+    coarse = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=sc, formats=KernelFormats.parse("leg13"))
+    assert sc.raw["leg_length_q15"] == 29491 and coarse.config.cfg_v[kernel.CV_TWO_LEG] == 7373 << 2
 
 
 def test_a_narrower_state_word_saves_its_bytes_in_the_ram_budget() -> None:
@@ -150,3 +153,24 @@ def test_words_holding_the_observed_range_change_nothing_and_a_narrower_one_clip
     assert report.row("h (M1)").saturations == 0
     assert report.row("h (M2), h1 (M3)").saturations == alg.saturations == int(beyond.sum())
     assert report.row("h (M2), h1 (M3)").format == str(words.of(fm.EXCURSION2_Q))
+
+
+def test_fewer_pendulum_argument_bits_cost_what_the_square_roots_floor_says(walk) -> None:
+    """``2 l h - h^2`` with 20 fraction bits (M1 and M2/M3, shipped 30 and 32): its square root keeps 10, floored,
+    so M1's and M2's lengths ``2 sqrt(2 l h - h^2)`` fall below the exact value of the records' own h by less than
+    ``2 x 2^-10`` m (plus the argument's rounding), where the shipped ones are within ``2 x 2^-15`` m; the
+    excursions are the shipped ones."""
+    setup, codes, ref, _ = walk
+    alg = OnlineStepAlgorithm(**setup, formats=KernelFormats.parse("parg20-pargc20"))
+    got = alg.run(codes)
+    np.testing.assert_array_equal(got.extras, ref.extras)
+    two_l = alg.config.cfg_v[kernel.CV_TWO_LEG] / 2 ** fm.F_TWO_LEN
+    for col, f_h in ((0, fm.F_EXC), (1, fm.F_EXC2)):
+        h = ref.extras[:, col] / 2 ** f_h
+        ok = (ref.duration > 0) & (h > 0) & (h < two_l)
+        exact = 2 * np.sqrt(two_l * h[ok] - h[ok] ** 2)
+        shipped, coarse = (r.lengths[ok, col] / 2 ** fm.F_STEP for r in (ref, got))
+        assert np.all(np.abs(shipped - exact) < 2 * 2 ** -15 + 2 ** -14), col
+        below = exact - coarse
+        assert np.all(below > -2 ** -14) and np.all(below < 2 * 2 ** -10 + 2 ** -14), (col, below.min(), below.max())
+        assert below.mean() > 2 ** -11                     # the floor's bias: about half the root's lsb, doubled
