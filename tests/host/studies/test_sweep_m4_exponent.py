@@ -53,11 +53,14 @@ def test_m4_differs_and_the_other_estimators_do_not(swept, mode) -> None:
         assert {c: rows[0.25][c] for c in results} == {c: rows[0.5][c] for c in results}, est
 
 
-def test_m4_fitted_with_its_exponent_keeps_the_calibrated_scale(swept) -> None:
-    """Each variant's K is fitted under its own exponent: both M4s stay near the real distance (one K per task,
-    fitted on the calibration sections), they are not one estimator rescaled."""
+def test_the_logger_computes_m4_with_the_exponent_its_k_was_fitted_with(swept) -> None:
+    """Each variant's K is fitted under its own exponent on the offline chain and the logger applies it with the
+    exponent its step configuration stores: the on-line fixed-point M4 follows the offline one within the
+    arithmetic share (a K for p = 1/2 applied with 1/4 would be off by range^-1/4, about 0.56 at 10 m/s^2)."""
     for p, r in _rows(swept, "M4").items():
         assert abs(float(r["median_offline"]) - 1.0) < 0.1, p
+        assert abs(float(r["median_online_fixed"]) - float(r["median_offline"])) < 0.02, p
+        assert float(r["arith_step_mm"]) < 1.0, p
 
 
 def test_the_figure_of_the_dimension_is_drawn(swept) -> None:
