@@ -132,7 +132,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="results folder (created; re-running with the same folder resumes)")
     parser.add_argument("--spec", metavar="FILE", help="grid spec, .json or .toml (keys: adc_bits, sampling_rate_hz, "
-                        "noise_density_g_rthz, q_formats, rounding, misalignment_deg, m4_exponent, population, the converter/sensor keys of "
+                        "noise_density_g_rthz, q_formats, rounding, misalignment_deg, m4_exponent, population, "
+                        "the converter/sensor keys of "
                         "--list-dimensions, subjects, seeds, estimators, protocol); "
                         "the options below override it")
     grid = parser.add_argument_group("grid (default: 8,10,12 bits x 25,50,100 Hz, the sensor's noise, 4 subjects, seed 0)")
@@ -210,7 +211,8 @@ def run(args: argparse.Namespace) -> int:
         f"{len(grid.misalignment_deg)} misalignment(s) x {grid.subjects} subject(s) x "
         f"{len(grid.sampling_rate_hz)} rate(s) x {len(grid.noise_density_g_rthz)} noise level(s) x "
         f"{len(grid.effect_sets())} converter/sensor setting(s) x "
-        f"{len(grid.m4_exponent)} M4 exponent(s) x {len(grid.rounding)} rounding(s) x {len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC "
+        f"{len(grid.m4_exponent)} M4 exponent(s) x {len(grid.rounding)} rounding(s) x "
+        f"{len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC "
         f"width(s)), {n_done} already in "
         f"{store.tasks_folder}")
     t = time.perf_counter()

@@ -869,10 +869,12 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
              "mm: per-step median |offline - ideal| / |online-fixed - online-float|, each with the quantisation "
              "theory's prediction beside it (theory: q^2/12 carried through the estimator); Q: fixed-point formats "
-             "(/rounding when not the shipped), tilt: extra misalignment, deg; M4 p: M4's exponent; conv/sensor: the converter's and "
+             "(/rounding when not the shipped), tilt: extra misalignment, deg; M4 p: M4's exponent; conv/sensor: the "
+             "converter's and "
              "sensor's effects that are on; RAM B, cycles, load: the configuration's cost in gaitlog budget's model "
              "(RAM of 368 bytes, the algorithm's mean cycles per sample, CPU load with the logging)",
-             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<{qw}}{'tilt':>5}{'M4 p':>6} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}"
+             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<{qw}}{'tilt':>5}{'M4 p':>6} {'pop':<7}"
+             f"{'conv/sensor':<{width}}{'est':<4}"
              f"{'subj':>5}{'n':>6}{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}"
              f"{'ADC mm':>8}{'theory':>8}{'arith mm':>9}{'theory':>8}{'arith max':>10}{'RAM B':>6}{'cycles':>8}"
              f"{'load':>6}"]
@@ -901,7 +903,8 @@ def _where(r: dict) -> str:
     rounding = r.get("rounding", "shipped")
     p = r.get("m4_exponent", M4_EXPONENT)
     return (_held(r) + (f", {effects}" if effects != "-" else "")
-            + (f", rounding {rounding}" if rounding != "shipped" else "") + (f", M4 p {p:g}" if p != M4_EXPONENT else ""))
+            + (f", rounding {rounding}" if rounding != "shipped" else "")
+            + (f", M4 p {p:g}" if p != M4_EXPONENT else ""))
 
 
 def format_smallest_bits(rows: list[dict]) -> str:
