@@ -332,15 +332,19 @@ class RamBudget:
 
 
 def ram_budget(sampling_rate_hz: float, *, events: EventParameters | None = None,
-               online: OnlineParameters | None = None, online_estimator: bool = True) -> RamBudget:
+               online: OnlineParameters | None = None, online_estimator: bool = True,
+               formats: object = None) -> RamBudget:
     """The RAM budget at ``sampling_rate_hz`` (the delay line grows with the rate); without the on-line
-    estimator only the firmware's own variables."""
+    estimator only the firmware's own variables. ``formats`` (a
+    :class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`; default the shipped ones) sizes the
+    algorithm's state variables in their words' whole bytes (:data:`~gaitlog.firmware_sim.algorithms.state.WORD_OF`;
+    its temporaries keep their declared words)."""
     if not online_estimator:
         return RamBudget(float(sampling_rate_hz), (), FIRMWARE_RAM)
     c = SampleCounts.at(events or EventParameters(), online or OnlineParameters(), sampling_rate_hz)
     line, med = 2 * c.r3 + 1, c.median_steps
     persistent = [RamItem(f"algorithm: {v.name}", v.bytes, f"implemented: {v.note}")
-                  for v in variables(line_length=line, median_steps=med)]
+                  for v in variables(line_length=line, median_steps=med, formats=formats)]
     temps = temporaries_bytes(median_steps=med)
     chain, f = [], "process"
     while CALLS[f]:
@@ -349,7 +353,7 @@ def ram_budget(sampling_rate_hz: float, *, events: EventParameters | None = None
     algorithm = tuple(persistent) + (RamItem(
         "algorithm: temporaries", temps,
         "implemented: the largest chain of the kernel's declared frames, " + " > ".join(chain)),)
-    assert sum(i.bytes for i in persistent) == persistent_bytes(line_length=line, median_steps=med)
+    assert sum(i.bytes for i in persistent) == persistent_bytes(line_length=line, median_steps=med, formats=formats)
     return RamBudget(float(sampling_rate_hz), algorithm, FIRMWARE_RAM)
 
 

@@ -66,6 +66,7 @@ from gaitlog.firmware_sim.algorithms import arithmetic as ar
 from gaitlog.firmware_sim.algorithms import formats as fm
 from gaitlog.firmware_sim.algorithms import kernel
 from gaitlog.firmware_sim.algorithms.calibration import CalibrationQ
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm, OnlineSteps
 from gaitlog.firmware_sim.algorithms.probe import calibrated_axes
 from gaitlog.firmware_sim.algorithms.state import AMP, G1, G2, MN, MX, PEND_Y, RAW_Y
@@ -313,10 +314,18 @@ class RangeReport:
 class RangeCollector:
     """Feeds recordings to the fixed-point algorithm and keeps each tracked variable's extremes.
 
-    Use :meth:`add` per recording (or walk), then :meth:`report`.
+    Use :meth:`add` per recording (or walk), then :meth:`report`. ``words`` (a format set that differs from the
+    shipped one in words only: :class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`) reports each
+    row against its format in those words: the shipped run's values beyond a narrower word are counted as
+    ``saturations`` (what that word would clip where the value is stored), the headroom is the narrower word's.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, words: KernelFormats | None = None) -> None:
+        if words is not None and any(getattr(words, n) != getattr(KernelFormats(), n)
+                                     for n in KernelFormats.field_names()):
+            raise ValueError(f"ranges take other words only, not other fraction bits (the run is the shipped "
+                             f"one's), got {words.label()}")
+        self._words = words
         self._lo: dict[str, int] = {}
         self._hi: dict[str, int] = {}
         self._n: dict[str, int] = {}
@@ -332,14 +341,17 @@ class RangeCollector:
         v = np.asarray(values, np.int64).reshape(-1)
         if v.size == 0:
             return
-        t = _BY_NAME[name]
-        lo_lim, hi_lim = _limits(_format(t.format_name, self._adc_bits))
+        q = self._format(_BY_NAME[name].format_name)
+        lo_lim, hi_lim = _limits(q)
         lo, hi = int(v.min()), int(v.max())
         self._lo[name] = min(lo, self._lo.get(name, lo))
         self._hi[name] = max(hi, self._hi.get(name, hi))
         self._n[name] = self._n.get(name, 0) + int(v.size)
-        at = v >= hi_lim
-        at |= (v <= lo_lim) if _format(t.format_name, self._adc_bits).signed else (v < 0)
+        if self._words is not None:             # what the narrower word clips
+            at = (v > hi_lim) | (v < lo_lim)
+        else:                                   # what sat at the shipped word's limit
+            at = v >= hi_lim
+            at |= (v <= lo_lim) if q.signed else (v < 0)
         self._sat[name] = self._sat.get(name, 0) + int(np.count_nonzero(at))
 
     def add(self, algorithm: OnlineStepAlgorithm, codes: np.ndarray, *, segments: Sequence[tuple[int, int]] = (),
@@ -455,8 +467,15 @@ class RangeCollector:
         self._see("K4 g0^p", v[[kernel.CV_K4]])
         self._see("K1 fs, K2 (M5)", v[[kernel.CV_K1FS, kernel.CV_K2M5]])
 
+    def _format(self, format_name: str) -> QFormat:
+        """A row's format: the shipped one, or in :attr:`words`' word."""
+        q = _format(format_name, self._adc_bits)
+        if self._words is None:
+            return q
+        return self._words.code_q(self._adc_bits) if format_name == "CENTRED_Q" else self._words.of(q)
+
     def _row(self, t: Tracked, margin_bits: int) -> VariableRange:
-        q = _format(t.format_name, self._adc_bits)
+        q = self._format(t.format_name)
         common = dict(variable=t.name, format_name=t.format_name, format=str(q), how=t.how, unit=t.unit,
                       frac_bits=q.frac_bits, signed=q.signed, format_bits=q.total_bits, word_bits=q.word_bits,
                       n_values=self._n.get(t.name, 0), saturations=self._sat.get(t.name, 0))

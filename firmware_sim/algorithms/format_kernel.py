@@ -44,13 +44,19 @@ from gaitlog.firmware_sim.algorithms.formats import (
     K4_Q,
     K_Q,
     KERNEL_Q,
+    LENGTH_Q,
     LOWPASS_Q,
     M5_Q,
     MANTISSA_Q,
+    PENDULUM_ARG2_Q,
+    PENDULUM_ARG_Q,
     POSITION2_Q,
     POSITION_Q,
     ROOT4_Q,
     STEP_Q,
+    TWO_LENGTH_Q,
+    VELOCITY_Q,
+    centred_q,
     word,
 )
 from gaitlog.firmware_sim.compiled import load_numba
@@ -69,15 +75,49 @@ _SHIPPED = {"acc_frac_bits": ACC_Q, "gravity_frac_bits": GRAVITY_Q, "lowpass_fra
             "position2_frac_bits": POSITION2_Q, "acc2_frac_bits": ACC2_Q, "fir_frac_bits": FIR_SUM_Q,
             "kernel_frac_bits": KERNEL_Q, "excursion_frac_bits": EXCURSION_Q, "excursion2_frac_bits": EXCURSION2_Q,
             "root_frac_bits": ROOT4_Q, "step_frac_bits": STEP_Q, "k_frac_bits": K_Q, "k4_frac_bits": K4_Q,
-            "m5_frac_bits": M5_Q, "mantissa_frac_bits": MANTISSA_Q}
+            "m5_frac_bits": M5_Q, "mantissa_frac_bits": MANTISSA_Q, "leg_frac_bits": LENGTH_Q,
+            "two_leg_frac_bits": TWO_LENGTH_Q, "pendulum_arg_frac_bits": PENDULUM_ARG_Q,
+            "pendulum_arg2_frac_bits": PENDULUM_ARG2_Q}
 _SHORT = {"acc_frac_bits": "acc", "gravity_frac_bits": "grav", "lowpass_frac_bits": "lp",
           "position2_frac_bits": "m2pos", "acc2_frac_bits": "sq", "fir_frac_bits": "fir", "kernel_frac_bits": "kern",
           "excursion_frac_bits": "exc", "excursion2_frac_bits": "excc", "root_frac_bits": "root",
           "step_frac_bits": "step", "k_frac_bits": "k", "k4_frac_bits": "kw", "m5_frac_bits": "cad",
-          "mantissa_frac_bits": "mant", "lowpass_int_bits": "lpint"}
+          "mantissa_frac_bits": "mant", "leg_frac_bits": "leg", "two_leg_frac_bits": "twoleg",
+          "pendulum_arg_frac_bits": "parg", "pendulum_arg2_frac_bits": "pargc", "lowpass_int_bits": "lpint"}
 _CONSTANT = {"acc2_frac_bits": "F_ACC2", "fir_frac_bits": "F_FIR", "kernel_frac_bits": "F_KERNEL",
              "excursion_frac_bits": "F_EXC", "excursion2_frac_bits": "F_EXC2", "root_frac_bits": "F_ROOT",
-             "step_frac_bits": "F_STEP", "k_frac_bits": "F_K", "k4_frac_bits": "F_K4", "m5_frac_bits": "F_M5"}
+             "step_frac_bits": "F_STEP", "k_frac_bits": "F_K", "k4_frac_bits": "F_K4", "m5_frac_bits": "F_M5",
+             "two_leg_frac_bits": "F_TWO_LEN"}
+#: Each word field (``<name>_word_bits``: where the format's values saturate, sign included): its shipped format,
+#: the frac field whose bits its format has (None: a format without one), its kernel constant (None: the
+#: configuration's, saturated when the algorithm is configured) and its label token after ``w`` (None: the frac
+#: field's short name, ``wacc12``); the lowpass's word is ``lowpass_int_bits`` (``lpint``).
+_WORDS = {
+    "code_word_bits": (centred_q(10), None, "W_CODE", "code"),
+    "acc_word_bits": (ACC_Q, "acc_frac_bits", "W_ACC", None),
+    "gravity_word_bits": (GRAVITY_Q, "gravity_frac_bits", "W_GRAV", None),
+    "acc2_word_bits": (ACC2_Q, "acc2_frac_bits", "W_ACC2", None),
+    "kernel_word_bits": (KERNEL_Q, "kernel_frac_bits", None, None),
+    "fir_word_bits": (FIR_SUM_Q, "fir_frac_bits", "W_FIR", None),
+    "velocity_word_bits": (VELOCITY_Q, "acc_frac_bits", "W_VEL", "vel"),
+    "position_word_bits": (POSITION_Q, "acc_frac_bits", "W_POS", "pos"),
+    "position2_word_bits": (POSITION2_Q, "position2_frac_bits", "W_POS2", None),
+    "excursion_word_bits": (EXCURSION_Q, "excursion_frac_bits", "W_EXC", None),
+    "excursion2_word_bits": (EXCURSION2_Q, "excursion2_frac_bits", "W_EXC2", None),
+    "leg_word_bits": (LENGTH_Q, "leg_frac_bits", None, None),
+    "two_leg_word_bits": (TWO_LENGTH_Q, "two_leg_frac_bits", None, None),
+    "pendulum_arg_word_bits": (PENDULUM_ARG_Q, "pendulum_arg_frac_bits", "W_PARG", None),
+    "pendulum_arg2_word_bits": (PENDULUM_ARG2_Q, "pendulum_arg2_frac_bits", "W_PARG2", None),
+    "step_word_bits": (STEP_Q, "step_frac_bits", "W_STEP", None),
+    "k_word_bits": (K_Q, "k_frac_bits", None, None),
+    "k4_word_bits": (K4_Q, "k4_frac_bits", None, None),
+    "root_word_bits": (ROOT4_Q, "root_frac_bits", "W_ROOT", None),
+    "m5_word_bits": (M5_Q, "m5_frac_bits", "W_M5", None),
+}
+_SHORT.update({name: "w" + (token or _SHORT[frac]) for name, (_, frac, _, token) in _WORDS.items()})
+#: Fields that only change the configuration the kernel is given (not compiled in): the shipped kernel runs them.
+_CONFIGURATION_ONLY = ("mantissa_frac_bits", "leg_frac_bits", "kernel_word_bits", "leg_word_bits",
+                       "two_leg_word_bits", "k_word_bits", "k4_word_bits")
 #: The rounding fields (operation classes of :data:`gaitlog.firmware_sim.algorithms.arithmetic.ROUNDING_CLASSES`).
 _ROUNDING = {"mul_rounding": "mul", "shift_rounding": "shift", "div_rounding": "div"}
 #: The firmware's rounding mode of every class.
@@ -86,13 +126,23 @@ SHIPPED_ROUNDING = "half-up"
 
 @dataclass(frozen=True)
 class KernelFormats:
-    """Fraction bits of the main state variables, the one set of formats a kernel is compiled with.
+    """Fraction bits and words of the Q formats, the one set of formats a kernel is compiled with.
 
     The default is the firmware's (:mod:`gaitlog.firmware_sim.algorithms.formats`). Another set gives a variable fewer
     fraction bits (a coarser lsb) in the same word, so its range is never smaller: the question a sweep asks is
     how coarse a variable may be; the word it then needs is its integer bits + these + sign. The kernel text is
-    the same; :func:`compile_kernel` compiles it with :meth:`constants` in place of the shipped ``F_*`` (and
-    the lowpass word, which saturates at the format's range).
+    the same; :func:`compile_kernel` compiles it with :meth:`constants` in place of the shipped ``F_*`` and
+    ``W_*``.
+
+    **Words** (``<format>_word_bits``, label ``w`` + the format's name: ``wacc12``, ``wgrav24``...): the bits,
+    sign included, where a format's values saturate, at most its shipped container (16, 24 or 32 bits). A narrower
+    word is fewer integer bits: every store of a value of that format (each primitive's result word) saturates at
+    ``(2^(W-1) - 1) / 2^frac`` and ``-2^(W-1) / 2^frac`` (signed, two's complement; unsigned at ``(2^W - 1) / 2^frac``
+    and 0), counted, as the shipped code saturates every result (the PIC's saturating routines, never a wrap).
+    Formats of configuration only (the FIR weights, leg and foot, K, K4: ``kernel``, ``leg``, ``twoleg``, ``k``,
+    ``kw``) saturate when the algorithm is configured; the shipped kernel runs them. The lowpass's word is ``lowpass_int_bits`` (``lpint``: it keeps
+    its integer bits, not its word, when its fraction bits shrink); the mantissas' is their fraction bits (block
+    floating point).
 
     Attributes
     ----------
@@ -122,7 +172,31 @@ class KernelFormats:
     k4_frac_bits: int = K4_Q.frac_bits
     m5_frac_bits: int = M5_Q.frac_bits
     mantissa_frac_bits: int = MANTISSA_Q.frac_bits
+    leg_frac_bits: int = LENGTH_Q.frac_bits
+    two_leg_frac_bits: int = TWO_LENGTH_Q.frac_bits
+    pendulum_arg_frac_bits: int = PENDULUM_ARG_Q.frac_bits
+    pendulum_arg2_frac_bits: int = PENDULUM_ARG2_Q.frac_bits
     lowpass_int_bits: int = LOWPASS_Q.int_bits
+    code_word_bits: int = centred_q(10).total_bits
+    acc_word_bits: int = ACC_Q.total_bits
+    gravity_word_bits: int = GRAVITY_Q.total_bits
+    acc2_word_bits: int = ACC2_Q.total_bits
+    kernel_word_bits: int = KERNEL_Q.total_bits
+    fir_word_bits: int = FIR_SUM_Q.total_bits
+    velocity_word_bits: int = VELOCITY_Q.total_bits
+    position_word_bits: int = POSITION_Q.total_bits
+    position2_word_bits: int = POSITION2_Q.total_bits
+    excursion_word_bits: int = EXCURSION_Q.total_bits
+    excursion2_word_bits: int = EXCURSION2_Q.total_bits
+    leg_word_bits: int = LENGTH_Q.total_bits
+    two_leg_word_bits: int = TWO_LENGTH_Q.total_bits
+    pendulum_arg_word_bits: int = PENDULUM_ARG_Q.total_bits
+    pendulum_arg2_word_bits: int = PENDULUM_ARG2_Q.total_bits
+    step_word_bits: int = STEP_Q.total_bits
+    k_word_bits: int = K_Q.total_bits
+    k4_word_bits: int = K4_Q.total_bits
+    root_word_bits: int = ROOT4_Q.total_bits
+    m5_word_bits: int = M5_Q.total_bits
     mul_rounding: str = SHIPPED_ROUNDING
     shift_rounding: str = SHIPPED_ROUNDING
     div_rounding: str = SHIPPED_ROUNDING
@@ -137,6 +211,11 @@ class KernelFormats:
         if isinstance(w, bool) or not isinstance(w, int) or not 0 <= w <= top:
             raise ValueError(f"lowpass_int_bits must be an integer 0 .. {top} (sign + integer + fraction bits within "
                              f"the {LOWPASS_Q.word_bits}-bit RAM word), got {w!r}")
+        for name, (q, _, _, _) in _WORDS.items():
+            w = getattr(self, name)
+            if isinstance(w, bool) or not isinstance(w, int) or not 2 <= w <= q.word_bits:
+                raise ValueError(f"{name} ({_SHORT[name]}) must be an integer 2 .. {q.word_bits} bits (at most "
+                                 f"{q}'s {q.word_bits}-bit container), got {w!r}")
         for name in _ROUNDING:
             if getattr(self, name) not in ROUNDING_MODES:
                 raise ValueError(f"{name} must be one of {', '.join(ROUNDING_MODES)}, got {getattr(self, name)!r}")
@@ -148,8 +227,8 @@ class KernelFormats:
 
     @classmethod
     def parse(cls, label: str, rounding: str = "shipped") -> KernelFormats:
-        """The formats of a :meth:`label` (``"shipped"``, or ``acc10-lp12``: the fields named, in any order,
-        each with its fraction bits, ``lpw17`` the lowpass word's bits; the others shipped) and the rounding of
+        """The formats of a :meth:`label` (``"shipped"``, or ``acc10-lp12-wgrav24``: the fields named, in any
+        order, each with its bits, ``lpint1`` the lowpass's integer bits; the others shipped) and the rounding of
         a :meth:`rounding_label` (``"shipped"``, a mode for every class, or ``mul:truncate+div:convergent``).
         Raises ValueError naming what is wrong."""
         modes = cls.parse_rounding(rounding)
@@ -171,6 +250,26 @@ class KernelFormats:
             return cls(**kw, **modes)
         except ValueError as err:
             raise ValueError(f"Q formats {label!r}: {err}") from None
+
+    @staticmethod
+    def sweep_fields(q: QFormat) -> tuple[str | None, str | None]:
+        """The fields that sweep shipped format ``q`` (one of ``formats``' objects): its fraction bits' and its
+        word's (``lowpass_int_bits`` for ``LOWPASS_Q``); None where it has none (``MANTISSA_Q``'s word: the
+        shared exponent keeps the range, fewer bits are fewer fraction bits)."""
+        frac = "acc_frac_bits" if q is VELOCITY_Q or q is POSITION_Q else next(
+            (n for n, s in _SHIPPED.items() if s is q), None)
+        word = "lowpass_int_bits" if q is LOWPASS_Q else next((n for n, (s, *_) in _WORDS.items() if s is q), None)
+        return frac, word
+
+    @staticmethod
+    def token(field_name: str) -> str:
+        """A field's name in a :meth:`label` (``acc``, ``wacc`` ...: its bits follow)."""
+        return _SHORT[field_name]
+
+    @staticmethod
+    def configuration_only(field_name: str) -> bool:
+        """True for a field the kernel is not compiled with (the configuration's values are stored in it)."""
+        return field_name in _CONFIGURATION_ONLY
 
     @staticmethod
     def parse_rounding(label: str) -> dict[str, str]:
@@ -200,6 +299,8 @@ class KernelFormats:
                  if getattr(self, n) != _SHIPPED[n].frac_bits]
         if self.lowpass_int_bits != LOWPASS_Q.int_bits:
             parts.append(f"{_SHORT['lowpass_int_bits']}{self.lowpass_int_bits}")
+        parts += [f"{_SHORT[n]}{getattr(self, n)}" for n, (q, _, _, _) in _WORDS.items()
+                  if getattr(self, n) != q.total_bits]
         return "-".join(parts) if parts else "shipped"
 
     def rounding_label(self) -> str:
@@ -219,19 +320,32 @@ class KernelFormats:
     @property
     def compiled_shipped(self) -> bool:
         """True when the kernel's compile-time constants are the firmware's (the kernel built ahead of time runs
-        them; the calibration's mantissa bits are configuration)."""
-        return replace(self, mantissa_frac_bits=MANTISSA_Q.frac_bits).shipped
+        them; the calibration's mantissa bits, the leg's fraction bits and the configuration's words only change
+        the configuration)."""
+        return replace(self, **{n: getattr(KernelFormats(), n) for n in _CONFIGURATION_ONLY}).shipped
 
     def rounding_constants(self) -> dict[str, int]:
         """The arithmetic's rounding constants these modes replace (``ROUND_MUL``...)."""
         return {arithmetic.ROUNDING_CLASSES[c]: ROUNDING_MODES[getattr(self, n)] for n, c in _ROUNDING.items()}
 
     def q(self, name: str) -> QFormat:
-        """The format of field ``name`` (e.g. ``"acc_frac_bits"``): the shipped one with these fraction bits
-        (same word)."""
-        base = _SHIPPED[name]
-        return QFormat(base.int_bits + base.frac_bits - getattr(self, name), getattr(self, name),
-                       signed=base.signed, word_bits=base.word_bits)
+        """The format of field ``name`` (e.g. ``"acc_frac_bits"``): :meth:`of` its shipped format."""
+        return self.of(_SHIPPED[name])
+
+    def of(self, shipped: QFormat) -> QFormat:
+        """Shipped format ``shipped`` (one of ``formats``' objects) in these formats: its fraction bits, saturating
+        at its word (sign included; the lowpass's: sign + ``lowpass_int_bits`` + fraction bits), in its shipped
+        container."""
+        frac, word = self.sweep_fields(shipped)
+        f = getattr(self, frac) if frac is not None else shipped.frac_bits
+        bits = (self.lowpass_word_bits if word == "lowpass_int_bits" else getattr(self, word) if word is not None
+                else shipped.total_bits)
+        return QFormat(bits - int(shipped.signed) - f, f, signed=shipped.signed, word_bits=shipped.word_bits)
+
+    def code_q(self, adc_bits: int) -> QFormat:
+        """The centred codes' and the calibration offsets' format (``centred_q``) in ``code_word_bits``."""
+        base = centred_q(adc_bits)
+        return QFormat(self.code_word_bits - 1 - base.frac_bits, base.frac_bits, word_bits=base.word_bits)
 
     @property
     def acc_q(self) -> QFormat:
@@ -240,9 +354,8 @@ class KernelFormats:
 
     @property
     def position_q(self) -> QFormat:
-        """The position accumulator: a_v's fraction bits in ``POSITION_Q``'s word."""
-        return QFormat(POSITION_Q.int_bits + POSITION_Q.frac_bits - self.acc_frac_bits, self.acc_frac_bits,
-                       word_bits=POSITION_Q.word_bits)
+        """The position accumulator: a_v's fraction bits in ``position_word_bits``."""
+        return self.of(POSITION_Q)
 
     @property
     def position2_q(self) -> QFormat:
@@ -273,7 +386,12 @@ class KernelFormats:
         return {"F_ACC": self.acc_frac_bits, "F_POS": self.acc_frac_bits, "F_GRAV": self.gravity_frac_bits,
                 "F_LP": self.lowpass_frac_bits, "W_LP": self.lowpass_word_bits,
                 "F_POS2": self.position2_frac_bits,
-                **{c: getattr(self, n) for n, c in _CONSTANT.items()}}
+                **{c: getattr(self, n) for n, c in _CONSTANT.items()},
+                # the pendulum's argument keeps at most the product's own bits (2 l's and h's)
+                "F_PARG": min(self.pendulum_arg_frac_bits, self.two_leg_frac_bits + self.excursion_frac_bits),
+                "F_PARG2": min(self.pendulum_arg2_frac_bits, self.two_leg_frac_bits + self.excursion2_frac_bits),
+                **{c: (getattr(self, n) if q.signed else -getattr(self, n))
+                   for n, (q, _, c, _) in _WORDS.items() if c is not None}}
 
 
 _VARIANTS: OrderedDict[KernelFormats, tuple[Callable, Callable, Callable]] = OrderedDict()

@@ -107,9 +107,28 @@ F_K = K_Q.frac_bits
 F_K4 = K4_Q.frac_bits
 F_ROOT = ROOT4_Q.frac_bits
 F_M5 = M5_Q.frac_bits
+F_PARG = PENDULUM_ARG_Q.frac_bits
+F_PARG2 = PENDULUM_ARG2_Q.frac_bits
+#: Words of operands that are no format's value (a 32-bit product sum of the calibration, a multiplier's 16-bit
+#: operand, twice a square root before it is rounded to a step length).
 W16, W32 = 16, 32
 U16, U32 = -16, -32
 #: The FIR outputs' word: Q2.16 saturates at +-4 g (19 bits), kept in 24-bit RAM words.
 W_LP = word(LOWPASS_Q)
-#: A signed word one bit wider than 32: the borrow of an unsigned 32-bit subtraction (``2lh - h^2 < 0``).
-W33 = 33
+#: Each format's word where its values saturate (a sweep narrows them:
+#: :class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`); the centred codes' is ``centred_q``'s.
+W_CODE = word(centred_q(10))
+W_ACC = word(ACC_Q)
+W_GRAV = word(GRAVITY_Q)
+W_ACC2 = word(ACC2_Q)
+W_FIR = word(FIR_SUM_Q)
+W_VEL = word(VELOCITY_Q)
+W_POS = word(POSITION_Q)
+W_POS2 = word(POSITION2_Q)
+W_EXC = word(EXCURSION_Q)
+W_EXC2 = word(EXCURSION2_Q)
+W_PARG = word(PENDULUM_ARG_Q)
+W_PARG2 = word(PENDULUM_ARG2_Q)
+W_STEP = word(STEP_Q)
+W_ROOT = word(ROOT4_Q)
+W_M5 = word(M5_Q)

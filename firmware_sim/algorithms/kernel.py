@@ -80,17 +80,31 @@ from gaitlog.firmware_sim.algorithms.formats import (
     F_KERNEL,
     F_LP,
     F_M5,
+    F_PARG,
+    F_PARG2,
     F_POS,
     F_POS2,
     F_ROOT,
     F_STEP,
     F_TWO_LEN,
     U16,
-    U32,
-    W16,
     W32,
-    W33,
+    W_ACC,
+    W_ACC2,
+    W_CODE,
+    W_EXC,
+    W_EXC2,
+    W_FIR,
+    W_GRAV,
     W_LP,
+    W_M5,
+    W_PARG,
+    W_PARG2,
+    W_POS,
+    W_POS2,
+    W_ROOT,
+    W_STEP,
+    W_VEL,
 )
 from gaitlog.firmware_sim.algorithms.parameters import minimum_distance
 from gaitlog.firmware_sim.algorithms.state import (
@@ -271,32 +285,34 @@ def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compile
     s_cost(cnt, OP_DEE, 2 * (r + 1))
     s_cost(cnt, OP_COPY, FIR_TAP_COPIES * (r + 1))
     s_cost(cnt, OP_CMP16, r + 1)
-    acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W32, cnt)
+    acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W_FIR, cnt)
     for tap in range(1, r + 1):
-        pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W16, cnt)
-        acc = ar.add(acc, ar.mul(cfg_v[w0 + tap], F_KERNEL, pair, F_ACC, F_FIR, W32, cnt), W32, cnt)
+        pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W_ACC, cnt)
+        acc = ar.add(acc, ar.mul(cfg_v[w0 + tap], F_KERNEL, pair, F_ACC, F_FIR, W_FIR, cnt), W_FIR, cnt)
     return ar.requant(acc, F_FIR, F_LP, W_LP, cnt)
 
 
 @njit(cache=True)
-def _excursion(span, f_pos, shift, f_h, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
-    """A position range (``f_pos`` fraction bits, unit 4 g T_s^2) in metres with ``f_h`` fraction bits (16-bit)."""
+def _excursion(span, f_pos, shift, f_h, w_h, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
+    """A position range (``f_pos`` fraction bits, unit 4 g T_s^2) in metres with ``f_h`` fraction bits in the
+    word ``w_h`` (unsigned 16-bit as shipped)."""
     s16 = ar.requant(span, f_pos, f_pos - shift, U16, cnt)
-    return ar.mul(s16, f_pos - shift, cfg_v[CV_UNIT], cfg_i[CI_UNIT_FRAC], f_h, U16, cnt)
+    return ar.mul(s16, f_pos - shift, cfg_v[CV_UNIT], cfg_i[CI_UNIT_FRAC], f_h, w_h, cnt)
 
 
 @njit(cache=True)
-def _pendulum(h, f_h, cfg_v, cnt):  # pragma: no cover - compiled
+def _pendulum(h, f_h, f_arg, w_arg, cfg_v, cnt):  # pragma: no cover - compiled
     """``2 sqrt(2 l h - h^2)`` (UQ2.14 m) of an excursion with ``f_h`` fraction bits, and whether the step is
     impossible (``h > 2 l``; Alvarez eq 1). ``2 l`` is UQ2.14, so ``2 l h`` has ``14 + f_h`` fraction bits in 32
-    bits and its square root ``(14 + f_h) / 2``."""
-    lh2 = ar.mul(cfg_v[CV_TWO_LEG], F_TWO_LEN, h, f_h, F_TWO_LEN + f_h, U32, cnt)
-    hh = ar.mul(h, f_h, h, f_h, F_TWO_LEN + f_h, U32, cnt)
-    x = ar.sub(lh2, hh, W33, cnt)
+    bits (as shipped: ``f_arg`` of them in the unsigned word ``w_arg``) and its square root ``f_arg / 2``; the
+    difference is kept one bit wider, signed (its borrow)."""
+    lh2 = ar.mul(cfg_v[CV_TWO_LEG], F_TWO_LEN, h, f_h, f_arg, w_arg, cnt)
+    hh = ar.mul(h, f_h, h, f_h, f_arg, w_arg, cnt)
+    x = ar.sub(lh2, hh, abs(w_arg) + 1, cnt)
     if x < 0:
         return x * 0, True
-    half = ar.sqrt(x, F_TWO_LEN + f_h, (F_TWO_LEN + f_h) // 2, False, cnt)
-    return ar.requant(ar.scale2(half, 1, W32, cnt), (F_TWO_LEN + f_h) // 2, F_STEP, U16, cnt), False
+    half = ar.sqrt(x, f_arg, f_arg // 2, False, cnt)
+    return ar.requant(ar.scale2(half, 1, W32, cnt), f_arg // 2, F_STEP, W_STEP, cnt), False
 
 
 @njit(cache=True)
@@ -404,19 +420,20 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     p_max = vel
     p_min = vel
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W32, cnt), W32, cnt)
-        pos = ar.add(pos, ar.add(v_new, vel, W32, cnt), W32, cnt)
+        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W_VEL, cnt), W_VEL, cnt)
+        pos = ar.add(pos, ar.add(v_new, vel, W_POS, cnt), W_POS, cnt)
         vel = v_new
         s_cost(cnt, OP_CMP32, 2)
         if pos > p_max:
             p_max = pos
         if pos < p_min:
             p_min = pos
-    c1 = ar.div(ar.neg(vel, W32, cnt), F_ACC, 2 * since(e, s), 0, F_POS2, W32, cnt)
-    c2 = ar.div(ar.add(ar.requant(pos, F_POS, F_POS2, W32, cnt),
-                       ar.scale2(ar.mul_count(c1, since(e, s) * since(e, s), W32, cnt), 1, W32, cnt), W32, cnt),
-                F_POS2, since(e, s), 0, F_POS2, W32, cnt)
-    return ar.sub(p_max, p_min, W32, cnt), c1, c2
+    c1 = ar.div(ar.neg(vel, W_VEL, cnt), F_ACC, 2 * since(e, s), 0, F_POS2, W_POS2, cnt)
+    c2 = ar.div(ar.add(ar.requant(pos, F_POS, F_POS2, W_POS2, cnt),
+                       ar.scale2(ar.mul_count(c1, since(e, s) * since(e, s), W_POS2, cnt), 1, W_POS2, cnt), W_POS2,
+                       cnt),
+                F_POS2, since(e, s), 0, F_POS2, W_POS2, cnt)
+    return ar.sub(p_max, p_min, W_POS, cnt), c1, c2
 
 
 @njit(cache=True)
@@ -432,15 +449,15 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     q_min = vel
     s_max = vel
     s_min = vel
-    ramp = ar.scale2(c1, 1, W32, cnt)
-    ramp_step = ar.scale2(c1, 2, W32, cnt)
+    ramp = ar.scale2(c1, 1, W_POS2, cnt)
+    ramp_step = ar.scale2(c1, 2, W_POS2, cnt)
     seen = False
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W32, cnt), W32, cnt)
-        dp = ar.requant(ar.add(v_new, vel, W32, cnt), F_POS, F_POS2, W32, cnt)
+        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W_VEL, cnt), W_VEL, cnt)
+        dp = ar.requant(ar.add(v_new, vel, W_POS, cnt), F_POS, F_POS2, W_POS2, cnt)
         vel = v_new
-        q = ar.add(q, ar.add(ar.sub(dp, c2, W32, cnt), ramp, W32, cnt), W32, cnt)
-        ramp = ar.add(ramp, ramp_step, W32, cnt)
+        q = ar.add(q, ar.add(ar.sub(dp, c2, W_POS2, cnt), ramp, W_POS2, cnt), W_POS2, cnt)
+        ramp = ar.add(ramp, ramp_step, W_POS2, cnt)
         s_cost(cnt, OP_CMP32, 2)
         if q > q_max:
             q_max = q
@@ -453,7 +470,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
             if not seen or q < s_min:
                 s_min = q
             seen = True
-    return ar.sub(q_max, q_min, W32, cnt), ar.sub(s_max, s_min, W32, cnt)
+    return ar.sub(q_max, q_min, W_POS2, cnt), ar.sub(s_max, s_min, W_POS2, cnt)
 
 
 @njit(cache=True)
@@ -505,48 +522,50 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
         s_cost(cnt, OP_DEE, 24)                  # K, leg, foot and the M5 constants from the data EEPROM
         # M1 (eq 1)
         span, c1, c2 = _pass1(s, e, cfg_i, scr, cnt)
-        out_v[k, O_H1] = _excursion(span, F_POS, cfg_i[CI_EXC_SHIFT1], F_EXC, cfg_i, cfg_v, cnt)
-        length, bad = _pendulum(out_v[k, O_H1], F_EXC, cfg_v, cnt)
+        out_v[k, O_H1] = _excursion(span, F_POS, cfg_i[CI_EXC_SHIFT1], F_EXC, W_EXC, cfg_i, cfg_v, cnt)
+        length, bad = _pendulum(out_v[k, O_H1], F_EXC, F_PARG, W_PARG, cfg_v, cnt)
         if bad:
             flags |= _IMPOSSIBLE
         else:
-            l1 = ar.mul(length, F_STEP, cfg_v[CV_K1], F_K, F_STEP, U16, cnt)
+            l1 = ar.mul(length, F_STEP, cfg_v[CV_K1], F_K, F_STEP, W_STEP, cnt)
         # M2 (eqs 2-3) and M3 (single support + foot length)
         span, span3 = _pass2(s, e, to if hs3 >= 0 else -1, hs3, c1, c2, cfg_i, scr, cnt)
-        out_v[k, O_H2] = _excursion(span, F_POS2, cfg_i[CI_EXC_SHIFT2], F_EXC2, cfg_i, cfg_v, cnt)
-        length, bad = _pendulum(out_v[k, O_H2], F_EXC2, cfg_v, cnt)
+        out_v[k, O_H2] = _excursion(span, F_POS2, cfg_i[CI_EXC_SHIFT2], F_EXC2, W_EXC2, cfg_i, cfg_v, cnt)
+        length, bad = _pendulum(out_v[k, O_H2], F_EXC2, F_PARG2, W_PARG2, cfg_v, cnt)
         if bad:
             flags |= _IMPOSSIBLE
         else:
-            l2 = ar.mul(length, F_STEP, cfg_v[CV_K2], F_K, F_STEP, U16, cnt)
+            l2 = ar.mul(length, F_STEP, cfg_v[CV_K2], F_K, F_STEP, W_STEP, cnt)
         if hs3 >= 0:
-            out_v[k, O_H3] = _excursion(span3, F_POS2, cfg_i[CI_EXC_SHIFT2], F_EXC2, cfg_i, cfg_v, cnt)
-            length, bad = _pendulum(out_v[k, O_H3], F_EXC2, cfg_v, cnt)
+            out_v[k, O_H3] = _excursion(span3, F_POS2, cfg_i[CI_EXC_SHIFT2], F_EXC2, W_EXC2, cfg_i, cfg_v,
+                                         cnt)
+            length, bad = _pendulum(out_v[k, O_H3], F_EXC2, F_PARG2, W_PARG2, cfg_v, cnt)
             if bad:
                 flags |= _IMPOSSIBLE
             else:
-                l3 = ar.add(length, cfg_v[CV_FOOT], U16, cnt)
+                l3 = ar.add(length, cfg_v[CV_FOOT], W_STEP, cnt)
         # M4 (eq 4): K (a_max - a_min)^p, p = the configuration's eighths / 8 (on-line algorithm version 4; the
         # step configuration's m4_exponent_eighths), the range in g and K g0^p the constant: the range's square
         # root, fourth and eighth roots (rounded to nearest, 15 fraction bits each; the first from the Q2.16
         # range), the constant (UQ2.14) multiplied by those the exponent's bits select
         out_v[k, O_RANGE] = _range(s, e, cfg_i, cfg_v, scr, cnt)
-        length = ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt)          # range^(1/2)
+        # (a root is stored in ROOT4_Q's word: a no-op at the shipped 16 bits, which every root fits)
+        length = ar.requant(ar.sqrt(out_v[k, O_RANGE], F_LP, F_ROOT, True, cnt), F_ROOT, F_ROOT, W_ROOT, cnt)
         if cfg_i[CI_M4_EIGHTHS] & 4:
-            l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, U16, cnt)
+            l4 = ar.mul(cfg_v[CV_K4], F_K4, length, F_ROOT, F_STEP, W_STEP, cnt)
         else:
-            l4 = ar.requant(cfg_v[CV_K4], F_K4, F_STEP, U16, cnt)
+            l4 = ar.requant(cfg_v[CV_K4], F_K4, F_STEP, W_STEP, cnt)
         if cfg_i[CI_M4_EIGHTHS] & 3:                                          # only the roots needed
-            length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)               # range^(1/4)
+            length = ar.requant(ar.sqrt(length, F_ROOT, F_ROOT, True, cnt), F_ROOT, F_ROOT, W_ROOT, cnt)  # ^(1/4)
             if cfg_i[CI_M4_EIGHTHS] & 2:
-                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
+                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, W_STEP, cnt)
             if cfg_i[CI_M4_EIGHTHS] & 1:
-                length = ar.sqrt(length, F_ROOT, F_ROOT, True, cnt)           # range^(1/8)
-                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, U16, cnt)
+                length = ar.requant(ar.sqrt(length, F_ROOT, F_ROOT, True, cnt), F_ROOT, F_ROOT, W_ROOT, cnt)  # ^(1/8)
+                l4 = ar.mul(l4, F_STEP, length, F_ROOT, F_STEP, W_STEP, cnt)
         # M5: K1 / T + K2 with K1 fs in m samples
-        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, since(e, s), 0, F_M5, W32, cnt), cfg_v[CV_K2M5], W32,
+        l5 = ar.requant(ar.add(ar.div(cfg_v[CV_K1FS], F_M5, since(e, s), 0, F_M5, W_M5, cnt), cfg_v[CV_K2M5], W_M5,
                                cnt),
-                        F_M5, F_STEP, U16, cnt)
+                        F_M5, F_STEP, W_STEP, cnt)
     if cnt[C_STICKY]:
         flags |= _SATURATED
         cnt[C_STICKY] = 0
@@ -622,7 +641,7 @@ def _calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt):  # pragma: no cover - comp
     acc = ar.mul(cfg_v[CV_M + 3 * row], mf, c0, cf, mf + cf, W32, cnt)
     acc = ar.add(acc, ar.mul(cfg_v[CV_M + 3 * row + 1], mf, c1, cf, mf + cf, W32, cnt), W32, cnt)
     acc = ar.add(acc, ar.mul(cfg_v[CV_M + 3 * row + 2], mf, c2, cf, mf + cf, W32, cnt), W32, cnt)
-    return ar.requant(acc, mf + cf, F_ACC, W16, cnt)
+    return ar.requant(acc, mf + cf, F_ACC, W_ACC, cnt)
 
 
 @njit(cache=True)
@@ -638,9 +657,9 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
         st_i[FLAGS] |= F_OLD
     young = not (st_i[FLAGS] & F_OLD)
     # 1. calibration: f = M (codes - offset)
-    c0 = ar.sub(ar.requant(cx, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 0], W16, cnt)
-    c1 = ar.sub(ar.requant(cy, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 1], W16, cnt)
-    c2 = ar.sub(ar.requant(cz, 0, cfg_i[CI_CODE_FRAC], W16, cnt), cfg_v[CV_OFF + 2], W16, cnt)
+    c0 = ar.sub(ar.requant(cx, 0, cfg_i[CI_CODE_FRAC], W_CODE, cnt), cfg_v[CV_OFF + 0], W_CODE, cnt)
+    c1 = ar.sub(ar.requant(cy, 0, cfg_i[CI_CODE_FRAC], W_CODE, cnt), cfg_v[CV_OFF + 1], W_CODE, cnt)
+    c2 = ar.sub(ar.requant(cz, 0, cfg_i[CI_CODE_FRAC], W_CODE, cnt), cfg_v[CV_OFF + 2], W_CODE, cnt)
     fx = _calibrated(cfg_v, 0, c0, c1, c2, cfg_i[CI_MANT_FRAC], cfg_i[CI_CODE_FRAC], cnt)
     fy = _calibrated(cfg_v, 1, c0, c1, c2, cfg_i[CI_MANT_FRAC], cfg_i[CI_CODE_FRAC], cnt)
     fz = _calibrated(cfg_v, 2, c0, c1, c2, cfg_i[CI_MANT_FRAC], cfg_i[CI_CODE_FRAC], cnt)
@@ -651,25 +670,25 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
         warm += 1
     for axis in range(3):
         st_v[G1 + axis] = ar.add(st_v[G1 + axis], ar.scale2(ar.sub(ar.requant(
-            fx if axis == 0 else (fy if axis == 1 else fz), F_ACC, F_GRAV, W32, cnt), st_v[G1 + axis], W32, cnt),
-            -warm, W32, cnt), W32, cnt)
-        st_v[G2 + axis] = ar.add(st_v[G2 + axis], ar.scale2(ar.sub(st_v[G1 + axis], st_v[G2 + axis], W32, cnt),
-                                                            -warm, W32, cnt), W32, cnt)
+            fx if axis == 0 else (fy if axis == 1 else fz), F_ACC, F_GRAV, W_GRAV, cnt), st_v[G1 + axis], W_GRAV,
+            cnt), -warm, W_GRAV, cnt), W_GRAV, cnt)
+        st_v[G2 + axis] = ar.add(st_v[G2 + axis], ar.scale2(ar.sub(st_v[G1 + axis], st_v[G2 + axis], W_GRAV, cnt),
+                                                            -warm, W_GRAV, cnt), W_GRAV, cnt)
     # 3. vertical acceleration a_v = (f.g - |g|^2) / |g|: the numerator exact, |g| rounded to nearest
-    gx = ar.requant(st_v[G2 + 0], F_GRAV, F_ACC, W16, cnt)
-    gy = ar.requant(st_v[G2 + 1], F_GRAV, F_ACC, W16, cnt)
-    gz = ar.requant(st_v[G2 + 2], F_GRAV, F_ACC, W16, cnt)
-    norm2 = ar.add(ar.add(ar.mul(gx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
-                          ar.mul(gy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
-                   ar.mul(gz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt)
+    gx = ar.requant(st_v[G2 + 0], F_GRAV, F_ACC, W_ACC, cnt)
+    gy = ar.requant(st_v[G2 + 1], F_GRAV, F_ACC, W_ACC, cnt)
+    gz = ar.requant(st_v[G2 + 2], F_GRAV, F_ACC, W_ACC, cnt)
+    norm2 = ar.add(ar.add(ar.mul(gx, F_ACC, gx, F_ACC, F_ACC2, W_ACC2, cnt),
+                          ar.mul(gy, F_ACC, gy, F_ACC, F_ACC2, W_ACC2, cnt), W_ACC2, cnt),
+                   ar.mul(gz, F_ACC, gz, F_ACC, F_ACC2, W_ACC2, cnt), W_ACC2, cnt)
     gn = ar.sqrt(norm2, F_ACC2, F_ACC, True, cnt)
     s_cost(cnt, OP_CMP16, 1)
     av = fx * 0
     if gn > cfg_v[CV_G_MIN]:
-        av = ar.div(ar.sub(ar.add(ar.add(ar.mul(fx, F_ACC, gx, F_ACC, F_ACC2, W32, cnt),
-                                         ar.mul(fy, F_ACC, gy, F_ACC, F_ACC2, W32, cnt), W32, cnt),
-                                  ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W32, cnt), W32, cnt), norm2, W32, cnt),
-                    F_ACC2, gn, F_ACC, F_ACC, W16, cnt)
+        av = ar.div(ar.sub(ar.add(ar.add(ar.mul(fx, F_ACC, gx, F_ACC, F_ACC2, W_ACC2, cnt),
+                                         ar.mul(fy, F_ACC, gy, F_ACC, F_ACC2, W_ACC2, cnt), W_ACC2, cnt),
+                                  ar.mul(fz, F_ACC, gz, F_ACC, F_ACC2, W_ACC2, cnt), W_ACC2, cnt), norm2, W_ACC2,
+                           cnt), F_ACC2, gn, F_ACC, F_ACC, W_ACC, cnt)
     # 4. delay line; every CI_FLUSH samples its newest CI_FLUSH a_v go to the scratch ring as one page write
     line[st_i[LINE_POS]] = av
     st_i[LINE_POS] = (st_i[LINE_POS] + 1) % (2 * r3 + 1)
@@ -698,7 +717,7 @@ def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
     if cfg_v[CV_CAP] <= cfg_v[CV_DELTA]:         # floor = cap (versions 1-2): a fixed threshold, no multiply
         return cfg_v[CV_DELTA]
     s_cost(cnt, OP_DEE, 2)                       # the fraction
-    scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W16, cnt), F_ACC, F_LP, W_LP, cnt)
+    scaled = ar.mul(cfg_v[CV_FRAC], F_KERNEL, ar.requant(st_v[AMP], F_LP, F_ACC, W_ACC, cnt), F_ACC, F_LP, W_LP, cnt)
     s_cost(cnt, OP_CMP32, 2)
     if scaled > cfg_v[CV_CAP]:
         return cfg_v[CV_CAP]

@@ -124,6 +124,18 @@ def _kernel_q(half: np.ndarray, fmt: QFormat = KERNEL_Q) -> np.ndarray:
     return q
 
 
+def _leg_and_foot(fq: KernelFormats, raw: dict) -> tuple[int, int]:
+    """The kernel's ``2 l`` (``TWO_LENGTH_Q``: the UQ1.15 leg's bits read with one fraction bit fewer are twice the
+    leg, no shift) and foot length (added to M3's pendulum length: in the step format, UQ2.14 as ``TWO_LENGTH_Q``)
+    from the step configuration's UQ1.15 fields, each first stored in ``fq``'s ``LENGTH_Q``."""
+    leg_q = fq.q("leg_frac_bits")
+    leg = requantize(np.int64(raw["leg_length_q15"]), LENGTH_Q, leg_q)
+    twice = QFormat(leg_q.int_bits + 1, leg_q.frac_bits - 1, signed=False, word_bits=leg_q.word_bits)
+    foot = requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, leg_q)
+    return (int(requantize(leg, twice, fq.q("two_leg_frac_bits"))),
+            int(requantize(foot, leg_q, fq.q("step_frac_bits"))))
+
+
 def _scratch_size(c: SampleCounts) -> int:
     """The emulator's scratch ring (values): a power of two covering the oldest a_v a step can read, its
     filters' reach included (see ``kernel``). The EEPROM's ring holds more (32,512 samples), the same values."""
@@ -246,22 +258,22 @@ class OnlineConfig:
             k_q, k4_q, m5_q = fq.q("k_frac_bits"), fq.q("k4_frac_bits"), fq.q("m5_frac_bits")
             k4p = int(mul_q(np.int64(raw["k_m4_q15"]), k4_q.from_float(g0_power_m4), K_Q.frac_bits, k4_q, signed=False))
             k1fs = raw["k1_m5_q16"] * sampling_rate_hz
+            leg, foot = _leg_and_foot(fq, raw)
             values = dict(
                 DELTA=int(fq.lowpass_q.from_float(ev.min_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 CAP=int(fq.lowpass_q.from_float(ev.max_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 FRAC=int(fq.q("kernel_frac_bits").from_float(ev.prominence_fraction)),
                 STOP=int(fq.lowpass_q.from_float(ev.stop_prominence_m_s2 / STANDARD_GRAVITY_M_S2)),
                 G_MIN=int(fq.acc_q.from_float(on.min_gravity_g)),
-                TWO_LEG=raw["leg_length_q15"],                       # UQ1.15 l read as UQ2.14: 2 l
-                # the foot is added to M3's pendulum length: in the step format (UQ2.14, as TWO_LENGTH_Q)
-                FOOT=int(requantize(np.int64(raw["foot_length_q15"]), LENGTH_Q, fq.q("step_frac_bits"))),
+                TWO_LEG=leg, FOOT=foot,
                 K1=int(requantize(np.int64(raw["k_m1_q15"]), K_Q, k_q)),
                 K2=int(requantize(np.int64(raw["k_m2_q15"]), K_Q, k_q)), K4=k4p,
                 K1FS=int(m5_q.from_float(k1fs / 2 ** 16)),
                 K2M5=int(requantize(np.int64(raw["k2_m5_q16"]), M5_Q, m5_q)),
                 UNIT=int(math.floor(unit * 2 ** unit_frac + 0.5)),
             )
-            cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = cal_q.offset_raw
+            cfg_v[kernel.CV_OFF:kernel.CV_OFF + 3] = requantize(cal_q.offset_raw, centred_q(adc_bits),
+                                                                fq.code_q(adc_bits))
             cfg_v[kernel.CV_M:kernel.CV_M + 9] = cal_q.mantissa_raw.reshape(9)
             weights = [_kernel_q(h, fq.q("kernel_frac_bits")) for h in halves]
         else:
@@ -585,7 +597,7 @@ class OnlineStepAlgorithm:
     def variables(self):
         """The declared state variables for this configuration."""
         c = self.config.counts
-        return variables(line_length=2 * c.r3 + 1, median_steps=c.median_steps)
+        return variables(line_length=2 * c.r3 + 1, median_steps=c.median_steps, formats=self.config.formats)
 
     def state_values(self) -> np.ndarray:
         """A copy of the kernel's value state (slots of :data:`gaitlog.firmware_sim.algorithms.state.VALUE_SLOTS`:

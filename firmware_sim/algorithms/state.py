@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 __all__ = ["Variable", "INDEX_BITS", "INDEX_MODULUS", "INDEX_MASK", "INDEX_HALF", "since", "VALUE_SLOTS",
            "INDEX_SLOTS", "N_VALUES", "N_INDICES", "FRAMES", "CALLS", "variables", "persistent_bytes",
-           "temporaries_bytes", "ram_bytes"]
+           "temporaries_bytes", "ram_bytes", "WORD_OF"]
 
 
 #: Width of a sample index or sample counter on the PIC (``N``, ``MXPOS``, ``PEND``, ``LAST``, ``RAW`` and the
@@ -175,8 +175,9 @@ FRAMES: dict[str, dict[str, tuple[int, str]]] = {
                "ramp_step": (4, "4 c1"), "seen": (0, "bit of the caller's flags"), "j": (2, "loop index"),
                "v_new": (4, "next velocity"), "dp": (0, "operand of the next addition")},
     "_excursion": {"span": (0, "operand"), "f_pos": (0, "constant"), "shift": (0, "constant"), "f_h": (0, "constant"),
-                   "s16": (0, "operand of the next multiply")},
-    "_pendulum": {"h": (0, "alias of the excursion"), "f_h": (0, "constant"), "lh2": (4, "2 l h, 32-bit"),
+                   "w_h": (0, "constant"), "s16": (0, "operand of the next multiply")},
+    "_pendulum": {"h": (0, "alias of the excursion"), "f_h": (0, "constant"), "f_arg": (0, "constant"),
+                  "w_arg": (0, "constant"), "lh2": (4, "2 l h, 32-bit"),
                   "hh": (0, "operand"), "x": (4, "2 l h - h^2"), "half": (0, "operand")},
     "_read_cost": {"records": (0, "the emulator's I2C accounting"), "record_bytes": (0, "constant")},
     "_scratch_tail": {"n": (0, "alias of N"), "k": (0, "the step store's write index")},
@@ -228,17 +229,30 @@ def temporaries_bytes(*, median_steps: int, entry: str = "process") -> int:
     return _frame_bytes(entry, median_steps) + below
 
 
-def persistent_bytes(*, line_length: int, median_steps: int) -> int:
-    """RAM of the state kept between samples."""
-    return sum(v.bytes for v in variables(line_length=line_length, median_steps=median_steps))
+#: The word each value variable and the delay line are kept in, as the name of a format set's attribute
+#: (:class:`gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`, bits where the values saturate): a
+#: narrower word takes ``ceil(bits / 8)`` bytes (the shipped 32, 19 and 16 bits: the 4, 3 and 2 above).
+WORD_OF = {"G1": "gravity_word_bits", "G2": "gravity_word_bits", "MX": "lowpass_word_bits",
+           "MN": "lowpass_word_bits", "PEND_Y": "lowpass_word_bits", "RAW_Y": "lowpass_word_bits",
+           "AMP": "lowpass_word_bits", "LINE": "acc_word_bits"}
 
 
-def variables(*, line_length: int, median_steps: int) -> list[Variable]:
+def persistent_bytes(*, line_length: int, median_steps: int, formats: object = None) -> int:
+    """RAM of the state kept between samples (``formats``: as :func:`variables`)."""
+    return sum(v.bytes for v in variables(line_length=line_length, median_steps=median_steps, formats=formats))
+
+
+def variables(*, line_length: int, median_steps: int, formats: object = None) -> list[Variable]:
     """Every variable with its size, for a delay line of ``line_length`` a_v samples (``2 r3 + 1``) and a
-    ring of ``median_steps`` durations."""
-    out = [Variable(n, c, b, "value", note) for n, c, b, note in _VALUES]
+    ring of ``median_steps`` durations; with ``formats`` (a format set: an object with the attributes of
+    :data:`WORD_OF`) the value variables and the line in its words' whole bytes."""
+    def word_bytes(name: str, shipped: int) -> int:
+        return shipped if formats is None or name not in WORD_OF else -(-getattr(formats, WORD_OF[name]) // 8)
+
+    out = [Variable(n, c, word_bytes(n, b), "value", note) for n, c, b, note in _VALUES]
     out += [Variable(n, c, b, "index", note) for n, c, b, note in _INDICES]
-    out.append(Variable("LINE", line_length, 2, "line", "a_v delay line of the centred FIR filters (Q2.13)"))
+    out.append(Variable("LINE", line_length, word_bytes("LINE", 2), "line",
+                        "a_v delay line of the centred FIR filters (Q2.13)"))
     out.append(Variable("DURATIONS", median_steps, 1, "ring", "recent peak intervals, samples"))
     return out
 

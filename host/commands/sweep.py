@@ -132,7 +132,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="results folder (created; re-running with the same folder resumes)")
     parser.add_argument("--spec", metavar="FILE", help="grid spec, .json or .toml (keys: adc_bits, sampling_rate_hz, "
-                        "noise_density_g_rthz, q_formats, rounding, misalignment_deg, population, the converter/sensor keys of "
+                        "noise_density_g_rthz, q_formats, rounding, misalignment_deg, m4_exponent, population, "
+                        "the converter/sensor keys of "
                         "--list-dimensions, subjects, seeds, estimators, protocol); "
                         "the options below override it")
     grid = parser.add_argument_group("grid (default: 8,10,12 bits x 25,50,100 Hz, the sensor's noise, 4 subjects, seed 0)")
@@ -141,17 +142,24 @@ def configure(parser: argparse.ArgumentParser) -> None:
     grid.add_argument("--noise-density", type=_list(number(minimum=0, maximum=0.01, unit="g/√Hz")), metavar="G,G",
                       help="sensor white-noise densities, g/√Hz (the ADXL202E's: 200e-6)")
     grid.add_argument("--q-formats", type=_list(_q_formats), metavar="SET,SET",
-                      help="Q-format sets of the fixed-point chain: 'shipped' or fraction bits of the variables "
-                      "changed, e.g. shipped,acc10,acc8,lp12,grav20,m2pos13,k12 (acc: a_v and its integrals, grav: "
-                      "gravity, lp: lowpass outputs, m2pos: M2's position; sq, fir, kern, exc, excc, root, step, k, "
-                      "kw, cad, mant: the other formats, --list-dimensions; lpintN: the lowpass's integer bits); "
-                      "each non-shipped set is compiled once per machine (~10-25 s), kept in the compile cache")
+                      help="Q-format sets of the fixed-point chain: 'shipped' or the bits of the formats changed, "
+                      "e.g. shipped,acc10,acc8,lp12,grav20,m2pos13,k12,wgrav24,wstep15: NAME+N fewer fraction bits "
+                      "(acc: a_v and its integrals, grav: gravity, lp: lowpass outputs, m2pos: M2's position; sq, fir, "
+                      "kern, exc, excc, leg, twoleg, parg, pargc, root, step, k, kw, cad, mant: the other formats), "
+                      "wNAME+N a narrower word where the format's values saturate (sign included, at most its "
+                      "container; wvel, wpos: M1's integrals, wcode: the centred codes), lpintN the lowpass's "
+                      "integer bits; every name in --list-dimensions; each non-shipped set is compiled once per "
+                      "machine (~10-25 s), kept in the compile cache")
     grid.add_argument("--rounding", type=_list(_rounding), metavar="R,R",
                       help="rounding of the fixed-point chain: shipped, truncate, half-up, convergent (every "
                       "operation class) or per class, e.g. shipped,truncate,mul:truncate+div:convergent (classes "
                       "mul, shift, div)")
     grid.add_argument("--misalignment", type=_list(number(minimum=-45, maximum=45, unit="degrees")), metavar="DEG,DEG",
                       help="extra mounting tilt of the logger (pitch), degrees (negative: --misalignment=-5,0,5)")
+    grid.add_argument("--m4-exponent", type=_list(str), metavar="P,P",
+                      help="M4's exponent p in S = K (a_max - a_min)^p, as the step configuration stores it: "
+                      "0.125, 0.25, 0.375 or 0.5 (default 0.25, Weinberg's); the offline chains, their K and the "
+                      "logger's step configuration all use it")
     grid.add_argument("--population", type=_list(str), metavar="P,P",
                       help="simulated populations (gaitlog.firmware_sim.world.walk_plan.POPULATION_PLANS: v1, people...)")
     for key, unit, what, lo, hi in EFFECT_OPTIONS:
@@ -172,18 +180,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gaitlog.atomic_write import atomic_write_text
-    from gaitlog.host.studies.sweep_grid import SweepGrid, run_task
+    from gaitlog.host.studies.sweep_grid import M4_EXPONENTS, SweepGrid, run_task
     from gaitlog.host.studies.task_store import TaskStore, run_serial
 
     if args.serial and args.scheduler:
         raise UsageError("--serial and --scheduler exclude each other")
     if args.scheduler:
         _check_scheduler(args.scheduler)
+    m4_exponents = None if args.m4_exponent is None else [_m4_exponent(p, M4_EXPONENTS) for p in args.m4_exponent]
     spec = SweepGrid.load(args.spec).to_spec() if args.spec else {}
     for key, value in (("adc_bits", args.adc_bits), ("sampling_rate_hz", args.logger_rate),
                        ("noise_density_g_rthz", args.noise_density), ("q_formats", args.q_formats),
                        ("rounding", args.rounding),
-                       ("misalignment_deg", args.misalignment), ("population", args.population),
+                       ("misalignment_deg", args.misalignment), ("m4_exponent", m4_exponents),
+                       ("population", args.population),
                        *((key, getattr(args, key)) for key, *_ in EFFECT_OPTIONS), ("subjects", args.subjects),
                        ("seeds", args.seeds), ("estimators", args.estimators), ("protocol", args.protocol)):
         if value is not None:
@@ -201,7 +211,8 @@ def run(args: argparse.Namespace) -> int:
         f"{len(grid.misalignment_deg)} misalignment(s) x {grid.subjects} subject(s) x "
         f"{len(grid.sampling_rate_hz)} rate(s) x {len(grid.noise_density_g_rthz)} noise level(s) x "
         f"{len(grid.effect_sets())} converter/sensor setting(s) x "
-        f"{len(grid.rounding)} rounding(s) x {len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC "
+        f"{len(grid.m4_exponent)} M4 exponent(s) x {len(grid.rounding)} rounding(s) x "
+        f"{len(grid.q_formats)} Q-format set(s) x {len(grid.adc_bits)} ADC "
         f"width(s)), {n_done} already in "
         f"{store.tasks_folder}")
     t = time.perf_counter()
@@ -222,6 +233,19 @@ def run(args: argparse.Namespace) -> int:
     report.write_outputs(out)
     printer(args)(report.format_table(verbosity(args)))
     return 0
+
+
+def _m4_exponent(text: str, allowed: tuple[float, ...]) -> float:
+    """One ``--m4-exponent`` value among ``allowed`` (what the step configuration stores), else a usage error
+    naming them."""
+    try:
+        ok = float(text) in allowed
+    except ValueError:
+        ok = False
+    if not ok:
+        raise UsageError(f"--m4-exponent {text}: not an exponent the step configuration stores; allowed: "
+                         f"{', '.join(f'{e:g}' for e in allowed)}")
+    return float(text)
 
 
 def _check_scheduler(scheduler: str) -> None:

@@ -363,11 +363,12 @@ def calibrate(
 
 
 def calibrate_on_sections(table: StepTable, pools: Sequence[Sequence[Section]], *, leg_length_m: float,
-                          foot_length_m: float, subject: str = "") -> KFit:
+                          foot_length_m: float, subject: str = "", m4_exponent: float = M4_EXPONENT) -> KFit:
     """:func:`calibrate` on the steps of ``table`` pooled per run of lap sections (:func:`~gaitlog.host.gait.sections.pool_steps`).
 
     ``pools``: one list of consecutive sections per calibration point, e.g. a mode of
-    :func:`gaitlog.host.gait.sections.calibration_sets`; ``table`` is a step table without K (raw lengths).
+    :func:`gaitlog.host.gait.sections.calibration_sets`; ``table`` is a step table without K (raw lengths, M4's
+    computed with ``m4_exponent``).
     """
     return calibrate([pool_steps(table, secs) for secs in pools], leg_length_m=leg_length_m,
-                     foot_length_m=foot_length_m, subject=subject)
+                     foot_length_m=foot_length_m, subject=subject, m4_exponent=m4_exponent)

@@ -64,6 +64,7 @@ import numpy as np
 
 from gaitlog.firmware_sim.adc import TransferCurve
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
+from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.algorithms.steps import (
     ESTIMATORS,
     StepTable,
@@ -72,6 +73,7 @@ from gaitlog.firmware_sim.algorithms.steps import (
 )
 from gaitlog.host.files.replay import online_step_table
 from gaitlog.host.gait.k_calibration import KFit, calibrate_on_sections
+from gaitlog.host.gait.estimators.weinberg import weinberg_length_m
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
 from gaitlog.host.gait.streaming import BLOCK_SAMPLES as STREAM_BLOCK_SAMPLES, StreamingStepPipeline
 from gaitlog.host.gait.sections import (
@@ -144,6 +146,15 @@ def streamed_offline_table(codes: np.ndarray, valid: np.ndarray, adc_calibration
             g[~ok[lo:lo + block]] = np.nan
             pipe.feed(g, ok[lo:lo + block])
         return pipe.finish().steps_
+
+
+def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
+    """An offline table whose raw M4 lengths are ``(a_max - a_min)^exponent`` of its steps' ranges (the chain
+    computes them with :data:`~gaitlog.firmware_sim.algorithms.parameters.M4_EXPONENT`); ``table`` itself at that
+    exponent."""
+    if math.isclose(exponent, M4_EXPONENT):
+        return table
+    return replace(table, raw_m=table.raw_m | {"M4": weinberg_length_m(table.acc_range_m_s2, k=1.0, exponent=exponent)})
 
 
 def calibrated(table: StepTable, k_fit: KFit | None) -> StepTable:
@@ -415,6 +426,9 @@ class ChainRun:
         The calibrated table of each mode.
     saturation, saturated, wrapped, cycles_per_sample
         Fixed point only: the arithmetic report of every run, the counts, the mean PIC cycles per sample.
+    step_config
+        On-line chains only: the 32-byte step configuration block (PROTOCOL.md 2.2) the algorithm ran the
+        multi-speed run with, as the logger's header stores it (b"": an offline chain).
     """
 
     chain: str
@@ -425,6 +439,7 @@ class ChainRun:
     saturated: int = 0
     wrapped: int = 0
     cycles_per_sample: float = math.nan
+    step_config: bytes = b""
 
 
 def _offline_run(chain: str, table: StepTable, cals: dict[str, Any]) -> ChainRun:
@@ -433,16 +448,19 @@ def _offline_run(chain: str, table: StepTable, cals: dict[str, Any]) -> ChainRun
 
 def _online_run(arithmetic: str, codes: np.ndarray, cals: dict[str, Any], *, algorithm: Callable[..., Any],
                 **kw: Any) -> ChainRun:
-    tables, reports, sat, wrap, cyc = {}, [], 0, 0, math.nan
+    tables, reports, sat, wrap, cyc, block = {}, [], 0, 0, math.nan, b""
     for m in MODES:
         tables[m], alg = online_step_table(codes, k_fit=cals[m], arithmetic=arithmetic, algorithm=algorithm,
                                            **kw)
+        if m == "multi-speed":
+            block = alg.config.step_config.to_bytes()
         if arithmetic == "fixed":
             rep = alg.arithmetic_context().report()
             if rep:
                 reports.append(f"{m}: {rep}")
             sat, wrap, cyc = sat + alg.saturations, wrap + alg.wraps, alg.cycles.mean
-    return ChainRun(f"online-{arithmetic}", tables["multi-speed"], cals, tables, "; ".join(reports), sat, wrap, cyc)
+    return ChainRun(f"online-{arithmetic}", tables["multi-speed"], cals, tables, "; ".join(reports), sat, wrap, cyc,
+                    block)
 
 
 def truth_table(table: StepTable, truth_steps: dict, *, tol_s: float = MATCH_TOL_S) -> tuple[StepTable, np.ndarray]:
@@ -516,7 +534,8 @@ class WalkComparison:
 
 def compare_walk(sw: SampledWalk, subject: Any, *, adc_bits: int = 10, ideal_table: StepTable | None = None,
                  calibration_sections: int = 2, include_turn: bool = False,
-                 fixed_algorithm: Callable[..., Any] = OnlineStepAlgorithm) -> WalkComparison:
+                 fixed_algorithm: Callable[..., Any] = OnlineStepAlgorithm,
+                 m4_exponent: float = M4_EXPONENT) -> WalkComparison:
     """The four chains on one sampled walk with one K per mode; steps matched; 20 m sections (module notes).
 
     Parameters
@@ -525,6 +544,9 @@ def compare_walk(sw: SampledWalk, subject: Any, *, adc_bits: int = 10, ideal_tab
         The ideal chain's table without K, to reuse across ADC widths (it does not depend on ``adc_bits``).
     fixed_algorithm
         What runs the online-fixed chain (default the firmware's algorithm; tests inject errors with it).
+    m4_exponent
+        M4's exponent p of every chain: the offline chains' raw M4 (:func:`with_m4_exponent`), the K fitted on
+        them and so the on-line algorithm's step configuration (byte 20, whole eighths up to 1/2).
     """
     leg, foot = subject.leg_length_m, subject.foot_length_m
     sampling_rate_hz, t0 = sw.sampling_rate_hz, float(sw.times_s[0])
@@ -533,12 +555,12 @@ def compare_walk(sw: SampledWalk, subject: Any, *, adc_bits: int = 10, ideal_tab
     cal = sw.calibration(adc_bits)
     codes = sw.codes(adc_bits)
     kw = dict(sampling_rate_hz=sampling_rate_hz, leg_length_m=leg, foot_length_m=foot, t0_s=t0)
-    offline = offline_step_table(cal.apply(codes), **kw)
+    offline = with_m4_exponent(offline_step_table(cal.apply(codes), **kw), m4_exponent)
     # the one K per mode, fitted on the offline chain: every chain below uses these objects
     cals = {m: calibrate_on_sections(offline, pools[m], leg_length_m=leg, foot_length_m=foot,
-                                     subject=subject.subject_id) for m in MODES}
-    if ideal_table is None:
-        ideal_table = offline_step_table(cal.apply(sw.ideal_codes(adc_bits)), **kw)
+                                     subject=subject.subject_id, m4_exponent=m4_exponent) for m in MODES}
+    ideal_table = with_m4_exponent(ideal_table if ideal_table is not None else
+                                   offline_step_table(cal.apply(sw.ideal_codes(adc_bits)), **kw), m4_exponent)
     okw = dict(kw, adc_calibration=cal, adc_bits=adc_bits)
     runs = {"ideal": _offline_run("ideal", ideal_table, cals), "offline": _offline_run("offline", offline, cals),
             "online-float": _online_run("float", codes, cals, algorithm=OnlineStepAlgorithm, **okw),

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.ranges import RangeCollector, RangeReport
 from gaitlog.firmware_sim.device import Logger
@@ -30,7 +31,7 @@ from gaitlog.host.files.replay import run_starts
 from gaitlog.host.studies.ipol_evaluation import replay_trial
 from gaitlog.protocol.steps import StepConfig
 
-__all__ = ["collect_ranges", "ipol_trial_paths", "recording_segments"]
+__all__ = ["collect_ranges", "ipol_trial_paths", "recording_segments", "words_label"]
 
 #: The step configuration of a recording whose header turns the algorithm off (the ranges need one).
 DEFAULT_LEG_M, DEFAULT_FOOT_M = 0.9, 0.2
@@ -96,17 +97,33 @@ def _add_walks(collector: RangeCollector, n: int, seed: int) -> None:
                       name=f"simulated walker {i} (seed {seed + i})")
 
 
+def words_label(text: str) -> str:
+    """The canonical label of a format set of words only (``wexc12-wgrav24``, ``lpint1``, ``shipped``): the
+    words ranges can be counted at (the run is the shipped one's). ValueError naming what is wrong.
+
+    >>> words_label("wexc12-wgrav24"), words_label("shipped")
+    ('wgrav24-wexc12', 'shipped')
+    """
+    words = KernelFormats.parse(text)
+    if any(getattr(words, n) != getattr(KernelFormats(), n) for n in KernelFormats.field_names()):
+        raise ValueError(f"{text!r}: words only (wNAME+N, lpintN), not fraction bits: the ranges are the shipped "
+                         "run's")
+    return words.label()
+
+
 def collect_ranges(paths: Sequence[str | Path], *, n_simulated: int = 0, seed: int = 0,
-                   margin_bits: int = 1) -> RangeReport:
+                   margin_bits: int = 1, words: str = "shipped") -> RangeReport:
     """Ranges of every fixed-point variable over ``paths`` (recordings, IPOL trials or folders of them) and
-    ``n_simulated`` walks (module notes).
+    ``n_simulated`` walks (module notes), their saturations and headroom counted at the words of ``words`` (a
+    :class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats` label of words only;
+    :class:`~gaitlog.firmware_sim.ranges.RangeCollector`).
 
     Raises
     ------
     HostError
         A path is unreadable or holds no codes to run (the message names it).
     """
-    collector = RangeCollector()
+    collector = RangeCollector(None if words == "shipped" else KernelFormats.parse(words))
     for p in map(Path, paths):
         if not p.exists():
             raise HostError(f"{p}: no such file or folder")

@@ -31,6 +31,7 @@ from gaitlog.host.storage.png_figure import figure_png_bytes
 from gaitlog.host.studies.sweep_grid import (
     DEFAULT_POPULATION,
     EFFECT_DIMENSIONS,
+    M4_EXPONENT,
     RATIO_TOLERANCE,
     SENSOR_NOISE_G_RTHZ,
     STEP_TOLERANCE_MM,
@@ -47,6 +48,7 @@ DIMENSIONS = {"adc_bits": ("ADC width, bits", 10), "sampling_rate_hz": ("logger 
               "q_formats": ("Q formats of the fixed-point chain", "shipped"),
               "rounding": ("rounding of the fixed-point chain", "shipped"),
               "misalignment_deg": ("extra mounting tilt, degrees", 0.0),
+              "m4_exponent": ("M4's exponent p", M4_EXPONENT),
               "population": ("simulated population", DEFAULT_POPULATION),
               **{k: (f"{label}, {EFFECT_DIMENSIONS[k][1]}", 0.0) for k, label in (
                   ("inl_lsb", "converter INL"), ("dnl_lsb", "converter DNL"), ("adc_offset_lsb", "converter offset"),

@@ -60,6 +60,12 @@ converter's offset and gain error in, as a pose calibration would (:meth:`gaitlo
 calibration`); the drift and the nonlinearity are left. :func:`dimensions` lists every dimension, sweepable or
 not yet (``gaitlog sweep --list-dimensions``).
 
+**M4's exponent** (``m4_exponent``, p in ``S = K (a_max - a_min)^p``: whole eighths up to 1/2, what the step
+configuration stores, :data:`M4_EXPONENTS`; default 1/4, Weinberg's) is M4's estimator throughout the task: the
+offline chains' raw M4, the one K per mode fitted on them, and the on-line algorithm's step configuration (byte 20,
+in eighths; the task's ``step_config`` is that block as the fixed-point run used it, hex). The other estimators
+do not depend on it.
+
 **Spec files.** :meth:`SweepGrid.from_spec` reads a JSON or TOML mapping with the keys of :data:`SPEC_KEYS`
 (lists or single values); anything else is an error naming the key.
 """
@@ -86,7 +92,7 @@ from scipy.spatial.transform import Rotation
 from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.algorithms.online import OnlineStepAlgorithm
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
-from gaitlog.firmware_sim.algorithms import format_kernel, formats
+from gaitlog.firmware_sim.algorithms import formats
 from gaitlog.firmware_sim.algorithms.parameters import M4_EXPONENT
 from gaitlog.firmware_sim.budget import LoggerConfig, logging_cycles_per_sample, ram_budget
 from gaitlog.firmware_sim.fixedpoint import QFormat, cycles_per_sample_available
@@ -116,6 +122,7 @@ from gaitlog.host.studies.quantisation_theory import (
 )
 from gaitlog.host.studies.simulation import AnalogWalk, simulated_population
 from gaitlog.protocol.adc_bits import MAX_SIMULATED_ADC_BITS, check_adc_bits
+from gaitlog.protocol.steps import M4_EXPONENT_EIGHTHS_MAX
 
 #: The default grid's ADC widths, bits, and logger rates, Hz (half, once and twice the logger's 50 Hz).
 ADC_BITS = (8, 10, 12)
@@ -132,6 +139,8 @@ PROTOCOLS: dict[str, WalkPlan | None] = {
 DEFAULT_POPULATION: str = inspect.signature(simulated_population).parameters["population"].default
 #: Largest extra mounting tilt, degrees.
 MAX_MISALIGNMENT_DEG = 45.0
+#: M4's exponents a step configuration stores (whole eighths up to 1/2).
+M4_EXPONENTS = tuple(e / 8 for e in range(1, M4_EXPONENT_EIGHTHS_MAX + 1))
 #: Largest spec file read, bytes.
 MAX_SPEC_BYTES = 1 << 20
 #: Rendered walks kept per process (:func:`analog_walk`).
@@ -159,13 +168,16 @@ SPEC_KEYS = {
     "adc_bits": "ADC widths, bits",
     "sampling_rate_hz": "logger sampling rates, Hz",
     "noise_density_g_rthz": "sensor white-noise densities, g/√Hz",
-    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12-k12: fraction bits of acc, "
-                 "grav, lp, m2pos, sq, fir, kern, exc, excc, root, step, k, kw, cad, mant; lpint: the lowpass's "
-                 "integer bits)",
+    "q_formats": "Q-format sets of the fixed-point chain (shipped, or e.g. acc10-lp12-wstep15: fraction bits of "
+                 "acc, grav, lp, m2pos, sq, fir, kern, exc, excc, root, step, k, kw, cad, mant, leg, twoleg, parg, "
+                 "pargc; w+name: a format's word (wacc12, wgrav24, wvel, wpos, wcode ...); lpint: the lowpass's "
+                 "integer bits; --list-dimensions)",
     "rounding": "rounding of the fixed-point chain per operation class (mul, shift, div): shipped, truncate, "
                 "half-up, convergent, or per class, e.g. mul:truncate+div:convergent; shipped: half-up (a quotient's "
                 "magnitude: ties away from zero)",
     "misalignment_deg": "extra mounting tilts of the logger (pitch), degrees",
+    "m4_exponent": f"M4's exponents p in S = K (a_max - a_min)^p, as the step configuration stores them "
+                   f"({', '.join(f'{e:g}' for e in M4_EXPONENTS)}; Weinberg's {M4_EXPONENT:g})",
     "population": f"simulated populations ({', '.join(POPULATION_PLANS)})",
     **{k: f"{v[0]}, {v[1]}" for k, v in EFFECT_DIMENSIONS.items()},
     "subjects": "simulated subjects per seed",
@@ -177,10 +189,10 @@ SPEC_KEYS = {
 RATIO_KINDS = tuple(column_key(c) for c in CHAINS) + ("exact_timing",)
 #: Configuration columns, first in every row.
 CONFIG_COLUMNS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                  "population", "protocol", "seed", *EFFECT_DIMENSIONS, "rounding")
+                  "population", "protocol", "seed", *EFFECT_DIMENSIONS, "rounding", "m4_exponent")
 #: The configuration columns a summary row is grouped by (the others are pooled).
 SUMMARY_KEYS = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                "population", *EFFECT_DIMENSIONS, "rounding")
+                "population", *EFFECT_DIMENSIONS, "rounding", "m4_exponent")
 SECTION_COLUMNS = CONFIG_COLUMNS + ("subject", "excursion", "speed_label", "section", "real_m", "mode", "estimator") \
     + tuple(f"ratio_{k}" for k in RATIO_KINDS)
 SPLIT_COLUMNS = CONFIG_COLUMNS + ("subject", "share", "pair", "estimator", "n", "median_abs_mm", "p95_abs_mm",
@@ -222,6 +234,7 @@ class SweepTask:
     flicker_corner_hz: float = 0.0
     temperature_swing_c: float = 0.0
     rounding: str = "shipped"
+    m4_exponent: float = M4_EXPONENT
 
     @property
     def group(self) -> tuple:
@@ -236,9 +249,10 @@ class SweepTask:
                           sort_keys=True)
         digest = hashlib.sha256(text.encode()).hexdigest()[:12]
         rounding = "" if self.rounding == "shipped" else f"{self.rounding.replace(':', '.')}-"
+        m4 = "" if self.m4_exponent == M4_EXPONENT else f"p{round(8 * self.m4_exponent)}of8-"
         return (f"seed{self.seed}-s{self.subject_index}-{self.adc_bits}b-{self.sampling_rate_hz:g}Hz-"
-                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{rounding}{effects_label(asdict(self), sep='-')}"
-                f"{digest}")
+                f"n{self.noise_density_g_rthz:g}-{self.q_formats}-{rounding}{m4}"
+                f"{effects_label(asdict(self), sep='-')}{digest}")
 
     def effects(self) -> dict[str, float]:
         """The values of :data:`EFFECT_DIMENSIONS`."""
@@ -265,6 +279,7 @@ class SweepGrid:
     flicker_corner_hz: tuple[float, ...] = (0.0,)
     temperature_swing_c: tuple[float, ...] = (0.0,)
     rounding: tuple[str, ...] = ("shipped",)
+    m4_exponent: tuple[float, ...] = (M4_EXPONENT,)
     subjects: int = 4
     seeds: tuple[int, ...] = (0,)
     estimators: tuple[str, ...] = ESTIMATORS
@@ -275,7 +290,7 @@ class SweepGrid:
         for b in self.adc_bits:
             check_adc_bits(b, max_bits=MAX_SIMULATED_ADC_BITS, what="ADC bits", error=HostError)
         for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                     "population", "seeds", "estimators", "rounding", *EFFECT_DIMENSIONS):
+                     "population", "seeds", "estimators", "rounding", "m4_exponent", *EFFECT_DIMENSIONS):
             if not getattr(self, name):
                 raise HostError(f"sweep grid: {name} is empty")
         self._canonical_fixed_point()
@@ -287,10 +302,11 @@ class SweepGrid:
             raise HostError(f"sweep grid: unknown population(s) {', '.join(unknown_pop)}; known: "
                             f"{', '.join(POPULATION_PLANS)}")
         for name in ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "q_formats", "misalignment_deg",
-                     "population", "seeds", "rounding", *EFFECT_DIMENSIONS):
+                     "population", "seeds", "rounding", "m4_exponent", *EFFECT_DIMENSIONS):
             values = getattr(self, name)
             if len(set(values)) != len(values):
                 raise HostError(f"sweep grid: {name} lists a value twice")
+        self._check_m4_exponents()
         for r in self.sampling_rate_hz:
             if not (math.isfinite(r) and 10.0 <= r <= 1000.0):
                 raise HostError(f"sweep grid: sampling rate {r:g} Hz outside 10-1000 Hz")
@@ -316,6 +332,13 @@ class SweepGrid:
         object.__setattr__(self, "q_formats", tuple(labels))
         object.__setattr__(self, "rounding", tuple(roundings))
 
+    def _check_m4_exponents(self) -> None:
+        """M4's exponents among :data:`M4_EXPONENTS` (else :class:`HostError` naming them)."""
+        for p in self.m4_exponent:
+            if p not in M4_EXPONENTS:
+                raise HostError(f"sweep grid: M4 exponent {p:g} is not one the step configuration stores "
+                                f"({', '.join(f'{e:g}' for e in M4_EXPONENTS)})")
+
     def _check_effects(self) -> None:
         """:data:`EFFECT_DIMENSIONS` within their ranges (and those whose sign has no meaning not negative)."""
         for name, (_, unit, top) in EFFECT_DIMENSIONS.items():
@@ -334,7 +357,7 @@ class SweepGrid:
             raise HostError(f"{source}: unknown key(s) {', '.join(unknown)}; known: {', '.join(SPEC_KEYS)}")
         kinds = {"adc_bits": int, "sampling_rate_hz": float, "noise_density_g_rthz": float, "seeds": int,
                  "estimators": str, "q_formats": str, "misalignment_deg": float, "population": str, "rounding": str,
-                 **dict.fromkeys(EFFECT_DIMENSIONS, float)}
+                 "m4_exponent": float, **dict.fromkeys(EFFECT_DIMENSIONS, float)}
         kw: dict[str, Any] = {}
         for key, value in spec.items():
             try:
@@ -382,13 +405,13 @@ class SweepGrid:
 
     def tasks(self) -> list[SweepTask]:
         """Every task, seed by seed, population, misalignment and subject (the walk's order), then rate, noise,
-        the converter's and sensor's effects, rounding, Q formats and width."""
+        the converter's and sensor's effects, M4's exponent, rounding, Q formats and width."""
         return [SweepTask(seed, i, self.subjects, b, float(r), float(n), self.protocol, tuple(self.estimators),
-                          self.calibration_sections, q, float(m), pop, **effects, rounding=rd)
+                          self.calibration_sections, q, float(m), pop, **effects, rounding=rd, m4_exponent=float(p))
                 for seed in self.seeds for pop in self.population for m in self.misalignment_deg
                 for i in range(self.subjects) for r in self.sampling_rate_hz
-                for n in self.noise_density_g_rthz for effects in self.effect_sets() for rd in self.rounding
-                for q in self.q_formats for b in self.adc_bits]
+                for n in self.noise_density_g_rthz for effects in self.effect_sets() for p in self.m4_exponent
+                for rd in self.rounding for q in self.q_formats for b in self.adc_bits]
 
     def effect_sets(self) -> list[dict[str, float]]:
         """Every combination of the :data:`EFFECT_DIMENSIONS` values, in the grid's order."""
@@ -455,14 +478,14 @@ def run_task(task: SweepTask) -> dict:
     formats = KernelFormats.parse(task.q_formats, task.rounding)
     fixed = OnlineStepAlgorithm if formats.shipped else functools.partial(OnlineStepAlgorithm, formats=formats)
     result = compare_walk(sw, subject, adc_bits=task.adc_bits, calibration_sections=task.calibration_sections,
-                          fixed_algorithm=fixed)
+                          fixed_algorithm=fixed, m4_exponent=task.m4_exponent)
     fx = result.runs["online-fixed"]
     config = dict(adc_bits=task.adc_bits, sampling_rate_hz=task.sampling_rate_hz,
                   noise_density_g_rthz=task.noise_density_g_rthz, q_formats=task.q_formats,
                   misalignment_deg=task.misalignment_deg, population=task.population, protocol=task.protocol,
-                  seed=task.seed, **task.effects(), rounding=task.rounding)
+                  seed=task.seed, **task.effects(), rounding=task.rounding, m4_exponent=task.m4_exponent)
     keep = set(task.estimators)
-    theory = predicted_step_errors_mm(sw, subject, result, task.adc_bits, formats)
+    theory = predicted_step_errors_mm(sw, subject, result, task.adc_bits, formats, task.m4_exponent)
     sections = [config | {k: _plain(s[k]) for k in SECTION_COLUMNS if k in s and k not in config}
                 for s in result.segments if s["estimator"] in keep]
     splits = [config | {"subject": subject.subject_id} | {k: _plain(d[k]) for k in SPLIT_COLUMNS if k in d}
@@ -470,20 +493,22 @@ def run_task(task: SweepTask) -> dict:
               for d in result.step_diffs if d["estimator"] in keep]
     scalars = config | dict(subject=subject.subject_id, timing_rms_ms=_plain(result.timing["rms_ms"]),
                             saturated=int(fx.saturated), wrapped=int(fx.wrapped),
-                            saturation=result.saturation, cycles_per_sample=_plain(fx.cycles_per_sample))
+                            saturation=result.saturation, cycles_per_sample=_plain(fx.cycles_per_sample),
+                            step_config=fx.step_config.hex())
     return {"sections": sections, "splits": splits, "task": scalars}
 
 
-def predicted_step_errors_mm(sw: Any, subject: Any, result: Any, adc_bits: int,
-                             kernel_formats: KernelFormats) -> dict[tuple[str, str], float]:
+def predicted_step_errors_mm(sw: Any, subject: Any, result: Any, adc_bits: int, kernel_formats: KernelFormats,
+                             m4_exponent: float = M4_EXPONENT) -> dict[tuple[str, str], float]:
     """The quantisation theory's median per-step ``|error|``, mm, of the ADC share and of the arithmetic share
-    (:mod:`gaitlog.host.studies.quantisation_theory`), per estimator, over the offline chain's steps (multi-speed K):
-    ``{(share, estimator): mm}``."""
+    (:mod:`gaitlog.host.studies.quantisation_theory`), per estimator, over the offline chain's steps (multi-speed K;
+    M4 with ``m4_exponent``): ``{(share, estimator): mm}``."""
     table = result.runs["offline"].tables["multi-speed"]
     cal = sw.calibration(adc_bits)
     var_av = adc_vertical_variance_m2_s4(cal, np.mean(cal.apply(sw.codes(adc_bits)), axis=0))
-    adc = adc_sigma_m(table, var_av, leg_length_m=subject.leg_length_m)
-    arith, bias = arithmetic_sigma_m(table, leg_length_m=subject.leg_length_m, **kernel_formats.theory_bits())
+    adc = adc_sigma_m(table, var_av, leg_length_m=subject.leg_length_m, exponent=m4_exponent)
+    arith, bias = arithmetic_sigma_m(table, leg_length_m=subject.leg_length_m, exponent=m4_exponent,
+                                     **kernel_formats.theory_bits())
     out = {}
     for est in ESTIMATORS:
         out[("adc", est)] = 1e3 * median_abs_of_mixture(adc[est])
@@ -531,12 +556,13 @@ def effects_label(row: dict, *, sep: str = " ") -> str:
 
 #: The value of each later-added dimension that rows written before it had (:func:`with_effects`; a task's key
 #: leaves a field at this value out, so earlier results folders resume).
-_DEFAULTS: dict[str, Any] = {**dict.fromkeys(EFFECT_DIMENSIONS, 0.0), "rounding": "shipped"}
+_DEFAULTS: dict[str, Any] = {**dict.fromkeys(EFFECT_DIMENSIONS, 0.0), "rounding": "shipped",
+                             "m4_exponent": M4_EXPONENT}
 
 
 def with_effects(row: dict) -> dict:
-    """``row`` with the :data:`EFFECT_DIMENSIONS` it lacks at 0 (off) and the shipped rounding: rows of a results
-    folder written before these were dimensions resume as what they were."""
+    """``row`` with the :data:`EFFECT_DIMENSIONS` it lacks at 0 (off), the shipped rounding and the default M4
+    exponent: rows of a results folder written before these were dimensions resume as what they were."""
     if all(k in row for k in _DEFAULTS):
         return row
     return _DEFAULTS | row
@@ -598,7 +624,7 @@ def summarise(sections: list[dict], splits: list[dict], tasks: list[dict] | None
         cycles.setdefault(tuple(t[k] for k in SUMMARY_KEYS), []).append(t.get("cycles_per_sample", math.nan))
     out = []
     r_order = _order([s["rounding"] for s in sections])
-    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-3], r_order[k[-3]],
+    for key in sorted(groups, key=lambda k: (k[1], k[2], k[4], pop_order[k[5]], k[6:-4], k[-3], r_order[k[-4]],
                                              q_order[k[3]], k[0], MODES.index(k[-2]), ESTIMATORS.index(k[-1]))):
         out.append(_summary_row(key, groups[key], split_groups, cycles, labels))
     return [{k: r[k] for k in SUMMARY_COLUMNS} for r in out]
@@ -624,17 +650,23 @@ def _summary_row(key: tuple, seg: list[dict], split_groups: dict[tuple, list[dic
         found = split_groups.get(tuple(config) + (labels[share], est), [])
         row[col], row[f"{col}_lo"], row[f"{col}_hi"] = _range([x["median_abs_mm"] for x in found])
         row[f"{col}_theory"] = _range([x.get("theory_median_abs_mm", math.nan) for x in found])[0]
-    row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0]))
+    row.update(configuration_cost(row["sampling_rate_hz"], _range(cycles.get(tuple(config), []))[0],
+                                  row["q_formats"]))
     return row
 
 
-def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float) -> dict[str, float]:
+def configuration_cost(sampling_rate_hz: float, cycles_per_sample: float,
+                       q_formats: str = "shipped") -> dict[str, float]:
     """A configuration's cost in ``gaitlog budget``'s model (:mod:`gaitlog.firmware_sim.budget`): the logger's RAM
-    at the rate (``ram_bytes``, of the PIC16F877's 368), the on-line algorithm's mean cycles per sample as its
-    fixed-point run counted them (``cycles_per_sample``: rounding modes and formats change the operations), and
-    the CPU load with the logging interrupt (``cpu_load``, 1 = every cycle of a sample period)."""
+    at the rate with the algorithm's state in the words of ``q_formats`` (a :class:`KernelFormats` label:
+    ``ram_bytes``, of the PIC16F877's 368; a narrower word saves whole bytes of the state variables, not of the
+    temporaries), the on-line algorithm's mean cycles per sample as its fixed-point run counted them
+    (``cycles_per_sample``: rounding modes and formats change the operations; a word of 16 bits or fewer is
+    counted with the 16-bit additions), and the CPU load with the logging interrupt (``cpu_load``, 1 = every
+    cycle of a sample period)."""
     logging = logging_cycles_per_sample(LoggerConfig("alvarez", float(sampling_rate_hz), 3))
-    return dict(ram_bytes=ram_budget(sampling_rate_hz).total_bytes, cycles_per_sample=cycles_per_sample,
+    ram = ram_budget(sampling_rate_hz, formats=KernelFormats.parse(q_formats))
+    return dict(ram_bytes=ram.total_bytes, cycles_per_sample=cycles_per_sample,
                 cpu_load=(cycles_per_sample + logging) / cycles_per_sample_available(sampling_rate_hz))
 
 
@@ -668,7 +700,7 @@ def smallest_adc_bits(summary: list[dict], *, mode: str = "multi-speed") -> list
     q = reference([r["q_formats"] for r in rows], "shipped")
     rd = reference([r["rounding"] for r in rows], "shipped")
     keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", *EFFECT_DIMENSIONS,
-            "estimator")
+            "m4_exponent", "estimator")
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         if r["q_formats"] == q and r["rounding"] == rd:
@@ -702,7 +734,7 @@ def smallest_formats(summary: list[dict], *, mode: str = "multi-speed") -> list[
     when no width holds (``smallest_adc_bits`` None)."""
     rows = [with_effects(r) for r in summary if r["mode"] == mode]
     keys = ("sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population", *EFFECT_DIMENSIONS,
-            "q_formats", "rounding", "estimator")
+            "m4_exponent", "q_formats", "rounding", "estimator")
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault(tuple(r[k] for k in keys), []).append(r)
@@ -730,10 +762,11 @@ def smallest_q_formats(summary: list[dict], *, mode: str = "multi-speed") -> lis
     for label in _order([r["q_formats"] for r in rows]):
         f = KernelFormats.parse(label)
         differ = [n for n in KernelFormats.field_names() if getattr(f, n) != getattr(shipped, n)]
-        for n in differ if len(differ) == 1 else (KernelFormats.field_names() if not differ else ()):
+        alone = len(differ) == 1 and replace(f, **{differ[0]: getattr(shipped, differ[0])}).label() == "shipped"
+        for n in differ if alone else (KernelFormats.field_names() if f.label() == "shipped" else ()):
             by_field.setdefault(n, {})[label] = getattr(f, n)
     keys = ("adc_bits", "sampling_rate_hz", "noise_density_g_rthz", "misalignment_deg", "population",
-            *EFFECT_DIMENSIONS, "rounding", "estimator")
+            *EFFECT_DIMENSIONS, "rounding", "m4_exponent", "estimator")
     out = []
     for name, labels in by_field.items():
         if len(labels) < 2:
@@ -765,7 +798,7 @@ def m5_rate_answer(sections: list[dict]) -> dict:
     ref = {k: reference(list(_order([s[k] for s in m5])), p) for k, p in
            (("adc_bits", 10), ("q_formats", "shipped"), ("noise_density_g_rthz", SENSOR_NOISE_G_RTHZ),
             ("misalignment_deg", 0.0), ("population", DEFAULT_POPULATION), *((k, 0.0) for k in EFFECT_DIMENSIONS),
-            ("rounding", "shipped"))}
+            ("rounding", "shipped"), ("m4_exponent", M4_EXPONENT))}
     m5 = [s for s in m5 if all(s[k] == v for k, v in ref.items())]
     rates = sorted({s["sampling_rate_hz"] for s in m5})
     rows = []
@@ -836,16 +869,18 @@ def format_summary(summary: list[dict], *, mode: str = "multi-speed") -> str:
              "estimated / real, pooled median and IQR; subj. range: subjects' median offline ratio; ADC mm / arith "
              "mm: per-step median |offline - ideal| / |online-fixed - online-float|, each with the quantisation "
              "theory's prediction beside it (theory: q^2/12 carried through the estimator); Q: fixed-point formats "
-             "(/rounding when not the shipped), tilt: extra misalignment, deg; conv/sensor: the converter's and "
+             "(/rounding when not the shipped), tilt: extra misalignment, deg; M4 p: M4's exponent; conv/sensor: the "
+             "converter's and "
              "sensor's effects that are on; RAM B, cycles, load: the configuration's cost in gaitlog budget's model "
              "(RAM of 368 bytes, the algorithm's mean cycles per sample, CPU load with the logging)",
-             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<{qw}}{'tilt':>5} {'pop':<7}{'conv/sensor':<{width}}{'est':<4}"
+             f"{'bits':>4}{'Hz':>6}{'noise ug':>9} {'Q':<{qw}}{'tilt':>5}{'M4 p':>6} {'pop':<7}"
+             f"{'conv/sensor':<{width}}{'est':<4}"
              f"{'subj':>5}{'n':>6}{'ideal':>8}{'offline':>8}{'IQR':>7}{'on-fx':>8}{'subj. range':>14}{'ADC max':>9}"
              f"{'ADC mm':>8}{'theory':>8}{'arith mm':>9}{'theory':>8}{'arith max':>10}{'RAM B':>6}{'cycles':>8}"
              f"{'load':>6}"]
     for r in rows:
         lines.append(f"{r['adc_bits']:>4}{r['sampling_rate_hz']:>6g}{1e6 * r['noise_density_g_rthz']:>9.0f} "
-                     f"{_q_label(r):<{qw}}{r['misalignment_deg']:>5g} {r['population']:<7}"
+                     f"{_q_label(r):<{qw}}{r['misalignment_deg']:>5g}{r['m4_exponent']:>6g} {r['population']:<7}"
                      f"{effects_label(r):<{width}}{r['estimator']:<4}{r['n_subjects']:>5}{r['n_sections']:>6}"
                      f"{r['median_ideal']:>8.3f}{r['median_offline']:>8.3f}{r['iqr_offline']:>7.3f}"
                      f"{r['median_online_fixed']:>8.3f}"
@@ -866,8 +901,10 @@ def _held(r: dict) -> str:
 def _where(r: dict) -> str:
     effects = effects_label(r)
     rounding = r.get("rounding", "shipped")
+    p = r.get("m4_exponent", M4_EXPONENT)
     return (_held(r) + (f", {effects}" if effects != "-" else "")
-            + (f", rounding {rounding}" if rounding != "shipped" else ""))
+            + (f", rounding {rounding}" if rounding != "shipped" else "")
+            + (f", M4 p {p:g}" if p != M4_EXPONENT else ""))
 
 
 def format_smallest_bits(rows: list[dict]) -> str:
@@ -922,7 +959,7 @@ def format_smallest_q(rows: list[dict]) -> str:
     for r in rows:
         groups.setdefault((r["variable"], r["adc_bits"], r["sampling_rate_hz"], r["noise_density_g_rthz"],
                            r["misalignment_deg"], r["population"], *(r[k] for k in EFFECT_DIMENSIONS),
-                           r.get("rounding", "shipped")), []).append(r)
+                           r.get("rounding", "shipped"), r.get("m4_exponent", M4_EXPONENT)), []).append(r)
     for (name, bits, *_), g in groups.items():
         need = [r["smallest_frac_bits"] for r in g]
         total = None if None in need else max(need)
@@ -956,12 +993,13 @@ def format_m5_rate(m5: dict) -> str:
 
 #: The ``gaitlog sweep`` option of each grid key (the effects: ``--`` + the key with dashes).
 OPTIONS = {"adc_bits": "--adc-bits", "sampling_rate_hz": "--logger-rate", "noise_density_g_rthz": "--noise-density",
-           "q_formats": "--q-formats", "misalignment_deg": "--misalignment", "population": "--population",
+           "q_formats": "--q-formats", "misalignment_deg": "--misalignment", "m4_exponent": "--m4-exponent",
+           "population": "--population",
            "subjects": "--subjects", "seeds": "--seeds", "rounding": "--rounding",
            **{k: "--" + k.replace("_", "-") for k in EFFECT_DIMENSIONS}}
 #: Units of the grid keys that are not effects.
 _UNITS = {"adc_bits": "bits", "sampling_rate_hz": "Hz", "noise_density_g_rthz": "g/√Hz", "q_formats": "set",
-          "misalignment_deg": "degrees", "population": "name", "subjects": "count", "seeds": "seed",
+          "misalignment_deg": "degrees", "m4_exponent": "1", "population": "name", "subjects": "count", "seeds": "seed",
           "rounding": "mode"}
 #: Formats whose fraction bits are a_v's (:class:`KernelFormats`: the accumulators keep them).
 _FOLLOWS_ACC = ("VELOCITY_Q", "POSITION_Q")
@@ -990,39 +1028,46 @@ def _default_text(value: Any) -> str:
 
 
 def _format_dimensions() -> list[Dimension]:
-    """Word and fraction bits of every Q format of :mod:`gaitlog.firmware_sim.algorithms.formats`: the fraction bits
-    of the :class:`KernelFormats` variables and the lowpass word through ``--q-formats``; the other words not yet
-    (the kernel's words are shared constants, 16 and 32 bits)."""
-    by_format = {id(_shipped_format(name)): name for name in KernelFormats.field_names()}
-    out = []
+    """Word and fraction bits of every Q format of :mod:`gaitlog.firmware_sim.algorithms.formats` (and of the
+    centred codes, ``centred_q``), each with the ``--q-formats`` token that sweeps it (:class:`KernelFormats`)."""
+    code = formats.centred_q(10)
+    out = [Dimension("CENTRED_Q.word_bits", "bits", str(code.total_bits), "--q-formats wcodeN",
+                     _word_meaning(code, "code_word_bits")),
+           Dimension("CENTRED_Q.frac_bits", "bits", str(code.frac_bits), "--adc-bits",
+                     "fraction bits of the centred codes and calibration offsets: 15 - max(10, ADC bits)")]
     for name in formats.__all__:
         q = getattr(formats, name)
         if not isinstance(q, QFormat):
             continue
-        field_name = by_format.get(id(q)) or ("acc_frac_bits" if name in _FOLLOWS_ACC else None)
-        short = KernelFormats(**{field_name: 1}).label().rstrip("0123456789") if field_name else None
-        follows = " (follows ACC_Q's)" if name in _FOLLOWS_ACC else ""
+        frac, word = KernelFormats.sweep_fields(q)
         if name == "LOWPASS_Q":
             out.append(Dimension(f"{name}.word_bits", "bits", str(KernelFormats().lowpass_word_bits), "--q-formats lpintN",
                                  f"word of {q} where it saturates: sign + N integer bits + fraction bits"))
+        elif word is None:
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.total_bits),
+                                 f"--q-formats {KernelFormats.token(frac)}N",
+                                 f"word of {q}: 1 + N fraction bits (block floating point: the shared exponent "
+                                 "keeps the range)"))
         else:
-            out.append(Dimension(f"{name}.word_bits", "bits", str(q.word_bits), None,
-                                 f"word of {q} (the kernel's 16- and 32-bit words are shared by several formats)"))
-        out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits),
-                             f"--q-formats {short}N" if short else None,
-                             f"fraction bits of {q}" + (f" (fewer than shipped only){follows}" if short else "")))
+            out.append(Dimension(f"{name}.word_bits", "bits", str(q.total_bits),
+                                 f"--q-formats {KernelFormats.token(word)}N", _word_meaning(q, word)))
+        follows = " (follows ACC_Q's)" if name in _FOLLOWS_ACC else ""
+        out.append(Dimension(f"{name}.frac_bits", "bits", str(q.frac_bits), f"--q-formats {KernelFormats.token(frac)}N",
+                             f"fraction bits of {q} (fewer than shipped only){follows}"))
     return out
 
 
-def _shipped_format(field_name: str) -> QFormat:
-    """The shipped format a :class:`KernelFormats` field sets the fraction bits of."""
-    return format_kernel._SHIPPED[field_name]          # noqa: SLF001  (the kernel's own table, defined once there)
+def _word_meaning(q: QFormat, word_field: str) -> str:
+    """The meaning of a word dimension: where its values saturate, how narrow it may be."""
+    where = ("the configured values saturate" if KernelFormats.configuration_only(word_field)
+             else "every value stored saturates")
+    return f"word of {q}, sign included: {where} at N bits (2 .. its {q.word_bits}-bit container)"
 
 
 def dimensions() -> list[Dimension]:
     """Every dimension of the question (module notes): the grid's (sweepable, with their default grid values; the
-    rounding among them) and the fixed-point chain's formats, with those the grid cannot change yet (the words of
-    most formats, M4's exponent)."""
+    rounding and M4's exponent among them) and the fixed-point chain's formats, each with the option that sweeps
+    it."""
     grid = SweepGrid()
     out = []
     for key, option in OPTIONS.items():
@@ -1032,8 +1077,6 @@ def dimensions() -> list[Dimension]:
             what, unit = SPEC_KEYS[key], _UNITS[key]
         out.append(Dimension(key, unit, _default_text(getattr(grid, key)), option, what))
     out += _format_dimensions()
-    out.append(Dimension("m4_exponent", "1", f"{M4_EXPONENT:g}", None, "M4's exponent p in S = K (a_max - a_min)^p "
-                         "(Weinberg's 1/4; the firmware's 1/2)"))
     return out
 
 

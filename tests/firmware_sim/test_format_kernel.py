@@ -43,7 +43,11 @@ def test_default_formats_are_the_module_constants() -> None:
     assert k.constants() == dict(F_ACC=fm.F_ACC, F_POS=fm.F_POS, F_GRAV=fm.F_GRAV, F_LP=fm.F_LP, W_LP=fm.W_LP,
                                  F_POS2=fm.F_POS2, F_ACC2=fm.F_ACC2, F_FIR=fm.F_FIR, F_KERNEL=fm.F_KERNEL,
                                  F_EXC=fm.F_EXC, F_EXC2=fm.F_EXC2, F_ROOT=fm.F_ROOT, F_STEP=fm.F_STEP, F_K=fm.F_K,
-                                 F_K4=fm.F_K4, F_M5=fm.F_M5)
+                                 F_K4=fm.F_K4, F_M5=fm.F_M5, F_TWO_LEN=fm.F_TWO_LEN, F_PARG=fm.F_PARG,
+                                 F_PARG2=fm.F_PARG2, W_CODE=fm.W_CODE, W_ACC=fm.W_ACC, W_GRAV=fm.W_GRAV,
+                                 W_ACC2=fm.W_ACC2, W_FIR=fm.W_FIR, W_VEL=fm.W_VEL, W_POS=fm.W_POS, W_POS2=fm.W_POS2,
+                                 W_EXC=fm.W_EXC, W_EXC2=fm.W_EXC2, W_PARG=fm.W_PARG, W_PARG2=fm.W_PARG2,
+                                 W_STEP=fm.W_STEP, W_ROOT=fm.W_ROOT, W_M5=fm.W_M5)
     assert k.mantissa_frac_bits == fm.MANTISSA_Q.frac_bits and k.rounding_label() == "shipped"
     assert k.rounding_constants() == dict(ROUND_MUL=1, ROUND_SHIFT=1, ROUND_DIV=1)
     assert not KernelFormats(acc_frac_bits=10).shipped

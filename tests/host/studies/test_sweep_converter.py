@@ -1,7 +1,7 @@
 """The converter's and the sensor's effects as sweep dimensions: the sweep's sampled walk gives the codes the
 emulated logger stores with the same real converter and drifting sensor; each effect lands where it should (INL
 in the ADC share; a calibrated offset and gain error nowhere; drift and 1/f in every chain); ``--inl-lsb 0,1``
-runs; ``--list-dimensions`` lists the grid's actual parameters, and says which are not yet sweepable."""
+runs; ``--list-dimensions`` lists the grid's actual parameters, each with the option that sweeps it."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from gaitlog.firmware_sim.adc import Adc
+from gaitlog.firmware_sim.algorithms.format_kernel import KernelFormats
 from gaitlog.firmware_sim.device import Logger
 from gaitlog.firmware_sim.world.walking import Walking
 from gaitlog.host.cli import build_parser, main
@@ -113,8 +114,7 @@ def _sweep_parser() -> argparse.ArgumentParser:
 def test_list_dimensions_matches_the_sweeps_parameters(capsys) -> None:
     """Every grid dimension is listed as sweepable with the option that sweeps it (an option of the command),
     its unit and the grid's default; each Q format's word and fraction bits, the rounding and M4's exponent
-    are listed, and those the grid cannot change say "not yet sweepable": M4's exponent and the words the
-    kernel shares (every format's fraction bits and the lowpass word are sweepable)."""
+    are listed, each with the option that sweeps it (none says "not yet sweepable")."""
     with pytest.raises(SystemExit) as exit_info:
         main(["sweep", "--list-dimensions"])
     assert exit_info.value.code in (0, None)
@@ -137,12 +137,16 @@ def test_list_dimensions_matches_the_sweeps_parameters(capsys) -> None:
             assert d.name in task_fields
     names = {d.name for d in dims}
     assert {"rounding", "m4_exponent", "K_Q.word_bits", "K_Q.frac_bits", "ACC_Q.frac_bits"} <= names
-    assert {d.name for d in dims if d.option is None} >= {"m4_exponent", "K_Q.word_bits"}
-    frac = {d.name: d.option for d in dims if d.name.endswith(".frac_bits")}
-    not_yet = {n for n, o in frac.items() if o is None}
-    # the products' formats the kernel derives from others (not stored variables)
-    assert not_yet == {"PENDULUM_ARG_Q.frac_bits", "PENDULUM_ARG2_Q.frac_bits", "TWO_LENGTH_Q.frac_bits",
-                       "LENGTH_Q.frac_bits"}, not_yet
+    # every format's word and fraction bits sweep, and M4's exponent
+    assert {d.name for d in dims if d.option is None} == set()
+    assert next(d for d in dims if d.name == "m4_exponent").option == "--m4-exponent"
+    words = {d.name: d.option for d in dims if d.name.endswith(".word_bits")}
+    assert len(words) == len([d for d in dims if d.name.endswith(".frac_bits")]) > 20
+    for name, option in words.items():
+        token = option.split()[-1].rstrip("N")
+        if name not in ("LOWPASS_Q.word_bits", "MANTISSA_Q.word_bits"):
+            q = KernelFormats.parse(f"{token}8")          # the token sweeps that format's word
+            assert q.label() == f"{token}8", name
     lowpass_word = next(d for d in dims if d.name == "LOWPASS_Q.word_bits")
     assert lowpass_word.option == "--q-formats lpintN" and lowpass_word.default == "19"
     assert next(d for d in dims if d.name == "rounding").option == "--rounding"

@@ -112,6 +112,13 @@ def test_smallest_q_formats_is_the_last_width_of_an_unbroken_run_within_toleranc
     assert got["lowpass_frac_bits"]["smallest_frac_bits"] == 16
     assert smallest_q_formats([_summary_row(arith_step_mm=2.0), _summary_row(q_formats="acc10")])[0][
         "smallest_frac_bits"] is None                                               # the shipped set itself fails
+    # a narrower word (alone, or beside fewer fraction bits) is no fraction-bits width: it answers nothing, and
+    # is not taken for the shipped set
+    words = [_summary_row(), _summary_row(q_formats="acc10"), _summary_row(q_formats="wacc12", arith_step_mm=9.0),
+             _summary_row(q_formats="acc9-wacc14", arith_step_mm=9.0)]
+    got = smallest_q_formats(words)
+    assert [(r["variable"], r["swept_frac_bits"], r["smallest_frac_bits"]) for r in got] == [
+        ("acc_frac_bits", "13/10", 10)]
 
 
 def _width_row(bits: int, **kw) -> dict:
@@ -193,8 +200,9 @@ def test_figures_one_per_swept_dimension() -> None:
 
 
 def test_rounding_is_a_grid_dimension_and_the_shipped_one_keeps_every_task_name(tmp_path) -> None:
-    """--rounding sweeps the fixed-point chain's rounding; at the shipped rounding a task's name is the one it had
-    before rounding was a dimension (the hash of its other fields), so earlier results folders resume."""
+    """--rounding sweeps the fixed-point chain's rounding; at the shipped rounding (and M4's default exponent) a
+    task's name is the one it had before these were dimensions (the hash of its other fields), so earlier results
+    folders resume."""
     import hashlib
     import json
 
@@ -204,12 +212,13 @@ def test_rounding_is_a_grid_dimension_and_the_shipped_one_keeps_every_task_name(
                   adc_bits=(10,), sampling_rate_hz=(50.0,))
     assert SweepGrid.from_spec(g.to_spec()) == g and len(g.tasks()) == 4
     t = _task()
-    old = {k: v for k, v in dataclasses.asdict(t).items() if k != "rounding" and (not isinstance(v, float) or v != 0.0
-                                                                                   or k in ("misalignment_deg",))}
+    old = {k: v for k, v in dataclasses.asdict(t).items() if k not in ("rounding", "m4_exponent")
+           and (not isinstance(v, float) or v != 0.0 or k in ("misalignment_deg",))}
     digest = hashlib.sha256(json.dumps(old, sort_keys=True).encode()).hexdigest()[:12]
     assert t.key.endswith(digest) and "rounding" not in t.key
     r = _task(rounding="truncate")
     assert r.key != t.key and "truncate" in r.key
+    assert _task(m4_exponent=0.5).key not in (t.key, r.key)            # M4's exponent: a task of its own
     with pytest.raises(SystemExit) as exc:
         main(["sweep", "--out", str(tmp_path / "x"), "--rounding", "shipped,floor", "--serial"])
     assert exc.value.code == 2 and not (tmp_path / "x").exists()
