@@ -68,7 +68,7 @@ from gaitlog.firmware_sim.fixedpoint import (
     MEASURED_CYCLES,
     cycles_per_sample_available,
 )
-from gaitlog.firmware_sim.logging_cycles import (  # the interrupt's model, re-exported (listed in __all__)
+from gaitlog.firmware_sim.logging_cycles import (  # the interrupt's model: importable from here as before
     ADC_CALIBRATION,
     ADC_CONVERSION_TAD,
     CONFIGURATIONS,

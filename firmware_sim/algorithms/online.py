@@ -190,7 +190,8 @@ class OnlineConfig:
             Width of the ADC codes (10 on the device; 8-12 for the sweep's hypothetical converters).
         cycles_available
             PIC cycles per sample period left to the algorithm (for the backlog figure only; default: the
-            whole period at the 18.432 MHz crystal, ``gaitlog.firmware_sim.logging_cycles`` subtracts the logging's share).
+            whole period at the 18.432 MHz crystal, ``gaitlog.firmware_sim.logging_cycles`` subtracts the
+            logging's share).
         formats
             The fixed-point Q formats (:class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`; default the
             shipped ones); ignored in float.
