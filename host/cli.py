@@ -10,7 +10,8 @@ One module per subcommand lives in ``host/commands/``; each defines
 Subcommand modules import only the standard library at module level (heavy libraries, and the standard modules
 only a run needs -- tempfile, dataclasses -- are imported inside ``run``) so that ``gaitlog --help`` and
 the start-up of every command stay fast: ``gaitlog --help`` loads no numpy and no :mod:`inspect`
-(tests/host/commands/test_cli_startup.py). A run builds only its own subcommand's arguments (:class:`_CommandParser`).
+(tests/host/commands/test_cli_startup.py). A run registers only its own subcommand (:func:`_named_command`) and
+builds only its arguments (:class:`_CommandParser`).
 
 Exit codes: 0 success, 1 data / I/O / protocol / device error (message on stderr, no partial output),
 2 usage error (argparse's, or a :class:`~gaitlog.host.errors.UsageError` a command raises: a bad option value
@@ -86,16 +87,19 @@ def build_parser() -> argparse.ArgumentParser:
     return _build(lazy=False)
 
 
-def _build(*, lazy: bool) -> argparse.ArgumentParser:
+def _build(*, lazy: bool, only: str | None = None) -> argparse.ArgumentParser:
     """The ``gaitlog`` parser; with ``lazy`` a subcommand's arguments are added only when that subcommand is
-    parsed or its help shown (:class:`_CommandParser`), so a run configures one subcommand, not all of them."""
+    parsed or its help shown (:class:`_CommandParser`), so a run configures one subcommand, not all of them.
+    With ``only`` (a command module's name, :func:`_named_command`) the other subcommands are not registered
+    at all: their modules are not imported and their parsers not made (argparse looks up its messages'
+    translations for every parser it makes)."""
     parser = _Parser(
         prog="gaitlog", epilog=_epilog(EXAMPLES), formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Emulate, dump, decode, calibrate and analyse the PIC16F877 + ADXL202 gait logger.",
     )
     parser.add_argument("--version", action="version", version=f"gaitlog {gaitlog.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_CommandParser)
-    for name in _command_modules():
+    for name in _command_modules() if only is None else [only]:
         module = importlib.import_module(f"gaitlog.host.commands.{name}")
         cmd = sub.add_parser(name.replace("_", "-"), help=module.HELP, description=module.HELP,
                              epilog=_epilog(getattr(module, "EXAMPLES", ())),
@@ -104,6 +108,16 @@ def _build(*, lazy: bool) -> argparse.ArgumentParser:
             cmd.configured()
         cmd.set_defaults(_run=module.run)
     return parser
+
+
+def _named_command(argv: Sequence[str]) -> str | None:
+    """The module of the command ``argv`` starts with, when its first word is exactly a command's name
+    (``calibrate-k`` -> ``calibrate_k``); None otherwise (an option first, a mistyped or no command: then every
+    subcommand is registered, for ``--help`` and the did-you-mean of a usage error)."""
+    if not argv or argv[0].startswith("-"):
+        return None
+    found = [name for name in _command_modules() if name.replace("_", "-") == argv[0]]
+    return found[0] if found else None
 
 
 class _CommandParser(_Parser):
@@ -156,7 +170,8 @@ def _known_errors() -> tuple[type[BaseException], ...]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gaitlog`` with ``argv`` (default ``sys.argv[1:]``) and return the exit code."""
     _single_threaded_blas()
-    args = _build(lazy=True).parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = _build(lazy=True, only=_named_command(argv)).parse_args(argv)
     name = " ".join(str(part) for part in (args.command, getattr(args, "action", None)) if part)
     from gaitlog.host.errors import UsageError
 

@@ -71,7 +71,7 @@ from gaitlog.firmware_sim.algorithms.state import (
 from gaitlog.firmware_sim.algorithms.state import LINE_POS as LINE_POS_SLOT
 from gaitlog.firmware_sim.algorithms.state import N as _N_SLOT
 from gaitlog.firmware_sim.eeprom import PAGE_BYTES
-from gaitlog.firmware_sim.budget import algorithm_cycles_per_sample
+from gaitlog.firmware_sim.logging_cycles import algorithm_cycles_per_sample
 from gaitlog.firmware_sim.fixedpoint import (
     C_CYCLES,
     C_DIV0,
@@ -202,7 +202,8 @@ class OnlineConfig:
             Width of the ADC codes (10 on the device; 8-12 for the sweep's hypothetical converters).
         cycles_available
             PIC cycles per sample period left to the algorithm (for the backlog figure only; default: the
-            whole period at the 18.432 MHz crystal, ``gaitlog.firmware_sim.budget`` subtracts the logging's share).
+            whole period at the 18.432 MHz crystal, ``gaitlog.firmware_sim.logging_cycles`` subtracts the
+            logging's share).
         formats
             The fixed-point Q formats (:class:`~gaitlog.firmware_sim.algorithms.format_kernel.KernelFormats`; default the
             shipped ones); ignored in float.

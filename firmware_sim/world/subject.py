@@ -50,18 +50,10 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from gaitlog.firmware_sim.world.body_ratios import FOOT_LENGTH_PER_HEIGHT, LEG_LENGTH_PER_HEIGHT
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
 
-#: Winter's anthropometric ratios (fraction of body height); the one home of these numbers
-#: (:mod:`gaitlog.host.gait.anthropometry` imports them).
-LEG_LENGTH_PER_HEIGHT = 0.530
-HEEL_TOE_LENGTH_PER_HEIGHT = 0.152
-#: Ball-of-foot length (heel to first metatarsal head) per heel-to-toe length (ANSUR means 197/270 mm in men,
-#: 179/244 mm in women).
-BALL_OF_FOOT_PER_FOOT_LENGTH = 0.73
-#: Heel (calcaneal tuberosity) to first metatarsal head per height: Alvarez's foot length ``S2``.
-FOOT_LENGTH_PER_HEIGHT = round(BALL_OF_FOOT_PER_FOOT_LENGTH * HEEL_TOE_LENGTH_PER_HEIGHT, 4)
 #: Walk ratio per metre of height, m per (steps/min) per m (Sekiya & Nagasaki 1998: WR ≈ 0.0064 in men).
 WALK_RATIO_PER_HEIGHT = 0.00375
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import warnings
 from typing import NamedTuple
 
-from gaitlog.firmware_sim.world.subject import (
+from gaitlog.firmware_sim.world.body_ratios import (
     BALL_OF_FOOT_PER_FOOT_LENGTH,
     FOOT_LENGTH_PER_HEIGHT,
     HEEL_TOE_LENGTH_PER_HEIGHT,

@@ -216,3 +216,36 @@ def test_calibrate_k_with_the_lower_back_prior(tmp_path, capsys) -> None:
     assert (b.k1_m5_m_s, b.k2_m5_m) == (a.k1_m5_m_s, a.k2_m5_m)
     assert f"K  M1 {b.k_m1:.4f}" in out and "shrunk toward the population K (IPOL lower back" in out
     assert f"M2 {a.k_m2:.4f} (weight {18 / (18 + LOWER_BACK_PRIOR.distance_m['M2']):.2f})" in out
+
+
+def test_estimate_both_csvs_are_the_library_tables_byte_for_byte(tmp_path, capsys) -> None:
+    """``estimate --arithmetic both``'s two CSVs are, byte for byte, the whole-array float chain's table
+    (:class:`StepPipeline`, not the streaming one the command runs) and the on-line algorithm's fixed-point table
+    on the recording's codes, each formatted by ``columns_csv_text`` with the lengths' source column."""
+    from gaitlog.firmware_sim.algorithms.steps import columns_csv_text
+    from gaitlog.host.files.inputs import read_acceleration
+    from gaitlog.host.files.replay import online_step_table, run_starts
+    from gaitlog.host.gait.anthropometry import anatomical_lengths
+    from gaitlog.host.gait.pipeline import StepPipeline
+
+    acc, _ = walk_acc_g(n_steps=60)
+    inp = tmp_path / "walk.npz"
+    write_npz(inp, acc)
+    out = tmp_path / "steps.csv"
+    assert main(["estimate", str(inp), "--arithmetic", "both", "--height", "1.75", "--out", str(out), "-q"]) == 0
+    capsys.readouterr()
+    leg, foot = anatomical_lengths(height_m=1.75)
+    data = read_acceleration(inp)
+    rec = data.recording
+    whole = StepPipeline(leg_length_m=leg, foot_length_m=foot).run(
+        data.g(), sampling_rate_hz=data.sampling_rate_hz, valid=data.valid).steps_
+    valid = np.asarray(rec.valid, bool)
+    fixed, _ = online_step_table(np.asarray(rec.codes), sampling_rate_hz=rec.sampling_rate_hz, leg_length_m=leg,
+                                 foot_length_m=foot, adc_calibration=rec.default_calibration()[0],
+                                 adc_bits=int(rec.adc_bits), arithmetic="fixed", valid=valid,
+                                 run_starts=run_starts(valid, rec.flags))
+    for table, path in ((whole, out), (fixed, tmp_path / "steps_fixed.csv")):
+        assert table.n_steps > 40
+        expected = columns_csv_text({**table.columns(), "lengths_source": ["height"] * table.n_steps,
+                                     "outside_k_range": [""] * table.n_steps})
+        assert path.read_bytes() == expected.encode("utf-8")

@@ -69,5 +69,23 @@ def test_estimate_imports_no_scipy(tmp_path) -> None:
     code, loaded = modules_after(["estimate", str(path), "--arithmetic", "both", "--out", str(tmp_path / "s.csv")])
     assert code == 0
     assert "gaitlog.firmware_sim.algorithms.online" in loaded  # the fixed-point chain did run
+    # only estimate's subcommand was registered: no other command module imported
+    assert not loaded & {"gaitlog.host.commands.decode", "gaitlog.host.commands.sweep", "gaitlog.host.commands.demo"}
     # (numba itself loads scipy.linalg for its BLAS bindings: not ours to avoid)
     assert not any(m.startswith(("scipy.signal", "scipy.ndimage", "matplotlib", "gaitlog.firmware_sim.sensor")) for m in loaded)
+
+
+def test_a_run_parses_as_the_whole_parser_does() -> None:
+    """Registering only the named subcommand (what ``main`` does) parses a command line into the same namespace
+    as the parser with every subcommand; a mistyped or missing command registers them all."""
+    from gaitlog.host import cli
+
+    for argv in (["estimate", "walk.npz", "--arithmetic", "both", "--out", "s.csv", "-q"],
+                 ["calibrate-k", "a.npz", "--distance", "20", "--out", "K.json"], ["decode", "walk.glimg", "--out", "walk"]):
+        only = cli._named_command(argv)
+        assert only == argv[0].replace("-", "_")
+        whole = vars(cli.build_parser().parse_args(argv))
+        assert vars(cli._build(lazy=True, only=only).parse_args(argv)) == whole
+    assert cli._named_command(["estimat", "x"]) is None
+    assert cli._named_command(["calibrate_k", "x"]) is None
+    assert cli._named_command(["--version"]) is None and cli._named_command([]) is None
