@@ -277,7 +277,8 @@ def check_meta(meta: dict, n_packets: int, json_path: str | Path) -> None:
     """Refuse a trial JSON whose fields the evaluation reads are malformed: ``TrialBoundaries`` two whole
     numbers, start before end, both on the recording's packet grid (``0`` to ``n_packets - 1``); ``UTurnBoundaries``
     absent, empty or two whole numbers; ``LeftFootEvents`` / ``RightFootEvents`` absent or lists of
-    [toe-off, heel-strike] pairs of whole numbers; ``WalkedDistance_m`` absent or a finite number > 0 (metres). Other fields (age, sex, weight, unknown ones) are not read.
+    [toe-off, heel-strike] pairs of whole numbers; ``WalkedDistance_m`` absent or a finite number > 0 (metres).
+    Other fields (age, sex, weight, unknown ones) are not read.
 
     Raises
     ------

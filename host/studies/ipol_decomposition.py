@@ -24,8 +24,8 @@ rule as the scored trials), so it is not an ingredient of its own: it follows ``
 :func:`decompose` starts from each side and swaps one ingredient for the other side's, everything else fixed,
 and scores every mix as ``gaitlog evaluate ipol`` scores its main rows (K from each subject's first trial,
 its other trials scored, every step between the trial boundaries summed, M4 with Weinberg's 1/4): median and
-IQR of the ratio over the walked distance with 95 % subject-bootstrap intervals, and the gain of each mix over the chain (IQR
-of the chain minus IQR of the mix, the same draws for both; :func:`gaitlog.host.studies.ipol_evaluation.
+IQR of the ratio over the walked distance with 95 % subject-bootstrap intervals, and the gain of each mix over
+the chain (IQR of the chain minus IQR of the mix, the same draws for both; :func:`gaitlog.host.studies.ipol_evaluation.
 choice_gain`). The all-chain mix reproduces the main rows and the all-recipe mix the ``baseline`` rows (checked:
 :attr:`Decomposition.max_reproduction_error`).
 """
@@ -268,7 +268,8 @@ def mix_rows(subjects: list[list[TrialParts]], mix: Mix, estimators: tuple[str, 
         for p, s in zip(trials[1:], sums[1:], strict=True):
             for e in estimators:
                 rows.append(dict(subject=p.rt.subject, trial=p.rt.trial, estimator=e,
-                                 ratio=s[e][0] / sums[0][e][0] * (trials[0].rt.distance_m / p.rt.distance_m), steps=s[e][1], reference_steps=p.rt.reference_steps(),
+                                 ratio=s[e][0] / sums[0][e][0] * (trials[0].rt.distance_m / p.rt.distance_m),
+                                 steps=s[e][1], reference_steps=p.rt.reference_steps(),
                                  error_vs_first=s[e][1] - p.rt.reference_steps() - first_error))
     return rows
 

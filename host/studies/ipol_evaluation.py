@@ -59,8 +59,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`), only when :data:`K_PRIOR_IN_MAIN` (it is not: its gain's interval
    includes zero, step 5c; the k-prior rows shrink the main K alone): every K above is shrunk toward the median
    K of the *other* subjects
-   (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` the calibration trial's walked distance, ``d0`` per
-   estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
+   (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` the calibration trial's walked
+   distance, ``d0`` per estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
    the variants (the other U-turn rule, the height unknown, the on-line chain's own K) toward the same
    variant of the other subjects with the fold's ``d0``. The prior learned on every subject is printed
    (:attr:`IpolResult.prior_all`; shipped as :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
@@ -83,8 +83,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    readable trial (``IpolResult.calibration_trials``).
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
-   :data:`CSV_COLUMNS` (ratio = distance / the walked distance, ``walked_distance_m``; steps = detected steps in the trial; reference = heel strikes
-   in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
+   :data:`CSV_COLUMNS` (ratio = distance / the walked distance, ``walked_distance_m``; steps = detected steps in
+   the trial; reference = heel strikes in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
    calibrated on, :meth:`gaitlog.host.gait.k_calibration.KFit.outside_range`, empty for M3). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
    offline K) pair each on-line float step with its fixed-point and offline twins (:func:`gaitlog.host.studies.compare.
    match_steps`).
@@ -213,7 +213,8 @@ ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-hal
 M4_STEP_RULES = ("m4-range-share", "m4-duration-share")
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
-               "walked_distance_m", "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
+               "walked_distance_m", "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range",
+               "cross_validated")
 #: Per trial and chain (offline, online-fixed): steps in the trial, steps with each event found, M3's filled
 #: steps (no toe-off or heel strike: the bout median), the events against the foot sensors, and the logger
 #: samples missing between the trial boundaries (fraction, longest run, samples the offline chain interpolated:
@@ -646,7 +647,8 @@ def _score_rows(rt: ReplayedTrial, table: StepTable, k: KFit, *, arithmetic: str
         d = section_distance(sec, counts, name)
         out.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=arithmetic, k_from=k_from,
                         uturn=uturn, lengths_source=lengths_source, variant=variant,
-                        walked_distance_m=rt.distance_m, distance_m=d, ratio=d / rt.distance_m, steps=sec.n_steps, reference_steps=rt.reference_steps(),
+                        walked_distance_m=rt.distance_m, distance_m=d, ratio=d / rt.distance_m,
+                        steps=sec.n_steps, reference_steps=rt.reference_steps(),
                         steps_outside_k_range=int(np.count_nonzero(outside[name] & counts)) if name in outside
                         else None, cross_validated=int(cross_validated)))
     return out
@@ -1003,7 +1005,8 @@ class IpolEvaluation:
                 raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {a!r}")
         if self.uturn not in UTURN_RULES:
             raise ValueError(f"uturn must be 'exclude' or 'include', got {self.uturn!r}")
-        if not (isinstance(self.distance_m, int | float) and math.isfinite(self.distance_m) and self.distance_m > 0):
+        d = self.distance_m
+        if isinstance(d, bool) or not (isinstance(d, int | float) and math.isfinite(d) and d > 0):
             raise ValueError(f"distance_m must be a finite number of metres > 0, got {self.distance_m!r}")
 
     # 1. replay -----------------------------------------------------------------------------------------------
@@ -1332,7 +1335,8 @@ def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_sour
     k = {e: trials[0].distance_m / v for e, v in sums[0].items()}
     return [dict(subject=rt.subject, trial=rt.trial, estimator=e, arithmetic="offline", k_from="offline",
                  uturn="include", lengths_source=lengths_source, variant="baseline",
-                 walked_distance_m=rt.distance_m, distance_m=k[e] * d[e], ratio=k[e] * d[e] / rt.distance_m, steps=n, reference_steps=rt.reference_steps(),
+                 walked_distance_m=rt.distance_m, distance_m=k[e] * d[e], ratio=k[e] * d[e] / rt.distance_m,
+                 steps=n, reference_steps=rt.reference_steps(),
                  steps_outside_k_range=None, cross_validated=1)
             for rt, d, n in zip(trials[1:], sums[1:], steps[1:], strict=True) for e in d]
 

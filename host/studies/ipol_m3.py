@@ -2,9 +2,10 @@
 
 M3 (:class:`gaitlog.host.gait.estimators.two_phase.TwoPhasePendulumM3`) is ``S = S1 + S2``: the single-support
 pendulum ``S1 = 2 sqrt(2 l h1 - h1^2)`` (``l`` = 0.530 x height) and the double-support length ``S2`` (Alvarez's
-foot length, 0.111 x height). The IPOL trials give the distance walked (20 m between the trial boundaries unless the evaluation or the trial's
-JSON says otherwise, :attr:`~gaitlog.host.studies.ipol_evaluation.ReplayedTrial.distance_m`; "20 m" below stands for
-it; the U-turn included) and the foot sensors' heel strikes, not each step's length, so the terms are judged by what the
+foot length, 0.111 x height). The IPOL trials give the distance walked (20 m between the trial boundaries unless
+the evaluation or the trial's JSON says otherwise,
+:attr:`~gaitlog.host.studies.ipol_evaluation.ReplayedTrial.distance_m`; "20 m" below stands for it; the U-turn
+included) and the foot sensors' heel strikes, not each step's length, so the terms are judged by what the
 trial's distance implies:
 
 * per step of the offline chain (the fold's event constants, as ``gaitlog evaluate ipol`` runs it): its part
@@ -236,7 +237,8 @@ class M3Decomposition:
                          for u in ("include", "exclude")}
         scored = [t for t in self.trials_ if t.scored]
         a = np.array([[np.sum(t.length_m["foot"] - t.foot_length_m), t.turn.size] for t in scored])
-        coef = np.linalg.lstsq(a, np.array([t.distance_m for t in scored]), rcond=None)[0] if scored else (math.nan,) * 2
+        walked = np.array([t.distance_m for t in scored])
+        coef = np.linalg.lstsq(a, walked, rcond=None)[0] if scored else (math.nan,) * 2
         self.regression_ = {"a": float(coef[0]), "b": float(coef[1])}
         return self
 

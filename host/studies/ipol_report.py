@@ -101,7 +101,8 @@ class IpolReport:
         """The figure first (it can fail on a broken matplotlib), then the CSVs, each written atomically."""
         res, paths = self.result, self.outputs
         rows = [{**{c: str(r[c]) for c in CSV_COLUMNS},
-                 "distance_m": f"{r['distance_m']:.4f}", "walked_distance_m": f"{r['walked_distance_m']:g}", "ratio": f"{r['ratio']:.5f}",
+                 "walked_distance_m": f"{r['walked_distance_m']:.10g}", "distance_m": f"{r['distance_m']:.4f}",
+                 "ratio": f"{r['ratio']:.5f}",
                  "steps_outside_k_range": "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])}
                 for r in res.rows]
         png = render_chain_boxplots_png(main_rows(res.rows), self.arithmetic,
@@ -165,7 +166,8 @@ class IpolReport:
         sources = Counter(r["lengths_source"] for r in mine)
         assumed = sorted({r["subject"] for r in mine if r["lengths_source"] != "subject-height"})
         return (f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {self.sampling_rate_hz:g} Hz, "
-                f"{self.adc_bits} bits, ratio = estimated / {self._distance_text()} walked, U-turn {self.uturn}d, emulated logger with its on-line algorithm on; one K per "
+                f"{self.adc_bits} bits, ratio = estimated / {self._distance_text()} walked, U-turn {self.uturn}d, "
+                "emulated logger with its on-line algorithm on; one K per "
                 f"subject, fitted on {_calibration_text(res.calibration_trials)} with the offline chain, for every "
                 "arithmetic"
                 + (" and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "")

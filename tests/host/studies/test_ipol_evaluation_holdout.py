@@ -25,6 +25,7 @@ import pytest
 from gaitlog.host.cli import main
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.ipol import list_trials, read_trial, stray_files
+from gaitlog.host.studies.ipol_m3 import TrialM3
 from tests.host.studies.test_ipol_evaluation_synthetic import write_ipol_trial
 
 #: The subset every real-data run starts from: 3 subjects, trials 1 and 2 (one scored trial each).
@@ -447,3 +448,15 @@ def test_a_bad_walked_distance_skips_the_trial_naming_file_and_field(tmp_path, v
     assert res.rc == 0, res.err
     assert re.search(r"skipped: 1-2_lb\.txt: .*1-2\.json: 'WalkedDistance_m' must be .* > 0, found", res.err), res.err
     assert "2 subjects, 2 evaluated trials" in res.out     # subject 1 keeps its calibration trial alone
+
+
+def test_m3_decomposition_reads_each_trials_distance() -> None:
+    """M3 without K over the trial's walked distance: the same steps over 40 m read half the 20 m ratio, and the
+    double support the distance implies is (distance - sum S1) / steps."""
+    n = 30
+    steps = {"foot": np.full(n, 0.7)}
+    trial = {d: TrialM3(1, 2, True, np.zeros(n, bool), np.full(n, 0.55), np.full(n, 0.4), np.full(n, 0.5),
+                        {"foot": np.full(n, 0.2)}, steps, n, 0.2, 1.8, 60.0, "M", distance_m=d) for d in (20.0, 40.0)}
+    assert trial[20.0].ratio("foot") == pytest.approx(n * 0.7 / 20.0, rel=1e-12)
+    assert trial[40.0].ratio("foot") == pytest.approx(trial[20.0].ratio("foot") / 2, rel=1e-12)
+    assert trial[40.0].implied_double_support_m() == pytest.approx((40.0 - n * 0.5) / n, rel=1e-12)
