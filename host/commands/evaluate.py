@@ -30,6 +30,7 @@ from gaitlog.host.commands._options import (
     check_output_folder,
     check_outputs,
     logger_rate_hz,
+    number,
     out_path,
     verbosity,
     whole,
@@ -74,11 +75,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_logger_rate_option(parser)
     add_adc_bits_option(parser, stored=True, what="of the emulated logger")
     parser.add_argument("--uturn", choices=["exclude", "include"], default=None,
-                        help="ipol: steps inside UTurnBoundaries: summed (default: the 20 m walked include the "
+                        help="ipol: steps inside UTurnBoundaries: summed (default: the distance walked includes the "
                         "turn) or left out of the distance, in the main tables (the offline chain is reported with both)")
     parser.add_argument("--arithmetic", choices=["offline", "online-float", "online-fixed", "all"], default=None,
                         help="ipol: the offline float chain, the on-line algorithm in float or in fixed point (the "
                         "logger's), or all three (default); one K (the offline chain's) for every one")
+    parser.add_argument("--distance-m", metavar="D", type=number(above=0, unit="m"), default=None,
+                        help="ipol: the distance walked between each trial's boundaries, m; K is fitted on it and "
+                        "every trial scored against it (default: the IPOL protocol's 20 m; a trial JSON's "
+                        "WalkedDistance_m overrides it for that trial)")
     add_force_option(parser)
     add_json_option(parser)
     add_verbosity_options(parser)
@@ -92,7 +97,7 @@ def _run_sim(args: argparse.Namespace) -> int:
         raise UsageError("evaluate sim: give the output folder as DIR or --out DIR")
     check_output_folder("--out" if args.out else "DIR", out, force=args.force)
     unhonoured = [f for f, v in (("--arithmetic", args.arithmetic), ("--figure", args.figure),
-                                 ("--uturn", args.uturn)) if v is not None]
+                                 ("--uturn", args.uturn), ("--distance-m", args.distance_m)) if v is not None]
     args.protocol = args.protocol or "paper"
     args.laps = args.laps or ("stopwatch" if args.protocol == "paper" else "mark")
     if args.laps == "stopwatch" and args.protocol != "paper":
@@ -138,7 +143,8 @@ def run(args: argparse.Namespace) -> int:
     with progress_bar(args, len(list_trials(args.folder)), "trial") as tick:   # skips and saturation: in the report
         report = evaluate_ipol(args.folder, outputs, sampling_rate_hz=args.logger_rate, adc_bits=args.adc_bits,
                                uturn=args.uturn or "include", arithmetic=args.arithmetic or "all",
-                               n_resamples=args.resamples, progress=tick)
+                               n_resamples=args.resamples, progress=tick,
+                               **({} if args.distance_m is None else {"distance_m": args.distance_m}))
     report.write_outputs()
     for msg in report.result.skipped:                # on stderr too, even with -q: data left out is never silent
         print(f"gaitlog evaluate ipol: skipped: {msg}", file=sys.stderr)

@@ -4,7 +4,8 @@ Layout of a folder: ``GaitData/<subject>-<trial>_lb.txt`` (tab-separated, a firs
 ``Acquisition frequency: 100 Hz``, then a header ``PacketCounter Acc_X Acc_Y Acc_Z Gyr_X ...``; acceleration
 in m/s^2, gravity included, +g on the axis pointing up) and ``GaitData/<subject>-<trial>.json``
 (``TrialBoundaries``, ``UTurnBoundaries``, ``LeftFootEvents`` / ``RightFootEvents`` as [toe-off,
-heel-strike] pairs, ``Height`` in cm, sometimes missing).
+heel-strike] pairs, ``Height`` in cm, sometimes missing; ``WalkedDistance_m``, optional, the distance walked
+between the trial boundaries when it is not 20 m).
 
 Every sample index in the JSON counts *packets*, not file rows, and the files have lost packets. This
 reader puts each file on the regular ``PacketCounter`` grid (its 16-bit wrap-around undone): index ``i`` of the returned arrays is packet
@@ -45,6 +46,9 @@ _NAME = re.compile(r"^(\d+)-(\d+)_lb\.txt$", re.IGNORECASE)
 _LIKE_NAME = re.compile(r"_lb\.txt$", re.IGNORECASE)
 #: A trial JSON, ``<subject>-<trial>.json`` (any case).
 _JSON_NAME = re.compile(r"^(\d+)-(\d+)\.json$", re.IGNORECASE)
+#: The optional JSON field giving the distance walked between ``TrialBoundaries`` (m) when it is not the IPOL
+#: protocol's (lab walking bouts in the same layout).
+WALKED_DISTANCE_KEY = "WalkedDistance_m"
 #: ``PacketCounter`` counts modulo 2**16 (the Xsens MTw's 16-bit counter): a long recording wraps to 0.
 PACKET_COUNTER_MODULUS = 1 << 16
 #: Columns written by :func:`write_trial` (the reader needs these four; the Xsens files add gyroscope and
@@ -273,7 +277,8 @@ def check_meta(meta: dict, n_packets: int, json_path: str | Path) -> None:
     """Refuse a trial JSON whose fields the evaluation reads are malformed: ``TrialBoundaries`` two whole
     numbers, start before end, both on the recording's packet grid (``0`` to ``n_packets - 1``); ``UTurnBoundaries``
     absent, empty or two whole numbers; ``LeftFootEvents`` / ``RightFootEvents`` absent or lists of
-    [toe-off, heel-strike] pairs of whole numbers. Other fields (age, sex, weight, unknown ones) are not read.
+    [toe-off, heel-strike] pairs of whole numbers; ``WalkedDistance_m`` absent or a finite number > 0 (metres).
+    Other fields (age, sex, weight, unknown ones) are not read.
 
     Raises
     ------
@@ -289,6 +294,10 @@ def check_meta(meta: dict, n_packets: int, json_path: str | Path) -> None:
     ub = meta.get("UTurnBoundaries")
     if ub not in (None, []) and not (isinstance(ub, list) and len(ub) == 2 and all(map(_is_index, ub))):
         raise HostError(f"{json_path}: 'UTurnBoundaries' must be [start, end] sample indices, found {ub!r}")
+    wd = meta.get(WALKED_DISTANCE_KEY)
+    if WALKED_DISTANCE_KEY in meta and walked_distance_m_of(meta) is None:
+        raise HostError(f"{json_path}: '{WALKED_DISTANCE_KEY}' must be the distance walked between the trial "
+                        f"boundaries, a number of metres > 0, found {wd!r}")
     for key in ("LeftFootEvents", "RightFootEvents"):
         ev = meta.get(key) or []
         bad = [ev] if not isinstance(ev, list) else [
@@ -345,6 +354,15 @@ def stray_files(folder: str | Path) -> list[str]:
         if m and (int(m.group(1)), int(m.group(2))) not in trials:
             out.append(f"{n}: no '{m.group(1)}-{m.group(2)}_lb.txt' beside it, not read")
     return out
+
+
+def walked_distance_m_of(meta: dict) -> float | None:
+    """The distance walked between ``TrialBoundaries`` from a trial JSON's ``WalkedDistance_m`` (m); None when
+    absent, or not a finite number > 0 (:func:`check_meta` refuses such a value, naming it)."""
+    d = meta.get(WALKED_DISTANCE_KEY)
+    if not isinstance(d, int | float) or isinstance(d, bool) or not math.isfinite(d) or d <= 0:
+        return None
+    return float(d)
 
 
 def height_m_of(meta: dict) -> float | None:

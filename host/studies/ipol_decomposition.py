@@ -18,14 +18,14 @@ The offline chain (:class:`gaitlog.host.gait.pipeline.StepPipeline`) and the rec
 * ``integration``: M2's drift correction -- the chain's eqs (2)-(3) (v back to zero, then x) or the recipe's
   joint correction (a constant and a ramp making v and x zero at both ends).
 
-K's fit is the same in both (20 m over the first trial's sum, summed by the same rule as the scored trials),
-so it is not an ingredient of its own: it follows ``selection`` and ``windowless``.
+K's fit is the same in both (the walked distance, 20 m by default, over the first trial's sum, summed by the same
+rule as the scored trials), so it is not an ingredient of its own: it follows ``selection`` and ``windowless``.
 
 :func:`decompose` starts from each side and swaps one ingredient for the other side's, everything else fixed,
 and scores every mix as ``gaitlog evaluate ipol`` scores its main rows (K from each subject's first trial,
 its other trials scored, every step between the trial boundaries summed, M4 with Weinberg's 1/4): median and
-IQR of the 20 m ratio with 95 % subject-bootstrap intervals, and the gain of each mix over the chain (IQR
-of the chain minus IQR of the mix, the same draws for both; :func:`gaitlog.host.studies.ipol_evaluation.
+IQR of the ratio over the walked distance with 95 % subject-bootstrap intervals, and the gain of each mix over
+the chain (IQR of the chain minus IQR of the mix, the same draws for both; :func:`gaitlog.host.studies.ipol_evaluation.
 choice_gain`). The all-chain mix reproduces the main rows and the all-recipe mix the ``baseline`` rows (checked:
 :attr:`Decomposition.max_reproduction_error`).
 """
@@ -254,7 +254,8 @@ class TrialParts:
 
 
 def mix_rows(subjects: list[list[TrialParts]], mix: Mix, estimators: tuple[str, ...] = tuple(DEPENDS)) -> list[dict]:
-    """``mix`` scored as the evaluation's main rows: per subject, K per estimator = 20 m over its first trial's sum,
+    """``mix`` scored as the evaluation's main rows: per subject, K per estimator = its first trial's walked
+    distance over that trial's sum (:attr:`~gaitlog.host.studies.ipol_evaluation.ReplayedTrial.distance_m`),
     one row per other trial and estimator (``subject``, ``trial``, ``estimator``, ``ratio``, ``steps``,
     ``reference_steps``, and ``error_vs_first``: the trial's step-count error minus its first trial's, what moves a
     ratio once K is fitted on the first trial). A subject whose first trial sums to nothing is left out."""
@@ -267,7 +268,8 @@ def mix_rows(subjects: list[list[TrialParts]], mix: Mix, estimators: tuple[str, 
         for p, s in zip(trials[1:], sums[1:], strict=True):
             for e in estimators:
                 rows.append(dict(subject=p.rt.subject, trial=p.rt.trial, estimator=e,
-                                 ratio=s[e][0] / sums[0][e][0], steps=s[e][1], reference_steps=p.rt.reference_steps(),
+                                 ratio=s[e][0] / sums[0][e][0] * (trials[0].rt.distance_m / p.rt.distance_m),
+                                 steps=s[e][1], reference_steps=p.rt.reference_steps(),
                                  error_vs_first=s[e][1] - p.rt.reference_steps() - first_error))
     return rows
 
@@ -406,10 +408,11 @@ def decompose(evaluation: IpolEvaluation, mixes: list[Mix] | None = None) -> Dec
                          subject_intervals(reference_count_rows(subjects), "count"))
 
 
-def decompose_folder(folder: str | Path, *, progress: Callable[[str], object] | None = None) -> Decomposition:
+def decompose_folder(folder: str | Path, *, progress: Callable[[str], object] | None = None,
+                     distance_m: float = IPOL_DISTANCE_M) -> Decomposition:
     """:func:`decompose` on an IPOL folder, the offline chain evaluated as ``gaitlog evaluate ipol --arithmetic
-    offline`` does."""
-    evaluation = IpolEvaluation(arithmetic=("offline",)).run(folder, progress=progress)
+    offline`` does (``distance_m``: as :class:`~gaitlog.host.studies.ipol_evaluation.IpolEvaluation`'s)."""
+    evaluation = IpolEvaluation(arithmetic=("offline",), distance_m=distance_m).run(folder, progress=progress)
     return decompose(evaluation)
 
 

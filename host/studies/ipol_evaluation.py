@@ -24,13 +24,14 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    > 0.25 s) and by ``+0.2 s`` at the end (less than half a step: the detection latency of the last, weak
    heel strike).
 4. *U-turn* (``uturn="include"``, the default): the score is what was walked: every step between the trial
-   boundaries counts, the turn's included, against 20 m (10 m out + 10 m back, the turn part of it).
+   boundaries counts, the turn's included, against the distance walked (the IPOL protocol's 20 m, 10 m out +
+   10 m back, the turn part of it; another with ``distance_m`` or a trial JSON's ``WalkedDistance_m``).
    ``uturn="exclude"`` leaves the steps whose heel strike lies within ``UTurnBoundaries`` out of the distance
    (they still count as steps). It was the default; it is not any more because the number of such steps
    differs from the calibration trial's by 1-2 in most trials and each moves a ratio by 2-2.6 %, and its dev
    gain (IQR 0.048 against 0.053) was far inside the noise (``docs/topics/accuracy.md``: the gain's interval).
    Both the per-subject calibration and the evaluation use the same rule, so K absorbs the turn either way;
-   M3, which has no K, has fewer steps against the same 20 m when the turn's are left out
+   M3, which has no K, has fewer steps against the same distance when the turn's are left out
    (:mod:`gaitlog.host.studies.ipol_m3`: its pendulum term follows the turn's shorter steps, its foot length does not).
    The offline chain is scored with both rules (rows ``variant = "uturn-<other rule>"``), with the
    height unknown (``variant = "height-unknown"``: a 1.70 m adult's lengths for every subject, K refitted), and
@@ -58,8 +59,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    5b. *K prior* (:mod:`gaitlog.host.gait.k_prior`), only when :data:`K_PRIOR_IN_MAIN` (it is not: its gain's interval
    includes zero, step 5c; the k-prior rows shrink the main K alone): every K above is shrunk toward the median
    K of the *other* subjects
-   (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` = 20 m, ``d0`` per
-   estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
+   (M4 per metre of leg), ``K = (d K_trial + d0 K_others) / (d + d0)`` with ``d`` the calibration trial's walked
+   distance, ``d0`` per estimator chosen on the other subjects (:func:`choose_prior`, nested: each of them shrunk toward the rest);
    the variants (the other U-turn rule, the height unknown, the on-line chain's own K) toward the same
    variant of the other subjects with the fold's ``d0``. The prior learned on every subject is printed
    (:attr:`IpolResult.prior_all`; shipped as :data:`gaitlog.host.gait.k_prior.LOWER_BACK_PRIOR`), never used to score.
@@ -82,8 +83,8 @@ For every trial of an IPOL folder (:mod:`gaitlog.host.files.ipol`):
    readable trial (``IpolResult.calibration_trials``).
 7. *Rows*: every other trial gives one row per estimator and arithmetic (``offline``, ``online-float``,
    ``online-fixed``; ``k_from = "offline"``) and the own-K rows (``online-fixed``, ``k_from = "own"``):
-   :data:`CSV_COLUMNS` (ratio = distance / 20 m; steps = detected steps in the trial; reference = heel strikes
-   in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
+   :data:`CSV_COLUMNS` (ratio = distance / the walked distance, ``walked_distance_m``; steps = detected steps in
+   the trial; reference = heel strikes in the JSON within the trial boundaries; ``steps_outside_k_range``: counted steps outside the range K was
    calibrated on, :meth:`gaitlog.host.gait.k_calibration.KFit.outside_range`, empty for M3). Per-step rows (:data:`STEP_COLUMNS`, every trial of a calibrated subject, the
    offline K) pair each on-line float step with its fixed-point and offline twins (:func:`gaitlog.host.studies.compare.
    match_steps`).
@@ -123,6 +124,7 @@ from gaitlog.host.files.ipol import (
     read_trial,
     stray_files,
     trial_key,
+    walked_distance_m_of,
 )
 from gaitlog.host.files.replay import check_records, online_step_table, run_starts
 from gaitlog.host.gait.anthropometry import DEFAULT_HEIGHT_M, anatomical_lengths, choose_lengths
@@ -159,7 +161,8 @@ from gaitlog.host.studies.tuning import (
 )
 from gaitlog.protocol.steps import StepConfig
 
-#: Reference distance of an IPOL trial: 10 m out + 10 m back.
+#: Reference distance of an IPOL trial: 10 m out + 10 m back (the default of :class:`IpolEvaluation`'s
+#: ``distance_m``; a trial JSON's ``WalkedDistance_m`` overrides it for that trial).
 IPOL_DISTANCE_M = 20.0
 #: A heel strike counts for the trial when it is >= start + SECTION_START_DELAY_S and <= end + SECTION_END_TOLERANCE_S.
 SECTION_START_DELAY_S = 0.25
@@ -210,7 +213,8 @@ ONLINE_M4_VARIANTS: dict[str, float] = {"m4-quarter": WEINBERG_EXPONENT, "m4-hal
 M4_STEP_RULES = ("m4-range-share", "m4-duration-share")
 
 CSV_COLUMNS = ("subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source", "variant",
-               "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range", "cross_validated")
+               "walked_distance_m", "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range",
+               "cross_validated")
 #: Per trial and chain (offline, online-fixed): steps in the trial, steps with each event found, M3's filled
 #: steps (no toe-off or heel strike: the bout median), the events against the foot sensors, and the logger
 #: samples missing between the trial boundaries (fraction, longest run, samples the offline chain interpolated:
@@ -251,6 +255,9 @@ class ReplayedTrial:
         The step records the logger stored (:data:`gaitlog.protocol.steps.STEP_RECORD_DTYPE`, CRC-good).
     leg_length_m, foot_length_m
         The anatomy the logger's step configuration was given.
+    distance_m
+        The distance walked between ``TrialBoundaries``, m: the JSON's ``WalkedDistance_m`` when it has one,
+        else the evaluation's (:data:`IPOL_DISTANCE_M` by default). K is fitted on it and ratios are over it.
     """
 
     subject: int
@@ -270,6 +277,7 @@ class ReplayedTrial:
     device_records: np.ndarray
     leg_length_m: float
     foot_length_m: float
+    distance_m: float = IPOL_DISTANCE_M
 
     def seconds(self, packet_index: float) -> float:
         """JSON packet index -> seconds on the logger clock."""
@@ -342,11 +350,13 @@ class ReplayedTrial:
 
 
 def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, leg_length_m: float | None = None,
-                 foot_length_m: float | None = None) -> ReplayedTrial:
+                 foot_length_m: float | None = None, distance_m: float = IPOL_DISTANCE_M) -> ReplayedTrial:
     """Replay one IPOL trial through the emulated logger with its on-line algorithm on (module notes).
 
     ``leg_length_m`` / ``foot_length_m`` configure the logger's step algorithm; missing ones come from the
-    trial's height (:func:`gaitlog.host.gait.anthropometry.choose_lengths`).
+    trial's height (:func:`gaitlog.host.gait.anthropometry.choose_lengths`). ``distance_m``: the distance walked
+    between the trial boundaries unless the JSON gives its own ``WalkedDistance_m``
+    (:func:`gaitlog.host.files.ipol.walked_distance_m_of`).
     """
     lb_path = Path(lb_path)
     trial = read_trial(lb_path)         # the host's reader: the packet grid, lost packets missing, the JSON
@@ -385,7 +395,8 @@ def replay_trial(lb_path: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPL
     return ReplayedTrial(trial.subject, trial.trial, acc, valid, rate, float(times_s[0]), meta, src_rate,
                          lb_path, codes, int(adc_bits), np.asarray(result.flags), np.asarray(result.sample_numbers,
                                                                                          np.int64),
-                         header, records[crc_ok], float(leg), float(foot))
+                         header, records[crc_ok], float(leg), float(foot),
+                         float(walked_distance_m_of(meta) or distance_m))
 
 
 def section_mask(rt: ReplayedTrial, table: StepTable) -> np.ndarray:
@@ -553,7 +564,7 @@ def _calibrate_on(rt: ReplayedTrial, table: StepTable, *, uturn: str, leg: float
                   m4_exponent: float = M4_EXPONENT) -> KFit:
     sec, counts = trial_steps(rt, with_m4_exponent(table, m4_exponent), uturn=uturn)
     # one trial at one speed: the M5 walk-ratio fallback is expected (its note stays in the result)
-    return calibrate([(_counted(sec, counts), IPOL_DISTANCE_M)], leg_length_m=leg, foot_length_m=foot,
+    return calibrate([(_counted(sec, counts), rt.distance_m)], leg_length_m=leg, foot_length_m=foot,
                      subject=str(rt.subject), m4_exponent=m4_exponent)
 
 
@@ -583,7 +594,7 @@ def _transfer(subject: ReplayedSubject, candidate: int, exponent: float, *, utur
     for rt, off in zip(subject.trials[1:], offs[1:], strict=True):
         sec, counts = trial_steps(rt, _calibrated(off, k), uturn=uturn)
         for e in PRIOR_ESTIMATORS:
-            out[e].append(section_distance(sec, counts, e) / IPOL_DISTANCE_M)
+            out[e].append(section_distance(sec, counts, e) / rt.distance_m)
     return k, out
 
 
@@ -635,8 +646,9 @@ def _score_rows(rt: ReplayedTrial, table: StepTable, k: KFit, *, arithmetic: str
     for name in ESTIMATORS:
         d = section_distance(sec, counts, name)
         out.append(dict(subject=rt.subject, trial=rt.trial, estimator=name, arithmetic=arithmetic, k_from=k_from,
-                        uturn=uturn, lengths_source=lengths_source, variant=variant, distance_m=d,
-                        ratio=d / IPOL_DISTANCE_M, steps=sec.n_steps, reference_steps=rt.reference_steps(),
+                        uturn=uturn, lengths_source=lengths_source, variant=variant,
+                        walked_distance_m=rt.distance_m, distance_m=d, ratio=d / rt.distance_m,
+                        steps=sec.n_steps, reference_steps=rt.reference_steps(),
                         steps_outside_k_range=int(np.count_nonzero(outside[name] & counts)) if name in outside
                         else None, cross_validated=int(cross_validated)))
     return out
@@ -923,6 +935,10 @@ class IpolEvaluation:
     arithmetic
         Any of :data:`ARITHMETICS`; every one uses the offline chain's K of the subject's calibration trial.
         With ``online-fixed``, the own-K rows are added (``k_from = "own"``).
+    distance_m
+        The distance walked between each trial's boundaries, m (> 0; :data:`IPOL_DISTANCE_M`, the IPOL
+        protocol's, by default): K is fitted on it and every trial is scored against it, except a trial whose
+        JSON gives its own ``WalkedDistance_m``.
 
     Attributes
     ----------
@@ -948,11 +964,13 @@ class IpolEvaluation:
     """
 
     def __init__(self, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10,
-                 uturn: str = "include", arithmetic: tuple[str, ...] = ARITHMETICS) -> None:
+                 uturn: str = "include", arithmetic: tuple[str, ...] = ARITHMETICS,
+                 distance_m: float = IPOL_DISTANCE_M) -> None:
         self.sampling_rate_hz = sampling_rate_hz
         self.adc_bits = adc_bits
         self.uturn = uturn
         self.arithmetic = arithmetic
+        self.distance_m = distance_m
 
     def run(self, folder: str | Path, *, progress: Callable[[str], object] | None = None) -> Self:
         """Evaluate ``folder``; ``progress`` (optional) is called with each trial name as it starts.
@@ -987,6 +1005,9 @@ class IpolEvaluation:
                 raise ValueError(f"arithmetic must be one of {ARITHMETICS}, got {a!r}")
         if self.uturn not in UTURN_RULES:
             raise ValueError(f"uturn must be 'exclude' or 'include', got {self.uturn!r}")
+        d = self.distance_m
+        if isinstance(d, bool) or not (isinstance(d, int | float) and math.isfinite(d) and d > 0):
+            raise ValueError(f"distance_m must be a finite number of metres > 0, got {self.distance_m!r}")
 
     # 1. replay -----------------------------------------------------------------------------------------------
 
@@ -1012,7 +1033,7 @@ class IpolEvaluation:
                 progress(p.name)
             try:   # the anatomy of the subject's first readable trial configures every later one
                 rt = replay_trial(p, sampling_rate_hz=self.sampling_rate_hz, adc_bits=self.adc_bits,
-                                  leg_length_m=leg, foot_length_m=foot)
+                                  leg_length_m=leg, foot_length_m=foot, distance_m=self.distance_m)
             except HostError as err:   # one unreadable trial must not sink the whole evaluation
                 stage.skipped.append(f"{p.name}: {err}")
                 continue
@@ -1286,16 +1307,18 @@ def _shrunk_k(subject: int, fits: dict[int, SubjectFit], priors: dict[str, KPrio
 def evaluate_folder(
     folder: str | Path, *, sampling_rate_hz: float = DEFAULT_SAMPLING_RATE_HZ, adc_bits: int = 10, uturn: str = "include",
     progress: Callable[[str], object] | None = None, arithmetic: tuple[str, ...] = ARITHMETICS,
+    distance_m: float = IPOL_DISTANCE_M,
 ) -> IpolResult:
     """:class:`IpolEvaluation` on ``folder``: its :attr:`~IpolEvaluation.result_` (``progress``: see
     :meth:`IpolEvaluation.run`)."""
     return IpolEvaluation(sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, uturn=uturn,
-                          arithmetic=arithmetic).run(folder, progress=progress).result_
+                          arithmetic=arithmetic, distance_m=distance_m).run(folder, progress=progress).result_
 
 
 def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_source: str) -> list[dict]:
     """The recipe (:class:`gaitlog.host.gait.recipe.RecipeBaseline`) scored as the chain is: its steps whose end
-    lies in the trial section (step 3's window), summed; K per estimator = 20 m over the first trial's sum; one
+    lies in the trial section (step 3's window), summed; K per estimator = the first trial's walked distance
+    (:attr:`ReplayedTrial.distance_m`) over its sum; one
     :data:`CSV_COLUMNS` row per other trial and estimator (``variant = "baseline"``). Empty when the first trial
     has no step."""
     sums, steps = [], []
@@ -1309,10 +1332,11 @@ def baseline_rows(trials: list[ReplayedTrial], leg_length_m: float, lengths_sour
         steps.append(int(np.count_nonzero(inside)))
     if not all(sums[0][e] > 0 for e in sums[0]):
         return []
-    k = {e: IPOL_DISTANCE_M / v for e, v in sums[0].items()}
+    k = {e: trials[0].distance_m / v for e, v in sums[0].items()}
     return [dict(subject=rt.subject, trial=rt.trial, estimator=e, arithmetic="offline", k_from="offline",
-                 uturn="include", lengths_source=lengths_source, variant="baseline", distance_m=k[e] * d[e],
-                 ratio=k[e] * d[e] / IPOL_DISTANCE_M, steps=n, reference_steps=rt.reference_steps(),
+                 uturn="include", lengths_source=lengths_source, variant="baseline",
+                 walked_distance_m=rt.distance_m, distance_m=k[e] * d[e], ratio=k[e] * d[e] / rt.distance_m,
+                 steps=n, reference_steps=rt.reference_steps(),
                  steps_outside_k_range=None, cross_validated=1)
             for rt, d, n in zip(trials[1:], sums[1:], steps[1:], strict=True) for e in d]
 
@@ -1695,7 +1719,7 @@ def _trial_event_lines(rows: list[dict]) -> list[str]:
     broken = [r for r in first if r["calibration_trial"] and r["longest_gap_s"] > MAX_INTERPOLATED_GAP_S]
     if broken:
         lines.append(f"calibration trials with a gap over {MAX_INTERPOLATED_GAP_S:g} s (a walking bout ends there: "
-                     "steps can be lost from the 20 m K is fitted on): " + ", ".join(
+                     "steps can be lost from the distance K is fitted on): " + ", ".join(
                          f"{r['subject']}-{r['trial']} ({100 * r['missing_fraction']:.1f} % missing, longest gap "
                          f"{r['longest_gap_s']:.2f} s)" for r in broken))
     lines.append("outside the trial boundaries (standing, shuffling and turning before and after the trials; not "

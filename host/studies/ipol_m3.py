@@ -2,8 +2,10 @@
 
 M3 (:class:`gaitlog.host.gait.estimators.two_phase.TwoPhasePendulumM3`) is ``S = S1 + S2``: the single-support
 pendulum ``S1 = 2 sqrt(2 l h1 - h1^2)`` (``l`` = 0.530 x height) and the double-support length ``S2`` (Alvarez's
-foot length, 0.111 x height). The IPOL trials give the distance walked (20 m between the trial boundaries, the
-U-turn included) and the foot sensors' heel strikes, not each step's length, so the terms are judged by what the
+foot length, 0.111 x height). The IPOL trials give the distance walked (20 m between the trial boundaries unless
+the evaluation or the trial's JSON says otherwise,
+:attr:`~gaitlog.host.studies.ipol_evaluation.ReplayedTrial.distance_m`; "20 m" below stands for it; the U-turn
+included) and the foot sensors' heel strikes, not each step's length, so the terms are judged by what the
 trial's distance implies:
 
 * per step of the offline chain (the fold's event constants, as ``gaitlog evaluate ipol`` runs it): its part
@@ -81,6 +83,9 @@ class TrialM3:
         Per rule, ``S1 + S2`` with the NaN steps filled with their bout's median (the chain's distance rule).
     reference_steps, foot_length_m, height_m, age, sex
         The foot sensors' heel strikes in the trial, S2 of the foot rule, and the JSON's subject data.
+    distance_m
+        The distance walked between the trial boundaries (:attr:`~gaitlog.host.studies.ipol_evaluation.
+        ReplayedTrial.distance_m`; "20 m" below stands for it).
     """
 
     subject: int
@@ -97,24 +102,25 @@ class TrialM3:
     height_m: float
     age: float
     sex: str
+    distance_m: float = IPOL_DISTANCE_M
 
     def ratio(self, rule: str, *, uturn: str = "include", scale: float = 1.0) -> float:
         """The rule's M3 distance over 20 m, every step (``include``) or the straight ones (``exclude``); ``scale``
         multiplies the foot rule's S2 (a filled step is its bout's median, so it moves by the same amount)."""
         v = self.length_m[rule] - (1.0 - scale) * self.foot_length_m * (rule == "foot")
-        return float(np.sum(v if uturn == "include" else v[~self.turn])) / IPOL_DISTANCE_M
+        return float(np.sum(v if uturn == "include" else v[~self.turn])) / self.distance_m
 
     def straight_step_ratio(self, rule: str) -> float:
         """The rule's mean straight step over the trial's mean step (20 m / steps): the turn's steps are shorter than
         the straight ones, so the straight steps' true mean is longer than 20 m / steps and this bounds the straight
         steps' reading from above (:meth:`ratio` with ``uturn="exclude"``, over the full 20 m, from below)."""
         v = self.length_m[rule][~self.turn]
-        return float(np.mean(v)) * self.turn.size / IPOL_DISTANCE_M if v.size else math.nan
+        return float(np.mean(v)) * self.turn.size / self.distance_m if v.size else math.nan
 
     def implied_double_support_m(self) -> float:
         """``D* = (20 m - sum S1) / steps``, S1 filled as the chain fills lengths (module notes)."""
         s1 = self.length_m["foot"] - self.foot_length_m
-        return (IPOL_DISTANCE_M - float(np.sum(s1))) / max(self.turn.size, 1)
+        return (self.distance_m - float(np.sum(s1))) / max(self.turn.size, 1)
 
 
 def trial_m3(rt: ReplayedTrial, leg_length_m: float, foot_length_m: float, candidate: dict[str, Any],
@@ -148,7 +154,7 @@ def trial_m3(rt: ReplayedTrial, leg_length_m: float, foot_length_m: float, candi
     height = rt.height_m
     return TrialM3(rt.subject, rt.trial, scored, turn, sec.duration_s.copy(), single, s1, ds, length,
                    rt.reference_steps(), float(foot_length_m), math.nan if height is None else float(height),
-                   float(rt.meta.get("Age", math.nan)), str(rt.meta.get("Gender", "")))
+                   float(rt.meta.get("Age", math.nan)), str(rt.meta.get("Gender", "")), rt.distance_m)
 
 
 def _median(x: list[float]) -> float:
@@ -231,7 +237,8 @@ class M3Decomposition:
                          for u in ("include", "exclude")}
         scored = [t for t in self.trials_ if t.scored]
         a = np.array([[np.sum(t.length_m["foot"] - t.foot_length_m), t.turn.size] for t in scored])
-        coef = np.linalg.lstsq(a, np.full(len(scored), IPOL_DISTANCE_M), rcond=None)[0] if scored else (math.nan,) * 2
+        walked = np.array([t.distance_m for t in scored])
+        coef = np.linalg.lstsq(a, walked, rcond=None)[0] if scored else (math.nan,) * 2
         self.regression_ = {"a": float(coef[0]), "b": float(coef[1])}
         return self
 
@@ -253,7 +260,7 @@ class M3Decomposition:
                "pendulum_m": float(np.nanmean(pooled(lambda t: t.pendulum_m))),
                "m3_m": float(np.mean(pooled(lambda t: t.length_m["foot"]))),
                "trial_mean_step_m": float(np.mean(pooled(lambda t: np.full(t.turn.size,
-                                                                           IPOL_DISTANCE_M / t.turn.size))))}
+                                                                           t.distance_m / t.turn.size))))}
         out.update({f"double_support_m_{r}": float(np.nanmean(pooled(lambda t, r=r: t.double_support_m[r])))
                     for r in self.rules})
         return out
@@ -288,7 +295,7 @@ class M3Decomposition:
         frac = np.concatenate([1 - t.single_support_s / t.duration_s for t in mine])
         out: dict[str, Any] = dict(
             subject=subject, age=first.age, sex=first.sex, height_m=first.height_m,
-            step_per_height=_median([IPOL_DISTANCE_M / t.reference_steps / t.height_m for t in scored
+            step_per_height=_median([t.distance_m / t.reference_steps / t.height_m for t in scored
                                      if t.reference_steps]),
             foot_length_m=first.foot_length_m,
             implied_double_support_m=_median([t.implied_double_support_m() for t in scored]),
@@ -329,11 +336,13 @@ class M3Decomposition:
         return out
 
     def format(self) -> str:
-        """The per-subject and per-group tables and each rule's figures, as text."""
-        lines = ["M3 without K against the foot events (scored trials; D* = (20 m - sum S1) / steps, the double "
+        """The per-subject and per-group tables and each rule's figures, as text ("20 m": the walked distance)."""
+        walked = {t.distance_m for t in self.trials_}
+        dist = f"{walked.pop():g} m" if len(walked) == 1 else "the walked distance"
+        lines = [f"M3 without K against the foot events (scored trials; D* = ({dist} - sum S1) / steps, the double "
                  "support the distance implies if the pendulum is exact):",
                  "subject age sex height step/height S2(foot) D* D*/S2 S1 straight S1 turn DS fraction "
-                 "straight-step/(20 m/steps) "
+                 f"straight-step/({dist}/steps) "
                  + " ".join(f"ratio[{r}] straight" for r in self.rules)]
         for s in self.subjects_:
             lines.append(f"  {s['subject']} {s['age']:.0f} {s['sex']} {s['height_m']:.2f} {s['step_per_height']:.3f} "
@@ -344,14 +353,14 @@ class M3Decomposition:
                          + " ".join(f"{s[f'ratio_{r}']:.3f} {s[f'ratio_{r}_straight']:.3f}" for r in self.rules))
         for (name, side), g in self.groups_.items():
             lines.append(f"  {name} {side} {GROUPS[name][1]:g}: subjects {g['subjects']} D*/S2 "
-                         f"{g['implied_per_foot']:.2f} straight-step/(20 m/steps) {g['straight_step_ratio_foot']:.3f} "
+                         f"{g['implied_per_foot']:.2f} straight-step/({dist}/steps) {g['straight_step_ratio_foot']:.3f} "
                          + " ".join(
                              f"{r} {g[f'ratio_{r}']:.3f} (straight {g[f'ratio_{r}_straight']:.3f})" for r in self.rules))
         for part, f in self.parts_.items():
             lines.append(f"{part} steps ({f['steps']:.0f}): mean S1 {f['pendulum_m']:.3f} m, S2 " + ", ".join(
                 f"{r} {f[f'double_support_m_{r}']:.3f}" for r in self.rules) + f" m; M3 {f['m3_m']:.3f} m against "
-                f"20 m / steps {f['trial_mean_step_m']:.3f} m")
-        lines.append(f"20 m = a sum S1 + b steps over the scored trials: a = {self.regression_['a']:.3f}, "
+                f"{dist} / steps {f['trial_mean_step_m']:.3f} m")
+        lines.append(f"{dist} = a sum S1 + b steps over the scored trials: a = {self.regression_['a']:.3f}, "
                      f"b = {self.regression_['b']:.3f} m per step")
         lines += [f"correlation over the subjects of {q} with {f}: {r:+.2f} [{lo:+.2f}, {hi:+.2f}]"
                   for (f, q), (r, lo, hi) in self.correlations_.items()]

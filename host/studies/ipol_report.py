@@ -19,6 +19,7 @@ from gaitlog.host.studies.ipol_evaluation import (
     ARITHMETICS,
     CSV_COLUMNS,
     EVENT_COLUMNS,
+    IPOL_DISTANCE_M,
     K_PRIOR_IN_MAIN,
     STEP_COLUMNS,
     IpolResult,
@@ -54,7 +55,7 @@ _OFFLINE_VARIANTS = (
      "with it; M4 row only; not kept: its gain's interval includes zero)", ("M4",)),
     ("baseline", "baseline, the recipe (host/gait/recipe.py: gaps interpolated, gravity from the first second, "
      "steps between the peaks of the 3 Hz zero-phase low-pass, M2 h with v and x zero at both ends, "
-     "M4 range^(1/4), K = 20 m / first trial's sum)", ("M2", "M4")),
+     "M4 range^(1/4), K = {distance} / first trial's sum)", ("M2", "M4")),
 )
 #: Tables printed only when their variant was run.
 _OPTIONAL_VARIANTS = (
@@ -94,12 +95,14 @@ class IpolReport:
     uturn: str
     arithmetic: tuple[str, ...]
     n_resamples: int = BOOTSTRAP_RESAMPLES
+    distance_m: float = IPOL_DISTANCE_M
 
     def write_outputs(self) -> None:
         """The figure first (it can fail on a broken matplotlib), then the CSVs, each written atomically."""
         res, paths = self.result, self.outputs
         rows = [{**{c: str(r[c]) for c in CSV_COLUMNS},
-                 "distance_m": f"{r['distance_m']:.4f}", "ratio": f"{r['ratio']:.5f}",
+                 "walked_distance_m": f"{r['walked_distance_m']:.10g}", "distance_m": f"{r['distance_m']:.4f}",
+                 "ratio": f"{r['ratio']:.5f}",
                  "steps_outside_k_range": "" if r["steps_outside_k_range"] is None else str(r["steps_outside_k_range"])}
                 for r in res.rows]
         png = render_chain_boxplots_png(main_rows(res.rows), self.arithmetic,
@@ -146,6 +149,11 @@ class IpolReport:
                      + (f", {paths.events}" if res.trial_events else "") + f", {paths.figure}")
         return "\n".join(lines)
 
+    def _distance_text(self) -> str:
+        """The walked distance as the headings name it: ``20 m``, or ``the walked distance`` when trials differ."""
+        walked = {r["walked_distance_m"] for r in self.result.rows}
+        return f"{walked.pop():g} m" if len(walked) == 1 else "the walked distance"
+
     def _resamples(self) -> int:
         """The subject bootstrap's resamples: none with one subject (every resample would be that subject: an
         interval of width zero, not a 95 % one)."""
@@ -158,7 +166,8 @@ class IpolReport:
         sources = Counter(r["lengths_source"] for r in mine)
         assumed = sorted({r["subject"] for r in mine if r["lengths_source"] != "subject-height"})
         return (f"{len(res.calibrations)} subjects, {res.n_trials} evaluated trials, {self.sampling_rate_hz:g} Hz, "
-                f"{self.adc_bits} bits, U-turn {self.uturn}d, emulated logger with its on-line algorithm on; one K per "
+                f"{self.adc_bits} bits, ratio = estimated / {self._distance_text()} walked, U-turn {self.uturn}d, "
+                "emulated logger with its on-line algorithm on; one K per "
                 f"subject, fitted on {_calibration_text(res.calibration_trials)} with the offline chain, for every "
                 "arithmetic"
                 + (" and shrunk toward the other subjects' K (the K prior)" if K_PRIOR_IN_MAIN else "")
@@ -181,7 +190,7 @@ class IpolReport:
         for variant, title, shown in _OFFLINE_VARIANTS:
             summary = summarise(rows, arithmetic="offline", variant=variant.format(other=other), intervals=True,
                                 n_resamples=self._resamples())
-            lines += _summary_table(title.format(other=other),
+            lines += _summary_table(title.format(other=other, distance=self._distance_text()),
                                     [x for x in summary if shown is None or x["estimator"] in shown])
         for variant, title in _OPTIONAL_VARIANTS:
             if any(r["variant"] == variant for r in rows):
@@ -198,16 +207,18 @@ class IpolReport:
 
 def evaluate_ipol(folder: str | Path, outputs: IpolOutputs, *, sampling_rate_hz: float, adc_bits: int,
                   uturn: str = "include", arithmetic: str = "all", n_resamples: int = BOOTSTRAP_RESAMPLES,
-                  progress: Callable[[str], object] | None = None) -> IpolReport:
+                  progress: Callable[[str], object] | None = None, distance_m: float = IPOL_DISTANCE_M) -> IpolReport:
     """The IPOL evaluation of ``folder`` (:func:`gaitlog.host.studies.ipol_evaluation.evaluate_folder`) as a
     report whose files go to ``outputs``; nothing is written until :meth:`IpolReport.write_outputs`.
     ``arithmetic`` is one of :data:`~gaitlog.host.studies.ipol_evaluation.ARITHMETICS` or ``"all"``;
-    ``n_resamples``: the subject bootstrap's resamples of the printed intervals (0: none, and no choice scored)."""
+    ``n_resamples``: the subject bootstrap's resamples of the printed intervals (0: none, and no choice scored);
+    ``distance_m``: the distance walked between each trial's boundaries (:class:`~gaitlog.host.studies.
+    ipol_evaluation.IpolEvaluation`)."""
     arithmetic = ARITHMETICS if arithmetic == "all" else (arithmetic,)
     res = evaluate_folder(folder, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits, uturn=uturn,
-                          arithmetic=arithmetic, progress=progress)
+                          arithmetic=arithmetic, progress=progress, distance_m=distance_m)
     return IpolReport(result=res, outputs=outputs, sampling_rate_hz=sampling_rate_hz, adc_bits=adc_bits,
-                      uturn=uturn, arithmetic=arithmetic, n_resamples=n_resamples)
+                      uturn=uturn, arithmetic=arithmetic, n_resamples=n_resamples, distance_m=distance_m)
 
 
 def _calibration_text(trials: dict[int, int]) -> str:

@@ -48,7 +48,8 @@ def test_evaluate_ipol_refuses_a_missing_output_folder_before_any_work(tmp_path,
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("flag", [["--arithmetic", "offline"], ["--figure", "x.png"], ["--uturn", "include"]])
+@pytest.mark.parametrize("flag", [["--arithmetic", "offline"], ["--figure", "x.png"], ["--uturn", "include"],
+                                  ["--distance-m", "40"]])
 def test_evaluate_sim_refuses_the_flags_it_cannot_honour(tmp_path, capsys, flag):
     assert main(["evaluate", "sim", str(tmp_path / "o"), "--subjects", "1", *flag]) == 2
     assert f"{flag[0]}: only for 'evaluate ipol'" in capsys.readouterr().err

@@ -25,6 +25,7 @@ import pytest
 from gaitlog.host.cli import main
 from gaitlog.host.errors import HostError
 from gaitlog.host.files.ipol import list_trials, read_trial, stray_files
+from gaitlog.host.studies.ipol_m3 import TrialM3
 from tests.host.studies.test_ipol_evaluation_synthetic import write_ipol_trial
 
 #: The subset every real-data run starts from: 3 subjects, trials 1 and 2 (one scored trial each).
@@ -354,3 +355,108 @@ def test_no_foot_events_anywhere_scores_distance_and_says_the_defaults_stand(tmp
     main = [r for r in rows if r["variant"] == "main" and r["estimator"] == "M2"]
     assert [(r["subject"], r["trial"], r["reference_steps"]) for r in main] == [("1", "2", "0"), ("2", "2", "0")]
     assert all(float(r["ratio"]) == pytest.approx(1.0, abs=0.05) for r in main)
+
+
+# ---------------------------------------------------------------------------- walks of another distance
+
+
+def _synthetic_folder(folder: Path) -> Path:
+    """Three synthetic subjects of two trials each (trial 1 calibrates, trial 2 is scored)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for subject in (1, 2, 3):
+        for trial in (1, 2):
+            write_ipol_trial(folder, subject, trial, seed=10 * subject + trial)
+    return folder
+
+
+def _json_rows(folder: Path, out_dir: Path, *extra: str) -> dict[tuple, dict]:
+    """The command's rows (``--json``: full precision) by (subject, trial, estimator, variant, uturn)."""
+    res = run_ipol(folder, out_dir, "--json", *extra)
+    assert res.rc == 0, res.err
+    return {(r["subject"], r["trial"], r["estimator"], r["variant"], r["uturn"]): r
+            for r in json.loads(res.out)["rows"]}
+
+
+@pytest.fixture(scope="module")
+def synthetic_20(tmp_path_factory) -> tuple[Path, dict[tuple, dict]]:
+    folder = _synthetic_folder(tmp_path_factory.mktemp("walks") / "in")
+    return folder, _json_rows(folder, folder.parent / "out20")
+
+
+#: Variants whose K is the subject's first trial's alone (the k-prior rows weigh K by the calibration distance
+#: against a prior worth d0 metres: another distance weighs them otherwise, by design).
+_FIRST_TRIAL_K = ("main", "uturn-exclude", "height-unknown", "m3-single-support-speed", "baseline")
+
+
+def test_another_distance_leaves_calibrated_ratios_and_halves_m3(synthetic_20, tmp_path) -> None:
+    """``--distance-m 40`` on walks that are the same: K = distance / calibration sum doubles, so every calibrated
+    ratio (M1, M2, M4, M5; the recipe's M2, M4) is the 20 m run's, while M3, which has no K, reads half as far."""
+    folder, rows20 = synthetic_20
+    rows40 = _json_rows(folder, tmp_path / "out40", "--distance-m", "40")
+    assert rows40.keys() == rows20.keys()
+    checked = {"M3": 0, "K": 0}
+    for key, r20 in rows20.items():
+        if key[3] not in _FIRST_TRIAL_K:
+            continue
+        r40 = rows40[key]
+        assert (r20["walked_distance_m"], r40["walked_distance_m"]) == (20.0, 40.0)
+        want = r20["ratio"] / 2 if key[2] == "M3" else r20["ratio"]
+        assert r40["ratio"] == pytest.approx(want, rel=1e-12, abs=1e-15), key
+        checked["M3" if key[2] == "M3" else "K"] += 1
+    assert checked["M3"] >= 3 and checked["K"] >= 12
+
+
+def test_a_trials_walked_distance_scales_that_trial_alone(synthetic_20, tmp_path) -> None:
+    """``WalkedDistance_m`` = 25 in a scored trial's JSON: that trial's ratios (calibrated or M3) are 20/25 of
+    the 20 m run's, every other row unchanged; in a calibration trial, its subject's calibrated ratios scale by
+    25/20 and its M3 ratios stay (the scored trial is still 20 m)."""
+    folder, rows20 = synthetic_20
+    edit_json(folder / "2-2.json", lambda m: m.update(WalkedDistance_m=25))
+    edit_json(folder / "3-1.json", lambda m: m.update(WalkedDistance_m=25.0))
+    try:
+        rows = _json_rows(folder, tmp_path / "out")
+    finally:
+        edit_json(folder / "2-2.json", lambda m: m.pop("WalkedDistance_m"))
+        edit_json(folder / "3-1.json", lambda m: m.pop("WalkedDistance_m"))
+    for key, r20 in rows20.items():
+        if key[3] not in _FIRST_TRIAL_K:
+            continue
+        subject, estimator = key[0], key[2]
+        scale = (20 / 25 if subject == 2 else 25 / 20 if subject == 3 and estimator != "M3" else 1.0)
+        assert rows[key]["walked_distance_m"] == (25.0 if subject == 2 else 20.0)
+        assert rows[key]["ratio"] == pytest.approx(r20["ratio"] * scale, rel=1e-12, abs=1e-15), key
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "nan", "inf", "twenty"])
+def test_a_bad_distance_is_a_usage_error_naming_the_option(tmp_path, value) -> None:
+    so, se = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se), pytest.raises(SystemExit) as stop:
+        main(["evaluate", "ipol", str(tmp_path), "--out", str(tmp_path / "e.csv"), "--distance-m", value])
+    assert stop.value.code == 2 and so.getvalue() == ""
+    message = se.getvalue().strip().splitlines()[-1]
+    assert "--distance-m" in message and "> 0" in message and "Traceback" not in se.getvalue()
+    assert not (tmp_path / "e.csv").exists()
+
+
+@pytest.mark.parametrize("value", [0, -1.5, "20", True, None, [20]])
+def test_a_bad_walked_distance_skips_the_trial_naming_file_and_field(tmp_path, value) -> None:
+    """A ``WalkedDistance_m`` that is not a number of metres > 0: that trial is skipped, naming the JSON and the
+    field; the rest is scored."""
+    folder = _synthetic_folder(tmp_path / "in")
+    edit_json(folder / "1-2.json", lambda m: m.update(WalkedDistance_m=value))
+    res = run_ipol(folder, tmp_path / "out")
+    assert res.rc == 0, res.err
+    assert re.search(r"skipped: 1-2_lb\.txt: .*1-2\.json: 'WalkedDistance_m' must be .* > 0, found", res.err), res.err
+    assert "2 subjects, 2 evaluated trials" in res.out     # subject 1 keeps its calibration trial alone
+
+
+def test_m3_decomposition_reads_each_trials_distance() -> None:
+    """M3 without K over the trial's walked distance: the same steps over 40 m read half the 20 m ratio, and the
+    double support the distance implies is (distance - sum S1) / steps."""
+    n = 30
+    steps = {"foot": np.full(n, 0.7)}
+    trial = {d: TrialM3(1, 2, True, np.zeros(n, bool), np.full(n, 0.55), np.full(n, 0.4), np.full(n, 0.5),
+                        {"foot": np.full(n, 0.2)}, steps, n, 0.2, 1.8, 60.0, "M", distance_m=d) for d in (20.0, 40.0)}
+    assert trial[20.0].ratio("foot") == pytest.approx(n * 0.7 / 20.0, rel=1e-12)
+    assert trial[40.0].ratio("foot") == pytest.approx(trial[20.0].ratio("foot") / 2, rel=1e-12)
+    assert trial[40.0].implied_double_support_m() == pytest.approx((40.0 - n * 0.5) / n, rel=1e-12)

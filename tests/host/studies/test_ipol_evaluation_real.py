@@ -82,7 +82,7 @@ def iqr(x):
 def test_csv_layout(ipol) -> None:
     rows = ipol.rows
     assert list(rows[0]) == ["subject", "trial", "estimator", "arithmetic", "k_from", "uturn", "lengths_source",
-                             "variant", "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range",
+                             "variant", "walked_distance_m", "distance_m", "ratio", "steps", "reference_steps", "steps_outside_k_range",
                              "cross_validated"]
     kinds = {(r["arithmetic"], r["k_from"], r["variant"], r["uturn"], r["lengths_source"]) for r in rows}
     assert kinds == {("offline", "offline", "main", "include", "subject-height"),
@@ -104,6 +104,7 @@ def test_csv_layout(ipol) -> None:
     # 52 trials - 9 calibration trials, 5 estimators, 17 kinds; the baseline's M2 and M4
     assert len(rows) == 17 * 5 * 43 + 2 * 43
     for r in rows:
+        assert r["walked_distance_m"] == "20"        # the IPOL protocol's, no JSON of the dev set states another
         assert float(r["distance_m"]) == pytest.approx(20.0 * float(r["ratio"]), rel=1e-3)
 
 

@@ -28,10 +28,12 @@ from tests.host.studies.test_ipol_evaluation_synthetic import write_ipol_trial
 
 #: sha256 of the files ``gaitlog evaluate ipol`` writes on :func:`folder`.
 DIGESTS = {
-    "eval.csv": "91875da9f5e50df51f5db82819d061c239a62c90a7b8c147573ab057f66b164f",
+    "eval.csv": "d289ebc3cf0ffc37d302de36eb6b9e6e981ffe1ed9e68d5aa0105d0023baba76",
     "eval_steps.csv": "dd483e51c82e7642aeb0d7d43301174c843e781a0b21b1c879a105543ad39eab",
     "eval_events.csv": "f6f094b61cc7ed56c99c4d7bab7c54687dfc3832c37659f7bbf9c06457ed440b",
 }
+#: ``eval.csv``'s digest without its ``walked_distance_m`` column: the digest pinned before that column was added.
+WITHOUT_WALKED_DISTANCE = "91875da9f5e50df51f5db82819d061c239a62c90a7b8c147573ab057f66b164f"
 
 
 @pytest.fixture(scope="module")
@@ -75,3 +77,12 @@ def test_command_files_pinned(folder, tmp_path) -> None:
         assert main(["evaluate", "ipol", str(folder), "--out", str(out), "-q"]) == 0
     got = {name: hashlib.sha256((tmp_path / name).read_bytes()).hexdigest() for name in DIGESTS}
     assert got == DIGESTS
+    # the rows as pinned before the walked distance had a column: the same bytes once that column is removed
+    text = (tmp_path / "eval.csv").read_bytes()
+    end = b"\r\n" if b"\r\n" in text else b"\n"
+    lines = text.split(end)
+    col = lines[0].split(b",").index(b"walked_distance_m")
+    assert all(ln.split(b",")[col] == b"20" for ln in lines[1:] if ln)
+    without = end.join(b",".join(c for j, c in enumerate(ln.split(b",")) if j != col) if ln else ln
+                          for ln in lines)
+    assert hashlib.sha256(without).hexdigest() == WITHOUT_WALKED_DISTANCE
