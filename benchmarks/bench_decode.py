@@ -22,13 +22,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from _timing import best_of
+from _timing import best_of, process_seconds
 from _walker import step_config, walker_motion
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,15 +48,8 @@ def make_image(folder: Path) -> Path:
 
 
 def process(cmd: list[str], env: dict[str, str]) -> tuple[float, float]:
-    """Wall and CPU (user + system) seconds of one fresh process (it must exit 0)."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, cwd=ROOT)
-    _, status, usage = os.wait4(proc.pid, 0)
-    seconds = time.perf_counter() - t0
-    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{err[-2000:]}")
-    return seconds, usage.ru_utime + usage.ru_stime
+    """Wall and CPU seconds of one fresh process in the repository (it must exit 0)."""
+    return process_seconds(cmd, env, ROOT)
 
 
 def measure(image: Path, folder: Path, repeat: int) -> dict[str, tuple[float, float]]:

@@ -40,9 +40,9 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
+from _timing import process_seconds
 from _walker import step_config, walker_motion
 from bench_long_recordings import MOBGAP, MOBGAP_LIMIT
 
@@ -88,15 +88,8 @@ runpy.run_module("gaitlog", run_name="__main__", alter_sys=True)
 
 
 def process(cmd: list[str], env: dict[str, str], cwd: Path = ROOT) -> tuple[float, float]:
-    """Wall and CPU (user + system) seconds of one fresh process (it must exit 0)."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, cwd=cwd)
-    _, status, usage = os.wait4(proc.pid, 0)
-    seconds = time.perf_counter() - t0
-    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{err[-2000:]}")
-    return seconds, usage.ru_utime + usage.ru_stime
+    """Wall and CPU seconds of one fresh process (it must exit 0)."""
+    return process_seconds(cmd, env, cwd)
 
 
 def best(cmd: list[str], env: dict[str, str], cwd: Path = ROOT) -> tuple[float, float]:
