@@ -40,6 +40,10 @@ from gaitlog.host.errors import UsageError
 
 # The studies load numpy, numba and matplotlib: _run_sim and run import them, so that `gaitlog --help` does not.
 
+#: The options of ``evaluate sim`` alone and their defaults (None on the command line: ``evaluate ipol`` refuses
+#: any of them given).
+SIM_DEFAULTS = {"subjects": 4, "seed": 0, "workers": 1, "population": "people"}
+
 HELP = "evaluate M1-M5: IPOL lower-back trials (ipol DIR) or simulated subjects (sim) through the emulated logger"
 #: Shown under "examples:" by ``gaitlog evaluate --help``.
 EXAMPLES = (
@@ -57,10 +61,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="CSV",
                         help="ipol: one row per trial, estimator and arithmetic (required; per-step pairs go to "
                         "<CSV>_steps.csv); sim: output folder (or DIR)")
-    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=4, help="sim: number of simulated subjects (4)")
-    parser.add_argument("--seed", type=SEED, default=0, help="sim: seed of the subjects and devices (0)")
-    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=1, help="sim: processes to use (1)")
-    parser.add_argument("--population", choices=["v1", "people"], default="people",
+    parser.add_argument("--subjects", type=whole(minimum=1, maximum=1000), default=None, help="sim: number of simulated subjects (4)")
+    parser.add_argument("--seed", type=SEED, default=None, help="sim: seed of the subjects and devices (0)")
+    parser.add_argument("--workers", type=whole(minimum=1, maximum=256), default=None, help="sim: processes to use (1)")
+    parser.add_argument("--population", choices=["v1", "people"], default=None,
                         help="sim: simulated population: people (default; tuned to real lower-back walking) or v1")
     parser.add_argument("--protocol", choices=["paper", "compact"], default=None,
                         help="sim: paper (default: Alvarez's protocol as run: 5-minute rests with the logger stopped, "
@@ -91,6 +95,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def _run_sim(args: argparse.Namespace) -> int:
     from gaitlog.host.studies.evaluation import SimulatedEvaluation
+
+    for name, default in SIM_DEFAULTS.items():
+        if getattr(args, name) is None:
+            setattr(args, name, default)
 
     out = args.out or args.folder
     if out is None:
@@ -134,6 +142,10 @@ def run(args: argparse.Namespace) -> int:
         return _run_sim(args)
     if args.folder is None or args.out is None:
         raise UsageError("evaluate ipol: give the folder (DIR) and --out CSV")
+    sim_only = [f"--{name}" for name in (*SIM_DEFAULTS, "protocol", "laps") if getattr(args, name) is not None]
+    if sim_only:
+        raise UsageError(f"{', '.join(sim_only)}: only for 'evaluate sim' (evaluate ipol scores the recorded trials "
+                         "of DIR)")
     from gaitlog.host.studies.ipol_report import IpolOutputs, evaluate_ipol, list_trials
 
     outputs = IpolOutputs.beside(out_path(args.out, "ipol_evaluation.csv"), args.figure)

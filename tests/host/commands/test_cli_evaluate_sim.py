@@ -54,3 +54,14 @@ def test_evaluate_sim_refuses_the_flags_it_cannot_honour(tmp_path, capsys, flag)
     assert main(["evaluate", "sim", str(tmp_path / "o"), "--subjects", "1", *flag]) == 2
     assert f"{flag[0]}: only for 'evaluate ipol'" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("flag", [["--subjects", "4"], ["--seed", "1"], ["--workers", "2"], ["--population", "v1"],
+                                  ["--protocol", "compact"], ["--laps", "mark"]])
+def test_evaluate_ipol_refuses_the_flags_of_sim(tmp_path, capsys, flag):
+    """A simulation option given to ``evaluate ipol`` is a usage error (it was silently ignored), before any work."""
+    out = tmp_path / "eval.csv"
+    assert main(["evaluate", "ipol", str(tmp_path / "no-data"), "--out", str(out), *flag]) == 2
+    err = capsys.readouterr().err
+    assert f"{flag[0]}: only for 'evaluate sim'" in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
