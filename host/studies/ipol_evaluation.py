@@ -139,7 +139,7 @@ from gaitlog.host.gait.k_prior import (
 )
 from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
 from gaitlog.host.gait.recipe import RecipeBaseline
-from gaitlog.host.studies.compare import match_steps
+from gaitlog.host.studies.compare import match_steps, with_m4_exponent
 from gaitlog.host.studies.stats import BOOTSTRAP_LEVEL, BOOTSTRAP_RESAMPLES, subject_bootstrap, subject_resamples
 from gaitlog.host.studies.tuning import (
     COUNT_CRITERION,
@@ -518,16 +518,6 @@ def _with_m4_lengths(table: StepTable, k: KFit) -> StepTable:
     range."""
     out = table.select(np.ones(table.n_steps, bool))
     out.length_m = {**table.length_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=k.k_m4, exponent=k.m4_exponent)}
-    return out
-
-
-def with_m4_exponent(table: StepTable, exponent: float) -> StepTable:
-    """``table`` with its raw M4 lengths computed with ``exponent`` (``range^exponent``, from each step's
-    range); ``table`` itself when that is the chain's own exponent."""
-    if math.isclose(exponent, M4_EXPONENT):
-        return table
-    out = table.select(np.ones(table.n_steps, bool))
-    out.raw_m = {**table.raw_m, "M4": weinberg_length_m(table.acc_range_m_s2, k=1.0, exponent=exponent)}
     return out
 
 
