@@ -20,20 +20,25 @@ import pytest
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS
 from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, GapFiller, missing_runs
 from gaitlog.host.gait.k_calibration import calibrate
-from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration
+from gaitlog.host.gait.pipeline import StepPipeline, apply_calibration, step_table
 from gaitlog.host.studies.ipol_evaluation import _counted, replay_trial, section_distance, trial_steps
 
 pytestmark = pytest.mark.slow  # ~40 s: a few hundred runs of the offline chain
 
 MISSING_FRACTION = 0.10
 CLEAN_IPOL_TRIALS = ("2-2", "3-2", "4-4", "9-2")     # no lost packet inside the trial boundaries
+#: every dev trial with no lost packet inside its boundaries (the foot-flat test: cheap, one chain run a trial)
+ALL_CLEAN_IPOL_TRIALS = ("1-1", "1-2", "1-3", "1-4", "1-5", "2-1", "2-2", "2-4", "3-1", "3-2", "4-2", "4-3", "4-4",
+                         "4-5", "4-6", "5-1", "5-2", "5-3", "5-4", "6-3", "6-4", "6-6", "7-4", "7-5", "7-6", "8-2",
+                         "9-1", "9-2")
 REPEATS = 5
 #: the bias (median signed change) allowed, %
 MAX_BIAS_PCT = 0.5
 #: why M1 misses the targets
 M1_REASON = ("M1 has no drift correction: its excursion is the double integral from the foot-flat with v = 0 there, "
-             "so a one-sample move of the foot-flat or an interpolated sample near it changes a step by percents "
-             "(median |change| of a trial 0.8 % on IPOL; -1.5 % median on the simulated walks)")
+             "so a one-sample move of the foot-flat (7-10 % of them move at 10 % missing, whatever the interpolant) "
+             "or an interpolated sample changes a step by percents (median |change| of a trial 0.79 % on IPOL; "
+             "-0.85 % median with bursts on the simulated walks); cubic interpolants do not bring it under 0.5 %")
 
 
 def delete_samples(valid: np.ndarray, *, fraction: float, max_burst: int, rng: np.random.Generator) -> np.ndarray:
@@ -153,11 +158,53 @@ def test_distance_has_no_bias_at_10pct_missing(request, source, max_burst, name)
 @pytest.mark.parametrize("name", ESTIMATORS)
 def test_typical_trial_moves_less_than_half_a_percent(request, name) -> None:
     """Single samples deleted at random (10 %): the median |change| of a trial's distance < 0.5 % (measured on
-    IPOL: M1 0.53 %, M2 0.30 %, M3 0.25 %, M4 0.30 %, M5 0.08 %); M1 misses it (strict xfail)."""
+    IPOL: M1 0.79 %, M2 0.15 %, M3 0.38 %, M4 0.12 %, M5 0.03 %); M1 misses it (strict xfail; no cubic
+    interpolant of the gaps brings it under 0.5 %: ``benchmarks/gap_interpolants.py``)."""
     if name == "M1":
         request.applymarker(pytest.mark.xfail(strict=True, reason=M1_REASON))
     ch = cached_changes(request, "ipol_trials", 1)
     assert np.median(np.abs(ch[:, ESTIMATORS.index(name)])) < 0.5
+
+
+def test_m1_moves_with_its_foot_flats(shared_data) -> None:
+    """Why M1 misses the targets, with nothing deleted: 10 % of the foot-flats of the clean trials moved by one
+    sample (the rate at which they move when 10 % of the samples are deleted and interpolated, linear or cubic)
+    move M1's trial distance by more than 0.5 % (median |change|; measured 0.80 %), M2's and M3's by less than
+    0.2 % (measured 0.07 % and 0.06 %): M1's velocity is reset to 0 at the foot-flat and never corrected, so the
+    sample it starts from sets a drift; M2 removes it."""
+    folder = shared_data / "ipol-lowerback-dev" / "GaitData"
+    if not folder.is_dir():
+        pytest.skip("ipol-lowerback-dev not present")
+    rng = np.random.default_rng(2)
+    out = []
+    for name in ALL_CLEAN_IPOL_TRIALS:
+        rt = replay_trial(folder / f"{name}_lb.txt")
+        assert rt.gaps().missing_fraction_ == 0, name
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            p = StepPipeline(leg_length_m=rt.leg_length_m, foot_length_m=rt.foot_length_m).run(
+                rt.acc_g, sampling_rate_hz=rt.sampling_rate_hz, valid=rt.valid, t0_s=rt.t0_s)
+        ev, av = p.events_, p.axes_.acc_v_m_s2
+        ok, lp = p.axes_.valid & np.isfinite(av), ev.first_harmonic_m_s2_
+
+        def distances(ff, rt=rt, ev=ev, av=av, ok=ok, lp=lp):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                table, _ = step_table(ff, ev.heel_strike_, ev.toe_off_, ev.bout_,
+                                      lambda lo, hi: (av[lo:hi], ok[lo:hi], lp[lo:hi]),
+                                      sampling_rate_hz=rt.sampling_rate_hz, t0_s=rt.t0_s,
+                                      leg_length_m=rt.leg_length_m, foot_length_m=rt.foot_length_m, k_fit=None)
+            sec, counts = trial_steps(rt, table, uturn="include")
+            return np.array([section_distance(sec, counts, e, raw=True) for e in ("M1", "M2", "M3")])
+
+        clean = distances(ev.foot_flat_)
+        for _ in range(4):
+            ff = ev.foot_flat_.copy()
+            moved = rng.random(ff.size) < 0.10
+            ff[moved] += rng.choice([-1, 1], int(moved.sum()))
+            out.append(100 * (distances(ff) / clean - 1))
+    typical = np.median(np.abs(np.array(out)), axis=0)
+    assert typical[0] > 0.5 and np.all(typical[1:] < 0.2), np.round(typical, 2)
 
 
 def test_without_interpolation_m2_is_biased(ipol_trials) -> None:
