@@ -187,7 +187,8 @@ HEADER_STRUCT = cs.Struct(
 )
 
 
-# compiled twins of the declarations above, for the hot paths (same bytes; checked by the tests)
+# the declarations above, compiled once reused (the hot paths: the emulated device; same values and bytes,
+# tests/protocol/test_layout.py)
 _HEADER_FAST = CompiledOnReuse(HEADER_STRUCT)
 _CALIBRATION_FAST = CompiledOnReuse(CALIBRATION_STRUCT)
 

@@ -1,8 +1,9 @@
-"""Byte layout of the construct declarations: where each named field lies.
+"""Byte layout of the construct declarations: where each named field lies, and when a declaration is compiled.
 
 The structs of :mod:`gaitlog.protocol.header`, :mod:`gaitlog.protocol.steps` and :mod:`gaitlog.protocol.frames` *are* the formats;
 the offsets the spec's tables print, error messages name and the numpy paths index are read from them here,
-never typed again.
+never typed again. :class:`CompiledOnReuse` runs a declaration interpreted until it is used often enough to be
+worth compiling.
 """
 
 from __future__ import annotations
