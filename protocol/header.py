@@ -43,7 +43,7 @@ from gaitlog.protocol.commit_journal import (
 from gaitlog.protocol.crc import crc16_xmodem
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.journal_ring import COMMIT_PAGES, HEADER_VERSION_RING, STEP_CAPACITY_RECORDS_V3
-from gaitlog.protocol.layout import field_offsets
+from gaitlog.protocol.layout import CompiledOnReuse, field_offsets
 from gaitlog.protocol.steps import (
     STEP_CAPACITY_RECORDS,
     STEP_CONFIG_SIZE,
@@ -187,9 +187,10 @@ HEADER_STRUCT = cs.Struct(
 )
 
 
-# compiled twins of the declarations above, for the hot paths (same bytes; checked by the tests)
-_HEADER_FAST = HEADER_STRUCT.compile()
-_CALIBRATION_FAST = CALIBRATION_STRUCT.compile()
+# the declarations above, compiled once reused (the hot paths: the emulated device; same values and bytes,
+# tests/protocol/test_layout.py)
+_HEADER_FAST = CompiledOnReuse(HEADER_STRUCT)
+_CALIBRATION_FAST = CompiledOnReuse(CALIBRATION_STRUCT)
 
 #: field name -> (offset, size) in the 256-byte header (``header_crc`` included).
 HEADER_OFFSETS: dict[str, tuple[int, int]] = {**field_offsets(HEADER_BODY_STRUCT),

@@ -34,7 +34,7 @@ import numpy as np
 
 from gaitlog.protocol.crc import crc16_xmodem, crc16_xmodem_rows
 from gaitlog.protocol.errors import ProtocolError
-from gaitlog.protocol.layout import field_offsets, named_fields
+from gaitlog.protocol.layout import CompiledOnReuse, field_offsets, named_fields
 
 __all__ = [
     "STEP_RECORD_SIZE",
@@ -398,7 +398,7 @@ _CONFIG_VALUES: tuple[tuple[str, str], ...] = (
     ("k2_m5_m", "k2_m5_q16"),
 )
 _CONFIG_SUBCONS = {name: sc for name, _, sc in named_fields(STEP_CONFIG_STRUCT)}
-_STEP_CONFIG_FAST = STEP_CONFIG_STRUCT.compile()
+_STEP_CONFIG_FAST = CompiledOnReuse(STEP_CONFIG_STRUCT)
 
 
 def _fraction_bits(fieldname: str) -> int:

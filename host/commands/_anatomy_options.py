@@ -12,7 +12,7 @@ from gaitlog.host.commands._options import POSITIVE_M
 # `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 if TYPE_CHECKING:
-    from gaitlog.host.files.inputs import AccelerationInput
+    from gaitlog.host.files.acceleration import AccelerationInput
     from gaitlog.host.gait.anthropometry import AnatomyChoice
     from gaitlog.host.gait.k_calibration import KFit
 

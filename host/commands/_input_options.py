@@ -17,7 +17,7 @@ from gaitlog.host.commands._options import SAMPLING_RATE_HZ, whole
 # `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 if TYPE_CHECKING:
-    from gaitlog.host.files.inputs import AccelerationInput
+    from gaitlog.host.files.acceleration import AccelerationInput
 
 #: What every input argument accepts, for the help texts.
 INPUT_HELP = ("memory image, raw dump or wire capture, decoded .npz, IPOL trial (_lb.txt, .json or a one-trial "
@@ -43,11 +43,17 @@ def add_input_options(parser: argparse.ArgumentParser) -> None:
 
 def read_input(args: argparse.Namespace, path: str | Path, *, arrays: bool = True) -> AccelerationInput:
     """Read ``path`` with the flags of :func:`add_input_options` (``arrays``: see
-    :func:`gaitlog.host.files.inputs.read_acceleration`)."""
+    :func:`gaitlog.host.files.inputs.read_acceleration`). A decoded ``.npz`` is read without loading the
+    logger-file decoders (:func:`gaitlog.host.files.acceleration.read_npz`: the same result and errors)."""
+    from gaitlog.host.files.acceleration import is_npz, read_npz
+
+    flags = dict(sampling_rate_hz=args.rate, columns=args.columns, units=args.units, calibration=args.calibration,
+                 skip_rows=args.skip_rows, arrays=arrays)
+    if is_npz(path):
+        return read_npz(path, **flags)
     from gaitlog.host.files.inputs import read_acceleration
 
-    return read_acceleration(path, sampling_rate_hz=args.rate, columns=args.columns, units=args.units,
-                             calibration=args.calibration, skip_rows=args.skip_rows, arrays=arrays)
+    return read_acceleration(path, **flags)
 
 
 def given_input_flags(args: argparse.Namespace) -> list[str]:

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from gaitlog.firmware_sim.sampling import DEFAULT_SAMPLING_RATE_HZ
 from gaitlog.host.errors import HostError, UsageError
 from gaitlog.host.storage.json_text import json_text
 from gaitlog.host.storage.limits import DEFAULT_MAX_MISSING_PERCENT
@@ -78,10 +79,8 @@ def add_logger_rate_option(parser: argparse.ArgumentParser, what: str = "", *, m
 
 
 def logger_rate_hz(args: argparse.Namespace) -> float:
-    """``--logger-rate``, else the logger's default (:data:`gaitlog.firmware_sim.adc.DEFAULT_SAMPLING_RATE_HZ`); a
-    :class:`~gaitlog.host.errors.HostError` unless positive and finite."""
-    from gaitlog.firmware_sim.adc import DEFAULT_SAMPLING_RATE_HZ
-
+    """``--logger-rate``, else the logger's default (:data:`gaitlog.firmware_sim.sampling.DEFAULT_SAMPLING_RATE_HZ`);
+    a :class:`~gaitlog.host.errors.HostError` unless positive and finite."""
     if args.logger_rate is None:
         return DEFAULT_SAMPLING_RATE_HZ
     if not (math.isfinite(args.logger_rate) and args.logger_rate > 0):

@@ -45,7 +45,7 @@ from gaitlog.protocol.errors import ProtocolError
 # `gaitlog --help` imports every command module and must stay light (tests/host/commands/test_cli_startup.py).
 
 if TYPE_CHECKING:
-    from gaitlog.host.files.inputs import AccelerationInput
+    from gaitlog.host.files.acceleration import AccelerationInput
 
 HELP = ("record a motion (calibration poses, a simulated walk or a replayed recording) with the emulated logger, "
         "its on-line step algorithm on, to a memory image")

@@ -1,10 +1,12 @@
-"""One reader for every acceleration input a user has: :func:`read_acceleration` -> :class:`AccelerationInput`.
+"""One reader for every acceleration input a user has: :func:`read_acceleration` ->
+:class:`~gaitlog.host.files.acceleration.AccelerationInput`.
 
 Accepted inputs (detected from the bytes, not trusted from the name)
 --------------------------------------------------------------------
 * **Logger files** -- a memory image (``GLIM``), a raw XMODEM dump (``GLOG``) or a wire capture
   (:func:`gaitlog.host.files.decode.decode_file`), and the ``.npz`` of ``gaitlog decode``
-  (:meth:`gaitlog.host.files.recording.Recording.load`). Counts become g with ``calibration`` (``gaitlog calibrate``),
+  (:meth:`gaitlog.host.files.recording.Recording.load`; :func:`gaitlog.host.files.acceleration.read_npz` reads it
+  alone, without this module's decoders). Counts become g with ``calibration`` (``gaitlog calibrate``),
   else the header's calibration slot, else the nominal map; missing samples stay missing; MARK flags are the
   lap marks.
 * **IPOL lower-back layout** (:mod:`gaitlog.host.files.ipol`): a ``<s>-<t>_lb.txt`` file, its ``<s>-<t>.json``, or a
@@ -30,17 +32,25 @@ arrays declare against what the zip holds (:mod:`gaitlog.host.storage.limits`).
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
+from gaitlog.host.files.acceleration import (
+    AccelerationInput,
+    check_rate,
+    checked_options,
+    from_recording,
+    input_losses,
+    ipol_named,
+    only_csv,
+    starts_zip,
+)
 from gaitlog.host.files.decode import decode_bytes
-from gaitlog.host.files.ipol import IpolTrial, list_trials, read_trial
+from gaitlog.host.files.ipol import list_trials, read_trial
 from gaitlog.host.storage.limits import (
     MAX_TEXT_BYTES,
     check_file_size,
@@ -48,23 +58,21 @@ from gaitlog.host.storage.limits import (
     check_memory,
     grid_limit,
 )
-from gaitlog.host.files.losses import SampleLosses, say_losses
+from gaitlog.host.files.losses import say_losses
 from gaitlog.host.files.recording import Recording
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.image import detect_format
 from gaitlog.protocol.packing import FLAG_MARK
 from gaitlog.units import STANDARD_GRAVITY_M_S2
 
-__all__ = ["STREAM_TEXT_BYTES", "UNITS", "AccelerationInput", "parse_columns", "read_acceleration", "input_losses"]
+# AccelerationInput, input_losses, UNITS and parse_columns are gaitlog.host.files.acceleration's
+__all__ = ["STREAM_TEXT_BYTES", "read_acceleration"]
 
 #: Text inputs larger than this are parsed line by line from the file (a logger file is far smaller: an image of
 #: a full memory is under 600 kB, a wire capture of a noisy dump a few MB).
 STREAM_TEXT_BYTES = 16 << 20
 #: Rows parsed into one block of the table before the next is allocated.
 _ROWS_PER_BLOCK = 1 << 16
-
-#: Units of acceleration columns a user can name (``--units``).
-UNITS = ("g", "m/s2", "counts")
 
 #: Axis-column name triples recognised in a header (lower case), in order of preference, with their unit
 #: (None: not told by the name).
@@ -83,94 +91,6 @@ _AXIS_NAMES: tuple[tuple[tuple[str, str, str], str | None], ...] = (
 _TIME_NAMES = ("time_s", "time", "t", "t_s")
 #: Median norm of gravity-including acceleration that tells the unit when nothing else does.
 _NORM_RANGE = {"g": (0.5, 1.5), "m/s2": (5.0, 15.0)}
-
-
-@dataclass(frozen=True, eq=False)
-class AccelerationInput:
-    """Tri-axial acceleration read from one input, on a regular grid.
-
-    Attributes
-    ----------
-    acc_g
-        ``(n, 3)`` float64 in g, NaN where missing; None for counts without a calibration (see :meth:`g`).
-    valid
-        ``(n,)`` bool, False where a sample is missing.
-    sampling_rate_hz
-        Rate of the grid, Hz.
-    mark_index
-        Sample indices of the lap marks (MARK flags), int64.
-    source
-        One line: the file, its format and how g was obtained.
-    counts
-        ``(n, 3)`` float64 ADC counts, NaN where missing, when the input holds counts; else None.
-    adc_bits
-        ADC width of a logger file, else None.
-    recording
-        The decoded logger file (codes, header, flags), else None.
-    ipol_trial
-        The IPOL trial (reference events, boundaries), else None.
-    """
-
-    acc_g: np.ndarray | None
-    valid: np.ndarray
-    sampling_rate_hz: float
-    mark_index: np.ndarray
-    source: str
-    counts: np.ndarray | None = None
-    adc_bits: int | None = None
-    recording: Recording | None = field(default=None, repr=False)
-    ipol_trial: IpolTrial | None = field(default=None, repr=False)
-    #: A logger recording read with ``arrays=False``: its counts-to-g map, applied block by block (:meth:`blocks`)
-    #: instead of ``acc_g`` and ``counts`` held whole.
-    to_g: object = field(default=None, repr=False)
-
-    @property
-    def n_samples(self) -> int:
-        """Grid length."""
-        return int(self.valid.size)
-
-    @property
-    def n_missing(self) -> int:
-        """Samples missing from the grid."""
-        return int(np.count_nonzero(~self.valid))
-
-    def g(self) -> np.ndarray:
-        """:attr:`acc_g`, or a :class:`HostError` when the input is counts without a calibration."""
-        if self.acc_g is None and self.to_g is not None and self.recording is not None:
-            return self.recording.acc_g(self.to_g)
-        if self.acc_g is None:
-            raise HostError(f"{self.source}: acceleration in ADC counts and no calibration to turn it into g; "
-                            "give --calibration CAL.json (from 'gaitlog calibrate')")
-        return self.acc_g
-
-    def blocks(self, size: int = 1 << 16) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        """``(g, valid)`` of ``size`` samples at a time (the last block shorter): a logger recording read with
-        ``arrays=False`` is converted one block at a time, so no ``(n, 3)`` float array is held."""
-        n = self.n_samples
-        if self.acc_g is None and self.to_g is not None and self.recording is not None:
-            rec = self.recording
-            for lo in range(0, n, size):
-                g = np.asarray(self.to_g.apply(rec.codes[lo:lo + size].astype(np.float64)), np.float64)
-                g[~self.valid[lo:lo + size]] = np.nan
-                yield g, self.valid[lo:lo + size]
-            return
-        acc = self.g()
-        for lo in range(0, n, size):
-            yield acc[lo:lo + size], self.valid[lo:lo + size]
-
-    def __repr__(self) -> str:
-        return (f"AccelerationInput({self.n_samples} samples at {self.sampling_rate_hz:g} Hz, {self.n_missing} "
-                f"missing, {self.mark_index.size} marks; {self.source})")
-
-
-def parse_columns(text: str | Sequence[str | int] | None) -> list[str | int] | None:
-    """``"X,Y,Z"`` (names or 0-based indices, comma-separated) -> three entries; None stays None."""
-    if text is None:
-        return None
-    parts = [p.strip() for p in text.split(",")] if isinstance(text, str) else list(text)
-    if len(parts) != 3 or any(p == "" for p in parts):
-        raise HostError(f"--columns: expected three columns X,Y,Z (names or 0-based indices), got {text!r}")
-    return [int(p) if isinstance(p, int) or p.isdigit() else p for p in parts]
 
 
 def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None,
@@ -205,38 +125,21 @@ def read_acceleration(path: str | Path, *, sampling_rate_hz: float | None = None
     return data
 
 
-def input_losses(data: AccelerationInput) -> SampleLosses:
-    """What is missing from an input, with the reasons of a logger recording's gaps."""
-    source = data.source.split(" (")[0]
-    if data.recording is not None:
-        return SampleLosses.from_recording(data.recording, data.valid, source)
-    why = ("lost packets (IPOL file)" if data.ipol_trial is not None else
-           "marked missing in the file (a decoded CSV's validity), empty or non-finite cells, or holes in its time grid")
-    return SampleLosses.from_mask(data.valid, source, why)
-
-
 def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
           calibration: AccCalibration | str | Path | None, skip_rows: int, arrays: bool = True) -> AccelerationInput:
-    if sampling_rate_hz is not None and not (math.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
-        raise HostError(f"--rate must be a positive number of Hz, got {sampling_rate_hz:g}")
-    if units is not None and units not in UNITS:
-        raise HostError(f"--units must be one of {', '.join(UNITS)}, got {units!r}")
-    if skip_rows < 0:
-        raise HostError(f"--skip-rows must be >= 0, got {skip_rows}")
-    cols = parse_columns(columns)
-    cal = AccCalibration.load(calibration) if isinstance(calibration, (str, Path)) else calibration
-    if p.is_dir() or p.suffix.lower() == ".json" or p.name.endswith("_lb.txt"):
-        _only_csv(p, cols, units, skip_rows)
+    cols, cal = checked_options(sampling_rate_hz, columns, units, calibration, skip_rows)
+    if p.is_dir() or ipol_named(p):
+        only_csv(p, cols, units, skip_rows)
         return _from_ipol(p, sampling_rate_hz, cal)
     if not p.is_file():
         raise HostError(f"{p}: no such file")
-    if _starts_zip(p):                              # an NPZ: judged by its arrays, read from the file (not whole)
-        _only_csv(p, cols, units, skip_rows)
-        return _from_recording(Recording.load(p), p, sampling_rate_hz, cal, arrays)
+    if starts_zip(p):                              # an NPZ: judged by its arrays, read from the file (not whole)
+        only_csv(p, cols, units, skip_rows)
+        return from_recording(Recording.load(p), p, sampling_rate_hz, cal, arrays)
     large = _large_text(p)
     if large is not None:
         if large.lstrip().lower().startswith("acquisition frequency"):
-            _only_csv(p, cols, units, skip_rows)
+            only_csv(p, cols, units, skip_rows)
             return _from_ipol(p, sampling_rate_hz, cal)
         try:
             with p.open(encoding="utf-8-sig", errors="replace", newline=None) as fh:
@@ -254,23 +157,14 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
     if kind == "text":
         text = data.decode("utf-8-sig", errors="replace")
         if text.lstrip().lower().startswith("acquisition frequency"):
-            _only_csv(p, cols, units, skip_rows)
+            only_csv(p, cols, units, skip_rows)
             return _from_ipol(p, sampling_rate_hz, cal)
         return _from_csv(p, text.splitlines(), sampling_rate_hz, cols, units, cal, skip_rows)
-    _only_csv(p, cols, units, skip_rows)
-    return _from_recording(decode_bytes(data, source=str(p)), p, sampling_rate_hz, cal, arrays)
+    only_csv(p, cols, units, skip_rows)
+    return from_recording(decode_bytes(data, source=str(p)), p, sampling_rate_hz, cal, arrays)
 
 
 # ------------------------------------------------------------------------------------------------ formats
-def _starts_zip(p: Path) -> bool:
-    """Whether ``p`` starts as a zip archive (an NPZ) does."""
-    try:
-        with p.open("rb") as fh:
-            return fh.read(4) == b"PK\x03\x04"
-    except OSError as err:
-        raise HostError(f"{p}: cannot read: {err.strerror or err}") from err
-
-
 def _kind(data: bytes, p: Path) -> str:
     """``logger`` (image, raw dump, capture) or ``text``."""
     try:
@@ -309,39 +203,6 @@ def _large_text(p: Path) -> str | None:
         return probe[:err.start].decode("utf-8-sig")
 
 
-def _only_csv(p: Path, cols: object, units: str | None, skip_rows: int) -> None:
-    for flag, given in (("--columns", cols is not None), ("--units", units is not None), ("--skip-rows", skip_rows)):
-        if given:
-            raise HostError(f"{p}: {flag} applies to a CSV input only; this file says its own layout")
-
-
-def _check_rate(p: Path, file_rate: float, asked: float | None) -> None:
-    if asked is not None and abs(asked - file_rate) > 1e-9 * file_rate:
-        raise HostError(f"{p}: the file says {file_rate:g} Hz, --rate says {asked:g} Hz; drop --rate")
-
-
-def _from_recording(rec: Recording, p: Path, rate: float | None, cal: AccCalibration | None,
-                    arrays: bool = True) -> AccelerationInput:
-    _check_rate(p, float(rec.sampling_rate_hz), rate)
-    rec.require_three_axes()                       # an instrument's dump (a channel map): refused before any block
-    if cal is None:
-        m, note = rec.default_calibration()
-    else:
-        if cal.input_unit != "counts":
-            raise HostError(f"{p}: the calibration takes {cal.input_unit}, this file holds ADC counts")
-        m, note = cal, "g from the given calibration"
-    marks = np.flatnonzero((np.asarray(rec.flags) & FLAG_MARK) != 0)
-    source = f"{p} (logger recording, {int(rec.adc_bits)}-bit; {note})"
-    if not arrays:
-        return AccelerationInput(None, np.asarray(rec.valid, bool), float(rec.sampling_rate_hz), marks, source,
-                                 None, int(rec.adc_bits), rec, to_g=m)
-    counts = rec.codes.astype(np.float64)
-    counts[~rec.valid] = np.nan
-    acc = rec.acc_g(m)
-    valid = np.asarray(rec.valid, bool) & np.all(np.isfinite(acc), axis=1)
-    return AccelerationInput(acc, valid, float(rec.sampling_rate_hz), marks, source, counts, int(rec.adc_bits), rec)
-
-
 def _from_ipol(p: Path, rate: float | None, cal: AccCalibration | None) -> AccelerationInput:
     lb = p
     if p.is_dir():
@@ -355,7 +216,7 @@ def _from_ipol(p: Path, rate: float | None, cal: AccCalibration | None) -> Accel
     if not lb.is_file():
         raise HostError(f"{lb}: no such file")
     trial = read_trial(lb)
-    _check_rate(p, trial.sampling_rate_hz, rate)
+    check_rate(p, trial.sampling_rate_hz, rate)
     acc = trial.acc_g
     note = "m/s^2 / 9.80665"
     if cal is not None:

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.inputs import AccelerationInput
+from gaitlog.host.files.acceleration import AccelerationInput
 from gaitlog.host.gait.k_calibration import KFit, calibrate
 from gaitlog.host.gait.k_prior import PRIORS
 from gaitlog.host.gait.pipeline import StepPipeline

@@ -34,7 +34,8 @@ import numpy as np
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.inputs import AccelerationInput, input_losses, read_acceleration
+from gaitlog.host.files.acceleration import AccelerationInput, input_losses
+from gaitlog.host.files.inputs import read_acceleration
 from gaitlog.host.files.losses import MissingSamplesWarning
 from gaitlog.host.gait.anthropometry import AnatomyChoice
 from gaitlog.host.studies.estimate import float_steps, write_table_csv

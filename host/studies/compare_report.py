@@ -18,7 +18,7 @@ from gaitlog.atomic_write import atomic_write_text
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, columns_csv_text
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.inputs import AccelerationInput
+from gaitlog.host.files.acceleration import AccelerationInput
 from gaitlog.host.files.replay import run_starts, verify_step_records
 from gaitlog.host.gait.k_calibration import KFit
 from gaitlog.host.storage.json_text import json_text

@@ -24,7 +24,7 @@ from gaitlog.atomic_write import atomic_write
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable, columns_csv_text, distinct, nan_median
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
-from gaitlog.host.files.inputs import AccelerationInput, input_losses
+from gaitlog.host.files.acceleration import AccelerationInput, input_losses
 from gaitlog.host.files.losses import SampleLosses
 from gaitlog.host.gait.anthropometry import LENGTH_MODEL, AnatomyChoice
 from gaitlog.host.files.replay import online_step_table, run_starts
@@ -48,7 +48,7 @@ class EstimateResult:
     Attributes
     ----------
     data
-        The input read (:class:`~gaitlog.host.files.inputs.AccelerationInput`).
+        The input read (:class:`~gaitlog.host.files.acceleration.AccelerationInput`).
     lengths, k
         The leg and foot length used and where they came from; the K file's constants or None.
     tables

@@ -71,6 +71,9 @@ def test_estimate_imports_no_scipy(tmp_path) -> None:
     assert "gaitlog.firmware_sim.algorithms.online" in loaded  # the fixed-point chain did run
     # only estimate's subcommand was registered: no other command module imported
     assert not loaded & {"gaitlog.host.commands.decode", "gaitlog.host.commands.sweep", "gaitlog.host.commands.demo"}
+    # a decoded .npz needs none of the logger-file decoders nor the IPOL reader
+    assert not loaded & {"gaitlog.host.files.decode", "gaitlog.host.files.inputs", "gaitlog.host.files.ipol",
+                         "gaitlog.protocol.image", "gaitlog.protocol.frames", "gaitlog.protocol.raw_dump"}
     # (numba itself loads scipy.linalg for its BLAS bindings: not ours to avoid)
     assert not any(m.startswith(("scipy.signal", "scipy.ndimage", "matplotlib", "gaitlog.firmware_sim.sensor")) for m in loaded)
 
