@@ -8,7 +8,9 @@ is the PIC's fixed point (bit-exact, counted); with ``float64`` state it is the 
 point. numba compiles it once per arithmetic (``cache=True``); with ``NUMBA_DISABLE_JIT=1`` the same text
 runs in CPython (a test checks that both give the same records, bit for bit). Compiled without numba's runtime
 (``nrt=False``: no reference counting of the arrays passed from function to function, which took 40 % of the
-kernel's time), except :func:`_median_twice`, which allocates.
+kernel's time), except :func:`_median_twice`, which allocates. Its ring indices wrap by a comparison (the delay
+line, a FIR's taps) or a mask (the scratch ring and ``CI_FLUSH``: powers of two, dividing 2^16): the indices of
+Python's ``%``, without an integer division per tap (which took half of the kernel's time).
 
 Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
 
@@ -283,13 +285,15 @@ def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compile
     ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM. Each of its ``r + 1``
     products also moves bytes into the multiplier's operands, as the assembly does it (steps.asm ``sf_tap``,
     step_record.asm ``fir_tap``): the a_v (2), the weight (2), the operand (2) and the running sum (2 of its 4
-    loaded or stored), and tests the loop's end or its index's wrap (a 16-bit compare)."""
+    loaded or stored), and tests the loop's end or its index's wrap (a 16-bit compare). ``0 <= centre < length``
+    and ``r < length`` (a filter no wider than its ring): a tap's index wraps by one comparison."""
     s_cost(cnt, OP_DEE, 2 * (r + 1))
     s_cost(cnt, OP_COPY, FIR_TAP_COPIES * (r + 1))
     s_cost(cnt, OP_CMP16, r + 1)
     acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W_FIR, cnt)
     for tap in range(1, r + 1):
-        pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W_ACC, cnt)
+        pair = ar.add(line[centre - tap + length if tap > centre else centre - tap],
+                      line[centre + tap - length if centre + tap >= length else centre + tap], W_ACC, cnt)
         acc = ar.add(acc, ar.mul(cfg_v[w0 + tap], F_KERNEL, pair, F_ACC, F_FIR, W_FIR, cnt), W_FIR, cnt)
     return ar.requant(acc, F_FIR, F_LP, W_LP, cnt)
 
@@ -339,7 +343,7 @@ def _fir_scratch(scr, j, cfg_i, cfg_v, w0, r, cnt):  # pragma: no cover - compil
     """The FIR of weights ``w0`` (radius ``r``) at sample ``j``, on a_v read back from the scratch ring (one
     sequential read of its ``2 r + 1`` samples; the newest are still in the delay line: counted as read too)."""
     _read_cost(cnt, 2 * r + 1, SCRATCH_SAMPLE_BYTES)
-    return _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
+    return _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
 
 
 @njit(cache=True, nrt=False)
@@ -347,8 +351,9 @@ def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
     """The impact band ``d10 - d5`` at sample ``j`` (Q2.16): both filters on one read of the ring, the window
     of the larger radius (as the step record reads it, step_record.asm)."""
     _read_cost(cnt, 2 * max(cfg_i[CI_R10], cfg_i[CI_R5]) + 1, SCRATCH_SAMPLE_BYTES)
-    d10 = _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
-    return ar.sub(d10, _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt),
+    d10 = _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    return ar.sub(d10, _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5],
+                            cnt),
                   W_LP, cnt)
 
 
@@ -424,7 +429,7 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     p_max = vel
     p_min = vel
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W_VEL, cnt), W_VEL, cnt)
+        v_new = ar.add(vel, ar.add(scr[j & (size - 1)], scr[(j - 1) & (size - 1)], W_VEL, cnt), W_VEL, cnt)
         pos = ar.add(pos, ar.add(v_new, vel, W_POS, cnt), W_POS, cnt)
         vel = v_new
         s_cost(cnt, OP_CMP32, 2)
@@ -457,7 +462,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     ramp_step = ar.scale2(c1, 2, W_POS2, cnt)
     seen = False
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W_VEL, cnt), W_VEL, cnt)
+        v_new = ar.add(vel, ar.add(scr[j & (size - 1)], scr[(j - 1) & (size - 1)], W_VEL, cnt), W_VEL, cnt)
         dp = ar.requant(ar.add(v_new, vel, W_POS, cnt), F_POS, F_POS2, W_POS2, cnt)
         vel = v_new
         q = ar.add(q, ar.add(ar.sub(dp, c2, W_POS2, cnt), ramp, W_POS2, cnt), W_POS2, cnt)
@@ -695,15 +700,17 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
                            cnt), F_ACC2, gn, F_ACC, F_ACC, W_ACC, cnt)
     # 4. delay line; every CI_FLUSH samples its newest CI_FLUSH a_v go to the scratch ring as one page write
     line[st_i[LINE_POS]] = av
-    st_i[LINE_POS] = (st_i[LINE_POS] + 1) % (2 * r3 + 1)
-    scr[n % cfg_i[CI_SCRATCH]] = av
-    if (n + 1) % cfg_i[CI_FLUSH] == 0:
+    st_i[LINE_POS] = st_i[LINE_POS] + 1 if st_i[LINE_POS] < 2 * r3 else 0
+    scr[n & (cfg_i[CI_SCRATCH] - 1)] = av
+    if (n + 1) & (cfg_i[CI_FLUSH] - 1) == 0:
         s_cost(cnt, OP_I2C, SCRATCH_SAMPLE_BYTES * cfg_i[CI_FLUSH] + I2C_WRITE_OVERHEAD)
     st_i[N] = (n + 1) & INDEX_MASK
     if young and n < 2 * r3:
         return False, av * 0
     # the 3 Hz output at the line's centre m = n - r3 (the peak detector's input)
-    centre = (st_i[LINE_POS] - 1 - r3) % (2 * r3 + 1)
+    centre = st_i[LINE_POS] - 1 - r3
+    if centre < 0:
+        centre += 2 * r3 + 1
     s_cost(cnt, OP_DEE, 3)                       # the prominence
     return True, _fir(line, centre, 2 * r3 + 1, cfg_v, CV_W3, r3, cnt)
 
