@@ -234,18 +234,20 @@ class LazyDispatcher:
         return f"<LazyDispatcher {self.__module__}.{self.__qualname__} ({state})>"
 
 
-def njit(*, cache: bool = True, nrt: bool | None = None) -> Callable[[Callable], LazyDispatcher]:
+def njit(*, cache: bool = True, nrt: bool | None = None, nogil: bool = False
+         ) -> Callable[[Callable], LazyDispatcher]:
     """``numba.njit(cache=True)``, applied when a compiled function is first called (see the module).
 
     ``nrt``: numba's runtime (reference counts of arrays, allocation) on or off for this function (numba's
     ``_nrt``); None: numba's default, the caller's setting (on when called from Python). A function that
     allocates no array needs none: off, passing arrays to it and receiving them costs no atomic reference
     count (in the on-line kernel they were 40 % of its time). Its callees inherit the setting unless theirs is
-    given: a function that allocates says ``nrt=True``.
+    given: a function that allocates says ``nrt=True``. ``nogil``: numba's, the function releases the GIL while it
+    runs (called from Python).
     """
     if not cache:
         raise ValueError("the firmware's compiled functions are always cached (cache=True)")
-    options = {} if nrt is None else {"_nrt": bool(nrt)}
+    options = ({} if nrt is None else {"_nrt": bool(nrt)}) | ({"nogil": True} if nogil else {})
 
     def mark(fn: Callable) -> LazyDispatcher:
         lazy = LazyDispatcher(fn, options)
@@ -260,11 +262,11 @@ def njit(*, cache: bool = True, nrt: bool | None = None) -> Callable[[Callable],
 
 def jit_options(fn: Any) -> dict[str, Any]:
     """The options (besides the cache) a compiled function was marked with (:func:`njit`'s ``nrt`` as numba's
-    ``_nrt``), of a :class:`LazyDispatcher` or of the numba dispatcher that replaced it: a copy of the function
-    compiled with other globals (:mod:`gaitlog.firmware_sim.algorithms.format_kernel`) takes the same."""
+    ``_nrt``, ``nogil``), of a :class:`LazyDispatcher` or of the numba dispatcher that replaced it: a copy of the
+    function compiled with other globals (:mod:`gaitlog.firmware_sim.algorithms.format_kernel`) takes the same."""
     if isinstance(fn, LazyDispatcher):
         return dict(fn.options)
-    return {k: v for k, v in getattr(fn, "targetoptions", {}).items() if k == "_nrt"}
+    return {k: v for k, v in getattr(fn, "targetoptions", {}).items() if k in ("_nrt", "nogil")}
 
 
 def register_jitable(fn: Callable) -> Callable:

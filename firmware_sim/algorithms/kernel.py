@@ -829,7 +829,7 @@ def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
 # entry points
 
 
-@njit(cache=True, nrt=False)
+@njit(cache=True, nrt=False, nogil=True)
 def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt, cyc):  # pragma: no cover
     """Run the algorithm over a block of ``(n, 3)`` codes (value dtype); return the records written.
 
@@ -853,7 +853,7 @@ def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, c
     return k
 
 
-@njit(cache=True, nrt=False)
+@njit(cache=True, nrt=False, nogil=True)
 def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """End of a run (STOP): the pending foot-flat becomes final with the samples there are."""
     if st_i[FLAGS] & F_PEND and (st_i[FLAGS] & F_OLD or st_i[N] > 2 * cfg_i[CI_R3]):
@@ -865,7 +865,7 @@ def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no co
     return k
 
 
-@njit(cache=True, nrt=False)
+@njit(cache=True, nrt=False, nogil=True)
 def reset(cfg_i, st_i, st_v, line, durs):  # pragma: no cover - compiled
     """START: a fresh state; the minimum distance from the prior typical step until the median is known."""
     st_i[:] = 0
