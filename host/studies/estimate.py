@@ -160,6 +160,7 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
         notes += chain_notes
     elif arithmetic == "fixed":
         fixed, report = fixed_steps(data, adc_calibration_file, lengths, k)
+        give_back_memory()
     else:
         tables["float"], chain_notes = float_steps(data, lengths, k)
         notes += chain_notes
