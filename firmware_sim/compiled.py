@@ -42,8 +42,8 @@ from types import ModuleType
 from typing import Any
 
 __all__ = ["COMPILED_SOURCES", "PRUNE_AFTER_DAYS", "LazyDispatcher", "announce_compile", "cache_base", "cache_dir",
-           "compile_listeners", "load_numba", "njit", "numba_types", "overload", "prune_cache", "register_jitable",
-           "source_hash", "touch"]
+           "compile_listeners", "jit_options", "load_numba", "njit", "numba_types", "overload", "prune_cache",
+           "register_jitable", "source_hash", "touch"]
 
 _ROOT = Path(__file__).resolve().parents[1]
 
@@ -208,8 +208,9 @@ class LazyDispatcher:
         The Python function (as on numba's dispatchers).
     """
 
-    def __init__(self, py_func: Callable) -> None:
+    def __init__(self, py_func: Callable, options: dict[str, Any] | None = None) -> None:
         self.py_func = py_func
+        self.options = dict(options or {})
         self.dispatcher: Callable | None = None
         self.__name__ = py_func.__name__
         self.__qualname__ = py_func.__qualname__
@@ -218,7 +219,7 @@ class LazyDispatcher:
         self.__wrapped__ = py_func
 
     def _materialise(self, numba: ModuleType) -> None:
-        self.dispatcher = numba.njit(cache=True)(self.py_func)
+        self.dispatcher = numba.njit(cache=True, **self.options)(self.py_func)
         g = self.py_func.__globals__
         if g.get(self.__name__) is self:
             g[self.__name__] = self.dispatcher
@@ -233,13 +234,23 @@ class LazyDispatcher:
         return f"<LazyDispatcher {self.__module__}.{self.__qualname__} ({state})>"
 
 
-def njit(*, cache: bool = True) -> Callable[[Callable], LazyDispatcher]:
-    """``numba.njit(cache=True)``, applied when a compiled function is first called (see the module)."""
+def njit(*, cache: bool = True, nrt: bool | None = None, nogil: bool = False
+         ) -> Callable[[Callable], LazyDispatcher]:
+    """``numba.njit(cache=True)``, applied when a compiled function is first called (see the module).
+
+    ``nrt``: numba's runtime (reference counts of arrays, allocation) on or off for this function (numba's
+    ``_nrt``); None: numba's default, the caller's setting (on when called from Python). A function that
+    allocates no array needs none: off, passing arrays to it and receiving them costs no atomic reference
+    count (in the on-line kernel they were 40 % of its time). Its callees inherit the setting unless theirs is
+    given: a function that allocates says ``nrt=True``. ``nogil``: numba's, the function releases the GIL while it
+    runs (called from Python).
+    """
     if not cache:
         raise ValueError("the firmware's compiled functions are always cached (cache=True)")
+    options = ({} if nrt is None else {"_nrt": bool(nrt)}) | ({"nogil": True} if nogil else {})
 
     def mark(fn: Callable) -> LazyDispatcher:
-        lazy = LazyDispatcher(fn)
+        lazy = LazyDispatcher(fn, options)
         if _REGISTRY.numba is not None:
             lazy._materialise(_REGISTRY.numba)
         else:
@@ -247,6 +258,15 @@ def njit(*, cache: bool = True) -> Callable[[Callable], LazyDispatcher]:
         return lazy
 
     return mark
+
+
+def jit_options(fn: Any) -> dict[str, Any]:
+    """The options (besides the cache) a compiled function was marked with (:func:`njit`'s ``nrt`` as numba's
+    ``_nrt``, ``nogil``), of a :class:`LazyDispatcher` or of the numba dispatcher that replaced it: a copy of the
+    function compiled with other globals (:mod:`gaitlog.firmware_sim.algorithms.format_kernel`) takes the same."""
+    if isinstance(fn, LazyDispatcher):
+        return dict(fn.options)
+    return {k: v for k, v in getattr(fn, "targetoptions", {}).items() if k in ("_nrt", "nogil")}
 
 
 def register_jitable(fn: Callable) -> Callable:

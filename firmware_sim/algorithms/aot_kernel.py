@@ -13,6 +13,9 @@ PIC's fixed point) and ``process_float``, ``flush_float``, ``reset_float`` (floa
 the driver (:class:`gaitlog.firmware_sim.algorithms.online.OnlineStepAlgorithm`) passes: C-contiguous arrays, ``k``
 an int64.
 
+The exports release the GIL while they run (as numba's ``nogil=True``; so do the JIT's entry points): a thread can
+run the kernel beside Python code in another (``gaitlog estimate --arithmetic both`` runs the two chains so).
+
 Building needs numba, setuptools and a C compiler with the Python headers; it takes about 10 s, less than
 numba's first JIT compilation of both arithmetics (about 16 s), and happens once per version of the sources,
 in the first process that needs the kernel (:func:`entry_points`). It is done in a temporary folder renamed
@@ -27,6 +30,7 @@ Run ``python -m gaitlog.firmware_sim.algorithms.aot_kernel`` to build it now and
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.util
 import os
@@ -149,7 +153,8 @@ def build(folder: Path | None = None, *, module_name: str = MODULE_NAME,
             cc.verbose = False
             for name, sig, fn in (exports() if exports is not None else kernel_exports()):
                 cc.export(name, sig)(fn)
-            cc.compile()
+            with _releasing_the_gil():
+                cc.compile()
         try:
             os.rename(tmp, final)                    # atomic; fails if another process got there first
         except OSError:
@@ -158,6 +163,26 @@ def build(folder: Path | None = None, *, module_name: str = MODULE_NAME,
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return _module_file(final, module_name)
+
+
+@contextlib.contextmanager
+def _releasing_the_gil():
+    """While it is open, the modules ``numba.pycc`` compiles export functions that release the GIL while they run
+    (numba's ``release_gil`` flag, which ``nogil=True`` sets for the JIT; ``numba.pycc`` has no option of its own):
+    a thread can run the kernel while another runs Python. The kernel touches no Python object."""
+    compiler = importlib.import_module("numba.pycc.compiler")
+    base = compiler.Flags
+
+    class ReleasingFlags(base):
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)
+            self.release_gil = True
+
+    compiler.Flags = ReleasingFlags
+    try:
+        yield
+    finally:
+        compiler.Flags = base
 
 
 def _lock_is_stale(lock: Path) -> bool:

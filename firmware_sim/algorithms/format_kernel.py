@@ -59,7 +59,7 @@ from gaitlog.firmware_sim.algorithms.formats import (
     centred_q,
     word,
 )
-from gaitlog.firmware_sim.compiled import load_numba
+from gaitlog.firmware_sim.compiled import jit_options, load_numba
 from gaitlog.firmware_sim.fixedpoint import ROUNDING_MODES, QFormat
 
 __all__ = ["MAX_VARIANTS", "KernelFormats", "cache_key", "compile_kernel", "entry_points", "variant_folder",
@@ -423,7 +423,8 @@ def _rounding_arithmetic(formats: KernelFormats, numba: types.ModuleType) -> typ
 
 def _variant_namespace(formats: KernelFormats) -> dict:
     """A copy of the kernel module's globals with ``formats``' constants, its rounding's arithmetic, and every
-    kernel function re-bound to it as a numba dispatcher (compiled when first called or exported)."""
+    kernel function re-bound to it as a numba dispatcher (compiled when first called or exported; with the shipped
+    function's options: numba's runtime off but where it allocates)."""
     numba = load_numba()
     namespace = dict(vars(kernel))
     namespace.update(formats.constants())
@@ -431,7 +432,7 @@ def _variant_namespace(formats: KernelFormats) -> dict:
     for name, py in _kernel_functions(vars(kernel)).items():
         fn = types.FunctionType(py.__code__, namespace, py.__name__, py.__defaults__, py.__closure__)
         fn.__qualname__ = f"{py.__qualname__}[{formats.label()}/{formats.rounding_label()}]"
-        namespace[name] = numba.njit(cache=False)(fn)
+        namespace[name] = numba.njit(cache=False, **jit_options(vars(kernel)[name]))(fn)
     return namespace
 
 

@@ -6,7 +6,11 @@ loop runs :func:`process`), written as the firmware computes it: the state is th
 and the arithmetic is the vocabulary of :mod:`gaitlog.firmware_sim.algorithms.arithmetic`. Run with ``int64`` state it
 is the PIC's fixed point (bit-exact, counted); with ``float64`` state it is the same algorithm in floating
 point. numba compiles it once per arithmetic (``cache=True``); with ``NUMBA_DISABLE_JIT=1`` the same text
-runs in CPython (a test checks that both give the same records, bit for bit).
+runs in CPython (a test checks that both give the same records, bit for bit). Compiled without numba's runtime
+(``nrt=False``: no reference counting of the arrays passed from function to function, which took 40 % of the
+kernel's time), except :func:`_median_twice`, which allocates. Its ring indices wrap by a comparison (the delay
+line, a FIR's taps) or a mask (the scratch ring and ``CI_FLUSH``: powers of two, dividing 2^16): the indices of
+Python's ``%``, without an integer division per tap (which took half of the kernel's time).
 
 Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
 
@@ -275,24 +279,26 @@ _SATURATED = int(StepFlag.SATURATED)
 # helpers
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _fir(line, centre, length, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
     """Centred symmetric FIR at ``centre`` of a ring of a_v (the delay line, or the scratch ring):
     ``w0 a + sum w_k (a_-k + a_+k)``, Q2.16; its ``r + 1`` weights read from the data EEPROM. Each of its ``r + 1``
     products also moves bytes into the multiplier's operands, as the assembly does it (steps.asm ``sf_tap``,
     step_record.asm ``fir_tap``): the a_v (2), the weight (2), the operand (2) and the running sum (2 of its 4
-    loaded or stored), and tests the loop's end or its index's wrap (a 16-bit compare)."""
+    loaded or stored), and tests the loop's end or its index's wrap (a 16-bit compare). ``0 <= centre < length``
+    and ``r < length`` (a filter no wider than its ring): a tap's index wraps by one comparison."""
     s_cost(cnt, OP_DEE, 2 * (r + 1))
     s_cost(cnt, OP_COPY, FIR_TAP_COPIES * (r + 1))
     s_cost(cnt, OP_CMP16, r + 1)
     acc = ar.mul(cfg_v[w0], F_KERNEL, line[centre], F_ACC, F_FIR, W_FIR, cnt)
     for tap in range(1, r + 1):
-        pair = ar.add(line[(centre - tap) % length], line[(centre + tap) % length], W_ACC, cnt)
+        pair = ar.add(line[centre - tap + length if tap > centre else centre - tap],
+                      line[centre + tap - length if centre + tap >= length else centre + tap], W_ACC, cnt)
         acc = ar.add(acc, ar.mul(cfg_v[w0 + tap], F_KERNEL, pair, F_ACC, F_FIR, W_FIR, cnt), W_FIR, cnt)
     return ar.requant(acc, F_FIR, F_LP, W_LP, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _excursion(span, f_pos, shift, f_h, w_h, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
     """A position range (``f_pos`` fraction bits, unit 4 g T_s^2) in metres with ``f_h`` fraction bits in the
     word ``w_h`` (unsigned 16-bit as shipped)."""
@@ -300,7 +306,7 @@ def _excursion(span, f_pos, shift, f_h, w_h, cfg_i, cfg_v, cnt):  # pragma: no c
     return ar.mul(s16, f_pos - shift, cfg_v[CV_UNIT], cfg_i[CI_UNIT_FRAC], f_h, w_h, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _pendulum(h, f_h, f_arg, w_arg, cfg_v, cnt):  # pragma: no cover - compiled
     """``2 sqrt(2 l h - h^2)`` (UQ2.14 m) of an excursion with ``f_h`` fraction bits, and whether the step is
     impossible (``h > 2 l``; Alvarez eq 1). ``2 l`` is UQ2.14, so ``2 l h`` has ``14 + f_h`` fraction bits in 32
@@ -315,36 +321,39 @@ def _pendulum(h, f_h, f_arg, w_arg, cfg_v, cnt):  # pragma: no cover - compiled
     return ar.requant(ar.scale2(half, 1, W32, cnt), f_arg // 2, F_STEP, W_STEP, cnt), False
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=True)
 def _median_twice(durs, n):  # pragma: no cover - compiled
-    """Twice the median of the first ``n`` durations (an integer: the mean of the middle two when even)."""
+    """Twice the median of the first ``n`` durations (an integer: the mean of the middle two when even).
+
+    The sorted copy is an allocation: the one kernel function compiled with numba's runtime (module notes)."""
     d = np.sort(durs[:n].copy())
     if n % 2:
         return 2 * d[n // 2]
     return d[n // 2 - 1] + d[n // 2]
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _read_cost(cnt, records, record_bytes):  # pragma: no cover - compiled
     """One sequential I2C read of ``records`` scratch records of ``record_bytes``."""
     s_cost(cnt, OP_I2C, record_bytes * records + I2C_READ_OVERHEAD)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _fir_scratch(scr, j, cfg_i, cfg_v, w0, r, cnt):  # pragma: no cover - compiled
     """The FIR of weights ``w0`` (radius ``r``) at sample ``j``, on a_v read back from the scratch ring (one
     sequential read of its ``2 r + 1`` samples; the newest are still in the delay line: counted as read too)."""
     _read_cost(cnt, 2 * r + 1, SCRATCH_SAMPLE_BYTES)
-    return _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
+    return _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
     """The impact band ``d10 - d5`` at sample ``j`` (Q2.16): both filters on one read of the ring, the window
     of the larger radius (as the step record reads it, step_record.asm)."""
     _read_cost(cnt, 2 * max(cfg_i[CI_R10], cfg_i[CI_R5]) + 1, SCRATCH_SAMPLE_BYTES)
-    d10 = _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
-    return ar.sub(d10, _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5], cnt),
+    d10 = _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    return ar.sub(d10, _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5],
+                            cnt),
                   W_LP, cnt)
 
 
@@ -352,7 +361,7 @@ def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
 # one step (at a final foot-flat): each part reads the scratch ring and keeps only its own accumulators
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _heel_strike(e, m, cfg_i, cfg_v, st_i, scr, cnt):  # pragma: no cover - compiled
     """Heel-strike before the foot-flat ``e``: the first maximum of the impact band in
     ``[e - hs_before, e + hs_after]`` (filter outputs up to ``m``; none before the run's first, ``r3``), minus
@@ -375,7 +384,7 @@ def _heel_strike(e, m, cfg_i, cfg_v, st_i, scr, cnt):  # pragma: no cover - comp
     return (best - cfg_i[CI_HS_DELAY]) & INDEX_MASK
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _toe_off(s, m, cfg_i, cfg_v, scr, cnt):  # pragma: no cover - compiled
     """Toe-off after the foot-flat ``s``: the first local minimum of ``d10`` in ``(s, s + to_span]``; -1."""
     prev = _fir_scratch(scr, s, cfg_i, cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
@@ -390,7 +399,7 @@ def _toe_off(s, m, cfg_i, cfg_v, scr, cnt):  # pragma: no cover - compiled
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _range(s, e, cfg_i, cfg_v, scr, cnt):  # pragma: no cover - compiled
     """M4's ``a_max - a_min`` of the 3 Hz signal in ``[s, e]`` (Q2.16 g)."""
     y_max = _fir_scratch(scr, s, cfg_i, cfg_v, CV_W3, cfg_i[CI_R3], cnt)
@@ -405,7 +414,7 @@ def _range(s, e, cfg_i, cfg_v, scr, cnt):  # pragma: no cover - compiled
     return ar.sub(y_max, y_min, W_LP, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     """M1 (eq 1): the double integral reset at ``s``, ``V = sum(a_k + a_k-1)``, ``P = sum(V_k + V_k-1)``.
 
@@ -420,7 +429,7 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     p_max = vel
     p_min = vel
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W_VEL, cnt), W_VEL, cnt)
+        v_new = ar.add(vel, ar.add(scr[j & (size - 1)], scr[(j - 1) & (size - 1)], W_VEL, cnt), W_VEL, cnt)
         pos = ar.add(pos, ar.add(v_new, vel, W_POS, cnt), W_POS, cnt)
         vel = v_new
         s_cost(cnt, OP_CMP32, 2)
@@ -436,7 +445,7 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     return ar.sub(p_max, p_min, W_POS, cnt), c1, c2
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compiled
     """M2's corrected position ``p2(tau) = P2(tau) - c2 tau`` by increments ``16 dP + 2 c1 (2 tau - 1) - c2``
     (additions only); returns its range over the step and over the single support ``[to, hs3]`` (M3;
@@ -453,7 +462,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     ramp_step = ar.scale2(c1, 2, W_POS2, cnt)
     seen = False
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j % size], scr[(j - 1) % size], W_VEL, cnt), W_VEL, cnt)
+        v_new = ar.add(vel, ar.add(scr[j & (size - 1)], scr[(j - 1) & (size - 1)], W_VEL, cnt), W_VEL, cnt)
         dp = ar.requant(ar.add(v_new, vel, W_POS, cnt), F_POS, F_POS2, W_POS2, cnt)
         vel = v_new
         q = ar.add(q, ar.add(ar.sub(dp, c2, W_POS2, cnt), ramp, W_POS2, cnt), W_POS2, cnt)
@@ -473,7 +482,7 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     return ar.sub(q_max, q_min, W_POS2, cnt), ar.sub(s_max, s_min, W_POS2, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _scratch_tail(n, cfg_i, out_i, k, cnt):  # pragma: no cover - compiled
     """The PIC writes the scratch ring's tail before record ``k``: the delay line's newest ``N mod FLUSH`` a_v
     (``n`` = ``N``), one partial page write at the block the next flush rewrites (step_join.asm's
@@ -483,7 +492,7 @@ def _scratch_tail(n, cfg_i, out_i, k, cnt):  # pragma: no cover - compiled
     out_i[k, O_TAIL] = n
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """The step ending at the final foot-flat ``e`` (newest filter output ``m``): record ``k``.
 
@@ -589,7 +598,7 @@ def _finalise(e, m, cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pra
     return k + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
     """A peak of ``y3`` at ``p`` confirmed by the hysteresis: the duration stream, then the foot-flat.
 
@@ -635,7 +644,7 @@ def _confirmed(p, yp, m, cfg_i, cfg_v, st_i, st_v, durs, scr, out_i, out_v, k, c
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt):  # pragma: no cover - compiled
     """Row ``row`` of ``M (c - o)``: three products summed in 32 bits, rounded to Q2.13 g."""
     acc = ar.mul(cfg_v[CV_M + 3 * row], mf, c0, cf, mf + cf, W32, cnt)
@@ -644,7 +653,7 @@ def _calibrated(cfg_v, row, c0, c1, c2, mf, cf, cnt):  # pragma: no cover - comp
     return ar.requant(acc, mf + cf, F_ACC, W_ACC, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no cover - compiled
     """Steps 1-4 for one sample: calibration, gravity, a_v into the delay line (and every ``CI_FLUSH`` samples
     from there to the scratch ring, one page write), the 3 Hz FIR output at the line's centre.
@@ -691,20 +700,22 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
                            cnt), F_ACC2, gn, F_ACC, F_ACC, W_ACC, cnt)
     # 4. delay line; every CI_FLUSH samples its newest CI_FLUSH a_v go to the scratch ring as one page write
     line[st_i[LINE_POS]] = av
-    st_i[LINE_POS] = (st_i[LINE_POS] + 1) % (2 * r3 + 1)
-    scr[n % cfg_i[CI_SCRATCH]] = av
-    if (n + 1) % cfg_i[CI_FLUSH] == 0:
+    st_i[LINE_POS] = st_i[LINE_POS] + 1 if st_i[LINE_POS] < 2 * r3 else 0
+    scr[n & (cfg_i[CI_SCRATCH] - 1)] = av
+    if (n + 1) & (cfg_i[CI_FLUSH] - 1) == 0:
         s_cost(cnt, OP_I2C, SCRATCH_SAMPLE_BYTES * cfg_i[CI_FLUSH] + I2C_WRITE_OVERHEAD)
     st_i[N] = (n + 1) & INDEX_MASK
     if young and n < 2 * r3:
         return False, av * 0
     # the 3 Hz output at the line's centre m = n - r3 (the peak detector's input)
-    centre = (st_i[LINE_POS] - 1 - r3) % (2 * r3 + 1)
+    centre = st_i[LINE_POS] - 1 - r3
+    if centre < 0:
+        centre += 2 * r3 + 1
     s_cost(cnt, OP_DEE, 3)                       # the prominence
     return True, _fir(line, centre, 2 * r3 + 1, cfg_v, CV_W3, r3, cnt)
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
     """The prominence in force: ``fraction · AMP`` (the recent step amplitude) clamped to the floor and the
     cap, the cap while no amplitude is known
@@ -726,7 +737,7 @@ def _prominence(cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
     return cfg_v[CV_DELTA]
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt):  # pragma: no cover
     """Everything the firmware does for one sample; returns the number of records written so far."""
     ready, y = _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt)
@@ -780,7 +791,7 @@ def _sample(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v,
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _weak_peak(y, m, cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compiled
     """The stop rule, while looking for a trough: ``MX`` follows the highest ``y3`` since the trough ``MN``
     (or since the last weak peak); a bump that rose and fell by ``stop_prominence`` is a weak peak. The
@@ -801,7 +812,7 @@ def _weak_peak(y, m, cfg_i, cfg_v, st_i, st_v, cnt):  # pragma: no cover - compi
         st_i[MXPOS] = m
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False)
 def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
     """The weak peak at ``MXPOS`` is the pending foot-flat, marked weak, when it is the first one ``DIST`` to
     ``min(3 DIST, MAX_STEP)`` after a final full foot-flat (within about two typical steps; nothing pending,
@@ -818,7 +829,7 @@ def _stop_candidate(cfg_i, st_i, st_v, cnt):  # pragma: no cover - compiled
 # entry points
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False, nogil=True)
 def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, cnt, cyc):  # pragma: no cover
     """Run the algorithm over a block of ``(n, 3)`` codes (value dtype); return the records written.
 
@@ -842,7 +853,7 @@ def process(codes, cfg_i, cfg_v, st_i, st_v, line, durs, scr, out_i, out_v, k, c
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False, nogil=True)
 def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no cover - compiled
     """End of a run (STOP): the pending foot-flat becomes final with the samples there are."""
     if st_i[FLAGS] & F_PEND and (st_i[FLAGS] & F_OLD or st_i[N] > 2 * cfg_i[CI_R3]):
@@ -854,7 +865,7 @@ def flush(cfg_i, cfg_v, st_i, st_v, scr, out_i, out_v, k, cnt):  # pragma: no co
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nrt=False, nogil=True)
 def reset(cfg_i, st_i, st_v, line, durs):  # pragma: no cover - compiled
     """START: a fresh state; the minimum distance from the prior typical step until the median is known."""
     st_i[:] = 0

@@ -112,9 +112,10 @@ def body_axes(
     return BodyAxes(acc_v, acc_ap, grav.T, ok)
 
 
-def _vertical_block(acc: np.ndarray, grav: np.ndarray, acc_v: np.ndarray, hor: np.ndarray) -> np.ndarray:
-    """One block of :func:`body_axes`: ``acc_v`` and ``hor`` filled from ``acc`` ``(m, 3)`` and ``grav`` ``(3, m)``;
-    returns where the gravity estimate is usable."""
+def _vertical_block(acc: np.ndarray, grav: np.ndarray, acc_v: np.ndarray, hor: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """One block of :func:`body_axes`: ``acc_v`` and ``hor`` (unless None) filled from ``acc`` ``(m, 3)`` and
+    ``grav`` ``(3, m)``; returns where the gravity estimate is usable."""
     cols = np.ascontiguousarray(acc.T)
     gnorm = np.sqrt(grav[0] ** 2 + grav[1] ** 2 + grav[2] ** 2)
     ok = np.isfinite(gnorm) & (gnorm > 0.2)
@@ -122,8 +123,8 @@ def _vertical_block(acc: np.ndarray, grav: np.ndarray, acc_v: np.ndarray, hor: n
         ghat = grav / gnorm
     dyn = cols[0] * ghat[0] + cols[1] * ghat[1] + cols[2] * ghat[2] - gnorm       # projection minus |g|
     np.multiply(dyn, STANDARD_GRAVITY_M_S2, out=acc_v)
-    # horizontal dynamic acceleration (the vertical part removed)
-    np.subtract(cols - grav, dyn * ghat, out=hor)
+    if hor is not None:    # horizontal dynamic acceleration (the vertical part removed)
+        np.subtract(cols - grav, dyn * ghat, out=hor)
     return ok
 
 

@@ -219,13 +219,18 @@ def foot_flat_candidates(sig: np.ndarray, parameters: EventParameters) -> np.nda
         accepted = prom >= cap
     else:
         accepted = np.zeros(cand.size, bool)
-        amp, have, last = 0.0, False, 0
-        for i, (q, pq) in enumerate(zip(cand.tolist(), prom.tolist())):
+        # the lowest sample from each candidate's predecessor (the start for the first) to it, both included: the
+        # lowest since the last accepted peak is the lowest of these since it (NaN as numpy's min: sticky)
+        lows = (np.minimum(np.minimum.reduceat(sig[:cand[-1] + 1], np.r_[0, cand[:-1]]), sig[cand]).tolist()
+                if cand.size else [])
+        amp, have, low = 0.0, False, float("inf")
+        for i, (h, pq, lo) in enumerate(zip(sig[cand].tolist(), prom.tolist(), lows)):
+            if lo < low or lo != lo:
+                low = lo
             if pq >= prominence_threshold(amp, have, floor, cap, fraction):
                 accepted[i] = True
-                amp = amplitude_update(amp, float(sig[q] - sig[last:q + 1].min()), not have,
-                                       parameters.amplitude_shift)
-                have, last = True, q
+                amp = amplitude_update(amp, h - low, not have, parameters.amplitude_shift)
+                have, low = True, float("inf")
     return cand[accepted & (sig[cand] > 0)].astype(np.int64)
 
 

@@ -86,7 +86,7 @@ def masked_gaussian_lowpass(
             w &= v[lo:hi]
         num = gaussian_smooth(np.where(w, x[lo:hi], 0.0), sigma)[a:b]
         # weight of a full kernel; zeros beyond the ends make the edges look like missing data (as they are)
-        den = gaussian_smooth(w.astype(np.float64), sigma)[a:b]
+        den = (ones_smoothed(w.size, sigma) if w.all() else gaussian_smooth(w.astype(np.float64), sigma))[a:b]
         np.divide(num, den, out=out[lo + a:lo + b], where=den >= min_weight)
     return out
 
@@ -137,6 +137,24 @@ def gaussian_smooth(x: np.ndarray, sigma_samples: float) -> np.ndarray:
     return out
 
 
+def ones_smoothed(n: int, sigma_samples: float) -> np.ndarray:
+    """``gaussian_smooth(np.ones(n), sigma_samples)`` bit for bit, from one kernel's length: every sample a radius
+    or more from both ends sums the same terms in the same order (one value), and an edge sample's terms are its
+    mirror's (``1 + 0`` and ``0 + 1`` are the same number).
+
+    >>> bool(np.array_equal(ones_smoothed(50, 2.65), gaussian_smooth(np.ones(50), 2.65)))
+    True
+    """
+    radius = int(TRUNCATE_SIGMAS * float(sigma_samples) + 0.5)
+    if n <= 2 * radius + 1:
+        return gaussian_smooth(np.ones(n), sigma_samples)
+    edge = gaussian_smooth(np.ones(2 * radius + 1), sigma_samples)
+    out = np.full(n, edge[radius])
+    out[:radius] = edge[:radius]
+    out[n - radius:] = edge[radius + 1:]
+    return out
+
+
 def masked_moving_mean(x: np.ndarray, valid: np.ndarray | None, *, window: int) -> np.ndarray:
     """Centred moving mean over ``window`` samples using only measured samples (NaN where none).
 
@@ -165,24 +183,28 @@ def masked_moving_mean(x: np.ndarray, valid: np.ndarray | None, *, window: int) 
     out = np.full(n, np.nan)
     for lo, hi, _, _ in halo_blocks(n, 0):
         a = lo - window // 2                              # the window of sample i is [i + a - lo, ... + window)
-        num = _shifted(cx, a + window, hi - lo) - _shifted(cx, a, hi - lo)
-        den = _shifted(cw, a + window, hi - lo) - _shifted(cw, a, hi - lo)
+        num = shifted(cx, a + window, hi - lo) - shifted(cx, a, hi - lo)
+        den = shifted(cw, a + window, hi - lo) - shifted(cw, a, hi - lo)
         np.divide(num, den, out=out[lo:hi], where=den > 0)
     return out
 
 
-def _shifted(c: np.ndarray, start: int, m: int) -> np.ndarray:
-    """``c[clip(start + arange(m), 0, c.size - 1)]`` from slices.
+def shifted(c: np.ndarray, start: int, m: int) -> np.ndarray:
+    """``c[..., clip(start + arange(m), 0, n - 1)]`` (``n = c.shape[-1]``) from slices: a view where no index is
+    clipped, else a copy.
 
-    >>> _shifted(np.arange(4), -2, 8).tolist()
+    >>> shifted(np.arange(4), -2, 8).tolist()
     [0, 0, 0, 1, 2, 3, 3, 3]
+    >>> shifted(np.arange(8).reshape(2, 4), 2, 3).tolist()
+    [[2, 3, 3], [6, 7, 7]]
     """
+    n = c.shape[-1]
     lead = min(max(-start, 0), m)                  # indices below 0
-    trail = min(max(start + m - c.size, 0), m - lead)   # indices above the last
+    trail = min(max(start + m - n, 0), m - lead)   # indices above the last
     if not lead and not trail:
-        return c[start:start + m]
-    out = np.empty(m, c.dtype)
-    out[:lead] = c[0]
-    out[m - trail:] = c[-1]
-    out[lead:m - trail] = c[start + lead:start + m - trail]
+        return c[..., start:start + m]
+    out = np.empty(c.shape[:-1] + (m,), c.dtype)
+    out[..., :lead] = c[..., :1]
+    out[..., m - trail:] = c[..., n - 1:]
+    out[..., lead:m - trail] = c[..., start + lead:start + m - trail]
     return out

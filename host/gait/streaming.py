@@ -37,7 +37,7 @@ from gaitlog.firmware_sim.algorithms.steps import StepTable
 from gaitlog.host.gait.axes import _vertical_block
 from gaitlog.host.gait.events import GaitEventDetector, curve_foot_flats, heel_strikes_toe_offs, link_steps
 from gaitlog.host.gait.gaps import MAX_INTERPOLATED_GAP_S, GapFiller, missing_runs
-from gaitlog.host.gait.masked_filter import TRUNCATE_SIGMAS, gaussian_sigma_s, masked_gaussian_lowpass
+from gaitlog.host.gait.masked_filter import TRUNCATE_SIGMAS, gaussian_sigma_s, masked_gaussian_lowpass, shifted
 from gaitlog.host.gait.pipeline import impossible_note, step_table
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -271,7 +271,7 @@ class StreamingStepPipeline:
         self._base = 0
         self._avail = 0
         self._done = 0                                            # samples computed
-        self._carry = (0, np.zeros(3), np.zeros(3, np.int64))     # cumulative sums at a sample
+        self._carry = (0, np.zeros(3), np.int64(0))               # cumulative sums (and count) at a sample
         self._kept = _Spill()
         self._points = TurningPoints()
         self._curve = _DrawnCurve(self._points)
@@ -328,25 +328,26 @@ class StreamingStepPipeline:
         filled = GapFiller(max_gap_s=self.max_fill_s).fill(acc, ok, sampling_rate_hz=self.rate)
         x, v = filled.acc_, filled.valid_
         v = v & np.isfinite(x[:, 0]) & np.isfinite(x[:, 1]) & np.isfinite(x[:, 2])
-        # cumulative sums over [q, c_hi], the carried sums first
+        # cumulative sums over [q, c_hi], the carried sums first; a sample counts where measured (v: finite on
+        # every axis), so the three axes' counts are one
+        wk = v[q - seg_lo:c_hi - seg_lo]
         cx = np.empty((3, c_hi - q + 1))
-        cw = np.empty((3, c_hi - q + 1), np.int64)
         for k in range(3):
-            wk = np.isfinite(x[q - seg_lo:c_hi - seg_lo, k]) & v[q - seg_lo:c_hi - seg_lo]
             np.cumsum(np.r_[self._carry[1][k], np.where(wk, x[q - seg_lo:c_hi - seg_lo, k], 0.0)], out=cx[k])
-            np.cumsum(np.r_[self._carry[2][k], wk], out=cw[k])
-        i = np.arange(av_lo, av_hi)
-        top = np.minimum(i - half + w, end) - q
-        bottom = np.maximum(i - half, 0) - q
-        num, den = cx[:, top] - cx[:, bottom], cw[:, top] - cw[:, bottom]
+        cw = np.cumsum(np.r_[self._carry[2], wk])
+        # the window of sample i is [i - half, i - half + w) within the recording: columns from slices (never
+        # below q, the carried sums' sample)
+        m = av_hi - av_lo
+        num = shifted(cx, av_lo - half + w - q, m) - shifted(cx, av_lo - half - q, m)
+        den = shifted(cw, av_lo - half + w - q, m) - shifted(cw, av_lo - half - q, m)
         grav = np.full(num.shape, np.nan)
         np.divide(num, den, out=grav, where=den > 0)
         nq = max(0, e - r - half)
-        self._carry = (nq, cx[:, nq - q].copy(), cw[:, nq - q].copy())
+        self._carry = (nq, cx[:, nq - q].copy(), cw[nq - q])
         rows = x[av_lo - seg_lo:av_hi - seg_lo]
         good = v[av_lo - seg_lo:av_hi - seg_lo].copy()
-        av = np.empty(i.size)
-        good &= _vertical_block(rows, grav, av, np.empty((3, i.size)))
+        av = np.empty(m)
+        good &= _vertical_block(rows, grav, av)
         av[~good] = np.nan
         good &= np.isfinite(av)
         p, mw = self.detector.parameters, self.detector.min_weight

@@ -4,7 +4,9 @@
 (:class:`gaitlog.host.gait.streaming.StreamingStepPipeline`: the whole-array results bit for bit) and the logger's
 on-line algorithm in fixed point on the codes (fed a block at a time), and returns an :class:`EstimateResult`: the
 tables, the per-estimator summary, the notes for the user and the JSON document of ``--json``. Its
-:meth:`~EstimateResult.write` writes the tables' CSVs a block of rows at a time, both or neither.
+:meth:`~EstimateResult.write` writes the tables' CSVs a block of rows at a time, both or neither. With both
+arithmetics the fixed-point chain runs in a worker thread beside the float chain (the on-line kernel releases the
+GIL): on two free CPUs the time of the longer chain, not of both.
 
 Beside the step table's own columns, the CSV says where the leg and foot length came from (``lengths_source``:
 :data:`gaitlog.host.gait.anthropometry.LENGTH_SOURCES`) and, with a K file, which of the step's quantities lie
@@ -14,6 +16,7 @@ outside the range K was calibrated on (``outside_k_range``: names from
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +24,8 @@ from typing import Any
 import numpy as np
 
 from gaitlog.atomic_write import atomic_write
+from gaitlog.firmware_sim.algorithms.aot_kernel import entry_points
+from gaitlog.firmware_sim.algorithms.online import load_kernels
 from gaitlog.firmware_sim.algorithms.steps import ESTIMATORS, StepTable, columns_csv_text, distinct, nan_median
 from gaitlog.host.accelerometer.calibration import AccCalibration
 from gaitlog.host.errors import HostError
@@ -150,10 +155,13 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
     tables: dict[str, StepTable] = {}
     report = ""
     fixed = None
-    if arithmetic in ("fixed", "both"):     # first: its transient memory is the larger, before any table is held
+    if arithmetic == "both":
+        (fixed, report), (tables["float"], chain_notes) = _both_chains(data, adc_calibration_file, lengths, k)
+        notes += chain_notes
+    elif arithmetic == "fixed":
         fixed, report = fixed_steps(data, adc_calibration_file, lengths, k)
         give_back_memory()
-    if arithmetic in ("float", "both"):
+    else:
         tables["float"], chain_notes = float_steps(data, lengths, k)
         notes += chain_notes
     if fixed is not None:
@@ -161,6 +169,39 @@ def estimate_recording(data: AccelerationInput, *, arithmetic: str, lengths: Ana
     summary = summarise(tables, k)
     notes += _k_notes(summary)
     return EstimateResult(data, lengths, k, tables, report, summary, input_losses(data), notes)
+
+
+def _both_chains(data: AccelerationInput, calibration_file: str | None, lengths: AnatomyChoice, k: KFit | None
+                 ) -> tuple[tuple[StepTable, str], tuple[StepTable, list[str]]]:
+    """:func:`fixed_steps` in a worker thread beside :func:`float_steps` in this one: the on-line kernel releases
+    the GIL while it runs (:mod:`gaitlog.firmware_sim.algorithms.aot_kernel`), so the two chains share the time of
+    the longer. The same results as one after the other, and the same error first: the fixed chain's. The kernel
+    is loaded (or built) here first, numba's JIT compiled (or loaded from its cache) when it runs instead, so that
+    the thread only runs it."""
+    if entry_points("fixed")[1] != "aot":
+        load_kernels(("fixed",))
+    done: dict[str, Any] = {}
+
+    def run_fixed() -> None:
+        try:
+            done["fixed"] = fixed_steps(data, calibration_file, lengths, k)
+        except BaseException as exc:  # noqa: BLE001 - raised in the caller's thread, below
+            done["error"] = exc
+
+    worker = threading.Thread(target=run_fixed, name="gaitlog estimate: fixed point")
+    worker.start()
+    try:
+        floated = float_steps(data, lengths, k)
+    except BaseException:
+        worker.join()
+        if "error" in done:
+            raise done["error"] from None
+        raise
+    worker.join()
+    if "error" in done:
+        raise done["error"]
+    give_back_memory()
+    return done["fixed"], floated
 
 
 def float_steps(data: AccelerationInput, lengths: AnatomyChoice, k: KFit | None,

@@ -9,6 +9,7 @@ import os
 import pickle
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -178,6 +179,43 @@ def test_aot_kernel_equals_the_jit_bit_for_bit(simulated_walk: tuple, arithmetic
             assert np.array_equal(getattr(aot.steps, f), getattr(jit.steps, f)), f
         for f in ("_st_i", "_st_v", "_line", "_durs", "_scr", "_cnt", "_cyc"):
             assert np.array_equal(getattr(aot, f), getattr(jit, f)), f
+
+
+@pytest.mark.parametrize("compiled_by", ["aot", "jit"])
+def test_the_kernel_releases_the_gil_while_it_runs(simulated_walk: tuple, compiled_by: str,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Python runs in this thread while another is inside the kernel's call: this thread's loop runs in the middle
+    half of the call (with the GIL held through the call it runs only at its ends, at a switch of the GIL just
+    before the call or just after: measured 0 times in the middle half)."""
+    if compiled_by == "aot":
+        _aot_or_skip()
+    else:
+        monkeypatch.setitem(aot_kernel._ENTRY_POINTS, "fixed", (tuple(
+            aot_kernel.EntryPoint(n, "fixed", getattr(kernel, n)) for n in aot_kernel.ENTRY_POINTS), "jit"))
+    codes = np.ascontiguousarray(np.concatenate([simulated_walk[0]] * 3), dtype=np.int64)
+    alg = OnlineStepAlgorithm(sampling_rate_hz=50.0, step_config=STEP_CONFIG)
+    assert alg.compiled_by == compiled_by
+    alg.run(codes[:64])                                  # compiled (the JIT) here, not in the call timed below
+    out_i, out_v = alg._outputs(codes.shape[0])
+    c = alg.config
+    args = (codes, c.cfg_i, c.cfg_v, alg._st_i, alg._st_v, alg._line, alg._durs, alg._scr, out_i, out_v, 0,
+            alg._cnt, alg._cyc)
+    span: list[float] = []
+
+    def work() -> None:
+        span.append(time.perf_counter())
+        alg._process(*args)
+        span.append(time.perf_counter())
+
+    worker = threading.Thread(target=work)
+    seen: list[float] = []
+    worker.start()
+    while worker.is_alive():
+        seen.append(time.perf_counter())
+    worker.join()
+    d = span[1] - span[0]
+    assert d > 0.02                                      # a long call: 3 walks, ~50 ms
+    assert any(span[0] + d / 4 < t < span[1] - d / 4 for t in seen)
 
 
 def test_estimate_loads_the_aot_kernel_without_numba(tmp_path: Path) -> None:

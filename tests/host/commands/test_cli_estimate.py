@@ -249,3 +249,29 @@ def test_estimate_both_csvs_are_the_library_tables_byte_for_byte(tmp_path, capsy
         expected = columns_csv_text({**table.columns(), "lengths_source": ["height"] * table.n_steps,
                                      "outside_k_range": [""] * table.n_steps})
         assert path.read_bytes() == expected.encode("utf-8")
+
+
+def test_estimate_both_reports_the_fixed_chains_error_first(tmp_path, capsys, monkeypatch) -> None:
+    """``--arithmetic both`` runs the fixed-point chain in a thread beside the float chain: an error is reported as
+    when they ran one after the other (the fixed chain's first), exit 1, no table written."""
+    from gaitlog.host.errors import HostError
+    from gaitlog.host.studies import estimate
+
+    def failing(which: str):
+        def fail(*args, **kwargs):
+            raise HostError(f"the {which} chain failed")
+        return fail
+
+    acc, _ = walk_acc_g()
+    inp = tmp_path / "walk.npz"
+    write_npz(inp, acc)
+    out = tmp_path / "steps.csv"
+    for broken, message in ((("fixed", "float"), "the fixed chain failed"), (("float",), "the float chain failed"),
+                            (("fixed",), "the fixed chain failed")):
+        with monkeypatch.context() as m:
+            for which in broken:
+                m.setattr(estimate, f"{which}_steps", failing(which))
+            assert main(["estimate", str(inp), "--arithmetic", "both", "--height", "1.75", "--out", str(out)]) == 1
+        captured = capsys.readouterr()
+        assert message in captured.err and "chain failed" not in captured.err.replace(message, "")
+        assert not out.exists() and not (tmp_path / "steps_fixed.csv").exists()
