@@ -9,8 +9,9 @@ point. numba compiles it once per arithmetic (``cache=True``); with ``NUMBA_DISA
 runs in CPython (a test checks that both give the same records, bit for bit). Compiled without numba's runtime
 (``nrt=False``: no reference counting of the arrays passed from function to function, which took 40 % of the
 kernel's time), except :func:`_median_twice`, which allocates. Its ring indices wrap by a comparison (the delay
-line, a FIR's taps) or a mask (the scratch ring and ``CI_FLUSH``: powers of two, dividing 2^16): the indices of
-Python's ``%``, without an integer division per tap (which took half of the kernel's time).
+line, a FIR's taps, the integrals' walk along the scratch ring; a ring of any size) or a mask (``CI_FLUSH``, a
+power of two): the indices of Python's ``%``, without an integer division per tap or per integrated sample
+(which took half of the kernel's time).
 
 Per sample ``n`` (codes ``c``), after Alvarez et al. (2006):
 
@@ -343,7 +344,7 @@ def _fir_scratch(scr, j, cfg_i, cfg_v, w0, r, cnt):  # pragma: no cover - compil
     """The FIR of weights ``w0`` (radius ``r``) at sample ``j``, on a_v read back from the scratch ring (one
     sequential read of its ``2 r + 1`` samples; the newest are still in the delay line: counted as read too)."""
     _read_cost(cnt, 2 * r + 1, SCRATCH_SAMPLE_BYTES)
-    return _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
+    return _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, w0, r, cnt)
 
 
 @njit(cache=True, nrt=False)
@@ -351,8 +352,8 @@ def _band(scr, j, cfg_i, cfg_v, cnt):  # pragma: no cover - compiled
     """The impact band ``d10 - d5`` at sample ``j`` (Q2.16): both filters on one read of the ring, the window
     of the larger radius (as the step record reads it, step_record.asm)."""
     _read_cost(cnt, 2 * max(cfg_i[CI_R10], cfg_i[CI_R5]) + 1, SCRATCH_SAMPLE_BYTES)
-    d10 = _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
-    return ar.sub(d10, _fir(scr, j & (cfg_i[CI_SCRATCH] - 1), cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5],
+    d10 = _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W10], cfg_i[CI_R10], cnt)
+    return ar.sub(d10, _fir(scr, j % cfg_i[CI_SCRATCH], cfg_i[CI_SCRATCH], cfg_v, cfg_i[CI_W5], cfg_i[CI_R5],
                             cnt),
                   W_LP, cnt)
 
@@ -428,8 +429,11 @@ def _pass1(s, e, cfg_i, scr, cnt):  # pragma: no cover - compiled
     pos = vel
     p_max = vel
     p_min = vel
+    prev = s % size                              # the ring's index of sample j - 1, wrapped by a comparison
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j & (size - 1)], scr[(j - 1) & (size - 1)], W_VEL, cnt), W_VEL, cnt)
+        cur = prev + 1 if prev + 1 < size else 0
+        v_new = ar.add(vel, ar.add(scr[cur], scr[prev], W_VEL, cnt), W_VEL, cnt)
+        prev = cur
         pos = ar.add(pos, ar.add(v_new, vel, W_POS, cnt), W_POS, cnt)
         vel = v_new
         s_cost(cnt, OP_CMP32, 2)
@@ -461,8 +465,11 @@ def _pass2(s, e, to, hs3, c1, c2, cfg_i, scr, cnt):  # pragma: no cover - compil
     ramp = ar.scale2(c1, 1, W_POS2, cnt)
     ramp_step = ar.scale2(c1, 2, W_POS2, cnt)
     seen = False
+    prev = s % size                              # the ring's index of sample j - 1, wrapped by a comparison
     for j in range(s + 1, s + since(e, s) + 1):
-        v_new = ar.add(vel, ar.add(scr[j & (size - 1)], scr[(j - 1) & (size - 1)], W_VEL, cnt), W_VEL, cnt)
+        cur = prev + 1 if prev + 1 < size else 0
+        v_new = ar.add(vel, ar.add(scr[cur], scr[prev], W_VEL, cnt), W_VEL, cnt)
+        prev = cur
         dp = ar.requant(ar.add(v_new, vel, W_POS, cnt), F_POS, F_POS2, W_POS2, cnt)
         vel = v_new
         q = ar.add(q, ar.add(ar.sub(dp, c2, W_POS2, cnt), ramp, W_POS2, cnt), W_POS2, cnt)
@@ -701,7 +708,7 @@ def _front(cx, cy, cz, cfg_i, cfg_v, st_i, st_v, line, scr, cnt):  # pragma: no 
     # 4. delay line; every CI_FLUSH samples its newest CI_FLUSH a_v go to the scratch ring as one page write
     line[st_i[LINE_POS]] = av
     st_i[LINE_POS] = st_i[LINE_POS] + 1 if st_i[LINE_POS] < 2 * r3 else 0
-    scr[n & (cfg_i[CI_SCRATCH] - 1)] = av
+    scr[n % cfg_i[CI_SCRATCH]] = av
     if (n + 1) & (cfg_i[CI_FLUSH] - 1) == 0:
         s_cost(cnt, OP_I2C, SCRATCH_SAMPLE_BYTES * cfg_i[CI_FLUSH] + I2C_WRITE_OVERHEAD)
     st_i[N] = (n + 1) & INDEX_MASK
