@@ -18,7 +18,7 @@ import sys as _sys
 from importlib.machinery import PathFinder as _PathFinder
 
 #: The distribution's version (pyproject.toml reads it from here).
-__version__ = "0.6.0"
+__version__ = "0.6.1"
 
 _SUBPACKAGES = ("protocol", "firmware_sim", "host")
 
