@@ -1611,7 +1611,7 @@ def format_tuning(result: IpolResult) -> str:
     loso = result.loso.chosen
     if not loso or not result.candidates:
         return ""
-    lines = [f"constants tuned on IPOL, chosen leave-one-subject-out ({len(result.candidates)} candidates; "
+    lines = [f"constants tuned on these recordings, chosen leave-one-subject-out ({len(result.candidates)} candidates; "
              f"criterion: {CRITERION}; step-counting constants: {COUNT_CRITERION}):"]
     for p in TUNED_PARAMETERS:
         if p.criterion == "k-transfer":
