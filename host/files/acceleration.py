@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from gaitlog.host.files.ipol import IpolTrial
 
 __all__ = ["UNITS", "AccelerationInput", "check_rate", "checked_options", "from_recording", "input_losses", "ipol_named",
-           "is_npz", "only_csv", "parse_columns", "read_npz", "starts_zip"]
+           "is_npz", "npz_input", "only_csv", "parse_columns", "read_npz", "starts_zip"]
 
 #: Units of acceleration columns a user can name (``--units``).
 UNITS = ("g", "m/s2", "counts")
@@ -140,10 +140,17 @@ def read_npz(path: str | Path, *, sampling_rate_hz: float | None = None,
     :func:`is_npz` accepts; the parameters, result, warnings and errors are that function's)."""
     p = Path(path)
     cols, cal = checked_options(sampling_rate_hz, columns, units, calibration, skip_rows)
-    only_csv(p, cols, units, skip_rows)
-    data = from_recording(Recording.load(p), p, sampling_rate_hz, cal, arrays)
+    data = npz_input(p, cols, units, skip_rows, sampling_rate_hz, cal, arrays)
     say_losses(input_losses(data))
     return data
+
+
+def npz_input(p: Path, cols: list[str | int] | None, units: str | None, skip_rows: int, rate: float | None,
+              cal: AccCalibration | None, arrays: bool = True) -> AccelerationInput:
+    """The :class:`AccelerationInput` of the decoded recording ``.npz`` ``p`` (its options checked by
+    :func:`checked_options`; no CSV-only option given), its losses not yet said."""
+    only_csv(p, cols, units, skip_rows)
+    return from_recording(Recording.load(p), p, rate, cal, arrays)
 
 
 def is_npz(path: str | Path) -> bool:

@@ -46,6 +46,7 @@ from gaitlog.host.files.acceleration import (
     from_recording,
     input_losses,
     ipol_named,
+    npz_input,
     only_csv,
     starts_zip,
 )
@@ -59,7 +60,6 @@ from gaitlog.host.storage.limits import (
     grid_limit,
 )
 from gaitlog.host.files.losses import say_losses
-from gaitlog.host.files.recording import Recording
 from gaitlog.protocol.errors import ProtocolError
 from gaitlog.protocol.image import detect_format
 from gaitlog.protocol.packing import FLAG_MARK
@@ -134,8 +134,7 @@ def _read(p: Path, sampling_rate_hz: float | None, columns, units: str | None,
     if not p.is_file():
         raise HostError(f"{p}: no such file")
     if starts_zip(p):                              # an NPZ: judged by its arrays, read from the file (not whole)
-        only_csv(p, cols, units, skip_rows)
-        return from_recording(Recording.load(p), p, sampling_rate_hz, cal, arrays)
+        return npz_input(p, cols, units, skip_rows, sampling_rate_hz, cal, arrays)
     large = _large_text(p)
     if large is not None:
         if large.lstrip().lower().startswith("acquisition frequency"):
